@@ -1,0 +1,118 @@
+// `glimmer describe [--json]`: the DSO's closures and their parameter schemas.
+// The JSON form is the one source the XML loader, docs and the Blender addon
+// read parameters from.
+#include <cstdio>
+#include <iostream>
+#include <nlohmann/json.hpp>
+
+#include "cli/commands.h"
+#include "host/closure_instance.h"
+
+namespace glimmer::cli {
+
+namespace {
+
+std::vector<std::string> enum_choices(const char *choices) {
+  std::vector<std::string> out;
+  if (!choices) return out;
+  std::string cur;
+  for (const char *c = choices; *c; ++c) {
+    if (*c == '|') { out.push_back(cur); cur.clear(); } else { cur += *c; }
+  }
+  out.push_back(cur);
+  return out;
+}
+
+nlohmann::json describe_param(const GlimmerParamSpec &p) {
+  nlohmann::json j;
+  j["name"] = p.name;
+  j["type"] = host::param_type_name(p.type);
+  j["doc"] = p.doc ? p.doc : "";
+  switch (p.type) {
+    case GLIMMER_PARAM_COLOR:
+    case GLIMMER_PARAM_VECTOR:
+      j["default"] = {p.default_value[0], p.default_value[1], p.default_value[2]};
+      j["min"] = p.min_value;
+      j["max"] = p.max_value;
+      break;
+    case GLIMMER_PARAM_ENUM:
+      j["default"] = p.default_string ? p.default_string : "";
+      j["choices"] = enum_choices(p.enum_choices);
+      break;
+    case GLIMMER_PARAM_STRING:
+      j["default"] = p.default_string ? p.default_string : "";
+      break;
+    case GLIMMER_PARAM_BOOL:
+      j["default"] = p.default_value[0] != 0.0f;
+      break;
+    case GLIMMER_PARAM_INT:
+      j["default"] = static_cast<int>(p.default_value[0]);
+      j["min"] = p.min_value;
+      j["max"] = p.max_value;
+      break;
+    case GLIMMER_PARAM_FLOAT:
+      j["default"] = p.default_value[0];
+      j["min"] = p.min_value;
+      j["max"] = p.max_value;
+      break;
+  }
+  return j;
+}
+
+nlohmann::json flags_json(uint32_t flags) {
+  nlohmann::json f = nlohmann::json::array();
+  const std::pair<uint32_t, const char *> names[] = {
+      {GLIMMER_CLOSURE_EMISSIVE, "emissive"},          {GLIMMER_CLOSURE_SINGULAR, "singular"},
+      {GLIMMER_CLOSURE_TRANSMISSIVE, "transmissive"},  {GLIMMER_CLOSURE_NEEDS_TRACE, "needs_trace"},
+      {GLIMMER_CLOSURE_NEEDS_ENVIRONMENT, "needs_environment"},
+      {GLIMMER_CLOSURE_STOCHASTIC_EVAL, "stochastic_eval"}, {GLIMMER_CLOSURE_REFERENCE, "reference"}};
+  for (const auto &[bit, name] : names)
+    if (flags & bit) f.push_back(name);
+  return f;
+}
+
+}  // namespace
+
+void add_describe_command(CLI::App &app, CliContext &ctx) {
+  auto *cmd = app.add_subcommand("describe", "list the plugin's closures and their parameters");
+  auto json = std::make_shared<bool>(false);
+  cmd->add_flag("--json", *json, "machine-readable output");
+  cmd->callback([&ctx, json] {
+    auto &plugin = ctx.plugin();
+    const auto &info = plugin.info();
+    if (*json) {
+      nlohmann::json out;
+      out["plugin"] = {{"name", info.plugin_name},
+                       {"version", info.plugin_version},
+                       {"abi_version", info.abi_version},
+                       {"path", plugin.path()}};
+      out["closures"] = nlohmann::json::array();
+      for (const auto *t : plugin.closures()) {
+        nlohmann::json c;
+        c["name"] = t->name;
+        c["doc"] = t->doc ? t->doc : "";
+        c["flags"] = flags_json(t->flags);
+        c["params"] = nlohmann::json::array();
+        for (uint32_t i = 0; i < t->param_count; ++i) c["params"].push_back(describe_param(t->params[i]));
+        out["closures"].push_back(c);
+      }
+      std::cout << out.dump(2) << "\n";
+      return;
+    }
+    std::cout << info.plugin_name << " " << info.plugin_version << " (ABI " << info.abi_version << ") from "
+              << plugin.path() << "\n";
+    for (const auto *t : plugin.closures()) {
+      std::cout << "\n" << t->name << ": " << (t->doc ? t->doc : "") << "\n";
+      for (uint32_t i = 0; i < t->param_count; ++i) {
+        const auto j = describe_param(t->params[i]);
+        std::cout << "  " << t->params[i].name << " (" << j["type"].get<std::string>() << ", default "
+                  << j["default"].dump();
+        if (j.contains("min")) std::cout << ", range [" << j["min"].dump() << ", " << j["max"].dump() << "]";
+        if (j.contains("choices")) std::cout << ", one of " << j["choices"].dump();
+        std::cout << "): " << (t->params[i].doc ? t->params[i].doc : "") << "\n";
+      }
+    }
+  });
+}
+
+}  // namespace glimmer::cli

@@ -1,0 +1,36 @@
+// glimmer: the command-line host. Sub-commands are in cli/command_*.cpp.
+#include <cstdio>
+#include <exception>
+
+#include "cli/commands.h"
+#include "host/closure_instance.h"
+
+int main(int argc, char **argv) {
+  using namespace glimmer;
+  CLI::App app{"Glimmer: glint and rough-refraction closures in a Cycles-style path tracer"};
+  app.require_subcommand(1);
+  cli::CliContext ctx;
+  app.add_option("--plugin", ctx.plugin_path, "path of libglimmer_closures.so (or its folder)");
+
+  cli::add_describe_command(app, ctx);
+  cli::add_lab_command(app, ctx);
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError &e) {
+    return app.exit(e);
+  } catch (const host::PluginError &e) {
+    std::fprintf(stderr, "glimmer: error: %s\n", e.what());
+    return cli::kExitPlugin;
+  } catch (const cli::CliError &e) {
+    std::fprintf(stderr, "glimmer: error: %s\n", e.what());
+    return e.code();
+  } catch (const host::ClosureError &e) {
+    std::fprintf(stderr, "glimmer: error: %s\n", e.what());
+    return cli::kExitBadInput;
+  } catch (const std::exception &e) {
+    std::fprintf(stderr, "glimmer: error: %s\n", e.what());
+    return cli::kExitBadInput;
+  }
+  return ctx.exit_code;
+}

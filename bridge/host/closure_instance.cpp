@@ -1,0 +1,190 @@
+#include "host/closure_instance.h"
+
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <sstream>
+
+namespace glimmer::host {
+
+const char *param_type_name(GlimmerParamType type) {
+  switch (type) {
+    case GLIMMER_PARAM_FLOAT: return "float";
+    case GLIMMER_PARAM_INT: return "int";
+    case GLIMMER_PARAM_BOOL: return "bool";
+    case GLIMMER_PARAM_COLOR: return "color";
+    case GLIMMER_PARAM_VECTOR: return "vector";
+    case GLIMMER_PARAM_ENUM: return "enum";
+    case GLIMMER_PARAM_STRING: return "string";
+  }
+  return "unknown";
+}
+
+const GlimmerParamSpec *find_param(const GlimmerClosureType &type, const std::string &name) {
+  for (uint32_t i = 0; i < type.param_count; ++i)
+    if (name == type.params[i].name) return &type.params[i];
+  return nullptr;
+}
+
+namespace {
+
+std::vector<float> parse_numbers(const std::string &closure, const std::string &name, const std::string &text) {
+  std::string t = text;
+  for (char &c : t)
+    if (c == ',') c = ' ';
+  std::istringstream in(t);
+  std::vector<float> out;
+  std::string token;
+  while (in >> token) {
+    if (token == "true") { out.push_back(1.0f); continue; }
+    if (token == "false") { out.push_back(0.0f); continue; }
+    char *end = nullptr;
+    const float v = std::strtof(token.c_str(), &end);
+    if (end == token.c_str() || *end != '\0')
+      throw ClosureError(closure + ": parameter '" + name + "': '" + text + "' is not a number");
+    out.push_back(v);
+  }
+  return out;
+}
+
+}  // namespace
+
+void ParamList::set_from_text(const GlimmerClosureType &type, const std::string &name, const std::string &text) {
+  const GlimmerParamSpec *spec = find_param(type, name);
+  if (spec == nullptr) {
+    std::string known;
+    for (uint32_t i = 0; i < type.param_count; ++i) known += (i ? ", " : "") + std::string(type.params[i].name);
+    throw ClosureError(std::string(type.name) + ": unknown parameter '" + name + "' (known: " + known + ")");
+  }
+  if (spec->type == GLIMMER_PARAM_ENUM || spec->type == GLIMMER_PARAM_STRING) {
+    set_string(name, text);
+    return;
+  }
+  const auto numbers = parse_numbers(type.name, name, text);
+  const size_t want = (spec->type == GLIMMER_PARAM_COLOR || spec->type == GLIMMER_PARAM_VECTOR) ? 3 : 1;
+  if (numbers.size() == 1 && want == 3) {
+    set_number(name, numbers[0], numbers[0], numbers[0]);
+  } else if (numbers.size() == want) {
+    set_number(name, numbers[0], want == 3 ? numbers[1] : 0.0f, want == 3 ? numbers[2] : 0.0f);
+  } else {
+    throw ClosureError(std::string(type.name) + ": parameter '" + name + "' (" + param_type_name(spec->type) +
+                       ") expects " + std::to_string(want) + " number(s), got '" + text + "'");
+  }
+}
+
+void ParamList::set_number(const std::string &name, float v0, float v1, float v2) {
+  Entry &e = entries_[name];
+  e.value[0] = v0;
+  e.value[1] = v1;
+  e.value[2] = v2;
+  e.is_string = false;
+}
+
+void ParamList::set_string(const std::string &name, const std::string &value) {
+  Entry &e = entries_[name];
+  e.string = value;
+  e.is_string = true;
+}
+
+void ParamList::set_assignment(const GlimmerClosureType &type, const std::string &assignment) {
+  const auto eq = assignment.find('=');
+  if (eq == std::string::npos || eq == 0)
+    throw ClosureError("parameter '" + assignment + "' must be written name=value");
+  set_from_text(type, assignment.substr(0, eq), assignment.substr(eq + 1));
+}
+
+std::vector<GlimmerParamValue> ParamList::values() const {
+  std::vector<GlimmerParamValue> out;
+  for (const auto &[name, e] : entries_) {
+    GlimmerParamValue v{};
+    v.name = name.c_str();
+    v.value[0] = e.value[0];
+    v.value[1] = e.value[1];
+    v.value[2] = e.value[2];
+    v.string = e.is_string ? e.string.c_str() : nullptr;
+    out.push_back(v);
+  }
+  return out;
+}
+
+namespace {
+
+void log_to_stderr(void *, int level, const char *message) {
+  static const char *names[] = {"debug", "info", "warning", "error"};
+  const int l = level < 0 ? 0 : (level > 3 ? 3 : level);
+  if (l == GLIMMER_LOG_DEBUG && std::getenv("GLIMMER_DEBUG") == nullptr) return;
+  std::fprintf(stderr, "glimmer: %s: %s\n", names[l], message);
+}
+
+std::string default_cache_dir() {
+  if (const char *d = std::getenv("GLIMMER_CACHE_DIR"); d && *d) return d;
+  if (const char *x = std::getenv("XDG_CACHE_HOME"); x && *x) return std::string(x) + "/glimmer";
+  if (const char *h = std::getenv("HOME"); h && *h) return std::string(h) + "/.cache/glimmer";
+  return (std::filesystem::temp_directory_path() / "glimmer-cache").string();
+}
+
+}  // namespace
+
+const GlimmerHostServices *default_host_services() {
+  static const std::string cache_dir = default_cache_dir();
+  static const GlimmerHostServices services = [] {
+    GlimmerHostServices s{};
+    s.abi_version = GLIMMER_ABI_VERSION;
+    s.host_data = nullptr;
+    s.trace_ray = nullptr;
+    s.environment_lookup = nullptr;
+    s.log = &log_to_stderr;
+    s.resolve_asset = nullptr;
+    s.cache_dir = cache_dir.c_str();
+    return s;
+  }();
+  return &services;
+}
+
+ClosureInstance::ClosureInstance(const GlimmerClosureType &type, const ParamList &params,
+                                 const GlimmerHostServices *host)
+    : type_(type) {
+  const auto values = params.values();
+  char error[1024] = {0};
+  if (!type.create(values.data(), static_cast<uint32_t>(values.size()), host, &instance_, error, sizeof(error)) ||
+      instance_ == nullptr)
+    throw ClosureError(error[0] ? error : (std::string(type.name) + ": create failed"));
+  if (type.prepare != nullptr && !type.prepare(instance_, host, error, sizeof(error))) {
+    type.destroy(instance_);
+    instance_ = nullptr;
+    throw ClosureError(std::string(type.name) + ": prepare failed: " + error);
+  }
+}
+
+ClosureInstance::~ClosureInstance() {
+  if (instance_ != nullptr) type_.destroy(instance_);
+}
+
+Spectrum ClosureInstance::albedo(const GlimmerShadingContext &ctx) const {
+  if (type_.albedo == nullptr) return Spectrum(1.0f);
+  float rgb[3];
+  type_.albedo(instance_, &ctx, rgb);
+  return {rgb[0], rgb[1], rgb[2]};
+}
+
+Spectrum ClosureInstance::emit(const GlimmerShadingContext &ctx) const {
+  if (type_.emit == nullptr) return Spectrum(0.0f);
+  float rgb[3];
+  type_.emit(instance_, &ctx, rgb);
+  return {rgb[0], rgb[1], rgb[2]};
+}
+
+GlimmerShadingContext make_local_context(const Vec3 &wi, const GlimmerHostServices *host) {
+  GlimmerShadingContext ctx{};
+  ctx.wi = normalize(wi);
+  ctx.P = Vec3(0.0f);
+  ctx.N = Vec3(0, 0, 1);
+  ctx.Ng = Vec3(0, 0, 1);
+  ctx.T = Vec3(1, 0, 0);
+  ctx.dPdu = Vec3(1, 0, 0);
+  ctx.dPdv = Vec3(0, 1, 0);
+  ctx.host = host;
+  return ctx;
+}
+
+}  // namespace glimmer::host

@@ -1,0 +1,97 @@
+#include "host/plugin_library.h"
+
+#include <dlfcn.h>
+#include <unistd.h>
+
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <sstream>
+
+namespace glimmer::host {
+
+namespace fs = std::filesystem;
+
+std::string executable_directory() {
+  std::error_code ec;
+  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  return ec ? std::string() : exe.parent_path().string();
+}
+
+std::unique_ptr<PluginLibrary> PluginLibrary::load(const std::string &path_in) {
+  fs::path path(path_in);
+  std::error_code ec;
+  if (fs::is_directory(path, ec)) path /= kLibraryFileName;
+  if (!fs::exists(path, ec))
+    throw PluginError("closure plugin not found: " + path.string());
+
+  void *handle = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
+  if (handle == nullptr) {
+    const char *why = dlerror();
+    throw PluginError("cannot load closure plugin " + path.string() + ": " + (why ? why : "unknown dlopen error"));
+  }
+  dlerror();
+  void *symbol = dlsym(handle, GLIMMER_PLUGIN_ENTRY_SYMBOL);
+  if (symbol == nullptr) {
+    dlclose(handle);
+    throw PluginError("not a Glimmer closure plugin (no " GLIMMER_PLUGIN_ENTRY_SYMBOL " symbol): " + path.string());
+  }
+  auto entry = reinterpret_cast<GlimmerPluginEntryFn>(symbol);
+  const GlimmerPluginInfo *info = entry(GLIMMER_ABI_VERSION);
+  if (info == nullptr) {
+    dlclose(handle);
+    throw PluginError("closure plugin " + path.string() + " returned no plugin info");
+  }
+  if (info->abi_version != GLIMMER_ABI_VERSION) {
+    std::ostringstream msg;
+    msg << "closure plugin " << path.string() << " was built for Glimmer ABI version " << info->abi_version
+        << ", but this host uses ABI version " << GLIMMER_ABI_VERSION
+        << "; rebuild the plugin and the host from the same source";
+    dlclose(handle);
+    throw PluginError(msg.str());
+  }
+  for (uint32_t i = 0; i < info->closure_count; ++i) {
+    const GlimmerClosureType *t = info->closures[i];
+    if (t == nullptr || t->name == nullptr || t->create == nullptr || t->destroy == nullptr ||
+        t->eval == nullptr || t->sample == nullptr) {
+      dlclose(handle);
+      throw PluginError("closure plugin " + path.string() + " lists an incomplete closure type (#" +
+                        std::to_string(i) + ")");
+    }
+  }
+  return std::unique_ptr<PluginLibrary>(new PluginLibrary(handle, info, path.string()));
+}
+
+std::unique_ptr<PluginLibrary> PluginLibrary::locate(const std::string &explicit_path) {
+  if (!explicit_path.empty()) return load(explicit_path);
+  std::vector<std::string> tried;
+  if (const char *env = std::getenv("GLIMMER_PLUGIN_PATH"); env != nullptr && *env != '\0') return load(env);
+  tried.push_back("$GLIMMER_PLUGIN_PATH (unset)");
+  const std::string dir = executable_directory();
+  if (!dir.empty()) {
+    const fs::path candidate = fs::path(dir) / kLibraryFileName;
+    std::error_code ec;
+    if (fs::exists(candidate, ec)) return load(candidate.string());
+    tried.push_back(candidate.string());
+  }
+  std::string msg = "closure plugin " + std::string(kLibraryFileName) + " not found; tried: --plugin (not given)";
+  for (const auto &t : tried) msg += ", " + t;
+  msg += ". Pass --plugin PATH or set GLIMMER_PLUGIN_PATH.";
+  throw PluginError(msg);
+}
+
+PluginLibrary::~PluginLibrary() {
+  if (handle_ != nullptr) dlclose(handle_);
+}
+
+std::vector<const GlimmerClosureType *> PluginLibrary::closures() const {
+  return {info_->closures, info_->closures + info_->closure_count};
+}
+
+const GlimmerClosureType *PluginLibrary::find(std::string_view name) const {
+  for (uint32_t i = 0; i < info_->closure_count; ++i)
+    if (name == info_->closures[i]->name) return info_->closures[i];
+  return nullptr;
+}
+
+}  // namespace glimmer::host

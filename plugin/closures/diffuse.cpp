@@ -1,0 +1,54 @@
+// Lambertian diffuse reflection: f = color / pi.
+// Like Cycles (kernel/closure/bsdf_diffuse.h) only the side of wo is checked:
+// the host orients N toward wi.
+#include <array>
+
+#include "core/closure.h"
+#include "glimmer/sampling.h"
+
+namespace glimmer::plugin {
+
+class DiffuseClosure {
+ public:
+  static constexpr const char *kName = "diffuse";
+  static constexpr const char *kDoc = "Lambertian diffuse reflection, f = color / pi.";
+  static constexpr uint32_t kFlags = 0;
+
+  static std::span<const GlimmerParamSpec> params() {
+    static const std::array<GlimmerParamSpec, 1> schema{{
+        {"color", GLIMMER_PARAM_COLOR, {0.8f, 0.8f, 0.8f}, 0.0f, 1.0f, nullptr, nullptr,
+         "reflectance (albedo) per RGB channel, 0..1"},
+    }};
+    return schema;
+  }
+
+  static std::unique_ptr<DiffuseClosure> create(const ParamReader &p) {
+    auto c = std::make_unique<DiffuseClosure>();
+    c->color_ = p.get_color("color");
+    return c;
+  }
+
+  LocalEval eval(const ShadingPoint &, const Vec3 &wo) const {
+    if (!(wo.z > 0.0f)) return {};
+    return {color_ * (wo.z * kInvPi), cosine_hemisphere_pdf(wo.z)};
+  }
+
+  bool sample(const ShadingPoint &, const Vec3 &rand, LocalSample &out) const {
+    out.wo = sample_cosine_hemisphere(rand.x, rand.y);
+    if (!(out.wo.z > 0.0f)) return false;
+    out.pdf = cosine_hemisphere_pdf(out.wo.z);
+    out.f_cos = color_ * (out.wo.z * kInvPi);
+    out.roughness = 1.0f;
+    out.label = GLIMMER_LABEL_REFLECT | GLIMMER_LABEL_DIFFUSE;
+    return true;
+  }
+
+  Spectrum albedo(const ShadingPoint &) const { return color_; }
+
+ private:
+  Spectrum color_{0.8f};
+};
+
+GLIMMER_REGISTER_CLOSURE(DiffuseClosure)
+
+}  // namespace glimmer::plugin

@@ -1,0 +1,190 @@
+// C++ side of a closure: write a small class, register it with
+// GLIMMER_REGISTER_CLOSURE, and ClosureAdapter produces the C ABI entry points.
+//
+// A closure class provides (see plugin/closures/diffuse.cpp for the shortest example):
+//   static constexpr const char *kName, *kDoc;  static constexpr uint32_t kFlags;
+//   static std::span<const GlimmerParamSpec> params();
+//   static std::unique_ptr<T> create(const ParamReader &p);    // throws ParamError
+//   LocalEval eval(const ShadingPoint &sp, const Vec3 &wo_local) const;
+//   bool sample(const ShadingPoint &sp, const Vec3 &rand, LocalSample &out) const;
+// and optionally
+//   void prepare(const GlimmerHostServices *host);               // lazy tables; throws on failure
+//   Spectrum albedo(const ShadingPoint &sp) const;
+//   Spectrum emit(const ShadingPoint &sp) const;                 // with GLIMMER_CLOSURE_EMISSIVE
+// Directions handed to eval/sample are in the local shading frame (z = N,
+// x = tangent); the adapter converts to and from world space.
+#pragma once
+
+#include <cstdio>
+#include <cstring>
+#include <exception>
+#include <memory>
+#include <span>
+
+#include "core/params.h"
+#include "glimmer/closure_abi.h"
+#include "glimmer/math.h"
+
+namespace glimmer::plugin {
+
+struct ShadingPoint {
+  const GlimmerShadingContext *ctx;
+  Frame frame;  // z = N, x = T
+  Vec3 wi;      // local, toward the viewer
+
+  explicit ShadingPoint(const GlimmerShadingContext *c)
+      : ctx(c), frame(Frame::from_normal_tangent(Vec3(c->N), Vec3(c->T))), wi(frame.to_local(Vec3(c->wi))) {}
+};
+
+struct LocalEval {
+  Spectrum f_cos{0.0f};  // f * |cos(wo)|
+  float pdf = 0.0f;
+};
+
+struct LocalSample {
+  Vec3 wo;               // local
+  Spectrum f_cos{0.0f};  // f * |cos(wo)| (singular: delta weight)
+  float pdf = 0.0f;
+  float roughness = 0.0f;
+  float eta = 1.0f;
+  uint32_t label = GLIMMER_LABEL_NONE;
+};
+
+// Keeps only finite, non-negative values: a closure must never hand NaN/Inf or
+// negative numbers to the host.
+inline Spectrum sanitize(const Spectrum &s) {
+  auto fix = [](float v) { return (std::isfinite(v) && v > 0.0f) ? v : 0.0f; };
+  return {fix(s.x), fix(s.y), fix(s.z)};
+}
+inline float sanitize(float v) { return (std::isfinite(v) && v > 0.0f) ? v : 0.0f; }
+
+inline void write_error(char *error, size_t size, const char *message) {
+  if (error != nullptr && size > 0) std::snprintf(error, size, "%s", message);
+}
+
+template <typename T>
+concept HasPrepare = requires(T &t, const GlimmerHostServices *h) { t.prepare(h); };
+template <typename T>
+concept HasAlbedo = requires(const T &t, const ShadingPoint &sp) { t.albedo(sp); };
+template <typename T>
+concept HasEmit = requires(const T &t, const ShadingPoint &sp) { t.emit(sp); };
+
+template <typename T>
+struct ClosureAdapter {
+  static const T &self(const GlimmerInstance *inst) { return *reinterpret_cast<const T *>(inst); }
+
+  static int create(const GlimmerParamValue *values, uint32_t count, const GlimmerHostServices *,
+                    GlimmerInstance **out, char *error, size_t error_size) {
+    try {
+      const auto schema = T::params();
+      ParamReader reader(T::kName, schema, std::span<const GlimmerParamValue>(values, values ? count : 0));
+      std::unique_ptr<T> instance = T::create(reader);
+      *out = reinterpret_cast<GlimmerInstance *>(instance.release());
+      return 1;
+    } catch (const std::exception &e) {
+      write_error(error, error_size, e.what());
+    } catch (...) {
+      write_error(error, error_size, "unknown error while creating closure");
+    }
+    *out = nullptr;
+    return 0;
+  }
+
+  static int prepare(GlimmerInstance *inst, const GlimmerHostServices *host, char *error, size_t error_size) {
+    if constexpr (HasPrepare<T>) {
+      try {
+        reinterpret_cast<T *>(inst)->prepare(host);
+      } catch (const std::exception &e) {
+        write_error(error, error_size, e.what());
+        return 0;
+      }
+    }
+    return 1;
+  }
+
+  static void destroy(GlimmerInstance *inst) { delete reinterpret_cast<T *>(inst); }
+
+  static void eval(const GlimmerInstance *inst, const GlimmerShadingContext *ctx, GlimmerVec3 wo,
+                   float out_eval[3], float *out_pdf) {
+    const ShadingPoint sp(ctx);
+    const LocalEval e = self(inst).eval(sp, sp.frame.to_local(Vec3(wo)));
+    const Spectrum f = sanitize(e.f_cos);
+    out_eval[0] = f.x;
+    out_eval[1] = f.y;
+    out_eval[2] = f.z;
+    *out_pdf = sanitize(e.pdf);
+  }
+
+  static uint32_t sample(const GlimmerInstance *inst, const GlimmerShadingContext *ctx, const float rand3[3],
+                         GlimmerSample *out) {
+    const ShadingPoint sp(ctx);
+    LocalSample s;
+    const bool ok = self(inst).sample(sp, Vec3(rand3[0], rand3[1], rand3[2]), s);
+    const Vec3 wo = sp.frame.to_world(s.wo);
+    const float pdf = sanitize(s.pdf);
+    if (!ok || s.label == GLIMMER_LABEL_NONE || !(pdf > 0.0f) || !is_finite(wo)) {
+      *out = GlimmerSample{};
+      return GLIMMER_LABEL_NONE;
+    }
+    const Spectrum f = sanitize(s.f_cos);
+    out->wo = wo;
+    out->eval[0] = f.x;
+    out->eval[1] = f.y;
+    out->eval[2] = f.z;
+    out->pdf = pdf;
+    out->roughness = sanitize(s.roughness);
+    out->eta = (std::isfinite(s.eta) && s.eta > 0.0f) ? s.eta : 1.0f;
+    out->label = s.label;
+    return s.label;
+  }
+
+  static void albedo(const GlimmerInstance *inst, const GlimmerShadingContext *ctx, float out_rgb[3]) {
+    Spectrum a(1.0f);
+    if constexpr (HasAlbedo<T>) a = sanitize(self(inst).albedo(ShadingPoint(ctx)));
+    out_rgb[0] = a.x;
+    out_rgb[1] = a.y;
+    out_rgb[2] = a.z;
+  }
+
+  static void emit(const GlimmerInstance *inst, const GlimmerShadingContext *ctx, float out_rgb[3]) {
+    Spectrum e(0.0f);
+    if constexpr (HasEmit<T>) e = sanitize(self(inst).emit(ShadingPoint(ctx)));
+    out_rgb[0] = e.x;
+    out_rgb[1] = e.y;
+    out_rgb[2] = e.z;
+  }
+
+  static GlimmerClosureType make_type() {
+    const auto schema = T::params();
+    GlimmerClosureType type{};
+    type.name = T::kName;
+    type.doc = T::kDoc;
+    type.flags = T::kFlags;
+    type.param_count = static_cast<uint32_t>(schema.size());
+    type.params = schema.data();
+    type.create = &create;
+    type.prepare = &prepare;
+    type.destroy = &destroy;
+    type.eval = &eval;
+    type.sample = &sample;
+    type.albedo = HasAlbedo<T> ? &albedo : nullptr;
+    type.emit = HasEmit<T> ? &emit : nullptr;
+    return type;
+  }
+};
+
+// Adds a closure type to the plugin's list (called from static initializers).
+bool register_closure_type(const GlimmerClosureType *type);
+
+}  // namespace glimmer::plugin
+
+#define GLIMMER_CONCAT_INNER(a, b) a##b
+#define GLIMMER_CONCAT(a, b) GLIMMER_CONCAT_INNER(a, b)
+// Registers closure class T with the plugin entry point.
+#define GLIMMER_REGISTER_CLOSURE(T)                                                               \
+  namespace {                                                                                     \
+  const GlimmerClosureType GLIMMER_CONCAT(glimmer_type_, __LINE__) =                              \
+      ::glimmer::plugin::ClosureAdapter<T>::make_type();                                          \
+  const bool GLIMMER_CONCAT(glimmer_registered_, __LINE__) =                                      \
+      ::glimmer::plugin::register_closure_type(&GLIMMER_CONCAT(glimmer_type_, __LINE__));         \
+  }

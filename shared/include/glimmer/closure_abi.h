@@ -1,0 +1,234 @@
+/*
+ * Glimmer closure ABI: the plain-C contract between the host (bridge/) and the
+ * shading DSO (libglimmer_closures.so).
+ *
+ * Conventions mirror Cycles (kernel/closure/bsdf.h):
+ *  - All directions are unit vectors in world space pointing AWAY from the
+ *    surface. ctx->wi points toward the viewer (the previous path vertex);
+ *    wo is the light / continuation direction.
+ *  - eval() returns f(wi, wo) * |cos(N, wo)| per RGB channel, WITHOUT the
+ *    closure weight (the caller multiplies by it), and the solid-angle pdf with
+ *    which sample() would have produced wo.
+ *  - Labels use Cycles' ClosureLabel bit values.
+ *  - Singular closures (label contains GLIMMER_LABEL_SINGULAR) return a zero
+ *    eval and pdf from eval(); sample() returns the delta weight in `eval` and
+ *    pdf = 1 (the host skips NEE and MIS for them, as Cycles does).
+ *
+ * Versioning: GLIMMER_ABI_VERSION changes whenever any struct layout or
+ * function signature below changes. The DSO exports exactly one symbol,
+ * glimmer_plugin_entry; the host passes its own version and refuses a plugin
+ * whose GlimmerPluginInfo.abi_version differs, naming both versions.
+ *
+ * Threading: create/prepare/destroy are called from one thread; eval/sample/
+ * emit/albedo are called concurrently on an immutable, prepared instance and
+ * never allocate.
+ */
+#ifndef GLIMMER_CLOSURE_ABI_H
+#define GLIMMER_CLOSURE_ABI_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#ifndef GLIMMER_ABI_VERSION
+#define GLIMMER_ABI_VERSION 1u
+#endif
+
+#define GLIMMER_PLUGIN_ENTRY_SYMBOL "glimmer_plugin_entry"
+
+#if defined(_WIN32)
+#define GLIMMER_EXPORT __declspec(dllexport)
+#else
+#define GLIMMER_EXPORT __attribute__((visibility("default")))
+#endif
+
+/* ---- Labels: Cycles' ClosureLabel bit values (kernel/types.h). ---- */
+enum GlimmerLabel {
+  GLIMMER_LABEL_NONE = 0,
+  GLIMMER_LABEL_TRANSMIT = 1,
+  GLIMMER_LABEL_REFLECT = 2,
+  GLIMMER_LABEL_DIFFUSE = 4,
+  GLIMMER_LABEL_GLOSSY = 8,
+  GLIMMER_LABEL_SINGULAR = 16,
+  GLIMMER_LABEL_TRANSPARENT = 32
+};
+
+typedef struct GlimmerVec3 {
+  float x, y, z;
+} GlimmerVec3;
+
+/* ---- Host services: filled by the bridge, read-only for the plugin. ---- */
+typedef struct GlimmerRay {
+  GlimmerVec3 origin;
+  GlimmerVec3 direction; /* unit */
+  float t_min, t_max;
+} GlimmerRay;
+
+typedef struct GlimmerRayHit {
+  float t;
+  GlimmerVec3 P;
+  GlimmerVec3 N;  /* shading normal, facing the side the ray came from is NOT implied */
+  GlimmerVec3 Ng; /* geometric normal */
+  float uv[2];
+  uint32_t object_id;
+  uint32_t backfacing; /* 1 when the ray hit the back side of Ng */
+} GlimmerRayHit;
+
+enum GlimmerLogLevel {
+  GLIMMER_LOG_DEBUG = 0,
+  GLIMMER_LOG_INFO = 1,
+  GLIMMER_LOG_WARNING = 2,
+  GLIMMER_LOG_ERROR = 3
+};
+
+typedef struct GlimmerHostServices {
+  uint32_t abi_version;
+  void *host_data;
+  /* Returns 1 and fills hit when the ray hits scene geometry in (t_min, t_max).
+   * May be NULL (e.g. in the closure laboratory). */
+  int (*trace_ray)(void *host_data, const GlimmerRay *ray, GlimmerRayHit *hit);
+  /* Environment radiance around `direction`, prefiltered over a cone of
+   * half-angle `cone_angle` radians (0 = a point lookup). May be NULL. */
+  void (*environment_lookup)(void *host_data, GlimmerVec3 direction, float cone_angle,
+                             float out_rgb[3]);
+  /* Log a message through the host (never NULL). */
+  void (*log)(void *host_data, int level, const char *message);
+  /* Resolve an asset name relative to the scene; writes a NUL-terminated
+   * path and returns 1, or returns 0 when not found. May be NULL. */
+  int (*resolve_asset)(void *host_data, const char *name, char *out_path, size_t out_size);
+  /* Directory for on-disk caches of precomputed tables (may be NULL: no caching). */
+  const char *cache_dir;
+} GlimmerHostServices;
+
+/* ---- Shading context: one per shading point, built by the host. ---- */
+typedef struct GlimmerShadingContext {
+  GlimmerVec3 wi; /* toward the viewer, unit */
+  GlimmerVec3 P;
+  GlimmerVec3 N;  /* shading normal, unit, on the side of wi for reflection */
+  GlimmerVec3 Ng; /* geometric normal, unit */
+  GlimmerVec3 T;  /* tangent, unit, orthogonal to N (anisotropy, glint uv frame) */
+  float uv[2];
+  GlimmerVec3 dPdu, dPdv;
+  /* Texture-space footprint: the uv parallelogram spanned by the ray
+   * differentials, duv/dx and duv/dy (uv units per pixel step), widened at
+   * glossy bounces by the host. Zero vectors mean "a point query". */
+  float duv_dx[2];
+  float duv_dy[2];
+  /* Accumulated angular spread of the path (radians): 0 for camera rays,
+   * grows at glossy bounces (beta = 2 * alpha). */
+  float spread_angle;
+  uint32_t bounce;
+  uint32_t diffuse_bounce;
+  uint32_t glossy_bounce;
+  uint32_t transmission_bounce;
+  uint32_t backfacing; /* 1 when the ray arrived at the back side of Ng */
+  uint32_t path_seed;  /* hash of (seed, pixel, sample); never use for glint randomness */
+  const GlimmerHostServices *host;
+} GlimmerShadingContext;
+
+/* ---- Sampling result. ---- */
+typedef struct GlimmerSample {
+  GlimmerVec3 wo;  /* sampled direction, world space, unit */
+  float eval[3];   /* f * |cos(N, wo)| (singular: the delta weight) */
+  float pdf;       /* solid-angle density of wo (singular: 1) */
+  float roughness; /* effective roughness of the sampled lobe (footprint widening, filter_glossy) */
+  float eta;       /* relative IOR crossed for transmission, 1 otherwise */
+  uint32_t label;  /* GlimmerLabel bits; 0 = no sample */
+} GlimmerSample;
+
+/* ---- Parameters: declared once per closure type, validated at create. ---- */
+typedef enum GlimmerParamType {
+  GLIMMER_PARAM_FLOAT = 0,
+  GLIMMER_PARAM_INT = 1,
+  GLIMMER_PARAM_BOOL = 2,
+  GLIMMER_PARAM_COLOR = 3,
+  GLIMMER_PARAM_VECTOR = 4,
+  GLIMMER_PARAM_ENUM = 5,
+  GLIMMER_PARAM_STRING = 6
+} GlimmerParamType;
+
+typedef struct GlimmerParamSpec {
+  const char *name;          /* identifier used in XML, CLI and Blender */
+  GlimmerParamType type;
+  float default_value[3];    /* FLOAT/INT/BOOL use [0]; COLOR/VECTOR use [0..2] */
+  float min_value;           /* inclusive bounds for FLOAT/INT and COLOR components */
+  float max_value;
+  const char *enum_choices;  /* ENUM: '|'-separated choices, e.g. "ggx|beckmann" */
+  const char *default_string;/* ENUM/STRING default */
+  const char *doc;           /* one line for the user: meaning and unit */
+} GlimmerParamSpec;
+
+typedef struct GlimmerParamValue {
+  const char *name;
+  float value[3];     /* numeric value(s) */
+  const char *string; /* ENUM/STRING value, else NULL */
+} GlimmerParamValue;
+
+/* Opaque per-material instance. */
+typedef struct GlimmerInstance GlimmerInstance;
+
+enum GlimmerClosureFlags {
+  GLIMMER_CLOSURE_EMISSIVE = 1u,      /* has emit() */
+  GLIMMER_CLOSURE_SINGULAR = 2u,      /* only delta lobes */
+  GLIMMER_CLOSURE_TRANSMISSIVE = 4u,  /* may return TRANSMIT samples */
+  GLIMMER_CLOSURE_NEEDS_TRACE = 8u,   /* calls host->trace_ray */
+  GLIMMER_CLOSURE_NEEDS_ENVIRONMENT = 16u, /* calls host->environment_lookup */
+  GLIMMER_CLOSURE_STOCHASTIC_EVAL = 32u, /* eval is an unbiased estimate (reference closures) */
+  GLIMMER_CLOSURE_REFERENCE = 64u     /* slow, exact; for tests and benchmarks */
+};
+
+typedef struct GlimmerClosureType {
+  const char *name; /* e.g. "diffuse"; the XML node is usually name + "_bsdf" */
+  const char *doc;
+  uint32_t flags;   /* GlimmerClosureFlags */
+  uint32_t param_count;
+  const GlimmerParamSpec *params;
+
+  /* Validate parameters and create an instance. Unknown names, wrong types
+   * and out-of-range values fail with a message naming the parameter.
+   * Returns 1 on success; on failure writes `error` and returns 0. */
+  int (*create)(const GlimmerParamValue *values, uint32_t value_count,
+                const GlimmerHostServices *host, GlimmerInstance **out_instance,
+                char *error, size_t error_size);
+  /* Build or load tables (lazy; only for closures a scene uses). May be NULL. */
+  int (*prepare)(GlimmerInstance *instance, const GlimmerHostServices *host, char *error,
+                 size_t error_size);
+  void (*destroy)(GlimmerInstance *instance);
+
+  /* f*|cos| and pdf of sample() for direction wo. */
+  void (*eval)(const GlimmerInstance *instance, const GlimmerShadingContext *ctx, GlimmerVec3 wo,
+               float out_eval[3], float *out_pdf);
+  /* Sample wo from three uniform numbers in [0,1). Returns the label (0 = absorbed). */
+  uint32_t (*sample)(const GlimmerInstance *instance, const GlimmerShadingContext *ctx,
+                     const float rand3[3], GlimmerSample *out);
+  /* Directional albedo estimate toward ctx->wi (for sample weights and the
+   * Albedo AOV). May be NULL: the host then uses 1. */
+  void (*albedo)(const GlimmerInstance *instance, const GlimmerShadingContext *ctx,
+                 float out_rgb[3]);
+  /* Emitted radiance toward ctx->wi (EMISSIVE closures only, else NULL). */
+  void (*emit)(const GlimmerInstance *instance, const GlimmerShadingContext *ctx,
+               float out_rgb[3]);
+} GlimmerClosureType;
+
+typedef struct GlimmerPluginInfo {
+  uint32_t abi_version; /* GLIMMER_ABI_VERSION the plugin was built with */
+  const char *plugin_name;
+  const char *plugin_version;
+  uint32_t closure_count;
+  const GlimmerClosureType *const *closures; /* sorted by name */
+} GlimmerPluginInfo;
+
+/* The one exported symbol. Always returns the plugin's info (never NULL) so a
+ * host can report the plugin's version even when it differs from its own. */
+typedef const GlimmerPluginInfo *(*GlimmerPluginEntryFn)(uint32_t host_abi_version);
+
+GLIMMER_EXPORT const GlimmerPluginInfo *glimmer_plugin_entry(uint32_t host_abi_version);
+
+#ifdef __cplusplus
+} /* extern "C" */
+#endif
+
+#endif /* GLIMMER_CLOSURE_ABI_H */
