@@ -463,17 +463,18 @@ struct Renderer::Impl {
       SurfaceHit hit;
       const bool hit_surface = intersect(org, D, tmin, tmax, hit);
       const float t_hit = hit_surface ? hit.t : kInf;
-      // Analytic lights (spheres, area lights, sun disks) in front of the surface.
-      LightHit lh;
-      if (lights->intersect(org, D, t_hit, hit_surface, lh)) {
+      // Lamps (spheres, area lights) before the surface and the sun disk on escape;
+      // as in Cycles they do not block the ray.
+      LightHits lhs;
+      lights->intersect(org, D, t_hit, hit_surface, lhs);
+      for (int i = 0; i < lhs.count; ++i) {
+        const LightHit &lh = lhs.hits[i];
         if (last_singular) {
           add(throughput * lh.radiance, bounce);
         } else if (use_bsdf_emission) {
-          const float w = use_nee && !lh.delta ? power_heuristic(mis_ray_pdf, lh.pdf) : 1.0f;
+          const float w = use_nee ? power_heuristic(mis_ray_pdf, lh.pdf) : 1.0f;
           add(throughput * lh.radiance * w, bounce);
         }
-        if (first_hit && lh.blocks) { aov.depth = lh.t * cam_dir_z; first_hit = false; }
-        if (lh.blocks) break;
       }
       if (!hit_surface) {
         if (shaders->has_background()) {
