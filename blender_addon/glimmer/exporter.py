@@ -47,7 +47,7 @@ def fmt(value):
         return "true" if value else "false"
     if isinstance(value, int):
         return str(value)
-    return "%.9g" % float(value)
+    return "%.9g" % (float(value) + 0.0)  # + 0.0 turns -0 into 0
 
 
 def safe_name(name):
