@@ -58,7 +58,12 @@ def load_exr_into_result(result, path, layer_name):
     if oiiotool is None:
         raise RuntimeError("the EXR's layer is '%s' but the view layer is '%s'; renaming needs oiiotool "
                            "(Debian package openimageio-tools)" % (file_layer, layer_name))
-    renamed = [layer_name + c[len(file_layer):] if c.startswith(file_layer + ".") else c for c in channels]
+    # --chnames follows OpenImageIO's channel order (R, G, B, A first), not the file's alphabetical one.
+    info = subprocess.run([oiiotool, "--info", "-v", path], check=True, stdout=subprocess.PIPE,
+                          stderr=subprocess.PIPE, timeout=60).stdout.decode(errors="replace")
+    listed = next(line.split(":", 1)[1] for line in info.splitlines() if line.strip().startswith("channel list:"))
+    ordered = [c.strip() for c in listed.split(",")]
+    renamed = [layer_name + c[len(file_layer):] if c.startswith(file_layer + ".") else c for c in ordered]
     fixed = path[:-4] + "_" + "".join(ch if ch.isalnum() else "_" for ch in layer_name) + ".exr"
     subprocess.run([oiiotool, path, "--chnames", ",".join(renamed), "-o", fixed], check=True,
                    stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, timeout=120)
@@ -114,7 +119,7 @@ class GlimmerRenderEngine(bpy.types.RenderEngine):
                 elapsed = time.monotonic() - render_start
                 self.update_stats("", "Glimmer: sample %d/%d, %.1f s" % (done, total, elapsed))
 
-            code, cancelled, tail = runner.run(cmd, on_progress=progress, should_cancel=self.test_break,
+            code, cancelled, tail = runner.run(cmd, on_progress=progress, should_cancel=self.cancel_requested,
                                                kill_timeout=KILL_TIMEOUT_SECONDS)
             have_image = os.path.isfile(exr_path)
             if have_image and (code == 0 or code == runner.EXIT_INTERRUPTED):
@@ -132,6 +137,10 @@ class GlimmerRenderEngine(bpy.types.RenderEngine):
             self.end_result(result)
             if temporary and out_dir:
                 shutil.rmtree(out_dir, ignore_errors=True)
+
+    def cancel_requested(self):
+        """Esc in the render window (or the job being stopped); a Python method so tests can drive it."""
+        return self.test_break()
 
     def fail(self, message):
         self.report({"ERROR"}, message)

@@ -28,15 +28,15 @@ def render_command(executable, scene_path, output_path, samples, threads, seed, 
 
 
 def supports_render(executable, timeout=10.0):
-    """True when `<executable> render --help` succeeds (the render command exists)."""
+    """True when `<executable> --help` lists a `render` sub-command."""
     if not executable:
         return False
     try:
-        out = subprocess.run([executable, "render", "--help"], stdout=subprocess.DEVNULL,
-                             stderr=subprocess.DEVNULL, timeout=timeout, check=False)
+        out = subprocess.run([executable, "--help"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                             timeout=timeout, check=False)
     except (OSError, subprocess.SubprocessError):
         return False
-    return out.returncode == 0
+    return re.search(r"^\s+render\b", out.stdout.decode(errors="replace"), re.MULTILINE) is not None
 
 
 def _pump(stream, lines):
