@@ -67,7 +67,11 @@ def mesh_arrays(mesh, matrix):
     else:
         P = co[loop_vert]
         triangles = tri_loops
-        N = _loop_normals(mesh) if any_smooth else None
+        N = None
+        if all_smooth and not split_normals:  # vertex normals suffice: skip the split-normal computation
+            N = _get(mesh.vertices, "normal", nverts, np.float32, 3)[loop_vert]
+        elif any_smooth:
+            N = _loop_normals(mesh)
 
     M = np.array(matrix, dtype=np.float64)
     linear = M[:3, :3]
