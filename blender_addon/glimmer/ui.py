@@ -140,7 +140,7 @@ _borrowed = []
 
 
 def borrow_builtin_panels():
-    wanted = {"BLENDER_RENDER", "BLENDER_EEVEE"}
+    wanted = {"BLENDER_RENDER", "BLENDER_EEVEE", "BLENDER_EEVEE_NEXT"}
     skip_prefixes = ("EEVEE_", "RENDER_PT_eevee", "MATERIAL_PT_", "WORLD_PT_", "RENDER_PT_simplify",
                      "VIEWLAYER_PT_eevee", "DATA_PT_EEVEE")
     keep = {"EEVEE_MATERIAL_PT_context_material", "WORLD_PT_context_world"}

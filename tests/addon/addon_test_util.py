@@ -6,7 +6,6 @@ import argparse
 import os
 import sys
 
-import bpy
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(os.path.dirname(HERE))
