@@ -28,6 +28,30 @@ for round_index in range(2):
     menu = getattr(bpy.types, menu_name)
     draw_funcs = getattr(menu.draw, "_draw_funcs", [])
     check(mod.nodes.menu_draw_function() in draw_funcs, "draw function appended to %s" % menu_name)
+    # Drawing the entry adds one node.add_node operator per Glimmer node in shader trees only.
+    from types import SimpleNamespace
+
+    class RecordingLayout:
+        def __init__(self):
+            self.ops = []
+
+        def operator(self, idname, text=""):
+            props = SimpleNamespace()
+            self.ops.append((idname, text, props))
+            return props
+
+        def separator(self):
+            pass
+
+    for tree_type, expected in (("ShaderNodeTree", 2), ("GeometryNodeTree", 0)):
+        layout = RecordingLayout()
+        fake_menu = SimpleNamespace(layout=layout)
+        mod.nodes.menu_draw_function()(fake_menu, SimpleNamespace(space_data=SimpleNamespace(tree_type=tree_type)))
+        check(len(layout.ops) == expected, "%d menu entries in a %s" % (len(layout.ops), tree_type))
+        if expected:
+            check({(op[1], op[2].type) for op in layout.ops} ==
+                  {("Glint BSDF", "GlimmerNodeGlintBsdf"), ("Frosted Glass BSDF", "GlimmerNodeFrostedGlassBsdf")},
+                  "menu entries add the Glimmer nodes")
     # Panels: ours and borrowed ones (light properties) list the engine.
     check("GLIMMER" in bpy.types.GLIMMER_PT_sampling.COMPAT_ENGINES, "sampling panel")
     check("GLIMMER" in bpy.types.DATA_PT_light.COMPAT_ENGINES, "light panel borrowed")
