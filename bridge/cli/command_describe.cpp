@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include "cli/commands.h"
+#include "cli/json_number.h"
 #include "host/closure_instance.h"
 
 namespace glimmer::cli {
@@ -31,9 +32,9 @@ nlohmann::json describe_param(const GlimmerParamSpec &p) {
   switch (p.type) {
     case GLIMMER_PARAM_COLOR:
     case GLIMMER_PARAM_VECTOR:
-      j["default"] = {p.default_value[0], p.default_value[1], p.default_value[2]};
-      j["min"] = p.min_value;
-      j["max"] = p.max_value;
+      j["default"] = json_floats(p.default_value, 3);
+      j["min"] = json_float(p.min_value);
+      j["max"] = json_float(p.max_value);
       break;
     case GLIMMER_PARAM_ENUM:
       j["default"] = p.default_string ? p.default_string : "";
@@ -47,13 +48,13 @@ nlohmann::json describe_param(const GlimmerParamSpec &p) {
       break;
     case GLIMMER_PARAM_INT:
       j["default"] = static_cast<int>(p.default_value[0]);
-      j["min"] = p.min_value;
-      j["max"] = p.max_value;
+      j["min"] = json_float(p.min_value);
+      j["max"] = json_float(p.max_value);
       break;
     case GLIMMER_PARAM_FLOAT:
-      j["default"] = p.default_value[0];
-      j["min"] = p.min_value;
-      j["max"] = p.max_value;
+      j["default"] = json_float(p.default_value[0]);
+      j["min"] = json_float(p.min_value);
+      j["max"] = json_float(p.max_value);
       break;
   }
   return j;
