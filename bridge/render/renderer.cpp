@@ -716,6 +716,46 @@ Renderer::Renderer(const scene::Scene &scene, const host::PluginLibrary &plugin,
 
 Renderer::~Renderer() = default;
 
+bool Renderer::probe(float x, float y, GlimmerShadingContext &out) const {
+  const Impl &im = *impl_;
+  Vec3 org, D;
+  Differentials rd;
+  float dir_z = 1.0f;
+  im.camera_ray(x, y, org, D, rd, dir_z);
+  float tmin = 0.0f;
+  for (int bounce = 0; bounce < 16; ++bounce) {
+    SurfaceHit hit;
+    if (!im.intersect(org, D, tmin, kInf, hit)) return false;
+    Impl::ShadingData sd;
+    im.setup_shading(hit, D, sd);
+    im.transfer_differentials(rd, D, hit.t, sd, 0.0f);
+    Impl::sync_front(sd);
+    ClosureSet cs;
+    im.shaders->evaluate(sd.shader, sd.tc, cs);
+    bool all_singular = cs.count > 0;
+    for (int i = 0; i < cs.count; ++i)
+      if (!cs.closures[i].leaf->singular && !cs.closures[i].leaf->emissive) {
+        GlimmerSample s{};
+        const float r3[3] = {0.5f, 0.5f, 0.5f};
+        const uint32_t label = cs.closures[i].leaf->instance->sample(Impl::context_for(sd, *cs.closures[i].leaf), r3, s);
+        if (!(label & GLIMMER_LABEL_SINGULAR)) all_singular = false;
+      }
+    if (!all_singular) {
+      out = sd.ctx;
+      return true;
+    }
+    GlimmerSample s{};
+    const float r3[3] = {0.5f, 0.5f, 0.5f};
+    const ClosureLeaf &leaf = *cs.closures[0].leaf;
+    if (!leaf.instance || leaf.instance->sample(Impl::context_for(sd, leaf), r3, s) == GLIMMER_LABEL_NONE) return false;
+    const Vec3 wo = normalize(Vec3(s.wo));
+    im.propagate_specular(rd, D, wo, sd, s.eta);
+    org = offset_ray_origin(sd.ctx.P, sd.Ng, wo);
+    D = wo;
+  }
+  return false;
+}
+
 RenderResult Renderer::render(const std::function<void(int, int)> &progress) {
   Impl &im = *impl_;
   const auto t0 = Clock::now();

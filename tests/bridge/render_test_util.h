@@ -13,6 +13,8 @@
 #include <string>
 #include <vector>
 
+#include <unistd.h>
+
 #include "host/plugin_library.h"
 #include "render/renderer.h"
 #include "scene/xml_loader.h"
@@ -24,8 +26,9 @@ inline host::PluginLibrary &plugin() {
   return *lib;
 }
 
+// One folder per test process: ctest runs tests of this executable in parallel processes.
 inline std::filesystem::path temp_dir() {
-  const auto dir = std::filesystem::path(GLIMMER_TEST_BINARY_DIR) / "test_bridge_tmp";
+  const auto dir = std::filesystem::path(GLIMMER_TEST_BINARY_DIR) / "test_bridge_tmp" / std::to_string(::getpid());
   std::filesystem::create_directories(dir);
   return dir;
 }
