@@ -393,10 +393,10 @@ struct Renderer::Impl {
     MixtureEval out;
     for (int i = 0; i < cs.count; ++i) {
       const ActiveClosure &c = cs.closures[i];
-      if (i == skip || c.sample_weight <= 0.0f || c.leaf->singular || !c.leaf->instance) continue;
+      if (i == skip || c.sample_weight <= 0.0f || c.leaf->singular || !c.instance) continue;
       Spectrum f;
       float pdf = 0.0f;
-      c.leaf->instance->eval(context_for(sd, *c.leaf), wo, f, pdf);
+      c.instance->eval(context_for(sd, *c.leaf), wo, f, pdf);
       if (!is_finite(f) || !std::isfinite(pdf)) continue;
       out.f += f * c.weight;
       out.pdf += pdf * c.sample_weight;
@@ -459,6 +459,7 @@ struct Renderer::Impl {
     bool terminate_next = false;
     bool last_singular = true;  // camera rays count as singular: no MIS on emission
     float mis_ray_pdf = 0.0f;
+    float min_ray_pdf = std::numeric_limits<float>::max();
     float spread = 0.0f;
     bool first_hit = true;
 
@@ -515,6 +516,17 @@ struct Renderer::Impl {
 
       ClosureSet cs;
       shaders->evaluate(sd.shader, sd.tc, cs);
+      // filter_glossy (Cycles): blur_pdf = filter_glossy * min_ray_pdf; below 1 the glossy
+      // closures get alpha >= 0.5 sqrt(1 - blur_pdf) (nearest lower precomputed variant).
+      if (integ.filter_glossy > 0.0f && min_ray_pdf < std::numeric_limits<float>::max()) {
+        const float blur_pdf = integ.filter_glossy * min_ray_pdf;
+        if (blur_pdf < 1.0f) {
+          const float blur_alpha = 0.5f * std::sqrt(1.0f - blur_pdf);
+          const int k = std::min(static_cast<int>(blur_alpha / ClosureLeaf::kBlurStep), ClosureLeaf::kBlurLevels);
+          for (int i = 0; i < cs.count; ++i)
+            if (k > 0 && !cs.closures[i].leaf->blurred.empty()) cs.closures[i].instance = cs.closures[i].leaf->blurred[k];
+        }
+      }
 
       // Emission (mesh lights), MIS against the light-sampling pdf.
       Spectrum emission(0.0f);
@@ -605,7 +617,7 @@ struct Renderer::Impl {
       sampler.get2(bounce_pair(bounce, kPairBsdf), r3[0], r3[1]);
       r3[2] = ru;
       GlimmerSample s{};
-      const uint32_t label = c.leaf->instance->sample(context_for(sd, *c.leaf), r3, s);
+      const uint32_t label = c.instance->sample(context_for(sd, *c.leaf), r3, s);
       if (label == GLIMMER_LABEL_NONE || !(s.pdf > 0.0f) || !std::isfinite(s.pdf)) break;
       const Vec3 wo = normalize(Vec3(s.wo));
       const Spectrum s_eval(s.eval[0], s.eval[1], s.eval[2]);
@@ -620,6 +632,7 @@ struct Renderer::Impl {
         if (!(me.pdf > 0.0f)) break;
         throughput *= me.f / me.pdf;
         mis_ray_pdf = me.pdf;
+        min_ray_pdf = std::min(min_ray_pdf, me.pdf);
       }
       if (!is_finite(throughput)) { ++nan_count; break; }
       if (is_zero(throughput)) break;

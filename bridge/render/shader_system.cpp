@@ -245,6 +245,18 @@ int ShaderSystem::make_leaf(const ShaderGraph &g, const ShaderNode &n, CompiledS
       }
       if (n.attributes.count("rotation")) warn(n.where, t + ": rotation is not supported; ignored");
       leaf->instance = instantiate(*type, params, n.where);
+      if (scene_.integrator.filter_glossy > 0.0f && host::find_param(*type, "roughness")) {
+        // Cycles' bsdf_blur raises alpha to the blur roughness; alpha = roughness^2 here.
+        leaf->blurred.assign(ClosureLeaf::kBlurLevels + 1, leaf->instance);
+        for (int k = 1; k <= ClosureLeaf::kBlurLevels; ++k) {
+          const float alpha = ClosureLeaf::kBlurStep * k;
+          if (std::sqrt(alpha) <= roughness) continue;
+          host::ParamList blurred = params;
+          blurred.set_number("roughness", std::min(std::sqrt(alpha), 1.0f), 0, 0);
+          if (distribution == "sharp" && host::find_param(*type, "distribution")) blurred.set_string("distribution", "ggx");
+          leaf->blurred[k] = instantiate(*type, blurred, n.where);
+        }
+      }
       leaf->singular = (type->flags & GLIMMER_CLOSURE_SINGULAR) != 0;
     }
   } else if (t == "transparent_bsdf") {
@@ -471,7 +483,7 @@ void ShaderSystem::evaluate(int compiled, const TexCoords &tc, ClosureSet &out) 
         out.transparent += w;
         continue;
       }
-      out.add(ActiveClosure{&leaf, w, leaf.emissive ? 0.0f : std::fabs(average(w))});
+      out.add(ActiveClosure{&leaf, leaf.instance, w, leaf.emissive ? 0.0f : std::fabs(average(w))});
       continue;
     }
     if (top + 2 > 64) continue;
