@@ -4,6 +4,7 @@
 #include <OpenImageIO/imageio.h>
 
 #include <regex>
+#include <set>
 
 #include "render_test_util.h"
 
@@ -193,6 +194,46 @@ TEST(Cli, InterruptWritesPartialImageAndExits3) {
   ASSERT_TRUE(WIFEXITED(status));
   EXPECT_EQ(WEXITSTATUS(status), 3);
   EXPECT_TRUE(fs::exists(png));
+}
+
+// Feature scan: shaders nothing uses are never compiled, so their closures are not
+// created (a bad parameter there is not an error) and their images are not loaded.
+TEST(FeatureScan, OnlyUsedShadersAreInstantiated) {
+  const std::string unused =
+      "<shader name=\"unused\"><image_texture name=\"t\" filename=\"missing.png\" />"
+      "<glint_bsdf name=\"g\" roughness=\"7\" /><connect from=\"t color\" to=\"g color\" />"
+      "<connect from=\"g bsdf\" to=\"output surface\" /></shader>\n";
+  const std::string used_shader =
+      "<shader name=\"used\"><diffuse_bsdf name=\"d\" /><connect from=\"d bsdf\" to=\"output surface\" /></shader>\n";
+  const std::string mesh = "<mesh P=\"-1 -1 3 1 -1 3 1 1 3\" nverts=\"3\" verts=\"0 1 2\" />";
+  const std::string ok_path = write_file("scan_ok.xml", "<cycles>\n<camera width=\"8\" height=\"8\" />\n" + unused +
+                                                            used_shader + "<state shader=\"used\">" + mesh + "</state>\n</cycles>\n");
+  const scene::Scene scene = scene::load_scene(ok_path);
+  render::RenderOptions opt;
+  opt.samples = 1;
+  render::Renderer renderer(scene, plugin(), opt);
+  EXPECT_EQ(renderer.features().closures, std::set<std::string>{"diffuse"});
+  EXPECT_TRUE(renderer.features().textures.empty());
+  EXPECT_EQ(renderer.features().used_shaders, 1);
+  EXPECT_EQ(renderer.features().unused_shaders, 1);
+  // The same shader, once used, fails with the node's file:line.
+  const std::string bad_path = write_file("scan_bad.xml", "<cycles>\n<camera width=\"8\" height=\"8\" />\n" + unused +
+                                                              "<state shader=\"unused\">" + mesh + "</state>\n</cycles>\n");
+  std::string out;
+  EXPECT_EQ(1, run_cli("render '" + bad_path + "' -o '" + (temp_dir() / "scan.png").string() + "' --quiet", out));
+  EXPECT_NE(out.find("scan_bad.xml:3: "), std::string::npos) << out;
+  // --stats names the phases and the feature set.
+  EXPECT_EQ(0, run_cli("render '" + ok_path + "' -o '" + (temp_dir() / "scan.png").string() + "' --quiet --stats", out));
+  for (const char *want : {"features: closures=diffuse", "load=", "bvh=", "prepare=", "render=", "write=", "shaders_unused=1"})
+    EXPECT_NE(out.find(want), std::string::npos) << want << " in " << out;
+}
+
+TEST(Cli, TimeLimitStopsEarlyAndWrites) {
+  const auto png = (temp_dir() / "limited.png").string();
+  std::string out;
+  EXPECT_EQ(0, run_cli("render '" + small_scene() + "' -o '" + png + "' --samples 10000000 --time-limit 0.3", out));
+  EXPECT_TRUE(fs::exists(png));
+  EXPECT_NE(out.find("time limit reached"), std::string::npos) << out.substr(out.size() > 400 ? out.size() - 400 : 0);
 }
 
 }  // namespace
