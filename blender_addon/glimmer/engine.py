@@ -84,6 +84,8 @@ class GlimmerRenderEngine(bpy.types.RenderEngine):
         width = max(1, int(scene.render.resolution_x * scale))
         height = max(1, int(scene.render.resolution_y * scale))
         layer_name = depsgraph.view_layer.name
+        if scene.render.use_border:
+            self.report({"WARNING"}, "Glimmer: render region (border) is not supported; the full frame is rendered")
         result = self.begin_result(0, 0, width, height, layer=layer_name)
         out_dir = None
         temporary = False

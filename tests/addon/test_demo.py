@@ -1,5 +1,5 @@
-"""Acceptance path: make_demo_blend.py writes a .blend, `blender -b demo.blend
---addons glimmer -E GLIMMER -f 1` renders it to PNG, and the glint sphere is
+"""Acceptance path: make_demo_blend.py writes a .blend, `blender -b --addons
+glimmer demo.blend -E GLIMMER -f 1` renders it to PNG, and the glint sphere is
 visible (lit, distinct from the sky behind it). Skipped (77) only while
 `glimmer render` does not exist."""
 import os
@@ -29,7 +29,7 @@ subprocess.run([blender, "-b", "--factory-startup", "--python-exit-code", "1", "
                 os.path.join(util.HERE, "make_demo_blend.py"), "--", "--output", blend,
                 "--width", "240", "--height", "160", "--samples", "16"], check=True)
 env = dict(os.environ, BLENDER_USER_SCRIPTS=os.path.join(util.REPO, "build", "blender_scripts"))
-render = subprocess.run([blender, "-b", blend, "--addons", "glimmer", "-E", "GLIMMER", "-f", "1"], env=env,
+render = subprocess.run([blender, "-b", "--addons", "glimmer", blend, "-E", "GLIMMER", "-f", "1"], env=env,
                         stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
 log = render.stdout.decode(errors="replace")
 print(log[-3000:])
