@@ -293,6 +293,13 @@ env = world.node_tree.nodes.new("ShaderNodeTexEnvironment")
 env.name = "env"
 env.image = env_image
 world.node_tree.links.new(env.outputs["Color"], bg.inputs["Color"])
+frosted_mat, tree, out = material("Frosted")
+fg = tree.nodes.new("GlimmerNodeFrostedGlassBsdf")
+fg.name = "fg"
+fg.inputs["Roughness"].default_value = 0.45
+tree.links.new(fg.outputs[0], out.inputs["Surface"])
+bpy.ops.mesh.primitive_plane_add(location=(0.0, 5.0, 0.0))
+bpy.context.active_object.data.materials.append(frosted_mat)
 reports.clear()
 xml3, _ = mod.exporter.export_scene(bpy.context.evaluated_depsgraph_get(), out_dir + "_variants",
                                     report=lambda kind, msg: reports.append((kind, msg)))
@@ -317,6 +324,14 @@ check(("pg_emit closure", "output surface") in connects, "emission added on top"
 background3 = root3.find("background")
 env_el = background3.find("environment_texture")
 check(env_el is not None and os.path.isfile(env_el.get("filename")), "environment texture exported")
+frosted_el = shaders3["Frosted"]
+schema_now, _, _ = mod.current_schema()
+if mod.schema.closure(schema_now, "frosted_glass").get("source") == "dso":
+    check(frosted_el.find("frosted_glass_bsdf") is not None, "frosted_glass_bsdf exported")
+else:  # not in the plugin yet: rough glass instead, with a warning
+    glass_el = frosted_el.find("glass_bsdf")
+    check(glass_el is not None and glass_el.get("roughness") == "0.449999988", "frosted -> rough glass_bsdf")
+    check(any("frosted_glass" in msg and "fallback" in msg for _, msg in reports), "planned closure reported")
 check(("env color", "Background color") in {(c.get("from"), c.get("to")) for c in background3.findall("connect")},
       "environment feeds the background colour")
 
