@@ -6,7 +6,7 @@ multilayer EXR (ViewLayer.Combined.RGBA) whose red channel is the fraction
 of samples done, written with oiiotool.
 
 Environment: FAKE_SAMPLE_SECONDS (default 0.05), FAKE_IGNORE_TERM=1 (ignore
-SIGTERM, to test the kill fallback), FAKE_LOG (append the argv here), FAKE_PROGRESS_FILE (rewritten with the number of
+SIGTERM, to test the kill fallback), FAKE_FAIL=1 (exit 1 with an error message), FAKE_LOG (append the argv here), FAKE_PROGRESS_FILE (rewritten with the number of
 samples done after each sample, so tests can cancel at a sample count rather than a time).
 """
 import os
@@ -38,6 +38,9 @@ def main(argv):
     if "--help" in argv:
         print("usage: glimmer render scene.xml -o out.exr")
         return 0
+    if os.environ.get("FAKE_FAIL") == "1":
+        print("glimmer: error: scene.xml:3: fake failure for the tests", file=sys.stderr)
+        return 1
     scene = argv[2]
     opts = dict(zip(argv[3::2], argv[4::2]))
     ET.parse(scene)  # the exported scene must at least be well-formed XML

@@ -138,6 +138,18 @@ try:
     check(np.allclose(px[:, 0], 1.0) and np.allclose(px[:, 1], 0.5), "full image loaded into view layer Beauty: %s" % px[:2])
     scene.view_layers[0].name = "ViewLayer"
 
+    # A failing renderer: its message reaches Blender's error report, the result is still ended.
+    os.environ["FAKE_FAIL"] = "1"
+    try:
+        bpy.ops.render.render()
+        failed_message = ""
+    except RuntimeError as e:
+        failed_message = str(e)
+    del os.environ["FAKE_FAIL"]
+    print("failing renderer:", failed_message.strip().splitlines()[:2])
+    check("exit code 1" in failed_message and "fake failure" in failed_message,
+          "renderer failure reported: %r" % failed_message)
+
     # The real renderer, when it can render: cancellation returns fast and leaves no process.
     if real_glimmer and runner.supports_render(real_glimmer):
         os.environ["GLIMMER_EXECUTABLE"] = real_glimmer
