@@ -1,0 +1,237 @@
+// glint (XML node glint_bsdf): separable, filterable discrete stochastic
+// microfacets (Wang, Wang, Holzschuch 2018, CGF 37(7)).
+//
+// A surface carries N particles per unit (scaled) uv area; each particle is a
+// tiny mirror whose normal follows D(m) cos(theta_m) (GGX or Beckmann). For a
+// pixel footprint A (uv parallelogram from the ray differentials) and a query
+// cone of half-angle gamma around wo, Jakob et al. 2014 count the particles in
+// A that reflect wi into the cone. Wang 2018 separate space and direction: a
+// particle reflects when its random threshold lambda is below the directional
+// probability P_gamma(wi, wo) (tables/glint_tables.h), so the count K is
+// found by a purely spatial traversal (tables/glint_particles.h).
+//
+// BRDF (our derivation of Jakob 2014 eq. 5 for a cone around wo): the smooth
+// microfacet BRDF integrated over the cone is
+//   Int_cone f cos = F G (wi.h) / (cos_i cos_h) P_gamma(wi, wo),
+// so with W(wi, wo) = F(wi.h) G2(wi, wo) (wi.h) / (cos_i cos_h) and sigma the
+// cone's solid angle:
+//   unfiltered:  f cos_o = W K / (N a(A) sigma)          (E[K] = N a(A) P)      (2)
+//   filtered:    f cos_o = W P / sigma                   (sec. 4.5)             (3)
+// Filtered mode is used when the expected glint count N a(A) P exceeds
+// filter_threshold (default 16, their Fig. 15). (3) is the expectation of
+// (2), so the switch is continuous in the mean, and (3) tends to the smooth
+// microfacet BRDF F G D / (4 cos_i) as gamma -> 0.
+//
+// LOD (sec. 4.4): P is looked up at a Gaussian blur sigma_L (degrees) equal
+// to the path's spread angle, capped by the lobe width 2 alpha (blurring past
+// the lobe would only widen it), linear between the 9 stored levels.
+//
+// Sampling: a mixture of visible-normal sampling of the smooth lobe widened to
+// alpha_w = sqrt(alpha^2 + ((gamma + sigma_L) / 2)^2) (weight 0.9) and cosine
+// sampling (0.1). pdf() is exactly that mixture's density; eval() returns the
+// glint BRDF (2)/(3), so estimators stay unbiased wherever the glint BRDF is
+// non-zero (the cosine part covers the whole hemisphere).
+//
+// Footprint: a(A) = |duv_dx x duv_dy| uv_scale^2; a zero footprint is a point
+// query resolved at the particle scale (a square holding one particle on
+// average, 1 / N).
+#include <array>
+#include <memory>
+
+#include "core/closure.h"
+#include "glimmer/microfacet.h"
+#include "glimmer/sampling.h"
+#include "tables/glint_particles.h"
+#include "tables/glint_tables.h"
+
+namespace glimmer::plugin {
+
+namespace mf = glimmer::microfacet;
+
+class GlintClosure {
+ public:
+  static constexpr const char *kName = "glint";
+  static constexpr const char *kDoc =
+      "Glints: separable filterable discrete stochastic microfacets (Wang et al. 2018) over a GGX or Beckmann base.";
+  static constexpr uint32_t kFlags = 0;
+
+  // Smallest alpha the 1-degree tables resolve (roughness 0.15).
+  static constexpr float kMinAlpha = 0.0225f;
+  static constexpr float kCosineMixture = 0.1f;
+  static constexpr int kMaxSteps = 1024;
+
+  static std::span<const GlimmerParamSpec> params() {
+    static const std::array<GlimmerParamSpec, 8> schema{{
+        {"distribution", GLIMMER_PARAM_ENUM, {0, 0, 0}, 0, 0, "ggx|beckmann", "ggx",
+         "base microfacet distribution of the particle normals"},
+        {"roughness", GLIMMER_PARAM_FLOAT, {0.4f, 0, 0}, 0.0f, 1.0f, nullptr, nullptr,
+         "base roughness (alpha = roughness^2, Cycles' mapping); values below 0.15 are treated as 0.15"},
+        {"gamma", GLIMMER_PARAM_FLOAT, {2.0f, 0, 0}, 0.1f, 10.0f, nullptr, nullptr,
+         "query cone half-angle in degrees (size of a glint in direction; Jakob 2014 use 1..6)"},
+        {"density", GLIMMER_PARAM_FLOAT, {1e6f, 0, 0}, 1.0f, 1e12f, nullptr, nullptr,
+         "particles per unit of scaled uv area"},
+        {"uv_scale", GLIMMER_PARAM_FLOAT, {1.0f, 0, 0}, 1e-4f, 1e6f, nullptr, nullptr,
+         "scale of the uv coordinates the particles live in (uv * uv_scale)"},
+        {"seed", GLIMMER_PARAM_INT, {0, 0, 0}, 0.0f, 16777216.0f, nullptr, nullptr,
+         "random seed of the particle field"},
+        {"color", GLIMMER_PARAM_COLOR, {1, 1, 1}, 0.0f, 1.0f, nullptr, nullptr,
+         "particle reflectance at normal incidence (Schlick Fresnel F0; 1 = Fresnel-free)"},
+        {"filter_threshold", GLIMMER_PARAM_FLOAT, {16.0f, 0, 0}, 0.0f, 1e9f, nullptr, nullptr,
+         "expected glints per footprint above which the filtered mean a(A) P is used (0 = always filtered)"},
+    }};
+    return schema;
+  }
+
+  static std::unique_ptr<GlintClosure> create(const ParamReader &p) {
+    auto c = std::make_unique<GlintClosure>();
+    c->distribution_ = p.get_enum("distribution") == 0 ? mf::Distribution::GGX : mf::Distribution::Beckmann;
+    c->alpha_ = std::max(sqr(p.get_float("roughness")), kMinAlpha);
+    c->gamma_deg_ = p.get_float("gamma");
+    c->density_ = p.get_float("density");
+    c->uv_scale_ = p.get_float("uv_scale");
+    c->seed_ = static_cast<uint32_t>(p.get_int("seed"));
+    c->color_ = p.get_color("color");
+    c->threshold_ = p.get_float("filter_threshold");
+    return c;
+  }
+
+  void prepare(const GlimmerHostServices *host) {
+    glint::TableSpec spec;
+    spec.distribution =
+        distribution_ == mf::Distribution::GGX ? glint::BaseDistribution::GGX : glint::BaseDistribution::Beckmann;
+    spec.alpha = alpha_;
+    spec.gamma_deg = gamma_deg_;
+    const mf::Distribution dist = distribution_;
+    const float alpha = alpha_;
+    table_ = glint::acquire_table(
+        spec,
+        [dist, alpha](double cos_m) {
+          const double c = std::min(std::max(cos_m, 0.0), 1.0);
+          const Vec3 m(static_cast<float>(std::sqrt(1.0 - c * c)), 0.0f, static_cast<float>(c));
+          return static_cast<double>(mf::D(dist, m, alpha, alpha));
+        },
+        host);
+    cone_solid_angle_ = table_->cone_solid_angle();
+  }
+
+  // LOD blur in degrees: the path's spread, capped by the lobe width 2 alpha.
+  float lod_sigma_deg(const GlimmerShadingContext *ctx) const {
+    const float spread = std::isfinite(ctx->spread_angle) ? std::max(ctx->spread_angle, 0.0f) : 0.0f;
+    return std::min(spread, 2.0f * alpha_) * glint::kRadToDeg;
+  }
+
+  float sampling_alpha(float sigma_deg) const {
+    const float widen = 0.5f * (gamma_deg_ + sigma_deg) * glint::kDegToRad;
+    return std::sqrt(alpha_ * alpha_ + widen * widen);
+  }
+
+  // Footprint in scaled uv (point query: 1/N square).
+  glint::Footprint footprint(const GlimmerShadingContext *ctx) const {
+    glint::Footprint f;
+    const double s = uv_scale_;
+    f.cx = ctx->uv[0] * s;
+    f.cy = ctx->uv[1] * s;
+    f.ax = ctx->duv_dx[0] * s;
+    f.ay = ctx->duv_dx[1] * s;
+    f.bx = ctx->duv_dy[0] * s;
+    f.by = ctx->duv_dy[1] * s;
+    const double finite = std::isfinite(f.ax) && std::isfinite(f.ay) && std::isfinite(f.bx) && std::isfinite(f.by);
+    if (!finite || !(f.area() > 1e-30) || !(f.area() < 1e30)) {
+      const double side = 1.0 / std::sqrt(static_cast<double>(density_));
+      f.ax = side;
+      f.ay = 0.0;
+      f.bx = 0.0;
+      f.by = side;
+    }
+    return f;
+  }
+
+  float sampler_pdf(const Vec3 &wi, const Vec3 &wo, float alpha_w) const {
+    if (!(wo.z > 0.0f)) return 0.0f;
+    float pdf = kCosineMixture * wo.z * kInvPi;
+    Vec3 h;
+    if (mf::half_vector_reflect(wi, wo, h) && dot(wi, h) > 0.0f) {
+      const float vndf = mf::visible_D(distribution_, wi, h, alpha_w, alpha_w);
+      pdf += (1.0f - kCosineMixture) * vndf / (4.0f * dot(wo, h));
+    }
+    return pdf;
+  }
+
+  // The glint BRDF times cos(wo): equations (2) and (3).
+  Spectrum glint_f_cos(const GlimmerShadingContext *ctx, const Vec3 &wi, const Vec3 &wo, float sigma_deg) const {
+    if (!table_ || !(wi.z > 0.0f) || !(wo.z > 0.0f)) return Spectrum(0.0f);
+    Vec3 h;
+    if (!mf::half_vector_reflect(wi, wo, h)) return Spectrum(0.0f);
+    const float wi_h = dot(wi, h);
+    if (!(wi_h > 0.0f) || !(h.z > 0.0f)) return Spectrum(0.0f);
+    const float g2 = mf::G2(distribution_, wi, wo, alpha_, alpha_);
+    const Spectrum fresnel = mf::fresnel_schlick(wi_h, color_);
+    const Spectrum weight = fresnel * (g2 * wi_h / (wi.z * h.z));
+    // Table coordinates: polar angles and the folded azimuth difference.
+    const float theta_i = safe_acos(wi.z) * glint::kRadToDeg;
+    const float theta_o = safe_acos(wo.z) * glint::kRadToDeg;
+    const float sin_i = safe_sqrt(1.0f - wi.z * wi.z), sin_o = safe_sqrt(1.0f - wo.z * wo.z);
+    const float denom = sin_i * sin_o;
+    const float cos_dphi = denom > 1e-12f ? (wi.x * wo.x + wi.y * wo.y) / denom : 1.0f;
+    const float dphi = safe_acos(cos_dphi) * glint::kRadToDeg;
+    const float P = std::min(table_->lookup(sigma_deg, theta_i, theta_o, dphi), 1.0f);
+    if (!(P > 0.0f)) return Spectrum(0.0f);
+
+    const glint::Footprint fp = footprint(ctx);
+    const double area = fp.area();
+    const double expected = static_cast<double>(density_) * area * P;
+    if (expected > threshold_) return weight * (P / cone_solid_angle_);  // (3)
+    const glint::NodeRange nodes = glint::footprint_nodes(fp);
+    const glint::GlintCount k =
+        glint::count_reflecting_particles(fp, nodes, density_, seed_, P, kMaxSteps);
+    if (!k.complete) return weight * (P / cone_solid_angle_);  // extreme anisotropy: the mean (3)
+    if (k.count == 0) return Spectrum(0.0f);
+    const double scale = static_cast<double>(k.count) / (static_cast<double>(density_) * area * cone_solid_angle_);
+    return weight * static_cast<float>(scale);  // (2)
+  }
+
+  LocalEval eval(const ShadingPoint &sp, const Vec3 &wo) const {
+    const float sigma = lod_sigma_deg(sp.ctx);
+    LocalEval e;
+    e.f_cos = glint_f_cos(sp.ctx, sp.wi, wo, sigma);
+    e.pdf = (sp.wi.z > 0.0f) ? sampler_pdf(sp.wi, wo, sampling_alpha(sigma)) : 0.0f;
+    return e;
+  }
+
+  bool sample(const ShadingPoint &sp, const Vec3 &rand, LocalSample &out) const {
+    const Vec3 &wi = sp.wi;
+    if (!(wi.z > 0.0f)) return false;
+    const float sigma = lod_sigma_deg(sp.ctx);
+    const float alpha_w = sampling_alpha(sigma);
+    if (rand.z < kCosineMixture) {
+      out.wo = sample_cosine_hemisphere(rand.x, rand.y);
+    } else {
+      const Vec3 h = mf::sample_visible_normal(distribution_, wi, alpha_w, alpha_w, rand.x, rand.y);
+      out.wo = mf::reflect_about(wi, h);
+    }
+    if (!(out.wo.z > 0.0f)) return false;
+    out.pdf = sampler_pdf(wi, out.wo, alpha_w);
+    out.f_cos = glint_f_cos(sp.ctx, wi, out.wo, sigma);
+    out.roughness = std::sqrt(alpha_w);
+    out.label = GLIMMER_LABEL_REFLECT | GLIMMER_LABEL_GLOSSY;
+    return out.pdf > 0.0f;
+  }
+
+  Spectrum albedo(const ShadingPoint &) const { return color_; }
+
+ private:
+  mf::Distribution distribution_ = mf::Distribution::GGX;
+  float alpha_ = 0.16f;
+  float gamma_deg_ = 2.0f;
+  float density_ = 1e6f;
+  float uv_scale_ = 1.0f;
+  uint32_t seed_ = 0;
+  Spectrum color_{1.0f};
+  float threshold_ = 16.0f;
+  std::shared_ptr<const glint::DirectionalTable> table_;
+  float cone_solid_angle_ = 1.0f;
+};
+
+GLIMMER_REGISTER_CLOSURE(GlintClosure)
+
+}  // namespace glimmer::plugin

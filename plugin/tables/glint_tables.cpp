@@ -1,0 +1,496 @@
+// Directional probability tables of the separable glint model; see glint_tables.h.
+#include "tables/glint_tables.h"
+
+#include <atomic>
+#include <chrono>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <mutex>
+#include <thread>
+
+namespace glimmer::plugin::glint {
+namespace {
+
+constexpr double kPiD = 3.14159265358979323846;
+constexpr double kDeg = kPiD / 180.0;
+constexpr uint32_t kFormatVersion = 1;
+constexpr char kMagic[8] = {'G', 'L', 'M', 'G', 'L', 'N', 'T', 'P'};
+
+struct D3 {
+  double x, y, z;
+};
+inline D3 operator+(D3 a, D3 b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
+inline D3 operator*(D3 a, double s) { return {a.x * s, a.y * s, a.z * s}; }
+inline double sq(double v) { return v * v; }
+inline double dot3(D3 a, D3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+inline D3 cross3(D3 a, D3 b) { return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x}; }
+inline D3 normalized(D3 a) {
+  const double l = std::sqrt(dot3(a, a));
+  return l > 0 ? a * (1.0 / l) : D3{0, 0, 1};
+}
+inline D3 spherical(double theta, double phi) {
+  return {std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi), std::cos(theta)};
+}
+
+// Equation (1): density of the reflected direction r for particle normals
+// distributed as D(m) cos(theta_m).
+inline double reflected_density(const NdfFunction &ndf, D3 wi, D3 r) {
+  const D3 s = wi + r;
+  const double len = std::sqrt(dot3(s, s));
+  if (!(len > 1e-9)) return 0.0;
+  const D3 h = s * (1.0 / len);
+  const double wi_h = dot3(wi, h);
+  if (!(h.z > 0.0) || !(wi_h > 0.0)) return 0.0;
+  return ndf(h.z) * h.z / (4.0 * wi_h);
+}
+
+// Tangent frame around a unit direction c.
+inline void tangent_frame(D3 c, D3 &e1, D3 &e2) {
+  const D3 a = std::fabs(c.z) < 0.9 ? D3{0, 0, 1} : D3{1, 0, 0};
+  e1 = normalized(cross3(a, c));
+  e2 = cross3(c, e1);
+}
+inline D3 cone_point(D3 c, D3 e1, D3 e2, double rho, double phi) {
+  return c * std::cos(rho) + (e1 * std::cos(phi) + e2 * std::sin(phi)) * std::sin(rho);
+}
+
+inline double cone_solid_angle_d(double gamma_rad) { return 2.0 * kPiD * (1.0 - std::cos(gamma_rad)); }
+
+// Step 1: P_1 by a 7-point degree-5 disk rule (center 1/4, six points at
+// radius sqrt(2/3) gamma with weight 1/8) on the 1-degree cone.
+double p1_cell(const NdfFunction &ndf, D3 wi, D3 wo) {
+  const double gamma = 1.0 * kDeg;
+  D3 e1, e2;
+  tangent_frame(wo, e1, e2);
+  double sum = 0.25 * reflected_density(ndf, wi, wo);
+  const double rho = std::sqrt(2.0 / 3.0) * gamma;
+  for (int k = 0; k < 6; ++k) sum += 0.125 * reflected_density(ndf, wi, cone_point(wo, e1, e2, rho, k * kPiD / 3.0));
+  return sum * cone_solid_angle_d(gamma);
+}
+
+// Folded azimuth difference in degrees of a direction relative to wi (wi in the xz plane, phi_i = 0).
+inline void direction_angles(D3 d, double &theta_deg, double &dphi_deg) {
+  theta_deg = std::acos(std::clamp(d.z, -1.0, 1.0)) / kDeg;
+  dphi_deg = std::fabs(std::atan2(d.y, d.x)) / kDeg;
+}
+
+template <typename Fn>
+void parallel_for(int count, int threads, Fn fn) {
+  threads = std::max(1, std::min(threads, count));
+  if (threads == 1) {
+    for (int i = 0; i < count; ++i) fn(i);
+    return;
+  }
+  std::atomic<int> next{0};
+  std::vector<std::thread> pool;
+  for (int t = 0; t < threads; ++t)
+    pool.emplace_back([&] {
+      for (int i = next++; i < count; i = next++) fn(i);
+    });
+  for (auto &th : pool) th.join();
+}
+
+LodLevel make_level(int level, int n_theta_i_unused = kThetaICount) {
+  (void)n_theta_i_unused;
+  LodLevel l;
+  l.sigma_deg = kLodSigmaDeg[level];
+  l.step_deg = kLodStepDeg[level];
+  l.n_theta_o = 90 / l.step_deg + 1;
+  l.n_phi = 180 / l.step_deg + 1;
+  l.values.assign(static_cast<size_t>(kThetaICount) * l.n_theta_o * l.n_phi, 0.0f);
+  return l;
+}
+
+// Bilinear sample of a 1-degree (theta, dphi) slice with the sphere's
+// topology: theta < 0 crosses the pole (dphi -> 180 - dphi), theta > 90 is
+// below the horizon (0), dphi is folded and periodic.
+double slice_sample(const std::vector<double> &slice, double theta, double dphi) {
+  if (theta < 0) {
+    theta = -theta;
+    dphi = 180.0 - dphi;
+  }
+  if (theta > 90.0) return 0.0;
+  dphi = std::fmod(std::fabs(dphi), 360.0);
+  if (dphi > 180.0) dphi = 360.0 - dphi;
+  const int t0 = std::min(static_cast<int>(theta), 89), p0 = std::min(static_cast<int>(dphi), 179);
+  const double ft = theta - t0, fp = dphi - p0;
+  auto at = [&](int t, int p) { return slice[static_cast<size_t>(t) * 181 + p]; };
+  const double a = at(t0, p0) + (at(t0, p0 + 1) - at(t0, p0)) * fp;
+  const double b = at(t0 + 1, p0) + (at(t0 + 1, p0 + 1) - at(t0 + 1, p0)) * fp;
+  return a + (b - a) * ft;
+}
+
+// Reflected probability mass of a slice, Int P dwo / sigma_cone (trapezoid in
+// theta and dphi on the folded hemisphere, times 2 for the other half).
+double slice_mass(const float *values, int n_theta, int n_phi, int step) {
+  const double h = step * kDeg;
+  double sum = 0.0;
+  for (int t = 0; t < n_theta; ++t) {
+    const double wt = (t == 0 || t == n_theta - 1) ? 0.5 : 1.0;
+    const double sin_t = std::sin(t * h);
+    for (int p = 0; p < n_phi; ++p) {
+      const double wp = (p == 0 || p == n_phi - 1) ? 0.5 : 1.0;
+      sum += wt * wp * sin_t * values[static_cast<size_t>(t) * n_phi + p];
+    }
+  }
+  return 2.0 * sum * h * h;
+}
+
+uint64_t fnv1a(const void *data, size_t size, uint64_t h = 1469598103934665603ull) {
+  const auto *p = static_cast<const unsigned char *>(data);
+  for (size_t i = 0; i < size; ++i) {
+    h ^= p[i];
+    h *= 1099511628211ull;
+  }
+  return h;
+}
+
+}  // namespace
+
+size_t DirectionalTable::byte_size() const {
+  size_t s = 0;
+  for (const auto &l : levels) s += l.values.size() * sizeof(float);
+  return s;
+}
+
+double directional_probability_reference(const NdfFunction &ndf, double gamma_deg, double theta_i_deg,
+                                         double theta_o_deg, double dphi_deg, int rings) {
+  const D3 wi = spherical(theta_i_deg * kDeg, 0.0);
+  const D3 wo = spherical(theta_o_deg * kDeg, dphi_deg * kDeg);
+  D3 e1, e2;
+  tangent_frame(wo, e1, e2);
+  const double cos_g = std::cos(gamma_deg * kDeg);
+  const int n_phi = 4 * rings;
+  double sum = 0.0;
+  for (int r = 0; r < rings; ++r) {  // rings of equal solid angle (uniform in cos rho)
+    const double cos_rho = 1.0 - (r + 0.5) / rings * (1.0 - cos_g);
+    const double rho = std::acos(cos_rho);
+    for (int p = 0; p < n_phi; ++p)
+      sum += reflected_density(ndf, wi, cone_point(wo, e1, e2, rho, (p + 0.5 * (r & 1)) * 2.0 * kPiD / n_phi));
+  }
+  return sum / (rings * n_phi) * cone_solid_angle_d(gamma_deg * kDeg);
+}
+
+std::unique_ptr<DirectionalTable> build_directional_table(const TableSpec &spec, const NdfFunction &ndf,
+                                                          int threads) {
+  const auto start = std::chrono::steady_clock::now();
+  auto table = std::make_unique<DirectionalTable>();
+  table->spec = spec;
+  constexpr int kN = 91, kP = 181;
+  const size_t slice_size = static_cast<size_t>(kN) * kP;
+
+  // Step 1: P_1 on the 1-degree grid.
+  std::vector<double> p1(static_cast<size_t>(kThetaICount) * slice_size);
+  parallel_for(kThetaICount, threads, [&](int ti) {
+    const D3 wi = spherical(ti * kDeg, 0.0);
+    for (int to = 0; to < kN; ++to)
+      for (int p = 0; p < kP; ++p)
+        p1[ti * slice_size + static_cast<size_t>(to) * kP + p] = p1_cell(ndf, wi, spherical(to * kDeg, p * kDeg));
+  });
+
+  // Step 2: accumulation for the material's gamma. The gamma cone is covered
+  // by an n x n concentric (equal-area) grid of points, each standing for a
+  // 1-degree cone; P_gamma = sigma_gamma / sigma_1 * mean of P_1 over them.
+  // Points are placed in (theta, phi) by the local exponential map
+  // (theta + rho cos psi, phi + rho sin psi / sin theta), exact to O(gamma^2),
+  // and the exact rotation within 3 gamma of the pole.
+  const double gamma = static_cast<double>(spec.gamma_deg);
+  std::vector<double> pg(p1.size());
+  if (std::fabs(gamma - 1.0) < 1e-6) {
+    pg = p1;
+  } else if (gamma < 1.0) {
+    const double s = cone_solid_angle_d(gamma * kDeg) / cone_solid_angle_d(kDeg);
+    for (size_t i = 0; i < p1.size(); ++i) pg[i] = p1[i] * s;
+  } else {
+    const int n = std::min(6, static_cast<int>(std::ceil(2.0 * gamma)));
+    struct DiskPoint {
+      double rho, cos_psi, sin_psi;
+    };
+    std::vector<DiskPoint> disk;
+    for (int a = 0; a < n; ++a)
+      for (int b = 0; b < n; ++b) {
+        const double x = 2.0 * (a + 0.5) / n - 1.0, y = 2.0 * (b + 0.5) / n - 1.0;
+        double r, phi;
+        if (std::fabs(x) > std::fabs(y)) {
+          r = x;
+          phi = (kPiD / 4.0) * (y / x);
+        } else {
+          r = y;
+          phi = (kPiD / 2.0) - (kPiD / 4.0) * (x / y);
+        }
+        // equal-area disk radius -> equal-solid-angle cone angle
+        const double cos_rho = 1.0 - r * r * (1.0 - std::cos(gamma * kDeg));
+        const double psi = phi + (r < 0 ? kPiD : 0.0);
+        disk.push_back({std::acos(cos_rho), std::cos(psi), std::sin(psi)});
+      }
+    const double scale = cone_solid_angle_d(gamma * kDeg) / cone_solid_angle_d(kDeg) / static_cast<double>(disk.size());
+    parallel_for(kThetaICount, threads, [&](int ti) {
+      std::vector<double> slice(p1.begin() + ti * slice_size, p1.begin() + (ti + 1) * slice_size);
+      for (int to = 0; to < kN; ++to) {
+        const bool near_pole = to < 3.0 * gamma + 1.0;
+        const double inv_sin = 1.0 / std::sin(std::max(to, 1) * kDeg);
+        for (int p = 0; p < kP; ++p) {
+          double sum = 0.0;
+          if (near_pole) {
+            const D3 wo = spherical(to * kDeg, p * kDeg);
+            D3 e1, e2;
+            tangent_frame(wo, e1, e2);
+            for (const auto &d : disk) {
+              const D3 dir = wo * std::cos(d.rho) + (e1 * d.cos_psi + e2 * d.sin_psi) * std::sin(d.rho);
+              double th, dp;
+              direction_angles(dir, th, dp);
+              sum += slice_sample(slice, th, dp);
+            }
+          } else {
+            for (const auto &d : disk) {
+              const double rho_deg = d.rho / kDeg;
+              sum += slice_sample(slice, to + rho_deg * d.cos_psi, p + rho_deg * d.sin_psi * inv_sin);
+            }
+          }
+          pg[ti * slice_size + static_cast<size_t>(to) * kP + p] = sum * scale;
+        }
+      }
+    });
+  }
+  p1.clear();
+  p1.shrink_to_fit();
+
+  // Step 3: LOD levels. Level 0 is P_gamma itself (the 1-degree base; no
+  // blur, so camera rays see the exact lobe up to the horizon). Levels 1..8
+  // are P_gamma blurred by a Gaussian of sigma_L over wo, separably on the
+  // sphere with 1-degree taps (theta: through the pole, zero below the
+  // horizon; phi: sigma_L / sin(theta), periodic), then renormalised to the
+  // mass of P_gamma.
+  for (int l = 0; l < kLodCount; ++l) table->levels[l] = make_level(l);
+  parallel_for(kThetaICount, threads, [&](int ti) {
+    const double *slice = pg.data() + ti * slice_size;
+    std::vector<float> fslice(slice, slice + slice_size);
+    const double target_mass = slice_mass(fslice.data(), kN, kP, 1);
+    std::copy(fslice.begin(), fslice.end(), table->levels[0].values.begin() + ti * slice_size);
+    auto src = [&](int t, int p) -> double {  // integer-degree sample with the sphere's topology
+      if (t < 0) {
+        t = -t;
+        p = 180 - p;
+      }
+      if (t > 90) return 0.0;
+      p = ((p % 360) + 360) % 360;
+      if (p > 180) p = 360 - p;
+      return slice[static_cast<size_t>(t) * kP + p];
+    };
+    std::vector<double> kernel, pass1;
+    for (int l = 1; l < kLodCount; ++l) {
+      LodLevel &level = table->levels[l];
+      const double sigma = level.sigma_deg;
+      const int step = level.step_deg;
+      // Pass 1 (theta): output theta nodes of this level x all 1-degree dphi nodes.
+      const int half = static_cast<int>(std::ceil(std::min(3.0 * sigma, 180.0)));
+      kernel.resize(2 * half + 1);
+      double norm = 0.0;
+      for (int k = -half; k <= half; ++k) norm += kernel[k + half] = std::exp(-0.5 * sq(k / sigma));
+      for (auto &w : kernel) w /= norm;
+      pass1.assign(static_cast<size_t>(level.n_theta_o) * kP, 0.0);
+      for (int to = 0; to < level.n_theta_o; ++to)
+        for (int p = 0; p < kP; ++p) {
+          double sum = 0.0;
+          for (int k = -half; k <= half; ++k) sum += kernel[k + half] * src(to * step + k, p);
+          pass1[static_cast<size_t>(to) * kP + p] = sum;
+        }
+      // Pass 2 (phi): along the parallel, sigma_phi = sigma / sin(theta_o), periodic.
+      float *out = level.values.data() + static_cast<size_t>(ti) * level.n_theta_o * level.n_phi;
+      for (int to = 0; to < level.n_theta_o; ++to) {
+        const double sin_t = std::max(std::sin(to * step * kDeg), std::sin(0.5 * kDeg));
+        const double sigma_phi = sigma / sin_t;
+        const int half_phi = static_cast<int>(std::ceil(std::min(3.0 * sigma_phi, 180.0)));
+        kernel.resize(2 * half_phi + 1);
+        double norm_phi = 0.0;
+        for (int k = -half_phi; k <= half_phi; ++k) norm_phi += kernel[k + half_phi] = std::exp(-0.5 * sq(k / sigma_phi));
+        const double *row = pass1.data() + static_cast<size_t>(to) * kP;
+        for (int p = 0; p < level.n_phi; ++p) {
+          double sum = 0.0;
+          for (int k = -half_phi; k <= half_phi; ++k) {
+            int q = ((p * step + k) % 360 + 360) % 360;
+            if (q > 180) q = 360 - q;
+            sum += kernel[k + half_phi] * row[q];
+          }
+          out[static_cast<size_t>(to) * level.n_phi + p] = static_cast<float>(sum / norm_phi);
+        }
+      }
+      const double mass = slice_mass(out, level.n_theta_o, level.n_phi, step);
+      if (mass > 0.0 && target_mass > 0.0) {
+        const float s = static_cast<float>(target_mass / mass);
+        for (size_t i = 0; i < static_cast<size_t>(level.n_theta_o) * level.n_phi; ++i) out[i] *= s;
+      }
+    }
+  });
+  table->build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return table;
+}
+
+uint64_t table_key(const TableSpec &spec) {
+  uint64_t h = fnv1a(kMagic, sizeof(kMagic));
+  h = fnv1a(&kFormatVersion, sizeof(kFormatVersion), h);
+  const int dist = static_cast<int>(spec.distribution);
+  h = fnv1a(&dist, sizeof(dist), h);
+  h = fnv1a(&spec.alpha, sizeof(spec.alpha), h);
+  h = fnv1a(&spec.gamma_deg, sizeof(spec.gamma_deg), h);
+  h = fnv1a(kLodSigmaDeg.data(), sizeof(kLodSigmaDeg), h);
+  h = fnv1a(kLodStepDeg.data(), sizeof(kLodStepDeg), h);
+  return h;
+}
+
+std::string table_cache_path(const std::string &cache_dir, const TableSpec &spec) {
+  char name[64];
+  std::snprintf(name, sizeof(name), "glint_P_%016llx.bin", static_cast<unsigned long long>(table_key(spec)));
+  return (std::filesystem::path(cache_dir) / name).string();
+}
+
+// File: magic, version, key, spec, then per level (n_theta_o, n_phi, values),
+// then the FNV-1a checksum of everything before it.
+bool save_table(const std::string &path, const DirectionalTable &table, std::string &problem) {
+  std::vector<unsigned char> bytes;
+  auto put = [&](const void *p, size_t n) {
+    const auto *c = static_cast<const unsigned char *>(p);
+    bytes.insert(bytes.end(), c, c + n);
+  };
+  const uint64_t key = table_key(table.spec);
+  const int dist = static_cast<int>(table.spec.distribution);
+  put(kMagic, sizeof(kMagic));
+  put(&kFormatVersion, sizeof(kFormatVersion));
+  put(&key, sizeof(key));
+  put(&dist, sizeof(dist));
+  put(&table.spec.alpha, sizeof(float));
+  put(&table.spec.gamma_deg, sizeof(float));
+  for (const auto &l : table.levels) {
+    put(&l.n_theta_o, sizeof(int));
+    put(&l.n_phi, sizeof(int));
+    put(l.values.data(), l.values.size() * sizeof(float));
+  }
+  const uint64_t sum = fnv1a(bytes.data(), bytes.size());
+  put(&sum, sizeof(sum));
+  std::error_code ec;
+  const std::filesystem::path target(path);
+  std::filesystem::create_directories(target.parent_path(), ec);
+  // Written to a unique temporary name, then renamed: readers never see a partial file.
+  const std::string tmp = path + ".tmp." + std::to_string(reinterpret_cast<uintptr_t>(&table) ^ fnv1a(path.data(), path.size()));
+  {
+    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
+    if (!f) {
+      problem = "cannot write " + tmp;
+      return false;
+    }
+    f.write(reinterpret_cast<const char *>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+    if (!f) {
+      problem = "write failed for " + tmp;
+      return false;
+    }
+  }
+  std::filesystem::rename(tmp, target, ec);
+  if (ec) {
+    std::filesystem::remove(tmp, ec);
+    problem = "cannot rename the cache file into " + path;
+    return false;
+  }
+  return true;
+}
+
+std::unique_ptr<DirectionalTable> load_table(const std::string &path, const TableSpec &spec, std::string &problem) {
+  std::ifstream f(path, std::ios::binary);
+  if (!f) {
+    problem = "missing";
+    return nullptr;
+  }
+  std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  size_t pos = 0;
+  auto get = [&](void *p, size_t n) {
+    if (pos + n > bytes.size()) return false;
+    std::memcpy(p, bytes.data() + pos, n);
+    pos += n;
+    return true;
+  };
+  char magic[8];
+  uint32_t version = 0;
+  uint64_t key = 0;
+  int dist = -1;
+  auto table = std::make_unique<DirectionalTable>();
+  if (!get(magic, 8) || std::memcmp(magic, kMagic, 8) != 0 || !get(&version, 4) || version != kFormatVersion ||
+      !get(&key, 8) || key != table_key(spec) || !get(&dist, 4) || !get(&table->spec.alpha, 4) ||
+      !get(&table->spec.gamma_deg, 4)) {
+    problem = "bad header (not a glint table of this version and parameters)";
+    return nullptr;
+  }
+  table->spec.distribution = static_cast<BaseDistribution>(dist);
+  if (!(table->spec == spec)) {
+    problem = "parameters differ from the requested table";
+    return nullptr;
+  }
+  for (int l = 0; l < kLodCount; ++l) {
+    LodLevel expected = make_level(l);
+    LodLevel &level = table->levels[l];
+    level = expected;
+    int n_to = 0, n_phi = 0;
+    if (!get(&n_to, 4) || !get(&n_phi, 4) || n_to != expected.n_theta_o || n_phi != expected.n_phi ||
+        !get(level.values.data(), level.values.size() * sizeof(float))) {
+      problem = "truncated or malformed level " + std::to_string(l);
+      return nullptr;
+    }
+  }
+  const size_t data_end = pos;
+  uint64_t sum = 0;
+  if (!get(&sum, 8) || pos != bytes.size() || sum != fnv1a(bytes.data(), data_end)) {
+    problem = "checksum mismatch (corrupt file)";
+    return nullptr;
+  }
+  for (const auto &l : table->levels)
+    for (float v : l.values)
+      if (!std::isfinite(v) || v < 0.0f) {
+        problem = "non-finite or negative values";
+        return nullptr;
+      }
+  table->loaded_from_cache = true;
+  return table;
+}
+
+std::shared_ptr<const DirectionalTable> acquire_table(const TableSpec &spec, const NdfFunction &ndf,
+                                                      const GlimmerHostServices *host) {
+  static std::mutex mutex;
+  static std::map<uint64_t, std::weak_ptr<const DirectionalTable>> shared;
+  std::lock_guard<std::mutex> lock(mutex);
+  const uint64_t key = table_key(spec);
+  if (auto it = shared.find(key); it != shared.end())
+    if (auto t = it->second.lock(); t && t->spec == spec) return t;
+
+  auto log = [&](int level, const std::string &msg) {
+    if (host != nullptr && host->log != nullptr) host->log(host->host_data, level, msg.c_str());
+  };
+  const bool use_cache = host != nullptr && host->cache_dir != nullptr && host->cache_dir[0] != '\0';
+  std::string path;
+  std::unique_ptr<DirectionalTable> table;
+  if (use_cache) {
+    path = table_cache_path(host->cache_dir, spec);
+    std::string problem;
+    table = load_table(path, spec, problem);
+    if (!table && problem != "missing")
+      log(GLIMMER_LOG_WARNING, "glint: cached table " + path + " is unusable (" + problem + "); recomputing");
+  }
+  if (!table) {
+    table = build_directional_table(spec, ndf, static_cast<int>(std::max(1u, std::thread::hardware_concurrency())));
+    char msg[256];
+    std::snprintf(msg, sizeof(msg),
+                  "glint: precomputed directional table (%s, alpha %.4g, gamma %.3g deg, %.1f MB) in %.3f s",
+                  spec.distribution == BaseDistribution::GGX ? "ggx" : "beckmann", spec.alpha, spec.gamma_deg,
+                  table->byte_size() / 1048576.0, table->build_seconds);
+    log(GLIMMER_LOG_INFO, msg);
+    if (use_cache) {
+      std::string problem;
+      if (!save_table(path, *table, problem)) log(GLIMMER_LOG_WARNING, "glint: table cache not written: " + problem);
+    }
+  }
+  std::shared_ptr<const DirectionalTable> result(std::move(table));
+  shared[key] = result;
+  return result;
+}
+
+}  // namespace glimmer::plugin::glint

@@ -1,0 +1,147 @@
+// Directional probability tables of the separable discrete stochastic
+// microfacet model (Wang, Wang, Holzschuch 2018, "Fast Global Illumination
+// with Discrete Stochastic Microfacets Using a Filterable Model", sec. 4.2-4.4).
+//
+// P_gamma(wi, wo) is the probability that one particle, whose normal m is
+// distributed like the projected-area microfacet distribution D(m) cos(theta_m),
+// reflects wi into the cone of half-angle gamma around wo:
+//
+//   P_gamma(wi, wo) = Int_{cone(wo, gamma)} q(wi, r) dr,
+//   q(wi, r) = D(h) cos(theta_h) / (4 (wi . h)),  h = normalize(wi + r)        (1)
+//
+// q is the density (per solid angle of r) of the reflected direction; the
+// factor 1 / (4 wi.h) is the Jacobian of the half-vector map (Walter 2007).
+// For an isotropic D, P depends on (theta_i, theta_o, dphi) with dphi folded to
+// [0, 180] degrees.
+//
+// Construction, as in the paper:
+//  1. P_1 at gamma = 1 degree on a 1-degree grid (91 x 91 x 181 nodes), each
+//     node integrated by a 7-point degree-5 cone quadrature of (1);
+//  2. accumulation for the material's gamma: P_gamma(wo) is the sum of P_1
+//     over the 1-degree cones tiling cone(wo, gamma) (trilinear P_1 lookups);
+//  3. 9 Gaussian LOD levels (sigma = 1, 2, 5, 10, 20, 30, 45, 60, 90 degrees).
+//     Level 0 ("1 degree") is P_gamma itself at the 1-degree base resolution;
+//     levels 1..8 are P_gamma blurred over wo on the sphere (separable: along
+//     theta_o, then along phi with sigma / sin(theta_o)), stored at a step
+//     ~ sigma / 3, and renormalised per theta_i to the unblurred reflected
+//     probability mass (mass blurred below the horizon is put back, so energy
+//     is preserved).
+// Lookups are trilinear within a level and linear in sigma between levels.
+//
+// Tables are cached on disk (host->cache_dir) under a hash of their
+// parameters; a corrupt or mismatching file is rebuilt with a warning.
+#pragma once
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "glimmer/closure_abi.h"
+
+namespace glimmer::plugin::glint {
+
+enum class BaseDistribution : int { GGX = 0, Beckmann = 1 };
+
+struct TableSpec {
+  BaseDistribution distribution = BaseDistribution::GGX;
+  float alpha = 0.25f;      // microfacet alpha (Cycles: roughness^2)
+  float gamma_deg = 1.0f;   // query cone half-angle in degrees
+  bool operator==(const TableSpec &) const = default;
+};
+
+inline constexpr int kLodCount = 9;
+inline constexpr std::array<float, kLodCount> kLodSigmaDeg = {1, 2, 5, 10, 20, 30, 45, 60, 90};
+// Grid step (degrees) of theta_o and dphi per level (divides 90 and 180).
+inline constexpr std::array<int, kLodCount> kLodStepDeg = {1, 1, 2, 3, 6, 10, 15, 18, 30};
+inline constexpr int kThetaICount = 91;  // theta_i = 0..90 degrees, 1-degree nodes
+inline constexpr float kRadToDeg = 57.29577951308232f;
+inline constexpr float kDegToRad = 0.017453292519943295f;
+
+// One LOD level: values[((ti * n_theta_o) + to) * n_phi + phi] at nodes
+// theta_i = ti deg, theta_o = to * step, dphi = phi * step.
+struct LodLevel {
+  float sigma_deg = 1.0f;
+  int step_deg = 1;
+  int n_theta_o = 91;
+  int n_phi = 181;
+  std::vector<float> values;
+
+  // Trilinear lookup; angles in degrees, theta in [0, 90], dphi in [0, 180].
+  float lookup(float theta_i_deg, float theta_o_deg, float dphi_deg) const {
+    const float inv_step = 1.0f / static_cast<float>(step_deg);
+    const float fi = std::fmin(std::fmax(theta_i_deg, 0.0f), 90.0f);
+    const float fo = std::fmin(std::fmax(theta_o_deg, 0.0f), 90.0f) * inv_step;
+    const float fp = std::fmin(std::fmax(dphi_deg, 0.0f), 180.0f) * inv_step;
+    const int i0 = std::min(static_cast<int>(fi), kThetaICount - 2);
+    const int o0 = std::min(static_cast<int>(fo), n_theta_o - 2);
+    const int p0 = std::min(static_cast<int>(fp), n_phi - 2);
+    const float ti = fi - static_cast<float>(i0), to = fo - static_cast<float>(o0), tp = fp - static_cast<float>(p0);
+    const float *base = values.data() + (static_cast<size_t>(i0) * n_theta_o + o0) * n_phi + p0;
+    const size_t si = static_cast<size_t>(n_theta_o) * n_phi, so = static_cast<size_t>(n_phi);
+    auto lerp_phi = [&](const float *p) { return p[0] + (p[1] - p[0]) * tp; };
+    const float a = lerp_phi(base) + (lerp_phi(base + so) - lerp_phi(base)) * to;
+    const float b = lerp_phi(base + si) + (lerp_phi(base + si + so) - lerp_phi(base + si)) * to;
+    return a + (b - a) * ti;
+  }
+};
+
+class DirectionalTable {
+ public:
+  TableSpec spec;
+  std::array<LodLevel, kLodCount> levels;
+  double build_seconds = 0.0;  // precompute time (0 when loaded from the cache)
+  bool loaded_from_cache = false;
+
+  // Solid angle of the query cone, 2 pi (1 - cos gamma).
+  float cone_solid_angle() const { return 6.283185307179586f * (1.0f - std::cos(spec.gamma_deg * kDegToRad)); }
+
+  // P at LOD blur sigma (degrees, clamped to [1, 90]): linear between the two
+  // levels bracketing sigma.
+  float lookup(float sigma_deg, float theta_i_deg, float theta_o_deg, float dphi_deg) const {
+    if (!(sigma_deg > kLodSigmaDeg[0])) return levels[0].lookup(theta_i_deg, theta_o_deg, dphi_deg);
+    if (sigma_deg >= kLodSigmaDeg[kLodCount - 1])
+      return levels[kLodCount - 1].lookup(theta_i_deg, theta_o_deg, dphi_deg);
+    int l = 0;
+    while (l + 2 < kLodCount && sigma_deg > kLodSigmaDeg[l + 1]) ++l;
+    const float t = (sigma_deg - kLodSigmaDeg[l]) / (kLodSigmaDeg[l + 1] - kLodSigmaDeg[l]);
+    const float a = levels[l].lookup(theta_i_deg, theta_o_deg, dphi_deg);
+    const float b = levels[l + 1].lookup(theta_i_deg, theta_o_deg, dphi_deg);
+    return a + (b - a) * t;
+  }
+
+  size_t byte_size() const;
+};
+
+// The isotropic NDF D(m) as a function of cos(theta_m) (used only while building).
+using NdfFunction = std::function<double(double cos_theta_m)>;
+
+// Builds the table (steps 1-3 above) with up to `threads` worker threads.
+std::unique_ptr<DirectionalTable> build_directional_table(const TableSpec &spec, const NdfFunction &ndf,
+                                                          int threads = 2);
+
+// Reference (no table) value of P_gamma by dense quadrature of (1); for tests.
+double directional_probability_reference(const NdfFunction &ndf, double gamma_deg, double theta_i_deg,
+                                         double theta_o_deg, double dphi_deg, int rings = 24);
+
+// Stable 64-bit key of a spec (file name of the cache entry).
+uint64_t table_key(const TableSpec &spec);
+
+// Disk cache. load returns nullptr (and sets `problem`) when the file is
+// missing, truncated, corrupt (checksum) or for another spec.
+std::unique_ptr<DirectionalTable> load_table(const std::string &path, const TableSpec &spec, std::string &problem);
+bool save_table(const std::string &path, const DirectionalTable &table, std::string &problem);
+std::string table_cache_path(const std::string &cache_dir, const TableSpec &spec);
+
+// Process-wide table provider: shares one table per spec among instances
+// (weakly held: freed when the last instance goes), loads from / writes to
+// host->cache_dir, rebuilds a corrupt cache entry with a warning through
+// host->log, and logs the precompute time.
+std::shared_ptr<const DirectionalTable> acquire_table(const TableSpec &spec, const NdfFunction &ndf,
+                                                      const GlimmerHostServices *host);
+
+}  // namespace glimmer::plugin::glint
