@@ -252,6 +252,7 @@ struct Renderer::Impl {
   // ---- Shading points ----
   struct ShadingData {
     GlimmerShadingContext ctx{};
+    GlimmerShadingContext ctx_front{};  // N/Ng/T of the front face (transmissive closures)
     TexCoords tc;
     Vec3 Ng;            // geometric normal, flipped to the incoming side
     Vec3 N;             // shading normal, same side
@@ -332,6 +333,18 @@ struct Renderer::Impl {
     sd.shader = mesh_shader[h.mesh];
   }
 
+  // Copies the per-bounce fields into the front-face context.
+  static void sync_front(ShadingData &sd) {
+    sd.ctx_front = sd.ctx;
+    if (sd.backfacing) {
+      sd.ctx_front.N = -Vec3(sd.ctx.N);
+      sd.ctx_front.Ng = -Vec3(sd.ctx.Ng);
+    }
+  }
+  static const GlimmerShadingContext &context_for(const ShadingData &sd, const ClosureLeaf &leaf) {
+    return leaf.front_normal ? sd.ctx_front : sd.ctx;
+  }
+
   // Transfer the differentials to the hit plane and express them in barycentric
   // and uv space (Igehy 1999, eq. 10-12); fills the context's footprint.
   void transfer_differentials(Differentials &rd, const Vec3 &D, float t, ShadingData &sd, float spread) const {
@@ -376,14 +389,14 @@ struct Renderer::Impl {
     float pdf = 0.0f;
   };
   // Sum of weight * eval over the non-singular closures, pdf = sum(sw * pdf) / sum(sw).
-  MixtureEval eval_mixture(const ClosureSet &cs, const GlimmerShadingContext &ctx, const Vec3 &wo, int skip = -1) const {
+  MixtureEval eval_mixture(const ClosureSet &cs, const ShadingData &sd, const Vec3 &wo, int skip = -1) const {
     MixtureEval out;
     for (int i = 0; i < cs.count; ++i) {
       const ActiveClosure &c = cs.closures[i];
       if (i == skip || c.sample_weight <= 0.0f || c.leaf->singular || !c.leaf->instance) continue;
       Spectrum f;
       float pdf = 0.0f;
-      c.leaf->instance->eval(ctx, wo, f, pdf);
+      c.leaf->instance->eval(context_for(sd, *c.leaf), wo, f, pdf);
       if (!is_finite(f) || !std::isfinite(pdf)) continue;
       out.f += f * c.weight;
       out.pdf += pdf * c.sample_weight;
@@ -463,17 +476,18 @@ struct Renderer::Impl {
       SurfaceHit hit;
       const bool hit_surface = intersect(org, D, tmin, tmax, hit);
       const float t_hit = hit_surface ? hit.t : kInf;
-      // Analytic lights (spheres, area lights, sun disks) in front of the surface.
-      LightHit lh;
-      if (lights->intersect(org, D, t_hit, hit_surface, lh)) {
+      // Lamps (spheres, area lights) before the surface and the sun disk on escape;
+      // as in Cycles they do not block the ray.
+      LightHits lhs;
+      lights->intersect(org, D, t_hit, hit_surface, lhs);
+      for (int i = 0; i < lhs.count; ++i) {
+        const LightHit &lh = lhs.hits[i];
         if (last_singular) {
           add(throughput * lh.radiance, bounce);
         } else if (use_bsdf_emission) {
-          const float w = use_nee && !lh.delta ? power_heuristic(mis_ray_pdf, lh.pdf) : 1.0f;
+          const float w = use_nee ? power_heuristic(mis_ray_pdf, lh.pdf) : 1.0f;
           add(throughput * lh.radiance * w, bounce);
         }
-        if (first_hit && lh.blocks) { aov.depth = lh.t * cam_dir_z; first_hit = false; }
-        if (lh.blocks) break;
       }
       if (!hit_surface) {
         if (shaders->has_background()) {
@@ -497,6 +511,7 @@ struct Renderer::Impl {
       ctx.glossy_bounce = static_cast<uint32_t>(glossy_bounce);
       ctx.transmission_bounce = static_cast<uint32_t>(transmission_bounce);
       ctx.path_seed = path_seed;
+      sync_front(sd);
 
       ClosureSet cs;
       shaders->evaluate(sd.shader, sd.tc, cs);
@@ -520,7 +535,7 @@ struct Renderer::Impl {
         aov.depth = hit.t * cam_dir_z;
         for (int i = 0; i < cs.count; ++i)
           if (!cs.closures[i].leaf->emissive && cs.closures[i].leaf->instance)
-            aov.albedo += cs.closures[i].leaf->instance->albedo(ctx) * cs.closures[i].weight;
+            aov.albedo += cs.closures[i].leaf->instance->albedo(context_for(sd, *cs.closures[i].leaf)) * cs.closures[i].weight;
       }
 
       if (terminate_next) break;
@@ -552,7 +567,7 @@ struct Renderer::Impl {
         if (lights->sample(select_light, lu, lv, sd.ctx.P, ls) && ls.pdf > 0.0f) {
           const bool transmit_side = dot(ls.wi, sd.Ng) < 0.0f;
           (void)transmit_side;
-          MixtureEval me = eval_mixture(cs, ctx, ls.wi);
+          MixtureEval me = eval_mixture(cs, sd, ls.wi);
           me.pdf /= total_sw;
           if (!is_zero(me.f)) {
             const float w = (ls.delta || !use_bsdf_emission) ? 1.0f : power_heuristic(ls.pdf, me.pdf);
@@ -590,7 +605,7 @@ struct Renderer::Impl {
       sampler.get2(bounce_pair(bounce, kPairBsdf), r3[0], r3[1]);
       r3[2] = ru;
       GlimmerSample s{};
-      const uint32_t label = c.leaf->instance->sample(ctx, r3, s);
+      const uint32_t label = c.leaf->instance->sample(context_for(sd, *c.leaf), r3, s);
       if (label == GLIMMER_LABEL_NONE || !(s.pdf > 0.0f) || !std::isfinite(s.pdf)) break;
       const Vec3 wo = normalize(Vec3(s.wo));
       const Spectrum s_eval(s.eval[0], s.eval[1], s.eval[2]);
@@ -599,7 +614,7 @@ struct Renderer::Impl {
       if (singular) {
         throughput *= s_eval * c.weight * (total_sw / c.sample_weight);
       } else {
-        MixtureEval me = eval_mixture(cs, ctx, wo, chosen);
+        MixtureEval me = eval_mixture(cs, sd, wo, chosen);
         me.f += s_eval * c.weight;
         me.pdf = (me.pdf + s.pdf * c.sample_weight) / total_sw;
         if (!(me.pdf > 0.0f)) break;

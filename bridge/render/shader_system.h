@@ -56,6 +56,9 @@ struct ClosureLeaf {
   float strength = 1;  // extra scalar on the weight
   bool emissive = false;
   bool singular = false;
+  // Transmissive closures decide the side (eta or 1/eta) from wi.N, so they
+  // get the front-face normal instead of the one flipped toward wi.
+  bool front_normal = false;
   std::string node;    // for messages
 };
 
