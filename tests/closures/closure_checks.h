@@ -215,7 +215,8 @@ inline ::testing::AssertionResult stress_clean(const std::vector<const host::Clo
 // ---- Tampering (negative controls) -----------------------------------------------------
 // A copy of a closure type whose entry points can be replaced, so a test can
 // prove that a check FAILS for a broken closure. The replacement functions
-// reach the original through TamperedType::original().
+// reach the original through TamperedType::original(). One tampered type at a
+// time: constructing another one redirects original() to its type.
 class TamperedType {
  public:
   explicit TamperedType(const GlimmerClosureType &original) : type_(original) { original_ = &original; }
