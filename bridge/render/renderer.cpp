@@ -779,6 +779,9 @@ RenderResult Renderer::render(const std::function<void(int, int)> &progress) {
   const size_t npix = static_cast<size_t>(im.width) * im.height;
   std::vector<Spectrum> sum(npix, Spectrum(0.0f)), albedo(npix, Spectrum(0.0f)), normal(npix, Spectrum(0.0f));
   std::vector<float> depth(npix, 0.0f);
+  // Samples per pixel: an interrupt stops the current pass mid-way, so pixels can differ by one.
+  std::vector<uint32_t> count(npix, 0u);
+  std::atomic<uint64_t> paths{0};
   int x0 = 0, y0 = 0, x1 = im.width, y1 = im.height;
   const auto &r = im.options.region;
   if (r[0] != 0 || r[1] != 0 || r[2] != 0 || r[3] != 0) {
@@ -792,13 +795,16 @@ RenderResult Renderer::render(const std::function<void(int, int)> &progress) {
   int done = 0;
   for (int s = 0; s < im.samples; ++s) {
     tbb::parallel_for(tbb::blocked_range2d<int>(y0, y1, tile, x0, x1, tile), [&](const tbb::blocked_range2d<int> &br) {
-      uint64_t nans = 0;
+      uint64_t nans = 0, traced = 0;
       for (int y = br.rows().begin(); y < br.rows().end(); ++y) {
+        if (im.options.cancel && im.options.cancel->load()) break;  // answer SIGINT within a tile row
         for (int x = br.cols().begin(); x < br.cols().end(); ++x) {
           Impl::PixelAov aov;
           const Spectrum L = im.trace_path(x, y, static_cast<uint32_t>(s), aov, nans);
           const size_t i = static_cast<size_t>(y) * im.width + x;
           sum[i] += L;
+          count[i]++;
+          ++traced;
           if (im.options.aovs) {
             albedo[i] += aov.albedo;
             normal[i] += aov.normal;
@@ -807,6 +813,7 @@ RenderResult Renderer::render(const std::function<void(int, int)> &progress) {
         }
       }
       if (nans) nan_total += nans;
+      paths += traced;
     });
     done = s + 1;
     if (progress) progress(done, im.samples);
@@ -818,14 +825,14 @@ RenderResult Renderer::render(const std::function<void(int, int)> &progress) {
   }
   res.samples_done = done;
   res.nan_samples = nan_total.load();
-  res.paths = static_cast<uint64_t>(done) * static_cast<uint64_t>(x1 - x0) * static_cast<uint64_t>(y1 - y0);
-  const float inv = done > 0 ? 1.0f / static_cast<float>(done) : 0.0f;
+  res.paths = paths.load();
   const float exposure = im.scene.film.exposure;
   res.combined.assign(npix * 4, 0.0f);
   res.albedo.assign(npix * 3, 0.0f);
   res.normal.assign(npix * 3, 0.0f);
   res.depth.assign(npix, 0.0f);
   for (size_t i = 0; i < npix; ++i) {
+    const float inv = count[i] > 0 ? 1.0f / static_cast<float>(count[i]) : 0.0f;
     const Spectrum c = sum[i] * (inv * exposure);
     res.combined[4 * i] = c.x;
     res.combined[4 * i + 1] = c.y;
