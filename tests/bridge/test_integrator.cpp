@@ -42,11 +42,13 @@ std::string camera_xml(int w, int h) {
 
 // White furnace: albedo-1 diffuse geometry under a uniform white environment
 // renders exactly 1 in expectation everywhere (any number of bounces).
-void furnace(const std::string &background_xml, bool with_floor, const std::string &name) {
+void furnace(const std::string &background_xml, bool with_floor, const std::string &name,
+             const std::string &closure = "<diffuse_bsdf name=\"d\" color=\"1 1 1\" />") {
   std::string xml = "<cycles>\n" + camera_xml(48, 32) +
-                    "<integrator max_bounce=\"1000\" max_diffuse_bounce=\"1000\" sample_clamp_indirect=\"0\" />\n"
+                    "<integrator max_bounce=\"1000\" max_diffuse_bounce=\"1000\" max_glossy_bounce=\"1000\" "
+                    "max_transmission_bounce=\"1000\" sample_clamp_indirect=\"0\" />\n"
                     "<background>" + background_xml + "<connect from=\"bg background\" to=\"output surface\" /></background>\n"
-                    "<shader name=\"white\"><diffuse_bsdf name=\"d\" color=\"1 1 1\" />"
+                    "<shader name=\"white\">" + closure +
                     "<connect from=\"d bsdf\" to=\"output surface\" /></shader>\n"
                     "<state shader=\"white\">\n"
                     "<transform translate=\"0 0 1\"><mesh src=\"" + kSphere + "\" /></transform>\n";
@@ -77,6 +79,18 @@ TEST(Integrator, FurnaceSphereConstantBackground) {
 
 TEST(Integrator, FurnaceSphereAndFloorConstantBackground) {
   furnace("<background name=\"bg\" color=\"0.5 0.5 0.5\" strength=\"2\" />", true, "furnace_floor");
+}
+
+// Glass conserves energy: a smooth or rough (multi_ggx) glass sphere vanishes in the furnace.
+// Exercises the front-face normal for transmissive closures (eta vs 1/eta on exit).
+TEST(Integrator, FurnaceGlassSphere) {
+  if (!plugin().find("microfacet_dielectric")) GTEST_SKIP() << "needs microfacet_dielectric";
+  for (const char *roughness : {"0", "0.3"}) {
+    SCOPED_TRACE(roughness);
+    furnace("<background name=\"bg\" color=\"1 1 1\" strength=\"1\" />", false, std::string("furnace_glass_") + roughness,
+            std::string("<glass_bsdf name=\"d\" IOR=\"1.5\" distribution=\"multi_ggx\" roughness=\"") + roughness +
+                "\" color=\"1 1 1\" />");
+  }
 }
 
 TEST(Integrator, FurnaceWithEnvironmentMap) {
