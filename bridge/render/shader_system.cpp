@@ -229,6 +229,8 @@ int ShaderSystem::make_leaf(const ShaderGraph &g, const ShaderNode &n, CompiledS
       }
       const float default_roughness = dielectric ? 0.0f : 0.5f;
       const float roughness = read_input(g, n, "roughness", Spectrum(default_roughness), VectorSource::Generated).constant.x;
+      // Cycles (GlossyBsdfNode/GlassBsdfNode::simplify_settings): an unlinked roughness of 0 is the sharp closure.
+      if (roughness <= 1e-4f && !g.link_to(n.name, "roughness")) distribution = "sharp";
       if (host::find_param(*type, "distribution")) params.set_string("distribution", distribution);
       if (host::find_param(*type, "roughness")) params.set_number("roughness", std::clamp(roughness, 0.0f, 1.0f), 0, 0);
       if (!dielectric) {

@@ -75,6 +75,36 @@ TEST(Differentials, ThroughAPlanarMirror) {
   EXPECT_GT(fx, 1.5f * pixel_size(3.0f) / 4.0f);
 }
 
+// A ray through a tilted glass slab leaves parallel to its entry direction, shifted sideways:
+// the exit refraction must use 1/ior (the host hands transmissive closures the front-face
+// normal; the closure picks eta from the side of wi).
+TEST(Transmission, SlabShiftsButKeepsTheDirection) {
+  if (!plugin().find("microfacet_dielectric")) GTEST_SKIP() << "needs microfacet_dielectric";
+  const float s = 0.70710678f;
+  // Quads with outward normals (as a closed glass object has): front = n, back = -n.
+  auto quad = [&](Vec3 c, bool front) {
+    const Vec3 e1(2 * s, 0, 2 * s), e2(0, front ? -2.0f : 2.0f, 0);
+    const Vec3 p[4] = {c - e1 - e2, c + e1 - e2, c + e1 + e2, c - e1 + e2};
+    std::string out = "<mesh P=\"";
+    for (const auto &v : p) out += std::to_string(v.x) + " " + std::to_string(v.y) + " " + std::to_string(v.z) + "  ";
+    return out + "\" nverts=\"4\" verts=\"0 1 2 3\" />";
+  };
+  const Vec3 n(s, 0, -s);  // slab normal toward the camera
+  scene::Scene scene;
+  auto r = make_renderer("slab.xml",
+                         "<shader name=\"glass\"><refraction_bsdf name=\"g\" IOR=\"1.5\" roughness=\"0\" />"
+                         "<connect from=\"g bsdf\" to=\"output surface\" /></shader>\n"
+                         "<state shader=\"glass\">" + quad(Vec3(0, 0, 2), true) + quad(Vec3(0, 0, 2) - n * 0.5f, false) + "</state>\n"
+                         "<mesh P=\"-5 -5 5  5 -5 5  5 5 5  -5 5 5\" nverts=\"4\" verts=\"0 1 2 3\" />\n",
+                         scene);
+  GlimmerShadingContext ctx{};
+  ASSERT_TRUE(r->probe(kW * 0.5f, kH * 0.5f, ctx));
+  // Snell at 45 degrees into n = 1.5: theta_t = 28.13 deg; path 0.567 inside; exit point x = -0.1646.
+  EXPECT_NEAR(ctx.P.z, 5.0f, 1e-3f);
+  EXPECT_NEAR(ctx.P.x, -0.1646f, 0.003f);
+  EXPECT_NEAR(ctx.P.y, 0.0f, 1e-3f);
+}
+
 TEST(Camera, LooksAlongPlusZWithYUp) {
   // A bright patch at +x (right) and one at +y (top), in front of the default camera.
   const std::string path = write_file(
