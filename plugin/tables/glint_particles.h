@@ -84,7 +84,7 @@ inline NodeStream node_stream(uint32_t seed, int level, int64_t i, int64_t j) {
 
 // Number of particles in node (level, i, j) for density N (per unit area).
 inline uint64_t node_particle_count(const NodeStream &stream, double density, double size) {
-  const double mean = density * size * size;
+  const double mean = std::fmin(density * size * size, 4.0e18);
   const double whole = std::floor(mean);
   return static_cast<uint64_t>(whole) + (stream(0) < static_cast<float>(mean - whole) ? 1u : 0u);
 }
