@@ -40,5 +40,7 @@ struct CliContext {
 
 void add_describe_command(CLI::App &app, CliContext &ctx);
 void add_lab_command(CLI::App &app, CliContext &ctx);
+void add_render_command(CLI::App &app, CliContext &ctx);
+void add_precompute_command(CLI::App &app, CliContext &ctx);
 
 }  // namespace glimmer::cli

@@ -9,16 +9,22 @@ int main(int argc, char **argv) {
   using namespace glimmer;
   CLI::App app{"Glimmer: glint and rough-refraction closures in a Cycles-style path tracer"};
   app.require_subcommand(1);
+  // Global options such as --plugin may also follow the sub-command
+  // (`glimmer describe --plugin PATH`); sub-commands inherit this setting.
+  app.fallthrough();
   cli::CliContext ctx;
   app.add_option("--plugin", ctx.plugin_path, "path of libglimmer_closures.so (or its folder)");
 
   cli::add_describe_command(app, ctx);
   cli::add_lab_command(app, ctx);
+  cli::add_render_command(app, ctx);
+  cli::add_precompute_command(app, ctx);
 
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError &e) {
-    return app.exit(e);
+    // --help exits 0; every malformed command line is bad input (exit 1).
+    return app.exit(e) == 0 ? cli::kExitOk : cli::kExitBadInput;
   } catch (const host::PluginError &e) {
     std::fprintf(stderr, "glimmer: error: %s\n", e.what());
     return cli::kExitPlugin;

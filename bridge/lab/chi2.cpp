@@ -274,6 +274,16 @@ Chi2Result chi2_test(const host::ClosureInstance &instance, const GlimmerShading
     ok = false;
     msg << "the pdf integrates to " << result.pdf_integral << " > 1 over the sphere. ";
   }
+  // The sampler's non-absorbed fraction must match the pdf's total mass (the
+  // chi2 statistic alone hardly sees a wrong normalisation): binomial noise
+  // (5 sigma) plus the quadrature allowance.
+  const double mass = std::clamp(result.pdf_integral, 0.0, 1.0);
+  const double sigma = std::sqrt(std::max(mass * (1.0 - mass), 1.0 / std::max(n, 1.0)) / std::max(n, 1.0));
+  if (std::fabs(result.sampled_fraction - result.pdf_integral) > 5.0 * sigma + options.pdf_integral_tolerance) {
+    ok = false;
+    msg << "the sampled fraction " << result.sampled_fraction << " does not match the pdf integral "
+        << result.pdf_integral << " (5 sigma = " << 5.0 * sigma << "). ";
+  }
   if (!(result.p_value >= result.significance)) ok = false;
   result.passed = ok;
   std::ostringstream head;

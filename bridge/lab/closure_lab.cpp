@@ -3,6 +3,7 @@
 #include "lab/closure_lab.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 #include "glimmer/sampling.h"
@@ -95,6 +96,37 @@ FurnaceResult furnace(const host::ClosureInstance &instance, const GlimmerShadin
     const double variance = samples > 1 ? std::max(0.0, (sum_sq[c] - n * mean * mean) / (n - 1.0)) : 0.0;
     result.albedo[c] = static_cast<float>(mean);
     result.standard_error[c] = static_cast<float>(std::sqrt(variance / n));
+  }
+  return result;
+}
+
+Spectrum albedo_quadrature(const host::ClosureInstance &instance, const GlimmerShadingContext &ctx, int theta_steps,
+                           int phi_steps) {
+  const int nt = std::max(2, theta_steps + (theta_steps & 1)), np = std::max(2, phi_steps + (phi_steps & 1));
+  const double h_theta = M_PI / nt, h_phi = 2.0 * M_PI / np;
+  const Frame frame = detail::shading_frame(ctx);
+  auto weight = [](int i, int n) { return (i == 0 || i == n) ? 1.0 : (i % 2 ? 4.0 : 2.0); };
+  // One partial sum per theta row, added in row order (deterministic).
+  std::vector<std::array<double, 3>> rows(nt + 1);
+  tbb::parallel_for(tbb::blocked_range<int>(0, nt + 1), [&](const tbb::blocked_range<int> &r) {
+    for (int i = r.begin(); i != r.end(); ++i) {
+      const double theta = i * h_theta, jacobian = std::sin(theta);
+      std::array<double, 3> sum{0.0, 0.0, 0.0};
+      for (int j = 0; j <= np; ++j) {
+        Spectrum f_cos;
+        float pdf = 0.0f;
+        instance.eval(ctx, frame.to_world(detail::spherical_direction(theta, -M_PI + j * h_phi)), f_cos, pdf);
+        for (int c = 0; c < 3; ++c)
+          if (std::isfinite(f_cos[c])) sum[c] += weight(j, np) * f_cos[c];
+      }
+      for (int c = 0; c < 3; ++c) rows[i][c] = weight(i, nt) * jacobian * sum[c];
+    }
+  });
+  Spectrum result;
+  for (int c = 0; c < 3; ++c) {
+    double total = 0.0;
+    for (const auto &row : rows) total += row[c];
+    result[c] = static_cast<float>(total * h_theta * h_phi / 9.0);
   }
   return result;
 }

@@ -55,6 +55,14 @@ struct FurnaceResult {
 FurnaceResult furnace(const host::ClosureInstance &instance, const GlimmerShadingContext &ctx,
                       uint64_t samples, uint64_t seed);
 
+// Reference for the furnace that does not use sample(): the integral of
+// eval() (f * |cos|) over the whole sphere by composite Simpson quadrature in
+// (theta, phi) with theta_steps x phi_steps intervals (both made even). Exact
+// to quadrature error for smooth lobes; a lobe narrower than a few grid steps
+// needs more steps.
+Spectrum albedo_quadrature(const host::ClosureInstance &instance, const GlimmerShadingContext &ctx,
+                           int theta_steps = 512, int phi_steps = 1024);
+
 // ---- Chi-square test of sample() against pdf ------------------------------
 // The sphere is split into theta_bins x phi_bins cells in the local frame:
 // theta uniform over [0, pi] (upper and lower hemisphere; theta_bins should be
@@ -77,7 +85,10 @@ struct Chi2Options {
   double min_expected = 5.0;   // cells below this are pooled
   int initial_subdivisions = 4;   // Simpson intervals per cell axis (even)
   int max_subdivisions = 64;
-  // The test also fails when the pdf integrates to more than 1 + this.
+  // The test also fails when the pdf integrates to more than 1 + this, or
+  // when the fraction of non-absorbed, non-singular samples differs from the
+  // pdf's integral by more than 5 binomial sigmas + this (the statistic itself
+  // is nearly blind to a wrong normalisation).
   double pdf_integral_tolerance = 1e-3;
 };
 

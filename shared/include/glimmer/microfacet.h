@@ -347,6 +347,9 @@ inline bool refract(const Vec3 &wi, const Vec3 &m, float eta, Vec3 &wt) {
   return true;
 }
 
+// Mirror z: maps the inner side of an interface to the outer side.
+inline Vec3 flip_z_local(const Vec3 &v) { return {v.x, v.y, -v.z}; }
+
 // Reflection half vector normalize(wi + wo) oriented to the upper hemisphere
 // (Walter 2007 eq. 13). Returns false when degenerate.
 inline bool half_vector_reflect(const Vec3 &wi, const Vec3 &wo, Vec3 &wh) {

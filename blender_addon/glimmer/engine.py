@@ -1,0 +1,155 @@
+"""The Glimmer RenderEngine: export, run `glimmer render`, load the EXR."""
+import os
+import shutil
+import struct
+import subprocess
+import tempfile
+import time
+
+import bpy
+
+from . import exporter as exporter_mod
+from . import preferences
+from . import runner
+
+KILL_TIMEOUT_SECONDS = 5.0
+
+
+def exr_channels(path):
+    """Channel names of an OpenEXR file (reads the header only)."""
+    with open(path, "rb") as f:
+        data = f.read(1 << 16)
+    if data[:4] != b"\x76\x2f\x31\x01":
+        raise ValueError("%s is not an OpenEXR file" % path)
+    pos = 8
+    while pos < len(data) and data[pos] != 0:
+        name_end = data.index(b"\0", pos)
+        name = data[pos:name_end].decode()
+        type_end = data.index(b"\0", name_end + 1)
+        size = struct.unpack_from("<i", data, type_end + 1)[0]
+        value_start = type_end + 5
+        if name == "channels":
+            channels, p = [], value_start
+            while data[p] != 0:
+                end = data.index(b"\0", p)
+                channels.append(data[p:end].decode())
+                p = end + 1 + 16  # pixel type, pLinear + reserved, x/y sampling
+            return channels
+        pos = value_start + size
+    raise ValueError("%s has no channel list" % path)
+
+
+def load_exr_into_result(result, path, layer_name):
+    """Copy the EXR's Combined pass into the render result.
+
+    Multilayer files (`<layer>.Combined.R` ...) go through RenderResult.load_from_file, which matches
+    layer and pass names; when the file's layer name differs from the view layer's, the channels are
+    renamed with oiiotool first. Plain RGBA files are loaded into the first layer."""
+    channels = exr_channels(path)
+    combined = [c for c in channels if ".Combined." in c]
+    if not combined:
+        result.layers[0].load_from_file(path)
+        return
+    file_layer = combined[0].split(".Combined.")[0]
+    if file_layer == layer_name:
+        result.load_from_file(path)
+        return
+    oiiotool = shutil.which("oiiotool")
+    if oiiotool is None:
+        raise RuntimeError("the EXR's layer is '%s' but the view layer is '%s'; renaming needs oiiotool "
+                           "(Debian package openimageio-tools)" % (file_layer, layer_name))
+    # --chnames follows OpenImageIO's channel order (R, G, B, A first), not the file's alphabetical one.
+    info = subprocess.run([oiiotool, "--info", "-v", path], check=True, stdout=subprocess.PIPE,
+                          stderr=subprocess.PIPE, timeout=60).stdout.decode(errors="replace")
+    listed = next(line.split(":", 1)[1] for line in info.splitlines() if line.strip().startswith("channel list:"))
+    ordered = [c.strip() for c in listed.split(",")]
+    renamed = [layer_name + c[len(file_layer):] if c.startswith(file_layer + ".") else c for c in ordered]
+    fixed = path[:-4] + "_" + "".join(ch if ch.isalnum() else "_" for ch in layer_name) + ".exr"
+    subprocess.run([oiiotool, path, "--chnames", ",".join(renamed), "-o", fixed], check=True,
+                   stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, timeout=120)
+    result.load_from_file(fixed)
+
+
+class GlimmerRenderEngine(bpy.types.RenderEngine):
+    bl_idname = "GLIMMER"
+    bl_label = "Glimmer"
+    bl_use_preview = False
+    bl_use_shading_nodes_custom = False  # Cycles' shader nodes are used as they are
+    bl_use_postprocess = True
+
+    def render(self, depsgraph):
+        scene = depsgraph.scene
+        settings = scene.glimmer
+        scale = scene.render.resolution_percentage / 100.0
+        width = max(1, int(scene.render.resolution_x * scale))
+        height = max(1, int(scene.render.resolution_y * scale))
+        layer_name = depsgraph.view_layer.name
+        if scene.render.use_border:
+            self.report({"WARNING"}, "Glimmer: render region (border) is not supported; the full frame is rendered")
+        result = self.begin_result(0, 0, width, height, layer=layer_name)
+        out_dir = None
+        temporary = False
+        try:
+            executable = preferences.executable_path()
+            if not executable or not os.path.isfile(executable):
+                self.fail("Glimmer: no glimmer executable (set it in the addon preferences or put `glimmer` on "
+                          "PATH; looked for '%s')" % executable)
+                return
+            if settings.export_dir:
+                out_dir = os.path.join(bpy.path.abspath(settings.export_dir), "frame_%04d" % scene.frame_current)
+                os.makedirs(out_dir, exist_ok=True)
+            else:
+                out_dir = tempfile.mkdtemp(prefix="glimmer_")
+                temporary = not settings.keep_export
+            self.update_stats("", "Glimmer: exporting the scene")
+            start = time.monotonic()
+            xml_path, exp = exporter_mod.export_scene(depsgraph, out_dir, report=self.report,
+                                                      width=width, height=height)
+            export_seconds = time.monotonic() - start
+            print("Glimmer: exported %d objects, %d triangles, %d lights to %s in %.2f s"
+                  % (exp.stats["objects"], exp.stats["triangles"], exp.stats["lights"], xml_path, export_seconds))
+            exr_path = os.path.join(out_dir, "render.exr")
+            if os.path.exists(exr_path):
+                os.remove(exr_path)
+            seed = settings.seed + (scene.frame_current if settings.use_animated_seed else 0)
+            cmd = runner.render_command(executable, xml_path, exr_path, settings.samples, settings.threads,
+                                        seed, width, height)
+            render_start = time.monotonic()
+
+            def progress(done, total):
+                self.update_progress(done / max(total, 1))
+                elapsed = time.monotonic() - render_start
+                self.update_stats("", "Glimmer: sample %d/%d, %.1f s" % (done, total, elapsed))
+
+            def renderer_line(line):  # the renderer's scene warnings (file:line) go to Blender's report
+                if "warning" in line.lower():
+                    self.report({"WARNING"}, "glimmer: " + line)
+
+            code, cancelled, tail = runner.run(cmd, on_progress=progress, should_cancel=self.cancel_requested,
+                                               kill_timeout=KILL_TIMEOUT_SECONDS, on_line=renderer_line)
+            have_image = os.path.isfile(exr_path)
+            if have_image and (code == 0 or code == runner.EXIT_INTERRUPTED):
+                load_exr_into_result(result, exr_path, layer_name)
+                print("Glimmer: rendered in %.2f s (%s)" % (time.monotonic() - render_start,
+                                                             "cancelled, partial image" if cancelled else "done"))
+            elif cancelled:
+                print("Glimmer: render cancelled")
+            else:
+                self.fail("Glimmer: `glimmer render` failed with exit code %s:\n%s" % (code, "\n".join(tail[-10:])))
+        except Exception as e:  # noqa: BLE001 - every failure becomes a Blender error report
+            self.fail("Glimmer: %s: %s" % (type(e).__name__, e))
+            raise
+        finally:
+            self.end_result(result)
+            if temporary and out_dir:
+                shutil.rmtree(out_dir, ignore_errors=True)
+
+    def cancel_requested(self):
+        """Esc in the render window (or the job being stopped); a Python method so tests can drive it."""
+        return self.test_break()
+
+    def fail(self, message):
+        self.report({"ERROR"}, message)
+        if hasattr(self, "error_set"):
+            self.error_set(message)
+        print(message)

@@ -1,0 +1,713 @@
+"""Blender scene -> Cycles standalone XML (+ binary PLY meshes) for `glimmer render`.
+
+Conventions (see docs/blender.md):
+- Meshes are baked to world space in PLY files (meshes/<object>.ply) referenced
+  by `<mesh src=...>` inside `<state shader=... interpolation=...>`.
+- Camera: `<transform translate rotate scale="sx sy -sz">` around `<camera>`:
+  Blender cameras look along -Z, Cycles' along +Z, hence the scale 1 1 -1.
+- Lights: world-space co/dir/axes, strength = colour * power (W) for point,
+  spot and area lights and colour * strength (W/m^2) for sun lights, exactly
+  the numbers Blender hands to Cycles (Cycles applies the 1/(4 pi) and area
+  normalisation itself).
+- Materials: nodes are translated to Cycles XML shader nodes; anything else is
+  reported once per material as a warning and replaced by the documented
+  fallback (a shader node -> diffuse_bsdf with the node's colour input, a
+  texture/converter node -> its consumer keeps its own unlinked value).
+"""
+import math
+import os
+import re
+import shutil
+import xml.etree.ElementTree as ET
+
+import bpy
+import numpy as np
+
+from . import mesh_export
+from . import nodes as glimmer_nodes
+from . import schema as schema_mod
+
+# Object types exported as triangle meshes (hair curves, point clouds and volumes are skipped).
+MESH_TYPES = {"MESH", "CURVE", "SURFACE", "META", "FONT"}
+
+GLOSSY_DISTRIBUTION = {"SHARP": "sharp", "BECKMANN": "beckmann", "GGX": "GGX", "MULTI_GGX": "Multiscatter GGX",
+                       "ASHIKHMIN_SHIRLEY": "GGX"}
+IMAGE_INTERPOLATION = {"Closest": "closest", "Linear": "linear", "Cubic": "cubic", "Smart": "smart"}
+IMAGE_EXTENSION = {"REPEAT": "periodic", "EXTEND": "extend", "CLIP": "clip", "MIRROR": "mirror"}
+
+# Light attribute names (issue 3's scene format).
+LIGHT_RADIUS = "radius"
+
+
+def fmt(value):
+    """Float(s) as XML text: '0.5' or '1 0 0'."""
+    if isinstance(value, (list, tuple, np.ndarray)) or hasattr(value, "__len__"):
+        return " ".join(fmt(v) for v in value)
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    return "%.9g" % (float(value) + 0.0)  # + 0.0 turns -0 into 0
+
+
+def safe_name(name):
+    return re.sub(r"[^A-Za-z0-9_.-]", "_", name) or "unnamed"
+
+
+class UniqueNames:
+    def __init__(self):
+        self.used = set()
+
+    def __call__(self, name):
+        base = safe_name(name)
+        candidate, i = base, 1
+        while candidate in self.used:
+            i += 1
+            candidate = "%s_%d" % (base, i)
+        self.used.add(candidate)
+        return candidate
+
+
+def _input(node, *names):
+    """First input of node with one of the given names (Blender renamed some in 4.x)."""
+    for name in names:
+        sock = node.inputs.get(name)
+        if sock is not None:
+            return sock
+    return None
+
+
+def _value(sock, default=0.0):
+    if sock is None:
+        return default
+    value = sock.default_value
+    if hasattr(value, "__len__"):
+        return tuple(value)[:3]
+    return value
+
+
+class ShaderGraph:
+    """Translates one Blender node tree into the children of an XML <shader>/<background>."""
+
+    def __init__(self, exporter, element, owner):
+        self.exporter = exporter
+        self.element = element
+        self.owner = owner
+        self.names = UniqueNames()
+        self.exported = {}  # (node name, output identifier) -> (xml node, xml socket) or None
+        self.warned = set()
+
+    # -- helpers -------------------------------------------------------------
+    def warn(self, key, message):
+        if key not in self.warned:
+            self.warned.add(key)
+            self.exporter.warn("%s: %s" % (self.owner, message))
+
+    def add(self, xml_type, name, **attributes):
+        xml_name = self.names(name)
+        el = ET.SubElement(self.element, xml_type, name=xml_name)
+        for key, value in attributes.items():
+            if value is not None:
+                el.set(key, value if isinstance(value, str) else fmt(value))
+        return el
+
+    def connect(self, source, target_node, target_socket):
+        ET.SubElement(self.element, "connect", attrib={"from": "%s %s" % source,
+                                                       "to": "%s %s" % (target_node, target_socket)})
+
+    def set_input(self, el, attribute, sock, default=None, transform=None):
+        """Link a Blender input into el's attribute, or write its value."""
+        source = self.source_of(sock) if sock is not None else None
+        if source is not None:
+            if transform is not None:
+                self.warn(("transform", el.get("name"), attribute),
+                          "linked input '%s' feeds a value the exporter derives; its texture is used unscaled"
+                          % sock.name)
+            self.connect(source, el.get("name"), attribute)
+            return
+        value = _value(sock, default) if sock is not None else default
+        if value is None:
+            return
+        if transform is not None:
+            value = transform(value)
+        el.set(attribute, fmt(value))
+
+    def source_of(self, sock):
+        """(xml node, xml socket) feeding a Blender input socket, or None when unlinked/unsupported."""
+        if not sock.is_linked:
+            return None
+        link = sock.links[0]
+        if not link.is_valid or getattr(link, "is_muted", False):
+            return None
+        node, out = link.from_node, link.from_socket
+        while node.bl_idname == "NodeReroute":
+            inp = node.inputs[0]
+            if not inp.is_linked:
+                return None
+            link = inp.links[0]
+            node, out = link.from_node, link.from_socket
+        if node.mute:
+            # A muted node passes its first matching input through (Blender's internal links).
+            for internal in node.internal_links:
+                if internal.to_socket == out:
+                    return self.source_of(internal.from_socket)
+            return None
+        key = (node.name, out.identifier)
+        if key not in self.exported:
+            self.exported[key] = self.translate(node, out)
+        return self.exported[key]
+
+    # -- node translation ------------------------------------------------------
+    def translate(self, node, out):
+        handler = TRANSLATORS.get(node.bl_idname)
+        if handler is None and isinstance(node, glimmer_nodes.GlimmerClosureNodeMixin):
+            handler = ShaderGraph.glimmer_node
+        if handler is None:
+            return self.unsupported(node, out)
+        return handler(self, node, out)
+
+    def unsupported(self, node, out):
+        if out.type == "SHADER":
+            self.warn(node.name, "node '%s' (%s) is not supported by Glimmer: rendered as a diffuse BSDF with its "
+                      "colour" % (node.name, node.bl_idname))
+            el = self.add("diffuse_bsdf", node.name + "_fallback")
+            self.set_input(el, "color", _input(node, "Color", "Base Color"), default=(0.8, 0.8, 0.8))
+            return (el.get("name"), "bsdf")
+        self.warn(node.name, "node '%s' (%s) is not supported by Glimmer: the input it feeds keeps its own "
+                  "value" % (node.name, node.bl_idname))
+        return None
+
+    def bsdf_diffuse(self, node, out):
+        el = self.add("diffuse_bsdf", node.name)
+        self.set_input(el, "color", node.inputs["Color"])
+        self.set_input(el, "roughness", node.inputs.get("Roughness"))
+        return (el.get("name"), "bsdf")
+
+    def bsdf_glossy(self, node, out):
+        el = self.add("glossy_bsdf", node.name, distribution=GLOSSY_DISTRIBUTION.get(node.distribution, "GGX"))
+        self.set_input(el, "color", node.inputs["Color"])
+        self.set_input(el, "roughness", node.inputs["Roughness"])
+        return (el.get("name"), "bsdf")
+
+    def bsdf_glass(self, node, out, xml_type="glass_bsdf"):
+        el = self.add(xml_type, node.name, distribution=GLOSSY_DISTRIBUTION.get(node.distribution, "GGX"))
+        self.set_input(el, "color", node.inputs["Color"])
+        self.set_input(el, "roughness", node.inputs["Roughness"])
+        self.set_input(el, "IOR", node.inputs["IOR"])
+        return (el.get("name"), "bsdf")
+
+    def bsdf_refraction(self, node, out):
+        return self.bsdf_glass(node, out, "refraction_bsdf")
+
+    def emission(self, node, out):
+        el = self.add("emission", node.name)
+        self.set_input(el, "color", node.inputs["Color"])
+        self.set_input(el, "strength", node.inputs["Strength"])
+        return (el.get("name"), "emission")
+
+    def mix_shader(self, node, out):
+        el = self.add("mix_closure", node.name)
+        self.set_input(el, "fac", node.inputs[0])
+        for index, attribute in ((1, "closure1"), (2, "closure2")):
+            source = self.source_of(node.inputs[index])
+            if source is not None:
+                self.connect(source, el.get("name"), attribute)
+        return (el.get("name"), "closure")
+
+    def add_shader(self, node, out):
+        el = self.add("add_closure", node.name)
+        for index, attribute in ((0, "closure1"), (1, "closure2")):
+            source = self.source_of(node.inputs[index])
+            if source is not None:
+                self.connect(source, el.get("name"), attribute)
+        return (el.get("name"), "closure")
+
+    def texture_coordinates(self, node):
+        vector = node.inputs.get("Vector")
+        if vector is None or not vector.is_linked:
+            return
+        src = vector.links[0].from_node
+        if src.bl_idname == "ShaderNodeUVMap" or (src.bl_idname == "ShaderNodeTexCoord"
+                                                   and vector.links[0].from_socket.name == "UV"):
+            return
+        self.warn(("vector", node.name), "texture coordinates of '%s' other than the mesh's UV map are not exported: "
+                  "it uses the UV map" % node.name)
+
+    def image_texture(self, node, out):
+        if node.image is None:
+            self.warn(node.name, "image texture '%s' has no image: its consumer keeps its own value" % node.name)
+            return None
+        self.texture_coordinates(node)
+        if node.projection != "FLAT":
+            self.warn(("projection", node.name), "image texture '%s': only flat projection is exported" % node.name)
+        el = self.add("image_texture", node.name, filename=self.exporter.image_path(node.image),
+                      interpolation=IMAGE_INTERPOLATION.get(node.interpolation, "linear"),
+                      extension=IMAGE_EXTENSION.get(node.extension, "periodic"),
+                      colorspace=node.image.colorspace_settings.name)
+        return (el.get("name"), "alpha" if out.name == "Alpha" else "color")
+
+    def environment_texture(self, node, out):
+        if node.image is None:
+            self.warn(node.name, "environment texture '%s' has no image: ignored" % node.name)
+            return None
+        self.texture_coordinates(node)
+        el = self.add("environment_texture", node.name, filename=self.exporter.image_path(node.image),
+                      interpolation=IMAGE_INTERPOLATION.get(node.interpolation, "linear"),
+                      colorspace=node.image.colorspace_settings.name,
+                      projection="equirectangular" if node.projection == "EQUIRECTANGULAR" else "mirror_ball")
+        return (el.get("name"), "alpha" if out.name == "Alpha" else "color")
+
+    def checker_texture(self, node, out):
+        self.texture_coordinates(node)
+        el = self.add("checker_texture", node.name)
+        self.set_input(el, "color1", node.inputs["Color1"])
+        self.set_input(el, "color2", node.inputs["Color2"])
+        self.set_input(el, "scale", node.inputs["Scale"])
+        return (el.get("name"), "fac" if out.name == "Fac" else "color")
+
+    def principled(self, node, out):
+        """Principled BSDF as Cycles closures: mix(metallic, mix(transmission, diffuse + f0 glossy, glass),
+        glossy(base colour)) + emission. Subsurface, sheen, clearcoat/coat, alpha: warned and dropped."""
+        base = _input(node, "Base Color")
+        rough = _input(node, "Roughness")
+        metallic = _input(node, "Metallic")
+        transmission = _input(node, "Transmission", "Transmission Weight")
+        ior = _input(node, "IOR")
+        name = node.name
+
+        def constant(sock, default):
+            return None if (sock is None or sock.is_linked) else _value(sock, default)
+
+        for label, names, idle in (("subsurface", ("Subsurface", "Subsurface Weight"), 0.0),
+                                   ("sheen", ("Sheen", "Sheen Weight"), 0.0),
+                                   ("clearcoat", ("Clearcoat", "Coat Weight"), 0.0),
+                                   ("alpha", ("Alpha",), 1.0)):
+            sock = _input(node, *names)
+            if sock is not None and (sock.is_linked or abs(_value(sock, idle) - idle) > 1e-6):
+                self.warn((name, label), "Principled BSDF '%s': %s is not supported and is ignored" % (name, label))
+
+        # Specular f0 of the dielectric layer: 0.08 * specular (3.x) or from IOR (4.x) times 2 * level.
+        spec = _input(node, "Specular")
+        if spec is not None:
+            f0 = 0.08 * float(_value(spec, 0.5)) if not spec.is_linked else 0.04
+        else:
+            level = _input(node, "Specular IOR Level")
+            eta = float(_value(ior, 1.5))
+            f0 = ((eta - 1.0) / (eta + 1.0)) ** 2 * 2.0 * float(_value(level, 0.5))
+        f0 = min(max(f0, 0.0), 1.0)
+
+        diffuse = self.add("diffuse_bsdf", name + "_diffuse")
+        self.set_input(diffuse, "color", base)
+        specular = self.add("glossy_bsdf", name + "_specular", distribution="GGX", color=(f0, f0, f0))
+        self.set_input(specular, "roughness", rough)
+        dielectric = self.add("add_closure", name + "_dielectric")
+        self.connect((diffuse.get("name"), "bsdf"), dielectric.get("name"), "closure1")
+        self.connect((specular.get("name"), "bsdf"), dielectric.get("name"), "closure2")
+        result = (dielectric.get("name"), "closure")
+
+        t = constant(transmission, 0.0)
+        if transmission is not None and (t is None or t > 0.0):
+            glass = self.add("glass_bsdf", name + "_glass", distribution="GGX")
+            self.set_input(glass, "color", base)
+            self.set_input(glass, "roughness", rough)
+            self.set_input(glass, "IOR", ior)
+            if t is not None and t >= 1.0:
+                result = (glass.get("name"), "bsdf")
+            else:
+                mix = self.add("mix_closure", name + "_transmission")
+                self.set_input(mix, "fac", transmission)
+                self.connect(result, mix.get("name"), "closure1")
+                self.connect((glass.get("name"), "bsdf"), mix.get("name"), "closure2")
+                result = (mix.get("name"), "closure")
+
+        m = constant(metallic, 0.0)
+        if m is None or m > 0.0:
+            metal = self.add("glossy_bsdf", name + "_metal", distribution="GGX")
+            self.set_input(metal, "color", base)
+            self.set_input(metal, "roughness", rough)
+            if m is not None and m >= 1.0:
+                result = (metal.get("name"), "bsdf")
+            else:
+                mix = self.add("mix_closure", name + "_metallic")
+                self.set_input(mix, "fac", metallic)
+                self.connect(result, mix.get("name"), "closure1")
+                self.connect((metal.get("name"), "bsdf"), mix.get("name"), "closure2")
+                result = (mix.get("name"), "closure")
+
+        emission_color = _input(node, "Emission", "Emission Color")
+        emission_strength = _input(node, "Emission Strength")
+        color_value = constant(emission_color, (0.0, 0.0, 0.0))
+        strength_value = constant(emission_strength, 1.0)
+        emits = (color_value is None or max(color_value) > 0.0) and (strength_value is None or strength_value > 0.0)
+        if emission_color is not None and emits:
+            emit = self.add("emission", name + "_emission")
+            self.set_input(emit, "color", emission_color)
+            self.set_input(emit, "strength", emission_strength, default=1.0)
+            add = self.add("add_closure", name + "_emit")
+            self.connect(result, add.get("name"), "closure1")
+            self.connect((emit.get("name"), "emission"), add.get("name"), "closure2")
+            result = (add.get("name"), "closure")
+        return result
+
+    def glimmer_node(self, node, out):
+        closure = node.closure_schema
+        settings = self.exporter.settings
+        enabled = {"glint": settings.use_glint if settings else True,
+                   "frosted_glass": settings.use_frosted_glass if settings else True}.get(node.closure_name, True)
+        if enabled and closure.get("source") != "dso":
+            self.warn(("planned", node.closure_name), "the plugin does not have the '%s' closure yet: node '%s' is "
+                      "exported as its microfacet fallback" % (node.closure_name, node.name))
+            enabled = False
+        if not enabled:  # the microfacet fallback instead of the glimmer closure
+            fallback = glimmer_nodes.FALLBACKS[node.closure_name]
+            xml_type = "glossy_bsdf" if fallback["node"] == "ShaderNodeBsdfGlossy" else "glass_bsdf"
+            el = self.add(xml_type, node.name, distribution=GLOSSY_DISTRIBUTION[fallback["distribution"]])
+            attributes = {"color": "color", "roughness": "roughness", "ior": "IOR"}
+            for param_name in fallback["links"]:
+                self.set_input(el, attributes[param_name], node.inputs.get(schema_mod.socket_name(param_name)))
+            return (el.get("name"), "bsdf")
+        el = self.add(schema_mod.NODE_CLOSURES[node.closure_name]["xml"], node.name)
+        values = node.param_values()
+        for param in closure["params"]:
+            if schema_mod.is_socket_param(param):
+                sock = node.inputs.get(schema_mod.socket_name(param["name"]))
+                if sock is not None:
+                    self.set_input(el, param["name"], sock)
+            else:
+                el.set(param["name"], fmt(values[param["name"]]) if param["type"] == "bool"
+                       else str(values[param["name"]]))
+        return (el.get("name"), "bsdf")
+
+    def background(self, node, out):
+        el = self.add("background", node.name)
+        self.set_input(el, "color", node.inputs["Color"])
+        self.set_input(el, "strength", node.inputs["Strength"])
+        return (el.get("name"), "background")
+
+    def group_node(self, node, out):
+        self.warn(node.name, "node group '%s' is not supported (only Glimmer's own groups are): %s"
+                  % (node.name, "rendered as a diffuse BSDF" if out.type == "SHADER" else
+                     "the input it feeds keeps its own value"))
+        return self.unsupported_quiet(node, out)
+
+    def unsupported_quiet(self, node, out):
+        if out.type == "SHADER":
+            el = self.add("diffuse_bsdf", node.name + "_fallback", color=(0.8, 0.8, 0.8))
+            return (el.get("name"), "bsdf")
+        return None
+
+
+TRANSLATORS = {
+    "ShaderNodeBsdfDiffuse": ShaderGraph.bsdf_diffuse,
+    "ShaderNodeBsdfGlossy": ShaderGraph.bsdf_glossy,
+    "ShaderNodeBsdfAnisotropic": ShaderGraph.bsdf_glossy,
+    "ShaderNodeBsdfGlass": ShaderGraph.bsdf_glass,
+    "ShaderNodeBsdfRefraction": ShaderGraph.bsdf_refraction,
+    "ShaderNodeEmission": ShaderGraph.emission,
+    "ShaderNodeMixShader": ShaderGraph.mix_shader,
+    "ShaderNodeAddShader": ShaderGraph.add_shader,
+    "ShaderNodeTexImage": ShaderGraph.image_texture,
+    "ShaderNodeTexEnvironment": ShaderGraph.environment_texture,
+    "ShaderNodeTexChecker": ShaderGraph.checker_texture,
+    "ShaderNodeBsdfPrincipled": ShaderGraph.principled,
+    "ShaderNodeBackground": ShaderGraph.background,
+    "ShaderNodeGroup": ShaderGraph.group_node,
+}
+
+
+def _output_node(ntree, bl_idname):
+    candidates = [n for n in ntree.nodes if n.bl_idname == bl_idname]
+    for n in candidates:
+        if n.is_active_output and getattr(n, "target", "ALL") in ("ALL", "CYCLES"):
+            return n
+    for n in candidates:
+        if getattr(n, "target", "ALL") in ("ALL", "CYCLES"):
+            return n
+    return candidates[0] if candidates else None
+
+
+class Exporter:
+    """Writes <out_dir>/scene.xml and <out_dir>/meshes/*.ply for one frame of a depsgraph."""
+
+    def __init__(self, depsgraph, out_dir, settings=None, width=None, height=None, report=None):
+        self.depsgraph = depsgraph
+        self.scene = depsgraph.scene
+        self.out_dir = out_dir
+        self.settings = settings if settings is not None else getattr(self.scene, "glimmer", None)
+        render = self.scene.render
+        scale = render.resolution_percentage / 100.0
+        self.width = width or max(1, int(render.resolution_x * scale))
+        self.height = height or max(1, int(render.resolution_y * scale))
+        self.report = report
+        self.warnings = []
+        self.shader_names = UniqueNames()
+        self.mesh_names = UniqueNames()
+        self.material_shaders = {}
+        self.images = {}
+        self.stats = {"objects": 0, "triangles": 0, "vertices": 0, "lights": 0, "materials": 0}
+
+    def warn(self, message):
+        self.warnings.append(message)
+        if self.report is not None:
+            self.report({"WARNING"}, "Glimmer export: " + message)
+
+    # -- entry ---------------------------------------------------------------
+    def export(self, filename="scene.xml"):
+        os.makedirs(os.path.join(self.out_dir, "meshes"), exist_ok=True)
+        root = ET.Element("cycles")
+        root.append(ET.Comment(" exported by the Glimmer Blender addon from %s "
+                               % (bpy.data.filepath or "an unsaved .blend")))
+        self.write_camera(root)
+        self.write_film_integrator(root)
+        self.write_world(root)
+        default = ET.SubElement(root, "shader", name=self.shader_names("glimmer_default"))
+        ET.SubElement(default, "diffuse_bsdf", name="diffuse", color="0.8 0.8 0.8")
+        ET.SubElement(default, "connect", attrib={"from": "diffuse bsdf", "to": "output surface"})
+        self.default_shader = default.get("name")
+        self.objects_parent = root
+        self.write_objects(root)
+        path = os.path.join(self.out_dir, filename)
+        if hasattr(ET, "indent"):
+            ET.indent(root, space="  ")
+        ET.ElementTree(root).write(path, encoding="utf-8", xml_declaration=False)
+        return path
+
+    # -- camera / film / integrator -------------------------------------------
+    def write_camera(self, root):
+        ET.SubElement(root, "camera", width=str(self.width), height=str(self.height))
+        cam_obj = self.scene.camera
+        if cam_obj is None:
+            self.warn("the scene has no camera: using a camera at the origin looking down -Z")
+            matrix = np.identity(4)
+            cam = None
+        else:
+            cam_eval = cam_obj.evaluated_get(self.depsgraph)
+            matrix = np.array(cam_eval.matrix_world)
+            cam = cam_eval.data
+        loc = matrix[:3, 3]
+        linear = matrix[:3, :3]
+        scale = np.linalg.norm(linear, axis=0)
+        rot = linear / np.where(scale > 0, scale, 1.0)
+        if np.linalg.det(rot) < 0:
+            rot[:, 2] *= -1.0
+            scale[2] *= -1.0
+        angle, axis = _axis_angle(rot)
+        tr = ET.SubElement(root, "transform", translate=fmt(loc), rotate=fmt([math.degrees(angle), *axis]),
+                           scale=fmt([scale[0], scale[1], -scale[2]]))
+        attributes = {"type": "perspective", "fov": fmt(self.camera_fov(cam)), "nearclip": "0.1",
+                      "farclip": "100"}
+        if cam is not None:
+            attributes["nearclip"] = fmt(cam.clip_start)
+            attributes["farclip"] = fmt(cam.clip_end)
+            if cam.type != "PERSP":
+                self.warn("camera '%s': only perspective cameras are exported (type %s rendered as perspective)"
+                          % (cam_obj.name, cam.type))
+            if abs(cam.shift_x) > 1e-6 or abs(cam.shift_y) > 1e-6:
+                self.warn("camera '%s': lens shift is not exported" % cam_obj.name)
+            if cam.dof.use_dof:
+                focus = cam.dof.focus_distance
+                if cam.dof.focus_object is not None:
+                    focus = float(np.linalg.norm(np.array(cam.dof.focus_object.matrix_world.translation) - loc))
+                attributes["aperturesize"] = fmt(cam.lens * 1e-3 / (2.0 * cam.dof.aperture_fstop))
+                attributes["focaldistance"] = fmt(focus)
+        ET.SubElement(tr, "camera", attrib=attributes)
+
+    def camera_fov(self, cam):
+        """Cycles' fov: the full angle across the smaller image dimension (radians)."""
+        w, h = float(self.width), float(self.height)
+        if cam is None:
+            return math.radians(39.6)
+        if cam.sensor_fit == "HORIZONTAL" or (cam.sensor_fit == "AUTO" and w >= h):
+            tan_x = 0.5 * cam.sensor_width / cam.lens
+            tan_y = tan_x * h / w
+        elif cam.sensor_fit == "AUTO":
+            tan_y = 0.5 * cam.sensor_width / cam.lens
+            tan_x = tan_y * w / h
+        else:
+            tan_y = 0.5 * cam.sensor_height / cam.lens
+            tan_x = tan_y * w / h
+        return 2.0 * math.atan(min(tan_x, tan_y))
+
+    def write_film_integrator(self, root):
+        s = self.settings
+        if s is None:
+            return
+        ET.SubElement(root, "film", exposure=fmt(s.film_exposure), filter_type=s.filter_type,
+                      filter_width=fmt(s.filter_width))
+        seed = s.seed + (self.scene.frame_current if s.use_animated_seed else 0)
+        ET.SubElement(root, "integrator", attrib={
+            "max_bounce": str(s.max_bounce), "min_bounce": str(s.min_bounce),
+            "max_diffuse_bounce": str(s.max_diffuse_bounce), "max_glossy_bounce": str(s.max_glossy_bounce),
+            "max_transmission_bounce": str(s.max_transmission_bounce),
+            "transparent_max_bounce": str(s.transparent_max_bounce), "filter_glossy": fmt(s.filter_glossy),
+            "sample_clamp_direct": fmt(s.sample_clamp_direct),
+            "sample_clamp_indirect": fmt(s.sample_clamp_indirect), "seed": str(seed)})
+
+    # -- world -----------------------------------------------------------------
+    def write_world(self, root):
+        world = self.scene.world
+        bg = ET.SubElement(root, "background")
+        if world is None:
+            ET.SubElement(bg, "background", name="bg", color="0 0 0", strength="0")
+            ET.SubElement(bg, "connect", attrib={"from": "bg background", "to": "output surface"})
+            return
+        if not world.use_nodes or world.node_tree is None:
+            ET.SubElement(bg, "background", name="bg", color=fmt(tuple(world.color)), strength="1")
+            ET.SubElement(bg, "connect", attrib={"from": "bg background", "to": "output surface"})
+            return
+        graph = ShaderGraph(self, bg, "world '%s'" % world.name)
+        out = _output_node(world.node_tree, "ShaderNodeOutputWorld")
+        source = graph.source_of(out.inputs["Surface"]) if out is not None else None
+        if source is None:
+            ET.SubElement(bg, "background", name="bg", color="0 0 0", strength="0")
+            source = ("bg", "background")
+        graph.connect(source, "output", "surface")
+        if out is not None and out.inputs["Volume"].is_linked:
+            self.warn("world '%s': volumes are not exported" % world.name)
+
+    # -- materials ---------------------------------------------------------------
+    def shader_for(self, material):
+        if material is None:
+            return self.default_shader
+        key = material.name_full if hasattr(material, "name_full") else material.name
+        if key in self.material_shaders:
+            return self.material_shaders[key]
+        name = self.shader_names(material.name)
+        el = ET.Element("shader", name=name)
+        owner = "material '%s'" % material.name
+        if not material.use_nodes or material.node_tree is None:
+            ET.SubElement(el, "diffuse_bsdf", name="diffuse", color=fmt(tuple(material.diffuse_color)[:3]))
+            ET.SubElement(el, "connect", attrib={"from": "diffuse bsdf", "to": "output surface"})
+        else:
+            graph = ShaderGraph(self, el, owner)
+            out = _output_node(material.node_tree, "ShaderNodeOutputMaterial")
+            source = graph.source_of(out.inputs["Surface"]) if out is not None else None
+            if source is None:
+                self.warn("%s has no surface shader: rendered black like Cycles" % owner)
+            else:
+                graph.connect(source, "output", "surface")
+            if out is not None and out.inputs["Volume"].is_linked:
+                self.warn("%s: volumes are not exported" % owner)
+            if out is not None and out.inputs["Displacement"].is_linked:
+                self.warn("%s: displacement is not exported" % owner)
+        # Shaders must come before the objects that use them.
+        index = list(self.objects_parent).index(self.objects_anchor)
+        self.objects_parent.insert(index, el)
+        self.material_shaders[key] = name
+        self.stats["materials"] += 1
+        return name
+
+    def image_path(self, image):
+        if image.name in self.images:
+            return self.images[image.name]
+        path = bpy.path.abspath(image.filepath, library=image.library) if image.filepath else ""
+        if image.packed_file is not None or image.source == "GENERATED" or not os.path.isfile(path):
+            os.makedirs(os.path.join(self.out_dir, "textures"), exist_ok=True)
+            path = os.path.join(self.out_dir, "textures", safe_name(image.name) + ".exr")
+            image.save_render(path, scene=self.scene)
+        else:
+            path = os.path.abspath(path)
+        self.images[image.name] = path
+        return path
+
+    # -- objects and lights ----------------------------------------------------------
+    def write_objects(self, root):
+        self.objects_anchor = ET.SubElement(root, "objects_begin")  # placeholder, removed below
+        for inst in self.depsgraph.object_instances:
+            obj = inst.object
+            if obj.type == "LIGHT":
+                self.write_light(root, obj, np.array(inst.matrix_world))
+            elif obj.type in MESH_TYPES:
+                self.write_mesh_object(root, inst, obj)
+        root.remove(self.objects_anchor)
+
+    def write_mesh_object(self, root, inst, obj):
+        try:
+            mesh = obj.to_mesh()
+        except RuntimeError:
+            return
+        if mesh is None:
+            return
+        try:
+            arrays = mesh_export.mesh_arrays(mesh, inst.matrix_world)
+            if len(arrays["triangles"]) == 0:
+                return
+            slots = [slot.material for slot in obj.material_slots] if obj.material_slots else []
+            base = self.mesh_names(obj.name if not inst.is_instance else obj.name + "_instance")
+            used = np.unique(arrays["material"]) if len(slots) > 1 else np.array([0])
+            for index in used:
+                part = arrays if len(used) == 1 else mesh_export.subset(arrays, arrays["material"] == index)
+                material = slots[min(int(index), len(slots) - 1)] if slots else None
+                shader = self.shader_for(material)
+                filename = "meshes/%s.ply" % (base if len(used) == 1 else "%s_%d" % (base, index))
+                mesh_export.write_ply(os.path.join(self.out_dir, filename), part)
+                state = ET.SubElement(root, "state", shader=shader)
+                if part["smooth"]:
+                    state.set("interpolation", "smooth")
+                ET.SubElement(state, "mesh", src=filename)
+                self.stats["triangles"] += len(part["triangles"])
+                self.stats["vertices"] += len(part["P"])
+            self.stats["objects"] += 1
+        finally:
+            obj.to_mesh_clear()
+
+    def write_light(self, root, obj, matrix):
+        light = obj.data
+        co = matrix[:3, 3]
+        axes = matrix[:3, :3]
+        lengths = np.linalg.norm(axes, axis=0)
+        unit = axes / np.where(lengths > 0, lengths, 1.0)
+        direction = -unit[:, 2]
+        color = np.array(light.color)
+        attributes = {"co": fmt(co), "dir": fmt(direction)}
+        if light.type == "SUN":
+            attributes.update(light_type="sun", strength=fmt(color * light.energy), angle=fmt(light.angle))
+        elif light.type in ("POINT", "SPOT"):
+            attributes.update(light_type=light.type.lower(), strength=fmt(color * light.energy))
+            attributes[LIGHT_RADIUS] = fmt(light.shadow_soft_size)
+            if light.type == "SPOT":
+                attributes.update(spot_angle=fmt(light.spot_size), spot_smooth=fmt(light.spot_blend))
+        elif light.type == "AREA":
+            size_u = light.size
+            size_v = light.size_y if light.shape in ("RECTANGLE", "ELLIPSE") else light.size
+            attributes.update(light_type="area", strength=fmt(color * light.energy),
+                              axisu=fmt(unit[:, 0]), axisv=fmt(unit[:, 1]),
+                              sizeu=fmt(size_u * lengths[0]), sizev=fmt(size_v * lengths[1]),
+                              round=fmt(light.shape in ("DISK", "ELLIPSE")))
+            if hasattr(light, "spread") and light.spread < math.pi - 1e-6:
+                attributes["spread"] = fmt(light.spread)
+        else:
+            self.warn("light '%s': type %s is not supported: skipped" % (obj.name, light.type))
+            return
+        if light.use_nodes:
+            self.warn("light '%s': light node trees are not exported (colour x power is used)" % obj.name)
+        ET.SubElement(root, "light", attrib=attributes)
+        self.stats["lights"] += 1
+
+
+def _axis_angle(rotation):
+    """Rotation matrix -> (angle radians, unit axis)."""
+    cos_angle = max(-1.0, min(1.0, (np.trace(rotation) - 1.0) * 0.5))
+    angle = math.acos(cos_angle)
+    if angle < 1e-9:
+        return 0.0, (0.0, 0.0, 1.0)
+    if math.pi - angle < 1e-6:
+        # 180 degrees: the axis is the column of (R + I) / 2 with the largest norm.
+        m = (rotation + np.identity(3)) * 0.5
+        i = int(np.argmax(np.diag(m)))
+        axis = m[:, i] / math.sqrt(max(m[i, i], 1e-30))
+    else:
+        axis = np.array([rotation[2, 1] - rotation[1, 2], rotation[0, 2] - rotation[2, 0],
+                         rotation[1, 0] - rotation[0, 1]]) / (2.0 * math.sin(angle))
+    axis = axis / np.linalg.norm(axis)
+    return angle, tuple(float(a) for a in axis)
+
+
+def export_scene(depsgraph, out_dir, report=None, width=None, height=None):
+    """Export depsgraph's scene to out_dir/scene.xml; returns (path, exporter)."""
+    exporter = Exporter(depsgraph, out_dir, width=width, height=height, report=report)
+    return exporter.export(), exporter
+
+
+def remove_export(out_dir):
+    shutil.rmtree(out_dir, ignore_errors=True)

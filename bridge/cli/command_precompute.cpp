@@ -1,0 +1,238 @@
+// `glimmer precompute energy`: Monte Carlo generation of the GGX
+// multiple-scattering energy tables (plugin/tables/microfacet_energy_data.cpp).
+//  - E(mu, alpha), E_avg(alpha): Fresnel-free single-scatter conductor albedo,
+//    stratified visible-normal sampling (strata^2 samples per cell).
+//  - E(mu, alpha, eta), E_avg for the dielectric (R + T), wi outside (eta) and
+//    inside (1 / eta): same estimator.
+//  - E_Fms(mu, alpha, F0) as a cubic in F0 (Hill 2022): Heitz 2016 random walks
+//    carrying the Fresnel-split coefficients e[0..N-1]; walks of order >= 2
+//    give E_ms; the average coefficients are rescaled so that E_Fms(F0 = 1)
+//    equals 1 - E (energy conservation of the Fresnel-free walk: a ratio
+//    estimator), then refit to a cubic minimizing the relative error.
+// Output: C++ source with the command line and sample counts in its header.
+#include <tbb/parallel_for.h>
+
+#include <array>
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "cli/commands.h"
+#include "glimmer/microfacet_energy_grid.h"
+#include "glimmer/microfacet_walk.h"
+#include "glimmer/rng.h"
+
+namespace glimmer::cli {
+
+namespace {
+
+using namespace glimmer::microfacet;
+namespace grid = glimmer::microfacet::energy_grid;
+
+constexpr int kSplitTerms = 16;
+
+// Cubic c0 + c1 x + c2 x^2 + c3 x^3 minimizing sum_k ((c(x_k) - p(x_k)) / p(x_k))^2
+// over x_k in [0, 1], with F0 = 1 pinned by a large weight (white furnace).
+std::array<double, 4> fit_cubic_relative(const std::array<double, kSplitTerms> &w) {
+  double ata[4][4] = {}, atb[4] = {};
+  const int samples = 65;
+  double p1 = 0.0;
+  for (double v : w) p1 += v;
+  for (int k = 0; k < samples; ++k) {
+    const double x = double(k) / (samples - 1);
+    double p = 0.0, xp = 1.0;
+    for (int i = 0; i < kSplitTerms; ++i, xp *= x) p += w[i] * xp;
+    const double floor_p = std::max(p, 1e-6 * p1 + 1e-12);
+    double weight = 1.0 / (floor_p * floor_p);
+    if (k == samples - 1) weight *= 1e4;
+    const double basis[4] = {1.0, x, x * x, x * x * x};
+    for (int r = 0; r < 4; ++r) {
+      atb[r] += weight * basis[r] * p;
+      for (int c = 0; c < 4; ++c) ata[r][c] += weight * basis[r] * basis[c];
+    }
+  }
+  // Gaussian elimination with partial pivoting.
+  for (int col = 0; col < 4; ++col) {
+    int pivot = col;
+    for (int r = col + 1; r < 4; ++r)
+      if (std::fabs(ata[r][col]) > std::fabs(ata[pivot][col])) pivot = r;
+    std::swap(ata[col], ata[pivot]);
+    std::swap(atb[col], atb[pivot]);
+    if (std::fabs(ata[col][col]) < 1e-300) continue;
+    for (int r = col + 1; r < 4; ++r) {
+      const double f = ata[r][col] / ata[col][col];
+      for (int c = col; c < 4; ++c) ata[r][c] -= f * ata[col][c];
+      atb[r] -= f * atb[col];
+    }
+  }
+  std::array<double, 4> c{};
+  for (int r = 3; r >= 0; --r) {
+    double s = atb[r];
+    for (int k = r + 1; k < 4; ++k) s -= ata[r][k] * c[k];
+    c[r] = std::fabs(ata[r][r]) < 1e-300 ? 0.0 : s / ata[r][r];
+  }
+  return c;
+}
+
+// E_avg = 2 int_0^1 E(mu) mu dmu = int_0^1 4 t^3 E(t^2) dt (mu = t^2): trapezoid
+// on the nodes, normalized by the same rule applied to E = 1 (exact for constant E).
+float average_over_mu(const float *e) {
+  double sum = 0.0, norm = 0.0;
+  const double dt = 1.0 / (grid::kMuCount - 1);
+  for (int i = 0; i < grid::kMuCount; ++i) {
+    const double t = i * dt;
+    const double w = ((i == 0 || i == grid::kMuCount - 1) ? 0.5 : 1.0) * 4.0 * t * t * t;
+    sum += w * e[i];
+    norm += w;
+  }
+  return float(sum / norm);
+}
+
+std::string fmt(float v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.5f", double(v));
+  std::string s(buf);
+  if (s.rfind("0.", 0) == 0) s.erase(0, 1);           // ".12345"
+  else if (s.rfind("-0.", 0) == 0) s.erase(1, 1);     // "-.12345"
+  while (s.size() > 2 && s.back() == '0') s.pop_back();
+  if (s.back() == '.') s.pop_back();
+  if (s.empty() || s == "-" || s == "." || s == ".0" || s == "-.0" || s == "-.") s = "0";
+  return s;
+}
+
+void write_rows(std::ostream &out, const float *data, size_t count, size_t per_line) {
+  for (size_t i = 0; i < count; ++i) {
+    out << fmt(data[i]) << ',';
+    if ((i + 1) % per_line == 0 || i + 1 == count) out << '\n';
+  }
+}
+
+struct EnergyOptions {
+  std::string output;
+  int strata = 48;
+  int walks = 32768;
+  uint32_t seed = 1;
+};
+
+int run_energy(const EnergyOptions &opt, const std::string &command_line) {
+  if (opt.strata < 2 || opt.walks < 16) throw CliError(kExitBadInput, "--strata must be >= 2 and --walks >= 16");
+  const auto start = std::chrono::steady_clock::now();
+  constexpr int nm = grid::kMuCount, na = grid::kAlphaCount, ne = grid::kEtaCount;
+  std::vector<float> E(na * nm), Eavg(na), Fms(na * nm * 4);
+  std::vector<float> G(ne * na * nm), Ginv(ne * na * nm), Gavg(ne * na), Ginvavg(ne * na);
+
+  // Conductor single scattering, then the random walks per (alpha, mu).
+  tbb::parallel_for(0, na * nm, [&](int cell) {
+    const int a = cell / nm, m = cell % nm;
+    WalkRng rng(hash_u32x3(opt.seed, 1u, uint32_t(cell)));
+    E[cell] = float(single_scatter_albedo_conductor(Distribution::GGX, grid::mu_of_node(m), grid::alpha_of_node(a),
+                                                    opt.strata, rng));
+  });
+  for (int a = 0; a < na; ++a) Eavg[a] = average_over_mu(&E[a * nm]);
+
+  tbb::parallel_for(0, na * nm, [&](int cell) {
+    const int a = cell / nm, m = cell % nm;
+    const float mu = grid::mu_of_node(m), alpha = grid::alpha_of_node(a);
+    const Vec3 wi(std::sqrt(std::max(0.0f, 1.0f - mu * mu)), 0.0f, mu);
+    const WalkSurface surface{alpha, alpha};
+    WalkRng rng(hash_u32x3(opt.seed, 2u, uint32_t(cell)));
+    std::array<double, kSplitTerms> w{};
+    long multiple = 0;
+    for (int n = 0; n < opt.walks; ++n) {
+      FresnelSplit<kSplitTerms> split;
+      int order = 0;
+      walk_conductor(wi, surface, rng, order, [&](float c) { split.bounce(c); });
+      if (order >= 2) {
+        ++multiple;
+        for (int i = 0; i < kSplitTerms; ++i) w[i] += split.e[i];
+      }
+    }
+    // Ratio estimator: scale so that sum(w) = 1 - E exactly (F0 = 1 furnace).
+    double sum = 0.0;
+    for (double v : w) sum += v;
+    const double target = std::max(0.0, 1.0 - double(E[cell]));
+    const double scale = sum > 0.0 ? target / sum : 0.0;
+    for (double &v : w) v *= scale;
+    const auto c = fit_cubic_relative(w);
+    for (int k = 0; k < 4; ++k) Fms[cell * 4 + k] = float(c[k]);
+    (void)multiple;
+  });
+
+  // Dielectric R + T, both sides.
+  tbb::parallel_for(0, ne * na * nm, [&](int cell) {
+    const int e = cell / (na * nm), a = (cell / nm) % na, m = cell % nm;
+    const float eta = grid::eta_of_node(e), mu = grid::mu_of_node(m), alpha = grid::alpha_of_node(a);
+    WalkRng rng(hash_u32x3(opt.seed, 3u, uint32_t(cell)));
+    G[cell] = float(single_scatter_albedo_dielectric(Distribution::GGX, mu, alpha, eta, opt.strata, rng));
+    Ginv[cell] = float(single_scatter_albedo_dielectric(Distribution::GGX, mu, alpha, 1.0f / eta, opt.strata, rng));
+  });
+  for (int i = 0; i < ne * na; ++i) {
+    Gavg[i] = average_over_mu(&G[i * nm]);
+    Ginvavg[i] = average_over_mu(&Ginv[i * nm]);
+  }
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+
+  std::ostringstream out;
+  out << "// GENERATED by `glimmer precompute energy`; do not edit.\n"
+      << "// Command: " << command_line << "\n"
+      << "// Samples: single-scatter albedo cells use " << opt.strata << "x" << opt.strata
+      << " stratified visible-normal samples (" << opt.strata * opt.strata << " per cell);\n"
+      << "// E_Fms cells use " << opt.walks << " Heitz 2016 random walks each, " << kSplitTerms
+      << " Fresnel-split terms, ratio-scaled to 1 - E, cubic refit (min. relative error).\n"
+      << "// Grid: glimmer/microfacet_energy_grid.h (mu " << nm << " x alpha " << na << " x eta " << ne << "), seed "
+      << opt.seed << ", generated in " << int(seconds + 0.5) << " s.\n"
+      << "#include \"tables/microfacet_energy.h\"\n\nnamespace glimmer::tables {\n\n";
+  out << "const float kGgxE[grid::kAlphaCount][grid::kMuCount] = {\n";
+  write_rows(out, E.data(), E.size(), nm);
+  out << "};\n\nconst float kGgxEAvg[grid::kAlphaCount] = {\n";
+  write_rows(out, Eavg.data(), Eavg.size(), 16);
+  out << "};\n\nconst float kGgxFms[grid::kAlphaCount][grid::kMuCount][4] = {\n";
+  write_rows(out, Fms.data(), Fms.size(), 16);
+  out << "};\n\nconst float kGgxGlassE[grid::kEtaCount][grid::kAlphaCount][grid::kMuCount] = {\n";
+  write_rows(out, G.data(), G.size(), nm);
+  out << "};\n\nconst float kGgxGlassInvE[grid::kEtaCount][grid::kAlphaCount][grid::kMuCount] = {\n";
+  write_rows(out, Ginv.data(), Ginv.size(), nm);
+  out << "};\n\nconst float kGgxGlassEAvg[grid::kEtaCount][grid::kAlphaCount] = {\n";
+  write_rows(out, Gavg.data(), Gavg.size(), na);
+  out << "};\n\nconst float kGgxGlassInvEAvg[grid::kEtaCount][grid::kAlphaCount] = {\n";
+  write_rows(out, Ginvavg.data(), Ginvavg.size(), na);
+  out << "};\n\n}  // namespace glimmer::tables\n";
+
+  const std::string tmp = opt.output + ".tmp";
+  {
+    std::ofstream file(tmp, std::ios::binary);
+    if (!file) throw CliError(kExitBadInput, "cannot write --output '" + opt.output + "'");
+    file << out.str();
+    if (!file.good()) throw CliError(kExitBadInput, "failed writing '" + tmp + "'");
+  }
+  if (std::rename(tmp.c_str(), opt.output.c_str()) != 0)
+    throw CliError(kExitBadInput, "cannot move '" + tmp + "' to '" + opt.output + "'");
+  std::printf("wrote %s (%zu bytes) in %.1f s\n", opt.output.c_str(), out.str().size(), seconds);
+  return kExitOk;
+}
+
+}  // namespace
+
+void add_precompute_command(CLI::App &app, CliContext &ctx) {
+  auto *pre = app.add_subcommand("precompute", "generate precomputed tables as C++ source");
+  pre->require_subcommand(1);
+  auto opt = std::make_shared<EnergyOptions>();
+  auto *energy = pre->add_subcommand("energy", "GGX multiple-scattering energy tables (Monte Carlo)");
+  energy->add_option("-o,--output", opt->output, "output .cpp (e.g. plugin/tables/microfacet_energy_data.cpp)")
+      ->required();
+  energy->add_option("--strata", opt->strata, "single-scatter cells: strata x strata visible-normal samples")
+      ->capture_default_str();
+  energy->add_option("--walks", opt->walks, "random walks per E_Fms cell")->capture_default_str();
+  energy->add_option("--seed", opt->seed, "random seed")->capture_default_str();
+  energy->callback([opt, &ctx]() {
+    const std::string command = "glimmer precompute energy --strata " + std::to_string(opt->strata) + " --walks " +
+                                std::to_string(opt->walks) + " --seed " + std::to_string(opt->seed) +
+                                " --output plugin/tables/microfacet_energy_data.cpp";
+    ctx.exit_code = run_energy(*opt, command);
+  });
+}
+
+}  // namespace glimmer::cli

@@ -1,0 +1,432 @@
+#include "render/lights.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "glimmer/sampling.h"
+
+namespace glimmer::render {
+
+namespace {
+float luminance(const Spectrum &s) { return 0.2126f * s.x + 0.7152f * s.y + 0.0722f * s.z; }
+constexpr float kInf = std::numeric_limits<float>::infinity();
+}  // namespace
+
+Distribution1D::Distribution1D(const std::vector<float> &weights) {
+  cdf.assign(weights.size() + 1, 0.0f);
+  double acc = 0.0;
+  for (size_t i = 0; i < weights.size(); ++i) {
+    acc += std::max(0.0f, std::isfinite(weights[i]) ? weights[i] : 0.0f);
+    cdf[i + 1] = static_cast<float>(acc);
+  }
+  total = static_cast<float>(acc);
+  if (acc > 0.0)
+    for (auto &c : cdf) c = static_cast<float>(c / acc);
+}
+
+int Distribution1D::sample(float u, float &u_remapped) const {
+  const int n = count();
+  int i = static_cast<int>(std::upper_bound(cdf.begin(), cdf.end(), u) - cdf.begin()) - 1;
+  i = std::clamp(i, 0, n - 1);
+  while (i > 0 && cdf[i + 1] - cdf[i] <= 0.0f) --i;  // never land on an empty bin
+  while (i < n - 1 && cdf[i + 1] - cdf[i] <= 0.0f) ++i;
+  const float width = cdf[i + 1] - cdf[i];
+  u_remapped = width > 0.0f ? std::clamp((u - cdf[i]) / width, 0.0f, 0.99999994f) : 0.5f;
+  return i;
+}
+
+// ---- Film filter ----
+FilmFilter::FilmFilter(scene::FilterType type, float width) : type_(type), width_(width) {
+  if (type == scene::FilterType::Box) return;
+  // Cycles' filter functions over [-width/2, width/2] (film.cpp).
+  const int n = 1024;
+  std::vector<float> w(n);
+  for (int i = 0; i < n; ++i) {
+    const float x = ((i + 0.5f) / n - 0.5f) * width;  // offset in pixels
+    if (type == scene::FilterType::Gaussian) {
+      const float v = x * 6.0f / width;
+      w[i] = std::exp(-2.0f * v * v);
+    } else {
+      const float v = kTwoPi * (x / width + 0.5f);
+      w[i] = 0.35875f - 0.48829f * std::cos(v) + 0.14128f * std::cos(2.0f * v) - 0.01168f * std::cos(3.0f * v);
+    }
+  }
+  Distribution1D d(w);
+  inverse_cdf_.resize(n);
+  for (int i = 0; i < n; ++i) {
+    float r;
+    const int bin = d.sample((i + 0.5f) / n, r);
+    inverse_cdf_[i] = ((bin + r) / n - 0.5f) * width;
+  }
+}
+
+float FilmFilter::offset(float u) const {
+  if (type_ == scene::FilterType::Box) return (u - 0.5f) * width_;
+  const float x = u * (inverse_cdf_.size() - 1);
+  const int i = std::min(static_cast<int>(x), static_cast<int>(inverse_cdf_.size()) - 2);
+  const float t = x - i;
+  return inverse_cdf_[i] * (1 - t) + inverse_cdf_[i + 1] * t;
+}
+
+// ---- Lights ----
+LightSet::LightSet(const scene::Scene &scene, ShaderSystem &shaders, const std::vector<int> &mesh_shader, Vec3 center,
+                   float radius, FeatureSet &features, std::vector<std::string> &warnings)
+    : scene_(scene), shaders_(shaders), mesh_shader_(mesh_shader) {
+  (void)center;
+  (void)warnings;
+  std::vector<float> power;
+  const float disk_area = kPi * radius * radius;
+  for (const auto &l : scene.lights) {
+    Entry e;
+    e.strength = l.strength * shaders.light_emission(l.shader, l.where);
+    if (is_zero(e.strength)) continue;
+    e.co = l.co;
+    e.dir = normalize(l.dir);
+    e.radius = l.radius;
+    float p = luminance(e.strength);
+    switch (l.type) {
+      case scene::LightType::Point:
+        e.kind = Kind::Point;
+        features.light_types.insert("point");
+        break;
+      case scene::LightType::Spot:
+        e.kind = Kind::Spot;
+        e.cos_half_spot = std::cos(0.5f * l.spot_angle);
+        e.spot_smooth = (1.0f - e.cos_half_spot) * l.spot_smooth;
+        features.light_types.insert("spot");
+        break;
+      case scene::LightType::Sun: {
+        e.kind = Kind::Sun;
+        const float half = 0.5f * std::min(l.angle, kPi);
+        e.cos_half_angle = std::cos(half);
+        e.sun_solid_angle = kTwoPi * (1.0f - e.cos_half_angle);
+        p *= disk_area;
+        features.light_types.insert("sun");
+        break;
+      }
+      case scene::LightType::Area:
+        e.kind = Kind::Area;
+        e.U = l.axisu * l.sizeu;
+        e.V = l.axisv * l.sizev;
+        e.round = l.round;
+        e.area = length(cross(e.U, e.V)) * (l.round ? kPi * 0.25f : 1.0f);
+        {
+          // The emitting plane is spanned by axisu/axisv; `dir` only picks its emitting side.
+          Vec3 n = normalize(cross(e.U, e.V));
+          if (dot(n, e.dir) < 0.0f) n = -n;
+          e.dir = n;
+        }
+        p *= kPi * 0.25f;
+        features.light_types.insert(l.round ? "area_disk" : "area_quad");
+        break;
+      case scene::LightType::Background:
+        continue;  // the world shader is the background light (added below)
+    }
+    lights_.push_back(e);
+    power.push_back(p);
+  }
+  // Emissive triangles.
+  triangle_light_.resize(scene.meshes.size());
+  for (size_t m = 0; m < scene.meshes.size(); ++m) {
+    if (!shaders.shader(mesh_shader[m]).has_emission) continue;
+    const auto &mesh = scene.meshes[m];
+    triangle_light_[m].assign(mesh.triangles.size(), -1);
+    for (size_t t = 0; t < mesh.triangles.size(); ++t) {
+      const auto &tri = mesh.triangles[t];
+      const float area = 0.5f * length(cross(mesh.P[tri[1]] - mesh.P[tri[0]], mesh.P[tri[2]] - mesh.P[tri[0]]));
+      if (!(area > 0.0f)) continue;
+      Entry e;
+      e.kind = Kind::Triangle;
+      e.mesh = static_cast<int>(m);
+      e.prim = static_cast<int>(t);
+      e.area = area;
+      const Spectrum L = triangle_emission(e, Vec3(0.0f), 1.0f / 3.0f, 1.0f / 3.0f, Vec3(0, 0, 1));
+      if (is_zero(L)) continue;
+      triangle_light_[m][t] = static_cast<int>(lights_.size());
+      lights_.push_back(e);
+      power.push_back(kPi * area * luminance(L));
+      features.emissive_triangles++;
+    }
+  }
+  // Background.
+  if (shaders.has_background()) {
+    Entry e;
+    e.kind = Kind::Background;
+    background_light_ = static_cast<int>(lights_.size());
+    lights_.push_back(e);
+    float avg = 0.0f;
+    if (!shaders.background_is_constant()) {
+      build_environment_map();
+      avg = env_marginal_.total / static_cast<float>(env_w_ * env_h_);
+    } else {
+      avg = luminance(shaders.background(Vec3(0, 0, 1)));
+    }
+    power.push_back(kPi * avg * disk_area);
+  }
+  // Every light keeps at least a small share so that none is starved.
+  float total = 0.0f;
+  for (float p : power) total += p;
+  for (float &p : power) p = std::max(p, 0.01f * total / std::max<size_t>(power.size(), 1));
+  pick_ = Distribution1D(power);
+}
+
+void LightSet::build_environment_map() {
+  env_w_ = 512;
+  env_h_ = 256;
+  std::vector<float> rows(env_h_);
+  std::vector<std::vector<float>> weights(env_h_, std::vector<float>(env_w_));
+  double sum = 0.0;
+  for (int y = 0; y < env_h_; ++y) {
+    for (int x = 0; x < env_w_; ++x) {
+      float acc = 0.0f;
+      for (int s = 0; s < 4; ++s) {  // 2x2 supersampling within the cell
+        const float u = (x + 0.25f + 0.5f * (s & 1)) / env_w_, v = (y + 0.25f + 0.5f * (s >> 1)) / env_h_;
+        acc += luminance(shaders_.background(equirectangular_to_direction(u, v)));
+      }
+      const float sin_theta = std::sin(kPi * (1.0f - (y + 0.5f) / env_h_));
+      weights[y][x] = acc * 0.25f * sin_theta;
+      sum += weights[y][x];
+    }
+  }
+  // Floor: every direction keeps a non-zero density (unbiasedness for features finer than a cell).
+  const float floor = static_cast<float>(sum / (env_w_ * env_h_)) * 0.01f + 1e-12f;
+  env_rows_.clear();
+  for (int y = 0; y < env_h_; ++y) {
+    const float sin_theta = std::sin(kPi * (1.0f - (y + 0.5f) / env_h_));
+    for (auto &w : weights[y]) w += floor * sin_theta;
+    env_rows_.emplace_back(weights[y]);
+    rows[y] = env_rows_.back().total;
+  }
+  env_marginal_ = Distribution1D(rows);
+}
+
+float LightSet::environment_pdf(const Vec3 &d) const {
+  if (env_w_ == 0) return kInv4Pi;
+  float u, v;
+  direction_to_equirectangular(d, u, v);
+  const int x = std::clamp(static_cast<int>((u - std::floor(u)) * env_w_), 0, env_w_ - 1);
+  const int y = std::clamp(static_cast<int>(v * env_h_), 0, env_h_ - 1);
+  const float p_uv = env_marginal_.probability(y) * env_rows_[y].probability(x) * env_w_ * env_h_;
+  const float sin_theta = std::sin(kPi * (1.0f - v));
+  if (!(sin_theta > 1e-6f)) return 0.0f;
+  return p_uv / (2.0f * kPi * kPi * sin_theta);
+}
+
+float LightSet::background_pdf(const Vec3 &d) const {
+  if (background_light_ < 0) return 0.0f;
+  return pick_probability(background_light_) * environment_pdf(d);
+}
+
+float LightSet::spot_attenuation(const Entry &l, const Vec3 &dir_from_light) const {
+  // Cycles 3.4 spot_attenuation: the cosine to the axis, zero outside the cone, smoothstep edge.
+  float attenuation = dot(dir_from_light, l.dir);
+  if (attenuation <= l.cos_half_spot) return 0.0f;
+  const float t = attenuation - l.cos_half_spot;
+  if (t < l.spot_smooth && l.spot_smooth != 0.0f) {
+    const float s = t / l.spot_smooth;
+    attenuation *= s * s * (3.0f - 2.0f * s);
+  }
+  return attenuation;
+}
+
+Spectrum LightSet::triangle_emission(const Entry &l, const Vec3 &, float b1, float b2, const Vec3 &wi_toward_viewer) const {
+  const scene::Mesh &m = scene_.meshes[l.mesh];
+  const auto &tri = m.triangles[l.prim];
+  const float b0 = 1.0f - b1 - b2;
+  TexCoords tc;
+  tc.P = m.P[tri[0]] * b0 + m.P[tri[1]] * b1 + m.P[tri[2]] * b2;
+  tc.generated = m.generated[tri[0]] * b0 + m.generated[tri[1]] * b1 + m.generated[tri[2]] * b2;
+  const Vec3 Ng = normalize(cross(m.P[tri[1]] - m.P[tri[0]], m.P[tri[2]] - m.P[tri[0]]));
+  tc.N = Ng;
+  if (!m.uv.empty()) {
+    for (int k = 0; k < 2; ++k)
+      tc.uv[k] = m.uv[3 * l.prim][k] * b0 + m.uv[3 * l.prim + 1][k] * b1 + m.uv[3 * l.prim + 2][k] * b2;
+  } else {
+    tc.uv[0] = b1;
+    tc.uv[1] = b2;
+  }
+  ClosureSet cs;
+  shaders_.evaluate(mesh_shader_[l.mesh], tc, cs);
+  GlimmerShadingContext ctx{};
+  ctx.wi = wi_toward_viewer;
+  ctx.P = tc.P;
+  ctx.N = dot(Ng, wi_toward_viewer) >= 0.0f ? Ng : -Ng;
+  ctx.Ng = ctx.N;
+  ctx.T = Frame::from_normal(Vec3(ctx.N)).s;
+  ctx.uv[0] = tc.uv[0];
+  ctx.uv[1] = tc.uv[1];
+  Spectrum L(0.0f);
+  for (int i = 0; i < cs.count; ++i)
+    if (cs.closures[i].leaf->emissive) L += cs.closures[i].leaf->instance->emit(ctx) * cs.closures[i].weight;
+  return L;
+}
+
+bool LightSet::sample(float select, float u, float v, const Vec3 &P, LightSample &out) const {
+  if (lights_.empty()) return false;
+  float remapped;
+  const int index = pick_.sample(select, remapped);
+  const float pick = pick_probability(index);
+  const Entry &l = lights_[index];
+  switch (l.kind) {
+    case Kind::Point:
+    case Kind::Spot: {
+      const Vec3 to = l.co - P;
+      const float d2 = length_squared(to), d = std::sqrt(d2);
+      if (!(d > 0.0f)) return false;
+      const Vec3 axis = to / d;
+      if (l.radius > 0.0f && d > l.radius * 1.0001f) {
+        // Uniform cone toward the sphere; radiance S / (4 pi * pi r^2).
+        const float sin2 = (l.radius * l.radius) / d2;
+        const float cos_max = std::sqrt(std::max(0.0f, 1.0f - sin2));
+        const Frame f = Frame::from_normal(axis);
+        out.wi = normalize(f.to_world(sample_uniform_cone(u, v, cos_max)));
+        const float b = dot(to, out.wi), c = d2 - l.radius * l.radius;
+        const float disc = std::max(0.0f, b * b - c);
+        out.dist = b - std::sqrt(disc);
+        out.pdf = pick / (kTwoPi * (1.0f - cos_max));
+        out.radiance = l.strength * (1.0f / (4.0f * kPi * kPi * l.radius * l.radius));
+        out.delta = false;
+      } else {
+        out.wi = axis;
+        out.dist = d;
+        out.pdf = pick;
+        out.radiance = l.strength * (kInv4Pi / d2);
+        out.delta = true;
+      }
+      if (l.kind == Kind::Spot) out.radiance *= spot_attenuation(l, -axis);
+      return !is_zero(out.radiance);
+    }
+    case Kind::Sun: {
+      out.dist = kInf;
+      if (l.sun_solid_angle > 0.0f) {
+        const Frame f = Frame::from_normal(-l.dir);
+        out.wi = normalize(f.to_world(sample_uniform_cone(u, v, l.cos_half_angle)));
+        out.pdf = pick / l.sun_solid_angle;
+        const float sin2 = 1.0f - l.cos_half_angle * l.cos_half_angle;
+        out.radiance = l.strength / (kPi * sin2);
+        out.delta = false;
+      } else {
+        out.wi = -l.dir;
+        out.pdf = pick;
+        out.radiance = l.strength;
+        out.delta = true;
+      }
+      return true;
+    }
+    case Kind::Area: {
+      Vec3 offset;
+      if (l.round) {
+        float x, y;
+        sample_uniform_disk_concentric(u, v, x, y);
+        offset = l.U * (0.5f * x) + l.V * (0.5f * y);
+      } else {
+        offset = l.U * (u - 0.5f) + l.V * (v - 0.5f);
+      }
+      const Vec3 Pl = l.co + offset;
+      const Vec3 to = Pl - P;
+      const float d2 = length_squared(to), d = std::sqrt(d2);
+      if (!(d > 0.0f)) return false;
+      out.wi = to / d;
+      const float cos_l = -dot(out.wi, l.dir);  // emits toward dir
+      if (cos_l <= 0.0f) return false;
+      out.dist = d;
+      out.pdf = pick * d2 / (cos_l * l.area);
+      out.radiance = l.strength * (0.25f / l.area);
+      out.delta = false;
+      return true;
+    }
+    case Kind::Background: {
+      out.dist = kInf;
+      if (env_w_ == 0) {
+        out.wi = sample_uniform_sphere(u, v);
+      } else {
+        float ur, vr;
+        const int y = env_marginal_.sample(v, vr);
+        const int x = env_rows_[y].sample(u, ur);
+        out.wi = equirectangular_to_direction((x + ur) / env_w_, (y + vr) / env_h_);
+      }
+      out.pdf = pick * environment_pdf(out.wi);
+      out.radiance = shaders_.background(out.wi);
+      out.delta = false;
+      return out.pdf > 0.0f;
+    }
+    case Kind::Triangle: {
+      const scene::Mesh &m = scene_.meshes[l.mesh];
+      const auto &tri = m.triangles[l.prim];
+      float b1 = u, b2 = v;
+      if (b1 + b2 > 1.0f) { b1 = 1.0f - b1; b2 = 1.0f - b2; }
+      const Vec3 Pl = m.P[tri[0]] * (1.0f - b1 - b2) + m.P[tri[1]] * b1 + m.P[tri[2]] * b2;
+      const Vec3 Ng = normalize(cross(m.P[tri[1]] - m.P[tri[0]], m.P[tri[2]] - m.P[tri[0]]));
+      const Vec3 to = Pl - P;
+      const float d2 = length_squared(to), d = std::sqrt(d2);
+      if (!(d > 0.0f)) return false;
+      out.wi = to / d;
+      const float cos_l = std::fabs(dot(out.wi, Ng));
+      if (cos_l <= 1e-7f) return false;
+      out.dist = d;
+      out.pdf = pick * d2 / (cos_l * l.area);
+      out.radiance = triangle_emission(l, Pl, b1, b2, -out.wi);
+      out.delta = false;
+      return !is_zero(out.radiance);
+    }
+  }
+  return false;
+}
+
+void LightSet::intersect(const Vec3 &o, const Vec3 &d, float t_max, bool hit_surface, LightHits &out) const {
+  out.count = 0;
+  for (size_t i = 0; i < lights_.size(); ++i) {
+    const Entry &l = lights_[i];
+    const float pick = pick_probability(static_cast<int>(i));
+    LightHit h;
+    if ((l.kind == Kind::Point || l.kind == Kind::Spot) && l.radius > 0.0f) {
+      const Vec3 oc = l.co - o;
+      const float b = dot(oc, d), c = length_squared(oc) - l.radius * l.radius;
+      const float disc = b * b - c;
+      if (disc < 0.0f || c <= 0.0f) continue;
+      const float t = b - std::sqrt(disc);
+      if (!(t > 0.0f && t < t_max)) continue;
+      const float d2 = length_squared(oc);
+      const float cos_max = std::sqrt(std::max(0.0f, 1.0f - l.radius * l.radius / d2));
+      h.radiance = l.strength * (1.0f / (4.0f * kPi * kPi * l.radius * l.radius));
+      if (l.kind == Kind::Spot) h.radiance *= spot_attenuation(l, -normalize(oc));
+      h.pdf = pick / (kTwoPi * (1.0f - cos_max));
+      h.t = t;
+      out.add(h);
+    } else if (l.kind == Kind::Area) {
+      const float denom = dot(d, l.dir);
+      if (std::fabs(denom) < 1e-9f) continue;
+      const float t = dot(l.co - o, l.dir) / denom;
+      if (!(t > 0.0f && t < t_max)) continue;
+      const Vec3 q = o + d * t - l.co;
+      const float su = dot(q, l.U) / length_squared(l.U), sv = dot(q, l.V) / length_squared(l.V);
+      const bool inside = l.round ? (4.0f * (su * su + sv * sv) <= 1.0f) : (std::fabs(su) <= 0.5f && std::fabs(sv) <= 0.5f);
+      if (!inside) continue;
+      const float cos_l = -denom;
+      if (cos_l <= 0.0f) continue;  // back side: no emission
+      h.radiance = l.strength * (0.25f / l.area);
+      h.pdf = pick * t * t / (cos_l * l.area);
+      h.t = t;
+      out.add(h);
+    } else if (l.kind == Kind::Sun && l.sun_solid_angle > 0.0f && !hit_surface) {
+      if (dot(d, -l.dir) < l.cos_half_angle) continue;
+      const float sin2 = 1.0f - l.cos_half_angle * l.cos_half_angle;
+      h.radiance = l.strength / (kPi * sin2);
+      h.pdf = pick / l.sun_solid_angle;
+      h.t = kInf;
+      out.add(h);
+    }
+  }
+}
+
+float LightSet::triangle_pdf(int mesh, int prim, const Vec3 &from, const Vec3 &P, const Vec3 &Ng, const Vec3 &d) const {
+  if (mesh < 0 || triangle_light_[mesh].empty()) return 0.0f;
+  const int index = triangle_light_[mesh][prim];
+  if (index < 0) return 0.0f;
+  const float d2 = length_squared(P - from);
+  const float cos_l = std::fabs(dot(d, Ng));
+  if (cos_l <= 1e-7f) return 0.0f;
+  return pick_probability(index) * d2 / (cos_l * lights_[index].area);
+}
+
+}  // namespace glimmer::render

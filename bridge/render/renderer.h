@@ -1,0 +1,77 @@
+// The path tracer: Embree 3 BVH, TBB tiles, Cycles-style shade_surface per
+// bounce (Russian roulette, NEE with power-heuristic MIS, one-sample MIS over
+// closure mixtures, bounce counters by label, sample clamps) and ray
+// differentials turned into the uv footprint handed to the closures.
+#pragma once
+
+#include <atomic>
+#include <chrono>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "host/plugin_library.h"
+#include "render/shader_system.h"
+#include "scene/scene.h"
+
+namespace glimmer::render {
+
+// Which estimators feed direct lighting (tests compare them; renders use MIS).
+enum class LightStrategy { MIS, LightOnly, BsdfOnly };
+
+struct RenderOptions {
+  int samples = 0;        // 0: the scene's integrator samples
+  int width = 0, height = 0;  // 0: the camera's
+  int seed = -1;          // -1: the scene's integrator seed
+  int region[4] = {0, 0, 0, 0};  // x0, y0, x1, y1 (pixels, x1/y1 exclusive); all 0 = whole image
+  double time_limit = 0.0;  // seconds, 0 = none: stops after the sample pass that exceeds it
+  int tile_size = 32;
+  LightStrategy strategy = LightStrategy::MIS;
+  bool aovs = true;       // Albedo, Normal, Depth
+  const std::atomic<bool> *cancel = nullptr;  // set from a signal handler: stop after the current pass
+};
+
+struct RenderResult {
+  int width = 0, height = 0;
+  int samples_requested = 0, samples_done = 0;
+  bool interrupted = false;
+  bool time_limited = false;
+  uint64_t nan_samples = 0;      // non-finite contributions dropped
+  std::vector<float> combined;   // RGBA, row 0 = top, exposure applied
+  std::vector<float> albedo;     // RGB
+  std::vector<float> normal;     // XYZ (world space, first hit)
+  std::vector<float> depth;      // Z (camera-space depth of the first hit, 1e10 for background)
+  double render_seconds = 0.0;
+  uint64_t paths = 0;            // pixels x samples traced
+};
+
+struct PhaseTimes {
+  double prepare = 0.0;  // shader compile + closure create/prepare + textures + lights
+  double bvh = 0.0;
+};
+
+class Renderer {
+ public:
+  Renderer(const scene::Scene &scene, const host::PluginLibrary &plugin, const RenderOptions &options);
+  ~Renderer();
+  Renderer(const Renderer &) = delete;
+  Renderer &operator=(const Renderer &) = delete;
+
+  // Progress callback: (samples done, samples total) after every sample pass.
+  RenderResult render(const std::function<void(int, int)> &progress = {});
+
+  const FeatureSet &features() const { return features_; }
+  const std::vector<std::string> &warnings() const { return warnings_; }
+  const PhaseTimes &times() const { return times_; }
+
+  struct Impl;
+
+ private:
+  std::unique_ptr<Impl> impl_;
+  FeatureSet features_;
+  std::vector<std::string> warnings_;
+  PhaseTimes times_;
+};
+
+}  // namespace glimmer::render

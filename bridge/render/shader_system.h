@@ -1,0 +1,168 @@
+// Shader graphs compiled for rendering: Cycles nodes mapped onto DSO closures,
+// textures feeding closure weights, mix/add closure trees. Only shaders that
+// geometry, lights or the background use are compiled (the feature scan), so
+// unused closures are never created and unused images never loaded.
+#pragma once
+
+#include <map>
+#include <memory>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "glimmer/closure_abi.h"
+#include "glimmer/math.h"
+#include "host/closure_instance.h"
+#include "host/plugin_library.h"
+#include "render/textures.h"
+#include "scene/scene.h"
+
+namespace glimmer::render {
+
+// Coordinates a shader may read at a shading point.
+struct TexCoords {
+  Vec3 P{0.0f};
+  Vec3 N{0.0f, 0.0f, 1.0f};
+  Vec3 generated{0.0f};
+  float uv[2] = {0.0f, 0.0f};
+  Vec3 direction{0.0f, 0.0f, 1.0f};  // ray direction (background, environment textures)
+};
+
+enum class VectorSource { UV, Generated, Object, Normal, Direction };
+
+// A colour or float input: a constant, or the output of a texture node.
+struct Input {
+  Spectrum constant{0.0f};
+  int texture = -1;        // index into ShaderSystem textures
+  bool fac_output = false; // texture's fac/alpha output instead of color
+};
+
+struct TextureNode {
+  enum class Kind { Checker, Image, Environment } kind = Kind::Checker;
+  Spectrum color1{0.8f}, color2{0.2f};
+  float scale = 5.0f;
+  const ImageTexture *image = nullptr;
+  VectorSource vector = VectorSource::Generated;
+};
+
+// Builtin host-side closures (not in the DSO).
+enum class BuiltinClosure { None, Transparent };
+
+struct ClosureLeaf {
+  const GlimmerClosureType *type = nullptr;  // DSO closure (nullptr for builtins)
+  const host::ClosureInstance *instance = nullptr;
+  BuiltinClosure builtin = BuiltinClosure::None;
+  Input weight;        // Cycles' colour input (possibly textured)
+  float strength = 1;  // extra scalar on the weight
+  bool emissive = false;
+  bool singular = false;
+  // Transmissive closures decide the side (eta or 1/eta) from wi.N, so they
+  // get the front-face normal instead of the one flipped toward wi.
+  bool front_normal = false;
+  std::string node;    // for messages
+};
+
+struct ClosureTreeNode {
+  enum class Kind { Leaf, Mix, Add } kind = Kind::Leaf;
+  int leaf = -1;
+  Input fac;
+  int a = -1, b = -1;
+};
+
+struct CompiledShader {
+  std::string name;
+  std::vector<ClosureTreeNode> tree;
+  int root = -1;  // -1: no surface closure (black, opaque)
+  bool has_emission = false;
+  bool has_transparent = false;
+  bool has_bsdf = false;
+};
+
+// One weighted closure at a shading point.
+struct ActiveClosure {
+  const ClosureLeaf *leaf;
+  Spectrum weight;
+  float sample_weight;
+};
+
+struct ClosureSet {
+  static constexpr int kMax = 16;
+  ActiveClosure closures[kMax];
+  int count = 0;
+  Spectrum transparent{0.0f};  // weight of the transparent closure (pass-through)
+  float sum_sample_weight = 0.0f;
+  void add(const ActiveClosure &c) {
+    if (count < kMax) {
+      closures[count++] = c;
+      sum_sample_weight += c.sample_weight;
+    }
+  }
+};
+
+// What the feature scan found (reported by --stats).
+struct FeatureSet {
+  std::set<std::string> closures;   // DSO closure names instantiated
+  std::set<std::string> textures;   // image files loaded
+  std::set<std::string> light_types;
+  int emissive_triangles = 0;
+  bool environment_map = false;
+  bool background = false;
+  bool transparent = false;
+  bool volumes = false;  // volume nodes present (ignored)
+  int used_shaders = 0, unused_shaders = 0;
+};
+
+class ShaderSystem {
+ public:
+  // `warnings` receives "file:line: warning: ..." lines for unsupported nodes.
+  ShaderSystem(const scene::Scene &scene, const host::PluginLibrary &plugin, const GlimmerHostServices *host,
+               std::vector<std::string> &warnings, FeatureSet &features);
+
+  // Compiles shader `index` (once); -1 compiles the default grey diffuse.
+  int compile(int shader_index);
+  const CompiledShader &shader(int compiled) const { return compiled_[compiled]; }
+
+  // Background: compiled separately (only the background/emission node matters).
+  void compile_background(int shader_index);
+  bool has_background() const { return background_.active; }
+  bool background_is_constant() const { return background_.color.texture < 0; }
+  Spectrum background(const Vec3 &direction) const;
+
+  // The emission of a light's shader (color * strength; textures are not supported on lights).
+  Spectrum light_emission(int shader_index, const scene::SourceLocation &where);
+
+  void evaluate(int compiled, const TexCoords &tc, ClosureSet &out) const;
+  Spectrum eval_input(const Input &in, const TexCoords &tc) const;
+
+ private:
+  const scene::Scene &scene_;
+  const host::PluginLibrary &plugin_;
+  const GlimmerHostServices *host_;
+  std::vector<std::string> &warnings_;
+  FeatureSet &features_;
+
+  std::vector<CompiledShader> compiled_;
+  std::map<int, int> compiled_index_;  // scene shader -> compiled
+  std::vector<std::unique_ptr<ClosureLeaf>> leaves_;
+  std::vector<std::unique_ptr<host::ClosureInstance>> instances_;
+  std::vector<TextureNode> textures_;
+  std::map<std::string, std::unique_ptr<ImageTexture>> images_;
+
+  struct BackgroundShader {
+    bool active = false;
+    Input color;
+    float strength = 1.0f;
+  } background_;
+
+  void warn(const scene::SourceLocation &where, const std::string &message);
+  int compile_closure(const scene::ShaderGraph &g, const std::string &node, const std::string &socket,
+                      CompiledShader &out, int depth);
+  int make_leaf(const scene::ShaderGraph &g, const scene::ShaderNode &n, CompiledShader &out);
+  Input read_input(const scene::ShaderGraph &g, const scene::ShaderNode &n, const std::string &socket,
+                   Spectrum fallback, VectorSource default_vector);
+  const host::ClosureInstance *instantiate(const GlimmerClosureType &type, const host::ParamList &params,
+                                           const scene::SourceLocation &where);
+  const ImageTexture *load_image(const scene::ShaderNode &n);
+};
+
+}  // namespace glimmer::render

@@ -1,0 +1,62 @@
+#include "render/textures.h"
+
+#include <OpenImageIO/imageio.h>
+
+#include <cmath>
+#include <stdexcept>
+
+namespace glimmer::render {
+
+namespace {
+float srgb_to_linear(float c) {
+  return c <= 0.04045f ? c / 12.92f : std::pow((c + 0.055f) / 1.055f, 2.4f);
+}
+}  // namespace
+
+std::unique_ptr<ImageTexture> ImageTexture::load(const std::string &path, bool linear) {
+  auto in = OIIO::ImageInput::open(path);
+  if (!in) throw std::runtime_error("cannot read image '" + path + "': " + OIIO::geterror());
+  const OIIO::ImageSpec &spec = in->spec();
+  const int w = spec.width, h = spec.height, nc = spec.nchannels;
+  if (w <= 0 || h <= 0 || nc <= 0) throw std::runtime_error("image '" + path + "' is empty");
+  std::vector<float> pixels(static_cast<size_t>(w) * h * nc);
+  if (!in->read_image(0, 0, 0, nc, OIIO::TypeDesc::FLOAT, pixels.data()))
+    throw std::runtime_error("cannot read image '" + path + "': " + in->geterror());
+  const bool is_byte = spec.format == OIIO::TypeDesc::UINT8 || spec.format == OIIO::TypeDesc::UINT16;
+  const bool to_linear = is_byte && !linear;
+  std::vector<float> rgba(static_cast<size_t>(w) * h * 4);
+  for (size_t i = 0; i < static_cast<size_t>(w) * h; ++i) {
+    float c[4] = {0, 0, 0, 1};
+    if (nc == 1 || nc == 2) {
+      c[0] = c[1] = c[2] = pixels[i * nc];
+      if (nc == 2) c[3] = pixels[i * nc + 1];
+    } else {
+      for (int k = 0; k < std::min(nc, 4); ++k) c[k] = pixels[i * nc + k];
+    }
+    for (int k = 0; k < 3; ++k) {
+      float v = to_linear ? srgb_to_linear(c[k]) : c[k];
+      rgba[i * 4 + k] = std::isfinite(v) ? std::max(v, 0.0f) : 0.0f;
+    }
+    rgba[i * 4 + 3] = std::isfinite(c[3]) ? c[3] : 1.0f;
+  }
+  auto tex = std::make_unique<ImageTexture>(w, h, std::move(rgba));
+  tex->path_ = path;
+  return tex;
+}
+
+void ImageTexture::lookup(float u, float v, float out[4]) const {
+  if (!std::isfinite(u) || !std::isfinite(v)) u = v = 0.0f;
+  const float x = (u - std::floor(u)) * width_ - 0.5f;
+  const float y = (1.0f - (v - std::floor(v))) * height_ - 0.5f;  // v = 1 is the top row (row 0)
+  const float fx = std::floor(x), fy = std::floor(y);
+  const float tx = x - fx, ty = y - fy;
+  auto wrap = [](int i, int n) { i %= n; return i < 0 ? i + n : i; };
+  const int x0 = wrap(static_cast<int>(fx), width_), x1 = wrap(static_cast<int>(fx) + 1, width_);
+  const int y0 = wrap(static_cast<int>(fy), height_), y1 = wrap(static_cast<int>(fy) + 1, height_);
+  for (int k = 0; k < 4; ++k) {
+    auto at = [&](int xx, int yy) { return rgba_[(static_cast<size_t>(yy) * width_ + xx) * 4 + k]; };
+    out[k] = (1 - ty) * ((1 - tx) * at(x0, y0) + tx * at(x1, y0)) + ty * ((1 - tx) * at(x0, y1) + tx * at(x1, y1));
+  }
+}
+
+}  // namespace glimmer::render

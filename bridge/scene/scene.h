@@ -1,0 +1,148 @@
+// The in-memory scene the XML loader produces: Cycles' standalone scene
+// description (camera, film, integrator, background, shaders, meshes, lights)
+// with every mesh already transformed to world space.
+#pragma once
+
+#include <array>
+#include <map>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "glimmer/math.h"
+#include "scene/transform.h"
+
+namespace glimmer::scene {
+
+// Where a scene element came from, for "file:line: message" diagnostics.
+struct SourceLocation {
+  std::string file;
+  int line = 0;
+  std::string str() const { return file + ":" + std::to_string(line); }
+};
+
+// Bad scene input: the message already starts with file:line.
+class SceneError : public std::runtime_error {
+ public:
+  SceneError(const SourceLocation &where, const std::string &message)
+      : std::runtime_error(where.str() + ": " + message) {}
+  explicit SceneError(const std::string &message) : std::runtime_error(message) {}
+};
+
+struct Camera {
+  Transform camera_to_world;    // camera looks along +Z, +Y up, +X right (Cycles)
+  float fov = 0.785398163f;     // radians, across the shorter image side (Cycles' viewplane)
+  int width = 1024, height = 512;  // Cycles' Camera defaults
+  float nearclip = 1e-5f, farclip = 1e30f;
+  SourceLocation where;
+};
+
+enum class FilterType { Box, Gaussian, BlackmanHarris };
+
+struct Film {
+  float exposure = 1.0f;  // Cycles multiplies the image by `exposure`
+  FilterType filter = FilterType::Box;  // DESIGN.md: box by default (Cycles standalone uses Blackman-Harris 1.5)
+  float filter_width = 1.0f;            // pixels
+};
+
+// Cycles' Integrator sockets (3.4 defaults).
+struct IntegratorSettings {
+  int max_bounce = 7;
+  int min_bounce = 0;
+  int max_diffuse_bounce = 7;
+  int max_glossy_bounce = 7;
+  int max_transmission_bounce = 7;
+  int transparent_max_bounce = 7;
+  float filter_glossy = 0.0f;
+  float sample_clamp_direct = 0.0f;    // 0 = off
+  float sample_clamp_indirect = 10.0f; // Cycles' default; 0 = off
+  int seed = 0;
+  int samples = 16;                    // `samples` attribute (the CLI overrides)
+};
+
+// One node of a shader graph as written in the file; compiled by the renderer.
+struct ShaderNode {
+  std::string type;  // XML element name, e.g. diffuse_bsdf
+  std::string name;
+  std::map<std::string, std::string> attributes;  // without `name`
+  SourceLocation where;
+};
+
+struct ShaderLink {
+  std::string from_node, from_socket, to_node, to_socket;
+  SourceLocation where;
+};
+
+struct ShaderGraph {
+  std::string name;
+  std::vector<ShaderNode> nodes;
+  std::vector<ShaderLink> links;
+  SourceLocation where;
+  const ShaderNode *find(const std::string &node_name) const {
+    for (const auto &n : nodes)
+      if (n.name == node_name) return &n;
+    return nullptr;
+  }
+  // The link feeding `node.socket`, or nullptr.
+  const ShaderLink *link_to(const std::string &node, const std::string &socket) const {
+    for (const auto &l : links)
+      if (l.to_node == node && l.to_socket == socket) return &l;
+    return nullptr;
+  }
+};
+
+// A triangle mesh in world space (polygons fan-triangulated).
+struct Mesh {
+  std::string object_name;
+  int shader = -1;  // index into Scene::shaders (-1: default grey diffuse)
+  bool smooth = false;
+  std::vector<Vec3> P;                     // per vertex, world space
+  std::vector<Vec3> N;                     // per vertex (smooth shading), world space; may be empty
+  std::vector<Vec3> generated;             // per vertex, object-space bbox-normalized (Cycles "generated")
+  std::vector<std::array<uint32_t, 3>> triangles;
+  std::vector<std::array<float, 2>> uv;    // per triangle corner (3 per triangle); may be empty
+  SourceLocation where;
+};
+
+enum class LightType { Point, Sun, Spot, Area, Background };
+
+struct Light {
+  LightType type = LightType::Point;
+  Spectrum strength{1.0f};  // light socket strength x the shader's emission (color * strength)
+  Vec3 co{0.0f};
+  Vec3 dir{0.0f, 0.0f, -1.0f};
+  float radius = 0.0f;     // point/spot `size`
+  float angle = 0.0f;      // sun angular diameter (radians)
+  float spot_angle = 0.785398163f;
+  float spot_smooth = 0.0f;
+  Vec3 axisu{1, 0, 0}, axisv{0, 1, 0};
+  float sizeu = 1.0f, sizev = 1.0f;
+  bool round = false;      // disk/ellipse area light
+  int shader = -1;
+  SourceLocation where;
+};
+
+struct Background {
+  int shader = -1;  // -1: black
+};
+
+struct Scene {
+  std::string path;       // the main file
+  std::string directory;  // folder of the main file (relative asset paths)
+  Camera camera;
+  Film film;
+  IntegratorSettings integrator;
+  Background background;
+  std::vector<ShaderGraph> shaders;
+  std::vector<Mesh> meshes;
+  std::vector<Light> lights;
+  std::vector<std::string> warnings;  // "file:line: message", in reading order
+  int find_shader(const std::string &name) const {
+    for (size_t i = 0; i < shaders.size(); ++i)
+      if (shaders[i].name == name) return static_cast<int>(i);
+    return -1;
+  }
+};
+
+}  // namespace glimmer::scene

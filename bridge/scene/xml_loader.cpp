@@ -1,0 +1,551 @@
+#include "scene/xml_loader.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <pugixml.hpp>
+#include <set>
+#include <sstream>
+
+#include "scene/mesh_files.h"
+
+namespace glimmer::scene {
+
+namespace fs = std::filesystem;
+
+std::vector<float> parse_floats(const std::string &text, const SourceLocation &where, const std::string &what) {
+  std::vector<float> out;
+  const char *s = text.c_str();
+  while (*s) {
+    while (*s == ' ' || *s == ',' || *s == '\t' || *s == '\n' || *s == '\r') ++s;
+    if (!*s) break;
+    char *end = nullptr;
+    const float v = std::strtof(s, &end);
+    if (end == s || (*end && *end != ' ' && *end != ',' && *end != '\t' && *end != '\n' && *end != '\r')) {
+      const char *e = s;
+      while (*e && *e != ' ' && *e != ',') ++e;
+      throw SceneError(where, what + ": '" + std::string(s, e) + "' is not a number");
+    }
+    if (!std::isfinite(v)) throw SceneError(where, what + ": value is not finite");
+    out.push_back(v);
+    s = end;
+  }
+  return out;
+}
+
+namespace {
+
+// One parsed XML file, kept alive for line lookups.
+struct XmlFile {
+  std::string path;
+  std::string text;
+  std::vector<size_t> line_starts;
+  pugi::xml_document doc;
+
+  int line_of(ptrdiff_t offset) const {
+    if (offset < 0) return 0;
+    auto it = std::upper_bound(line_starts.begin(), line_starts.end(), static_cast<size_t>(offset));
+    return static_cast<int>(it - line_starts.begin());
+  }
+};
+
+struct ReadState {
+  Transform tfm;
+  int shader = -1;
+  bool smooth = false;
+  std::string object;
+};
+
+class Loader {
+ public:
+  explicit Loader(Scene &scene) : scene_(scene) {}
+
+  void load_file(const std::string &path, const SourceLocation *included_from, const ReadState &state) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) {
+      const std::string msg = "cannot open scene file '" + path + "'";
+      if (included_from) throw SceneError(*included_from, msg);
+      throw SceneError(path + ":0: " + msg);
+    }
+    auto file = std::make_unique<XmlFile>();
+    file->path = path;
+    std::stringstream buffer;
+    buffer << in.rdbuf();
+    file->text = buffer.str();
+    file->line_starts.push_back(0);
+    for (size_t i = 0; i < file->text.size(); ++i)
+      if (file->text[i] == '\n') file->line_starts.push_back(i + 1);
+    const auto result =
+        file->doc.load_buffer(file->text.data(), file->text.size(), pugi::parse_default | pugi::parse_ws_pcdata_single);
+    if (!result) {
+      throw SceneError(SourceLocation{path, file->line_of(result.offset)},
+                       std::string("malformed XML: ") + result.description());
+    }
+    XmlFile *f = file.get();
+    files_.push_back(std::move(file));
+    const pugi::xml_node root = f->doc.child("cycles");
+    if (!root) throw SceneError(SourceLocation{path, 1}, "the root element must be <cycles>");
+    for (auto child = f->doc.first_child(); child; child = child.next_sibling())
+      if (child.type() == pugi::node_element && std::string(child.name()) != "cycles")
+        warn(*f, child, std::string("element <") + child.name() + "> outside <cycles> ignored");
+    read_children(*f, root, state);
+  }
+
+ private:
+  Scene &scene_;
+  std::vector<std::unique_ptr<XmlFile>> files_;
+  std::set<std::string> objects_;
+
+  SourceLocation loc(const XmlFile &f, const pugi::xml_node &node) const {
+    return SourceLocation{f.path, f.line_of(node.offset_debug())};
+  }
+  void warn(const XmlFile &f, const pugi::xml_node &node, const std::string &message) {
+    scene_.warnings.push_back(loc(f, node).str() + ": warning: " + message);
+  }
+
+  // Warn about every attribute not in `known` (and not in `ignored`, which are
+  // recognised Cycles attributes without effect here).
+  void check_attributes(const XmlFile &f, const pugi::xml_node &node, std::initializer_list<const char *> known,
+                        std::initializer_list<const char *> ignored = {}) {
+    for (auto a = node.first_attribute(); a; a = a.next_attribute()) {
+      const std::string name = a.name();
+      if (std::any_of(known.begin(), known.end(), [&](const char *k) { return name == k; })) continue;
+      if (std::any_of(ignored.begin(), ignored.end(), [&](const char *k) { return name == k; })) {
+        warn(f, node, std::string("<") + node.name() + "> attribute '" + name + "' is not supported; ignored");
+        continue;
+      }
+      warn(f, node, std::string("<") + node.name() + "> unknown attribute '" + name + "' ignored");
+    }
+  }
+
+  std::vector<float> floats(const XmlFile &f, const pugi::xml_node &node, const char *attr) {
+    return parse_floats(node.attribute(attr).value(), loc(f, node), std::string("<") + node.name() + "> " + attr);
+  }
+  float read_float(const XmlFile &f, const pugi::xml_node &node, const char *attr, float fallback) {
+    if (!node.attribute(attr)) return fallback;
+    const auto v = floats(f, node, attr);
+    if (v.size() != 1)
+      throw SceneError(loc(f, node), std::string("<") + node.name() + "> " + attr + ": expected one number, got " +
+                                         std::to_string(v.size()));
+    return v[0];
+  }
+  int read_int(const XmlFile &f, const pugi::xml_node &node, const char *attr, int fallback) {
+    const float v = read_float(f, node, attr, static_cast<float>(fallback));
+    if (v != std::floor(v))
+      throw SceneError(loc(f, node), std::string("<") + node.name() + "> " + attr + ": expected an integer");
+    return static_cast<int>(v);
+  }
+  Vec3 read_vec3(const XmlFile &f, const pugi::xml_node &node, const char *attr, Vec3 fallback) {
+    if (!node.attribute(attr)) return fallback;
+    const auto v = floats(f, node, attr);
+    if (v.size() == 1) return Vec3(v[0]);
+    if (v.size() != 3)
+      throw SceneError(loc(f, node), std::string("<") + node.name() + "> " + attr + ": expected 3 numbers, got " +
+                                         std::to_string(v.size()));
+    return {v[0], v[1], v[2]};
+  }
+  bool read_bool(const XmlFile &f, const pugi::xml_node &node, const char *attr, bool fallback) {
+    if (!node.attribute(attr)) return fallback;
+    const std::string v = node.attribute(attr).value();
+    if (v == "true" || v == "1" || v == "True") return true;
+    if (v == "false" || v == "0" || v == "False") return false;
+    throw SceneError(loc(f, node), std::string("<") + node.name() + "> " + attr + ": '" + v + "' is not a boolean");
+  }
+
+  void read_children(const XmlFile &f, const pugi::xml_node &parent, const ReadState &state) {
+    for (auto node = parent.first_child(); node; node = node.next_sibling()) {
+      if (node.type() != pugi::node_element) continue;
+      const std::string name = node.name();
+      if (name == "camera") read_camera(f, node, state);
+      else if (name == "film") read_film(f, node);
+      else if (name == "integrator") read_integrator(f, node);
+      else if (name == "background") read_background(f, node);
+      else if (name == "shader") read_shader(f, node);
+      else if (name == "mesh") read_mesh(f, node, state);
+      else if (name == "light") read_light(f, node, state);
+      else if (name == "transform") read_transform(f, node, state);
+      else if (name == "state") read_state(f, node, state);
+      else if (name == "object") read_object(f, node);
+      else if (name == "include") read_include(f, node, state);
+      else warn(f, node, "unknown element <" + name + "> ignored (with its children)");
+    }
+  }
+
+  void read_camera(const XmlFile &f, const pugi::xml_node &node, const ReadState &state) {
+    check_attributes(f, node, {"width", "height", "full_width", "full_height", "fov", "nearclip", "farclip", "type"},
+                     {"sensorwidth", "sensorheight", "aperturesize", "focaldistance", "shuttertime", "blades",
+                      "bladesrotation", "panorama_type", "fisheye_fov", "fisheye_lens", "offscreen_dicing_scale"});
+    Camera &c = scene_.camera;
+    c.where = loc(f, node);
+    c.camera_to_world = state.tfm;
+    c.width = read_int(f, node, "width", c.width);
+    c.height = read_int(f, node, "height", c.height);
+    c.width = read_int(f, node, "full_width", c.width);
+    c.height = read_int(f, node, "full_height", c.height);
+    if (c.width <= 0 || c.height <= 0 || c.width > 65536 || c.height > 65536)
+      throw SceneError(loc(f, node), "<camera> width/height must be in 1..65536");
+    c.fov = read_float(f, node, "fov", c.fov);
+    if (!(c.fov > 0.0f && c.fov < kPi)) throw SceneError(loc(f, node), "<camera> fov must be in (0, pi) radians");
+    c.nearclip = read_float(f, node, "nearclip", c.nearclip);
+    c.farclip = read_float(f, node, "farclip", c.farclip);
+    if (!(c.nearclip >= 0.0f && c.farclip > c.nearclip))
+      throw SceneError(loc(f, node), "<camera> needs 0 <= nearclip < farclip");
+    if (node.attribute("type") && std::string(node.attribute("type").value()) != "perspective")
+      warn(f, node, std::string("camera type '") + node.attribute("type").value() +
+                        "' is not supported; rendering with a perspective camera");
+    if (std::fabs(state.tfm.determinant()) < 1e-12f) throw SceneError(loc(f, node), "<camera> transform is singular");
+  }
+
+  void read_film(const XmlFile &f, const pugi::xml_node &node) {
+    check_attributes(f, node, {"exposure", "filter_type", "filter_width"},
+                     {"pass_alpha_threshold", "mist_start", "mist_depth", "mist_falloff", "use_approximate_shadow_catcher"});
+    Film &film = scene_.film;
+    film.exposure = read_float(f, node, "exposure", film.exposure);
+    if (node.attribute("filter_type")) {
+      const std::string t = node.attribute("filter_type").value();
+      if (t == "box") film.filter = FilterType::Box;
+      else if (t == "gaussian") film.filter = FilterType::Gaussian;
+      else if (t == "blackman_harris") film.filter = FilterType::BlackmanHarris;
+      else throw SceneError(loc(f, node), "<film> filter_type '" + t + "' is not one of box|gaussian|blackman_harris");
+      if (film.filter != FilterType::Box && !node.attribute("filter_width")) film.filter_width = 1.5f;
+    }
+    film.filter_width = read_float(f, node, "filter_width", film.filter_width);
+    if (!(film.filter_width > 0.0f && film.filter_width <= 16.0f))
+      throw SceneError(loc(f, node), "<film> filter_width must be in (0, 16] pixels");
+  }
+
+  void read_integrator(const XmlFile &f, const pugi::xml_node &node) {
+    check_attributes(f, node,
+                     {"max_bounce", "min_bounce", "max_diffuse_bounce", "max_glossy_bounce", "max_transmission_bounce",
+                      "transparent_max_bounce", "filter_glossy", "sample_clamp_direct", "sample_clamp_indirect",
+                      "seed", "samples", "aa_samples"},
+                     {"caustics_reflective", "caustics_refractive", "volume_step_size", "max_volume_bounce", "method",
+                      "sample_all_lights_direct", "sample_all_lights_indirect", "transparent_min_bounce",
+                      "ao_bounces", "light_sampling_threshold", "sampling_pattern", "use_light_tree",
+                      "volume_max_steps", "adaptive_threshold", "use_adaptive_sampling"});
+    IntegratorSettings &s = scene_.integrator;
+    s.max_bounce = read_int(f, node, "max_bounce", s.max_bounce);
+    s.min_bounce = read_int(f, node, "min_bounce", s.min_bounce);
+    s.max_diffuse_bounce = read_int(f, node, "max_diffuse_bounce", s.max_diffuse_bounce);
+    s.max_glossy_bounce = read_int(f, node, "max_glossy_bounce", s.max_glossy_bounce);
+    s.max_transmission_bounce = read_int(f, node, "max_transmission_bounce", s.max_transmission_bounce);
+    s.transparent_max_bounce = read_int(f, node, "transparent_max_bounce", s.transparent_max_bounce);
+    s.filter_glossy = read_float(f, node, "filter_glossy", s.filter_glossy);
+    s.sample_clamp_direct = read_float(f, node, "sample_clamp_direct", s.sample_clamp_direct);
+    s.sample_clamp_indirect = read_float(f, node, "sample_clamp_indirect", s.sample_clamp_indirect);
+    s.seed = read_int(f, node, "seed", s.seed);
+    s.samples = read_int(f, node, "aa_samples", s.samples);
+    s.samples = read_int(f, node, "samples", s.samples);
+    if (s.max_bounce < 0 || s.min_bounce < 0 || s.max_diffuse_bounce < 0 || s.max_glossy_bounce < 0 ||
+        s.max_transmission_bounce < 0 || s.transparent_max_bounce < 0 || s.max_bounce > 1024)
+      throw SceneError(loc(f, node), "<integrator> bounce limits must be in 0..1024");
+    if (s.filter_glossy < 0.0f || s.sample_clamp_direct < 0.0f || s.sample_clamp_indirect < 0.0f)
+      throw SceneError(loc(f, node), "<integrator> filter_glossy and sample clamps must be >= 0");
+    if (s.samples < 1) throw SceneError(loc(f, node), "<integrator> samples must be >= 1");
+  }
+
+  // Shader graph nodes and <connect> links below `node`.
+  ShaderGraph read_graph(const XmlFile &f, const pugi::xml_node &node, const std::string &name) {
+    ShaderGraph g;
+    g.name = name;
+    g.where = loc(f, node);
+    for (auto child = node.first_child(); child; child = child.next_sibling()) {
+      if (child.type() != pugi::node_element) continue;
+      const std::string type = child.name();
+      if (type == "connect") {
+        check_attributes(f, child, {"from", "to"});
+        std::istringstream from(child.attribute("from").value()), to(child.attribute("to").value());
+        ShaderLink link;
+        link.where = loc(f, child);
+        if (!(from >> link.from_node >> link.from_socket) || !(to >> link.to_node >> link.to_socket))
+          throw SceneError(link.where, "<connect> needs from=\"node socket\" and to=\"node socket\"");
+        g.links.push_back(link);
+        continue;
+      }
+      ShaderNode n;
+      n.type = type;
+      n.where = loc(f, child);
+      n.name = child.attribute("name").value();
+      for (auto a = child.first_attribute(); a; a = a.next_attribute())
+        if (std::string(a.name()) != "name") n.attributes[a.name()] = a.value();
+      if (n.name.empty()) n.name = "__unnamed" + std::to_string(g.nodes.size());
+      g.nodes.push_back(std::move(n));
+    }
+    for (const auto &l : g.links) {
+      if (!g.find(l.from_node))
+        throw SceneError(l.where, "<connect> from unknown node '" + l.from_node + "' in shader '" + name + "'");
+      if (l.to_node != "output" && !g.find(l.to_node))
+        throw SceneError(l.where, "<connect> to unknown node '" + l.to_node + "' in shader '" + name + "'");
+    }
+    return g;
+  }
+
+  void read_shader(const XmlFile &f, const pugi::xml_node &node) {
+    check_attributes(f, node, {"name"},
+                     {"use_mis", "use_transparent_shadow", "heterogeneous_volume", "volume_sampling_method",
+                      "volume_interpolation_method", "displacement_method"});
+    const std::string name = node.attribute("name").value();
+    if (name.empty()) throw SceneError(loc(f, node), "<shader> needs a name");
+    ShaderGraph g = read_graph(f, node, name);
+    const int existing = scene_.find_shader(name);
+    if (existing >= 0) {
+      warn(f, node, "shader '" + name + "' redefined; the later definition replaces the earlier one");
+      scene_.shaders[existing] = std::move(g);
+    } else {
+      scene_.shaders.push_back(std::move(g));
+    }
+  }
+
+  void read_background(const XmlFile &f, const pugi::xml_node &node) {
+    check_attributes(f, node, {}, {"heterogeneous_volume", "volume_sampling_method", "volume_interpolation_method",
+                                   "use_shader", "transparent", "use_mis", "volume_step_size"});
+    ShaderGraph g = read_graph(f, node, "__background");
+    const int existing = scene_.find_shader("__background");
+    if (existing >= 0) {
+      scene_.shaders[existing] = std::move(g);
+      scene_.background.shader = existing;
+    } else {
+      scene_.shaders.push_back(std::move(g));
+      scene_.background.shader = static_cast<int>(scene_.shaders.size()) - 1;
+    }
+  }
+
+  void read_transform(const XmlFile &f, const pugi::xml_node &node, const ReadState &state) {
+    check_attributes(f, node, {"matrix", "translate", "rotate", "scale"});
+    ReadState s = state;
+    if (node.attribute("matrix")) {
+      const auto v = floats(f, node, "matrix");
+      if (v.size() != 16) throw SceneError(loc(f, node), "<transform> matrix needs 16 numbers");
+      // Cycles reads the 16 numbers column by column (transform_transposed).
+      Transform m;
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 4; ++c) m.m[r][c] = v[c * 4 + r];
+      s.tfm = s.tfm * m;
+    }
+    if (node.attribute("translate")) s.tfm = s.tfm * Transform::translate(read_vec3(f, node, "translate", Vec3(0.0f)));
+    if (node.attribute("rotate")) {
+      const auto v = floats(f, node, "rotate");
+      if (v.size() != 4) throw SceneError(loc(f, node), "<transform> rotate needs \"degrees x y z\"");
+      const Vec3 axis(v[1], v[2], v[3]);
+      if (length(axis) == 0.0f) throw SceneError(loc(f, node), "<transform> rotate axis is zero");
+      s.tfm = s.tfm * Transform::rotate(v[0] * kPi / 180.0f, axis);
+    }
+    if (node.attribute("scale")) s.tfm = s.tfm * Transform::scale(read_vec3(f, node, "scale", Vec3(1.0f)));
+    read_children(f, node, s);
+  }
+
+  void read_state(const XmlFile &f, const pugi::xml_node &node, const ReadState &state) {
+    check_attributes(f, node, {"shader", "interpolation", "object"}, {"displacement_method", "dicing_rate"});
+    ReadState s = state;
+    if (node.attribute("shader")) {
+      const std::string name = node.attribute("shader").value();
+      s.shader = scene_.find_shader(name);
+      if (s.shader < 0) throw SceneError(loc(f, node), "<state> unknown shader '" + name + "'");
+    }
+    if (node.attribute("interpolation")) {
+      const std::string v = node.attribute("interpolation").value();
+      if (v == "smooth") s.smooth = true;
+      else if (v == "flat") s.smooth = false;
+      else throw SceneError(loc(f, node), "<state> interpolation must be smooth or flat, got '" + v + "'");
+    }
+    if (node.attribute("object")) {
+      s.object = node.attribute("object").value();
+      if (!objects_.count(s.object)) warn(f, node, "<state> object '" + s.object + "' was not declared with <object>");
+    }
+    read_children(f, node, s);
+  }
+
+  void read_object(const XmlFile &f, const pugi::xml_node &node) {
+    check_attributes(f, node, {"name"},
+                     {"is_caustics_caster", "is_caustics_receiver", "is_shadow_catcher", "visibility", "asset_name",
+                      "pass_id", "motion", "color", "random_id", "use_holdout", "hide_on_missing_motion"});
+    objects_.insert(node.attribute("name").value());
+  }
+
+  void read_include(const XmlFile &f, const pugi::xml_node &node, const ReadState &state) {
+    check_attributes(f, node, {"src"});
+    const std::string src = node.attribute("src").value();
+    if (src.empty()) throw SceneError(loc(f, node), "<include> needs src");
+    const fs::path path = fs::path(f.path).parent_path() / src;
+    if (!fs::exists(path)) throw SceneError(loc(f, node), "<include> file not found: '" + path.string() + "'");
+    if (files_.size() > 4096) throw SceneError(loc(f, node), "<include> nesting too deep (recursive include?)");
+    const SourceLocation from = loc(f, node);
+    load_file(path.lexically_normal().string(), &from, state);
+  }
+
+  void read_mesh(const XmlFile &f, const pugi::xml_node &node, const ReadState &state) {
+    check_attributes(f, node, {"P", "verts", "nverts", "UV", "N", "src"}, {"motion_steps", "subdivision_type"});
+    const SourceLocation where = loc(f, node);
+    RawMesh raw;
+    if (node.attribute("src")) {
+      const fs::path path = fs::path(f.path).parent_path() / node.attribute("src").value();
+      raw = read_mesh_file(path.string(), where);
+    } else {
+      raw.P = floats(f, node, "P");
+      for (float v : floats(f, node, "verts")) raw.verts.push_back(static_cast<int>(v));
+      for (float v : floats(f, node, "nverts")) raw.nverts.push_back(static_cast<int>(v));
+      if (node.attribute("UV")) raw.uv = floats(f, node, "UV");
+      if (node.attribute("N")) raw.N = floats(f, node, "N");
+      raw.uv_per_corner = true;
+    }
+    Mesh mesh = build_mesh(raw, where, state);
+    if (!mesh.triangles.empty()) scene_.meshes.push_back(std::move(mesh));
+    else warn(f, node, "mesh has no triangles; ignored");
+  }
+
+  Mesh build_mesh(const RawMesh &raw, const SourceLocation &where, const ReadState &state) {
+    if (raw.P.size() % 3 != 0) throw SceneError(where, "<mesh> P needs a multiple of 3 numbers");
+    const size_t vertex_count = raw.P.size() / 3;
+    size_t corners = 0;
+    for (int n : raw.nverts) {
+      if (n < 3) throw SceneError(where, "<mesh> nverts entries must be >= 3, got " + std::to_string(n));
+      corners += static_cast<size_t>(n);
+    }
+    if (corners != raw.verts.size())
+      throw SceneError(where, "<mesh> nverts sums to " + std::to_string(corners) + " but verts has " +
+                                  std::to_string(raw.verts.size()) + " entries");
+    for (int v : raw.verts)
+      if (v < 0 || static_cast<size_t>(v) >= vertex_count)
+        throw SceneError(where, "<mesh> vertex index " + std::to_string(v) + " out of range (" +
+                                    std::to_string(vertex_count) + " vertices)");
+    const bool uv_corner = raw.uv_per_corner ? raw.uv.size() == 2 * corners : false;
+    const bool uv_vertex = !raw.uv_per_corner && raw.uv.size() == 2 * vertex_count;
+    if (!raw.uv.empty() && !uv_corner && !uv_vertex)
+      throw SceneError(where, "<mesh> UV needs 2 numbers per face corner (" + std::to_string(2 * corners) + "), got " +
+                                  std::to_string(raw.uv.size()));
+    if (!raw.N.empty() && raw.N.size() != 3 * vertex_count)
+      throw SceneError(where, "<mesh> N needs 3 numbers per vertex");
+
+    Mesh m;
+    m.where = where;
+    m.object_name = state.object;
+    m.shader = state.shader;
+    m.smooth = state.smooth;
+    Vec3 lo(1e30f), hi(-1e30f);
+    for (size_t i = 0; i < vertex_count; ++i) {
+      const Vec3 p(raw.P[3 * i], raw.P[3 * i + 1], raw.P[3 * i + 2]);
+      lo = min(lo, p);
+      hi = max(hi, p);
+    }
+    const Vec3 extent = hi - lo;
+    for (size_t i = 0; i < vertex_count; ++i) {
+      const Vec3 p(raw.P[3 * i], raw.P[3 * i + 1], raw.P[3 * i + 2]);
+      m.P.push_back(state.tfm.point(p));
+      // Cycles' "generated" coordinates: object space normalised to the bounding box.
+      m.generated.push_back(Vec3(extent.x > 0 ? (p.x - lo.x) / extent.x : 0.5f,
+                                 extent.y > 0 ? (p.y - lo.y) / extent.y : 0.5f,
+                                 extent.z > 0 ? (p.z - lo.z) / extent.z : 0.5f));
+    }
+    const bool flip = state.tfm.determinant() < 0.0f;
+    size_t offset = 0;
+    for (int n : raw.nverts) {
+      for (int j = 1; j + 1 < n; ++j) {
+        std::array<size_t, 3> c{offset, offset + j, offset + j + 1};
+        if (flip) std::swap(c[1], c[2]);  // keep the geometric normal's side under mirroring
+        m.triangles.push_back({static_cast<uint32_t>(raw.verts[c[0]]), static_cast<uint32_t>(raw.verts[c[1]]),
+                               static_cast<uint32_t>(raw.verts[c[2]])});
+        if (!raw.uv.empty()) {
+          for (size_t k : c) {
+            const size_t idx = uv_corner ? k : static_cast<size_t>(raw.verts[k]);
+            m.uv.push_back({raw.uv[2 * idx], raw.uv[2 * idx + 1]});
+          }
+        }
+      }
+      offset += static_cast<size_t>(n);
+    }
+    if (m.smooth) {
+      m.N.assign(vertex_count, Vec3(0.0f));
+      if (!raw.N.empty()) {
+        for (size_t i = 0; i < vertex_count; ++i)
+          m.N[i] = normalize(state.tfm.normal(Vec3(raw.N[3 * i], raw.N[3 * i + 1], raw.N[3 * i + 2])));
+      } else {
+        // Area-weighted vertex normals, as Cycles computes them.
+        for (const auto &t : m.triangles) {
+          const Vec3 n = cross(m.P[t[1]] - m.P[t[0]], m.P[t[2]] - m.P[t[0]]);
+          for (uint32_t v : t) m.N[v] += n;
+        }
+        for (auto &n : m.N) n = normalize(n);
+      }
+    }
+    return m;
+  }
+
+  void read_light(const XmlFile &f, const pugi::xml_node &node, const ReadState &state) {
+    check_attributes(f, node,
+                     {"name", "light_type", "type", "strength", "co", "dir", "size", "radius", "angle", "spot_angle",
+                      "spot_smooth", "axisu", "axisv", "sizeu", "sizev", "round", "tfm"},
+                     {"use_mis", "cast_shadow", "use_caustics", "use_diffuse", "use_glossy", "use_transmission",
+                      "use_scatter", "max_bounces", "map_resolution", "spread", "is_portal", "samples",
+                      "random_id", "is_enabled", "shadow_soft_size", "normalize"});
+    const SourceLocation where = loc(f, node);
+    Light l;
+    l.where = where;
+    l.shader = state.shader;
+    std::string type = "point";
+    if (node.attribute("light_type")) {
+      type = node.attribute("light_type").value();
+    } else if (node.attribute("type")) {
+      type = node.attribute("type").value();
+      warn(f, node, "<light> attribute 'type' read as 'light_type' (Cycles' socket name)");
+    }
+    if (type == "point") l.type = LightType::Point;
+    else if (type == "sun" || type == "distant") l.type = LightType::Sun;
+    else if (type == "spot") l.type = LightType::Spot;
+    else if (type == "area") l.type = LightType::Area;
+    else if (type == "background") l.type = LightType::Background;
+    else throw SceneError(where, "<light> light_type '" + type + "' is not one of point|sun|spot|area|background");
+    l.strength = read_vec3(f, node, "strength", l.strength);
+    if (min_component(l.strength) < 0.0f) throw SceneError(where, "<light> strength must be >= 0");
+    l.co = read_vec3(f, node, "co", l.co);
+    l.radius = read_float(f, node, "size", l.radius);
+    l.radius = read_float(f, node, "radius", l.radius);
+    l.angle = read_float(f, node, "angle", l.angle);
+    l.spot_angle = read_float(f, node, "spot_angle", l.spot_angle);
+    l.spot_smooth = read_float(f, node, "spot_smooth", l.spot_smooth);
+    l.axisu = read_vec3(f, node, "axisu", l.axisu);
+    l.axisv = read_vec3(f, node, "axisv", l.axisv);
+    // Cycles 2.x XML gave area lights one `size`; used when sizeu/sizev are absent.
+    const float size = l.type == LightType::Area ? read_float(f, node, "size", 1.0f) : 1.0f;
+    l.sizeu = read_float(f, node, "sizeu", size);
+    l.sizev = read_float(f, node, "sizev", size);
+    l.round = read_bool(f, node, "round", false);
+    l.dir = node.attribute("dir") ? read_vec3(f, node, "dir", l.dir) : -cross(l.axisu, l.axisv);
+    if (l.radius < 0.0f || l.angle < 0.0f || l.sizeu < 0.0f || l.sizev < 0.0f)
+      throw SceneError(where, "<light> sizes and angles must be >= 0");
+    if (!(l.spot_angle > 0.0f && l.spot_angle <= kPi)) throw SceneError(where, "<light> spot_angle must be in (0, pi]");
+    if (l.spot_smooth < 0.0f || l.spot_smooth > 1.0f) throw SceneError(where, "<light> spot_smooth must be in [0, 1]");
+    Transform tfm = state.tfm;
+    if (node.attribute("tfm")) {
+      const auto v = floats(f, node, "tfm");
+      if (v.size() != 12 && v.size() != 16) throw SceneError(where, "<light> tfm needs 12 (3x4) or 16 numbers");
+      Transform m;
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 4; ++c) m.m[r][c] = v[r * 4 + c];
+      tfm = tfm * m;
+    }
+    l.co = tfm.point(l.co);
+    l.dir = normalize(tfm.vector(l.dir));
+    l.axisu = tfm.vector(l.axisu);
+    l.axisv = tfm.vector(l.axisv);
+    if ((l.type == LightType::Sun || l.type == LightType::Spot || l.type == LightType::Area) && is_zero(l.dir))
+      throw SceneError(where, "<light> dir is zero");
+    if (l.type == LightType::Area && length(cross(l.axisu, l.axisv)) * l.sizeu * l.sizev <= 0.0f)
+      throw SceneError(where, "<light> area light has zero area (axisu/axisv/sizeu/sizev)");
+    scene_.lights.push_back(l);
+  }
+};
+
+}  // namespace
+
+Scene load_scene(const std::string &path) {
+  Scene scene;
+  scene.path = path;
+  scene.directory = fs::path(path).parent_path().string();
+  Loader loader(scene);
+  loader.load_file(path, nullptr, ReadState{});
+  return scene;
+}
+
+}  // namespace glimmer::scene

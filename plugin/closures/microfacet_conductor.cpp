@@ -1,0 +1,156 @@
+// Rough conductor (Cycles' glossy_bsdf): anisotropic GGX or Beckmann
+// microfacet reflection (Walter et al. 2007 eq. 20),
+//   f(wi, wo) = F(wi.wh) D(wh) G2(wi, wo) / (4 |wi.n| |wo.n|),
+// with Schlick's Fresnel from the normal-incidence colour f0 (f0 = 1 is
+// Fresnel-free, as Cycles' glossy BSDF), height-correlated Smith G2 (Heitz 2014
+// eq. 99) and visible-normal sampling (Heitz 2018; Heitz & d'Eon 2014).
+// The tangent comes from the shading context (ctx->T = x axis, alpha_x).
+//
+// distribution=multi_ggx adds the multiple-scattering lobe (Kulla & Conty
+// 2017 shape, Hill 2022 Fresnel-split energy):
+//   f_ms(wi, wo) = E_Fms(mu_i, alpha, f0) (1 - E(mu_o)) / (pi (1 - E_avg)),
+// which integrates over wo to E_Fms(mu_i, alpha, f0): the energy the Heitz 2016
+// random walk scatters after >= 2 bounces with Schlick Fresnel. Tables:
+// plugin/tables/microfacet_energy_data.cpp (`glimmer precompute energy`),
+// looked up at alpha = sqrt(alpha_x alpha_y).
+// distribution=sharp is a perfect mirror (singular).
+// Like Cycles, only wi.z > 0 and wo.z > 0 scatter (the host orients N to wi).
+#include <array>
+
+#include "core/closure.h"
+#include "glimmer/microfacet.h"
+#include "glimmer/sampling.h"
+#include "tables/microfacet_energy.h"
+
+namespace glimmer::plugin {
+
+namespace mf = glimmer::microfacet;
+
+class MicrofacetConductorClosure {
+ public:
+  static constexpr const char *kName = "microfacet_conductor";
+  static constexpr const char *kDoc =
+      "Rough conductor (Cycles glossy_bsdf): GGX/Beckmann anisotropic microfacet reflection, Schlick Fresnel from f0, "
+      "multi_ggx adds multiple-scattering energy compensation.";
+  static constexpr uint32_t kFlags = 0;
+
+  enum Mode { kGgx = 0, kBeckmann = 1, kMultiGgx = 2, kSharp = 3 };
+
+  static std::span<const GlimmerParamSpec> params() {
+    static const std::array<GlimmerParamSpec, 4> schema{{
+        {"distribution", GLIMMER_PARAM_ENUM, {0, 0, 0}, 0.0f, 0.0f, "ggx|beckmann|multi_ggx|sharp", "ggx",
+         "microfacet distribution; multi_ggx = GGX with multiple-scattering energy compensation; sharp = mirror"},
+        {"roughness", GLIMMER_PARAM_FLOAT, {0.5f, 0, 0}, 0.0f, 1.0f, nullptr, nullptr,
+         "Cycles roughness in [0, 1]; alpha = roughness^2"},
+        {"anisotropy", GLIMMER_PARAM_FLOAT, {0.0f, 0, 0}, -1.0f, 1.0f, nullptr, nullptr,
+         "anisotropy in [-1, 1] (Cycles 3.4 mapping; > 0 stretches the highlight along the tangent's normal plane)"},
+        {"f0", GLIMMER_PARAM_COLOR, {1.0f, 1.0f, 1.0f}, 0.0f, 1.0f, nullptr, nullptr,
+         "normal-incidence reflectance per RGB channel (Schlick Fresnel); 1,1,1 = Fresnel-free"},
+    }};
+    return schema;
+  }
+
+  static std::unique_ptr<MicrofacetConductorClosure> create(const ParamReader &p) {
+    auto c = std::make_unique<MicrofacetConductorClosure>();
+    c->mode_ = static_cast<Mode>(p.get_enum("distribution"));
+    c->dist_ = c->mode_ == kBeckmann ? mf::Distribution::Beckmann : mf::Distribution::GGX;
+    const mf::Alpha a = mf::roughness_to_alpha(p.get_float("roughness"), p.get_float("anisotropy"));
+    c->ax_ = a.x;
+    c->ay_ = a.y;
+    c->alpha_table_ = std::min(std::sqrt(a.x * a.y), 1.0f);
+    c->f0_ = p.get_color("f0");
+    c->white_ = c->f0_.x == 1.0f && c->f0_.y == 1.0f && c->f0_.z == 1.0f;
+    if (c->mode_ == kMultiGgx) c->e_avg_ = tables::ggx_E_avg(c->alpha_table_);
+    return c;
+  }
+
+  Spectrum fresnel(float cos_i) const { return white_ ? Spectrum(1.0f) : mf::fresnel_schlick(cos_i, f0_); }
+
+  // Probability of sampling the multiple-scattering lobe: its Fresnel-free share 1 - E(mu_i).
+  float ms_probability(float mu_i) const {
+    if (mode_ != kMultiGgx || !(e_avg_ < 1.0f)) return 0.0f;
+    return clamp(1.0f - tables::ggx_E(mu_i, alpha_table_), 0.0f, 1.0f);
+  }
+
+  // Multiple-scattering lobe f_ms * cos(wo).
+  Spectrum ms_eval(float mu_i, float mu_o) const {
+    const float denom = kPi * (1.0f - e_avg_);
+    if (!(denom > 1e-7f)) return Spectrum(0.0f);
+    const float shape = std::max(1.0f - tables::ggx_E(mu_o, alpha_table_), 0.0f) / denom;
+    return tables::ggx_E_Fms(mu_i, alpha_table_, f0_) * (shape * mu_o);
+  }
+
+  // Single-scatter f * cos(wo) and the visible-normal pdf, given wh.
+  LocalEval single_eval(const Vec3 &wi, const Vec3 &wo, const Vec3 &wh) const {
+    const float cos_ih = dot(wi, wh);
+    if (!(cos_ih > 0.0f)) return {};
+    const float d = mf::D(dist_, wh, ax_, ay_);
+    const float g2 = mf::G2(dist_, wi, wo, ax_, ay_);
+    LocalEval e;
+    e.f_cos = fresnel(cos_ih) * (d * g2 / (4.0f * wi.z));
+    e.pdf = mf::visible_D(dist_, wi, wh, ax_, ay_) / (4.0f * cos_ih);
+    return e;
+  }
+
+  LocalEval eval(const ShadingPoint &sp, const Vec3 &wo) const {
+    const Vec3 &wi = sp.wi;
+    if (mode_ == kSharp || !(wi.z > 0.0f) || !(wo.z > 0.0f)) return {};
+    Vec3 wh;
+    LocalEval e;
+    if (mf::half_vector_reflect(wi, wo, wh)) e = single_eval(wi, wo, wh);
+    const float p_ms = ms_probability(wi.z);
+    if (p_ms > 0.0f) {
+      e.f_cos += ms_eval(wi.z, wo.z);
+      e.pdf = (1.0f - p_ms) * e.pdf + p_ms * cosine_hemisphere_pdf(wo.z);
+    }
+    return e;
+  }
+
+  bool sample(const ShadingPoint &sp, const Vec3 &rand, LocalSample &out) const {
+    const Vec3 &wi = sp.wi;
+    if (!(wi.z > 0.0f)) return false;
+    if (mode_ == kSharp) {
+      out.wo = Vec3(-wi.x, -wi.y, wi.z);
+      out.f_cos = fresnel(wi.z);
+      out.pdf = 1.0f;
+      out.roughness = 0.0f;
+      out.label = GLIMMER_LABEL_REFLECT | GLIMMER_LABEL_SINGULAR;
+      return true;
+    }
+    const float p_ms = ms_probability(wi.z);
+    if (rand.z < p_ms) {
+      out.wo = sample_cosine_hemisphere(rand.x, rand.y);
+    } else {
+      const Vec3 m = mf::sample_visible_normal(dist_, wi, ax_, ay_, rand.x, rand.y);
+      out.wo = normalize(mf::reflect_about(wi, m));
+    }
+    if (!(out.wo.z > 0.0f)) return false;
+    const LocalEval e = eval(sp, out.wo);
+    out.f_cos = e.f_cos;
+    out.pdf = e.pdf;
+    out.roughness = std::sqrt(ax_ * ay_);
+    out.label = GLIMMER_LABEL_REFLECT | GLIMMER_LABEL_GLOSSY;
+    return out.pdf > 0.0f;
+  }
+
+  // Directional albedo estimate (sample weights, Albedo AOV).
+  Spectrum albedo(const ShadingPoint &sp) const {
+    const float mu = clamp(sp.wi.z, 0.0f, 1.0f);
+    const Spectrum f = fresnel(mu);
+    if (mode_ == kSharp) return f;
+    const Spectrum single = f * tables::ggx_E(mu, alpha_table_);
+    if (mode_ != kMultiGgx) return single;
+    return single + tables::ggx_E_Fms(mu, alpha_table_, f0_);
+  }
+
+ private:
+  Mode mode_ = kGgx;
+  mf::Distribution dist_ = mf::Distribution::GGX;
+  float ax_ = 0.25f, ay_ = 0.25f, alpha_table_ = 0.25f, e_avg_ = 1.0f;
+  Spectrum f0_{1.0f};
+  bool white_ = true;
+};
+
+GLIMMER_REGISTER_CLOSURE(MicrofacetConductorClosure)
+
+}  // namespace glimmer::plugin
