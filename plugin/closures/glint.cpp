@@ -114,6 +114,14 @@ class GlintClosure {
     cone_solid_angle_ = table_->cone_solid_angle();
   }
 
+  // acos in degrees, |error| < 0.004 degrees (Abramowitz & Stegun 4.4.45):
+  // far below the 1-degree table bins, and 3x cheaper than std::acos.
+  static float fast_acos_deg(float x) {
+    const float a = std::fmin(std::fabs(x), 1.0f);
+    const float r = std::sqrt(1.0f - a) * (1.5707288f + a * (-0.2121144f + a * (0.0742610f - 0.0187293f * a)));
+    return (x >= 0.0f ? r : kPi - r) * glint::kRadToDeg;
+  }
+
   // LOD blur in degrees: the path's spread, capped by the lobe width 2 alpha.
   float lod_sigma_deg(const GlimmerShadingContext *ctx) const {
     const float spread = std::isfinite(ctx->spread_angle) ? std::max(ctx->spread_angle, 0.0f) : 0.0f;
@@ -152,12 +160,11 @@ class GlintClosure {
     Spectrum weight;
     if (!table_ || !glint::glint_weight(distribution_, alpha_, color_, wi, wo, weight)) return Spectrum(0.0f);
     // Table coordinates: polar angles and the folded azimuth difference.
-    const float theta_i = safe_acos(wi.z) * glint::kRadToDeg;
-    const float theta_o = safe_acos(wo.z) * glint::kRadToDeg;
-    const float sin_i = safe_sqrt(1.0f - wi.z * wi.z), sin_o = safe_sqrt(1.0f - wo.z * wo.z);
-    const float denom = sin_i * sin_o;
-    const float cos_dphi = denom > 1e-12f ? (wi.x * wo.x + wi.y * wo.y) / denom : 1.0f;
-    const float dphi = safe_acos(cos_dphi) * glint::kRadToDeg;
+    const float theta_i = fast_acos_deg(wi.z);
+    const float theta_o = fast_acos_deg(wo.z);
+    const float denom2 = (wi.x * wi.x + wi.y * wi.y) * (wo.x * wo.x + wo.y * wo.y);
+    const float cos_dphi = denom2 > 1e-24f ? (wi.x * wo.x + wi.y * wo.y) / std::sqrt(denom2) : 1.0f;
+    const float dphi = fast_acos_deg(cos_dphi);
     const float P = std::min(table_->lookup(sigma_deg, theta_i, theta_o, dphi), 1.0f);
     if (!(P > 0.0f)) return Spectrum(0.0f);
 
