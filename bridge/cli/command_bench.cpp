@@ -11,6 +11,7 @@
 #include <OpenImageIO/imagebuf.h>
 #include <OpenImageIO/imagebufalgo.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -34,6 +35,7 @@ struct BenchArgs {
   int threads = 0;
   std::string out_dir = "docs";
   std::string name = "glint_error_vs_time";
+  std::string from_csv;  // re-plot an existing CSV without rendering
 };
 
 std::string self_path() {
@@ -76,12 +78,13 @@ std::string rewrite_scene(const std::string &text, const std::string &method) {
 
 // Runs `glimmer render` and returns the render-phase seconds.
 double render(const std::string &exe, const std::string &plugin, const std::string &scene, const std::string &out,
-              int samples, const BenchArgs &a) {
+              int samples, const BenchArgs &a, int seed = -1) {
   std::string cmd = "'" + exe + "'";
   if (!plugin.empty()) cmd += " --plugin '" + plugin + "'";
   cmd += " render '" + scene + "' -o '" + out + "' --samples " + std::to_string(samples) + " --width " +
          std::to_string(a.width) + " --height " + std::to_string(a.height) + " --threads " +
-         std::to_string(a.threads) + " --quiet --stats 2>&1";
+         std::to_string(a.threads) + (seed >= 0 ? " --seed " + std::to_string(seed) : std::string()) +
+         " --quiet --stats 2>&1";
   FILE *p = popen(cmd.c_str(), "r");
   if (p == nullptr) throw CliError(kExitBadInput, "cannot run " + cmd);
   std::string text;
@@ -135,6 +138,8 @@ struct Row {
 // Log-log plot of RMSE against time, one polyline per method.
 void write_plot(const std::string &path, const std::vector<Row> &rows, const std::vector<std::string> &methods) {
   const int W = 720, H = 480, L = 80, R = 170, T = 30, B = 60;
+  const char *dejavu = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf";
+  const std::string font = std::filesystem::exists(dejavu) ? dejavu : "";
   OIIO::ImageBuf img(OIIO::ImageSpec(W, H, 3, OIIO::TypeDesc::FLOAT));
   const float white[3] = {1, 1, 1};
   OIIO::ImageBufAlgo::fill(img, white);
@@ -175,13 +180,13 @@ void write_plot(const std::string &path, const std::vector<Row> &rows, const std
       py = y;
     }
     box(W - R + 15, T + 20 + 25 * static_cast<int>(m), W - R + 35, T + 30 + 25 * static_cast<int>(m), c);
-    OIIO::ImageBufAlgo::render_text(img, W - R + 42, T + 31 + 25 * static_cast<int>(m), methods[m], 14, "", c);
+    OIIO::ImageBufAlgo::render_text(img, W - R + 42, T + 31 + 25 * static_cast<int>(m), methods[m], 14, font, c);
   }
   char label[128];
   std::snprintf(label, sizeof(label), "time %.3g .. %.3g s (log)", std::pow(10.0, t0), std::pow(10.0, t1));
-  OIIO::ImageBufAlgo::render_text(img, L, H - 20, label, 14, "", black);
+  OIIO::ImageBufAlgo::render_text(img, L, H - 20, label, 14, font, black);
   std::snprintf(label, sizeof(label), "RMSE %.3g .. %.3g (log)", std::pow(10.0, e0), std::pow(10.0, e1));
-  OIIO::ImageBufAlgo::render_text(img, 10, 20, label, 14, "", black);
+  OIIO::ImageBufAlgo::render_text(img, 10, 20, label, 14, font, black);
   if (!img.write(path)) throw CliError(kExitBadInput, "cannot write " + path);
 }
 
@@ -200,7 +205,29 @@ double time_at_error(const std::vector<Row> &rows, const std::string &method, do
   return -1.0;
 }
 
+void report(const std::vector<Row> &rows, const std::vector<std::string> &methods);
+
+void plot_only(const BenchArgs &a) {
+  std::ifstream f(a.from_csv);
+  if (!f) throw CliError(kExitBadInput, "cannot read " + a.from_csv);
+  std::string line;
+  std::getline(f, line);
+  std::vector<Row> rows;
+  std::vector<std::string> methods;
+  while (std::getline(f, line)) {
+    const auto parts = split(line, ',');
+    if (parts.size() != 4) throw CliError(kExitBadInput, a.from_csv + ": malformed line '" + line + "'");
+    rows.push_back({parts[0], std::stoi(parts[1]), std::stod(parts[2]), std::stod(parts[3])});
+    if (std::find(methods.begin(), methods.end(), parts[0]) == methods.end()) methods.push_back(parts[0]);
+  }
+  const std::string png = (std::filesystem::path(a.out_dir) / (a.name + ".png")).string();
+  write_plot(png, rows, methods);
+  std::printf("wrote %s\n", png.c_str());
+  report(rows, methods);
+}
+
 void run(const BenchArgs &a, CliContext &ctx) {
+  if (!a.from_csv.empty()) return plot_only(a);
   std::ifstream in(a.scene);
   if (!in) throw CliError(kExitBadInput, "cannot read scene " + a.scene);
   std::stringstream ss;
@@ -209,6 +236,7 @@ void run(const BenchArgs &a, CliContext &ctx) {
   if (text.find("<glint_bsdf") == std::string::npos)
     throw CliError(kExitBadInput, a.scene + ": the scene has no <glint_bsdf> node to compare methods on");
   const std::vector<std::string> methods = split(a.methods, ',');
+  for (const auto &m : methods) rewrite_scene(text, m);  // validates every method name before any file is written
   std::vector<int> ladder;
   for (const auto &s : split(a.ladder, ',')) ladder.push_back(std::stoi(s));
   const std::string exe = self_path();
@@ -228,7 +256,9 @@ void run(const BenchArgs &a, CliContext &ctx) {
   std::printf("reference: jakob14 at %d spp...\n", a.reference_samples);
   std::fflush(stdout);
   const std::string ref_path = (work / "reference.exr").string();
-  const double ref_time = render(exe, ctx.plugin_path, scenes["jakob14"], ref_path, a.reference_samples, a);
+  // Another sampling seed than the ladder: the ladder's first samples must not
+  // be the reference's own samples (that correlation would fake convergence).
+  const double ref_time = render(exe, ctx.plugin_path, scenes["jakob14"], ref_path, a.reference_samples, a, 7919);
   int w = 0, h = 0;
   const std::vector<float> ref = read_pixels(ref_path, w, h);
   std::printf("reference: %.2f s\n", ref_time);
@@ -255,7 +285,11 @@ void run(const BenchArgs &a, CliContext &ctx) {
   write_plot(png, rows, methods);
   std::printf("wrote %s and %s\n", csv.c_str(), png.c_str());
 
-  // Speed-up at equal RMSE: the jakob14 errors, reached by each other method.
+  report(rows, methods);
+}
+
+// Speed-up at equal RMSE: the jakob14 errors, reached by each other method.
+void report(const std::vector<Row> &rows, const std::vector<std::string> &methods) {
   for (const auto &m : methods) {
     if (m == "jakob14" || m == "ggx") continue;
     for (const auto &r : rows) {
@@ -274,7 +308,7 @@ void add_bench_command(CLI::App &app, CliContext &ctx) {
   bench->require_subcommand(1);
   auto args = std::make_shared<BenchArgs>();
   auto *evt = bench->add_subcommand("error-vs-time", "RMSE against a converged jakob14 render vs render time, per glint method");
-  evt->add_option("scene", args->scene, "scene with at least one <glint_bsdf>")->required();
+  evt->add_option("scene", args->scene, "scene with at least one <glint_bsdf> (not needed with --from-csv)");
   evt->add_option("--methods", args->methods, "comma list of jakob14,dsm-unfiltered,dsm-filtered,ggx");
   evt->add_option("--samples", args->ladder, "comma list of samples per pixel (the ladder)");
   evt->add_option("--reference-samples", args->reference_samples, "samples of the converged jakob14 reference")
@@ -284,6 +318,7 @@ void add_bench_command(CLI::App &app, CliContext &ctx) {
   evt->add_option("--threads", args->threads, "render threads (0 = all cores)")->check(CLI::Range(0, 4096));
   evt->add_option("--out-dir", args->out_dir, "folder for the CSV and the PNG plot");
   evt->add_option("--name", args->name, "base name of the CSV and PNG files");
+  evt->add_option("--from-csv", args->from_csv, "only re-plot (and report on) an existing CSV");
   evt->callback([args, &ctx] { run(*args, ctx); });
 }
 
