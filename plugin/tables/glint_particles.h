@@ -9,7 +9,9 @@
 // nodes. Node (l, i, j) holds n = floor(N s^2) + [u0 < frac(N s^2)] particles
 // (mean exactly N s^2), u0 and every later random number coming from the node's
 // TEA seed (8 rounds over (i, j) and (seed, l)): glint randomness depends on
-// the surface position and the node only, never on directions.
+// the surface position and the node only, never on directions. (Nodes with a
+// mean below one particle draw u0 from a cheap integer hash of the node id, so
+// that empty nodes skip the TEA rounds.)
 //
 // Thresholds as order statistics. The n thresholds lambda_k are i.i.d.
 // uniform; instead of drawing all n of them we walk their order statistics
@@ -105,8 +107,18 @@ inline GlintCount count_reflecting_particles(const Footprint &f, const NodeRange
   for (int dj = 0; dj < nodes.nj; ++dj)
     for (int di = 0; di < nodes.ni; ++di) {
       const int64_t i = nodes.i0 + di, j = nodes.j0 + dj;
+      // Sparse nodes (mean < 1 particle) decide "empty or one particle" with a
+      // cheap hash of the node id first, so empty nodes skip the TEA rounds.
+      const double mean = std::fmin(density * nodes.size * nodes.size, 4.0e18);
+      uint64_t n;
+      if (mean < 1.0) {
+        const uint32_t h = hash_u32x4(static_cast<uint32_t>(i), static_cast<uint32_t>(j),
+                                      static_cast<uint32_t>(nodes.level), seed ^ 0x3c6ef372u);
+        if (!(uint_to_unit_float(h) < static_cast<float>(mean))) continue;
+        n = 1;
+      }
       const NodeStream stream = node_stream(seed, nodes.level, i, j);
-      const uint64_t n = node_particle_count(stream, density, nodes.size);
+      if (!(mean < 1.0)) n = node_particle_count(stream, density, nodes.size);
       const double x0 = static_cast<double>(i) * nodes.size, y0 = static_cast<double>(j) * nodes.size;
       double one_minus_lambda = 1.0;
       for (uint64_t k = 0; k < n; ++k) {
