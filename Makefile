@@ -18,8 +18,9 @@ build: configure
 	@cmake --build $(BUILD) -j $(JOBS)
 
 demo: build
-	$(BUILD)/glimmer render examples/demo.xml -o demo.png
-	@test -s demo.png && echo "demo: wrote demo.png"
+	$(BUILD)/glimmer render examples/demo.xml -o demo.png --stats
+	$(BUILD)/glimmer render examples/glint.xml -o demo_glint.png --stats
+	@test -s demo.png && test -s demo_glint.png && echo "demo: wrote demo.png and demo_glint.png"
 
 test: build
 	cd $(BUILD) && ctest --output-on-failure -j $(JOBS) -LE stress
