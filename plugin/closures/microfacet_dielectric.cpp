@@ -67,6 +67,8 @@ class MicrofacetDielectricClosure {
     c->ior_ = ior;
     c->refraction_only_ = p.get_enum("mode") == 1;
     c->compensate_ = c->mode_ == kMultiGgx && !c->refraction_only_;
+    c->e_outside_.build(c->alpha_table_, c->ior_);
+    c->e_inside_.build(c->alpha_table_, 1.0f / c->ior_);
     return c;
   }
 
@@ -103,8 +105,9 @@ class MicrofacetDielectricClosure {
     return e;
   }
 
+  // Single-scatter R + T albedo at mu on the side whose relative IOR is eta.
   float compensation(float mu, float eta) const {
-    return std::max(tables::ggx_glass_E(mu, alpha_table_, eta), 1e-3f);
+    return std::max(eta == ior_ ? e_outside_(mu) : e_inside_(mu), 1e-3f);
   }
 
   LocalEval eval(const ShadingPoint &sp, const Vec3 &wo) const {
@@ -164,7 +167,7 @@ class MicrofacetDielectricClosure {
     if (mode_ == kSharp || compensate_) return Spectrum(1.0f);
     const float mu = std::fabs(sp.wi.z);
     const float eta = sp.wi.z > 0.0f ? ior_ : 1.0f / ior_;
-    return Spectrum(tables::ggx_glass_E(mu, alpha_table_, eta));
+    return Spectrum(compensation(mu, eta));
   }
 
  private:
@@ -172,6 +175,7 @@ class MicrofacetDielectricClosure {
   mf::Distribution dist_ = mf::Distribution::GGX;
   float ax_ = 0.25f, ay_ = 0.25f, alpha_table_ = 0.25f, ior_ = 1.45f;
   bool refraction_only_ = false, compensate_ = false;
+  tables::GlassRow e_outside_{}, e_inside_{};  // E(mu) at this alpha for eta = ior and 1 / ior
 };
 
 GLIMMER_REGISTER_CLOSURE(MicrofacetDielectricClosure)

@@ -302,4 +302,73 @@ struct FresnelSplit {
   }
 };
 
+inline constexpr int kFresnelSplitTerms = 16;
+
+// Hill 2022 refit: the cubic c0 + F0 (c1 + F0 (c2 + F0 c3)) minimizing the
+// relative error sum_k ((c(x_k) - p(x_k)) / p(x_k))^2 to the split polynomial
+// p(F0) = sum_i w_i F0^i over 65 points x_k in [0, 1], with F0 = 1 pinned by a
+// large weight (white furnace). Normal equations solved in double.
+inline std::array<double, 4> fit_fresnel_split_cubic(const std::array<double, kFresnelSplitTerms> &w) {
+  double ata[4][4] = {}, atb[4] = {};
+  const int samples = 65;
+  double p1 = 0.0;
+  for (double v : w) p1 += v;
+  for (int k = 0; k < samples; ++k) {
+    const double x = double(k) / (samples - 1);
+    double p = 0.0, xp = 1.0;
+    for (int i = 0; i < kFresnelSplitTerms; ++i, xp *= x) p += w[i] * xp;
+    const double floor_p = std::max(p, 1e-6 * p1 + 1e-12);
+    double weight = 1.0 / (floor_p * floor_p);
+    if (k == samples - 1) weight *= 1e4;
+    const double basis[4] = {1.0, x, x * x, x * x * x};
+    for (int r = 0; r < 4; ++r) {
+      atb[r] += weight * basis[r] * p;
+      for (int c = 0; c < 4; ++c) ata[r][c] += weight * basis[r] * basis[c];
+    }
+  }
+  for (int col = 0; col < 4; ++col) {  // Gaussian elimination, partial pivoting
+    int pivot = col;
+    for (int r = col + 1; r < 4; ++r)
+      if (std::fabs(ata[r][col]) > std::fabs(ata[pivot][col])) pivot = r;
+    for (int c = 0; c < 4; ++c) std::swap(ata[col][c], ata[pivot][c]);
+    std::swap(atb[col], atb[pivot]);
+    if (std::fabs(ata[col][col]) < 1e-300) continue;
+    for (int r = col + 1; r < 4; ++r) {
+      const double f = ata[r][col] / ata[col][col];
+      for (int c = col; c < 4; ++c) ata[r][c] -= f * ata[col][c];
+      atb[r] -= f * atb[col];
+    }
+  }
+  std::array<double, 4> c{};
+  for (int r = 3; r >= 0; --r) {
+    double s = atb[r];
+    for (int k = r + 1; k < 4; ++k) s -= ata[r][k] * c[k];
+    c[r] = std::fabs(ata[r][r]) < 1e-300 ? 0.0 : s / ata[r][r];
+  }
+  return c;
+}
+
+// Fresnel-split multiple-scattering polynomial of the conductor walk at
+// (mu, alpha): average e over `walks` walks of order >= 2, rescaled so that
+// sum(w) = target (the exact F0 = 1 energy 1 - E; ratio estimator).
+template <typename Rng>
+inline std::array<double, kFresnelSplitTerms> fresnel_split_polynomial(float mu, float alpha, int walks, double target,
+                                                                       Rng &rng) {
+  const Vec3 wi(std::sqrt(std::max(0.0f, 1.0f - mu * mu)), 0.0f, mu);
+  const WalkSurface surface{alpha, alpha};
+  std::array<double, kFresnelSplitTerms> w{};
+  for (int n = 0; n < walks; ++n) {
+    FresnelSplit<kFresnelSplitTerms> split;
+    int order = 0;
+    walk_conductor(wi, surface, rng, order, [&](float c) { split.bounce(c); });
+    if (order >= 2)
+      for (int i = 0; i < kFresnelSplitTerms; ++i) w[i] += split.e[i];
+  }
+  double sum = 0.0;
+  for (double v : w) sum += v;
+  const double scale = sum > 0.0 ? std::max(target, 0.0) / sum : 0.0;
+  for (double &v : w) v *= scale;
+  return w;
+}
+
 }  // namespace glimmer::microfacet
