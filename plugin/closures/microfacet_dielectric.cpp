@@ -79,7 +79,8 @@ class MicrofacetDielectricClosure {
       if (refraction_only_) return {};
       Vec3 wh;
       if (!mf::half_vector_reflect(wi, wo, wh)) return {};
-      const float cos_ih = dot(wi, wh);
+      // Symmetric cosine (wi.wh = wo.wh exactly; averaging keeps f reciprocal to rounding).
+      const float cos_ih = 0.5f * (dot(wi, wh) + dot(wo, wh));
       if (!(cos_ih > 0.0f)) return {};
       const float F = mf::fresnel_dielectric(cos_ih, eta);
       const float d = mf::D(dist_, wh, ax_, ay_);
@@ -92,7 +93,8 @@ class MicrofacetDielectricClosure {
       if (!mf::half_vector_transmit(wi, wo, eta, wh, &len2)) return {};
       const float cos_ih = dot(wi, wh), cos_oh = dot(wo, wh);
       if (!(cos_ih > 0.0f) || !(cos_oh < 0.0f)) return {};
-      const float F = mf::fresnel_dielectric(cos_ih, eta);
+      // Fresnel of the refraction pair itself (reciprocal; equal to F(cos_ih) up to rounding).
+      const float F = mf::fresnel_dielectric_pair(cos_ih, -cos_oh, eta);
       const float T = refraction_only_ ? (F < 1.0f ? 1.0f : 0.0f) : 1.0f - F;
       if (!(T > 0.0f)) return {};
       const float d = mf::D(dist_, wh, ax_, ay_);

@@ -50,10 +50,14 @@ inline float mu_interp(const float *row, const MuCubic &c) {
   return c.w[0] * row[c.i[0]] + c.w[1] * row[c.i[1]] + c.w[2] * row[c.i[2]] + c.w[3] * row[c.i[3]];
 }
 
+// Catmull-Rom along alpha as well: at small alpha the grazing fall-off of E
+// moves quickly with alpha.
 inline float ggx_E(float mu, float alpha) {
-  const auto a = grid::lerp_axis(grid::alpha_coord(alpha), grid::kAlphaCount);
+  const Cubic a = catmull_rom(grid::alpha_coord(alpha), grid::kAlphaCount);
   const MuCubic m = mu_cubic(mu);
-  return lerp(mu_interp(kGgxE[a.i0], m), mu_interp(kGgxE[a.i1], m), a.t);
+  float r = 0.0f;
+  for (int k = 0; k < 4; ++k) r += a.w[k] * mu_interp(kGgxE[a.i[k]], m);
+  return r;
 }
 
 inline float ggx_E_avg(float alpha) {
@@ -85,9 +89,13 @@ inline float ggx_glass_E(float mu, float alpha, float eta) {
   const auto &table = inverse ? kGgxGlassInvE : kGgxGlassE;
   // Catmull-Rom along eta too: near eta = 1 the grazing albedo is not monotonic in eta.
   const Cubic e = catmull_rom(grid::eta_coord(ior), grid::kEtaCount);
-  const auto a = grid::lerp_axis(grid::alpha_coord(alpha), grid::kAlphaCount);
+  const Cubic a = catmull_rom(grid::alpha_coord(alpha), grid::kAlphaCount);
   const MuCubic m = mu_cubic(mu);
-  auto bilinear = [&](int k) { return lerp(mu_interp(table[k][a.i0], m), mu_interp(table[k][a.i1], m), a.t); };
+  auto bilinear = [&](int k) {
+    float r = 0.0f;
+    for (int j = 0; j < 4; ++j) r += a.w[j] * mu_interp(table[k][a.i[j]], m);
+    return r;
+  };
   return e.w[0] * bilinear(e.i[0]) + e.w[1] * bilinear(e.i[1]) + e.w[2] * bilinear(e.i[2]) + e.w[3] * bilinear(e.i[3]);
 }
 
@@ -110,6 +118,32 @@ struct GlassRow {
     for (int i = 0; i < grid::kMuCount; ++i) e[i] = ggx_glass_E(grid::mu_of_node(i), alpha, eta);
   }
   float operator()(float mu) const { return mu_interp(e, mu_cubic(mu)); }
+};
+
+// Per-material conductor rows: E(mu) and the E_Fms cubic coefficients at the mu nodes.
+struct ConductorRows {
+  float e[grid::kMuCount];
+  float fms[grid::kMuCount][4];
+  void build(float alpha) {
+    const auto a = grid::lerp_axis(grid::alpha_coord(alpha), grid::kAlphaCount);
+    for (int i = 0; i < grid::kMuCount; ++i) {
+      e[i] = ggx_E(grid::mu_of_node(i), alpha);
+      for (int k = 0; k < 4; ++k) fms[i][k] = lerp(kGgxFms[a.i0][i][k], kGgxFms[a.i1][i][k], a.t);
+    }
+  }
+  float E(float mu) const { return mu_interp(e, mu_cubic(mu)); }
+  Spectrum E_Fms(float mu, const Spectrum &f0) const {
+    const MuCubic m = mu_cubic(mu);
+    float c[4] = {0.0f, 0.0f, 0.0f, 0.0f};
+    for (int j = 0; j < 4; ++j)
+      for (int k = 0; k < 4; ++k) c[k] += m.w[j] * fms[m.i[j]][k];
+    Spectrum r;
+    for (int ch = 0; ch < 3; ++ch) {
+      const float x = f0[ch];
+      r[ch] = std::max(c[0] + x * (c[1] + x * (c[2] + x * c[3])), 0.0f);  // Horner (Hill 2022)
+    }
+    return r;
+  }
 };
 
 }  // namespace glimmer::tables

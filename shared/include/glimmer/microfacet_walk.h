@@ -304,46 +304,65 @@ struct FresnelSplit {
 
 inline constexpr int kFresnelSplitTerms = 16;
 
-// Hill 2022 refit: the cubic c0 + F0 (c1 + F0 (c2 + F0 c3)) minimizing the
-// relative error sum_k ((c(x_k) - p(x_k)) / p(x_k))^2 to the split polynomial
-// p(F0) = sum_i w_i F0^i over 65 points x_k in [0, 1], with F0 = 1 pinned by a
-// large weight (white furnace). Normal equations solved in double.
+// Hill 2022 refit: the cubic c0 + F0 (c1 + F0 (c2 + F0 c3)) approximating the
+// split polynomial p(F0) = sum_i w_i F0^i in RELATIVE error over F0 in [0, 1]:
+// weighted least squares on (c - p) / p at 129 points x_k = (k / 128)^2
+// (denser near F0 = 0, where p is small), with Lawson's iterative reweighting
+// (weights *= |relative error|) driving it toward the minimax fit.
+// Normal equations solved in double.
 inline std::array<double, 4> fit_fresnel_split_cubic(const std::array<double, kFresnelSplitTerms> &w) {
-  double ata[4][4] = {}, atb[4] = {};
-  const int samples = 65;
+  constexpr int samples = 129;
+  double xs[samples], ps[samples], lawson[samples];
   double p1 = 0.0;
   for (double v : w) p1 += v;
   for (int k = 0; k < samples; ++k) {
-    const double x = double(k) / (samples - 1);
+    const double t = double(k) / (samples - 1);
+    xs[k] = t * t;
     double p = 0.0, xp = 1.0;
-    for (int i = 0; i < kFresnelSplitTerms; ++i, xp *= x) p += w[i] * xp;
-    const double floor_p = std::max(p, 1e-6 * p1 + 1e-12);
-    double weight = 1.0 / (floor_p * floor_p);
-    if (k == samples - 1) weight *= 1e4;
-    const double basis[4] = {1.0, x, x * x, x * x * x};
-    for (int r = 0; r < 4; ++r) {
-      atb[r] += weight * basis[r] * p;
-      for (int c = 0; c < 4; ++c) ata[r][c] += weight * basis[r] * basis[c];
-    }
-  }
-  for (int col = 0; col < 4; ++col) {  // Gaussian elimination, partial pivoting
-    int pivot = col;
-    for (int r = col + 1; r < 4; ++r)
-      if (std::fabs(ata[r][col]) > std::fabs(ata[pivot][col])) pivot = r;
-    for (int c = 0; c < 4; ++c) std::swap(ata[col][c], ata[pivot][c]);
-    std::swap(atb[col], atb[pivot]);
-    if (std::fabs(ata[col][col]) < 1e-300) continue;
-    for (int r = col + 1; r < 4; ++r) {
-      const double f = ata[r][col] / ata[col][col];
-      for (int c = col; c < 4; ++c) ata[r][c] -= f * ata[col][c];
-      atb[r] -= f * atb[col];
-    }
+    for (int i = 0; i < kFresnelSplitTerms; ++i, xp *= xs[k]) p += w[i] * xp;
+    ps[k] = std::max(p, 1e-6 * p1 + 1e-15);
+    lawson[k] = 1.0 / samples;
   }
   std::array<double, 4> c{};
-  for (int r = 3; r >= 0; --r) {
-    double s = atb[r];
-    for (int k = r + 1; k < 4; ++k) s -= ata[r][k] * c[k];
-    c[r] = std::fabs(ata[r][r]) < 1e-300 ? 0.0 : s / ata[r][r];
+  for (int iteration = 0; iteration < 40; ++iteration) {
+    double ata[4][4] = {}, atb[4] = {};
+    for (int k = 0; k < samples; ++k) {
+      const double x = xs[k];
+      const double weight = lawson[k] / (ps[k] * ps[k]);
+      const double basis[4] = {1.0, x, x * x, x * x * x};
+      for (int r = 0; r < 4; ++r) {
+        atb[r] += weight * basis[r] * ps[k];
+        for (int q = 0; q < 4; ++q) ata[r][q] += weight * basis[r] * basis[q];
+      }
+    }
+    for (int col = 0; col < 4; ++col) {  // Gaussian elimination, partial pivoting
+      int pivot = col;
+      for (int r = col + 1; r < 4; ++r)
+        if (std::fabs(ata[r][col]) > std::fabs(ata[pivot][col])) pivot = r;
+      for (int q = 0; q < 4; ++q) std::swap(ata[col][q], ata[pivot][q]);
+      std::swap(atb[col], atb[pivot]);
+      if (std::fabs(ata[col][col]) < 1e-300) continue;
+      for (int r = col + 1; r < 4; ++r) {
+        const double f = ata[r][col] / ata[col][col];
+        for (int q = col; q < 4; ++q) ata[r][q] -= f * ata[col][q];
+        atb[r] -= f * atb[col];
+      }
+    }
+    for (int r = 3; r >= 0; --r) {
+      double sum = atb[r];
+      for (int q = r + 1; q < 4; ++q) sum -= ata[r][q] * c[q];
+      c[r] = std::fabs(ata[r][r]) < 1e-300 ? 0.0 : sum / ata[r][r];
+    }
+    // Lawson update toward the minimax relative error.
+    double total = 0.0;
+    for (int k = 0; k < samples; ++k) {
+      const double x = xs[k];
+      const double err = std::fabs(c[0] + x * (c[1] + x * (c[2] + x * c[3])) - ps[k]) / ps[k];
+      lawson[k] *= err + 1e-12;
+      total += lawson[k];
+    }
+    if (!(total > 0.0)) break;
+    for (double &l : lawson) l /= total;
   }
   return c;
 }
