@@ -97,8 +97,9 @@ int run_energy(const EnergyOptions &opt, const std::string &command_line) {
     const float mu = grid::mu_of_node(m), alpha = grid::alpha_of_node(a);
     WalkRng rng(hash_u32x3(opt.seed, 2u, uint32_t(cell)));
     // Ratio estimator: scaled so that E_Fms(F0 = 1) = 1 - E exactly (white furnace).
-    const auto w = fresnel_split_polynomial(mu, alpha, opt.walks, 1.0 - double(E[cell]), rng);
-    const auto c = fit_fresnel_split_cubic(w);
+    double a1 = 0.0, b1 = 0.0;
+    const auto w = fresnel_split_polynomial(mu, alpha, opt.walks, 1.0 - double(E[cell]), rng, &a1, &b1);
+    const auto c = fit_fresnel_split_cubic(w, a1, b1);
     for (int k = 0; k < 4; ++k) Fms[cell * 4 + k] = float(c[k]);
   });
 
@@ -123,7 +124,7 @@ int run_energy(const EnergyOptions &opt, const std::string &command_line) {
       << " stratified visible-normal samples (" << opt.strata * opt.strata << " per cell; "
       << 4 * opt.strata * opt.strata << " for mu < 0.1);\n"
       << "// E_Fms cells use " << opt.walks << " Heitz 2016 random walks each, " << kSplitTerms
-      << " Fresnel-split terms, ratio-scaled to 1 - E, cubic refit (min. relative error).\n"
+      << " Fresnel-split terms, ratio-scaled to 1 - E, cubic refit, minimax error relative to the walk albedo (F0 = 1 exact).\n"
       << "// Grid: glimmer/microfacet_energy_grid.h (mu " << nm << " x alpha " << na << " x eta " << ne << "), seed "
       << opt.seed << ", generated in " << int(seconds + 0.5) << " s.\n"
       << "#include \"tables/microfacet_energy.h\"\n\nnamespace glimmer::tables {\n\n";

@@ -125,10 +125,14 @@ struct ConductorRows {
   float e[grid::kMuCount];
   float fms[grid::kMuCount][4];
   void build(float alpha) {
-    const auto a = grid::lerp_axis(grid::alpha_coord(alpha), grid::kAlphaCount);
+    // Same Catmull-Rom along alpha as ggx_E, so E + E_Fms(F0 = 1) = 1 holds between nodes too.
+    const Cubic a = catmull_rom(grid::alpha_coord(alpha), grid::kAlphaCount);
     for (int i = 0; i < grid::kMuCount; ++i) {
       e[i] = ggx_E(grid::mu_of_node(i), alpha);
-      for (int k = 0; k < 4; ++k) fms[i][k] = lerp(kGgxFms[a.i0][i][k], kGgxFms[a.i1][i][k], a.t);
+      for (int k = 0; k < 4; ++k) {
+        fms[i][k] = 0.0f;
+        for (int j = 0; j < 4; ++j) fms[i][k] += a.w[j] * kGgxFms[a.i[j]][i][k];
+      }
     }
   }
   float E(float mu) const { return mu_interp(e, mu_cubic(mu)); }
@@ -140,7 +144,7 @@ struct ConductorRows {
     Spectrum r;
     for (int ch = 0; ch < 3; ++ch) {
       const float x = f0[ch];
-      r[ch] = std::max(c[0] + x * (c[1] + x * (c[2] + x * c[3])), 0.0f);  // Horner (Hill 2022)
+      r[ch] = std::max(c[0] + x * (c[1] + x * (c[2] + x * c[3])), 0.0f);  // Horner
     }
     return r;
   }

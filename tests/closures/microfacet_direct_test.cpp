@@ -144,7 +144,12 @@ TEST(MicrofacetTables, FresnelSplitCubicMatchesRandomWalk) {
     mf::WalkRng r(4242u + uint32_t(i));
     const double e = mf::single_scatter_albedo_conductor(mf::Distribution::GGX, p.mu, p.alpha, 256, r);
     const auto w = mf::fresnel_split_polynomial(p.mu, p.alpha, 200000, 1.0 - e, r);
-    const auto c = mf::fit_fresnel_split_cubic(w);
+    double fa1 = 0.0, fb1 = 0.0;
+    {
+      mf::WalkRng r2(777u + uint32_t(i));
+      (void)mf::fresnel_split_polynomial(p.mu, p.alpha, 20000, 1.0 - e, r2, &fa1, &fb1);
+    }
+    const auto c = mf::fit_fresnel_split_cubic(w, fa1, fb1);
     // Single-bounce walk energy with Schlick Fresnel: E1(F0) = a + b F0.
     double a1 = 0.0, b1 = 0.0;
     {
