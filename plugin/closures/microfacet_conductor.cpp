@@ -43,7 +43,7 @@ class MicrofacetConductorClosure {
         {"roughness", GLIMMER_PARAM_FLOAT, {0.5f, 0, 0}, 0.0f, 1.0f, nullptr, nullptr,
          "Cycles roughness in [0, 1]; alpha = roughness^2"},
         {"anisotropy", GLIMMER_PARAM_FLOAT, {0.0f, 0, 0}, -1.0f, 1.0f, nullptr, nullptr,
-         "anisotropy in [-1, 1] (Cycles 3.4 mapping; > 0 stretches the highlight along the tangent's normal plane)"},
+         "anisotropy in [-1, 1] (Cycles 3.4 mapping: A > 0 gives alpha_x = a (1 - A), alpha_y = a / (1 - A); tangent = x)"},
         {"f0", GLIMMER_PARAM_COLOR, {1.0f, 1.0f, 1.0f}, 0.0f, 1.0f, nullptr, nullptr,
          "normal-incidence reflectance per RGB channel (Schlick Fresnel); 1,1,1 = Fresnel-free"},
     }};
