@@ -84,6 +84,8 @@ class GlimmerRenderEngine(bpy.types.RenderEngine):
         width = max(1, int(scene.render.resolution_x * scale))
         height = max(1, int(scene.render.resolution_y * scale))
         layer_name = depsgraph.view_layer.name
+        if scene.render.use_border:
+            self.report({"WARNING"}, "Glimmer: render region (border) is not supported; the full frame is rendered")
         result = self.begin_result(0, 0, width, height, layer=layer_name)
         out_dir = None
         temporary = False
@@ -119,8 +121,12 @@ class GlimmerRenderEngine(bpy.types.RenderEngine):
                 elapsed = time.monotonic() - render_start
                 self.update_stats("", "Glimmer: sample %d/%d, %.1f s" % (done, total, elapsed))
 
+            def renderer_line(line):  # the renderer's scene warnings (file:line) go to Blender's report
+                if "warning" in line.lower():
+                    self.report({"WARNING"}, "glimmer: " + line)
+
             code, cancelled, tail = runner.run(cmd, on_progress=progress, should_cancel=self.cancel_requested,
-                                               kill_timeout=KILL_TIMEOUT_SECONDS)
+                                               kill_timeout=KILL_TIMEOUT_SECONDS, on_line=renderer_line)
             have_image = os.path.isfile(exr_path)
             if have_image and (code == 0 or code == runner.EXIT_INTERRUPTED):
                 load_exr_into_result(result, exr_path, layer_name)

@@ -354,7 +354,11 @@ class ShaderGraph:
         settings = self.exporter.settings
         enabled = {"glint": settings.use_glint if settings else True,
                    "frosted_glass": settings.use_frosted_glass if settings else True}.get(node.closure_name, True)
-        if not enabled:  # the scene asks for the microfacet fallback instead of the glimmer closure
+        if enabled and closure.get("source") != "dso":
+            self.warn(("planned", node.closure_name), "the plugin does not have the '%s' closure yet: node '%s' is "
+                      "exported as its microfacet fallback" % (node.closure_name, node.name))
+            enabled = False
+        if not enabled:  # the microfacet fallback instead of the glimmer closure
             fallback = glimmer_nodes.FALLBACKS[node.closure_name]
             xml_type = "glossy_bsdf" if fallback["node"] == "ShaderNodeBsdfGlossy" else "glass_bsdf"
             el = self.add(xml_type, node.name, distribution=GLOSSY_DISTRIBUTION[fallback["distribution"]])

@@ -35,7 +35,8 @@ def group_name(closure_name):
 
 def property_name(param_name):
     """Node property holding a non-socket parameter (avoids clashing with Node attributes)."""
-    if hasattr(bpy.types.ShaderNodeCustomGroup, param_name) or param_name in ("name", "type", "label"):
+    base = bpy.types.ShaderNodeCustomGroup
+    if param_name in base.bl_rna.properties or param_name in base.bl_rna.functions or hasattr(base, param_name):
         return "glimmer_" + param_name
     return param_name
 

@@ -76,11 +76,9 @@ def closure(schema, name):
 
 
 def socket_name(param_name):
-    """Blender socket name of a schema parameter: 'cone_angle' -> 'Cone Angle', 'ior' -> 'IOR'."""
-    special = {"ior": "IOR"}
-    if param_name in special:
-        return special[param_name]
-    return " ".join(w.capitalize() for w in param_name.split("_"))
+    """Blender socket name of a schema parameter: 'filter_threshold' -> 'Filter Threshold', 'uv_scale' -> 'UV Scale'."""
+    upper = {"ior", "uv", "rgb"}
+    return " ".join(w.upper() if w in upper else w.capitalize() for w in param_name.split("_"))
 
 
 def is_socket_param(param):

@@ -110,6 +110,12 @@ LightSet::LightSet(const scene::Scene &scene, ShaderSystem &shaders, const std::
         e.V = l.axisv * l.sizev;
         e.round = l.round;
         e.area = length(cross(e.U, e.V)) * (l.round ? kPi * 0.25f : 1.0f);
+        {
+          // The emitting plane is spanned by axisu/axisv; `dir` only picks its emitting side.
+          Vec3 n = normalize(cross(e.U, e.V));
+          if (dot(n, e.dir) < 0.0f) n = -n;
+          e.dir = n;
+        }
         p *= kPi * 0.25f;
         features.light_types.insert(l.round ? "area_disk" : "area_quad");
         break;
@@ -367,59 +373,50 @@ bool LightSet::sample(float select, float u, float v, const Vec3 &P, LightSample
   return false;
 }
 
-bool LightSet::intersect(const Vec3 &o, const Vec3 &d, float t_max, bool hit_surface, LightHit &out) const {
-  bool found = false;
-  float best = t_max;
+void LightSet::intersect(const Vec3 &o, const Vec3 &d, float t_max, bool hit_surface, LightHits &out) const {
+  out.count = 0;
   for (size_t i = 0; i < lights_.size(); ++i) {
     const Entry &l = lights_[i];
     const float pick = pick_probability(static_cast<int>(i));
+    LightHit h;
     if ((l.kind == Kind::Point || l.kind == Kind::Spot) && l.radius > 0.0f) {
       const Vec3 oc = l.co - o;
       const float b = dot(oc, d), c = length_squared(oc) - l.radius * l.radius;
       const float disc = b * b - c;
       if (disc < 0.0f || c <= 0.0f) continue;
       const float t = b - std::sqrt(disc);
-      if (!(t > 0.0f && t < best)) continue;
+      if (!(t > 0.0f && t < t_max)) continue;
       const float d2 = length_squared(oc);
       const float cos_max = std::sqrt(std::max(0.0f, 1.0f - l.radius * l.radius / d2));
-      out.radiance = l.strength * (1.0f / (4.0f * kPi * kPi * l.radius * l.radius));
-      if (l.kind == Kind::Spot) out.radiance *= spot_attenuation(l, -normalize(oc));
-      out.pdf = pick / (kTwoPi * (1.0f - cos_max));
-      out.t = t;
-      out.delta = false;
-      out.blocks = true;
-      best = t;
-      found = true;
+      h.radiance = l.strength * (1.0f / (4.0f * kPi * kPi * l.radius * l.radius));
+      if (l.kind == Kind::Spot) h.radiance *= spot_attenuation(l, -normalize(oc));
+      h.pdf = pick / (kTwoPi * (1.0f - cos_max));
+      h.t = t;
+      out.add(h);
     } else if (l.kind == Kind::Area) {
       const float denom = dot(d, l.dir);
       if (std::fabs(denom) < 1e-9f) continue;
       const float t = dot(l.co - o, l.dir) / denom;
-      if (!(t > 0.0f && t < best)) continue;
+      if (!(t > 0.0f && t < t_max)) continue;
       const Vec3 q = o + d * t - l.co;
       const float su = dot(q, l.U) / length_squared(l.U), sv = dot(q, l.V) / length_squared(l.V);
       const bool inside = l.round ? (4.0f * (su * su + sv * sv) <= 1.0f) : (std::fabs(su) <= 0.5f && std::fabs(sv) <= 0.5f);
       if (!inside) continue;
       const float cos_l = -denom;
-      if (cos_l <= 0.0f) continue;  // back side: no emission, the ray passes
-      out.radiance = l.strength * (0.25f / l.area);
-      out.pdf = pick * t * t / (cos_l * l.area);
-      out.t = t;
-      out.delta = false;
-      out.blocks = true;
-      best = t;
-      found = true;
-    } else if (l.kind == Kind::Sun && l.sun_solid_angle > 0.0f && !hit_surface && !found) {
+      if (cos_l <= 0.0f) continue;  // back side: no emission
+      h.radiance = l.strength * (0.25f / l.area);
+      h.pdf = pick * t * t / (cos_l * l.area);
+      h.t = t;
+      out.add(h);
+    } else if (l.kind == Kind::Sun && l.sun_solid_angle > 0.0f && !hit_surface) {
       if (dot(d, -l.dir) < l.cos_half_angle) continue;
       const float sin2 = 1.0f - l.cos_half_angle * l.cos_half_angle;
-      out.radiance = l.strength / (kPi * sin2);
-      out.pdf = pick / l.sun_solid_angle;
-      out.t = kInf;
-      out.delta = false;
-      out.blocks = false;
-      found = true;
+      h.radiance = l.strength / (kPi * sin2);
+      h.pdf = pick / l.sun_solid_angle;
+      h.t = kInf;
+      out.add(h);
     }
   }
-  return found;
 }
 
 float LightSet::triangle_pdf(int mesh, int prim, const Vec3 &from, const Vec3 &P, const Vec3 &Ng, const Vec3 &d) const {

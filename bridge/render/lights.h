@@ -34,7 +34,17 @@ struct LightHit {
   float pdf = 0.0f;  // what sample() would give for this direction
   float t = 0.0f;
   bool delta = false;
-  bool blocks = true;  // lamps end the path; the sun disk does not
+};
+
+// Every lamp a ray segment passes through: Cycles' lamps do not block rays
+// (shade_light adds the emission and the ray continues past the lamp).
+struct LightHits {
+  static constexpr int kMax = 16;
+  LightHit hits[kMax];
+  int count = 0;
+  void add(const LightHit &h) {
+    if (count < kMax) hits[count++] = h;
+  }
 };
 
 // Piecewise-constant 1D distribution.
@@ -68,8 +78,8 @@ class LightSet {
 
   int count() const { return static_cast<int>(lights_.size()); }
   bool sample(float select, float u, float v, const Vec3 &P, LightSample &out) const;
-  // Lamps and the sun disk hit by a ray before t_max (the closest).
-  bool intersect(const Vec3 &o, const Vec3 &d, float t_max, bool hit_surface, LightHit &out) const;
+  // Lamps hit by a ray before t_max, and the sun disk when the ray escapes.
+  void intersect(const Vec3 &o, const Vec3 &d, float t_max, bool hit_surface, LightHits &out) const;
   float background_pdf(const Vec3 &d) const;
   // Light-sampling pdf for a BSDF ray from `from` hitting emissive triangle (mesh, prim) at P.
   float triangle_pdf(int mesh, int prim, const Vec3 &from, const Vec3 &P, const Vec3 &Ng, const Vec3 &d) const;

@@ -252,6 +252,7 @@ struct Renderer::Impl {
   // ---- Shading points ----
   struct ShadingData {
     GlimmerShadingContext ctx{};
+    GlimmerShadingContext ctx_front{};  // N/Ng/T of the front face (transmissive closures)
     TexCoords tc;
     Vec3 Ng;            // geometric normal, flipped to the incoming side
     Vec3 N;             // shading normal, same side
@@ -332,6 +333,18 @@ struct Renderer::Impl {
     sd.shader = mesh_shader[h.mesh];
   }
 
+  // Copies the per-bounce fields into the front-face context.
+  static void sync_front(ShadingData &sd) {
+    sd.ctx_front = sd.ctx;
+    if (sd.backfacing) {
+      sd.ctx_front.N = -Vec3(sd.ctx.N);
+      sd.ctx_front.Ng = -Vec3(sd.ctx.Ng);
+    }
+  }
+  static const GlimmerShadingContext &context_for(const ShadingData &sd, const ClosureLeaf &leaf) {
+    return leaf.front_normal ? sd.ctx_front : sd.ctx;
+  }
+
   // Transfer the differentials to the hit plane and express them in barycentric
   // and uv space (Igehy 1999, eq. 10-12); fills the context's footprint.
   void transfer_differentials(Differentials &rd, const Vec3 &D, float t, ShadingData &sd, float spread) const {
@@ -376,14 +389,14 @@ struct Renderer::Impl {
     float pdf = 0.0f;
   };
   // Sum of weight * eval over the non-singular closures, pdf = sum(sw * pdf) / sum(sw).
-  MixtureEval eval_mixture(const ClosureSet &cs, const GlimmerShadingContext &ctx, const Vec3 &wo, int skip = -1) const {
+  MixtureEval eval_mixture(const ClosureSet &cs, const ShadingData &sd, const Vec3 &wo, int skip = -1) const {
     MixtureEval out;
     for (int i = 0; i < cs.count; ++i) {
       const ActiveClosure &c = cs.closures[i];
-      if (i == skip || c.sample_weight <= 0.0f || c.leaf->singular || !c.leaf->instance) continue;
+      if (i == skip || c.sample_weight <= 0.0f || c.leaf->singular || !c.instance) continue;
       Spectrum f;
       float pdf = 0.0f;
-      c.leaf->instance->eval(ctx, wo, f, pdf);
+      c.instance->eval(context_for(sd, *c.leaf), wo, f, pdf);
       if (!is_finite(f) || !std::isfinite(pdf)) continue;
       out.f += f * c.weight;
       out.pdf += pdf * c.sample_weight;
@@ -446,6 +459,7 @@ struct Renderer::Impl {
     bool terminate_next = false;
     bool last_singular = true;  // camera rays count as singular: no MIS on emission
     float mis_ray_pdf = 0.0f;
+    float min_ray_pdf = std::numeric_limits<float>::max();
     float spread = 0.0f;
     bool first_hit = true;
 
@@ -463,17 +477,18 @@ struct Renderer::Impl {
       SurfaceHit hit;
       const bool hit_surface = intersect(org, D, tmin, tmax, hit);
       const float t_hit = hit_surface ? hit.t : kInf;
-      // Analytic lights (spheres, area lights, sun disks) in front of the surface.
-      LightHit lh;
-      if (lights->intersect(org, D, t_hit, hit_surface, lh)) {
+      // Lamps (spheres, area lights) before the surface and the sun disk on escape;
+      // as in Cycles they do not block the ray.
+      LightHits lhs;
+      lights->intersect(org, D, t_hit, hit_surface, lhs);
+      for (int i = 0; i < lhs.count; ++i) {
+        const LightHit &lh = lhs.hits[i];
         if (last_singular) {
           add(throughput * lh.radiance, bounce);
         } else if (use_bsdf_emission) {
-          const float w = use_nee && !lh.delta ? power_heuristic(mis_ray_pdf, lh.pdf) : 1.0f;
+          const float w = use_nee ? power_heuristic(mis_ray_pdf, lh.pdf) : 1.0f;
           add(throughput * lh.radiance * w, bounce);
         }
-        if (first_hit && lh.blocks) { aov.depth = lh.t * cam_dir_z; first_hit = false; }
-        if (lh.blocks) break;
       }
       if (!hit_surface) {
         if (shaders->has_background()) {
@@ -497,9 +512,21 @@ struct Renderer::Impl {
       ctx.glossy_bounce = static_cast<uint32_t>(glossy_bounce);
       ctx.transmission_bounce = static_cast<uint32_t>(transmission_bounce);
       ctx.path_seed = path_seed;
+      sync_front(sd);
 
       ClosureSet cs;
       shaders->evaluate(sd.shader, sd.tc, cs);
+      // filter_glossy (Cycles): blur_pdf = filter_glossy * min_ray_pdf; below 1 the glossy
+      // closures get alpha >= 0.5 sqrt(1 - blur_pdf) (nearest lower precomputed variant).
+      if (integ.filter_glossy > 0.0f && min_ray_pdf < std::numeric_limits<float>::max()) {
+        const float blur_pdf = integ.filter_glossy * min_ray_pdf;
+        if (blur_pdf < 1.0f) {
+          const float blur_alpha = 0.5f * std::sqrt(1.0f - blur_pdf);
+          const int k = std::min(static_cast<int>(blur_alpha / ClosureLeaf::kBlurStep), ClosureLeaf::kBlurLevels);
+          for (int i = 0; i < cs.count; ++i)
+            if (k > 0 && !cs.closures[i].leaf->blurred.empty()) cs.closures[i].instance = cs.closures[i].leaf->blurred[k];
+        }
+      }
 
       // Emission (mesh lights), MIS against the light-sampling pdf.
       Spectrum emission(0.0f);
@@ -520,7 +547,7 @@ struct Renderer::Impl {
         aov.depth = hit.t * cam_dir_z;
         for (int i = 0; i < cs.count; ++i)
           if (!cs.closures[i].leaf->emissive && cs.closures[i].leaf->instance)
-            aov.albedo += cs.closures[i].leaf->instance->albedo(ctx) * cs.closures[i].weight;
+            aov.albedo += cs.closures[i].leaf->instance->albedo(context_for(sd, *cs.closures[i].leaf)) * cs.closures[i].weight;
       }
 
       if (terminate_next) break;
@@ -552,7 +579,7 @@ struct Renderer::Impl {
         if (lights->sample(select_light, lu, lv, sd.ctx.P, ls) && ls.pdf > 0.0f) {
           const bool transmit_side = dot(ls.wi, sd.Ng) < 0.0f;
           (void)transmit_side;
-          MixtureEval me = eval_mixture(cs, ctx, ls.wi);
+          MixtureEval me = eval_mixture(cs, sd, ls.wi);
           me.pdf /= total_sw;
           if (!is_zero(me.f)) {
             const float w = (ls.delta || !use_bsdf_emission) ? 1.0f : power_heuristic(ls.pdf, me.pdf);
@@ -590,7 +617,7 @@ struct Renderer::Impl {
       sampler.get2(bounce_pair(bounce, kPairBsdf), r3[0], r3[1]);
       r3[2] = ru;
       GlimmerSample s{};
-      const uint32_t label = c.leaf->instance->sample(ctx, r3, s);
+      const uint32_t label = c.instance->sample(context_for(sd, *c.leaf), r3, s);
       if (label == GLIMMER_LABEL_NONE || !(s.pdf > 0.0f) || !std::isfinite(s.pdf)) break;
       const Vec3 wo = normalize(Vec3(s.wo));
       const Spectrum s_eval(s.eval[0], s.eval[1], s.eval[2]);
@@ -599,12 +626,13 @@ struct Renderer::Impl {
       if (singular) {
         throughput *= s_eval * c.weight * (total_sw / c.sample_weight);
       } else {
-        MixtureEval me = eval_mixture(cs, ctx, wo, chosen);
+        MixtureEval me = eval_mixture(cs, sd, wo, chosen);
         me.f += s_eval * c.weight;
         me.pdf = (me.pdf + s.pdf * c.sample_weight) / total_sw;
         if (!(me.pdf > 0.0f)) break;
         throughput *= me.f / me.pdf;
         mis_ray_pdf = me.pdf;
+        min_ray_pdf = std::min(min_ray_pdf, me.pdf);
       }
       if (!is_finite(throughput)) { ++nan_count; break; }
       if (is_zero(throughput)) break;
@@ -701,6 +729,46 @@ Renderer::Renderer(const scene::Scene &scene, const host::PluginLibrary &plugin,
 
 Renderer::~Renderer() = default;
 
+bool Renderer::probe(float x, float y, GlimmerShadingContext &out) const {
+  const Impl &im = *impl_;
+  Vec3 org, D;
+  Differentials rd;
+  float dir_z = 1.0f;
+  im.camera_ray(x, y, org, D, rd, dir_z);
+  float tmin = 0.0f;
+  for (int bounce = 0; bounce < 16; ++bounce) {
+    SurfaceHit hit;
+    if (!im.intersect(org, D, tmin, kInf, hit)) return false;
+    Impl::ShadingData sd;
+    im.setup_shading(hit, D, sd);
+    im.transfer_differentials(rd, D, hit.t, sd, 0.0f);
+    Impl::sync_front(sd);
+    ClosureSet cs;
+    im.shaders->evaluate(sd.shader, sd.tc, cs);
+    bool all_singular = cs.count > 0;
+    for (int i = 0; i < cs.count; ++i)
+      if (!cs.closures[i].leaf->singular && !cs.closures[i].leaf->emissive) {
+        GlimmerSample s{};
+        const float r3[3] = {0.5f, 0.5f, 0.5f};
+        const uint32_t label = cs.closures[i].leaf->instance->sample(Impl::context_for(sd, *cs.closures[i].leaf), r3, s);
+        if (!(label & GLIMMER_LABEL_SINGULAR)) all_singular = false;
+      }
+    if (!all_singular) {
+      out = sd.ctx;
+      return true;
+    }
+    GlimmerSample s{};
+    const float r3[3] = {0.5f, 0.5f, 0.5f};
+    const ClosureLeaf &leaf = *cs.closures[0].leaf;
+    if (!leaf.instance || leaf.instance->sample(Impl::context_for(sd, leaf), r3, s) == GLIMMER_LABEL_NONE) return false;
+    const Vec3 wo = normalize(Vec3(s.wo));
+    im.propagate_specular(rd, D, wo, sd, s.eta);
+    org = offset_ray_origin(sd.ctx.P, sd.Ng, wo);
+    D = wo;
+  }
+  return false;
+}
+
 RenderResult Renderer::render(const std::function<void(int, int)> &progress) {
   Impl &im = *impl_;
   const auto t0 = Clock::now();
@@ -711,6 +779,9 @@ RenderResult Renderer::render(const std::function<void(int, int)> &progress) {
   const size_t npix = static_cast<size_t>(im.width) * im.height;
   std::vector<Spectrum> sum(npix, Spectrum(0.0f)), albedo(npix, Spectrum(0.0f)), normal(npix, Spectrum(0.0f));
   std::vector<float> depth(npix, 0.0f);
+  // Samples per pixel: an interrupt stops the current pass mid-way, so pixels can differ by one.
+  std::vector<uint32_t> count(npix, 0u);
+  std::atomic<uint64_t> paths{0};
   int x0 = 0, y0 = 0, x1 = im.width, y1 = im.height;
   const auto &r = im.options.region;
   if (r[0] != 0 || r[1] != 0 || r[2] != 0 || r[3] != 0) {
@@ -724,13 +795,16 @@ RenderResult Renderer::render(const std::function<void(int, int)> &progress) {
   int done = 0;
   for (int s = 0; s < im.samples; ++s) {
     tbb::parallel_for(tbb::blocked_range2d<int>(y0, y1, tile, x0, x1, tile), [&](const tbb::blocked_range2d<int> &br) {
-      uint64_t nans = 0;
+      uint64_t nans = 0, traced = 0;
       for (int y = br.rows().begin(); y < br.rows().end(); ++y) {
+        if (im.options.cancel && im.options.cancel->load()) break;  // answer SIGINT within a tile row
         for (int x = br.cols().begin(); x < br.cols().end(); ++x) {
           Impl::PixelAov aov;
           const Spectrum L = im.trace_path(x, y, static_cast<uint32_t>(s), aov, nans);
           const size_t i = static_cast<size_t>(y) * im.width + x;
           sum[i] += L;
+          count[i]++;
+          ++traced;
           if (im.options.aovs) {
             albedo[i] += aov.albedo;
             normal[i] += aov.normal;
@@ -739,6 +813,7 @@ RenderResult Renderer::render(const std::function<void(int, int)> &progress) {
         }
       }
       if (nans) nan_total += nans;
+      paths += traced;
     });
     done = s + 1;
     if (progress) progress(done, im.samples);
@@ -750,14 +825,14 @@ RenderResult Renderer::render(const std::function<void(int, int)> &progress) {
   }
   res.samples_done = done;
   res.nan_samples = nan_total.load();
-  res.paths = static_cast<uint64_t>(done) * static_cast<uint64_t>(x1 - x0) * static_cast<uint64_t>(y1 - y0);
-  const float inv = done > 0 ? 1.0f / static_cast<float>(done) : 0.0f;
+  res.paths = paths.load();
   const float exposure = im.scene.film.exposure;
   res.combined.assign(npix * 4, 0.0f);
   res.albedo.assign(npix * 3, 0.0f);
   res.normal.assign(npix * 3, 0.0f);
   res.depth.assign(npix, 0.0f);
   for (size_t i = 0; i < npix; ++i) {
+    const float inv = count[i] > 0 ? 1.0f / static_cast<float>(count[i]) : 0.0f;
     const Spectrum c = sum[i] * (inv * exposure);
     res.combined[4 * i] = c.x;
     res.combined[4 * i + 1] = c.y;

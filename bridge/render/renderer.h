@@ -61,6 +61,11 @@ class Renderer {
   // Progress callback: (samples done, samples total) after every sample pass.
   RenderResult render(const std::function<void(int, int)> &progress = {});
 
+  // Follows the ray through film position (x, y) (pixels, no jitter, seed path 0) across
+  // singular bounces and returns the shading context at the first non-singular hit, with
+  // its ray-differential footprint. False when the ray escapes. For tests and debugging.
+  bool probe(float x, float y, GlimmerShadingContext &out) const;
+
   const FeatureSet &features() const { return features_; }
   const std::vector<std::string> &warnings() const { return warnings_; }
   const PhaseTimes &times() const { return times_; }

@@ -229,6 +229,8 @@ int ShaderSystem::make_leaf(const ShaderGraph &g, const ShaderNode &n, CompiledS
       }
       const float default_roughness = dielectric ? 0.0f : 0.5f;
       const float roughness = read_input(g, n, "roughness", Spectrum(default_roughness), VectorSource::Generated).constant.x;
+      // Cycles (GlossyBsdfNode/GlassBsdfNode::simplify_settings): an unlinked roughness of 0 is the sharp closure.
+      if (roughness <= 1e-4f && !g.link_to(n.name, "roughness")) distribution = "sharp";
       if (host::find_param(*type, "distribution")) params.set_string("distribution", distribution);
       if (host::find_param(*type, "roughness")) params.set_number("roughness", std::clamp(roughness, 0.0f, 1.0f), 0, 0);
       if (!dielectric) {
@@ -245,6 +247,18 @@ int ShaderSystem::make_leaf(const ShaderGraph &g, const ShaderNode &n, CompiledS
       }
       if (n.attributes.count("rotation")) warn(n.where, t + ": rotation is not supported; ignored");
       leaf->instance = instantiate(*type, params, n.where);
+      if (scene_.integrator.filter_glossy > 0.0f && host::find_param(*type, "roughness")) {
+        // Cycles' bsdf_blur raises alpha to the blur roughness; alpha = roughness^2 here.
+        leaf->blurred.assign(ClosureLeaf::kBlurLevels + 1, leaf->instance);
+        for (int k = 1; k <= ClosureLeaf::kBlurLevels; ++k) {
+          const float alpha = ClosureLeaf::kBlurStep * k;
+          if (std::sqrt(alpha) <= roughness) continue;
+          host::ParamList blurred = params;
+          blurred.set_number("roughness", std::min(std::sqrt(alpha), 1.0f), 0, 0);
+          if (distribution == "sharp" && host::find_param(*type, "distribution")) blurred.set_string("distribution", "ggx");
+          leaf->blurred[k] = instantiate(*type, blurred, n.where);
+        }
+      }
       leaf->singular = (type->flags & GLIMMER_CLOSURE_SINGULAR) != 0;
     }
   } else if (t == "transparent_bsdf") {
@@ -303,6 +317,7 @@ int ShaderSystem::make_leaf(const ShaderGraph &g, const ShaderNode &n, CompiledS
     if (leaf->emissive) out.has_emission = true;
   }
   if (!leaf->emissive && leaf->builtin == BuiltinClosure::None) out.has_bsdf = true;
+  if (leaf->type && (leaf->type->flags & GLIMMER_CLOSURE_TRANSMISSIVE)) leaf->front_normal = true;
   ClosureTreeNode node;
   node.kind = ClosureTreeNode::Kind::Leaf;
   node.leaf = static_cast<int>(leaves_.size());
@@ -470,7 +485,7 @@ void ShaderSystem::evaluate(int compiled, const TexCoords &tc, ClosureSet &out) 
         out.transparent += w;
         continue;
       }
-      out.add(ActiveClosure{&leaf, w, leaf.emissive ? 0.0f : std::fabs(average(w))});
+      out.add(ActiveClosure{&leaf, leaf.instance, w, leaf.emissive ? 0.0f : std::fabs(average(w))});
       continue;
     }
     if (top + 2 > 64) continue;

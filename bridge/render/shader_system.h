@@ -56,6 +56,14 @@ struct ClosureLeaf {
   float strength = 1;  // extra scalar on the weight
   bool emissive = false;
   bool singular = false;
+  // Transmissive closures decide the side (eta or 1/eta) from wi.N, so they
+  // get the front-face normal instead of the one flipped toward wi.
+  bool front_normal = false;
+  // filter_glossy: variants with alpha >= kBlurStep * k (k = 1..kBlurLevels), created only
+  // when the scene sets filter_glossy > 0 (closure instances are immutable while rendering).
+  static constexpr int kBlurLevels = 10;
+  static constexpr float kBlurStep = 0.05f;
+  std::vector<const host::ClosureInstance *> blurred;  // empty or kBlurLevels + 1 (index 0 = unblurred)
   std::string node;    // for messages
 };
 
@@ -78,6 +86,7 @@ struct CompiledShader {
 // One weighted closure at a shading point.
 struct ActiveClosure {
   const ClosureLeaf *leaf;
+  const host::ClosureInstance *instance;  // leaf->instance, or a blurred variant (filter_glossy)
   Spectrum weight;
   float sample_weight;
 };

@@ -6,7 +6,8 @@ multilayer EXR (ViewLayer.Combined.RGBA) whose red channel is the fraction
 of samples done, written with oiiotool.
 
 Environment: FAKE_SAMPLE_SECONDS (default 0.05), FAKE_IGNORE_TERM=1 (ignore
-SIGTERM, to test the kill fallback), FAKE_LOG (append the argv here).
+SIGTERM, to test the kill fallback), FAKE_FAIL=1 (exit 1 with an error message), FAKE_LOG (append the argv here), FAKE_PROGRESS_FILE (rewritten with the number of
+samples done after each sample, so tests can cancel at a sample count rather than a time).
 """
 import os
 import signal
@@ -37,6 +38,9 @@ def main(argv):
     if "--help" in argv:
         print("usage: glimmer render scene.xml -o out.exr")
         return 0
+    if os.environ.get("FAKE_FAIL") == "1":
+        print("glimmer: error: scene.xml:3: fake failure for the tests", file=sys.stderr)
+        return 1
     scene = argv[2]
     opts = dict(zip(argv[3::2], argv[4::2]))
     ET.parse(scene)  # the exported scene must at least be well-formed XML
@@ -58,6 +62,9 @@ def main(argv):
         time.sleep(delay)
         state["done"] = i
         print("Sample %d/%d" % (i, samples), flush=True)
+        if os.environ.get("FAKE_PROGRESS_FILE"):
+            with open(os.environ["FAKE_PROGRESS_FILE"], "w") as f:
+                f.write(str(i))
     write_image(out, width, height, 1.0)
     return 0
 

@@ -7,7 +7,7 @@ Default output: <repo>/build/demo/demo.blend. The script also links the addon
 into <repo>/build/blender_scripts/addons/ and prints the command that renders
 the file with the Glimmer engine (frame 1 -> <output folder>/demo_glint_0001.png):
 
-    BLENDER_USER_SCRIPTS=<repo>/build/blender_scripts blender -b demo.blend --addons glimmer -E GLIMMER -f 1
+    BLENDER_USER_SCRIPTS=<repo>/build/blender_scripts blender -b --addons glimmer demo.blend -E GLIMMER -f 1
 
 (With the addon installed from the zip, `blender -b demo.blend -E GLIMMER -f 1` is enough.)
 """
@@ -100,12 +100,12 @@ def build_scene(opts):
     scene.camera = cam
 
     key = bpy.data.objects.new("Key", bpy.data.lights.new("Key", "POINT"))
-    key.data.energy = 2000.0
+    key.data.energy = 600.0
     key.data.shadow_soft_size = 0.05
     key.location = (2.5, -3.0, 5.0)
     scene.collection.objects.link(key)
     fill = bpy.data.objects.new("Fill", bpy.data.lights.new("Fill", "AREA"))
-    fill.data.energy = 300.0
+    fill.data.energy = 150.0
     fill.data.size = 3.0
     fill.location = (-4.0, -2.0, 4.0)
     fill.rotation_euler = (0.0, math.radians(-45.0), 0.0)
@@ -162,7 +162,7 @@ def main():
     bpy.ops.wm.save_as_mainfile(filepath=output)
     scripts = link_addon_for_command_line()
     print("demo: wrote %s" % output)
-    print("demo: render it with\n  BLENDER_USER_SCRIPTS=%s blender -b %s --addons glimmer -E GLIMMER -f 1"
+    print("demo: render it with\n  BLENDER_USER_SCRIPTS=%s blender -b --addons glimmer %s -E GLIMMER -f 1"
           % (scripts, output))
     print("demo: (or, with the addon installed and enabled: blender -b %s -E GLIMMER -f 1)" % output)
 

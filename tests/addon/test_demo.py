@@ -1,6 +1,7 @@
-"""Acceptance path: make_demo_blend.py writes a .blend, `blender -b demo.blend
---addons glimmer -E GLIMMER -f 1` renders it to PNG, and the glint sphere is
-visible (lit, distinct from the sky behind it). Skipped (77) only while
+"""Acceptance path: make_demo_blend.py writes a .blend, `blender -b --addons
+glimmer demo.blend -E GLIMMER -f 1` renders it to PNG, and the glint sphere is
+visible (lit, distinct from the sky behind it, and sparkling once the DSO has
+the glint closure). Skipped (77) only while
 `glimmer render` does not exist."""
 import os
 import subprocess
@@ -29,7 +30,7 @@ subprocess.run([blender, "-b", "--factory-startup", "--python-exit-code", "1", "
                 os.path.join(util.HERE, "make_demo_blend.py"), "--", "--output", blend,
                 "--width", "240", "--height", "160", "--samples", "16"], check=True)
 env = dict(os.environ, BLENDER_USER_SCRIPTS=os.path.join(util.REPO, "build", "blender_scripts"))
-render = subprocess.run([blender, "-b", blend, "--addons", "glimmer", "-E", "GLIMMER", "-f", "1"], env=env,
+render = subprocess.run([blender, "-b", "--addons", "glimmer", blend, "-E", "GLIMMER", "-f", "1"], env=env,
                         stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
 log = render.stdout.decode(errors="replace")
 print(log[-3000:])
@@ -50,4 +51,12 @@ sky = luminance[height - 8:, :8]  # top-left corner: sky
 print("glint sphere region: mean %.4f max %.4f; sky %.4f" % (region.mean(), region.max(), sky.mean()))
 check(region.max() > 0.05, "the glint sphere reflects the light (max luminance %.4f)" % region.max())
 check(abs(region.mean() - sky.mean()) > 0.01, "the glint sphere stands out from the sky")
+schema, _, _ = mod.current_schema()
+if any(c["name"] == "glint" and c.get("source") == "dso" for c in schema["closures"]):
+    # The glint closure renders sparkles: a few very bright pixels over a darker base, unlike the smooth
+    # shading of a diffuse fallback.
+    wide = luminance[cy - 12:cy + 13, cx - 12:cx + 13]
+    p99, median = np.percentile(wide, 99), np.median(wide)
+    print("glint sparkle contrast: p99 %.3f / median %.3f = %.2f" % (p99, median, p99 / max(median, 1e-6)))
+    check(p99 > 2.0 * median, "glints visible: 99th percentile %.3f > 2 x median %.3f" % (p99, median))
 util.done("test_demo")

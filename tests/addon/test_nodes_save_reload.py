@@ -51,14 +51,30 @@ for node, closure_name in ((glint, "glint"), (frosted, "frosted_glass")):
     check(any(n.bl_idname == "NodeGroupOutput" and n.inputs["BSDF"].is_linked for n in node.node_tree.nodes),
           "fallback wired to the group output")
 
-# Enum parameters are node properties.
-check(glint.distribution == "beckmann", "enum default")
-glint.distribution = "ggx"
-frosted.method = "sampled"
+# Enum parameters are node properties (schema default, then the other choice).
+glint_schema = mod.schema.closure(schema, "glint")
+frosted_schema = mod.schema.closure(schema, "frosted_glass")
+
+
+def enum_param(closure):
+    return next(p for p in closure["params"] if p["type"] == "enum")
+
+
+glint_enum, frosted_enum = enum_param(glint_schema), enum_param(frosted_schema)
+glint_prop, frosted_prop = mod.nodes.property_name(glint_enum["name"]), mod.nodes.property_name(frosted_enum["name"])
+check(getattr(glint, glint_prop) == glint_enum["default"], "enum default")
+glint_choice = next(c for c in glint_enum["choices"] if c != glint_enum["default"])
+frosted_choice = next(c for c in frosted_enum["choices"] if c != frosted_enum["default"])
+setattr(glint, glint_prop, glint_choice)
+setattr(frosted, frosted_prop, frosted_choice)
+# A further float parameter of the glint closure (the schema decides which), set inside its range.
+extra = next(p for p in glint_schema["params"] if p["type"] == "float" and p["name"] not in ("roughness", "density"))
+extra_socket = mod.schema.socket_name(extra["name"])
+extra_value = min(extra["max"], extra["default"] * 1.5 + 0.25)
 
 glint.inputs["Roughness"].default_value = 0.123
 glint.inputs["Density"].default_value = 54321.0
-glint.inputs["Cone Angle"].default_value = 4.5
+glint.inputs[extra_socket].default_value = extra_value
 frosted.inputs["IOR"].default_value = 1.33
 frosted.inputs["Color"].default_value = (0.9, 0.8, 0.7, 1.0)
 mix.inputs["Fac"].default_value = 0.25
@@ -89,11 +105,12 @@ check(glint.bl_idname == "GlimmerNodeGlintBsdf" and frosted.bl_idname == "Glimme
 check(glint.node_tree is not None and glint.node_tree.name == ".Glimmer Glint BSDF", "inner group survives")
 check(math.isclose(glint.inputs["Roughness"].default_value, 0.123, rel_tol=1e-6), "roughness value")
 check(math.isclose(glint.inputs["Density"].default_value, 54321.0, rel_tol=1e-6), "density value")
-check(math.isclose(glint.inputs["Cone Angle"].default_value, 4.5, rel_tol=1e-6), "cone angle value")
+check(math.isclose(glint.inputs[extra_socket].default_value, extra_value, rel_tol=1e-6), "%s value" % extra_socket)
 check(math.isclose(frosted.inputs["IOR"].default_value, 1.33, rel_tol=1e-6), "ior value")
 check(all(math.isclose(a, b, rel_tol=1e-6) for a, b in zip(frosted.inputs["Color"].default_value, (0.9, 0.8, 0.7))),
       "colour value")
-check(glint.distribution == "ggx" and frosted.method == "sampled", "enum properties survive")
+check(getattr(glint, glint_prop) == glint_choice and getattr(frosted, frosted_prop) == frosted_choice,
+      "enum properties survive")
 check(glint.inputs["Color"].is_linked and glint.inputs["Color"].links[0].from_node.name == "checker",
       "texture link survives")
 check(mix.inputs[1].links[0].from_node == glint and mix.inputs[2].links[0].from_node == frosted, "shader links")

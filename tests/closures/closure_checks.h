@@ -6,6 +6,7 @@
 // Typical use (see test_diffuse.cpp):
 //   auto diffuse = glimmer::test::make_closure("diffuse", {{"color", "1,1,1"}});
 //   EXPECT_CLOSURE_FURNACE(*diffuse, Vec3(0.3f, 0, 0.95f), Spectrum(1.0f), 1e-4);
+//   EXPECT_CLOSURE_FURNACE_MATCHES_QUADRATURE(*closure, wi, 1e-4);  // no closed form
 //   glimmer::test::expect_chi2_family({{"normal", diffuse, Vec3(0, 0, 1)}, ...});
 //   EXPECT_CLOSURE_CONSISTENT(*diffuse, wi);
 //   EXPECT_CLOSURE_STRESS_CLEAN({diffuse.get(), ...});
@@ -119,6 +120,23 @@ inline ::testing::AssertionResult furnace_matches(const host::ClosureInstance &i
 #define EXPECT_CLOSURE_FURNACE(instance, where, expected, abs_tolerance) \
   EXPECT_TRUE(::glimmer::test::furnace_matches((instance), (where), (expected), (abs_tolerance)))
 
+// The sampled furnace against the quadrature of eval() (lab::albedo_quadrature):
+// proves sample()'s weights are unbiased for closures without a closed-form
+// albedo. `abs_tolerance` covers the quadrature error of narrow lobes.
+inline ::testing::AssertionResult furnace_matches_quadrature(const host::ClosureInstance &instance,
+                                                             const GlimmerShadingContext &ctx, double abs_tolerance,
+                                                             int theta_steps = 512, int phi_steps = 1024) {
+  const Spectrum reference = lab::albedo_quadrature(instance, ctx, theta_steps, phi_steps);
+  return furnace_matches(instance, ctx, reference, abs_tolerance) << " (reference: quadrature of eval over "
+                                                                  << theta_steps << " x " << phi_steps << ")";
+}
+inline ::testing::AssertionResult furnace_matches_quadrature(const host::ClosureInstance &instance, const Vec3 &wi,
+                                                             double abs_tolerance) {
+  return furnace_matches_quadrature(instance, host::make_local_context(wi), abs_tolerance);
+}
+#define EXPECT_CLOSURE_FURNACE_MATCHES_QUADRATURE(instance, where, abs_tolerance) \
+  EXPECT_TRUE(::glimmer::test::furnace_matches_quadrature((instance), (where), (abs_tolerance)))
+
 // ---- Chi-square ------------------------------------------------------------------
 struct Chi2Config {
   std::string label;
@@ -197,7 +215,8 @@ inline ::testing::AssertionResult stress_clean(const std::vector<const host::Clo
 // ---- Tampering (negative controls) -----------------------------------------------------
 // A copy of a closure type whose entry points can be replaced, so a test can
 // prove that a check FAILS for a broken closure. The replacement functions
-// reach the original through TamperedType::original().
+// reach the original through TamperedType::original(). One tampered type at a
+// time: constructing another one redirects original() to its type.
 class TamperedType {
  public:
   explicit TamperedType(const GlimmerClosureType &original) : type_(original) { original_ = &original; }

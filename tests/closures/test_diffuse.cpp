@@ -21,6 +21,7 @@ TEST(Diffuse, FurnaceEqualsColourAndQuadratureReference) {
       // Brute-force reference from eval() alone (Simpson over the sphere).
       const Spectrum reference = lab::albedo_quadrature(*diffuse, host::make_local_context(wi));
       for (int c = 0; c < 3; ++c) EXPECT_NEAR(reference[c], color[c], 1e-5);
+      EXPECT_CLOSURE_FURNACE_MATCHES_QUADRATURE(*diffuse, wi, 1e-5);
     }
   }
 }
@@ -160,6 +161,8 @@ TEST(DiffuseNegativeControl, FurnaceRejectsLossyClosure) {
   tampered.type().sample = &lossy_sample;
   const auto broken = make_closure(tampered.type(), {{"color", "1,1,1"}});
   EXPECT_FALSE(furnace_matches(*broken, Vec3(0.3f, 0.0f, 0.95f), Spectrum(1.0f), 1e-5));
+  // eval() still integrates to 1, so the quadrature reference exposes it too.
+  EXPECT_FALSE(furnace_matches_quadrature(*broken, Vec3(0.3f, 0.0f, 0.95f), 1e-4));
 }
 
 // sample() reports a pdf 1 % off the one eval() gives.

@@ -43,6 +43,31 @@ TEST(LabStatistics, SidakCorrection) {
   EXPECT_LT(lab::sidak_significance(0.01, 6), 0.01 / 5.9);
 }
 
+// Under the null hypothesis (a correct sampler) p-values are uniform: over 40
+// independent seeds about 2 fall below 0.05 and about 20 above 0.5. A test
+// that rejected correct closures too often, or never could reject, fails here.
+// (Fixed seeds: the outcome is deterministic; the bounds are the binomial
+// 99.9 % ranges.)
+TEST(LabStatistics, Chi2PValuesAreUniformForACorrectSampler) {
+  const auto emission = make_closure("emission");
+  const auto ctx = host::make_local_context(Vec3(0, 0, 1));
+  lab::Chi2Options options;
+  options.samples = 100000;
+  options.theta_bins = 20;
+  options.phi_bins = 40;
+  int below_005 = 0, above_05 = 0;
+  for (uint64_t seed = 100; seed < 140; ++seed) {
+    options.seed = seed;
+    const double p = lab::chi2_test(*emission, ctx, options).p_value;
+    below_005 += p < 0.05;
+    above_05 += p > 0.5;
+  }
+  std::printf("p < 0.05: %d of 40, p > 0.5: %d of 40\n", below_005, above_05);
+  EXPECT_LE(below_005, 8);
+  EXPECT_GE(above_05, 9);
+  EXPECT_LE(above_05, 31);
+}
+
 // Random numbers are uniform: mean 1/2 and variance 1/12 per dimension.
 TEST(LabRandom, SampleNumbersAreUniform) {
   constexpr int n = 200000;

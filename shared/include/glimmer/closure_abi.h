@@ -107,7 +107,11 @@ typedef struct GlimmerHostServices {
 typedef struct GlimmerShadingContext {
   GlimmerVec3 wi; /* toward the viewer, unit */
   GlimmerVec3 P;
-  GlimmerVec3 N;  /* shading normal, unit, on the side of wi for reflection */
+  /* Shading normal, unit. For closures without GLIMMER_CLOSURE_TRANSMISSIVE it
+   * is flipped toward wi (as Cycles does). TRANSMISSIVE closures get the
+   * outward (front-face) normal, so dot(wi, N) < 0 means the path arrives
+   * from inside the object and the closure uses 1/eta. */
+  GlimmerVec3 N;
   GlimmerVec3 Ng; /* geometric normal, unit */
   GlimmerVec3 T;  /* tangent, unit, orthogonal to N (anisotropy, glint uv frame) */
   float uv[2];

@@ -1,0 +1,89 @@
+// Helpers for the renderer tests: temporary scene files, in-process renders,
+// running the CLI, and noise-aware image statistics.
+#pragma once
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <unistd.h>
+
+#include "host/plugin_library.h"
+#include "render/renderer.h"
+#include "scene/xml_loader.h"
+
+namespace glimmer::test {
+
+inline host::PluginLibrary &plugin() {
+  static std::unique_ptr<host::PluginLibrary> lib = host::PluginLibrary::load(GLIMMER_TEST_PLUGIN_PATH);
+  return *lib;
+}
+
+// One folder per test process: ctest runs tests of this executable in parallel processes.
+inline std::filesystem::path temp_dir() {
+  const auto dir = std::filesystem::path(GLIMMER_TEST_BINARY_DIR) / "test_bridge_tmp" / std::to_string(::getpid());
+  std::filesystem::create_directories(dir);
+  return dir;
+}
+
+inline std::string write_file(const std::string &name, const std::string &text) {
+  const auto path = temp_dir() / name;
+  std::ofstream(path) << text;
+  return path.string();
+}
+
+inline render::RenderResult render_scene(const std::string &path, render::RenderOptions opt) {
+  const scene::Scene scene = scene::load_scene(path);
+  render::Renderer renderer(scene, plugin(), opt);
+  return renderer.render();
+}
+
+// Runs the CLI; returns its exit code and fills `output` with stdout+stderr.
+inline int run_cli(const std::string &args, std::string &output) {
+  const auto log = temp_dir() / "cli_output.txt";
+  const std::string cmd = std::string("'") + GLIMMER_TEST_CLI_PATH + "' " + args + " > '" + log.string() + "' 2>&1";
+  const int status = std::system(cmd.c_str());
+  std::ifstream in(log);
+  output.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+// Mean of channel c over a rectangle of an RGBA image.
+inline double mean_channel(const render::RenderResult &r, int c, int x0 = 0, int y0 = 0, int x1 = -1, int y1 = -1) {
+  if (x1 < 0) x1 = r.width;
+  if (y1 < 0) y1 = r.height;
+  double s = 0.0;
+  for (int y = y0; y < y1; ++y)
+    for (int x = x0; x < x1; ++x) s += r.combined[4 * (static_cast<size_t>(y) * r.width + x) + c];
+  return s / ((x1 - x0) * (y1 - y0));
+}
+
+// z-score of the mean per-pixel difference between two independent renders of
+// the same expectation over a rectangle: mean(D) / (std(D) / sqrt(n)).
+// Pixels use independent random numbers, so std(D) measures the noise of both.
+inline double difference_z(const render::RenderResult &a, const render::RenderResult &b, int c, int x0, int y0, int x1,
+                           int y1) {
+  std::vector<double> d;
+  for (int y = y0; y < y1; ++y)
+    for (int x = x0; x < x1; ++x) {
+      const size_t i = 4 * (static_cast<size_t>(y) * a.width + x) + c;
+      d.push_back(static_cast<double>(a.combined[i]) - b.combined[i]);
+    }
+  double m = 0.0;
+  for (double v : d) m += v;
+  m /= d.size();
+  double var = 0.0;
+  for (double v : d) var += (v - m) * (v - m);
+  var /= (d.size() - 1);
+  const double se = std::sqrt(var / d.size());
+  return se > 0.0 ? m / se : (m == 0.0 ? 0.0 : 1e9);
+}
+
+}  // namespace glimmer::test
