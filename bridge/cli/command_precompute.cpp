@@ -32,50 +32,7 @@ namespace {
 using namespace glimmer::microfacet;
 namespace grid = glimmer::microfacet::energy_grid;
 
-constexpr int kSplitTerms = 16;
-
-// Cubic c0 + c1 x + c2 x^2 + c3 x^3 minimizing sum_k ((c(x_k) - p(x_k)) / p(x_k))^2
-// over x_k in [0, 1], with F0 = 1 pinned by a large weight (white furnace).
-std::array<double, 4> fit_cubic_relative(const std::array<double, kSplitTerms> &w) {
-  double ata[4][4] = {}, atb[4] = {};
-  const int samples = 65;
-  double p1 = 0.0;
-  for (double v : w) p1 += v;
-  for (int k = 0; k < samples; ++k) {
-    const double x = double(k) / (samples - 1);
-    double p = 0.0, xp = 1.0;
-    for (int i = 0; i < kSplitTerms; ++i, xp *= x) p += w[i] * xp;
-    const double floor_p = std::max(p, 1e-6 * p1 + 1e-12);
-    double weight = 1.0 / (floor_p * floor_p);
-    if (k == samples - 1) weight *= 1e4;
-    const double basis[4] = {1.0, x, x * x, x * x * x};
-    for (int r = 0; r < 4; ++r) {
-      atb[r] += weight * basis[r] * p;
-      for (int c = 0; c < 4; ++c) ata[r][c] += weight * basis[r] * basis[c];
-    }
-  }
-  // Gaussian elimination with partial pivoting.
-  for (int col = 0; col < 4; ++col) {
-    int pivot = col;
-    for (int r = col + 1; r < 4; ++r)
-      if (std::fabs(ata[r][col]) > std::fabs(ata[pivot][col])) pivot = r;
-    std::swap(ata[col], ata[pivot]);
-    std::swap(atb[col], atb[pivot]);
-    if (std::fabs(ata[col][col]) < 1e-300) continue;
-    for (int r = col + 1; r < 4; ++r) {
-      const double f = ata[r][col] / ata[col][col];
-      for (int c = col; c < 4; ++c) ata[r][c] -= f * ata[col][c];
-      atb[r] -= f * atb[col];
-    }
-  }
-  std::array<double, 4> c{};
-  for (int r = 3; r >= 0; --r) {
-    double s = atb[r];
-    for (int k = r + 1; k < 4; ++k) s -= ata[r][k] * c[k];
-    c[r] = std::fabs(ata[r][r]) < 1e-300 ? 0.0 : s / ata[r][r];
-  }
-  return c;
-}
+constexpr int kSplitTerms = kFresnelSplitTerms;
 
 // E_avg = 2 int_0^1 E(mu) mu dmu = int_0^1 4 t^3 E(t^2) dt (mu = t^2): trapezoid
 // on the nodes, normalized by the same rule applied to E = 1 (exact for constant E).
@@ -121,6 +78,8 @@ int run_energy(const EnergyOptions &opt, const std::string &command_line) {
   if (opt.strata < 2 || opt.walks < 16) throw CliError(kExitBadInput, "--strata must be >= 2 and --walks >= 16");
   const auto start = std::chrono::steady_clock::now();
   constexpr int nm = grid::kMuCount, na = grid::kAlphaCount, ne = grid::kEtaCount;
+  // Grazing cells (mu < 0.1) have the largest weight variance: twice the strata per axis.
+  auto strata_for = [&](int m) { return grid::mu_of_node(m) < 0.1f ? 2 * opt.strata : opt.strata; };
   std::vector<float> E(na * nm), Eavg(na), Fms(na * nm * 4);
   std::vector<float> G(ne * na * nm), Ginv(ne * na * nm), Gavg(ne * na), Ginvavg(ne * na);
 
@@ -129,36 +88,19 @@ int run_energy(const EnergyOptions &opt, const std::string &command_line) {
     const int a = cell / nm, m = cell % nm;
     WalkRng rng(hash_u32x3(opt.seed, 1u, uint32_t(cell)));
     E[cell] = float(single_scatter_albedo_conductor(Distribution::GGX, grid::mu_of_node(m), grid::alpha_of_node(a),
-                                                    opt.strata, rng));
+                                                    strata_for(m), rng));
   });
   for (int a = 0; a < na; ++a) Eavg[a] = average_over_mu(&E[a * nm]);
 
   tbb::parallel_for(0, na * nm, [&](int cell) {
     const int a = cell / nm, m = cell % nm;
     const float mu = grid::mu_of_node(m), alpha = grid::alpha_of_node(a);
-    const Vec3 wi(std::sqrt(std::max(0.0f, 1.0f - mu * mu)), 0.0f, mu);
-    const WalkSurface surface{alpha, alpha};
     WalkRng rng(hash_u32x3(opt.seed, 2u, uint32_t(cell)));
-    std::array<double, kSplitTerms> w{};
-    long multiple = 0;
-    for (int n = 0; n < opt.walks; ++n) {
-      FresnelSplit<kSplitTerms> split;
-      int order = 0;
-      walk_conductor(wi, surface, rng, order, [&](float c) { split.bounce(c); });
-      if (order >= 2) {
-        ++multiple;
-        for (int i = 0; i < kSplitTerms; ++i) w[i] += split.e[i];
-      }
-    }
-    // Ratio estimator: scale so that sum(w) = 1 - E exactly (F0 = 1 furnace).
-    double sum = 0.0;
-    for (double v : w) sum += v;
-    const double target = std::max(0.0, 1.0 - double(E[cell]));
-    const double scale = sum > 0.0 ? target / sum : 0.0;
-    for (double &v : w) v *= scale;
-    const auto c = fit_cubic_relative(w);
+    // Ratio estimator: scaled so that E_Fms(F0 = 1) = 1 - E exactly (white furnace).
+    double a1 = 0.0, b1 = 0.0;
+    const auto w = fresnel_split_polynomial(mu, alpha, opt.walks, 1.0 - double(E[cell]), rng, &a1, &b1);
+    const auto c = fit_fresnel_split_cubic(w, a1, b1);
     for (int k = 0; k < 4; ++k) Fms[cell * 4 + k] = float(c[k]);
-    (void)multiple;
   });
 
   // Dielectric R + T, both sides.
@@ -166,8 +108,8 @@ int run_energy(const EnergyOptions &opt, const std::string &command_line) {
     const int e = cell / (na * nm), a = (cell / nm) % na, m = cell % nm;
     const float eta = grid::eta_of_node(e), mu = grid::mu_of_node(m), alpha = grid::alpha_of_node(a);
     WalkRng rng(hash_u32x3(opt.seed, 3u, uint32_t(cell)));
-    G[cell] = float(single_scatter_albedo_dielectric(Distribution::GGX, mu, alpha, eta, opt.strata, rng));
-    Ginv[cell] = float(single_scatter_albedo_dielectric(Distribution::GGX, mu, alpha, 1.0f / eta, opt.strata, rng));
+    G[cell] = float(single_scatter_albedo_dielectric(Distribution::GGX, mu, alpha, eta, strata_for(m), rng));
+    Ginv[cell] = float(single_scatter_albedo_dielectric(Distribution::GGX, mu, alpha, 1.0f / eta, strata_for(m), rng));
   });
   for (int i = 0; i < ne * na; ++i) {
     Gavg[i] = average_over_mu(&G[i * nm]);
@@ -179,9 +121,10 @@ int run_energy(const EnergyOptions &opt, const std::string &command_line) {
   out << "// GENERATED by `glimmer precompute energy`; do not edit.\n"
       << "// Command: " << command_line << "\n"
       << "// Samples: single-scatter albedo cells use " << opt.strata << "x" << opt.strata
-      << " stratified visible-normal samples (" << opt.strata * opt.strata << " per cell);\n"
+      << " stratified visible-normal samples (" << opt.strata * opt.strata << " per cell; "
+      << 4 * opt.strata * opt.strata << " for mu < 0.1);\n"
       << "// E_Fms cells use " << opt.walks << " Heitz 2016 random walks each, " << kSplitTerms
-      << " Fresnel-split terms, ratio-scaled to 1 - E, cubic refit (min. relative error).\n"
+      << " Fresnel-split terms, ratio-scaled to 1 - E, cubic refit, minimax error relative to the walk albedo (F0 = 1 exact).\n"
       << "// Grid: glimmer/microfacet_energy_grid.h (mu " << nm << " x alpha " << na << " x eta " << ne << "), seed "
       << opt.seed << ", generated in " << int(seconds + 0.5) << " s.\n"
       << "#include \"tables/microfacet_energy.h\"\n\nnamespace glimmer::tables {\n\n";

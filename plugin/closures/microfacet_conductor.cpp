@@ -43,7 +43,7 @@ class MicrofacetConductorClosure {
         {"roughness", GLIMMER_PARAM_FLOAT, {0.5f, 0, 0}, 0.0f, 1.0f, nullptr, nullptr,
          "Cycles roughness in [0, 1]; alpha = roughness^2"},
         {"anisotropy", GLIMMER_PARAM_FLOAT, {0.0f, 0, 0}, -1.0f, 1.0f, nullptr, nullptr,
-         "anisotropy in [-1, 1] (Cycles 3.4 mapping; > 0 stretches the highlight along the tangent's normal plane)"},
+         "anisotropy in [-1, 1] (Cycles 3.4 mapping: A > 0 gives alpha_x = a (1 - A), alpha_y = a / (1 - A); tangent = x)"},
         {"f0", GLIMMER_PARAM_COLOR, {1.0f, 1.0f, 1.0f}, 0.0f, 1.0f, nullptr, nullptr,
          "normal-incidence reflectance per RGB channel (Schlick Fresnel); 1,1,1 = Fresnel-free"},
     }};
@@ -60,6 +60,7 @@ class MicrofacetConductorClosure {
     c->alpha_table_ = std::min(std::sqrt(a.x * a.y), 1.0f);
     c->f0_ = p.get_color("f0");
     c->white_ = c->f0_.x == 1.0f && c->f0_.y == 1.0f && c->f0_.z == 1.0f;
+    c->rows_.build(c->alpha_table_);
     if (c->mode_ == kMultiGgx) c->e_avg_ = tables::ggx_E_avg(c->alpha_table_);
     return c;
   }
@@ -69,15 +70,15 @@ class MicrofacetConductorClosure {
   // Probability of sampling the multiple-scattering lobe: its Fresnel-free share 1 - E(mu_i).
   float ms_probability(float mu_i) const {
     if (mode_ != kMultiGgx || !(e_avg_ < 1.0f)) return 0.0f;
-    return clamp(1.0f - tables::ggx_E(mu_i, alpha_table_), 0.0f, 1.0f);
+    return clamp(1.0f - rows_.E(mu_i), 0.0f, 1.0f);
   }
 
   // Multiple-scattering lobe f_ms * cos(wo).
   Spectrum ms_eval(float mu_i, float mu_o) const {
     const float denom = kPi * (1.0f - e_avg_);
     if (!(denom > 1e-7f)) return Spectrum(0.0f);
-    const float shape = std::max(1.0f - tables::ggx_E(mu_o, alpha_table_), 0.0f) / denom;
-    return tables::ggx_E_Fms(mu_i, alpha_table_, f0_) * (shape * mu_o);
+    const float shape = std::max(1.0f - rows_.E(mu_o), 0.0f) / denom;
+    return rows_.E_Fms(mu_i, f0_) * (shape * mu_o);
   }
 
   // Single-scatter f * cos(wo) and the visible-normal pdf, given wh.
@@ -138,9 +139,9 @@ class MicrofacetConductorClosure {
     const float mu = clamp(sp.wi.z, 0.0f, 1.0f);
     const Spectrum f = fresnel(mu);
     if (mode_ == kSharp) return f;
-    const Spectrum single = f * tables::ggx_E(mu, alpha_table_);
+    const Spectrum single = f * rows_.E(mu);
     if (mode_ != kMultiGgx) return single;
-    return single + tables::ggx_E_Fms(mu, alpha_table_, f0_);
+    return single + rows_.E_Fms(mu, f0_);
   }
 
  private:
@@ -149,6 +150,7 @@ class MicrofacetConductorClosure {
   float ax_ = 0.25f, ay_ = 0.25f, alpha_table_ = 0.25f, e_avg_ = 1.0f;
   Spectrum f0_{1.0f};
   bool white_ = true;
+  tables::ConductorRows rows_{};  // E(mu), E_Fms(mu) at this alpha
 };
 
 GLIMMER_REGISTER_CLOSURE(MicrofacetConductorClosure)

@@ -67,6 +67,8 @@ class MicrofacetDielectricClosure {
     c->ior_ = ior;
     c->refraction_only_ = p.get_enum("mode") == 1;
     c->compensate_ = c->mode_ == kMultiGgx && !c->refraction_only_;
+    c->e_outside_.build(c->alpha_table_, c->ior_);
+    c->e_inside_.build(c->alpha_table_, 1.0f / c->ior_);
     return c;
   }
 
@@ -77,7 +79,8 @@ class MicrofacetDielectricClosure {
       if (refraction_only_) return {};
       Vec3 wh;
       if (!mf::half_vector_reflect(wi, wo, wh)) return {};
-      const float cos_ih = dot(wi, wh);
+      // Symmetric cosine (wi.wh = wo.wh exactly; averaging keeps f reciprocal to rounding).
+      const float cos_ih = 0.5f * (dot(wi, wh) + dot(wo, wh));
       if (!(cos_ih > 0.0f)) return {};
       const float F = mf::fresnel_dielectric(cos_ih, eta);
       const float d = mf::D(dist_, wh, ax_, ay_);
@@ -90,7 +93,8 @@ class MicrofacetDielectricClosure {
       if (!mf::half_vector_transmit(wi, wo, eta, wh, &len2)) return {};
       const float cos_ih = dot(wi, wh), cos_oh = dot(wo, wh);
       if (!(cos_ih > 0.0f) || !(cos_oh < 0.0f)) return {};
-      const float F = mf::fresnel_dielectric(cos_ih, eta);
+      // Fresnel of the refraction pair itself (reciprocal; equal to F(cos_ih) up to rounding).
+      const float F = mf::fresnel_dielectric_pair(cos_ih, -cos_oh, eta);
       const float T = refraction_only_ ? (F < 1.0f ? 1.0f : 0.0f) : 1.0f - F;
       if (!(T > 0.0f)) return {};
       const float d = mf::D(dist_, wh, ax_, ay_);
@@ -103,8 +107,9 @@ class MicrofacetDielectricClosure {
     return e;
   }
 
+  // Single-scatter R + T albedo at mu on the side whose relative IOR is eta.
   float compensation(float mu, float eta) const {
-    return std::max(tables::ggx_glass_E(mu, alpha_table_, eta), 1e-3f);
+    return std::max(eta == ior_ ? e_outside_(mu) : e_inside_(mu), 1e-3f);
   }
 
   LocalEval eval(const ShadingPoint &sp, const Vec3 &wo) const {
@@ -164,7 +169,7 @@ class MicrofacetDielectricClosure {
     if (mode_ == kSharp || compensate_) return Spectrum(1.0f);
     const float mu = std::fabs(sp.wi.z);
     const float eta = sp.wi.z > 0.0f ? ior_ : 1.0f / ior_;
-    return Spectrum(tables::ggx_glass_E(mu, alpha_table_, eta));
+    return Spectrum(compensation(mu, eta));
   }
 
  private:
@@ -172,6 +177,7 @@ class MicrofacetDielectricClosure {
   mf::Distribution dist_ = mf::Distribution::GGX;
   float ax_ = 0.25f, ay_ = 0.25f, alpha_table_ = 0.25f, ior_ = 1.45f;
   bool refraction_only_ = false, compensate_ = false;
+  tables::GlassRow e_outside_{}, e_inside_{};  // E(mu) at this alpha for eta = ior and 1 / ior
 };
 
 GLIMMER_REGISTER_CLOSURE(MicrofacetDielectricClosure)

@@ -3,6 +3,8 @@
 // interpolated lookups. Grid: glimmer/microfacet_energy_grid.h.
 #pragma once
 
+#include <algorithm>
+
 #include "glimmer/math.h"
 #include "glimmer/microfacet_energy_grid.h"
 
@@ -24,12 +26,38 @@ extern const float kGgxGlassInvE[grid::kEtaCount][grid::kAlphaCount][grid::kMuCo
 extern const float kGgxGlassEAvg[grid::kEtaCount][grid::kAlphaCount];
 extern const float kGgxGlassInvEAvg[grid::kEtaCount][grid::kAlphaCount];
 
+// Along mu the tables are interpolated with a Catmull-Rom cubic (E is
+// strongly curved near grazing), along alpha and eta linearly.
+struct Cubic {
+  int i[4];
+  float w[4];
+};
+// Catmull-Rom taps and weights at continuous node coordinate `coord` on n nodes.
+inline Cubic catmull_rom(float coord, int n) {
+  const auto l = grid::lerp_axis(coord, n);
+  const float t = l.t, t2 = t * t, t3 = t2 * t;
+  Cubic c;
+  c.w[0] = 0.5f * (-t3 + 2.0f * t2 - t);
+  c.w[1] = 0.5f * (3.0f * t3 - 5.0f * t2 + 2.0f);
+  c.w[2] = 0.5f * (-3.0f * t3 + 4.0f * t2 + t);
+  c.w[3] = 0.5f * (t3 - t2);
+  for (int k = 0; k < 4; ++k) c.i[k] = std::clamp(l.i0 - 1 + k, 0, n - 1);
+  return c;
+}
+using MuCubic = Cubic;
+inline MuCubic mu_cubic(float mu) { return catmull_rom(grid::mu_coord(mu), grid::kMuCount); }
+inline float mu_interp(const float *row, const MuCubic &c) {
+  return c.w[0] * row[c.i[0]] + c.w[1] * row[c.i[1]] + c.w[2] * row[c.i[2]] + c.w[3] * row[c.i[3]];
+}
+
+// Catmull-Rom along alpha as well: at small alpha the grazing fall-off of E
+// moves quickly with alpha.
 inline float ggx_E(float mu, float alpha) {
-  const auto a = grid::lerp_axis(grid::alpha_coord(alpha), grid::kAlphaCount);
-  const auto m = grid::lerp_axis(grid::mu_coord(mu), grid::kMuCount);
-  const float e0 = lerp(kGgxE[a.i0][m.i0], kGgxE[a.i0][m.i1], m.t);
-  const float e1 = lerp(kGgxE[a.i1][m.i0], kGgxE[a.i1][m.i1], m.t);
-  return lerp(e0, e1, a.t);
+  const Cubic a = catmull_rom(grid::alpha_coord(alpha), grid::kAlphaCount);
+  const MuCubic m = mu_cubic(mu);
+  float r = 0.0f;
+  for (int k = 0; k < 4; ++k) r += a.w[k] * mu_interp(kGgxE[a.i[k]], m);
+  return r;
 }
 
 inline float ggx_E_avg(float alpha) {
@@ -40,13 +68,11 @@ inline float ggx_E_avg(float alpha) {
 // Horner evaluation of the bilinearly interpolated cubic (Hill 2022).
 inline Spectrum ggx_E_Fms(float mu, float alpha, const Spectrum &f0) {
   const auto a = grid::lerp_axis(grid::alpha_coord(alpha), grid::kAlphaCount);
-  const auto m = grid::lerp_axis(grid::mu_coord(mu), grid::kMuCount);
-  float c[4];
-  for (int k = 0; k < 4; ++k) {
-    const float e0 = lerp(kGgxFms[a.i0][m.i0][k], kGgxFms[a.i0][m.i1][k], m.t);
-    const float e1 = lerp(kGgxFms[a.i1][m.i0][k], kGgxFms[a.i1][m.i1][k], m.t);
-    c[k] = lerp(e0, e1, a.t);
-  }
+  const MuCubic m = mu_cubic(mu);
+  float c[4] = {0.0f, 0.0f, 0.0f, 0.0f};
+  for (int j = 0; j < 4; ++j)
+    for (int k = 0; k < 4; ++k)
+      c[k] += m.w[j] * lerp(kGgxFms[a.i0][m.i[j]][k], kGgxFms[a.i1][m.i[j]][k], a.t);
   Spectrum r;
   for (int ch = 0; ch < 3; ++ch) {
     const float x = f0[ch];
@@ -61,24 +87,67 @@ inline float ggx_glass_E(float mu, float alpha, float eta) {
   const bool inverse = eta < 1.0f;
   const float ior = inverse ? 1.0f / eta : eta;
   const auto &table = inverse ? kGgxGlassInvE : kGgxGlassE;
-  const auto e = grid::lerp_axis(grid::eta_coord(ior), grid::kEtaCount);
-  const auto a = grid::lerp_axis(grid::alpha_coord(alpha), grid::kAlphaCount);
-  const auto m = grid::lerp_axis(grid::mu_coord(mu), grid::kMuCount);
+  // Catmull-Rom along eta too: near eta = 1 the grazing albedo is not monotonic in eta.
+  const Cubic e = catmull_rom(grid::eta_coord(ior), grid::kEtaCount);
+  const Cubic a = catmull_rom(grid::alpha_coord(alpha), grid::kAlphaCount);
+  const MuCubic m = mu_cubic(mu);
   auto bilinear = [&](int k) {
-    const float e0 = lerp(table[k][a.i0][m.i0], table[k][a.i0][m.i1], m.t);
-    const float e1 = lerp(table[k][a.i1][m.i0], table[k][a.i1][m.i1], m.t);
-    return lerp(e0, e1, a.t);
+    float r = 0.0f;
+    for (int j = 0; j < 4; ++j) r += a.w[j] * mu_interp(table[k][a.i[j]], m);
+    return r;
   };
-  return lerp(bilinear(e.i0), bilinear(e.i1), e.t);
+  return e.w[0] * bilinear(e.i[0]) + e.w[1] * bilinear(e.i[1]) + e.w[2] * bilinear(e.i[2]) + e.w[3] * bilinear(e.i[3]);
 }
 
 inline float ggx_glass_E_avg(float alpha, float eta) {
   const bool inverse = eta < 1.0f;
   const float ior = inverse ? 1.0f / eta : eta;
   const auto &table = inverse ? kGgxGlassInvEAvg : kGgxGlassEAvg;
-  const auto e = grid::lerp_axis(grid::eta_coord(ior), grid::kEtaCount);
+  const Cubic e = catmull_rom(grid::eta_coord(ior), grid::kEtaCount);
   const auto a = grid::lerp_axis(grid::alpha_coord(alpha), grid::kAlphaCount);
-  return lerp(lerp(table[e.i0][a.i0], table[e.i0][a.i1], a.t), lerp(table[e.i1][a.i0], table[e.i1][a.i1], a.t), e.t);
+  float r = 0.0f;
+  for (int k = 0; k < 4; ++k) r += e.w[k] * lerp(table[e.i[k]][a.i0], table[e.i[k]][a.i1], a.t);
+  return r;
 }
+
+// Per-material row: E at the mu nodes for fixed (alpha, eta), built once at
+// create(); evaluation is then one 4-tap cubic in mu.
+struct GlassRow {
+  float e[grid::kMuCount];
+  void build(float alpha, float eta) {
+    for (int i = 0; i < grid::kMuCount; ++i) e[i] = ggx_glass_E(grid::mu_of_node(i), alpha, eta);
+  }
+  float operator()(float mu) const { return mu_interp(e, mu_cubic(mu)); }
+};
+
+// Per-material conductor rows: E(mu) and the E_Fms cubic coefficients at the mu nodes.
+struct ConductorRows {
+  float e[grid::kMuCount];
+  float fms[grid::kMuCount][4];
+  void build(float alpha) {
+    // Same Catmull-Rom along alpha as ggx_E, so E + E_Fms(F0 = 1) = 1 holds between nodes too.
+    const Cubic a = catmull_rom(grid::alpha_coord(alpha), grid::kAlphaCount);
+    for (int i = 0; i < grid::kMuCount; ++i) {
+      e[i] = ggx_E(grid::mu_of_node(i), alpha);
+      for (int k = 0; k < 4; ++k) {
+        fms[i][k] = 0.0f;
+        for (int j = 0; j < 4; ++j) fms[i][k] += a.w[j] * kGgxFms[a.i[j]][i][k];
+      }
+    }
+  }
+  float E(float mu) const { return mu_interp(e, mu_cubic(mu)); }
+  Spectrum E_Fms(float mu, const Spectrum &f0) const {
+    const MuCubic m = mu_cubic(mu);
+    float c[4] = {0.0f, 0.0f, 0.0f, 0.0f};
+    for (int j = 0; j < 4; ++j)
+      for (int k = 0; k < 4; ++k) c[k] += m.w[j] * fms[m.i[j]][k];
+    Spectrum r;
+    for (int ch = 0; ch < 3; ++ch) {
+      const float x = f0[ch];
+      r[ch] = std::max(c[0] + x * (c[1] + x * (c[2] + x * c[3])), 0.0f);  // Horner
+    }
+    return r;
+  }
+};
 
 }  // namespace glimmer::tables

@@ -291,6 +291,18 @@ inline float fresnel_dielectric(float cos_i, float eta, float *cos_t = nullptr) 
   return std::isfinite(f) ? clamp(f, 0.0f, 1.0f) : 1.0f;
 }
 
+// Dielectric Fresnel from both cosines of a refraction pair (cos_i = |wi.m|,
+// cos_t = |wt.m|, eta = n_t / n_i): the rs/rp form of Walter 2007 eq. 22. It is
+// exactly symmetric under (cos_i, cos_t, eta) -> (cos_t, cos_i, 1 / eta), so a
+// BTDF using it is reciprocal to rounding even near the critical angle, where
+// recomputing cos_t from cos_i amplifies rounding errors.
+inline float fresnel_dielectric_pair(float cos_i, float cos_t, float eta) {
+  const float rs = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+  const float rp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+  const float f = 0.5f * (rs * rs + rp * rp);
+  return std::isfinite(f) ? clamp(f, 0.0f, 1.0f) : 1.0f;
+}
+
 // Exact conductor Fresnel reflectance for complex IOR eta + i k (per
 // channel; e.g. Lazanyi & Szirmay-Kalos 2005 / pbrt-v3 FrConductor form).
 inline float fresnel_conductor(float cos_i, float eta, float k) {

@@ -302,4 +302,112 @@ struct FresnelSplit {
   }
 };
 
+inline constexpr int kFresnelSplitTerms = 16;
+
+// Hill 2022 refit: the cubic c0 + F0 (c1 + F0 (c2 + F0 c3)) approximating the
+// split polynomial p(F0) = sum_i w_i F0^i in RELATIVE error over F0 in [0, 1]:
+// weighted least squares on (c - p) / p at 129 points x_k = (k / 128)^2
+// (denser near F0 = 0, where p is small), with Lawson's iterative reweighting
+// (weights *= |relative error|) driving it toward the minimax fit, with
+// F0 = 1 interpolated exactly (white furnace).
+// Normal equations solved in double.
+// The relative error is measured against p(F0) + e1(F0), the walk's whole
+// directional albedo (e1 = single-bounce energy a1 + b1 F0; pass a1 = b1 = 0
+// for the error relative to p alone): what the compensated closure's accuracy
+// depends on.
+inline std::array<double, 4> fit_fresnel_split_cubic(const std::array<double, kFresnelSplitTerms> &w, double a1 = 0.0,
+                                                     double b1 = 0.0) {
+  constexpr int samples = 129;
+  double xs[samples], ps[samples], scale[samples], lawson[samples];
+  double p1 = 0.0;
+  for (double v : w) p1 += v;
+  for (int k = 0; k < samples; ++k) {
+    const double t = double(k) / (samples - 1);
+    xs[k] = t * t;
+    double p = 0.0, xp = 1.0;
+    for (int i = 0; i < kFresnelSplitTerms; ++i, xp *= xs[k]) p += w[i] * xp;
+    ps[k] = p;
+    scale[k] = std::max(p + a1 + b1 * xs[k], 1e-6 * p1 + 1e-15);
+    lawson[k] = 1.0 / samples;
+  }
+  // F0 = 1 is interpolated exactly (white furnace): c3 = p(1) - c0 - c1 - c2, so
+  // c(x) = c0 (1 - x^3) + c1 (x - x^3) + c2 (x^2 - x^3) + p(1) x^3.
+  std::array<double, 4> c{};
+  for (int iteration = 0; iteration < 40; ++iteration) {
+    double ata[3][3] = {}, atb[3] = {};
+    for (int k = 0; k < samples; ++k) {
+      const double x = xs[k], x3 = x * x * x;
+      const double weight = lawson[k] / (scale[k] * scale[k]);
+      const double basis[3] = {1.0 - x3, x - x3, x * x - x3};
+      const double target = ps[k] - p1 * x3;
+      for (int r = 0; r < 3; ++r) {
+        atb[r] += weight * basis[r] * target;
+        for (int q = 0; q < 3; ++q) ata[r][q] += weight * basis[r] * basis[q];
+      }
+    }
+    for (int col = 0; col < 3; ++col) {  // Gaussian elimination, partial pivoting
+      int pivot = col;
+      for (int r = col + 1; r < 3; ++r)
+        if (std::fabs(ata[r][col]) > std::fabs(ata[pivot][col])) pivot = r;
+      for (int q = 0; q < 3; ++q) std::swap(ata[col][q], ata[pivot][q]);
+      std::swap(atb[col], atb[pivot]);
+      if (std::fabs(ata[col][col]) < 1e-300) continue;
+      for (int r = col + 1; r < 3; ++r) {
+        const double f = ata[r][col] / ata[col][col];
+        for (int q = col; q < 3; ++q) ata[r][q] -= f * ata[col][q];
+        atb[r] -= f * atb[col];
+      }
+    }
+    for (int r = 2; r >= 0; --r) {
+      double sum = atb[r];
+      for (int q = r + 1; q < 3; ++q) sum -= ata[r][q] * c[q];
+      c[r] = std::fabs(ata[r][r]) < 1e-300 ? 0.0 : sum / ata[r][r];
+    }
+    c[3] = p1 - c[0] - c[1] - c[2];
+    // Lawson update toward the minimax relative error.
+    double total = 0.0;
+    for (int k = 0; k < samples; ++k) {
+      const double x = xs[k];
+      const double err = std::fabs(c[0] + x * (c[1] + x * (c[2] + x * c[3])) - ps[k]) / scale[k];
+      lawson[k] *= err + 1e-12;
+      total += lawson[k];
+    }
+    if (!(total > 0.0)) break;
+    for (double &l : lawson) l /= total;
+  }
+  return c;
+}
+
+// Fresnel-split multiple-scattering polynomial of the conductor walk at
+// (mu, alpha): average e over `walks` walks of order >= 2, rescaled so that
+// sum(w) = target (the exact F0 = 1 energy 1 - E; ratio estimator).
+template <typename Rng>
+inline std::array<double, kFresnelSplitTerms> fresnel_split_polynomial(float mu, float alpha, int walks, double target,
+                                                                       Rng &rng, double *a1 = nullptr,
+                                                                       double *b1 = nullptr) {
+  const Vec3 wi(std::sqrt(std::max(0.0f, 1.0f - mu * mu)), 0.0f, mu);
+  const WalkSurface surface{alpha, alpha};
+  std::array<double, kFresnelSplitTerms> w{};
+  double single_s = 0.0, single_count = 0.0;
+  for (int n = 0; n < walks; ++n) {
+    FresnelSplit<kFresnelSplitTerms> split;
+    int order = 0;
+    walk_conductor(wi, surface, rng, order, [&](float c) { split.bounce(c); });
+    if (order >= 2)
+      for (int i = 0; i < kFresnelSplitTerms; ++i) w[i] += split.e[i];
+    if (order == 1) single_s += split.e[0], single_count += 1.0;
+  }
+  // Single-bounce energy e1(F0) = a1 + b1 F0 (s + F0 (1 - s) per walk), ratio-scaled to 1 - target.
+  if (a1 && b1) {
+    const double s1 = single_count > 0.0 ? (1.0 - std::max(target, 0.0)) / single_count : 0.0;
+    *a1 = single_s * s1;
+    *b1 = (single_count - single_s) * s1;
+  }
+  double sum = 0.0;
+  for (double v : w) sum += v;
+  const double scale = sum > 0.0 ? std::max(target, 0.0) / sum : 0.0;
+  for (double &v : w) v *= scale;
+  return w;
+}
+
 }  // namespace glimmer::microfacet

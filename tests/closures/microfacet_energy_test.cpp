@@ -1,0 +1,168 @@
+// Energy of the microfacet closures through the C ABI:
+//  - white furnace of the compensated (multi_ggx) conductor (f0 = 1) and glass
+//    (R + T) over alpha in [0.01, 1], eta in [1.01, 3] and 1/eta, mu in [0.02, 1];
+//  - the compensated conductor's directional albedo against the Heitz 2016
+//    random walk (microfacet_random_walk) for f0 in {0.04, 0.5, 0.9, 1}.
+// Albedo = mean of sample weights f_cos / pdf over jittered-stratified random numbers.
+#include <tbb/parallel_for.h>
+
+#include <cstdio>
+
+#include "closures/microfacet_test_util.h"
+
+namespace {
+
+using namespace glimmer;
+using namespace glimmer::mftest;
+
+std::string num(float v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.7g", double(v));
+  return b;
+}
+
+Vec3 wi_at(float mu) { return normalize(Vec3(std::sqrt(std::max(0.0f, 1.0f - mu * mu)), 0.0f, mu)); }
+
+// Mean sample weight per channel over strata^2 x (strata / 4) jittered 3D
+// strata of the random numbers (the third one picks the lobe), and a
+// conservative standard error (that of independent samples).
+struct Albedo {
+  Spectrum mean;
+  double std_error = 0.0;
+};
+Albedo sampled_albedo(const host::ClosureInstance &c, const Vec3 &wi, int strata, uint64_t seed) {
+  const GlimmerShadingContext ctx = host::make_local_context(wi);
+  Pcg32 rng(seed);
+  double sum[3] = {0, 0, 0}, sum2 = 0.0;
+  const int sz = std::max(strata / 4, 1), sxy = std::max(strata / 2, 1);
+  const long n = long(sxy) * sxy * sz;
+  for (int i = 0; i < sxy; ++i)
+    for (int j = 0; j < sxy; ++j)
+      for (int k = 0; k < sz; ++k) {
+        const float u[3] = {(i + rng.next_float()) / sxy, (j + rng.next_float()) / sxy, (k + rng.next_float()) / sz};
+        GlimmerSample s;
+        if (c.sample(ctx, u, s) == GLIMMER_LABEL_NONE) continue;
+        for (int ch = 0; ch < 3; ++ch) sum[ch] += s.eval[ch] / s.pdf;
+        sum2 += double(s.eval[0] / s.pdf) * (s.eval[0] / s.pdf);
+      }
+  Albedo a;
+  a.mean = Spectrum(float(sum[0] / n), float(sum[1] / n), float(sum[2] / n));
+  const double var = std::max(0.0, sum2 / n - (sum[0] / n) * (sum[0] / n));
+  a.std_error = std::sqrt(var / n);
+  return a;
+}
+
+struct FurnaceCase {
+  std::string closure;
+  std::vector<std::string> params;
+  float mu;
+};
+
+TEST(MicrofacetEnergy, WhiteFurnaceCompensated) {
+  const float alphas[] = {0.01f, 0.03f, 0.1f, 0.3f, 0.6f, 1.0f};
+  const float mus[] = {0.02f, 0.05f, 0.1f, 0.3f, 0.6f, 1.0f};
+  const float iors[] = {1.01f, 1.1f, 1.33f, 1.5f, 2.0f, 3.0f};
+  std::vector<FurnaceCase> cases;
+  for (float a : alphas)
+    for (float mu : mus) {
+      cases.push_back({"microfacet_conductor", {"distribution=multi_ggx", "roughness=" + num(std::sqrt(a))}, mu});
+      for (float ior : iors)
+        for (float e : {ior, 1.0f / ior})
+          cases.push_back(
+              {"microfacet_dielectric", {"distribution=multi_ggx", "roughness=" + num(std::sqrt(a)), "ior=" + num(e)}, mu});
+    }
+  std::vector<Albedo> results(cases.size());
+  tbb::parallel_for(size_t(0), cases.size(), [&](size_t i) {
+    auto c = make_closure(cases[i].closure, cases[i].params);
+    results[i] = sampled_albedo(*c, wi_at(cases[i].mu), cases[i].mu <= 0.05f ? 256 : 128, 77 + i);
+  });
+  double worst_conductor = 0.0, worst_dielectric = 0.0;
+  for (size_t i = 0; i < cases.size(); ++i) {
+    const double err = std::fabs(1.0 - results[i].mean.x);
+    std::string label = cases[i].closure;
+    for (const auto &p : cases[i].params) label += " " + p;
+    EXPECT_LT(err, 0.005) << label << " mu=" << cases[i].mu << " albedo=" << results[i].mean.x
+                          << " +- " << results[i].std_error;
+    (cases[i].closure == "microfacet_conductor" ? worst_conductor : worst_dielectric) =
+        std::max(cases[i].closure == "microfacet_conductor" ? worst_conductor : worst_dielectric, err);
+  }
+  std::printf("[furnace] %zu cases (2^20 stratified samples at mu <= 0.05, 2^17 above): max |1 - albedo| conductor(f0=1) %.4f%%, "
+              "glass R+T %.4f%%\n", cases.size(), 100 * worst_conductor, 100 * worst_dielectric);
+}
+
+// Uncompensated GGX loses energy (the furnace test above is not vacuous).
+TEST(MicrofacetEnergy, UncompensatedLosesEnergy) {
+  auto c = make_closure("microfacet_conductor", {"distribution=ggx", "roughness=1"});
+  const Albedo a = sampled_albedo(*c, wi_at(0.5f), 64, 5);
+  EXPECT_LT(a.mean.x, 0.9f);
+  auto g = make_closure("microfacet_dielectric", {"distribution=ggx", "roughness=1", "ior=1.5"});
+  EXPECT_LT(sampled_albedo(*g, wi_at(0.5f), 64, 6).mean.x, 0.95f);
+}
+
+// Random-walk albedo = mean sampled throughput (f_cos / pdf is the walk's throughput).
+Spectrum random_walk_albedo(const host::ClosureInstance &c, const Vec3 &wi, long walks, uint64_t seed) {
+  GlimmerShadingContext ctx = host::make_local_context(wi);
+  Pcg32 rng(seed);
+  double sum[3] = {0, 0, 0};
+  for (long i = 0; i < walks; ++i) {
+    ctx.path_seed = uint32_t(i * 2654435761u + seed);
+    const float u[3] = {rng.next_float(), rng.next_float(), rng.next_float()};
+    GlimmerSample s;
+    if (c.sample(ctx, u, s) == GLIMMER_LABEL_NONE) continue;
+    for (int k = 0; k < 3; ++k) sum[k] += s.eval[k] / s.pdf;
+  }
+  return Spectrum(float(sum[0] / walks), float(sum[1] / walks), float(sum[2] / walks));
+}
+
+TEST(MicrofacetEnergy, CompensatedConductorMatchesRandomWalk) {
+  struct Case {
+    float alpha, mu;
+  };
+  std::vector<Case> cases;
+  for (float a : {0.05f, 0.2f, 0.5f, 1.0f})
+    for (float mu : {0.1f, 0.4f, 0.8f, 1.0f}) cases.push_back({a, mu});
+  // Each case carries the four f0 in its RGB channels plus f0 = 1 separately.
+  std::vector<Spectrum> comp(cases.size()), walk(cases.size());
+  std::vector<float> comp_white(cases.size()), walk_white(cases.size());
+  tbb::parallel_for(size_t(0), cases.size(), [&](size_t i) {
+    const std::string r = "roughness=" + num(std::sqrt(cases[i].alpha));
+    const Vec3 wi = wi_at(cases[i].mu);
+    auto c = make_closure("microfacet_conductor", {"distribution=multi_ggx", r, "f0=0.04,0.5,0.9"});
+    auto w = make_closure("microfacet_random_walk", {"type=conductor", r, "f0=0.04,0.5,0.9"});
+    auto cw = make_closure("microfacet_conductor", {"distribution=multi_ggx", r});
+    auto ww = make_closure("microfacet_random_walk", {"type=conductor", r});
+    comp[i] = sampled_albedo(*c, wi, 128, 100 + i).mean;
+    walk[i] = random_walk_albedo(*w, wi, 200000, 200 + i);
+    comp_white[i] = sampled_albedo(*cw, wi, 96, 300 + i).mean.x;
+    walk_white[i] = random_walk_albedo(*ww, wi, 50000, 400 + i).x;
+  });
+  double worst[4] = {0, 0, 0, 0};
+  for (size_t i = 0; i < cases.size(); ++i) {
+    for (int k = 0; k < 3; ++k) {
+      const double rel = std::fabs(comp[i][k] - walk[i][k]) / walk[i][k];
+      EXPECT_LT(rel, 0.01) << "alpha=" << cases[i].alpha << " mu=" << cases[i].mu << " f0=" << (k == 0 ? 0.04 : k == 1 ? 0.5 : 0.9)
+                           << " compensated=" << comp[i][k] << " walk=" << walk[i][k];
+      worst[k] = std::max(worst[k], rel);
+    }
+    const double rel = std::fabs(comp_white[i] - walk_white[i]) / walk_white[i];
+    EXPECT_LT(rel, 0.01) << "alpha=" << cases[i].alpha << " mu=" << cases[i].mu << " f0=1";
+    worst[3] = std::max(worst[3], rel);
+  }
+  std::printf("[random walk] compensated conductor vs Heitz 2016 walk, max relative albedo error: f0=0.04 %.3f%%, "
+              "f0=0.5 %.3f%%, f0=0.9 %.3f%%, f0=1 %.3f%%\n", 100 * worst[0], 100 * worst[1], 100 * worst[2],
+              100 * worst[3]);
+}
+
+// The dielectric random walk conserves energy (R + T = 1) from both sides,
+// and the conductor walk with f0 = 1 as well.
+TEST(MicrofacetEnergy, RandomWalkConservesEnergy) {
+  for (float ior : {1.5f, 1.0f / 1.5f}) {
+    auto w = make_closure("microfacet_random_walk", {"type=dielectric", "roughness=0.8", "ior=" + num(ior)});
+    for (float mu : {0.9f, 0.3f, -0.4f}) {
+      const Vec3 wi = mu > 0 ? wi_at(mu) : Vec3(wi_at(-mu).x, 0.0f, mu);
+      EXPECT_NEAR(random_walk_albedo(*w, wi, 20000, 9).x, 1.0f, 1e-3f) << "ior=" << ior << " mu=" << mu;
+    }
+  }
+}
+
+}  // namespace
