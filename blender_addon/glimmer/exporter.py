@@ -5,7 +5,8 @@ Conventions (see docs/blender.md):
   by `<mesh src=...>` inside `<state shader=... interpolation=...>`.
 - Camera: `<transform translate rotate scale="sx sy -sz">` around `<camera>`:
   Blender cameras look along -Z, Cycles' along +Z, hence the scale 1 1 -1.
-- Lights: world-space co/dir/axes, strength = colour * power (W) for point,
+- Lights: use_camera from the object's camera visibility (off by default in Blender);
+  world-space co/dir/axes, strength = colour * power (W) for point,
   spot and area lights and colour * strength (W/m^2) for sun lights, exactly
   the numbers Blender hands to Cycles (Cycles applies the 1/(4 pi) and area
   normalisation itself).
@@ -679,6 +680,9 @@ class Exporter:
         else:
             self.warn("light '%s': type %s is not supported: skipped" % (obj.name, light.type))
             return
+        # Blender lights are invisible to camera rays unless Object > Visibility > Camera is on (the default
+        # is off); Cycles XML's use_camera defaults to true, so it is always written.
+        attributes["use_camera"] = fmt(bool(getattr(obj, "visible_camera", False)))
         if light.use_nodes:
             self.warn("light '%s': light node trees are not exported (colour x power is used)" % obj.name)
         ET.SubElement(root, "light", attrib=attributes)

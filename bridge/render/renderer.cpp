@@ -480,7 +480,7 @@ struct Renderer::Impl {
       // Lamps (spheres, area lights) before the surface and the sun disk on escape;
       // as in Cycles they do not block the ray.
       LightHits lhs;
-      lights->intersect(org, D, t_hit, hit_surface, lhs);
+      lights->intersect(org, D, t_hit, hit_surface, bounce == 0, lhs);
       for (int i = 0; i < lhs.count; ++i) {
         const LightHit &lh = lhs.hits[i];
         if (last_singular) {

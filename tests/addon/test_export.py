@@ -61,6 +61,7 @@ area.location = (0.0, 0.0, 4.0)
 area.scale = (1.5, 1.0, 1.0)
 spot = add_light("Spot", "SPOT", energy=500.0, spot_size=math.radians(40), spot_blend=0.2)
 spot.location = (-2.0, 0.0, 3.0)
+spot.visible_camera = True  # Blender's default for lights is False (lamps hidden from camera rays)
 
 
 def material(name):
@@ -195,6 +196,9 @@ check(math.isclose(float(lights["area"].get("sizeu")), 3.0, rel_tol=1e-6), "area
 check(math.isclose(float(lights["area"].get("sizev")), 0.5, rel_tol=1e-6), "area sizev")
 check(np.allclose(vec(lights["area"], "dir"), [0, 0, -1], atol=1e-6), "area faces down")
 check(math.isclose(float(lights["spot"].get("spot_angle")), math.radians(40), rel_tol=1e-6), "spot angle")
+check(lights["spot"].get("use_camera") == "true", "spot made visible to the camera: use_camera true")
+check(all(lights[k].get("use_camera") == "false" for k in ("point", "sun", "area")),
+      "Blender lights are hidden from camera rays by default: use_camera false")
 
 # ---- shaders -----------------------------------------------------------------
 shaders = {s.get("name"): s for s in root.findall("shader")}
