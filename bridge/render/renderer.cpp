@@ -438,6 +438,14 @@ struct Renderer::Impl {
 
   Spectrum trace_path(int px, int py, uint32_t sample_index, PixelAov &aov, uint64_t &nan_count) const {
     const auto &integ = scene.integrator;
+    // Cycles' kernel limits (scene/integrator.cpp): the settings plus one, "so that a bounce of 0 indicates
+    // no global illumination, only direct illumination"; transparent_max_bounce is used as is.
+    const auto plus_one = [](int v) { return v < std::numeric_limits<int>::max() ? v + 1 : v; };
+    const int limit_min_bounce = plus_one(integ.min_bounce);
+    const int limit_bounce = plus_one(integ.max_bounce);
+    const int limit_diffuse = plus_one(integ.max_diffuse_bounce);
+    const int limit_glossy = plus_one(integ.max_glossy_bounce);
+    const int limit_transmission = plus_one(integ.max_transmission_bounce);
     const uint32_t pixel_index = static_cast<uint32_t>(py) * static_cast<uint32_t>(width) + static_cast<uint32_t>(px);
     const PixelSampler sampler(seed, pixel_index, sample_index);
     const uint32_t path_seed = hash_u32x3(seed, pixel_index, sample_index);
@@ -555,7 +563,7 @@ struct Renderer::Impl {
       // Russian roulette (Cycles' path_state_continuation_probability).
       float ru, rr;
       sampler.get2(bounce_pair(bounce, kPairBsdfTerminate), ru, rr);
-      if (bounce > integ.min_bounce) {
+      if (bounce > limit_min_bounce) {
         const float q = std::min(std::sqrt(max_component(abs(throughput))), 1.0f);
         if (q <= 0.0f || rr >= q) break;
         throughput /= q;
@@ -640,14 +648,14 @@ struct Renderer::Impl {
 
       // Bounce counters by label (Cycles' path_state_next).
       ++bounce;
-      if (bounce >= integ.max_bounce) terminate_next = true;
+      if (bounce >= limit_bounce) terminate_next = true;
       if (label & GLIMMER_LABEL_REFLECT) {
         if (label & GLIMMER_LABEL_DIFFUSE) {
-          if (++diffuse_bounce >= integ.max_diffuse_bounce) terminate_next = true;
-        } else if (++glossy_bounce >= integ.max_glossy_bounce) {
+          if (++diffuse_bounce >= limit_diffuse) terminate_next = true;
+        } else if (++glossy_bounce >= limit_glossy) {
           terminate_next = true;
         }
-      } else if (++transmission_bounce >= integ.max_transmission_bounce) {
+      } else if (++transmission_bounce >= limit_transmission) {
         terminate_next = true;
       }
 
