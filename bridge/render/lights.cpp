@@ -121,6 +121,13 @@ LightSet::LightSet(const scene::Scene &scene, ShaderSystem &shaders, const std::
           if (dot(n, e.dir) < 0.0f) n = -n;
           e.dir = n;
         }
+        {
+          // Cycles 3.4 spread: a soft-box grid of slats; attenuation (1 - tan(spread_angle) tan(a)) normalised by
+          // 2 / (2 + (2 spread_angle - pi) tan(spread_angle)), spread_angle = (pi - max(spread, 1 deg)) / 2.
+          const float spread_angle = 0.5f * (kPi - std::max(l.spread, kPi / 180.0f));
+          e.tan_spread = std::tan(spread_angle);
+          e.normalize_spread = 2.0f / (2.0f + (2.0f * spread_angle - kPi) * e.tan_spread);
+        }
         p *= kPi * 0.25f;
         features.light_types.insert(l.round ? "area_disk" : "area_quad");
         break;
@@ -232,6 +239,15 @@ float LightSet::spot_attenuation(const Entry &l, const Vec3 &dir_from_light) con
     attenuation *= s * s * (3.0f - 2.0f * s);
   }
   return attenuation;
+}
+
+float LightSet::spread_attenuation(const Entry &l, float cos_to_normal) {
+  // Cycles 3.4 light_spread_attenuation (kernel/light/light.h): the share of a soft-box grid cell not hidden by
+  // its slats at angle a from the normal.
+  if (l.tan_spread <= 0.0f) return 1.0f;
+  const float sin_a = std::sqrt(std::max(0.0f, 1.0f - cos_to_normal * cos_to_normal));
+  const float tan_a = sin_a / cos_to_normal;
+  return std::max((1.0f - l.tan_spread * tan_a) * l.normalize_spread, 0.0f);
 }
 
 Spectrum LightSet::triangle_emission(const Entry &l, const Vec3 &, float b1, float b2, const Vec3 &wi_toward_viewer) const {
@@ -348,9 +364,9 @@ bool LightSet::sample(float select, float u, float v, const Vec3 &P, LightSample
       if (cos_l <= 0.0f) return false;
       out.dist = d;
       out.pdf = pick * d2 / (cos_l * l.area);
-      out.radiance = l.strength * (0.25f / l.area);
+      out.radiance = l.strength * (0.25f / l.area * spread_attenuation(l, cos_l));
       out.delta = false;
-      return true;
+      return !is_zero(out.radiance);
     }
     case Kind::Background: {
       out.dist = kInf;
@@ -428,7 +444,8 @@ void LightSet::intersect(const Vec3 &o, const Vec3 &d, float t_max, bool hit_sur
       if (!inside) continue;
       const float cos_l = -denom;
       if (cos_l <= 0.0f) continue;  // back side: no emission
-      h.radiance = l.strength * (0.25f / l.area);
+      h.radiance = l.strength * (0.25f / l.area * spread_attenuation(l, cos_l));
+      if (is_zero(h.radiance)) continue;
       h.pdf = pick * t * t / (cos_l * l.area);
       h.t = t;
       out.add(h);

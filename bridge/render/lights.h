@@ -101,6 +101,7 @@ class LightSet {
     float area = 0.0f;
     bool round = false;
     bool use_camera = true;
+    float tan_spread = 0.0f, normalize_spread = 1.0f;  // area light spread (Cycles 3.4 scene/light.cpp)
     int mesh = -1, prim = -1;
   };
   const scene::Scene &scene_;
@@ -117,6 +118,7 @@ class LightSet {
 
   float pick_probability(int i) const { return pick_.probability(i); }
   float spot_attenuation(const Entry &l, const Vec3 &dir_from_light) const;
+  static float spread_attenuation(const Entry &l, float cos_to_normal);
   Spectrum triangle_emission(const Entry &l, const Vec3 &P, float b1, float b2, const Vec3 &wi_toward_viewer) const;
   void build_environment_map();
   float environment_pdf(const Vec3 &d) const;

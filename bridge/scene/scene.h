@@ -119,6 +119,7 @@ struct Light {
   Vec3 axisu{1, 0, 0}, axisv{0, 1, 0};
   float sizeu = 1.0f, sizev = 1.0f;
   bool round = false;      // disk/ellipse area light
+  float spread = 3.14159265f;  // area light spread angle (radians, (0, pi]; pi = Lambertian)
   bool use_camera = true;  // visible to camera rays (Cycles' socket default; Blender lights default to false)
   int shader = -1;
   SourceLocation where;

@@ -475,9 +475,9 @@ class Loader {
   void read_light(const XmlFile &f, const pugi::xml_node &node, const ReadState &state) {
     check_attributes(f, node,
                      {"name", "light_type", "type", "strength", "co", "dir", "size", "radius", "angle", "spot_angle",
-                      "spot_smooth", "axisu", "axisv", "sizeu", "sizev", "round", "tfm", "use_camera"},
+                      "spot_smooth", "axisu", "axisv", "sizeu", "sizev", "round", "tfm", "use_camera", "spread"},
                      {"use_mis", "cast_shadow", "use_caustics", "use_diffuse", "use_glossy", "use_transmission",
-                      "use_scatter", "max_bounces", "map_resolution", "spread", "is_portal", "samples",
+                      "use_scatter", "max_bounces", "map_resolution", "is_portal", "samples",
                       "random_id", "is_enabled", "shadow_soft_size", "normalize"});
     const SourceLocation where = loc(f, node);
     Light l;
@@ -512,6 +512,8 @@ class Loader {
     l.sizev = read_float(f, node, "sizev", size);
     l.round = read_bool(f, node, "round", false);
     l.use_camera = read_bool(f, node, "use_camera", true);
+    l.spread = read_float(f, node, "spread", l.spread);
+    if (!(l.spread >= 0.0f && l.spread <= kPi + 1e-6f)) throw SceneError(where, "<light> spread must be in [0, pi]");
     l.dir = node.attribute("dir") ? read_vec3(f, node, "dir", l.dir) : -cross(l.axisu, l.axisv);
     if (l.radius < 0.0f || l.angle < 0.0f || l.sizeu < 0.0f || l.sizev < 0.0f)
       throw SceneError(where, "<light> sizes and angles must be >= 0");

@@ -305,11 +305,12 @@ def scene_spot():
     compare_region("3 spot blend ring (5-50%)", full(glim), glim, cyc, mask=(lum > 0.05 * peak) & (lum < 0.5 * peak))
 
 
-def scene_area(shape, size, size_y, label):
+def scene_area(shape, size, size_y, label, spread_deg=180.0):
     scene = floor_scene()
     add_light(scene, "AREA", (0.2, -0.1, 1.2), (15.0, 0.0, 30.0), energy=60.0, shape=shape, size=size,
-              size_y=size_y)
-    quadrants("4 area %s" % label, *render_both("area_" + shape.lower()))
+              size_y=size_y, spread=math.radians(spread_deg))
+    name = "area_" + shape.lower() + ("" if spread_deg == 180.0 else "_spread")
+    quadrants("4 area %s" % label, *render_both(name))
 
 
 def scene_world_furnace():
@@ -405,7 +406,7 @@ def scene_emission():
 
 
 def scene_closures():
-    scene = new_scene(samples=1024)
+    scene = new_scene(samples=512)
     world = scene.world
     world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.25, 0.25, 0.25, 1.0)
     world.node_tree.nodes["Background"].inputs["Strength"].default_value = 1.0
@@ -422,7 +423,7 @@ def scene_closures():
 
 
 def scene_closures_more():
-    scene = new_scene(samples=1024, width=96, height=48)
+    scene = new_scene(samples=512, width=96, height=48)
     world = scene.world
     world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.25, 0.25, 0.25, 1.0)
     world.node_tree.nodes["Background"].inputs["Strength"].default_value = 1.0
@@ -527,6 +528,7 @@ SCENES = {
     "area_square": lambda: scene_area("SQUARE", 0.8, 0.8, "square 0.8"),
     "area_disk": lambda: scene_area("DISK", 0.8, 0.8, "disk 0.8"),
     "area_rectangle": lambda: scene_area("RECTANGLE", 1.2, 0.4, "rectangle 1.2x0.4"),
+    "area_spread": lambda: scene_area("SQUARE", 0.8, 0.8, "square spread 60deg", spread_deg=60.0),
     "world": scene_world_furnace,
     "environment": scene_environment,
     "emission": scene_emission,
