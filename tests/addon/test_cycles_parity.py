@@ -384,6 +384,59 @@ def scene_environment():
     compare_region("5 env lit patch", patch, glim, cyc)
 
 
+def texture_image(path):
+    """An asymmetric 8-bit sRGB PNG: red rises with x, green with y, a blue square near one corner."""
+    w, h = 64, 32
+    x = (np.arange(w) + 0.5) / w
+    y = (np.arange(h) + 0.5) / h
+    xx, yy = np.meshgrid(x, y)  # row 0 is the bottom row in Blender's pixel order
+    rgba = np.ones((h, w, 4), dtype=np.float32)
+    rgba[..., 0] = xx
+    rgba[..., 1] = yy
+    rgba[..., 2] = np.where((xx > 0.7) & (xx < 0.9) & (yy > 0.6) & (yy < 0.9), 0.9, 0.1)
+    img = bpy.data.images.new("TexSource", w, h, alpha=True)
+    img.pixels[:] = rgba.ravel()
+    img.filepath_raw = path
+    img.file_format = "PNG"
+    img.save()
+    bpy.data.images.remove(img)
+
+
+def scene_texture(interpolation="Linear"):
+    """sRGB image texture (colour space, interpolation, UV orientation) on an emissive plane: pixels = texture.
+    Cycles interpolates 8-bit sRGB texels before converting to linear ("compress as sRGB")."""
+    path = os.path.join(opts.out, "parity_texture.png")
+    texture_image(path)
+    scene = new_scene(samples=64, width=96, height=48)
+    add_camera(scene, (0.0, 0.0, 4.0), (0.0, 0.0, 10.0), lens=35.0)
+    mat = bpy.data.materials.new("Textured")
+    mat.use_nodes = True
+    tree = mat.node_tree
+    tree.nodes.remove(tree.nodes["Principled BSDF"])
+    em = tree.nodes.new("ShaderNodeEmission")
+    em.inputs["Strength"].default_value = 1.0
+    tex = tree.nodes.new("ShaderNodeTexImage")
+    tex.image = bpy.data.images.load(path)
+    tex.interpolation = interpolation
+    tree.links.new(tex.outputs["Color"], em.inputs["Color"])
+    tree.links.new(em.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    add_plane(2.0, rotation_deg=(0.0, 0.0, 0.0), mat=mat)
+    bpy.context.active_object.scale = (1.6, 0.8, 1.0)
+    glim, cyc = render_both("texture_" + interpolation.lower())
+    for ch, label in ((0, "red (u)"), (1, "green (v)"), (2, "blue (square)")):
+        compare_region("10 sRGB texture %s %s" % (interpolation, label), full(glim), glim, cyc, channel=ch)
+
+    def rel(a, b):
+        return float(np.mean(np.abs(a - b)) / np.mean(np.abs(b)))
+    same, flipped_u, flipped_v = rel(glim, cyc), rel(glim[:, ::-1], cyc), rel(glim[::-1], cyc)
+    line = "10 texture " + interpolation + " per-pixel mean |glimmer-cycles|/mean cycles = %.4f (mirror-x %.3f, mirror-y %.3f)" % (
+        same, flipped_u, flipped_v)
+    print(line)
+    RESULTS.append(line)
+    if not (same < 0.02 and flipped_u > 4 * same and flipped_v > 4 * same):
+        FAILURES.append(line)
+
+
 def scene_emission():
     scene = new_scene(samples=64)
     add_camera(scene, (0.0, -4.0, 3.0), (53.13, 0.0, 0.0))
@@ -532,6 +585,8 @@ SCENES = {
     "world": scene_world_furnace,
     "environment": scene_environment,
     "emission": scene_emission,
+    "texture": scene_texture,
+    "texture_closest": lambda: scene_texture("Closest"),
     "closures": scene_closures,
     "closures_more": scene_closures_more,
     "indirect": scene_indirect,
