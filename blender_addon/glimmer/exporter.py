@@ -508,7 +508,10 @@ class Exporter:
             if cam.dof.use_dof:
                 focus = cam.dof.focus_distance
                 if cam.dof.focus_object is not None:
-                    focus = float(np.linalg.norm(np.array(cam.dof.focus_object.matrix_world.translation) - loc))
+                    # Blender -> Cycles sync (blender_camera_focal_distance): the distance along the view axis.
+                    view_dir = linear[:, 2] / max(float(np.linalg.norm(linear[:, 2])), 1e-30)
+                    target = np.array(cam.dof.focus_object.matrix_world.translation)
+                    focus = abs(float(np.dot(view_dir, loc - target)))
                 attributes["aperturesize"] = fmt(cam.lens * 1e-3 / (2.0 * cam.dof.aperture_fstop))
                 attributes["focaldistance"] = fmt(focus)
         ET.SubElement(tr, "camera", attrib=attributes)
