@@ -7,9 +7,11 @@
 // s = 2^-l. The query level l is the one whose node side is the smallest power
 // of two >= the footprint's uv bounding box, so the box touches at most 2 x 2
 // nodes. Node (l, i, j) holds n = floor(N s^2) + [u0 < frac(N s^2)] particles
-// (mean exactly N s^2), u0 and every later random number coming from the node's
-// TEA seed (8 rounds over (i, j) and (seed, l)): glint randomness depends on
-// the surface position and the node only, never on directions.
+// (mean exactly N s^2). The count and the smallest threshold come from an
+// integer hash of the node id; every later random number (positions, further
+// thresholds) from the node's TEA seed (8 rounds over (i, j) and (seed, l)),
+// started only for nodes that hold a reflecting particle. Glint randomness
+// depends on the surface position and the node only, never on directions.
 //
 // Thresholds as order statistics. The n thresholds lambda_k are i.i.d.
 // uniform; instead of drawing all n of them we walk their order statistics
@@ -84,7 +86,7 @@ inline NodeStream node_stream(uint32_t seed, int level, int64_t i, int64_t j) {
 
 // Number of particles in node (level, i, j) for density N (per unit area).
 inline uint64_t node_particle_count(const NodeStream &stream, double density, double size) {
-  const double mean = density * size * size;
+  const double mean = std::fmin(density * size * size, 4.0e18);
   const double whole = std::floor(mean);
   return static_cast<uint64_t>(whole) + (stream(0) < static_cast<float>(mean - whole) ? 1u : 0u);
 }
@@ -95,25 +97,45 @@ struct GlintCount {
 };
 
 // Counts the reflecting particles of a footprint (see the header comment).
+// Each node first draws its count n and its smallest threshold lambda_(1)
+// from a cheap integer hash of the node id; only when lambda_(1) < P (the node
+// holds at least one reflecting particle) is the node's TEA stream started for
+// the positions and the following thresholds. Most nodes stop at one hash and
+// one log.
 inline GlintCount count_reflecting_particles(const Footprint &f, const NodeRange &nodes, double density,
                                              uint32_t seed, double P, int max_steps) {
   GlintCount result;
   if (!(P > 0.0)) return result;
   const double det = f.ax * f.by - f.ay * f.bx;
   const double inv_det = 1.0 / det;
+  const double log_one_minus_P = std::log1p(-std::fmin(P, 1.0 - 1e-16));
+  const double mean = std::fmin(density * nodes.size * nodes.size, 4.0e18);
+  const double whole = std::floor(mean);
   int steps = 0;
   for (int dj = 0; dj < nodes.nj; ++dj)
     for (int di = 0; di < nodes.ni; ++di) {
       const int64_t i = nodes.i0 + di, j = nodes.j0 + dj;
+      const uint32_t h0 = hash_u32x4(static_cast<uint32_t>(i), static_cast<uint32_t>(j),
+                                     static_cast<uint32_t>(nodes.level), seed ^ 0x3c6ef372u);
+      const uint64_t n = static_cast<uint64_t>(whole) + (uint_to_unit_float(h0) < static_cast<float>(mean - whole) ? 1u : 0u);
+      if (n == 0) continue;
+      // lambda_(1) = 1 - V^(1/n) < P  <=>  log V > n log(1 - P).
+      const double log_v1 = std::log(1.0 - static_cast<double>(uint_to_unit_float(hash_u32(h0 ^ 0x85ebca6bu))));
+      if (!(log_v1 > static_cast<double>(n) * log_one_minus_P)) continue;
       const NodeStream stream = node_stream(seed, nodes.level, i, j);
-      const uint64_t n = node_particle_count(stream, density, nodes.size);
       const double x0 = static_cast<double>(i) * nodes.size, y0 = static_cast<double>(j) * nodes.size;
-      double one_minus_lambda = 1.0;
+      double one_minus_lambda = std::exp(log_v1 / static_cast<double>(n));
       for (uint64_t k = 0; k < n; ++k) {
         const uint32_t idx = static_cast<uint32_t>(3u * k + 1u);
-        const double v = 1.0 - static_cast<double>(stream(idx));  // in (0, 1]
-        one_minus_lambda *= std::exp(std::log(v) / static_cast<double>(n - k));
-        if (1.0 - one_minus_lambda >= P) break;
+        if (k > 0) {
+          const double v = 1.0 - static_cast<double>(stream(idx));  // in (0, 1]
+          // V^(1/m) = exp(-E/m), E = -log V exponential; for m > 1000 the
+          // 2nd-order Taylor form has a relative error below (E/m)^3/6 < 1e-8.
+          const double m = static_cast<double>(n - k);
+          const double e = -std::log(v) / m;
+          one_minus_lambda *= m > 1000.0 ? 1.0 - e + 0.5 * e * e : std::exp(-e);
+          if (1.0 - one_minus_lambda >= P) break;
+        }
         if (++steps > max_steps) {
           result.complete = false;
           return result;

@@ -237,6 +237,22 @@ TEST(Glint, LitGlintsStableWhenTheViewCrossesATableBin) {
     EXPECT_TRUE(nested) << "lit sets must be nested (no re-randomisation), move " << move;
     EXPECT_GE(jaccard, 0.9) << "move " << move << " deg";
   }
+  // Negative control: re-randomising the particles (what seeding by the
+  // direction bin does when a bin is crossed), here by another seed at the
+  // same view, must break both criteria.
+  auto reseeded = make_closure("glint", {{"roughness", "0.4"}, {"gamma", "2"}, {"density", "2e6"}, {"seed", "6"}});
+  std::set<int> a = lit_set(spherical_dir(35.0, 0.0)), b;
+  for (int y = 0; y < grid; ++y)
+    for (int x = 0; x < grid; ++x)
+      if (eval_f(*reseeded, context(spherical_dir(35.0, 0.0), (x + 0.5) / grid, (y + 0.5) / grid, 1.0 / grid),
+                 light) > 0.0f)
+        b.insert(y * grid + x);
+  std::vector<int> both;
+  std::set_intersection(a.begin(), a.end(), b.begin(), b.end(), std::back_inserter(both));
+  const double jaccard = static_cast<double>(both.size()) / (a.size() + b.size() - both.size());
+  std::printf("[coherence] control (re-randomised particles): Jaccard %.4f\n", jaccard);
+  EXPECT_LT(jaccard, 0.5);
+  EXPECT_LT(both.size(), std::min(a.size(), b.size()));
 }
 
 // Determinism: the same queries give bit-identical results on 1 and 4 threads.

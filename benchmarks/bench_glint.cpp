@@ -1,0 +1,173 @@
+// Glint benchmarks (issue 5), ratios measured side by side in one run:
+//  glint/eval_vs_ggx/<log10 area>   glint eval vs microfacet_conductor (GGX)
+//      eval, interleaved blocks of the same queries, footprint areas 1e-8..1
+//      uv; counters glint_ns, ggx_ns, ratio (goal <= 2).
+//  glint/jakob14_eval/<log10 area>  the reference's eval cost at the same
+//      queries (counter ratio_vs_glint).
+//  glint/gi_scene_overhead          `glimmer render` of examples/glint.xml
+//      against the same scene with every glint_bsdf replaced by a GGX
+//      glossy_bsdf of the same roughness (subprocess, wall time of the render
+//      phase); counter overhead (goal <= 0.10).
+#include <benchmark/benchmark.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <memory>
+#include <regex>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "glimmer/rng.h"
+#include "host/closure_instance.h"
+#include "host/plugin_library.h"
+
+namespace {
+
+using namespace glimmer;
+using Clock = std::chrono::steady_clock;
+
+host::PluginLibrary &glint_plugin() {
+  static std::unique_ptr<host::PluginLibrary> library = host::PluginLibrary::load(GLIMMER_BENCH_PLUGIN_PATH);
+  return *library;
+}
+
+std::unique_ptr<host::ClosureInstance> make(const std::string &name,
+                                            const std::vector<std::pair<std::string, std::string>> &params) {
+  const GlimmerClosureType *type = glint_plugin().find(name);
+  if (type == nullptr) return nullptr;
+  host::ParamList list;
+  for (const auto &[k, v] : params) list.set_from_text(*type, k, v);
+  return std::make_unique<host::ClosureInstance>(*type, list);
+}
+
+struct Query {
+  GlimmerShadingContext ctx;
+  Vec3 wo;
+};
+
+// 4096 queries: random positions, view and light directions around the lobe,
+// a square footprint of the given uv area.
+std::vector<Query> make_queries(double area) {
+  std::vector<Query> q(4096);
+  Pcg32 rng(11);
+  const float side = static_cast<float>(std::sqrt(area));
+  for (auto &x : q) {
+    const float ti = 1.4f * rng.next_float();
+    x.ctx = host::make_local_context(Vec3(std::sin(ti), 0.0f, std::cos(ti)));
+    x.ctx.uv[0] = rng.next_float();
+    x.ctx.uv[1] = rng.next_float();
+    x.ctx.duv_dx[0] = side;
+    x.ctx.duv_dy[1] = side;
+    // wo: the mirror direction jittered by the lobe width (most light queries hit the lobe).
+    const Vec3 mirror(-std::sin(ti), 0.0f, std::cos(ti));
+    x.wo = normalize(mirror + Vec3(0.6f * (rng.next_float() - 0.5f), 0.6f * (rng.next_float() - 0.5f),
+                                   0.3f * rng.next_float()));
+    if (x.wo.z <= 0.05f) x.wo.z = 0.05f;
+    x.wo = normalize(x.wo);
+  }
+  return q;
+}
+
+double time_block(const host::ClosureInstance &c, const std::vector<Query> &q) {
+  const auto t0 = Clock::now();
+  for (const auto &x : q) {
+    Spectrum f;
+    float pdf;
+    c.eval(x.ctx, x.wo, f, pdf);
+    benchmark::DoNotOptimize(f);
+    benchmark::DoNotOptimize(pdf);
+  }
+  return std::chrono::duration<double, std::nano>(Clock::now() - t0).count() / static_cast<double>(q.size());
+}
+
+void BM_GlintVsGgxEval(benchmark::State &state) {
+  const double area = std::pow(10.0, static_cast<double>(state.range(0)));
+  auto glint = make("glint", {{"roughness", "0.4"}, {"gamma", "2"}, {"density", "1e7"}});
+  auto ggx = make("microfacet_conductor", {{"roughness", "0.4"}, {"distribution", "ggx"}});
+  if (!glint || !ggx) {
+    state.SkipWithError("glint or microfacet_conductor missing");
+    return;
+  }
+  const std::vector<Query> q = make_queries(area);
+  std::vector<double> g_ns, m_ns;
+  for (auto _ : state) {
+    g_ns.push_back(time_block(*glint, q));
+    m_ns.push_back(time_block(*ggx, q));
+  }
+  auto median = [](std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    return v[v.size() / 2];
+  };
+  const double g = median(g_ns), m = median(m_ns);
+  state.counters["glint_ns"] = g;
+  state.counters["ggx_ns"] = m;
+  state.counters["ratio"] = g / m;
+}
+BENCHMARK(BM_GlintVsGgxEval)->Name("glint/eval_vs_ggx")->DenseRange(-8, 0, 2)->Iterations(25)->Unit(benchmark::kMillisecond);
+
+void BM_Jakob14Eval(benchmark::State &state) {
+  const double area = std::pow(10.0, static_cast<double>(state.range(0)));
+  auto glint = make("glint", {{"roughness", "0.4"}, {"gamma", "2"}, {"density", "1e7"}});
+  auto jakob = make("glint_jakob14", {{"roughness", "0.4"}, {"gamma", "2"}, {"density", "1e7"}});
+  std::vector<Query> q = make_queries(area);
+  q.resize(256);
+  double j = 0.0, g = 0.0;
+  for (auto _ : state) {
+    j += time_block(*jakob, q);
+    g += time_block(*glint, q);
+  }
+  state.counters["jakob14_ns"] = j / static_cast<double>(state.iterations());
+  state.counters["glint_ns"] = g / static_cast<double>(state.iterations());
+  state.counters["ratio_vs_glint"] = j / g;
+}
+BENCHMARK(BM_Jakob14Eval)->Name("glint/jakob14_eval")->DenseRange(-8, -2, 2)->Iterations(3)->Unit(benchmark::kMillisecond);
+
+// Render phase seconds from `glimmer render --stats` ("render=1.234s").
+double render_seconds(const std::string &scene, const std::string &out) {
+  const std::string cmd = std::string(GLIMMER_BENCH_CLI_PATH) + " render " + scene + " -o " + out +
+                          " --samples 16 --width 320 --height 200 --threads 1 --quiet --stats 2>&1";
+  FILE *p = popen(cmd.c_str(), "r");
+  if (p == nullptr) return -1.0;
+  std::string text;
+  char buf[512];
+  while (fgets(buf, sizeof(buf), p) != nullptr) text += buf;
+  if (pclose(p) != 0) return -1.0;
+  std::smatch m;
+  if (!std::regex_search(text, m, std::regex("render=([0-9.]+)s"))) return -1.0;
+  return std::stod(m[1].str());
+}
+
+void BM_GiSceneOverhead(benchmark::State &state) {
+  const std::string src = std::string(GLIMMER_BENCH_SOURCE_DIR) + "/examples/glint.xml";
+  std::ifstream in(src);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  // Plain-GGX twin: every glint_bsdf becomes a glossy_bsdf with the same roughness.
+  std::string text = ss.str();
+  text = std::regex_replace(text, std::regex("<glint_bsdf([^>]*?)distribution=\"[a-z]+\""),
+                            "<glint_bsdf$1distribution=\"ggx\"");
+  text = std::regex_replace(text, std::regex(" (gamma|density|uv_scale|seed|filter_threshold)=\"[^\"]*\""), "");
+  text = std::regex_replace(text, std::regex("<glint_bsdf"), "<glossy_bsdf");
+  const std::string dir = std::string(GLIMMER_BENCH_SOURCE_DIR) + "/examples/";
+  const std::string plain = dir + ".bench_glint_plain.xml";
+  std::ofstream(plain) << text;
+  double t_glint = 0.0, t_plain = 0.0;
+  for (auto _ : state) {
+    t_plain += render_seconds(plain, "/tmp/glimmer_bench_plain.png");
+    t_glint += render_seconds(src, "/tmp/glimmer_bench_glint.png");
+  }
+  std::remove(plain.c_str());
+  if (t_glint <= 0.0 || t_plain <= 0.0) {
+    state.SkipWithError("glimmer render failed");
+    return;
+  }
+  state.counters["glint_s"] = t_glint / static_cast<double>(state.iterations());
+  state.counters["ggx_s"] = t_plain / static_cast<double>(state.iterations());
+  state.counters["overhead"] = t_glint / t_plain - 1.0;
+}
+BENCHMARK(BM_GiSceneOverhead)->Name("glint/gi_scene_overhead")->Iterations(2)->Unit(benchmark::kSecond);
+
+}  // namespace

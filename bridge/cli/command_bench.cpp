@@ -1,0 +1,325 @@
+// `glimmer bench error-vs-time`: time-vs-error comparison of glint methods.
+// For a scene using glint_bsdf, renders variants of it (glint_bsdf rewritten
+// per method) at a ladder of sample counts by running `glimmer render` as a
+// subprocess, measures the render-phase wall time and the RMSE against a
+// converged render of the reference method (glint_jakob14), and writes a
+// CSV and a log-log PNG plot. Methods:
+//   jakob14         glint_jakob14_bsdf (Jakob 2014 reference)
+//   dsm-unfiltered  glint_bsdf with filter_threshold = 1e9 (always counts glints)
+//   dsm-filtered    glint_bsdf as written in the scene (filter threshold 16 by default)
+//   ggx             glossy_bsdf (plain GGX of the same roughness, no glints)
+#include <OpenImageIO/imagebuf.h>
+#include <OpenImageIO/imagebufalgo.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <regex>
+#include <sstream>
+#include <unistd.h>
+
+#include "cli/commands.h"
+
+namespace glimmer::cli {
+namespace {
+
+struct BenchArgs {
+  std::string scene;
+  std::string methods = "jakob14,dsm-unfiltered,dsm-filtered,ggx";
+  std::string ladder = "1,2,4,8,16,32";
+  int reference_samples = 256;
+  int width = 160, height = 100;
+  int threads = 0;
+  std::string out_dir = "docs";
+  std::string name = "glint_error_vs_time";
+  std::string from_csv;  // re-plot an existing CSV without rendering
+};
+
+std::string self_path() {
+  char buf[4096];
+  const ssize_t n = readlink("/proc/self/exe", buf, sizeof(buf) - 1);
+  if (n <= 0) throw CliError(kExitBadInput, "cannot find the glimmer executable (/proc/self/exe)");
+  buf[n] = '\0';
+  return buf;
+}
+
+std::vector<std::string> split(const std::string &s, char sep) {
+  std::vector<std::string> out;
+  std::stringstream ss(s);
+  std::string item;
+  while (std::getline(ss, item, sep))
+    if (!item.empty()) out.push_back(item);
+  return out;
+}
+
+// The scene text rewritten for one method.
+std::string rewrite_scene(const std::string &text, const std::string &method) {
+  if (method == "dsm-filtered") return text;
+  if (method == "dsm-unfiltered") {
+    std::string t = std::regex_replace(text, std::regex(" filter_threshold=\"[^\"]*\""), "");
+    return std::regex_replace(t, std::regex("<glint_bsdf "), "<glint_bsdf filter_threshold=\"1e9\" ");
+  }
+  if (method == "jakob14") {
+    std::string t = std::regex_replace(text, std::regex(" filter_threshold=\"[^\"]*\""), "");
+    return std::regex_replace(t, std::regex("<glint_bsdf "), "<glint_jakob14_bsdf ");
+  }
+  if (method == "ggx") {
+    std::string t = std::regex_replace(text, std::regex("(<glint_bsdf[^>]*?)distribution=\"[a-z]+\""),
+                                       "$1distribution=\"ggx\"");
+    t = std::regex_replace(t, std::regex(" (gamma|density|uv_scale|seed|filter_threshold)=\"[^\"]*\""), "");
+    return std::regex_replace(t, std::regex("<glint_bsdf"), "<glossy_bsdf");
+  }
+  throw CliError(kExitBadInput, "bench error-vs-time: unknown method '" + method +
+                                    "' (expected jakob14, dsm-unfiltered, dsm-filtered or ggx)");
+}
+
+// Runs `glimmer render` and returns the render-phase seconds.
+double render(const std::string &exe, const std::string &plugin, const std::string &scene, const std::string &out,
+              int samples, const BenchArgs &a, int seed = -1) {
+  std::string cmd = "'" + exe + "'";
+  if (!plugin.empty()) cmd += " --plugin '" + plugin + "'";
+  cmd += " render '" + scene + "' -o '" + out + "' --samples " + std::to_string(samples) + " --width " +
+         std::to_string(a.width) + " --height " + std::to_string(a.height) + " --threads " +
+         std::to_string(a.threads) + (seed >= 0 ? " --seed " + std::to_string(seed) : std::string()) +
+         " --quiet --stats 2>&1";
+  FILE *p = popen(cmd.c_str(), "r");
+  if (p == nullptr) throw CliError(kExitBadInput, "cannot run " + cmd);
+  std::string text;
+  char buf[512];
+  while (fgets(buf, sizeof(buf), p) != nullptr) text += buf;
+  const int status = pclose(p);
+  std::smatch m;
+  if (status != 0 || !std::regex_search(text, m, std::regex("render=([0-9.eE+-]+)s")))
+    throw CliError(kExitBadInput, "render failed (" + cmd + "):\n" + text);
+  return std::stod(m[1].str());
+}
+
+std::vector<float> read_pixels(const std::string &path, int &w, int &h) {
+  OIIO::ImageBuf buf(path);
+  if (!buf.read(0, 0, true, OIIO::TypeDesc::FLOAT)) throw CliError(kExitBadInput, "cannot read " + path);
+  const OIIO::ImageSpec &spec = buf.spec();
+  w = spec.width;
+  h = spec.height;
+  // The beauty pass: "<layer>.Combined.{R,G,B}" in multilayer EXRs, else R, G, B.
+  int channel[3] = {0, 1, 2};
+  const char *suffix[3] = {"Combined.R", "Combined.G", "Combined.B"};
+  const char *plain[3] = {"R", "G", "B"};
+  for (int c = 0; c < 3; ++c)
+    for (int i = 0; i < spec.nchannels; ++i) {
+      const std::string &n = spec.channel_name(i);
+      if (n == plain[c] || (n.size() >= 10 && n.compare(n.size() - 10, 10, suffix[c]) == 0)) {
+        channel[c] = i;
+        break;
+      }
+    }
+  std::vector<float> all(static_cast<size_t>(w) * h * spec.nchannels);
+  buf.get_pixels(OIIO::ROI(0, w, 0, h, 0, 1, 0, spec.nchannels), OIIO::TypeDesc::FLOAT, all.data());
+  std::vector<float> px(static_cast<size_t>(w) * h * 3);
+  for (size_t p = 0; p < static_cast<size_t>(w) * h; ++p)
+    for (int c = 0; c < 3; ++c) px[3 * p + c] = all[p * spec.nchannels + channel[c]];
+  return px;
+}
+
+double rmse(const std::vector<float> &a, const std::vector<float> &b) {
+  double s = 0.0;
+  for (size_t i = 0; i < a.size(); ++i) s += (double(a[i]) - b[i]) * (double(a[i]) - b[i]);
+  return std::sqrt(s / static_cast<double>(a.size()));
+}
+
+struct Row {
+  std::string method;
+  int samples;
+  double seconds, error;
+};
+
+// Log-log plot of RMSE against time, one polyline per method.
+void write_plot(const std::string &path, const std::vector<Row> &rows, const std::vector<std::string> &methods) {
+  const int W = 720, H = 480, L = 80, R = 170, T = 30, B = 60;
+  const char *dejavu = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf";
+  const std::string font = std::filesystem::exists(dejavu) ? dejavu : "";
+  OIIO::ImageBuf img(OIIO::ImageSpec(W, H, 3, OIIO::TypeDesc::FLOAT));
+  const float white[3] = {1, 1, 1};
+  OIIO::ImageBufAlgo::fill(img, white);
+  double t0 = 1e30, t1 = -1e30, e0 = 1e30, e1 = -1e30;
+  for (const auto &r : rows) {
+    if (r.seconds <= 0 || r.error <= 0) continue;
+    t0 = std::min(t0, std::log10(r.seconds));
+    t1 = std::max(t1, std::log10(r.seconds));
+    e0 = std::min(e0, std::log10(r.error));
+    e1 = std::max(e1, std::log10(r.error));
+  }
+  if (!(t1 > t0)) t1 = t0 + 1;
+  if (!(e1 > e0)) e1 = e0 + 1;
+  auto X = [&](double s) { return L + static_cast<int>((std::log10(s) - t0) / (t1 - t0) * (W - L - R)); };
+  auto Y = [&](double e) { return H - B - static_cast<int>((std::log10(e) - e0) / (e1 - e0) * (H - T - B)); };
+  const float black[3] = {0, 0, 0};
+  auto box = [&](int x0, int y0, int x1, int y1, const float *c) {
+    OIIO::ImageBufAlgo::fill(img, c, OIIO::ROI(std::max(0, x0), std::min(W, x1 + 1), std::max(0, y0), std::min(H, y1 + 1)));
+  };
+  box(L, H - B, W - R, H - B + 1, black);
+  box(L - 1, T, L, H - B, black);
+  const float colors[4][3] = {{0.8f, 0.1f, 0.1f}, {0.1f, 0.5f, 0.9f}, {0.1f, 0.7f, 0.2f}, {0.4f, 0.4f, 0.4f}};
+  for (size_t m = 0; m < methods.size(); ++m) {
+    const float *c = colors[m % 4];
+    int px = -1, py = -1;
+    for (const auto &r : rows) {
+      if (r.method != methods[m] || r.seconds <= 0 || r.error <= 0) continue;
+      const int x = X(r.seconds), y = Y(r.error);
+      box(x - 3, y - 3, x + 3, y + 3, c);
+      if (px >= 0) {
+        const int steps = std::max(std::abs(x - px), std::abs(y - py));
+        for (int s = 0; s <= steps; ++s) {
+          const int lx = px + (x - px) * s / std::max(steps, 1), ly = py + (y - py) * s / std::max(steps, 1);
+          box(lx, ly, lx + 1, ly + 1, c);
+        }
+      }
+      px = x;
+      py = y;
+    }
+    box(W - R + 15, T + 20 + 25 * static_cast<int>(m), W - R + 35, T + 30 + 25 * static_cast<int>(m), c);
+    OIIO::ImageBufAlgo::render_text(img, W - R + 42, T + 31 + 25 * static_cast<int>(m), methods[m], 14, font, c);
+  }
+  char label[128];
+  std::snprintf(label, sizeof(label), "time %.3g .. %.3g s (log)", std::pow(10.0, t0), std::pow(10.0, t1));
+  OIIO::ImageBufAlgo::render_text(img, L, H - 20, label, 14, font, black);
+  std::snprintf(label, sizeof(label), "RMSE %.3g .. %.3g (log)", std::pow(10.0, e0), std::pow(10.0, e1));
+  OIIO::ImageBufAlgo::render_text(img, 10, 20, label, 14, font, black);
+  if (!img.write(path)) throw CliError(kExitBadInput, "cannot write " + path);
+}
+
+// Time a method needs to reach `target` RMSE (log-log interpolation; <0 if never).
+double time_at_error(const std::vector<Row> &rows, const std::string &method, double target) {
+  const Row *prev = nullptr;
+  for (const auto &r : rows) {
+    if (r.method != method) continue;
+    if (r.error <= target) {
+      if (prev == nullptr) return r.seconds;
+      const double f = (std::log(prev->error) - std::log(target)) / (std::log(prev->error) - std::log(r.error));
+      return std::exp(std::log(prev->seconds) + f * (std::log(r.seconds) - std::log(prev->seconds)));
+    }
+    prev = &r;
+  }
+  return -1.0;
+}
+
+void report(const std::vector<Row> &rows, const std::vector<std::string> &methods);
+
+void plot_only(const BenchArgs &a) {
+  std::ifstream f(a.from_csv);
+  if (!f) throw CliError(kExitBadInput, "cannot read " + a.from_csv);
+  std::string line;
+  std::getline(f, line);
+  std::vector<Row> rows;
+  std::vector<std::string> methods;
+  while (std::getline(f, line)) {
+    const auto parts = split(line, ',');
+    if (parts.size() != 4) throw CliError(kExitBadInput, a.from_csv + ": malformed line '" + line + "'");
+    rows.push_back({parts[0], std::stoi(parts[1]), std::stod(parts[2]), std::stod(parts[3])});
+    if (std::find(methods.begin(), methods.end(), parts[0]) == methods.end()) methods.push_back(parts[0]);
+  }
+  const std::string png = (std::filesystem::path(a.out_dir) / (a.name + ".png")).string();
+  write_plot(png, rows, methods);
+  std::printf("wrote %s\n", png.c_str());
+  report(rows, methods);
+}
+
+void run(const BenchArgs &a, CliContext &ctx) {
+  if (!a.from_csv.empty()) return plot_only(a);
+  std::ifstream in(a.scene);
+  if (!in) throw CliError(kExitBadInput, "cannot read scene " + a.scene);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  const std::string text = ss.str();
+  if (text.find("<glint_bsdf") == std::string::npos)
+    throw CliError(kExitBadInput, a.scene + ": the scene has no <glint_bsdf> node to compare methods on");
+  const std::vector<std::string> methods = split(a.methods, ',');
+  for (const auto &m : methods) rewrite_scene(text, m);  // validates every method name before any file is written
+  std::vector<int> ladder;
+  for (const auto &s : split(a.ladder, ',')) ladder.push_back(std::stoi(s));
+  const std::string exe = self_path();
+  const std::filesystem::path scene_dir = std::filesystem::absolute(a.scene).parent_path();
+  const std::filesystem::path work = std::filesystem::temp_directory_path() / ("glimmer_bench_" + std::to_string(getpid()));
+  std::filesystem::create_directories(work);
+  std::filesystem::create_directories(a.out_dir);
+  auto variant = [&](const std::string &method) {  // written beside the scene so relative assets resolve
+    const std::string p = (scene_dir / (".bench_" + method + ".xml")).string();
+    std::ofstream(p) << rewrite_scene(text, method);
+    return p;
+  };
+  std::map<std::string, std::string> scenes;
+  for (const auto &m : methods) scenes[m] = variant(m);
+  if (!scenes.count("jakob14")) scenes["jakob14"] = variant("jakob14");
+
+  std::printf("reference: jakob14 at %d spp...\n", a.reference_samples);
+  std::fflush(stdout);
+  const std::string ref_path = (work / "reference.exr").string();
+  // Another sampling seed than the ladder: the ladder's first samples must not
+  // be the reference's own samples (that correlation would fake convergence).
+  const double ref_time = render(exe, ctx.plugin_path, scenes["jakob14"], ref_path, a.reference_samples, a, 7919);
+  int w = 0, h = 0;
+  const std::vector<float> ref = read_pixels(ref_path, w, h);
+  std::printf("reference: %.2f s\n", ref_time);
+
+  std::vector<Row> rows;
+  for (const auto &m : methods)
+    for (int spp : ladder) {
+      const std::string out = (work / (m + "_" + std::to_string(spp) + ".exr")).string();
+      const double t = render(exe, ctx.plugin_path, scenes[m], out, spp, a);
+      int w2 = 0, h2 = 0;
+      const double e = rmse(read_pixels(out, w2, h2), ref);
+      rows.push_back({m, spp, t, e});
+      std::printf("%-15s %5d spp  %8.3f s  RMSE %.5f\n", m.c_str(), spp, t, e);
+      std::fflush(stdout);
+    }
+  for (const auto &[m, p] : scenes) std::filesystem::remove(p);
+  std::filesystem::remove_all(work);
+
+  const std::string csv = (std::filesystem::path(a.out_dir) / (a.name + ".csv")).string();
+  std::ofstream f(csv);
+  f << "method,samples,seconds,rmse\n";
+  for (const auto &r : rows) f << r.method << "," << r.samples << "," << r.seconds << "," << r.error << "\n";
+  const std::string png = (std::filesystem::path(a.out_dir) / (a.name + ".png")).string();
+  write_plot(png, rows, methods);
+  std::printf("wrote %s and %s\n", csv.c_str(), png.c_str());
+
+  report(rows, methods);
+}
+
+// Speed-up at equal RMSE: the jakob14 errors, reached by each other method.
+void report(const std::vector<Row> &rows, const std::vector<std::string> &methods) {
+  for (const auto &m : methods) {
+    if (m == "jakob14" || m == "ggx") continue;
+    for (const auto &r : rows) {
+      if (r.method != "jakob14") continue;
+      const double t = time_at_error(rows, m, r.error);
+      if (t > 0) std::printf("equal RMSE %.5f: jakob14 %.3f s, %s %.3f s, speed-up %.1fx\n", r.error, r.seconds,
+                             m.c_str(), t, r.seconds / t);
+    }
+  }
+}
+
+}  // namespace
+
+void add_bench_command(CLI::App &app, CliContext &ctx) {
+  auto *bench = app.add_subcommand("bench", "benchmarks that render scenes (error vs time)");
+  bench->require_subcommand(1);
+  auto args = std::make_shared<BenchArgs>();
+  auto *evt = bench->add_subcommand("error-vs-time", "RMSE against a converged jakob14 render vs render time, per glint method");
+  evt->add_option("scene", args->scene, "scene with at least one <glint_bsdf> (not needed with --from-csv)");
+  evt->add_option("--methods", args->methods, "comma list of jakob14,dsm-unfiltered,dsm-filtered,ggx");
+  evt->add_option("--samples", args->ladder, "comma list of samples per pixel (the ladder)");
+  evt->add_option("--reference-samples", args->reference_samples, "samples of the converged jakob14 reference")
+      ->check(CLI::Range(1, 1 << 20));
+  evt->add_option("--width", args->width, "image width")->check(CLI::Range(1, 65536));
+  evt->add_option("--height", args->height, "image height")->check(CLI::Range(1, 65536));
+  evt->add_option("--threads", args->threads, "render threads (0 = all cores)")->check(CLI::Range(0, 4096));
+  evt->add_option("--out-dir", args->out_dir, "folder for the CSV and the PNG plot");
+  evt->add_option("--name", args->name, "base name of the CSV and PNG files");
+  evt->add_option("--from-csv", args->from_csv, "only re-plot (and report on) an existing CSV");
+  evt->callback([args, &ctx] { run(*args, ctx); });
+}
+
+}  // namespace glimmer::cli
