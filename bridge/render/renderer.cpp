@@ -457,7 +457,9 @@ struct Renderer::Impl {
     Vec3 D, org;
     Differentials rd;
     float cam_dir_z = 1.0f;
-    camera_ray(px + 0.5f + ox, py + 0.5f + oy, org, D, rd, cam_dir_z);
+    float lens_u = 0.5f, lens_v = 0.5f;
+    if (scene.camera.aperture_size > 0.0f) sampler.get2(kPairLens, lens_u, lens_v);
+    camera_ray(px + 0.5f + ox, py + 0.5f + oy, org, D, rd, cam_dir_z, lens_u, lens_v);
     float tmin = scene.camera.nearclip / std::max(cam_dir_z, 1e-6f);
     float tmax = scene.camera.farclip / std::max(cam_dir_z, 1e-6f);
     const float pixel_spread = std::max(length(rd.dDdx), length(rd.dDdy));
@@ -702,7 +704,9 @@ struct Renderer::Impl {
 
   // Pinhole camera: looks along +Z of camera space, +Y up, fov across the
   // shorter image side (Cycles' viewplane).
-  void camera_ray(float x, float y, Vec3 &org, Vec3 &dir, Differentials &rd, float &dir_z) const {
+  // Camera ray through film position (x, y); (lens_u, lens_v) picks the point on the thin-lens aperture.
+  void camera_ray(float x, float y, Vec3 &org, Vec3 &dir, Differentials &rd, float &dir_z, float lens_u = 0.5f,
+                  float lens_v = 0.5f) const {
     const auto &cam = scene.camera;
     const float aspect = static_cast<float>(width) / static_cast<float>(height);
     float half_w, half_h;
@@ -725,6 +729,18 @@ struct Renderer::Impl {
     rd.dDdy = ddir(dvyw);
     rd.dPdx = rd.dPdy = Vec3(0.0f);
     org = cam.camera_to_world.point(Vec3(0.0f));
+    if (cam.aperture_size > 0.0f) {
+      // Cycles' thin lens (kernel/camera/camera.h): the point on the plane z = focaldistance seen through the
+      // pinhole, reached from a uniform point on the aperture disk of radius aperturesize. The pinhole
+      // differentials are kept (an approximation: the footprint ignores the defocus).
+      float lx, ly;
+      sample_uniform_disk_concentric(lens_u, lens_v, lx, ly);
+      const Vec3 lens_point(lx * cam.aperture_size, ly * cam.aperture_size, 0.0f);
+      const Vec3 focus_point = v * cam.focal_distance;  // v.z = 1
+      const Vec3 w = cam.camera_to_world.vector(focus_point - lens_point);
+      dir = normalize(w);
+      org = cam.camera_to_world.point(lens_point);
+    }
     // Depth of the first hit is measured along camera +Z in world units.
     dir_z = dot(dir, normalize(cam.camera_to_world.vector(Vec3(0, 0, 1))));
   }

@@ -35,6 +35,8 @@ struct Camera {
   float fov = 0.785398163f;     // radians, across the shorter image side (Cycles' viewplane)
   int width = 1024, height = 512;  // Cycles' Camera defaults
   float nearclip = 1e-5f, farclip = 1e30f;
+  float aperture_size = 0.0f;    // thin-lens aperture radius (Cycles' aperturesize; 0 = pinhole)
+  float focal_distance = 10.0f;  // distance of the plane in focus along the view axis (Cycles' focaldistance)
   SourceLocation where;
 };
 

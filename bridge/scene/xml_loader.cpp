@@ -174,8 +174,10 @@ class Loader {
   }
 
   void read_camera(const XmlFile &f, const pugi::xml_node &node, const ReadState &state) {
-    check_attributes(f, node, {"width", "height", "full_width", "full_height", "fov", "nearclip", "farclip", "type"},
-                     {"sensorwidth", "sensorheight", "aperturesize", "focaldistance", "shuttertime", "blades",
+    check_attributes(f, node,
+                     {"width", "height", "full_width", "full_height", "fov", "nearclip", "farclip", "type", "aperturesize",
+                      "focaldistance"},
+                     {"sensorwidth", "sensorheight", "shuttertime", "blades",
                       "bladesrotation", "panorama_type", "fisheye_fov", "fisheye_lens", "offscreen_dicing_scale"});
     Camera &c = scene_.camera;
     c.where = loc(f, node);
@@ -192,6 +194,12 @@ class Loader {
     c.farclip = read_float(f, node, "farclip", c.farclip);
     if (!(c.nearclip >= 0.0f && c.farclip > c.nearclip))
       throw SceneError(loc(f, node), "<camera> needs 0 <= nearclip < farclip");
+    c.aperture_size = read_float(f, node, "aperturesize", c.aperture_size);
+    c.focal_distance = read_float(f, node, "focaldistance", c.focal_distance);
+    if (!(c.aperture_size >= 0.0f) || !std::isfinite(c.aperture_size))
+      throw SceneError(loc(f, node), "<camera> aperturesize must be >= 0");
+    if (!(c.focal_distance > 0.0f) || !std::isfinite(c.focal_distance))
+      throw SceneError(loc(f, node), "<camera> focaldistance must be > 0");
     if (node.attribute("type") && std::string(node.attribute("type").value()) != "perspective")
       warn(f, node, std::string("camera type '") + node.attribute("type").value() +
                         "' is not supported; rendering with a perspective camera");

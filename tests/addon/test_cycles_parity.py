@@ -14,6 +14,7 @@ region is printed with its ratio. Skipped (exit 77) while `glimmer` has no `rend
 """
 import math
 import os
+import re
 import subprocess
 import sys
 import time
@@ -202,6 +203,23 @@ def render_both(name):
     return load_pixels(rgba), load_pixels(cycles_exr)
 
 
+def glimmer_pixels(xml, name, seed):
+    """`glimmer render` of an exported XML (same size and samples as the scene) as RGB pixels."""
+    scene = bpy.context.scene
+    exr = os.path.join(opts.out, name + ".exr")
+    cmd = mod.runner.render_command(glimmer, xml, exr, scene.glimmer.samples, scene.glimmer.threads, seed,
+                                    scene.render.resolution_x, scene.render.resolution_y)
+    subprocess.run(cmd + ["--quiet"], check=True)
+    channels = mod.engine.exr_channels(exr)
+    combined = [c for c in channels if ".Combined." in c]
+    order = (["%s.Combined.%s" % (combined[0].split(".Combined.")[0], c) for c in "RGBA"] if combined
+             else list("RGBA"))
+    rgba = os.path.join(opts.out, name + "_rgba.exr")
+    subprocess.run(["oiiotool", exr, "--ch", ",".join(order), "--chnames", "R,G,B,A", "-d", "float", "-o", rgba],
+                   check=True)
+    return load_pixels(rgba)
+
+
 def luminance(px):
     return px @ np.array([0.2126, 0.7152, 0.0722])
 
@@ -384,8 +402,9 @@ def scene_environment():
     compare_region("5 env lit patch", patch, glim, cyc)
 
 
-def texture_image(path):
-    """An asymmetric 8-bit sRGB PNG: red rises with x, green with y, a blue square near one corner."""
+def texture_image(path, checker=False):
+    """An asymmetric 8-bit sRGB PNG: red rises with x, green with y, a blue square near one corner (and, with
+    checker, a 4x4-texel checkerboard darkening every other cell)."""
     w, h = 64, 32
     x = (np.arange(w) + 0.5) / w
     y = (np.arange(h) + 0.5) / h
@@ -394,6 +413,9 @@ def texture_image(path):
     rgba[..., 0] = xx
     rgba[..., 1] = yy
     rgba[..., 2] = np.where((xx > 0.7) & (xx < 0.9) & (yy > 0.6) & (yy < 0.9), 0.9, 0.1)
+    if checker:
+        cells = ((np.arange(w)[None, :] // 4) + (np.arange(h)[:, None] // 4)) % 2
+        rgba[..., :3] *= np.where(cells == 1, 0.15, 1.0)[..., None]
     img = bpy.data.images.new("TexSource", w, h, alpha=True)
     img.pixels[:] = rgba.ravel()
     img.filepath_raw = path
@@ -435,6 +457,55 @@ def scene_texture(interpolation="Linear"):
     RESULTS.append(line)
     if not (same < 0.02 and flipped_u > 4 * same and flipped_v > 4 * same):
         FAILURES.append(line)
+
+
+def scene_depth_of_field():
+    """Thin-lens depth of field: f-stop and a focus object off the view axis (Cycles focuses at the distance along
+    the view axis). An sRGB-textured emissive floor seen obliquely is sharp near the focus and blurred elsewhere."""
+    path = os.path.join(opts.out, "parity_checker.png")
+    texture_image(path, checker=True)
+    scene = new_scene(samples=256, width=96, height=48)
+    cam = add_camera(scene, (0.0, -3.0, 1.2), (70.0, 0.0, 0.0), lens=35.0)
+    target = bpy.data.objects.new("Focus", None)
+    target.location = (0.8, 0.5, 0.0)
+    scene.collection.objects.link(target)
+    cam.data.dof.use_dof = True
+    cam.data.dof.aperture_fstop = 0.2
+    cam.data.dof.focus_object = target
+    mat = bpy.data.materials.new("Textured")
+    mat.use_nodes = True
+    tree = mat.node_tree
+    tree.nodes.remove(tree.nodes["Principled BSDF"])
+    em = tree.nodes.new("ShaderNodeEmission")
+    tex = tree.nodes.new("ShaderNodeTexImage")
+    tex.image = bpy.data.images.load(path)
+    tex.interpolation = "Closest"
+    tree.links.new(tex.outputs["Color"], em.inputs["Color"])
+    tree.links.new(em.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    add_plane(6.0, mat=mat)
+    glim, cyc = render_both("dof")
+    # The exported scene again with another seed (the per-pixel noise level) and without the aperture (how far a
+    # pinhole image is from Cycles' blurred one).
+    xml = os.path.join(opts.out, "dof_export", "scene.xml")
+    with open(xml) as f:
+        text = f.read()
+    check('aperturesize="' in text, "the exporter writes aperturesize")
+    pinhole_xml = os.path.join(opts.out, "dof_export", "pinhole.xml")
+    with open(pinhole_xml, "w") as f:
+        f.write(re.sub(r'aperturesize="[^"]*"', 'aperturesize="0"', text))
+    other_seed = glimmer_pixels(xml, "dof_seed2", seed=2)
+    pinhole = glimmer_pixels(pinhole_xml, "dof_pinhole", seed=1)
+
+    def rel(a, b):
+        return float(np.mean(np.abs(a - b)) / np.mean(np.abs(b)))
+    same, noise, sharp = rel(glim, cyc), rel(glim, other_seed), rel(pinhole, cyc)
+    line = ("11 depth of field: per-pixel mean |glimmer-cycles|/mean cycles = %.4f; glimmer seed 1 vs 2 (noise) "
+            "%.4f; pinhole render vs cycles %.4f" % (same, noise, sharp))
+    print(line)
+    RESULTS.append(line)
+    if not (sharp > 2.0 * noise and same < 1.5 * noise):
+        FAILURES.append(line)
+    compare_region("11 depth of field: all", full(glim), glim, cyc)
 
 
 def scene_emission():
@@ -587,6 +658,7 @@ SCENES = {
     "emission": scene_emission,
     "texture": scene_texture,
     "texture_closest": lambda: scene_texture("Closest"),
+    "depth_of_field": scene_depth_of_field,
     "closures": scene_closures,
     "closures_more": scene_closures_more,
     "indirect": scene_indirect,
