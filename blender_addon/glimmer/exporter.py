@@ -5,7 +5,8 @@ Conventions (see docs/blender.md):
   by `<mesh src=...>` inside `<state shader=... interpolation=...>`.
 - Camera: `<transform translate rotate scale="sx sy -sz">` around `<camera>`:
   Blender cameras look along -Z, Cycles' along +Z, hence the scale 1 1 -1.
-- Lights: world-space co/dir/axes, strength = colour * power (W) for point,
+- Lights: use_camera from the object's camera visibility (off by default in Blender);
+  world-space co/dir/axes, strength = colour * power (W) for point,
   spot and area lights and colour * strength (W/m^2) for sun lights, exactly
   the numbers Blender hands to Cycles (Cycles applies the 1/(4 pi) and area
   normalisation itself).
@@ -507,7 +508,10 @@ class Exporter:
             if cam.dof.use_dof:
                 focus = cam.dof.focus_distance
                 if cam.dof.focus_object is not None:
-                    focus = float(np.linalg.norm(np.array(cam.dof.focus_object.matrix_world.translation) - loc))
+                    # Blender -> Cycles sync (blender_camera_focal_distance): the distance along the view axis.
+                    view_dir = linear[:, 2] / max(float(np.linalg.norm(linear[:, 2])), 1e-30)
+                    target = np.array(cam.dof.focus_object.matrix_world.translation)
+                    focus = abs(float(np.dot(view_dir, loc - target)))
                 attributes["aperturesize"] = fmt(cam.lens * 1e-3 / (2.0 * cam.dof.aperture_fstop))
                 attributes["focaldistance"] = fmt(focus)
         ET.SubElement(tr, "camera", attrib=attributes)
@@ -679,6 +683,9 @@ class Exporter:
         else:
             self.warn("light '%s': type %s is not supported: skipped" % (obj.name, light.type))
             return
+        # Blender lights are invisible to camera rays unless Object > Visibility > Camera is on (the default
+        # is off); Cycles XML's use_camera defaults to true, so it is always written.
+        attributes["use_camera"] = fmt(bool(getattr(obj, "visible_camera", False)))
         if light.use_nodes:
             self.warn("light '%s': light node trees are not exported (colour x power is used)" % obj.name)
         ET.SubElement(root, "light", attrib=attributes)

@@ -83,6 +83,7 @@ LightSet::LightSet(const scene::Scene &scene, ShaderSystem &shaders, const std::
     e.co = l.co;
     e.dir = normalize(l.dir);
     e.radius = l.radius;
+    e.use_camera = l.use_camera;
     float p = luminance(e.strength);
     switch (l.type) {
       case scene::LightType::Point:
@@ -97,9 +98,13 @@ LightSet::LightSet(const scene::Scene &scene, ShaderSystem &shaders, const std::
         break;
       case scene::LightType::Sun: {
         e.kind = Kind::Sun;
-        const float half = 0.5f * std::min(l.angle, kPi);
+        // Cycles 3.4 (scene/light.cpp, kernel/light/distant.h): the sun is a disk of radius tan(angle / 2)
+        // at unit distance, sampled uniformly by area: radiance = pdf = 1 / (pi tan^2(angle / 2) cos^3 theta)
+        // (theta from the sun axis) times the strength, i.e. irradiance slightly below the strength.
+        const float half = 0.5f * std::min(l.angle, 0.999f * kPi);
         e.cos_half_angle = std::cos(half);
-        e.sun_solid_angle = kTwoPi * (1.0f - e.cos_half_angle);
+        e.sun_tan_radius = std::tan(half);
+        e.sun_inv_area = e.sun_tan_radius > 0.0f ? 1.0f / (kPi * e.sun_tan_radius * e.sun_tan_radius) : 1.0f;
         p *= disk_area;
         features.light_types.insert("sun");
         break;
@@ -115,6 +120,13 @@ LightSet::LightSet(const scene::Scene &scene, ShaderSystem &shaders, const std::
           Vec3 n = normalize(cross(e.U, e.V));
           if (dot(n, e.dir) < 0.0f) n = -n;
           e.dir = n;
+        }
+        {
+          // Cycles 3.4 spread: a soft-box grid of slats; attenuation (1 - tan(spread_angle) tan(a)) normalised by
+          // 2 / (2 + (2 spread_angle - pi) tan(spread_angle)), spread_angle = (pi - max(spread, 1 deg)) / 2.
+          const float spread_angle = 0.5f * (kPi - std::max(l.spread, kPi / 180.0f));
+          e.tan_spread = std::tan(spread_angle);
+          e.normalize_spread = 2.0f / (2.0f + (2.0f * spread_angle - kPi) * e.tan_spread);
         }
         p *= kPi * 0.25f;
         features.light_types.insert(l.round ? "area_disk" : "area_quad");
@@ -229,6 +241,15 @@ float LightSet::spot_attenuation(const Entry &l, const Vec3 &dir_from_light) con
   return attenuation;
 }
 
+float LightSet::spread_attenuation(const Entry &l, float cos_to_normal) {
+  // Cycles 3.4 light_spread_attenuation (kernel/light/light.h): the share of a soft-box grid cell not hidden by
+  // its slats at angle a from the normal.
+  if (l.tan_spread <= 0.0f) return 1.0f;
+  const float sin_a = std::sqrt(std::max(0.0f, 1.0f - cos_to_normal * cos_to_normal));
+  const float tan_a = sin_a / cos_to_normal;
+  return std::max((1.0f - l.tan_spread * tan_a) * l.normalize_spread, 0.0f);
+}
+
 Spectrum LightSet::triangle_emission(const Entry &l, const Vec3 &, float b1, float b2, const Vec3 &wi_toward_viewer) const {
   const scene::Mesh &m = scene_.meshes[l.mesh];
   const auto &tri = m.triangles[l.prim];
@@ -270,40 +291,52 @@ bool LightSet::sample(float select, float u, float v, const Vec3 &P, LightSample
   switch (l.kind) {
     case Kind::Point:
     case Kind::Spot: {
-      const Vec3 to = l.co - P;
-      const float d2 = length_squared(to), d = std::sqrt(d2);
-      if (!(d > 0.0f)) return false;
-      const Vec3 axis = to / d;
-      if (l.radius > 0.0f && d > l.radius * 1.0001f) {
-        // Uniform cone toward the sphere; radiance S / (4 pi * pi r^2).
-        const float sin2 = (l.radius * l.radius) / d2;
-        const float cos_max = std::sqrt(std::max(0.0f, 1.0f - sin2));
-        const Frame f = Frame::from_normal(axis);
-        out.wi = normalize(f.to_world(sample_uniform_cone(u, v, cos_max)));
-        const float b = dot(to, out.wi), c = d2 - l.radius * l.radius;
-        const float disc = std::max(0.0f, b * b - c);
-        out.dist = b - std::sqrt(disc);
-        out.pdf = pick / (kTwoPi * (1.0f - cos_max));
-        out.radiance = l.strength * (1.0f / (4.0f * kPi * kPi * l.radius * l.radius));
+      // Cycles 3.4 point/spot lamp (kernel/light/point.h, spot.h): with a radius, a disk of that radius
+      // centred on co and facing the shading point, sampled uniformly by area; radiance
+      // S / (4 pi) / (pi r^2) (eval_fac = 1/(4 pi) * invarea), pdf = t^2 / (cos * pi r^2).
+      // Without a radius, a point of intensity S / (4 pi).
+      const Vec3 to_center = l.co - P;
+      const float d_center = length(to_center);
+      if (!(d_center > 0.0f)) return false;
+      if (l.radius > 0.0f) {
+        const Vec3 lightN = -to_center / d_center;  // disk normal, toward P
+        const Frame f = Frame::from_normal(lightN);
+        float x, y;
+        sample_uniform_disk_concentric(u, v, x, y);
+        const Vec3 Pl = l.co + (f.s * x + f.t * y) * l.radius;
+        const Vec3 to = Pl - P;
+        const float d2 = length_squared(to), d = std::sqrt(d2);
+        if (!(d > 0.0f)) return false;
+        out.wi = to / d;
+        const float cos_l = -dot(lightN, out.wi);
+        if (cos_l <= 0.0f) return false;
+        out.dist = d;
+        const float area = kPi * l.radius * l.radius;
+        out.pdf = pick * d2 / (cos_l * area);
+        out.radiance = l.strength * (kInv4Pi / area);
         out.delta = false;
       } else {
-        out.wi = axis;
-        out.dist = d;
+        out.wi = to_center / d_center;
+        out.dist = d_center;
         out.pdf = pick;
-        out.radiance = l.strength * (kInv4Pi / d2);
+        out.radiance = l.strength * (kInv4Pi / (d_center * d_center));
         out.delta = true;
       }
-      if (l.kind == Kind::Spot) out.radiance *= spot_attenuation(l, -axis);
+      // Cycles evaluates the cone with the direction from the sampled lamp point to P.
+      if (l.kind == Kind::Spot) out.radiance *= spot_attenuation(l, -out.wi);
       return !is_zero(out.radiance);
     }
     case Kind::Sun: {
       out.dist = kInf;
-      if (l.sun_solid_angle > 0.0f) {
+      if (l.sun_tan_radius > 0.0f) {
         const Frame f = Frame::from_normal(-l.dir);
-        out.wi = normalize(f.to_world(sample_uniform_cone(u, v, l.cos_half_angle)));
-        out.pdf = pick / l.sun_solid_angle;
-        const float sin2 = 1.0f - l.cos_half_angle * l.cos_half_angle;
-        out.radiance = l.strength / (kPi * sin2);
+        float x, y;
+        sample_uniform_disk_concentric(u, v, x, y);
+        out.wi = normalize(f.n + (f.s * x + f.t * y) * l.sun_tan_radius);
+        const float cos_theta = dot(out.wi, f.n);
+        const float density = l.sun_inv_area / (cos_theta * cos_theta * cos_theta);
+        out.pdf = pick * density;
+        out.radiance = l.strength * density;
         out.delta = false;
       } else {
         out.wi = -l.dir;
@@ -331,9 +364,9 @@ bool LightSet::sample(float select, float u, float v, const Vec3 &P, LightSample
       if (cos_l <= 0.0f) return false;
       out.dist = d;
       out.pdf = pick * d2 / (cos_l * l.area);
-      out.radiance = l.strength * (0.25f / l.area);
+      out.radiance = l.strength * (0.25f / l.area * spread_attenuation(l, cos_l));
       out.delta = false;
-      return true;
+      return !is_zero(out.radiance);
     }
     case Kind::Background: {
       out.dist = kInf;
@@ -373,24 +406,31 @@ bool LightSet::sample(float select, float u, float v, const Vec3 &P, LightSample
   return false;
 }
 
-void LightSet::intersect(const Vec3 &o, const Vec3 &d, float t_max, bool hit_surface, LightHits &out) const {
+void LightSet::intersect(const Vec3 &o, const Vec3 &d, float t_max, bool hit_surface, bool camera_ray,
+                         LightHits &out) const {
   out.count = 0;
   for (size_t i = 0; i < lights_.size(); ++i) {
     const Entry &l = lights_[i];
+    if (camera_ray && !l.use_camera) continue;
     const float pick = pick_probability(static_cast<int>(i));
     LightHit h;
     if ((l.kind == Kind::Point || l.kind == Kind::Spot) && l.radius > 0.0f) {
-      const Vec3 oc = l.co - o;
-      const float b = dot(oc, d), c = length_squared(oc) - l.radius * l.radius;
-      const float disc = b * b - c;
-      if (disc < 0.0f || c <= 0.0f) continue;
-      const float t = b - std::sqrt(disc);
+      // The disk of radius r at co facing the ray origin (Cycles' ray_disk_intersect with lightN = o - co).
+      const Vec3 oc = o - l.co;
+      const float dist_origin = length(oc);
+      if (!(dist_origin > 0.0f)) continue;
+      const Vec3 lightN = oc / dist_origin;
+      const float cos_l = -dot(d, lightN);
+      if (cos_l <= 0.0f) continue;
+      const float t = dist_origin / cos_l;  // plane through co with normal lightN
       if (!(t > 0.0f && t < t_max)) continue;
-      const float d2 = length_squared(oc);
-      const float cos_max = std::sqrt(std::max(0.0f, 1.0f - l.radius * l.radius / d2));
-      h.radiance = l.strength * (1.0f / (4.0f * kPi * kPi * l.radius * l.radius));
-      if (l.kind == Kind::Spot) h.radiance *= spot_attenuation(l, -normalize(oc));
-      h.pdf = pick / (kTwoPi * (1.0f - cos_max));
+      const Vec3 q = o + d * t - l.co;
+      if (length_squared(q) > l.radius * l.radius) continue;
+      const float area = kPi * l.radius * l.radius;
+      h.radiance = l.strength * (kInv4Pi / area);
+      if (l.kind == Kind::Spot) h.radiance *= spot_attenuation(l, -d);
+      if (is_zero(h.radiance)) continue;
+      h.pdf = pick * t * t / (cos_l * area);
       h.t = t;
       out.add(h);
     } else if (l.kind == Kind::Area) {
@@ -404,15 +444,17 @@ void LightSet::intersect(const Vec3 &o, const Vec3 &d, float t_max, bool hit_sur
       if (!inside) continue;
       const float cos_l = -denom;
       if (cos_l <= 0.0f) continue;  // back side: no emission
-      h.radiance = l.strength * (0.25f / l.area);
+      h.radiance = l.strength * (0.25f / l.area * spread_attenuation(l, cos_l));
+      if (is_zero(h.radiance)) continue;
       h.pdf = pick * t * t / (cos_l * l.area);
       h.t = t;
       out.add(h);
-    } else if (l.kind == Kind::Sun && l.sun_solid_angle > 0.0f && !hit_surface) {
-      if (dot(d, -l.dir) < l.cos_half_angle) continue;
-      const float sin2 = 1.0f - l.cos_half_angle * l.cos_half_angle;
-      h.radiance = l.strength / (kPi * sin2);
-      h.pdf = pick / l.sun_solid_angle;
+    } else if (l.kind == Kind::Sun && l.sun_tan_radius > 0.0f && !hit_surface) {
+      const float cos_theta = dot(d, -l.dir);
+      if (cos_theta < l.cos_half_angle) continue;
+      const float density = l.sun_inv_area / (cos_theta * cos_theta * cos_theta);
+      h.radiance = l.strength * density;
+      h.pdf = pick * density;
       h.t = kInf;
       out.add(h);
     }

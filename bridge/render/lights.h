@@ -79,7 +79,9 @@ class LightSet {
   int count() const { return static_cast<int>(lights_.size()); }
   bool sample(float select, float u, float v, const Vec3 &P, LightSample &out) const;
   // Lamps hit by a ray before t_max, and the sun disk when the ray escapes.
-  void intersect(const Vec3 &o, const Vec3 &d, float t_max, bool hit_surface, LightHits &out) const;
+  // Lamps hit by the ray (o, d) before t_max; camera_ray: the ray comes from the camera (through transparent
+  // surfaces only), so lamps with use_camera = false are skipped as in Cycles' lights_intersect.
+  void intersect(const Vec3 &o, const Vec3 &d, float t_max, bool hit_surface, bool camera_ray, LightHits &out) const;
   float background_pdf(const Vec3 &d) const;
   // Light-sampling pdf for a BSDF ray from `from` hitting emissive triangle (mesh, prim) at P.
   float triangle_pdf(int mesh, int prim, const Vec3 &from, const Vec3 &P, const Vec3 &Ng, const Vec3 &d) const;
@@ -92,11 +94,14 @@ class LightSet {
     Vec3 co{0.0f}, dir{0.0f, 0.0f, -1.0f};
     float radius = 0.0f;
     float cos_half_angle = 1.0f;  // sun
-    float sun_solid_angle = 0.0f;
+    float sun_tan_radius = 0.0f;  // tan(angle / 2): the sun disk's radius at unit distance
+    float sun_inv_area = 1.0f;
     float cos_half_spot = 0.0f, spot_smooth = 0.0f;
     Vec3 U{0.0f}, V{0.0f};  // area extents
     float area = 0.0f;
     bool round = false;
+    bool use_camera = true;
+    float tan_spread = 0.0f, normalize_spread = 1.0f;  // area light spread (Cycles 3.4 scene/light.cpp)
     int mesh = -1, prim = -1;
   };
   const scene::Scene &scene_;
@@ -113,6 +118,7 @@ class LightSet {
 
   float pick_probability(int i) const { return pick_.probability(i); }
   float spot_attenuation(const Entry &l, const Vec3 &dir_from_light) const;
+  static float spread_attenuation(const Entry &l, float cos_to_normal);
   Spectrum triangle_emission(const Entry &l, const Vec3 &P, float b1, float b2, const Vec3 &wi_toward_viewer) const;
   void build_environment_map();
   float environment_pdf(const Vec3 &d) const;

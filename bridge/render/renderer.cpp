@@ -438,6 +438,14 @@ struct Renderer::Impl {
 
   Spectrum trace_path(int px, int py, uint32_t sample_index, PixelAov &aov, uint64_t &nan_count) const {
     const auto &integ = scene.integrator;
+    // Cycles' kernel limits (scene/integrator.cpp): the settings plus one, "so that a bounce of 0 indicates
+    // no global illumination, only direct illumination"; transparent_max_bounce is used as is.
+    const auto plus_one = [](int v) { return v < std::numeric_limits<int>::max() ? v + 1 : v; };
+    const int limit_min_bounce = plus_one(integ.min_bounce);
+    const int limit_bounce = plus_one(integ.max_bounce);
+    const int limit_diffuse = plus_one(integ.max_diffuse_bounce);
+    const int limit_glossy = plus_one(integ.max_glossy_bounce);
+    const int limit_transmission = plus_one(integ.max_transmission_bounce);
     const uint32_t pixel_index = static_cast<uint32_t>(py) * static_cast<uint32_t>(width) + static_cast<uint32_t>(px);
     const PixelSampler sampler(seed, pixel_index, sample_index);
     const uint32_t path_seed = hash_u32x3(seed, pixel_index, sample_index);
@@ -449,7 +457,9 @@ struct Renderer::Impl {
     Vec3 D, org;
     Differentials rd;
     float cam_dir_z = 1.0f;
-    camera_ray(px + 0.5f + ox, py + 0.5f + oy, org, D, rd, cam_dir_z);
+    float lens_u = 0.5f, lens_v = 0.5f;
+    if (scene.camera.aperture_size > 0.0f) sampler.get2(kPairLens, lens_u, lens_v);
+    camera_ray(px + 0.5f + ox, py + 0.5f + oy, org, D, rd, cam_dir_z, lens_u, lens_v);
     float tmin = scene.camera.nearclip / std::max(cam_dir_z, 1e-6f);
     float tmax = scene.camera.farclip / std::max(cam_dir_z, 1e-6f);
     const float pixel_spread = std::max(length(rd.dDdx), length(rd.dDdy));
@@ -480,7 +490,7 @@ struct Renderer::Impl {
       // Lamps (spheres, area lights) before the surface and the sun disk on escape;
       // as in Cycles they do not block the ray.
       LightHits lhs;
-      lights->intersect(org, D, t_hit, hit_surface, lhs);
+      lights->intersect(org, D, t_hit, hit_surface, bounce == 0, lhs);
       for (int i = 0; i < lhs.count; ++i) {
         const LightHit &lh = lhs.hits[i];
         if (last_singular) {
@@ -555,7 +565,7 @@ struct Renderer::Impl {
       // Russian roulette (Cycles' path_state_continuation_probability).
       float ru, rr;
       sampler.get2(bounce_pair(bounce, kPairBsdfTerminate), ru, rr);
-      if (bounce > integ.min_bounce) {
+      if (bounce > limit_min_bounce) {
         const float q = std::min(std::sqrt(max_component(abs(throughput))), 1.0f);
         if (q <= 0.0f || rr >= q) break;
         throughput /= q;
@@ -640,14 +650,14 @@ struct Renderer::Impl {
 
       // Bounce counters by label (Cycles' path_state_next).
       ++bounce;
-      if (bounce >= integ.max_bounce) terminate_next = true;
+      if (bounce >= limit_bounce) terminate_next = true;
       if (label & GLIMMER_LABEL_REFLECT) {
         if (label & GLIMMER_LABEL_DIFFUSE) {
-          if (++diffuse_bounce >= integ.max_diffuse_bounce) terminate_next = true;
-        } else if (++glossy_bounce >= integ.max_glossy_bounce) {
+          if (++diffuse_bounce >= limit_diffuse) terminate_next = true;
+        } else if (++glossy_bounce >= limit_glossy) {
           terminate_next = true;
         }
-      } else if (++transmission_bounce >= integ.max_transmission_bounce) {
+      } else if (++transmission_bounce >= limit_transmission) {
         terminate_next = true;
       }
 
@@ -694,7 +704,9 @@ struct Renderer::Impl {
 
   // Pinhole camera: looks along +Z of camera space, +Y up, fov across the
   // shorter image side (Cycles' viewplane).
-  void camera_ray(float x, float y, Vec3 &org, Vec3 &dir, Differentials &rd, float &dir_z) const {
+  // Camera ray through film position (x, y); (lens_u, lens_v) picks the point on the thin-lens aperture.
+  void camera_ray(float x, float y, Vec3 &org, Vec3 &dir, Differentials &rd, float &dir_z, float lens_u = 0.5f,
+                  float lens_v = 0.5f) const {
     const auto &cam = scene.camera;
     const float aspect = static_cast<float>(width) / static_cast<float>(height);
     float half_w, half_h;
@@ -717,6 +729,18 @@ struct Renderer::Impl {
     rd.dDdy = ddir(dvyw);
     rd.dPdx = rd.dPdy = Vec3(0.0f);
     org = cam.camera_to_world.point(Vec3(0.0f));
+    if (cam.aperture_size > 0.0f) {
+      // Cycles' thin lens (kernel/camera/camera.h): the point on the plane z = focaldistance seen through the
+      // pinhole, reached from a uniform point on the aperture disk of radius aperturesize. The pinhole
+      // differentials are kept (an approximation: the footprint ignores the defocus).
+      float lx, ly;
+      sample_uniform_disk_concentric(lens_u, lens_v, lx, ly);
+      const Vec3 lens_point(lx * cam.aperture_size, ly * cam.aperture_size, 0.0f);
+      const Vec3 focus_point = v * cam.focal_distance;  // v.z = 1
+      const Vec3 w = cam.camera_to_world.vector(focus_point - lens_point);
+      dir = normalize(w);
+      org = cam.camera_to_world.point(lens_point);
+    }
     // Depth of the first hit is measured along camera +Z in world units.
     dir_z = dot(dir, normalize(cam.camera_to_world.vector(Vec3(0, 0, 1))));
   }

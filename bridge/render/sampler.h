@@ -69,6 +69,9 @@ enum SamplePair : uint32_t {
   kPairBsdf = 2,         // rand3[0], rand3[1]
   kPairBsdfTerminate = 3 // rand3[2], Russian roulette
 };
+// The thin-lens aperture sample: its own pair far from the per-bounce ones, so images without depth of field are
+// unchanged.
+constexpr uint32_t kPairLens = 0xfffffff0u;
 inline uint32_t bounce_pair(int bounce, uint32_t which) { return 1u + static_cast<uint32_t>(bounce) * kPairsPerBounce + which; }
 
 }  // namespace glimmer::render

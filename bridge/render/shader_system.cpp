@@ -114,6 +114,12 @@ Input ShaderSystem::read_input(const ShaderGraph &g, const ShaderNode &n, const 
     tex.kind = type == "image_texture" ? TextureNode::Kind::Image : TextureNode::Kind::Environment;
     tex.vector = type == "image_texture" ? VectorSource::UV : VectorSource::Direction;
     tex.image = load_image(*src);
+    if (auto it = src->attributes.find("interpolation"); it != src->attributes.end()) {
+      const std::string mode = lower(it->second);
+      tex.closest = mode == "closest";
+      if (mode != "closest" && mode != "linear")
+        warn(src->where, type + ": interpolation '" + it->second + "' is not supported; linear is used");
+    }
     if (auto p = src->attributes.find("projection"); p != src->attributes.end() && lower(p->second) != "equirectangular" &&
                                                       lower(p->second) != "flat")
       warn(src->where, type + ": projection '" + p->second + "' is not supported; equirectangular/flat is used");
@@ -167,7 +173,7 @@ Spectrum ShaderSystem::eval_input(const Input &in, const TexCoords &tc) const {
       if (t.kind == TextureNode::Kind::Environment || t.vector == VectorSource::Direction)
         direction_to_equirectangular(normalize(co), u, v);
       float rgba[4];
-      t.image->lookup(u, v, rgba);
+      t.image->lookup(u, v, rgba, t.closest);
       if (in.fac_output) return Spectrum(rgba[3]);
       return {rgba[0], rgba[1], rgba[2]};
     }

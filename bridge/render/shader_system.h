@@ -42,6 +42,7 @@ struct TextureNode {
   Spectrum color1{0.8f}, color2{0.2f};
   float scale = 5.0f;
   const ImageTexture *image = nullptr;
+  bool closest = false;  // interpolation="closest"
   VectorSource vector = VectorSource::Generated;
 };
 

@@ -33,30 +33,41 @@ std::unique_ptr<ImageTexture> ImageTexture::load(const std::string &path, bool l
     } else {
       for (int k = 0; k < std::min(nc, 4); ++k) c[k] = pixels[i * nc + k];
     }
-    for (int k = 0; k < 3; ++k) {
-      float v = to_linear ? srgb_to_linear(c[k]) : c[k];
-      rgba[i * 4 + k] = std::isfinite(v) ? std::max(v, 0.0f) : 0.0f;
-    }
+    for (int k = 0; k < 3; ++k) rgba[i * 4 + k] = std::isfinite(c[k]) ? std::max(c[k], 0.0f) : 0.0f;
     rgba[i * 4 + 3] = std::isfinite(c[3]) ? c[3] : 1.0f;
   }
   auto tex = std::make_unique<ImageTexture>(w, h, std::move(rgba));
   tex->path_ = path;
+  tex->srgb_ = to_linear;
   return tex;
 }
 
-void ImageTexture::lookup(float u, float v, float out[4]) const {
+void ImageTexture::lookup(float u, float v, float out[4], bool closest) const {
   if (!std::isfinite(u) || !std::isfinite(v)) u = v = 0.0f;
+  auto wrap = [](int i, int n) { i %= n; return i < 0 ? i + n : i; };
+  // Cycles (kernel/svm/image.h): 8-bit sRGB images are interpolated in sRGB and converted afterwards.
+  auto finish = [&]() {
+    if (srgb_)
+      for (int k = 0; k < 3; ++k) out[k] = srgb_to_linear(out[k]);
+  };
+  if (closest) {
+    const int xi = wrap(static_cast<int>(std::floor((u - std::floor(u)) * width_)), width_);
+    const int yi = wrap(static_cast<int>(std::floor((1.0f - (v - std::floor(v))) * height_)), height_);
+    for (int k = 0; k < 4; ++k) out[k] = rgba_[(static_cast<size_t>(yi) * width_ + xi) * 4 + k];
+    finish();
+    return;
+  }
   const float x = (u - std::floor(u)) * width_ - 0.5f;
   const float y = (1.0f - (v - std::floor(v))) * height_ - 0.5f;  // v = 1 is the top row (row 0)
   const float fx = std::floor(x), fy = std::floor(y);
   const float tx = x - fx, ty = y - fy;
-  auto wrap = [](int i, int n) { i %= n; return i < 0 ? i + n : i; };
   const int x0 = wrap(static_cast<int>(fx), width_), x1 = wrap(static_cast<int>(fx) + 1, width_);
   const int y0 = wrap(static_cast<int>(fy), height_), y1 = wrap(static_cast<int>(fy) + 1, height_);
   for (int k = 0; k < 4; ++k) {
     auto at = [&](int xx, int yy) { return rgba_[(static_cast<size_t>(yy) * width_ + xx) * 4 + k]; };
     out[k] = (1 - ty) * ((1 - tx) * at(x0, y0) + tx * at(x1, y0)) + ty * ((1 - tx) * at(x0, y1) + tx * at(x1, y1));
   }
+  finish();
 }
 
 }  // namespace glimmer::render

@@ -12,16 +12,19 @@ namespace glimmer::render {
 
 class ImageTexture {
  public:
-  // Reads `path` as linear RGBA floats. 8/16-bit images are treated as sRGB
-  // (Cycles' default "sRGB" colour space) unless `linear` is set. Throws
-  // std::runtime_error naming the file on failure.
+  // Reads `path` as RGBA floats. 8/16-bit images are treated as sRGB (Cycles'
+  // default "sRGB" colour space) unless `linear` is set; like Cycles'
+  // "compress as sRGB" byte textures they keep their sRGB values and lookup()
+  // converts to linear after interpolating. Throws std::runtime_error naming
+  // the file on failure.
   static std::unique_ptr<ImageTexture> load(const std::string &path, bool linear);
   // Texture with given linear RGBA pixels (row 0 = top), for tests.
   ImageTexture(int width, int height, std::vector<float> rgba) : width_(width), height_(height), rgba_(std::move(rgba)) {}
 
-  // Bilinear lookup with repeat wrapping, Cycles' convention: v = 0 is the
-  // bottom row of the image, v = 1 the top.
-  void lookup(float u, float v, float out_rgba[4]) const;
+  // Bilinear (or, with `closest`, nearest-texel) lookup with repeat wrapping,
+  // Cycles' convention: v = 0 is the bottom row of the image, v = 1 the top.
+  // Returns linear RGB (+ alpha).
+  void lookup(float u, float v, float out_rgba[4], bool closest = false) const;
   int width() const { return width_; }
   int height() const { return height_; }
   const std::string &path() const { return path_; }
@@ -30,6 +33,7 @@ class ImageTexture {
   int width_ = 0, height_ = 0;
   std::vector<float> rgba_;
   std::string path_;
+  bool srgb_ = false;  // rgba_ holds sRGB-encoded colour: converted after interpolation
 };
 
 // Cycles' svm_checker: 1 for color1, 0 for color2.

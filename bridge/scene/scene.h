@@ -35,6 +35,8 @@ struct Camera {
   float fov = 0.785398163f;     // radians, across the shorter image side (Cycles' viewplane)
   int width = 1024, height = 512;  // Cycles' Camera defaults
   float nearclip = 1e-5f, farclip = 1e30f;
+  float aperture_size = 0.0f;    // thin-lens aperture radius (Cycles' aperturesize; 0 = pinhole)
+  float focal_distance = 10.0f;  // distance of the plane in focus along the view axis (Cycles' focaldistance)
   SourceLocation where;
 };
 
@@ -119,6 +121,8 @@ struct Light {
   Vec3 axisu{1, 0, 0}, axisv{0, 1, 0};
   float sizeu = 1.0f, sizev = 1.0f;
   bool round = false;      // disk/ellipse area light
+  float spread = 3.14159265f;  // area light spread angle (radians, (0, pi]; pi = Lambertian)
+  bool use_camera = true;  // visible to camera rays (Cycles' socket default; Blender lights default to false)
   int shader = -1;
   SourceLocation where;
 };

@@ -174,8 +174,10 @@ class Loader {
   }
 
   void read_camera(const XmlFile &f, const pugi::xml_node &node, const ReadState &state) {
-    check_attributes(f, node, {"width", "height", "full_width", "full_height", "fov", "nearclip", "farclip", "type"},
-                     {"sensorwidth", "sensorheight", "aperturesize", "focaldistance", "shuttertime", "blades",
+    check_attributes(f, node,
+                     {"width", "height", "full_width", "full_height", "fov", "nearclip", "farclip", "type", "aperturesize",
+                      "focaldistance"},
+                     {"sensorwidth", "sensorheight", "shuttertime", "blades",
                       "bladesrotation", "panorama_type", "fisheye_fov", "fisheye_lens", "offscreen_dicing_scale"});
     Camera &c = scene_.camera;
     c.where = loc(f, node);
@@ -192,6 +194,12 @@ class Loader {
     c.farclip = read_float(f, node, "farclip", c.farclip);
     if (!(c.nearclip >= 0.0f && c.farclip > c.nearclip))
       throw SceneError(loc(f, node), "<camera> needs 0 <= nearclip < farclip");
+    c.aperture_size = read_float(f, node, "aperturesize", c.aperture_size);
+    c.focal_distance = read_float(f, node, "focaldistance", c.focal_distance);
+    if (!(c.aperture_size >= 0.0f) || !std::isfinite(c.aperture_size))
+      throw SceneError(loc(f, node), "<camera> aperturesize must be >= 0");
+    if (!(c.focal_distance > 0.0f) || !std::isfinite(c.focal_distance))
+      throw SceneError(loc(f, node), "<camera> focaldistance must be > 0");
     if (node.attribute("type") && std::string(node.attribute("type").value()) != "perspective")
       warn(f, node, std::string("camera type '") + node.attribute("type").value() +
                         "' is not supported; rendering with a perspective camera");
@@ -475,9 +483,9 @@ class Loader {
   void read_light(const XmlFile &f, const pugi::xml_node &node, const ReadState &state) {
     check_attributes(f, node,
                      {"name", "light_type", "type", "strength", "co", "dir", "size", "radius", "angle", "spot_angle",
-                      "spot_smooth", "axisu", "axisv", "sizeu", "sizev", "round", "tfm"},
+                      "spot_smooth", "axisu", "axisv", "sizeu", "sizev", "round", "tfm", "use_camera", "spread"},
                      {"use_mis", "cast_shadow", "use_caustics", "use_diffuse", "use_glossy", "use_transmission",
-                      "use_scatter", "max_bounces", "map_resolution", "spread", "is_portal", "samples",
+                      "use_scatter", "max_bounces", "map_resolution", "is_portal", "samples",
                       "random_id", "is_enabled", "shadow_soft_size", "normalize"});
     const SourceLocation where = loc(f, node);
     Light l;
@@ -511,6 +519,9 @@ class Loader {
     l.sizeu = read_float(f, node, "sizeu", size);
     l.sizev = read_float(f, node, "sizev", size);
     l.round = read_bool(f, node, "round", false);
+    l.use_camera = read_bool(f, node, "use_camera", true);
+    l.spread = read_float(f, node, "spread", l.spread);
+    if (!(l.spread >= 0.0f && l.spread <= kPi + 1e-6f)) throw SceneError(where, "<light> spread must be in [0, pi]");
     l.dir = node.attribute("dir") ? read_vec3(f, node, "dir", l.dir) : -cross(l.axisu, l.axisv);
     if (l.radius < 0.0f || l.angle < 0.0f || l.sizeu < 0.0f || l.sizev < 0.0f)
       throw SceneError(where, "<light> sizes and angles must be >= 0");

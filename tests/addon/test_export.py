@@ -33,6 +33,12 @@ scene.collection.objects.link(cam)
 cam.location = (7.0, -6.0, 5.0)
 cam.rotation_euler = (math.radians(63), 0.0, math.radians(47))
 scene.camera = cam
+focus_target = bpy.data.objects.new("FocusTarget", None)  # an empty, off the view axis
+focus_target.location = (1.0, 2.0, 0.5)
+scene.collection.objects.link(focus_target)
+cam_data.dof.use_dof = True
+cam_data.dof.aperture_fstop = 2.8
+cam_data.dof.focus_object = focus_target
 
 # World: a plain colour through nodes
 world = bpy.data.worlds.new("World")
@@ -61,6 +67,7 @@ area.location = (0.0, 0.0, 4.0)
 area.scale = (1.5, 1.0, 1.0)
 spot = add_light("Spot", "SPOT", energy=500.0, spot_size=math.radians(40), spot_blend=0.2)
 spot.location = (-2.0, 0.0, 3.0)
+spot.visible_camera = True  # Blender's default for lights is False (lamps hidden from camera rays)
 
 
 def material(name):
@@ -164,6 +171,15 @@ expected = cam.matrix_world @ Matrix.Diagonal((1.0, 1.0, -1.0, 1.0))
 check(all(abs(composed[i][j] - expected[i][j]) < 1e-5 for i in range(4) for j in range(4)),
       "camera transform T*R*S equals matrix_world * scale(1,1,-1)")
 check(scale[2] < 0, "camera carries the scale 1 1 -1 convention")
+# Depth of field as the Blender -> Cycles sync: aperture radius lens / (2 f-stop) in metres, focal distance along
+# the view axis to the focus object (not the Euclidean distance).
+view_axis = (cam.matrix_world.to_3x3() @ Vector((0.0, 0.0, 1.0))).normalized()
+along_axis = abs(view_axis.dot(cam.matrix_world.translation - focus_target.location))
+check(math.isclose(float(camera_el.get("focaldistance")), along_axis, rel_tol=1e-5),
+      "focaldistance %s = distance along the view axis %g" % (camera_el.get("focaldistance"), along_axis))
+check((cam.matrix_world.translation - focus_target.location).length > along_axis * 1.01,
+      "the focus target is off-axis (the projected and Euclidean distances differ)")
+check(math.isclose(float(camera_el.get("aperturesize")), 0.05 / (2.0 * 2.8), rel_tol=1e-6), "aperturesize")
 
 # ---- integrator / background -------------------------------------------------
 integrator = root.find("integrator")
@@ -195,6 +211,9 @@ check(math.isclose(float(lights["area"].get("sizeu")), 3.0, rel_tol=1e-6), "area
 check(math.isclose(float(lights["area"].get("sizev")), 0.5, rel_tol=1e-6), "area sizev")
 check(np.allclose(vec(lights["area"], "dir"), [0, 0, -1], atol=1e-6), "area faces down")
 check(math.isclose(float(lights["spot"].get("spot_angle")), math.radians(40), rel_tol=1e-6), "spot angle")
+check(lights["spot"].get("use_camera") == "true", "spot made visible to the camera: use_camera true")
+check(all(lights[k].get("use_camera") == "false" for k in ("point", "sun", "area")),
+      "Blender lights are hidden from camera rays by default: use_camera false")
 
 # ---- shaders -----------------------------------------------------------------
 shaders = {s.get("name"): s for s in root.findall("shader")}

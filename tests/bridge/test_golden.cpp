@@ -1,6 +1,7 @@
 // Golden-image regression test.
 //
-// tests/bridge/data/golden_ref.exr was rendered from tests/bridge/data/golden.xml with
+// tests/bridge/data/golden_ref.exr was rendered from tests/bridge/data/golden.xml with (then max_bounce="4";
+// with Cycles' kernel limit = setting + 1, adopted later, max_bounce="3" renders the same image)
 //   glimmer render tests/bridge/data/golden.xml -o tests/bridge/data/golden_ref.exr --samples 32768 --seed 12345
 // (48x32 pixels; its per-pixel noise is ~0.001, 8x below the test render's). The test renders the same
 // scene with 512 samples and another seed and compares Combined with

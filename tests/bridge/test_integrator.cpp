@@ -114,6 +114,8 @@ std::string mis_scene(const std::string &light, const std::string &floor_shader,
     lights = "<light light_type=\"area\" co=\"1 -1 2.5\" dir=\"-0.3 0 -1\" axisu=\"1 0 0\" axisv=\"0 1 0\" sizeu=\"1.5\" sizev=\"1\" strength=\"20 20 20\" />";
   } else if (light == "area_disk") {
     lights = "<light light_type=\"area\" round=\"true\" co=\"-1 0 2\" dir=\"0.3 0 -1\" axisu=\"1 0 0\" axisv=\"0 1 0\" sizeu=\"1.8\" sizev=\"1.4\" strength=\"20 15 10\" />";
+  } else if (light == "area_spread") {
+    lights = "<light light_type=\"area\" co=\"0.5 -0.5 2\" dir=\"-0.2 0.2 -1\" axisu=\"1 0 0\" axisv=\"0 1 0\" sizeu=\"1.2\" sizev=\"1\" spread=\"1.2\" strength=\"20 20 20\" />";
   } else if (light == "sphere") {
     lights = "<light light_type=\"point\" co=\"0.5 -0.5 1.9\" size=\"0.7\" strength=\"20 20 20\" />";
   } else if (light == "spot") {
@@ -173,7 +175,7 @@ void check_mis_consistency(const std::string &path, int samples) {
   EXPECT_GT(mean_channel(mis, 1), 0.01);
 }
 
-const char *kLightKinds[] = {"area_quad", "area_disk", "sphere", "spot", "sun", "mesh", "env"};
+const char *kLightKinds[] = {"area_quad", "area_disk", "area_spread", "sphere", "spot", "sun", "mesh", "env"};
 
 TEST(Integrator, MisConsistencyDiffuse) {
   for (const char *light : kLightKinds) {

@@ -1,0 +1,679 @@
+"""Convention parity with Blender's own Cycles (3.4, CPU).
+
+Each scene is built by script, rendered by Cycles (box filter width 1, no clamps, no filter glossy, no
+denoising, fixed seed, linear float EXR) and, exported by the addon, by `glimmer render` with the same sample
+count. One convention per scene: point / sun / spot / area (square, disk, rectangle) light strengths, world
+colour, equirectangular environment orientation, mesh emission strength, GGX glossy and rough glass closures,
+camera fov/orientation.
+
+Comparison (all statistics measured in this run): for a region R of n pixels, d = glimmer - cycles per pixel;
+the ratio mean(glimmer)/mean(cycles) must be within TOLERANCE_SIGMA standard errors (sigma = std(d) / sqrt(n) /
+mean(cycles), i.e. the measured noise of both renderers' region means) plus MODEL_SLACK (0.3%: float32
+rounding and sampling-pattern differences that do not average out like independent noise) of 1. The sigma of every
+region is printed with its ratio. Skipped (exit 77) while `glimmer` has no `render` command.
+"""
+import math
+import os
+import re
+import subprocess
+import sys
+import time
+
+import bpy
+import numpy as np
+from bpy_extras.object_utils import world_to_camera_view
+from mathutils import Vector
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import addon_test_util as util  # noqa: E402
+
+check = util.check
+opts = util.args()
+glimmer = os.environ.get("GLIMMER_EXECUTABLE", "")
+mod = util.enable_addon()
+if not mod.runner.supports_render(glimmer):
+    util.skip("`%s` has no `render` sub-command" % glimmer)
+
+TOLERANCE_SIGMA = 4.0
+MODEL_SLACK = 0.003
+WIDTH, HEIGHT = 64, 48
+RESULTS = []
+FAILURES = []
+
+
+# -- scene building --------------------------------------------------------------------------------------------
+def new_scene(samples=128, bounces=8, width=WIDTH, height=HEIGHT):
+    bpy.ops.wm.read_homefile(use_empty=True)
+    scene = bpy.context.scene
+    r = scene.render
+    r.resolution_x, r.resolution_y, r.resolution_percentage = width, height, 100
+    r.image_settings.file_format = "OPEN_EXR"
+    r.image_settings.color_depth = "32"
+    r.film_transparent = False
+    r.threads_mode = "FIXED"
+    r.threads = 2
+    scene.view_settings.view_transform = "Standard"
+    scene.view_settings.look = "None"
+    scene.view_settings.exposure = 0.0
+    scene.view_settings.gamma = 1.0
+    c = scene.cycles
+    c.device = "CPU"
+    c.samples = samples
+    c.use_adaptive_sampling = False
+    c.use_denoising = False
+    c.seed = 1
+    c.pixel_filter_type = "BOX"
+    c.filter_width = 1.0
+    c.sample_clamp_direct = 0.0
+    c.sample_clamp_indirect = 0.0
+    c.blur_glossy = 0.0
+    c.light_sampling_threshold = 0.0
+    c.max_bounces = bounces
+    c.diffuse_bounces = bounces
+    c.glossy_bounces = bounces
+    c.transmission_bounces = bounces
+    c.transparent_max_bounces = bounces
+    c.min_light_bounces = 0
+    c.min_transparent_bounces = 0
+    c.caustics_reflective = True
+    c.caustics_refractive = True
+    g = scene.glimmer
+    g.samples = samples
+    g.threads = 2
+    g.seed = 1
+    g.max_bounce = bounces
+    g.max_diffuse_bounce = bounces
+    g.max_glossy_bounce = bounces
+    g.max_transmission_bounce = bounces
+    g.transparent_max_bounce = bounces
+    g.filter_glossy = 0.0
+    g.sample_clamp_direct = 0.0
+    g.sample_clamp_indirect = 0.0
+    g.filter_type = "box"
+    g.filter_width = 1.0
+    g.film_exposure = 1.0
+    world = bpy.data.worlds.new("World")
+    world.use_nodes = True
+    bg = world.node_tree.nodes["Background"]
+    bg.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+    bg.inputs["Strength"].default_value = 0.0
+    scene.world = world
+    return scene
+
+
+def add_camera(scene, location, rotation_deg, lens=50.0, sensor_fit="AUTO"):
+    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
+    cam.data.lens = lens
+    cam.data.sensor_fit = sensor_fit
+    cam.location = location
+    cam.rotation_euler = [math.radians(a) for a in rotation_deg]
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    return cam
+
+
+def material(name, kind, color=(0.8, 0.8, 0.8), **inputs):
+    mat = bpy.data.materials.new(name)
+    mat.use_nodes = True
+    tree = mat.node_tree
+    for n in list(tree.nodes):
+        if n.bl_idname != "ShaderNodeOutputMaterial":
+            tree.nodes.remove(n)
+    out = tree.nodes["Material Output"]
+    node = tree.nodes.new(kind)
+    node.inputs["Color"].default_value = (*color, 1.0)
+    for key, value in inputs.items():
+        if key == "distribution":
+            node.distribution = value
+        else:
+            node.inputs[key].default_value = value
+    tree.links.new(node.outputs[0], out.inputs["Surface"])
+    return mat
+
+
+def add_plane(size, location=(0, 0, 0), rotation_deg=(0, 0, 0), mat=None):
+    bpy.ops.mesh.primitive_plane_add(size=size, location=location,
+                                     rotation=[math.radians(a) for a in rotation_deg])
+    obj = bpy.context.active_object
+    if mat is not None:
+        obj.data.materials.append(mat)
+    return obj
+
+
+def add_sphere(radius, location, mat):
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=radius, location=location, segments=64, ring_count=32)
+    bpy.ops.object.shade_smooth()
+    obj = bpy.context.active_object
+    obj.data.materials.append(mat)
+    return obj
+
+
+def add_light(scene, kind, location, rotation_deg=(0, 0, 0), **props):
+    light = bpy.data.objects.new(kind, bpy.data.lights.new(kind, kind))
+    light.location = location
+    light.rotation_euler = [math.radians(a) for a in rotation_deg]
+    for key, value in props.items():
+        setattr(light.data, key, value)
+    scene.collection.objects.link(light)
+    return light
+
+
+def floor_scene(samples=128):
+    """A 0.8 diffuse floor seen from 5 m straight above (the plane cannot see itself: direct light only)."""
+    scene = new_scene(samples=samples)
+    add_camera(scene, (0.0, 0.0, 5.0), (0.0, 0.0, 0.0))
+    add_plane(20.0, mat=material("Floor", "ShaderNodeBsdfDiffuse"))
+    return scene
+
+
+# -- rendering -------------------------------------------------------------------------------------------------
+def load_pixels(path):
+    img = bpy.data.images.load(path)
+    px = np.array(img.pixels[:], dtype=np.float64).reshape(img.size[1], img.size[0], 4)
+    bpy.data.images.remove(img)
+    return px[::-1, :, :3]  # top row first, RGB
+
+
+def render_both(name):
+    scene = bpy.context.scene
+    scene.render.engine = "CYCLES"
+    cycles_exr = os.path.join(opts.out, name + "_cycles.exr")
+    t0 = time.time()
+    bpy.ops.render.render()
+    bpy.data.images["Render Result"].save_render(cycles_exr, scene=scene)
+    t1 = time.time()
+    export_dir = os.path.join(opts.out, name + "_export")
+    xml, exporter = mod.exporter.export_scene(bpy.context.evaluated_depsgraph_get(), export_dir)
+    check(not exporter.warnings, "%s: export warnings %s" % (name, exporter.warnings))
+    glimmer_exr = os.path.join(opts.out, name + "_glimmer.exr")
+    g = scene.glimmer
+    cmd = mod.runner.render_command(glimmer, xml, glimmer_exr, g.samples, g.threads, g.seed,
+                                    scene.render.resolution_x, scene.render.resolution_y)
+    proc = subprocess.run(cmd + ["--quiet"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    check(proc.returncode == 0, "%s: glimmer render failed:\n%s" % (name, proc.stdout.decode(errors="replace")))
+    channels = mod.engine.exr_channels(glimmer_exr)
+    combined = [c for c in channels if ".Combined." in c]
+    order = (["%s.Combined.%s" % (combined[0].split(".Combined.")[0], c) for c in "RGBA"] if combined
+             else list("RGBA"))
+    rgba = os.path.join(opts.out, name + "_glimmer_rgba.exr")
+    subprocess.run(["oiiotool", glimmer_exr, "--ch", ",".join(order), "--chnames", "R,G,B,A", "-d", "float",
+                    "-o", rgba], check=True)
+    t2 = time.time()
+    print("%s: cycles %.1f s, glimmer (export + render) %.1f s" % (name, t1 - t0, t2 - t1))
+    return load_pixels(rgba), load_pixels(cycles_exr)
+
+
+def glimmer_pixels(xml, name, seed):
+    """`glimmer render` of an exported XML (same size and samples as the scene) as RGB pixels."""
+    scene = bpy.context.scene
+    exr = os.path.join(opts.out, name + ".exr")
+    cmd = mod.runner.render_command(glimmer, xml, exr, scene.glimmer.samples, scene.glimmer.threads, seed,
+                                    scene.render.resolution_x, scene.render.resolution_y)
+    subprocess.run(cmd + ["--quiet"], check=True)
+    channels = mod.engine.exr_channels(exr)
+    combined = [c for c in channels if ".Combined." in c]
+    order = (["%s.Combined.%s" % (combined[0].split(".Combined.")[0], c) for c in "RGBA"] if combined
+             else list("RGBA"))
+    rgba = os.path.join(opts.out, name + "_rgba.exr")
+    subprocess.run(["oiiotool", exr, "--ch", ",".join(order), "--chnames", "R,G,B,A", "-d", "float", "-o", rgba],
+                   check=True)
+    return load_pixels(rgba)
+
+
+def luminance(px):
+    return px @ np.array([0.2126, 0.7152, 0.0722])
+
+
+def compare_region(name, region, glim, cyc, mask=None, channel=None):
+    """Ratio of region means with its measured noise; records a failure outside the tolerance."""
+    x0, y0, x1, y1 = region
+    a = glim[y0:y1, x0:x1]
+    b = cyc[y0:y1, x0:x1]
+    a = luminance(a) if channel is None else a[..., channel]
+    b = luminance(b) if channel is None else b[..., channel]
+    if mask is not None:
+        m = mask[y0:y1, x0:x1]
+        a, b = a[m], b[m]
+    a, b = a.ravel(), b.ravel()
+    n = a.size
+    mean_c = b.mean()
+    ratio = a.mean() / mean_c
+    sigma = (a - b).std(ddof=1) / math.sqrt(n) / mean_c
+    tolerance = TOLERANCE_SIGMA * sigma + MODEL_SLACK
+    ok = abs(ratio - 1.0) <= tolerance
+    line = "%-28s glimmer/cycles = %.4f  (sigma %.4f, tolerance %.4f, n=%d, cycles mean %.4g)%s" % (
+        name, ratio, sigma, tolerance, n, mean_c, "" if ok else "  <-- MISMATCH")
+    print(line)
+    RESULTS.append(line)
+    if not ok:
+        FAILURES.append(line)
+    return ratio, sigma
+
+
+def full(img):
+    return (0, 0, img.shape[1], img.shape[0])
+
+
+def quadrants(name, glim, cyc):
+    h, w = glim.shape[:2]
+    compare_region(name + " all", full(glim), glim, cyc)
+    for label, reg in (("top-left", (0, 0, w // 2, h // 2)), ("top-right", (w // 2, 0, w, h // 2)),
+                       ("bottom-left", (0, h // 2, w // 2, h)), ("bottom-right", (w // 2, h // 2, w, h))):
+        compare_region("%s %s" % (name, label), reg, glim, cyc)
+
+
+def pixel_region(scene, centre, half_extent):
+    """Image-space box (x0, y0, x1, y1), top row first, around a world point's projection."""
+    co = world_to_camera_view(scene, scene.camera, Vector(centre))
+    w, h = scene.render.resolution_x, scene.render.resolution_y
+    cx, cy = co.x * w, (1.0 - co.y) * h
+    return (int(round(cx - half_extent)), int(round(cy - half_extent)),
+            int(round(cx + half_extent)), int(round(cy + half_extent)))
+
+
+# -- scenes ------------------------------------------------------------------------------------------------------
+def scene_point():
+    scene = floor_scene()
+    add_light(scene, "POINT", (0.6, 0.4, 1.5), energy=100.0, shadow_soft_size=0.25, color=(1.0, 0.7, 0.4))
+    glim, cyc = render_both("point")
+    quadrants("1 point 100 W r=0.25", glim, cyc)
+    compare_region("1 point blue channel (colour)", full(glim), glim, cyc, channel=2)
+
+
+def scene_sun():
+    scene = floor_scene(samples=32)
+    add_light(scene, "SUN", (0, 0, 3), (30.0, 0.0, 20.0), energy=3.0, angle=math.radians(10.0))
+    glim, cyc = render_both("sun")
+    compare_region("2 sun 3 W/m2 angle 10deg", full(glim), glim, cyc)
+    # Brute-force reference of Cycles' sun: a disk of radius tan(angle/2) at unit distance with radiance
+    # strength / (pi tan^2 cos^3 theta), i.e. irradiance = strength * mean over the disk of cos(surface normal,
+    # direction) (a cos 30deg Lambert term alone would be 0.19% too bright).
+    radius = math.tan(math.radians(5.0))
+    grid = (np.arange(2000) + 0.5) / 2000 * 2.0 - 1.0
+    x, y = np.meshgrid(grid * radius, grid * radius)
+    inside = x * x + y * y <= radius * radius
+    tilt = math.radians(30.0)  # the sun axis is 30deg from the floor normal (rotation about x, then z)
+    axis = np.array([0.0, -math.sin(tilt), math.cos(tilt)])
+    u = np.array([1.0, 0.0, 0.0])
+    v = np.cross(axis, u)
+    dirs = axis[None, :] + x[inside][:, None] * u[None, :] + y[inside][:, None] * v[None, :]
+    cos_floor = dirs[:, 2] / np.linalg.norm(dirs, axis=1)
+    expected = 0.8 * 3.0 * float(cos_floor.mean()) / math.pi
+    for label, img in (("cycles", cyc), ("glimmer", glim)):
+        ratio = luminance(img).mean() / expected
+        line = "2 sun: %s mean %.5f, brute-force reference %.5f (ratio %.5f)" % (label, luminance(img).mean(),
+                                                                               expected, ratio)
+        print(line)
+        RESULTS.append(line)
+        if abs(ratio - 1.0) > 0.001:
+            FAILURES.append(line)
+
+
+def scene_spot():
+    scene = floor_scene()
+    add_light(scene, "SPOT", (0.3, 0.0, 2.5), (10.0, 0.0, 0.0), energy=150.0, shadow_soft_size=0.1,
+              spot_size=math.radians(50.0), spot_blend=0.4)
+    glim, cyc = render_both("spot")
+    h, w = glim.shape[:2]
+    compare_region("3 spot all", full(glim), glim, cyc)
+    # The blend ring and the core: the annulus where Cycles' smoothstep acts is sensitive to the blend mapping.
+    lum = luminance(cyc)
+    peak = lum.max()
+    compare_region("3 spot core (>70% peak)", full(glim), glim, cyc, mask=lum > 0.7 * peak)
+    compare_region("3 spot blend ring (5-50%)", full(glim), glim, cyc, mask=(lum > 0.05 * peak) & (lum < 0.5 * peak))
+
+
+def scene_area(shape, size, size_y, label, spread_deg=180.0):
+    scene = floor_scene()
+    add_light(scene, "AREA", (0.2, -0.1, 1.2), (15.0, 0.0, 30.0), energy=60.0, shape=shape, size=size,
+              size_y=size_y, spread=math.radians(spread_deg))
+    name = "area_" + shape.lower() + ("" if spread_deg == 180.0 else "_spread")
+    quadrants("4 area %s" % label, *render_both(name))
+
+
+def scene_world_furnace():
+    scene = new_scene(samples=64)
+    world = scene.world
+    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.5, 0.5, 0.5, 1.0)
+    world.node_tree.nodes["Background"].inputs["Strength"].default_value = 1.0
+    add_camera(scene, (0.0, -5.0, 0.0), (90.0, 0.0, 0.0))
+    add_sphere(1.0, (0.0, 0.0, 0.0), material("White", "ShaderNodeBsdfDiffuse", (0.8, 0.8, 0.8)))
+    glim, cyc = render_both("world")
+    compare_region("5 world colour: background", (0, 0, 8, 8), glim, cyc)
+    compare_region("5 world colour: sphere", pixel_region(scene, (0, 0, 0), 8), glim, cyc)
+    expected = 0.5 * 0.8
+    line = "5 world: sphere cycles %.4f glimmer %.4f analytic %.4f" % (
+        luminance(cyc[16:32, 24:40]).mean(), luminance(glim[16:32, 24:40]).mean(), expected)
+    print(line)
+    RESULTS.append(line)
+
+
+def environment_image(path):
+    """An asymmetric equirectangular image: red rises with u, green with v, a blue spot near u=0.2, v=0.65."""
+    w, h = 128, 64
+    u = (np.arange(w) + 0.5) / w
+    v = (np.arange(h) + 0.5) / h
+    uu, vv = np.meshgrid(u, v)  # row 0 is v near 0 (Blender stores images bottom row first)
+    rgba = np.ones((h, w, 4), dtype=np.float32)
+    rgba[..., 0] = 0.1 + 0.9 * uu
+    rgba[..., 1] = 0.1 + 0.9 * vv
+    rgba[..., 2] = 0.1 + 3.0 * np.exp(-(((uu - 0.2) * 8.0) ** 2 + ((vv - 0.65) * 8.0) ** 2))
+    img = bpy.data.images.new("EnvSource", w, h, alpha=True, float_buffer=True)
+    img.pixels[:] = rgba.ravel()
+    img.filepath_raw = path
+    img.file_format = "OPEN_EXR"
+    img.save()
+    bpy.data.images.remove(img)
+
+
+def scene_environment():
+    path = os.path.join(opts.out, "parity_environment.exr")
+    environment_image(path)
+    scene = new_scene(samples=64, width=96, height=48)
+    tree = scene.world.node_tree
+    bg = tree.nodes["Background"]
+    bg.inputs["Strength"].default_value = 1.5
+    env = tree.nodes.new("ShaderNodeTexEnvironment")
+    env.image = bpy.data.images.load(path)
+    env.image.colorspace_settings.name = "Linear"
+    tree.links.new(env.outputs["Color"], bg.inputs["Color"])
+    # A wide camera looking along +Y and up a little; a small diffuse patch lit by the environment below.
+    add_camera(scene, (0.0, 0.0, 0.0), (100.0, 0.0, 30.0), lens=12.0)
+    add_plane(1.0, location=(-0.6, 2.0, -0.9), rotation_deg=(60.0, 0.0, 0.0), mat=material(
+        "Patch", "ShaderNodeBsdfDiffuse", (0.8, 0.8, 0.8)))
+    glim, cyc = render_both("environment")
+    h, w = glim.shape[:2]
+    for ch, label in ((0, "red (u)"), (1, "green (v)"), (2, "blue (spot)")):
+        compare_region("5 env %s all" % label, full(glim), glim, cyc, channel=ch)
+    # Per-pixel orientation: the relative difference per pixel, and the same against the mirror images,
+    # which must be far worse (the image is asymmetric, so a flip would be caught).
+    def rel(a, b):
+        return float(np.mean(np.abs(a - b)) / np.mean(np.abs(b)))
+    same = rel(glim, cyc)
+    flipped_u = rel(glim[:, ::-1], cyc)
+    flipped_v = rel(glim[::-1], cyc)
+    line = "5 env per-pixel mean |glimmer-cycles|/mean cycles = %.4f (mirror-x %.3f, mirror-y %.3f)" % (
+        same, flipped_u, flipped_v)
+    print(line)
+    RESULTS.append(line)
+    if not (same < 0.05 and flipped_u > 4 * same and flipped_v > 4 * same):
+        FAILURES.append(line)
+    patch = pixel_region(scene, (-0.6, 2.0, -0.9), 3)
+    compare_region("5 env lit patch", patch, glim, cyc)
+
+
+def texture_image(path, checker=False):
+    """An asymmetric 8-bit sRGB PNG: red rises with x, green with y, a blue square near one corner (and, with
+    checker, a 4x4-texel checkerboard darkening every other cell)."""
+    w, h = 64, 32
+    x = (np.arange(w) + 0.5) / w
+    y = (np.arange(h) + 0.5) / h
+    xx, yy = np.meshgrid(x, y)  # row 0 is the bottom row in Blender's pixel order
+    rgba = np.ones((h, w, 4), dtype=np.float32)
+    rgba[..., 0] = xx
+    rgba[..., 1] = yy
+    rgba[..., 2] = np.where((xx > 0.7) & (xx < 0.9) & (yy > 0.6) & (yy < 0.9), 0.9, 0.1)
+    if checker:
+        cells = ((np.arange(w)[None, :] // 4) + (np.arange(h)[:, None] // 4)) % 2
+        rgba[..., :3] *= np.where(cells == 1, 0.15, 1.0)[..., None]
+    img = bpy.data.images.new("TexSource", w, h, alpha=True)
+    img.pixels[:] = rgba.ravel()
+    img.filepath_raw = path
+    img.file_format = "PNG"
+    img.save()
+    bpy.data.images.remove(img)
+
+
+def scene_texture(interpolation="Linear"):
+    """sRGB image texture (colour space, interpolation, UV orientation) on an emissive plane: pixels = texture.
+    Cycles interpolates 8-bit sRGB texels before converting to linear ("compress as sRGB")."""
+    path = os.path.join(opts.out, "parity_texture.png")
+    texture_image(path)
+    scene = new_scene(samples=64, width=96, height=48)
+    add_camera(scene, (0.0, 0.0, 4.0), (0.0, 0.0, 10.0), lens=35.0)
+    mat = bpy.data.materials.new("Textured")
+    mat.use_nodes = True
+    tree = mat.node_tree
+    tree.nodes.remove(tree.nodes["Principled BSDF"])
+    em = tree.nodes.new("ShaderNodeEmission")
+    em.inputs["Strength"].default_value = 1.0
+    tex = tree.nodes.new("ShaderNodeTexImage")
+    tex.image = bpy.data.images.load(path)
+    tex.interpolation = interpolation
+    tree.links.new(tex.outputs["Color"], em.inputs["Color"])
+    tree.links.new(em.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    add_plane(2.0, rotation_deg=(0.0, 0.0, 0.0), mat=mat)
+    bpy.context.active_object.scale = (1.6, 0.8, 1.0)
+    glim, cyc = render_both("texture_" + interpolation.lower())
+    for ch, label in ((0, "red (u)"), (1, "green (v)"), (2, "blue (square)")):
+        compare_region("10 sRGB texture %s %s" % (interpolation, label), full(glim), glim, cyc, channel=ch)
+
+    def rel(a, b):
+        return float(np.mean(np.abs(a - b)) / np.mean(np.abs(b)))
+    same, flipped_u, flipped_v = rel(glim, cyc), rel(glim[:, ::-1], cyc), rel(glim[::-1], cyc)
+    line = "10 texture " + interpolation + " per-pixel mean |glimmer-cycles|/mean cycles = %.4f (mirror-x %.3f, mirror-y %.3f)" % (
+        same, flipped_u, flipped_v)
+    print(line)
+    RESULTS.append(line)
+    if not (same < 0.02 and flipped_u > 4 * same and flipped_v > 4 * same):
+        FAILURES.append(line)
+
+
+def scene_depth_of_field():
+    """Thin-lens depth of field: f-stop and a focus object off the view axis (Cycles focuses at the distance along
+    the view axis). An sRGB-textured emissive floor seen obliquely is sharp near the focus and blurred elsewhere."""
+    path = os.path.join(opts.out, "parity_checker.png")
+    texture_image(path, checker=True)
+    scene = new_scene(samples=256, width=96, height=48)
+    cam = add_camera(scene, (0.0, -3.0, 1.2), (70.0, 0.0, 0.0), lens=35.0)
+    target = bpy.data.objects.new("Focus", None)
+    target.location = (0.8, 0.5, 0.0)
+    scene.collection.objects.link(target)
+    cam.data.dof.use_dof = True
+    cam.data.dof.aperture_fstop = 0.2
+    cam.data.dof.focus_object = target
+    mat = bpy.data.materials.new("Textured")
+    mat.use_nodes = True
+    tree = mat.node_tree
+    tree.nodes.remove(tree.nodes["Principled BSDF"])
+    em = tree.nodes.new("ShaderNodeEmission")
+    tex = tree.nodes.new("ShaderNodeTexImage")
+    tex.image = bpy.data.images.load(path)
+    tex.interpolation = "Closest"
+    tree.links.new(tex.outputs["Color"], em.inputs["Color"])
+    tree.links.new(em.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    add_plane(6.0, mat=mat)
+    glim, cyc = render_both("dof")
+    # The exported scene again with another seed (the per-pixel noise level) and without the aperture (how far a
+    # pinhole image is from Cycles' blurred one).
+    xml = os.path.join(opts.out, "dof_export", "scene.xml")
+    with open(xml) as f:
+        text = f.read()
+    check('aperturesize="' in text, "the exporter writes aperturesize")
+    pinhole_xml = os.path.join(opts.out, "dof_export", "pinhole.xml")
+    with open(pinhole_xml, "w") as f:
+        f.write(re.sub(r'aperturesize="[^"]*"', 'aperturesize="0"', text))
+    other_seed = glimmer_pixels(xml, "dof_seed2", seed=2)
+    pinhole = glimmer_pixels(pinhole_xml, "dof_pinhole", seed=1)
+
+    def rel(a, b):
+        return float(np.mean(np.abs(a - b)) / np.mean(np.abs(b)))
+    same, noise, sharp = rel(glim, cyc), rel(glim, other_seed), rel(pinhole, cyc)
+    line = ("11 depth of field: per-pixel mean |glimmer-cycles|/mean cycles = %.4f; glimmer seed 1 vs 2 (noise) "
+            "%.4f; pinhole render vs cycles %.4f" % (same, noise, sharp))
+    print(line)
+    RESULTS.append(line)
+    if not (sharp > 2.0 * noise and same < 1.5 * noise):
+        FAILURES.append(line)
+    compare_region("11 depth of field: all", full(glim), glim, cyc)
+
+
+def scene_emission():
+    scene = new_scene(samples=64)
+    add_camera(scene, (0.0, -4.0, 3.0), (53.13, 0.0, 0.0))
+    add_plane(20.0, mat=material("Floor", "ShaderNodeBsdfDiffuse"))
+    mat = bpy.data.materials.new("Emit")
+    mat.use_nodes = True
+    tree = mat.node_tree
+    tree.nodes.remove(tree.nodes["Principled BSDF"])
+    em = tree.nodes.new("ShaderNodeEmission")
+    em.inputs["Color"].default_value = (1.0, 0.9, 0.7, 1.0)
+    em.inputs["Strength"].default_value = 4.0
+    tree.links.new(em.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    add_plane(0.8, location=(0.0, 0.0, 1.0), rotation_deg=(180.0, 0.0, 0.0), mat=mat)
+    glim, cyc = render_both("emission")
+    compare_region("6 emitter seen directly", pixel_region(scene, (0, 0, 1.0), 2), glim, cyc)
+    emitter = pixel_region(scene, (0, 0, 1.0), 7)
+    mask = np.ones(glim.shape[:2], dtype=bool)
+    mask[emitter[1]:emitter[3], emitter[0]:emitter[2]] = False
+    compare_region("6 floor lit by emitter", full(glim), glim, cyc, mask=mask)
+
+
+def scene_closures():
+    scene = new_scene(samples=512)
+    world = scene.world
+    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.25, 0.25, 0.25, 1.0)
+    world.node_tree.nodes["Background"].inputs["Strength"].default_value = 1.0
+    add_camera(scene, (0.0, -6.0, 0.0), (90.0, 0.0, 0.0))
+    add_plane(20.0, location=(0, 0, -1.0), mat=material("Floor", "ShaderNodeBsdfDiffuse", (0.5, 0.5, 0.5)))
+    add_light(scene, "AREA", (1.0, -1.5, 3.0), (30.0, 0.0, 0.0), energy=200.0, size=1.5)
+    add_sphere(1.0, (-1.1, 0.0, 0.0), material("Glossy", "ShaderNodeBsdfGlossy", (0.9, 0.9, 0.9),
+                                                 distribution="GGX", Roughness=0.3))
+    add_sphere(1.0, (1.1, 0.0, 0.0), material("Glass", "ShaderNodeBsdfGlass", (1.0, 1.0, 1.0),
+                                                distribution="GGX", Roughness=0.3, IOR=1.45))
+    glim, cyc = render_both("closures")
+    compare_region("7 glossy GGX r=0.3 sphere", pixel_region(scene, (-1.1, 0, 0), 6), glim, cyc)
+    compare_region("7 glass GGX r=0.3 sphere", pixel_region(scene, (1.1, 0, 0), 6), glim, cyc)
+
+
+def scene_closures_more():
+    scene = new_scene(samples=512, width=96, height=48)
+    world = scene.world
+    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.25, 0.25, 0.25, 1.0)
+    world.node_tree.nodes["Background"].inputs["Strength"].default_value = 1.0
+    add_camera(scene, (0.0, -9.0, 0.0), (90.0, 0.0, 0.0), lens=40.0)
+    add_plane(30.0, location=(0, 0, -1.0), mat=material("Floor", "ShaderNodeBsdfDiffuse", (0.5, 0.5, 0.5)))
+    add_light(scene, "AREA", (1.0, -2.5, 3.0), (40.0, 0.0, 0.0), energy=300.0, size=2.0)
+    # Multiscatter GGX with a white colour: Cycles tints the k-th bounce of its random walk by colour^k, Glimmer's
+    # energy-compensation lobe by the colour once (a known difference for tinted colours, see docs/blender.md).
+    spheres = (("multiscatter GGX glossy r=0.6", (-3.3, 0, 0), material(
+                   "MultiGGX", "ShaderNodeBsdfGlossy", (1.0, 1.0, 1.0), distribution="MULTI_GGX", Roughness=0.6)),
+               ("Beckmann glossy r=0.2", (-1.1, 0, 0), material(
+                   "Beckmann", "ShaderNodeBsdfGlossy", (0.9, 0.9, 0.9), distribution="BECKMANN", Roughness=0.2)),
+               ("refraction GGX r=0.1 IOR 1.5", (1.1, 0, 0), material(
+                   "Refraction", "ShaderNodeBsdfRefraction", (1.0, 1.0, 1.0), distribution="GGX", Roughness=0.1,
+                   IOR=1.5)),
+               ("sharp glass IOR 1.45", (3.3, 0, 0), material(
+                   "Sharp", "ShaderNodeBsdfGlass", (1.0, 1.0, 1.0), distribution="SHARP", Roughness=0.0,
+                   IOR=1.45)))
+    for _, centre, mat in spheres:
+        add_sphere(1.0, centre, mat)
+    glim, cyc = render_both("closures_more")
+    for label, centre, _ in spheres:
+        compare_region("7 " + label, pixel_region(scene, centre, 4), glim, cyc)
+
+
+def scene_indirect():
+    """Bounce counting: a closed 0.8 diffuse box lit by a small area lamp, max bounces 3 in both renderers."""
+    scene = new_scene(samples=256, bounces=3)
+    add_camera(scene, (0.0, -1.9, 0.0), (90.0, 0.0, 0.0), lens=20.0)
+    bpy.ops.mesh.primitive_cube_add(size=4.0)
+    box = bpy.context.active_object
+    box.data.materials.append(material("Walls", "ShaderNodeBsdfDiffuse", (0.8, 0.8, 0.8)))
+    add_light(scene, "AREA", (0.0, 0.0, 1.9), energy=100.0, size=0.5)
+    glim, cyc = render_both("indirect")
+    quadrants("9 indirect, 3 bounces", glim, cyc)
+
+
+def scene_camera_portrait():
+    """Portrait image with vertical sensor fit: fov spans the width (the smaller side)."""
+    scene = new_scene(samples=16, width=48, height=72)
+    cam = add_camera(scene, (-1.0, -4.0, 3.0), (60.0, 0.0, -20.0), lens=30.0, sensor_fit="VERTICAL")
+    cam.data.sensor_height = 20.0
+    add_plane(20.0, mat=material("Floor", "ShaderNodeBsdfDiffuse", (0.8, 0.8, 0.8)))
+    mat = material("Grey", "ShaderNodeBsdfDiffuse", (0.1, 0.1, 0.1))
+    bpy.ops.mesh.primitive_cube_add(size=0.3, location=(0.3, 0.8, 0.15))
+    bpy.context.active_object.data.materials.append(mat)
+    scene.world.node_tree.nodes["Background"].inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    scene.world.node_tree.nodes["Background"].inputs["Strength"].default_value = 1.0
+    glim, cyc = render_both("camera_portrait")
+    # The dark cube on the bright floor: its pixels in both renders must coincide.
+    dark_c = luminance(cyc) < 0.3
+    dark_g = luminance(glim) < 0.3
+    overlap = (dark_c & dark_g).sum() / max(1, (dark_c | dark_g).sum())
+    ys, xs = np.nonzero(dark_c)
+    line = "8 portrait camera: dark-cube pixels %d (cycles) %d (glimmer), intersection/union %.3f, centre (%.1f, %.1f)" % (
+        dark_c.sum(), dark_g.sum(), overlap, xs.mean(), ys.mean())
+    print(line)
+    RESULTS.append(line)
+    if not (dark_c.sum() > 20 and overlap > 0.9):
+        FAILURES.append(line)
+    compare_region("8 portrait camera: all", full(glim), glim, cyc)
+
+
+def scene_camera():
+    scene = new_scene(samples=16, width=96, height=64)
+    add_camera(scene, (2.0, -5.0, 1.5), (80.0, 0.0, 15.0), lens=35.0)
+    mat = bpy.data.materials.new("Emit")
+    mat.use_nodes = True
+    tree = mat.node_tree
+    tree.nodes.remove(tree.nodes["Principled BSDF"])
+    em = tree.nodes.new("ShaderNodeEmission")
+    em.inputs["Strength"].default_value = 1.0
+    tree.links.new(em.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    target = (0.9, 0.5, 1.9)
+    add_sphere(0.25, target, mat)
+    glim, cyc = render_both("camera")
+
+    def centroid(img):
+        lum = luminance(img)
+        ys, xs = np.nonzero(lum > 0.0)
+        wts = lum[ys, xs]
+        return np.array([np.sum(xs * wts), np.sum(ys * wts)]) / wts.sum(), wts.sum()
+
+    cg, sg = centroid(glim)
+    cc, sc = centroid(cyc)
+    co = world_to_camera_view(scene, scene.camera, Vector(target))
+    expected = np.array([co.x * 96 - 0.5, (1.0 - co.y) * 64 - 0.5])
+    shift = float(np.linalg.norm(cg - cc))
+    line = ("8 camera: object centroid glimmer (%.2f, %.2f) cycles (%.2f, %.2f) projection (%.2f, %.2f): shift "
+            "%.3f px, covered-area ratio %.4f" % (*cg, *cc, *expected, shift, sg / sc))
+    print(line)
+    RESULTS.append(line)
+    if not (shift < 0.1 and abs(cc[0] - 48) > 5 and abs(sg / sc - 1) < 0.02):
+        FAILURES.append(line)
+    compare_region("8 camera: object pixels", full(glim), glim, cyc, mask=luminance(cyc) > 0.5)
+
+
+SCENES = {
+    "point": scene_point,
+    "sun": scene_sun,
+    "spot": scene_spot,
+    "area_square": lambda: scene_area("SQUARE", 0.8, 0.8, "square 0.8"),
+    "area_disk": lambda: scene_area("DISK", 0.8, 0.8, "disk 0.8"),
+    "area_rectangle": lambda: scene_area("RECTANGLE", 1.2, 0.4, "rectangle 1.2x0.4"),
+    "area_spread": lambda: scene_area("SQUARE", 0.8, 0.8, "square spread 60deg", spread_deg=60.0),
+    "world": scene_world_furnace,
+    "environment": scene_environment,
+    "emission": scene_emission,
+    "texture": scene_texture,
+    "texture_closest": lambda: scene_texture("Closest"),
+    "depth_of_field": scene_depth_of_field,
+    "closures": scene_closures,
+    "closures_more": scene_closures_more,
+    "indirect": scene_indirect,
+    "camera": scene_camera,
+    "camera_portrait": scene_camera_portrait,
+}
+
+only = os.environ.get("GLIMMER_PARITY_ONLY", "")
+start = time.time()
+for key, fn in SCENES.items():
+    if only and key not in only.split(","):
+        continue
+    fn()
+print("\n== Glimmer vs Cycles parity (%.1f s) ==" % (time.time() - start))
+for line in RESULTS:
+    print(line)
+check(not FAILURES, "parity mismatches:\n" + "\n".join(FAILURES))
+util.done("test_cycles_parity")
