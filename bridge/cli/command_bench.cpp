@@ -244,12 +244,24 @@ void run(const BenchArgs &a, CliContext &ctx) {
   const std::filesystem::path work = std::filesystem::temp_directory_path() / ("glimmer_bench_" + std::to_string(getpid()));
   std::filesystem::create_directories(work);
   std::filesystem::create_directories(a.out_dir);
-  auto variant = [&](const std::string &method) {  // written beside the scene so relative assets resolve
+  // Variant scenes are written beside the scene so relative assets resolve;
+  // they and the work folder are removed however this function exits.
+  struct Cleanup {
+    std::map<std::string, std::string> &scenes;
+    std::filesystem::path work;
+    ~Cleanup() {
+      std::error_code ec;
+      for (const auto &[m, p] : scenes) std::filesystem::remove(p, ec);
+      std::filesystem::remove_all(work, ec);
+    }
+  };
+  std::map<std::string, std::string> scenes;
+  const Cleanup cleanup{scenes, work};
+  auto variant = [&](const std::string &method) {
     const std::string p = (scene_dir / (".bench_" + method + ".xml")).string();
     std::ofstream(p) << rewrite_scene(text, method);
     return p;
   };
-  std::map<std::string, std::string> scenes;
   for (const auto &m : methods) scenes[m] = variant(m);
   if (!scenes.count("jakob14")) scenes["jakob14"] = variant("jakob14");
 
@@ -274,8 +286,6 @@ void run(const BenchArgs &a, CliContext &ctx) {
       std::printf("%-15s %5d spp  %8.3f s  RMSE %.5f\n", m.c_str(), spp, t, e);
       std::fflush(stdout);
     }
-  for (const auto &[m, p] : scenes) std::filesystem::remove(p);
-  std::filesystem::remove_all(work);
 
   const std::string csv = (std::filesystem::path(a.out_dir) / (a.name + ".csv")).string();
   std::ofstream f(csv);
