@@ -31,6 +31,8 @@ def parse_args():
     parser.add_argument("--samples", type=int, default=32)
     parser.add_argument("--width", type=int, default=480)
     parser.add_argument("--height", type=int, default=320)
+    parser.add_argument("--no-install-addon", action="store_true",
+                        help="do not link the addon into the user's Blender scripts folder and enable it")
     return parser.parse_args(argv)
 
 
@@ -52,6 +54,20 @@ def link_addon_for_command_line():
     if not os.path.lexists(link):
         os.symlink(os.path.join(ADDON_PARENT, "glimmer"), link)
     return scripts
+
+
+def install_addon_for_user():
+    """Links the addon into the user's Blender scripts folder (e.g. ~/.config/blender/3.4/scripts/addons/glimmer)
+    and enables it in the saved preferences, so `blender -b demo.blend -E GLIMMER -f 1` works as it is."""
+    import addon_utils
+
+    addons = bpy.utils.user_resource('SCRIPTS', path="addons", create=True)
+    link = os.path.join(addons, "glimmer")
+    if not os.path.lexists(link):
+        os.symlink(os.path.join(ADDON_PARENT, "glimmer"), link)
+    addon_utils.enable("glimmer", default_set=True, persistent=True)
+    bpy.ops.wm.save_userpref()
+    return link
 
 
 def new_material(name):
@@ -162,9 +178,12 @@ def main():
     bpy.ops.wm.save_as_mainfile(filepath=output)
     scripts = link_addon_for_command_line()
     print("demo: wrote %s" % output)
-    print("demo: render it with\n  BLENDER_USER_SCRIPTS=%s blender -b --addons glimmer %s -E GLIMMER -f 1"
-          % (scripts, output))
-    print("demo: (or, with the addon installed and enabled: blender -b %s -E GLIMMER -f 1)" % output)
+    if opts.no_install_addon:
+        print("demo: render it with\n  BLENDER_USER_SCRIPTS=%s blender -b --addons glimmer %s -E GLIMMER -f 1"
+              % (scripts, output))
+    else:
+        print("demo: enabled the Glimmer addon in your Blender preferences (%s)" % install_addon_for_user())
+        print("demo: render it with\n  blender -b %s -E GLIMMER -f 1" % output)
 
 
 if __name__ == "__main__":
