@@ -14,23 +14,26 @@ class GlimmerPanel:
         return context.engine in cls.COMPAT_ENGINES
 
 
-class GLIMMER_PT_sampling(GlimmerPanel, bpy.types.Panel):
-    bl_label = "Sampling"
+class GlimmerRenderPanel(GlimmerPanel):
+    """Render properties panel listing the scene settings named in `props`."""
     bl_context = "render"
+    props = ()
 
     def draw(self, context):
         settings = context.scene.glimmer
         layout = self.layout
         layout.use_property_split = True
-        layout.prop(settings, "samples")
-        layout.prop(settings, "seed")
-        layout.prop(settings, "use_animated_seed")
-        layout.prop(settings, "threads")
+        for prop in self.props:
+            layout.prop(settings, prop)
 
 
-class GLIMMER_PT_light_paths(GlimmerPanel, bpy.types.Panel):
+class GLIMMER_PT_sampling(GlimmerRenderPanel, bpy.types.Panel):
+    bl_label = "Sampling"
+    props = ("samples", "seed", "use_animated_seed", "threads")
+
+
+class GLIMMER_PT_light_paths(GlimmerRenderPanel, bpy.types.Panel):
     bl_label = "Light Paths"
-    bl_context = "render"
 
     def draw(self, context):
         settings = context.scene.glimmer
@@ -46,90 +49,70 @@ class GLIMMER_PT_light_paths(GlimmerPanel, bpy.types.Panel):
         col.prop(settings, "sample_clamp_indirect")
 
 
-class GLIMMER_PT_film(GlimmerPanel, bpy.types.Panel):
+class GLIMMER_PT_film(GlimmerRenderPanel, bpy.types.Panel):
     bl_label = "Film"
-    bl_context = "render"
     bl_options = {"DEFAULT_CLOSED"}
-
-    def draw(self, context):
-        settings = context.scene.glimmer
-        layout = self.layout
-        layout.use_property_split = True
-        layout.prop(settings, "film_exposure")
-        layout.prop(settings, "filter_type")
-        layout.prop(settings, "filter_width")
+    props = ("film_exposure", "filter_type", "filter_width")
 
 
-class GLIMMER_PT_materials(GlimmerPanel, bpy.types.Panel):
+class GLIMMER_PT_materials(GlimmerRenderPanel, bpy.types.Panel):
     bl_label = "Glint and Frosted Glass"
-    bl_context = "render"
+    props = ("use_glint", "use_frosted_glass")
 
     def draw(self, context):
-        settings = context.scene.glimmer
-        layout = self.layout
-        layout.use_property_split = True
-        layout.prop(settings, "use_glint")
-        layout.prop(settings, "use_frosted_glass")
-        layout.label(text="Per-material settings are on the Glint / Frosted Glass BSDF nodes.")
+        GlimmerRenderPanel.draw(self, context)
+        self.layout.label(text="Per-material settings are on the Glint / Frosted Glass BSDF nodes.")
 
 
-class GLIMMER_PT_export(GlimmerPanel, bpy.types.Panel):
+class GLIMMER_PT_export(GlimmerRenderPanel, bpy.types.Panel):
     bl_label = "Export"
-    bl_context = "render"
     bl_options = {"DEFAULT_CLOSED"}
+    props = ("export_dir", "keep_export")
+
+
+class GlimmerSurfacePanel(GlimmerPanel):
+    """The node tree behind the active output's Surface input of context.<bl_context>
+    (a material or the world); without nodes, the use_nodes switch and `color_prop`."""
+    bl_label = "Surface"
+    output_type = ""
+    color_prop = ""
+    color_text = None
+
+    @classmethod
+    def poll(cls, context):
+        return getattr(context, cls.bl_context) is not None and super().poll(context)
 
     def draw(self, context):
-        settings = context.scene.glimmer
+        owner = getattr(context, self.bl_context)
         layout = self.layout
-        layout.use_property_split = True
-        layout.prop(settings, "export_dir")
-        layout.prop(settings, "keep_export")
+        if not owner.use_nodes:
+            layout.prop(owner, "use_nodes", icon="NODETREE")
+            if self.color_text is None:
+                layout.prop(owner, self.color_prop)
+            else:
+                layout.prop(owner, self.color_prop, text=self.color_text)
+            return
+        ntree = owner.node_tree
+        output = next((n for n in ntree.nodes if n.bl_idname == self.output_type and n.is_active_output), None)
+        if output is None:
+            output = next((n for n in ntree.nodes if n.bl_idname == self.output_type), None)
+        if output is None:
+            layout.label(text="No output node")
+            return
+        layout.template_node_view(ntree, output, output.inputs["Surface"])
 
 
-def _surface_panel_draw(layout, ntree, output_type, input_name):
-    output = next((n for n in ntree.nodes if n.bl_idname == output_type and n.is_active_output), None)
-    if output is None:
-        output = next((n for n in ntree.nodes if n.bl_idname == output_type), None)
-    if output is None:
-        layout.label(text="No output node")
-        return
-    layout.template_node_view(ntree, output, output.inputs[input_name])
-
-
-class GLIMMER_PT_material_surface(GlimmerPanel, bpy.types.Panel):
-    bl_label = "Surface"
+class GLIMMER_PT_material_surface(GlimmerSurfacePanel, bpy.types.Panel):
     bl_context = "material"
-
-    @classmethod
-    def poll(cls, context):
-        return context.material is not None and super().poll(context)
-
-    def draw(self, context):
-        mat = context.material
-        layout = self.layout
-        if not mat.use_nodes:
-            layout.prop(mat, "use_nodes", icon="NODETREE")
-            layout.prop(mat, "diffuse_color", text="Color")
-            return
-        _surface_panel_draw(layout, mat.node_tree, "ShaderNodeOutputMaterial", "Surface")
+    output_type = "ShaderNodeOutputMaterial"
+    color_prop = "diffuse_color"
+    color_text = "Color"
 
 
-class GLIMMER_PT_world_surface(GlimmerPanel, bpy.types.Panel):
-    bl_label = "Surface"
+class GLIMMER_PT_world_surface(GlimmerSurfacePanel, bpy.types.Panel):
     bl_context = "world"
-
-    @classmethod
-    def poll(cls, context):
-        return context.world is not None and super().poll(context)
-
-    def draw(self, context):
-        world = context.world
-        layout = self.layout
-        if not world.use_nodes:
-            layout.prop(world, "use_nodes", icon="NODETREE")
-            layout.prop(world, "color")
-            return
-        _surface_panel_draw(layout, world.node_tree, "ShaderNodeOutputWorld", "Surface")
+    output_type = "ShaderNodeOutputWorld"
+    color_prop = "color"
 
 
 CLASSES = (GLIMMER_PT_sampling, GLIMMER_PT_light_paths, GLIMMER_PT_film, GLIMMER_PT_materials,

@@ -8,6 +8,7 @@
 // furnace/chi2/consistency/stress/bench print one JSON object on stdout.
 // Unknown closures or parameters exit 1, plugin problems exit 2.
 #include <cmath>
+#include <functional>
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -104,163 +105,169 @@ void add_common_options(CLI::App *cmd, LabOptions &o) {
   cmd->add_option("--seed", o.seed, "random seed (results are deterministic for a seed)");
 }
 
+// Adds `glimmer lab NAME`: the common options, the test's own options
+// (`add_options`), and `run`, called with the closure instance and context the
+// options describe.
+void add_lab_test(CLI::App *lab, CliContext &ctx, const std::string &name, const std::string &description,
+                  const std::function<void(CLI::App *, LabOptions &)> &add_options,
+                  std::function<void(const LabSetup &, const LabOptions &)> run) {
+  auto o = std::make_shared<LabOptions>();
+  auto *cmd = lab->add_subcommand(name, description);
+  add_common_options(cmd, *o);
+  add_options(cmd, *o);
+  cmd->callback([&ctx, o, run = std::move(run)] { run(make_setup(ctx, *o), *o); });
+}
+
 }  // namespace
 
 void add_lab_command(CLI::App &app, CliContext &ctx) {
   auto *lab = app.add_subcommand("lab", "closure laboratory: furnace, chi2, consistency, stress, bench, plot");
   lab->require_subcommand(1);
 
-  {
-    auto o = std::make_shared<LabOptions>();
-    auto *cmd = lab->add_subcommand("furnace", "white-furnace albedo: mean of sample weights eval/pdf (JSON)");
-    add_common_options(cmd, *o);
-    cmd->add_option("--samples", o->samples, "number of samples (default 1e6)");
-    cmd->callback([&ctx, o] {
-      const LabSetup s = make_setup(ctx, *o);
-      const uint64_t n = positive_count(o->samples, "--samples");
-      const lab::FurnaceResult r = lab::furnace(*s.instance, s.ctx, n, o->seed);
-      nlohmann::json out = s.header;
-      out["test"] = "furnace";
-      out["samples"] = r.samples;
-      out["seed"] = o->seed;
-      out["albedo"] = json_vec3(r.albedo);
-      out["standard_error"] = json_vec3(r.standard_error);
-      out["absorbed"] = r.absorbed_count;
-      out["invalid"] = r.invalid_count;
-      out["singular"] = r.singular_count;
-      out["transmission"] = r.transmission_count;
-      std::cout << out.dump(2) << "\n";
-    });
-  }
-  {
-    auto o = std::make_shared<LabOptions>();
-    auto *cmd = lab->add_subcommand("chi2", "Mitsuba-style chi-square test of sample() against pdf (JSON)");
-    add_common_options(cmd, *o);
-    cmd->add_option("--samples", o->samples, "number of samples (default 1e6)");
-    cmd->add_option("--test-count", o->test_count, "number of tests in the family, for the Sidak correction");
-    cmd->add_option("--theta-bins", o->theta_bins, "cells in theta over [0, pi] (default 80)");
-    cmd->add_option("--phi-bins", o->phi_bins, "cells in phi over [-pi, pi] (default 160)");
-    cmd->callback([&ctx, o] {
-      const LabSetup s = make_setup(ctx, *o);
-      if (o->test_count < 1) throw CliError(kExitBadInput, "--test-count must be >= 1");
-      if (o->theta_bins < 2 || o->theta_bins % 2 || o->phi_bins < 1 || o->theta_bins * o->phi_bins > 4000000)
-        throw CliError(kExitBadInput, "--theta-bins must be even and >= 2, --phi-bins >= 1 (at most 4e6 cells)");
-      lab::Chi2Options options;
-      options.samples = positive_count(o->samples, "--samples");
-      options.seed = o->seed;
-      options.test_count = o->test_count;
-      options.theta_bins = o->theta_bins;
-      options.phi_bins = o->phi_bins;
-      const lab::Chi2Result r = lab::chi2_test(*s.instance, s.ctx, options);
-      nlohmann::json out = s.header;
-      out["test"] = "chi2";
-      out["samples"] = r.samples;
-      out["seed"] = o->seed;
-      out["theta_bins"] = options.theta_bins;
-      out["phi_bins"] = options.phi_bins;
-      out["chi2"] = r.chi2;
-      out["dof"] = r.dof;
-      out["p_value"] = r.p_value;
-      out["significance"] = r.significance;
-      out["test_count"] = options.test_count;
-      out["passed"] = r.passed;
-      out["cells"] = r.cells;
-      out["pooled_cells"] = r.pooled_cells;
-      out["pdf_integral"] = r.pdf_integral;
-      out["sampled_fraction"] = r.sampled_fraction;
-      out["singular"] = r.singular_count;
-      out["invalid"] = r.invalid_count;
-      out["samples_in_zero_pdf_cells"] = r.samples_in_zero_pdf_cells;
-      out["message"] = r.message;
-      std::cout << out.dump(2) << "\n";
-    });
-  }
-  {
-    auto o = std::make_shared<LabOptions>();
-    auto *cmd = lab->add_subcommand("consistency", "sample()'s eval/pdf against eval() at the same direction (JSON)");
-    add_common_options(cmd, *o);
-    cmd->add_option("--samples", o->samples, "number of samples (default 1e6)");
-    cmd->callback([&ctx, o] {
-      const LabSetup s = make_setup(ctx, *o);
-      const lab::ConsistencyResult r =
-          lab::consistency(*s.instance, s.ctx, positive_count(o->samples, "--samples"), o->seed);
-      nlohmann::json out = s.header;
-      out["test"] = "consistency";
-      out["samples"] = r.samples;
-      out["checked"] = r.checked;
-      out["mismatches"] = r.mismatches;
-      out["max_relative_eval_difference"] = r.max_relative_eval_difference;
-      out["max_relative_pdf_difference"] = r.max_relative_pdf_difference;
-      std::cout << out.dump(2) << "\n";
-    });
-  }
-  {
-    auto o = std::make_shared<LabOptions>();
-    auto *cmd = lab->add_subcommand("stress", "NaN/Inf/negative hunt over extreme inputs (JSON; --wi is ignored)");
-    add_common_options(cmd, *o);
-    cmd->add_option("--samples", o->samples, "number of calls (default 1e6)");
-    cmd->callback([&ctx, o] {
-      const LabSetup s = make_setup(ctx, *o);
-      lab::StressOptions options;
-      options.calls = positive_count(o->samples, "--samples");
-      options.seed = o->seed;
-      const lab::StressResult r = lab::stress(*s.instance, options);
-      nlohmann::json out = s.header;
-      out.erase("wi");
-      out["test"] = "stress";
-      out["calls"] = r.calls;
-      out["invalid"] = r.total_invalid();
-      out["eval"] = {{"nan", r.eval_nan}, {"inf", r.eval_inf}, {"negative", r.eval_negative}};
-      out["sample"] = {{"nan", r.sample_nan},
-                       {"inf", r.sample_inf},
-                       {"negative", r.sample_negative},
-                       {"bad_direction", r.sample_bad_direction}};
-      out["albedo_emit_invalid"] = r.other_invalid;
-      out["first_failure"] = r.first_failure;
-      std::cout << out.dump(2) << "\n";
-    });
-  }
-  {
-    auto o = std::make_shared<LabOptions>();
-    auto *cmd = lab->add_subcommand("bench", "ns per eval and per sample, single-threaded median (JSON)");
-    add_common_options(cmd, *o);
-    cmd->add_option("--iterations", o->iterations, "calls per repetition (default 2e5)");
-    cmd->add_option("--repetitions", o->repetitions, "repetitions; the median is reported (default 5)");
-    cmd->callback([&ctx, o] {
-      const LabSetup s = make_setup(ctx, *o);
-      if (o->repetitions < 1) throw CliError(kExitBadInput, "--repetitions must be >= 1");
-      const lab::BenchResult r =
-          lab::bench(*s.instance, s.ctx, positive_count(o->iterations, "--iterations"), o->repetitions);
-      nlohmann::json out = s.header;
-      out["test"] = "bench";
-      out["iterations"] = r.iterations;
-      out["repetitions"] = r.repetitions;
-      out["ns_per_eval"] = r.ns_per_eval;
-      out["ns_per_sample"] = r.ns_per_sample;
-      std::cout << out.dump(2) << "\n";
-    });
-  }
-  {
-    auto o = std::make_shared<LabOptions>();
-    auto *cmd = lab->add_subcommand("plot", "lobe picture (PNG): eval | pdf | sampled density, lat-long layout");
-    add_common_options(cmd, *o);
-    cmd->add_option("--samples", o->samples, "samples for the sampled-density panel (default 1e6)");
-    cmd->add_option("-o,--output", o->output, "output PNG path")->required();
-    cmd->add_option("--width", o->width, "panel width in pixels (default 512)");
-    cmd->add_option("--height", o->height, "panel height in pixels (default 256)");
-    cmd->callback([&ctx, o] {
-      const LabSetup s = make_setup(ctx, *o);
-      if (o->width < 8 || o->height < 4 || o->width > 8192 || o->height > 8192)
-        throw CliError(kExitBadInput, "--width must be in [8, 8192] and --height in [4, 8192]");
-      lab::PlotOptions options;
-      options.width = o->width;
-      options.height = o->height;
-      options.samples = positive_count(o->samples, "--samples");
-      options.seed = o->seed;
-      lab::plot_lobe(*s.instance, s.ctx, o->output, options);
-      std::cerr << "glimmer: wrote " << o->output << "\n";
-    });
-  }
+  add_lab_test(
+      lab, ctx, "furnace", "white-furnace albedo: mean of sample weights eval/pdf (JSON)",
+      [](CLI::App *cmd, LabOptions &o) {
+        cmd->add_option("--samples", o.samples, "number of samples (default 1e6)");
+      },
+      [](const LabSetup &s, const LabOptions &o) {
+        const uint64_t n = positive_count(o.samples, "--samples");
+        const lab::FurnaceResult r = lab::furnace(*s.instance, s.ctx, n, o.seed);
+        nlohmann::json out = s.header;
+        out["test"] = "furnace";
+        out["samples"] = r.samples;
+        out["seed"] = o.seed;
+        out["albedo"] = json_vec3(r.albedo);
+        out["standard_error"] = json_vec3(r.standard_error);
+        out["absorbed"] = r.absorbed_count;
+        out["invalid"] = r.invalid_count;
+        out["singular"] = r.singular_count;
+        out["transmission"] = r.transmission_count;
+        std::cout << out.dump(2) << "\n";
+      });
+
+  add_lab_test(
+      lab, ctx, "chi2", "Mitsuba-style chi-square test of sample() against pdf (JSON)",
+      [](CLI::App *cmd, LabOptions &o) {
+        cmd->add_option("--samples", o.samples, "number of samples (default 1e6)");
+        cmd->add_option("--test-count", o.test_count, "number of tests in the family, for the Sidak correction");
+        cmd->add_option("--theta-bins", o.theta_bins, "cells in theta over [0, pi] (default 80)");
+        cmd->add_option("--phi-bins", o.phi_bins, "cells in phi over [-pi, pi] (default 160)");
+      },
+      [](const LabSetup &s, const LabOptions &o) {
+        if (o.test_count < 1) throw CliError(kExitBadInput, "--test-count must be >= 1");
+        if (o.theta_bins < 2 || o.theta_bins % 2 || o.phi_bins < 1 || o.theta_bins * o.phi_bins > 4000000)
+          throw CliError(kExitBadInput, "--theta-bins must be even and >= 2, --phi-bins >= 1 (at most 4e6 cells)");
+        lab::Chi2Options options;
+        options.samples = positive_count(o.samples, "--samples");
+        options.seed = o.seed;
+        options.test_count = o.test_count;
+        options.theta_bins = o.theta_bins;
+        options.phi_bins = o.phi_bins;
+        const lab::Chi2Result r = lab::chi2_test(*s.instance, s.ctx, options);
+        nlohmann::json out = s.header;
+        out["test"] = "chi2";
+        out["samples"] = r.samples;
+        out["seed"] = o.seed;
+        out["theta_bins"] = options.theta_bins;
+        out["phi_bins"] = options.phi_bins;
+        out["chi2"] = r.chi2;
+        out["dof"] = r.dof;
+        out["p_value"] = r.p_value;
+        out["significance"] = r.significance;
+        out["test_count"] = options.test_count;
+        out["passed"] = r.passed;
+        out["cells"] = r.cells;
+        out["pooled_cells"] = r.pooled_cells;
+        out["pdf_integral"] = r.pdf_integral;
+        out["sampled_fraction"] = r.sampled_fraction;
+        out["singular"] = r.singular_count;
+        out["invalid"] = r.invalid_count;
+        out["samples_in_zero_pdf_cells"] = r.samples_in_zero_pdf_cells;
+        out["message"] = r.message;
+        std::cout << out.dump(2) << "\n";
+      });
+
+  add_lab_test(
+      lab, ctx, "consistency", "sample()'s eval/pdf against eval() at the same direction (JSON)",
+      [](CLI::App *cmd, LabOptions &o) {
+        cmd->add_option("--samples", o.samples, "number of samples (default 1e6)");
+      },
+      [](const LabSetup &s, const LabOptions &o) {
+        const lab::ConsistencyResult r =
+            lab::consistency(*s.instance, s.ctx, positive_count(o.samples, "--samples"), o.seed);
+        nlohmann::json out = s.header;
+        out["test"] = "consistency";
+        out["samples"] = r.samples;
+        out["checked"] = r.checked;
+        out["mismatches"] = r.mismatches;
+        out["max_relative_eval_difference"] = r.max_relative_eval_difference;
+        out["max_relative_pdf_difference"] = r.max_relative_pdf_difference;
+        std::cout << out.dump(2) << "\n";
+      });
+
+  add_lab_test(
+      lab, ctx, "stress", "NaN/Inf/negative hunt over extreme inputs (JSON; --wi is ignored)",
+      [](CLI::App *cmd, LabOptions &o) {
+        cmd->add_option("--samples", o.samples, "number of calls (default 1e6)");
+      },
+      [](const LabSetup &s, const LabOptions &o) {
+        lab::StressOptions options;
+        options.calls = positive_count(o.samples, "--samples");
+        options.seed = o.seed;
+        const lab::StressResult r = lab::stress(*s.instance, options);
+        nlohmann::json out = s.header;
+        out.erase("wi");
+        out["test"] = "stress";
+        out["calls"] = r.calls;
+        out["invalid"] = r.total_invalid();
+        out["eval"] = {{"nan", r.eval_nan}, {"inf", r.eval_inf}, {"negative", r.eval_negative}};
+        out["sample"] = {{"nan", r.sample_nan},
+                         {"inf", r.sample_inf},
+                         {"negative", r.sample_negative},
+                         {"bad_direction", r.sample_bad_direction}};
+        out["albedo_emit_invalid"] = r.other_invalid;
+        out["first_failure"] = r.first_failure;
+        std::cout << out.dump(2) << "\n";
+      });
+
+  add_lab_test(
+      lab, ctx, "bench", "ns per eval and per sample, single-threaded median (JSON)",
+      [](CLI::App *cmd, LabOptions &o) {
+        cmd->add_option("--iterations", o.iterations, "calls per repetition (default 2e5)");
+        cmd->add_option("--repetitions", o.repetitions, "repetitions; the median is reported (default 5)");
+      },
+      [](const LabSetup &s, const LabOptions &o) {
+        if (o.repetitions < 1) throw CliError(kExitBadInput, "--repetitions must be >= 1");
+        const lab::BenchResult r =
+            lab::bench(*s.instance, s.ctx, positive_count(o.iterations, "--iterations"), o.repetitions);
+        nlohmann::json out = s.header;
+        out["test"] = "bench";
+        out["iterations"] = r.iterations;
+        out["repetitions"] = r.repetitions;
+        out["ns_per_eval"] = r.ns_per_eval;
+        out["ns_per_sample"] = r.ns_per_sample;
+        std::cout << out.dump(2) << "\n";
+      });
+
+  add_lab_test(
+      lab, ctx, "plot", "lobe picture (PNG): eval | pdf | sampled density, lat-long layout",
+      [](CLI::App *cmd, LabOptions &o) {
+        cmd->add_option("--samples", o.samples, "samples for the sampled-density panel (default 1e6)");
+        cmd->add_option("-o,--output", o.output, "output PNG path")->required();
+        cmd->add_option("--width", o.width, "panel width in pixels (default 512)");
+        cmd->add_option("--height", o.height, "panel height in pixels (default 256)");
+      },
+      [](const LabSetup &s, const LabOptions &o) {
+        if (o.width < 8 || o.height < 4 || o.width > 8192 || o.height > 8192)
+          throw CliError(kExitBadInput, "--width must be in [8, 8192] and --height in [4, 8192]");
+        lab::PlotOptions options;
+        options.width = o.width;
+        options.height = o.height;
+        options.samples = positive_count(o.samples, "--samples");
+        options.seed = o.seed;
+        lab::plot_lobe(*s.instance, s.ctx, o.output, options);
+        std::cerr << "glimmer: wrote " << o.output << "\n";
+      });
 }
 
 }  // namespace glimmer::cli

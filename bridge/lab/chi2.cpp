@@ -158,10 +158,8 @@ Chi2Result chi2_test(const host::ClosureInstance &instance, const GlimmerShading
   detail::for_each_block<char>(options.samples, [&](uint64_t begin, uint64_t end, char &) {
     Counts &counts = per_thread.local();
     for (uint64_t i = begin; i < end; ++i) {
-      float rand3[3];
-      sample_random3(options.seed, i, rand3);
-      GlimmerSample s{};
-      const uint32_t label = instance.sample(ctx, rand3, s);
+      GlimmerSample s;
+      const uint32_t label = detail::sample_at(instance, ctx, options.seed, i, s);
       if (label == GLIMMER_LABEL_NONE) continue;
       if (label & GLIMMER_LABEL_SINGULAR) {
         ++counts.singular;

@@ -51,10 +51,8 @@ FurnaceResult furnace(const host::ClosureInstance &instance, const GlimmerShadin
   };
   const auto partial = detail::for_each_block<Accumulator>(samples, [&](uint64_t begin, uint64_t end, Accumulator &acc) {
     for (uint64_t i = begin; i < end; ++i) {
-      float rand3[3];
-      sample_random3(seed, i, rand3);
-      GlimmerSample s{};
-      const uint32_t label = instance.sample(ctx, rand3, s);
+      GlimmerSample s;
+      const uint32_t label = detail::sample_at(instance, ctx, seed, i, s);
       if (label == GLIMMER_LABEL_NONE) {
         ++acc.absorbed;
         continue;
@@ -142,10 +140,8 @@ ConsistencyResult consistency(const host::ClosureInstance &instance, const Glimm
   };
   const auto partial = detail::for_each_block<Accumulator>(samples, [&](uint64_t begin, uint64_t end, Accumulator &acc) {
     for (uint64_t i = begin; i < end; ++i) {
-      float rand3[3];
-      sample_random3(seed, i, rand3);
-      GlimmerSample s{};
-      const uint32_t label = instance.sample(ctx, rand3, s);
+      GlimmerSample s;
+      const uint32_t label = detail::sample_at(instance, ctx, seed, i, s);
       if (label == GLIMMER_LABEL_NONE || (label & GLIMMER_LABEL_SINGULAR)) continue;
       Spectrum f_cos;
       float pdf = 0.0f;

@@ -33,6 +33,16 @@ std::vector<Accumulator> for_each_block(uint64_t count, Body body) {
   return partial;
 }
 
+// sample() for sample `index` of a run seeded with `seed` (random numbers
+// from sample_random3): returns the label and fills `s`.
+inline uint32_t sample_at(const host::ClosureInstance &instance, const GlimmerShadingContext &ctx, uint64_t seed,
+                          uint64_t index, GlimmerSample &s) {
+  float rand3[3];
+  sample_random3(seed, index, rand3);
+  s = GlimmerSample{};
+  return instance.sample(ctx, rand3, s);
+}
+
 // The local shading frame the plugin adapter uses (z = N, x = T projected).
 inline Frame shading_frame(const GlimmerShadingContext &ctx) {
   return Frame::from_normal_tangent(Vec3(ctx.N), Vec3(ctx.T));

@@ -62,10 +62,8 @@ void plot_lobe(const host::ClosureInstance &instance, const GlimmerShadingContex
     detail::for_each_block<char>(options.samples, [&](uint64_t begin, uint64_t end, char &) {
       auto &histogram = per_thread.local();
       for (uint64_t i = begin; i < end; ++i) {
-        float rand3[3];
-        sample_random3(options.seed, i, rand3);
-        GlimmerSample s{};
-        const uint32_t label = instance.sample(ctx, rand3, s);
+        GlimmerSample s;
+        const uint32_t label = detail::sample_at(instance, ctx, options.seed, i, s);
         if (label == GLIMMER_LABEL_NONE || (label & GLIMMER_LABEL_SINGULAR) || !detail::is_unit_direction(Vec3(s.wo)))
           continue;
         const Vec3 local = frame.to_local(Vec3(s.wo));

@@ -56,41 +56,21 @@ class GlintClosure {
       "Glints: separable filterable discrete stochastic microfacets (Wang et al. 2018) over a GGX or Beckmann base.";
   static constexpr uint32_t kFlags = 0;
 
-  // Smallest alpha the 1-degree tables resolve (roughness 0.15).
-  static constexpr float kMinAlpha = 0.0225f;
   static constexpr int kMaxSteps = 1024;
 
   static std::span<const GlimmerParamSpec> params() {
-    static const std::array<GlimmerParamSpec, 8> schema{{
-        {"distribution", GLIMMER_PARAM_ENUM, {0, 0, 0}, 0, 0, "ggx|beckmann", "ggx",
-         "base microfacet distribution of the particle normals"},
-        {"roughness", GLIMMER_PARAM_FLOAT, {0.4f, 0, 0}, 0.0f, 1.0f, nullptr, nullptr,
-         "base roughness (alpha = roughness^2, Cycles' mapping); values below 0.15 are treated as 0.15"},
-        {"gamma", GLIMMER_PARAM_FLOAT, {2.0f, 0, 0}, 0.1f, 10.0f, nullptr, nullptr,
-         "query cone half-angle in degrees (size of a glint in direction; Jakob 2014 use 1..6)"},
-        {"density", GLIMMER_PARAM_FLOAT, {1e6f, 0, 0}, 1.0f, 1e12f, nullptr, nullptr,
-         "particles per unit of scaled uv area"},
-        {"uv_scale", GLIMMER_PARAM_FLOAT, {1.0f, 0, 0}, 1e-4f, 1e6f, nullptr, nullptr,
-         "scale of the uv coordinates the particles live in (uv * uv_scale)"},
-        {"seed", GLIMMER_PARAM_INT, {0, 0, 0}, 0.0f, 16777216.0f, nullptr, nullptr,
-         "random seed of the particle field"},
-        {"color", GLIMMER_PARAM_COLOR, {1, 1, 1}, 0.0f, 1.0f, nullptr, nullptr,
+    static const auto schema = glint::particle_field_params<1>(
+        {"base roughness (alpha = roughness^2, Cycles' mapping); values below 0.15 are treated as 0.15",
+         "query cone half-angle in degrees (size of a glint in direction; Jakob 2014 use 1..6)",
          "particle reflectance at normal incidence (Schlick Fresnel F0; 1 = Fresnel-free)"},
-        {"filter_threshold", GLIMMER_PARAM_FLOAT, {16.0f, 0, 0}, 0.0f, 1e9f, nullptr, nullptr,
-         "expected glints per footprint above which the filtered mean a(A) P is used (0 = always filtered)"},
-    }};
+        {{{"filter_threshold", GLIMMER_PARAM_FLOAT, {16.0f, 0, 0}, 0.0f, 1e9f, nullptr, nullptr,
+           "expected glints per footprint above which the filtered mean a(A) P is used (0 = always filtered)"}}});
     return schema;
   }
 
   static std::unique_ptr<GlintClosure> create(const ParamReader &p) {
     auto c = std::make_unique<GlintClosure>();
-    c->distribution_ = p.get_enum("distribution") == 0 ? mf::Distribution::GGX : mf::Distribution::Beckmann;
-    c->alpha_ = std::max(sqr(p.get_float("roughness")), kMinAlpha);
-    c->gamma_deg_ = p.get_float("gamma");
-    c->density_ = p.get_float("density");
-    c->uv_scale_ = p.get_float("uv_scale");
-    c->seed_ = static_cast<uint32_t>(p.get_int("seed"));
-    c->color_ = p.get_color("color");
+    c->field_ = glint::ParticleField::parse(p);
     c->threshold_ = p.get_float("filter_threshold");
     return c;
   }
@@ -98,11 +78,11 @@ class GlintClosure {
   void prepare(const GlimmerHostServices *host) {
     glint::TableSpec spec;
     spec.distribution =
-        distribution_ == mf::Distribution::GGX ? glint::BaseDistribution::GGX : glint::BaseDistribution::Beckmann;
-    spec.alpha = alpha_;
-    spec.gamma_deg = gamma_deg_;
-    const mf::Distribution dist = distribution_;
-    const float alpha = alpha_;
+        field_.distribution == mf::Distribution::GGX ? glint::BaseDistribution::GGX : glint::BaseDistribution::Beckmann;
+    spec.alpha = field_.alpha;
+    spec.gamma_deg = field_.gamma_deg;
+    const mf::Distribution dist = field_.distribution;
+    const float alpha = field_.alpha;
     table_ = glint::acquire_table(
         spec,
         [dist, alpha](double cos_m) {
@@ -125,18 +105,18 @@ class GlintClosure {
   // LOD blur in degrees: the path's spread, capped by the lobe width 2 alpha.
   float lod_sigma_deg(const GlimmerShadingContext *ctx) const {
     const float spread = std::isfinite(ctx->spread_angle) ? std::max(ctx->spread_angle, 0.0f) : 0.0f;
-    return std::min(spread, 2.0f * alpha_) * glint::kRadToDeg;
+    return std::min(spread, 2.0f * field_.alpha) * glint::kRadToDeg;
   }
 
   float sampling_alpha(float sigma_deg) const {
-    const float widen = 0.5f * (gamma_deg_ + sigma_deg) * glint::kDegToRad;
-    return std::sqrt(alpha_ * alpha_ + widen * widen);
+    const float widen = 0.5f * (field_.gamma_deg + sigma_deg) * glint::kDegToRad;
+    return std::sqrt(field_.alpha * field_.alpha + widen * widen);
   }
 
   // Footprint in scaled uv (point query: 1/N square).
   glint::Footprint footprint(const GlimmerShadingContext *ctx) const {
     glint::Footprint f;
-    const double s = uv_scale_;
+    const double s = field_.uv_scale;
     f.cx = ctx->uv[0] * s;
     f.cy = ctx->uv[1] * s;
     f.ax = ctx->duv_dx[0] * s;
@@ -146,7 +126,7 @@ class GlintClosure {
     const bool finite = std::isfinite(f.ax) && std::isfinite(f.ay) && std::isfinite(f.bx) && std::isfinite(f.by);
     if (!std::isfinite(f.cx) || !std::isfinite(f.cy)) f.cx = f.cy = 0.0;
     if (!finite || !(f.area() > 1e-30) || !(f.area() < 1e30)) {
-      const double side = 1.0 / std::sqrt(static_cast<double>(density_));
+      const double side = 1.0 / std::sqrt(static_cast<double>(field_.density));
       f.ax = side;
       f.ay = 0.0;
       f.bx = 0.0;
@@ -158,7 +138,8 @@ class GlintClosure {
   // The glint BRDF times cos(wo): equations (2) and (3).
   Spectrum glint_f_cos(const GlimmerShadingContext *ctx, const Vec3 &wi, const Vec3 &wo, float sigma_deg) const {
     Spectrum weight;
-    if (!table_ || !glint::glint_weight(distribution_, alpha_, color_, wi, wo, weight)) return Spectrum(0.0f);
+    if (!table_ || !glint::glint_weight(field_.distribution, field_.alpha, field_.color, wi, wo, weight))
+      return Spectrum(0.0f);
     // Table coordinates: polar angles and the folded azimuth difference.
     const float theta_i = fast_acos_deg(wi.z);
     const float theta_o = fast_acos_deg(wo.z);
@@ -170,14 +151,15 @@ class GlintClosure {
 
     const glint::Footprint fp = footprint(ctx);
     const double area = fp.area();
-    const double expected = static_cast<double>(density_) * area * P;
+    const double expected = static_cast<double>(field_.density) * area * P;
     if (expected > threshold_) return weight * (P / cone_solid_angle_);  // (3)
     const glint::NodeRange nodes = glint::footprint_nodes(fp);
     const glint::GlintCount k =
-        glint::count_reflecting_particles(fp, nodes, density_, seed_, P, kMaxSteps);
+        glint::count_reflecting_particles(fp, nodes, field_.density, field_.seed, P, kMaxSteps);
     if (!k.complete) return weight * (P / cone_solid_angle_);  // extreme anisotropy: the mean (3)
     if (k.count == 0) return Spectrum(0.0f);
-    const double scale = static_cast<double>(k.count) / (static_cast<double>(density_) * area * cone_solid_angle_);
+    const double scale =
+        static_cast<double>(k.count) / (static_cast<double>(field_.density) * area * cone_solid_angle_);
     return weight * static_cast<float>(scale);  // (2)
   }
 
@@ -185,7 +167,7 @@ class GlintClosure {
     const float sigma = lod_sigma_deg(sp.ctx);
     LocalEval e;
     e.f_cos = glint_f_cos(sp.ctx, sp.wi, wo, sigma);
-    e.pdf = glint::smooth_lobe_pdf(distribution_, sampling_alpha(sigma), sp.wi, wo);
+    e.pdf = glint::smooth_lobe_pdf(field_.distribution, sampling_alpha(sigma), sp.wi, wo);
     return e;
   }
 
@@ -193,24 +175,18 @@ class GlintClosure {
     const Vec3 &wi = sp.wi;
     const float sigma = lod_sigma_deg(sp.ctx);
     const float alpha_w = sampling_alpha(sigma);
-    if (!glint::sample_smooth_lobe(distribution_, alpha_w, wi, rand, out.wo)) return false;
-    out.pdf = glint::smooth_lobe_pdf(distribution_, alpha_w, wi, out.wo);
+    if (!glint::sample_smooth_lobe(field_.distribution, alpha_w, wi, rand, out.wo)) return false;
+    out.pdf = glint::smooth_lobe_pdf(field_.distribution, alpha_w, wi, out.wo);
     out.f_cos = glint_f_cos(sp.ctx, wi, out.wo, sigma);
     out.roughness = std::sqrt(alpha_w);
     out.label = GLIMMER_LABEL_REFLECT | GLIMMER_LABEL_GLOSSY;
     return out.pdf > 0.0f;
   }
 
-  Spectrum albedo(const ShadingPoint &) const { return color_; }
+  Spectrum albedo(const ShadingPoint &) const { return field_.color; }
 
  private:
-  mf::Distribution distribution_ = mf::Distribution::GGX;
-  float alpha_ = 0.16f;
-  float gamma_deg_ = 2.0f;
-  float density_ = 1e6f;
-  float uv_scale_ = 1.0f;
-  uint32_t seed_ = 0;
-  Spectrum color_{1.0f};
+  glint::ParticleField field_;
   float threshold_ = 16.0f;
   std::shared_ptr<const glint::DirectionalTable> table_;
   float cone_solid_angle_ = 1.0f;

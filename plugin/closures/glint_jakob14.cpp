@@ -51,7 +51,6 @@ class GlintJakob14Closure {
   static constexpr const char *kDoc =
       "Reference glints: Jakob et al. 2014 discrete stochastic microfacets, 4D hierarchy (slow, exact).";
   static constexpr uint32_t kFlags = GLIMMER_CLOSURE_REFERENCE;
-  static constexpr float kMinAlpha = 0.0225f;
   static constexpr uint64_t kLeafSize = 8;
   // Cost bound: after this many visited nodes the remaining ones are counted
   // by their expectation (only reached for absurd particle counts, e.g.
@@ -59,34 +58,16 @@ class GlintJakob14Closure {
   static constexpr int kNodeBudget = 20000;
 
   static std::span<const GlimmerParamSpec> params() {
-    static const std::array<GlimmerParamSpec, 7> schema{{
-        {"distribution", GLIMMER_PARAM_ENUM, {0, 0, 0}, 0, 0, "ggx|beckmann", "ggx",
-         "base microfacet distribution of the particle normals"},
-        {"roughness", GLIMMER_PARAM_FLOAT, {0.4f, 0, 0}, 0.0f, 1.0f, nullptr, nullptr,
-         "base roughness (alpha = roughness^2); values below 0.15 are treated as 0.15 (as glint)"},
-        {"gamma", GLIMMER_PARAM_FLOAT, {2.0f, 0, 0}, 0.1f, 10.0f, nullptr, nullptr,
-         "query cone half-angle in degrees"},
-        {"density", GLIMMER_PARAM_FLOAT, {1e6f, 0, 0}, 1.0f, 1e12f, nullptr, nullptr,
-         "particles per unit of scaled uv area"},
-        {"uv_scale", GLIMMER_PARAM_FLOAT, {1.0f, 0, 0}, 1e-4f, 1e6f, nullptr, nullptr,
-         "scale of the uv coordinates the particles live in (uv * uv_scale)"},
-        {"seed", GLIMMER_PARAM_INT, {0, 0, 0}, 0.0f, 16777216.0f, nullptr, nullptr,
-         "random seed of the particle field"},
-        {"color", GLIMMER_PARAM_COLOR, {1, 1, 1}, 0.0f, 1.0f, nullptr, nullptr,
-         "particle reflectance at normal incidence (Schlick Fresnel F0)"},
-    }};
+    static const auto schema = glint::particle_field_params(
+        {"base roughness (alpha = roughness^2); values below 0.15 are treated as 0.15 (as glint)",
+         "query cone half-angle in degrees", "particle reflectance at normal incidence (Schlick Fresnel F0)"});
     return schema;
   }
 
   static std::unique_ptr<GlintJakob14Closure> create(const ParamReader &p) {
     auto c = std::make_unique<GlintJakob14Closure>();
-    c->distribution_ = p.get_enum("distribution") == 0 ? mf::Distribution::GGX : mf::Distribution::Beckmann;
-    c->alpha_ = std::max(sqr(p.get_float("roughness")), kMinAlpha);
-    c->gamma_ = p.get_float("gamma") * (kPi / 180.0f);
-    c->density_ = p.get_float("density");
-    c->uv_scale_ = p.get_float("uv_scale");
-    c->seed_ = static_cast<uint32_t>(p.get_int("seed"));
-    c->color_ = p.get_color("color");
+    c->field_ = glint::ParticleField::parse(p);
+    c->gamma_ = c->field_.gamma_deg * (kPi / 180.0f);
     c->cone_solid_angle_ = kTwoPi * (1.0f - std::cos(c->gamma_));
     return c;
   }
@@ -102,11 +83,11 @@ class GlintJakob14Closure {
 
   // Polar angle of the normal for direction code u (monotone in u).
   double code_theta(double u) const {
-    const double a = alpha_;
+    const double a = field_.alpha;
     u = std::min(std::max(u, 0.0), 1.0);
     if (u >= 1.0) return 0.5 * M_PI;
     const double tan2 =
-        distribution_ == mf::Distribution::GGX ? a * a * u / (1.0 - u) : -a * a * std::log1p(-u);
+        field_.distribution == mf::Distribution::GGX ? a * a * u / (1.0 - u) : -a * a * std::log1p(-u);
     return std::atan(std::sqrt(std::max(tan2, 0.0)));
   }
 
@@ -228,9 +209,9 @@ class GlintJakob14Closure {
     std::array<Node, 512> stack;
     for (int64_t j = j0; j <= j1; ++j)
       for (int64_t i = i0; i <= i1; ++i) {
-        const glint::NodeStream s = glint::node_stream(seed_ ^ 0x5bd1e995u, 0, i, j);
+        const glint::NodeStream s = glint::node_stream(field_.seed ^ 0x5bd1e995u, 0, i, j);
         Node root{static_cast<double>(i), static_cast<double>(i + 1), static_cast<double>(j), static_cast<double>(j + 1),
-                  0.0, 1.0, 0.0, 1.0, glint::node_particle_count(s, density_, 1.0), s.a, s.b, 0};
+                  0.0, 1.0, 0.0, 1.0, glint::node_particle_count(s, field_.density, 1.0), s.a, s.b, 0};
         int top = 0;
         stack[top++] = root;
         while (top > 0) {
@@ -282,7 +263,7 @@ class GlintJakob14Closure {
 
   glint::Footprint footprint(const GlimmerShadingContext *ctx) const {
     glint::Footprint f;
-    const double s = uv_scale_;
+    const double s = field_.uv_scale;
     f.cx = ctx->uv[0] * s;
     f.cy = ctx->uv[1] * s;
     f.ax = ctx->duv_dx[0] * s;
@@ -292,7 +273,7 @@ class GlintJakob14Closure {
     const bool finite = std::isfinite(f.ax) && std::isfinite(f.ay) && std::isfinite(f.bx) && std::isfinite(f.by) &&
                         std::isfinite(f.cx) && std::isfinite(f.cy);
     if (!finite || !(f.area() > 1e-30) || !(f.area() < 1e30)) {
-      const double side = 1.0 / std::sqrt(static_cast<double>(density_));  // point query at the particle scale
+      const double side = 1.0 / std::sqrt(static_cast<double>(field_.density));  // point query at the particle scale
       f.ax = side;
       f.ay = 0.0;
       f.bx = 0.0;
@@ -304,7 +285,7 @@ class GlintJakob14Closure {
 
   Spectrum glint_f_cos(const GlimmerShadingContext *ctx, const Vec3 &wi, const Vec3 &wo) const {
     Spectrum weight;
-    if (!glint::glint_weight(distribution_, alpha_, color_, wi, wo, weight)) return Spectrum(0.0f);
+    if (!glint::glint_weight(field_.distribution, field_.alpha, field_.color, wi, wo, weight)) return Spectrum(0.0f);
     Query q;
     q.fp = footprint(ctx);
     const double det = q.fp.ax * q.fp.by - q.fp.ay * q.fp.bx;
@@ -322,42 +303,38 @@ class GlintJakob14Closure {
     q.theta_ih = std::acos(std::min(std::max(wi_h, -1.0), 1.0));
     const uint64_t k = count(q);
     if (k == 0) return Spectrum(0.0f);
-    const double scale = static_cast<double>(k) / (static_cast<double>(density_) * q.fp.area() * cone_solid_angle_);
+    const double scale =
+        static_cast<double>(k) / (static_cast<double>(field_.density) * q.fp.area() * cone_solid_angle_);
     return weight * static_cast<float>(scale);
   }
 
   float sampling_alpha() const {
     const float widen = 0.5f * gamma_;
-    return std::sqrt(alpha_ * alpha_ + widen * widen);
+    return std::sqrt(field_.alpha * field_.alpha + widen * widen);
   }
 
   LocalEval eval(const ShadingPoint &sp, const Vec3 &wo) const {
     LocalEval e;
     e.f_cos = glint_f_cos(sp.ctx, sp.wi, wo);
-    e.pdf = glint::smooth_lobe_pdf(distribution_, sampling_alpha(), sp.wi, wo);
+    e.pdf = glint::smooth_lobe_pdf(field_.distribution, sampling_alpha(), sp.wi, wo);
     return e;
   }
 
   bool sample(const ShadingPoint &sp, const Vec3 &rand, LocalSample &out) const {
     const float alpha_w = sampling_alpha();
-    if (!glint::sample_smooth_lobe(distribution_, alpha_w, sp.wi, rand, out.wo)) return false;
-    out.pdf = glint::smooth_lobe_pdf(distribution_, alpha_w, sp.wi, out.wo);
+    if (!glint::sample_smooth_lobe(field_.distribution, alpha_w, sp.wi, rand, out.wo)) return false;
+    out.pdf = glint::smooth_lobe_pdf(field_.distribution, alpha_w, sp.wi, out.wo);
     out.f_cos = glint_f_cos(sp.ctx, sp.wi, out.wo);
     out.roughness = std::sqrt(alpha_w);
     out.label = GLIMMER_LABEL_REFLECT | GLIMMER_LABEL_GLOSSY;
     return out.pdf > 0.0f;
   }
 
-  Spectrum albedo(const ShadingPoint &) const { return color_; }
+  Spectrum albedo(const ShadingPoint &) const { return field_.color; }
 
  private:
-  mf::Distribution distribution_ = mf::Distribution::GGX;
-  float alpha_ = 0.16f;
+  glint::ParticleField field_;
   float gamma_ = 0.035f;  // radians
-  float density_ = 1e6f;
-  float uv_scale_ = 1.0f;
-  uint32_t seed_ = 0;
-  Spectrum color_{1.0f};
   float cone_solid_angle_ = 1.0f;
 };
 

@@ -1,10 +1,15 @@
 // Pieces shared by the two glint closures (glint.cpp and glint_jakob14.cpp):
-// the per-glint weight W of the BRDF and the smooth-lobe sampler whose
-// density pdf() returns exactly.
+// the particle-field parameters both take, the per-glint weight W of the BRDF
+// and the smooth-lobe sampler whose density pdf() returns exactly.
 #pragma once
 
+#include <array>
 #include <cmath>
+#include <cstddef>
+#include <cstdint>
 
+#include "core/params.h"
+#include "glimmer/closure_abi.h"
 #include "glimmer/math.h"
 #include "glimmer/microfacet.h"
 #include "glimmer/sampling.h"
@@ -12,6 +17,67 @@
 namespace glimmer::plugin::glint {
 
 namespace mf = glimmer::microfacet;
+
+// ---- The particle field ------------------------------------------------------
+// Both closures describe the same surface: N particles per unit of scaled uv
+// area whose normals follow D(m) cos(theta_m) of a GGX or Beckmann base, seen
+// through a query cone of half-angle gamma. The schema entries are declared
+// once here; each closure words three of the docs for its own use.
+struct ParticleFieldDocs {
+  const char *roughness;
+  const char *gamma;
+  const char *color;
+};
+
+inline constexpr size_t kParticleFieldParamCount = 7;
+
+// The schema entries of the particle field followed by a closure's own
+// `extra` entries (N of them).
+template <size_t N = 0>
+std::array<GlimmerParamSpec, kParticleFieldParamCount + N> particle_field_params(
+    const ParticleFieldDocs &docs, const std::array<GlimmerParamSpec, N> &extra = {}) {
+  std::array<GlimmerParamSpec, kParticleFieldParamCount + N> schema{{
+      {"distribution", GLIMMER_PARAM_ENUM, {0, 0, 0}, 0, 0, "ggx|beckmann", "ggx",
+       "base microfacet distribution of the particle normals"},
+      {"roughness", GLIMMER_PARAM_FLOAT, {0.4f, 0, 0}, 0.0f, 1.0f, nullptr, nullptr, docs.roughness},
+      {"gamma", GLIMMER_PARAM_FLOAT, {2.0f, 0, 0}, 0.1f, 10.0f, nullptr, nullptr, docs.gamma},
+      {"density", GLIMMER_PARAM_FLOAT, {1e6f, 0, 0}, 1.0f, 1e12f, nullptr, nullptr,
+       "particles per unit of scaled uv area"},
+      {"uv_scale", GLIMMER_PARAM_FLOAT, {1.0f, 0, 0}, 1e-4f, 1e6f, nullptr, nullptr,
+       "scale of the uv coordinates the particles live in (uv * uv_scale)"},
+      {"seed", GLIMMER_PARAM_INT, {0, 0, 0}, 0.0f, 16777216.0f, nullptr, nullptr,
+       "random seed of the particle field"},
+      {"color", GLIMMER_PARAM_COLOR, {1, 1, 1}, 0.0f, 1.0f, nullptr, nullptr, docs.color},
+  }};
+  for (size_t i = 0; i < N; ++i) schema[kParticleFieldParamCount + i] = extra[i];
+  return schema;
+}
+
+// The validated particle-field parameters of one closure instance.
+struct ParticleField {
+  // Smallest alpha the 1-degree tables resolve (roughness 0.15).
+  static constexpr float kMinAlpha = 0.0225f;
+
+  mf::Distribution distribution = mf::Distribution::GGX;
+  float alpha = 0.16f;      // max(roughness^2, kMinAlpha)
+  float gamma_deg = 2.0f;   // query cone half-angle, degrees
+  float density = 1e6f;     // N, particles per unit of scaled uv area
+  float uv_scale = 1.0f;
+  uint32_t seed = 0;
+  Spectrum color{1.0f};     // Schlick F0
+
+  static ParticleField parse(const ParamReader &p) {
+    ParticleField f;
+    f.distribution = p.get_enum("distribution") == 0 ? mf::Distribution::GGX : mf::Distribution::Beckmann;
+    f.alpha = std::max(sqr(p.get_float("roughness")), kMinAlpha);
+    f.gamma_deg = p.get_float("gamma");
+    f.density = p.get_float("density");
+    f.uv_scale = p.get_float("uv_scale");
+    f.seed = static_cast<uint32_t>(p.get_int("seed"));
+    f.color = p.get_color("color");
+    return f;
+  }
+};
 
 // W(wi, wo) = F(wi.h) G2(wi, wo) (wi.h) / (cos_i cos_h): the glint BRDF times
 // cos(wo) is W times the reflected-direction density (P / sigma for the

@@ -67,13 +67,7 @@ check(cancelled and code == -9, "killed with SIGKILL (code %s)" % code)
 check(elapsed < 10.0, "kill after the 0.5 s timeout, not at the end of the render (%.2f s)" % elapsed)
 
 # 3. Engine: cancel a render through Blender; the partial image reaches the render result.
-bpy.ops.wm.read_homefile(use_empty=True)
-scene = bpy.context.scene
-scene.render.engine = "GLIMMER"
-scene.render.resolution_x, scene.render.resolution_y, scene.render.resolution_percentage = 16, 8, 100
-scene.render.image_settings.file_format = "OPEN_EXR"
-scene.render.image_settings.color_depth = "32"
-scene.view_settings.view_transform = "Standard"
+scene = util.empty_exr_scene(16, 8)
 scene.glimmer.samples = 100
 cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
 scene.collection.objects.link(cam)

@@ -16,10 +16,7 @@ import addon_test_util as util  # noqa: E402
 
 check = util.check
 opts = util.args()
-glimmer = os.environ.get("GLIMMER_EXECUTABLE", "")
-mod = util.enable_addon()
-if not mod.runner.supports_render(glimmer):
-    util.skip("`%s` has no `render` sub-command yet (issue 3); this test runs once it lands" % glimmer)
+mod, glimmer = util.enable_addon_with_renderer()
 
 blender = bpy.app.binary_path
 blend = os.path.join(opts.out, "demo.blend")

@@ -14,21 +14,12 @@ import addon_test_util as util  # noqa: E402
 
 check = util.check
 opts = util.args()
-glimmer = os.environ.get("GLIMMER_EXECUTABLE", "")
-mod = util.enable_addon()
-if not mod.runner.supports_render(glimmer):
-    util.skip("`%s` has no `render` sub-command yet (issue 3); this test runs once it lands" % glimmer)
+mod, glimmer = util.enable_addon_with_renderer()
 
 schema, origin, _ = mod.current_schema()
 dso_closures = {c["name"] for c in schema["closures"] if c.get("source") == "dso"}
 
-bpy.ops.wm.read_homefile(use_empty=True)
-scene = bpy.context.scene
-scene.render.engine = "GLIMMER"
-scene.render.resolution_x, scene.render.resolution_y, scene.render.resolution_percentage = 48, 32, 100
-scene.render.image_settings.file_format = "OPEN_EXR"
-scene.render.image_settings.color_depth = "32"
-scene.view_settings.view_transform = "Standard"
+scene = util.empty_exr_scene(48, 32)
 scene.glimmer.samples = 8
 scene.glimmer.threads = 2
 scene.glimmer.seed = 5

@@ -75,6 +75,35 @@ inline Vec3 direction_at_cos(double cos_theta) {
   return Vec3(static_cast<float>(s), 0.0f, static_cast<float>(cos_theta));
 }
 
+// Direction in the local frame (N = +z) at polar angle `theta_deg` and azimuth `phi_deg` (degrees).
+inline Vec3 spherical_dir(double theta_deg, double phi_deg) {
+  const double deg = M_PI / 180.0;
+  const double t = theta_deg * deg, p = phi_deg * deg;
+  return Vec3(static_cast<float>(std::sin(t) * std::cos(p)), static_cast<float>(std::sin(t) * std::sin(p)),
+              static_cast<float>(std::cos(t)));
+}
+
+// Local context at `wi` with uv (u, v) and the uv footprint spanned by
+// duv_dx = (ax, ay) and duv_dy = (bx, by) (closures with spatial detail: glint).
+inline GlimmerShadingContext footprint_context(const Vec3 &wi, double u, double v, double ax, double ay, double bx,
+                                               double by) {
+  GlimmerShadingContext ctx = host::make_local_context(wi);
+  ctx.uv[0] = static_cast<float>(u);
+  ctx.uv[1] = static_cast<float>(v);
+  ctx.duv_dx[0] = static_cast<float>(ax);
+  ctx.duv_dx[1] = static_cast<float>(ay);
+  ctx.duv_dy[0] = static_cast<float>(bx);
+  ctx.duv_dy[1] = static_cast<float>(by);
+  return ctx;
+}
+
+// Closures that precompute tables (glint) cache them in the build folder
+// during tests, not in the user's home (an explicit GLIMMER_CACHE_DIR wins).
+inline bool cache_tables_in_build_folder() {
+  setenv("GLIMMER_CACHE_DIR", GLIMMER_TEST_BINARY_DIR "/test_cache", 0);
+  return true;
+}
+
 // The viewing directions every closure is checked at: normal, 45 degrees,
 // 75 degrees, grazing 1e-3 and grazing 1e-6 (cosines).
 inline std::vector<std::pair<std::string, Vec3>> standard_wi() {
@@ -167,17 +196,22 @@ inline std::vector<lab::Chi2Result> expect_chi2_family(const std::vector<Chi2Con
 }
 
 // ---- eval/pdf consistency -------------------------------------------------------------
-inline ::testing::AssertionResult consistent(const host::ClosureInstance &instance, const Vec3 &wi,
+// `ctx` is a full context (footprints, spread); the Vec3 overload uses
+// host::make_local_context(wi).
+inline ::testing::AssertionResult consistent(const host::ClosureInstance &instance, const GlimmerShadingContext &ctx,
                                              double tolerance = 1e-4, uint64_t samples = 200000) {
-  const lab::ConsistencyResult r =
-      lab::consistency(instance, host::make_local_context(wi), samples, 7, tolerance);
+  const lab::ConsistencyResult r = lab::consistency(instance, ctx, samples, 7, tolerance);
   std::ostringstream msg;
-  msg << instance.type().name << " eval/pdf consistency at wi " << format_vec(wi) << ": " << r.mismatches
+  msg << instance.type().name << " eval/pdf consistency at wi " << format_vec(Vec3(ctx.wi)) << ": " << r.mismatches
       << " mismatches of " << r.checked << " (tolerance " << tolerance << "), max relative eval difference "
       << r.max_relative_eval_difference << ", pdf " << r.max_relative_pdf_difference << ", worst wo "
       << format_vec(r.worst_wo);
   const bool ok = r.mismatches == 0 && r.checked > 0;
   return ok ? ::testing::AssertionSuccess() << msg.str() : ::testing::AssertionFailure() << msg.str();
+}
+inline ::testing::AssertionResult consistent(const host::ClosureInstance &instance, const Vec3 &wi,
+                                             double tolerance = 1e-4, uint64_t samples = 200000) {
+  return consistent(instance, host::make_local_context(wi), tolerance, samples);
 }
 #define EXPECT_CLOSURE_CONSISTENT(instance, wi) EXPECT_TRUE(::glimmer::test::consistent((instance), (wi)))
 

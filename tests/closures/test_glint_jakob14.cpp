@@ -4,38 +4,18 @@
 
 #include <cstdlib>
 
-#include "closures/glint_test_support.h"
+#include "closures/closure_checks.h"
 #include "glimmer/microfacet.h"
 #include "glimmer/rng.h"
 
-namespace glimmer::glint_test {
+namespace glimmer::test {
 namespace {
 
 namespace mf = glimmer::microfacet;
 
-const bool kCacheDirSet = [] {
-  setenv("GLIMMER_CACHE_DIR", GLIMMER_TEST_BINARY_DIR "/test_cache", 0);
-  return true;
-}();
+const bool kCacheDirSet = cache_tables_in_build_folder();
 
 constexpr double kDeg = M_PI / 180.0;
-
-Vec3 dir(double theta_deg, double phi_deg) {
-  const double t = theta_deg * kDeg, p = phi_deg * kDeg;
-  return Vec3(static_cast<float>(std::sin(t) * std::cos(p)), static_cast<float>(std::sin(t) * std::sin(p)),
-              static_cast<float>(std::cos(t)));
-}
-
-GlimmerShadingContext ctx_at(const Vec3 &wi, double u, double v, double ax, double ay, double bx, double by) {
-  GlimmerShadingContext ctx = host::make_local_context(wi);
-  ctx.uv[0] = static_cast<float>(u);
-  ctx.uv[1] = static_cast<float>(v);
-  ctx.duv_dx[0] = static_cast<float>(ax);
-  ctx.duv_dx[1] = static_cast<float>(ay);
-  ctx.duv_dy[0] = static_cast<float>(bx);
-  ctx.duv_dy[1] = static_cast<float>(by);
-  return ctx;
-}
 
 double f_of(const host::ClosureInstance &c, const GlimmerShadingContext &ctx, const Vec3 &wo) {
   Spectrum f;
@@ -48,13 +28,13 @@ double f_of(const host::ClosureInstance &c, const GlimmerShadingContext &ctx, co
 // over disjoint footprints (f * area of the union = sum over the halves).
 TEST(GlintJakob14, CountsAreAdditiveOverDisjointFootprints) {
   auto j = make_closure("glint_jakob14", {{"roughness", "0.4"}, {"gamma", "3"}, {"density", "3e5"}});
-  const Vec3 wi = dir(30.0, 0.0), wo = dir(32.0, 178.0);
+  const Vec3 wi = spherical_dir(30.0, 0.0), wo = spherical_dir(32.0, 178.0);
   int nonzero = 0;
   for (int t = 0; t < 200; ++t) {
     const double u = 0.013 * t + 0.2, v = 0.37 + 0.0041 * t, w = 0.02;
-    const double whole = f_of(*j, ctx_at(wi, u, v, w, 0, 0, w), wo) * w * w;
-    const double left = f_of(*j, ctx_at(wi, u - w / 4, v, w / 2, 0, 0, w), wo) * (w * w / 2);
-    const double right = f_of(*j, ctx_at(wi, u + w / 4, v, w / 2, 0, 0, w), wo) * (w * w / 2);
+    const double whole = f_of(*j, footprint_context(wi, u, v, w, 0, 0, w), wo) * w * w;
+    const double left = f_of(*j, footprint_context(wi, u - w / 4, v, w / 2, 0, 0, w), wo) * (w * w / 2);
+    const double right = f_of(*j, footprint_context(wi, u + w / 4, v, w / 2, 0, 0, w), wo) * (w * w / 2);
     EXPECT_NEAR(whole, left + right, 1e-5 * std::max(1.0, whole)) << "footprint " << t;
     nonzero += whole > 0.0;
   }
@@ -68,8 +48,8 @@ TEST(GlintJakob14, MeanMatchesConeAveragedSmoothBrdfAndGlint) {
   const double alpha = 0.25, gamma = 2.0 * kDeg;
   auto j = make_closure("glint_jakob14", {{"roughness", "0.5"}, {"gamma", "2"}, {"density", "1e6"}});
   auto g = make_closure("glint", {{"roughness", "0.5"}, {"gamma", "2"}, {"density", "1e6"}});
-  const Vec3 wi = dir(40.0, 0.0);
-  for (const Vec3 &wo : {dir(40.0, 180.0), dir(30.0, 150.0)}) {
+  const Vec3 wi = spherical_dir(40.0, 0.0);
+  for (const Vec3 &wo : {spherical_dir(40.0, 180.0), spherical_dir(30.0, 150.0)}) {
     // Brute force: W(wo) / sigma * Int_cone q(r) dr, q = D(h) cos_h / (4 wi.h).
     Vec3 h;
     ASSERT_TRUE(mf::half_vector_reflect(wi, wo, h));
@@ -96,7 +76,7 @@ TEST(GlintJakob14, MeanMatchesConeAveragedSmoothBrdfAndGlint) {
     Pcg32 rng(3);
     for (int i = 0; i < positions; ++i) {
       const double u = rng.next_double() * 20.0, v = rng.next_double() * 20.0;
-      const GlimmerShadingContext c = ctx_at(wi, u, v, side, 0, 0, side);
+      const GlimmerShadingContext c = footprint_context(wi, u, v, side, 0, 0, side);
       const double fj = f_of(*j, c, wo);
       sum_j += fj;
       sum2_j += fj * fj;
@@ -116,8 +96,7 @@ TEST(GlintJakob14, MeanMatchesConeAveragedSmoothBrdfAndGlint) {
 // configurations under `make stress` (GLIMMER_STRESS=1, ~4 min on one core:
 // every sample evaluates the exact 4D count), 8 in `make test`.
 TEST(GlintJakob14, Chi2SamplerMatchesPdf) {
-  const char *stress = std::getenv("GLIMMER_STRESS");
-  const bool full = stress != nullptr && *stress != '\0' && std::string(stress) != "0";
+  const bool full = stress_scale() > 1;  // make stress
   std::vector<Chi2Config> configs;
   for (const char *dist : {"ggx", "beckmann"})
     for (const char *rough : {"0.2", "0.5", "0.9"}) {
@@ -127,7 +106,7 @@ TEST(GlintJakob14, Chi2SamplerMatchesPdf) {
       for (double theta_i : {0.0, 25.0, 50.0, 70.0}) {
         if (!full && theta_i != 0.0 && theta_i != 50.0) continue;
         configs.push_back({std::string(dist) + " r=" + rough + " theta_i " + std::to_string(theta_i), c,
-                           host::make_local_context(dir(theta_i, 0.0))});
+                           spherical_dir(theta_i, 0.0)});
       }
     }
   ASSERT_GE(configs.size(), full ? 24u : 8u);
@@ -136,12 +115,12 @@ TEST(GlintJakob14, Chi2SamplerMatchesPdf) {
 
 TEST(GlintJakob14, EvalPdfConsistentAndStressClean) {
   auto j = make_closure("glint_jakob14", {{"roughness", "0.4"}, {"density", "1e6"}});
-  for (double theta_i : {0.0, 45.0, 80.0}) EXPECT_TRUE(consistent(*j, host::make_local_context(dir(theta_i, 0.0)), 1e-4, 20000));
+  for (double theta_i : {0.0, 45.0, 80.0}) EXPECT_TRUE(consistent(*j, spherical_dir(theta_i, 0.0), 1e-4, 20000));
   auto j2 = make_closure("glint_jakob14", {{"distribution", "beckmann"}, {"roughness", "0"}, {"gamma", "10"},
                                            {"density", "1e12"}, {"uv_scale", "1000"}});
   auto j3 = make_closure("glint_jakob14", {{"roughness", "1"}, {"gamma", "0.1"}, {"density", "1"}});
-  EXPECT_TRUE(stress_clean({j.get(), j2.get(), j3.get()}, 3000));
+  EXPECT_TRUE(stress_clean({j.get(), j2.get(), j3.get()}, 3 * 3000));  // 3000 calls per instance
 }
 
 }  // namespace
-}  // namespace glimmer::glint_test
+}  // namespace glimmer::test
