@@ -1,5 +1,7 @@
-"""Acceptance path: make_demo_blend.py writes a .blend, `blender -b --addons
-glimmer demo.blend -E GLIMMER -f 1` renders it to PNG, and the glint sphere is
+"""Acceptance path: make_demo_blend.py writes a .blend and enables the addon in
+the user's preferences, the plain `blender -b demo.blend -E GLIMMER -f 1`
+renders it to PNG (both with HOME in a scratch folder, so the user's own
+Blender configuration is not touched), and the glint sphere is
 visible (lit, distinct from the sky behind it, and sparkling once the DSO has
 the glint closure). Skipped (77) only while
 `glimmer render` does not exist."""
@@ -23,11 +25,14 @@ blend = os.path.join(opts.out, "demo.blend")
 png = os.path.join(opts.out, "demo_glint_0001.png")
 if os.path.exists(png):
     os.remove(png)
+home = os.path.join(opts.out, "home")
+env = {k: v for k, v in os.environ.items() if not k.startswith("BLENDER_USER_")}
+env["HOME"] = home
+env.pop("XDG_CONFIG_HOME", None)
 subprocess.run([blender, "-b", "--factory-startup", "--python-exit-code", "1", "--python",
                 os.path.join(util.HERE, "make_demo_blend.py"), "--", "--output", blend,
-                "--width", "240", "--height", "160", "--samples", "16"], check=True)
-env = dict(os.environ, BLENDER_USER_SCRIPTS=os.path.join(util.REPO, "build", "blender_scripts"))
-render = subprocess.run([blender, "-b", "--addons", "glimmer", blend, "-E", "GLIMMER", "-f", "1"], env=env,
+                "--width", "240", "--height", "160", "--samples", "16"], check=True, env=env)
+render = subprocess.run([blender, "-b", blend, "-E", "GLIMMER", "-f", "1"], env=env,
                         stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
 log = render.stdout.decode(errors="replace")
 print(log[-3000:])
