@@ -148,6 +148,26 @@ inline Spectrum walk_conductor_eval(const Vec3 &wi, const Vec3 &wo, const WalkSu
 // Side-local frame: on the inner side z is mirrored.
 inline Vec3 flip_z(const Vec3 &v) { return flip_z_local(v); }
 
+// One scattering event of a dielectric walk at height hr: sample a visible
+// normal for wv = -wr, then reflect (probability F, or on TIR) or refract to
+// the other side, where the frame and the height are mirrored and eta inverts.
+template <typename Rng>
+inline void walk_dielectric_scatter(const WalkSurface &s, Rng &rng, Vec3 &wr, double &hr, bool &outside,
+                                    float &eta_side) {
+  const Vec3 wv = -wr;
+  const Vec3 m = sample_ggx_visible_normal(wv, s.ax, s.ay, rng.next(), rng.next());
+  const float F = fresnel_dielectric(dot(wv, m), eta_side);
+  Vec3 wt;
+  if (rng.next() < F || !refract(wv, m, eta_side, wt)) {
+    wr = normalize(reflect_about(wv, m));
+  } else {
+    wr = flip_z(wt);
+    hr = -hr;
+    outside = !outside;
+    eta_side = 1.0f / eta_side;
+  }
+}
+
 // One dielectric walk from wi (either side; wi.z < 0 means inside, eta is
 // n_inside / n_outside). Returns the exit direction in the shading frame
 // (z > 0: reflected to wi's... outer side; z < 0: transmitted to the inner side).
@@ -163,20 +183,7 @@ inline Vec3 walk_dielectric(const Vec3 &wi, float eta, const WalkSurface &s, Rng
       order = k - 1;
       return outside ? wr : flip_z(wr);
     }
-    const Vec3 wv = -wr;
-    const Vec3 m = sample_ggx_visible_normal(wv, s.ax, s.ay, rng.next(), rng.next());
-    const float c = dot(wv, m);
-    const float F = fresnel_dielectric(c, eta_side);
-    Vec3 wt;
-    if (rng.next() < F || !refract(wv, m, eta_side, wt)) {
-      wr = normalize(reflect_about(wv, m));
-    } else {
-      // Cross to the other side: mirror frame and heights, invert eta.
-      wr = flip_z(wt);
-      hr = -hr;
-      outside = !outside;
-      eta_side = 1.0f / eta_side;
-    }
+    walk_dielectric_scatter(s, rng, wr, hr, outside, eta_side);
     if (!is_finite(wr)) break;
   }
   order = 0;
@@ -223,18 +230,7 @@ inline float walk_dielectric_eval(const Vec3 &wi, const Vec3 &wo, float eta, con
         }
       }
     }
-    const Vec3 m = sample_ggx_visible_normal(wv, s.ax, s.ay, rng.next(), rng.next());
-    const float c = dot(wv, m);
-    const float F = fresnel_dielectric(c, eta_side);
-    Vec3 wt;
-    if (rng.next() < F || !refract(wv, m, eta_side, wt)) {
-      wr = normalize(reflect_about(wv, m));
-    } else {
-      wr = flip_z(wt);
-      hr = -hr;
-      outside = !outside;
-      eta_side = 1.0f / eta_side;
-    }
+    walk_dielectric_scatter(s, rng, wr, hr, outside, eta_side);
     if (!is_finite(wr)) break;
   }
   return std::isfinite(sum) ? sum : 0.0f;
