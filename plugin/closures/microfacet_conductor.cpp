@@ -18,6 +18,7 @@
 #include <array>
 
 #include "core/closure.h"
+#include "core/microfacet_lobe_params.h"
 #include "glimmer/microfacet.h"
 #include "glimmer/sampling.h"
 #include "tables/microfacet_energy.h"
@@ -34,7 +35,6 @@ class MicrofacetConductorClosure {
       "multi_ggx adds multiple-scattering energy compensation.";
   static constexpr uint32_t kFlags = 0;
 
-  enum Mode { kGgx = 0, kBeckmann = 1, kMultiGgx = 2, kSharp = 3 };
 
   static std::span<const GlimmerParamSpec> params() {
     static const std::array<GlimmerParamSpec, 4> schema{{
@@ -52,12 +52,12 @@ class MicrofacetConductorClosure {
 
   static std::unique_ptr<MicrofacetConductorClosure> create(const ParamReader &p) {
     auto c = std::make_unique<MicrofacetConductorClosure>();
-    c->mode_ = static_cast<Mode>(p.get_enum("distribution"));
-    c->dist_ = c->mode_ == kBeckmann ? mf::Distribution::Beckmann : mf::Distribution::GGX;
-    const mf::Alpha a = mf::roughness_to_alpha(p.get_float("roughness"), p.get_float("anisotropy"));
-    c->ax_ = a.x;
-    c->ay_ = a.y;
-    c->alpha_table_ = std::min(std::sqrt(a.x * a.y), 1.0f);
+    const MicrofacetLobeParams lobe = MicrofacetLobeParams::parse(p);
+    c->mode_ = lobe.mode;
+    c->dist_ = lobe.distribution;
+    c->ax_ = lobe.alpha_x;
+    c->ay_ = lobe.alpha_y;
+    c->alpha_table_ = lobe.alpha_table;
     c->f0_ = p.get_color("f0");
     c->white_ = c->f0_.x == 1.0f && c->f0_.y == 1.0f && c->f0_.z == 1.0f;
     c->rows_.build(c->alpha_table_);
@@ -145,7 +145,7 @@ class MicrofacetConductorClosure {
   }
 
  private:
-  Mode mode_ = kGgx;
+  MicrofacetMode mode_ = kGgx;
   mf::Distribution dist_ = mf::Distribution::GGX;
   float ax_ = 0.25f, ay_ = 0.25f, alpha_table_ = 0.25f, e_avg_ = 1.0f;
   Spectrum f0_{1.0f};

@@ -21,6 +21,7 @@
 #include <array>
 
 #include "core/closure.h"
+#include "core/microfacet_lobe_params.h"
 #include "glimmer/microfacet.h"
 #include "tables/microfacet_energy.h"
 
@@ -36,7 +37,6 @@ class MicrofacetDielectricClosure {
       "both sides, TIR; multi_ggx compensates multiple-scattering energy.";
   static constexpr uint32_t kFlags = GLIMMER_CLOSURE_TRANSMISSIVE;
 
-  enum Mode { kGgx = 0, kBeckmann = 1, kMultiGgx = 2, kSharp = 3 };
 
   static std::span<const GlimmerParamSpec> params() {
     static const std::array<GlimmerParamSpec, 5> schema{{
@@ -56,12 +56,12 @@ class MicrofacetDielectricClosure {
 
   static std::unique_ptr<MicrofacetDielectricClosure> create(const ParamReader &p) {
     auto c = std::make_unique<MicrofacetDielectricClosure>();
-    c->mode_ = static_cast<Mode>(p.get_enum("distribution"));
-    c->dist_ = c->mode_ == kBeckmann ? mf::Distribution::Beckmann : mf::Distribution::GGX;
-    const mf::Alpha a = mf::roughness_to_alpha(p.get_float("roughness"), p.get_float("anisotropy"));
-    c->ax_ = a.x;
-    c->ay_ = a.y;
-    c->alpha_table_ = std::min(std::sqrt(a.x * a.y), 1.0f);
+    const MicrofacetLobeParams lobe = MicrofacetLobeParams::parse(p);
+    c->mode_ = lobe.mode;
+    c->dist_ = lobe.distribution;
+    c->ax_ = lobe.alpha_x;
+    c->ay_ = lobe.alpha_y;
+    c->alpha_table_ = lobe.alpha_table;
     float ior = p.get_float("ior");
     if (std::fabs(ior - 1.0f) < 1e-4f) ior = ior < 1.0f ? 1.0f - 1e-4f : 1.0f + 1e-4f;
     c->ior_ = ior;
@@ -173,7 +173,7 @@ class MicrofacetDielectricClosure {
   }
 
  private:
-  Mode mode_ = kGgx;
+  MicrofacetMode mode_ = kGgx;
   mf::Distribution dist_ = mf::Distribution::GGX;
   float ax_ = 0.25f, ay_ = 0.25f, alpha_table_ = 0.25f, ior_ = 1.45f;
   bool refraction_only_ = false, compensate_ = false;
