@@ -33,6 +33,10 @@ struct Cubic {
   float w[4];
 };
 // Catmull-Rom taps and weights at continuous node coordinate `coord` on n nodes.
+// Beyond either end the missing node is extrapolated quadratically
+// (f[-1] = 3 f[0] - 3 f[1] + f[2], likewise at n), so the end intervals are
+// exact for quadratics instead of flattening toward the end node (E_Fms at small
+// F0 bends strongly between the last two mu nodes, mu = 0.9365 and 1).
 inline Cubic catmull_rom(float coord, int n) {
   const auto l = grid::lerp_axis(coord, n);
   const float t = l.t, t2 = t * t, t3 = t2 * t;
@@ -41,7 +45,19 @@ inline Cubic catmull_rom(float coord, int n) {
   c.w[1] = 0.5f * (3.0f * t3 - 5.0f * t2 + 2.0f);
   c.w[2] = 0.5f * (-3.0f * t3 + 4.0f * t2 + t);
   c.w[3] = 0.5f * (t3 - t2);
-  for (int k = 0; k < 4; ++k) c.i[k] = std::clamp(l.i0 - 1 + k, 0, n - 1);
+  for (int k = 0; k < 4; ++k) c.i[k] = l.i0 - 1 + k;
+  if (c.i[0] < 0) {  // taps -1, 0, 1, 2 -> 0, 1, 2 (+ 3 zero-weight copies)
+    const float w = c.w[0];
+    c.w[0] = 0.0f;
+    c.i[0] = 0;
+    c.w[1] += 3.0f * w, c.w[2] -= 3.0f * w, c.w[3] += w;
+  }
+  if (c.i[3] > n - 1) {  // taps n-3, n-2, n-1, n -> n-3, n-2, n-1
+    const float w = c.w[3];
+    c.w[3] = 0.0f;
+    c.i[3] = n - 1;
+    c.w[2] += 3.0f * w, c.w[1] -= 3.0f * w, c.w[0] += w;
+  }
   return c;
 }
 using MuCubic = Cubic;
