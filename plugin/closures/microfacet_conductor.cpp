@@ -60,7 +60,7 @@ class MicrofacetConductorClosure {
     c->alpha_table_ = lobe.alpha_table;
     c->f0_ = p.get_color("f0");
     c->white_ = c->f0_.x == 1.0f && c->f0_.y == 1.0f && c->f0_.z == 1.0f;
-    c->rows_.build(c->alpha_table_);
+    c->rows_.build(c->alpha_table_, c->f0_);
     if (c->mode_ == kMultiGgx) c->e_avg_ = tables::ggx_E_avg(c->alpha_table_);
     return c;
   }
@@ -78,7 +78,7 @@ class MicrofacetConductorClosure {
     const float denom = kPi * (1.0f - e_avg_);
     if (!(denom > 1e-7f)) return Spectrum(0.0f);
     const float shape = std::max(1.0f - rows_.E(mu_o), 0.0f) / denom;
-    return rows_.E_Fms(mu_i, f0_) * (shape * mu_o);
+    return rows_.E_Fms(mu_i) * (shape * mu_o);
   }
 
   // Single-scatter f * cos(wo) and the visible-normal pdf, given wh.
@@ -141,7 +141,7 @@ class MicrofacetConductorClosure {
     if (mode_ == kSharp) return f;
     const Spectrum single = f * rows_.E(mu);
     if (mode_ != kMultiGgx) return single;
-    return single + rows_.E_Fms(mu, f0_);
+    return single + rows_.E_Fms(mu);
   }
 
  private:
@@ -150,7 +150,7 @@ class MicrofacetConductorClosure {
   float ax_ = 0.25f, ay_ = 0.25f, alpha_table_ = 0.25f, e_avg_ = 1.0f;
   Spectrum f0_{1.0f};
   bool white_ = true;
-  tables::ConductorRows rows_{};  // E(mu), E_Fms(mu) at this alpha
+  tables::ConductorRows rows_{};  // E(mu), E_Fms(mu) at this alpha and f0
 };
 
 GLIMMER_REGISTER_CLOSURE(MicrofacetConductorClosure)

@@ -17,7 +17,9 @@ namespace grid = microfacet::energy_grid;
 extern const float kGgxE[grid::kAlphaCount][grid::kMuCount];
 extern const float kGgxEAvg[grid::kAlphaCount];
 // Hill's Fresnel-split multiple-scattering energy with Schlick Fresnel:
-// E_Fms(mu, alpha, F0) = c0 + F0 (c1 + F0 (c2 + F0 c3)).
+// E_Fms(mu, alpha, F0) = (c0 + F0 (c1 + F0 (c2 + F0 c3))) / (1 - h F0),
+// h = (1 - E(mu, alpha)) / 2 with E = kGgxE at the same node (the series of
+// higher bounce orders; glimmer/microfacet_walk.h, fresnel_split_tail_h).
 extern const float kGgxFms[grid::kAlphaCount][grid::kMuCount][4];
 // Dielectric single scattering R + T: wi outside (relative eta = ior >= 1) and
 // wi inside (relative eta = 1 / ior), indexed by ior's node.
@@ -81,18 +83,25 @@ inline float ggx_E_avg(float alpha) {
   return lerp(kGgxEAvg[a.i0], kGgxEAvg[a.i1], a.t);
 }
 
-// Horner evaluation of the bilinearly interpolated cubic (Hill 2022).
+// E_Fms at grid node (alpha node a, mu node m) for one F0: Horner evaluation
+// of the node's cubic (Hill 2022), divided by the node's tail factor.
+inline float ggx_E_Fms_node(int a, int m, float f0) {
+  const float *c = kGgxFms[a][m];
+  const float h = 0.5f * (1.0f - kGgxE[a][m]);
+  return (c[0] + f0 * (c[1] + f0 * (c[2] + f0 * c[3]))) / (1.0f - h * f0);
+}
+
+// E_Fms(mu, alpha, f0): node values interpolated like ggx_E (Catmull-Rom along
+// both axes), so E + E_Fms(F0 = 1) = 1 holds between nodes as well.
 inline Spectrum ggx_E_Fms(float mu, float alpha, const Spectrum &f0) {
-  const auto a = grid::lerp_axis(grid::alpha_coord(alpha), grid::kAlphaCount);
+  const Cubic a = catmull_rom(grid::alpha_coord(alpha), grid::kAlphaCount);
   const MuCubic m = mu_cubic(mu);
-  float c[4] = {0.0f, 0.0f, 0.0f, 0.0f};
-  for (int j = 0; j < 4; ++j)
-    for (int k = 0; k < 4; ++k)
-      c[k] += m.w[j] * lerp(kGgxFms[a.i0][m.i[j]][k], kGgxFms[a.i1][m.i[j]][k], a.t);
   Spectrum r;
   for (int ch = 0; ch < 3; ++ch) {
-    const float x = f0[ch];
-    r[ch] = std::max(c[0] + x * (c[1] + x * (c[2] + x * c[3])), 0.0f);
+    float v = 0.0f;
+    for (int j = 0; j < 4; ++j)
+      for (int k = 0; k < 4; ++k) v += a.w[j] * m.w[k] * ggx_E_Fms_node(a.i[j], m.i[k], f0[ch]);
+    r[ch] = std::max(v, 0.0f);
   }
   return r;
 }
@@ -136,33 +145,30 @@ struct GlassRow {
   float operator()(float mu) const { return mu_interp(e, mu_cubic(mu)); }
 };
 
-// Per-material conductor rows: E(mu) and the E_Fms cubic coefficients at the mu nodes.
+// Per-material conductor rows at the material's alpha and f0: E(mu) and
+// E_Fms(mu, f0) per RGB channel at the mu nodes, built once at create(); the
+// lookups are then one 4-tap cubic in mu each.
 struct ConductorRows {
   float e[grid::kMuCount];
-  float fms[grid::kMuCount][4];
-  void build(float alpha) {
+  Spectrum fms[grid::kMuCount];
+  void build(float alpha, const Spectrum &f0) {
     // Same Catmull-Rom along alpha as ggx_E, so E + E_Fms(F0 = 1) = 1 holds between nodes too.
     const Cubic a = catmull_rom(grid::alpha_coord(alpha), grid::kAlphaCount);
     for (int i = 0; i < grid::kMuCount; ++i) {
       e[i] = ggx_E(grid::mu_of_node(i), alpha);
-      for (int k = 0; k < 4; ++k) {
-        fms[i][k] = 0.0f;
-        for (int j = 0; j < 4; ++j) fms[i][k] += a.w[j] * kGgxFms[a.i[j]][i][k];
+      for (int ch = 0; ch < 3; ++ch) {
+        float v = 0.0f;
+        for (int j = 0; j < 4; ++j) v += a.w[j] * ggx_E_Fms_node(a.i[j], i, f0[ch]);
+        fms[i][ch] = v;
       }
     }
   }
   float E(float mu) const { return mu_interp(e, mu_cubic(mu)); }
-  Spectrum E_Fms(float mu, const Spectrum &f0) const {
+  Spectrum E_Fms(float mu) const {
     const MuCubic m = mu_cubic(mu);
-    float c[4] = {0.0f, 0.0f, 0.0f, 0.0f};
-    for (int j = 0; j < 4; ++j)
-      for (int k = 0; k < 4; ++k) c[k] += m.w[j] * fms[m.i[j]][k];
-    Spectrum r;
-    for (int ch = 0; ch < 3; ++ch) {
-      const float x = f0[ch];
-      r[ch] = std::max(c[0] + x * (c[1] + x * (c[2] + x * c[3])), 0.0f);  // Horner
-    }
-    return r;
+    Spectrum r(0.0f);
+    for (int j = 0; j < 4; ++j) r += fms[m.i[j]] * m.w[j];
+    return Spectrum(std::max(r.x, 0.0f), std::max(r.y, 0.0f), std::max(r.z, 0.0f));
   }
 };
 

@@ -300,42 +300,57 @@ struct FresnelSplit {
 
 inline constexpr int kFresnelSplitTerms = 16;
 
-// Hill 2022 refit: the cubic c0 + F0 (c1 + F0 (c2 + F0 c3)) approximating the
-// split polynomial p(F0) = sum_i w_i F0^i in RELATIVE error over F0 in [0, 1]:
-// weighted least squares on (c - p) / p at 129 points x_k = (k / 128)^2
-// (denser near F0 = 0, where p is small), with Lawson's iterative reweighting
-// (weights *= |relative error|) driving it toward the minimax fit, with
-// F0 = 1 interpolated exactly (white furnace).
-// Normal equations solved in double.
-// The relative error is measured against p(F0) + e1(F0), the walk's whole
-// directional albedo (e1 = single-bounce energy a1 + b1 F0; pass a1 = b1 = 0
-// for the error relative to p alone): what the compensated closure's accuracy
-// depends on.
-inline std::array<double, 4> fit_fresnel_split_cubic(const std::array<double, kFresnelSplitTerms> &w, double a1 = 0.0,
-                                                     double b1 = 0.0) {
+// E_Fms representation. A bare cubic in F0 cannot follow the walk's
+// polynomial p(F0) = sum_i w_i F0^i to 1 % in relative error when alpha is near 1:
+// the bounce orders 4..15 carry a third of the energy there (measured minimax
+// optimum over F0 in [0, 1] at alpha = 1, mu = 1: 2.4 %). Those higher orders
+// form a near-geometric series (each further bounce costs about F0 times the
+// chance of another bounce), so the cubic is divided by the series' factor:
+//   E_Fms(F0) = P(F0) / (1 - h F0),  P(F0) = c0 + F0 (c1 + F0 (c2 + F0 c3)),
+//   h = (1 - E(mu)) / 2,
+// E(mu) being the Fresnel-free single-scatter albedo of the cell (1 - E is the
+// probability that a walk goes on after its first bounce). h = (1 - E) / 2 is
+// the measured best single rule: the free optimum of h lies at 0.41-0.58 x (1 - E)
+// over the table's cells. The cubic P keeps Hill's form (one RGBA table,
+// Horner evaluation); the division is the only extra operation.
+inline double fresnel_split_tail_h(double E) { return 0.5 * (1.0 - E); }
+inline double fresnel_split_denominator(double E, double f0) { return 1.0 - fresnel_split_tail_h(E) * f0; }
+
+// Hill 2022 refit: the cubic P of E_Fms(F0) = P(F0) / (1 - h F0) (above)
+// minimizing the error RELATIVE to the walk's polynomial p(F0) = sum_i w_i F0^i
+// over F0 in [0, 1]: weighted least squares on (P / D - p) / p = (P - p D) / (p D)
+// at 129 points x_k = (k / 128)^2 (denser near F0 = 0, where p is small), with
+// Lawson's iterative reweighting (weights *= |relative error|) converging to the
+// minimax fit, and F0 = 1 interpolated exactly (white furnace: P(1) = p(1) D(1)).
+// `E` is the cell's single-scatter albedo (h above). Normal equations in double.
+// Returns c0..c3; *max_relative_error (optional) gets the fit's max |P/D - p| / p.
+inline std::array<double, 4> fit_fresnel_split_cubic(const std::array<double, kFresnelSplitTerms> &w, double E,
+                                                     double *max_relative_error = nullptr) {
   constexpr int samples = 129;
   double xs[samples], ps[samples], scale[samples], lawson[samples];
   double p1 = 0.0;
   for (double v : w) p1 += v;
+  const double P1 = p1 * fresnel_split_denominator(E, 1.0);
   for (int k = 0; k < samples; ++k) {
     const double t = double(k) / (samples - 1);
     xs[k] = t * t;
     double p = 0.0, xp = 1.0;
     for (int i = 0; i < kFresnelSplitTerms; ++i, xp *= xs[k]) p += w[i] * xp;
-    ps[k] = p;
-    scale[k] = std::max(p + a1 + b1 * xs[k], 1e-6 * p1 + 1e-15);
+    ps[k] = p * fresnel_split_denominator(E, xs[k]);  // the cubic's target p D
+    scale[k] = std::max(ps[k], 1e-9 * P1 + 1e-30);
     lawson[k] = 1.0 / samples;
   }
-  // F0 = 1 is interpolated exactly (white furnace): c3 = p(1) - c0 - c1 - c2, so
-  // c(x) = c0 (1 - x^3) + c1 (x - x^3) + c2 (x^2 - x^3) + p(1) x^3.
+  // P(1) = P1 exactly: c3 = P1 - c0 - c1 - c2, so
+  // P(x) = c0 (1 - x^3) + c1 (x - x^3) + c2 (x^2 - x^3) + P1 x^3.
   std::array<double, 4> c{};
-  for (int iteration = 0; iteration < 40; ++iteration) {
+  double worst = 0.0;
+  for (int iteration = 0; iteration < 100; ++iteration) {
     double ata[3][3] = {}, atb[3] = {};
     for (int k = 0; k < samples; ++k) {
       const double x = xs[k], x3 = x * x * x;
       const double weight = lawson[k] / (scale[k] * scale[k]);
       const double basis[3] = {1.0 - x3, x - x3, x * x - x3};
-      const double target = ps[k] - p1 * x3;
+      const double target = ps[k] - P1 * x3;
       for (int r = 0; r < 3; ++r) {
         atb[r] += weight * basis[r] * target;
         for (int q = 0; q < 3; ++q) ata[r][q] += weight * basis[r] * basis[q];
@@ -359,19 +374,27 @@ inline std::array<double, 4> fit_fresnel_split_cubic(const std::array<double, kF
       for (int q = r + 1; q < 3; ++q) sum -= ata[r][q] * c[q];
       c[r] = std::fabs(ata[r][r]) < 1e-300 ? 0.0 : sum / ata[r][r];
     }
-    c[3] = p1 - c[0] - c[1] - c[2];
+    c[3] = P1 - c[0] - c[1] - c[2];
     // Lawson update toward the minimax relative error.
     double total = 0.0;
+    worst = 0.0;
     for (int k = 0; k < samples; ++k) {
       const double x = xs[k];
       const double err = std::fabs(c[0] + x * (c[1] + x * (c[2] + x * c[3])) - ps[k]) / scale[k];
-      lawson[k] *= err + 1e-12;
+      worst = std::max(worst, err);
+      lawson[k] *= err + 1e-15;
       total += lawson[k];
     }
-    if (!(total > 0.0)) break;
+    if (!(total > 0.0) || worst < 1e-9) break;
     for (double &l : lawson) l /= total;
   }
+  if (max_relative_error) *max_relative_error = worst;
   return c;
+}
+
+// E_Fms(F0) from the fitted cubic (see fresnel_split_tail_h).
+inline double fresnel_split_energy(const std::array<double, 4> &c, double E, double f0) {
+  return (c[0] + f0 * (c[1] + f0 * (c[2] + f0 * c[3]))) / fresnel_split_denominator(E, f0);
 }
 
 // Fresnel-split multiple-scattering polynomial of the conductor walk at
