@@ -45,7 +45,7 @@ TEST(PrecomputeEnergy, TinyRunMatchesTheCommittedTableLayoutAndRecordsItsCommand
   const std::string committed = read_text(fs::path(GLIMMER_TEST_SOURCE_DIR) / "plugin/tables/microfacet_energy_data.cpp");
   EXPECT_NE(committed.find("// Command: glimmer precompute energy --strata "), std::string::npos);
   const auto expected = array_sizes(committed), got = array_sizes(generated);
-  EXPECT_EQ(expected.size(), 7u);
+  EXPECT_EQ(expected.size(), 8u);
   EXPECT_EQ(got, expected);
   // Energies are finite numbers (no "nan"/"inf" text).
   EXPECT_EQ(generated.find("nan"), std::string::npos);

@@ -307,14 +307,19 @@ inline constexpr int kFresnelSplitTerms = 16;
 // form a near-geometric series (each further bounce costs about F0 times the
 // chance of another bounce), so the cubic is divided by the series' factor:
 //   E_Fms(F0) = P(F0) / (1 - h F0),  P(F0) = c0 + F0 (c1 + F0 (c2 + F0 c3)),
-//   h = (1 - E(mu)) / 2,
+//   h = k (1 - E(mu)),
 // E(mu) being the Fresnel-free single-scatter albedo of the cell (1 - E is the
-// probability that a walk goes on after its first bounce). h = (1 - E) / 2 is
-// the measured best single rule: the free optimum of h lies at 0.41-0.58 x (1 - E)
-// over the table's cells. The cubic P keeps Hill's form (one RGBA table,
-// Horner evaluation); the division is the only extra operation.
-inline double fresnel_split_tail_h(double E) { return 0.5 * (1.0 - E); }
-inline double fresnel_split_denominator(double E, double f0) { return 1.0 - fresnel_split_tail_h(E) * f0; }
+// probability that a walk goes on after its first bounce). k = 1/2 is the
+// measured best single rule for the Fresnel split (the free optimum of h lies
+// at 0.41-0.58 x (1 - E) over the table's cells); the bounce-tint polynomial
+// (below, no Schlick term) is best served by k = 0.6. The cubic P keeps Hill's
+// form (one RGBA table, Horner evaluation); the division is the only extra
+// operation.
+inline constexpr double kFresnelSplitTail = 0.5;
+inline constexpr double kBounceTintTail = 0.6;
+inline double fresnel_split_denominator(double E, double f0, double tail = kFresnelSplitTail) {
+  return 1.0 - tail * (1.0 - E) * f0;
+}
 
 // Hill 2022 refit: the cubic P of E_Fms(F0) = P(F0) / (1 - h F0) (above)
 // minimizing the error RELATIVE to the walk's polynomial p(F0) = sum_i w_i F0^i
@@ -322,22 +327,24 @@ inline double fresnel_split_denominator(double E, double f0) { return 1.0 - fres
 // at 129 points x_k = (k / 128)^2 (denser near F0 = 0, where p is small), with
 // Lawson's iterative reweighting (weights *= |relative error|) converging to the
 // minimax fit, and F0 = 1 interpolated exactly (white furnace: P(1) = p(1) D(1)).
-// `E` is the cell's single-scatter albedo (h above). Normal equations in double.
-// Returns c0..c3; *max_relative_error (optional) gets the fit's max |P/D - p| / p.
+// `E` is the cell's single-scatter albedo and `tail` k (h above). Normal
+// equations in double. Returns c0..c3; *max_relative_error (optional) gets the
+// fit's max |P/D - p| / p.
 inline std::array<double, 4> fit_fresnel_split_cubic(const std::array<double, kFresnelSplitTerms> &w, double E,
-                                                     double *max_relative_error = nullptr) {
+                                                     double *max_relative_error = nullptr,
+                                                     double tail = kFresnelSplitTail) {
   constexpr int samples = 129;
   double xs[samples], ps[samples], scale[samples], lawson[samples];
   double p1 = 0.0;
   for (double v : w) p1 += v;
-  const double P1 = p1 * fresnel_split_denominator(E, 1.0);
+  const double P1 = p1 * fresnel_split_denominator(E, 1.0, tail);
   for (int k = 0; k < samples; ++k) {
     const double t = double(k) / (samples - 1);
     xs[k] = t * t;
     double p = 0.0, xp = 1.0;
     for (int i = 0; i < kFresnelSplitTerms; ++i, xp *= xs[k]) p += w[i] * xp;
-    ps[k] = p * fresnel_split_denominator(E, xs[k]);  // the cubic's target p D
-    scale[k] = std::max(ps[k], 1e-9 * P1 + 1e-30);
+    ps[k] = p * fresnel_split_denominator(E, xs[k], tail);  // the cubic's target p D
+    scale[k] = std::max(ps[k], 1e-9 * P1 + 1e-30);  // p(0) = 0 for the bounce-tint polynomial
     lawson[k] = 1.0 / samples;
   }
   // P(1) = P1 exactly: c3 = P1 - c0 - c1 - c2, so
@@ -392,40 +399,43 @@ inline std::array<double, 4> fit_fresnel_split_cubic(const std::array<double, kF
   return c;
 }
 
-// E_Fms(F0) from the fitted cubic (see fresnel_split_tail_h).
-inline double fresnel_split_energy(const std::array<double, 4> &c, double E, double f0) {
-  return (c[0] + f0 * (c[1] + f0 * (c[2] + f0 * c[3]))) / fresnel_split_denominator(E, f0);
+// E_Fms(F0) (or the bounce-tint energy, tail = kBounceTintTail) from the fitted cubic.
+inline double fresnel_split_energy(const std::array<double, 4> &c, double E, double f0,
+                                   double tail = kFresnelSplitTail) {
+  return (c[0] + f0 * (c[1] + f0 * (c[2] + f0 * c[3]))) / fresnel_split_denominator(E, f0, tail);
 }
 
 // Fresnel-split multiple-scattering polynomial of the conductor walk at
 // (mu, alpha): average e over `walks` walks of order >= 2, rescaled so that
 // sum(w) = target (the exact F0 = 1 energy 1 - E; ratio estimator).
+// `tint` (optional) gets the bounce-tint polynomial of the same walks: the
+// share of walks leaving after k >= 2 bounces (k >= N-1 pooled in the last
+// term), same scaling: sum_k tint_k c^k is the multiple-scattering energy when
+// every bounce multiplies by a constant c (Cycles' Multiscatter GGX colour)
+// instead of Schlick's Fresnel.
 template <typename Rng>
 inline std::array<double, kFresnelSplitTerms> fresnel_split_polynomial(float mu, float alpha, int walks, double target,
-                                                                       Rng &rng, double *a1 = nullptr,
-                                                                       double *b1 = nullptr) {
+                                                                       Rng &rng,
+                                                                       std::array<double, kFresnelSplitTerms> *tint =
+                                                                           nullptr) {
   const Vec3 wi(std::sqrt(std::max(0.0f, 1.0f - mu * mu)), 0.0f, mu);
   const WalkSurface surface{alpha, alpha};
-  std::array<double, kFresnelSplitTerms> w{};
-  double single_s = 0.0, single_count = 0.0;
+  std::array<double, kFresnelSplitTerms> w{}, orders{};
   for (int n = 0; n < walks; ++n) {
     FresnelSplit<kFresnelSplitTerms> split;
     int order = 0;
     walk_conductor(wi, surface, rng, order, [&](float c) { split.bounce(c); });
-    if (order >= 2)
+    if (order >= 2) {
       for (int i = 0; i < kFresnelSplitTerms; ++i) w[i] += split.e[i];
-    if (order == 1) single_s += split.e[0], single_count += 1.0;
-  }
-  // Single-bounce energy e1(F0) = a1 + b1 F0 (s + F0 (1 - s) per walk), ratio-scaled to 1 - target.
-  if (a1 && b1) {
-    const double s1 = single_count > 0.0 ? (1.0 - std::max(target, 0.0)) / single_count : 0.0;
-    *a1 = single_s * s1;
-    *b1 = (single_count - single_s) * s1;
+      orders[std::min(order, kFresnelSplitTerms - 1)] += 1.0;
+    }
   }
   double sum = 0.0;
-  for (double v : w) sum += v;
+  for (double v : w) sum += v;  // = the number of walks of order >= 2
   const double scale = sum > 0.0 ? std::max(target, 0.0) / sum : 0.0;
   for (double &v : w) v *= scale;
+  if (tint)
+    for (int i = 0; i < kFresnelSplitTerms; ++i) (*tint)[i] = orders[i] * scale;
   return w;
 }
 
