@@ -10,7 +10,10 @@
 // 2017 shape, Hill 2022 Fresnel-split energy):
 //   f_ms(wi, wo) = E_Fms(mu_i, alpha, f0) (1 - E(mu_o)) / (pi (1 - E_avg)),
 // which integrates over wo to E_Fms(mu_i, alpha, f0): the energy the Heitz 2016
-// random walk scatters after >= 2 bounces with Schlick Fresnel. Tables:
+// random walk scatters after >= 2 bounces with Schlick Fresnel. With a
+// bounce_tint c (Cycles' Multiscatter GGX colour, whose walk multiplies every
+// bounce by c), E_Fms is replaced by T(c) / c, the walk's energy of k >= 2
+// bounces weighted c^(k-1) (the host applies the first c). Tables:
 // plugin/tables/microfacet_energy_data.cpp (`glimmer precompute energy`),
 // looked up at alpha = sqrt(alpha_x alpha_y).
 // distribution=sharp is a perfect mirror (singular).
@@ -37,7 +40,7 @@ class MicrofacetConductorClosure {
 
 
   static std::span<const GlimmerParamSpec> params() {
-    static const std::array<GlimmerParamSpec, 4> schema{{
+    static const std::array<GlimmerParamSpec, 5> schema{{
         {"distribution", GLIMMER_PARAM_ENUM, {0, 0, 0}, 0.0f, 0.0f, "ggx|beckmann|multi_ggx|sharp", "ggx",
          "microfacet distribution; multi_ggx = GGX with multiple-scattering energy compensation; sharp = mirror"},
         {"roughness", GLIMMER_PARAM_FLOAT, {0.5f, 0, 0}, 0.0f, 1.0f, nullptr, nullptr,
@@ -46,6 +49,9 @@ class MicrofacetConductorClosure {
          "anisotropy in [-1, 1] (Cycles 3.4 mapping: A > 0 gives alpha_x = a (1 - A), alpha_y = a / (1 - A); tangent = x)"},
         {"f0", GLIMMER_PARAM_COLOR, {1.0f, 1.0f, 1.0f}, 0.0f, 1.0f, nullptr, nullptr,
          "normal-incidence reflectance per RGB channel (Schlick Fresnel); 1,1,1 = Fresnel-free"},
+        {"bounce_tint", GLIMMER_PARAM_COLOR, {1.0f, 1.0f, 1.0f}, 0.0f, 1.0f, nullptr, nullptr,
+         "multi_ggx only: per-bounce tint c of the multiple-scattering walk, as Cycles' Multiscatter GGX colour (k "
+         "bounces -> c^k); the first factor c is the closure weight the host applies, the closure adds c^(k-1)"},
     }};
     return schema;
   }
@@ -60,7 +66,7 @@ class MicrofacetConductorClosure {
     c->alpha_table_ = lobe.alpha_table;
     c->f0_ = p.get_color("f0");
     c->white_ = c->f0_.x == 1.0f && c->f0_.y == 1.0f && c->f0_.z == 1.0f;
-    c->rows_.build(c->alpha_table_, c->f0_);
+    c->rows_.build(c->alpha_table_, c->f0_, p.get_color("bounce_tint"));
     if (c->mode_ == kMultiGgx) c->e_avg_ = tables::ggx_E_avg(c->alpha_table_);
     return c;
   }

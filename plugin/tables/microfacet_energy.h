@@ -19,8 +19,12 @@ extern const float kGgxEAvg[grid::kAlphaCount];
 // Hill's Fresnel-split multiple-scattering energy with Schlick Fresnel:
 // E_Fms(mu, alpha, F0) = (c0 + F0 (c1 + F0 (c2 + F0 c3))) / (1 - h F0),
 // h = (1 - E(mu, alpha)) / 2 with E = kGgxE at the same node (the series of
-// higher bounce orders; glimmer/microfacet_walk.h, fresnel_split_tail_h).
+// higher bounce orders; glimmer/microfacet_walk.h, kFresnelSplitTail).
 extern const float kGgxFms[grid::kAlphaCount][grid::kMuCount][4];
+// Bounce-tint multiple-scattering energy: every bounce multiplied by a constant c
+// (Cycles' Multiscatter GGX colour), T(c) = sum_{k >= 2} p_k c^k, same form with
+// h = 0.6 (1 - E) (kBounceTintTail).
+extern const float kGgxTintMs[grid::kAlphaCount][grid::kMuCount][4];
 // Dielectric single scattering R + T: wi outside (relative eta = ior >= 1) and
 // wi inside (relative eta = 1 / ior), indexed by ior's node.
 extern const float kGgxGlassE[grid::kEtaCount][grid::kAlphaCount][grid::kMuCount];
@@ -91,6 +95,40 @@ inline float ggx_E_Fms_node(int a, int m, float f0) {
   return (c[0] + f0 * (c[1] + f0 * (c[2] + f0 * c[3]))) / (1.0f - h * f0);
 }
 
+// Bounce-tint energy T(c) at a node (c in [0, 1]).
+inline float ggx_tint_node(int a, int m, float c) {
+  const float *t = kGgxTintMs[a][m];
+  const float x = std::clamp(c, 0.0f, 1.0f);
+  return std::max((t[0] + x * (t[1] + x * (t[2] + x * t[3]))) / (1.0f - 0.6f * (1.0f - kGgxE[a][m]) * x), 0.0f);
+}
+
+// Multiple-scattering energy at a node for Schlick f0 and bounce tint c, as the
+// closure returns it (the host weights the closure by c once):
+//  - c = 1: E_Fms(f0);
+//  - f0 = 1: T(c) / c, the walk's k >= 2 bounces weighted c^(k-1);
+//  - both: every bounce weighs c (f0 + (1 - f0) s). With the mean Fresnel
+//    product of a k-bounce walk modelled as g^k, E_Fms(f0) = T(g) fixes the
+//    effective per-bounce Fresnel g, and the energy is T(c g) / c (measured
+//    against tinted walks in tests/closures/microfacet_energy_test.cpp).
+// T(c) / c <= T(1) = 1 - E.
+inline float ggx_ms_node(int a, int m, float f0, float tint) {
+  const float one_minus_e = 1.0f - kGgxE[a][m];
+  const float fresnel = f0 == 1.0f ? one_minus_e : ggx_E_Fms_node(a, m, f0);
+  if (tint == 1.0f) return fresnel;
+  if (!(one_minus_e > 1e-7f) || !(tint > 0.0f)) return 0.0f;
+  float g = 1.0f;
+  if (f0 != 1.0f) {  // T(g) = E_Fms(f0): bisection (T increases with g)
+    float lo = 0.0f, hi = 1.0f;
+    for (int i = 0; i < 24; ++i) {
+      const float mid = 0.5f * (lo + hi);
+      (ggx_tint_node(a, m, mid) < fresnel ? lo : hi) = mid;
+    }
+    g = 0.5f * (lo + hi);
+  }
+  const float c = std::min(tint, 1.0f);
+  return std::clamp(ggx_tint_node(a, m, c * g) / c, 0.0f, one_minus_e);
+}
+
 // E_Fms(mu, alpha, f0): node values interpolated like ggx_E (Catmull-Rom along
 // both axes), so E + E_Fms(F0 = 1) = 1 holds between nodes as well.
 inline Spectrum ggx_E_Fms(float mu, float alpha, const Spectrum &f0) {
@@ -145,20 +183,21 @@ struct GlassRow {
   float operator()(float mu) const { return mu_interp(e, mu_cubic(mu)); }
 };
 
-// Per-material conductor rows at the material's alpha and f0: E(mu) and
-// E_Fms(mu, f0) per RGB channel at the mu nodes, built once at create(); the
+// Per-material conductor rows at the material's alpha, f0 and bounce tint: E(mu)
+// and the multiple-scattering energy (ggx_ms_node) per RGB channel at the mu
+// nodes, built once at create(); the
 // lookups are then one 4-tap cubic in mu each.
 struct ConductorRows {
   float e[grid::kMuCount];
   Spectrum fms[grid::kMuCount];
-  void build(float alpha, const Spectrum &f0) {
+  void build(float alpha, const Spectrum &f0, const Spectrum &tint = Spectrum(1.0f)) {
     // Same Catmull-Rom along alpha as ggx_E, so E + E_Fms(F0 = 1) = 1 holds between nodes too.
     const Cubic a = catmull_rom(grid::alpha_coord(alpha), grid::kAlphaCount);
     for (int i = 0; i < grid::kMuCount; ++i) {
       e[i] = ggx_E(grid::mu_of_node(i), alpha);
       for (int ch = 0; ch < 3; ++ch) {
         float v = 0.0f;
-        for (int j = 0; j < 4; ++j) v += a.w[j] * ggx_E_Fms_node(a.i[j], i, f0[ch]);
+        for (int j = 0; j < 4; ++j) v += a.w[j] * ggx_ms_node(a.i[j], i, f0[ch], tint[ch]);
         fms[i][ch] = v;
       }
     }

@@ -330,7 +330,9 @@ TEST(MicrofacetStress, RawOutputsFiniteNonNegative) {
     const float aniso = (rng.next_u32() & 1) ? ((rng.next_u32() & 1) ? 1.0f : -1.0f) : 2 * rng.next_float() - 1;
     if (i % 3 == 0)
       a.c = create<MicrofacetConductorClosure>(Params().str("distribution", dist).num("roughness", extreme_roughness(rng))
-                                                   .num("anisotropy", aniso).num("f0", rng.next_float(), 0.0f, 1.0f));
+                                                   .num("anisotropy", aniso).num("f0", rng.next_float(), 0.0f, 1.0f)
+                                                   .num("bounce_tint", rng.next_float(), (i % 2) ? 0.0f : 1.0f,
+                                                        (i % 5) ? 1e-6f : 1.0f));
     else if (i % 3 == 1)
       a.d = create<MicrofacetDielectricClosure>(Params().str("distribution", dist).num("roughness", extreme_roughness(rng))
                                                     .num("anisotropy", aniso).num("ior", extreme_ior(rng))
