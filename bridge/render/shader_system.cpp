@@ -244,6 +244,18 @@ int ShaderSystem::make_leaf(const ShaderGraph &g, const ShaderNode &n, CompiledS
                                        VectorSource::Generated).constant.x;
         if (host::find_param(*type, "anisotropy")) params.set_number("anisotropy", std::clamp(aniso, -1.0f, 1.0f), 0, 0);
         if (host::find_param(*type, "f0")) params.set_number("f0", 1, 1, 1);
+        // Cycles' Multiscatter GGX tints every bounce of its walk by the colour; the
+        // weight applies it once, the closure the remaining powers (bounce_tint).
+        if (distribution == "multi_ggx" && host::find_param(*type, "bounce_tint")) {
+          if (leaf->weight.texture >= 0) {
+            warn(n.where, t + ": a textured colour with multi_ggx tints the multiple-scattering energy once "
+                              "(Cycles tints each bounce); the walk's higher bounces are not darkened");
+          } else {
+            const Spectrum c = leaf->weight.constant;
+            params.set_number("bounce_tint", std::clamp(c.x, 0.0f, 1.0f), std::clamp(c.y, 0.0f, 1.0f),
+                              std::clamp(c.z, 0.0f, 1.0f));
+          }
+        }
       } else {
         float ior = 1.45f;
         if (n.attributes.count("IOR")) ior = read_input(g, n, "IOR", Spectrum(ior), VectorSource::Generated).constant.x;

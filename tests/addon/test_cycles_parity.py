@@ -224,8 +224,9 @@ def luminance(px):
     return px @ np.array([0.2126, 0.7152, 0.0722])
 
 
-def compare_region(name, region, glim, cyc, mask=None, channel=None):
-    """Ratio of region means with its measured noise; records a failure outside the tolerance."""
+def compare_region(name, region, glim, cyc, mask=None, channel=None, band=None):
+    """Ratio of region means with its measured noise; records a failure outside the tolerance.
+    `band` = (lo, hi): a documented model difference, the ratio must lie in [lo, hi] widened by the tolerance."""
     x0, y0, x1, y1 = region
     a = glim[y0:y1, x0:x1]
     b = cyc[y0:y1, x0:x1]
@@ -240,9 +241,13 @@ def compare_region(name, region, glim, cyc, mask=None, channel=None):
     ratio = a.mean() / mean_c
     sigma = (a - b).std(ddof=1) / math.sqrt(n) / mean_c
     tolerance = TOLERANCE_SIGMA * sigma + MODEL_SLACK
-    ok = abs(ratio - 1.0) <= tolerance
-    line = "%-28s glimmer/cycles = %.4f  (sigma %.4f, tolerance %.4f, n=%d, cycles mean %.4g)%s" % (
-        name, ratio, sigma, tolerance, n, mean_c, "" if ok else "  <-- MISMATCH")
+    if band is None:
+        ok = abs(ratio - 1.0) <= tolerance
+    else:
+        ok = band[0] - tolerance <= ratio <= band[1] + tolerance
+    line = "%-28s glimmer/cycles = %.4f  (sigma %.4f, tolerance %.4f, n=%d, cycles mean %.4g)%s%s" % (
+        name, ratio, sigma, tolerance, n, mean_c, "" if band is None else "  [known difference: %.3f-%.3f]" % band,
+        "" if ok else "  <-- MISMATCH")
     print(line)
     RESULTS.append(line)
     if not ok:
@@ -554,8 +559,7 @@ def scene_closures_more():
     add_camera(scene, (0.0, -9.0, 0.0), (90.0, 0.0, 0.0), lens=40.0)
     add_plane(30.0, location=(0, 0, -1.0), mat=material("Floor", "ShaderNodeBsdfDiffuse", (0.5, 0.5, 0.5)))
     add_light(scene, "AREA", (1.0, -2.5, 3.0), (40.0, 0.0, 0.0), energy=300.0, size=2.0)
-    # Multiscatter GGX with a white colour: Cycles tints the k-th bounce of its random walk by colour^k, Glimmer's
-    # energy-compensation lobe by the colour once (a known difference for tinted colours, see docs/blender.md).
+    # Multiscatter GGX with a white colour (tinted colours: scene_multiscatter_tint).
     spheres = (("multiscatter GGX glossy r=0.6", (-3.3, 0, 0), material(
                    "MultiGGX", "ShaderNodeBsdfGlossy", (1.0, 1.0, 1.0), distribution="MULTI_GGX", Roughness=0.6)),
                ("Beckmann glossy r=0.2", (-1.1, 0, 0), material(
@@ -571,6 +575,33 @@ def scene_closures_more():
     glim, cyc = render_both("closures_more")
     for label, centre, _ in spheres:
         compare_region("7 " + label, pixel_region(scene, centre, 4), glim, cyc)
+
+
+def scene_multiscatter_tint():
+    """Multiscatter GGX glossy with a coloured input: Cycles tints the k-th bounce of its walk by colour^k; Glimmer
+    passes the colour to the closure as bounce_tint. White world (furnace), per channel.
+    Known difference at high roughness (docs/blender.md): Cycles 3.x lands an upward ray that does not escape at the top
+    of the microsurface (C1 = 1), so its next upward ray always escapes; Heitz 2016 (Glimmer) samples that height. Same
+    white albedo, fewer high bounce orders in Cycles: tinted colours 1.5-2.3 % brighter than the Heitz walk at roughness
+    0.9 (a walk with Cycles' rule reproduces Cycles' value within 0.1 %), 0.2 % at roughness 0.5."""
+    scene = new_scene(samples=256, width=64, height=32)
+    world = scene.world
+    world.node_tree.nodes["Background"].inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    world.node_tree.nodes["Background"].inputs["Strength"].default_value = 1.0
+    add_camera(scene, (0.0, -9.0, 0.0), (90.0, 0.0, 0.0), lens=50.0)
+    spheres = (("multiscatter tint r=0.9", (-2.1, 0, 0), (0.97, 1.0), material(
+                   "TintRough", "ShaderNodeBsdfGlossy", (0.8, 0.5, 0.2), distribution="MULTI_GGX", Roughness=0.9)),
+               ("multiscatter white r=0.9", (0.0, 0, 0), None, material(
+                   "WhiteRough", "ShaderNodeBsdfGlossy", (1.0, 1.0, 1.0), distribution="MULTI_GGX", Roughness=0.9)),
+               ("multiscatter tint r=0.5", (2.1, 0, 0), None, material(
+                   "TintMid", "ShaderNodeBsdfGlossy", (0.5, 0.3, 0.7), distribution="MULTI_GGX", Roughness=0.5)))
+    for _, centre, _, mat in spheres:
+        add_sphere(0.9, centre, mat)
+    glim, cyc = render_both("multiscatter_tint")
+    for label, centre, band, _ in spheres:
+        for channel, name in enumerate("RGB"):
+            compare_region("7 %s %s" % (label, name), pixel_region(scene, centre, 5), glim, cyc, channel=channel,
+                           band=band)
 
 
 def scene_indirect():
@@ -661,6 +692,7 @@ SCENES = {
     "depth_of_field": scene_depth_of_field,
     "closures": scene_closures,
     "closures_more": scene_closures_more,
+    "multiscatter_tint": scene_multiscatter_tint,
     "indirect": scene_indirect,
     "camera": scene_camera,
     "camera_portrait": scene_camera_portrait,
