@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
 #include <nlohmann/json.hpp>
 #include <string>
 
@@ -135,6 +136,66 @@ TEST(LabCli, Chi2AndBenchPrintJson) {
   const nlohmann::json b = nlohmann::json::parse(bench.out);
   EXPECT_GT(b["ns_per_eval"].get<double>(), 0.0);
   EXPECT_GT(b["ns_per_sample"].get<double>(), 0.0);
+}
+
+// Every lab sub-command on the microfacet closures (issue 4: "glimmer lab works for all of these").
+TEST(LabCli, EverySubcommandWorksForTheMicrofacetClosures) {
+  struct Config {
+    std::vector<std::string> params;
+    double albedo;  // expected furnace albedo (energy-conserving configurations)
+  };
+  const std::vector<std::pair<std::string, Config>> configs = {
+      {"microfacet_conductor", {{"distribution=multi_ggx", "roughness=1"}, 1.0}},
+      {"microfacet_conductor", {{"distribution=multi_ggx", "roughness=0.7", "bounce_tint=0.8,0.5,0.2"}, -1.0}},
+      {"microfacet_conductor", {{"distribution=beckmann", "roughness=0.4", "anisotropy=0.5", "f0=0.9,0.6,0.3"}, -1.0}},
+      {"microfacet_dielectric", {{"distribution=multi_ggx", "roughness=0.6", "ior=1.5"}, 1.0}},
+      {"microfacet_dielectric", {{"distribution=ggx", "roughness=0.3", "ior=0.6667"}, -1.0}},
+      {"microfacet_random_walk", {{"type=dielectric", "roughness=0.8", "ior=1.5"}, 1.0}},
+  };
+  const std::string plot = (std::filesystem::path(GLIMMER_TEST_BINARY_DIR) / "cli_runs" / "microfacet_lab.png").string();
+  for (const auto &[closure, config] : configs) {
+    std::vector<std::string> base = {"--closure", closure, "--wi", "0.5,0,0.8"};
+    for (const auto &p : config.params) base.insert(base.end(), {"--param", p});
+    SCOPED_TRACE(closure + " " + config.params[0] + " " + config.params[1]);
+    auto run = [&](const std::string &sub, std::vector<std::string> extra) {
+      std::vector<std::string> args = {"lab", sub};
+      args.insert(args.end(), base.begin(), base.end());
+      args.insert(args.end(), extra.begin(), extra.end());
+      const CliRun r = run_cli(args);
+      EXPECT_EQ(r.exit_code, 0) << sub << ": " << r.err << r.out;
+      return r.exit_code == 0 && sub != "plot" ? nlohmann::json::parse(r.out) : nlohmann::json();
+    };
+    const nlohmann::json furnace = run("furnace", {"--samples", "100000"});
+    if (!furnace.is_null()) {
+      EXPECT_EQ(furnace["invalid"].get<uint64_t>(), 0u);
+      if (config.albedo > 0.0) {
+        EXPECT_NEAR(furnace["albedo"][0].get<double>(), config.albedo,
+                    0.006 + 5.0 * furnace["standard_error"][0].get<double>());
+      }
+    }
+    if (closure != "microfacet_random_walk") {  // stochastic eval: no exact pdf to test against
+      const nlohmann::json chi2 = run("chi2", {"--samples", "200000", "--test-count", "5"});
+      if (!chi2.is_null()) {
+        EXPECT_TRUE(chi2["passed"].get<bool>()) << chi2.dump();
+      }
+      const nlohmann::json consistency = run("consistency", {"--samples", "20000"});
+      if (!consistency.is_null()) {
+        EXPECT_EQ(consistency["mismatches"].get<uint64_t>(), 0u);
+      }
+    }
+    const nlohmann::json stress = run("stress", {"--samples", "20000"});
+    if (!stress.is_null()) {
+      EXPECT_EQ(stress["invalid"].get<uint64_t>(), 0u);
+      EXPECT_EQ(stress["eval"]["nan"].get<uint64_t>() + stress["sample"]["nan"].get<uint64_t>(), 0u);
+    }
+    const nlohmann::json bench = run("bench", {"--iterations", "2000", "--repetitions", "1"});
+    if (!bench.is_null()) {
+      EXPECT_GT(bench["ns_per_eval"].get<double>(), 0.0);
+    }
+    std::filesystem::remove(plot);
+    run("plot", {"-o", plot});
+    EXPECT_TRUE(std::filesystem::exists(plot));
+  }
 }
 
 TEST(LabCli, BadInputExitsOne) {
