@@ -150,9 +150,11 @@ int run_energy(const EnergyOptions &opt, const std::string &command_line) {
       << 4 * opt.strata * opt.strata << " for mu < 0.1);\n"
       << "// E_Fms cells use " << opt.walks << " Heitz 2016 random walks each, " << kSplitTerms
       << " Fresnel-split terms, ratio-scaled to 1 - E;\n"
-      << "// E_Fms(F0) = P(F0) / (1 - (1 - E) F0 / 2), cubic P refit for the minimax error relative to E_Fms over F0 in\n"
+      << "// E_Fms(F0) = P(F0) / (1 - " << kFresnelSplitTail
+      << " (1 - E) F0), cubic P refit for the minimax error relative to E_Fms over F0 in\n"
       << "// [0, 1] (F0 = 1 exact); largest fit error over all cells " << fit_error_text << ".\n"
-      << "// Bounce-tint energy T(c) = P(c) / (1 - 0.6 (1 - E) c) from the same walks' bounce orders, same refit;\n"
+      << "// Bounce-tint energy T(c) = P(c) / (1 - " << kBounceTintTail
+      << " (1 - E) c) from the same walks' bounce orders, same refit;\n"
       << "// largest fit error " << tint_error_text << ".\n"
       << "// Grid: glimmer/microfacet_energy_grid.h (mu " << nm << " x alpha " << na << " x eta " << ne << "), seed "
       << opt.seed << ", generated in " << int(seconds + 0.5) << " s.\n"

@@ -19,7 +19,7 @@ extern const float kGgxEAvg[grid::kAlphaCount];
 // Hill's Fresnel-split multiple-scattering energy with Schlick Fresnel:
 // E_Fms(mu, alpha, F0) = (c0 + F0 (c1 + F0 (c2 + F0 c3))) / (1 - h F0),
 // h = (1 - E(mu, alpha)) / 2 with E = kGgxE at the same node (the series of
-// higher bounce orders; glimmer/microfacet_walk.h, kFresnelSplitTail).
+// higher bounce orders; grid::tail_cubic, kFresnelSplitTail).
 extern const float kGgxFms[grid::kAlphaCount][grid::kMuCount][4];
 // Bounce-tint multiple-scattering energy: every bounce multiplied by a constant c
 // (Cycles' Multiscatter GGX colour), T(c) = sum_{k >= 2} p_k c^k, same form with
@@ -90,16 +90,14 @@ inline float ggx_E_avg(float alpha) {
 // E_Fms at grid node (alpha node a, mu node m) for one F0: Horner evaluation
 // of the node's cubic (Hill 2022), divided by the node's tail factor.
 inline float ggx_E_Fms_node(int a, int m, float f0) {
-  const float *c = kGgxFms[a][m];
-  const float h = 0.5f * (1.0f - kGgxE[a][m]);
-  return (c[0] + f0 * (c[1] + f0 * (c[2] + f0 * c[3]))) / (1.0f - h * f0);
+  return grid::tail_cubic(kGgxFms[a][m], kGgxE[a][m], f0, float(grid::kFresnelSplitTail));
 }
 
 // Bounce-tint energy T(c) at a node (c in [0, 1]).
 inline float ggx_tint_node(int a, int m, float c) {
-  const float *t = kGgxTintMs[a][m];
-  const float x = std::clamp(c, 0.0f, 1.0f);
-  return std::max((t[0] + x * (t[1] + x * (t[2] + x * t[3]))) / (1.0f - 0.6f * (1.0f - kGgxE[a][m]) * x), 0.0f);
+  return std::max(grid::tail_cubic(kGgxTintMs[a][m], kGgxE[a][m], std::clamp(c, 0.0f, 1.0f),
+                                   float(grid::kBounceTintTail)),
+                  0.0f);
 }
 
 // Multiple-scattering energy at a node for Schlick f0 and bounce tint c, as the

@@ -33,6 +33,17 @@ inline float eta_of_node(int k) {
   return std::max((1.0f + z * z) / (1.0f - z * z), 1.0f + 1e-4f);
 }
 
+// Multiple-scattering energies (E_Fms in F0, bounce tint in c) are stored per
+// node as a cubic P divided by the bounce-series factor (glimmer/microfacet_walk.h):
+//   energy(x) = P(x) / (1 - tail (1 - E) x),  E = the node's single-scatter albedo.
+// The generator fits P with these tails and the lookups evaluate it here.
+inline constexpr double kFresnelSplitTail = 0.5;
+inline constexpr double kBounceTintTail = 0.6;
+template <typename T>
+inline T tail_cubic(const T *c, T E, T x, T tail) {
+  return (c[0] + x * (c[1] + x * (c[2] + x * c[3]))) / (T(1) - tail * (T(1) - E) * x);
+}
+
 // Continuous node coordinates in [0, n - 1] for interpolation.
 inline float mu_coord(float mu) { return std::sqrt(std::clamp(mu, 0.0f, 1.0f)) * float(kMuCount - 1); }
 inline float alpha_coord(float alpha) { return std::sqrt(std::clamp(alpha, 0.0f, 1.0f)) * float(kAlphaCount - 1); }

@@ -16,6 +16,7 @@
 #include <limits>
 
 #include "glimmer/microfacet.h"
+#include "glimmer/microfacet_energy_grid.h"
 
 namespace glimmer::microfacet {
 
@@ -314,9 +315,9 @@ inline constexpr int kFresnelSplitTerms = 16;
 // at 0.41-0.58 x (1 - E) over the table's cells); the bounce-tint polynomial
 // (below, no Schlick term) is best served by k = 0.6. The cubic P keeps Hill's
 // form (one RGBA table, Horner evaluation); the division is the only extra
-// operation.
-inline constexpr double kFresnelSplitTail = 0.5;
-inline constexpr double kBounceTintTail = 0.6;
+// operation. Constants and evaluation: glimmer/microfacet_energy_grid.h.
+using energy_grid::kBounceTintTail;
+using energy_grid::kFresnelSplitTail;
 inline double fresnel_split_denominator(double E, double f0, double tail = kFresnelSplitTail) {
   return 1.0 - tail * (1.0 - E) * f0;
 }
@@ -402,7 +403,7 @@ inline std::array<double, 4> fit_fresnel_split_cubic(const std::array<double, kF
 // E_Fms(F0) (or the bounce-tint energy, tail = kBounceTintTail) from the fitted cubic.
 inline double fresnel_split_energy(const std::array<double, 4> &c, double E, double f0,
                                    double tail = kFresnelSplitTail) {
-  return (c[0] + f0 * (c[1] + f0 * (c[2] + f0 * c[3]))) / fresnel_split_denominator(E, f0, tail);
+  return energy_grid::tail_cubic(c.data(), E, f0, tail);
 }
 
 // Fresnel-split multiple-scattering polynomial of the conductor walk at
