@@ -65,6 +65,27 @@ inline double mean_channel(const render::RenderResult &r, int c, int x0 = 0, int
   return s / ((x1 - x0) * (y1 - y0));
 }
 
+// Sample mean and its standard error (sample standard deviation / sqrt(n)).
+struct MeanAndError {
+  double mean = 0.0, standard_error = 0.0;
+};
+inline MeanAndError mean_and_standard_error(const std::vector<double> &v) {
+  MeanAndError r;
+  for (double x : v) r.mean += x;
+  r.mean /= v.size();
+  double var = 0.0;
+  for (double x : v) var += (x - r.mean) * (x - r.mean);
+  r.standard_error = std::sqrt(var / (v.size() - 1) / v.size());
+  return r;
+}
+
+// Channel c of every pixel of an RGBA image, minus `offset`.
+inline std::vector<double> channel_values(const render::RenderResult &r, int c, double offset = 0.0) {
+  std::vector<double> v;
+  for (size_t i = 0; i < static_cast<size_t>(r.width) * r.height; ++i) v.push_back(r.combined[4 * i + c] - offset);
+  return v;
+}
+
 // z-score of the mean per-pixel difference between two independent renders of
 // the same expectation over a rectangle: mean(D) / (std(D) / sqrt(n)).
 // Pixels use independent random numbers, so std(D) measures the noise of both.
@@ -76,14 +97,8 @@ inline double difference_z(const render::RenderResult &a, const render::RenderRe
       const size_t i = 4 * (static_cast<size_t>(y) * a.width + x) + c;
       d.push_back(static_cast<double>(a.combined[i]) - b.combined[i]);
     }
-  double m = 0.0;
-  for (double v : d) m += v;
-  m /= d.size();
-  double var = 0.0;
-  for (double v : d) var += (v - m) * (v - m);
-  var /= (d.size() - 1);
-  const double se = std::sqrt(var / d.size());
-  return se > 0.0 ? m / se : (m == 0.0 ? 0.0 : 1e9);
+  const MeanAndError e = mean_and_standard_error(d);
+  return e.standard_error > 0.0 ? e.mean / e.standard_error : (e.mean == 0.0 ? 0.0 : 1e9);
 }
 
 }  // namespace glimmer::test

@@ -60,13 +60,8 @@ void furnace(const std::string &background_xml, bool with_floor, const std::stri
   const auto r = render_scene(path, opt);
   EXPECT_EQ(r.nan_samples, 0u);
   for (int c = 0; c < 3; ++c) {
-    std::vector<double> d;
-    for (size_t i = 0; i < static_cast<size_t>(r.width) * r.height; ++i) d.push_back(r.combined[4 * i + c] - 1.0);
-    double m = 0, v = 0;
-    for (double x : d) m += x;
-    m /= d.size();
-    for (double x : d) v += (x - m) * (x - m);
-    const double se = std::sqrt(v / (d.size() - 1) / d.size());
+    const MeanAndError e = mean_and_standard_error(channel_values(r, c, 1.0));
+    const double m = e.mean, se = e.standard_error;
     // 4.5 standard errors (Bonferroni over 3 channels x 4 furnace variants at ~1e-4 overall).
     EXPECT_LT(std::fabs(m), 4.5 * se + 1e-6) << name << " channel " << c << ": mean " << 1.0 + m << " se " << se;
     EXPECT_LT(std::fabs(m), 0.02) << name << " channel " << c;

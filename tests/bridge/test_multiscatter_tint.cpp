@@ -50,13 +50,8 @@ TEST(MultiscatterTint, FacingQuadRendersTheTintedWalkAlbedo) {
   for (int k = 0; k < 3; ++k) {
     reference[k] /= walks;
     untinted_model[k] = colour[k];  // colour x (E + E_ms(white)) = colour x 1
-    std::vector<double> v;
-    for (size_t i = 0; i < size_t(r.width) * r.height; ++i) v.push_back(r.combined[4 * i + k]);
-    double m = 0, var = 0;
-    for (double x : v) m += x;
-    m /= v.size();
-    for (double x : v) var += (x - m) * (x - m);
-    const double se = std::sqrt(var / (v.size() - 1) / v.size());
+    const MeanAndError e = mean_and_standard_error(channel_values(r, k));
+    const double m = e.mean, se = e.standard_error;
     std::printf("[multiscatter tint] channel %d colour %.1f: render %.5f +- %.5f, tinted walk %.5f, colour-once %.5f\n", k,
                 colour[k], m, se, reference[k], untinted_model[k]);
     EXPECT_LT(std::fabs(m - reference[k]), 0.01 * reference[k] + 4.5 * se) << "channel " << k;
