@@ -113,28 +113,6 @@ class GlintClosure {
     return std::sqrt(field_.alpha * field_.alpha + widen * widen);
   }
 
-  // Footprint in scaled uv (point query: 1/N square).
-  glint::Footprint footprint(const GlimmerShadingContext *ctx) const {
-    glint::Footprint f;
-    const double s = field_.uv_scale;
-    f.cx = ctx->uv[0] * s;
-    f.cy = ctx->uv[1] * s;
-    f.ax = ctx->duv_dx[0] * s;
-    f.ay = ctx->duv_dx[1] * s;
-    f.bx = ctx->duv_dy[0] * s;
-    f.by = ctx->duv_dy[1] * s;
-    const bool finite = std::isfinite(f.ax) && std::isfinite(f.ay) && std::isfinite(f.bx) && std::isfinite(f.by);
-    if (!std::isfinite(f.cx) || !std::isfinite(f.cy)) f.cx = f.cy = 0.0;
-    if (!finite || !(f.area() > 1e-30) || !(f.area() < 1e30)) {
-      const double side = 1.0 / std::sqrt(static_cast<double>(field_.density));
-      f.ax = side;
-      f.ay = 0.0;
-      f.bx = 0.0;
-      f.by = side;
-    }
-    return f;
-  }
-
   // The glint BRDF times cos(wo): equations (2) and (3).
   Spectrum glint_f_cos(const GlimmerShadingContext *ctx, const Vec3 &wi, const Vec3 &wo, float sigma_deg) const {
     Spectrum weight;
@@ -149,7 +127,7 @@ class GlintClosure {
     const float P = std::min(table_->lookup(sigma_deg, theta_i, theta_o, dphi), 1.0f);
     if (!(P > 0.0f)) return Spectrum(0.0f);
 
-    const glint::Footprint fp = footprint(ctx);
+    const glint::Footprint fp = field_.footprint(ctx);
     const double area = fp.area();
     const double expected = static_cast<double>(field_.density) * area * P;
     if (expected > threshold_) return weight * (P / cone_solid_angle_);  // (3)

@@ -261,33 +261,11 @@ class GlintJakob14Closure {
     return k;
   }
 
-  glint::Footprint footprint(const GlimmerShadingContext *ctx) const {
-    glint::Footprint f;
-    const double s = field_.uv_scale;
-    f.cx = ctx->uv[0] * s;
-    f.cy = ctx->uv[1] * s;
-    f.ax = ctx->duv_dx[0] * s;
-    f.ay = ctx->duv_dx[1] * s;
-    f.bx = ctx->duv_dy[0] * s;
-    f.by = ctx->duv_dy[1] * s;
-    const bool finite = std::isfinite(f.ax) && std::isfinite(f.ay) && std::isfinite(f.bx) && std::isfinite(f.by) &&
-                        std::isfinite(f.cx) && std::isfinite(f.cy);
-    if (!finite || !(f.area() > 1e-30) || !(f.area() < 1e30)) {
-      const double side = 1.0 / std::sqrt(static_cast<double>(field_.density));  // point query at the particle scale
-      f.ax = side;
-      f.ay = 0.0;
-      f.bx = 0.0;
-      f.by = side;
-      if (!std::isfinite(f.cx) || !std::isfinite(f.cy)) f.cx = f.cy = 0.0;
-    }
-    return f;
-  }
-
   Spectrum glint_f_cos(const GlimmerShadingContext *ctx, const Vec3 &wi, const Vec3 &wo) const {
     Spectrum weight;
     if (!glint::glint_weight(field_.distribution, field_.alpha, field_.color, wi, wo, weight)) return Spectrum(0.0f);
     Query q;
-    q.fp = footprint(ctx);
+    q.fp = field_.footprint(ctx);
     const double det = q.fp.ax * q.fp.by - q.fp.ay * q.fp.bx;
     q.inv_det = 1.0 / det;
     q.wi = wi;

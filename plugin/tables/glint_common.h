@@ -13,6 +13,7 @@
 #include "glimmer/math.h"
 #include "glimmer/microfacet.h"
 #include "glimmer/sampling.h"
+#include "tables/glint_particles.h"
 
 namespace glimmer::plugin::glint {
 
@@ -75,6 +76,30 @@ struct ParticleField {
     f.uv_scale = p.get_float("uv_scale");
     f.seed = static_cast<uint32_t>(p.get_int("seed"));
     f.color = p.get_color("color");
+    return f;
+  }
+
+  // The pixel footprint in scaled uv: the parallelogram of the context's uv
+  // differentials around its uv. A non-finite uv is queried at the origin; a
+  // zero, huge or non-finite footprint becomes a point query (a 1/N square).
+  Footprint footprint(const GlimmerShadingContext *ctx) const {
+    Footprint f;
+    const double s = uv_scale;
+    f.cx = ctx->uv[0] * s;
+    f.cy = ctx->uv[1] * s;
+    f.ax = ctx->duv_dx[0] * s;
+    f.ay = ctx->duv_dx[1] * s;
+    f.bx = ctx->duv_dy[0] * s;
+    f.by = ctx->duv_dy[1] * s;
+    const bool finite = std::isfinite(f.ax) && std::isfinite(f.ay) && std::isfinite(f.bx) && std::isfinite(f.by);
+    if (!std::isfinite(f.cx) || !std::isfinite(f.cy)) f.cx = f.cy = 0.0;
+    if (!finite || !(f.area() > 1e-30) || !(f.area() < 1e30)) {
+      const double side = 1.0 / std::sqrt(static_cast<double>(density));
+      f.ax = side;
+      f.ay = 0.0;
+      f.bx = 0.0;
+      f.by = side;
+    }
     return f;
   }
 };
