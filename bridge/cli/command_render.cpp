@@ -5,12 +5,15 @@
 
 #include <atomic>
 #include <chrono>
+#include <filesystem>
+#include <optional>
 #include <csignal>
 #include <cstdio>
 #include <iostream>
 #include <sstream>
 
 #include "cli/commands.h"
+#include "cli/render_parts.h"
 #include "render/image_output.h"
 #include "render/renderer.h"
 #include "scene/xml_loader.h"
@@ -25,6 +28,9 @@ extern "C" void on_signal(int) { g_interrupted.store(true); }
 
 struct RenderArgs {
   std::string scene, output, region, frames, strategy = "mis";
+  std::string sample_range, sample_split, tile, progress_format = "sample";
+  double checkpoint_every = -1.0;  // seconds between checkpoints; < 0 = none
+  bool resume = false;
   int samples = 0, threads = 0, width = 0, height = 0, seed = -1, tile_size = 32;
   double time_limit = 0.0;
   bool quiet = false, stats = false;
@@ -66,9 +72,21 @@ void parse_region(const std::string &text, int out[4]) {
     throw CliError(kExitBadInput, "--region must be x0,y0,x1,y1 with 0 <= x0 < x1 and 0 <= y0 < y1, got '" + text + "'");
 }
 
-void print_progress(int done, int total, bool tty, bool quiet) {
+std::string clock_text(double seconds) {
+  char text[32];
+  const int minutes = static_cast<int>(seconds / 60.0);
+  std::snprintf(text, sizeof text, "%02d:%05.2f", minutes, seconds - 60.0 * minutes);
+  return text;
+}
+
+// "blender": Blender's command-line progress shape, for farm adaptors written for Blender.
+void print_progress(int done, int total, bool tty, bool quiet, const std::string &format, int frame, double elapsed) {
   if (quiet) return;
-  if (tty) {
+  if (format == "blender") {
+    const double remaining = done > 0 ? elapsed * (total - done) / done : 0.0;
+    std::printf("Fra:%d Time:%s | Remaining:%s | Sample %d/%d\n", frame, clock_text(elapsed).c_str(),
+                clock_text(remaining).c_str(), done, total);
+  } else if (tty) {
     const int width = 40, filled = total > 0 ? done * width / total : width;
     std::printf("\r[%s%s] Sample %d/%d", std::string(filled, '#').c_str(), std::string(width - filled, ' ').c_str(),
                 done, total);
@@ -79,7 +97,28 @@ void print_progress(int done, int total, bool tty, bool quiet) {
   std::fflush(stdout);
 }
 
-int render_one(CliContext &ctx, const RenderArgs &a, const std::string &scene_path, const std::string &output) {
+// --region/--tile and --sample-range/--sample-split into the options (the scene gives the defaults).
+void set_part(const RenderArgs &a, const scene::Scene &scene, render::RenderOptions &opt) {
+  if (!a.region.empty()) parse_region(a.region, opt.region);
+  if (!a.tile.empty()) {
+    const auto [k, n] = parse_split("--tile", a.tile);
+    const int width = a.width > 0 ? a.width : scene.camera.width, height = a.height > 0 ? a.height : scene.camera.height;
+    const auto [y0, y1] = split_range("--tile", k, n, height);
+    opt.region[0] = 0;
+    opt.region[1] = y0;
+    opt.region[2] = width;
+    opt.region[3] = y1;
+  }
+  if (!a.sample_range.empty()) std::tie(opt.sample_begin, opt.sample_end) = parse_sample_range(a.sample_range);
+  if (!a.sample_split.empty()) {
+    const auto [k, n] = parse_split("--sample-split", a.sample_split);
+    const int samples = a.samples > 0 ? a.samples : scene.integrator.samples;
+    std::tie(opt.sample_begin, opt.sample_end) = split_range("--sample-split", k, n, samples);
+  }
+}
+
+int render_one(CliContext &ctx, const RenderArgs &a, const std::string &scene_path, const std::string &output,
+               int frame) {
   using Clock = std::chrono::steady_clock;
   auto t0 = Clock::now();
   auto since = [](Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); };
@@ -100,23 +139,50 @@ int render_one(CliContext &ctx, const RenderArgs &a, const std::string &scene_pa
   opt.time_limit = a.time_limit;
   opt.tile_size = a.tile_size;
   opt.cancel = &g_interrupted;
-  if (!a.region.empty()) parse_region(a.region, opt.region);
+  set_part(a, scene, opt);
+  opt.scene_hash = render::scene_file_hash(scene_path);
+  const std::string checkpoint = checkpoint_path(output);
+  std::unique_ptr<render::Renderer> renderer;
+  auto last_checkpoint = Clock::now();
+  if (a.checkpoint_every >= 0.0)
+    opt.after_pass = [&](const render::Film &film) {
+      if (since(last_checkpoint) < a.checkpoint_every || film.passes() == renderer->part().sample_end -
+                                                                          renderer->part().sample_begin)
+        return;
+      write_checkpoint(checkpoint, film, renderer->part());
+      last_checkpoint = Clock::now();
+      if (!a.quiet) std::printf("Checkpoint %d/%d %s\n", film.passes(), renderer->part().sample_end -
+                                renderer->part().sample_begin, checkpoint.c_str());
+    };
   if (a.strategy == "light") opt.strategy = render::LightStrategy::LightOnly;
   else if (a.strategy == "bsdf") opt.strategy = render::LightStrategy::BsdfOnly;
   else if (a.strategy != "mis") throw CliError(kExitBadInput, "--strategy must be mis, light or bsdf");
 
-  std::unique_ptr<render::Renderer> renderer;
   try {
     renderer = std::make_unique<render::Renderer>(scene, plugin, opt);
   } catch (const scene::SceneError &e) {
     for (const auto &w : scene.warnings) std::fprintf(stderr, "%s\n", w.c_str());
     throw CliError(kExitBadInput, e.what());
+  } catch (const std::invalid_argument &e) {
+    throw CliError(kExitBadInput, e.what());
+  }
+  std::optional<render::Film> resumed;
+  if (a.resume && std::filesystem::exists(checkpoint)) {
+    resumed = read_checkpoint(checkpoint, renderer->part());
+    if (!a.quiet)
+      std::printf("Resuming %s from sample %d/%d\n", checkpoint.c_str(), resumed->passes(),
+                  renderer->part().sample_end - renderer->part().sample_begin);
   }
   for (const auto &w : scene.warnings) std::fprintf(stderr, "%s\n", w.c_str());
   for (const auto &w : renderer->warnings()) std::fprintf(stderr, "%s\n", w.c_str());
 
   const bool tty = ::isatty(STDOUT_FILENO) != 0;
-  const auto result = renderer->render([&](int done, int total) { print_progress(done, total, tty, a.quiet); });
+  const auto render_start = Clock::now();
+  const auto result = renderer->render(
+      [&](int done, int total) {
+        print_progress(done, total, tty, a.quiet, a.progress_format, frame, since(render_start));
+      },
+      resumed ? &*resumed : nullptr);
   if (tty && !a.quiet && result.samples_done < result.samples_requested) std::printf("\n");
   t0 = Clock::now();
   try {
@@ -125,6 +191,9 @@ int render_one(CliContext &ctx, const RenderArgs &a, const std::string &scene_pa
     throw CliError(kExitBadInput, e.what());
   }
   const double write_seconds = since(t0);
+  const bool complete = !result.interrupted && !result.time_limited;
+  std::error_code ignored;
+  if (complete) std::filesystem::remove(checkpoint, ignored);  // the finished image supersedes it
   if (result.nan_samples > 0)
     std::fprintf(stderr, "glimmer: warning: %llu non-finite sample contributions were dropped\n",
                  static_cast<unsigned long long>(result.nan_samples));
@@ -174,7 +243,22 @@ void add_render_command(CLI::App &app, CliContext &ctx) {
   cmd->add_option("--height", args->height, "image height (default: the camera's)")->check(CLI::Range(1, 65536));
   cmd->add_option("--seed", args->seed, "sampling seed (default: the scene's integrator seed)")
       ->check(CLI::Range(0, 2147483647));
-  cmd->add_option("--region", args->region, "render only pixels x0,y0,x1,y1 (x1, y1 exclusive); the rest is black");
+  cmd->add_option("--region", args->region, "render only pixels x0,y0,x1,y1 (x1, y1 exclusive); an EXR holds just this crop (data window), a PNG the whole image with the rest black");
+  auto *tile = cmd->add_option("--tile", args->tile, "render band k of N (rows k*H/N to (k+1)*H/N), k/N; for farms");
+  cmd->get_option("--region")->excludes(tile);
+  auto *range = cmd->add_option("--sample-range", args->sample_range,
+                                "render samples a..b-1 of --samples, a,b (merge the parts with glimmer merge)");
+  auto *split = cmd->add_option("--sample-split", args->sample_split,
+                                "render sample part k of N (samples k*S/N to (k+1)*S/N), k/N");
+  range->excludes(split);
+  cmd->add_option("--checkpoint-every", args->checkpoint_every,
+                  "write the film to <output>.checkpoint.exr after a sample pass once this many seconds have "
+                  "passed since the last one (0: every pass)")
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_flag("--resume", args->resume, "continue from <output>.checkpoint.exr when it exists");
+  cmd->add_option("--progress-format", args->progress_format,
+                  "progress lines: sample ('Sample n/N') or blender ('Fra:F Time:.. | Remaining:.. | Sample n/N')")
+      ->check(CLI::IsMember({"sample", "blender"}));
   cmd->add_option("--frames", args->frames, "frames to render, e.g. 1-10,12; #### in scene/output names is the frame");
   cmd->add_option("--time-limit", args->time_limit, "stop after the sample pass that exceeds this many seconds")
       ->check(CLI::NonNegativeNumber);
@@ -191,14 +275,14 @@ void add_render_command(CLI::App &app, CliContext &ctx) {
       threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
                                                       static_cast<size_t>(args->threads));
     if (args->frames.empty()) {
-      ctx.exit_code = render_one(ctx, *args, args->scene, args->output);
+      ctx.exit_code = render_one(ctx, *args, args->scene, args->output, 1);
       return;
     }
     const auto frames = parse_frames(args->frames);
     if (frames.size() > 1 && args->output.find('#') == std::string::npos)
       throw CliError(kExitBadInput, "rendering several frames needs #### in the output name");
     for (int f : frames) {
-      const int code = render_one(ctx, *args, render::frame_path(args->scene, f), render::frame_path(args->output, f));
+      const int code = render_one(ctx, *args, render::frame_path(args->scene, f), render::frame_path(args->output, f), f);
       if (code != kExitOk) {
         ctx.exit_code = code;
         return;

@@ -32,6 +32,32 @@ float srgb_encode(float v) {
   return v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1.0f / 2.4f) - 0.055f;
 }
 
+std::vector<std::string> exr_channel_names(bool aovs) {
+  std::vector<std::string> names = {"ViewLayer.Combined.R", "ViewLayer.Combined.G", "ViewLayer.Combined.B",
+                                    "ViewLayer.Combined.A"};
+  if (aovs) {
+    for (const char *c : {"R", "G", "B"}) names.push_back(std::string("ViewLayer.Albedo.") + c);
+    for (const char *c : {"X", "Y", "Z"}) names.push_back(std::string("ViewLayer.Normal.") + c);
+    names.push_back("ViewLayer.Depth.Z");
+  }
+  return names;
+}
+
+// glimmer:* attributes: what part of which render the image holds (render/film.h PartInfo).
+void write_part_metadata(const RenderResult &r, OIIO::ImageSpec &spec) {
+  const PartInfo &p = r.part;
+  if (!p.scene_hash.empty()) spec.attribute("glimmer:scene_hash", p.scene_hash);
+  spec.attribute("glimmer:strategy", p.strategy);
+  spec.attribute("glimmer:seed", p.seed);
+  spec.attribute("glimmer:samples_total", p.samples_total);
+  spec.attribute("glimmer:sample_begin", p.sample_begin);
+  spec.attribute("glimmer:sample_end", p.sample_end);
+  spec.attribute("glimmer:incomplete", r.samples_done != p.sample_end - p.sample_begin || r.interrupted ? 1 : 0);
+  spec.attribute("glimmer:nan_samples", std::to_string(r.nan_samples));
+  spec.attribute("glimmer:paths", std::to_string(r.paths));
+  if (r.film_sums) spec.attribute("glimmer:checkpoint", 1);
+}
+
 }  // namespace
 
 void write_image(const std::string &path, const RenderResult &r) {
@@ -52,31 +78,39 @@ void write_image(const std::string &path, const RenderResult &r) {
   const size_t npix = static_cast<size_t>(r.width) * r.height;
   bool ok = false;
   if (ext == ".exr") {
-    std::vector<std::string> names = {"ViewLayer.Combined.R", "ViewLayer.Combined.G", "ViewLayer.Combined.B",
-                                      "ViewLayer.Combined.A"};
-    const bool aovs = r.albedo.size() == 3 * npix;
-    if (aovs) {
-      for (const char *c : {"R", "G", "B"}) names.push_back(std::string("ViewLayer.Albedo.") + c);
-      for (const char *c : {"X", "Y", "Z"}) names.push_back(std::string("ViewLayer.Normal.") + c);
-      names.push_back("ViewLayer.Depth.Z");
-    }
+    // The data window is the rendered window (a region writes just its crop); the display window the whole image.
+    const PartInfo &part = r.part;
+    const bool windowed = part.window[2] > part.window[0] && part.window[3] > part.window[1] &&
+                          part.full_width == r.width && part.full_height == r.height;
+    const int wx0 = windowed ? part.window[0] : 0, wy0 = windowed ? part.window[1] : 0;
+    const int ww = windowed ? part.window[2] - wx0 : r.width, wh = windowed ? part.window[3] - wy0 : r.height;
+    const std::vector<std::string> names = exr_channel_names(r.albedo.size() == 3 * npix);
+    const bool aovs = names.size() > 4;
     const int nc = static_cast<int>(names.size());
-    OIIO::ImageSpec spec(r.width, r.height, nc, OIIO::TypeDesc::FLOAT);
+    OIIO::ImageSpec spec(ww, wh, nc, OIIO::TypeDesc::FLOAT);
+    spec.x = wx0;
+    spec.y = wy0;
+    spec.full_x = spec.full_y = 0;
+    spec.full_width = r.width;
+    spec.full_height = r.height;
     spec.channelnames = names;
     spec.alpha_channel = 3;
     spec.z_channel = aovs ? nc - 1 : -1;
     spec.attribute("compression", "zip");
     spec.attribute("glimmer:samples", r.samples_done);
-    std::vector<float> pixels(npix * nc);
-    for (size_t i = 0; i < npix; ++i) {
-      float *p = &pixels[i * nc];
-      for (int k = 0; k < 4; ++k) p[k] = r.combined[4 * i + k];
-      if (aovs) {
-        for (int k = 0; k < 3; ++k) p[4 + k] = r.albedo[3 * i + k];
-        for (int k = 0; k < 3; ++k) p[7 + k] = r.normal[3 * i + k];
-        p[10] = r.depth[i];
+    write_part_metadata(r, spec);
+    std::vector<float> pixels(static_cast<size_t>(ww) * wh * nc);
+    for (int y = 0; y < wh; ++y)
+      for (int x = 0; x < ww; ++x) {
+        const size_t i = static_cast<size_t>(y + wy0) * r.width + (x + wx0);
+        float *p = &pixels[(static_cast<size_t>(y) * ww + x) * nc];
+        for (int k = 0; k < 4; ++k) p[k] = r.combined[4 * i + k];
+        if (aovs) {
+          for (int k = 0; k < 3; ++k) p[4 + k] = r.albedo[3 * i + k];
+          for (int k = 0; k < 3; ++k) p[7 + k] = r.normal[3 * i + k];
+          p[10] = r.depth[i];
+        }
       }
-    }
     ok = out->open(temp.string(), spec) && out->write_image(OIIO::TypeDesc::FLOAT, pixels.data()) && out->close();
   } else {
     OIIO::ImageSpec spec(r.width, r.height, 4, OIIO::TypeDesc::UINT8);
@@ -101,6 +135,77 @@ void write_image(const std::string &path, const RenderResult &r) {
     fs::remove(temp, ec);
     throw std::runtime_error("cannot move the image into place at '" + path + "'");
   }
+}
+
+RenderResult read_image(const std::string &path) {
+  auto in = OIIO::ImageInput::open(path);
+  if (!in) throw std::runtime_error("cannot read '" + path + "': " + OIIO::geterror());
+  const OIIO::ImageSpec &spec = in->spec();
+  RenderResult r;
+  r.width = spec.full_width;
+  r.height = spec.full_height;
+  const size_t npix = static_cast<size_t>(r.width) * r.height;
+  if (spec.x < 0 || spec.y < 0 || spec.x + spec.width > r.width || spec.y + spec.height > r.height ||
+      spec.full_x != 0 || spec.full_y != 0)
+    throw std::runtime_error("'" + path + "': data window is not inside the display window");
+  // OpenEXR stores channels sorted by name: find each of ours by name.
+  const auto &have = spec.channelnames;
+  auto find_all = [&have](const std::vector<std::string> &names, std::vector<int> &index) {
+    index.clear();
+    for (const auto &n : names) {
+      const auto it = std::find(have.begin(), have.end(), n);
+      if (it == have.end()) return false;
+      index.push_back(static_cast<int>(it - have.begin()));
+    }
+    return true;
+  };
+  std::vector<int> index;
+  const bool aovs = find_all(exr_channel_names(true), index);
+  if (!aovs && !find_all(exr_channel_names(false), index))
+    throw std::runtime_error("'" + path + "' is not a Glimmer EXR (no ViewLayer.Combined.R/G/B/A channels)");
+  const int nc = spec.nchannels;
+  std::vector<float> pixels(static_cast<size_t>(spec.width) * spec.height * nc);
+  if (!in->read_image(0, 0, 0, nc, OIIO::TypeDesc::FLOAT, pixels.data()))
+    throw std::runtime_error("cannot read '" + path + "': " + in->geterror());
+  r.combined.assign(4 * npix, 0.0f);
+  if (aovs) {
+    r.albedo.assign(3 * npix, 0.0f);
+    r.normal.assign(3 * npix, 0.0f);
+    r.depth.assign(npix, 0.0f);
+  }
+  for (int y = 0; y < spec.height; ++y)
+    for (int x = 0; x < spec.width; ++x) {
+      const size_t i = static_cast<size_t>(y + spec.y) * r.width + (x + spec.x);
+      const float *p = &pixels[(static_cast<size_t>(y) * spec.width + x) * nc];
+      for (int k = 0; k < 4; ++k) r.combined[4 * i + k] = p[index[k]];
+      if (aovs) {
+        for (int k = 0; k < 3; ++k) r.albedo[3 * i + k] = p[index[4 + k]];
+        for (int k = 0; k < 3; ++k) r.normal[3 * i + k] = p[index[7 + k]];
+        r.depth[i] = p[index[10]];
+      }
+    }
+  PartInfo &part = r.part;
+  part.scene_hash = spec.get_string_attribute("glimmer:scene_hash");
+  part.strategy = spec.get_string_attribute("glimmer:strategy", "mis");
+  part.seed = spec.get_int_attribute("glimmer:seed", 0);
+  part.samples_total = spec.get_int_attribute("glimmer:samples_total", 0);
+  part.sample_begin = spec.get_int_attribute("glimmer:sample_begin", 0);
+  part.sample_end = spec.get_int_attribute("glimmer:sample_end", 0);
+  part.full_width = r.width;
+  part.full_height = r.height;
+  part.window[0] = spec.x;
+  part.window[1] = spec.y;
+  part.window[2] = spec.x + spec.width;
+  part.window[3] = spec.y + spec.height;
+  r.samples_done = spec.get_int_attribute("glimmer:samples", 0);
+  r.samples_requested = part.sample_end - part.sample_begin;
+  r.interrupted = spec.get_int_attribute("glimmer:incomplete", 0) != 0;
+  r.film_sums = spec.get_int_attribute("glimmer:checkpoint", 0) != 0;
+  r.nan_samples = std::stoull(spec.get_string_attribute("glimmer:nan_samples", "0"));
+  r.paths = std::stoull(spec.get_string_attribute("glimmer:paths", "0"));
+  if (part.samples_total <= 0)
+    throw std::runtime_error("'" + path + "' has no glimmer:samples_total metadata (not written by glimmer render)");
+  return r;
 }
 
 }  // namespace glimmer::render

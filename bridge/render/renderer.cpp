@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <limits>
 #include <mutex>
+#include <stdexcept>
 
 #include "glimmer/rng.h"
 #include "glimmer/sampling.h"
@@ -136,6 +137,37 @@ struct Renderer::Impl {
   }
 
   // ---- Set-up ----
+  PartInfo part;  // pixels and samples this render covers
+
+  void describe_part() {
+    part.scene_hash = options.scene_hash;
+    part.seed = static_cast<int>(seed);
+    part.samples_total = samples;
+    part.full_width = width;
+    part.full_height = height;
+    part.strategy = options.strategy == LightStrategy::LightOnly  ? "light"
+                    : options.strategy == LightStrategy::BsdfOnly ? "bsdf"
+                                                                  : "mis";
+    part.sample_begin = options.sample_begin;
+    part.sample_end = options.sample_end;
+    if (part.sample_begin == 0 && part.sample_end == 0) part.sample_end = samples;
+    if (part.sample_begin < 0 || part.sample_end <= part.sample_begin || part.sample_end > samples)
+      throw std::invalid_argument("sample range [" + std::to_string(part.sample_begin) + ", " +
+                                  std::to_string(part.sample_end) + ") is not inside the render's " +
+                                  std::to_string(samples) + " samples");
+    int *w = part.window;
+    const int *r = options.region;
+    if (r[0] != 0 || r[1] != 0 || r[2] != 0 || r[3] != 0) {
+      w[0] = std::clamp(r[0], 0, width);
+      w[1] = std::clamp(r[1], 0, height);
+      w[2] = std::clamp(r[2], w[0], width);
+      w[3] = std::clamp(r[3], w[1], height);
+    } else {
+      w[2] = width;
+      w[3] = height;
+    }
+  }
+
   void prepare(PhaseTimes &times) {
     auto t0 = Clock::now();
     cache_dir = host::default_host_services()->cache_dir ? host::default_host_services()->cache_dir : "";
@@ -153,6 +185,7 @@ struct Renderer::Impl {
     height = options.height > 0 ? options.height : cam.height;
     samples = options.samples > 0 ? options.samples : scene.integrator.samples;
     seed = static_cast<uint32_t>(options.seed >= 0 ? options.seed : scene.integrator.seed);
+    describe_part();
 
     // Feature scan: compile only the shaders that geometry, lights and the background use.
     shaders = std::make_unique<ShaderSystem>(scene, plugin, &host, warnings, features);
@@ -793,31 +826,27 @@ bool Renderer::probe(float x, float y, GlimmerShadingContext &out) const {
   return false;
 }
 
-RenderResult Renderer::render(const std::function<void(int, int)> &progress) {
+const PartInfo &Renderer::part() const { return impl_->part; }
+
+RenderResult Renderer::render(const std::function<void(int, int)> &progress, const Film *resume) {
   Impl &im = *impl_;
   const auto t0 = Clock::now();
   RenderResult res;
   res.width = im.width;
   res.height = im.height;
-  res.samples_requested = im.samples;
-  const size_t npix = static_cast<size_t>(im.width) * im.height;
-  std::vector<Spectrum> sum(npix, Spectrum(0.0f)), albedo(npix, Spectrum(0.0f)), normal(npix, Spectrum(0.0f));
-  std::vector<float> depth(npix, 0.0f);
-  // Samples per pixel: an interrupt stops the current pass mid-way, so pixels can differ by one.
-  std::vector<uint32_t> count(npix, 0u);
+  PartInfo &part = res.part;
+  part = im.part;
+  res.samples_requested = part.sample_end - part.sample_begin;
+  Film film = resume ? *resume : Film(im.width, im.height, im.options.aovs);
+  if (film.width() != im.width || film.height() != im.height)
+    throw std::invalid_argument("the film to resume is " + std::to_string(film.width()) + "x" +
+                                std::to_string(film.height()) + ", the render " + std::to_string(im.width) + "x" +
+                                std::to_string(im.height));
   std::atomic<uint64_t> paths{0};
-  int x0 = 0, y0 = 0, x1 = im.width, y1 = im.height;
-  const auto &r = im.options.region;
-  if (r[0] != 0 || r[1] != 0 || r[2] != 0 || r[3] != 0) {
-    x0 = std::clamp(r[0], 0, im.width);
-    y0 = std::clamp(r[1], 0, im.height);
-    x1 = std::clamp(r[2], x0, im.width);
-    y1 = std::clamp(r[3], y0, im.height);
-  }
+  const int x0 = part.window[0], y0 = part.window[1], x1 = part.window[2], y1 = part.window[3];
   const int tile = std::max(1, im.options.tile_size);
   std::atomic<uint64_t> nan_total{0};
-  int done = 0;
-  for (int s = 0; s < im.samples; ++s) {
+  for (int s = part.sample_begin + film.passes(); s < part.sample_end; ++s) {
     tbb::parallel_for(tbb::blocked_range2d<int>(y0, y1, tile, x0, x1, tile), [&](const tbb::blocked_range2d<int> &br) {
       uint64_t nans = 0, traced = 0;
       for (int y = br.rows().begin(); y < br.rows().end(); ++y) {
@@ -825,50 +854,30 @@ RenderResult Renderer::render(const std::function<void(int, int)> &progress) {
         for (int x = br.cols().begin(); x < br.cols().end(); ++x) {
           Impl::PixelAov aov;
           const Spectrum L = im.trace_path(x, y, static_cast<uint32_t>(s), aov, nans);
-          const size_t i = static_cast<size_t>(y) * im.width + x;
-          sum[i] += L;
-          count[i]++;
+          film.add(static_cast<size_t>(y) * im.width + x, L, aov.albedo, aov.normal, aov.depth);
           ++traced;
-          if (im.options.aovs) {
-            albedo[i] += aov.albedo;
-            normal[i] += aov.normal;
-            depth[i] += aov.depth;
-          }
         }
       }
       if (nans) nan_total += nans;
       paths += traced;
     });
-    done = s + 1;
-    if (progress) progress(done, im.samples);
-    if (im.options.cancel && im.options.cancel->load()) { res.interrupted = true; break; }
-    if (im.options.time_limit > 0.0 && seconds_since(t0) >= im.options.time_limit && done < im.samples) {
+    const bool cancelled = im.options.cancel && im.options.cancel->load();
+    if (!cancelled) {
+      film.end_pass();
+      if (im.options.after_pass) im.options.after_pass(film);
+    }
+    if (progress) progress(film.passes() + (cancelled ? 1 : 0), res.samples_requested);
+    if (cancelled) { res.interrupted = true; break; }
+    if (im.options.time_limit > 0.0 && seconds_since(t0) >= im.options.time_limit &&
+        s + 1 < part.sample_end) {
       res.time_limited = true;
       break;
     }
   }
-  res.samples_done = done;
+  res.samples_done = film.passes() + (res.interrupted ? 1 : 0);
   res.nan_samples = nan_total.load();
   res.paths = paths.load();
-  const float exposure = im.scene.film.exposure;
-  res.combined.assign(npix * 4, 0.0f);
-  res.albedo.assign(npix * 3, 0.0f);
-  res.normal.assign(npix * 3, 0.0f);
-  res.depth.assign(npix, 0.0f);
-  for (size_t i = 0; i < npix; ++i) {
-    const float inv = count[i] > 0 ? 1.0f / static_cast<float>(count[i]) : 0.0f;
-    const Spectrum c = sum[i] * (inv * exposure);
-    res.combined[4 * i] = c.x;
-    res.combined[4 * i + 1] = c.y;
-    res.combined[4 * i + 2] = c.z;
-    res.combined[4 * i + 3] = 1.0f;
-    const Spectrum a = albedo[i] * inv, n = normal[i] * inv;
-    for (int k = 0; k < 3; ++k) {
-      res.albedo[3 * i + k] = a[k];
-      res.normal[3 * i + k] = n[k];
-    }
-    res.depth[i] = depth[i] * inv;
-  }
+  film.resolve(im.scene.film.exposure, res);
   res.render_seconds = seconds_since(t0);
   return res;
 }

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "host/plugin_library.h"
+#include "render/film.h"
 #include "render/shader_system.h"
 #include "scene/scene.h"
 
@@ -30,11 +31,17 @@ struct RenderOptions {
   LightStrategy strategy = LightStrategy::MIS;
   bool aovs = true;       // Albedo, Normal, Depth
   const std::atomic<bool> *cancel = nullptr;  // set from a signal handler: stop after the current pass
+  int sample_begin = 0, sample_end = 0;  // render samples [begin, end) of `samples`; both 0 = all of them
+  std::string scene_hash;                // recorded in the part's metadata (render::scene_file_hash)
+  // Called after every complete sample pass with the film so far (checkpoints).
+  std::function<void(const Film &)> after_pass;
 };
 
 struct RenderResult {
   int width = 0, height = 0;
-  int samples_requested = 0, samples_done = 0;
+  int samples_requested = 0, samples_done = 0;  // of this part's sample range
+  PartInfo part;                 // what this image covers (EXR metadata)
+  bool film_sums = false;        // a checkpoint: raw sums, alpha = sample count (Film::store)
   bool interrupted = false;
   bool time_limited = false;
   uint64_t nan_samples = 0;      // non-finite contributions dropped
@@ -59,7 +66,11 @@ class Renderer {
   Renderer &operator=(const Renderer &) = delete;
 
   // Progress callback: (samples done, samples total) after every sample pass.
-  RenderResult render(const std::function<void(int, int)> &progress = {});
+  // `resume`: continue this film (a checkpoint of the same part, Film::restore) instead of a new one.
+  RenderResult render(const std::function<void(int, int)> &progress = {}, const Film *resume = nullptr);
+
+  // The pixels and samples this render covers (resolution, seed, sample range, window).
+  const PartInfo &part() const;
 
   // Follows the ray through film position (x, y) (pixels, no jitter, seed path 0) across
   // singular bounces and returns the shading context at the first non-singular hit, with

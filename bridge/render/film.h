@@ -1,0 +1,72 @@
+// The film: per-pixel sums of path contributions (and of the Albedo/Normal/Depth
+// AOVs) plus sample counts, in sample order. Keeping the raw sums is what makes a
+// render resumable bit for bit (a checkpoint stores them, --resume continues the
+// same additions) and splittable: a region is the same additions on fewer pixels,
+// a sample range [a, b) the additions of samples a..b-1 (see docs/farm.md).
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "glimmer/math.h"
+
+namespace glimmer::render {
+
+struct RenderResult;
+
+// Which part of which render an image holds; written as glimmer:* EXR metadata so
+// that `glimmer merge` and `--resume` can check that parts belong together.
+struct PartInfo {
+  std::string scene_hash;                // scene_file_hash() of the scene file; empty = unknown
+  std::string strategy = "mis";          // direct-light estimator (mis, light, bsdf)
+  int seed = 0;
+  int samples_total = 0;                 // N: samples per pixel of the whole render
+  int sample_begin = 0, sample_end = 0;  // this part renders samples [begin, end) of N
+  int full_width = 0, full_height = 0;   // resolution of the whole image
+  int window[4] = {0, 0, 0, 0};          // rendered pixels x0, y0, x1, y1 (x1, y1 exclusive)
+};
+
+// "0123456789abcdef": FNV-1a 64 of the file's bytes (what the scene hash records).
+// Throws std::runtime_error when the file cannot be read.
+std::string scene_file_hash(const std::string &path);
+
+class Film {
+ public:
+  Film(int width, int height, bool aovs);
+
+  int width() const { return width_; }
+  int height() const { return height_; }
+  // Sample passes completed over every pixel of the window (what a checkpoint records).
+  int passes() const { return passes_; }
+
+  // One sample of pixel i (row-major, full image). Called concurrently for distinct pixels.
+  void add(size_t i, const Spectrum &L, const Spectrum &albedo, const Vec3 &normal, float depth) {
+    sum_[i] += L;
+    count_[i]++;
+    if (aovs_) {
+      albedo_[i] += albedo;
+      normal_[i] += normal;
+      depth_[i] += depth;
+    }
+  }
+  void end_pass() { ++passes_; }
+
+  // Per-pixel means into result.combined/albedo/normal/depth (combined scaled by exposure, alpha 1).
+  void resolve(float exposure, RenderResult &result) const;
+
+  // Checkpoint image: channels hold the raw sums, alpha the per-pixel sample count
+  // (RenderResult::film_sums set); restore() is its exact inverse.
+  void store(RenderResult &result) const;
+  static Film restore(const RenderResult &checkpoint);
+
+ private:
+  int width_, height_;
+  bool aovs_;
+  int passes_ = 0;
+  std::vector<Spectrum> sum_, albedo_, normal_;
+  std::vector<float> depth_;
+  std::vector<uint32_t> count_;  // an interrupt stops a pass mid-way, so pixels can differ by one
+};
+
+}  // namespace glimmer::render
