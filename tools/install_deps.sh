@@ -10,6 +10,7 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   python3 python3-numpy python3-pytest
   blender
+  slurm-wlm slurmctld slurmd slurm-client munge
 )
 
 missing=()

@@ -36,31 +36,6 @@ struct RenderArgs {
   bool quiet = false, stats = false;
 };
 
-std::vector<int> parse_frames(const std::string &spec) {
-  std::vector<int> frames;
-  std::stringstream in(spec);
-  std::string part;
-  while (std::getline(in, part, ',')) {
-    if (part.empty()) continue;
-    try {
-      const auto dash = part.find('-', 1);
-      size_t used = 0;
-      if (dash == std::string::npos) {
-        frames.push_back(std::stoi(part, &used));
-        if (used != part.size()) throw std::invalid_argument(part);
-      } else {
-        const int a = std::stoi(part.substr(0, dash)), b = std::stoi(part.substr(dash + 1), &used);
-        if (used != part.size() - dash - 1 || b < a || b - a > 100000) throw std::invalid_argument(part);
-        for (int f = a; f <= b; ++f) frames.push_back(f);
-      }
-    } catch (const std::exception &) {
-      throw CliError(kExitBadInput, "--frames: '" + part + "' is not a frame or range (e.g. 1-10,12)");
-    }
-  }
-  if (frames.empty()) throw CliError(kExitBadInput, "--frames: no frames in '" + spec + "'");
-  return frames;
-}
-
 void parse_region(const std::string &text, int out[4]) {
   std::string t = text;
   for (char &c : t)

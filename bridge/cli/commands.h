@@ -44,5 +44,6 @@ void add_render_command(CLI::App &app, CliContext &ctx);
 void add_precompute_command(CLI::App &app, CliContext &ctx);
 void add_bench_command(CLI::App &app, CliContext &ctx);
 void add_merge_command(CLI::App &app, CliContext &ctx);
+void add_farm_command(CLI::App &app, CliContext &ctx);
 
 }  // namespace glimmer::cli

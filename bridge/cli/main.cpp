@@ -21,6 +21,7 @@ int main(int argc, char **argv) {
   cli::add_precompute_command(app, ctx);
   cli::add_bench_command(app, ctx);
   cli::add_merge_command(app, ctx);
+  cli::add_farm_command(app, ctx);
 
   try {
     app.parse(argc, argv);

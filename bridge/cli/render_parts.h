@@ -5,10 +5,14 @@
 
 #include <string>
 #include <utility>
+#include <vector>
 
 #include "render/film.h"
 
 namespace glimmer::cli {
+
+// --frames "1-10,12" -> 1..10, 12; throws CliError on a malformed spec.
+std::vector<int> parse_frames(const std::string &spec);
 
 // "a,b" -> [a, b); throws CliError unless 0 <= a < b.
 std::pair<int, int> parse_sample_range(const std::string &text);

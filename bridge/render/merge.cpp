@@ -26,7 +26,8 @@ void check_same_render(const RenderResult &a, const std::string &an, const Rende
                                " vs " + vb);
   };
   const PartInfo &p = a.part, &q = b.part;
-  differ("scene hash", p.scene_hash.empty() ? "unknown" : p.scene_hash, q.scene_hash.empty() ? "unknown" : q.scene_hash);
+  differ("scene hash", p.scene_hash.empty() ? "unknown" : p.scene_hash,
+         q.scene_hash.empty() ? "unknown" : q.scene_hash);
   differ("resolution", std::to_string(p.full_width) + "x" + std::to_string(p.full_height),
          std::to_string(q.full_width) + "x" + std::to_string(q.full_height));
   differ("seed", std::to_string(p.seed), std::to_string(q.seed));

@@ -2,7 +2,6 @@
 // by `glimmer merge` equal the one-machine render (tiles bit for bit, sample ranges
 // within float rounding), merge refuses parts of different renders, and a render
 // killed with SIGKILL after a checkpoint resumes to the uninterrupted image.
-#include <OpenImageIO/imageio.h>
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -14,6 +13,7 @@
 #include <regex>
 #include <thread>
 
+#include "exr_compare.h"
 #include "render_test_util.h"
 
 namespace glimmer::test {
@@ -24,40 +24,6 @@ namespace fs = std::filesystem;
 // The demo scene, small: 48x32 pixels.
 std::string demo_scene() { return std::string(GLIMMER_TEST_SOURCE_DIR) + "/examples/demo.xml"; }
 const std::string kSmall = " --width 48 --height 32 --threads 2 --quiet";
-
-struct Exr {
-  OIIO::ImageSpec spec;
-  std::vector<float> pixels;  // data window, all channels
-};
-
-Exr read_exr(const fs::path &path) {
-  auto in = OIIO::ImageInput::open(path.string());
-  EXPECT_TRUE(in) << path << ": " << OIIO::geterror();
-  Exr e;
-  if (!in) return e;
-  e.spec = in->spec();
-  e.pixels.resize(static_cast<size_t>(e.spec.width) * e.spec.height * e.spec.nchannels);
-  EXPECT_TRUE(in->read_image(0, 0, 0, -1, OIIO::TypeDesc::FLOAT, e.pixels.data()));
-  return e;
-}
-
-// Per channel: max over pixels of |a - b| / max over pixels of |b|; the largest over channels
-// (the "relative" difference of the acceptance; per channel so that the 1e10 background
-// depth does not hide a difference in the Combined pass).
-double max_relative_difference(const Exr &a, const Exr &b) {
-  const int nc = b.spec.nchannels;
-  double worst = 0.0;
-  for (int c = 0; c < nc; ++c) {
-    double diff = 0.0, scale = 0.0;
-    for (size_t i = c; i < b.pixels.size(); i += nc) {
-      diff = std::max(diff, static_cast<double>(std::fabs(a.pixels[i] - b.pixels[i])));
-      scale = std::max(scale, static_cast<double>(std::fabs(b.pixels[i])));
-    }
-    if (scale > 0.0) worst = std::max(worst, diff / scale);
-    else if (diff > 0.0) return INFINITY;
-  }
-  return worst;
-}
 
 std::string render_to(const std::string &name, const std::string &extra) {
   const std::string path = (temp_dir() / name).string();
@@ -80,7 +46,8 @@ std::string merge(const std::vector<std::string> &parts, const std::string &name
 TEST(Farm, TilesWriteCropsAndMergeBitIdentical) {
   const std::string full = render_to("full.exr", "--samples 4");
   std::vector<std::string> tiles;
-  for (int k = 0; k < 4; ++k) tiles.push_back(render_to("tile" + std::to_string(k) + ".exr", "--samples 4 --tile " + std::to_string(k) + "/4"));
+  for (int k = 0; k < 4; ++k)
+    tiles.push_back(render_to("tile" + std::to_string(k) + ".exr", "--samples 4 --tile " + std::to_string(k) + "/4"));
   // Each part holds just its band: data window 48x8 at y = 8k, display window 48x32.
   for (int k = 0; k < 4; ++k) {
     const Exr t = read_exr(tiles[k]);
@@ -94,16 +61,14 @@ TEST(Farm, TilesWriteCropsAndMergeBitIdentical) {
   const std::string out = merge(tiles, "merged_tiles.exr", code);
   ASSERT_EQ(code, 0) << out;
   const Exr a = read_exr(temp_dir() / "merged_tiles.exr"), b = read_exr(full);
-  ASSERT_EQ(a.spec.channelnames, b.spec.channelnames);
-  ASSERT_EQ(a.pixels.size(), b.pixels.size());
-  EXPECT_EQ(0, std::memcmp(a.pixels.data(), b.pixels.data(), a.pixels.size() * sizeof(float))) << "not bit-identical";
+  EXPECT_TRUE(bit_identical(a, b));
   // --region parts too (uneven rectangles), and a missing tile is refused.
   const std::vector<std::string> regions = {render_to("rA.exr", "--samples 4 --region 0,0,30,32"),
                                             render_to("rB.exr", "--samples 4 --region 30,0,48,20"),
                                             render_to("rC.exr", "--samples 4 --region 30,20,48,32")};
   ASSERT_EQ(0, (merge(regions, "merged_regions.exr", code), code));
   const Exr c = read_exr(temp_dir() / "merged_regions.exr");
-  EXPECT_EQ(0, std::memcmp(c.pixels.data(), b.pixels.data(), b.pixels.size() * sizeof(float)));
+  EXPECT_TRUE(bit_identical(c, b));
   const std::string missing = merge({tiles[0], tiles[1], tiles[3]}, "missing.exr", code);
   EXPECT_EQ(code, 1);
   EXPECT_NE(missing.find("cover 1152 of the 1536 pixels"), std::string::npos) << missing;
@@ -132,7 +97,9 @@ TEST(Farm, SampleRangesMergeWithinFloatRounding) {
   EXPECT_GT(max_relative_difference(unweighted, ref), 1e-3);
   // --sample-split k/N cuts [0, N) the same way (16/4 -> 4 samples each).
   std::vector<std::string> splits;
-  for (int k = 0; k < 4; ++k) splits.push_back(render_to("split" + std::to_string(k) + ".exr", "--samples 16 --sample-split " + std::to_string(k) + "/4"));
+  for (int k = 0; k < 4; ++k)
+    splits.push_back(
+        render_to("split" + std::to_string(k) + ".exr", "--samples 16 --sample-split " + std::to_string(k) + "/4"));
   ASSERT_EQ(0, (merge(splits, "merged_splits.exr", code), code));
   EXPECT_LE(max_relative_difference(read_exr(temp_dir() / "merged_splits.exr"), ref), 1e-6);
   EXPECT_EQ(read_exr(splits[2]).spec.get_int_attribute("glimmer:sample_begin"), 8);
@@ -153,7 +120,10 @@ TEST(Farm, MergeRefusesPartsOfDifferentRenders) {
   refused({a, render_to("seed.exr", "--samples 4 --sample-range 2,4 --seed 7")}, "seed 0 vs 7");
   const std::string res = (temp_dir() / "res.exr").string();
   std::string out;
-  ASSERT_EQ(0, run_cli("render '" + demo_scene() + "' -o '" + res + "' --width 40 --height 32 --samples 4 --sample-range 2,4 --quiet", out)) << out;
+  ASSERT_EQ(0, run_cli("render '" + demo_scene() + "' -o '" + res +
+                           "' --width 40 --height 32 --samples 4 --sample-range 2,4 --quiet",
+                       out))
+      << out;
   refused({a, res}, "resolution 48x32 vs 40x32");
   refused({a, render_to("n.exr", "--samples 5 --sample-range 2,5")}, "samples per pixel 4 vs 5");
   refused({a, render_to("strategy.exr", "--samples 4 --sample-range 2,4 --strategy light")}, "strategy mis vs light");
@@ -166,14 +136,75 @@ TEST(Farm, MergeRefusesPartsOfDifferentRenders) {
     text.replace(at, mesh.size(), "\"" + std::string(GLIMMER_TEST_SOURCE_DIR) + "/examples/sphere.obj\"");
   const std::string other_scene = write_file("demo_moved.xml", text);
   const std::string other = (temp_dir() / "other.exr").string();
-  ASSERT_EQ(0, run_cli("render '" + other_scene + "' -o '" + other + "'" + kSmall + " --samples 4 --sample-range 2,4", out));
+  ASSERT_EQ(
+      0, run_cli("render '" + other_scene + "' -o '" + other + "'" + kSmall + " --samples 4 --sample-range 2,4", out));
   refused({a, other}, "scene hash");
   refused({a, render_to("overlap.exr", "--samples 4 --sample-range 1,4")}, "sample ranges overlap");
   refused({a, a, b}, "duplicate parts");
   refused({a}, "samples [2, 4) of pixels [0,0 - 48,32) are missing");
-  refused({render_to("t0.exr", "--samples 4 --region 0,0,48,20"), render_to("t1.exr", "--samples 4 --region 0,16,48,32")},
-          "overlap");
+  refused(
+      {render_to("t0.exr", "--samples 4 --region 0,0,48,20"), render_to("t1.exr", "--samples 4 --region 0,16,48,32")},
+      "overlap");
   refused({a, b, (temp_dir() / "missing_part.exr").string()}, "missing_part.exr");
+}
+
+// Per-frame scenes scene_0001.xml, scene_0002.xml (the demo with its mesh by absolute path).
+std::string write_frame_scenes() {
+  std::ifstream in(demo_scene());
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string mesh = "\"sphere.obj\"";
+  for (auto at = text.find(mesh); at != std::string::npos; at = text.find(mesh))
+    text.replace(at, mesh.size(), "\"" + std::string(GLIMMER_TEST_SOURCE_DIR) + "/examples/sphere.obj\"");
+  write_file("scene_0001.xml", text);
+  write_file("scene_0002.xml", text);
+  return (temp_dir() / "scene_####.xml").string();
+}
+
+TEST(Farm, SlurmDryRunPrintsAnArrayAndADependentMerge) {
+  const std::string scenes = write_frame_scenes();
+  const std::string output = (temp_dir() / "anim_####.exr").string(), work = (temp_dir() / "anim_farm").string();
+  std::string out;
+  ASSERT_EQ(0, run_cli("farm slurm '" + scenes + "' --frames 1-2 --sample-splits 3 -o '" + output + "' --workdir '" +
+                           work + "' --samples 6 --dry-run",
+                       out))
+      << out;
+  for (const std::string &want :
+       std::vector<std::string>{"#SBATCH --array=0-5\n", "FRAMES=(1 2)\nPARTS=3\n", "--sample-split \"$part/$PARTS\"",
+                                " --samples 6 ", "--checkpoint-every 60 --resume", "--dependency=afterok:<id>",
+                                "parts/part_0002_2.exr' -o '" + (temp_dir() / "anim_0002.exr").string() + "'"})
+    EXPECT_NE(out.find(want), std::string::npos) << want << "\n" << out;
+  EXPECT_FALSE(fs::exists(work)) << "--dry-run writes nothing";
+  EXPECT_EQ(1, run_cli("farm slurm '" + scenes + "' --frames 1-3 --tiles 2 -o '" + output + "' --dry-run", out));
+  EXPECT_NE(out.find("scene of frame 3 not found"), std::string::npos) << out;
+  EXPECT_EQ(1, run_cli("farm slurm '" + demo_scene() + "' --frames 1-2 --tiles 2 -o '" + output + "' --dry-run", out));
+  EXPECT_NE(out.find("scene_####.xml"), std::string::npos) << out;
+  EXPECT_EQ(1, run_cli("farm slurm '" + demo_scene() + "' -o '" + output + "' --dry-run", out));
+  EXPECT_NE(out.find("--tiles N or --sample-splits N"), std::string::npos) << out;
+}
+
+// Submission through a stand-in sbatch that records its arguments: the merge job
+// depends on the array's id (afterok) and both ids are printed.
+TEST(Farm, SlurmSubmitsTheMergeAfterTheArray) {
+  const std::string log = (temp_dir() / "sbatch_calls.txt").string();
+  fs::remove(log);
+  const std::string fake = write_file(
+      "fake_sbatch.sh", "#!/bin/sh\necho \"$@\" >> '" + log + "'\nn=$(wc -l < '" + log + "')\necho $((4000 + n))\n");
+  fs::permissions(fake, fs::perms::owner_all);
+  std::string out;
+  ASSERT_EQ(0, run_cli("farm slurm '" + demo_scene() + "' --tiles 2 -o '" + (temp_dir() / "sub.exr").string() +
+                           "' --sbatch '" + fake + "'",
+                       out))
+      << out;
+  EXPECT_NE(out.find("render job 4001 (array of 2 tasks)\nmerge job 4002 (runs after 4001 succeeds)"),
+            std::string::npos)
+      << out;
+  std::ifstream in(log);
+  std::string first, second;
+  std::getline(in, first);
+  std::getline(in, second);
+  EXPECT_EQ(first, "--parsable " + (temp_dir() / "sub.farm" / "render.sbatch").string());
+  EXPECT_EQ(second, "--parsable --dependency=afterok:4001 " + (temp_dir() / "sub.farm" / "merge.sbatch").string());
+  EXPECT_TRUE(fs::exists(temp_dir() / "sub.farm" / "parts"));
 }
 
 // Runs the CLI in the background; returns its pid.
@@ -190,10 +221,12 @@ pid_t spawn_cli(const std::string &args) {
 TEST(Farm, KilledRenderResumesToTheUninterruptedImage) {
   const std::string samples = " --samples 300";
   const std::string reference = render_to("uninterrupted.exr", samples);
-  const std::string output = (temp_dir() / "killed.exr").string(), checkpoint = (temp_dir() / "killed.checkpoint.exr").string();
+  const std::string output = (temp_dir() / "killed.exr").string(),
+                    checkpoint = (temp_dir() / "killed.checkpoint.exr").string();
   fs::remove(output);
   fs::remove(checkpoint);
-  const pid_t pid = spawn_cli("render '" + demo_scene() + "' -o '" + output + "'" + kSmall + samples + " --checkpoint-every 0");
+  const pid_t pid =
+      spawn_cli("render '" + demo_scene() + "' -o '" + output + "'" + kSmall + samples + " --checkpoint-every 0");
   ASSERT_GT(pid, 0);
   // The checkpoint is renamed into place complete, so once it exists it can be read.
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::minutes(2);
@@ -210,15 +243,16 @@ TEST(Farm, KilledRenderResumesToTheUninterruptedImage) {
   EXPECT_GE(done, 1);
   EXPECT_LT(done, 300);
   std::string out;
-  ASSERT_EQ(0, run_cli("render '" + demo_scene() + "' -o '" + output + "' --width 48 --height 32 --threads 2" + samples +
-                           " --checkpoint-every 1000 --resume", out)) << out;
+  ASSERT_EQ(0, run_cli("render '" + demo_scene() + "' -o '" + output + "' --width 48 --height 32 --threads 2" +
+                           samples + " --checkpoint-every 1000 --resume",
+                       out))
+      << out;
   EXPECT_NE(out.find("Resuming " + checkpoint + " from sample "), std::string::npos) << out;
   EXPECT_FALSE(fs::exists(checkpoint)) << "a finished render removes its checkpoint";
   const Exr a = read_exr(output), b = read_exr(reference);
-  ASSERT_EQ(a.pixels.size(), b.pixels.size());
-  EXPECT_EQ(0, std::memcmp(a.pixels.data(), b.pixels.data(), a.pixels.size() * sizeof(float))) << "not bit-identical";
+  EXPECT_TRUE(bit_identical(a, b));
   // Negative control: the checkpoint alone (fewer samples) is not the final image.
-  EXPECT_NE(0, std::memcmp(saved.pixels.data(), b.pixels.data(), std::min(saved.pixels.size(), b.pixels.size()) * sizeof(float)));
+  EXPECT_FALSE(bit_identical(saved, b));
 }
 
 TEST(Farm, ResumeRefusesACheckpointOfAnotherRender) {
@@ -228,16 +262,21 @@ TEST(Farm, ResumeRefusesACheckpointOfAnotherRender) {
   std::string out;
   // --time-limit 0 is "none"; interrupt after one pass via a tiny time limit instead, keeping the checkpoint.
   ASSERT_EQ(0, run_cli("render '" + demo_scene() + "' -o '" + output + "'" + kSmall +
-                           " --samples 50 --checkpoint-every 0 --time-limit 0.000001", out)) << out;
+                           " --samples 50 --checkpoint-every 0 --time-limit 0.000001",
+                       out))
+      << out;
   ASSERT_TRUE(fs::exists(checkpoint)) << "a time-limited render keeps its checkpoint";
-  EXPECT_EQ(1, run_cli("render '" + demo_scene() + "' -o '" + output + "'" + kSmall + " --samples 50 --seed 3 --resume", out));
+  EXPECT_EQ(1, run_cli("render '" + demo_scene() + "' -o '" + output + "'" + kSmall + " --samples 50 --seed 3 --resume",
+                       out));
   EXPECT_NE(out.find("belongs to another render (seed 0, this render 3)"), std::string::npos) << out;
 }
 
 TEST(Farm, BlenderStyleProgressLines) {
   std::string out;
   ASSERT_EQ(0, run_cli("render '" + demo_scene() + "' -o '" + (temp_dir() / "p.exr").string() +
-                           "' --width 8 --height 8 --samples 2 --frames 5 --progress-format blender", out)) << out;
+                           "' --width 8 --height 8 --samples 2 --frames 5 --progress-format blender",
+                       out))
+      << out;
   const std::regex line(R"(Fra:5 Time:\d\d:\d\d\.\d\d \| Remaining:\d\d:\d\d\.\d\d \| Sample 2/2)");
   EXPECT_TRUE(std::regex_search(out, line)) << out;
 }
