@@ -19,12 +19,12 @@ bl_info = {
 if "bpy" in locals():
     import importlib
 
-    for _module in (schema, preferences, properties, nodes, mesh_export, exporter, runner, engine, ui):  # noqa: F821
+    for _module in (schema, preferences, properties, nodes, mesh_export, exporter, runner, engine, farm, ui):  # noqa: F821
         importlib.reload(_module)
 
 import bpy
 
-from . import schema, preferences, properties, nodes, mesh_export, exporter, runner, engine, ui
+from . import schema, preferences, properties, nodes, mesh_export, exporter, runner, engine, farm, ui
 
 _schema_origin = None
 
@@ -40,6 +40,7 @@ def register():
     bpy.utils.register_class(properties.GlimmerRenderSettings)
     bpy.types.Scene.glimmer = bpy.props.PointerProperty(type=properties.GlimmerRenderSettings)
     bpy.utils.register_class(engine.GlimmerRenderEngine)
+    bpy.utils.register_class(farm.GLIMMER_OT_export_for_farm)
     for cls in ui.CLASSES:
         bpy.utils.register_class(cls)
     ui.borrow_builtin_panels()
@@ -54,6 +55,7 @@ def unregister():
     ui.return_builtin_panels()
     for cls in reversed(ui.CLASSES):
         bpy.utils.unregister_class(cls)
+    bpy.utils.unregister_class(farm.GLIMMER_OT_export_for_farm)
     bpy.utils.unregister_class(engine.GlimmerRenderEngine)
     del bpy.types.Scene.glimmer
     bpy.utils.unregister_class(properties.GlimmerRenderSettings)

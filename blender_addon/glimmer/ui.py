@@ -69,6 +69,10 @@ class GLIMMER_PT_export(GlimmerRenderPanel, bpy.types.Panel):
     bl_options = {"DEFAULT_CLOSED"}
     props = ("export_dir", "keep_export")
 
+    def draw(self, context):
+        GlimmerRenderPanel.draw(self, context)
+        self.layout.operator("glimmer.export_for_farm", icon="NETWORK_DRIVE")
+
 
 class GlimmerSurfacePanel(GlimmerPanel):
     """The node tree behind the active output's Surface input of context.<bl_context>
