@@ -5,11 +5,11 @@
 
 #include <atomic>
 #include <chrono>
-#include <filesystem>
-#include <optional>
 #include <csignal>
 #include <cstdio>
+#include <filesystem>
 #include <iostream>
+#include <optional>
 #include <sstream>
 
 #include "cli/commands.h"
@@ -124,7 +124,12 @@ int render_one(CliContext &ctx, const RenderArgs &a, const std::string &scene_pa
       if (since(last_checkpoint) < a.checkpoint_every || film.passes() == renderer->part().sample_end -
                                                                           renderer->part().sample_begin)
         return;
-      write_checkpoint(checkpoint, film, renderer->part());
+      try {
+        write_checkpoint(checkpoint, film, renderer->part());
+      } catch (const std::exception &e) {  // the render goes on; only resumability is lost
+        std::fprintf(stderr, "glimmer: warning: checkpoint not written: %s\n", e.what());
+        return;
+      }
       last_checkpoint = Clock::now();
       if (!a.quiet) std::printf("Checkpoint %d/%d %s\n", film.passes(), renderer->part().sample_end -
                                 renderer->part().sample_begin, checkpoint.c_str());

@@ -1,5 +1,6 @@
 #include "render/film.h"
 
+#include <algorithm>
 #include <cstdio>
 #include <fstream>
 #include <stdexcept>
@@ -23,6 +24,37 @@ std::string scene_file_hash(const std::string &path) {
   char text[17];
   std::snprintf(text, sizeof text, "%016llx", static_cast<unsigned long long>(h));
   return text;
+}
+
+PartInfo describe_part(const RenderOptions &options, int width, int height, int samples, uint32_t seed) {
+  PartInfo part;
+  part.scene_hash = options.scene_hash;
+  part.seed = static_cast<int>(seed);
+  part.samples_total = samples;
+  part.full_width = width;
+  part.full_height = height;
+  part.strategy = options.strategy == LightStrategy::LightOnly  ? "light"
+                  : options.strategy == LightStrategy::BsdfOnly ? "bsdf"
+                                                                : "mis";
+  part.sample_begin = options.sample_begin;
+  part.sample_end = options.sample_end;
+  if (part.sample_begin == 0 && part.sample_end == 0) part.sample_end = samples;
+  if (part.sample_begin < 0 || part.sample_end <= part.sample_begin || part.sample_end > samples)
+    throw std::invalid_argument("sample range [" + std::to_string(part.sample_begin) + ", " +
+                                std::to_string(part.sample_end) + ") is not inside the render's " +
+                                std::to_string(samples) + " samples");
+  int *w = part.window;
+  const int *r = options.region;
+  if (r[0] != 0 || r[1] != 0 || r[2] != 0 || r[3] != 0) {
+    w[0] = std::clamp(r[0], 0, width);
+    w[1] = std::clamp(r[1], 0, height);
+    w[2] = std::clamp(r[2], w[0], width);
+    w[3] = std::clamp(r[3], w[1], height);
+  } else {
+    w[2] = width;
+    w[3] = height;
+  }
+  return part;
 }
 
 Film::Film(int width, int height, bool aovs) : width_(width), height_(height), aovs_(aovs) {

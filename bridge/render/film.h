@@ -14,6 +14,7 @@
 namespace glimmer::render {
 
 struct RenderResult;
+struct RenderOptions;
 
 // Which part of which render an image holds; written as glimmer:* EXR metadata so
 // that `glimmer merge` and `--resume` can check that parts belong together.
@@ -26,6 +27,12 @@ struct PartInfo {
   int full_width = 0, full_height = 0;   // resolution of the whole image
   int window[4] = {0, 0, 0, 0};          // rendered pixels x0, y0, x1, y1 (x1, y1 exclusive)
 };
+
+// The part a render with these options covers, for an image of width x height with
+// `samples` per pixel: window from options.region (clamped; none = whole image), sample
+// range from options.sample_begin/end (both 0 = all). Throws std::invalid_argument
+// when the sample range is not inside [0, samples).
+PartInfo describe_part(const RenderOptions &options, int width, int height, int samples, uint32_t seed);
 
 // "0123456789abcdef": FNV-1a 64 of the file's bytes (what the scene hash records).
 // Throws std::runtime_error when the file cannot be read.

@@ -139,35 +139,6 @@ struct Renderer::Impl {
   // ---- Set-up ----
   PartInfo part;  // pixels and samples this render covers
 
-  void describe_part() {
-    part.scene_hash = options.scene_hash;
-    part.seed = static_cast<int>(seed);
-    part.samples_total = samples;
-    part.full_width = width;
-    part.full_height = height;
-    part.strategy = options.strategy == LightStrategy::LightOnly  ? "light"
-                    : options.strategy == LightStrategy::BsdfOnly ? "bsdf"
-                                                                  : "mis";
-    part.sample_begin = options.sample_begin;
-    part.sample_end = options.sample_end;
-    if (part.sample_begin == 0 && part.sample_end == 0) part.sample_end = samples;
-    if (part.sample_begin < 0 || part.sample_end <= part.sample_begin || part.sample_end > samples)
-      throw std::invalid_argument("sample range [" + std::to_string(part.sample_begin) + ", " +
-                                  std::to_string(part.sample_end) + ") is not inside the render's " +
-                                  std::to_string(samples) + " samples");
-    int *w = part.window;
-    const int *r = options.region;
-    if (r[0] != 0 || r[1] != 0 || r[2] != 0 || r[3] != 0) {
-      w[0] = std::clamp(r[0], 0, width);
-      w[1] = std::clamp(r[1], 0, height);
-      w[2] = std::clamp(r[2], w[0], width);
-      w[3] = std::clamp(r[3], w[1], height);
-    } else {
-      w[2] = width;
-      w[3] = height;
-    }
-  }
-
   void prepare(PhaseTimes &times) {
     auto t0 = Clock::now();
     cache_dir = host::default_host_services()->cache_dir ? host::default_host_services()->cache_dir : "";
@@ -185,7 +156,7 @@ struct Renderer::Impl {
     height = options.height > 0 ? options.height : cam.height;
     samples = options.samples > 0 ? options.samples : scene.integrator.samples;
     seed = static_cast<uint32_t>(options.seed >= 0 ? options.seed : scene.integrator.seed);
-    describe_part();
+    part = describe_part(options, width, height, samples, seed);
 
     // Feature scan: compile only the shaders that geometry, lights and the background use.
     shaders = std::make_unique<ShaderSystem>(scene, plugin, &host, warnings, features);

@@ -20,6 +20,8 @@
 #include <thread>
 #include <vector>
 
+#include "host/cli_runner.h"  // read_text
+
 namespace glimmer::test {
 
 class LocalSlurm {
@@ -47,25 +49,25 @@ class LocalSlurm {
     fs::permissions(dir_ / "munge", fs::perms::owner_all | fs::perms::group_exec | fs::perms::others_exec);
     const std::string d = dir_.string();
     if (run("mungekey --create --keyfile=" + d + "/munge/munge.key > " + d + "/log/mungekey.log 2>&1") != 0) {
-      problem = "mungekey failed: " + read(dir_ / "log/mungekey.log");
+      problem = "mungekey failed: " + read_text(dir_ / "log/mungekey.log");
       return;
     }
     socket_ = d + "/munge/munge.sock";
     if (run("munged --force -S " + socket_ + " --key-file=" + d + "/munge/munge.key --log-file=" + d +
             "/log/munged.log --pid-file=" + d + "/munge/munged.pid --seed-file=" + d + "/munge/munged.seed") != 0) {
-      problem = "munged did not start: " + read(dir_ / "log/munged.log");
+      problem = "munged did not start: " + read_text(dir_ / "log/munged.log");
       return;
     }
     pid_files_.push_back(dir_ / "munge/munged.pid");
     write_conf();
     ::setenv("SLURM_CONF", conf().c_str(), 1);
     if (run("slurmctld -f " + conf()) != 0) {
-      problem = "slurmctld did not start: " + read(dir_ / "log/slurmctld.log");
+      problem = "slurmctld did not start: " + read_text(dir_ / "log/slurmctld.log");
       return;
     }
     pid_files_.push_back(dir_ / "slurmctld.pid");
     if (run("slurmd -f " + conf() + " -N " + node_) != 0) {
-      problem = "slurmd did not start: " + read(dir_ / "log/slurmd.log");
+      problem = "slurmd did not start: " + read_text(dir_ / "log/slurmd.log");
       return;
     }
     pid_files_.push_back(dir_ / "slurmd.pid");
@@ -73,7 +75,7 @@ class LocalSlurm {
     const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
     while (capture("sinfo -h -N -o %T 2>/dev/null").find("idle") == std::string::npos) {
       if (std::chrono::steady_clock::now() > deadline) {
-        problem = "the node never became idle: " + read(dir_ / "log/slurmd.log") + read(dir_ / "log/slurmctld.log");
+        problem = "the node never became idle: " + read_text(dir_ / "log/slurmd.log") + read_text(dir_ / "log/slurmctld.log");
         return;
       }
       std::this_thread::sleep_for(std::chrono::milliseconds(200));
@@ -139,12 +141,6 @@ class LocalSlurm {
     return out;
   }
 
-  static std::string read(const std::filesystem::path &path) {
-    std::ifstream in(path);
-    std::stringstream s;
-    s << in.rdbuf();
-    return s.str();
-  }
 
  private:
   std::filesystem::path dir_;
