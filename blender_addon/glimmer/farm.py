@@ -70,6 +70,7 @@ class GLIMMER_OT_export_for_farm(bpy.types.Operator):
         directory = os.path.abspath(bpy.path.abspath(self.directory))
         frames = list(range(scene.frame_start, scene.frame_end + 1, scene.frame_step))
         export_frames(context, directory, frames, report=self.report)
+        os.makedirs(os.path.join(directory, os.path.dirname(OUTPUT_PATTERN)), exist_ok=True)
         cmd = farm_command(preferences.executable_path(), directory,
                            frame_list(scene.frame_start, scene.frame_end, scene.frame_step),
                            self.split, self.parts, scene.glimmer.samples)

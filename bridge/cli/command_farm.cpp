@@ -168,6 +168,7 @@ void add_farm_command(CLI::App &app, CliContext &ctx) {
       return;
     }
     for (const char *sub : {"", "parts", "logs"}) fs::create_directories(job.workdir / sub);
+    fs::create_directories(fs::absolute(args->output).parent_path());  // where the merge job writes
     write_text(job.render_script, job.render_text);
     write_text(job.merge_script, job.merge_text);
     const std::string render_id = submit(args->sbatch, "", job.render_script);

@@ -62,6 +62,8 @@ for want in ("farm slurm", os.path.join(out_dir, "frame_####", "scene.xml"), "--
              "--samples 3", os.path.join(out_dir, "render", "frame_####.exr")):
     check(want in text, "%r in %s:\n%s" % (want, command_file, text))
 
+check(os.path.isdir(os.path.join(out_dir, "render")), "the folder of the merged frames exists")
+
 # The farm command accepts the export (every frame's scene found) and prints the job array.
 run = subprocess.run(["sh", command_file, "--dry-run"], capture_output=True, text=True, timeout=60)
 check(run.returncode == 0, "dry run failed:\n%s%s" % (run.stdout, run.stderr))

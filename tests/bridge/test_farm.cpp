@@ -200,9 +200,10 @@ TEST(Farm, SlurmSubmitsTheMergeAfterTheArray) {
       "fake_sbatch.sh", "#!/bin/sh\necho \"$@\" >> '" + log + "'\nn=$(wc -l < '" + log + "')\necho $((4000 + n))\n");
   fs::permissions(fake, fs::perms::owner_all);
   std::string out;
-  ASSERT_EQ(0, run_cli("farm slurm '" + demo_scene() + "' --tiles 2 -o '" + (temp_dir() / "sub.exr").string() +
-                           "' --sbatch '" + fake + "'",
-                       out))
+  ASSERT_EQ(
+      0, run_cli("farm slurm '" + demo_scene() + "' --tiles 2 -o '" + (temp_dir() / "new_folder" / "sub.exr").string() +
+                     "' --workdir '" + (temp_dir() / "sub_work").string() + "' --sbatch '" + fake + "'",
+                 out))
       << out;
   EXPECT_NE(out.find("render job 4001 (array of 2 tasks)\nmerge job 4002 (runs after 4001 succeeds)"),
             std::string::npos)
@@ -211,9 +212,10 @@ TEST(Farm, SlurmSubmitsTheMergeAfterTheArray) {
   std::string first, second;
   std::getline(in, first);
   std::getline(in, second);
-  EXPECT_EQ(first, "--parsable " + (temp_dir() / "sub.farm" / "render.sbatch").string());
-  EXPECT_EQ(second, "--parsable --dependency=afterok:4001 " + (temp_dir() / "sub.farm" / "merge.sbatch").string());
-  EXPECT_TRUE(fs::exists(temp_dir() / "sub.farm" / "parts"));
+  EXPECT_EQ(first, "--parsable " + (temp_dir() / "sub_work" / "render.sbatch").string());
+  EXPECT_EQ(second, "--parsable --dependency=afterok:4001 " + (temp_dir() / "sub_work" / "merge.sbatch").string());
+  EXPECT_TRUE(fs::exists(temp_dir() / "sub_work" / "parts"));
+  EXPECT_TRUE(fs::is_directory(temp_dir() / "new_folder")) << "the merge job's output folder is created";
 }
 
 // Runs the CLI in the background; returns its pid.
