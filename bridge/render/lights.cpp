@@ -282,10 +282,10 @@ Spectrum LightSet::triangle_emission(const Entry &l, const Vec3 &, float b1, flo
   return L;
 }
 
-bool LightSet::sample(float select, float u, float v, const Vec3 &P, LightSample &out) const {
+bool LightSet::sample(float u, float v, const Vec3 &P, LightSample &out) const {
   if (lights_.empty()) return false;
-  float remapped;
-  const int index = pick_.sample(select, remapped);
+  // u picks the light and is rescaled within its bin for the point on it (stratification kept).
+  const int index = pick_.sample(u, u);
   const float pick = pick_probability(index);
   const Entry &l = lights_[index];
   switch (l.kind) {

@@ -77,7 +77,8 @@ class LightSet {
            float radius, FeatureSet &features, std::vector<std::string> &warnings);
 
   int count() const { return static_cast<int>(lights_.size()); }
-  bool sample(float select, float u, float v, const Vec3 &P, LightSample &out) const;
+  // u picks the light (power CDF) and, rescaled within the light's share, with v places the point on it.
+  bool sample(float u, float v, const Vec3 &P, LightSample &out) const;
   // Lamps hit by a ray before t_max, and the sun disk when the ray escapes.
   // Lamps hit by the ray (o, d) before t_max; camera_ray: the ray comes from the camera (through transparent
   // surfaces only), so lamps with use_camera = false are skipped as in Cycles' lights_intersect.

@@ -124,11 +124,12 @@ class MicrofacetConductorClosure {
       out.label = GLIMMER_LABEL_REFLECT | GLIMMER_LABEL_SINGULAR;
       return true;
     }
-    const float p_ms = ms_probability(wi.z);
-    if (rand.z < p_ms) {
-      out.wo = sample_cosine_hemisphere(rand.x, rand.y);
+    // Lobe choice on rand.x, rescaled and reused for the direction (keeps the 2D point stratified).
+    float u = rand.x;
+    if (choose_and_rescale(ms_probability(wi.z), u)) {
+      out.wo = sample_cosine_hemisphere(u, rand.y);
     } else {
-      const Vec3 m = mf::sample_visible_normal(dist_, wi, ax_, ay_, rand.x, rand.y);
+      const Vec3 m = mf::sample_visible_normal(dist_, wi, ax_, ay_, u, rand.y);
       out.wo = normalize(mf::reflect_about(wi, m));
     }
     if (!(out.wo.z > 0.0f)) return false;

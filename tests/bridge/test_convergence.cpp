@@ -1,10 +1,14 @@
 // Convergence of the sampler on smooth integrands: a sphere filling the frame
-// under a constant white world, one closure per test. With the discrete
+// under a constant white world, one closure per scene. With the discrete
 // choices (closure in a mixture, single- vs multiple-scattering lobe, reflect
-// vs refract, light) reusing the stratified sample they split, RMSE falls with
-// spp about as fast for multi_ggx and glass as for plain GGX (~ -0.8); a choice
-// drawn from another dimension pair decorrelates it and falls back to -0.5.
-// Also: the slope fit itself, on exact power laws.
+// vs refract) reusing the stratified sample they split, RMSE falls with spp as
+// fast for multi_ggx, the 50/50 mix and glass as for plain GGX (about -1); a
+// choice drawn from another dimension set decorrelates it and falls back to
+// -0.5 (measured before the change: multi_ggx -0.50, mix -0.50, glass at one
+// scattering event -0.5). Glass is measured at one scattering event
+// (max_bounce 0): paths inside the glass are many-bounce, high-dimensional
+// integrals that no padded sampler stratifies (full depth: about -0.55, see
+// docs/architecture.md "Sample dimensions"). Also: the slope fit itself.
 #include <cmath>
 
 #include "render/convergence.h"
@@ -15,7 +19,8 @@ namespace {
 
 // A unit UV sphere (smooth, exact normals) 4 units in front of the camera; the 0.3 rad view
 // keeps every pixel on the sphere (corner ray 0.21 rad < asin(1/4) = 0.25 rad).
-std::string white_world_sphere(const std::string &name, const std::string &shader_nodes) {
+std::string white_world_sphere(const std::string &name, const std::string &shader_nodes,
+                               const std::string &integrator_attributes) {
   const int rings = 48, segments = 96;
   std::string P, N, verts, nverts;
   char buf[96];
@@ -36,7 +41,8 @@ std::string white_world_sphere(const std::string &name, const std::string &shade
       nverts += "4 ";
     }
   return write_file(name, "<cycles>\n<camera width=\"32\" height=\"32\" fov=\"0.3\" />\n<camera />\n"
-                          "<integrator sample_clamp_direct=\"0\" sample_clamp_indirect=\"0\" filter_glossy=\"0\" />\n"
+                          "<integrator sample_clamp_direct=\"0\" sample_clamp_indirect=\"0\" filter_glossy=\"0\" " +
+                              integrator_attributes + " />\n"
                           "<background><background name=\"bg\" color=\"1 1 1\" strength=\"1\" />"
                           "<connect from=\"bg background\" to=\"output surface\" /></background>\n"
                           "<shader name=\"s\">" + shader_nodes + "</shader>\n"
@@ -44,8 +50,8 @@ std::string white_world_sphere(const std::string &name, const std::string &shade
                               nverts + "\" verts=\"" + verts + "\" /></state>\n</cycles>\n");
 }
 
-double slope_of(const std::string &label, const std::string &shader_nodes) {
-  const scene::Scene scene = scene::load_scene(white_world_sphere(label + ".xml", shader_nodes));
+double slope_of(const std::string &label, const std::string &shader_nodes, const std::string &integrator_attributes = "") {
+  const scene::Scene scene = scene::load_scene(white_world_sphere(label + ".xml", shader_nodes, integrator_attributes));
   render::ConvergenceOptions opt;
   opt.ladder = {16, 32, 64, 128, 256};
   opt.reference_samples = 2048;
@@ -58,7 +64,18 @@ double slope_of(const std::string &label, const std::string &shader_nodes) {
 
 const char *kGgx = "<glossy_bsdf name=\"b\" distribution=\"ggx\" roughness=\"0.9\" color=\"1 1 1\" />"
                    "<connect from=\"b bsdf\" to=\"output surface\" />";
+const char *kMultiGgx = "<glossy_bsdf name=\"b\" distribution=\"multi_ggx\" roughness=\"0.9\" color=\"1 1 1\" />"
+                        "<connect from=\"b bsdf\" to=\"output surface\" />";
+const char *kGlassGgx = "<glass_bsdf name=\"b\" distribution=\"ggx\" roughness=\"0.6\" IOR=\"1.5\" color=\"1 1 1\" />"
+                        "<connect from=\"b bsdf\" to=\"output surface\" />";
+const char *kGlassMultiGgx = "<glass_bsdf name=\"b\" distribution=\"multi_ggx\" roughness=\"0.6\" IOR=\"1.5\" "
+                             "color=\"1 1 1\" /><connect from=\"b bsdf\" to=\"output surface\" />";
 const char *kDiffuse = "<diffuse_bsdf name=\"b\" color=\"0.8 0.8 0.8\" /><connect from=\"b bsdf\" to=\"output surface\" />";
+
+const char *kMix = "<diffuse_bsdf name=\"d\" color=\"0.8 0.8 0.8\" />"
+                   "<glossy_bsdf name=\"g\" distribution=\"ggx\" roughness=\"0.9\" color=\"1 1 1\" />"
+                   "<mix_closure name=\"m\" fac=\"0.5\" /><connect from=\"d bsdf\" to=\"m closure1\" />"
+                   "<connect from=\"g bsdf\" to=\"m closure2\" /><connect from=\"m closure\" to=\"output surface\" />";
 
 TEST(Convergence, SlopeFitRecoversExactPowerLaws) {
   const std::vector<double> spp{16, 32, 64, 128, 256};
@@ -71,10 +88,17 @@ TEST(Convergence, SlopeFitRecoversExactPowerLaws) {
   EXPECT_THROW(render::fit_loglog_slope({4.0, 4.0}, {1.0, 2.0}), std::invalid_argument);
 }
 
-// Camera, one BSDF sample and one light sample are each a 2D integral: QMC rate.
-TEST(Convergence, SingleLobeClosuresConvergeFasterThanMonteCarlo) {
-  EXPECT_LT(slope_of("conductor_ggx", kGgx), -0.75);
-  EXPECT_LT(slope_of("diffuse", kDiffuse), -0.75);
+// Camera, one BSDF sample and one light sample are each a 2D integral: QMC rate. One test: the slopes
+// are compared with plain GGX's.
+TEST(Convergence, WhiteWorldSphereSlopes) {
+  const double ggx = slope_of("conductor_ggx", kGgx);
+  EXPECT_LT(ggx, -0.8);
+  EXPECT_LT(slope_of("diffuse", kDiffuse), -0.8);
+  EXPECT_LT(slope_of("conductor_multi_ggx", kMultiGgx), ggx + 0.1);
+  EXPECT_LT(slope_of("mix_diffuse_ggx", kMix), ggx + 0.1);
+  const std::string one_event = "max_bounce=\"0\"";
+  EXPECT_LT(slope_of("glass_ggx_one_event", kGlassGgx, one_event), ggx + 0.1);
+  EXPECT_LT(slope_of("glass_multi_ggx_one_event", kGlassMultiGgx, one_event), ggx + 0.1);
 }
 
 }  // namespace
