@@ -23,8 +23,7 @@ constexpr uint32_t reverse_bits(uint32_t x) {
   x = ((x >> 1) & 0x55555555u) | ((x & 0x55555555u) << 1);
   x = ((x >> 2) & 0x33333333u) | ((x & 0x33333333u) << 2);
   x = ((x >> 4) & 0x0f0f0f0fu) | ((x & 0x0f0f0f0fu) << 4);
-  x = ((x >> 8) & 0x00ff00ffu) | ((x & 0x00ff00ffu) << 8);
-  return (x >> 16) | (x << 16);
+  return __builtin_bswap32(x);  // the byte swap does the last two steps in one instruction
 }
 
 // Laine-Karras style hash permutation of the reversed bits (Burley 2020, sec. 3): bit k of the result
@@ -36,9 +35,6 @@ constexpr uint32_t laine_karras_permutation(uint32_t x, uint32_t seed) {
   x ^= x * 0xc7afe638u;
   x ^= x * 0x8d22f6e6u;
   return x;
-}
-constexpr uint32_t nested_uniform_scramble(uint32_t x, uint32_t seed) {
-  return reverse_bits(laine_karras_permutation(reverse_bits(x), seed));
 }
 
 // Sobol direction numbers v_k = m_k 2^(32-k) of the first four dimensions (Joe & Kuo 2008,
@@ -85,8 +81,11 @@ constexpr uint32_t sobol_by_matrix(int dim, uint32_t i) {
   return r;
 }
 
-// Byte tables of the bit-reversed generator matrix columns: reverse_bits(sobol(dim, i)) is the XOR of
-// table[dim][b][byte b of i] over the four bytes of i.
+// Byte tables of the generator matrices for an index given in bit-reversed order r = reverse_bits(i), with
+// bit-reversed columns: reverse_bits(sobol(dim, i)) is the XOR of table[dim][b][byte b of r] over the four
+// bytes of r (bit j of r is bit 31 - j of i, whose column is v_{31-j}). The shuffled index comes out of the
+// Laine-Karras permutation in that order, and the scramble that follows works on reversed bits too, so
+// neither needs a reversal.
 struct SobolTables {
   uint32_t reversed[kSobolDimensions][4][256];
 };
@@ -98,7 +97,7 @@ constexpr SobolTables make_sobol_tables() {
       for (uint32_t byte = 0; byte < 256u; ++byte) {
         uint32_t r = 0u;
         for (int bit = 0; bit < 8; ++bit)
-          if ((byte >> bit) & 1u) r ^= reverse_bits(v[8 * b + bit]);
+          if ((byte >> bit) & 1u) r ^= reverse_bits(v[31 - (8 * b + bit)]);
         t.reversed[d][b][byte] = r;
       }
   }
@@ -106,14 +105,18 @@ constexpr SobolTables make_sobol_tables() {
 }
 inline constexpr SobolTables kSobolTables = make_sobol_tables();
 
-inline uint32_t sobol_reversed(int dim, uint32_t i) {
+// reverse_bits(sobol(dim, reverse_bits(index_reversed))).
+inline uint32_t sobol_reversed(int dim, uint32_t index_reversed) {
   const auto &t = kSobolTables.reversed[dim];
-  return t[0][i & 0xffu] ^ t[1][(i >> 8) & 0xffu] ^ t[2][(i >> 16) & 0xffu] ^ t[3][i >> 24];
+  const uint32_t r = index_reversed;
+  return t[0][r & 0xffu] ^ t[1][(r >> 8) & 0xffu] ^ t[2][(r >> 16) & 0xffu] ^ t[3][r >> 24];
 }
 
-// Scramble seed of dimension d of a set (one cheap mix of the set seed per dimension).
+// Scramble seed of dimension d of a set: the (already hashed) set seed times a per-dimension odd constant,
+// a bijection, so every dimension's seed is as uniform as the set seed.
 constexpr uint32_t dimension_seed(uint32_t set_seed, int d) {
-  return hash_u32(set_seed ^ (0x9e3779b9u * static_cast<uint32_t>(d + 1)));
+  constexpr uint32_t kOdd[kSobolDimensions] = {0x9e3779b9u, 0x85ebca6bu, 0xc2b2ae35u, 0x27d4eb2fu};
+  return set_seed * kOdd[d];
 }
 
 // Dimension sets (Cycles' PRNG_* layout in spirit; docs/architecture.md "Sample dimensions"). A set is
@@ -145,11 +148,11 @@ struct PixelSampler {
   void get(uint32_t set, float (&out)[N]) const {
     static_assert(N >= 1 && N <= kSobolDimensions);
     const uint32_t set_seed = hash_combine(pixel_seed, set);
-    // Shuffled index (Burley 2020, sec. 4): a nested uniform scramble of the sample index.
-    const uint32_t index = reverse_bits(laine_karras_permutation(sample_reversed, set_seed));
+    // Shuffled index (Burley 2020, sec. 4): a nested uniform scramble of the sample index, kept reversed.
+    const uint32_t index_reversed = laine_karras_permutation(sample_reversed, set_seed);
     for (int d = 0; d < N; ++d) {
-      const uint32_t x = reverse_bits(laine_karras_permutation(sobol_reversed(d, index), dimension_seed(set_seed, d)));
-      out[d] = uint_to_unit_float(x);
+      const uint32_t x = laine_karras_permutation(sobol_reversed(d, index_reversed), dimension_seed(set_seed, d));
+      out[d] = uint_to_unit_float(reverse_bits(x));
     }
   }
   void get2(uint32_t set, float &u, float &v) const {

@@ -29,7 +29,7 @@ TEST(Sampler, GeneratorTablesMatchTheRecurrence) {
     const uint32_t i = n < 1000 ? static_cast<uint32_t>(n) : rng.next_u32();
     EXPECT_EQ(sobol_by_matrix(0, i), reverse_bits(i));
     EXPECT_EQ(sobol_by_matrix(1, i), sobol_dim1_bitwise(i));
-    for (int d = 0; d < kSobolDimensions; ++d) ASSERT_EQ(sobol_reversed(d, i), reverse_bits(sobol_by_matrix(d, i)));
+    for (int d = 0; d < kSobolDimensions; ++d) ASSERT_EQ(sobol_reversed(d, reverse_bits(i)), reverse_bits(sobol_by_matrix(d, i)));
   }
   // Known points (Joe & Kuo): index 1 -> all 1/2; index 2 -> (1/4, 3/4, 3/4, 3/4); index 3 -> (3/4, 1/4, 1/4, 1/4).
   for (int d = 0; d < 4; ++d) {
