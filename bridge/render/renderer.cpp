@@ -175,7 +175,9 @@ struct Renderer::Impl {
       scene_center = (lo + hi) * 0.5f;
       scene_radius = std::max(length(hi - lo) * 0.5f, 1e-3f);
     }
-    lights = std::make_unique<LightSet>(scene, *shaders, mesh_shader, scene_center, scene_radius, features, warnings);
+    lights = std::make_unique<LightSet>(scene, *shaders, mesh_shader, scene_center, scene_radius,
+                                        constant_world_sampling(features, options.strategy == LightStrategy::LightOnly),
+                                        features, warnings);
     times.prepare = seconds_since(t0);
 
     t0 = Clock::now();
