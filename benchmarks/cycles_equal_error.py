@@ -15,7 +15,6 @@ which separates its noise from model differences), and the equal-error time rati
   time_glimmer / time_cycles x (rmse_glimmer / rmse_cycles)^2  (< 1: Glimmer reaches the same error sooner).
 """
 import argparse
-import math
 import os
 import subprocess
 import sys
@@ -27,6 +26,7 @@ import numpy as np
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(os.path.dirname(HERE), "tests", "addon"))
 import addon_test_util as util  # noqa: E402
+from scene_build_util import add_camera, add_plane, add_sphere, load_pixels, material  # noqa: E402
 
 argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
 parser = argparse.ArgumentParser()
@@ -114,46 +114,6 @@ def write_hdr(path, w=256, h=128):
     img.save()
 
 
-def add_camera(scene, location, rotation_deg, lens=50.0):
-    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
-    cam.data.lens = lens
-    cam.location = location
-    cam.rotation_euler = [math.radians(a) for a in rotation_deg]
-    scene.collection.objects.link(cam)
-    scene.camera = cam
-
-
-def material(name, kind, color=(0.8, 0.8, 0.8), **inputs):
-    mat = bpy.data.materials.new(name)
-    mat.use_nodes = True
-    tree = mat.node_tree
-    for n in list(tree.nodes):
-        if n.bl_idname != "ShaderNodeOutputMaterial":
-            tree.nodes.remove(n)
-    node = tree.nodes.new(kind)
-    node.inputs["Color"].default_value = (*color, 1.0)
-    for key, value in inputs.items():
-        if key == "distribution":
-            node.distribution = value
-        else:
-            node.inputs[key].default_value = value
-    tree.links.new(node.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
-    return mat
-
-
-def add_plane(size, location=(0, 0, 0), rotation_deg=(0, 0, 0), mat=None):
-    bpy.ops.mesh.primitive_plane_add(size=size, location=location, rotation=[math.radians(a) for a in rotation_deg])
-    obj = bpy.context.active_object
-    if mat is not None:
-        obj.data.materials.append(mat)
-
-
-def add_sphere(radius, location, mat):
-    bpy.ops.mesh.primitive_uv_sphere_add(radius=radius, location=location, segments=64, ring_count=32)
-    bpy.ops.object.shade_smooth()
-    bpy.context.active_object.data.materials.append(mat)
-
-
 def scene_a(samples):
     scene = new_scene(samples)
     set_world_color(scene, (1.0, 1.0, 1.0))
@@ -198,13 +158,6 @@ def scene_c(samples):
 BUILD = {"a": scene_a, "b": scene_b, "c": scene_c}
 
 
-def load_rgb(path):
-    img = bpy.data.images.load(path)
-    px = np.array(img.pixels[:], dtype=np.float64).reshape(img.size[1], img.size[0], 4)
-    bpy.data.images.remove(img)
-    return px[::-1, :, :3]
-
-
 def render_cycles(name, seed):
     scene = bpy.context.scene
     scene.render.engine = "CYCLES"
@@ -214,7 +167,7 @@ def render_cycles(name, seed):
     bpy.ops.render.render()
     seconds = time.time() - t0
     bpy.data.images["Render Result"].save_render(path, scene=scene)
-    return load_rgb(path), seconds
+    return load_pixels(path), seconds
 
 
 def render_glimmer(name, seed):
@@ -235,7 +188,7 @@ def render_glimmer(name, seed):
     rgba = os.path.join(opts.out, name + "_rgba.exr")
     subprocess.run(["oiiotool", exr, "--ch", ",".join(order), "--chnames", "R,G,B,A", "-d", "float", "-o", rgba],
                    check=True)
-    return load_rgb(rgba), seconds
+    return load_pixels(rgba), seconds
 
 
 TIMES = {}
@@ -254,8 +207,9 @@ for key in opts.scenes.split(","):
     cyc, t_c = render_cycles("%s_cycles" % key, 1)
     glim, t_g = render_glimmer("%s_glimmer" % key, 1)
     e_c, e_g, e_g_own = rmse(cyc, ref_c), rmse(glim, ref_c), rmse(glim, ref_g)
-    ratio = t_g / t_c * (e_g / e_c) ** 2
-    ratio_own = t_g / t_c * (e_g_own / e_c) ** 2
+    # Cycles can be exactly noise-free (its white multiscatter walk in a white world): the ratio is then infinite.
+    ratio = t_g / t_c * (e_g / e_c) ** 2 if e_c > 0 else float("inf")
+    ratio_own = t_g / t_c * (e_g_own / e_c) ** 2 if e_c > 0 else float("inf")
     t_g_render = TIMES["%s_glimmer" % key][1]
     line = ("scene %s %dx%d %d spp: cycles %.2f s rmse %.5f | glimmer %.2f s (render phase %.2f s) rmse %.5f "
             "(vs own ref %.5f) | "
