@@ -1,3 +1,6 @@
+// `glimmer bench convergence`: RMSE vs spp and vs time of one scene against a
+// high-spp reference of the same renderer, with the fitted log-log slopes
+// (render/convergence.h).
 // `glimmer bench error-vs-time`: time-vs-error comparison of glint methods.
 // For a scene using glint_bsdf, renders variants of it (glint_bsdf rewritten
 // per method) at a ladder of sample counts by running `glimmer render` as a
@@ -21,7 +24,11 @@
 #include <sstream>
 #include <unistd.h>
 
+#include <tbb/global_control.h>
+
 #include "cli/commands.h"
+#include "render/convergence.h"
+#include "scene/xml_loader.h"
 
 namespace glimmer::cli {
 namespace {
@@ -311,6 +318,58 @@ void report(const std::vector<Row> &rows, const std::vector<std::string> &method
   }
 }
 
+struct ConvergenceArgs {
+  std::string scene;
+  std::string ladder = "16,32,64,128,256";
+  int reference_samples = 4096;
+  int width = 0, height = 0, threads = 0, seed = 1;
+  std::string csv;
+};
+
+void run_convergence(const ConvergenceArgs &a, CliContext &ctx) {
+  scene::Scene scene;
+  try {
+    scene = scene::load_scene(a.scene);
+  } catch (const scene::SceneError &e) {
+    throw CliError(kExitBadInput, e.what());
+  }
+  render::ConvergenceOptions opt;
+  opt.ladder.clear();
+  for (const auto &s : split(a.ladder, ',')) {
+    try {
+      opt.ladder.push_back(std::stoi(s));
+    } catch (const std::exception &) {
+      throw CliError(kExitBadInput, "bench convergence: --samples: '" + s + "' is not a sample count");
+    }
+  }
+  opt.reference_samples = a.reference_samples;
+  opt.width = a.width;
+  opt.height = a.height;
+  opt.seed = a.seed;
+  std::unique_ptr<tbb::global_control> threads;
+  if (a.threads > 0)
+    threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                                    static_cast<size_t>(a.threads));
+  render::ConvergenceResult r;
+  try {
+    r = render::measure_convergence(scene, ctx.plugin(), opt);
+  } catch (const std::invalid_argument &e) {
+    throw CliError(kExitBadInput, std::string("bench convergence: ") + e.what());
+  } catch (const scene::SceneError &e) {
+    throw CliError(kExitBadInput, e.what());
+  }
+  std::printf("reference: %d spp, %.3f s\n", a.reference_samples, r.reference_seconds);
+  std::printf("%8s %10s %12s\n", "spp", "seconds", "rmse");
+  for (const auto &p : r.points) std::printf("%8d %10.4f %12.6g\n", p.samples, p.seconds, p.rmse);
+  std::printf("slope vs spp: %.3f\nslope vs time: %.3f\n", r.slope_spp, r.slope_time);
+  if (!a.csv.empty()) {
+    std::ofstream f(a.csv);
+    if (!f) throw CliError(kExitBadInput, "cannot write " + a.csv);
+    f << "samples,seconds,rmse\n";
+    for (const auto &p : r.points) f << p.samples << "," << p.seconds << "," << p.rmse << "\n";
+  }
+}
+
 }  // namespace
 
 void add_bench_command(CLI::App &app, CliContext &ctx) {
@@ -330,6 +389,20 @@ void add_bench_command(CLI::App &app, CliContext &ctx) {
   evt->add_option("--name", args->name, "base name of the CSV and PNG files");
   evt->add_option("--from-csv", args->from_csv, "only re-plot (and report on) an existing CSV");
   evt->callback([args, &ctx] { run(*args, ctx); });
+
+  auto cargs = std::make_shared<ConvergenceArgs>();
+  auto *conv = bench->add_subcommand("convergence", "RMSE vs spp and vs time against a high-spp reference of the same "
+                                                    "renderer, with the fitted log-log slopes");
+  conv->add_option("scene", cargs->scene, "scene file")->required();
+  conv->add_option("--samples", cargs->ladder, "comma list of samples per pixel (the ladder)");
+  conv->add_option("--reference-samples", cargs->reference_samples, "samples of the reference (above the ladder)")
+      ->check(CLI::Range(2, 1 << 24));
+  conv->add_option("--width", cargs->width, "image width (0 = the camera's)")->check(CLI::Range(0, 65536));
+  conv->add_option("--height", cargs->height, "image height (0 = the camera's)")->check(CLI::Range(0, 65536));
+  conv->add_option("--threads", cargs->threads, "render threads (0 = all cores)")->check(CLI::Range(0, 4096));
+  conv->add_option("--seed", cargs->seed, "sampling seed of the ladder (the reference uses seed + 7919)");
+  conv->add_option("--csv", cargs->csv, "also write samples,seconds,rmse to this CSV");
+  conv->callback([cargs, &ctx] { run_convergence(*cargs, ctx); });
 }
 
 }  // namespace glimmer::cli

@@ -69,8 +69,15 @@ float FilmFilter::offset(float u) const {
 }
 
 // ---- Lights ----
+ConstantWorld constant_world_sampling(const FeatureSet &features, bool light_only) {
+  if (light_only) return ConstantWorld::AsLight;
+  for (const std::string &closure : features.closures)
+    if (closure != "diffuse" && closure != "emission") return ConstantWorld::AsLight;
+  return ConstantWorld::BsdfOnly;
+}
+
 LightSet::LightSet(const scene::Scene &scene, ShaderSystem &shaders, const std::vector<int> &mesh_shader, Vec3 center,
-                   float radius, FeatureSet &features, std::vector<std::string> &warnings)
+                   float radius, ConstantWorld constant_world, FeatureSet &features, std::vector<std::string> &warnings)
     : scene_(scene), shaders_(shaders), mesh_shader_(mesh_shader) {
   (void)center;
   (void)warnings;
@@ -160,8 +167,8 @@ LightSet::LightSet(const scene::Scene &scene, ShaderSystem &shaders, const std::
       features.emissive_triangles++;
     }
   }
-  // Background.
-  if (shaders.has_background()) {
+  // Background (a constant one only on request, see ConstantWorld).
+  if (shaders.has_background() && (!shaders.background_is_constant() || constant_world == ConstantWorld::AsLight)) {
     Entry e;
     e.kind = Kind::Background;
     background_light_ = static_cast<int>(lights_.size());
@@ -282,10 +289,10 @@ Spectrum LightSet::triangle_emission(const Entry &l, const Vec3 &, float b1, flo
   return L;
 }
 
-bool LightSet::sample(float select, float u, float v, const Vec3 &P, LightSample &out) const {
+bool LightSet::sample(float u, float v, const Vec3 &P, LightSample &out) const {
   if (lights_.empty()) return false;
-  float remapped;
-  const int index = pick_.sample(select, remapped);
+  // u picks the light and is rescaled within its bin for the point on it (stratification kept).
+  const int index = pick_.sample(u, u);
   const float pick = pick_probability(index);
   const Entry &l = lights_[index];
   switch (l.kind) {

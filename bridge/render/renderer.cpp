@@ -179,7 +179,9 @@ struct Renderer::Impl {
       scene_center = (lo + hi) * 0.5f;
       scene_radius = std::max(length(hi - lo) * 0.5f, 1e-3f);
     }
-    lights = std::make_unique<LightSet>(scene, *shaders, mesh_shader, scene_center, scene_radius, features, warnings);
+    lights = std::make_unique<LightSet>(scene, *shaders, mesh_shader, scene_center, scene_radius,
+                                        constant_world_sampling(features, options.strategy == LightStrategy::LightOnly),
+                                        features, warnings);
     times.prepare = seconds_since(t0);
 
     t0 = Clock::now();
@@ -456,13 +458,13 @@ struct Renderer::Impl {
 
     // Camera ray through the filter-importance-sampled film position.
     float fu, fv;
-    sampler.get2(kPairFilm, fu, fv);
+    sampler.get2(kSetFilm, fu, fv);
     const float ox = filter.offset(fu), oy = filter.offset(fv);
     Vec3 D, org;
     Differentials rd;
     float cam_dir_z = 1.0f;
     float lens_u = 0.5f, lens_v = 0.5f;
-    if (scene.camera.aperture_size > 0.0f) sampler.get2(kPairLens, lens_u, lens_v);
+    if (scene.camera.aperture_size > 0.0f) sampler.get2(kSetLens, lens_u, lens_v);
     camera_ray(px + 0.5f + ox, py + 0.5f + oy, org, D, rd, cam_dir_z, lens_u, lens_v);
     float tmin = scene.camera.nearclip / std::max(cam_dir_z, 1e-6f);
     float tmax = scene.camera.farclip / std::max(cam_dir_z, 1e-6f);
@@ -567,8 +569,11 @@ struct Renderer::Impl {
       if (terminate_next) break;
 
       // Russian roulette (Cycles' path_state_continuation_probability).
-      float ru, rr;
-      sampler.get2(bounce_pair(bounce, kPairBsdfTerminate), ru, rr);
+      // The bounce's 4D BSDF set: x, y (closure pick, then the closure's direction), z (its third number),
+      // rr (Russian roulette); docs/architecture.md "Sample dimensions".
+      float bsdf_rand[4];
+      sampler.get_bsdf(bounce, bsdf_rand);
+      const float rr = bsdf_rand[3];
       if (bounce > limit_min_bounce) {
         const float q = std::min(std::sqrt(max_component(abs(throughput))), 1.0f);
         if (q <= 0.0f || rr >= q) break;
@@ -579,18 +584,15 @@ struct Renderer::Impl {
       const float total_sw = cs.sum_sample_weight + transparent_weight;
       if (total_sw <= 0.0f) break;
 
-      float select_light, select_closure;
-      sampler.get2(bounce_pair(bounce, kPairSelect), select_light, select_closure);
-
       // Next-event estimation (skipped when only singular closures are present).
       bool any_smooth = false;
       for (int i = 0; i < cs.count; ++i)
         if (cs.closures[i].sample_weight > 0.0f && !cs.closures[i].leaf->singular) any_smooth = true;
       if (use_nee && any_smooth && lights->count() > 0) {
         float lu, lv;
-        sampler.get2(bounce_pair(bounce, kPairLight), lu, lv);
+        sampler.get_light(bounce, lu, lv);
         LightSample ls;
-        if (lights->sample(select_light, lu, lv, sd.ctx.P, ls) && ls.pdf > 0.0f) {
+        if (lights->sample(lu, lv, sd.ctx.P, ls) && ls.pdf > 0.0f) {
           const bool transmit_side = dot(ls.wi, sd.Ng) < 0.0f;
           (void)transmit_side;
           MixtureEval me = eval_mixture(cs, sd, ls.wi);
@@ -606,8 +608,9 @@ struct Renderer::Impl {
         }
       }
 
-      // Pick a closure by sample weight (or the transparent pass-through).
-      float pick = select_closure * total_sw;
+      // Pick a closure by sample weight (or the transparent pass-through) with x, which is then rescaled
+      // to the chosen closure's share and reused for its direction (stratification kept).
+      float pick = bsdf_rand[0] * total_sw;
       if (pick < transparent_weight) {
         // Transparent: continue straight on; does not count as a bounce.
         throughput *= cs.transparent / (transparent_weight / total_sw);
@@ -627,9 +630,7 @@ struct Renderer::Impl {
       }
       if (chosen < 0) break;
       const ActiveClosure &c = cs.closures[chosen];
-      float r3[3];
-      sampler.get2(bounce_pair(bounce, kPairBsdf), r3[0], r3[1]);
-      r3[2] = ru;
+      const float r3[3] = {std::clamp(pick / c.sample_weight, 0.0f, 0x1.fffffep-1f), bsdf_rand[1], bsdf_rand[2]};
       GlimmerSample s{};
       const uint32_t label = c.instance->sample(context_for(sd, *c.leaf), r3, s);
       if (label == GLIMMER_LABEL_NONE || !(s.pdf > 0.0f) || !std::isfinite(s.pdf)) break;

@@ -1,26 +1,34 @@
-// Deterministic low-discrepancy sampling from (seed, pixel, sample, dimension):
-// 2D Owen-scrambled Sobol points with a per-dimension-pair shuffled index
-// (Burley 2020, "Practical Hash-based Owen Scrambling", JCGT 9(4)). Every value
-// is a pure function of its arguments, so images do not depend on thread count
-// or tile size.
+// Deterministic low-discrepancy sampling from (seed, pixel, sample, dimension set):
+// Owen-scrambled Sobol points with a per-set shuffled index (Burley 2020,
+// "Practical Hash-based Owen Scrambling", JCGT 9(4)). A set is 2 or 4 jointly
+// stratified dimensions (the first Sobol dimensions); sets are decorrelated
+// from each other by their own index shuffle and scrambles ("padding").
+// Every value is a pure function of its arguments, so images do not depend on
+// thread count or tile size.
+//
+// Cost: the Sobol generator matrices of the four dimensions are precomputed
+// (compile time) as byte tables of the bit-reversed columns, so a dimension is
+// four table look-ups, one Laine-Karras permutation and one bit reversal; a set
+// costs one seed hash and one index shuffle for all its dimensions.
 #pragma once
 
+#include <array>
 #include <cstdint>
 
 #include "glimmer/rng.h"
 
 namespace glimmer::render {
 
-inline uint32_t reverse_bits(uint32_t x) {
+constexpr uint32_t reverse_bits(uint32_t x) {
   x = ((x >> 1) & 0x55555555u) | ((x & 0x55555555u) << 1);
   x = ((x >> 2) & 0x33333333u) | ((x & 0x33333333u) << 2);
   x = ((x >> 4) & 0x0f0f0f0fu) | ((x & 0x0f0f0f0fu) << 4);
-  x = ((x >> 8) & 0x00ff00ffu) | ((x & 0x00ff00ffu) << 8);
-  return (x >> 16) | (x << 16);
+  return __builtin_bswap32(x);  // the byte swap does the last two steps in one instruction
 }
 
-// Laine-Karras style hash permutation of the reversed bits (Burley 2020, sec. 3).
-inline uint32_t laine_karras_permutation(uint32_t x, uint32_t seed) {
+// Laine-Karras style hash permutation of the reversed bits (Burley 2020, sec. 3): bit k of the result
+// depends only on bits <= k of x, so applied to reversed bits it is a nested uniform (Owen) scramble.
+constexpr uint32_t laine_karras_permutation(uint32_t x, uint32_t seed) {
   x += seed;
   x ^= x * 0x6c50b47cu;
   x ^= x * 0xb82f1e52u;
@@ -28,50 +36,134 @@ inline uint32_t laine_karras_permutation(uint32_t x, uint32_t seed) {
   x ^= x * 0x8d22f6e6u;
   return x;
 }
-inline uint32_t nested_uniform_scramble(uint32_t x, uint32_t seed) {
-  return reverse_bits(laine_karras_permutation(reverse_bits(x), seed));
+
+// Sobol direction numbers v_k = m_k 2^(32-k) of the first four dimensions (Joe & Kuo 2008,
+// new-joe-kuo-6.21201: degree s, inner coefficients a, initial m; dimension 0 is van der Corput), by the
+// recurrence m_k = 2 a_1 m_{k-1} ^ 4 a_2 m_{k-2} ^ ... ^ 2^(s-1) a_(s-1) m_(k-s+1) ^ 2^s m_{k-s} ^ m_{k-s}.
+constexpr int kSobolDimensions = 4;
+struct SobolPolynomial {
+  int degree;
+  uint32_t a;  // a_1 .. a_{s-1}, a_1 most significant
+  uint32_t m[3];
+};
+inline constexpr SobolPolynomial kSobolPolynomials[kSobolDimensions] = {
+    {0, 0, {0}}, {1, 0, {1}}, {2, 1, {1, 3}}, {3, 1, {1, 3, 1}},
+};
+constexpr std::array<uint32_t, 32> sobol_direction_numbers(int dim) {
+  std::array<uint32_t, 32> v{};
+  if (dim == 0) {
+    for (int k = 0; k < 32; ++k) v[k] = 1u << (31 - k);
+    return v;
+  }
+  const SobolPolynomial &p = kSobolPolynomials[dim];
+  const int s = p.degree;
+  std::array<uint32_t, 32> m{};
+  for (int k = 0; k < 32; ++k) {
+    if (k < s) {
+      m[k] = p.m[k];
+    } else {
+      uint32_t mk = m[k - s] ^ (m[k - s] << s);
+      for (int j = 1; j < s; ++j)
+        if ((p.a >> (s - 1 - j)) & 1u) mk ^= m[k - j] << j;
+      m[k] = mk;
+    }
+    v[k] = m[k] << (31 - k);
+  }
+  return v;
 }
 
-// The first two Sobol dimensions: van der Corput (bit reversal) and the
-// second dimension's generator matrix (v_k = v_{k-1} ^ v_{k-1} >> 1).
-inline uint32_t sobol_dim0(uint32_t i) { return reverse_bits(i); }
-inline uint32_t sobol_dim1(uint32_t i) {
+// Sobol value of dimension `dim` at index i by the generator matrix (XOR of v_k over the set bits k of i).
+constexpr uint32_t sobol_by_matrix(int dim, uint32_t i) {
+  const std::array<uint32_t, 32> v = sobol_direction_numbers(dim);
   uint32_t r = 0u;
-  for (uint32_t v = 1u << 31; i != 0u; i >>= 1, v ^= v >> 1)
-    if (i & 1u) r ^= v;
+  for (int k = 0; i != 0u; i >>= 1, ++k)
+    if (i & 1u) r ^= v[k];
   return r;
 }
 
-// Sample dimensions come in pairs; one pair = one 2D Owen-scrambled Sobol set.
+// Byte tables of the generator matrices for an index given in bit-reversed order r = reverse_bits(i), with
+// bit-reversed columns: reverse_bits(sobol(dim, i)) is the XOR of table[dim][b][byte b of r] over the four
+// bytes of r (bit j of r is bit 31 - j of i, whose column is v_{31-j}). The shuffled index comes out of the
+// Laine-Karras permutation in that order, and the scramble that follows works on reversed bits too, so
+// neither needs a reversal.
+struct SobolTables {
+  uint32_t reversed[kSobolDimensions][4][256];
+};
+constexpr SobolTables make_sobol_tables() {
+  SobolTables t{};
+  for (int d = 0; d < kSobolDimensions; ++d) {
+    const std::array<uint32_t, 32> v = sobol_direction_numbers(d);
+    for (int b = 0; b < 4; ++b)
+      for (uint32_t byte = 0; byte < 256u; ++byte) {
+        uint32_t r = 0u;
+        for (int bit = 0; bit < 8; ++bit)
+          if ((byte >> bit) & 1u) r ^= reverse_bits(v[31 - (8 * b + bit)]);
+        t.reversed[d][b][byte] = r;
+      }
+  }
+  return t;
+}
+inline constexpr SobolTables kSobolTables = make_sobol_tables();
+
+// reverse_bits(sobol(dim, reverse_bits(index_reversed))).
+inline uint32_t sobol_reversed(int dim, uint32_t index_reversed) {
+  const auto &t = kSobolTables.reversed[dim];
+  const uint32_t r = index_reversed;
+  return t[0][r & 0xffu] ^ t[1][(r >> 8) & 0xffu] ^ t[2][(r >> 16) & 0xffu] ^ t[3][r >> 24];
+}
+
+// Scramble seed of dimension d of a set: the (already hashed) set seed times a per-dimension odd constant,
+// a bijection, so every dimension's seed is as uniform as the set seed.
+constexpr uint32_t dimension_seed(uint32_t set_seed, int d) {
+  constexpr uint32_t kOdd[kSobolDimensions] = {0x9e3779b9u, 0x85ebca6bu, 0xc2b2ae35u, 0x27d4eb2fu};
+  return set_seed * kOdd[d];
+}
+
+// Dimension sets (Cycles' PRNG_* layout in spirit; docs/architecture.md "Sample dimensions"). A set is
+// one shuffled index and the first 2 or 4 Sobol dimensions, jointly stratified.
+//   film: 2D (pixel filter position); lens: 2D (its own set far from the others).
+//   BSDF of bounce b: 4D (x, y, z, rr): x picks the closure of the mixture (rescaled), then the closure's
+//     own lobe choice (rescaled again) and with y the direction; z is the closure's third number
+//     (dielectric reflect/refract, decided on the sampled microfacet: jointly stratified with x, y); rr is
+//     Russian roulette. Each bounce has its own set (padding).
+//   light of bounce b: 2D (u, v): u picks the light (rescaled) and with v the point on it.
+enum SampleSet : uint32_t {
+  kSetFilm = 0,
+  kSetsPerBounce = 2,
+  kSetBsdf = 0,   // within a bounce
+  kSetLight = 1,  // within a bounce
+};
+constexpr uint32_t kSetLens = 0xfffffff0u;
+inline uint32_t bounce_set(int bounce, uint32_t which) { return 1u + static_cast<uint32_t>(bounce) * kSetsPerBounce + which; }
+
 struct PixelSampler {
-  uint32_t pixel_seed;  // hash of (seed, pixel)
-  uint32_t sample;
+  uint32_t pixel_seed;        // hash of (seed, pixel)
+  uint32_t sample_reversed;   // reverse_bits(sample index)
 
   PixelSampler(uint32_t seed, uint32_t pixel_index, uint32_t sample_index)
-      : pixel_seed(hash_u32x2(seed, pixel_index)), sample(sample_index) {}
+      : pixel_seed(hash_u32x2(seed, pixel_index)), sample_reversed(reverse_bits(sample_index)) {}
 
-  void get2(uint32_t pair, float &u, float &v) const {
-    const uint32_t pair_seed = hash_u32x2(pixel_seed, pair);
-    const uint32_t index = nested_uniform_scramble(sample, pair_seed);
-    const uint32_t x = nested_uniform_scramble(sobol_dim0(index), hash_u32(pair_seed ^ 0xa511e9b3u));
-    const uint32_t y = nested_uniform_scramble(sobol_dim1(index), hash_u32(pair_seed ^ 0x63d83595u));
-    u = uint_to_unit_float(x);
-    v = uint_to_unit_float(y);
+  // The first N Sobol dimensions of set `set` at this sample, each in [0, 1).
+  template <int N>
+  void get(uint32_t set, float (&out)[N]) const {
+    static_assert(N >= 1 && N <= kSobolDimensions);
+    const uint32_t set_seed = hash_combine(pixel_seed, set);
+    // Shuffled index (Burley 2020, sec. 4): a nested uniform scramble of the sample index, kept reversed.
+    const uint32_t index_reversed = laine_karras_permutation(sample_reversed, set_seed);
+    for (int d = 0; d < N; ++d) {
+      const uint32_t x = laine_karras_permutation(sobol_reversed(d, index_reversed), dimension_seed(set_seed, d));
+      out[d] = uint_to_unit_float(reverse_bits(x));
+    }
   }
+  void get2(uint32_t set, float &u, float &v) const {
+    float uv[2];
+    get(set, uv);
+    u = uv[0];
+    v = uv[1];
+  }
+  // The BSDF dimensions (x, y, z, rr) of a bounce.
+  void get_bsdf(int bounce, float (&out)[4]) const { get(bounce_set(bounce, kSetBsdf), out); }
+  void get_light(int bounce, float &u, float &v) const { get2(bounce_set(bounce, kSetLight), u, v); }
 };
-
-// Dimension pairs per bounce (Cycles' PRNG_* layout in spirit).
-enum SamplePair : uint32_t {
-  kPairFilm = 0,
-  kPairsPerBounce = 4,
-  kPairLight = 0,        // point on the light
-  kPairSelect = 1,       // (light choice, closure choice)
-  kPairBsdf = 2,         // rand3[0], rand3[1]
-  kPairBsdfTerminate = 3 // rand3[2], Russian roulette
-};
-// The thin-lens aperture sample: its own pair far from the per-bounce ones, so images without depth of field are
-// unchanged.
-constexpr uint32_t kPairLens = 0xfffffff0u;
-inline uint32_t bounce_pair(int bounce, uint32_t which) { return 1u + static_cast<uint32_t>(bounce) * kPairsPerBounce + which; }
 
 }  // namespace glimmer::render

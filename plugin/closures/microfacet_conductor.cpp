@@ -67,7 +67,10 @@ class MicrofacetConductorClosure {
     c->f0_ = p.get_color("f0");
     c->white_ = c->f0_.x == 1.0f && c->f0_.y == 1.0f && c->f0_.z == 1.0f;
     c->rows_.build(c->alpha_table_, c->f0_, p.get_color("bounce_tint"));
-    if (c->mode_ == kMultiGgx) c->e_avg_ = tables::ggx_E_avg(c->alpha_table_);
+    if (c->mode_ == kMultiGgx) {
+      c->e_avg_ = tables::ggx_E_avg(c->alpha_table_);
+      c->build_ms_cdf();
+    }
     return c;
   }
 
@@ -77,6 +80,41 @@ class MicrofacetConductorClosure {
   float ms_probability(float mu_i) const {
     if (mode_ != kMultiGgx || !(e_avg_ < 1.0f)) return 0.0f;
     return clamp(1.0f - rows_.E(mu_i), 0.0f, 1.0f);
+  }
+
+  // The multiple-scattering lobe is sampled in mu_o = cos(theta_o) from a piecewise-constant density
+  // proportional to its shape (1 - E(mu_o)) mu_o (kMsBins bins, 4-point average per bin), phi uniform, so that
+  // f_ms / pdf_ms is nearly the constant E_Fms(mu_i) (cosine sampling left a 1 - E(mu_o) factor in the weight).
+  static constexpr int kMsBins = 64;
+  void build_ms_cdf() {
+    ms_cdf_[0] = 0.0f;
+    double acc = 0.0;
+    for (int k = 0; k < kMsBins; ++k) {
+      double w = 0.0;
+      for (int j = 0; j < 4; ++j) {
+        const float mu = (k + (j + 0.5f) / 4.0f) / kMsBins;
+        w += std::max(1.0f - rows_.E(mu), 1e-4f) * mu;
+      }
+      acc += w;
+      ms_cdf_[k + 1] = static_cast<float>(acc);
+    }
+    for (float &v : ms_cdf_) v = static_cast<float>(v / acc);
+    ms_cdf_[kMsBins] = 1.0f;
+  }
+  // Solid-angle density of the multiple-scattering lobe's sampling at cos(theta_o) = mu.
+  float ms_pdf(float mu) const {
+    if (!(mu > 0.0f)) return 0.0f;
+    const int k = std::min(static_cast<int>(mu * kMsBins), kMsBins - 1);
+    return (ms_cdf_[k + 1] - ms_cdf_[k]) * kMsBins * (0.5f * kInvPi);
+  }
+  Vec3 sample_ms(float u, float v) const {
+    const int k = std::clamp(static_cast<int>(std::upper_bound(ms_cdf_.begin(), ms_cdf_.end(), u) - ms_cdf_.begin()) - 1,
+                             0, kMsBins - 1);
+    const float width = ms_cdf_[k + 1] - ms_cdf_[k];
+    const float t = width > 0.0f ? std::clamp((u - ms_cdf_[k]) / width, 0.0f, 1.0f) : 0.5f;
+    const float mu = std::max((k + t) / kMsBins, 1e-6f);
+    const float sin_theta = safe_sqrt(1.0f - mu * mu), phi = kTwoPi * v;
+    return {sin_theta * std::cos(phi), sin_theta * std::sin(phi), mu};
   }
 
   // Multiple-scattering lobe f_ms * cos(wo).
@@ -108,7 +146,7 @@ class MicrofacetConductorClosure {
     const float p_ms = ms_probability(wi.z);
     if (p_ms > 0.0f) {
       e.f_cos += ms_eval(wi.z, wo.z);
-      e.pdf = (1.0f - p_ms) * e.pdf + p_ms * cosine_hemisphere_pdf(wo.z);
+      e.pdf = (1.0f - p_ms) * e.pdf + p_ms * ms_pdf(wo.z);
     }
     return e;
   }
@@ -124,11 +162,12 @@ class MicrofacetConductorClosure {
       out.label = GLIMMER_LABEL_REFLECT | GLIMMER_LABEL_SINGULAR;
       return true;
     }
-    const float p_ms = ms_probability(wi.z);
-    if (rand.z < p_ms) {
-      out.wo = sample_cosine_hemisphere(rand.x, rand.y);
+    // Lobe choice on rand.x, rescaled and reused for the direction (keeps the 2D point stratified).
+    float u = rand.x;
+    if (choose_and_rescale(ms_probability(wi.z), u)) {
+      out.wo = sample_ms(u, rand.y);
     } else {
-      const Vec3 m = mf::sample_visible_normal(dist_, wi, ax_, ay_, rand.x, rand.y);
+      const Vec3 m = mf::sample_visible_normal(dist_, wi, ax_, ay_, u, rand.y);
       out.wo = normalize(mf::reflect_about(wi, m));
     }
     if (!(out.wo.z > 0.0f)) return false;
@@ -157,6 +196,7 @@ class MicrofacetConductorClosure {
   Spectrum f0_{1.0f};
   bool white_ = true;
   tables::ConductorRows rows_{};  // E(mu), E_Fms(mu) at this alpha and f0
+  std::array<float, kMsBins + 1> ms_cdf_{};  // multi_ggx: CDF of the multiple-scattering lobe's mu bins
 };
 
 GLIMMER_REGISTER_CLOSURE(MicrofacetConductorClosure)

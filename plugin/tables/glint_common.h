@@ -137,10 +137,12 @@ inline float smooth_lobe_pdf(mf::Distribution dist, float alpha_w, const Vec3 &w
 
 inline bool sample_smooth_lobe(mf::Distribution dist, float alpha_w, const Vec3 &wi, const Vec3 &rand, Vec3 &wo) {
   if (!(wi.z > 0.0f)) return false;
-  if (rand.z < kCosineMixture) {
-    wo = sample_cosine_hemisphere(rand.x, rand.y);
+  // Lobe choice on rand.x, rescaled and reused for the direction (keeps the 2D point stratified).
+  float u = rand.x;
+  if (choose_and_rescale(kCosineMixture, u)) {
+    wo = sample_cosine_hemisphere(u, rand.y);
   } else {
-    const Vec3 h = mf::sample_visible_normal(dist, wi, alpha_w, alpha_w, rand.x, rand.y);
+    const Vec3 h = mf::sample_visible_normal(dist, wi, alpha_w, alpha_w, u, rand.y);
     wo = mf::reflect_about(wi, h);
   }
   return wo.z > 0.0f;

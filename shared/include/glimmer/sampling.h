@@ -43,6 +43,20 @@ inline Vec3 sample_uniform_cone(float u1, float u2, float cos_max) {
   return {sin_t * std::cos(phi), sin_t * std::sin(phi), cos_t};
 }
 
+// A discrete choice that keeps the stratification of the sample it splits: the first branch is taken
+// with probability p when u < p, and u becomes a fresh uniform number within the chosen branch
+// (u / p or (u - p) / (1 - p)) for the warp that follows (the "sample reuse" of Cycles' closure pick and
+// pbrt's SampleDiscrete). Returns true for the first branch.
+inline bool choose_and_rescale(float p, float &u) {
+  constexpr float kBelowOne = 0x1.fffffep-1f;
+  if (u < p) {
+    u = std::min(u / p, kBelowOne);
+    return true;
+  }
+  u = p > 0.0f ? std::min((u - p) / (1.0f - p), kBelowOne) : u;
+  return false;
+}
+
 inline float power_heuristic(float pdf_a, float pdf_b) {
   const float a2 = pdf_a * pdf_a, b2 = pdf_b * pdf_b;
   return (a2 + b2) > 0.0f ? a2 / (a2 + b2) : 0.0f;

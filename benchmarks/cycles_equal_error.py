@@ -1,0 +1,222 @@
+"""Equal-error time against Blender's own Cycles (3.4, CPU): the issue-13 benchmark scenes.
+
+Run headless (not part of `make test`; it takes minutes):
+  blender -b --factory-startup --python benchmarks/cycles_equal_error.py -- --glimmer build/glimmer --out DIR
+      [--scenes a,b,c] [--samples 256] [--reference-samples 4096] [--size 96]
+
+Scenes, built by script as tests/addon/test_cycles_parity.py builds its scenes (box filter width 1, no clamps,
+no filter glossy, no denoising, linear float EXR) and exported by the addon:
+  a  a white multi-GGX sphere (roughness 0.9) in a constant white world
+  b  a rough glass sphere (GGX 0.3, IOR 1.45) on a glossy floor under an HDR environment
+  c  a diffuse box lit by an area light with a glossy (GGX 0.3) sphere
+For each: a Cycles reference (seed 7), then Cycles and Glimmer at the same sample count back to back (seed 1),
+wall time of each render call, RMSE against the Cycles reference (and Glimmer's against its own reference,
+which separates its noise from model differences), and the equal-error time ratio
+  time_glimmer / time_cycles x (rmse_glimmer / rmse_cycles)^2  (< 1: Glimmer reaches the same error sooner).
+"""
+import argparse
+import os
+import subprocess
+import sys
+import time
+
+import bpy
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, os.path.join(os.path.dirname(HERE), "tests", "addon"))
+import addon_test_util as util  # noqa: E402
+from scene_build_util import add_camera, add_plane, add_sphere, load_pixels, material  # noqa: E402
+
+argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
+parser = argparse.ArgumentParser()
+parser.add_argument("--glimmer", default=os.environ.get("GLIMMER_EXECUTABLE", ""))
+parser.add_argument("--out", default="/tmp/glimmer_cycles_equal_error")
+parser.add_argument("--scenes", default="a,b,c")
+parser.add_argument("--samples", type=int, default=256)
+parser.add_argument("--reference-samples", type=int, default=4096)
+parser.add_argument("--size", type=int, default=96)
+parser.add_argument("--threads", type=int, default=2)
+opts = parser.parse_args(argv)
+os.environ["GLIMMER_EXECUTABLE"] = os.path.abspath(opts.glimmer)
+os.makedirs(opts.out, exist_ok=True)
+mod = util.enable_addon()
+
+
+def new_scene(samples, bounces=12):
+    bpy.ops.wm.read_homefile(use_empty=True)
+    scene = bpy.context.scene
+    r = scene.render
+    r.resolution_x = r.resolution_y = opts.size
+    r.resolution_percentage = 100
+    r.image_settings.file_format = "OPEN_EXR"
+    r.image_settings.color_depth = "32"
+    r.threads_mode = "FIXED"
+    r.threads = opts.threads
+    scene.view_settings.view_transform = "Standard"
+    scene.view_settings.look = "None"
+    c = scene.cycles
+    c.device = "CPU"
+    c.samples = samples
+    c.use_adaptive_sampling = False
+    c.use_denoising = False
+    c.pixel_filter_type = "BOX"
+    c.filter_width = 1.0
+    c.sample_clamp_direct = c.sample_clamp_indirect = 0.0
+    c.blur_glossy = 0.0
+    c.light_sampling_threshold = 0.0
+    c.max_bounces = c.diffuse_bounces = c.glossy_bounces = c.transmission_bounces = bounces
+    c.transparent_max_bounces = bounces
+    c.min_light_bounces = c.min_transparent_bounces = 0
+    c.caustics_reflective = c.caustics_refractive = True
+    g = scene.glimmer
+    g.samples = samples
+    g.threads = opts.threads
+    g.max_bounce = g.max_diffuse_bounce = g.max_glossy_bounce = g.max_transmission_bounce = bounces
+    g.transparent_max_bounce = bounces
+    g.filter_glossy = 0.0
+    g.sample_clamp_direct = g.sample_clamp_indirect = 0.0
+    g.filter_type = "box"
+    g.filter_width = 1.0
+    g.film_exposure = 1.0
+    world = bpy.data.worlds.new("World")
+    world.use_nodes = True
+    scene.world = world
+    return scene
+
+
+def set_world_color(scene, color, strength=1.0):
+    bg = scene.world.node_tree.nodes["Background"]
+    bg.inputs["Color"].default_value = (*color, 1.0)
+    bg.inputs["Strength"].default_value = strength
+
+
+def set_world_hdr(scene, path):
+    tree = scene.world.node_tree
+    env = tree.nodes.new("ShaderNodeTexEnvironment")
+    env.image = bpy.data.images.load(path)
+    tree.links.new(env.outputs["Color"], tree.nodes["Background"].inputs["Color"])
+
+
+def write_hdr(path, w=256, h=128):
+    """A sky: blue-white gradient, dark ground, a small bright sun (an HDR with a 2000:1 range)."""
+    img = bpy.data.images.new("sky", w, h, float_buffer=True)
+    px = np.zeros((h, w, 4), dtype=np.float32)
+    for y in range(h):
+        v = (y + 0.5) / h  # 0 = bottom row
+        sky = np.array([0.35, 0.5, 0.9]) * (0.3 + 0.7 * v) if v > 0.5 else np.array([0.15, 0.12, 0.1])
+        px[y, :, :3] = sky
+    px[int(0.8 * h):int(0.8 * h) + 3, int(0.3 * w):int(0.3 * w) + 3, :3] = 600.0
+    px[..., 3] = 1.0
+    img.pixels[:] = px.ravel()
+    img.filepath_raw = path
+    img.file_format = "OPEN_EXR"
+    img.save()
+
+
+def scene_a(samples):
+    scene = new_scene(samples)
+    set_world_color(scene, (1.0, 1.0, 1.0))
+    add_camera(scene, (0.0, -4.0, 0.0), (90.0, 0.0, 0.0))
+    add_sphere(1.0, (0, 0, 0), material("MultiGGX", "ShaderNodeBsdfGlossy", (1.0, 1.0, 1.0),
+                                        distribution="MULTI_GGX", Roughness=0.9))
+    return scene
+
+
+def scene_b(samples):
+    scene = new_scene(samples)
+    hdr = os.path.join(opts.out, "sky.exr")
+    write_hdr(hdr)
+    set_world_hdr(scene, hdr)
+    add_camera(scene, (0.0, -5.0, 1.6), (76.0, 0.0, 0.0))
+    add_plane(20.0, mat=material("Floor", "ShaderNodeBsdfGlossy", (0.6, 0.6, 0.6), distribution="GGX", Roughness=0.3))
+    add_sphere(1.0, (0, 0, 1.0), material("Glass", "ShaderNodeBsdfGlass", (1.0, 1.0, 1.0),
+                                          distribution="GGX", Roughness=0.3, IOR=1.45))
+    return scene
+
+
+def scene_c(samples):
+    scene = new_scene(samples)
+    set_world_color(scene, (0.0, 0.0, 0.0), 0.0)
+    add_camera(scene, (0.0, -3.9, 0.0), (90.0, 0.0, 0.0), lens=35.0)
+    white = material("White", "ShaderNodeBsdfDiffuse", (0.8, 0.8, 0.8))
+    add_plane(2.0, (0, 0, -1), (0, 0, 0), white)
+    add_plane(2.0, (0, 0, 1), (180, 0, 0), white)
+    add_plane(2.0, (0, 1, 0), (90, 0, 0), white)
+    add_plane(2.0, (-1, 0, 0), (0, 90, 0), material("Red", "ShaderNodeBsdfDiffuse", (0.8, 0.1, 0.1)))
+    add_plane(2.0, (1, 0, 0), (0, -90, 0), material("Green", "ShaderNodeBsdfDiffuse", (0.1, 0.8, 0.1)))
+    add_sphere(0.4, (0.0, 0.2, -0.6), material("Glossy", "ShaderNodeBsdfGlossy", (0.9, 0.9, 0.9),
+                                               distribution="GGX", Roughness=0.3))
+    light = bpy.data.objects.new("Area", bpy.data.lights.new("Area", "AREA"))
+    light.data.size = 0.5
+    light.data.energy = 40.0
+    light.location = (0.0, 0.2, 0.98)
+    scene.collection.objects.link(light)
+    return scene
+
+
+BUILD = {"a": scene_a, "b": scene_b, "c": scene_c}
+
+
+def render_cycles(name, seed):
+    scene = bpy.context.scene
+    scene.render.engine = "CYCLES"
+    scene.cycles.seed = seed
+    path = os.path.join(opts.out, name + ".exr")
+    t0 = time.time()
+    bpy.ops.render.render()
+    seconds = time.time() - t0
+    bpy.data.images["Render Result"].save_render(path, scene=scene)
+    return load_pixels(path), seconds
+
+
+def render_glimmer(name, seed):
+    scene = bpy.context.scene
+    xml, _ = mod.exporter.export_scene(bpy.context.evaluated_depsgraph_get(), os.path.join(opts.out, name + "_export"))
+    exr = os.path.join(opts.out, name + ".exr")
+    g = scene.glimmer
+    cmd = mod.runner.render_command(opts.glimmer, xml, exr, g.samples, g.threads, seed, opts.size, opts.size)
+    t0 = time.time()
+    proc = subprocess.run(cmd + ["--quiet", "--stats"], check=True, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    seconds = time.time() - t0
+    stats = proc.stdout.decode(errors="replace")
+    render_phase = float(stats.split("render=")[1].split("s")[0]) if "render=" in stats else float("nan")
+    TIMES[name] = (seconds, render_phase)
+    channels = mod.engine.exr_channels(exr)
+    combined = [c for c in channels if ".Combined." in c]
+    order = ["%s.Combined.%s" % (combined[0].split(".Combined.")[0], c) for c in "RGBA"] if combined else list("RGBA")
+    rgba = os.path.join(opts.out, name + "_rgba.exr")
+    subprocess.run(["oiiotool", exr, "--ch", ",".join(order), "--chnames", "R,G,B,A", "-d", "float", "-o", rgba],
+                   check=True)
+    return load_pixels(rgba), seconds
+
+
+TIMES = {}
+
+
+def rmse(a, b):
+    return float(np.sqrt(np.mean((a - b) ** 2)))
+
+
+lines = []
+for key in opts.scenes.split(","):
+    BUILD[key](opts.reference_samples)
+    ref_c, t_ref_c = render_cycles("%s_cycles_ref" % key, 7)
+    ref_g, t_ref_g = render_glimmer("%s_glimmer_ref" % key, 7)
+    BUILD[key](opts.samples)
+    cyc, t_c = render_cycles("%s_cycles" % key, 1)
+    glim, t_g = render_glimmer("%s_glimmer" % key, 1)
+    e_c, e_g, e_g_own = rmse(cyc, ref_c), rmse(glim, ref_c), rmse(glim, ref_g)
+    # Cycles can be exactly noise-free (its white multiscatter walk in a white world): the ratio is then infinite.
+    ratio = t_g / t_c * (e_g / e_c) ** 2 if e_c > 0 else float("inf")
+    ratio_own = t_g / t_c * (e_g_own / e_c) ** 2 if e_c > 0 else float("inf")
+    t_g_render = TIMES["%s_glimmer" % key][1]
+    line = ("scene %s %dx%d %d spp: cycles %.2f s rmse %.5f | glimmer %.2f s (render phase %.2f s) rmse %.5f "
+            "(vs own ref %.5f) | "
+            "equal-error ratio %.2f (noise only %.2f) | refs %d spp: cycles %.1f s, glimmer %.1f s, "
+            "mean cycles %.4f glimmer %.4f" % (key, opts.size, opts.size, opts.samples, t_c, e_c, t_g, t_g_render, e_g, e_g_own,
+                                             ratio, ratio_own, opts.reference_samples, t_ref_c, t_ref_g,
+                                             ref_c.mean(), ref_g.mean()))
+    print(line, flush=True)
+    lines.append(line)
+print("\n".join(["== equal-error summary"] + lines))

@@ -1,0 +1,122 @@
+// The Owen-scrambled Sobol sampler (bridge/render/sampler.h): the precomputed generator-matrix tables agree
+// with the direction-number recurrence and with the bit-by-bit van der Corput / second-dimension
+// constructions; the first 2^m samples of every set are stratified (each dimension one point per 1/2^m
+// interval, dimensions 0-1 a (0, m, 2)-net), which independent random numbers fail (negative control);
+// values are a pure function of (seed, pixel, sample, set). And choose_and_rescale keeps a stratified
+// sample stratified within each branch.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <vector>
+
+#include "glimmer/sampling.h"
+#include "render/sampler.h"
+
+namespace glimmer::render {
+namespace {
+
+// The second Sobol dimension bit by bit (v_1 = 2^31, v_k = v_{k-1} ^ v_{k-1} >> 1).
+uint32_t sobol_dim1_bitwise(uint32_t i) {
+  uint32_t r = 0u;
+  for (uint32_t v = 1u << 31; i != 0u; i >>= 1, v ^= v >> 1)
+    if (i & 1u) r ^= v;
+  return r;
+}
+
+TEST(Sampler, GeneratorTablesMatchTheRecurrence) {
+  Pcg32 rng(3);
+  for (int n = 0; n < 20000; ++n) {
+    const uint32_t i = n < 1000 ? static_cast<uint32_t>(n) : rng.next_u32();
+    EXPECT_EQ(sobol_by_matrix(0, i), reverse_bits(i));
+    EXPECT_EQ(sobol_by_matrix(1, i), sobol_dim1_bitwise(i));
+    for (int d = 0; d < kSobolDimensions; ++d) ASSERT_EQ(sobol_reversed(d, reverse_bits(i)), reverse_bits(sobol_by_matrix(d, i)));
+  }
+  // Known points (Joe & Kuo): index 1 -> all 1/2; index 2 -> (1/4, 3/4, 3/4, 3/4); index 3 -> (3/4, 1/4, 1/4, 1/4).
+  for (int d = 0; d < 4; ++d) {
+    EXPECT_EQ(sobol_by_matrix(d, 1), 0x80000000u);
+    EXPECT_EQ(sobol_by_matrix(d, 2), d == 0 ? 0x40000000u : 0xc0000000u);
+    EXPECT_EQ(sobol_by_matrix(d, 3), d == 0 ? 0xc0000000u : 0x40000000u);
+  }
+}
+
+// Whether the points (in [0,1)^2) form a (0, m, 2)-net: every elementary box 2^-a x 2^-(m-a) holds one point.
+bool is_0m2_net(const std::vector<float> &x, const std::vector<float> &y, int m) {
+  const size_t n = size_t{1} << m;
+  for (int a = 0; a <= m; ++a) {
+    std::vector<int> count(n, 0);
+    for (size_t k = 0; k < n; ++k) {
+      const size_t bx = static_cast<size_t>(x[k] * (1u << a)), by = static_cast<size_t>(y[k] * (1u << (m - a)));
+      if (++count[(bx << (m - a)) | by] > 1) return false;
+    }
+  }
+  return true;
+}
+// Whether every interval [k, k + 1) / 2^m holds one of the 2^m values.
+bool is_stratified_1d(const std::vector<float> &x, int m) {
+  std::vector<int> count(size_t{1} << m, 0);
+  for (float v : x)
+    if (++count[static_cast<size_t>(v * (1u << m))] > 1) return false;
+  return true;
+}
+
+TEST(Sampler, EverySetIsStratified) {
+  const int m = 8;
+  const size_t n = size_t{1} << m;
+  for (uint32_t pixel : {0u, 17u, 4095u})
+    for (uint32_t set : {uint32_t{kSetFilm}, bounce_set(0, kSetBsdf), bounce_set(0, kSetLight), bounce_set(5, kSetBsdf), kSetLens}) {
+      std::vector<std::vector<float>> dims(4, std::vector<float>(n));
+      for (uint32_t s = 0; s < n; ++s) {
+        const PixelSampler sampler(12345u, pixel, s);
+        float v[4];
+        sampler.get(set, v);
+        for (int d = 0; d < 4; ++d) dims[d][s] = v[d];
+      }
+      for (int d = 0; d < 4; ++d) EXPECT_TRUE(is_stratified_1d(dims[d], m)) << "pixel " << pixel << " set " << set << " dim " << d;
+      EXPECT_TRUE(is_0m2_net(dims[0], dims[1], m)) << "pixel " << pixel << " set " << set;
+    }
+  // Negative control: independent random numbers are not stratified.
+  Pcg32 rng(9);
+  std::vector<float> x(n), y(n);
+  for (size_t k = 0; k < n; ++k) x[k] = rng.next_float(), y[k] = rng.next_float();
+  EXPECT_FALSE(is_stratified_1d(x, m));
+  EXPECT_FALSE(is_0m2_net(x, y, m));
+}
+
+TEST(Sampler, PureFunctionOfItsArguments) {
+  float a[4], b[4], c[4], d[4];
+  PixelSampler(7u, 100u, 33u).get(bounce_set(2, kSetBsdf), a);
+  PixelSampler(7u, 100u, 33u).get(bounce_set(2, kSetBsdf), b);
+  PixelSampler(7u, 100u, 33u).get(bounce_set(3, kSetBsdf), c);
+  PixelSampler(8u, 100u, 33u).get(bounce_set(2, kSetBsdf), d);
+  for (int k = 0; k < 4; ++k) {
+    EXPECT_EQ(a[k], b[k]);
+    EXPECT_NE(a[k], c[k]);
+    EXPECT_NE(a[k], d[k]);
+    EXPECT_GE(a[k], 0.0f);
+    EXPECT_LT(a[k], 1.0f);
+  }
+}
+
+TEST(Sampler, ChooseAndRescaleKeepsEachBranchStratified) {
+  const int n = 1000;
+  for (float p : {0.0f, 0.13f, 0.5f, 0.9f, 1.0f}) {
+    std::vector<float> first, second;
+    for (int i = 0; i < n; ++i) {
+      float u = (i + 0.5f) / n;
+      (choose_and_rescale(p, u) ? first : second).push_back(u);
+    }
+    EXPECT_NEAR(static_cast<double>(first.size()) / n, p, 1.0 / n);
+    // Within a branch the rescaled values are evenly spaced over [0, 1): sorted, the k-th of m is near (k + 1/2) / m.
+    for (auto *branch : {&first, &second}) {
+      std::sort(branch->begin(), branch->end());
+      const double m = static_cast<double>(branch->size());
+      for (size_t k = 0; k < branch->size(); ++k) {
+        ASSERT_LT((*branch)[k], 1.0f);
+        ASSERT_NEAR((*branch)[k], (k + 0.5) / m, 1.0 / m) << "p " << p;
+      }
+    }
+  }
+}
+
+}  // namespace
+}  // namespace glimmer::render
