@@ -8,7 +8,6 @@
 namespace glimmer::render {
 
 namespace {
-float luminance(const Spectrum &s) { return 0.2126f * s.x + 0.7152f * s.y + 0.0722f * s.z; }
 constexpr float kInf = std::numeric_limits<float>::infinity();
 }  // namespace
 

@@ -341,8 +341,12 @@ struct Renderer::Impl {
       sd.ctx_front.Ng = -Vec3(sd.ctx.Ng);
     }
   }
-  static const GlimmerShadingContext &context_for(const ShadingData &sd, const ClosureLeaf &leaf) {
-    return leaf.front_normal ? sd.ctx_front : sd.ctx;
+  // The context one closure sees: front-face or flipped normal, and its varying parameter values.
+  static GlimmerShadingContext context_for(const ShadingData &sd, const ActiveClosure &c) {
+    GlimmerShadingContext ctx = c.leaf->front_normal ? sd.ctx_front : sd.ctx;
+    ctx.varying_count = c.varying_count;
+    ctx.varying = c.varying_count > 0 ? c.varying : nullptr;
+    return ctx;
   }
 
   // Transfer the differentials to the hit plane and express them in barycentric
@@ -396,7 +400,7 @@ struct Renderer::Impl {
       if (i == skip || c.sample_weight <= 0.0f || c.leaf->singular || !c.instance) continue;
       Spectrum f;
       float pdf = 0.0f;
-      c.instance->eval(context_for(sd, *c.leaf), wo, f, pdf);
+      c.instance->eval(context_for(sd, c), wo, f, pdf);
       if (!is_finite(f) || !std::isfinite(pdf)) continue;
       out.f += f * c.weight;
       out.pdf += pdf * c.sample_weight;
@@ -532,9 +536,7 @@ struct Renderer::Impl {
         const float blur_pdf = integ.filter_glossy * min_ray_pdf;
         if (blur_pdf < 1.0f) {
           const float blur_alpha = 0.5f * std::sqrt(1.0f - blur_pdf);
-          const int k = std::min(static_cast<int>(blur_alpha / ClosureLeaf::kBlurStep), ClosureLeaf::kBlurLevels);
-          for (int i = 0; i < cs.count; ++i)
-            if (k > 0 && !cs.closures[i].leaf->blurred.empty()) cs.closures[i].instance = cs.closures[i].leaf->blurred[k];
+          ShaderSystem::apply_filter_glossy(cs, static_cast<int>(blur_alpha / ClosureLeaf::kBlurStep));
         }
       }
 
@@ -557,7 +559,7 @@ struct Renderer::Impl {
         aov.depth = hit.t * cam_dir_z;
         for (int i = 0; i < cs.count; ++i)
           if (!cs.closures[i].leaf->emissive && cs.closures[i].leaf->instance)
-            aov.albedo += cs.closures[i].leaf->instance->albedo(context_for(sd, *cs.closures[i].leaf)) * cs.closures[i].weight;
+            aov.albedo += cs.closures[i].leaf->instance->albedo(context_for(sd, cs.closures[i])) * cs.closures[i].weight;
       }
 
       if (terminate_next) break;
@@ -627,7 +629,7 @@ struct Renderer::Impl {
       sampler.get2(bounce_pair(bounce, kPairBsdf), r3[0], r3[1]);
       r3[2] = ru;
       GlimmerSample s{};
-      const uint32_t label = c.instance->sample(context_for(sd, *c.leaf), r3, s);
+      const uint32_t label = c.instance->sample(context_for(sd, c), r3, s);
       if (label == GLIMMER_LABEL_NONE || !(s.pdf > 0.0f) || !std::isfinite(s.pdf)) break;
       const Vec3 wo = normalize(Vec3(s.wo));
       const Spectrum s_eval(s.eval[0], s.eval[1], s.eval[2]);
@@ -774,7 +776,7 @@ bool Renderer::probe(float x, float y, GlimmerShadingContext &out) const {
       if (!cs.closures[i].leaf->singular && !cs.closures[i].leaf->emissive) {
         GlimmerSample s{};
         const float r3[3] = {0.5f, 0.5f, 0.5f};
-        const uint32_t label = cs.closures[i].leaf->instance->sample(Impl::context_for(sd, *cs.closures[i].leaf), r3, s);
+        const uint32_t label = cs.closures[i].leaf->instance->sample(Impl::context_for(sd, cs.closures[i]), r3, s);
         if (!(label & GLIMMER_LABEL_SINGULAR)) all_singular = false;
       }
     if (!all_singular) {
@@ -784,7 +786,8 @@ bool Renderer::probe(float x, float y, GlimmerShadingContext &out) const {
     GlimmerSample s{};
     const float r3[3] = {0.5f, 0.5f, 0.5f};
     const ClosureLeaf &leaf = *cs.closures[0].leaf;
-    if (!leaf.instance || leaf.instance->sample(Impl::context_for(sd, leaf), r3, s) == GLIMMER_LABEL_NONE) return false;
+    if (!leaf.instance || leaf.instance->sample(Impl::context_for(sd, cs.closures[0]), r3, s) == GLIMMER_LABEL_NONE)
+      return false;
     const Vec3 wo = normalize(Vec3(s.wo));
     im.propagate_specular(rd, D, wo, sd, s.eta);
     org = offset_ray_origin(sd.ctx.P, sd.Ng, wo);

@@ -13,6 +13,9 @@
 //   Spectrum emit(const ShadingPoint &sp) const;                 // with GLIMMER_CLOSURE_EMISSIVE
 // Directions handed to eval/sample are in the local shading frame (z = N,
 // x = tangent); the adapter converts to and from world space.
+// Parameters declared with GLIMMER_PARAM_VARYING may change per shading point
+// (textures): eval/sample/albedo read them with sp.param_float(index, constant)
+// / sp.param_color, index from ParamReader::index at create().
 #pragma once
 
 #include <cstdio>
@@ -31,9 +34,40 @@ struct ShadingPoint {
   const GlimmerShadingContext *ctx;
   Frame frame;  // z = N, x = T
   Vec3 wi;      // local, toward the viewer
+  std::span<const GlimmerParamSpec> schema;  // the closure's parameters (ranges of the varying values)
 
-  explicit ShadingPoint(const GlimmerShadingContext *c)
-      : ctx(c), frame(Frame::from_normal_tangent(Vec3(c->N), Vec3(c->T))), wi(frame.to_local(Vec3(c->wi))) {}
+  explicit ShadingPoint(const GlimmerShadingContext *c, std::span<const GlimmerParamSpec> s = {})
+      : ctx(c), frame(Frame::from_normal_tangent(Vec3(c->N), Vec3(c->T))), wi(frame.to_local(Vec3(c->wi))),
+        schema(s) {}
+
+  // True when the host lists per-point values for any varying parameter.
+  bool varies() const { return ctx->varying_count > 0 && ctx->varying != nullptr; }
+
+  // The value of schema parameter `param` at this point: the host's per-point
+  // value when it lists one (clamped to the spec's range; a non-finite value
+  // keeps the constant), else `constant` (the value given at create()).
+  float param_float(uint32_t param, float constant) const {
+    const GlimmerVaryingValue *v = find_varying(param);
+    return v ? clamp_to_spec(param, v->value[0], constant) : constant;
+  }
+  Spectrum param_color(uint32_t param, const Spectrum &constant) const {
+    const GlimmerVaryingValue *v = find_varying(param);
+    if (!v) return constant;
+    return {clamp_to_spec(param, v->value[0], constant.x), clamp_to_spec(param, v->value[1], constant.y),
+            clamp_to_spec(param, v->value[2], constant.z)};
+  }
+
+ private:
+  const GlimmerVaryingValue *find_varying(uint32_t param) const {
+    if (!varies() || param >= schema.size() || !(schema[param].flags & GLIMMER_PARAM_VARYING)) return nullptr;
+    for (uint32_t i = 0; i < ctx->varying_count; ++i)
+      if (ctx->varying[i].param == param) return &ctx->varying[i];
+    return nullptr;
+  }
+  float clamp_to_spec(uint32_t param, float v, float constant) const {
+    if (!std::isfinite(v)) return constant;
+    return std::min(std::max(v, schema[param].min_value), schema[param].max_value);
+  }
 };
 
 struct LocalEval {
@@ -106,7 +140,7 @@ struct ClosureAdapter {
 
   static void eval(const GlimmerInstance *inst, const GlimmerShadingContext *ctx, GlimmerVec3 wo,
                    float out_eval[3], float *out_pdf) {
-    const ShadingPoint sp(ctx);
+    const ShadingPoint sp(ctx, T::params());
     const LocalEval e = self(inst).eval(sp, sp.frame.to_local(Vec3(wo)));
     const Spectrum f = sanitize(e.f_cos);
     out_eval[0] = f.x;
@@ -117,7 +151,7 @@ struct ClosureAdapter {
 
   static uint32_t sample(const GlimmerInstance *inst, const GlimmerShadingContext *ctx, const float rand3[3],
                          GlimmerSample *out) {
-    const ShadingPoint sp(ctx);
+    const ShadingPoint sp(ctx, T::params());
     LocalSample s;
     const bool ok = self(inst).sample(sp, Vec3(rand3[0], rand3[1], rand3[2]), s);
     const Vec3 wo = sp.frame.to_world(s.wo);
@@ -140,7 +174,7 @@ struct ClosureAdapter {
 
   static void albedo(const GlimmerInstance *inst, const GlimmerShadingContext *ctx, float out_rgb[3]) {
     Spectrum a(1.0f);
-    if constexpr (HasAlbedo<T>) a = sanitize(self(inst).albedo(ShadingPoint(ctx)));
+    if constexpr (HasAlbedo<T>) a = sanitize(self(inst).albedo(ShadingPoint(ctx, T::params())));
     out_rgb[0] = a.x;
     out_rgb[1] = a.y;
     out_rgb[2] = a.z;
@@ -148,7 +182,7 @@ struct ClosureAdapter {
 
   static void emit(const GlimmerInstance *inst, const GlimmerShadingContext *ctx, float out_rgb[3]) {
     Spectrum e(0.0f);
-    if constexpr (HasEmit<T>) e = sanitize(self(inst).emit(ShadingPoint(ctx)));
+    if constexpr (HasEmit<T>) e = sanitize(self(inst).emit(ShadingPoint(ctx, T::params())));
     out_rgb[0] = e.x;
     out_rgb[1] = e.y;
     out_rgb[2] = e.z;

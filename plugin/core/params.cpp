@@ -94,6 +94,10 @@ const GlimmerParamSpec &ParamReader::spec(std::string_view name) const {
   throw ParamError(closure_name_ + ": internal error: undeclared parameter '" + std::string(name) + "'");
 }
 
+uint32_t ParamReader::index(std::string_view name) const {
+  return static_cast<uint32_t>(&spec(name) - schema_.data());
+}
+
 const GlimmerParamValue *ParamReader::given(std::string_view name) const {
   for (const auto &v : values_)
     if (name == v.name) return &v;

@@ -34,7 +34,7 @@ extern "C" {
 #endif
 
 #ifndef GLIMMER_ABI_VERSION
-#define GLIMMER_ABI_VERSION 1u
+#define GLIMMER_ABI_VERSION 2u
 #endif
 
 #define GLIMMER_PLUGIN_ENTRY_SYMBOL "glimmer_plugin_entry"
@@ -103,6 +103,17 @@ typedef struct GlimmerHostServices {
   const char *cache_dir;
 } GlimmerHostServices;
 
+/* ---- Varying parameters: per-shading-point values of parameters whose spec
+ * carries GLIMMER_PARAM_VARYING (e.g. a textured roughness). The host
+ * evaluates its shader graph at each shading point and lists the values of the
+ * varying parameters that are linked; every parameter not listed keeps the
+ * instance's constant value. `param` is the index in the closure's schema;
+ * the plugin clamps values to the spec's range (non-finite -> the constant). ---- */
+typedef struct GlimmerVaryingValue {
+  uint32_t param;
+  float value[3]; /* FLOAT uses [0]; COLOR/VECTOR use [0..2] */
+} GlimmerVaryingValue;
+
 /* ---- Shading context: one per shading point, built by the host. ---- */
 typedef struct GlimmerShadingContext {
   GlimmerVec3 wi; /* toward the viewer, unit */
@@ -131,6 +142,10 @@ typedef struct GlimmerShadingContext {
   uint32_t backfacing; /* 1 when the ray arrived at the back side of Ng */
   uint32_t path_seed;  /* hash of (seed, pixel, sample); never use for glint randomness */
   const GlimmerHostServices *host;
+  /* Values of this closure's varying parameters at this point (may be NULL
+   * with varying_count 0: every parameter is the instance's constant). */
+  uint32_t varying_count;
+  const GlimmerVaryingValue *varying;
 } GlimmerShadingContext;
 
 /* ---- Sampling result. ---- */
@@ -154,6 +169,14 @@ typedef enum GlimmerParamType {
   GLIMMER_PARAM_STRING = 6
 } GlimmerParamType;
 
+/* GlimmerParamSpec.flags */
+enum GlimmerParamFlags {
+  /* The closure reads this parameter per shading point from
+   * GlimmerShadingContext.varying when the host lists it there (textures
+   * linked into it); otherwise the value given at create() applies. */
+  GLIMMER_PARAM_VARYING = 1u
+};
+
 typedef struct GlimmerParamSpec {
   const char *name;          /* identifier used in XML, CLI and Blender */
   GlimmerParamType type;
@@ -163,6 +186,7 @@ typedef struct GlimmerParamSpec {
   const char *enum_choices;  /* ENUM: '|'-separated choices, e.g. "ggx|beckmann" */
   const char *default_string;/* ENUM/STRING default */
   const char *doc;           /* one line for the user: meaning and unit */
+  uint32_t flags;            /* GlimmerParamFlags */
 } GlimmerParamSpec;
 
 typedef struct GlimmerParamValue {
