@@ -145,6 +145,12 @@ TEST(VaryingParams, CheckerIorOnGlassMatchesConstantRenders) {
                                    "IOR", "1.2", "2.2");
 }
 
+TEST(VaryingParams, CheckerDensityOnGlintMatchesConstantRenders) {
+  expect_textured_equals_constants(
+      "density", "<glint_bsdf name=\"g\" roughness=\"0.5\" gamma=\"4\" filter_threshold=\"1e9\" seed=\"3\" {} />",
+      "density", "30000", "3000000");
+}
+
 // Every linked socket the host cannot honour renders with its constant and
 // warns at the <connect> line.
 TEST(VaryingParams, UnsupportedLinksWarnWithFileAndLine) {
@@ -155,6 +161,8 @@ TEST(VaryingParams, UnsupportedLinksWarnWithFileAndLine) {
   const Case cases[] = {
       {"<glossy_bsdf name=\"g\" roughness=\"0.3\" />", "rotation"},  // not mapped by the host
       {"<diffuse_bsdf name=\"g\" />", "roughness"},                   // Oren-Nayar is not supported
+      {"<glint_bsdf name=\"g\" />", "seed"},                          // not varying in the closure's schema
+      {"<glint_bsdf name=\"g\" />", "gamma"},
   };
   int index = 0;
   for (const Case &c : cases) {
