@@ -89,25 +89,14 @@ struct Renderer::Impl {
     auto *self = static_cast<Impl *>(data);
     SurfaceHit h;
     if (!self->intersect(Vec3(ray->origin), Vec3(ray->direction), ray->t_min, ray->t_max, h)) return 0;
-    const scene::Mesh &m = self->scene.meshes[h.mesh];
-    const auto &tri = m.triangles[h.prim];
-    const Vec3 p0 = m.P[tri[0]], p1 = m.P[tri[1]], p2 = m.P[tri[2]];
-    Vec3 Ng = normalize(cross(p1 - p0, p2 - p0));
+    const scene::SurfacePoint s = self->scene.meshes[h.mesh].surface_at(h.prim, h.u, h.v);
     hit->t = h.t;
-    hit->P = p0 * (1 - h.u - h.v) + p1 * h.u + p2 * h.v;
-    Vec3 N = Ng;
-    if (m.smooth && !m.N.empty())
-      N = normalize(m.N[tri[0]] * (1 - h.u - h.v) + m.N[tri[1]] * h.u + m.N[tri[2]] * h.v);
-    hit->N = N;
-    hit->Ng = Ng;
-    hit->backfacing = dot(Ng, Vec3(ray->direction)) > 0.0f ? 1u : 0u;
-    if (!m.uv.empty()) {
-      for (int k = 0; k < 2; ++k)
-        hit->uv[k] = m.uv[3 * h.prim][k] * (1 - h.u - h.v) + m.uv[3 * h.prim + 1][k] * h.u + m.uv[3 * h.prim + 2][k] * h.v;
-    } else {
-      hit->uv[0] = h.u;
-      hit->uv[1] = h.v;
-    }
+    hit->P = s.P;
+    hit->N = s.N;
+    hit->Ng = s.Ng;
+    hit->backfacing = dot(s.Ng, Vec3(ray->direction)) > 0.0f ? 1u : 0u;
+    hit->uv[0] = s.uv[0];
+    hit->uv[1] = s.uv[1];
     hit->object_id = static_cast<uint32_t>(h.mesh);
     return 1;
   }
@@ -264,23 +253,14 @@ struct Renderer::Impl {
   };
 
   void setup_shading(const SurfaceHit &h, const Vec3 &D, ShadingData &sd) const {
-    const scene::Mesh &m = scene.meshes[h.mesh];
-    const auto &tri = m.triangles[h.prim];
-    const Vec3 p0 = m.P[tri[0]], p1 = m.P[tri[1]], p2 = m.P[tri[2]];
-    const float b0 = 1.0f - h.u - h.v;
-    sd.e1 = p1 - p0;
-    sd.e2 = p2 - p0;
-    const Vec3 P = p0 * b0 + p1 * h.u + p2 * h.v;
-    Vec3 Ng = normalize(cross(sd.e1, sd.e2));
-    Vec3 N = Ng;
-    if (m.smooth && !m.N.empty()) {
-      const Vec3 n = m.N[tri[0]] * b0 + m.N[tri[1]] * h.u + m.N[tri[2]] * h.v;
-      if (length_squared(n) > 0.0f) {
-        N = normalize(n);
-        sd.dn1 = m.N[tri[1]] - m.N[tri[0]];
-        sd.dn2 = m.N[tri[2]] - m.N[tri[0]];
-      }
-    }
+    const scene::SurfacePoint s = scene.meshes[h.mesh].surface_at(h.prim, h.u, h.v);
+    sd.e1 = s.e1;
+    sd.e2 = s.e2;
+    sd.dn1 = s.dn1;
+    sd.dn2 = s.dn2;
+    const Vec3 P = s.P;
+    Vec3 Ng = s.Ng;
+    Vec3 N = s.N;
     sd.backfacing = dot(Ng, D) > 0.0f;
     if (sd.backfacing) {  // Cycles flips both normals to the incoming side
       Ng = -Ng;
@@ -290,27 +270,13 @@ struct Renderer::Impl {
     }
     sd.Ng = Ng;
     sd.N = N;
-    float uv[2] = {h.u, h.v};
-    Vec3 dPdu = sd.e1, dPdv = sd.e2;
-    if (!m.uv.empty()) {
-      const auto &a = m.uv[3 * h.prim], &b = m.uv[3 * h.prim + 1], &c = m.uv[3 * h.prim + 2];
-      for (int k = 0; k < 2; ++k) {
-        uv[k] = a[k] * b0 + b[k] * h.u + c[k] * h.v;
-        sd.duv1[k] = b[k] - a[k];
-        sd.duv2[k] = c[k] - a[k];
-      }
-      // Solve [e1 e2] = [dPdu dPdv] [[du1 du2] [dv1 dv2]] for dPdu, dPdv.
-      const float det = sd.duv1[0] * sd.duv2[1] - sd.duv2[0] * sd.duv1[1];
-      if (std::fabs(det) > 1e-12f) {
-        const float inv = 1.0f / det;
-        dPdu = (sd.e1 * sd.duv2[1] - sd.e2 * sd.duv1[1]) * inv;
-        dPdv = (sd.e2 * sd.duv1[0] - sd.e1 * sd.duv2[0]) * inv;
-      }
-    } else {
-      sd.duv1[0] = 1; sd.duv1[1] = 0;
-      sd.duv2[0] = 0; sd.duv2[1] = 1;
+    const float uv[2] = {s.uv[0], s.uv[1]};
+    const Vec3 dPdu = s.dPdu, dPdv = s.dPdv;
+    for (int k = 0; k < 2; ++k) {
+      sd.duv1[k] = s.duv1[k];
+      sd.duv2[k] = s.duv2[k];
     }
-    const Vec3 gen = m.generated[tri[0]] * b0 + m.generated[tri[1]] * h.u + m.generated[tri[2]] * h.v;
+    const Vec3 gen = s.generated;
     sd.tc.P = P;
     sd.tc.N = N;
     sd.tc.generated = gen;
