@@ -260,6 +260,7 @@ Spectrum LightSet::triangle_emission(const Entry &l, const scene::SurfacePoint &
   ClosureSet cs;
   shaders_.evaluate(mesh_shader_[l.mesh], tc, cs);
   GlimmerShadingContext ctx{};
+  ctx.struct_size = sizeof(GlimmerShadingContext);
   ctx.wi = wi_toward_viewer;
   ctx.P = tc.P;
   ctx.N = dot(Ng, wi_toward_viewer) >= 0.0f ? Ng : -Ng;

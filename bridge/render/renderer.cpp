@@ -128,6 +128,7 @@ struct Renderer::Impl {
   void prepare(PhaseTimes &times) {
     auto t0 = Clock::now();
     cache_dir = host::default_host_services()->cache_dir ? host::default_host_services()->cache_dir : "";
+    host.struct_size = sizeof(GlimmerHostServices);
     host.abi_version = GLIMMER_ABI_VERSION;
     host.host_data = this;
     host.trace_ray = &host_trace;
@@ -285,6 +286,7 @@ struct Renderer::Impl {
     sd.tc.direction = D;
     GlimmerShadingContext &ctx = sd.ctx;
     ctx = GlimmerShadingContext{};
+    ctx.struct_size = sizeof(GlimmerShadingContext);
     ctx.wi = -D;
     ctx.P = P;
     ctx.N = N;

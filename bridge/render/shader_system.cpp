@@ -154,7 +154,7 @@ bool ShaderSystem::bind_varying(ClosureLeaf &leaf, const ShaderGraph &g, const S
   const scene::ShaderLink *link = g.link_to(n.name, socket);
   if (!link) return false;
   const GlimmerParamSpec *spec = leaf.type ? host::find_param(*leaf.type, param) : nullptr;
-  if (!spec || !(spec->flags & GLIMMER_PARAM_VARYING) ||
+  if (!spec || !(host::param_flags(*leaf.type, *spec) & GLIMMER_PARAM_VARYING) ||
       leaf.varying.size() >= static_cast<size_t>(ClosureLeaf::kMaxVarying)) {
     warn(link->where, "<" + n.type + "> linked input '" + socket + "' is not supported (closure '" +
                           (leaf.type ? leaf.type->name : "?") + "' has no varying parameter '" + param +
@@ -165,7 +165,7 @@ bool ShaderSystem::bind_varying(ClosureLeaf &leaf, const ShaderGraph &g, const S
   ClosureLeaf::VaryingInput v;
   v.input = read_input(g, n, socket, fallback, VectorSource::Generated);
   if (v.input.texture < 0) return false;  // read_input warned: an unsupported source node
-  v.param = static_cast<uint32_t>(spec - leaf.type->params);
+  v.param = host::param_index(*leaf.type, *spec);
   v.color = spec->type == GLIMMER_PARAM_COLOR || spec->type == GLIMMER_PARAM_VECTOR;
   if (param == "roughness") leaf.varying_roughness = static_cast<int>(leaf.varying.size());
   leaf.varying.push_back(v);

@@ -40,8 +40,15 @@ struct ShadingPoint {
       : ctx(c), frame(Frame::from_normal_tangent(Vec3(c->N), Vec3(c->T))), wi(frame.to_local(Vec3(c->wi))),
         schema(s) {}
 
-  // True when the host lists per-point values for any varying parameter.
-  bool varies() const { return ctx->varying_count > 0 && ctx->varying != nullptr; }
+  // True when the host lists per-point values for any varying parameter (ABI 2.1 contexts).
+  bool varies() const {
+#if GLIMMER_ABI_MINOR >= 1
+    return GLIMMER_HAS_FIELD(ctx->struct_size, GlimmerShadingContext, varying) && ctx->varying_count > 0 &&
+           ctx->varying != nullptr;
+#else
+    return false;
+#endif
+  }
 
   // The value of schema parameter `param` at this point: the host's per-point
   // value when it lists one (clamped to the spec's range; a non-finite value
@@ -59,9 +66,13 @@ struct ShadingPoint {
 
  private:
   const GlimmerVaryingValue *find_varying(uint32_t param) const {
+#if GLIMMER_ABI_MINOR >= 1
     if (!varies() || param >= schema.size() || !(schema[param].flags & GLIMMER_PARAM_VARYING)) return nullptr;
     for (uint32_t i = 0; i < ctx->varying_count; ++i)
       if (ctx->varying[i].param == param) return &ctx->varying[i];
+#else
+    (void)param;
+#endif
     return nullptr;
   }
   float clamp_to_spec(uint32_t param, float v, float constant) const {
@@ -107,8 +118,9 @@ template <typename T>
 struct ClosureAdapter {
   static const T &self(const GlimmerInstance *inst) { return *reinterpret_cast<const T *>(inst); }
 
+  // The C entry points: noexcept, every exception stops at this boundary.
   static int create(const GlimmerParamValue *values, uint32_t count, const GlimmerHostServices *,
-                    GlimmerInstance **out, char *error, size_t error_size) {
+                    GlimmerInstance **out, char *error, size_t error_size) noexcept {
     try {
       const auto schema = T::params();
       ParamReader reader(T::kName, schema, std::span<const GlimmerParamValue>(values, values ? count : 0));
@@ -124,24 +136,33 @@ struct ClosureAdapter {
     return 0;
   }
 
-  static int prepare(GlimmerInstance *inst, const GlimmerHostServices *host, char *error, size_t error_size) {
+  static int prepare(GlimmerInstance *inst, const GlimmerHostServices *host, char *error,
+                     size_t error_size) noexcept {
     if constexpr (HasPrepare<T>) {
       try {
         reinterpret_cast<T *>(inst)->prepare(host);
       } catch (const std::exception &e) {
         write_error(error, error_size, e.what());
         return 0;
+      } catch (...) {
+        write_error(error, error_size, "unknown error while preparing closure");
+        return 0;
       }
     }
     return 1;
   }
 
-  static void destroy(GlimmerInstance *inst) { delete reinterpret_cast<T *>(inst); }
+  static void destroy(GlimmerInstance *inst) noexcept { delete reinterpret_cast<T *>(inst); }
 
   static void eval(const GlimmerInstance *inst, const GlimmerShadingContext *ctx, GlimmerVec3 wo,
-                   float out_eval[3], float *out_pdf) {
-    const ShadingPoint sp(ctx, T::params());
-    const LocalEval e = self(inst).eval(sp, sp.frame.to_local(Vec3(wo)));
+                   float out_eval[3], float *out_pdf) noexcept {
+    LocalEval e;
+    try {
+      const ShadingPoint sp(ctx, T::params());
+      e = self(inst).eval(sp, sp.frame.to_local(Vec3(wo)));
+    } catch (...) {
+      e = LocalEval{};  // a closure that throws contributes nothing
+    }
     const Spectrum f = sanitize(e.f_cos);
     out_eval[0] = f.x;
     out_eval[1] = f.y;
@@ -150,7 +171,17 @@ struct ClosureAdapter {
   }
 
   static uint32_t sample(const GlimmerInstance *inst, const GlimmerShadingContext *ctx, const float rand3[3],
-                         GlimmerSample *out) {
+                         GlimmerSample *out) noexcept {
+    try {
+      return sample_unguarded(inst, ctx, rand3, out);
+    } catch (...) {
+      *out = GlimmerSample{};
+      return GLIMMER_LABEL_NONE;
+    }
+  }
+
+  static uint32_t sample_unguarded(const GlimmerInstance *inst, const GlimmerShadingContext *ctx,
+                                   const float rand3[3], GlimmerSample *out) {
     const ShadingPoint sp(ctx, T::params());
     LocalSample s;
     const bool ok = self(inst).sample(sp, Vec3(rand3[0], rand3[1], rand3[2]), s);
@@ -172,17 +203,25 @@ struct ClosureAdapter {
     return s.label;
   }
 
-  static void albedo(const GlimmerInstance *inst, const GlimmerShadingContext *ctx, float out_rgb[3]) {
+  static void albedo(const GlimmerInstance *inst, const GlimmerShadingContext *ctx, float out_rgb[3]) noexcept {
     Spectrum a(1.0f);
-    if constexpr (HasAlbedo<T>) a = sanitize(self(inst).albedo(ShadingPoint(ctx, T::params())));
+    try {
+      if constexpr (HasAlbedo<T>) a = sanitize(self(inst).albedo(ShadingPoint(ctx, T::params())));
+    } catch (...) {
+      a = Spectrum(1.0f);
+    }
     out_rgb[0] = a.x;
     out_rgb[1] = a.y;
     out_rgb[2] = a.z;
   }
 
-  static void emit(const GlimmerInstance *inst, const GlimmerShadingContext *ctx, float out_rgb[3]) {
+  static void emit(const GlimmerInstance *inst, const GlimmerShadingContext *ctx, float out_rgb[3]) noexcept {
     Spectrum e(0.0f);
-    if constexpr (HasEmit<T>) e = sanitize(self(inst).emit(ShadingPoint(ctx, T::params())));
+    try {
+      if constexpr (HasEmit<T>) e = sanitize(self(inst).emit(ShadingPoint(ctx, T::params())));
+    } catch (...) {
+      e = Spectrum(0.0f);
+    }
     out_rgb[0] = e.x;
     out_rgb[1] = e.y;
     out_rgb[2] = e.z;
@@ -191,6 +230,8 @@ struct ClosureAdapter {
   static GlimmerClosureType make_type() {
     const auto schema = T::params();
     GlimmerClosureType type{};
+    type.struct_size = sizeof(GlimmerClosureType);
+    type.param_spec_size = sizeof(GlimmerParamSpec);
     type.name = T::kName;
     type.doc = T::kDoc;
     type.flags = T::kFlags;

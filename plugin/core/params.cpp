@@ -23,7 +23,7 @@ std::vector<std::string> split_enum_choices(const char *choices) {
 
 namespace {
 
-int components(GlimmerParamType type) {
+int components(uint32_t type) {
   return (type == GLIMMER_PARAM_COLOR || type == GLIMMER_PARAM_VECTOR) ? 3 : 1;
 }
 
