@@ -175,9 +175,16 @@ struct ClosureAdapter {
     try {
       return sample_unguarded(inst, ctx, rand3, out);
     } catch (...) {
-      *out = GlimmerSample{};
+      clear(out);
       return GLIMMER_LABEL_NONE;
     }
+  }
+
+  // "No sample", keeping the host's struct_size.
+  static void clear(GlimmerSample *out) {
+    const uint32_t size = out->struct_size;
+    *out = GlimmerSample{};
+    out->struct_size = size;
   }
 
   static uint32_t sample_unguarded(const GlimmerInstance *inst, const GlimmerShadingContext *ctx,
@@ -188,7 +195,7 @@ struct ClosureAdapter {
     const Vec3 wo = sp.frame.to_world(s.wo);
     const float pdf = sanitize(s.pdf);
     if (!ok || s.label == GLIMMER_LABEL_NONE || !(pdf > 0.0f) || !is_finite(wo)) {
-      *out = GlimmerSample{};
+      clear(out);
       return GLIMMER_LABEL_NONE;
     }
     const Spectrum f = sanitize(s.f_cos);

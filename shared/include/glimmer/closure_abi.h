@@ -81,12 +81,14 @@ typedef struct GlimmerVec3 {
 
 /* ---- Host services: filled by the bridge, read-only for the plugin. ---- */
 typedef struct GlimmerRay {
+  uint32_t struct_size; /* filled by the plugin (0 = the 2.0 fields) */
   GlimmerVec3 origin;
   GlimmerVec3 direction; /* unit */
   float t_min, t_max;
 } GlimmerRay;
 
 typedef struct GlimmerRayHit {
+  uint32_t struct_size; /* the plugin's buffer size; the host writes the fields it holds (0 = the 2.0 fields) */
   float t;
   GlimmerVec3 P;
   GlimmerVec3 N;  /* shading normal, facing the side the ray came from is NOT implied */
@@ -174,6 +176,7 @@ typedef struct GlimmerShadingContext {
 
 /* ---- Sampling result. ---- */
 typedef struct GlimmerSample {
+  uint32_t struct_size; /* the host's buffer size; the plugin writes the fields it holds (0 = the 2.0 fields) */
   GlimmerVec3 wo;  /* sampled direction, world space, unit */
   float eval[3];   /* f * |cos(N, wo)| (singular: the delta weight) */
   float pdf;       /* solid-angle density of wo (singular: 1) */
@@ -216,6 +219,8 @@ typedef struct GlimmerParamSpec {
 } GlimmerParamSpec;
 
 typedef struct GlimmerParamValue {
+  /* An element of the array passed to create(); the array's stride is
+   * sizeof(GlimmerParamValue) of the host, which is never newer than the plugin. */
   const char *name;
   float value[3];     /* numeric value(s) */
   const char *string; /* ENUM/STRING value, else NULL */
