@@ -14,6 +14,7 @@
 #include "glimmer/rng.h"
 #include "glimmer/sampling.h"
 #include "render/lights.h"
+#include "render/path_state.h"
 #include "render/sampler.h"
 
 namespace glimmer::render {
@@ -408,16 +409,95 @@ struct Renderer::Impl {
     float depth = 1e10f;
   };
 
+  // The MIS weight of emission a BSDF-sampled ray found (lamps, background, mesh lights),
+  // against the light-sampling pdf of the same point: 1 after a singular scatter or the
+  // camera, 0 when only light sampling counts emission, else the power heuristic.
+  float emission_mis_weight(const PathState &ps, float light_pdf) const {
+    if (ps.last_singular) return 1.0f;
+    if (options.strategy == LightStrategy::LightOnly) return 0.0f;
+    return options.strategy != LightStrategy::BsdfOnly ? power_heuristic(ps.mis_ray_pdf, light_pdf) : 1.0f;
+  }
+
+  // filter_glossy (Cycles): blur_pdf = filter_glossy * min_ray_pdf; below 1 the glossy
+  // closures get alpha >= 0.5 sqrt(1 - blur_pdf) (nearest lower precomputed variant).
+  void apply_filter_glossy(const PathState &ps, ClosureSet &cs) const {
+    const float filter_glossy = scene.integrator.filter_glossy;
+    if (!(filter_glossy > 0.0f) || ps.min_ray_pdf == std::numeric_limits<float>::max()) return;
+    const float blur_pdf = filter_glossy * ps.min_ray_pdf;
+    if (blur_pdf >= 1.0f) return;
+    const float blur_alpha = 0.5f * std::sqrt(1.0f - blur_pdf);
+    ShaderSystem::apply_filter_glossy(cs, static_cast<int>(blur_alpha / ClosureLeaf::kBlurStep));
+  }
+
+  // Next-event estimation: one light sample, the closure mixture's f and pdf toward it,
+  // power-heuristic MIS against BSDF sampling, and the shadow ray's transmittance.
+  // Returns the path's contribution (throughput included).
+  Spectrum sample_direct_light(const ClosureSet &cs, const ShadingData &sd, const Spectrum &throughput, float total_sw,
+                               float select_light, float lu, float lv) const {
+    LightSample ls;
+    if (!lights->sample(select_light, lu, lv, sd.ctx.P, ls) || !(ls.pdf > 0.0f)) return Spectrum(0.0f);
+    MixtureEval me = eval_mixture(cs, sd, ls.wi);
+    me.pdf /= total_sw;
+    if (is_zero(me.f)) return Spectrum(0.0f);
+    const bool use_bsdf_emission = options.strategy != LightStrategy::LightOnly;
+    const float w = (ls.delta || !use_bsdf_emission) ? 1.0f : power_heuristic(ls.pdf, me.pdf);
+    const Spectrum contribution = throughput * me.f * ls.radiance * (w / ls.pdf);
+    if (is_zero(contribution)) return contribution;
+    return contribution * shadow_transmittance(sd, ls.wi, ls.dist);
+  }
+
+  // Picks a closure by sample weight from `pick` in [0, total_sw): kTransparent for the
+  // transparent pass-through, -1 for none.
+  static constexpr int kTransparent = -2;
+  static int pick_closure(const ClosureSet &cs, float pick, float transparent_weight) {
+    if (pick < transparent_weight) return kTransparent;
+    pick -= transparent_weight;
+    int chosen = -1;
+    for (int i = 0; i < cs.count; ++i) {
+      if (cs.closures[i].sample_weight <= 0.0f) continue;
+      chosen = i;
+      if (pick < cs.closures[i].sample_weight) break;
+      pick -= cs.closures[i].sample_weight;
+    }
+    return chosen;
+  }
+
+  // Sum of the closures' emission toward the viewer.
+  static Spectrum surface_emission(const ClosureSet &cs, const GlimmerShadingContext &ctx) {
+    Spectrum emission(0.0f);
+    for (int i = 0; i < cs.count; ++i)
+      if (cs.closures[i].leaf->emissive) emission += cs.closures[i].leaf->instance->emit(ctx) * cs.closures[i].weight;
+    return emission;
+  }
+
+  // Albedo, normal and depth AOVs at the first non-transparent surface.
+  static void write_first_hit_aovs(const ClosureSet &cs, const ShadingData &sd, float depth, PixelAov &aov) {
+    aov.normal = sd.N;
+    aov.depth = depth;
+    for (int i = 0; i < cs.count; ++i)
+      if (!cs.closures[i].leaf->emissive && cs.closures[i].leaf->instance)
+        aov.albedo += cs.closures[i].leaf->instance->albedo(context_for(sd, cs.closures[i])) * cs.closures[i].weight;
+  }
+
+  // Ray differentials for the next segment: specular propagation after a singular
+  // scatter, else a cone widened by beta = 2 alpha (Wang 2018, sec. 4.6).
+  void next_differentials(Differentials &rd, const Vec3 &D, const Vec3 &wo, const ShadingData &sd,
+                          const GlimmerSample &s, bool singular, float pixel_spread, PathState &ps) const {
+    if (singular) {
+      propagate_specular(rd, D, wo, sd, s.eta);
+      return;
+    }
+    const float alpha = std::clamp(s.roughness, 0.0f, 1.0f);
+    ps.spread += 2.0f * alpha;
+    const float width_dir = pixel_spread + ps.spread;
+    const Frame f = Frame::from_normal(wo);
+    rd.dDdx = f.s * width_dir;
+    rd.dDdy = f.t * width_dir;
+  }
+
   Spectrum trace_path(int px, int py, uint32_t sample_index, PixelAov &aov, uint64_t &nan_count) const {
     const auto &integ = scene.integrator;
-    // Cycles' kernel limits (scene/integrator.cpp): the settings plus one, "so that a bounce of 0 indicates
-    // no global illumination, only direct illumination"; transparent_max_bounce is used as is.
-    const auto plus_one = [](int v) { return v < std::numeric_limits<int>::max() ? v + 1 : v; };
-    const int limit_min_bounce = plus_one(integ.min_bounce);
-    const int limit_bounce = plus_one(integ.max_bounce);
-    const int limit_diffuse = plus_one(integ.max_diffuse_bounce);
-    const int limit_glossy = plus_one(integ.max_glossy_bounce);
-    const int limit_transmission = plus_one(integ.max_transmission_bounce);
+    const BounceLimits limits(integ);
     const uint32_t pixel_index = static_cast<uint32_t>(py) * static_cast<uint32_t>(width) + static_cast<uint32_t>(px);
     const PixelSampler sampler(seed, pixel_index, sample_index);
     const uint32_t path_seed = hash_u32x3(seed, pixel_index, sample_index);
@@ -437,12 +517,7 @@ struct Renderer::Impl {
     const float pixel_spread = std::max(length(rd.dDdx), length(rd.dDdy));
 
     Spectrum L(0.0f), throughput(1.0f);
-    int bounce = 0, diffuse_bounce = 0, glossy_bounce = 0, transmission_bounce = 0, transparent_bounce = 0;
-    bool terminate_next = false;
-    bool last_singular = true;  // camera rays count as singular: no MIS on emission
-    float mis_ray_pdf = 0.0f;
-    float min_ray_pdf = std::numeric_limits<float>::max();
-    float spread = 0.0f;
+    PathState ps;
     bool first_hit = true;
 
     auto add = [&](const Spectrum &contribution, int at_bounce) {
@@ -452,8 +527,12 @@ struct Renderer::Impl {
       }
       L += clamp_contribution(contribution, at_bounce > 0 ? integ.sample_clamp_indirect : integ.sample_clamp_direct);
     };
+    // Emission found by the ray, weighted against light sampling.
+    auto add_emission = [&](const Spectrum &Le, float light_pdf) {
+      const float w = emission_mis_weight(ps, light_pdf);
+      if (w > 0.0f) add(throughput * Le * w, ps.bounce);
+    };
     const bool use_nee = options.strategy != LightStrategy::BsdfOnly;
-    const bool use_bsdf_emission = options.strategy != LightStrategy::LightOnly;
 
     for (int step = 0; step < 4 * 1024; ++step) {
       SurfaceHit hit;
@@ -462,80 +541,44 @@ struct Renderer::Impl {
       // Lamps (spheres, area lights) before the surface and the sun disk on escape;
       // as in Cycles they do not block the ray.
       LightHits lhs;
-      lights->intersect(org, D, t_hit, hit_surface, bounce == 0, lhs);
-      for (int i = 0; i < lhs.count; ++i) {
-        const LightHit &lh = lhs.hits[i];
-        if (last_singular) {
-          add(throughput * lh.radiance, bounce);
-        } else if (use_bsdf_emission) {
-          const float w = use_nee ? power_heuristic(mis_ray_pdf, lh.pdf) : 1.0f;
-          add(throughput * lh.radiance * w, bounce);
-        }
-      }
+      lights->intersect(org, D, t_hit, hit_surface, ps.bounce == 0, lhs);
+      for (int i = 0; i < lhs.count; ++i) add_emission(lhs.hits[i].radiance, lhs.hits[i].pdf);
       if (!hit_surface) {
-        if (shaders->has_background()) {
-          const Spectrum Le = shaders->background(D);
-          if (last_singular) {
-            add(throughput * Le, bounce);
-          } else if (use_bsdf_emission) {
-            const float w = use_nee ? power_heuristic(mis_ray_pdf, lights->background_pdf(D)) : 1.0f;
-            add(throughput * Le * w, bounce);
-          }
-        }
+        if (shaders->has_background()) add_emission(shaders->background(D), use_nee ? lights->background_pdf(D) : 0.0f);
         break;
       }
 
       ShadingData sd;
       setup_shading(hit, D, sd);
-      transfer_differentials(rd, D, hit.t, sd, spread);
+      transfer_differentials(rd, D, hit.t, sd, ps.spread);
       GlimmerShadingContext &ctx = sd.ctx;
-      ctx.bounce = static_cast<uint32_t>(bounce);
-      ctx.diffuse_bounce = static_cast<uint32_t>(diffuse_bounce);
-      ctx.glossy_bounce = static_cast<uint32_t>(glossy_bounce);
-      ctx.transmission_bounce = static_cast<uint32_t>(transmission_bounce);
+      ctx.bounce = static_cast<uint32_t>(ps.bounce);
+      ctx.diffuse_bounce = static_cast<uint32_t>(ps.diffuse_bounce);
+      ctx.glossy_bounce = static_cast<uint32_t>(ps.glossy_bounce);
+      ctx.transmission_bounce = static_cast<uint32_t>(ps.transmission_bounce);
       ctx.path_seed = path_seed;
       sync_front(sd);
 
       ClosureSet cs;
       shaders->evaluate(sd.shader, sd.tc, cs);
-      // filter_glossy (Cycles): blur_pdf = filter_glossy * min_ray_pdf; below 1 the glossy
-      // closures get alpha >= 0.5 sqrt(1 - blur_pdf) (nearest lower precomputed variant).
-      if (integ.filter_glossy > 0.0f && min_ray_pdf < std::numeric_limits<float>::max()) {
-        const float blur_pdf = integ.filter_glossy * min_ray_pdf;
-        if (blur_pdf < 1.0f) {
-          const float blur_alpha = 0.5f * std::sqrt(1.0f - blur_pdf);
-          ShaderSystem::apply_filter_glossy(cs, static_cast<int>(blur_alpha / ClosureLeaf::kBlurStep));
-        }
-      }
+      apply_filter_glossy(ps, cs);
 
       // Emission (mesh lights), MIS against the light-sampling pdf.
-      Spectrum emission(0.0f);
-      for (int i = 0; i < cs.count; ++i)
-        if (cs.closures[i].leaf->emissive) emission += cs.closures[i].leaf->instance->emit(ctx) * cs.closures[i].weight;
-      if (!is_zero(emission)) {
-        if (last_singular) {
-          add(throughput * emission, bounce);
-        } else if (use_bsdf_emission) {
-          const float light_pdf = use_nee ? lights->triangle_pdf(hit.mesh, hit.prim, org, sd.ctx.P, sd.Ng, D) : 0.0f;
-          add(throughput * emission * power_heuristic(mis_ray_pdf, light_pdf), bounce);
-        }
-      }
+      const Spectrum emission = surface_emission(cs, ctx);
+      if (!is_zero(emission))
+        add_emission(emission, use_nee ? lights->triangle_pdf(hit.mesh, hit.prim, org, sd.ctx.P, sd.Ng, D) : 0.0f);
 
       if (first_hit && !(cs.count == 0 && !is_zero(cs.transparent))) {
         first_hit = false;
-        aov.normal = sd.N;
-        aov.depth = hit.t * cam_dir_z;
-        for (int i = 0; i < cs.count; ++i)
-          if (!cs.closures[i].leaf->emissive && cs.closures[i].leaf->instance)
-            aov.albedo += cs.closures[i].leaf->instance->albedo(context_for(sd, cs.closures[i])) * cs.closures[i].weight;
+        write_first_hit_aovs(cs, sd, hit.t * cam_dir_z, aov);
       }
 
-      if (terminate_next) break;
+      if (ps.terminate_next) break;
 
       // Russian roulette (Cycles' path_state_continuation_probability).
       float ru, rr;
-      sampler.get2(bounce_pair(bounce, kPairBsdfTerminate), ru, rr);
-      if (bounce > limit_min_bounce) {
+      sampler.get2(bounce_pair(ps.bounce, kPairBsdfTerminate), ru, rr);
+      if (ps.bounce > limits.min_bounce) {
         const float q = std::min(std::sqrt(max_component(abs(throughput))), 1.0f);
         if (q <= 0.0f || rr >= q) break;
         throughput /= q;
@@ -546,7 +589,7 @@ struct Renderer::Impl {
       if (total_sw <= 0.0f) break;
 
       float select_light, select_closure;
-      sampler.get2(bounce_pair(bounce, kPairSelect), select_light, select_closure);
+      sampler.get2(bounce_pair(ps.bounce, kPairSelect), select_light, select_closure);
 
       // Next-event estimation (skipped when only singular closures are present).
       bool any_smooth = false;
@@ -554,47 +597,26 @@ struct Renderer::Impl {
         if (cs.closures[i].sample_weight > 0.0f && !cs.closures[i].leaf->singular) any_smooth = true;
       if (use_nee && any_smooth && lights->count() > 0) {
         float lu, lv;
-        sampler.get2(bounce_pair(bounce, kPairLight), lu, lv);
-        LightSample ls;
-        if (lights->sample(select_light, lu, lv, sd.ctx.P, ls) && ls.pdf > 0.0f) {
-          const bool transmit_side = dot(ls.wi, sd.Ng) < 0.0f;
-          (void)transmit_side;
-          MixtureEval me = eval_mixture(cs, sd, ls.wi);
-          me.pdf /= total_sw;
-          if (!is_zero(me.f)) {
-            const float w = (ls.delta || !use_bsdf_emission) ? 1.0f : power_heuristic(ls.pdf, me.pdf);
-            const Spectrum contribution = throughput * me.f * ls.radiance * (w / ls.pdf);
-            if (!is_zero(contribution)) {
-              const Spectrum T = shadow_transmittance(sd, ls.wi, ls.dist);
-              if (!is_zero(T)) add(contribution * T, bounce);
-            }
-          }
-        }
+        sampler.get2(bounce_pair(ps.bounce, kPairLight), lu, lv);
+        const Spectrum direct = sample_direct_light(cs, sd, throughput, total_sw, select_light, lu, lv);
+        if (!is_zero(direct)) add(direct, ps.bounce);
       }
 
       // Pick a closure by sample weight (or the transparent pass-through).
-      float pick = select_closure * total_sw;
-      if (pick < transparent_weight) {
+      const int chosen = pick_closure(cs, select_closure * total_sw, transparent_weight);
+      if (chosen == kTransparent) {
         // Transparent: continue straight on; does not count as a bounce.
         throughput *= cs.transparent / (transparent_weight / total_sw);
-        if (++transparent_bounce >= integ.transparent_max_bounce) terminate_next = true;
+        ps.advance_transparent(limits);
         org = offset_ray_origin(sd.ctx.P, sd.Ng, D);
         tmin = 0.0f;
         tmax = kInf;
         continue;
       }
-      pick -= transparent_weight;
-      int chosen = -1;
-      for (int i = 0; i < cs.count; ++i) {
-        if (cs.closures[i].sample_weight <= 0.0f) continue;
-        chosen = i;
-        if (pick < cs.closures[i].sample_weight) break;
-        pick -= cs.closures[i].sample_weight;
-      }
       if (chosen < 0) break;
       const ActiveClosure &c = cs.closures[chosen];
       float r3[3];
-      sampler.get2(bounce_pair(bounce, kPairBsdf), r3[0], r3[1]);
+      sampler.get2(bounce_pair(ps.bounce, kPairBsdf), r3[0], r3[1]);
       r3[2] = ru;
       GlimmerSample s{};
       const uint32_t label = c.instance->sample(context_for(sd, c), r3, s);
@@ -611,37 +633,15 @@ struct Renderer::Impl {
         me.pdf = (me.pdf + s.pdf * c.sample_weight) / total_sw;
         if (!(me.pdf > 0.0f)) break;
         throughput *= me.f / me.pdf;
-        mis_ray_pdf = me.pdf;
-        min_ray_pdf = std::min(min_ray_pdf, me.pdf);
+        ps.mis_ray_pdf = me.pdf;
+        ps.min_ray_pdf = std::min(ps.min_ray_pdf, me.pdf);
       }
       if (!is_finite(throughput)) { ++nan_count; break; }
       if (is_zero(throughput)) break;
-      last_singular = singular;
+      ps.last_singular = singular;
+      ps.advance(label, limits);
 
-      // Bounce counters by label (Cycles' path_state_next).
-      ++bounce;
-      if (bounce >= limit_bounce) terminate_next = true;
-      if (label & GLIMMER_LABEL_REFLECT) {
-        if (label & GLIMMER_LABEL_DIFFUSE) {
-          if (++diffuse_bounce >= limit_diffuse) terminate_next = true;
-        } else if (++glossy_bounce >= limit_glossy) {
-          terminate_next = true;
-        }
-      } else if (++transmission_bounce >= limit_transmission) {
-        terminate_next = true;
-      }
-
-      // Ray differentials for the next segment.
-      if (singular) {
-        propagate_specular(rd, D, wo, sd, s.eta);
-      } else {
-        const float alpha = std::clamp(s.roughness, 0.0f, 1.0f);
-        spread += 2.0f * alpha;  // widen by beta = 2 alpha (Wang 2018, sec. 4.6)
-        const float width_dir = pixel_spread + spread;
-        const Frame f = Frame::from_normal(wo);
-        rd.dDdx = f.s * width_dir;
-        rd.dDdy = f.t * width_dir;
-      }
+      next_differentials(rd, D, wo, sd, s, singular, pixel_spread, ps);
       org = offset_ray_origin(sd.ctx.P, sd.Ng, wo);
       D = wo;
       tmin = 0.0f;
