@@ -495,6 +495,71 @@ struct Renderer::Impl {
     rd.dDdy = f.t * width_dir;
   }
 
+  // Russian roulette after min_bounce (Cycles' path_state_continuation_probability):
+  // survive with q = min(sqrt(max throughput), 1) and divide by it.
+  static bool survives_russian_roulette(const PathState &ps, const BounceLimits &limits, float rr,
+                                        Spectrum &throughput) {
+    if (ps.bounce <= limits.min_bounce) return true;
+    const float q = std::min(std::sqrt(max_component(abs(throughput))), 1.0f);
+    if (q <= 0.0f || rr >= q) return false;
+    throughput /= q;
+    return true;
+  }
+
+  // True when a non-singular closure can take a light sample (NEE).
+  static bool has_smooth_closure(const ClosureSet &cs) {
+    for (int i = 0; i < cs.count; ++i)
+      if (cs.closures[i].sample_weight > 0.0f && !cs.closures[i].leaf->singular) return true;
+    return false;
+  }
+
+  // The path's counters and seed in the shading contexts.
+  static void set_path_context(const PathState &ps, uint32_t path_seed, ShadingData &sd) {
+    GlimmerShadingContext &ctx = sd.ctx;
+    ctx.bounce = static_cast<uint32_t>(ps.bounce);
+    ctx.diffuse_bounce = static_cast<uint32_t>(ps.diffuse_bounce);
+    ctx.glossy_bounce = static_cast<uint32_t>(ps.glossy_bounce);
+    ctx.transmission_bounce = static_cast<uint32_t>(ps.transmission_bounce);
+    ctx.path_seed = path_seed;
+    sync_front(sd);
+  }
+
+  // Samples closure `chosen` and updates the throughput with the one-sample MIS
+  // estimate over the mixture (singular: the delta weight over its pick
+  // probability), the MIS state and last_singular. False ends the path.
+  bool scatter(const ClosureSet &cs, const ShadingData &sd, int chosen, const float r3[3], float total_sw,
+               Spectrum &throughput, PathState &ps, GlimmerSample &s, uint64_t &nan_count) const {
+    const ActiveClosure &c = cs.closures[chosen];
+    const uint32_t label = c.instance->sample(context_for(sd, c), r3, s);
+    if (label == GLIMMER_LABEL_NONE || !(s.pdf > 0.0f) || !std::isfinite(s.pdf)) return false;
+    const Vec3 wo = normalize(Vec3(s.wo));
+    const Spectrum s_eval(s.eval[0], s.eval[1], s.eval[2]);
+    if (!is_finite(s_eval)) {
+      ++nan_count;
+      return false;
+    }
+    const bool singular = (label & GLIMMER_LABEL_SINGULAR) != 0;
+    if (singular) {
+      throughput *= s_eval * c.weight * (total_sw / c.sample_weight);
+    } else {
+      MixtureEval me = eval_mixture(cs, sd, wo, chosen);
+      me.f += s_eval * c.weight;
+      me.pdf = (me.pdf + s.pdf * c.sample_weight) / total_sw;
+      if (!(me.pdf > 0.0f)) return false;
+      throughput *= me.f / me.pdf;
+      ps.mis_ray_pdf = me.pdf;
+      ps.min_ray_pdf = std::min(ps.min_ray_pdf, me.pdf);
+    }
+    if (!is_finite(throughput)) {
+      ++nan_count;
+      return false;
+    }
+    if (is_zero(throughput)) return false;
+    ps.last_singular = singular;
+    s.label = label;
+    return true;
+  }
+
   Spectrum trace_path(int px, int py, uint32_t sample_index, PixelAov &aov, uint64_t &nan_count) const {
     const auto &integ = scene.integrator;
     const BounceLimits limits(integ);
@@ -551,13 +616,8 @@ struct Renderer::Impl {
       ShadingData sd;
       setup_shading(hit, D, sd);
       transfer_differentials(rd, D, hit.t, sd, ps.spread);
-      GlimmerShadingContext &ctx = sd.ctx;
-      ctx.bounce = static_cast<uint32_t>(ps.bounce);
-      ctx.diffuse_bounce = static_cast<uint32_t>(ps.diffuse_bounce);
-      ctx.glossy_bounce = static_cast<uint32_t>(ps.glossy_bounce);
-      ctx.transmission_bounce = static_cast<uint32_t>(ps.transmission_bounce);
-      ctx.path_seed = path_seed;
-      sync_front(sd);
+      set_path_context(ps, path_seed, sd);
+      const GlimmerShadingContext &ctx = sd.ctx;
 
       ClosureSet cs;
       shaders->evaluate(sd.shader, sd.tc, cs);
@@ -578,11 +638,7 @@ struct Renderer::Impl {
       // Russian roulette (Cycles' path_state_continuation_probability).
       float ru, rr;
       sampler.get2(bounce_pair(ps.bounce, kPairBsdfTerminate), ru, rr);
-      if (ps.bounce > limits.min_bounce) {
-        const float q = std::min(std::sqrt(max_component(abs(throughput))), 1.0f);
-        if (q <= 0.0f || rr >= q) break;
-        throughput /= q;
-      }
+      if (!survives_russian_roulette(ps, limits, rr, throughput)) break;
 
       float transparent_weight = std::fabs(average(cs.transparent));
       const float total_sw = cs.sum_sample_weight + transparent_weight;
@@ -592,10 +648,7 @@ struct Renderer::Impl {
       sampler.get2(bounce_pair(ps.bounce, kPairSelect), select_light, select_closure);
 
       // Next-event estimation (skipped when only singular closures are present).
-      bool any_smooth = false;
-      for (int i = 0; i < cs.count; ++i)
-        if (cs.closures[i].sample_weight > 0.0f && !cs.closures[i].leaf->singular) any_smooth = true;
-      if (use_nee && any_smooth && lights->count() > 0) {
+      if (use_nee && has_smooth_closure(cs) && lights->count() > 0) {
         float lu, lv;
         sampler.get2(bounce_pair(ps.bounce, kPairLight), lu, lv);
         const Spectrum direct = sample_direct_light(cs, sd, throughput, total_sw, select_light, lu, lv);
@@ -614,34 +667,15 @@ struct Renderer::Impl {
         continue;
       }
       if (chosen < 0) break;
-      const ActiveClosure &c = cs.closures[chosen];
       float r3[3];
       sampler.get2(bounce_pair(ps.bounce, kPairBsdf), r3[0], r3[1]);
       r3[2] = ru;
       GlimmerSample s{};
-      const uint32_t label = c.instance->sample(context_for(sd, c), r3, s);
-      if (label == GLIMMER_LABEL_NONE || !(s.pdf > 0.0f) || !std::isfinite(s.pdf)) break;
+      if (!scatter(cs, sd, chosen, r3, total_sw, throughput, ps, s, nan_count)) break;
       const Vec3 wo = normalize(Vec3(s.wo));
-      const Spectrum s_eval(s.eval[0], s.eval[1], s.eval[2]);
-      if (!is_finite(s_eval)) { ++nan_count; break; }
-      const bool singular = (label & GLIMMER_LABEL_SINGULAR) != 0;
-      if (singular) {
-        throughput *= s_eval * c.weight * (total_sw / c.sample_weight);
-      } else {
-        MixtureEval me = eval_mixture(cs, sd, wo, chosen);
-        me.f += s_eval * c.weight;
-        me.pdf = (me.pdf + s.pdf * c.sample_weight) / total_sw;
-        if (!(me.pdf > 0.0f)) break;
-        throughput *= me.f / me.pdf;
-        ps.mis_ray_pdf = me.pdf;
-        ps.min_ray_pdf = std::min(ps.min_ray_pdf, me.pdf);
-      }
-      if (!is_finite(throughput)) { ++nan_count; break; }
-      if (is_zero(throughput)) break;
-      ps.last_singular = singular;
-      ps.advance(label, limits);
+      ps.advance(s.label, limits);
 
-      next_differentials(rd, D, wo, sd, s, singular, pixel_spread, ps);
+      next_differentials(rd, D, wo, sd, s, ps.last_singular, pixel_spread, ps);
       org = offset_ray_origin(sd.ctx.P, sd.Ng, wo);
       D = wo;
       tmin = 0.0f;
