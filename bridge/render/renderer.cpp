@@ -310,12 +310,16 @@ struct Renderer::Impl {
       sd.ctx_front.Ng = -Vec3(sd.ctx.Ng);
     }
   }
-  // The context one closure sees: front-face or flipped normal, and its varying parameter values.
-  static GlimmerShadingContext context_for(const ShadingData &sd, const ActiveClosure &c) {
-    GlimmerShadingContext ctx = c.leaf->front_normal ? sd.ctx_front : sd.ctx;
-    ctx.varying_count = c.varying_count;
-    ctx.varying = c.varying_count > 0 ? c.varying : nullptr;
-    return ctx;
+  // The context one closure sees: front-face or flipped normal, and its varying
+  // parameter values (then a copy in `scratch`; without them no copy is made).
+  static const GlimmerShadingContext &context_for(const ShadingData &sd, const ActiveClosure &c,
+                                                  GlimmerShadingContext &scratch) {
+    const GlimmerShadingContext &ctx = c.leaf->front_normal ? sd.ctx_front : sd.ctx;
+    if (c.varying_count == 0) return ctx;
+    scratch = ctx;
+    scratch.varying_count = c.varying_count;
+    scratch.varying = c.varying;
+    return scratch;
   }
 
   // Transfer the differentials to the hit plane and express them in barycentric
@@ -369,7 +373,8 @@ struct Renderer::Impl {
       if (i == skip || c.sample_weight <= 0.0f || c.leaf->singular || !c.instance) continue;
       Spectrum f;
       float pdf = 0.0f;
-      c.instance->eval(context_for(sd, c), wo, f, pdf);
+      GlimmerShadingContext scratch;
+      c.instance->eval(context_for(sd, c, scratch), wo, f, pdf);
       if (!is_finite(f) || !std::isfinite(pdf)) continue;
       out.f += f * c.weight;
       out.pdf += pdf * c.sample_weight;
@@ -474,9 +479,12 @@ struct Renderer::Impl {
   static void write_first_hit_aovs(const ClosureSet &cs, const ShadingData &sd, float depth, PixelAov &aov) {
     aov.normal = sd.N;
     aov.depth = depth;
-    for (int i = 0; i < cs.count; ++i)
-      if (!cs.closures[i].leaf->emissive && cs.closures[i].leaf->instance)
-        aov.albedo += cs.closures[i].leaf->instance->albedo(context_for(sd, cs.closures[i])) * cs.closures[i].weight;
+    for (int i = 0; i < cs.count; ++i) {
+      const ActiveClosure &c = cs.closures[i];
+      if (c.leaf->emissive || !c.leaf->instance) continue;
+      GlimmerShadingContext scratch;
+      aov.albedo += c.leaf->instance->albedo(context_for(sd, c, scratch)) * c.weight;
+    }
   }
 
   // Ray differentials for the next segment: specular propagation after a singular
@@ -530,7 +538,8 @@ struct Renderer::Impl {
   bool scatter(const ClosureSet &cs, const ShadingData &sd, int chosen, const float r3[3], float total_sw,
                Spectrum &throughput, PathState &ps, GlimmerSample &s, uint64_t &nan_count) const {
     const ActiveClosure &c = cs.closures[chosen];
-    const uint32_t label = c.instance->sample(context_for(sd, c), r3, s);
+    GlimmerShadingContext scratch;
+    const uint32_t label = c.instance->sample(context_for(sd, c, scratch), r3, s);
     if (label == GLIMMER_LABEL_NONE || !(s.pdf > 0.0f) || !std::isfinite(s.pdf)) return false;
     const Vec3 wo = normalize(Vec3(s.wo));
     const Spectrum s_eval(s.eval[0], s.eval[1], s.eval[2]);
@@ -778,7 +787,9 @@ bool Renderer::probe(float x, float y, GlimmerShadingContext &out) const {
       if (!cs.closures[i].leaf->singular && !cs.closures[i].leaf->emissive) {
         GlimmerSample s{};
         const float r3[3] = {0.5f, 0.5f, 0.5f};
-        const uint32_t label = cs.closures[i].leaf->instance->sample(Impl::context_for(sd, cs.closures[i]), r3, s);
+        GlimmerShadingContext scratch;
+        const uint32_t label =
+            cs.closures[i].leaf->instance->sample(Impl::context_for(sd, cs.closures[i], scratch), r3, s);
         if (!(label & GLIMMER_LABEL_SINGULAR)) all_singular = false;
       }
     if (!all_singular) {
@@ -788,7 +799,8 @@ bool Renderer::probe(float x, float y, GlimmerShadingContext &out) const {
     GlimmerSample s{};
     const float r3[3] = {0.5f, 0.5f, 0.5f};
     const ClosureLeaf &leaf = *cs.closures[0].leaf;
-    if (!leaf.instance || leaf.instance->sample(Impl::context_for(sd, cs.closures[0]), r3, s) == GLIMMER_LABEL_NONE)
+    GlimmerShadingContext scratch;
+    if (!leaf.instance || leaf.instance->sample(Impl::context_for(sd, cs.closures[0], scratch), r3, s) == GLIMMER_LABEL_NONE)
       return false;
     const Vec3 wo = normalize(Vec3(s.wo));
     im.propagate_specular(rd, D, wo, sd, s.eta);

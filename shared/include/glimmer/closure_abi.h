@@ -219,8 +219,8 @@ typedef struct GlimmerParamSpec {
 } GlimmerParamSpec;
 
 typedef struct GlimmerParamValue {
-  /* An element of the array passed to create(); the array's stride is
-   * sizeof(GlimmerParamValue) of the host, which is never newer than the plugin. */
+  /* An element of the array passed to create(): this struct never changes
+   * within a major version (the array has no stride field). */
   const char *name;
   float value[3];     /* numeric value(s) */
   const char *string; /* ENUM/STRING value, else NULL */
