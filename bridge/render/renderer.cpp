@@ -13,6 +13,7 @@
 
 #include "glimmer/rng.h"
 #include "glimmer/sampling.h"
+#include "render/camera.h"
 #include "render/lights.h"
 #include "render/path_state.h"
 #include "render/sampler.h"
@@ -33,11 +34,6 @@ Vec3 offset_ray_origin(const Vec3 &P, const Vec3 &Ng, const Vec3 &dir) {
   return dot(dir, Ng) >= 0.0f ? P + Ng * eps : P - Ng * eps;
 }
 
-
-// Ray differentials (Igehy 1999): position and direction derivatives per pixel step.
-struct Differentials {
-  Vec3 dPdx{0.0f}, dPdy{0.0f}, dDdx{0.0f}, dDdy{0.0f};
-};
 
 // Cycles' kernel_accum_clamp: scale L so that the sum of its components is at most `limit`.
 Spectrum clamp_contribution(const Spectrum &L, float limit) {
@@ -492,7 +488,7 @@ struct Renderer::Impl {
   void next_differentials(Differentials &rd, const Vec3 &D, const Vec3 &wo, const ShadingData &sd,
                           const GlimmerSample &s, bool singular, float pixel_spread, PathState &ps) const {
     if (singular) {
-      propagate_specular(rd, D, wo, sd, s.eta);
+      propagate_specular(rd, D, wo, sd.N, sd.Ng, sd.dn1, sd.dn2, s.eta);
       return;
     }
     const float alpha = std::clamp(s.roughness, 0.0f, 1.0f);
@@ -585,7 +581,7 @@ struct Renderer::Impl {
     float cam_dir_z = 1.0f;
     float lens_u = 0.5f, lens_v = 0.5f;
     if (scene.camera.aperture_size > 0.0f) sampler.get2(kPairLens, lens_u, lens_v);
-    camera_ray(px + 0.5f + ox, py + 0.5f + oy, org, D, rd, cam_dir_z, lens_u, lens_v);
+    camera_ray(scene.camera, width, height, px + 0.5f + ox, py + 0.5f + oy, org, D, rd, cam_dir_z, lens_u, lens_v);
     float tmin = scene.camera.nearclip / std::max(cam_dir_z, 1e-6f);
     float tmax = scene.camera.farclip / std::max(cam_dir_z, 1e-6f);
     const float pixel_spread = std::max(length(rd.dDdx), length(rd.dDdy));
@@ -693,70 +689,7 @@ struct Renderer::Impl {
     return L;
   }
 
-  // Reflect or refract the direction differentials (Igehy 1999, eq. 14-15, 18-19).
-  void propagate_specular(Differentials &rd, const Vec3 &D, const Vec3 &wo, const ShadingData &sd, float eta) const {
-    const Vec3 &N = sd.N;
-    const float DN = dot(D, N);
-    const bool reflect_dir = dot(wo, sd.Ng) > 0.0f;  // Ng faces the incoming side
-    auto one = [&](const Vec3 &dD, const Vec3 &dN) -> Vec3 {
-      const float dDN = dot(dD, N) + dot(D, dN);
-      if (reflect_dir) return dD - 2.0f * (N * dDN + dN * DN);
-      // Refraction: wo = mu_eta * D - mu * N.
-      const Vec3 Dt = D - N * DN, Tt = wo - N * dot(wo, N);
-      float ratio = length(Dt) > 1e-4f ? length(Tt) / length(Dt) : (eta > 0.0f ? 1.0f / eta : 1.0f);
-      if (!std::isfinite(ratio) || ratio <= 0.0f) ratio = 1.0f;
-      const float TN = dot(wo, N);
-      const float mu = ratio * DN - TN;
-      const float dmu = std::fabs(TN) > 1e-6f ? (ratio - ratio * ratio * DN / TN) * dDN : 0.0f;
-      return dD * ratio - (dN * mu + N * dmu);
-    };
-    rd.dDdx = one(rd.dDdx, sd.dn1);
-    rd.dDdy = one(rd.dDdy, sd.dn2);
-    if (!is_finite(rd.dDdx) || !is_finite(rd.dDdy)) rd.dDdx = rd.dDdy = Vec3(0.0f);
-  }
 
-  // Pinhole camera: looks along +Z of camera space, +Y up, fov across the
-  // shorter image side (Cycles' viewplane).
-  // Camera ray through film position (x, y); (lens_u, lens_v) picks the point on the thin-lens aperture.
-  void camera_ray(float x, float y, Vec3 &org, Vec3 &dir, Differentials &rd, float &dir_z, float lens_u = 0.5f,
-                  float lens_v = 0.5f) const {
-    const auto &cam = scene.camera;
-    const float aspect = static_cast<float>(width) / static_cast<float>(height);
-    float half_w, half_h;
-    if (width >= height) { half_w = aspect; half_h = 1.0f; }
-    else { half_w = 1.0f; half_h = 1.0f / aspect; }
-    const float t = std::tan(0.5f * cam.fov);
-    const float sx = (2.0f * x / width - 1.0f) * half_w * t;
-    const float sy = (1.0f - 2.0f * y / height) * half_h * t;
-    const Vec3 v(sx, sy, 1.0f);
-    const Vec3 dvx(2.0f / width * half_w * t, 0.0f, 0.0f), dvy(0.0f, -2.0f / height * half_h * t, 0.0f);
-    const float len = length(v);
-    dir_z = 1.0f / len;
-    // World-space direction and its derivative d(normalize(v))/dx = (v.v dv - v (v.dv)) / |v|^3.
-    const Vec3 vw = cam.camera_to_world.vector(v);
-    const Vec3 dvxw = cam.camera_to_world.vector(dvx), dvyw = cam.camera_to_world.vector(dvy);
-    const float lw = length(vw);
-    dir = vw / lw;
-    auto ddir = [&](const Vec3 &dv) { return (dv * dot(vw, vw) - vw * dot(vw, dv)) / (lw * lw * lw); };
-    rd.dDdx = ddir(dvxw);
-    rd.dDdy = ddir(dvyw);
-    rd.dPdx = rd.dPdy = Vec3(0.0f);
-    org = cam.camera_to_world.point(Vec3(0.0f));
-    if (cam.aperture_size > 0.0f) {
-      // Cycles' thin lens (kernel/camera/camera.h): the point on the plane z = focaldistance seen through the
-      // pinhole, reached from a uniform point on the aperture disk of radius aperturesize. The pinhole
-      // differentials are kept (an approximation: the footprint ignores the defocus).
-      float lx, ly;
-      sample_uniform_disk_concentric(lens_u, lens_v, lx, ly);
-      const Vec3 lens_point(lx * cam.aperture_size, ly * cam.aperture_size, 0.0f);
-      const Vec3 focus_point = v * cam.focal_distance;  // v.z = 1
-      const Vec3 w = cam.camera_to_world.vector(focus_point - lens_point);
-      dir = normalize(w);
-      org = cam.camera_to_world.point(lens_point);
-    }
-    // Depth of the first hit is measured along camera +Z in world units.
-    dir_z = dot(dir, normalize(cam.camera_to_world.vector(Vec3(0, 0, 1))));
-  }
 };
 
 Renderer::Renderer(const scene::Scene &scene, const host::PluginLibrary &plugin, const RenderOptions &options)
@@ -771,7 +704,7 @@ bool Renderer::probe(float x, float y, GlimmerShadingContext &out) const {
   Vec3 org, D;
   Differentials rd;
   float dir_z = 1.0f;
-  im.camera_ray(x, y, org, D, rd, dir_z);
+  camera_ray(im.scene.camera, im.width, im.height, x, y, org, D, rd, dir_z);
   float tmin = 0.0f;
   for (int bounce = 0; bounce < 16; ++bounce) {
     SurfaceHit hit;
@@ -803,7 +736,7 @@ bool Renderer::probe(float x, float y, GlimmerShadingContext &out) const {
     if (!leaf.instance || leaf.instance->sample(Impl::context_for(sd, cs.closures[0], scratch), r3, s) == GLIMMER_LABEL_NONE)
       return false;
     const Vec3 wo = normalize(Vec3(s.wo));
-    im.propagate_specular(rd, D, wo, sd, s.eta);
+    propagate_specular(rd, D, wo, sd.N, sd.Ng, sd.dn1, sd.dn2, s.eta);
     org = offset_ray_origin(sd.ctx.P, sd.Ng, wo);
     D = wo;
   }
