@@ -25,7 +25,7 @@ class GlimmerRenderSettings(bpy.types.PropertyGroup):
     sample_clamp_direct: bpy.props.FloatProperty(name="Clamp Direct", description="0: no clamp", default=0.0,
                                                  min=0.0)
     sample_clamp_indirect: bpy.props.FloatProperty(name="Clamp Indirect", description="0: no clamp",
-                                                   default=0.0, min=0.0)
+                                                   default=10.0, min=0.0)  # Blender's (and the host's) default
 
     film_exposure: bpy.props.FloatProperty(name="Exposure", description="Film exposure multiplier",
                                            default=1.0, min=0.0)

@@ -24,11 +24,12 @@ std::vector<std::string> enum_choices(const char *choices) {
   return out;
 }
 
-nlohmann::json describe_param(const GlimmerParamSpec &p) {
+nlohmann::json describe_param(const GlimmerClosureType &type, const GlimmerParamSpec &p) {
   nlohmann::json j;
   j["name"] = p.name;
   j["type"] = host::param_type_name(p.type);
   j["doc"] = p.doc ? p.doc : "";
+  j["varying"] = (host::param_flags(type, p) & GLIMMER_PARAM_VARYING) != 0;  // may be textured per shading point
   switch (p.type) {
     case GLIMMER_PARAM_COLOR:
     case GLIMMER_PARAM_VECTOR:
@@ -86,6 +87,7 @@ void add_describe_command(CLI::App &app, CliContext &ctx) {
       out["plugin"] = {{"name", info.plugin_name},
                        {"version", info.plugin_version},
                        {"abi_version", info.abi_version},
+                       {"abi", host::abi_version_name(info.abi_version)},
                        {"path", plugin.path()}};
       out["closures"] = nlohmann::json::array();
       for (const auto *t : plugin.closures()) {
@@ -94,23 +96,24 @@ void add_describe_command(CLI::App &app, CliContext &ctx) {
         c["doc"] = t->doc ? t->doc : "";
         c["flags"] = flags_json(t->flags);
         c["params"] = nlohmann::json::array();
-        for (uint32_t i = 0; i < t->param_count; ++i) c["params"].push_back(describe_param(t->params[i]));
+        for (uint32_t i = 0; i < t->param_count; ++i) c["params"].push_back(describe_param(*t, host::param_at(*t, i)));
         out["closures"].push_back(c);
       }
       std::cout << out.dump(2) << "\n";
       return;
     }
-    std::cout << info.plugin_name << " " << info.plugin_version << " (ABI " << info.abi_version << ") from "
+    std::cout << info.plugin_name << " " << info.plugin_version << " (ABI " << host::abi_version_name(info.abi_version) << ") from "
               << plugin.path() << "\n";
     for (const auto *t : plugin.closures()) {
       std::cout << "\n" << t->name << ": " << (t->doc ? t->doc : "") << "\n";
       for (uint32_t i = 0; i < t->param_count; ++i) {
-        const auto j = describe_param(t->params[i]);
-        std::cout << "  " << t->params[i].name << " (" << j["type"].get<std::string>() << ", default "
+        const GlimmerParamSpec &spec = host::param_at(*t, i);
+        const auto j = describe_param(*t, spec);
+        std::cout << "  " << spec.name << " (" << j["type"].get<std::string>() << ", default "
                   << j["default"].dump();
         if (j.contains("min")) std::cout << ", range [" << j["min"].dump() << ", " << j["max"].dump() << "]";
         if (j.contains("choices")) std::cout << ", one of " << j["choices"].dump();
-        std::cout << "): " << (t->params[i].doc ? t->params[i].doc : "") << "\n";
+        std::cout << "): " << (spec.doc ? spec.doc : "") << (j["varying"].get<bool>() ? " [varying]" : "") << "\n";
       }
     }
   });

@@ -1,5 +1,6 @@
 #include "host/closure_instance.h"
 
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -7,7 +8,7 @@
 
 namespace glimmer::host {
 
-const char *param_type_name(GlimmerParamType type) {
+const char *param_type_name(uint32_t type) {
   switch (type) {
     case GLIMMER_PARAM_FLOAT: return "float";
     case GLIMMER_PARAM_INT: return "int";
@@ -20,10 +21,66 @@ const char *param_type_name(GlimmerParamType type) {
   return "unknown";
 }
 
+const GlimmerParamSpec &param_at(const GlimmerClosureType &type, uint32_t index) {
+  return *reinterpret_cast<const GlimmerParamSpec *>(reinterpret_cast<const char *>(type.params) +
+                                                     static_cast<size_t>(index) * type.param_spec_size);
+}
+
+uint32_t param_index(const GlimmerClosureType &type, const GlimmerParamSpec &spec) {
+  const auto offset = reinterpret_cast<const char *>(&spec) - reinterpret_cast<const char *>(type.params);
+  return static_cast<uint32_t>(offset / type.param_spec_size);
+}
+
+uint32_t param_flags(const GlimmerClosureType &type, const GlimmerParamSpec &spec) {
+  return GLIMMER_HAS_FIELD(type.param_spec_size, GlimmerParamSpec, flags) ? spec.flags : 0u;
+}
+
 const GlimmerParamSpec *find_param(const GlimmerClosureType &type, const std::string &name) {
   for (uint32_t i = 0; i < type.param_count; ++i)
-    if (name == type.params[i].name) return &type.params[i];
+    if (name == param_at(type, i).name) return &param_at(type, i);
   return nullptr;
+}
+
+std::string validate_schema(const GlimmerClosureType &type) {
+  const std::string closure = type.name ? type.name : "?";
+  for (uint32_t i = 0; i < type.param_count; ++i) {
+    const GlimmerParamSpec &p = param_at(type, i);
+    if (p.name == nullptr || *p.name == '\0') return closure + ": parameter #" + std::to_string(i) + " has no name";
+    const std::string prefix = closure + ": parameter '" + p.name + "'";
+    for (uint32_t j = 0; j < i; ++j)
+      if (std::string(param_at(type, j).name) == p.name) return prefix + " is declared twice";
+    if (p.type > GLIMMER_PARAM_STRING) return prefix + " has an unknown type " + std::to_string(p.type);
+    if (p.type == GLIMMER_PARAM_ENUM) {
+      if (p.enum_choices == nullptr || p.default_string == nullptr) return prefix + ": enum without choices or default";
+      bool found = false;
+      std::string choice;
+      for (const char *c = p.enum_choices;; ++c) {
+        if (*c == '|' || *c == '\0') {
+          found = found || choice == p.default_string;
+          choice.clear();
+          if (*c == '\0') break;
+        } else {
+          choice += *c;
+        }
+      }
+      if (!found)
+        return prefix + ": default '" + p.default_string + "' is not one of its choices '" + p.enum_choices + "'";
+      continue;
+    }
+    if (p.type == GLIMMER_PARAM_STRING) continue;
+    if (!std::isfinite(p.min_value) || !std::isfinite(p.max_value) || p.min_value > p.max_value)
+      return prefix + ": invalid range [" + std::to_string(p.min_value) + ", " + std::to_string(p.max_value) + "]";
+    const int n = (p.type == GLIMMER_PARAM_COLOR || p.type == GLIMMER_PARAM_VECTOR) ? 3 : 1;
+    for (int c = 0; c < n; ++c) {
+      const float d = p.default_value[c];
+      if (!std::isfinite(d) || d < p.min_value || d > p.max_value)
+        return prefix + ": default " + std::to_string(d) + " is outside its range [" + std::to_string(p.min_value) +
+               ", " + std::to_string(p.max_value) + "]";
+      if ((p.type == GLIMMER_PARAM_INT || p.type == GLIMMER_PARAM_BOOL) && d != std::floor(d))
+        return prefix + ": default " + std::to_string(d) + " is not a whole number";
+    }
+  }
+  return "";
 }
 
 namespace {
@@ -53,7 +110,7 @@ void ParamList::set_from_text(const GlimmerClosureType &type, const std::string 
   const GlimmerParamSpec *spec = find_param(type, name);
   if (spec == nullptr) {
     std::string known;
-    for (uint32_t i = 0; i < type.param_count; ++i) known += (i ? ", " : "") + std::string(type.params[i].name);
+    for (uint32_t i = 0; i < type.param_count; ++i) known += (i ? ", " : "") + std::string(param_at(type, i).name);
     throw ClosureError(std::string(type.name) + ": unknown parameter '" + name + "' (known: " + known + ")");
   }
   if (spec->type == GLIMMER_PARAM_ENUM || spec->type == GLIMMER_PARAM_STRING) {
@@ -129,6 +186,7 @@ const GlimmerHostServices *default_host_services() {
   static const std::string cache_dir = default_cache_dir();
   static const GlimmerHostServices services = [] {
     GlimmerHostServices s{};
+    s.struct_size = sizeof(GlimmerHostServices);
     s.abi_version = GLIMMER_ABI_VERSION;
     s.host_data = nullptr;
     s.trace_ray = nullptr;
@@ -176,6 +234,7 @@ Spectrum ClosureInstance::emit(const GlimmerShadingContext &ctx) const {
 
 GlimmerShadingContext make_local_context(const Vec3 &wi, const GlimmerHostServices *host) {
   GlimmerShadingContext ctx{};
+  ctx.struct_size = sizeof(GlimmerShadingContext);
   ctx.wi = normalize(wi);
   ctx.P = Vec3(0.0f);
   ctx.N = Vec3(0, 0, 1);

@@ -44,8 +44,16 @@ class ParamList {
   std::map<std::string, Entry> entries_;
 };
 
+// Schema access honouring the plugin's GlimmerParamSpec size (an ABI 2.0
+// plugin's specs have no flags field): use these, never type.params[i].
+const GlimmerParamSpec &param_at(const GlimmerClosureType &type, uint32_t index);
+uint32_t param_index(const GlimmerClosureType &type, const GlimmerParamSpec &spec);
+uint32_t param_flags(const GlimmerClosureType &type, const GlimmerParamSpec &spec);  // 0 for ABI 2.0 plugins
 const GlimmerParamSpec *find_param(const GlimmerClosureType &type, const std::string &name);
-const char *param_type_name(GlimmerParamType type);
+const char *param_type_name(uint32_t type);
+// Checks a closure type's schema (names, types, ranges, defaults in range,
+// enum defaults among the choices); returns "" or the first problem.
+std::string validate_schema(const GlimmerClosureType &type);
 
 // Default host services for tools without a scene (lab, tests): log to
 // stderr, cache in $GLIMMER_CACHE_DIR or ~/.cache/glimmer, no ray tracing.

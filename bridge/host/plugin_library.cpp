@@ -1,8 +1,11 @@
 #include "host/plugin_library.h"
 
+#include "host/closure_instance.h"
+
 #include <dlfcn.h>
 #include <unistd.h>
 
+#include <cstddef>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
@@ -16,6 +19,16 @@ std::string executable_directory() {
   std::error_code ec;
   const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
   return ec ? std::string() : exe.parent_path().string();
+}
+
+std::string abi_version_name(uint32_t version) {
+  if (version < 0x10000u) return std::to_string(version);  // ABI 1 numbered versions with one integer
+  return std::to_string(GLIMMER_ABI_VERSION_MAJOR(version)) + "." + std::to_string(GLIMMER_ABI_VERSION_MINOR(version));
+}
+
+bool abi_compatible(uint32_t plugin_version, uint32_t host_version) {
+  return plugin_version >= 0x10000u && GLIMMER_ABI_VERSION_MAJOR(plugin_version) == GLIMMER_ABI_VERSION_MAJOR(host_version) &&
+         GLIMMER_ABI_VERSION_MINOR(plugin_version) <= GLIMMER_ABI_VERSION_MINOR(host_version);
 }
 
 std::unique_ptr<PluginLibrary> PluginLibrary::load(const std::string &path_in) {
@@ -42,22 +55,29 @@ std::unique_ptr<PluginLibrary> PluginLibrary::load(const std::string &path_in) {
     dlclose(handle);
     throw PluginError("closure plugin " + path.string() + " returned no plugin info");
   }
-  if (info->abi_version != GLIMMER_ABI_VERSION) {
+  if (!abi_compatible(info->abi_version, GLIMMER_ABI_VERSION)) {
     std::ostringstream msg;
-    msg << "closure plugin " << path.string() << " was built for Glimmer ABI version " << info->abi_version
-        << ", but this host uses ABI version " << GLIMMER_ABI_VERSION
-        << "; rebuild the plugin and the host from the same source";
+    msg << "closure plugin " << path.string() << " was built for Glimmer ABI version "
+        << abi_version_name(info->abi_version) << ", but this host uses ABI version "
+        << abi_version_name(GLIMMER_ABI_VERSION) << " (it loads plugins of ABI " << GLIMMER_ABI_MAJOR << ".0 to "
+        << abi_version_name(GLIMMER_ABI_VERSION) << "); rebuild the plugin against this host's closure_abi.h";
     dlclose(handle);
     throw PluginError(msg.str());
   }
+  auto refuse = [&](const std::string &why) {
+    dlclose(handle);
+    throw PluginError("closure plugin " + path.string() + ": " + why);
+  };
+  if (info->struct_size < offsetof(GlimmerPluginInfo, closures) + sizeof(info->closures))
+    refuse("GlimmerPluginInfo.struct_size " + std::to_string(info->struct_size) + " is too small");
   for (uint32_t i = 0; i < info->closure_count; ++i) {
     const GlimmerClosureType *t = info->closures[i];
-    if (t == nullptr || t->name == nullptr || t->create == nullptr || t->destroy == nullptr ||
-        t->eval == nullptr || t->sample == nullptr) {
-      dlclose(handle);
-      throw PluginError("closure plugin " + path.string() + " lists an incomplete closure type (#" +
-                        std::to_string(i) + ")");
-    }
+    if (t == nullptr || t->struct_size < offsetof(GlimmerClosureType, emit) + sizeof(t->emit) ||
+        t->param_spec_size < offsetof(GlimmerParamSpec, doc) + sizeof(t->params->doc) || t->name == nullptr ||
+        t->create == nullptr || t->destroy == nullptr || t->eval == nullptr || t->sample == nullptr ||
+        (t->param_count > 0 && t->params == nullptr))
+      refuse("lists an incomplete closure type (#" + std::to_string(i) + ")");
+    if (const std::string problem = validate_schema(*t); !problem.empty()) refuse("invalid schema: " + problem);
   }
   return std::unique_ptr<PluginLibrary>(new PluginLibrary(handle, info, path.string()));
 }

@@ -48,6 +48,11 @@ class PluginLibrary {
   std::string path_;
 };
 
+// "2.1" for a packed major.minor ABI version, "1" for the single-integer ABI 1.
+std::string abi_version_name(uint32_t version);
+// A plugin loads when its major version is the host's and its minor is the same or older.
+bool abi_compatible(uint32_t plugin_version, uint32_t host_version);
+
 // The directory holding the running executable ("" when unknown).
 std::string executable_directory();
 

@@ -8,7 +8,6 @@
 namespace glimmer::render {
 
 namespace {
-float luminance(const Spectrum &s) { return 0.2126f * s.x + 0.7152f * s.y + 0.0722f * s.z; }
 constexpr float kInf = std::numeric_limits<float>::infinity();
 }  // namespace
 
@@ -159,7 +158,7 @@ LightSet::LightSet(const scene::Scene &scene, ShaderSystem &shaders, const std::
       e.mesh = static_cast<int>(m);
       e.prim = static_cast<int>(t);
       e.area = area;
-      const Spectrum L = triangle_emission(e, Vec3(0.0f), 1.0f / 3.0f, 1.0f / 3.0f, Vec3(0, 0, 1));
+      const Spectrum L = triangle_emission(e, mesh.surface_at(t, 1.0f / 3.0f, 1.0f / 3.0f), Vec3(0, 0, 1));
       if (is_zero(L)) continue;
       triangle_light_[m][t] = static_cast<int>(lights_.size());
       lights_.push_back(e);
@@ -257,25 +256,18 @@ float LightSet::spread_attenuation(const Entry &l, float cos_to_normal) {
   return std::max((1.0f - l.tan_spread * tan_a) * l.normalize_spread, 0.0f);
 }
 
-Spectrum LightSet::triangle_emission(const Entry &l, const Vec3 &, float b1, float b2, const Vec3 &wi_toward_viewer) const {
-  const scene::Mesh &m = scene_.meshes[l.mesh];
-  const auto &tri = m.triangles[l.prim];
-  const float b0 = 1.0f - b1 - b2;
+Spectrum LightSet::triangle_emission(const Entry &l, const scene::SurfacePoint &s, const Vec3 &wi_toward_viewer) const {
   TexCoords tc;
-  tc.P = m.P[tri[0]] * b0 + m.P[tri[1]] * b1 + m.P[tri[2]] * b2;
-  tc.generated = m.generated[tri[0]] * b0 + m.generated[tri[1]] * b1 + m.generated[tri[2]] * b2;
-  const Vec3 Ng = normalize(cross(m.P[tri[1]] - m.P[tri[0]], m.P[tri[2]] - m.P[tri[0]]));
+  tc.P = s.P;
+  tc.generated = s.generated;
+  const Vec3 Ng = s.Ng;
   tc.N = Ng;
-  if (!m.uv.empty()) {
-    for (int k = 0; k < 2; ++k)
-      tc.uv[k] = m.uv[3 * l.prim][k] * b0 + m.uv[3 * l.prim + 1][k] * b1 + m.uv[3 * l.prim + 2][k] * b2;
-  } else {
-    tc.uv[0] = b1;
-    tc.uv[1] = b2;
-  }
+  tc.uv[0] = s.uv[0];
+  tc.uv[1] = s.uv[1];
   ClosureSet cs;
   shaders_.evaluate(mesh_shader_[l.mesh], tc, cs);
   GlimmerShadingContext ctx{};
+  ctx.struct_size = sizeof(GlimmerShadingContext);
   ctx.wi = wi_toward_viewer;
   ctx.P = tc.P;
   ctx.N = dot(Ng, wi_toward_viewer) >= 0.0f ? Ng : -Ng;
@@ -392,11 +384,11 @@ bool LightSet::sample(float u, float v, const Vec3 &P, LightSample &out) const {
     }
     case Kind::Triangle: {
       const scene::Mesh &m = scene_.meshes[l.mesh];
-      const auto &tri = m.triangles[l.prim];
       float b1 = u, b2 = v;
       if (b1 + b2 > 1.0f) { b1 = 1.0f - b1; b2 = 1.0f - b2; }
-      const Vec3 Pl = m.P[tri[0]] * (1.0f - b1 - b2) + m.P[tri[1]] * b1 + m.P[tri[2]] * b2;
-      const Vec3 Ng = normalize(cross(m.P[tri[1]] - m.P[tri[0]], m.P[tri[2]] - m.P[tri[0]]));
+      const scene::SurfacePoint surface = m.surface_at(l.prim, b1, b2);
+      const Vec3 Pl = surface.P;
+      const Vec3 Ng = surface.Ng;
       const Vec3 to = Pl - P;
       const float d2 = length_squared(to), d = std::sqrt(d2);
       if (!(d > 0.0f)) return false;
@@ -405,7 +397,7 @@ bool LightSet::sample(float u, float v, const Vec3 &P, LightSample &out) const {
       if (cos_l <= 1e-7f) return false;
       out.dist = d;
       out.pdf = pick * d2 / (cos_l * l.area);
-      out.radiance = triangle_emission(l, Pl, b1, b2, -out.wi);
+      out.radiance = triangle_emission(l, surface, -out.wi);
       out.delta = false;
       return !is_zero(out.radiance);
     }

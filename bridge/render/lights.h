@@ -131,7 +131,7 @@ class LightSet {
   float pick_probability(int i) const { return pick_.probability(i); }
   float spot_attenuation(const Entry &l, const Vec3 &dir_from_light) const;
   static float spread_attenuation(const Entry &l, float cos_to_normal);
-  Spectrum triangle_emission(const Entry &l, const Vec3 &P, float b1, float b2, const Vec3 &wi_toward_viewer) const;
+  Spectrum triangle_emission(const Entry &l, const scene::SurfacePoint &s, const Vec3 &wi_toward_viewer) const;
   void build_environment_map();
   float environment_pdf(const Vec3 &d) const;
 };

@@ -14,7 +14,9 @@
 
 #include "glimmer/rng.h"
 #include "glimmer/sampling.h"
+#include "render/camera.h"
 #include "render/lights.h"
+#include "render/path_state.h"
 #include "render/sampler.h"
 
 namespace glimmer::render {
@@ -33,11 +35,6 @@ Vec3 offset_ray_origin(const Vec3 &P, const Vec3 &Ng, const Vec3 &dir) {
   return dot(dir, Ng) >= 0.0f ? P + Ng * eps : P - Ng * eps;
 }
 
-
-// Ray differentials (Igehy 1999): position and direction derivatives per pixel step.
-struct Differentials {
-  Vec3 dPdx{0.0f}, dPdy{0.0f}, dDdx{0.0f}, dDdy{0.0f};
-};
 
 // Cycles' kernel_accum_clamp: scale L so that the sum of its components is at most `limit`.
 Spectrum clamp_contribution(const Spectrum &L, float limit) {
@@ -90,25 +87,14 @@ struct Renderer::Impl {
     auto *self = static_cast<Impl *>(data);
     SurfaceHit h;
     if (!self->intersect(Vec3(ray->origin), Vec3(ray->direction), ray->t_min, ray->t_max, h)) return 0;
-    const scene::Mesh &m = self->scene.meshes[h.mesh];
-    const auto &tri = m.triangles[h.prim];
-    const Vec3 p0 = m.P[tri[0]], p1 = m.P[tri[1]], p2 = m.P[tri[2]];
-    Vec3 Ng = normalize(cross(p1 - p0, p2 - p0));
+    const scene::SurfacePoint s = self->scene.meshes[h.mesh].surface_at(h.prim, h.u, h.v);
     hit->t = h.t;
-    hit->P = p0 * (1 - h.u - h.v) + p1 * h.u + p2 * h.v;
-    Vec3 N = Ng;
-    if (m.smooth && !m.N.empty())
-      N = normalize(m.N[tri[0]] * (1 - h.u - h.v) + m.N[tri[1]] * h.u + m.N[tri[2]] * h.v);
-    hit->N = N;
-    hit->Ng = Ng;
-    hit->backfacing = dot(Ng, Vec3(ray->direction)) > 0.0f ? 1u : 0u;
-    if (!m.uv.empty()) {
-      for (int k = 0; k < 2; ++k)
-        hit->uv[k] = m.uv[3 * h.prim][k] * (1 - h.u - h.v) + m.uv[3 * h.prim + 1][k] * h.u + m.uv[3 * h.prim + 2][k] * h.v;
-    } else {
-      hit->uv[0] = h.u;
-      hit->uv[1] = h.v;
-    }
+    hit->P = s.P;
+    hit->N = s.N;
+    hit->Ng = s.Ng;
+    hit->backfacing = dot(s.Ng, Vec3(ray->direction)) > 0.0f ? 1u : 0u;
+    hit->uv[0] = s.uv[0];
+    hit->uv[1] = s.uv[1];
     hit->object_id = static_cast<uint32_t>(h.mesh);
     return 1;
   }
@@ -142,6 +128,7 @@ struct Renderer::Impl {
   void prepare(PhaseTimes &times) {
     auto t0 = Clock::now();
     cache_dir = host::default_host_services()->cache_dir ? host::default_host_services()->cache_dir : "";
+    host.struct_size = sizeof(GlimmerHostServices);
     host.abi_version = GLIMMER_ABI_VERSION;
     host.host_data = this;
     host.trace_ray = &host_trace;
@@ -270,23 +257,14 @@ struct Renderer::Impl {
   };
 
   void setup_shading(const SurfaceHit &h, const Vec3 &D, ShadingData &sd) const {
-    const scene::Mesh &m = scene.meshes[h.mesh];
-    const auto &tri = m.triangles[h.prim];
-    const Vec3 p0 = m.P[tri[0]], p1 = m.P[tri[1]], p2 = m.P[tri[2]];
-    const float b0 = 1.0f - h.u - h.v;
-    sd.e1 = p1 - p0;
-    sd.e2 = p2 - p0;
-    const Vec3 P = p0 * b0 + p1 * h.u + p2 * h.v;
-    Vec3 Ng = normalize(cross(sd.e1, sd.e2));
-    Vec3 N = Ng;
-    if (m.smooth && !m.N.empty()) {
-      const Vec3 n = m.N[tri[0]] * b0 + m.N[tri[1]] * h.u + m.N[tri[2]] * h.v;
-      if (length_squared(n) > 0.0f) {
-        N = normalize(n);
-        sd.dn1 = m.N[tri[1]] - m.N[tri[0]];
-        sd.dn2 = m.N[tri[2]] - m.N[tri[0]];
-      }
-    }
+    const scene::SurfacePoint s = scene.meshes[h.mesh].surface_at(h.prim, h.u, h.v);
+    sd.e1 = s.e1;
+    sd.e2 = s.e2;
+    sd.dn1 = s.dn1;
+    sd.dn2 = s.dn2;
+    const Vec3 P = s.P;
+    Vec3 Ng = s.Ng;
+    Vec3 N = s.N;
     sd.backfacing = dot(Ng, D) > 0.0f;
     if (sd.backfacing) {  // Cycles flips both normals to the incoming side
       Ng = -Ng;
@@ -296,27 +274,13 @@ struct Renderer::Impl {
     }
     sd.Ng = Ng;
     sd.N = N;
-    float uv[2] = {h.u, h.v};
-    Vec3 dPdu = sd.e1, dPdv = sd.e2;
-    if (!m.uv.empty()) {
-      const auto &a = m.uv[3 * h.prim], &b = m.uv[3 * h.prim + 1], &c = m.uv[3 * h.prim + 2];
-      for (int k = 0; k < 2; ++k) {
-        uv[k] = a[k] * b0 + b[k] * h.u + c[k] * h.v;
-        sd.duv1[k] = b[k] - a[k];
-        sd.duv2[k] = c[k] - a[k];
-      }
-      // Solve [e1 e2] = [dPdu dPdv] [[du1 du2] [dv1 dv2]] for dPdu, dPdv.
-      const float det = sd.duv1[0] * sd.duv2[1] - sd.duv2[0] * sd.duv1[1];
-      if (std::fabs(det) > 1e-12f) {
-        const float inv = 1.0f / det;
-        dPdu = (sd.e1 * sd.duv2[1] - sd.e2 * sd.duv1[1]) * inv;
-        dPdv = (sd.e2 * sd.duv1[0] - sd.e1 * sd.duv2[0]) * inv;
-      }
-    } else {
-      sd.duv1[0] = 1; sd.duv1[1] = 0;
-      sd.duv2[0] = 0; sd.duv2[1] = 1;
+    const float uv[2] = {s.uv[0], s.uv[1]};
+    const Vec3 dPdu = s.dPdu, dPdv = s.dPdv;
+    for (int k = 0; k < 2; ++k) {
+      sd.duv1[k] = s.duv1[k];
+      sd.duv2[k] = s.duv2[k];
     }
-    const Vec3 gen = m.generated[tri[0]] * b0 + m.generated[tri[1]] * h.u + m.generated[tri[2]] * h.v;
+    const Vec3 gen = s.generated;
     sd.tc.P = P;
     sd.tc.N = N;
     sd.tc.generated = gen;
@@ -325,6 +289,7 @@ struct Renderer::Impl {
     sd.tc.direction = D;
     GlimmerShadingContext &ctx = sd.ctx;
     ctx = GlimmerShadingContext{};
+    ctx.struct_size = sizeof(GlimmerShadingContext);
     ctx.wi = -D;
     ctx.P = P;
     ctx.N = N;
@@ -347,8 +312,16 @@ struct Renderer::Impl {
       sd.ctx_front.Ng = -Vec3(sd.ctx.Ng);
     }
   }
-  static const GlimmerShadingContext &context_for(const ShadingData &sd, const ClosureLeaf &leaf) {
-    return leaf.front_normal ? sd.ctx_front : sd.ctx;
+  // The context one closure sees: front-face or flipped normal, and its varying
+  // parameter values (then a copy in `scratch`; without them no copy is made).
+  static const GlimmerShadingContext &context_for(const ShadingData &sd, const ActiveClosure &c,
+                                                  GlimmerShadingContext &scratch) {
+    const GlimmerShadingContext &ctx = c.leaf->front_normal ? sd.ctx_front : sd.ctx;
+    if (c.varying_count == 0) return ctx;
+    scratch = ctx;
+    scratch.varying_count = c.varying_count;
+    scratch.varying = c.varying;
+    return scratch;
   }
 
   // Transfer the differentials to the hit plane and express them in barycentric
@@ -402,7 +375,8 @@ struct Renderer::Impl {
       if (i == skip || c.sample_weight <= 0.0f || c.leaf->singular || !c.instance) continue;
       Spectrum f;
       float pdf = 0.0f;
-      c.instance->eval(context_for(sd, *c.leaf), wo, f, pdf);
+      GlimmerShadingContext scratch;
+      c.instance->eval(context_for(sd, c, scratch), wo, f, pdf);
       if (!is_finite(f) || !std::isfinite(pdf)) continue;
       out.f += f * c.weight;
       out.pdf += pdf * c.sample_weight;
@@ -442,16 +416,165 @@ struct Renderer::Impl {
     float depth = 1e10f;
   };
 
+  // The MIS weight of emission a BSDF-sampled ray found (lamps, background, mesh lights),
+  // against the light-sampling pdf of the same point: 1 after a singular scatter or the
+  // camera, 0 when only light sampling counts emission, else the power heuristic.
+  float emission_mis_weight(const PathState &ps, float light_pdf) const {
+    if (ps.last_singular) return 1.0f;
+    if (options.strategy == LightStrategy::LightOnly) return 0.0f;
+    return options.strategy != LightStrategy::BsdfOnly ? power_heuristic(ps.mis_ray_pdf, light_pdf) : 1.0f;
+  }
+
+  // filter_glossy (Cycles): blur_pdf = filter_glossy * min_ray_pdf; below 1 the glossy
+  // closures get alpha >= 0.5 sqrt(1 - blur_pdf) (nearest lower precomputed variant).
+  void apply_filter_glossy(const PathState &ps, ClosureSet &cs) const {
+    const float filter_glossy = scene.integrator.filter_glossy;
+    if (!(filter_glossy > 0.0f) || ps.min_ray_pdf == std::numeric_limits<float>::max()) return;
+    const float blur_pdf = filter_glossy * ps.min_ray_pdf;
+    if (blur_pdf >= 1.0f) return;
+    const float blur_alpha = 0.5f * std::sqrt(1.0f - blur_pdf);
+    ShaderSystem::apply_filter_glossy(cs, static_cast<int>(blur_alpha / ClosureLeaf::kBlurStep));
+  }
+
+  // Next-event estimation: one light sample, the closure mixture's f and pdf toward it,
+  // power-heuristic MIS against BSDF sampling, and the shadow ray's transmittance.
+  // Returns the path's contribution (throughput included).
+  Spectrum sample_direct_light(const ClosureSet &cs, const ShadingData &sd, const Spectrum &throughput, float total_sw,
+                               float lu, float lv) const {
+    LightSample ls;
+    if (!lights->sample(lu, lv, sd.ctx.P, ls) || !(ls.pdf > 0.0f)) return Spectrum(0.0f);
+    MixtureEval me = eval_mixture(cs, sd, ls.wi);
+    me.pdf /= total_sw;
+    if (is_zero(me.f)) return Spectrum(0.0f);
+    const bool use_bsdf_emission = options.strategy != LightStrategy::LightOnly;
+    const float w = (ls.delta || !use_bsdf_emission) ? 1.0f : power_heuristic(ls.pdf, me.pdf);
+    const Spectrum contribution = throughput * me.f * ls.radiance * (w / ls.pdf);
+    if (is_zero(contribution)) return contribution;
+    return contribution * shadow_transmittance(sd, ls.wi, ls.dist);
+  }
+
+  // Picks a closure by sample weight from `pick` in [0, total_sw): kTransparent for the
+  // transparent pass-through, -1 for none. On return `pick` is the offset within the chosen
+  // closure's share [0, sample_weight), so the caller can rescale and reuse it.
+  static constexpr int kTransparent = -2;
+  static int pick_closure(const ClosureSet &cs, float &pick, float transparent_weight) {
+    if (pick < transparent_weight) return kTransparent;
+    pick -= transparent_weight;
+    int chosen = -1;
+    for (int i = 0; i < cs.count; ++i) {
+      if (cs.closures[i].sample_weight <= 0.0f) continue;
+      chosen = i;
+      if (pick < cs.closures[i].sample_weight) break;
+      pick -= cs.closures[i].sample_weight;
+    }
+    return chosen;
+  }
+
+  // Sum of the closures' emission toward the viewer.
+  static Spectrum surface_emission(const ClosureSet &cs, const GlimmerShadingContext &ctx) {
+    Spectrum emission(0.0f);
+    for (int i = 0; i < cs.count; ++i)
+      if (cs.closures[i].leaf->emissive) emission += cs.closures[i].leaf->instance->emit(ctx) * cs.closures[i].weight;
+    return emission;
+  }
+
+  // Albedo, normal and depth AOVs at the first non-transparent surface.
+  static void write_first_hit_aovs(const ClosureSet &cs, const ShadingData &sd, float depth, PixelAov &aov) {
+    aov.normal = sd.N;
+    aov.depth = depth;
+    for (int i = 0; i < cs.count; ++i) {
+      const ActiveClosure &c = cs.closures[i];
+      if (c.leaf->emissive || !c.leaf->instance) continue;
+      GlimmerShadingContext scratch;
+      aov.albedo += c.leaf->instance->albedo(context_for(sd, c, scratch)) * c.weight;
+    }
+  }
+
+  // Ray differentials for the next segment: specular propagation after a singular
+  // scatter, else a cone widened by beta = 2 alpha (Wang 2018, sec. 4.6).
+  void next_differentials(Differentials &rd, const Vec3 &D, const Vec3 &wo, const ShadingData &sd,
+                          const GlimmerSample &s, bool singular, float pixel_spread, PathState &ps) const {
+    if (singular) {
+      propagate_specular(rd, D, wo, sd.N, sd.Ng, sd.dn1, sd.dn2, s.eta);
+      return;
+    }
+    const float alpha = std::clamp(s.roughness, 0.0f, 1.0f);
+    ps.spread += 2.0f * alpha;
+    const float width_dir = pixel_spread + ps.spread;
+    const Frame f = Frame::from_normal(wo);
+    rd.dDdx = f.s * width_dir;
+    rd.dDdy = f.t * width_dir;
+  }
+
+  // Russian roulette after min_bounce (Cycles' path_state_continuation_probability):
+  // survive with q = min(sqrt(max throughput), 1) and divide by it.
+  static bool survives_russian_roulette(const PathState &ps, const BounceLimits &limits, float rr,
+                                        Spectrum &throughput) {
+    if (ps.bounce <= limits.min_bounce) return true;
+    const float q = std::min(std::sqrt(max_component(abs(throughput))), 1.0f);
+    if (q <= 0.0f || rr >= q) return false;
+    throughput /= q;
+    return true;
+  }
+
+  // True when a non-singular closure can take a light sample (NEE).
+  static bool has_smooth_closure(const ClosureSet &cs) {
+    for (int i = 0; i < cs.count; ++i)
+      if (cs.closures[i].sample_weight > 0.0f && !cs.closures[i].leaf->singular) return true;
+    return false;
+  }
+
+  // The path's counters and seed in the shading contexts.
+  static void set_path_context(const PathState &ps, uint32_t path_seed, ShadingData &sd) {
+    GlimmerShadingContext &ctx = sd.ctx;
+    ctx.bounce = static_cast<uint32_t>(ps.bounce);
+    ctx.diffuse_bounce = static_cast<uint32_t>(ps.diffuse_bounce);
+    ctx.glossy_bounce = static_cast<uint32_t>(ps.glossy_bounce);
+    ctx.transmission_bounce = static_cast<uint32_t>(ps.transmission_bounce);
+    ctx.path_seed = path_seed;
+    sync_front(sd);
+  }
+
+  // Samples closure `chosen` and updates the throughput with the one-sample MIS
+  // estimate over the mixture (singular: the delta weight over its pick
+  // probability), the MIS state and last_singular. False ends the path.
+  bool scatter(const ClosureSet &cs, const ShadingData &sd, int chosen, const float r3[3], float total_sw,
+               Spectrum &throughput, PathState &ps, GlimmerSample &s, uint64_t &nan_count) const {
+    const ActiveClosure &c = cs.closures[chosen];
+    GlimmerShadingContext scratch;
+    const uint32_t label = c.instance->sample(context_for(sd, c, scratch), r3, s);
+    if (label == GLIMMER_LABEL_NONE || !(s.pdf > 0.0f) || !std::isfinite(s.pdf)) return false;
+    const Vec3 wo = normalize(Vec3(s.wo));
+    const Spectrum s_eval(s.eval[0], s.eval[1], s.eval[2]);
+    if (!is_finite(s_eval)) {
+      ++nan_count;
+      return false;
+    }
+    const bool singular = (label & GLIMMER_LABEL_SINGULAR) != 0;
+    if (singular) {
+      throughput *= s_eval * c.weight * (total_sw / c.sample_weight);
+    } else {
+      MixtureEval me = eval_mixture(cs, sd, wo, chosen);
+      me.f += s_eval * c.weight;
+      me.pdf = (me.pdf + s.pdf * c.sample_weight) / total_sw;
+      if (!(me.pdf > 0.0f)) return false;
+      throughput *= me.f / me.pdf;
+      ps.mis_ray_pdf = me.pdf;
+      ps.min_ray_pdf = std::min(ps.min_ray_pdf, me.pdf);
+    }
+    if (!is_finite(throughput)) {
+      ++nan_count;
+      return false;
+    }
+    if (is_zero(throughput)) return false;
+    ps.last_singular = singular;
+    s.label = label;
+    return true;
+  }
+
   Spectrum trace_path(int px, int py, uint32_t sample_index, PixelAov &aov, uint64_t &nan_count) const {
     const auto &integ = scene.integrator;
-    // Cycles' kernel limits (scene/integrator.cpp): the settings plus one, "so that a bounce of 0 indicates
-    // no global illumination, only direct illumination"; transparent_max_bounce is used as is.
-    const auto plus_one = [](int v) { return v < std::numeric_limits<int>::max() ? v + 1 : v; };
-    const int limit_min_bounce = plus_one(integ.min_bounce);
-    const int limit_bounce = plus_one(integ.max_bounce);
-    const int limit_diffuse = plus_one(integ.max_diffuse_bounce);
-    const int limit_glossy = plus_one(integ.max_glossy_bounce);
-    const int limit_transmission = plus_one(integ.max_transmission_bounce);
+    const BounceLimits limits(integ);
     const uint32_t pixel_index = static_cast<uint32_t>(py) * static_cast<uint32_t>(width) + static_cast<uint32_t>(px);
     const PixelSampler sampler(seed, pixel_index, sample_index);
     const uint32_t path_seed = hash_u32x3(seed, pixel_index, sample_index);
@@ -465,18 +588,13 @@ struct Renderer::Impl {
     float cam_dir_z = 1.0f;
     float lens_u = 0.5f, lens_v = 0.5f;
     if (scene.camera.aperture_size > 0.0f) sampler.get2(kSetLens, lens_u, lens_v);
-    camera_ray(px + 0.5f + ox, py + 0.5f + oy, org, D, rd, cam_dir_z, lens_u, lens_v);
+    camera_ray(scene.camera, width, height, px + 0.5f + ox, py + 0.5f + oy, org, D, rd, cam_dir_z, lens_u, lens_v);
     float tmin = scene.camera.nearclip / std::max(cam_dir_z, 1e-6f);
     float tmax = scene.camera.farclip / std::max(cam_dir_z, 1e-6f);
     const float pixel_spread = std::max(length(rd.dDdx), length(rd.dDdy));
 
     Spectrum L(0.0f), throughput(1.0f);
-    int bounce = 0, diffuse_bounce = 0, glossy_bounce = 0, transmission_bounce = 0, transparent_bounce = 0;
-    bool terminate_next = false;
-    bool last_singular = true;  // camera rays count as singular: no MIS on emission
-    float mis_ray_pdf = 0.0f;
-    float min_ray_pdf = std::numeric_limits<float>::max();
-    float spread = 0.0f;
+    PathState ps;
     bool first_hit = true;
 
     auto add = [&](const Spectrum &contribution, int at_bounce) {
@@ -486,8 +604,12 @@ struct Renderer::Impl {
       }
       L += clamp_contribution(contribution, at_bounce > 0 ? integ.sample_clamp_indirect : integ.sample_clamp_direct);
     };
+    // Emission found by the ray, weighted against light sampling.
+    auto add_emission = [&](const Spectrum &Le, float light_pdf) {
+      const float w = emission_mis_weight(ps, light_pdf);
+      if (w > 0.0f) add(throughput * Le * w, ps.bounce);
+    };
     const bool use_nee = options.strategy != LightStrategy::BsdfOnly;
-    const bool use_bsdf_emission = options.strategy != LightStrategy::LightOnly;
 
     for (int step = 0; step < 4 * 1024; ++step) {
       SurfaceHit hit;
@@ -496,187 +618,76 @@ struct Renderer::Impl {
       // Lamps (spheres, area lights) before the surface and the sun disk on escape;
       // as in Cycles they do not block the ray.
       LightHits lhs;
-      lights->intersect(org, D, t_hit, hit_surface, bounce == 0, lhs);
-      for (int i = 0; i < lhs.count; ++i) {
-        const LightHit &lh = lhs.hits[i];
-        if (last_singular) {
-          add(throughput * lh.radiance, bounce);
-        } else if (use_bsdf_emission) {
-          const float w = use_nee ? power_heuristic(mis_ray_pdf, lh.pdf) : 1.0f;
-          add(throughput * lh.radiance * w, bounce);
-        }
-      }
+      lights->intersect(org, D, t_hit, hit_surface, ps.bounce == 0, lhs);
+      for (int i = 0; i < lhs.count; ++i) add_emission(lhs.hits[i].radiance, lhs.hits[i].pdf);
       if (!hit_surface) {
-        if (shaders->has_background()) {
-          const Spectrum Le = shaders->background(D);
-          if (last_singular) {
-            add(throughput * Le, bounce);
-          } else if (use_bsdf_emission) {
-            const float w = use_nee ? power_heuristic(mis_ray_pdf, lights->background_pdf(D)) : 1.0f;
-            add(throughput * Le * w, bounce);
-          }
-        }
+        if (shaders->has_background()) add_emission(shaders->background(D), use_nee ? lights->background_pdf(D) : 0.0f);
         break;
       }
 
       ShadingData sd;
       setup_shading(hit, D, sd);
-      transfer_differentials(rd, D, hit.t, sd, spread);
-      GlimmerShadingContext &ctx = sd.ctx;
-      ctx.bounce = static_cast<uint32_t>(bounce);
-      ctx.diffuse_bounce = static_cast<uint32_t>(diffuse_bounce);
-      ctx.glossy_bounce = static_cast<uint32_t>(glossy_bounce);
-      ctx.transmission_bounce = static_cast<uint32_t>(transmission_bounce);
-      ctx.path_seed = path_seed;
-      sync_front(sd);
+      transfer_differentials(rd, D, hit.t, sd, ps.spread);
+      set_path_context(ps, path_seed, sd);
+      const GlimmerShadingContext &ctx = sd.ctx;
 
       ClosureSet cs;
       shaders->evaluate(sd.shader, sd.tc, cs);
-      // filter_glossy (Cycles): blur_pdf = filter_glossy * min_ray_pdf; below 1 the glossy
-      // closures get alpha >= 0.5 sqrt(1 - blur_pdf) (nearest lower precomputed variant).
-      if (integ.filter_glossy > 0.0f && min_ray_pdf < std::numeric_limits<float>::max()) {
-        const float blur_pdf = integ.filter_glossy * min_ray_pdf;
-        if (blur_pdf < 1.0f) {
-          const float blur_alpha = 0.5f * std::sqrt(1.0f - blur_pdf);
-          const int k = std::min(static_cast<int>(blur_alpha / ClosureLeaf::kBlurStep), ClosureLeaf::kBlurLevels);
-          for (int i = 0; i < cs.count; ++i)
-            if (k > 0 && !cs.closures[i].leaf->blurred.empty()) cs.closures[i].instance = cs.closures[i].leaf->blurred[k];
-        }
-      }
+      apply_filter_glossy(ps, cs);
 
       // Emission (mesh lights), MIS against the light-sampling pdf.
-      Spectrum emission(0.0f);
-      for (int i = 0; i < cs.count; ++i)
-        if (cs.closures[i].leaf->emissive) emission += cs.closures[i].leaf->instance->emit(ctx) * cs.closures[i].weight;
-      if (!is_zero(emission)) {
-        if (last_singular) {
-          add(throughput * emission, bounce);
-        } else if (use_bsdf_emission) {
-          const float light_pdf = use_nee ? lights->triangle_pdf(hit.mesh, hit.prim, org, sd.ctx.P, sd.Ng, D) : 0.0f;
-          add(throughput * emission * power_heuristic(mis_ray_pdf, light_pdf), bounce);
-        }
-      }
+      const Spectrum emission = surface_emission(cs, ctx);
+      if (!is_zero(emission))
+        add_emission(emission, use_nee ? lights->triangle_pdf(hit.mesh, hit.prim, org, sd.ctx.P, sd.Ng, D) : 0.0f);
 
       if (first_hit && !(cs.count == 0 && !is_zero(cs.transparent))) {
         first_hit = false;
-        aov.normal = sd.N;
-        aov.depth = hit.t * cam_dir_z;
-        for (int i = 0; i < cs.count; ++i)
-          if (!cs.closures[i].leaf->emissive && cs.closures[i].leaf->instance)
-            aov.albedo += cs.closures[i].leaf->instance->albedo(context_for(sd, *cs.closures[i].leaf)) * cs.closures[i].weight;
+        write_first_hit_aovs(cs, sd, hit.t * cam_dir_z, aov);
       }
 
-      if (terminate_next) break;
+      if (ps.terminate_next) break;
 
       // Russian roulette (Cycles' path_state_continuation_probability).
       // The bounce's 4D BSDF set: x, y (closure pick, then the closure's direction), z (its third number),
       // rr (Russian roulette); docs/architecture.md "Sample dimensions".
       float bsdf_rand[4];
-      sampler.get_bsdf(bounce, bsdf_rand);
-      const float rr = bsdf_rand[3];
-      if (bounce > limit_min_bounce) {
-        const float q = std::min(std::sqrt(max_component(abs(throughput))), 1.0f);
-        if (q <= 0.0f || rr >= q) break;
-        throughput /= q;
-      }
+      sampler.get_bsdf(ps.bounce, bsdf_rand);
+      if (!survives_russian_roulette(ps, limits, bsdf_rand[3], throughput)) break;
 
       float transparent_weight = std::fabs(average(cs.transparent));
       const float total_sw = cs.sum_sample_weight + transparent_weight;
       if (total_sw <= 0.0f) break;
 
       // Next-event estimation (skipped when only singular closures are present).
-      bool any_smooth = false;
-      for (int i = 0; i < cs.count; ++i)
-        if (cs.closures[i].sample_weight > 0.0f && !cs.closures[i].leaf->singular) any_smooth = true;
-      if (use_nee && any_smooth && lights->count() > 0) {
+      if (use_nee && has_smooth_closure(cs) && lights->count() > 0) {
         float lu, lv;
-        sampler.get_light(bounce, lu, lv);
-        LightSample ls;
-        if (lights->sample(lu, lv, sd.ctx.P, ls) && ls.pdf > 0.0f) {
-          const bool transmit_side = dot(ls.wi, sd.Ng) < 0.0f;
-          (void)transmit_side;
-          MixtureEval me = eval_mixture(cs, sd, ls.wi);
-          me.pdf /= total_sw;
-          if (!is_zero(me.f)) {
-            const float w = (ls.delta || !use_bsdf_emission) ? 1.0f : power_heuristic(ls.pdf, me.pdf);
-            const Spectrum contribution = throughput * me.f * ls.radiance * (w / ls.pdf);
-            if (!is_zero(contribution)) {
-              const Spectrum T = shadow_transmittance(sd, ls.wi, ls.dist);
-              if (!is_zero(T)) add(contribution * T, bounce);
-            }
-          }
-        }
+        sampler.get_light(ps.bounce, lu, lv);
+        const Spectrum direct = sample_direct_light(cs, sd, throughput, total_sw, lu, lv);
+        if (!is_zero(direct)) add(direct, ps.bounce);
       }
 
       // Pick a closure by sample weight (or the transparent pass-through) with x, which is then rescaled
       // to the chosen closure's share and reused for its direction (stratification kept).
       float pick = bsdf_rand[0] * total_sw;
-      if (pick < transparent_weight) {
+      const int chosen = pick_closure(cs, pick, transparent_weight);
+      if (chosen == kTransparent) {
         // Transparent: continue straight on; does not count as a bounce.
         throughput *= cs.transparent / (transparent_weight / total_sw);
-        if (++transparent_bounce >= integ.transparent_max_bounce) terminate_next = true;
+        ps.advance_transparent(limits);
         org = offset_ray_origin(sd.ctx.P, sd.Ng, D);
         tmin = 0.0f;
         tmax = kInf;
         continue;
       }
-      pick -= transparent_weight;
-      int chosen = -1;
-      for (int i = 0; i < cs.count; ++i) {
-        if (cs.closures[i].sample_weight <= 0.0f) continue;
-        chosen = i;
-        if (pick < cs.closures[i].sample_weight) break;
-        pick -= cs.closures[i].sample_weight;
-      }
       if (chosen < 0) break;
-      const ActiveClosure &c = cs.closures[chosen];
-      const float r3[3] = {std::clamp(pick / c.sample_weight, 0.0f, 0x1.fffffep-1f), bsdf_rand[1], bsdf_rand[2]};
+      const float r3[3] = {std::clamp(pick / cs.closures[chosen].sample_weight, 0.0f, 0x1.fffffep-1f), bsdf_rand[1],
+                           bsdf_rand[2]};
       GlimmerSample s{};
-      const uint32_t label = c.instance->sample(context_for(sd, *c.leaf), r3, s);
-      if (label == GLIMMER_LABEL_NONE || !(s.pdf > 0.0f) || !std::isfinite(s.pdf)) break;
+      if (!scatter(cs, sd, chosen, r3, total_sw, throughput, ps, s, nan_count)) break;
       const Vec3 wo = normalize(Vec3(s.wo));
-      const Spectrum s_eval(s.eval[0], s.eval[1], s.eval[2]);
-      if (!is_finite(s_eval)) { ++nan_count; break; }
-      const bool singular = (label & GLIMMER_LABEL_SINGULAR) != 0;
-      if (singular) {
-        throughput *= s_eval * c.weight * (total_sw / c.sample_weight);
-      } else {
-        MixtureEval me = eval_mixture(cs, sd, wo, chosen);
-        me.f += s_eval * c.weight;
-        me.pdf = (me.pdf + s.pdf * c.sample_weight) / total_sw;
-        if (!(me.pdf > 0.0f)) break;
-        throughput *= me.f / me.pdf;
-        mis_ray_pdf = me.pdf;
-        min_ray_pdf = std::min(min_ray_pdf, me.pdf);
-      }
-      if (!is_finite(throughput)) { ++nan_count; break; }
-      if (is_zero(throughput)) break;
-      last_singular = singular;
+      ps.advance(s.label, limits);
 
-      // Bounce counters by label (Cycles' path_state_next).
-      ++bounce;
-      if (bounce >= limit_bounce) terminate_next = true;
-      if (label & GLIMMER_LABEL_REFLECT) {
-        if (label & GLIMMER_LABEL_DIFFUSE) {
-          if (++diffuse_bounce >= limit_diffuse) terminate_next = true;
-        } else if (++glossy_bounce >= limit_glossy) {
-          terminate_next = true;
-        }
-      } else if (++transmission_bounce >= limit_transmission) {
-        terminate_next = true;
-      }
-
-      // Ray differentials for the next segment.
-      if (singular) {
-        propagate_specular(rd, D, wo, sd, s.eta);
-      } else {
-        const float alpha = std::clamp(s.roughness, 0.0f, 1.0f);
-        spread += 2.0f * alpha;  // widen by beta = 2 alpha (Wang 2018, sec. 4.6)
-        const float width_dir = pixel_spread + spread;
-        const Frame f = Frame::from_normal(wo);
-        rd.dDdx = f.s * width_dir;
-        rd.dDdy = f.t * width_dir;
-      }
+      next_differentials(rd, D, wo, sd, s, ps.last_singular, pixel_spread, ps);
       org = offset_ray_origin(sd.ctx.P, sd.Ng, wo);
       D = wo;
       tmin = 0.0f;
@@ -685,70 +696,7 @@ struct Renderer::Impl {
     return L;
   }
 
-  // Reflect or refract the direction differentials (Igehy 1999, eq. 14-15, 18-19).
-  void propagate_specular(Differentials &rd, const Vec3 &D, const Vec3 &wo, const ShadingData &sd, float eta) const {
-    const Vec3 &N = sd.N;
-    const float DN = dot(D, N);
-    const bool reflect_dir = dot(wo, sd.Ng) > 0.0f;  // Ng faces the incoming side
-    auto one = [&](const Vec3 &dD, const Vec3 &dN) -> Vec3 {
-      const float dDN = dot(dD, N) + dot(D, dN);
-      if (reflect_dir) return dD - 2.0f * (N * dDN + dN * DN);
-      // Refraction: wo = mu_eta * D - mu * N.
-      const Vec3 Dt = D - N * DN, Tt = wo - N * dot(wo, N);
-      float ratio = length(Dt) > 1e-4f ? length(Tt) / length(Dt) : (eta > 0.0f ? 1.0f / eta : 1.0f);
-      if (!std::isfinite(ratio) || ratio <= 0.0f) ratio = 1.0f;
-      const float TN = dot(wo, N);
-      const float mu = ratio * DN - TN;
-      const float dmu = std::fabs(TN) > 1e-6f ? (ratio - ratio * ratio * DN / TN) * dDN : 0.0f;
-      return dD * ratio - (dN * mu + N * dmu);
-    };
-    rd.dDdx = one(rd.dDdx, sd.dn1);
-    rd.dDdy = one(rd.dDdy, sd.dn2);
-    if (!is_finite(rd.dDdx) || !is_finite(rd.dDdy)) rd.dDdx = rd.dDdy = Vec3(0.0f);
-  }
 
-  // Pinhole camera: looks along +Z of camera space, +Y up, fov across the
-  // shorter image side (Cycles' viewplane).
-  // Camera ray through film position (x, y); (lens_u, lens_v) picks the point on the thin-lens aperture.
-  void camera_ray(float x, float y, Vec3 &org, Vec3 &dir, Differentials &rd, float &dir_z, float lens_u = 0.5f,
-                  float lens_v = 0.5f) const {
-    const auto &cam = scene.camera;
-    const float aspect = static_cast<float>(width) / static_cast<float>(height);
-    float half_w, half_h;
-    if (width >= height) { half_w = aspect; half_h = 1.0f; }
-    else { half_w = 1.0f; half_h = 1.0f / aspect; }
-    const float t = std::tan(0.5f * cam.fov);
-    const float sx = (2.0f * x / width - 1.0f) * half_w * t;
-    const float sy = (1.0f - 2.0f * y / height) * half_h * t;
-    const Vec3 v(sx, sy, 1.0f);
-    const Vec3 dvx(2.0f / width * half_w * t, 0.0f, 0.0f), dvy(0.0f, -2.0f / height * half_h * t, 0.0f);
-    const float len = length(v);
-    dir_z = 1.0f / len;
-    // World-space direction and its derivative d(normalize(v))/dx = (v.v dv - v (v.dv)) / |v|^3.
-    const Vec3 vw = cam.camera_to_world.vector(v);
-    const Vec3 dvxw = cam.camera_to_world.vector(dvx), dvyw = cam.camera_to_world.vector(dvy);
-    const float lw = length(vw);
-    dir = vw / lw;
-    auto ddir = [&](const Vec3 &dv) { return (dv * dot(vw, vw) - vw * dot(vw, dv)) / (lw * lw * lw); };
-    rd.dDdx = ddir(dvxw);
-    rd.dDdy = ddir(dvyw);
-    rd.dPdx = rd.dPdy = Vec3(0.0f);
-    org = cam.camera_to_world.point(Vec3(0.0f));
-    if (cam.aperture_size > 0.0f) {
-      // Cycles' thin lens (kernel/camera/camera.h): the point on the plane z = focaldistance seen through the
-      // pinhole, reached from a uniform point on the aperture disk of radius aperturesize. The pinhole
-      // differentials are kept (an approximation: the footprint ignores the defocus).
-      float lx, ly;
-      sample_uniform_disk_concentric(lens_u, lens_v, lx, ly);
-      const Vec3 lens_point(lx * cam.aperture_size, ly * cam.aperture_size, 0.0f);
-      const Vec3 focus_point = v * cam.focal_distance;  // v.z = 1
-      const Vec3 w = cam.camera_to_world.vector(focus_point - lens_point);
-      dir = normalize(w);
-      org = cam.camera_to_world.point(lens_point);
-    }
-    // Depth of the first hit is measured along camera +Z in world units.
-    dir_z = dot(dir, normalize(cam.camera_to_world.vector(Vec3(0, 0, 1))));
-  }
 };
 
 Renderer::Renderer(const scene::Scene &scene, const host::PluginLibrary &plugin, const RenderOptions &options)
@@ -763,7 +711,7 @@ bool Renderer::probe(float x, float y, GlimmerShadingContext &out) const {
   Vec3 org, D;
   Differentials rd;
   float dir_z = 1.0f;
-  im.camera_ray(x, y, org, D, rd, dir_z);
+  camera_ray(im.scene.camera, im.width, im.height, x, y, org, D, rd, dir_z);
   float tmin = 0.0f;
   for (int bounce = 0; bounce < 16; ++bounce) {
     SurfaceHit hit;
@@ -779,7 +727,9 @@ bool Renderer::probe(float x, float y, GlimmerShadingContext &out) const {
       if (!cs.closures[i].leaf->singular && !cs.closures[i].leaf->emissive) {
         GlimmerSample s{};
         const float r3[3] = {0.5f, 0.5f, 0.5f};
-        const uint32_t label = cs.closures[i].leaf->instance->sample(Impl::context_for(sd, *cs.closures[i].leaf), r3, s);
+        GlimmerShadingContext scratch;
+        const uint32_t label =
+            cs.closures[i].leaf->instance->sample(Impl::context_for(sd, cs.closures[i], scratch), r3, s);
         if (!(label & GLIMMER_LABEL_SINGULAR)) all_singular = false;
       }
     if (!all_singular) {
@@ -789,9 +739,11 @@ bool Renderer::probe(float x, float y, GlimmerShadingContext &out) const {
     GlimmerSample s{};
     const float r3[3] = {0.5f, 0.5f, 0.5f};
     const ClosureLeaf &leaf = *cs.closures[0].leaf;
-    if (!leaf.instance || leaf.instance->sample(Impl::context_for(sd, leaf), r3, s) == GLIMMER_LABEL_NONE) return false;
+    GlimmerShadingContext scratch;
+    if (!leaf.instance || leaf.instance->sample(Impl::context_for(sd, cs.closures[0], scratch), r3, s) == GLIMMER_LABEL_NONE)
+      return false;
     const Vec3 wo = normalize(Vec3(s.wo));
-    im.propagate_specular(rd, D, wo, sd, s.eta);
+    propagate_specular(rd, D, wo, sd.N, sd.Ng, sd.dn1, sd.dn2, s.eta);
     org = offset_ray_origin(sd.ctx.P, sd.Ng, wo);
     D = wo;
   }

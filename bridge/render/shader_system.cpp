@@ -149,6 +149,38 @@ Input ShaderSystem::read_input(const ShaderGraph &g, const ShaderNode &n, const 
   return in;
 }
 
+bool ShaderSystem::bind_varying(ClosureLeaf &leaf, const ShaderGraph &g, const ShaderNode &n, const std::string &socket,
+                                const std::string &param) {
+  const scene::ShaderLink *link = g.link_to(n.name, socket);
+  if (!link) return false;
+  const GlimmerParamSpec *spec = leaf.type ? host::find_param(*leaf.type, param) : nullptr;
+  if (!spec || !(host::param_flags(*leaf.type, *spec) & GLIMMER_PARAM_VARYING) ||
+      leaf.varying.size() >= static_cast<size_t>(ClosureLeaf::kMaxVarying)) {
+    warn(link->where, "<" + n.type + "> linked input '" + socket + "' is not supported (closure '" +
+                          (leaf.type ? leaf.type->name : "?") + "' has no varying parameter '" + param +
+                          "'); its constant value is used");
+    return false;
+  }
+  const Spectrum fallback(spec->default_value[0], spec->default_value[1], spec->default_value[2]);
+  ClosureLeaf::VaryingInput v;
+  v.input = read_input(g, n, socket, fallback, VectorSource::Generated);
+  if (v.input.texture < 0) return false;  // read_input warned: an unsupported source node
+  v.param = host::param_index(*leaf.type, *spec);
+  v.color = spec->type == GLIMMER_PARAM_COLOR || spec->type == GLIMMER_PARAM_VECTOR;
+  if (param == "roughness") leaf.varying_roughness = static_cast<int>(leaf.varying.size());
+  leaf.varying.push_back(v);
+  return true;
+}
+
+void ShaderSystem::warn_unsupported_links(const ShaderGraph &g, const ShaderNode &n,
+                                          std::initializer_list<const char *> supported) {
+  for (const auto &l : g.links) {
+    if (l.to_node != n.name) continue;
+    if (std::any_of(supported.begin(), supported.end(), [&](const char *s) { return l.to_socket == s; })) continue;
+    warn(l.where, "<" + n.type + "> linked input '" + l.to_socket + "' is not supported; its constant value is used");
+  }
+}
+
 Spectrum ShaderSystem::eval_input(const Input &in, const TexCoords &tc) const {
   if (in.texture < 0) return in.constant;
   const TextureNode &t = textures_[in.texture];
@@ -216,6 +248,7 @@ int ShaderSystem::make_leaf(const ShaderGraph &g, const ShaderNode &n, CompiledS
     params.set_number("color", 1, 1, 1);
     leaf->type = type;
     leaf->instance = instantiate(*type, params, n.where);
+    warn_unsupported_links(g, n, {"color"});
   } else if (t == "glossy_bsdf" || t == "anisotropic_bsdf" || t == "glass_bsdf" || t == "refraction_bsdf") {
     const bool dielectric = t == "glass_bsdf" || t == "refraction_bsdf";
     check_known({"color", "distribution", "roughness", "anisotropy", "rotation", "IOR", "ior", "normal", "tangent"});
@@ -239,7 +272,10 @@ int ShaderSystem::make_leaf(const ShaderGraph &g, const ShaderNode &n, CompiledS
       if (roughness <= 1e-4f && !g.link_to(n.name, "roughness")) distribution = "sharp";
       if (host::find_param(*type, "distribution")) params.set_string("distribution", distribution);
       if (host::find_param(*type, "roughness")) params.set_number("roughness", std::clamp(roughness, 0.0f, 1.0f), 0, 0);
+      bind_varying(*leaf, g, n, "roughness", "roughness");
       if (!dielectric) {
+        bind_varying(*leaf, g, n, "anisotropy", "anisotropy");
+        warn_unsupported_links(g, n, {"color", "roughness", "anisotropy"});
         const float aniso = read_input(g, n, "anisotropy", Spectrum(t == "anisotropic_bsdf" ? 0.5f : 0.0f),
                                        VectorSource::Generated).constant.x;
         if (host::find_param(*type, "anisotropy")) params.set_number("anisotropy", std::clamp(aniso, -1.0f, 1.0f), 0, 0);
@@ -261,6 +297,8 @@ int ShaderSystem::make_leaf(const ShaderGraph &g, const ShaderNode &n, CompiledS
         if (n.attributes.count("IOR")) ior = read_input(g, n, "IOR", Spectrum(ior), VectorSource::Generated).constant.x;
         else if (n.attributes.count("ior")) ior = read_input(g, n, "ior", Spectrum(ior), VectorSource::Generated).constant.x;
         if (host::find_param(*type, "ior")) params.set_number("ior", ior, 0, 0);
+        if (!bind_varying(*leaf, g, n, "IOR", "ior")) bind_varying(*leaf, g, n, "ior", "ior");
+        warn_unsupported_links(g, n, {"color", "roughness", "IOR", "ior"});
         if (host::find_param(*type, "mode")) params.set_string("mode", t == "glass_bsdf" ? "glass" : "refraction");
       }
       if (n.attributes.count("rotation")) warn(n.where, t + ": rotation is not supported; ignored");
@@ -283,6 +321,7 @@ int ShaderSystem::make_leaf(const ShaderGraph &g, const ShaderNode &n, CompiledS
     check_known({"color"});
     leaf->builtin = BuiltinClosure::Transparent;
     leaf->weight = read_input(g, n, "color", Spectrum(1.0f), VectorSource::Generated);
+    warn_unsupported_links(g, n, {"color"});
     leaf->singular = true;
     out.has_transparent = true;
     features_.transparent = true;
@@ -291,6 +330,7 @@ int ShaderSystem::make_leaf(const ShaderGraph &g, const ShaderNode &n, CompiledS
     leaf->weight = read_input(g, n, "color", Spectrum(0.8f), VectorSource::Generated);
     // Cycles' EmissionNode default strength is 10.
     leaf->strength = read_input(g, n, "strength", Spectrum(10.0f), VectorSource::Generated).constant.x;
+    warn_unsupported_links(g, n, {"color"});
     type = plugin_.find("emission");
     if (!type) throw SceneError(n.where, "the plugin has no 'emission' closure");
     params.set_number("color", 1, 1, 1);
@@ -325,7 +365,7 @@ int ShaderSystem::make_leaf(const ShaderGraph &g, const ShaderNode &n, CompiledS
         leaf->weight.constant = Spectrum(1.0f);
         params.set_number("color", 1, 1, 1);
       } else {
-        warn(l.where, "<" + t + "> linked input '" + l.to_socket + "' is not supported; its constant value is used");
+        bind_varying(*leaf, g, n, l.to_socket, l.to_socket);
       }
     }
     if (leaf->weight.texture < 0) leaf->weight.constant = Spectrum(1.0f);
@@ -355,6 +395,7 @@ int ShaderSystem::compile_closure(const ShaderGraph &g, const std::string &node_
     ClosureTreeNode node;
     node.kind = t == "mix_closure" ? ClosureTreeNode::Kind::Mix : ClosureTreeNode::Kind::Add;
     if (node.kind == ClosureTreeNode::Kind::Mix) node.fac = read_input(g, *n, "fac", Spectrum(0.5f), VectorSource::Generated);
+    warn_unsupported_links(g, *n, {"fac", "closure1", "closure2"});
     node.a = compile_closure(g, n->name, "closure1", out, depth + 1);
     node.b = compile_closure(g, n->name, "closure2", out, depth + 1);
     out.tree.push_back(node);
@@ -503,7 +544,21 @@ void ShaderSystem::evaluate(int compiled, const TexCoords &tc, ClosureSet &out) 
         out.transparent += w;
         continue;
       }
-      out.add(ActiveClosure{&leaf, leaf.instance, w, leaf.emissive ? 0.0f : std::fabs(average(w))});
+      ActiveClosure active;
+      active.leaf = &leaf;
+      active.instance = leaf.instance;
+      active.weight = w;
+      active.sample_weight = leaf.emissive ? 0.0f : std::fabs(average(w));
+      for (const ClosureLeaf::VaryingInput &v : leaf.varying) {
+        GlimmerVaryingValue &value = active.varying[active.varying_count++];
+        const Spectrum x = eval_input(v.input, tc);
+        value.param = v.param;
+        // A float socket reads a colour as its luminance (a grey exactly as its value).
+        value.value[0] = v.color || (x.x == x.y && x.y == x.z) ? x.x : luminance(x);
+        value.value[1] = v.color ? x.y : 0.0f;
+        value.value[2] = v.color ? x.z : 0.0f;
+      }
+      out.add(active);
       continue;
     }
     if (top + 2 > 64) continue;
@@ -514,6 +569,21 @@ void ShaderSystem::evaluate(int compiled, const TexCoords &tc, ClosureSet &out) 
     } else {
       stack[top++] = {n.b, item.weight};
       stack[top++] = {n.a, item.weight};
+    }
+  }
+}
+
+void ShaderSystem::apply_filter_glossy(ClosureSet &cs, int k) {
+  if (k <= 0) return;
+  k = std::min(k, ClosureLeaf::kBlurLevels);
+  const float blur_roughness = std::sqrt(ClosureLeaf::kBlurStep * k);  // alpha = roughness^2
+  for (int i = 0; i < cs.count; ++i) {
+    ActiveClosure &c = cs.closures[i];
+    if (c.leaf->blurred.empty()) continue;
+    c.instance = c.leaf->blurred[k];
+    if (c.leaf->varying_roughness >= 0) {
+      float &r = c.varying[c.leaf->varying_roughness].value[0];
+      r = std::max(r, blur_roughness);
     }
   }
 }

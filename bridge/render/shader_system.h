@@ -65,6 +65,16 @@ struct ClosureLeaf {
   static constexpr int kBlurLevels = 10;
   static constexpr float kBlurStep = 0.05f;
   std::vector<const host::ClosureInstance *> blurred;  // empty or kBlurLevels + 1 (index 0 = unblurred)
+  // Linked sockets evaluated at each shading point into the closure's varying
+  // parameters (GLIMMER_PARAM_VARYING), e.g. a checker texture into roughness.
+  struct VaryingInput {
+    uint32_t param = 0;  // index in the closure's schema
+    Input input;
+    bool color = false;  // COLOR/VECTOR parameter (else one float: the input's luminance)
+  };
+  static constexpr int kMaxVarying = 4;
+  std::vector<VaryingInput> varying;
+  int varying_roughness = -1;  // index in `varying` of the roughness (filter_glossy raises it)
   std::string node;    // for messages
 };
 
@@ -90,6 +100,9 @@ struct ActiveClosure {
   const host::ClosureInstance *instance;  // leaf->instance, or a blurred variant (filter_glossy)
   Spectrum weight;
   float sample_weight;
+  // The varying parameters' values at this shading point (handed to the closure in its context).
+  uint32_t varying_count = 0;
+  GlimmerVaryingValue varying[ClosureLeaf::kMaxVarying];
 };
 
 struct ClosureSet {
@@ -141,6 +154,10 @@ class ShaderSystem {
   void evaluate(int compiled, const TexCoords &tc, ClosureSet &out) const;
   Spectrum eval_input(const Input &in, const TexCoords &tc) const;
 
+  // filter_glossy: blur level k (1..ClosureLeaf::kBlurLevels) raises every glossy
+  // closure to alpha >= k * kBlurStep (a precomputed variant, or the varying roughness).
+  static void apply_filter_glossy(ClosureSet &cs, int k);
+
  private:
   const scene::Scene &scene_;
   const host::PluginLibrary &plugin_;
@@ -167,6 +184,13 @@ class ShaderSystem {
   int make_leaf(const scene::ShaderGraph &g, const scene::ShaderNode &n, CompiledShader &out);
   Input read_input(const scene::ShaderGraph &g, const scene::ShaderNode &n, const std::string &socket,
                    Spectrum fallback, VectorSource default_vector);
+  // A linked `socket` becomes the closure's varying parameter `param`; returns
+  // false (with a file:line warning) when the closure does not declare it varying.
+  bool bind_varying(ClosureLeaf &leaf, const scene::ShaderGraph &g, const scene::ShaderNode &n,
+                    const std::string &socket, const std::string &param);
+  // Warns (file:line) for every link into `n` whose socket is not in `supported`.
+  void warn_unsupported_links(const scene::ShaderGraph &g, const scene::ShaderNode &n,
+                              std::initializer_list<const char *> supported);
   const host::ClosureInstance *instantiate(const GlimmerClosureType &type, const host::ParamList &params,
                                            const scene::SourceLocation &where);
   const ImageTexture *load_image(const scene::ShaderNode &n);

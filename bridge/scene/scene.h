@@ -4,6 +4,7 @@
 #pragma once
 
 #include <array>
+#include <cmath>
 #include <map>
 #include <memory>
 #include <stdexcept>
@@ -95,6 +96,20 @@ struct ShaderGraph {
 };
 
 // A triangle mesh in world space (polygons fan-triangulated).
+// A point on one triangle of a mesh: everything shading, the host's trace_ray
+// and emissive-triangle lights read, computed in one place (Mesh::surface_at).
+struct SurfacePoint {
+  Vec3 P{0.0f};
+  Vec3 Ng{0.0f, 0.0f, 1.0f};  // unit, from the winding (not flipped toward any ray)
+  Vec3 N{0.0f, 0.0f, 1.0f};   // unit shading normal: interpolated when smooth and non-zero, else Ng
+  Vec3 generated{0.0f};
+  float uv[2] = {0.0f, 0.0f};  // mesh uv, or the barycentrics (b1, b2) without uv
+  Vec3 e1{0.0f}, e2{0.0f};     // dP/db1, dP/db2 (triangle edges)
+  Vec3 dPdu{0.0f}, dPdv{0.0f}; // from the uv map; the edges without uv or for a degenerate uv triangle
+  float duv1[2] = {1.0f, 0.0f}, duv2[2] = {0.0f, 1.0f};  // duv/db1, duv/db2
+  Vec3 dn1{0.0f}, dn2{0.0f};   // d(unnormalized N)/db1, /db2 (zero when N = Ng)
+};
+
 struct Mesh {
   std::string object_name;
   int shader = -1;  // index into Scene::shaders (-1: default grey diffuse)
@@ -105,6 +120,48 @@ struct Mesh {
   std::vector<std::array<uint32_t, 3>> triangles;
   std::vector<std::array<float, 2>> uv;    // per triangle corner (3 per triangle); may be empty
   SourceLocation where;
+
+  // The surface of triangle `prim` at barycentrics (b1, b2), b0 = 1 - b1 - b2.
+  SurfacePoint surface_at(size_t prim, float b1, float b2) const {
+    const auto &tri = triangles[prim];
+    const Vec3 p0 = P[tri[0]], p1 = P[tri[1]], p2 = P[tri[2]];
+    const float b0 = 1.0f - b1 - b2;
+    SurfacePoint s;
+    s.e1 = p1 - p0;
+    s.e2 = p2 - p0;
+    s.P = p0 * b0 + p1 * b1 + p2 * b2;
+    s.Ng = normalize(cross(s.e1, s.e2));
+    s.N = s.Ng;
+    if (smooth && !N.empty()) {
+      const Vec3 n = N[tri[0]] * b0 + N[tri[1]] * b1 + N[tri[2]] * b2;
+      if (length_squared(n) > 0.0f) {  // opposite vertex normals can cancel: keep Ng
+        s.N = normalize(n);
+        s.dn1 = N[tri[1]] - N[tri[0]];
+        s.dn2 = N[tri[2]] - N[tri[0]];
+      }
+    }
+    s.uv[0] = b1;
+    s.uv[1] = b2;
+    s.dPdu = s.e1;
+    s.dPdv = s.e2;
+    if (!uv.empty()) {
+      const auto &a = uv[3 * prim], &b = uv[3 * prim + 1], &c = uv[3 * prim + 2];
+      for (int k = 0; k < 2; ++k) {
+        s.uv[k] = a[k] * b0 + b[k] * b1 + c[k] * b2;
+        s.duv1[k] = b[k] - a[k];
+        s.duv2[k] = c[k] - a[k];
+      }
+      // Solve [e1 e2] = [dPdu dPdv] [[du1 du2] [dv1 dv2]] for dPdu, dPdv.
+      const float det = s.duv1[0] * s.duv2[1] - s.duv2[0] * s.duv1[1];
+      if (std::fabs(det) > 1e-12f) {
+        const float inv = 1.0f / det;
+        s.dPdu = (s.e1 * s.duv2[1] - s.e2 * s.duv1[1]) * inv;
+        s.dPdv = (s.e2 * s.duv1[0] - s.e1 * s.duv2[0]) * inv;
+      }
+    }
+    s.generated = generated[tri[0]] * b0 + generated[tri[1]] * b1 + generated[tri[2]] * b2;
+    return s;
+  }
 };
 
 enum class LightType { Point, Sun, Spot, Area, Background };

@@ -17,7 +17,7 @@ class DiffuseClosure {
   static std::span<const GlimmerParamSpec> params() {
     static const std::array<GlimmerParamSpec, 1> schema{{
         {"color", GLIMMER_PARAM_COLOR, {0.8f, 0.8f, 0.8f}, 0.0f, 1.0f, nullptr, nullptr,
-         "reflectance (albedo) per RGB channel, 0..1"},
+         "reflectance (albedo) per RGB channel, 0..1", GLIMMER_PARAM_VARYING},
     }};
     return schema;
   }
@@ -25,28 +25,33 @@ class DiffuseClosure {
   static std::unique_ptr<DiffuseClosure> create(const ParamReader &p) {
     auto c = std::make_unique<DiffuseClosure>();
     c->color_ = p.get_color("color");
+    c->color_param_ = p.index("color");
     return c;
   }
 
-  LocalEval eval(const ShadingPoint &, const Vec3 &wo) const {
+  // The reflectance at this point (color is varying).
+  Spectrum color(const ShadingPoint &sp) const { return sp.param_color(color_param_, color_); }
+
+  LocalEval eval(const ShadingPoint &sp, const Vec3 &wo) const {
     if (!(wo.z > 0.0f)) return {};
-    return {color_ * (wo.z * kInvPi), cosine_hemisphere_pdf(wo.z)};
+    return {color(sp) * (wo.z * kInvPi), cosine_hemisphere_pdf(wo.z)};
   }
 
-  bool sample(const ShadingPoint &, const Vec3 &rand, LocalSample &out) const {
+  bool sample(const ShadingPoint &sp, const Vec3 &rand, LocalSample &out) const {
     out.wo = sample_cosine_hemisphere(rand.x, rand.y);
     if (!(out.wo.z > 0.0f)) return false;
     out.pdf = cosine_hemisphere_pdf(out.wo.z);
-    out.f_cos = color_ * (out.wo.z * kInvPi);
+    out.f_cos = color(sp) * (out.wo.z * kInvPi);
     out.roughness = 1.0f;
     out.label = GLIMMER_LABEL_REFLECT | GLIMMER_LABEL_DIFFUSE;
     return true;
   }
 
-  Spectrum albedo(const ShadingPoint &) const { return color_; }
+  Spectrum albedo(const ShadingPoint &sp) const { return color(sp); }
 
  private:
   Spectrum color_{0.8f};
+  uint32_t color_param_ = 0;
 };
 
 GLIMMER_REGISTER_CLOSURE(DiffuseClosure)

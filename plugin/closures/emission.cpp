@@ -23,9 +23,9 @@ class EmissionClosure {
   static std::span<const GlimmerParamSpec> params() {
     static const std::array<GlimmerParamSpec, 2> schema{{
         {"color", GLIMMER_PARAM_COLOR, {1.0f, 1.0f, 1.0f}, 0.0f, 1e6f, nullptr, nullptr,
-         "emitted colour (linear RGB)"},
+         "emitted colour (linear RGB)", 0},
         {"strength", GLIMMER_PARAM_FLOAT, {1.0f, 0.0f, 0.0f}, 0.0f, 1e9f, nullptr, nullptr,
-         "radiance multiplier (Cycles units: strength 1 white renders as 1.0)"},
+         "radiance multiplier (Cycles units: strength 1 white renders as 1.0)", 0},
     }};
     return schema;
   }

@@ -59,12 +59,20 @@ class GlintClosure {
   static constexpr int kMaxSteps = 1024;
 
   static std::span<const GlimmerParamSpec> params() {
-    static const auto schema = glint::particle_field_params<1>(
+    static const auto schema = with_varying_density(glint::particle_field_params<1>(
         {"base roughness (alpha = roughness^2, Cycles' mapping); values below 0.15 are treated as 0.15",
          "query cone half-angle in degrees (size of a glint in direction; Jakob 2014 use 1..6)",
          "particle reflectance at normal incidence (Schlick Fresnel F0; 1 = Fresnel-free)"},
         {{{"filter_threshold", GLIMMER_PARAM_FLOAT, {16.0f, 0, 0}, 0.0f, 1e9f, nullptr, nullptr,
-           "expected glints per footprint above which the filtered mean a(A) P is used (0 = always filtered)"}}});
+           "expected glints per footprint above which the filtered mean a(A) P is used (0 = always filtered)", 0}}}));
+    return schema;
+  }
+
+  // density may be textured: glint_f_cos reads it per shading point.
+  template <typename Schema>
+  static Schema with_varying_density(Schema schema) {
+    for (auto &spec : schema)
+      if (std::string_view(spec.name) == "density") spec.flags |= GLIMMER_PARAM_VARYING;
     return schema;
   }
 
@@ -72,6 +80,7 @@ class GlintClosure {
     auto c = std::make_unique<GlintClosure>();
     c->field_ = glint::ParticleField::parse(p);
     c->threshold_ = p.get_float("filter_threshold");
+    c->density_param_ = p.index("density");
     return c;
   }
 
@@ -114,7 +123,8 @@ class GlintClosure {
   }
 
   // The glint BRDF times cos(wo): equations (2) and (3).
-  Spectrum glint_f_cos(const GlimmerShadingContext *ctx, const Vec3 &wi, const Vec3 &wo, float sigma_deg) const {
+  Spectrum glint_f_cos(const GlimmerShadingContext *ctx, const Vec3 &wi, const Vec3 &wo, float sigma_deg,
+                       float density) const {
     Spectrum weight;
     if (!table_ || !glint::glint_weight(field_.distribution, field_.alpha, field_.color, wi, wo, weight))
       return Spectrum(0.0f);
@@ -129,22 +139,22 @@ class GlintClosure {
 
     const glint::Footprint fp = field_.footprint(ctx);
     const double area = fp.area();
-    const double expected = static_cast<double>(field_.density) * area * P;
+    const double expected = static_cast<double>(density) * area * P;
     if (expected > threshold_) return weight * (P / cone_solid_angle_);  // (3)
     const glint::NodeRange nodes = glint::footprint_nodes(fp);
     const glint::GlintCount k =
-        glint::count_reflecting_particles(fp, nodes, field_.density, field_.seed, P, kMaxSteps);
+        glint::count_reflecting_particles(fp, nodes, density, field_.seed, P, kMaxSteps);
     if (!k.complete) return weight * (P / cone_solid_angle_);  // extreme anisotropy: the mean (3)
     if (k.count == 0) return Spectrum(0.0f);
     const double scale =
-        static_cast<double>(k.count) / (static_cast<double>(field_.density) * area * cone_solid_angle_);
+        static_cast<double>(k.count) / (static_cast<double>(density) * area * cone_solid_angle_);
     return weight * static_cast<float>(scale);  // (2)
   }
 
   LocalEval eval(const ShadingPoint &sp, const Vec3 &wo) const {
     const float sigma = lod_sigma_deg(sp.ctx);
     LocalEval e;
-    e.f_cos = glint_f_cos(sp.ctx, sp.wi, wo, sigma);
+    e.f_cos = glint_f_cos(sp.ctx, sp.wi, wo, sigma, sp.param_float(density_param_, field_.density));
     e.pdf = glint::smooth_lobe_pdf(field_.distribution, sampling_alpha(sigma), sp.wi, wo);
     return e;
   }
@@ -155,7 +165,7 @@ class GlintClosure {
     const float alpha_w = sampling_alpha(sigma);
     if (!glint::sample_smooth_lobe(field_.distribution, alpha_w, wi, rand, out.wo)) return false;
     out.pdf = glint::smooth_lobe_pdf(field_.distribution, alpha_w, wi, out.wo);
-    out.f_cos = glint_f_cos(sp.ctx, wi, out.wo, sigma);
+    out.f_cos = glint_f_cos(sp.ctx, wi, out.wo, sigma, sp.param_float(density_param_, field_.density));
     out.roughness = std::sqrt(alpha_w);
     out.label = GLIMMER_LABEL_REFLECT | GLIMMER_LABEL_GLOSSY;
     return out.pdf > 0.0f;
@@ -168,6 +178,7 @@ class GlintClosure {
   float threshold_ = 16.0f;
   std::shared_ptr<const glint::DirectionalTable> table_;
   float cone_solid_angle_ = 1.0f;
+  uint32_t density_param_ = 0;
 };
 
 GLIMMER_REGISTER_CLOSURE(GlintClosure)

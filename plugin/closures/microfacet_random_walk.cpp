@@ -35,17 +35,17 @@ class MicrofacetRandomWalkClosure {
   static std::span<const GlimmerParamSpec> params() {
     static const std::array<GlimmerParamSpec, 6> schema{{
         {"type", GLIMMER_PARAM_ENUM, {0, 0, 0}, 0.0f, 0.0f, "conductor|dielectric", "conductor",
-         "microsurface material"},
+         "microsurface material", 0},
         {"roughness", GLIMMER_PARAM_FLOAT, {0.5f, 0, 0}, 0.0f, 1.0f, nullptr, nullptr,
-         "Cycles roughness in [0, 1]; alpha = roughness^2"},
+         "Cycles roughness in [0, 1]; alpha = roughness^2", 0},
         {"anisotropy", GLIMMER_PARAM_FLOAT, {0.0f, 0, 0}, -1.0f, 1.0f, nullptr, nullptr,
-         "anisotropy in [-1, 1] (Cycles 3.4 mapping)"},
+         "anisotropy in [-1, 1] (Cycles 3.4 mapping)", 0},
         {"f0", GLIMMER_PARAM_COLOR, {1.0f, 1.0f, 1.0f}, 0.0f, 1.0f, nullptr, nullptr,
-         "conductor: normal-incidence reflectance (Schlick); 1,1,1 = Fresnel-free"},
+         "conductor: normal-incidence reflectance (Schlick); 1,1,1 = Fresnel-free", 0},
         {"ior", GLIMMER_PARAM_FLOAT, {1.45f, 0, 0}, 1e-3f, 1e3f, nullptr, nullptr,
-         "dielectric: relative IOR n_inside / n_outside"},
+         "dielectric: relative IOR n_inside / n_outside", 0},
         {"eval_walks", GLIMMER_PARAM_INT, {1.0f, 0, 0}, 1.0f, 4096.0f, nullptr, nullptr,
-         "random walks averaged per eval() (variance vs cost)"},
+         "random walks averaged per eval() (variance vs cost)", 0},
     }};
     return schema;
   }

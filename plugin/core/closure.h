@@ -13,6 +13,9 @@
 //   Spectrum emit(const ShadingPoint &sp) const;                 // with GLIMMER_CLOSURE_EMISSIVE
 // Directions handed to eval/sample are in the local shading frame (z = N,
 // x = tangent); the adapter converts to and from world space.
+// Parameters declared with GLIMMER_PARAM_VARYING may change per shading point
+// (textures): eval/sample/albedo read them with sp.param_float(index, constant)
+// / sp.param_color, index from ParamReader::index at create().
 #pragma once
 
 #include <cstdio>
@@ -31,9 +34,51 @@ struct ShadingPoint {
   const GlimmerShadingContext *ctx;
   Frame frame;  // z = N, x = T
   Vec3 wi;      // local, toward the viewer
+  std::span<const GlimmerParamSpec> schema;  // the closure's parameters (ranges of the varying values)
 
-  explicit ShadingPoint(const GlimmerShadingContext *c)
-      : ctx(c), frame(Frame::from_normal_tangent(Vec3(c->N), Vec3(c->T))), wi(frame.to_local(Vec3(c->wi))) {}
+  explicit ShadingPoint(const GlimmerShadingContext *c, std::span<const GlimmerParamSpec> s = {})
+      : ctx(c), frame(Frame::from_normal_tangent(Vec3(c->N), Vec3(c->T))), wi(frame.to_local(Vec3(c->wi))),
+        schema(s) {}
+
+  // True when the host lists per-point values for any varying parameter (ABI 2.1 contexts).
+  bool varies() const {
+#if GLIMMER_ABI_MINOR >= 1
+    return GLIMMER_HAS_FIELD(ctx->struct_size, GlimmerShadingContext, varying) && ctx->varying_count > 0 &&
+           ctx->varying != nullptr;
+#else
+    return false;
+#endif
+  }
+
+  // The value of schema parameter `param` at this point: the host's per-point
+  // value when it lists one (clamped to the spec's range; a non-finite value
+  // keeps the constant), else `constant` (the value given at create()).
+  float param_float(uint32_t param, float constant) const {
+    const GlimmerVaryingValue *v = find_varying(param);
+    return v ? clamp_to_spec(param, v->value[0], constant) : constant;
+  }
+  Spectrum param_color(uint32_t param, const Spectrum &constant) const {
+    const GlimmerVaryingValue *v = find_varying(param);
+    if (!v) return constant;
+    return {clamp_to_spec(param, v->value[0], constant.x), clamp_to_spec(param, v->value[1], constant.y),
+            clamp_to_spec(param, v->value[2], constant.z)};
+  }
+
+ private:
+  const GlimmerVaryingValue *find_varying(uint32_t param) const {
+#if GLIMMER_ABI_MINOR >= 1
+    if (!varies() || param >= schema.size() || !(schema[param].flags & GLIMMER_PARAM_VARYING)) return nullptr;
+    for (uint32_t i = 0; i < ctx->varying_count; ++i)
+      if (ctx->varying[i].param == param) return &ctx->varying[i];
+#else
+    (void)param;
+#endif
+    return nullptr;
+  }
+  float clamp_to_spec(uint32_t param, float v, float constant) const {
+    if (!std::isfinite(v)) return constant;
+    return std::min(std::max(v, schema[param].min_value), schema[param].max_value);
+  }
 };
 
 struct LocalEval {
@@ -73,8 +118,9 @@ template <typename T>
 struct ClosureAdapter {
   static const T &self(const GlimmerInstance *inst) { return *reinterpret_cast<const T *>(inst); }
 
+  // The C entry points: noexcept, every exception stops at this boundary.
   static int create(const GlimmerParamValue *values, uint32_t count, const GlimmerHostServices *,
-                    GlimmerInstance **out, char *error, size_t error_size) {
+                    GlimmerInstance **out, char *error, size_t error_size) noexcept {
     try {
       const auto schema = T::params();
       ParamReader reader(T::kName, schema, std::span<const GlimmerParamValue>(values, values ? count : 0));
@@ -90,24 +136,33 @@ struct ClosureAdapter {
     return 0;
   }
 
-  static int prepare(GlimmerInstance *inst, const GlimmerHostServices *host, char *error, size_t error_size) {
+  static int prepare(GlimmerInstance *inst, const GlimmerHostServices *host, char *error,
+                     size_t error_size) noexcept {
     if constexpr (HasPrepare<T>) {
       try {
         reinterpret_cast<T *>(inst)->prepare(host);
       } catch (const std::exception &e) {
         write_error(error, error_size, e.what());
         return 0;
+      } catch (...) {
+        write_error(error, error_size, "unknown error while preparing closure");
+        return 0;
       }
     }
     return 1;
   }
 
-  static void destroy(GlimmerInstance *inst) { delete reinterpret_cast<T *>(inst); }
+  static void destroy(GlimmerInstance *inst) noexcept { delete reinterpret_cast<T *>(inst); }
 
   static void eval(const GlimmerInstance *inst, const GlimmerShadingContext *ctx, GlimmerVec3 wo,
-                   float out_eval[3], float *out_pdf) {
-    const ShadingPoint sp(ctx);
-    const LocalEval e = self(inst).eval(sp, sp.frame.to_local(Vec3(wo)));
+                   float out_eval[3], float *out_pdf) noexcept {
+    LocalEval e;
+    try {
+      const ShadingPoint sp(ctx, T::params());
+      e = self(inst).eval(sp, sp.frame.to_local(Vec3(wo)));
+    } catch (...) {
+      e = LocalEval{};  // a closure that throws contributes nothing
+    }
     const Spectrum f = sanitize(e.f_cos);
     out_eval[0] = f.x;
     out_eval[1] = f.y;
@@ -116,14 +171,31 @@ struct ClosureAdapter {
   }
 
   static uint32_t sample(const GlimmerInstance *inst, const GlimmerShadingContext *ctx, const float rand3[3],
-                         GlimmerSample *out) {
-    const ShadingPoint sp(ctx);
+                         GlimmerSample *out) noexcept {
+    try {
+      return sample_unguarded(inst, ctx, rand3, out);
+    } catch (...) {
+      clear(out);
+      return GLIMMER_LABEL_NONE;
+    }
+  }
+
+  // "No sample", keeping the host's struct_size.
+  static void clear(GlimmerSample *out) {
+    const uint32_t size = out->struct_size;
+    *out = GlimmerSample{};
+    out->struct_size = size;
+  }
+
+  static uint32_t sample_unguarded(const GlimmerInstance *inst, const GlimmerShadingContext *ctx,
+                                   const float rand3[3], GlimmerSample *out) {
+    const ShadingPoint sp(ctx, T::params());
     LocalSample s;
     const bool ok = self(inst).sample(sp, Vec3(rand3[0], rand3[1], rand3[2]), s);
     const Vec3 wo = sp.frame.to_world(s.wo);
     const float pdf = sanitize(s.pdf);
     if (!ok || s.label == GLIMMER_LABEL_NONE || !(pdf > 0.0f) || !is_finite(wo)) {
-      *out = GlimmerSample{};
+      clear(out);
       return GLIMMER_LABEL_NONE;
     }
     const Spectrum f = sanitize(s.f_cos);
@@ -138,17 +210,25 @@ struct ClosureAdapter {
     return s.label;
   }
 
-  static void albedo(const GlimmerInstance *inst, const GlimmerShadingContext *ctx, float out_rgb[3]) {
+  static void albedo(const GlimmerInstance *inst, const GlimmerShadingContext *ctx, float out_rgb[3]) noexcept {
     Spectrum a(1.0f);
-    if constexpr (HasAlbedo<T>) a = sanitize(self(inst).albedo(ShadingPoint(ctx)));
+    try {
+      if constexpr (HasAlbedo<T>) a = sanitize(self(inst).albedo(ShadingPoint(ctx, T::params())));
+    } catch (...) {
+      a = Spectrum(1.0f);
+    }
     out_rgb[0] = a.x;
     out_rgb[1] = a.y;
     out_rgb[2] = a.z;
   }
 
-  static void emit(const GlimmerInstance *inst, const GlimmerShadingContext *ctx, float out_rgb[3]) {
+  static void emit(const GlimmerInstance *inst, const GlimmerShadingContext *ctx, float out_rgb[3]) noexcept {
     Spectrum e(0.0f);
-    if constexpr (HasEmit<T>) e = sanitize(self(inst).emit(ShadingPoint(ctx)));
+    try {
+      if constexpr (HasEmit<T>) e = sanitize(self(inst).emit(ShadingPoint(ctx, T::params())));
+    } catch (...) {
+      e = Spectrum(0.0f);
+    }
     out_rgb[0] = e.x;
     out_rgb[1] = e.y;
     out_rgb[2] = e.z;
@@ -157,6 +237,8 @@ struct ClosureAdapter {
   static GlimmerClosureType make_type() {
     const auto schema = T::params();
     GlimmerClosureType type{};
+    type.struct_size = sizeof(GlimmerClosureType);
+    type.param_spec_size = sizeof(GlimmerParamSpec);
     type.name = T::kName;
     type.doc = T::kDoc;
     type.flags = T::kFlags;

@@ -23,7 +23,7 @@ std::vector<std::string> split_enum_choices(const char *choices) {
 
 namespace {
 
-int components(GlimmerParamType type) {
+int components(uint32_t type) {
   return (type == GLIMMER_PARAM_COLOR || type == GLIMMER_PARAM_VECTOR) ? 3 : 1;
 }
 
@@ -92,6 +92,10 @@ const GlimmerParamSpec &ParamReader::spec(std::string_view name) const {
     if (name == s.name) return s;
   // A closure asking for a parameter it did not declare is a programming error.
   throw ParamError(closure_name_ + ": internal error: undeclared parameter '" + std::string(name) + "'");
+}
+
+uint32_t ParamReader::index(std::string_view name) const {
+  return static_cast<uint32_t>(&spec(name) - schema_.data());
 }
 
 const GlimmerParamValue *ParamReader::given(std::string_view name) const {

@@ -35,6 +35,9 @@ class ParamReader {
   // Index of the chosen enum value in the '|'-separated choice list.
   int get_enum(std::string_view name) const;
   std::string get_string(std::string_view name) const;
+  // Index of a declared parameter in the schema (for ShadingPoint::param_float
+  // and param_color, which read varying values by index).
+  uint32_t index(std::string_view name) const;
 
  private:
   const GlimmerParamSpec &spec(std::string_view name) const;

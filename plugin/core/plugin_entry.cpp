@@ -36,6 +36,7 @@ extern "C" GLIMMER_EXPORT const GlimmerPluginInfo *glimmer_plugin_entry(uint32_t
               [](const GlimmerClosureType *a, const GlimmerClosureType *b) { return std::strcmp(a->name, b->name) < 0; });
     GlimmerPluginInfo i{};
     i.abi_version = GLIMMER_ABI_VERSION;
+    i.struct_size = sizeof(GlimmerPluginInfo);
     i.plugin_name = "glimmer_closures";
     i.plugin_version = GLIMMER_PLUGIN_VERSION;
     i.closure_count = static_cast<uint32_t>(types.size());

@@ -39,16 +39,16 @@ std::array<GlimmerParamSpec, kParticleFieldParamCount + N> particle_field_params
     const ParticleFieldDocs &docs, const std::array<GlimmerParamSpec, N> &extra = {}) {
   std::array<GlimmerParamSpec, kParticleFieldParamCount + N> schema{{
       {"distribution", GLIMMER_PARAM_ENUM, {0, 0, 0}, 0, 0, "ggx|beckmann", "ggx",
-       "base microfacet distribution of the particle normals"},
-      {"roughness", GLIMMER_PARAM_FLOAT, {0.4f, 0, 0}, 0.0f, 1.0f, nullptr, nullptr, docs.roughness},
-      {"gamma", GLIMMER_PARAM_FLOAT, {2.0f, 0, 0}, 0.1f, 10.0f, nullptr, nullptr, docs.gamma},
+       "base microfacet distribution of the particle normals", 0},
+      {"roughness", GLIMMER_PARAM_FLOAT, {0.4f, 0, 0}, 0.0f, 1.0f, nullptr, nullptr, docs.roughness, 0},
+      {"gamma", GLIMMER_PARAM_FLOAT, {2.0f, 0, 0}, 0.1f, 10.0f, nullptr, nullptr, docs.gamma, 0},
       {"density", GLIMMER_PARAM_FLOAT, {1e6f, 0, 0}, 1.0f, 1e12f, nullptr, nullptr,
-       "particles per unit of scaled uv area"},
+       "particles per unit of scaled uv area", 0},
       {"uv_scale", GLIMMER_PARAM_FLOAT, {1.0f, 0, 0}, 1e-4f, 1e6f, nullptr, nullptr,
-       "scale of the uv coordinates the particles live in (uv * uv_scale)"},
+       "scale of the uv coordinates the particles live in (uv * uv_scale)", 0},
       {"seed", GLIMMER_PARAM_INT, {0, 0, 0}, 0.0f, 16777216.0f, nullptr, nullptr,
-       "random seed of the particle field"},
-      {"color", GLIMMER_PARAM_COLOR, {1, 1, 1}, 0.0f, 1.0f, nullptr, nullptr, docs.color},
+       "random seed of the particle field", 0},
+      {"color", GLIMMER_PARAM_COLOR, {1, 1, 1}, 0.0f, 1.0f, nullptr, nullptr, docs.color, 0},
   }};
   for (size_t i = 0; i < N; ++i) schema[kParticleFieldParamCount + i] = extra[i];
   return schema;

@@ -21,6 +21,19 @@ for round_index in range(2):
     scene.render.engine = "GLIMMER"
     check(scene.render.engine == "GLIMMER", "engine selectable")
     check(scene.glimmer.samples == 64, "default samples")
+    # Integrator settings shared with Cycles default to Blender 3.4's Cycles values
+    # (scene.cycles), so a scene renders alike when switching engines.
+    cycles_rna = type(scene.cycles).bl_rna.properties
+    ours_rna = type(scene.glimmer).bl_rna.properties
+    shared_settings = {
+        "max_bounce": "max_bounces", "max_diffuse_bounce": "diffuse_bounces",
+        "max_glossy_bounce": "glossy_bounces", "max_transmission_bounce": "transmission_bounces",
+        "transparent_max_bounce": "transparent_max_bounces",
+        "sample_clamp_direct": "sample_clamp_direct", "sample_clamp_indirect": "sample_clamp_indirect",
+    }
+    for ours, cycles in shared_settings.items():
+        check(ours_rna[ours].default == cycles_rna[cycles].default,
+              "default %s = %r, Cycles' %s = %r" % (ours, ours_rna[ours].default, cycles, cycles_rna[cycles].default))
 
     # The nodes are in the Shader Editor's Add menu (Shader submenu in 3.x and 4.x).
     menu_name = mod.nodes.menu_class()

@@ -7,6 +7,7 @@
 #include <string>
 
 #include "host/cli_runner.h"
+#include "host/closure_instance.h"
 #include "host/plugin_library.h"
 
 namespace glimmer::test {
@@ -14,7 +15,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-const std::string kHostVersion = std::to_string(GLIMMER_ABI_VERSION);
+const std::string kHostVersion = host::abi_version_name(GLIMMER_ABI_VERSION);  // "2.1"
 
 TEST(PluginLoading, LoadsTheClosureDso) {
   const auto library = host::PluginLibrary::load(GLIMMER_TEST_PLUGIN_PATH);
@@ -35,6 +36,82 @@ TEST(PluginLoading, RefusesOtherAbiVersionNamingBoth) {
     EXPECT_NE(what.find("ABI version 999"), std::string::npos) << what;
     EXPECT_NE(what.find("ABI version " + kHostVersion), std::string::npos) << what;
   }
+}
+
+TEST(PluginLoading, RefusesAbi1Abi3AndANewerMinorNamingBothVersions) {
+  EXPECT_EQ(kHostVersion, std::to_string(GLIMMER_ABI_MAJOR) + "." + std::to_string(GLIMMER_ABI_MINOR));
+  const std::pair<const char *, const char *> fixtures[] = {
+      {GLIMMER_TEST_FIXTURE_ABI1, "1"}, {GLIMMER_TEST_FIXTURE_ABI3_0, "3.0"}, {GLIMMER_TEST_FIXTURE_ABI2_2, "2.2"}};
+  for (const auto &[path, version] : fixtures) {
+    try {
+      host::PluginLibrary::load(path);
+      ADD_FAILURE() << "a DSO built for ABI " << version << " was accepted";
+    } catch (const host::PluginError &e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find("built for Glimmer ABI version " + std::string(version) + ","), std::string::npos) << what;
+      EXPECT_NE(what.find("this host uses ABI version " + kHostVersion), std::string::npos) << what;
+    }
+  }
+}
+
+// The params fixture is compiled against ABI 2.0 (GLIMMER_ABI_MINOR=0: its
+// GlimmerParamSpec has no flags field and its contexts no varying fields). It
+// loads in this 2.1 host, its schema is read with its own stride, and its
+// closure creates, evaluates and samples with a 2.1 context that lists varying
+// values (which a 2.0 plugin never reads).
+TEST(PluginLoading, Abi20PluginLoadsAndRendersInAbi21Host) {
+  const auto library = host::PluginLibrary::load(GLIMMER_TEST_FIXTURE_PARAMS);
+  EXPECT_EQ(host::abi_version_name(library->info().abi_version), "2.0");
+  const GlimmerClosureType *type = library->find("fixture_params");
+  ASSERT_NE(type, nullptr);
+  EXPECT_LT(type->param_spec_size, sizeof(GlimmerParamSpec));  // the 2.0 layout, really
+  ASSERT_EQ(type->param_count, 6u);
+  EXPECT_STREQ(host::param_at(*type, 4).name, "mode");  // stride of the plugin's specs
+  EXPECT_STREQ(host::param_at(*type, 5).default_string, "none");
+  for (uint32_t i = 0; i < type->param_count; ++i) EXPECT_EQ(host::param_flags(*type, host::param_at(*type, i)), 0u);
+  host::ParamList params;
+  params.set_number("color", 0.25f, 0.5f, 0.75f);
+  const host::ClosureInstance instance(*type, params);
+  GlimmerShadingContext ctx = host::make_local_context(Vec3(0.0f, 0.0f, 1.0f));
+  const GlimmerVaryingValue varying{0u, {1.0f, 1.0f, 1.0f}};
+  ctx.varying_count = 1;
+  ctx.varying = &varying;
+  Spectrum f;
+  float pdf = 0.0f;
+  instance.eval(ctx, Vec3(0.0f, 0.0f, 1.0f), f, pdf);
+  EXPECT_NEAR(f.y, 0.5f / kPi, 1e-6f);  // the constant colour: a 2.0 closure has no varying parameters
+  EXPECT_NEAR(pdf, 1.0f / kPi, 1e-6f);
+  GlimmerSample s{};
+  const float r3[3] = {0.3f, 0.6f, 0.5f};
+  EXPECT_NE(instance.sample(ctx, r3, s), 0u);
+}
+
+// Schemas are validated when the plugin loads: defaults in range, enum
+// defaults among the choices, unique names.
+TEST(PluginLoading, SchemaValidationNamesTheParameterAndTheProblem) {
+  GlimmerParamSpec specs[2] = {
+      {"roughness", GLIMMER_PARAM_FLOAT, {0.5f, 0, 0}, 0.0f, 1.0f, nullptr, nullptr, "r", 0},
+      {"distribution", GLIMMER_PARAM_ENUM, {0, 0, 0}, 0.0f, 0.0f, "ggx|beckmann", "ggx", "d", 0},
+  };
+  GlimmerClosureType type{};
+  type.struct_size = sizeof(type);
+  type.param_spec_size = sizeof(GlimmerParamSpec);
+  type.name = "schema_test";
+  type.param_count = 2;
+  type.params = specs;
+  EXPECT_EQ(host::validate_schema(type), "");
+  specs[0].default_value[0] = 1.5f;
+  EXPECT_NE(host::validate_schema(type).find("'roughness': default 1.5"), std::string::npos) << host::validate_schema(type);
+  specs[0].default_value[0] = 0.5f;
+  specs[1].default_string = "sharp";
+  EXPECT_NE(host::validate_schema(type).find("'distribution': default 'sharp' is not one of its choices"),
+            std::string::npos)
+      << host::validate_schema(type);
+  specs[1].default_string = "ggx";
+  specs[1].name = "roughness";
+  EXPECT_NE(host::validate_schema(type).find("declared twice"), std::string::npos);
+  // Every closure of the real plugin passes (it loads).
+  EXPECT_NO_THROW(host::PluginLibrary::load(GLIMMER_TEST_PLUGIN_PATH));
 }
 
 TEST(PluginLoading, CliRefusesOtherAbiVersionWithExitCode2) {

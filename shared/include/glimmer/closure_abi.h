@@ -14,10 +14,17 @@
  *    eval and pdf from eval(); sample() returns the delta weight in `eval` and
  *    pdf = 1 (the host skips NEE and MIS for them, as Cycles does).
  *
- * Versioning: GLIMMER_ABI_VERSION changes whenever any struct layout or
- * function signature below changes. The DSO exports exactly one symbol,
- * glimmer_plugin_entry; the host passes its own version and refuses a plugin
- * whose GlimmerPluginInfo.abi_version differs, naming both versions.
+ * Versioning: major.minor, packed as GLIMMER_ABI_VERSION = major << 16 | minor
+ * (a value below 1 << 16 is a pre-2 version number: ABI 1). A minor version
+ * only appends fields at the end of structs and adds flag bits; every struct a
+ * side hands to the other by pointer starts with (or, for GlimmerPluginInfo,
+ * follows abi_version with) its struct_size, so the reader knows which fields
+ * exist. The host loads a plugin of its own major version and the same or an
+ * older minor (a 2.0 plugin in a 2.1 host), and refuses any other version,
+ * naming both. The DSO exports exactly one symbol, glimmer_plugin_entry.
+ *   2.0: struct_size fields, major.minor versions.
+ *   2.1: varying parameters: GlimmerParamSpec.flags, GlimmerShadingContext
+ *        .varying_count / .varying (a 2.0 plugin never sees them).
  *
  * Threading: create/prepare/destroy are called from one thread; eval/sample/
  * emit/albedo are called concurrently on an immutable, prepared instance and
@@ -33,9 +40,21 @@
 extern "C" {
 #endif
 
-#ifndef GLIMMER_ABI_VERSION
-#define GLIMMER_ABI_VERSION 1u
+#ifndef GLIMMER_ABI_MAJOR
+#define GLIMMER_ABI_MAJOR 2u
 #endif
+#ifndef GLIMMER_ABI_MINOR
+#define GLIMMER_ABI_MINOR 1u
+#endif
+#ifndef GLIMMER_ABI_VERSION
+#define GLIMMER_ABI_VERSION ((GLIMMER_ABI_MAJOR << 16) | GLIMMER_ABI_MINOR)
+#endif
+#define GLIMMER_ABI_VERSION_MAJOR(v) ((v) >= 0x10000u ? (v) >> 16 : (v))
+#define GLIMMER_ABI_VERSION_MINOR(v) ((v) >= 0x10000u ? (v) & 0xFFFFu : 0u)
+
+/* True when a struct of `size` bytes (its struct_size) holds `field`. */
+#define GLIMMER_HAS_FIELD(size, type, field) \
+  ((size) >= offsetof(type, field) + sizeof(((const type *)0)->field))
 
 #define GLIMMER_PLUGIN_ENTRY_SYMBOL "glimmer_plugin_entry"
 
@@ -62,12 +81,14 @@ typedef struct GlimmerVec3 {
 
 /* ---- Host services: filled by the bridge, read-only for the plugin. ---- */
 typedef struct GlimmerRay {
+  uint32_t struct_size; /* filled by the plugin (0 = the 2.0 fields) */
   GlimmerVec3 origin;
   GlimmerVec3 direction; /* unit */
   float t_min, t_max;
 } GlimmerRay;
 
 typedef struct GlimmerRayHit {
+  uint32_t struct_size; /* the plugin's buffer size; the host writes the fields it holds (0 = the 2.0 fields) */
   float t;
   GlimmerVec3 P;
   GlimmerVec3 N;  /* shading normal, facing the side the ray came from is NOT implied */
@@ -85,7 +106,8 @@ enum GlimmerLogLevel {
 };
 
 typedef struct GlimmerHostServices {
-  uint32_t abi_version;
+  uint32_t struct_size; /* sizeof(GlimmerHostServices) of the host */
+  uint32_t abi_version; /* the host's GLIMMER_ABI_VERSION */
   void *host_data;
   /* Returns 1 and fills hit when the ray hits scene geometry in (t_min, t_max).
    * May be NULL (e.g. in the closure laboratory). */
@@ -103,8 +125,20 @@ typedef struct GlimmerHostServices {
   const char *cache_dir;
 } GlimmerHostServices;
 
+/* ---- Varying parameters: per-shading-point values of parameters whose spec
+ * carries GLIMMER_PARAM_VARYING (e.g. a textured roughness). The host
+ * evaluates its shader graph at each shading point and lists the values of the
+ * varying parameters that are linked; every parameter not listed keeps the
+ * instance's constant value. `param` is the index in the closure's schema;
+ * the plugin clamps values to the spec's range (non-finite -> the constant). ---- */
+typedef struct GlimmerVaryingValue {
+  uint32_t param;
+  float value[3]; /* FLOAT uses [0]; COLOR/VECTOR use [0..2] */
+} GlimmerVaryingValue;
+
 /* ---- Shading context: one per shading point, built by the host. ---- */
 typedef struct GlimmerShadingContext {
+  uint32_t struct_size; /* sizeof as filled by the host; 0 = only the 2.0 fields */
   GlimmerVec3 wi; /* toward the viewer, unit */
   GlimmerVec3 P;
   /* Shading normal, unit. For closures without GLIMMER_CLOSURE_TRANSMISSIVE it
@@ -131,10 +165,18 @@ typedef struct GlimmerShadingContext {
   uint32_t backfacing; /* 1 when the ray arrived at the back side of Ng */
   uint32_t path_seed;  /* hash of (seed, pixel, sample); never use for glint randomness */
   const GlimmerHostServices *host;
+#if GLIMMER_ABI_MINOR >= 1
+  /* ABI 2.1. Values of this closure's varying parameters at this point (may be
+   * NULL with varying_count 0: every parameter is the instance's constant).
+   * Read only when struct_size holds them (GLIMMER_HAS_FIELD). */
+  uint32_t varying_count;
+  const GlimmerVaryingValue *varying;
+#endif
 } GlimmerShadingContext;
 
 /* ---- Sampling result. ---- */
 typedef struct GlimmerSample {
+  uint32_t struct_size; /* the host's buffer size; the plugin writes the fields it holds (0 = the 2.0 fields) */
   GlimmerVec3 wo;  /* sampled direction, world space, unit */
   float eval[3];   /* f * |cos(N, wo)| (singular: the delta weight) */
   float pdf;       /* solid-angle density of wo (singular: 1) */
@@ -154,18 +196,31 @@ typedef enum GlimmerParamType {
   GLIMMER_PARAM_STRING = 6
 } GlimmerParamType;
 
+/* GlimmerParamSpec.flags */
+enum GlimmerParamFlags {
+  /* The closure reads this parameter per shading point from
+   * GlimmerShadingContext.varying when the host lists it there (textures
+   * linked into it); otherwise the value given at create() applies. */
+  GLIMMER_PARAM_VARYING = 1u
+};
+
 typedef struct GlimmerParamSpec {
   const char *name;          /* identifier used in XML, CLI and Blender */
-  GlimmerParamType type;
+  uint32_t type;             /* GlimmerParamType */
   float default_value[3];    /* FLOAT/INT/BOOL use [0]; COLOR/VECTOR use [0..2] */
   float min_value;           /* inclusive bounds for FLOAT/INT and COLOR components */
   float max_value;
   const char *enum_choices;  /* ENUM: '|'-separated choices, e.g. "ggx|beckmann" */
   const char *default_string;/* ENUM/STRING default */
   const char *doc;           /* one line for the user: meaning and unit */
+#if GLIMMER_ABI_MINOR >= 1
+  uint32_t flags;            /* GlimmerParamFlags (ABI 2.1; read only when param_spec_size holds it) */
+#endif
 } GlimmerParamSpec;
 
 typedef struct GlimmerParamValue {
+  /* An element of the array passed to create(): this struct never changes
+   * within a major version (the array has no stride field). */
   const char *name;
   float value[3];     /* numeric value(s) */
   const char *string; /* ENUM/STRING value, else NULL */
@@ -185,6 +240,8 @@ enum GlimmerClosureFlags {
 };
 
 typedef struct GlimmerClosureType {
+  uint32_t struct_size;     /* sizeof(GlimmerClosureType) of the plugin */
+  uint32_t param_spec_size; /* sizeof(GlimmerParamSpec) of the plugin: the stride of params[] */
   const char *name; /* e.g. "diffuse"; the XML node is usually name + "_bsdf" */
   const char *doc;
   uint32_t flags;   /* GlimmerClosureFlags */
@@ -218,7 +275,8 @@ typedef struct GlimmerClosureType {
 } GlimmerClosureType;
 
 typedef struct GlimmerPluginInfo {
-  uint32_t abi_version; /* GLIMMER_ABI_VERSION the plugin was built with */
+  uint32_t abi_version; /* GLIMMER_ABI_VERSION the plugin was built with (first in every version) */
+  uint32_t struct_size; /* sizeof(GlimmerPluginInfo) of the plugin */
   const char *plugin_name;
   const char *plugin_version;
   uint32_t closure_count;

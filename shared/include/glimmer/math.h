@@ -65,6 +65,8 @@ inline Vec3 max(const Vec3 &a, const Vec3 &b) {
 inline float max_component(const Vec3 &v) { return std::max(v.x, std::max(v.y, v.z)); }
 inline float min_component(const Vec3 &v) { return std::min(v.x, std::min(v.y, v.z)); }
 inline float average(const Vec3 &v) { return (v.x + v.y + v.z) * (1.0f / 3.0f); }
+// Rec.709 luminance of linear RGB (Cycles' colour -> float conversion with its default scene coefficients).
+inline float luminance(const Vec3 &c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
 inline bool is_finite(const Vec3 &v) {
   return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
 }

@@ -1,0 +1,73 @@
+#include "render/camera.h"
+
+#include <cmath>
+
+#include "glimmer/sampling.h"
+
+namespace glimmer::render {
+
+// Pinhole camera: looks along +Z of camera space, +Y up, fov across the
+// shorter image side (Cycles' viewplane).
+// Camera ray through film position (x, y); (lens_u, lens_v) picks the point on the thin-lens aperture.
+void camera_ray(const scene::Camera &cam, int width, int height, float x, float y, Vec3 &org, Vec3 &dir,
+                Differentials &rd, float &dir_z, float lens_u, float lens_v) {
+  const float aspect = static_cast<float>(width) / static_cast<float>(height);
+  float half_w, half_h;
+  if (width >= height) { half_w = aspect; half_h = 1.0f; }
+  else { half_w = 1.0f; half_h = 1.0f / aspect; }
+  const float t = std::tan(0.5f * cam.fov);
+  const float sx = (2.0f * x / width - 1.0f) * half_w * t;
+  const float sy = (1.0f - 2.0f * y / height) * half_h * t;
+  const Vec3 v(sx, sy, 1.0f);
+  const Vec3 dvx(2.0f / width * half_w * t, 0.0f, 0.0f), dvy(0.0f, -2.0f / height * half_h * t, 0.0f);
+  const float len = length(v);
+  dir_z = 1.0f / len;
+  // World-space direction and its derivative d(normalize(v))/dx = (v.v dv - v (v.dv)) / |v|^3.
+  const Vec3 vw = cam.camera_to_world.vector(v);
+  const Vec3 dvxw = cam.camera_to_world.vector(dvx), dvyw = cam.camera_to_world.vector(dvy);
+  const float lw = length(vw);
+  dir = vw / lw;
+  auto ddir = [&](const Vec3 &dv) { return (dv * dot(vw, vw) - vw * dot(vw, dv)) / (lw * lw * lw); };
+  rd.dDdx = ddir(dvxw);
+  rd.dDdy = ddir(dvyw);
+  rd.dPdx = rd.dPdy = Vec3(0.0f);
+  org = cam.camera_to_world.point(Vec3(0.0f));
+  if (cam.aperture_size > 0.0f) {
+    // Cycles' thin lens (kernel/camera/camera.h): the point on the plane z = focaldistance seen through the
+    // pinhole, reached from a uniform point on the aperture disk of radius aperturesize. The pinhole
+    // differentials are kept (an approximation: the footprint ignores the defocus).
+    float lx, ly;
+    sample_uniform_disk_concentric(lens_u, lens_v, lx, ly);
+    const Vec3 lens_point(lx * cam.aperture_size, ly * cam.aperture_size, 0.0f);
+    const Vec3 focus_point = v * cam.focal_distance;  // v.z = 1
+    const Vec3 w = cam.camera_to_world.vector(focus_point - lens_point);
+    dir = normalize(w);
+    org = cam.camera_to_world.point(lens_point);
+  }
+  // Depth of the first hit is measured along camera +Z in world units.
+  dir_z = dot(dir, normalize(cam.camera_to_world.vector(Vec3(0, 0, 1))));
+}
+
+// Reflect or refract the direction differentials (Igehy 1999, eq. 14-15, 18-19).
+void propagate_specular(Differentials &rd, const Vec3 &D, const Vec3 &wo, const Vec3 &N, const Vec3 &Ng,
+                        const Vec3 &dn1, const Vec3 &dn2, float eta) {
+  const float DN = dot(D, N);
+  const bool reflect_dir = dot(wo, Ng) > 0.0f;  // Ng faces the incoming side
+  auto one = [&](const Vec3 &dD, const Vec3 &dN) -> Vec3 {
+    const float dDN = dot(dD, N) + dot(D, dN);
+    if (reflect_dir) return dD - 2.0f * (N * dDN + dN * DN);
+    // Refraction: wo = mu_eta * D - mu * N.
+    const Vec3 Dt = D - N * DN, Tt = wo - N * dot(wo, N);
+    float ratio = length(Dt) > 1e-4f ? length(Tt) / length(Dt) : (eta > 0.0f ? 1.0f / eta : 1.0f);
+    if (!std::isfinite(ratio) || ratio <= 0.0f) ratio = 1.0f;
+    const float TN = dot(wo, N);
+    const float mu = ratio * DN - TN;
+    const float dmu = std::fabs(TN) > 1e-6f ? (ratio - ratio * ratio * DN / TN) * dDN : 0.0f;
+    return dD * ratio - (dN * mu + N * dmu);
+  };
+  rd.dDdx = one(rd.dDdx, dn1);
+  rd.dDdy = one(rd.dDdy, dn2);
+  if (!is_finite(rd.dDdx) || !is_finite(rd.dDdy)) rd.dDdx = rd.dDdy = Vec3(0.0f);
+}
+
+}  // namespace glimmer::render

@@ -1,0 +1,184 @@
+// Varying closure parameters (ABI 2): a texture linked into a closure parameter
+// is evaluated at every shading point. A quad carries a 2x2 checker (uv, scale 2)
+// linked into one parameter with the two checker values A and B; it must render,
+// region by region, like the same quad with the constant parameter A or B.
+//
+// The regions come from a mask render of the same checker as emission (pixel =
+// mean checker fac over its samples): pixels with mask exactly 1 (or 0) saw only
+// region A (or B) in every sample. Renders share the camera and the sampler, so
+// a pixel of the textured render traces the same paths as the constant render
+// of its region: the test asks for equality (to float rounding), which is
+// stricter than "within noise", and also reports the z-score of the mean
+// difference. Negative control: the constant A and B renders differ in most
+// pixels (the test can tell the two values apart), and the pre-ABI-2 behaviour
+// (the constant used everywhere) fails it.
+//
+// Unsupported links (a socket the closure does not declare varying, or a socket
+// the host does not map) render with their constant and warn with file:line.
+#include <algorithm>
+#include <regex>
+
+#include "render_test_util.h"
+
+namespace glimmer::test {
+namespace {
+
+constexpr int kSize = 32;
+
+// A 2.2 x 2.2 quad facing the camera at z = 3 under a point light 40 degrees
+// off the mirror direction (so roughness and IOR change what the pixel sees),
+// black background. `nodes` must define the closure "g" and may use the
+// checker "c" (uv coordinates, 2x2 cells).
+std::string quad_scene(const std::string &name, const std::string &nodes, const std::string &checker_colors) {
+  return write_file(
+      name,
+      "<cycles>\n<camera width=\"32\" height=\"32\" fov=\"0.7\" />\n<camera />\n"
+      "<integrator sample_clamp_direct=\"0\" sample_clamp_indirect=\"0\" />\n"
+      "<state><light light_type=\"point\" co=\"2 0 0.5\" strength=\"300 300 300\" /></state>\n"
+      "<shader name=\"s\">\n<texture_coordinate name=\"tc\" />\n<checker_texture name=\"c\" scale=\"2\" " +
+          checker_colors + " />\n<connect from=\"tc uv\" to=\"c vector\" />\n" + nodes +
+          "\n<connect from=\"g bsdf\" to=\"output surface\" />\n</shader>\n"
+          "<state shader=\"s\"><mesh P=\"-1.1 -1.1 3  1.1 -1.1 3  1.1 1.1 3  -1.1 1.1 3\" nverts=\"4\" "
+          "verts=\"0 1 2 3\" UV=\"0 0 1 0 1 1 0 1\" /></state>\n</cycles>\n");
+}
+
+render::RenderResult render(const std::string &path, std::vector<std::string> *warnings = nullptr) {
+  const scene::Scene scene = scene::load_scene(path);
+  render::RenderOptions opt;
+  opt.samples = 4;
+  render::Renderer renderer(scene, plugin(), opt);
+  render::RenderResult r = renderer.render();
+  if (warnings) *warnings = renderer.warnings();
+  EXPECT_EQ(r.nan_samples, 0u);
+  return r;
+}
+
+// Which checker cell every sample of a pixel saw: 1 = all color1 (A), 0 = all color2 (B), else mixed.
+std::vector<float> region_mask() {
+  const auto r = render(quad_scene("mask.xml",
+                                   "<emission name=\"g\" strength=\"1\" />\n<connect from=\"c fac\" to=\"g color\" />",
+                                   ""));
+  std::vector<float> mask;
+  for (int i = 0; i < kSize * kSize; ++i) mask.push_back(r.combined[4 * i]);
+  return mask;
+}
+
+struct RegionComparison {
+  int pixels = 0;      // pixels of the region
+  int mismatched = 0;  // pixels whose value differs beyond rounding
+  double z = 0.0;      // z-score of the mean difference (all channels)
+};
+
+RegionComparison compare_region(const render::RenderResult &a, const render::RenderResult &b,
+                                const std::vector<float> &mask, float region) {
+  RegionComparison out;
+  std::vector<double> d;
+  for (int i = 0; i < kSize * kSize; ++i) {
+    if (mask[i] != region) continue;
+    ++out.pixels;
+    bool same = true;
+    for (int c = 0; c < 3; ++c) {
+      const double x = a.combined[4 * i + c], y = b.combined[4 * i + c];
+      d.push_back(x - y);
+      same = same && std::fabs(x - y) <= 1e-5 * std::max(1.0, std::fabs(y));
+    }
+    if (!same) ++out.mismatched;
+  }
+  const MeanAndError e = mean_and_standard_error(d);
+  out.z = e.standard_error > 0.0 ? e.mean / e.standard_error : (e.mean == 0.0 ? 0.0 : 1e9);
+  return out;
+}
+
+// `closure` is the closure node with `{}` where the parameter's attribute goes,
+// `socket` the linked input, `a` and `b` the two values (as XML numbers).
+void expect_textured_equals_constants(const std::string &label, const std::string &closure, const std::string &socket,
+                                      const std::string &a, const std::string &b) {
+  auto with = [&](const std::string &attribute) {
+    std::string node = closure;
+    node.replace(node.find("{}"), 2, attribute);
+    return node;
+  };
+  const std::string colors = "color1=\"" + a + " " + a + " " + a + "\" color2=\"" + b + " " + b + " " + b + "\"";
+  std::vector<std::string> warnings;
+  const auto textured = render(quad_scene(label + "_textured.xml",
+                                          with("") + "\n<connect from=\"c color\" to=\"g " + socket + "\" />", colors),
+                               &warnings);
+  for (const auto &w : warnings) ADD_FAILURE() << label << ": unexpected warning: " << w;
+  const auto const_a = render(quad_scene(label + "_a.xml", with(socket + "=\"" + a + "\""), colors));
+  const auto const_b = render(quad_scene(label + "_b.xml", with(socket + "=\"" + b + "\""), colors));
+  const std::vector<float> mask = region_mask();
+
+  const RegionComparison in_a = compare_region(textured, const_a, mask, 1.0f);
+  const RegionComparison in_b = compare_region(textured, const_b, mask, 0.0f);
+  const RegionComparison control = compare_region(const_a, const_b, mask, 1.0f);
+  std::printf("[varying %s] region A: %d px, %d differ, z %.2f; region B: %d px, %d differ, z %.2f; "
+              "control A vs B: %d of %d px differ, z %.1f\n",
+              label.c_str(), in_a.pixels, in_a.mismatched, in_a.z, in_b.pixels, in_b.mismatched, in_b.z,
+              control.mismatched, control.pixels, control.z);
+  // Both regions are large (the 2x2 checker covers the frame; borders excluded).
+  EXPECT_GT(in_a.pixels, kSize * kSize / 8) << label;
+  EXPECT_GT(in_b.pixels, kSize * kSize / 8) << label;
+  EXPECT_EQ(in_a.mismatched, 0) << label;
+  EXPECT_EQ(in_b.mismatched, 0) << label;
+  EXPECT_LT(std::fabs(in_a.z), 4.0) << label;
+  EXPECT_LT(std::fabs(in_b.z), 4.0) << label;
+  // Negative control: the two constants render differently in most pixels.
+  EXPECT_GT(control.mismatched, control.pixels / 2) << label;
+}
+
+TEST(VaryingParams, CheckerRoughnessOnGlossyMatchesConstantRenders) {
+  expect_textured_equals_constants("roughness", "<glossy_bsdf name=\"g\" distribution=\"ggx\" {} />", "roughness",
+                                   "0.35", "0.7");
+}
+
+TEST(VaryingParams, CheckerAnisotropyOnAnisotropicMatchesConstantRenders) {
+  expect_textured_equals_constants("anisotropy", "<anisotropic_bsdf name=\"g\" roughness=\"0.6\" {} />", "anisotropy",
+                                   "0.8", "0");
+}
+
+TEST(VaryingParams, CheckerColourOnDiffuseMatchesConstantRenders) {
+  expect_textured_equals_constants("colour", "<diffuse_bsdf name=\"g\" {} />", "color", "0.9", "0.2");
+}
+
+TEST(VaryingParams, CheckerIorOnGlassMatchesConstantRenders) {
+  expect_textured_equals_constants("ior", "<glass_bsdf name=\"g\" distribution=\"ggx\" roughness=\"0.5\" {} />",
+                                   "IOR", "1.2", "2.2");
+}
+
+TEST(VaryingParams, CheckerDensityOnGlintMatchesConstantRenders) {
+  expect_textured_equals_constants(
+      "density", "<glint_bsdf name=\"g\" roughness=\"0.5\" gamma=\"4\" filter_threshold=\"1e9\" seed=\"3\" {} />",
+      "density", "30000", "3000000");
+}
+
+// Every linked socket the host cannot honour renders with its constant and
+// warns at the <connect> line.
+TEST(VaryingParams, UnsupportedLinksWarnWithFileAndLine) {
+  struct Case {
+    const char *closure;
+    const char *socket;
+  };
+  const Case cases[] = {
+      {"<glossy_bsdf name=\"g\" roughness=\"0.3\" />", "rotation"},  // not mapped by the host
+      {"<diffuse_bsdf name=\"g\" />", "roughness"},                   // Oren-Nayar is not supported
+      {"<glint_bsdf name=\"g\" />", "seed"},                          // not varying in the closure's schema
+      {"<glint_bsdf name=\"g\" />", "gamma"},
+  };
+  int index = 0;
+  for (const Case &c : cases) {
+    const std::string name = "unsupported_" + std::to_string(index++) + ".xml";
+    const std::string path = quad_scene(
+        name, std::string(c.closure) + "\n<connect from=\"c fac\" to=\"g " + c.socket + "\" />", "");
+    std::vector<std::string> warnings;
+    render(path, &warnings);
+    // The <connect> into the socket is line 11 of the generated file.
+    const std::regex expected(".*" + name + ":11: warning: .*'" + c.socket + "'.*not supported.*constant.*");
+    const bool found = std::any_of(warnings.begin(), warnings.end(),
+                                   [&](const std::string &w) { return std::regex_match(w, expected); });
+    EXPECT_TRUE(found) << c.closure << " <- " << c.socket << ": no file:line warning; got " << warnings.size()
+                       << " warnings" << (warnings.empty() ? "" : ": " + warnings.front());
+  }
+}
+
+}  // namespace
+}  // namespace glimmer::test
