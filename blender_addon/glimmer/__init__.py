@@ -44,6 +44,7 @@ def register():
     for cls in ui.CLASSES:
         bpy.utils.register_class(cls)
     ui.borrow_builtin_panels()
+    ui.borrow_shader_nodes()
     closure_schema, _schema_origin, error = current_schema()
     if error:
         print("Glimmer: using the built-in closure schema snapshot (%s)" % error)
@@ -52,6 +53,7 @@ def register():
 
 def unregister():
     nodes.unregister()
+    ui.return_shader_nodes()
     ui.return_builtin_panels()
     for cls in reversed(ui.CLASSES):
         bpy.utils.unregister_class(cls)

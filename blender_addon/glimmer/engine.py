@@ -5,6 +5,7 @@ import struct
 import subprocess
 import tempfile
 import time
+import traceback
 
 import bpy
 
@@ -13,6 +14,34 @@ from . import preferences
 from . import runner
 
 KILL_TIMEOUT_SECONDS = 5.0
+
+# Warnings already reported in this render job: an animation reports each warning once, not once per frame.
+_reported = set()
+
+
+def border_region(render, width, height):
+    """Blender's render region (border) as the renderer's pixel rectangle (x0, y0, x1, y1), top row 0, x1/y1
+    exclusive, or None without a border. Blender truncates border * size to pixels with y up
+    (render_init_from_main); the renderer's rows go down."""
+    if not render.use_border:
+        return None
+    x0, x1 = int(render.border_min_x * width), int(render.border_max_x * width)
+    y0_up, y1_up = int(render.border_min_y * height), int(render.border_max_y * height)
+    if x1 <= x0 or y1_up <= y0_up:
+        return None
+    return (x0, height - y1_up, x1, height - y0_up)
+
+
+def executable_problem(executable):
+    """Why executable cannot be run (None when it can)."""
+    if not executable:
+        return "no glimmer executable (set it in the addon preferences or put `glimmer` on PATH)"
+    if not os.path.isfile(executable):
+        return "the glimmer executable '%s' does not exist (addon preferences > Glimmer Executable)" % executable
+    if not os.access(executable, os.X_OK):
+        return ("the glimmer executable '%s' is not executable (chmod +x it, or fix addon preferences > "
+                "Glimmer Executable)" % executable)
+    return None
 
 
 def exr_channels(path):
@@ -84,16 +113,18 @@ class GlimmerRenderEngine(bpy.types.RenderEngine):
         width = max(1, int(scene.render.resolution_x * scale))
         height = max(1, int(scene.render.resolution_y * scale))
         layer_name = depsgraph.view_layer.name
-        if scene.render.use_border:
-            self.report({"WARNING"}, "Glimmer: render region (border) is not supported; the full frame is rendered")
-        result = self.begin_result(0, 0, width, height, layer=layer_name)
+        if not self.is_animation or scene.frame_current == scene.frame_start:
+            _reported.clear()
+        region = border_region(scene.render, width, height)  # Blender's result is just the region then
+        result_width, result_height = (region[2] - region[0], region[3] - region[1]) if region else (width, height)
+        result = self.begin_result(0, 0, result_width, result_height, layer=layer_name)
         out_dir = None
         temporary = False
         try:
             executable = preferences.executable_path()
-            if not executable or not os.path.isfile(executable):
-                self.fail("Glimmer: no glimmer executable (set it in the addon preferences or put `glimmer` on "
-                          "PATH; looked for '%s')" % executable)
+            problem = executable_problem(executable)
+            if problem is not None:
+                self.fail("Glimmer: " + problem)
                 return
             if settings.export_dir:
                 out_dir = os.path.join(bpy.path.abspath(settings.export_dir), "frame_%04d" % scene.frame_current)
@@ -103,7 +134,7 @@ class GlimmerRenderEngine(bpy.types.RenderEngine):
                 temporary = not settings.keep_export
             self.update_stats("", "Glimmer: exporting the scene")
             start = time.monotonic()
-            xml_path, exp = exporter_mod.export_scene(depsgraph, out_dir, report=self.report,
+            xml_path, exp = exporter_mod.export_scene(depsgraph, out_dir, report=self.report_once,
                                                       width=width, height=height)
             export_seconds = time.monotonic() - start
             print("Glimmer: exported %d objects, %d triangles, %d lights to %s in %.2f s"
@@ -113,7 +144,7 @@ class GlimmerRenderEngine(bpy.types.RenderEngine):
                 os.remove(exr_path)
             seed = settings.seed + (scene.frame_current if settings.use_animated_seed else 0)
             cmd = runner.render_command(executable, xml_path, exr_path, settings.samples, settings.threads,
-                                        seed, width, height)
+                                        seed, width, height, region)
             render_start = time.monotonic()
 
             def progress(done, total):
@@ -123,7 +154,7 @@ class GlimmerRenderEngine(bpy.types.RenderEngine):
 
             def renderer_line(line):  # the renderer's scene warnings (file:line) go to Blender's report
                 if "warning" in line.lower():
-                    self.report({"WARNING"}, "glimmer: " + line)
+                    self.report_once({"WARNING"}, "glimmer: " + line)
 
             code, cancelled, tail = runner.run(cmd, on_progress=progress, should_cancel=self.cancel_requested,
                                                kill_timeout=KILL_TIMEOUT_SECONDS, on_line=renderer_line)
@@ -137,8 +168,8 @@ class GlimmerRenderEngine(bpy.types.RenderEngine):
             else:
                 self.fail("Glimmer: `glimmer render` failed with exit code %s:\n%s" % (code, "\n".join(tail[-10:])))
         except Exception as e:  # noqa: BLE001 - every failure becomes a Blender error report
+            traceback.print_exc()  # the console keeps the details; the report says what failed
             self.fail("Glimmer: %s: %s" % (type(e).__name__, e))
-            raise
         finally:
             self.end_result(result)
             if temporary and out_dir:
@@ -147,6 +178,12 @@ class GlimmerRenderEngine(bpy.types.RenderEngine):
     def cancel_requested(self):
         """Esc in the render window (or the job being stopped); a Python method so tests can drive it."""
         return self.test_break()
+
+    def report_once(self, kind, message):
+        """self.report, once per render job (an animation's frames repeat the same warnings)."""
+        if message not in _reported:
+            _reported.add(message)
+            self.report(kind, message)
 
     def fail(self, message):
         self.report({"ERROR"}, message)

@@ -19,11 +19,15 @@ class RenderFailed(RuntimeError):
     pass
 
 
-def render_command(executable, scene_path, output_path, samples, threads, seed, width, height):
+def render_command(executable, scene_path, output_path, samples, threads, seed, width, height, region=None):
+    """region: (x0, y0, x1, y1) pixels of the full image, top row 0, x1/y1 exclusive (`--region`: the EXR
+    holds just that crop)."""
     cmd = [executable, "render", scene_path, "-o", output_path, "--samples", str(samples),
            "--seed", str(seed), "--width", str(width), "--height", str(height)]
     if threads > 0:
         cmd += ["--threads", str(threads)]
+    if region is not None:
+        cmd += ["--region", ",".join(str(int(v)) for v in region)]
     return cmd
 
 
