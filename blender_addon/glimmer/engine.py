@@ -183,10 +183,14 @@ class GlimmerRenderEngine(bpy.types.RenderEngine):
         """self.report, once per render job (an animation's frames repeat the same warnings)."""
         if message not in _reported:
             _reported.add(message)
-            self.report(kind, message)
+            self.send_report(kind, message)
+
+    def send_report(self, kind, message):
+        """Every report goes through here (a Python method, so tests can record them)."""
+        self.report(kind, message)
 
     def fail(self, message):
-        self.report({"ERROR"}, message)
+        self.send_report({"ERROR"}, message)
         if hasattr(self, "error_set"):
             self.error_set(message)
         print(message)

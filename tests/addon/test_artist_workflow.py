@@ -18,24 +18,19 @@ mod = util.enable_addon()
 glimmer = os.environ.get("GLIMMER_EXECUTABLE", "")
 can_render = mod.runner.supports_render(glimmer)
 
-# Every engine report is recorded (the engine instance is Blender's; its class method is wrapped).
+# Every report the engine hands to Blender is recorded (the engine instance is Blender's; its class is wrapped).
 engine_reports = []
-_report_once = mod.engine.GlimmerRenderEngine.report_once
-_fail = mod.engine.GlimmerRenderEngine.fail
 
 
-def recording_report_once(self, kind, message):
+_send_report = mod.engine.GlimmerRenderEngine.send_report
+
+
+def recording_report(self, kind, message):
     engine_reports.append((set(kind), message))
-    _report_once(self, kind, message)
+    _send_report(self, kind, message)
 
 
-def recording_fail(self, message):
-    engine_reports.append(({"ERROR"}, message))
-    _fail(self, message)
-
-
-mod.engine.GlimmerRenderEngine.report_once = recording_report_once
-mod.engine.GlimmerRenderEngine.fail = recording_fail
+mod.engine.GlimmerRenderEngine.send_report = recording_report
 
 
 def export(name):
@@ -94,6 +89,22 @@ if can_render:
     texture_reports = [m for _, m in engine_reports if "glimmer_missing_texture" in m]
     check(len(texture_reports) == 1, "one report in the render: %s" % engine_reports)
     check(not any("ERROR" in k for k, _ in engine_reports), "no error: %s" % engine_reports)
+
+    # An animation reports each warning once (at its first frame), not once per frame.
+    scene.frame_start, scene.frame_end = 1, 2
+    scene.render.filepath = os.path.join(opts.out, "anim_####")
+    scene.render.image_settings.file_format = "PNG"
+    engine_reports.clear()
+    bpy.ops.render.render(animation=True)
+    frames = [f for f in os.listdir(opts.out) if f.startswith("anim_") and f.endswith(".png")]
+    texture_reports = [m for _, m in engine_reports if "glimmer_missing_texture" in m]
+    print("animation: %d frames, %d texture reports" % (len(frames), len(texture_reports)))
+    check(len(frames) == 2, "two frames rendered: %s" % frames)
+    check(len(texture_reports) == 1, "one report for the whole animation: %s" % engine_reports)
+    engine_reports.clear()
+    bpy.ops.render.render()  # a new render job reports again
+    check(len([m for _, m in engine_reports if "glimmer_missing_texture" in m]) == 1, "reported by the next job")
+    scene.render.image_settings.file_format = "OPEN_EXR"
 
 # -- 2. a non-executable renderer: a clear error, no traceback ----------------------------------------------------
 not_executable = os.path.join(opts.out, "glimmer_not_executable")
