@@ -14,6 +14,8 @@ from . import preferences
 from . import runner
 
 KILL_TIMEOUT_SECONDS = 5.0
+# Material/world/light preview thumbnails (Blender's preview scene, 128 px and smaller): samples per pixel.
+PREVIEW_SAMPLES = 16
 
 # Warnings already reported in this render job: an animation reports each warning once, not once per frame.
 _reported = set()
@@ -102,7 +104,7 @@ def load_exr_into_result(result, path, layer_name):
 class GlimmerRenderEngine(bpy.types.RenderEngine):
     bl_idname = "GLIMMER"
     bl_label = "Glimmer"
-    bl_use_preview = False
+    bl_use_preview = True  # material, world and light previews render Blender's preview scene with Glimmer
     bl_use_shading_nodes_custom = False  # Cycles' shader nodes are used as they are
     bl_use_postprocess = True
 
@@ -113,7 +115,8 @@ class GlimmerRenderEngine(bpy.types.RenderEngine):
         width = max(1, int(scene.render.resolution_x * scale))
         height = max(1, int(scene.render.resolution_y * scale))
         layer_name = depsgraph.view_layer.name
-        if not self.is_animation or scene.frame_current == scene.frame_start:
+        preview = self.is_preview
+        if not preview and (not self.is_animation or scene.frame_current == scene.frame_start):
             _reported.clear()
         region = border_region(scene.render, width, height)  # Blender's result is just the region then
         result_width, result_height = (region[2] - region[0], region[3] - region[1]) if region else (width, height)
@@ -126,7 +129,7 @@ class GlimmerRenderEngine(bpy.types.RenderEngine):
             if problem is not None:
                 self.fail("Glimmer: " + problem)
                 return
-            if settings.export_dir:
+            if settings.export_dir and not preview:
                 out_dir = os.path.join(bpy.path.abspath(settings.export_dir), "frame_%04d" % scene.frame_current)
                 os.makedirs(out_dir, exist_ok=True)
             else:
@@ -134,7 +137,8 @@ class GlimmerRenderEngine(bpy.types.RenderEngine):
                 temporary = not settings.keep_export
             self.update_stats("", "Glimmer: exporting the scene")
             start = time.monotonic()
-            xml_path, exp = exporter_mod.export_scene(depsgraph, out_dir, report=self.report_once,
+            # A preview's warnings are about Blender's preview scene, not the artist's: not reported.
+            xml_path, exp = exporter_mod.export_scene(depsgraph, out_dir, report=None if preview else self.report_once,
                                                       width=width, height=height)
             export_seconds = time.monotonic() - start
             print("Glimmer: exported %d objects, %d triangles, %d lights to %s in %.2f s"
@@ -143,7 +147,8 @@ class GlimmerRenderEngine(bpy.types.RenderEngine):
             if os.path.exists(exr_path):
                 os.remove(exr_path)
             seed = settings.seed + (scene.frame_current if settings.use_animated_seed else 0)
-            cmd = runner.render_command(executable, xml_path, exr_path, settings.samples, settings.threads,
+            samples = min(settings.samples, PREVIEW_SAMPLES) if preview else settings.samples
+            cmd = runner.render_command(executable, xml_path, exr_path, samples, settings.threads,
                                         seed, width, height, region)
             render_start = time.monotonic()
 
@@ -153,7 +158,7 @@ class GlimmerRenderEngine(bpy.types.RenderEngine):
                 self.update_stats("", "Glimmer: sample %d/%d, %.1f s" % (done, total, elapsed))
 
             def renderer_line(line):  # the renderer's scene warnings (file:line) go to Blender's report
-                if "warning" in line.lower():
+                if "warning" in line.lower() and not preview:
                     self.report_once({"WARNING"}, "glimmer: " + line)
 
             code, cancelled, tail = runner.run(cmd, on_progress=progress, should_cancel=self.cancel_requested,
