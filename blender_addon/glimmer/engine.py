@@ -46,28 +46,35 @@ def executable_problem(executable):
     return None
 
 
-def exr_channels(path):
-    """Channel names of an OpenEXR file (reads the header only)."""
+def exr_attributes(path):
+    """The header attributes of an OpenEXR file: {name: (type name, raw value bytes)} (reads the header only)."""
     with open(path, "rb") as f:
         data = f.read(1 << 16)
     if data[:4] != b"\x76\x2f\x31\x01":
         raise ValueError("%s is not an OpenEXR file" % path)
-    pos = 8
+    attributes, pos = {}, 8
     while pos < len(data) and data[pos] != 0:
         name_end = data.index(b"\0", pos)
-        name = data[pos:name_end].decode()
         type_end = data.index(b"\0", name_end + 1)
         size = struct.unpack_from("<i", data, type_end + 1)[0]
         value_start = type_end + 5
-        if name == "channels":
-            channels, p = [], value_start
-            while data[p] != 0:
-                end = data.index(b"\0", p)
-                channels.append(data[p:end].decode())
-                p = end + 1 + 16  # pixel type, pLinear + reserved, x/y sampling
-            return channels
+        attributes[data[pos:name_end].decode()] = (data[name_end + 1:type_end].decode(),
+                                                   data[value_start:value_start + size])
         pos = value_start + size
-    raise ValueError("%s has no channel list" % path)
+    return attributes
+
+
+def exr_channels(path):
+    """Channel names of an OpenEXR file."""
+    value = exr_attributes(path).get("channels")
+    if value is None:
+        raise ValueError("%s has no channel list" % path)
+    channels, p, raw = [], 0, value[1]
+    while raw[p] != 0:
+        end = raw.index(b"\0", p)
+        channels.append(raw[p:end].decode())
+        p = end + 1 + 16  # pixel type, pLinear + reserved, x/y sampling
+    return channels
 
 
 def load_exr_into_result(result, path, layer_name):
@@ -99,6 +106,20 @@ def load_exr_into_result(result, path, layer_name):
     subprocess.run([oiiotool, path, "--chnames", ",".join(renamed), "-o", fixed], check=True,
                    stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, timeout=120)
     result.load_from_file(fixed)
+
+
+def checkpoint_to_rgba(checkpoint, exposure, path):
+    """A checkpoint (Combined RGB = raw sums, A = samples per pixel) as a plain RGBA EXR of per-pixel means x
+    exposure, alpha 1, as the final image would be at that sample count (oiiotool: division by 0 gives 0)."""
+    oiiotool = shutil.which("oiiotool")
+    if oiiotool is None:
+        raise RuntimeError("progressive updates need oiiotool (Debian package openimageio-tools)")
+    combined = [c for c in exr_channels(checkpoint) if ".Combined." in c]
+    layer = combined[0].split(".Combined.")[0] + ".Combined." if combined else ""
+    subprocess.run([oiiotool, checkpoint, "--ch", ",".join(layer + c for c in "RGB"), "--chnames", "R,G,B",
+                    checkpoint, "--ch", ",".join([layer + "A"] * 3), "--chnames", "R,G,B", "--div",
+                    "--mulc", "%.9g,%.9g,%.9g" % ((exposure,) * 3), "--ch", "R,G,B,A=1.0", "-d", "float",
+                    "-o", path], check=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, timeout=60)
 
 
 class GlimmerRenderEngine(bpy.types.RenderEngine):
@@ -148,8 +169,10 @@ class GlimmerRenderEngine(bpy.types.RenderEngine):
                 os.remove(exr_path)
             seed = settings.seed + (scene.frame_current if settings.use_animated_seed else 0)
             samples = min(settings.samples, PREVIEW_SAMPLES) if preview else settings.samples
+            progressive = settings.use_progressive and not preview
             cmd = runner.render_command(executable, xml_path, exr_path, samples, settings.threads,
-                                        seed, width, height, region)
+                                        seed, width, height, region,
+                                        settings.progressive_interval if progressive else None)
             render_start = time.monotonic()
 
             def progress(done, total):
@@ -158,7 +181,11 @@ class GlimmerRenderEngine(bpy.types.RenderEngine):
                 self.update_stats("", "Glimmer: sample %d/%d, %.1f s" % (done, total, elapsed))
 
             def renderer_line(line):  # the renderer's scene warnings (file:line) go to Blender's report
-                if "warning" in line.lower() and not preview:
+                checkpoint = runner.CHECKPOINT_LINE.match(line)
+                if checkpoint and progressive:
+                    self.show_checkpoint(result, checkpoint.group(3), settings.film_exposure,
+                                         int(checkpoint.group(1)), int(checkpoint.group(2)))
+                elif "warning" in line.lower() and not preview:
                     self.report_once({"WARNING"}, "glimmer: " + line)
 
             code, cancelled, tail = runner.run(cmd, on_progress=progress, should_cancel=self.cancel_requested,
@@ -179,6 +206,25 @@ class GlimmerRenderEngine(bpy.types.RenderEngine):
             self.end_result(result)
             if temporary and out_dir:
                 shutil.rmtree(out_dir, ignore_errors=True)
+
+    def show_checkpoint(self, result, checkpoint, exposure, done, total):
+        """Shows the renderer's newest checkpoint in the render window (the announced one, done of total
+        samples, may have been replaced by a later one meanwhile). Returns (samples shown, the RGBA file) or
+        None when there was nothing to show."""
+        base = checkpoint[:-len(".checkpoint.exr")]
+        snapshot, progress_path = base + ".shown.exr", base + ".progress.exr"
+        try:
+            shutil.copyfile(checkpoint, snapshot)  # the renderer renames new checkpoints into place
+            raw = exr_attributes(snapshot).get("glimmer:samples", ("int", b""))[1]
+            shown = struct.unpack("<i", raw)[0] if len(raw) == 4 else done
+            checkpoint_to_rgba(snapshot, exposure, progress_path)
+        except (OSError, RuntimeError, ValueError, subprocess.SubprocessError) as e:
+            # Deleted at the end of the render, or no oiiotool: the final image comes anyway.
+            print("Glimmer: progressive update at sample %d/%d skipped: %s" % (done, total, e))
+            return None
+        result.layers[0].load_from_file(progress_path)
+        self.update_result(result)
+        return shown, progress_path
 
     def cancel_requested(self):
         """Esc in the render window (or the job being stopped); a Python method so tests can drive it."""

@@ -31,7 +31,7 @@ class GlimmerRenderPanel(GlimmerPanel):
 
 class GLIMMER_PT_sampling(GlimmerRenderPanel, bpy.types.Panel):
     bl_label = "Sampling"
-    props = ("samples", "seed", "use_animated_seed", "threads")
+    props = ("samples", "seed", "use_animated_seed", "threads", "use_progressive", "progressive_interval")
 
 
 class GLIMMER_PT_light_paths(GlimmerRenderPanel, bpy.types.Panel):
