@@ -19,12 +19,13 @@ bl_info = {
 if "bpy" in locals():
     import importlib
 
-    for _module in (schema, preferences, properties, nodes, mesh_export, exporter, runner, engine, farm, ui):  # noqa: F821
+    for _module in (schema, preferences, properties, nodes, mesh_export, exporter, runner, viewport, engine, farm,
+                    ui):  # noqa: F821
         importlib.reload(_module)
 
 import bpy
 
-from . import schema, preferences, properties, nodes, mesh_export, exporter, runner, engine, farm, ui
+from . import schema, preferences, properties, nodes, mesh_export, exporter, runner, viewport, engine, farm, ui
 
 _schema_origin = None
 

@@ -8,10 +8,12 @@ import time
 import traceback
 
 import bpy
+import numpy as np
 
 from . import exporter as exporter_mod
 from . import preferences
 from . import runner
+from . import viewport
 
 KILL_TIMEOUT_SECONDS = 5.0
 # Material/world/light preview thumbnails (Blender's preview scene, 128 px and smaller): samples per pixel.
@@ -108,7 +110,7 @@ def load_exr_into_result(result, path, layer_name):
     result.load_from_file(fixed)
 
 
-def checkpoint_to_rgba(checkpoint, exposure, path):
+def checkpoint_to_rgba(checkpoint, exposure, path, extra=()):
     """A checkpoint (Combined RGB = raw sums, A = samples per pixel) as a plain RGBA EXR of per-pixel means x
     exposure, alpha 1, as the final image would be at that sample count (oiiotool: division by 0 gives 0)."""
     oiiotool = shutil.which("oiiotool")
@@ -119,7 +121,7 @@ def checkpoint_to_rgba(checkpoint, exposure, path):
     subprocess.run([oiiotool, checkpoint, "--ch", ",".join(layer + c for c in "RGB"), "--chnames", "R,G,B",
                     checkpoint, "--ch", ",".join([layer + "A"] * 3), "--chnames", "R,G,B", "--div",
                     "--mulc", "%.9g,%.9g,%.9g" % ((exposure,) * 3), "--ch", "R,G,B,A=1.0", "-d", "float",
-                    "-o", path], check=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, timeout=60)
+                    *extra, "-o", path], check=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, timeout=60)
 
 
 class GlimmerRenderEngine(bpy.types.RenderEngine):
@@ -206,6 +208,69 @@ class GlimmerRenderEngine(bpy.types.RenderEngine):
             self.end_result(result)
             if temporary and out_dir:
                 shutil.rmtree(out_dir, ignore_errors=True)
+
+    # -- viewport ------------------------------------------------------------------------------------------
+    def view_update(self, context, depsgraph):
+        """Restarts the progressive viewport render when the scene, the view or the viewport size changed."""
+        region, region_data = context.region, context.region_data
+        width = max(1, int(region.width * viewport.VIEWPORT_SCALE))
+        height = max(1, int(region.height * viewport.VIEWPORT_SCALE))
+        view = viewport.view_from_region(region_data)
+        key = (width, height, view["matrix"].round(6).tobytes(), round(view["fov"], 6))
+        changed = bool(depsgraph.updates) or key != getattr(self, "_view_key", None)
+        session = getattr(self, "_session", None)
+        if session is None:
+            problem = executable_problem(preferences.executable_path())
+            if problem is not None:
+                self.update_stats("", "Glimmer: " + problem)
+                return
+            session = self._session = viewport.ViewportSession(preferences.executable_path())
+        if changed or not (session.running() or session.updates):
+            self._view_key = key
+            session.start(depsgraph, width, height, view)
+            self._watch_session()
+
+    def _watch_session(self):
+        """Redraws the viewport (from the main thread) while the session brings new images."""
+        import weakref
+
+        engine, last = weakref.ref(self), [-1]
+
+        def tick():
+            me = engine()
+            try:
+                session = me._session
+                if session.updates != last[0]:
+                    last[0] = session.updates
+                    me.tag_redraw()
+            except (AttributeError, ReferenceError):
+                return None  # the engine is gone
+            return 0.1 if session.running() else None
+
+        bpy.app.timers.register(tick, first_interval=0.1)
+
+    def view_draw(self, context, depsgraph):
+        session = getattr(self, "_session", None)
+        pixels = session.pixels if session is not None else None
+        if pixels is None:
+            return
+        import gpu
+        from gpu_extras.presets import draw_texture_2d
+
+        h, w = pixels.shape[:2]
+        flat = np.ascontiguousarray(pixels[::-1]).ravel()  # GPU rows go up
+        texture = gpu.types.GPUTexture((w, h), format="RGBA16F", data=gpu.types.Buffer("FLOAT", flat.size, flat))
+        gpu.state.blend_set("ALPHA_PREMULT")
+        self.bind_display_space_shader(depsgraph.scene)
+        draw_texture_2d(texture, (0, 0), context.region.width, context.region.height)
+        self.unbind_display_space_shader()
+        gpu.state.blend_set("NONE")
+        self.update_stats("", "Glimmer: sample %d" % session.samples_shown)
+
+    def __del__(self):
+        session = getattr(self, "_session", None)
+        if session is not None:
+            session.stop()
 
     def show_checkpoint(self, result, checkpoint, exposure, done, total):
         """Shows the renderer's newest checkpoint in the render window (the announced one, done of total

@@ -468,8 +468,11 @@ def _output_node(ntree, bl_idname):
 class Exporter:
     """Writes <out_dir>/scene.xml and <out_dir>/meshes/*.ply for one frame of a depsgraph."""
 
-    def __init__(self, depsgraph, out_dir, settings=None, width=None, height=None, report=None):
+    def __init__(self, depsgraph, out_dir, settings=None, width=None, height=None, report=None, view=None):
+        """view: {"matrix": camera-to-world 4x4, "fov": radians across the smaller side} of a viewport, used
+        instead of the scene camera."""
         self.depsgraph = depsgraph
+        self.view = view
         self.scene = depsgraph.scene
         self.out_dir = out_dir
         self.settings = settings if settings is not None else getattr(self.scene, "glimmer", None)
@@ -520,7 +523,9 @@ class Exporter:
     def write_camera(self, root):
         ET.SubElement(root, "camera", width=str(self.width), height=str(self.height))
         cam_obj = self.scene.camera
-        if cam_obj is None:
+        if self.view is not None:
+            matrix, cam, cam_obj = np.array(self.view["matrix"], dtype=np.float64), None, None
+        elif cam_obj is None:
             self.warn("the scene has no camera: using a camera at the origin looking down -Z")
             matrix = np.identity(4)
             cam = None
@@ -538,7 +543,8 @@ class Exporter:
         angle, axis = _axis_angle(rot)
         tr = ET.SubElement(root, "transform", translate=fmt(loc), rotate=fmt([math.degrees(angle), *axis]),
                            scale=fmt([scale[0], scale[1], -scale[2]]))
-        attributes = {"type": "perspective", "fov": fmt(self.camera_fov(cam)), "nearclip": "0.1",
+        fov = self.view["fov"] if self.view is not None else self.camera_fov(cam)
+        attributes = {"type": "perspective", "fov": fmt(fov), "nearclip": "0.1",
                       "farclip": "100"}
         if cam is not None:
             attributes["nearclip"] = fmt(cam.clip_start)
@@ -812,9 +818,9 @@ def _axis_angle(rotation):
     return angle, tuple(float(a) for a in axis)
 
 
-def export_scene(depsgraph, out_dir, report=None, width=None, height=None):
-    """Export depsgraph's scene to out_dir/scene.xml; returns (path, exporter)."""
-    exporter = Exporter(depsgraph, out_dir, width=width, height=height, report=report)
+def export_scene(depsgraph, out_dir, report=None, width=None, height=None, view=None):
+    """Export depsgraph's scene to out_dir/scene.xml (seen from view, see Exporter); returns (path, exporter)."""
+    exporter = Exporter(depsgraph, out_dir, width=width, height=height, report=report, view=view)
     return exporter.export(), exporter
 
 
