@@ -211,13 +211,17 @@ class GlimmerRenderEngine(bpy.types.RenderEngine):
 
     # -- viewport ------------------------------------------------------------------------------------------
     def view_update(self, context, depsgraph):
+        """The scene changed (Blender calls this on depsgraph updates): restart the viewport render."""
+        self._sync_view(context, depsgraph, scene_changed=bool(depsgraph.updates))
+
+    def _sync_view(self, context, depsgraph, scene_changed):
         """Restarts the progressive viewport render when the scene, the view or the viewport size changed."""
         region, region_data = context.region, context.region_data
         width = max(1, int(region.width * viewport.VIEWPORT_SCALE))
         height = max(1, int(region.height * viewport.VIEWPORT_SCALE))
         view = viewport.view_from_region(region_data)
         key = (width, height, view["matrix"].round(6).tobytes(), round(view["fov"], 6))
-        changed = bool(depsgraph.updates) or key != getattr(self, "_view_key", None)
+        changed = scene_changed or key != getattr(self, "_view_key", None)
         session = getattr(self, "_session", None)
         if session is None:
             problem = executable_problem(preferences.executable_path())
@@ -225,7 +229,7 @@ class GlimmerRenderEngine(bpy.types.RenderEngine):
                 self.update_stats("", "Glimmer: " + problem)
                 return
             session = self._session = viewport.ViewportSession(preferences.executable_path())
-        if changed or not (session.running() or session.updates):
+        if changed:
             self._view_key = key
             session.start(depsgraph, width, height, view)
             self._watch_session()
@@ -250,6 +254,8 @@ class GlimmerRenderEngine(bpy.types.RenderEngine):
         bpy.app.timers.register(tick, first_interval=0.1)
 
     def view_draw(self, context, depsgraph):
+        """Draws the newest viewport image; navigating the view only calls this, so view changes restart here."""
+        self._sync_view(context, depsgraph, scene_changed=False)
         session = getattr(self, "_session", None)
         pixels = session.pixels if session is not None else None
         if pixels is None:

@@ -90,4 +90,45 @@ time.sleep(0.5)
 print("viewport stop: %.2f s, exit code %s" % (stopped, session.exit_code))
 check(not session.running() and session.exit_code is not None, "stopped (exit code %s)" % session.exit_code)
 check(session.updates == count, "no update after stop")
+
+# The engine's restart rule (view_update / view_draw -> _sync_view) with a stand-in engine and 3D view.
+from types import SimpleNamespace  # noqa: E402
+
+from mathutils import Matrix  # noqa: E402
+
+
+class StandInEngine:
+    _sync_view = mod.engine.GlimmerRenderEngine._sync_view
+    watched = 0
+    stats = ""
+
+    def _watch_session(self):
+        self.watched += 1
+
+    def update_stats(self, _a, b):
+        self.stats = b
+
+
+def view_context(x):
+    view_matrix = Matrix.Translation((x, 0.0, 0.0)) @ Matrix(cam.matrix_world).inverted()
+    window = Matrix.Diagonal((2.7, 3.6, -1.0, 1.0))
+    return SimpleNamespace(region=SimpleNamespace(width=2 * W, height=2 * H),
+                           region_data=SimpleNamespace(view_matrix=view_matrix, window_matrix=window))
+
+
+engine = StandInEngine()
+depsgraph = bpy.context.evaluated_depsgraph_get()
+engine._sync_view(view_context(0.0), depsgraph, scene_changed=False)
+check(engine.watched == 1 and engine._session.running(), "the first draw starts a render")
+check(wait_for(lambda: engine._session.updates >= 1, 120), "it brings images (%s)" % engine._session.failure)
+engine._sync_view(view_context(0.0), depsgraph, scene_changed=False)
+check(engine.watched == 1 and engine._session.updates >= 1, "an unchanged view keeps rendering")
+engine._sync_view(view_context(0.3), depsgraph, scene_changed=False)
+check(engine.watched == 2, "a moved view restarts")
+engine._sync_view(view_context(0.3), depsgraph, scene_changed=True)
+check(engine.watched == 3, "a scene update restarts")
+check(wait_for(lambda: engine._session.updates >= 1, 120), "images after the restart")
+check(engine._session.pixels.shape == (H, W, 4), "the viewport render is half the region's size")
+engine._session.stop()
+check(not engine._session.running(), "stopped")
 util.done("test_viewport")
