@@ -79,7 +79,7 @@ def _set_socket_default(sock, param):
 
 
 # Blender 3.x keeps a socket's description in a 64-byte buffer (63 characters): longer texts are cut short
-# with "...", and the node's sidebar (draw_buttons_ext) and Add-menu tooltip carry every full text.
+# with " (...)", and the node's sidebar (draw_buttons_ext) shows every full text.
 SOCKET_DESCRIPTION_MAX = 63
 MORE = " (...)"
 
@@ -217,7 +217,7 @@ def make_node_class(closure):
     return type(info["idname"], (GlimmerClosureNodeMixin, bpy.types.ShaderNodeCustomGroup), {
         "bl_idname": info["idname"],
         "bl_label": info["label"],
-        "bl_description": "\n".join([closure.get("doc", "")] + parameter_notes(closure)),
+        "bl_description": closure.get("doc", ""),  # (parameter notes here crash Blender 3.4 at exit)
         "bl_width_default": 180,
         "closure_name": closure["name"],
         "closure_schema": closure,

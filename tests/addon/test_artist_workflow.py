@@ -243,7 +243,12 @@ for sock in mod.nodes.interface_sockets(group, "INPUT"):
     check(sock.description == mod.nodes.socket_description(doc), "description of %s" % sock.name)
     check(len(sock.description) <= 63 and (sock.description == doc or sock.description.endswith(" (...)")),
           "%s: '%s'" % (sock.name, sock.description))
-check(roughness_doc in bpy.types.Node.bl_rna_get_subclass_py("GlimmerNodeGlintBsdf").bl_description, "the full note is in the node's tooltip")
+labels = []
+sidebar = SimpleNamespace(prop=lambda *a, **k: None, label=lambda text="": labels.append(text),
+                          column=lambda **k: sidebar)
+node_cls = bpy.types.Node.bl_rna_get_subclass_py("GlimmerNodeGlintBsdf")
+node_cls.draw_buttons_ext(SimpleNamespace(closure_schema=glint, closure_name="glint"), None, sidebar)
+check(any(roughness_doc in text for text in labels), "the full roughness note is in the node's sidebar: %s" % labels)
 check(mod.nodes.socket_description("a " * 40).endswith("a (...)"), "cut at a word")
 
 # -- 6. the standard shader nodes Glimmer supports are in the Add menu with Glimmer active -----------------------------
