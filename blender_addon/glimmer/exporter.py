@@ -105,6 +105,7 @@ class ShaderGraph:
         self.exported = {}  # (node name, output identifier) -> (xml node, xml socket) or None
         self.warned = set()
         self.read_inputs = set()  # (node name, input identifier) the translators looked at
+        self.uses_generated = False  # a texture reads generated coordinates: meshes go in object space
 
     # -- helpers -------------------------------------------------------------
     def warn(self, key, message):
@@ -256,39 +257,55 @@ class ShaderGraph:
                 self.connect(source, el.get("name"), attribute)
         return (el.get("name"), "closure")
 
-    def texture_coordinates(self, node, default="the mesh's UV map"):
-        """Warns when node's Vector input is linked to anything but the UV map (default: what is used instead)."""
+    def texture_coordinates(self, node, default="the mesh's UV map", generated_by_default=False,
+                            generated_ok=True):
+        """The texture's Vector input: the UV map, or Generated (object space normalised to the bounding box,
+        as Cycles) through a texture_coordinate node; anything else is warned about (default: what is used
+        instead). Returns the (xml node, socket) to link into the texture's vector, or None."""
         vector = node.inputs.get("Vector")
         if vector is None:
-            return
+            return None
         self.read_inputs.add((node.name, vector.identifier))
         if not vector.is_linked:
-            return
-        src = vector.links[0].from_node
-        if src.bl_idname == "ShaderNodeUVMap" or (src.bl_idname == "ShaderNodeTexCoord"
-                                                   and vector.links[0].from_socket.name == "UV"):
-            return
+            self.uses_generated |= generated_by_default
+            return None
+        src, socket = vector.links[0].from_node, vector.links[0].from_socket.name
+        if src.bl_idname == "ShaderNodeUVMap" or (src.bl_idname == "ShaderNodeTexCoord" and socket == "UV"):
+            return None
+        if src.bl_idname == "ShaderNodeTexCoord" and socket == "Generated" and generated_ok:
+            self.uses_generated = True
+            key = (src.name, "generated")
+            if key not in self.exported:
+                el = self.add("texture_coordinate", src.name)
+                self.exported[key] = (el.get("name"), "generated")
+            return self.exported[key]
         self.warn(("vector", node.name), "the Vector input of '%s' (from '%s', %s) is not exported: %s is used"
                   % (node.name, src.name, src.bl_idname, default))
+        return None
+
+    def link_vector(self, el, coordinates):
+        if coordinates is not None:
+            self.connect(coordinates, el.get("name"), "vector")
 
     def image_texture(self, node, out):
         if node.image is None:
             self.warn(node.name, "image texture '%s' has no image: its consumer keeps its own value" % node.name)
             return None
-        self.texture_coordinates(node)
+        coordinates = self.texture_coordinates(node)
         if node.projection != "FLAT":
             self.warn(("projection", node.name), "image texture '%s': only flat projection is exported" % node.name)
         el = self.add("image_texture", node.name, filename=self.exporter.image_path(node.image, self.owner, node),
                       interpolation=IMAGE_INTERPOLATION.get(node.interpolation, "linear"),
                       extension=IMAGE_EXTENSION.get(node.extension, "periodic"),
                       colorspace=node.image.colorspace_settings.name)
+        self.link_vector(el, coordinates)
         return (el.get("name"), "alpha" if out.name == "Alpha" else "color")
 
     def environment_texture(self, node, out):
         if node.image is None:
             self.warn(node.name, "environment texture '%s' has no image: ignored" % node.name)
             return None
-        self.texture_coordinates(node, "the unrotated world direction")
+        self.texture_coordinates(node, "the unrotated world direction", generated_ok=False)
         el = self.add("environment_texture", node.name, filename=self.exporter.image_path(node.image, self.owner, node),
                       interpolation=IMAGE_INTERPOLATION.get(node.interpolation, "linear"),
                       colorspace=node.image.colorspace_settings.name,
@@ -296,8 +313,9 @@ class ShaderGraph:
         return (el.get("name"), "alpha" if out.name == "Alpha" else "color")
 
     def checker_texture(self, node, out):
-        self.texture_coordinates(node)
+        coordinates = self.texture_coordinates(node, "generated coordinates", generated_by_default=True)
         el = self.add("checker_texture", node.name)
+        self.link_vector(el, coordinates)
         self.set_input(el, "color1", node.inputs["Color1"])
         self.set_input(el, "color2", node.inputs["Color2"])
         self.set_input(el, "scale", node.inputs["Scale"])
@@ -487,6 +505,7 @@ class Exporter:
         self.material_shaders = {}
         self.images = {}
         self.objects_checked = set()
+        self.object_space_shaders = set()  # shaders reading generated coordinates
         self.stats = {"objects": 0, "triangles": 0, "vertices": 0, "lights": 0, "materials": 0}
 
     def warn(self, message):
@@ -643,6 +662,8 @@ class Exporter:
                 self.warn("%s: volumes are not exported" % owner)
             if out is not None and out.inputs["Displacement"].is_linked:
                 self.warn("%s: displacement is not exported" % owner)
+            if graph.uses_generated:
+                self.object_space_shaders.add(name)
         # Shaders must come before the objects that use them.
         index = list(self.objects_parent).index(self.objects_anchor)
         self.objects_parent.insert(index, el)
@@ -740,13 +761,19 @@ class Exporter:
             own_geometry = not inst.is_instance or (inst.parent is not None and inst.parent.name == obj.name)
             base = self.mesh_names(obj.name if own_geometry else obj.name + "_instance")
             used = np.unique(arrays["material"]) if len(slots) > 1 else np.array([0])
-            for index in used:
+            shaders = [self.shader_for(slots[min(int(index), len(slots) - 1)] if slots else None) for index in used]
+            parent = root
+            if self.object_space_shaders.intersection(shaders):
+                # Generated coordinates come from the mesh's own (object-space) bounding box, as in Cycles:
+                # the mesh is written in object space inside its object's transform.
+                arrays = mesh_export.mesh_arrays(mesh, np.identity(4))
+                matrix = np.array(inst.matrix_world, dtype=np.float64)
+                parent = ET.SubElement(root, "transform", matrix=fmt(matrix.flatten(order="F")))
+            for index, shader in zip(used, shaders):
                 part = arrays if len(used) == 1 else mesh_export.subset(arrays, arrays["material"] == index)
-                material = slots[min(int(index), len(slots) - 1)] if slots else None
-                shader = self.shader_for(material)
                 filename = "meshes/%s.ply" % (base if len(used) == 1 else "%s_%d" % (base, index))
                 mesh_export.write_ply(os.path.join(self.out_dir, filename), part)
-                state = ET.SubElement(root, "state", shader=shader)
+                state = ET.SubElement(parent, "state", shader=shader)
                 if part["smooth"]:
                     state.set("interpolation", "smooth")
                 ET.SubElement(state, "mesh", src=filename)
