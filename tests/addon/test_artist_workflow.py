@@ -56,10 +56,7 @@ def export(name):
 
 
 def camera(scene, location=(0.0, 0.0, 5.0)):
-    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
-    scene.collection.objects.link(cam)
-    cam.location = location
-    scene.camera = cam
+    util.add_camera(scene, location, (0.0, 0.0, 0.0))
 
 
 # -- 1. a missing image texture renders magenta, one warning naming the image, material and node -------------------

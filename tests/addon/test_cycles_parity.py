@@ -131,6 +131,20 @@ def material(name, kind, color=(0.8, 0.8, 0.8), **inputs):
     return mat
 
 
+def emissive_texture_material(name, texture_type):
+    """A material whose surface is an Emission (strength 1) coloured by a new texture node: (material, texture)."""
+    mat = bpy.data.materials.new(name)
+    mat.use_nodes = True
+    tree = mat.node_tree
+    tree.nodes.remove(tree.nodes["Principled BSDF"])
+    em = tree.nodes.new("ShaderNodeEmission")
+    em.inputs["Strength"].default_value = 1.0
+    tex = tree.nodes.new(texture_type)
+    tree.links.new(tex.outputs["Color"], em.inputs["Color"])
+    tree.links.new(em.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    return mat, tex
+
+
 def add_plane(size, location=(0, 0, 0), rotation_deg=(0, 0, 0), mat=None):
     bpy.ops.mesh.primitive_plane_add(size=size, location=location,
                                      rotation=[math.radians(a) for a in rotation_deg])
@@ -436,17 +450,9 @@ def scene_texture(interpolation="Linear"):
     texture_image(path)
     scene = new_scene(samples=64, width=96, height=48)
     add_camera(scene, (0.0, 0.0, 4.0), (0.0, 0.0, 10.0), lens=35.0)
-    mat = bpy.data.materials.new("Textured")
-    mat.use_nodes = True
-    tree = mat.node_tree
-    tree.nodes.remove(tree.nodes["Principled BSDF"])
-    em = tree.nodes.new("ShaderNodeEmission")
-    em.inputs["Strength"].default_value = 1.0
-    tex = tree.nodes.new("ShaderNodeTexImage")
+    mat, tex = emissive_texture_material("Textured", "ShaderNodeTexImage")
     tex.image = bpy.data.images.load(path)
     tex.interpolation = interpolation
-    tree.links.new(tex.outputs["Color"], em.inputs["Color"])
-    tree.links.new(em.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
     add_plane(2.0, rotation_deg=(0.0, 0.0, 0.0), mat=mat)
     bpy.context.active_object.scale = (1.6, 0.8, 1.0)
     glim, cyc = render_both("texture_" + interpolation.lower())
@@ -681,20 +687,13 @@ def scene_generated_checker(linked=True):
     mesh's bounding box, as Cycles (world-space coordinates would turn the pattern with the camera's axes)."""
     scene = new_scene(samples=32, width=96, height=64)
     add_camera(scene, (0.0, 0.0, 4.0), (0.0, 0.0, 0.0), lens=35.0)
-    mat = bpy.data.materials.new("GeneratedChecker")
-    mat.use_nodes = True
-    tree = mat.node_tree
-    tree.nodes.remove(tree.nodes["Principled BSDF"])
-    em = tree.nodes.new("ShaderNodeEmission")
-    checker = tree.nodes.new("ShaderNodeTexChecker")
+    mat, checker = emissive_texture_material("GeneratedChecker", "ShaderNodeTexChecker")
     checker.inputs["Scale"].default_value = 3.0
     checker.inputs["Color1"].default_value = (0.9, 0.6, 0.1, 1.0)
     checker.inputs["Color2"].default_value = (0.05, 0.1, 0.4, 1.0)
     if linked:  # else the checker's default coordinates, which are Generated too
-        coords = tree.nodes.new("ShaderNodeTexCoord")
-        tree.links.new(coords.outputs["Generated"], checker.inputs["Vector"])
-    tree.links.new(checker.outputs["Color"], em.inputs["Color"])
-    tree.links.new(em.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+        coords = mat.node_tree.nodes.new("ShaderNodeTexCoord")
+        mat.node_tree.links.new(coords.outputs["Generated"], checker.inputs["Vector"])
     add_plane(2.0, location=(0.2, -0.1, 0.0), rotation_deg=(0.0, 0.0, 33.0), mat=mat)
     bpy.context.active_object.scale = (1.5, 0.9, 1.0)
     name = "generated_checker" if linked else "default_checker"

@@ -31,15 +31,8 @@ scene.glimmer.use_progressive = True
 scene.glimmer.progressive_interval = 0.0  # after every sample pass
 scene.glimmer.export_dir = os.path.join(out, "export")
 scene.glimmer.keep_export = True
-cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
-scene.collection.objects.link(cam)
-cam.location = (0.0, -6.0, 2.0)
-cam.rotation_euler = (1.35, 0.0, 0.0)
-scene.camera = cam
-light = bpy.data.objects.new("Light", bpy.data.lights.new("Light", "AREA"))
-light.data.energy = 300.0
-light.location = (1.0, -1.0, 4.0)
-scene.collection.objects.link(light)
+util.add_camera(scene, (0.0, -6.0, 2.0), (1.35, 0.0, 0.0))
+util.add_light(scene, "AREA", 300.0, (1.0, -1.0, 4.0))
 bpy.ops.mesh.primitive_plane_add(size=10.0)
 bpy.ops.mesh.primitive_uv_sphere_add(segments=64, ring_count=32, location=(0.0, 0.0, 1.0))
 

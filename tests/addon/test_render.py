@@ -24,19 +24,9 @@ scene.glimmer.samples = 8
 scene.glimmer.threads = 2
 scene.glimmer.seed = 5
 
-cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
-scene.collection.objects.link(cam)
-cam.location = (0.0, -6.0, 2.0)
-cam.rotation_euler = (1.35, 0.0, 0.0)
-scene.camera = cam
-world = bpy.data.worlds.new("World")
-world.use_nodes = True
-world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.3, 0.35, 0.4, 1.0)
-scene.world = world
-light = bpy.data.objects.new("Light", bpy.data.lights.new("Light", "POINT"))
-light.data.energy = 800.0
-light.location = (2.0, -2.0, 4.0)
-scene.collection.objects.link(light)
+util.add_camera(scene, (0.0, -6.0, 2.0), (1.35, 0.0, 0.0))
+util.set_world_color(scene, (0.3, 0.35, 0.4))
+util.add_light(scene, "POINT", 800.0, (2.0, -2.0, 4.0))
 
 bpy.ops.mesh.primitive_plane_add(size=10.0)
 floor = bpy.data.materials.new("Floor")

@@ -18,19 +18,9 @@ scene = util.empty_exr_scene(W, H)
 scene.glimmer.samples = 4
 scene.glimmer.threads = 2
 scene.glimmer.seed = 3
-cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
-scene.collection.objects.link(cam)
-cam.location = (0.3, -5.0, 2.5)
-cam.rotation_euler = (1.1, 0.0, 0.05)
-scene.camera = cam
-world = bpy.data.worlds.new("World")
-world.use_nodes = True
-world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.2, 0.25, 0.3, 1.0)
-scene.world = world
-light = bpy.data.objects.new("Light", bpy.data.lights.new("Light", "POINT"))
-light.data.energy = 500.0
-light.location = (1.0, -2.0, 3.0)
-scene.collection.objects.link(light)
+util.add_camera(scene, (0.3, -5.0, 2.5), (1.1, 0.0, 0.05))
+util.set_world_color(scene, (0.2, 0.25, 0.3))
+util.add_light(scene, "POINT", 500.0, (1.0, -2.0, 3.0))
 bpy.ops.mesh.primitive_plane_add(size=8.0)
 mat = bpy.data.materials.new("Checker")
 mat.use_nodes = True

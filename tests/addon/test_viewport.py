@@ -33,19 +33,9 @@ check(np.allclose(px[0, 0], (1, 0, 0, 1)) and np.allclose(px[0, -1], (0, 1, 0, 1
 
 scene = util.empty_exr_scene(64, 48)
 scene.glimmer.threads = 2
-cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
-scene.collection.objects.link(cam)
-cam.location = (0.0, -6.0, 2.0)
-cam.rotation_euler = (1.35, 0.0, 0.0)
-scene.camera = cam
-light = bpy.data.objects.new("Light", bpy.data.lights.new("Light", "POINT"))
-light.data.energy = 800.0
-light.location = (2.0, -2.0, 4.0)
-scene.collection.objects.link(light)
-world = bpy.data.worlds.new("World")
-world.use_nodes = True
-world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.2, 0.25, 0.3, 1.0)
-scene.world = world
+cam = util.add_camera(scene, (0.0, -6.0, 2.0), (1.35, 0.0, 0.0))
+util.add_light(scene, "POINT", 800.0, (2.0, -2.0, 4.0))
+util.set_world_color(scene, (0.2, 0.25, 0.3))
 bpy.ops.mesh.primitive_plane_add(size=10.0)
 bpy.ops.mesh.primitive_uv_sphere_add(location=(0.0, 0.0, 1.0))
 sphere = bpy.context.active_object
