@@ -16,6 +16,10 @@ from . import runner
 from . import viewport
 
 KILL_TIMEOUT_SECONDS = 5.0
+# The renderer's EXR passes besides Combined (docs/cli.md), handed to Blender (its Denoise node takes Albedo and
+# Normal): (pass name, channels, channel ids, compositor socket type, the view layer's switch for Blender's own pass).
+AOV_PASSES = (("Albedo", 3, "RGB", "COLOR", None), ("Normal", 3, "XYZ", "VECTOR", "use_pass_normal"),
+              ("Depth", 1, "Z", "VALUE", "use_pass_z"))
 # Material/world/light preview thumbnails (Blender's preview scene, 128 px and smaller): samples per pixel.
 PREVIEW_SAMPLES = 16
 
@@ -141,6 +145,10 @@ class GlimmerRenderEngine(bpy.types.RenderEngine):
         preview = self.is_preview
         if not preview and (not self.is_animation or scene.frame_current == scene.frame_start):
             _reported.clear()
+        if not preview:
+            for name, channels, chan_id, _, builtin in AOV_PASSES:
+                if builtin is None or not getattr(depsgraph.view_layer, builtin, False):
+                    self.add_pass(name, channels, chan_id, layer=layer_name)
         region = border_region(scene.render, width, height)  # Blender's result is just the region then
         result_width, result_height = (region[2] - region[0], region[3] - region[1]) if region else (width, height)
         result = self.begin_result(0, 0, result_width, result_height, layer=layer_name)
@@ -208,6 +216,12 @@ class GlimmerRenderEngine(bpy.types.RenderEngine):
             self.end_result(result)
             if temporary and out_dir:
                 shutil.rmtree(out_dir, ignore_errors=True)
+
+    def update_render_passes(self, scene=None, renderlayer=None):
+        """The passes Glimmer writes, for the compositor's Render Layers node."""
+        self.register_pass(scene, renderlayer, "Combined", 4, "RGBA", "COLOR")
+        for name, channels, chan_id, kind, _ in AOV_PASSES:
+            self.register_pass(scene, renderlayer, name, channels, chan_id, kind)
 
     # -- viewport ------------------------------------------------------------------------------------------
     def view_update(self, context, depsgraph):

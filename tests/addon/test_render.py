@@ -84,4 +84,31 @@ diff = np.abs(a - b).max()
 print("engine vs CLI: max abs difference %.3g, mean %.4f" % (diff, a[..., :3].mean()))
 check(a[..., :3].mean() > 0.01, "the render is not black")
 check(diff <= 1e-6, "engine render equals the CLI render of the exported XML (max diff %g)" % diff)
+
+# The Albedo, Normal and Depth passes reach Blender's render result (its Denoise node reads Albedo and Normal).
+scene.render.image_settings.file_format = "OPEN_EXR_MULTILAYER"
+engine_layers = os.path.join(opts.out, "render_engine_layers.exr")
+bpy.data.images["Render Result"].save_render(engine_layers, scene=scene)
+layer = combined[0].split(".Combined.")[0]
+
+
+def pass_pixels(path, file_layer, pass_name, chans):
+    out = os.path.join(opts.out, "pass_%s_%d.exr" % (pass_name, abs(hash(path))))
+    names = ["%s.%s.%s" % (file_layer, pass_name, c) for c in chans]
+    subprocess.run(["oiiotool", path, "--ch", ",".join(names + ["0"] * (3 - len(chans)) + ["1"]),
+                    "--chnames", "R,G,B,A", "-d", "float", "-o", out], check=True)
+    return pixels(out)[..., :len(chans)]
+
+
+view_layer = bpy.context.view_layer.name
+for pass_name, chans in (("Albedo", "RGB"), ("Normal", "XYZ"), ("Depth", "Z")):
+    check(any(c.startswith("%s.%s." % (view_layer, pass_name)) for c in mod.engine.exr_channels(engine_layers)),
+          "%s pass in Blender's result" % pass_name)
+    ours, theirs = pass_pixels(engine_layers, view_layer, pass_name, chans), pass_pixels(cli_exr, layer, pass_name,
+                                                                                          chans)
+    pass_diff = np.abs(ours - theirs).max()
+    print("%s pass: engine vs CLI max difference %.3g (range %.3g..%.3g)" % (pass_name, pass_diff, theirs.min(),
+                                                                            theirs.max()))
+    check(theirs.max() > theirs.min(), "%s pass has content" % pass_name)
+    check(pass_diff == 0.0, "%s pass equals the CLI's (a copy of the same floats)" % pass_name)
 util.done("test_render")
