@@ -217,11 +217,19 @@ class ShaderGraph:
         return (el.get("name"), "bsdf")
 
     def bsdf_glossy(self, node, out):
-        self.warn_unexported_values(node, (("Anisotropy",), 0.0, "anisotropy (rendered isotropic)"),
-                                    (("Rotation",), 0.0, "anisotropic rotation"))
+        """Glossy / Anisotropic BSDF. Anisotropy (Cycles 3.4 mapping) is exported; the renderer's tangent is the
+        mesh's dPdu (the UV map's u direction), Cycles' default the radial tangent around the object's Z axis:
+        the same on a UV sphere, not in general, hence the warning when the Tangent input is not linked."""
+        self.warn_unexported_values(node, (("Rotation",), 0.0, "anisotropic rotation"))
         el = self.add("glossy_bsdf", node.name, distribution=GLOSSY_DISTRIBUTION.get(node.distribution, "GGX"))
         self.set_input(el, "color", node.inputs["Color"])
         self.set_input(el, "roughness", node.inputs["Roughness"])
+        anisotropy = node.inputs.get("Anisotropy")
+        if anisotropy is not None:
+            self.set_input(el, "anisotropy", anisotropy)
+            if anisotropy.is_linked or abs(anisotropy.default_value) > 1e-6:
+                self.warn((node.name, "tangent"), "node '%s': anisotropy follows the UV map's u direction (Cycles: "
+                          "radial around the object's Z axis; the same on a UV sphere)" % node.name)
         return (el.get("name"), "bsdf")
 
     def bsdf_glass(self, node, out, xml_type="glass_bsdf"):
