@@ -249,9 +249,13 @@ class GlimmerRenderEngine(bpy.types.RenderEngine):
             self._watch_session()
 
     def _watch_session(self):
-        """Redraws the viewport (from the main thread) while the session brings new images."""
+        """Redraws the viewport (from the main thread) while the session brings new images: one timer per
+        engine, which ends when the session stops or the engine is freed."""
         import weakref
 
+        if getattr(self, "_watching", False):
+            return
+        self._watching = True
         engine, last = weakref.ref(self), [-1]
 
         def tick():
@@ -261,9 +265,12 @@ class GlimmerRenderEngine(bpy.types.RenderEngine):
                 if session.updates != last[0]:
                     last[0] = session.updates
                     me.tag_redraw()
+                if session.running():
+                    return 0.1
+                me._watching = False
             except (AttributeError, ReferenceError):
-                return None  # the engine is gone
-            return 0.1 if session.running() else None
+                pass  # the engine is gone
+            return None
 
         bpy.app.timers.register(tick, first_interval=0.1)
 
