@@ -19,12 +19,13 @@ bl_info = {
 if "bpy" in locals():
     import importlib
 
-    for _module in (schema, preferences, properties, nodes, mesh_export, exporter, runner, engine, farm, ui):  # noqa: F821
+    for _module in (schema, preferences, properties, nodes, mesh_export, exporter, runner, viewport, engine, farm,
+                    ui):  # noqa: F821
         importlib.reload(_module)
 
 import bpy
 
-from . import schema, preferences, properties, nodes, mesh_export, exporter, runner, engine, farm, ui
+from . import schema, preferences, properties, nodes, mesh_export, exporter, runner, viewport, engine, farm, ui
 
 _schema_origin = None
 
@@ -44,6 +45,7 @@ def register():
     for cls in ui.CLASSES:
         bpy.utils.register_class(cls)
     ui.borrow_builtin_panels()
+    ui.borrow_shader_nodes()
     closure_schema, _schema_origin, error = current_schema()
     if error:
         print("Glimmer: using the built-in closure schema snapshot (%s)" % error)
@@ -52,6 +54,7 @@ def register():
 
 def unregister():
     nodes.unregister()
+    ui.return_shader_nodes()
     ui.return_builtin_panels()
     for cls in reversed(ui.CLASSES):
         bpy.utils.unregister_class(cls)

@@ -5,38 +5,82 @@ import struct
 import subprocess
 import tempfile
 import time
+import traceback
 
 import bpy
+import numpy as np
 
 from . import exporter as exporter_mod
 from . import preferences
 from . import runner
+from . import viewport
 
 KILL_TIMEOUT_SECONDS = 5.0
+# The renderer's EXR passes besides Combined (docs/cli.md), handed to Blender (its Denoise node takes Albedo and
+# Normal): (pass name, channels, channel ids, compositor socket type, the view layer's switch for Blender's own pass).
+AOV_PASSES = (("Albedo", 3, "RGB", "COLOR", None), ("Normal", 3, "XYZ", "VECTOR", "use_pass_normal"),
+              ("Depth", 1, "Z", "VALUE", "use_pass_z"))
+# Material/world/light preview thumbnails (Blender's preview scene, 128 px and smaller): samples per pixel.
+PREVIEW_SAMPLES = 16
+
+# Warnings already reported in this render job: an animation reports each warning once, not once per frame.
+_reported = set()
 
 
-def exr_channels(path):
-    """Channel names of an OpenEXR file (reads the header only)."""
+def border_region(render, width, height):
+    """Blender's render region (border) as the renderer's pixel rectangle (x0, y0, x1, y1), top row 0, x1/y1
+    exclusive, or None without a border. Blender truncates border * size to pixels with y up
+    (render_init_from_main); the renderer's rows go down."""
+    if not render.use_border:
+        return None
+    x0, x1 = int(render.border_min_x * width), int(render.border_max_x * width)
+    y0_up, y1_up = int(render.border_min_y * height), int(render.border_max_y * height)
+    if x1 <= x0 or y1_up <= y0_up:
+        return None
+    return (x0, height - y1_up, x1, height - y0_up)
+
+
+def executable_problem(executable):
+    """Why executable cannot be run (None when it can)."""
+    if not executable:
+        return "no glimmer executable (set it in the addon preferences or put `glimmer` on PATH)"
+    if not os.path.isfile(executable):
+        return "the glimmer executable '%s' does not exist (addon preferences > Glimmer Executable)" % executable
+    if not os.access(executable, os.X_OK):
+        return ("the glimmer executable '%s' is not executable (chmod +x it, or fix addon preferences > "
+                "Glimmer Executable)" % executable)
+    return None
+
+
+def exr_attributes(path):
+    """The header attributes of an OpenEXR file: {name: (type name, raw value bytes)} (reads the header only)."""
     with open(path, "rb") as f:
         data = f.read(1 << 16)
     if data[:4] != b"\x76\x2f\x31\x01":
         raise ValueError("%s is not an OpenEXR file" % path)
-    pos = 8
+    attributes, pos = {}, 8
     while pos < len(data) and data[pos] != 0:
         name_end = data.index(b"\0", pos)
-        name = data[pos:name_end].decode()
         type_end = data.index(b"\0", name_end + 1)
         size = struct.unpack_from("<i", data, type_end + 1)[0]
         value_start = type_end + 5
-        if name == "channels":
-            channels, p = [], value_start
-            while data[p] != 0:
-                end = data.index(b"\0", p)
-                channels.append(data[p:end].decode())
-                p = end + 1 + 16  # pixel type, pLinear + reserved, x/y sampling
-            return channels
+        attributes[data[pos:name_end].decode()] = (data[name_end + 1:type_end].decode(),
+                                                   data[value_start:value_start + size])
         pos = value_start + size
-    raise ValueError("%s has no channel list" % path)
+    return attributes
+
+
+def exr_channels(path):
+    """Channel names of an OpenEXR file."""
+    value = exr_attributes(path).get("channels")
+    if value is None:
+        raise ValueError("%s has no channel list" % path)
+    channels, p, raw = [], 0, value[1]
+    while raw[p] != 0:
+        end = raw.index(b"\0", p)
+        channels.append(raw[p:end].decode())
+        p = end + 1 + 16  # pixel type, pLinear + reserved, x/y sampling
+    return channels
 
 
 def load_exr_into_result(result, path, layer_name):
@@ -70,10 +114,24 @@ def load_exr_into_result(result, path, layer_name):
     result.load_from_file(fixed)
 
 
+def checkpoint_to_rgba(checkpoint, exposure, path, extra=()):
+    """A checkpoint (Combined RGB = raw sums, A = samples per pixel) as a plain RGBA EXR of per-pixel means x
+    exposure, alpha 1, as the final image would be at that sample count (oiiotool: division by 0 gives 0)."""
+    oiiotool = shutil.which("oiiotool")
+    if oiiotool is None:
+        raise RuntimeError("progressive updates need oiiotool (Debian package openimageio-tools)")
+    combined = [c for c in exr_channels(checkpoint) if ".Combined." in c]
+    layer = combined[0].split(".Combined.")[0] + ".Combined." if combined else ""
+    subprocess.run([oiiotool, checkpoint, "--ch", ",".join(layer + c for c in "RGB"), "--chnames", "R,G,B",
+                    checkpoint, "--ch", ",".join([layer + "A"] * 3), "--chnames", "R,G,B", "--div",
+                    "--mulc", "%.9g,%.9g,%.9g" % ((exposure,) * 3), "--ch", "R,G,B,A=1.0", "-d", "float",
+                    *extra, "-o", path], check=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, timeout=60)
+
+
 class GlimmerRenderEngine(bpy.types.RenderEngine):
     bl_idname = "GLIMMER"
     bl_label = "Glimmer"
-    bl_use_preview = False
+    bl_use_preview = True  # material, world and light previews render Blender's preview scene with Glimmer
     bl_use_shading_nodes_custom = False  # Cycles' shader nodes are used as they are
     bl_use_postprocess = True
 
@@ -84,18 +142,25 @@ class GlimmerRenderEngine(bpy.types.RenderEngine):
         width = max(1, int(scene.render.resolution_x * scale))
         height = max(1, int(scene.render.resolution_y * scale))
         layer_name = depsgraph.view_layer.name
-        if scene.render.use_border:
-            self.report({"WARNING"}, "Glimmer: render region (border) is not supported; the full frame is rendered")
-        result = self.begin_result(0, 0, width, height, layer=layer_name)
+        preview = self.is_preview
+        if not preview and (not self.is_animation or scene.frame_current == scene.frame_start):
+            _reported.clear()
+        if not preview:
+            for name, channels, chan_id, _, builtin in AOV_PASSES:
+                if builtin is None or not getattr(depsgraph.view_layer, builtin, False):
+                    self.add_pass(name, channels, chan_id, layer=layer_name)
+        region = border_region(scene.render, width, height)  # Blender's result is just the region then
+        result_width, result_height = (region[2] - region[0], region[3] - region[1]) if region else (width, height)
+        result = self.begin_result(0, 0, result_width, result_height, layer=layer_name)
         out_dir = None
         temporary = False
         try:
             executable = preferences.executable_path()
-            if not executable or not os.path.isfile(executable):
-                self.fail("Glimmer: no glimmer executable (set it in the addon preferences or put `glimmer` on "
-                          "PATH; looked for '%s')" % executable)
+            problem = executable_problem(executable)
+            if problem is not None:
+                self.fail("Glimmer: " + problem)
                 return
-            if settings.export_dir:
+            if settings.export_dir and not preview:
                 out_dir = os.path.join(bpy.path.abspath(settings.export_dir), "frame_%04d" % scene.frame_current)
                 os.makedirs(out_dir, exist_ok=True)
             else:
@@ -103,7 +168,8 @@ class GlimmerRenderEngine(bpy.types.RenderEngine):
                 temporary = not settings.keep_export
             self.update_stats("", "Glimmer: exporting the scene")
             start = time.monotonic()
-            xml_path, exp = exporter_mod.export_scene(depsgraph, out_dir, report=self.report,
+            # A preview's warnings are about Blender's preview scene, not the artist's: not reported.
+            xml_path, exp = exporter_mod.export_scene(depsgraph, out_dir, report=None if preview else self.report_once,
                                                       width=width, height=height)
             export_seconds = time.monotonic() - start
             print("Glimmer: exported %d objects, %d triangles, %d lights to %s in %.2f s"
@@ -112,8 +178,11 @@ class GlimmerRenderEngine(bpy.types.RenderEngine):
             if os.path.exists(exr_path):
                 os.remove(exr_path)
             seed = settings.seed + (scene.frame_current if settings.use_animated_seed else 0)
-            cmd = runner.render_command(executable, xml_path, exr_path, settings.samples, settings.threads,
-                                        seed, width, height)
+            samples = min(settings.samples, PREVIEW_SAMPLES) if preview else settings.samples
+            progressive = settings.use_progressive and not preview
+            cmd = runner.render_command(executable, xml_path, exr_path, samples, settings.threads,
+                                        seed, width, height, region,
+                                        settings.progressive_interval if progressive else None)
             render_start = time.monotonic()
 
             def progress(done, total):
@@ -122,8 +191,12 @@ class GlimmerRenderEngine(bpy.types.RenderEngine):
                 self.update_stats("", "Glimmer: sample %d/%d, %.1f s" % (done, total, elapsed))
 
             def renderer_line(line):  # the renderer's scene warnings (file:line) go to Blender's report
-                if "warning" in line.lower():
-                    self.report({"WARNING"}, "glimmer: " + line)
+                checkpoint = runner.CHECKPOINT_LINE.match(line)
+                if checkpoint and progressive:
+                    self.show_checkpoint(result, checkpoint.group(3), settings.film_exposure,
+                                         int(checkpoint.group(1)), int(checkpoint.group(2)))
+                elif "warning" in line.lower() and not preview:
+                    self.report_once({"WARNING"}, "glimmer: " + line)
 
             code, cancelled, tail = runner.run(cmd, on_progress=progress, should_cancel=self.cancel_requested,
                                                kill_timeout=KILL_TIMEOUT_SECONDS, on_line=renderer_line)
@@ -137,19 +210,130 @@ class GlimmerRenderEngine(bpy.types.RenderEngine):
             else:
                 self.fail("Glimmer: `glimmer render` failed with exit code %s:\n%s" % (code, "\n".join(tail[-10:])))
         except Exception as e:  # noqa: BLE001 - every failure becomes a Blender error report
+            traceback.print_exc()  # the console keeps the details; the report says what failed
             self.fail("Glimmer: %s: %s" % (type(e).__name__, e))
-            raise
         finally:
             self.end_result(result)
             if temporary and out_dir:
                 shutil.rmtree(out_dir, ignore_errors=True)
 
+    def update_render_passes(self, scene=None, renderlayer=None):
+        """The passes Glimmer writes, for the compositor's Render Layers node."""
+        self.register_pass(scene, renderlayer, "Combined", 4, "RGBA", "COLOR")
+        for name, channels, chan_id, kind, _ in AOV_PASSES:
+            self.register_pass(scene, renderlayer, name, channels, chan_id, kind)
+
+    # -- viewport ------------------------------------------------------------------------------------------
+    def view_update(self, context, depsgraph):
+        """The scene changed (Blender calls this on depsgraph updates): restart the viewport render."""
+        self._sync_view(context, depsgraph, scene_changed=bool(depsgraph.updates))
+
+    def _sync_view(self, context, depsgraph, scene_changed):
+        """Restarts the progressive viewport render when the scene, the view or the viewport size changed."""
+        region, region_data = context.region, context.region_data
+        width = max(1, int(region.width * viewport.VIEWPORT_SCALE))
+        height = max(1, int(region.height * viewport.VIEWPORT_SCALE))
+        view = viewport.view_from_region(region_data)
+        key = (width, height, view["matrix"].round(6).tobytes(), round(view["fov"], 6))
+        changed = scene_changed or key != getattr(self, "_view_key", None)
+        session = getattr(self, "_session", None)
+        if session is None:
+            problem = executable_problem(preferences.executable_path())
+            if problem is not None:
+                self.update_stats("", "Glimmer: " + problem)
+                return
+            session = self._session = viewport.ViewportSession(preferences.executable_path())
+        if changed:
+            self._view_key = key
+            session.start(depsgraph, width, height, view)
+            self._watch_session()
+
+    def _watch_session(self):
+        """Redraws the viewport (from the main thread) while the session brings new images: one timer per
+        engine, which ends when the session stops or the engine is freed."""
+        import weakref
+
+        if getattr(self, "_watching", False):
+            return
+        self._watching = True
+        engine, last = weakref.ref(self), [-1]
+
+        def tick():
+            me = engine()
+            try:
+                session = me._session
+                if session.updates != last[0]:
+                    last[0] = session.updates
+                    me.tag_redraw()
+                if session.running():
+                    return 0.1
+                me._watching = False
+            except (AttributeError, ReferenceError):
+                pass  # the engine is gone
+            return None
+
+        bpy.app.timers.register(tick, first_interval=0.1)
+
+    def view_draw(self, context, depsgraph):
+        """Draws the newest viewport image; navigating the view only calls this, so view changes restart here."""
+        self._sync_view(context, depsgraph, scene_changed=False)
+        session = getattr(self, "_session", None)
+        pixels = session.pixels if session is not None else None
+        if pixels is None:
+            return
+        import gpu
+        from gpu_extras.presets import draw_texture_2d
+
+        h, w = pixels.shape[:2]
+        flat = np.ascontiguousarray(pixels[::-1]).ravel()  # GPU rows go up
+        texture = gpu.types.GPUTexture((w, h), format="RGBA16F", data=gpu.types.Buffer("FLOAT", flat.size, flat))
+        gpu.state.blend_set("ALPHA_PREMULT")
+        self.bind_display_space_shader(depsgraph.scene)
+        draw_texture_2d(texture, (0, 0), context.region.width, context.region.height)
+        self.unbind_display_space_shader()
+        gpu.state.blend_set("NONE")
+        self.update_stats("", "Glimmer: sample %d" % session.samples_shown)
+
+    def __del__(self):
+        session = getattr(self, "_session", None)
+        if session is not None:
+            session.stop()
+
+    def show_checkpoint(self, result, checkpoint, exposure, done, total):
+        """Shows the renderer's newest checkpoint in the render window (the announced one, done of total
+        samples, may have been replaced by a later one meanwhile). Returns (samples shown, the RGBA file) or
+        None when there was nothing to show."""
+        base = checkpoint[:-len(".checkpoint.exr")]
+        snapshot, progress_path = base + ".shown.exr", base + ".progress.exr"
+        try:
+            shutil.copyfile(checkpoint, snapshot)  # the renderer renames new checkpoints into place
+            raw = exr_attributes(snapshot).get("glimmer:samples", ("int", b""))[1]
+            shown = struct.unpack("<i", raw)[0] if len(raw) == 4 else done
+            checkpoint_to_rgba(snapshot, exposure, progress_path)
+        except (OSError, RuntimeError, ValueError, subprocess.SubprocessError) as e:
+            # Deleted at the end of the render, or no oiiotool: the final image comes anyway.
+            print("Glimmer: progressive update at sample %d/%d skipped: %s" % (done, total, e))
+            return None
+        result.layers[0].load_from_file(progress_path)
+        self.update_result(result)
+        return shown, progress_path
+
     def cancel_requested(self):
         """Esc in the render window (or the job being stopped); a Python method so tests can drive it."""
         return self.test_break()
 
+    def report_once(self, kind, message):
+        """self.report, once per render job (an animation's frames repeat the same warnings)."""
+        if message not in _reported:
+            _reported.add(message)
+            self.send_report(kind, message)
+
+    def send_report(self, kind, message):
+        """Every report goes through here (a Python method, so tests can record them)."""
+        self.report(kind, message)
+
     def fail(self, message):
-        self.report({"ERROR"}, message)
+        self.send_report({"ERROR"}, message)
         if hasattr(self, "error_set"):
             self.error_set(message)
         print(message)

@@ -28,8 +28,15 @@ from . import mesh_export
 from . import nodes as glimmer_nodes
 from . import schema as schema_mod
 
-# Object types exported as triangle meshes (hair curves, point clouds and volumes are skipped).
+# Object types exported as triangle meshes (hair curves, point clouds and volumes are skipped with a warning).
 MESH_TYPES = {"MESH", "CURVE", "SURFACE", "META", "FONT"}
+# Types whose evaluated geometry the depsgraph also lists as a mesh instance of the same object (Blender 3.0+):
+# only that instance is exported, else the surface would be written twice.
+CURVE_LIKE_TYPES = {"CURVE", "SURFACE", "META", "FONT"}
+# Renderable object types Glimmer cannot render, as named in the warning.
+SKIPPED_TYPES = {"CURVES": "hair curves", "POINTCLOUD": "point cloud", "VOLUME": "volume", "GPENCIL": "grease pencil"}
+# Cycles renders a missing image texture in this colour.
+MISSING_TEXTURE_COLOR = (255, 0, 255)
 
 GLOSSY_DISTRIBUTION = {"SHARP": "sharp", "BECKMANN": "beckmann", "GGX": "GGX", "MULTI_GGX": "Multiscatter GGX",
                        "ASHIKHMIN_SHIRLEY": "GGX"}
@@ -97,6 +104,8 @@ class ShaderGraph:
         self.names = UniqueNames()
         self.exported = {}  # (node name, output identifier) -> (xml node, xml socket) or None
         self.warned = set()
+        self.read_inputs = set()  # (node name, input identifier) the translators looked at
+        self.uses_generated = False  # a texture reads generated coordinates: meshes go in object space
 
     # -- helpers -------------------------------------------------------------
     def warn(self, key, message):
@@ -135,6 +144,7 @@ class ShaderGraph:
 
     def source_of(self, sock):
         """(xml node, xml socket) feeding a Blender input socket, or None when unlinked/unsupported."""
+        self.read_inputs.add((sock.node.name, sock.identifier))
         if not sock.is_linked:
             return None
         link = sock.links[0]
@@ -165,7 +175,29 @@ class ShaderGraph:
             handler = ShaderGraph.glimmer_node
         if handler is None:
             return self.unsupported(node, out)
-        return handler(self, node, out)
+        result = handler(self, node, out)
+        self.warn_unread_links(node)
+        return result
+
+    def warn_unread_links(self, node):
+        """Linked inputs of a translated node that no translator read (Normal <- Bump/Normal Map, Tangent, ...)."""
+        for sock in node.inputs:
+            if not sock.is_linked or not sock.enabled or (node.name, sock.identifier) in self.read_inputs:
+                continue
+            source = sock.links[0].from_node
+            self.warn((node.name, "unread", sock.identifier),
+                      "input '%s' of node '%s' is linked to '%s' (%s), which is not exported: the node renders "
+                      "with that input unlinked" % (sock.name, node.name, source.name, source.bl_idname))
+
+    def warn_unexported_values(self, node, *checks):
+        """checks: (input names, value that has no effect, what it is); warns when the input is set otherwise."""
+        for names, idle, label in checks:
+            sock = _input(node, *names)
+            if sock is None:
+                continue
+            self.read_inputs.add((node.name, sock.identifier))
+            if sock.is_linked or abs(float(_value(sock, idle)) - idle) > 1e-6:
+                self.warn((node.name, label), "node '%s': %s is not supported and is ignored" % (node.name, label))
 
     def unsupported(self, node, out):
         if out.type == "SHADER":
@@ -185,9 +217,19 @@ class ShaderGraph:
         return (el.get("name"), "bsdf")
 
     def bsdf_glossy(self, node, out):
+        """Glossy / Anisotropic BSDF. Anisotropy (Cycles 3.4 mapping) is exported; the renderer's tangent is the
+        mesh's dPdu (the UV map's u direction), Cycles' default the radial tangent around the object's Z axis:
+        the same on a UV sphere, not in general, hence the warning when the Tangent input is not linked."""
+        self.warn_unexported_values(node, (("Rotation",), 0.0, "anisotropic rotation"))
         el = self.add("glossy_bsdf", node.name, distribution=GLOSSY_DISTRIBUTION.get(node.distribution, "GGX"))
         self.set_input(el, "color", node.inputs["Color"])
         self.set_input(el, "roughness", node.inputs["Roughness"])
+        anisotropy = node.inputs.get("Anisotropy")
+        if anisotropy is not None:
+            self.set_input(el, "anisotropy", anisotropy)
+            if anisotropy.is_linked or abs(anisotropy.default_value) > 1e-6:
+                self.warn((node.name, "tangent"), "node '%s': anisotropy follows the UV map's u direction (Cycles: "
+                          "radial around the object's Z axis; the same on a UV sphere)" % node.name)
         return (el.get("name"), "bsdf")
 
     def bsdf_glass(self, node, out, xml_type="glass_bsdf"):
@@ -223,44 +265,65 @@ class ShaderGraph:
                 self.connect(source, el.get("name"), attribute)
         return (el.get("name"), "closure")
 
-    def texture_coordinates(self, node):
+    def texture_coordinates(self, node, default="the mesh's UV map", generated_by_default=False,
+                            generated_ok=True):
+        """The texture's Vector input: the UV map, or Generated (object space normalised to the bounding box,
+        as Cycles) through a texture_coordinate node; anything else is warned about (default: what is used
+        instead). Returns the (xml node, socket) to link into the texture's vector, or None."""
         vector = node.inputs.get("Vector")
-        if vector is None or not vector.is_linked:
-            return
-        src = vector.links[0].from_node
-        if src.bl_idname == "ShaderNodeUVMap" or (src.bl_idname == "ShaderNodeTexCoord"
-                                                   and vector.links[0].from_socket.name == "UV"):
-            return
-        self.warn(("vector", node.name), "texture coordinates of '%s' other than the mesh's UV map are not exported: "
-                  "it uses the UV map" % node.name)
+        if vector is None:
+            return None
+        self.read_inputs.add((node.name, vector.identifier))
+        if not vector.is_linked:
+            self.uses_generated |= generated_by_default
+            return None
+        src, socket = vector.links[0].from_node, vector.links[0].from_socket.name
+        if src.bl_idname == "ShaderNodeUVMap" or (src.bl_idname == "ShaderNodeTexCoord" and socket == "UV"):
+            return None
+        if src.bl_idname == "ShaderNodeTexCoord" and socket == "Generated" and generated_ok:
+            self.uses_generated = True
+            key = (src.name, "generated")
+            if key not in self.exported:
+                el = self.add("texture_coordinate", src.name)
+                self.exported[key] = (el.get("name"), "generated")
+            return self.exported[key]
+        self.warn(("vector", node.name), "the Vector input of '%s' (from '%s', %s) is not exported: %s is used"
+                  % (node.name, src.name, src.bl_idname, default))
+        return None
+
+    def link_vector(self, el, coordinates):
+        if coordinates is not None:
+            self.connect(coordinates, el.get("name"), "vector")
 
     def image_texture(self, node, out):
         if node.image is None:
             self.warn(node.name, "image texture '%s' has no image: its consumer keeps its own value" % node.name)
             return None
-        self.texture_coordinates(node)
+        coordinates = self.texture_coordinates(node)
         if node.projection != "FLAT":
             self.warn(("projection", node.name), "image texture '%s': only flat projection is exported" % node.name)
-        el = self.add("image_texture", node.name, filename=self.exporter.image_path(node.image),
+        el = self.add("image_texture", node.name, filename=self.exporter.image_path(node.image, self.owner, node),
                       interpolation=IMAGE_INTERPOLATION.get(node.interpolation, "linear"),
                       extension=IMAGE_EXTENSION.get(node.extension, "periodic"),
                       colorspace=node.image.colorspace_settings.name)
+        self.link_vector(el, coordinates)
         return (el.get("name"), "alpha" if out.name == "Alpha" else "color")
 
     def environment_texture(self, node, out):
         if node.image is None:
             self.warn(node.name, "environment texture '%s' has no image: ignored" % node.name)
             return None
-        self.texture_coordinates(node)
-        el = self.add("environment_texture", node.name, filename=self.exporter.image_path(node.image),
+        self.texture_coordinates(node, "the unrotated world direction", generated_ok=False)
+        el = self.add("environment_texture", node.name, filename=self.exporter.image_path(node.image, self.owner, node),
                       interpolation=IMAGE_INTERPOLATION.get(node.interpolation, "linear"),
                       colorspace=node.image.colorspace_settings.name,
                       projection="equirectangular" if node.projection == "EQUIRECTANGULAR" else "mirror_ball")
         return (el.get("name"), "alpha" if out.name == "Alpha" else "color")
 
     def checker_texture(self, node, out):
-        self.texture_coordinates(node)
+        coordinates = self.texture_coordinates(node, "generated coordinates", generated_by_default=True)
         el = self.add("checker_texture", node.name)
+        self.link_vector(el, coordinates)
         self.set_input(el, "color1", node.inputs["Color1"])
         self.set_input(el, "color2", node.inputs["Color2"])
         self.set_input(el, "scale", node.inputs["Scale"])
@@ -279,13 +342,13 @@ class ShaderGraph:
         def constant(sock, default):
             return None if (sock is None or sock.is_linked) else _value(sock, default)
 
-        for label, names, idle in (("subsurface", ("Subsurface", "Subsurface Weight"), 0.0),
-                                   ("sheen", ("Sheen", "Sheen Weight"), 0.0),
-                                   ("clearcoat", ("Clearcoat", "Coat Weight"), 0.0),
-                                   ("alpha", ("Alpha",), 1.0)):
-            sock = _input(node, *names)
-            if sock is not None and (sock.is_linked or abs(_value(sock, idle) - idle) > 1e-6):
-                self.warn((name, label), "Principled BSDF '%s': %s is not supported and is ignored" % (name, label))
+        self.warn_unexported_values(node, (("Subsurface", "Subsurface Weight"), 0.0, "subsurface"),
+                                    (("Sheen", "Sheen Weight"), 0.0, "sheen"),
+                                    (("Clearcoat", "Coat Weight"), 0.0, "clearcoat"),
+                                    (("Alpha",), 1.0, "alpha"),
+                                    (("Anisotropic",), 0.0, "anisotropy (rendered isotropic)"),
+                                    (("Transmission Roughness",), 0.0, "transmission roughness"),
+                                    (("Specular Tint",), 0.0, "specular tint"))
 
         # Specular f0 of the dielectric layer: 0.08 * specular (3.x) or from IOR (4.x) times 2 * level.
         spec = _input(node, "Specular")
@@ -392,6 +455,7 @@ class ShaderGraph:
         return self.unsupported_quiet(node, out)
 
     def unsupported_quiet(self, node, out):
+        self.read_inputs.update((node.name, sock.identifier) for sock in node.inputs)  # already warned
         if out.type == "SHADER":
             el = self.add("diffuse_bsdf", node.name + "_fallback", color=(0.8, 0.8, 0.8))
             return (el.get("name"), "bsdf")
@@ -430,8 +494,11 @@ def _output_node(ntree, bl_idname):
 class Exporter:
     """Writes <out_dir>/scene.xml and <out_dir>/meshes/*.ply for one frame of a depsgraph."""
 
-    def __init__(self, depsgraph, out_dir, settings=None, width=None, height=None, report=None):
+    def __init__(self, depsgraph, out_dir, settings=None, width=None, height=None, report=None, view=None):
+        """view: {"matrix": camera-to-world 4x4, "fov": radians across the smaller side} of a viewport, used
+        instead of the scene camera."""
         self.depsgraph = depsgraph
+        self.view = view
         self.scene = depsgraph.scene
         self.out_dir = out_dir
         self.settings = settings if settings is not None else getattr(self.scene, "glimmer", None)
@@ -445,9 +512,13 @@ class Exporter:
         self.mesh_names = UniqueNames()
         self.material_shaders = {}
         self.images = {}
+        self.objects_checked = set()
+        self.object_space_shaders = set()  # shaders reading generated coordinates
         self.stats = {"objects": 0, "triangles": 0, "vertices": 0, "lights": 0, "materials": 0}
 
     def warn(self, message):
+        if message in self.warnings:
+            return
         self.warnings.append(message)
         if self.report is not None:
             self.report({"WARNING"}, "Glimmer export: " + message)
@@ -459,6 +530,8 @@ class Exporter:
         root.append(ET.Comment(" exported by the Glimmer Blender addon from %s "
                                % (bpy.data.filepath or "an unsaved .blend")))
         self.write_camera(root)
+        if self.scene.render.film_transparent:
+            self.warn("Film > Transparent is not supported: the background is rendered (alpha 1)")
         self.write_film_integrator(root)
         self.write_world(root)
         default = ET.SubElement(root, "shader", name=self.shader_names("glimmer_default"))
@@ -477,7 +550,9 @@ class Exporter:
     def write_camera(self, root):
         ET.SubElement(root, "camera", width=str(self.width), height=str(self.height))
         cam_obj = self.scene.camera
-        if cam_obj is None:
+        if self.view is not None:
+            matrix, cam, cam_obj = np.array(self.view["matrix"], dtype=np.float64), None, None
+        elif cam_obj is None:
             self.warn("the scene has no camera: using a camera at the origin looking down -Z")
             matrix = np.identity(4)
             cam = None
@@ -495,7 +570,8 @@ class Exporter:
         angle, axis = _axis_angle(rot)
         tr = ET.SubElement(root, "transform", translate=fmt(loc), rotate=fmt([math.degrees(angle), *axis]),
                            scale=fmt([scale[0], scale[1], -scale[2]]))
-        attributes = {"type": "perspective", "fov": fmt(self.camera_fov(cam)), "nearclip": "0.1",
+        fov = self.view["fov"] if self.view is not None else self.camera_fov(cam)
+        attributes = {"type": "perspective", "fov": fmt(fov), "nearclip": "0.1",
                       "farclip": "100"}
         if cam is not None:
             attributes["nearclip"] = fmt(cam.clip_start)
@@ -594,6 +670,8 @@ class Exporter:
                 self.warn("%s: volumes are not exported" % owner)
             if out is not None and out.inputs["Displacement"].is_linked:
                 self.warn("%s: displacement is not exported" % owner)
+            if graph.uses_generated:
+                self.object_space_shaders.add(name)
         # Shaders must come before the objects that use them.
         index = list(self.objects_parent).index(self.objects_anchor)
         self.objects_parent.insert(index, el)
@@ -601,29 +679,80 @@ class Exporter:
         self.stats["materials"] += 1
         return name
 
-    def image_path(self, image):
+    def image_path(self, image, owner, node):
+        """The file the renderer reads for image (packed/generated images saved to textures/); a missing
+        image becomes a magenta texture, as in Cycles, with one warning naming its first user."""
         if image.name in self.images:
             return self.images[image.name]
         path = bpy.path.abspath(image.filepath, library=image.library) if image.filepath else ""
-        if image.packed_file is not None or image.source == "GENERATED" or not os.path.isfile(path):
+        if image.packed_file is not None or image.source == "GENERATED":
             os.makedirs(os.path.join(self.out_dir, "textures"), exist_ok=True)
-            path = os.path.join(self.out_dir, "textures", safe_name(image.name) + ".exr")
-            image.save_render(path, scene=self.scene)
-        else:
+            saved = os.path.join(self.out_dir, "textures", safe_name(image.name) + ".exr")
+            try:
+                image.save_render(saved, scene=self.scene)
+                path = saved
+            except RuntimeError as e:
+                path = self.missing_image(image, owner, node, "cannot be saved (%s)" % e)
+        elif os.path.isfile(path):
             path = os.path.abspath(path)
+        else:
+            path = self.missing_image(image, owner, node, "file '%s' not found" % (path or image.filepath))
         self.images[image.name] = path
+        return path
+
+    def missing_image(self, image, owner, node, problem):
+        self.warn("%s: image '%s' of node '%s' %s: rendered magenta, as Cycles does" % (owner, image.name, node.name,
+                                                                                      problem))
+        path = os.path.join(self.out_dir, "textures", "missing_image_magenta.ppm")
+        if not os.path.isfile(path):
+            os.makedirs(os.path.dirname(path), exist_ok=True)
+            with open(path, "wb") as f:
+                f.write(b"P6\n1 1\n255\n" + bytes(MISSING_TEXTURE_COLOR))
         return path
 
     # -- objects and lights ----------------------------------------------------------
     def write_objects(self, root):
         self.objects_anchor = ET.SubElement(root, "objects_begin")  # placeholder, removed below
+        with_mesh_instance = {inst.parent.name for inst in self.depsgraph.object_instances
+                              if inst.is_instance and inst.parent is not None and inst.object.type == "MESH"
+                              and inst.parent.type in CURVE_LIKE_TYPES and inst.object.name == inst.parent.name}
+        skipped = {}
         for inst in self.depsgraph.object_instances:
             obj = inst.object
             if obj.type == "LIGHT":
                 self.write_light(root, obj, np.array(inst.matrix_world))
             elif obj.type in MESH_TYPES:
+                if obj.type in CURVE_LIKE_TYPES and not inst.is_instance and obj.name in with_mesh_instance:
+                    continue  # its surface comes as the mesh instance
+                if not inst.is_instance or inst.parent is None or inst.parent.name != obj.name:
+                    self.warn_object_features(obj)
                 self.write_mesh_object(root, inst, obj)
+            elif obj.type in SKIPPED_TYPES:
+                skipped.setdefault(SKIPPED_TYPES[obj.type], []).append(obj.name)
         root.remove(self.objects_anchor)
+        for kind, names in sorted(skipped.items()):
+            self.warn("%s objects are not supported: skipped %s" % (kind, ", ".join("'%s'" % n for n in names)))
+        if self.scene.render.use_motion_blur:
+            self.warn("motion blur is not supported: objects are rendered at the current frame")
+
+    def warn_object_features(self, obj):
+        """Object settings the scene format cannot carry: one warning each, with the object's name."""
+        original = obj.original if hasattr(obj, "original") else obj
+        if original.name in self.objects_checked:
+            return
+        self.objects_checked.add(original.name)
+        hidden = [ray for ray in ("camera", "diffuse", "glossy", "transmission", "volume_scatter", "shadow")
+                  if not getattr(obj, "visible_" + ray, True)]
+        if hidden:
+            self.warn("object '%s': ray visibility (%s off) is not supported: the object is visible to every ray"
+                      % (obj.name, ", ".join(hidden)))
+        if getattr(obj, "is_shadow_catcher", False):
+            self.warn("object '%s': shadow catcher is not supported: rendered as an ordinary object" % obj.name)
+        if getattr(obj, "is_holdout", False):
+            self.warn("object '%s': holdout is not supported: rendered as an ordinary object" % obj.name)
+        for psys in getattr(original, "particle_systems", ()):
+            if psys.settings.type == "HAIR" and psys.settings.render_type == "PATH":
+                self.warn("object '%s': hair particle system '%s' is not supported: skipped" % (obj.name, psys.name))
 
     def write_mesh_object(self, root, inst, obj):
         try:
@@ -637,15 +766,22 @@ class Exporter:
             if len(arrays["triangles"]) == 0:
                 return
             slots = [slot.material for slot in obj.material_slots] if obj.material_slots else []
-            base = self.mesh_names(obj.name if not inst.is_instance else obj.name + "_instance")
+            own_geometry = not inst.is_instance or (inst.parent is not None and inst.parent.name == obj.name)
+            base = self.mesh_names(obj.name if own_geometry else obj.name + "_instance")
             used = np.unique(arrays["material"]) if len(slots) > 1 else np.array([0])
-            for index in used:
+            shaders = [self.shader_for(slots[min(int(index), len(slots) - 1)] if slots else None) for index in used]
+            parent = root
+            if self.object_space_shaders.intersection(shaders):
+                # Generated coordinates come from the mesh's own (object-space) bounding box, as in Cycles:
+                # the mesh is written in object space inside its object's transform.
+                arrays = mesh_export.mesh_arrays(mesh, np.identity(4))
+                matrix = np.array(inst.matrix_world, dtype=np.float64)
+                parent = ET.SubElement(root, "transform", matrix=fmt(matrix.flatten(order="F")))
+            for index, shader in zip(used, shaders):
                 part = arrays if len(used) == 1 else mesh_export.subset(arrays, arrays["material"] == index)
-                material = slots[min(int(index), len(slots) - 1)] if slots else None
-                shader = self.shader_for(material)
                 filename = "meshes/%s.ply" % (base if len(used) == 1 else "%s_%d" % (base, index))
                 mesh_export.write_ply(os.path.join(self.out_dir, filename), part)
-                state = ET.SubElement(root, "state", shader=shader)
+                state = ET.SubElement(parent, "state", shader=shader)
                 if part["smooth"]:
                     state.set("interpolation", "smooth")
                 ET.SubElement(state, "mesh", src=filename)
@@ -686,6 +822,13 @@ class Exporter:
         # Blender lights are invisible to camera rays unless Object > Visibility > Camera is on (the default
         # is off); Cycles XML's use_camera defaults to true, so it is always written.
         attributes["use_camera"] = fmt(bool(getattr(obj, "visible_camera", False)))
+        for factor in ("diffuse_factor", "specular_factor", "volume_factor"):
+            if abs(getattr(light, factor, 1.0) - 1.0) > 1e-6:
+                self.warn("light '%s': %s %s is not supported: 1 is used" % (obj.name, factor.replace("_", " "),
+                                                                          fmt(getattr(light, factor))))
+        cycles_light = getattr(light, "cycles", None)
+        if cycles_light is not None and not getattr(cycles_light, "cast_shadow", True):
+            self.warn("light '%s': Cast Shadow off is not supported: the light casts shadows" % obj.name)
         if light.use_nodes:
             self.warn("light '%s': light node trees are not exported (colour x power is used)" % obj.name)
         ET.SubElement(root, "light", attrib=attributes)
@@ -710,9 +853,9 @@ def _axis_angle(rotation):
     return angle, tuple(float(a) for a in axis)
 
 
-def export_scene(depsgraph, out_dir, report=None, width=None, height=None):
-    """Export depsgraph's scene to out_dir/scene.xml; returns (path, exporter)."""
-    exporter = Exporter(depsgraph, out_dir, width=width, height=height, report=report)
+def export_scene(depsgraph, out_dir, report=None, width=None, height=None, view=None):
+    """Export depsgraph's scene to out_dir/scene.xml (seen from view, see Exporter); returns (path, exporter)."""
+    exporter = Exporter(depsgraph, out_dir, width=width, height=height, report=report, view=view)
     return exporter.export(), exporter
 
 

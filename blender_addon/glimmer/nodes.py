@@ -78,6 +78,29 @@ def _set_socket_default(sock, param):
         sock.default_value = value
 
 
+# Blender 3.x keeps a socket's description in a 64-byte buffer (63 characters): longer texts are cut short
+# with " (...)", and the node's sidebar (draw_buttons_ext) shows every full text.
+SOCKET_DESCRIPTION_MAX = 63
+MORE = " (...)"
+
+
+def socket_description(doc):
+    """doc when it fits a socket description, else its longest word prefix that fits, followed by MORE."""
+    if len(doc.encode()) <= SOCKET_DESCRIPTION_MAX:
+        return doc
+    room = SOCKET_DESCRIPTION_MAX - len(MORE)
+    cut = doc.encode()[:room].decode(errors="ignore")
+    if " " in cut:
+        cut = cut[:cut.rindex(" ")]
+    return cut.rstrip(" ,;:") + MORE
+
+
+def parameter_notes(closure):
+    """'Name: doc' for every parameter, the full texts behind socket_description."""
+    return ["%s: %s" % (schema_mod.socket_name(p["name"]), p.get("doc", "")) for p in closure["params"]
+            if p.get("doc")]
+
+
 def _configure_interface_socket(sock, param):
     if param["type"] in ("float", "int"):
         lo, hi = param.get("min"), param.get("max")
@@ -87,7 +110,7 @@ def _configure_interface_socket(sock, param):
             sock.max_value = min(hi, 3.0e38) if param["type"] == "float" else int(min(hi, 2**31 - 1))
     _set_socket_default(sock, param)
     if hasattr(sock, "description"):
-        sock.description = param.get("doc", "")
+        sock.description = socket_description(param.get("doc", ""))
 
 
 def ensure_group(closure):
@@ -160,6 +183,9 @@ class GlimmerClosureNodeMixin:
             if not schema_mod.is_socket_param(param):
                 layout.prop(self, property_name(param["name"]))
         layout.label(text="Glimmer closure: " + self.closure_name)
+        col = layout.column(align=True)
+        for note in parameter_notes(self.closure_schema):
+            col.label(text=note)
 
     def draw_label(self):
         return schema_mod.NODE_CLOSURES[self.closure_name]["label"]
@@ -191,7 +217,7 @@ def make_node_class(closure):
     return type(info["idname"], (GlimmerClosureNodeMixin, bpy.types.ShaderNodeCustomGroup), {
         "bl_idname": info["idname"],
         "bl_label": info["label"],
-        "bl_description": closure.get("doc", ""),
+        "bl_description": closure.get("doc", ""),  # (parameter notes here crash Blender 3.4 at exit)
         "bl_width_default": 180,
         "closure_name": closure["name"],
         "closure_schema": closure,

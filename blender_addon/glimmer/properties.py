@@ -7,6 +7,13 @@ class GlimmerRenderSettings(bpy.types.PropertyGroup):
                                    soft_max=4096, max=1 << 20)
     threads: bpy.props.IntProperty(name="Threads", description="Render threads (0: all cores)", default=0,
                                    min=0, max=1024)
+    progressive_interval: bpy.props.FloatProperty(
+        name="Update Interval", default=2.0, min=0.0, soft_max=60.0, unit="TIME_ABSOLUTE",
+        description="Seconds between image updates during a final render (the renderer's checkpoints; "
+                    "0: after every sample pass)")
+    use_progressive: bpy.props.BoolProperty(
+        name="Progressive Updates", default=True,
+        description="Show the image as it converges during a final render")
     seed: bpy.props.IntProperty(name="Seed", description="Seed of the sampling pattern", default=0, min=0)
     use_animated_seed: bpy.props.BoolProperty(name="Animated Seed",
                                               description="Add the frame number to the seed", default=False)

@@ -12,6 +12,7 @@ import threading
 import time
 
 SAMPLE_LINE = re.compile(r"Sample\s+(\d+)\s*/\s*(\d+)")
+CHECKPOINT_LINE = re.compile(r"^Checkpoint\s+(\d+)\s*/\s*(\d+)\s+(.+)$")
 EXIT_INTERRUPTED = 3
 
 
@@ -19,11 +20,19 @@ class RenderFailed(RuntimeError):
     pass
 
 
-def render_command(executable, scene_path, output_path, samples, threads, seed, width, height):
+def render_command(executable, scene_path, output_path, samples, threads, seed, width, height, region=None,
+                   checkpoint_every=None):
+    """region: (x0, y0, x1, y1) pixels of the full image, top row 0, x1/y1 exclusive (`--region`: the EXR
+    holds just that crop); checkpoint_every: seconds between checkpoint files (raw film sums, alpha = sample
+    count) announced by `Checkpoint n/N <path>` lines."""
     cmd = [executable, "render", scene_path, "-o", output_path, "--samples", str(samples),
            "--seed", str(seed), "--width", str(width), "--height", str(height)]
     if threads > 0:
         cmd += ["--threads", str(threads)]
+    if region is not None:
+        cmd += ["--region", ",".join(str(int(v)) for v in region)]
+    if checkpoint_every is not None:
+        cmd += ["--checkpoint-every", "%g" % checkpoint_every]
     return cmd
 
 

@@ -1,5 +1,7 @@
-"""Property panels for the Glimmer engine."""
+"""Property panels for the Glimmer engine, and Blender's own panels and shader nodes made available to it."""
 import bpy
+
+from . import exporter
 
 ENGINE = "GLIMMER"
 
@@ -29,7 +31,7 @@ class GlimmerRenderPanel(GlimmerPanel):
 
 class GLIMMER_PT_sampling(GlimmerRenderPanel, bpy.types.Panel):
     bl_label = "Sampling"
-    props = ("samples", "seed", "use_animated_seed", "threads")
+    props = ("samples", "seed", "use_animated_seed", "threads", "use_progressive", "progressive_interval")
 
 
 class GLIMMER_PT_light_paths(GlimmerRenderPanel, bpy.types.Panel):
@@ -119,8 +121,49 @@ class GLIMMER_PT_world_surface(GlimmerSurfacePanel, bpy.types.Panel):
     color_prop = "color"
 
 
+class GLIMMER_PT_light(GlimmerPanel, bpy.types.Panel):
+    """Exactly the light settings the exporter writes (Blender's EEVEE/Workbench light panels show factors and
+    shadow settings Glimmer ignores)."""
+    bl_label = "Light"
+    bl_context = "data"
+
+    @classmethod
+    def poll(cls, context):
+        return context.light is not None and super().poll(context)
+
+    def draw(self, context):
+        light = context.light
+        layout = self.layout
+        layout.row().prop(light, "type", expand=True)
+        layout.use_property_split = True
+        col = layout.column()
+        col.prop(light, "color")
+        col.prop(light, "energy")
+        if light.type in {"POINT", "SPOT"}:
+            col.prop(light, "shadow_soft_size", text="Radius")
+        elif light.type == "SUN":
+            col.prop(light, "angle")
+        elif light.type == "AREA":
+            col.prop(light, "shape")
+            if light.shape in {"SQUARE", "DISK"}:
+                col.prop(light, "size")
+            else:
+                col.prop(light, "size", text="Size X")
+                col.prop(light, "size_y", text="Size Y")
+            if hasattr(light, "spread"):
+                col.prop(light, "spread")
+        if light.type == "SPOT":
+            col.prop(light, "spot_size", text="Spot Size")
+            col.prop(light, "spot_blend", text="Blend")
+            col.prop(light, "show_cone")
+
+
 CLASSES = (GLIMMER_PT_sampling, GLIMMER_PT_light_paths, GLIMMER_PT_film, GLIMMER_PT_materials,
-           GLIMMER_PT_export, GLIMMER_PT_material_surface, GLIMMER_PT_world_surface)
+           GLIMMER_PT_export, GLIMMER_PT_material_surface, GLIMMER_PT_world_surface, GLIMMER_PT_light)
+
+# Blender's light panels: replaced by GLIMMER_PT_light (they would show a second "Light" panel).
+LIGHT_PANELS = ("DATA_PT_light", "DATA_PT_EEVEE_light", "DATA_PT_EEVEE_light_distance", "NODE_DATA_PT_light",
+                "NODE_DATA_PT_EEVEE_light", "DATA_PT_area", "DATA_PT_spot", "DATA_PT_falloff_curve")
 
 # Blender's own panels shown for Glimmer too (object data, lights, cameras, output, ...).
 _borrowed = []
@@ -136,13 +179,76 @@ def borrow_builtin_panels():
         engines = getattr(panel, "COMPAT_ENGINES", None)
         if not isinstance(engines, set) or ENGINE in engines or not (engines & wanted):
             continue
-        if name.startswith(skip_prefixes) and name not in keep:
+        if (name.startswith(skip_prefixes) and name not in keep) or name in LIGHT_PANELS:
             continue
         engines.add(ENGINE)
         _borrowed.append(panel)
+    for name in LIGHT_PANELS:  # also when their engine set is shared with a borrowed panel
+        panel = getattr(bpy.types, name, None)
+        engines = getattr(panel, "COMPAT_ENGINES", None)
+        if isinstance(engines, set) and ENGINE in engines:
+            engines.discard(ENGINE)
 
 
 def return_builtin_panels():
     for panel in _borrowed:
         panel.COMPAT_ENGINES.discard(ENGINE)
     _borrowed.clear()
+
+
+# -- Standard shader nodes in the Add menu ---------------------------------------------------------------------
+# Blender 3.x lists shader nodes through nodeitems; the Cycles ones have polls testing `context.engine == 'CYCLES'`.
+# Nodes the exporter translates get a poll that answers as for Cycles (so the object/world restrictions stay).
+SUPPORTED_SHADER_NODES = frozenset(exporter.TRANSLATORS) - {"ShaderNodeGroup"} | {
+    "ShaderNodeOutputMaterial", "ShaderNodeOutputWorld", "ShaderNodeUVMap", "ShaderNodeTexCoord"}
+_patched_items = []  # (NodeItem, original poll)
+
+
+class _AsCycles:
+    """A context that reports the Cycles engine, for the nodeitems polls."""
+
+    def __init__(self, context):
+        self._context = context
+
+    engine = "CYCLES"
+
+    def __getattr__(self, name):
+        return getattr(self._context, name)
+
+
+def _glimmer_poll(original):
+    def poll(context):
+        if context.engine == ENGINE:
+            return original(_AsCycles(context))
+        return original(context)
+    return poll
+
+
+def shader_node_items():
+    """Blender's shader NodeItems (empty when this Blender has no nodeitems categories)."""
+    try:
+        import nodeitems_utils
+    except ImportError:
+        return []
+    entry = nodeitems_utils._node_categories.get("SHADER")
+    if entry is None:
+        return []
+    items = []
+    for category in entry[0]:
+        for item in category.items(None):  # no context: every item
+            if hasattr(item, "nodetype"):
+                items.append(item)
+    return items
+
+
+def borrow_shader_nodes():
+    for item in shader_node_items():
+        if item.nodetype in SUPPORTED_SHADER_NODES and item.poll is not None:
+            _patched_items.append((item, item.poll))
+            item.poll = _glimmer_poll(item.poll)
+
+
+def return_shader_nodes():
+    for item, original in _patched_items:
+        item.poll = original
+    _patched_items.clear()

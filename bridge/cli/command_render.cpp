@@ -131,8 +131,11 @@ int render_one(CliContext &ctx, const RenderArgs &a, const std::string &scene_pa
         return;
       }
       last_checkpoint = Clock::now();
-      if (!a.quiet) std::printf("Checkpoint %d/%d %s\n", film.passes(), renderer->part().sample_end -
-                                renderer->part().sample_begin, checkpoint.c_str());
+      if (!a.quiet) {
+        std::printf("Checkpoint %d/%d %s\n", film.passes(), renderer->part().sample_end -
+                    renderer->part().sample_begin, checkpoint.c_str());
+        std::fflush(stdout);  // readers (the Blender addon) load the checkpoint as soon as it is announced
+      }
     };
   if (a.strategy == "light") opt.strategy = render::LightStrategy::LightOnly;
   else if (a.strategy == "bsdf") opt.strategy = render::LightStrategy::BsdfOnly;

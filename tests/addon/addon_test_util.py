@@ -65,6 +65,39 @@ def empty_exr_scene(width, height):
     return scene
 
 
+def add_camera(scene, location, rotation_euler):
+    """A camera object at location with rotation_euler (radians), made the scene camera."""
+    import bpy
+
+    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
+    scene.collection.objects.link(cam)
+    cam.location = location
+    cam.rotation_euler = rotation_euler
+    scene.camera = cam
+    return cam
+
+
+def add_light(scene, kind, energy, location, name="Light"):
+    import bpy
+
+    light = bpy.data.objects.new(name, bpy.data.lights.new(name, kind))
+    light.data.energy = energy
+    light.location = location
+    scene.collection.objects.link(light)
+    return light
+
+
+def set_world_color(scene, color):
+    """A node world whose Background has the given RGB colour."""
+    import bpy
+
+    world = bpy.data.worlds.new("World")
+    world.use_nodes = True
+    world.node_tree.nodes["Background"].inputs["Color"].default_value = (*color, 1.0)
+    scene.world = world
+    return world
+
+
 def disable_addon():
     import addon_utils
 

@@ -23,15 +23,8 @@ scene.render.engine = "GLIMMER"
 scene.render.resolution_x, scene.render.resolution_y, scene.render.resolution_percentage = 32, 24, 100
 scene.frame_start, scene.frame_end, scene.frame_current = 1, 3, 2
 scene.glimmer.samples = 3
-cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
-scene.collection.objects.link(cam)
-cam.location = (0.0, -6.0, 0.0)
-cam.rotation_euler = (1.5708, 0.0, 0.0)
-scene.camera = cam
-light = bpy.data.objects.new("Lamp", bpy.data.lights.new("Lamp", "POINT"))
-light.data.energy = 500.0
-light.location = (0.0, -3.0, 3.0)
-scene.collection.objects.link(light)
+util.add_camera(scene, (0.0, -6.0, 0.0), (1.5708, 0.0, 0.0))
+util.add_light(scene, "POINT", 500.0, (0.0, -3.0, 3.0), name="Lamp")
 bpy.ops.mesh.primitive_cube_add(size=1.0)
 cube = bpy.context.active_object
 for frame, x in ((1, -1.0), (3, 1.0)):  # the cube moves from x = -1 to x = 1

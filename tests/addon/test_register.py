@@ -65,9 +65,12 @@ for round_index in range(2):
             check({(op[1], op[2].type) for op in layout.ops} ==
                   {("Glint BSDF", "GlimmerNodeGlintBsdf"), ("Frosted Glass BSDF", "GlimmerNodeFrostedGlassBsdf")},
                   "menu entries add the Glimmer nodes")
-    # Panels: ours and borrowed ones (light properties) list the engine.
+    # Panels: ours and borrowed ones (camera properties) list the engine; Blender's light panels are replaced
+    # by Glimmer's own (test_artist_workflow).
     check("GLIMMER" in bpy.types.GLIMMER_PT_sampling.COMPAT_ENGINES, "sampling panel")
-    check("GLIMMER" in bpy.types.DATA_PT_light.COMPAT_ENGINES, "light panel borrowed")
+    check("GLIMMER" in bpy.types.DATA_PT_camera.COMPAT_ENGINES, "camera panel borrowed")
+    check("GLIMMER" not in bpy.types.DATA_PT_light.COMPAT_ENGINES, "Blender's light panel not borrowed")
+    check(len(mod.ui._patched_items) > 10, "standard shader nodes made available")
 
     # The preference default points at the build next to the repository (or $GLIMMER_EXECUTABLE).
     exe = mod.preferences.executable_path()
@@ -79,7 +82,8 @@ for round_index in range(2):
     util.disable_addon()
     check(bpy.types.Node.bl_rna_get_subclass_py("GlimmerNodeGlintBsdf") is None, "node unregistered")
     check(not hasattr(bpy.types.Scene, "glimmer"), "settings unregistered")
-    check("GLIMMER" not in bpy.types.DATA_PT_light.COMPAT_ENGINES, "borrowed panel returned")
+    check("GLIMMER" not in bpy.types.DATA_PT_camera.COMPAT_ENGINES, "borrowed panel returned")
+    check(not mod.ui._patched_items, "shader node polls returned")
     check(mod.nodes.menu_draw_function() not in getattr(menu.draw, "_draw_funcs", []), "menu entry removed")
 
 util.done("test_register")
