@@ -72,6 +72,7 @@ class GlintClosure {
     auto c = std::make_unique<GlintClosure>();
     c->field_ = glint::ParticleField::parse(p);
     c->threshold_ = p.get_float("filter_threshold");
+    c->gamma_rad_ = c->field_.gamma_deg * glint::kDegToRad;
     return c;
   }
 
@@ -131,10 +132,19 @@ class GlintClosure {
     const double area = fp.area();
     const double expected = static_cast<double>(field_.density) * area * P;
     if (expected > threshold_) return weight * (P / cone_solid_angle_);  // (3)
-    const glint::NodeRange nodes = glint::footprint_nodes(fp);
-    const glint::GlintCount k =
-        glint::count_reflecting_particles(fp, nodes, field_.density, field_.seed, P, kMaxSteps);
-    if (!k.complete) return weight * (P / cone_solid_angle_);  // extreme anisotropy: the mean (3)
+    // Twinkle: each group's direction cell carries its own particle field.
+    std::array<uint32_t, glint::kDirectionGroups> cell_seeds;
+    if (!glint::direction_cell_seeds(field_.seed, wi, wo, gamma_rad_, cell_seeds)) return Spectrum(0.0f);
+    const double group_density = static_cast<double>(field_.density) / glint::kDirectionGroups;
+    const glint::NodeRange nodes = glint::footprint_nodes(fp, group_density);
+    glint::GlintCount k;
+    for (uint32_t cell_seed : cell_seeds) {
+      const glint::GlintCount kg =
+          glint::count_reflecting_particles(fp, nodes, group_density, cell_seed, P, kMaxSteps - k.steps);
+      k.count += kg.count;
+      k.steps += kg.steps;
+      if (!kg.complete) return weight * (P / cone_solid_angle_);  // step cap: the mean (3)
+    }
     if (k.count == 0) return Spectrum(0.0f);
     const double scale =
         static_cast<double>(k.count) / (static_cast<double>(field_.density) * area * cone_solid_angle_);
@@ -156,7 +166,7 @@ class GlintClosure {
     if (!glint::sample_smooth_lobe(field_.distribution, alpha_w, wi, rand, out.wo)) return false;
     out.pdf = glint::smooth_lobe_pdf(field_.distribution, alpha_w, wi, out.wo);
     out.f_cos = glint_f_cos(sp.ctx, wi, out.wo, sigma);
-    out.roughness = std::sqrt(alpha_w);
+    out.roughness = alpha_w;  // alpha units, as the conductor reports
     out.label = GLIMMER_LABEL_REFLECT | GLIMMER_LABEL_GLOSSY;
     return out.pdf > 0.0f;
   }
@@ -166,6 +176,7 @@ class GlintClosure {
  private:
   glint::ParticleField field_;
   float threshold_ = 16.0f;
+  float gamma_rad_ = 0.035f;
   std::shared_ptr<const glint::DirectionalTable> table_;
   float cone_solid_angle_ = 1.0f;
 };

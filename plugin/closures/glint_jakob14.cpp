@@ -74,7 +74,7 @@ class GlintJakob14Closure {
     if (!glint::sample_smooth_lobe(field_.distribution, alpha_w, sp.wi, rand, out.wo)) return false;
     out.pdf = glint::smooth_lobe_pdf(field_.distribution, alpha_w, sp.wi, out.wo);
     out.f_cos = glint_f_cos(sp.ctx, sp.wi, out.wo);
-    out.roughness = std::sqrt(alpha_w);
+    out.roughness = alpha_w;  // alpha units, as the conductor reports
     out.label = GLIMMER_LABEL_REFLECT | GLIMMER_LABEL_GLOSSY;
     return out.pdf > 0.0f;
   }

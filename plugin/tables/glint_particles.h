@@ -1,35 +1,60 @@
-// Spatial part of the separable glint model (Wang et al. 2018, sec. 4.3,
-// Algorithm 1): particles scattered over the uv plane, counted inside a
-// footprint, each particle reflecting when its random threshold lambda is
-// below the directional probability P(wi, wo).
+// Spatial and directional randomness of the separable glint model (after
+// Wang et al. 2018, sec. 4.3, Algorithm 1): particles scattered over the uv
+// plane, counted inside a footprint, each particle reflecting when its random
+// threshold lambda is below the directional probability P(wi, wo).
+//
+// Direction cells (twinkle). In the exact discrete model (Jakob 2014) a
+// particle is lit while its mirror direction lies within gamma of wo: the lit
+// set decorrelates when wo (or wi) moves by about gamma. Here the half-vector
+// plane is cut into cells of the size of a particle's lit region, and every
+// cell carries its own independent particle field: a particle of cell c is
+// lit when its threshold for that cell is below P. The lit region of a
+// particle in the half-vector domain is an ellipse, semi-axes gamma / 2 in the
+// plane of incidence and gamma / (2 wi.h) across it (the half-vector map
+// r -> normalize(wi + r) has derivative (I - h h^T) / |wi + r|, foreshortened
+// by wo.h = wi.h in the plane of incidence), so the cell coordinates are the
+// stereographic chart of h (p = 2 (h.x, h.y) / (1 + h.z), conformal, ~ the
+// polar angle near the normal) compressed by wi.h across the plane of
+// incidence and divided by kCellSize gamma / 2; the compression vanishes at
+// wi.h = 1, so it is continuous where the plane of incidence is undefined.
+// kDirectionGroups groups of particles (density N / G each) use grids
+// shifted by a fraction of a cell, so crossing a cell border renews 1/G of
+// the glints, not all of them. Everything is a pure function of (uv, wi, wo):
+// no temporal noise.
 //
 // Particle field. The (scaled) uv plane is cut into square nodes of side
-// s = 2^-l. The query level l is the one whose node side is the smallest power
-// of two >= the footprint's uv bounding box, so the box touches at most 2 x 2
-// nodes. Node (l, i, j) holds n = floor(N s^2) + [u0 < frac(N s^2)] particles
-// (mean exactly N s^2). The count and the smallest threshold come from an
-// integer hash of the node id; every later random number (positions, further
-// thresholds) from the node's TEA seed (8 rounds over (i, j) and (seed, l)),
-// started only for nodes that hold a reflecting particle. Glint randomness
-// depends on the surface position and the node only, never on directions.
+// s = 2^-l. Node (l, i, j) holds n = floor(N s^2) + [u0 < frac(N s^2)]
+// particles (mean exactly N s^2). The particles live at ONE level per
+// material, the particle level l* whose nodes hold kNodeParticles / 4 ..
+// kNodeParticles particles per group, so a footprint counts the same particles
+// whatever its size (zoom and resolution keep the glints; counts grow
+// monotonically with nested footprints). Footprints wider than
+// kMaxNodesPerAxis nodes of that level fall back to a coarser level whose
+// node side is >= the footprint's bounding box (at most 2 x 2 nodes, an
+// independent field per level: Wang's Algorithm 1); with the default
+// filter_threshold these footprints hold thousands of particles and are
+// filtered anyway. The count and the smallest threshold of a node come from
+// an integer hash of the node id and the cell seed; every later random number
+// (positions, further thresholds) from the node's TEA seed (8 rounds), started
+// only for nodes that hold a reflecting particle.
 //
 // Thresholds as order statistics. The n thresholds lambda_k are i.i.d.
 // uniform; instead of drawing all n of them we walk their order statistics
 // from the smallest, 1 - lambda_(j+1) = (1 - lambda_(j)) V^(1/(n-j)) with V
 // uniform (Renyi's representation), and stop at the first lambda_(j) >= P.
-// This costs O(n P) steps instead of O(n), and the set of reflecting
-// particles {k : lambda_k < P} is NESTED in P: when the view or light moves,
-// P changes continuously (trilinear table lookups) and particles switch on or
-// off one at a time; no bin boundary re-randomises anything (temporal
-// coherence, unlike the public code that seeds by the direction bin).
-// Each visited particle gets a uniform position inside its node and counts
-// when it lies inside the footprint parallelogram (exact membership instead
-// of Algorithm 1's fractional overlap).
+// This costs O(n P) steps instead of O(n); inside one direction cell the set
+// of reflecting particles is nested in P (no flicker from the trilinear table
+// lookups). Each visited particle gets a uniform position inside its node and
+// counts when it lies inside the footprint parallelogram (exact membership
+// instead of Algorithm 1's fractional overlap).
 #pragma once
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 
+#include "glimmer/math.h"
 #include "glimmer/rng.h"
 
 namespace glimmer::plugin::glint {
@@ -46,27 +71,50 @@ struct NodeRange {
   int level = 0;
   double size = 1.0;   // node side s = 2^-level
   int64_t i0 = 0, j0 = 0;
-  int ni = 1, nj = 1;  // 1 or 2 each
+  int ni = 1, nj = 1;  // 1..kMaxNodesPerAxis each
   double covered_area() const { return ni * nj * size * size; }
 };
 
-inline NodeRange footprint_nodes(const Footprint &f) {
+// Nodes of the particle level hold kNodeParticles / 4 .. kNodeParticles
+// particles on average; a footprint may touch up to kMaxNodesPerAxis^2 of them.
+inline constexpr double kNodeParticles = 32.0;
+inline constexpr int kMaxNodesPerAxis = 8;
+
+// The particle level l* for density N (per unit area): the largest node side
+// 2^-l* with N s^2 <= kNodeParticles.
+inline int particle_level(double density) {
+  int e = 0;
+  std::frexp(std::sqrt(kNodeParticles / std::fmax(density, 1e-30)), &e);  // value = mant 2^e, mant in [0.5, 1)
+  return 1 - e;  // 2^(e-1) <= value
+}
+
+inline NodeRange nodes_at_level(const Footprint &f, int level) {
   const double ex = 0.5 * (std::fabs(f.ax) + std::fabs(f.bx));
   const double ey = 0.5 * (std::fabs(f.ay) + std::fabs(f.by));
-  const double extent = std::fmax(2.0 * std::fmax(ex, ey), 1e-30);
-  int e = 0;
-  const double mant = std::frexp(extent, &e);  // extent = mant 2^e, mant in [0.5, 1)
-  (void)mant;
   NodeRange r;
-  r.level = -e;
-  r.size = std::ldexp(1.0, e);  // >= extent
+  r.level = level;
+  r.size = std::ldexp(1.0, -level);
   const double inv = 1.0 / r.size;
   r.i0 = static_cast<int64_t>(std::floor((f.cx - ex) * inv));
   r.j0 = static_cast<int64_t>(std::floor((f.cy - ey) * inv));
-  r.ni = static_cast<int>(static_cast<int64_t>(std::floor((f.cx + ex) * inv)) - r.i0) + 1;
-  r.nj = static_cast<int>(static_cast<int64_t>(std::floor((f.cy + ey) * inv)) - r.j0) + 1;
-  r.ni = r.ni < 1 ? 1 : (r.ni > 2 ? 2 : r.ni);
-  r.nj = r.nj < 1 ? 1 : (r.nj > 2 ? 2 : r.nj);
+  r.ni = static_cast<int>(std::min<int64_t>(static_cast<int64_t>(std::floor((f.cx + ex) * inv)) - r.i0 + 1, 1 << 20));
+  r.nj = static_cast<int>(std::min<int64_t>(static_cast<int64_t>(std::floor((f.cy + ey) * inv)) - r.j0 + 1, 1 << 20));
+  return r;
+}
+
+// The nodes a footprint is counted over: those of the particle level, or,
+// for footprints wider than kMaxNodesPerAxis of its nodes, the 2 x 2 nodes of
+// the level whose node side is >= the footprint's bounding box.
+inline NodeRange footprint_nodes(const Footprint &f, double density) {
+  NodeRange r = nodes_at_level(f, particle_level(density));
+  if (r.ni <= kMaxNodesPerAxis && r.nj <= kMaxNodesPerAxis) return r;
+  const double ex = 0.5 * (std::fabs(f.ax) + std::fabs(f.bx));
+  const double ey = 0.5 * (std::fabs(f.ay) + std::fabs(f.by));
+  int e = 0;
+  std::frexp(std::fmax(2.0 * std::fmax(ex, ey), 1e-30), &e);  // extent <= 2^e
+  r = nodes_at_level(f, -e);
+  r.ni = std::min(r.ni, 2);
+  r.nj = std::min(r.nj, 2);
   return r;
 }
 
@@ -91,8 +139,54 @@ inline uint64_t node_particle_count(const NodeStream &stream, double density, do
   return static_cast<uint64_t>(whole) + (stream(0) < static_cast<float>(mean - whole) ? 1u : 0u);
 }
 
+// ---- Direction cells (see the header comment) ------------------------------
+inline constexpr int kDirectionGroups = 4;
+// Cell side in units of gamma / 2 (the lit region's in-plane semi-axis).
+// Chosen by measurement (docs/glints.md): the correlation of the lit counts
+// between directions gamma apart matches the exact model's (~0.4), and one
+// cell covers about one cone of reflected directions (c^2 / pi ~ 1), so the
+// per-footprint albedo varies like the exact model's.
+inline constexpr float kCellSize = 1.75f;
+// Grid shifts of the groups, in cells (a 4-point lattice).
+inline constexpr std::array<std::array<float, 2>, kDirectionGroups> kGroupShift = {
+    {{0.0f, 0.0f}, {0.5f, 0.25f}, {0.25f, 0.75f}, {0.75f, 0.5f}}};
+
+// Seed of the particle field of each group's direction cell at (wi, wo);
+// false when there is no half vector above the surface.
+inline bool direction_cell_seeds(uint32_t seed, const Vec3 &wi, const Vec3 &wo, float gamma_rad,
+                                 std::array<uint32_t, kDirectionGroups> &seeds) {
+  const Vec3 sum = wi + wo;
+  const float len = length(sum);
+  if (!(len > 1e-6f)) return false;
+  const Vec3 h = sum / len;
+  if (!(h.z > 0.0f)) return false;
+  // Stereographic chart of h.
+  const float k = 2.0f / (1.0f + h.z);
+  float px = k * h.x, py = k * h.y;
+  // Compress by wi.h across the plane of incidence: n = wi x h (tangent at h),
+  // its chart direction e = k (n.xy - n.z / (1 + h.z) h.xy).
+  const float wi_h = dot(wi, h);
+  const Vec3 n = cross(wi, h);
+  float ex = n.x - n.z / (1.0f + h.z) * h.x, ey = n.y - n.z / (1.0f + h.z) * h.y;
+  const float e_len = std::sqrt(ex * ex + ey * ey);
+  if (e_len > 1e-12f) {
+    ex /= e_len, ey /= e_len;
+    const float along = (wi_h - 1.0f) * (px * ex + py * ey);
+    px += along * ex;
+    py += along * ey;
+  }
+  const float inv_cell = 2.0f / (kCellSize * gamma_rad);
+  for (int g = 0; g < kDirectionGroups; ++g) {
+    const auto cx = static_cast<int32_t>(std::floor(px * inv_cell + kGroupShift[g][0]));
+    const auto cy = static_cast<int32_t>(std::floor(py * inv_cell + kGroupShift[g][1]));
+    seeds[g] = hash_u32x4(seed, static_cast<uint32_t>(g), static_cast<uint32_t>(cx), static_cast<uint32_t>(cy));
+  }
+  return true;
+}
+
 struct GlintCount {
   int count = 0;         // particles in the footprint with lambda < P
+  int steps = 0;         // particles visited
   bool complete = true;  // false when max_steps was reached (caller falls back to the mean)
 };
 
@@ -111,7 +205,7 @@ inline GlintCount count_reflecting_particles(const Footprint &f, const NodeRange
   const double log_one_minus_P = std::log1p(-std::fmin(P, 1.0 - 1e-16));
   const double mean = std::fmin(density * nodes.size * nodes.size, 4.0e18);
   const double whole = std::floor(mean);
-  int steps = 0;
+  int &steps = result.steps;
   for (int dj = 0; dj < nodes.nj; ++dj)
     for (int di = 0; di < nodes.ni; ++di) {
       const int64_t i = nodes.i0 + di, j = nodes.j0 + dj;

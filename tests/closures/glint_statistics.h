@@ -9,7 +9,9 @@
 // n / side^2. wo1 is the mirror direction of wi (the lobe peak).
 //
 // - lit_correlation(d): Pearson correlation, across footprints, of the BRDF
-//   at wo1 and at wo2, wo2 d radians away from wo1 across the plane of incidence.
+//   at wo and at wo moved d radians across the plane of incidence, averaged
+//   over 16 base directions wo within a gamma of wo1 (each over its own
+//   footprints, `footprints` in all).
 //   For a fixed direction f = W K / (N a sigma) with W the same for every
 //   footprint, so this is the correlation of the lit counts K (of the lit
 //   sets, for sparse glints). Reference: the overlap of the two cones.
@@ -60,14 +62,36 @@ struct Config {
   double gamma() const { return gamma_deg * M_PI / 180.0; }
   Vec3 wi() const { return spherical_dir(theta_i_deg, 0.0); }
   Vec3 wo1() const { return spherical_dir(theta_i_deg, 180.0); }
-  // Direction `d` radians from wo1 along the great circle perpendicular to
-  // the plane of incidence (wo1 is in the xz plane, so the y axis is
-  // perpendicular to it): stays above the horizon, defined at normal incidence.
-  Vec3 wo_at(double d) const {
-    const Vec3 o = wo1();
-    return normalize(Vec3(static_cast<float>(std::cos(d) * o.x), static_cast<float>(std::sin(d)),
-                          static_cast<float>(std::cos(d) * o.z)));
+  // Direction `d` radians from `from` along the great circle perpendicular
+  // to the plane of incidence (the xz plane): stays above the horizon, and
+  // is defined at normal incidence.
+  static Vec3 across(const Vec3 &from, double d) {
+    const Vec3 t = normalize(cross(from, Vec3(1.0f, 0.0f, 0.0f)));  // in the tangent plane at `from`
+    const Vec3 y = t.y >= 0.0f ? t : -t;
+    return normalize(static_cast<float>(std::cos(d)) * from + static_cast<float>(std::sin(d)) * y);
   }
+  // Direction `d` radians from `from` inside the plane of incidence (toward the normal).
+  static Vec3 along(const Vec3 &from, double d) {
+    const double theta = std::acos(std::clamp(static_cast<double>(from.z), -1.0, 1.0));
+    const double phi = std::atan2(from.y, from.x);
+    const double t = theta - d;
+    return Vec3(static_cast<float>(std::sin(t) * std::cos(phi)), static_cast<float>(std::sin(t) * std::sin(phi)),
+                static_cast<float>(std::cos(t)));
+  }
+  Vec3 wo_at(double d) const { return across(wo1(), d); }
+  // Base directions of the lit-set correlation: wo1 moved by up to gamma
+  // in and across the plane of incidence (fixed pseudo-random offsets), so
+  // a model's direction cells are met at many phases.
+  std::vector<Vec3> base_directions() const {
+    Pcg32 rng(77);
+    std::vector<Vec3> dirs;
+    for (int k = 0; k < kBaseDirections; ++k) {
+      const double in_plane = 2.0 * rng.next_double() - 1.0, across_plane = 2.0 * rng.next_double() - 1.0;
+      dirs.push_back(across(along(wo1(), in_plane * gamma()), across_plane * gamma()));
+    }
+    return dirs;
+  }
+  static constexpr int kBaseDirections = 16;
   std::string name() const {
     char buf[128];
     std::snprintf(buf, sizeof(buf), "%s r=%.2g n=%g theta_i=%g", dist == mf::Distribution::GGX ? "ggx" : "beckmann",
@@ -119,15 +143,24 @@ inline double correlation(const std::vector<double> &a, const std::vector<double
   return saa > 0 && sbb > 0 ? sab / std::sqrt(saa * sbb) : 0.0;
 }
 
+// Mean over the base directions of the correlation between wo and wo moved
+// by d across the plane of incidence.
 inline double lit_correlation(const host::ClosureInstance &c, const Config &cfg, double d, int footprints) {
-  std::vector<double> a, b;
-  const Vec3 wi = cfg.wi(), wo1 = cfg.wo1(), wo2 = cfg.wo_at(d);
-  for (const auto &[u, v] : centres(footprints)) {
-    const GlimmerShadingContext ctx = square_context(wi, u, v, kFootprintSide);
-    a.push_back(f_at(c, ctx, wo1));
-    b.push_back(f_at(c, ctx, wo2));
+  const Vec3 wi = cfg.wi();
+  const auto bases = cfg.base_directions();
+  const int per_base = std::max(footprints / static_cast<int>(bases.size()), 8);
+  double sum = 0.0;
+  for (size_t k = 0; k < bases.size(); ++k) {
+    const Vec3 wo2 = Config::across(bases[k], d);
+    std::vector<double> a, b;
+    for (const auto &[u, v] : centres(per_base, 1000 + k)) {
+      const GlimmerShadingContext ctx = square_context(wi, u, v, kFootprintSide);
+      a.push_back(f_at(c, ctx, bases[k]));
+      b.push_back(f_at(c, ctx, wo2));
+    }
+    sum += correlation(a, b);
   }
-  return correlation(a, b);
+  return sum / static_cast<double>(bases.size());
 }
 
 struct Doubling {

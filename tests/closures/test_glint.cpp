@@ -224,55 +224,73 @@ TEST(Glint, MeanRadianceContinuousAcrossLodLevels) {
   std::printf("[lod] largest relative step of the mean radiance: %.5f\n", worst);
 }
 
-// Temporal coherence: for fixed surface points and a fixed light, moving the
-// view by less than the cone angle across a table-bin boundary keeps the set
-// of lit glints (set of surface points with a non-zero glint), except for the
-// particles whose threshold lies between the two P values; since the lit sets
-// are nested in P, one set contains the other.
-TEST(Glint, LitGlintsStableWhenTheViewCrossesATableBin) {
-  const double gamma = 2.0;
-  auto glint = make_closure("glint", {{"roughness", "0.4"}, {"gamma", "2"}, {"density", "2e6"}, {"seed", "5"}});
-  const Vec3 light = spherical_dir(30.0, 180.0);
-  const int grid = 300;  // 90 000 surface points, footprint 1/300 x 1/300: ~22 particles each
-  auto lit_set = [&](const Vec3 &view) {
+// Temporal behaviour (issue 10): when the view or the light moves, the set of
+// lit surface points changes as in the exact discrete model: little for a
+// move well below the cone angle gamma, mostly for a move of 2 gamma (the
+// glints twinkle instead of freezing into a static speckle), and nothing
+// special happens when the view crosses a table node. Jaccard overlap of the
+// lit sets, glint vs the reference glint_jakob14 (same density and footprints),
+// within 0.1. The moves cross the 1-degree table node at theta = 35 degrees;
+// the last one is the issue's 3.8-degree light move.
+TEST(Glint, LitGlintsChangeLikeTheReferenceWhenViewOrLightMove) {
+  const Params params = {{"roughness", "0.4"}, {"gamma", "2"}, {"density", "2e6"}, {"seed", "5"}};
+  auto glint = make_closure("glint", params);
+  auto reference = make_closure("glint_jakob14", params);
+  const int grid = 150;  // 22 500 surface points, footprint 1/300 x 1/300: ~22 particles each
+  auto lit_set = [&](const host::ClosureInstance &c, const Vec3 &view, const Vec3 &light) {
     std::set<int> lit;
     for (int y = 0; y < grid; ++y)
       for (int x = 0; x < grid; ++x) {
-        const GlimmerShadingContext ctx = context(view, (x + 0.5) / grid, (y + 0.5) / grid, 1.0 / grid);
-        if (eval_f(*glint, ctx, light) > 0.0f) lit.insert(y * grid + x);
+        const GlimmerShadingContext ctx = context(view, (x + 0.5) / grid, (y + 0.5) / grid, 1.0 / 300.0);
+        if (eval_f(c, ctx, light) > 0.0f) lit.insert(y * grid + x);
       }
     return lit;
   };
-  // theta_i crosses the 1-degree table node at 35 degrees; moves of 0.1..0.5 gamma.
-  for (double move : {0.1 * gamma, 0.25 * gamma, 0.5 * gamma}) {
-    const std::set<int> a = lit_set(spherical_dir(35.0 - move / 2, 0.0));
-    const std::set<int> b = lit_set(spherical_dir(35.0 + move / 2, 0.0));
-    ASSERT_GT(a.size(), 100u);
+  auto jaccard = [](const std::set<int> &a, const std::set<int> &b) {
     std::vector<int> both;
     std::set_intersection(a.begin(), a.end(), b.begin(), b.end(), std::back_inserter(both));
-    const double jaccard = static_cast<double>(both.size()) / (a.size() + b.size() - both.size());
-    const bool nested = both.size() == std::min(a.size(), b.size());
-    std::printf("[coherence] view move %.2f deg across a bin: lit %zu -> %zu, kept %zu, Jaccard %.4f, nested %d\n",
-                move, a.size(), b.size(), both.size(), jaccard, nested);
-    EXPECT_TRUE(nested) << "lit sets must be nested (no re-randomisation), move " << move;
-    EXPECT_GE(jaccard, 0.9) << "move " << move << " deg";
+    return static_cast<double>(both.size()) / static_cast<double>(a.size() + b.size() - both.size());
+  };
+  struct Move {
+    const char *what;
+    Vec3 view_a, light_a, view_b, light_b;
+  };
+  const Vec3 light = spherical_dir(30.0, 180.0);
+  const std::vector<Move> moves = {
+      {"view 0.2 deg", spherical_dir(34.9, 0.0), light, spherical_dir(35.1, 0.0), light},
+      {"view 1 deg", spherical_dir(34.5, 0.0), light, spherical_dir(35.5, 0.0), light},
+      {"view 4 deg", spherical_dir(33.0, 0.0), light, spherical_dir(37.0, 0.0), light},
+      {"light 3.8 deg", spherical_dir(35.0, 0.0), spherical_dir(28.1, 180.0), spherical_dir(35.0, 0.0),
+       spherical_dir(31.9, 180.0)},
+  };
+  for (const Move &m : moves) {
+    const std::set<int> ga = lit_set(*glint, m.view_a, m.light_a), gb = lit_set(*glint, m.view_b, m.light_b);
+    const std::set<int> ra = lit_set(*reference, m.view_a, m.light_a), rb = lit_set(*reference, m.view_b, m.light_b);
+    ASSERT_GT(ga.size(), 100u);
+    ASSERT_GT(ra.size(), 100u);
+    const double jg = jaccard(ga, gb), jr = jaccard(ra, rb);
+    std::printf("[coherence] %-14s lit %zu -> %zu, Jaccard glint %.3f, reference %.3f (lit %zu -> %zu)\n", m.what,
+                ga.size(), gb.size(), jg, jr, ra.size(), rb.size());
+    EXPECT_NEAR(jg, jr, 0.1) << m.what;
   }
-  // Negative control: re-randomising the particles (what seeding by the
-  // direction bin does when a bin is crossed), here by another seed at the
-  // same view, must break both criteria.
-  auto reseeded = make_closure("glint", {{"roughness", "0.4"}, {"gamma", "2"}, {"density", "2e6"}, {"seed", "6"}});
-  std::set<int> a = lit_set(spherical_dir(35.0, 0.0)), b;
-  for (int y = 0; y < grid; ++y)
-    for (int x = 0; x < grid; ++x)
-      if (eval_f(*reseeded, context(spherical_dir(35.0, 0.0), (x + 0.5) / grid, (y + 0.5) / grid, 1.0 / grid),
-                 light) > 0.0f)
-        b.insert(y * grid + x);
-  std::vector<int> both;
-  std::set_intersection(a.begin(), a.end(), b.begin(), b.end(), std::back_inserter(both));
-  const double jaccard = static_cast<double>(both.size()) / (a.size() + b.size() - both.size());
-  std::printf("[coherence] control (re-randomised particles): Jaccard %.4f\n", jaccard);
-  EXPECT_LT(jaccard, 0.5);
-  EXPECT_LT(both.size(), std::min(a.size(), b.size()));
+}
+
+// Footprint plumbing: the sampled roughness the host uses to widen the
+// footprint is in alpha units, like the conductor's (with a tiny cone the
+// glint sampling lobe is the conductor's lobe). Before issue 10 the glint
+// closures reported sqrt(alpha), 2x here.
+TEST(Glint, SampledRoughnessIsInAlphaUnitsLikeTheConductor) {
+  auto conductor = make_closure("microfacet_conductor", {{"roughness", "0.5"}});
+  const GlimmerShadingContext ctx = context(spherical_dir(30.0, 0.0), 0.5, 0.5, 1e-3);
+  const float r3[3] = {0.3f, 0.6f, 0.5f};
+  GlimmerSample reference{};
+  ASSERT_TRUE(conductor->sample(ctx, r3, reference));
+  for (const char *name : {"glint", "glint_jakob14"}) {
+    auto c = make_closure(name, {{"roughness", "0.5"}, {"gamma", "0.1"}});
+    GlimmerSample out{};
+    ASSERT_TRUE(c->sample(ctx, r3, out)) << name;
+    EXPECT_NEAR(out.roughness, reference.roughness, 0.01 * reference.roughness) << name;
+  }
 }
 
 // Determinism: the same queries give bit-identical results on 1 and 4 threads.
