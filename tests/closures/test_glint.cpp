@@ -224,6 +224,53 @@ TEST(Glint, MeanRadianceContinuousAcrossLodLevels) {
   std::printf("[lod] largest relative step of the mean radiance: %.5f\n", worst);
 }
 
+// Energy at secondary bounces (issue 10): the LOD blur of P must not add
+// energy. White furnace (F0 = 1, filtered mode) at incidences 0..89 degrees
+// and LOD blurs from 0 to the cap 2 alpha, by midpoint quadrature (the same
+// for the smooth model): every blurred albedo <= the unblurred one + 0.2 %,
+// and <= the smooth model's + 1 % up to 85 degrees. At 88..89 degrees the
+// unblurred cone estimator itself exceeds the smooth albedo (W averaged over
+// the cone, convex near the horizon: docs/glints.md), measured, not asserted.
+// Before issue 10 (blurred P times the unblurred weight W): GGX 0.35 had
+// albedo 1.35 at 80 degrees and 2.26 at 88 degrees at the largest blur.
+TEST(Glint, LodBlurConservesEnergyAtEveryIncidence) {
+  struct Case {
+    const char *dist;
+    mf::Distribution d;
+    double roughness;
+  };
+  double worst = 0.0;
+  for (const Case &c : {Case{"ggx", mf::Distribution::GGX, 0.35}, Case{"beckmann", mf::Distribution::Beckmann, 0.5}}) {
+    auto glint = make_closure("glint", {{"distribution", c.dist},
+                                        {"roughness", std::to_string(c.roughness)},
+                                        {"gamma", "2"},
+                                        {"density", "1e6"},
+                                        {"filter_threshold", "0"}});
+    const double alpha = c.roughness * c.roughness;
+    for (double theta_i : {0.0, 30.0, 60.0, 75.0, 80.0, 85.0, 88.0, 89.0}) {
+      const Vec3 wi = spherical_dir(theta_i, 0.0);
+      const double smooth =
+          hemisphere_integral([&](const Vec3 &wo) { return smooth_f_cos(c.d, alpha, wi, wo); }, 180, 360);
+      double unblurred = 0.0;
+      for (double blur : {0.0, 0.25, 0.5, 1.0}) {
+        const float spread = static_cast<float>(blur * 2.0 * alpha);
+        const GlimmerShadingContext ctx = context(wi, 0.3, 0.6, 0.1, spread);
+        const double albedo =
+            hemisphere_integral([&](const Vec3 &wo) { return eval_f(*glint, ctx, wo); }, 180, 360);
+        std::printf("[energy] %s r=%.2f theta_i %4.1f blur %.2f x 2 alpha: albedo %.4f smooth %.4f\n", c.dist,
+                    c.roughness, theta_i, blur, albedo, smooth);
+        if (blur == 0.0) unblurred = albedo;
+        worst = std::max(worst, albedo / unblurred);
+        EXPECT_LE(albedo, unblurred * 1.002) << c.dist << " theta_i " << theta_i << " blur " << blur;
+        if (theta_i <= 85.0) {
+          EXPECT_LE(albedo, smooth * 1.01) << c.dist << " theta_i " << theta_i << " blur " << blur;
+        }
+      }
+    }
+  }
+  std::printf("[energy] largest blurred / unblurred albedo: %.4f\n", worst);
+}
+
 // Temporal behaviour (issue 10): when the view or the light moves, the set of
 // lit surface points changes as in the exact discrete model: little for a
 // move well below the cone angle gamma, mostly for a move of 2 gamma (the
