@@ -136,7 +136,7 @@ class GlintClosure {
     std::array<uint32_t, glint::kDirectionGroups> cell_seeds;
     if (!glint::direction_cell_seeds(field_.seed, wi, wo, gamma_rad_, cell_seeds)) return Spectrum(0.0f);
     const double group_density = static_cast<double>(field_.density) / glint::kDirectionGroups;
-    const glint::NodeRange nodes = glint::footprint_nodes(fp, group_density);
+    const glint::NodeList nodes = glint::footprint_nodes(fp, group_density);
     glint::GlintCount k;
     for (uint32_t cell_seed : cell_seeds) {
       const glint::GlintCount kg =

@@ -28,12 +28,14 @@
 // material, the particle level l* whose nodes hold kNodeParticles / 4 ..
 // kNodeParticles particles per group, so a footprint counts the same particles
 // whatever its size (zoom and resolution keep the glints; counts grow
-// monotonically with nested footprints). Footprints wider than
-// kMaxNodesPerAxis nodes of that level fall back to a coarser level whose
-// node side is >= the footprint's bounding box (at most 2 x 2 nodes, an
-// independent field per level: Wang's Algorithm 1); with the default
-// filter_threshold these footprints hold thousands of particles and are
-// filtered anyway. The count and the smallest threshold of a node come from
+// monotonically with nested footprints). A footprint is counted over the
+// nodes of that level it overlaps, found by rasterising the parallelogram row
+// by row (a long thin footprint touches O(length) nodes, not its bounding
+// box). Footprints overlapping more than kMaxNodes nodes fall back to a
+// coarser level whose node side is >= the footprint's bounding box (at most
+// 2 x 2 nodes, an independent field per level: Wang's Algorithm 1); with the
+// default filter_threshold these footprints hold thousands of particles and
+// are filtered anyway. The count and the smallest threshold of a node come from
 // an integer hash of the node id and the cell seed; every later random number
 // (positions, further thresholds) from the node's TEA seed (8 rounds), started
 // only for nodes that hold a reflecting particle.
@@ -66,19 +68,25 @@ struct Footprint {
   double area() const { return std::fabs(ax * by - ay * bx); }
 };
 
-// Nodes of the query level touched by the footprint's bounding box.
-struct NodeRange {
+// The nodes a footprint is counted over (at most kMaxNodes).
+inline constexpr int kMaxNodes = 64;
+struct NodeList {
   int level = 0;
-  double size = 1.0;   // node side s = 2^-level
-  int64_t i0 = 0, j0 = 0;
-  int ni = 1, nj = 1;  // 1..kMaxNodesPerAxis each
-  double covered_area() const { return ni * nj * size * size; }
+  double size = 1.0;  // node side s = 2^-level
+  int count = 0;
+  std::array<int64_t, kMaxNodes> i{}, j{};
+  bool add(int64_t ni, int64_t nj) {
+    if (count == kMaxNodes) return false;
+    i[count] = ni;
+    j[count] = nj;
+    ++count;
+    return true;
+  }
 };
 
 // Nodes of the particle level hold kNodeParticles / 4 .. kNodeParticles
-// particles on average; a footprint may touch up to kMaxNodesPerAxis^2 of them.
+// particles per group on average.
 inline constexpr double kNodeParticles = 32.0;
-inline constexpr int kMaxNodesPerAxis = 8;
 
 // The particle level l* for density N (per unit area): the largest node side
 // 2^-l* with N s^2 <= kNodeParticles.
@@ -88,34 +96,63 @@ inline int particle_level(double density) {
   return 1 - e;  // 2^(e-1) <= value
 }
 
-inline NodeRange nodes_at_level(const Footprint &f, int level) {
-  const double ex = 0.5 * (std::fabs(f.ax) + std::fabs(f.bx));
-  const double ey = 0.5 * (std::fabs(f.ay) + std::fabs(f.by));
-  NodeRange r;
-  r.level = level;
-  r.size = std::ldexp(1.0, -level);
-  const double inv = 1.0 / r.size;
-  r.i0 = static_cast<int64_t>(std::floor((f.cx - ex) * inv));
-  r.j0 = static_cast<int64_t>(std::floor((f.cy - ey) * inv));
-  r.ni = static_cast<int>(std::min<int64_t>(static_cast<int64_t>(std::floor((f.cx + ex) * inv)) - r.i0 + 1, 1 << 20));
-  r.nj = static_cast<int>(std::min<int64_t>(static_cast<int64_t>(std::floor((f.cy + ey) * inv)) - r.j0 + 1, 1 << 20));
-  return r;
+// x extent of the footprint parallelogram inside the band y0 <= y <= y1
+// (its four corners clipped to the band, Sutherland-Hodgman); false when the
+// band misses it.
+inline bool footprint_x_range_in_band(const Footprint &f, double y0, double y1, double &x_min, double &x_max) {
+  const double cx[4] = {f.cx - 0.5 * f.ax - 0.5 * f.bx, f.cx + 0.5 * f.ax - 0.5 * f.bx, f.cx + 0.5 * f.ax + 0.5 * f.bx,
+                        f.cx - 0.5 * f.ax + 0.5 * f.bx};
+  const double cy[4] = {f.cy - 0.5 * f.ay - 0.5 * f.by, f.cy + 0.5 * f.ay - 0.5 * f.by, f.cy + 0.5 * f.ay + 0.5 * f.by,
+                        f.cy - 0.5 * f.ay + 0.5 * f.by};
+  x_min = 1e300, x_max = -1e300;
+  for (int k = 0; k < 4; ++k) {
+    const double ax = cx[k], ay = cy[k], bx = cx[(k + 1) % 4], by = cy[(k + 1) % 4];
+    if (ay >= y0 && ay <= y1) x_min = std::fmin(x_min, ax), x_max = std::fmax(x_max, ax);
+    for (const double yc : {y0, y1})  // edge crossings of the band's borders
+      if ((ay - yc) * (by - yc) < 0.0) {
+        const double x = ax + (bx - ax) * (yc - ay) / (by - ay);
+        x_min = std::fmin(x_min, x), x_max = std::fmax(x_max, x);
+      }
+  }
+  return x_min <= x_max;
 }
 
-// The nodes a footprint is counted over: those of the particle level, or,
-// for footprints wider than kMaxNodesPerAxis of its nodes, the 2 x 2 nodes of
-// the level whose node side is >= the footprint's bounding box.
-inline NodeRange footprint_nodes(const Footprint &f, double density) {
-  NodeRange r = nodes_at_level(f, particle_level(density));
-  if (r.ni <= kMaxNodesPerAxis && r.nj <= kMaxNodesPerAxis) return r;
+// The nodes of `level` the footprint overlaps, row by row (the parallelogram
+// rasterised, not its bounding box); false when there are more than kMaxNodes.
+inline bool nodes_at_level(const Footprint &f, int level, NodeList &list) {
+  list = NodeList{};
+  list.level = level;
+  list.size = std::ldexp(1.0, -level);
+  const double inv = 1.0 / list.size;
+  const double ey = 0.5 * (std::fabs(f.ay) + std::fabs(f.by));
+  const auto j0 = static_cast<int64_t>(std::floor((f.cy - ey) * inv));
+  const auto j1 = static_cast<int64_t>(std::floor((f.cy + ey) * inv));
+  if (j1 - j0 >= kMaxNodes) return false;
+  for (int64_t j = j0; j <= j1; ++j) {
+    double x_min, x_max;
+    const double y0 = static_cast<double>(j) * list.size;
+    if (!footprint_x_range_in_band(f, y0, y0 + list.size, x_min, x_max)) continue;
+    const auto i0 = static_cast<int64_t>(std::floor(x_min * inv));
+    const auto i1 = static_cast<int64_t>(std::floor(x_max * inv));
+    if (i1 - i0 >= kMaxNodes) return false;
+    for (int64_t i = i0; i <= i1; ++i)
+      if (!list.add(i, j)) return false;
+  }
+  return true;
+}
+
+// The nodes a footprint is counted over: those of the particle level it
+// overlaps, or, when there are more than kMaxNodes of them, the (at most
+// 2 x 2) nodes of the level whose node side is >= the footprint's bounding box.
+inline NodeList footprint_nodes(const Footprint &f, double density) {
+  NodeList list;
+  if (nodes_at_level(f, particle_level(density), list)) return list;
   const double ex = 0.5 * (std::fabs(f.ax) + std::fabs(f.bx));
   const double ey = 0.5 * (std::fabs(f.ay) + std::fabs(f.by));
   int e = 0;
   std::frexp(std::fmax(2.0 * std::fmax(ex, ey), 1e-30), &e);  // extent <= 2^e
-  r = nodes_at_level(f, -e);
-  r.ni = std::min(r.ni, 2);
-  r.nj = std::min(r.nj, 2);
-  return r;
+  nodes_at_level(f, -e, list);
+  return list;
 }
 
 // Per-node random stream: the node seed comes from 8 TEA rounds, the values
@@ -196,7 +233,7 @@ struct GlintCount {
 // holds at least one reflecting particle) is the node's TEA stream started for
 // the positions and the following thresholds. Most nodes stop at one hash and
 // one log.
-inline GlintCount count_reflecting_particles(const Footprint &f, const NodeRange &nodes, double density,
+inline GlintCount count_reflecting_particles(const Footprint &f, const NodeList &nodes, double density,
                                              uint32_t seed, double P, int max_steps) {
   GlintCount result;
   if (!(P > 0.0)) return result;
@@ -206,9 +243,8 @@ inline GlintCount count_reflecting_particles(const Footprint &f, const NodeRange
   const double mean = std::fmin(density * nodes.size * nodes.size, 4.0e18);
   const double whole = std::floor(mean);
   int &steps = result.steps;
-  for (int dj = 0; dj < nodes.nj; ++dj)
-    for (int di = 0; di < nodes.ni; ++di) {
-      const int64_t i = nodes.i0 + di, j = nodes.j0 + dj;
+  for (int node = 0; node < nodes.count; ++node) {
+      const int64_t i = nodes.i[node], j = nodes.j[node];
       const uint32_t h0 = hash_u32x4(static_cast<uint32_t>(i), static_cast<uint32_t>(j),
                                      static_cast<uint32_t>(nodes.level), seed ^ 0x3c6ef372u);
       const uint64_t n = static_cast<uint64_t>(whole) + (uint_to_unit_float(h0) < static_cast<float>(mean - whole) ? 1u : 0u);
