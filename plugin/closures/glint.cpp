@@ -56,7 +56,10 @@ class GlintClosure {
       "Glints: separable filterable discrete stochastic microfacets (Wang et al. 2018) over a GGX or Beckmann base.";
   static constexpr uint32_t kFlags = 0;
 
-  static constexpr int kMaxSteps = 1024;
+  // Cost bound of one eval (particles visited); beyond it the mean (3) is
+  // returned. Only reached when glint mode is forced far past the
+  // filter_threshold (hundreds of glints per footprint).
+  static constexpr int kMaxSteps = 8192;
 
   static std::span<const GlimmerParamSpec> params() {
     static const auto schema = glint::particle_field_params<1>(

@@ -86,7 +86,7 @@ struct NodeList {
 
 // Nodes of the particle level hold kNodeParticles / 4 .. kNodeParticles
 // particles per group on average.
-inline constexpr double kNodeParticles = 32.0;
+inline constexpr double kNodeParticles = 128.0;
 
 // The particle level l* for density N (per unit area): the largest node side
 // 2^-l* with N s^2 <= kNodeParticles.
@@ -242,6 +242,11 @@ inline GlintCount count_reflecting_particles(const Footprint &f, const NodeList 
   const double log_one_minus_P = std::log1p(-std::fmin(P, 1.0 - 1e-16));
   const double mean = std::fmin(density * nodes.size * nodes.size, 4.0e18);
   const double whole = std::floor(mean);
+  // A node of n particles holds a reflecting one when lambda_(1) = 1 - V^(1/n)
+  // < P, i.e. V > (1 - P)^n: one hash and one compare per node (n is whole
+  // or whole + 1).
+  const double v_min_whole = std::exp(whole * log_one_minus_P);
+  const double v_min_plus = std::exp((whole + 1.0) * log_one_minus_P);
   int &steps = result.steps;
   for (int node = 0; node < nodes.count; ++node) {
       const int64_t i = nodes.i[node], j = nodes.j[node];
@@ -249,9 +254,9 @@ inline GlintCount count_reflecting_particles(const Footprint &f, const NodeList 
                                      static_cast<uint32_t>(nodes.level), seed ^ 0x3c6ef372u);
       const uint64_t n = static_cast<uint64_t>(whole) + (uint_to_unit_float(h0) < static_cast<float>(mean - whole) ? 1u : 0u);
       if (n == 0) continue;
-      // lambda_(1) = 1 - V^(1/n) < P  <=>  log V > n log(1 - P).
-      const double log_v1 = std::log(1.0 - static_cast<double>(uint_to_unit_float(hash_u32(h0 ^ 0x85ebca6bu))));
-      if (!(log_v1 > static_cast<double>(n) * log_one_minus_P)) continue;
+      const double v1 = 1.0 - static_cast<double>(uint_to_unit_float(hash_u32(h0 ^ 0x85ebca6bu)));  // (0, 1]
+      if (!(v1 > (static_cast<double>(n) > whole ? v_min_plus : v_min_whole))) continue;
+      const double log_v1 = std::log(v1);
       const NodeStream stream = node_stream(seed, nodes.level, i, j);
       const double x0 = static_cast<double>(i) * nodes.size, y0 = static_cast<double>(j) * nodes.size;
       double one_minus_lambda = std::exp(log_v1 / static_cast<double>(n));

@@ -98,7 +98,7 @@ std::vector<Row> measure_grid(bool full) {
           auto model = make_closure("glint", r.cfg.params(false));
           auto ref = make_closure("glint_jakob14", r.cfg.params(true));
           // Sparse footprints need more of them for a stable correlation.
-          const int corr_footprints = n * std::max(1, static_cast<int>(100.0 / per_footprint));
+          const int corr_footprints = 4 * n * std::max(1, static_cast<int>(100.0 / per_footprint));
           for (int k = 0; k < 3; ++k) {
             const double d = (1 << k) * r.cfg.gamma();
             r.corr[k][0] = glint_stats::lit_correlation(*model, r.cfg, d, corr_footprints);
