@@ -8,7 +8,11 @@
 // A that reflect wi into the cone. Wang 2018 separate space and direction: a
 // particle reflects when its random threshold lambda is below the directional
 // probability P_gamma(wi, wo) (tables/glint_tables.h), so the count K is
-// found by a purely spatial traversal (tables/glint_particles.h).
+// found by a spatial traversal (tables/glint_particles.h). The thresholds
+// belong to direction cells shaped like the glint cone, so the lit set renews
+// when wi or wo moves by about gamma (twinkle), as in the exact model; the
+// particles live at one level per material, so every footprint size sees the
+// same particles.
 //
 // BRDF (our derivation of Jakob 2014 eq. 5 for a cone around wo): the smooth
 // microfacet BRDF integrated over the cone is
@@ -135,19 +139,10 @@ class GlintClosure {
     const double area = fp.area();
     const double expected = static_cast<double>(field_.density) * area * P;
     if (expected > threshold_) return weight * (P / cone_solid_angle_);  // (3)
-    // Twinkle: each group's direction cell carries its own particle field.
-    std::array<uint32_t, glint::kDirectionGroups> cell_seeds;
-    if (!glint::direction_cell_seeds(field_.seed, wi, wo, gamma_rad_, cell_seeds)) return Spectrum(0.0f);
-    const double group_density = static_cast<double>(field_.density) / glint::kDirectionGroups;
-    const glint::NodeList nodes = glint::footprint_nodes(fp, group_density);
-    glint::GlintCount k;
-    for (uint32_t cell_seed : cell_seeds) {
-      const glint::GlintCount kg =
-          glint::count_reflecting_particles(fp, nodes, group_density, cell_seed, P, kMaxSteps - k.steps);
-      k.count += kg.count;
-      k.steps += kg.steps;
-      if (!kg.complete) return weight * (P / cone_solid_angle_);  // step cap: the mean (3)
-    }
+    // Twinkle: the particles are counted in the direction cells of (wi, wo).
+    const glint::GlintCount k =
+        glint::count_glints(fp, field_.density, field_.seed, wi, wo, gamma_rad_, P, kMaxSteps);
+    if (!k.complete) return weight * (P / cone_solid_angle_);  // step cap: the mean (3)
     if (k.count == 0) return Spectrum(0.0f);
     const double scale =
         static_cast<double>(k.count) / (static_cast<double>(field_.density) * area * cone_solid_angle_);

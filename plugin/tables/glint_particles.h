@@ -285,4 +285,26 @@ inline GlintCount count_reflecting_particles(const Footprint &f, const NodeList 
   return result;
 }
 
+// Reflecting particles of a footprint over the kDirectionGroups groups
+// (density N / G each), each group counted in its own direction cell at
+// (wi, wo); the caller falls back to the mean when `complete` is false.
+inline GlintCount count_glints(const Footprint &f, double density, uint32_t seed, const Vec3 &wi, const Vec3 &wo,
+                               float gamma_rad, double P, int max_steps) {
+  GlintCount total;
+  std::array<uint32_t, kDirectionGroups> cell_seeds;
+  if (!direction_cell_seeds(seed, wi, wo, gamma_rad, cell_seeds)) return total;
+  const double group_density = density / kDirectionGroups;
+  const NodeList nodes = footprint_nodes(f, group_density);
+  for (uint32_t cell_seed : cell_seeds) {
+    const GlintCount k = count_reflecting_particles(f, nodes, group_density, cell_seed, P, max_steps - total.steps);
+    total.count += k.count;
+    total.steps += k.steps;
+    if (!k.complete) {
+      total.complete = false;
+      break;
+    }
+  }
+  return total;
+}
+
 }  // namespace glimmer::plugin::glint
