@@ -2,6 +2,8 @@
 //  glint/eval_vs_ggx/<log10 area>   glint eval vs microfacet_conductor (GGX)
 //      eval, interleaved blocks of the same queries, footprint areas 1e-8..1
 //      uv; counters glint_ns, ggx_ns, ratio (goal <= 2).
+//  glint/eval_vs_ggx_aspect/<aspect>  the same at footprint area 1e-6 uv
+//      (10 particles) with parallelograms of aspect 1..64, any rotation.
 //  glint/jakob14_eval/<log10 area>  the reference's eval cost at the same
 //      queries (counter ratio_vs_glint).
 //  glint/gi_scene_overhead          `glimmer render` of examples/glint.xml
@@ -11,6 +13,7 @@
 #include <benchmark/benchmark.h>
 
 #include <chrono>
+#include <ctime>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -50,17 +53,21 @@ struct Query {
 
 // 4096 queries: random positions, view and light directions around the lobe,
 // a square footprint of the given uv area.
-std::vector<Query> make_queries(double area) {
+std::vector<Query> make_queries(double area, double aspect = 1.0) {
   std::vector<Query> q(4096);
   Pcg32 rng(11);
-  const float side = static_cast<float>(std::sqrt(area));
+  const float side = static_cast<float>(std::sqrt(area / aspect));
   for (auto &x : q) {
     const float ti = 1.4f * rng.next_float();
     x.ctx = host::make_local_context(Vec3(std::sin(ti), 0.0f, std::cos(ti)));
     x.ctx.uv[0] = rng.next_float();
     x.ctx.uv[1] = rng.next_float();
-    x.ctx.duv_dx[0] = side;
-    x.ctx.duv_dy[1] = side;
+    // Rectangle side x (aspect side), rotated by a random angle.
+    const float rot = 6.2831853f * rng.next_float(), c = std::cos(rot), s = std::sin(rot);
+    x.ctx.duv_dx[0] = static_cast<float>(aspect) * side * c;
+    x.ctx.duv_dx[1] = static_cast<float>(aspect) * side * s;
+    x.ctx.duv_dy[0] = -side * s;
+    x.ctx.duv_dy[1] = side * c;
     // wo: the mirror direction jittered by the lobe width (most light queries hit the lobe).
     const Vec3 mirror(-std::sin(ti), 0.0f, std::cos(ti));
     x.wo = normalize(mirror + Vec3(0.6f * (rng.next_float() - 0.5f), 0.6f * (rng.next_float() - 0.5f),
@@ -71,8 +78,16 @@ std::vector<Query> make_queries(double area) {
   return q;
 }
 
+// Thread CPU time (not wall time: the machine is shared, and preemption
+// inflates wall-clock blocks several-fold), ns per eval.
+double thread_cpu_ns() {
+  timespec t{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  return static_cast<double>(t.tv_sec) * 1e9 + static_cast<double>(t.tv_nsec);
+}
+
 double time_block(const host::ClosureInstance &c, const std::vector<Query> &q) {
-  const auto t0 = Clock::now();
+  const double t0 = thread_cpu_ns();
   for (const auto &x : q) {
     Spectrum f;
     float pdf;
@@ -80,18 +95,17 @@ double time_block(const host::ClosureInstance &c, const std::vector<Query> &q) {
     benchmark::DoNotOptimize(f);
     benchmark::DoNotOptimize(pdf);
   }
-  return std::chrono::duration<double, std::nano>(Clock::now() - t0).count() / static_cast<double>(q.size());
+  return (thread_cpu_ns() - t0) / static_cast<double>(q.size());
 }
 
-void BM_GlintVsGgxEval(benchmark::State &state) {
-  const double area = std::pow(10.0, static_cast<double>(state.range(0)));
+// glint and GGX eval on the same queries, interleaved blocks; median ns.
+void glint_vs_ggx(benchmark::State &state, const std::vector<Query> &q) {
   auto glint = make("glint", {{"roughness", "0.4"}, {"gamma", "2"}, {"density", "1e7"}});
   auto ggx = make("microfacet_conductor", {{"roughness", "0.4"}, {"distribution", "ggx"}});
   if (!glint || !ggx) {
     state.SkipWithError("glint or microfacet_conductor missing");
     return;
   }
-  const std::vector<Query> q = make_queries(area);
   std::vector<double> g_ns, m_ns;
   for (auto _ : state) {
     g_ns.push_back(time_block(*glint, q));
@@ -106,7 +120,20 @@ void BM_GlintVsGgxEval(benchmark::State &state) {
   state.counters["ggx_ns"] = m;
   state.counters["ratio"] = g / m;
 }
+
+void BM_GlintVsGgxEval(benchmark::State &state) {
+  glint_vs_ggx(state, make_queries(std::pow(10.0, static_cast<double>(state.range(0)))));
+}
 BENCHMARK(BM_GlintVsGgxEval)->Name("glint/eval_vs_ggx")->DenseRange(-8, 0, 2)->Iterations(25)->Unit(benchmark::kMillisecond);
+
+void BM_GlintVsGgxEvalAspect(benchmark::State &state) {
+  glint_vs_ggx(state, make_queries(1e-6, static_cast<double>(state.range(0))));
+}
+BENCHMARK(BM_GlintVsGgxEvalAspect)
+    ->Name("glint/eval_vs_ggx_aspect")
+    ->Arg(1)->Arg(4)->Arg(16)->Arg(64)
+    ->Iterations(25)
+    ->Unit(benchmark::kMillisecond);
 
 void BM_Jakob14Eval(benchmark::State &state) {
   const double area = std::pow(10.0, static_cast<double>(state.range(0)));

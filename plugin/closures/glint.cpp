@@ -8,7 +8,11 @@
 // A that reflect wi into the cone. Wang 2018 separate space and direction: a
 // particle reflects when its random threshold lambda is below the directional
 // probability P_gamma(wi, wo) (tables/glint_tables.h), so the count K is
-// found by a purely spatial traversal (tables/glint_particles.h).
+// found by a spatial traversal (tables/glint_particles.h). The thresholds
+// belong to direction cells shaped like the glint cone, so the lit set renews
+// when wi or wo moves by about gamma (twinkle), as in the exact model; the
+// particles live at one level per material, so every footprint size sees the
+// same particles.
 //
 // BRDF (our derivation of Jakob 2014 eq. 5 for a cone around wo): the smooth
 // microfacet BRDF integrated over the cone is
@@ -56,7 +60,10 @@ class GlintClosure {
       "Glints: separable filterable discrete stochastic microfacets (Wang et al. 2018) over a GGX or Beckmann base.";
   static constexpr uint32_t kFlags = 0;
 
-  static constexpr int kMaxSteps = 1024;
+  // Cost bound of one eval (particles visited); beyond it the mean (3) is
+  // returned. Only reached when glint mode is forced far past the
+  // filter_threshold (hundreds of glints per footprint).
+  static constexpr int kMaxSteps = 8192;
 
   static std::span<const GlimmerParamSpec> params() {
     static const auto schema = with_varying_density(glint::particle_field_params<1>(
@@ -81,6 +88,7 @@ class GlintClosure {
     c->field_ = glint::ParticleField::parse(p);
     c->threshold_ = p.get_float("filter_threshold");
     c->density_param_ = p.index("density");
+    c->gamma_rad_ = c->field_.gamma_deg * glint::kDegToRad;
     return c;
   }
 
@@ -141,10 +149,10 @@ class GlintClosure {
     const double area = fp.area();
     const double expected = static_cast<double>(density) * area * P;
     if (expected > threshold_) return weight * (P / cone_solid_angle_);  // (3)
-    const glint::NodeRange nodes = glint::footprint_nodes(fp);
+    // Twinkle: the particles are counted in the direction cells of (wi, wo).
     const glint::GlintCount k =
-        glint::count_reflecting_particles(fp, nodes, density, field_.seed, P, kMaxSteps);
-    if (!k.complete) return weight * (P / cone_solid_angle_);  // extreme anisotropy: the mean (3)
+        glint::count_glints(fp, density, field_.seed, wi, wo, gamma_rad_, P, kMaxSteps);
+    if (!k.complete) return weight * (P / cone_solid_angle_);  // step cap: the mean (3)
     if (k.count == 0) return Spectrum(0.0f);
     const double scale =
         static_cast<double>(k.count) / (static_cast<double>(density) * area * cone_solid_angle_);
@@ -166,7 +174,7 @@ class GlintClosure {
     if (!glint::sample_smooth_lobe(field_.distribution, alpha_w, wi, rand, out.wo)) return false;
     out.pdf = glint::smooth_lobe_pdf(field_.distribution, alpha_w, wi, out.wo);
     out.f_cos = glint_f_cos(sp.ctx, wi, out.wo, sigma, sp.param_float(density_param_, field_.density));
-    out.roughness = std::sqrt(alpha_w);
+    out.roughness = alpha_w;  // alpha units, as the conductor reports
     out.label = GLIMMER_LABEL_REFLECT | GLIMMER_LABEL_GLOSSY;
     return out.pdf > 0.0f;
   }
@@ -176,6 +184,7 @@ class GlintClosure {
  private:
   glint::ParticleField field_;
   float threshold_ = 16.0f;
+  float gamma_rad_ = 0.035f;
   std::shared_ptr<const glint::DirectionalTable> table_;
   float cone_solid_angle_ = 1.0f;
   uint32_t density_param_ = 0;

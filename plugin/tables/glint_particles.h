@@ -1,35 +1,62 @@
-// Spatial part of the separable glint model (Wang et al. 2018, sec. 4.3,
-// Algorithm 1): particles scattered over the uv plane, counted inside a
-// footprint, each particle reflecting when its random threshold lambda is
-// below the directional probability P(wi, wo).
+// Spatial and directional randomness of the separable glint model (after
+// Wang et al. 2018, sec. 4.3, Algorithm 1): particles scattered over the uv
+// plane, counted inside a footprint, each particle reflecting when its random
+// threshold lambda is below the directional probability P(wi, wo).
+//
+// Direction cells (twinkle). In the exact discrete model (Jakob 2014) a
+// particle is lit while its mirror direction lies within gamma of wo: the lit
+// set decorrelates when wo (or wi) moves by about gamma. Here the half-vector
+// plane is cut into cells of the size of a particle's lit region, and every
+// cell carries its own independent particle field: a particle of cell c is
+// lit when its threshold for that cell is below P. The lit region of a
+// particle in the half-vector domain is an ellipse, semi-axes gamma / 2 in the
+// plane of incidence and gamma / (2 wi.h) across it (the half-vector map
+// r -> normalize(wi + r) has derivative (I - h h^T) / |wi + r|, foreshortened
+// by wo.h = wi.h in the plane of incidence), so the cell coordinates are the
+// stereographic chart of h (p = 2 (h.x, h.y) / (1 + h.z), conformal, ~ the
+// polar angle near the normal) compressed by wi.h across the plane of
+// incidence and divided by kCellSize gamma / 2; the compression vanishes at
+// wi.h = 1, so it is continuous where the plane of incidence is undefined.
+// kDirectionGroups groups of particles (density N / G each) use grids
+// shifted by a fraction of a cell, so crossing a cell border renews 1/G of
+// the glints, not all of them. Everything is a pure function of (uv, wi, wo):
+// no temporal noise.
 //
 // Particle field. The (scaled) uv plane is cut into square nodes of side
-// s = 2^-l. The query level l is the one whose node side is the smallest power
-// of two >= the footprint's uv bounding box, so the box touches at most 2 x 2
-// nodes. Node (l, i, j) holds n = floor(N s^2) + [u0 < frac(N s^2)] particles
-// (mean exactly N s^2). The count and the smallest threshold come from an
-// integer hash of the node id; every later random number (positions, further
-// thresholds) from the node's TEA seed (8 rounds over (i, j) and (seed, l)),
-// started only for nodes that hold a reflecting particle. Glint randomness
-// depends on the surface position and the node only, never on directions.
+// s = 2^-l. Node (l, i, j) holds n = floor(N s^2) + [u0 < frac(N s^2)]
+// particles (mean exactly N s^2). The particles live at ONE level per
+// material, the particle level l* whose nodes hold kNodeParticles / 4 ..
+// kNodeParticles particles per group, so a footprint counts the same particles
+// whatever its size (zoom and resolution keep the glints; counts grow
+// monotonically with nested footprints). A footprint is counted over the
+// nodes of that level it overlaps, found by rasterising the parallelogram row
+// by row (a long thin footprint touches O(length) nodes, not its bounding
+// box). Footprints overlapping more than kMaxNodes nodes fall back to a
+// coarser level whose node side is >= the footprint's bounding box (at most
+// 2 x 2 nodes, an independent field per level: Wang's Algorithm 1); with the
+// default filter_threshold these footprints hold thousands of particles and
+// are filtered anyway. The count and the smallest threshold of a node come from
+// an integer hash of the node id and the cell seed; every later random number
+// (positions, further thresholds) from the node's TEA seed (8 rounds), started
+// only for nodes that hold a reflecting particle.
 //
 // Thresholds as order statistics. The n thresholds lambda_k are i.i.d.
 // uniform; instead of drawing all n of them we walk their order statistics
 // from the smallest, 1 - lambda_(j+1) = (1 - lambda_(j)) V^(1/(n-j)) with V
 // uniform (Renyi's representation), and stop at the first lambda_(j) >= P.
-// This costs O(n P) steps instead of O(n), and the set of reflecting
-// particles {k : lambda_k < P} is NESTED in P: when the view or light moves,
-// P changes continuously (trilinear table lookups) and particles switch on or
-// off one at a time; no bin boundary re-randomises anything (temporal
-// coherence, unlike the public code that seeds by the direction bin).
-// Each visited particle gets a uniform position inside its node and counts
-// when it lies inside the footprint parallelogram (exact membership instead
-// of Algorithm 1's fractional overlap).
+// This costs O(n P) steps instead of O(n); inside one direction cell the set
+// of reflecting particles is nested in P (no flicker from the trilinear table
+// lookups). Each visited particle gets a uniform position inside its node and
+// counts when it lies inside the footprint parallelogram (exact membership
+// instead of Algorithm 1's fractional overlap).
 #pragma once
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 
+#include "glimmer/math.h"
 #include "glimmer/rng.h"
 
 namespace glimmer::plugin::glint {
@@ -41,33 +68,91 @@ struct Footprint {
   double area() const { return std::fabs(ax * by - ay * bx); }
 };
 
-// Nodes of the query level touched by the footprint's bounding box.
-struct NodeRange {
+// The nodes a footprint is counted over (at most kMaxNodes).
+inline constexpr int kMaxNodes = 64;
+struct NodeList {
   int level = 0;
-  double size = 1.0;   // node side s = 2^-level
-  int64_t i0 = 0, j0 = 0;
-  int ni = 1, nj = 1;  // 1 or 2 each
-  double covered_area() const { return ni * nj * size * size; }
+  double size = 1.0;  // node side s = 2^-level
+  int count = 0;
+  std::array<int64_t, kMaxNodes> i{}, j{};
+  bool add(int64_t ni, int64_t nj) {
+    if (count == kMaxNodes) return false;
+    i[count] = ni;
+    j[count] = nj;
+    ++count;
+    return true;
+  }
 };
 
-inline NodeRange footprint_nodes(const Footprint &f) {
+// Nodes of the particle level hold kNodeParticles / 4 .. kNodeParticles
+// particles per group on average.
+inline constexpr double kNodeParticles = 128.0;
+
+// The particle level l* for density N (per unit area): the largest node side
+// 2^-l* with N s^2 <= kNodeParticles.
+inline int particle_level(double density) {
+  int e = 0;
+  std::frexp(std::sqrt(kNodeParticles / std::fmax(density, 1e-30)), &e);  // value = mant 2^e, mant in [0.5, 1)
+  return 1 - e;  // 2^(e-1) <= value
+}
+
+// x extent of the footprint parallelogram inside the band y0 <= y <= y1
+// (its four corners clipped to the band, Sutherland-Hodgman); false when the
+// band misses it.
+inline bool footprint_x_range_in_band(const Footprint &f, double y0, double y1, double &x_min, double &x_max) {
+  const double cx[4] = {f.cx - 0.5 * f.ax - 0.5 * f.bx, f.cx + 0.5 * f.ax - 0.5 * f.bx, f.cx + 0.5 * f.ax + 0.5 * f.bx,
+                        f.cx - 0.5 * f.ax + 0.5 * f.bx};
+  const double cy[4] = {f.cy - 0.5 * f.ay - 0.5 * f.by, f.cy + 0.5 * f.ay - 0.5 * f.by, f.cy + 0.5 * f.ay + 0.5 * f.by,
+                        f.cy - 0.5 * f.ay + 0.5 * f.by};
+  x_min = 1e300, x_max = -1e300;
+  for (int k = 0; k < 4; ++k) {
+    const double ax = cx[k], ay = cy[k], bx = cx[(k + 1) % 4], by = cy[(k + 1) % 4];
+    if (ay >= y0 && ay <= y1) x_min = std::fmin(x_min, ax), x_max = std::fmax(x_max, ax);
+    for (const double yc : {y0, y1})  // edge crossings of the band's borders
+      if ((ay - yc) * (by - yc) < 0.0) {
+        const double x = ax + (bx - ax) * (yc - ay) / (by - ay);
+        x_min = std::fmin(x_min, x), x_max = std::fmax(x_max, x);
+      }
+  }
+  return x_min <= x_max;
+}
+
+// The nodes of `level` the footprint overlaps, row by row (the parallelogram
+// rasterised, not its bounding box); false when there are more than kMaxNodes.
+inline bool nodes_at_level(const Footprint &f, int level, NodeList &list) {
+  list = NodeList{};
+  list.level = level;
+  list.size = std::ldexp(1.0, -level);
+  const double inv = 1.0 / list.size;
+  const double ey = 0.5 * (std::fabs(f.ay) + std::fabs(f.by));
+  const auto j0 = static_cast<int64_t>(std::floor((f.cy - ey) * inv));
+  const auto j1 = static_cast<int64_t>(std::floor((f.cy + ey) * inv));
+  if (j1 - j0 >= kMaxNodes) return false;
+  for (int64_t j = j0; j <= j1; ++j) {
+    double x_min, x_max;
+    const double y0 = static_cast<double>(j) * list.size;
+    if (!footprint_x_range_in_band(f, y0, y0 + list.size, x_min, x_max)) continue;
+    const auto i0 = static_cast<int64_t>(std::floor(x_min * inv));
+    const auto i1 = static_cast<int64_t>(std::floor(x_max * inv));
+    if (i1 - i0 >= kMaxNodes) return false;
+    for (int64_t i = i0; i <= i1; ++i)
+      if (!list.add(i, j)) return false;
+  }
+  return true;
+}
+
+// The nodes a footprint is counted over: those of the particle level it
+// overlaps, or, when there are more than kMaxNodes of them, the (at most
+// 2 x 2) nodes of the level whose node side is >= the footprint's bounding box.
+inline NodeList footprint_nodes(const Footprint &f, double density) {
+  NodeList list;
+  if (nodes_at_level(f, particle_level(density), list)) return list;
   const double ex = 0.5 * (std::fabs(f.ax) + std::fabs(f.bx));
   const double ey = 0.5 * (std::fabs(f.ay) + std::fabs(f.by));
-  const double extent = std::fmax(2.0 * std::fmax(ex, ey), 1e-30);
   int e = 0;
-  const double mant = std::frexp(extent, &e);  // extent = mant 2^e, mant in [0.5, 1)
-  (void)mant;
-  NodeRange r;
-  r.level = -e;
-  r.size = std::ldexp(1.0, e);  // >= extent
-  const double inv = 1.0 / r.size;
-  r.i0 = static_cast<int64_t>(std::floor((f.cx - ex) * inv));
-  r.j0 = static_cast<int64_t>(std::floor((f.cy - ey) * inv));
-  r.ni = static_cast<int>(static_cast<int64_t>(std::floor((f.cx + ex) * inv)) - r.i0) + 1;
-  r.nj = static_cast<int>(static_cast<int64_t>(std::floor((f.cy + ey) * inv)) - r.j0) + 1;
-  r.ni = r.ni < 1 ? 1 : (r.ni > 2 ? 2 : r.ni);
-  r.nj = r.nj < 1 ? 1 : (r.nj > 2 ? 2 : r.nj);
-  return r;
+  std::frexp(std::fmax(2.0 * std::fmax(ex, ey), 1e-30), &e);  // extent <= 2^e
+  nodes_at_level(f, -e, list);
+  return list;
 }
 
 // Per-node random stream: the node seed comes from 8 TEA rounds, the values
@@ -91,8 +176,54 @@ inline uint64_t node_particle_count(const NodeStream &stream, double density, do
   return static_cast<uint64_t>(whole) + (stream(0) < static_cast<float>(mean - whole) ? 1u : 0u);
 }
 
+// ---- Direction cells (see the header comment) ------------------------------
+inline constexpr int kDirectionGroups = 4;
+// Cell side in units of gamma / 2 (the lit region's in-plane semi-axis).
+// Chosen by measurement (docs/glints.md): the correlation of the lit counts
+// between directions gamma apart matches the exact model's (~0.4), and one
+// cell covers about one cone of reflected directions (c^2 / pi ~ 1), so the
+// per-footprint albedo varies like the exact model's.
+inline constexpr float kCellSize = 1.75f;
+// Grid shifts of the groups, in cells (a 4-point lattice).
+inline constexpr std::array<std::array<float, 2>, kDirectionGroups> kGroupShift = {
+    {{0.0f, 0.0f}, {0.5f, 0.25f}, {0.25f, 0.75f}, {0.75f, 0.5f}}};
+
+// Seed of the particle field of each group's direction cell at (wi, wo);
+// false when there is no half vector above the surface.
+inline bool direction_cell_seeds(uint32_t seed, const Vec3 &wi, const Vec3 &wo, float gamma_rad,
+                                 std::array<uint32_t, kDirectionGroups> &seeds) {
+  const Vec3 sum = wi + wo;
+  const float len = length(sum);
+  if (!(len > 1e-6f)) return false;
+  const Vec3 h = sum / len;
+  if (!(h.z > 0.0f)) return false;
+  // Stereographic chart of h.
+  const float k = 2.0f / (1.0f + h.z);
+  float px = k * h.x, py = k * h.y;
+  // Compress by wi.h across the plane of incidence: n = wi x h (tangent at h),
+  // its chart direction e = k (n.xy - n.z / (1 + h.z) h.xy).
+  const float wi_h = dot(wi, h);
+  const Vec3 n = cross(wi, h);
+  float ex = n.x - n.z / (1.0f + h.z) * h.x, ey = n.y - n.z / (1.0f + h.z) * h.y;
+  const float e_len = std::sqrt(ex * ex + ey * ey);
+  if (e_len > 1e-12f) {
+    ex /= e_len, ey /= e_len;
+    const float along = (wi_h - 1.0f) * (px * ex + py * ey);
+    px += along * ex;
+    py += along * ey;
+  }
+  const float inv_cell = 2.0f / (kCellSize * gamma_rad);
+  for (int g = 0; g < kDirectionGroups; ++g) {
+    const auto cx = static_cast<int32_t>(std::floor(px * inv_cell + kGroupShift[g][0]));
+    const auto cy = static_cast<int32_t>(std::floor(py * inv_cell + kGroupShift[g][1]));
+    seeds[g] = hash_u32x4(seed, static_cast<uint32_t>(g), static_cast<uint32_t>(cx), static_cast<uint32_t>(cy));
+  }
+  return true;
+}
+
 struct GlintCount {
   int count = 0;         // particles in the footprint with lambda < P
+  int steps = 0;         // particles visited
   bool complete = true;  // false when max_steps was reached (caller falls back to the mean)
 };
 
@@ -102,7 +233,7 @@ struct GlintCount {
 // holds at least one reflecting particle) is the node's TEA stream started for
 // the positions and the following thresholds. Most nodes stop at one hash and
 // one log.
-inline GlintCount count_reflecting_particles(const Footprint &f, const NodeRange &nodes, double density,
+inline GlintCount count_reflecting_particles(const Footprint &f, const NodeList &nodes, double density,
                                              uint32_t seed, double P, int max_steps) {
   GlintCount result;
   if (!(P > 0.0)) return result;
@@ -111,17 +242,21 @@ inline GlintCount count_reflecting_particles(const Footprint &f, const NodeRange
   const double log_one_minus_P = std::log1p(-std::fmin(P, 1.0 - 1e-16));
   const double mean = std::fmin(density * nodes.size * nodes.size, 4.0e18);
   const double whole = std::floor(mean);
-  int steps = 0;
-  for (int dj = 0; dj < nodes.nj; ++dj)
-    for (int di = 0; di < nodes.ni; ++di) {
-      const int64_t i = nodes.i0 + di, j = nodes.j0 + dj;
+  // A node of n particles holds a reflecting one when lambda_(1) = 1 - V^(1/n)
+  // < P, i.e. V > (1 - P)^n: one hash and one compare per node (n is whole
+  // or whole + 1).
+  const double v_min_whole = std::exp(whole * log_one_minus_P);
+  const double v_min_plus = std::exp((whole + 1.0) * log_one_minus_P);
+  int &steps = result.steps;
+  for (int node = 0; node < nodes.count; ++node) {
+      const int64_t i = nodes.i[node], j = nodes.j[node];
       const uint32_t h0 = hash_u32x4(static_cast<uint32_t>(i), static_cast<uint32_t>(j),
                                      static_cast<uint32_t>(nodes.level), seed ^ 0x3c6ef372u);
       const uint64_t n = static_cast<uint64_t>(whole) + (uint_to_unit_float(h0) < static_cast<float>(mean - whole) ? 1u : 0u);
       if (n == 0) continue;
-      // lambda_(1) = 1 - V^(1/n) < P  <=>  log V > n log(1 - P).
-      const double log_v1 = std::log(1.0 - static_cast<double>(uint_to_unit_float(hash_u32(h0 ^ 0x85ebca6bu))));
-      if (!(log_v1 > static_cast<double>(n) * log_one_minus_P)) continue;
+      const double v1 = 1.0 - static_cast<double>(uint_to_unit_float(hash_u32(h0 ^ 0x85ebca6bu)));  // (0, 1]
+      if (!(v1 > (static_cast<double>(n) > whole ? v_min_plus : v_min_whole))) continue;
+      const double log_v1 = std::log(v1);
       const NodeStream stream = node_stream(seed, nodes.level, i, j);
       const double x0 = static_cast<double>(i) * nodes.size, y0 = static_cast<double>(j) * nodes.size;
       double one_minus_lambda = std::exp(log_v1 / static_cast<double>(n));
@@ -148,6 +283,28 @@ inline GlintCount count_reflecting_particles(const Footprint &f, const NodeRange
       }
     }
   return result;
+}
+
+// Reflecting particles of a footprint over the kDirectionGroups groups
+// (density N / G each), each group counted in its own direction cell at
+// (wi, wo); the caller falls back to the mean when `complete` is false.
+inline GlintCount count_glints(const Footprint &f, double density, uint32_t seed, const Vec3 &wi, const Vec3 &wo,
+                               float gamma_rad, double P, int max_steps) {
+  GlintCount total;
+  std::array<uint32_t, kDirectionGroups> cell_seeds;
+  if (!direction_cell_seeds(seed, wi, wo, gamma_rad, cell_seeds)) return total;
+  const double group_density = density / kDirectionGroups;
+  const NodeList nodes = footprint_nodes(f, group_density);
+  for (uint32_t cell_seed : cell_seeds) {
+    const GlintCount k = count_reflecting_particles(f, nodes, group_density, cell_seed, P, max_steps - total.steps);
+    total.count += k.count;
+    total.steps += k.steps;
+    if (!k.complete) {
+      total.complete = false;
+      break;
+    }
+  }
+  return total;
 }
 
 }  // namespace glimmer::plugin::glint

@@ -11,12 +11,14 @@
 #include <mutex>
 #include <thread>
 
+#include "glimmer/microfacet.h"
+
 namespace glimmer::plugin::glint {
 namespace {
 
 constexpr double kPiD = 3.14159265358979323846;
 constexpr double kDeg = kPiD / 180.0;
-constexpr uint32_t kFormatVersion = 1;
+constexpr uint32_t kFormatVersion = 2;  // 2: LOD levels normalised by their W-weighted energy
 constexpr char kMagic[8] = {'G', 'L', 'M', 'G', 'L', 'N', 'T', 'P'};
 
 struct D3 {
@@ -123,20 +125,42 @@ double slice_sample(const std::vector<double> &slice, double theta, double dphi)
   return a + (b - a) * ft;
 }
 
-// Reflected probability mass of a slice, Int P dwo / sigma_cone (trapezoid in
-// theta and dphi on the folded hemisphere, times 2 for the other half).
-double slice_mass(const float *values, int n_theta, int n_phi, int step) {
-  const double h = step * kDeg;
+// Step 4 (energy): the W-weighted reflected energy of one theta_i slice of a
+// level, E = Int W(wi, wo) P(wo) dwo (F = 1), by the midpoint rule on a
+// 1-degree (theta_o, dphi) grid through the level's own trilinear lookup (what
+// eval sees). `weight` holds W on that grid (weight_grid).
+constexpr int kEnergyTheta = 90, kEnergyPhi = 180;
+double slice_energy(const LodLevel &level, int ti, const std::vector<double> &weight) {
   double sum = 0.0;
-  for (int t = 0; t < n_theta; ++t) {
-    const double wt = (t == 0 || t == n_theta - 1) ? 0.5 : 1.0;
-    const double sin_t = std::sin(t * h);
-    for (int p = 0; p < n_phi; ++p) {
-      const double wp = (p == 0 || p == n_phi - 1) ? 0.5 : 1.0;
-      sum += wt * wp * sin_t * values[static_cast<size_t>(t) * n_phi + p];
+  for (int t = 0; t < kEnergyTheta; ++t)
+    for (int p = 0; p < kEnergyPhi; ++p)
+      sum += weight[static_cast<size_t>(t) * kEnergyPhi + p] *
+             level.lookup(static_cast<float>(ti), static_cast<float>(t + 0.5), static_cast<float>(p + 0.5));
+  return sum;
+}
+
+// W(wi, wo) sin(theta_o) dtheta dphi (x 2 for the folded half) on the energy
+// grid, W = G2 (wi.h) / (cos_i cos_h) as glint_weight (tables/glint_common.h).
+std::vector<double> weight_grid(const TableSpec &spec, int ti) {
+  const microfacet::Distribution dist =
+      spec.distribution == BaseDistribution::GGX ? microfacet::Distribution::GGX : microfacet::Distribution::Beckmann;
+  std::vector<double> w(static_cast<size_t>(kEnergyTheta) * kEnergyPhi, 0.0);
+  const D3 wi_d = spherical(ti * kDeg, 0.0);
+  const Vec3 wi(static_cast<float>(wi_d.x), static_cast<float>(wi_d.y), static_cast<float>(wi_d.z));
+  if (!(wi.z > 0.0f)) return w;
+  for (int t = 0; t < kEnergyTheta; ++t)
+    for (int p = 0; p < kEnergyPhi; ++p) {
+      const D3 wo_d = spherical((t + 0.5) * kDeg, (p + 0.5) * kDeg);
+      const Vec3 wo(static_cast<float>(wo_d.x), static_cast<float>(wo_d.y), static_cast<float>(wo_d.z));
+      Vec3 h;
+      if (!microfacet::half_vector_reflect(wi, wo, h)) continue;
+      const float wi_h = dot(wi, h);
+      if (!(wi_h > 0.0f) || !(h.z > 0.0f)) continue;
+      const double g2 = microfacet::G2(dist, wi, wo, spec.alpha, spec.alpha);
+      w[static_cast<size_t>(t) * kEnergyPhi + p] =
+          2.0 * g2 * wi_h / (wi.z * h.z) * std::sin((t + 0.5) * kDeg) * kDeg * kDeg;
     }
-  }
-  return 2.0 * sum * h * h;
+  return w;
 }
 
 uint64_t fnv1a(const void *data, size_t size, uint64_t h = 1469598103934665603ull) {
@@ -262,13 +286,12 @@ std::unique_ptr<DirectionalTable> build_directional_table(const TableSpec &spec,
   // blur, so camera rays see the exact lobe up to the horizon). Levels 1..8
   // are P_gamma blurred by a Gaussian of sigma_L over wo, separably on the
   // sphere with 1-degree taps (theta: through the pole, zero below the
-  // horizon; phi: sigma_L / sin(theta), periodic), then renormalised to the
-  // mass of P_gamma.
+  // horizon; phi: sigma_L / sin(theta), periodic), then normalised to the
+  // W-weighted energy of P_gamma (step 4 below).
   for (int l = 0; l < kLodCount; ++l) table->levels[l] = make_level(l);
   parallel_for(kThetaICount, threads, [&](int ti) {
     const double *slice = pg.data() + ti * slice_size;
     std::vector<float> fslice(slice, slice + slice_size);
-    const double target_mass = slice_mass(fslice.data(), kN, kP, 1);
     std::copy(fslice.begin(), fslice.end(), table->levels[0].values.begin() + ti * slice_size);
     auto src = [&](int t, int p) -> double {  // integer-degree sample with the sphere's topology
       if (t < 0) {
@@ -318,11 +341,20 @@ std::unique_ptr<DirectionalTable> build_directional_table(const TableSpec &spec,
           out[static_cast<size_t>(to) * level.n_phi + p] = static_cast<float>(sum / norm_phi);
         }
       }
-      const double mass = slice_mass(out, level.n_theta_o, level.n_phi, step);
-      if (mass > 0.0 && target_mass > 0.0) {
-        const float s = static_cast<float>(target_mass / mass);
-        for (size_t i = 0; i < static_cast<size_t>(level.n_theta_o) * level.n_phi; ++i) out[i] *= s;
-      }
+    }
+    // Step 4: the blurred lobe weighted by the same W that eval multiplies it
+    // with must reflect the energy of the unblurred one (blurring P moves
+    // probability toward grazing wo, where W is large: without this the
+    // albedo grew to 2..4.7 at grazing incidence).
+    const std::vector<double> weight = weight_grid(spec, ti);
+    const double target_energy = slice_energy(table->levels[0], ti, weight);
+    for (int l = 1; l < kLodCount; ++l) {
+      LodLevel &level = table->levels[l];
+      const double energy = slice_energy(level, ti, weight);
+      if (!(energy > 0.0) || !(target_energy > 0.0)) continue;
+      const float s = static_cast<float>(target_energy / energy);
+      float *out = level.values.data() + static_cast<size_t>(ti) * level.n_theta_o * level.n_phi;
+      for (size_t i = 0; i < static_cast<size_t>(level.n_theta_o) * level.n_phi; ++i) out[i] *= s;
     }
   });
   table->build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

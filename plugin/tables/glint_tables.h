@@ -23,9 +23,14 @@
 //     Level 0 ("1 degree") is P_gamma itself at the 1-degree base resolution;
 //     levels 1..8 are P_gamma blurred over wo on the sphere (separable: along
 //     theta_o, then along phi with sigma / sin(theta_o)), stored at a step
-//     ~ sigma / 3, and renormalised per theta_i to the unblurred reflected
-//     probability mass (mass blurred below the horizon is put back, so energy
-//     is preserved).
+//     ~ sigma / 3;
+//  4. energy: each blurred level is scaled per theta_i so that its reflected
+//     energy weighted by the BRDF's W(wi, wo) (the factor eval multiplies P
+//     with, tables/glint_common.h), Int W P_sigma dwo, equals that of P_gamma
+//     (1-degree midpoint rule through the level's own trilinear lookup).
+//     Normalising the probability mass alone let the blur move P toward
+//     grazing wo, where W is large: the albedo grew to 2..4.7 at grazing
+//     incidence.
 // Lookups are trilinear within a level and linear in sigma between levels.
 //
 // Tables are cached on disk (host->cache_dir) under a hash of their

@@ -13,6 +13,7 @@
 #include <thread>
 
 #include "closures/closure_checks.h"
+#include "closures/glint_test_util.h"
 #include "glimmer/microfacet.h"
 #include "glimmer/rng.h"
 
@@ -66,52 +67,6 @@ struct LimitCase {
   mf::Distribution dist;
   double roughness;
 };
-
-// Density of the reflected direction r of a particle whose normal follows
-// D(m) cos(theta_m): q(wi, r) = D(h) cos(theta_h) / (4 wi.h), h = normalize(wi + r)
-// (Walter 2007's half-vector Jacobian). The smooth BRDF is
-// f cos_o = F G2 (wi.h) / (cos_i cos_h) * q(wi, wo).
-double reflected_density(mf::Distribution dist, double alpha, const Vec3 &wi, const Vec3 &r) {
-  const double sx = wi.x + r.x, sy = wi.y + r.y, sz = wi.z + r.z;
-  const double len = std::sqrt(sx * sx + sy * sy + sz * sz);
-  if (!(len > 1e-9)) return 0.0;
-  const Vec3 h(static_cast<float>(sx / len), static_cast<float>(sy / len), static_cast<float>(sz / len));
-  const double wi_h = (wi.x * sx + wi.y * sy + wi.z * sz) / len;
-  if (!(h.z > 0.0f) || !(wi_h > 0.0)) return 0.0;
-  const float a = static_cast<float>(alpha);
-  return mf::D(dist, h, a, a) * h.z / (4.0 * wi_h);
-}
-
-// Brute-force mean of q over the query cone of half-angle gamma around wo
-// (rings of equal solid angle x uniform azimuths): the mean of the Jakob 2014
-// / Wang 2018 count estimator. Directions of the cone below the horizon count
-// (a particle's mirror direction; its normal is above the surface).
-double cone_mean_reflected_density(mf::Distribution dist, double alpha, const Vec3 &wi, const Vec3 &wo,
-                                   double gamma_deg, int rings = 16) {
-  const double ox = wo.x, oy = wo.y, oz = wo.z;
-  const double ax = std::fabs(oz) < 0.9 ? 0.0 : 1.0, az = std::fabs(oz) < 0.9 ? 1.0 : 0.0;
-  // e1 = normalize(a x wo), e2 = wo x e1
-  double e1x = -az * oy, e1y = az * ox - ax * oz, e1z = ax * oy;
-  const double l1 = std::sqrt(e1x * e1x + e1y * e1y + e1z * e1z);
-  e1x /= l1, e1y /= l1, e1z /= l1;
-  const double e2x = oy * e1z - oz * e1y, e2y = oz * e1x - ox * e1z, e2z = ox * e1y - oy * e1x;
-  const double one_minus_cos_gamma = 1.0 - std::cos(gamma_deg * kDeg);
-  const int n_psi = 4 * rings;
-  double sum = 0.0;
-  for (int k = 0; k < rings; ++k) {
-    const double cos_rho = 1.0 - (k + 0.5) / rings * one_minus_cos_gamma;
-    const double sin_rho = std::sqrt(std::max(0.0, 1.0 - cos_rho * cos_rho));
-    for (int j = 0; j < n_psi; ++j) {
-      const double psi = (j + 0.5 * (k & 1)) * 2.0 * M_PI / n_psi;
-      const double c = std::cos(psi) * sin_rho, s = std::sin(psi) * sin_rho;
-      const Vec3 r(static_cast<float>(ox * cos_rho + e1x * c + e2x * s),
-                   static_cast<float>(oy * cos_rho + e1y * c + e2y * s),
-                   static_cast<float>(oz * cos_rho + e1z * c + e2z * s));
-      sum += reflected_density(dist, alpha, wi, r);
-    }
-  }
-  return sum / (rings * n_psi);
-}
 
 // Limit consistency: with large N and a large footprint the glint BRDF is in
 // filtered mode, f cos_o = W P_gamma / sigma (glint.cpp eq. 3), whose exact
@@ -269,55 +224,160 @@ TEST(Glint, MeanRadianceContinuousAcrossLodLevels) {
   std::printf("[lod] largest relative step of the mean radiance: %.5f\n", worst);
 }
 
-// Temporal coherence: for fixed surface points and a fixed light, moving the
-// view by less than the cone angle across a table-bin boundary keeps the set
-// of lit glints (set of surface points with a non-zero glint), except for the
-// particles whose threshold lies between the two P values; since the lit sets
-// are nested in P, one set contains the other.
-TEST(Glint, LitGlintsStableWhenTheViewCrossesATableBin) {
-  const double gamma = 2.0;
-  auto glint = make_closure("glint", {{"roughness", "0.4"}, {"gamma", "2"}, {"density", "2e6"}, {"seed", "5"}});
-  const Vec3 light = spherical_dir(30.0, 180.0);
-  const int grid = 300;  // 90 000 surface points, footprint 1/300 x 1/300: ~22 particles each
-  auto lit_set = [&](const Vec3 &view) {
+// Energy at secondary bounces (issue 10): the LOD blur of P must not add
+// energy. White furnace (F0 = 1, filtered mode) at incidences 0..89 degrees
+// and LOD blurs from 0 to the cap 2 alpha, by midpoint quadrature (the same
+// for the smooth model): every blurred albedo <= the unblurred one + 0.2 %,
+// and <= the smooth model's + 1 % up to 85 degrees. At 88..89 degrees the
+// unblurred cone estimator itself exceeds the smooth albedo (W averaged over
+// the cone, convex near the horizon: docs/glints.md), measured, not asserted.
+// Before issue 10 (blurred P times the unblurred weight W): GGX 0.35 had
+// albedo 1.35 at 80 degrees and 2.26 at 88 degrees at the largest blur.
+TEST(Glint, LodBlurConservesEnergyAtEveryIncidence) {
+  struct Case {
+    const char *dist;
+    mf::Distribution d;
+    double roughness;
+  };
+  double worst = 0.0;
+  for (const Case &c : {Case{"ggx", mf::Distribution::GGX, 0.35}, Case{"beckmann", mf::Distribution::Beckmann, 0.5}}) {
+    auto glint = make_closure("glint", {{"distribution", c.dist},
+                                        {"roughness", std::to_string(c.roughness)},
+                                        {"gamma", "2"},
+                                        {"density", "1e6"},
+                                        {"filter_threshold", "0"}});
+    const double alpha = c.roughness * c.roughness;
+    for (double theta_i : {0.0, 30.0, 60.0, 75.0, 80.0, 85.0, 88.0, 89.0}) {
+      const Vec3 wi = spherical_dir(theta_i, 0.0);
+      const double smooth =
+          hemisphere_integral([&](const Vec3 &wo) { return smooth_f_cos(c.d, alpha, wi, wo); }, 180, 360);
+      double unblurred = 0.0;
+      for (double blur : {0.0, 0.25, 0.5, 1.0}) {
+        const float spread = static_cast<float>(blur * 2.0 * alpha);
+        const GlimmerShadingContext ctx = context(wi, 0.3, 0.6, 0.1, spread);
+        const double albedo =
+            hemisphere_integral([&](const Vec3 &wo) { return eval_f(*glint, ctx, wo); }, 180, 360);
+        std::printf("[energy] %s r=%.2f theta_i %4.1f blur %.2f x 2 alpha: albedo %.4f smooth %.4f\n", c.dist,
+                    c.roughness, theta_i, blur, albedo, smooth);
+        if (blur == 0.0) unblurred = albedo;
+        worst = std::max(worst, albedo / unblurred);
+        EXPECT_LE(albedo, unblurred * 1.002) << c.dist << " theta_i " << theta_i << " blur " << blur;
+        if (theta_i <= 85.0) {
+          EXPECT_LE(albedo, smooth * 1.01) << c.dist << " theta_i " << theta_i << " blur " << blur;
+        }
+      }
+    }
+  }
+  std::printf("[energy] largest blurred / unblurred albedo: %.4f\n", worst);
+}
+
+// Resolution (issue 10): a pixel at single resolution and the mean of its
+// four pixels at double resolution (footprints of half the side tiling it)
+// see the same glints: one particle level per material makes counts additive
+// over the sub-footprints. Correlation across 10 000 pixels >= 0.9 (before
+// issue 10, an independent particle field per level: 0.65 in a 320x200 render
+// as reported in the issue; not re-measured here).
+TEST(Glint, DownsampledDoubleResolutionMatchesSingleResolution) {
+  auto glint = make_closure("glint", {{"roughness", "0.4"}, {"gamma", "2"}, {"density", "1e6"}, {"seed", "2"}});
+  const Vec3 wi = spherical_dir(35.0, 0.0), wo = spherical_dir(30.0, 170.0);
+  const int grid = 100;
+  const double side = 1.0 / grid;  // 100 particles per pixel footprint
+  std::vector<double> single, downsampled;
+  int lit = 0;
+  for (int y = 0; y < grid; ++y)
+    for (int x = 0; x < grid; ++x) {
+      const double u = (x + 0.5) * side, v = (y + 0.5) * side;
+      single.push_back(eval_f(*glint, context(wi, u, v, side), wo));
+      double sum = 0.0;
+      for (int q = 0; q < 4; ++q)
+        sum += eval_f(*glint, context(wi, u + ((q & 1) - 0.5) * side / 2, v + ((q >> 1) - 0.5) * side / 2, side / 2),
+                      wo);
+      downsampled.push_back(sum / 4.0);
+      lit += single.back() > 0.0;
+    }
+  double ms = 0, md = 0;
+  for (size_t i = 0; i < single.size(); ++i) ms += single[i], md += downsampled[i];
+  ms /= single.size(), md /= single.size();
+  double sd = 0, ss = 0, dd = 0;
+  for (size_t i = 0; i < single.size(); ++i) {
+    sd += (single[i] - ms) * (downsampled[i] - md);
+    ss += (single[i] - ms) * (single[i] - ms);
+    dd += (downsampled[i] - md) * (downsampled[i] - md);
+  }
+  const double corr = sd / std::sqrt(ss * dd);
+  std::printf("[resolution] %d of %d pixels lit; correlation single vs 2x2-downsampled double resolution %.4f, "
+              "means %.4g / %.4g\n", lit, grid * grid, corr, ms, md);
+  EXPECT_GT(lit, grid * grid / 10);
+  EXPECT_GE(corr, 0.9);
+}
+
+// Temporal behaviour (issue 10): when the view or the light moves, the set of
+// lit surface points changes as in the exact discrete model: little for a
+// move well below the cone angle gamma, mostly for a move of 2 gamma (the
+// glints twinkle instead of freezing into a static speckle), and nothing
+// special happens when the view crosses a table node. Jaccard overlap of the
+// lit sets, glint vs the reference glint_jakob14 (same density and footprints),
+// within 0.1. The moves cross the 1-degree table node at theta = 35 degrees;
+// the last one is the issue's 3.8-degree light move.
+TEST(Glint, LitGlintsChangeLikeTheReferenceWhenViewOrLightMove) {
+  const Params params = {{"roughness", "0.4"}, {"gamma", "2"}, {"density", "2e6"}, {"seed", "5"}};
+  auto glint = make_closure("glint", params);
+  auto reference = make_closure("glint_jakob14", params);
+  const int grid = 150;  // 22 500 surface points, footprint 1/300 x 1/300: ~22 particles each
+  auto lit_set = [&](const host::ClosureInstance &c, const Vec3 &view, const Vec3 &light) {
     std::set<int> lit;
     for (int y = 0; y < grid; ++y)
       for (int x = 0; x < grid; ++x) {
-        const GlimmerShadingContext ctx = context(view, (x + 0.5) / grid, (y + 0.5) / grid, 1.0 / grid);
-        if (eval_f(*glint, ctx, light) > 0.0f) lit.insert(y * grid + x);
+        const GlimmerShadingContext ctx = context(view, (x + 0.5) / grid, (y + 0.5) / grid, 1.0 / 300.0);
+        if (eval_f(c, ctx, light) > 0.0f) lit.insert(y * grid + x);
       }
     return lit;
   };
-  // theta_i crosses the 1-degree table node at 35 degrees; moves of 0.1..0.5 gamma.
-  for (double move : {0.1 * gamma, 0.25 * gamma, 0.5 * gamma}) {
-    const std::set<int> a = lit_set(spherical_dir(35.0 - move / 2, 0.0));
-    const std::set<int> b = lit_set(spherical_dir(35.0 + move / 2, 0.0));
-    ASSERT_GT(a.size(), 100u);
+  auto jaccard = [](const std::set<int> &a, const std::set<int> &b) {
     std::vector<int> both;
     std::set_intersection(a.begin(), a.end(), b.begin(), b.end(), std::back_inserter(both));
-    const double jaccard = static_cast<double>(both.size()) / (a.size() + b.size() - both.size());
-    const bool nested = both.size() == std::min(a.size(), b.size());
-    std::printf("[coherence] view move %.2f deg across a bin: lit %zu -> %zu, kept %zu, Jaccard %.4f, nested %d\n",
-                move, a.size(), b.size(), both.size(), jaccard, nested);
-    EXPECT_TRUE(nested) << "lit sets must be nested (no re-randomisation), move " << move;
-    EXPECT_GE(jaccard, 0.9) << "move " << move << " deg";
+    return static_cast<double>(both.size()) / static_cast<double>(a.size() + b.size() - both.size());
+  };
+  struct Move {
+    const char *what;
+    Vec3 view_a, light_a, view_b, light_b;
+  };
+  const Vec3 light = spherical_dir(30.0, 180.0);
+  const std::vector<Move> moves = {
+      {"view 0.2 deg", spherical_dir(34.9, 0.0), light, spherical_dir(35.1, 0.0), light},
+      {"view 1 deg", spherical_dir(34.5, 0.0), light, spherical_dir(35.5, 0.0), light},
+      {"view 4 deg", spherical_dir(33.0, 0.0), light, spherical_dir(37.0, 0.0), light},
+      {"light 3.8 deg", spherical_dir(35.0, 0.0), spherical_dir(28.1, 180.0), spherical_dir(35.0, 0.0),
+       spherical_dir(31.9, 180.0)},
+  };
+  for (const Move &m : moves) {
+    const std::set<int> ga = lit_set(*glint, m.view_a, m.light_a), gb = lit_set(*glint, m.view_b, m.light_b);
+    const std::set<int> ra = lit_set(*reference, m.view_a, m.light_a), rb = lit_set(*reference, m.view_b, m.light_b);
+    ASSERT_GT(ga.size(), 100u);
+    ASSERT_GT(ra.size(), 100u);
+    const double jg = jaccard(ga, gb), jr = jaccard(ra, rb);
+    std::printf("[coherence] %-14s lit %zu -> %zu, Jaccard glint %.3f, reference %.3f (lit %zu -> %zu)\n", m.what,
+                ga.size(), gb.size(), jg, jr, ra.size(), rb.size());
+    EXPECT_NEAR(jg, jr, 0.1) << m.what;
   }
-  // Negative control: re-randomising the particles (what seeding by the
-  // direction bin does when a bin is crossed), here by another seed at the
-  // same view, must break both criteria.
-  auto reseeded = make_closure("glint", {{"roughness", "0.4"}, {"gamma", "2"}, {"density", "2e6"}, {"seed", "6"}});
-  std::set<int> a = lit_set(spherical_dir(35.0, 0.0)), b;
-  for (int y = 0; y < grid; ++y)
-    for (int x = 0; x < grid; ++x)
-      if (eval_f(*reseeded, context(spherical_dir(35.0, 0.0), (x + 0.5) / grid, (y + 0.5) / grid, 1.0 / grid),
-                 light) > 0.0f)
-        b.insert(y * grid + x);
-  std::vector<int> both;
-  std::set_intersection(a.begin(), a.end(), b.begin(), b.end(), std::back_inserter(both));
-  const double jaccard = static_cast<double>(both.size()) / (a.size() + b.size() - both.size());
-  std::printf("[coherence] control (re-randomised particles): Jaccard %.4f\n", jaccard);
-  EXPECT_LT(jaccard, 0.5);
-  EXPECT_LT(both.size(), std::min(a.size(), b.size()));
+}
+
+// Footprint plumbing: the sampled roughness the host uses to widen the
+// footprint is in alpha units, like the conductor's (with a tiny cone the
+// glint sampling lobe is the conductor's lobe). Before issue 10 the glint
+// closures reported sqrt(alpha), 2x here.
+TEST(Glint, SampledRoughnessIsInAlphaUnitsLikeTheConductor) {
+  auto conductor = make_closure("microfacet_conductor", {{"roughness", "0.5"}});
+  const GlimmerShadingContext ctx = context(spherical_dir(30.0, 0.0), 0.5, 0.5, 1e-3);
+  const float r3[3] = {0.3f, 0.6f, 0.5f};
+  GlimmerSample reference{};
+  ASSERT_TRUE(conductor->sample(ctx, r3, reference));
+  for (const char *name : {"glint", "glint_jakob14"}) {
+    auto c = make_closure(name, {{"roughness", "0.5"}, {"gamma", "0.1"}});
+    GlimmerSample out{};
+    ASSERT_TRUE(c->sample(ctx, r3, out)) << name;
+    EXPECT_NEAR(out.roughness, reference.roughness, 0.01 * reference.roughness) << name;
+  }
 }
 
 // Determinism: the same queries give bit-identical results on 1 and 4 threads.
