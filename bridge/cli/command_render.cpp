@@ -21,7 +21,21 @@ namespace {
 
 std::atomic<bool> g_interrupted{false};
 
-extern "C" void on_signal(int) { g_interrupted.store(true); }
+// The first SIGINT/SIGTERM asks loading, preparation and rendering to stop;
+// a second one terminates at once (the default action).
+extern "C" void on_signal(int sig) {
+  g_interrupted.store(true);
+  std::signal(sig, SIG_DFL);
+}
+
+}  // namespace
+
+void install_render_interrupt_handlers() {
+  std::signal(SIGINT, on_signal);
+  std::signal(SIGTERM, on_signal);
+}
+
+namespace {
 
 struct RenderArgs {
   std::string scene, output, region, frames, strategy = "mis";
@@ -83,9 +97,16 @@ int render_one(CliContext &ctx, const RenderArgs &a, const std::string &scene_pa
   using Clock = std::chrono::steady_clock;
   auto t0 = Clock::now();
   auto since = [](Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); };
+  try {
+    render::check_output_path(output);  // before any work: a bad output must not cost a render
+  } catch (const std::exception &e) {
+    throw CliError(kExitBadInput, e.what());
+  }
   scene::Scene scene;
   try {
-    scene = scene::load_scene(scene_path);
+    scene = scene::load_scene(scene_path, &g_interrupted);
+  } catch (const scene::LoadCancelled &e) {
+    throw CliError(kExitInterrupted, std::string(e.what()) + "; '" + output + "' left unchanged");
   } catch (const scene::SceneError &e) {
     throw CliError(kExitBadInput, e.what());
   }
@@ -118,6 +139,8 @@ int render_one(CliContext &ctx, const RenderArgs &a, const std::string &scene_pa
   const bool tty = ::isatty(STDOUT_FILENO) != 0;
   const auto result = renderer->render([&](int done, int total) { print_progress(done, total, tty, a.quiet); });
   if (tty && !a.quiet && result.samples_done < result.samples_requested) std::printf("\n");
+  if (result.interrupted && result.samples_done == 0)
+    throw CliError(kExitInterrupted, "interrupted before the first sample; '" + output + "' left unchanged");
   t0 = Clock::now();
   try {
     render::write_image(output, result);
@@ -184,8 +207,9 @@ void add_render_command(CLI::App &app, CliContext &ctx) {
   cmd->add_flag("--quiet", args->quiet, "no progress output");
   cmd->add_flag("--stats", args->stats, "print the feature set and the time per phase");
   cmd->callback([&ctx, args] {
-    std::signal(SIGINT, on_signal);
-    std::signal(SIGTERM, on_signal);
+    install_render_interrupt_handlers();  // again: main() installs them only when it sees "render"
+    if (g_interrupted.load())
+      throw CliError(kExitInterrupted, "interrupted before loading; '" + args->output + "' left unchanged");
     std::unique_ptr<tbb::global_control> threads;
     if (args->threads > 0)
       threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,

@@ -209,7 +209,18 @@ struct Renderer::Impl {
     rtcCommitScene(rtc_scene);
   }
 
+  // Debian's Embree asserts ray.valid(): origin and direction components within +-1.844e18
+  // (its FLT_LARGE; NaN and Inf fail too) and tnear/tfar not NaN. Other rays never reach it.
+  static bool traceable_ray(const Vec3 &o, const Vec3 &d, float tmin, float tmax) {
+    constexpr float kEmbreeLargest = 1.8e18f;
+    auto bounded = [](const Vec3 &v) {
+      return std::fabs(v.x) <= kEmbreeLargest && std::fabs(v.y) <= kEmbreeLargest && std::fabs(v.z) <= kEmbreeLargest;
+    };
+    return bounded(o) && bounded(d) && tmin >= 0.0f && tmin <= tmax;  // false for NaN
+  }
+
   bool intersect(const Vec3 &o, const Vec3 &d, float tmin, float tmax, SurfaceHit &hit) const {
+    if (!traceable_ray(o, d, tmin, tmax)) return false;
     RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     RTCRayHit rh;
@@ -234,6 +245,7 @@ struct Renderer::Impl {
   }
 
   bool occluded(const Vec3 &o, const Vec3 &d, float tmax) const {
+    if (!traceable_ray(o, d, 0.0f, tmax)) return true;  // no light along a ray that cannot be traced
     RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     RTCRay r;
@@ -818,6 +830,7 @@ RenderResult Renderer::render(const std::function<void(int, int)> &progress) {
   std::atomic<uint64_t> nan_total{0};
   int done = 0;
   for (int s = 0; s < im.samples; ++s) {
+    if (im.options.cancel && im.options.cancel->load()) { res.interrupted = true; break; }
     tbb::parallel_for(tbb::blocked_range2d<int>(y0, y1, tile, x0, x1, tile), [&](const tbb::blocked_range2d<int> &br) {
       uint64_t nans = 0, traced = 0;
       for (int y = br.rows().begin(); y < br.rows().end(); ++y) {
@@ -826,7 +839,9 @@ RenderResult Renderer::render(const std::function<void(int, int)> &progress) {
           Impl::PixelAov aov;
           const Spectrum L = im.trace_path(x, y, static_cast<uint32_t>(s), aov, nans);
           const size_t i = static_cast<size_t>(y) * im.width + x;
-          sum[i] += L;
+          const Spectrum next = sum[i] + L;  // a finite sample can still overflow the sum
+          if (is_finite(next)) sum[i] = next;
+          else ++nans;
           count[i]++;
           ++traced;
           if (im.options.aovs) {
@@ -839,9 +854,10 @@ RenderResult Renderer::render(const std::function<void(int, int)> &progress) {
       if (nans) nan_total += nans;
       paths += traced;
     });
+    // A pass cut short by an interrupt does not count: samples_done = complete passes.
+    if (im.options.cancel && im.options.cancel->load()) { res.interrupted = true; break; }
     done = s + 1;
     if (progress) progress(done, im.samples);
-    if (im.options.cancel && im.options.cancel->load()) { res.interrupted = true; break; }
     if (im.options.time_limit > 0.0 && seconds_since(t0) >= im.options.time_limit && done < im.samples) {
       res.time_limited = true;
       break;
@@ -857,7 +873,11 @@ RenderResult Renderer::render(const std::function<void(int, int)> &progress) {
   res.depth.assign(npix, 0.0f);
   for (size_t i = 0; i < npix; ++i) {
     const float inv = count[i] > 0 ? 1.0f / static_cast<float>(count[i]) : 0.0f;
-    const Spectrum c = sum[i] * (inv * exposure);
+    Spectrum c = sum[i] * (inv * exposure);
+    if (!is_finite(c)) {  // exposure pushed the mean past the float range
+      c = Spectrum(0.0f);
+      ++res.nan_samples;
+    }
     res.combined[4 * i] = c.x;
     res.combined[4 * i + 1] = c.y;
     res.combined[4 * i + 2] = c.z;
