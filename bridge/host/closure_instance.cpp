@@ -1,9 +1,14 @@
 #include "host/closure_instance.h"
 
+#include <pwd.h>
+#include <unistd.h>
+
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <sstream>
+
+#include "glimmer/atomic_file.h"
 
 namespace glimmer::host {
 
@@ -116,11 +121,27 @@ void log_to_stderr(void *, int level, const char *message) {
   std::fprintf(stderr, "glimmer: %s: %s\n", names[l], message);
 }
 
+// $GLIMMER_CACHE_DIR, else $XDG_CACHE_HOME/glimmer, else ~/.cache/glimmer
+// (home from $HOME or the password database); never a shared /tmp folder.
+// The folder is made private (0700, ours); "" disables the cache with a warning.
 std::string default_cache_dir() {
-  if (const char *d = std::getenv("GLIMMER_CACHE_DIR"); d && *d) return d;
-  if (const char *x = std::getenv("XDG_CACHE_HOME"); x && *x) return std::string(x) + "/glimmer";
-  if (const char *h = std::getenv("HOME"); h && *h) return std::string(h) + "/.cache/glimmer";
-  return (std::filesystem::temp_directory_path() / "glimmer-cache").string();
+  std::string dir;
+  if (const char *d = std::getenv("GLIMMER_CACHE_DIR"); d && *d) dir = d;
+  else if (const char *x = std::getenv("XDG_CACHE_HOME"); x && *x == '/') dir = std::string(x) + "/glimmer";
+  else if (const char *h = std::getenv("HOME"); h && *h == '/') dir = std::string(h) + "/.cache/glimmer";
+  else if (const passwd *pw = ::getpwuid(::geteuid()); pw && pw->pw_dir && *pw->pw_dir == '/')
+    dir = std::string(pw->pw_dir) + "/.cache/glimmer";
+  if (dir.empty()) {
+    std::fprintf(stderr, "glimmer: warning: no cache folder (no XDG_CACHE_HOME, HOME or home directory); "
+                         "precomputed tables are not cached\n");
+    return {};
+  }
+  if (const std::string problem = ensure_private_directory(dir); !problem.empty()) {
+    std::fprintf(stderr, "glimmer: warning: cache folder unusable (%s); precomputed tables are not cached\n",
+                 problem.c_str());
+    return {};
+  }
+  return dir;
 }
 
 }  // namespace

@@ -11,12 +11,16 @@
 #include <mutex>
 #include <thread>
 
+#include "glimmer/atomic_file.h"
+#include "glimmer/cache_key.h"
+#include "glimmer/sha256.h"
+
 namespace glimmer::plugin::glint {
 namespace {
 
 constexpr double kPiD = 3.14159265358979323846;
 constexpr double kDeg = kPiD / 180.0;
-constexpr uint32_t kFormatVersion = 1;
+constexpr uint32_t kFormatVersion = 2;  // 2: HMAC-SHA256 instead of FNV-1a
 constexpr char kMagic[8] = {'G', 'L', 'M', 'G', 'L', 'N', 'T', 'P'};
 
 struct D3 {
@@ -137,6 +141,29 @@ double slice_mass(const float *values, int n_theta, int n_phi, int step) {
     }
   }
   return 2.0 * sum * h * h;
+}
+
+// Energy validation of a table read from disk, after its MAC: per theta_i,
+// every LOD level keeps the mass of level 0 (the blur renormalises to it,
+// to ~1e-7), so values edited in some levels are caught even with a valid MAC.
+bool plausible_energy(const DirectionalTable &table, std::string &problem) {
+  constexpr double kMassTolerance = 1e-4;
+  for (int ti = 0; ti < kThetaICount; ++ti) {
+    double level0_mass = 0.0;
+    for (int l = 0; l < kLodCount; ++l) {
+      const LodLevel &level = table.levels[l];
+      const size_t n = static_cast<size_t>(level.n_theta_o) * level.n_phi;
+      const double mass =
+          slice_mass(level.values.data() + static_cast<size_t>(ti) * n, level.n_theta_o, level.n_phi, level.step_deg);
+      if (l == 0) level0_mass = mass;
+      else if (std::fabs(mass - level0_mass) > kMassTolerance * level0_mass + 1e-30) {
+        problem = "LOD level " + std::to_string(l) + " does not keep the energy of level 0 at theta_i " +
+                  std::to_string(ti);
+        return false;
+      }
+    }
+  }
+  return true;
 }
 
 uint64_t fnv1a(const void *data, size_t size, uint64_t h = 1469598103934665603ull) {
@@ -348,7 +375,8 @@ std::string table_cache_path(const std::string &cache_dir, const TableSpec &spec
 }
 
 // File: magic, version, key, spec, then per level (n_theta_o, n_phi, values),
-// then the FNV-1a checksum of everything before it.
+// then HMAC-SHA256 of everything before it, keyed by the cache folder's
+// secret (glimmer/cache_key.h).
 bool save_table(const std::string &path, const DirectionalTable &table, std::string &problem) {
   std::vector<unsigned char> bytes;
   auto put = [&](const void *p, size_t n) {
@@ -368,35 +396,28 @@ bool save_table(const std::string &path, const DirectionalTable &table, std::str
     put(&l.n_phi, sizeof(int));
     put(l.values.data(), l.values.size() * sizeof(float));
   }
-  const uint64_t sum = fnv1a(bytes.data(), bytes.size());
-  put(&sum, sizeof(sum));
-  std::error_code ec;
-  const std::filesystem::path target(path);
-  std::filesystem::create_directories(target.parent_path(), ec);
-  // Written to a unique temporary name, then renamed: readers never see a partial file.
-  const std::string tmp = path + ".tmp." + std::to_string(reinterpret_cast<uintptr_t>(&table) ^ fnv1a(path.data(), path.size()));
-  {
-    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
-    if (!f) {
-      problem = "cannot write " + tmp;
-      return false;
-    }
-    f.write(reinterpret_cast<const char *>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
-    if (!f) {
-      problem = "write failed for " + tmp;
-      return false;
-    }
-  }
-  std::filesystem::rename(tmp, target, ec);
-  if (ec) {
-    std::filesystem::remove(tmp, ec);
-    problem = "cannot rename the cache file into " + path;
-    return false;
-  }
-  return true;
+  // One private cache folder, a MAC keyed by its secret, one atomic write
+  // (random O_EXCL|O_NOFOLLOW temporary, fsync, rename).
+  const std::string dir = std::filesystem::path(path).parent_path().string();
+  CacheKey secret;
+  problem = ensure_private_directory(dir);
+  if (problem.empty()) problem = cache_secret_key(dir, secret);
+  if (!problem.empty()) return false;
+  const Digest256 mac = hmac_sha256(secret.data(), secret.size(), bytes.data(), bytes.size());
+  put(mac.data(), mac.size());
+  problem = write_file_atomically(path, bytes.data(), bytes.size(), 0600);
+  return problem.empty();
 }
 
 std::unique_ptr<DirectionalTable> load_table(const std::string &path, const TableSpec &spec, std::string &problem) {
+  // Junk at the entry path (a directory, a FIFO, a symlink) is removed so the rebuilt table can take its place.
+  std::error_code junk_ec;
+  const auto status = std::filesystem::symlink_status(path, junk_ec);
+  if (!junk_ec && std::filesystem::exists(status) && !std::filesystem::is_regular_file(status)) {
+    std::filesystem::remove_all(path, junk_ec);
+    problem = "not a regular file; removed";
+    return nullptr;
+  }
   std::ifstream f(path, std::ios::binary);
   if (!f) {
     problem = "missing";
@@ -438,9 +459,16 @@ std::unique_ptr<DirectionalTable> load_table(const std::string &path, const Tabl
     }
   }
   const size_t data_end = pos;
-  uint64_t sum = 0;
-  if (!get(&sum, 8) || pos != bytes.size() || sum != fnv1a(bytes.data(), data_end)) {
-    problem = "checksum mismatch (corrupt file)";
+  Digest256 mac{};
+  CacheKey secret;
+  if (const std::string key_problem = cache_secret_key(std::filesystem::path(path).parent_path().string(), secret);
+      !key_problem.empty()) {
+    problem = key_problem;
+    return nullptr;
+  }
+  if (!get(mac.data(), mac.size()) || pos != bytes.size() ||
+      mac != hmac_sha256(secret.data(), secret.size(), bytes.data(), data_end)) {
+    problem = "MAC mismatch (corrupt or crafted file)";
     return nullptr;
   }
   for (const auto &l : table->levels)
@@ -449,6 +477,7 @@ std::unique_ptr<DirectionalTable> load_table(const std::string &path, const Tabl
         problem = "non-finite or negative values";
         return nullptr;
       }
+  if (!plausible_energy(*table, problem)) return nullptr;
   table->loaded_from_cache = true;
   return table;
 }
