@@ -241,7 +241,10 @@ std::unique_ptr<DirectionalTable> build_directional_table(const TableSpec &spec,
       for (int b = 0; b < n; ++b) {
         const double x = 2.0 * (a + 0.5) / n - 1.0, y = 2.0 * (b + 0.5) / n - 1.0;
         double r, phi;
-        if (std::fabs(x) > std::fabs(y)) {
+        if (x == 0.0 && y == 0.0) {  // the centre cell of an odd n: 0/0 below would give NaN angles
+          r = 0.0;
+          phi = 0.0;
+        } else if (std::fabs(x) > std::fabs(y)) {
           r = x;
           phi = (kPiD / 4.0) * (y / x);
         } else {

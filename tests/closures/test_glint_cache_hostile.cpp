@@ -172,5 +172,30 @@ TEST(GlintCacheHostile, CraftedTablesAreRejectedAndJunkIsReplaced) {
   fs::remove_all(root);
 }
 
+// Found while interrupting renders: gamma in (2, 2.5] (and (1, 1.5]) gives an
+// odd concentric disk grid whose centre point had NaN angles, and the table
+// build read outside its slice (SIGSEGV). Now it builds, with finite values.
+TEST(GlintCacheHostile, OddConeGridBuildsWithFiniteValues) {
+  const std::string dir = GLIMMER_TEST_BINARY_DIR "/test_cache_glint_odd_grid";
+  std::filesystem::remove_all(dir);
+  GlimmerHostServices host = *host::default_host_services();
+  host.cache_dir = dir.c_str();
+  host.log = &capture;
+  const GlimmerClosureType &type = closure_type("glint");
+  for (const char *gamma : {"1.25", "2.5"}) {
+    SCOPED_TRACE(gamma);
+    host::ParamList params;
+    params.set_from_text(type, "roughness", "0.45");
+    params.set_from_text(type, "gamma", gamma);
+    host::ClosureInstance c(type, params, &host);
+    Spectrum f;
+    float pdf = 0.0f;
+    c.eval(footprint_context(spherical_dir(30.0, 0.0), 0.5, 0.5, 0.05, 0.0, 0.0, 0.05), spherical_dir(30.0, 180.0), f,
+           pdf);
+    EXPECT_TRUE(std::isfinite(f.x) && std::isfinite(pdf));
+  }
+  std::filesystem::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace glimmer::test
