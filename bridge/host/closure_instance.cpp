@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "glimmer/atomic_file.h"
+#include "scene/parse_number.h"
 
 namespace glimmer::host {
 
@@ -43,11 +44,11 @@ std::vector<float> parse_numbers(const std::string &closure, const std::string &
   while (in >> token) {
     if (token == "true") { out.push_back(1.0f); continue; }
     if (token == "false") { out.push_back(0.0f); continue; }
-    char *end = nullptr;
-    const float v = std::strtof(token.c_str(), &end);
-    if (end == token.c_str() || *end != '\0')
-      throw ClosureError(closure + ": parameter '" + name + "': '" + text + "' is not a number");
-    out.push_back(v);
+    try {
+      out.push_back(scene::parse_float(token));  // strict: junk, overflow, nan/inf are errors
+    } catch (const scene::NumberError &e) {
+      throw ClosureError(closure + ": parameter '" + name + "': " + e.what());
+    }
   }
   return out;
 }

@@ -49,8 +49,7 @@ inline double parse_double(std::string_view token) {
   char *end = nullptr;
   const double v = std::strtod(s.c_str(), &end);
   if (end == s.c_str() || *end != '\0') throw NumberError("'" + s + "' is not a number");
-  if (!std::isfinite(v) || (errno == ERANGE && std::fabs(v) > 1.0))
-    throw NumberError("'" + s + "' is not a finite number (overflow)");
+  if (!std::isfinite(v)) throw NumberError("'" + s + "' is not a finite number");  // nan, inf, overflow
   return v;  // underflow to a denormal or zero is accepted
 }
 

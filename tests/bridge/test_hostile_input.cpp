@@ -421,14 +421,17 @@ TEST(HostileSignals, SigpipeOnProgressIsIgnored) {
 }
 
 // The camera inside a closed white box, 100 bounces per path: one pass at
-// 1000x1000 on one thread takes far longer than the 1 s before SIGINT.
+// 1000x1000 on one thread takes far longer than the 1 s before SIGINT. Half
+// the box is glint, whose table precomputation (an empty cache) takes seconds.
 std::string closed_box_scene() {
   const std::string quad = "nverts=\"4 4 4 4 4 4\" verts=\"0 1 2 3  4 5 6 7  0 1 5 4  2 3 7 6  1 2 6 5  0 3 7 4\"";
   return write_file("closed_box.xml",
                     "<cycles>\n<camera width=\"8\" height=\"8\" />\n"
                     "<integrator min_bounce=\"100\" max_bounce=\"100\" max_diffuse_bounce=\"100\" />\n"
                     "<shader name=\"white\"><diffuse_bsdf name=\"d\" color=\"0.9 0.9 0.9\" />"
-                    "<connect from=\"d bsdf\" to=\"output surface\" /></shader>\n"
+                    "<glint_bsdf name=\"g\" roughness=\"0.45\" gamma=\"2.5\" /><mix_closure name=\"m\" fac=\"0.5\" />"
+                    "<connect from=\"d bsdf\" to=\"m closure1\" /><connect from=\"g bsdf\" to=\"m closure2\" />"
+                    "<connect from=\"m closure\" to=\"output surface\" /></shader>\n"
                     "<state shader=\"white\"><mesh P=\"-5 -5 -5  5 -5 -5  5 5 -5  -5 5 -5  -5 -5 5  5 -5 5  5 5 5  -5 5 5\" " +
                         quad + " /></state>\n<light light_type=\"point\" co=\"1 1 1\" strength=\"100 100 100\" />\n</cycles>\n");
 }
@@ -444,11 +447,14 @@ TEST(HostileSignals, InterruptBeforeTheFirstSampleKeepsTheOldOutput) {
   EXPECT_EQ(r.samples_done, 0);
   EXPECT_THROW(scene::load_scene(sky_scene("cancelled_load.xml", 8), &cancel), scene::LoadCancelled);
 
-  // CLI: SIGINT 1 s into a render whose first pass alone takes far longer
-  // (loading, preparation or the first pass): exit 3, the old image untouched.
+  // CLI: SIGINT 1 s into a render whose table precomputation and first pass
+  // take far longer: exit 3, the old image untouched.
   const auto png = (temp_dir() / "keep.png").string();
   std::ofstream(png) << "the old good image";
-  const std::string cmd = "timeout --preserve-status -s INT 1 '" + std::string(GLIMMER_TEST_CLI_PATH) +
+  const fs::path empty_cache = temp_dir() / "empty_cache";
+  fs::remove_all(empty_cache);
+  const std::string cmd = "GLIMMER_CACHE_DIR=" + quoted(empty_cache.string()) +
+                          " timeout --preserve-status -s INT 1 '" + std::string(GLIMMER_TEST_CLI_PATH) +
                           "' render '" + closed_box_scene() + "' -o '" + png +
                           "' --width 1000 --height 1000 --samples 4 --threads 1 > " +
                           quoted((temp_dir() / "keep.txt").string()) + " 2>&1";
@@ -511,6 +517,44 @@ TEST(HostileOutput, PlantedSymlinksAreNeitherFollowedNorOverwritten) {
   EXPECT_THROW(render::write_image((dir / "folder.png").string(), render_scene(sky_scene("symlink.xml", 8), opt)),
                std::runtime_error);
   EXPECT_TRUE(fs::is_directory(dir / "folder.png"));
+}
+
+// ---- The default cache folder: private, never a shared /tmp folder -------------------
+
+TEST(HostileCache, DefaultCacheIsAPrivateFolderUnderXdgCacheHome) {
+  const fs::path xdg = temp_dir() / "xdg";
+  fs::remove_all(xdg);
+  fs::create_directories(xdg / "glimmer");
+  fs::permissions(xdg / "glimmer", fs::perms::all);  // a world-writable folder left by someone: made private
+  const std::string run = "env -u GLIMMER_CACHE_DIR -u HOME XDG_CACHE_HOME=" + quoted(xdg.string()) + " '" +
+                          std::string(GLIMMER_TEST_CLI_PATH) +
+                          "' lab furnace --closure glint --param roughness=0.5 --param gamma=2 --samples 100 > " +
+                          quoted((temp_dir() / "xdg.txt").string()) + " 2>&1";
+  int status = std::system(run.c_str());
+  EXPECT_EQ(WEXITSTATUS(status), 0);
+  struct stat st {};
+  ASSERT_EQ(0, ::stat((xdg / "glimmer").c_str(), &st));
+  EXPECT_EQ(st.st_mode & 0777, 0700u);
+  int tables = 0;
+  for (const auto &e : fs::directory_iterator(xdg / "glimmer"))
+    if (e.path().filename().string().rfind("glint_P_", 0) == 0) {
+      ++tables;
+      ASSERT_EQ(0, ::stat(e.path().c_str(), &st));
+      EXPECT_EQ(st.st_mode & 0777, 0600u);
+    }
+  EXPECT_EQ(tables, 1);
+  ASSERT_EQ(0, ::stat((xdg / "glimmer" / "secret.key").c_str(), &st));
+  EXPECT_EQ(st.st_mode & 0777, 0600u);
+  // A symlink at the cache folder (someone else's folder): caching is off, with a warning; the run succeeds.
+  fs::remove_all(xdg / "glimmer");
+  fs::create_directories(xdg / "elsewhere");
+  fs::create_directory_symlink(xdg / "elsewhere", xdg / "glimmer");
+  status = std::system(run.c_str());
+  EXPECT_EQ(WEXITSTATUS(status), 0);
+  std::ifstream log(temp_dir() / "xdg.txt");
+  const std::string text((std::istreambuf_iterator<char>(log)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("cache folder unusable"), std::string::npos) << text;
+  EXPECT_TRUE(fs::is_empty(xdg / "elsewhere"));
 }
 
 }  // namespace
