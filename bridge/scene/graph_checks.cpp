@@ -109,7 +109,8 @@ void validate_shader_graph(const ShaderGraph &g) {
     while (!stack.empty()) {
       Frame &top = stack.back();
       if (top.next_source < sources[top.node].size()) {
-        const auto [src, link] = sources[top.node][top.next_source++];
+        const size_t src = sources[top.node][top.next_source].first;
+        const ShaderLink *link = sources[top.node][top.next_source++].second;
         if (state[src] == 1) {
           // Read as "a <- b <- a": a's input comes from b, b's from a.
           std::string cycle;

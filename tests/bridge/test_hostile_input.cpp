@@ -51,6 +51,12 @@ void expect_load_error(const std::string &scene, const std::string &message) {
   }
 }
 
+// Writes the mesh file `mesh_name` and a scene using it; loading must fail with `message`.
+void expect_mesh_error(const std::string &mesh_name, const std::string &mesh, const std::string &message) {
+  write_file(mesh_name, mesh);
+  expect_load_error(write_file(mesh_name + ".xml", "<cycles>\n<mesh src=\"" + mesh_name + "\" />\n</cycles>\n"), message);
+}
+
 std::string nested(const std::string &open, const std::string &close, int depth, const std::string &inner) {
   std::string xml;
   xml.reserve(static_cast<size_t>(depth) * (open.size() + close.size() + 2) + inner.size());
@@ -184,16 +190,12 @@ TEST(HostileFiles, FifoDeviceAndDirectoryAreRefusedWithoutHanging) {
 }
 
 TEST(HostileFiles, PlyElementWithoutPropertiesAndUnknownTypes) {
-  const std::string no_props = write_file("noprops.ply", "ply\nformat ascii 1.0\nelement vertex 1000000000\nend_header\n");
-  expect_load_error(write_file("noprops.xml", "<cycles>\n<mesh src=\"noprops.ply\" />\n</cycles>\n"),
+  expect_mesh_error("noprops.ply", "ply\nformat ascii 1.0\nelement vertex 1000000000\nend_header\n",
                     "element 'vertex' has no properties");
-  write_file("f128.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float128 x\nend_header\n0\n0\n0\n");
-  expect_load_error(write_file("f128.xml", "<cycles>\n<mesh src=\"f128.ply\" />\n</cycles>\n"),
+  expect_mesh_error("f128.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float128 x\nend_header\n0\n0\n0\n",
                     "property type 'float128' not supported");
-  write_file("badcount.ply", "ply\nformat ascii 1.0\nelement vertex 3x\nproperty float x\nend_header\n");
-  expect_load_error(write_file("badcount.xml", "<cycles>\n<mesh src=\"badcount.ply\" />\n</cycles>\n"),
+  expect_mesh_error("badcount.ply", "ply\nformat ascii 1.0\nelement vertex 3x\nproperty float x\nend_header\n",
                     "'3x' is not a number");
-  (void)no_props;
 }
 
 // ---- Size-bomb image: the header is checked against the pixel budget -----------
@@ -308,11 +310,9 @@ TEST(HostileNumbers, SceneNumbersAreStrict) {
 }
 
 TEST(HostileNumbers, ObjFaceIndicesAreStrict) {
-  write_file("junk_face.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1abc 2 3\n");
-  expect_load_error(write_file("junk_face.xml", "<cycles>\n<mesh src=\"junk_face.obj\" />\n</cycles>\n"),
+  expect_mesh_error("junk_face.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1abc 2 3\n",
                     "junk_face.obj:4: 'f' line: '1abc' is not a number");
-  write_file("junk_vertex.obj", "v 0 0 0x\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
-  expect_load_error(write_file("junk_vertex.xml", "<cycles>\n<mesh src=\"junk_vertex.obj\" />\n</cycles>\n"),
+  expect_mesh_error("junk_vertex.obj", "v 0 0 0x\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
                     "junk_vertex.obj:1: 'v' line: '0x' is not a number");
   write_file("good.obj", "v 0 0 3\nv 1 0 3\nv 0 1 3\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2/1 -1//1\n");
   EXPECT_EQ(scene::load_scene(write_file("good_obj.xml", "<cycles>\n<mesh src=\"good.obj\" />\n</cycles>\n")).meshes.size(),

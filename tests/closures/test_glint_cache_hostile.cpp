@@ -79,6 +79,22 @@ void scale_levels(std::vector<char> &bytes, int first, int last, float factor) {
 
 // The MAC's building blocks against published test vectors (FIPS 180-4
 // examples, RFC 4231 test case 2).
+// Host services caching in `dir` and logging to g_messages.
+GlimmerHostServices host_caching_in(const std::string &dir) {
+  GlimmerHostServices host = *host::default_host_services();
+  host.cache_dir = dir.c_str();
+  host.log = &capture;
+  return host;
+}
+
+// A glint closure's parameters.
+host::ParamList glint_params(const char *roughness, const char *gamma) {
+  host::ParamList params;
+  params.set_from_text(closure_type("glint"), "roughness", roughness);
+  params.set_from_text(closure_type("glint"), "gamma", gamma);
+  return params;
+}
+
 TEST(GlintCacheHostile, Sha256AndHmacMatchPublishedVectors) {
   EXPECT_EQ(to_hex(sha256("abc", 3)), "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad");
   const std::string million(1000000, 'a');  // FIPS 180-2 appendix B.3: many blocks
@@ -97,13 +113,9 @@ TEST(GlintCacheHostile, CraftedTablesAreRejectedAndJunkIsReplaced) {
   const fs::path root = fs::path(GLIMMER_TEST_BINARY_DIR) / "test_cache_glint_hostile";
   fs::remove_all(root);
   const std::string dir = (root / "nested" / "glimmer").string();
-  GlimmerHostServices host = *host::default_host_services();
-  host.cache_dir = dir.c_str();
-  host.log = &capture;
+  const GlimmerHostServices host = host_caching_in(dir);
   const GlimmerClosureType &type = closure_type("glint");
-  host::ParamList params;
-  params.set_from_text(type, "roughness", "0.4");
-  params.set_from_text(type, "gamma", "2");
+  const host::ParamList params = glint_params("0.4", "2");
   const Vec3 wi = spherical_dir(30.0, 0.0), wo = spherical_dir(32.0, 175.0);
   const GlimmerShadingContext ctx = footprint_context(wi, 0.5, 0.5, 0.05, 0.0, 0.0, 0.05);
   auto eval_now = [&] {
@@ -178,16 +190,10 @@ TEST(GlintCacheHostile, CraftedTablesAreRejectedAndJunkIsReplaced) {
 TEST(GlintCacheHostile, OddConeGridBuildsWithFiniteValues) {
   const std::string dir = GLIMMER_TEST_BINARY_DIR "/test_cache_glint_odd_grid";
   std::filesystem::remove_all(dir);
-  GlimmerHostServices host = *host::default_host_services();
-  host.cache_dir = dir.c_str();
-  host.log = &capture;
-  const GlimmerClosureType &type = closure_type("glint");
+  const GlimmerHostServices host = host_caching_in(dir);
   for (const char *gamma : {"1.25", "2.5"}) {
     SCOPED_TRACE(gamma);
-    host::ParamList params;
-    params.set_from_text(type, "roughness", "0.45");
-    params.set_from_text(type, "gamma", gamma);
-    host::ClosureInstance c(type, params, &host);
+    host::ClosureInstance c(closure_type("glint"), glint_params("0.45", gamma), &host);
     Spectrum f;
     float pdf = 0.0f;
     c.eval(footprint_context(spherical_dir(30.0, 0.0), 0.5, 0.5, 0.05, 0.0, 0.0, 0.05), spherical_dir(30.0, 180.0), f,
