@@ -8,6 +8,7 @@
 #include <csignal>
 #include <cstdio>
 #include <iostream>
+#include <new>
 #include <sstream>
 
 #include "cli/commands.h"
@@ -132,12 +133,21 @@ int render_one(CliContext &ctx, const RenderArgs &a, const std::string &scene_pa
   } catch (const scene::SceneError &e) {
     for (const auto &w : scene.warnings) std::fprintf(stderr, "%s\n", w.c_str());
     throw CliError(kExitBadInput, e.what());
+  } catch (const std::bad_alloc &) {
+    throw CliError(kExitBadInput, "out of memory preparing '" + scene_path + "' (geometry, textures, tables)");
   }
   for (const auto &w : scene.warnings) std::fprintf(stderr, "%s\n", w.c_str());
   for (const auto &w : renderer->warnings()) std::fprintf(stderr, "%s\n", w.c_str());
 
   const bool tty = ::isatty(STDOUT_FILENO) != 0;
-  const auto result = renderer->render([&](int done, int total) { print_progress(done, total, tty, a.quiet); });
+  render::RenderResult result;
+  try {
+    result = renderer->render([&](int done, int total) { print_progress(done, total, tty, a.quiet); });
+  } catch (const std::bad_alloc &) {
+    throw CliError(kExitBadInput, "out of memory for the image buffers of '" + scene_path + "' (" +
+                                      std::to_string(opt.width > 0 ? opt.width : scene.camera.width) + "x" +
+                                      std::to_string(opt.height > 0 ? opt.height : scene.camera.height) + ")");
+  }
   if (tty && !a.quiet && result.samples_done < result.samples_requested) std::printf("\n");
   if (result.interrupted && result.samples_done == 0)
     throw CliError(kExitInterrupted, "interrupted before the first sample; '" + output + "' left unchanged");
