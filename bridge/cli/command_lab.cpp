@@ -20,6 +20,7 @@
 #include "cli/json_number.h"
 #include "host/closure_instance.h"
 #include "lab/closure_lab.h"
+#include "render/image_output.h"
 #include "scene/parse_number.h"
 
 namespace glimmer::cli {
@@ -261,6 +262,11 @@ void add_lab_command(CLI::App &app, CliContext &ctx) {
       [](const LabSetup &s, const LabOptions &o) {
         if (o.width < 8 || o.height < 4 || o.width > 8192 || o.height > 8192)
           throw CliError(kExitBadInput, "--width must be in [8, 8192] and --height in [4, 8192]");
+        try {
+          render::check_output_path(o.output);  // before the sampling work
+        } catch (const std::exception &e) {
+          throw CliError(kExitBadInput, e.what());
+        }
         lab::PlotOptions options;
         options.width = o.width;
         options.height = o.height;
