@@ -5,6 +5,10 @@
 #include <sys/stat.h>
 #include <sys/types.h>
 #include <sys/wait.h>
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <csignal>
 
 #include <fstream>
 #include <random>
@@ -447,19 +451,39 @@ TEST(HostileSignals, InterruptBeforeTheFirstSampleKeepsTheOldOutput) {
   EXPECT_EQ(r.samples_done, 0);
   EXPECT_THROW(scene::load_scene(sky_scene("cancelled_load.xml", 8), &cancel), scene::LoadCancelled);
 
-  // CLI: SIGINT 1 s into a render whose table precomputation and first pass
-  // take far longer: exit 3, the old image untouched.
+  // CLI: SIGINT once the process has installed its handler (seen in
+  // /proc/PID/status, so a slow start-up cannot make this test flaky), then
+  // 0.5 s later: in the glint table precomputation (empty cache: seconds) or
+  // loading; the first pass alone takes far longer. Exit 3, old image untouched.
   const auto png = (temp_dir() / "keep.png").string();
   std::ofstream(png) << "the old good image";
   const fs::path empty_cache = temp_dir() / "empty_cache";
   fs::remove_all(empty_cache);
-  const std::string cmd = "GLIMMER_CACHE_DIR=" + quoted(empty_cache.string()) +
-                          " timeout --preserve-status -s INT 1 '" + std::string(GLIMMER_TEST_CLI_PATH) +
-                          "' render '" + closed_box_scene() + "' -o '" + png +
-                          "' --width 1000 --height 1000 --samples 4 --threads 1 > " +
-                          quoted((temp_dir() / "keep.txt").string()) + " 2>&1";
-  const int status = std::system(cmd.c_str());
-  ASSERT_TRUE(WIFEXITED(status));
+  const std::string scene = closed_box_scene(), log_path = (temp_dir() / "keep.txt").string();
+  const pid_t pid = ::fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    const int fd = ::open(log_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    ::dup2(fd, 1);
+    ::dup2(fd, 2);
+    ::setenv("GLIMMER_CACHE_DIR", empty_cache.c_str(), 1);
+    ::execl(GLIMMER_TEST_CLI_PATH, GLIMMER_TEST_CLI_PATH, "render", scene.c_str(), "-o", png.c_str(), "--width",
+            "1000", "--height", "1000", "--samples", "4", "--threads", "1", static_cast<char *>(nullptr));
+    ::_exit(127);
+  }
+  auto catches_sigint = [pid] {
+    std::ifstream status("/proc/" + std::to_string(pid) + "/status");
+    std::string line;
+    while (std::getline(status, line))
+      if (line.rfind("SigCgt:", 0) == 0) return ((std::stoull(line.substr(7), nullptr, 16) >> (SIGINT - 1)) & 1) != 0;
+    return false;
+  };
+  for (int i = 0; i < 6000 && !catches_sigint(); ++i) ::usleep(10000);
+  ::usleep(500000);
+  ::kill(pid, SIGINT);
+  int status = 0;
+  ASSERT_EQ(::waitpid(pid, &status, 0), pid);
+  ASSERT_TRUE(WIFEXITED(status)) << "killed by signal " << WTERMSIG(status);
   EXPECT_EQ(WEXITSTATUS(status), 3);
   std::ifstream log(temp_dir() / "keep.txt");
   const std::string text((std::istreambuf_iterator<char>(log)), std::istreambuf_iterator<char>());
