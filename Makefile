@@ -4,7 +4,13 @@ BUILD ?= build
 JOBS ?= $(shell nproc)
 CMAKE_FLAGS ?=
 
-.PHONY: all deps configure build demo test stress bench addon clean
+SANITIZE_BUILD ?= build-sanitize
+FUZZ_BUILD ?= build-fuzz
+FUZZ_SECONDS ?= 600
+FUZZ_RUNS ?= 1000000
+FUZZ_TARGETS = fuzz_xml_loader fuzz_obj_reader fuzz_ply_reader fuzz_closure_params
+
+.PHONY: all deps configure build demo test stress bench addon clean sanitize fuzz
 
 all: build
 
@@ -31,8 +37,22 @@ stress: build
 bench: build
 	$(BUILD)/glimmer_benchmarks --benchmark_counters_tabular=true
 
+# ASan + UBSan build in its own folder; runs the fast tests (no stress, no Blender).
+sanitize: deps
+	@cmake -S . -B $(SANITIZE_BUILD) -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DGLIMMER_SANITIZE=ON > $(SANITIZE_BUILD).configure.log 2>&1 || (cat $(SANITIZE_BUILD).configure.log; exit 1)
+	@cmake --build $(SANITIZE_BUILD) -j $(JOBS)
+	cd $(SANITIZE_BUILD) && ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
+	  ctest --output-on-failure -j $(JOBS) -LE "stress|addon"
+
+# libFuzzer targets (clang, ASan + UBSan), each run for FUZZ_RUNS executions, at most FUZZ_SECONDS
+# (tools/run_fuzz.sh prints executions, crashes, hangs > 5 s and sanitizer reports per target).
+fuzz: deps
+	@CC=clang CXX=clang++ cmake -S . -B $(FUZZ_BUILD) -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DGLIMMER_FUZZ=ON -DBUILD_TESTING=OFF > $(FUZZ_BUILD).configure.log 2>&1 || (cat $(FUZZ_BUILD).configure.log; exit 1)
+	@cmake --build $(FUZZ_BUILD) -j $(JOBS) --target $(FUZZ_TARGETS)
+	bash tools/run_fuzz.sh $(FUZZ_BUILD) $(FUZZ_SECONDS) $(FUZZ_RUNS)
+
 addon:
 	@python3 tools/make_addon_zip.py
 
 clean:
-	rm -rf $(BUILD) $(BUILD).configure.log
+	rm -rf $(BUILD) $(BUILD).configure.log $(SANITIZE_BUILD) $(SANITIZE_BUILD).configure.log $(FUZZ_BUILD) $(FUZZ_BUILD).configure.log

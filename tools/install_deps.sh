@@ -8,6 +8,7 @@ packages=(
   libembree-dev libopenimageio-dev openimageio-tools libtbb-dev libopenvdb-dev
   libpugixml-dev libeigen3-dev libcli11-dev nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev
+  clang libclang-rt-14-dev
   python3 python3-numpy python3-pytest
   blender
   slurm-wlm slurmctld slurmd slurm-client munge

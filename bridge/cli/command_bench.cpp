@@ -15,8 +15,11 @@
 #include <OpenImageIO/imagebufalgo.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -29,6 +32,8 @@
 #include "cli/commands.h"
 #include "render/convergence.h"
 #include "scene/xml_loader.h"
+#include "glimmer/atomic_file.h"
+#include "render/image_output.h"
 
 namespace glimmer::cli {
 namespace {
@@ -194,7 +199,9 @@ void write_plot(const std::string &path, const std::vector<Row> &rows, const std
   OIIO::ImageBufAlgo::render_text(img, L, H - 20, label, 14, font, black);
   std::snprintf(label, sizeof(label), "RMSE %.3g .. %.3g (log)", std::pow(10.0, e0), std::pow(10.0, e1));
   OIIO::ImageBufAlgo::render_text(img, 10, 20, label, 14, font, black);
-  if (!img.write(path)) throw CliError(kExitBadInput, "cannot write " + path);
+  OIIO::ImageBuf bytes;  // 8-bit PNG, written through the one atomic writer
+  if (!bytes.copy(img, OIIO::TypeDesc::UINT8)) throw CliError(kExitBadInput, "cannot write " + path);
+  render::write_image_file(path, bytes.spec(), bytes.localpixels());
 }
 
 // Time a method needs to reach `target` RMSE (log-log interpolation; <0 if never).
@@ -248,8 +255,11 @@ void run(const BenchArgs &a, CliContext &ctx) {
   for (const auto &s : split(a.ladder, ',')) ladder.push_back(std::stoi(s));
   const std::string exe = self_path();
   const std::filesystem::path scene_dir = std::filesystem::absolute(a.scene).parent_path();
-  const std::filesystem::path work = std::filesystem::temp_directory_path() / ("glimmer_bench_" + std::to_string(getpid()));
-  std::filesystem::create_directories(work);
+  // A fresh private folder with a random name (mkdtemp: 0700, never an existing one).
+  std::string work_template = (std::filesystem::temp_directory_path() / "glimmer_bench_XXXXXX").string();
+  if (::mkdtemp(work_template.data()) == nullptr)
+    throw CliError(kExitBadInput, "cannot create a temporary folder: " + std::string(std::strerror(errno)));
+  const std::filesystem::path work = work_template;
   std::filesystem::create_directories(a.out_dir);
   // Variant scenes are written beside the scene so relative assets resolve;
   // they and the work folder are removed however this function exits.
@@ -266,7 +276,8 @@ void run(const BenchArgs &a, CliContext &ctx) {
   const Cleanup cleanup{scenes, work};
   auto variant = [&](const std::string &method) {
     const std::string p = (scene_dir / (".bench_" + method + ".xml")).string();
-    std::ofstream(p) << rewrite_scene(text, method);
+    if (const std::string problem = write_file_atomically(p, rewrite_scene(text, method)); !problem.empty())
+      throw CliError(kExitBadInput, problem);
     return p;
   };
   for (const auto &m : methods) scenes[m] = variant(m);
@@ -295,9 +306,11 @@ void run(const BenchArgs &a, CliContext &ctx) {
     }
 
   const std::string csv = (std::filesystem::path(a.out_dir) / (a.name + ".csv")).string();
-  std::ofstream f(csv);
-  f << "method,samples,seconds,rmse\n";
-  for (const auto &r : rows) f << r.method << "," << r.samples << "," << r.seconds << "," << r.error << "\n";
+  std::ostringstream table;
+  table << "method,samples,seconds,rmse\n";
+  for (const auto &r : rows) table << r.method << "," << r.samples << "," << r.seconds << "," << r.error << "\n";
+  if (const std::string problem = write_file_atomically(csv, table.str()); !problem.empty())
+    throw CliError(kExitBadInput, problem);
   const std::string png = (std::filesystem::path(a.out_dir) / (a.name + ".png")).string();
   write_plot(png, rows, methods);
   std::printf("wrote %s and %s\n", csv.c_str(), png.c_str());

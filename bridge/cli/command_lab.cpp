@@ -20,6 +20,8 @@
 #include "cli/json_number.h"
 #include "host/closure_instance.h"
 #include "lab/closure_lab.h"
+#include "render/image_output.h"
+#include "scene/parse_number.h"
 
 namespace glimmer::cli {
 
@@ -41,24 +43,21 @@ struct LabOptions {
   int height = 256;
 };
 
+// --wi x,y,z: three strict numbers (parse_number.h), a direction of length in
+// [1e-6, 1e6] (a huge or tiny vector would under/overflow when normalised).
 Vec3 parse_direction(const std::string &text) {
-  std::string t = text;
-  for (char &c : t)
-    if (c == ',') c = ' ';
-  std::istringstream in(t);
   std::vector<float> v;
-  std::string token;
-  while (in >> token) {
-    char *end = nullptr;
-    const float x = std::strtof(token.c_str(), &end);
-    if (end == token.c_str() || *end != '\0' || !std::isfinite(x))
-      throw CliError(kExitBadInput, "--wi '" + text + "': '" + token + "' is not a finite number");
-    v.push_back(x);
+  try {
+    v = scene::parse_float_list(text);
+  } catch (const scene::NumberError &e) {
+    throw CliError(kExitBadInput, "--wi '" + text + "': " + e.what());
   }
   if (v.size() != 3) throw CliError(kExitBadInput, "--wi '" + text + "' must be three numbers x,y,z");
-  const Vec3 w(v[0], v[1], v[2]);
-  if (!(length(w) > 0.0f)) throw CliError(kExitBadInput, "--wi '" + text + "' must not be the zero vector");
-  return normalize(w);
+  const double len = std::sqrt(double(v[0]) * v[0] + double(v[1]) * v[1] + double(v[2]) * v[2]);
+  if (!(len >= 1e-6 && len <= 1e6))
+    throw CliError(kExitBadInput, "--wi '" + text + "': length must be in [1e-6, 1e6] (a direction; zero, huge " +
+                                      "and tiny vectors are refused)");
+  return normalize(Vec3(v[0], v[1], v[2]));
 }
 
 uint64_t positive_count(double value, const char *option) {
@@ -88,6 +87,8 @@ LabSetup make_setup(CliContext &cli, const LabOptions &o) {
   for (const auto &assignment : o.params) {
     params.set_assignment(*type, assignment);  // ClosureError -> exit 1
     const auto eq = assignment.find('=');
+    if (param_json.contains(assignment.substr(0, eq)))
+      throw CliError(kExitBadInput, "--param " + assignment.substr(0, eq) + " given more than once");
     param_json[assignment.substr(0, eq)] = assignment.substr(eq + 1);
   }
   LabSetup setup;
@@ -155,7 +156,8 @@ void add_lab_command(CLI::App &app, CliContext &ctx) {
       },
       [](const LabSetup &s, const LabOptions &o) {
         if (o.test_count < 1) throw CliError(kExitBadInput, "--test-count must be >= 1");
-        if (o.theta_bins < 2 || o.theta_bins % 2 || o.phi_bins < 1 || o.theta_bins * o.phi_bins > 4000000)
+        if (o.theta_bins < 2 || o.theta_bins % 2 || o.phi_bins < 1 ||
+            static_cast<int64_t>(o.theta_bins) * o.phi_bins > lab::kMaxChi2Cells)
           throw CliError(kExitBadInput, "--theta-bins must be even and >= 2, --phi-bins >= 1 (at most 4e6 cells)");
         lab::Chi2Options options;
         options.samples = positive_count(o.samples, "--samples");
@@ -260,6 +262,11 @@ void add_lab_command(CLI::App &app, CliContext &ctx) {
       [](const LabSetup &s, const LabOptions &o) {
         if (o.width < 8 || o.height < 4 || o.width > 8192 || o.height > 8192)
           throw CliError(kExitBadInput, "--width must be in [8, 8192] and --height in [4, 8192]");
+        try {
+          render::check_output_path(o.output);  // before the sampling work
+        } catch (const std::exception &e) {
+          throw CliError(kExitBadInput, e.what());
+        }
         lab::PlotOptions options;
         options.width = o.width;
         options.height = o.height;

@@ -20,12 +20,13 @@
 #include <array>
 #include <chrono>
 #include <cstdio>
-#include <fstream>
+#include <filesystem>
 #include <sstream>
 #include <string>
 #include <vector>
 
 #include "cli/commands.h"
+#include "glimmer/atomic_file.h"
 #include "glimmer/microfacet_energy_grid.h"
 #include "glimmer/microfacet_walk.h"
 #include "glimmer/rng.h"
@@ -90,6 +91,14 @@ struct EnergyOptions {
 
 int run_energy(const EnergyOptions &opt, const std::string &command_line) {
   if (opt.strata < 2 || opt.walks < 16) throw CliError(kExitBadInput, "--strata must be >= 2 and --walks >= 16");
+  {  // before the (long) computation: the output folder must exist
+    const std::filesystem::path target(opt.output);
+    const std::filesystem::path dir = target.has_parent_path() ? target.parent_path() : ".";
+    std::error_code ec;
+    if (!std::filesystem::is_directory(dir, ec))
+      throw CliError(kExitBadInput, "cannot write --output '" + opt.output + "': folder '" + dir.string() +
+                                        "' does not exist");
+  }
   const auto start = std::chrono::steady_clock::now();
   constexpr int nm = grid::kMuCount, na = grid::kAlphaCount, ne = grid::kEtaCount;
   // Grazing cells (mu < 0.1) have the largest weight variance: twice the strata per axis.
@@ -177,15 +186,8 @@ int run_energy(const EnergyOptions &opt, const std::string &command_line) {
   write_rows(out, Ginvavg.data(), Ginvavg.size(), na);
   out << "};\n\n}  // namespace glimmer::tables\n";
 
-  const std::string tmp = opt.output + ".tmp";
-  {
-    std::ofstream file(tmp, std::ios::binary);
-    if (!file) throw CliError(kExitBadInput, "cannot write --output '" + opt.output + "'");
-    file << out.str();
-    if (!file.good()) throw CliError(kExitBadInput, "failed writing '" + tmp + "'");
-  }
-  if (std::rename(tmp.c_str(), opt.output.c_str()) != 0)
-    throw CliError(kExitBadInput, "cannot move '" + tmp + "' to '" + opt.output + "'");
+  if (const std::string problem = write_file_atomically(opt.output, out.str()); !problem.empty())
+    throw CliError(kExitBadInput, "cannot write --output: " + problem);
   std::printf("wrote %s (%zu bytes) in %.1f s\n", opt.output.c_str(), out.str().size(), seconds);
   return kExitOk;
 }

@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <new>
 #include <optional>
 #include <sstream>
 
@@ -24,7 +25,21 @@ namespace {
 
 std::atomic<bool> g_interrupted{false};
 
-extern "C" void on_signal(int) { g_interrupted.store(true); }
+// The first SIGINT/SIGTERM asks loading, preparation and rendering to stop;
+// a second one terminates at once (the default action).
+extern "C" void on_signal(int sig) {
+  g_interrupted.store(true);
+  std::signal(sig, SIG_DFL);
+}
+
+}  // namespace
+
+void install_render_interrupt_handlers() {
+  std::signal(SIGINT, on_signal);
+  std::signal(SIGTERM, on_signal);
+}
+
+namespace {
 
 struct RenderArgs {
   std::string scene, output, region, frames, strategy = "mis";
@@ -97,9 +112,16 @@ int render_one(CliContext &ctx, const RenderArgs &a, const std::string &scene_pa
   using Clock = std::chrono::steady_clock;
   auto t0 = Clock::now();
   auto since = [](Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); };
+  try {
+    render::check_output_path(output);  // before any work: a bad output must not cost a render
+  } catch (const std::exception &e) {
+    throw CliError(kExitBadInput, e.what());
+  }
   scene::Scene scene;
   try {
-    scene = scene::load_scene(scene_path);
+    scene = scene::load_scene(scene_path, &g_interrupted);
+  } catch (const scene::LoadCancelled &e) {
+    throw CliError(kExitInterrupted, std::string(e.what()) + "; '" + output + "' left unchanged");
   } catch (const scene::SceneError &e) {
     throw CliError(kExitBadInput, e.what());
   }
@@ -148,6 +170,8 @@ int render_one(CliContext &ctx, const RenderArgs &a, const std::string &scene_pa
     throw CliError(kExitBadInput, e.what());
   } catch (const std::invalid_argument &e) {
     throw CliError(kExitBadInput, e.what());
+  } catch (const std::bad_alloc &) {
+    throw CliError(kExitBadInput, "out of memory preparing '" + scene_path + "' (geometry, textures, tables)");
   }
   std::optional<render::Film> resumed;
   if (a.resume && std::filesystem::exists(checkpoint)) {
@@ -161,12 +185,21 @@ int render_one(CliContext &ctx, const RenderArgs &a, const std::string &scene_pa
 
   const bool tty = ::isatty(STDOUT_FILENO) != 0;
   const auto render_start = Clock::now();
-  const auto result = renderer->render(
-      [&](int done, int total) {
-        print_progress(done, total, tty, a.quiet, a.progress_format, frame, since(render_start));
-      },
-      resumed ? &*resumed : nullptr);
+  render::RenderResult result;
+  try {
+    result = renderer->render(
+        [&](int done, int total) {
+          print_progress(done, total, tty, a.quiet, a.progress_format, frame, since(render_start));
+        },
+        resumed ? &*resumed : nullptr);
+  } catch (const std::bad_alloc &) {
+    throw CliError(kExitBadInput, "out of memory for the image buffers of '" + scene_path + "' (" +
+                                      std::to_string(opt.width > 0 ? opt.width : scene.camera.width) + "x" +
+                                      std::to_string(opt.height > 0 ? opt.height : scene.camera.height) + ")");
+  }
   if (tty && !a.quiet && result.samples_done < result.samples_requested) std::printf("\n");
+  if (result.interrupted && result.samples_done == 0)
+    throw CliError(kExitInterrupted, "interrupted before the first sample; '" + output + "' left unchanged");
   t0 = Clock::now();
   try {
     render::write_image(output, result);
@@ -251,8 +284,9 @@ void add_render_command(CLI::App &app, CliContext &ctx) {
   cmd->add_flag("--quiet", args->quiet, "no progress output");
   cmd->add_flag("--stats", args->stats, "print the feature set and the time per phase");
   cmd->callback([&ctx, args] {
-    std::signal(SIGINT, on_signal);
-    std::signal(SIGTERM, on_signal);
+    install_render_interrupt_handlers();  // again: main() installs them only when it sees "render"
+    if (g_interrupted.load())
+      throw CliError(kExitInterrupted, "interrupted before loading; '" + args->output + "' left unchanged");
     std::unique_ptr<tbb::global_control> threads;
     if (args->threads > 0)
       threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,

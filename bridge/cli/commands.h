@@ -38,6 +38,11 @@ struct CliContext {
   std::unique_ptr<host::PluginLibrary> library;
 };
 
+// SIGINT/SIGTERM set the render's cancel flag (a second signal terminates).
+// main() installs them before parsing when the command line is a render, so
+// an interrupt is honoured from the first instruction.
+void install_render_interrupt_handlers();
+
 void add_describe_command(CLI::App &app, CliContext &ctx);
 void add_lab_command(CLI::App &app, CliContext &ctx);
 void add_render_command(CLI::App &app, CliContext &ctx);

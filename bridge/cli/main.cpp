@@ -1,12 +1,20 @@
 // glimmer: the command-line host. Sub-commands are in cli/command_*.cpp.
+#include <csignal>
 #include <cstdio>
 #include <exception>
+#include <new>
+#include <string_view>
 
 #include "cli/commands.h"
 #include "host/closure_instance.h"
 
 int main(int argc, char **argv) {
   using namespace glimmer;
+  // A reader of our progress output that goes away must not kill the render:
+  // writes to the closed pipe fail with EPIPE and are ignored.
+  std::signal(SIGPIPE, SIG_IGN);
+  for (int i = 1; i < argc; ++i)
+    if (std::string_view(argv[i]) == "render") cli::install_render_interrupt_handlers();
   CLI::App app{"Glimmer: glint and rough-refraction closures in a Cycles-style path tracer"};
   app.require_subcommand(1);
   // Global options such as --plugin may also follow the sub-command
@@ -36,6 +44,9 @@ int main(int argc, char **argv) {
     return e.code();
   } catch (const host::ClosureError &e) {
     std::fprintf(stderr, "glimmer: error: %s\n", e.what());
+    return cli::kExitBadInput;
+  } catch (const std::bad_alloc &) {
+    std::fprintf(stderr, "glimmer: error: out of memory\n");
     return cli::kExitBadInput;
   } catch (const std::exception &e) {
     std::fprintf(stderr, "glimmer: error: %s\n", e.what());

@@ -1,10 +1,16 @@
 #include "host/closure_instance.h"
 
 #include <cmath>
+#include <pwd.h>
+#include <unistd.h>
+
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <sstream>
+
+#include "glimmer/atomic_file.h"
+#include "scene/parse_number.h"
 
 namespace glimmer::host {
 
@@ -95,11 +101,11 @@ std::vector<float> parse_numbers(const std::string &closure, const std::string &
   while (in >> token) {
     if (token == "true") { out.push_back(1.0f); continue; }
     if (token == "false") { out.push_back(0.0f); continue; }
-    char *end = nullptr;
-    const float v = std::strtof(token.c_str(), &end);
-    if (end == token.c_str() || *end != '\0')
-      throw ClosureError(closure + ": parameter '" + name + "': '" + text + "' is not a number");
-    out.push_back(v);
+    try {
+      out.push_back(scene::parse_float(token));  // strict: junk, overflow, nan/inf are errors
+    } catch (const scene::NumberError &e) {
+      throw ClosureError(closure + ": parameter '" + name + "': " + e.what());
+    }
   }
   return out;
 }
@@ -173,11 +179,27 @@ void log_to_stderr(void *, int level, const char *message) {
   std::fprintf(stderr, "glimmer: %s: %s\n", names[l], message);
 }
 
+// $GLIMMER_CACHE_DIR, else $XDG_CACHE_HOME/glimmer, else ~/.cache/glimmer
+// (home from $HOME or the password database); never a shared /tmp folder.
+// The folder is made private (0700, ours); "" disables the cache with a warning.
 std::string default_cache_dir() {
-  if (const char *d = std::getenv("GLIMMER_CACHE_DIR"); d && *d) return d;
-  if (const char *x = std::getenv("XDG_CACHE_HOME"); x && *x) return std::string(x) + "/glimmer";
-  if (const char *h = std::getenv("HOME"); h && *h) return std::string(h) + "/.cache/glimmer";
-  return (std::filesystem::temp_directory_path() / "glimmer-cache").string();
+  std::string dir;
+  if (const char *d = std::getenv("GLIMMER_CACHE_DIR"); d && *d) dir = d;
+  else if (const char *x = std::getenv("XDG_CACHE_HOME"); x && *x == '/') dir = std::string(x) + "/glimmer";
+  else if (const char *h = std::getenv("HOME"); h && *h == '/') dir = std::string(h) + "/.cache/glimmer";
+  else if (const passwd *pw = ::getpwuid(::geteuid()); pw && pw->pw_dir && *pw->pw_dir == '/')
+    dir = std::string(pw->pw_dir) + "/.cache/glimmer";
+  if (dir.empty()) {
+    std::fprintf(stderr, "glimmer: warning: no cache folder (no XDG_CACHE_HOME, HOME or home directory); "
+                         "precomputed tables are not cached\n");
+    return {};
+  }
+  if (const std::string problem = ensure_private_directory(dir); !problem.empty()) {
+    std::fprintf(stderr, "glimmer: warning: cache folder unusable (%s); precomputed tables are not cached\n",
+                 problem.c_str());
+    return {};
+  }
+  return dir;
 }
 
 }  // namespace

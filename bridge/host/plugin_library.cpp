@@ -3,6 +3,7 @@
 #include "host/closure_instance.h"
 
 #include <dlfcn.h>
+#include <elf.h>
 #include <unistd.h>
 
 #include <cstddef>
@@ -10,6 +11,8 @@
 #include <cstring>
 #include <filesystem>
 #include <sstream>
+
+#include "scene/input_file.h"
 
 namespace glimmer::host {
 
@@ -31,12 +34,58 @@ bool abi_compatible(uint32_t plugin_version, uint32_t host_version) {
          GLIMMER_ABI_VERSION_MINOR(plugin_version) <= GLIMMER_ABI_VERSION_MINOR(host_version);
 }
 
+std::string elf_problem(const std::string &path) {
+  uint64_t size = 0;
+  const std::string problem = scene::regular_file_problem(path, &size);
+  if (!problem.empty()) return problem;
+  std::string bytes;
+  try {
+    // Headers only: the ELF header, then the program headers it points to.
+    bytes = scene::read_regular_file(path, uint64_t{1} << 31, "closure plugin");
+  } catch (const std::exception &e) {
+    return e.what();
+  }
+  Elf64_Ehdr eh{};
+  if (bytes.size() < sizeof(eh)) return "too short to be a shared library (" + std::to_string(bytes.size()) + " bytes)";
+  std::memcpy(&eh, bytes.data(), sizeof(eh));
+  if (std::memcmp(eh.e_ident, ELFMAG, SELFMAG) != 0) return "not an ELF file";
+  if (eh.e_ident[EI_CLASS] != ELFCLASS64 || eh.e_ident[EI_DATA] != ELFDATA2LSB)
+    return "not a 64-bit little-endian ELF file";
+  if (eh.e_type != ET_DYN) return "not a shared library (ELF type " + std::to_string(eh.e_type) + ")";
+#if defined(__x86_64__)
+  if (eh.e_machine != EM_X86_64) return "built for another CPU (ELF machine " + std::to_string(eh.e_machine) + ")";
+#elif defined(__aarch64__)
+  if (eh.e_machine != EM_AARCH64) return "built for another CPU (ELF machine " + std::to_string(eh.e_machine) + ")";
+#endif
+  auto within = [&](uint64_t offset, uint64_t count, uint64_t entry) {
+    return entry != 0 && offset <= size && count <= (size - offset) / entry;
+  };
+  if (eh.e_phentsize != sizeof(Elf64_Phdr) || !within(eh.e_phoff, eh.e_phnum, eh.e_phentsize))
+    return "program headers lie outside the file (truncated?)";
+  if (eh.e_shnum != 0 && !within(eh.e_shoff, eh.e_shnum, eh.e_shentsize))
+    return "section headers lie outside the file (truncated?)";
+  for (unsigned i = 0; i < eh.e_phnum; ++i) {
+    Elf64_Phdr ph{};
+    std::memcpy(&ph, bytes.data() + eh.e_phoff + i * sizeof(ph), sizeof(ph));
+    if (ph.p_type == PT_LOAD && (ph.p_offset > size || ph.p_filesz > size - ph.p_offset))
+      return "a loadable segment lies outside the file (truncated: " + std::to_string(size) + " bytes)";
+  }
+  return {};
+}
+
 std::unique_ptr<PluginLibrary> PluginLibrary::load(const std::string &path_in) {
   fs::path path(path_in);
   std::error_code ec;
   if (fs::is_directory(path, ec)) path /= kLibraryFileName;
   if (!fs::exists(path, ec))
     throw PluginError("closure plugin not found: " + path.string());
+  // An explicit path, never a bare name: dlopen("name.so") would search the
+  // system library folders instead of the file checked here.
+  path = fs::absolute(path, ec).lexically_normal();
+  // dlopen maps the file: a truncated library faults (SIGBUS) inside the
+  // loader, so the ELF headers are checked against the file size first.
+  if (const std::string problem = elf_problem(path.string()); !problem.empty())
+    throw PluginError("cannot load closure plugin " + path.string() + ": " + problem);
 
   void *handle = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
   if (handle == nullptr) {

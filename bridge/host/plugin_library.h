@@ -21,7 +21,9 @@ class PluginLibrary {
  public:
   static constexpr const char *kLibraryFileName = "libglimmer_closures.so";
 
-  // Loads the DSO at `path` (a file, or a folder holding kLibraryFileName).
+  // Loads the DSO at `path` (a file, or a folder holding kLibraryFileName;
+  // a relative path is made absolute, so a bare name never loads a system
+  // library). The file is validated (elf_problem) before dlopen.
   // Throws PluginError when it is missing, not a Glimmer plugin, or built for
   // another ABI version (the message names both versions).
   static std::unique_ptr<PluginLibrary> load(const std::string &path);
@@ -52,6 +54,11 @@ class PluginLibrary {
 std::string abi_version_name(uint32_t version);
 // A plugin loads when its major version is the host's and its minor is the same or older.
 bool abi_compatible(uint32_t plugin_version, uint32_t host_version);
+
+// Why the file at `path` cannot be dlopen'ed safely ("" when it can): not a
+// regular file, not a 64-bit ELF shared library for this CPU, or headers and
+// loadable segments reaching past the end of the file (a truncated copy).
+std::string elf_problem(const std::string &path);
 
 // The directory holding the running executable ("" when unknown).
 std::string executable_directory();

@@ -6,6 +6,7 @@
 #include <tbb/enumerable_thread_specific.h>
 
 #include <algorithm>
+#include <stdexcept>
 #include <cmath>
 #include <cstdio>
 #include <numeric>
@@ -140,9 +141,16 @@ Chi2Result chi2_test(const host::ClosureInstance &instance, const GlimmerShading
   Chi2Result result;
   result.samples = options.samples;
   result.significance = sidak_significance(options.significance, options.test_count);
+  // The cell count is computed in 64 bits: two large int bin counts must not wrap past the limit.
+  const int64_t requested_cells =
+      static_cast<int64_t>(std::max(2, options.theta_bins)) * static_cast<int64_t>(std::max(1, options.phi_bins));
+  if (requested_cells > kMaxChi2Cells)
+    throw std::invalid_argument("chi2: " + std::to_string(options.theta_bins) + " x " +
+                                std::to_string(options.phi_bins) + " bins is more than " +
+                                std::to_string(kMaxChi2Cells) + " cells");
   const Grid grid{std::max(2, options.theta_bins), std::max(1, options.phi_bins),
                   M_PI / std::max(2, options.theta_bins), 2.0 * M_PI / std::max(1, options.phi_bins)};
-  const int cell_count = grid.theta_bins * grid.phi_bins;
+  const int cell_count = static_cast<int>(requested_cells);
   const Frame frame = detail::shading_frame(ctx);
 
   // 1. Histogram of sampled directions (integer counts: order-independent).

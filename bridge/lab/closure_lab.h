@@ -75,6 +75,9 @@ Spectrum albedo_quadrature(const host::ClosureInstance &instance, const GlimmerS
 // axis) until two successive estimates agree. Cells whose integral is 0 while
 // samples landed in them are re-integrated at the finest level before they
 // fail the test.
+// Most theta x phi cells chi2_test accepts (std::invalid_argument past it).
+constexpr int64_t kMaxChi2Cells = 4000000;
+
 struct Chi2Options {
   int theta_bins = 80;
   int phi_bins = 160;

@@ -12,6 +12,7 @@
 
 #include "lab/closure_lab.h"
 #include "lab/lab_internal.h"
+#include "render/image_output.h"
 
 namespace glimmer::lab {
 
@@ -103,27 +104,7 @@ void plot_lobe(const host::ClosureInstance &instance, const GlimmerShadingContex
         for (int k = 0; k < 3; ++k) out[k] = static_cast<unsigned char>(std::lround(saturate(c[k]) * 255.0f));
       }
 
-  // Atomic write: a temporary file next to the target, then rename.
-  namespace fs = std::filesystem;
-  const fs::path target(path);
-  const fs::path temporary =
-      target.parent_path() / (target.stem().string() + ".tmp" + std::to_string(::getpid()) + target.extension().string());
-  auto out = OIIO::ImageOutput::create(temporary.string());
-  if (!out) throw std::runtime_error("cannot write " + path + ": " + OIIO::geterror());
-  const OIIO::ImageSpec spec(width, h, 3, OIIO::TypeDesc::UINT8);
-  if (!out->open(temporary.string(), spec) || !out->write_image(OIIO::TypeDesc::UINT8, pixels.data()) ||
-      !out->close()) {
-    const std::string why = out->geterror();
-    std::error_code ec;
-    fs::remove(temporary, ec);
-    throw std::runtime_error("cannot write " + path + ": " + why);
-  }
-  std::error_code ec;
-  fs::rename(temporary, target, ec);
-  if (ec) {
-    fs::remove(temporary, ec);
-    throw std::runtime_error("cannot write " + path + ": rename failed: " + ec.message());
-  }
+  render::write_image_file(path, OIIO::ImageSpec(width, h, 3, OIIO::TypeDesc::UINT8), pixels.data());
 }
 
 }  // namespace glimmer::lab

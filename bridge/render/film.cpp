@@ -76,7 +76,11 @@ void Film::resolve(float exposure, RenderResult &r) const {
   r.depth.assign(npix, 0.0f);
   for (size_t i = 0; i < npix; ++i) {
     const float inv = count_[i] > 0 ? 1.0f / static_cast<float>(count_[i]) : 0.0f;
-    const Spectrum c = sum_[i] * (inv * exposure);
+    Spectrum c = sum_[i] * (inv * exposure);
+    if (!is_finite(c)) {
+      c = Spectrum(0.0f);
+      ++r.nan_samples;
+    }
     for (int k = 0; k < 3; ++k) r.combined[4 * i + k] = c[k];
     r.combined[4 * i + 3] = 1.0f;
     if (!aovs_) continue;

@@ -48,18 +48,24 @@ class Film {
   int passes() const { return passes_; }
 
   // One sample of pixel i (row-major, full image). Called concurrently for distinct pixels.
-  void add(size_t i, const Spectrum &L, const Spectrum &albedo, const Vec3 &normal, float depth) {
-    sum_[i] += L;
+  // Returns false (the sample's radiance dropped, the count kept) when adding L would overflow
+  // the pixel's sum to Inf: the caller counts it with the non-finite samples.
+  bool add(size_t i, const Spectrum &L, const Spectrum &albedo, const Vec3 &normal, float depth) {
+    const Spectrum next = sum_[i] + L;
+    const bool finite = is_finite(next);
+    if (finite) sum_[i] = next;
     count_[i]++;
     if (aovs_) {
       albedo_[i] += albedo;
       normal_[i] += normal;
       depth_[i] += depth;
     }
+    return finite;
   }
   void end_pass() { ++passes_; }
 
   // Per-pixel means into result.combined/albedo/normal/depth (combined scaled by exposure, alpha 1).
+  // A mean that exposure pushes past the float range becomes 0 and counts in result.nan_samples.
   void resolve(float exposure, RenderResult &result) const;
 
   // Checkpoint image: channels hold the raw sums, alpha the per-pixel sample count

@@ -1,5 +1,6 @@
 #include "render/image_output.h"
 
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 #include <unistd.h>
 
@@ -7,6 +8,8 @@
 #include <cmath>
 #include <filesystem>
 #include <stdexcept>
+
+#include "glimmer/atomic_file.h"
 
 namespace glimmer::render {
 
@@ -58,25 +61,48 @@ void write_part_metadata(const RenderResult &r, OIIO::ImageSpec &spec) {
   if (r.film_sums) spec.attribute("glimmer:checkpoint", 1);
 }
 
+std::string lower_extension(const std::string &path) {
+  std::string ext = fs::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return ext;
+}
+
 }  // namespace
 
-void write_image(const std::string &path, const RenderResult &r) {
+void check_output_path(const std::string &path) {
   const fs::path target(path);
-  std::string ext = target.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  if (ext.empty()) throw std::runtime_error("output '" + path + "' has no file extension (.exr or .png)");
+  if (lower_extension(path).empty())
+    throw std::runtime_error("output '" + path + "' has no file extension (.exr or .png)");
+  auto out = OIIO::ImageOutput::create(path);
+  if (!out)
+    throw std::runtime_error("output '" + path + "': no image format for extension '" + target.extension().string() +
+                             "' (use .exr or .png)");
+  if (!out->supports("ioproxy"))
+    throw std::runtime_error("output '" + path + "': format '" + std::string(out->format_name()) +
+                             "' cannot be written atomically (use .exr or .png)");
   const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
-  if (!fs::is_directory(dir)) throw std::runtime_error("output folder '" + dir.string() + "' does not exist");
-  std::string temp_name(1, '.');
-  temp_name += target.stem().string();
-  temp_name += ".tmp";
-  temp_name += std::to_string(::getpid());
-  temp_name += ext;
-  const fs::path temp = dir / temp_name;
-  auto out = OIIO::ImageOutput::create(temp.string());
-  if (!out) throw std::runtime_error("cannot write '" + path + "': " + OIIO::geterror());
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) throw std::runtime_error("output folder '" + dir.string() + "' does not exist");
+  if (fs::is_directory(target, ec)) throw std::runtime_error("output '" + path + "' is a folder");
+  if (::access(dir.c_str(), W_OK | X_OK) != 0)
+    throw std::runtime_error("output folder '" + dir.string() + "' is not writable");
+}
+
+void write_image_file(const std::string &path, const OIIO::ImageSpec &spec, const void *pixels) {
+  check_output_path(path);
+  auto out = OIIO::ImageOutput::create(path);
+  std::vector<unsigned char> encoded;
+  OIIO::Filesystem::IOVecOutput memory(encoded);
+  const bool ok = out && out->set_ioproxy(&memory) && out->open(path, spec) &&
+                  out->write_image(spec.format, pixels) && out->close();
+  if (!ok) throw std::runtime_error("cannot encode '" + path + "': " + (out ? out->geterror() : OIIO::geterror()));
+  const std::string problem = write_file_atomically(path, encoded.data(), encoded.size());
+  if (!problem.empty()) throw std::runtime_error(problem);
+}
+
+void write_image(const std::string &path, const RenderResult &r) {
+  const std::string ext = lower_extension(path);
   const size_t npix = static_cast<size_t>(r.width) * r.height;
-  bool ok = false;
   if (ext == ".exr") {
     // The data window is the rendered window (a region writes just its crop); the display window the whole image.
     const PartInfo &part = r.part;
@@ -111,7 +137,7 @@ void write_image(const std::string &path, const RenderResult &r) {
           p[10] = r.depth[i];
         }
       }
-    ok = out->open(temp.string(), spec) && out->write_image(OIIO::TypeDesc::FLOAT, pixels.data()) && out->close();
+    write_image_file(path, spec, pixels.data());
   } else {
     OIIO::ImageSpec spec(r.width, r.height, 4, OIIO::TypeDesc::UINT8);
     spec.attribute("oiio:ColorSpace", "sRGB");
@@ -121,19 +147,7 @@ void write_image(const std::string &path, const RenderResult &r) {
         pixels[4 * i + k] = static_cast<unsigned char>(std::lround(srgb_encode(r.combined[4 * i + k]) * 255.0f));
       pixels[4 * i + 3] = static_cast<unsigned char>(std::lround(std::clamp(r.combined[4 * i + 3], 0.0f, 1.0f) * 255.0f));
     }
-    ok = out->open(temp.string(), spec) && out->write_image(OIIO::TypeDesc::UINT8, pixels.data()) && out->close();
-  }
-  if (!ok) {
-    const std::string err = out->geterror();
-    std::error_code ec;
-    fs::remove(temp, ec);
-    throw std::runtime_error("cannot write '" + path + "': " + err);
-  }
-  std::error_code ec;
-  fs::rename(temp, target, ec);
-  if (ec) {
-    fs::remove(temp, ec);
-    throw std::runtime_error("cannot move the image into place at '" + path + "'");
+    write_image_file(path, spec, pixels.data());
   }
 }
 

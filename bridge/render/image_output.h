@@ -1,10 +1,14 @@
-// Writes a render with OpenImageIO, atomically (temporary file + rename).
+// Writes a render with OpenImageIO, atomically: encoded in memory, then
+// written with glimmer/atomic_file.h (random O_EXCL|O_NOFOLLOW temporary
+// file in the target folder, fsync, rename).
 //  - .exr: float multilayer channels with Blender's names (view layer "ViewLayer"):
 //    ViewLayer.Combined.R/G/B/A, ViewLayer.Albedo.R/G/B, ViewLayer.Normal.X/Y/Z, ViewLayer.Depth.Z.
 //    The EXR data window is the rendered window (a --region part holds just its crop) and
 //    glimmer:* attributes record the part (scene hash, seed, sample range; render/film.h).
 //  - other formats (.png, .jpg, .tif): the Combined pass, sRGB-encoded 8-bit.
 #pragma once
+
+#include <OpenImageIO/imageio.h>
 
 #include <string>
 
@@ -19,6 +23,15 @@ void write_image(const std::string &path, const RenderResult &result);
 // into a full-resolution result (zeros outside the data window) with its PartInfo.
 // Throws std::runtime_error naming the file when it is not such an image.
 RenderResult read_image(const std::string &path);
+
+// Checks before any work that `path` can be written: a known image extension
+// whose writer can encode to memory, an existing writable folder, not a
+// folder itself. Throws std::runtime_error saying what is wrong.
+void check_output_path(const std::string &path);
+
+// Encodes `pixels` (spec.format) to the format of `path`'s extension and
+// writes the file atomically. Throws std::runtime_error naming the file.
+void write_image_file(const std::string &path, const OIIO::ImageSpec &spec, const void *pixels);
 
 // "out_####.png" with frame 7 -> "out_0007.png" (the run of '#' sets the padding).
 std::string frame_path(const std::string &pattern, int frame);

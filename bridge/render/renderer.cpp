@@ -202,7 +202,18 @@ struct Renderer::Impl {
     rtcCommitScene(rtc_scene);
   }
 
+  // Debian's Embree asserts ray.valid(): origin and direction components within +-1.844e18
+  // (its FLT_LARGE; NaN and Inf fail too) and tnear/tfar not NaN. Other rays never reach it.
+  static bool traceable_ray(const Vec3 &o, const Vec3 &d, float tmin, float tmax) {
+    constexpr float kEmbreeLargest = 1.8e18f;
+    auto bounded = [](const Vec3 &v) {
+      return std::fabs(v.x) <= kEmbreeLargest && std::fabs(v.y) <= kEmbreeLargest && std::fabs(v.z) <= kEmbreeLargest;
+    };
+    return bounded(o) && bounded(d) && tmin >= 0.0f && tmin <= tmax;  // false for NaN
+  }
+
   bool intersect(const Vec3 &o, const Vec3 &d, float tmin, float tmax, SurfaceHit &hit) const {
+    if (!traceable_ray(o, d, tmin, tmax)) return false;
     RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     RTCRayHit rh;
@@ -227,6 +238,7 @@ struct Renderer::Impl {
   }
 
   bool occluded(const Vec3 &o, const Vec3 &d, float tmax) const {
+    if (!traceable_ray(o, d, 0.0f, tmax)) return true;  // no light along a ray that cannot be traced
     RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     RTCRay r;
@@ -771,6 +783,7 @@ RenderResult Renderer::render(const std::function<void(int, int)> &progress, con
   const int tile = std::max(1, im.options.tile_size);
   std::atomic<uint64_t> nan_total{0};
   for (int s = part.sample_begin + film.passes(); s < part.sample_end; ++s) {
+    if (im.options.cancel && im.options.cancel->load()) { res.interrupted = true; break; }
     tbb::parallel_for(tbb::blocked_range2d<int>(y0, y1, tile, x0, x1, tile), [&](const tbb::blocked_range2d<int> &br) {
       uint64_t nans = 0, traced = 0;
       for (int y = br.rows().begin(); y < br.rows().end(); ++y) {
@@ -778,27 +791,27 @@ RenderResult Renderer::render(const std::function<void(int, int)> &progress, con
         for (int x = br.cols().begin(); x < br.cols().end(); ++x) {
           Impl::PixelAov aov;
           const Spectrum L = im.trace_path(x, y, static_cast<uint32_t>(s), aov, nans);
-          film.add(static_cast<size_t>(y) * im.width + x, L, aov.albedo, aov.normal, aov.depth);
+          if (!film.add(static_cast<size_t>(y) * im.width + x, L, aov.albedo, aov.normal, aov.depth))
+            ++nans;  // a finite sample can still overflow the pixel's sum: dropped and counted
           ++traced;
         }
       }
       if (nans) nan_total += nans;
       paths += traced;
     });
-    const bool cancelled = im.options.cancel && im.options.cancel->load();
-    if (!cancelled) {
-      film.end_pass();
-      if (im.options.after_pass) im.options.after_pass(film);
-    }
-    if (progress) progress(film.passes() + (cancelled ? 1 : 0), res.samples_requested);
-    if (cancelled) { res.interrupted = true; break; }
+    // A pass cut short by an interrupt does not count: samples_done = complete passes (its samples still
+    // average into the pixels they reached).
+    if (im.options.cancel && im.options.cancel->load()) { res.interrupted = true; break; }
+    film.end_pass();
+    if (im.options.after_pass) im.options.after_pass(film);
+    if (progress) progress(film.passes(), res.samples_requested);
     if (im.options.time_limit > 0.0 && seconds_since(t0) >= im.options.time_limit &&
         s + 1 < part.sample_end) {
       res.time_limited = true;
       break;
     }
   }
-  res.samples_done = film.passes() + (res.interrupted ? 1 : 0);
+  res.samples_done = film.passes();
   res.nan_samples = nan_total.load();
   res.paths = paths.load();
   film.resolve(im.scene.film.exposure, res);

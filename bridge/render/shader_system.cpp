@@ -218,8 +218,8 @@ int ShaderSystem::make_leaf(const ShaderGraph &g, const ShaderNode &n, CompiledS
   leaf->node = n.name;
   const std::string &t = n.type;
   auto check_known = [&](std::initializer_list<const char *> known) {
-    for (const auto &[name, value] : n.attributes) {
-      (void)value;
+    for (const auto &attribute : n.attributes) {
+      const std::string &name = attribute.first;  // not a structured binding: clang 14 cannot capture those
       if (std::none_of(known.begin(), known.end(), [&](const char *k) { return name == k; }))
         warn(n.where, "<" + t + "> attribute '" + name + "' is not supported; ignored");
     }

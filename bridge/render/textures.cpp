@@ -3,7 +3,12 @@
 #include <OpenImageIO/imageio.h>
 
 #include <cmath>
+#include <cstdlib>
+#include <new>
 #include <stdexcept>
+
+#include "scene/input_file.h"
+#include "scene/parse_number.h"
 
 namespace glimmer::render {
 
@@ -13,18 +18,42 @@ float srgb_to_linear(float c) {
 }
 }  // namespace
 
+uint64_t max_image_pixels() {
+  const char *env = std::getenv("GLIMMER_MAX_IMAGE_PIXELS");
+  if (env == nullptr || *env == '\0') return kDefaultMaxImagePixels;
+  try {
+    return static_cast<uint64_t>(scene::parse_integer(env, 1, int64_t{1} << 40));
+  } catch (const scene::NumberError &e) {
+    throw std::runtime_error(std::string("GLIMMER_MAX_IMAGE_PIXELS: ") + e.what());
+  }
+}
+
 std::unique_ptr<ImageTexture> ImageTexture::load(const std::string &path, bool linear) {
+  scene::require_regular_file(path, "image");  // a FIFO or device would block or never end
   auto in = OIIO::ImageInput::open(path);
   if (!in) throw std::runtime_error("cannot read image '" + path + "': " + OIIO::geterror());
   const OIIO::ImageSpec &spec = in->spec();
   const int w = spec.width, h = spec.height, nc = spec.nchannels;
   if (w <= 0 || h <= 0 || nc <= 0) throw std::runtime_error("image '" + path + "' is empty");
-  std::vector<float> pixels(static_cast<size_t>(w) * h * nc);
+  // The header alone decides: refuse before allocating anything (a tiny file can claim 30000x30000).
+  const uint64_t pixels_claimed = static_cast<uint64_t>(w) * static_cast<uint64_t>(h);
+  const uint64_t budget = max_image_pixels();
+  if (pixels_claimed > budget || nc > 64)
+    throw std::runtime_error("image '" + path + "' claims " + std::to_string(w) + "x" + std::to_string(h) + "x" +
+                             std::to_string(nc) + " values, more than the budget of " + std::to_string(budget) +
+                             " pixels (set GLIMMER_MAX_IMAGE_PIXELS to raise it)");
+  std::vector<float> pixels, rgba;
+  try {
+    pixels.resize(static_cast<size_t>(pixels_claimed) * nc);
+    rgba.resize(static_cast<size_t>(pixels_claimed) * 4);
+  } catch (const std::bad_alloc &) {
+    throw std::runtime_error("out of memory for image '" + path + "' (" + std::to_string(w) + "x" +
+                             std::to_string(h) + ")");
+  }
   if (!in->read_image(0, 0, 0, nc, OIIO::TypeDesc::FLOAT, pixels.data()))
     throw std::runtime_error("cannot read image '" + path + "': " + in->geterror());
   const bool is_byte = spec.format == OIIO::TypeDesc::UINT8 || spec.format == OIIO::TypeDesc::UINT16;
   const bool to_linear = is_byte && !linear;
-  std::vector<float> rgba(static_cast<size_t>(w) * h * 4);
   for (size_t i = 0; i < static_cast<size_t>(w) * h; ++i) {
     float c[4] = {0, 0, 0, 1};
     if (nc == 1 || nc == 2) {

@@ -2,6 +2,7 @@
 // them) and Cycles' procedural checker.
 #pragma once
 
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
@@ -10,13 +11,19 @@
 
 namespace glimmer::render {
 
+// Largest image (width x height) a texture may claim before any pixel is
+// allocated; $GLIMMER_MAX_IMAGE_PIXELS overrides it (docs/scene-format.md).
+constexpr uint64_t kDefaultMaxImagePixels = uint64_t{1} << 27;  // 134 M pixels, e.g. 16384 x 8192
+uint64_t max_image_pixels();
+
 class ImageTexture {
  public:
   // Reads `path` as RGBA floats. 8/16-bit images are treated as sRGB (Cycles'
   // default "sRGB" colour space) unless `linear` is set; like Cycles'
   // "compress as sRGB" byte textures they keep their sRGB values and lookup()
   // converts to linear after interpolating. Throws std::runtime_error naming
-  // the file on failure.
+  // the file on failure: not a regular file, a header over the pixel budget
+  // (max_image_pixels()), out of memory, a decoding error.
   static std::unique_ptr<ImageTexture> load(const std::string &path, bool linear);
   // Texture with given linear RGBA pixels (row 0 = top), for tests.
   ImageTexture(int width, int height, std::vector<float> rgba) : width_(width), height_(height), rgba_(std::move(rgba)) {}

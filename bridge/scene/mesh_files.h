@@ -2,10 +2,12 @@
 // before fan triangulation and transformation (xml_loader.cpp).
 #pragma once
 
+#include <atomic>
 #include <string>
 #include <vector>
 
 #include "scene/scene.h"
+#include "scene/xml_loader.h"
 
 namespace glimmer::scene {
 
@@ -21,6 +23,15 @@ struct RawMesh {
 // Wavefront OBJ (v, vt, vn, f with v/vt/vn indices, negative indices allowed)
 // or PLY (ascii / binary_little_endian; vertex x y z [nx ny nz] [u v|s t], face
 // vertex_indices). Throws SceneError at `where` for missing or malformed files.
-RawMesh read_mesh_file(const std::string &path, const SourceLocation &where);
+// The file must be a regular file (no FIFO/device/directory) of at most
+// kMaxMeshFileBytes; numbers are parsed strictly (parse_number.h); `cancel`
+// (may be null) is polled every few thousand lines (throws LoadCancelled).
+RawMesh read_mesh_file(const std::string &path, const SourceLocation &where,
+                       const std::atomic<bool> *cancel = nullptr);
+
+// The same readers on `text` as the content of `path` (.obj or .ply by its
+// extension); for the fuzz targets.
+RawMesh parse_mesh_text(const std::string &text, const std::string &path, const SourceLocation &where,
+                        const std::atomic<bool> *cancel = nullptr);
 
 }  // namespace glimmer::scene

@@ -5,37 +5,31 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <pugixml.hpp>
 #include <set>
 #include <sstream>
 
+#include "scene/graph_checks.h"
+#include "scene/input_file.h"
 #include "scene/mesh_files.h"
+#include "scene/parse_number.h"
 
 namespace glimmer::scene {
 
 namespace fs = std::filesystem;
 
 std::vector<float> parse_floats(const std::string &text, const SourceLocation &where, const std::string &what) {
-  std::vector<float> out;
-  const char *s = text.c_str();
-  while (*s) {
-    while (*s == ' ' || *s == ',' || *s == '\t' || *s == '\n' || *s == '\r') ++s;
-    if (!*s) break;
-    char *end = nullptr;
-    const float v = std::strtof(s, &end);
-    if (end == s || (*end && *end != ' ' && *end != ',' && *end != '\t' && *end != '\n' && *end != '\r')) {
-      const char *e = s;
-      while (*e && *e != ' ' && *e != ',') ++e;
-      throw SceneError(where, what + ": '" + std::string(s, e) + "' is not a number");
-    }
-    if (!std::isfinite(v)) throw SceneError(where, what + ": value is not finite");
-    out.push_back(v);
-    s = end;
+  try {
+    return parse_float_list(text);
+  } catch (const NumberError &e) {
+    throw SceneError(where, what + ": " + e.what());
   }
-  return out;
 }
 
 namespace {
+
+constexpr float kMaxExposure = 1e6f;
 
 // One parsed XML file, kept alive for line lookups.
 struct XmlFile {
@@ -63,17 +57,21 @@ class Loader {
   explicit Loader(Scene &scene) : scene_(scene) {}
 
   void load_file(const std::string &path, const SourceLocation *included_from, const ReadState &state) {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) {
-      const std::string msg = "cannot open scene file '" + path + "'";
-      if (included_from) throw SceneError(*included_from, msg);
-      throw SceneError(path + ":0: " + msg);
+    std::string text;
+    try {
+      text = read_regular_file(path, kMaxSceneFileBytes, "scene file");
+    } catch (const InputFileError &e) {
+      if (included_from) throw SceneError(*included_from, e.what());
+      throw SceneError(path + ":0: " + e.what());
     }
+    load_text(path, std::move(text), state);
+  }
+
+  // `text` read as the content of the file at `path`.
+  void load_text(const std::string &path, std::string text, const ReadState &state) {
     auto file = std::make_unique<XmlFile>();
     file->path = path;
-    std::stringstream buffer;
-    buffer << in.rdbuf();
-    file->text = buffer.str();
+    file->text = std::move(text);
     file->line_starts.push_back(0);
     for (size_t i = 0; i < file->text.size(); ++i)
       if (file->text[i] == '\n') file->line_starts.push_back(i + 1);
@@ -90,13 +88,35 @@ class Loader {
     for (auto child = f->doc.first_child(); child; child = child.next_sibling())
       if (child.type() == pugi::node_element && std::string(child.name()) != "cycles")
         warn(*f, child, std::string("element <") + child.name() + "> outside <cycles> ignored");
+    std::error_code ec;
+    include_stack_.push_back(fs::weakly_canonical(path, ec).string());
     read_children(*f, root, state);
+    include_stack_.pop_back();
   }
+
+  const std::atomic<bool> *cancel = nullptr;
 
  private:
   Scene &scene_;
   std::vector<std::unique_ptr<XmlFile>> files_;
   std::set<std::string> objects_;
+  // Input controls these depths; each has a limit (docs/scene-format.md, "Limits").
+  std::vector<std::string> include_stack_;  // canonical paths of the files being read
+  int transform_depth_ = 0, state_depth_ = 0;
+
+  // Raises the depth counter for the scope of one nested element.
+  struct DepthGuard {
+    int &depth;
+    DepthGuard(int &d, int limit, const SourceLocation &where, const char *element) : depth(d) {
+      if (depth >= limit)
+        throw SceneError(where, std::string("<") + element + "> nested more than " + std::to_string(limit) +
+                                    " levels deep");
+      ++depth;
+    }
+    ~DepthGuard() { --depth; }
+    DepthGuard(const DepthGuard &) = delete;
+    DepthGuard &operator=(const DepthGuard &) = delete;
+  };
 
   SourceLocation loc(const XmlFile &f, const pugi::xml_node &node) const {
     return SourceLocation{f.path, f.line_of(node.offset_debug())};
@@ -131,11 +151,22 @@ class Loader {
                                          std::to_string(v.size()));
     return v[0];
   }
-  int read_int(const XmlFile &f, const pugi::xml_node &node, const char *attr, int fallback) {
-    const float v = read_float(f, node, attr, static_cast<float>(fallback));
-    if (v != std::floor(v))
-      throw SceneError(loc(f, node), std::string("<") + node.name() + "> " + attr + ": expected an integer");
-    return static_cast<int>(v);
+  // An integer attribute within [lo, hi] ("2.9", "1e10" for an int and junk are errors).
+  int read_int(const XmlFile &f, const pugi::xml_node &node, const char *attr, int fallback, int lo = std::numeric_limits<int>::min(),
+               int hi = std::numeric_limits<int>::max()) {
+    if (!node.attribute(attr)) return fallback;
+    const auto v = ints(f, node, attr, lo, hi);
+    if (v.size() != 1)
+      throw SceneError(loc(f, node), std::string("<") + node.name() + "> " + attr + ": expected one integer, got " +
+                                         std::to_string(v.size()) + " numbers");
+    return v[0];
+  }
+  std::vector<int> ints(const XmlFile &f, const pugi::xml_node &node, const char *attr, int lo, int hi) {
+    try {
+      return parse_int_list(node.attribute(attr).value(), lo, hi);
+    } catch (const NumberError &e) {
+      throw SceneError(loc(f, node), std::string("<") + node.name() + "> " + attr + ": " + e.what());
+    }
   }
   Vec3 read_vec3(const XmlFile &f, const pugi::xml_node &node, const char *attr, Vec3 fallback) {
     if (!node.attribute(attr)) return fallback;
@@ -157,6 +188,7 @@ class Loader {
   void read_children(const XmlFile &f, const pugi::xml_node &parent, const ReadState &state) {
     for (auto node = parent.first_child(); node; node = node.next_sibling()) {
       if (node.type() != pugi::node_element) continue;
+      if (cancel && cancel->load()) throw LoadCancelled(loc(f, node).str() + ": loading interrupted");
       const std::string name = node.name();
       if (name == "camera") read_camera(f, node, state);
       else if (name == "film") read_film(f, node);
@@ -211,6 +243,9 @@ class Loader {
                      {"pass_alpha_threshold", "mist_start", "mist_depth", "mist_falloff", "use_approximate_shadow_catcher"});
     Film &film = scene_.film;
     film.exposure = read_float(f, node, "exposure", film.exposure);
+    if (!(film.exposure >= 0.0f && film.exposure <= kMaxExposure))
+      throw SceneError(loc(f, node), "<film> exposure must be in [0, 1e6] (a multiplier of the image), got " +
+                                         std::to_string(film.exposure));
     if (node.attribute("filter_type")) {
       const std::string t = node.attribute("filter_type").value();
       if (t == "box") film.filter = FilterType::Box;
@@ -281,12 +316,7 @@ class Loader {
       if (n.name.empty()) n.name = "__unnamed" + std::to_string(g.nodes.size());
       g.nodes.push_back(std::move(n));
     }
-    for (const auto &l : g.links) {
-      if (!g.find(l.from_node))
-        throw SceneError(l.where, "<connect> from unknown node '" + l.from_node + "' in shader '" + name + "'");
-      if (l.to_node != "output" && !g.find(l.to_node))
-        throw SceneError(l.where, "<connect> to unknown node '" + l.to_node + "' in shader '" + name + "'");
-    }
+    validate_shader_graph(g);
     return g;
   }
 
@@ -322,6 +352,7 @@ class Loader {
 
   void read_transform(const XmlFile &f, const pugi::xml_node &node, const ReadState &state) {
     check_attributes(f, node, {"matrix", "translate", "rotate", "scale"});
+    const DepthGuard guard(transform_depth_, kMaxTransformDepth, loc(f, node), "transform");
     ReadState s = state;
     if (node.attribute("matrix")) {
       const auto v = floats(f, node, "matrix");
@@ -346,6 +377,7 @@ class Loader {
 
   void read_state(const XmlFile &f, const pugi::xml_node &node, const ReadState &state) {
     check_attributes(f, node, {"shader", "interpolation", "object"}, {"displacement_method", "dicing_rate"});
+    const DepthGuard guard(state_depth_, kMaxStateDepth, loc(f, node), "state");
     ReadState s = state;
     if (node.attribute("shader")) {
       const std::string name = node.attribute("shader").value();
@@ -376,11 +408,21 @@ class Loader {
     check_attributes(f, node, {"src"});
     const std::string src = node.attribute("src").value();
     if (src.empty()) throw SceneError(loc(f, node), "<include> needs src");
-    const fs::path path = fs::path(f.path).parent_path() / src;
-    if (!fs::exists(path)) throw SceneError(loc(f, node), "<include> file not found: '" + path.string() + "'");
-    if (files_.size() > 4096) throw SceneError(loc(f, node), "<include> nesting too deep (recursive include?)");
+    const fs::path path = (fs::path(f.path).parent_path() / src).lexically_normal();
     const SourceLocation from = loc(f, node);
-    load_file(path.lexically_normal().string(), &from, state);
+    std::error_code ec;
+    if (!fs::exists(path, ec)) throw SceneError(from, "<include> file not found: '" + path.string() + "'");
+    const std::string canonical = fs::weakly_canonical(path, ec).string();
+    if (std::find(include_stack_.begin(), include_stack_.end(), canonical) != include_stack_.end()) {
+      std::string chain;
+      for (const auto &p : include_stack_) chain += p + " -> ";
+      throw SceneError(from, "<include> loop: " + chain + canonical);
+    }
+    if (static_cast<int>(include_stack_.size()) > kMaxIncludeDepth)
+      throw SceneError(from, "<include> nested more than " + std::to_string(kMaxIncludeDepth) + " files deep");
+    if (files_.size() > kMaxIncludedFiles)
+      throw SceneError(from, "<include>: more than " + std::to_string(kMaxIncludedFiles) + " files included");
+    load_file(path.string(), &from, state);
   }
 
   void read_mesh(const XmlFile &f, const pugi::xml_node &node, const ReadState &state) {
@@ -389,11 +431,11 @@ class Loader {
     RawMesh raw;
     if (node.attribute("src")) {
       const fs::path path = fs::path(f.path).parent_path() / node.attribute("src").value();
-      raw = read_mesh_file(path.string(), where);
+      raw = read_mesh_file(path.string(), where, cancel);
     } else {
       raw.P = floats(f, node, "P");
-      for (float v : floats(f, node, "verts")) raw.verts.push_back(static_cast<int>(v));
-      for (float v : floats(f, node, "nverts")) raw.nverts.push_back(static_cast<int>(v));
+      raw.verts = ints(f, node, "verts", std::numeric_limits<int>::min(), std::numeric_limits<int>::max());
+      raw.nverts = ints(f, node, "nverts", std::numeric_limits<int>::min(), std::numeric_limits<int>::max());
       if (node.attribute("UV")) raw.uv = floats(f, node, "UV");
       if (node.attribute("N")) raw.N = floats(f, node, "N");
       raw.uv_per_corner = true;
@@ -441,6 +483,9 @@ class Loader {
     for (size_t i = 0; i < vertex_count; ++i) {
       const Vec3 p(raw.P[3 * i], raw.P[3 * i + 1], raw.P[3 * i + 2]);
       m.P.push_back(state.tfm.point(p));
+      if (!is_finite(m.P.back()))
+        throw SceneError(where, "<mesh> vertex " + std::to_string(i) +
+                                    " is not finite after the transform (coordinates or scale overflow a float)");
       // Cycles' "generated" coordinates: object space normalised to the bounding box.
       m.generated.push_back(Vec3(extent.x > 0 ? (p.x - lo.x) / extent.x : 0.5f,
                                  extent.y > 0 ? (p.y - lo.y) / extent.y : 0.5f,
@@ -550,13 +595,27 @@ class Loader {
 
 }  // namespace
 
-Scene load_scene(const std::string &path) {
+namespace {
+
+Scene load(const std::string &path, const std::atomic<bool> *cancel, const std::string *text) {
   Scene scene;
   scene.path = path;
   scene.directory = fs::path(path).parent_path().string();
   Loader loader(scene);
-  loader.load_file(path, nullptr, ReadState{});
+  loader.cancel = cancel;
+  try {
+    if (text) loader.load_text(path, *text, ReadState{});
+    else loader.load_file(path, nullptr, ReadState{});
+  } catch (const std::bad_alloc &) {
+    throw SceneError(path + ":0: out of memory while loading the scene");
+  }
   return scene;
 }
+
+}  // namespace
+
+Scene load_scene(const std::string &path, const std::atomic<bool> *cancel) { return load(path, cancel, nullptr); }
+
+Scene load_scene_text(const std::string &text, const std::string &path) { return load(path, nullptr, &text); }
 
 }  // namespace glimmer::scene

@@ -11,14 +11,17 @@
 #include <mutex>
 #include <thread>
 
+#include "glimmer/atomic_file.h"
+#include "glimmer/cache_key.h"
 #include "glimmer/microfacet.h"
+#include "glimmer/sha256.h"
 
 namespace glimmer::plugin::glint {
 namespace {
 
 constexpr double kPiD = 3.14159265358979323846;
 constexpr double kDeg = kPiD / 180.0;
-constexpr uint32_t kFormatVersion = 2;  // 2: LOD levels normalised by their W-weighted energy
+constexpr uint32_t kFormatVersion = 3;  // 2: LOD levels normalised by their W-weighted energy; 3: HMAC-SHA256
 constexpr char kMagic[8] = {'G', 'L', 'M', 'G', 'L', 'N', 'T', 'P'};
 
 struct D3 {
@@ -163,6 +166,31 @@ std::vector<double> weight_grid(const TableSpec &spec, int ti) {
   return w;
 }
 
+// Energy validation of a table read from disk, after its MAC: per theta_i,
+// every LOD level keeps the W-weighted energy of level 0 (step 4 of the build
+// scales each level to it, to float rounding), so values edited in some levels
+// are caught even with a valid MAC.
+bool plausible_energy(const DirectionalTable &table, const TableSpec &spec, int threads, std::string &problem) {
+  constexpr double kEnergyTolerance = 1e-4;
+  std::vector<int> bad_level(kThetaICount, 0);
+  parallel_for(kThetaICount, threads, [&](int ti) {
+    const std::vector<double> weight = weight_grid(spec, ti);
+    const double level0_energy = slice_energy(table.levels[0], ti, weight);
+    for (int l = 1; l < kLodCount && bad_level[ti] == 0; ++l) {
+      const double energy = slice_energy(table.levels[l], ti, weight);
+      if (!(energy > 0.0) || !(level0_energy > 0.0)) continue;  // left unscaled by the build
+      if (std::fabs(energy - level0_energy) > kEnergyTolerance * level0_energy) bad_level[ti] = l;
+    }
+  });
+  for (int ti = 0; ti < kThetaICount; ++ti)
+    if (bad_level[ti] != 0) {
+      problem = "LOD level " + std::to_string(bad_level[ti]) + " does not keep the energy of level 0 at theta_i " +
+                std::to_string(ti);
+      return false;
+    }
+  return true;
+}
+
 uint64_t fnv1a(const void *data, size_t size, uint64_t h = 1469598103934665603ull) {
   const auto *p = static_cast<const unsigned char *>(data);
   for (size_t i = 0; i < size; ++i) {
@@ -238,7 +266,10 @@ std::unique_ptr<DirectionalTable> build_directional_table(const TableSpec &spec,
       for (int b = 0; b < n; ++b) {
         const double x = 2.0 * (a + 0.5) / n - 1.0, y = 2.0 * (b + 0.5) / n - 1.0;
         double r, phi;
-        if (std::fabs(x) > std::fabs(y)) {
+        if (x == 0.0 && y == 0.0) {  // the centre cell of an odd n: 0/0 below would give NaN angles
+          r = 0.0;
+          phi = 0.0;
+        } else if (std::fabs(x) > std::fabs(y)) {
           r = x;
           phi = (kPiD / 4.0) * (y / x);
         } else {
@@ -380,7 +411,8 @@ std::string table_cache_path(const std::string &cache_dir, const TableSpec &spec
 }
 
 // File: magic, version, key, spec, then per level (n_theta_o, n_phi, values),
-// then the FNV-1a checksum of everything before it.
+// then HMAC-SHA256 of everything before it, keyed by the cache folder's
+// secret (glimmer/cache_key.h).
 bool save_table(const std::string &path, const DirectionalTable &table, std::string &problem) {
   std::vector<unsigned char> bytes;
   auto put = [&](const void *p, size_t n) {
@@ -400,35 +432,28 @@ bool save_table(const std::string &path, const DirectionalTable &table, std::str
     put(&l.n_phi, sizeof(int));
     put(l.values.data(), l.values.size() * sizeof(float));
   }
-  const uint64_t sum = fnv1a(bytes.data(), bytes.size());
-  put(&sum, sizeof(sum));
-  std::error_code ec;
-  const std::filesystem::path target(path);
-  std::filesystem::create_directories(target.parent_path(), ec);
-  // Written to a unique temporary name, then renamed: readers never see a partial file.
-  const std::string tmp = path + ".tmp." + std::to_string(reinterpret_cast<uintptr_t>(&table) ^ fnv1a(path.data(), path.size()));
-  {
-    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
-    if (!f) {
-      problem = "cannot write " + tmp;
-      return false;
-    }
-    f.write(reinterpret_cast<const char *>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
-    if (!f) {
-      problem = "write failed for " + tmp;
-      return false;
-    }
-  }
-  std::filesystem::rename(tmp, target, ec);
-  if (ec) {
-    std::filesystem::remove(tmp, ec);
-    problem = "cannot rename the cache file into " + path;
-    return false;
-  }
-  return true;
+  // One private cache folder, a MAC keyed by its secret, one atomic write
+  // (random O_EXCL|O_NOFOLLOW temporary, fsync, rename).
+  const std::string dir = std::filesystem::path(path).parent_path().string();
+  CacheKey secret;
+  problem = ensure_private_directory(dir);
+  if (problem.empty()) problem = cache_secret_key(dir, secret);
+  if (!problem.empty()) return false;
+  const Digest256 mac = hmac_sha256(secret.data(), secret.size(), bytes.data(), bytes.size());
+  put(mac.data(), mac.size());
+  problem = write_file_atomically(path, bytes.data(), bytes.size(), 0600);
+  return problem.empty();
 }
 
 std::unique_ptr<DirectionalTable> load_table(const std::string &path, const TableSpec &spec, std::string &problem) {
+  // Junk at the entry path (a directory, a FIFO, a symlink) is removed so the rebuilt table can take its place.
+  std::error_code junk_ec;
+  const auto status = std::filesystem::symlink_status(path, junk_ec);
+  if (!junk_ec && std::filesystem::exists(status) && !std::filesystem::is_regular_file(status)) {
+    std::filesystem::remove_all(path, junk_ec);
+    problem = "not a regular file; removed";
+    return nullptr;
+  }
   std::ifstream f(path, std::ios::binary);
   if (!f) {
     problem = "missing";
@@ -470,9 +495,16 @@ std::unique_ptr<DirectionalTable> load_table(const std::string &path, const Tabl
     }
   }
   const size_t data_end = pos;
-  uint64_t sum = 0;
-  if (!get(&sum, 8) || pos != bytes.size() || sum != fnv1a(bytes.data(), data_end)) {
-    problem = "checksum mismatch (corrupt file)";
+  Digest256 mac{};
+  CacheKey secret;
+  if (const std::string key_problem = cache_secret_key(std::filesystem::path(path).parent_path().string(), secret);
+      !key_problem.empty()) {
+    problem = key_problem;
+    return nullptr;
+  }
+  if (!get(mac.data(), mac.size()) || pos != bytes.size() ||
+      mac != hmac_sha256(secret.data(), secret.size(), bytes.data(), data_end)) {
+    problem = "MAC mismatch (corrupt or crafted file)";
     return nullptr;
   }
   for (const auto &l : table->levels)
@@ -481,6 +513,8 @@ std::unique_ptr<DirectionalTable> load_table(const std::string &path, const Tabl
         problem = "non-finite or negative values";
         return nullptr;
       }
+  if (!plausible_energy(*table, spec, static_cast<int>(std::max(1u, std::thread::hardware_concurrency())), problem))
+    return nullptr;
   table->loaded_from_cache = true;
   return table;
 }

@@ -136,8 +136,10 @@ double directional_probability_reference(const NdfFunction &ndf, double gamma_de
 // Stable 64-bit key of a spec (file name of the cache entry).
 uint64_t table_key(const TableSpec &spec);
 
-// Disk cache. load returns nullptr (and sets `problem`) when the file is
-// missing, truncated, corrupt (checksum) or for another spec.
+// Disk cache (files 0600 in a private 0700 folder, written atomically). load
+// returns nullptr (and sets `problem`) when the entry is missing, not a
+// regular file (removed), truncated, fails its HMAC-SHA256 (corrupt or
+// crafted), is for another spec, or fails the energy validation.
 std::unique_ptr<DirectionalTable> load_table(const std::string &path, const TableSpec &spec, std::string &problem);
 bool save_table(const std::string &path, const DirectionalTable &table, std::string &problem);
 std::string table_cache_path(const std::string &cache_dir, const TableSpec &spec);

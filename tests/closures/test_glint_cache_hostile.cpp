@@ -1,0 +1,207 @@
+// The glint table cache under attack (issue 14): a crafted table is rejected
+// and rebuilt with a warning, whether the attacker recomputed the old FNV-1a
+// checksum (the HMAC-SHA256 keyed by the private cache secret fails) or even
+// knew the key (the energy validation fails for edited levels); junk at the
+// entry path is replaced; the cache folder and key are private.
+#include <gtest/gtest.h>
+#include <sys/stat.h>
+
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <vector>
+
+#include "closures/closure_checks.h"
+#include "glimmer/sha256.h"
+
+namespace glimmer::test {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::vector<std::string> g_messages;
+void capture(void *, int level, const char *message) { g_messages.push_back(std::to_string(level) + ": " + message); }
+
+bool logged(const std::string &text) {
+  for (const auto &m : g_messages)
+    if (m.find(text) != std::string::npos) return true;
+  return false;
+}
+
+std::vector<char> read_bytes(const fs::path &p) {
+  std::ifstream in(p, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+void write_bytes(const fs::path &p, const std::vector<char> &bytes) {
+  std::ofstream(p, std::ios::binary | std::ios::trunc).write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+}
+
+// Recomputes the file's trailing 32-byte HMAC-SHA256 with `key` (what an
+// attacker who could read the key would do).
+void rewrite_mac(std::vector<char> &bytes, const std::vector<char> &key) {
+  const Digest256 mac = hmac_sha256(key.data(), key.size(), bytes.data(), bytes.size() - 32);
+  std::memcpy(bytes.data() + bytes.size() - 32, mac.data(), 32);
+}
+
+// The old, unkeyed integrity check: FNV-1a over the content, which anyone can
+// recompute; written over the first 8 bytes of the MAC.
+void rewrite_fnv(std::vector<char> &bytes) {
+  uint64_t h = 1469598103934665603ull;
+  for (size_t i = 0; i + 32 < bytes.size(); ++i) {
+    h ^= static_cast<unsigned char>(bytes[i]);
+    h *= 1099511628211ull;
+  }
+  std::memcpy(bytes.data() + bytes.size() - 32, &h, 8);
+}
+
+// Scales the float values of LOD levels [first, last) by `factor`.
+// Layout: magic 8, version 4, key 8, distribution 4, alpha 4, gamma 4, then
+// per level: n_theta_o, n_phi (int32) and 91 * n_theta_o * n_phi floats.
+void scale_levels(std::vector<char> &bytes, int first, int last, float factor) {
+  size_t pos = 32;
+  for (int l = 0; pos + 8 <= bytes.size() - 32; ++l) {
+    int32_t n_to = 0, n_phi = 0;
+    std::memcpy(&n_to, bytes.data() + pos, 4);
+    std::memcpy(&n_phi, bytes.data() + pos + 4, 4);
+    pos += 8;
+    const size_t count = static_cast<size_t>(91) * n_to * n_phi;
+    if (l >= first && l < last)
+      for (size_t i = 0; i < count; ++i) {
+        float v;
+        std::memcpy(&v, bytes.data() + pos + 4 * i, 4);
+        v *= factor;
+        std::memcpy(bytes.data() + pos + 4 * i, &v, 4);
+      }
+    pos += 4 * count;
+  }
+}
+
+// The MAC's building blocks against published test vectors (FIPS 180-4
+// examples, RFC 4231 test case 2).
+// Host services caching in `dir` and logging to g_messages.
+GlimmerHostServices host_caching_in(const std::string &dir) {
+  GlimmerHostServices host = *host::default_host_services();
+  host.cache_dir = dir.c_str();
+  host.log = &capture;
+  return host;
+}
+
+// A glint closure's parameters.
+host::ParamList glint_params(const char *roughness, const char *gamma) {
+  host::ParamList params;
+  params.set_from_text(closure_type("glint"), "roughness", roughness);
+  params.set_from_text(closure_type("glint"), "gamma", gamma);
+  return params;
+}
+
+TEST(GlintCacheHostile, Sha256AndHmacMatchPublishedVectors) {
+  EXPECT_EQ(to_hex(sha256("abc", 3)), "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad");
+  const std::string million(1000000, 'a');  // FIPS 180-2 appendix B.3: many blocks
+  EXPECT_EQ(to_hex(sha256(million.data(), million.size())),
+            "cdc76e5c9914fb9281a1c7e284d73e67f1809a48a497200e046d39ccc7112cd0");
+  EXPECT_EQ(to_hex(sha256("abcdbcdecdefdefgefghfghighijhijkijkljklmklmnlmnomnopnopq", 56)),
+            "248d6a61d20638b8e5c026930c3e6039a33ce45964ff2167f6ecedd419db06c1");
+  const std::string data = "what do ya want for nothing?";
+  EXPECT_EQ(to_hex(hmac_sha256("Jefe", 4, data.data(), data.size())),
+            "5bdcc146bf60754e6a042426089575c75a003f089d2739839dec58b964ec3843");
+  // Negative control: one changed byte changes the digest.
+  EXPECT_NE(to_hex(sha256("abd", 3)), to_hex(sha256("abc", 3)));
+}
+
+TEST(GlintCacheHostile, CraftedTablesAreRejectedAndJunkIsReplaced) {
+  const fs::path root = fs::path(GLIMMER_TEST_BINARY_DIR) / "test_cache_glint_hostile";
+  fs::remove_all(root);
+  const std::string dir = (root / "nested" / "glimmer").string();
+  const GlimmerHostServices host = host_caching_in(dir);
+  const GlimmerClosureType &type = closure_type("glint");
+  const host::ParamList params = glint_params("0.4", "2");
+  const Vec3 wi = spherical_dir(30.0, 0.0), wo = spherical_dir(32.0, 175.0);
+  const GlimmerShadingContext ctx = footprint_context(wi, 0.5, 0.5, 0.05, 0.0, 0.0, 0.05);
+  auto eval_now = [&] {
+    g_messages.clear();
+    host::ClosureInstance c(type, params, &host);
+    Spectrum f;
+    float pdf = 0.0f;
+    c.eval(ctx, wo, f, pdf);
+    return f.x;
+  };
+  const float reference = eval_now();
+  // The folders the cache created are private.
+  struct stat st {};
+  ASSERT_EQ(0, ::stat(dir.c_str(), &st));
+  EXPECT_EQ(st.st_mode & 0777, 0700u);
+  std::vector<fs::path> files;
+  for (const auto &e : fs::directory_iterator(dir))
+    if (e.path().filename() != "secret.key") files.push_back(e.path());
+  ASSERT_EQ(files.size(), 1u);
+  const fs::path entry = files[0];
+  const std::vector<char> original = read_bytes(entry);
+
+  const std::vector<char> key = read_bytes(fs::path(dir) / "secret.key");
+  ASSERT_EQ(key.size(), 32u);
+  ASSERT_EQ(0, ::stat((fs::path(dir) / "secret.key").c_str(), &st));
+  EXPECT_EQ(st.st_mode & 0777, 0600u);
+
+  // Control: the test's MAC of the unmodified content is the file's, and it loads silently.
+  std::vector<char> same = original;
+  rewrite_mac(same, key);
+  ASSERT_EQ(same, original) << "the test's HMAC must match the file's";
+  EXPECT_EQ(eval_now(), reference);
+  EXPECT_FALSE(logged("recomputing"));
+  EXPECT_FALSE(logged("precomputed"));
+
+  struct Attack {
+    const char *what;
+    int first, last;
+    float factor;
+    bool knows_key;  // else the attacker recomputes the old unkeyed FNV-1a checksum
+    const char *expected;
+  };
+  for (const Attack &a : {Attack{"x1000 brighter, FNV recomputed", 0, 9, 1000.0f, false, "MAC mismatch"},
+                          Attack{"x1.01, FNV recomputed", 0, 9, 1.01f, false, "MAC mismatch"},
+                          Attack{"level 0 doubled, MAC recomputed", 0, 1, 2.0f, true, "does not keep the energy"},
+                          Attack{"coarse levels x1.01, MAC recomputed", 1, 9, 1.01f, true, "does not keep the energy"}}) {
+    SCOPED_TRACE(a.what);
+    std::vector<char> crafted = original;
+    scale_levels(crafted, a.first, a.last, a.factor);
+    if (a.knows_key) rewrite_mac(crafted, key);
+    else rewrite_fnv(crafted);
+    write_bytes(entry, crafted);
+    EXPECT_EQ(eval_now(), reference);
+    EXPECT_TRUE(logged("recomputing")) << "expected a warning";
+    EXPECT_TRUE(logged(a.expected)) << (g_messages.empty() ? "" : g_messages[0]);
+    EXPECT_EQ(read_bytes(entry), original) << "the rebuilt table replaces the crafted file";
+  }
+
+  // A directory (with content) at the entry path: removed with a warning, the table rebuilt and cached.
+  fs::remove(entry);
+  fs::create_directories(entry / "junk");
+  EXPECT_EQ(eval_now(), reference);
+  EXPECT_TRUE(logged("not a regular file; removed")) << (g_messages.empty() ? "" : g_messages[0]);
+  EXPECT_TRUE(fs::is_regular_file(fs::symlink_status(entry)));
+  EXPECT_EQ(read_bytes(entry), original);
+  fs::remove_all(root);
+}
+
+// Found while interrupting renders: gamma in (2, 2.5] (and (1, 1.5]) gives an
+// odd concentric disk grid whose centre point had NaN angles, and the table
+// build read outside its slice (SIGSEGV). Now it builds, with finite values.
+TEST(GlintCacheHostile, OddConeGridBuildsWithFiniteValues) {
+  const std::string dir = GLIMMER_TEST_BINARY_DIR "/test_cache_glint_odd_grid";
+  std::filesystem::remove_all(dir);
+  const GlimmerHostServices host = host_caching_in(dir);
+  for (const char *gamma : {"1.25", "2.5"}) {
+    SCOPED_TRACE(gamma);
+    host::ClosureInstance c(closure_type("glint"), glint_params("0.45", gamma), &host);
+    Spectrum f;
+    float pdf = 0.0f;
+    c.eval(footprint_context(spherical_dir(30.0, 0.0), 0.5, 0.5, 0.05, 0.0, 0.0, 0.05), spherical_dir(30.0, 180.0), f,
+           pdf);
+    EXPECT_TRUE(std::isfinite(f.x) && std::isfinite(pdf));
+  }
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace glimmer::test
