@@ -44,37 +44,6 @@ std::unique_ptr<FrostedGlassClosure> create_raw(float roughness, float ior, cons
   return FrostedGlassClosure::create(reader);
 }
 
-// Mean sample weight split into reflection and transmission, over jittered
-// strata of the random numbers (the third picks the lobe).
-struct SplitAlbedo {
-  Spectrum reflect{0.0f}, transmit{0.0f};
-  double std_error = 0.0;  // of the total, channel 0 (independent-sample bound)
-};
-SplitAlbedo sampled_albedo(const host::ClosureInstance &c, const Vec3 &wi, int strata, uint64_t seed) {
-  const GlimmerShadingContext ctx = host::make_local_context(wi);
-  Pcg32 rng(seed);
-  double r[3] = {0, 0, 0}, t[3] = {0, 0, 0}, sum2 = 0.0;
-  const int sz = std::max(strata / 4, 1), sxy = std::max(strata / 2, 1);
-  const long n = long(sxy) * sxy * sz;
-  for (int i = 0; i < sxy; ++i)
-    for (int j = 0; j < sxy; ++j)
-      for (int k = 0; k < sz; ++k) {
-        const float u[3] = {(i + rng.next_float()) / sxy, (j + rng.next_float()) / sxy, (k + rng.next_float()) / sz};
-        GlimmerSample s;
-        const uint32_t label = c.sample(ctx, u, s);
-        if (label == GLIMMER_LABEL_NONE) continue;
-        double *acc = (label & GLIMMER_LABEL_TRANSMIT) ? t : r;
-        for (int ch = 0; ch < 3; ++ch) acc[ch] += s.eval[ch] / s.pdf;
-        sum2 += double(s.eval[0] / s.pdf) * (s.eval[0] / s.pdf);
-      }
-  SplitAlbedo a;
-  a.reflect = Spectrum(float(r[0] / n), float(r[1] / n), float(r[2] / n));
-  a.transmit = Spectrum(float(t[0] / n), float(t[1] / n), float(t[2] / n));
-  const double mean = (r[0] + t[0]) / n;
-  a.std_error = std::sqrt(std::max(0.0, sum2 / n - mean * mean) / n);
-  return a;
-}
-
 // ---- Identity with the compensated rough dielectric -------------------------
 TEST(FrostedGlassPath, WhiteIsTheCompensatedDielectric) {
   Pcg32 rng(12);
@@ -115,7 +84,7 @@ TEST(FrostedGlassPath, WhiteFurnaceAndTintOncePerTransmission) {
     for (float ior : {1.33f, 1.7f, 2.4f})
       for (float mu : {1.0f, 0.5f, 0.1f, 0.02f, -0.3f, -0.9f}) cases.push_back({rough, ior, mu});
   const Vec3 tint(0.9f, 0.5f, 0.2f);
-  std::vector<SplitAlbedo> white(cases.size()), tinted(cases.size());
+  std::vector<mftest::Albedo> white(cases.size()), tinted(cases.size());
   tbb::parallel_for(size_t(0), cases.size(), [&](size_t i) {
     const Case &c = cases[i];
     const std::vector<std::string> base = {"roughness=" + num(c.rough), "ior=" + num(c.ior)};
@@ -124,8 +93,8 @@ TEST(FrostedGlassPath, WhiteFurnaceAndTintOncePerTransmission) {
     with_tint.push_back("color=" + num(tint.x) + "," + num(tint.y) + "," + num(tint.z));
     auto t = make_closure("frosted_glass", with_tint);
     const int strata = std::fabs(c.mu) <= 0.05f ? 256 : 128;
-    white[i] = sampled_albedo(*w, wi_at(c.mu), strata, 300 + i);
-    tinted[i] = sampled_albedo(*t, wi_at(c.mu), strata, 300 + i);  // same random numbers
+    white[i] = mftest::sampled_albedo(*w, wi_at(c.mu), strata, 300 + i);
+    tinted[i] = mftest::sampled_albedo(*t, wi_at(c.mu), strata, 300 + i);  // same random numbers
   });
   double worst = 0.0, worst_tint = 0.0;
   for (size_t i = 0; i < cases.size(); ++i) {
@@ -149,7 +118,7 @@ TEST(FrostedGlassPath, WhiteFurnaceAndTintOncePerTransmission) {
 // Negative control: the furnace bound catches an uncompensated interface.
 TEST(FrostedGlassPath, FurnaceCatchesMissingCompensation) {
   auto g = make_closure("microfacet_dielectric", {"distribution=ggx", "roughness=1", "ior=1.5"});
-  const SplitAlbedo a = sampled_albedo(*g, wi_at(0.5f), 64, 5);
+  const mftest::Albedo a = mftest::sampled_albedo(*g, wi_at(0.5f), 64, 5);
   EXPECT_GT(std::fabs(1.0 - (a.reflect.x + a.transmit.x)), 0.02);
 }
 
@@ -170,30 +139,9 @@ TEST(FrostedGlassPath, Chi2SampleMatchesPdf) {
     const Config &c = cases[i];
     auto closure = make_closure("frosted_glass", {"roughness=" + num(c.rough), "ior=" + num(c.ior), "color=0.8,0.6,0.4"});
     const GlimmerShadingContext ctx = host::make_local_context(wi_at(c.z));
-    double worst = 0.0;
-    uint32_t calls = 0;
-    auto sample = [&](const float u[3], Vec3 &wo) {
-      GlimmerSample s;
-      if (closure->sample(ctx, u, s) == GLIMMER_LABEL_NONE) return false;
-      wo = Vec3(s.wo);
-      if ((++calls & 63u) == 0u) {
-        Spectrum f;
-        float pdf;
-        closure->eval(ctx, wo, f, pdf);
-        const double rel_pdf = std::fabs(pdf - s.pdf) / std::max(double(s.pdf), 1e-30);
-        const double rel_f = std::fabs(f.z - s.eval[2]) / std::max(double(s.eval[2]), 1e-30);
-        if (s.pdf > 1e-3f && s.eval[2] > 1e-6f) worst = std::max(worst, std::max(rel_pdf, rel_f));
-      }
-      return true;
-    };
-    auto pdf = [&](const Vec3 &wo) {
-      Spectrum f;
-      float p;
-      closure->eval(ctx, wo, f, p);
-      return double(p);
-    };
-    results[i] = mftest::chi2_test(sample, pdf, n, 9000 + i);
-    consistency[i] = worst;
+    const mftest::ClosureChi2 r = mftest::closure_chi2(*closure, ctx, n, 9000 + i, Vec3(0, 0, 1), 1.0, 2);
+    results[i] = r.result;
+    consistency[i] = r.inconsistency;
   });
   double min_p = 1.0, worst_consistency = 0.0;
   for (size_t i = 0; i < cases.size(); ++i) {
