@@ -26,7 +26,9 @@ build: configure
 demo: build
 	$(BUILD)/glimmer render examples/demo.xml -o demo.png --stats
 	$(BUILD)/glimmer render examples/glint.xml -o demo_glint.png --stats
-	@test -s demo.png && test -s demo_glint.png && echo "demo: wrote demo.png and demo_glint.png"
+	$(BUILD)/glimmer render examples/frosted.xml -o demo_frosted.png --stats
+	@test -s demo.png && test -s demo_glint.png && test -s demo_frosted.png && \
+		echo "demo: wrote demo.png, demo_glint.png and demo_frosted.png"
 
 test: build
 	cd $(BUILD) && ctest --output-on-failure -j $(JOBS) -LE stress

@@ -99,33 +99,11 @@ TEST(MicrofacetChi2, SampleMatchesPdf) {
     const Chi2Config &c = cases[i];
     auto closure = make_closure(c.closure, c.params);
     const GlimmerShadingContext ctx = host::make_local_context(c.wi);
-    double worst = 0.0;
-    uint32_t calls = 0;
-    auto sample = [&](const float u[3], Vec3 &wo) {
-      GlimmerSample s;
-      if (closure->sample(ctx, u, s) == GLIMMER_LABEL_NONE) return false;
-      wo = Vec3(s.wo);
-      // eval/pdf consistency at sampled directions (every 64th sample).
-      if ((++calls & 63u) == 0u) {
-        Spectrum f;
-        float pdf;
-        closure->eval(ctx, wo, f, pdf);
-        const double rel_pdf = std::fabs(pdf - s.pdf) / std::max(double(s.pdf), 1e-30);
-        const double rel_f = std::fabs(f.x - s.eval[0]) / std::max(double(s.eval[0]), 1e-30);
-        if (s.pdf > 1e-3f && s.eval[0] > 1e-6f) worst = std::max(worst, std::max(rel_pdf, rel_f));
-      }
-      return true;
-    };
-    auto pdf = [&](const Vec3 &wo) {
-      Spectrum f;
-      float p;
-      closure->eval(ctx, wo, f, p);
-      return double(p);
-    };
     const bool near_delta = c.dielectric && std::fabs(c.eta_rel - 1.0f) < 0.05f;
     const uint64_t seed = (std::getenv("GLIMMER_CHI2_SEED") ? std::strtoull(std::getenv("GLIMMER_CHI2_SEED"), nullptr, 10) : 5000) + i;
-    results[i] = near_delta ? chi2_test(sample, pdf, n, seed, -c.wi, 4.0) : chi2_test(sample, pdf, n, seed);
-    consistency[i] = worst;
+    const ClosureChi2 r = near_delta ? closure_chi2(*closure, ctx, n, seed, -c.wi, 4.0) : closure_chi2(*closure, ctx, n, seed);
+    results[i] = r.result;
+    consistency[i] = r.inconsistency;
   });
   double min_p = 1.0, worst_consistency = 0.0, worst_norm = 0.0;
   for (size_t i = 0; i < cases.size(); ++i) {

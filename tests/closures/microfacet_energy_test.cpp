@@ -25,35 +25,6 @@ std::string num(float v) {
 
 Vec3 wi_at(float mu) { return normalize(Vec3(std::sqrt(std::max(0.0f, 1.0f - mu * mu)), 0.0f, mu)); }
 
-// Mean sample weight per channel over strata^2 x (strata / 4) jittered 3D
-// strata of the random numbers (the third one picks the lobe), and a
-// conservative standard error (that of independent samples).
-struct Albedo {
-  Spectrum mean;
-  double std_error = 0.0;
-};
-Albedo sampled_albedo(const host::ClosureInstance &c, const Vec3 &wi, int strata, uint64_t seed) {
-  const GlimmerShadingContext ctx = host::make_local_context(wi);
-  Pcg32 rng(seed);
-  double sum[3] = {0, 0, 0}, sum2 = 0.0;
-  const int sz = std::max(strata / 4, 1), sxy = std::max(strata / 2, 1);
-  const long n = long(sxy) * sxy * sz;
-  for (int i = 0; i < sxy; ++i)
-    for (int j = 0; j < sxy; ++j)
-      for (int k = 0; k < sz; ++k) {
-        const float u[3] = {(i + rng.next_float()) / sxy, (j + rng.next_float()) / sxy, (k + rng.next_float()) / sz};
-        GlimmerSample s;
-        if (c.sample(ctx, u, s) == GLIMMER_LABEL_NONE) continue;
-        for (int ch = 0; ch < 3; ++ch) sum[ch] += s.eval[ch] / s.pdf;
-        sum2 += double(s.eval[0] / s.pdf) * (s.eval[0] / s.pdf);
-      }
-  Albedo a;
-  a.mean = Spectrum(float(sum[0] / n), float(sum[1] / n), float(sum[2] / n));
-  const double var = std::max(0.0, sum2 / n - (sum[0] / n) * (sum[0] / n));
-  a.std_error = std::sqrt(var / n);
-  return a;
-}
-
 struct FurnaceCase {
   std::string closure;
   std::vector<std::string> params;

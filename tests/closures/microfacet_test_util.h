@@ -169,6 +169,76 @@ inline Chi2Result chi2_test(const std::function<bool(const float rand[3], Vec3 &
   return r;
 }
 
+// Mean sample weight f_cos / pdf per channel over strata^2 x (strata / 4)
+// jittered 3D strata of the random numbers (the third one picks the lobe),
+// split by the sampled lobe (reflection / transmission), and a conservative
+// standard error of the total (that of independent samples), channel 0.
+struct Albedo {
+  Spectrum mean{0.0f}, reflect{0.0f}, transmit{0.0f};
+  double std_error = 0.0;
+};
+inline Albedo sampled_albedo(const host::ClosureInstance &c, const Vec3 &wi, int strata, uint64_t seed) {
+  const GlimmerShadingContext ctx = host::make_local_context(wi);
+  Pcg32 rng(seed);
+  double r[3] = {0, 0, 0}, t[3] = {0, 0, 0}, sum2 = 0.0;
+  const int sz = std::max(strata / 4, 1), sxy = std::max(strata / 2, 1);
+  const long n = long(sxy) * sxy * sz;
+  for (int i = 0; i < sxy; ++i)
+    for (int j = 0; j < sxy; ++j)
+      for (int k = 0; k < sz; ++k) {
+        const float u[3] = {(i + rng.next_float()) / sxy, (j + rng.next_float()) / sxy, (k + rng.next_float()) / sz};
+        GlimmerSample s;
+        const uint32_t label = c.sample(ctx, u, s);
+        if (label == GLIMMER_LABEL_NONE) continue;
+        double *acc = (label & GLIMMER_LABEL_TRANSMIT) ? t : r;
+        for (int ch = 0; ch < 3; ++ch) acc[ch] += s.eval[ch] / s.pdf;
+        sum2 += double(s.eval[0] / s.pdf) * (s.eval[0] / s.pdf);
+      }
+  Albedo a;
+  a.reflect = Spectrum(float(r[0] / n), float(r[1] / n), float(r[2] / n));
+  a.transmit = Spectrum(float(t[0] / n), float(t[1] / n), float(t[2] / n));
+  a.mean = Spectrum(float((r[0] + t[0]) / n), float((r[1] + t[1]) / n), float((r[2] + t[2]) / n));
+  const double mean = (r[0] + t[0]) / n;
+  a.std_error = std::sqrt(std::max(0.0, sum2 / n - mean * mean) / n);
+  return a;
+}
+
+// chi2 of a closure's sample() against the pdf of its eval() at `ctx`
+// (binning as chi2_test with `axis`, `k`), plus the worst relative eval/pdf
+// inconsistency (value in `channel`, pdf) at every 64th sampled direction.
+struct ClosureChi2 {
+  Chi2Result result;
+  double inconsistency = 0.0;
+};
+inline ClosureChi2 closure_chi2(const host::ClosureInstance &closure, const GlimmerShadingContext &ctx, long n_samples,
+                                uint64_t seed, Vec3 axis = Vec3(0, 0, 1), double k = 1.0, int channel = 0) {
+  ClosureChi2 out;
+  uint32_t calls = 0;
+  auto sample = [&](const float u[3], Vec3 &wo) {
+    GlimmerSample s;
+    if (closure.sample(ctx, u, s) == GLIMMER_LABEL_NONE) return false;
+    wo = Vec3(s.wo);
+    if ((++calls & 63u) == 0u) {
+      Spectrum f;
+      float pdf;
+      closure.eval(ctx, wo, f, pdf);
+      const double rel_pdf = std::fabs(pdf - s.pdf) / std::max(double(s.pdf), 1e-30);
+      const double rel_f = std::fabs(f[channel] - s.eval[channel]) / std::max(double(s.eval[channel]), 1e-30);
+      if (s.pdf > 1e-3f && s.eval[channel] > 1e-6f)
+        out.inconsistency = std::max(out.inconsistency, std::max(rel_pdf, rel_f));
+    }
+    return true;
+  };
+  auto pdf = [&](const Vec3 &wo) {
+    Spectrum f;
+    float p;
+    closure.eval(ctx, wo, f, p);
+    return double(p);
+  };
+  out.result = chi2_test(sample, pdf, n_samples, seed, axis, k);
+  return out;
+}
+
 // Sidak-corrected per-test significance for `tests` tests at overall level `alpha`.
 inline double sidak_threshold(int tests, double alpha = 0.01) { return 1.0 - std::pow(1.0 - alpha, 1.0 / tests); }
 

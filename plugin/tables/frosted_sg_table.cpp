@@ -1,0 +1,234 @@
+// Spherical-Gaussian fit of the frosted_glass front-interface BTDF and its
+// table (see frosted_sg_table.h for the recipe and the parameterisation).
+#include "tables/frosted_sg_table.h"
+
+#include <algorithm>
+#include <cmath>
+#include <mutex>
+#include <thread>
+
+#include "core/dielectric_lobe.h"
+#include "core/microfacet_lobe_params.h"
+#include "glimmer/microfacet.h"
+
+namespace glimmer::plugin::frosted {
+
+namespace {
+
+constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
+
+// Polar angle below the interface of the smooth refraction of theta_i (pi / 2 in TIR).
+double snell_angle(double theta_i, double eta) { return std::asin(std::min(1.0, std::sin(theta_i) / eta)); }
+
+// The interface of frosted_glass (white), seen from the wi side with relative IOR eta.
+DielectricLobe interface_lobe(float eta, float roughness) {
+  DielectricLobe lobe;
+  lobe.build(MicrofacetLobeParams::make(kMultiGgx, roughness, 0.0f), eta, false, true);
+  return lobe;
+}
+
+// Calls visit(wo, weight, g) for each transmitted direction of the BTDF's
+// visible-normal sampling on a strata x strata midpoint grid: weight = g / p,
+// p the density of wo, so that Int h g = mean over the grid of h(wo) weight.
+template <typename Visit>
+void for_each_transmitted(const Vec3 &wi, float eta, float roughness, int strata, Visit &&visit) {
+  namespace mf = glimmer::microfacet;
+  const DielectricLobe lobe = interface_lobe(eta, roughness);
+  for (int a = 0; a < strata; ++a)
+    for (int b = 0; b < strata; ++b) {
+      const float u1 = (a + 0.5f) / strata, u2 = (b + 0.5f) / strata;
+      const Vec3 m = mf::sample_visible_normal(lobe.dist, wi, lobe.ax, lobe.ay, u1, u2);
+      Vec3 wo;
+      if (!mf::refract(wi, m, eta, wo) || !(wo.z < 0.0f)) continue;  // TIR at this microfacet
+      wo = normalize(wo);
+      const LocalEval e = lobe.eval_local(wi, wo, eta);
+      // e.pdf = (1 - F) p(wo): the transmitted share of the sampling density.
+      const float F = mf::fresnel_dielectric(dot(wi, m), eta);
+      const double p = double(e.pdf) / std::max(1.0 - double(F), 1e-12);
+      if (!(p > 0.0) || !(e.f_cos.x > 0.0f)) continue;
+      visit(wo, double(e.f_cos.x) / p, double(e.f_cos.x));
+    }
+}
+
+Vec3 incident(float cos_theta_i) {
+  const float c = std::clamp(cos_theta_i, 1e-4f, 1.0f);
+  return Vec3(std::sqrt(std::max(0.0f, 1.0f - c * c)), 0.0f, c);
+}
+
+}  // namespace
+
+double SphericalGaussian::eval(const Vec3 &w) const {
+  return double(amplitude) * std::exp(double(sharpness) * (double(dot(axis, w)) - 1.0));
+}
+double SphericalGaussian::integral() const {
+  const double k = sharpness;
+  return 2.0 * M_PI * double(amplitude) * -std::expm1(-2.0 * k) / k;
+}
+double SphericalGaussian::integral_squared() const { return sg_inner_product(*this, *this); }
+
+double sg_inner_product(const SphericalGaussian &g1, const SphericalGaussian &g2) {
+  const double k1 = g1.sharpness, k2 = g2.sharpness;
+  const double vx = k1 * g1.axis.x + k2 * g2.axis.x, vy = k1 * g1.axis.y + k2 * g2.axis.y,
+               vz = k1 * g1.axis.z + k2 * g2.axis.z;
+  const double d = std::sqrt(vx * vx + vy * vy + vz * vz);
+  const double a = double(g1.amplitude) * g2.amplitude;
+  // sinh(d) exp(-k1 - k2) / d written without overflow; -> exp(-k1 - k2) as d -> 0.
+  if (d < 1e-6) return 4.0 * M_PI * a * std::exp(-k1 - k2);
+  return 2.0 * M_PI * a * std::exp(d - k1 - k2) * -std::expm1(-2.0 * d) / d;
+}
+
+SphericalGaussian TransmissionLobe::sg(float cos_theta_i, float eta) const {
+  SphericalGaussian g;
+  const double theta_i = std::acos(std::clamp(double(cos_theta_i), 0.0, 1.0));
+  const double theta_axis = snell_angle(theta_i, eta) + axis_offset;
+  g.axis = Vec3(float(-std::sin(theta_axis)), 0.0f, float(-std::cos(theta_axis)));
+  g.sharpness = std::exp(log_sharpness);
+  // a = E kappa / (2 pi (1 - exp(-2 kappa))): the SG's integral is the lobe's energy.
+  const double k = g.sharpness;
+  g.amplitude = float(double(std::max(energy, 0.0f)) * k / (2.0 * M_PI * -std::expm1(-2.0 * k)));
+  return g;
+}
+
+double sharpness_from_mean_length(double r) {
+  r = std::clamp(r, 1e-9, 1.0 - 1e-12);
+  if (r < 1e-4) return 3.0 * r;                // coth k - 1/k = k/3 + O(k^3)
+  if (r > 1.0 - 1e-6) return 1.0 / (1.0 - r);  // = 1 - 1/k + O(exp(-2k))
+  double lo = std::log(1e-5), hi = std::log(2e6);
+  for (int it = 0; it < 100; ++it) {  // bisection in ln(kappa): the mean length increases with kappa
+    const double mid = 0.5 * (lo + hi), k = std::exp(mid);
+    const double len = 1.0 / std::tanh(k) - 1.0 / k;
+    (len < r ? lo : hi) = mid;
+  }
+  return std::exp(0.5 * (lo + hi));
+}
+
+TransmissionLobe fit_transmission_lobe(float cos_theta_i, float eta, float roughness, int strata, SharpnessFit how) {
+  const Vec3 wi = incident(cos_theta_i);
+  struct Sample {
+    Vec3 wo;
+    double weight;
+  };
+  std::vector<Sample> samples;
+  samples.reserve(size_t(strata) * strata);
+  double energy = 0.0, mx = 0.0, my = 0.0, mz = 0.0;
+  for_each_transmitted(wi, eta, roughness, strata, [&](const Vec3 &wo, double weight, double) {
+    samples.push_back({wo, weight});
+    energy += weight;
+    mx += weight * wo.x;
+    my += weight * wo.y;
+    mz += weight * wo.z;
+  });
+  const double n = double(strata) * strata;
+  TransmissionLobe lobe;
+  lobe.energy = float(energy / n);
+  if (!(energy > 0.0)) return lobe;  // total internal reflection: no lobe (kappa 1, offset 0)
+  // Scale and mean: the lobe's energy and mean direction.
+  const double len = std::sqrt(mx * mx + my * my + mz * mz) / energy;
+  const double theta_i = std::acos(double(wi.z));
+  lobe.axis_offset = float(std::atan2(-mx, -mz) - snell_angle(theta_i, eta));
+  // Sharpness: the vMF match of the mean length (the variance)...
+  const double kappa_moments = sharpness_from_mean_length(len);
+  lobe.log_sharpness = float(std::log(kappa_moments));
+  if (how == SharpnessFit::kMoments) return lobe;
+  // ... or, keeping scale and mean, the kappa minimising Int (G - g)^2 = Int G^2 - 2 Int G g + const:
+  // the variance is dominated by GGX's long tails and gives a far too wide lobe.
+  auto l2 = [&](double log_k) {
+    TransmissionLobe trial = lobe;
+    trial.log_sharpness = float(log_k);
+    const SphericalGaussian g = trial.sg(float(wi.z), eta);
+    double cross = 0.0;
+    for (const Sample &s : samples) cross += s.weight * g.eval(s.wo);
+    return g.integral_squared() - 2.0 * cross / n;
+  };
+  // Golden-section search on ln(kappa) from the moment match up to 1000x sharper.
+  const double phi = 0.5 * (std::sqrt(5.0) - 1.0);
+  double a = std::log(kappa_moments), b = a + std::log(1000.0);
+  double c = b - phi * (b - a), d = a + phi * (b - a), fc = l2(c), fd = l2(d);
+  while (b - a > 1e-4) {
+    if (fc < fd) {
+      b = d, d = c, fd = fc;
+      c = b - phi * (b - a), fc = l2(c);
+    } else {
+      a = c, c = d, fc = fd;
+      d = a + phi * (b - a), fd = l2(d);
+    }
+  }
+  lobe.log_sharpness = float(0.5 * (a + b));
+  return lobe;
+}
+
+double transmission_fit_error(float cos_theta_i, float eta, float roughness, const SphericalGaussian &sg,
+                              int strata) {
+  const Vec3 wi = incident(cos_theta_i);
+  double cross = 0.0, g2 = 0.0;
+  for_each_transmitted(wi, eta, roughness, strata, [&](const Vec3 &wo, double weight, double g) {
+    cross += weight * sg.eval(wo);
+    g2 += weight * g;
+  });
+  const double n = double(strata) * strata;
+  cross /= n;
+  g2 /= n;
+  if (!(g2 > 0.0)) return 0.0;
+  return std::sqrt(std::max(0.0, sg.integral_squared() - 2.0 * cross + g2) / g2);
+}
+
+float TransmissionSgTable::theta_at(int i) { return float(kThetaMaxDeg * kDegToRad * i / (kThetaNodes - 1)); }
+float TransmissionSgTable::roughness_at(int j) {
+  return std::exp(std::log(kRoughnessMin) * (1.0f - float(j) / (kRoughnessNodes - 1)));
+}
+float TransmissionSgTable::ior_at(int k) { return kIorMin + (kIorMax - kIorMin) * k / (kIorNodes - 1); }
+
+TransmissionSgTable::TransmissionSgTable() : nodes_(size_t(2) * kThetaNodes * kRoughnessNodes * kIorNodes) {
+  const unsigned workers = std::max(1u, std::thread::hardware_concurrency());
+  std::vector<std::thread> threads;
+  for (unsigned w = 0; w < workers; ++w)
+    threads.emplace_back([this, w, workers] {
+      for (size_t idx = w; idx < nodes_.size(); idx += workers) {
+        const int k = int(idx % kIorNodes), j = int(idx / kIorNodes % kRoughnessNodes);
+        const int i = int(idx / (size_t(kIorNodes) * kRoughnessNodes) % kThetaNodes);
+        const int side = int(idx / (size_t(kIorNodes) * kRoughnessNodes * kThetaNodes));
+        const float ior = ior_at(k);
+        nodes_[idx] = fit_transmission_lobe(std::cos(theta_at(i)), side == 0 ? ior : 1.0f / ior, roughness_at(j));
+      }
+    });
+  for (auto &t : threads) t.join();
+}
+
+const TransmissionSgTable &TransmissionSgTable::get() {
+  static const TransmissionSgTable table;  // thread-safe lazy construction
+  return table;
+}
+
+bool TransmissionSgTable::lookup(float cos_theta_i, float eta, float roughness, TransmissionLobe &out) const {
+  const float ior = eta >= 1.0f ? eta : 1.0f / eta;
+  const int side = eta >= 1.0f ? 0 : 1;
+  const float theta = std::acos(std::clamp(cos_theta_i, 0.0f, 1.0f));
+  if (!(ior >= kIorMin && ior <= kIorMax && roughness >= kRoughnessMin && roughness <= 1.0f)) return false;
+  if (!(theta <= float(kThetaMaxDeg * kDegToRad))) return false;
+  // Continuous grid coordinates and their cells.
+  const float ct = theta / float(kThetaMaxDeg * kDegToRad) * (kThetaNodes - 1);
+  const float cr = (1.0f - std::log(roughness) / std::log(kRoughnessMin)) * (kRoughnessNodes - 1);
+  const float ck = (ior - kIorMin) / (kIorMax - kIorMin) * (kIorNodes - 1);
+  auto cell = [](float c, int nodes, int &i0, float &t) {
+    i0 = std::clamp(int(std::floor(c)), 0, nodes - 2);
+    t = std::clamp(c - float(i0), 0.0f, 1.0f);
+  };
+  int i0, j0, k0;
+  float ti, tj, tk;
+  cell(ct, kThetaNodes, i0, ti);
+  cell(cr, kRoughnessNodes, j0, tj);
+  cell(ck, kIorNodes, k0, tk);
+  TransmissionLobe acc;
+  for (int c = 0; c < 8; ++c) {
+    const int di = c & 1, dj = (c >> 1) & 1, dk = (c >> 2) & 1;
+    const float w = (di ? ti : 1 - ti) * (dj ? tj : 1 - tj) * (dk ? tk : 1 - tk);
+    const TransmissionLobe &n = node(side, i0 + di, j0 + dj, k0 + dk);
+    acc.energy += w * n.energy;
+    acc.log_sharpness += w * n.log_sharpness;
+    acc.axis_offset += w * n.axis_offset;
+  }
+  out = acc;
+  return true;
+}
+
+}  // namespace glimmer::plugin::frosted

@@ -1,0 +1,120 @@
+// The front interface's transmission lobe as a spherical Gaussian, after
+// de Rousiers et al. 2012, "Real-Time Rendering of Rough Refraction" (sec. 4):
+//
+//   g(wo) = f_t(wi, wo) |cos(wo)|  ~  G(wo) = a exp(kappa (p . wo - 1))           (SG, eq. 4)
+//
+// g is the Walter 2007 transmission lobe of frosted_glass's interface (GGX,
+// with the multi_ggx energy compensation, core/dielectric_lobe.h) per solid
+// angle of wo, for wi at polar angle theta_i in the local frame and relative
+// IOR eta = n_(wo side) / n_(wi side) (eta = ior entering, 1 / ior leaving).
+//
+// Fit (the paper's recipe: scale, mean and variance by sampling the BTDF):
+// the BTDF is integrated by its own visible-normal sampling on a fixed
+// stratified grid of random numbers (deterministic), giving the lobe's energy
+// E = Int g and mean vector M = Int g wo / E. The SG with the same energy and
+// mean: p = M / |M|, a = E kappa / (2 pi (1 - exp(-2 kappa))). The paper's
+// variance match (von Mises-Fisher: |M| = coth(kappa) - 1 / kappa) is kept as
+// SharpnessFit::kMoments, but GGX's long tails make that lobe far too wide
+// (relative L2 error ~0.5-0.7 at low roughness, test_frosted_sg_table.cpp).
+// SharpnessFit::kL2 keeps E and p and picks the kappa minimising the L2
+// distance (golden-section search on ln kappa; energy stays exact): about half
+// the error per lobe, but on the table's 48^2 samples it is unstable from node
+// to node at low roughness (sharp SGs fit single samples), so the table stores
+// the moment fit for now.
+// By symmetry p lies in the plane of incidence; it is stored as its polar
+// angle below the interface minus the Snell angle asin(sin(theta_i) / eta)
+// (a small, smooth offset), with ln(kappa) and E: the three interpolate well.
+//
+// Table T(theta_i, ior, roughness) for entering (eta = ior) and leaving
+// (eta = 1 / ior): built lazily on first use (once per process, thread-safe),
+// in memory; trilinear lookups. Grid: see kThetaNodes etc. below.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "glimmer/math.h"
+
+namespace glimmer::plugin::frosted {
+
+// G(w) = amplitude exp(sharpness (axis . w - 1)).
+struct SphericalGaussian {
+  Vec3 axis{0.0f, 0.0f, -1.0f};
+  float amplitude = 0.0f, sharpness = 1.0f;
+
+  double eval(const Vec3 &w) const;
+  double integral() const;          // Int G over the sphere = 2 pi a (1 - exp(-2 kappa)) / kappa
+  double integral_squared() const;  // Int G^2 = pi a^2 (1 - exp(-4 kappa)) / kappa
+};
+
+// Int G1 G2 over the sphere = 4 pi a1 a2 sinh(d) / (exp(k1 + k2) d), d = |k1 p1 + k2 p2|
+// (de Rousiers 2012 eq. 15, the SG inner product).
+double sg_inner_product(const SphericalGaussian &g1, const SphericalGaussian &g2);
+
+// The fitted lobe in its interpolation-friendly form.
+struct TransmissionLobe {
+  float energy = 0.0f;         // E = Int g (directional transmittance of the interface)
+  float log_sharpness = 0.0f;  // ln kappa
+  float axis_offset = 0.0f;    // polar angle of p below the interface minus the Snell angle (radians)
+
+  // The SG for wi = (sin theta_i, 0, cos theta_i) (the lobe goes toward -x, -z).
+  SphericalGaussian sg(float cos_theta_i, float eta) const;
+};
+
+// Strata per axis of the fixed VNDF sampling grid used by the fit.
+inline constexpr int kFitStrata = 48;
+
+// How kappa is chosen once scale (energy) and mean (axis) are matched:
+// kMoments = the vMF match of the mean length (the paper's variance);
+// kL2 = the kappa minimising the L2 distance to the lobe (not the table: see above).
+enum class SharpnessFit { kMoments, kL2 };
+
+// Direct fit at (cos theta_i, eta, Cycles roughness).
+// The fit the table stores.
+inline constexpr SharpnessFit kTableFit = SharpnessFit::kMoments;
+
+TransmissionLobe fit_transmission_lobe(float cos_theta_i, float eta, float roughness, int strata = kFitStrata,
+                                       SharpnessFit how = kTableFit);
+
+// Relative L2 error of `sg` against the lobe g it approximates,
+// sqrt(Int (G - g)^2 / Int g^2), by the BTDF's own sampling (strata^2 samples):
+// Int G^2 in closed form, Int G g and Int g^2 as sample means.
+double transmission_fit_error(float cos_theta_i, float eta, float roughness, const SphericalGaussian &sg,
+                              int strata = 128);
+
+// kappa with coth(kappa) - 1 / kappa = mean_length (the vMF mean resultant length), in (0, 1).
+double sharpness_from_mean_length(double mean_length);
+
+class TransmissionSgTable {
+ public:
+  static constexpr int kThetaNodes = 61;       // theta_i in [0, 89.5] degrees, uniform
+  static constexpr float kThetaMaxDeg = 89.5f;
+  static constexpr int kRoughnessNodes = 25;   // roughness in [0.04, 1], uniform in ln(roughness)
+  static constexpr float kRoughnessMin = 0.04f;
+  static constexpr int kIorNodes = 14;         // ior in [1.2, 2.5], uniform
+  static constexpr float kIorMin = 1.2f, kIorMax = 2.5f;
+
+  // The process-wide table, built on first call.
+  static const TransmissionSgTable &get();
+
+  // Interpolated lobe for relative IOR eta (> 1 entering, < 1 leaving); false
+  // when ior = max(eta, 1 / eta) or roughness lies outside the grid (the caller
+  // then fits directly).
+  bool lookup(float cos_theta_i, float eta, float roughness, TransmissionLobe &out) const;
+
+  // Node coordinates (for the tests' off-grid points).
+  static float theta_at(int i);
+  static float roughness_at(int j);
+  static float ior_at(int k);
+
+  TransmissionSgTable();  // builds every node (slow: use get())
+
+ private:
+  const TransmissionLobe &node(int side, int i, int j, int k) const {
+    return nodes_[((size_t(side) * kThetaNodes + i) * kRoughnessNodes + j) * kIorNodes + k];
+  }
+  std::vector<TransmissionLobe> nodes_;  // [side: 0 entering, 1 leaving][theta][roughness][ior]
+};
+
+}  // namespace glimmer::plugin::frosted
