@@ -162,8 +162,11 @@ std::string write_frame_scenes() {
   std::ifstream in(demo_scene());
   std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   const std::string mesh = "\"sphere.obj\"";
+  std::string absolute_mesh = "\"";
+  absolute_mesh += GLIMMER_TEST_SOURCE_DIR;
+  absolute_mesh += "/examples/sphere.obj\"";
   for (auto at = text.find(mesh); at != std::string::npos; at = text.find(mesh))
-    text.replace(at, mesh.size(), "\"" + std::string(GLIMMER_TEST_SOURCE_DIR) + "/examples/sphere.obj\"");
+    text.replace(at, mesh.size(), absolute_mesh);
   write_file("scene_0001.xml", text);
   write_file("scene_0002.xml", text);
   return (temp_dir() / "scene_####.xml").string();
