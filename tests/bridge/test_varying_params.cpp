@@ -28,8 +28,9 @@ constexpr int kSize = 32;
 // A 2.2 x 2.2 quad facing the camera at z = 3 under a point light 40 degrees
 // off the mirror direction (so roughness and IOR change what the pixel sees),
 // black background. `nodes` must define the closure "g" and may use the
-// checker "c" (uv coordinates, 2x2 cells).
-std::string quad_scene(const std::string &name, const std::string &nodes, const std::string &checker_colors) {
+// checker "c" (uv coordinates, 2x2 cells); `output` is g's output socket.
+std::string quad_scene(const std::string &name, const std::string &nodes, const std::string &checker_colors,
+                       const std::string &output = "bsdf") {
   return write_file(
       name,
       "<cycles>\n<camera width=\"32\" height=\"32\" fov=\"0.7\" />\n<camera />\n"
@@ -37,7 +38,7 @@ std::string quad_scene(const std::string &name, const std::string &nodes, const 
       "<state><light light_type=\"point\" co=\"2 0 0.5\" strength=\"300 300 300\" /></state>\n"
       "<shader name=\"s\">\n<texture_coordinate name=\"tc\" />\n<checker_texture name=\"c\" scale=\"2\" " +
           checker_colors + " />\n<connect from=\"tc uv\" to=\"c vector\" />\n" + nodes +
-          "\n<connect from=\"g bsdf\" to=\"output surface\" />\n</shader>\n"
+          "\n<connect from=\"g " + output + "\" to=\"output surface\" />\n</shader>\n"
           "<state shader=\"s\"><mesh P=\"-1.1 -1.1 3  1.1 -1.1 3  1.1 1.1 3  -1.1 1.1 3\" nverts=\"4\" "
           "verts=\"0 1 2 3\" UV=\"0 0 1 0 1 1 0 1\" /></state>\n</cycles>\n");
 }
@@ -57,7 +58,7 @@ render::RenderResult render(const std::string &path, std::vector<std::string> *w
 std::vector<float> region_mask() {
   const auto r = render(quad_scene("mask.xml",
                                    "<emission name=\"g\" strength=\"1\" />\n<connect from=\"c fac\" to=\"g color\" />",
-                                   ""));
+                                   "", "emission"));
   std::vector<float> mask;
   for (int i = 0; i < kSize * kSize; ++i) mask.push_back(r.combined[4 * i]);
   return mask;
