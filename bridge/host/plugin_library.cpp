@@ -10,6 +10,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <sstream>
 
 #include "scene/input_file.h"
@@ -38,16 +39,20 @@ std::string elf_problem(const std::string &path) {
   uint64_t size = 0;
   const std::string problem = scene::regular_file_problem(path, &size);
   if (!problem.empty()) return problem;
-  std::string bytes;
-  try {
-    // Headers only: the ELF header, then the program headers it points to.
-    bytes = scene::read_regular_file(path, uint64_t{1} << 31, "closure plugin");
-  } catch (const std::exception &e) {
-    return e.what();
-  }
+  constexpr uint64_t kMaxPluginBytes = uint64_t{1} << 31;
+  if (size > kMaxPluginBytes)
+    return std::to_string(size) + " bytes is more than the limit of " + std::to_string(kMaxPluginBytes);
+  // Headers only: the ELF header, then the program headers it points to (not the whole file).
+  std::ifstream file(path, std::ios::binary);
+  auto read_at = [&file](uint64_t offset, void *out, size_t count) {
+    file.clear();
+    file.seekg(static_cast<std::streamoff>(offset));
+    return static_cast<bool>(file.read(static_cast<char *>(out), static_cast<std::streamsize>(count)));
+  };
+  if (!file) return "cannot be opened";
   Elf64_Ehdr eh{};
-  if (bytes.size() < sizeof(eh)) return "too short to be a shared library (" + std::to_string(bytes.size()) + " bytes)";
-  std::memcpy(&eh, bytes.data(), sizeof(eh));
+  if (size < sizeof(eh) || !read_at(0, &eh, sizeof(eh)))
+    return "too short to be a shared library (" + std::to_string(size) + " bytes)";
   if (std::memcmp(eh.e_ident, ELFMAG, SELFMAG) != 0) return "not an ELF file";
   if (eh.e_ident[EI_CLASS] != ELFCLASS64 || eh.e_ident[EI_DATA] != ELFDATA2LSB)
     return "not a 64-bit little-endian ELF file";
@@ -66,7 +71,7 @@ std::string elf_problem(const std::string &path) {
     return "section headers lie outside the file (truncated?)";
   for (unsigned i = 0; i < eh.e_phnum; ++i) {
     Elf64_Phdr ph{};
-    std::memcpy(&ph, bytes.data() + eh.e_phoff + i * sizeof(ph), sizeof(ph));
+    if (!read_at(eh.e_phoff + i * sizeof(ph), &ph, sizeof(ph))) return "cannot read its program headers";
     if (ph.p_type == PT_LOAD && (ph.p_offset > size || ph.p_filesz > size - ph.p_offset))
       return "a loadable segment lies outside the file (truncated: " + std::to_string(size) + " bytes)";
   }
