@@ -5,10 +5,14 @@
 
 #include <atomic>
 #include <chrono>
+#include <condition_variable>
 #include <csignal>
 #include <cstdio>
+#include <deque>
 #include <filesystem>
 #include <iostream>
+#include <mutex>
+#include <thread>
 #include <new>
 #include <optional>
 #include <sstream>
@@ -23,12 +27,14 @@ namespace glimmer::cli {
 
 namespace {
 
-std::atomic<bool> g_interrupted{false};
+std::atomic<bool> g_interrupted{false};  // stop loading, preparing, rendering (a signal; serve: a new command)
+std::atomic<bool> g_signalled{false};
 
 // The first SIGINT/SIGTERM asks loading, preparation and rendering to stop;
 // a second one terminates at once (the default action).
 extern "C" void on_signal(int sig) {
   g_interrupted.store(true);
+  g_signalled.store(true);
   std::signal(sig, SIG_DFL);
 }
 
@@ -45,6 +51,8 @@ struct RenderArgs {
   std::string scene, output, region, frames, strategy = "mis";
   std::string sample_range, sample_split, tile, progress_format = "sample";
   double checkpoint_every = -1.0;  // seconds between checkpoints; < 0 = none
+  std::string display;             // the image so far, for a viewer (render::write_display_image)
+  double display_every = 0.0;      // seconds between display images (0: every pass)
   bool resume = false;
   int samples = 0, threads = 0, width = 0, height = 0, seed = -1, tile_size = 32;
   double time_limit = 0.0;
@@ -107,8 +115,16 @@ void set_part(const RenderArgs &a, const scene::Scene &scene, render::RenderOpti
   }
 }
 
+// `glimmer serve` keeps the last render's scene and renderer until the next renderer is prepared, so that tables
+// its closures share process-wide (glint tables: plugin/tables/glint_tables.cpp acquire_table) are reused instead
+// of being loaded and verified again at every change.
+struct KeptRender {
+  std::unique_ptr<scene::Scene> scene;
+  std::unique_ptr<render::Renderer> renderer;  // refers to *scene
+};
+
 int render_one(CliContext &ctx, const RenderArgs &a, const std::string &scene_path, const std::string &output,
-               int frame) {
+               int frame, KeptRender *keep = nullptr) {
   using Clock = std::chrono::steady_clock;
   auto t0 = Clock::now();
   auto since = [](Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); };
@@ -117,7 +133,8 @@ int render_one(CliContext &ctx, const RenderArgs &a, const std::string &scene_pa
   } catch (const std::exception &e) {
     throw CliError(kExitBadInput, e.what());
   }
-  scene::Scene scene;
+  auto loaded = std::make_unique<scene::Scene>();  // on the heap: a kept renderer refers to it
+  scene::Scene &scene = *loaded;
   try {
     scene = scene::load_scene(scene_path, &g_interrupted);
   } catch (const scene::LoadCancelled &e) {
@@ -140,25 +157,34 @@ int render_one(CliContext &ctx, const RenderArgs &a, const std::string &scene_pa
   opt.scene_hash = render::scene_file_hash(scene_path);
   const std::string checkpoint = checkpoint_path(output);
   std::unique_ptr<render::Renderer> renderer;
-  auto last_checkpoint = Clock::now();
-  if (a.checkpoint_every >= 0.0)
-    opt.after_pass = [&](const render::Film &film) {
-      if (since(last_checkpoint) < a.checkpoint_every || film.passes() == renderer->part().sample_end -
-                                                                          renderer->part().sample_begin)
-        return;
+  auto last_checkpoint = Clock::now(), last_display = Clock::now();
+  // Readers (the Blender addon) load a checkpoint or display image as soon as its line is printed.
+  auto announce = [&a](const char *what, int done, int total, const std::string &path) {
+    if (a.quiet) return;
+    std::printf("%s %d/%d %s\n", what, done, total, path.c_str());
+    std::fflush(stdout);
+  };
+  opt.after_pass = [&](const render::Film &film) {
+    const int total = renderer->part().sample_end - renderer->part().sample_begin;
+    if (!a.display.empty() && (film.passes() == 1 || since(last_display) >= a.display_every)) {
       try {
-        write_checkpoint(checkpoint, film, renderer->part());
-      } catch (const std::exception &e) {  // the render goes on; only resumability is lost
-        std::fprintf(stderr, "glimmer: warning: checkpoint not written: %s\n", e.what());
-        return;
+        write_display(a.display, film, renderer->part(), scene.film.exposure);
+        last_display = Clock::now();
+        announce("Display", film.passes(), total, a.display);
+      } catch (const std::exception &e) {  // the render goes on; only the viewer misses an update
+        std::fprintf(stderr, "glimmer: warning: display image not written: %s\n", e.what());
       }
-      last_checkpoint = Clock::now();
-      if (!a.quiet) {
-        std::printf("Checkpoint %d/%d %s\n", film.passes(), renderer->part().sample_end -
-                    renderer->part().sample_begin, checkpoint.c_str());
-        std::fflush(stdout);  // readers (the Blender addon) load the checkpoint as soon as it is announced
-      }
-    };
+    }
+    if (a.checkpoint_every < 0.0 || since(last_checkpoint) < a.checkpoint_every || film.passes() == total) return;
+    try {
+      write_checkpoint(checkpoint, film, renderer->part());
+    } catch (const std::exception &e) {  // the render goes on; only resumability is lost
+      std::fprintf(stderr, "glimmer: warning: checkpoint not written: %s\n", e.what());
+      return;
+    }
+    last_checkpoint = Clock::now();
+    announce("Checkpoint", film.passes(), total, checkpoint);
+  };
   if (a.strategy == "light") opt.strategy = render::LightStrategy::LightOnly;
   else if (a.strategy == "bsdf") opt.strategy = render::LightStrategy::BsdfOnly;
   else if (a.strategy != "mis") throw CliError(kExitBadInput, "--strategy must be mis, light or bsdf");
@@ -234,6 +260,10 @@ int render_one(CliContext &ctx, const RenderArgs &a, const std::string &scene_pa
                 static_cast<unsigned long long>(result.nan_samples));
   }
   std::fflush(stdout);
+  if (keep != nullptr) {  // the previous render is released only now, after this one's closures were prepared
+    keep->renderer = std::move(renderer);
+    keep->scene = std::move(loaded);
+  }
   if (result.interrupted) {
     std::fprintf(stderr, "glimmer: interrupted after %d/%d samples; partial image written to %s\n",
                  result.samples_done, result.samples_requested, output.c_str());
@@ -245,67 +275,143 @@ int render_one(CliContext &ctx, const RenderArgs &a, const std::string &scene_pa
   return kExitOk;
 }
 
+void add_render_options(CLI::App *cmd, RenderArgs &a) {
+  cmd->add_option("scene", a.scene, "scene file (Cycles XML; #### is replaced by the frame number)")->required();
+  cmd->add_option("-o,--output", a.output, "output image: .exr (float, multilayer AOVs) or .png (sRGB)")->required();
+  cmd->add_option("--samples", a.samples, "samples per pixel (default: the scene's integrator samples)")
+      ->check(CLI::Range(1, 1 << 24));
+  cmd->add_option("--threads", a.threads, "worker threads (0 = all cores)")->check(CLI::Range(0, 4096));
+  cmd->add_option("--width", a.width, "image width (default: the camera's)")->check(CLI::Range(1, 65536));
+  cmd->add_option("--height", a.height, "image height (default: the camera's)")->check(CLI::Range(1, 65536));
+  cmd->add_option("--seed", a.seed, "sampling seed (default: the scene's integrator seed)")
+      ->check(CLI::Range(0, 2147483647));
+  cmd->add_option("--region", a.region, "render only pixels x0,y0,x1,y1 (x1, y1 exclusive); an EXR holds just this crop (data window), a PNG the whole image with the rest black");
+  auto *tile = cmd->add_option("--tile", a.tile, "render band k of N (rows k*H/N to (k+1)*H/N), k/N; for farms");
+  cmd->get_option("--region")->excludes(tile);
+  auto *range = cmd->add_option("--sample-range", a.sample_range,
+                                "render samples a..b-1 of --samples, a,b (merge the parts with glimmer merge)");
+  auto *split = cmd->add_option("--sample-split", a.sample_split,
+                                "render sample part k of N (samples k*S/N to (k+1)*S/N), k/N");
+  range->excludes(split);
+  cmd->add_option("--checkpoint-every", a.checkpoint_every,
+                  "write the film to <output>.checkpoint.exr after a sample pass once this many seconds have "
+                  "passed since the last one (0: every pass)")
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_flag("--resume", a.resume, "continue from <output>.checkpoint.exr when it exists");
+  cmd->add_option("--display", a.display,
+                  "write the image so far to this .exr (plain R,G,B,A float, uncompressed) after the first sample "
+                  "pass and then every --display-every seconds, announced by 'Display n/N <path>' lines (viewers)");
+  cmd->add_option("--display-every", a.display_every, "seconds between --display images (default 0: every pass)")
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--progress-format", a.progress_format,
+                  "progress lines: sample ('Sample n/N') or blender ('Fra:F Time:.. | Remaining:.. | Sample n/N')")
+      ->check(CLI::IsMember({"sample", "blender"}));
+  cmd->add_option("--frames", a.frames, "frames to render, e.g. 1-10,12; #### in scene/output names is the frame");
+  cmd->add_option("--time-limit", a.time_limit, "stop after the sample pass that exceeds this many seconds")
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--tile-size", a.tile_size, "tile edge in pixels (does not change the image)")
+      ->check(CLI::Range(1, 4096));
+  cmd->add_option("--strategy", a.strategy, "direct light estimator: mis (default), light (NEE only), bsdf");
+  cmd->add_flag("--quiet", a.quiet, "no progress output");
+  cmd->add_flag("--stats", a.stats, "print the feature set and the time per phase");
+}
+
+// One `glimmer render` command line: its frames in turn. Returns the exit code.
+int run_render(CliContext &ctx, const RenderArgs &a, KeptRender *keep = nullptr) {
+  if (g_interrupted.load())
+    throw CliError(kExitInterrupted, "interrupted before loading; '" + a.output + "' left unchanged");
+  std::unique_ptr<tbb::global_control> threads;
+  if (a.threads > 0)
+    threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                                    static_cast<size_t>(a.threads));
+  if (a.frames.empty()) return render_one(ctx, a, a.scene, a.output, 1, keep);
+  const auto frames = parse_frames(a.frames);
+  if (frames.size() > 1 && a.output.find('#') == std::string::npos)
+    throw CliError(kExitBadInput, "rendering several frames needs #### in the output name");
+  for (int f : frames) {
+    const int code = render_one(ctx, a, render::frame_path(a.scene, f), render::frame_path(a.output, f), f, keep);
+    if (code != kExitOk) return code;
+  }
+  return kExitOk;
+}
+
+// `glimmer serve`: a persistent renderer (the Blender viewport's). Each line on stdin holds the arguments of one
+// `glimmer render`; a new line interrupts the render in progress and the newest waiting line runs next, so process
+// start-up and plugin loading are paid once, and tables shared by the closures of consecutive renders (KeptRender)
+// are built or loaded once. After each command: 'Finished <exit code> <output>'. At the end of
+// stdin the newest command finishes and the server exits 0; SIGTERM/SIGINT interrupt the render and end the server
+// (exit 3).
+int serve(CliContext &ctx) {
+  install_render_interrupt_handlers();
+  std::mutex mutex;
+  std::condition_variable wake;
+  std::deque<std::string> waiting;
+  bool end_of_input = false;
+  // Queued and cancelled under one lock, so a command is never cancelled by the line that started it.
+  std::thread([&] {
+    std::string line;
+    while (std::getline(std::cin, line)) {
+      std::lock_guard<std::mutex> lock(mutex);
+      waiting.push_back(line);
+      g_interrupted.store(true);
+      wake.notify_one();
+    }
+    std::lock_guard<std::mutex> lock(mutex);
+    end_of_input = true;  // the newest command still finishes
+    wake.notify_one();
+  }).detach();  // blocked in getline when the server ends: the process exit takes it
+  KeptRender kept;
+  for (;;) {
+    std::string line;
+    {
+      std::unique_lock<std::mutex> lock(mutex);
+      wake.wait_for(lock, std::chrono::milliseconds(100), [&] { return !waiting.empty() || end_of_input; });
+      if (g_signalled.load()) return kExitInterrupted;
+      if (waiting.empty()) {
+        if (end_of_input) return kExitOk;
+        continue;
+      }
+      line = waiting.back();  // the newest command; older ones are stale
+      waiting.clear();
+      g_interrupted.store(false);
+    }
+    RenderArgs args;
+    CLI::App app{"render"};
+    add_render_options(&app, args);
+    int code = kExitOk;
+    try {
+      app.parse(line);
+      code = run_render(ctx, args, &kept);
+    } catch (const CLI::ParseError &e) {
+      std::fprintf(stderr, "glimmer: error: %s\n", e.what());
+      code = kExitBadInput;
+    } catch (const CliError &e) {
+      std::fprintf(stderr, "glimmer: error: %s\n", e.what());
+      code = e.code();
+    } catch (const std::exception &e) {  // a bad scene or closure: the next command may be fine
+      std::fprintf(stderr, "glimmer: error: %s\n", e.what());
+      code = kExitBadInput;
+    }
+    std::fflush(stderr);
+    std::printf("Finished %d %s\n", code, args.output.c_str());
+    std::fflush(stdout);
+  }
+}
+
 }  // namespace
 
 void add_render_command(CLI::App &app, CliContext &ctx) {
   auto args = std::make_shared<RenderArgs>();
   auto *cmd = app.add_subcommand("render", "render a Cycles XML scene to an image");
-  cmd->add_option("scene", args->scene, "scene file (Cycles XML; #### is replaced by the frame number)")->required();
-  cmd->add_option("-o,--output", args->output, "output image: .exr (float, multilayer AOVs) or .png (sRGB)")->required();
-  cmd->add_option("--samples", args->samples, "samples per pixel (default: the scene's integrator samples)")
-      ->check(CLI::Range(1, 1 << 24));
-  cmd->add_option("--threads", args->threads, "worker threads (0 = all cores)")->check(CLI::Range(0, 4096));
-  cmd->add_option("--width", args->width, "image width (default: the camera's)")->check(CLI::Range(1, 65536));
-  cmd->add_option("--height", args->height, "image height (default: the camera's)")->check(CLI::Range(1, 65536));
-  cmd->add_option("--seed", args->seed, "sampling seed (default: the scene's integrator seed)")
-      ->check(CLI::Range(0, 2147483647));
-  cmd->add_option("--region", args->region, "render only pixels x0,y0,x1,y1 (x1, y1 exclusive); an EXR holds just this crop (data window), a PNG the whole image with the rest black");
-  auto *tile = cmd->add_option("--tile", args->tile, "render band k of N (rows k*H/N to (k+1)*H/N), k/N; for farms");
-  cmd->get_option("--region")->excludes(tile);
-  auto *range = cmd->add_option("--sample-range", args->sample_range,
-                                "render samples a..b-1 of --samples, a,b (merge the parts with glimmer merge)");
-  auto *split = cmd->add_option("--sample-split", args->sample_split,
-                                "render sample part k of N (samples k*S/N to (k+1)*S/N), k/N");
-  range->excludes(split);
-  cmd->add_option("--checkpoint-every", args->checkpoint_every,
-                  "write the film to <output>.checkpoint.exr after a sample pass once this many seconds have "
-                  "passed since the last one (0: every pass)")
-      ->check(CLI::NonNegativeNumber);
-  cmd->add_flag("--resume", args->resume, "continue from <output>.checkpoint.exr when it exists");
-  cmd->add_option("--progress-format", args->progress_format,
-                  "progress lines: sample ('Sample n/N') or blender ('Fra:F Time:.. | Remaining:.. | Sample n/N')")
-      ->check(CLI::IsMember({"sample", "blender"}));
-  cmd->add_option("--frames", args->frames, "frames to render, e.g. 1-10,12; #### in scene/output names is the frame");
-  cmd->add_option("--time-limit", args->time_limit, "stop after the sample pass that exceeds this many seconds")
-      ->check(CLI::NonNegativeNumber);
-  cmd->add_option("--tile-size", args->tile_size, "tile edge in pixels (does not change the image)")
-      ->check(CLI::Range(1, 4096));
-  cmd->add_option("--strategy", args->strategy, "direct light estimator: mis (default), light (NEE only), bsdf");
-  cmd->add_flag("--quiet", args->quiet, "no progress output");
-  cmd->add_flag("--stats", args->stats, "print the feature set and the time per phase");
+  add_render_options(cmd, *args);
   cmd->callback([&ctx, args] {
     install_render_interrupt_handlers();  // again: main() installs them only when it sees "render"
-    if (g_interrupted.load())
-      throw CliError(kExitInterrupted, "interrupted before loading; '" + args->output + "' left unchanged");
-    std::unique_ptr<tbb::global_control> threads;
-    if (args->threads > 0)
-      threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
-                                                      static_cast<size_t>(args->threads));
-    if (args->frames.empty()) {
-      ctx.exit_code = render_one(ctx, *args, args->scene, args->output, 1);
-      return;
-    }
-    const auto frames = parse_frames(args->frames);
-    if (frames.size() > 1 && args->output.find('#') == std::string::npos)
-      throw CliError(kExitBadInput, "rendering several frames needs #### in the output name");
-    for (int f : frames) {
-      const int code = render_one(ctx, *args, render::frame_path(args->scene, f), render::frame_path(args->output, f), f);
-      if (code != kExitOk) {
-        ctx.exit_code = code;
-        return;
-      }
-    }
+    ctx.exit_code = run_render(ctx, *args);
   });
+  auto *serve_cmd = app.add_subcommand(
+      "serve", "persistent renderer: one line of `glimmer render` arguments per stdin line; a new line interrupts "
+               "the render in progress ('Finished <code> <output>' after each); exits at the end of stdin");
+  serve_cmd->callback([&ctx] { ctx.exit_code = serve(ctx); });
 }
 
 }  // namespace glimmer::cli

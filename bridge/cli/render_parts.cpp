@@ -82,6 +82,16 @@ void write_checkpoint(const std::string &path, const render::Film &film, const r
   render::write_image(path, r);
 }
 
+void write_display(const std::string &path, const render::Film &film, const render::PartInfo &part, float exposure) {
+  render::RenderResult r;
+  film.resolve(exposure, r);
+  r.width = film.width();
+  r.height = film.height();
+  r.part = part;
+  r.samples_done = film.passes();
+  render::write_display_image(path, r);
+}
+
 render::Film read_checkpoint(const std::string &path, const render::PartInfo &part) {
   render::RenderResult r;
   try {

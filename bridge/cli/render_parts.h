@@ -29,6 +29,9 @@ std::string checkpoint_path(const std::string &output);
 // Writes the film (raw sums) atomically with the part's metadata.
 void write_checkpoint(const std::string &path, const render::Film &film, const render::PartInfo &part);
 
+// Writes the film's image so far (means x exposure, alpha) for a viewer: render::write_display_image.
+void write_display(const std::string &path, const render::Film &film, const render::PartInfo &part, float exposure);
+
 // Reads a checkpoint and checks it belongs to `part` (same scene hash, resolution, seed,
 // samples, strategy, sample range, window); throws CliError saying what differs.
 render::Film read_checkpoint(const std::string &path, const render::PartInfo &part);

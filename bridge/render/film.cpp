@@ -60,6 +60,7 @@ PartInfo describe_part(const RenderOptions &options, int width, int height, int 
 Film::Film(int width, int height, bool aovs) : width_(width), height_(height), aovs_(aovs) {
   const size_t npix = static_cast<size_t>(width) * height;
   sum_.assign(npix, Spectrum(0.0f));
+  alpha_.assign(npix, 0.0f);
   count_.assign(npix, 0u);
   if (aovs) {
     albedo_.assign(npix, Spectrum(0.0f));
@@ -82,7 +83,8 @@ void Film::resolve(float exposure, RenderResult &r) const {
       ++r.nan_samples;
     }
     for (int k = 0; k < 3; ++k) r.combined[4 * i + k] = c[k];
-    r.combined[4 * i + 3] = 1.0f;
+    // Divided, not multiplied by inv: n of n opaque samples is exactly 1 for every n.
+    r.combined[4 * i + 3] = count_[i] > 0 ? std::clamp(alpha_[i] / static_cast<float>(count_[i]), 0.0f, 1.0f) : 0.0f;
     if (!aovs_) continue;
     const Spectrum a = albedo_[i] * inv, n = normal_[i] * inv;
     for (int k = 0; k < 3; ++k) {
@@ -103,6 +105,7 @@ void Film::store(RenderResult &r) const {
     for (int k = 0; k < 3; ++k) r.combined[4 * i + k] = sum_[i][k];
     r.combined[4 * i + 3] = static_cast<float>(count_[i]);  // exact below 2^24 samples
   }
+  r.alpha_sum = alpha_;
   r.albedo.clear();
   r.normal.clear();
   r.depth.clear();
@@ -122,11 +125,14 @@ Film Film::restore(const RenderResult &r) {
   const size_t npix = static_cast<size_t>(r.width) * r.height;
   if (r.combined.size() != 4 * npix) throw std::runtime_error("checkpoint has the wrong number of pixels");
   const bool aovs = r.albedo.size() == 3 * npix && r.normal.size() == 3 * npix && r.depth.size() == npix;
+  if (!r.alpha_sum.empty() && r.alpha_sum.size() != npix)
+    throw std::runtime_error("checkpoint has the wrong number of alpha sums");
   Film f(r.width, r.height, aovs);
   f.passes_ = r.samples_done;
   for (size_t i = 0; i < npix; ++i) {
     f.sum_[i] = Spectrum(r.combined[4 * i], r.combined[4 * i + 1], r.combined[4 * i + 2]);
     f.count_[i] = static_cast<uint32_t>(r.combined[4 * i + 3]);
+    f.alpha_[i] = r.alpha_sum.empty() ? r.combined[4 * i + 3] : r.alpha_sum[i];
     if (!aovs) continue;
     f.albedo_[i] = Spectrum(r.albedo[3 * i], r.albedo[3 * i + 1], r.albedo[3 * i + 2]);
     f.normal_[i] = Vec3(r.normal[3 * i], r.normal[3 * i + 1], r.normal[3 * i + 2]);

@@ -1,5 +1,6 @@
-// The film: per-pixel sums of path contributions (and of the Albedo/Normal/Depth
-// AOVs) plus sample counts, in sample order. Keeping the raw sums is what makes a
+// The film: per-pixel sums of path contributions, of alpha (coverage: 0 where a camera
+// path escaped to a transparent film's background, Cycles' Film > Transparent) and of the
+// Albedo/Normal/Depth AOVs, plus sample counts, in sample order. Keeping the raw sums is what makes a
 // render resumable bit for bit (a checkpoint stores them, --resume continues the
 // same additions) and splittable: a region is the same additions on fewer pixels,
 // a sample range [a, b) the additions of samples a..b-1 (see docs/farm.md).
@@ -47,13 +48,15 @@ class Film {
   // Sample passes completed over every pixel of the window (what a checkpoint records).
   int passes() const { return passes_; }
 
-  // One sample of pixel i (row-major, full image). Called concurrently for distinct pixels.
+  // One sample of pixel i (row-major, full image): radiance L, alpha in [0, 1] (1 - the
+  // throughput that escaped to a transparent background). Called concurrently for distinct pixels.
   // Returns false (the sample's radiance dropped, the count kept) when adding L would overflow
   // the pixel's sum to Inf: the caller counts it with the non-finite samples.
-  bool add(size_t i, const Spectrum &L, const Spectrum &albedo, const Vec3 &normal, float depth) {
+  bool add(size_t i, const Spectrum &L, float alpha, const Spectrum &albedo, const Vec3 &normal, float depth) {
     const Spectrum next = sum_[i] + L;
     const bool finite = is_finite(next);
     if (finite) sum_[i] = next;
+    alpha_[i] += alpha;
     count_[i]++;
     if (aovs_) {
       albedo_[i] += albedo;
@@ -64,12 +67,15 @@ class Film {
   }
   void end_pass() { ++passes_; }
 
-  // Per-pixel means into result.combined/albedo/normal/depth (combined scaled by exposure, alpha 1).
-  // A mean that exposure pushes past the float range becomes 0 and counts in result.nan_samples.
+  // Per-pixel means into result.combined/albedo/normal/depth (RGB scaled by exposure; alpha = the
+  // alpha sum / sample count, so exactly 0 or 1 where every sample agreed). RGB is premultiplied
+  // (the transparent background adds nothing). A mean that exposure pushes past the float range
+  // becomes 0 and counts in result.nan_samples.
   void resolve(float exposure, RenderResult &result) const;
 
-  // Checkpoint image: channels hold the raw sums, alpha the per-pixel sample count
-  // (RenderResult::film_sums set); restore() is its exact inverse.
+  // Checkpoint image: channels hold the raw sums, Combined alpha the per-pixel sample count,
+  // RenderResult::alpha_sum the alpha sums (RenderResult::film_sums set); restore() is its exact
+  // inverse (a checkpoint without alpha sums, written before they existed, restores as opaque).
   void store(RenderResult &result) const;
   static Film restore(const RenderResult &checkpoint);
 
@@ -78,7 +84,7 @@ class Film {
   bool aovs_;
   int passes_ = 0;
   std::vector<Spectrum> sum_, albedo_, normal_;
-  std::vector<float> depth_;
+  std::vector<float> alpha_, depth_;
   std::vector<uint32_t> count_;  // an interrupt stops a pass mid-way, so pixels can differ by one
 };
 

@@ -35,6 +35,9 @@ float srgb_encode(float v) {
   return v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1.0f / 2.4f) - 0.055f;
 }
 
+// A checkpoint's per-pixel alpha sums (RenderResult::alpha_sum): not a Blender pass.
+constexpr const char *kAlphaSumChannel = "glimmer.alpha_sum";
+
 std::vector<std::string> exr_channel_names(bool aovs) {
   std::vector<std::string> names = {"ViewLayer.Combined.R", "ViewLayer.Combined.G", "ViewLayer.Combined.B",
                                     "ViewLayer.Combined.A"};
@@ -100,52 +103,87 @@ void write_image_file(const std::string &path, const OIIO::ImageSpec &spec, cons
   if (!problem.empty()) throw std::runtime_error(problem);
 }
 
+namespace {
+
+// A float EXR spec for `names`: the data window is the rendered window (a region writes just its crop), the display
+// window the whole image; Combined RGBA first.
+OIIO::ImageSpec exr_spec(const RenderResult &r, const std::vector<std::string> &names) {
+  const PartInfo &part = r.part;
+  const bool windowed = part.window[2] > part.window[0] && part.window[3] > part.window[1] &&
+                        part.full_width == r.width && part.full_height == r.height;
+  const int wx0 = windowed ? part.window[0] : 0, wy0 = windowed ? part.window[1] : 0;
+  OIIO::ImageSpec spec(windowed ? part.window[2] - wx0 : r.width, windowed ? part.window[3] - wy0 : r.height,
+                       static_cast<int>(names.size()), OIIO::TypeDesc::FLOAT);
+  spec.x = wx0;
+  spec.y = wy0;
+  spec.full_x = spec.full_y = 0;
+  spec.full_width = r.width;
+  spec.full_height = r.height;
+  spec.channelnames = names;
+  spec.alpha_channel = 3;
+  return spec;
+}
+
+// The pixels of spec's data window, channel k of a pixel from channel(i, k) (i: the pixel's index in the full image).
+template <class Channel>
+std::vector<float> window_pixels(const OIIO::ImageSpec &spec, int full_width, Channel channel) {
+  const int nc = spec.nchannels;
+  std::vector<float> pixels(static_cast<size_t>(spec.width) * spec.height * nc);
+  for (int y = 0; y < spec.height; ++y)
+    for (int x = 0; x < spec.width; ++x) {
+      const size_t i = static_cast<size_t>(y + spec.y) * full_width + (x + spec.x);
+      float *p = &pixels[(static_cast<size_t>(y) * spec.width + x) * nc];
+      for (int k = 0; k < nc; ++k) p[k] = channel(i, k);
+    }
+  return pixels;
+}
+
+}  // namespace
+
+void write_display_image(const std::string &path, const RenderResult &r) {
+  OIIO::ImageSpec spec = exr_spec(r, {"R", "G", "B", "A"});
+  spec.attribute("compression", "none");
+  spec.attribute("glimmer:samples", r.samples_done);
+  const auto pixels = window_pixels(spec, r.width, [&r](size_t i, int k) { return r.combined[4 * i + k]; });
+  write_image_file(path, spec, pixels.data());
+}
+
 void write_image(const std::string &path, const RenderResult &r) {
   const std::string ext = lower_extension(path);
   const size_t npix = static_cast<size_t>(r.width) * r.height;
   if (ext == ".exr") {
-    // The data window is the rendered window (a region writes just its crop); the display window the whole image.
-    const PartInfo &part = r.part;
-    const bool windowed = part.window[2] > part.window[0] && part.window[3] > part.window[1] &&
-                          part.full_width == r.width && part.full_height == r.height;
-    const int wx0 = windowed ? part.window[0] : 0, wy0 = windowed ? part.window[1] : 0;
-    const int ww = windowed ? part.window[2] - wx0 : r.width, wh = windowed ? part.window[3] - wy0 : r.height;
-    const std::vector<std::string> names = exr_channel_names(r.albedo.size() == 3 * npix);
+    std::vector<std::string> names = exr_channel_names(r.albedo.size() == 3 * npix);
     const bool aovs = names.size() > 4;
-    const int nc = static_cast<int>(names.size());
-    OIIO::ImageSpec spec(ww, wh, nc, OIIO::TypeDesc::FLOAT);
-    spec.x = wx0;
-    spec.y = wy0;
-    spec.full_x = spec.full_y = 0;
-    spec.full_width = r.width;
-    spec.full_height = r.height;
-    spec.channelnames = names;
-    spec.alpha_channel = 3;
-    spec.z_channel = aovs ? nc - 1 : -1;
+    if (r.alpha_sum.size() == npix) names.push_back(kAlphaSumChannel);
+    OIIO::ImageSpec spec = exr_spec(r, names);
+    spec.z_channel = aovs ? 10 : -1;
     spec.attribute("compression", "zip");
     spec.attribute("glimmer:samples", r.samples_done);
     write_part_metadata(r, spec);
-    std::vector<float> pixels(static_cast<size_t>(ww) * wh * nc);
-    for (int y = 0; y < wh; ++y)
-      for (int x = 0; x < ww; ++x) {
-        const size_t i = static_cast<size_t>(y + wy0) * r.width + (x + wx0);
-        float *p = &pixels[(static_cast<size_t>(y) * ww + x) * nc];
-        for (int k = 0; k < 4; ++k) p[k] = r.combined[4 * i + k];
-        if (aovs) {
-          for (int k = 0; k < 3; ++k) p[4 + k] = r.albedo[3 * i + k];
-          for (int k = 0; k < 3; ++k) p[7 + k] = r.normal[3 * i + k];
-          p[10] = r.depth[i];
-        }
-      }
+    const auto pixels = window_pixels(spec, r.width, [&r, aovs](size_t i, int k) {
+      if (k < 4) return r.combined[4 * i + k];
+      if (aovs && k < 7) return r.albedo[3 * i + k - 4];
+      if (aovs && k < 10) return r.normal[3 * i + k - 7];
+      if (aovs && k == 10) return r.depth[i];
+      return r.alpha_sum[i];
+    });
     write_image_file(path, spec, pixels.data());
   } else {
-    OIIO::ImageSpec spec(r.width, r.height, 4, OIIO::TypeDesc::UINT8);
+    // 8-bit sRGB; RGBA with straight (unassociated) alpha, as Blender writes PNGs, where the format has alpha.
+    auto out = OIIO::ImageOutput::create(path);
+    const int nc = out && out->supports("alpha") ? 4 : 3;
+    OIIO::ImageSpec spec(r.width, r.height, nc, OIIO::TypeDesc::UINT8);
     spec.attribute("oiio:ColorSpace", "sRGB");
-    std::vector<unsigned char> pixels(npix * 4);
+    if (nc == 4) spec.attribute("oiio:UnassociatedAlpha", 1);  // already straight: OIIO must not divide again
+    std::vector<unsigned char> pixels(npix * nc);
     for (size_t i = 0; i < npix; ++i) {
+      const float alpha = std::clamp(r.combined[4 * i + 3], 0.0f, 1.0f);
+      // Premultiplied RGB over alpha 1 (or without an alpha channel) is written as it is.
+      const float straight = nc == 4 && alpha > 0.0f ? 1.0f / alpha : 1.0f;
       for (int k = 0; k < 3; ++k)
-        pixels[4 * i + k] = static_cast<unsigned char>(std::lround(srgb_encode(r.combined[4 * i + k]) * 255.0f));
-      pixels[4 * i + 3] = static_cast<unsigned char>(std::lround(std::clamp(r.combined[4 * i + 3], 0.0f, 1.0f) * 255.0f));
+        pixels[nc * i + k] =
+            static_cast<unsigned char>(std::lround(srgb_encode(r.combined[4 * i + k] * straight) * 255.0f));
+      if (nc == 4) pixels[nc * i + 3] = static_cast<unsigned char>(std::lround(alpha * 255.0f));
     }
     write_image_file(path, spec, pixels.data());
   }
@@ -177,6 +215,8 @@ RenderResult read_image(const std::string &path) {
   const bool aovs = find_all(exr_channel_names(true), index);
   if (!aovs && !find_all(exr_channel_names(false), index))
     throw std::runtime_error("'" + path + "' is not a Glimmer EXR (no ViewLayer.Combined.R/G/B/A channels)");
+  const auto alpha_sum_channel = std::find(have.begin(), have.end(), kAlphaSumChannel);
+  const bool alpha_sums = alpha_sum_channel != have.end();
   const int nc = spec.nchannels;
   std::vector<float> pixels(static_cast<size_t>(spec.width) * spec.height * nc);
   if (!in->read_image(0, 0, 0, nc, OIIO::TypeDesc::FLOAT, pixels.data()))
@@ -187,6 +227,7 @@ RenderResult read_image(const std::string &path) {
     r.normal.assign(3 * npix, 0.0f);
     r.depth.assign(npix, 0.0f);
   }
+  if (alpha_sums) r.alpha_sum.assign(npix, 0.0f);
   for (int y = 0; y < spec.height; ++y)
     for (int x = 0; x < spec.width; ++x) {
       const size_t i = static_cast<size_t>(y + spec.y) * r.width + (x + spec.x);
@@ -197,6 +238,7 @@ RenderResult read_image(const std::string &path) {
         for (int k = 0; k < 3; ++k) r.normal[3 * i + k] = p[index[7 + k]];
         r.depth[i] = p[index[10]];
       }
+      if (alpha_sums) r.alpha_sum[i] = p[alpha_sum_channel - have.begin()];
     }
   PartInfo &part = r.part;
   part.scene_hash = spec.get_string_attribute("glimmer:scene_hash");

@@ -2,10 +2,12 @@
 // written with glimmer/atomic_file.h (random O_EXCL|O_NOFOLLOW temporary
 // file in the target folder, fsync, rename).
 //  - .exr: float multilayer channels with Blender's names (view layer "ViewLayer"):
-//    ViewLayer.Combined.R/G/B/A, ViewLayer.Albedo.R/G/B, ViewLayer.Normal.X/Y/Z, ViewLayer.Depth.Z.
+//    ViewLayer.Combined.R/G/B/A (premultiplied alpha), ViewLayer.Albedo.R/G/B, ViewLayer.Normal.X/Y/Z,
+//    ViewLayer.Depth.Z; a checkpoint adds glimmer.alpha_sum (Combined.A holds the sample counts there).
 //    The EXR data window is the rendered window (a --region part holds just its crop) and
 //    glimmer:* attributes record the part (scene hash, seed, sample range; render/film.h).
-//  - other formats (.png, .jpg, .tif): the Combined pass, sRGB-encoded 8-bit.
+//  - other formats (.png, .jpg, .tif): the Combined pass, sRGB-encoded 8-bit; RGBA with straight
+//    alpha where the format has alpha (PNG, TIFF), RGB otherwise (JPEG).
 #pragma once
 
 #include <OpenImageIO/imageio.h>
@@ -18,6 +20,11 @@ namespace glimmer::render {
 
 // Throws std::runtime_error naming the file on failure.
 void write_image(const std::string &path, const RenderResult &result);
+
+// The image so far for a viewer (Blender's viewport and render window): the Combined pass only, as plain R, G,
+// B, A float channels (premultiplied alpha) in an uncompressed EXR (read with numpy without a decoder), data
+// window = the rendered window, glimmer:samples = the samples in it. Written atomically like write_image.
+void write_display_image(const std::string &path, const RenderResult &result);
 
 // Reads an EXR written by write_image (a part, a checkpoint or a whole render) back
 // into a full-resolution result (zeros outside the data window) with its PartInfo.

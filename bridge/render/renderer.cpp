@@ -426,6 +426,7 @@ struct Renderer::Impl {
     Spectrum albedo{0.0f};
     Vec3 normal{0.0f};
     float depth = 1e10f;
+    float alpha = 1.0f;  // 1 - the throughput that escaped to a transparent film's background
   };
 
   // The MIS weight of emission a BSDF-sampled ray found (lamps, background, mesh lights),
@@ -608,6 +609,8 @@ struct Renderer::Impl {
     Spectrum L(0.0f), throughput(1.0f);
     PathState ps;
     bool first_hit = true;
+    // Cycles' PATH_RAY_TRANSPARENT_BACKGROUND: the camera ray and its transparent pass-throughs.
+    bool transparent_background = scene.background.transparent;
 
     auto add = [&](const Spectrum &contribution, int at_bounce) {
       if (!is_finite(contribution)) {
@@ -633,6 +636,10 @@ struct Renderer::Impl {
       lights->intersect(org, D, t_hit, hit_surface, ps.bounce == 0, lhs);
       for (int i = 0; i < lhs.count; ++i) add_emission(lhs.hits[i].radiance, lhs.hits[i].pdf);
       if (!hit_surface) {
+        if (transparent_background) {
+          aov.alpha -= average(throughput);
+          break;
+        }
         if (shaders->has_background()) add_emission(shaders->background(D), use_nee ? lights->background_pdf(D) : 0.0f);
         break;
       }
@@ -698,6 +705,7 @@ struct Renderer::Impl {
       if (!scatter(cs, sd, chosen, r3, total_sw, throughput, ps, s, nan_count)) break;
       const Vec3 wo = normalize(Vec3(s.wo));
       ps.advance(s.label, limits);
+      transparent_background = false;
 
       next_differentials(rd, D, wo, sd, s, ps.last_singular, pixel_spread, ps);
       org = offset_ray_origin(sd.ctx.P, sd.Ng, wo);
@@ -791,7 +799,7 @@ RenderResult Renderer::render(const std::function<void(int, int)> &progress, con
         for (int x = br.cols().begin(); x < br.cols().end(); ++x) {
           Impl::PixelAov aov;
           const Spectrum L = im.trace_path(x, y, static_cast<uint32_t>(s), aov, nans);
-          if (!film.add(static_cast<size_t>(y) * im.width + x, L, aov.albedo, aov.normal, aov.depth))
+          if (!film.add(static_cast<size_t>(y) * im.width + x, L, aov.alpha, aov.albedo, aov.normal, aov.depth))
             ++nans;  // a finite sample can still overflow the pixel's sum: dropped and counted
           ++traced;
         }

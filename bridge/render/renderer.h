@@ -42,10 +42,11 @@ struct RenderResult {
   int samples_requested = 0, samples_done = 0;  // of this part's sample range
   PartInfo part;                 // what this image covers (EXR metadata)
   bool film_sums = false;        // a checkpoint: raw sums, alpha = sample count (Film::store)
+  std::vector<float> alpha_sum;  // a checkpoint's per-pixel alpha sums (empty otherwise)
   bool interrupted = false;
   bool time_limited = false;
   uint64_t nan_samples = 0;      // non-finite contributions dropped
-  std::vector<float> combined;   // RGBA, row 0 = top, exposure applied
+  std::vector<float> combined;   // RGBA (premultiplied), row 0 = top, exposure applied
   std::vector<float> albedo;     // RGB
   std::vector<float> normal;     // XYZ (world space, first hit)
   std::vector<float> depth;      // Z (camera-space depth of the first hit, 1e10 for background)

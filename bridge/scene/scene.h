@@ -185,7 +185,8 @@ struct Light {
 };
 
 struct Background {
-  int shader = -1;  // -1: black
+  int shader = -1;           // -1: black
+  bool transparent = false;  // Cycles' film transparency: camera rays that escape give alpha 0
 };
 
 struct Scene {

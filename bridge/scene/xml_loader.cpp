@@ -337,8 +337,10 @@ class Loader {
   }
 
   void read_background(const XmlFile &f, const pugi::xml_node &node) {
-    check_attributes(f, node, {}, {"heterogeneous_volume", "volume_sampling_method", "volume_interpolation_method",
-                                   "use_shader", "transparent", "use_mis", "volume_step_size"});
+    check_attributes(f, node, {"transparent"},
+                     {"heterogeneous_volume", "volume_sampling_method", "volume_interpolation_method", "use_shader",
+                      "use_mis", "volume_step_size", "transparent_glass", "transparent_roughness_threshold"});
+    scene_.background.transparent = read_bool(f, node, "transparent", scene_.background.transparent);
     ShaderGraph g = read_graph(f, node, "__background");
     const int existing = scene_.find_shader("__background");
     if (existing >= 0) {
