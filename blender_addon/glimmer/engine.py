@@ -114,20 +114,6 @@ def load_exr_into_result(result, path, layer_name):
     result.load_from_file(fixed)
 
 
-def checkpoint_to_rgba(checkpoint, exposure, path, extra=()):
-    """A checkpoint (Combined RGB = raw sums, A = samples per pixel) as a plain RGBA EXR of per-pixel means x
-    exposure, alpha 1, as the final image would be at that sample count (oiiotool: division by 0 gives 0)."""
-    oiiotool = shutil.which("oiiotool")
-    if oiiotool is None:
-        raise RuntimeError("progressive updates need oiiotool (Debian package openimageio-tools)")
-    combined = [c for c in exr_channels(checkpoint) if ".Combined." in c]
-    layer = combined[0].split(".Combined.")[0] + ".Combined." if combined else ""
-    subprocess.run([oiiotool, checkpoint, "--ch", ",".join(layer + c for c in "RGB"), "--chnames", "R,G,B",
-                    checkpoint, "--ch", ",".join([layer + "A"] * 3), "--chnames", "R,G,B", "--div",
-                    "--mulc", "%.9g,%.9g,%.9g" % ((exposure,) * 3), "--ch", "R,G,B,A=1.0", "-d", "float",
-                    *extra, "-o", path], check=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, timeout=60)
-
-
 class GlimmerRenderEngine(bpy.types.RenderEngine):
     bl_idname = "GLIMMER"
     bl_label = "Glimmer"
@@ -180,9 +166,9 @@ class GlimmerRenderEngine(bpy.types.RenderEngine):
             seed = settings.seed + (scene.frame_current if settings.use_animated_seed else 0)
             samples = min(settings.samples, PREVIEW_SAMPLES) if preview else settings.samples
             progressive = settings.use_progressive and not preview
+            display = os.path.join(out_dir, "progress.exr") if progressive else None
             cmd = runner.render_command(executable, xml_path, exr_path, samples, settings.threads,
-                                        seed, width, height, region,
-                                        settings.progressive_interval if progressive else None)
+                                        seed, width, height, region, display, settings.progressive_interval)
             render_start = time.monotonic()
 
             def progress(done, total):
@@ -191,10 +177,9 @@ class GlimmerRenderEngine(bpy.types.RenderEngine):
                 self.update_stats("", "Glimmer: sample %d/%d, %.1f s" % (done, total, elapsed))
 
             def renderer_line(line):  # the renderer's scene warnings (file:line) go to Blender's report
-                checkpoint = runner.CHECKPOINT_LINE.match(line)
-                if checkpoint and progressive:
-                    self.show_checkpoint(result, checkpoint.group(3), settings.film_exposure,
-                                         int(checkpoint.group(1)), int(checkpoint.group(2)))
+                shown = runner.DISPLAY_LINE.match(line)
+                if shown and progressive:
+                    self.show_progress(result, shown.group(3), int(shown.group(1)), int(shown.group(2)))
                 elif "warning" in line.lower() and not preview:
                     self.report_once({"WARNING"}, "glimmer: " + line)
 
@@ -299,24 +284,21 @@ class GlimmerRenderEngine(bpy.types.RenderEngine):
         if session is not None:
             session.stop()
 
-    def show_checkpoint(self, result, checkpoint, exposure, done, total):
-        """Shows the renderer's newest checkpoint in the render window (the announced one, done of total
-        samples, may have been replaced by a later one meanwhile). Returns (samples shown, the RGBA file) or
-        None when there was nothing to show."""
-        base = checkpoint[:-len(".checkpoint.exr")]
-        snapshot, progress_path = base + ".shown.exr", base + ".progress.exr"
+    def show_progress(self, result, image, done, total):
+        """Shows the renderer's newest display image (`Display n/N <path>`: means x exposure and alpha at n of
+        total samples; a later one may have replaced it meanwhile) in the render window. Returns (samples
+        shown, the file shown) or None when there was nothing to show."""
+        snapshot = image[:-len(".exr")] + ".shown.exr"
         try:
-            shutil.copyfile(checkpoint, snapshot)  # the renderer renames new checkpoints into place
+            shutil.copyfile(image, snapshot)  # the renderer renames each new image into place
             raw = exr_attributes(snapshot).get("glimmer:samples", ("int", b""))[1]
             shown = struct.unpack("<i", raw)[0] if len(raw) == 4 else done
-            checkpoint_to_rgba(snapshot, exposure, progress_path)
-        except (OSError, RuntimeError, ValueError, subprocess.SubprocessError) as e:
-            # Deleted at the end of the render, or no oiiotool: the final image comes anyway.
+            result.layers[0].load_from_file(snapshot)
+        except (OSError, RuntimeError, ValueError) as e:  # deleted at the end of the render: the final image comes
             print("Glimmer: progressive update at sample %d/%d skipped: %s" % (done, total, e))
             return None
-        result.layers[0].load_from_file(progress_path)
         self.update_result(result)
-        return shown, progress_path
+        return shown, snapshot
 
     def cancel_requested(self):
         """Esc in the render window (or the job being stopped); a Python method so tests can drive it."""

@@ -530,8 +530,6 @@ class Exporter:
         root.append(ET.Comment(" exported by the Glimmer Blender addon from %s "
                                % (bpy.data.filepath or "an unsaved .blend")))
         self.write_camera(root)
-        if self.scene.render.film_transparent:
-            self.warn("Film > Transparent is not supported: the background is rendered (alpha 1)")
         self.write_film_integrator(root)
         self.write_world(root)
         default = ET.SubElement(root, "shader", name=self.shader_names("glimmer_default"))
@@ -627,6 +625,12 @@ class Exporter:
     def write_world(self, root):
         world = self.scene.world
         bg = ET.SubElement(root, "background")
+        render = self.scene.render
+        if render.film_transparent:  # Cycles XML: the Background node's `transparent` socket
+            bg.set("transparent", "true")
+            if getattr(self.scene, "cycles", None) is not None and getattr(self.scene.cycles, "film_transparent_glass",
+                                                                            False):
+                self.warn("Film > Transparent Glass is not supported: glass is opaque (alpha 1)")
         if world is None:
             ET.SubElement(bg, "background", name="bg", color="0 0 0", strength="0")
             ET.SubElement(bg, "connect", attrib={"from": "bg background", "to": "output surface"})

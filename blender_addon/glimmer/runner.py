@@ -12,7 +12,8 @@ import threading
 import time
 
 SAMPLE_LINE = re.compile(r"Sample\s+(\d+)\s*/\s*(\d+)")
-CHECKPOINT_LINE = re.compile(r"^Checkpoint\s+(\d+)\s*/\s*(\d+)\s+(.+)$")
+DISPLAY_LINE = re.compile(r"^Display\s+(\d+)\s*/\s*(\d+)\s+(.+)$")
+FINISHED_LINE = re.compile(r"^Finished\s+(-?\d+)\s+(.*)$")  # `glimmer serve`: a command ended (exit code, output)
 EXIT_INTERRUPTED = 3
 
 
@@ -21,18 +22,19 @@ class RenderFailed(RuntimeError):
 
 
 def render_command(executable, scene_path, output_path, samples, threads, seed, width, height, region=None,
-                   checkpoint_every=None):
+                   display=None, display_every=0.0):
     """region: (x0, y0, x1, y1) pixels of the full image, top row 0, x1/y1 exclusive (`--region`: the EXR
-    holds just that crop); checkpoint_every: seconds between checkpoint files (raw film sums, alpha = sample
-    count) announced by `Checkpoint n/N <path>` lines."""
+    holds just that crop); display: the image so far (plain R, G, B, A float EXR, uncompressed: means x
+    exposure, premultiplied alpha) written after the first sample pass and then every display_every seconds,
+    announced by `Display n/N <path>` lines (DISPLAY_LINE)."""
     cmd = [executable, "render", scene_path, "-o", output_path, "--samples", str(samples),
            "--seed", str(seed), "--width", str(width), "--height", str(height)]
     if threads > 0:
         cmd += ["--threads", str(threads)]
     if region is not None:
         cmd += ["--region", ",".join(str(int(v)) for v in region)]
-    if checkpoint_every is not None:
-        cmd += ["--checkpoint-every", "%g" % checkpoint_every]
+    if display is not None:
+        cmd += ["--display", display, "--display-every", "%g" % display_every]
     return cmd
 
 

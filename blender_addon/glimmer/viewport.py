@@ -1,12 +1,19 @@
-"""Progressive viewport rendering: export, `glimmer render` with a checkpoint after every sample pass, in a thread.
+"""Progressive viewport rendering: export, then one persistent `glimmer serve` process renders it.
 
-The session owns one renderer process at a time. The engine's view_update restarts it when the depsgraph or the
-view changed; view_draw draws the newest image. The session itself does not use the GPU, so tests drive it
+The session keeps the renderer process for its whole life: each change (start()) exports the scene and sends the
+render's arguments as one line to the process's stdin, which interrupts the render in progress and starts the new
+one (no process start-up, plugin loading or first use of the DSO per change). The renderer writes the image so
+far after every sample pass as a plain uncompressed RGBA EXR (`--display`), which a reader thread loads with numpy
+(read_uncompressed_exr): no image-conversion process. The engine's view_update restarts on depsgraph or view
+changes; view_draw draws the newest image. The session itself does not use the GPU, so tests drive it
 headless."""
 import math
 import os
+import shlex
 import shutil
+import signal
 import struct
+import subprocess
 import tempfile
 import threading
 import time
@@ -52,22 +59,10 @@ def read_uncompressed_exr(path):
     return np.ascontiguousarray(np.stack([abgr[:, 3], abgr[:, 2], abgr[:, 1], abgr[:, 0]], axis=-1))
 
 
-def checkpoint_pixels(checkpoint, exposure, work_dir):
-    """Means x exposure of a checkpoint as an RGBA float array, or None when it vanished meanwhile."""
-    from .engine import checkpoint_to_rgba  # noqa: PLC0415
-
-    snapshot, rgba = os.path.join(work_dir, "shown.exr"), os.path.join(work_dir, "shown_rgba.exr")
-    try:
-        shutil.copyfile(checkpoint, snapshot)
-    except OSError:
-        return None
-    checkpoint_to_rgba(snapshot, exposure, rgba, extra=["--compression", "none"])
-    return read_uncompressed_exr(rgba)
-
-
 class ViewportSession:
-    """One progressive render of a depsgraph seen from a view. `updates` counts the images shown, `pixels`
-    is the newest (RGBA, rows top to bottom), `first_pixels_seconds` the time from start() to the first."""
+    """Progressive renders of a depsgraph seen from a view, one persistent renderer process. `updates` counts
+    the images of the current render, `pixels` is the newest (RGBA, premultiplied, rows top to bottom),
+    `first_pixels_seconds` the time from start() to its first image."""
 
     def __init__(self, executable, on_update=None):
         self.executable = executable
@@ -76,67 +71,110 @@ class ViewportSession:
         self.samples_shown = 0
         self.updates = 0
         self.first_pixels_seconds = None
-        self.exit_code = None
+        self.exit_code = None  # the renderer process's, once it ended (3: stopped)
         self.failure = None
-        self._stop = threading.Event()
-        self._thread = None
-        self._work_dir = None
         self._lock = threading.Lock()
+        self._proc = None
+        self._reader = None
+        self._work_dir = None
+        self._job = 0
+        self._current = None  # (display image path, output path, start time) of the newest render
+        self._done = True     # the newest render has finished
 
     def start(self, depsgraph, width, height, view, samples=VIEWPORT_SAMPLES):
-        """Exports (in the calling thread: the depsgraph is Blender's) and starts the renderer."""
-        self.stop()
-        self._stop.clear()
-        self.pixels, self.samples_shown, self.updates, self.first_pixels_seconds = None, 0, 0, None
-        self.exit_code = self.failure = None
-        self._work_dir = tempfile.mkdtemp(prefix="glimmer_view_")
-        settings = depsgraph.scene.glimmer
+        """Exports (in the calling thread: the depsgraph is Blender's) and has the renderer render it."""
         started = time.monotonic()
-        xml, _ = exporter_mod.export_scene(depsgraph, self._work_dir, width=width, height=height, view=view)
-        exr = os.path.join(self._work_dir, "render.exr")
-        cmd = runner.render_command(self.executable, xml, exr, samples, settings.threads, settings.seed, width,
-                                    height, checkpoint_every=0.0)
-        self._thread = threading.Thread(target=self._run, args=(cmd, settings.film_exposure, started),
-                                        daemon=True)
-        self._thread.start()
-
-    def _run(self, cmd, exposure, started):
-        work_dir = self._work_dir
-
-        def on_line(line):
-            m = runner.CHECKPOINT_LINE.match(line)
-            if m is None or self._stop.is_set():
-                return
-            try:
-                pixels = checkpoint_pixels(m.group(3), exposure, work_dir)
-            except Exception as e:  # noqa: BLE001 - a lost update; the next checkpoint comes soon
-                self.failure = str(e)
-                return
-            if pixels is None:
-                return
-            with self._lock:
-                self.pixels = pixels
-                self.samples_shown = int(m.group(1))
-                self.updates += 1
-                if self.first_pixels_seconds is None:
-                    self.first_pixels_seconds = time.monotonic() - started
-            if self.on_update is not None:
-                self.on_update()
-
+        if self._proc is None or self._proc.poll() is not None:
+            self._spawn()
+        self._job += 1
+        job_dir = os.path.join(self._work_dir, "job_%d" % self._job)
+        os.makedirs(job_dir)
+        settings = depsgraph.scene.glimmer
+        xml, _ = exporter_mod.export_scene(depsgraph, job_dir, width=width, height=height, view=view)
+        display, output = os.path.join(job_dir, "display.exr"), os.path.join(job_dir, "render.exr")
+        cmd = runner.render_command(self.executable, xml, output, samples, settings.threads, settings.seed, width,
+                                    height, display=display)
+        with self._lock:
+            self._current, self._done = (display, output, started), False
+            self.pixels, self.samples_shown, self.updates, self.first_pixels_seconds = None, 0, 0, None
+            self.failure = None
         try:
-            self.exit_code, _, tail = runner.run(cmd, should_cancel=self._stop.is_set, on_line=on_line,
-                                                 kill_timeout=2.0)
-            if self.exit_code not in (0, runner.EXIT_INTERRUPTED):
-                self.failure = "\n".join(tail[-5:])
-        finally:
-            shutil.rmtree(work_dir, ignore_errors=True)
+            self._proc.stdin.write((shlex.join(cmd[2:]) + "\n").encode())  # the arguments after `render`
+            self._proc.stdin.flush()
+        except OSError as e:  # the renderer died: the next start() spawns a new one
+            self.failure = "the renderer process ended (%s)" % e
+
+    def _spawn(self):
+        self._work_dir = tempfile.mkdtemp(prefix="glimmer_view_")
+        self.exit_code = None
+        self._proc = subprocess.Popen([self.executable, "serve"], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                      stderr=subprocess.STDOUT)
+        self._reader = threading.Thread(target=self._read, args=(self._proc, self._work_dir), daemon=True)
+        self._reader.start()
+
+    def _read(self, proc, work_dir):
+        """The renderer's output: display images of the newest render become `pixels`; finished older renders'
+        folders are removed."""
+        tail = []
+        for raw in iter(proc.stdout.readline, b""):
+            line = raw.decode(errors="replace").rstrip("\r\n")
+            shown, finished = runner.DISPLAY_LINE.match(line), runner.FINISHED_LINE.match(line)
+            if shown is not None:
+                self._show(shown.group(3), int(shown.group(1)))
+            elif finished is not None:
+                with self._lock:
+                    current = self._current is not None and finished.group(2) == self._current[1]
+                    if current:
+                        self._done = True
+                        if int(finished.group(1)) not in (0, runner.EXIT_INTERRUPTED):
+                            self.failure = "\n".join(tail[-5:])
+                if not current:
+                    shutil.rmtree(os.path.dirname(finished.group(2)), ignore_errors=True)
+            elif not runner.SAMPLE_LINE.search(line):
+                tail = (tail + [line])[-40:]
+        proc.wait()
+        self.exit_code = proc.returncode
+        shutil.rmtree(work_dir, ignore_errors=True)
+
+    def _show(self, path, samples):
+        with self._lock:
+            if self._current is None or path != self._current[0]:
+                return  # an older render's image
+            started = self._current[2]
+        try:
+            pixels = read_uncompressed_exr(path)
+        except (OSError, ValueError, KeyError) as e:  # a lost update; the next comes after the next pass
+            self.failure = str(e)
+            return
+        with self._lock:
+            if self._current is None or path != self._current[0]:
+                return
+            self.pixels, self.samples_shown = pixels, samples
+            self.updates += 1
+            if self.first_pixels_seconds is None:
+                self.first_pixels_seconds = time.monotonic() - started
+        if self.on_update is not None:
+            self.on_update()
 
     def running(self):
-        return self._thread is not None and self._thread.is_alive()
+        """The newest render is in progress."""
+        return self._proc is not None and self._proc.poll() is None and not self._done
 
-    def stop(self, timeout=10.0):
-        """Stops the renderer (SIGTERM, then SIGKILL) and waits for the thread."""
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout)
-        self._thread = None
+    def stop(self, timeout=2.0):
+        """Ends the renderer process (SIGTERM: it stops the render and exits 3; SIGKILL after `timeout` s)."""
+        proc, self._proc = self._proc, None
+        with self._lock:
+            self._current, self._done = None, True
+        if proc is None:
+            return
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGTERM)
+            try:
+                proc.wait(timeout)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+        if self._reader is not None:
+            self._reader.join(timeout)
+        proc.stdin.close()
+        self.exit_code = proc.returncode

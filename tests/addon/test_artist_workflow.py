@@ -198,10 +198,18 @@ xml, exp, reports = export("drops")
 print("\n".join(reports))
 for words in (("Scratches", "Normal", "Principled BSDF", "Bumpy"), ("Brushed Metal", "anisotropy"),
               ("Brushed Metal", "Normal Map"), ("Cube", "camera"), ("Cube", "shadow catcher"),
-              ("Lamp", "diffuse factor"), ("Transparent",), ("motion blur",)) + \
+              ("Lamp", "diffuse factor"), ("motion blur",)) + \
         ((("Hair", "hair curves"),) if hasattr(bpy.data, "hair_curves") else ()):
     check(sum(all(w in m for w in words) for m in reports) == 1, "one report with %s: %s" % (words, reports))
 check(len(reports) == len(set(reports)), "no repeated report")
+# Film Transparent is exported (Cycles XML: <background transparent="true">), not reported.
+check(not any("Transparent" in m for m in reports), "Film Transparent is not reported: %s" % reports)
+with open(xml) as f:
+    check('<background transparent="true">' in f.read(), "Film Transparent exported")
+scene.cycles.film_transparent_glass = True
+xml, exp, reports = export("transparent_glass")
+check(sum("Transparent Glass" in m for m in reports) == 1, "Transparent Glass reported once: %s" % reports)
+scene.cycles.film_transparent_glass = False
 
 # -- 5. UI: one Light panel, which shows Spread; socket tooltips fit Blender's 63 characters ----------------------------
 light_panels = [name for name in dir(bpy.types)
