@@ -120,5 +120,43 @@ TEST(Serve, RendersEachLineInOneProcessTheNewestInterruptingTheOlder) {
   EXPECT_TRUE(bit_identical(read_exr(output("serve_b.exr")), read_exr(output("serve_ref.exr"))));
 }
 
+// The previous render is kept until the next one's closures are prepared: the glint table (built here, the disk
+// cache being off) is built for the first command only, not again for the second.
+TEST(Serve, ConsecutiveRendersShareTheGlintTable) {
+  const std::string not_a_folder = write_file("cache_is_a_file", "x");
+  const std::string scene = write_file(
+      "one_glint.xml",
+      "<cycles>\n<camera width=\"16\" height=\"10\" />\n"
+      "<shader name=\"g\"><glint_bsdf name=\"glint\" roughness=\"0.35\" gamma=\"2\" density=\"1000\" />"
+      "<connect from=\"glint bsdf\" to=\"output surface\" /></shader>\n"
+      "<state shader=\"g\"><mesh P=\"-1 -1 3  1 -1 3  0 1 3\" nverts=\"3\" verts=\"0 1 2\" /></state>\n</cycles>\n");
+  const std::string args = " --width 16 --height 10 --samples 1 --threads 2 --quiet";
+  const fs::path log = temp_dir() / "serve_glint_log.txt";
+  fs::remove(log);
+  FILE *pipe = ::popen(("GLIMMER_CACHE_DIR='" + not_a_folder + "' '" + GLIMMER_TEST_CLI_PATH + "' serve > '" +
+                        log.string() + "' 2>&1")
+                           .c_str(),
+                       "w");
+  ASSERT_TRUE(pipe);
+  const std::string first = (temp_dir() / "glint_1.exr").string(), second = (temp_dir() / "glint_2.exr").string();
+  std::fputs(("'" + scene + "' -o '" + first + "'" + args + "\n").c_str(), pipe);
+  std::fflush(pipe);
+  auto text = [&log] {
+    std::ifstream in(log);
+    return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  };
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::minutes(3);
+  while (text().find("Finished 0 " + first) == std::string::npos && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  std::fputs(("'" + scene + "' -o '" + second + "'" + args + "\n").c_str(), pipe);
+  EXPECT_EQ(0, WEXITSTATUS(::pclose(pipe)));
+  const std::string out = text();
+  const size_t first_done = out.find("Finished 0 " + first);
+  ASSERT_NE(first_done, std::string::npos) << out;
+  EXPECT_NE(out.find("precomputed directional table"), std::string::npos) << "built for the first command: " << out;
+  EXPECT_EQ(out.find("precomputed directional table", first_done), std::string::npos) << out;
+  EXPECT_NE(out.find("Finished 0 " + second), std::string::npos) << out;
+}
+
 }  // namespace
 }  // namespace glimmer::test
