@@ -37,7 +37,7 @@ def view_from_region(region_data):
 
 def read_uncompressed_exr(path):
     """RGBA float32 pixels (rows top to bottom) of an uncompressed scanline EXR with channels A, B, G, R (as
-    `oiiotool ... --compression none -d float` writes them)."""
+    `glimmer render --display` and `oiiotool ... --compression none -d float` write them)."""
     from .engine import exr_attributes  # noqa: PLC0415 - engine imports bpy; keep this module light
 
     attributes = exr_attributes(path)

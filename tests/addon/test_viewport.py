@@ -56,6 +56,7 @@ session.start(bpy.context.evaluated_depsgraph_get(), W, H, view, samples=4096)
 check(wait_for(lambda: session.updates >= 2, 120), "two progressive updates (%d, %s)" % (session.updates,
                                                                                           session.failure))
 first = session.pixels.copy()
+renderer_pid = session._proc.pid
 print("viewport: first pixels after %.3f s; %d updates, sample %d" % (session.first_pixels_seconds,
                                                                        session.updates, session.samples_shown))
 check(first.shape == (H, W, 4) and np.isfinite(first).all() and first[..., :3].max() > 0.05, "a real image")
@@ -68,6 +69,7 @@ session.start(bpy.context.evaluated_depsgraph_get(), W, H, view, samples=4096)
 check(wait_for(lambda: session.updates >= 2, 120), "updates after the restart (%s)" % session.failure)
 moved = session.pixels.copy()
 print("viewport restart: first pixels after %.3f s" % session.first_pixels_seconds)
+check(session._proc.pid == renderer_pid, "the restart reuses the renderer process (glimmer serve)")
 change = np.abs(moved[..., :3] - first[..., :3]).mean(axis=-1)
 check((change > 0.2).mean() > 0.02, "the moved sphere is seen (%.3f of the pixels changed)" % (change > 0.2).mean())
 
