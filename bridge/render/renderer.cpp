@@ -1,6 +1,5 @@
 #include "render/renderer.h"
 
-#include <embree3/rtcore.h>
 #include <tbb/blocked_range2d.h>
 #include <tbb/parallel_for.h>
 
@@ -14,6 +13,7 @@
 
 #include "glimmer/rng.h"
 #include "glimmer/sampling.h"
+#include "render/accel.h"
 #include "render/camera.h"
 #include "render/lights.h"
 #include "render/path_state.h"
@@ -45,12 +45,6 @@ Spectrum clamp_contribution(const Spectrum &L, float limit) {
 
 }  // namespace
 
-struct SurfaceHit {
-  int mesh = -1;
-  int prim = -1;
-  float u = 0, v = 0, t = kInf;
-};
-
 struct Renderer::Impl {
   const scene::Scene &scene;
   const host::PluginLibrary &plugin;
@@ -58,8 +52,7 @@ struct Renderer::Impl {
   FeatureSet &features;
   std::vector<std::string> &warnings;
 
-  RTCDevice device = nullptr;
-  RTCScene rtc_scene = nullptr;
+  std::unique_ptr<Accel> accel;
   GlimmerHostServices host{};
   std::string cache_dir;
   std::unique_ptr<ShaderSystem> shaders;
@@ -77,16 +70,11 @@ struct Renderer::Impl {
        std::vector<std::string> &w)
       : scene(s), plugin(p), options(o), features(f), warnings(w) {}
 
-  ~Impl() {
-    if (rtc_scene) rtcReleaseScene(rtc_scene);
-    if (device) rtcReleaseDevice(device);
-  }
-
   // ---- Host services for closures ----
   static int host_trace(void *data, const GlimmerRay *ray, GlimmerRayHit *hit) {
     auto *self = static_cast<Impl *>(data);
     SurfaceHit h;
-    if (!self->intersect(Vec3(ray->origin), Vec3(ray->direction), ray->t_min, ray->t_max, h)) return 0;
+    if (!self->accel->intersect(Vec3(ray->origin), Vec3(ray->direction), ray->t_min, ray->t_max, h)) return 0;
     const scene::SurfacePoint s = self->scene.meshes[h.mesh].surface_at(h.prim, h.u, h.v);
     hit->t = h.t;
     hit->P = s.P;
@@ -172,86 +160,8 @@ struct Renderer::Impl {
     times.prepare = seconds_since(t0);
 
     t0 = Clock::now();
-    build_bvh();
+    accel = std::make_unique<Accel>(scene.meshes);
     times.bvh = seconds_since(t0);
-  }
-
-  void build_bvh() {
-    device = rtcNewDevice("threads=0");
-    if (!device) throw std::runtime_error("Embree: cannot create a device");
-    rtc_scene = rtcNewScene(device);
-    rtcSetSceneBuildQuality(rtc_scene, RTC_BUILD_QUALITY_HIGH);
-    for (size_t i = 0; i < scene.meshes.size(); ++i) {
-      const scene::Mesh &m = scene.meshes[i];
-      RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
-      auto *vb = static_cast<float *>(
-          rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), m.P.size()));
-      for (size_t k = 0; k < m.P.size(); ++k) {
-        vb[3 * k] = m.P[k].x;
-        vb[3 * k + 1] = m.P[k].y;
-        vb[3 * k + 2] = m.P[k].z;
-      }
-      auto *ib = static_cast<uint32_t *>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
-                                                                 3 * sizeof(uint32_t), m.triangles.size()));
-      for (size_t k = 0; k < m.triangles.size(); ++k)
-        for (int c = 0; c < 3; ++c) ib[3 * k + c] = m.triangles[k][c];
-      rtcCommitGeometry(g);
-      rtcAttachGeometryByID(rtc_scene, g, static_cast<unsigned>(i));
-      rtcReleaseGeometry(g);
-    }
-    rtcCommitScene(rtc_scene);
-  }
-
-  // Debian's Embree asserts ray.valid(): origin and direction components within +-1.844e18
-  // (its FLT_LARGE; NaN and Inf fail too) and tnear/tfar not NaN. Other rays never reach it.
-  static bool traceable_ray(const Vec3 &o, const Vec3 &d, float tmin, float tmax) {
-    constexpr float kEmbreeLargest = 1.8e18f;
-    auto bounded = [](const Vec3 &v) {
-      return std::fabs(v.x) <= kEmbreeLargest && std::fabs(v.y) <= kEmbreeLargest && std::fabs(v.z) <= kEmbreeLargest;
-    };
-    return bounded(o) && bounded(d) && tmin >= 0.0f && tmin <= tmax;  // false for NaN
-  }
-
-  bool intersect(const Vec3 &o, const Vec3 &d, float tmin, float tmax, SurfaceHit &hit) const {
-    if (!traceable_ray(o, d, tmin, tmax)) return false;
-    RTCIntersectContext ctx;
-    rtcInitIntersectContext(&ctx);
-    RTCRayHit rh;
-    rh.ray.org_x = o.x; rh.ray.org_y = o.y; rh.ray.org_z = o.z;
-    rh.ray.dir_x = d.x; rh.ray.dir_y = d.y; rh.ray.dir_z = d.z;
-    rh.ray.tnear = tmin;
-    rh.ray.tfar = tmax;
-    rh.ray.time = 0.0f;
-    rh.ray.mask = 0xffffffffu;
-    rh.ray.id = 0;
-    rh.ray.flags = 0;
-    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-    rtcIntersect1(rtc_scene, &ctx, &rh);
-    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
-    hit.mesh = static_cast<int>(rh.hit.geomID);
-    hit.prim = static_cast<int>(rh.hit.primID);
-    hit.u = rh.hit.u;
-    hit.v = rh.hit.v;
-    hit.t = rh.ray.tfar;
-    return true;
-  }
-
-  bool occluded(const Vec3 &o, const Vec3 &d, float tmax) const {
-    if (!traceable_ray(o, d, 0.0f, tmax)) return true;  // no light along a ray that cannot be traced
-    RTCIntersectContext ctx;
-    rtcInitIntersectContext(&ctx);
-    RTCRay r;
-    r.org_x = o.x; r.org_y = o.y; r.org_z = o.z;
-    r.dir_x = d.x; r.dir_y = d.y; r.dir_z = d.z;
-    r.tnear = 0.0f;
-    r.tfar = tmax;
-    r.time = 0.0f;
-    r.mask = 0xffffffffu;
-    r.id = 0;
-    r.flags = 0;
-    rtcOccluded1(rtc_scene, &ctx, &r);
-    return r.tfar < 0.0f;
   }
 
   // ---- Shading points ----
@@ -401,11 +311,11 @@ struct Renderer::Impl {
   Spectrum shadow_transmittance(const ShadingData &sd, const Vec3 &wi, float dist) const {
     Vec3 o = offset_ray_origin(sd.ctx.P, sd.Ng, wi);
     float remaining = std::isfinite(dist) ? dist * (1.0f - 1e-4f) - 1e-4f : kInf;
-    if (!features.transparent) return occluded(o, wi, remaining) ? Spectrum(0.0f) : Spectrum(1.0f);
+    if (!features.transparent) return accel->occluded(o, wi, remaining) ? Spectrum(0.0f) : Spectrum(1.0f);
     Spectrum T(1.0f);
     for (int i = 0; i <= scene.integrator.transparent_max_bounce; ++i) {
       SurfaceHit h;
-      if (!intersect(o, wi, 0.0f, remaining, h)) return T;
+      if (!accel->intersect(o, wi, 0.0f, remaining, h)) return T;
       const int shader = mesh_shader[h.mesh];
       if (!shaders->shader(shader).has_transparent) return Spectrum(0.0f);
       ShadingData hsd;
@@ -625,7 +535,7 @@ struct Renderer::Impl {
 
     for (int step = 0; step < 4 * 1024; ++step) {
       SurfaceHit hit;
-      const bool hit_surface = intersect(org, D, tmin, tmax, hit);
+      const bool hit_surface = accel->intersect(org, D, tmin, tmax, hit);
       const float t_hit = hit_surface ? hit.t : kInf;
       // Lamps (spheres, area lights) before the surface and the sun disk on escape;
       // as in Cycles they do not block the ray.
@@ -727,7 +637,7 @@ bool Renderer::probe(float x, float y, GlimmerShadingContext &out) const {
   float tmin = 0.0f;
   for (int bounce = 0; bounce < 16; ++bounce) {
     SurfaceHit hit;
-    if (!im.intersect(org, D, tmin, kInf, hit)) return false;
+    if (!im.accel->intersect(org, D, tmin, kInf, hit)) return false;
     Impl::ShadingData sd;
     im.setup_shading(hit, D, sd);
     im.transfer_differentials(rd, D, hit.t, sd, 0.0f);
