@@ -15,6 +15,7 @@
 #include "glimmer/sampling.h"
 #include "render/accel.h"
 #include "render/camera.h"
+#include "render/film_filter.h"
 #include "render/lights.h"
 #include "render/path_state.h"
 #include "render/sampler.h"
