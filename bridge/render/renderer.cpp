@@ -248,8 +248,10 @@ struct Renderer::Impl {
   }
 
   // Transfer the differentials to the hit plane and express them in barycentric
-  // and uv space (Igehy 1999, eq. 10-12); fills the context's footprint.
+  // and uv space (Igehy 1999, eq. 10-12); fills the context's footprint. At the first
+  // hit with depth of field, the aperture's share is added first (fold_lens_differentials).
   void transfer_differentials(Differentials &rd, const Vec3 &D, float t, ShadingData &sd, float spread) const {
+    fold_lens_differentials(rd, D, t, sd.Ng);  // depth of field: the circle of confusion joins the footprint
     auto to_plane = [&](const Vec3 &dP, const Vec3 &dD) {
       const Vec3 p = dP + dD * t;
       const float dn = dot(D, sd.Ng);
