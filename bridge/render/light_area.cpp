@@ -25,7 +25,7 @@ AreaLight::AreaLight(const scene::Light &light, const Spectrum &strength)
   normalize_spread_ = 2.0f / (2.0f + (2.0f * spread_angle - kPi) * tan_spread_);
 }
 
-float AreaLight::power() const {
+float AreaLight::power(float) const {
   float p = luminance(strength_);
   p *= kPi * 0.25f;
   return p;

@@ -12,7 +12,7 @@ namespace glimmer::render {
 class AreaLight {
  public:
   AreaLight(const scene::Light &light, const Spectrum &strength);
-  float power() const;
+  float power(float scene_disk_area) const;  // the area is not in it (radiance S / (4 A))
   bool sample(float u, float v, const Vec3 &P, float pick, LightSample &out) const;
   bool intersect(const Vec3 &o, const Vec3 &d, float t_max, float pick, LightHit &out) const;
 

@@ -12,7 +12,8 @@ namespace glimmer::render {
 class PointLight {
  public:
   PointLight(const scene::Light &light, const Spectrum &strength);
-  float power() const { return luminance(strength_); }
+  // Estimated power for the light pick (every kind takes the scene's bounding-disk area; lamps ignore it).
+  float power(float /*scene_disk_area*/) const { return luminance(strength_); }
   const Vec3 &position() const { return co_; }
   // A point on the lamp seen from P (u, v on the disk); pdf includes `pick`.
   bool sample(float u, float v, const Vec3 &P, float pick, LightSample &out) const;

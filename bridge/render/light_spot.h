@@ -11,7 +11,7 @@ namespace glimmer::render {
 class SpotLight {
  public:
   SpotLight(const scene::Light &light, const Spectrum &strength);
-  float power() const { return lamp_.power(); }
+  float power(float scene_disk_area) const { return lamp_.power(scene_disk_area); }
   bool sample(float u, float v, const Vec3 &P, float pick, LightSample &out) const;
   bool intersect(const Vec3 &o, const Vec3 &d, float t_max, float pick, LightHit &out) const;
   float attenuation(const Vec3 &dir_from_light) const;

@@ -27,9 +27,7 @@ LightSet::LightSet(const scene::Scene &scene, ShaderSystem &shaders, const std::
   // Background (a constant one only on request, see ConstantWorld).
   if (shaders.has_background() && (!shaders.background_is_constant() || constant_world == ConstantWorld::AsLight)) {
     background_light_ = static_cast<int>(lights_.size());
-    BackgroundLight background(shaders);
-    power_.push_back(background.power(disk_area));
-    lights_.push_back({std::move(background), true});
+    add_light(BackgroundLight(shaders), disk_area, true);
   }
   // Every light keeps at least a small share so that none is starved.
   float total = 0.0f;
@@ -39,38 +37,17 @@ LightSet::LightSet(const scene::Scene &scene, ShaderSystem &shaders, const std::
 }
 
 void LightSet::add_lamp(const scene::Light &l, const Spectrum &strength, float disk_area, FeatureSet &features) {
+  using Type = scene::LightType;
   switch (l.type) {
-    case scene::LightType::Point: {
-      PointLight point(l, strength);
-      power_.push_back(point.power());
-      lights_.push_back({point, l.use_camera});
-      features.light_types.insert("point");
-      break;
-    }
-    case scene::LightType::Spot: {
-      SpotLight spot(l, strength);
-      power_.push_back(spot.power());
-      lights_.push_back({spot, l.use_camera});
-      features.light_types.insert("spot");
-      break;
-    }
-    case scene::LightType::Sun: {
-      DistantLight sun(l, strength);
-      power_.push_back(sun.power(disk_area));
-      lights_.push_back({sun, l.use_camera});
-      features.light_types.insert("sun");
-      break;
-    }
-    case scene::LightType::Area: {
-      AreaLight area(l, strength);
-      power_.push_back(area.power());
-      lights_.push_back({area, l.use_camera});
-      features.light_types.insert(l.round ? "area_disk" : "area_quad");
-      break;
-    }
-    case scene::LightType::Background:
-      break;
+    case Type::Point: add_light(PointLight(l, strength), disk_area, l.use_camera); break;
+    case Type::Spot: add_light(SpotLight(l, strength), disk_area, l.use_camera); break;
+    case Type::Sun: add_light(DistantLight(l, strength), disk_area, l.use_camera); break;
+    case Type::Area: add_light(AreaLight(l, strength), disk_area, l.use_camera); break;
+    case Type::Background: return;
   }
+  const char *name = l.type == Type::Point ? "point" : l.type == Type::Spot ? "spot" : l.type == Type::Sun ? "sun"
+                     : l.round ? "area_disk" : "area_quad";
+  features.light_types.insert(name);
 }
 
 void LightSet::add_emissive_triangles(const scene::Scene &scene, const ShaderSystem &shaders,

@@ -64,6 +64,11 @@ class LightSet {
 
   float pick_probability(int i) const { return pick_.probability(i); }
   void add_lamp(const scene::Light &light, const Spectrum &strength, float disk_area, FeatureSet &features);
+  template <typename Kind>
+  void add_light(Kind light, float disk_area, bool use_camera) {
+    power_.push_back(light.power(disk_area));
+    lights_.push_back({std::move(light), use_camera});
+  }
   void add_emissive_triangles(const scene::Scene &scene, const ShaderSystem &shaders,
                               const std::vector<int> &mesh_shader, FeatureSet &features);
 };
