@@ -34,8 +34,8 @@ void camera_ray(const scene::Camera &cam, int width, int height, float x, float 
   org = cam.camera_to_world.point(Vec3(0.0f));
   if (cam.aperture_size > 0.0f) {
     // Cycles' thin lens (kernel/camera/camera.h): the point on the plane z = focaldistance seen through the
-    // pinhole, reached from a uniform point on the aperture disk of radius aperturesize. The pinhole
-    // differentials are kept (an approximation: the footprint ignores the defocus).
+    // pinhole, reached from a uniform point on the aperture disk of radius aperturesize. The pixel's
+    // differentials stay the pinhole's (at depth z every lens point's ray moves by z dv per pixel).
     float lx, ly;
     sample_uniform_disk_concentric(lens_u, lens_v, lx, ly);
     const Vec3 lens_point(lx * cam.aperture_size, ly * cam.aperture_size, 0.0f);
@@ -43,9 +43,38 @@ void camera_ray(const scene::Camera &cam, int width, int height, float x, float 
     const Vec3 w = cam.camera_to_world.vector(focus_point - lens_point);
     dir = normalize(w);
     org = cam.camera_to_world.point(lens_point);
+    // The aperture's share: moving the lens point by A along camera x moves the origin by A x and w by
+    // -A x; P(z) = (z / f) focus + (1 - z / f) lens spreads by A (1 - z / f) at depth z.
+    const Vec3 ax = cam.camera_to_world.vector(Vec3(cam.aperture_size, 0.0f, 0.0f));
+    const Vec3 ay = cam.camera_to_world.vector(Vec3(0.0f, cam.aperture_size, 0.0f));
+    const float l = length(w);
+    auto ddir_lens = [&](const Vec3 &dw) { return (dw * dot(w, w) - w * dot(w, dw)) / (l * l * l); };
+    rd.dPdlx = ax;
+    rd.dPdly = ay;
+    rd.dDdlx = ddir_lens(-ax);
+    rd.dDdly = ddir_lens(-ay);
+    rd.lens = true;
   }
   // Depth of the first hit is measured along camera +Z in world units.
   dir_z = dot(dir, normalize(cam.camera_to_world.vector(Vec3(0, 0, 1))));
+}
+
+void fold_lens_differentials(Differentials &rd, const Vec3 &D, float t, const Vec3 &Ng) {
+  if (!rd.lens) return;
+  rd.lens = false;
+  // The footprint of a differential (dP, dD) on the hit's tangent plane (Igehy 1999, eq. 10).
+  auto on_plane = [&](const Vec3 &dP, const Vec3 &dD) {
+    const Vec3 p = dP + dD * t;
+    const float dn = dot(D, Ng);
+    return std::fabs(dn) > 1e-8f ? p - D * (dot(p, Ng) / dn) : p;
+  };
+  auto fold = [&](Vec3 &dP, Vec3 &dD, const Vec3 &dPl, const Vec3 &dDl) {
+    const float sign = dot(on_plane(dP, dD), on_plane(dPl, dDl)) >= 0.0f ? 1.0f : -1.0f;
+    dP += dPl * sign;
+    dD += dDl * sign;
+  };
+  fold(rd.dPdx, rd.dDdx, rd.dPdlx, rd.dDdlx);
+  fold(rd.dPdy, rd.dDdy, rd.dPdly, rd.dDdly);
 }
 
 // Reflect or refract the direction differentials (Igehy 1999, eq. 14-15, 18-19).

@@ -9,8 +9,14 @@
 namespace glimmer::render {
 
 // Ray differentials: position and direction per pixel step in x and y.
+// With depth of field the camera adds the aperture's share (lens = true): the ray's derivative with
+// respect to the point on the lens, scaled to the aperture radius A, along camera x (dPdlx, dDdlx) and
+// y. At distance t it spans A |1 - t / t_focus| (zero on the focal plane: the circle of confusion's
+// radius); fold_lens_differentials adds it to the pixel's share at the first hit.
 struct Differentials {
   Vec3 dPdx{0.0f}, dPdy{0.0f}, dDdx{0.0f}, dDdy{0.0f};
+  Vec3 dPdlx{0.0f}, dPdly{0.0f}, dDdlx{0.0f}, dDdly{0.0f};
+  bool lens = false;
 };
 
 // Camera ray through film position (x, y) of a width x height image; (lens_u,
@@ -18,6 +24,12 @@ struct Differentials {
 // view axis (depth = t * dir_z).
 void camera_ray(const scene::Camera &cam, int width, int height, float x, float y, Vec3 &org, Vec3 &dir,
                 Differentials &rd, float &dir_z, float lens_u = 0.5f, float lens_v = 0.5f);
+
+// At the first hit (distance t along D, geometric normal Ng): adds the aperture's share to the pixel's, per
+// axis with the sign that makes the two footprints on the surface add up (|pixel| + A |1 - t / t_focus| for
+// parallel ones), so the footprint covers the circle of confusion as the lens blurs it; then clears `lens`.
+// The result is one linear differential that reflections and refractions propagate as usual.
+void fold_lens_differentials(Differentials &rd, const Vec3 &D, float t, const Vec3 &Ng);
 
 // Reflect or refract the direction differentials at a singular scatter (Igehy
 // 1999, eq. 14-15, 18-19): N shading normal and Ng geometric normal (both facing

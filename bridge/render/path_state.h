@@ -36,11 +36,15 @@ struct PathState {
   float mis_ray_pdf = 0.0f;     // mixture pdf of the last (non-singular) scatter
   float min_ray_pdf = std::numeric_limits<float>::max();  // filter_glossy
   float spread = 0.0f;          // accumulated angular spread (radians) of glossy bounces
+  // Cycles' PATH_RAY_TRANSPARENT_BACKGROUND: the camera ray and its transparent pass-throughs see a
+  // transparent film's background as alpha, not as light; the first scatter clears it.
+  bool transparent_background = false;
 
   // A scatter with `label` (Cycles' path_state_next): count it, and end the
   // path after the next surface when a limit is reached.
   void advance(uint32_t label, const BounceLimits &limits) {
     ++bounce;
+    transparent_background = false;
     if (bounce >= limits.bounce) terminate_next = true;
     if (label & GLIMMER_LABEL_REFLECT) {
       if (label & GLIMMER_LABEL_DIFFUSE) {

@@ -1,6 +1,5 @@
 #include "render/renderer.h"
 
-#include <embree3/rtcore.h>
 #include <tbb/blocked_range2d.h>
 #include <tbb/parallel_for.h>
 
@@ -14,7 +13,9 @@
 
 #include "glimmer/rng.h"
 #include "glimmer/sampling.h"
+#include "render/accel.h"
 #include "render/camera.h"
+#include "render/film_filter.h"
 #include "render/lights.h"
 #include "render/path_state.h"
 #include "render/sampler.h"
@@ -45,12 +46,6 @@ Spectrum clamp_contribution(const Spectrum &L, float limit) {
 
 }  // namespace
 
-struct SurfaceHit {
-  int mesh = -1;
-  int prim = -1;
-  float u = 0, v = 0, t = kInf;
-};
-
 struct Renderer::Impl {
   const scene::Scene &scene;
   const host::PluginLibrary &plugin;
@@ -58,8 +53,7 @@ struct Renderer::Impl {
   FeatureSet &features;
   std::vector<std::string> &warnings;
 
-  RTCDevice device = nullptr;
-  RTCScene rtc_scene = nullptr;
+  std::unique_ptr<Accel> accel;
   GlimmerHostServices host{};
   std::string cache_dir;
   std::unique_ptr<ShaderSystem> shaders;
@@ -77,16 +71,11 @@ struct Renderer::Impl {
        std::vector<std::string> &w)
       : scene(s), plugin(p), options(o), features(f), warnings(w) {}
 
-  ~Impl() {
-    if (rtc_scene) rtcReleaseScene(rtc_scene);
-    if (device) rtcReleaseDevice(device);
-  }
-
   // ---- Host services for closures ----
   static int host_trace(void *data, const GlimmerRay *ray, GlimmerRayHit *hit) {
     auto *self = static_cast<Impl *>(data);
     SurfaceHit h;
-    if (!self->intersect(Vec3(ray->origin), Vec3(ray->direction), ray->t_min, ray->t_max, h)) return 0;
+    if (!self->accel->intersect(Vec3(ray->origin), Vec3(ray->direction), ray->t_min, ray->t_max, h)) return 0;
     const scene::SurfacePoint s = self->scene.meshes[h.mesh].surface_at(h.prim, h.u, h.v);
     hit->t = h.t;
     hit->P = s.P;
@@ -172,86 +161,8 @@ struct Renderer::Impl {
     times.prepare = seconds_since(t0);
 
     t0 = Clock::now();
-    build_bvh();
+    accel = std::make_unique<Accel>(scene.meshes);
     times.bvh = seconds_since(t0);
-  }
-
-  void build_bvh() {
-    device = rtcNewDevice("threads=0");
-    if (!device) throw std::runtime_error("Embree: cannot create a device");
-    rtc_scene = rtcNewScene(device);
-    rtcSetSceneBuildQuality(rtc_scene, RTC_BUILD_QUALITY_HIGH);
-    for (size_t i = 0; i < scene.meshes.size(); ++i) {
-      const scene::Mesh &m = scene.meshes[i];
-      RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
-      auto *vb = static_cast<float *>(
-          rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), m.P.size()));
-      for (size_t k = 0; k < m.P.size(); ++k) {
-        vb[3 * k] = m.P[k].x;
-        vb[3 * k + 1] = m.P[k].y;
-        vb[3 * k + 2] = m.P[k].z;
-      }
-      auto *ib = static_cast<uint32_t *>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
-                                                                 3 * sizeof(uint32_t), m.triangles.size()));
-      for (size_t k = 0; k < m.triangles.size(); ++k)
-        for (int c = 0; c < 3; ++c) ib[3 * k + c] = m.triangles[k][c];
-      rtcCommitGeometry(g);
-      rtcAttachGeometryByID(rtc_scene, g, static_cast<unsigned>(i));
-      rtcReleaseGeometry(g);
-    }
-    rtcCommitScene(rtc_scene);
-  }
-
-  // Debian's Embree asserts ray.valid(): origin and direction components within +-1.844e18
-  // (its FLT_LARGE; NaN and Inf fail too) and tnear/tfar not NaN. Other rays never reach it.
-  static bool traceable_ray(const Vec3 &o, const Vec3 &d, float tmin, float tmax) {
-    constexpr float kEmbreeLargest = 1.8e18f;
-    auto bounded = [](const Vec3 &v) {
-      return std::fabs(v.x) <= kEmbreeLargest && std::fabs(v.y) <= kEmbreeLargest && std::fabs(v.z) <= kEmbreeLargest;
-    };
-    return bounded(o) && bounded(d) && tmin >= 0.0f && tmin <= tmax;  // false for NaN
-  }
-
-  bool intersect(const Vec3 &o, const Vec3 &d, float tmin, float tmax, SurfaceHit &hit) const {
-    if (!traceable_ray(o, d, tmin, tmax)) return false;
-    RTCIntersectContext ctx;
-    rtcInitIntersectContext(&ctx);
-    RTCRayHit rh;
-    rh.ray.org_x = o.x; rh.ray.org_y = o.y; rh.ray.org_z = o.z;
-    rh.ray.dir_x = d.x; rh.ray.dir_y = d.y; rh.ray.dir_z = d.z;
-    rh.ray.tnear = tmin;
-    rh.ray.tfar = tmax;
-    rh.ray.time = 0.0f;
-    rh.ray.mask = 0xffffffffu;
-    rh.ray.id = 0;
-    rh.ray.flags = 0;
-    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-    rtcIntersect1(rtc_scene, &ctx, &rh);
-    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
-    hit.mesh = static_cast<int>(rh.hit.geomID);
-    hit.prim = static_cast<int>(rh.hit.primID);
-    hit.u = rh.hit.u;
-    hit.v = rh.hit.v;
-    hit.t = rh.ray.tfar;
-    return true;
-  }
-
-  bool occluded(const Vec3 &o, const Vec3 &d, float tmax) const {
-    if (!traceable_ray(o, d, 0.0f, tmax)) return true;  // no light along a ray that cannot be traced
-    RTCIntersectContext ctx;
-    rtcInitIntersectContext(&ctx);
-    RTCRay r;
-    r.org_x = o.x; r.org_y = o.y; r.org_z = o.z;
-    r.dir_x = d.x; r.dir_y = d.y; r.dir_z = d.z;
-    r.tnear = 0.0f;
-    r.tfar = tmax;
-    r.time = 0.0f;
-    r.mask = 0xffffffffu;
-    r.id = 0;
-    r.flags = 0;
-    rtcOccluded1(rtc_scene, &ctx, &r);
-    return r.tfar < 0.0f;
   }
 
   // ---- Shading points ----
@@ -337,8 +248,10 @@ struct Renderer::Impl {
   }
 
   // Transfer the differentials to the hit plane and express them in barycentric
-  // and uv space (Igehy 1999, eq. 10-12); fills the context's footprint.
+  // and uv space (Igehy 1999, eq. 10-12); fills the context's footprint. At the first
+  // hit with depth of field, the aperture's share is added first (fold_lens_differentials).
   void transfer_differentials(Differentials &rd, const Vec3 &D, float t, ShadingData &sd, float spread) const {
+    fold_lens_differentials(rd, D, t, sd.Ng);  // depth of field: the circle of confusion joins the footprint
     auto to_plane = [&](const Vec3 &dP, const Vec3 &dD) {
       const Vec3 p = dP + dD * t;
       const float dn = dot(D, sd.Ng);
@@ -401,11 +314,11 @@ struct Renderer::Impl {
   Spectrum shadow_transmittance(const ShadingData &sd, const Vec3 &wi, float dist) const {
     Vec3 o = offset_ray_origin(sd.ctx.P, sd.Ng, wi);
     float remaining = std::isfinite(dist) ? dist * (1.0f - 1e-4f) - 1e-4f : kInf;
-    if (!features.transparent) return occluded(o, wi, remaining) ? Spectrum(0.0f) : Spectrum(1.0f);
+    if (!features.transparent) return accel->occluded(o, wi, remaining) ? Spectrum(0.0f) : Spectrum(1.0f);
     Spectrum T(1.0f);
     for (int i = 0; i <= scene.integrator.transparent_max_bounce; ++i) {
       SurfaceHit h;
-      if (!intersect(o, wi, 0.0f, remaining, h)) return T;
+      if (!accel->intersect(o, wi, 0.0f, remaining, h)) return T;
       const int shader = mesh_shader[h.mesh];
       if (!shaders->shader(shader).has_transparent) return Spectrum(0.0f);
       ShadingData hsd;
@@ -585,138 +498,226 @@ struct Renderer::Impl {
     return true;
   }
 
-  Spectrum trace_path(int px, int py, uint32_t sample_index, PixelAov &aov, uint64_t &nan_count) const {
-    const auto &integ = scene.integrator;
-    const BounceLimits limits(integ);
-    const uint32_t pixel_index = static_cast<uint32_t>(py) * static_cast<uint32_t>(width) + static_cast<uint32_t>(px);
-    const PixelSampler sampler(seed, pixel_index, sample_index);
-    const uint32_t path_seed = hash_u32x3(seed, pixel_index, sample_index);
+  // ---- Path stages (Cycles' integrator kernels) ----
+  // The ray of the current path segment with its differentials.
+  struct PathRay {
+    Vec3 org{0.0f}, D{0.0f, 0.0f, 1.0f};
+    float tmin = 0.0f, tmax = kInf;
+    Differentials rd;
+    float cam_dir_z = 1.0f;      // cosine of the camera ray to the view axis (depth = t * cam_dir_z)
+    float pixel_spread = 0.0f;   // the camera ray's angular width per pixel
+  };
+  // What one path accumulates: radiance, throughput, the non-finite contributions dropped.
+  struct PathRadiance {
+    Spectrum L{0.0f}, throughput{1.0f};
+    uint64_t *nan_count = nullptr;
+  };
 
-    // Camera ray through the filter-importance-sampled film position.
+  // The camera ray through film position (x, y) (Cycles' integrate_camera_ray), clipped to the camera's
+  // near and far planes along its view axis; (lens_u, lens_v) picks the point on the aperture.
+  PathRay camera_path_ray(float x, float y, float lens_u, float lens_v) const {
+    PathRay ray;
+    camera_ray(scene.camera, width, height, x, y, ray.org, ray.D, ray.rd, ray.cam_dir_z, lens_u, lens_v);
+    ray.tmin = scene.camera.nearclip / std::max(ray.cam_dir_z, 1e-6f);
+    ray.tmax = scene.camera.farclip / std::max(ray.cam_dir_z, 1e-6f);
+    ray.pixel_spread = std::max(length(ray.rd.dDdx), length(ray.rd.dDdy));
+    return ray;
+  }
+
+  // The camera ray of one sample: filter-importance-sampled film position, lens point with depth of field.
+  PathRay sample_camera_ray(int px, int py, const PixelSampler &sampler) const {
     float fu, fv;
     sampler.get2(kSetFilm, fu, fv);
     const float ox = filter.offset(fu), oy = filter.offset(fv);
-    Vec3 D, org;
-    Differentials rd;
-    float cam_dir_z = 1.0f;
     float lens_u = 0.5f, lens_v = 0.5f;
     if (scene.camera.aperture_size > 0.0f) sampler.get2(kSetLens, lens_u, lens_v);
-    camera_ray(scene.camera, width, height, px + 0.5f + ox, py + 0.5f + oy, org, D, rd, cam_dir_z, lens_u, lens_v);
-    float tmin = scene.camera.nearclip / std::max(cam_dir_z, 1e-6f);
-    float tmax = scene.camera.farclip / std::max(cam_dir_z, 1e-6f);
-    const float pixel_spread = std::max(length(rd.dDdx), length(rd.dDdy));
+    return camera_path_ray(px + 0.5f + ox, py + 0.5f + oy, lens_u, lens_v);
+  }
 
-    Spectrum L(0.0f), throughput(1.0f);
+  // Adds a contribution found at bounce `at_bounce`, clamped (sample_clamp_direct / _indirect); non-finite
+  // ones are dropped and counted.
+  void add_contribution(PathRadiance &pr, const Spectrum &contribution, int at_bounce) const {
+    if (!is_finite(contribution)) {
+      ++*pr.nan_count;
+      return;
+    }
+    const auto &integ = scene.integrator;
+    pr.L += clamp_contribution(contribution, at_bounce > 0 ? integ.sample_clamp_indirect : integ.sample_clamp_direct);
+  }
+
+  // Emission Le found by the ray, weighted against light sampling (pdf light_pdf of the same point).
+  void add_emission(PathRadiance &pr, const PathState &ps, const Spectrum &Le, float light_pdf) const {
+    const float w = emission_mis_weight(ps, light_pdf);
+    if (w > 0.0f) add_contribution(pr, pr.throughput * Le * w, ps.bounce);
+  }
+
+  bool use_nee() const { return options.strategy != LightStrategy::BsdfOnly; }
+
+  // Lamps (spheres, area lights) crossed before the surface at t_hit and, when the ray escapes, the sun disk
+  // and the world (Cycles' integrate_light and integrate_background); as in Cycles lamps do not block the ray.
+  void integrate_lights_and_background(const PathRay &ray, float t_hit, bool hit_surface, const PathState &ps,
+                                       PathRadiance &pr) const {
+    LightHits lhs;
+    lights->intersect(ray.org, ray.D, t_hit, hit_surface, ps.bounce == 0, lhs);
+    for (int i = 0; i < lhs.count; ++i) add_emission(pr, ps, lhs.hits[i].radiance, lhs.hits[i].pdf);
+    if (!hit_surface && !ps.transparent_background && shaders->has_background())
+      add_emission(pr, ps, shaders->background(ray.D), use_nee() ? lights->background_pdf(ray.D) : 0.0f);
+  }
+
+  // The shading point of a hit: geometry, footprint from the ray differentials, the path's counters, and
+  // the closures of its shader (with filter_glossy applied).
+  void shade_surface(const SurfaceHit &hit, PathRay &ray, const PathState &ps, uint32_t path_seed, ShadingData &sd,
+                     ClosureSet &cs) const {
+    setup_shading(hit, ray.D, sd);
+    transfer_differentials(ray.rd, ray.D, hit.t, sd, ps.spread);
+    set_path_context(ps, path_seed, sd);
+    shaders->evaluate(sd.shader, sd.tc, cs);
+    apply_filter_glossy(ps, cs);
+  }
+
+  // Emission of the surface (mesh lights), MIS against the light-sampling pdf (Cycles'
+  // integrate_surface_emission).
+  void integrate_surface_emission(const ClosureSet &cs, const ShadingData &sd, const SurfaceHit &hit,
+                                  const PathRay &ray, const PathState &ps, PathRadiance &pr) const {
+    const Spectrum emission = surface_emission(cs, sd.ctx);
+    if (is_zero(emission)) return;
+    add_emission(pr, ps, emission,
+                 use_nee() ? lights->triangle_pdf(hit.mesh, hit.prim, ray.org, sd.ctx.P, sd.Ng, ray.D) : 0.0f);
+  }
+
+  // Next-event estimation at the surface (Cycles' integrate_surface_direct_light); skipped when only
+  // singular closures are present.
+  void integrate_surface_direct_light(const ClosureSet &cs, const ShadingData &sd, float total_sw,
+                                      const PixelSampler &sampler, const PathState &ps, PathRadiance &pr) const {
+    if (!use_nee() || !has_smooth_closure(cs) || lights->count() == 0) return;
+    float lu, lv;
+    sampler.get_light(ps.bounce, lu, lv);
+    const Spectrum direct = sample_direct_light(cs, sd, pr.throughput, total_sw, lu, lv);
+    if (!is_zero(direct)) add_contribution(pr, direct, ps.bounce);
+  }
+
+  // The next segment starts at the surface, offset along Ng toward `dir`.
+  static void continue_ray(PathRay &ray, const ShadingData &sd, const Vec3 &dir) {
+    ray.org = offset_ray_origin(sd.ctx.P, sd.Ng, dir);
+    ray.D = dir;
+    ray.tmin = 0.0f;
+    ray.tmax = kInf;
+  }
+
+  // Picks a closure (or the transparent pass-through) with x of the bounce's BSDF set, rescaled and reused for
+  // the direction, and scatters: the next ray, throughput and path state (Cycles'
+  // integrate_surface_bsdf_bssrdf_bounce). False ends the path.
+  bool integrate_surface_bsdf_bounce(const ClosureSet &cs, const ShadingData &sd, const float bsdf_rand[4],
+                                     float transparent_weight, float total_sw, const BounceLimits &limits,
+                                     PathState &ps, PathRadiance &pr, PathRay &ray) const {
+    float pick = bsdf_rand[0] * total_sw;
+    const int chosen = pick_closure(cs, pick, transparent_weight);
+    if (chosen == kTransparent) {
+      // Transparent: continue straight on; does not count as a bounce.
+      pr.throughput *= cs.transparent / (transparent_weight / total_sw);
+      ps.advance_transparent(limits);
+      continue_ray(ray, sd, ray.D);
+      return true;
+    }
+    if (chosen < 0) return false;
+    const float r3[3] = {std::clamp(pick / cs.closures[chosen].sample_weight, 0.0f, 0x1.fffffep-1f), bsdf_rand[1],
+                         bsdf_rand[2]};
+    GlimmerSample s{};
+    if (!scatter(cs, sd, chosen, r3, total_sw, pr.throughput, ps, s, *pr.nan_count)) return false;
+    const Vec3 wo = normalize(Vec3(s.wo));
+    ps.advance(s.label, limits);
+    next_differentials(ray.rd, ray.D, wo, sd, s, ps.last_singular, ray.pixel_spread, ps);
+    continue_ray(ray, sd, wo);
+    return true;
+  }
+
+  // One path (Cycles' integrator loop: intersect_closest, shade_light / shade_background, shade_surface).
+  Spectrum trace_path(int px, int py, uint32_t sample_index, PixelAov &aov, uint64_t &nan_count) const {
+    const BounceLimits limits(scene.integrator);
+    const uint32_t pixel_index = static_cast<uint32_t>(py) * static_cast<uint32_t>(width) + static_cast<uint32_t>(px);
+    const PixelSampler sampler(seed, pixel_index, sample_index);
+    const uint32_t path_seed = hash_u32x3(seed, pixel_index, sample_index);
+    PathRay ray = sample_camera_ray(px, py, sampler);
+    PathRadiance pr;
+    pr.nan_count = &nan_count;
     PathState ps;
+    ps.transparent_background = scene.background.transparent;
     bool first_hit = true;
-    // Cycles' PATH_RAY_TRANSPARENT_BACKGROUND: the camera ray and its transparent pass-throughs.
-    bool transparent_background = scene.background.transparent;
-
-    auto add = [&](const Spectrum &contribution, int at_bounce) {
-      if (!is_finite(contribution)) {
-        ++nan_count;
-        return;
-      }
-      L += clamp_contribution(contribution, at_bounce > 0 ? integ.sample_clamp_indirect : integ.sample_clamp_direct);
-    };
-    // Emission found by the ray, weighted against light sampling.
-    auto add_emission = [&](const Spectrum &Le, float light_pdf) {
-      const float w = emission_mis_weight(ps, light_pdf);
-      if (w > 0.0f) add(throughput * Le * w, ps.bounce);
-    };
-    const bool use_nee = options.strategy != LightStrategy::BsdfOnly;
-
     for (int step = 0; step < 4 * 1024; ++step) {
       SurfaceHit hit;
-      const bool hit_surface = intersect(org, D, tmin, tmax, hit);
-      const float t_hit = hit_surface ? hit.t : kInf;
-      // Lamps (spheres, area lights) before the surface and the sun disk on escape;
-      // as in Cycles they do not block the ray.
-      LightHits lhs;
-      lights->intersect(org, D, t_hit, hit_surface, ps.bounce == 0, lhs);
-      for (int i = 0; i < lhs.count; ++i) add_emission(lhs.hits[i].radiance, lhs.hits[i].pdf);
+      const bool hit_surface = accel->intersect(ray.org, ray.D, ray.tmin, ray.tmax, hit);
+      integrate_lights_and_background(ray, hit_surface ? hit.t : kInf, hit_surface, ps, pr);
       if (!hit_surface) {
-        if (transparent_background) {
-          aov.alpha -= average(throughput);
-          break;
-        }
-        if (shaders->has_background()) add_emission(shaders->background(D), use_nee ? lights->background_pdf(D) : 0.0f);
+        if (ps.transparent_background) aov.alpha -= average(pr.throughput);
         break;
       }
-
       ShadingData sd;
-      setup_shading(hit, D, sd);
-      transfer_differentials(rd, D, hit.t, sd, ps.spread);
-      set_path_context(ps, path_seed, sd);
-      const GlimmerShadingContext &ctx = sd.ctx;
-
       ClosureSet cs;
-      shaders->evaluate(sd.shader, sd.tc, cs);
-      apply_filter_glossy(ps, cs);
-
-      // Emission (mesh lights), MIS against the light-sampling pdf.
-      const Spectrum emission = surface_emission(cs, ctx);
-      if (!is_zero(emission))
-        add_emission(emission, use_nee ? lights->triangle_pdf(hit.mesh, hit.prim, org, sd.ctx.P, sd.Ng, D) : 0.0f);
-
+      shade_surface(hit, ray, ps, path_seed, sd, cs);
+      integrate_surface_emission(cs, sd, hit, ray, ps, pr);
       if (first_hit && !(cs.count == 0 && !is_zero(cs.transparent))) {
         first_hit = false;
-        write_first_hit_aovs(cs, sd, hit.t * cam_dir_z, aov);
+        write_first_hit_aovs(cs, sd, hit.t * ray.cam_dir_z, aov);
       }
-
       if (ps.terminate_next) break;
-
-      // Russian roulette (Cycles' path_state_continuation_probability).
       // The bounce's 4D BSDF set: x, y (closure pick, then the closure's direction), z (its third number),
       // rr (Russian roulette); docs/architecture.md "Sample dimensions".
       float bsdf_rand[4];
       sampler.get_bsdf(ps.bounce, bsdf_rand);
-      if (!survives_russian_roulette(ps, limits, bsdf_rand[3], throughput)) break;
-
-      float transparent_weight = std::fabs(average(cs.transparent));
+      if (!survives_russian_roulette(ps, limits, bsdf_rand[3], pr.throughput)) break;
+      const float transparent_weight = std::fabs(average(cs.transparent));
       const float total_sw = cs.sum_sample_weight + transparent_weight;
       if (total_sw <= 0.0f) break;
-
-      // Next-event estimation (skipped when only singular closures are present).
-      if (use_nee && has_smooth_closure(cs) && lights->count() > 0) {
-        float lu, lv;
-        sampler.get_light(ps.bounce, lu, lv);
-        const Spectrum direct = sample_direct_light(cs, sd, throughput, total_sw, lu, lv);
-        if (!is_zero(direct)) add(direct, ps.bounce);
-      }
-
-      // Pick a closure by sample weight (or the transparent pass-through) with x, which is then rescaled
-      // to the chosen closure's share and reused for its direction (stratification kept).
-      float pick = bsdf_rand[0] * total_sw;
-      const int chosen = pick_closure(cs, pick, transparent_weight);
-      if (chosen == kTransparent) {
-        // Transparent: continue straight on; does not count as a bounce.
-        throughput *= cs.transparent / (transparent_weight / total_sw);
-        ps.advance_transparent(limits);
-        org = offset_ray_origin(sd.ctx.P, sd.Ng, D);
-        tmin = 0.0f;
-        tmax = kInf;
-        continue;
-      }
-      if (chosen < 0) break;
-      const float r3[3] = {std::clamp(pick / cs.closures[chosen].sample_weight, 0.0f, 0x1.fffffep-1f), bsdf_rand[1],
-                           bsdf_rand[2]};
-      GlimmerSample s{};
-      if (!scatter(cs, sd, chosen, r3, total_sw, throughput, ps, s, nan_count)) break;
-      const Vec3 wo = normalize(Vec3(s.wo));
-      ps.advance(s.label, limits);
-      transparent_background = false;
-
-      next_differentials(rd, D, wo, sd, s, ps.last_singular, pixel_spread, ps);
-      org = offset_ray_origin(sd.ctx.P, sd.Ng, wo);
-      D = wo;
-      tmin = 0.0f;
-      tmax = kInf;
+      integrate_surface_direct_light(cs, sd, total_sw, sampler, ps, pr);
+      if (!integrate_surface_bsdf_bounce(cs, sd, bsdf_rand, transparent_weight, total_sw, limits, ps, pr, ray)) break;
     }
-    return L;
+    return pr.L;
   }
 
+  // True when every closure at the shading point scatters singularly (probe() follows those).
+  bool all_singular(const ClosureSet &cs, const ShadingData &sd) const {
+    bool singular = cs.count > 0;
+    for (int i = 0; i < cs.count; ++i)
+      if (!cs.closures[i].leaf->singular && !cs.closures[i].leaf->emissive) {
+        GlimmerSample s{};
+        const float r3[3] = {0.5f, 0.5f, 0.5f};
+        GlimmerShadingContext scratch;
+        const uint32_t label = cs.closures[i].leaf->instance->sample(context_for(sd, cs.closures[i], scratch), r3, s);
+        if (!(label & GLIMMER_LABEL_SINGULAR)) singular = false;
+      }
+    return singular;
+  }
 
+  // probe(): the camera ray through (x, y) (no jitter, lens centre), shaded by the path stages, followed
+  // through singular scatters of the first closure to the first non-singular hit.
+  bool probe(float x, float y, GlimmerShadingContext &out) const {
+    const BounceLimits limits(scene.integrator);
+    PathRay ray = camera_path_ray(x, y, 0.5f, 0.5f);
+    PathState ps;
+    for (int bounce = 0; bounce < 16; ++bounce) {
+      SurfaceHit hit;
+      if (!accel->intersect(ray.org, ray.D, ray.tmin, ray.tmax, hit)) return false;
+      ShadingData sd;
+      ClosureSet cs;
+      shade_surface(hit, ray, ps, 0, sd, cs);
+      if (!all_singular(cs, sd)) {
+        out = sd.ctx;
+        return true;
+      }
+      GlimmerSample s{};
+      const float r3[3] = {0.5f, 0.5f, 0.5f};
+      const ActiveClosure &c = cs.closures[0];
+      GlimmerShadingContext scratch;
+      const uint32_t label = c.leaf->instance ? c.leaf->instance->sample(context_for(sd, c, scratch), r3, s)
+                                              : static_cast<uint32_t>(GLIMMER_LABEL_NONE);
+      if (label == GLIMMER_LABEL_NONE) return false;
+      const Vec3 wo = normalize(Vec3(s.wo));
+      ps.advance(label, limits);
+      next_differentials(ray.rd, ray.D, wo, sd, s, true, ray.pixel_spread, ps);
+      continue_ray(ray, sd, wo);
+    }
+    return false;
+  }
 };
 
 Renderer::Renderer(const scene::Scene &scene, const host::PluginLibrary &plugin, const RenderOptions &options)
@@ -726,49 +727,7 @@ Renderer::Renderer(const scene::Scene &scene, const host::PluginLibrary &plugin,
 
 Renderer::~Renderer() = default;
 
-bool Renderer::probe(float x, float y, GlimmerShadingContext &out) const {
-  const Impl &im = *impl_;
-  Vec3 org, D;
-  Differentials rd;
-  float dir_z = 1.0f;
-  camera_ray(im.scene.camera, im.width, im.height, x, y, org, D, rd, dir_z);
-  float tmin = 0.0f;
-  for (int bounce = 0; bounce < 16; ++bounce) {
-    SurfaceHit hit;
-    if (!im.intersect(org, D, tmin, kInf, hit)) return false;
-    Impl::ShadingData sd;
-    im.setup_shading(hit, D, sd);
-    im.transfer_differentials(rd, D, hit.t, sd, 0.0f);
-    Impl::sync_front(sd);
-    ClosureSet cs;
-    im.shaders->evaluate(sd.shader, sd.tc, cs);
-    bool all_singular = cs.count > 0;
-    for (int i = 0; i < cs.count; ++i)
-      if (!cs.closures[i].leaf->singular && !cs.closures[i].leaf->emissive) {
-        GlimmerSample s{};
-        const float r3[3] = {0.5f, 0.5f, 0.5f};
-        GlimmerShadingContext scratch;
-        const uint32_t label =
-            cs.closures[i].leaf->instance->sample(Impl::context_for(sd, cs.closures[i], scratch), r3, s);
-        if (!(label & GLIMMER_LABEL_SINGULAR)) all_singular = false;
-      }
-    if (!all_singular) {
-      out = sd.ctx;
-      return true;
-    }
-    GlimmerSample s{};
-    const float r3[3] = {0.5f, 0.5f, 0.5f};
-    const ClosureLeaf &leaf = *cs.closures[0].leaf;
-    GlimmerShadingContext scratch;
-    if (!leaf.instance || leaf.instance->sample(Impl::context_for(sd, cs.closures[0], scratch), r3, s) == GLIMMER_LABEL_NONE)
-      return false;
-    const Vec3 wo = normalize(Vec3(s.wo));
-    propagate_specular(rd, D, wo, sd.N, sd.Ng, sd.dn1, sd.dn2, s.eta);
-    org = offset_ray_origin(sd.ctx.P, sd.Ng, wo);
-    D = wo;
-  }
-  return false;
-}
+bool Renderer::probe(float x, float y, GlimmerShadingContext &out) const { return impl_->probe(x, y, out); }
 
 const PartInfo &Renderer::part() const { return impl_->part; }
 

@@ -75,6 +75,44 @@ TEST(Differentials, ThroughAPlanarMirror) {
   EXPECT_GT(fx, 1.5f * pixel_size(3.0f) / 4.0f);
 }
 
+// Depth of field: seen through lens points at radius A that all focus at depth f, a point at depth d
+// spreads over the circle of confusion of radius A |1 - d / f| (P(d) = (d / f) focus + (1 - d / f) lens).
+// The footprint at the first hit adds it to the pixel's: on the 4-unit plane facing the camera,
+// duv = (pixel_size(d) + A |1 - d / f|) / 4 before, on and behind the focal plane. (Aperture 0 keeps the
+// pinhole footprint: images without depth of field are bit-identical, see docs/architecture.md.)
+TEST(Differentials, DepthOfFieldWidensTheFootprintByTheCircleOfConfusion) {
+  const float A = 0.1f, f = 6.0f;
+  auto probe_plane = [&](float aperture, float d, GlimmerShadingContext &ctx) {
+    const std::string z = std::to_string(d);
+    const std::string path = write_file(
+        "dof_plane.xml", "<cycles>\n<camera width=\"" + std::to_string(kW) + "\" height=\"" + std::to_string(kH) +
+                             "\" fov=\"" + std::to_string(kFov) + "\" aperturesize=\"" + std::to_string(aperture) +
+                             "\" focaldistance=\"" + std::to_string(f) + "\" />\n<camera />\n<mesh P=\"-2 -2 " + z +
+                             "  2 -2 " + z + "  2 2 " + z + "  -2 2 " + z +
+                             "\" nverts=\"4\" verts=\"0 1 2 3\" UV=\"0 0 1 0 1 1 0 1\" />\n</cycles>\n");
+    const scene::Scene scene = scene::load_scene(path);
+    render::RenderOptions opt;
+    const render::Renderer r(scene, plugin(), opt);
+    return r.probe(kW * 0.5f, kH * 0.5f, ctx);
+  };
+  for (const float d : {3.0f, 6.0f, 9.0f}) {
+    GlimmerShadingContext lens{}, pinhole{};
+    ASSERT_TRUE(probe_plane(A, d, lens));
+    ASSERT_TRUE(probe_plane(0.0f, d, pinhole));
+    const float coc = A * std::fabs(1.0f - d / f);
+    const float expected = (pixel_size(d) + coc) / 4.0f;
+    EXPECT_NEAR(lens.duv_dx[0], expected, 1e-3f * expected) << "depth " << d;
+    EXPECT_NEAR(-lens.duv_dy[1], expected, 1e-3f * expected) << "depth " << d;
+    EXPECT_NEAR(lens.duv_dx[1], 0.0f, 1e-6f);
+    // The pinhole footprint (what the camera gave before): the circle of confusion is missing, a
+    // difference the tolerance above catches except on the focal plane.
+    EXPECT_NEAR(pinhole.duv_dx[0], pixel_size(d) / 4.0f, 1e-3f * expected);
+    if (d != f) {
+      EXPECT_GT(std::fabs(pinhole.duv_dx[0] - expected), 0.1f * expected);
+    }
+  }
+}
+
 // A ray through a tilted glass slab leaves parallel to its entry direction, shifted sideways:
 // the exit refraction must use 1/ior (the host hands transmissive closures the front-face
 // normal; the closure picks eta from the side of wi).
