@@ -62,14 +62,9 @@ void camera_ray(const scene::Camera &cam, int width, int height, float x, float 
 void fold_lens_differentials(Differentials &rd, const Vec3 &D, float t, const Vec3 &Ng) {
   if (!rd.lens) return;
   rd.lens = false;
-  // The footprint of a differential (dP, dD) on the hit's tangent plane (Igehy 1999, eq. 10).
-  auto on_plane = [&](const Vec3 &dP, const Vec3 &dD) {
-    const Vec3 p = dP + dD * t;
-    const float dn = dot(D, Ng);
-    return std::fabs(dn) > 1e-8f ? p - D * (dot(p, Ng) / dn) : p;
-  };
   auto fold = [&](Vec3 &dP, Vec3 &dD, const Vec3 &dPl, const Vec3 &dDl) {
-    const float sign = dot(on_plane(dP, dD), on_plane(dPl, dDl)) >= 0.0f ? 1.0f : -1.0f;
+    const Vec3 pixel = footprint_on_plane(dP, dD, D, t, Ng), lens = footprint_on_plane(dPl, dDl, D, t, Ng);
+    const float sign = dot(pixel, lens) >= 0.0f ? 1.0f : -1.0f;
     dP += dPl * sign;
     dD += dDl * sign;
   };

@@ -3,6 +3,8 @@
 // thin lens), used by the path loop and probe().
 #pragma once
 
+#include <cmath>
+
 #include "glimmer/math.h"
 #include "scene/scene.h"
 
@@ -24,6 +26,15 @@ struct Differentials {
 // view axis (depth = t * dir_z).
 void camera_ray(const scene::Camera &cam, int width, int height, float x, float y, Vec3 &org, Vec3 &dir,
                 Differentials &rd, float &dir_z, float lens_u = 0.5f, float lens_v = 0.5f);
+
+// A differential (dP, dD) of the ray (origin + t D) carried to the tangent plane of the hit at distance t with
+// geometric normal Ng (Igehy 1999, eq. 10): the footprint one step makes on the surface.
+inline Vec3 footprint_on_plane(const Vec3 &dP, const Vec3 &dD, const Vec3 &D, float t, const Vec3 &Ng) {
+  const Vec3 p = dP + dD * t;
+  const float dn = dot(D, Ng);
+  const float dt = std::fabs(dn) > 1e-8f ? -dot(p, Ng) / dn : 0.0f;
+  return p + D * dt;
+}
 
 // At the first hit (distance t along D, geometric normal Ng): adds the aperture's share to the pixel's, per
 // axis with the sign that makes the two footprints on the surface add up (|pixel| + A |1 - t / t_focus| for

@@ -252,14 +252,8 @@ struct Renderer::Impl {
   // hit with depth of field, the aperture's share is added first (fold_lens_differentials).
   void transfer_differentials(Differentials &rd, const Vec3 &D, float t, ShadingData &sd, float spread) const {
     fold_lens_differentials(rd, D, t, sd.Ng);  // depth of field: the circle of confusion joins the footprint
-    auto to_plane = [&](const Vec3 &dP, const Vec3 &dD) {
-      const Vec3 p = dP + dD * t;
-      const float dn = dot(D, sd.Ng);
-      const float dt = std::fabs(dn) > 1e-8f ? -dot(p, sd.Ng) / dn : 0.0f;
-      return p + D * dt;
-    };
-    rd.dPdx = to_plane(rd.dPdx, rd.dDdx);
-    rd.dPdy = to_plane(rd.dPdy, rd.dDdy);
+    rd.dPdx = footprint_on_plane(rd.dPdx, rd.dDdx, D, t, sd.Ng);
+    rd.dPdy = footprint_on_plane(rd.dPdy, rd.dDdy, D, t, sd.Ng);
     const float a11 = dot(sd.e1, sd.e1), a12 = dot(sd.e1, sd.e2), a22 = dot(sd.e2, sd.e2);
     const float det = a11 * a22 - a12 * a12;
     float bx[2] = {0, 0}, by[2] = {0, 0};
