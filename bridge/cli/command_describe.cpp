@@ -1,6 +1,7 @@
-// `glimmer describe [--json]`: the DSO's closures and their parameter schemas.
-// The JSON form is the one source the XML loader, docs and the Blender addon
-// read parameters from.
+// `glimmer describe [--json]`: the DSO's closures and their parameter schemas,
+// and (JSON, key "scene") the attributes of the scene elements. The JSON form
+// is the one source the XML loader, docs and the Blender addon read parameters
+// and settings from.
 #include <cstdio>
 #include <iostream>
 #include <nlohmann/json.hpp>
@@ -8,6 +9,7 @@
 #include "cli/commands.h"
 #include "cli/json_number.h"
 #include "host/closure_instance.h"
+#include "scene/settings.h"
 
 namespace glimmer::cli {
 
@@ -99,6 +101,7 @@ void add_describe_command(CLI::App &app, CliContext &ctx) {
         for (uint32_t i = 0; i < t->param_count; ++i) c["params"].push_back(describe_param(*t, host::param_at(*t, i)));
         out["closures"].push_back(c);
       }
+      out["scene"] = scene::describe_scene_settings();  // scene element attributes (bridge/scene/settings.cpp)
       std::cout << out.dump(2) << "\n";
       return;
     }
