@@ -9,6 +9,7 @@
 #include "cli/commands.h"
 #include "cli/json_number.h"
 #include "host/closure_instance.h"
+#include "render/closure_nodes.h"
 #include "scene/settings.h"
 
 namespace glimmer::cli {
@@ -101,6 +102,7 @@ void add_describe_command(CLI::App &app, CliContext &ctx) {
         for (uint32_t i = 0; i < t->param_count; ++i) c["params"].push_back(describe_param(*t, host::param_at(*t, i)));
         out["closures"].push_back(c);
       }
+      out["nodes"] = render::describe_closure_nodes(plugin);  // Cycles closure nodes (render/closure_nodes.cpp)
       out["scene"] = scene::describe_scene_settings();  // scene element attributes (bridge/scene/settings.cpp)
       std::cout << out.dump(2) << "\n";
       return;
