@@ -16,17 +16,6 @@ namespace glimmer::cli {
 
 namespace {
 
-std::vector<std::string> enum_choices(const char *choices) {
-  std::vector<std::string> out;
-  if (!choices) return out;
-  std::string cur;
-  for (const char *c = choices; *c; ++c) {
-    if (*c == '|') { out.push_back(cur); cur.clear(); } else { cur += *c; }
-  }
-  out.push_back(cur);
-  return out;
-}
-
 nlohmann::json describe_param(const GlimmerClosureType &type, const GlimmerParamSpec &p) {
   nlohmann::json j;
   j["name"] = p.name;
@@ -42,7 +31,7 @@ nlohmann::json describe_param(const GlimmerClosureType &type, const GlimmerParam
       break;
     case GLIMMER_PARAM_ENUM:
       j["default"] = p.default_string ? p.default_string : "";
-      j["choices"] = enum_choices(p.enum_choices);
+      j["choices"] = scene::split_choices(p.enum_choices);
       break;
     case GLIMMER_PARAM_STRING:
       j["default"] = p.default_string ? p.default_string : "";

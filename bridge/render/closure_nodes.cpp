@@ -23,26 +23,42 @@ std::vector<SocketRow> microfacet_sockets(float color, float roughness, std::vec
   return rows;
 }
 
-std::vector<SocketRow> conductor_sockets(float anisotropy) {
-  return microfacet_sockets(
-      0.8f, 0.5f,
-      {{.socket = "anisotropy", .role = R::Param, .param = "anisotropy", .default_value = anisotropy, .min = -1,
-        .max = 1},
-       {.socket = "rotation", .role = R::Unsupported, .note = "rotation is not supported; ignored"},
-       {.socket = "tangent", .role = R::Ignored}});
-}
-
-// Cycles' refraction node has a tangent input, its glass node none.
-std::vector<SocketRow> dielectric_sockets(bool tangent) {
-  std::vector<SocketRow> own = {{.socket = "IOR", .role = R::Param, .param = "ior", .default_value = 1.45f,
-                                 .alias = "ior"}};
-  if (tangent) own.push_back({.socket = "tangent", .role = R::Ignored});
-  return microfacet_sockets(1.0f, 0.0f, own);
-}
-
 const char *kConductorDoc =
     "the colour is the weight; multi_ggx: a constant colour is also bounce_tint (Cycles tints every "
     "bounce of its walk; a textured colour tints once and warns)";
+
+// Cycles' glossy and anisotropic nodes (they differ in the anisotropy default).
+ClosureNodeRow conductor_row(const char *node, float anisotropy) {
+  return {.node = node,
+          .closure = "microfacet_conductor",
+          .sockets = microfacet_sockets(
+              0.8f, 0.5f,
+              {{.socket = "anisotropy", .role = R::Param, .param = "anisotropy", .default_value = anisotropy,
+                .min = -1, .max = 1},
+               {.socket = "rotation", .role = R::Unsupported, .note = "rotation is not supported; ignored"},
+               {.socket = "tangent", .role = R::Ignored}}),
+          .fixed = {{"f0", "1"}},
+          .distribution = true,
+          .bounce_tint = true,
+          .filter_glossy = true,
+          .fallback_diffuse = true,
+          .doc = kConductorDoc};
+}
+
+// Cycles' glass and refraction nodes (the refraction node has a tangent input, glass none).
+ClosureNodeRow dielectric_row(const char *node, const char *mode, bool tangent, const char *doc) {
+  std::vector<SocketRow> own = {
+      {.socket = "IOR", .role = R::Param, .param = "ior", .default_value = 1.45f, .alias = "ior"}};
+  if (tangent) own.push_back({.socket = "tangent", .role = R::Ignored});
+  return {.node = node,
+          .closure = "microfacet_dielectric",
+          .sockets = microfacet_sockets(1.0f, 0.0f, own),
+          .fixed = {{"mode", mode}},
+          .distribution = true,
+          .filter_glossy = true,
+          .fallback_diffuse = true,
+          .doc = doc};
+}
 
 }  // namespace
 
@@ -63,40 +79,10 @@ const std::vector<ClosureNodeRow> &closure_node_rows() {
                    {.socket = "surface_mix_weight", .role = R::Ignored}},
        .fixed = {{"color", "1"}},
        .doc = "Lambertian; the colour is the weight"},
-      {.node = "glossy_bsdf",
-       .closure = "microfacet_conductor",
-       .sockets = conductor_sockets(0.0f),
-       .fixed = {{"f0", "1"}},
-       .distribution = true,
-       .bounce_tint = true,
-       .filter_glossy = true,
-       .fallback_diffuse = true,
-       .doc = kConductorDoc},
-      {.node = "anisotropic_bsdf",
-       .closure = "microfacet_conductor",
-       .sockets = conductor_sockets(0.5f),
-       .fixed = {{"f0", "1"}},
-       .distribution = true,
-       .bounce_tint = true,
-       .filter_glossy = true,
-       .fallback_diffuse = true,
-       .doc = kConductorDoc},
-      {.node = "glass_bsdf",
-       .closure = "microfacet_dielectric",
-       .sockets = dielectric_sockets(false),
-       .fixed = {{"mode", "glass"}},
-       .distribution = true,
-       .filter_glossy = true,
-       .fallback_diffuse = true,
-       .doc = "reflection and refraction; the colour is the weight"},
-      {.node = "refraction_bsdf",
-       .closure = "microfacet_dielectric",
-       .sockets = dielectric_sockets(true),
-       .fixed = {{"mode", "refraction"}},
-       .distribution = true,
-       .filter_glossy = true,
-       .fallback_diffuse = true,
-       .doc = "refraction only; the colour is the weight"},
+      conductor_row("glossy_bsdf", 0.0f),
+      conductor_row("anisotropic_bsdf", 0.5f),
+      dielectric_row("glass_bsdf", "glass", false, "reflection and refraction; the colour is the weight"),
+      dielectric_row("refraction_bsdf", "refraction", true, "refraction only; the colour is the weight"),
       {.node = "transparent_bsdf",
        .kind = NodeKind::Transparent,
        .sockets = {{.socket = "color", .role = R::Weight, .default_value = 1.0f},

@@ -38,21 +38,6 @@ std::string number_text(double value) {
   return s;
 }
 
-std::vector<std::string> split_choices(const char *choices) {
-  std::vector<std::string> out;
-  std::string cur;
-  for (const char *c = choices; c && *c; ++c) {
-    if (*c == '|') {
-      out.push_back(cur);
-      cur.clear();
-    } else {
-      cur += *c;
-    }
-  }
-  if (choices) out.push_back(cur);
-  return out;
-}
-
 const char *type_name(SettingType t) {
   switch (t) {
     case ST::Int: return "int";
@@ -140,6 +125,21 @@ EnumMember<Light> light_type() {
 }
 
 }  // namespace
+
+std::vector<std::string> split_choices(const char *choices) {
+  std::vector<std::string> out;
+  std::string cur;
+  for (const char *c = choices; c && *c; ++c) {
+    if (*c == '|') {
+      out.push_back(cur);
+      cur.clear();
+    } else {
+      cur += *c;
+    }
+  }
+  if (choices) out.push_back(cur);
+  return out;
+}
 
 std::string range_text(double min, double max, bool min_open, bool max_open) {
   if (std::isinf(max)) return std::string("must be ") + (min_open ? "> " : ">= ") + number_text(min);

@@ -69,6 +69,9 @@ const ElementSettings<Camera> &camera_settings();
 const ElementSettings<Light> &light_settings();
 const ElementSettings<Background> &background_settings();
 
+// "a|b|c" -> {"a", "b", "c"} (enum choices; null -> none).
+std::vector<std::string> split_choices(const char *choices);
+
 // "must be in [0, 1024]" / "must be in (0, 16]" / "must be >= 0".
 std::string range_text(double min, double max, bool min_open, bool max_open);
 

@@ -248,16 +248,12 @@ class Loader {
 
   template <class T>
   int read_choice(const XmlFile &f, const pugi::xml_node &node, const char *element, const Setting<T> &s) {
-    const std::string value = node.attribute(s.xml).value(), choices = s.choices;
-    int index = 0;
-    for (size_t begin = 0;; ++index) {
-      const size_t end = std::min(choices.find('|', begin), choices.size());
-      if (choices.compare(begin, end - begin, value) == 0) return index;
-      if (end == choices.size()) break;
-      begin = end + 1;
-    }
+    const std::string value = node.attribute(s.xml).value();
+    const std::vector<std::string> choices = split_choices(s.choices);
+    const auto it = std::find(choices.begin(), choices.end(), value);
+    if (it != choices.end()) return static_cast<int>(it - choices.begin());
     throw SceneError(loc(f, node), std::string("<") + element + "> " + s.xml + " '" + value + "' is not one of " +
-                                       choices);
+                                       s.choices);
   }
 
   void read_camera(const XmlFile &f, const pugi::xml_node &node, const ReadState &state) {
