@@ -90,6 +90,7 @@ const std::vector<ClosureNodeRow> &closure_node_rows() {
        .doc = "host pass-through with weight colour; shadow rays pass through it too"},
       {.node = "emission",
        .closure = "emission",
+       .output = "emission",
        .sockets = {{.socket = "color", .role = R::Weight, .default_value = 0.8f},
                    {.socket = "strength", .role = R::Strength, .default_value = 10.0f},
                    {.socket = "surface_mix_weight", .role = R::Ignored}},
@@ -104,7 +105,7 @@ const std::vector<ClosureNodeRow> &closure_node_rows() {
        .schema = true,
        .doc = "sockets are the closure's parameters (glimmer describe); a textured colour is the weight"},
       {.node = "principled_bsdf", .kind = NodeKind::Fallback, .doc = "not supported: grey (0.8) diffuse"},
-      {.node = "holdout", .kind = NodeKind::Holdout, .doc = "not supported: no closure (black)"},
+      {.node = "holdout", .kind = NodeKind::Holdout, .output = "holdout", .doc = "not supported: no closure (black)"},
   };
   return rows;
 }

@@ -51,6 +51,7 @@ struct ClosureNodeRow {
   const char *node;     // XML element (Cycles node name)
   NodeKind kind = NodeKind::Closure;
   const char *closure = nullptr;  // DSO closure
+  const char *output = "bsdf";    // the node's output socket
   std::vector<SocketRow> sockets = {};  // empty with `schema`: the DSO closure's parameters are the sockets
   std::vector<std::pair<const char *, const char *>> fixed = {};  // {parameter, value} when the closure has it
   bool distribution = false;      // `distribution` attribute -> ggx|beckmann|multi_ggx|sharp; an unlinked

@@ -20,7 +20,7 @@ using render::SocketRole;
 
 // Line 6 is the <connect> into `socket` of node "g".
 std::vector<std::string> warnings_for_link(const ClosureNodeRow &row, const std::string &socket) {
-  const std::string output = std::string(row.node) == "emission" ? "emission" : "bsdf";
+  const std::string output = row.output;
   const std::string name = std::string(row.node) + "_" + socket + ".xml";
   const std::string path = write_file(
       name, "<cycles>\n<camera width=\"8\" height=\"8\" />\n<shader name=\"s\">\n<checker_texture name=\"c\" />\n<" +
