@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include "cli/json_number.h"  // floats in their shortest decimal form
 #include "host/closure_instance.h"
 #include "host/plugin_library.h"
 
@@ -179,10 +180,10 @@ nlohmann::json describe_closure_nodes(const host::PluginLibrary &plugin) {
       }
       if (s.role == SocketRole::Weight || s.role == SocketRole::Strength || s.role == SocketRole::Param ||
           s.role == SocketRole::Unsupported)
-        sj["default"] = s.default_value;
+        sj["default"] = cli::json_float(s.default_value);
       if (s.role == SocketRole::Param) {
-        sj["min"] = std::isfinite(s.min) ? nlohmann::json(s.min) : nlohmann::json(nullptr);
-        sj["max"] = std::isfinite(s.max) ? nlohmann::json(s.max) : nlohmann::json(nullptr);
+        sj["min"] = cli::json_float(s.min);  // null when unbounded
+        sj["max"] = cli::json_float(s.max);
       }
       if (s.note) sj["note"] = s.note;
       j["sockets"].push_back(sj);

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <cstdlib>
 
+#include "cli/json_number.h"  // floats in their shortest decimal form
+
 namespace glimmer::scene {
 
 namespace {
@@ -14,18 +16,10 @@ constexpr double kMaxBounces = 1024;  // every bounce limit; the kernel limit is
 
 using ST = SettingType;
 
-// A float as the shortest decimal that reads back as the same float (0.8, not 0.800000011920929).
-double shortest(double value) {
-  char buffer[64];
-  const auto result = std::to_chars(buffer, buffer + sizeof(buffer) - 1, static_cast<float>(value));
-  *result.ptr = '\0';
-  return std::strtod(buffer, nullptr);
-}
-
 nlohmann::json json_bound(double value, SettingType type) {
   if (!std::isfinite(value)) return nullptr;
   if (type == ST::Int) return static_cast<long long>(value);
-  return shortest(value);
+  return cli::shortest_double(value);
 }
 
 std::string number_text(double value) {
@@ -69,11 +63,11 @@ nlohmann::json default_of(const Setting<T> &s) {
         using M = std::decay_t<decltype(member)>;
         if constexpr (std::is_same_v<M, std::monostate>) return nullptr;
         else if constexpr (std::is_same_v<M, int T::*>) return defaults.*member;
-        else if constexpr (std::is_same_v<M, float T::*>) return shortest(defaults.*member);
+        else if constexpr (std::is_same_v<M, float T::*>) return cli::shortest_double(defaults.*member);
         else if constexpr (std::is_same_v<M, bool T::*>) return defaults.*member;
         else if constexpr (std::is_same_v<M, Vec3 T::*>) {
           const Vec3 v = defaults.*member;
-          return {shortest(v.x), shortest(v.y), shortest(v.z)};
+          return {cli::shortest_double(v.x), cli::shortest_double(v.y), cli::shortest_double(v.z)};
         } else {
           return choices.at(static_cast<size_t>(member.get(defaults)));
         }
