@@ -5,8 +5,8 @@
     python3 tools/make_addon_zip.py --refresh-schema [--glimmer build/glimmer]
 
 The zip holds the folder glimmer/ (Blender: Preferences > Add-ons > Install...).
---refresh-schema rewrites blender_addon/glimmer/closures_schema.json from
-`glimmer describe --json`: closures the DSO lists are copied ("source": "dso"),
+--refresh-schema rewrites blender_addon/glimmer/closures_schema.json (and scene_settings.json, the
+scene elements' attributes, key "scene") from `glimmer describe --json`: closures the DSO lists are copied ("source": "dso"),
 closures only the snapshot defines stay as they are ("source": "planned").
 """
 import argparse
@@ -20,6 +20,7 @@ import zipfile
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 ADDON = os.path.join(REPO, "blender_addon", "glimmer")
 SNAPSHOT = os.path.join(ADDON, "closures_schema.json")
+SCENE_SETTINGS = os.path.join(ADDON, "scene_settings.json")
 
 
 def addon_version():
@@ -44,6 +45,9 @@ def refresh_schema(glimmer):
         f.write(json.dumps(snapshot, indent=2) + "\n")
     print("make_addon_zip: refreshed %s (%d closures from the DSO, %d planned)"
           % (SNAPSHOT, len(names), len(closures) - len(names)))
+    with open(SCENE_SETTINGS, "w", encoding="utf-8") as f:
+        f.write(json.dumps(live["scene"], indent=2) + "\n")
+    print("make_addon_zip: refreshed %s (the scene elements' attributes)" % SCENE_SETTINGS)
 
 
 def build_zip(output):
@@ -60,8 +64,8 @@ def build_zip(output):
                 count += 1
     with zipfile.ZipFile(output) as z:
         names = z.namelist()
-        if "glimmer/__init__.py" not in names or "glimmer/closures_schema.json" not in names:
-            raise SystemExit("make_addon_zip: the zip lacks __init__.py or the schema snapshot")
+        if any("glimmer/" + f not in names for f in ("__init__.py", "closures_schema.json", "scene_settings.json")):
+            raise SystemExit("make_addon_zip: the zip lacks __init__.py or a schema snapshot")
     print("make_addon_zip: wrote %s (%d files)" % (output, count))
 
 

@@ -607,19 +607,16 @@ class Exporter:
         return 2.0 * math.atan(min(tan_x, tan_y))
 
     def write_film_integrator(self, root):
+        """<film> and <integrator> with every generated render setting (schema_mod.setting_rows), plus the seed."""
         s = self.settings
         if s is None:
             return
-        ET.SubElement(root, "film", exposure=fmt(s.film_exposure), filter_type=s.filter_type,
-                      filter_width=fmt(s.filter_width))
-        seed = s.seed + (self.scene.frame_current if s.use_animated_seed else 0)
-        ET.SubElement(root, "integrator", attrib={
-            "max_bounce": str(s.max_bounce), "min_bounce": str(s.min_bounce),
-            "max_diffuse_bounce": str(s.max_diffuse_bounce), "max_glossy_bounce": str(s.max_glossy_bounce),
-            "max_transmission_bounce": str(s.max_transmission_bounce),
-            "transparent_max_bounce": str(s.transparent_max_bounce), "filter_glossy": fmt(s.filter_glossy),
-            "sample_clamp_direct": fmt(s.sample_clamp_direct),
-            "sample_clamp_indirect": fmt(s.sample_clamp_indirect), "seed": str(seed)})
+        for element in schema_mod.SETTINGS_ELEMENTS:
+            attributes = {row["name"]: fmt(getattr(s, prop)) if row["type"] != "enum" else getattr(s, prop)
+                          for _, row, prop in schema_mod.setting_rows(element)}
+            if element == "integrator":
+                attributes["seed"] = str(s.seed + (self.scene.frame_current if s.use_animated_seed else 0))
+            ET.SubElement(root, element, attrib=attributes)
 
     # -- world -----------------------------------------------------------------
     def write_world(self, root):

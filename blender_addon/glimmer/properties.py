@@ -1,5 +1,21 @@
-"""Render settings stored on the scene (scene.glimmer)."""
+"""Render settings stored on the scene (scene.glimmer).
+
+The integrator and film properties are generated from the host's scene settings table
+(`glimmer describe --json`, key "scene", shipped as scene_settings.json): name, default, range
+and description come from its rows, so they cannot drift from the XML loader's.
+"""
 import bpy
+
+from . import schema
+
+# UI labels of the generated properties (default: the attribute name in words).
+LABELS = {
+    "max_bounce": "Total", "min_bounce": "Min (Russian roulette)", "max_diffuse_bounce": "Diffuse",
+    "max_glossy_bounce": "Glossy", "max_transmission_bounce": "Transmission", "transparent_max_bounce": "Transparent",
+    "sample_clamp_direct": "Clamp Direct", "sample_clamp_indirect": "Clamp Indirect", "filter_type": "Pixel Filter",
+}
+# Soft UI limits where a row's range is open-ended or very wide.
+SOFT_MAX = {"filter_width": 10.0}
 
 
 class GlimmerRenderSettings(bpy.types.PropertyGroup):
@@ -18,29 +34,6 @@ class GlimmerRenderSettings(bpy.types.PropertyGroup):
     use_animated_seed: bpy.props.BoolProperty(name="Animated Seed",
                                               description="Add the frame number to the seed", default=False)
 
-    max_bounce: bpy.props.IntProperty(name="Total", description="Maximum number of bounces", default=12,
-                                      min=0, max=1024)
-    min_bounce: bpy.props.IntProperty(name="Min (Russian roulette)",
-                                      description="Bounces before Russian roulette starts", default=3,
-                                      min=0, max=1024)
-    max_diffuse_bounce: bpy.props.IntProperty(name="Diffuse", default=4, min=0, max=1024)
-    max_glossy_bounce: bpy.props.IntProperty(name="Glossy", default=4, min=0, max=1024)
-    max_transmission_bounce: bpy.props.IntProperty(name="Transmission", default=12, min=0, max=1024)
-    transparent_max_bounce: bpy.props.IntProperty(name="Transparent", default=8, min=0, max=1024)
-    filter_glossy: bpy.props.FloatProperty(name="Filter Glossy", description="Blur glossy after blurry bounces "
-                                           "(0: off, like Cycles)", default=0.0, min=0.0, max=10.0)
-    sample_clamp_direct: bpy.props.FloatProperty(name="Clamp Direct", description="0: no clamp", default=0.0,
-                                                 min=0.0)
-    sample_clamp_indirect: bpy.props.FloatProperty(name="Clamp Indirect", description="0: no clamp",
-                                                   default=10.0, min=0.0)  # Blender's (and the host's) default
-
-    film_exposure: bpy.props.FloatProperty(name="Exposure", description="Film exposure multiplier",
-                                           default=1.0, min=0.0)
-    filter_type: bpy.props.EnumProperty(name="Pixel Filter", items=[
-        ("box", "Box", ""), ("gaussian", "Gaussian", ""), ("blackman_harris", "Blackman-Harris", "")],
-        default="box")
-    filter_width: bpy.props.FloatProperty(name="Filter Width", default=1.0, min=0.01, max=10.0, unit="NONE")
-
     use_glint: bpy.props.BoolProperty(
         name="Glint Closures", default=True,
         description="Render Glint BSDF nodes with the glint closure (off: export their microfacet fallback, "
@@ -55,3 +48,38 @@ class GlimmerRenderSettings(bpy.types.PropertyGroup):
     export_dir: bpy.props.StringProperty(
         name="Export Folder", subtype="DIR_PATH", default="",
         description="Where the scene is exported for rendering (empty: a temporary folder)")
+
+
+def _label(row):
+    return LABELS.get(row["name"], " ".join(w.capitalize() for w in row["name"].split("_")))
+
+
+def _choice_label(choice):
+    return "-".join(w.capitalize() for w in choice.split("_")) if choice == "blackman_harris" else choice.capitalize()
+
+
+def make_property(row):
+    """A bpy property for one scene-settings row (range: the row's; an exclusive bound is nudged inward)."""
+    kwargs = {"name": _label(row), "description": row["doc"], "default": schema.setting_default(row)}
+    if row["type"] in ("int", "float"):
+        step = 1 if row["type"] == "int" else 1e-3
+        if row.get("min") is not None:
+            kwargs["min"] = row["min"] + (step if row.get("min_exclusive") else 0)
+        if row.get("max") is not None:
+            kwargs["max"] = row["max"] - (step if row.get("max_exclusive") else 0)
+        if row["name"] in SOFT_MAX:
+            kwargs["soft_max"] = SOFT_MAX[row["name"]]
+    if row["type"] == "int":
+        return bpy.props.IntProperty(**kwargs)
+    if row["type"] == "float":
+        return bpy.props.FloatProperty(**kwargs)
+    if row["type"] == "bool":
+        return bpy.props.BoolProperty(**kwargs)
+    if row["type"] == "enum":
+        kwargs["items"] = [(c, _choice_label(c), "") for c in row["choices"]]
+        return bpy.props.EnumProperty(**kwargs)
+    raise ValueError("scene setting '%s': type %s has no Blender property" % (row["name"], row["type"]))
+
+
+for _element, _row, _prop in schema.setting_rows():
+    GlimmerRenderSettings.__annotations__[_prop] = make_property(_row)

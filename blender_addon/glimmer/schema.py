@@ -12,6 +12,16 @@ import os
 import subprocess
 
 SNAPSHOT_PATH = os.path.join(os.path.dirname(__file__), "closures_schema.json")
+# The scene elements' attributes (`glimmer describe --json`, key "scene"; bridge/scene/settings.cpp).
+SCENE_SETTINGS_PATH = os.path.join(os.path.dirname(__file__), "scene_settings.json")
+
+# The render settings (scene.glimmer) generated from the scene settings: every attribute of these
+# elements except aliases and MANUAL_SETTINGS, which the addon declares itself because they are
+# passed on the command line (--seed with the animated-seed option, --samples).
+SETTINGS_ELEMENTS = ("integrator", "film")
+MANUAL_SETTINGS = {("integrator", "seed"), ("integrator", "samples")}
+# Property names kept from earlier addon versions (saved .blend files use them).
+SETTING_PROPERTY_NAMES = {("film", "exposure"): "film_exposure"}
 
 # Closures that get a Blender node, with the node's label and XML node name.
 NODE_CLOSURES = {
@@ -62,6 +72,28 @@ def merged_schema(executable):
         result = ({"plugin": live.get("plugin", {}), "closures": closures}, "live", None)
     _cache[key] = result
     return result
+
+
+def load_scene_settings():
+    with open(SCENE_SETTINGS_PATH, "r", encoding="utf-8") as f:
+        return json.load(f)
+
+
+def setting_rows(element=None):
+    """(element, row, property name) of every generated render setting, in table order."""
+    settings = load_scene_settings()
+    for name in SETTINGS_ELEMENTS:
+        if element is not None and name != element:
+            continue
+        for row in settings[name]["attributes"]:
+            if row.get("alias_of") or (name, row["name"]) in MANUAL_SETTINGS:
+                continue
+            yield name, row, SETTING_PROPERTY_NAMES.get((name, row["name"]), row["name"])
+
+
+def setting_default(row):
+    """The property default: Blender 3.4's UI default where the table names one, else Cycles' socket default."""
+    return row.get("blender_default", row["default"])
 
 
 def clear_cache():

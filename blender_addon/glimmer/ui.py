@@ -1,7 +1,7 @@
 """Property panels for the Glimmer engine, and Blender's own panels and shader nodes made available to it."""
 import bpy
 
-from . import exporter
+from . import exporter, schema
 
 ENGINE = "GLIMMER"
 
@@ -35,26 +35,28 @@ class GLIMMER_PT_sampling(GlimmerRenderPanel, bpy.types.Panel):
 
 
 class GLIMMER_PT_light_paths(GlimmerRenderPanel, bpy.types.Panel):
+    """The integrator settings (generated from the scene settings table): bounce limits, then the rest."""
     bl_label = "Light Paths"
 
     def draw(self, context):
         settings = context.scene.glimmer
         layout = self.layout
         layout.use_property_split = True
+        rows = list(schema.setting_rows("integrator"))
         col = layout.column(heading="Max Bounces")
-        for prop in ("max_bounce", "max_diffuse_bounce", "max_glossy_bounce", "max_transmission_bounce",
-                     "transparent_max_bounce", "min_bounce"):
-            col.prop(settings, prop)
+        for _, row, prop in rows:
+            if row["type"] == "int":
+                col.prop(settings, prop)
         col = layout.column()
-        col.prop(settings, "filter_glossy")
-        col.prop(settings, "sample_clamp_direct")
-        col.prop(settings, "sample_clamp_indirect")
+        for _, row, prop in rows:
+            if row["type"] != "int":
+                col.prop(settings, prop)
 
 
 class GLIMMER_PT_film(GlimmerRenderPanel, bpy.types.Panel):
     bl_label = "Film"
     bl_options = {"DEFAULT_CLOSED"}
-    props = ("film_exposure", "filter_type", "filter_width")
+    props = tuple(prop for _, _, prop in schema.setting_rows("film"))
 
 
 class GLIMMER_PT_materials(GlimmerRenderPanel, bpy.types.Panel):

@@ -1,6 +1,7 @@
-// `glimmer describe [--json]`: the DSO's closures and their parameter schemas.
-// The JSON form is the one source the XML loader, docs and the Blender addon
-// read parameters from.
+// `glimmer describe [--json]`: the DSO's closures and their parameter schemas,
+// and (JSON, key "scene") the attributes of the scene elements. The JSON form
+// is the one source the XML loader, docs and the Blender addon read parameters
+// and settings from.
 #include <cstdio>
 #include <iostream>
 #include <nlohmann/json.hpp>
@@ -8,21 +9,12 @@
 #include "cli/commands.h"
 #include "cli/json_number.h"
 #include "host/closure_instance.h"
+#include "render/closure_nodes.h"
+#include "scene/settings.h"
 
 namespace glimmer::cli {
 
 namespace {
-
-std::vector<std::string> enum_choices(const char *choices) {
-  std::vector<std::string> out;
-  if (!choices) return out;
-  std::string cur;
-  for (const char *c = choices; *c; ++c) {
-    if (*c == '|') { out.push_back(cur); cur.clear(); } else { cur += *c; }
-  }
-  out.push_back(cur);
-  return out;
-}
 
 nlohmann::json describe_param(const GlimmerClosureType &type, const GlimmerParamSpec &p) {
   nlohmann::json j;
@@ -39,7 +31,7 @@ nlohmann::json describe_param(const GlimmerClosureType &type, const GlimmerParam
       break;
     case GLIMMER_PARAM_ENUM:
       j["default"] = p.default_string ? p.default_string : "";
-      j["choices"] = enum_choices(p.enum_choices);
+      j["choices"] = scene::split_choices(p.enum_choices);
       break;
     case GLIMMER_PARAM_STRING:
       j["default"] = p.default_string ? p.default_string : "";
@@ -99,6 +91,8 @@ void add_describe_command(CLI::App &app, CliContext &ctx) {
         for (uint32_t i = 0; i < t->param_count; ++i) c["params"].push_back(describe_param(*t, host::param_at(*t, i)));
         out["closures"].push_back(c);
       }
+      out["nodes"] = render::describe_closure_nodes(plugin);  // Cycles closure nodes (render/closure_nodes.cpp)
+      out["scene"] = scene::describe_scene_settings();  // scene element attributes (bridge/scene/settings.cpp)
       std::cout << out.dump(2) << "\n";
       return;
     }

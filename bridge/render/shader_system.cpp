@@ -13,10 +13,6 @@ using scene::ShaderNode;
 
 namespace {
 
-const char *kCyclesClosureNodes[] = {"diffuse_bsdf", "glossy_bsdf", "anisotropic_bsdf", "glass_bsdf",
-                                     "refraction_bsdf", "transparent_bsdf", "emission", "background",
-                                     "mix_closure", "add_closure", "holdout"};
-
 bool is_volume_node(const std::string &type) {
   return type.find("volume") != std::string::npos;
 }
@@ -87,16 +83,20 @@ const ImageTexture *ShaderSystem::load_image(const ShaderNode &n) {
   return images_[key].get();
 }
 
+Spectrum ShaderSystem::read_constant(const ShaderNode &n, const std::string &socket, const std::string *text,
+                                     Spectrum fallback) {
+  if (!text) return fallback;
+  const auto v = scene::parse_floats(*text, n.where, "<" + n.type + "> " + socket);
+  if (v.size() == 1) return Spectrum(v[0]);
+  if (v.size() >= 3) return Spectrum(v[0], v[1], v[2]);
+  throw SceneError(n.where, "<" + n.type + "> " + socket + ": expected 1 or 3 numbers");
+}
+
 Input ShaderSystem::read_input(const ShaderGraph &g, const ShaderNode &n, const std::string &socket, Spectrum fallback,
                                VectorSource default_vector) {
   Input in;
-  in.constant = fallback;
-  if (auto it = n.attributes.find(socket); it != n.attributes.end()) {
-    const auto v = scene::parse_floats(it->second, n.where, "<" + n.type + "> " + socket);
-    if (v.size() == 1) in.constant = Spectrum(v[0]);
-    else if (v.size() >= 3) in.constant = Spectrum(v[0], v[1], v[2]);
-    else throw SceneError(n.where, "<" + n.type + "> " + socket + ": expected 1 or 3 numbers");
-  }
+  const auto it = n.attributes.find(socket);
+  in.constant = read_constant(n, socket, it != n.attributes.end() ? &it->second : nullptr, fallback);
   const scene::ShaderLink *link = g.link_to(n.name, socket);
   if (!link) return in;
   const ShaderNode *src = g.find(link->from_node);
@@ -213,163 +213,208 @@ Spectrum ShaderSystem::eval_input(const Input &in, const TexCoords &tc) const {
   return in.constant;
 }
 
-int ShaderSystem::make_leaf(const ShaderGraph &g, const ShaderNode &n, CompiledShader &out) {
-  auto leaf = std::make_unique<ClosureLeaf>();
-  leaf->node = n.name;
-  const std::string &t = n.type;
-  auto check_known = [&](std::initializer_list<const char *> known) {
-    for (const auto &attribute : n.attributes) {
-      const std::string &name = attribute.first;  // not a structured binding: clang 14 cannot capture those
-      if (std::none_of(known.begin(), known.end(), [&](const char *k) { return name == k; }))
-        warn(n.where, "<" + t + "> attribute '" + name + "' is not supported; ignored");
-    }
-  };
-  auto fallback_diffuse = [&](const std::string &why) -> const host::ClosureInstance * {
-    warn(n.where, why);
-    const GlimmerClosureType *diffuse = plugin_.find("diffuse");
-    if (!diffuse) throw SceneError(n.where, "the plugin has no 'diffuse' closure");
-    host::ParamList p;
-    p.set_number("color", 1, 1, 1);
-    leaf->type = diffuse;
-    return instantiate(*diffuse, p, n.where);
-  };
-  const GlimmerClosureType *type = nullptr;
-  host::ParamList params;
+// A node's closure row: the table's, or the schema of the DSO closure the node names
+// (`name` or `name_bsdf`); nullptr when neither knows the node.
+const ClosureNodeRow *ShaderSystem::row_for(const std::string &node_type, ClosureNodeRow &storage) {
+  const ClosureNodeRow *row = find_closure_node(node_type);
+  if (row && !row->schema) return row;
+  const GlimmerClosureType *type = row ? plugin_.find(row->closure) : plugin_.find(node_type);
+  if (!type && !row && node_type.size() > 5 && node_type.substr(node_type.size() - 5) == "_bsdf")
+    type = plugin_.find(node_type.substr(0, node_type.size() - 5));
+  if (!type) return nullptr;
+  storage = schema_row(*type, row ? row->node : node_type.c_str());
+  return &storage;
+}
 
-  if (t == "diffuse_bsdf") {
-    check_known({"color", "roughness", "normal"});
-    leaf->weight = read_input(g, n, "color", Spectrum(0.8f), VectorSource::Generated);
-    if (auto r = n.attributes.find("roughness"); r != n.attributes.end()) {
-      const auto v = scene::parse_floats(r->second, n.where, "<diffuse_bsdf> roughness");
-      if (!v.empty() && v[0] != 0.0f) warn(n.where, "diffuse_bsdf: Oren-Nayar roughness is not supported; Lambertian is used");
+// The socket's attribute (or its alias's when the socket has none), for constants.
+const std::string *ShaderSystem::attribute_of(const ShaderNode &n, const SocketRow &s) {
+  if (auto it = n.attributes.find(s.socket); it != n.attributes.end()) return &it->second;
+  if (s.alias)
+    if (auto it = n.attributes.find(s.alias); it != n.attributes.end()) return &it->second;
+  return nullptr;
+}
+
+// Attributes that are no socket of the row: a schema row hands them to the DSO (which
+// names the unknown parameter in an error); a table row warns and ignores them.
+void ShaderSystem::check_attributes(const ShaderNode &n, const ClosureNodeRow &row, const GlimmerClosureType *type,
+                                    host::ParamList &params) {
+  for (const auto &attribute : n.attributes) {
+    const std::string &name = attribute.first;
+    if (row.find(name) || (row.distribution && name == "distribution")) continue;
+    if (!row.schema || !type) {
+      warn(n.where, "<" + n.type + "> attribute '" + name + "' is not supported; ignored");
+      continue;
     }
-    type = plugin_.find("diffuse");
-    if (!type) throw SceneError(n.where, "the plugin has no 'diffuse' closure");
-    params.set_number("color", 1, 1, 1);
-    leaf->type = type;
-    leaf->instance = instantiate(*type, params, n.where);
-    warn_unsupported_links(g, n, {"color"});
-  } else if (t == "glossy_bsdf" || t == "anisotropic_bsdf" || t == "glass_bsdf" || t == "refraction_bsdf") {
-    const bool dielectric = t == "glass_bsdf" || t == "refraction_bsdf";
-    check_known({"color", "distribution", "roughness", "anisotropy", "rotation", "IOR", "ior", "normal", "tangent"});
-    leaf->weight = read_input(g, n, "color", Spectrum(dielectric ? 1.0f : 0.8f), VectorSource::Generated);
-    const char *dso_name = dielectric ? "microfacet_dielectric" : "microfacet_conductor";
-    type = plugin_.find(dso_name);
-    if (!type) {
-      leaf->instance = fallback_diffuse(t + ": the plugin has no '" + dso_name +
-                                        "' closure yet; falling back to diffuse");
-    } else {
-      leaf->type = type;
-      bool approx = false;
-      std::string distribution = "ggx";
-      if (auto d = n.attributes.find("distribution"); d != n.attributes.end()) {
-        distribution = map_distribution(d->second, approx);
-        if (approx) warn(n.where, t + ": distribution '" + d->second + "' is not supported; GGX is used");
+    try {
+      params.set_from_text(*type, name, attribute.second);
+    } catch (const host::ClosureError &e) {
+      throw SceneError(n.where, "<" + n.type + ">: " + e.what());
+    }
+  }
+}
+
+// The one loop over a row's sockets: weight, strength and constant parameters.
+// Returns the constant roughness (for sharp/filter_glossy), or -1 without one.
+float ShaderSystem::apply_sockets(const ShaderGraph &g, const ShaderNode &n, const ClosureNodeRow &row,
+                                  const GlimmerClosureType *type, ClosureLeaf &leaf, host::ParamList &params) {
+  float roughness = -1.0f;
+  for (const SocketRow &s : row.sockets) {
+    const std::string *text = attribute_of(n, s);
+    const bool linked = g.link_to(n.name, s.socket) != nullptr;
+    switch (s.role) {
+      case SocketRole::Weight:
+        leaf.weight = read_input(g, n, s.socket, Spectrum(s.default_value), VectorSource::Generated);
+        break;
+      case SocketRole::Strength:
+        leaf.strength = read_constant(n, s.socket, text, Spectrum(s.default_value)).x;
+        break;
+      case SocketRole::Param: {
+        const float value = std::clamp(read_constant(n, s.socket, text, Spectrum(s.default_value)).x, s.min, s.max);
+        if (type && host::find_param(*type, s.param)) params.set_number(s.param, value, 0, 0);
+        if (std::string(s.param) == "roughness") roughness = value;
+        break;
       }
-      const float default_roughness = dielectric ? 0.0f : 0.5f;
-      const float roughness = read_input(g, n, "roughness", Spectrum(default_roughness), VectorSource::Generated).constant.x;
-      // Cycles (GlossyBsdfNode/GlassBsdfNode::simplify_settings): an unlinked roughness of 0 is the sharp closure.
-      if (roughness <= 1e-4f && !g.link_to(n.name, "roughness")) distribution = "sharp";
-      if (host::find_param(*type, "distribution")) params.set_string("distribution", distribution);
-      if (host::find_param(*type, "roughness")) params.set_number("roughness", std::clamp(roughness, 0.0f, 1.0f), 0, 0);
-      bind_varying(*leaf, g, n, "roughness", "roughness");
-      if (!dielectric) {
-        bind_varying(*leaf, g, n, "anisotropy", "anisotropy");
-        warn_unsupported_links(g, n, {"color", "roughness", "anisotropy"});
-        const float aniso = read_input(g, n, "anisotropy", Spectrum(t == "anisotropic_bsdf" ? 0.5f : 0.0f),
-                                       VectorSource::Generated).constant.x;
-        if (host::find_param(*type, "anisotropy")) params.set_number("anisotropy", std::clamp(aniso, -1.0f, 1.0f), 0, 0);
-        if (host::find_param(*type, "f0")) params.set_number("f0", 1, 1, 1);
-        // Cycles' Multiscatter GGX tints every bounce of its walk by the colour; the
-        // weight applies it once, the closure the remaining powers (bounce_tint).
-        if (distribution == "multi_ggx" && host::find_param(*type, "bounce_tint")) {
-          if (leaf->weight.texture >= 0) {
-            warn(n.where, t + ": a textured colour with multi_ggx tints the multiple-scattering energy once "
-                              "(Cycles tints each bounce); the walk's higher bounces are not darkened");
-          } else {
-            const Spectrum c = leaf->weight.constant;
-            params.set_number("bounce_tint", std::clamp(c.x, 0.0f, 1.0f), std::clamp(c.y, 0.0f, 1.0f),
-                              std::clamp(c.z, 0.0f, 1.0f));
+      case SocketRole::ParamOrWeight:
+        if (linked) {
+          leaf.weight = read_input(g, n, s.socket, Spectrum(1.0f), VectorSource::Generated);
+          leaf.weight.constant = Spectrum(1.0f);
+          params.set_number(s.param, 1, 1, 1);
+          break;
+        }
+        [[fallthrough]];
+      case SocketRole::SchemaParam:
+        if (text && !linked) {
+          try {
+            params.set_from_text(*type, s.param, *text);
+          } catch (const host::ClosureError &e) {
+            throw SceneError(n.where, "<" + n.type + ">: " + e.what());
           }
         }
-      } else {
-        float ior = 1.45f;
-        if (n.attributes.count("IOR")) ior = read_input(g, n, "IOR", Spectrum(ior), VectorSource::Generated).constant.x;
-        else if (n.attributes.count("ior")) ior = read_input(g, n, "ior", Spectrum(ior), VectorSource::Generated).constant.x;
-        if (host::find_param(*type, "ior")) params.set_number("ior", ior, 0, 0);
-        if (!bind_varying(*leaf, g, n, "IOR", "ior")) bind_varying(*leaf, g, n, "ior", "ior");
-        warn_unsupported_links(g, n, {"color", "roughness", "IOR", "ior"});
-        if (host::find_param(*type, "mode")) params.set_string("mode", t == "glass_bsdf" ? "glass" : "refraction");
-      }
-      if (n.attributes.count("rotation")) warn(n.where, t + ": rotation is not supported; ignored");
-      leaf->instance = instantiate(*type, params, n.where);
-      if (scene_.integrator.filter_glossy > 0.0f && host::find_param(*type, "roughness")) {
-        // Cycles' bsdf_blur raises alpha to the blur roughness; alpha = roughness^2 here.
-        leaf->blurred.assign(ClosureLeaf::kBlurLevels + 1, leaf->instance);
-        for (int k = 1; k <= ClosureLeaf::kBlurLevels; ++k) {
-          const float alpha = ClosureLeaf::kBlurStep * k;
-          if (std::sqrt(alpha) <= roughness) continue;
-          host::ParamList blurred = params;
-          blurred.set_number("roughness", std::min(std::sqrt(alpha), 1.0f), 0, 0);
-          if (distribution == "sharp" && host::find_param(*type, "distribution")) blurred.set_string("distribution", "ggx");
-          leaf->blurred[k] = instantiate(*type, blurred, n.where);
+        break;
+      case SocketRole::Unsupported:
+        if (text) {
+          const auto v = scene::parse_floats(*text, n.where, "<" + n.type + "> " + s.socket);
+          if (!v.empty() && v[0] != s.default_value) warn(n.where, n.type + ": " + s.note);
         }
-      }
-      leaf->singular = (type->flags & GLIMMER_CLOSURE_SINGULAR) != 0;
+        break;
+      case SocketRole::Ignored:
+        break;
     }
-  } else if (t == "transparent_bsdf") {
-    check_known({"color"});
+  }
+  return roughness;
+}
+
+// Every link into the node: a parameter socket is bound per shading point (or warns
+// when the closure cannot vary it); weight sockets were read with their texture;
+// any other linked socket renders with its constant and warns at the <connect>.
+void ShaderSystem::bind_links(const ShaderGraph &g, const ShaderNode &n, const ClosureNodeRow &row, ClosureLeaf &leaf) {
+  for (const auto &l : g.links) {
+    if (l.to_node != n.name) continue;
+    const SocketRow *s = row.find(l.to_socket);
+    const SocketRole role = s ? s->role : SocketRole::Ignored;
+    if (role == SocketRole::Weight || role == SocketRole::ParamOrWeight) continue;
+    if (role == SocketRole::Param || role == SocketRole::SchemaParam) {
+      const GlimmerParamSpec *spec = leaf.type ? host::find_param(*leaf.type, s->param) : nullptr;
+      const bool bound = spec && std::any_of(leaf.varying.begin(), leaf.varying.end(), [&](const auto &v) {
+        return v.param == host::param_index(*leaf.type, *spec);
+      });
+      if (!bound) bind_varying(leaf, g, n, l.to_socket, s->param);
+      continue;
+    }
+    warn(l.where, "<" + n.type + "> linked input '" + l.to_socket + "' is not supported; its constant value is used");
+  }
+}
+
+// `distribution` (Cycles' names) and the sharp closure for an unlinked roughness of 0;
+// returns the distribution set.
+std::string ShaderSystem::apply_distribution(const ShaderGraph &g, const ShaderNode &n, const GlimmerClosureType &type,
+                                             float roughness, host::ParamList &params) {
+  bool approx = false;
+  std::string distribution = "ggx";
+  if (auto d = n.attributes.find("distribution"); d != n.attributes.end()) {
+    distribution = map_distribution(d->second, approx);
+    if (approx) warn(n.where, n.type + ": distribution '" + d->second + "' is not supported; GGX is used");
+  }
+  // Cycles (GlossyBsdfNode/GlassBsdfNode::simplify_settings): an unlinked roughness of 0 is the sharp closure.
+  if (roughness <= 1e-4f && !g.link_to(n.name, "roughness")) distribution = "sharp";
+  if (host::find_param(type, "distribution")) params.set_string("distribution", distribution);
+  return distribution;
+}
+
+// Cycles' Multiscatter GGX tints every bounce of its walk by the colour; the
+// weight applies it once, the closure the remaining powers (bounce_tint).
+void ShaderSystem::apply_bounce_tint(const ShaderNode &n, const GlimmerClosureType &type, const ClosureLeaf &leaf,
+                                     host::ParamList &params) {
+  if (!host::find_param(type, "bounce_tint")) return;
+  if (leaf.weight.texture >= 0) {
+    warn(n.where, n.type + ": a textured colour with multi_ggx tints the multiple-scattering energy once "
+                           "(Cycles tints each bounce); the walk's higher bounces are not darkened");
+    return;
+  }
+  const Spectrum c = leaf.weight.constant;
+  params.set_number("bounce_tint", std::clamp(c.x, 0.0f, 1.0f), std::clamp(c.y, 0.0f, 1.0f),
+                    std::clamp(c.z, 0.0f, 1.0f));
+}
+
+// filter_glossy: variants with alpha >= kBlurStep * k, created only when the scene sets it.
+void ShaderSystem::make_blurred_variants(const ShaderNode &n, const GlimmerClosureType &type,
+                                         const std::string &distribution, float roughness,
+                                         const host::ParamList &params, ClosureLeaf &leaf) {
+  if (!(scene_.integrator.filter_glossy > 0.0f) || !host::find_param(type, "roughness")) return;
+  // Cycles' bsdf_blur raises alpha to the blur roughness; alpha = roughness^2 here.
+  leaf.blurred.assign(ClosureLeaf::kBlurLevels + 1, leaf.instance);
+  for (int k = 1; k <= ClosureLeaf::kBlurLevels; ++k) {
+    const float alpha = ClosureLeaf::kBlurStep * k;
+    if (std::sqrt(alpha) <= roughness) continue;
+    host::ParamList blurred = params;
+    blurred.set_number("roughness", std::min(std::sqrt(alpha), 1.0f), 0, 0);
+    if (distribution == "sharp" && host::find_param(type, "distribution")) blurred.set_string("distribution", "ggx");
+    leaf.blurred[k] = instantiate(type, blurred, n.where);
+  }
+}
+
+const host::ClosureInstance *ShaderSystem::diffuse_fallback(const ShaderNode &n, ClosureLeaf &leaf) {
+  const GlimmerClosureType *diffuse = plugin_.find("diffuse");
+  if (!diffuse) throw SceneError(n.where, "the plugin has no 'diffuse' closure");
+  host::ParamList p;
+  p.set_number("color", 1, 1, 1);
+  leaf.type = diffuse;
+  return instantiate(*diffuse, p, n.where);
+}
+
+// One closure leaf from a node, driven by its row (bridge/render/closure_nodes.cpp).
+int ShaderSystem::make_leaf(const ShaderGraph &g, const ShaderNode &n, CompiledShader &out) {
+  ClosureNodeRow storage;
+  const ClosureNodeRow *row = row_for(n.type, storage);
+  if (!row || row->kind == NodeKind::Fallback || row->kind == NodeKind::Holdout) return -1;
+  auto leaf = std::make_unique<ClosureLeaf>();
+  leaf->node = n.name;
+  const GlimmerClosureType *type = row->kind == NodeKind::Closure ? plugin_.find(row->closure) : nullptr;
+  host::ParamList params;
+  check_attributes(n, *row, type, params);
+  if (row->kind == NodeKind::Closure && !type) {
+    if (!row->fallback_diffuse) throw SceneError(n.where, std::string("the plugin has no '") + row->closure + "' closure");
+    leaf->weight = read_input(g, n, "color", Spectrum(row->find("color")->default_value), VectorSource::Generated);
+    warn(n.where, n.type + ": the plugin has no '" + row->closure + "' closure yet; falling back to diffuse");
+    leaf->instance = diffuse_fallback(n, *leaf);
+  } else if (row->kind == NodeKind::Transparent) {
+    apply_sockets(g, n, *row, nullptr, *leaf, params);
+    bind_links(g, n, *row, *leaf);
     leaf->builtin = BuiltinClosure::Transparent;
-    leaf->weight = read_input(g, n, "color", Spectrum(1.0f), VectorSource::Generated);
-    warn_unsupported_links(g, n, {"color"});
     leaf->singular = true;
     out.has_transparent = true;
     features_.transparent = true;
-  } else if (t == "emission") {
-    check_known({"color", "strength"});
-    leaf->weight = read_input(g, n, "color", Spectrum(0.8f), VectorSource::Generated);
-    // Cycles' EmissionNode default strength is 10.
-    leaf->strength = read_input(g, n, "strength", Spectrum(10.0f), VectorSource::Generated).constant.x;
-    warn_unsupported_links(g, n, {"color"});
-    type = plugin_.find("emission");
-    if (!type) throw SceneError(n.where, "the plugin has no 'emission' closure");
-    params.set_number("color", 1, 1, 1);
-    params.set_number("strength", 1, 0, 0);
-    leaf->type = type;
-    leaf->instance = instantiate(*type, params, n.where);
-    leaf->emissive = true;
-    out.has_emission = true;
   } else {
-    // Any closure the DSO lists, as `name` or `name_bsdf`.
-    std::string dso = t;
-    type = plugin_.find(dso);
-    if (!type && t.size() > 5 && t.substr(t.size() - 5) == "_bsdf") {
-      dso = t.substr(0, t.size() - 5);
-      type = plugin_.find(dso);
-    }
-    if (!type) return -1;
     leaf->type = type;
-    const bool has_color = host::find_param(*type, "color") != nullptr;
-    for (const auto &[name, value] : n.attributes) {
-      if (g.link_to(n.name, name)) continue;
-      try {
-        params.set_from_text(*type, name, value);
-      } catch (const host::ClosureError &e) {
-        throw SceneError(n.where, std::string("<") + t + ">: " + e.what());
-      }
-    }
-    for (const auto &l : g.links) {
-      if (l.to_node != n.name) continue;
-      if (l.to_socket == "color" && has_color) {
-        leaf->weight = read_input(g, n, "color", Spectrum(1.0f), VectorSource::Generated);
-        leaf->weight.constant = Spectrum(1.0f);
-        params.set_number("color", 1, 1, 1);
-      } else {
-        bind_varying(*leaf, g, n, l.to_socket, l.to_socket);
-      }
-    }
-    if (leaf->weight.texture < 0) leaf->weight.constant = Spectrum(1.0f);
+    if (row->schema) leaf->weight.constant = Spectrum(1.0f);  // unless apply_sockets finds a linked colour
+    const float roughness = apply_sockets(g, n, *row, type, *leaf, params);
+    const std::string distribution = row->distribution ? apply_distribution(g, n, *type, roughness, params) : "";
+    if (row->bounce_tint && distribution == "multi_ggx") apply_bounce_tint(n, *type, *leaf, params);
+    for (const auto &[name, value] : row->fixed)
+      if (host::find_param(*type, name)) params.set_from_text(*type, name, value);
+    bind_links(g, n, *row, *leaf);
     leaf->instance = instantiate(*type, params, n.where);
+    if (row->filter_glossy) make_blurred_variants(n, *type, distribution, roughness, params, *leaf);
     leaf->singular = (type->flags & GLIMMER_CLOSURE_SINGULAR) != 0;
     leaf->emissive = (type->flags & GLIMMER_CLOSURE_EMISSIVE) != 0;
     if (leaf->emissive) out.has_emission = true;
@@ -401,7 +446,7 @@ int ShaderSystem::compile_closure(const ShaderGraph &g, const std::string &node_
     out.tree.push_back(node);
     return static_cast<int>(out.tree.size()) - 1;
   }
-  if (t == "holdout") {
+  if (const ClosureNodeRow *row = find_closure_node(t); row && row->kind == NodeKind::Holdout) {
     warn(n->where, "holdout is not supported; it renders as black (no closure)");
     return -1;
   }
@@ -448,9 +493,6 @@ int ShaderSystem::compile(int shader_index) {
       }
     }
     for (const auto &n : g.nodes) {
-      const bool known = std::any_of(std::begin(kCyclesClosureNodes), std::end(kCyclesClosureNodes),
-                                     [&](const char *k) { return n.type == k; });
-      (void)known;
       if (n.type == "bump" || n.type == "normal_map")
         warn(n.where, "<" + n.type + "> is not supported; the unperturbed normal is used");
     }

@@ -14,6 +14,7 @@
 #include "glimmer/math.h"
 #include "host/closure_instance.h"
 #include "host/plugin_library.h"
+#include "render/closure_nodes.h"
 #include "render/textures.h"
 #include "scene/scene.h"
 
@@ -181,7 +182,27 @@ class ShaderSystem {
   void warn(const scene::SourceLocation &where, const std::string &message);
   int compile_closure(const scene::ShaderGraph &g, const std::string &node, const std::string &socket,
                       CompiledShader &out, int depth);
+  // One closure leaf from a node, driven by its ClosureNodeRow (-1: no row and no DSO closure of that name).
   int make_leaf(const scene::ShaderGraph &g, const scene::ShaderNode &n, CompiledShader &out);
+  const ClosureNodeRow *row_for(const std::string &node_type, ClosureNodeRow &storage);
+  static const std::string *attribute_of(const scene::ShaderNode &n, const SocketRow &s);
+  void check_attributes(const scene::ShaderNode &n, const ClosureNodeRow &row, const GlimmerClosureType *type,
+                        host::ParamList &params);
+  float apply_sockets(const scene::ShaderGraph &g, const scene::ShaderNode &n, const ClosureNodeRow &row,
+                      const GlimmerClosureType *type, ClosureLeaf &leaf, host::ParamList &params);
+  void bind_links(const scene::ShaderGraph &g, const scene::ShaderNode &n, const ClosureNodeRow &row,
+                  ClosureLeaf &leaf);
+  std::string apply_distribution(const scene::ShaderGraph &g, const scene::ShaderNode &n,
+                                 const GlimmerClosureType &type, float roughness, host::ParamList &params);
+  void apply_bounce_tint(const scene::ShaderNode &n, const GlimmerClosureType &type, const ClosureLeaf &leaf,
+                         host::ParamList &params);
+  void make_blurred_variants(const scene::ShaderNode &n, const GlimmerClosureType &type,
+                             const std::string &distribution, float roughness, const host::ParamList &params,
+                             ClosureLeaf &leaf);
+  const host::ClosureInstance *diffuse_fallback(const scene::ShaderNode &n, ClosureLeaf &leaf);
+  // A socket's constant: its attribute `text` (1 or 3 numbers) or `fallback`.
+  static Spectrum read_constant(const scene::ShaderNode &n, const std::string &socket, const std::string *text,
+                                Spectrum fallback);
   Input read_input(const scene::ShaderGraph &g, const scene::ShaderNode &n, const std::string &socket,
                    Spectrum fallback, VectorSource default_vector);
   // A linked `socket` becomes the closure's varying parameter `param`; returns

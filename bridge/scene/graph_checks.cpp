@@ -7,37 +7,45 @@
 #include <string_view>
 #include <vector>
 
+#include "render/closure_nodes.h"
+
 namespace glimmer::scene {
 
 namespace {
 
 // Inputs and outputs of the Cycles nodes the renderer interprets (Cycles 3.4
-// socket names, lower case). Other node types (plugin closures, nodes the
-// renderer ignores with a warning) are not checked here.
+// socket names, lower case): the closure nodes' from their rows in
+// render/closure_nodes.cpp, the others below. Other node types (plugin
+// closures, nodes the renderer ignores with a warning) are not checked here.
 struct NodeSockets {
-  std::vector<std::string_view> inputs, outputs;
+  std::vector<std::string> inputs, outputs;
 };
 
-const std::map<std::string_view, NodeSockets> &known_sockets() {
-  static const std::map<std::string_view, NodeSockets> table = {
-      {"output", {{"surface", "volume", "displacement", "normal"}, {}}},
-      {"diffuse_bsdf", {{"color", "roughness", "normal", "surface_mix_weight"}, {"bsdf"}}},
-      {"glossy_bsdf",
-       {{"color", "roughness", "anisotropy", "rotation", "normal", "tangent", "surface_mix_weight"}, {"bsdf"}}},
-      {"anisotropic_bsdf",
-       {{"color", "roughness", "anisotropy", "rotation", "normal", "tangent", "surface_mix_weight"}, {"bsdf"}}},
-      {"glass_bsdf", {{"color", "roughness", "ior", "normal", "surface_mix_weight"}, {"bsdf"}}},
-      {"refraction_bsdf", {{"color", "roughness", "ior", "normal", "tangent", "surface_mix_weight"}, {"bsdf"}}},
-      {"transparent_bsdf", {{"color", "surface_mix_weight"}, {"bsdf"}}},
-      {"emission", {{"color", "strength", "surface_mix_weight"}, {"emission"}}},
-      {"background", {{"color", "strength", "surface_mix_weight"}, {"background"}}},
-      {"mix_closure", {{"fac", "closure1", "closure2"}, {"closure"}}},
-      {"add_closure", {{"closure1", "closure2"}, {"closure"}}},
-      {"checker_texture", {{"vector", "color1", "color2", "scale"}, {"color", "fac"}}},
-      {"image_texture", {{"vector"}, {"color", "alpha"}}},
-      {"environment_texture", {{"vector"}, {"color", "alpha"}}},
-      {"texture_coordinate", {{}, {"generated", "normal", "uv", "object", "camera", "window", "reflection"}}},
-  };
+std::string lower(std::string_view s);
+
+const std::map<std::string, NodeSockets, std::less<>> &known_sockets() {
+  static const std::map<std::string, NodeSockets, std::less<>> table = [] {
+    std::map<std::string, NodeSockets, std::less<>> t = {
+        {"output", {{"surface", "volume", "displacement", "normal"}, {}}},
+        {"background", {{"color", "strength", "surface_mix_weight"}, {"background"}}},
+        {"mix_closure", {{"fac", "closure1", "closure2"}, {"closure"}}},
+        {"add_closure", {{"closure1", "closure2"}, {"closure"}}},
+        {"checker_texture", {{"vector", "color1", "color2", "scale"}, {"color", "fac"}}},
+        {"image_texture", {{"vector"}, {"color", "alpha"}}},
+        {"environment_texture", {{"vector"}, {"color", "alpha"}}},
+        {"texture_coordinate", {{}, {"generated", "normal", "uv", "object", "camera", "window", "reflection"}}},
+    };
+    for (const render::ClosureNodeRow &row : render::closure_node_rows()) {
+      if (row.schema || (row.kind != render::NodeKind::Closure && row.kind != render::NodeKind::Transparent)) continue;
+      NodeSockets &sockets = t[row.node];
+      for (const render::SocketRow &socket : row.sockets)
+        for (const char *name : {socket.socket, socket.alias})
+          if (name && std::find(sockets.inputs.begin(), sockets.inputs.end(), lower(name)) == sockets.inputs.end())
+            sockets.inputs.push_back(lower(name));
+      sockets.outputs = {row.output};
+    }
+    return t;
+  }();
   return table;
 }
 
@@ -47,9 +55,9 @@ std::string lower(std::string_view s) {
   return out;
 }
 
-std::string join(const std::vector<std::string_view> &names) {
+std::string join(const std::vector<std::string> &names) {
   std::string out;
-  for (auto n : names) out += (out.empty() ? "" : ", ") + std::string(n);
+  for (const auto &n : names) out += (out.empty() ? "" : ", ") + n;
   return out.empty() ? "none" : out;
 }
 

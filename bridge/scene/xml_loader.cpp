@@ -14,6 +14,7 @@
 #include "scene/input_file.h"
 #include "scene/mesh_files.h"
 #include "scene/parse_number.h"
+#include "scene/settings.h"
 
 namespace glimmer::scene {
 
@@ -28,8 +29,6 @@ std::vector<float> parse_floats(const std::string &text, const SourceLocation &w
 }
 
 namespace {
-
-constexpr float kMaxExposure = 1e6f;
 
 // One parsed XML file, kept alive for line lookups.
 struct XmlFile {
@@ -205,33 +204,64 @@ class Loader {
     }
   }
 
+  // Reads every attribute `table` declares into `target` (rows in table order), with a file:line error
+  // for a value out of the row's range and a warning for any attribute not in the table.
+  template <class T>
+  void read_settings(const XmlFile &f, const pugi::xml_node &node, const ElementSettings<T> &table, T &target) {
+    for (auto a = node.first_attribute(); a; a = a.next_attribute()) {
+      const std::string name = a.name();
+      if (table.find(name)) continue;
+      std::string message = std::string("<") + table.element + "> ";
+      if (table.is_ignored(name)) message += "attribute '" + name + "' is not supported; ignored";
+      else message += "unknown attribute '" + name + "' ignored";
+      warn(f, node, message);
+    }
+    for (const Setting<T> &s : table.settings) {
+      if (!node.attribute(s.xml)) continue;
+      const auto check = [&](double value) {
+        if (!in_range(value, s.min, s.max, s.min_open, s.max_open))
+          throw SceneError(loc(f, node), std::string("<") + table.element + "> " + s.xml + " " +
+                                             range_text(s.min, s.max, s.min_open, s.max_open) + ", got " +
+                                             node.attribute(s.xml).value());
+      };
+      std::visit(
+          [&](const auto &member) {
+            using M = std::decay_t<decltype(member)>;
+            if constexpr (std::is_same_v<M, int T::*>) {
+              target.*member = read_int(f, node, s.xml, 0);
+              check(target.*member);
+            } else if constexpr (std::is_same_v<M, float T::*>) {
+              target.*member = read_float(f, node, s.xml, 0.0f);
+              check(target.*member);
+            } else if constexpr (std::is_same_v<M, bool T::*>) {
+              target.*member = read_bool(f, node, s.xml, false);
+            } else if constexpr (std::is_same_v<M, Vec3 T::*>) {
+              target.*member = read_vec3(f, node, s.xml, Vec3(0.0f));
+              for (int k = 0; k < 3; ++k) check((target.*member)[k]);
+            } else if constexpr (std::is_same_v<M, EnumMember<T>>) {
+              member.set(target, read_choice(f, node, table.element, s));
+            }
+          },
+          s.member);
+    }
+  }
+
+  template <class T>
+  int read_choice(const XmlFile &f, const pugi::xml_node &node, const char *element, const Setting<T> &s) {
+    const std::string value = node.attribute(s.xml).value();
+    const std::vector<std::string> choices = split_choices(s.choices);
+    const auto it = std::find(choices.begin(), choices.end(), value);
+    if (it != choices.end()) return static_cast<int>(it - choices.begin());
+    throw SceneError(loc(f, node), std::string("<") + element + "> " + s.xml + " '" + value + "' is not one of " +
+                                       s.choices);
+  }
+
   void read_camera(const XmlFile &f, const pugi::xml_node &node, const ReadState &state) {
-    check_attributes(f, node,
-                     {"width", "height", "full_width", "full_height", "fov", "nearclip", "farclip", "type", "aperturesize",
-                      "focaldistance"},
-                     {"sensorwidth", "sensorheight", "shuttertime", "blades",
-                      "bladesrotation", "panorama_type", "fisheye_fov", "fisheye_lens", "offscreen_dicing_scale"});
     Camera &c = scene_.camera;
+    read_settings(f, node, camera_settings(), c);
     c.where = loc(f, node);
     c.camera_to_world = state.tfm;
-    c.width = read_int(f, node, "width", c.width);
-    c.height = read_int(f, node, "height", c.height);
-    c.width = read_int(f, node, "full_width", c.width);
-    c.height = read_int(f, node, "full_height", c.height);
-    if (c.width <= 0 || c.height <= 0 || c.width > 65536 || c.height > 65536)
-      throw SceneError(loc(f, node), "<camera> width/height must be in 1..65536");
-    c.fov = read_float(f, node, "fov", c.fov);
-    if (!(c.fov > 0.0f && c.fov < kPi)) throw SceneError(loc(f, node), "<camera> fov must be in (0, pi) radians");
-    c.nearclip = read_float(f, node, "nearclip", c.nearclip);
-    c.farclip = read_float(f, node, "farclip", c.farclip);
-    if (!(c.nearclip >= 0.0f && c.farclip > c.nearclip))
-      throw SceneError(loc(f, node), "<camera> needs 0 <= nearclip < farclip");
-    c.aperture_size = read_float(f, node, "aperturesize", c.aperture_size);
-    c.focal_distance = read_float(f, node, "focaldistance", c.focal_distance);
-    if (!(c.aperture_size >= 0.0f) || !std::isfinite(c.aperture_size))
-      throw SceneError(loc(f, node), "<camera> aperturesize must be >= 0");
-    if (!(c.focal_distance > 0.0f) || !std::isfinite(c.focal_distance))
-      throw SceneError(loc(f, node), "<camera> focaldistance must be > 0");
+    if (!(c.farclip > c.nearclip)) throw SceneError(loc(f, node), "<camera> needs 0 <= nearclip < farclip");
     if (node.attribute("type") && std::string(node.attribute("type").value()) != "perspective")
       warn(f, node, std::string("camera type '") + node.attribute("type").value() +
                         "' is not supported; rendering with a perspective camera");
@@ -239,54 +269,15 @@ class Loader {
   }
 
   void read_film(const XmlFile &f, const pugi::xml_node &node) {
-    check_attributes(f, node, {"exposure", "filter_type", "filter_width"},
-                     {"pass_alpha_threshold", "mist_start", "mist_depth", "mist_falloff", "use_approximate_shadow_catcher"});
     Film &film = scene_.film;
-    film.exposure = read_float(f, node, "exposure", film.exposure);
-    if (!(film.exposure >= 0.0f && film.exposure <= kMaxExposure))
-      throw SceneError(loc(f, node), "<film> exposure must be in [0, 1e6] (a multiplier of the image), got " +
-                                         std::to_string(film.exposure));
-    if (node.attribute("filter_type")) {
-      const std::string t = node.attribute("filter_type").value();
-      if (t == "box") film.filter = FilterType::Box;
-      else if (t == "gaussian") film.filter = FilterType::Gaussian;
-      else if (t == "blackman_harris") film.filter = FilterType::BlackmanHarris;
-      else throw SceneError(loc(f, node), "<film> filter_type '" + t + "' is not one of box|gaussian|blackman_harris");
-      if (film.filter != FilterType::Box && !node.attribute("filter_width")) film.filter_width = 1.5f;
-    }
-    film.filter_width = read_float(f, node, "filter_width", film.filter_width);
-    if (!(film.filter_width > 0.0f && film.filter_width <= 16.0f))
-      throw SceneError(loc(f, node), "<film> filter_width must be in (0, 16] pixels");
+    read_settings(f, node, film_settings(), film);
+    // A smooth filter given without a width gets Cycles' usual 1.5 pixels.
+    if (node.attribute("filter_type") && film.filter != FilterType::Box && !node.attribute("filter_width"))
+      film.filter_width = 1.5f;
   }
 
   void read_integrator(const XmlFile &f, const pugi::xml_node &node) {
-    check_attributes(f, node,
-                     {"max_bounce", "min_bounce", "max_diffuse_bounce", "max_glossy_bounce", "max_transmission_bounce",
-                      "transparent_max_bounce", "filter_glossy", "sample_clamp_direct", "sample_clamp_indirect",
-                      "seed", "samples", "aa_samples"},
-                     {"caustics_reflective", "caustics_refractive", "volume_step_size", "max_volume_bounce", "method",
-                      "sample_all_lights_direct", "sample_all_lights_indirect", "transparent_min_bounce",
-                      "ao_bounces", "light_sampling_threshold", "sampling_pattern", "use_light_tree",
-                      "volume_max_steps", "adaptive_threshold", "use_adaptive_sampling"});
-    IntegratorSettings &s = scene_.integrator;
-    s.max_bounce = read_int(f, node, "max_bounce", s.max_bounce);
-    s.min_bounce = read_int(f, node, "min_bounce", s.min_bounce);
-    s.max_diffuse_bounce = read_int(f, node, "max_diffuse_bounce", s.max_diffuse_bounce);
-    s.max_glossy_bounce = read_int(f, node, "max_glossy_bounce", s.max_glossy_bounce);
-    s.max_transmission_bounce = read_int(f, node, "max_transmission_bounce", s.max_transmission_bounce);
-    s.transparent_max_bounce = read_int(f, node, "transparent_max_bounce", s.transparent_max_bounce);
-    s.filter_glossy = read_float(f, node, "filter_glossy", s.filter_glossy);
-    s.sample_clamp_direct = read_float(f, node, "sample_clamp_direct", s.sample_clamp_direct);
-    s.sample_clamp_indirect = read_float(f, node, "sample_clamp_indirect", s.sample_clamp_indirect);
-    s.seed = read_int(f, node, "seed", s.seed);
-    s.samples = read_int(f, node, "aa_samples", s.samples);
-    s.samples = read_int(f, node, "samples", s.samples);
-    if (s.max_bounce < 0 || s.min_bounce < 0 || s.max_diffuse_bounce < 0 || s.max_glossy_bounce < 0 ||
-        s.max_transmission_bounce < 0 || s.transparent_max_bounce < 0 || s.max_bounce > 1024)
-      throw SceneError(loc(f, node), "<integrator> bounce limits must be in 0..1024");
-    if (s.filter_glossy < 0.0f || s.sample_clamp_direct < 0.0f || s.sample_clamp_indirect < 0.0f)
-      throw SceneError(loc(f, node), "<integrator> filter_glossy and sample clamps must be >= 0");
-    if (s.samples < 1) throw SceneError(loc(f, node), "<integrator> samples must be >= 1");
+    read_settings(f, node, integrator_settings(), scene_.integrator);
   }
 
   // Shader graph nodes and <connect> links below `node`.
@@ -337,10 +328,7 @@ class Loader {
   }
 
   void read_background(const XmlFile &f, const pugi::xml_node &node) {
-    check_attributes(f, node, {"transparent"},
-                     {"heterogeneous_volume", "volume_sampling_method", "volume_interpolation_method", "use_shader",
-                      "use_mis", "volume_step_size", "transparent_glass", "transparent_roughness_threshold"});
-    scene_.background.transparent = read_bool(f, node, "transparent", scene_.background.transparent);
+    read_settings(f, node, background_settings(), scene_.background);
     ShaderGraph g = read_graph(f, node, "__background");
     const int existing = scene_.find_shader("__background");
     if (existing >= 0) {
@@ -528,52 +516,20 @@ class Loader {
   }
 
   void read_light(const XmlFile &f, const pugi::xml_node &node, const ReadState &state) {
-    check_attributes(f, node,
-                     {"name", "light_type", "type", "strength", "co", "dir", "size", "radius", "angle", "spot_angle",
-                      "spot_smooth", "axisu", "axisv", "sizeu", "sizev", "round", "tfm", "use_camera", "spread"},
-                     {"use_mis", "cast_shadow", "use_caustics", "use_diffuse", "use_glossy", "use_transmission",
-                      "use_scatter", "max_bounces", "map_resolution", "is_portal", "samples",
-                      "random_id", "is_enabled", "shadow_soft_size", "normalize"});
     const SourceLocation where = loc(f, node);
     Light l;
+    read_settings(f, node, light_settings(), l);
     l.where = where;
     l.shader = state.shader;
-    std::string type = "point";
-    if (node.attribute("light_type")) {
-      type = node.attribute("light_type").value();
-    } else if (node.attribute("type")) {
-      type = node.attribute("type").value();
+    if (node.attribute("type") && !node.attribute("light_type"))
       warn(f, node, "<light> attribute 'type' read as 'light_type' (Cycles' socket name)");
-    }
-    if (type == "point") l.type = LightType::Point;
-    else if (type == "sun" || type == "distant") l.type = LightType::Sun;
-    else if (type == "spot") l.type = LightType::Spot;
-    else if (type == "area") l.type = LightType::Area;
-    else if (type == "background") l.type = LightType::Background;
-    else throw SceneError(where, "<light> light_type '" + type + "' is not one of point|sun|spot|area|background");
-    l.strength = read_vec3(f, node, "strength", l.strength);
-    if (min_component(l.strength) < 0.0f) throw SceneError(where, "<light> strength must be >= 0");
-    l.co = read_vec3(f, node, "co", l.co);
-    l.radius = read_float(f, node, "size", l.radius);
-    l.radius = read_float(f, node, "radius", l.radius);
-    l.angle = read_float(f, node, "angle", l.angle);
-    l.spot_angle = read_float(f, node, "spot_angle", l.spot_angle);
-    l.spot_smooth = read_float(f, node, "spot_smooth", l.spot_smooth);
-    l.axisu = read_vec3(f, node, "axisu", l.axisu);
-    l.axisv = read_vec3(f, node, "axisv", l.axisv);
     // Cycles 2.x XML gave area lights one `size`; used when sizeu/sizev are absent.
-    const float size = l.type == LightType::Area ? read_float(f, node, "size", 1.0f) : 1.0f;
-    l.sizeu = read_float(f, node, "sizeu", size);
-    l.sizev = read_float(f, node, "sizev", size);
-    l.round = read_bool(f, node, "round", false);
-    l.use_camera = read_bool(f, node, "use_camera", true);
-    l.spread = read_float(f, node, "spread", l.spread);
-    if (!(l.spread >= 0.0f && l.spread <= kPi + 1e-6f)) throw SceneError(where, "<light> spread must be in [0, pi]");
-    l.dir = node.attribute("dir") ? read_vec3(f, node, "dir", l.dir) : -cross(l.axisu, l.axisv);
-    if (l.radius < 0.0f || l.angle < 0.0f || l.sizeu < 0.0f || l.sizev < 0.0f)
-      throw SceneError(where, "<light> sizes and angles must be >= 0");
-    if (!(l.spot_angle > 0.0f && l.spot_angle <= kPi)) throw SceneError(where, "<light> spot_angle must be in (0, pi]");
-    if (l.spot_smooth < 0.0f || l.spot_smooth > 1.0f) throw SceneError(where, "<light> spot_smooth must be in [0, 1]");
+    if (l.type == LightType::Area) {
+      const float size = read_float(f, node, "size", 1.0f);
+      if (!node.attribute("sizeu")) l.sizeu = size;
+      if (!node.attribute("sizev")) l.sizev = size;
+    }
+    if (!node.attribute("dir")) l.dir = -cross(l.axisu, l.axisv);
     Transform tfm = state.tfm;
     if (node.attribute("tfm")) {
       const auto v = floats(f, node, "tfm");

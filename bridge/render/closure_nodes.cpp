@@ -1,0 +1,196 @@
+#include "render/closure_nodes.h"
+
+#include <cmath>
+
+#include "cli/json_number.h"  // floats in their shortest decimal form
+#include "host/closure_instance.h"
+#include "host/plugin_library.h"
+
+namespace glimmer::render {
+
+namespace {
+
+using R = SocketRole;
+
+// Sockets shared by Cycles' glossy/anisotropic, glass and refraction nodes.
+std::vector<SocketRow> microfacet_sockets(float color, float roughness, std::vector<SocketRow> own) {
+  std::vector<SocketRow> rows = {
+      {.socket = "color", .role = R::Weight, .default_value = color},
+      {.socket = "roughness", .role = R::Param, .param = "roughness", .default_value = roughness, .min = 0, .max = 1},
+  };
+  rows.insert(rows.end(), own.begin(), own.end());
+  rows.push_back({.socket = "normal", .role = R::Ignored});
+  rows.push_back({.socket = "surface_mix_weight", .role = R::Ignored});
+  return rows;
+}
+
+const char *kConductorDoc =
+    "the colour is the weight; multi_ggx: a constant colour is also bounce_tint (Cycles tints every "
+    "bounce of its walk; a textured colour tints once and warns)";
+
+// Cycles' glossy and anisotropic nodes (they differ in the anisotropy default).
+ClosureNodeRow conductor_row(const char *node, float anisotropy) {
+  return {.node = node,
+          .closure = "microfacet_conductor",
+          .sockets = microfacet_sockets(
+              0.8f, 0.5f,
+              {{.socket = "anisotropy", .role = R::Param, .param = "anisotropy", .default_value = anisotropy,
+                .min = -1, .max = 1},
+               {.socket = "rotation", .role = R::Unsupported, .note = "rotation is not supported; ignored"},
+               {.socket = "tangent", .role = R::Ignored}}),
+          .fixed = {{"f0", "1"}},
+          .distribution = true,
+          .bounce_tint = true,
+          .filter_glossy = true,
+          .fallback_diffuse = true,
+          .doc = kConductorDoc};
+}
+
+// Cycles' glass and refraction nodes (the refraction node has a tangent input, glass none).
+ClosureNodeRow dielectric_row(const char *node, const char *mode, bool tangent, const char *doc) {
+  std::vector<SocketRow> own = {
+      {.socket = "IOR", .role = R::Param, .param = "ior", .default_value = 1.45f, .alias = "ior"}};
+  if (tangent) own.push_back({.socket = "tangent", .role = R::Ignored});
+  return {.node = node,
+          .closure = "microfacet_dielectric",
+          .sockets = microfacet_sockets(1.0f, 0.0f, own),
+          .fixed = {{"mode", mode}},
+          .distribution = true,
+          .filter_glossy = true,
+          .fallback_diffuse = true,
+          .doc = doc};
+}
+
+}  // namespace
+
+const SocketRow *ClosureNodeRow::find(const std::string &socket) const {
+  for (const auto &s : sockets)
+    if (socket == s.socket || (s.alias && socket == s.alias)) return &s;
+  return nullptr;
+}
+
+const std::vector<ClosureNodeRow> &closure_node_rows() {
+  static const std::vector<ClosureNodeRow> rows = {
+      {.node = "diffuse_bsdf",
+       .closure = "diffuse",
+       .sockets = {{.socket = "color", .role = R::Weight, .default_value = 0.8f},
+                   {.socket = "roughness", .role = R::Unsupported, .default_value = 0.0f,
+                    .note = "Oren-Nayar roughness is not supported; Lambertian is used"},
+                   {.socket = "normal", .role = R::Ignored},
+                   {.socket = "surface_mix_weight", .role = R::Ignored}},
+       .fixed = {{"color", "1"}},
+       .doc = "Lambertian; the colour is the weight"},
+      conductor_row("glossy_bsdf", 0.0f),
+      conductor_row("anisotropic_bsdf", 0.5f),
+      dielectric_row("glass_bsdf", "glass", false, "reflection and refraction; the colour is the weight"),
+      dielectric_row("refraction_bsdf", "refraction", true, "refraction only; the colour is the weight"),
+      {.node = "transparent_bsdf",
+       .kind = NodeKind::Transparent,
+       .sockets = {{.socket = "color", .role = R::Weight, .default_value = 1.0f},
+                   {.socket = "surface_mix_weight", .role = R::Ignored}},
+       .doc = "host pass-through with weight colour; shadow rays pass through it too"},
+      {.node = "emission",
+       .closure = "emission",
+       .output = "emission",
+       .sockets = {{.socket = "color", .role = R::Weight, .default_value = 0.8f},
+                   {.socket = "strength", .role = R::Strength, .default_value = 10.0f},
+                   {.socket = "surface_mix_weight", .role = R::Ignored}},
+       .fixed = {{"color", "1"}, {"strength", "1"}},
+       .doc = "radiance colour * strength"},
+      {.node = "glint_bsdf",
+       .closure = "glint",
+       .schema = true,
+       .doc = "sockets are the closure's parameters (glimmer describe); a textured colour is the weight"},
+      {.node = "frosted_glass_bsdf",
+       .closure = "frosted_glass",
+       .schema = true,
+       .doc = "sockets are the closure's parameters (glimmer describe); a textured colour is the weight"},
+      {.node = "principled_bsdf", .kind = NodeKind::Fallback, .doc = "not supported: grey (0.8) diffuse"},
+      {.node = "holdout", .kind = NodeKind::Holdout, .output = "holdout", .doc = "not supported: no closure (black)"},
+  };
+  return rows;
+}
+
+// The row of a DSO closure used under its own name (`glint` or `glint_bsdf`): its
+// schema parameters are the sockets; a linked colour becomes the weight.
+ClosureNodeRow schema_row(const GlimmerClosureType &type, const char *node) {
+  ClosureNodeRow row;
+  row.node = node;
+  row.closure = type.name;
+  row.schema = true;
+  for (uint32_t i = 0; i < type.param_count; ++i) {
+    const GlimmerParamSpec &spec = host::param_at(type, i);
+    const bool weight = std::string(spec.name) == "color" && spec.type == GLIMMER_PARAM_COLOR;
+    row.sockets.push_back({.socket = spec.name,
+                           .role = weight ? SocketRole::ParamOrWeight : SocketRole::SchemaParam,
+                           .param = spec.name,
+                           .default_value = 1.0f});
+  }
+  return row;
+}
+
+const ClosureNodeRow *find_closure_node(const std::string &node) {
+  for (const auto &row : closure_node_rows())
+    if (node == row.node) return &row;
+  return nullptr;
+}
+
+const char *socket_role_name(SocketRole role) {
+  switch (role) {
+    case R::Weight: return "weight";
+    case R::Strength: return "strength";
+    case R::Param: return "param";
+    case R::SchemaParam: return "schema_param";
+    case R::ParamOrWeight: return "param_or_weight";
+    case R::Ignored: return "ignored";
+    case R::Unsupported: return "unsupported";
+  }
+  return "?";
+}
+
+nlohmann::json describe_closure_nodes(const host::PluginLibrary &plugin) {
+  nlohmann::json out = nlohmann::json::array();
+  const char *kinds[] = {"closure", "transparent", "fallback", "holdout"};
+  for (const ClosureNodeRow &table_row : closure_node_rows()) {
+    const GlimmerClosureType *type = table_row.closure ? plugin.find(table_row.closure) : nullptr;
+    ClosureNodeRow row = table_row.schema && type ? schema_row(*type, table_row.node) : table_row;
+    row.doc = table_row.doc;
+    nlohmann::json j;
+    j["node"] = row.node;
+    j["kind"] = kinds[static_cast<int>(row.kind)];
+    j["closure"] = row.closure ? nlohmann::json(row.closure) : nlohmann::json(nullptr);
+    j["in_plugin"] = type != nullptr;
+    j["schema"] = row.schema;
+    j["distribution"] = row.distribution;
+    j["filter_glossy"] = row.filter_glossy;
+    j["doc"] = row.doc;
+    nlohmann::json fixed = nlohmann::json::object();
+    for (const auto &[param, value] : row.fixed) fixed[param] = value;
+    j["fixed"] = fixed;
+    j["sockets"] = nlohmann::json::array();
+    for (const SocketRow &s : row.sockets) {
+      nlohmann::json sj;
+      sj["socket"] = s.socket;
+      sj["role"] = socket_role_name(s.role);
+      if (s.alias) sj["alias"] = s.alias;
+      if (s.param) {
+        sj["param"] = s.param;
+        const GlimmerParamSpec *spec = type ? host::find_param(*type, s.param) : nullptr;
+        sj["varying"] = spec && (host::param_flags(*type, *spec) & GLIMMER_PARAM_VARYING) != 0;
+      }
+      if (s.role == SocketRole::Weight || s.role == SocketRole::Strength || s.role == SocketRole::Param ||
+          s.role == SocketRole::Unsupported)
+        sj["default"] = cli::json_float(s.default_value);
+      if (s.role == SocketRole::Param) {
+        sj["min"] = cli::json_float(s.min);  // null when unbounded
+        sj["max"] = cli::json_float(s.max);
+      }
+      if (s.note) sj["note"] = s.note;
+      j["sockets"].push_back(sj);
+    }
+    out.push_back(j);
+  }
+  return out;
+}
+
+}  // namespace glimmer::render
