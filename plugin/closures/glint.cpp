@@ -114,7 +114,7 @@ class GlintClosure {
   // acos in degrees, |error| < 0.004 degrees (Abramowitz & Stegun 4.4.45):
   // far below the 1-degree table bins, and 3x cheaper than std::acos.
   static float fast_acos_deg(float x) {
-    const float a = std::fmin(std::fabs(x), 1.0f);
+    const float ax = std::fabs(x), a = ax < 1.0f ? ax : 1.0f;  // NaN stays NaN (std::fmin is a library call)
     const float r = std::sqrt(1.0f - a) * (1.5707288f + a * (-0.2121144f + a * (0.0742610f - 0.0187293f * a)));
     return (x >= 0.0f ? r : kPi - r) * glint::kRadToDeg;
   }
@@ -133,16 +133,18 @@ class GlintClosure {
   // The glint BRDF times cos(wo): equations (2) and (3).
   Spectrum glint_f_cos(const GlimmerShadingContext *ctx, const Vec3 &wi, const Vec3 &wo, float sigma_deg,
                        float density) const {
-    Spectrum weight;
-    if (!table_ || !glint::glint_weight(field_.distribution, field_.alpha, field_.color, wi, wo, weight))
-      return Spectrum(0.0f);
-    // Table coordinates: polar angles and the folded azimuth difference.
+    if (!table_ || !(wi.z > 0.0f) || !(wo.z > 0.0f)) return Spectrum(0.0f);
+    // Table coordinates: polar angles and the folded azimuth difference. The
+    // lookup comes first: its loads (random accesses into a table of several
+    // MB, the largest single cost in the profile) overlap the weight's math.
     const float theta_i = fast_acos_deg(wi.z);
     const float theta_o = fast_acos_deg(wo.z);
     const float denom2 = (wi.x * wi.x + wi.y * wi.y) * (wo.x * wo.x + wo.y * wo.y);
     const float cos_dphi = denom2 > 1e-24f ? (wi.x * wo.x + wi.y * wo.y) / std::sqrt(denom2) : 1.0f;
     const float dphi = fast_acos_deg(cos_dphi);
     const float P = std::min(table_->lookup(sigma_deg, theta_i, theta_o, dphi), 1.0f);
+    Spectrum weight;
+    if (!glint::glint_weight(field_.distribution, field_.alpha, field_.color, wi, wo, weight)) return Spectrum(0.0f);
     if (!(P > 0.0f)) return Spectrum(0.0f);
 
     const glint::Footprint fp = field_.footprint(ctx);
