@@ -22,8 +22,12 @@
 //   unfiltered:  f cos_o = W K / (N a(A) sigma)          (E[K] = N a(A) P)      (2)
 //   filtered:    f cos_o = W P / sigma                   (sec. 4.5)             (3)
 // Filtered mode is used when the expected glint count N a(A) P exceeds
-// filter_threshold (default 16, their Fig. 15). (3) is the expectation of
-// (2), so the switch is continuous in the mean, and (3) tends to the smooth
+// filter_threshold (default 16, their Fig. 15), and when the path's LOD blur
+// sigma_L is wider than the glint cone gamma (a path that has spread over
+// more than gamma, e.g. after a rough bounce, does not resolve single
+// glints: P is then the blurred P_sigma, and the pixel averages over
+// (sigma_L / gamma)^2 direction cells). (3) is the expectation of (2), so
+// the switch is continuous in the mean, and (3) tends to the smooth
 // microfacet BRDF F G D / (4 cos_i) as gamma -> 0.
 //
 // LOD (sec. 4.4): P is looked up at a Gaussian blur sigma_L (degrees) equal
@@ -150,7 +154,7 @@ class GlintClosure {
     const glint::Footprint fp = field_.footprint(ctx);
     const double area = fp.area();
     const double expected = static_cast<double>(density) * area * P;
-    if (expected > threshold_) return weight * (P / cone_solid_angle_);  // (3)
+    if (expected > threshold_ || sigma_deg > field_.gamma_deg) return weight * (P / cone_solid_angle_);  // (3)
     // Twinkle: the particles are counted in the direction cells of (wi, wo).
     const glint::GlintCount k =
         glint::count_glints(fp, density, field_.seed, wi, wo, gamma_rad_, P, kMaxSteps);

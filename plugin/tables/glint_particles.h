@@ -349,6 +349,12 @@ inline GlintCount count_reflecting_particles(const Footprint &f, const NodeList 
   const double whole_d = static_cast<double>(floor_to_int64(mean));
   const auto frac = static_cast<float>(mean - whole_d);
   const auto whole = static_cast<uint64_t>(whole_d);
+  // Quick reject on the node's 32-bit hash: hash >= floor(n P 2^32) + 1 means
+  // u = (hash + 1/2) 2^-32 > n P >= Pr(K >= 1), so K = 0.
+  auto reject_from = [P](double n) {
+    return static_cast<uint64_t>(std::min(n * P, 1.0) * 4294967296.0) + 1u;
+  };
+  const std::array<uint64_t, 2> maybe_lit_below = {reject_from(whole_d), reject_from(whole_d + 1.0)};
   std::optional<LitCountModel> model;  // built at the first node that may be lit
   for (int node = 0; node < nodes.count; ++node) {
     const int64_t i = nodes.i[node], j = nodes.j[node];
@@ -359,8 +365,9 @@ inline GlintCount count_reflecting_particles(const Footprint &f, const NodeList 
       const bool plus = uint_to_unit_float(h0) < frac;
       const uint64_t n = whole + (plus ? 1u : 0u);
       if (n == 0) continue;
-      const double u = (static_cast<double>(hash_u32(h0 ^ 0x85ebca6bu)) + 0.5) * (1.0 / 4294967296.0);
-      if (!(u < static_cast<double>(n) * P)) continue;  // K = 0, since Pr(K >= 1) <= n P
+      const uint32_t u_hash = hash_u32(h0 ^ 0x85ebca6bu);
+      if (u_hash >= maybe_lit_below[plus]) continue;  // K = 0, since Pr(K >= 1) <= n P
+      const double u = (static_cast<double>(u_hash) + 0.5) * (1.0 / 4294967296.0);
       if (!model) model.emplace(whole_d, P);
       if (!(u < model->p_any[plus])) continue;  // K = 0
       const int64_t K = model->lit(n, plus, u);
