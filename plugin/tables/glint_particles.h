@@ -23,11 +23,13 @@
 // no temporal noise.
 //
 // Particle field. The (scaled) uv plane is cut into square nodes of side
-// s = 2^-l. Node (l, i, j) holds n = floor(N s^2) + [u0 < frac(N s^2)]
-// particles (mean exactly N s^2). The particles live at ONE level per
-// material, the particle level l* whose nodes hold kNodeParticles / 4 ..
-// kNodeParticles particles per group, so a footprint counts the same particles
-// whatever its size (zoom and resolution keep the glints; counts grow
+// s = 2^-l. The particles of a group are a Poisson process of density N / G:
+// node (l, i, j) holds Poisson(N s^2 / G) of them (issue 10's speed work; the
+// count was floor(N s^2 / G) + Bernoulli before, which needed one more hash per
+// node and group and a binomial instead of a Poisson lit count). The
+// particles live at ONE level per material, the particle level l* whose nodes
+// hold kNodeParticles / 4 .. kNodeParticles particles per group on average, so
+// a footprint counts the same particles whatever its size (zoom and resolution keep the glints; counts grow
 // monotonically with nested footprints). A footprint is counted over the
 // nodes of that level it overlaps, found by rasterising the parallelogram row
 // by row (a long thin footprint touches O(length) nodes, not its bounding
@@ -35,26 +37,25 @@
 // coarser level whose node side is >= the footprint's bounding box (at most
 // 2 x 2 nodes, an independent field per level: Wang's Algorithm 1); with the
 // default filter_threshold these footprints hold thousands of particles and
-// are filtered anyway. The count and the smallest threshold of a node come from
-// an integer hash of the node id and the cell seed, and the positions of its
+// are filtered anyway. The lit count of a node comes from one integer hash of
+// the node id and the cell seed, and the positions of its
 // lit particles from a hash of that hash (drawn only for lit nodes on the
 // footprint's border; before the speed work of issue 10 a TEA stream of 8
 // rounds per node, which cost more than the rest of a small footprint's
 // count).
 //
 // Lit counts in closed form. Each particle reflects when its i.i.d. uniform
-// threshold is below P, so a node of n particles holds K ~ Binomial(n, P)
-// reflecting ones, at i.i.d. uniform positions in the node. K is
-// drawn by inverting the binomial tail at one uniform per node (see
-// LitCountModel): monotone in P, so inside one direction cell the set of
-// reflecting particles is nested in P (no flicker from the trilinear table
-// lookups), and E[K] = n P exactly. A node inside the footprint adds K with
+// threshold is below P, so a node holds K ~ Poisson(N s^2 P / G) reflecting
+// particles, at i.i.d. uniform positions in the node. K is drawn by
+// inverting the Poisson tail at one uniform per node (see LitCountModel):
+// monotone in P, so inside one direction cell the set of reflecting
+// particles is nested in P (no flicker from the trilinear table lookups),
+// and E[K] = N s^2 P / G exactly. A node inside the footprint adds K with
 // no position drawn; a node on its border draws the K lit positions and
 // counts those inside the parallelogram (exact membership instead of
 // Algorithm 1's fractional overlap). Until issue 10's speed work the
 // thresholds' order statistics were walked one particle at a time (Renyi's
-// representation, a log and an exp per particle); the counts have the same
-// distribution.
+// representation, a log and an exp per particle).
 #pragma once
 
 #include <algorithm>
@@ -255,66 +256,42 @@ struct GlintCount {
   bool complete = true;  // false when max_steps was reached (caller falls back to the mean)
 };
 
-// Per-query constants of the lit count of one node. A node of n particles
-// (n = whole or whole + 1) holds K ~ Binomial(n, P) reflecting particles. K is
-// drawn by inversion from one uniform u of the node: K = max{k : u < Pr(K >= k)}
-// (the tail walked with the pmf ratio Pr(k+1) / Pr(k) = (n - k) / (k + 1) *
-// P / (1 - P): no log or exp per node or particle). For a fixed u the tail
-// Pr(K >= k) grows with P, so the lit set of a node is nested in P (no
-// flicker from the trilinear table lookups), and the lit particles are the
-// first K of the node's particle stream (positions i.i.d. uniform, so which
-// indices are lit does not matter). Everything but the node's hashes is
-// computed once per query, and only when some node passes the bound
-// Pr(K >= 1) <= n P: the probability Pr(K >= 1) = 1 - (1 - P)^n of the two
-// possible n, and the odds P / (1 - P).
+// Per-query constants of the lit count of one node. The particles of a group
+// are a Poisson process of density N / G: a node of side s holds
+// Poisson(N s^2) particles at i.i.d. uniform positions, and, each reflecting
+// independently with probability P, K ~ Poisson(lambda = N s^2 P)
+// reflecting ones, again at i.i.d. uniform positions. K is drawn by
+// inversion from one uniform u of the node: K = max{k : u < Pr(K >= k)} (the
+// tail walked with the pmf ratio Pr(k) / Pr(k-1) = lambda / k: no log or exp
+// per node or particle). For a fixed u the tail Pr(K >= k) grows with P, so
+// the lit set of a node is nested in P (no flicker from the trilinear table
+// lookups), and the lit particles are the first K of the node's particle
+// stream. The constants (one expm1) are computed once per query, and only
+// when some node passes the bound Pr(K >= 1) = 1 - e^-lambda <= lambda.
 struct LitCountModel {
   // A node's tail walk stops (the caller returns the mean) beyond this
-  // expected count: (1 - P)^n would underflow near n P ~ 700. Reached only
+  // expected count: e^-lambda would underflow near lambda ~ 700. Reached only
   // by the coarse fallback level of footprints holding thousands of glints.
   static constexpr double kMaxNodeMean = 600.0;
 
-  double P = 0.0, odds = 0.0;
-  std::array<double, 2> p_none{1.0, 1.0};  // Pr(K = 0) for n = whole, whole + 1
-  std::array<double, 2> p_any{0.0, 0.0};   // Pr(K >= 1)
+  double lambda = 0.0;
+  double p_none = 1.0;  // Pr(K = 0) = e^-lambda
+  double p_any = 0.0;   // Pr(K >= 1)
   bool walkable = true;
 
-  // whole: the node's particle count is whole or whole + 1; P in (0, 1].
-  LitCountModel(double whole, double P_in) : P(std::min(P_in, 1.0)) {
-    if (P >= 1.0) {
-      p_none = {0.0, 0.0};
-      p_any = {1.0, 1.0};
-      return;
-    }
-    odds = P / (1.0 - P);
-    if (whole < 65536.0) {
-      // (1 - P)^n by squaring: no transcendental (the particle level has n <= 129).
-      double base = 1.0 - P, power = 1.0;
-      for (auto e = static_cast<uint32_t>(whole); e != 0; e >>= 1, base *= base)
-        if (e & 1u) power *= base;
-      p_none = {power, power * (1.0 - P)};
-      p_any = {1.0 - p_none[0], 1.0 - p_none[1]};
-    } else {
-      const double log_q = std::log1p(-P);
-      for (int e = 0; e < 2; ++e) {
-        const double x = (whole + e) * log_q;
-        p_none[e] = std::exp(x);
-        p_any[e] = -std::expm1(x);
-      }
-    }
-    walkable = (whole + 1.0) * P <= kMaxNodeMean;
-  }
+  explicit LitCountModel(double lambda_in)
+      : lambda(lambda_in), p_none(std::exp(-lambda_in)), p_any(-std::expm1(-lambda_in)),
+        walkable(lambda_in <= kMaxNodeMean) {}
 
-  // K for a node of n particles and its uniform u in (0, 1); K = 0 needs
-  // u >= p_any (the caller tests that first). -1 when the walk is refused.
-  int64_t lit(uint64_t n, bool plus, double u) const {
-    if (P >= 1.0) return static_cast<int64_t>(n);
+  // K for the node's uniform u in (0, 1); K = 0 needs u >= p_any (the caller
+  // tests that first). -1 when the walk is refused.
+  int64_t lit(double u) const {
     if (!walkable) return -1;
-    const double nd = static_cast<double>(n);
-    double pmf = p_none[plus], tail = p_any[plus];  // Pr(K = k), Pr(K > k) at k = 0
+    double pmf = p_none, tail = p_any;  // Pr(K = k), Pr(K > k) at k = 0
     int64_t k = 0;
-    while (u < tail && static_cast<uint64_t>(k) < n) {
-      pmf *= (nd - static_cast<double>(k)) / static_cast<double>(k + 1) * odds;
+    while (u < tail && pmf > 0.0) {
       ++k;
+      pmf *= lambda / static_cast<double>(k);
       tail -= pmf;
     }
     return k;
@@ -335,8 +312,8 @@ inline bool node_inside_footprint(const Footprint &f, double inv_det, double x0,
 
 // Counts the reflecting particles of a footprint over the given cell seeds
 // (one particle field each, same density; see the header comment and
-// LitCountModel). Per node and seed: one hash for the count n and one for the
-// uniform u of K; a node with K = 0 (most of them) stops there. A lit node
+// LitCountModel). Per node and seed: one hash, the uniform u of K; a node
+// with K = 0 (most of them) stops at an integer compare. A lit node
 // inside the footprint adds K without positions (closed form); a lit node on
 // the border draws the positions of its K lit particles (two hashes each) and
 // counts those inside the parallelogram.
@@ -345,16 +322,10 @@ inline GlintCount count_reflecting_particles(const Footprint &f, const NodeList 
   GlintCount result;
   if (!(P > 0.0)) return result;
   const double inv_det = 1.0 / (f.ax * f.by - f.ay * f.bx);
-  const double mean = std::min(density * nodes.size * nodes.size, 4.0e18);  // n = whole + Bernoulli(frac)
-  const double whole_d = static_cast<double>(floor_to_int64(mean));
-  const auto frac = static_cast<float>(mean - whole_d);
-  const auto whole = static_cast<uint64_t>(whole_d);
-  // Quick reject on the node's 32-bit hash: hash >= floor(n P 2^32) + 1 means
-  // u = (hash + 1/2) 2^-32 > n P >= Pr(K >= 1), so K = 0.
-  auto reject_from = [P](double n) {
-    return static_cast<uint64_t>(std::min(n * P, 1.0) * 4294967296.0) + 1u;
-  };
-  const std::array<uint64_t, 2> maybe_lit_below = {reject_from(whole_d), reject_from(whole_d + 1.0)};
+  const double lambda = std::min(density * nodes.size * nodes.size, 4.0e18) * std::min(P, 1.0);
+  // Quick reject on the node's 32-bit hash: hash >= floor(lambda 2^32) + 1
+  // means u = (hash + 1/2) 2^-32 > lambda >= Pr(K >= 1), so K = 0.
+  const uint64_t maybe_lit_below = static_cast<uint64_t>(std::min(lambda, 1.0) * 4294967296.0) + 1u;
   std::optional<LitCountModel> model;  // built at the first node that may be lit
   for (int node = 0; node < nodes.count; ++node) {
     const int64_t i = nodes.i[node], j = nodes.j[node];
@@ -362,15 +333,11 @@ inline GlintCount count_reflecting_particles(const Footprint &f, const NodeList 
         hash_u32x3(static_cast<uint32_t>(i), static_cast<uint32_t>(j), static_cast<uint32_t>(nodes.level));
     for (const uint32_t seed : seeds) {
       const uint32_t h0 = hash_combine(node_hash, seed ^ 0x3c6ef372u);
-      const bool plus = uint_to_unit_float(h0) < frac;
-      const uint64_t n = whole + (plus ? 1u : 0u);
-      if (n == 0) continue;
-      const uint32_t u_hash = hash_u32(h0 ^ 0x85ebca6bu);
-      if (u_hash >= maybe_lit_below[plus]) continue;  // K = 0, since Pr(K >= 1) <= n P
-      const double u = (static_cast<double>(u_hash) + 0.5) * (1.0 / 4294967296.0);
-      if (!model) model.emplace(whole_d, P);
-      if (!(u < model->p_any[plus])) continue;  // K = 0
-      const int64_t K = model->lit(n, plus, u);
+      if (h0 >= maybe_lit_below) continue;  // K = 0
+      const double u = (static_cast<double>(h0) + 0.5) * (1.0 / 4294967296.0);
+      if (!model) model.emplace(lambda);
+      if (!(u < model->p_any)) continue;  // K = 0
+      const int64_t K = model->lit(u);
       if (K < 0 || result.steps + K > max_steps) {
         result.complete = false;
         return result;

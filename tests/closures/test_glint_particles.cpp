@@ -2,7 +2,7 @@
 // list of a footprint loses no particle (same count as every node of its
 // bounding box), and anisotropic footprints up to aspect 64 are counted
 // exactly instead of hitting the step cap and returning the mean; the lit
-// count of a node is exactly binomial and nested in P.
+// count of a node is exactly Poisson and nested in P.
 #include <gtest/gtest.h>
 
 #include <cstdio>
@@ -109,56 +109,55 @@ TEST(GlintParticles, AnisotropicFootprintsAreCountedNotAveraged) {
   }
 }
 
-// Binomial(n, P) pmf by brute force: the product form of C(n, k) P^k (1-P)^(n-k).
-std::vector<double> binomial_pmf(int n, double P) {
-  std::vector<double> pmf(static_cast<size_t>(n) + 1);
-  for (int k = 0; k <= n; ++k) {
-    double c = 1.0;
-    for (int j = 0; j < k; ++j) c *= static_cast<double>(n - j) / static_cast<double>(j + 1);
-    pmf[static_cast<size_t>(k)] = c * std::pow(P, k) * std::pow(1.0 - P, n - k);
+// Poisson(lambda) pmf by brute force: lambda^k / k! e^-lambda as a product.
+std::vector<double> poisson_pmf(double lambda, int k_max) {
+  std::vector<double> pmf(static_cast<size_t>(k_max) + 1);
+  for (int k = 0; k <= k_max; ++k) {
+    double term = std::exp(-lambda);
+    for (int j = 1; j <= k; ++j) term *= lambda / j;
+    pmf[static_cast<size_t>(k)] = term;
   }
   return pmf;
 }
 
 // Largest |histogram - pmf| of the node's lit count K(u) over a midpoint grid
-// of u, drawn from `model` (built for P_model) against the pmf of P.
-double lit_count_pmf_error(int n, double P, double P_model, int grid) {
-  const pg::LitCountModel model(static_cast<double>(n), P_model);
-  std::vector<double> freq(static_cast<size_t>(n) + 1, 0.0);
+// of u, drawn from the model for lambda_model, against the pmf of lambda.
+double lit_count_pmf_error(double lambda, double lambda_model, int grid) {
+  const pg::LitCountModel model(lambda_model);
+  const int k_max = static_cast<int>(lambda + 12.0 * std::sqrt(lambda) + 20.0);
+  std::vector<double> freq(static_cast<size_t>(k_max) + 1, 0.0);
   for (int g = 0; g < grid; ++g) {
     const double u = (g + 0.5) / grid;
-    const int64_t k = u < model.p_any[0] ? model.lit(static_cast<uint64_t>(n), false, u) : 0;
-    freq[static_cast<size_t>(k)] += 1.0 / grid;
+    const int64_t k = u < model.p_any ? model.lit(u) : 0;
+    freq[static_cast<size_t>(std::min<int64_t>(k, k_max))] += 1.0 / grid;
   }
-  const std::vector<double> pmf = binomial_pmf(n, P);
+  const std::vector<double> pmf = poisson_pmf(lambda, k_max);
   double err = 0.0;
   for (size_t k = 0; k < pmf.size(); ++k) err = std::max(err, std::fabs(freq[k] - pmf[k]));
   return err;
 }
 
-// The closed-form lit count of a node (LitCountModel): inverting the binomial
-// tail at a uniform u gives exactly Binomial(n, P) (histogram over a fine u
+// The closed-form lit count of a node (LitCountModel): inverting the Poisson
+// tail at a uniform u gives exactly Poisson(lambda) (histogram over a fine u
 // grid vs the brute-force pmf, within the grid's resolution), K(u) never
-// decreases as P grows (the lit set is nested in P), and the check sees a 2 %
-// error in P (negative control).
-TEST(GlintParticles, LitCountIsBinomialAndNestedInP) {
+// decreases as P (lambda) grows (the lit set is nested in P), and the check
+// sees a 2 % error in lambda (negative control).
+TEST(GlintParticles, LitCountIsPoissonAndNestedInP) {
   const int grid = 200000;
   const double tolerance = 2.0 / grid;
-  for (int n : {1, 5, 38, 129})
-    for (double P : {1e-3, 0.01, 0.1, 0.3, 0.9}) {
-      EXPECT_LE(lit_count_pmf_error(n, P, P, grid), tolerance) << "n " << n << " P " << P;
-      if (n * P >= 0.1) {
-        EXPECT_GT(lit_count_pmf_error(n, P, 1.02 * P, grid), 3.0 * tolerance) << "n " << n << " P " << P;
-      }
+  for (double lambda : {1e-3, 0.01, 0.1, 0.4, 1.0, 3.0, 30.0, 300.0}) {
+    EXPECT_LE(lit_count_pmf_error(lambda, lambda, grid), tolerance) << "lambda " << lambda;
+    if (lambda >= 0.1) {
+      EXPECT_GT(lit_count_pmf_error(lambda, 1.02 * lambda, grid), 3.0 * tolerance) << "lambda " << lambda;
     }
+  }
   Pcg32 rng(5);
   int increases = 0;
   for (int t = 0; t < 20000; ++t) {
-    const auto n = static_cast<uint64_t>(1 + rng.next_u32() % 129);
-    const double u = rng.next_double(), P1 = 0.2 * rng.next_double(), P2 = P1 + 0.05 * rng.next_double();
-    const pg::LitCountModel m1(static_cast<double>(n), P1), m2(static_cast<double>(n), P2);
-    const int64_t k1 = u < m1.p_any[0] ? m1.lit(n, false, u) : 0, k2 = u < m2.p_any[0] ? m2.lit(n, false, u) : 0;
-    ASSERT_LE(k1, k2) << "n " << n << " u " << u << " P " << P1 << " -> " << P2;
+    const double u = rng.next_double(), l1 = 40.0 * rng.next_double(), l2 = l1 + 5.0 * rng.next_double();
+    const pg::LitCountModel m1(l1), m2(l2);
+    const int64_t k1 = u < m1.p_any ? m1.lit(u) : 0, k2 = u < m2.p_any ? m2.lit(u) : 0;
+    ASSERT_LE(k1, k2) << "u " << u << " lambda " << l1 << " -> " << l2;
     increases += k2 > k1;
   }
   EXPECT_GT(increases, 1000);
