@@ -256,17 +256,18 @@ struct GlintCount {
   bool complete = true;  // false when max_steps was reached (caller falls back to the mean)
 };
 
-// Per-query constants of the lit count of one node. The particles of a group
-// are a Poisson process of density N / G: a node of side s holds
-// Poisson(N s^2) particles at i.i.d. uniform positions, and, each reflecting
-// independently with probability P, K ~ Poisson(lambda = N s^2 P)
-// reflecting ones, again at i.i.d. uniform positions. K is drawn by
+// Per-query constants of the lit count of one node. The particles of a
+// field of density n (N / G for each of the G direction groups) are a
+// Poisson process: a node of side s holds Poisson(n s^2) particles at i.i.d.
+// uniform positions, and, each reflecting independently with probability
+// P, K ~ Poisson(lambda = n s^2 P) reflecting ones, again at i.i.d. uniform
+// positions. K is drawn by
 // inversion from one uniform u of the node: K = max{k : u < Pr(K >= k)} (the
 // tail walked with the pmf ratio Pr(k) / Pr(k-1) = lambda / k: no log or exp
 // per node or particle). For a fixed u the tail Pr(K >= k) grows with P, so
 // the lit set of a node is nested in P (no flicker from the trilinear table
 // lookups), and the lit particles are the first K of the node's particle
-// stream. The constants (one expm1) are computed once per query, and only
+// stream. The constants (one exp, one expm1) are computed once per query, and only
 // when some node passes the bound Pr(K >= 1) = 1 - e^-lambda <= lambda.
 struct LitCountModel {
   // A node's tail walk stops (the caller returns the mean) beyond this
