@@ -1,7 +1,9 @@
 // Glint benchmarks (issue 5), ratios measured side by side in one run:
 //  glint/eval_vs_ggx/<log10 area>   glint eval vs microfacet_conductor (GGX)
 //      eval, interleaved blocks of the same queries, footprint areas 1e-8..1
-//      uv; counters glint_ns, ggx_ns, ratio (goal <= 2).
+//      uv; counters glint_ns, ggx_ns, ratio (goal <= 2); with
+//      $GLIMMER_BENCH_BASELINE_PLUGIN set (path of an older plugin build) also
+//      that build's glint in the same blocks: base_ns, base_ratio.
 //  glint/eval_vs_ggx_aspect/<aspect>  the same at footprint area 1e-6 uv
 //      (10 particles) with parallelograms of aspect 1..64, any rotation.
 //  glint/jakob14_eval/<log10 area>  the reference's eval cost at the same
@@ -9,13 +11,16 @@
 //  glint/gi_scene_overhead          `glimmer render` of examples/glint.xml
 //      against the same scene with every glint_bsdf replaced by a GGX
 //      glossy_bsdf of the same roughness (subprocess, wall time of the render
-//      phase); counter overhead (goal <= 0.10).
+//      phase); counter overhead (goal <= 0.10); with
+//      $GLIMMER_BENCH_BASELINE_PLUGIN also base_s, base_overhead (the glint
+//      scene rendered with that plugin, same iterations).
 #include <benchmark/benchmark.h>
 
 #include <chrono>
 #include <ctime>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <memory>
 #include <regex>
@@ -37,9 +42,21 @@ host::PluginLibrary &glint_plugin() {
   return *library;
 }
 
+// Optional second plugin (an older build, copied elsewhere) named by
+// $GLIMMER_BENCH_BASELINE_PLUGIN: its glint is timed in the same interleaved
+// blocks, so before/after ratios come from one run.
+host::PluginLibrary *baseline_plugin() {
+  static std::unique_ptr<host::PluginLibrary> library = [] {
+    const char *path = std::getenv("GLIMMER_BENCH_BASELINE_PLUGIN");
+    return path != nullptr && *path != '\0' ? host::PluginLibrary::load(path) : nullptr;
+  }();
+  return library.get();
+}
+
 std::unique_ptr<host::ClosureInstance> make(const std::string &name,
-                                            const std::vector<std::pair<std::string, std::string>> &params) {
-  const GlimmerClosureType *type = glint_plugin().find(name);
+                                            const std::vector<std::pair<std::string, std::string>> &params,
+                                            host::PluginLibrary &plugin = glint_plugin()) {
+  const GlimmerClosureType *type = plugin.find(name);
   if (type == nullptr) return nullptr;
   host::ParamList list;
   for (const auto &[k, v] : params) list.set_from_text(*type, k, v);
@@ -100,16 +117,21 @@ double time_block(const host::ClosureInstance &c, const std::vector<Query> &q) {
 
 // glint and GGX eval on the same queries, interleaved blocks; median ns.
 void glint_vs_ggx(benchmark::State &state, const std::vector<Query> &q) {
-  auto glint = make("glint", {{"roughness", "0.4"}, {"gamma", "2"}, {"density", "1e7"}});
+  const std::vector<std::pair<std::string, std::string>> params = {
+      {"roughness", "0.4"}, {"gamma", "2"}, {"density", "1e7"}};
+  auto glint = make("glint", params);
   auto ggx = make("microfacet_conductor", {{"roughness", "0.4"}, {"distribution", "ggx"}});
   if (!glint || !ggx) {
     state.SkipWithError("glint or microfacet_conductor missing");
     return;
   }
-  std::vector<double> g_ns, m_ns;
+  std::unique_ptr<host::ClosureInstance> base;
+  if (host::PluginLibrary *b = baseline_plugin()) base = make("glint", params, *b);
+  std::vector<double> g_ns, m_ns, b_ns;
   for (auto _ : state) {
     g_ns.push_back(time_block(*glint, q));
     m_ns.push_back(time_block(*ggx, q));
+    if (base) b_ns.push_back(time_block(*base, q));
   }
   auto median = [](std::vector<double> v) {
     std::sort(v.begin(), v.end());
@@ -119,6 +141,10 @@ void glint_vs_ggx(benchmark::State &state, const std::vector<Query> &q) {
   state.counters["glint_ns"] = g;
   state.counters["ggx_ns"] = m;
   state.counters["ratio"] = g / m;
+  if (base) {
+    state.counters["base_ns"] = median(b_ns);
+    state.counters["base_ratio"] = median(b_ns) / m;
+  }
 }
 
 void BM_GlintVsGgxEval(benchmark::State &state) {
@@ -153,8 +179,10 @@ void BM_Jakob14Eval(benchmark::State &state) {
 BENCHMARK(BM_Jakob14Eval)->Name("glint/jakob14_eval")->DenseRange(-8, -2, 2)->Iterations(3)->Unit(benchmark::kMillisecond);
 
 // Render phase seconds from `glimmer render --stats` ("render=1.234s").
-double render_seconds(const std::string &scene, const std::string &out) {
-  const std::string cmd = std::string(GLIMMER_BENCH_CLI_PATH) + " render " + scene + " -o " + out +
+double render_seconds(const std::string &scene, const std::string &out, const char *plugin = nullptr) {
+  const std::string cmd = std::string(GLIMMER_BENCH_CLI_PATH) +
+                          (plugin != nullptr ? std::string(" --plugin '") + plugin + "'" : std::string()) +
+                          " render " + scene + " -o " + out +
                           " --samples 16 --width 320 --height 200 --threads 1 --quiet --stats 2>&1";
   FILE *p = popen(cmd.c_str(), "r");
   if (p == nullptr) return -1.0;
@@ -181,10 +209,13 @@ void BM_GiSceneOverhead(benchmark::State &state) {
   const std::string dir = std::string(GLIMMER_BENCH_SOURCE_DIR) + "/examples/";
   const std::string plain = dir + ".bench_glint_plain.xml";
   std::ofstream(plain) << text;
-  double t_glint = 0.0, t_plain = 0.0;
+  const char *baseline = std::getenv("GLIMMER_BENCH_BASELINE_PLUGIN");
+  if (baseline != nullptr && *baseline == '\0') baseline = nullptr;
+  double t_glint = 0.0, t_plain = 0.0, t_base = 0.0;
   for (auto _ : state) {
     t_plain += render_seconds(plain, "/tmp/glimmer_bench_plain.png");
     t_glint += render_seconds(src, "/tmp/glimmer_bench_glint.png");
+    if (baseline != nullptr) t_base += render_seconds(src, "/tmp/glimmer_bench_base.png", baseline);
   }
   std::remove(plain.c_str());
   if (t_glint <= 0.0 || t_plain <= 0.0) {
@@ -194,6 +225,10 @@ void BM_GiSceneOverhead(benchmark::State &state) {
   state.counters["glint_s"] = t_glint / static_cast<double>(state.iterations());
   state.counters["ggx_s"] = t_plain / static_cast<double>(state.iterations());
   state.counters["overhead"] = t_glint / t_plain - 1.0;
+  if (baseline != nullptr && t_base > 0.0) {
+    state.counters["base_s"] = t_base / static_cast<double>(state.iterations());
+    state.counters["base_overhead"] = t_base / t_plain - 1.0;
+  }
 }
 BENCHMARK(BM_GiSceneOverhead)->Name("glint/gi_scene_overhead")->Iterations(2)->Unit(benchmark::kSecond);
 

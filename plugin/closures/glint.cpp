@@ -22,8 +22,12 @@
 //   unfiltered:  f cos_o = W K / (N a(A) sigma)          (E[K] = N a(A) P)      (2)
 //   filtered:    f cos_o = W P / sigma                   (sec. 4.5)             (3)
 // Filtered mode is used when the expected glint count N a(A) P exceeds
-// filter_threshold (default 16, their Fig. 15). (3) is the expectation of
-// (2), so the switch is continuous in the mean, and (3) tends to the smooth
+// filter_threshold (default 16, their Fig. 15), and when the path's LOD blur
+// sigma_L is wider than the glint cone gamma (a path that has spread over
+// more than gamma, e.g. after a rough bounce, does not resolve single
+// glints: P is then the blurred P_sigma, and the pixel averages over
+// (sigma_L / gamma)^2 direction cells). (3) is the expectation of (2), so
+// the switch is continuous in the mean, and (3) tends to the smooth
 // microfacet BRDF F G D / (4 cos_i) as gamma -> 0.
 //
 // LOD (sec. 4.4): P is looked up at a Gaussian blur sigma_L (degrees) equal
@@ -114,7 +118,7 @@ class GlintClosure {
   // acos in degrees, |error| < 0.004 degrees (Abramowitz & Stegun 4.4.45):
   // far below the 1-degree table bins, and 3x cheaper than std::acos.
   static float fast_acos_deg(float x) {
-    const float a = std::fmin(std::fabs(x), 1.0f);
+    const float ax = std::fabs(x), a = ax < 1.0f ? ax : 1.0f;  // NaN stays NaN (std::fmin is a library call)
     const float r = std::sqrt(1.0f - a) * (1.5707288f + a * (-0.2121144f + a * (0.0742610f - 0.0187293f * a)));
     return (x >= 0.0f ? r : kPi - r) * glint::kRadToDeg;
   }
@@ -133,22 +137,24 @@ class GlintClosure {
   // The glint BRDF times cos(wo): equations (2) and (3).
   Spectrum glint_f_cos(const GlimmerShadingContext *ctx, const Vec3 &wi, const Vec3 &wo, float sigma_deg,
                        float density) const {
-    Spectrum weight;
-    if (!table_ || !glint::glint_weight(field_.distribution, field_.alpha, field_.color, wi, wo, weight))
-      return Spectrum(0.0f);
-    // Table coordinates: polar angles and the folded azimuth difference.
+    if (!table_ || !(wi.z > 0.0f) || !(wo.z > 0.0f)) return Spectrum(0.0f);
+    // Table coordinates: polar angles and the folded azimuth difference. The
+    // lookup comes first: its loads (random accesses into a table of several
+    // MB, the largest single cost in the profile) overlap the weight's math.
     const float theta_i = fast_acos_deg(wi.z);
     const float theta_o = fast_acos_deg(wo.z);
     const float denom2 = (wi.x * wi.x + wi.y * wi.y) * (wo.x * wo.x + wo.y * wo.y);
     const float cos_dphi = denom2 > 1e-24f ? (wi.x * wo.x + wi.y * wo.y) / std::sqrt(denom2) : 1.0f;
     const float dphi = fast_acos_deg(cos_dphi);
     const float P = std::min(table_->lookup(sigma_deg, theta_i, theta_o, dphi), 1.0f);
+    Spectrum weight;
+    if (!glint::glint_weight(field_.distribution, field_.alpha, field_.color, wi, wo, weight)) return Spectrum(0.0f);
     if (!(P > 0.0f)) return Spectrum(0.0f);
 
     const glint::Footprint fp = field_.footprint(ctx);
     const double area = fp.area();
     const double expected = static_cast<double>(density) * area * P;
-    if (expected > threshold_) return weight * (P / cone_solid_angle_);  // (3)
+    if (expected > threshold_ || sigma_deg > field_.gamma_deg) return weight * (P / cone_solid_angle_);  // (3)
     // Twinkle: the particles are counted in the direction cells of (wi, wo).
     const glint::GlintCount k =
         glint::count_glints(fp, density, field_.seed, wi, wo, gamma_rad_, P, kMaxSteps);

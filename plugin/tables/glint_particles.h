@@ -23,11 +23,13 @@
 // no temporal noise.
 //
 // Particle field. The (scaled) uv plane is cut into square nodes of side
-// s = 2^-l. Node (l, i, j) holds n = floor(N s^2) + [u0 < frac(N s^2)]
-// particles (mean exactly N s^2). The particles live at ONE level per
-// material, the particle level l* whose nodes hold kNodeParticles / 4 ..
-// kNodeParticles particles per group, so a footprint counts the same particles
-// whatever its size (zoom and resolution keep the glints; counts grow
+// s = 2^-l. The particles of a group are a Poisson process of density N / G:
+// node (l, i, j) holds Poisson(N s^2 / G) of them (issue 10's speed work; the
+// count was floor(N s^2 / G) + Bernoulli before, which needed one more hash per
+// node and group and a binomial instead of a Poisson lit count). The
+// particles live at ONE level per material, the particle level l* whose nodes
+// hold kNodeParticles / 4 .. kNodeParticles particles per group on average, so
+// a footprint counts the same particles whatever its size (zoom and resolution keep the glints; counts grow
 // monotonically with nested footprints). A footprint is counted over the
 // nodes of that level it overlaps, found by rasterising the parallelogram row
 // by row (a long thin footprint touches O(length) nodes, not its bounding
@@ -35,26 +37,34 @@
 // coarser level whose node side is >= the footprint's bounding box (at most
 // 2 x 2 nodes, an independent field per level: Wang's Algorithm 1); with the
 // default filter_threshold these footprints hold thousands of particles and
-// are filtered anyway. The count and the smallest threshold of a node come from
-// an integer hash of the node id and the cell seed; every later random number
-// (positions, further thresholds) from the node's TEA seed (8 rounds), started
-// only for nodes that hold a reflecting particle.
+// are filtered anyway. The lit count of a node comes from one integer hash of
+// the node id and the cell seed, and the positions of its
+// lit particles from a hash of that hash (drawn only for lit nodes on the
+// footprint's border; before the speed work of issue 10 a TEA stream of 8
+// rounds per node, which cost more than the rest of a small footprint's
+// count).
 //
-// Thresholds as order statistics. The n thresholds lambda_k are i.i.d.
-// uniform; instead of drawing all n of them we walk their order statistics
-// from the smallest, 1 - lambda_(j+1) = (1 - lambda_(j)) V^(1/(n-j)) with V
-// uniform (Renyi's representation), and stop at the first lambda_(j) >= P.
-// This costs O(n P) steps instead of O(n); inside one direction cell the set
-// of reflecting particles is nested in P (no flicker from the trilinear table
-// lookups). Each visited particle gets a uniform position inside its node and
-// counts when it lies inside the footprint parallelogram (exact membership
-// instead of Algorithm 1's fractional overlap).
+// Lit counts in closed form. Each particle reflects when its i.i.d. uniform
+// threshold is below P, so a node holds K ~ Poisson(N s^2 P / G) reflecting
+// particles, at i.i.d. uniform positions in the node. K is drawn by
+// inverting the Poisson tail at one uniform per node (see LitCountModel):
+// monotone in P, so inside one direction cell the set of reflecting
+// particles is nested in P (no flicker from the trilinear table lookups),
+// and E[K] = N s^2 P / G exactly. A node inside the footprint adds K with
+// no position drawn; a node on its border draws the K lit positions and
+// counts those inside the parallelogram (exact membership instead of
+// Algorithm 1's fractional overlap). Until issue 10's speed work the
+// thresholds' order statistics were walked one particle at a time (Renyi's
+// representation, a log and an exp per particle).
 #pragma once
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
 #include <cstdint>
+#include <optional>
+#include <span>
 
 #include "glimmer/math.h"
 #include "glimmer/rng.h"
@@ -68,13 +78,34 @@ struct Footprint {
   double area() const { return std::fabs(ax * by - ay * bx); }
 };
 
+// Inline helpers for the per-eval geometry: without -ffinite-math-only and
+// SSE4.1, std::floor, std::fmin/fmax, std::frexp and std::ldexp are library
+// calls, which cost more than the rest of a small footprint's count.
+// floor(x) as an integer, x clamped to +-2^62 (NaN to -2^62).
+inline int64_t floor_to_int64(double x) {
+  constexpr double kLimit = 4.611686018427388e18;
+  x = x > -kLimit ? (x < kLimit ? x : kLimit) : -kLimit;
+  const auto i = static_cast<int64_t>(x);
+  return i - (static_cast<double>(i) > x ? 1 : 0);
+}
+inline int32_t floor_to_int32(float x) {
+  constexpr float kLimit = 1.07e9f;
+  x = x > -kLimit ? (x < kLimit ? x : kLimit) : -kLimit;
+  const auto i = static_cast<int32_t>(x);
+  return i - (static_cast<float>(i) > x ? 1 : 0);
+}
+// e with x = m 2^e, m in [0.5, 1), for a positive normal finite x (std::frexp).
+inline int binary_exponent(double x) { return static_cast<int>((std::bit_cast<uint64_t>(x) >> 52) & 0x7ffu) - 1022; }
+// 2^e for |e| <= 1022 (std::ldexp(1.0, e)).
+inline double power_of_two(int e) { return std::bit_cast<double>(static_cast<uint64_t>(1023 + e) << 52); }
+
 // The nodes a footprint is counted over (at most kMaxNodes).
 inline constexpr int kMaxNodes = 64;
 struct NodeList {
   int level = 0;
   double size = 1.0;  // node side s = 2^-level
   int count = 0;
-  std::array<int64_t, kMaxNodes> i{}, j{};
+  std::array<int64_t, kMaxNodes> i, j;  // first `count` entries valid (not zeroed: 1 KB per eval)
   bool add(int64_t ni, int64_t nj) {
     if (count == kMaxNodes) return false;
     i[count] = ni;
@@ -91,9 +122,8 @@ inline constexpr double kNodeParticles = 128.0;
 // The particle level l* for density N (per unit area): the largest node side
 // 2^-l* with N s^2 <= kNodeParticles.
 inline int particle_level(double density) {
-  int e = 0;
-  std::frexp(std::sqrt(kNodeParticles / std::fmax(density, 1e-30)), &e);  // value = mant 2^e, mant in [0.5, 1)
-  return 1 - e;  // 2^(e-1) <= value
+  const int e = binary_exponent(std::sqrt(kNodeParticles / (density > 1e-30 ? density : 1e-30)));
+  return 1 - e;  // 2^(e-1) <= value < 2^e
 }
 
 // x extent of the footprint parallelogram inside the band y0 <= y <= y1
@@ -107,11 +137,11 @@ inline bool footprint_x_range_in_band(const Footprint &f, double y0, double y1, 
   x_min = 1e300, x_max = -1e300;
   for (int k = 0; k < 4; ++k) {
     const double ax = cx[k], ay = cy[k], bx = cx[(k + 1) % 4], by = cy[(k + 1) % 4];
-    if (ay >= y0 && ay <= y1) x_min = std::fmin(x_min, ax), x_max = std::fmax(x_max, ax);
+    if (ay >= y0 && ay <= y1) x_min = std::min(x_min, ax), x_max = std::max(x_max, ax);
     for (const double yc : {y0, y1})  // edge crossings of the band's borders
       if ((ay - yc) * (by - yc) < 0.0) {
         const double x = ax + (bx - ax) * (yc - ay) / (by - ay);
-        x_min = std::fmin(x_min, x), x_max = std::fmax(x_max, x);
+        x_min = std::min(x_min, x), x_max = std::max(x_max, x);
       }
   }
   return x_min <= x_max;
@@ -120,20 +150,20 @@ inline bool footprint_x_range_in_band(const Footprint &f, double y0, double y1, 
 // The nodes of `level` the footprint overlaps, row by row (the parallelogram
 // rasterised, not its bounding box); false when there are more than kMaxNodes.
 inline bool nodes_at_level(const Footprint &f, int level, NodeList &list) {
-  list = NodeList{};
+  list.count = 0;
   list.level = level;
-  list.size = std::ldexp(1.0, -level);
+  list.size = power_of_two(-level);
   const double inv = 1.0 / list.size;
   const double ey = 0.5 * (std::fabs(f.ay) + std::fabs(f.by));
-  const auto j0 = static_cast<int64_t>(std::floor((f.cy - ey) * inv));
-  const auto j1 = static_cast<int64_t>(std::floor((f.cy + ey) * inv));
+  const int64_t j0 = floor_to_int64((f.cy - ey) * inv);
+  const int64_t j1 = floor_to_int64((f.cy + ey) * inv);
   if (j1 - j0 >= kMaxNodes) return false;
   for (int64_t j = j0; j <= j1; ++j) {
     double x_min, x_max;
     const double y0 = static_cast<double>(j) * list.size;
     if (!footprint_x_range_in_band(f, y0, y0 + list.size, x_min, x_max)) continue;
-    const auto i0 = static_cast<int64_t>(std::floor(x_min * inv));
-    const auto i1 = static_cast<int64_t>(std::floor(x_max * inv));
+    const int64_t i0 = floor_to_int64(x_min * inv);
+    const int64_t i1 = floor_to_int64(x_max * inv);
     if (i1 - i0 >= kMaxNodes) return false;
     for (int64_t i = i0; i <= i1; ++i)
       if (!list.add(i, j)) return false;
@@ -149,8 +179,7 @@ inline NodeList footprint_nodes(const Footprint &f, double density) {
   if (nodes_at_level(f, particle_level(density), list)) return list;
   const double ex = 0.5 * (std::fabs(f.ax) + std::fabs(f.bx));
   const double ey = 0.5 * (std::fabs(f.ay) + std::fabs(f.by));
-  int e = 0;
-  std::frexp(std::fmax(2.0 * std::fmax(ex, ey), 1e-30), &e);  // extent <= 2^e
+  const int e = binary_exponent(std::max(2.0 * std::max(ex, ey), 1e-30));  // extent < 2^e
   nodes_at_level(f, -e, list);
   return list;
 }
@@ -214,8 +243,8 @@ inline bool direction_cell_seeds(uint32_t seed, const Vec3 &wi, const Vec3 &wo, 
   }
   const float inv_cell = 2.0f / (kCellSize * gamma_rad);
   for (int g = 0; g < kDirectionGroups; ++g) {
-    const auto cx = static_cast<int32_t>(std::floor(px * inv_cell + kGroupShift[g][0]));
-    const auto cy = static_cast<int32_t>(std::floor(py * inv_cell + kGroupShift[g][1]));
+    const int32_t cx = floor_to_int32(px * inv_cell + kGroupShift[g][0]);
+    const int32_t cy = floor_to_int32(py * inv_cell + kGroupShift[g][1]);
     seeds[g] = hash_u32x4(seed, static_cast<uint32_t>(g), static_cast<uint32_t>(cx), static_cast<uint32_t>(cy));
   }
   return true;
@@ -227,62 +256,116 @@ struct GlintCount {
   bool complete = true;  // false when max_steps was reached (caller falls back to the mean)
 };
 
-// Counts the reflecting particles of a footprint (see the header comment).
-// Each node first draws its count n and its smallest threshold lambda_(1)
-// from a cheap integer hash of the node id; only when lambda_(1) < P (the node
-// holds at least one reflecting particle) is the node's TEA stream started for
-// the positions and the following thresholds. Most nodes stop at one hash and
-// one log.
+// Per-query constants of the lit count of one node. The particles of a
+// field of density n (N / G for each of the G direction groups) are a
+// Poisson process: a node of side s holds Poisson(n s^2) particles at i.i.d.
+// uniform positions, and, each reflecting independently with probability
+// P, K ~ Poisson(lambda = n s^2 P) reflecting ones, again at i.i.d. uniform
+// positions. K is drawn by
+// inversion from one uniform u of the node: K = max{k : u < Pr(K >= k)} (the
+// tail walked with the pmf ratio Pr(k) / Pr(k-1) = lambda / k: no log or exp
+// per node or particle). For a fixed u the tail Pr(K >= k) grows with P, so
+// the lit set of a node is nested in P (no flicker from the trilinear table
+// lookups), and the lit particles are the first K of the node's particle
+// stream. The constants (one exp, one expm1) are computed once per query, and only
+// when some node passes the bound Pr(K >= 1) = 1 - e^-lambda <= lambda.
+struct LitCountModel {
+  // A node's tail walk stops (the caller returns the mean) beyond this
+  // expected count: e^-lambda would underflow near lambda ~ 700. Reached only
+  // by the coarse fallback level of footprints holding thousands of glints.
+  static constexpr double kMaxNodeMean = 600.0;
+
+  double lambda = 0.0;
+  double p_none = 1.0;  // Pr(K = 0) = e^-lambda
+  double p_any = 0.0;   // Pr(K >= 1)
+  bool walkable = true;
+
+  explicit LitCountModel(double lambda_in)
+      : lambda(lambda_in), p_none(std::exp(-lambda_in)), p_any(-std::expm1(-lambda_in)),
+        walkable(lambda_in <= kMaxNodeMean) {}
+
+  // K for the node's uniform u in (0, 1); K = 0 needs u >= p_any (the caller
+  // tests that first). -1 when the walk is refused.
+  int64_t lit(double u) const {
+    if (!walkable) return -1;
+    double pmf = p_none, tail = p_any;  // Pr(K = k), Pr(K > k) at k = 0
+    int64_t k = 0;
+    while (u < tail && pmf > 0.0) {
+      ++k;
+      pmf *= lambda / static_cast<double>(k);
+      tail -= pmf;
+    }
+    return k;
+  }
+};
+
+// The node's parallelogram coordinates: is the node square [x0, x0 + s] x
+// [y0, y0 + s] inside the footprint (all four corners inside; it is convex)?
+inline bool node_inside_footprint(const Footprint &f, double inv_det, double x0, double y0, double s) {
+  for (const double dx : {0.0, s})
+    for (const double dy : {0.0, s}) {
+      const double px = x0 + dx - f.cx, py = y0 + dy - f.cy;
+      if (std::fabs((px * f.by - py * f.bx) * inv_det) > 0.5 || std::fabs((f.ax * py - f.ay * px) * inv_det) > 0.5)
+        return false;
+    }
+  return true;
+}
+
+// Counts the reflecting particles of a footprint over the given cell seeds
+// (one particle field each, same density; see the header comment and
+// LitCountModel). Per node and seed: one hash, the uniform u of K; a node
+// with K = 0 (most of them) stops at an integer compare. A lit node
+// inside the footprint adds K without positions (closed form); a lit node on
+// the border draws the positions of its K lit particles (two hashes each) and
+// counts those inside the parallelogram.
 inline GlintCount count_reflecting_particles(const Footprint &f, const NodeList &nodes, double density,
-                                             uint32_t seed, double P, int max_steps) {
+                                             std::span<const uint32_t> seeds, double P, int max_steps) {
   GlintCount result;
   if (!(P > 0.0)) return result;
-  const double det = f.ax * f.by - f.ay * f.bx;
-  const double inv_det = 1.0 / det;
-  const double log_one_minus_P = std::log1p(-std::fmin(P, 1.0 - 1e-16));
-  const double mean = std::fmin(density * nodes.size * nodes.size, 4.0e18);
-  const double whole = std::floor(mean);
-  // A node of n particles holds a reflecting one when lambda_(1) = 1 - V^(1/n)
-  // < P, i.e. V > (1 - P)^n: one hash and one compare per node (n is whole
-  // or whole + 1).
-  const double v_min_whole = std::exp(whole * log_one_minus_P);
-  const double v_min_plus = std::exp((whole + 1.0) * log_one_minus_P);
-  int &steps = result.steps;
+  const double inv_det = 1.0 / (f.ax * f.by - f.ay * f.bx);
+  const double lambda = std::min(density * nodes.size * nodes.size, 4.0e18) * std::min(P, 1.0);
+  // Quick reject on the node's 32-bit hash: hash >= floor(lambda 2^32) + 1
+  // means u = (hash + 1/2) 2^-32 > lambda >= Pr(K >= 1), so K = 0.
+  const uint64_t maybe_lit_below = static_cast<uint64_t>(std::min(lambda, 1.0) * 4294967296.0) + 1u;
+  std::optional<LitCountModel> model;  // built at the first node that may be lit
   for (int node = 0; node < nodes.count; ++node) {
-      const int64_t i = nodes.i[node], j = nodes.j[node];
-      const uint32_t h0 = hash_u32x4(static_cast<uint32_t>(i), static_cast<uint32_t>(j),
-                                     static_cast<uint32_t>(nodes.level), seed ^ 0x3c6ef372u);
-      const uint64_t n = static_cast<uint64_t>(whole) + (uint_to_unit_float(h0) < static_cast<float>(mean - whole) ? 1u : 0u);
-      if (n == 0) continue;
-      const double v1 = 1.0 - static_cast<double>(uint_to_unit_float(hash_u32(h0 ^ 0x85ebca6bu)));  // (0, 1]
-      if (!(v1 > (static_cast<double>(n) > whole ? v_min_plus : v_min_whole))) continue;
-      const double log_v1 = std::log(v1);
-      const NodeStream stream = node_stream(seed, nodes.level, i, j);
+    const int64_t i = nodes.i[node], j = nodes.j[node];
+    const uint32_t node_hash =
+        hash_u32x3(static_cast<uint32_t>(i), static_cast<uint32_t>(j), static_cast<uint32_t>(nodes.level));
+    for (const uint32_t seed : seeds) {
+      const uint32_t h0 = hash_combine(node_hash, seed ^ 0x3c6ef372u);
+      if (h0 >= maybe_lit_below) continue;  // K = 0
+      const double u = (static_cast<double>(h0) + 0.5) * (1.0 / 4294967296.0);
+      if (!model) model.emplace(lambda);
+      if (!(u < model->p_any)) continue;  // K = 0
+      const int64_t K = model->lit(u);
+      if (K < 0 || result.steps + K > max_steps) {
+        result.complete = false;
+        return result;
+      }
+      result.steps += static_cast<int>(K);
       const double x0 = static_cast<double>(i) * nodes.size, y0 = static_cast<double>(j) * nodes.size;
-      double one_minus_lambda = std::exp(log_v1 / static_cast<double>(n));
-      for (uint64_t k = 0; k < n; ++k) {
-        const uint32_t idx = static_cast<uint32_t>(3u * k + 1u);
-        if (k > 0) {
-          const double v = 1.0 - static_cast<double>(stream(idx));  // in (0, 1]
-          // V^(1/m) = exp(-E/m), E = -log V exponential; for m > 1000 the
-          // 2nd-order Taylor form has a relative error below (E/m)^3/6 < 1e-8.
-          const double m = static_cast<double>(n - k);
-          const double e = -std::log(v) / m;
-          one_minus_lambda *= m > 1000.0 ? 1.0 - e + 0.5 * e * e : std::exp(-e);
-          if (1.0 - one_minus_lambda >= P) break;
-        }
-        if (++steps > max_steps) {
-          result.complete = false;
-          return result;
-        }
-        const double px = x0 + nodes.size * stream(idx + 1u) - f.cx;
-        const double py = y0 + nodes.size * stream(idx + 2u) - f.cy;
+      if (node_inside_footprint(f, inv_det, x0, y0, nodes.size)) {
+        result.count += static_cast<int>(K);
+        continue;
+      }
+      const uint32_t position_seed = hash_u32(h0 ^ 0x27d4eb2fu);
+      for (int64_t k = 0; k < K; ++k) {
+        const auto idx = static_cast<uint32_t>(2 * k + 1);
+        const double px = x0 + nodes.size * uint_to_unit_float(hash_u32(position_seed + idx * 0x9e3779b9u)) - f.cx;
+        const double py = y0 + nodes.size * uint_to_unit_float(hash_u32(position_seed + (idx + 1u) * 0x9e3779b9u)) - f.cy;
         const double s = (px * f.by - py * f.bx) * inv_det;
         const double t = (f.ax * py - f.ay * px) * inv_det;
         if (std::fabs(s) <= 0.5 && std::fabs(t) <= 0.5) ++result.count;
       }
     }
+  }
   return result;
+}
+
+inline GlintCount count_reflecting_particles(const Footprint &f, const NodeList &nodes, double density, uint32_t seed,
+                                             double P, int max_steps) {
+  return count_reflecting_particles(f, nodes, density, std::span<const uint32_t>(&seed, 1), P, max_steps);
 }
 
 // Reflecting particles of a footprint over the kDirectionGroups groups
@@ -290,21 +373,10 @@ inline GlintCount count_reflecting_particles(const Footprint &f, const NodeList 
 // (wi, wo); the caller falls back to the mean when `complete` is false.
 inline GlintCount count_glints(const Footprint &f, double density, uint32_t seed, const Vec3 &wi, const Vec3 &wo,
                                float gamma_rad, double P, int max_steps) {
-  GlintCount total;
   std::array<uint32_t, kDirectionGroups> cell_seeds;
-  if (!direction_cell_seeds(seed, wi, wo, gamma_rad, cell_seeds)) return total;
+  if (!direction_cell_seeds(seed, wi, wo, gamma_rad, cell_seeds)) return {};
   const double group_density = density / kDirectionGroups;
-  const NodeList nodes = footprint_nodes(f, group_density);
-  for (uint32_t cell_seed : cell_seeds) {
-    const GlintCount k = count_reflecting_particles(f, nodes, group_density, cell_seed, P, max_steps - total.steps);
-    total.count += k.count;
-    total.steps += k.steps;
-    if (!k.complete) {
-      total.complete = false;
-      break;
-    }
-  }
-  return total;
+  return count_reflecting_particles(f, footprint_nodes(f, group_density), group_density, cell_seeds, P, max_steps);
 }
 
 }  // namespace glimmer::plugin::glint

@@ -76,12 +76,16 @@ struct LodLevel {
   int n_phi = 181;
   std::vector<float> values;
 
+  // x clamped to [0, hi], NaN to 0 (comparisons, not std::fmin/fmax: without
+  // -ffinite-math-only those are library calls, 9 per lookup).
+  static float clamp_deg(float x, float hi) { return x > 0.0f ? (x < hi ? x : hi) : 0.0f; }
+
   // Trilinear lookup; angles in degrees, theta in [0, 90], dphi in [0, 180].
   float lookup(float theta_i_deg, float theta_o_deg, float dphi_deg) const {
     const float inv_step = 1.0f / static_cast<float>(step_deg);
-    const float fi = std::fmin(std::fmax(theta_i_deg, 0.0f), 90.0f);
-    const float fo = std::fmin(std::fmax(theta_o_deg, 0.0f), 90.0f) * inv_step;
-    const float fp = std::fmin(std::fmax(dphi_deg, 0.0f), 180.0f) * inv_step;
+    const float fi = clamp_deg(theta_i_deg, 90.0f);
+    const float fo = clamp_deg(theta_o_deg, 90.0f) * inv_step;
+    const float fp = clamp_deg(dphi_deg, 180.0f) * inv_step;
     const int i0 = std::min(static_cast<int>(fi), kThetaICount - 2);
     const int o0 = std::min(static_cast<int>(fo), n_theta_o - 2);
     const int p0 = std::min(static_cast<int>(fp), n_phi - 2);

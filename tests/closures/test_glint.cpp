@@ -224,6 +224,36 @@ TEST(Glint, MeanRadianceContinuousAcrossLodLevels) {
   std::printf("[lod] largest relative step of the mean radiance: %.5f\n", worst);
 }
 
+// A path whose LOD blur is wider than the glint cone (sigma_L > gamma, e.g.
+// after a rough bounce) gets the filtered mean (glint.cpp eq. 3), whatever
+// the footprint: it equals, bit for bit, the same closure with
+// filter_threshold=0. With a blur below gamma the same tiny footprints are
+// counted (negative control: most evals are 0 or a multiple of the one-glint
+// value, not the mean).
+TEST(Glint, BlurWiderThanTheConeIsFiltered) {
+  const std::vector<std::pair<std::string, std::string>> base = {
+      {"roughness", "0.4"}, {"gamma", "2"}, {"density", "1e6"}};
+  auto glint = make_closure("glint", base);
+  auto params = base;
+  params.push_back({"filter_threshold", "0"});
+  auto filtered = make_closure("glint", params);
+  Pcg32 rng(17);
+  int counted = 0, lobe = 0;
+  for (int t = 0; t < 400; ++t) {
+    const Vec3 wi = spherical_dir(80.0 * rng.next_double(), 0.0);
+    const Vec3 wo = spherical_dir(80.0 * rng.next_double(), 180.0 + 40.0 * (rng.next_double() - 0.5));
+    const double u = rng.next_double(), v = rng.next_double();
+    const float mean = eval_f(*filtered, context(wi, u, v, 1e-4, static_cast<float>(2.5 * kDeg)), wo);
+    if (!(mean > 0.0f)) continue;
+    ++lobe;
+    EXPECT_EQ(eval_f(*glint, context(wi, u, v, 1e-4, static_cast<float>(2.5 * kDeg)), wo), mean);
+    const float sharp = eval_f(*filtered, context(wi, u, v, 1e-4, static_cast<float>(1.5 * kDeg)), wo);
+    counted += eval_f(*glint, context(wi, u, v, 1e-4, static_cast<float>(1.5 * kDeg)), wo) != sharp;
+  }
+  EXPECT_GT(lobe, 200);
+  EXPECT_GT(counted, lobe * 9 / 10);
+}
+
 // Energy at secondary bounces (issue 10): the LOD blur of P must not add
 // energy. White furnace (F0 = 1, filtered mode) at incidences 0..89 degrees
 // and LOD blurs from 0 to the cap 2 alpha, by midpoint quadrature (the same

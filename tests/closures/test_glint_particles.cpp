@@ -1,10 +1,12 @@
 // The glint particle field (tables/glint_particles.h): the rasterised node
 // list of a footprint loses no particle (same count as every node of its
 // bounding box), and anisotropic footprints up to aspect 64 are counted
-// exactly instead of hitting the step cap and returning the mean.
+// exactly instead of hitting the step cap and returning the mean; the lit
+// count of a node is exactly Poisson and nested in P.
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <vector>
 
 #include "closures/closure_checks.h"
 #include "glimmer/rng.h"
@@ -105,6 +107,60 @@ TEST(GlintParticles, AnisotropicFootprintsAreCountedNotAveraged) {
     EXPECT_EQ(fractional, 0) << "aspect " << aspect;
     EXPECT_GT(nonzero, n / 10) << "aspect " << aspect;
   }
+}
+
+// Poisson(lambda) pmf by brute force: lambda^k / k! e^-lambda as a product.
+std::vector<double> poisson_pmf(double lambda, int k_max) {
+  std::vector<double> pmf(static_cast<size_t>(k_max) + 1);
+  for (int k = 0; k <= k_max; ++k) {
+    double term = std::exp(-lambda);
+    for (int j = 1; j <= k; ++j) term *= lambda / j;
+    pmf[static_cast<size_t>(k)] = term;
+  }
+  return pmf;
+}
+
+// Largest |histogram - pmf| of the node's lit count K(u) over a midpoint grid
+// of u, drawn from the model for lambda_model, against the pmf of lambda.
+double lit_count_pmf_error(double lambda, double lambda_model, int grid) {
+  const pg::LitCountModel model(lambda_model);
+  const int k_max = static_cast<int>(lambda + 12.0 * std::sqrt(lambda) + 20.0);
+  std::vector<double> freq(static_cast<size_t>(k_max) + 1, 0.0);
+  for (int g = 0; g < grid; ++g) {
+    const double u = (g + 0.5) / grid;
+    const int64_t k = u < model.p_any ? model.lit(u) : 0;
+    freq[static_cast<size_t>(std::min<int64_t>(k, k_max))] += 1.0 / grid;
+  }
+  const std::vector<double> pmf = poisson_pmf(lambda, k_max);
+  double err = 0.0;
+  for (size_t k = 0; k < pmf.size(); ++k) err = std::max(err, std::fabs(freq[k] - pmf[k]));
+  return err;
+}
+
+// The closed-form lit count of a node (LitCountModel): inverting the Poisson
+// tail at a uniform u gives exactly Poisson(lambda) (histogram over a fine u
+// grid vs the brute-force pmf, within the grid's resolution), K(u) never
+// decreases as P (lambda) grows (the lit set is nested in P), and the check
+// sees a 2 % error in lambda (negative control).
+TEST(GlintParticles, LitCountIsPoissonAndNestedInP) {
+  const int grid = 200000;
+  const double tolerance = 2.0 / grid;
+  for (double lambda : {1e-3, 0.01, 0.1, 0.4, 1.0, 3.0, 30.0, 300.0}) {
+    EXPECT_LE(lit_count_pmf_error(lambda, lambda, grid), tolerance) << "lambda " << lambda;
+    if (lambda >= 0.1) {
+      EXPECT_GT(lit_count_pmf_error(lambda, 1.02 * lambda, grid), 3.0 * tolerance) << "lambda " << lambda;
+    }
+  }
+  Pcg32 rng(5);
+  int increases = 0;
+  for (int t = 0; t < 20000; ++t) {
+    const double u = rng.next_double(), l1 = 40.0 * rng.next_double(), l2 = l1 + 5.0 * rng.next_double();
+    const pg::LitCountModel m1(l1), m2(l2);
+    const int64_t k1 = u < m1.p_any ? m1.lit(u) : 0, k2 = u < m2.p_any ? m2.lit(u) : 0;
+    ASSERT_LE(k1, k2) << "u " << u << " lambda " << l1 << " -> " << l2;
+    increases += k2 > k1;
+  }
+  EXPECT_GT(increases, 1000);
 }
 
 }  // namespace
