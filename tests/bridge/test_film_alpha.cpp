@@ -162,7 +162,9 @@ TEST(FilmAlpha, ResumedAndMergedRendersEqualTheStraightRender) {
   const std::vector<float> merged_alpha = channel(merged, "ViewLayer.Combined.A");
   ASSERT_EQ(merged_alpha.size(), alpha.size());
   for (size_t i = 0; i < alpha.size(); ++i) {
-    if (alpha[i] == 0.0f || alpha[i] == 1.0f) ASSERT_EQ(merged_alpha[i], alpha[i]) << i;
+    if (alpha[i] == 0.0f || alpha[i] == 1.0f) {
+      ASSERT_EQ(merged_alpha[i], alpha[i]) << i;
+    }
     EXPECT_NEAR(merged_alpha[i], alpha[i], 1e-6f) << i;
   }
   EXPECT_LE(max_relative_difference(merged, straight), 1e-6);
