@@ -299,6 +299,7 @@ struct Renderer::Impl {
     sd.tc.uv[0] = uv[0];
     sd.tc.uv[1] = uv[1];
     sd.tc.direction = D;
+    sd.tc.backfacing = sd.backfacing;
     GlimmerShadingContext &ctx = sd.ctx;
     ctx = GlimmerShadingContext{};
     ctx.struct_size = sizeof(GlimmerShadingContext);
