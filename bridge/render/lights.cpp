@@ -264,6 +264,8 @@ Spectrum LightSet::triangle_emission(const Entry &l, const scene::SurfacePoint &
   tc.N = Ng;
   tc.uv[0] = s.uv[0];
   tc.uv[1] = s.uv[1];
+  tc.direction = -wi_toward_viewer;
+  tc.path.camera = false;  // Light Path node: Cycles evaluates sampled emission with PATH_RAY_EMISSION only
   ClosureSet cs;
   shaders_.evaluate(mesh_shader_[l.mesh], tc, cs);
   GlimmerShadingContext ctx{};

@@ -411,6 +411,8 @@ struct Renderer::Impl {
       if (!shaders->shader(shader).has_transparent) return Spectrum(0.0f);
       ShadingData hsd;
       setup_shading(h, wi, hsd);
+      hsd.tc.path.camera = false;  // Light Path node: a shadow ray
+      hsd.tc.path.shadow = true;
       ClosureSet cs;
       shaders->evaluate(shader, hsd.tc, cs);
       T *= cs.transparent;
@@ -623,6 +625,7 @@ struct Renderer::Impl {
       if (w > 0.0f) add(throughput * Le * w, ps.bounce);
     };
     const bool use_nee = options.strategy != LightStrategy::BsdfOnly;
+    uint32_t ray_label = GLIMMER_LABEL_NONE;  // the last scatter's label (Light Path node); none: camera ray
 
     for (int step = 0; step < 4 * 1024; ++step) {
       SurfaceHit hit;
@@ -640,6 +643,8 @@ struct Renderer::Impl {
 
       ShadingData sd;
       setup_shading(hit, D, sd);
+      sd.tc.path = nodes::path_info(ray_label, hit.t, ps.bounce, ps.diffuse_bounce, ps.glossy_bounce,
+                                    ps.transparent_bounce, ps.transmission_bounce);
       transfer_differentials(rd, D, hit.t, sd, ps.spread);
       set_path_context(ps, path_seed, sd);
       const GlimmerShadingContext &ctx = sd.ctx;
@@ -699,6 +704,7 @@ struct Renderer::Impl {
       if (!scatter(cs, sd, chosen, r3, total_sw, throughput, ps, s, nan_count)) break;
       const Vec3 wo = normalize(Vec3(s.wo));
       ps.advance(s.label, limits);
+      ray_label = s.label;
 
       next_differentials(rd, D, wo, sd, s, ps.last_singular, pixel_spread, ps);
       org = offset_ray_origin(sd.ctx.P, sd.Ng, wo);

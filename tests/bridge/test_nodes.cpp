@@ -801,5 +801,33 @@ TEST(Nodes, UnknownSocketOrSettingIsAnErrorWithFileLine) {
   EXPECT_NE(out.find("bad_enum.xml:5"), std::string::npos) << out;
 }
 
+
+TEST(Nodes, LightPathSeesCameraAndDiffuseRays) {
+  // An emitter whose colour is `is_camera_ray` (or `is_diffuse_ray`) fills the left half of the view; a white
+  // diffuse quad fills the right half, facing it. The emitter reads 1 (0) to the camera; only the
+  // diffuse-ray emitter lights the quad when lights are found by BSDF rays alone.
+  auto scene = [](const std::string &name, const std::string &output) {
+    return write_file(
+        name, "<cycles>\n<camera width=\"16\" height=\"8\" fov=\"0.9\" />\n<camera />\n"
+              "<integrator max_bounce=\"1\" sample_clamp_direct=\"0\" sample_clamp_indirect=\"0\" />\n"
+              "<shader name=\"em\">\n<light_path name=\"lp\" />\n<emission name=\"e\" strength=\"1\" />\n"
+              "<connect from=\"lp " + output + "\" to=\"e color\" />\n<connect from=\"e emission\" to=\"output surface\" />\n"
+              "</shader>\n<shader name=\"white\">\n<diffuse_bsdf name=\"d\" color=\"1 1 1\" />\n"
+              "<connect from=\"d bsdf\" to=\"output surface\" />\n</shader>\n"
+              "<state shader=\"em\"><mesh P=\"-4 -2 2  0 -2 4  0 2 4  -4 2 2\" nverts=\"4\" verts=\"0 1 2 3\" /></state>\n"
+              "<state shader=\"white\"><mesh P=\"0 -2 4  4 -2 2  4 2 2  0 2 4\" nverts=\"4\" verts=\"0 1 2 3\" /></state>\n"
+              "</cycles>\n");
+  };
+  render::RenderOptions opt;
+  opt.samples = 16;
+  opt.strategy = render::LightStrategy::BsdfOnly;
+  const auto camera = render_scene(scene("lp_camera.xml", "is_camera_ray"), opt);
+  const auto diffuse = render_scene(scene("lp_diffuse.xml", "is_diffuse_ray"), opt);
+  EXPECT_NEAR(mean_channel(camera, 0, 1, 2, 6, 6), 1.0, 1e-6) << "the emitter seen by the camera";
+  EXPECT_NEAR(mean_channel(diffuse, 0, 1, 2, 6, 6), 0.0, 1e-6);
+  EXPECT_NEAR(mean_channel(camera, 0, 10, 2, 15, 6), 0.0, 1e-6) << "not lit: diffuse rays see 0";
+  EXPECT_GT(mean_channel(diffuse, 0, 10, 2, 15, 6), 0.05) << "lit by the emitter seen from diffuse rays";
+}
+
 }  // namespace
 }  // namespace glimmer::test

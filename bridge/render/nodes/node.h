@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "glimmer/closure_abi.h"
 #include "glimmer/math.h"
 
 namespace glimmer::render::nodes {
@@ -39,6 +40,26 @@ struct PathInfo {
   float ray_length = 0.0f;
   int depth = 0, diffuse_depth = 0, glossy_depth = 0, transparent_depth = 0, transmission_depth = 0;
 };
+
+// The Light Path node's view of a path: `label` is the last scatter's GLIMMER_LABEL_* bits
+// (GLIMMER_LABEL_NONE for a camera ray, transparent passes keep it), depths as Cycles counts them.
+inline PathInfo path_info(uint32_t label, float ray_length, int depth, int diffuse_depth, int glossy_depth,
+                          int transparent_depth, int transmission_depth) {
+  PathInfo p;
+  p.camera = label == GLIMMER_LABEL_NONE;
+  p.diffuse = (label & GLIMMER_LABEL_DIFFUSE) != 0;
+  p.glossy = (label & GLIMMER_LABEL_GLOSSY) != 0;
+  p.singular = (label & GLIMMER_LABEL_SINGULAR) != 0;
+  p.reflection = (label & GLIMMER_LABEL_REFLECT) != 0;
+  p.transmission = (label & GLIMMER_LABEL_TRANSMIT) != 0;
+  p.ray_length = ray_length;
+  p.depth = depth;
+  p.diffuse_depth = diffuse_depth;
+  p.glossy_depth = glossy_depth;
+  p.transparent_depth = transparent_depth;
+  p.transmission_depth = transmission_depth;
+  return p;
+}
 
 // Everything a node may read at a shading point (the renderer's TexCoords).
 struct ShadingPoint {
