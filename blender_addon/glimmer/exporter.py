@@ -447,7 +447,11 @@ class ShaderGraph:
         its settings (VALUE_NODES), every enabled input as the Cycles socket of the same name (linked or its
         value) and the output of the same name. A texture's unlinked Vector reads generated coordinates."""
         xml_type, settings = VALUE_NODES[node.bl_idname]
+        if node.bl_idname == "ShaderNodeMapRange" and node.data_type != "FLOAT":
+            return self.unsupported(node, out)
         attributes = {}
+        if node.bl_idname in ("ShaderNodeValue", "ShaderNodeRGB"):  # the value is the output's own
+            attributes["value"] = _value(node.outputs[0])
         for attribute, (prop, names) in settings.items():
             value = getattr(node, prop)
             attributes[attribute] = value if isinstance(value, bool) else (names or {}).get(value, str(value).lower())
@@ -520,6 +524,20 @@ VALUE_NODES = {
     "ShaderNodeFresnel": ("fresnel", {}),
     "ShaderNodeLayerWeight": ("layer_weight", {}),
     "ShaderNodeLightPath": ("light_path", {}),
+    "ShaderNodeTexGradient": ("gradient_texture", {"gradient_type": ("gradient_type", None)}),
+    "ShaderNodeTexWhiteNoise": ("white_noise_texture", {"dimensions": ("noise_dimensions", None)}),
+    "ShaderNodeValue": ("value", {}),
+    "ShaderNodeRGB": ("color", {}),
+    "ShaderNodeInvert": ("invert", {}),
+    "ShaderNodeGamma": ("gamma", {}),
+    "ShaderNodeBrightContrast": ("brightness_contrast", {}),
+    "ShaderNodeClamp": ("clamp", {"clamp_type": ("clamp_type", None)}),
+    "ShaderNodeMapRange": ("map_range", {"range_type": ("interpolation_type", None), "clamp": ("clamp", None)}),
+    "ShaderNodeSeparateXYZ": ("separate_xyz", {}),
+    "ShaderNodeCombineXYZ": ("combine_xyz", {}),
+    "ShaderNodeSeparateRGB": ("separate_rgb", {}),
+    "ShaderNodeCombineRGB": ("combine_rgb", {}),
+    "ShaderNodeRGBToBW": ("rgb_to_bw", {}),
 }
 # Inputs whose Cycles name is not the Blender name in lower case (sockets of the same name told apart).
 VALUE_NODE_INPUTS = {
@@ -527,6 +545,7 @@ VALUE_NODE_INPUTS = {
     "ShaderNodeVectorMath": {"Vector": "vector1", "Vector_001": "vector2", "Vector_002": "vector3"},
     "ShaderNodeMixRGB": {"Color1": "color1", "Color2": "color2"},
     "ShaderNodeFresnel": {"IOR": "ior"},
+    "ShaderNodeSeparateRGB": {"Image": "color"},
 }
 
 TRANSLATORS = {

@@ -1,4 +1,5 @@
-// `glimmer describe [--json]`: the DSO's closures and their parameter schemas.
+// `glimmer describe [--json]`: the DSO's closures and their parameter schemas;
+// `glimmer describe --nodes`: the shader-node support table (render/nodes/node_table.cpp).
 // The JSON form is the one source the XML loader, docs and the Blender addon
 // read parameters from.
 #include <cstdio>
@@ -8,6 +9,7 @@
 #include "cli/commands.h"
 #include "cli/json_number.h"
 #include "host/closure_instance.h"
+#include "render/nodes/node.h"
 
 namespace glimmer::cli {
 
@@ -78,8 +80,14 @@ nlohmann::json flags_json(uint32_t flags) {
 void add_describe_command(CLI::App &app, CliContext &ctx) {
   auto *cmd = app.add_subcommand("describe", "list the plugin's closures and their parameters");
   auto json = std::make_shared<bool>(false);
+  auto nodes = std::make_shared<bool>(false);
   cmd->add_flag("--json", *json, "machine-readable output");
-  cmd->callback([&ctx, json] {
+  cmd->add_flag("--nodes", *nodes, "the shader-node support table (Markdown, as in docs/scene-format.md)");
+  cmd->callback([&ctx, json, nodes] {
+    if (*nodes) {
+      std::cout << render::nodes::support_table_markdown();
+      return;
+    }
     auto &plugin = ctx.plugin();
     const auto &info = plugin.info();
     if (*json) {

@@ -391,6 +391,38 @@ def scene_nodes_math():
     node_parity("math: noise x 4 -> pingpong 1 -> power 1.7", build)
 
 
+def scene_nodes_converters():
+    def build(tree, uv):
+        sep = tree.nodes.new("ShaderNodeSeparateXYZ")
+        tree.links.new(uv, sep.inputs[0])
+        ramp = tree.nodes.new("ShaderNodeMapRange")
+        ramp.interpolation_type = "SMOOTHSTEP"
+        ramp.inputs["From Min"].default_value = 0.2
+        ramp.inputs["From Max"].default_value = 0.8
+        tree.links.new(sep.outputs["X"], ramp.inputs["Value"])
+        grad = texture(tree, "ShaderNodeTexGradient", uv, gradient_type="RADIAL")
+        comb = tree.nodes.new("ShaderNodeCombineXYZ")
+        tree.links.new(ramp.outputs["Result"], comb.inputs["X"])
+        tree.links.new(grad.outputs["Fac"], comb.inputs["Y"])
+        tree.links.new(sep.outputs["Y"], comb.inputs["Z"])
+        mapping = tree.nodes.new("ShaderNodeMapping")
+        mapping.inputs["Rotation"].default_value = (0.3, 0.2, 0.9)
+        mapping.inputs["Scale"].default_value = (3.0, 2.0, 1.5)
+        tree.links.new(comb.outputs[0], mapping.inputs["Vector"])
+        hsv = tree.nodes.new("ShaderNodeHueSaturation")
+        hsv.inputs["Hue"].default_value = 0.7
+        hsv.inputs["Saturation"].default_value = 1.3
+        tree.links.new(texture(tree, "ShaderNodeTexNoise", mapping.outputs[0], Scale=1.5).outputs["Color"],
+                       hsv.inputs["Color"])
+        mix = tree.nodes.new("ShaderNodeMixRGB")
+        mix.blend_type = "OVERLAY"
+        tree.links.new(grad.outputs["Fac"], mix.inputs["Fac"])
+        tree.links.new(hsv.outputs[0], mix.inputs["Color1"])
+        tree.links.new(comb.outputs[0], mix.inputs["Color2"])
+        return mix.outputs[0]
+    node_parity("separate/map range/gradient/combine/mapping/noise/hsv/mix overlay", build)
+
+
 def scene_nodes_musgrave():
     node_parity("musgrave ridged multifractal", lambda tree, uv: texture(
         tree, "ShaderNodeTexMusgrave", uv, musgrave_type="RIDGED_MULTIFRACTAL", Scale=3.0, Detail=4.0, Offset=1.0,
@@ -863,6 +895,7 @@ SCENES = {
     "nodes_wave": scene_nodes_wave,
     "nodes_math": scene_nodes_math,
     "nodes_musgrave": scene_nodes_musgrave,
+    "nodes_converters": scene_nodes_converters,
 }
 
 only = os.environ.get("GLIMMER_PARITY_ONLY", "")

@@ -14,6 +14,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <fstream>
 #include <functional>
 #include <map>
 #include <string>
@@ -744,6 +745,76 @@ TEST(Nodes, TextureCoordinateOutputs) {
   auto window = compile_node("texture_coordinate", {}, "window");
   ASSERT_EQ(window->warnings.size(), 1u);
   EXPECT_NE(window->warnings[0].find("test.xml:5"), std::string::npos) << window->warnings[0];
+}
+
+// ---- Converters, gradient, white noise ----------------------------------------------------------------------
+
+TEST(Nodes, ConvertersClosedForms) {
+  expect_vec(eval_node("value", {{"value", "0.37"}}, "value"), Vec3(0.37f));
+  expect_vec(eval_node("color", {{"value", "0.1 0.2 0.3"}}, "color"), Vec3(0.1f, 0.2f, 0.3f));
+  expect_vec(eval_node("invert", {{"fac", "0.25"}, {"color", "0.2 0.6 1"}}, "color"),
+             0.75f * Vec3(0.2f, 0.6f, 1.0f) + 0.25f * Vec3(0.8f, 0.4f, 0.0f));
+  expect_vec(eval_node("gamma", {{"color", "0.25 -0.5 4"}, {"gamma", "0.5"}}, "color"), Vec3(0.5f, -0.5f, 2.0f));
+  // a = 1 + contrast, b = bright - contrast / 2, max(a c + b, 0).
+  expect_vec(eval_node("brightness_contrast", {{"color", "0.5 0.1 0.9"}, {"bright", "0.1"}, {"contrast", "0.4"}}, "color"),
+             Vec3(1.4f * 0.5f - 0.1f, std::max(1.4f * 0.1f - 0.1f, 0.0f), 1.4f * 0.9f - 0.1f));
+  EXPECT_FLOAT_EQ(eval_node("clamp", {{"value", "2"}, {"min", "0.5"}, {"max", "1.5"}}, "result").x, 1.5f);
+  EXPECT_FLOAT_EQ(eval_node("clamp", {{"value", "2"}, {"min", "1.5"}, {"max", "0.5"}}, "result").x, 0.5f);  // minmax
+  EXPECT_FLOAT_EQ(eval_node("clamp", {{"clamp_type", "range"}, {"value", "2"}, {"min", "1.5"}, {"max", "0.5"}},
+                            "result").x, 1.5f);
+  auto map = [](const char *type, float v, bool clamp = true) {
+    return eval_node("map_range", {{"range_type", type}, {"value", num(v)}, {"from_min", "1"}, {"from_max", "3"},
+                                   {"to_min", "10"}, {"to_max", "20"}, {"steps", "4"},
+                                   {"clamp", clamp ? "true" : "false"}}, "result").x;
+  };
+  EXPECT_FLOAT_EQ(map("linear", 2.0f), 15.0f);
+  EXPECT_FLOAT_EQ(map("linear", 5.0f), 20.0f);
+  EXPECT_FLOAT_EQ(map("linear", 5.0f, false), 30.0f);
+  EXPECT_FLOAT_EQ(map("stepped", 2.2f), 10.0f + 10.0f * std::floor(0.6f * 5.0f) / 4.0f);
+  EXPECT_FLOAT_EQ(map("smoothstep", 1.5f), 10.0f + 10.0f * (0.25f * 0.25f * (3.0f - 0.5f)));
+  EXPECT_FLOAT_EQ(map("smootherstep", 1.5f), 10.0f + 10.0f * (0.25f * 0.25f * 0.25f * (0.25f * (1.5f - 15.0f) + 10.0f)));
+  EXPECT_FLOAT_EQ(eval_node("separate_xyz", {{"vector", "1 2 3"}}, "y").x, 2.0f);
+  expect_vec(eval_node("combine_xyz", {{"x", "1"}, {"y", "2"}, {"z", "3"}}, "vector"), Vec3(1, 2, 3));
+  EXPECT_FLOAT_EQ(eval_node("separate_rgb", {{"color", "0.1 0.2 0.3"}}, "b").x, 0.3f);
+  expect_vec(eval_node("combine_rgb", {{"r", "0.1"}, {"g", "0.2"}, {"b", "0.3"}}, "image"), Vec3(0.1f, 0.2f, 0.3f));
+  EXPECT_FLOAT_EQ(eval_node("rgb_to_bw", {{"color", "1 0 0"}}, "val").x, 0.2126f);
+}
+
+TEST(Nodes, GradientTypesClosedForms) {
+  ShadingPoint sp;
+  sp.generated = Vec3(0.6f, 0.3f, 0.2f);
+  const float r = length(sp.generated);
+  const std::pair<const char *, float> cases[] = {
+      {"linear", 0.6f},  {"quadratic", 0.36f}, {"easing", 3 * 0.36f - 2 * 0.216f}, {"diagonal", 0.45f},
+      {"radial", std::atan2(0.3f, 0.6f) / (2 * kPi) + 0.5f}, {"quadratic_sphere", (0.999999f - r) * (0.999999f - r)},
+      {"spherical", 0.999999f - r}};
+  for (const auto &[type, expected] : cases)
+    EXPECT_NEAR(eval_node("gradient_texture", {{"gradient_type", type}}, "fac", sp).x, expected, 1e-6) << type;
+  sp.generated = Vec3(1.7f, 0, 0);
+  EXPECT_FLOAT_EQ(eval_node("gradient_texture", {}, "fac", sp).x, 1.0f);  // clamped
+}
+
+TEST(Nodes, WhiteNoiseIsTheHashOfTheCoordinates) {
+  const Reference ref;
+  ShadingPoint sp;
+  sp.generated = Vec3(0.3f, -1.25f, 7.0f);
+  const Vec3 c3 = eval_node("white_noise_texture", {}, "color", sp);
+  EXPECT_EQ(c3.x, ref.hash01({0.3f, -1.25f, 7.0f}));
+  EXPECT_EQ(c3.y, ref.hash01({0.3f, -1.25f, 7.0f, 1.0f}));
+  EXPECT_EQ(eval_node("white_noise_texture", {{"dimensions", "1D"}, {"w", "0.5"}}, "value", sp).x, ref.hash01({0.5f}));
+  EXPECT_EQ(eval_node("white_noise_texture", {{"dimensions", "4D"}, {"w", "2"}}, "color", sp).z,
+            ref.hash01({2.0f, 7.0f, -1.25f, 0.3f}));
+}
+
+TEST(Nodes, DocsSupportTableIsGeneratedFromTheNodeTable) {
+  std::ifstream in(std::string(GLIMMER_TEST_SOURCE_DIR) + "/docs/scene-format.md");
+  const std::string doc((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string begin = "<!-- nodes:begin (glimmer describe --nodes) -->\n", end = "<!-- nodes:end -->";
+  const size_t a = doc.find(begin), b = doc.find(end);
+  ASSERT_NE(a, std::string::npos);
+  ASSERT_NE(b, std::string::npos);
+  EXPECT_EQ(doc.substr(a + begin.size(), b - a - begin.size()), render::nodes::support_table_markdown())
+      << "regenerate: build/glimmer describe --nodes";
 }
 
 // ---- Whole scenes through the renderer ---------------------------------------------------------------------

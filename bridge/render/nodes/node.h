@@ -112,4 +112,14 @@ struct NodeDef {
 const std::vector<NodeDef> &node_table();
 const NodeDef *find_node(const std::string &xml_name);
 
+// Cycles value nodes the renderer does not evaluate, with their fallback.
+struct UnsupportedNode {
+  const char *xml_name;
+  const char *fallback;
+};
+const std::vector<UnsupportedNode> &unsupported_nodes();
+
+// The support table of docs/scene-format.md (`glimmer describe --nodes`), from the two lists above.
+std::string support_table_markdown();
+
 }  // namespace glimmer::render::nodes

@@ -11,6 +11,8 @@
 #include <cmath>
 #include <cstdint>
 
+#include "glimmer/math.h"
+
 namespace glimmer::render::nodes::perlin {
 
 // ---- Jenkins lookup3 (hashlittle's final() and mix()) on 1-4 32-bit words ----
@@ -216,6 +218,21 @@ Point<N> random_offset(float seed) {
     for (int i = 0; i < N; ++i) o[i] = 100.0f + hash_to_float(seed, static_cast<float>(i)) * 100.0f;
   }
   return o;
+}
+
+// Three hashes of a lattice cell in [0, 1] (Cycles' hash_floatN_to_float3): the Voronoi cell colour and
+// the White Noise colour.
+template <int N>
+Vec3 cell_color(const Point<N> &c) {
+  if constexpr (N == 1) return {hash_to_float(c[0]), hash_to_float(c[0], 1.0f), hash_to_float(c[0], 2.0f)};
+  else if constexpr (N == 2)
+    return {hash_to_float(c[0], c[1]), hash_to_float(c[0], c[1], 1.0f), hash_to_float(c[0], c[1], 2.0f)};
+  else if constexpr (N == 3)
+    return {hash_to_float(c[0], c[1], c[2]), hash_to_float(c[0], c[1], c[2], 1.0f),
+            hash_to_float(c[0], c[1], c[2], 2.0f)};
+  else
+    return {hash_to_float(c[0], c[1], c[2], c[3]), hash_to_float(c[2], c[0], c[3], c[1]),
+            hash_to_float(c[3], c[2], c[1], c[0])};
 }
 
 template <int N>

@@ -31,20 +31,6 @@ Point<N> point_hash(const Point<N> &c) {
             hash_to_float(c[2], c[3], c[0], c[1]), hash_to_float(c[1], c[2], c[3], c[0])};
 }
 
-// The cell's colour (Cycles' hash_floatN_to_float3).
-template <int N>
-Vec3 color_hash(const Point<N> &c) {
-  if constexpr (N == 1) return {hash_to_float(c[0]), hash_to_float(c[0], 1.0f), hash_to_float(c[0], 2.0f)};
-  else if constexpr (N == 2)
-    return {hash_to_float(c[0], c[1]), hash_to_float(c[0], c[1], 1.0f), hash_to_float(c[0], c[1], 2.0f)};
-  else if constexpr (N == 3)
-    return {hash_to_float(c[0], c[1], c[2]), hash_to_float(c[0], c[1], c[2], 1.0f),
-            hash_to_float(c[0], c[1], c[2], 2.0f)};
-  else
-    return {hash_to_float(c[0], c[1], c[2], c[3]), hash_to_float(c[2], c[0], c[3], c[1]),
-            hash_to_float(c[3], c[2], c[1], c[0])};
-}
-
 struct Params {
   int metric, feature;
   float exponent, randomness, smoothness;
@@ -140,7 +126,7 @@ Result voronoi(const Point<N> &coord, const Params &p) {
     });
     const bool second = p.feature == kF2;
     r.distance = second ? d2 : d1;
-    r.color = color_hash<N>(perlin::plus<N>(cell, second ? o2 : o1));
+    r.color = perlin::cell_color<N>(perlin::plus<N>(cell, second ? o2 : o1));
     set_position<N>(r, perlin::plus<N>(cell, second ? q2 : q1));
   } else if (p.feature == kSmoothF1) {
     float d_smooth = 8.0f;
@@ -155,7 +141,7 @@ Result voronoi(const Point<N> &coord, const Params &p) {
       float correction = p.smoothness * h * (1.0f - h);
       d_smooth = (1.0f - h) * d_smooth + h * d - correction;
       correction /= 1.0f + 3.0f * p.smoothness;
-      color = (1.0f - h) * color + h * color_hash<N>(perlin::plus<N>(cell, offset)) - Vec3(correction);
+      color = (1.0f - h) * color + h * perlin::cell_color<N>(perlin::plus<N>(cell, offset)) - Vec3(correction);
       for (int i = 0; i < N; ++i) position[i] = (1.0f - h) * position[i] + h * q[i] - correction;
     });
     r.distance = d_smooth;
