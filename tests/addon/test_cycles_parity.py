@@ -102,17 +102,23 @@ def new_scene(samples=128, bounces=8, width=WIDTH, height=HEIGHT):
     return scene
 
 
-def emissive_texture_material(name, texture_type):
-    """A material whose surface is an Emission (strength 1) coloured by a new texture node: (material, texture)."""
+def emission_material(name):
+    """A material whose surface is an Emission of strength 1: (material, its node tree, the emission node)."""
     mat = bpy.data.materials.new(name)
     mat.use_nodes = True
     tree = mat.node_tree
     tree.nodes.remove(tree.nodes["Principled BSDF"])
     em = tree.nodes.new("ShaderNodeEmission")
     em.inputs["Strength"].default_value = 1.0
+    tree.links.new(em.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    return mat, tree, em
+
+
+def emissive_texture_material(name, texture_type):
+    """A material whose surface is an Emission (strength 1) coloured by a new texture node: (material, texture)."""
+    mat, tree, em = emission_material(name)
     tex = tree.nodes.new(texture_type)
     tree.links.new(tex.outputs["Color"], em.inputs["Color"])
-    tree.links.new(em.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
     return mat, tex
 
 
@@ -291,13 +297,7 @@ def node_scene(name, build, allowed_warnings=()):
     scene.glimmer.filter_type = "gaussian"
     scene.glimmer.filter_width = 0.01
     add_camera(scene, (0.0, 0.0, 2.5), (0.0, 0.0, 0.0))
-    mat = bpy.data.materials.new(name)
-    mat.use_nodes = True
-    tree = mat.node_tree
-    tree.nodes.remove(tree.nodes["Principled BSDF"])
-    em = tree.nodes.new("ShaderNodeEmission")
-    em.inputs["Strength"].default_value = 1.0
-    tree.links.new(em.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    mat, tree, em = emission_material(name)
     uv = tree.nodes.new("ShaderNodeTexCoord").outputs["UV"]
     tree.links.new(build(tree, uv), em.inputs["Color"])
     add_plane(2.0, mat=mat)
