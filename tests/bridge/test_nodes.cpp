@@ -817,6 +817,17 @@ TEST(Nodes, DocsSupportTableIsGeneratedFromTheNodeTable) {
       << "regenerate: build/glimmer describe --nodes";
 }
 
+TEST(Nodes, HugeCoordinatesGiveFiniteValues) {
+  ShadingPoint sp;
+  sp.generated = Vec3(0.3f, 0.2f, 0.1f);
+  for (const char *type : {"noise_texture", "voronoi_texture", "musgrave_texture", "wave_texture", "white_noise_texture"})
+    for (const char *scale : {"1e30", "-3e38"}) {
+      const auto node = compile_node(type, {{"scale", scale}}, std::string(type) == "musgrave_texture" ? "fac" : "color");
+      const Vec3 v = run(*node, sp);
+      EXPECT_TRUE(is_finite(v)) << type << " scale " << scale;
+    }
+}
+
 // ---- Whole scenes through the renderer ---------------------------------------------------------------------
 
 // A quad seen head-on filling the frame, emission colour from `nodes` (which must define the output "tex color").

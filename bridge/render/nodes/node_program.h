@@ -6,6 +6,7 @@
 #pragma once
 
 #include <array>
+#include <cmath>
 #include <functional>
 #include <string>
 #include <vector>
@@ -85,7 +86,9 @@ Vec3 NodeProgram::eval(const ShadingPoint &point, External &&external) const {
     for (size_t i = 0; i < s.inputs.size(); ++i) in[i] = read(s.inputs[i], regs, *sp, external);
     s.def->eval(s.settings, *sp, in, regs + s.out_base);
   }
-  return read(result_, regs, *sp, external);
+  // Huge or non-finite inputs (a scale of 1e30, an Inf from a division the node does not guard) end as 0 here.
+  const Vec3 r = read(result_, regs, *sp, external);
+  return {std::isfinite(r.x) ? r.x : 0.0f, std::isfinite(r.y) ? r.y : 0.0f, std::isfinite(r.z) ? r.z : 0.0f};
 }
 
 // What the shader system provides while compiling.

@@ -86,11 +86,12 @@ inline float hash_to_float(float x, float y, float z, float w) {
 inline float fade(float t) { return t * t * t * (t * (t * 6.0f - 15.0f) + 10.0f); }
 inline float lerp(float a, float b, float t) { return (1.0f - t) * a + t * b; }
 
-// Integer cell and fraction of x.
+// Integer cell and fraction of x (cells beyond the int range, and non-finite x, are clamped to it: the
+// conversion would be undefined there; the fraction of a non-finite x is NaN and the noise 0).
 inline int cell_of(float x, float &fraction) {
   const float f = std::floor(x);
   fraction = x - f;
-  return static_cast<int>(f);
+  return static_cast<int>(std::fmin(std::fmax(f, -2147483520.0f), 2147483520.0f));
 }
 inline uint32_t u32(int i) { return static_cast<uint32_t>(i); }
 
