@@ -80,7 +80,10 @@ Vec3 NodeProgram::eval(const ShadingPoint &point, External &&external) const {
     with_camera.world_to_camera = world_to_camera_.data();
     sp = &with_camera;
   }
-  Vec3 regs[kMaxRegisters];
+  // Registers are written before they are read (steps in dependency order): raw storage, not 256
+  // zero-initialised Vec3 per evaluation (that zeroing cost as much as a cheap node).
+  alignas(Vec3) unsigned char storage[sizeof(Vec3) * kMaxRegisters];
+  Vec3 *regs = reinterpret_cast<Vec3 *>(storage);
   Vec3 in[kMaxInputs];
   for (const Step &s : steps_) {
     for (size_t i = 0; i < s.inputs.size(); ++i) in[i] = read(s.inputs[i], regs, *sp, external);
