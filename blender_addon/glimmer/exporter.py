@@ -442,6 +442,42 @@ class ShaderGraph:
                        else str(values[param["name"]]))
         return (el.get("name"), "bsdf")
 
+    def value_node(self, node, out):
+        """A texture/utility node the renderer evaluates per shading point (bridge/render/nodes/node_table.cpp):
+        its settings (VALUE_NODES), every enabled input as the Cycles socket of the same name (linked or its
+        value) and the output of the same name. A texture's unlinked Vector reads generated coordinates."""
+        xml_type, settings = VALUE_NODES[node.bl_idname]
+        if node.bl_idname == "ShaderNodeMapRange" and node.data_type != "FLOAT":
+            return self.unsupported(node, out)
+        attributes = {}
+        if node.bl_idname in ("ShaderNodeValue", "ShaderNodeRGB"):  # the value is the output's own
+            attributes["value"] = _value(node.outputs[0])
+        for attribute, (prop, names) in settings.items():
+            value = getattr(node, prop)
+            attributes[attribute] = value if isinstance(value, bool) else (names or {}).get(value, str(value).lower())
+        if node.bl_idname == "ShaderNodeValToRGB":  # Cycles' table form: 256 entries, as Blender bakes it
+            ramp = node.color_ramp
+            entries = [ramp.evaluate(i / 255.0) for i in range(256)]
+            attributes["ramp"] = [c for e in entries for c in tuple(e)[:3]]
+            attributes["ramp_alpha"] = [tuple(e)[3] for e in entries]
+            attributes["interpolate"] = ramp.interpolation != "CONSTANT"
+        el = self.add(xml_type, node.name, **attributes)
+        sockets = VALUE_NODE_INPUTS.get(node.bl_idname, {})
+        for sock in node.inputs:
+            if not sock.enabled:
+                continue
+            name = sockets.get(sock.identifier, sock.name.lower().replace(" ", "_"))
+            if not sock.is_linked and getattr(sock, "hide_value", False):
+                # An unlinked coordinate/normal input reads the shading point (not its hidden value).
+                self.read_inputs.add((node.name, sock.identifier))
+                if name == "vector" and node.bl_idname.startswith("ShaderNodeTex"):
+                    self.uses_generated = True
+                continue
+            self.set_input(el, name, sock)
+        if node.bl_idname == "ShaderNodeTexCoord" and out.name == "Generated":
+            self.uses_generated = True
+        return (el.get("name"), out.name.lower().replace(" ", "_"))
+
     def background(self, node, out):
         el = self.add("background", node.name)
         self.set_input(el, "color", node.inputs["Color"])
@@ -462,6 +498,56 @@ class ShaderGraph:
         return None
 
 
+# Blender nodes exported as the renderer's per-shading-point nodes: bl_idname -> (xml type, {xml setting:
+# (node property, Blender value -> Cycles name, default: lower case)}).
+_MATH_NAMES = {"FRACT": "fraction", "INVERSE_SQRT": "inversesqrt", "SMOOTH_MIN": "smoothmin",
+               "SMOOTH_MAX": "smoothmax", "PINGPONG": "pingpong"}
+_VECTOR_MATH_NAMES = {"CROSS_PRODUCT": "cross_product", "DOT_PRODUCT": "dot_product", "FRACTION": "fraction",
+                      "MULTIPLY_ADD": "multiply_add"}
+VALUE_NODES = {
+    "ShaderNodeTexNoise": ("noise_texture", {"dimensions": ("noise_dimensions", None)}),
+    "ShaderNodeTexVoronoi": ("voronoi_texture", {"dimensions": ("voronoi_dimensions", None),
+                                                 "metric": ("distance", None), "feature": ("feature", None)}),
+    "ShaderNodeTexMusgrave": ("musgrave_texture", {"musgrave_type": ("musgrave_type", {"FBM": "fbm"}),
+                                                   "dimensions": ("musgrave_dimensions", None)}),
+    "ShaderNodeTexWave": ("wave_texture", {"wave_type": ("wave_type", None),
+                                           "bands_direction": ("bands_direction", None),
+                                           "rings_direction": ("rings_direction", None),
+                                           "profile": ("wave_profile", {"SIN": "sine", "SAW": "saw", "TRI": "tri"})}),
+    "ShaderNodeValToRGB": ("rgb_ramp", {}),
+    "ShaderNodeMath": ("math", {"math_type": ("operation", _MATH_NAMES), "use_clamp": ("use_clamp", None)}),
+    "ShaderNodeVectorMath": ("vector_math", {"math_type": ("operation", _VECTOR_MATH_NAMES)}),
+    "ShaderNodeMixRGB": ("mix", {"mix_type": ("blend_type", {"MIX": "mix"}), "use_clamp": ("use_clamp", None)}),
+    "ShaderNodeHueSaturation": ("hsv", {}),
+    "ShaderNodeMapping": ("mapping", {"mapping_type": ("vector_type", None)}),
+    "ShaderNodeTexCoord": ("texture_coordinate", {}),
+    "ShaderNodeFresnel": ("fresnel", {}),
+    "ShaderNodeLayerWeight": ("layer_weight", {}),
+    "ShaderNodeLightPath": ("light_path", {}),
+    "ShaderNodeTexGradient": ("gradient_texture", {"gradient_type": ("gradient_type", None)}),
+    "ShaderNodeTexWhiteNoise": ("white_noise_texture", {"dimensions": ("noise_dimensions", None)}),
+    "ShaderNodeValue": ("value", {}),
+    "ShaderNodeRGB": ("color", {}),
+    "ShaderNodeInvert": ("invert", {}),
+    "ShaderNodeGamma": ("gamma", {}),
+    "ShaderNodeBrightContrast": ("brightness_contrast", {}),
+    "ShaderNodeClamp": ("clamp", {"clamp_type": ("clamp_type", None)}),
+    "ShaderNodeMapRange": ("map_range", {"range_type": ("interpolation_type", None), "clamp": ("clamp", None)}),
+    "ShaderNodeSeparateXYZ": ("separate_xyz", {}),
+    "ShaderNodeCombineXYZ": ("combine_xyz", {}),
+    "ShaderNodeSeparateRGB": ("separate_rgb", {}),
+    "ShaderNodeCombineRGB": ("combine_rgb", {}),
+    "ShaderNodeRGBToBW": ("rgb_to_bw", {}),
+}
+# Inputs whose Cycles name is not the Blender name in lower case (sockets of the same name told apart).
+VALUE_NODE_INPUTS = {
+    "ShaderNodeMath": {"Value": "value1", "Value_001": "value2", "Value_002": "value3"},
+    "ShaderNodeVectorMath": {"Vector": "vector1", "Vector_001": "vector2", "Vector_002": "vector3"},
+    "ShaderNodeMixRGB": {"Color1": "color1", "Color2": "color2"},
+    "ShaderNodeFresnel": {"IOR": "ior"},
+    "ShaderNodeSeparateRGB": {"Image": "color"},
+}
+
 TRANSLATORS = {
     "ShaderNodeBsdfDiffuse": ShaderGraph.bsdf_diffuse,
     "ShaderNodeBsdfGlossy": ShaderGraph.bsdf_glossy,
@@ -478,6 +564,7 @@ TRANSLATORS = {
     "ShaderNodeBackground": ShaderGraph.background,
     "ShaderNodeGroup": ShaderGraph.group_node,
 }
+TRANSLATORS.update({bl_idname: ShaderGraph.value_node for bl_idname in VALUE_NODES})
 
 
 def _output_node(ntree, bl_idname):

@@ -1,7 +1,8 @@
 // `glimmer describe [--json]`: the DSO's closures and their parameter schemas,
-// and (JSON, key "scene") the attributes of the scene elements. The JSON form
-// is the one source the XML loader, docs and the Blender addon read parameters
-// and settings from.
+// and (JSON, key "scene") the attributes of the scene elements;
+// `glimmer describe --nodes`: the shader-node support table (render/nodes/node_table.cpp).
+// The JSON form is the one source the XML loader, docs and the Blender addon
+// read parameters and settings from.
 #include <cstdio>
 #include <iostream>
 #include <nlohmann/json.hpp>
@@ -10,6 +11,7 @@
 #include "cli/json_number.h"
 #include "host/closure_instance.h"
 #include "render/closure_nodes.h"
+#include "render/nodes/node.h"
 #include "scene/settings.h"
 
 namespace glimmer::cli {
@@ -70,8 +72,14 @@ nlohmann::json flags_json(uint32_t flags) {
 void add_describe_command(CLI::App &app, CliContext &ctx) {
   auto *cmd = app.add_subcommand("describe", "list the plugin's closures and their parameters");
   auto json = std::make_shared<bool>(false);
+  auto nodes = std::make_shared<bool>(false);
   cmd->add_flag("--json", *json, "machine-readable output");
-  cmd->callback([&ctx, json] {
+  cmd->add_flag("--nodes", *nodes, "the shader-node support table (Markdown, as in docs/scene-format.md)");
+  cmd->callback([&ctx, json, nodes] {
+    if (*nodes) {
+      std::cout << render::nodes::support_table_markdown();
+      return;
+    }
     auto &plugin = ctx.plugin();
     const auto &info = plugin.info();
     if (*json) {

@@ -21,6 +21,8 @@ Spectrum TriangleLight::emission(const scene::SurfacePoint &s, const Vec3 &wi_to
   tc.N = Ng;
   tc.uv[0] = s.uv[0];
   tc.uv[1] = s.uv[1];
+  tc.direction = -wi_toward_viewer;
+  tc.path.camera = false;  // Light Path node: Cycles evaluates sampled emission with PATH_RAY_EMISSION only
   ClosureSet cs;
   shaders_->evaluate(shader_, tc, cs);
   GlimmerShadingContext ctx{};

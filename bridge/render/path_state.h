@@ -39,12 +39,14 @@ struct PathState {
   // Cycles' PATH_RAY_TRANSPARENT_BACKGROUND: the camera ray and its transparent pass-throughs see a
   // transparent film's background as alpha, not as light; the first scatter clears it.
   bool transparent_background = false;
+  uint32_t last_label = GLIMMER_LABEL_NONE;  // the last scatter's label (Light Path node); none: camera ray
 
   // A scatter with `label` (Cycles' path_state_next): count it, and end the
   // path after the next surface when a limit is reached.
   void advance(uint32_t label, const BounceLimits &limits) {
     ++bounce;
     transparent_background = false;
+    last_label = label;
     if (bounce >= limits.bounce) terminate_next = true;
     if (label & GLIMMER_LABEL_REFLECT) {
       if (label & GLIMMER_LABEL_DIFFUSE) {

@@ -210,6 +210,7 @@ struct Renderer::Impl {
     sd.tc.uv[0] = uv[0];
     sd.tc.uv[1] = uv[1];
     sd.tc.direction = D;
+    sd.tc.backfacing = sd.backfacing;
     GlimmerShadingContext &ctx = sd.ctx;
     ctx = GlimmerShadingContext{};
     ctx.struct_size = sizeof(GlimmerShadingContext);
@@ -317,6 +318,8 @@ struct Renderer::Impl {
       if (!shaders->shader(shader).has_transparent) return Spectrum(0.0f);
       ShadingData hsd;
       setup_shading(h, wi, hsd);
+      hsd.tc.path.camera = false;  // Light Path node: a shadow ray
+      hsd.tc.path.shadow = true;
       ClosureSet cs;
       shaders->evaluate(shader, hsd.tc, cs);
       T *= cs.transparent;
@@ -563,6 +566,8 @@ struct Renderer::Impl {
   void shade_surface(const SurfaceHit &hit, PathRay &ray, const PathState &ps, uint32_t path_seed, ShadingData &sd,
                      ClosureSet &cs) const {
     setup_shading(hit, ray.D, sd);
+    sd.tc.path = nodes::path_info(ps.last_label, hit.t, ps.bounce, ps.diffuse_bounce, ps.glossy_bounce,
+                                  ps.transparent_bounce, ps.transmission_bounce);
     transfer_differentials(ray.rd, ray.D, hit.t, sd, ps.spread);
     set_path_context(ps, path_seed, sd);
     shaders->evaluate(sd.shader, sd.tc, cs);

@@ -123,16 +123,21 @@ Input ShaderSystem::read_input(const ShaderGraph &g, const ShaderNode &n, const 
     if (auto p = src->attributes.find("projection"); p != src->attributes.end() && lower(p->second) != "equirectangular" &&
                                                       lower(p->second) != "flat")
       warn(src->where, type + ": projection '" + p->second + "' is not supported; equirectangular/flat is used");
+  } else if (nodes::find_node(type)) {
+    in.program = compile_program(g, *link);
+    return in;
   } else {
     warn(src->where, "node <" + type + "> is not supported; input '" + socket + "' of '" + n.name +
                          "' uses its constant value instead of this link");
     return in;
   }
-  // A texture_coordinate node on the vector input picks the coordinates.
+  // A texture_coordinate node on the vector input picks the coordinates; other table nodes run as a program.
   if (const scene::ShaderLink *vlink = g.link_to(src->name, "vector")) {
     const ShaderNode *vn = g.find(vlink->from_node);
     const std::string s = lower(vlink->from_socket);
-    if (vn->type == "texture_coordinate" && (s == "uv" || s == "generated" || s == "object" || s == "normal")) {
+    if (vn->type != "texture_coordinate" && nodes::find_node(vn->type)) {
+      tex.vector_program = compile_program(g, *vlink);
+    } else if (vn->type == "texture_coordinate" && (s == "uv" || s == "generated" || s == "object" || s == "normal")) {
       tex.vector = s == "uv" ? VectorSource::UV
                    : s == "generated" ? VectorSource::Generated
                    : s == "object" ? VectorSource::Object
@@ -164,7 +169,7 @@ bool ShaderSystem::bind_varying(ClosureLeaf &leaf, const ShaderGraph &g, const S
   const Spectrum fallback(spec->default_value[0], spec->default_value[1], spec->default_value[2]);
   ClosureLeaf::VaryingInput v;
   v.input = read_input(g, n, socket, fallback, VectorSource::Generated);
-  if (v.input.texture < 0) return false;  // read_input warned: an unsupported source node
+  if (!v.input.varies()) return false;  // read_input warned: an unsupported source node
   v.param = host::param_index(*leaf.type, *spec);
   v.color = spec->type == GLIMMER_PARAM_COLOR || spec->type == GLIMMER_PARAM_VECTOR;
   if (param == "roughness") leaf.varying_roughness = static_cast<int>(leaf.varying.size());
@@ -181,7 +186,26 @@ void ShaderSystem::warn_unsupported_links(const ShaderGraph &g, const ShaderNode
   }
 }
 
+int ShaderSystem::compile_program(const ShaderGraph &g, const scene::ShaderLink &link) {
+  nodes::BuildHooks hooks;
+  hooks.warn = [this](const scene::SourceLocation &where, const std::string &message) { warn(where, message); };
+  hooks.external = [&](const scene::ShaderLink &l, nodes::SocketType &type) {
+    const Input in = read_input(g, *g.find(l.to_node), l.to_socket, Spectrum(0.0f), VectorSource::Generated);
+    if (!in.varies()) return -1;
+    type = in.fac_output ? nodes::SocketType::Float : nodes::SocketType::Color;
+    program_externals_.push_back(in);
+    return static_cast<int>(program_externals_.size()) - 1;
+  };
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 4; ++c) hooks.camera_to_world[4 * r + c] = scene_.camera.camera_to_world.m[r][c];
+  programs_.push_back(nodes::compile_program(g, link, hooks));
+  return static_cast<int>(programs_.size()) - 1;
+}
+
 Spectrum ShaderSystem::eval_input(const Input &in, const TexCoords &tc) const {
+  if (in.program >= 0)
+    return programs_[in.program].eval(
+        tc, [this](int id, const TexCoords &at) { return eval_input(program_externals_[id], at); });
   if (in.texture < 0) return in.constant;
   const TextureNode &t = textures_[in.texture];
   Vec3 co;
@@ -192,6 +216,7 @@ Spectrum ShaderSystem::eval_input(const Input &in, const TexCoords &tc) const {
     case VectorSource::Normal: co = tc.N; break;
     case VectorSource::Direction: co = tc.direction; break;
   }
+  if (t.vector_program >= 0) co = eval_input(Input{Spectrum(0.0f), -1, false, t.vector_program}, tc);
   switch (t.kind) {
     case TextureNode::Kind::Checker: {
       const float f = checker(co * t.scale);
@@ -346,7 +371,7 @@ std::string ShaderSystem::apply_distribution(const ShaderGraph &g, const ShaderN
 void ShaderSystem::apply_bounce_tint(const ShaderNode &n, const GlimmerClosureType &type, const ClosureLeaf &leaf,
                                      host::ParamList &params) {
   if (!host::find_param(type, "bounce_tint")) return;
-  if (leaf.weight.texture >= 0) {
+  if (leaf.weight.varies()) {
     warn(n.where, n.type + ": a textured colour with multi_ggx tints the multiple-scattering energy once "
                            "(Cycles tints each bounce); the walk's higher bounces are not darkened");
     return;
@@ -521,7 +546,7 @@ void ShaderSystem::compile_background(int shader_index) {
   }
   background_.active = true;
   background_.color = read_input(g, *n, "color", Spectrum(0.8f), VectorSource::Direction);
-  if (background_.color.texture >= 0) {
+  if (background_.color.texture >= 0) {  // image/checker directly on the colour
     TextureNode &t = textures_[background_.color.texture];
     if (t.kind == TextureNode::Kind::Image && t.vector == VectorSource::UV) t.vector = VectorSource::Direction;
     if (t.kind != TextureNode::Kind::Checker) features_.environment_map = true;
@@ -530,7 +555,7 @@ void ShaderSystem::compile_background(int shader_index) {
       read_input(g, *n, "strength", Spectrum(n->type == "emission" ? 10.0f : 1.0f), VectorSource::Direction).constant.x;
   for (const auto &[name, value] : n->attributes)
     if (name != "color" && name != "strength") warn(n->where, "<" + n->type + "> attribute '" + name + "' ignored");
-  if (max_component(background_.color.constant) * background_.strength <= 0.0f && background_.color.texture < 0)
+  if (max_component(background_.color.constant) * background_.strength <= 0.0f && !background_.color.varies())
     background_.active = false;
   features_.background = background_.active;
 }
@@ -557,7 +582,7 @@ Spectrum ShaderSystem::light_emission(int shader_index, const scene::SourceLocat
   }
   const Input color = read_input(g, *n, "color", Spectrum(0.8f), VectorSource::Generated);
   const Input strength = read_input(g, *n, "strength", Spectrum(10.0f), VectorSource::Generated);
-  if (color.texture >= 0 || strength.texture >= 0)
+  if (color.varies() || strength.varies())
     warn(n->where, "textured light emission is not supported; constant values are used");
   return color.constant * strength.constant.x;
 }

@@ -15,19 +15,14 @@
 #include "host/closure_instance.h"
 #include "host/plugin_library.h"
 #include "render/closure_nodes.h"
+#include "render/nodes/node_program.h"
 #include "render/textures.h"
 #include "scene/scene.h"
 
 namespace glimmer::render {
 
-// Coordinates a shader may read at a shading point.
-struct TexCoords {
-  Vec3 P{0.0f};
-  Vec3 N{0.0f, 0.0f, 1.0f};
-  Vec3 generated{0.0f};
-  float uv[2] = {0.0f, 0.0f};
-  Vec3 direction{0.0f, 0.0f, 1.0f};  // ray direction (background, environment textures)
-};
+// What a shader may read at a shading point (coordinates, normal, ray direction, path).
+using TexCoords = nodes::ShadingPoint;
 
 enum class VectorSource { UV, Generated, Object, Normal, Direction };
 
@@ -36,6 +31,8 @@ struct Input {
   Spectrum constant{0.0f};
   int texture = -1;        // index into ShaderSystem textures
   bool fac_output = false; // texture's fac/alpha output instead of color
+  int program = -1;        // index into ShaderSystem programs (texture/utility nodes, render/nodes/)
+  bool varies() const { return texture >= 0 || program >= 0; }
 };
 
 struct TextureNode {
@@ -45,6 +42,7 @@ struct TextureNode {
   const ImageTexture *image = nullptr;
   bool closest = false;  // interpolation="closest"
   VectorSource vector = VectorSource::Generated;
+  int vector_program = -1;  // a node program (e.g. Mapping) on the vector input instead
 };
 
 // Builtin host-side closures (not in the DSO).
@@ -146,7 +144,7 @@ class ShaderSystem {
   // Background: compiled separately (only the background/emission node matters).
   void compile_background(int shader_index);
   bool has_background() const { return background_.active; }
-  bool background_is_constant() const { return background_.color.texture < 0; }
+  bool background_is_constant() const { return !background_.color.varies(); }
   Spectrum background(const Vec3 &direction) const;
 
   // The emission of a light's shader (color * strength; textures are not supported on lights).
@@ -172,6 +170,8 @@ class ShaderSystem {
   std::vector<std::unique_ptr<host::ClosureInstance>> instances_;
   std::vector<TextureNode> textures_;
   std::map<std::string, std::unique_ptr<ImageTexture>> images_;
+  std::vector<nodes::NodeProgram> programs_;
+  std::vector<Input> program_externals_;  // textures outside the node table that programs read
 
   struct BackgroundShader {
     bool active = false;
@@ -215,6 +215,8 @@ class ShaderSystem {
   const host::ClosureInstance *instantiate(const GlimmerClosureType &type, const host::ParamList &params,
                                            const scene::SourceLocation &where);
   const ImageTexture *load_image(const scene::ShaderNode &n);
+  // The table nodes (render/nodes/) behind `link` as a program; returns its index.
+  int compile_program(const scene::ShaderGraph &g, const scene::ShaderLink &link);
 };
 
 }  // namespace glimmer::render
