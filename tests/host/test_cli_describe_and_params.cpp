@@ -51,7 +51,7 @@ TEST(Describe, ListsEveryParameterTypeOfTheFixturePlugin) {
   const nlohmann::json j = nlohmann::json::parse(run.out);
   ASSERT_EQ(j["closures"].size(), 1u);
   const auto &params = j["closures"][0]["params"];
-  ASSERT_EQ(params.size(), 6u);
+  ASSERT_EQ(params.size(), 7u);
   EXPECT_EQ(params[4]["name"], "mode");
   EXPECT_EQ(params[4]["choices"], nlohmann::json::parse(R"(["alpha", "beta"])"));
   EXPECT_EQ(params[4]["default"], "alpha");
