@@ -10,6 +10,7 @@
 #include <limits>
 
 #include "glimmer/atomic_file.h"
+#include "host/log.h"
 #include "scene/parse_number.h"
 
 namespace glimmer::host {
@@ -210,13 +211,6 @@ std::vector<GlimmerParamValue> ParamList::values(const GlimmerClosureType &type)
 namespace {
 
 
-void log_to_stderr(void *, int level, const char *message) {
-  static const char *names[] = {"debug", "info", "warning", "error"};
-  const int l = level < 0 ? 0 : (level > 3 ? 3 : level);
-  if (l == GLIMMER_LOG_DEBUG && std::getenv("GLIMMER_DEBUG") == nullptr) return;
-  std::fprintf(stderr, "glimmer: %s: %s\n", names[l], message);
-}
-
 // $GLIMMER_CACHE_DIR, else $XDG_CACHE_HOME/glimmer, else ~/.cache/glimmer
 // (home from $HOME or the password database); never a shared /tmp folder.
 // The folder is made private (0700, ours); "" disables the cache with a warning.
@@ -228,13 +222,11 @@ std::string default_cache_dir() {
   else if (const passwd *pw = ::getpwuid(::geteuid()); pw && pw->pw_dir && *pw->pw_dir == '/')
     dir = std::string(pw->pw_dir) + "/.cache/glimmer";
   if (dir.empty()) {
-    std::fprintf(stderr, "glimmer: warning: no cache folder (no XDG_CACHE_HOME, HOME or home directory); "
-                         "precomputed tables are not cached\n");
+    log_warning("no cache folder (no XDG_CACHE_HOME, HOME or home directory); precomputed tables are not cached");
     return {};
   }
   if (const std::string problem = ensure_private_directory(dir); !problem.empty()) {
-    std::fprintf(stderr, "glimmer: warning: cache folder unusable (%s); precomputed tables are not cached\n",
-                 problem.c_str());
+    log_warning("cache folder unusable (" + problem + "); precomputed tables are not cached");
     return {};
   }
   return dir;
@@ -251,7 +243,7 @@ const GlimmerHostServices *default_host_services() {
     s.host_data = nullptr;
     s.trace_ray = nullptr;
     s.environment_lookup = nullptr;
-    s.log = &log_to_stderr;
+    s.log = &log_callback;
     s.resolve_asset = nullptr;
     s.cache_dir = cache_dir.c_str();
     return s;
