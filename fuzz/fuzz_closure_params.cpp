@@ -9,6 +9,7 @@
 #include <memory>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include "host/closure_instance.h"
 #include "host/plugin_library.h"
@@ -30,12 +31,13 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
   std::istringstream lines(std::string(reinterpret_cast<const char *>(data) + 1, size - 1));
   glimmer::host::ParamList params;
   std::string line;
+  std::vector<GlimmerParamValue> values;
   try {
     while (std::getline(lines, line)) params.set_assignment(type, line);
+    values = params.values(type);
   } catch (const glimmer::host::ClosureError &) {
     return 0;
   }
-  const auto values = params.values();
   GlimmerInstance *instance = nullptr;
   char error[512] = {0};
   if (type.create(values.data(), static_cast<uint32_t>(values.size()), glimmer::host::default_host_services(),

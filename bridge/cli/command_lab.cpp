@@ -2,6 +2,7 @@
 //
 //   glimmer lab furnace --closure diffuse --param color=1,1,1 --wi 0.3,0,0.95 --samples 1e6
 //   glimmer lab chi2    --closure NAME [--param k=v]... [--wi x,y,z] [--samples N] [--seed S] [--test-count K]
+//                       [--axis x,y,z --theta-exponent K]   (cells refined toward an axis: near-delta lobes)
 //   glimmer lab consistency | stress | bench  (same options)
 //   glimmer lab plot    --closure NAME ... -o lobe.png
 //
@@ -36,6 +37,8 @@ struct LabOptions {
   int test_count = 1;
   int theta_bins = 80;
   int phi_bins = 160;
+  std::string axis = "0,0,1";
+  double theta_exponent = 1.0;
   double iterations = 2e5;
   int repetitions = 5;
   std::string output;
@@ -43,19 +46,19 @@ struct LabOptions {
   int height = 256;
 };
 
-// --wi x,y,z: three strict numbers (parse_number.h), a direction of length in
-// [1e-6, 1e6] (a huge or tiny vector would under/overflow when normalised).
-Vec3 parse_direction(const std::string &text) {
+// --wi / --axis x,y,z: three strict numbers (parse_number.h), a direction of
+// length in [1e-6, 1e6] (a huge or tiny vector would under/overflow when normalised).
+Vec3 parse_direction(const std::string &text, const std::string &option) {
   std::vector<float> v;
   try {
     v = scene::parse_float_list(text);
   } catch (const scene::NumberError &e) {
-    throw CliError(kExitBadInput, "--wi '" + text + "': " + e.what());
+    throw CliError(kExitBadInput, option + " '" + text + "': " + e.what());
   }
-  if (v.size() != 3) throw CliError(kExitBadInput, "--wi '" + text + "' must be three numbers x,y,z");
+  if (v.size() != 3) throw CliError(kExitBadInput, option + " '" + text + "' must be three numbers x,y,z");
   const double len = std::sqrt(double(v[0]) * v[0] + double(v[1]) * v[1] + double(v[2]) * v[2]);
   if (!(len >= 1e-6 && len <= 1e6))
-    throw CliError(kExitBadInput, "--wi '" + text + "': length must be in [1e-6, 1e6] (a direction; zero, huge " +
+    throw CliError(kExitBadInput, option + " '" + text + "': length must be in [1e-6, 1e6] (a direction; zero, huge " +
                                       "and tiny vectors are refused)");
   return normalize(Vec3(v[0], v[1], v[2]));
 }
@@ -92,7 +95,7 @@ LabSetup make_setup(CliContext &cli, const LabOptions &o) {
     param_json[assignment.substr(0, eq)] = assignment.substr(eq + 1);
   }
   LabSetup setup;
-  setup.wi = parse_direction(o.wi);
+  setup.wi = parse_direction(o.wi, "--wi");
   setup.instance = std::make_unique<host::ClosureInstance>(*type, params);
   setup.ctx = host::make_local_context(setup.wi);
   setup.header = {{"closure", o.closure}, {"params", param_json}, {"wi", json_vec3(setup.wi)}};
@@ -153,13 +156,20 @@ void add_lab_command(CLI::App &app, CliContext &ctx) {
         cmd->add_option("--test-count", o.test_count, "number of tests in the family, for the Sidak correction");
         cmd->add_option("--theta-bins", o.theta_bins, "cells in theta over [0, pi] (default 80)");
         cmd->add_option("--phi-bins", o.phi_bins, "cells in phi over [-pi, pi] (default 160)");
+        cmd->add_option("--axis", o.axis, "binning axis x,y,z in the shading frame (default 0,0,1 = N)");
+        cmd->add_option("--theta-exponent", o.theta_exponent,
+                        "theta = pi t^K over cells uniform in t: K > 1 refines the cells near the axis (default 1)");
       },
       [](const LabSetup &s, const LabOptions &o) {
         if (o.test_count < 1) throw CliError(kExitBadInput, "--test-count must be >= 1");
         if (o.theta_bins < 2 || o.theta_bins % 2 || o.phi_bins < 1 ||
             static_cast<int64_t>(o.theta_bins) * o.phi_bins > lab::kMaxChi2Cells)
           throw CliError(kExitBadInput, "--theta-bins must be even and >= 2, --phi-bins >= 1 (at most 4e6 cells)");
+        if (!(o.theta_exponent >= 1.0 && o.theta_exponent <= 16.0))
+          throw CliError(kExitBadInput, "--theta-exponent must be in [1, 16]");
         lab::Chi2Options options;
+        options.axis = parse_direction(o.axis, "--axis");
+        options.theta_exponent = o.theta_exponent;
         options.samples = positive_count(o.samples, "--samples");
         options.seed = o.seed;
         options.test_count = o.test_count;
@@ -172,6 +182,8 @@ void add_lab_command(CLI::App &app, CliContext &ctx) {
         out["seed"] = o.seed;
         out["theta_bins"] = options.theta_bins;
         out["phi_bins"] = options.phi_bins;
+        out["axis"] = json_vec3(options.axis);
+        out["theta_exponent"] = options.theta_exponent;
         out["chi2"] = r.chi2;
         out["dof"] = r.dof;
         out["p_value"] = r.p_value;

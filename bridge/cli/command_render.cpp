@@ -3,6 +3,7 @@
 #include <tbb/global_control.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
@@ -19,8 +20,10 @@
 
 #include "cli/commands.h"
 #include "cli/render_parts.h"
+#include "host/log.h"
 #include "render/image_output.h"
 #include "render/renderer.h"
+#include "scene/parse_number.h"
 #include "scene/xml_loader.h"
 
 namespace glimmer::cli {
@@ -60,14 +63,15 @@ struct RenderArgs {
 };
 
 void parse_region(const std::string &text, int out[4]) {
-  std::string t = text;
-  for (char &c : t)
-    if (c == ',') c = ' ';
-  std::istringstream in(t);
-  std::string rest;
-  if (!(in >> out[0] >> out[1] >> out[2] >> out[3]) || (in >> rest) || out[0] < 0 || out[1] < 0 || out[2] <= out[0] ||
-      out[3] <= out[1])
+  std::vector<int> v;
+  try {
+    v = scene::parse_int_list(text, 0);
+  } catch (const scene::NumberError &) {
+    v.clear();
+  }
+  if (v.size() != 4 || v[2] <= v[0] || v[3] <= v[1])
     throw CliError(kExitBadInput, "--region must be x0,y0,x1,y1 with 0 <= x0 < x1 and 0 <= y0 < y1, got '" + text + "'");
+  std::copy(v.begin(), v.end(), out);
 }
 
 std::string clock_text(double seconds) {
@@ -172,14 +176,14 @@ int render_one(CliContext &ctx, const RenderArgs &a, const std::string &scene_pa
         last_display = Clock::now();
         announce("Display", film.passes(), total, a.display);
       } catch (const std::exception &e) {  // the render goes on; only the viewer misses an update
-        std::fprintf(stderr, "glimmer: warning: display image not written: %s\n", e.what());
+        host::log_warning(std::string("display image not written: ") + e.what());
       }
     }
     if (a.checkpoint_every < 0.0 || since(last_checkpoint) < a.checkpoint_every || film.passes() == total) return;
     try {
       write_checkpoint(checkpoint, film, renderer->part());
     } catch (const std::exception &e) {  // the render goes on; only resumability is lost
-      std::fprintf(stderr, "glimmer: warning: checkpoint not written: %s\n", e.what());
+      host::log_warning(std::string("checkpoint not written: ") + e.what());
       return;
     }
     last_checkpoint = Clock::now();
@@ -237,8 +241,7 @@ int render_one(CliContext &ctx, const RenderArgs &a, const std::string &scene_pa
   std::error_code ignored;
   if (complete) std::filesystem::remove(checkpoint, ignored);  // the finished image supersedes it
   if (result.nan_samples > 0)
-    std::fprintf(stderr, "glimmer: warning: %llu non-finite sample contributions were dropped\n",
-                 static_cast<unsigned long long>(result.nan_samples));
+    host::log_warning(std::to_string(result.nan_samples) + " non-finite sample contributions were dropped");
   if (a.stats) {
     const auto &f = renderer->features();
     auto join = [](const std::set<std::string> &s) {

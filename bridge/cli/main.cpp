@@ -1,12 +1,12 @@
 // glimmer: the command-line host. Sub-commands are in cli/command_*.cpp.
 #include <csignal>
-#include <cstdio>
 #include <exception>
 #include <new>
 #include <string_view>
 
 #include "cli/commands.h"
 #include "host/closure_instance.h"
+#include "host/log.h"
 
 int main(int argc, char **argv) {
   using namespace glimmer;
@@ -37,19 +37,19 @@ int main(int argc, char **argv) {
     // --help exits 0; every malformed command line is bad input (exit 1).
     return app.exit(e) == 0 ? cli::kExitOk : cli::kExitBadInput;
   } catch (const host::PluginError &e) {
-    std::fprintf(stderr, "glimmer: error: %s\n", e.what());
+    host::log_error(e.what());
     return cli::kExitPlugin;
   } catch (const cli::CliError &e) {
-    std::fprintf(stderr, "glimmer: error: %s\n", e.what());
+    host::log_error(e.what());
     return e.code();
   } catch (const host::ClosureError &e) {
-    std::fprintf(stderr, "glimmer: error: %s\n", e.what());
+    host::log_error(e.what());
     return cli::kExitBadInput;
   } catch (const std::bad_alloc &) {
-    std::fprintf(stderr, "glimmer: error: out of memory\n");
+    host::log_error("out of memory");
     return cli::kExitBadInput;
   } catch (const std::exception &e) {
-    std::fprintf(stderr, "glimmer: error: %s\n", e.what());
+    host::log_error(e.what());
     return cli::kExitBadInput;
   }
   return ctx.exit_code;

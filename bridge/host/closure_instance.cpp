@@ -7,9 +7,10 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
-#include <sstream>
+#include <limits>
 
 #include "glimmer/atomic_file.h"
+#include "host/log.h"
 #include "scene/parse_number.h"
 
 namespace glimmer::host {
@@ -39,6 +40,10 @@ uint32_t param_index(const GlimmerClosureType &type, const GlimmerParamSpec &spe
 
 uint32_t param_flags(const GlimmerClosureType &type, const GlimmerParamSpec &spec) {
   return GLIMMER_HAS_FIELD(type.param_spec_size, GlimmerParamSpec, flags) ? spec.flags : 0u;
+}
+
+uint32_t closure_abi_version(const GlimmerClosureType &type) {
+  return GLIMMER_HAS_FIELD(type.struct_size, GlimmerClosureType, abi_version) ? type.abi_version : 0u;
 }
 
 const GlimmerParamSpec *find_param(const GlimmerClosureType &type, const std::string &name) {
@@ -77,6 +82,9 @@ std::string validate_schema(const GlimmerClosureType &type) {
     if (!std::isfinite(p.min_value) || !std::isfinite(p.max_value) || p.min_value > p.max_value)
       return prefix + ": invalid range [" + std::to_string(p.min_value) + ", " + std::to_string(p.max_value) + "]";
     const int n = (p.type == GLIMMER_PARAM_COLOR || p.type == GLIMMER_PARAM_VECTOR) ? 3 : 1;
+    if (p.type == GLIMMER_PARAM_INT && (p.min_value != std::floor(p.min_value) || p.max_value != std::floor(p.max_value)))
+      return prefix + ": integer range [" + std::to_string(p.min_value) + ", " + std::to_string(p.max_value) +
+             "] has a bound that is not a whole number";
     for (int c = 0; c < n; ++c) {
       const float d = p.default_value[c];
       if (!std::isfinite(d) || d < p.min_value || d > p.max_value)
@@ -92,13 +100,8 @@ std::string validate_schema(const GlimmerClosureType &type) {
 namespace {
 
 std::vector<float> parse_numbers(const std::string &closure, const std::string &name, const std::string &text) {
-  std::string t = text;
-  for (char &c : t)
-    if (c == ',') c = ' ';
-  std::istringstream in(t);
   std::vector<float> out;
-  std::string token;
-  while (in >> token) {
+  for (const std::string_view token : scene::split_number_list(text)) {
     if (token == "true") { out.push_back(1.0f); continue; }
     if (token == "false") { out.push_back(0.0f); continue; }
     try {
@@ -108,6 +111,19 @@ std::vector<float> parse_numbers(const std::string &closure, const std::string &
     }
   }
   return out;
+}
+
+// INT text: one integer, exact for decimal integers ("16777217"), or a whole
+// number in another spelling ("1e3", "4.0").
+int64_t parse_integer(const std::string &closure, const std::string &name, const std::string &text) {
+  const auto tokens = scene::split_number_list(text);
+  if (tokens.size() != 1)
+    throw ClosureError(closure + ": parameter '" + name + "' (int) expects 1 number, got '" + text + "'");
+  try {
+    return scene::parse_integer(tokens[0], std::numeric_limits<int64_t>::min(), std::numeric_limits<int64_t>::max());
+  } catch (const scene::NumberError &e) {
+    throw ClosureError(closure + ": parameter '" + name + "' (int) needs a whole number: " + e.what());
+  }
 }
 
 }  // namespace
@@ -121,6 +137,10 @@ void ParamList::set_from_text(const GlimmerClosureType &type, const std::string 
   }
   if (spec->type == GLIMMER_PARAM_ENUM || spec->type == GLIMMER_PARAM_STRING) {
     set_string(name, text);
+    return;
+  }
+  if (spec->type == GLIMMER_PARAM_INT) {
+    set_integer(name, parse_integer(type.name, name, text));
     return;
   }
   const auto numbers = parse_numbers(type.name, name, text);
@@ -143,10 +163,21 @@ void ParamList::set_number(const std::string &name, float v0, float v1, float v2
   e.is_string = false;
 }
 
+void ParamList::set_integer(const std::string &name, int64_t value) {
+  Entry &e = entries_[name];
+  e.value[0] = static_cast<float>(value);
+  e.value[1] = e.value[2] = 0.0f;
+  e.string = std::to_string(value);
+  e.is_string = false;
+  e.is_integer = true;
+  e.integer = value;
+}
+
 void ParamList::set_string(const std::string &name, const std::string &value) {
   Entry &e = entries_[name];
   e.string = value;
   e.is_string = true;
+  e.is_integer = false;
 }
 
 void ParamList::set_assignment(const GlimmerClosureType &type, const std::string &assignment) {
@@ -156,7 +187,8 @@ void ParamList::set_assignment(const GlimmerClosureType &type, const std::string
   set_from_text(type, assignment.substr(0, eq), assignment.substr(eq + 1));
 }
 
-std::vector<GlimmerParamValue> ParamList::values() const {
+std::vector<GlimmerParamValue> ParamList::values(const GlimmerClosureType &type) const {
+  const bool exact_integers = closure_abi_version(type) >= ((2u << 16) | 2u);
   std::vector<GlimmerParamValue> out;
   for (const auto &[name, e] : entries_) {
     GlimmerParamValue v{};
@@ -165,6 +197,12 @@ std::vector<GlimmerParamValue> ParamList::values() const {
     v.value[1] = e.value[1];
     v.value[2] = e.value[2];
     v.string = e.is_string ? e.string.c_str() : nullptr;
+    if (e.is_integer && exact_integers) v.string = e.string.c_str();
+    // long double holds every int64 and every float exactly: unequal exactly when the float lost digits.
+    if (e.is_integer && !exact_integers && static_cast<long double>(e.value[0]) != static_cast<long double>(e.integer))
+      throw ClosureError(std::string(type.name) + ": parameter '" + name + "' = " + e.string +
+                         " cannot reach this plugin exactly (built for ABI 2.1 or older: integers travel as floats, "
+                         "exact up to 2^24); rebuild the plugin against ABI 2.2");
     out.push_back(v);
   }
   return out;
@@ -172,12 +210,6 @@ std::vector<GlimmerParamValue> ParamList::values() const {
 
 namespace {
 
-void log_to_stderr(void *, int level, const char *message) {
-  static const char *names[] = {"debug", "info", "warning", "error"};
-  const int l = level < 0 ? 0 : (level > 3 ? 3 : level);
-  if (l == GLIMMER_LOG_DEBUG && std::getenv("GLIMMER_DEBUG") == nullptr) return;
-  std::fprintf(stderr, "glimmer: %s: %s\n", names[l], message);
-}
 
 // $GLIMMER_CACHE_DIR, else $XDG_CACHE_HOME/glimmer, else ~/.cache/glimmer
 // (home from $HOME or the password database); never a shared /tmp folder.
@@ -190,13 +222,11 @@ std::string default_cache_dir() {
   else if (const passwd *pw = ::getpwuid(::geteuid()); pw && pw->pw_dir && *pw->pw_dir == '/')
     dir = std::string(pw->pw_dir) + "/.cache/glimmer";
   if (dir.empty()) {
-    std::fprintf(stderr, "glimmer: warning: no cache folder (no XDG_CACHE_HOME, HOME or home directory); "
-                         "precomputed tables are not cached\n");
+    log_warning("no cache folder (no XDG_CACHE_HOME, HOME or home directory); precomputed tables are not cached");
     return {};
   }
   if (const std::string problem = ensure_private_directory(dir); !problem.empty()) {
-    std::fprintf(stderr, "glimmer: warning: cache folder unusable (%s); precomputed tables are not cached\n",
-                 problem.c_str());
+    log_warning("cache folder unusable (" + problem + "); precomputed tables are not cached");
     return {};
   }
   return dir;
@@ -213,7 +243,7 @@ const GlimmerHostServices *default_host_services() {
     s.host_data = nullptr;
     s.trace_ray = nullptr;
     s.environment_lookup = nullptr;
-    s.log = &log_to_stderr;
+    s.log = &log_callback;
     s.resolve_asset = nullptr;
     s.cache_dir = cache_dir.c_str();
     return s;
@@ -224,7 +254,7 @@ const GlimmerHostServices *default_host_services() {
 ClosureInstance::ClosureInstance(const GlimmerClosureType &type, const ParamList &params,
                                  const GlimmerHostServices *host)
     : type_(type) {
-  const auto values = params.values();
+  const auto values = params.values(type);
   char error[1024] = {0};
   if (!type.create(values.data(), static_cast<uint32_t>(values.size()), host, &instance_, error, sizeof(error)) ||
       instance_ == nullptr)

@@ -2,6 +2,7 @@
 // create + prepare with clear errors, RAII destroy, typed eval/sample calls.
 #pragma once
 
+#include <cstdint>
 #include <map>
 #include <memory>
 #include <stdexcept>
@@ -28,18 +29,25 @@ class ParamList {
   // ENUM/STRING verbatim. Throws ClosureError for unknown names or bad numbers.
   void set_from_text(const GlimmerClosureType &type, const std::string &name, const std::string &text);
   void set_number(const std::string &name, float v0, float v1, float v2);
+  // An INT parameter's exact value (ABI 2.2: reaches a 2.2 plugin exactly).
+  void set_integer(const std::string &name, int64_t value);
   void set_string(const std::string &name, const std::string &value);
   // "name=value" as given on the command line.
   void set_assignment(const GlimmerClosureType &type, const std::string &assignment);
 
-  std::vector<GlimmerParamValue> values() const;  // valid while *this lives
+  // The values for `type`'s create(), valid while *this lives. INT values
+  // carry their decimal text for ABI 2.2 plugins; for older ones an integer a
+  // float cannot hold exactly (beyond 2^24) throws ClosureError.
+  std::vector<GlimmerParamValue> values(const GlimmerClosureType &type) const;
   bool has(const std::string &name) const { return entries_.count(name) != 0; }
 
  private:
   struct Entry {
     float value[3] = {0, 0, 0};
-    std::string string;
+    std::string string;  // ENUM/STRING value, or an integer's decimal text
     bool is_string = false;
+    bool is_integer = false;
+    int64_t integer = 0;
   };
   std::map<std::string, Entry> entries_;
 };
@@ -49,6 +57,9 @@ class ParamList {
 const GlimmerParamSpec &param_at(const GlimmerClosureType &type, uint32_t index);
 uint32_t param_index(const GlimmerClosureType &type, const GlimmerParamSpec &spec);
 uint32_t param_flags(const GlimmerClosureType &type, const GlimmerParamSpec &spec);  // 0 for ABI 2.0 plugins
+// The ABI version a closure type's plugin was built with (GlimmerClosureType
+// .abi_version, ABI 2.2); 0 for an older plugin, whose types do not say.
+uint32_t closure_abi_version(const GlimmerClosureType &type);
 const GlimmerParamSpec *find_param(const GlimmerClosureType &type, const std::string &name);
 const char *param_type_name(uint32_t type);
 // Checks a closure type's schema (names, types, ranges, defaults in range,

@@ -64,17 +64,22 @@ Spectrum albedo_quadrature(const host::ClosureInstance &instance, const GlimmerS
                            int theta_steps = 512, int phi_steps = 1024);
 
 // ---- Chi-square test of sample() against pdf ------------------------------
-// The sphere is split into theta_bins x phi_bins cells in the local frame:
-// theta uniform over [0, pi] (upper and lower hemisphere; theta_bins should be
-// even so the horizon is a cell boundary) and phi uniform over [-pi, pi].
+// The sphere is split into theta_bins x phi_bins cells about `axis` (shading
+// frame coordinates, z = N; the default bins about N with phi measured from T):
+// cells uniform in t over [0, 1] with theta = pi t^theta_exponent (1: uniform in
+// theta, upper and lower hemisphere, theta_bins should then be even so the
+// horizon is a cell boundary; > 1 refines the cells near the axis, for
+// near-delta lobes, e.g. exponent 4 about -wi for transmission at IOR ~1) and
+// phi uniform over [-pi, pi].
 // Defaults follow pbrt-v4's bsdfs_test (80 x 160) and Mitsuba 3's chi2.py
 // (1e6 samples, pooling to >= 5 expected, Sidak correction).
-// Expected counts are samples * integral of pdf over each cell, computed by
-// composite Simpson quadrature over (theta, phi) with the sin(theta)
-// Jacobian, refined per cell (4 -> 8 -> ... -> max_subdivisions intervals per
-// axis) until two successive estimates agree. Cells whose integral is 0 while
-// samples landed in them are re-integrated at the finest level before they
-// fail the test.
+// Expected counts are samples * integral of the pdf over each cell: 4x4-point
+// Gauss-Legendre on rectangles of the cell (in cos(theta)^(1/3) for exponent 1,
+// which puts nodes near the horizon for grazing lobes; in t otherwise) split
+// in four adaptively, up to max_depth times, until a split changes the estimate
+// by at most integration_tolerance expected samples. Cells whose integral is 0
+// while samples landed in them are re-integrated on a fine uniform grid before
+// they fail the test.
 // Most theta x phi cells chi2_test accepts (std::invalid_argument past it).
 constexpr int64_t kMaxChi2Cells = 4000000;
 
@@ -86,8 +91,10 @@ struct Chi2Options {
   double significance = 0.01;  // alpha before the Sidak correction
   int test_count = 1;          // number of chi2 tests in the family (Sidak)
   double min_expected = 5.0;   // cells below this are pooled
-  int initial_subdivisions = 4;   // Simpson intervals per cell axis (even)
-  int max_subdivisions = 64;
+  Vec3 axis{0.0f, 0.0f, 1.0f};  // binning axis in the shading frame (need not be unit length)
+  double theta_exponent = 1.0;  // >= 1; theta = pi t^theta_exponent
+  double integration_tolerance = 1e-3;  // expected samples per cell
+  int max_depth = 7;                    // adaptive splits per cell
   // The test also fails when the pdf integrates to more than 1 + this, or
   // when the fraction of non-absorbed, non-singular samples differs from the
   // pdf's integral by more than 5 binomial sigmas + this (the statistic itself

@@ -10,6 +10,7 @@
 #pragma once
 
 #include <cerrno>
+#include <charconv>
 #include <cmath>
 #include <cstdlib>
 #include <limits>
@@ -61,11 +62,21 @@ inline float parse_float(std::string_view token) {
   return static_cast<float>(v);
 }
 
-// One integer in [lo, hi].
+// One integer in [lo, hi]: exact for decimal integers ("16777217", "-3", any
+// long long); other spellings ("3.0", "1e3") through parse_double.
 inline long long parse_integer(std::string_view token, long long lo, long long hi) {
+  long long exact = 0;
+  const auto [end, ec] = std::from_chars(token.data(), token.data() + token.size(), exact);
+  if (!token.empty() && end == token.data() + token.size()) {
+    if (ec == std::errc::result_out_of_range || (ec == std::errc() && (exact < lo || exact > hi)))
+      throw NumberError("'" + std::string(token) + "' is out of range [" + std::to_string(lo) + ", " +
+                        std::to_string(hi) + "]");
+    if (ec == std::errc()) return exact;
+  }
   const double v = parse_double(token);
   if (v != std::floor(v)) throw NumberError("'" + std::string(token) + "' is not an integer");
-  if (v < static_cast<double>(lo) || v > static_cast<double>(hi))
+  // (2^63 bounds the conversion: a double of hi = 2^63 - 1 rounds up to 2^63.)
+  if (v < static_cast<double>(lo) || v > static_cast<double>(hi) || !(std::fabs(v) < 9223372036854775808.0))
     throw NumberError("'" + std::string(token) + "' is out of range [" + std::to_string(lo) + ", " +
                       std::to_string(hi) + "]");
   return static_cast<long long>(v);

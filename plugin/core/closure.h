@@ -251,6 +251,9 @@ struct ClosureAdapter {
     type.sample = &sample;
     type.albedo = HasAlbedo<T> ? &albedo : nullptr;
     type.emit = HasEmit<T> ? &emit : nullptr;
+#if GLIMMER_ABI_MINOR >= 2
+    type.abi_version = GLIMMER_ABI_VERSION;
+#endif
     return type;
   }
 };

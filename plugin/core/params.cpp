@@ -1,6 +1,9 @@
 #include "core/params.h"
 
+#include <algorithm>
+#include <charconv>
 #include <cmath>
+#include <limits>
 #include <sstream>
 
 namespace glimmer::plugin {
@@ -31,6 +34,32 @@ std::string format_value(const GlimmerParamValue &v, int n) {
   std::ostringstream s;
   for (int i = 0; i < n; ++i) s << (i ? "," : "") << v.value[i];
   return s.str();
+}
+
+// An INT bound or default (a whole float) as an integer, saturated to int64.
+int64_t whole_to_int64(float x) {
+  constexpr float kLimit = 9.2233720368547758e18f;  // 2^63
+  if (x >= kLimit) return std::numeric_limits<int64_t>::max();
+  if (x < -kLimit) return std::numeric_limits<int64_t>::min();
+  return static_cast<int64_t>(x);
+}
+
+// The exact value of an INT parameter: the decimal text of an ABI 2.2 host
+// (GlimmerParamValue.string), else value[0] (whole, checked by the caller).
+int64_t integer_value(const GlimmerParamValue &v, const std::string &prefix) {
+#if GLIMMER_ABI_MINOR >= 2
+  if (v.string != nullptr) {
+    const std::string_view text(v.string);
+    int64_t out = 0;
+    const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), out);
+    if (text.empty() || ec != std::errc() || end != text.data() + text.size())
+      throw ParamError(prefix + " = '" + std::string(text) + "' is not a whole number (64-bit)");
+    return out;
+  }
+#else
+  (void)prefix;
+#endif
+  return whole_to_int64(v.value[0]);
 }
 
 }  // namespace
@@ -65,6 +94,21 @@ ParamReader::ParamReader(std::string_view closure_name, std::span<const GlimmerP
       case GLIMMER_PARAM_STRING:
         if (v.string == nullptr) throw ParamError(prefix + " needs a string value");
         break;
+      case GLIMMER_PARAM_INT: {
+        if (!std::isfinite(v.value[0]))
+          throw ParamError(prefix + " = " + format_value(v, 1) + " is not a finite number");
+        if (v.string == nullptr && v.value[0] != std::floor(v.value[0]))
+          throw ParamError(prefix + " = " + format_value(v, 1) + " must be a whole number");
+        const int64_t x = integer_value(v, prefix);
+        if (x < whole_to_int64(match->min_value) || x > whole_to_int64(match->max_value)) {
+          std::ostringstream s;
+          s << prefix << " = " << x << " is outside [" << whole_to_int64(match->min_value) << ", "
+            << whole_to_int64(match->max_value) << "]";
+          if (match->doc) s << " (" << match->doc << ")";
+          throw ParamError(s.str());
+        }
+        break;
+      }
       default: {
         const int n = components(match->type);
         for (int c = 0; c < n; ++c) {
@@ -78,8 +122,7 @@ ParamReader::ParamReader(std::string_view closure_name, std::span<const GlimmerP
             if (match->doc) s << " (" << match->doc << ")";
             throw ParamError(s.str());
           }
-          if ((match->type == GLIMMER_PARAM_INT || match->type == GLIMMER_PARAM_BOOL) &&
-              x != std::floor(x))
+          if (match->type == GLIMMER_PARAM_BOOL && x != std::floor(x))
             throw ParamError(prefix + " = " + format_value(v, n) + " must be a whole number");
         }
       }
@@ -109,7 +152,16 @@ float ParamReader::get_float(std::string_view name) const {
   const auto *v = given(name);
   return v ? v->value[0] : s.default_value[0];
 }
-int ParamReader::get_int(std::string_view name) const { return static_cast<int>(std::lround(get_float(name))); }
+int64_t ParamReader::get_int64(std::string_view name) const {
+  const auto &s = spec(name);
+  const auto *v = given(name);
+  return v ? integer_value(*v, closure_name_ + ": parameter '" + std::string(name) + "'")
+           : whole_to_int64(s.default_value[0]);
+}
+int ParamReader::get_int(std::string_view name) const {
+  const int64_t x = get_int64(name);
+  return static_cast<int>(std::clamp<int64_t>(x, std::numeric_limits<int>::min(), std::numeric_limits<int>::max()));
+}
 bool ParamReader::get_bool(std::string_view name) const { return get_float(name) != 0.0f; }
 Vec3 ParamReader::get_color(std::string_view name) const {
   const auto &s = spec(name);

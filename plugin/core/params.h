@@ -4,6 +4,7 @@
 // parameter and the reason.
 #pragma once
 
+#include <cstdint>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -28,6 +29,9 @@ class ParamReader {
               std::span<const GlimmerParamValue> values);
 
   float get_float(std::string_view name) const;
+  // INT parameters: the exact value (ABI 2.2 hosts send integers beyond 2^24
+  // exactly); get_int saturates it to int.
+  int64_t get_int64(std::string_view name) const;
   int get_int(std::string_view name) const;
   bool get_bool(std::string_view name) const;
   Vec3 get_color(std::string_view name) const;

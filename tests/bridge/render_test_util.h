@@ -18,13 +18,9 @@
 #include "host/plugin_library.h"
 #include "render/renderer.h"
 #include "scene/xml_loader.h"
+#include "test_support.h"
 
 namespace glimmer::test {
-
-inline host::PluginLibrary &plugin() {
-  static std::unique_ptr<host::PluginLibrary> lib = host::PluginLibrary::load(GLIMMER_TEST_PLUGIN_PATH);
-  return *lib;
-}
 
 // One folder per test process: ctest runs tests of this executable in parallel processes.
 inline std::filesystem::path temp_dir() {

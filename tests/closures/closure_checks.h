@@ -35,14 +35,9 @@
 #include "host/closure_instance.h"
 #include "host/plugin_library.h"
 #include "lab/closure_lab.h"
+#include "test_support.h"
 
 namespace glimmer::test {
-
-// The DSO under test, loaded once per test process.
-inline const host::PluginLibrary &plugin() {
-  static const std::unique_ptr<host::PluginLibrary> library = host::PluginLibrary::load(GLIMMER_TEST_PLUGIN_PATH);
-  return *library;
-}
 
 // The closure type `name`; throws (failing the test) when the DSO lacks it.
 inline const GlimmerClosureType &closure_type(const std::string &name) {
@@ -61,12 +56,6 @@ inline std::shared_ptr<host::ClosureInstance> make_closure(const GlimmerClosureT
 }
 inline std::shared_ptr<host::ClosureInstance> make_closure(const std::string &name, const Params &params = {}) {
   return make_closure(closure_type(name), params);
-}
-
-// 100 under `make stress` (GLIMMER_STRESS=1), else 1.
-inline uint64_t stress_scale() {
-  const char *v = std::getenv("GLIMMER_STRESS");
-  return (v != nullptr && *v != '\0' && std::string(v) != "0") ? 100 : 1;
 }
 
 // Direction in the local frame (N = +z) at `cos_theta` from the normal, in the xz plane.

@@ -1,5 +1,5 @@
 // Direct (in-process) tests of the microfacet closure classes and tables:
-// the closure sources are compiled into this test so that RAW outputs are
+// the closure classes are used directly (the plugin's objects are linked in) so that RAW outputs are
 // checked (the ABI adapter would hide NaN/negative values by sanitizing).
 //  - table accuracy: |E_table - E_fresh_MC| at random (mu, alpha, eta);
 //  - E_Fms: cubic refit vs the random-walk polynomial, table vs fresh walks;
@@ -12,19 +12,14 @@
 #include <cstdio>
 #include <cstdlib>
 
-// The closures and their tables, compiled in (hidden in the DSO).
-#include "core/params.cpp"
-#include "closures/microfacet_conductor.cpp"
-#include "closures/microfacet_dielectric.cpp"
-#include "closures/microfacet_random_walk.cpp"
-#include "tables/microfacet_energy_data.cpp"
+// The closure classes and their tables (the plugin's objects are linked in).
+#include "closures/microfacet_conductor.h"
+#include "closures/microfacet_dielectric.h"
+#include "closures/microfacet_random_walk.h"
 #include "glimmer/microfacet_walk.h"
 #include "host/closure_instance.h"
-
-namespace glimmer::plugin {
-// Registration is the DSO's business; here the classes are used directly.
-bool register_closure_type(const GlimmerClosureType *) { return true; }
-}  // namespace glimmer::plugin
+#include "tables/microfacet_energy.h"
+#include "test_support.h"
 
 namespace {
 
@@ -33,10 +28,7 @@ using namespace glimmer::plugin;
 namespace mf = glimmer::microfacet;
 namespace grid = glimmer::microfacet::energy_grid;
 
-uint64_t stress_scale() {
-  const char *v = std::getenv("GLIMMER_STRESS");
-  return (v != nullptr && std::string(v) == "1") ? 100 : 1;
-}
+using glimmer::test::stress_scale;
 
 // Parameter list builder for ParamReader.
 struct Params {

@@ -8,8 +8,9 @@
 //  - reciprocity f(wi, wo) / n_o^2 = f(wo, wi) / n_i^2 on raw (unsanitized) outputs;
 //  - stress: no NaN / Inf / negative raw outputs (1e6 calls, 1e8 under make stress),
 //    TIR-heavy IOR 2.4 at grazing angles included, per-point (varying) values too.
-// The closure class is compiled in for the raw checks; its table and parameter
-// code come from microfacet_direct_test.cpp's translation unit (same executable).
+// The closure class is compiled in for the raw checks (until it has a header,
+// as the microfacet closures do); its table and parameter code come from the
+// plugin's objects linked into this test.
 #include <gtest/gtest.h>
 #include <tbb/parallel_for.h>
 
@@ -223,10 +224,7 @@ TEST(FrostedGlassPath, ReciprocityCatchesOneSidedTint) {
 }
 
 // ---- Stress (raw) ------------------------------------------------------------------
-uint64_t stress_scale() {  // 100 under make stress (GLIMMER_STRESS=1)
-  const char *v = std::getenv("GLIMMER_STRESS");
-  return (v != nullptr && std::string(v) == "1") ? 100 : 1;
-}
+using glimmer::test::stress_scale;  // 100 under make stress
 
 bool bad(float v) { return !std::isfinite(v) || v < 0.0f; }
 bool bad(const Spectrum &s) { return bad(s.x) || bad(s.y) || bad(s.z); }

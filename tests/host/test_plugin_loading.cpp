@@ -5,6 +5,7 @@
 
 #include <filesystem>
 #include <string>
+#include <tuple>
 
 #include "host/cli_runner.h"
 #include "host/closure_instance.h"
@@ -15,7 +16,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-const std::string kHostVersion = host::abi_version_name(GLIMMER_ABI_VERSION);  // "2.1"
+const std::string kHostVersion = host::abi_version_name(GLIMMER_ABI_VERSION);  // "2.2"
 
 TEST(PluginLoading, LoadsTheClosureDso) {
   const auto library = host::PluginLibrary::load(GLIMMER_TEST_PLUGIN_PATH);
@@ -41,7 +42,7 @@ TEST(PluginLoading, RefusesOtherAbiVersionNamingBoth) {
 TEST(PluginLoading, RefusesAbi1Abi3AndANewerMinorNamingBothVersions) {
   EXPECT_EQ(kHostVersion, std::to_string(GLIMMER_ABI_MAJOR) + "." + std::to_string(GLIMMER_ABI_MINOR));
   const std::pair<const char *, const char *> fixtures[] = {
-      {GLIMMER_TEST_FIXTURE_ABI1, "1"}, {GLIMMER_TEST_FIXTURE_ABI3_0, "3.0"}, {GLIMMER_TEST_FIXTURE_ABI2_2, "2.2"}};
+      {GLIMMER_TEST_FIXTURE_ABI1, "1"}, {GLIMMER_TEST_FIXTURE_ABI3_0, "3.0"}, {GLIMMER_TEST_FIXTURE_ABI2_3, "2.3"}};
   for (const auto &[path, version] : fixtures) {
     try {
       host::PluginLibrary::load(path);
@@ -56,16 +57,16 @@ TEST(PluginLoading, RefusesAbi1Abi3AndANewerMinorNamingBothVersions) {
 
 // The params fixture is compiled against ABI 2.0 (GLIMMER_ABI_MINOR=0: its
 // GlimmerParamSpec has no flags field and its contexts no varying fields). It
-// loads in this 2.1 host, its schema is read with its own stride, and its
-// closure creates, evaluates and samples with a 2.1 context that lists varying
+// loads in this 2.2 host, its schema is read with its own stride, and its
+// closure creates, evaluates and samples with a 2.2 context that lists varying
 // values (which a 2.0 plugin never reads).
-TEST(PluginLoading, Abi20PluginLoadsAndRendersInAbi21Host) {
+TEST(PluginLoading, Abi20PluginLoadsAndRendersInAbi22Host) {
   const auto library = host::PluginLibrary::load(GLIMMER_TEST_FIXTURE_PARAMS);
   EXPECT_EQ(host::abi_version_name(library->info().abi_version), "2.0");
   const GlimmerClosureType *type = library->find("fixture_params");
   ASSERT_NE(type, nullptr);
   EXPECT_LT(type->param_spec_size, sizeof(GlimmerParamSpec));  // the 2.0 layout, really
-  ASSERT_EQ(type->param_count, 6u);
+  ASSERT_EQ(type->param_count, 7u);
   EXPECT_STREQ(host::param_at(*type, 4).name, "mode");  // stride of the plugin's specs
   EXPECT_STREQ(host::param_at(*type, 5).default_string, "none");
   for (uint32_t i = 0; i < type->param_count; ++i) EXPECT_EQ(host::param_flags(*type, host::param_at(*type, i)), 0u);
@@ -84,6 +85,59 @@ TEST(PluginLoading, Abi20PluginLoadsAndRendersInAbi21Host) {
   GlimmerSample s{};
   const float r3[3] = {0.3f, 0.6f, 0.5f};
   EXPECT_NE(instance.sample(ctx, r3, s), 0u);
+}
+
+// ABI 2.2: an INT parameter's exact value reaches a 2.2 plugin (the decimal
+// text in GlimmerParamValue.string); the fixture's albedo() echoes `seed` as
+// (seed >> 16, seed & 0xffff, 0), exact in floats.
+Spectrum echoed_seed(const GlimmerClosureType &type, const std::string &seed) {
+  host::ParamList params;
+  params.set_from_text(type, "seed", seed);
+  const host::ClosureInstance instance(type, params);
+  return instance.albedo(host::make_local_context(Vec3(0.0f, 0.0f, 1.0f)));
+}
+
+TEST(PluginLoading, IntegerParametersReachAnAbi22PluginExactly) {
+  const auto library = host::PluginLibrary::load(GLIMMER_TEST_FIXTURE_PARAMS_CURRENT);
+  const GlimmerClosureType *type = library->find("fixture_params");
+  ASSERT_NE(type, nullptr);
+  EXPECT_EQ(host::closure_abi_version(*type), GLIMMER_ABI_VERSION);
+  // 2^24 + 1 is not a float: through value[0] it would arrive as 2^24 (256, 0).
+  ASSERT_NE(static_cast<int64_t>(static_cast<float>(16777217)), 16777217);
+  for (const auto &[text, hi, lo] : {std::tuple{"16777217", 256.0f, 1.0f}, std::tuple{"2147483647", 32767.0f, 65535.0f},
+                                     std::tuple{"2147483648", 32768.0f, 0.0f}, std::tuple{"1e3", 0.0f, 1000.0f}}) {
+    const Spectrum echo = echoed_seed(*type, text);
+    EXPECT_EQ(echo.x, hi) << text;
+    EXPECT_EQ(echo.y, lo) << text;
+  }
+  // The range is checked on the integer, exactly (2^31 + 1 is the float 2^31, inside the range).
+  try {
+    echoed_seed(*type, "2147483649");
+    ADD_FAILURE() << "seed 2^31 + 1 outside [0, 2^31] was accepted";
+  } catch (const host::ClosureError &e) {
+    EXPECT_NE(std::string(e.what()).find("'seed' = 2147483649 is outside [0, 2147483648]"), std::string::npos)
+        << e.what();
+  }
+  EXPECT_THROW(echoed_seed(*type, "3.5"), host::ClosureError);
+  EXPECT_THROW(echoed_seed(*type, "99999999999999999999"), host::ClosureError);
+}
+
+// A 2.0 plugin reads integers from the float: values a float holds reach it,
+// one it cannot hold is refused by the host (not silently rounded).
+TEST(PluginLoading, IntegerBeyondFloatPrecisionIsRefusedForAnOlderPlugin) {
+  const auto library = host::PluginLibrary::load(GLIMMER_TEST_FIXTURE_PARAMS);
+  const GlimmerClosureType *type = library->find("fixture_params");
+  ASSERT_NE(type, nullptr);
+  EXPECT_EQ(host::closure_abi_version(*type), 0u);
+  const Spectrum echo = echoed_seed(*type, "16777216");
+  EXPECT_EQ(echo.x, 256.0f);
+  EXPECT_EQ(echo.y, 0.0f);
+  try {
+    echoed_seed(*type, "16777217");
+    ADD_FAILURE() << "16777217 was handed to an ABI 2.0 plugin as a float";
+  } catch (const host::ClosureError &e) {
+    EXPECT_NE(std::string(e.what()).find("cannot reach this plugin exactly"), std::string::npos) << e.what();
+  }
 }
 
 // Schemas are validated when the plugin loads: defaults in range, enum
@@ -110,6 +164,15 @@ TEST(PluginLoading, SchemaValidationNamesTheParameterAndTheProblem) {
   specs[1].default_string = "ggx";
   specs[1].name = "roughness";
   EXPECT_NE(host::validate_schema(type).find("declared twice"), std::string::npos);
+  // INT: whole default and whole bounds.
+  specs[1] = {"count", GLIMMER_PARAM_INT, {3, 0, 0}, 0.0f, 10.0f, nullptr, nullptr, "c", 0};
+  EXPECT_EQ(host::validate_schema(type), "");
+  specs[1].default_value[0] = 2.5f;
+  EXPECT_NE(host::validate_schema(type).find("'count': default 2.5"), std::string::npos) << host::validate_schema(type);
+  specs[1].default_value[0] = 3.0f;
+  specs[1].max_value = 10.5f;
+  EXPECT_NE(host::validate_schema(type).find("'count': integer range"), std::string::npos)
+      << host::validate_schema(type);
   // Every closure of the real plugin passes (it loads).
   EXPECT_NO_THROW(host::PluginLibrary::load(GLIMMER_TEST_PLUGIN_PATH));
 }

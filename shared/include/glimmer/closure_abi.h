@@ -25,6 +25,10 @@
  *   2.0: struct_size fields, major.minor versions.
  *   2.1: varying parameters: GlimmerParamSpec.flags, GlimmerShadingContext
  *        .varying_count / .varying (a 2.0 plugin never sees them).
+ *   2.2: exact integer parameters: GlimmerClosureType.abi_version (the
+ *        plugin's version, so a host holding a type knows what it speaks), and
+ *        INT values carry their exact decimal text in GlimmerParamValue.string
+ *        for 2.2 plugins (see GlimmerParamValue); older plugins get the float.
  *
  * Threading: create/prepare/destroy are called from one thread; eval/sample/
  * emit/albedo are called concurrently on an immutable, prepared instance and
@@ -44,7 +48,7 @@ extern "C" {
 #define GLIMMER_ABI_MAJOR 2u
 #endif
 #ifndef GLIMMER_ABI_MINOR
-#define GLIMMER_ABI_MINOR 1u
+#define GLIMMER_ABI_MINOR 2u
 #endif
 #ifndef GLIMMER_ABI_VERSION
 #define GLIMMER_ABI_VERSION ((GLIMMER_ABI_MAJOR << 16) | GLIMMER_ABI_MINOR)
@@ -141,10 +145,17 @@ typedef struct GlimmerShadingContext {
   uint32_t struct_size; /* sizeof as filled by the host; 0 = only the 2.0 fields */
   GlimmerVec3 wi; /* toward the viewer, unit */
   GlimmerVec3 P;
-  /* Shading normal, unit. For closures without GLIMMER_CLOSURE_TRANSMISSIVE it
-   * is flipped toward wi (as Cycles does). TRANSMISSIVE closures get the
-   * outward (front-face) normal, so dot(wi, N) < 0 means the path arrives
-   * from inside the object and the closure uses 1/eta. */
+  /* Shading normal, unit. The normal convention (tests/closures/
+   * test_normal_convention.cpp checks every closure against it):
+   *  - a closure decides everything from wi, wo and the frame (N, T) it is
+   *    given: the side of the surface wi is on is the sign of dot(wi, N),
+   *    never `backfacing` (information only);
+   *  - closures without GLIMMER_CLOSURE_TRANSMISSIVE get N (with Ng) flipped to
+   *    the side the ray came from (as Cycles does), so wi is above Ng; wi may
+   *    still be below a bent shading normal, where reflection closures return 0;
+   *  - TRANSMISSIVE closures get the outward (front-face) N, so dot(wi, N) < 0
+   *    means the path arrives from inside the object and the closure uses the
+   *    relative IOR 1/ior (and wo below N is on the outside). */
   GlimmerVec3 N;
   GlimmerVec3 Ng; /* geometric normal, unit */
   GlimmerVec3 T;  /* tangent, unit, orthogonal to N (anisotropy, glint uv frame) */
@@ -162,7 +173,7 @@ typedef struct GlimmerShadingContext {
   uint32_t diffuse_bounce;
   uint32_t glossy_bounce;
   uint32_t transmission_bounce;
-  uint32_t backfacing; /* 1 when the ray arrived at the back side of Ng */
+  uint32_t backfacing; /* 1 when the ray arrived at the back side of the mesh's Ng (before any flip); information only, see N */
   uint32_t path_seed;  /* hash of (seed, pixel, sample); never use for glint randomness */
   const GlimmerHostServices *host;
 #if GLIMMER_ABI_MINOR >= 1
@@ -208,7 +219,8 @@ typedef struct GlimmerParamSpec {
   const char *name;          /* identifier used in XML, CLI and Blender */
   uint32_t type;             /* GlimmerParamType */
   float default_value[3];    /* FLOAT/INT/BOOL use [0]; COLOR/VECTOR use [0..2] */
-  float min_value;           /* inclusive bounds for FLOAT/INT and COLOR components */
+  float min_value;           /* inclusive bounds for FLOAT/INT and COLOR components; INT: whole
+                                numbers (any whole float, e.g. 2^31), compared exactly */
   float max_value;
   const char *enum_choices;  /* ENUM: '|'-separated choices, e.g. "ggx|beckmann" */
   const char *default_string;/* ENUM/STRING default */
@@ -223,7 +235,13 @@ typedef struct GlimmerParamValue {
    * within a major version (the array has no stride field). */
   const char *name;
   float value[3];     /* numeric value(s) */
-  const char *string; /* ENUM/STRING value, else NULL */
+  /* ENUM/STRING value. INT (ABI 2.2, only to plugins whose
+   * GlimmerClosureType.abi_version is >= 2.2): the exact value as decimal
+   * text ("-"? digits, fits int64), value[0] being its nearest float; a 2.2
+   * plugin reads the text (integers beyond 2^24, e.g. seeds, arrive exactly).
+   * Else NULL: older plugins read INT from value[0], and a host refuses an INT
+   * value a float cannot hold exactly for them. */
+  const char *string;
 } GlimmerParamValue;
 
 /* Opaque per-material instance. */
@@ -272,6 +290,11 @@ typedef struct GlimmerClosureType {
   /* Emitted radiance toward ctx->wi (EMISSIVE closures only, else NULL). */
   void (*emit)(const GlimmerInstance *instance, const GlimmerShadingContext *ctx,
                float out_rgb[3]);
+#if GLIMMER_ABI_MINOR >= 2
+  /* ABI 2.2: GLIMMER_ABI_VERSION the plugin was built with (a type whose
+   * struct_size does not hold this field is 2.0 or 2.1). */
+  uint32_t abi_version;
+#endif
 } GlimmerClosureType;
 
 typedef struct GlimmerPluginInfo {

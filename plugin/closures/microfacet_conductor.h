@@ -1,0 +1,243 @@
+// Rough conductor (Cycles' glossy_bsdf): anisotropic GGX or Beckmann
+// microfacet reflection (Walter et al. 2007 eq. 20),
+//   f(wi, wo) = F(wi.wh) D(wh) G2(wi, wo) / (4 |wi.n| |wo.n|),
+// with Schlick's Fresnel from the normal-incidence colour f0 (f0 = 1 is
+// Fresnel-free, as Cycles' glossy BSDF), height-correlated Smith G2 (Heitz 2014
+// eq. 99) and visible-normal sampling (Heitz 2018; Heitz & d'Eon 2014).
+// The tangent comes from the shading context (ctx->T = x axis, alpha_x).
+//
+// distribution=multi_ggx adds the multiple-scattering lobe (Kulla & Conty
+// 2017 shape, Hill 2022 Fresnel-split energy):
+//   f_ms(wi, wo) = E_Fms(mu_i, alpha, f0) (1 - E(mu_o)) / (pi (1 - E_avg)),
+// which integrates over wo to E_Fms(mu_i, alpha, f0): the energy the Heitz 2016
+// random walk scatters after >= 2 bounces with Schlick Fresnel. With a
+// bounce_tint c (Cycles' Multiscatter GGX colour, whose walk multiplies every
+// bounce by c), E_Fms is replaced by T(c) / c, the walk's energy of k >= 2
+// bounces weighted c^(k-1) (the host applies the first c). Tables:
+// plugin/tables/microfacet_energy_data.cpp (`glimmer precompute energy`),
+// looked up at alpha = sqrt(alpha_x alpha_y).
+// distribution=sharp is a perfect mirror (singular).
+// Like Cycles, only wi.z > 0 and wo.z > 0 scatter (the host orients N to wi).
+// roughness, anisotropy and f0 are varying (textures): the lobe (alphas and
+// table rows) is rebuilt at a shading point that gives per-point values.
+#pragma once
+
+#include <array>
+
+#include "core/closure.h"
+#include "core/microfacet_lobe_params.h"
+#include "glimmer/microfacet.h"
+#include "glimmer/sampling.h"
+#include "tables/microfacet_energy.h"
+
+namespace glimmer::plugin {
+
+namespace mf = glimmer::microfacet;
+
+class MicrofacetConductorClosure {
+ public:
+  static constexpr const char *kName = "microfacet_conductor";
+  static constexpr const char *kDoc =
+      "Rough conductor (Cycles glossy_bsdf): GGX/Beckmann anisotropic microfacet reflection, Schlick Fresnel from f0, "
+      "multi_ggx adds multiple-scattering energy compensation.";
+  static constexpr uint32_t kFlags = 0;
+
+  static std::span<const GlimmerParamSpec> params() {
+    static const std::array<GlimmerParamSpec, 5> schema{{
+        {"distribution", GLIMMER_PARAM_ENUM, {0, 0, 0}, 0.0f, 0.0f, "ggx|beckmann|multi_ggx|sharp", "ggx",
+         "microfacet distribution; multi_ggx = GGX with multiple-scattering energy compensation; sharp = mirror", 0},
+        {"roughness", GLIMMER_PARAM_FLOAT, {0.5f, 0, 0}, 0.0f, 1.0f, nullptr, nullptr,
+         "Cycles roughness in [0, 1]; alpha = roughness^2", GLIMMER_PARAM_VARYING},
+        {"anisotropy", GLIMMER_PARAM_FLOAT, {0.0f, 0, 0}, -1.0f, 1.0f, nullptr, nullptr,
+         "anisotropy in [-1, 1] (Cycles 3.4 mapping: A > 0 gives alpha_x = a (1 - A), alpha_y = a / (1 - A); tangent = x)",
+         GLIMMER_PARAM_VARYING},
+        {"f0", GLIMMER_PARAM_COLOR, {1.0f, 1.0f, 1.0f}, 0.0f, 1.0f, nullptr, nullptr,
+         "normal-incidence reflectance per RGB channel (Schlick Fresnel); 1,1,1 = Fresnel-free", GLIMMER_PARAM_VARYING},
+        {"bounce_tint", GLIMMER_PARAM_COLOR, {1.0f, 1.0f, 1.0f}, 0.0f, 1.0f, nullptr, nullptr,
+         "multi_ggx only: per-bounce tint c of the multiple-scattering walk, as Cycles' Multiscatter GGX colour (k "
+         "bounces -> c^k); the first factor c is the closure weight the host applies, the closure adds c^(k-1)", 0},
+    }};
+    return schema;
+  }
+
+  // Everything eval/sample need at one shading point: the alphas, Fresnel f0
+  // and the energy-table rows at this alpha and f0.
+  struct Lobe {
+    MicrofacetMode mode = kGgx;
+    mf::Distribution dist = mf::Distribution::GGX;
+    float ax = 0.25f, ay = 0.25f, alpha_table = 0.25f, e_avg = 1.0f;
+    Spectrum f0{1.0f};
+    bool white = true;
+    // E(mu), E_Fms(mu) at this alpha and f0; built for the instance and, per
+    // shading point, only for multi_ggx (whose eval needs them).
+    bool has_rows = false;
+    tables::ConductorRows rows;
+
+    void build(const MicrofacetLobeParams &lobe, const Spectrum &f0_in, const Spectrum &bounce_tint, bool need_rows) {
+      mode = lobe.mode;
+      dist = lobe.distribution;
+      ax = lobe.alpha_x;
+      ay = lobe.alpha_y;
+      alpha_table = lobe.alpha_table;
+      f0 = f0_in;
+      white = f0.x == 1.0f && f0.y == 1.0f && f0.z == 1.0f;
+      has_rows = need_rows || mode == kMultiGgx;
+      if (has_rows) rows.build(alpha_table, f0, bounce_tint);
+      e_avg = mode == kMultiGgx ? tables::ggx_E_avg(alpha_table) : 1.0f;
+      if (mode == kMultiGgx) build_ms_cdf();
+    }
+
+    Spectrum fresnel(float cos_i) const { return white ? Spectrum(1.0f) : mf::fresnel_schlick(cos_i, f0); }
+
+    // Probability of sampling the multiple-scattering lobe: its Fresnel-free share 1 - E(mu_i).
+    float ms_probability(float mu_i) const {
+      if (mode != kMultiGgx || !(e_avg < 1.0f)) return 0.0f;
+      return clamp(1.0f - rows.E(mu_i), 0.0f, 1.0f);
+    }
+
+    // The multiple-scattering lobe is sampled in mu_o = cos(theta_o) from a piecewise-constant density
+    // proportional to its shape (1 - E(mu_o)) mu_o (kMsBins bins, 4-point average per bin), phi uniform, so that
+    // f_ms / pdf_ms is nearly the constant E_Fms(mu_i) (cosine sampling left a 1 - E(mu_o) factor in the weight).
+    static constexpr int kMsBins = 64;
+    std::array<float, kMsBins + 1> ms_cdf{};  // multi_ggx: CDF of the multiple-scattering lobe's mu bins
+    void build_ms_cdf() {
+      ms_cdf[0] = 0.0f;
+      double acc = 0.0;
+      for (int k = 0; k < kMsBins; ++k) {
+        double w = 0.0;
+        for (int j = 0; j < 4; ++j) {
+          const float mu = (k + (j + 0.5f) / 4.0f) / kMsBins;
+          w += std::max(1.0f - rows.E(mu), 1e-4f) * mu;
+        }
+        acc += w;
+        ms_cdf[k + 1] = static_cast<float>(acc);
+      }
+      for (float &v : ms_cdf) v = static_cast<float>(v / acc);
+      ms_cdf[kMsBins] = 1.0f;
+    }
+    // Solid-angle density of the multiple-scattering lobe's sampling at cos(theta_o) = mu.
+    float ms_pdf(float mu) const {
+      if (!(mu > 0.0f)) return 0.0f;
+      const int k = std::min(static_cast<int>(mu * kMsBins), kMsBins - 1);
+      return (ms_cdf[k + 1] - ms_cdf[k]) * kMsBins * (0.5f * kInvPi);
+    }
+    Vec3 sample_ms(float u, float v) const {
+      const int k = std::clamp(
+          static_cast<int>(std::upper_bound(ms_cdf.begin(), ms_cdf.end(), u) - ms_cdf.begin()) - 1, 0, kMsBins - 1);
+      const float width = ms_cdf[k + 1] - ms_cdf[k];
+      const float t = width > 0.0f ? std::clamp((u - ms_cdf[k]) / width, 0.0f, 1.0f) : 0.5f;
+      const float mu = std::max((k + t) / kMsBins, 1e-6f);
+      const float sin_theta = safe_sqrt(1.0f - mu * mu), phi = kTwoPi * v;
+      return {sin_theta * std::cos(phi), sin_theta * std::sin(phi), mu};
+    }
+
+    // Multiple-scattering lobe f_ms * cos(wo).
+    Spectrum ms_eval(float mu_i, float mu_o) const {
+      const float denom = kPi * (1.0f - e_avg);
+      if (!(denom > 1e-7f)) return Spectrum(0.0f);
+      const float shape = std::max(1.0f - rows.E(mu_o), 0.0f) / denom;
+      return rows.E_Fms(mu_i) * (shape * mu_o);
+    }
+
+    // Single-scatter f * cos(wo) and the visible-normal pdf, given wh.
+    LocalEval single_eval(const Vec3 &wi, const Vec3 &wo, const Vec3 &wh) const {
+      const float cos_ih = dot(wi, wh);
+      if (!(cos_ih > 0.0f)) return {};
+      const float d = mf::D(dist, wh, ax, ay);
+      const float g2 = mf::G2(dist, wi, wo, ax, ay);
+      LocalEval e;
+      e.f_cos = fresnel(cos_ih) * (d * g2 / (4.0f * wi.z));
+      e.pdf = mf::visible_D(dist, wi, wh, ax, ay) / (4.0f * cos_ih);
+      return e;
+    }
+
+    LocalEval eval(const Vec3 &wi, const Vec3 &wo) const {
+      if (mode == kSharp || !(wi.z > 0.0f) || !(wo.z > 0.0f)) return {};
+      Vec3 wh;
+      LocalEval e;
+      if (mf::half_vector_reflect(wi, wo, wh)) e = single_eval(wi, wo, wh);
+      const float p_ms = ms_probability(wi.z);
+      if (p_ms > 0.0f) {
+        e.f_cos += ms_eval(wi.z, wo.z);
+        e.pdf = (1.0f - p_ms) * e.pdf + p_ms * ms_pdf(wo.z);
+      }
+      return e;
+    }
+
+    bool sample(const Vec3 &wi, const Vec3 &rand, LocalSample &out) const {
+      if (!(wi.z > 0.0f)) return false;
+      if (mode == kSharp) {
+        out.wo = Vec3(-wi.x, -wi.y, wi.z);
+        out.f_cos = fresnel(wi.z);
+        out.pdf = 1.0f;
+        out.roughness = 0.0f;
+        out.label = GLIMMER_LABEL_REFLECT | GLIMMER_LABEL_SINGULAR;
+        return true;
+      }
+      // Lobe choice on rand.x, rescaled and reused for the direction (keeps the 2D point stratified).
+      float u = rand.x;
+      if (choose_and_rescale(ms_probability(wi.z), u)) {
+        out.wo = sample_ms(u, rand.y);
+      } else {
+        const Vec3 m = mf::sample_visible_normal(dist, wi, ax, ay, u, rand.y);
+        out.wo = normalize(mf::reflect_about(wi, m));
+      }
+      if (!(out.wo.z > 0.0f)) return false;
+      const LocalEval e = eval(wi, out.wo);
+      out.f_cos = e.f_cos;
+      out.pdf = e.pdf;
+      out.roughness = std::sqrt(ax * ay);
+      out.label = GLIMMER_LABEL_REFLECT | GLIMMER_LABEL_GLOSSY;
+      return out.pdf > 0.0f;
+    }
+
+    // Directional albedo estimate (sample weights, Albedo AOV).
+    Spectrum albedo(const Vec3 &wi) const {
+      const float mu = clamp(wi.z, 0.0f, 1.0f);
+      const Spectrum f = fresnel(mu);
+      if (mode == kSharp) return f;
+      const Spectrum single = f * (has_rows ? rows.E(mu) : tables::ggx_E(mu, alpha_table));
+      if (mode != kMultiGgx) return single;
+      return single + rows.E_Fms(mu);
+    }
+  };
+
+  static std::unique_ptr<MicrofacetConductorClosure> create(const ParamReader &p) {
+    auto c = std::make_unique<MicrofacetConductorClosure>();
+    c->inputs_ = MicrofacetLobeInputs::parse(p);
+    c->f0_param_ = p.index("f0");
+    c->bounce_tint_ = p.get_color("bounce_tint");
+    c->lobe_.build(c->inputs_.constant(), p.get_color("f0"), c->bounce_tint_, true);
+    return c;
+  }
+
+  // The instance's lobe, or `scratch` rebuilt from the per-point values of the varying parameters.
+  const Lobe &lobe_at(const ShadingPoint &sp, Lobe &scratch) const {
+    if (!sp.varies()) return lobe_;
+    scratch.build(inputs_.at(sp), sp.param_color(f0_param_, lobe_.f0), bounce_tint_, false);
+    return scratch;
+  }
+
+  LocalEval eval(const ShadingPoint &sp, const Vec3 &wo) const {
+    Lobe scratch;
+    return lobe_at(sp, scratch).eval(sp.wi, wo);
+  }
+
+  bool sample(const ShadingPoint &sp, const Vec3 &rand, LocalSample &out) const {
+    Lobe scratch;
+    return lobe_at(sp, scratch).sample(sp.wi, rand, out);
+  }
+
+  Spectrum albedo(const ShadingPoint &sp) const {
+    Lobe scratch;
+    return lobe_at(sp, scratch).albedo(sp.wi);
+  }
+
+ private:
+  MicrofacetLobeInputs inputs_;
+  uint32_t f0_param_ = 0;
+  Spectrum bounce_tint_{1.0f};
+  Lobe lobe_;
+};
+
+}  // namespace glimmer::plugin
