@@ -80,8 +80,13 @@ double sg_inner_product(const SphericalGaussian &g1, const SphericalGaussian &g2
 SphericalGaussian TransmissionLobe::sg(float cos_theta_i, float eta) const {
   SphericalGaussian g;
   const double theta_i = std::acos(std::clamp(double(cos_theta_i), 0.0, 1.0));
-  const double theta_axis = snell_angle(theta_i, eta) + axis_offset;
-  g.axis = Vec3(float(-std::sin(theta_axis)), 0.0f, float(-std::cos(theta_axis)));
+  if (eta >= 1.0f) {
+    const double theta_axis = snell_angle(theta_i, eta) + axis_offset;
+    g.axis = Vec3(float(-std::sin(theta_axis)), 0.0f, float(-std::cos(theta_axis)));
+  } else {
+    const double s = std::clamp(std::sin(theta_i) / eta + axis_offset, -1.0, 1.0);
+    g.axis = Vec3(float(-s), 0.0f, float(-std::sqrt(std::max(0.0, 1.0 - s * s))));
+  }
   g.sharpness = std::exp(log_sharpness);
   // a = E kappa / (2 pi (1 - exp(-2 kappa))): the SG's integral is the lobe's energy.
   const double k = g.sharpness;
@@ -125,7 +130,9 @@ TransmissionLobe fit_transmission_lobe(float cos_theta_i, float eta, float rough
   // Scale and mean: the lobe's energy and mean direction.
   const double len = std::sqrt(mx * mx + my * my + mz * mz) / energy;
   const double theta_i = std::acos(double(wi.z));
-  lobe.axis_offset = float(std::atan2(-mx, -mz) - snell_angle(theta_i, eta));
+  const double theta_axis = std::atan2(-mx, -mz);
+  lobe.axis_offset = eta >= 1.0f ? float(theta_axis - snell_angle(theta_i, eta))
+                                 : float(std::sin(theta_axis) - std::sin(theta_i) / eta);
   // Sharpness: the vMF match of the mean length (the variance)...
   const double kappa_moments = sharpness_from_mean_length(len);
   lobe.log_sharpness = float(std::log(kappa_moments));
@@ -173,22 +180,50 @@ double transmission_fit_error(float cos_theta_i, float eta, float roughness, con
 }
 
 float TransmissionSgTable::theta_at(int i) { return float(kThetaMaxDeg * kDegToRad * i / (kThetaNodes - 1)); }
+float TransmissionSgTable::sine_at(int i) {
+  const int half = (kSineNodes - 1) / 2;
+  if (i <= half) {
+    const float t = float(i) / half;
+    return 1.0f - (1.0f - t) * (1.0f - t);
+  }
+  const float t = float(i - half) / half;
+  return 1.0f + (kSineMax - 1.0f) * t * t;
+}
+
+namespace {
+// Continuous node coordinate of the Snell sine x (inverse of sine_at).
+float sine_coordinate(float x) {
+  const int half = (TransmissionSgTable::kSineNodes - 1) / 2;
+  x = std::clamp(x, 0.0f, TransmissionSgTable::kSineMax);
+  if (x <= 1.0f) return (1.0f - std::sqrt(1.0f - x)) * half;
+  return (1.0f + std::sqrt((x - 1.0f) / (TransmissionSgTable::kSineMax - 1.0f))) * half;
+}
+}  // namespace
+
 float TransmissionSgTable::roughness_at(int j) {
   return std::exp(std::log(kRoughnessMin) * (1.0f - float(j) / (kRoughnessNodes - 1)));
 }
 float TransmissionSgTable::ior_at(int k) { return kIorMin + (kIorMax - kIorMin) * k / (kIorNodes - 1); }
 
-TransmissionSgTable::TransmissionSgTable() : nodes_(size_t(2) * kThetaNodes * kRoughnessNodes * kIorNodes) {
+TransmissionSgTable::TransmissionSgTable() : nodes_(size_t(kThetaNodes + kSineNodes) * kRoughnessNodes * kIorNodes) {
   const unsigned workers = std::max(1u, std::thread::hardware_concurrency());
   std::vector<std::thread> threads;
   for (unsigned w = 0; w < workers; ++w)
     threads.emplace_back([this, w, workers] {
       for (size_t idx = w; idx < nodes_.size(); idx += workers) {
         const int k = int(idx % kIorNodes), j = int(idx / kIorNodes % kRoughnessNodes);
-        const int i = int(idx / (size_t(kIorNodes) * kRoughnessNodes) % kThetaNodes);
-        const int side = int(idx / (size_t(kIorNodes) * kRoughnessNodes * kThetaNodes));
+        const int first = int(idx / (size_t(kIorNodes) * kRoughnessNodes));  // theta nodes, then sine nodes
+        const int side = first < kThetaNodes ? 0 : 1;
         const float ior = ior_at(k);
-        nodes_[idx] = fit_transmission_lobe(std::cos(theta_at(i)), side == 0 ? ior : 1.0f / ior, roughness_at(j));
+        float cos_theta;
+        if (side == 0) {
+          cos_theta = std::cos(theta_at(first));
+        } else {
+          const float sin_max = std::sin(float(kThetaMaxDeg * kDegToRad));
+          const float sin_theta = std::min(sine_at(first - kThetaNodes) / ior, sin_max);
+          cos_theta = std::sqrt(1.0f - sin_theta * sin_theta);
+        }
+        nodes_[idx] = fit_transmission_lobe(cos_theta, side == 0 ? ior : 1.0f / ior, roughness_at(j));
       }
     });
   for (auto &t : threads) t.join();
@@ -206,7 +241,8 @@ bool TransmissionSgTable::lookup(float cos_theta_i, float eta, float roughness, 
   if (!(ior >= kIorMin && ior <= kIorMax && roughness >= kRoughnessMin && roughness <= 1.0f)) return false;
   if (!(theta <= float(kThetaMaxDeg * kDegToRad))) return false;
   // Continuous grid coordinates and their cells.
-  const float ct = theta / float(kThetaMaxDeg * kDegToRad) * (kThetaNodes - 1);
+  const float ct = side == 0 ? theta / float(kThetaMaxDeg * kDegToRad) * (kThetaNodes - 1)
+                             : sine_coordinate(ior * std::sin(theta));
   const float cr = (1.0f - std::log(roughness) / std::log(kRoughnessMin)) * (kRoughnessNodes - 1);
   const float ck = (ior - kIorMin) / (kIorMax - kIorMin) * (kIorNodes - 1);
   auto cell = [](float c, int nodes, int &i0, float &t) {
@@ -215,7 +251,7 @@ bool TransmissionSgTable::lookup(float cos_theta_i, float eta, float roughness, 
   };
   int i0, j0, k0;
   float ti, tj, tk;
-  cell(ct, kThetaNodes, i0, ti);
+  cell(ct, first_nodes(side), i0, ti);
   cell(cr, kRoughnessNodes, j0, tj);
   cell(ck, kIorNodes, k0, tk);
   TransmissionLobe acc;
