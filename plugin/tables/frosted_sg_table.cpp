@@ -3,12 +3,17 @@
 #include "tables/frosted_sg_table.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
 #include <mutex>
 #include <thread>
 
 #include "core/dielectric_lobe.h"
 #include "core/microfacet_lobe_params.h"
+#include "glimmer/cache_blob.h"
 #include "glimmer/microfacet.h"
 
 namespace glimmer::plugin::frosted {
@@ -205,33 +210,182 @@ float TransmissionSgTable::roughness_at(int j) {
 }
 float TransmissionSgTable::ior_at(int k) { return kIorMin + (kIorMax - kIorMin) * k / (kIorNodes - 1); }
 
-TransmissionSgTable::TransmissionSgTable() : nodes_(size_t(kThetaNodes + kSineNodes) * kRoughnessNodes * kIorNodes) {
+TransmissionLobe TransmissionSgTable::fit_node(size_t idx) const {
+  const int k = int(idx % kIorNodes), j = int(idx / kIorNodes % kRoughnessNodes);
+  const int first = int(idx / (size_t(kIorNodes) * kRoughnessNodes));  // theta nodes, then sine nodes
+  const int side = first < kThetaNodes ? 0 : 1;
+  const float ior = ior_at(k);
+  float cos_theta;
+  if (side == 0) {
+    cos_theta = std::cos(theta_at(first));
+  } else {
+    const float sin_max = std::sin(float(kThetaMaxDeg * kDegToRad));
+    const float sin_theta = std::min(sine_at(first - kThetaNodes) / ior, sin_max);
+    cos_theta = std::sqrt(1.0f - sin_theta * sin_theta);
+  }
+  return fit_transmission_lobe(cos_theta, side == 0 ? ior : 1.0f / ior, roughness_at(j));
+}
+
+TransmissionSgTable::TransmissionSgTable(Empty) : nodes_(size_t(kThetaNodes + kSineNodes) * kRoughnessNodes * kIorNodes) {}
+
+TransmissionSgTable::TransmissionSgTable() : TransmissionSgTable(Empty{}) {
   const unsigned workers = std::max(1u, std::thread::hardware_concurrency());
   std::vector<std::thread> threads;
   for (unsigned w = 0; w < workers; ++w)
     threads.emplace_back([this, w, workers] {
-      for (size_t idx = w; idx < nodes_.size(); idx += workers) {
-        const int k = int(idx % kIorNodes), j = int(idx / kIorNodes % kRoughnessNodes);
-        const int first = int(idx / (size_t(kIorNodes) * kRoughnessNodes));  // theta nodes, then sine nodes
-        const int side = first < kThetaNodes ? 0 : 1;
-        const float ior = ior_at(k);
-        float cos_theta;
-        if (side == 0) {
-          cos_theta = std::cos(theta_at(first));
-        } else {
-          const float sin_max = std::sin(float(kThetaMaxDeg * kDegToRad));
-          const float sin_theta = std::min(sine_at(first - kThetaNodes) / ior, sin_max);
-          cos_theta = std::sqrt(1.0f - sin_theta * sin_theta);
-        }
-        nodes_[idx] = fit_transmission_lobe(cos_theta, side == 0 ? ior : 1.0f / ior, roughness_at(j));
-      }
+      for (size_t idx = w; idx < nodes_.size(); idx += workers) nodes_[idx] = fit_node(idx);
     });
   for (auto &t : threads) t.join();
 }
 
-const TransmissionSgTable &TransmissionSgTable::get() {
-  static const TransmissionSgTable table;  // thread-safe lazy construction
+bool TransmissionSgTable::operator==(const TransmissionSgTable &o) const {
+  if (nodes_.size() != o.nodes_.size()) return false;
+  for (size_t i = 0; i < nodes_.size(); ++i)
+    if (nodes_[i].energy != o.nodes_[i].energy || nodes_[i].log_sharpness != o.nodes_[i].log_sharpness ||
+        nodes_[i].axis_offset != o.nodes_[i].axis_offset)
+      return false;
+  return true;
+}
+
+// ---- Disk cache ----
+namespace {
+
+constexpr char kCacheMagic[8] = {'G', 'L', 'M', 'F', 'R', 'S', 'G', 'T'};
+constexpr uint32_t kCacheFormat = 1;
+// Bump when the fit itself changes (the grid and fit constants are hashed below).
+constexpr uint32_t kFitVersion = 2;  // 2: leaving side over the Snell sine, axis as a sine offset
+
+uint64_t fnv1a(const void *data, size_t size, uint64_t h = 1469598103934665603ull) {
+  const auto *p = static_cast<const unsigned char *>(data);
+  for (size_t i = 0; i < size; ++i) {
+    h ^= p[i];
+    h *= 1099511628211ull;
+  }
+  return h;
+}
+
+uint64_t cache_key() {
+  using T = TransmissionSgTable;
+  const float grid[] = {float(T::kThetaNodes), T::kThetaMaxDeg,      float(T::kSineNodes), T::kSineMax,
+                        float(T::kRoughnessNodes), T::kRoughnessMin, float(T::kIorNodes),  T::kIorMin,
+                        T::kIorMax,                float(kFitStrata), float(int(kTableFit)), float(kFitVersion)};
+  uint64_t h = fnv1a(kCacheMagic, sizeof(kCacheMagic));
+  h = fnv1a(&kCacheFormat, sizeof(kCacheFormat), h);
+  return fnv1a(grid, sizeof(grid), h);
+}
+
+}  // namespace
+
+std::string TransmissionSgTable::cache_path(const std::string &cache_dir) {
+  char name[64];
+  std::snprintf(name, sizeof(name), "frosted_sg_%016llx.bin", static_cast<unsigned long long>(cache_key()));
+  return (std::filesystem::path(cache_dir) / name).string();
+}
+
+// File: magic, format, key, node count, then (E, ln kappa, axis offset) per node, then the MAC (cache_blob.h).
+std::string TransmissionSgTable::save(const std::string &path) const {
+  std::vector<unsigned char> bytes;
+  auto put = [&](const void *p, size_t n) {
+    const auto *c = static_cast<const unsigned char *>(p);
+    bytes.insert(bytes.end(), c, c + n);
+  };
+  const uint64_t key = cache_key(), count = nodes_.size();
+  put(kCacheMagic, sizeof(kCacheMagic));
+  put(&kCacheFormat, sizeof(kCacheFormat));
+  put(&key, sizeof(key));
+  put(&count, sizeof(count));
+  for (const TransmissionLobe &n : nodes_) {
+    put(&n.energy, sizeof(float));
+    put(&n.log_sharpness, sizeof(float));
+    put(&n.axis_offset, sizeof(float));
+  }
+  return write_cache_blob(path, std::move(bytes));
+}
+
+std::array<std::array<int, 3>, 16> TransmissionSgTable::check_nodes() {
+  std::array<std::array<int, 3>, 16> nodes{};
+  const int firsts = kThetaNodes + kSineNodes;
+  for (int n = 0; n < 16; ++n)  // spread over both sides, every roughness and ior range
+    nodes[n] = {(n * 37 + 5) % firsts, (n * 11 + 3) % kRoughnessNodes, (n * 5 + 1) % kIorNodes};
+  return nodes;
+}
+
+std::unique_ptr<TransmissionSgTable> TransmissionSgTable::load(const std::string &path, std::string &problem) {
+  std::vector<unsigned char> bytes;
+  problem = read_cache_blob(path, bytes);
+  if (!problem.empty()) return nullptr;
+  auto table = std::unique_ptr<TransmissionSgTable>(new TransmissionSgTable(Empty{}));
+  size_t pos = 0;
+  auto get = [&](void *p, size_t n) {
+    if (pos + n > bytes.size()) return false;
+    std::memcpy(p, bytes.data() + pos, n);
+    pos += n;
+    return true;
+  };
+  char magic[8];
+  uint32_t format = 0;
+  uint64_t key = 0, count = 0;
+  if (!get(magic, 8) || std::memcmp(magic, kCacheMagic, 8) != 0 || !get(&format, 4) || format != kCacheFormat ||
+      !get(&key, 8) || key != cache_key() || !get(&count, 8) || count != table->nodes_.size()) {
+    problem = "bad header (not a frosted SG table of this grid and fit)";
+    return nullptr;
+  }
+  for (TransmissionLobe &n : table->nodes_)
+    if (!get(&n.energy, 4) || !get(&n.log_sharpness, 4) || !get(&n.axis_offset, 4)) {
+      problem = "truncated";
+      return nullptr;
+    }
+  if (pos != bytes.size()) {
+    problem = "trailing bytes";
+    return nullptr;
+  }
+  for (const TransmissionLobe &n : table->nodes_)
+    if (!std::isfinite(n.energy) || !std::isfinite(n.log_sharpness) || !std::isfinite(n.axis_offset) ||
+        n.energy < 0.0f || n.energy > 1.1f || std::fabs(n.axis_offset) > 3.2f) {
+      problem = "non-finite or out-of-range values";
+      return nullptr;
+    }
+  for (const auto &c : check_nodes()) {
+    const size_t idx = (size_t(c[0]) * kRoughnessNodes + c[1]) * kIorNodes + c[2];
+    const TransmissionLobe fit = table->fit_node(idx), &stored = table->nodes_[idx];
+    if (std::fabs(fit.energy - stored.energy) > 1e-4f || std::fabs(fit.log_sharpness - stored.log_sharpness) > 1e-3f ||
+        std::fabs(fit.axis_offset - stored.axis_offset) > 1e-4f) {
+      problem = "node " + std::to_string(idx) + " differs from its fit";
+      return nullptr;
+    }
+  }
+  table->loaded_from_cache_ = true;
   return table;
+}
+
+const TransmissionSgTable &TransmissionSgTable::get(const GlimmerHostServices *host) {
+  static std::mutex mutex;
+  static std::unique_ptr<TransmissionSgTable> table;
+  std::lock_guard<std::mutex> lock(mutex);
+  if (table) return *table;
+  auto log = [&](int level, const std::string &msg) {
+    if (host != nullptr && host->log != nullptr) host->log(host->host_data, level, msg.c_str());
+  };
+  const bool use_cache = host != nullptr && host->cache_dir != nullptr && host->cache_dir[0] != '\0';
+  const std::string path = use_cache ? cache_path(host->cache_dir) : std::string();
+  if (use_cache) {
+    std::string problem;
+    table = load(path, problem);
+    if (!table && problem != "missing")
+      log(GLIMMER_LOG_WARNING, "frosted_glass: cached SG table " + path + " is unusable (" + problem + "); rebuilding");
+  }
+  if (!table) {
+    const auto t0 = std::chrono::steady_clock::now();
+    table = std::make_unique<TransmissionSgTable>();
+    char msg[160];
+    std::snprintf(msg, sizeof(msg), "frosted_glass: built the SG transmission table (%zu lobes) in %.1f s",
+                  table->nodes_.size(), std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+    log(GLIMMER_LOG_INFO, msg);
+    if (use_cache)
+      if (const std::string problem = table->save(path); !problem.empty())
+        log(GLIMMER_LOG_WARNING, "frosted_glass: SG table cache not written: " + problem);
+  }
+  return *table;
 }
 
 bool TransmissionSgTable::lookup(float cos_theta_i, float eta, float roughness, TransmissionLobe &out) const {

@@ -36,14 +36,20 @@
 // theta_i) and leaving (eta = 1 / ior; first coordinate the Snell sine x, so
 // that the onset of TIR, x = 1, is one fixed node for every ior and the lobe
 // changes slowly along ior at fixed x): built lazily on first use (once per
-// process, thread-safe), in memory; trilinear lookups. Grid: see kThetaNodes
-// etc. below.
+// process, thread-safe; 25-70 s on the shared 2-core machine) and cached on
+// disk like the glint tables (host->cache_dir, file keyed by the grid and the
+// fit; HMAC-authenticated, then validated: sizes, finite values, energies in
+// [0, 1.1], and 16 nodes re-fitted and compared; an unusable entry is rebuilt
+// with a warning); trilinear lookups. Grid: see kThetaNodes etc. below.
 #pragma once
 
 #include <array>
 #include <cstdint>
+#include <memory>
+#include <string>
 #include <vector>
 
+#include "glimmer/closure_abi.h"
 #include "glimmer/math.h"
 
 namespace glimmer::plugin::frosted {
@@ -113,8 +119,18 @@ class TransmissionSgTable {
   static constexpr int kIorNodes = 14;         // ior in [1.2, 2.5], uniform
   static constexpr float kIorMin = 1.2f, kIorMax = 2.5f;
 
-  // The process-wide table, built on first call.
-  static const TransmissionSgTable &get();
+  // The process-wide table, loaded from host->cache_dir or built (and saved
+  // there) on the first call; host may be NULL (no cache, no log).
+  static const TransmissionSgTable &get(const GlimmerHostServices *host = nullptr);
+
+  // The disk cache (get() uses these): the entry's file name in `cache_dir`,
+  // save (returns "" or why not), and load (nullptr with `problem` set when
+  // missing, corrupt, for another grid or fit, or failing validation).
+  static std::string cache_path(const std::string &cache_dir);
+  std::string save(const std::string &path) const;
+  static std::unique_ptr<TransmissionSgTable> load(const std::string &path, std::string &problem);
+  bool loaded_from_cache() const { return loaded_from_cache_; }
+  bool operator==(const TransmissionSgTable &o) const;
 
   // Interpolated lobe for relative IOR eta (> 1 entering, < 1 leaving); false
   // when ior = max(eta, 1 / eta) or roughness lies outside the grid (the caller
@@ -137,6 +153,12 @@ class TransmissionSgTable {
   const TransmissionLobe &node(int side, int i, int j, int k) const { return nodes_[index(side, i, j, k)]; }
   // [side 0: entering, theta][roughness][ior] then [side 1: leaving, Snell sine][roughness][ior]
   std::vector<TransmissionLobe> nodes_;
+  bool loaded_from_cache_ = false;
+  struct Empty {};
+  explicit TransmissionSgTable(Empty);  // no nodes built (load fills them)
+  // Where validation refits nodes: (first coordinate index over both sides, roughness, ior).
+  static std::array<std::array<int, 3>, 16> check_nodes();
+  TransmissionLobe fit_node(size_t idx) const;
 };
 
 }  // namespace glimmer::plugin::frosted
