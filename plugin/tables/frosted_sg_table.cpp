@@ -35,23 +35,54 @@ DielectricLobe interface_lobe(float eta, float roughness) {
 // Calls visit(wo, weight, g) for each transmitted direction of the BTDF's
 // visible-normal sampling on a strata x strata midpoint grid: weight = g / p,
 // p the density of wo, so that Int h g = mean over the grid of h(wo) weight.
+// A cell whose corners disagree on whether the path transmits (total internal
+// reflection at the facet, or wo above the interface) holds the edge of the
+// lobe, where g has a square-root kink (Fresnel at the critical angle): it is
+// integrated on a kEdgeRefine^2 sub-grid instead of its midpoint. Without this
+// the sums jumped whenever a midpoint crossed the edge as theta_i, eta or the
+// roughness changed, and the table's interpolation failed on the leaving side.
+inline constexpr int kEdgeRefine = 8;
+
 template <typename Visit>
 void for_each_transmitted(const Vec3 &wi, float eta, float roughness, int strata, Visit &&visit) {
   namespace mf = glimmer::microfacet;
   const DielectricLobe lobe = interface_lobe(eta, roughness);
+  auto transmits = [&](float u1, float u2, Vec3 &m, Vec3 &wo) {
+    m = mf::sample_visible_normal(lobe.dist, wi, lobe.ax, lobe.ay, u1, u2);
+    return mf::refract(wi, m, eta, wo) && wo.z < 0.0f;
+  };
+  auto point = [&](float u1, float u2, double scale) {
+    Vec3 m, wo;
+    if (!transmits(u1, u2, m, wo)) return;  // TIR at this microfacet, or wo above the interface
+    wo = normalize(wo);
+    const LocalEval e = lobe.eval_local(wi, wo, eta);
+    // e.pdf = (1 - F) p(wo): the transmitted share of the sampling density.
+    const float F = mf::fresnel_dielectric(dot(wi, m), eta);
+    const double p = double(e.pdf) / std::max(1.0 - double(F), 1e-12);
+    if (!(p > 0.0) || !(e.f_cos.x > 0.0f)) return;
+    visit(wo, scale * double(e.f_cos.x) / p, double(e.f_cos.x));
+  };
+  // Transmission at the grid's corners (u = a / strata, clamped inside the unit square).
+  std::vector<char> corner(size_t(strata + 1) * (strata + 1));
+  for (int a = 0; a <= strata; ++a)
+    for (int b = 0; b <= strata; ++b) {
+      Vec3 m, wo;
+      const float u1 = std::clamp(float(a) / strata, 1e-6f, 1.0f - 1e-6f);
+      const float u2 = std::clamp(float(b) / strata, 1e-6f, 1.0f - 1e-6f);
+      corner[size_t(a) * (strata + 1) + b] = transmits(u1, u2, m, wo) ? 1 : 0;
+    }
   for (int a = 0; a < strata; ++a)
     for (int b = 0; b < strata; ++b) {
-      const float u1 = (a + 0.5f) / strata, u2 = (b + 0.5f) / strata;
-      const Vec3 m = mf::sample_visible_normal(lobe.dist, wi, lobe.ax, lobe.ay, u1, u2);
-      Vec3 wo;
-      if (!mf::refract(wi, m, eta, wo) || !(wo.z < 0.0f)) continue;  // TIR at this microfacet
-      wo = normalize(wo);
-      const LocalEval e = lobe.eval_local(wi, wo, eta);
-      // e.pdf = (1 - F) p(wo): the transmitted share of the sampling density.
-      const float F = mf::fresnel_dielectric(dot(wi, m), eta);
-      const double p = double(e.pdf) / std::max(1.0 - double(F), 1e-12);
-      if (!(p > 0.0) || !(e.f_cos.x > 0.0f)) continue;
-      visit(wo, double(e.f_cos.x) / p, double(e.f_cos.x));
+      auto c = [&](int da, int db) { return corner[size_t(a + da) * (strata + 1) + (b + db)]; };
+      const bool edge = c(0, 0) != c(1, 0) || c(0, 0) != c(0, 1) || c(0, 0) != c(1, 1);
+      if (!edge) {
+        point((a + 0.5f) / strata, (b + 0.5f) / strata, 1.0);
+        continue;
+      }
+      for (int sa = 0; sa < kEdgeRefine; ++sa)
+        for (int sb = 0; sb < kEdgeRefine; ++sb)
+          point((a + (sa + 0.5f) / kEdgeRefine) / strata, (b + (sb + 0.5f) / kEdgeRefine) / strata,
+                1.0 / (kEdgeRefine * kEdgeRefine));
     }
 }
 
@@ -253,7 +284,7 @@ namespace {
 constexpr char kCacheMagic[8] = {'G', 'L', 'M', 'F', 'R', 'S', 'G', 'T'};
 constexpr uint32_t kCacheFormat = 1;
 // Bump when the fit itself changes (the grid and fit constants are hashed below).
-constexpr uint32_t kFitVersion = 2;  // 2: leaving side over the Snell sine, axis as a sine offset
+constexpr uint32_t kFitVersion = 3;  // 2: leaving side over the Snell sine, axis as a sine offset; 3: edge refinement
 
 uint64_t fnv1a(const void *data, size_t size, uint64_t h = 1469598103934665603ull) {
   const auto *p = static_cast<const unsigned char *>(data);
@@ -399,24 +430,35 @@ bool TransmissionSgTable::lookup(float cos_theta_i, float eta, float roughness, 
                              : sine_coordinate(ior * std::sin(theta));
   const float cr = (1.0f - std::log(roughness) / std::log(kRoughnessMin)) * (kRoughnessNodes - 1);
   const float ck = (ior - kIorMin) / (kIorMax - kIorMin) * (kIorNodes - 1);
-  auto cell = [](float c, int nodes, int &i0, float &t) {
-    i0 = std::clamp(int(std::floor(c)), 0, nodes - 2);
-    t = std::clamp(c - float(i0), 0.0f, 1.0f);
+  // Catmull-Rom weights of the 4 nodes around c on each axis (indices clamped at the ends).
+  struct Taps {
+    int index[4];
+    float weight[4];
   };
-  int i0, j0, k0;
-  float ti, tj, tk;
-  cell(ct, first_nodes(side), i0, ti);
-  cell(cr, kRoughnessNodes, j0, tj);
-  cell(ck, kIorNodes, k0, tk);
+  auto taps = [](float c, int nodes) {
+    const int i0 = std::clamp(int(std::floor(c)), 0, nodes - 2);
+    const float t = std::clamp(c - float(i0), 0.0f, 1.0f), t2 = t * t, t3 = t2 * t;
+    Taps k;
+    const float w[4] = {0.5f * (-t3 + 2 * t2 - t), 0.5f * (3 * t3 - 5 * t2 + 2), 0.5f * (-3 * t3 + 4 * t2 + t),
+                        0.5f * (t3 - t2)};
+    for (int n = 0; n < 4; ++n) {
+      k.index[n] = std::clamp(i0 - 1 + n, 0, nodes - 1);
+      k.weight[n] = w[n];
+    }
+    return k;
+  };
+  const Taps a = taps(ct, first_nodes(side)), b = taps(cr, kRoughnessNodes), c = taps(ck, kIorNodes);
   TransmissionLobe acc;
-  for (int c = 0; c < 8; ++c) {
-    const int di = c & 1, dj = (c >> 1) & 1, dk = (c >> 2) & 1;
-    const float w = (di ? ti : 1 - ti) * (dj ? tj : 1 - tj) * (dk ? tk : 1 - tk);
-    const TransmissionLobe &n = node(side, i0 + di, j0 + dj, k0 + dk);
-    acc.energy += w * n.energy;
-    acc.log_sharpness += w * n.log_sharpness;
-    acc.axis_offset += w * n.axis_offset;
-  }
+  for (int x = 0; x < 4; ++x)
+    for (int y = 0; y < 4; ++y)
+      for (int z = 0; z < 4; ++z) {
+        const float w = a.weight[x] * b.weight[y] * c.weight[z];
+        const TransmissionLobe &n = node(side, a.index[x], b.index[y], c.index[z]);
+        acc.energy += w * n.energy;
+        acc.log_sharpness += w * n.log_sharpness;
+        acc.axis_offset += w * n.axis_offset;
+      }
+  acc.energy = std::max(acc.energy, 0.0f);  // the cubic may undershoot where the energy falls to 0 (TIR)
   out = acc;
   return true;
 }
