@@ -216,23 +216,29 @@ double transmission_fit_error(float cos_theta_i, float eta, float roughness, con
 }
 
 float TransmissionSgTable::theta_at(int i) { return float(kThetaMaxDeg * kDegToRad * i / (kThetaNodes - 1)); }
-float TransmissionSgTable::sine_at(int i) {
+namespace {
+// The largest Snell sine of the leaving table at this ior (theta_i = 89.5 deg).
+float sine_max(float ior) { return ior * std::sin(float(TransmissionSgTable::kThetaMaxDeg * kDegToRad)); }
+}  // namespace
+
+float TransmissionSgTable::sine_at(int i, float ior) {
   const int half = (kSineNodes - 1) / 2;
   if (i <= half) {
     const float t = float(i) / half;
     return 1.0f - (1.0f - t) * (1.0f - t);
   }
   const float t = float(i - half) / half;
-  return 1.0f + (kSineMax - 1.0f) * t * t;
+  return 1.0f + (sine_max(ior) - 1.0f) * t * t;
 }
 
 namespace {
-// Continuous node coordinate of the Snell sine x (inverse of sine_at).
-float sine_coordinate(float x) {
+// Continuous node coordinate of the Snell sine x at this ior (inverse of sine_at).
+float sine_coordinate(float x, float ior) {
   const int half = (TransmissionSgTable::kSineNodes - 1) / 2;
-  x = std::clamp(x, 0.0f, TransmissionSgTable::kSineMax);
+  const float top = sine_max(ior);
+  x = std::clamp(x, 0.0f, top);
   if (x <= 1.0f) return (1.0f - std::sqrt(1.0f - x)) * half;
-  return (1.0f + std::sqrt((x - 1.0f) / (TransmissionSgTable::kSineMax - 1.0f))) * half;
+  return (1.0f + std::sqrt((x - 1.0f) / (top - 1.0f))) * half;
 }
 }  // namespace
 
@@ -251,7 +257,7 @@ TransmissionLobe TransmissionSgTable::fit_node(size_t idx) const {
     cos_theta = std::cos(theta_at(first));
   } else {
     const float sin_max = std::sin(float(kThetaMaxDeg * kDegToRad));
-    const float sin_theta = std::min(sine_at(first - kThetaNodes) / ior, sin_max);
+    const float sin_theta = std::min(sine_at(first - kThetaNodes, ior) / ior, sin_max);
     cos_theta = std::sqrt(1.0f - sin_theta * sin_theta);
   }
   return fit_transmission_lobe(cos_theta, side == 0 ? ior : 1.0f / ior, roughness_at(j));
@@ -284,7 +290,8 @@ namespace {
 constexpr char kCacheMagic[8] = {'G', 'L', 'M', 'F', 'R', 'S', 'G', 'T'};
 constexpr uint32_t kCacheFormat = 1;
 // Bump when the fit itself changes (the grid and fit constants are hashed below).
-constexpr uint32_t kFitVersion = 3;  // 2: leaving side over the Snell sine, axis as a sine offset; 3: edge refinement
+constexpr uint32_t kFitVersion = 4;  // 2: leaving side over the Snell sine, axis as a sine offset; 3: edge refinement;
+                                     // 4: the sine's upper segment ends at grazing for each ior
 
 uint64_t fnv1a(const void *data, size_t size, uint64_t h = 1469598103934665603ull) {
   const auto *p = static_cast<const unsigned char *>(data);
@@ -297,7 +304,7 @@ uint64_t fnv1a(const void *data, size_t size, uint64_t h = 1469598103934665603ul
 
 uint64_t cache_key() {
   using T = TransmissionSgTable;
-  const float grid[] = {float(T::kThetaNodes), T::kThetaMaxDeg,      float(T::kSineNodes), T::kSineMax,
+  const float grid[] = {float(T::kThetaNodes), T::kThetaMaxDeg,      float(T::kSineNodes),
                         float(T::kRoughnessNodes), T::kRoughnessMin, float(T::kIorNodes),  T::kIorMin,
                         T::kIorMax,                float(kFitStrata), float(int(kTableFit)), float(kFitVersion)};
   uint64_t h = fnv1a(kCacheMagic, sizeof(kCacheMagic));
@@ -427,7 +434,7 @@ bool TransmissionSgTable::lookup(float cos_theta_i, float eta, float roughness, 
   if (!(theta <= float(kThetaMaxDeg * kDegToRad))) return false;
   // Continuous grid coordinates and their cells.
   const float ct = side == 0 ? theta / float(kThetaMaxDeg * kDegToRad) * (kThetaNodes - 1)
-                             : sine_coordinate(ior * std::sin(theta));
+                             : sine_coordinate(ior * std::sin(theta), ior);
   const float cr = (1.0f - std::log(roughness) / std::log(kRoughnessMin)) * (kRoughnessNodes - 1);
   const float ck = (ior - kIorMin) / (kIorMax - kIorMin) * (kIorNodes - 1);
   // Catmull-Rom weights of the 4 nodes around c on each axis (indices clamped at the ends).

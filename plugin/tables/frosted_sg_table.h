@@ -111,11 +111,10 @@ class TransmissionSgTable {
  public:
   static constexpr int kThetaNodes = 61;       // entering: theta_i in [0, 89.5] degrees, uniform
   static constexpr float kThetaMaxDeg = 89.5f;
-  // Leaving: the Snell sine x = ior sin(theta_i) in [0, kSineMax] (nodes beyond ior sin(89.5 deg) hold the
-  // lobe at 89.5 deg); two quadratic segments, x = 1 - (1 - t)^2 on [0, 1] and 1 + (kSineMax - 1) t^2
+  // Leaving: the Snell sine x = ior sin(theta_i) in [0, x_max], x_max = ior sin(89.5 deg) (per ior, so that
+  // no node lies past grazing); two quadratic segments, x = 1 - (1 - t)^2 on [0, 1] and 1 + (x_max - 1) t^2
   // above, crowd the nodes at x = 1. Odd, so that x = 1 is a node.
   static constexpr int kSineNodes = 81;
-  static constexpr float kSineMax = 2.5f;
   static constexpr int kRoughnessNodes = 25;   // roughness in [0.04, 1], uniform in ln(roughness)
   static constexpr float kRoughnessMin = 0.04f;
   static constexpr int kIorNodes = 14;         // ior in [1.2, 2.5], uniform
@@ -141,7 +140,7 @@ class TransmissionSgTable {
 
   // Node coordinates (for the tests' off-grid points).
   static float theta_at(int i);
-  static float sine_at(int i);
+  static float sine_at(int i, float ior);
   static float roughness_at(int j);
   static float ior_at(int k);
 
