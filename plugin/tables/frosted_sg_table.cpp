@@ -293,23 +293,16 @@ constexpr uint32_t kCacheFormat = 1;
 constexpr uint32_t kFitVersion = 4;  // 2: leaving side over the Snell sine, axis as a sine offset; 3: edge refinement;
                                      // 4: the sine's upper segment ends at grazing for each ior
 
-uint64_t fnv1a(const void *data, size_t size, uint64_t h = 1469598103934665603ull) {
-  const auto *p = static_cast<const unsigned char *>(data);
-  for (size_t i = 0; i < size; ++i) {
-    h ^= p[i];
-    h *= 1099511628211ull;
-  }
-  return h;
-}
-
+// The first 8 bytes of SHA-256 over the format, the grid and the fit's constants.
 uint64_t cache_key() {
   using T = TransmissionSgTable;
-  const float grid[] = {float(T::kThetaNodes), T::kThetaMaxDeg,      float(T::kSineNodes),
-                        float(T::kRoughnessNodes), T::kRoughnessMin, float(T::kIorNodes),  T::kIorMin,
-                        T::kIorMax,                float(kFitStrata), float(int(kTableFit)), float(kFitVersion)};
-  uint64_t h = fnv1a(kCacheMagic, sizeof(kCacheMagic));
-  h = fnv1a(&kCacheFormat, sizeof(kCacheFormat), h);
-  return fnv1a(grid, sizeof(grid), h);
+  const float grid[] = {float(kCacheFormat),     float(T::kThetaNodes), T::kThetaMaxDeg,       float(T::kSineNodes),
+                        float(T::kRoughnessNodes), T::kRoughnessMin,    float(T::kIorNodes),   T::kIorMin,
+                        T::kIorMax,                float(kFitStrata),   float(int(kTableFit)), float(kFitVersion)};
+  const Digest256 d = sha256(grid, sizeof(grid));
+  uint64_t key;
+  std::memcpy(&key, d.data(), sizeof(key));
+  return key;
 }
 
 }  // namespace
@@ -353,13 +346,8 @@ std::unique_ptr<TransmissionSgTable> TransmissionSgTable::load(const std::string
   problem = read_cache_blob(path, bytes);
   if (!problem.empty()) return nullptr;
   auto table = std::unique_ptr<TransmissionSgTable>(new TransmissionSgTable(Empty{}));
-  size_t pos = 0;
-  auto get = [&](void *p, size_t n) {
-    if (pos + n > bytes.size()) return false;
-    std::memcpy(p, bytes.data() + pos, n);
-    pos += n;
-    return true;
-  };
+  ByteReader in{bytes};
+  auto get = [&](void *p, size_t n) { return in.get(p, n); };
   char magic[8];
   uint32_t format = 0;
   uint64_t key = 0, count = 0;
@@ -373,7 +361,7 @@ std::unique_ptr<TransmissionSgTable> TransmissionSgTable::load(const std::string
       problem = "truncated";
       return nullptr;
     }
-  if (pos != bytes.size()) {
+  if (!in.at_end()) {
     problem = "trailing bytes";
     return nullptr;
   }

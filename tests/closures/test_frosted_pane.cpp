@@ -100,6 +100,18 @@ struct Tally {
 
 constexpr long kBlocks = 64;
 
+// The per-block tallies and exit directions of n paths, merged.
+SlabResult gather(const std::vector<Tally> &tallies, const std::vector<std::vector<Vec3>> &exits, long n) {
+  Tally total;
+  SlabResult r;
+  for (long b = 0; b < kBlocks; ++b) {
+    total.merge(tallies[b]);
+    r.exits.insert(r.exits.end(), exits[b].begin(), exits[b].end());
+  }
+  total.finish(n / kBlocks * kBlocks, r);
+  return r;
+}
+
 // Brute force: paths through the slab, the solid closure at every interface.
 SlabResult trace_slab(const host::ClosureInstance &solid, const SlabHost &slab, const Vec3 &wi, long n, uint64_t seed,
                       bool keep_exits = false) {
@@ -129,14 +141,7 @@ SlabResult trace_slab(const host::ClosureInstance &solid, const SlabHost &slab, 
       }
     }
   });
-  Tally total;
-  SlabResult r;
-  for (long b = 0; b < kBlocks; ++b) {
-    total.merge(tallies[b]);
-    r.exits.insert(r.exits.end(), exits[b].begin(), exits[b].end());
-  }
-  total.finish(n / kBlocks * kBlocks, r);
-  return r;
+  return gather(tallies, exits, n);
 }
 
 // The thin closure's own sample weights, split by side.
@@ -157,14 +162,7 @@ SlabResult sample_pane(const host::ClosureInstance &pane, const Vec3 &wi, long n
       if (keep_exits) exits[b].push_back(Vec3(s.wo));
     }
   });
-  Tally total;
-  SlabResult r;
-  for (long b = 0; b < kBlocks; ++b) {
-    total.merge(tallies[b]);
-    r.exits.insert(r.exits.end(), exits[b].begin(), exits[b].end());
-  }
-  total.finish(n / kBlocks * kBlocks, r);
-  return r;
+  return gather(tallies, exits, n);
 }
 
 std::vector<std::string> material(float rough, float ior, const Vec3 &absorb, float distance, bool thin, float L) {

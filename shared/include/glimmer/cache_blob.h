@@ -6,6 +6,7 @@
 // its place. The payload's own format and validation are the caller's.
 #pragma once
 
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -54,5 +55,18 @@ inline std::string read_cache_blob(const std::string &path, std::vector<unsigned
   payload.resize(data_size);
   return "";
 }
+
+// Sequential reads from a payload; get() fails (false) past its end.
+struct ByteReader {
+  const std::vector<unsigned char> &bytes;
+  size_t pos = 0;
+  bool get(void *out, size_t n) {
+    if (pos + n > bytes.size()) return false;
+    std::memcpy(out, bytes.data() + pos, n);
+    pos += n;
+    return true;
+  }
+  bool at_end() const { return pos == bytes.size(); }
+};
 
 }  // namespace glimmer
