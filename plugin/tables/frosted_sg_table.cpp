@@ -3,12 +3,17 @@
 #include "tables/frosted_sg_table.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
 #include <mutex>
 #include <thread>
 
 #include "core/dielectric_lobe.h"
 #include "core/microfacet_lobe_params.h"
+#include "glimmer/cache_blob.h"
 #include "glimmer/microfacet.h"
 
 namespace glimmer::plugin::frosted {
@@ -30,23 +35,54 @@ DielectricLobe interface_lobe(float eta, float roughness) {
 // Calls visit(wo, weight, g) for each transmitted direction of the BTDF's
 // visible-normal sampling on a strata x strata midpoint grid: weight = g / p,
 // p the density of wo, so that Int h g = mean over the grid of h(wo) weight.
+// A cell whose corners disagree on whether the path transmits (total internal
+// reflection at the facet, or wo above the interface) holds the edge of the
+// lobe, where g has a square-root kink (Fresnel at the critical angle): it is
+// integrated on a kEdgeRefine^2 sub-grid instead of its midpoint. Without this
+// the sums jumped whenever a midpoint crossed the edge as theta_i, eta or the
+// roughness changed, and the table's interpolation failed on the leaving side.
+inline constexpr int kEdgeRefine = 8;
+
 template <typename Visit>
 void for_each_transmitted(const Vec3 &wi, float eta, float roughness, int strata, Visit &&visit) {
   namespace mf = glimmer::microfacet;
   const DielectricLobe lobe = interface_lobe(eta, roughness);
+  auto transmits = [&](float u1, float u2, Vec3 &m, Vec3 &wo) {
+    m = mf::sample_visible_normal(lobe.dist, wi, lobe.ax, lobe.ay, u1, u2);
+    return mf::refract(wi, m, eta, wo) && wo.z < 0.0f;
+  };
+  auto point = [&](float u1, float u2, double scale) {
+    Vec3 m, wo;
+    if (!transmits(u1, u2, m, wo)) return;  // TIR at this microfacet, or wo above the interface
+    wo = normalize(wo);
+    const LocalEval e = lobe.eval_local(wi, wo, eta);
+    // e.pdf = (1 - F) p(wo): the transmitted share of the sampling density.
+    const float F = mf::fresnel_dielectric(dot(wi, m), eta);
+    const double p = double(e.pdf) / std::max(1.0 - double(F), 1e-12);
+    if (!(p > 0.0) || !(e.f_cos.x > 0.0f)) return;
+    visit(wo, scale * double(e.f_cos.x) / p, double(e.f_cos.x));
+  };
+  // Transmission at the grid's corners (u = a / strata, clamped inside the unit square).
+  std::vector<char> corner(size_t(strata + 1) * (strata + 1));
+  for (int a = 0; a <= strata; ++a)
+    for (int b = 0; b <= strata; ++b) {
+      Vec3 m, wo;
+      const float u1 = std::clamp(float(a) / strata, 1e-6f, 1.0f - 1e-6f);
+      const float u2 = std::clamp(float(b) / strata, 1e-6f, 1.0f - 1e-6f);
+      corner[size_t(a) * (strata + 1) + b] = transmits(u1, u2, m, wo) ? 1 : 0;
+    }
   for (int a = 0; a < strata; ++a)
     for (int b = 0; b < strata; ++b) {
-      const float u1 = (a + 0.5f) / strata, u2 = (b + 0.5f) / strata;
-      const Vec3 m = mf::sample_visible_normal(lobe.dist, wi, lobe.ax, lobe.ay, u1, u2);
-      Vec3 wo;
-      if (!mf::refract(wi, m, eta, wo) || !(wo.z < 0.0f)) continue;  // TIR at this microfacet
-      wo = normalize(wo);
-      const LocalEval e = lobe.eval_local(wi, wo, eta);
-      // e.pdf = (1 - F) p(wo): the transmitted share of the sampling density.
-      const float F = mf::fresnel_dielectric(dot(wi, m), eta);
-      const double p = double(e.pdf) / std::max(1.0 - double(F), 1e-12);
-      if (!(p > 0.0) || !(e.f_cos.x > 0.0f)) continue;
-      visit(wo, double(e.f_cos.x) / p, double(e.f_cos.x));
+      auto c = [&](int da, int db) { return corner[size_t(a + da) * (strata + 1) + (b + db)]; };
+      const bool edge = c(0, 0) != c(1, 0) || c(0, 0) != c(0, 1) || c(0, 0) != c(1, 1);
+      if (!edge) {
+        point((a + 0.5f) / strata, (b + 0.5f) / strata, 1.0);
+        continue;
+      }
+      for (int sa = 0; sa < kEdgeRefine; ++sa)
+        for (int sb = 0; sb < kEdgeRefine; ++sb)
+          point((a + (sa + 0.5f) / kEdgeRefine) / strata, (b + (sb + 0.5f) / kEdgeRefine) / strata,
+                1.0 / (kEdgeRefine * kEdgeRefine));
     }
 }
 
@@ -80,8 +116,13 @@ double sg_inner_product(const SphericalGaussian &g1, const SphericalGaussian &g2
 SphericalGaussian TransmissionLobe::sg(float cos_theta_i, float eta) const {
   SphericalGaussian g;
   const double theta_i = std::acos(std::clamp(double(cos_theta_i), 0.0, 1.0));
-  const double theta_axis = snell_angle(theta_i, eta) + axis_offset;
-  g.axis = Vec3(float(-std::sin(theta_axis)), 0.0f, float(-std::cos(theta_axis)));
+  if (eta >= 1.0f) {
+    const double theta_axis = snell_angle(theta_i, eta) + axis_offset;
+    g.axis = Vec3(float(-std::sin(theta_axis)), 0.0f, float(-std::cos(theta_axis)));
+  } else {
+    const double s = std::clamp(std::sin(theta_i) / eta + axis_offset, -1.0, 1.0);
+    g.axis = Vec3(float(-s), 0.0f, float(-std::sqrt(std::max(0.0, 1.0 - s * s))));
+  }
   g.sharpness = std::exp(log_sharpness);
   // a = E kappa / (2 pi (1 - exp(-2 kappa))): the SG's integral is the lobe's energy.
   const double k = g.sharpness;
@@ -125,7 +166,9 @@ TransmissionLobe fit_transmission_lobe(float cos_theta_i, float eta, float rough
   // Scale and mean: the lobe's energy and mean direction.
   const double len = std::sqrt(mx * mx + my * my + mz * mz) / energy;
   const double theta_i = std::acos(double(wi.z));
-  lobe.axis_offset = float(std::atan2(-mx, -mz) - snell_angle(theta_i, eta));
+  const double theta_axis = std::atan2(-mx, -mz);
+  lobe.axis_offset = eta >= 1.0f ? float(theta_axis - snell_angle(theta_i, eta))
+                                 : float(std::sin(theta_axis) - std::sin(theta_i) / eta);
   // Sharpness: the vMF match of the mean length (the variance)...
   const double kappa_moments = sharpness_from_mean_length(len);
   lobe.log_sharpness = float(std::log(kappa_moments));
@@ -173,30 +216,202 @@ double transmission_fit_error(float cos_theta_i, float eta, float roughness, con
 }
 
 float TransmissionSgTable::theta_at(int i) { return float(kThetaMaxDeg * kDegToRad * i / (kThetaNodes - 1)); }
+namespace {
+// The largest Snell sine of the leaving table at this ior (theta_i = 89.5 deg).
+float sine_max(float ior) { return ior * std::sin(float(TransmissionSgTable::kThetaMaxDeg * kDegToRad)); }
+}  // namespace
+
+float TransmissionSgTable::sine_at(int i, float ior) {
+  const int half = (kSineNodes - 1) / 2;
+  if (i <= half) {
+    const float t = float(i) / half;
+    return 1.0f - (1.0f - t) * (1.0f - t);
+  }
+  const float t = float(i - half) / half;
+  return 1.0f + (sine_max(ior) - 1.0f) * t * t;
+}
+
+namespace {
+// Continuous node coordinate of the Snell sine x at this ior (inverse of sine_at).
+float sine_coordinate(float x, float ior) {
+  const int half = (TransmissionSgTable::kSineNodes - 1) / 2;
+  const float top = sine_max(ior);
+  x = std::clamp(x, 0.0f, top);
+  if (x <= 1.0f) return (1.0f - std::sqrt(1.0f - x)) * half;
+  return (1.0f + std::sqrt((x - 1.0f) / (top - 1.0f))) * half;
+}
+}  // namespace
+
 float TransmissionSgTable::roughness_at(int j) {
   return std::exp(std::log(kRoughnessMin) * (1.0f - float(j) / (kRoughnessNodes - 1)));
 }
 float TransmissionSgTable::ior_at(int k) { return kIorMin + (kIorMax - kIorMin) * k / (kIorNodes - 1); }
 
-TransmissionSgTable::TransmissionSgTable() : nodes_(size_t(2) * kThetaNodes * kRoughnessNodes * kIorNodes) {
+TransmissionLobe TransmissionSgTable::fit_node(size_t idx) const {
+  const int k = int(idx % kIorNodes), j = int(idx / kIorNodes % kRoughnessNodes);
+  const int first = int(idx / (size_t(kIorNodes) * kRoughnessNodes));  // theta nodes, then sine nodes
+  const int side = first < kThetaNodes ? 0 : 1;
+  const float ior = ior_at(k);
+  float cos_theta;
+  if (side == 0) {
+    cos_theta = std::cos(theta_at(first));
+  } else {
+    const float sin_max = std::sin(float(kThetaMaxDeg * kDegToRad));
+    const float sin_theta = std::min(sine_at(first - kThetaNodes, ior) / ior, sin_max);
+    cos_theta = std::sqrt(1.0f - sin_theta * sin_theta);
+  }
+  return fit_transmission_lobe(cos_theta, side == 0 ? ior : 1.0f / ior, roughness_at(j));
+}
+
+TransmissionSgTable::TransmissionSgTable(Empty) : nodes_(size_t(kThetaNodes + kSineNodes) * kRoughnessNodes * kIorNodes) {}
+
+TransmissionSgTable::TransmissionSgTable() : TransmissionSgTable(Empty{}) {
   const unsigned workers = std::max(1u, std::thread::hardware_concurrency());
   std::vector<std::thread> threads;
   for (unsigned w = 0; w < workers; ++w)
     threads.emplace_back([this, w, workers] {
-      for (size_t idx = w; idx < nodes_.size(); idx += workers) {
-        const int k = int(idx % kIorNodes), j = int(idx / kIorNodes % kRoughnessNodes);
-        const int i = int(idx / (size_t(kIorNodes) * kRoughnessNodes) % kThetaNodes);
-        const int side = int(idx / (size_t(kIorNodes) * kRoughnessNodes * kThetaNodes));
-        const float ior = ior_at(k);
-        nodes_[idx] = fit_transmission_lobe(std::cos(theta_at(i)), side == 0 ? ior : 1.0f / ior, roughness_at(j));
-      }
+      for (size_t idx = w; idx < nodes_.size(); idx += workers) nodes_[idx] = fit_node(idx);
     });
   for (auto &t : threads) t.join();
 }
 
-const TransmissionSgTable &TransmissionSgTable::get() {
-  static const TransmissionSgTable table;  // thread-safe lazy construction
+bool TransmissionSgTable::operator==(const TransmissionSgTable &o) const {
+  if (nodes_.size() != o.nodes_.size()) return false;
+  for (size_t i = 0; i < nodes_.size(); ++i)
+    if (nodes_[i].energy != o.nodes_[i].energy || nodes_[i].log_sharpness != o.nodes_[i].log_sharpness ||
+        nodes_[i].axis_offset != o.nodes_[i].axis_offset)
+      return false;
+  return true;
+}
+
+// ---- Disk cache ----
+namespace {
+
+constexpr char kCacheMagic[8] = {'G', 'L', 'M', 'F', 'R', 'S', 'G', 'T'};
+constexpr uint32_t kCacheFormat = 1;
+// Bump when the fit itself changes (the grid and fit constants are hashed below).
+constexpr uint32_t kFitVersion = 4;  // 2: leaving side over the Snell sine, axis as a sine offset; 3: edge refinement;
+                                     // 4: the sine's upper segment ends at grazing for each ior
+
+// The first 8 bytes of SHA-256 over the format, the grid and the fit's constants.
+uint64_t cache_key() {
+  using T = TransmissionSgTable;
+  const float grid[] = {float(kCacheFormat),     float(T::kThetaNodes), T::kThetaMaxDeg,       float(T::kSineNodes),
+                        float(T::kRoughnessNodes), T::kRoughnessMin,    float(T::kIorNodes),   T::kIorMin,
+                        T::kIorMax,                float(kFitStrata),   float(int(kTableFit)), float(kFitVersion)};
+  const Digest256 d = sha256(grid, sizeof(grid));
+  uint64_t key;
+  std::memcpy(&key, d.data(), sizeof(key));
+  return key;
+}
+
+}  // namespace
+
+std::string TransmissionSgTable::cache_path(const std::string &cache_dir) {
+  char name[64];
+  std::snprintf(name, sizeof(name), "frosted_sg_%016llx.bin", static_cast<unsigned long long>(cache_key()));
+  return (std::filesystem::path(cache_dir) / name).string();
+}
+
+// File: magic, format, key, node count, then (E, ln kappa, axis offset) per node, then the MAC (cache_blob.h).
+std::string TransmissionSgTable::save(const std::string &path) const {
+  std::vector<unsigned char> bytes;
+  auto put = [&](const void *p, size_t n) {
+    const auto *c = static_cast<const unsigned char *>(p);
+    bytes.insert(bytes.end(), c, c + n);
+  };
+  const uint64_t key = cache_key(), count = nodes_.size();
+  put(kCacheMagic, sizeof(kCacheMagic));
+  put(&kCacheFormat, sizeof(kCacheFormat));
+  put(&key, sizeof(key));
+  put(&count, sizeof(count));
+  for (const TransmissionLobe &n : nodes_) {
+    put(&n.energy, sizeof(float));
+    put(&n.log_sharpness, sizeof(float));
+    put(&n.axis_offset, sizeof(float));
+  }
+  return write_cache_blob(path, std::move(bytes));
+}
+
+std::array<std::array<int, 3>, 16> TransmissionSgTable::check_nodes() {
+  std::array<std::array<int, 3>, 16> nodes{};
+  const int firsts = kThetaNodes + kSineNodes;
+  for (int n = 0; n < 16; ++n)  // spread over both sides, every roughness and ior range
+    nodes[n] = {(n * 37 + 5) % firsts, (n * 11 + 3) % kRoughnessNodes, (n * 5 + 1) % kIorNodes};
+  return nodes;
+}
+
+std::unique_ptr<TransmissionSgTable> TransmissionSgTable::load(const std::string &path, std::string &problem) {
+  std::vector<unsigned char> bytes;
+  problem = read_cache_blob(path, bytes);
+  if (!problem.empty()) return nullptr;
+  auto table = std::unique_ptr<TransmissionSgTable>(new TransmissionSgTable(Empty{}));
+  ByteReader in{bytes};
+  auto get = [&](void *p, size_t n) { return in.get(p, n); };
+  char magic[8];
+  uint32_t format = 0;
+  uint64_t key = 0, count = 0;
+  if (!get(magic, 8) || std::memcmp(magic, kCacheMagic, 8) != 0 || !get(&format, 4) || format != kCacheFormat ||
+      !get(&key, 8) || key != cache_key() || !get(&count, 8) || count != table->nodes_.size()) {
+    problem = "bad header (not a frosted SG table of this grid and fit)";
+    return nullptr;
+  }
+  for (TransmissionLobe &n : table->nodes_)
+    if (!get(&n.energy, 4) || !get(&n.log_sharpness, 4) || !get(&n.axis_offset, 4)) {
+      problem = "truncated";
+      return nullptr;
+    }
+  if (!in.at_end()) {
+    problem = "trailing bytes";
+    return nullptr;
+  }
+  for (const TransmissionLobe &n : table->nodes_)
+    if (!std::isfinite(n.energy) || !std::isfinite(n.log_sharpness) || !std::isfinite(n.axis_offset) ||
+        n.energy < 0.0f || n.energy > 1.1f || std::fabs(n.axis_offset) > 3.2f) {
+      problem = "non-finite or out-of-range values";
+      return nullptr;
+    }
+  for (const auto &c : check_nodes()) {
+    const size_t idx = (size_t(c[0]) * kRoughnessNodes + c[1]) * kIorNodes + c[2];
+    const TransmissionLobe fit = table->fit_node(idx), &stored = table->nodes_[idx];
+    if (std::fabs(fit.energy - stored.energy) > 1e-4f || std::fabs(fit.log_sharpness - stored.log_sharpness) > 1e-3f ||
+        std::fabs(fit.axis_offset - stored.axis_offset) > 1e-4f) {
+      problem = "node " + std::to_string(idx) + " differs from its fit";
+      return nullptr;
+    }
+  }
+  table->loaded_from_cache_ = true;
   return table;
+}
+
+const TransmissionSgTable &TransmissionSgTable::get(const GlimmerHostServices *host) {
+  static std::mutex mutex;
+  static std::unique_ptr<TransmissionSgTable> table;
+  std::lock_guard<std::mutex> lock(mutex);
+  if (table) return *table;
+  auto log = [&](int level, const std::string &msg) {
+    if (host != nullptr && host->log != nullptr) host->log(host->host_data, level, msg.c_str());
+  };
+  const bool use_cache = host != nullptr && host->cache_dir != nullptr && host->cache_dir[0] != '\0';
+  const std::string path = use_cache ? cache_path(host->cache_dir) : std::string();
+  if (use_cache) {
+    std::string problem;
+    table = load(path, problem);
+    if (!table && problem != "missing")
+      log(GLIMMER_LOG_WARNING, "frosted_glass: cached SG table " + path + " is unusable (" + problem + "); rebuilding");
+  }
+  if (!table) {
+    const auto t0 = std::chrono::steady_clock::now();
+    table = std::make_unique<TransmissionSgTable>();
+    char msg[160];
+    std::snprintf(msg, sizeof(msg), "frosted_glass: built the SG transmission table (%zu lobes) in %.1f s",
+                  table->nodes_.size(), std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+    log(GLIMMER_LOG_INFO, msg);
+    if (use_cache)
+      if (const std::string problem = table->save(path); !problem.empty())
+        log(GLIMMER_LOG_WARNING, "frosted_glass: SG table cache not written: " + problem);
+  }
+  return *table;
 }
 
 bool TransmissionSgTable::lookup(float cos_theta_i, float eta, float roughness, TransmissionLobe &out) const {
@@ -206,27 +421,39 @@ bool TransmissionSgTable::lookup(float cos_theta_i, float eta, float roughness, 
   if (!(ior >= kIorMin && ior <= kIorMax && roughness >= kRoughnessMin && roughness <= 1.0f)) return false;
   if (!(theta <= float(kThetaMaxDeg * kDegToRad))) return false;
   // Continuous grid coordinates and their cells.
-  const float ct = theta / float(kThetaMaxDeg * kDegToRad) * (kThetaNodes - 1);
+  const float ct = side == 0 ? theta / float(kThetaMaxDeg * kDegToRad) * (kThetaNodes - 1)
+                             : sine_coordinate(ior * std::sin(theta), ior);
   const float cr = (1.0f - std::log(roughness) / std::log(kRoughnessMin)) * (kRoughnessNodes - 1);
   const float ck = (ior - kIorMin) / (kIorMax - kIorMin) * (kIorNodes - 1);
-  auto cell = [](float c, int nodes, int &i0, float &t) {
-    i0 = std::clamp(int(std::floor(c)), 0, nodes - 2);
-    t = std::clamp(c - float(i0), 0.0f, 1.0f);
+  // Catmull-Rom weights of the 4 nodes around c on each axis (indices clamped at the ends).
+  struct Taps {
+    int index[4];
+    float weight[4];
   };
-  int i0, j0, k0;
-  float ti, tj, tk;
-  cell(ct, kThetaNodes, i0, ti);
-  cell(cr, kRoughnessNodes, j0, tj);
-  cell(ck, kIorNodes, k0, tk);
+  auto taps = [](float c, int nodes) {
+    const int i0 = std::clamp(int(std::floor(c)), 0, nodes - 2);
+    const float t = std::clamp(c - float(i0), 0.0f, 1.0f), t2 = t * t, t3 = t2 * t;
+    Taps k;
+    const float w[4] = {0.5f * (-t3 + 2 * t2 - t), 0.5f * (3 * t3 - 5 * t2 + 2), 0.5f * (-3 * t3 + 4 * t2 + t),
+                        0.5f * (t3 - t2)};
+    for (int n = 0; n < 4; ++n) {
+      k.index[n] = std::clamp(i0 - 1 + n, 0, nodes - 1);
+      k.weight[n] = w[n];
+    }
+    return k;
+  };
+  const Taps a = taps(ct, first_nodes(side)), b = taps(cr, kRoughnessNodes), c = taps(ck, kIorNodes);
   TransmissionLobe acc;
-  for (int c = 0; c < 8; ++c) {
-    const int di = c & 1, dj = (c >> 1) & 1, dk = (c >> 2) & 1;
-    const float w = (di ? ti : 1 - ti) * (dj ? tj : 1 - tj) * (dk ? tk : 1 - tk);
-    const TransmissionLobe &n = node(side, i0 + di, j0 + dj, k0 + dk);
-    acc.energy += w * n.energy;
-    acc.log_sharpness += w * n.log_sharpness;
-    acc.axis_offset += w * n.axis_offset;
-  }
+  for (int x = 0; x < 4; ++x)
+    for (int y = 0; y < 4; ++y)
+      for (int z = 0; z < 4; ++z) {
+        const float w = a.weight[x] * b.weight[y] * c.weight[z];
+        const TransmissionLobe &n = node(side, a.index[x], b.index[y], c.index[z]);
+        acc.energy += w * n.energy;
+        acc.log_sharpness += w * n.log_sharpness;
+        acc.axis_offset += w * n.axis_offset;
+      }
+  acc.energy = std::max(acc.energy, 0.0f);  // the cubic may undershoot where the energy falls to 0 (TIR)
   out = acc;
   return true;
 }

@@ -37,10 +37,15 @@ std::string num(float v) {
 Vec3 wi_at(float z, float phi = 0.7f) { return mftest::direction_from(z, phi); }
 
 // The class itself (raw outputs), from textual parameters.
-std::unique_ptr<FrostedGlassClosure> create_raw(float roughness, float ior, const Vec3 &color = Vec3(1.0f)) {
+// `thin` > 0: a pane of that thickness; `absorb`: the absorption colour at distance 1.
+std::unique_ptr<FrostedGlassClosure> create_raw(float roughness, float ior, const Vec3 &color = Vec3(1.0f),
+                                                float thin = 0.0f, const Vec3 &absorb = Vec3(1.0f)) {
   const GlimmerParamValue values[] = {{"roughness", {roughness, 0, 0}, nullptr},
                                       {"ior", {ior, 0, 0}, nullptr},
-                                      {"color", {color.x, color.y, color.z}, nullptr}};
+                                      {"color", {color.x, color.y, color.z}, nullptr},
+                                      {"absorption_color", {absorb.x, absorb.y, absorb.z}, nullptr},
+                                      {"thin", {thin > 0.0f ? 1.0f : 0.0f, 0, 0}, nullptr},
+                                      {"thickness", {thin > 0.0f ? thin : 0.01f, 0, 0}, nullptr}};
   ParamReader reader(FrostedGlassClosure::kName, FrostedGlassClosure::params(), values);
   return FrostedGlassClosure::create(reader);
 }
@@ -247,8 +252,21 @@ TEST(FrostedGlassPath, StressRawOutputsFiniteNonNegative) {
     const float rough = (i & 1) ? roughs[rng.next_u32() % 6] : rng.next_float();
     // A third of the pool is the TIR-heavy case: IOR 2.4 (and 1 / 2.4).
     const float ior = (i % 3 == 0) ? ((i & 2) ? 2.4f : 1.0f / 2.4f) : iors[rng.next_u32() % 8];
-    pool.push_back(create_raw(rough, ior, Vec3(rng.next_float(), 0.0f, 1.0f)));
+    // A quarter of the pool absorbs (colours down to 0), another quarter are thin panes (thickness 1e-6..1e6).
+    const Vec3 absorb = (i % 4 == 1) ? Vec3(rng.next_float(), 0.0f, 1e-6f) : Vec3(1.0f);
+    const float thicknesses[] = {1e-6f, 0.01f, 1.0f, 1e6f};
+    const float thin = (i % 4 == 2) ? thicknesses[rng.next_u32() % 4] : 0.0f;
+    pool.push_back(create_raw(rough, ior, Vec3(rng.next_float(), 0.0f, 1.0f), thin, absorb));
   }
+  // The host's trace_ray (Beer length of solids) returning odd distances too.
+  GlimmerHostServices odd_host = *host::default_host_services();
+  odd_host.trace_ray = [](void *, const GlimmerRay *ray, GlimmerRayHit *hit) {
+    const float ts[] = {0.0f, 1e-30f, 1e-3f, 1.0f, 1e30f, std::numeric_limits<float>::infinity(),
+                        std::numeric_limits<float>::quiet_NaN(), -1.0f};
+    const uint32_t h = hash_u32x2(std::bit_cast<uint32_t>(ray->direction.x), std::bit_cast<uint32_t>(ray->origin.z));
+    hit->t = ts[h % 8];
+    return int(h >> 31);
+  };
   // Per-point (varying) values, including out-of-range and non-finite ones the ABI must clamp/ignore.
   const auto schema = FrostedGlassClosure::params();
   auto index_of = [&](const char *name) {
@@ -267,7 +285,8 @@ TEST(FrostedGlassPath, StressRawOutputsFiniteNonNegative) {
     for (long i = 0; i < calls / blocks; ++i) {
       const FrostedGlassClosure &c = *pool[r.next_u32() % pool.size()];
       const bool grazing = (i % 4) == 0;
-      GlimmerShadingContext ctx = host::make_local_context(extreme_direction(r, grazing));
+      GlimmerShadingContext ctx = host::make_local_context(extreme_direction(r, grazing), &odd_host);
+      ctx.path_seed = r.next_u32();
       GlimmerVaryingValue varying[3] = {{rough_i, {odd[r.next_u32() % 8], 0, 0}},
                                         {ior_i, {odd[r.next_u32() % 8], 0, 0}},
                                         {color_i, {odd[r.next_u32() % 8], r.next_float(), 1.0f}}};
@@ -293,6 +312,8 @@ TEST(FrostedGlassPath, StressRawOutputsFiniteNonNegative) {
   EXPECT_EQ(bad_count.load(), 0);
   std::printf("[frosted stress] %ld eval + %ld successful sample calls (raw), 1/4 grazing, 1/3 of closures IOR 2.4: "
               "%ld bad\n", calls, samples.load(), bad_count.load());
+  std::printf("[frosted stress] the pool: 1/4 absorbing (host trace_ray returning 0, 1e-30, 1e30, inf, NaN, -1 "
+              "or a miss), 1/4 thin panes (thickness 1e-6..1e6)\n");
 }
 
 }  // namespace

@@ -8,7 +8,9 @@
 //    1.33..2.4 entering and leaving (reported: this is the SG model's error);
 //  - the table: interpolated lobe vs a direct fit at off-grid points (cell
 //    centres, the worst place for linear interpolation): relative L2 <= 1 %,
-//    with nearest-node lookup as the negative control.
+//    with nearest-node lookup as the negative control;
+//  - the table's disk cache: round trip bit for bit, and corrupt, truncated,
+//    crafted (valid MAC, wrong values) and foreign entries refused.
 // The table code comes from the plugin's objects (linked into this test).
 #include <gtest/gtest.h>
 #include <tbb/parallel_for.h>
@@ -16,6 +18,11 @@
 #include <algorithm>
 #include <numeric>
 #include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <unistd.h>
 #include <vector>
 
 #include "glimmer/rng.h"
@@ -169,10 +176,21 @@ TEST(FrostedSgFit, FitErrorOverTheRange) {
 }
 
 // NOT MET YET (issue 12 acceptance: <= 1 %): disabled so that it is visible as
-// such in every run (gtest lists disabled tests) rather than passing. Measured
-// (moment fits, 48^2 samples per node, grid 61 x 25 x 14 x 2): 2338 of 6254
-// cell-centre points above 1 %, mean relative L2 0.080, median of the failures
-// 0.030. Run it with --gtest_also_run_disabled_tests.
+// such in every run (gtest lists disabled tests) rather than passing. Run it
+// with --gtest_also_run_disabled_tests. Measured (moment fits, 48^2 samples
+// per node), at the entering table's cell centres (theta, roughness, ior):
+//  - axis stored as an angle offset from the Snell angle on both sides (grid
+//    61 x 25 x 14 x 2): 2338 of 6254 points above 1 %, mean relative L2 0.080;
+//  - leaving side tabulated over the Snell sine with the axis as a sine offset
+//    (frosted_sg_table.h): 2060 above 1 % (498 entering, mostly theta >= 80
+//    deg; 1562 leaving), mean 0.049;
+//  - plus the fit's lobe-edge refinement and Catmull-Rom lookups: 1062 of 6354
+//    above 1 % (89 entering, at theta >= 80 deg and roughness ~0.1; 973
+//    leaving, nearly all past the onset of TIR, ior sin(theta_i) > 1), mean
+//    0.035;
+//  - plus the sine's upper segment ending at grazing for each ior (no node
+//    clamped to 89.5 deg, whose kink moved with ior): 896 (89 entering, 807
+//    leaving), mean 0.032.
 TEST(FrostedSgTable, DISABLED_InterpolationWithinOnePercent) {
   const TransmissionSgTable &table = TransmissionSgTable::get();
   // Cell centres in all three coordinates inside theta 0..89, roughness 0.05..1, IOR 1.33..2.4.
@@ -225,6 +243,74 @@ TEST(FrostedSgTable, DISABLED_InterpolationWithinOnePercent) {
   std::printf("[sg table] %ld off-grid points (cell centres, energy > 1e-3): interpolated vs direct fit relative L2 "
               "mean %.4f, max %.4f; nearest-theta-node control max %.4f\n",
               counted, mean / std::max(counted, 1L), worst, worst_nearest);
+}
+
+}  // namespace
+
+namespace {
+
+using namespace glimmer;
+using namespace glimmer::plugin::frosted;
+
+// ---- Disk cache: round trip, corruption, crafted entries ------------------------
+TEST(FrostedSgTable, DiskCacheRoundTripAndValidation) {
+  const auto dir = std::filesystem::temp_directory_path() / ("glimmer_frosted_sg_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  const std::string path = TransmissionSgTable::cache_path(dir.string());
+  const TransmissionSgTable &built = TransmissionSgTable::get();
+  ASSERT_EQ(built.save(path), "");
+  std::string problem;
+  auto loaded = TransmissionSgTable::load(path, problem);
+  ASSERT_TRUE(loaded) << problem;
+  EXPECT_TRUE(loaded->loaded_from_cache());
+  EXPECT_TRUE(*loaded == built);  // bit for bit
+
+  std::ifstream in(path, std::ios::binary);
+  const std::vector<unsigned char> good((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  auto write = [&](const std::vector<unsigned char> &bytes) {
+    std::ofstream(path, std::ios::binary | std::ios::trunc).write(reinterpret_cast<const char *>(bytes.data()),
+                                                                   std::streamsize(bytes.size()));
+  };
+  // One flipped bit in a node: refused by the MAC.
+  std::vector<unsigned char> bad = good;
+  bad[bad.size() / 2] ^= 1u;
+  write(bad);
+  EXPECT_FALSE(TransmissionSgTable::load(path, problem));
+  EXPECT_NE(problem.find("MAC"), std::string::npos) << problem;
+  // Truncated.
+  write(std::vector<unsigned char>(good.begin(), good.begin() + good.size() / 3));
+  EXPECT_FALSE(TransmissionSgTable::load(path, problem));
+  // Entries with a valid MAC (as a writer holding the key would make them) but wrong contents:
+  const std::vector<unsigned char> payload(good.begin(), good.end() - 32);
+  const size_t header = 8 + 4 + 8 + 8;
+  auto crafted = [&](size_t node, int field, float value) {
+    std::vector<unsigned char> p = payload;
+    std::memcpy(p.data() + header + (node * 3 + field) * 4, &value, 4);
+    EXPECT_EQ(write_cache_blob(path, p), "");
+    return TransmissionSgTable::load(path, problem);
+  };
+  EXPECT_FALSE(crafted(7, 0, std::numeric_limits<float>::quiet_NaN()));
+  EXPECT_NE(problem.find("non-finite"), std::string::npos) << problem;
+  EXPECT_FALSE(crafted(7, 0, 3.0f));
+  EXPECT_NE(problem.find("out-of-range"), std::string::npos) << problem;
+  // A plausible but wrong value at a node the loader re-fits (check node 0: first 5, roughness 3, ior 1).
+  const size_t check = (size_t(5) * TransmissionSgTable::kRoughnessNodes + 3) * TransmissionSgTable::kIorNodes + 1;
+  float e;
+  std::memcpy(&e, payload.data() + header + check * 12, 4);
+  EXPECT_FALSE(crafted(check, 0, e * 0.99f));
+  EXPECT_NE(problem.find("differs from its fit"), std::string::npos) << problem;
+  // Another grid or fit version: the header key differs.
+  std::vector<unsigned char> other = payload;
+  other[12] ^= 0xffu;  // a byte of the key
+  EXPECT_EQ(write_cache_blob(path, other), "");
+  EXPECT_FALSE(TransmissionSgTable::load(path, problem));
+  EXPECT_NE(problem.find("bad header"), std::string::npos) << problem;
+  // The untouched entry loads again.
+  write(good);
+  EXPECT_TRUE(TransmissionSgTable::load(path, problem)) << problem;
+  std::printf("[sg table cache] %zu bytes; bit flip, truncation, NaN, out-of-range, a re-fitted node off by 1 %% "
+              "and a foreign key all refused\n", good.size());
+  std::filesystem::remove_all(dir);
 }
 
 }  // namespace

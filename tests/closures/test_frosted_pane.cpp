@@ -1,0 +1,426 @@
+// frosted_glass interior absorption (Beer) and thin panes (issue 12), through
+// the plugin's C ABI:
+//  - a brute-force path tracer through a slab (two infinite parallel planes
+//    z = 0 and z = -L, outward normals +z / -z) with the SOLID closure at every
+//    interface and a host whose trace_ray intersects the two planes: this is
+//    how the renderer meets a real slab mesh (Beer length by tracing back);
+//  - the slab's transmittance at normal incidence, roughness 1e-3 (smooth),
+//    against the closed form (1-R)^2 tau / (1 - R^2 tau^2), tau = c^(L/d), for
+//    the solid slab and the thin pane; negative control: the single-pass form
+//    (1-R)^2 tau is rejected (the reference sees the interreflections);
+//  - rough (0.5) oblique incidence: the thin pane's R and T per channel vs the
+//    brute-force slab; negative control: a host returning the vertical depth
+//    instead of the path length inside (a known bug) is rejected;
+//  - thin pane: white furnace, the distribution of sample() vs the brute-force
+//    slab's exit directions (two-sample chi2), and the stochastic eval()
+//    integrated over the sphere against the sampled albedo (R and T) and its
+//    pdf against the sampled fraction.
+#include <gtest/gtest.h>
+#include <tbb/parallel_for.h>
+
+#include <cstdio>
+
+#include "closures/microfacet_test_util.h"
+
+namespace {
+
+using namespace glimmer;
+using glimmer::mftest::make_closure;
+
+std::string num(float v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.7g", double(v));
+  return b;
+}
+
+// ---- A slab as the renderer would present it ---------------------------------
+struct SlabHost {
+  float thickness = 1.0f;
+  bool vertical_depth_bug = false;  // negative control: report the depth, not the distance along the ray
+  GlimmerHostServices services{};
+
+  explicit SlabHost(float L, bool bug = false) : thickness(L), vertical_depth_bug(bug) {
+    services.struct_size = sizeof(GlimmerHostServices);
+    services.abi_version = GLIMMER_ABI_VERSION;
+    services.host_data = this;
+    services.trace_ray = &trace;
+    services.log = [](void *, int, const char *) {};
+  }
+  static int trace(void *data, const GlimmerRay *ray, GlimmerRayHit *hit) {
+    const auto *self = static_cast<const SlabHost *>(data);
+    const Vec3 o(ray->origin), d(ray->direction);
+    float best = ray->t_max;
+    for (float plane : {0.0f, -self->thickness}) {
+      if (d.z == 0.0f) continue;
+      const float t = (plane - o.z) / d.z;
+      if (t > ray->t_min && t < best) best = t;
+    }
+    if (!(best < ray->t_max)) return 0;
+    hit->t = self->vertical_depth_bug ? best * std::fabs(d.z) : best;
+    hit->P = o + d * best;
+    hit->N = hit->Ng = Vec3(0.0f, 0.0f, (o + d * best).z > -0.5f * self->thickness ? 1.0f : -1.0f);
+    return 1;
+  }
+};
+
+// Shading context at one of the slab's interfaces (position-free: x = y = 0).
+GlimmerShadingContext slab_context(const Vec3 &wi, bool bottom, float L, const GlimmerHostServices *host) {
+  GlimmerShadingContext ctx = host::make_local_context(wi, host);
+  ctx.P = Vec3(0.0f, 0.0f, bottom ? -L : 0.0f);
+  ctx.N = ctx.Ng = Vec3(0.0f, 0.0f, bottom ? -1.0f : 1.0f);
+  return ctx;
+}
+
+struct SlabResult {
+  Spectrum R{0.0f}, T{0.0f};
+  double se_R = 0.0, se_T = 0.0;  // standard errors, channel 0
+  std::vector<Vec3> exits;        // exit directions (when kept)
+};
+
+// Per-channel mean of the weights over paths, their channel-0 standard errors.
+struct Tally {
+  double sum[2][3] = {{0, 0, 0}, {0, 0, 0}}, sum2[2] = {0, 0};
+  void add(int side, const Spectrum &w) {
+    for (int ch = 0; ch < 3; ++ch) sum[side][ch] += w[ch];
+    sum2[side] += double(w.x) * w.x;
+  }
+  void merge(const Tally &o) {
+    for (int s = 0; s < 2; ++s) {
+      for (int ch = 0; ch < 3; ++ch) sum[s][ch] += o.sum[s][ch];
+      sum2[s] += o.sum2[s];
+    }
+  }
+  void finish(long n, SlabResult &r) const {
+    r.R = Spectrum(float(sum[0][0] / n), float(sum[0][1] / n), float(sum[0][2] / n));
+    r.T = Spectrum(float(sum[1][0] / n), float(sum[1][1] / n), float(sum[1][2] / n));
+    r.se_R = std::sqrt(std::max(0.0, sum2[0] / n - double(r.R.x) * r.R.x) / n);
+    r.se_T = std::sqrt(std::max(0.0, sum2[1] / n - double(r.T.x) * r.T.x) / n);
+  }
+};
+
+constexpr long kBlocks = 64;
+
+// The per-block tallies and exit directions of n paths, merged.
+SlabResult gather(const std::vector<Tally> &tallies, const std::vector<std::vector<Vec3>> &exits, long n) {
+  Tally total;
+  SlabResult r;
+  for (long b = 0; b < kBlocks; ++b) {
+    total.merge(tallies[b]);
+    r.exits.insert(r.exits.end(), exits[b].begin(), exits[b].end());
+  }
+  total.finish(n / kBlocks * kBlocks, r);
+  return r;
+}
+
+// Brute force: paths through the slab, the solid closure at every interface.
+SlabResult trace_slab(const host::ClosureInstance &solid, const SlabHost &slab, const Vec3 &wi, long n, uint64_t seed,
+                      bool keep_exits = false) {
+  std::vector<Tally> tallies(kBlocks);
+  std::vector<std::vector<Vec3>> exits(kBlocks);
+  tbb::parallel_for(long(0), kBlocks, [&](long b) {
+    Pcg32 rng(seed, uint64_t(b) + 1);
+    for (long i = 0; i < n / kBlocks; ++i) {
+      Vec3 w = wi;
+      bool bottom = false;
+      Spectrum throughput(1.0f);
+      for (int event = 0; event < 256; ++event) {
+        const GlimmerShadingContext ctx = slab_context(w, bottom, slab.thickness, &slab.services);
+        const float u[3] = {rng.next_float(), rng.next_float(), rng.next_float()};
+        GlimmerSample s;
+        if (solid.sample(ctx, u, s) == GLIMMER_LABEL_NONE) break;
+        throughput *= Spectrum(s.eval[0], s.eval[1], s.eval[2]) / s.pdf;
+        const Vec3 wo(s.wo);
+        const bool out_top = !bottom && wo.z > 0.0f, out_bottom = bottom && wo.z < 0.0f;
+        if (out_top || out_bottom) {
+          tallies[b].add(out_bottom ? 1 : 0, throughput);
+          if (keep_exits) exits[b].push_back(wo);
+          break;
+        }
+        bottom = wo.z < 0.0f;  // crossed the slab to the other interface
+        w = -wo;
+      }
+    }
+  });
+  return gather(tallies, exits, n);
+}
+
+// The thin closure's own sample weights, split by side.
+SlabResult sample_pane(const host::ClosureInstance &pane, const Vec3 &wi, long n, uint64_t seed,
+                       bool keep_exits = false) {
+  std::vector<Tally> tallies(kBlocks);
+  std::vector<std::vector<Vec3>> exits(kBlocks);
+  tbb::parallel_for(long(0), kBlocks, [&](long b) {
+    Pcg32 rng(seed, uint64_t(b) + 1);
+    GlimmerShadingContext ctx = host::make_local_context(wi);
+    for (long i = 0; i < n / kBlocks; ++i) {
+      ctx.path_seed = rng.next_u32();
+      const float u[3] = {rng.next_float(), rng.next_float(), rng.next_float()};
+      GlimmerSample s;
+      const uint32_t label = pane.sample(ctx, u, s);
+      if (label == GLIMMER_LABEL_NONE) continue;
+      tallies[b].add((label & GLIMMER_LABEL_TRANSMIT) ? 1 : 0, Spectrum(s.eval[0], s.eval[1], s.eval[2]) / s.pdf);
+      if (keep_exits) exits[b].push_back(Vec3(s.wo));
+    }
+  });
+  return gather(tallies, exits, n);
+}
+
+std::vector<std::string> material(float rough, float ior, const Vec3 &absorb, float distance, bool thin, float L) {
+  std::vector<std::string> a = {"roughness=" + num(rough), "ior=" + num(ior),
+                                "absorption_color=" + num(absorb.x) + "," + num(absorb.y) + "," + num(absorb.z),
+                                "absorption_distance=" + num(distance)};
+  if (thin) {
+    a.push_back("thin=1");
+    a.push_back("thickness=" + num(L));
+  }
+  return a;
+}
+
+// Smooth slab at normal incidence (incoherent sum of interreflections).
+double slab_closed_form(double ior, double tau, bool interreflections = true) {
+  const double R = ((ior - 1) / (ior + 1)) * ((ior - 1) / (ior + 1));
+  return (1 - R) * (1 - R) * tau / (interreflections ? 1 - R * R * tau * tau : 1.0);
+}
+
+// ---- Smooth slab / pane vs the closed form ---------------------------------------
+TEST(FrostedGlassBeer, SmoothSlabAndPaneMatchClosedForm) {
+  const Vec3 absorb(0.8f, 0.5f, 0.2f);
+  const float distance = 1.0f, L = 0.7f;
+  const long n = 1 << 20;
+  for (float ior : {1.5f, 2.4f}) {
+    SlabHost slab(L);
+    auto solid = make_closure("frosted_glass", material(1e-3f, ior, absorb, distance, false, L));
+    auto pane = make_closure("frosted_glass", material(1e-3f, ior, absorb, distance, true, L));
+    const Vec3 normal(0.0f, 0.0f, 1.0f);
+    const SlabResult a = trace_slab(*solid, slab, normal, n, 11);
+    const SlabResult b = sample_pane(*pane, normal, n, 12);
+    for (int ch = 0; ch < 3; ++ch) {
+      const double tau = std::pow(double(absorb[ch]), double(L / distance));
+      const double expect = slab_closed_form(ior, tau);
+      // Channel 0's standard error scaled to this channel's transmittance (same paths, weights scale by tau).
+      const double se_a = a.se_T * expect / std::max(double(a.T.x), 1e-12) + 1e-7;
+      const double se_b = b.se_T * expect / std::max(double(b.T.x), 1e-12) + 1e-7;
+      EXPECT_NEAR(a.T[ch], expect, 5 * se_a) << "solid slab ior=" << ior << " channel " << ch;
+      EXPECT_NEAR(b.T[ch], expect, 5 * se_b) << "thin pane ior=" << ior << " channel " << ch;
+      std::printf("[frosted beer smooth] ior %.2f channel %d: closed form T %.5f, solid slab %.5f +- %.1e, "
+                  "thin pane %.5f +- %.1e\n", ior, ch, expect, a.T[ch], se_a, b.T[ch], se_b);
+    }
+    if (ior > 2.0f) {  // negative control: without interreflections the closed form is off by > 5 sigma
+      const double tau = std::pow(double(absorb.x), double(L / distance));
+      EXPECT_GT(std::fabs(a.T.x - slab_closed_form(ior, tau, false)), 5 * a.se_T);
+      EXPECT_GT(std::fabs(b.T.x - slab_closed_form(ior, tau, false)), 5 * b.se_T);
+    }
+  }
+}
+
+// ---- Rough pane vs the brute-force slab ----------------------------------------
+TEST(FrostedGlassBeer, RoughPaneMatchesPathTracedSlab) {
+  const Vec3 absorb(0.9f, 0.6f, 0.3f);
+  const float distance = 0.5f, L = 0.3f;
+  const long n = 1 << 20;
+  const Vec3 wi = mftest::direction_from(0.6f, 0.4f);
+  for (float rough : {0.2f, 0.5f, 0.9f}) {
+    SlabHost slab(L), buggy(L, true);
+    auto solid = make_closure("frosted_glass", material(rough, 1.5f, absorb, distance, false, L));
+    auto pane = make_closure("frosted_glass", material(rough, 1.5f, absorb, distance, true, L));
+    const SlabResult ref = trace_slab(*solid, slab, wi, n, 21);
+    const SlabResult got = sample_pane(*pane, wi, n, 22);
+    for (int ch = 0; ch < 3; ++ch) {
+      const double se_T = std::hypot(ref.se_T, got.se_T) * ref.T[ch] / std::max(double(ref.T.x), 1e-12) + 1e-7;
+      const double se_R = std::hypot(ref.se_R, got.se_R) * ref.R[ch] / std::max(double(ref.R.x), 1e-12) + 1e-7;
+      EXPECT_NEAR(got.T[ch], ref.T[ch], 5 * se_T) << "rough=" << rough << " channel " << ch;
+      EXPECT_NEAR(got.R[ch], ref.R[ch], 5 * se_R) << "rough=" << rough << " channel " << ch;
+    }
+    std::printf("[frosted beer rough] roughness %.1f: slab (path traced) T %.4f %.4f %.4f R %.4f; pane T %.4f %.4f "
+                "%.4f R %.4f (se %.1e)\n", rough, ref.T.x, ref.T.y, ref.T.z, ref.R.x, got.T.x, got.T.y, got.T.z,
+                got.R.x, ref.se_T);
+    // Negative control: absorbing over the depth instead of the path length is caught.
+    const SlabResult bug = trace_slab(*solid, buggy, wi, n, 23);
+    EXPECT_GT(std::fabs(bug.T.z - got.T.z), 5 * std::hypot(bug.se_T, got.se_T) * got.T.z / got.T.x)
+        << "rough=" << rough;
+  }
+}
+
+// ---- Thin pane: furnace, distribution, eval ------------------------------------
+TEST(FrostedGlassThin, WhiteFurnace) {
+  struct Case {
+    float rough, ior, mu;
+  };
+  std::vector<Case> cases;
+  for (float rough : {0.1f, 0.5f, 1.0f})
+    for (float ior : {1.33f, 1.7f, 2.4f})
+      for (float mu : {1.0f, 0.5f, 0.1f, 0.02f, -0.7f}) cases.push_back({rough, ior, mu});
+  std::vector<mftest::Albedo> got(cases.size());
+  tbb::parallel_for(size_t(0), cases.size(), [&](size_t i) {
+    const Case &c = cases[i];
+    auto pane = make_closure("frosted_glass", {"roughness=" + num(c.rough), "ior=" + num(c.ior), "thin=1"});
+    got[i] = mftest::sampled_albedo(*pane, mftest::direction_from(c.mu, 0.7f), std::fabs(c.mu) <= 0.05f ? 256 : 128,
+                                    700 + i);
+  });
+  // The 0.5 % bound of the solid closure's furnace where this estimate resolves it (standard error <= 0.1 %).
+  // At roughness 1 and high IOR the walk's weight (a product of G2 / G1 / E over many internal events) is
+  // so spread that 131k samples give a standard error of 1-4 %: there the check is 5 standard errors, and
+  // the cases are counted and printed, not hidden.
+  double worst = 0.0, worst_sigma = 0.0;
+  int resolved = 0;
+  for (size_t i = 0; i < cases.size(); ++i) {
+    const double total = got[i].reflect.x + got[i].transmit.x, se = got[i].std_error;
+    const std::string what = "rough=" + num(cases[i].rough) + " ior=" + num(cases[i].ior) + " mu=" +
+                             num(cases[i].mu) + " R+T=" + std::to_string(total) + " +- " + std::to_string(se);
+    if (se <= 0.001) {
+      EXPECT_LT(std::fabs(1.0 - total), 0.005) << what;
+      worst = std::max(worst, std::fabs(1.0 - total));
+      ++resolved;
+    } else {
+      EXPECT_LT(std::fabs(1.0 - total), 5 * se) << what;
+      worst_sigma = std::max(worst_sigma, std::fabs(1.0 - total) / se);
+      std::printf("[frosted thin furnace] unresolved: %s\n", what.c_str());
+    }
+  }
+  std::printf("[frosted thin furnace] %d of %zu cases resolved (se <= 0.1 %%): max |1 - (R+T)| %.4f%%; the others "
+              "within %.2f standard errors\n", resolved, cases.size(), 100 * worst, worst_sigma);
+}
+
+struct PaneConfig {
+  float rough, ior, z;
+};
+std::vector<PaneConfig> pane_configs() {
+  std::vector<PaneConfig> c;
+  for (float rough : {0.3f, 0.7f})
+    for (float ior : {1.5f, 2.4f})
+      for (float z : {0.9f, 0.3f}) c.push_back({rough, ior, z});
+  return c;
+}
+
+// Two-sample chi2 on (cos theta, phi) cells of the sphere: the pane's sample()
+// directions vs the brute-force slab's exit directions, equal counts.
+double two_sample_p(const std::vector<Vec3> &a, const std::vector<Vec3> &b, int n_t = 32, int n_phi = 32) {
+  std::vector<double> ca(size_t(n_t) * n_phi, 0.0), cb(ca.size(), 0.0);
+  auto cell = [&](const Vec3 &w) {
+    const int it = std::clamp(int((w.z + 1.0f) * 0.5f * n_t), 0, n_t - 1);
+    double phi = std::atan2(double(w.y), double(w.x));
+    if (phi < 0.0) phi += 2.0 * M_PI;
+    return size_t(it) * n_phi + std::min(int(phi / (2.0 * M_PI) * n_phi), n_phi - 1);
+  };
+  for (const Vec3 &w : a) ca[cell(w)] += 1.0;
+  for (const Vec3 &w : b) cb[cell(w)] += 1.0;
+  const double ka = std::sqrt(double(b.size()) / a.size()), kb = 1.0 / ka;
+  double chi2 = 0.0, pa = 0.0, pb = 0.0;
+  int bins = 0;
+  auto add = [&](double x, double y) {
+    chi2 += (ka * x - kb * y) * (ka * x - kb * y) / (x + y);
+    ++bins;
+  };
+  for (size_t i = 0; i < ca.size(); ++i) {
+    if (ca[i] + cb[i] < 20.0) {
+      pa += ca[i];
+      pb += cb[i];
+    } else {
+      add(ca[i], cb[i]);
+    }
+  }
+  if (pa + pb > 0.0) add(pa, pb);
+  return mftest::gamma_q(0.5 * std::max(bins - 1, 1), 0.5 * chi2);
+}
+
+TEST(FrostedGlassThin, SampleDistributionMatchesPathTracedSlab) {
+  const auto configs = pane_configs();
+  const double threshold = mftest::sidak_threshold(int(configs.size()));
+  const long n = 400000;
+  double min_p = 1.0;
+  for (size_t i = 0; i < configs.size(); ++i) {
+    const PaneConfig &c = configs[i];
+    SlabHost slab(0.2f);
+    auto solid = make_closure("frosted_glass", {"roughness=" + num(c.rough), "ior=" + num(c.ior)});
+    auto pane = make_closure("frosted_glass", {"roughness=" + num(c.rough), "ior=" + num(c.ior), "thin=1"});
+    const Vec3 wi = mftest::direction_from(c.z, 0.3f);
+    const SlabResult ref = trace_slab(*solid, slab, wi, n, 31 + i, true);
+    const SlabResult got = sample_pane(*pane, wi, n, 41 + i, true);
+    const double p = two_sample_p(got.exits, ref.exits);
+    EXPECT_GE(p, threshold) << "rough=" << c.rough << " ior=" << c.ior << " z=" << c.z;
+    min_p = std::min(min_p, p);
+  }
+  // Negative control: the pane at another roughness is told apart.
+  {
+    SlabHost slab(0.2f);
+    auto solid = make_closure("frosted_glass", {"roughness=0.3", "ior=1.5"});
+    auto pane = make_closure("frosted_glass", {"roughness=0.36", "ior=1.5", "thin=1"});
+    const Vec3 wi = mftest::direction_from(0.9f, 0.3f);
+    EXPECT_LT(two_sample_p(sample_pane(*pane, wi, n, 51, true).exits, trace_slab(*solid, slab, wi, n, 52, true).exits),
+              1e-6);
+  }
+  std::printf("[frosted thin chi2] %zu configurations x %ld samples, two-sample vs the path-traced slab: min p = %.4g "
+              "(Sidak threshold %.3g)\n", configs.size(), n, min_p, threshold);
+}
+
+// The stochastic eval integrated over the sphere (uniform directions, fresh
+// path_seed each) against the sampled albedo per side, and its pdf against the
+// fraction of successful samples.
+TEST(FrostedGlassThin, StochasticEvalIntegratesToSampledAlbedo) {
+  const auto configs = pane_configs();
+  const long n = 1 << 20;
+  double worst_sigma = 0.0;
+  for (size_t i = 0; i < configs.size(); ++i) {
+    const PaneConfig &c = configs[i];
+    auto pane = make_closure("frosted_glass", {"roughness=" + num(c.rough), "ior=" + num(c.ior), "thin=1",
+                                               "absorption_color=0.7,0.7,0.7", "absorption_distance=0.3",
+                                               "thickness=0.2"});
+    const Vec3 wi = mftest::direction_from(c.z, 0.3f);
+    // Integral of eval over the sphere by stratified uniform directions.
+    std::vector<std::array<double, 6>> acc(kBlocks, std::array<double, 6>{});  // f_R, f_R^2, f_T, f_T^2, pdf, pdf^2
+    tbb::parallel_for(long(0), kBlocks, [&](long b) {
+      Pcg32 rng(900 + i, uint64_t(b) + 1);
+      GlimmerShadingContext ctx = host::make_local_context(wi);
+      for (long k = 0; k < n / kBlocks; ++k) {
+        const float z = 2.0f * rng.next_float() - 1.0f;
+        const Vec3 wo = mftest::direction_from(z, float(2.0 * M_PI) * rng.next_float());
+        ctx.path_seed = rng.next_u32();
+        Spectrum f;
+        float pdf;
+        pane->eval(ctx, wo, f, pdf);
+        const double fw = 4.0 * M_PI * f.x, pw = 4.0 * M_PI * pdf;
+        const int side = wo.z > 0.0f ? 0 : 2;
+        acc[b][side] += fw;
+        acc[b][side + 1] += fw * fw;
+        acc[b][4] += pw;
+        acc[b][5] += pw * pw;
+      }
+    });
+    std::array<double, 6> t{};
+    for (const auto &a : acc)
+      for (int j = 0; j < 6; ++j) t[j] += a[j];
+    const double m = double(n / kBlocks * kBlocks);
+    auto mean_se = [&](int j) {
+      const double mean = t[j] / m;
+      return std::pair(mean, std::sqrt(std::max(0.0, t[j + 1] / m - mean * mean) / m));
+    };
+    const auto [eR, seR] = mean_se(0);
+    const auto [eT, seT] = mean_se(2);
+    const auto [eP, seP] = mean_se(4);
+    const SlabResult s = sample_pane(*pane, wi, n, 60 + i);
+    // Fraction of successful samples: same random numbers as sample_pane's, counted.
+    long ok = 0;
+    {
+      GlimmerShadingContext ctx = host::make_local_context(wi);
+      Pcg32 rng(77 + i);
+      for (long k = 0; k < 200000; ++k) {
+        ctx.path_seed = rng.next_u32();
+        const float u[3] = {rng.next_float(), rng.next_float(), rng.next_float()};
+        GlimmerSample smp;
+        if (pane->sample(ctx, u, smp) != GLIMMER_LABEL_NONE) ++ok;
+      }
+    }
+    const double frac = ok / 200000.0, se_frac = std::sqrt(frac * (1 - frac) / 200000.0) + 1e-6;
+    const double dR = std::fabs(eR - s.R.x) / std::hypot(seR, s.se_R), dT = std::fabs(eT - s.T.x) / std::hypot(seT, s.se_T);
+    const double dP = std::fabs(eP - frac) / std::hypot(seP, se_frac);
+    EXPECT_LT(dR, 5.0) << "R: eval " << eR << " sampled " << s.R.x << " rough=" << c.rough << " ior=" << c.ior;
+    EXPECT_LT(dT, 5.0) << "T: eval " << eT << " sampled " << s.T.x << " rough=" << c.rough << " ior=" << c.ior;
+    EXPECT_LT(dP, 5.0) << "pdf integral " << eP << " vs sampled fraction " << frac;
+    worst_sigma = std::max({worst_sigma, dR, dT, dP});
+    std::printf("[frosted thin eval] rough %.1f ior %.1f z %.1f: R eval %.4f / sampled %.4f, T eval %.4f / sampled "
+                "%.4f, Int pdf %.4f / fraction %.4f\n", c.rough, c.ior, c.z, eR, s.R.x, eT, s.T.x, eP, frac);
+  }
+  std::printf("[frosted thin eval] worst deviation %.2f standard errors\n", worst_sigma);
+}
+
+}  // namespace
