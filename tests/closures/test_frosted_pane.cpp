@@ -320,7 +320,7 @@ double two_sample_p(const std::vector<Vec3> &a, const std::vector<Vec3> &b, int 
     }
   }
   if (pa + pb > 0.0) add(pa, pb);
-  return mftest::gamma_q(0.5 * std::max(bins - 1, 1), 0.5 * chi2);
+  return lab::chi2_survival(chi2, std::max(bins - 1, 1));
 }
 
 TEST(FrostedGlassThin, SampleDistributionMatchesPathTracedSlab) {

@@ -25,6 +25,7 @@
 #include <unistd.h>
 #include <vector>
 
+#include "glimmer/cache_blob.h"
 #include "glimmer/rng.h"
 #include "core/dielectric_lobe.h"
 #include "core/microfacet_lobe_params.h"
