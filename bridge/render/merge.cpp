@@ -67,6 +67,40 @@ void combine_window(const std::vector<const RenderResult *> &parts, const int wi
   blend(&RenderResult::depth, 1);
 }
 
+// The parts of one pixel window (indices `in_window`) in sample order; their sample ranges must tile [0, N)
+// exactly (no overlap, no duplicate, no gap).
+std::vector<const RenderResult *> parts_tiling_samples(const std::vector<RenderResult> &parts,
+                                                       const std::vector<std::string> &names,
+                                                       const std::vector<size_t> &in_window, int N) {
+  const int *w = parts[in_window.front()].part.window;
+  std::vector<size_t> order = in_window;
+  std::sort(order.begin(), order.end(),
+            [&](size_t a, size_t b) { return parts[a].part.sample_begin < parts[b].part.sample_begin; });
+  int next = 0;
+  size_t previous = order.front();
+  std::vector<const RenderResult *> window_parts;
+  for (size_t k : order) {
+    const PartInfo &p = parts[k].part;
+    if (p.sample_begin < next) {
+      const PartInfo &q = parts[previous].part;
+      const bool duplicate = p.sample_begin == q.sample_begin && p.sample_end == q.sample_end;
+      throw std::runtime_error(std::string(duplicate ? "duplicate parts" : "sample ranges overlap") + ": '" +
+                               names[previous] + "' renders samples " + range_text(q) + " and '" + names[k] +
+                               "' samples " + range_text(p) + " of pixels " + window_text(w));
+    }
+    if (p.sample_begin > next)
+      throw std::runtime_error("samples [" + std::to_string(next) + ", " + std::to_string(p.sample_begin) +
+                               ") of pixels " + window_text(w) + " are missing (no part renders them)");
+    next = p.sample_end;
+    previous = k;
+    window_parts.push_back(&parts[k]);
+  }
+  if (next != N)
+    throw std::runtime_error("samples [" + std::to_string(next) + ", " + std::to_string(N) + ") of pixels " +
+                             window_text(w) + " are missing (no part renders them)");
+  return window_parts;
+}
+
 }  // namespace
 
 RenderResult merge_parts(const std::vector<RenderResult> &parts, const std::vector<std::string> &names) {
@@ -106,32 +140,7 @@ RenderResult merge_parts(const std::vector<RenderResult> &parts, const std::vect
         throw std::runtime_error("parts '" + names[first] + "' (pixels " + window_text(w) + ") and '" +
                                  names[jt->second.front()] + "' (pixels " + window_text(v) + ") overlap");
     }
-    // The sample ranges of this window must tile [0, N).
-    std::vector<size_t> order = it->second;
-    std::sort(order.begin(), order.end(),
-              [&](size_t a, size_t b) { return parts[a].part.sample_begin < parts[b].part.sample_begin; });
-    int next = 0;
-    size_t previous = order.front();
-    std::vector<const RenderResult *> window_parts;
-    for (size_t k : order) {
-      const PartInfo &p = parts[k].part;
-      if (p.sample_begin < next) {
-        const PartInfo &q = parts[previous].part;
-        const bool duplicate = p.sample_begin == q.sample_begin && p.sample_end == q.sample_end;
-        throw std::runtime_error(std::string(duplicate ? "duplicate parts" : "sample ranges overlap") + ": '" +
-                                 names[previous] + "' renders samples " + range_text(q) + " and '" + names[k] +
-                                 "' samples " + range_text(p) + " of pixels " + window_text(w));
-      }
-      if (p.sample_begin > next)
-        throw std::runtime_error("samples [" + std::to_string(next) + ", " + std::to_string(p.sample_begin) +
-                                 ") of pixels " + window_text(w) + " are missing (no part renders them)");
-      next = p.sample_end;
-      previous = k;
-      window_parts.push_back(&parts[k]);
-    }
-    if (next != N)
-      throw std::runtime_error("samples [" + std::to_string(next) + ", " + std::to_string(N) + ") of pixels " +
-                               window_text(w) + " are missing (no part renders them)");
+    const std::vector<const RenderResult *> window_parts = parts_tiling_samples(parts, names, it->second, N);
     combine_window(window_parts, w, N, out);
     covered += static_cast<long long>(w[2] - w[0]) * (w[3] - w[1]);
     for (const RenderResult *p : window_parts) {

@@ -13,6 +13,7 @@
 
 #include "glimmer/rng.h"
 #include "glimmer/sampling.h"
+#include "host/log.h"
 #include "render/accel.h"
 #include "render/camera.h"
 #include "render/film_filter.h"
@@ -93,13 +94,6 @@ struct Renderer::Impl {
     out[1] = c.y;
     out[2] = c.z;
   }
-  static void host_log(void *, int level, const char *message) {
-    static std::mutex mutex;
-    std::lock_guard<std::mutex> lock(mutex);
-    static const char *names[] = {"debug", "info", "warning", "error"};
-    if (level == GLIMMER_LOG_DEBUG && std::getenv("GLIMMER_DEBUG") == nullptr) return;
-    std::fprintf(stderr, "glimmer: %s: %s\n", names[std::clamp(level, 0, 3)], message);
-  }
   static int host_resolve(void *data, const char *name, char *out, size_t size) {
     auto *self = static_cast<Impl *>(data);
     std::filesystem::path p(name);
@@ -122,7 +116,7 @@ struct Renderer::Impl {
     host.host_data = this;
     host.trace_ray = &host_trace;
     host.environment_lookup = &host_environment;
-    host.log = &host_log;
+    host.log = &host::log_callback;
     host.resolve_asset = &host_resolve;
     host.cache_dir = cache_dir.empty() ? nullptr : cache_dir.c_str();
 

@@ -34,7 +34,7 @@ namespace glimmer::plugin {
 
 namespace mf = glimmer::microfacet;
 
-class MicrofacetConductorClosure {
+class MicrofacetConductorClosure : public OneLobeClosure<MicrofacetConductorClosure> {
  public:
   static constexpr const char *kName = "microfacet_conductor";
   static constexpr const char *kDoc =
@@ -216,21 +216,6 @@ class MicrofacetConductorClosure {
     if (!sp.varies()) return lobe_;
     scratch.build(inputs_.at(sp), sp.param_color(f0_param_, lobe_.f0), bounce_tint_, false);
     return scratch;
-  }
-
-  LocalEval eval(const ShadingPoint &sp, const Vec3 &wo) const {
-    Lobe scratch;
-    return lobe_at(sp, scratch).eval(sp.wi, wo);
-  }
-
-  bool sample(const ShadingPoint &sp, const Vec3 &rand, LocalSample &out) const {
-    Lobe scratch;
-    return lobe_at(sp, scratch).sample(sp.wi, rand, out);
-  }
-
-  Spectrum albedo(const ShadingPoint &sp) const {
-    Lobe scratch;
-    return lobe_at(sp, scratch).albedo(sp.wi);
   }
 
  private:

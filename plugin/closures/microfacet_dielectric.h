@@ -34,7 +34,7 @@ namespace glimmer::plugin {
 
 namespace mf = glimmer::microfacet;
 
-class MicrofacetDielectricClosure {
+class MicrofacetDielectricClosure : public OneLobeClosure<MicrofacetDielectricClosure> {
  public:
   static constexpr const char *kName = "microfacet_dielectric";
   static constexpr const char *kDoc =
@@ -74,21 +74,6 @@ class MicrofacetDielectricClosure {
     if (!sp.varies()) return lobe_;
     scratch.build(inputs_.at(sp), sp.param_float(ior_param_, ior_), lobe_.refraction_only, false);
     return scratch;
-  }
-
-  LocalEval eval(const ShadingPoint &sp, const Vec3 &wo) const {
-    Lobe scratch;
-    return lobe_at(sp, scratch).eval(sp.wi, wo);
-  }
-
-  bool sample(const ShadingPoint &sp, const Vec3 &rand, LocalSample &out) const {
-    Lobe scratch;
-    return lobe_at(sp, scratch).sample(sp.wi, rand, out);
-  }
-
-  Spectrum albedo(const ShadingPoint &sp) const {
-    Lobe scratch;
-    return lobe_at(sp, scratch).albedo(sp.wi);
   }
 
  private:

@@ -261,6 +261,29 @@ struct ClosureAdapter {
 // Adds a closure type to the plugin's list (called from static initializers).
 bool register_closure_type(const GlimmerClosureType *type);
 
+// eval / sample / albedo of a closure that is one lobe (Derived::Lobe with eval(wi, wo), sample(wi, rand, out)
+// and albedo(wi)): the instance's lobe, or one rebuilt at the shading point when a parameter varies
+// (Derived::lobe_at(sp, scratch) picks which).
+template <class Derived>
+class OneLobeClosure {
+ public:
+  LocalEval eval(const ShadingPoint &sp, const Vec3 &wo) const {
+    typename Derived::Lobe scratch;
+    return derived().lobe_at(sp, scratch).eval(sp.wi, wo);
+  }
+  bool sample(const ShadingPoint &sp, const Vec3 &rand, LocalSample &out) const {
+    typename Derived::Lobe scratch;
+    return derived().lobe_at(sp, scratch).sample(sp.wi, rand, out);
+  }
+  Spectrum albedo(const ShadingPoint &sp) const {
+    typename Derived::Lobe scratch;
+    return derived().lobe_at(sp, scratch).albedo(sp.wi);
+  }
+
+ private:
+  const Derived &derived() const { return static_cast<const Derived &>(*this); }
+};
+
 }  // namespace glimmer::plugin
 
 #define GLIMMER_CONCAT_INNER(a, b) a##b

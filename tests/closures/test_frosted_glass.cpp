@@ -19,7 +19,7 @@
 #include <cstdlib>
 #include <limits>
 
-#include "closures/frosted_glass.cpp"
+#include "closures/frosted_glass.h"
 #include "closures/microfacet_test_util.h"
 
 namespace {

@@ -98,120 +98,158 @@ void set_position(Result &r, const Point<N> &p) {
   }
 }
 
+// The lattice cell around a point and its jittered feature points (Cycles' voronoi_* share this set-up).
 template <int N>
-Result voronoi(const Point<N> &coord, const Params &p) {
+struct VoronoiCell {
   Point<N> cell{}, local{};
-  for (int i = 0; i < N; ++i) {
-    cell[i] = std::floor(coord[i]);
-    local[i] = coord[i] - cell[i];
+  const Params &p;
+  VoronoiCell(const Point<N> &coord, const Params &params) : p(params) {
+    for (int i = 0; i < N; ++i) {
+      cell[i] = std::floor(coord[i]);
+      local[i] = coord[i] - cell[i];
+    }
   }
-  auto feature_point = [&](const Point<N> &offset) {
+  // The feature point of the neighbour cell at `offset`, relative to this cell's corner.
+  Point<N> feature_point(const Point<N> &offset) const {
     Point<N> q = point_hash<N>(perlin::plus<N>(cell, offset));
     for (int i = 0; i < N; ++i) q[i] = offset[i] + q[i] * p.randomness;
     return q;
-  };
-  Result r;
-  if (p.feature == kF1 || p.feature == kF2) {
-    float d1 = 8.0f, d2 = 8.0f;
-    Point<N> o1{}, o2{}, q1{}, q2{};
-    for_each_offset<N>(1, [&](const Point<N> &offset) {
-      const Point<N> q = feature_point(offset);
-      const float d = distance<N>(q, local, p);
-      if (d < d1) {
-        d2 = d1; o2 = o1; q2 = q1;
-        d1 = d; o1 = offset; q1 = q;
-      } else if (d < d2) {
-        d2 = d; o2 = offset; q2 = q;
-      }
-    });
-    const bool second = p.feature == kF2;
-    r.distance = second ? d2 : d1;
-    r.color = perlin::cell_color<N>(perlin::plus<N>(cell, second ? o2 : o1));
-    set_position<N>(r, perlin::plus<N>(cell, second ? q2 : q1));
-  } else if (p.feature == kSmoothF1) {
-    float d_smooth = 8.0f;
-    Vec3 color{0.0f};
-    Point<N> position{};
-    for_each_offset<N>(2, [&](const Point<N> &offset) {
-      const Point<N> q = feature_point(offset);
-      const float d = distance<N>(q, local, p);
-      // smoothstep(0, 1, x); smoothness 0 is plain F1 (Cycles would divide by zero).
-      const float x = p.smoothness > 0.0f ? 0.5f + 0.5f * (d_smooth - d) / p.smoothness : (d < d_smooth ? 1.0f : 0.0f);
-      const float h = x <= 0.0f ? 0.0f : (x >= 1.0f ? 1.0f : x * x * (3.0f - 2.0f * x));
-      float correction = p.smoothness * h * (1.0f - h);
-      d_smooth = (1.0f - h) * d_smooth + h * d - correction;
-      correction /= 1.0f + 3.0f * p.smoothness;
-      color = (1.0f - h) * color + h * perlin::cell_color<N>(perlin::plus<N>(cell, offset)) - Vec3(correction);
-      for (int i = 0; i < N; ++i) position[i] = (1.0f - h) * position[i] + h * q[i] - correction;
-    });
-    r.distance = d_smooth;
-    r.color = color;
-    set_position<N>(r, perlin::plus<N>(cell, position));
-  } else if (p.feature == kDistanceToEdge) {
-    if constexpr (N == 1) {
-      const float mid = point_hash<1>(cell)[0] * p.randomness;
-      const float left = -1.0f + point_hash<1>({cell[0] - 1.0f})[0] * p.randomness;
-      const float right = 1.0f + point_hash<1>({cell[0] + 1.0f})[0] * p.randomness;
-      r.distance = std::fmin(std::fabs((mid + left) / 2.0f - local[0]), std::fabs((mid + right) / 2.0f - local[0]));
-    } else {
-      float nearest = 8.0f;
-      Point<N> to_closest{};
-      for_each_offset<N>(1, [&](const Point<N> &offset) {
-        Point<N> v = feature_point(offset);
-        float d = 0.0f;
-        for (int i = 0; i < N; ++i) {
-          v[i] -= local[i];
-          d += v[i] * v[i];
-        }
-        if (d < nearest) {
-          nearest = d;
-          to_closest = v;
-        }
-      });
-      float edge = 8.0f;
-      for_each_offset<N>(1, [&](const Point<N> &offset) {
-        Point<N> v = feature_point(offset);
-        float perp_len2 = 0.0f;
-        for (int i = 0; i < N; ++i) {
-          v[i] -= local[i];
-          perp_len2 += (v[i] - to_closest[i]) * (v[i] - to_closest[i]);
-        }
-        if (perp_len2 > 0.0001f) {
-          const float inv = 1.0f / std::sqrt(perp_len2);
-          float e = 0.0f;
-          for (int i = 0; i < N; ++i) e += (to_closest[i] + v[i]) * 0.5f * (v[i] - to_closest[i]) * inv;
-          edge = std::fmin(edge, e);
-        }
-      });
-      r.distance = edge;
-    }
-  } else {  // n-sphere radius: half the distance from the nearest point to its own nearest neighbour
-    float nearest = 8.0f;
-    Point<N> closest{}, closest_offset{};
-    for_each_offset<N>(1, [&](const Point<N> &offset) {
-      const Point<N> q = feature_point(offset);
-      const float d = euclidean<N>(q, local);
-      if (d < nearest) {
-        nearest = d;
-        closest = q;
-        closest_offset = offset;
-      }
-    });
-    nearest = 8.0f;
-    Point<N> neighbour{};
-    for_each_offset<N>(1, [&](const Point<N> &offset) {
-      bool centre = true;
-      for (float c : offset) centre &= c == 0.0f;
-      if (centre) return;
-      const Point<N> q = feature_point(perlin::plus<N>(offset, closest_offset));
-      const float d = euclidean<N>(closest, q);
-      if (d < nearest) {
-        nearest = d;
-        neighbour = q;
-      }
-    });
-    r.radius = euclidean<N>(neighbour, closest) / 2.0f;
   }
+};
+
+// F1 / F2: the nearest and second-nearest feature points.
+template <int N>
+Result voronoi_f1_f2(const VoronoiCell<N> &vc) {
+  const Params &p = vc.p;
+  float d1 = 8.0f, d2 = 8.0f;
+  Point<N> o1{}, o2{}, q1{}, q2{};
+  for_each_offset<N>(1, [&](const Point<N> &offset) {
+    const Point<N> q = vc.feature_point(offset);
+    const float d = distance<N>(q, vc.local, p);
+    if (d < d1) {
+      d2 = d1; o2 = o1; q2 = q1;
+      d1 = d; o1 = offset; q1 = q;
+    } else if (d < d2) {
+      d2 = d; o2 = offset; q2 = q;
+    }
+  });
+  const bool second = p.feature == kF2;
+  Result r;
+  r.distance = second ? d2 : d1;
+  r.color = perlin::cell_color<N>(perlin::plus<N>(vc.cell, second ? o2 : o1));
+  set_position<N>(r, perlin::plus<N>(vc.cell, second ? q2 : q1));
+  return r;
+}
+
+// Smooth F1: distance, colour and position blended over the 5^N neighbourhood.
+template <int N>
+Result voronoi_smooth_f1(const VoronoiCell<N> &vc) {
+  const Params &p = vc.p;
+  float d_smooth = 8.0f;
+  Vec3 color{0.0f};
+  Point<N> position{};
+  for_each_offset<N>(2, [&](const Point<N> &offset) {
+    const Point<N> q = vc.feature_point(offset);
+    const float d = distance<N>(q, vc.local, p);
+    // smoothstep(0, 1, x); smoothness 0 is plain F1 (Cycles would divide by zero).
+    const float x = p.smoothness > 0.0f ? 0.5f + 0.5f * (d_smooth - d) / p.smoothness : (d < d_smooth ? 1.0f : 0.0f);
+    const float h = x <= 0.0f ? 0.0f : (x >= 1.0f ? 1.0f : x * x * (3.0f - 2.0f * x));
+    float correction = p.smoothness * h * (1.0f - h);
+    d_smooth = (1.0f - h) * d_smooth + h * d - correction;
+    correction /= 1.0f + 3.0f * p.smoothness;
+    color = (1.0f - h) * color + h * perlin::cell_color<N>(perlin::plus<N>(vc.cell, offset)) - Vec3(correction);
+    for (int i = 0; i < N; ++i) position[i] = (1.0f - h) * position[i] + h * q[i] - correction;
+  });
+  Result r;
+  r.distance = d_smooth;
+  r.color = color;
+  set_position<N>(r, perlin::plus<N>(vc.cell, position));
+  return r;
+}
+
+// Distance to the nearest cell edge.
+template <int N>
+float voronoi_distance_to_edge(const VoronoiCell<N> &vc) {
+  const Params &p = vc.p;
+  if constexpr (N == 1) {
+    const float mid = point_hash<1>(vc.cell)[0] * p.randomness;
+    const float left = -1.0f + point_hash<1>({vc.cell[0] - 1.0f})[0] * p.randomness;
+    const float right = 1.0f + point_hash<1>({vc.cell[0] + 1.0f})[0] * p.randomness;
+    return std::fmin(std::fabs((mid + left) / 2.0f - vc.local[0]), std::fabs((mid + right) / 2.0f - vc.local[0]));
+  } else {
+    float nearest = 8.0f;
+    Point<N> to_closest{};
+    for_each_offset<N>(1, [&](const Point<N> &offset) {
+      Point<N> v = vc.feature_point(offset);
+      float d = 0.0f;
+      for (int i = 0; i < N; ++i) {
+        v[i] -= vc.local[i];
+        d += v[i] * v[i];
+      }
+      if (d < nearest) {
+        nearest = d;
+        to_closest = v;
+      }
+    });
+    float edge = 8.0f;
+    for_each_offset<N>(1, [&](const Point<N> &offset) {
+      Point<N> v = vc.feature_point(offset);
+      float perp_len2 = 0.0f;
+      for (int i = 0; i < N; ++i) {
+        v[i] -= vc.local[i];
+        perp_len2 += (v[i] - to_closest[i]) * (v[i] - to_closest[i]);
+      }
+      if (perp_len2 > 0.0001f) {
+        const float inv = 1.0f / std::sqrt(perp_len2);
+        float e = 0.0f;
+        for (int i = 0; i < N; ++i) e += (to_closest[i] + v[i]) * 0.5f * (v[i] - to_closest[i]) * inv;
+        edge = std::fmin(edge, e);
+      }
+    });
+    return edge;
+  }
+}
+
+// n-sphere radius: half the distance from the nearest point to its own nearest neighbour.
+template <int N>
+float voronoi_sphere_radius(const VoronoiCell<N> &vc) {
+  float nearest = 8.0f;
+  Point<N> closest{}, closest_offset{};
+  for_each_offset<N>(1, [&](const Point<N> &offset) {
+    const Point<N> q = vc.feature_point(offset);
+    const float d = euclidean<N>(q, vc.local);
+    if (d < nearest) {
+      nearest = d;
+      closest = q;
+      closest_offset = offset;
+    }
+  });
+  nearest = 8.0f;
+  Point<N> neighbour{};
+  for_each_offset<N>(1, [&](const Point<N> &offset) {
+    bool centre = true;
+    for (float c : offset) centre &= c == 0.0f;
+    if (centre) return;
+    const Point<N> q = vc.feature_point(perlin::plus<N>(offset, closest_offset));
+    const float d = euclidean<N>(closest, q);
+    if (d < nearest) {
+      nearest = d;
+      neighbour = q;
+    }
+  });
+  return euclidean<N>(neighbour, closest) / 2.0f;
+}
+
+template <int N>
+Result voronoi(const Point<N> &coord, const Params &p) {
+  const VoronoiCell<N> vc(coord, p);
+  if (p.feature == kF1 || p.feature == kF2) return voronoi_f1_f2<N>(vc);
+  if (p.feature == kSmoothF1) return voronoi_smooth_f1<N>(vc);
+  Result r;
+  if (p.feature == kDistanceToEdge)
+    r.distance = voronoi_distance_to_edge<N>(vc);
+  else
+    r.radius = voronoi_sphere_radius<N>(vc);
   return r;
 }
 
