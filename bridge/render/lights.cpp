@@ -88,9 +88,9 @@ bool LightSet::sample(float u, float v, const Vec3 &P, LightSample &out) const {
 void LightSet::intersect(const Vec3 &o, const Vec3 &d, float t_max, bool hit_surface, bool camera_ray,
                          LightHits &out) const {
   out.count = 0;
-  for (size_t i = 0; i < lights_.size(); ++i) {
+  for (const int i : lamps_) {
     if (camera_ray && !lights_[i].use_camera) continue;
-    const float pick = pick_probability(static_cast<int>(i));
+    const float pick = pick_probability(i);
     LightHit h;
     const bool hit = std::visit(
         [&](const auto &light) {
@@ -98,7 +98,7 @@ void LightSet::intersect(const Vec3 &o, const Vec3 &d, float t_max, bool hit_sur
           if constexpr (std::is_same_v<Kind, DistantLight>)
             return light.intersect(o, d, t_max, hit_surface, pick, h);
           else if constexpr (std::is_same_v<Kind, TriangleLight> || std::is_same_v<Kind, BackgroundLight>)
-            return false;  // triangles are found by the BVH, the world when the ray escapes
+            return false;  // not in lamps_: triangles are found by the BVH, the world when the ray escapes
           else
             return light.intersect(o, d, t_max, pick, h);
         },

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <string>
+#include <type_traits>
 #include <variant>
 #include <vector>
 
@@ -57,6 +58,9 @@ class LightSet {
     bool use_camera = true;
   };
   std::vector<Light> lights_;
+  // The lights intersect() can hit (point, spot, area, sun), in lights_ order: emissive triangles (found by
+  // the BVH) and the world (when the ray escapes) are never visited on a ray segment.
+  std::vector<int> lamps_;
   std::vector<float> power_;  // estimated power per light (the pick CDF's weights)
   Distribution1D pick_;
   std::vector<std::vector<int>> triangle_light_;  // per mesh, per triangle: light index or -1
@@ -66,6 +70,7 @@ class LightSet {
   void add_lamp(const scene::Light &light, const Spectrum &strength, float disk_area, FeatureSet &features);
   template <typename Kind>
   void add_light(Kind light, float disk_area, bool use_camera) {
+    if constexpr (!std::is_same_v<Kind, BackgroundLight>) lamps_.push_back(static_cast<int>(lights_.size()));
     power_.push_back(light.power(disk_area));
     lights_.push_back({std::move(light), use_camera});
   }
