@@ -59,14 +59,6 @@ Accel::~Accel() {
   if (device_) rtcReleaseDevice(device_);
 }
 
-bool Accel::traceable_ray(const Vec3 &o, const Vec3 &d, float tmin, float tmax) {
-  constexpr float kEmbreeLargest = 1.8e18f;
-  auto bounded = [](const Vec3 &v) {
-    return std::fabs(v.x) <= kEmbreeLargest && std::fabs(v.y) <= kEmbreeLargest && std::fabs(v.z) <= kEmbreeLargest;
-  };
-  return bounded(o) && bounded(d) && tmin >= 0.0f && tmin <= tmax;  // false for NaN
-}
-
 bool Accel::intersect(const Vec3 &o, const Vec3 &d, float tmin, float tmax, SurfaceHit &hit) const {
   if (!traceable_ray(o, d, tmin, tmax)) return false;
   RTCIntersectContext ctx;

@@ -3,6 +3,7 @@
 // closest-hit and any-hit (shadow) queries the path loop and trace_ray use.
 #pragma once
 
+#include <cmath>
 #include <limits>
 #include <vector>
 
@@ -35,7 +36,13 @@ class Accel {
 
   // Debian's Embree asserts ray.valid(): origin and direction components within +-1.844e18
   // (its FLT_LARGE; NaN and Inf fail too) and tnear/tfar not NaN. Other rays never reach it.
-  static bool traceable_ray(const Vec3 &o, const Vec3 &d, float tmin, float tmax);
+  static bool traceable_ray(const Vec3 &o, const Vec3 &d, float tmin, float tmax) {
+    constexpr float kEmbreeLargest = 1.8e18f;
+    auto bounded = [](const Vec3 &v) {
+      return std::fabs(v.x) <= kEmbreeLargest && std::fabs(v.y) <= kEmbreeLargest && std::fabs(v.z) <= kEmbreeLargest;
+    };
+    return bounded(o) && bounded(d) && tmin >= 0.0f && tmin <= tmax;  // false for NaN
+  }
 
  private:
   RTCDevice device_ = nullptr;

@@ -31,20 +31,6 @@ float AreaLight::power(float) const {
   return p;
 }
 
-float AreaLight::spread_attenuation(float cos_to_normal) const {
-  // Cycles 3.4 light_spread_attenuation (kernel/light/light.h): the share of a soft-box grid cell not hidden by
-  // its slats at angle a from the normal.
-  if (tan_spread_ <= 0.0f) return 1.0f;
-  const float sin_a = std::sqrt(std::max(0.0f, 1.0f - cos_to_normal * cos_to_normal));
-  const float tan_a = sin_a / cos_to_normal;
-  return std::max((1.0f - tan_spread_ * tan_a) * normalize_spread_, 0.0f);
-}
-
-bool AreaLight::inside(const Vec3 &q) const {
-  const float su = dot(q, U_) / length_squared(U_), sv = dot(q, V_) / length_squared(V_);
-  return round_ ? (4.0f * (su * su + sv * sv) <= 1.0f) : (std::fabs(su) <= 0.5f && std::fabs(sv) <= 0.5f);
-}
-
 bool AreaLight::sample(float u, float v, const Vec3 &P, float pick, LightSample &out) const {
   Vec3 offset;
   if (round_) {
@@ -65,21 +51,6 @@ bool AreaLight::sample(float u, float v, const Vec3 &P, float pick, LightSample 
   out.radiance = radiance(cos_l);
   out.delta = false;
   return !is_zero(out.radiance);
-}
-
-bool AreaLight::intersect(const Vec3 &o, const Vec3 &d, float t_max, float pick, LightHit &out) const {
-  const float denom = dot(d, dir_);
-  if (std::fabs(denom) < 1e-9f) return false;
-  const float t = dot(co_ - o, dir_) / denom;
-  if (!(t > 0.0f && t < t_max)) return false;
-  if (!inside(o + d * t - co_)) return false;
-  const float cos_l = -denom;
-  if (cos_l <= 0.0f) return false;  // back side: no emission
-  out.radiance = radiance(cos_l);
-  if (is_zero(out.radiance)) return false;
-  out.pdf = pdf(pick, t * t, cos_l);
-  out.t = t;
-  return true;
 }
 
 }  // namespace glimmer::render

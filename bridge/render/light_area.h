@@ -4,6 +4,9 @@
 // point sampled uniformly by area: pdf = t^2 / (cos A).
 #pragma once
 
+#include <algorithm>
+#include <cmath>
+
 #include "render/light_common.h"
 #include "scene/scene.h"
 
@@ -31,5 +34,35 @@ class AreaLight {
   bool round_;
   float tan_spread_ = 0.0f, normalize_spread_ = 1.0f;  // Cycles 3.4 spread (scene/light.cpp)
 };
+
+// Inline (header): LightSet::intersect calls it on every ray segment of every path.
+inline float AreaLight::spread_attenuation(float cos_to_normal) const {
+  // Cycles 3.4 light_spread_attenuation (kernel/light/light.h): the share of a soft-box grid cell not hidden by
+  // its slats at angle a from the normal.
+  if (tan_spread_ <= 0.0f) return 1.0f;
+  const float sin_a = std::sqrt(std::max(0.0f, 1.0f - cos_to_normal * cos_to_normal));
+  const float tan_a = sin_a / cos_to_normal;
+  return std::max((1.0f - tan_spread_ * tan_a) * normalize_spread_, 0.0f);
+}
+
+inline bool AreaLight::inside(const Vec3 &q) const {
+  const float su = dot(q, U_) / length_squared(U_), sv = dot(q, V_) / length_squared(V_);
+  return round_ ? (4.0f * (su * su + sv * sv) <= 1.0f) : (std::fabs(su) <= 0.5f && std::fabs(sv) <= 0.5f);
+}
+
+inline bool AreaLight::intersect(const Vec3 &o, const Vec3 &d, float t_max, float pick, LightHit &out) const {
+  const float denom = dot(d, dir_);
+  if (std::fabs(denom) < 1e-9f) return false;
+  const float t = dot(co_ - o, dir_) / denom;
+  if (!(t > 0.0f && t < t_max)) return false;
+  if (!inside(o + d * t - co_)) return false;
+  const float cos_l = -denom;
+  if (cos_l <= 0.0f) return false;  // back side: no emission
+  out.radiance = radiance(cos_l);
+  if (is_zero(out.radiance)) return false;
+  out.pdf = pdf(pick, t * t, cos_l);
+  out.t = t;
+  return true;
+}
 
 }  // namespace glimmer::render

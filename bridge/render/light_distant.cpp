@@ -43,15 +43,4 @@ bool DistantLight::sample(float u, float v, const Vec3 &, float pick, LightSampl
   return true;
 }
 
-bool DistantLight::intersect(const Vec3 &, const Vec3 &d, float, bool hit_surface, float pick, LightHit &out) const {
-  if (hit_surface || !(tan_radius_ > 0.0f)) return false;
-  const float cos_theta = dot(d, -dir_);
-  if (cos_theta < cos_half_angle_) return false;
-  const float dens = density(cos_theta);
-  out.radiance = strength_ * dens;
-  out.pdf = pick * dens;
-  out.t = std::numeric_limits<float>::infinity();
-  return true;
-}
-
 }  // namespace glimmer::render

@@ -5,6 +5,8 @@
 // irradiance S. Only rays that escape the scene see the disk.
 #pragma once
 
+#include <limits>
+
 #include "render/light_common.h"
 #include "scene/scene.h"
 
@@ -30,5 +32,17 @@ class DistantLight {
   float tan_radius_;         // tan(a / 2): the disk's radius at unit distance
   float inv_area_;           // 1 / (pi tan^2(a / 2))
 };
+
+// Inline (header): LightSet::intersect calls it on every ray segment of every path.
+inline bool DistantLight::intersect(const Vec3 &, const Vec3 &d, float, bool hit_surface, float pick, LightHit &out) const {
+  if (hit_surface || !(tan_radius_ > 0.0f)) return false;
+  const float cos_theta = dot(d, -dir_);
+  if (cos_theta < cos_half_angle_) return false;
+  const float dens = density(cos_theta);
+  out.radiance = strength_ * dens;
+  out.pdf = pick * dens;
+  out.t = std::numeric_limits<float>::infinity();
+  return true;
+}
 
 }  // namespace glimmer::render

@@ -39,23 +39,4 @@ bool PointLight::sample(float u, float v, const Vec3 &P, float pick, LightSample
   return !is_zero(out.radiance);
 }
 
-bool PointLight::intersect(const Vec3 &o, const Vec3 &d, float t_max, float pick, LightHit &out) const {
-  if (!(radius_ > 0.0f)) return false;
-  // The disk of radius r at co facing the ray origin (Cycles' ray_disk_intersect with lightN = o - co).
-  const Vec3 oc = o - co_;
-  const float dist_origin = length(oc);
-  if (!(dist_origin > 0.0f)) return false;
-  const Vec3 lightN = oc / dist_origin;
-  const float cos_l = -dot(d, lightN);
-  if (cos_l <= 0.0f) return false;
-  const float t = dist_origin / cos_l;  // plane through co with normal lightN
-  if (!(t > 0.0f && t < t_max)) return false;
-  const Vec3 q = o + d * t - co_;
-  if (length_squared(q) > radius_ * radius_) return false;
-  out.radiance = disk_radiance();
-  out.pdf = disk_pdf(pick, t * t, cos_l);
-  out.t = t;
-  return !is_zero(out.radiance);
-}
-
 }  // namespace glimmer::render

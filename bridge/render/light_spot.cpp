@@ -27,10 +27,4 @@ bool SpotLight::sample(float u, float v, const Vec3 &P, float pick, LightSample 
   return !is_zero(out.radiance);
 }
 
-bool SpotLight::intersect(const Vec3 &o, const Vec3 &d, float t_max, float pick, LightHit &out) const {
-  if (!lamp_.intersect(o, d, t_max, pick, out)) return false;
-  out.radiance *= attenuation(-d);
-  return !is_zero(out.radiance);
-}
-
 }  // namespace glimmer::render

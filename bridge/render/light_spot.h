@@ -22,4 +22,11 @@ class SpotLight {
   float cos_half_spot_, spot_smooth_;
 };
 
+// Inline (header): LightSet::intersect calls it on every ray segment of every path.
+inline bool SpotLight::intersect(const Vec3 &o, const Vec3 &d, float t_max, float pick, LightHit &out) const {
+  if (!lamp_.intersect(o, d, t_max, pick, out)) return false;
+  out.radiance *= attenuation(-d);
+  return !is_zero(out.radiance);
+}
+
 }  // namespace glimmer::render

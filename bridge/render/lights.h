@@ -78,4 +78,27 @@ class LightSet {
                               const std::vector<int> &mesh_shader, FeatureSet &features);
 };
 
+// Inline: called on every ray segment of every path.
+inline void LightSet::intersect(const Vec3 &o, const Vec3 &d, float t_max, bool hit_surface, bool camera_ray,
+                                LightHits &out) const {
+  out.count = 0;
+  for (const int i : lamps_) {
+    if (camera_ray && !lights_[i].use_camera) continue;
+    const float pick = pick_probability(i);
+    LightHit h;
+    const bool hit = std::visit(
+        [&](const auto &light) {
+          using Kind = std::decay_t<decltype(light)>;
+          if constexpr (std::is_same_v<Kind, DistantLight>)
+            return light.intersect(o, d, t_max, hit_surface, pick, h);
+          else if constexpr (std::is_same_v<Kind, TriangleLight> || std::is_same_v<Kind, BackgroundLight>)
+            return false;  // not in lamps_: triangles are found by the BVH, the world when the ray escapes
+          else
+            return light.intersect(o, d, t_max, pick, h);
+        },
+        lights_[i].kind);
+    if (hit) out.add(h);
+  }
+}
+
 }  // namespace glimmer::render
