@@ -1,8 +1,5 @@
 #include "render/accel.h"
 
-#include <embree3/rtcore.h>
-
-#include <cmath>
 #include <stdexcept>
 
 namespace glimmer::render {
@@ -27,18 +24,6 @@ RTCGeometry triangle_geometry(RTCDevice device, const scene::Mesh &m) {
   return g;
 }
 
-// An Embree ray (o, d) over [tmin, tmax] for all geometry.
-void fill_ray(RTCRay &r, const Vec3 &o, const Vec3 &d, float tmin, float tmax) {
-  r.org_x = o.x; r.org_y = o.y; r.org_z = o.z;
-  r.dir_x = d.x; r.dir_y = d.y; r.dir_z = d.z;
-  r.tnear = tmin;
-  r.tfar = tmax;
-  r.time = 0.0f;
-  r.mask = 0xffffffffu;
-  r.id = 0;
-  r.flags = 0;
-}
-
 }  // namespace
 
 Accel::Accel(const std::vector<scene::Mesh> &meshes) {
@@ -57,34 +42,6 @@ Accel::Accel(const std::vector<scene::Mesh> &meshes) {
 Accel::~Accel() {
   if (scene_) rtcReleaseScene(scene_);
   if (device_) rtcReleaseDevice(device_);
-}
-
-bool Accel::intersect(const Vec3 &o, const Vec3 &d, float tmin, float tmax, SurfaceHit &hit) const {
-  if (!traceable_ray(o, d, tmin, tmax)) return false;
-  RTCIntersectContext ctx;
-  rtcInitIntersectContext(&ctx);
-  RTCRayHit rh;
-  fill_ray(rh.ray, o, d, tmin, tmax);
-  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-  rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-  rtcIntersect1(scene_, &ctx, &rh);
-  if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
-  hit.mesh = static_cast<int>(rh.hit.geomID);
-  hit.prim = static_cast<int>(rh.hit.primID);
-  hit.u = rh.hit.u;
-  hit.v = rh.hit.v;
-  hit.t = rh.ray.tfar;
-  return true;
-}
-
-bool Accel::occluded(const Vec3 &o, const Vec3 &d, float tmax) const {
-  if (!traceable_ray(o, d, 0.0f, tmax)) return true;  // no light along a ray that cannot be traced
-  RTCIntersectContext ctx;
-  rtcInitIntersectContext(&ctx);
-  RTCRay r;
-  fill_ray(r, o, d, 0.0f, tmax);
-  rtcOccluded1(scene_, &ctx, &r);
-  return r.tfar < 0.0f;
 }
 
 }  // namespace glimmer::render

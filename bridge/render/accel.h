@@ -3,15 +3,14 @@
 // closest-hit and any-hit (shadow) queries the path loop and trace_ray use.
 #pragma once
 
+#include <embree3/rtcore.h>
+
 #include <cmath>
 #include <limits>
 #include <vector>
 
 #include "glimmer/math.h"
 #include "scene/scene.h"
-
-typedef struct RTCDeviceTy *RTCDevice;
-typedef struct RTCSceneTy *RTCScene;
 
 namespace glimmer::render {
 
@@ -45,8 +44,51 @@ class Accel {
   }
 
  private:
+  // An Embree ray (o, d) over [tmin, tmax] for all geometry.
+  static void fill_ray(RTCRay &r, const Vec3 &o, const Vec3 &d, float tmin, float tmax);
+
   RTCDevice device_ = nullptr;
   RTCScene scene_ = nullptr;
 };
+
+// Inline (header): the path loop calls these on every ray segment and shadow ray.
+inline void Accel::fill_ray(RTCRay &r, const Vec3 &o, const Vec3 &d, float tmin, float tmax) {
+  r.org_x = o.x; r.org_y = o.y; r.org_z = o.z;
+  r.dir_x = d.x; r.dir_y = d.y; r.dir_z = d.z;
+  r.tnear = tmin;
+  r.tfar = tmax;
+  r.time = 0.0f;
+  r.mask = 0xffffffffu;
+  r.id = 0;
+  r.flags = 0;
+}
+
+inline bool Accel::intersect(const Vec3 &o, const Vec3 &d, float tmin, float tmax, SurfaceHit &hit) const {
+  if (!traceable_ray(o, d, tmin, tmax)) return false;
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  RTCRayHit rh;
+  fill_ray(rh.ray, o, d, tmin, tmax);
+  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+  rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+  rtcIntersect1(scene_, &ctx, &rh);
+  if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
+  hit.mesh = static_cast<int>(rh.hit.geomID);
+  hit.prim = static_cast<int>(rh.hit.primID);
+  hit.u = rh.hit.u;
+  hit.v = rh.hit.v;
+  hit.t = rh.ray.tfar;
+  return true;
+}
+
+inline bool Accel::occluded(const Vec3 &o, const Vec3 &d, float tmax) const {
+  if (!traceable_ray(o, d, 0.0f, tmax)) return true;  // no light along a ray that cannot be traced
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  RTCRay r;
+  fill_ray(r, o, d, 0.0f, tmax);
+  rtcOccluded1(scene_, &ctx, &r);
+  return r.tfar < 0.0f;
+}
 
 }  // namespace glimmer::render
