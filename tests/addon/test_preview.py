@@ -29,12 +29,15 @@ if not CHILD:
     os.makedirs(out)
     cmd = [bpy.app.binary_path, "-b", "--factory-startup", "--python", os.path.abspath(__file__), "--",
            "--glimmer", glimmer, "--out", opts.out, "--child"]  # BLENDER_USER_* come from the environment
-    proc = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, timeout=240,
-                          env=dict(os.environ, GLIMMER_EXECUTABLE=glimmer))
-    log = proc.stdout.decode(errors="replace")
+    try:
+        proc = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, timeout=240,
+                              env=dict(os.environ, GLIMMER_EXECUTABLE=glimmer))
+        log, code = proc.stdout.decode(errors="replace"), proc.returncode
+    except subprocess.TimeoutExpired as e:  # the child's output so far says where it stopped
+        log, code = (e.stdout or b"").decode(errors="replace") + "\n(child killed after 240 s)", -1
     print(log[-3000:])
     info_path = os.path.join(out, "preview.json")
-    check(os.path.isfile(info_path), "the child's engine rendered a preview (exit code %d)" % proc.returncode)
+    check(os.path.isfile(info_path), "the child's engine rendered a preview (exit code %d)" % code)
     info = json.load(open(info_path))
     print("preview:", info)
     check(info["is_preview"], "rendered as a preview")
@@ -77,8 +80,10 @@ def recording_load(result, path, layer_name):
     copy = os.path.join(out, "preview.exr")
     shutil.copy(path, copy)
     _load(result, path, layer_name)
-    with open(os.path.join(out, "preview.json"), "w") as f:
+    info_path = os.path.join(out, "preview.json")
+    with open(info_path + ".part", "w") as f:
         json.dump({"exr": copy, "is_preview": seen.get("is_preview"), "samples": seen.get("samples")}, f)
+    os.replace(info_path + ".part", info_path)  # the main thread sees the whole file or none
     print("child: preview written", flush=True)
 
 
@@ -98,4 +103,8 @@ with bpy.context.temp_override(id=mat):
 deadline = time.monotonic() + 200
 while time.monotonic() < deadline and not os.path.isfile(os.path.join(out, "preview.json")):
     time.sleep(0.2)  # the preview job runs in its own thread
-sys.exit(0)
+# Not sys.exit: Blender's exit (run from Python's atexit, holding the GIL) waits for the preview job's thread, which
+# may still be in the engine's Python code after the load above and waits for the GIL: a deadlock (seen in CI, where
+# the child hung until the parent's timeout). The files the parent reads are complete; leave at once.
+sys.stdout.flush()
+os._exit(0 if os.path.isfile(os.path.join(out, "preview.json")) else 1)
