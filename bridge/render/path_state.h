@@ -63,6 +63,11 @@ struct PathState {
   void advance_transparent(const BounceLimits &limits) {
     if (++transparent_bounce >= limits.transparent) terminate_next = true;
   }
+
+  // The path vertex whose sample sets (BSDF, light) the next surface uses: every surface the path has
+  // left, transparent pass-throughs included (Cycles advances rng_offset for both), so the surface behind
+  // a transparent one draws fresh numbers instead of the x < transparent-share that picked the pass-through.
+  int sample_vertex() const { return bounce + transparent_bounce; }
 };
 
 }  // namespace glimmer::render

@@ -584,7 +584,7 @@ struct Renderer::Impl {
                                       const PixelSampler &sampler, const PathState &ps, PathRadiance &pr) const {
     if (!use_nee() || !has_smooth_closure(cs) || lights->count() == 0) return;
     float lu, lv;
-    sampler.get_light(ps.bounce, lu, lv);
+    sampler.get_light(ps.sample_vertex(), lu, lv);
     const Spectrum direct = sample_direct_light(cs, sd, pr.throughput, total_sw, lu, lv);
     if (!is_zero(direct)) add_contribution(pr, direct, ps.bounce);
   }
@@ -656,7 +656,7 @@ struct Renderer::Impl {
       // The bounce's 4D BSDF set: x, y (closure pick, then the closure's direction), z (its third number),
       // rr (Russian roulette); docs/architecture.md "Sample dimensions".
       float bsdf_rand[4];
-      sampler.get_bsdf(ps.bounce, bsdf_rand);
+      sampler.get_bsdf(ps.sample_vertex(), bsdf_rand);
       if (!survives_russian_roulette(ps, limits, bsdf_rand[3], pr.throughput)) break;
       const float transparent_weight = std::fabs(average(cs.transparent));
       const float total_sw = cs.sum_sample_weight + transparent_weight;

@@ -127,6 +127,8 @@ constexpr uint32_t dimension_seed(uint32_t set_seed, int d) {
 //     (dielectric reflect/refract, decided on the sampled microfacet: jointly stratified with x, y); rr is
 //     Russian roulette. Each bounce has its own set (padding).
 //   light of bounce b: 2D (u, v): u picks the light (rescaled) and with v the point on it.
+//   b counts transparent pass-throughs too (PathState::sample_vertex), so every surface a path meets
+//   has its own sets.
 enum SampleSet : uint32_t {
   kSetFilm = 0,
   kSetsPerBounce = 2,

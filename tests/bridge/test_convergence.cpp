@@ -162,5 +162,33 @@ TEST(WorldSampling, ConstantWorldIsALightOnlyWhereThatHelps) {
   EXPECT_LT(bsdf_only, 0.25 * as_light);
 }
 
+// Every surface a path meets draws from its own sample sets, transparent pass-throughs included: two
+// half-transparent veils (mix 0.5 of transparent and white diffuse) in front of an emissive wall of
+// radiance 1, black world, max_bounce 0. Light reaches the camera only through both veils' transparent
+// parts: 0.5 x 0.5 x 1 = 0.25 (the diffuse parts face the camera, the wall is behind them, and with no
+// bounce after a diffuse scatter only an emitter it hits directly would count).
+// Negative control, measured: when the second veil reused the first one's set (the pass-through is not a
+// bounce), its x was the x < 0.5 that had picked transparency, so it picked transparency again: 0.5.
+TEST(SampleDimensions, SurfaceBehindATransparentOneDrawsFreshNumbers) {
+  const std::string veil = "<transparent_bsdf name=\"t\" color=\"1 1 1\" /><diffuse_bsdf name=\"d\" color=\"1 1 1\" />"
+                           "<mix_closure name=\"m\" fac=\"0.5\" /><connect from=\"t bsdf\" to=\"m closure1\" />"
+                           "<connect from=\"d bsdf\" to=\"m closure2\" /><connect from=\"m closure\" to=\"output surface\" />";
+  const std::string path = write_file(
+      "two_veils.xml",
+      "<cycles>\n<camera width=\"16\" height=\"16\" fov=\"0.5\" />\n<camera />\n<integrator max_bounce=\"0\" />\n"
+      "<shader name=\"glow\"><emission name=\"e\" color=\"1 1 1\" strength=\"1\" />"
+      "<connect from=\"e emission\" to=\"output surface\" /></shader>\n"
+      "<shader name=\"veil\">" + veil + "</shader>\n"
+      "<state shader=\"veil\"><mesh P=\"-1 -1 2  1 -1 2  1 1 2  -1 1 2\" nverts=\"4\" verts=\"0 1 2 3\" /></state>\n"
+      "<state shader=\"veil\"><mesh P=\"-2 -2 3  2 -2 3  2 2 3  -2 2 3\" nverts=\"4\" verts=\"0 1 2 3\" /></state>\n"
+      "<state shader=\"glow\"><mesh P=\"-3 -3 4  3 -3 4  3 3 4  -3 3 4\" nverts=\"4\" verts=\"0 1 2 3\" /></state>\n"
+      "</cycles>\n");
+  render::RenderOptions opt;
+  opt.samples = 64;
+  opt.aovs = false;
+  const auto r = render_scene(path, opt);
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(mean_channel(r, c, 4, 4, 12, 12), 0.25, 0.03) << "channel " << c;
+}
+
 }  // namespace
 }  // namespace glimmer::test
