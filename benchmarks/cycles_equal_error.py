@@ -2,17 +2,26 @@
 
 Run headless (not part of `make test`; it takes minutes):
   blender -b --factory-startup --python benchmarks/cycles_equal_error.py -- --glimmer build/glimmer --out DIR
-      [--scenes a,b,c] [--samples 256] [--reference-samples 4096] [--size 96]
+      [--scenes a,b,c] [--samples 256] [--reference-samples 4096] [--size 96] [--repeats 3]
+      [--reuse-references] [--ladder 16,32,64,128,256]
 
 Scenes, built by script as tests/addon/test_cycles_parity.py builds its scenes (box filter width 1, no clamps,
 no filter glossy, no denoising, linear float EXR) and exported by the addon:
   a  a white multi-GGX sphere (roughness 0.9) in a constant white world
   b  a rough glass sphere (GGX 0.3, IOR 1.45) on a glossy floor under an HDR environment
   c  a diffuse box lit by an area light with a glossy (GGX 0.3) sphere
-For each: a Cycles reference (seed 7), then Cycles and Glimmer at the same sample count back to back (seed 1),
-wall time of each render call, RMSE against the Cycles reference (and Glimmer's against its own reference,
-which separates its noise from model differences), and the equal-error time ratio
+  g  a white glass sphere (GGX 0.6, IOR 1.5) filling the frame in a constant white world (full depth)
+  m  the same with multi_ggx glass
+For each: a Cycles reference (seed 7), then Cycles and Glimmer at the same sample count, interleaved
+--repeats times in ABBA order (C G G C C G ...: the two renderers share the machine's load drift), seed 1,
+wall time of each render call (median of the repeats; the images are identical across repeats), RMSE against
+the Cycles reference (and Glimmer's against its own reference, which separates its noise from model
+differences), and the equal-error time ratio
   time_glimmer / time_cycles x (rmse_glimmer / rmse_cycles)^2  (< 1: Glimmer reaches the same error sooner).
+--reuse-references loads the reference EXRs an earlier run with the same settings left in --out instead of
+rendering them again.
+--ladder 16,32,...: instead of the timing, each renderer's RMSE against its own reference at every rung and
+the fitted log-log slope (Cycles' convergence next to Glimmer's on the same exported scene).
 """
 import argparse
 import os
@@ -37,6 +46,9 @@ parser.add_argument("--samples", type=int, default=256)
 parser.add_argument("--reference-samples", type=int, default=4096)
 parser.add_argument("--size", type=int, default=96)
 parser.add_argument("--threads", type=int, default=2)
+parser.add_argument("--repeats", type=int, default=3)
+parser.add_argument("--reuse-references", action="store_true")
+parser.add_argument("--ladder", default="")
 opts = parser.parse_args(argv)
 os.environ["GLIMMER_EXECUTABLE"] = os.path.abspath(opts.glimmer)
 os.makedirs(opts.out, exist_ok=True)
@@ -155,7 +167,17 @@ def scene_c(samples):
     return scene
 
 
-BUILD = {"a": scene_a, "b": scene_b, "c": scene_c}
+def white_world_glass(samples, distribution):
+    scene = new_scene(samples)
+    set_world_color(scene, (1.0, 1.0, 1.0))
+    add_camera(scene, (0.0, -4.0, 0.0), (90.0, 0.0, 0.0), lens=150.0)  # the sphere fills the frame
+    add_sphere(1.0, (0, 0, 0), material("Glass", "ShaderNodeBsdfGlass", (1.0, 1.0, 1.0), distribution=distribution,
+                                        Roughness=0.6, IOR=1.5))
+    return scene
+
+
+BUILD = {"a": scene_a, "b": scene_b, "c": scene_c, "g": lambda n: white_world_glass(n, "GGX"),
+         "m": lambda n: white_world_glass(n, "MULTI_GGX")}
 
 
 def render_cycles(name, seed):
@@ -198,14 +220,53 @@ def rmse(a, b):
     return float(np.sqrt(np.mean((a - b) ** 2)))
 
 
+def reference(render, name):
+    """The reference render, or with --reuse-references the one an earlier run left in --out (time nan)."""
+    path = os.path.join(opts.out, name + ("_rgba.exr" if render is render_glimmer else ".exr"))
+    if opts.reuse_references and os.path.exists(path):
+        return load_pixels(path), float("nan")
+    return render(name, 7)
+
+
+def interleaved(key):
+    """Cycles and Glimmer renders of the scene, ABBA-interleaved; images of the first, median times."""
+    times = {"c": [], "g": []}
+    images = {}
+    for i in range(opts.repeats):
+        for r in ("cg" if i % 2 == 0 else "gc"):
+            image, seconds = (render_cycles if r == "c" else render_glimmer)("%s_%s" % (key, "cycles" if r == "c" else "glimmer"), 1)
+            images.setdefault(r, image)
+            times[r].append(seconds)
+    return images["c"], images["g"], float(np.median(times["c"])), float(np.median(times["g"])), times
+
+
+def ladder(key, ref_c, ref_g):
+    """RMSE of each renderer against its own reference per rung, and the fitted log-log slopes."""
+    spp = [int(n) for n in opts.ladder.split(",")]
+    errors = {"c": [], "g": []}
+    for n in spp:
+        BUILD[key](n)
+        errors["c"].append(rmse(render_cycles("%s_cycles_%d" % (key, n), 1)[0], ref_c))
+        errors["g"].append(rmse(render_glimmer("%s_glimmer_%d" % (key, n), 1)[0], ref_g))
+    slope = {r: float(np.polyfit(np.log(spp), np.log(e), 1)[0]) for r, e in errors.items()}
+    return "scene %s convergence vs own %d-spp reference: %s | slope cycles %.3f glimmer %.3f" % (
+        key, opts.reference_samples, " ".join("%d: c %.5f g %.5f" % (n, c, g) for n, c, g in zip(spp, errors["c"], errors["g"])),
+        slope["c"], slope["g"])
+
+
 lines = []
 for key in opts.scenes.split(","):
     BUILD[key](opts.reference_samples)
-    ref_c, t_ref_c = render_cycles("%s_cycles_ref" % key, 7)
-    ref_g, t_ref_g = render_glimmer("%s_glimmer_ref" % key, 7)
+    ref_c, t_ref_c = reference(render_cycles, "%s_cycles_ref" % key)
+    ref_g, t_ref_g = reference(render_glimmer, "%s_glimmer_ref" % key)
+    if opts.ladder:
+        lines.append(ladder(key, ref_c, ref_g))
+        print(lines[-1], flush=True)
+        continue
     BUILD[key](opts.samples)
-    cyc, t_c = render_cycles("%s_cycles" % key, 1)
-    glim, t_g = render_glimmer("%s_glimmer" % key, 1)
+    cyc, glim, t_c, t_g, all_times = interleaved(key)
+    print("scene %s times (s), interleaved: cycles %s glimmer %s" %
+          (key, " ".join("%.2f" % t for t in all_times["c"]), " ".join("%.2f" % t for t in all_times["g"])), flush=True)
     e_c, e_g, e_g_own = rmse(cyc, ref_c), rmse(glim, ref_c), rmse(glim, ref_g)
     # Cycles can be exactly noise-free (its white multiscatter walk in a white world): the ratio is then infinite.
     ratio = t_g / t_c * (e_g / e_c) ** 2 if e_c > 0 else float("inf")
