@@ -86,6 +86,7 @@ def new_scene(samples, bounces=12):
     g.threads = opts.threads
     g.max_bounce = g.max_diffuse_bounce = g.max_glossy_bounce = g.max_transmission_bounce = bounces
     g.transparent_max_bounce = bounces
+    g.min_bounce = 0  # Russian roulette as Cycles' min_light_bounces = 0 above (the addon's default was 3 once)
     g.filter_glossy = 0.0
     g.sample_clamp_direct = g.sample_clamp_indirect = 0.0
     g.filter_type = "box"
