@@ -174,6 +174,23 @@ float traced_cone_sharpness(const Segment &seg, const Vec3 &axis_out, float ior)
   return sharpness_of_cone(cos_sum / float(seg.bounding_count));
 }
 
+// The leaving interface's energy E_x averaged over the axis (`axis_energy`) and the bounding rays, each at its
+// incidence on its own exit normal.
+float mean_exit_energy(const TransmissionSgTable &table, const Segment &seg, float axis_energy, float ior,
+                       float roughness) {
+  float sum = axis_energy;
+  int count = 1;
+  const float r = std::clamp(roughness, TransmissionSgTable::kRoughnessMin, kTableRoughnessMax);
+  for (int i = 0; i < seg.bounding_count; ++i) {
+    TransmissionLobe lobe;
+    const float cos_i = std::clamp(dot(seg.bounding_dir[i], seg.bounding_normal[i]), 1e-4f, 1.0f);
+    if (!table.lookup(cos_i, 1.0f / ior, r, lobe)) continue;
+    sum += std::clamp(lobe.energy, 0.0f, 1.0f);
+    ++count;
+  }
+  return sum / float(count);
+}
+
 float roulette(uint32_t seed, int event) {
   return float(hash_u32x3(seed, uint32_t(event), 0x5bd1e995u) >> 8) * 0x1p-24f;
 }
@@ -239,8 +256,11 @@ bool trace_exit_lobe(const ShadingPoint &sp, const SgInputs &in, uint32_t seed, 
     SphericalGaussian exit;
     float exit_energy = 0.0f;
     if (!table_lobe(*in.table, exit_frame, incident, 1.0f / ior, roughness_exit, exit, exit_energy)) return false;
-    // 5. Russian roulette between the exit (E_x) and the internal reflection (1 - E_x).
-    if (!last && roulette(seed, event) >= exit_energy) {
+    // 5. Russian roulette between the exit (E_x) and the internal reflection (1 - E_x). E_x is averaged over the
+    // axis and the bounding rays, each at its own incidence on its own exit normal: the directions of a wide lobe
+    // far from its axis reach the exit beyond the critical angle and reflect, which the axis alone does not see.
+    const float transmitted = last ? exit_energy : mean_exit_energy(*in.table, seg, exit_energy, ior, roughness_exit);
+    if (!last && roulette(seed, event) >= transmitted) {
       const float kappa_reflect = 2.0f / std::max(alpha2, 1e-7f);  // NDF sharpness; reflected lobe: kappa / 4
       kappa_in = 1.0f / (1.0f / kappa_in + 4.0f / kappa_reflect);
       axis = normalize(axis - n * (2.0f * dot(axis, n)));

@@ -224,9 +224,9 @@ struct Config {
 };
 const Config kConfigs[] = {{0.1f, 1.33f, Vec3(1.0f), {kGoal, kGoal}},
                            {0.3f, 1.5f, Vec3(1.0f), {kGoal, kGoal}},
-                           {0.5f, 1.7f, Vec3(1.0f), {kGoal, 0.11}},
-                           {0.5f, 1.7f, Vec3(0.7f, 0.85f, 0.95f), {0.11, kGoal}},
-                           {0.8f, 1.5f, Vec3(1.0f), {0.18, 0.12}}};
+                           {0.5f, 1.7f, Vec3(1.0f), {kGoal, 0.125}},
+                           {0.5f, 1.7f, Vec3(0.7f, 0.85f, 0.95f), {kGoal, 0.08}},
+                           {0.8f, 1.5f, Vec3(1.0f), {0.175, 0.135}}};
 constexpr int kReferenceSpp = 16384;
 constexpr int kSgSpp = 2048;
 
