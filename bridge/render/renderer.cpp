@@ -627,6 +627,21 @@ struct Renderer::Impl {
     if (!is_zero(direct)) add_contribution(pr, direct, ps.bounce);
   }
 
+  // ABI 2.3: the closure moved the path (e.g. to where light leaves a frosted object).
+  static bool moved(const GlimmerSample &s) { return (s.flags & GLIMMER_SAMPLE_MOVED) != 0; }
+  // The next segment after sample s: from the surface, or from the sample's origin when it moved the path.
+  static bool continue_after_sample(PathRay &ray, const ShadingData &sd, const GlimmerSample &s, const Vec3 &wo) {
+    if (!moved(s)) {
+      continue_ray(ray, sd, wo);
+      return true;
+    }
+    ray.org = offset_ray_origin(Vec3(s.origin), Vec3(s.origin_Ng), wo);
+    ray.D = wo;
+    ray.tmin = 0.0f;
+    ray.tmax = kInf;
+    return is_finite(ray.org);
+  }
+
   // The next segment starts at the surface, offset along Ng toward `dir`.
   static void continue_ray(PathRay &ray, const ShadingData &sd, const Vec3 &dir) {
     ray.org = offset_ray_origin(sd.ctx.P, sd.Ng, dir);
@@ -658,17 +673,8 @@ struct Renderer::Impl {
     if (!scatter(cs, sd, chosen, r3, total_sw, pr.throughput, ps, s, *pr.nan_count)) return false;
     const Vec3 wo = normalize(Vec3(s.wo));
     ps.advance(s.label, limits);
-    const bool moved = (s.flags & GLIMMER_SAMPLE_MOVED) != 0;
-    next_differentials(ray.rd, ray.D, wo, sd, s, ps.last_singular && !moved, ray.pixel_spread, ps);
-    if (moved) {  // ABI 2.3: the closure moved the path (e.g. to where light leaves a frosted object)
-      ray.org = offset_ray_origin(Vec3(s.origin), Vec3(s.origin_Ng), wo);
-      ray.D = wo;
-      ray.tmin = 0.0f;
-      ray.tmax = kInf;
-      return is_finite(ray.org);
-    }
-    continue_ray(ray, sd, wo);
-    return true;
+    next_differentials(ray.rd, ray.D, wo, sd, s, ps.last_singular && !moved(s), ray.pixel_spread, ps);
+    return continue_after_sample(ray, sd, s, wo);
   }
 
   // One path (Cycles' integrator loop: intersect_closest, shade_light / shade_background, shade_surface).
@@ -745,6 +751,7 @@ struct Renderer::Impl {
         return true;
       }
       GlimmerSample s{};
+      s.struct_size = sizeof(GlimmerSample);
       const float r3[3] = {0.5f, 0.5f, 0.5f};
       const ActiveClosure &c = cs.closures[0];
       GlimmerShadingContext scratch;
@@ -753,8 +760,8 @@ struct Renderer::Impl {
       if (label == GLIMMER_LABEL_NONE) return false;
       const Vec3 wo = normalize(Vec3(s.wo));
       ps.advance(label, limits);
-      next_differentials(ray.rd, ray.D, wo, sd, s, true, ray.pixel_spread, ps);
-      continue_ray(ray, sd, wo);
+      next_differentials(ray.rd, ray.D, wo, sd, s, !moved(s), ray.pixel_spread, ps);
+      if (!continue_after_sample(ray, sd, s, wo)) return false;
     }
     return false;
   }
