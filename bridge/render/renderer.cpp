@@ -77,16 +77,53 @@ struct Renderer::Impl {
     auto *self = static_cast<Impl *>(data);
     SurfaceHit h;
     if (!self->accel->intersect(Vec3(ray->origin), Vec3(ray->direction), ray->t_min, ray->t_max, h)) return 0;
-    const scene::SurfacePoint s = self->scene.meshes[h.mesh].surface_at(h.prim, h.u, h.v);
+    self->fill_ray_hit(h, *ray, *hit);
+    return 1;
+  }
+  // ABI 2.3: the hit and its shader's principal closure (largest sample weight, emission excluded) with the
+  // values of that closure's varying parameters at the hit. filter_glossy is not applied (the instance is the
+  // material's own, so a closure can recognise itself).
+  static int host_trace_closure(void *data, const GlimmerRay *ray, GlimmerRayHit *hit, GlimmerHitClosure *out) {
+    auto *self = static_cast<Impl *>(data);
+    SurfaceHit h;
+    if (!self->accel->intersect(Vec3(ray->origin), Vec3(ray->direction), ray->t_min, ray->t_max, h)) return 0;
+    self->fill_ray_hit(h, *ray, *hit);
+    if (out != nullptr && GLIMMER_HAS_FIELD(out->struct_size, GlimmerHitClosure, varying))
+      self->describe_hit_closure(h, Vec3(ray->direction), *out);
+    return 1;
+  }
+  void describe_hit_closure(const SurfaceHit &h, const Vec3 &D, GlimmerHitClosure &out) const {
+    out.type = nullptr;
+    out.instance = nullptr;
+    out.varying_count = 0;
+    ShadingData sd;
+    setup_shading(h, D, sd);
+    sd.tc.path.camera = false;
+    ClosureSet cs;
+    shaders->evaluate(sd.shader, sd.tc, cs);
+    const ActiveClosure *best = nullptr;
+    for (int i = 0; i < cs.count; ++i) {
+      const ActiveClosure &c = cs.closures[i];
+      if (c.leaf->emissive || !c.leaf->instance || !(c.sample_weight > 0.0f)) continue;
+      if (!best || c.sample_weight > best->sample_weight) best = &c;
+    }
+    if (!best) return;
+    out.type = &best->leaf->instance->type();
+    out.instance = best->leaf->instance->handle();
+    out.varying_count = std::min<uint32_t>(best->varying_count, GLIMMER_HIT_MAX_VARYING);
+    for (uint32_t k = 0; k < out.varying_count; ++k) out.varying[k] = best->varying[k];
+  }
+  void fill_ray_hit(const SurfaceHit &h, const GlimmerRay &ray, GlimmerRayHit &out) const {
+    GlimmerRayHit *hit = &out;
+    const scene::SurfacePoint s = scene.meshes[h.mesh].surface_at(h.prim, h.u, h.v);
     hit->t = h.t;
     hit->P = s.P;
     hit->N = s.N;
     hit->Ng = s.Ng;
-    hit->backfacing = dot(s.Ng, Vec3(ray->direction)) > 0.0f ? 1u : 0u;
+    hit->backfacing = dot(s.Ng, Vec3(ray.direction)) > 0.0f ? 1u : 0u;
     hit->uv[0] = s.uv[0];
     hit->uv[1] = s.uv[1];
     hit->object_id = static_cast<uint32_t>(h.mesh);
-    return 1;
   }
   static void host_environment(void *data, GlimmerVec3 direction, float, float out[3]) {
     const Spectrum c = static_cast<Impl *>(data)->shaders->background(normalize(Vec3(direction)));
@@ -115,6 +152,7 @@ struct Renderer::Impl {
     host.abi_version = GLIMMER_ABI_VERSION;
     host.host_data = this;
     host.trace_ray = &host_trace;
+    host.trace_ray_closure = &host_trace_closure;
     host.environment_lookup = &host_environment;
     host.log = &host::log_callback;
     host.resolve_asset = &host_resolve;
@@ -589,6 +627,21 @@ struct Renderer::Impl {
     if (!is_zero(direct)) add_contribution(pr, direct, ps.bounce);
   }
 
+  // ABI 2.3: the closure moved the path (e.g. to where light leaves a frosted object).
+  static bool moved(const GlimmerSample &s) { return (s.flags & GLIMMER_SAMPLE_MOVED) != 0; }
+  // The next segment after sample s: from the surface, or from the sample's origin when it moved the path.
+  static bool continue_after_sample(PathRay &ray, const ShadingData &sd, const GlimmerSample &s, const Vec3 &wo) {
+    if (!moved(s)) {
+      continue_ray(ray, sd, wo);
+      return true;
+    }
+    ray.org = offset_ray_origin(Vec3(s.origin), Vec3(s.origin_Ng), wo);
+    ray.D = wo;
+    ray.tmin = 0.0f;
+    ray.tmax = kInf;
+    return is_finite(ray.org);
+  }
+
   // The next segment starts at the surface, offset along Ng toward `dir`.
   static void continue_ray(PathRay &ray, const ShadingData &sd, const Vec3 &dir) {
     ray.org = offset_ray_origin(sd.ctx.P, sd.Ng, dir);
@@ -616,12 +669,12 @@ struct Renderer::Impl {
     const float r3[3] = {std::clamp(pick / cs.closures[chosen].sample_weight, 0.0f, 0x1.fffffep-1f), bsdf_rand[1],
                          bsdf_rand[2]};
     GlimmerSample s{};
+    s.struct_size = sizeof(GlimmerSample);
     if (!scatter(cs, sd, chosen, r3, total_sw, pr.throughput, ps, s, *pr.nan_count)) return false;
     const Vec3 wo = normalize(Vec3(s.wo));
     ps.advance(s.label, limits);
-    next_differentials(ray.rd, ray.D, wo, sd, s, ps.last_singular, ray.pixel_spread, ps);
-    continue_ray(ray, sd, wo);
-    return true;
+    next_differentials(ray.rd, ray.D, wo, sd, s, ps.last_singular && !moved(s), ray.pixel_spread, ps);
+    return continue_after_sample(ray, sd, s, wo);
   }
 
   // One path (Cycles' integrator loop: intersect_closest, shade_light / shade_background, shade_surface).
@@ -698,6 +751,7 @@ struct Renderer::Impl {
         return true;
       }
       GlimmerSample s{};
+      s.struct_size = sizeof(GlimmerSample);
       const float r3[3] = {0.5f, 0.5f, 0.5f};
       const ActiveClosure &c = cs.closures[0];
       GlimmerShadingContext scratch;
@@ -706,8 +760,8 @@ struct Renderer::Impl {
       if (label == GLIMMER_LABEL_NONE) return false;
       const Vec3 wo = normalize(Vec3(s.wo));
       ps.advance(label, limits);
-      next_differentials(ray.rd, ray.D, wo, sd, s, true, ray.pixel_spread, ps);
-      continue_ray(ray, sd, wo);
+      next_differentials(ray.rd, ray.D, wo, sd, s, !moved(s), ray.pixel_spread, ps);
+      if (!continue_after_sample(ray, sd, s, wo)) return false;
     }
     return false;
   }
@@ -721,6 +775,8 @@ Renderer::Renderer(const scene::Scene &scene, const host::PluginLibrary &plugin,
 Renderer::~Renderer() = default;
 
 bool Renderer::probe(float x, float y, GlimmerShadingContext &out) const { return impl_->probe(x, y, out); }
+
+const GlimmerHostServices &Renderer::host_services() const { return impl_->host; }
 
 const PartInfo &Renderer::part() const { return impl_->part; }
 

@@ -77,6 +77,8 @@ class Renderer {
   // singular bounces and returns the shading context at the first non-singular hit, with
   // its ray-differential footprint. False when the ray escapes. For tests and debugging.
   bool probe(float x, float y, GlimmerShadingContext &out) const;
+  // The services closures get (trace_ray, trace_ray_closure, environment, log, cache): for tests and tools.
+  const GlimmerHostServices &host_services() const;
 
   const FeatureSet &features() const { return features_; }
   const std::vector<std::string> &warnings() const { return warnings_; }

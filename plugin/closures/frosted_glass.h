@@ -7,8 +7,12 @@
 // interface itself is core/dielectric_lobe.h, shared with microfacet_dielectric.
 //
 // method=path: the reference estimator, both refraction events are stochastic.
-// (The de Rousiers 2012 spherical-Gaussian estimator, method=sg / auto, is not
-// implemented yet: the enum lists only what exists.)
+// method=sg: where the path enters a solid, the transmitted light is estimated
+// with spherical Gaussians (de Rousiers 2012, closures/frosted_glass_sg.h):
+// one SINGULAR sample that the host continues from the exit point; the front
+// reflection stays this rough dielectric lobe. Thin panes, paths arriving
+// from inside and cases the estimator cannot handle use path. (method=auto is
+// not implemented yet: the enum lists only what exists.)
 //
 // Two geometries:
 //  - solid (thin = 0): the mesh is the object's boundary; the path tracer
@@ -41,6 +45,7 @@
 
 #include "core/closure.h"
 #include "core/dielectric_lobe.h"
+#include "closures/frosted_glass_sg.h"
 #include "core/microfacet_lobe_params.h"
 #include "glimmer/microfacet_walk.h"
 #include "glimmer/rng.h"
@@ -95,8 +100,9 @@ class FrostedGlassClosure {
          "boundary", 0},
         {"thickness", GLIMMER_PARAM_FLOAT, {0.01f, 0, 0}, 1e-6f, 1e6f, nullptr, nullptr,
          "thin: distance between the pane's two interfaces (scene units; absorption path length)", 0},
-        {"method", GLIMMER_PARAM_ENUM, {0, 0, 0}, 0.0f, 0.0f, "path", "path",
-         "transmission estimator: path = exact stochastic refraction at every interface (reference)", 0},
+        {"method", GLIMMER_PARAM_ENUM, {0, 0, 0}, 0.0f, 0.0f, "path|sg", "path",
+         "transmission estimator: path = exact stochastic refraction at every interface (reference); sg = "
+         "spherical-Gaussian estimate through the object (de Rousiers 2012; solids only)", 0},
     }};
     return schema;
   }
@@ -113,13 +119,20 @@ class FrostedGlassClosure {
     c->roughness_param_ = p.index("roughness");
     c->ior_param_ = p.index("ior");
     c->lobe_.build(interface_params(c->roughness_), c->ior_, false, true);
+    c->sg_ = p.get_enum("method") == 1;
     return c;
+  }
+
+  // method=sg: the SG table (loaded from the host's cache or built once per process).
+  void prepare(const GlimmerHostServices *host) {
+    if (sg_) table_ = &frosted::TransmissionSgTable::get(host);
   }
 
   LocalEval eval(const ShadingPoint &sp, const Vec3 &wo) const {
     DielectricLobe scratch;
     const DielectricLobe &lobe = lobe_at(sp, scratch);
     if (thin_) return pane_estimate(sp, lobe, wo);
+    if (uses_sg(sp) && wo.z < 0.0f) return {};  // sg: transmission is the singular sample alone
     LocalEval e = lobe.eval(sp.wi, wo);
     if (wo.z * sp.wi.z < 0.0f) e.f_cos *= color_at(sp);
     e.f_cos *= interior_transmittance(sp);
@@ -133,8 +146,29 @@ class FrostedGlassClosure {
     if (!lobe.sample(sp.wi, rand, out)) return false;
     if (out.label & GLIMMER_LABEL_TRANSMIT) out.f_cos *= color_at(sp);
     out.f_cos *= interior_transmittance(sp);
+    if (uses_sg(sp) && (out.label & GLIMMER_LABEL_TRANSMIT)) sample_sg(sp, rand, out, frosted::SgVariant::kTracedCone);
     return true;
   }
+
+  // method=sg's transmission: replaces `front` (the front interface's transmitted sample) by the SG estimate
+  // through the object when it applies (else `front` stays, as method=path). Public for the tests' variants.
+  void sample_sg(const ShadingPoint &sp, const Vec3 &rand, LocalSample &front, frosted::SgVariant variant) const {
+    frosted::SgInputs in;
+    in.table = table_;
+    in.self = reinterpret_cast<const GlimmerInstance *>(this);
+    in.schema = params();
+    in.roughness_param = roughness_param_;
+    in.color_param = color_param_;
+    in.roughness = sp.param_float(roughness_param_, roughness_);
+    in.constant_roughness = roughness_;
+    in.constant_color = color_;
+    in.ior = sp.param_float(ior_param_, ior_);
+    in.sigma_a = beer_.sigma;
+    in.variant = variant;
+    LocalSample s;
+    if (frosted::sample_sg_transmission(sp, in, rand, front, s)) front = s;
+  }
+  bool uses_sg(const ShadingPoint &sp) const { return sg_ && !thin_ && sp.wi.z > 0.0f; }
 
   // R + T with the tint on T is not tabulated: the lossless interface's albedo
   // (1 with compensation) is an upper bound; the tint and absorption are the
@@ -269,6 +303,8 @@ class FrostedGlassClosure {
   float thickness_ = 0.01f;
   uint32_t color_param_ = 0, roughness_param_ = 0, ior_param_ = 0;
   DielectricLobe lobe_;
+  bool sg_ = false;
+  const frosted::TransmissionSgTable *table_ = nullptr;
 };
 
 }  // namespace glimmer::plugin

@@ -93,6 +93,9 @@ struct LocalSample {
   float roughness = 0.0f;
   float eta = 1.0f;
   uint32_t label = GLIMMER_LABEL_NONE;
+  // ABI 2.3: the path continues from `origin` (world space, offset by the host along origin_Ng toward wo).
+  bool moved = false;
+  Vec3 origin{0.0f}, origin_Ng{0.0f};
 };
 
 // Keeps only finite, non-negative values: a closure must never hand NaN/Inf or
@@ -207,7 +210,30 @@ struct ClosureAdapter {
     out->roughness = sanitize(s.roughness);
     out->eta = (std::isfinite(s.eta) && s.eta > 0.0f) ? s.eta : 1.0f;
     out->label = s.label;
+#if GLIMMER_ABI_MINOR >= 3
+    if (GLIMMER_HAS_FIELD(out->struct_size, GlimmerSample, flags)) out->flags = 0;
+#endif
+    if (s.moved && !write_origin(s, out)) {  // a host that cannot move the path gets no sample
+      clear(out);
+      return GLIMMER_LABEL_NONE;
+    }
     return s.label;
+  }
+
+  static bool write_origin(const LocalSample &s, GlimmerSample *out) {
+#if GLIMMER_ABI_MINOR >= 3
+    if (!GLIMMER_HAS_FIELD(out->struct_size, GlimmerSample, origin_Ng) || !is_finite(s.origin) ||
+        !is_finite(s.origin_Ng))
+      return false;
+    out->flags = GLIMMER_SAMPLE_MOVED;
+    out->origin = s.origin;
+    out->origin_Ng = s.origin_Ng;
+    return true;
+#else
+    (void)s;
+    (void)out;
+    return false;
+#endif
   }
 
   static void albedo(const GlimmerInstance *inst, const GlimmerShadingContext *ctx, float out_rgb[3]) noexcept {

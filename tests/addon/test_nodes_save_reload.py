@@ -64,7 +64,7 @@ glint_enum, frosted_enum = enum_param(glint_schema), enum_param(frosted_schema)
 glint_prop, frosted_prop = mod.nodes.property_name(glint_enum["name"]), mod.nodes.property_name(frosted_enum["name"])
 check(getattr(glint, glint_prop) == glint_enum["default"], "enum default")
 glint_choice = next(c for c in glint_enum["choices"] if c != glint_enum["default"])
-# frosted_glass's method lists only what exists (path, until sg / auto land): its only choice then.
+# frosted_glass's method: a choice other than the default (sg), or the only one if the enum had one.
 frosted_choice = next((c for c in frosted_enum["choices"] if c != frosted_enum["default"]), frosted_enum["default"])
 setattr(glint, glint_prop, glint_choice)
 setattr(frosted, frosted_prop, frosted_choice)

@@ -21,6 +21,7 @@
 
 #include "closures/frosted_glass.h"
 #include "closures/microfacet_test_util.h"
+#include "closures/raw_output_checks.h"
 
 namespace {
 
@@ -231,8 +232,7 @@ TEST(FrostedGlassPath, ReciprocityCatchesOneSidedTint) {
 // ---- Stress (raw) ------------------------------------------------------------------
 using glimmer::test::stress_scale;  // 100 under make stress
 
-bool bad(float v) { return !std::isfinite(v) || v < 0.0f; }
-bool bad(const Spectrum &s) { return bad(s.x) || bad(s.y) || bad(s.z); }
+using glimmer::test::bad_raw_outputs;
 
 Vec3 extreme_direction(Pcg32 &r, bool grazing_heavy) {
   const float zs[] = {0.0f, 1e-7f, 1e-6f, 1e-4f, 1e-3f, 0.01f, 0.5f, 1.0f - 1e-7f, 1.0f};
@@ -299,14 +299,8 @@ TEST(FrostedGlassPath, StressRawOutputsFiniteNonNegative) {
       LocalSample s;
       const LocalEval e = c.eval(sp, wo);
       const bool ok = c.sample(sp, Vec3(r.next_float(), r.next_float(), r.next_float()), s);
-      long n_bad = (bad(e.f_cos) || bad(e.pdf)) ? 1 : 0;
-      if (ok) {
-        samples.fetch_add(1, std::memory_order_relaxed);
-        if (bad(s.f_cos) || !(s.pdf > 0.0f) || bad(s.pdf) || !is_finite(s.wo) ||
-            std::fabs(length(s.wo) - 1) > 1e-3f || !(s.eta > 0.0f) || !std::isfinite(s.eta) || bad(s.roughness))
-          ++n_bad;
-      }
-      if (n_bad) bad_count.fetch_add(n_bad);
+      if (ok) samples.fetch_add(1, std::memory_order_relaxed);
+      if (const long n_bad = bad_raw_outputs(e, ok, s)) bad_count.fetch_add(n_bad);
     }
   });
   EXPECT_EQ(bad_count.load(), 0);

@@ -29,6 +29,12 @@
  *        plugin's version, so a host holding a type knows what it speaks), and
  *        INT values carry their exact decimal text in GlimmerParamValue.string
  *        for 2.2 plugins (see GlimmerParamValue); older plugins get the float.
+ *   2.3: GlimmerHostServices.trace_ray_closure (a hit with the closure found
+ *        there and its parameter values at the hit: GlimmerHitClosure), and
+ *        GlimmerSample.flags / .origin / .origin_Ng (GLIMMER_SAMPLE_MOVED: the
+ *        path continues from another point, e.g. where light leaves a frosted
+ *        object). A plugin checks the host's struct_size before calling it; a
+ *        host reads the sample's new fields only from 2.3 plugins' closures.
  *
  * Threading: create/prepare/destroy are called from one thread; eval/sample/
  * emit/albedo are called concurrently on an immutable, prepared instance and
@@ -48,7 +54,7 @@ extern "C" {
 #define GLIMMER_ABI_MAJOR 2u
 #endif
 #ifndef GLIMMER_ABI_MINOR
-#define GLIMMER_ABI_MINOR 2u
+#define GLIMMER_ABI_MINOR 3u
 #endif
 #ifndef GLIMMER_ABI_VERSION
 #define GLIMMER_ABI_VERSION ((GLIMMER_ABI_MAJOR << 16) | GLIMMER_ABI_MINOR)
@@ -109,6 +115,37 @@ enum GlimmerLogLevel {
   GLIMMER_LOG_ERROR = 3
 };
 
+/* ---- Varying parameters: per-shading-point values of parameters whose spec
+ * carries GLIMMER_PARAM_VARYING (e.g. a textured roughness). The host
+ * evaluates its shader graph at each shading point and lists the values of the
+ * varying parameters that are linked; every parameter not listed keeps the
+ * instance's constant value. `param` is the index in the closure's schema;
+ * the plugin clamps values to the spec's range (non-finite -> the constant). ---- */
+typedef struct GlimmerVaryingValue {
+  uint32_t param;
+  float value[3]; /* FLOAT uses [0]; COLOR/VECTOR use [0..2] */
+} GlimmerVaryingValue;
+
+struct GlimmerClosureType;
+struct GlimmerInstance;
+
+/* ABI 2.3: the closure a traced ray found (trace_ray_closure). The host
+ * evaluates the hit's shader at the hit point and reports its principal
+ * closure: the plugin closure with the largest sample weight (emission and
+ * transparency excluded). A plugin recognises its own material by comparing
+ * `instance` with its own instance pointer; the values of that closure's
+ * varying parameters at the hit (e.g. a textured roughness) are listed as in
+ * GlimmerShadingContext.varying (parameters not listed keep the instance's
+ * constant). */
+#define GLIMMER_HIT_MAX_VARYING 8
+typedef struct GlimmerHitClosure {
+  uint32_t struct_size; /* the plugin's buffer size; the host writes the fields it holds */
+  const struct GlimmerClosureType *type; /* NULL: no plugin closure at the hit (or none but emission) */
+  const struct GlimmerInstance *instance;
+  uint32_t varying_count; /* <= GLIMMER_HIT_MAX_VARYING */
+  GlimmerVaryingValue varying[GLIMMER_HIT_MAX_VARYING];
+} GlimmerHitClosure;
+
 typedef struct GlimmerHostServices {
   uint32_t struct_size; /* sizeof(GlimmerHostServices) of the host */
   uint32_t abi_version; /* the host's GLIMMER_ABI_VERSION */
@@ -127,18 +164,16 @@ typedef struct GlimmerHostServices {
   int (*resolve_asset)(void *host_data, const char *name, char *out_path, size_t out_size);
   /* Directory for on-disk caches of precomputed tables (may be NULL: no caching). */
   const char *cache_dir;
+#if GLIMMER_ABI_MINOR >= 3
+  /* ABI 2.3 (read only when struct_size holds it; may be NULL): trace_ray,
+   * and the closure found at the hit with its parameter values there
+   * (GlimmerHitClosure; hit_closure->type = NULL when there is none). Hit N
+   * and Ng are the mesh's own (front-face) normals, not flipped toward the ray. */
+  int (*trace_ray_closure)(void *host_data, const GlimmerRay *ray, GlimmerRayHit *hit,
+                           GlimmerHitClosure *hit_closure);
+#endif
 } GlimmerHostServices;
 
-/* ---- Varying parameters: per-shading-point values of parameters whose spec
- * carries GLIMMER_PARAM_VARYING (e.g. a textured roughness). The host
- * evaluates its shader graph at each shading point and lists the values of the
- * varying parameters that are linked; every parameter not listed keeps the
- * instance's constant value. `param` is the index in the closure's schema;
- * the plugin clamps values to the spec's range (non-finite -> the constant). ---- */
-typedef struct GlimmerVaryingValue {
-  uint32_t param;
-  float value[3]; /* FLOAT uses [0]; COLOR/VECTOR use [0..2] */
-} GlimmerVaryingValue;
 
 /* ---- Shading context: one per shading point, built by the host. ---- */
 typedef struct GlimmerShadingContext {
@@ -194,7 +229,20 @@ typedef struct GlimmerSample {
   float roughness; /* effective roughness of the sampled lobe (footprint widening, filter_glossy) */
   float eta;       /* relative IOR crossed for transmission, 1 otherwise */
   uint32_t label;  /* GlimmerLabel bits; 0 = no sample */
+#if GLIMMER_ABI_MINOR >= 3
+  /* ABI 2.3 (written only when the host's struct_size holds them). With
+   * GLIMMER_SAMPLE_MOVED the path continues from `origin` (a point on another
+   * surface, e.g. where light leaves a frosted object; the host offsets it
+   * along origin_Ng toward wo) instead of the shading point. Such a sample is
+   * SINGULAR (eval() does not return it: no NEE/MIS toward it from here) and
+   * `roughness` is the width of the lobe it was drawn from (ray footprint). */
+  uint32_t flags;
+  GlimmerVec3 origin;
+  GlimmerVec3 origin_Ng;
+#endif
 } GlimmerSample;
+
+enum GlimmerSampleFlags { GLIMMER_SAMPLE_MOVED = 1u };
 
 /* ---- Parameters: declared once per closure type, validated at create. ---- */
 typedef enum GlimmerParamType {
@@ -245,7 +293,7 @@ typedef struct GlimmerParamValue {
 } GlimmerParamValue;
 
 /* Opaque per-material instance. */
-typedef struct GlimmerInstance GlimmerInstance;
+typedef struct GlimmerInstance GlimmerInstance;  /* declared above (GlimmerHitClosure) */
 
 enum GlimmerClosureFlags {
   GLIMMER_CLOSURE_EMISSIVE = 1u,      /* has emit() */

@@ -1,0 +1,322 @@
+// frosted_glass method=sg (de Rousiers et al. 2012, in a ray tracer): see frosted_glass_sg.h.
+#include "closures/frosted_glass_sg.h"
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <limits>
+
+#include "glimmer/microfacet_walk.h"
+#include "glimmer/rng.h"
+
+namespace glimmer::plugin::frosted {
+
+namespace {
+
+constexpr float kTableRoughnessMax = 1.0f;
+// Fraction of an SG's energy inside the bounding cone (the paper's 75 %).
+constexpr double kBoundingEnergy = 0.75;
+
+// One ray through the object: the hit and the closure found there.
+struct InteriorHit {
+  GlimmerRayHit hit{};
+  GlimmerHitClosure closure{};
+  bool same_material = false;
+  Vec3 normal{0.0f};  // unit shading normal at the hit, oriented along the ray (outward for a ray leaving)
+};
+
+bool host_can_trace_closures(const GlimmerHostServices *host) {
+#if GLIMMER_ABI_MINOR >= 3
+  return host != nullptr && GLIMMER_HAS_FIELD(host->struct_size, GlimmerHostServices, trace_ray_closure) &&
+         host->trace_ray_closure != nullptr;
+#else
+  (void)host;
+  return false;
+#endif
+}
+
+bool trace_interior(const GlimmerHostServices *host, const SgInputs &in, const Vec3 &origin, const Vec3 &dir,
+                    InteriorHit &out) {
+  GlimmerRay ray{};
+  ray.struct_size = sizeof(GlimmerRay);
+  ray.origin = origin;
+  ray.direction = dir;
+  ray.t_min = 0.0f;
+  ray.t_max = std::numeric_limits<float>::infinity();
+  out.hit = GlimmerRayHit{};
+  out.hit.struct_size = sizeof(GlimmerRayHit);
+  out.closure = GlimmerHitClosure{};
+  out.closure.struct_size = sizeof(GlimmerHitClosure);
+  if (!host->trace_ray_closure(host->host_data, &ray, &out.hit, &out.closure)) return false;
+  if (!(std::isfinite(out.hit.t) && out.hit.t >= 0.0f) || !is_finite(Vec3(out.hit.P))) return false;
+  out.same_material = out.closure.instance == in.self && in.self != nullptr;
+  Vec3 n(out.hit.N);
+  if (!is_finite(n) || !(dot(n, n) > 1e-12f)) n = Vec3(out.hit.Ng);
+  if (!is_finite(n) || !(dot(n, n) > 1e-12f)) return false;
+  n = normalize(n);
+  out.normal = dot(n, dir) >= 0.0f ? n : -n;
+  return true;
+}
+
+// The value of a varying parameter at a hit (clamped to its spec), else `constant`.
+const GlimmerVaryingValue *hit_value(const SgInputs &in, const GlimmerHitClosure &c, uint32_t param) {
+  const uint32_t count = std::min<uint32_t>(c.varying_count, GLIMMER_HIT_MAX_VARYING);
+  if (param >= in.schema.size()) return nullptr;
+  for (uint32_t i = 0; i < count; ++i)
+    if (c.varying[i].param == param) return &c.varying[i];
+  return nullptr;
+}
+float clamp_to(const GlimmerParamSpec &spec, float v, float constant) {
+  return std::isfinite(v) ? std::clamp(v, spec.min_value, spec.max_value) : constant;
+}
+float hit_roughness(const SgInputs &in, const GlimmerHitClosure &c) {
+  const GlimmerVaryingValue *v = hit_value(in, c, in.roughness_param);
+  return v ? clamp_to(in.schema[in.roughness_param], v->value[0], in.constant_roughness) : in.constant_roughness;
+}
+Spectrum hit_color(const SgInputs &in, const GlimmerHitClosure &c) {
+  const GlimmerVaryingValue *v = hit_value(in, c, in.color_param);
+  if (!v) return in.constant_color;
+  const GlimmerParamSpec &s = in.schema[in.color_param];
+  return {clamp_to(s, v->value[0], in.constant_color.x), clamp_to(s, v->value[1], in.constant_color.y),
+          clamp_to(s, v->value[2], in.constant_color.z)};
+}
+
+// The table's SG for incidence `wi_dir` (unit, on the +z side of the frame) turned into world space: the
+// table's frame has wi = (sin theta, 0, cos theta); x here is wi's tangential direction.
+bool table_lobe(const TransmissionSgTable &table, const Frame &frame, const Vec3 &wi_dir, float eta, float roughness,
+                SphericalGaussian &sg, float &energy) {
+  const Vec3 w = frame.to_local(wi_dir);
+  const float cos_i = std::clamp(w.z, 1e-4f, 1.0f);
+  const float tx = w.x, ty = w.y, tl = std::sqrt(tx * tx + ty * ty);
+  const Vec3 x_dir = tl > 1e-7f ? frame.to_world(Vec3(tx / tl, ty / tl, 0.0f)) : frame.s;
+  TransmissionLobe lobe;
+  if (!table.lookup(cos_i, eta, std::clamp(roughness, TransmissionSgTable::kRoughnessMin, kTableRoughnessMax), lobe))
+    return false;
+  const SphericalGaussian local = lobe.sg(cos_i, eta);
+  sg.axis = normalize(x_dir * local.axis.x + frame.n * local.axis.z);
+  sg.sharpness = std::clamp(local.sharpness, 1e-3f, 1e7f);
+  sg.amplitude = local.amplitude;
+  energy = std::clamp(lobe.energy, 0.0f, 1.0f);
+  return is_finite(sg.axis);
+}
+
+// Polar angle of the cone around an SG's axis holding kBoundingEnergy of its energy (de Rousiers eq. 9).
+float bounding_angle(float kappa) {
+  return std::acos(float(std::pow(1.0 - kBoundingEnergy, 1.0 / (double(kappa) + 1.0))));
+}
+
+// Toksvig: the length of the mean of unit normals gives the NDF's slope variance alpha^2 = 2 (1 - |n|) / |n|.
+float toksvig_alpha2(float mean_length) {
+  const float len = std::clamp(mean_length, 1e-4f, 1.0f);
+  return 2.0f * (1.0f - len) / len;
+}
+
+// One segment inside: the axis and 4 bounding rays from `origin` along `axis` (cone of the internal lobe,
+// sharpness kappa_in). Returns the axis hit and the mean exit normal.
+struct Segment {
+  InteriorHit axis;
+  Vec3 mean_normal{0.0f};
+  float mean_length = 1.0f;
+  int bounding_count = 0;  // bounding rays that left through the same material
+  Vec3 bounding_dir[4], bounding_normal[4];
+};
+bool trace_segment(const GlimmerHostServices *host, const SgInputs &in, const Vec3 &origin, const Vec3 &axis,
+                   float kappa_in, Segment &seg) {
+  if (!trace_interior(host, in, origin, axis, seg.axis) || !seg.axis.same_material) return false;
+  Vec3 sum = seg.axis.normal;
+  int count = 1;
+  const float theta_b = bounding_angle(kappa_in);
+  const float c = std::cos(theta_b), s = std::sin(theta_b);
+  const Frame f = Frame::from_normal(axis);
+  const Vec3 offsets[4] = {f.s, -f.s, f.t, -f.t};
+  for (const Vec3 &o : offsets) {
+    InteriorHit h;
+    const Vec3 dir = normalize(axis * c + o * s);
+    if (trace_interior(host, in, origin, dir, h) && h.same_material) {
+      sum += h.normal;
+      ++count;
+      seg.bounding_dir[seg.bounding_count] = dir;
+      seg.bounding_normal[seg.bounding_count++] = h.normal;
+    }
+  }
+  sum /= float(count);
+  seg.mean_length = length(sum);
+  seg.mean_normal = seg.mean_length > 1e-6f ? sum / seg.mean_length : seg.axis.normal;
+  return true;
+}
+
+// Direction d (inside, unit) leaving through the smooth interface with outward normal n; beyond the critical
+// angle the incident ray is clamped to it (Wyman 2005), which leaves at grazing.
+Vec3 refract_out(const Vec3 &d, const Vec3 &n, float ior) {
+  Vec3 out;
+  if (mf::refract(-d, -n, 1.0f / ior, out)) return out;
+  const Vec3 tangential = d - n * dot(d, n);
+  const float len = length(tangential);
+  return len > 1e-7f ? normalize(tangential / len + n * 1e-3f) : n;
+}
+
+// Sharpness of the SG whose kBoundingEnergy cone has half-angle theta (inverse of bounding_angle).
+float sharpness_of_cone(float cos_theta) {
+  const double c = std::clamp(double(cos_theta), -1.0, 1.0 - 1e-9);
+  if (c <= 0.0) return 1e-3f;
+  return float(std::clamp(std::log(1.0 - kBoundingEnergy) / std::log(c) - 1.0, 1e-3, 1e7));
+}
+
+// The geometric spread of the transmitted lobe outside, traced: each bounding ray refracted through its own
+// exit normal (smooth), its angle to the axis refracted through the mean normal -> the cone's sharpness. It holds
+// the internal lobe's width, the magnification by Snell's law and the curvature of the exit surface together (a
+// sphere focuses: the exit normals turn with the rays). Infinite (no spread) without bounding hits.
+float traced_cone_sharpness(const Segment &seg, const Vec3 &axis_out, float ior) {
+  if (seg.bounding_count == 0) return 1e7f;
+  float cos_sum = 0.0f;
+  for (int i = 0; i < seg.bounding_count; ++i)
+    cos_sum += dot(refract_out(seg.bounding_dir[i], seg.bounding_normal[i], ior), axis_out);
+  return sharpness_of_cone(cos_sum / float(seg.bounding_count));
+}
+
+// The leaving interface's energy E_x averaged over the axis (`axis_energy`) and the bounding rays, each at its
+// incidence on its own exit normal.
+float mean_exit_energy(const TransmissionSgTable &table, const Segment &seg, float axis_energy, float ior,
+                       float roughness) {
+  float sum = axis_energy;
+  int count = 1;
+  const float r = std::clamp(roughness, TransmissionSgTable::kRoughnessMin, kTableRoughnessMax);
+  for (int i = 0; i < seg.bounding_count; ++i) {
+    TransmissionLobe lobe;
+    const float cos_i = std::clamp(dot(seg.bounding_dir[i], seg.bounding_normal[i]), 1e-4f, 1.0f);
+    if (!table.lookup(cos_i, 1.0f / ior, r, lobe)) continue;
+    sum += std::clamp(lobe.energy, 0.0f, 1.0f);
+    ++count;
+  }
+  return sum / float(count);
+}
+
+float roulette(uint32_t seed, int event) {
+  return float(hash_u32x3(seed, uint32_t(event), 0x5bd1e995u) >> 8) * 0x1p-24f;
+}
+
+}  // namespace
+
+Vec3 offset_origin(const Vec3 &P, const Vec3 &Ng, const Vec3 &dir) {
+  const float scale = 1.0f + std::max(std::fabs(P.x), std::max(std::fabs(P.y), std::fabs(P.z)));
+  const float eps = 3e-5f * scale;
+  return dot(dir, Ng) >= 0.0f ? P + Ng * eps : P - Ng * eps;
+}
+
+Vec3 sample_sg_direction(const SphericalGaussian &sg, float u1, float u2) {
+  const double k = std::max(double(sg.sharpness), 1e-6);
+  // Inverse CDF of cos theta for exp(k (cos theta - 1)) on [-1, 1].
+  const double u = std::clamp(double(u1), 0.0, 1.0);
+  double cos_t = 1.0 + std::log(u + (1.0 - u) * std::exp(-2.0 * k)) / k;
+  if (!std::isfinite(cos_t)) cos_t = 1.0;
+  cos_t = std::clamp(cos_t, -1.0, 1.0);
+  const double sin_t = std::sqrt(std::max(0.0, 1.0 - cos_t * cos_t));
+  const double phi = 2.0 * M_PI * double(u2);
+  const Frame f = Frame::from_normal(sg.axis);
+  return normalize(f.to_world(Vec3(float(sin_t * std::cos(phi)), float(sin_t * std::sin(phi)), float(cos_t))));
+}
+
+bool trace_exit_lobe(const ShadingPoint &sp, const SgInputs &in, uint32_t seed, ExitLobe &out) {
+  const GlimmerShadingContext &ctx = *sp.ctx;
+  if (in.table == nullptr || !host_can_trace_closures(ctx.host) || !(sp.wi.z > 0.0f)) return false;
+  const float ior = in.ior;
+  if (!(ior >= TransmissionSgTable::kIorMin && ior <= TransmissionSgTable::kIorMax)) return false;
+
+  // 1. The front BTDF as an SG (entering: eta = ior), in world space.
+  SphericalGaussian front;
+  float front_energy = 0.0f;
+  if (!table_lobe(*in.table, sp.frame, Vec3(ctx.wi), ior, in.roughness, front, front_energy)) return false;
+
+  Vec3 axis = front.axis;
+  float kappa_in = front.sharpness;
+  Vec3 origin = offset_origin(Vec3(ctx.P), Vec3(ctx.Ng), axis);
+  float inside_length = 0.0f;
+  for (int event = 0; event <= kMaxInternalReflections; ++event) {
+    // 2-3. Axis and bounding rays to the far side; mean normal, Toksvig width, exit roughness.
+    Segment seg;
+    if (!trace_segment(ctx.host, in, origin, axis, kappa_in, seg)) return false;
+    inside_length += seg.axis.hit.t;
+    const Vec3 n = seg.mean_normal;  // outward
+    const float alpha_d = sqr(hit_roughness(in, seg.axis.closure));
+    const bool toksvig = in.variant == SgVariant::kToksvig;
+    // The paper: the exit normals' spread as roughness, kappa' = kG kD / (kG + kD) (alpha'^2 = alpha_G^2 + alpha_D^2).
+    const float alpha2 = (toksvig ? toksvig_alpha2(seg.mean_length) : 0.0f) + alpha_d * alpha_d;
+    const float roughness_exit = std::sqrt(std::sqrt(alpha2));
+    // 4. Refract through the mean normal: the leaving lobe (eta = 1 / ior) in the frame whose +z is inside.
+    const Frame exit_frame = Frame::from_normal(-n);
+    const float cos_in = std::clamp(dot(axis, n), 1e-4f, 1.0f);
+    const bool last = event == kMaxInternalReflections;
+    const float sin_crit = 1.0f / ior;
+    Vec3 incident = -axis;
+    if (last && std::sqrt(std::max(0.0f, 1.0f - cos_in * cos_in)) > sin_crit) {
+      // Wyman 2005: beyond the critical angle the incident axis is clamped to it.
+      const Vec3 tangential = normalize(-axis - (-n) * dot(-axis, -n));
+      incident = normalize(tangential * sin_crit + (-n) * std::sqrt(1.0f - sin_crit * sin_crit));
+    }
+    SphericalGaussian exit;
+    float exit_energy = 0.0f;
+    if (!table_lobe(*in.table, exit_frame, incident, 1.0f / ior, roughness_exit, exit, exit_energy)) return false;
+    // 5. Russian roulette between the exit (E_x) and the internal reflection (1 - E_x). E_x is averaged over the
+    // axis and the bounding rays, each at its own incidence on its own exit normal: the directions of a wide lobe
+    // far from its axis reach the exit beyond the critical angle and reflect, which the axis alone does not see.
+    const float transmitted = last ? exit_energy : mean_exit_energy(*in.table, seg, exit_energy, ior, roughness_exit);
+    if (!last && roulette(seed, event) >= transmitted) {
+      const float kappa_reflect = 2.0f / std::max(alpha2, 1e-7f);  // NDF sharpness; reflected lobe: kappa / 4
+      kappa_in = 1.0f / (1.0f / kappa_in + 4.0f / kappa_reflect);
+      axis = normalize(axis - n * (2.0f * dot(axis, n)));
+      origin = offset_origin(Vec3(seg.axis.hit.P), Vec3(seg.axis.hit.Ng), axis);
+      if (!is_finite(axis) || !is_finite(origin)) return false;
+      continue;
+    }
+    float kappa_geometric;
+    if (toksvig) {  // the internal lobe's width reaches the outside magnified by Snell's law
+      const float cos_out = std::max(std::fabs(dot(exit.axis, n)), 0.05f);
+      const float m = ior * cos_in / cos_out;
+      kappa_geometric = std::max(kappa_in, 1e-6f) / (m * m);
+    } else {
+      kappa_geometric = traced_cone_sharpness(seg, refract_out(axis, n, ior), ior);
+    }
+    const float kappa_out = 1.0f / (1.0f / exit.sharpness + 1.0f / kappa_geometric);
+    out.sg = exit;
+    out.sg.sharpness = std::clamp(kappa_out, 1e-3f, 1e7f);
+    if (in.variant == SgVariant::kNoExitRefraction) out.sg.axis = axis;
+    out.origin = Vec3(seg.axis.hit.P);
+    const Vec3 Ng = Vec3(seg.axis.hit.Ng);
+    out.origin_Ng = dot(Ng, n) >= 0.0f ? Ng : -Ng;
+    out.weight = hit_color(in, seg.axis.closure);
+    for (int ch = 0; ch < 3; ++ch) out.weight[ch] *= std::exp(-in.sigma_a[ch] * inside_length);
+    out.roughness = std::clamp(std::sqrt(std::sqrt(2.0f / out.sg.sharpness)), 0.0f, 1.0f);
+    (void)front_energy;
+    return is_finite(out.origin) && is_finite(out.sg.axis) && is_finite(out.weight);
+  }
+  return false;
+}
+
+bool sample_sg_transmission(const ShadingPoint &sp, const SgInputs &in, const Vec3 &rand, const LocalSample &front,
+                            LocalSample &out) {
+  if (!(front.label & GLIMMER_LABEL_TRANSMIT) || !(front.pdf > 0.0f)) return false;
+  const uint32_t seed = hash_u32x4(sp.ctx->path_seed, std::bit_cast<uint32_t>(rand.x),
+                                   std::bit_cast<uint32_t>(rand.y), std::bit_cast<uint32_t>(rand.z));
+  ExitLobe exit;
+  if (!trace_exit_lobe(sp, in, seed, exit)) return false;
+  // 6. One direction from the exit SG, on the outside of the exit surface (mirrored when it falls below).
+  mf::WalkRng rng(hash_u32x2(seed, 0x9e3779b9u));
+  Vec3 wo = sample_sg_direction(exit.sg, rng.next(), rng.next());
+  const float below = dot(wo, exit.origin_Ng);
+  if (below <= 0.0f) wo = normalize(wo - exit.origin_Ng * (2.0f * below));
+  if (!(dot(wo, exit.origin_Ng) > 0.0f)) return false;
+  const Spectrum weight = front.f_cos / front.pdf * exit.weight;
+  if (!is_finite(weight) || !is_finite(wo)) return false;
+  out.wo = sp.frame.to_local(wo);
+  out.f_cos = weight;
+  out.pdf = 1.0f;
+  out.roughness = exit.roughness;
+  out.eta = 1.0f;  // outside again
+  out.label = GLIMMER_LABEL_TRANSMIT | GLIMMER_LABEL_SINGULAR;
+  out.moved = true;
+  out.origin = exit.origin;
+  out.origin_Ng = exit.origin_Ng;
+  return true;
+}
+
+}  // namespace glimmer::plugin::frosted

