@@ -299,9 +299,13 @@ bool sample_sg_transmission(const ShadingPoint &sp, const SgInputs &in, const Ve
                                    std::bit_cast<uint32_t>(rand.y), std::bit_cast<uint32_t>(rand.z));
   ExitLobe exit;
   if (!trace_exit_lobe(sp, in, seed, exit)) return false;
-  // 6. One direction from the exit SG, on the outside of the exit surface (mirrored when it falls below).
+  // 6. One direction from the exit SG restricted to the outside of the exit surface (the lobe it was fitted to
+  // lies there): drawn again when it falls below (up to 16 times), then mirrored. The weight stays: the SG's
+  // energy is the lobe's, whatever its part below the surface.
   mf::WalkRng rng(hash_u32x2(seed, 0x9e3779b9u));
   Vec3 wo = sample_sg_direction(exit.sg, rng.next(), rng.next());
+  for (int k = 0; k < 16 && dot(wo, exit.origin_Ng) <= 0.0f; ++k)
+    wo = sample_sg_direction(exit.sg, rng.next(), rng.next());
   const float below = dot(wo, exit.origin_Ng);
   if (below <= 0.0f) wo = normalize(wo - exit.origin_Ng * (2.0f * below));
   if (!(dot(wo, exit.origin_Ng) > 0.0f)) return false;

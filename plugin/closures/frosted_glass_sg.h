@@ -39,7 +39,8 @@
 //     rough reflection) and the pipeline repeats from the reflection point
 //     (Russian roulette on E_x: the weight is unchanged); after
 //     kMaxInternalReflections the lobe leaves at the critical angle (Wyman 2005);
-//  6. lighting: one direction is sampled from the exit SG and the host
+//  6. lighting: one direction is sampled from the exit SG (restricted to the
+//     outside of the exit surface) and the host
 //     continues the path from the exit point (GLIMMER_SAMPLE_MOVED). The
 //     pre-convolved environment and SG lights (paper sec. 5, eq. 14/15) are
 //     not implemented yet.
