@@ -168,6 +168,7 @@ struct Renderer::Impl {
     Vec3 N;             // shading normal, same side
     Vec3 e1, e2;        // triangle edges (barycentric derivatives of P)
     Vec3 dn1{0.0f}, dn2{0.0f};  // barycentric derivatives of the (unnormalized) shading normal
+    Vec3 dg1{0.0f}, dg2{0.0f};  // barycentric derivatives of the generated coordinates
     float duv1[2] = {1, 0}, duv2[2] = {0, 1};
     bool backfacing = false;
     int shader = -1;
@@ -198,6 +199,11 @@ struct Renderer::Impl {
       sd.duv2[k] = s.duv2[k];
     }
     const Vec3 gen = s.generated;
+    if (const scene::Mesh &mesh = scene.meshes[h.mesh]; mesh.generated.size() == mesh.P.size()) {
+      const auto &tri = mesh.triangles[h.prim];
+      sd.dg1 = mesh.generated[tri[1]] - mesh.generated[tri[0]];
+      sd.dg2 = mesh.generated[tri[2]] - mesh.generated[tri[0]];
+    }
     sd.tc.P = P;
     sd.tc.N = N;
     sd.tc.generated = gen;
@@ -267,7 +273,13 @@ struct Renderer::Impl {
       const float y = sd.duv1[k] * by[0] + sd.duv2[k] * by[1];
       sd.ctx.duv_dx[k] = std::isfinite(x) ? x : 0.0f;
       sd.ctx.duv_dy[k] = std::isfinite(y) ? y : 0.0f;
+      sd.tc.duv_dx[k] = sd.ctx.duv_dx[k];  // image textures filter over the same footprint
+      sd.tc.duv_dy[k] = sd.ctx.duv_dy[k];
     }
+    sd.tc.dPdx = rd.dPdx;
+    sd.tc.dPdy = rd.dPdy;
+    sd.tc.dgenerated_dx = sd.dg1 * bx[0] + sd.dg2 * bx[1];
+    sd.tc.dgenerated_dy = sd.dg1 * by[0] + sd.dg2 * by[1];
     sd.ctx.spread_angle = spread;
     // Normal derivatives for specular propagation (stored in dn1/dn2 as per-pixel values).
     const Vec3 dNx = sd.dn1 * bx[0] + sd.dn2 * bx[1];
