@@ -42,6 +42,7 @@ GLOSSY_DISTRIBUTION = {"SHARP": "sharp", "BECKMANN": "beckmann", "GGX": "GGX", "
                        "ASHIKHMIN_SHIRLEY": "GGX"}
 IMAGE_INTERPOLATION = {"Closest": "closest", "Linear": "linear", "Cubic": "cubic", "Smart": "smart"}
 IMAGE_EXTENSION = {"REPEAT": "periodic", "EXTEND": "extend", "CLIP": "clip", "MIRROR": "mirror"}
+IMAGE_PROJECTION = {"FLAT": "flat", "BOX": "box", "SPHERE": "sphere", "TUBE": "tube"}
 
 # Light attribute names (issue 3's scene format).
 LIGHT_RADIUS = "radius"
@@ -300,12 +301,12 @@ class ShaderGraph:
             self.warn(node.name, "image texture '%s' has no image: its consumer keeps its own value" % node.name)
             return None
         coordinates = self.texture_coordinates(node)
-        if node.projection != "FLAT":
-            self.warn(("projection", node.name), "image texture '%s': only flat projection is exported" % node.name)
         el = self.add("image_texture", node.name, filename=self.exporter.image_path(node.image, self.owner, node),
                       interpolation=IMAGE_INTERPOLATION.get(node.interpolation, "linear"),
                       extension=IMAGE_EXTENSION.get(node.extension, "periodic"),
-                      colorspace=node.image.colorspace_settings.name)
+                      colorspace=node.image.colorspace_settings.name,
+                      projection=IMAGE_PROJECTION.get(node.projection, "flat"),
+                      projection_blend=node.projection_blend if node.projection == "BOX" else None)
         self.link_vector(el, coordinates)
         return (el.get("name"), "alpha" if out.name == "Alpha" else "color")
 

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <filesystem>
+#include <functional>
 
 #include "scene/xml_loader.h"
 
@@ -57,7 +58,8 @@ const host::ClosureInstance *ShaderSystem::instantiate(const GlimmerClosureType 
   return instances_.back().get();
 }
 
-const ImageTexture *ShaderSystem::load_image(const ShaderNode &n) {
+const ImageTexture *ShaderSystem::load_image(const ShaderNode &n, bool &missing) {
+  missing = false;
   auto it = n.attributes.find("filename");
   if (it == n.attributes.end() || it->second.empty()) {
     warn(n.where, "<" + n.type + "> has no filename; it reads as black");
@@ -66,21 +68,76 @@ const ImageTexture *ShaderSystem::load_image(const ShaderNode &n) {
   std::filesystem::path path(it->second);
   if (path.is_relative()) path = std::filesystem::path(n.where.file).parent_path() / path;
   const std::string key = path.lexically_normal().string();
-  auto found = images_.find(key);
-  if (found != images_.end()) return found->second.get();
-  if (!std::filesystem::exists(path)) throw SceneError(n.where, "<" + n.type + "> image not found: '" + key + "'");
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) {
+    warn(n.where, "<" + n.type + "> image not found: '" + key + "'; it renders magenta, as in Cycles");
+    missing = true;
+    return nullptr;
+  }
   bool linear = false;
   if (auto cs = n.attributes.find("colorspace"); cs != n.attributes.end()) {
     const std::string c = lower(cs->second);
     linear = c == "non-color" || c == "raw" || c == "linear" || c == "__builtin_raw";
   }
+  if (!texture_cache_) texture_cache_ = std::make_unique<TextureCache>();
   try {
-    images_[key] = ImageTexture::load(key, linear);
+    const ImageTexture *image = texture_cache_->load(key, linear);
+    features_.textures.insert(key);
+    return image;
   } catch (const std::exception &e) {
     throw SceneError(n.where, e.what());
   }
-  features_.textures.insert(key);
-  return images_[key].get();
+}
+
+namespace {
+// An enum attribute of an image node among `names` (several spellings per value); a
+// missing one is `fallback`, an unknown one warns and is `fallback`.
+template <typename Enum>
+Enum image_setting(const ShaderNode &n, const char *attribute,
+                   std::initializer_list<std::pair<const char *, Enum>> names, Enum fallback,
+                   const std::function<void(const std::string &)> &warn) {
+  auto it = n.attributes.find(attribute);
+  if (it == n.attributes.end()) return fallback;
+  const std::string value = lower(it->second);
+  for (const auto &[name, e] : names)
+    if (value == name) return e;
+  warn(n.type + ": " + attribute + " '" + it->second + "' is not supported; the default is used");
+  return fallback;
+}
+}  // namespace
+
+void ShaderSystem::configure_image(const ShaderNode &n, TextureNode &tex) {
+  const bool environment = n.type == "environment_texture";
+  tex.kind = environment ? TextureNode::Kind::Environment : TextureNode::Kind::Image;
+  tex.vector = environment ? VectorSource::Direction : VectorSource::UV;
+  tex.image = load_image(n, tex.missing);
+  const auto warn_here = [&](const std::string &message) { warn(n.where, message); };
+  tex.sampling.interpolation = image_setting<Interpolation>(
+      n, "interpolation",
+      {{"closest", Interpolation::Closest}, {"linear", Interpolation::Linear}, {"cubic", Interpolation::Cubic},
+       {"smart", Interpolation::Smart}},
+      Interpolation::Linear, warn_here);
+  if (environment) {
+    tex.projection = image_setting<Projection>(
+        n, "projection", {{"equirectangular", Projection::Equirectangular}, {"mirror_ball", Projection::MirrorBall}},
+        Projection::Equirectangular, warn_here);
+    // Around the horizon u repeats; v stops at the poles (a mirror ball's rim).
+    tex.sampling.extension = tex.projection == Projection::MirrorBall ? Extension::Extend : Extension::Repeat;
+    tex.sampling.vertical = Extension::Extend;
+    return;
+  }
+  tex.sampling.extension = image_setting<Extension>(
+      n, "extension",
+      {{"periodic", Extension::Repeat}, {"repeat", Extension::Repeat}, {"extend", Extension::Extend},
+       {"clip", Extension::Clip}, {"mirror", Extension::Mirror}},
+      Extension::Repeat, warn_here);
+  tex.sampling.vertical = tex.sampling.extension;
+  tex.projection = image_setting<Projection>(
+      n, "projection",
+      {{"flat", Projection::Flat}, {"box", Projection::Box}, {"sphere", Projection::Sphere}, {"tube", Projection::Tube}},
+      Projection::Flat, warn_here);
+  if (auto b = n.attributes.find("projection_blend"); b != n.attributes.end())
+    tex.projection_blend = std::clamp(read_constant(n, "projection_blend", &b->second, Spectrum(0.0f)).x, 0.0f, 1.0f);
 }
 
 Spectrum ShaderSystem::read_constant(const ShaderNode &n, const std::string &socket, const std::string *text,
@@ -111,18 +168,7 @@ Input ShaderSystem::read_input(const ShaderGraph &g, const ShaderNode &n, const 
     if (g.link_to(src->name, "color1") || g.link_to(src->name, "color2") || g.link_to(src->name, "scale"))
       warn(src->where, "checker_texture: linked color1/color2/scale inputs are not supported; their constants are used");
   } else if (type == "image_texture" || type == "environment_texture") {
-    tex.kind = type == "image_texture" ? TextureNode::Kind::Image : TextureNode::Kind::Environment;
-    tex.vector = type == "image_texture" ? VectorSource::UV : VectorSource::Direction;
-    tex.image = load_image(*src);
-    if (auto it = src->attributes.find("interpolation"); it != src->attributes.end()) {
-      const std::string mode = lower(it->second);
-      tex.closest = mode == "closest";
-      if (mode != "closest" && mode != "linear")
-        warn(src->where, type + ": interpolation '" + it->second + "' is not supported; linear is used");
-    }
-    if (auto p = src->attributes.find("projection"); p != src->attributes.end() && lower(p->second) != "equirectangular" &&
-                                                      lower(p->second) != "flat")
-      warn(src->where, type + ": projection '" + p->second + "' is not supported; equirectangular/flat is used");
+    configure_image(*src, tex);
   } else if (nodes::find_node(type)) {
     in.program = compile_program(g, *link);
     return in;
@@ -208,15 +254,30 @@ Spectrum ShaderSystem::eval_input(const Input &in, const TexCoords &tc) const {
         tc, [this](int id, const TexCoords &at) { return eval_input(program_externals_[id], at); });
   if (in.texture < 0) return in.constant;
   const TextureNode &t = textures_[in.texture];
-  Vec3 co;
+  Vec3 co, dco_dx(0.0f), dco_dy(0.0f);  // the coordinate and its change per pixel step (zero: unknown)
   switch (t.vector) {
-    case VectorSource::UV: co = Vec3(tc.uv[0], tc.uv[1], 0.0f); break;
-    case VectorSource::Generated: co = tc.generated; break;
-    case VectorSource::Object: co = tc.P; break;
+    case VectorSource::UV:
+      co = Vec3(tc.uv[0], tc.uv[1], 0.0f);
+      dco_dx = Vec3(tc.duv_dx[0], tc.duv_dx[1], 0.0f);
+      dco_dy = Vec3(tc.duv_dy[0], tc.duv_dy[1], 0.0f);
+      break;
+    case VectorSource::Generated:
+      co = tc.generated;
+      dco_dx = tc.dgenerated_dx;
+      dco_dy = tc.dgenerated_dy;
+      break;
+    case VectorSource::Object:
+      co = tc.P;
+      dco_dx = tc.dPdx;
+      dco_dy = tc.dPdy;
+      break;
     case VectorSource::Normal: co = tc.N; break;
     case VectorSource::Direction: co = tc.direction; break;
   }
-  if (t.vector_program >= 0) co = eval_input(Input{Spectrum(0.0f), -1, false, t.vector_program}, tc);
+  if (t.vector_program >= 0) {
+    co = eval_input(Input{Spectrum(0.0f), -1, false, t.vector_program}, tc);
+    dco_dx = dco_dy = Vec3(0.0f);
+  }
   switch (t.kind) {
     case TextureNode::Kind::Checker: {
       const float f = checker(co * t.scale);
@@ -224,18 +285,58 @@ Spectrum ShaderSystem::eval_input(const Input &in, const TexCoords &tc) const {
       return f == 1.0f ? t.color1 : t.color2;
     }
     case TextureNode::Kind::Image:
-    case TextureNode::Kind::Environment: {
-      if (!t.image) return Spectrum(0.0f);
-      float u = co.x, v = co.y;
-      if (t.kind == TextureNode::Kind::Environment || t.vector == VectorSource::Direction)
-        direction_to_equirectangular(normalize(co), u, v);
-      float rgba[4];
-      t.image->lookup(u, v, rgba, t.closest);
-      if (in.fac_output) return Spectrum(rgba[3]);
-      return {rgba[0], rgba[1], rgba[2]};
-    }
+    case TextureNode::Kind::Environment:
+      return lookup_image(t, co, dco_dx, dco_dy, tc.N, in.fac_output);
   }
   return in.constant;
+}
+
+namespace {
+// The change of a projected (u, v) over one pixel step, by differencing the projection
+// (sphere, tube, environment): u wraps, so a step across the seam is the short way round.
+template <typename Project>
+void projected_footprint(const Project &project, const Vec3 &co, const Vec3 &dco_dx, const Vec3 &dco_dy,
+                         UvFootprint &at) {
+  project(co, at.u, at.v);
+  auto step = [&](const Vec3 &d, float &du, float &dv) {
+    if (!is_finite(d) || is_zero(d)) return;
+    float u, v;
+    project(co + d, u, v);
+    du = u - at.u;
+    du -= std::round(du);
+    dv = v - at.v;
+  };
+  step(dco_dx, at.dudx, at.dvdx);
+  step(dco_dy, at.dudy, at.dvdy);
+}
+}  // namespace
+
+Spectrum ShaderSystem::lookup_image(const TextureNode &t, const Vec3 &co, const Vec3 &dco_dx, const Vec3 &dco_dy,
+                                    const Vec3 &N, bool alpha) const {
+  if (t.missing) return alpha ? Spectrum(1.0f) : Spectrum(1.0f, 0.0f, 1.0f);  // Cycles' missing-texture magenta
+  if (!t.image) return Spectrum(0.0f);
+  float rgba[4] = {0, 0, 0, 0};
+  UvFootprint at;
+  const bool direction = t.kind == TextureNode::Kind::Environment || t.vector == VectorSource::Direction;
+  if (direction && t.projection == Projection::MirrorBall) {
+    projected_footprint([](const Vec3 &d, float &u, float &v) { direction_to_mirrorball(normalize(d), u, v); }, co,
+                        dco_dx, dco_dy, at);
+  } else if (direction) {
+    projected_footprint([](const Vec3 &d, float &u, float &v) { direction_to_equirectangular(normalize(d), u, v); },
+                        co, dco_dx, dco_dy, at);
+  } else if (t.projection == Projection::Sphere) {
+    projected_footprint(map_to_sphere, co, dco_dx, dco_dy, at);
+  } else if (t.projection == Projection::Tube) {
+    projected_footprint(map_to_tube, co, dco_dx, dco_dy, at);
+  } else if (t.projection == Projection::Box) {
+    // The world-space shading normal: meshes are stored in world space (Cycles uses the object's).
+    box_lookup(*t.image, t.sampling, box_projection_weights(N, t.projection_blend), N, co, dco_dx, dco_dy, rgba);
+  } else {
+    at = {co.x, co.y, dco_dx.x, dco_dx.y, dco_dy.x, dco_dy.y};
+  }
+  if (t.projection != Projection::Box) t.image->lookup(at, t.sampling, rgba);
+  if (alpha) return Spectrum(rgba[3]);
+  return {rgba[0], rgba[1], rgba[2]};
 }
 
 // A node's closure row: the table's, or the schema of the DSO closure the node names

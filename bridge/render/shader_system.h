@@ -40,7 +40,10 @@ struct TextureNode {
   Spectrum color1{0.8f}, color2{0.2f};
   float scale = 5.0f;
   const ImageTexture *image = nullptr;
-  bool closest = false;  // interpolation="closest"
+  bool missing = false;  // the file does not exist: magenta, as Cycles renders it
+  ImageSampling sampling;
+  Projection projection = Projection::Flat;
+  float projection_blend = 0.0f;  // box projection
   VectorSource vector = VectorSource::Generated;
   int vector_program = -1;  // a node program (e.g. Mapping) on the vector input instead
 };
@@ -169,7 +172,7 @@ class ShaderSystem {
   std::vector<std::unique_ptr<ClosureLeaf>> leaves_;
   std::vector<std::unique_ptr<host::ClosureInstance>> instances_;
   std::vector<TextureNode> textures_;
-  std::map<std::string, std::unique_ptr<ImageTexture>> images_;
+  std::unique_ptr<TextureCache> texture_cache_;  // created by the first image a used shader reads
   std::vector<nodes::NodeProgram> programs_;
   std::vector<Input> program_externals_;  // textures outside the node table that programs read
 
@@ -214,7 +217,13 @@ class ShaderSystem {
                               std::initializer_list<const char *> supported);
   const host::ClosureInstance *instantiate(const GlimmerClosureType &type, const host::ParamList &params,
                                            const scene::SourceLocation &where);
-  const ImageTexture *load_image(const scene::ShaderNode &n);
+  // The node's image (nullptr: no filename, or a missing file, then `missing` is set) and its
+  // interpolation, extension and projection settings.
+  void configure_image(const scene::ShaderNode &n, TextureNode &tex);
+  const ImageTexture *load_image(const scene::ShaderNode &n, bool &missing);
+  // An image texture node at coordinate `co` with its derivatives per pixel step (projection, lookup).
+  Spectrum lookup_image(const TextureNode &t, const Vec3 &co, const Vec3 &dco_dx, const Vec3 &dco_dy,
+                        const Vec3 &N, bool alpha) const;
   // The table nodes (render/nodes/) behind `link` as a program; returns its index.
   int compile_program(const scene::ShaderGraph &g, const scene::ShaderLink &link);
 };

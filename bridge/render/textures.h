@@ -1,13 +1,21 @@
-// Image textures read with OpenImageIO (loaded only when a used shader needs
-// them) and Cycles' procedural checker.
+// Image textures looked up through OpenImageIO's TextureSystem (one per render,
+// created only when a used shader reads an image): MIP-mapped, filtered with the
+// ray footprint, Cycles' projections, extensions and interpolations; and Cycles'
+// procedural checker.
 #pragma once
 
 #include <cstdint>
+#include <map>
 #include <memory>
 #include <string>
-#include <vector>
+
+#include <OpenImageIO/oiioversion.h>
 
 #include "glimmer/math.h"
+
+namespace OIIO_NAMESPACE {
+class TextureSystem;
+}
 
 namespace glimmer::render {
 
@@ -16,32 +24,89 @@ namespace glimmer::render {
 constexpr uint64_t kDefaultMaxImagePixels = uint64_t{1} << 27;  // 134 M pixels, e.g. 16384 x 8192
 uint64_t max_image_pixels();
 
+// Cycles' image node settings (ImageTextureNode / EnvironmentTextureNode).
+enum class Interpolation { Closest, Linear, Cubic, Smart };
+enum class Extension { Repeat, Extend, Clip, Mirror };
+enum class Projection { Flat, Box, Sphere, Tube, Equirectangular, MirrorBall };
+
+struct ImageSampling {
+  Interpolation interpolation = Interpolation::Linear;
+  Extension extension = Extension::Repeat;
+  Extension vertical = Extension::Repeat;  // the environment clamps v (the poles), repeats u
+};
+
+// A lookup in Cycles' convention (v = 0 is the bottom row, v = 1 the top) with the
+// derivatives of (u, v) per pixel step in x and y (zero: the finest level).
+struct UvFootprint {
+  float u = 0.0f, v = 0.0f;
+  float dudx = 0.0f, dvdx = 0.0f, dudy = 0.0f, dvdy = 0.0f;
+};
+
+class TextureCache;
+
+// One image file of a TextureCache. The lookup returns linear RGB + alpha:
+// 8/16-bit images are sRGB (Cycles' default colour space) unless read as linear
+// ("Non-Color"); like Cycles' byte textures they are interpolated as sRGB codes
+// and converted afterwards, from a MIP map whose coarser levels encode linear
+// averages (written to the cache's scratch folder). Alpha is unassociated.
 class ImageTexture {
  public:
-  // Reads `path` as RGBA floats. 8/16-bit images are treated as sRGB (Cycles'
-  // default "sRGB" colour space) unless `linear` is set; like Cycles'
-  // "compress as sRGB" byte textures they keep their sRGB values and lookup()
-  // converts to linear after interpolating. Throws std::runtime_error naming
-  // the file on failure: not a regular file, a header over the pixel budget
-  // (max_image_pixels()), out of memory, a decoding error.
-  static std::unique_ptr<ImageTexture> load(const std::string &path, bool linear);
-  // Texture with given linear RGBA pixels (row 0 = top), for tests.
-  ImageTexture(int width, int height, std::vector<float> rgba) : width_(width), height_(height), rgba_(std::move(rgba)) {}
-
-  // Bilinear (or, with `closest`, nearest-texel) lookup with repeat wrapping,
-  // Cycles' convention: v = 0 is the bottom row of the image, v = 1 the top.
-  // Returns linear RGB (+ alpha).
-  void lookup(float u, float v, float out_rgba[4], bool closest = false) const;
+  void lookup(const UvFootprint &at, const ImageSampling &sampling, float out_rgba[4]) const;
   int width() const { return width_; }
   int height() const { return height_; }
   const std::string &path() const { return path_; }
 
  private:
-  int width_ = 0, height_ = 0;
-  std::vector<float> rgba_;
+  friend class TextureCache;
+  const TextureCache *cache_ = nullptr;
+  void *handle_ = nullptr;  // OIIO::TextureSystem::TextureHandle
+  int width_ = 0, height_ = 0, channels_ = 0;
   std::string path_;
-  bool srgb_ = false;  // rgba_ holds sRGB-encoded colour: converted after interpolation
+  bool srgb_ = false;  // the texture holds sRGB codes: converted after filtering
 };
+
+// The render's OIIO TextureSystem (not the process-wide shared one): created by the
+// first load(), each image validated (regular file, header within the pixel budget)
+// before the texture system may read it. Lookups are thread safe; each thread uses
+// its own per-thread record of this cache.
+class TextureCache {
+ public:
+  TextureCache();
+  ~TextureCache();
+  TextureCache(const TextureCache &) = delete;
+  TextureCache &operator=(const TextureCache &) = delete;
+
+  // The image at `path` (once per path and colour space). Throws std::runtime_error
+  // naming the file: not a regular file, unreadable, a header over the pixel budget
+  // (max_image_pixels()).
+  const ImageTexture *load(const std::string &path, bool linear);
+
+ private:
+  friend class ImageTexture;
+  OIIO::TextureSystem *system_ = nullptr;
+  uint64_t id_ = 0;  // unique per cache: a thread's per-thread record belongs to one id
+  std::map<std::string, std::unique_ptr<ImageTexture>> images_;
+  std::string scratch_dir_;  // MIP maps of sRGB files; removed with the cache
+  std::string scratch_file(size_t index);
+  void *perthread() const;  // this thread's OIIO::TextureSystem::Perthread
+};
+
+// ---- Projections (Cycles' svm_node_tex_image / svm_node_tex_environment) ----
+
+// Box projection weights of the three axis-aligned planes (x, y, z) for normal `N`
+// with blend in [0, 1] (Cycles' svm_node_tex_image_box): one plane near an axis,
+// two or three blended across the edges and corners; the weights sum to 1.
+Vec3 box_projection_weights(const Vec3 &N, float blend);
+// The (u, v) one box plane (axis 0/1/2) reads from coordinate `co`, mirrored on the
+// negative side as Cycles does so that the texture is not flipped across a face.
+void box_plane_uv(int axis, const Vec3 &co, const Vec3 &N, float &u, float &v);
+// Box projection (Cycles' svm_node_tex_image_box): the planes' lookups at `co` (with its
+// derivatives per pixel step) summed with `weights` (box_projection_weights).
+void box_lookup(const ImageTexture &image, const ImageSampling &sampling, const Vec3 &weights, const Vec3 &N,
+                const Vec3 &co, const Vec3 &dco_dx, const Vec3 &dco_dy, float out_rgba[4]);
+// Sphere and tube projections of a coordinate in [0, 1]^3 (centred at 0.5).
+void map_to_sphere(const Vec3 &co, float &u, float &v);
+void map_to_tube(const Vec3 &co, float &u, float &v);
 
 // Cycles' svm_checker: 1 for color1, 0 for color2.
 inline float checker(Vec3 p) {
@@ -65,5 +130,7 @@ inline Vec3 equirectangular_to_direction(float u, float v) {
   const float s = std::sin(theta);
   return {s * std::cos(phi), s * std::sin(phi), std::cos(theta)};
 }
+// Mirror ball as Cycles' direction_to_mirrorball: the ball seen from -y.
+void direction_to_mirrorball(const Vec3 &d, float &u, float &v);
 
 }  // namespace glimmer::render

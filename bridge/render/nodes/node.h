@@ -69,6 +69,10 @@ struct ShadingPoint {
   float uv[2] = {0.0f, 0.0f};
   Vec3 direction{0.0f, 0.0f, 1.0f};  // ray direction (toward the point; Cycles' sd->I is its negation)
   bool backfacing = false;
+  // The footprint of one pixel step in x and y (ray differentials on the surface; zero: unknown,
+  // the finest detail): position, generated and uv derivatives, for filtered image lookups.
+  Vec3 dPdx{0.0f}, dPdy{0.0f}, dgenerated_dx{0.0f}, dgenerated_dy{0.0f};
+  float duv_dx[2] = {0.0f, 0.0f}, duv_dy[2] = {0.0f, 0.0f};
   PathInfo path;
   const float *world_to_camera = nullptr;  // 3x4 row-major (set by the node program; null: identity)
   Vec3 I() const { return -direction; }
