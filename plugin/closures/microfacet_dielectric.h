@@ -70,11 +70,10 @@ class MicrofacetDielectricClosure : public OneLobeClosure<MicrofacetDielectricCl
     return c;
   }
 
-  // The instance's lobe, or `scratch` rebuilt from the per-point values of the varying parameters.
-  const Lobe &lobe_at(const ShadingPoint &sp, Lobe &scratch) const {
-    if (!sp.varies()) return lobe_;
-    scratch.build(inputs_.at(sp), sp.param_float(ior_param_, ior_), lobe_.refraction_only, false);
-    return scratch;
+  // The instance's lobe, and the lobe from the per-point values of the varying parameters (OneLobeClosure).
+  const Lobe &constant_lobe() const { return lobe_; }
+  void build_lobe_at(const ShadingPoint &sp, Lobe &lobe) const {
+    lobe.build(inputs_.at(sp), sp.param_float(ior_param_, ior_), lobe_.refraction_only, false);
   }
 
  private:

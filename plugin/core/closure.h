@@ -19,6 +19,7 @@
 // / sp.param_color, index from ParamReader::index at create().
 #pragma once
 
+#include <atomic>
 #include <cstdio>
 #include <cstring>
 #include <exception>
@@ -308,27 +309,61 @@ struct ClosureAdapter {
 // Adds a closure type to the plugin's list (called from static initializers).
 bool register_closure_type(const GlimmerClosureType *type);
 
+// The set-up of a lobe at one shading point, kept for the next calls with the same per-point values: the
+// host calls albedo, eval (next-event estimation), sample and eval (MIS) at a shading point with the same
+// varying values, so the lobe (alphas, energy-table rows, the multiple-scattering CDF) is built once per point
+// instead of once per call. One entry per thread and closure class, keyed by the instance and the values.
+template <class Lobe>
+struct PointLobeCache {
+  static constexpr uint32_t kMaxValues = 8;  // more varying values than this are rebuilt every call
+  uint64_t instance = 0;                     // OneLobeClosure serial; 0 = empty
+  uint32_t count = 0;
+  GlimmerVaryingValue values[kMaxValues];
+  Lobe lobe;
+
+  bool holds(uint64_t serial, const ShadingPoint &sp) const {
+    return instance == serial && count == sp.ctx->varying_count &&
+           std::memcmp(values, sp.ctx->varying, count * sizeof(GlimmerVaryingValue)) == 0;
+  }
+  void remember(uint64_t serial, const ShadingPoint &sp) {
+    const bool fits = sp.ctx->varying_count <= kMaxValues;
+    instance = fits ? serial : 0;
+    count = fits ? sp.ctx->varying_count : 0;
+    if (fits) std::memcpy(values, sp.ctx->varying, count * sizeof(GlimmerVaryingValue));
+  }
+};
+
 // eval / sample / albedo of a closure that is one lobe (Derived::Lobe with eval(wi, wo), sample(wi, rand, out)
-// and albedo(wi)): the instance's lobe, or one rebuilt at the shading point when a parameter varies
-// (Derived::lobe_at(sp, scratch) picks which).
+// and albedo(wi)): the instance's lobe (Derived::constant_lobe()), or, when the host gives per-point values of
+// varying parameters, the lobe Derived::build_lobe_at(sp, lobe) builds from them, once per shading point
+// (PointLobeCache).
 template <class Derived>
 class OneLobeClosure {
  public:
-  LocalEval eval(const ShadingPoint &sp, const Vec3 &wo) const {
-    typename Derived::Lobe scratch;
-    return derived().lobe_at(sp, scratch).eval(sp.wi, wo);
-  }
+  LocalEval eval(const ShadingPoint &sp, const Vec3 &wo) const { return lobe_at(sp).eval(sp.wi, wo); }
   bool sample(const ShadingPoint &sp, const Vec3 &rand, LocalSample &out) const {
-    typename Derived::Lobe scratch;
-    return derived().lobe_at(sp, scratch).sample(sp.wi, rand, out);
+    return lobe_at(sp).sample(sp.wi, rand, out);
   }
-  Spectrum albedo(const ShadingPoint &sp) const {
-    typename Derived::Lobe scratch;
-    return derived().lobe_at(sp, scratch).albedo(sp.wi);
+  Spectrum albedo(const ShadingPoint &sp) const { return lobe_at(sp).albedo(sp.wi); }
+
+  // The lobe at this shading point.
+  const auto &lobe_at(const ShadingPoint &sp) const {
+    if (!sp.varies()) return derived().constant_lobe();
+    static thread_local PointLobeCache<typename Derived::Lobe> cache;
+    if (!cache.holds(serial_, sp)) {
+      derived().build_lobe_at(sp, cache.lobe);
+      cache.remember(serial_, sp);
+    }
+    return cache.lobe;
   }
 
  private:
+  static uint64_t next_serial() {
+    static std::atomic<uint64_t> counter{0};
+    return ++counter;
+  }
   const Derived &derived() const { return static_cast<const Derived &>(*this); }
+  const uint64_t serial_ = next_serial();  // unique per instance, so a cache entry never outlives its instance's identity
 };
 
 }  // namespace glimmer::plugin
