@@ -313,6 +313,7 @@ bool register_closure_type(const GlimmerClosureType *type);
 // host calls albedo, eval (next-event estimation), sample and eval (MIS) at a shading point with the same
 // varying values, so the lobe (alphas, energy-table rows, the multiple-scattering CDF) is built once per point
 // instead of once per call. One entry per thread and closure class, keyed by the instance and the values.
+#if GLIMMER_ABI_MINOR >= 1  // varying parameters exist from ABI 2.1
 template <class Lobe>
 struct PointLobeCache {
   static constexpr uint32_t kMaxValues = 8;  // more varying values than this are rebuilt every call
@@ -332,6 +333,7 @@ struct PointLobeCache {
     if (fits) std::memcpy(values, sp.ctx->varying, count * sizeof(GlimmerVaryingValue));
   }
 };
+#endif
 
 // eval / sample / albedo of a closure that is one lobe (Derived::Lobe with eval(wi, wo), sample(wi, rand, out)
 // and albedo(wi)): the instance's lobe (Derived::constant_lobe()), or, when the host gives per-point values of
@@ -348,6 +350,7 @@ class OneLobeClosure {
 
   // The lobe at this shading point.
   const auto &lobe_at(const ShadingPoint &sp) const {
+#if GLIMMER_ABI_MINOR >= 1
     if (!sp.varies()) return derived().constant_lobe();
     static thread_local PointLobeCache<typename Derived::Lobe> cache;
     if (!cache.holds(serial_, sp)) {
@@ -355,6 +358,10 @@ class OneLobeClosure {
       cache.remember(serial_, sp);
     }
     return cache.lobe;
+#else
+    (void)sp;
+    return derived().constant_lobe();
+#endif
   }
 
  private:
