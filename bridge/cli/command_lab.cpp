@@ -105,7 +105,7 @@ LabSetup make_setup(CliContext &cli, const LabOptions &o) {
 void add_common_options(CLI::App *cmd, LabOptions &o) {
   cmd->add_option("--closure", o.closure, "closure type name (see `glimmer describe`)")->required();
   cmd->add_option("--param", o.params, "closure parameter name=value (repeatable)");
-  cmd->add_option("--wi", o.wi, "direction toward the viewer x,y,z in the local frame (N = +z), default 0,0,1");
+  cmd->add_option("--wi", o.wi, "direction toward the viewer x,y,z in the local frame (outward normal +z; a wi below it arrives from the back, as in the renderer: N turned toward wi, backfacing), default 0,0,1");
   cmd->add_option("--seed", o.seed, "random seed (results are deterministic for a seed)");
 }
 

@@ -46,6 +46,10 @@ uint32_t closure_abi_version(const GlimmerClosureType &type) {
   return GLIMMER_HAS_FIELD(type.struct_size, GlimmerClosureType, abi_version) ? type.abi_version : 0u;
 }
 
+bool wants_front_normal(const GlimmerClosureType &type) {
+  return (type.flags & GLIMMER_CLOSURE_TRANSMISSIVE) && closure_abi_version(type) < ((2u << 16) | 3u);
+}
+
 const GlimmerParamSpec *find_param(const GlimmerClosureType &type, const std::string &name) {
   for (uint32_t i = 0; i < type.param_count; ++i)
     if (name == param_at(type, i).name) return &param_at(type, i);
@@ -253,7 +257,7 @@ const GlimmerHostServices *default_host_services() {
 
 ClosureInstance::ClosureInstance(const GlimmerClosureType &type, const ParamList &params,
                                  const GlimmerHostServices *host)
-    : type_(type) {
+    : type_(type), wants_front_normal_(wants_front_normal(type)) {
   const auto values = params.values(type);
   char error[1024] = {0};
   if (!type.create(values.data(), static_cast<uint32_t>(values.size()), host, &instance_, error, sizeof(error)) ||
@@ -273,14 +277,16 @@ ClosureInstance::~ClosureInstance() {
 Spectrum ClosureInstance::albedo(const GlimmerShadingContext &ctx) const {
   if (type_.albedo == nullptr) return Spectrum(1.0f);
   float rgb[3];
-  type_.albedo(instance_, &ctx, rgb);
+  GlimmerShadingContext scratch;
+  type_.albedo(instance_, &as_expected(ctx, scratch), rgb);
   return {rgb[0], rgb[1], rgb[2]};
 }
 
 Spectrum ClosureInstance::emit(const GlimmerShadingContext &ctx) const {
   if (type_.emit == nullptr) return Spectrum(0.0f);
   float rgb[3];
-  type_.emit(instance_, &ctx, rgb);
+  GlimmerShadingContext scratch;
+  type_.emit(instance_, &as_expected(ctx, scratch), rgb);
   return {rgb[0], rgb[1], rgb[2]};
 }
 
@@ -289,8 +295,9 @@ GlimmerShadingContext make_local_context(const Vec3 &wi, const GlimmerHostServic
   ctx.struct_size = sizeof(GlimmerShadingContext);
   ctx.wi = normalize(wi);
   ctx.P = Vec3(0.0f);
-  ctx.N = Vec3(0, 0, 1);
-  ctx.Ng = Vec3(0, 0, 1);
+  ctx.backfacing = wi.z < 0.0f ? 1u : 0u;
+  ctx.N = Vec3(0, 0, ctx.backfacing ? -1.0f : 1.0f);
+  ctx.Ng = ctx.N;
   ctx.T = Vec3(1, 0, 0);
   ctx.dPdu = Vec3(1, 0, 0);
   ctx.dPdv = Vec3(0, 1, 0);

@@ -82,24 +82,45 @@ class ClosureInstance {
   const GlimmerClosureType &type() const { return type_; }
   const GlimmerInstance *handle() const { return instance_; }
 
+  // Contexts follow the ABI 2.3 normal convention (N toward wi, `backfacing` names the medium).
   void eval(const GlimmerShadingContext &ctx, const Vec3 &wo, Spectrum &f_cos, float &pdf) const {
     float rgb[3];
-    type_.eval(instance_, &ctx, wo, rgb, &pdf);
+    GlimmerShadingContext scratch;
+    type_.eval(instance_, &as_expected(ctx, scratch), wo, rgb, &pdf);
     f_cos = Spectrum(rgb[0], rgb[1], rgb[2]);
   }
   uint32_t sample(const GlimmerShadingContext &ctx, const float rand3[3], GlimmerSample &out) const {
-    return type_.sample(instance_, &ctx, rand3, &out);
+    GlimmerShadingContext scratch;
+    return type_.sample(instance_, &as_expected(ctx, scratch), rand3, &out);
   }
   Spectrum albedo(const GlimmerShadingContext &ctx) const;
   Spectrum emit(const GlimmerShadingContext &ctx) const;
 
  private:
+  // The context in the convention the closure was built for: a TRANSMISSIVE
+  // closure of a plugin older than ABI 2.3 gets the front-face N and Ng
+  // (turned back when backfacing, a copy in `scratch`); every other closure `ctx` itself.
+  const GlimmerShadingContext &as_expected(const GlimmerShadingContext &ctx, GlimmerShadingContext &scratch) const {
+    if (!wants_front_normal_ || !ctx.backfacing) return ctx;
+    scratch = ctx;
+    scratch.N = -Vec3(ctx.N);
+    scratch.Ng = -Vec3(ctx.Ng);
+    return scratch;
+  }
+
   const GlimmerClosureType &type_;
   GlimmerInstance *instance_ = nullptr;
+  bool wants_front_normal_ = false;
 };
 
-// A shading context at the origin with N = +z, T = +x, the given wi and an
-// empty (point) footprint; for the laboratory and tests.
+// True for a TRANSMISSIVE closure built for ABI <= 2.2, which takes the side
+// from dot(wi, N) and so expects the front-face normal (closure_abi.h).
+bool wants_front_normal(const GlimmerClosureType &type);
+
+// A shading context at the origin for the laboratory and tests, in the
+// renderer's convention: the surface's outward normal is +z and T = +x; a wi
+// below it arrives from the back, so N and Ng are turned to -z and `backfacing`
+// is set. Empty (point) footprint.
 GlimmerShadingContext make_local_context(const Vec3 &wi, const GlimmerHostServices *host = default_host_services());
 
 }  // namespace glimmer::host

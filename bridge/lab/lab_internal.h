@@ -43,7 +43,7 @@ inline uint32_t sample_at(const host::ClosureInstance &instance, const GlimmerSh
   return instance.sample(ctx, rand3, s);
 }
 
-// The local shading frame the plugin adapter uses (z = N, x = T projected).
+// The context's shading frame (z = N, x = T projected): the lab's frame for binning and sweeps.
 inline Frame shading_frame(const GlimmerShadingContext &ctx) {
   return Frame::from_normal_tangent(Vec3(ctx.N), Vec3(ctx.T));
 }

@@ -116,11 +116,12 @@ struct Renderer::Impl {
   void fill_ray_hit(const SurfaceHit &h, const GlimmerRay &ray, GlimmerRayHit &out) const {
     GlimmerRayHit *hit = &out;
     const scene::SurfacePoint s = scene.meshes[h.mesh].surface_at(h.prim, h.u, h.v);
+    // As at a shading point (closure_abi.h): N and Ng face the ray's origin.
+    hit->backfacing = dot(s.Ng, Vec3(ray.direction)) > 0.0f ? 1u : 0u;
     hit->t = h.t;
     hit->P = s.P;
-    hit->N = s.N;
-    hit->Ng = s.Ng;
-    hit->backfacing = dot(s.Ng, Vec3(ray.direction)) > 0.0f ? 1u : 0u;
+    hit->N = hit->backfacing ? -s.N : s.N;
+    hit->Ng = hit->backfacing ? -s.Ng : s.Ng;
     hit->uv[0] = s.uv[0];
     hit->uv[1] = s.uv[1];
     hit->object_id = static_cast<uint32_t>(h.mesh);
@@ -200,7 +201,6 @@ struct Renderer::Impl {
   // ---- Shading points ----
   struct ShadingData {
     GlimmerShadingContext ctx{};
-    GlimmerShadingContext ctx_front{};  // N/Ng/T of the front face (transmissive closures)
     TexCoords tc;
     Vec3 Ng;            // geometric normal, flipped to the incoming side
     Vec3 N;             // shading normal, same side
@@ -266,19 +266,11 @@ struct Renderer::Impl {
     sd.shader = mesh_shader[h.mesh];
   }
 
-  // Copies the per-bounce fields into the front-face context.
-  static void sync_front(ShadingData &sd) {
-    sd.ctx_front = sd.ctx;
-    if (sd.backfacing) {
-      sd.ctx_front.N = -Vec3(sd.ctx.N);
-      sd.ctx_front.Ng = -Vec3(sd.ctx.Ng);
-    }
-  }
-  // The context one closure sees: front-face or flipped normal, and its varying
+  // The context one closure sees: the shading point's, with its varying
   // parameter values (then a copy in `scratch`; without them no copy is made).
   static const GlimmerShadingContext &context_for(const ShadingData &sd, const ActiveClosure &c,
                                                   GlimmerShadingContext &scratch) {
-    const GlimmerShadingContext &ctx = c.leaf->front_normal ? sd.ctx_front : sd.ctx;
+    const GlimmerShadingContext &ctx = sd.ctx;
     if (c.varying_count == 0) return ctx;
     scratch = ctx;
     scratch.varying_count = c.varying_count;
@@ -508,7 +500,7 @@ struct Renderer::Impl {
     return false;
   }
 
-  // The path's counters and seed in the shading contexts.
+  // The path's counters and seed in the shading context.
   static void set_path_context(const PathState &ps, uint32_t path_seed, ShadingData &sd) {
     GlimmerShadingContext &ctx = sd.ctx;
     ctx.bounce = static_cast<uint32_t>(ps.bounce);
@@ -516,7 +508,6 @@ struct Renderer::Impl {
     ctx.glossy_bounce = static_cast<uint32_t>(ps.glossy_bounce);
     ctx.transmission_bounce = static_cast<uint32_t>(ps.transmission_bounce);
     ctx.path_seed = path_seed;
-    sync_front(sd);
   }
 
   // Samples closure `chosen` and updates the throughput with the one-sample MIS

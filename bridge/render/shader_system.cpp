@@ -546,7 +546,6 @@ int ShaderSystem::make_leaf(const ShaderGraph &g, const ShaderNode &n, CompiledS
     if (leaf->emissive) out.has_emission = true;
   }
   if (!leaf->emissive && leaf->builtin == BuiltinClosure::None) out.has_bsdf = true;
-  if (leaf->type && (leaf->type->flags & GLIMMER_CLOSURE_TRANSMISSIVE)) leaf->front_normal = true;
   ClosureTreeNode node;
   node.kind = ClosureTreeNode::Kind::Leaf;
   node.leaf = static_cast<int>(leaves_.size());

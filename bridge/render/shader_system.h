@@ -59,9 +59,6 @@ struct ClosureLeaf {
   float strength = 1;  // extra scalar on the weight
   bool emissive = false;
   bool singular = false;
-  // Transmissive closures decide the side (eta or 1/eta) from wi.N, so they
-  // get the front-face normal instead of the one flipped toward wi.
-  bool front_normal = false;
   // filter_glossy: variants with alpha >= kBlurStep * k (k = 1..kBlurLevels), created only
   // when the scene sets filter_glossy > 0 (closure instances are immutable while rendering).
   static constexpr int kBlurLevels = 10;

@@ -211,11 +211,10 @@ class MicrofacetConductorClosure : public OneLobeClosure<MicrofacetConductorClos
     return c;
   }
 
-  // The instance's lobe, or `scratch` rebuilt from the per-point values of the varying parameters.
-  const Lobe &lobe_at(const ShadingPoint &sp, Lobe &scratch) const {
-    if (!sp.varies()) return lobe_;
-    scratch.build(inputs_.at(sp), sp.param_color(f0_param_, lobe_.f0), bounce_tint_, false);
-    return scratch;
+  // The instance's lobe, and the lobe from the per-point values of the varying parameters (OneLobeClosure).
+  const Lobe &constant_lobe() const { return lobe_; }
+  void build_lobe_at(const ShadingPoint &sp, Lobe &lobe) const {
+    lobe.build(inputs_.at(sp), sp.param_color(f0_param_, lobe_.f0), bounce_tint_, false);
   }
 
  private:

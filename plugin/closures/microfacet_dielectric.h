@@ -8,8 +8,9 @@
 // sum of R + T albedo <= 1 from both sides, and reciprocity reads
 // f(wi, wo) / n_o^2 = f(wo, wi) / n_i^2.
 //
-// Sides: wi.z > 0 is outside (eta = ior), wi.z < 0 inside (eta = 1 / ior); the
-// inside is handled by mirroring z. ior is clamped away from 1 by 1e-4 (at
+// Sides: in the interface frame (core/closure.h, LocalFrame::Interface) wi.z > 0
+// is outside (eta = ior) and wi.z < 0 inside (eta = 1 / ior), i.e. the host's
+// `backfacing` decides eta (closure_abi.h); the inside is handled by mirroring z. ior is clamped away from 1 by 1e-4 (at
 // exactly 1 the transmission lobe is a delta).
 // mode=glass: reflection + transmission, chosen with probability F;
 // mode=refraction: transmission only and Fresnel-free (Cycles' refraction
@@ -69,11 +70,10 @@ class MicrofacetDielectricClosure : public OneLobeClosure<MicrofacetDielectricCl
     return c;
   }
 
-  // The instance's lobe, or `scratch` rebuilt from the per-point values of the varying parameters.
-  const Lobe &lobe_at(const ShadingPoint &sp, Lobe &scratch) const {
-    if (!sp.varies()) return lobe_;
-    scratch.build(inputs_.at(sp), sp.param_float(ior_param_, ior_), lobe_.refraction_only, false);
-    return scratch;
+  // The instance's lobe, and the lobe from the per-point values of the varying parameters (OneLobeClosure).
+  const Lobe &constant_lobe() const { return lobe_; }
+  void build_lobe_at(const ShadingPoint &sp, Lobe &lobe) const {
+    lobe.build(inputs_.at(sp), sp.param_float(ior_param_, ior_), lobe_.refraction_only, false);
   }
 
  private:

@@ -5,7 +5,8 @@
 // benchmarks of the energy compensation (distribution=multi_ggx).
 //  - type=conductor: Schlick Fresnel from f0 at every bounce (f0 = 1 Fresnel-free).
 //  - type=dielectric: exact Fresnel, reflection/refraction chosen by F,
-//    both sides (wi.z < 0 is inside, relative IOR ior = n_inside / n_outside).
+//    both sides (wi.z < 0 is inside: `backfacing`, in the interface frame of
+//    core/closure.h; relative IOR ior = n_inside / n_outside).
 // eval() is STOCHASTIC: an unbiased estimate of f * |cos(wo)| from `eval_walks`
 // next-event random walks seeded by hash(ctx->path_seed, wo) (deterministic).
 // sample() returns the walk's exit direction with f_cos / pdf equal to the

@@ -12,12 +12,14 @@
 //   Spectrum albedo(const ShadingPoint &sp) const;
 //   Spectrum emit(const ShadingPoint &sp) const;                 // with GLIMMER_CLOSURE_EMISSIVE
 // Directions handed to eval/sample are in the local shading frame (z = N,
-// x = tangent); the adapter converts to and from world space.
+// x = tangent; for GLIMMER_CLOSURE_TRANSMISSIVE closures z = the outward
+// normal, see LocalFrame); the adapter converts to and from world space.
 // Parameters declared with GLIMMER_PARAM_VARYING may change per shading point
 // (textures): eval/sample/albedo read them with sp.param_float(index, constant)
 // / sp.param_color, index from ParamReader::index at create().
 #pragma once
 
+#include <atomic>
 #include <cstdio>
 #include <cstring>
 #include <exception>
@@ -30,15 +32,43 @@
 
 namespace glimmer::plugin {
 
+// The local frame of a closure. The host hands N turned toward wi and says with
+// `backfacing` which medium wi is in (closure_abi.h, ABI 2.3). Reflection
+// closures work in z = N. Transmissive closures work in the interface's own
+// frame, z = the outward (front-face) normal, N turned back when backfacing: wi.z < 0
+// exactly when wi is inside (so eta = backfacing ? 1 / ior : ior), and both media
+// share the tangent plane's x and y.
+enum class LocalFrame { TowardWi, Interface };
+
 struct ShadingPoint {
   const GlimmerShadingContext *ctx;
-  Frame frame;  // z = N, x = T
+  Frame frame;  // z = N (Interface: the outward normal), x = T
   Vec3 wi;      // local, toward the viewer
   std::span<const GlimmerParamSpec> schema;  // the closure's parameters (ranges of the varying values)
 
-  explicit ShadingPoint(const GlimmerShadingContext *c, std::span<const GlimmerParamSpec> s = {})
-      : ctx(c), frame(Frame::from_normal_tangent(Vec3(c->N), Vec3(c->T))), wi(frame.to_local(Vec3(c->wi))),
+  explicit ShadingPoint(const GlimmerShadingContext *c, std::span<const GlimmerParamSpec> s = {},
+                        LocalFrame kind = LocalFrame::TowardWi)
+      : ctx(c), frame(Frame::from_normal_tangent(frame_normal(*c, kind), Vec3(c->T))), wi(frame.to_local(Vec3(c->wi))),
         schema(s) {}
+
+  // Built for ABI <= 2.2 (test fixtures), the host hands transmissive closures the outward N itself.
+  static Vec3 frame_normal(const GlimmerShadingContext &c, LocalFrame kind) {
+#if GLIMMER_ABI_MINOR >= 3
+    return kind == LocalFrame::Interface && c.backfacing ? -Vec3(c.N) : Vec3(c.N);
+#else
+    (void)kind;
+    return Vec3(c.N);
+#endif
+  }
+  // False where wi is below the N the host handed (a bent shading normal): a
+  // transmissive closure scatters nothing there (as Cycles' glass).
+  bool wi_above_n() const {
+#if GLIMMER_ABI_MINOR >= 3
+    return dot(Vec3(ctx->wi), Vec3(ctx->N)) > 0.0f;
+#else
+    return true;
+#endif
+  }
 
   // True when the host lists per-point values for any varying parameter (ABI 2.1 contexts).
   bool varies() const {
@@ -117,9 +147,22 @@ concept HasAlbedo = requires(const T &t, const ShadingPoint &sp) { t.albedo(sp);
 template <typename T>
 concept HasEmit = requires(const T &t, const ShadingPoint &sp) { t.emit(sp); };
 
+// The shading point closure class T sees: its schema and local frame
+// (LocalFrame::Interface for GLIMMER_CLOSURE_TRANSMISSIVE closures).
+template <typename T>
+ShadingPoint shading_point_for(const GlimmerShadingContext *ctx) {
+  constexpr bool transmissive = (T::kFlags & GLIMMER_CLOSURE_TRANSMISSIVE) != 0;
+  return ShadingPoint(ctx, T::params(), transmissive ? LocalFrame::Interface : LocalFrame::TowardWi);
+}
+
 template <typename T>
 struct ClosureAdapter {
   static const T &self(const GlimmerInstance *inst) { return *reinterpret_cast<const T *>(inst); }
+
+  static constexpr bool kTransmissive = (T::kFlags & GLIMMER_CLOSURE_TRANSMISSIVE) != 0;
+  static ShadingPoint shading_point(const GlimmerShadingContext *ctx) { return shading_point_for<T>(ctx); }
+  // Whether the closure scatters at all here (transmissive: not with wi below N).
+  static bool scatters(const ShadingPoint &sp) { return !kTransmissive || sp.wi_above_n(); }
 
   // The C entry points: noexcept, every exception stops at this boundary.
   static int create(const GlimmerParamValue *values, uint32_t count, const GlimmerHostServices *,
@@ -161,8 +204,8 @@ struct ClosureAdapter {
                    float out_eval[3], float *out_pdf) noexcept {
     LocalEval e;
     try {
-      const ShadingPoint sp(ctx, T::params());
-      e = self(inst).eval(sp, sp.frame.to_local(Vec3(wo)));
+      const ShadingPoint sp = shading_point(ctx);
+      if (scatters(sp)) e = self(inst).eval(sp, sp.frame.to_local(Vec3(wo)));
     } catch (...) {
       e = LocalEval{};  // a closure that throws contributes nothing
     }
@@ -192,9 +235,9 @@ struct ClosureAdapter {
 
   static uint32_t sample_unguarded(const GlimmerInstance *inst, const GlimmerShadingContext *ctx,
                                    const float rand3[3], GlimmerSample *out) {
-    const ShadingPoint sp(ctx, T::params());
+    const ShadingPoint sp = shading_point(ctx);
     LocalSample s;
-    const bool ok = self(inst).sample(sp, Vec3(rand3[0], rand3[1], rand3[2]), s);
+    const bool ok = scatters(sp) && self(inst).sample(sp, Vec3(rand3[0], rand3[1], rand3[2]), s);
     const Vec3 wo = sp.frame.to_world(s.wo);
     const float pdf = sanitize(s.pdf);
     if (!ok || s.label == GLIMMER_LABEL_NONE || !(pdf > 0.0f) || !is_finite(wo)) {
@@ -239,7 +282,12 @@ struct ClosureAdapter {
   static void albedo(const GlimmerInstance *inst, const GlimmerShadingContext *ctx, float out_rgb[3]) noexcept {
     Spectrum a(1.0f);
     try {
-      if constexpr (HasAlbedo<T>) a = sanitize(self(inst).albedo(ShadingPoint(ctx, T::params())));
+      const ShadingPoint sp = shading_point(ctx);
+      if (!scatters(sp)) {
+        a = Spectrum(0.0f);
+      } else if constexpr (HasAlbedo<T>) {
+        a = sanitize(self(inst).albedo(sp));
+      }
     } catch (...) {
       a = Spectrum(1.0f);
     }
@@ -251,7 +299,7 @@ struct ClosureAdapter {
   static void emit(const GlimmerInstance *inst, const GlimmerShadingContext *ctx, float out_rgb[3]) noexcept {
     Spectrum e(0.0f);
     try {
-      if constexpr (HasEmit<T>) e = sanitize(self(inst).emit(ShadingPoint(ctx, T::params())));
+      if constexpr (HasEmit<T>) e = sanitize(self(inst).emit(shading_point(ctx)));
     } catch (...) {
       e = Spectrum(0.0f);
     }
@@ -287,27 +335,68 @@ struct ClosureAdapter {
 // Adds a closure type to the plugin's list (called from static initializers).
 bool register_closure_type(const GlimmerClosureType *type);
 
+// The set-up of a lobe at one shading point, kept for the next calls with the same per-point values: the
+// host calls albedo, eval (next-event estimation), sample and eval (MIS) at a shading point with the same
+// varying values, so the lobe (alphas, energy-table rows, the multiple-scattering CDF) is built once per point
+// instead of once per call. One entry per thread and closure class, keyed by the instance and the values.
+#if GLIMMER_ABI_MINOR >= 1  // varying parameters exist from ABI 2.1
+template <class Lobe>
+struct PointLobeCache {
+  static constexpr uint32_t kMaxValues = 8;  // more varying values than this are rebuilt every call
+  uint64_t instance = 0;                     // OneLobeClosure serial; 0 = empty
+  uint32_t count = 0;
+  GlimmerVaryingValue values[kMaxValues];
+  Lobe lobe;
+
+  bool holds(uint64_t serial, const ShadingPoint &sp) const {
+    return instance == serial && count == sp.ctx->varying_count &&
+           std::memcmp(values, sp.ctx->varying, count * sizeof(GlimmerVaryingValue)) == 0;
+  }
+  void remember(uint64_t serial, const ShadingPoint &sp) {
+    const bool fits = sp.ctx->varying_count <= kMaxValues;
+    instance = fits ? serial : 0;
+    count = fits ? sp.ctx->varying_count : 0;
+    if (fits) std::memcpy(values, sp.ctx->varying, count * sizeof(GlimmerVaryingValue));
+  }
+};
+#endif
+
 // eval / sample / albedo of a closure that is one lobe (Derived::Lobe with eval(wi, wo), sample(wi, rand, out)
-// and albedo(wi)): the instance's lobe, or one rebuilt at the shading point when a parameter varies
-// (Derived::lobe_at(sp, scratch) picks which).
+// and albedo(wi)): the instance's lobe (Derived::constant_lobe()), or, when the host gives per-point values of
+// varying parameters, the lobe Derived::build_lobe_at(sp, lobe) builds from them, once per shading point
+// (PointLobeCache).
 template <class Derived>
 class OneLobeClosure {
  public:
-  LocalEval eval(const ShadingPoint &sp, const Vec3 &wo) const {
-    typename Derived::Lobe scratch;
-    return derived().lobe_at(sp, scratch).eval(sp.wi, wo);
-  }
+  LocalEval eval(const ShadingPoint &sp, const Vec3 &wo) const { return lobe_at(sp).eval(sp.wi, wo); }
   bool sample(const ShadingPoint &sp, const Vec3 &rand, LocalSample &out) const {
-    typename Derived::Lobe scratch;
-    return derived().lobe_at(sp, scratch).sample(sp.wi, rand, out);
+    return lobe_at(sp).sample(sp.wi, rand, out);
   }
-  Spectrum albedo(const ShadingPoint &sp) const {
-    typename Derived::Lobe scratch;
-    return derived().lobe_at(sp, scratch).albedo(sp.wi);
+  Spectrum albedo(const ShadingPoint &sp) const { return lobe_at(sp).albedo(sp.wi); }
+
+  // The lobe at this shading point.
+  const auto &lobe_at(const ShadingPoint &sp) const {
+#if GLIMMER_ABI_MINOR >= 1
+    if (!sp.varies()) return derived().constant_lobe();
+    static thread_local PointLobeCache<typename Derived::Lobe> cache;
+    if (!cache.holds(serial_, sp)) {
+      derived().build_lobe_at(sp, cache.lobe);
+      cache.remember(serial_, sp);
+    }
+    return cache.lobe;
+#else
+    (void)sp;
+    return derived().constant_lobe();
+#endif
   }
 
  private:
+  static uint64_t next_serial() {
+    static std::atomic<uint64_t> counter{0};
+    return ++counter;
+  }
   const Derived &derived() const { return static_cast<const Derived &>(*this); }
+  const uint64_t serial_ = next_serial();  // unique per instance, so a cache entry never outlives its instance's identity
 };
 
 }  // namespace glimmer::plugin

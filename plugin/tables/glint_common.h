@@ -46,8 +46,8 @@ std::array<GlimmerParamSpec, kParticleFieldParamCount + N> particle_field_params
        "particles per unit of scaled uv area", 0},
       {"uv_scale", GLIMMER_PARAM_FLOAT, {1.0f, 0, 0}, 1e-4f, 1e6f, nullptr, nullptr,
        "scale of the uv coordinates the particles live in (uv * uv_scale)", 0},
-      {"seed", GLIMMER_PARAM_INT, {0, 0, 0}, 0.0f, 16777216.0f, nullptr, nullptr,
-       "random seed of the particle field", 0},
+      {"seed", GLIMMER_PARAM_INT, {0, 0, 0}, 0.0f, 2147483648.0f, nullptr, nullptr,
+       "random seed of the particle field (integer in [0, 2^31], exact)", 0},
       {"color", GLIMMER_PARAM_COLOR, {1, 1, 1}, 0.0f, 1.0f, nullptr, nullptr, docs.color, 0},
   }};
   for (size_t i = 0; i < N; ++i) schema[kParticleFieldParamCount + i] = extra[i];
@@ -74,7 +74,7 @@ struct ParticleField {
     f.gamma_deg = p.get_float("gamma");
     f.density = p.get_float("density");
     f.uv_scale = p.get_float("uv_scale");
-    f.seed = static_cast<uint32_t>(p.get_int("seed"));
+    f.seed = static_cast<uint32_t>(p.get_int64("seed"));  // ABI 2.2 integer payload: exact beyond 2^24
     f.color = p.get_color("color");
     return f;
   }

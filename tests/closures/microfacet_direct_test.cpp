@@ -242,13 +242,13 @@ void check_reciprocity(const T &closure, float ior, const char *label, long pair
     const float s = std::sqrt(1 - z * z);
     const Vec3 wi(s * std::cos(phi), s * std::sin(phi), z);
     GlimmerShadingContext ctx = host::make_local_context(wi);
-    ShadingPoint sp(&ctx);
+    const ShadingPoint sp = shading_point_for<T>(&ctx);
     LocalSample smp;
     if (!closure.sample(sp, Vec3(rng.next_float(), rng.next_float(), rng.next_float()), smp)) continue;
     const Vec3 wo = normalize(smp.wo);
     const LocalEval forward = closure.eval(sp, wo);
     GlimmerShadingContext ctx_back = host::make_local_context(wo);
-    ShadingPoint sp_back(&ctx_back);
+    const ShadingPoint sp_back = shading_point_for<T>(&ctx_back);
     const LocalEval backward = closure.eval(sp_back, sp.wi);
     const double f_fwd = forward.f_cos.x / std::fabs(wo.z), f_bwd = backward.f_cos.x / std::fabs(sp.wi.z);
     if (!(f_fwd > 1e-6)) continue;

@@ -80,8 +80,9 @@ inline Albedo sampled_albedo(const host::ClosureInstance &c, const Vec3 &wi, int
 }
 
 // chi2 of a closure's sample() against the pdf of its eval() at `ctx`: the
-// lab's test (bridge/lab/chi2.cpp) on 48 x 96 cells about `axis` (shading-frame
-// coordinates, which are world coordinates in host::make_local_context) with
+// lab's test (bridge/lab/chi2.cpp) on 48 x 96 cells about `axis` (in the
+// coordinates of ctx's vectors, i.e. the outward frame of
+// host::make_local_context; the lab takes it in the shading frame z = ctx.N) with
 // theta = pi t^k; plus the worst relative eval/pdf inconsistency (value in
 // `channel`, pdf) at every 64th sampled direction.
 struct ClosureChi2 {
@@ -95,7 +96,7 @@ inline ClosureChi2 closure_chi2(const host::ClosureInstance &closure, const Glim
   options.phi_bins = 96;
   options.samples = uint64_t(n_samples);
   options.seed = seed;
-  options.axis = axis;
+  options.axis = Frame::from_normal_tangent(Vec3(ctx.N), Vec3(ctx.T)).to_local(axis);
   options.theta_exponent = k;
   const lab::Chi2Result r = lab::chi2_test(closure, ctx, options);
   ClosureChi2 out;

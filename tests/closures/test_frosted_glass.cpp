@@ -185,12 +185,12 @@ TEST(FrostedGlassPath, Reciprocity) {
       const float z = (i % 2 ? -1.0f : 1.0f) * (0.02f + 0.98f * rng.next_float());
       const Vec3 wi = wi_at(z, kTwoPi * rng.next_float());
       GlimmerShadingContext ctx = host::make_local_context(wi);
-      const ShadingPoint sp(&ctx);
+      const ShadingPoint sp = shading_point_for<FrostedGlassClosure>(&ctx);
       LocalSample smp;
       if (!c->sample(sp, Vec3(rng.next_float(), rng.next_float(), rng.next_float()), smp)) continue;
       const Vec3 wo = normalize(smp.wo);
       GlimmerShadingContext ctx_back = host::make_local_context(wo);
-      const ShadingPoint sp_back(&ctx_back);
+      const ShadingPoint sp_back = shading_point_for<FrostedGlassClosure>(&ctx_back);
       for (int ch = 0; ch < 3; ++ch) {
         const double f_fwd = c->eval(sp, wo).f_cos[ch] / std::fabs(wo.z);
         const double f_bwd = c->eval(sp_back, sp.wi).f_cos[ch] / std::fabs(sp.wi.z);
@@ -218,8 +218,8 @@ TEST(FrostedGlassPath, ReciprocityCatchesOneSidedTint) {
   auto c = create_raw(0.5f, 1.5f, Vec3(0.5f));
   const Vec3 wi = wi_at(0.7f, 0.3f), wo = wi_at(-0.8f, 0.3f + 3.14159f);
   GlimmerShadingContext fwd = host::make_local_context(wi), back = host::make_local_context(wo);
-  const double f_fwd = c->eval(ShadingPoint(&fwd), wo).f_cos.x / std::fabs(wo.z);
-  const double f_bwd = c->eval(ShadingPoint(&back), wi).f_cos.x / std::fabs(wi.z);
+  const double f_fwd = c->eval(shading_point_for<FrostedGlassClosure>(&fwd), wo).f_cos.x / std::fabs(wo.z);
+  const double f_bwd = c->eval(shading_point_for<FrostedGlassClosure>(&back), wi).f_cos.x / std::fabs(wi.z);
   ASSERT_GT(f_fwd, 0.0);
   const double one_sided = f_fwd * (wi.z > 0 ? 0.5 : 1.0);  // tint applied only when entering
   DielectricLobe energy;
@@ -294,7 +294,7 @@ TEST(FrostedGlassPath, StressRawOutputsFiniteNonNegative) {
         ctx.varying = varying;
         ctx.varying_count = 3;
       }
-      const ShadingPoint sp(&ctx, schema);
+      const ShadingPoint sp = shading_point_for<FrostedGlassClosure>(&ctx);
       const Vec3 wo = extreme_direction(r, grazing);
       LocalSample s;
       const LocalEval e = c.eval(sp, wo);

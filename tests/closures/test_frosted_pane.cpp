@@ -63,11 +63,14 @@ struct SlabHost {
   }
 };
 
-// Shading context at one of the slab's interfaces (position-free: x = y = 0).
+// Shading context at one of the slab's interfaces (position-free: x = y = 0),
+// as the renderer builds it: N toward wi, backfacing when wi is inside the slab.
 GlimmerShadingContext slab_context(const Vec3 &wi, bool bottom, float L, const GlimmerHostServices *host) {
   GlimmerShadingContext ctx = host::make_local_context(wi, host);
   ctx.P = Vec3(0.0f, 0.0f, bottom ? -L : 0.0f);
-  ctx.N = ctx.Ng = Vec3(0.0f, 0.0f, bottom ? -1.0f : 1.0f);
+  const Vec3 outward(0.0f, 0.0f, bottom ? -1.0f : 1.0f);
+  ctx.backfacing = dot(wi, outward) < 0.0f ? 1u : 0u;
+  ctx.N = ctx.Ng = ctx.backfacing ? -outward : outward;
   return ctx;
 }
 

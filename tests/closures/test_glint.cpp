@@ -482,6 +482,36 @@ TEST(Glint, StressNoNanInfNegative) {
   EXPECT_TRUE(stress_clean(instances, 50000 * instances.size()));  // 50000 calls per instance
 }
 
+// The seed is an integer taken exactly (ABI 2.2 payload): 2^24 and 2^24 + 1,
+// one float apart from nothing, are different particle fields (a seed read as
+// a float would make them one field), and each field is its own seed's.
+TEST(Glint, SeedsBeyondTwoToThe24AreDistinctFields) {
+  // The glints one closure shows: eval over many small footprints and directions.
+  auto glints = [](const std::string &seed) {
+    auto glint = make_closure("glint", {{"roughness", "0.3"}, {"density", "1e6"}, {"seed", seed}});
+    std::vector<float> out;
+    Pcg32 rng(17);
+    for (int i = 0; i < 4000; ++i) {  // wo near the mirror direction of wi, ~100 particles per footprint
+      const double theta = 60.0 * rng.next_double();
+      const Vec3 wi = spherical_dir(theta, 0.0);
+      const Vec3 wo = spherical_dir(theta + 20.0 * (rng.next_double() - 0.5), 180.0 + 20.0 * (rng.next_double() - 0.5));
+      out.push_back(eval_f(*glint, context(wi, rng.next_double(), rng.next_double(), 1e-2), wo));
+    }
+    return out;
+  };
+  const std::vector<float> a = glints("16777216"), b = glints("16777217"), a_again = glints("16777216");
+  int lit = 0, differing = 0;
+  for (size_t i = 0; i < a.size(); ++i) {
+    lit += a[i] > 0.0f;
+    differing += a[i] != b[i];
+  }
+  EXPECT_GT(lit, 100);                    // the footprints do show glints
+  EXPECT_GT(differing, lit / 2);          // another field: most lit queries change
+  EXPECT_EQ(a, a_again);                  // a seed gives one field
+  EXPECT_NO_THROW(make_closure("glint", {{"seed", "2147483648"}}));
+  EXPECT_THROW(make_closure("glint", {{"seed", "2147483649"}}), host::ClosureError);
+}
+
 TEST(Glint, RejectsBadParametersWithTheirName) {
   for (const auto &[name, value] : std::vector<std::pair<std::string, std::string>>{
            {"roughness", "1.5"}, {"gamma", "0"}, {"density", "-3"}, {"distribution", "phong"}, {"uv_scale", "0"}}) {

@@ -49,7 +49,8 @@ TEST(Describe, ListsEveryParameterTypeOfTheFixturePlugin) {
   const CliRun run = run_cli({"describe", "--json", "--plugin", GLIMMER_TEST_FIXTURE_PARAMS});
   ASSERT_EQ(run.exit_code, 0) << run.err;
   const nlohmann::json j = nlohmann::json::parse(run.out);
-  ASSERT_EQ(j["closures"].size(), 1u);
+  ASSERT_EQ(j["closures"].size(), 2u);  // sorted by name: fixture_params, fixture_side (normal convention)
+  ASSERT_EQ(j["closures"][0]["name"], "fixture_params");
   const auto &params = j["closures"][0]["params"];
   ASSERT_EQ(params.size(), 7u);
   EXPECT_EQ(params[4]["name"], "mode");

@@ -16,7 +16,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-const std::string kHostVersion = host::abi_version_name(GLIMMER_ABI_VERSION);  // "2.2"
+const std::string kHostVersion = host::abi_version_name(GLIMMER_ABI_VERSION);  // "2.3"
 
 TEST(PluginLoading, LoadsTheClosureDso) {
   const auto library = host::PluginLibrary::load(GLIMMER_TEST_PLUGIN_PATH);
@@ -85,6 +85,34 @@ TEST(PluginLoading, Abi20PluginLoadsAndRendersInAbi22Host) {
   GlimmerSample s{};
   const float r3[3] = {0.3f, 0.6f, 0.5f};
   EXPECT_NE(instance.sample(ctx, r3, s), 0u);
+}
+
+// ABI 2.3's normal convention: the host hands N toward wi and `backfacing`; a
+// TRANSMISSIVE closure of an older plugin took the side from dot(wi, N) with the
+// front-face N, and the host hands it that. Both builds of the fixture's
+// fixture_side closure see wi inside for a path arriving at the back.
+Spectrum echoed_side(const char *plugin_path, bool through_host) {
+  const auto library = host::PluginLibrary::load(plugin_path);
+  const GlimmerClosureType *type = library->find("fixture_side");
+  EXPECT_NE(type, nullptr);
+  if (type == nullptr) return Spectrum(-1.0f);
+  const host::ClosureInstance instance(*type, host::ParamList{});
+  const GlimmerShadingContext ctx = host::make_local_context(Vec3(0.3f, 0.0f, -0.9f));  // from the back
+  EXPECT_EQ(ctx.backfacing, 1u);
+  EXPECT_GT(dot(Vec3(ctx.wi), Vec3(ctx.N)), 0.0f);  // N toward wi
+  if (through_host) return instance.albedo(ctx);
+  float rgb[3];
+  type->albedo(instance.handle(), &ctx, rgb);  // the context as is, without the host's adaptation
+  return {rgb[0], rgb[1], rgb[2]};
+}
+
+TEST(PluginLoading, TransmissiveClosuresOfAnOlderPluginGetTheFrontFaceNormal) {
+  auto sees_inside = [](const Spectrum &echo) { return echo.x == 1.0f && echo.y == 0.0f; };
+  auto sees_outside = [](const Spectrum &echo) { return echo.x == 0.0f && echo.y == 1.0f; };
+  EXPECT_TRUE(sees_inside(echoed_side(GLIMMER_TEST_FIXTURE_PARAMS, true)));          // 2.0 plugin, host adapts
+  EXPECT_TRUE(sees_inside(echoed_side(GLIMMER_TEST_FIXTURE_PARAMS_CURRENT, true)));  // 2.3 plugin reads backfacing
+  // Negative control: without the adaptation the 2.0 closure would take the back for the front.
+  EXPECT_TRUE(sees_outside(echoed_side(GLIMMER_TEST_FIXTURE_PARAMS, false)));
 }
 
 // ABI 2.2: an INT parameter's exact value reaches a 2.2 plugin (the decimal

@@ -35,6 +35,11 @@
  *        path continues from another point, e.g. where light leaves a frosted
  *        object). A plugin checks the host's struct_size before calling it; a
  *        host reads the sample's new fields only from 2.3 plugins' closures.
+ *        Also 2.3: one normal convention (see GlimmerShadingContext.N): every closure
+ *        gets N and Ng turned toward wi, and `backfacing` decides the medium
+ *        wi is in (eta = backfacing ? 1 / ior : ior). A host hands a
+ *        TRANSMISSIVE closure of an older plugin the front-face N it expects.
+ *        trace_ray hits report N and Ng facing the ray's origin.
  *
  * Threading: create/prepare/destroy are called from one thread; eval/sample/
  * emit/albedo are called concurrently on an immutable, prepared instance and
@@ -101,11 +106,11 @@ typedef struct GlimmerRayHit {
   uint32_t struct_size; /* the plugin's buffer size; the host writes the fields it holds (0 = the 2.0 fields) */
   float t;
   GlimmerVec3 P;
-  GlimmerVec3 N;  /* shading normal, facing the side the ray came from is NOT implied */
-  GlimmerVec3 Ng; /* geometric normal */
+  GlimmerVec3 N;  /* shading normal, turned as Ng (ABI 2.3; before, the mesh's outward normal) */
+  GlimmerVec3 Ng; /* geometric normal, facing the ray's origin (ABI 2.3; before, the mesh's outward normal) */
   float uv[2];
   uint32_t object_id;
-  uint32_t backfacing; /* 1 when the ray hit the back side of Ng */
+  uint32_t backfacing; /* 1 when the ray hit the back side of the mesh (N and Ng were turned) */
 } GlimmerRayHit;
 
 enum GlimmerLogLevel {
@@ -180,17 +185,17 @@ typedef struct GlimmerShadingContext {
   uint32_t struct_size; /* sizeof as filled by the host; 0 = only the 2.0 fields */
   GlimmerVec3 wi; /* toward the viewer, unit */
   GlimmerVec3 P;
-  /* Shading normal, unit. The normal convention (tests/closures/
-   * test_normal_convention.cpp checks every closure against it):
-   *  - a closure decides everything from wi, wo and the frame (N, T) it is
-   *    given: the side of the surface wi is on is the sign of dot(wi, N),
-   *    never `backfacing` (information only);
-   *  - closures without GLIMMER_CLOSURE_TRANSMISSIVE get N (with Ng) flipped to
-   *    the side the ray came from (as Cycles does), so wi is above Ng; wi may
-   *    still be below a bent shading normal, where reflection closures return 0;
-   *  - TRANSMISSIVE closures get the outward (front-face) N, so dot(wi, N) < 0
-   *    means the path arrives from inside the object and the closure uses the
-   *    relative IOR 1/ior (and wo below N is on the outside). */
+  /* Shading normal, unit. The normal convention (ABI 2.3, as Cycles; tests/
+   * closures/test_normal_convention.cpp checks every closure against it):
+   *  - every closure gets N and Ng turned toward the side the ray came from:
+   *    wi is above Ng; wi may still be below a bent shading normal N, where
+   *    glossy and transmissive closures scatter nothing (as Cycles');
+   *  - `backfacing` says whether that side is the back of the mesh, i.e. the
+   *    medium wi is in: a TRANSMISSIVE closure uses eta = backfacing ? 1 / ior
+   *    : ior (ior = n_inside / n_outside), and a transmitted wo is below N;
+   *  - a host hands TRANSMISSIVE closures of plugins built for ABI <= 2.2 the
+   *    front-face (outward) N and Ng instead, which they expect (they take the
+   *    side from the sign of dot(wi, N)). */
   GlimmerVec3 N;
   GlimmerVec3 Ng; /* geometric normal, unit */
   GlimmerVec3 T;  /* tangent, unit, orthogonal to N (anisotropy, glint uv frame) */
@@ -208,7 +213,7 @@ typedef struct GlimmerShadingContext {
   uint32_t diffuse_bounce;
   uint32_t glossy_bounce;
   uint32_t transmission_bounce;
-  uint32_t backfacing; /* 1 when the ray arrived at the back side of the mesh's Ng (before any flip); information only, see N */
+  uint32_t backfacing; /* 1 when the ray arrived at the back side of the mesh (N and Ng were turned); see N */
   uint32_t path_seed;  /* hash of (seed, pixel, sample); never use for glint randomness */
   const GlimmerHostServices *host;
 #if GLIMMER_ABI_MINOR >= 1
