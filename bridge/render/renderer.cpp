@@ -168,6 +168,7 @@ struct Renderer::Impl {
     Vec3 N;             // shading normal, same side
     Vec3 e1, e2;        // triangle edges (barycentric derivatives of P)
     Vec3 dn1{0.0f}, dn2{0.0f};  // barycentric derivatives of the (unnormalized) shading normal
+    Vec3 dgen1{0.0f}, dgen2{0.0f};  // barycentric derivatives of the generated coordinates
     float duv1[2] = {1, 0}, duv2[2] = {0, 1};
     bool backfacing = false;
     int shader = -1;
@@ -220,6 +221,31 @@ struct Renderer::Impl {
     ctx.backfacing = sd.backfacing ? 1u : 0u;
     ctx.host = &host;
     sd.shader = mesh_shader[h.mesh];
+    set_surface_derivatives(scene.meshes[h.mesh], h.prim, s, sd);
+  }
+
+  // What the Bump, Normal Map and Tangent nodes read besides the point: Ng, the UV map's dP/du and dP/dv,
+  // and the generated coordinates' change across the triangle (for the footprint, transfer_differentials).
+  static void set_surface_derivatives(const scene::Mesh &m, size_t prim, const scene::SurfacePoint &s,
+                                      ShadingData &sd) {
+    sd.tc.Ng = sd.Ng;
+    sd.tc.dPdu = s.dPdu;
+    sd.tc.dPdv = s.dPdv;
+    sd.tc.tangent = s.tangent;
+    sd.tc.tangent_sign = s.tangent_sign;
+    sd.tc.object = &m.object_to_world;
+    const auto &tri = m.triangles[prim];
+    sd.dgen1 = m.generated[tri[1]] - m.generated[tri[0]];
+    sd.dgen2 = m.generated[tri[2]] - m.generated[tri[0]];
+  }
+
+  // The closure's own frame (a Bump / Normal Map on its normal socket, a tangent or rotation), replacing
+  // the point's N and T in its context; a transmissive closure gets it on the front side as the point's N.
+  static void perturb_shading_normal(const ShadingData &sd, const ActiveClosure &c, GlimmerShadingContext &ctx) {
+    if (!c.own_frame) return;
+    const float side = c.leaf->front_normal && sd.backfacing ? -1.0f : 1.0f;
+    ctx.N = c.N * side;
+    ctx.T = c.T;
   }
 
   // Copies the per-bounce fields into the front-face context.
@@ -235,10 +261,11 @@ struct Renderer::Impl {
   static const GlimmerShadingContext &context_for(const ShadingData &sd, const ActiveClosure &c,
                                                   GlimmerShadingContext &scratch) {
     const GlimmerShadingContext &ctx = c.leaf->front_normal ? sd.ctx_front : sd.ctx;
-    if (c.varying_count == 0) return ctx;
+    if (c.varying_count == 0 && !c.own_frame) return ctx;
     scratch = ctx;
     scratch.varying_count = c.varying_count;
     scratch.varying = c.varying;
+    perturb_shading_normal(sd, c, scratch);
     return scratch;
   }
 
@@ -269,11 +296,38 @@ struct Renderer::Impl {
       sd.ctx.duv_dy[k] = std::isfinite(y) ? y : 0.0f;
     }
     sd.ctx.spread_angle = spread;
+    set_footprint(rd, bx, by, sd);
     // Normal derivatives for specular propagation (stored in dn1/dn2 as per-pixel values).
     const Vec3 dNx = sd.dn1 * bx[0] + sd.dn2 * bx[1];
     const Vec3 dNy = sd.dn1 * by[0] + sd.dn2 * by[1];
     sd.dn1 = dNx - sd.N * dot(sd.N, dNx);
     sd.dn2 = dNy - sd.N * dot(sd.N, dNy);
+  }
+
+  // Cycles' shadow terminator softening for diffuse closures whose normal N was perturbed (Chiang, Li and
+  // Burley 2019, "Taming the Shadow Terminator", eq. 3-4; Cycles' bump_shadowing_term): with
+  // g = cos(Ng, wo) / (cos(N, wo) cos(Ng, N)), the eval is scaled by 1 for g >= 1, 0 for g < 0, else
+  // -g^3 + g^2 + g, so light the geometric surface does not face fades out smoothly.
+  static float bump_shadowing(const ShadingData &sd, const ActiveClosure &c, const Vec3 &wo) {
+    if (!c.own_frame || !c.leaf->frame.bump_shadowing || (c.N.x == sd.N.x && c.N.y == sd.N.y && c.N.z == sd.N.z))
+      return 1.0f;
+    const float denominator = dot(c.N, wo) * dot(sd.Ng, c.N);
+    const float g = denominator != 0.0f ? dot(sd.Ng, wo) / denominator : 0.0f;
+    if (g >= 1.0f) return 1.0f;
+    if (!(g >= 0.0f)) return 0.0f;
+    return -g * g * g + g * g + g;
+  }
+
+  // One pixel step of the footprint in P, uv and generated coordinates, for the Bump node's offset points.
+  static void set_footprint(const Differentials &rd, const float bx[2], const float by[2], ShadingData &sd) {
+    sd.tc.dPdx = rd.dPdx;
+    sd.tc.dPdy = rd.dPdy;
+    for (int k = 0; k < 2; ++k) {
+      sd.tc.duv_dx[k] = sd.ctx.duv_dx[k];
+      sd.tc.duv_dy[k] = sd.ctx.duv_dy[k];
+    }
+    sd.tc.dgenerated_dx = sd.dgen1 * bx[0] + sd.dgen2 * bx[1];
+    sd.tc.dgenerated_dy = sd.dgen1 * by[0] + sd.dgen2 * by[1];
   }
 
   // ---- Closure mixture evaluation ----
@@ -292,7 +346,7 @@ struct Renderer::Impl {
       GlimmerShadingContext scratch;
       c.instance->eval(context_for(sd, c, scratch), wo, f, pdf);
       if (!is_finite(f) || !std::isfinite(pdf)) continue;
-      out.f += f * c.weight;
+      out.f += f * c.weight * bump_shadowing(sd, c, wo);
       out.pdf += pdf * c.sample_weight;
     }
     return out;
@@ -462,7 +516,7 @@ struct Renderer::Impl {
     const uint32_t label = c.instance->sample(context_for(sd, c, scratch), r3, s);
     if (label == GLIMMER_LABEL_NONE || !(s.pdf > 0.0f) || !std::isfinite(s.pdf)) return false;
     const Vec3 wo = normalize(Vec3(s.wo));
-    const Spectrum s_eval(s.eval[0], s.eval[1], s.eval[2]);
+    const Spectrum s_eval = Spectrum(s.eval[0], s.eval[1], s.eval[2]) * bump_shadowing(sd, c, wo);
     if (!is_finite(s_eval)) {
       ++nan_count;
       return false;
