@@ -274,21 +274,12 @@ struct Renderer::Impl {
   // hit with depth of field, the aperture's share is added first (fold_lens_differentials).
   void transfer_differentials(Differentials &rd, const Vec3 &D, float t, ShadingData &sd, float spread) const {
     fold_lens_differentials(rd, D, t, sd.Ng);  // depth of field: the circle of confusion joins the footprint
+    const float width = 0.5f * (length(rd.dPdx + rd.dDdx * t) + length(rd.dPdy + rd.dDdy * t));
     rd.dPdx = footprint_on_plane(rd.dPdx, rd.dDdx, D, t, sd.Ng);
     rd.dPdy = footprint_on_plane(rd.dPdy, rd.dDdy, D, t, sd.Ng);
-    const float a11 = dot(sd.e1, sd.e1), a12 = dot(sd.e1, sd.e2), a22 = dot(sd.e2, sd.e2);
-    const float det = a11 * a22 - a12 * a12;
-    float bx[2] = {0, 0}, by[2] = {0, 0};
-    if (det > 0.0f) {
-      const float inv = 1.0f / det;
-      auto solve = [&](const Vec3 &dP, float out[2]) {
-        const float r1 = dot(sd.e1, dP), r2 = dot(sd.e2, dP);
-        out[0] = (a22 * r1 - a12 * r2) * inv;
-        out[1] = (a11 * r2 - a12 * r1) * inv;
-      };
-      solve(rd.dPdx, bx);
-      solve(rd.dPdy, by);
-    }
+    float bx[2], by[2];
+    barycentric_step(sd, rd.dPdx, bx);
+    barycentric_step(sd, rd.dPdy, by);
     for (int k = 0; k < 2; ++k) {
       const float x = sd.duv1[k] * bx[0] + sd.duv2[k] * bx[1];
       const float y = sd.duv1[k] * by[0] + sd.duv2[k] * by[1];
@@ -296,7 +287,7 @@ struct Renderer::Impl {
       sd.ctx.duv_dy[k] = std::isfinite(y) ? y : 0.0f;
     }
     sd.ctx.spread_angle = spread;
-    set_footprint(rd, bx, by, sd);
+    set_bump_footprint(width, sd);
     // Normal derivatives for specular propagation (stored in dn1/dn2 as per-pixel values).
     const Vec3 dNx = sd.dn1 * bx[0] + sd.dn2 * bx[1];
     const Vec3 dNy = sd.dn1 * by[0] + sd.dn2 * by[1];
@@ -318,13 +309,36 @@ struct Renderer::Impl {
     return -g * g * g + g * g + g;
   }
 
-  // One pixel step of the footprint in P, uv and generated coordinates, for the Bump node's offset points.
-  static void set_footprint(const Differentials &rd, const float bx[2], const float by[2], ShadingData &sd) {
-    sd.tc.dPdx = rd.dPdx;
-    sd.tc.dPdy = rd.dPdy;
+  // A step dP on the triangle in barycentric derivatives (least squares on the edges e1, e2; 0 when degenerate).
+  static void barycentric_step(const ShadingData &sd, const Vec3 &dP, float out[2]) {
+    out[0] = out[1] = 0.0f;
+    const float a11 = dot(sd.e1, sd.e1), a12 = dot(sd.e1, sd.e2), a22 = dot(sd.e2, sd.e2);
+    const float det = a11 * a22 - a12 * a12;
+    if (!(det > 0.0f)) return;
+    const float inv = 1.0f / det;
+    const float r1 = dot(sd.e1, dP), r2 = dot(sd.e2, dP);
+    out[0] = (a22 * r1 - a12 * r2) * inv;
+    out[1] = (a11 * r2 - a12 * r1) * inv;
+  }
+
+  // The Bump node's offset points as Cycles 3.4 places them (its compact differential, expanded by
+  // differential_from_compact): two orthonormal directions of Ng's plane (make_orthonormals: (1, 1, 1) x Ng,
+  // or (-1, 1, 1) x Ng when Ng's components are equal, then Ng x that) scaled by the footprint's width before
+  // its projection onto the surface (ray_dP + t ray_dD, here the mean of the two pixel steps); with the uv
+  // and generated coordinates' changes over those steps.
+  static void set_bump_footprint(float width, ShadingData &sd) {
+    const Vec3 &n = sd.Ng;
+    const Vec3 a = normalize(n.x != n.y || n.x != n.z ? Vec3(n.z - n.y, n.x - n.z, n.y - n.x)
+                                                       : Vec3(n.z - n.y, n.x + n.z, -n.y - n.x));
+    sd.tc.dPdx = a * width;
+    sd.tc.dPdy = cross(n, a) * width;
+    float bx[2], by[2];
+    barycentric_step(sd, sd.tc.dPdx, bx);
+    barycentric_step(sd, sd.tc.dPdy, by);
     for (int k = 0; k < 2; ++k) {
-      sd.tc.duv_dx[k] = sd.ctx.duv_dx[k];
-      sd.tc.duv_dy[k] = sd.ctx.duv_dy[k];
+      const float x = sd.duv1[k] * bx[0] + sd.duv2[k] * bx[1], y = sd.duv1[k] * by[0] + sd.duv2[k] * by[1];
+      sd.tc.duv_dx[k] = std::isfinite(x) ? x : 0.0f;
+      sd.tc.duv_dy[k] = std::isfinite(y) ? y : 0.0f;
     }
     sd.tc.dgenerated_dx = sd.dgen1 * bx[0] + sd.dgen2 * bx[1];
     sd.tc.dgenerated_dy = sd.dgen1 * by[0] + sd.dgen2 * by[1];
