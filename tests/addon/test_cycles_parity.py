@@ -898,6 +898,20 @@ def node_of(tree, bl_idname):
     return next(n for n in tree.nodes if n.bl_idname == bl_idname)
 
 
+def grey_world(scene):
+    background = scene.world.node_tree.nodes["Background"]
+    background.inputs["Color"].default_value = (0.25, 0.25, 0.25, 1.0)
+    background.inputs["Strength"].default_value = 1.0
+
+
+def noise_node(tree, scale, detail):
+    """A Noise Texture on its default (generated) coordinates."""
+    noise = tree.nodes.new("ShaderNodeTexNoise")
+    noise.inputs["Scale"].default_value = scale
+    noise.inputs["Detail"].default_value = detail
+    return noise
+
+
 def glimmer_variant(name):
     """Glimmer's render of the scene as it is now (a negative control after changing one value)."""
     xml, _ = mod.exporter.export_scene(bpy.context.evaluated_depsgraph_get(), os.path.join(opts.out, name + "_export"))
@@ -916,15 +930,13 @@ def check_grid(name, glim, cyc, box, cells, control=None):
 
 
 def scene_bump_plane():
-    """0.8 diffuse plane from above, Bump (strength 1, distance 0.2) of a noise height, sun at 40 degrees (angle 0:
+    """0.8 diffuse plane from above, Bump (strength 1, distance 0.3) of a noise height, sun at 40 degrees (angle 0:
     direct light only). Negative control: Glimmer with bump strength 0."""
     scene = new_scene(samples=64)
     add_camera(scene, (0.0, 0.0, 5.0), (0.0, 0.0, 0.0))
     mat = material("Bumped", "ShaderNodeBsdfDiffuse")
     tree = mat.node_tree
-    noise = tree.nodes.new("ShaderNodeTexNoise")
-    noise.inputs["Scale"].default_value = 6.0
-    noise.inputs["Detail"].default_value = 1.0
+    noise = noise_node(tree, 6.0, 1.0)
     bump = tree.nodes.new("ShaderNodeBump")
     bump.inputs["Distance"].default_value = 0.3
     tree.links.new(noise.outputs["Fac"], bump.inputs["Height"])
@@ -942,15 +954,11 @@ def scene_normal_map_sphere():
     """UV sphere (smooth) with a tangent-space Normal Map of a procedural colour (noise mixed with the flat
     (0.5, 0.5, 1)), 0.8 diffuse, area light and grey world. Negative control: Glimmer with strength 0."""
     scene = new_scene(samples=128)
-    world = scene.world
-    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.25, 0.25, 0.25, 1.0)
-    world.node_tree.nodes["Background"].inputs["Strength"].default_value = 1.0
+    grey_world(scene)
     add_camera(scene, (0.0, -6.0, 0.0), (90.0, 0.0, 0.0))
     mat = material("NormalMapped", "ShaderNodeBsdfDiffuse")
     tree = mat.node_tree
-    noise = tree.nodes.new("ShaderNodeTexNoise")
-    noise.inputs["Scale"].default_value = 4.0
-    noise.inputs["Detail"].default_value = 0.0
+    noise = noise_node(tree, 4.0, 0.0)
     mix = tree.nodes.new("ShaderNodeMixRGB")
     mix.inputs["Fac"].default_value = 0.6
     mix.inputs["Color1"].default_value = (0.5, 0.5, 1.0, 1.0)
@@ -972,9 +980,7 @@ def scene_anisotropic_cylinder():
     node (UV map: around the cylinder), area light, grey world. Negative control: Glimmer with the tangent turned
     90 degrees (rotation 0.25)."""
     scene = new_scene(samples=256)
-    world = scene.world
-    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.25, 0.25, 0.25, 1.0)
-    world.node_tree.nodes["Background"].inputs["Strength"].default_value = 1.0
+    grey_world(scene)
     add_camera(scene, (0.0, -6.0, 0.5), (85.0, 0.0, 0.0))
     mat = material("BrushedCylinder", "ShaderNodeBsdfAnisotropic", (0.9, 0.9, 0.9), distribution="GGX",
                    Roughness=0.3, Anisotropy=0.8)
