@@ -73,6 +73,15 @@ def socket_text(s):
         return text + (" (%s)" % ", ".join(extra) if extra else "")
     if role == "unsupported":
         return "`%s` unsupported (warns unless %s)" % (s["socket"], value_text(s["default"]))
+    if role == "normal":
+        return "`%s` = the closure's shading normal (a Bump, Normal Map or any vector, per shading point)" % s["socket"]
+    if role == "tangent":
+        unlinked = ("Cycles' radial Z tangent (generated coordinates)" if s.get("radial_default")
+                    else "the UV map's dP/du")
+        return "`%s` = the closure's tangent (per shading point; unlinked: %s)" % (s["socket"], unlinked)
+    if role == "rotation":
+        return "`%s` turns the tangent about the normal by value x 2 pi (%s, constant or per shading point)" % (
+            s["socket"], value_text(s["default"]))
     return None
 
 

@@ -211,17 +211,27 @@ class ShaderGraph:
                   "value" % (node.name, node.bl_idname))
         return None
 
+    def link_frame(self, el, node, *sockets):
+        """The closure's Normal (Bump, Normal Map, ...) and Tangent inputs when linked: the renderer gives the
+        closure its own frame per shading point. Unlinked, the renderer uses the shading point's own."""
+        for name in sockets:
+            sock = node.inputs.get(name)
+            if sock is None:
+                continue
+            source = self.source_of(sock)
+            if source is not None:
+                self.connect(source, el.get("name"), name.lower())
+
     def bsdf_diffuse(self, node, out):
         el = self.add("diffuse_bsdf", node.name)
         self.set_input(el, "color", node.inputs["Color"])
         self.set_input(el, "roughness", node.inputs.get("Roughness"))
+        self.link_frame(el, node, "Normal")
         return (el.get("name"), "bsdf")
 
     def bsdf_glossy(self, node, out):
-        """Glossy / Anisotropic BSDF. Anisotropy (Cycles 3.4 mapping) is exported; the renderer's tangent is the
-        mesh's dPdu (the UV map's u direction), Cycles' default the radial tangent around the object's Z axis:
-        the same on a UV sphere, not in general, hence the warning when the Tangent input is not linked."""
-        self.warn_unexported_values(node, (("Rotation",), 0.0, "anisotropic rotation"))
+        """Glossy / Anisotropic BSDF: anisotropy (Cycles 3.4 mapping), rotation, and the Normal and Tangent
+        inputs; an unlinked tangent is Cycles' default in the renderer too (radial about generated Z)."""
         el = self.add("glossy_bsdf", node.name, distribution=GLOSSY_DISTRIBUTION.get(node.distribution, "GGX"))
         self.set_input(el, "color", node.inputs["Color"])
         self.set_input(el, "roughness", node.inputs["Roughness"])
@@ -229,8 +239,10 @@ class ShaderGraph:
         if anisotropy is not None:
             self.set_input(el, "anisotropy", anisotropy)
             if anisotropy.is_linked or abs(anisotropy.default_value) > 1e-6:
-                self.warn((node.name, "tangent"), "node '%s': anisotropy follows the UV map's u direction (Cycles: "
-                          "radial around the object's Z axis; the same on a UV sphere)" % node.name)
+                self.uses_generated = True  # the radial default tangent reads generated coordinates
+        if node.inputs.get("Rotation") is not None:
+            self.set_input(el, "rotation", node.inputs["Rotation"])
+        self.link_frame(el, node, "Normal", "Tangent")
         return (el.get("name"), "bsdf")
 
     def bsdf_glass(self, node, out, xml_type="glass_bsdf"):
@@ -238,6 +250,7 @@ class ShaderGraph:
         self.set_input(el, "color", node.inputs["Color"])
         self.set_input(el, "roughness", node.inputs["Roughness"])
         self.set_input(el, "IOR", node.inputs["IOR"])
+        self.link_frame(el, node, "Normal")
         return (el.get("name"), "bsdf")
 
     def bsdf_refraction(self, node, out):
@@ -539,6 +552,10 @@ VALUE_NODES = {
     "ShaderNodeSeparateRGB": ("separate_rgb", {}),
     "ShaderNodeCombineRGB": ("combine_rgb", {}),
     "ShaderNodeRGBToBW": ("rgb_to_bw", {}),
+    # Shading normals and tangents (bridge/render/nodes/normal_nodes.cpp); the mesh's one UV map is used.
+    "ShaderNodeBump": ("bump", {"invert": ("invert", None)}),
+    "ShaderNodeNormalMap": ("normal_map", {"space": ("space", None)}),
+    "ShaderNodeTangent": ("tangent", {"direction_type": ("direction_type", None), "axis": ("axis", None)}),
 }
 # Inputs whose Cycles name is not the Blender name in lower case (sockets of the same name told apart).
 VALUE_NODE_INPUTS = {

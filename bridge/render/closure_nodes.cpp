@@ -19,7 +19,7 @@ std::vector<SocketRow> microfacet_sockets(float color, float roughness, std::vec
       {.socket = "roughness", .role = R::Param, .param = "roughness", .default_value = roughness, .min = 0, .max = 1},
   };
   rows.insert(rows.end(), own.begin(), own.end());
-  rows.push_back({.socket = "normal", .role = R::Ignored});
+  rows.push_back({.socket = "normal", .role = R::Normal});
   rows.push_back({.socket = "surface_mix_weight", .role = R::Ignored});
   return rows;
 }
@@ -36,8 +36,8 @@ ClosureNodeRow conductor_row(const char *node, float anisotropy) {
               0.8f, 0.5f,
               {{.socket = "anisotropy", .role = R::Param, .param = "anisotropy", .default_value = anisotropy,
                 .min = -1, .max = 1},
-               {.socket = "rotation", .role = R::Unsupported, .note = "rotation is not supported; ignored"},
-               {.socket = "tangent", .role = R::Ignored}}),
+               {.socket = "rotation", .role = R::Rotation, .default_value = 0.0f},
+               {.socket = "tangent", .role = R::Tangent, .radial_default = true}}),
           .fixed = {{"f0", "1"}},
           .distribution = true,
           .bounce_tint = true,
@@ -50,7 +50,7 @@ ClosureNodeRow conductor_row(const char *node, float anisotropy) {
 ClosureNodeRow dielectric_row(const char *node, const char *mode, bool tangent, const char *doc) {
   std::vector<SocketRow> own = {
       {.socket = "IOR", .role = R::Param, .param = "ior", .default_value = 1.45f, .alias = "ior"}};
-  if (tangent) own.push_back({.socket = "tangent", .role = R::Ignored});
+  if (tangent) own.push_back({.socket = "tangent", .role = R::Tangent});
   return {.node = node,
           .closure = "microfacet_dielectric",
           .sockets = microfacet_sockets(1.0f, 0.0f, own),
@@ -76,7 +76,7 @@ const std::vector<ClosureNodeRow> &closure_node_rows() {
        .sockets = {{.socket = "color", .role = R::Weight, .default_value = 0.8f},
                    {.socket = "roughness", .role = R::Unsupported, .default_value = 0.0f,
                     .note = "Oren-Nayar roughness is not supported; Lambertian is used"},
-                   {.socket = "normal", .role = R::Ignored},
+                   {.socket = "normal", .role = R::Normal},
                    {.socket = "surface_mix_weight", .role = R::Ignored}},
        .fixed = {{"color", "1"}},
        .doc = "Lambertian; the colour is the weight"},
@@ -126,6 +126,9 @@ ClosureNodeRow schema_row(const GlimmerClosureType &type, const char *node) {
                            .param = spec.name,
                            .default_value = 1.0f});
   }
+  // Every DSO closure takes the shading frame from the host: normal and tangent sockets as Cycles' BSDFs.
+  if (!row.find("normal")) row.sockets.push_back({.socket = "normal", .role = SocketRole::Normal});
+  if (!row.find("tangent")) row.sockets.push_back({.socket = "tangent", .role = SocketRole::Tangent});
   return row;
 }
 
@@ -142,6 +145,9 @@ const char *socket_role_name(SocketRole role) {
     case R::Param: return "param";
     case R::SchemaParam: return "schema_param";
     case R::ParamOrWeight: return "param_or_weight";
+    case R::Normal: return "normal";
+    case R::Tangent: return "tangent";
+    case R::Rotation: return "rotation";
     case R::Ignored: return "ignored";
     case R::Unsupported: return "unsupported";
   }
@@ -178,8 +184,9 @@ nlohmann::json describe_closure_nodes(const host::PluginLibrary &plugin) {
         const GlimmerParamSpec *spec = type ? host::find_param(*type, s.param) : nullptr;
         sj["varying"] = spec && (host::param_flags(*type, *spec) & GLIMMER_PARAM_VARYING) != 0;
       }
+      if (s.radial_default) sj["radial_default"] = true;
       if (s.role == SocketRole::Weight || s.role == SocketRole::Strength || s.role == SocketRole::Param ||
-          s.role == SocketRole::Unsupported)
+          s.role == SocketRole::Unsupported || s.role == SocketRole::Rotation)
         sj["default"] = cli::json_float(s.default_value);
       if (s.role == SocketRole::Param) {
         sj["min"] = cli::json_float(s.min);  // null when unbounded

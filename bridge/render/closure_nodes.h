@@ -26,6 +26,11 @@ enum class SocketRole {
                   // point when the closure declares the parameter varying (else it warns)
   SchemaParam,    // a DSO parameter given as text and validated by its schema (absent: the closure's default)
   ParamOrWeight,  // a DSO colour parameter whose link becomes the weight instead (the parameter is then 1)
+  Normal,         // the closure's shading normal: a link (Bump, Normal Map, any vector) is evaluated per
+                  // shading point; unlinked, the interpolated normal
+  Tangent,        // the closure's tangent: a link (Tangent node, any vector) per shading point; unlinked, the
+                  // UV map's dP/du, or for Cycles' anisotropic glossy the radial Z tangent (`radial_default`)
+  Rotation,       // turns the tangent about the normal by value * 2 pi (constant or per shading point)
   Ignored,        // accepted without effect (a link warns)
   Unsupported,    // accepted; a value other than the default warns with `note` (a link warns)
 };
@@ -38,6 +43,7 @@ struct SocketRow {
   float min = -std::numeric_limits<float>::infinity(), max = std::numeric_limits<float>::infinity();  // Param clamp
   const char *alias = nullptr;  // another spelling read when `socket` is absent (glass `ior` for `IOR`)
   const char *note = nullptr;   // Unsupported: the warning (after "<node type>: ")
+  bool radial_default = false;  // Tangent: unlinked, Cycles' default tangent (radial about generated Z)
 };
 
 enum class NodeKind {

@@ -264,6 +264,26 @@ struct Renderer::Impl {
     ctx.backfacing = sd.backfacing ? 1u : 0u;
     ctx.host = &host;
     sd.shader = mesh_shader[h.mesh];
+    set_surface_derivatives(scene.meshes[h.mesh], s, sd);
+  }
+
+  // What the Bump, Normal Map and Tangent nodes read besides the point: Ng, the UV map's dP/du and dP/dv,
+  // its tangent and the object's transform.
+  static void set_surface_derivatives(const scene::Mesh &m, const scene::SurfacePoint &s, ShadingData &sd) {
+    sd.tc.Ng = sd.Ng;
+    sd.tc.dPdu = s.dPdu;
+    sd.tc.dPdv = s.dPdv;
+    sd.tc.tangent = s.tangent;
+    sd.tc.tangent_sign = s.tangent_sign;
+    sd.tc.object = &m.object_to_world;
+  }
+
+  // The closure's own frame (a Bump / Normal Map on its normal socket, a tangent or rotation), replacing
+  // the point's N and T in its context (on wi's side, as every closure's N: closure_abi.h, ABI 2.3).
+  static void perturb_shading_normal(const ActiveClosure &c, GlimmerShadingContext &ctx) {
+    if (!c.own_frame) return;
+    ctx.N = c.N;
+    ctx.T = c.T;
   }
 
   // The context one closure sees: the shading point's, with its varying
@@ -271,10 +291,11 @@ struct Renderer::Impl {
   static const GlimmerShadingContext &context_for(const ShadingData &sd, const ActiveClosure &c,
                                                   GlimmerShadingContext &scratch) {
     const GlimmerShadingContext &ctx = sd.ctx;
-    if (c.varying_count == 0) return ctx;
+    if (c.varying_count == 0 && !c.own_frame) return ctx;
     scratch = ctx;
     scratch.varying_count = c.varying_count;
     scratch.varying = c.varying;
+    perturb_shading_normal(c, scratch);
     return scratch;
   }
 
@@ -299,21 +320,12 @@ struct Renderer::Impl {
   // hit with depth of field, the aperture's share is added first (fold_lens_differentials).
   void transfer_differentials(Differentials &rd, const Vec3 &D, float t, ShadingData &sd, float spread) const {
     fold_lens_differentials(rd, D, t, sd.Ng);  // depth of field: the circle of confusion joins the footprint
+    const float width = 0.5f * (length(rd.dPdx + rd.dDdx * t) + length(rd.dPdy + rd.dDdy * t));
     rd.dPdx = footprint_on_plane(rd.dPdx, rd.dDdx, D, t, sd.Ng);
     rd.dPdy = footprint_on_plane(rd.dPdy, rd.dDdy, D, t, sd.Ng);
-    const float a11 = dot(sd.e1, sd.e1), a12 = dot(sd.e1, sd.e2), a22 = dot(sd.e2, sd.e2);
-    const float det = a11 * a22 - a12 * a12;
-    float bx[2] = {0, 0}, by[2] = {0, 0};
-    if (det > 0.0f) {
-      const float inv = 1.0f / det;
-      auto solve = [&](const Vec3 &dP, float out[2]) {
-        const float r1 = dot(sd.e1, dP), r2 = dot(sd.e2, dP);
-        out[0] = (a22 * r1 - a12 * r2) * inv;
-        out[1] = (a11 * r2 - a12 * r1) * inv;
-      };
-      solve(rd.dPdx, bx);
-      solve(rd.dPdy, by);
-    }
+    float bx[2], by[2];
+    barycentric_step(sd, rd.dPdx, bx);
+    barycentric_step(sd, rd.dPdy, by);
     for (int k = 0; k < 2; ++k) {
       const float x = sd.duv1[k] * bx[0] + sd.duv2[k] * bx[1];
       const float y = sd.duv1[k] * by[0] + sd.duv2[k] * by[1];
@@ -328,11 +340,61 @@ struct Renderer::Impl {
     sd.tc.dgenerated_dy = sd.dg1 * by[0] + sd.dg2 * by[1];
     scale_texture_footprint(sd.tc);
     sd.ctx.spread_angle = spread;
+    set_bump_footprint(width, sd);
     // Normal derivatives for specular propagation (stored in dn1/dn2 as per-pixel values).
     const Vec3 dNx = sd.dn1 * bx[0] + sd.dn2 * bx[1];
     const Vec3 dNy = sd.dn1 * by[0] + sd.dn2 * by[1];
     sd.dn1 = dNx - sd.N * dot(sd.N, dNx);
     sd.dn2 = dNy - sd.N * dot(sd.N, dNy);
+  }
+
+  // Cycles' shadow terminator softening for diffuse closures whose normal N was perturbed (Chiang, Li and
+  // Burley 2019, "Taming the Shadow Terminator", eq. 3-4; Cycles' bump_shadowing_term): with
+  // g = cos(Ng, wo) / (cos(N, wo) cos(Ng, N)), the eval is scaled by 1 for g >= 1, 0 for g < 0, else
+  // -g^3 + g^2 + g, so light the geometric surface does not face fades out smoothly.
+  static float bump_shadowing(const ShadingData &sd, const ActiveClosure &c, const Vec3 &wo) {
+    if (!c.own_frame || !c.leaf->frame.bump_shadowing || (c.N.x == sd.N.x && c.N.y == sd.N.y && c.N.z == sd.N.z))
+      return 1.0f;
+    const float denominator = dot(c.N, wo) * dot(sd.Ng, c.N);
+    const float g = denominator != 0.0f ? dot(sd.Ng, wo) / denominator : 0.0f;
+    if (g >= 1.0f) return 1.0f;
+    if (!(g >= 0.0f)) return 0.0f;
+    return -g * g * g + g * g + g;
+  }
+
+  // A step dP on the triangle in barycentric derivatives (least squares on the edges e1, e2; 0 when degenerate).
+  static void barycentric_step(const ShadingData &sd, const Vec3 &dP, float out[2]) {
+    out[0] = out[1] = 0.0f;
+    const float a11 = dot(sd.e1, sd.e1), a12 = dot(sd.e1, sd.e2), a22 = dot(sd.e2, sd.e2);
+    const float det = a11 * a22 - a12 * a12;
+    if (!(det > 0.0f)) return;
+    const float inv = 1.0f / det;
+    const float r1 = dot(sd.e1, dP), r2 = dot(sd.e2, dP);
+    out[0] = (a22 * r1 - a12 * r2) * inv;
+    out[1] = (a11 * r2 - a12 * r1) * inv;
+  }
+
+  // The Bump node's offset points as Cycles 3.4 places them (its compact differential, expanded by
+  // differential_from_compact): two orthonormal directions of Ng's plane (make_orthonormals: (1, 1, 1) x Ng,
+  // or (-1, 1, 1) x Ng when Ng's components are equal, then Ng x that) scaled by the footprint's width before
+  // its projection onto the surface (ray_dP + t ray_dD, here the mean of the two pixel steps); with the uv
+  // and generated coordinates' changes over those steps.
+  static void set_bump_footprint(float width, ShadingData &sd) {
+    const Vec3 &n = sd.Ng;
+    const Vec3 a = normalize(n.x != n.y || n.x != n.z ? Vec3(n.z - n.y, n.x - n.z, n.y - n.x)
+                                                       : Vec3(n.z - n.y, n.x + n.z, -n.y - n.x));
+    sd.tc.bump_dPdx = a * width;
+    sd.tc.bump_dPdy = cross(n, a) * width;
+    float bx[2], by[2];
+    barycentric_step(sd, sd.tc.bump_dPdx, bx);
+    barycentric_step(sd, sd.tc.bump_dPdy, by);
+    for (int k = 0; k < 2; ++k) {
+      const float x = sd.duv1[k] * bx[0] + sd.duv2[k] * bx[1], y = sd.duv1[k] * by[0] + sd.duv2[k] * by[1];
+      sd.tc.bump_duv_dx[k] = std::isfinite(x) ? x : 0.0f;
+      sd.tc.bump_duv_dy[k] = std::isfinite(y) ? y : 0.0f;
+    }
+    sd.tc.bump_dgenerated_dx = sd.dg1 * bx[0] + sd.dg2 * bx[1];
+    sd.tc.bump_dgenerated_dy = sd.dg1 * by[0] + sd.dg2 * by[1];
   }
 
   // ---- Closure mixture evaluation ----
@@ -351,7 +413,7 @@ struct Renderer::Impl {
       GlimmerShadingContext scratch;
       c.instance->eval(context_for(sd, c, scratch), wo, f, pdf);
       if (!is_finite(f) || !std::isfinite(pdf)) continue;
-      out.f += f * c.weight;
+      out.f += f * c.weight * bump_shadowing(sd, c, wo);
       out.pdf += pdf * c.sample_weight;
     }
     return out;
@@ -520,7 +582,7 @@ struct Renderer::Impl {
     const uint32_t label = c.instance->sample(context_for(sd, c, scratch), r3, s);
     if (label == GLIMMER_LABEL_NONE || !(s.pdf > 0.0f) || !std::isfinite(s.pdf)) return false;
     const Vec3 wo = normalize(Vec3(s.wo));
-    const Spectrum s_eval(s.eval[0], s.eval[1], s.eval[2]);
+    const Spectrum s_eval = Spectrum(s.eval[0], s.eval[1], s.eval[2]) * bump_shadowing(sd, c, wo);
     if (!is_finite(s_eval)) {
       ++nan_count;
       return false;

@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <functional>
 
+#include "render/nodes/shading_normal.h"
 #include "scene/xml_loader.h"
 
 namespace glimmer::render {
@@ -423,11 +424,45 @@ float ShaderSystem::apply_sockets(const ShaderGraph &g, const ShaderNode &n, con
           if (!v.empty() && v[0] != s.default_value) warn(n.where, n.type + ": " + s.note);
         }
         break;
+      case SocketRole::Normal:
+      case SocketRole::Tangent:
+      case SocketRole::Rotation:
+        read_frame_socket(g, n, row, s, text, leaf);
+        break;
       case SocketRole::Ignored:
         break;
     }
   }
   return roughness;
+}
+
+void ShaderSystem::read_frame_socket(const ShaderGraph &g, const ShaderNode &n, const ClosureNodeRow &row,
+                                     const SocketRow &s, const std::string *text, ClosureLeaf &leaf) {
+  ClosureLeaf::Frame &f = leaf.frame;
+  if (s.role == SocketRole::Rotation) {
+    f.rotation = read_input(g, n, s.socket, read_constant(n, s.socket, text, Spectrum(s.default_value)),
+                            VectorSource::Generated);
+    if (f.rotation.varies() || f.rotation.constant.x != 0.0f) f.active = true;
+    return;
+  }
+  if (!g.link_to(n.name, s.socket)) {  // unlinked: the point's normal, the UV tangent or Cycles' radial one
+    if (s.role == SocketRole::Tangent && s.radial_default) {
+      // Only an anisotropic lobe sees its tangent (an isotropic one keeps the point's frame, bit for bit).
+      const SocketRow *anisotropy = row.find("anisotropy");
+      const std::string *value = anisotropy ? attribute_of(n, *anisotropy) : nullptr;
+      const bool linked = anisotropy && g.link_to(n.name, anisotropy->socket);
+      if (linked || (anisotropy && read_constant(n, anisotropy->socket, value,
+                                                 Spectrum(anisotropy->default_value)).x != 0.0f))
+        f.radial_tangent = f.active = true;
+      const GlimmerParamSpec *spec = linked && leaf.type ? host::find_param(*leaf.type, anisotropy->param) : nullptr;
+      if (spec) f.anisotropy_param = host::param_index(*leaf.type, *spec);
+      f.radial_only = spec != nullptr;
+    }
+    return;
+  }
+  Input &in = s.role == SocketRole::Normal ? f.normal : f.tangent;
+  in = read_input(g, n, s.socket, Spectrum(0.0f), VectorSource::Generated);
+  if (in.varies()) f.active = true;
 }
 
 // Every link into the node: a parameter socket is bound per shading point (or warns
@@ -438,7 +473,9 @@ void ShaderSystem::bind_links(const ShaderGraph &g, const ShaderNode &n, const C
     if (l.to_node != n.name) continue;
     const SocketRow *s = row.find(l.to_socket);
     const SocketRole role = s ? s->role : SocketRole::Ignored;
-    if (role == SocketRole::Weight || role == SocketRole::ParamOrWeight) continue;
+    if (role == SocketRole::Weight || role == SocketRole::ParamOrWeight || role == SocketRole::Normal ||
+        role == SocketRole::Tangent || role == SocketRole::Rotation)
+      continue;
     if (role == SocketRole::Param || role == SocketRole::SchemaParam) {
       const GlimmerParamSpec *spec = leaf.type ? host::find_param(*leaf.type, s->param) : nullptr;
       const bool bound = spec && std::any_of(leaf.varying.begin(), leaf.varying.end(), [&](const auto &v) {
@@ -546,6 +583,7 @@ int ShaderSystem::make_leaf(const ShaderGraph &g, const ShaderNode &n, CompiledS
     if (leaf->emissive) out.has_emission = true;
   }
   if (!leaf->emissive && leaf->builtin == BuiltinClosure::None) out.has_bsdf = true;
+  leaf->frame.bump_shadowing = leaf->type && std::string(leaf->type->name) == "diffuse";
   ClosureTreeNode node;
   node.kind = ClosureTreeNode::Kind::Leaf;
   node.leaf = static_cast<int>(leaves_.size());
@@ -616,10 +654,6 @@ int ShaderSystem::compile(int shader_index) {
       } else if (l.to_socket != "surface") {
         warn(l.where, "shader '" + g.name + "': unknown output socket '" + l.to_socket + "'; ignored");
       }
-    }
-    for (const auto &n : g.nodes) {
-      if (n.type == "bump" || n.type == "normal_map")
-        warn(n.where, "<" + n.type + "> is not supported; the unperturbed normal is used");
     }
     cs.root = compile_closure(g, "output", "surface", cs, 0);
   }
@@ -725,6 +759,7 @@ void ShaderSystem::evaluate(int compiled, const TexCoords &tc, ClosureSet &out) 
         value.value[1] = v.color ? x.y : 0.0f;
         value.value[2] = v.color ? x.z : 0.0f;
       }
+      if (leaf.frame.active) shading_frame(leaf, tc, active);
       out.add(active);
       continue;
     }
@@ -738,6 +773,35 @@ void ShaderSystem::evaluate(int compiled, const TexCoords &tc, ClosureSet &out) 
       stack[top++] = {n.a, item.weight};
     }
   }
+}
+
+// Cycles' svm_node_closure_bsdf: N from the normal socket (the point's N unlinked), T from the tangent
+// socket (unlinked: the UV map's dP/du, or the radial Z tangent of Cycles' anisotropic glossy), in N's plane
+// and turned about N by rotation * 2 pi.
+void ShaderSystem::shading_frame(const ClosureLeaf &leaf, const TexCoords &tc, ActiveClosure &out) const {
+  const ClosureLeaf::Frame &f = leaf.frame;
+  const bool radial_only = f.radial_only && !f.normal.varies() && !f.tangent.varies() && !f.rotation.varies() &&
+                           f.rotation.constant.x == 0.0f;
+  if (radial_only)
+    for (uint32_t i = 0; i < out.varying_count; ++i)
+      if (out.varying[i].param == f.anisotropy_param && out.varying[i].value[0] == 0.0f) return;
+  Vec3 N = tc.N;
+  if (f.normal.varies()) {
+    const Vec3 n = eval_input(f.normal, tc);
+    if (length_squared(n) > 0.0f) N = normalize(n);
+  }
+  Vec3 T = tc.dPdu;
+  if (f.tangent.varies()) T = eval_input(f.tangent, tc);
+  else if (f.radial_tangent) T = tc.object_normal_to_world(nodes::radial_tangent(tc.generated, 2));
+  T = Frame::from_normal_tangent(N, T).s;
+  const float rotation = eval_input(f.rotation, tc).x;
+  if (rotation != 0.0f) {
+    const float angle = rotation * 2.0f * kPi;
+    T = T * std::cos(angle) + cross(N, T) * std::sin(angle);
+  }
+  out.own_frame = true;
+  out.N = N;
+  out.T = T;
 }
 
 void ShaderSystem::apply_filter_glossy(ClosureSet &cs, int k) {

@@ -74,6 +74,18 @@ struct ClosureLeaf {
   static constexpr int kMaxVarying = 4;
   std::vector<VaryingInput> varying;
   int varying_roughness = -1;  // index in `varying` of the roughness (filter_glossy raises it)
+  // The closure's own shading frame (ShaderSystem::shading_frame): its normal socket (Bump, Normal Map),
+  // tangent socket and tangent rotation (constant or per point). Without any, the point's frame is used.
+  struct Frame {
+    Input normal, tangent, rotation;
+    bool radial_tangent = false;  // unlinked tangent: Cycles' radial Z default (anisotropic glossy)
+    bool active = false;          // some socket above changes the frame
+    bool bump_shadowing = false;  // a diffuse closure: Cycles' bump shadowing term when its normal is perturbed
+    // The radial default with a linked anisotropy (schema index): where it is 0 and nothing else changes
+    // the frame, the lobe is isotropic and keeps the point's frame, as a constant 0 does.
+    bool radial_only = false;
+    uint32_t anisotropy_param = 0;
+  } frame;
   std::string node;    // for messages
 };
 
@@ -102,6 +114,9 @@ struct ActiveClosure {
   // The varying parameters' values at this shading point (handed to the closure in its context).
   uint32_t varying_count = 0;
   GlimmerVaryingValue varying[ClosureLeaf::kMaxVarying];
+  // The closure's own frame at this point (ClosureLeaf::frame), on the side of the point's N.
+  bool own_frame = false;
+  Vec3 N{0.0f, 0.0f, 1.0f}, T{1.0f, 0.0f, 0.0f};
 };
 
 struct ClosureSet {
@@ -151,6 +166,8 @@ class ShaderSystem {
   Spectrum light_emission(int shader_index, const scene::SourceLocation &where);
 
   void evaluate(int compiled, const TexCoords &tc, ClosureSet &out) const;
+  // A closure's own normal and tangent at `tc` (its normal/tangent/rotation sockets), into `out`.
+  void shading_frame(const ClosureLeaf &leaf, const TexCoords &tc, ActiveClosure &out) const;
   Spectrum eval_input(const Input &in, const TexCoords &tc) const;
 
   // filter_glossy: blur level k (1..ClosureLeaf::kBlurLevels) raises every glossy
@@ -190,6 +207,9 @@ class ShaderSystem {
                         host::ParamList &params);
   float apply_sockets(const scene::ShaderGraph &g, const scene::ShaderNode &n, const ClosureNodeRow &row,
                       const GlimmerClosureType *type, ClosureLeaf &leaf, host::ParamList &params);
+  // The normal, tangent and rotation sockets of a row into the leaf's frame (whether it changes the frame).
+  void read_frame_socket(const scene::ShaderGraph &g, const scene::ShaderNode &n, const ClosureNodeRow &row,
+                         const SocketRow &s, const std::string *text, ClosureLeaf &leaf);
   void bind_links(const scene::ShaderGraph &g, const scene::ShaderNode &n, const ClosureNodeRow &row,
                   ClosureLeaf &leaf);
   std::string apply_distribution(const scene::ShaderGraph &g, const scene::ShaderNode &n,

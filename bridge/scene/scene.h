@@ -108,6 +108,8 @@ struct SurfacePoint {
   Vec3 dPdu{0.0f}, dPdv{0.0f}; // from the uv map; the edges without uv or for a degenerate uv triangle
   float duv1[2] = {1.0f, 0.0f}, duv2[2] = {0.0f, 1.0f};  // duv/db1, duv/db2
   Vec3 dn1{0.0f}, dn2{0.0f};   // d(unnormalized N)/db1, /db2 (zero when N = Ng)
+  Vec3 tangent{0.0f};          // the UV map's tangent, interpolated unnormalized (zero without a UV map)
+  float tangent_sign = 1.0f;   // its handedness: the bitangent is sign * N x tangent
 };
 
 struct Mesh {
@@ -119,6 +121,9 @@ struct Mesh {
   std::vector<Vec3> generated;             // per vertex, object-space bbox-normalized (Cycles "generated")
   std::vector<std::array<uint32_t, 3>> triangles;
   std::vector<std::array<float, 2>> uv;    // per triangle corner (3 per triangle); may be empty
+  std::vector<Vec3> tangent;               // per corner, with the UV map: unit UV tangents (scene/uv_tangents.h)
+  std::vector<float> tangent_sign;         // per corner, their handedness (+1 or -1)
+  Transform object_to_world;               // the object's transform (P and N above already went through it)
   SourceLocation where;
 
   // The surface of triangle `prim` at barycentrics (b1, b2), b0 = 1 - b1 - b2.
@@ -160,6 +165,10 @@ struct Mesh {
       }
     }
     s.generated = generated[tri[0]] * b0 + generated[tri[1]] * b1 + generated[tri[2]] * b2;
+    if (!tangent.empty()) {
+      s.tangent = tangent[3 * prim] * b0 + tangent[3 * prim + 1] * b1 + tangent[3 * prim + 2] * b2;
+      s.tangent_sign = tangent_sign[3 * prim] * b0 + tangent_sign[3 * prim + 1] * b1 + tangent_sign[3 * prim + 2] * b2;
+    }
     return s;
   }
 };

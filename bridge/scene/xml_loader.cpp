@@ -15,6 +15,7 @@
 #include "scene/mesh_files.h"
 #include "scene/parse_number.h"
 #include "scene/settings.h"
+#include "scene/uv_tangents.h"
 
 namespace glimmer::scene {
 
@@ -512,6 +513,8 @@ class Loader {
         for (auto &n : m.N) n = normalize(n);
       }
     }
+    m.object_to_world = state.tfm;
+    compute_uv_tangents(m);
     return m;
   }
 

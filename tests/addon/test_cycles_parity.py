@@ -910,6 +910,140 @@ def scene_generated_checker(linked=True):
         FAILURES.append(line)
 
 
+# -- shading normals and tangents (Bump, Normal Map, Tangent) ----------------------------------------------------
+def grid_parity(name, glim, cyc, box, cells):
+    """Every cell of a cells[0] x cells[1] grid over box: ratio of means within TOLERANCE_SIGMA sigma + MODEL_SLACK
+    (as compare_region). One line: the fraction of cells outside and the largest |ratio - 1|."""
+    x0, y0, x1, y1 = box
+    outside, count, worst = 0, 0, 0.0
+    for j in range(cells[1]):
+        for i in range(cells[0]):
+            cx0, cx1 = x0 + (x1 - x0) * i // cells[0], x0 + (x1 - x0) * (i + 1) // cells[0]
+            cy0, cy1 = y0 + (y1 - y0) * j // cells[1], y0 + (y1 - y0) * (j + 1) // cells[1]
+            a = luminance(glim[cy0:cy1, cx0:cx1]).ravel()
+            b = luminance(cyc[cy0:cy1, cx0:cx1]).ravel()
+            mean_c = b.mean()
+            if not mean_c > 1e-4 or a.size < 2:
+                continue
+            ratio = a.mean() / mean_c
+            sigma = (a - b).std(ddof=1) / math.sqrt(a.size) / mean_c
+            count += 1
+            worst = max(worst, abs(ratio - 1.0))
+            if abs(ratio - 1.0) > TOLERANCE_SIGMA * sigma + MODEL_SLACK:
+                outside += 1
+    line = "%-44s %d of %d regions outside tolerance, max |glimmer/cycles - 1| = %.4f" % (name, outside, count,
+                                                                                      worst)
+    print(line)
+    RESULTS.append(line)
+    return outside, count, line
+
+
+def node_of(tree, bl_idname):
+    return next(n for n in tree.nodes if n.bl_idname == bl_idname)
+
+
+def grey_world(scene):
+    background = scene.world.node_tree.nodes["Background"]
+    background.inputs["Color"].default_value = (0.25, 0.25, 0.25, 1.0)
+    background.inputs["Strength"].default_value = 1.0
+
+
+def noise_node(tree, scale, detail):
+    """A Noise Texture on its default (generated) coordinates."""
+    noise = tree.nodes.new("ShaderNodeTexNoise")
+    noise.inputs["Scale"].default_value = scale
+    noise.inputs["Detail"].default_value = detail
+    return noise
+
+
+def glimmer_variant(name):
+    """Glimmer's render of the scene as it is now (a negative control after changing one value)."""
+    xml, _ = mod.exporter.export_scene(bpy.context.evaluated_depsgraph_get(), os.path.join(opts.out, name + "_export"))
+    return glimmer_pixels(xml, name, bpy.context.scene.glimmer.seed)
+
+
+def check_grid(name, glim, cyc, box, cells, control=None):
+    """Parity on the grid; control = (label, glimmer image that must fail it) for the negative control."""
+    outside, _, line = grid_parity(name, glim, cyc, box, cells)
+    if outside:
+        FAILURES.append(line)
+    if control is not None:
+        outside, _, line = grid_parity("  negative control: " + control[0], control[1], cyc, box, cells)
+        if not outside:
+            FAILURES.append(line + "  <-- the negative control passed")
+
+
+def scene_bump_plane():
+    """0.8 diffuse plane from above, Bump (strength 1, distance 0.3) of a noise height, sun at 40 degrees (angle 0:
+    direct light only). Negative control: Glimmer with bump strength 0."""
+    scene = new_scene(samples=64)
+    add_camera(scene, (0.0, 0.0, 5.0), (0.0, 0.0, 0.0))
+    mat = material("Bumped", "ShaderNodeBsdfDiffuse")
+    tree = mat.node_tree
+    noise = noise_node(tree, 6.0, 1.0)
+    bump = tree.nodes.new("ShaderNodeBump")
+    bump.inputs["Distance"].default_value = 0.3
+    tree.links.new(noise.outputs["Fac"], bump.inputs["Height"])
+    tree.links.new(bump.outputs["Normal"], node_of(tree, "ShaderNodeBsdfDiffuse").inputs["Normal"])
+    add_plane(4.0, mat=mat)
+    add_light(scene, "SUN", (0, 0, 3), (40.0, 0.0, 20.0), energy=3.0, angle=0.0)
+    glim, cyc = render_both("bump_plane")
+    bump.inputs["Strength"].default_value = 0.0
+    flat = glimmer_variant("bump_plane_strength0")
+    check_grid("23 bump plane (noise height), 8x6 regions", glim, cyc, full(glim), (8, 6),
+               ("bump strength 0 vs Cycles' 1", flat))
+
+
+def scene_normal_map_sphere():
+    """UV sphere (smooth) with a tangent-space Normal Map of a procedural colour (noise mixed with the flat
+    (0.5, 0.5, 1)), 0.8 diffuse, area light and grey world. Negative control: Glimmer with strength 0."""
+    scene = new_scene(samples=128)
+    grey_world(scene)
+    add_camera(scene, (0.0, -6.0, 0.0), (90.0, 0.0, 0.0))
+    mat = material("NormalMapped", "ShaderNodeBsdfDiffuse")
+    tree = mat.node_tree
+    noise = noise_node(tree, 4.0, 0.0)
+    mix = tree.nodes.new("ShaderNodeMixRGB")
+    mix.inputs["Fac"].default_value = 0.6
+    mix.inputs["Color1"].default_value = (0.5, 0.5, 1.0, 1.0)
+    tree.links.new(noise.outputs["Color"], mix.inputs["Color2"])
+    nmap = tree.nodes.new("ShaderNodeNormalMap")
+    tree.links.new(mix.outputs["Color"], nmap.inputs["Color"])
+    tree.links.new(nmap.outputs["Normal"], node_of(tree, "ShaderNodeBsdfDiffuse").inputs["Normal"])
+    add_sphere(1.5, (0.0, 0.0, 0.0), mat)
+    add_light(scene, "AREA", (2.0, -2.5, 3.0), (40.0, 0.0, 30.0), energy=300.0, size=1.0)
+    glim, cyc = render_both("normal_map_sphere")
+    nmap.inputs["Strength"].default_value = 0.0
+    flat = glimmer_variant("normal_map_sphere_strength0")
+    check_grid("24 normal-mapped sphere, 6x6 regions", glim, cyc, pixel_region(scene, (0, 0, 0), 16), (6, 6),
+               ("normal map strength 0 vs Cycles' 1", flat))
+
+
+def scene_anisotropic_cylinder():
+    """Upright smooth cylinder, Anisotropic GGX (roughness 0.3, anisotropy 0.8) with its tangent from a Tangent
+    node (UV map: around the cylinder), area light, grey world. Negative control: Glimmer with the tangent turned
+    90 degrees (rotation 0.25)."""
+    scene = new_scene(samples=256)
+    grey_world(scene)
+    add_camera(scene, (0.0, -6.0, 0.5), (85.0, 0.0, 0.0))
+    mat = material("BrushedCylinder", "ShaderNodeBsdfAnisotropic", (0.9, 0.9, 0.9), distribution="GGX",
+                   Roughness=0.3, Anisotropy=0.8)
+    tree = mat.node_tree
+    tangent = tree.nodes.new("ShaderNodeTangent")
+    tangent.direction_type = "UV_MAP"
+    aniso = node_of(tree, "ShaderNodeBsdfAnisotropic")
+    tree.links.new(tangent.outputs["Tangent"], aniso.inputs["Tangent"])
+    bpy.ops.mesh.primitive_cylinder_add(radius=1.0, depth=2.5, vertices=64, location=(0.0, 0.0, 0.0))
+    bpy.ops.object.shade_smooth()
+    bpy.context.active_object.data.materials.append(mat)
+    add_light(scene, "AREA", (1.5, -2.5, 2.5), (45.0, 0.0, 30.0), energy=300.0, size=0.8)
+    glim, cyc = render_both("anisotropic_cylinder")
+    aniso.inputs["Rotation"].default_value = 0.25
+    turned = glimmer_variant("anisotropic_cylinder_rotated")
+    check_grid("25 anisotropic cylinder (UV tangent), 4x6 regions", glim, cyc,
+               pixel_region(scene, (0, 0, 0.3), 12), (4, 6), ("tangent rotated 90 degrees", turned))
+
+
 SCENES = {
     "point": scene_point,
     "sun": scene_sun,
@@ -942,6 +1076,9 @@ SCENES = {
     "nodes_math": scene_nodes_math,
     "nodes_musgrave": scene_nodes_musgrave,
     "nodes_converters": scene_nodes_converters,
+    "bump_plane": scene_bump_plane,
+    "normal_map_sphere": scene_normal_map_sphere,
+    "anisotropic_cylinder": scene_anisotropic_cylinder,
 }
 
 # Outside the tolerance today (run only when named in GLIMMER_PARITY_ONLY; figures in docs/architecture.md):

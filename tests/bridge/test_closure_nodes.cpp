@@ -37,6 +37,8 @@ std::vector<std::string> warnings_for_link(const ClosureNodeRow &row, const std:
 
 bool supported(const ClosureNodeRow &row, const render::SocketRow &s) {
   if (s.role == SocketRole::Weight || s.role == SocketRole::ParamOrWeight) return true;
+  // The closure's own frame, per shading point (render/nodes/normal_nodes.cpp, ShaderSystem::shading_frame).
+  if (s.role == SocketRole::Normal || s.role == SocketRole::Tangent || s.role == SocketRole::Rotation) return true;
   if (s.role != SocketRole::Param && s.role != SocketRole::SchemaParam) return false;
   const GlimmerClosureType *type = plugin().find(row.closure);
   const GlimmerParamSpec *spec = type ? host::find_param(*type, s.param) : nullptr;

@@ -160,7 +160,7 @@ TEST(VaryingParams, UnsupportedLinksWarnWithFileAndLine) {
     const char *socket;
   };
   const Case cases[] = {
-      {"<glossy_bsdf name=\"g\" roughness=\"0.3\" />", "rotation"},  // not mapped by the host
+      {"<glossy_bsdf name=\"g\" roughness=\"0.3\" />", "surface_mix_weight"},  // ignored by the host
       {"<diffuse_bsdf name=\"g\" />", "roughness"},                   // Oren-Nayar is not supported
       {"<glint_bsdf name=\"g\" />", "seed"},                          // not varying in the closure's schema
       {"<glint_bsdf name=\"g\" />", "gamma"},

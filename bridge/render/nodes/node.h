@@ -13,6 +13,7 @@
 
 #include "glimmer/closure_abi.h"
 #include "glimmer/math.h"
+#include "scene/transform.h"
 
 namespace glimmer::render::nodes {
 
@@ -75,7 +76,32 @@ struct ShadingPoint {
   float duv_dx[2] = {0.0f, 0.0f}, duv_dy[2] = {0.0f, 0.0f};
   PathInfo path;
   const float *world_to_camera = nullptr;  // 3x4 row-major (set by the node program; null: identity)
+  // The surface around the point (Bump, Normal Map, Tangent): the geometric normal on N's side, the UV
+  // map's dP/du and dP/dv, and one pixel step of the ray footprint (ray differentials) in P, uv and
+  // generated coordinates (zero where the ray carries no differentials, e.g. shadow rays).
+  Vec3 Ng{0.0f, 0.0f, 1.0f};
+  Vec3 dPdu{1.0f, 0.0f, 0.0f}, dPdv{0.0f, 1.0f, 0.0f};
+  Vec3 tangent{0.0f};       // the UV map's per-vertex tangent, interpolated (scene/uv_tangents.h); 0 without UVs
+  float tangent_sign = 1.0f;  // its handedness
+  const scene::Transform *object = nullptr;  // the object's transform (null: identity)
+  Vec3 object_normal_to_world(const Vec3 &n) const { return object ? object->normal(n) : n; }
+  // The Bump node's two offsets (Cycles' placement: make_orthonormals(Ng) scaled by the footprint width), in
+  // P, uv and generated coordinates; the footprint above is the image filters', these are the bump's.
+  Vec3 bump_dPdx{0.0f}, bump_dPdy{0.0f};
+  float bump_duv_dx[2] = {0.0f, 0.0f}, bump_duv_dy[2] = {0.0f, 0.0f};
+  Vec3 bump_dgenerated_dx{0.0f}, bump_dgenerated_dy{0.0f};
   Vec3 I() const { return -direction; }
+  // The point one footprint step away along x (axis 1) or y (axis 2), where Cycles' Bump node evaluates
+  // its height input a second and third time (its SHADER_BUMP_DX / _DY copies of the height graph).
+  ShadingPoint offset(int axis) const {
+    ShadingPoint s = *this;
+    const bool x = axis == 1;
+    s.P = P + (x ? bump_dPdx : bump_dPdy);
+    s.uv[0] = uv[0] + (x ? bump_duv_dx[0] : bump_duv_dy[0]);
+    s.uv[1] = uv[1] + (x ? bump_duv_dx[1] : bump_duv_dy[1]);
+    s.generated = generated + (x ? bump_dgenerated_dx : bump_dgenerated_dy);
+    return s;
+  }
 };
 
 // A node's settings (enums and tables), read once by its configure function.
@@ -95,6 +121,7 @@ class SettingsReader {
   virtual int choice(const char *attribute, std::initializer_list<const char *> choices, int fallback) const = 0;
   virtual bool boolean(const char *attribute, bool fallback) const = 0;
   virtual std::vector<float> floats(const char *attribute) const = 0;  // empty when absent
+  virtual std::string text(const char *attribute) const = 0;          // empty when absent
   virtual void warn(const std::string &message) const = 0;
   [[noreturn]] virtual void fail(const std::string &message) const = 0;
 };
@@ -110,6 +137,9 @@ struct NodeDef {
   ConfigureFn configure;  // may be null
   EvalFn eval;
   const char *support;    // one line for the support table: how it maps onto Cycles
+  // An input also read one footprint step away along x and y (Bump's height): its two extra values
+  // follow the declared inputs in `in`.
+  int offset_input = -1;
 };
 
 // Every node type evaluated per shading point (node_table.cpp).

@@ -91,6 +91,10 @@ class AttributeReader final : public SettingsReader {
     if (!v) return {};
     return scene::parse_floats(*v, n_.where, "<" + n_.type + "> " + attribute);
   }
+  std::string text(const char *attribute) const override {
+    const std::string *v = get(attribute);
+    return v ? *v : std::string();
+  }
   void warn(const std::string &message) const override { hooks_.warn(n_.where, "<" + n_.type + "> " + message); }
   [[noreturn]] void fail(const std::string &message) const override {
     throw SceneError(n_.where, "<" + n_.type + "> '" + n_.name + "': " + message);
@@ -124,10 +128,10 @@ class ProgramBuilder {
   const ShaderGraph &g_;
   const BuildHooks &hooks_;
   NodeProgram program_;
-  std::map<std::string, int> step_of_;  // node name -> step
+  std::map<std::pair<std::string, int>, int> step_of_;  // (node name, offset point) -> step
 
-  // The operand reading the output `link` comes from, converted to `to`.
-  Operand output_operand(const ShaderLink &link, SocketType to) {
+  // The operand reading the output `link` comes from, converted to `to`, evaluated at offset point `at`.
+  Operand output_operand(const ShaderLink &link, SocketType to, int at = 0) {
     const ShaderNode *src = g_.find(link.from_node);
     Operand o;
     o.to = to;
@@ -152,17 +156,19 @@ class ProgramBuilder {
                                        "'; its outputs: " + socket_list(def->outputs));
     if (const char *caveat = def->outputs[output].caveat)
       hooks_.warn(link.where, "<" + src->type + "> output '" + def->outputs[output].name + "': " + caveat);
-    const int step = compile_node(*src, *def);
+    const int step = compile_node(*src, *def, at);
     o.kind = Operand::Kind::Register;
     o.index = program_.steps_[step].out_base + output;
     o.from = def->outputs[output].type;
     return o;
   }
 
-  int compile_node(const ShaderNode &n, const NodeDef &def) {
-    if (auto it = step_of_.find(n.name); it != step_of_.end()) return it->second;
+  int compile_node(const ShaderNode &n, const NodeDef &def, int at) {
+    if (auto it = step_of_.find({n.name, at}); it != step_of_.end()) return it->second;
     NodeProgram::Step step;
     step.def = &def;
+    step.at = static_cast<uint8_t>(at);
+    if (at != 0) program_.offsets_ = true;
     AttributeReader reader(n, hooks_);
     if (def.configure) def.configure(reader, step.settings);
     if (&def == find_node("texture_coordinate")) program_.reads_camera_ = true;
@@ -174,7 +180,11 @@ class ProgramBuilder {
     std::set<std::string> known = reader.read();
     for (const SocketDecl &in : def.inputs) {
       known.insert(in.name);
-      step.inputs.push_back(input_operand(n, in));
+      step.inputs.push_back(input_operand(n, in, at));
+    }
+    if (def.offset_input >= 0) {  // Bump: the height one footprint step along x and along y
+      step.inputs.push_back(input_operand(n, def.inputs[def.offset_input], 1));
+      step.inputs.push_back(input_operand(n, def.inputs[def.offset_input], 2));
     }
     for (const auto &[name, value] : n.attributes)
       if (!known.count(name)) hooks_.warn(n.where, "<" + n.type + "> attribute '" + name + "' is not supported; ignored");
@@ -185,11 +195,11 @@ class ProgramBuilder {
     program_.registers_ += static_cast<int>(def.outputs.size());
     program_.steps_.push_back(std::move(step));
     const int index = static_cast<int>(program_.steps_.size()) - 1;
-    step_of_[n.name] = index;
+    step_of_[{n.name, at}] = index;
     return index;
   }
 
-  Operand input_operand(const ShaderNode &n, const SocketDecl &in) {
+  Operand input_operand(const ShaderNode &n, const SocketDecl &in, int at) {
     Operand constant;
     constant.kind = Operand::Kind::Constant;
     constant.value = in.default_value;
@@ -207,7 +217,7 @@ class ProgramBuilder {
     for (const auto &l : g_.links)
       if (l.to_node == n.name && socket_key(l.to_socket) == socket_key(in.name)) link = &l;
     if (link) {
-      Operand o = output_operand(*link, in.type);
+      Operand o = output_operand(*link, in.type, at);
       if (!(o.kind == Operand::Kind::Constant && o.index < 0)) return o;
     } else if (in.implicit != Implicit::None && attribute == n.attributes.end()) {
       Operand o;

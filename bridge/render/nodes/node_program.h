@@ -51,12 +51,17 @@ class NodeProgram {
     NodeSettings settings;
     std::vector<Operand> inputs;
     int out_base = 0;
+    uint8_t at = 0;  // evaluated at the point (0) or one footprint step along x (1) / y (2): Bump's height
   };
   std::vector<Step> steps_;
   Operand result_;
   int registers_ = 0;
   bool reads_camera_ = false;
+  bool offsets_ = false;  // some step runs at an offset point (a Bump node's height)
   std::array<float, 12> world_to_camera_{};
+
+  template <typename External>
+  Vec3 run(const ShadingPoint *const at[3], External &external) const;
 
   template <typename External>
   static Vec3 read(const Operand &o, const Vec3 *regs, const ShadingPoint &sp, External &external) {
@@ -80,17 +85,29 @@ Vec3 NodeProgram::eval(const ShadingPoint &point, External &&external) const {
     with_camera.world_to_camera = world_to_camera_.data();
     sp = &with_camera;
   }
+  if (!offsets_) {
+    const ShadingPoint *const at[3] = {sp, sp, sp};
+    return run(at, external);
+  }
+  const ShadingPoint dx = sp->offset(1), dy = sp->offset(2);
+  const ShadingPoint *const at[3] = {sp, &dx, &dy};
+  return run(at, external);
+}
+
+template <typename External>
+Vec3 NodeProgram::run(const ShadingPoint *const at[3], External &external) const {
   // Registers are written before they are read (steps in dependency order): raw storage, not 256
   // zero-initialised Vec3 per evaluation (that zeroing cost as much as a cheap node).
   alignas(Vec3) unsigned char storage[sizeof(Vec3) * kMaxRegisters];
   Vec3 *regs = reinterpret_cast<Vec3 *>(storage);
   Vec3 in[kMaxInputs];
   for (const Step &s : steps_) {
-    for (size_t i = 0; i < s.inputs.size(); ++i) in[i] = read(s.inputs[i], regs, *sp, external);
-    s.def->eval(s.settings, *sp, in, regs + s.out_base);
+    const ShadingPoint &p = *at[s.at];
+    for (size_t i = 0; i < s.inputs.size(); ++i) in[i] = read(s.inputs[i], regs, p, external);
+    s.def->eval(s.settings, p, in, regs + s.out_base);
   }
   // Huge or non-finite inputs (a scale of 1e30, an Inf from a division the node does not guard) end as 0 here.
-  const Vec3 r = read(result_, regs, *sp, external);
+  const Vec3 r = read(result_, regs, *at[0], external);
   return {std::isfinite(r.x) ? r.x : 0.0f, std::isfinite(r.y) ? r.y : 0.0f, std::isfinite(r.z) ? r.z : 0.0f};
 }
 

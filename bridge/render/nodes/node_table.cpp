@@ -131,6 +131,28 @@ const std::vector<NodeDef> &node_table() {
       {"separate_rgb", {{"color", C}}, {{"r", F}, {"g", F}, {"b", F}}, nullptr, eval_separate, "supported"},
       {"combine_rgb", {{"r", F}, {"g", F}, {"b", F}}, {{"image", C}}, nullptr, eval_combine, "supported"},
       {"rgb_to_bw", {{"color", C}}, {{"val", F}}, nullptr, eval_rgb_to_bw, "supported: Rec.709 luminance"},
+      // Shading normal and tangent nodes (render/nodes/normal_nodes.cpp), feeding closures' normal/tangent sockets.
+      {"bump",
+       {{"strength", F, Vec3(1.0f)}, {"distance", F, Vec3(1.0f)}, {"height", F}, kNormalInput},
+       {{"normal", V}},
+       configure_bump, eval_bump,
+       "supported: the height also at P + dPdx and P + dPdy (the ray footprint, as Cycles' bump copies of the "
+       "height graph), Mikkelsen's surface gradient, strength, distance, invert, terminator fix; "
+       "use_object_space measures in world space",
+       2},
+      {"normal_map",
+       {{"strength", F, Vec3(1.0f)}, {"color", C, Vec3(0.5f, 0.5f, 1.0f)}},
+       {{"normal", V}},
+       configure_normal_map, eval_normal_map,
+       "approximated: tangent space with the UV map's per-vertex tangents and sign (MikkTSpace-like, "
+       "scene/uv_tangents.h; no UV map: the unperturbed normal, as Cycles); object, world and Blender's "
+       "object/world spaces as Cycles; strength, terminator fix"},
+      {"tangent",
+       {},
+       {{"tangent", V}},
+       configure_tangent, eval_tangent,
+       "supported: uv_map (the UV map's per-vertex tangent; dP/du without UVs) or radial X/Y/Z about "
+       "generated coordinates turned with the object, in the normal's plane"},
   };
   return table;
 }
@@ -142,10 +164,7 @@ const std::vector<UnsupportedNode> &unsupported_nodes() {
       {"magic_texture", "the input keeps its constant (warned)"},
       {"ies_texture", "the input keeps its constant (warned)"},
       {"point_density_texture", "the input keeps its constant (warned)"},
-      {"bump", "the unperturbed normal (warned)"},
-      {"normal_map", "the unperturbed normal (warned)"},
       {"normal", "the input keeps its constant (warned)"},
-      {"tangent", "the input keeps its constant (warned); anisotropy follows dPdu"},
       {"uvmap", "the input keeps its constant (warned); use texture_coordinate uv"},
       {"attribute", "the input keeps its constant (warned)"},
       {"geometry", "the input keeps its constant (warned)"},
