@@ -24,6 +24,7 @@ GLIMMER_NODE_FNS(clamp)
 GLIMMER_NODE_FNS(map_range)
 GLIMMER_NODE_FNS(gradient)
 GLIMMER_NODE_FNS(white_noise)
+GLIMMER_NODE_FNS(sky)
 #undef GLIMMER_NODE_FNS
 
 void eval_hsv(const NodeSettings &, const ShadingPoint &, const Vec3 *, Vec3 *);

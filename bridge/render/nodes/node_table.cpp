@@ -131,13 +131,20 @@ const std::vector<NodeDef> &node_table() {
       {"separate_rgb", {{"color", C}}, {{"r", F}, {"g", F}, {"b", F}}, nullptr, eval_separate, "supported"},
       {"combine_rgb", {{"r", F}, {"g", F}, {"b", F}}, {{"image", C}}, nullptr, eval_combine, "supported"},
       {"rgb_to_bw", {{"color", C}}, {{"val", F}}, nullptr, eval_rgb_to_bw, "supported: Rec.709 luminance"},
+      // Sky texture (render/nodes/sky.cpp, sky_model.cpp).
+      {"sky_texture",
+       {kTextureVector},
+       {{"color", C}},
+       configure_sky, eval_sky,
+       "supported: nishita (single scattering precomputed per node into a 512 x 128 table, sun disc analytic "
+       "and importance-sampled by the world light when the vector is unlinked), preetham; hosek_wilkie "
+       "approximated by preetham (warned); texture mapping attributes unsupported"},
   };
   return table;
 }
 
 const std::vector<UnsupportedNode> &unsupported_nodes() {
   static const std::vector<UnsupportedNode> list = {
-      {"sky_texture", "the input keeps its constant (warned)"},
       {"brick_texture", "the input keeps its constant (warned)"},
       {"magic_texture", "the input keeps its constant (warned)"},
       {"ies_texture", "the input keeps its constant (warned)"},
