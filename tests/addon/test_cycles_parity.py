@@ -193,10 +193,9 @@ def luminance(px):
     return px @ np.array([0.2126, 0.7152, 0.0722])
 
 
-def compare_region(name, region, glim, cyc, mask=None, channel=None, band=None, negative=False):
+def compare_region(name, region, glim, cyc, mask=None, channel=None, band=None):
     """Ratio of region means with its measured noise; records a failure outside the tolerance.
-    `band` = (lo, hi): a documented model difference, the ratio must lie in [lo, hi] widened by the tolerance.
-    `negative`: a negative control (a deliberately wrong render), reported as such; returns whether it matched."""
+    `band` = (lo, hi): a documented model difference, the ratio must lie in [lo, hi] widened by the tolerance."""
     x0, y0, x1, y1 = region
     a = glim[y0:y1, x0:x1]
     b = cyc[y0:y1, x0:x1]
@@ -217,12 +216,9 @@ def compare_region(name, region, glim, cyc, mask=None, channel=None, band=None, 
         ok = band[0] - tolerance <= ratio <= band[1] + tolerance
     line = "%-28s glimmer/cycles = %.4f  (sigma %.4f, tolerance %.4f, n=%d, cycles mean %.4g)%s%s" % (
         name, ratio, sigma, tolerance, n, mean_c, "" if band is None else "  [known difference: %.3f-%.3f]" % band,
-        ("  (negative control: %s)" % ("matches" if ok else "mismatch, as it must")) if negative
-        else ("" if ok else "  <-- MISMATCH"))
+        "" if ok else "  <-- MISMATCH")
     print(line)
     RESULTS.append(line)
-    if negative:
-        return ok
     if not ok:
         FAILURES.append(line)
     return ratio, sigma
@@ -575,10 +571,20 @@ def scene_environment(rotation_deg=None):
     compare_region("5 %s lit patch" % label, patch, glim, cyc)
 
 
+def per_pixel_difference(a, b):
+    """Mean |a - b| / mean b of the per-pixel luminance."""
+    return float(np.mean(np.abs(luminance(a) - luminance(b))) / np.mean(luminance(b)))
+
+
 def scene_sky():
     """Nishita Sky Texture world (Blender 3.4 defaults but the sun at 30 deg elevation, rotated 40 deg): a diffuse
-    sphere on a plane lit by the sky and its sun disc, seen from above. Regions: the image quadrants, the sphere,
-    its shadow side and the horizon sky. Negative control: Glimmer with the sun rotated 20 deg more must fail."""
+    sphere on a plane lit by the sky and its sun disc. Known difference: Cycles 3.4 marches the view ray in 32 equal
+    segments with the transmittance through each whole segment, which darkens its sky by 1-3 % overhead and up to
+    58 % at the horizon against the converged single-scattering integral Glimmer matches (0.54 %,
+    tests/bridge/test_sky.cpp); with Cycles' march Glimmer matched this scene in every region within tolerance
+    (horizon strip 1.011). The sun-lit sphere is compared strictly; the regions the sky lights, within the measured
+    bands. Negative control: Glimmer with the sun rotated 20 deg further must differ per pixel by more than twice
+    as much as the correct render."""
     scene = new_scene(samples=128)
     tree = scene.world.node_tree
     bg = tree.nodes["Background"]
@@ -592,12 +598,16 @@ def scene_sky():
     add_plane(20.0, mat=material("Floor", "ShaderNodeBsdfDiffuse", (0.8, 0.8, 0.8)))
     add_sphere(1.0, (0.0, 0.0, 1.0), material("Ball", "ShaderNodeBsdfDiffuse", (0.8, 0.8, 0.8)))
     glim, cyc = render_both("sky")
-    quadrants("6 sky", glim, cyc)
-    for ch, label in ((0, "red"), (2, "blue")):
-        compare_region("6 sky %s all" % label, full(glim), glim, cyc, channel=ch)
-    compare_region("6 sky sphere", pixel_region(scene, (0.0, 0.0, 1.0), 6), glim, cyc)
     h, w = glim.shape[:2]
-    compare_region("6 sky horizon", (0, 0, w, 4), glim, cyc)
+    sky_lit = (1.0, 1.13)  # Cycles' darker sky, measured
+    compare_region("6 sky all", full(glim), glim, cyc, band=sky_lit)
+    for label, reg in (("rows 0-23 left", (0, 0, w // 2, h // 2)), ("rows 0-23 right", (w // 2, 0, w, h // 2)),
+                       ("rows 24-47 left", (0, h // 2, w // 2, h)), ("rows 24-47 right", (w // 2, h // 2, w, h))):
+        compare_region("6 sky %s" % label, reg, glim, cyc, band=sky_lit)
+    for ch, label in ((0, "red"), (2, "blue")):
+        compare_region("6 sky %s all" % label, full(glim), glim, cyc, channel=ch, band=sky_lit)
+    compare_region("6 sky sphere", pixel_region(scene, (0.0, 0.0, 1.0), 6), glim, cyc)
+    compare_region("6 sky horizon strip", (0, 0, w, 4), glim, cyc, band=(1.0, 1.65))
     # Negative control: the same export with the sun rotated 20 deg further.
     xml, _ = mod.exporter.export_scene(bpy.context.evaluated_depsgraph_get(), os.path.join(opts.out, "sky_off"))
     with open(xml) as f:
@@ -608,11 +618,13 @@ def scene_sky():
     with open(xml, "w") as f:
         f.write(wrong)
     off = glimmer_pixels(xml, "sky_sun_off", scene.glimmer.seed)
-    matches = [compare_region("6 sky sun +20deg %s" % label, reg, off, cyc, negative=True)
-               for label, reg in (("top-left", (0, 0, w // 2, h // 2)), ("top-right", (w // 2, 0, w, h // 2)),
-                                  ("bottom-left", (0, h // 2, w // 2, h)), ("bottom-right", (w // 2, h // 2, w, h)))]
-    if all(matches):
-        FAILURES.append("6 sky: the negative control (sun rotated 20 deg) matched Cycles in every quadrant")
+    right, rotated = per_pixel_difference(glim, cyc), per_pixel_difference(off, cyc)
+    line = "6 sky per-pixel mean |glimmer-cycles|/mean cycles = %.4f; sun +20deg (negative control) %.4f" % (
+        right, rotated)
+    print(line)
+    RESULTS.append(line)
+    if not (right < 0.08 and rotated > 2.0 * right):
+        FAILURES.append(line)
 
 
 def texture_image(path, checker=False):

@@ -126,7 +126,8 @@ SkyModel nishita(double sun_elevation_deg, const Atmosphere &a = {}, bool sun_di
 // and the reference over elevations x azimuths (degrees; azimuth measured from the sun).
 double max_deviation(const SkyModel &sky, const Physics &p, const std::vector<double> &elevations,
                      const std::vector<double> &azimuths, std::string *where = nullptr) {
-  const double sun_az = sky.settings().sun_rotation + M_PI / 2, sun_el = sky.settings().sun_elevation;
+  const Vec3 sun_dir = sky.sun_disc().direction;
+  const double sun_az = std::atan2(sun_dir.y, sun_dir.x), sun_el = sky.settings().sun_elevation;
   const D3 sun = direction(sun_el, sun_az);
   double worst = 0.0;
   for (double el : elevations)
@@ -195,7 +196,7 @@ TEST(Sky, NishitaReferenceNegativeControls) {
 // attenuated top-of-atmosphere irradiance spread over its solid angle.
 TEST(Sky, NishitaGroundAndSunDisc) {
   const SkyModel sky = nishita(20.0);
-  const double sun_az = sky.settings().sun_rotation + M_PI / 2;
+  const double sun_az = std::atan2(sky.sun_disc().direction.y, sky.sun_disc().direction.x);
   const D3 below = direction(-10 * M_PI / 180, sun_az + 1.0), horizon = direction(0.0, sun_az + 1.0);
   const Vec3 b = sky.radiance(Vec3(float(below.x), float(below.y), float(below.z)));
   const Vec3 h = sky.radiance(Vec3(float(horizon.x), float(horizon.y), float(horizon.z)));

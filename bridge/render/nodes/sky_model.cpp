@@ -233,7 +233,7 @@ SkyModel::SkyModel(const Settings &s) : s_(s) {
   if (s_.type == Type::Nishita) {
     s_.atmosphere.altitude = std::clamp(s_.atmosphere.altitude, 1.0f, 59999.0f);
     s_.sun_size = std::max(s_.sun_size, 1e-5f);
-    sun_dir_ = from_elevation_azimuth(s_.sun_elevation, s_.sun_rotation + 0.5f * kPi);
+    sun_dir_ = from_elevation_azimuth(s_.sun_elevation, sun_azimuth());
     precompute_nishita();
   } else {
     sun_dir_ = normalize(s_.sun_direction);
@@ -333,7 +333,7 @@ Vec3 SkyModel::nishita_sun(const Vec3 &d, float angle) const {
 }
 
 Vec3 SkyModel::nishita(const Vec3 &d) const {
-  const float longitude = wrap_angle(std::atan2(d.y, d.x) - (s_.sun_rotation + 0.5f * kPi));
+  const float longitude = wrap_angle(std::atan2(d.y, d.x) - sun_azimuth());
   if (d.z < 0.0f) {  // the ground: the horizon fading to black at z = -0.4
     if (d.z < -0.4f) return Vec3(0.0f);
     const float fade = 1.0f + 2.5f * d.z;
@@ -357,6 +357,10 @@ Vec3 SkyModel::radiance(const Vec3 &dir) const {
 bool SkyModel::has_sun_disc() const {
   return s_.type == Type::Nishita && s_.sun_disc && s_.sun_elevation + 0.5f * s_.sun_size > 0.0f;
 }
+
+// Blender 3.4: sun_rotation turns the sun clockwise (seen from above) from +y; measured against its
+// Cycles (tests/addon/test_cycles_parity.py, scene `sky`: a 10 degree error shows in every quadrant).
+float SkyModel::sun_azimuth() const { return 0.5f * kPi - s_.sun_rotation; }
 
 SunDisc SkyModel::sun_disc() const { return {sun_dir_, 0.5f * s_.sun_size}; }
 

@@ -81,7 +81,7 @@ class SkyModel {
     float sun_size = 0.009512f;  // angular diameter (rad)
     float sun_intensity = 1.0f;
     float sun_elevation = 0.2617994f;  // 15 degrees
-    float sun_rotation = 0.0f;  // the sun's azimuth is sun_rotation + 90 degrees (counter-clockwise from +x)
+    float sun_rotation = 0.0f;  // the sun's azimuth is 90 degrees - sun_rotation (counter-clockwise from +x)
     Atmosphere atmosphere;
   };
   static constexpr int kTableWidth = 512, kTableHeight = 128;
@@ -94,6 +94,7 @@ class SkyModel {
   const Settings &settings() const { return s_; }
 
  private:
+  float sun_azimuth() const;  // counter-clockwise from +x
   Vec3 nishita(const Vec3 &dir) const;
   Vec3 nishita_table(float elevation, float longitude) const;  // bilinear, XYZ
   Vec3 nishita_sun(const Vec3 &dir, float angle) const;
