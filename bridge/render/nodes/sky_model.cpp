@@ -64,96 +64,64 @@ namespace {
 using namespace atmosphere;
 
 // Column amounts (m of sea-level-equivalent air, dust, ozone-peak) along a path, before the
-// node's density factors.
+// node's density factors. Double precision: at 6.4e6 m a float height is only good to 0.5 m.
 struct Columns {
-  float air = 0.0f, dust = 0.0f, ozone = 0.0f;
+  double air = 0.0, dust = 0.0, ozone = 0.0;
 };
 
-Columns densities_at(const Vec3 &P) {
-  const double h = double(length(P)) - kEarthRadius;
-  return {float(rayleigh_density(h)), float(mie_density(h)), float(ozone_density(h))};
-}
-
-// Distance from P (inside the atmosphere) along unit d to the atmosphere's outer sphere.
-float distance_to_space(const Vec3 &P, const Vec3 &d) {
-  const float b = dot(P, d), c = dot(P, P) - kAtmosphereRadius * kAtmosphereRadius;
-  return -b + safe_sqrt(b * b - c);
-}
-
-// A path of length L cut into n segments, finer where the density is highest (at the start: near
-// the ground for the view ray, at the scattering point for the sun's ray): s = L t^2 with t uniform,
-// segment i weighted by its length ds = 2 L t_i / n at its midpoint t_i = (i + 0.5) / n.
-struct Segment {
-  float s, ds;
-};
-Segment quadratic_segment(float L, int i, int n) {
-  const float t = (i + 0.5f) / n;
-  return {L * t * t, 2.0f * L * t / n};
-}
-
-void add(Columns &c, const Columns &rho, float ds) {
+void add(Columns &c, const Columns &rho, double ds) {
   c.air += rho.air * ds;
   c.dust += rho.dust * ds;
   c.ozone += rho.ozone * ds;
 }
 
-// Column amounts from P to space along d (the optical depth toward the sun before the cross sections).
-Columns columns_to_space(const Vec3 &P, const Vec3 &d) {
-  constexpr int kSunSegments = 24;
-  const float L = distance_to_space(P, d);
+// A point of the atmosphere in the Earth-centred frame (the observer on the +z axis).
+struct Point {
+  double x, y, z;
+};
+Point along(const Point &P, const Vec3 &d, double s) { return {P.x + d.x * s, P.y + d.y * s, P.z + d.z * s}; }
+double dot(const Point &P, const Vec3 &d) { return P.x * d.x + P.y * d.y + P.z * d.z; }
+double radius_squared(const Point &P) { return P.x * P.x + P.y * P.y + P.z * P.z; }
+
+Columns densities_at(const Point &P) {
+  const double h = std::sqrt(radius_squared(P)) - kEarthRadius;
+  return {rayleigh_density(h), mie_density(h), ozone_density(h)};
+}
+
+// Distance from P (inside the atmosphere) along unit d to the atmosphere's outer sphere.
+double distance_to_space(const Point &P, const Vec3 &d) {
+  const double b = dot(P, d), c = radius_squared(P) - double(kAtmosphereRadius) * kAtmosphereRadius;
+  return -b + std::sqrt(std::max(b * b - c, 0.0));
+}
+
+// Cycles' shadow test for the sun's path: a sun below the observer's horizon plane (d.z < 0) whose
+// line through P meets the Earth's sphere.
+bool earth_blocks(const Point &P, const Vec3 &d) {
+  if (d.z >= 0.0f) return false;
+  const double b = dot(P, d), c = radius_squared(P) - double(kEarthRadius) * kEarthRadius;
+  return b * b - c >= 0.0;
+}
+
+// Column amounts from P to space along d by Cycles' 8-node Gauss-Laguerre rule: the integral of
+// f(x) e^-x over (0, inf) with x = 25 s / L, the weights carrying e^x, so the path [0, L] holds every
+// node (nodes x_i / 25 and weights w_i e^x_i / 25 of the n = 8 Laguerre rule, as fractions of L).
+Columns columns_to_space(const Point &P, const Vec3 &d) {
+  static constexpr double kNode[kDepthNodes] = {0.006811185292, 0.03614807107, 0.09004346519, 0.1706680068,
+                                                0.2818362161,  0.4303406404,  0.6296271457,  0.9145252695};
+  static constexpr double kWeight[kDepthNodes] = {0.01750893642, 0.04135477391, 0.06678839063, 0.09507698807,
+                                                  0.1283416365,  0.1707430204,  0.2327233347,  0.3562490486};
+  const double L = distance_to_space(P, d);
   Columns c;
-  for (int i = 0; i < kSunSegments; ++i) {
-    const Segment seg = quadratic_segment(L, i, kSunSegments);
-    add(c, densities_at(P + d * seg.s), seg.ds);
-  }
+  for (int i = 0; i < kDepthNodes; ++i) add(c, densities_at(along(P, d, kNode[i] * L)), kWeight[i] * L);
   return c;
 }
 
-// Column amounts to space from every height along every direction above the local horizon, tabulated
-// once per model (as Bruneton & Neyret 2008 tabulate transmittance): rows at heights 60 km (j / 63)^2,
-// columns from the horizon (cosine mu_h = -sqrt(1 - (Re / r)^2) from the vertical) to the zenith at
-// x = (i / 127)^2 of the way, each entry a 24-segment march; bilinear lookups.
-class SunPaths {
- public:
-  SunPaths() : c_(size_t(kRows) * kCols) {
-    for (int j = 0; j < kRows; ++j)
-      for (int i = 0; i < kCols; ++i) {
-        const float h = height(j), r = kEarthRadius + h, mu_h = horizon(r);
-        const float mu = mu_h + (1.0f - mu_h) * sqr(float(i) / (kCols - 1));
-        c_[size_t(j) * kCols + i] = columns_to_space(Vec3(0.0f, 0.0f, r), Vec3(safe_sqrt(1.0f - mu * mu), 0.0f, mu));
-      }
-  }
-  // False when the Earth blocks the path from P along unit d.
-  bool lookup(const Vec3 &P, const Vec3 &d, Columns &out) const {
-    const float r = length(P), mu = dot(P, d) / r, mu_h = horizon(r);
-    if (mu < mu_h) return false;
-    const float fj = std::clamp(std::sqrt(std::max(r - kEarthRadius, 0.0f) / kTop) * (kRows - 1), 0.0f, kRows - 1.0f);
-    const float fi = std::clamp(std::sqrt((mu - mu_h) / (1.0f - mu_h)) * (kCols - 1), 0.0f, kCols - 1.0f);
-    const int j = std::min(int(fj), kRows - 2), i = std::min(int(fi), kCols - 2);
-    const float tj = fj - j, ti = fi - i;
-    out = Columns{};
-    add(out, at(j, i), (1 - tj) * (1 - ti));
-    add(out, at(j, i + 1), (1 - tj) * ti);
-    add(out, at(j + 1, i), tj * (1 - ti));
-    add(out, at(j + 1, i + 1), tj * ti);
-    return true;
-  }
-
- private:
-  static constexpr int kRows = 64, kCols = 128;
-  static constexpr float kTop = kAtmosphereRadius - kEarthRadius;
-  static float height(int j) { return kTop * sqr(float(j) / (kRows - 1)); }
-  static float horizon(float r) { return -safe_sqrt(1.0f - sqr(kEarthRadius / r)); }
-  const Columns &at(int j, int i) const { return c_[size_t(j) * kCols + i]; }
-  std::vector<Columns> c_;
-};
-
-float extinction(const Columns &c, const Atmosphere &a, int wl, bool with_ozone) {
+double extinction(const Columns &c, const Atmosphere &a, int wl, bool with_ozone) {
   return c.air * a.air_density * kRayleighScattering[wl] + c.dust * a.dust_density * kMieExtinctionRatio * kMieScattering +
-         (with_ozone ? c.ozone * a.ozone_density * kOzoneAbsorption[wl] : 0.0f);
+         (with_ozone ? c.ozone * a.ozone_density * kOzoneAbsorption[wl] : 0.0);
 }
 
-Vec3 observer(const Atmosphere &a) { return {0.0f, 0.0f, kEarthRadius + a.altitude}; }
+Point observer(const Atmosphere &a) { return {0.0, 0.0, double(kEarthRadius) + a.altitude}; }
 
 Vec3 from_elevation_azimuth(float elevation, float azimuth) {
   return {std::cos(elevation) * std::cos(azimuth), std::cos(elevation) * std::sin(azimuth), std::sin(elevation)};
@@ -184,41 +152,40 @@ Vec3 spectrum_to_xyz(const float *spectrum) {
   return xyz * kWavelengthStep;
 }
 
-// Nishita 1993 eq. 4 for one direction: the view ray is cut into 64 segments (finer near the
-// ground), each scattering sigma_s(P) phase E_sun with the transmittance to the camera (to the
-// segment's midpoint) and toward the sun (zero when the Earth shadows P).
-static Vec3 nishita_sky_xyz(const Vec3 &dir, const Vec3 &sun_dir, const Atmosphere &a, const SunPaths &sun_paths) {
-  constexpr int kViewSegments = 64;
-  const Vec3 origin = observer(a);
-  const float L = distance_to_space(origin, dir);
-  const float mu = dot(dir, sun_dir);
-  const float phase_air = float(rayleigh_phase(mu)), phase_dust = float(mie_phase(mu));
-  float spectrum[kWavelengths] = {};
-  Columns view;  // from the camera to the current segment's start
+// Nishita 1993 eq. 4 for one direction, discretised as Cycles 3.4 does: the view ray cut into 32
+// equal segments, each scattering sigma_s(P) phase E_sun at its midpoint P with the transmittance to
+// the camera over the WHOLE segment (camera to the segment's far end) and toward the sun (the
+// Gauss-Laguerre depth; nothing when the Earth blocks the sun).
+Vec3 nishita_sky_xyz(const Vec3 &dir, const Vec3 &sun_dir, const Atmosphere &a) {
+  const Point origin = observer(a);
+  const double ds = distance_to_space(origin, dir) / kViewSegments;
+  const double mu = dot(dir, sun_dir);
+  const double phase_air = rayleigh_phase(mu), phase_dust = mie_phase(mu);
+  double spectrum[kWavelengths] = {};
+  Columns view;  // from the camera to the current segment's far end
   for (int i = 0; i < kViewSegments; ++i) {
-    const Segment seg = quadratic_segment(L, i, kViewSegments);
-    const Vec3 P = origin + dir * seg.s;
+    const Point P = along(origin, dir, (i + 0.5) * ds);
     const Columns rho = densities_at(P);
-    Columns path = view;
-    add(path, rho, 0.5f * seg.ds);
-    add(view, rho, seg.ds);
-    Columns sun;
-    if (!sun_paths.lookup(P, sun_dir, sun)) continue;  // in the Earth's shadow
-    add(path, sun, 1.0f);
+    add(view, rho, ds);
+    if (earth_blocks(P, sun_dir)) continue;
+    Columns path = columns_to_space(P, sun_dir);
+    add(path, view, 1.0);
     for (int wl = 0; wl < kWavelengths; ++wl) {
-      const float scattering = rho.air * a.air_density * kRayleighScattering[wl] * phase_air +
-                               rho.dust * a.dust_density * kMieScattering * phase_dust;
-      spectrum[wl] += std::exp(-extinction(path, a, wl, true)) * scattering * kSolarIrradiance[wl] * seg.ds;
+      const double scattering = rho.air * a.air_density * kRayleighScattering[wl] * phase_air +
+                                rho.dust * a.dust_density * kMieScattering * phase_dust;
+      spectrum[wl] += std::exp(-extinction(path, a, wl, true)) * scattering * kSolarIrradiance[wl] * ds;
     }
   }
-  return spectrum_to_xyz(spectrum);
+  float out[kWavelengths];
+  for (int wl = 0; wl < kWavelengths; ++wl) out[wl] = float(spectrum[wl]);
+  return spectrum_to_xyz(out);
 }
 
 Vec3 nishita_sun_xyz(float elevation, float solid_angle, const Atmosphere &a) {
   const Columns c = columns_to_space(observer(a), from_elevation_azimuth(elevation, 0.0f));
   float spectrum[kWavelengths];
   for (int wl = 0; wl < kWavelengths; ++wl)
-    spectrum[wl] = kSolarIrradiance[wl] * std::exp(-extinction(c, a, wl, false)) / solid_angle;
+    spectrum[wl] = float(kSolarIrradiance[wl] * std::exp(-extinction(c, a, wl, false)) / solid_angle);
   return spectrum_to_xyz(spectrum);
 }
 
@@ -241,17 +208,23 @@ SkyModel::SkyModel(const Settings &s) : s_(s) {
   }
 }
 
+float SkyModel::table_row_elevation(int j) {
+  return (0.5f * kPi + 0.25f * kPi / kTableHeight) * sqr(float(j) / kTableHeight);
+}
+
+float SkyModel::table_column_azimuth(int i) {
+  if (i >= kTableWidth / 2) i = kTableWidth - 1 - i;  // the mirrored half
+  return kTwoPi * float(i) / kTableWidth - kPi;
+}
+
 void SkyModel::precompute_nishita() {
   const Vec3 sun_local = from_elevation_azimuth(s_.sun_elevation, 0.0f);  // the table's sun at azimuth 0
   table_.assign(size_t(kTableWidth) * kTableHeight, Vec3(0.0f));
-  const SunPaths sun_paths;
   tbb::parallel_for(tbb::blocked_range<int>(0, kTableHeight), [&](const tbb::blocked_range<int> &rows) {
     for (int j = rows.begin(); j < rows.end(); ++j) {
-      const float elevation = 0.5f * kPi * sqr((j + 0.5f) / kTableHeight);
       for (int i = 0; i < kTableWidth / 2; ++i) {  // the sky is symmetric about the sun's azimuth
-        const float azimuth = kTwoPi * (i + 0.5f) / kTableWidth - kPi;
-        const Vec3 xyz =
-            nishita_sky_xyz(from_elevation_azimuth(elevation, azimuth), sun_local, s_.atmosphere, sun_paths);
+        const Vec3 xyz = nishita_sky_xyz(from_elevation_azimuth(table_row_elevation(j), table_column_azimuth(i)),
+                                         sun_local, s_.atmosphere);
         table_[size_t(j) * kTableWidth + i] = xyz;
         table_[size_t(j) * kTableWidth + (kTableWidth - 1 - i)] = xyz;
       }

@@ -5,11 +5,14 @@
 //    of the Earth taking into account atmospheric scattering", eq. 1-4: in-scattered
 //    radiance = integral along the view ray of T(view) T(sun) sigma_s phase E_sun),
 //    Rayleigh + Mie (Cornette-Shanks phase, g = 0.76) + ozone absorption, 21 wavelengths
-//    380..780 nm integrated against the CIE 1931 matching functions (64 view segments finer
-//    near the ground, the optical depth toward the sun from a per-model table: within 0.6 %
-//    of a 10x finer brute-force integration). Precomputed once per node into a 512 x 128
-//    table over (azimuth from the sun, elevation), the sun disc added analytically
-//    (Beer-Lambert transmittance, limb darkening 0.6).
+//    380..780 nm integrated against the CIE 1931 matching functions, discretised as Cycles
+//    3.4 does (a Cycles-compatible sky, not the converged integral): 32 equal view-ray
+//    segments, each scattering at its midpoint with the transmittance of the whole segment,
+//    the optical depth toward the sun by an 8-node Gauss-Laguerre rule. That is 1-3 % darker
+//    overhead and up to ~60 % darker (blue) at the horizon than the converged integral
+//    (tests/bridge/test_sky.cpp measures it). Precomputed once per node into Cycles' 512 x
+//    128 table layout over (azimuth from the sun, elevation), the sun disc added
+//    analytically (Beer-Lambert transmittance, limb darkening 0.6).
 //  - preetham: the closed form of Preetham, Shirley & Smits 1999 (Perez et al. 1993
 //    luminance distribution, appendix A.2 zenith values and distribution coefficients),
 //    with Cycles' 0.06 luminance scale.
@@ -38,6 +41,8 @@ inline constexpr float kRayleighScaleHeight = 8e3f, kMieScaleHeight = 1.2e3f;  /
 inline constexpr float kMieScattering = 2e-5f;   // m^-1
 inline constexpr float kMieExtinctionRatio = 1.11f;  // Mie extinction / scattering
 inline constexpr float kMieG = 0.76f;
+inline constexpr int kViewSegments = 32;  // equal segments of the view ray (Cycles' `steps`)
+inline constexpr int kDepthNodes = 8;     // Gauss-Laguerre nodes of the optical depth toward the sun
 extern const float kSolarIrradiance[kWavelengths];  // top of the atmosphere, W m^-2 nm^-1
 extern const float kRayleighScattering[kWavelengths];  // m^-1 at sea level
 extern const float kOzoneAbsorption[kWavelengths];     // m^-1 at the ozone peak
@@ -55,6 +60,11 @@ double mie_phase(double mu);       // Cornette-Shanks with g = kMieG
 Vec3 xyz_to_scene_linear(const Vec3 &xyz);
 // Spectrum at the 21 wavelengths -> XYZ (sum of spectrum x matching function x 20 nm).
 Vec3 spectrum_to_xyz(const float *spectrum);
+
+// The sky's single-scattered radiance (XYZ) seen from the node's observer (on the +z axis at the
+// atmosphere's altitude) along unit `dir`, lit by a sun in unit direction `sun_dir`: Cycles 3.4's
+// discrete scheme (see the top of this file). One table texel.
+Vec3 nishita_sky_xyz(const Vec3 &dir, const Vec3 &sun_dir, const Atmosphere &a);
 
 // The sun disc's radiance (XYZ, before limb darkening) seen at `elevation`: the top-of-atmosphere
 // irradiance spread over `solid_angle`, attenuated by Rayleigh and Mie extinction along the path
@@ -85,6 +95,12 @@ class SkyModel {
     Atmosphere atmosphere;
   };
   static constexpr int kTableWidth = 512, kTableHeight = 128;
+  // Where Cycles 3.4 computes texel (i, j) of its nishita table: row j at elevation
+  // (pi/2 + pi/(4 H)) (j / H)^2, column i < W/2 at azimuth from the sun 2 pi i / W - pi, column
+  // W-1-i its mirror. Its lookup puts texel centres at (i + 0.5) / W and (j + 0.5) / H over
+  // (azimuth + pi) / 2 pi and sqrt(elevation / (pi/2)), half a texel from where they were computed.
+  static float table_row_elevation(int j);
+  static float table_column_azimuth(int i);
 
   explicit SkyModel(const Settings &s);  // nishita: precomputes the table (parallel rows, deterministic)
   Vec3 radiance(const Vec3 &dir) const;  // scene linear; `dir` need not be unit
@@ -104,8 +120,8 @@ class SkyModel {
 
   Settings s_;
   Vec3 sun_dir_{0.0f, 0.0f, 1.0f};
-  // nishita: rows of kTableWidth XYZ texels, row j at elevation (pi/2) ((j + 0.5) / H)^2, column i
-  // at azimuth from the sun 2 pi (i + 0.5) / W - pi; the sun's bottom and top radiance.
+  // nishita: rows of kTableWidth XYZ texels (table_row_elevation, table_column_azimuth); the sun's
+  // bottom and top radiance.
   std::vector<Vec3> table_;
   Vec3 sun_bottom_{0.0f}, sun_top_{0.0f};
   // preetham: zenith values (Y, x, y) and Perez coefficients A..E per channel, sun zenith angle.
