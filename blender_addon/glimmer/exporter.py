@@ -279,8 +279,7 @@ class ShaderGraph:
                 self.connect(source, el.get("name"), attribute)
         return (el.get("name"), "closure")
 
-    def texture_coordinates(self, node, default="the mesh's UV map", generated_by_default=False,
-                            generated_ok=True):
+    def texture_coordinates(self, node, default="the mesh's UV map", generated_by_default=False):
         """The texture's Vector input: the UV map, or Generated (object space normalised to the bounding box,
         as Cycles) through a texture_coordinate node; anything else is warned about (default: what is used
         instead). Returns the (xml node, socket) to link into the texture's vector, or None."""
@@ -294,7 +293,7 @@ class ShaderGraph:
         src, socket = vector.links[0].from_node, vector.links[0].from_socket.name
         if src.bl_idname == "ShaderNodeUVMap" or (src.bl_idname == "ShaderNodeTexCoord" and socket == "UV"):
             return None
-        if src.bl_idname == "ShaderNodeTexCoord" and socket == "Generated" and generated_ok:
+        if src.bl_idname == "ShaderNodeTexCoord" and socket == "Generated":
             self.uses_generated = True
             key = (src.name, "generated")
             if key not in self.exported:
@@ -327,12 +326,35 @@ class ShaderGraph:
         if node.image is None:
             self.warn(node.name, "environment texture '%s' has no image: ignored" % node.name)
             return None
-        self.texture_coordinates(node, "the unrotated world direction", generated_ok=False)
+        coordinates = self.world_vector(node)
         el = self.add("environment_texture", node.name, filename=self.exporter.image_path(node.image, self.owner, node),
                       interpolation=IMAGE_INTERPOLATION.get(node.interpolation, "linear"),
                       colorspace=node.image.colorspace_settings.name,
                       projection="equirectangular" if node.projection == "EQUIRECTANGULAR" else "mirror_ball")
+        self.link_vector(el, coordinates)
         return (el.get("name"), "alpha" if out.name == "Alpha" else "color")
+
+    def world_vector(self, node):
+        """A world texture's Vector input: unlinked, the ray direction; linked (e.g. Texture Coordinate Generated
+        -> Mapping to rotate an HDRI), the exported nodes feeding it."""
+        vector = node.inputs.get("Vector")
+        return self.source_of(vector) if vector is not None else None
+
+    def sky_texture(self, node, out):
+        """Sky Texture: Cycles' sky_texture with every setting of the node (nishita, preetham, hosek_wilkie)."""
+        coordinates = self.world_vector(node)
+        if tuple(node.texture_mapping.rotation) != (0.0, 0.0, 0.0) or \
+                tuple(node.texture_mapping.translation) != (0.0, 0.0, 0.0) or \
+                tuple(node.texture_mapping.scale) != (1.0, 1.0, 1.0):
+            self.warn(node.name, "sky texture '%s': its texture mapping is not exported" % node.name)
+        el = self.add("sky_texture", node.name, sky_type=node.sky_type.lower(),
+                      sun_direction=tuple(node.sun_direction), turbidity=node.turbidity,
+                      ground_albedo=node.ground_albedo, sun_disc=bool(node.sun_disc), sun_size=node.sun_size,
+                      sun_intensity=node.sun_intensity, sun_elevation=node.sun_elevation,
+                      sun_rotation=node.sun_rotation, altitude=node.altitude, air_density=node.air_density,
+                      dust_density=node.dust_density, ozone_density=node.ozone_density)
+        self.link_vector(el, coordinates)
+        return (el.get("name"), "color")
 
     def checker_texture(self, node, out):
         coordinates = self.texture_coordinates(node, "generated coordinates", generated_by_default=True)
@@ -577,6 +599,7 @@ TRANSLATORS = {
     "ShaderNodeAddShader": ShaderGraph.add_shader,
     "ShaderNodeTexImage": ShaderGraph.image_texture,
     "ShaderNodeTexEnvironment": ShaderGraph.environment_texture,
+    "ShaderNodeTexSky": ShaderGraph.sky_texture,
     "ShaderNodeTexChecker": ShaderGraph.checker_texture,
     "ShaderNodeBsdfPrincipled": ShaderGraph.principled,
     "ShaderNodeBackground": ShaderGraph.background,

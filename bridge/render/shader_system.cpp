@@ -704,6 +704,11 @@ Spectrum ShaderSystem::background(const Vec3 &direction) const {
   return eval_input(background_.color, tc) * background_.strength;
 }
 
+std::vector<nodes::SunDisc> ShaderSystem::background_suns() const {
+  if (!background_.active || background_.color.program < 0) return {};
+  return programs_[background_.color.program].sun_discs();
+}
+
 Spectrum ShaderSystem::light_emission(int shader_index, const scene::SourceLocation &where) {
   if (shader_index < 0) return Spectrum(1.0f);  // Cycles' default light shader: emission 1
   const ShaderGraph &g = scene_.shaders[shader_index];

@@ -161,6 +161,8 @@ class ShaderSystem {
   bool has_background() const { return background_.active; }
   bool background_is_constant() const { return !background_.color.varies(); }
   Spectrum background(const Vec3 &direction) const;
+  // Sun discs of sky textures in the world (directions the background light samples explicitly).
+  std::vector<nodes::SunDisc> background_suns() const;
 
   // The emission of a light's shader (color * strength; textures are not supported on lights).
   Spectrum light_emission(int shader_index, const scene::SourceLocation &where);

@@ -3,7 +3,8 @@
 Each scene is built by script, rendered by Cycles (box filter width 1, no clamps, no filter glossy, no
 denoising, fixed seed, linear float EXR) and, exported by the addon, by `glimmer render` with the same sample
 count. One convention per scene: point / sun / spot / area (square, disk, rectangle) light strengths, world
-colour, equirectangular environment orientation, mesh emission strength, GGX glossy and rough glass closures,
+colour, equirectangular environment orientation (also rotated through a Mapping node), Nishita sky, mesh
+emission strength, GGX glossy and rough glass closures,
 camera fov/orientation.
 
 Comparison (all statistics measured in this run): for a region R of n pixels, d = glimmer - cycles per pixel;
@@ -524,7 +525,9 @@ def environment_image(path):
     bpy.data.images.remove(img)
 
 
-def scene_environment():
+def scene_environment(rotation_deg=None):
+    """Equirectangular environment orientation; with `rotation_deg` (XYZ Euler) rotated as artists do:
+    Texture Coordinate Generated -> Mapping (Point) -> the Environment Texture's Vector."""
     path = os.path.join(opts.out, "parity_environment.exr")
     environment_image(path)
     scene = new_scene(samples=64, width=96, height=48)
@@ -535,14 +538,22 @@ def scene_environment():
     env.image = bpy.data.images.load(path)
     env.image.colorspace_settings.name = "Linear"
     tree.links.new(env.outputs["Color"], bg.inputs["Color"])
+    label = "env"
+    if rotation_deg is not None:
+        coordinates = tree.nodes.new("ShaderNodeTexCoord")
+        mapping = tree.nodes.new("ShaderNodeMapping")
+        mapping.inputs["Rotation"].default_value = [math.radians(a) for a in rotation_deg]
+        tree.links.new(coordinates.outputs["Generated"], mapping.inputs["Vector"])
+        tree.links.new(mapping.outputs["Vector"], env.inputs["Vector"])
+        label = "rotated env"
     # A wide camera looking along +Y and up a little; a small diffuse patch lit by the environment below.
     add_camera(scene, (0.0, 0.0, 0.0), (100.0, 0.0, 30.0), lens=12.0)
     add_plane(1.0, location=(-0.6, 2.0, -0.9), rotation_deg=(60.0, 0.0, 0.0), mat=material(
         "Patch", "ShaderNodeBsdfDiffuse", (0.8, 0.8, 0.8)))
-    glim, cyc = render_both("environment")
+    glim, cyc = render_both("environment" if rotation_deg is None else "environment_rotated")
     h, w = glim.shape[:2]
-    for ch, label in ((0, "red (u)"), (1, "green (v)"), (2, "blue (spot)")):
-        compare_region("5 env %s all" % label, full(glim), glim, cyc, channel=ch)
+    for ch, channel in ((0, "red (u)"), (1, "green (v)"), (2, "blue (spot)")):
+        compare_region("5 %s %s all" % (label, channel), full(glim), glim, cyc, channel=ch)
     # Per-pixel orientation: the relative difference per pixel, and the same against the mirror images,
     # which must be far worse (the image is asymmetric, so a flip would be caught).
     def rel(a, b):
@@ -550,14 +561,67 @@ def scene_environment():
     same = rel(glim, cyc)
     flipped_u = rel(glim[:, ::-1], cyc)
     flipped_v = rel(glim[::-1], cyc)
-    line = "5 env per-pixel mean |glimmer-cycles|/mean cycles = %.4f (mirror-x %.3f, mirror-y %.3f)" % (
-        same, flipped_u, flipped_v)
+    line = "5 %s per-pixel mean |glimmer-cycles|/mean cycles = %.4f (mirror-x %.3f, mirror-y %.3f)" % (
+        label, same, flipped_u, flipped_v)
     print(line)
     RESULTS.append(line)
     if not (same < 0.05 and flipped_u > 4 * same and flipped_v > 4 * same):
         FAILURES.append(line)
     patch = pixel_region(scene, (-0.6, 2.0, -0.9), 3)
-    compare_region("5 env lit patch", patch, glim, cyc)
+    compare_region("5 %s lit patch" % label, patch, glim, cyc)
+
+
+def per_pixel_difference(a, b):
+    """Mean |a - b| / mean b of the per-pixel luminance."""
+    return float(np.mean(np.abs(luminance(a) - luminance(b))) / np.mean(luminance(b)))
+
+
+def scene_sky():
+    """Nishita Sky Texture world (Blender 3.4 defaults but the sun at 30 deg elevation, rotated 40 deg): a diffuse
+    sphere on a plane lit by the sky and its sun disc. Glimmer computes the sky with Cycles 3.4's discretisation
+    (32 equal view-ray segments, tests/bridge/test_sky.cpp), so every region is compared at the standard tolerance,
+    the horizon strip (the steepest part of the sky) and the red and blue channels included. Negative control:
+    Glimmer with the sun rotated 20 deg further must differ per pixel by more than twice as much as the correct
+    render."""
+    scene = new_scene(samples=128)
+    tree = scene.world.node_tree
+    bg = tree.nodes["Background"]
+    bg.inputs["Strength"].default_value = 0.05
+    sky = tree.nodes.new("ShaderNodeTexSky")
+    sky.sky_type = "NISHITA"
+    sky.sun_elevation = math.radians(30.0)
+    sky.sun_rotation = math.radians(40.0)
+    tree.links.new(sky.outputs["Color"], bg.inputs["Color"])
+    add_camera(scene, (0.0, -6.0, 3.0), (65.0, 0.0, 0.0), lens=30.0)
+    add_plane(20.0, mat=material("Floor", "ShaderNodeBsdfDiffuse", (0.8, 0.8, 0.8)))
+    add_sphere(1.0, (0.0, 0.0, 1.0), material("Ball", "ShaderNodeBsdfDiffuse", (0.8, 0.8, 0.8)))
+    glim, cyc = render_both("sky")
+    h, w = glim.shape[:2]
+    compare_region("6 sky all", full(glim), glim, cyc)
+    for label, reg in (("rows 0-23 left", (0, 0, w // 2, h // 2)), ("rows 0-23 right", (w // 2, 0, w, h // 2)),
+                       ("rows 24-47 left", (0, h // 2, w // 2, h)), ("rows 24-47 right", (w // 2, h // 2, w, h))):
+        compare_region("6 sky %s" % label, reg, glim, cyc)
+    for ch, label in ((0, "red"), (2, "blue")):
+        compare_region("6 sky %s all" % label, full(glim), glim, cyc, channel=ch)
+    compare_region("6 sky sphere", pixel_region(scene, (0.0, 0.0, 1.0), 6), glim, cyc)
+    compare_region("6 sky horizon strip", (0, 0, w, 4), glim, cyc)
+    # Negative control: the same export with the sun rotated 20 deg further.
+    xml, _ = mod.exporter.export_scene(bpy.context.evaluated_depsgraph_get(), os.path.join(opts.out, "sky_off"))
+    with open(xml) as f:
+        text = f.read()
+    wrong = re.sub(r'sun_rotation="([^"]+)"', lambda m: 'sun_rotation="%.9g"' % (float(m.group(1)) +
+                                                                                  math.radians(20.0)), text)
+    check(wrong != text, "sky: the export has no sun_rotation")
+    with open(xml, "w") as f:
+        f.write(wrong)
+    off = glimmer_pixels(xml, "sky_sun_off", scene.glimmer.seed)
+    right, rotated = per_pixel_difference(glim, cyc), per_pixel_difference(off, cyc)
+    line = "6 sky per-pixel mean |glimmer-cycles|/mean cycles = %.4f; sun +20deg (negative control) %.4f" % (
+        right, rotated)
+    print(line)
+    RESULTS.append(line)
+    if not (right < 0.08 and rotated > 2.0 * right):
+        FAILURES.append(line)
 
 
 def texture_image(path, checker=False):
@@ -1054,6 +1118,8 @@ SCENES = {
     "area_spread": lambda: scene_area("SQUARE", 0.8, 0.8, "square spread 60deg", spread_deg=60.0),
     "world": scene_world_furnace,
     "environment": scene_environment,
+    "environment_rotated": lambda: scene_environment(rotation_deg=(0.0, 0.0, 70.0)),
+    "sky": scene_sky,
     "emission": scene_emission,
     "texture": scene_texture,
     "texture_closest": lambda: scene_texture("Closest"),

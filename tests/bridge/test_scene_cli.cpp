@@ -61,8 +61,12 @@ TEST(Corpus, MonkeySceneThroughTheCli) {
                        out))
       << out;
   EXPECT_TRUE(fs::exists(png));
-  // Unsupported nodes are reported with file:line; the noise texture is evaluated (render/nodes/), not warned about.
-  EXPECT_NE(out.find("scene_monkey.xml:11: warning: node <sky_texture> is not supported"), std::string::npos) << out;
+  // The sky texture and the noise texture are evaluated (render/nodes/), not replaced by a constant; the
+  // approximated hosek_wilkie sky type is reported with file:line.
+  EXPECT_EQ(out.find("<sky_texture> is not supported"), std::string::npos) << out;
+  EXPECT_NE(out.find("scene_monkey.xml:11: warning: <sky_texture> sky_type 'hosek_wilkie' is approximated"),
+            std::string::npos)
+      << out;
   EXPECT_EQ(out.find("noise_texture"), std::string::npos) << out;
 }
 

@@ -27,6 +27,7 @@ GLIMMER_NODE_FNS(white_noise)
 GLIMMER_NODE_FNS(bump)
 GLIMMER_NODE_FNS(normal_map)
 GLIMMER_NODE_FNS(tangent)
+GLIMMER_NODE_FNS(sky)
 #undef GLIMMER_NODE_FNS
 
 void eval_hsv(const NodeSettings &, const ShadingPoint &, const Vec3 *, Vec3 *);

@@ -8,6 +8,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -104,11 +105,14 @@ struct ShadingPoint {
   }
 };
 
+class SkyModel;  // sky_model.h
+
 // A node's settings (enums and tables), read once by its configure function.
 struct NodeSettings {
   int mode[4] = {0, 0, 0, 0};  // enum settings, per node type (e.g. dimensions, metric, feature)
   bool flag = false;           // use_clamp / interpolate
   std::vector<float> table;    // colour ramp: RGBA per entry
+  std::shared_ptr<const SkyModel> sky;  // sky texture: the model precomputed for this node
 };
 
 // Reads a node's settings from its XML attributes; errors and warnings name the

@@ -230,6 +230,14 @@ class ProgramBuilder {
   }
 };
 
+std::vector<SunDisc> NodeProgram::sun_discs() const {
+  std::vector<SunDisc> suns;
+  for (const Step &s : steps_)
+    if (s.settings.sky && s.settings.sky->has_sun_disc() && s.inputs[0].kind == Operand::Kind::Implicit)
+      suns.push_back(s.settings.sky->sun_disc());
+  return suns;
+}
+
 NodeProgram compile_program(const ShaderGraph &g, const ShaderLink &link, const BuildHooks &hooks) {
   return ProgramBuilder(g, hooks).build(link);
 }

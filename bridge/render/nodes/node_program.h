@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "render/nodes/node.h"
+#include "render/nodes/sky_model.h"
 #include "scene/scene.h"
 
 namespace glimmer::render::nodes {
@@ -43,6 +44,9 @@ class NodeProgram {
   Vec3 eval(const ShadingPoint &sp, External &&external) const;
 
   int step_count() const { return static_cast<int>(steps_.size()); }
+  // The sun discs of the sky textures that read the shading point's own direction (vector input
+  // unlinked): for the world, directions the background light samples explicitly.
+  std::vector<SunDisc> sun_discs() const;
 
  private:
   friend class ProgramBuilder;

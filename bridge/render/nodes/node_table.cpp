@@ -153,13 +153,20 @@ const std::vector<NodeDef> &node_table() {
        configure_tangent, eval_tangent,
        "supported: uv_map (the UV map's per-vertex tangent; dP/du without UVs) or radial X/Y/Z about "
        "generated coordinates turned with the object, in the normal's plane"},
+      // Sky texture (render/nodes/sky.cpp, sky_model.cpp).
+      {"sky_texture",
+       {kTextureVector},
+       {{"color", C}},
+       configure_sky, eval_sky,
+       "supported: nishita (single scattering precomputed per node into a 512 x 128 table, sun disc analytic "
+       "and importance-sampled by the world light when the vector is unlinked), preetham; hosek_wilkie "
+       "approximated by preetham (warned); texture mapping attributes unsupported"},
   };
   return table;
 }
 
 const std::vector<UnsupportedNode> &unsupported_nodes() {
   static const std::vector<UnsupportedNode> list = {
-      {"sky_texture", "the input keeps its constant (warned)"},
       {"brick_texture", "the input keeps its constant (warned)"},
       {"magic_texture", "the input keeps its constant (warned)"},
       {"ies_texture", "the input keeps its constant (warned)"},
