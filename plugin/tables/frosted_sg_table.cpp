@@ -74,7 +74,14 @@ void for_each_transmitted(const Vec3 &wi, float eta, float roughness, int strata
   for (int a = 0; a < strata; ++a)
     for (int b = 0; b < strata; ++b) {
       auto c = [&](int da, int db) { return corner[size_t(a + da) * (strata + 1) + (b + db)]; };
-      const bool edge = c(0, 0) != c(1, 0) || c(0, 0) != c(0, 1) || c(0, 0) != c(1, 1);
+      // Leaving (eta < 1), the last row in u2 (u2 -> 1: facet slopes -> infinity, GGX's far tail, which
+      // decides the mean length of a sharp lobe) is always refined: the TIR cut lies in it and its outer
+      // corners (u2 = 1 - 1e-6) flip in and out of TIR as the parameters change, switching cells between 1
+      // and kEdgeRefine^2 points (ln kappa jumped between neighbouring nodes). Entering, the cut (wo at the
+      // horizon) lies mostly beyond the grid's reach; refining there too widened the moment lobe (fit error
+      // vs the BTDF 0.529 -> 0.566), so that side keeps the edge rule alone.
+      const bool tail = eta < 1.0f && b == strata - 1;
+      const bool edge = tail || c(0, 0) != c(1, 0) || c(0, 0) != c(0, 1) || c(0, 0) != c(1, 1);
       if (!edge) {
         point((a + 0.5f) / strata, (b + 0.5f) / strata, 1.0);
         continue;
@@ -216,9 +223,13 @@ double transmission_fit_error(float cos_theta_i, float eta, float roughness, con
 }
 
 float TransmissionSgTable::theta_at(int i) { return float(kThetaMaxDeg * kDegToRad * i / (kThetaNodes - 1)); }
+
 namespace {
-// The largest Snell sine of the leaving table at this ior (theta_i = 89.5 deg).
-float sine_max(float ior) { return ior * std::sin(float(TransmissionSgTable::kThetaMaxDeg * kDegToRad)); }
+// Past the onset of TIR the leaving side's first coordinate follows theta_i itself, from the critical angle
+// theta_c = asin(1 / ior) to 89.5 deg (a sine is flat at grazing: over it, E(x) had a square-root kink at
+// x = ior and the last interval spanned 78.6..89.5 deg, energy errors up to 70 %).
+double critical_angle(float ior) { return std::asin(1.0 / double(ior)); }
+double theta_max() { return TransmissionSgTable::kThetaMaxDeg * kDegToRad; }
 }  // namespace
 
 float TransmissionSgTable::sine_at(int i, float ior) {
@@ -227,18 +238,18 @@ float TransmissionSgTable::sine_at(int i, float ior) {
     const float t = float(i) / half;
     return 1.0f - (1.0f - t) * (1.0f - t);
   }
-  const float t = float(i - half) / half;
-  return 1.0f + (sine_max(ior) - 1.0f) * t * t;
+  const double t = double(i - half) / half, tc = critical_angle(ior);
+  return float(ior * std::sin(tc + (theta_max() - tc) * t * t));
 }
 
 namespace {
-// Continuous node coordinate of the Snell sine x at this ior (inverse of sine_at).
-float sine_coordinate(float x, float ior) {
+// Continuous node coordinate of the leaving side at (theta_i, ior) (inverse of sine_at).
+float sine_coordinate(float theta, float ior) {
   const int half = (TransmissionSgTable::kSineNodes - 1) / 2;
-  const float top = sine_max(ior);
-  x = std::clamp(x, 0.0f, top);
-  if (x <= 1.0f) return (1.0f - std::sqrt(1.0f - x)) * half;
-  return (1.0f + std::sqrt((x - 1.0f) / (top - 1.0f))) * half;
+  const double x = ior * std::sin(double(theta)), tc = critical_angle(ior);
+  if (x <= 1.0) return float((1.0 - std::sqrt(std::max(0.0, 1.0 - x))) * half);
+  const double t = std::sqrt(std::clamp((theta - tc) / (theta_max() - tc), 0.0, 1.0));
+  return float((1.0 + t) * half);
 }
 }  // namespace
 
@@ -273,6 +284,12 @@ TransmissionSgTable::TransmissionSgTable() : TransmissionSgTable(Empty{}) {
       for (size_t idx = w; idx < nodes_.size(); idx += workers) nodes_[idx] = fit_node(idx);
     });
   for (auto &t : threads) t.join();
+  derive_interpolated();
+}
+
+void TransmissionSgTable::derive_interpolated() {
+  log_energy_.resize(nodes_.size());
+  for (size_t i = 0; i < nodes_.size(); ++i) log_energy_[i] = std::log(std::max(nodes_[i].energy, 0.0f) + kEnergyFloor);
 }
 
 bool TransmissionSgTable::operator==(const TransmissionSgTable &o) const {
@@ -290,8 +307,9 @@ namespace {
 constexpr char kCacheMagic[8] = {'G', 'L', 'M', 'F', 'R', 'S', 'G', 'T'};
 constexpr uint32_t kCacheFormat = 1;
 // Bump when the fit itself changes (the grid and fit constants are hashed below).
-constexpr uint32_t kFitVersion = 4;  // 2: leaving side over the Snell sine, axis as a sine offset; 3: edge refinement;
-                                     // 4: the sine's upper segment ends at grazing for each ior
+constexpr uint32_t kFitVersion = 5;  // 2: leaving side over the Snell sine, axis as a sine offset; 3: edge refinement;
+                                     // 4: the sine's upper segment ends at grazing for each ior; 5: the upper
+                                     // segment over theta_i, the leaving fit's tail row always refined
 
 // The first 8 bytes of SHA-256 over the format, the grid and the fit's constants.
 uint64_t cache_key() {
@@ -380,6 +398,7 @@ std::unique_ptr<TransmissionSgTable> TransmissionSgTable::load(const std::string
       return nullptr;
     }
   }
+  table->derive_interpolated();
   table->loaded_from_cache_ = true;
   return table;
 }
@@ -422,7 +441,7 @@ bool TransmissionSgTable::lookup(float cos_theta_i, float eta, float roughness, 
   if (!(theta <= float(kThetaMaxDeg * kDegToRad))) return false;
   // Continuous grid coordinates and their cells.
   const float ct = side == 0 ? theta / float(kThetaMaxDeg * kDegToRad) * (kThetaNodes - 1)
-                             : sine_coordinate(ior * std::sin(theta), ior);
+                             : sine_coordinate(theta, ior);
   const float cr = (1.0f - std::log(roughness) / std::log(kRoughnessMin)) * (kRoughnessNodes - 1);
   const float ck = (ior - kIorMin) / (kIorMax - kIorMin) * (kIorNodes - 1);
   // Catmull-Rom weights of the 4 nodes around c on each axis (indices clamped at the ends).
@@ -449,11 +468,11 @@ bool TransmissionSgTable::lookup(float cos_theta_i, float eta, float roughness, 
       for (int z = 0; z < 4; ++z) {
         const float w = a.weight[x] * b.weight[y] * c.weight[z];
         const TransmissionLobe &n = node(side, a.index[x], b.index[y], c.index[z]);
-        acc.energy += w * n.energy;
+        acc.energy += w * log_energy_[index(side, a.index[x], b.index[y], c.index[z])];
         acc.log_sharpness += w * n.log_sharpness;
         acc.axis_offset += w * n.axis_offset;
       }
-  acc.energy = std::max(acc.energy, 0.0f);  // the cubic may undershoot where the energy falls to 0 (TIR)
+  acc.energy = std::max(std::exp(acc.energy) - kEnergyFloor, 0.0f);  // interpolated ln(E + floor) -> E
   out = acc;
   return true;
 }

@@ -33,15 +33,17 @@
 //    errors (mean relative L2 0.27 at cell centres, 0.29 along ior alone).
 //
 // Table T(., roughness, ior) for entering (eta = ior; first coordinate
-// theta_i) and leaving (eta = 1 / ior; first coordinate the Snell sine x, so
-// that the onset of TIR, x = 1, is one fixed node for every ior and the lobe
-// changes slowly along ior at fixed x): built lazily on first use (once per
+// theta_i) and leaving (eta = 1 / ior; first coordinate the Snell sine x up to
+// the onset of TIR, x = 1, one fixed node for every ior, then theta_i up to
+// grazing, where a sine is flat): built lazily on first use (once per
 // process, thread-safe; 30-60 s on the shared 2-core machine) and cached on
 // disk like the glint tables (host->cache_dir, file keyed by the grid and the
 // fit; HMAC-authenticated, then validated: sizes, finite values, energies in
 // [0, 1.1], and 16 nodes re-fitted and compared; an unusable entry is rebuilt
 // with a warning). Lookups are Catmull-Rom in each coordinate (4^3 nodes;
-// trilinear left 498 entering cell centres above 1 % where this leaves 89).
+// trilinear left 498 entering cell centres above 1 % where this leaves 89) of
+// ln(E + 1e-4) (E falls by decades past the TIR onset), ln kappa and the axis
+// offset.
 // Grid: see kThetaNodes etc. below.
 #pragma once
 
@@ -111,9 +113,9 @@ class TransmissionSgTable {
  public:
   static constexpr int kThetaNodes = 61;       // entering: theta_i in [0, 89.5] degrees, uniform
   static constexpr float kThetaMaxDeg = 89.5f;
-  // Leaving: the Snell sine x = ior sin(theta_i) in [0, x_max], x_max = ior sin(89.5 deg) (per ior, so that
-  // no node lies past grazing); two quadratic segments, x = 1 - (1 - t)^2 on [0, 1] and 1 + (x_max - 1) t^2
-  // above, crowd the nodes at x = 1. Odd, so that x = 1 is a node.
+  // Leaving: two quadratic segments crowding the nodes at the onset of TIR: the Snell sine x = ior sin(theta_i)
+  // = 1 - (1 - t)^2 up to 1, then theta_i = theta_c + (89.5 deg - theta_c) t^2 (theta_c = asin(1 / ior)).
+  // Odd, so that x = 1 is a node.
   static constexpr int kSineNodes = 81;
   static constexpr int kRoughnessNodes = 25;   // roughness in [0.04, 1], uniform in ln(roughness)
   static constexpr float kRoughnessMin = 0.04f;
@@ -154,6 +156,13 @@ class TransmissionSgTable {
   const TransmissionLobe &node(int side, int i, int j, int k) const { return nodes_[index(side, i, j, k)]; }
   // [side 0: entering, theta][roughness][ior] then [side 1: leaving, Snell sine][roughness][ior]
   std::vector<TransmissionLobe> nodes_;
+  // What lookup() interpolates for the energy: ln(E + kEnergyFloor) per node (derived from nodes_ after a build
+  // or a load, not stored). The energy falls by decades past the onset of TIR at low roughness, where a cubic
+  // in E itself missed the direct fit by 10-70 %; its logarithm is close to linear there. The floor (a tenth
+  // of the smallest lobe energy the checks count, 1e-3) keeps nodes without a lobe (E = 0) finite.
+  static constexpr float kEnergyFloor = 1e-4f;
+  std::vector<float> log_energy_;
+  void derive_interpolated();
   bool loaded_from_cache_ = false;
   struct Empty {};
   explicit TransmissionSgTable(Empty);  // no nodes built (load fills them)
