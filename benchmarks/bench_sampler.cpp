@@ -1,7 +1,9 @@
 // The Owen-scrambled Sobol sampler (bridge/render/sampler.h) per path vertex: one 4D BSDF set and one 2D
-// light set, against the sampler before the precomputed tables (kept here as the reference: per 2D pair a
-// hash, three nested uniform scrambles and the second dimension bit by bit), which drew the same eight
-// numbers per vertex as four 2D pairs. Compare the two figures of one run (the machine may be shared).
+// light set, against two earlier samplers kept here as references: the per-dimension tables (one 32-bit
+// table per dimension, one bit reversal per dimension; the same points as today's pair tables), and the
+// sampler before the precomputed tables (per 2D pair a hash, three nested uniform scrambles and the second
+// dimension bit by bit), which drew the same eight numbers per vertex as four 2D pairs. Compare the
+// figures of one run (the machine may be shared).
 #include <benchmark/benchmark.h>
 
 #include "render/sampler.h"
@@ -31,6 +33,33 @@ struct BitwisePairSampler {
   }
 };
 
+// ---- The per-dimension-table sampler (same points as PixelSampler; reference for the speed ratio) ----
+struct PerDimensionTables {
+  uint32_t reversed[kSobolDimensions][4][256];
+};
+constexpr PerDimensionTables make_per_dimension_tables() {
+  PerDimensionTables t{};
+  for (int d = 0; d < kSobolDimensions; ++d)
+    for (int b = 0; b < 4; ++b)
+      for (uint32_t byte = 0; byte < 256u; ++byte)
+        t.reversed[d][b][byte] = static_cast<uint32_t>(kSobolPairTables.reversed[d / 2][b][byte] >> (32 * (d % 2)));
+  return t;
+}
+constexpr PerDimensionTables kPerDimensionTables = make_per_dimension_tables();
+struct PerDimensionTableSampler {
+  uint32_t pixel_seed, sample_reversed;
+  template <int N>
+  void get(uint32_t set, float (&out)[N]) const {
+    const uint32_t set_seed = hash_combine(pixel_seed, set);
+    const uint32_t r = laine_karras_permutation(sample_reversed, set_seed);
+    for (int d = 0; d < N; ++d) {
+      const auto &t = kPerDimensionTables.reversed[d];
+      const uint32_t sobol = t[0][r & 0xffu] ^ t[1][(r >> 8) & 0xffu] ^ t[2][(r >> 16) & 0xffu] ^ t[3][r >> 24];
+      out[d] = uint_to_unit_float(reverse_bits(laine_karras_permutation(sobol, dimension_seed(set_seed, d))));
+    }
+  }
+};
+
 constexpr int kBounces = 4;
 
 void BM_SamplerPathVertices(benchmark::State &state) {
@@ -50,6 +79,24 @@ void BM_SamplerPathVertices(benchmark::State &state) {
   state.SetItemsProcessed(state.iterations() * kBounces);
 }
 BENCHMARK(BM_SamplerPathVertices);
+
+void BM_SamplerPathVerticesPerDimensionTablesReference(benchmark::State &state) {
+  uint32_t sample = 0;
+  float acc = 0.0f;
+  for (auto _ : state) {
+    const PerDimensionTableSampler sampler{hash_u32x2(1u, sample & 0xffffu), reverse_bits(sample >> 16)};
+    for (int b = 0; b < kBounces; ++b) {
+      float bsdf[4], light[2];
+      sampler.get(bounce_set(b, kSetBsdf), bsdf);
+      sampler.get(bounce_set(b, kSetLight), light);
+      acc += bsdf[0] + bsdf[1] + bsdf[2] + bsdf[3] + light[0] + light[1];
+    }
+    ++sample;
+  }
+  benchmark::DoNotOptimize(acc);
+  state.SetItemsProcessed(state.iterations() * kBounces);
+}
+BENCHMARK(BM_SamplerPathVerticesPerDimensionTablesReference);
 
 void BM_SamplerPathVerticesBitwiseReference(benchmark::State &state) {
   uint32_t sample = 0;

@@ -6,10 +6,10 @@
 // Every value is a pure function of its arguments, so images do not depend on
 // thread count or tile size.
 //
-// Cost: the Sobol generator matrices of the four dimensions are precomputed
-// (compile time) as byte tables of the bit-reversed columns, so a dimension is
-// four table look-ups, one Laine-Karras permutation and one bit reversal; a set
-// costs one seed hash and one index shuffle for all its dimensions.
+// Cost: the Sobol generator matrices of the four dimensions are precomputed (compile time) as byte tables
+// of the bit-reversed columns, two dimensions per 64-bit entry, so a pair of dimensions is four table
+// look-ups, two Laine-Karras permutations and one 64-bit bit reversal; a set costs one seed hash and one
+// index shuffle for all its dimensions.
 #pragma once
 
 #include <array>
@@ -82,15 +82,17 @@ constexpr uint32_t sobol_by_matrix(int dim, uint32_t i) {
 }
 
 // Byte tables of the generator matrices for an index given in bit-reversed order r = reverse_bits(i), with
-// bit-reversed columns: reverse_bits(sobol(dim, i)) is the XOR of table[dim][b][byte b of r] over the four
-// bytes of r (bit j of r is bit 31 - j of i, whose column is v_{31-j}). The shuffled index comes out of the
-// Laine-Karras permutation in that order, and the scramble that follows works on reversed bits too, so
-// neither needs a reversal.
-struct SobolTables {
-  uint32_t reversed[kSobolDimensions][4][256];
+// bit-reversed columns, two dimensions per entry: dimension 2p in the low word of table[p], 2p + 1 in the
+// high word. reverse_bits(sobol(dim, i)) is the XOR of the entries for the four bytes of r (bit j of r is bit
+// 31 - j of i, whose column is v_{31-j}), so one set of four 64-bit look-ups gives a pair of dimensions. The
+// shuffled index comes out of the Laine-Karras permutation in that order, and the scramble that follows
+// works on reversed bits too, so neither needs a reversal.
+constexpr int kSobolPairs = kSobolDimensions / 2;
+struct SobolPairTables {
+  uint64_t reversed[kSobolPairs][4][256];
 };
-constexpr SobolTables make_sobol_tables() {
-  SobolTables t{};
+constexpr SobolPairTables make_sobol_pair_tables() {
+  SobolPairTables t{};
   for (int d = 0; d < kSobolDimensions; ++d) {
     const std::array<uint32_t, 32> v = sobol_direction_numbers(d);
     for (int b = 0; b < 4; ++b)
@@ -98,18 +100,31 @@ constexpr SobolTables make_sobol_tables() {
         uint32_t r = 0u;
         for (int bit = 0; bit < 8; ++bit)
           if ((byte >> bit) & 1u) r ^= reverse_bits(v[31 - (8 * b + bit)]);
-        t.reversed[d][b][byte] = r;
+        t.reversed[d / 2][b][byte] |= static_cast<uint64_t>(r) << (32 * (d % 2));
       }
   }
   return t;
 }
-inline constexpr SobolTables kSobolTables = make_sobol_tables();
+inline constexpr SobolPairTables kSobolPairTables = make_sobol_pair_tables();
 
-// reverse_bits(sobol(dim, reverse_bits(index_reversed))).
-inline uint32_t sobol_reversed(int dim, uint32_t index_reversed) {
-  const auto &t = kSobolTables.reversed[dim];
+// reverse_bits(sobol(2p, i)) | reverse_bits(sobol(2p + 1, i)) << 32 for i = reverse_bits(index_reversed).
+inline uint64_t sobol_pair_reversed(int pair, uint32_t index_reversed) {
+  const auto &t = kSobolPairTables.reversed[pair];
   const uint32_t r = index_reversed;
   return t[0][r & 0xffu] ^ t[1][(r >> 8) & 0xffu] ^ t[2][(r >> 16) & 0xffu] ^ t[3][r >> 24];
+}
+// reverse_bits(sobol(dim, reverse_bits(index_reversed))).
+inline uint32_t sobol_reversed(int dim, uint32_t index_reversed) {
+  return static_cast<uint32_t>(sobol_pair_reversed(dim / 2, index_reversed) >> (32 * (dim % 2)));
+}
+
+// Both words of x bit-reversed and swapped: reverse_bits64(hi << 32 | lo) = reverse_bits(lo) << 32 |
+// reverse_bits(hi), so one reversal serves a pair of dimensions.
+constexpr uint64_t reverse_bits64(uint64_t x) {
+  x = ((x >> 1) & 0x5555555555555555ull) | ((x & 0x5555555555555555ull) << 1);
+  x = ((x >> 2) & 0x3333333333333333ull) | ((x & 0x3333333333333333ull) << 2);
+  x = ((x >> 4) & 0x0f0f0f0f0f0f0f0full) | ((x & 0x0f0f0f0f0f0f0f0full) << 4);
+  return __builtin_bswap64(x);
 }
 
 // Scramble seed of dimension d of a set: the (already hashed) set seed times a per-dimension odd constant,
@@ -145,16 +160,23 @@ struct PixelSampler {
   PixelSampler(uint32_t seed, uint32_t pixel_index, uint32_t sample_index)
       : pixel_seed(hash_u32x2(seed, pixel_index)), sample_reversed(reverse_bits(sample_index)) {}
 
-  // The first N Sobol dimensions of set `set` at this sample, each in [0, 1).
+  // The first N Sobol dimensions of set `set` at this sample, each in [0, 1). Dimensions go by pairs: one
+  // table look-up per index byte for both, one scramble each, one 64-bit reversal for both.
   template <int N>
   void get(uint32_t set, float (&out)[N]) const {
     static_assert(N >= 1 && N <= kSobolDimensions);
     const uint32_t set_seed = hash_combine(pixel_seed, set);
     // Shuffled index (Burley 2020, sec. 4): a nested uniform scramble of the sample index, kept reversed.
     const uint32_t index_reversed = laine_karras_permutation(sample_reversed, set_seed);
-    for (int d = 0; d < N; ++d) {
-      const uint32_t x = laine_karras_permutation(sobol_reversed(d, index_reversed), dimension_seed(set_seed, d));
-      out[d] = uint_to_unit_float(reverse_bits(x));
+    for (int p = 0; 2 * p < N; ++p) {
+      const uint64_t sobol = sobol_pair_reversed(p, index_reversed);
+      const uint64_t lo = laine_karras_permutation(static_cast<uint32_t>(sobol), dimension_seed(set_seed, 2 * p));
+      const uint64_t hi = 2 * p + 1 < N
+                              ? laine_karras_permutation(static_cast<uint32_t>(sobol >> 32), dimension_seed(set_seed, 2 * p + 1))
+                              : 0u;
+      const uint64_t values = reverse_bits64(hi << 32 | lo);  // reverse_bits(lo) << 32 | reverse_bits(hi)
+      out[2 * p] = uint_to_unit_float(static_cast<uint32_t>(values >> 32));
+      if (2 * p + 1 < N) out[2 * p + 1] = uint_to_unit_float(static_cast<uint32_t>(values));
     }
   }
   void get2(uint32_t set, float &u, float &v) const {

@@ -1,9 +1,9 @@
 // The Owen-scrambled Sobol sampler (bridge/render/sampler.h): the precomputed generator-matrix tables agree
 // with the direction-number recurrence and with the bit-by-bit van der Corput / second-dimension
-// constructions; the first 2^m samples of every set are stratified (each dimension one point per 1/2^m
-// interval, dimensions 0-1 a (0, m, 2)-net), which independent random numbers fail (negative control);
-// values are a pure function of (seed, pixel, sample, set). And choose_and_rescale keeps a stratified
-// sample stratified within each branch.
+// constructions, and the sampler's pair tables give the points of the per-dimension definition; the first
+// 2^m samples of every set are stratified (each dimension one point per 1/2^m interval, dimensions 0-1 a
+// (0, m, 2)-net), which independent random numbers fail (negative control); values are a pure function of
+// (seed, pixel, sample, set). And choose_and_rescale keeps a stratified sample stratified within each branch.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -37,6 +37,51 @@ TEST(Sampler, GeneratorTablesMatchTheRecurrence) {
     EXPECT_EQ(sobol_by_matrix(d, 2), d == 0 ? 0x40000000u : 0xc0000000u);
     EXPECT_EQ(sobol_by_matrix(d, 3), d == 0 ? 0xc0000000u : 0x40000000u);
   }
+}
+
+// Dimension d of set `set` by its definition, one dimension at a time: the sample index shuffled by a nested
+// uniform scramble, the Sobol point by the generator matrix, then the dimension's nested uniform scramble
+// (Burley 2020, sec. 3-4). `swap_pair` is a known bug for the negative control: the two words of a
+// dimension pair exchanged.
+float sampler_by_definition(uint32_t seed, uint32_t pixel, uint32_t sample, uint32_t set, int d, bool swap_pair = false) {
+  const uint32_t set_seed = hash_combine(hash_u32x2(seed, pixel), set);
+  const uint32_t index = reverse_bits(laine_karras_permutation(reverse_bits(sample), set_seed));
+  const int column = swap_pair ? d ^ 1 : d;
+  const uint32_t x = reverse_bits(laine_karras_permutation(reverse_bits(sobol_by_matrix(column, index)), dimension_seed(set_seed, d)));
+  return uint_to_unit_float(x);
+}
+
+TEST(Sampler, PairTablesGiveThePointsOfTheDefinition) {
+  Pcg32 rng(11);
+  int swapped_differs = 0;
+  const int n = 20000;
+  for (int k = 0; k < n; ++k) {
+    const uint32_t seed = rng.next_u32(), pixel = rng.next_u32() & 0xfffffu;
+    const uint32_t sample = k < 1000 ? static_cast<uint32_t>(k) : rng.next_u32() & 0xffffu;
+    const uint32_t set = k % 3 == 0 ? kSetLens : bounce_set(static_cast<int>(rng.next_u32() % 64u), k % 2);
+    const PixelSampler sampler(seed, pixel, sample);
+    float v1[1], v2[2], v3[3], v4[4];
+    sampler.get(set, v1);
+    sampler.get(set, v2);
+    sampler.get(set, v3);
+    sampler.get(set, v4);
+    for (int d = 0; d < 4; ++d) {
+      const float expected = sampler_by_definition(seed, pixel, sample, set, d);
+      ASSERT_EQ(v4[d], expected) << "dimension " << d << " sample " << sample;
+      if (d < 3) {
+        ASSERT_EQ(v3[d], expected);
+      }
+      if (d < 2) {
+        ASSERT_EQ(v2[d], expected);
+      }
+      if (d < 1) {
+        ASSERT_EQ(v1[d], expected);
+      }
+      if (sampler_by_definition(seed, pixel, sample, set, d, true) != v4[d]) ++swapped_differs;
+    }
+  }
+  // Negative control: exchanging the words of a pair (a wrong half of the 64-bit reversal) is caught.
+  EXPECT_GT(swapped_differs, 4 * n * 9 / 10);
 }
 
 // Whether the points (in [0,1)^2) form a (0, m, 2)-net: every elementary box 2^-a x 2^-(m-a) holds one point.
