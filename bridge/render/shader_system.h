@@ -172,6 +172,7 @@ class ShaderSystem {
   std::map<std::string, std::unique_ptr<ImageTexture>> images_;
   std::vector<nodes::NodeProgram> programs_;
   std::vector<Input> program_externals_;  // textures outside the node table that programs read
+  std::vector<std::unique_ptr<scene::ShaderGraph>> expanded_graphs_;  // composites (principled_bsdf) expanded
 
   struct BackgroundShader {
     bool active = false;
