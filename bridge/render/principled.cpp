@@ -64,8 +64,8 @@ class Composite {
     return *std::max_element(v.begin(), v.end());
   }
 
-  // Present in the result: linked, or a constant that `nonzero` accepts.
-  bool active(const char *socket, bool (*nonzero)(float)) const { return linked(socket) || nonzero(constant(socket)); }
+  // The term is present: the socket is linked, or its constant passes `matters`.
+  bool active(const char *socket, bool (*matters)(float)) const { return linked(socket) || matters(constant(socket)); }
 
   // mix_closure(fac = the principled `fac_socket`, a, b); a constant fac of 1 is b alone.
   std::string mix(const char *part, const char *fac_socket, const std::string &a, const std::string &b) {

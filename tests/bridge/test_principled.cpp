@@ -19,25 +19,6 @@ namespace {
 // A coloured background, a point light up-left, a unit sphere 4 units away seen
 // whole (grazing angles included) with background around it.
 std::string sphere_scene(const std::string &name, const std::string &shader_nodes) {
-  const int rings = 24, segments = 48;
-  std::string P, N, verts, nverts;
-  char buf[96];
-  for (int i = 0; i <= rings; ++i)
-    for (int j = 0; j <= segments; ++j) {
-      const double theta = M_PI * i / rings, phi = 2.0 * M_PI * j / segments;
-      const double x = std::sin(theta) * std::cos(phi), y = std::cos(theta), z = std::sin(theta) * std::sin(phi);
-      std::snprintf(buf, sizeof(buf), "%.7f %.7f %.7f ", x, y, z + 4.0);
-      P += buf;
-      std::snprintf(buf, sizeof(buf), "%.7f %.7f %.7f ", x, y, z);
-      N += buf;
-    }
-  for (int i = 0; i < rings; ++i)
-    for (int j = 0; j < segments; ++j) {
-      const int a = i * (segments + 1) + j, b = a + segments + 1;
-      std::snprintf(buf, sizeof(buf), "%d %d %d %d ", a, a + 1, b + 1, b);
-      verts += buf;
-      nverts += "4 ";
-    }
   return write_file(
       name, "<cycles>\n<camera width=\"32\" height=\"32\" fov=\"0.6\" />\n<camera />\n"
             "<integrator sample_clamp_direct=\"0\" sample_clamp_indirect=\"0\" filter_glossy=\"0\" />\n"
@@ -45,19 +26,11 @@ std::string sphere_scene(const std::string &name, const std::string &shader_node
             "<connect from=\"bg background\" to=\"output surface\" /></background>\n"
             "<state><light light_type=\"point\" co=\"-2 2 1\" strength=\"200 200 200\" /></state>\n"
             "<shader name=\"s\">\n" + shader_nodes + "\n</shader>\n"
-            "<state shader=\"s\" interpolation=\"smooth\"><mesh P=\"" + P + "\" N=\"" + N + "\" nverts=\"" + nverts +
-            "\" verts=\"" + verts + "\" /></state>\n</cycles>\n");
+            "<state shader=\"s\" interpolation=\"smooth\">" + uv_sphere_mesh(24, 48, 4.0) + "</state>\n</cycles>\n");
 }
 
 render::RenderResult render(const std::string &path, std::vector<std::string> *warnings = nullptr) {
-  const scene::Scene scene = scene::load_scene(path);
-  render::RenderOptions opt;
-  opt.samples = 16;
-  render::Renderer renderer(scene, plugin(), opt);
-  render::RenderResult r = renderer.render();
-  if (warnings) *warnings = renderer.warnings();
-  EXPECT_EQ(r.nan_samples, 0u);
-  return r;
+  return render_with_warnings(path, 16, warnings);
 }
 
 // The largest |z| over the three channels of the mean per-pixel difference.
