@@ -103,7 +103,7 @@ def nodes_table(nodes):
             notes.append("fixed: " + ", ".join("%s=%s" % kv for kv in sorted(n["fixed"].items())))
         if n["filter_glossy"]:
             notes.append("filter_glossy blurs it")
-        closure = n["closure"] or ("host" if n["kind"] == "transparent" else "-")
+        closure = n["closure"] or {"transparent": "host", "composite": "host composite"}.get(n["kind"], "-")
         lines.append("| `%s` | %s | %s | %s |" % (n["node"], closure, "<br>".join(sockets) or "-", "; ".join(notes)))
     return "\n".join(lines)
 

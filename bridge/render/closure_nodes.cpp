@@ -5,6 +5,7 @@
 #include "cli/json_number.h"  // floats in their shortest decimal form
 #include "host/closure_instance.h"
 #include "host/plugin_library.h"
+#include "render/principled.h"
 
 namespace glimmer::render {
 
@@ -105,7 +106,7 @@ const std::vector<ClosureNodeRow> &closure_node_rows() {
        .closure = "frosted_glass",
        .schema = true,
        .doc = "sockets are the closure's parameters (glimmer describe); a textured colour is the weight"},
-      {.node = "principled_bsdf", .kind = NodeKind::Fallback, .doc = "not supported: grey (0.8) diffuse"},
+      principled_row(),
       {.node = "holdout", .kind = NodeKind::Holdout, .output = "holdout", .doc = "not supported: no closure (black)"},
   };
   return rows;
@@ -156,7 +157,7 @@ const char *socket_role_name(SocketRole role) {
 
 nlohmann::json describe_closure_nodes(const host::PluginLibrary &plugin) {
   nlohmann::json out = nlohmann::json::array();
-  const char *kinds[] = {"closure", "transparent", "fallback", "holdout"};
+  const char *kinds[] = {"closure", "transparent", "fallback", "holdout", "composite"};
   for (const ClosureNodeRow &table_row : closure_node_rows()) {
     const GlimmerClosureType *type = table_row.closure ? plugin.find(table_row.closure) : nullptr;
     ClosureNodeRow row = table_row.schema && type ? schema_row(*type, table_row.node) : table_row;

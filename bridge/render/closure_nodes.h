@@ -49,8 +49,9 @@ struct SocketRow {
 enum class NodeKind {
   Closure,      // a DSO closure
   Transparent,  // host-side pass-through (transparent_bsdf)
-  Fallback,     // not supported: grey (0.8) diffuse with a warning (principled_bsdf, ...)
+  Fallback,     // not supported: grey (0.8) diffuse with a warning
   Holdout,      // no closure (black) with a warning
+  Composite,    // expanded by the host into closure nodes of this table (principled_bsdf: render/principled.cpp)
 };
 
 struct ClosureNodeRow {

@@ -5,6 +5,7 @@
 #include <functional>
 
 #include "render/nodes/shading_normal.h"
+#include "render/principled.h"
 #include "scene/xml_loader.h"
 
 namespace glimmer::render {
@@ -618,9 +619,16 @@ int ShaderSystem::compile_closure(const ShaderGraph &g, const std::string &node_
     warn(n->where, "volume node <" + t + "> is not supported; ignored");
     return -1;
   }
+  if (const ClosureNodeRow *row = find_closure_node(t); row && row->kind == NodeKind::Composite) {
+    expanded_graphs_.push_back(std::make_unique<ShaderGraph>());
+    ShaderGraph &expanded = *expanded_graphs_.back();
+    const std::string output = expand_principled(
+        g, *n, expanded, [this](const scene::SourceLocation &where, const std::string &message) { warn(where, message); });
+    return compile_closure(expanded, output, "surface", out, depth + 1);
+  }
   const int leaf = make_leaf(g, *n, out);
   if (leaf >= 0) return leaf;
-  // Unknown closure-producing node (osl_shader, principled_bsdf, ...): grey diffuse.
+  // Unknown closure-producing node (osl_shader, ...): grey diffuse.
   warn(n->where, "node <" + t + "> is not supported; the surface falls back to a grey (0.8) diffuse closure");
   ShaderNode grey;
   grey.type = "diffuse_bsdf";

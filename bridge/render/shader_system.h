@@ -191,6 +191,7 @@ class ShaderSystem {
   std::unique_ptr<TextureCache> texture_cache_;  // created by the first image a used shader reads
   std::vector<nodes::NodeProgram> programs_;
   std::vector<Input> program_externals_;  // textures outside the node table that programs read
+  std::vector<std::unique_ptr<scene::ShaderGraph>> expanded_graphs_;  // composites (principled_bsdf) expanded
 
   struct BackgroundShader {
     bool active = false;

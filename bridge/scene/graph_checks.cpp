@@ -36,7 +36,9 @@ const std::map<std::string, NodeSockets, std::less<>> &known_sockets() {
         {"texture_coordinate", {{}, {"generated", "normal", "uv", "object", "camera", "window", "reflection"}}},
     };
     for (const render::ClosureNodeRow &row : render::closure_node_rows()) {
-      if (row.schema || (row.kind != render::NodeKind::Closure && row.kind != render::NodeKind::Transparent)) continue;
+      if (row.schema || (row.kind != render::NodeKind::Closure && row.kind != render::NodeKind::Transparent &&
+                         row.kind != render::NodeKind::Composite))
+        continue;
       NodeSockets &sockets = t[row.node];
       for (const render::SocketRow &socket : row.sockets)
         for (const char *name : {socket.socket, socket.alias})

@@ -41,6 +41,42 @@ inline render::RenderResult render_scene(const std::string &path, render::Render
   return renderer.render();
 }
 
+// A unit UV sphere centred at (0, 0, z) with exact normals, as a <mesh> element (use it smooth).
+inline std::string uv_sphere_mesh(int rings, int segments, double z) {
+  std::string P, N, verts, nverts;
+  char buf[96];
+  for (int i = 0; i <= rings; ++i)
+    for (int j = 0; j <= segments; ++j) {
+      const double theta = M_PI * i / rings, phi = 2.0 * M_PI * j / segments;
+      const double x = std::sin(theta) * std::cos(phi), y = std::cos(theta), s = std::sin(theta) * std::sin(phi);
+      std::snprintf(buf, sizeof(buf), "%.7f %.7f %.7f ", x, y, s + z);
+      P += buf;
+      std::snprintf(buf, sizeof(buf), "%.7f %.7f %.7f ", x, y, s);
+      N += buf;
+    }
+  for (int i = 0; i < rings; ++i)
+    for (int j = 0; j < segments; ++j) {
+      const int a = i * (segments + 1) + j, b = a + segments + 1;
+      std::snprintf(buf, sizeof(buf), "%d %d %d %d ", a, a + 1, b + 1, b);
+      verts += buf;
+      nverts += "4 ";
+    }
+  return "<mesh P=\"" + P + "\" N=\"" + N + "\" nverts=\"" + nverts + "\" verts=\"" + verts + "\" />";
+}
+
+// Renders `path` in process with `samples` per pixel; fills `warnings` when given; expects no NaN sample.
+inline render::RenderResult render_with_warnings(const std::string &path, int samples,
+                                                 std::vector<std::string> *warnings = nullptr) {
+  const scene::Scene scene = scene::load_scene(path);
+  render::RenderOptions opt;
+  opt.samples = samples;
+  render::Renderer renderer(scene, plugin(), opt);
+  render::RenderResult r = renderer.render();
+  if (warnings) *warnings = renderer.warnings();
+  EXPECT_EQ(r.nan_samples, 0u);
+  return r;
+}
+
 // Runs the CLI; returns its exit code and fills `output` with stdout+stderr.
 inline int run_cli(const std::string &args, std::string &output) {
   const auto log = temp_dir() / "cli_output.txt";

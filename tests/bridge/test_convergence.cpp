@@ -28,32 +28,13 @@ const char *kWhiteWorld = "<background name=\"bg\" color=\"1 1 1\" strength=\"1\
 
 std::string white_world_sphere(const std::string &name, const std::string &shader_nodes,
                                const std::string &integrator_attributes, const std::string &world_nodes = kWhiteWorld) {
-  const int rings = 48, segments = 96;
-  std::string P, N, verts, nverts;
-  char buf[96];
-  for (int i = 0; i <= rings; ++i)
-    for (int j = 0; j <= segments; ++j) {
-      const double theta = M_PI * i / rings, phi = 2.0 * M_PI * j / segments;
-      const double x = std::sin(theta) * std::cos(phi), y = std::cos(theta), z = std::sin(theta) * std::sin(phi);
-      std::snprintf(buf, sizeof(buf), "%.7f %.7f %.7f ", x, y, z + 4.0);
-      P += buf;
-      std::snprintf(buf, sizeof(buf), "%.7f %.7f %.7f ", x, y, z);
-      N += buf;
-    }
-  for (int i = 0; i < rings; ++i)
-    for (int j = 0; j < segments; ++j) {
-      const int a = i * (segments + 1) + j, b = a + segments + 1;
-      std::snprintf(buf, sizeof(buf), "%d %d %d %d ", a, a + 1, b + 1, b);
-      verts += buf;
-      nverts += "4 ";
-    }
   return write_file(name, "<cycles>\n<camera width=\"32\" height=\"32\" fov=\"0.3\" />\n<camera />\n"
                           "<integrator sample_clamp_direct=\"0\" sample_clamp_indirect=\"0\" filter_glossy=\"0\" " +
                               integrator_attributes + " />\n"
                           "<background>" + world_nodes + "</background>\n"
                           "<shader name=\"s\">" + shader_nodes + "</shader>\n"
-                          "<state shader=\"s\" interpolation=\"smooth\"><mesh P=\"" + P + "\" N=\"" + N + "\" nverts=\"" +
-                              nverts + "\" verts=\"" + verts + "\" /></state>\n</cycles>\n");
+                          "<state shader=\"s\" interpolation=\"smooth\">" + uv_sphere_mesh(48, 96, 4.0) +
+                              "</state>\n</cycles>\n");
 }
 
 // A white world through an environment texture: the same radiance, but spatially varying for the renderer,

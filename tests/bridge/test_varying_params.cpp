@@ -44,14 +44,7 @@ std::string quad_scene(const std::string &name, const std::string &nodes, const 
 }
 
 render::RenderResult render(const std::string &path, std::vector<std::string> *warnings = nullptr) {
-  const scene::Scene scene = scene::load_scene(path);
-  render::RenderOptions opt;
-  opt.samples = 4;
-  render::Renderer renderer(scene, plugin(), opt);
-  render::RenderResult r = renderer.render();
-  if (warnings) *warnings = renderer.warnings();
-  EXPECT_EQ(r.nan_samples, 0u);
-  return r;
+  return render_with_warnings(path, 4, warnings);
 }
 
 // Which checker cell every sample of a pixel saw: 1 = all color1 (A), 0 = all color2 (B), else mixed.

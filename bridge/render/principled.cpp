@@ -1,0 +1,258 @@
+#include "render/principled.h"
+
+#include <algorithm>
+#include <map>
+
+#include "cli/json_number.h"
+#include "scene/xml_loader.h"
+
+namespace glimmer::render {
+
+using scene::ShaderGraph;
+using scene::ShaderLink;
+using scene::ShaderNode;
+
+namespace {
+
+using R = SocketRole;
+
+// Disney's `specular` maps to a dielectric f0 of 0.08 * specular (Burley 2012, sec. 5.6).
+constexpr float kSpecularToF0 = 0.08f;
+// The clearcoat layer: a dielectric of IOR 1.5 (Burley 2012: f0 = 0.04).
+constexpr const char *kClearcoatIor = "1.5";
+
+// Builds the composite's nodes into `out` (a copy of `g`), named after the principled node.
+class Composite {
+ public:
+  Composite(const ShaderGraph &g, const ShaderNode &n, ShaderGraph &out, const ClosureNodeRow &row)
+      : g_(g), n_(n), out_(out), row_(row) {}
+
+  std::string add(const std::string &part, const std::string &type,
+                  std::map<std::string, std::string> attributes = {}) {
+    ShaderNode node;
+    node.type = type;
+    node.name = n_.name + "__" + part;
+    node.attributes = std::move(attributes);
+    node.where = n_.where;
+    out_.nodes.push_back(std::move(node));
+    return out_.nodes.back().name;
+  }
+
+  // The principled `socket` (its attribute, else its default, and its link) onto `node`.`target`.
+  void carry(const char *socket, const std::string &node, const char *target) {
+    const std::string *text = attribute(socket);
+    set(node, target, text ? *text : cli::json_float(default_of(socket)).dump());
+    if (const ShaderLink *l = link(socket)) out_.links.push_back({l->from_node, l->from_socket, node, target, l->where});
+  }
+
+  void set(const std::string &node, const char *attribute, const std::string &value) {
+    node_named(node).attributes[attribute] = value;
+  }
+
+  void connect(const std::string &from, const char *from_socket, const std::string &to, const char *to_socket) {
+    out_.links.push_back({from, from_socket, to, to_socket, n_.where});
+  }
+
+  bool linked(const char *socket) const { return link(socket) != nullptr; }
+
+  // The socket's constant: its largest number (a colour's maximum component), else the default.
+  float constant(const char *socket) const {
+    const std::string *text = attribute(socket);
+    if (!text) return default_of(socket);
+    const auto v = scene::parse_floats(*text, n_.where, "<" + n_.type + "> " + socket);
+    if (v.empty()) return default_of(socket);
+    return *std::max_element(v.begin(), v.end());
+  }
+
+  // The term is present: the socket is linked, or its constant passes `matters`.
+  bool active(const char *socket, bool (*matters)(float)) const { return linked(socket) || matters(constant(socket)); }
+
+  // mix_closure(fac = the principled `fac_socket`, a, b); a constant fac of 1 is b alone.
+  std::string mix(const char *part, const char *fac_socket, const std::string &a, const std::string &b) {
+    if (!linked(fac_socket) && constant(fac_socket) >= 1.0f) return b;
+    const std::string m = add(part, "mix_closure");
+    carry(fac_socket, m, "fac");
+    connect(a, output_of(a), m, "closure1");
+    connect(b, output_of(b), m, "closure2");
+    return m;
+  }
+
+  const char *output_of(const std::string &node) {
+    const std::string &type = node_named(node).type;
+    if (type == "mix_closure" || type == "add_closure") return "closure";
+    return type == "emission" ? "emission" : "bsdf";
+  }
+
+ private:
+  const ShaderGraph &g_;
+  const ShaderNode &n_;
+  ShaderGraph &out_;
+  const ClosureNodeRow &row_;
+
+  float default_of(const char *socket) const { return row_.find(socket)->default_value; }
+  // The socket's attribute under its name or alias (`ior` / `IOR`), or nullptr.
+  const std::string *attribute(const char *socket) const {
+    const SocketRow *s = row_.find(socket);
+    for (const char *name : {s->socket, s->alias})
+      if (auto a = name ? n_.attributes.find(name) : n_.attributes.end(); a != n_.attributes.end()) return &a->second;
+    return nullptr;
+  }
+  const ShaderLink *link(const char *socket) const {
+    const SocketRow *s = row_.find(socket);
+    const ShaderLink *l = g_.link_to(n_.name, s->socket);
+    return l || !s->alias ? l : g_.link_to(n_.name, s->alias);
+  }
+  ShaderNode &node_named(const std::string &name) {
+    for (ShaderNode &node : out_.nodes)
+      if (node.name == name) return node;
+    throw scene::SceneError(n_.where, "principled_bsdf: internal node '" + name + "' missing");
+  }
+};
+
+bool positive(float v) { return v > 0.0f; }
+bool below_one(float v) { return v < 1.0f; }
+
+// Unsupported sockets: a non-default constant warns with the row's note, a link warns at the link.
+void warn_unsupported(const ShaderGraph &g, const ShaderNode &n, const ClosureNodeRow &row,
+                      const PrincipledWarn &warn) {
+  for (const SocketRow &s : row.sockets) {
+    if (s.role == R::Ignored) {
+      if (const ShaderLink *l = g.link_to(n.name, s.socket))
+        warn(l->where, "<principled_bsdf> linked input '" + std::string(s.socket) + "' is not supported; ignored");
+      continue;
+    }
+    if (s.role != R::Unsupported) continue;
+    const ShaderLink *l = g.link_to(n.name, s.socket);
+    const auto a = n.attributes.find(s.socket);
+    bool set = false;
+    if (a != n.attributes.end())
+      for (float v : scene::parse_floats(a->second, n.where, "<principled_bsdf> " + std::string(s.socket)))
+        set = set || v != s.default_value;
+    if (l || set) warn(l ? l->where : n.where, std::string("principled_bsdf: ") + s.note);
+  }
+}
+
+}  // namespace
+
+ClosureNodeRow principled_row() {
+  return {
+      .node = "principled_bsdf",
+      .kind = NodeKind::Composite,
+      .sockets =
+          {{.socket = "base_color", .role = R::Weight, .default_value = 0.8f},
+           {.socket = "metallic", .role = R::Param, .param = "mix fac (metal glossy)", .default_value = 0.0f,
+            .min = 0, .max = 1},
+           {.socket = "specular", .role = R::Param, .param = "dielectric glossy colour 0.08 * specular",
+            .default_value = 0.5f},
+           {.socket = "roughness", .role = R::Param, .param = "roughness (glossy, metal, glass)",
+            .default_value = 0.5f, .min = 0, .max = 1},
+           {.socket = "transmission", .role = R::Param, .param = "mix fac (glass)", .default_value = 0.0f,
+            .min = 0, .max = 1},
+           {.socket = "ior", .role = R::Param, .param = "glass IOR", .default_value = 1.45f, .alias = "IOR"},
+           {.socket = "clearcoat", .role = R::Param, .param = "coat mix fac clearcoat * Fresnel(1.5)",
+            .default_value = 0.0f, .min = 0, .max = 1},
+           {.socket = "clearcoat_roughness", .role = R::Param, .param = "coat GGX roughness",
+            .default_value = 0.03f, .min = 0, .max = 1},
+           {.socket = "alpha", .role = R::Param, .param = "mix fac (transparent)", .default_value = 1.0f,
+            .min = 0, .max = 1},
+           {.socket = "emission", .role = R::Param, .param = "emission colour", .default_value = 0.0f},
+           {.socket = "emission_strength", .role = R::Param, .param = "emission strength", .default_value = 1.0f},
+           {.socket = "sheen", .role = R::Unsupported, .default_value = 0.0f,
+            .note = "sheen not supported (no sheen closure in the plugin); dropped"},
+           {.socket = "subsurface", .role = R::Unsupported, .default_value = 0.0f,
+            .note = "subsurface scattering is not supported; dropped"},
+           {.socket = "anisotropic", .role = R::Unsupported, .default_value = 0.0f,
+            .note = "anisotropic is not supported; the specular lobes are isotropic"},
+           {.socket = "specular_tint", .role = R::Unsupported, .default_value = 0.0f,
+            .note = "specular_tint is not supported; the dielectric specular is untinted"},
+           {.socket = "transmission_roughness", .role = R::Unsupported, .default_value = 0.0f,
+            .note = "transmission_roughness is not supported; the glass uses roughness"},
+           {.socket = "sheen_tint", .role = R::Ignored},
+           {.socket = "subsurface_color", .role = R::Ignored},
+           {.socket = "subsurface_radius", .role = R::Ignored},
+           {.socket = "subsurface_ior", .role = R::Ignored},
+           {.socket = "subsurface_anisotropy", .role = R::Ignored},
+           {.socket = "anisotropic_rotation", .role = R::Ignored},
+           {.socket = "normal", .role = R::Ignored},
+           {.socket = "clearcoat_normal", .role = R::Ignored},
+           {.socket = "tangent", .role = R::Ignored},
+           {.socket = "surface_mix_weight", .role = R::Ignored}},
+      .distribution = true,
+      .doc = "host composite (render/principled.cpp): mix(alpha, transparent, mix(clearcoat * Fresnel(1.5), "
+             "mix(metallic, mix(transmission, diffuse + glossy(0.08 specular), glass), glossy(base_color)), "
+             "glossy(1, clearcoat_roughness)) + emission); clearcoat is GGX (Cycles 3.4: GTR1)"};
+}
+
+std::string expand_principled(const ShaderGraph &g, const ShaderNode &n, ShaderGraph &expanded,
+                              const PrincipledWarn &warn) {
+  static const ClosureNodeRow row = principled_row();
+  expanded = g;
+  warn_unsupported(g, n, row, warn);
+  Composite c(g, n, expanded, row);
+  std::string distribution = "ggx";
+  if (auto d = n.attributes.find("distribution"); d != n.attributes.end()) distribution = d->second;
+
+  // Dielectric base: Lambert + a glossy lobe of reflectance 0.08 * specular.
+  const std::string diffuse = c.add("diffuse", "diffuse_bsdf");
+  c.carry("base_color", diffuse, "color");
+  const std::string specular = c.add("specular", "glossy_bsdf", {{"distribution", distribution}});
+  c.carry("roughness", specular, "roughness");
+  if (c.linked("specular")) {
+    const std::string scale = c.add("specular_f0", "math", {{"math_type", "multiply"}});
+    c.carry("specular", scale, "value1");
+    c.set(scale, "value2", cli::json_float(kSpecularToF0).dump());
+    c.connect(scale, "value", specular, "color");
+  } else {
+    c.set(specular, "color", cli::json_float(std::clamp(kSpecularToF0 * c.constant("specular"), 0.0f, 1.0f)).dump());
+  }
+  std::string result = c.add("dielectric", "add_closure");
+  c.connect(diffuse, "bsdf", result, "closure1");
+  c.connect(specular, "bsdf", result, "closure2");
+
+  if (c.active("transmission", positive)) {
+    const std::string glass = c.add("glass", "glass_bsdf", {{"distribution", distribution}});
+    c.carry("base_color", glass, "color");
+    c.carry("roughness", glass, "roughness");
+    c.carry("ior", glass, "IOR");
+    result = c.mix("transmission", "transmission", result, glass);
+  }
+  if (c.active("metallic", positive)) {
+    const std::string metal = c.add("metal", "glossy_bsdf", {{"distribution", distribution}});
+    c.carry("base_color", metal, "color");
+    c.carry("roughness", metal, "roughness");
+    result = c.mix("metallic", "metallic", result, metal);
+  }
+  // Clearcoat: a white GGX lobe of IOR 1.5 on top, weighted clearcoat * F(N.I); the base keeps 1 - clearcoat * F.
+  if (c.active("clearcoat", positive)) {
+    const std::string coat = c.add("clearcoat", "glossy_bsdf", {{"distribution", "ggx"}, {"color", "1"}});
+    c.carry("clearcoat_roughness", coat, "roughness");
+    const std::string fresnel = c.add("clearcoat_fresnel", "fresnel", {{"ior", kClearcoatIor}});
+    const std::string weight = c.add("clearcoat_weight", "math", {{"math_type", "multiply"}, {"use_clamp", "true"}});
+    c.carry("clearcoat", weight, "value1");
+    c.connect(fresnel, "fac", weight, "value2");
+    const std::string layered = c.add("clearcoat_layer", "mix_closure");
+    c.connect(weight, "value", layered, "fac");
+    c.connect(result, c.output_of(result), layered, "closure1");
+    c.connect(coat, "bsdf", layered, "closure2");
+    result = layered;
+  }
+  // Emission, then alpha over everything (as Cycles' PrincipledBsdfNode::expand).
+  if (c.active("emission", positive) && c.active("emission_strength", positive)) {
+    const std::string emit = c.add("emission", "emission");
+    c.carry("emission", emit, "color");
+    c.carry("emission_strength", emit, "strength");
+    const std::string sum = c.add("emit", "add_closure");
+    c.connect(result, c.output_of(result), sum, "closure1");
+    c.connect(emit, "emission", sum, "closure2");
+    result = sum;
+  }
+  if (c.active("alpha", below_one)) {
+    const std::string transparent = c.add("transparent", "transparent_bsdf", {{"color", "1"}});
+    result = c.mix("alpha", "alpha", transparent, result);
+  }
+  const std::string output = n.name + "__principled_output";
+  c.connect(result, c.output_of(result), output, "surface");
+  return output;
+}
+
+}  // namespace glimmer::render
