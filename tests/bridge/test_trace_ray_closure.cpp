@@ -78,7 +78,9 @@ TEST(TraceRayClosure, ReturnsHitNormalsAndTheClosureWithItsValuesThere) {
   EXPECT_NEAR(a.h.P.z, 3.0f, 1e-5f);
   EXPECT_NEAR(std::fabs(a.h.Ng.z), 1.0f, 1e-6f);
   EXPECT_NEAR(std::fabs(a.h.N.z), 1.0f, 1e-5f);
-  EXPECT_EQ(a.h.backfacing, a.h.Ng.z > 0.0f ? 1u : 0u);  // the ray travels along +z
+  // ABI 2.3 convention (closure_abi.h): N and Ng face the ray's origin; the ray travels along +z.
+  EXPECT_LT(a.h.Ng.z, 0.0f);
+  EXPECT_LT(a.h.N.z, 0.0f);
   ASSERT_NE(a.c.type, nullptr);
   EXPECT_STREQ(a.c.type->name, "frosted_glass");
   EXPECT_NE(a.c.instance, nullptr);
@@ -94,6 +96,8 @@ TEST(TraceRayClosure, ReturnsHitNormalsAndTheClosureWithItsValuesThere) {
   ASSERT_EQ(back.hit, 1);
   EXPECT_NEAR(back.h.t, 1.0f, 1e-5f);
   EXPECT_NE(back.h.backfacing, a.h.backfacing);
+  EXPECT_GT(back.h.Ng.z, 0.0f);  // facing the origin above
+  EXPECT_GT(back.h.N.z, 0.0f);
   EXPECT_EQ(back.c.instance, a.c.instance);
 
   // Past the frosted quad: the diffuse one, another type and instance.
