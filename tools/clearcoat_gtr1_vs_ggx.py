@@ -7,9 +7,9 @@ coat's directional albedo R(mu) is estimated by Monte Carlo with half-vectors dr
 the model's own NDF (the estimator F G (v.h) / (mu_o cos_h) has no D in it, so the tiny
 alphas of clearcoat roughness are no problem), then averaged over the sphere.
 
-  Glimmer (render/principled.cpp): weight clearcoat * F_dielectric(mu_o; 1.5) on a GGX lobe
-    (alpha = clearcoat_roughness^2, no Fresnel inside: the glossy node is a conductor of
-    f0 1; height-correlated Smith G2), base attenuated by 1 - clearcoat * F(mu_o).
+  Glimmer (render/principled.cpp): colour 0.25 * clearcoat * F_dielectric(mu_o; 1.5) on a GGX
+    lobe (alpha = clearcoat_roughness^2, no Fresnel inside: the glossy node is a conductor of
+    that colour; height-correlated Smith G2) added on top; the base is not attenuated.
   Cycles 3.4 (kernel/closure/bsdf_microfacet.h, svm_closure.h): weight 0.25 * clearcoat,
     F_dielectric(v.h; 1.5) (cspec0 0.04 = F0 of 1.5), GTR1 D (Burley 2012 eq. 4) with
     alpha = clearcoat_roughness^2, separable Smith G with a fixed alpha of 0.25; the base
@@ -70,7 +70,7 @@ def albedo(mu_o, cycles, rough, n, rng):
             f = 1.0
         total += f * g * vh / (mu_o * ch)
     r = total / n
-    return r if cycles else r * fresnel_dielectric(mu_o)  # Glimmer's mix weight clearcoat * F(N.I)
+    return r if cycles else 0.25 * r * fresnel_dielectric(mu_o)  # Glimmer's colour 0.25 clearcoat F(N.I)
 
 
 def main():
@@ -78,9 +78,8 @@ def main():
     rng = random.Random(1)
     k = 32  # density 2 mu d mu = d(mu^2): midpoints in mu^2
     mus = [math.sqrt((i + 0.5) / k) for i in range(k)]
-    base_kept = sum(1.0 - fresnel_dielectric(m) for m in mus) / k
     print("sphere (orthographic) under a white furnace, clearcoat = 1, %d samples per mu, %d mu" % (n, k))
-    print("Glimmer keeps %.4f of the base on average (1 - F); Cycles 3.4 keeps 1" % base_kept)
+    print("both keep the whole base (the coat is added on top)")
     print("%9s %13s %13s %9s %11s" % ("roughness", "glimmer_coat", "cycles_coat", "g/c", "g/c mu=1"))
     for rough in (0.03, 0.1, 0.3, 0.6):
         g = sum(albedo(m, False, rough, n, rng) for m in mus) / k

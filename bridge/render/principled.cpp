@@ -20,6 +20,8 @@ using R = SocketRole;
 constexpr float kSpecularToF0 = 0.08f;
 // The clearcoat layer: a dielectric of IOR 1.5 (Burley 2012: f0 = 0.04).
 constexpr const char *kClearcoatIor = "1.5";
+// Cycles 3.4 (and Disney) scale the clearcoat lobe by 0.25.
+constexpr float kClearcoatWeight = 0.25f;
 
 // Builds the composite's nodes into `out` (a copy of `g`), named after the principled node.
 class Composite {
@@ -149,7 +151,7 @@ ClosureNodeRow principled_row() {
            {.socket = "transmission", .role = R::Param, .param = "mix fac (glass)", .default_value = 0.0f,
             .min = 0, .max = 1},
            {.socket = "ior", .role = R::Param, .param = "glass IOR", .default_value = 1.45f, .alias = "IOR"},
-           {.socket = "clearcoat", .role = R::Param, .param = "coat mix fac clearcoat * Fresnel(1.5)",
+           {.socket = "clearcoat", .role = R::Param, .param = "coat colour 0.25 * clearcoat * Fresnel(1.5)",
             .default_value = 0.0f, .min = 0, .max = 1},
            {.socket = "clearcoat_roughness", .role = R::Param, .param = "coat GGX roughness",
             .default_value = 0.03f, .min = 0, .max = 1},
@@ -178,9 +180,10 @@ ClosureNodeRow principled_row() {
            {.socket = "tangent", .role = R::Ignored},
            {.socket = "surface_mix_weight", .role = R::Ignored}},
       .distribution = true,
-      .doc = "host composite (render/principled.cpp): mix(alpha, transparent, mix(clearcoat * Fresnel(1.5), "
-             "mix(metallic, mix(transmission, diffuse + glossy(0.08 specular), glass), glossy(base_color)), "
-             "glossy(1, clearcoat_roughness)) + emission); clearcoat is GGX (Cycles 3.4: GTR1)"};
+      .doc = "host composite (render/principled.cpp): mix(alpha, transparent, "
+             "mix(metallic, mix(transmission, diffuse + glossy(0.08 specular), glass), glossy(base_color)) + "
+             "glossy(0.25 clearcoat Fresnel(1.5), clearcoat_roughness) + emission); clearcoat is GGX (Cycles 3.4: "
+             "GTR1)"};
 }
 
 std::string expand_principled(const ShaderGraph &g, const ShaderNode &n, ShaderGraph &expanded,
@@ -222,19 +225,23 @@ std::string expand_principled(const ShaderGraph &g, const ShaderNode &n, ShaderG
     c.carry("roughness", metal, "roughness");
     result = c.mix("metallic", "metallic", result, metal);
   }
-  // Clearcoat: a white GGX lobe of IOR 1.5 on top, weighted clearcoat * F(N.I); the base keeps 1 - clearcoat * F.
+  // Clearcoat as Cycles 3.4 adds it (svm_closure.h): a white lobe of weight 0.25 * clearcoat * F(1.5) on top of
+  // the base, which it does not attenuate; GGX here (Cycles: GTR1) and F at N.I (Cycles: at the microfacet).
   if (c.active("clearcoat", positive)) {
-    const std::string coat = c.add("clearcoat", "glossy_bsdf", {{"distribution", "ggx"}, {"color", "1"}});
+    const std::string coat = c.add("clearcoat", "glossy_bsdf", {{"distribution", "ggx"}});
     c.carry("clearcoat_roughness", coat, "roughness");
     const std::string fresnel = c.add("clearcoat_fresnel", "fresnel", {{"ior", kClearcoatIor}});
     const std::string weight = c.add("clearcoat_weight", "math", {{"math_type", "multiply"}, {"use_clamp", "true"}});
     c.carry("clearcoat", weight, "value1");
     c.connect(fresnel, "fac", weight, "value2");
-    const std::string layered = c.add("clearcoat_layer", "mix_closure");
-    c.connect(weight, "value", layered, "fac");
-    c.connect(result, c.output_of(result), layered, "closure1");
-    c.connect(coat, "bsdf", layered, "closure2");
-    result = layered;
+    const std::string quarter = c.add("clearcoat_quarter", "math", {{"math_type", "multiply"}});
+    c.connect(weight, "value", quarter, "value1");
+    c.set(quarter, "value2", cli::json_float(kClearcoatWeight).dump());
+    c.connect(quarter, "value", coat, "color");
+    const std::string coated = c.add("clearcoat_layer", "add_closure");
+    c.connect(result, c.output_of(result), coated, "closure1");
+    c.connect(coat, "bsdf", coated, "closure2");
+    result = coated;
   }
   // Emission, then alpha over everything (as Cycles' PrincipledBsdfNode::expand).
   if (c.active("emission", positive) && c.active("emission_strength", positive)) {

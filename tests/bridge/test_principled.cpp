@@ -61,10 +61,11 @@ std::string principled(const std::string &attributes) {
 }
 std::string clearcoat_over(const std::string &base_nodes, const std::string &base_out) {
   return base_nodes +
-         "<fresnel name=\"cf\" ior=\"1.5\" /><math name=\"cw\" math_type=\"multiply\" value1=\"1\" use_clamp=\"true\" />"
+         "<fresnel name=\"cf\" ior=\"1.5\" /><math name=\"cw\" math_type=\"multiply\" value1=\"0.25\" />"
          "<connect from=\"cf fac\" to=\"cw value2\" />"
-         "<glossy_bsdf name=\"coat\" distribution=\"ggx\" roughness=\"0.1\" color=\"1 1 1\" />"
-         "<mix_closure name=\"layer\" /><connect from=\"cw value\" to=\"layer fac\" />"
+         "<glossy_bsdf name=\"coat\" distribution=\"ggx\" roughness=\"0.1\" />"
+         "<connect from=\"cw value\" to=\"coat color\" />"
+         "<add_closure name=\"layer\" />"
          "<connect from=\"" + base_out + "\" to=\"layer closure1\" /><connect from=\"coat bsdf\" to=\"layer closure2\" />" +
          to_output("layer closure");
 }
@@ -125,7 +126,7 @@ TEST(Principled, Transmission1IsGlass) {
        kDielectric + to_output("diel closure")});
 }
 
-TEST(Principled, Clearcoat1LayersAFresnelWeightedGgxLobe) {
+TEST(Principled, Clearcoat1AddsAQuarterFresnelWeightedGgxLobe) {
   expect_principled_equals_reference({"clearcoat1", principled("clearcoat=\"1\" clearcoat_roughness=\"0.1\""),
                                       clearcoat_over(kDielectric, "diel closure"),
                                       kDielectric + to_output("diel closure")});
