@@ -376,10 +376,11 @@ void run_convergence(const ConvergenceArgs &a, CliContext &ctx) {
   for (const auto &p : r.points) std::printf("%8d %10.4f %12.6g\n", p.samples, p.seconds, p.rmse);
   std::printf("slope vs spp: %.3f\nslope vs time: %.3f\n", r.slope_spp, r.slope_time);
   if (!a.csv.empty()) {
-    std::ofstream f(a.csv);
-    if (!f) throw CliError(kExitBadInput, "cannot write " + a.csv);
+    std::ostringstream f;
     f << "samples,seconds,rmse\n";
     for (const auto &p : r.points) f << p.samples << "," << p.seconds << "," << p.rmse << "\n";
+    if (const std::string problem = write_file_atomically(a.csv, f.str()); !problem.empty())
+      throw CliError(kExitBadInput, "cannot write " + a.csv + ": " + problem);
   }
 }
 

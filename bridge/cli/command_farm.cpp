@@ -11,6 +11,7 @@
 
 #include "cli/commands.h"
 #include "cli/render_parts.h"
+#include "glimmer/atomic_file.h"
 #include "render/image_output.h"
 
 namespace glimmer::cli {
@@ -118,9 +119,8 @@ std::string submit(const std::string &sbatch, const std::string &options, const 
 }
 
 void write_text(const fs::path &path, const std::string &text) {
-  std::ofstream out(path);
-  out << text;
-  if (!out) throw CliError(kExitBadInput, "cannot write " + path.string());
+  if (const std::string problem = write_file_atomically(path.string(), text); !problem.empty())
+    throw CliError(kExitBadInput, "cannot write " + path.string() + ": " + problem);
 }
 
 }  // namespace
