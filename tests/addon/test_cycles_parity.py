@@ -1108,6 +1108,31 @@ def scene_anisotropic_cylinder():
                pixel_region(scene, (0, 0, 0.3), 12), (4, 6), ("tangent rotated 90 degrees", turned))
 
 
+def scene_noise_roughness():
+    """Glossy GGX sphere whose roughness is a Noise Texture mapped to 0.1..0.6 (Map Range), evaluated per shading
+    point (issue 15: procedural-noise-driven roughness), area light and grey world. Negative control: Glimmer with
+    the link removed (the constant 0.35, the mean of the range)."""
+    scene = new_scene(samples=128)
+    grey_world(scene)
+    add_camera(scene, (0.0, -6.0, 0.0), (90.0, 0.0, 0.0))
+    mat = material("NoiseRough", "ShaderNodeBsdfGlossy", (0.9, 0.9, 0.9), distribution="GGX", Roughness=0.35)
+    tree = mat.node_tree
+    noise = noise_node(tree, 3.0, 2.0)
+    remap = tree.nodes.new("ShaderNodeMapRange")
+    remap.inputs["To Min"].default_value = 0.1
+    remap.inputs["To Max"].default_value = 0.6
+    tree.links.new(noise.outputs["Fac"], remap.inputs["Value"])
+    glossy = node_of(tree, "ShaderNodeBsdfGlossy")
+    link = tree.links.new(remap.outputs["Result"], glossy.inputs["Roughness"])
+    add_sphere(1.5, (0.0, 0.0, 0.0), mat)
+    add_light(scene, "AREA", (2.0, -2.5, 3.0), (40.0, 0.0, 30.0), energy=300.0, size=1.0)
+    glim, cyc = render_both("noise_roughness")
+    tree.links.remove(link)
+    constant = glimmer_variant("noise_roughness_constant")
+    check_grid("26 noise-driven roughness sphere, 6x6 regions", glim, cyc, pixel_region(scene, (0, 0, 0), 16),
+               (6, 6), ("constant roughness 0.35 vs Cycles' noise", constant))
+
+
 SCENES = {
     "point": scene_point,
     "sun": scene_sun,
@@ -1143,6 +1168,7 @@ SCENES = {
     "nodes_musgrave": scene_nodes_musgrave,
     "nodes_converters": scene_nodes_converters,
     "bump_plane": scene_bump_plane,
+    "noise_roughness": scene_noise_roughness,
     "normal_map_sphere": scene_normal_map_sphere,
     "anisotropic_cylinder": scene_anisotropic_cylinder,
 }
