@@ -198,16 +198,8 @@ class FrostedGlassClosure {
     if (!beer_.active || !(sp.wi.z < 0.0f)) return Spectrum(1.0f);
     const GlimmerShadingContext &ctx = *sp.ctx;
     if (ctx.host == nullptr || ctx.host->trace_ray == nullptr) return Spectrum(1.0f);
-    const Vec3 P(ctx.P), Ng(ctx.Ng), back(ctx.wi);
-    // Off the surface on wi's side, as the renderer offsets its rays.
-    const float scale = 1.0f + std::max(std::fabs(P.x), std::max(std::fabs(P.y), std::fabs(P.z)));
-    const Vec3 origin = P + Ng * (dot(back, Ng) >= 0.0f ? 3e-5f * scale : -3e-5f * scale);
-    GlimmerRay ray{};
-    ray.struct_size = sizeof(GlimmerRay);
-    ray.origin = origin;
-    ray.direction = back;
-    ray.t_min = 0.0f;
-    ray.t_max = std::numeric_limits<float>::infinity();
+    const Vec3 back(ctx.wi);
+    const GlimmerRay ray = frosted::unbounded_ray(frosted::offset_origin(Vec3(ctx.P), Vec3(ctx.Ng), back), back);
     GlimmerRayHit hit{};
     hit.struct_size = sizeof(GlimmerRayHit);
     if (!ctx.host->trace_ray(ctx.host->host_data, &ray, &hit) || !std::isfinite(hit.t)) return Spectrum(1.0f);

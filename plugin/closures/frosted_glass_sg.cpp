@@ -37,12 +37,7 @@ bool host_can_trace_closures(const GlimmerHostServices *host) {
 
 bool trace_interior(const GlimmerHostServices *host, const SgInputs &in, const Vec3 &origin, const Vec3 &dir,
                     InteriorHit &out) {
-  GlimmerRay ray{};
-  ray.struct_size = sizeof(GlimmerRay);
-  ray.origin = origin;
-  ray.direction = dir;
-  ray.t_min = 0.0f;
-  ray.t_max = std::numeric_limits<float>::infinity();
+  const GlimmerRay ray = unbounded_ray(origin, dir);
   out.hit = GlimmerRayHit{};
   out.hit.struct_size = sizeof(GlimmerRayHit);
   out.closure = GlimmerHitClosure{};
@@ -201,6 +196,16 @@ Vec3 offset_origin(const Vec3 &P, const Vec3 &Ng, const Vec3 &dir) {
   const float scale = 1.0f + std::max(std::fabs(P.x), std::max(std::fabs(P.y), std::fabs(P.z)));
   const float eps = 3e-5f * scale;
   return dot(dir, Ng) >= 0.0f ? P + Ng * eps : P - Ng * eps;
+}
+
+GlimmerRay unbounded_ray(const Vec3 &origin, const Vec3 &dir) {
+  GlimmerRay ray{};
+  ray.struct_size = sizeof(GlimmerRay);
+  ray.origin = origin;
+  ray.direction = dir;
+  ray.t_min = 0.0f;
+  ray.t_max = std::numeric_limits<float>::infinity();
+  return ray;
 }
 
 Vec3 sample_sg_direction(const SphericalGaussian &sg, float u1, float u2) {

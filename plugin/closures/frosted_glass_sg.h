@@ -96,6 +96,8 @@ bool trace_exit_lobe(const ShadingPoint &sp, const SgInputs &in, uint32_t seed, 
 
 // A ray origin off a surface along its geometric normal, on the side of `dir` (as the renderer offsets its rays).
 Vec3 offset_origin(const Vec3 &P, const Vec3 &Ng, const Vec3 &dir);
+// An unbounded ray (t in [0, inf)) for the host's trace_ray / trace_ray_closure.
+GlimmerRay unbounded_ray(const Vec3 &origin, const Vec3 &dir);
 
 // A direction from the SG G(w) ~ exp(kappa (axis . w - 1)) (von Mises-Fisher sampling).
 Vec3 sample_sg_direction(const SphericalGaussian &sg, float u1, float u2);
