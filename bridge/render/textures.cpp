@@ -38,12 +38,26 @@ OIIO::TextureOpt::InterpMode interp_mode(Interpolation i) {
     case Interpolation::Closest: return OIIO::TextureOpt::InterpClosest;
     case Interpolation::Linear: return OIIO::TextureOpt::InterpBilinear;
     case Interpolation::Cubic: return OIIO::TextureOpt::InterpBicubic;
-    case Interpolation::Smart: return OIIO::TextureOpt::InterpSmartBicubic;  // cubic when magnified
+    // Cycles 3.4's CPU kernel reads Smart as Cubic at any scale (kernel/device/cpu/image.h interp: closest,
+    // linear, else cubic); OIIO's InterpSmartBicubic would be bilinear when minified.
+    case Interpolation::Smart: return OIIO::TextureOpt::InterpBicubic;
   }
   return OIIO::TextureOpt::InterpBilinear;
 }
 
 float finite_or_zero(float x) { return std::isfinite(x) ? x : 0.0f; }
+
+// Cycles 3.4's clip test (kernel/device/cpu/image.h): closest reads texel floor(u w), zero outside [0, w);
+// linear and cubic centre their 2 / 4 texels at u w - 0.5 and return zero only when none of them is in the
+// image: ix = floor(u w - 0.5) < -1 or >= w (linear), < -2 or > w (cubic). Per axis, the same for v.
+bool outside_clip_support(float u, float v, int width, int height, Interpolation interpolation) {
+  auto outside = [interpolation](float x, int n) {
+    if (interpolation == Interpolation::Closest) return !(x >= 0.0f && x * n < n);
+    const float i = std::floor(x * n - 0.5f);
+    return interpolation == Interpolation::Linear ? (i < -1.0f || i >= n) : (i < -2.0f || i > n);
+  };
+  return outside(u, width) || outside(v, height);
+}
 
 // Header checks before the texture system may read the file: a FIFO or device would
 // block, a tiny file can claim 30000 x 30000. Returns the header.
@@ -204,9 +218,9 @@ void ImageTexture::lookup(const UvFootprint &at, const ImageSampling &sampling, 
   opt.fill = 0.0f;
   float u = at.u, v = at.v;
   if (!std::isfinite(u) || !std::isfinite(v)) u = v = 0.0f;
-  // Cycles' clip: (0, 0, 0, 0) outside the image, also for files without alpha.
-  const bool outside = u < 0.0f || u > 1.0f || v < 0.0f || v > 1.0f;
-  if (sampling.extension == Extension::Clip && outside) {
+  // Cycles' clip: (0, 0, 0, 0) where the filter reads no texel of the image, also for files without alpha;
+  // nearer, the texture system's black border interpolates across the edge as Cycles' read_clip.
+  if (sampling.extension == Extension::Clip && outside_clip_support(u, v, width_, height_, sampling.interpolation)) {
     for (int k = 0; k < 4; ++k) out[k] = 0.0f;
     return;
   }

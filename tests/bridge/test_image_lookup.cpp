@@ -137,6 +137,70 @@ TEST(ImageLookup, ExtensionModesOutsideTheImage) {
   }
 }
 
+// Cycles 3.4's CPU clip lookup (kernel/device/cpu/image.h), brute force from its definition: the texels the
+// interpolation reads around x = u w - 0.5 (closest: floor(u w)), those outside the image read as zero (read_clip);
+// cubic (and Smart, which Cycles' CPU kernel reads as cubic) weighs 4 x 4 texels with the uniform cubic B-spline.
+float cycles_clip_lookup(const TestImage &img, Interpolation interpolation, float u, float v, int c) {
+  auto texel = [&](int x, int y_from_bottom) {
+    const int y = img.h - 1 - y_from_bottom;
+    return x < 0 || x >= img.w || y < 0 || y >= img.h ? 0.0f : img.at(x, y, c);
+  };
+  if (interpolation == Interpolation::Closest)
+    return texel(static_cast<int>(std::floor(u * img.w)), static_cast<int>(std::floor(v * img.h)));
+  const float x = u * img.w - 0.5f, y = v * img.h - 0.5f;
+  const int ix = static_cast<int>(std::floor(x)), iy = static_cast<int>(std::floor(y));
+  const float tx = x - ix, ty = y - iy;
+  auto weights = [interpolation](float t, float w[4]) {
+    if (interpolation == Interpolation::Linear) {
+      w[0] = 0.0f, w[1] = 1.0f - t, w[2] = t, w[3] = 0.0f;
+      return;
+    }
+    w[0] = (1 - t) * (1 - t) * (1 - t) / 6.0f;
+    w[1] = (3 * t * t * t - 6 * t * t + 4) / 6.0f;
+    w[2] = (-3 * t * t * t + 3 * t * t + 3 * t + 1) / 6.0f;
+    w[3] = t * t * t / 6.0f;
+  };
+  float wx[4], wy[4];
+  weights(tx, wx);
+  weights(ty, wy);
+  float sum = 0.0f;
+  for (int j = 0; j < 4; ++j)
+    for (int i = 0; i < 4; ++i) sum += wx[i] * wy[j] * texel(ix - 1 + i, iy - 1 + j);
+  return sum;
+}
+
+// Largest |lookup - Cycles' clip lookup| over points within 2.5 texels of the left and top edges (in and out),
+// off the texel boundaries (where the closest texel depends on the rounding of the flipped v).
+float clip_border_error(const render::ImageTexture &tex, const TestImage &img, Interpolation interpolation) {
+  ImageSampling s;
+  s.interpolation = interpolation;
+  s.extension = s.vertical = Extension::Clip;
+  float worst = 0.0f;
+  for (float d = -2.4375f; d <= 2.5f; d += 0.125f)
+    for (int k = 0; k < 2; ++k) {
+      UvFootprint at;
+      at.u = k == 0 ? d / img.w : 0.43f;       // across the left edge
+      at.v = k == 0 ? 0.57f : 1.0f + d / img.h;  // across the top edge
+      float got[4];
+      tex.lookup(at, s, got);
+      for (int c = 0; c < 4; ++c)
+        worst = std::max(worst, std::fabs(got[c] - cycles_clip_lookup(img, interpolation, at.u, at.v, c)));
+    }
+  return worst;
+}
+
+TEST(ImageLookup, ClipBorderInterpolatesAcrossTheEdgeAsCycles) {
+  const TestImage img = write_test_image("clip_border.exr", 8, 6, 5);
+  render::TextureCache cache;
+  const render::ImageTexture &tex = *cache.load(img.path, false);
+  for (Interpolation i : {Interpolation::Closest, Interpolation::Linear, Interpolation::Cubic, Interpolation::Smart})
+    EXPECT_LE(clip_border_error(tex, img, i), 2e-5f) << "interpolation " << static_cast<int>(i);
+  // Negative control: zero wherever (u, v) is outside [0, 1]^2 (the previous rule) misses Cycles' cubic border:
+  // half a texel outside the left edge Cycles still reads the first texels.
+  EXPECT_GT(cycles_clip_lookup(img, Interpolation::Cubic, -0.5f / img.w, 0.57f, 0), 0.02f);
+  EXPECT_GT(cycles_clip_lookup(img, Interpolation::Linear, -0.25f / img.w, 0.57f, 0), 0.02f);
+}
+
 TEST(ImageLookup, LargeFootprintReadsTheImageAverage) {
   const TestImage img = write_test_image("mip.exr", 16, 16, 4);
   render::TextureCache cache;
