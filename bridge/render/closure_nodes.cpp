@@ -106,6 +106,15 @@ const std::vector<ClosureNodeRow> &closure_node_rows() {
        .closure = "frosted_glass",
        .schema = true,
        .doc = "sockets are the closure's parameters (glimmer describe); a textured colour is the weight"},
+      {.node = "clearcoat_bsdf",
+       .closure = "clearcoat",
+       .sockets = {{.socket = "color", .role = R::Weight, .default_value = 1.0f},
+                   {.socket = "roughness", .role = R::Param, .param = "roughness", .default_value = 0.03f, .min = 0,
+                    .max = 1},
+                   {.socket = "normal", .role = R::Normal},
+                   {.socket = "surface_mix_weight", .role = R::Ignored}},
+       .doc = "Cycles 3.4's Principled clearcoat lobe (GTR1, Fresnel 1.5 at the microfacet); the colour is the "
+              "weight (principled_bsdf: 0.25 * clearcoat)"},
       principled_row(),
       {.node = "holdout", .kind = NodeKind::Holdout, .output = "holdout", .doc = "not supported: no closure (black)"},
   };

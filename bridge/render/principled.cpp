@@ -18,8 +18,6 @@ using R = SocketRole;
 
 // Disney's `specular` maps to a dielectric f0 of 0.08 * specular (Burley 2012, sec. 5.6).
 constexpr float kSpecularToF0 = 0.08f;
-// The clearcoat layer: a dielectric of IOR 1.5 (Burley 2012: f0 = 0.04).
-constexpr const char *kClearcoatIor = "1.5";
 // Cycles 3.4 (and Disney) scale the clearcoat lobe by 0.25.
 constexpr float kClearcoatWeight = 0.25f;
 
@@ -151,9 +149,9 @@ ClosureNodeRow principled_row() {
            {.socket = "transmission", .role = R::Param, .param = "mix fac (glass)", .default_value = 0.0f,
             .min = 0, .max = 1},
            {.socket = "ior", .role = R::Param, .param = "glass IOR", .default_value = 1.45f, .alias = "IOR"},
-           {.socket = "clearcoat", .role = R::Param, .param = "coat colour 0.25 * clearcoat * Fresnel(1.5)",
+           {.socket = "clearcoat", .role = R::Param, .param = "clearcoat_bsdf weight 0.25 * clearcoat",
             .default_value = 0.0f, .min = 0, .max = 1},
-           {.socket = "clearcoat_roughness", .role = R::Param, .param = "coat GGX roughness",
+           {.socket = "clearcoat_roughness", .role = R::Param, .param = "clearcoat_bsdf roughness (GTR1 alpha = r^2)",
             .default_value = 0.03f, .min = 0, .max = 1},
            {.socket = "alpha", .role = R::Param, .param = "mix fac (transparent)", .default_value = 1.0f,
             .min = 0, .max = 1},
@@ -182,8 +180,7 @@ ClosureNodeRow principled_row() {
       .distribution = true,
       .doc = "host composite (render/principled.cpp): mix(alpha, transparent, "
              "mix(metallic, mix(transmission, diffuse + glossy(0.08 specular), glass), glossy(base_color)) + "
-             "glossy(0.25 clearcoat Fresnel(1.5), clearcoat_roughness) + emission); clearcoat is GGX (Cycles 3.4: "
-             "GTR1)"};
+             "clearcoat_bsdf(0.25 clearcoat, clearcoat_roughness) + emission)"};
 }
 
 std::string expand_principled(const ShaderGraph &g, const ShaderNode &n, ShaderGraph &expanded,
@@ -225,19 +222,15 @@ std::string expand_principled(const ShaderGraph &g, const ShaderNode &n, ShaderG
     c.carry("roughness", metal, "roughness");
     result = c.mix("metallic", "metallic", result, metal);
   }
-  // Clearcoat as Cycles 3.4 adds it (svm_closure.h): a white lobe of weight 0.25 * clearcoat * F(1.5) on top of
-  // the base, which it does not attenuate; GGX here (Cycles: GTR1) and F at N.I (Cycles: at the microfacet).
+  // Clearcoat as Cycles 3.4 adds it (svm_closure.h): its coat lobe (clearcoat_bsdf: GTR1, Fresnel 1.5 at the
+  // microfacet) of weight 0.25 * clearcoat on top of the base, which it does not attenuate.
   if (c.active("clearcoat", positive)) {
-    const std::string coat = c.add("clearcoat", "glossy_bsdf", {{"distribution", "ggx"}});
+    const std::string coat = c.add("clearcoat", "clearcoat_bsdf");
     c.carry("clearcoat_roughness", coat, "roughness");
-    const std::string fresnel = c.add("clearcoat_fresnel", "fresnel", {{"ior", kClearcoatIor}});
-    const std::string weight = c.add("clearcoat_weight", "math", {{"math_type", "multiply"}, {"use_clamp", "true"}});
+    const std::string weight = c.add("clearcoat_weight", "math", {{"math_type", "multiply"}});
     c.carry("clearcoat", weight, "value1");
-    c.connect(fresnel, "fac", weight, "value2");
-    const std::string quarter = c.add("clearcoat_quarter", "math", {{"math_type", "multiply"}});
-    c.connect(weight, "value", quarter, "value1");
-    c.set(quarter, "value2", cli::json_float(kClearcoatWeight).dump());
-    c.connect(quarter, "value", coat, "color");
+    c.set(weight, "value2", cli::json_float(kClearcoatWeight).dump());
+    c.connect(weight, "value", coat, "color");
     const std::string coated = c.add("clearcoat_layer", "add_closure");
     c.connect(result, c.output_of(result), coated, "closure1");
     c.connect(coat, "bsdf", coated, "closure2");

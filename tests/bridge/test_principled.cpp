@@ -7,7 +7,8 @@
 // z-score of the mean per-pixel difference must be below 4 (the renders are equal
 // within noise; identical trees give identical images). Negative control per case:
 // a reference with a known bug (the specular not scaled by 0.08, the metal mix
-// reversed, transmission or clearcoat dropped, alpha reversed) must differ (z > 4).
+// reversed, transmission or clearcoat dropped, the clearcoat as the former GGX lobe, alpha reversed) must differ
+// (z > 4).
 #include <algorithm>
 #include <regex>
 
@@ -59,7 +60,16 @@ std::string principled(const std::string &attributes) {
   return "<principled_bsdf name=\"p\" base_color=\"" + std::string(kBase) + "\" roughness=\"0.3\" " + attributes +
          " />" + to_output("p bsdf");
 }
+// The coat on top of the base: Cycles 3.4's clearcoat lobe (clearcoat_bsdf) of weight 0.25 * clearcoat.
 std::string clearcoat_over(const std::string &base_nodes, const std::string &base_out) {
+  return base_nodes + "<clearcoat_bsdf name=\"coat\" roughness=\"0.1\" color=\"0.25 0.25 0.25\" />"
+         "<add_closure name=\"layer\" />"
+         "<connect from=\"" + base_out + "\" to=\"layer closure1\" /><connect from=\"coat bsdf\" to=\"layer closure2\" />" +
+         to_output("layer closure");
+}
+// The coat principled_bsdf had before the clearcoat closure (a negative control): GGX of the same alpha weighted
+// 0.25 * Fresnel(1.5, N.I).
+std::string ggx_clearcoat_over(const std::string &base_nodes, const std::string &base_out) {
   return base_nodes +
          "<fresnel name=\"cf\" ior=\"1.5\" /><math name=\"cw\" math_type=\"multiply\" value1=\"0.25\" />"
          "<connect from=\"cf fac\" to=\"cw value2\" />"
@@ -126,10 +136,16 @@ TEST(Principled, Transmission1IsGlass) {
        kDielectric + to_output("diel closure")});
 }
 
-TEST(Principled, Clearcoat1AddsAQuarterFresnelWeightedGgxLobe) {
+TEST(Principled, Clearcoat1AddsAQuarterWeightedClearcoatLobe) {
   expect_principled_equals_reference({"clearcoat1", principled("clearcoat=\"1\" clearcoat_roughness=\"0.1\""),
                                       clearcoat_over(kDielectric, "diel closure"),
                                       kDielectric + to_output("diel closure")});
+}
+
+TEST(Principled, ClearcoatIsNotThePreviousGgxCoat) {
+  expect_principled_equals_reference({"clearcoat1_ggx", principled("clearcoat=\"1\" clearcoat_roughness=\"0.1\""),
+                                      clearcoat_over(kDielectric, "diel closure"),
+                                      ggx_clearcoat_over(kDielectric, "diel closure")});
 }
 
 TEST(Principled, AlphaMixesWithTransparent) {
