@@ -40,6 +40,12 @@ MISSING_TEXTURE_COLOR = (255, 0, 255)
 
 GLOSSY_DISTRIBUTION = {"SHARP": "sharp", "BECKMANN": "beckmann", "GGX": "GGX", "MULTI_GGX": "Multiscatter GGX",
                        "ASHIKHMIN_SHIRLEY": "GGX"}
+# Principled BSDF inputs -> principled_bsdf attributes (Blender 3.x name first, then 4.x).
+PRINCIPLED_SOCKETS = (("base_color", ("Base Color",)), ("metallic", ("Metallic",)), ("roughness", ("Roughness",)),
+                      ("transmission", ("Transmission", "Transmission Weight")), ("ior", ("IOR",)),
+                      ("clearcoat", ("Clearcoat", "Coat Weight")),
+                      ("clearcoat_roughness", ("Clearcoat Roughness", "Coat Roughness")), ("alpha", ("Alpha",)),
+                      ("emission", ("Emission", "Emission Color")), ("emission_strength", ("Emission Strength",)))
 IMAGE_INTERPOLATION = {"Closest": "closest", "Linear": "linear", "Cubic": "cubic", "Smart": "smart"}
 IMAGE_EXTENSION = {"REPEAT": "periodic", "EXTEND": "extend", "CLIP": "clip", "MIRROR": "mirror"}
 IMAGE_PROJECTION = {"FLAT": "flat", "BOX": "box", "SPHERE": "sphere", "TUBE": "tube"}
@@ -366,88 +372,31 @@ class ShaderGraph:
         return (el.get("name"), "fac" if out.name == "Fac" else "color")
 
     def principled(self, node, out):
-        """Principled BSDF as Cycles closures: mix(metallic, mix(transmission, diffuse + f0 glossy, glass),
-        glossy(base colour)) + emission. Subsurface, sheen, clearcoat/coat, alpha: warned and dropped."""
-        base = _input(node, "Base Color")
-        rough = _input(node, "Roughness")
-        metallic = _input(node, "Metallic")
-        transmission = _input(node, "Transmission", "Transmission Weight")
-        ior = _input(node, "IOR")
+        """Principled BSDF as Cycles' principled_bsdf (the renderer expands it, bridge/render/principled.cpp):
+        base colour, metallic, specular, roughness, transmission, IOR, clearcoat and its roughness, alpha, emission.
+        Subsurface, sheen, anisotropy, specular tint, transmission roughness: warned and dropped; a linked Normal is
+        reported unread (warn_unread_links)."""
         name = node.name
-
-        def constant(sock, default):
-            return None if (sock is None or sock.is_linked) else _value(sock, default)
-
+        el = self.add("principled_bsdf", name,
+                      distribution=GLOSSY_DISTRIBUTION.get(getattr(node, "distribution", "GGX"), "GGX"))
+        for attribute, names in PRINCIPLED_SOCKETS:
+            sock = _input(node, *names)
+            if sock is not None:
+                self.set_input(el, attribute, sock)
+        spec = _input(node, "Specular")
+        if spec is not None:
+            self.set_input(el, "specular", spec)
+        else:  # 4.x: Specular IOR Level; the dielectric f0 of the IOR times 2 * level as 0.08 * specular
+            level, ior = _input(node, "Specular IOR Level"), _input(node, "IOR")
+            eta = float(_value(ior, 1.5))
+            f0 = ((eta - 1.0) / (eta + 1.0)) ** 2 * 2.0 * float(_value(level, 0.5))
+            el.set("specular", fmt(min(max(f0, 0.0), 1.0) / 0.08))
         self.warn_unexported_values(node, (("Subsurface", "Subsurface Weight"), 0.0, "subsurface"),
                                     (("Sheen", "Sheen Weight"), 0.0, "sheen"),
-                                    (("Clearcoat", "Coat Weight"), 0.0, "clearcoat"),
-                                    (("Alpha",), 1.0, "alpha"),
                                     (("Anisotropic",), 0.0, "anisotropy (rendered isotropic)"),
                                     (("Transmission Roughness",), 0.0, "transmission roughness"),
                                     (("Specular Tint",), 0.0, "specular tint"))
-
-        # Specular f0 of the dielectric layer: 0.08 * specular (3.x) or from IOR (4.x) times 2 * level.
-        spec = _input(node, "Specular")
-        if spec is not None:
-            f0 = 0.08 * float(_value(spec, 0.5)) if not spec.is_linked else 0.04
-        else:
-            level = _input(node, "Specular IOR Level")
-            eta = float(_value(ior, 1.5))
-            f0 = ((eta - 1.0) / (eta + 1.0)) ** 2 * 2.0 * float(_value(level, 0.5))
-        f0 = min(max(f0, 0.0), 1.0)
-
-        diffuse = self.add("diffuse_bsdf", name + "_diffuse")
-        self.set_input(diffuse, "color", base)
-        specular = self.add("glossy_bsdf", name + "_specular", distribution="GGX", color=(f0, f0, f0))
-        self.set_input(specular, "roughness", rough)
-        dielectric = self.add("add_closure", name + "_dielectric")
-        self.connect((diffuse.get("name"), "bsdf"), dielectric.get("name"), "closure1")
-        self.connect((specular.get("name"), "bsdf"), dielectric.get("name"), "closure2")
-        result = (dielectric.get("name"), "closure")
-
-        t = constant(transmission, 0.0)
-        if transmission is not None and (t is None or t > 0.0):
-            glass = self.add("glass_bsdf", name + "_glass", distribution="GGX")
-            self.set_input(glass, "color", base)
-            self.set_input(glass, "roughness", rough)
-            self.set_input(glass, "IOR", ior)
-            if t is not None and t >= 1.0:
-                result = (glass.get("name"), "bsdf")
-            else:
-                mix = self.add("mix_closure", name + "_transmission")
-                self.set_input(mix, "fac", transmission)
-                self.connect(result, mix.get("name"), "closure1")
-                self.connect((glass.get("name"), "bsdf"), mix.get("name"), "closure2")
-                result = (mix.get("name"), "closure")
-
-        m = constant(metallic, 0.0)
-        if m is None or m > 0.0:
-            metal = self.add("glossy_bsdf", name + "_metal", distribution="GGX")
-            self.set_input(metal, "color", base)
-            self.set_input(metal, "roughness", rough)
-            if m is not None and m >= 1.0:
-                result = (metal.get("name"), "bsdf")
-            else:
-                mix = self.add("mix_closure", name + "_metallic")
-                self.set_input(mix, "fac", metallic)
-                self.connect(result, mix.get("name"), "closure1")
-                self.connect((metal.get("name"), "bsdf"), mix.get("name"), "closure2")
-                result = (mix.get("name"), "closure")
-
-        emission_color = _input(node, "Emission", "Emission Color")
-        emission_strength = _input(node, "Emission Strength")
-        color_value = constant(emission_color, (0.0, 0.0, 0.0))
-        strength_value = constant(emission_strength, 1.0)
-        emits = (color_value is None or max(color_value) > 0.0) and (strength_value is None or strength_value > 0.0)
-        if emission_color is not None and emits:
-            emit = self.add("emission", name + "_emission")
-            self.set_input(emit, "color", emission_color)
-            self.set_input(emit, "strength", emission_strength, default=1.0)
-            add = self.add("add_closure", name + "_emit")
-            self.connect(result, add.get("name"), "closure1")
-            self.connect((emit.get("name"), "emission"), add.get("name"), "closure2")
-            result = (add.get("name"), "closure")
-        return result
+        return (el.get("name"), "bsdf")
 
     def glimmer_node(self, node, out):
         closure = node.closure_schema

@@ -219,9 +219,15 @@ check(all(lights[k].get("use_camera") == "false" for k in ("point", "sun", "area
 shaders = {s.get("name"): s for s in root.findall("shader")}
 check({"Plastic", "Sparkle", "GlassGlow", "Toon"} <= set(shaders), "material shaders: %s" % set(shaders))
 plastic = shaders["Plastic"]
-check(plastic.find("diffuse_bsdf") is not None and plastic.find("glossy_bsdf") is not None, "principled split")
-check(np.allclose(vec(plastic.find("diffuse_bsdf"), "color"), [0.8, 0.1, 0.1]), "principled base colour")
-check(plastic.find("mix_closure") is None, "metallic 0 / transmission 0: no mix")
+plastic_p = plastic.find("principled_bsdf")
+check(plastic_p is not None and plastic.find("diffuse_bsdf") is None, "principled exported as principled_bsdf")
+check(np.allclose(vec(plastic_p, "base_color"), [0.8, 0.1, 0.1]), "principled base colour")
+check(abs(float(plastic_p.get("roughness")) - 0.4) < 1e-6 and float(plastic_p.get("specular")) == 0.5,
+      "principled roughness and specular")
+check(float(plastic_p.get("clearcoat")) == 0.0 and abs(float(plastic_p.get("clearcoat_roughness")) - 0.03) < 1e-6
+      and float(plastic_p.get("alpha")) == 1.0, "principled clearcoat and alpha sockets written")
+check(("principled bsdf", "output surface") in {(c.get("from"), c.get("to")) for c in plastic.findall("connect")},
+      "principled_bsdf feeds the surface")
 sparkle = shaders["Sparkle"]
 g = sparkle.find("glint_bsdf")
 check(g is not None, "glint exported as glint_bsdf")
@@ -325,21 +331,16 @@ xml3, _ = mod.exporter.export_scene(bpy.context.evaluated_depsgraph_get(), out_d
 root3 = ET.parse(xml3).getroot()
 shaders3 = {s.get("name"): s for s in root3.findall("shader")}
 metal = shaders3["Metal"]
-metal_glossy = [g for g in metal.findall("glossy_bsdf") if g.get("name") == "pm_metal"]
-check(len(metal_glossy) == 1 and np.allclose(vec(metal_glossy[0], "color"), [0.9, 0.6, 0.2]), "metallic 1: glossy")
-check(metal_glossy[0].get("roughness") == "0.330000013", "unsupported magic texture: roughness keeps its own value")
-check(("pm_metal bsdf", "output surface") in {(c.get("from"), c.get("to")) for c in metal.findall("connect")},
-      "metallic 1 drops the dielectric mix")
+metal_p = metal.find("principled_bsdf")
+check(metal_p is not None and float(metal_p.get("metallic")) == 1.0 and np.allclose(vec(metal_p, "base_color"),
+      [0.9, 0.6, 0.2]), "metallic 1: principled_bsdf metallic and base colour")
+check(metal_p.get("roughness") == "0.330000013", "unsupported magic texture: roughness keeps its own value")
 check(any("magic" in msg and "keeps its own value" in msg for _, msg in reports), "magic reported: %s" % reports)
 half = shaders3["HalfGlass"]
-mix_t = [m for m in half.findall("mix_closure") if m.get("name") == "pg_transmission"]
-check(len(mix_t) == 1 and float(mix_t[0].get("fac")) == 0.5, "transmission 0.5: mix with glass")
-check(half.find("glass_bsdf") is not None, "glass lobe")
-emission_el = half.find("emission")
-check(emission_el is not None and np.allclose(vec(emission_el, "color"), [1.0, 0.5, 0.0])
-      and float(emission_el.get("strength")) == 3.0, "principled emission")
-connects = {(c.get("from"), c.get("to")) for c in half.findall("connect")}
-check(("pg_emit closure", "output surface") in connects, "emission added on top")
+half_p = half.find("principled_bsdf")
+check(half_p is not None and float(half_p.get("transmission")) == 0.5, "transmission 0.5 written")
+check(np.allclose(vec(half_p, "emission"), [1.0, 0.5, 0.0]) and float(half_p.get("emission_strength")) == 3.0,
+      "principled emission")
 background3 = root3.find("background")
 env_el = background3.find("environment_texture")
 check(env_el is not None and os.path.isfile(env_el.get("filename")), "environment texture exported")
