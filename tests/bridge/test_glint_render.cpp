@@ -13,6 +13,7 @@
 #include <cstdio>
 
 #include "render_test_util.h"
+#include "sample_statistics.h"
 
 namespace glimmer::test {
 namespace {
@@ -80,23 +81,6 @@ std::vector<double> downsample_2x2(const std::vector<double> &image, int width) 
   return out;
 }
 
-double pearson(const std::vector<double> &a, const std::vector<double> &b) {
-  double ma = 0.0, mb = 0.0;
-  for (size_t i = 0; i < a.size(); ++i) {
-    ma += a[i];
-    mb += b[i];
-  }
-  ma /= a.size();
-  mb /= b.size();
-  double ab = 0.0, aa = 0.0, bb = 0.0;
-  for (size_t i = 0; i < a.size(); ++i) {
-    ab += (a[i] - ma) * (b[i] - mb);
-    aa += (a[i] - ma) * (a[i] - ma);
-    bb += (b[i] - mb) * (b[i] - mb);
-  }
-  return ab / std::sqrt(aa * bb);
-}
-
 constexpr int kWidth = 32;             // single resolution; the double one is 64 x 64
 constexpr int kSingleSamples = 32;   // per pixel; the double-resolution pixels get a quarter, so both
 constexpr int kDoubleSamples = 8;    // images spend 32 samples per single-resolution pixel
@@ -110,7 +94,7 @@ double resolution_correlation(const std::string &name, const std::string &closur
                               const std::string &closure_double) {
   const auto single = pixel_values(plane_scene(name + "_1x", closure_single, 45.0), kWidth, kSingleSamples);
   const auto twice = pixel_values(plane_scene(name + "_2x", closure_double, 45.0), 2 * kWidth, kDoubleSamples);
-  return pearson(single, downsample_2x2(twice, 2 * kWidth));
+  return correlation(single, downsample_2x2(twice, 2 * kWidth));
 }
 
 TEST(GlintRender, DownsampledDoubleResolutionCorrelatesWithSingleResolution) {
@@ -119,7 +103,7 @@ TEST(GlintRender, DownsampledDoubleResolutionCorrelatesWithSingleResolution) {
   // positions alone leave of a perfect correlation) and the reference.
   const auto a = pixel_values(plane_scene("res_noise", glint, 45.0), kWidth, kSingleSamples, 1);
   const auto b = pixel_values(plane_scene("res_noise", glint, 45.0), kWidth, kSingleSamples, 2);
-  const double noise_ceiling = pearson(a, b);
+  const double noise_ceiling = correlation(a, b);
   const double reference = resolution_correlation("res_jakob", jakob, jakob);
   const double model = resolution_correlation("res_glint", glint, glint);
   const double model_default = resolution_correlation("res_glint_default", glint_node(kGlint, 7), glint_node(kGlint, 7));
