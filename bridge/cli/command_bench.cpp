@@ -11,6 +11,10 @@
 //   dsm-unfiltered  glint_bsdf with filter_threshold = 1e9 (always counts glints)
 //   dsm-filtered    glint_bsdf as written in the scene (filter threshold 16 by default)
 //   ggx             glossy_bsdf (plain GGX of the same roughness, no glints)
+// With --reference own every method is measured against its own converged
+// render (its Monte Carlo error: two glint models are different particle
+// fields, so against jakob14 a glint model's error stops at the difference of
+// two realizations), and the RMSE between the converged renders is reported.
 #include <OpenImageIO/imagebuf.h>
 #include <OpenImageIO/imagebufalgo.h>
 
@@ -48,6 +52,7 @@ struct BenchArgs {
   std::string out_dir = "docs";
   std::string name = "glint_error_vs_time";
   std::string from_csv;  // re-plot an existing CSV without rendering
+  std::string reference = "jakob14";  // "jakob14": one jakob14 reference; "own": each method's own
 };
 
 std::string self_path() {
@@ -283,19 +288,32 @@ void run(const BenchArgs &a, CliContext &ctx) {
   for (const auto &m : methods) scenes[m] = variant(m);
   if (!scenes.count("jakob14")) scenes["jakob14"] = variant("jakob14");
 
-  std::printf("reference: jakob14 at %d spp...\n", a.reference_samples);
-  std::fflush(stdout);
-  const std::string ref_path = (work / "reference.exr").string();
-  // Another sampling seed than the ladder: the ladder's first samples must not
-  // be the reference's own samples (that correlation would fake convergence).
-  const double ref_time = render(exe, ctx.plugin_path, scenes["jakob14"], ref_path, a.reference_samples, a, 7919);
-  int w = 0, h = 0;
-  const std::vector<float> ref = read_pixels(ref_path, w, h);
-  std::printf("reference: %.2f s\n", ref_time);
+  // The converged render of a method. Another sampling seed than the ladder:
+  // the ladder's first samples must not be the reference's own samples (that
+  // correlation would fake convergence).
+  std::map<std::string, std::vector<float>> references;
+  auto reference_of = [&](const std::string &m) -> const std::vector<float> & {
+    const std::string source = a.reference == "own" ? m : "jakob14";
+    if (!references.count(source)) {
+      std::printf("reference: %s at %d spp...\n", source.c_str(), a.reference_samples);
+      std::fflush(stdout);
+      const std::string ref_path = (work / ("reference_" + source + ".exr")).string();
+      const double ref_time = render(exe, ctx.plugin_path, scenes[source], ref_path, a.reference_samples, a, 7919);
+      int w = 0, h = 0;
+      references[source] = read_pixels(ref_path, w, h);
+      std::printf("reference: %s %.2f s\n", source.c_str(), ref_time);
+      if (source != "jakob14" && references.count("jakob14"))
+        std::printf("converged %s vs converged jakob14: RMSE %.5f\n", source.c_str(),
+                    rmse(references[source], references["jakob14"]));
+    }
+    return references[source];
+  };
+  reference_of("jakob14");
 
   std::vector<Row> rows;
   for (const auto &m : methods)
     for (int spp : ladder) {
+      const std::vector<float> &ref = reference_of(m);
       const std::string out = (work / (m + "_" + std::to_string(spp) + ".exr")).string();
       const double t = render(exe, ctx.plugin_path, scenes[m], out, spp, a);
       int w2 = 0, h2 = 0;
@@ -402,6 +420,10 @@ void add_bench_command(CLI::App &app, CliContext &ctx) {
   evt->add_option("--out-dir", args->out_dir, "folder for the CSV and the PNG plot");
   evt->add_option("--name", args->name, "base name of the CSV and PNG files");
   evt->add_option("--from-csv", args->from_csv, "only re-plot (and report on) an existing CSV");
+  evt->add_option("--reference", args->reference,
+                  "jakob14: every method against one converged jakob14 render; own: each method against its own "
+                  "converged render (Monte Carlo error only)")
+      ->check(CLI::IsMember({"jakob14", "own"}));
   evt->callback([args, &ctx] { run(*args, ctx); });
 
   auto cargs = std::make_shared<ConvergenceArgs>();

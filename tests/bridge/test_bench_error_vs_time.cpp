@@ -1,5 +1,6 @@
 // `glimmer bench error-vs-time`: argument errors exit with code 1 and a clear
-// message; --from-csv re-plots a CSV into a PNG and reports equal-RMSE speed-ups.
+// message; --from-csv re-plots a CSV into a PNG and reports equal-RMSE speed-ups;
+// --reference own measures every method against its own converged render.
 #include <gtest/gtest.h>
 
 #include <cstdio>
@@ -56,6 +57,23 @@ TEST(BenchErrorVsTime, ReplotsACsvAndReportsSpeedUps) {
   EXPECT_TRUE(std::filesystem::exists(dir / "plot.png")) << out;
   // Equal RMSE 0.4 and 0.2: 10 s vs 0.1 s and 40 s vs 0.4 s -> 100x.
   EXPECT_NE(out.find("speed-up 100.0x"), std::string::npos) << out;
+  std::filesystem::remove_all(dir);
+}
+
+TEST(BenchErrorVsTime, OwnReferenceRendersOneConvergedImagePerMethod) {
+  const std::filesystem::path dir = std::filesystem::path(GLIMMER_TEST_BINARY_DIR) / "bench_evt_own";
+  std::filesystem::create_directories(dir);
+  std::string out;
+  const int code = run(std::string("bench error-vs-time ") + GLIMMER_TEST_SOURCE_DIR +
+                           "/benchmarks/scenes/glint_direct.xml --reference own --methods jakob14,dsm-filtered "
+                           "--samples 1 --reference-samples 2 --width 6 --height 6 --threads 1 --out-dir " +
+                           dir.string() + " --name own",
+                       out);
+  EXPECT_EQ(code, 0) << out;
+  EXPECT_NE(out.find("reference: jakob14 at 2 spp"), std::string::npos) << out;
+  EXPECT_NE(out.find("reference: dsm-filtered at 2 spp"), std::string::npos) << out;
+  EXPECT_NE(out.find("converged dsm-filtered vs converged jakob14: RMSE"), std::string::npos) << out;
+  EXPECT_TRUE(std::filesystem::exists(dir / "own.csv")) << out;
   std::filesystem::remove_all(dir);
 }
 

@@ -40,6 +40,7 @@
 
 #include "closures/closure_checks.h"
 #include "closures/glint_test_util.h"
+#include "sample_statistics.h"
 #include "glimmer/microfacet.h"
 #include "glimmer/rng.h"
 #include "tables/glint_common.h"
@@ -127,20 +128,6 @@ inline double f_at(const host::ClosureInstance &c, const GlimmerShadingContext &
   float pdf;
   c.eval(ctx, wo, f, pdf);
   return f.x;
-}
-
-inline double correlation(const std::vector<double> &a, const std::vector<double> &b) {
-  const double n = static_cast<double>(a.size());
-  double ma = 0, mb = 0;
-  for (size_t i = 0; i < a.size(); ++i) ma += a[i], mb += b[i];
-  ma /= n, mb /= n;
-  double sab = 0, saa = 0, sbb = 0;
-  for (size_t i = 0; i < a.size(); ++i) {
-    sab += (a[i] - ma) * (b[i] - mb);
-    saa += (a[i] - ma) * (a[i] - ma);
-    sbb += (b[i] - mb) * (b[i] - mb);
-  }
-  return saa > 0 && sbb > 0 ? sab / std::sqrt(saa * sbb) : 0.0;
 }
 
 // Mean over the base directions of the correlation between wo and wo moved
