@@ -1,5 +1,6 @@
 // `glimmer bench error-vs-time`: argument errors exit with code 1 and a clear
-// message; --from-csv re-plots a CSV into a PNG and reports equal-RMSE speed-ups.
+// message; --from-csv re-plots a CSV into a PNG and reports equal-RMSE speed-ups;
+// frosted glass: the methods path / sg / auto render and are compared with path.
 #include <gtest/gtest.h>
 
 #include <cstdio>
@@ -56,6 +57,63 @@ TEST(BenchErrorVsTime, ReplotsACsvAndReportsSpeedUps) {
   EXPECT_TRUE(std::filesystem::exists(dir / "plot.png")) << out;
   // Equal RMSE 0.4 and 0.2: 10 s vs 0.1 s and 40 s vs 0.4 s -> 100x.
   EXPECT_NE(out.find("speed-up 100.0x"), std::string::npos) << out;
+  std::filesystem::remove_all(dir);
+}
+
+TEST(BenchErrorVsTime, FrostedUnknownMethodIsABadInput) {
+  std::string out;
+  const int code = run(std::string("bench error-vs-time ") + GLIMMER_TEST_SOURCE_DIR +
+                           "/examples/frosted_closeup.xml --methods path,phong --samples 1 --reference-samples 1",
+                       out);
+  EXPECT_EQ(code, 1) << out;
+  EXPECT_NE(out.find("unknown method 'phong' for frosted"), std::string::npos) << out;
+}
+
+TEST(BenchErrorVsTime, SceneWithBothMaterialsNeedsMaterialOption) {
+  std::string out;  // examples/frosted.xml has a glint sphere behind the frosted slab
+  const int code = run(std::string("bench error-vs-time ") + GLIMMER_TEST_SOURCE_DIR +
+                           "/examples/frosted.xml --samples 1 --reference-samples 1",
+                       out);
+  EXPECT_EQ(code, 1) << out;
+  EXPECT_NE(out.find("--material glint or --material frosted"), std::string::npos) << out;
+}
+
+TEST(BenchErrorVsTime, FrostedCsvReportsTheSpeedUpAtThePathRmseOfAGivenTime) {
+  const std::filesystem::path dir = std::filesystem::path(GLIMMER_TEST_BINARY_DIR) / "bench_evt_frosted_csv";
+  std::filesystem::create_directories(dir);
+  const std::string csv = (dir / "in.csv").string();
+  std::ofstream(csv) << "method,samples,seconds,rmse\n"
+                     << "path,1,10,0.4\npath,4,40,0.2\n"
+                     << "sg,1,1,0.4\nsg,4,4,0.2\n"
+                     << "auto,1,5,0.5\nauto,4,20,0.3\n";
+  std::string out;
+  const int code = run("bench error-vs-time --from-csv " + csv + " --out-dir " + dir.string() + " --at-seconds 20", out);
+  EXPECT_EQ(code, 0) << out;
+  EXPECT_TRUE(std::filesystem::exists(dir / "frosted_error_vs_time.png")) << out;
+  // path at 20 s: log-log between (10 s, 0.4) and (40 s, 0.2) -> 0.4 / sqrt(2) = 0.28284; sg reaches it at 2 s.
+  EXPECT_NE(out.find("at path's 20-s RMSE 0.28284: sg 2.000 s, speed-up 10.0x"), std::string::npos) << out;
+  // auto's ladder ends at 0.3: a biased method's plateau is reported, not extrapolated.
+  EXPECT_NE(out.find("at path's 20-s RMSE 0.28284: auto never reaches it on the ladder"), std::string::npos) << out;
+  std::filesystem::remove_all(dir);
+}
+
+TEST(BenchErrorVsTime, FrostedMethodsRenderAgainstThePathReference) {
+  const std::filesystem::path dir = std::filesystem::path(GLIMMER_TEST_BINARY_DIR) / "bench_evt_frosted_run";
+  std::filesystem::create_directories(dir);
+  std::string out;
+  const int code = run(std::string("bench error-vs-time ") + GLIMMER_TEST_SOURCE_DIR +
+                           "/examples/frosted_closeup.xml --methods path,sg,auto --samples 1,2 --reference-samples 4 "
+                           "--width 12 --height 8 --threads 1 --clock cpu --out-dir " + dir.string(),
+                       out);
+  EXPECT_EQ(code, 0) << out;
+  std::ifstream csv(dir / "frosted_error_vs_time.csv");
+  std::string line;
+  int rows = 0;
+  std::getline(csv, line);
+  EXPECT_EQ(line, "method,samples,seconds,rmse");
+  while (std::getline(csv, line)) ++rows;
+  EXPECT_EQ(rows, 6) << out;  // 3 methods x 2 rungs
+  EXPECT_NE(out.find("reference: path at 4 spp"), std::string::npos) << out;
   std::filesystem::remove_all(dir);
 }
 
