@@ -8,6 +8,9 @@
 //    closure at the hit is the material under test). The reference's own
 //    noise is reported (its standard error). Negative control: sg without the
 //    refraction at the exit (the lobe keeps the internal axis) must fail.
+//  - method=auto: per shading point the samples are sg's where the rule picks
+//    sg (roughness <= 0.3, or after a diffuse / glossy bounce) and path's
+//    elsewhere, bit for bit;
 //  - stress: no NaN / Inf / negative raw outputs over 1e6 sg queries (1e8
 //    under make stress), TIR-heavy (IOR 2.4, grazing), hosts answering odd
 //    distances / normals / closures.
@@ -20,6 +23,7 @@
 #include <limits>
 
 #include "closures/frosted_glass.h"
+#include "closures/frosted_test_host.h"
 #include "closures/microfacet_test_util.h"
 #include "closures/raw_output_checks.h"
 #include "glimmer/rng.h"
@@ -31,15 +35,19 @@ using namespace glimmer;
 using namespace glimmer::plugin;
 using glimmer::test::stress_scale;  // 100 under make stress
 
-std::unique_ptr<FrostedGlassClosure> create_raw(float roughness, float ior, bool sg, const Vec3 &absorb = Vec3(1.0f)) {
+std::unique_ptr<FrostedGlassClosure> create_method(float roughness, float ior, const char *method,
+                                                  const Vec3 &absorb = Vec3(1.0f)) {
   const GlimmerParamValue values[] = {{"roughness", {roughness, 0, 0}, nullptr},
                                       {"ior", {ior, 0, 0}, nullptr},
                                       {"absorption_color", {absorb.x, absorb.y, absorb.z}, nullptr},
-                                      {"method", {0, 0, 0}, sg ? "sg" : "path"}};
+                                      {"method", {0, 0, 0}, method}};
   ParamReader reader(FrostedGlassClosure::kName, FrostedGlassClosure::params(), values);
   auto c = FrostedGlassClosure::create(reader);
   c->prepare(host::default_host_services());
   return c;
+}
+std::unique_ptr<FrostedGlassClosure> create_raw(float roughness, float ior, bool sg, const Vec3 &absorb = Vec3(1.0f)) {
+  return create_method(roughness, ior, sg ? "sg" : "path", absorb);
 }
 
 // ---- Analytic scenes with the renderer's host services -----------------------
@@ -54,13 +62,7 @@ struct AnalyticScene {
   const GlimmerInstance *material = nullptr;  // the closure reported at every hit
   GlimmerHostServices services{};
 
-  explicit AnalyticScene(Kind k) : kind(k) {
-    services = *host::default_host_services();
-    services.struct_size = sizeof(GlimmerHostServices);
-    services.host_data = this;
-    services.trace_ray = &trace;
-    services.trace_ray_closure = &trace_closure;
-  }
+  explicit AnalyticScene(Kind k) : kind(k) { services = glimmer::test::tracing_host_services<&trace_closure>(this); }
 
   bool intersect(const Vec3 &o, const Vec3 &d, float t_min, float t_max, Hit &h) const {
     if (kind == kSphere) {  // unit sphere at the origin
@@ -87,7 +89,7 @@ struct AnalyticScene {
     h.N = Vec3(0.0f, 0.0f, h.P.z > -0.5f * slab_thickness ? 1.0f : -1.0f);
     return true;
   }
-  static int trace(void *data, const GlimmerRay *ray, GlimmerRayHit *out) {
+  static int trace_closure(void *data, const GlimmerRay *ray, GlimmerRayHit *out, GlimmerHitClosure *c) {
     const auto *self = static_cast<const AnalyticScene *>(data);
     Hit h;
     if (!self->intersect(Vec3(ray->origin), Vec3(ray->direction), ray->t_min, ray->t_max, h)) return 0;
@@ -95,12 +97,8 @@ struct AnalyticScene {
     out->P = h.P;
     out->N = out->Ng = h.N;
     out->backfacing = dot(h.N, Vec3(ray->direction)) > 0.0f ? 1u : 0u;
-    return 1;
-  }
-  static int trace_closure(void *data, const GlimmerRay *ray, GlimmerRayHit *out, GlimmerHitClosure *c) {
-    if (!trace(data, ray, out)) return 0;
     c->type = nullptr;
-    c->instance = static_cast<const AnalyticScene *>(data)->material;
+    c->instance = self->material;
     c->varying_count = 0;
     return 1;
   }
@@ -289,6 +287,68 @@ void check_scene(AnalyticScene::Kind kind) {
 TEST(FrostedGlassSg, SphereMatchesThePathReference) { check_scene(AnalyticScene::kSphere); }
 TEST(FrostedGlassSg, SlabMatchesThePathReference) { check_scene(AnalyticScene::kSlab); }
 
+// ---- method=auto ----------------------------------------------------------------
+// Paths entering the unit sphere at random points from outside, with the bounce counters of a camera ray or of
+// a path after a diffuse, glossy or transmission bounce: auto's samples must equal (bit for bit) those of the
+// method its rule picks, and differ from the other method's (so the comparison can fail).
+TEST(FrostedGlassAuto, SamplesAreSgsWhereTheRulePicksSgAndPathsElsewhere) {
+  enum Bounce { kCamera, kAfterDiffuse, kAfterGlossy, kAfterTransmission };
+  struct Case {
+    float roughness;
+    Bounce bounce;
+    bool expect_sg;
+  };
+  const Case cases[] = {{0.1f, kCamera, true},         {0.3f, kCamera, true},          {0.31f, kCamera, false},
+                        {0.6f, kCamera, false},        {0.6f, kAfterDiffuse, true},    {0.8f, kAfterGlossy, true},
+                        {0.6f, kAfterTransmission, false}};
+  const auto schema = FrostedGlassClosure::params();
+  for (const Case &c : cases) {
+    auto path = create_method(c.roughness, 1.5f, "path");
+    auto sg = create_method(c.roughness, 1.5f, "sg");
+    auto automatic = create_method(c.roughness, 1.5f, "auto");
+    AnalyticScene scene(AnalyticScene::kSphere);
+    int same_as_picked = 0, same_as_other = 0, moved = 0, n = 0;
+    Pcg32 rng(77);
+    for (int i = 0; i < 2000; ++i) {
+      const Vec3 n_out = normalize(Vec3(rng.next_float() - 0.5f, rng.next_float() - 0.5f, rng.next_float() - 0.5f));
+      const Frame f = Frame::from_normal(n_out);
+      const Vec3 wi_local = normalize(Vec3(rng.next_float() - 0.5f, rng.next_float() - 0.5f, 0.2f + rng.next_float()));
+      GlimmerShadingContext ctx = host::make_local_context(f.to_world(wi_local), &scene.services);
+      ctx.P = n_out;
+      ctx.N = ctx.Ng = n_out;
+      ctx.T = f.s;
+      ctx.path_seed = rng.next_u32();
+      ctx.diffuse_bounce = c.bounce == kAfterDiffuse;
+      ctx.glossy_bounce = c.bounce == kAfterGlossy;
+      ctx.transmission_bounce = c.bounce == kAfterTransmission;
+      ctx.bounce = c.bounce == kCamera ? 0u : 1u;
+      const ShadingPoint sp(&ctx, schema);
+      const Vec3 u(rng.next_float(), rng.next_float(), rng.next_float());
+      LocalSample a, p, g;
+      scene.material = reinterpret_cast<const GlimmerInstance *>(automatic.get());
+      const bool ok_a = automatic->sample(sp, u, a);
+      scene.material = reinterpret_cast<const GlimmerInstance *>(path.get());
+      const bool ok_p = path->sample(sp, u, p);
+      scene.material = reinterpret_cast<const GlimmerInstance *>(sg.get());
+      const bool ok_g = sg->sample(sp, u, g);
+      auto same = [&](bool ok, const LocalSample &s) {
+        auto eq = [](const Vec3 &x, const Vec3 &y) { return x.x == y.x && x.y == y.y && x.z == y.z; };
+        return ok == ok_a && (!ok || (eq(s.wo, a.wo) && eq(s.f_cos, a.f_cos) && s.pdf == a.pdf && s.moved == a.moved));
+      };
+      ++n;
+      moved += ok_a && a.moved;
+      same_as_picked += c.expect_sg ? same(ok_g, g) : same(ok_p, p);
+      same_as_other += c.expect_sg ? same(ok_p, p) : same(ok_g, g);
+    }
+    EXPECT_EQ(same_as_picked, n) << "roughness " << c.roughness << " bounce " << c.bounce;
+    EXPECT_LT(same_as_other, n * 9 / 10) << "roughness " << c.roughness << " bounce " << c.bounce;
+    if (c.expect_sg) {
+      EXPECT_GT(moved, n / 4) << "roughness " << c.roughness;
+    } else {
+      EXPECT_EQ(moved, 0) << "roughness " << c.roughness;
+    }
+  }
+}
 
 // ---- Stress --------------------------------------------------------------------
 using glimmer::test::bad_raw_outputs;
@@ -299,15 +359,7 @@ struct OddHost {
   const GlimmerInstance *material = nullptr;
   GlimmerHostServices services{};
   explicit OddHost(const GlimmerInstance *m) : material(m) {
-    services = *host::default_host_services();
-    services.struct_size = sizeof(GlimmerHostServices);
-    services.host_data = this;
-    services.trace_ray = [](void *d, const GlimmerRay *r, GlimmerRayHit *h) {
-      GlimmerHitClosure c{};
-      c.struct_size = sizeof c;
-      return answer(d, r, h, &c);
-    };
-    services.trace_ray_closure = &answer;
+    services = glimmer::test::tracing_host_services<&answer>(this);
   }
   static int answer(void *data, const GlimmerRay *ray, GlimmerRayHit *hit, GlimmerHitClosure *c) {
     const auto *self = static_cast<const OddHost *>(data);
