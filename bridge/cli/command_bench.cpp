@@ -378,7 +378,8 @@ void run(const BenchArgs &a, CliContext &ctx) {
   std::map<std::string, std::string> scenes;
   const Cleanup cleanup{scenes, work};
   auto variant = [&](const std::string &method) {
-    const std::string p = (scene_dir / (".bench_" + method + ".xml")).string();
+    // Named after the private work folder too: two runs on one scene never write or remove each other's variants.
+    const std::string p = (scene_dir / (".bench_" + work.filename().string() + "_" + method + ".xml")).string();
     if (const std::string problem = write_file_atomically(p, rewrite_scene(text, material, method)); !problem.empty())
       throw CliError(kExitBadInput, problem);
     return p;
