@@ -280,6 +280,7 @@ constexpr int kSgSpp = 2048;
 
 struct SceneError {
   double sg = 0.0, control = 0.0, ref_se = 0.0, toksvig = 0.0;
+  double noise_ratio = 0.0;  // sg's standard deviation per path over path's (relative, mean over pixels)
 };
 // A scene of the accuracy set.
 struct SceneSetup {
@@ -321,11 +322,12 @@ SceneError measure(const SceneSetup &setup, const Config &c, int reference_spp =
   const ImageEstimate ctl = render_tiny(scene, variant(frosted::SgVariant::kNoExitRefraction), sg_spp, 2);
   const ImageEstimate toksvig = render_tiny(scene, variant(frosted::SgVariant::kToksvig), sg_spp, 2);
   SceneError e{mean_relative_error(est, ref), mean_relative_error(ctl, ref), mean_relative_se(ref),
-               mean_relative_error(toksvig, ref)};
+               mean_relative_error(toksvig, ref),
+               mean_relative_se(est) * std::sqrt(double(sg_spp)) / (mean_relative_se(ref) * std::sqrt(double(reference_spp)))};
   std::printf("[frosted sg] %s roughness %.2f ior %.2f%s: mean relative error sg %.4f (paper's Toksvig exit %.4f, "
-              "no exit refraction %.4f), reference se %.4f (%d / %d paths per pixel)\n",
+              "no exit refraction %.4f), reference se %.4f (%d / %d paths per pixel); noise per path sg / path %.2f\n",
               setup.name, double(c.roughness), double(c.ior), c.absorb.x < 1.0f ? " absorbing" : "", e.sg,
-              e.toksvig, e.control, e.ref_se, reference_spp, sg_spp);
+              e.toksvig, e.control, e.ref_se, reference_spp, sg_spp, e.noise_ratio);
   return e;
 }
 
