@@ -10,6 +10,7 @@
 #include <memory>
 #include <string>
 
+#include "../tests/closures/frosted_test_host.h"
 #include "glimmer/rng.h"
 #include "host/closure_instance.h"
 #include "host/plugin_library.h"
@@ -27,17 +28,7 @@ host::PluginLibrary &frosted_plugin() {
 struct SphereHost {
   const GlimmerInstance *material = nullptr;
   GlimmerHostServices services{};
-  SphereHost() {
-    services = *host::default_host_services();
-    services.struct_size = sizeof(GlimmerHostServices);
-    services.host_data = this;
-    services.trace_ray = [](void *d, const GlimmerRay *r, GlimmerRayHit *h) {
-      GlimmerHitClosure c{};
-      c.struct_size = sizeof c;
-      return trace(d, r, h, &c);
-    };
-    services.trace_ray_closure = &trace;
-  }
+  SphereHost() { services = glimmer::test::tracing_host_services<&trace>(this); }
   static bool hit_sphere(const Vec3 &o, const Vec3 &d, float t_min, float &t) {
     const float b = dot(o, d), c = dot(o, o) - 1.0f, disc = b * b - c;
     if (disc < 0.0f) return false;

@@ -9,7 +9,7 @@ packages=(
   libpugixml-dev libeigen3-dev libcli11-dev nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   clang libclang-rt-14-dev
-  python3 python3-numpy python3-pytest
+  python3 python3-numpy python3-pytest python3-matplotlib
   blender
   slurm-wlm slurmctld slurmd slurm-client munge
 )

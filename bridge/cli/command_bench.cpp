@@ -1,16 +1,19 @@
 // `glimmer bench convergence`: RMSE vs spp and vs time of one scene against a
 // high-spp reference of the same renderer, with the fitted log-log slopes
 // (render/convergence.h).
-// `glimmer bench error-vs-time`: time-vs-error comparison of glint methods.
-// For a scene using glint_bsdf, renders variants of it (glint_bsdf rewritten
+// `glimmer bench error-vs-time`: time-vs-error comparison of the methods of
+// one material. Renders variants of the scene (the material's nodes rewritten
 // per method) at a ladder of sample counts by running `glimmer render` as a
 // subprocess, measures the render-phase wall time and the RMSE against a
-// converged render of the reference method (glint_jakob14), and writes a
-// CSV and a log-log PNG plot. Methods:
+// converged render of the material's reference method, and writes a CSV and a
+// log-log PNG plot. Materials (--material, else the one the scene uses):
+//  glint (glint_bsdf; reference jakob14):
 //   jakob14         glint_jakob14_bsdf (Jakob 2014 reference)
 //   dsm-unfiltered  glint_bsdf with filter_threshold = 1e9 (always counts glints)
 //   dsm-filtered    glint_bsdf as written in the scene (filter threshold 16 by default)
 //   ggx             glossy_bsdf (plain GGX of the same roughness, no glints)
+//  frosted (frosted_glass_bsdf; reference path):
+//   path, sg, auto  every frosted_glass_bsdf with method = path / sg / auto
 // With --reference own every method is measured against its own converged
 // render (its Monte Carlo error: two glint models are different particle
 // fields, so against jakob14 a glint model's error stops at the difference of
@@ -29,6 +32,7 @@
 #include <map>
 #include <regex>
 #include <sstream>
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <tbb/global_control.h>
@@ -44,15 +48,18 @@ namespace {
 
 struct BenchArgs {
   std::string scene;
-  std::string methods = "jakob14,dsm-unfiltered,dsm-filtered,ggx";
+  std::string material = "auto";  // glint | frosted | auto (the one the scene uses)
+  std::string methods;            // empty: the material's default list
+  double at_seconds = 60.0;       // the summary compares methods at the RMSE the reference reaches in this time
+  std::string clock = "wall";     // wall: the render phase's wall time; cpu: the render process's CPU time
   std::string ladder = "1,2,4,8,16,32";
   int reference_samples = 256;
   int width = 160, height = 100;
   int threads = 0;
   std::string out_dir = "docs";
-  std::string name = "glint_error_vs_time";
+  std::string name;  // empty: <material>_error_vs_time
   std::string from_csv;  // re-plot an existing CSV without rendering
-  std::string reference = "jakob14";  // "jakob14": one jakob14 reference; "own": each method's own
+  std::string reference = "material";  // "material": the material's reference method (jakob14, path); "own": each method's own
 };
 
 std::string self_path() {
@@ -72,8 +79,8 @@ std::vector<std::string> split(const std::string &s, char sep) {
   return out;
 }
 
-// The scene text rewritten for one method.
-std::string rewrite_scene(const std::string &text, const std::string &method) {
+// The glint scene text rewritten for one method.
+std::string rewrite_glint(const std::string &text, const std::string &method) {
   if (method == "dsm-filtered") return text;
   if (method == "dsm-unfiltered") {
     std::string t = std::regex_replace(text, std::regex(" filter_threshold=\"[^\"]*\""), "");
@@ -89,11 +96,79 @@ std::string rewrite_scene(const std::string &text, const std::string &method) {
     t = std::regex_replace(t, std::regex(" (gamma|density|uv_scale|seed|filter_threshold)=\"[^\"]*\""), "");
     return std::regex_replace(t, std::regex("<glint_bsdf"), "<glossy_bsdf");
   }
-  throw CliError(kExitBadInput, "bench error-vs-time: unknown method '" + method +
-                                    "' (expected jakob14, dsm-unfiltered, dsm-filtered or ggx)");
+  return {};
 }
 
-// Runs `glimmer render` and returns the render-phase seconds.
+// The frosted glass scene text with every frosted_glass_bsdf's method set to `method`.
+std::string rewrite_frosted(const std::string &text, const std::string &method) {
+  if (method != "path" && method != "sg" && method != "auto") return {};
+  const std::string t = std::regex_replace(text, std::regex("(<frosted_glass_bsdf\\b[^>]*?)\\s+method=\"[^\"]*\""), "$1");
+  return std::regex_replace(t, std::regex("<frosted_glass_bsdf\\b"), "<frosted_glass_bsdf method=\"" + method + "\"");
+}
+
+// A material whose methods the bench compares.
+struct Material {
+  const char *name;
+  const char *node;       // the XML node the methods rewrite
+  const char *reference;  // the method of the converged reference
+  const char *methods;    // default list, and every accepted name
+  const char *unrated;    // a method shown but not given a speed-up (not an estimator of the reference), or ""
+  std::string (*rewrite)(const std::string &text, const std::string &method);
+};
+constexpr Material kMaterials[] = {
+    {"glint", "glint_bsdf", "jakob14", "jakob14,dsm-unfiltered,dsm-filtered,ggx", "ggx", rewrite_glint},
+    {"frosted", "frosted_glass_bsdf", "path", "path,sg", "", rewrite_frosted},
+};
+
+bool uses_node(const std::string &text, const Material &m) {
+  return std::regex_search(text, std::regex(std::string("<") + m.node + "\\b"));
+}
+
+// --material, or the one material of the scene (`text`) / of the CSV's methods.
+const Material &pick_material(const std::string &requested, const std::string &text,
+                              const std::vector<std::string> &csv_methods) {
+  for (const Material &m : kMaterials)
+    if (requested == m.name) return m;
+  if (requested != "auto") throw CliError(kExitBadInput, "bench error-vs-time: unknown --material '" + requested +
+                                                             "' (expected glint, frosted or auto)");
+  const Material *found = nullptr;
+  for (const Material &m : kMaterials) {
+    const bool used = csv_methods.empty() ? uses_node(text, m)
+                                          : std::count(csv_methods.begin(), csv_methods.end(), m.reference) > 0;
+    if (!used) continue;
+    if (found != nullptr)
+      throw CliError(kExitBadInput, std::string("bench error-vs-time: the ") +
+                                        (csv_methods.empty() ? "scene has both <" + std::string(found->node) +
+                                                                   "> and <" + m.node + "> nodes"
+                                                             : std::string("CSV holds both materials' references")) +
+                                        ": choose one with --material " + found->name + " or --material " + m.name);
+    found = &m;
+  }
+  if (found == nullptr)
+    throw CliError(kExitBadInput,
+                   csv_methods.empty()
+                       ? std::string("the scene has no <glint_bsdf> or <frosted_glass_bsdf> node to compare methods on")
+                       : std::string("the CSV has no reference method (jakob14 or path)"));
+  return *found;
+}
+
+// The scene text rewritten for one method of the material (a clear error for an unknown one).
+std::string rewrite_scene(const std::string &text, const Material &material, const std::string &method) {
+  std::string t = material.rewrite(text, method);
+  if (t.empty())
+    throw CliError(kExitBadInput, "bench error-vs-time: unknown method '" + method + "' for " + material.name +
+                                      " (expected one of " + material.methods + ")");
+  return t;
+}
+
+double children_cpu_seconds() {
+  rusage u{};
+  getrusage(RUSAGE_CHILDREN, &u);
+  return double(u.ru_utime.tv_sec + u.ru_stime.tv_sec) + 1e-6 * double(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
+}
+
+// Runs `glimmer render` and returns its seconds: the render phase's wall time (--clock wall), or the render
+// process's whole CPU time (--clock cpu: loading included, steadier than wall time on a shared machine).
 double render(const std::string &exe, const std::string &plugin, const std::string &scene, const std::string &out,
               int samples, const BenchArgs &a, int seed = -1) {
   std::string cmd = "'" + exe + "'";
@@ -102,6 +177,7 @@ double render(const std::string &exe, const std::string &plugin, const std::stri
          std::to_string(a.width) + " --height " + std::to_string(a.height) + " --threads " +
          std::to_string(a.threads) + (seed >= 0 ? " --seed " + std::to_string(seed) : std::string()) +
          " --quiet --stats 2>&1";
+  const double cpu_before = children_cpu_seconds();
   FILE *p = popen(cmd.c_str(), "r");
   if (p == nullptr) throw CliError(kExitBadInput, "cannot run " + cmd);
   std::string text;
@@ -111,7 +187,7 @@ double render(const std::string &exe, const std::string &plugin, const std::stri
   std::smatch m;
   if (status != 0 || !std::regex_search(text, m, std::regex("render=([0-9.eE+-]+)s")))
     throw CliError(kExitBadInput, "render failed (" + cmd + "):\n" + text);
-  return std::stod(m[1].str());
+  return a.clock == "cpu" ? children_cpu_seconds() - cpu_before : std::stod(m[1].str());
 }
 
 std::vector<float> read_pixels(const std::string &path, int &w, int &h) {
@@ -224,7 +300,26 @@ double time_at_error(const std::vector<Row> &rows, const std::string &method, do
   return -1.0;
 }
 
-void report(const std::vector<Row> &rows, const std::vector<std::string> &methods);
+// RMSE of a method after `seconds` (log-log interpolation between its ladder points; <0 outside the ladder).
+double error_at_time(const std::vector<Row> &rows, const std::string &method, double seconds) {
+  const Row *prev = nullptr;
+  for (const auto &r : rows) {
+    if (r.method != method) continue;
+    if (prev != nullptr && prev->seconds <= seconds && seconds <= r.seconds && r.seconds > prev->seconds) {
+      const double f = (std::log(seconds) - std::log(prev->seconds)) / (std::log(r.seconds) - std::log(prev->seconds));
+      return std::exp(std::log(prev->error) + f * (std::log(r.error) - std::log(prev->error)));
+    }
+    prev = &r;
+  }
+  return -1.0;
+}
+
+void report(const std::vector<Row> &rows, const std::vector<std::string> &methods, const Material &material,
+            double at_seconds);
+
+std::string output_name(const BenchArgs &a, const Material &material) {
+  return a.name.empty() ? std::string(material.name) + "_error_vs_time" : a.name;
+}
 
 void plot_only(const BenchArgs &a) {
   std::ifstream f(a.from_csv);
@@ -239,10 +334,11 @@ void plot_only(const BenchArgs &a) {
     rows.push_back({parts[0], std::stoi(parts[1]), std::stod(parts[2]), std::stod(parts[3])});
     if (std::find(methods.begin(), methods.end(), parts[0]) == methods.end()) methods.push_back(parts[0]);
   }
-  const std::string png = (std::filesystem::path(a.out_dir) / (a.name + ".png")).string();
+  const Material &material = pick_material(a.material, {}, methods);
+  const std::string png = (std::filesystem::path(a.out_dir) / (output_name(a, material) + ".png")).string();
   write_plot(png, rows, methods);
   std::printf("wrote %s\n", png.c_str());
-  report(rows, methods);
+  report(rows, methods, material, a.at_seconds);
 }
 
 void run(const BenchArgs &a, CliContext &ctx) {
@@ -252,10 +348,17 @@ void run(const BenchArgs &a, CliContext &ctx) {
   std::stringstream ss;
   ss << in.rdbuf();
   const std::string text = ss.str();
-  if (text.find("<glint_bsdf") == std::string::npos)
-    throw CliError(kExitBadInput, a.scene + ": the scene has no <glint_bsdf> node to compare methods on");
-  const std::vector<std::string> methods = split(a.methods, ',');
-  for (const auto &m : methods) rewrite_scene(text, m);  // validates every method name before any file is written
+  const Material &material = [&]() -> const Material & {
+    try {
+      return pick_material(a.material, text, {});
+    } catch (const CliError &e) {
+      throw CliError(kExitBadInput, a.scene + ": " + e.what());
+    }
+  }();
+  if (!uses_node(text, material))
+    throw CliError(kExitBadInput, a.scene + ": the scene has no <" + material.node + "> node to compare methods on");
+  const std::vector<std::string> methods = split(a.methods.empty() ? material.methods : a.methods, ',');
+  for (const auto &m : methods) rewrite_scene(text, material, m);  // validates every name before any file is written
   std::vector<int> ladder;
   for (const auto &s : split(a.ladder, ',')) ladder.push_back(std::stoi(s));
   const std::string exe = self_path();
@@ -280,20 +383,21 @@ void run(const BenchArgs &a, CliContext &ctx) {
   std::map<std::string, std::string> scenes;
   const Cleanup cleanup{scenes, work};
   auto variant = [&](const std::string &method) {
-    const std::string p = (scene_dir / (".bench_" + method + ".xml")).string();
-    if (const std::string problem = write_file_atomically(p, rewrite_scene(text, method)); !problem.empty())
+    // Named after the private work folder too: two runs on one scene never write or remove each other's variants.
+    const std::string p = (scene_dir / (".bench_" + work.filename().string() + "_" + method + ".xml")).string();
+    if (const std::string problem = write_file_atomically(p, rewrite_scene(text, material, method)); !problem.empty())
       throw CliError(kExitBadInput, problem);
     return p;
   };
   for (const auto &m : methods) scenes[m] = variant(m);
-  if (!scenes.count("jakob14")) scenes["jakob14"] = variant("jakob14");
+  if (!scenes.count(material.reference)) scenes[material.reference] = variant(material.reference);
 
   // The converged render of a method. Another sampling seed than the ladder:
   // the ladder's first samples must not be the reference's own samples (that
   // correlation would fake convergence).
   std::map<std::string, std::vector<float>> references;
   auto reference_of = [&](const std::string &m) -> const std::vector<float> & {
-    const std::string source = a.reference == "own" ? m : "jakob14";
+    const std::string source = a.reference == "own" ? m : std::string(material.reference);
     if (!references.count(source)) {
       std::printf("reference: %s at %d spp...\n", source.c_str(), a.reference_samples);
       std::fflush(stdout);
@@ -302,13 +406,16 @@ void run(const BenchArgs &a, CliContext &ctx) {
       int w = 0, h = 0;
       references[source] = read_pixels(ref_path, w, h);
       std::printf("reference: %s %.2f s\n", source.c_str(), ref_time);
-      if (source != "jakob14" && references.count("jakob14"))
-        std::printf("converged %s vs converged jakob14: RMSE %.5f\n", source.c_str(),
-                    rmse(references[source], references["jakob14"]));
+      if (source != material.reference && references.count(material.reference))
+        std::printf("converged %s vs converged %s: RMSE %.5f\n", source.c_str(), material.reference,
+                    rmse(references[source], references[material.reference]));
     }
     return references[source];
   };
-  reference_of("jakob14");
+  reference_of(material.reference);
+
+  // One 1-spp render per method before the clock counts: lazily built tables (glint, frosted sg) reach the cache.
+  for (const auto &m : methods) render(exe, ctx.plugin_path, scenes[m], (work / "warm_up.exr").string(), 1, a);
 
   std::vector<Row> rows;
   for (const auto &m : methods)
@@ -323,29 +430,48 @@ void run(const BenchArgs &a, CliContext &ctx) {
       std::fflush(stdout);
     }
 
-  const std::string csv = (std::filesystem::path(a.out_dir) / (a.name + ".csv")).string();
+  const std::string csv = (std::filesystem::path(a.out_dir) / (output_name(a, material) + ".csv")).string();
   std::ostringstream table;
   table << "method,samples,seconds,rmse\n";
   for (const auto &r : rows) table << r.method << "," << r.samples << "," << r.seconds << "," << r.error << "\n";
   if (const std::string problem = write_file_atomically(csv, table.str()); !problem.empty())
     throw CliError(kExitBadInput, problem);
-  const std::string png = (std::filesystem::path(a.out_dir) / (a.name + ".png")).string();
+  const std::string png = (std::filesystem::path(a.out_dir) / (output_name(a, material) + ".png")).string();
   write_plot(png, rows, methods);
   std::printf("wrote %s and %s\n", csv.c_str(), png.c_str());
 
-  report(rows, methods);
+  report(rows, methods, material, a.at_seconds);
 }
 
-// Speed-up at equal RMSE: the jakob14 errors, reached by each other method.
-void report(const std::vector<Row> &rows, const std::vector<std::string> &methods) {
+// Speed-up at equal RMSE: the reference method's errors (and the one it reaches in `at_seconds`), reached by
+// each other method; a method that never gets there (a biased one's plateau) is said so.
+void report(const std::vector<Row> &rows, const std::vector<std::string> &methods, const Material &material,
+            double at_seconds) {
+  const std::string ref = material.reference;
   for (const auto &m : methods) {
-    if (m == "jakob14" || m == "ggx") continue;
+    if (m == ref || m == material.unrated) continue;
     for (const auto &r : rows) {
-      if (r.method != "jakob14") continue;
+      if (r.method != ref) continue;
       const double t = time_at_error(rows, m, r.error);
-      if (t > 0) std::printf("equal RMSE %.5f: jakob14 %.3f s, %s %.3f s, speed-up %.1fx\n", r.error, r.seconds,
-                             m.c_str(), t, r.seconds / t);
+      if (t > 0) std::printf("equal RMSE %.5f: %s %.3f s, %s %.3f s, speed-up %.1fx\n", r.error, ref.c_str(),
+                             r.seconds, m.c_str(), t, r.seconds / t);
+      else std::printf("equal RMSE %.5f: %s %.3f s, %s never reaches it on the ladder\n", r.error, ref.c_str(),
+                       r.seconds, m.c_str());
     }
+  }
+  const double target = error_at_time(rows, ref, at_seconds);
+  if (target < 0) {
+    std::printf("%s's ladder does not span %.4g s: no comparison at its %.4g-s RMSE\n", ref.c_str(), at_seconds,
+                at_seconds);
+    return;
+  }
+  for (const auto &m : methods) {
+    if (m == ref || m == material.unrated) continue;
+    const double t = time_at_error(rows, m, target);
+    if (t > 0) std::printf("at %s's %.4g-s RMSE %.5f: %s %.3f s, speed-up %.1fx\n", ref.c_str(), at_seconds, target,
+                           m.c_str(), t, at_seconds / t);
+    else std::printf("at %s's %.4g-s RMSE %.5f: %s never reaches it on the ladder\n", ref.c_str(), at_seconds,
+                     target, m.c_str());
   }
 }
 
@@ -408,22 +534,33 @@ void add_bench_command(CLI::App &app, CliContext &ctx) {
   auto *bench = app.add_subcommand("bench", "benchmarks that render scenes (error vs time)");
   bench->require_subcommand(1);
   auto args = std::make_shared<BenchArgs>();
-  auto *evt = bench->add_subcommand("error-vs-time", "RMSE against a converged jakob14 render vs render time, per glint method");
-  evt->add_option("scene", args->scene, "scene with at least one <glint_bsdf> (not needed with --from-csv)");
-  evt->add_option("--methods", args->methods, "comma list of jakob14,dsm-unfiltered,dsm-filtered,ggx");
+  auto *evt = bench->add_subcommand("error-vs-time", "RMSE against a converged reference render vs render time, per "
+                                                     "method of a material (glint: jakob14 reference; frosted: path)");
+  evt->add_option("scene", args->scene,
+                  "scene with at least one <glint_bsdf> or <frosted_glass_bsdf> (not needed with --from-csv)");
+  evt->add_option("--material", args->material,
+                  "glint or frosted (default auto: the one the scene uses, or whose reference the CSV holds)");
+  evt->add_option("--methods", args->methods,
+                  "comma list; glint: jakob14,dsm-unfiltered,dsm-filtered,ggx (default all); frosted: path,sg,auto "
+                  "(default path,sg)");
+  evt->add_option("--at-seconds", args->at_seconds, "summary: each method's time to the RMSE the reference method "
+                                                    "reaches in this many seconds (interpolated on its ladder)")
+      ->check(CLI::PositiveNumber);
+  evt->add_option("--clock", args->clock, "wall (render phase, default) or cpu (the render process's CPU time)")
+      ->check(CLI::IsMember({"wall", "cpu"}));
   evt->add_option("--samples", args->ladder, "comma list of samples per pixel (the ladder)");
-  evt->add_option("--reference-samples", args->reference_samples, "samples of the converged jakob14 reference")
+  evt->add_option("--reference-samples", args->reference_samples, "samples of the converged reference (jakob14 / path)")
       ->check(CLI::Range(1, 1 << 20));
   evt->add_option("--width", args->width, "image width")->check(CLI::Range(1, 65536));
   evt->add_option("--height", args->height, "image height")->check(CLI::Range(1, 65536));
   evt->add_option("--threads", args->threads, "render threads (0 = all cores)")->check(CLI::Range(0, 4096));
   evt->add_option("--out-dir", args->out_dir, "folder for the CSV and the PNG plot");
-  evt->add_option("--name", args->name, "base name of the CSV and PNG files");
+  evt->add_option("--name", args->name, "base name of the CSV and PNG files (default <material>_error_vs_time)");
   evt->add_option("--from-csv", args->from_csv, "only re-plot (and report on) an existing CSV");
   evt->add_option("--reference", args->reference,
-                  "jakob14: every method against one converged jakob14 render; own: each method against its own "
-                  "converged render (Monte Carlo error only)")
-      ->check(CLI::IsMember({"jakob14", "own"}));
+                  "material: every method against one converged render of the material's reference method (glint: "
+                  "jakob14, frosted: path); own: each method against its own converged render (Monte Carlo error only)")
+      ->check(CLI::IsMember({"material", "own"}));
   evt->callback([args, &ctx] { run(*args, ctx); });
 
   auto cargs = std::make_shared<ConvergenceArgs>();

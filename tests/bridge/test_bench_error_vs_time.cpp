@@ -1,6 +1,7 @@
 // `glimmer bench error-vs-time`: argument errors exit with code 1 and a clear
 // message; --from-csv re-plots a CSV into a PNG and reports equal-RMSE speed-ups;
 // --reference own measures every method against its own converged render.
+// frosted glass: the methods path / sg / auto render and are compared with path.
 #include <gtest/gtest.h>
 
 #include <cstdio>
@@ -21,6 +22,24 @@ int run(const std::string &args, std::string &output) {
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
+// `glimmer bench error-vs-time <args>` must exit with code 1 and say `message`.
+void expect_bad_input(const std::string &args, const std::string &message) {
+  std::string out;
+  const int code = run("bench error-vs-time " + args, out);
+  EXPECT_EQ(code, 1) << out;
+  EXPECT_NE(out.find(message), std::string::npos) << out;
+}
+
+// Re-plots `csv_text` (written to <build>/<folder>/in.csv) with `options`; the folder is returned for its PNG.
+int replot(const std::string &folder, const std::string &csv_text, const std::string &options, std::string &out,
+           std::filesystem::path &dir) {
+  dir = std::filesystem::path(GLIMMER_TEST_BINARY_DIR) / folder;
+  std::filesystem::create_directories(dir);
+  const std::string csv = (dir / "in.csv").string();
+  std::ofstream(csv) << csv_text;
+  return run("bench error-vs-time --from-csv " + csv + " --out-dir " + dir.string() + " " + options, out);
+}
+
 TEST(BenchErrorVsTime, SceneWithoutGlintsIsABadInput) {
   // A scene of its own: the examples may gain glints at any time.
   const std::filesystem::path dir = std::filesystem::path(GLIMMER_TEST_BINARY_DIR) / "bench_evt_no_glints";
@@ -29,30 +48,23 @@ TEST(BenchErrorVsTime, SceneWithoutGlintsIsABadInput) {
   std::ofstream(scene) << "<cycles><camera width=\"8\" height=\"8\" />\n"
                           "<shader name=\"d\"><diffuse_bsdf name=\"b\" /><connect from=\"b bsdf\" to=\"output surface\" /></shader>\n"
                           "<state shader=\"d\"><mesh P=\"-1 -1 1  1 -1 1  1 1 1\" nverts=\"3\" verts=\"0 1 2\" /></state></cycles>\n";
-  std::string out;
-  const int code = run("bench error-vs-time " + scene, out);
-  EXPECT_EQ(code, 1) << out;
-  EXPECT_NE(out.find("no <glint_bsdf>"), std::string::npos) << out;
+  expect_bad_input(scene, "no <glint_bsdf>");
 }
 
 TEST(BenchErrorVsTime, UnknownMethodIsABadInput) {
-  std::string out;
-  const int code = run(std::string("bench error-vs-time ") + GLIMMER_TEST_SOURCE_DIR +
-                           "/examples/glint.xml --methods jakob14,phong --samples 1 --reference-samples 1",
-                       out);
-  EXPECT_EQ(code, 1) << out;
-  EXPECT_NE(out.find("unknown method 'phong'"), std::string::npos) << out;
+  expect_bad_input(std::string(GLIMMER_TEST_SOURCE_DIR) +
+                       "/examples/glint.xml --methods jakob14,phong --samples 1 --reference-samples 1",
+                   "unknown method 'phong'");
 }
 
 TEST(BenchErrorVsTime, ReplotsACsvAndReportsSpeedUps) {
-  const std::filesystem::path dir = std::filesystem::path(GLIMMER_TEST_BINARY_DIR) / "bench_evt_test";
-  std::filesystem::create_directories(dir);
-  const std::string csv = (dir / "in.csv").string();
-  std::ofstream(csv) << "method,samples,seconds,rmse\n"
-                     << "jakob14,1,10,0.4\njakob14,4,40,0.2\n"
-                     << "dsm-filtered,1,0.1,0.4\ndsm-filtered,4,0.4,0.2\n";
+  std::filesystem::path dir;
   std::string out;
-  const int code = run("bench error-vs-time --from-csv " + csv + " --out-dir " + dir.string() + " --name plot", out);
+  const int code = replot("bench_evt_test",
+                          "method,samples,seconds,rmse\n"
+                          "jakob14,1,10,0.4\njakob14,4,40,0.2\n"
+                          "dsm-filtered,1,0.1,0.4\ndsm-filtered,4,0.4,0.2\n",
+                          "--name plot", out, dir);
   EXPECT_EQ(code, 0) << out;
   EXPECT_TRUE(std::filesystem::exists(dir / "plot.png")) << out;
   // Equal RMSE 0.4 and 0.2: 10 s vs 0.1 s and 40 s vs 0.4 s -> 100x.
@@ -74,6 +86,56 @@ TEST(BenchErrorVsTime, OwnReferenceRendersOneConvergedImagePerMethod) {
   EXPECT_NE(out.find("reference: dsm-filtered at 2 spp"), std::string::npos) << out;
   EXPECT_NE(out.find("converged dsm-filtered vs converged jakob14: RMSE"), std::string::npos) << out;
   EXPECT_TRUE(std::filesystem::exists(dir / "own.csv")) << out;
+  std::filesystem::remove_all(dir);
+}
+
+TEST(BenchErrorVsTime, FrostedUnknownMethodIsABadInput) {
+  expect_bad_input(std::string(GLIMMER_TEST_SOURCE_DIR) +
+                       "/examples/frosted_closeup.xml --methods path,phong --samples 1 --reference-samples 1",
+                   "unknown method 'phong' for frosted");
+}
+
+TEST(BenchErrorVsTime, SceneWithBothMaterialsNeedsMaterialOption) {
+  // examples/frosted.xml has a glint sphere behind the frosted slab.
+  expect_bad_input(std::string(GLIMMER_TEST_SOURCE_DIR) + "/examples/frosted.xml --samples 1 --reference-samples 1",
+                   "--material glint or --material frosted");
+}
+
+TEST(BenchErrorVsTime, FrostedCsvReportsTheSpeedUpAtThePathRmseOfAGivenTime) {
+  std::filesystem::path dir;
+  std::string out;
+  const int code = replot("bench_evt_frosted_csv",
+                          "method,samples,seconds,rmse\n"
+                          "path,1,10,0.4\npath,4,40,0.2\n"
+                          "sg,1,1,0.4\nsg,4,4,0.2\n"
+                          "auto,1,5,0.5\nauto,4,20,0.3\n",
+                          "--at-seconds 20", out, dir);
+  EXPECT_EQ(code, 0) << out;
+  EXPECT_TRUE(std::filesystem::exists(dir / "frosted_error_vs_time.png")) << out;
+  // path at 20 s: log-log between (10 s, 0.4) and (40 s, 0.2) -> 0.4 / sqrt(2) = 0.28284; sg reaches it at 2 s.
+  EXPECT_NE(out.find("at path's 20-s RMSE 0.28284: sg 2.000 s, speed-up 10.0x"), std::string::npos) << out;
+  // auto's ladder ends at 0.3: a biased method's plateau is reported, not extrapolated.
+  EXPECT_NE(out.find("at path's 20-s RMSE 0.28284: auto never reaches it on the ladder"), std::string::npos) << out;
+  std::filesystem::remove_all(dir);
+}
+
+TEST(BenchErrorVsTime, FrostedMethodsRenderAgainstThePathReference) {
+  const std::filesystem::path dir = std::filesystem::path(GLIMMER_TEST_BINARY_DIR) / "bench_evt_frosted_run";
+  std::filesystem::create_directories(dir);
+  std::string out;
+  const int code = run(std::string("bench error-vs-time ") + GLIMMER_TEST_SOURCE_DIR +
+                           "/examples/frosted_closeup.xml --methods path,sg,auto --samples 1,2 --reference-samples 4 "
+                           "--width 12 --height 8 --threads 1 --clock cpu --out-dir " + dir.string(),
+                       out);
+  EXPECT_EQ(code, 0) << out;
+  std::ifstream csv(dir / "frosted_error_vs_time.csv");
+  std::string line;
+  int rows = 0;
+  std::getline(csv, line);
+  EXPECT_EQ(line, "method,samples,seconds,rmse");
+  while (std::getline(csv, line)) ++rows;
+  EXPECT_EQ(rows, 6) << out;  // 3 methods x 2 rungs
+  EXPECT_NE(out.find("reference: path at 4 spp"), std::string::npos) << out;
   std::filesystem::remove_all(dir);
 }
 

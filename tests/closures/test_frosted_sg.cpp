@@ -8,6 +8,13 @@
 //    closure at the hit is the material under test). The reference's own
 //    noise is reported (its standard error). Negative control: sg without the
 //    refraction at the exit (the lobe keeps the internal axis) must fail.
+//    The rest of the accuracy set: a non-convex solid (a sphere with a
+//    spherical air cavity), a sphere with textured roughness (per-point values
+//    at the entry and at every exit hit), a small light behind a slab; fast
+//    (4096 / 1024 paths per pixel) in make test, 16384 / 2048 under make stress.
+//  - method=auto: per shading point the samples are sg's where the rule picks
+//    sg (roughness <= 0.3, or after a diffuse / glossy bounce) and path's
+//    elsewhere, bit for bit;
 //  - stress: no NaN / Inf / negative raw outputs over 1e6 sg queries (1e8
 //    under make stress), TIR-heavy (IOR 2.4, grazing), hosts answering odd
 //    distances / normals / closures.
@@ -18,8 +25,11 @@
 #include <cstdio>
 #include <functional>
 #include <limits>
+#include <span>
+#include <string>
 
 #include "closures/frosted_glass.h"
+#include "closures/frosted_test_host.h"
 #include "closures/microfacet_test_util.h"
 #include "closures/raw_output_checks.h"
 #include "glimmer/rng.h"
@@ -31,15 +41,19 @@ using namespace glimmer;
 using namespace glimmer::plugin;
 using glimmer::test::stress_scale;  // 100 under make stress
 
-std::unique_ptr<FrostedGlassClosure> create_raw(float roughness, float ior, bool sg, const Vec3 &absorb = Vec3(1.0f)) {
+std::unique_ptr<FrostedGlassClosure> create_method(float roughness, float ior, const char *method,
+                                                  const Vec3 &absorb = Vec3(1.0f)) {
   const GlimmerParamValue values[] = {{"roughness", {roughness, 0, 0}, nullptr},
                                       {"ior", {ior, 0, 0}, nullptr},
                                       {"absorption_color", {absorb.x, absorb.y, absorb.z}, nullptr},
-                                      {"method", {0, 0, 0}, sg ? "sg" : "path"}};
+                                      {"method", {0, 0, 0}, method}};
   ParamReader reader(FrostedGlassClosure::kName, FrostedGlassClosure::params(), values);
   auto c = FrostedGlassClosure::create(reader);
   c->prepare(host::default_host_services());
   return c;
+}
+std::unique_ptr<FrostedGlassClosure> create_raw(float roughness, float ior, bool sg, const Vec3 &absorb = Vec3(1.0f)) {
+  return create_method(roughness, ior, sg ? "sg" : "path", absorb);
 }
 
 // ---- Analytic scenes with the renderer's host services -----------------------
@@ -48,30 +62,67 @@ struct Hit {
   Vec3 P{0.0f}, N{0.0f};  // N: outward
 };
 
+// A ray's nearest crossing of the sphere |x| = radius beyond t_min (false: none before t_max).
+bool hit_sphere(const Vec3 &o, const Vec3 &d, float radius, float t_min, float t_max, float &t) {
+  const float b = dot(o, d), c = dot(o, o) - radius * radius, disc = b * b - c;
+  if (disc < 0.0f) return false;
+  const float s = std::sqrt(disc);
+  t = -b - s;
+  if (!(t > t_min)) t = -b + s;
+  return t > t_min && t < t_max;
+}
+
 struct AnalyticScene {
-  enum Kind { kSphere, kSlab } kind = kSphere;
+  // kShell: a non-convex solid, the unit sphere with a spherical air cavity of radius shell_cavity (paths leave
+  // into the cavity and enter the glass again).
+  enum Kind { kSphere, kSlab, kShell } kind = kSphere;
   float slab_thickness = 0.3f;
+  float shell_cavity = 0.55f;
+  bool textured_roughness = false;  // the closure's roughness varies over the surface (roughness_at)
+  bool small_light = false;         // the environment is a dim sky and a small bright light behind the object
+  uint32_t roughness_param = 0;     // the closure's roughness parameter index (textured_roughness)
   const GlimmerInstance *material = nullptr;  // the closure reported at every hit
   GlimmerHostServices services{};
 
-  explicit AnalyticScene(Kind k) : kind(k) {
-    services = *host::default_host_services();
-    services.struct_size = sizeof(GlimmerHostServices);
-    services.host_data = this;
-    services.trace_ray = &trace;
-    services.trace_ray_closure = &trace_closure;
+  explicit AnalyticScene(Kind k) : kind(k) { services = glimmer::test::tracing_host_services<&trace_closure>(this); }
+
+  // The roughness texture: 0.15..0.5, a stripe pattern a few times finer than the object.
+  static float roughness_at(const Vec3 &P) { return 0.15f + 0.35f * (0.5f + 0.5f * std::sin(5.0f * P.x + 3.0f * P.y)); }
+  GlimmerVaryingValue roughness_value(const Vec3 &P) const {
+    GlimmerVaryingValue v{};
+    v.param = roughness_param;
+    v.value[0] = roughness_at(P);
+    return v;
+  }
+
+  // Smooth environment: a sky gradient and a broad bright lobe behind the objects; or (small_light) a dim sky and
+  // a small bright light behind them (a lobe ~3 degrees wide).
+  Spectrum environment(const Vec3 &d) const {
+    const Vec3 c = normalize(Vec3(0.35f, 0.1f, -1.0f));
+    if (small_light) {
+      const float light = 40.0f * std::exp(400.0f * (dot(d, c) - 1.0f));
+      return Spectrum(0.05f + 0.05f * (d.x + 1.0f) + light, 0.06f + light * 0.8f, 0.08f + light * 0.6f);
+    }
+    const float lobe = 1.5f * std::exp(6.0f * (dot(d, c) - 1.0f));
+    return Spectrum(0.3f + 0.25f * (d.x + 1.0f) + lobe, 0.35f + 0.2f * (d.y + 1.0f) + lobe,
+                    0.5f + 0.3f * std::max(0.0f, -d.z) + lobe);
   }
 
   bool intersect(const Vec3 &o, const Vec3 &d, float t_min, float t_max, Hit &h) const {
+    if (kind == kShell) {  // the nearer of the outer surface (normal outward) and the cavity's (normal inward)
+      float t_outer = t_max, t_inner = t_max;
+      const bool outer = hit_sphere(o, d, 1.0f, t_min, t_max, t_outer);
+      const bool inner = hit_sphere(o, d, shell_cavity, t_min, t_max, t_inner);
+      if (!outer && !inner) return false;
+      const bool at_inner = inner && (!outer || t_inner < t_outer);
+      h.t = at_inner ? t_inner : t_outer;
+      h.P = o + d * h.t;
+      h.N = at_inner ? -normalize(h.P) : normalize(h.P);
+      return true;
+    }
     if (kind == kSphere) {  // unit sphere at the origin
-      const float b = dot(o, d), c = dot(o, o) - 1.0f, disc = b * b - c;
-      if (disc < 0.0f) return false;
-      const float s = std::sqrt(disc);
-      float t = -b - s;
-      if (!(t > t_min)) t = -b + s;
-      if (!(t > t_min && t < t_max)) return false;
-      h.t = t;
-      h.P = o + d * t;
+      if (!hit_sphere(o, d, 1.0f, t_min, t_max, h.t)) return false;
+      h.P = o + d * h.t;
       h.N = normalize(h.P);
       return true;
     }
@@ -87,7 +138,7 @@ struct AnalyticScene {
     h.N = Vec3(0.0f, 0.0f, h.P.z > -0.5f * slab_thickness ? 1.0f : -1.0f);
     return true;
   }
-  static int trace(void *data, const GlimmerRay *ray, GlimmerRayHit *out) {
+  static int trace_closure(void *data, const GlimmerRay *ray, GlimmerRayHit *out, GlimmerHitClosure *c) {
     const auto *self = static_cast<const AnalyticScene *>(data);
     Hit h;
     if (!self->intersect(Vec3(ray->origin), Vec3(ray->direction), ray->t_min, ray->t_max, h)) return 0;
@@ -95,24 +146,16 @@ struct AnalyticScene {
     out->P = h.P;
     out->N = out->Ng = h.N;
     out->backfacing = dot(h.N, Vec3(ray->direction)) > 0.0f ? 1u : 0u;
-    return 1;
-  }
-  static int trace_closure(void *data, const GlimmerRay *ray, GlimmerRayHit *out, GlimmerHitClosure *c) {
-    if (!trace(data, ray, out)) return 0;
     c->type = nullptr;
-    c->instance = static_cast<const AnalyticScene *>(data)->material;
+    c->instance = self->material;
     c->varying_count = 0;
+    if (self->textured_roughness) {
+      c->varying_count = 1;
+      c->varying[0] = self->roughness_value(h.P);
+    }
     return 1;
   }
 };
-
-// Smooth environment: a sky gradient and a broad bright lobe behind the objects.
-Spectrum environment(const Vec3 &d) {
-  const Vec3 c = normalize(Vec3(0.35f, 0.1f, -1.0f));
-  const float lobe = 1.5f * std::exp(6.0f * (dot(d, c) - 1.0f));
-  return Spectrum(0.3f + 0.25f * (d.x + 1.0f) + lobe, 0.35f + 0.2f * (d.y + 1.0f) + lobe,
-                  0.5f + 0.3f * std::max(0.0f, -d.z) + lobe);
-}
 
 // One sample of a closure at a shading point (the variant hook for the negative control).
 using Sampler = std::function<bool(const ShadingPoint &, const Vec3 &, LocalSample &)>;
@@ -128,6 +171,11 @@ Spectrum transmitted_radiance(const AnalyticScene &scene, const Sampler &sample,
     ctx.N = ctx.Ng = hit.N;
     ctx.T = Frame::from_normal(hit.N).s;
     ctx.path_seed = rng.next_u32();
+    const GlimmerVaryingValue roughness = scene.roughness_value(hit.P);
+    if (scene.textured_roughness) {
+      ctx.varying_count = 1;
+      ctx.varying = &roughness;
+    }
     const ShadingPoint sp(&ctx, schema);
     LocalSample s;
     if (!sample(sp, Vec3(rng.next_float(), rng.next_float(), rng.next_float()), s) || !(s.pdf > 0.0f))
@@ -139,7 +187,7 @@ Spectrum transmitted_radiance(const AnalyticScene &scene, const Sampler &sample,
                                 : frosted::offset_origin(hit.P, hit.N, wo);
     Hit next;
     if (!scene.intersect(origin, wo, 0.0f, std::numeric_limits<float>::infinity(), next))
-      return throughput * environment(wo);
+      return throughput * scene.environment(wo);
     hit = next;
     D = wo;
   }
@@ -154,7 +202,7 @@ struct Pixel {
 };
 std::vector<Pixel> camera_pixels(const AnalyticScene &scene) {
   std::vector<Pixel> px;
-  if (scene.kind == AnalyticScene::kSphere) {
+  if (scene.kind != AnalyticScene::kSlab) {
     for (int j = 0; j < 4; ++j)
       for (int i = 0; i < 4; ++i) {
         const Vec3 o(-0.525f + 0.35f * i, -0.525f + 0.35f * j, 5.0f), D(0, 0, -1);
@@ -232,9 +280,26 @@ constexpr int kSgSpp = 2048;
 
 struct SceneError {
   double sg = 0.0, control = 0.0, ref_se = 0.0, toksvig = 0.0;
+  double noise_ratio = 0.0;  // sg's standard deviation per path over path's (relative, mean over pixels)
 };
-SceneError measure(AnalyticScene::Kind kind, const Config &c) {
-  AnalyticScene scene(kind);
+// A scene of the accuracy set.
+struct SceneSetup {
+  const char *name;
+  AnalyticScene::Kind kind;
+  bool textured_roughness = false, small_light = false;
+};
+uint32_t roughness_param_index() {
+  const auto schema = FrostedGlassClosure::params();
+  for (uint32_t i = 0; i < schema.size(); ++i)
+    if (std::string(schema[i].name) == "roughness") return i;
+  return 0;
+}
+
+SceneError measure(const SceneSetup &setup, const Config &c, int reference_spp = kReferenceSpp, int sg_spp = kSgSpp) {
+  AnalyticScene scene(setup.kind);
+  scene.textured_roughness = setup.textured_roughness;
+  scene.small_light = setup.small_light;
+  scene.roughness_param = roughness_param_index();
   auto path = create_raw(c.roughness, c.ior, false, c.absorb);
   auto sg = create_raw(c.roughness, c.ior, true, c.absorb);
   scene.material = reinterpret_cast<const GlimmerInstance *>(sg.get());
@@ -252,25 +317,27 @@ SceneError measure(AnalyticScene::Kind kind, const Config &c) {
       return true;
     });
   };
-  const ImageEstimate ref = render_tiny(scene, path_sampler, kReferenceSpp, 1);
-  const ImageEstimate est = render_tiny(scene, sg_sampler, kSgSpp, 2);
-  const ImageEstimate ctl = render_tiny(scene, variant(frosted::SgVariant::kNoExitRefraction), kSgSpp, 2);
-  const ImageEstimate toksvig = render_tiny(scene, variant(frosted::SgVariant::kToksvig), kSgSpp, 2);
+  const ImageEstimate ref = render_tiny(scene, path_sampler, reference_spp, 1);
+  const ImageEstimate est = render_tiny(scene, sg_sampler, sg_spp, 2);
+  const ImageEstimate ctl = render_tiny(scene, variant(frosted::SgVariant::kNoExitRefraction), sg_spp, 2);
+  const ImageEstimate toksvig = render_tiny(scene, variant(frosted::SgVariant::kToksvig), sg_spp, 2);
   SceneError e{mean_relative_error(est, ref), mean_relative_error(ctl, ref), mean_relative_se(ref),
-               mean_relative_error(toksvig, ref)};
+               mean_relative_error(toksvig, ref),
+               mean_relative_se(est) * std::sqrt(double(sg_spp)) / (mean_relative_se(ref) * std::sqrt(double(reference_spp)))};
   std::printf("[frosted sg] %s roughness %.2f ior %.2f%s: mean relative error sg %.4f (paper's Toksvig exit %.4f, "
-              "no exit refraction %.4f), reference se %.4f\n",
-              kind == AnalyticScene::kSphere ? "sphere" : "slab  ", double(c.roughness), double(c.ior),
-              c.absorb.x < 1.0f ? " absorbing" : "", e.sg, e.toksvig, e.control, e.ref_se);
+              "no exit refraction %.4f), reference se %.4f (%d / %d paths per pixel); noise per path sg / path %.2f\n",
+              setup.name, double(c.roughness), double(c.ior), c.absorb.x < 1.0f ? " absorbing" : "", e.sg,
+              e.toksvig, e.control, e.ref_se, reference_spp, sg_spp, e.noise_ratio);
   return e;
 }
 
 void check_scene(AnalyticScene::Kind kind) {
   const int side = kind == AnalyticScene::kSphere ? 0 : 1;
+  const SceneSetup setup{kind == AnalyticScene::kSphere ? "sphere" : "slab  ", kind};
   double worst = 0.0, sum = 0.0, sum_ctl = 0.0;
   int within_goal = 0;
   for (const Config &c : kConfigs) {
-    const SceneError e = measure(kind, c);
+    const SceneError e = measure(setup, c);
     worst = std::max(worst, e.sg);
     sum += e.sg;
     sum_ctl += e.control;
@@ -289,6 +356,114 @@ void check_scene(AnalyticScene::Kind kind) {
 TEST(FrostedGlassSg, SphereMatchesThePathReference) { check_scene(AnalyticScene::kSphere); }
 TEST(FrostedGlassSg, SlabMatchesThePathReference) { check_scene(AnalyticScene::kSlab); }
 
+// The rest of the accuracy set (issue 12): a non-convex solid, textured roughness, a small light behind a slab.
+// Fast in make test (4096 / 1024 paths per pixel), 16384 / 2048 (as above) under make stress. Bounds: the goal where
+// it is met, else the measured error (16k reference) + ~30 %, so that a regression fails. The negative control
+// (no exit refraction) must fail where `control` is set (where it measured > 2x the goal).
+struct SetCase {
+  float roughness, ior;
+  double bound;
+  bool control;
+};
+void check_set_scene(const SceneSetup &setup, std::span<const SetCase> cases) {
+  const bool full = stress_scale() > 1;
+  const int reference_spp = full ? kReferenceSpp : 4096, sg_spp = full ? kSgSpp : 1024;
+  double sum = 0.0;
+  for (const SetCase &c : cases) {
+    const Config config{c.roughness, c.ior, Vec3(1.0f), {c.bound, c.bound}};
+    const SceneError e = measure(setup, config, reference_spp, sg_spp);
+    EXPECT_LT(e.sg, c.bound) << setup.name << " roughness " << c.roughness << " ior " << c.ior;
+    if (c.control) {
+      EXPECT_GT(e.control, 2.0 * kGoal) << "negative control passed: " << setup.name << " roughness " << c.roughness;
+    }
+    sum += e.sg;
+  }
+  std::printf("[frosted sg] %s: mean relative error over the %zu configurations %.4f\n", setup.name, cases.size(),
+              sum / double(cases.size()));
+}
+
+TEST(FrostedGlassSg, NonConvexShellMatchesThePathReference) {
+  // Measured (16k): 0.0081 / 0.109 / 0.129 / 0.076. The exit into the cavity and the re-entry are each one SG
+  // event; the cavity's concave wall focuses the light the traced cone spreads (the paper's Toksvig exit: 0.061 /
+  // 0.064 at 0.3 / 0.5).
+  const SetCase cases[] = {
+      {0.1f, 1.33f, kGoal, true}, {0.3f, 1.5f, 0.145, false}, {0.5f, 1.7f, 0.175, false}, {0.8f, 1.5f, 0.105, false}};
+  check_set_scene({"shell (non-convex)", AnalyticScene::kShell}, cases);
+}
+TEST(FrostedGlassSg, TexturedRoughnessSphereMatchesThePathReference) {
+  // Roughness 0.15..0.5 from the texture (the constant 0.3 unused). Measured (16k): 0.0070 / 0.0100 / 0.0194.
+  const SetCase cases[] = {{0.3f, 1.33f, kGoal, true}, {0.3f, 1.5f, kGoal, true}, {0.3f, 1.7f, kGoal, true}};
+  check_set_scene({"sphere, textured roughness", AnalyticScene::kSphere, true}, cases);
+}
+TEST(FrostedGlassSg, SmallLightBehindSlabMatchesThePathReference) {
+  // Measured (16k): 0.0285 / 0.248 / 0.209: one SG exit lobe cannot follow the image of a small light (a
+  // narrow peak through a rough slab); the reference's own noise is 0.035 at 0.3 / 0.5.
+  const SetCase cases[] = {{0.1f, 1.5f, kGoal, true}, {0.3f, 1.5f, 0.33, true}, {0.5f, 1.33f, 0.29, true}};
+  check_set_scene({"slab, small light behind", AnalyticScene::kSlab, false, true}, cases);
+}
+
+// ---- method=auto ----------------------------------------------------------------
+// Paths entering the unit sphere at random points from outside, with the bounce counters of a camera ray or of
+// a path after a diffuse, glossy or transmission bounce: auto's samples must equal (bit for bit) those of the
+// method its rule picks, and differ from the other method's (so the comparison can fail).
+TEST(FrostedGlassAuto, SamplesAreSgsWhereTheRulePicksSgAndPathsElsewhere) {
+  enum Bounce { kCamera, kAfterDiffuse, kAfterGlossy, kAfterTransmission };
+  struct Case {
+    float roughness;
+    Bounce bounce;
+    bool expect_sg;
+  };
+  const Case cases[] = {{0.1f, kCamera, true},         {0.3f, kCamera, true},          {0.31f, kCamera, false},
+                        {0.6f, kCamera, false},        {0.6f, kAfterDiffuse, true},    {0.8f, kAfterGlossy, true},
+                        {0.6f, kAfterTransmission, false}};
+  const auto schema = FrostedGlassClosure::params();
+  for (const Case &c : cases) {
+    auto path = create_method(c.roughness, 1.5f, "path");
+    auto sg = create_method(c.roughness, 1.5f, "sg");
+    auto automatic = create_method(c.roughness, 1.5f, "auto");
+    AnalyticScene scene(AnalyticScene::kSphere);
+    int same_as_picked = 0, same_as_other = 0, moved = 0, n = 0;
+    Pcg32 rng(77);
+    for (int i = 0; i < 2000; ++i) {
+      const Vec3 n_out = normalize(Vec3(rng.next_float() - 0.5f, rng.next_float() - 0.5f, rng.next_float() - 0.5f));
+      const Frame f = Frame::from_normal(n_out);
+      const Vec3 wi_local = normalize(Vec3(rng.next_float() - 0.5f, rng.next_float() - 0.5f, 0.2f + rng.next_float()));
+      GlimmerShadingContext ctx = host::make_local_context(f.to_world(wi_local), &scene.services);
+      ctx.P = n_out;
+      ctx.N = ctx.Ng = n_out;
+      ctx.T = f.s;
+      ctx.path_seed = rng.next_u32();
+      ctx.diffuse_bounce = c.bounce == kAfterDiffuse;
+      ctx.glossy_bounce = c.bounce == kAfterGlossy;
+      ctx.transmission_bounce = c.bounce == kAfterTransmission;
+      ctx.bounce = c.bounce == kCamera ? 0u : 1u;
+      const ShadingPoint sp(&ctx, schema);
+      const Vec3 u(rng.next_float(), rng.next_float(), rng.next_float());
+      LocalSample a, p, g;
+      scene.material = reinterpret_cast<const GlimmerInstance *>(automatic.get());
+      const bool ok_a = automatic->sample(sp, u, a);
+      scene.material = reinterpret_cast<const GlimmerInstance *>(path.get());
+      const bool ok_p = path->sample(sp, u, p);
+      scene.material = reinterpret_cast<const GlimmerInstance *>(sg.get());
+      const bool ok_g = sg->sample(sp, u, g);
+      auto same = [&](bool ok, const LocalSample &s) {
+        auto eq = [](const Vec3 &x, const Vec3 &y) { return x.x == y.x && x.y == y.y && x.z == y.z; };
+        return ok == ok_a && (!ok || (eq(s.wo, a.wo) && eq(s.f_cos, a.f_cos) && s.pdf == a.pdf && s.moved == a.moved));
+      };
+      ++n;
+      moved += ok_a && a.moved;
+      same_as_picked += c.expect_sg ? same(ok_g, g) : same(ok_p, p);
+      same_as_other += c.expect_sg ? same(ok_p, p) : same(ok_g, g);
+    }
+    EXPECT_EQ(same_as_picked, n) << "roughness " << c.roughness << " bounce " << c.bounce;
+    EXPECT_LT(same_as_other, n * 9 / 10) << "roughness " << c.roughness << " bounce " << c.bounce;
+    if (c.expect_sg) {
+      EXPECT_GT(moved, n / 4) << "roughness " << c.roughness;
+    } else {
+      EXPECT_EQ(moved, 0) << "roughness " << c.roughness;
+    }
+  }
+}
 
 // ---- Stress --------------------------------------------------------------------
 using glimmer::test::bad_raw_outputs;
@@ -299,15 +474,7 @@ struct OddHost {
   const GlimmerInstance *material = nullptr;
   GlimmerHostServices services{};
   explicit OddHost(const GlimmerInstance *m) : material(m) {
-    services = *host::default_host_services();
-    services.struct_size = sizeof(GlimmerHostServices);
-    services.host_data = this;
-    services.trace_ray = [](void *d, const GlimmerRay *r, GlimmerRayHit *h) {
-      GlimmerHitClosure c{};
-      c.struct_size = sizeof c;
-      return answer(d, r, h, &c);
-    };
-    services.trace_ray_closure = &answer;
+    services = glimmer::test::tracing_host_services<&answer>(this);
   }
   static int answer(void *data, const GlimmerRay *ray, GlimmerRayHit *hit, GlimmerHitClosure *c) {
     const auto *self = static_cast<const OddHost *>(data);
