@@ -20,6 +20,7 @@
 #include <array>
 #include <cmath>
 
+#include "closures/principled_reflection.h"
 #include "core/closure.h"
 #include "glimmer/microfacet.h"
 
@@ -31,8 +32,6 @@ namespace principled_specular {
 inline constexpr float kSpecularToF0 = 0.08f;
 // F0 is kept below 1 so that the implied IOR stays finite (specular < 12.4).
 inline constexpr float kMaxF0 = 0.99f;
-// Cycles treats alpha_x * alpha_y <= 1e-7 as a perfect mirror.
-inline constexpr float kSingularAlpha2 = 1e-7f;
 
 // The dielectric normal-incidence reflectance of `specular`.
 inline float specular_f0(float specular) { return std::clamp(kSpecularToF0 * specular, 0.0f, kMaxF0); }
@@ -91,7 +90,7 @@ class PrincipledSpecularClosure : public OneLobeClosure<PrincipledSpecularClosur
     void build(const Spectrum &base_color, float metallic, float specular, float specular_tint, float roughness) {
       roughness = std::clamp(roughness, 0.0f, 1.0f);
       alpha = std::clamp(roughness * roughness, microfacet::kMinAlpha, 1.0f);
-      singular = roughness * roughness * roughness * roughness <= principled_specular::kSingularAlpha2;
+      singular = roughness * roughness * roughness * roughness <= principled_reflection::kSingularAlpha2;
       f0 = principled_specular::specular_f0(specular);
       eta = principled_specular::ior_from_f0(f0);
       c0 = principled_specular::cspec0(base_color, saturate(metallic), std::max(specular, 0.0f),
@@ -116,25 +115,10 @@ class PrincipledSpecularClosure : public OneLobeClosure<PrincipledSpecularClosur
 
     bool sample(const Vec3 &wi, const Vec3 &rand, LocalSample &out) const {
       if (!(wi.z > 0.0f)) return false;
-      if (singular) {
-        out.wo = Vec3(-wi.x, -wi.y, wi.z);
-        out.f_cos = fresnel(wi.z);
-        out.pdf = 1.0f;
-        out.roughness = 0.0f;
-        out.label = GLIMMER_LABEL_REFLECT | GLIMMER_LABEL_SINGULAR;
-        return true;
-      }
+      if (singular) return principled_reflection::sample_mirror(wi, fresnel(wi.z), out);
       const Vec3 m =
           microfacet::sample_visible_normal(microfacet::Distribution::GGX, wi, alpha, alpha, rand.x, rand.y);
-      if (!(dot(wi, m) > 0.0f)) return false;
-      out.wo = normalize(microfacet::reflect_about(wi, m));
-      if (!(out.wo.z > 0.0f)) return false;
-      const LocalEval e = eval(wi, out.wo);
-      out.f_cos = e.f_cos;
-      out.pdf = e.pdf;
-      out.roughness = alpha;
-      out.label = GLIMMER_LABEL_REFLECT | GLIMMER_LABEL_GLOSSY;
-      return out.pdf > 0.0f;
+      return principled_reflection::sample_reflection_about(*this, wi, m, alpha, out);
     }
 
     Spectrum albedo(const Vec3 &wi) const { return fresnel(clamp(wi.z, 0.0f, 1.0f)); }
