@@ -373,8 +373,8 @@ class ShaderGraph:
 
     def principled(self, node, out):
         """Principled BSDF as Cycles' principled_bsdf (the renderer expands it, bridge/render/principled.cpp):
-        base colour, metallic, specular, roughness, transmission, IOR, clearcoat and its roughness, alpha, emission.
-        Subsurface, sheen, anisotropy, specular tint, transmission roughness: warned and dropped; a linked Normal is
+        base colour, metallic, specular, specular tint, roughness, transmission, IOR, clearcoat and its roughness,
+        alpha, emission. Subsurface, sheen, anisotropy, transmission roughness: warned and dropped; a linked Normal is
         reported unread (warn_unread_links)."""
         name = node.name
         el = self.add("principled_bsdf", name,
@@ -383,6 +383,9 @@ class ShaderGraph:
             sock = _input(node, *names)
             if sock is not None:
                 self.set_input(el, attribute, sock)
+        tint = _input(node, "Specular Tint")
+        if tint is not None and tint.type == "VALUE":  # 3.x: a factor toward the base colour's hue (4.x: a colour)
+            self.set_input(el, "specular_tint", tint)
         spec = _input(node, "Specular")
         if spec is not None:
             self.set_input(el, "specular", spec)
@@ -394,8 +397,7 @@ class ShaderGraph:
         self.warn_unexported_values(node, (("Subsurface", "Subsurface Weight"), 0.0, "subsurface"),
                                     (("Sheen", "Sheen Weight"), 0.0, "sheen"),
                                     (("Anisotropic",), 0.0, "anisotropy (rendered isotropic)"),
-                                    (("Transmission Roughness",), 0.0, "transmission roughness"),
-                                    (("Specular Tint",), 0.0, "specular tint"))
+                                    (("Transmission Roughness",), 0.0, "transmission roughness"))
         return (el.get("name"), "bsdf")
 
     def glimmer_node(self, node, out):

@@ -115,6 +115,15 @@ const std::vector<ClosureNodeRow> &closure_node_rows() {
                    {.socket = "surface_mix_weight", .role = R::Ignored}},
        .doc = "Cycles 3.4's Principled clearcoat lobe (GTR1, Fresnel 1.5 at the microfacet); the colour is the "
               "weight (principled_bsdf: 0.25 * clearcoat)"},
+      {.node = "principled_diffuse_bsdf",
+       .closure = "principled_diffuse",
+       .schema = true,
+       .doc = "Cycles 3.4's Principled diffuse (Burley, retro-reflection); a textured colour is the weight"},
+      {.node = "principled_specular_bsdf",
+       .closure = "principled_specular",
+       .schema = true,
+       .doc = "Cycles 3.4's Principled specular (GGX, Fresnel interpolated from cspec0 toward 1); sockets are the "
+              "closure's parameters"},
       principled_row(),
       {.node = "holdout", .kind = NodeKind::Holdout, .output = "holdout", .doc = "not supported: no closure (black)"},
   };

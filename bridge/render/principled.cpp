@@ -1,6 +1,7 @@
 #include "render/principled.h"
 
 #include <algorithm>
+#include <cctype>
 #include <map>
 
 #include "cli/json_number.h"
@@ -16,8 +17,6 @@ namespace {
 
 using R = SocketRole;
 
-// Disney's `specular` maps to a dielectric f0 of 0.08 * specular (Burley 2012, sec. 5.6).
-constexpr float kSpecularToF0 = 0.08f;
 // Cycles 3.4 (and Disney) scale the clearcoat lobe by 0.25.
 constexpr float kClearcoatWeight = 0.25f;
 
@@ -140,11 +139,13 @@ ClosureNodeRow principled_row() {
       .kind = NodeKind::Composite,
       .sockets =
           {{.socket = "base_color", .role = R::Weight, .default_value = 0.8f},
-           {.socket = "metallic", .role = R::Param, .param = "mix fac (metal glossy)", .default_value = 0.0f,
+           {.socket = "metallic", .role = R::Param, .param = "mix fac (diffuse, glass off) and specular cspec0", .default_value = 0.0f,
             .min = 0, .max = 1},
-           {.socket = "specular", .role = R::Param, .param = "dielectric glossy colour 0.08 * specular",
+           {.socket = "specular", .role = R::Param, .param = "principled_specular F0 = 0.08 * specular",
             .default_value = 0.5f},
-           {.socket = "roughness", .role = R::Param, .param = "roughness (glossy, metal, glass)",
+           {.socket = "specular_tint", .role = R::Param, .param = "principled_specular tint of F0 toward the hue",
+            .default_value = 0.0f, .min = 0, .max = 1},
+           {.socket = "roughness", .role = R::Param, .param = "roughness (diffuse retro-reflection, specular, glass)",
             .default_value = 0.5f, .min = 0, .max = 1},
            {.socket = "transmission", .role = R::Param, .param = "mix fac (glass)", .default_value = 0.0f,
             .min = 0, .max = 1},
@@ -163,8 +164,6 @@ ClosureNodeRow principled_row() {
             .note = "subsurface scattering is not supported; dropped"},
            {.socket = "anisotropic", .role = R::Unsupported, .default_value = 0.0f,
             .note = "anisotropic is not supported; the specular lobes are isotropic"},
-           {.socket = "specular_tint", .role = R::Unsupported, .default_value = 0.0f,
-            .note = "specular_tint is not supported; the dielectric specular is untinted"},
            {.socket = "transmission_roughness", .role = R::Unsupported, .default_value = 0.0f,
             .note = "transmission_roughness is not supported; the glass uses roughness"},
            {.socket = "sheen_tint", .role = R::Ignored},
@@ -179,7 +178,8 @@ ClosureNodeRow principled_row() {
            {.socket = "surface_mix_weight", .role = R::Ignored}},
       .distribution = true,
       .doc = "host composite (render/principled.cpp): mix(alpha, transparent, "
-             "mix(metallic, mix(transmission, diffuse + glossy(0.08 specular), glass), glossy(base_color)) + "
+             "mix(metallic, mix(transmission, principled_diffuse + principled_specular, glass), "
+             "principled_specular) + "
              "clearcoat_bsdf(0.25 clearcoat, clearcoat_roughness) + emission)"};
 }
 
@@ -192,19 +192,23 @@ std::string expand_principled(const ShaderGraph &g, const ShaderNode &n, ShaderG
   std::string distribution = "ggx";
   if (auto d = n.attributes.find("distribution"); d != n.attributes.end()) distribution = d->second;
 
-  // Dielectric base: Lambert + a glossy lobe of reflectance 0.08 * specular.
-  const std::string diffuse = c.add("diffuse", "diffuse_bsdf");
+  // Cycles 3.4's base (svm_closure.h): principled diffuse of weight (1 - metallic)(1 - transmission), glass of
+  // weight (1 - metallic) transmission and the Fresnel-interpolated specular of weight 1 - transmission
+  // (1 - metallic), which carries the metal through cspec0. As mixes:
+  //   mix(metallic, mix(transmission, diffuse + specular, glass), specular)
+  // gives the specular (1 - metallic)(1 - transmission) + metallic = 1 - transmission (1 - metallic).
+  const std::string diffuse = c.add("diffuse", "principled_diffuse_bsdf");
   c.carry("base_color", diffuse, "color");
-  const std::string specular = c.add("specular", "glossy_bsdf", {{"distribution", distribution}});
-  c.carry("roughness", specular, "roughness");
-  if (c.linked("specular")) {
-    const std::string scale = c.add("specular_f0", "math", {{"math_type", "multiply"}});
-    c.carry("specular", scale, "value1");
-    c.set(scale, "value2", cli::json_float(kSpecularToF0).dump());
-    c.connect(scale, "value", specular, "color");
-  } else {
-    c.set(specular, "color", cli::json_float(std::clamp(kSpecularToF0 * c.constant("specular"), 0.0f, 1.0f)).dump());
-  }
+  c.carry("roughness", diffuse, "roughness");
+  const std::string specular = c.add("specular", "principled_specular_bsdf");
+  for (const char *socket : {"base_color", "metallic", "specular", "specular_tint", "roughness"})
+    c.carry(socket, specular, socket);
+  std::string lower = distribution;
+  std::transform(lower.begin(), lower.end(), lower.begin(), [](unsigned char ch) { return std::tolower(ch); });
+  if (lower != "ggx")
+    warn(n.where, "principled_bsdf: distribution '" + distribution +
+                      "': the specular is single-scattering GGX (Cycles' multiscatter GGX with Fresnel is not "
+                      "implemented); the glass uses the distribution");
   std::string result = c.add("dielectric", "add_closure");
   c.connect(diffuse, "bsdf", result, "closure1");
   c.connect(specular, "bsdf", result, "closure2");
@@ -216,12 +220,7 @@ std::string expand_principled(const ShaderGraph &g, const ShaderNode &n, ShaderG
     c.carry("ior", glass, "IOR");
     result = c.mix("transmission", "transmission", result, glass);
   }
-  if (c.active("metallic", positive)) {
-    const std::string metal = c.add("metal", "glossy_bsdf", {{"distribution", distribution}});
-    c.carry("base_color", metal, "color");
-    c.carry("roughness", metal, "roughness");
-    result = c.mix("metallic", "metallic", result, metal);
-  }
+  if (c.active("metallic", positive)) result = c.mix("metallic", "metallic", result, specular);
   // Clearcoat as Cycles 3.4 adds it (svm_closure.h): its coat lobe (clearcoat_bsdf: GTR1, Fresnel 1.5 at the
   // microfacet) of weight 0.25 * clearcoat on top of the base, which it does not attenuate.
   if (c.active("clearcoat", positive)) {

@@ -22,6 +22,7 @@
 #include <array>
 #include <cmath>
 
+#include "closures/principled_reflection.h"
 #include "core/closure.h"
 #include "glimmer/microfacet.h"
 
@@ -33,8 +34,6 @@ namespace clearcoat {
 inline constexpr float kIor = 1.5f;
 // The fixed alpha of the coat's Smith G (Cycles 3.4: alpha2 = 0.0625).
 inline constexpr float kShadowingAlpha = 0.25f;
-// Cycles treats alpha_x * alpha_y <= 1e-7 as a perfect mirror.
-inline constexpr float kSingularAlpha2 = 1e-7f;
 
 // GTR1 D(m) for a unit m with m.z > 0, alpha in (0, 1].
 inline float gtr1_D(const Vec3 &m, float alpha) {
@@ -102,7 +101,7 @@ class ClearcoatClosure : public OneLobeClosure<ClearcoatClosure> {
 
     void build(float roughness) {
       alpha = clearcoat::roughness_to_alpha(roughness);
-      singular = alpha * alpha <= clearcoat::kSingularAlpha2;
+      singular = alpha * alpha <= principled_reflection::kSingularAlpha2;
     }
 
     LocalEval eval(const Vec3 &wi, const Vec3 &wo) const {
@@ -120,24 +119,9 @@ class ClearcoatClosure : public OneLobeClosure<ClearcoatClosure> {
 
     bool sample(const Vec3 &wi, const Vec3 &rand, LocalSample &out) const {
       if (!(wi.z > 0.0f)) return false;
-      if (singular) {
-        out.wo = Vec3(-wi.x, -wi.y, wi.z);
-        out.f_cos = Spectrum(clearcoat::coat_fresnel(wi.z));
-        out.pdf = 1.0f;
-        out.roughness = 0.0f;
-        out.label = GLIMMER_LABEL_REFLECT | GLIMMER_LABEL_SINGULAR;
-        return true;
-      }
+      if (singular) return principled_reflection::sample_mirror(wi, Spectrum(clearcoat::coat_fresnel(wi.z)), out);
       const Vec3 m = clearcoat::sample_gtr1(alpha, rand.x, rand.y);
-      if (!(dot(wi, m) > 0.0f)) return false;
-      out.wo = normalize(microfacet::reflect_about(wi, m));
-      if (!(out.wo.z > 0.0f)) return false;
-      const LocalEval e = eval(wi, out.wo);
-      out.f_cos = e.f_cos;
-      out.pdf = e.pdf;
-      out.roughness = alpha;
-      out.label = GLIMMER_LABEL_REFLECT | GLIMMER_LABEL_GLOSSY;
-      return out.pdf > 0.0f;
+      return principled_reflection::sample_reflection_about(*this, wi, m, alpha, out);
     }
 
     // Estimate for closure picking and the Albedo pass: the coat's Fresnel at wi (Cycles' sample weight uses the

@@ -1189,6 +1189,77 @@ def scene_principled_clearcoat():
         RESULTS.append(line)
 
 
+def scene_principled_base():
+    """Three red Principled spheres (base colour (0.8, 0.05, 0.05), GGX, exported as principled_bsdf): a dielectric
+    at roughness 0.5, metallic 0.5 at roughness 0.4, specular_tint 0.5 at roughness 0.3; grey world and an area
+    light (issue 15: Cycles 3.4's principled diffuse and Fresnel-interpolated specular). Negative controls, each
+    must fail some regions of its sphere: Glimmer with the former base (Lambert + a GGX of the constant reflectance
+    0.08 specular, the metal a GGX of the base colour) on every sphere; with the diffuse alone replaced by Lambert
+    (specular unchanged) on the roughness 0.5 and 0.4 spheres (at roughness 0.3 Lambert is within the tolerance:
+    0 of 16 regions, max 1.5 %); with specular tint 0 on the tint sphere."""
+    scene = new_scene(samples=256, width=96, height=48)
+    grey_world(scene)
+    add_camera(scene, (0.0, -9.5, 0.0), (90.0, 0.0, 0.0))
+    spheres = (("dielectric, roughness 0.5", -2.2, {"Roughness": 0.5}),
+               ("metallic 0.5, roughness 0.4", 0.0, {"Roughness": 0.4, "Metallic": 0.5}),
+               ("specular tint 0.5, roughness 0.3", 2.2, {"Roughness": 0.3, "Specular Tint": 0.5}))
+    nodes = []
+    for label, x, inputs in spheres:
+        mat, node = principled_material("Red " + label, (0.8, 0.05, 0.05), **inputs)
+        node.distribution = "GGX"
+        add_sphere(1.0, (x, 0.0, 0.0), mat)
+        nodes.append(node)
+    add_light(scene, "AREA", (1.0, -4.0, 3.0), (50.0, 0.0, 15.0), energy=800.0, size=2.0)
+    glim, cyc = render_both("principled_base")
+    lambert = glimmer_principled_rewrite("principled_base_lambert", former_specular=False)
+    former = glimmer_principled_rewrite("principled_base_former", former_specular=True)
+    nodes[2].inputs["Specular Tint"].default_value = 0.0
+    untinted = glimmer_variant("principled_base_untinted")
+    controls = ((("Lambert diffuse base", lambert),), (("Lambert diffuse base", lambert),),
+                (("specular tint 0", untinted),))
+    for (label, x, _), own in zip(spheres, controls):
+        box = pixel_region(scene, (x, 0, 0), 10)
+        compare_region("28 principled base %s, sphere" % label, box, glim, cyc)
+        check_grid("28 principled base %s, 4x4 regions" % label, glim, cyc, box, (4, 4),
+                   ("the former base (Lambert + constant-f0 GGX)", former), *own)
+
+
+def glimmer_principled_rewrite(name, former_specular):
+    """Glimmer's render with every (opaque, uncoated) principled_bsdf written out as a graph with a Lambert diffuse:
+    mix(metallic, diffuse + specular, specular) with Cycles 3.4's specular (principled_specular_bsdf), or with
+    `former_specular` the base principled_bsdf had before issue 15's Cycles 3.4 layers:
+    mix(metallic, diffuse + glossy(0.08 specular), glossy(base colour))."""
+    import xml.etree.ElementTree as ET
+    xml, _ = mod.exporter.export_scene(bpy.context.evaluated_depsgraph_get(), os.path.join(opts.out, name + "_export"))
+    tree = ET.parse(xml)
+    for shader in tree.getroot().iter("shader"):
+        for p in shader.findall("principled_bsdf"):
+            pname, get = p.get("name"), p.get
+            base, roughness = get("base_color", "0.8 0.8 0.8"), get("roughness", "0.5")
+            shader.remove(p)
+            ET.SubElement(shader, "diffuse_bsdf", name=pname + "_d", color=base)
+            if former_specular:
+                ET.SubElement(shader, "glossy_bsdf", name=pname + "_s", distribution="GGX", roughness=roughness,
+                              color="%g" % (0.08 * float(get("specular", "0.5"))))
+                ET.SubElement(shader, "glossy_bsdf", name=pname + "_m", distribution="GGX", roughness=roughness,
+                              color=base)
+            else:
+                ET.SubElement(shader, "principled_specular_bsdf", name=pname + "_s", base_color=base,
+                              roughness=roughness, metallic=get("metallic", "0"), specular=get("specular", "0.5"),
+                              specular_tint=get("specular_tint", "0"))
+            ET.SubElement(shader, "add_closure", name=pname + "_diel")
+            ET.SubElement(shader, "mix_closure", name=pname + "_mix", fac=get("metallic", "0"))
+            metal = pname + ("_m" if former_specular else "_s")
+            for src, dst in ((pname + "_d bsdf", pname + "_diel closure1"), (pname + "_s bsdf", pname + "_diel closure2"),
+                             (pname + "_diel closure", pname + "_mix closure1"), (metal + " bsdf", pname + "_mix closure2")):
+                ET.SubElement(shader, "connect", attrib={"from": src, "to": dst})
+            for c in shader.findall("connect"):
+                if c.get("from") == pname + " bsdf":
+                    c.set("from", pname + "_mix closure")
+    tree.write(xml)
+    return glimmer_pixels(xml, name, bpy.context.scene.glimmer.seed)
+
+
 def glimmer_ggx_coat_variant(name):
     """Glimmer's render with every principled_bsdf replaced by the composite with the previous coat: a GGX glossy
     lobe of alpha clearcoat_roughness^2 and colour 0.25 * clearcoat * Fresnel(1.5, N.I), added on top."""
@@ -1258,6 +1329,7 @@ SCENES = {
     "normal_map_sphere": scene_normal_map_sphere,
     "anisotropic_cylinder": scene_anisotropic_cylinder,
     "principled_clearcoat": scene_principled_clearcoat,
+    "principled_base": scene_principled_base,
 }
 
 # Outside the tolerance today (run only when named in GLIMMER_PARITY_ONLY; figures in docs/architecture.md).

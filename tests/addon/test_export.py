@@ -85,6 +85,7 @@ p = tree.nodes.new("ShaderNodeBsdfPrincipled")
 p.name = "principled"
 p.inputs["Base Color"].default_value = (0.8, 0.1, 0.1, 1.0)
 p.inputs["Roughness"].default_value = 0.4
+p.inputs["Specular Tint"].default_value = 0.25
 tree.links.new(p.outputs[0], out.inputs["Surface"])
 
 glint_mat, tree, out = material("Sparkle")
@@ -226,6 +227,7 @@ check(abs(float(plastic_p.get("roughness")) - 0.4) < 1e-6 and float(plastic_p.ge
       "principled roughness and specular")
 check(float(plastic_p.get("clearcoat")) == 0.0 and abs(float(plastic_p.get("clearcoat_roughness")) - 0.03) < 1e-6
       and float(plastic_p.get("alpha")) == 1.0, "principled clearcoat and alpha sockets written")
+check(float(plastic_p.get("specular_tint")) == 0.25, "principled specular tint written")
 check(("principled bsdf", "output surface") in {(c.get("from"), c.get("to")) for c in plastic.findall("connect")},
       "principled_bsdf feeds the surface")
 sparkle = shaders["Sparkle"]

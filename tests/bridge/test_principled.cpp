@@ -6,9 +6,10 @@
 // documented recipe (docs/scene-format.md, "principled_bsdf"); the per-channel
 // z-score of the mean per-pixel difference must be below 4 (the renders are equal
 // within noise; identical trees give identical images). Negative control per case:
-// a reference with a known bug (the specular not scaled by 0.08, the metal mix
-// reversed, transmission or clearcoat dropped, the clearcoat as the former GGX lobe, alpha reversed) must differ
-// (z > 4).
+// a reference with a known bug (the former base model: Lambert + a constant-f0 GGX and a glossy metal of the base
+// colour; the metal mix reversed, specular_tint dropped, transmission or clearcoat dropped, the clearcoat as the
+// former GGX lobe, alpha reversed, the metallic link dropped) must differ (z > 4). The base closures themselves
+// (principled_diffuse, principled_specular) are checked against Cycles 3.4's formulas in tests/closures.
 #include <algorithm>
 #include <regex>
 
@@ -48,13 +49,25 @@ double mean_rgb(const render::RenderResult &r) {
 const char *kBase = "0.8 0.3 0.1";
 
 // The hand-built pieces of the reference graphs (Cycles nodes; `out` is the root's name and socket).
-std::string dielectric(const std::string &specular_color) {
-  return std::string("<diffuse_bsdf name=\"d\" color=\"") + kBase + "\" />"
-         "<glossy_bsdf name=\"sp\" distribution=\"ggx\" roughness=\"0.3\" color=\"" + specular_color + "\" />"
+// Cycles 3.4's specular lobe (its Fresnel colour carries metallic, specular and specular_tint).
+std::string specular_lobe(const std::string &attributes) {
+  return std::string("<principled_specular_bsdf name=\"sp\" roughness=\"0.3\" base_color=\"") + kBase + "\" " +
+         attributes + " />";
+}
+// diel = principled_diffuse(base colour, roughness) + the specular lobe `sp`.
+std::string dielectric(const std::string &specular_attributes) {
+  return std::string("<principled_diffuse_bsdf name=\"d\" roughness=\"0.3\" color=\"") + kBase + "\" />" +
+         specular_lobe(specular_attributes) +
          "<add_closure name=\"diel\" /><connect from=\"d bsdf\" to=\"diel closure1\" />"
          "<connect from=\"sp bsdf\" to=\"diel closure2\" />";
 }
-const std::string kDielectric = dielectric("0.04 0.04 0.04");  // 0.08 * specular 0.5
+const std::string kDielectric = dielectric("metallic=\"0\" specular=\"0.5\" specular_tint=\"0\"");
+// The former base (negative control): Lambert + GGX of the constant reflectance 0.08 * specular.
+const std::string kFormerDielectric =
+    std::string("<diffuse_bsdf name=\"d\" color=\"") + kBase + "\" />"
+    "<glossy_bsdf name=\"sp\" distribution=\"ggx\" roughness=\"0.3\" color=\"0.04 0.04 0.04\" />"
+    "<add_closure name=\"diel\" /><connect from=\"d bsdf\" to=\"diel closure1\" />"
+    "<connect from=\"sp bsdf\" to=\"diel closure2\" />";
 std::string to_output(const std::string &from) { return "<connect from=\"" + from + "\" to=\"output surface\" />"; }
 std::string principled(const std::string &attributes) {
   return "<principled_bsdf name=\"p\" base_color=\"" + std::string(kBase) + "\" roughness=\"0.3\" " + attributes +
@@ -103,29 +116,34 @@ void expect_principled_equals_reference(const Case &c) {
   EXPECT_GT(z_bug, 4.0) << c.label << ": the negative control is not detected";
 }
 
-TEST(Principled, Metallic0IsDiffusePlusSpecular) {
+TEST(Principled, Metallic0IsPrincipledDiffusePlusSpecular) {
   expect_principled_equals_reference({"metallic0", principled("metallic=\"0\" specular=\"0.5\""),
                                       kDielectric + to_output("diel closure"),
-                                      dielectric("0.5 0.5 0.5") + to_output("diel closure")});
+                                      kFormerDielectric + to_output("diel closure")});
 }
 
-TEST(Principled, Metallic1IsGlossyOfBaseColour) {
-  expect_principled_equals_reference(
-      {"metallic1", principled("metallic=\"1\""),
-       std::string("<glossy_bsdf name=\"m\" distribution=\"ggx\" roughness=\"0.3\" color=\"") + kBase + "\" />" +
-           to_output("m bsdf"),
-       kDielectric + to_output("diel closure")});
-}
-
-TEST(Principled, HalfMetallicMixesDielectricAndMetal) {
-  const std::string metal =
+TEST(Principled, Metallic1IsTheSpecularWithBaseColourCspec0) {
+  const std::string metal_glossy =
       std::string("<glossy_bsdf name=\"m\" distribution=\"ggx\" roughness=\"0.3\" color=\"") + kBase + "\" />";
+  expect_principled_equals_reference({"metallic1", principled("metallic=\"1\""),
+                                      specular_lobe("metallic=\"1\"") + to_output("sp bsdf"),
+                                      metal_glossy + to_output("m bsdf")});
+}
+
+TEST(Principled, HalfMetallicMixesDielectricAndSpecular) {
+  // Cycles 3.4: diffuse (1 - metallic), specular 1 with cspec0 = mix(0.08 specular, base, metallic).
   auto mixed = [&](const char *fac) {
-    return kDielectric + metal + "<mix_closure name=\"mm\" fac=\"" + fac +
-           "\" /><connect from=\"diel closure\" to=\"mm closure1\" /><connect from=\"m bsdf\" to=\"mm closure2\" />" +
+    return dielectric("metallic=\"0.3\"") + "<mix_closure name=\"mm\" fac=\"" + fac +
+           "\" /><connect from=\"diel closure\" to=\"mm closure1\" /><connect from=\"sp bsdf\" to=\"mm closure2\" />" +
            to_output("mm closure");
   };
   expect_principled_equals_reference({"metallic03", principled("metallic=\"0.3\""), mixed("0.3"), mixed("0.7")});
+}
+
+TEST(Principled, SpecularTintTintsTheSpecular) {
+  expect_principled_equals_reference({"tint1", principled("specular=\"1\" specular_tint=\"1\""),
+                                      dielectric("specular=\"1\" specular_tint=\"1\"") + to_output("diel closure"),
+                                      dielectric("specular=\"1\" specular_tint=\"0\"") + to_output("diel closure")});
 }
 
 TEST(Principled, Transmission1IsGlass) {
@@ -162,15 +180,14 @@ TEST(Principled, LinkedSocketsVaryPerShadingPoint) {
       "<connect from=\"c fac\" to=\"p roughness\" /><connect from=\"c fac\" to=\"p metallic\" />" + to_output("p bsdf");
   auto reference = [&](const char *mix_from) {
     return checker +
-           "<diffuse_bsdf name=\"d\" /><connect from=\"c color\" to=\"d color\" />"
-           "<glossy_bsdf name=\"sp\" distribution=\"ggx\" color=\"0.04 0.04 0.04\" />"
-           "<connect from=\"c fac\" to=\"sp roughness\" />"
+           "<principled_diffuse_bsdf name=\"d\" /><connect from=\"c color\" to=\"d color\" />"
+           "<connect from=\"c fac\" to=\"d roughness\" />"
+           "<principled_specular_bsdf name=\"sp\" /><connect from=\"c color\" to=\"sp base_color\" />"
+           "<connect from=\"c fac\" to=\"sp roughness\" /><connect from=\"c fac\" to=\"sp metallic\" />"
            "<add_closure name=\"diel\" /><connect from=\"d bsdf\" to=\"diel closure1\" />"
            "<connect from=\"sp bsdf\" to=\"diel closure2\" />"
-           "<glossy_bsdf name=\"m\" distribution=\"ggx\" /><connect from=\"c color\" to=\"m color\" />"
-           "<connect from=\"c fac\" to=\"m roughness\" />"
            "<mix_closure name=\"mm\" /><connect from=\"" + std::string(mix_from) + "\" to=\"mm fac\" />"
-           "<connect from=\"diel closure\" to=\"mm closure1\" /><connect from=\"m bsdf\" to=\"mm closure2\" />" +
+           "<connect from=\"diel closure\" to=\"mm closure1\" /><connect from=\"sp bsdf\" to=\"mm closure2\" />" +
            to_output("mm closure");
   };
   // Buggy: the metallic link dropped (a constant mix of 0.5 instead of the checker).
