@@ -701,11 +701,9 @@ struct Renderer::Impl {
   // Next-event estimation at the surface (Cycles' integrate_surface_direct_light); skipped when only
   // singular closures are present.
   void integrate_surface_direct_light(const ClosureSet &cs, const ShadingData &sd, float total_sw,
-                                      const PixelSampler &sampler, const PathState &ps, PathRadiance &pr) const {
+                                      const float light_rand[2], const PathState &ps, PathRadiance &pr) const {
     if (!use_nee() || !has_smooth_closure(cs) || lights->count() == 0) return;
-    float lu, lv;
-    sampler.get_light(ps.sample_vertex(), lu, lv);
-    const Spectrum direct = sample_direct_light(cs, sd, pr.throughput, total_sw, lu, lv);
+    const Spectrum direct = sample_direct_light(cs, sd, pr.throughput, total_sw, light_rand[0], light_rand[1]);
     if (!is_zero(direct)) add_contribution(pr, direct, ps.bounce);
   }
 
@@ -788,15 +786,16 @@ struct Renderer::Impl {
         write_first_hit_aovs(cs, sd, hit.t * ray.cam_dir_z, aov);
       }
       if (ps.terminate_next) break;
-      // The bounce's 4D BSDF set: x, y (closure pick, then the closure's direction), z (its third number),
-      // rr (Russian roulette); docs/architecture.md "Sample dimensions".
-      float bsdf_rand[4];
-      sampler.get_bsdf(ps.sample_vertex(), bsdf_rand);
+      // The vertex's 4D BSDF set: x, y (closure pick, then the closure's direction), z (its third number),
+      // rr (Russian roulette), and its 2D light set (u, v), drawn together so that the two chains overlap;
+      // docs/architecture.md "Sample dimensions".
+      float bsdf_rand[4], light_rand[2];
+      sampler.get_vertex(ps.sample_vertex(), bsdf_rand, light_rand);
       if (!survives_russian_roulette(ps, limits, bsdf_rand[3], pr.throughput)) break;
       const float transparent_weight = std::fabs(average(cs.transparent));
       const float total_sw = cs.sum_sample_weight + transparent_weight;
       if (total_sw <= 0.0f) break;
-      integrate_surface_direct_light(cs, sd, total_sw, sampler, ps, pr);
+      integrate_surface_direct_light(cs, sd, total_sw, light_rand, ps, pr);
       if (!integrate_surface_bsdf_bounce(cs, sd, bsdf_rand, transparent_weight, total_sw, limits, ps, pr, ray)) break;
     }
     return pr.L;
