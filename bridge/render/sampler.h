@@ -177,6 +177,15 @@ struct PixelSampler {
     pair_values(l, 0, light);
     pair_values(b, 1, bsdf);
   }
+  // The film set (pixel filter position) with vertex 0's BSDF and light sets: three independent chains side by
+  // side at the start of a path (the same values as get2(kSetFilm, ...) and get_vertex(0, ...)).
+  void get_path_start(float (&film)[2], float (&bsdf)[4], float (&light)[2]) const {
+    const Set f = start_set(kSetFilm), b = start_set(bounce_set(0, kSetBsdf)), l = start_set(bounce_set(0, kSetLight));
+    pair_values(f, 0, film);
+    pair_values(b, 0, bsdf);
+    pair_values(l, 0, light);
+    pair_values(b, 1, bsdf);
+  }
   void get2(uint32_t set, float &u, float &v) const {
     float uv[2];
     get(set, uv);

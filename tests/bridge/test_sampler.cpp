@@ -152,6 +152,22 @@ TEST(Sampler, VertexSetsTogetherEqualTheSetsApart) {
   EXPECT_GE(neighbour_differs, cases - 2);
 }
 
+// get_path_start: the film set and vertex 0's sets, exactly as drawn apart.
+TEST(Sampler, PathStartSetsEqualTheSetsApart) {
+  for (uint32_t pixel : {0u, 17u, 4095u, 123456u})
+    for (uint32_t s = 0; s < 300; ++s) {
+      const PixelSampler sampler(99u, pixel, s);
+      float film[2], bsdf[4], light[2], bsdf0[4], light0[2], fu, fv;
+      sampler.get_path_start(film, bsdf, light);
+      sampler.get2(kSetFilm, fu, fv);
+      sampler.get_vertex(0, bsdf0, light0);
+      ASSERT_EQ(film[0], fu);
+      ASSERT_EQ(film[1], fv);
+      for (int d = 0; d < 4; ++d) ASSERT_EQ(bsdf[d], bsdf0[d]);
+      for (int d = 0; d < 2; ++d) ASSERT_EQ(light[d], light0[d]);
+    }
+}
+
 TEST(Sampler, PureFunctionOfItsArguments) {
   float a[4], b[4], c[4], d[4];
   PixelSampler(7u, 100u, 33u).get(bounce_set(2, kSetBsdf), a);
