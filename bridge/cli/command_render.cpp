@@ -21,6 +21,7 @@
 #include "cli/commands.h"
 #include "cli/render_parts.h"
 #include "host/log.h"
+#include "render/image_io.h"
 #include "render/image_output.h"
 #include "render/renderer.h"
 #include "scene/parse_number.h"
@@ -130,13 +131,17 @@ struct KeptRender {
 int render_one(CliContext &ctx, const RenderArgs &a, const std::string &scene_path, const std::string &output,
                int frame, KeptRender *keep = nullptr) {
   using Clock = std::chrono::steady_clock;
-  auto t0 = Clock::now();
   auto since = [](Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); };
   try {
     render::check_output_path(output);  // before any work: a bad output must not cost a render
   } catch (const std::exception &e) {
     throw CliError(kExitBadInput, e.what());
   }
+  // The plugin first, then the image module on a background thread (render/image_io.h): the two dlopen calls
+  // would wait for each other, while the module's load overlaps the scene load, the BVH and the render.
+  auto &plugin = ctx.plugin();
+  render::preload_image_io();
+  auto t0 = Clock::now();
   auto loaded = std::make_unique<scene::Scene>();  // on the heap: a kept renderer refers to it
   scene::Scene &scene = *loaded;
   try {
@@ -147,7 +152,6 @@ int render_one(CliContext &ctx, const RenderArgs &a, const std::string &scene_pa
     throw CliError(kExitBadInput, e.what());
   }
   const double load_seconds = since(t0);
-  auto &plugin = ctx.plugin();
 
   render::RenderOptions opt;
   opt.samples = a.samples;
@@ -213,6 +217,13 @@ int render_one(CliContext &ctx, const RenderArgs &a, const std::string &scene_pa
   for (const auto &w : scene.warnings) std::fprintf(stderr, "%s\n", w.c_str());
   for (const auto &w : renderer->warnings()) std::fprintf(stderr, "%s\n", w.c_str());
 
+  // The image module must be there before a render is spent on an image it would write (its load overlapped
+  // the scene load, the BVH and the preparation above); a missing module is an installation problem (exit 2).
+  try {
+    render::image_io();
+  } catch (const std::exception &e) {
+    throw CliError(kExitPlugin, e.what());
+  }
   const bool tty = ::isatty(STDOUT_FILENO) != 0;
   const auto render_start = Clock::now();
   render::RenderResult result;
