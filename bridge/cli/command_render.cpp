@@ -137,10 +137,6 @@ int render_one(CliContext &ctx, const RenderArgs &a, const std::string &scene_pa
   } catch (const std::exception &e) {
     throw CliError(kExitBadInput, e.what());
   }
-  // The plugin first, then the image module on a background thread (render/image_io.h): the two dlopen calls
-  // would wait for each other, while the module's load overlaps the scene load, the BVH and the render.
-  auto &plugin = ctx.plugin();
-  render::preload_image_io();
   auto t0 = Clock::now();
   auto loaded = std::make_unique<scene::Scene>();  // on the heap: a kept renderer refers to it
   scene::Scene &scene = *loaded;
@@ -152,6 +148,7 @@ int render_one(CliContext &ctx, const RenderArgs &a, const std::string &scene_pa
     throw CliError(kExitBadInput, e.what());
   }
   const double load_seconds = since(t0);
+  auto &plugin = ctx.plugin();
 
   render::RenderOptions opt;
   opt.samples = a.samples;
@@ -217,8 +214,10 @@ int render_one(CliContext &ctx, const RenderArgs &a, const std::string &scene_pa
   for (const auto &w : scene.warnings) std::fprintf(stderr, "%s\n", w.c_str());
   for (const auto &w : renderer->warnings()) std::fprintf(stderr, "%s\n", w.c_str());
 
-  // The image module must be there before a render is spent on an image it would write (its load overlapped
-  // the scene load, the BVH and the preparation above); a missing module is an installation problem (exit 2).
+  // The image module (render/image_io.h) is loaded here, before a render is spent on an image it could not
+  // write: a missing or broken module is an installation problem (exit 2). Loading it on a background thread
+  // earlier, to overlap the scene load, the BVH or the render, made them slower by about the load's own wall
+  // time (docs/architecture.md "Start-up").
   try {
     render::image_io();
   } catch (const std::exception &e) {

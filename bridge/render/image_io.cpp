@@ -3,8 +3,6 @@
 #include <dlfcn.h>
 
 #include <cstdlib>
-#include <future>
-#include <mutex>
 #include <stdexcept>
 
 #include "host/plugin_library.h"
@@ -25,7 +23,7 @@ std::string module_path() {
 const ImageIo *load_module() {
   const std::string path = module_path();
   // RTLD_LAZY: the functions of OIIO's 260 libraries that are not built with BIND_NOW are bound on first
-  // call, as they were when the executable linked OIIO (RTLD_NOW cost 5 % more CPU for a tiny render).
+  // call, as they were when the executable linked OIIO (with RTLD_NOW a tiny render took 5 % more CPU time).
   void *handle = dlopen(path.c_str(), RTLD_LAZY | RTLD_LOCAL);
   if (handle == nullptr) {
     const char *why = dlerror();
@@ -36,21 +34,11 @@ const ImageIo *load_module() {
   return entry();
 }
 
-// The one load of the process: started by preload_image_io() on a thread, or by image_io() in place.
-std::once_flag g_started;
-std::shared_future<const ImageIo *> g_module;
-
-void start(std::launch how) {
-  std::call_once(g_started, [how] { g_module = std::async(how, load_module).share(); });
-}
-
 }  // namespace
 
-void preload_image_io() { start(std::launch::async); }
-
 const ImageIo &image_io() {
-  start(std::launch::deferred);
-  return *g_module.get();  // rethrows the load's error to every caller
+  static const ImageIo *const module = load_module();  // once per process; a failed load is retried next call
+  return *module;
 }
 
 }  // namespace glimmer::render

@@ -1,10 +1,9 @@
 // Every use of OpenImageIO sits in one shared module, libglimmer_image_io.so (bridge/image_io/), which the
 // host loads with dlopen on first use instead of linking it: Debian's libOpenImageIO pulls in 260 shared
-// libraries whose symbol relocations dominated the start-up of every command (docs/architecture.md
-// "Start-up"). Commands that read or write images call preload_image_io() as soon as they know they will,
-// which loads the module on a background thread while the scene loads and the BVH builds; image_io() waits
-// for that load (or loads it now). The module sits next to the glimmer executable (or the test/benchmark
-// binary); $GLIMMER_IMAGE_IO_PATH overrides the file.
+// libraries whose loading dominated the start-up of every command (docs/architecture.md "Start-up"), so
+// commands that read or write no image (describe, lab, ...) no longer pay for it. `glimmer render` loads it
+// after preparing the scene and before the render. The module sits next to the glimmer executable (or the
+// test/benchmark binary); $GLIMMER_IMAGE_IO_PATH overrides the file.
 #pragma once
 
 #include <cstdint>
@@ -67,9 +66,7 @@ constexpr const char *kImageIoEntry = "glimmer_image_io";
 constexpr const char *kImageIoFileName = "libglimmer_image_io.so";
 using ImageIoEntry = const ImageIo *(*)();
 
-// Starts loading the module on a background thread (once per process; later calls do nothing).
-void preload_image_io();
-// The module, loaded on first use (waits for a preload in progress). Throws std::runtime_error naming the
+// The module, loaded on first use (thread safe). Throws std::runtime_error naming the
 // file and the loader's message when it cannot be loaded.
 const ImageIo &image_io();
 
