@@ -202,13 +202,13 @@ struct PixelSampler {
   struct Set {
     uint32_t seed, index_reversed;
   };
-  Set start_set(uint32_t set) const {
+  [[gnu::always_inline]] Set start_set(uint32_t set) const {
     const uint32_t set_seed = hash_combine(pixel_seed, set);
     return {set_seed, laine_karras_permutation(sample_reversed, set_seed)};
   }
   // Dimensions 2p and 2p + 1 (if N has it) of set s into out.
   template <int N>
-  static void pair_values(const Set &s, int p, float (&out)[N]) {
+  [[gnu::always_inline]] static void pair_values(const Set &s, int p, float (&out)[N]) {
     static_assert(N >= 1 && N <= kSobolDimensions);
     const uint64_t sobol = sobol_pair_reversed(p, s.index_reversed);
     const uint64_t lo = laine_karras_permutation(static_cast<uint32_t>(sobol), dimension_seed(s.seed, 2 * p));
