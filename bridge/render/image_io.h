@@ -33,8 +33,9 @@ class TextureFiles {
   // scratch_file(). Throws std::runtime_error naming the file.
   virtual Opened open(const std::string &path, bool linear, uint64_t max_pixels,
                       const std::function<std::string()> &scratch_file) = 0;
-  // The filtered texel (up to 4 channels, `channels` of the file) at the footprint, (u, v) in the texture
-  // system's convention (t down from the top row). False when the read failed (the texel is then unset).
+  // The filtered texel (up to 4 channels, `channels` of the file) at the footprint, given in Cycles'
+  // convention with finite (u, v) (v up from the bottom row; the module flips it for OIIO's t). False when
+  // the read failed (the texel is then unset).
   virtual bool texture(void *handle, const UvFootprint &at, const ImageSampling &sampling, int channels,
                        float texel[4]) const = 0;
 };
