@@ -1,5 +1,5 @@
 // The Owen-scrambled Sobol sampler (bridge/render/sampler.h) per path vertex: one 4D BSDF set and one 2D
-// light set, against two earlier samplers kept here as references: the per-dimension tables (one 32-bit
+// light set (also with each vertex waiting on the previous one, the two sets apart and together), against two earlier samplers kept here as references: the per-dimension tables (one 32-bit
 // table per dimension, one bit reversal per dimension; the same points as today's pair tables), and the
 // sampler before the precomputed tables (per 2D pair a hash, three nested uniform scrambles and the second
 // dimension bit by bit), which drew the same eight numbers per vertex as four 2D pairs. Compare the
@@ -79,6 +79,39 @@ void BM_SamplerPathVertices(benchmark::State &state) {
   state.SetItemsProcessed(state.iterations() * kBounces);
 }
 BENCHMARK(BM_SamplerPathVertices);
+
+// A path waits on its numbers: here each vertex's set index depends on the previous vertex's values (through a
+// zero the compiler cannot see), so the chains of consecutive vertices cannot overlap, as in a render. Apart:
+// the BSDF set, then the light set (two chains one after the other); together: get_vertex (side by side).
+template <bool kTogether>
+void sampler_dependent_path(benchmark::State &state) {
+  uint32_t sample = 0, zero = 0;
+  benchmark::DoNotOptimize(zero);
+  float acc = 0.0f;
+  for (auto _ : state) {
+    const PixelSampler sampler(1u, sample & 0xffffu, sample >> 16);
+    uint32_t carry = 0u;
+    for (int b = 0; b < kBounces; ++b) {
+      const int vertex = b + static_cast<int>(carry & zero);
+      float bsdf[4], light[2];
+      if constexpr (kTogether) {
+        sampler.get_vertex(vertex, bsdf, light);
+      } else {
+        sampler.get_bsdf(vertex, bsdf);
+        sampler.get_light(vertex, light[0], light[1]);
+      }
+      carry = static_cast<uint32_t>((bsdf[3] + light[1]) * 16777216.0f);
+      acc += bsdf[0] + bsdf[1] + bsdf[2] + bsdf[3] + light[0] + light[1];
+    }
+    ++sample;
+  }
+  benchmark::DoNotOptimize(acc);
+  state.SetItemsProcessed(state.iterations() * kBounces);
+}
+void BM_SamplerDependentPathVerticesApart(benchmark::State &state) { sampler_dependent_path<false>(state); }
+void BM_SamplerDependentPathVerticesTogether(benchmark::State &state) { sampler_dependent_path<true>(state); }
+BENCHMARK(BM_SamplerDependentPathVerticesApart);
+BENCHMARK(BM_SamplerDependentPathVerticesTogether);
 
 void BM_SamplerPathVerticesPerDimensionTablesReference(benchmark::State &state) {
   uint32_t sample = 0;

@@ -18,9 +18,6 @@
 // render (its Monte Carlo error: two glint models are different particle
 // fields, so against jakob14 a glint model's error stops at the difference of
 // two realizations), and the RMSE between the converged renders is reported.
-#include <OpenImageIO/imagebuf.h>
-#include <OpenImageIO/imagebufalgo.h>
-
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
@@ -41,6 +38,7 @@
 #include "render/convergence.h"
 #include "scene/xml_loader.h"
 #include "glimmer/atomic_file.h"
+#include "render/image_io.h"
 #include "render/image_output.h"
 
 namespace glimmer::cli {
@@ -191,29 +189,11 @@ double render(const std::string &exe, const std::string &plugin, const std::stri
 }
 
 std::vector<float> read_pixels(const std::string &path, int &w, int &h) {
-  OIIO::ImageBuf buf(path);
-  if (!buf.read(0, 0, true, OIIO::TypeDesc::FLOAT)) throw CliError(kExitBadInput, "cannot read " + path);
-  const OIIO::ImageSpec &spec = buf.spec();
-  w = spec.width;
-  h = spec.height;
-  // The beauty pass: "<layer>.Combined.{R,G,B}" in multilayer EXRs, else R, G, B.
-  int channel[3] = {0, 1, 2};
-  const char *suffix[3] = {"Combined.R", "Combined.G", "Combined.B"};
-  const char *plain[3] = {"R", "G", "B"};
-  for (int c = 0; c < 3; ++c)
-    for (int i = 0; i < spec.nchannels; ++i) {
-      const std::string &n = spec.channel_name(i);
-      if (n == plain[c] || (n.size() >= 10 && n.compare(n.size() - 10, 10, suffix[c]) == 0)) {
-        channel[c] = i;
-        break;
-      }
-    }
-  std::vector<float> all(static_cast<size_t>(w) * h * spec.nchannels);
-  buf.get_pixels(OIIO::ROI(0, w, 0, h, 0, 1, 0, spec.nchannels), OIIO::TypeDesc::FLOAT, all.data());
-  std::vector<float> px(static_cast<size_t>(w) * h * 3);
-  for (size_t p = 0; p < static_cast<size_t>(w) * h; ++p)
-    for (int c = 0; c < 3; ++c) px[3 * p + c] = all[p * spec.nchannels + channel[c]];
-  return px;
+  try {
+    return render::image_io().read_rgb(path, w, h);
+  } catch (const std::runtime_error &e) {
+    throw CliError(kExitBadInput, e.what());
+  }
 }
 
 double rmse(const std::vector<float> &a, const std::vector<float> &b) {
@@ -233,9 +213,7 @@ void write_plot(const std::string &path, const std::vector<Row> &rows, const std
   const int W = 720, H = 480, L = 80, R = 170, T = 30, B = 60;
   const char *dejavu = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf";
   const std::string font = std::filesystem::exists(dejavu) ? dejavu : "";
-  OIIO::ImageBuf img(OIIO::ImageSpec(W, H, 3, OIIO::TypeDesc::FLOAT));
-  const float white[3] = {1, 1, 1};
-  OIIO::ImageBufAlgo::fill(img, white);
+  std::vector<float> img(static_cast<size_t>(W) * H * 3, 1.0f);  // white
   double t0 = 1e30, t1 = -1e30, e0 = 1e30, e1 = -1e30;
   for (const auto &r : rows) {
     if (r.seconds <= 0 || r.error <= 0) continue;
@@ -249,8 +227,12 @@ void write_plot(const std::string &path, const std::vector<Row> &rows, const std
   auto X = [&](double s) { return L + static_cast<int>((std::log10(s) - t0) / (t1 - t0) * (W - L - R)); };
   auto Y = [&](double e) { return H - B - static_cast<int>((std::log10(e) - e0) / (e1 - e0) * (H - T - B)); };
   const float black[3] = {0, 0, 0};
+  const render::ImageIo &io = render::image_io();
+  auto text = [&](int x, int y, const std::string &t, const float *c) { io.draw_text(img.data(), W, H, x, y, t, 14, font, c); };
   auto box = [&](int x0, int y0, int x1, int y1, const float *c) {
-    OIIO::ImageBufAlgo::fill(img, c, OIIO::ROI(std::max(0, x0), std::min(W, x1 + 1), std::max(0, y0), std::min(H, y1 + 1)));
+    for (int y = std::max(0, y0); y < std::min(H, y1 + 1); ++y)
+      for (int x = std::max(0, x0); x < std::min(W, x1 + 1); ++x)
+        for (int k = 0; k < 3; ++k) img[(static_cast<size_t>(y) * W + x) * 3 + k] = c[k];
   };
   box(L, H - B, W - R, H - B + 1, black);
   box(L - 1, T, L, H - B, black);
@@ -273,16 +255,17 @@ void write_plot(const std::string &path, const std::vector<Row> &rows, const std
       py = y;
     }
     box(W - R + 15, T + 20 + 25 * static_cast<int>(m), W - R + 35, T + 30 + 25 * static_cast<int>(m), c);
-    OIIO::ImageBufAlgo::render_text(img, W - R + 42, T + 31 + 25 * static_cast<int>(m), methods[m], 14, font, c);
+    text(W - R + 42, T + 31 + 25 * static_cast<int>(m), methods[m], c);
   }
   char label[128];
   std::snprintf(label, sizeof(label), "time %.3g .. %.3g s (log)", std::pow(10.0, t0), std::pow(10.0, t1));
-  OIIO::ImageBufAlgo::render_text(img, L, H - 20, label, 14, font, black);
+  text(L, H - 20, label, black);
   std::snprintf(label, sizeof(label), "RMSE %.3g .. %.3g (log)", std::pow(10.0, e0), std::pow(10.0, e1));
-  OIIO::ImageBufAlgo::render_text(img, 10, 20, label, 14, font, black);
-  OIIO::ImageBuf bytes;  // 8-bit PNG, written through the one atomic writer
-  if (!bytes.copy(img, OIIO::TypeDesc::UINT8)) throw CliError(kExitBadInput, "cannot write " + path);
-  render::write_image_file(path, bytes.spec(), bytes.localpixels());
+  text(10, 20, label, black);
+  std::vector<unsigned char> bytes(img.size());  // 8-bit PNG, written through the one atomic writer
+  for (size_t i = 0; i < img.size(); ++i)
+    bytes[i] = static_cast<unsigned char>(std::lround(std::clamp(img[i], 0.0f, 1.0f) * 255.0f));
+  render::write_8bit_image(path, W, H, 3, bytes.data());
 }
 
 // Time a method needs to reach `target` RMSE (log-log interpolation; <0 if never).

@@ -21,6 +21,7 @@
 #include "cli/commands.h"
 #include "cli/render_parts.h"
 #include "host/log.h"
+#include "render/image_io.h"
 #include "render/image_output.h"
 #include "render/renderer.h"
 #include "scene/parse_number.h"
@@ -130,13 +131,13 @@ struct KeptRender {
 int render_one(CliContext &ctx, const RenderArgs &a, const std::string &scene_path, const std::string &output,
                int frame, KeptRender *keep = nullptr) {
   using Clock = std::chrono::steady_clock;
-  auto t0 = Clock::now();
   auto since = [](Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); };
   try {
     render::check_output_path(output);  // before any work: a bad output must not cost a render
   } catch (const std::exception &e) {
     throw CliError(kExitBadInput, e.what());
   }
+  auto t0 = Clock::now();
   auto loaded = std::make_unique<scene::Scene>();  // on the heap: a kept renderer refers to it
   scene::Scene &scene = *loaded;
   try {
@@ -213,6 +214,15 @@ int render_one(CliContext &ctx, const RenderArgs &a, const std::string &scene_pa
   for (const auto &w : scene.warnings) std::fprintf(stderr, "%s\n", w.c_str());
   for (const auto &w : renderer->warnings()) std::fprintf(stderr, "%s\n", w.c_str());
 
+  // The image module (render/image_io.h) is loaded here, before a render is spent on an image it could not
+  // write: a missing or broken module is an installation problem (exit 2). Loading it on a background thread
+  // earlier, to overlap the scene load, the BVH or the render, made them slower by about the load's own wall
+  // time (docs/architecture.md "Start-up").
+  try {
+    render::image_io();
+  } catch (const std::exception &e) {
+    throw CliError(kExitPlugin, e.what());
+  }
   const bool tty = ::isatty(STDOUT_FILENO) != 0;
   const auto render_start = Clock::now();
   render::RenderResult result;

@@ -1,6 +1,5 @@
 // Lobe picture: eval, pdf and the sampled density over the sphere in a
-// latitude-longitude layout, written as PNG through OpenImageIO.
-#include <OpenImageIO/imageio.h>
+// latitude-longitude layout, written as PNG through OpenImageIO (the image module, render/image_io.h).
 #include <tbb/enumerable_thread_specific.h>
 #include <unistd.h>
 
@@ -104,7 +103,7 @@ void plot_lobe(const host::ClosureInstance &instance, const GlimmerShadingContex
         for (int k = 0; k < 3; ++k) out[k] = static_cast<unsigned char>(std::lround(saturate(c[k]) * 255.0f));
       }
 
-  render::write_image_file(path, OIIO::ImageSpec(width, h, 3, OIIO::TypeDesc::UINT8), pixels.data());
+  render::write_8bit_image(path, width, h, 3, pixels.data());
 }
 
 }  // namespace glimmer::lab

@@ -1,4 +1,4 @@
-// Writes a render with OpenImageIO, atomically: encoded in memory, then
+// Writes a render with OpenImageIO (through the image module, render/image_io.h), atomically: encoded in memory, then
 // written with glimmer/atomic_file.h (random O_EXCL|O_NOFOLLOW temporary
 // file in the target folder, fsync, rename).
 //  - .exr: float multilayer channels with Blender's names (view layer "ViewLayer"):
@@ -10,9 +10,9 @@
 //    alpha where the format has alpha (PNG, TIFF), RGB otherwise (JPEG).
 #pragma once
 
-#include <OpenImageIO/imageio.h>
-
+#include <array>
 #include <string>
+#include <string_view>
 
 #include "render/renderer.h"
 
@@ -33,12 +33,17 @@ RenderResult read_image(const std::string &path);
 
 // Checks before any work that `path` can be written: a known image extension
 // whose writer can encode to memory, an existing writable folder, not a
-// folder itself. Throws std::runtime_error saying what is wrong.
+// folder itself. Throws std::runtime_error saying what is wrong. The extensions of
+// kKnownWritableExtensions are checked without the image module (so that a render
+// need not wait for it to load); any other asks the module.
 void check_output_path(const std::string &path);
+// Lower case; the test ImageModule.KnownWritableExtensionsAreWritable checks each against the module.
+inline constexpr std::array<std::string_view, 2> kKnownWritableExtensions = {".exr", ".png"};
+bool known_writable_extension(const std::string &path);
 
-// Encodes `pixels` (spec.format) to the format of `path`'s extension and
-// writes the file atomically. Throws std::runtime_error naming the file.
-void write_image_file(const std::string &path, const OIIO::ImageSpec &spec, const void *pixels);
+// Encodes 8-bit `pixels` (width x height x channels, interleaved, row 0 = top) to the format of `path`'s
+// extension and writes the file atomically. Throws std::runtime_error naming the file.
+void write_8bit_image(const std::string &path, int width, int height, int channels, const unsigned char *pixels);
 
 // "out_####.png" with frame 7 -> "out_0007.png" (the run of '#' sets the padding).
 std::string frame_path(const std::string &pattern, int frame);

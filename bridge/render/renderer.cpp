@@ -635,11 +635,10 @@ struct Renderer::Impl {
     return ray;
   }
 
-  // The camera ray of one sample: filter-importance-sampled film position, lens point with depth of field.
-  PathRay sample_camera_ray(int px, int py, const PixelSampler &sampler) const {
-    float fu, fv;
-    sampler.get2(kSetFilm, fu, fv);
-    const float ox = filter.offset(fu), oy = filter.offset(fv);
+  // The camera ray of one sample: filter-importance-sampled film position (film_uv: the film set), lens point
+  // with depth of field.
+  PathRay sample_camera_ray(int px, int py, const float film_uv[2], const PixelSampler &sampler) const {
+    const float ox = filter.offset(film_uv[0]), oy = filter.offset(film_uv[1]);
     float lens_u = 0.5f, lens_v = 0.5f;
     if (scene.camera.aperture_size > 0.0f) sampler.get2(kSetLens, lens_u, lens_v);
     return camera_path_ray(px + 0.5f + ox, py + 0.5f + oy, lens_u, lens_v);
@@ -701,11 +700,9 @@ struct Renderer::Impl {
   // Next-event estimation at the surface (Cycles' integrate_surface_direct_light); skipped when only
   // singular closures are present.
   void integrate_surface_direct_light(const ClosureSet &cs, const ShadingData &sd, float total_sw,
-                                      const PixelSampler &sampler, const PathState &ps, PathRadiance &pr) const {
+                                      const float light_rand[2], const PathState &ps, PathRadiance &pr) const {
     if (!use_nee() || !has_smooth_closure(cs) || lights->count() == 0) return;
-    float lu, lv;
-    sampler.get_light(ps.sample_vertex(), lu, lv);
-    const Spectrum direct = sample_direct_light(cs, sd, pr.throughput, total_sw, lu, lv);
+    const Spectrum direct = sample_direct_light(cs, sd, pr.throughput, total_sw, light_rand[0], light_rand[1]);
     if (!is_zero(direct)) add_contribution(pr, direct, ps.bounce);
   }
 
@@ -765,7 +762,10 @@ struct Renderer::Impl {
     const uint32_t pixel_index = static_cast<uint32_t>(py) * static_cast<uint32_t>(width) + static_cast<uint32_t>(px);
     const PixelSampler sampler(seed, pixel_index, sample_index);
     const uint32_t path_seed = hash_u32x3(seed, pixel_index, sample_index);
-    PathRay ray = sample_camera_ray(px, py, sampler);
+    // The film set and the first vertex's sets, drawn together (docs/architecture.md "Sample dimensions").
+    float film_uv[2], bsdf_rand[4], light_rand[2];
+    sampler.get_path_start(film_uv, bsdf_rand, light_rand);
+    PathRay ray = sample_camera_ray(px, py, film_uv, sampler);
     PathRadiance pr;
     pr.nan_count = &nan_count;
     PathState ps;
@@ -788,15 +788,15 @@ struct Renderer::Impl {
         write_first_hit_aovs(cs, sd, hit.t * ray.cam_dir_z, aov);
       }
       if (ps.terminate_next) break;
-      // The bounce's 4D BSDF set: x, y (closure pick, then the closure's direction), z (its third number),
-      // rr (Russian roulette); docs/architecture.md "Sample dimensions".
-      float bsdf_rand[4];
-      sampler.get_bsdf(ps.sample_vertex(), bsdf_rand);
+      // The vertex's 4D BSDF set: x, y (closure pick, then the closure's direction), z (its third number),
+      // rr (Russian roulette), and its 2D light set (u, v), drawn together so that the two chains overlap
+      // (vertex 0's with the film set above; every iteration that goes on advances the vertex).
+      if (ps.sample_vertex() > 0) sampler.get_vertex(ps.sample_vertex(), bsdf_rand, light_rand);
       if (!survives_russian_roulette(ps, limits, bsdf_rand[3], pr.throughput)) break;
       const float transparent_weight = std::fabs(average(cs.transparent));
       const float total_sw = cs.sum_sample_weight + transparent_weight;
       if (total_sw <= 0.0f) break;
-      integrate_surface_direct_light(cs, sd, total_sw, sampler, ps, pr);
+      integrate_surface_direct_light(cs, sd, total_sw, light_rand, ps, pr);
       if (!integrate_surface_bsdf_bounce(cs, sd, bsdf_rand, transparent_weight, total_sw, limits, ps, pr, ray)) break;
     }
     return pr.L;

@@ -164,20 +164,27 @@ struct PixelSampler {
   // table look-up per index byte for both, one scramble each, one 64-bit reversal for both.
   template <int N>
   void get(uint32_t set, float (&out)[N]) const {
-    static_assert(N >= 1 && N <= kSobolDimensions);
-    const uint32_t set_seed = hash_combine(pixel_seed, set);
-    // Shuffled index (Burley 2020, sec. 4): a nested uniform scramble of the sample index, kept reversed.
-    const uint32_t index_reversed = laine_karras_permutation(sample_reversed, set_seed);
-    for (int p = 0; 2 * p < N; ++p) {
-      const uint64_t sobol = sobol_pair_reversed(p, index_reversed);
-      const uint64_t lo = laine_karras_permutation(static_cast<uint32_t>(sobol), dimension_seed(set_seed, 2 * p));
-      const uint64_t hi = 2 * p + 1 < N
-                              ? laine_karras_permutation(static_cast<uint32_t>(sobol >> 32), dimension_seed(set_seed, 2 * p + 1))
-                              : 0u;
-      const uint64_t values = reverse_bits64(hi << 32 | lo);  // reverse_bits(lo) << 32 | reverse_bits(hi)
-      out[2 * p] = uint_to_unit_float(static_cast<uint32_t>(values >> 32));
-      if (2 * p + 1 < N) out[2 * p + 1] = uint_to_unit_float(static_cast<uint32_t>(values));
-    }
+    const Set s = start_set(set);
+    for (int p = 0; 2 * p < N; ++p) pair_values(s, p, out);
+  }
+  // The BSDF set (x, y, z, rr) and the light set (u, v) of a path vertex in one call: the same values as
+  // get_bsdf and get_light, but the two dependent chains (seed hash, index shuffle, look-ups, scrambles,
+  // reversal) are independent of each other and written side by side, so they overlap in the pipeline
+  // instead of the path waiting on each in turn.
+  void get_vertex(int vertex, float (&bsdf)[4], float (&light)[2]) const {
+    const Set b = start_set(bounce_set(vertex, kSetBsdf)), l = start_set(bounce_set(vertex, kSetLight));
+    pair_values(b, 0, bsdf);
+    pair_values(l, 0, light);
+    pair_values(b, 1, bsdf);
+  }
+  // The film set (pixel filter position) with vertex 0's BSDF and light sets: three independent chains side by
+  // side at the start of a path (the same values as get2(kSetFilm, ...) and get_vertex(0, ...)).
+  void get_path_start(float (&film)[2], float (&bsdf)[4], float (&light)[2]) const {
+    const Set f = start_set(kSetFilm), b = start_set(bounce_set(0, kSetBsdf)), l = start_set(bounce_set(0, kSetLight));
+    pair_values(f, 0, film);
+    pair_values(b, 0, bsdf);
+    pair_values(l, 0, light);
+    pair_values(b, 1, bsdf);
   }
   void get2(uint32_t set, float &u, float &v) const {
     float uv[2];
@@ -188,6 +195,30 @@ struct PixelSampler {
   // The BSDF dimensions (x, y, z, rr) of a bounce.
   void get_bsdf(int bounce, float (&out)[4]) const { get(bounce_set(bounce, kSetBsdf), out); }
   void get_light(int bounce, float &u, float &v) const { get2(bounce_set(bounce, kSetLight), u, v); }
+
+ private:
+  // A set's seed and its shuffled index (Burley 2020, sec. 4: a nested uniform scramble of the sample index,
+  // kept reversed).
+  struct Set {
+    uint32_t seed, index_reversed;
+  };
+  [[gnu::always_inline]] Set start_set(uint32_t set) const {
+    const uint32_t set_seed = hash_combine(pixel_seed, set);
+    return {set_seed, laine_karras_permutation(sample_reversed, set_seed)};
+  }
+  // Dimensions 2p and 2p + 1 (if N has it) of set s into out.
+  template <int N>
+  [[gnu::always_inline]] static void pair_values(const Set &s, int p, float (&out)[N]) {
+    static_assert(N >= 1 && N <= kSobolDimensions);
+    const uint64_t sobol = sobol_pair_reversed(p, s.index_reversed);
+    const uint64_t lo = laine_karras_permutation(static_cast<uint32_t>(sobol), dimension_seed(s.seed, 2 * p));
+    const uint64_t hi = 2 * p + 1 < N
+                            ? laine_karras_permutation(static_cast<uint32_t>(sobol >> 32), dimension_seed(s.seed, 2 * p + 1))
+                            : 0u;
+    const uint64_t values = reverse_bits64(hi << 32 | lo);  // reverse_bits(lo) << 32 | reverse_bits(hi)
+    out[2 * p] = uint_to_unit_float(static_cast<uint32_t>(values >> 32));
+    if (2 * p + 1 < N) out[2 * p + 1] = uint_to_unit_float(static_cast<uint32_t>(values));
+  }
 };
 
 }  // namespace glimmer::render

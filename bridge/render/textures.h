@@ -1,5 +1,5 @@
 // Image textures looked up through OpenImageIO's TextureSystem (one per render,
-// created only when a used shader reads an image): MIP-mapped, filtered with the
+// created only when a used shader reads an image, in the image module: render/image_io.h): MIP-mapped, filtered with the
 // ray footprint, Cycles' projections, extensions and interpolations; and Cycles'
 // procedural checker.
 #pragma once
@@ -9,15 +9,17 @@
 #include <memory>
 #include <string>
 
-#include <OpenImageIO/oiioversion.h>
-
 #include "glimmer/math.h"
 
-namespace OIIO_NAMESPACE {
-class TextureSystem;
-}
-
 namespace glimmer::render {
+
+class TextureFiles;  // render/image_io.h
+
+// sRGB transfer functions (IEC 61966-2-1) of one channel.
+inline float srgb_to_linear(float c) { return c <= 0.04045f ? c / 12.92f : std::pow((c + 0.055f) / 1.055f, 2.4f); }
+inline float linear_to_srgb(float c) {
+  return c <= 0.0031308f ? c * 12.92f : 1.055f * std::pow(c, 1.0f / 2.4f) - 0.055f;
+}
 
 // Largest image (width x height) a texture may claim before any pixel is
 // allocated; $GLIMMER_MAX_IMAGE_PIXELS overrides it (docs/scene-format.md).
@@ -59,14 +61,14 @@ class ImageTexture {
  private:
   friend class TextureCache;
   const TextureCache *cache_ = nullptr;
-  void *handle_ = nullptr;  // OIIO::TextureSystem::TextureHandle
+  void *handle_ = nullptr;  // the texture system's handle (TextureFiles::Opened)
   int width_ = 0, height_ = 0, channels_ = 0;
   std::string path_;
   bool srgb_ = false;  // the texture holds sRGB codes: converted after filtering
 };
 
-// The render's OIIO TextureSystem (not the process-wide shared one): created by the
-// first load(), each image validated (regular file, header within the pixel budget)
+// The render's OIIO TextureSystem (not the process-wide shared one, a TextureFiles of the
+// image module): created with the cache, each image validated (regular file, header within the pixel budget)
 // before the texture system may read it. Lookups are thread safe; each thread uses
 // its own per-thread record of this cache.
 class TextureCache {
@@ -83,12 +85,11 @@ class TextureCache {
 
  private:
   friend class ImageTexture;
-  OIIO::TextureSystem *system_ = nullptr;
-  uint64_t id_ = 0;  // unique per cache: a thread's per-thread record belongs to one id
+  std::unique_ptr<TextureFiles> files_;
+  uint64_t id_ = 0;  // unique per cache: names its scratch folder
   std::map<std::string, std::unique_ptr<ImageTexture>> images_;
   std::string scratch_dir_;  // MIP maps of sRGB files; removed with the cache
   std::string scratch_file(size_t index);
-  void *perthread() const;  // this thread's OIIO::TextureSystem::Perthread
 };
 
 // ---- Projections (Cycles' svm_node_tex_image / svm_node_tex_environment) ----

@@ -127,6 +127,47 @@ TEST(Sampler, EverySetIsStratified) {
   EXPECT_FALSE(is_0m2_net(x, y, m));
 }
 
+// get_vertex draws a vertex's BSDF and light sets side by side; the values must be exactly those of the
+// two sets drawn one after the other (get_bsdf, get_light), whose points the test above checks against the
+// definition. Control: the sets of the neighbouring vertex differ, so a mixed-up vertex would be caught.
+TEST(Sampler, VertexSetsTogetherEqualTheSetsApart) {
+  int cases = 0, neighbour_differs = 0;
+  for (uint32_t pixel : {0u, 17u, 4095u, 123456u})
+    for (uint32_t s = 0; s < 300; ++s)
+      for (int vertex = 0; vertex < 12; ++vertex) {
+        const PixelSampler sampler(99u, pixel, s);
+        float bsdf[4], light[2], bsdf_apart[4], lu, lv;
+        sampler.get_vertex(vertex, bsdf, light);
+        sampler.get_bsdf(vertex, bsdf_apart);
+        sampler.get_light(vertex, lu, lv);
+        for (int d = 0; d < 4; ++d) ASSERT_EQ(bsdf[d], bsdf_apart[d]) << pixel << " " << s << " " << vertex << " " << d;
+        ASSERT_EQ(light[0], lu);
+        ASSERT_EQ(light[1], lv);
+        float next_bsdf[4], next_u, next_v;
+        sampler.get_bsdf(vertex + 1, next_bsdf);
+        sampler.get_light(vertex + 1, next_u, next_v);
+        ++cases;
+        if (bsdf[0] != next_bsdf[0] && light[0] != next_u && light[1] != next_v) ++neighbour_differs;
+      }
+  EXPECT_GE(neighbour_differs, cases - 2);
+}
+
+// get_path_start: the film set and vertex 0's sets, exactly as drawn apart.
+TEST(Sampler, PathStartSetsEqualTheSetsApart) {
+  for (uint32_t pixel : {0u, 17u, 4095u, 123456u})
+    for (uint32_t s = 0; s < 300; ++s) {
+      const PixelSampler sampler(99u, pixel, s);
+      float film[2], bsdf[4], light[2], bsdf0[4], light0[2], fu, fv;
+      sampler.get_path_start(film, bsdf, light);
+      sampler.get2(kSetFilm, fu, fv);
+      sampler.get_vertex(0, bsdf0, light0);
+      ASSERT_EQ(film[0], fu);
+      ASSERT_EQ(film[1], fv);
+      for (int d = 0; d < 4; ++d) ASSERT_EQ(bsdf[d], bsdf0[d]);
+      for (int d = 0; d < 2; ++d) ASSERT_EQ(light[d], light0[d]);
+    }
+}
+
 TEST(Sampler, PureFunctionOfItsArguments) {
   float a[4], b[4], c[4], d[4];
   PixelSampler(7u, 100u, 33u).get(bounce_set(2, kSetBsdf), a);
