@@ -93,6 +93,7 @@ class GlintClosure {
     c->threshold_ = p.get_float("filter_threshold");
     c->density_param_ = p.index("density");
     c->gamma_rad_ = c->field_.gamma_deg * glint::kDegToRad;
+    c->cell_keys_ = glint::DirectionCellKeys(c->field_.seed);
     return c;
   }
 
@@ -157,7 +158,7 @@ class GlintClosure {
     if (expected > threshold_ || sigma_deg > field_.gamma_deg) return weight * (P / cone_solid_angle_);  // (3)
     // Twinkle: the particles are counted in the direction cells of (wi, wo).
     const glint::GlintCount k =
-        glint::count_glints(fp, density, field_.seed, wi, wo, gamma_rad_, P, kMaxSteps);
+        glint::count_glints(fp, density, cell_keys_, wi, wo, gamma_rad_, P, kMaxSteps);
     if (!k.complete) return weight * (P / cone_solid_angle_);  // step cap: the mean (3)
     if (k.count == 0) return Spectrum(0.0f);
     const double scale =
@@ -191,6 +192,7 @@ class GlintClosure {
   glint::ParticleField field_;
   float threshold_ = 16.0f;
   float gamma_rad_ = 0.035f;
+  glint::DirectionCellKeys cell_keys_{0};  // per-material part of the direction-cell seeds
   std::shared_ptr<const glint::DirectionalTable> table_;
   float cone_solid_angle_ = 1.0f;
   uint32_t density_param_ = 0;
