@@ -409,17 +409,29 @@ inline GlintCount count_reflecting_particles(const Footprint &f, const NodeList 
   // Quick reject on the node's 32-bit hash: hash >= floor(lambda 2^32) + 1
   // means u = (hash + 1/2) 2^-32 > lambda >= Pr(K >= 1), so K = 0.
   const uint64_t maybe_lit_below = static_cast<uint64_t>(std::min(lambda, 1.0) * 4294967296.0) + 1u;
+  constexpr size_t kMaxSeeds = 32;
+  if (seeds.size() > kMaxSeeds) return {0, 0, false};  // callers pass 1 or kDirectionGroups seeds
+  const size_t n_seeds = seeds.size();
   const LitCountBounds bounds(lambda);  // decides most nodes without the model's exp
   std::optional<LitCountModel> model;  // built at the first node the bounds leave undecided
   for (int node = 0; node < nodes.count; ++node) {
     const int64_t i = nodes.i[node], j = nodes.j[node];
     const uint32_t node_hash =
         hash_u32x3(static_cast<uint32_t>(i), static_cast<uint32_t>(j), static_cast<uint32_t>(nodes.level));
+    // The node's hash per seed, and which may be lit, with no branch per
+    // seed: whether a node is lit is random, so a branch per (node, seed)
+    // was mispredicted about as often as it was lit.
+    std::array<uint32_t, kMaxSeeds> hashes;
+    uint32_t maybe_lit = 0;  // bit g: seed g passes the quick reject
+    for (size_t g = 0; g < n_seeds; ++g) {
+      hashes[g] = hash_combine(node_hash, seeds[g] ^ 0x3c6ef372u);
+      maybe_lit |= static_cast<uint32_t>(hashes[g] < maybe_lit_below) << g;
+    }
+    if (maybe_lit == 0) continue;  // K = 0 for every seed
     int inside = -1;  // node inside the footprint: tested at its first lit group (-1 = not yet)
     FootprintFrame::NodeOrigin origin{};
-    for (const uint32_t seed : seeds) {
-      const uint32_t h0 = hash_combine(node_hash, seed ^ 0x3c6ef372u);
-      if (h0 >= maybe_lit_below) continue;  // K = 0
+    for (; maybe_lit != 0; maybe_lit &= maybe_lit - 1) {
+      const uint32_t h0 = hashes[static_cast<size_t>(std::countr_zero(maybe_lit))];
       const double u = (static_cast<double>(h0) + 0.5) * (1.0 / 4294967296.0);
       int64_t K = bounds.lit(u);
       if (K == LitCountBounds::kUndecided) {
