@@ -93,6 +93,7 @@ class GlintClosure {
     c->threshold_ = p.get_float("filter_threshold");
     c->density_param_ = p.index("density");
     c->gamma_rad_ = c->field_.gamma_deg * glint::kDegToRad;
+    c->cell_keys_ = glint::DirectionCellKeys(c->field_.seed);
     return c;
   }
 
@@ -134,19 +135,32 @@ class GlintClosure {
     return std::sqrt(field_.alpha * field_.alpha + widen * widen);
   }
 
-  // The glint BRDF times cos(wo): equations (2) and (3).
-  Spectrum glint_f_cos(const GlimmerShadingContext *ctx, const Vec3 &wi, const Vec3 &wo, float sigma_deg,
-                       float density) const {
-    if (!table_ || !(wi.z > 0.0f) || !(wo.z > 0.0f)) return Spectrum(0.0f);
-    // Table coordinates: polar angles and the folded azimuth difference. The
-    // lookup comes first: its loads (random accesses into a table of several
-    // MB, the largest single cost in the profile) overlap the weight's math.
-    const float theta_i = fast_acos_deg(wi.z);
-    const float theta_o = fast_acos_deg(wo.z);
+  // Table coordinates of (wi, wo) in degrees: polar angles and the folded
+  // azimuth difference.
+  struct TableCoords {
+    float theta_i, theta_o, dphi;
+  };
+  static TableCoords table_coords(const Vec3 &wi, const Vec3 &wo) {
     const float denom2 = (wi.x * wi.x + wi.y * wi.y) * (wo.x * wo.x + wo.y * wo.y);
     const float cos_dphi = denom2 > 1e-24f ? (wi.x * wo.x + wi.y * wo.y) / std::sqrt(denom2) : 1.0f;
-    const float dphi = fast_acos_deg(cos_dphi);
-    const float P = std::min(table_->lookup(sigma_deg, theta_i, theta_o, dphi), 1.0f);
+    return {fast_acos_deg(wi.z), fast_acos_deg(wo.z), fast_acos_deg(cos_dphi)};
+  }
+
+  // Table coordinates of (wi, wo), with the table's cache lines requested:
+  // the lookup is a random access into several MB, and its miss was the
+  // largest single cost of eval; the caller computes the pdf while it loads.
+  TableCoords request_table(const Vec3 &wi, const Vec3 &wo, float sigma_deg) const {
+    const TableCoords c = table_coords(wi, wo);
+    if (table_) table_->prefetch(sigma_deg, c.theta_i, c.theta_o, c.dphi);
+    return c;
+  }
+
+  // The glint BRDF times cos(wo): equations (2) and (3); `c` from request_table.
+  Spectrum glint_f_cos(const GlimmerShadingContext *ctx, const Vec3 &wi, const Vec3 &wo, const TableCoords &c,
+                       float sigma_deg, float density) const {
+    if (!table_ || !(wi.z > 0.0f) || !(wo.z > 0.0f)) return Spectrum(0.0f);
+    // The lookup comes first: its loads overlap the weight's math.
+    const float P = std::min(table_->lookup(sigma_deg, c.theta_i, c.theta_o, c.dphi), 1.0f);
     Spectrum weight;
     if (!glint::glint_weight(field_.distribution, field_.alpha, field_.color, wi, wo, weight)) return Spectrum(0.0f);
     if (!(P > 0.0f)) return Spectrum(0.0f);
@@ -157,7 +171,7 @@ class GlintClosure {
     if (expected > threshold_ || sigma_deg > field_.gamma_deg) return weight * (P / cone_solid_angle_);  // (3)
     // Twinkle: the particles are counted in the direction cells of (wi, wo).
     const glint::GlintCount k =
-        glint::count_glints(fp, density, field_.seed, wi, wo, gamma_rad_, P, kMaxSteps);
+        glint::count_glints(fp, density, cell_keys_, wi, wo, gamma_rad_, P, kMaxSteps);
     if (!k.complete) return weight * (P / cone_solid_angle_);  // step cap: the mean (3)
     if (k.count == 0) return Spectrum(0.0f);
     const double scale =
@@ -167,9 +181,10 @@ class GlintClosure {
 
   LocalEval eval(const ShadingPoint &sp, const Vec3 &wo) const {
     const float sigma = lod_sigma_deg(sp.ctx);
+    const TableCoords c = request_table(sp.wi, wo, sigma);
     LocalEval e;
-    e.f_cos = glint_f_cos(sp.ctx, sp.wi, wo, sigma, sp.param_float(density_param_, field_.density));
     e.pdf = glint::smooth_lobe_pdf(field_.distribution, sampling_alpha(sigma), sp.wi, wo);
+    e.f_cos = glint_f_cos(sp.ctx, sp.wi, wo, c, sigma, sp.param_float(density_param_, field_.density));
     return e;
   }
 
@@ -178,8 +193,9 @@ class GlintClosure {
     const float sigma = lod_sigma_deg(sp.ctx);
     const float alpha_w = sampling_alpha(sigma);
     if (!glint::sample_smooth_lobe(field_.distribution, alpha_w, wi, rand, out.wo)) return false;
+    const TableCoords c = request_table(wi, out.wo, sigma);
     out.pdf = glint::smooth_lobe_pdf(field_.distribution, alpha_w, wi, out.wo);
-    out.f_cos = glint_f_cos(sp.ctx, wi, out.wo, sigma, sp.param_float(density_param_, field_.density));
+    out.f_cos = glint_f_cos(sp.ctx, wi, out.wo, c, sigma, sp.param_float(density_param_, field_.density));
     out.roughness = alpha_w;  // alpha units, as the conductor reports
     out.label = GLIMMER_LABEL_REFLECT | GLIMMER_LABEL_GLOSSY;
     return out.pdf > 0.0f;
@@ -191,6 +207,7 @@ class GlintClosure {
   glint::ParticleField field_;
   float threshold_ = 16.0f;
   float gamma_rad_ = 0.035f;
+  glint::DirectionCellKeys cell_keys_{0};  // per-material part of the direction-cell seeds
   std::shared_ptr<const glint::DirectionalTable> table_;
   float cone_solid_angle_ = 1.0f;
   uint32_t density_param_ = 0;

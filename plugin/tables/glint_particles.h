@@ -158,6 +158,17 @@ inline bool nodes_at_level(const Footprint &f, int level, NodeList &list) {
   const int64_t j0 = floor_to_int64((f.cy - ey) * inv);
   const int64_t j1 = floor_to_int64((f.cy + ey) * inv);
   if (j1 - j0 >= kMaxNodes) return false;
+  // A footprint whose bounding box spans at most 2 x 2 nodes (every
+  // footprint smaller than a node) takes the whole box: clipping the rows
+  // costs more than the one node it may save, and the count is the same
+  // (membership is exact).
+  const double ex = 0.5 * (std::fabs(f.ax) + std::fabs(f.bx));
+  const int64_t box_i0 = floor_to_int64((f.cx - ex) * inv), box_i1 = floor_to_int64((f.cx + ex) * inv);
+  if (j1 - j0 <= 1 && box_i1 - box_i0 <= 1) {
+    for (int64_t j = j0; j <= j1; ++j)
+      for (int64_t i = box_i0; i <= box_i1; ++i) list.add(i, j);
+    return true;
+  }
   for (int64_t j = j0; j <= j1; ++j) {
     double x_min, x_max;
     const double y0 = static_cast<double>(j) * list.size;
@@ -217,9 +228,20 @@ inline constexpr float kCellSize = 1.75f;
 inline constexpr std::array<std::array<float, 2>, kDirectionGroups> kGroupShift = {
     {{0.0f, 0.0f}, {0.5f, 0.25f}, {0.25f, 0.75f}, {0.75f, 0.5f}}};
 
+// The part of the cell seeds that depends on the material only: the seed of
+// group g's cell (cx, cy) is hash_u32x4(seed, g, cx, cy), i.e.
+// hash_combine(hash_combine(key[g], cx), cy) with key[g] = hash_u32x2(seed, g),
+// hashed once per material instead of once per eval (same seeds).
+struct DirectionCellKeys {
+  std::array<uint32_t, kDirectionGroups> group{};
+  explicit DirectionCellKeys(uint32_t seed) {
+    for (int g = 0; g < kDirectionGroups; ++g) group[g] = hash_u32x2(seed, static_cast<uint32_t>(g));
+  }
+};
+
 // Seed of the particle field of each group's direction cell at (wi, wo);
 // false when there is no half vector above the surface.
-inline bool direction_cell_seeds(uint32_t seed, const Vec3 &wi, const Vec3 &wo, float gamma_rad,
+inline bool direction_cell_seeds(const DirectionCellKeys &keys, const Vec3 &wi, const Vec3 &wo, float gamma_rad,
                                  std::array<uint32_t, kDirectionGroups> &seeds) {
   const Vec3 sum = wi + wo;
   const float len = length(sum);
@@ -245,7 +267,7 @@ inline bool direction_cell_seeds(uint32_t seed, const Vec3 &wi, const Vec3 &wo, 
   for (int g = 0; g < kDirectionGroups; ++g) {
     const int32_t cx = floor_to_int32(px * inv_cell + kGroupShift[g][0]);
     const int32_t cy = floor_to_int32(py * inv_cell + kGroupShift[g][1]);
-    seeds[g] = hash_u32x4(seed, static_cast<uint32_t>(g), static_cast<uint32_t>(cx), static_cast<uint32_t>(cy));
+    seeds[g] = hash_combine(hash_combine(keys.group[g], static_cast<uint32_t>(cx)), static_cast<uint32_t>(cy));
   }
   return true;
 }
@@ -267,7 +289,7 @@ struct GlintCount {
 // per node or particle). For a fixed u the tail Pr(K >= k) grows with P, so
 // the lit set of a node is nested in P (no flicker from the trilinear table
 // lookups), and the lit particles are the first K of the node's particle
-// stream. The constants (one exp, one expm1) are computed once per query, and only
+// stream. The constants (one exp) are computed once per query, and only
 // when some node passes the bound Pr(K >= 1) = 1 - e^-lambda <= lambda.
 struct LitCountModel {
   // A node's tail walk stops (the caller returns the mean) beyond this
@@ -280,9 +302,10 @@ struct LitCountModel {
   double p_any = 0.0;   // Pr(K >= 1)
   bool walkable = true;
 
+  // p_any = 1 - e^-lambda without expm1: its absolute error (~1e-16) is far
+  // below the 2^-32 resolution of the u it is compared with.
   explicit LitCountModel(double lambda_in)
-      : lambda(lambda_in), p_none(std::exp(-lambda_in)), p_any(-std::expm1(-lambda_in)),
-        walkable(lambda_in <= kMaxNodeMean) {}
+      : lambda(lambda_in), p_none(std::exp(-lambda_in)), p_any(1.0 - p_none), walkable(lambda_in <= kMaxNodeMean) {}
 
   // K for the node's uniform u in (0, 1); K = 0 needs u >= p_any (the caller
   // tests that first). -1 when the walk is refused.
@@ -299,17 +322,76 @@ struct LitCountModel {
   }
 };
 
-// The node's parallelogram coordinates: is the node square [x0, x0 + s] x
-// [y0, y0 + s] inside the footprint (all four corners inside; it is convex)?
-inline bool node_inside_footprint(const Footprint &f, double inv_det, double x0, double y0, double s) {
-  for (const double dx : {0.0, s})
-    for (const double dy : {0.0, s}) {
-      const double px = x0 + dx - f.cx, py = y0 + dy - f.cy;
-      if (std::fabs((px * f.by - py * f.bx) * inv_det) > 0.5 || std::fabs((f.ax * py - f.ay * px) * inv_det) > 0.5)
-        return false;
-    }
-  return true;
-}
+// The lit count K(u) of LitCountModel without its exp, where bounds decide
+// it: for lambda <= 1 the series of Pr(K >= 1) = 1 - e^-lambda and of
+// Pr(K >= 2) = 1 - (1 + lambda) e^-lambda alternate with decreasing terms,
+// so their partial sums bound them:
+//   lambda - lambda^2/2 <= Pr(K >= 1) <= lambda - lambda^2/2 + lambda^3/6,
+//   lambda^2/2 - lambda^3/3 <= Pr(K >= 2) <= lambda^2/2.
+// u above the first upper bound gives K = 0, u between the second upper
+// bound and the first lower bound K = 1; only u within O(lambda^3) of a
+// bound (or lambda > 1) needs the exact tail walk (kUndecided). A margin of
+// 1e-12 lambda keeps float rounding of the bounds from deciding: the result
+// is LitCountModel's K for every u (same particles), and most queries,
+// whose lambda is well below 1 in glint mode, need no exp at all.
+struct LitCountBounds {
+  static constexpr int64_t kUndecided = -2;
+  double none_above = 0.0;  // u >= this: K = 0
+  double one_from = 1.0;    // one_from <= u < one_below: K = 1
+  double one_below = 0.0;
+
+  explicit LitCountBounds(double lambda) {
+    if (!(lambda <= 1.0)) return;  // every u undecided
+    const double l2 = 0.5 * lambda * lambda, l3 = lambda * lambda * lambda;
+    const double margin = 1e-12 * lambda;
+    none_above = lambda - l2 + l3 / 6.0 + margin;
+    one_from = l2 + margin;
+    one_below = lambda - l2 - margin;
+  }
+  int64_t lit(double u) const {
+    if (u >= none_above && none_above > 0.0) return 0;
+    if (u >= one_from && u < one_below) return 1;
+    return kUndecided;
+  }
+};
+
+// The footprint's parallelogram coordinates (s, t), inside when |s|, |t| <=
+// 1/2, are affine in the position; over a node of side `size` at (x0, y0)
+// they are (s, t) = origin + u_x d_ux + u_y d_uy for the position
+// (x0 + size u_x, y0 + size u_y). The per-footprint steps are computed once,
+// the node origin once per lit node, and a particle costs four multiply-adds.
+struct FootprintFrame {
+  const Footprint &f;
+  double inv_det, size;
+  double ds_ux, ds_uy, dt_ux, dt_uy;  // steps of (s, t) per unit of u_x, u_y
+  bool nodes_can_be_inside;           // the footprint is at least as large as a node
+
+  FootprintFrame(const Footprint &fp, double node_size)
+      : f(fp), inv_det(1.0 / (fp.ax * fp.by - fp.ay * fp.bx)), size(node_size),
+        ds_ux(node_size * fp.by * inv_det), ds_uy(-node_size * fp.bx * inv_det),
+        dt_ux(-node_size * fp.ay * inv_det), dt_uy(node_size * fp.ax * inv_det),
+        nodes_can_be_inside(fp.area() >= node_size * node_size) {}
+
+  struct NodeOrigin {
+    double s, t;
+  };
+  NodeOrigin origin(double x0, double y0) const {
+    const double px = x0 - f.cx, py = y0 - f.cy;
+    return {(px * f.by - py * f.bx) * inv_det, (f.ax * py - f.ay * px) * inv_det};
+  }
+  static bool inside(double s, double t) { return std::fabs(s) <= 0.5 && std::fabs(t) <= 0.5; }
+  // The whole node square inside the footprint (its four corners; it is convex).
+  bool node_inside(const NodeOrigin &o) const {
+    if (!nodes_can_be_inside) return false;
+    for (const double a : {0.0, 1.0})
+      for (const double b : {0.0, 1.0})
+        if (!inside(o.s + a * ds_ux + b * ds_uy, o.t + a * dt_ux + b * dt_uy)) return false;
+    return true;
+  }
+  bool particle_inside(const NodeOrigin &o, float ux, float uy) const {
+    return inside(o.s + ux * ds_ux + uy * ds_uy, o.t + ux * dt_ux + uy * dt_uy);
+  }
+};
 
 // Counts the reflecting particles of a footprint over the given cell seeds
 // (one particle field each, same density; see the header comment and
@@ -322,41 +404,60 @@ inline GlintCount count_reflecting_particles(const Footprint &f, const NodeList 
                                              std::span<const uint32_t> seeds, double P, int max_steps) {
   GlintCount result;
   if (!(P > 0.0)) return result;
-  const double inv_det = 1.0 / (f.ax * f.by - f.ay * f.bx);
+  const FootprintFrame frame(f, nodes.size);
   const double lambda = std::min(density * nodes.size * nodes.size, 4.0e18) * std::min(P, 1.0);
   // Quick reject on the node's 32-bit hash: hash >= floor(lambda 2^32) + 1
   // means u = (hash + 1/2) 2^-32 > lambda >= Pr(K >= 1), so K = 0.
   const uint64_t maybe_lit_below = static_cast<uint64_t>(std::min(lambda, 1.0) * 4294967296.0) + 1u;
-  std::optional<LitCountModel> model;  // built at the first node that may be lit
+  constexpr size_t kMaxSeeds = 32;
+  if (seeds.size() > kMaxSeeds) return {0, 0, false};  // callers pass 1 or kDirectionGroups seeds
+  const size_t n_seeds = seeds.size();
+  const LitCountBounds bounds(lambda);  // decides most nodes without the model's exp
+  std::optional<LitCountModel> model;  // built at the first node the bounds leave undecided
   for (int node = 0; node < nodes.count; ++node) {
     const int64_t i = nodes.i[node], j = nodes.j[node];
     const uint32_t node_hash =
         hash_u32x3(static_cast<uint32_t>(i), static_cast<uint32_t>(j), static_cast<uint32_t>(nodes.level));
-    for (const uint32_t seed : seeds) {
-      const uint32_t h0 = hash_combine(node_hash, seed ^ 0x3c6ef372u);
-      if (h0 >= maybe_lit_below) continue;  // K = 0
+    // The node's hash per seed, and which may be lit, with no branch per
+    // seed: whether a node is lit is random, so a branch per (node, seed)
+    // was mispredicted about as often as it was lit.
+    std::array<uint32_t, kMaxSeeds> hashes;
+    uint32_t maybe_lit = 0;  // bit g: seed g passes the quick reject
+    for (size_t g = 0; g < n_seeds; ++g) {
+      hashes[g] = hash_combine(node_hash, seeds[g] ^ 0x3c6ef372u);
+      maybe_lit |= static_cast<uint32_t>(hashes[g] < maybe_lit_below) << g;
+    }
+    if (maybe_lit == 0) continue;  // K = 0 for every seed
+    int inside = -1;  // node inside the footprint: tested at its first lit group (-1 = not yet)
+    FootprintFrame::NodeOrigin origin{};
+    for (; maybe_lit != 0; maybe_lit &= maybe_lit - 1) {
+      const uint32_t h0 = hashes[static_cast<size_t>(std::countr_zero(maybe_lit))];
       const double u = (static_cast<double>(h0) + 0.5) * (1.0 / 4294967296.0);
-      if (!model) model.emplace(lambda);
-      if (!(u < model->p_any)) continue;  // K = 0
-      const int64_t K = model->lit(u);
+      int64_t K = bounds.lit(u);
+      if (K == LitCountBounds::kUndecided) {
+        if (!model) model.emplace(lambda);
+        K = u < model->p_any ? model->lit(u) : 0;
+      }
+      if (K == 0) continue;
       if (K < 0 || result.steps + K > max_steps) {
         result.complete = false;
         return result;
       }
       result.steps += static_cast<int>(K);
-      const double x0 = static_cast<double>(i) * nodes.size, y0 = static_cast<double>(j) * nodes.size;
-      if (node_inside_footprint(f, inv_det, x0, y0, nodes.size)) {
+      if (inside < 0) {
+        origin = frame.origin(static_cast<double>(i) * nodes.size, static_cast<double>(j) * nodes.size);
+        inside = frame.node_inside(origin) ? 1 : 0;
+      }
+      if (inside == 1) {
         result.count += static_cast<int>(K);
         continue;
       }
       const uint32_t position_seed = hash_u32(h0 ^ 0x27d4eb2fu);
       for (int64_t k = 0; k < K; ++k) {
         const auto idx = static_cast<uint32_t>(2 * k + 1);
-        const double px = x0 + nodes.size * uint_to_unit_float(hash_u32(position_seed + idx * 0x9e3779b9u)) - f.cx;
-        const double py = y0 + nodes.size * uint_to_unit_float(hash_u32(position_seed + (idx + 1u) * 0x9e3779b9u)) - f.cy;
-        const double s = (px * f.by - py * f.bx) * inv_det;
-        const double t = (f.ax * py - f.ay * px) * inv_det;
-        if (std::fabs(s) <= 0.5 && std::fabs(t) <= 0.5) ++result.count;
+        const float ux = uint_to_unit_float(hash_u32(position_seed + idx * 0x9e3779b9u));
+        const float uy = uint_to_unit_float(hash_u32(position_seed + (idx + 1u) * 0x9e3779b9u));
+        result.count += frame.particle_inside(origin, ux, uy) ? 1 : 0;
       }
     }
   }
@@ -371,10 +472,10 @@ inline GlintCount count_reflecting_particles(const Footprint &f, const NodeList 
 // Reflecting particles of a footprint over the kDirectionGroups groups
 // (density N / G each), each group counted in its own direction cell at
 // (wi, wo); the caller falls back to the mean when `complete` is false.
-inline GlintCount count_glints(const Footprint &f, double density, uint32_t seed, const Vec3 &wi, const Vec3 &wo,
-                               float gamma_rad, double P, int max_steps) {
+inline GlintCount count_glints(const Footprint &f, double density, const DirectionCellKeys &keys, const Vec3 &wi,
+                               const Vec3 &wo, float gamma_rad, double P, int max_steps) {
   std::array<uint32_t, kDirectionGroups> cell_seeds;
-  if (!direction_cell_seeds(seed, wi, wo, gamma_rad, cell_seeds)) return {};
+  if (!direction_cell_seeds(keys, wi, wo, gamma_rad, cell_seeds)) return {};
   const double group_density = density / kDirectionGroups;
   return count_reflecting_particles(f, footprint_nodes(f, group_density), group_density, cell_seeds, P, max_steps);
 }

@@ -80,8 +80,16 @@ struct LodLevel {
   // -ffinite-math-only those are library calls, 9 per lookup).
   static float clamp_deg(float x, float hi) { return x > 0.0f ? (x < hi ? x : hi) : 0.0f; }
 
-  // Trilinear lookup; angles in degrees, theta in [0, 90], dphi in [0, 180].
-  float lookup(float theta_i_deg, float theta_o_deg, float dphi_deg) const {
+  // The grid cell of a lookup: its first corner and the fractions along
+  // theta_i, theta_o and dphi; angles in degrees, theta in [0, 90], dphi in
+  // [0, 180]. The other corners are +1 (dphi), +theta_o_stride(), +theta_i_stride().
+  struct Cell {
+    const float *base;
+    float ti, to, tp;
+  };
+  size_t theta_o_stride() const { return static_cast<size_t>(n_phi); }
+  size_t theta_i_stride() const { return static_cast<size_t>(n_theta_o) * n_phi; }
+  Cell cell(float theta_i_deg, float theta_o_deg, float dphi_deg) const {
     const float inv_step = 1.0f / static_cast<float>(step_deg);
     const float fi = clamp_deg(theta_i_deg, 90.0f);
     const float fo = clamp_deg(theta_o_deg, 90.0f) * inv_step;
@@ -89,13 +97,25 @@ struct LodLevel {
     const int i0 = std::min(static_cast<int>(fi), kThetaICount - 2);
     const int o0 = std::min(static_cast<int>(fo), n_theta_o - 2);
     const int p0 = std::min(static_cast<int>(fp), n_phi - 2);
-    const float ti = fi - static_cast<float>(i0), to = fo - static_cast<float>(o0), tp = fp - static_cast<float>(p0);
-    const float *base = values.data() + (static_cast<size_t>(i0) * n_theta_o + o0) * n_phi + p0;
-    const size_t si = static_cast<size_t>(n_theta_o) * n_phi, so = static_cast<size_t>(n_phi);
-    auto lerp_phi = [&](const float *p) { return p[0] + (p[1] - p[0]) * tp; };
-    const float a = lerp_phi(base) + (lerp_phi(base + so) - lerp_phi(base)) * to;
-    const float b = lerp_phi(base + si) + (lerp_phi(base + si + so) - lerp_phi(base + si)) * to;
-    return a + (b - a) * ti;
+    return {values.data() + (static_cast<size_t>(i0) * n_theta_o + o0) * n_phi + p0, fi - static_cast<float>(i0),
+            fo - static_cast<float>(o0), fp - static_cast<float>(p0)};
+  }
+
+  // Trilinear lookup.
+  float lookup(float theta_i_deg, float theta_o_deg, float dphi_deg) const {
+    const Cell c = cell(theta_i_deg, theta_o_deg, dphi_deg);
+    const size_t si = theta_i_stride(), so = theta_o_stride();
+    auto lerp_phi = [&](const float *p) { return p[0] + (p[1] - p[0]) * c.tp; };
+    const float a = lerp_phi(c.base) + (lerp_phi(c.base + so) - lerp_phi(c.base)) * c.to;
+    const float b = lerp_phi(c.base + si) + (lerp_phi(c.base + si + so) - lerp_phi(c.base + si)) * c.to;
+    return a + (b - a) * c.ti;
+  }
+
+  // Starts loading the cache lines of a lookup (a hint; no value read).
+  void prefetch(float theta_i_deg, float theta_o_deg, float dphi_deg) const {
+    const Cell c = cell(theta_i_deg, theta_o_deg, dphi_deg);
+    const size_t si = theta_i_stride(), so = theta_o_stride();
+    for (const size_t offset : {size_t{0}, so, si, si + so}) __builtin_prefetch(c.base + offset);
   }
 };
 
@@ -109,18 +129,34 @@ class DirectionalTable {
   // Solid angle of the query cone, 2 pi (1 - cos gamma).
   float cone_solid_angle() const { return 6.283185307179586f * (1.0f - std::cos(spec.gamma_deg * kDegToRad)); }
 
-  // P at LOD blur sigma (degrees, clamped to [1, 90]): linear between the two
-  // levels bracketing sigma.
-  float lookup(float sigma_deg, float theta_i_deg, float theta_o_deg, float dphi_deg) const {
-    if (!(sigma_deg > kLodSigmaDeg[0])) return levels[0].lookup(theta_i_deg, theta_o_deg, dphi_deg);
-    if (sigma_deg >= kLodSigmaDeg[kLodCount - 1])
-      return levels[kLodCount - 1].lookup(theta_i_deg, theta_o_deg, dphi_deg);
+  // The levels a lookup at LOD blur sigma (degrees, clamped to [1, 90])
+  // reads: `first` alone (t = 0) or first and first + 1, weights 1 - t, t.
+  struct LevelPair {
+    int first;
+    float t;
+  };
+  static LevelPair levels_at(float sigma_deg) {
+    if (!(sigma_deg > kLodSigmaDeg[0])) return {0, 0.0f};
+    if (sigma_deg >= kLodSigmaDeg[kLodCount - 1]) return {kLodCount - 1, 0.0f};
     int l = 0;
     while (l + 2 < kLodCount && sigma_deg > kLodSigmaDeg[l + 1]) ++l;
-    const float t = (sigma_deg - kLodSigmaDeg[l]) / (kLodSigmaDeg[l + 1] - kLodSigmaDeg[l]);
-    const float a = levels[l].lookup(theta_i_deg, theta_o_deg, dphi_deg);
-    const float b = levels[l + 1].lookup(theta_i_deg, theta_o_deg, dphi_deg);
-    return a + (b - a) * t;
+    return {l, (sigma_deg - kLodSigmaDeg[l]) / (kLodSigmaDeg[l + 1] - kLodSigmaDeg[l])};
+  }
+
+  // P at LOD blur sigma: linear between the two levels bracketing sigma.
+  float lookup(float sigma_deg, float theta_i_deg, float theta_o_deg, float dphi_deg) const {
+    const LevelPair lp = levels_at(sigma_deg);
+    const float a = levels[lp.first].lookup(theta_i_deg, theta_o_deg, dphi_deg);
+    if (!(lp.t > 0.0f)) return a;
+    const float b = levels[lp.first + 1].lookup(theta_i_deg, theta_o_deg, dphi_deg);
+    return a + (b - a) * lp.t;
+  }
+
+  // Starts loading what lookup() will read (see LodLevel::prefetch).
+  void prefetch(float sigma_deg, float theta_i_deg, float theta_o_deg, float dphi_deg) const {
+    const LevelPair lp = levels_at(sigma_deg);
+    levels[lp.first].prefetch(theta_i_deg, theta_o_deg, dphi_deg);
+    if (lp.t > 0.0f) levels[lp.first + 1].prefetch(theta_i_deg, theta_o_deg, dphi_deg);
   }
 
   size_t byte_size() const;
