@@ -40,6 +40,22 @@ MISSING_TEXTURE_COLOR = (255, 0, 255)
 
 GLOSSY_DISTRIBUTION = {"SHARP": "sharp", "BECKMANN": "beckmann", "GGX": "GGX", "MULTI_GGX": "Multiscatter GGX",
                        "ASHIKHMIN_SHIRLEY": "GGX"}
+# Cycles 3.x's GGX and Beckmann lobes use the separable Smith G1(wi) G1(wo) (4.x the height-correlated G2, the
+# closures' default): exported from Blender 3.x as `shadowing="separable"` (docs/microfacet.md). Multiscatter GGX
+# keeps the height-correlated G its energy tables need (the closure refuses the combination).
+SEPARABLE_SHADOWING = bpy.app.version < (4, 0, 0)
+
+
+def microfacet_attributes(distribution):
+    """The distribution attribute of a glossy/glass/refraction element (Blender's name -> Cycles XML) and, when
+    exporting from Blender 3.x, Cycles 3.x's separable shadowing for its single-scattering distributions."""
+    cycles_name = GLOSSY_DISTRIBUTION.get(distribution, "GGX")
+    attributes = {"distribution": cycles_name}
+    if SEPARABLE_SHADOWING and cycles_name in ("GGX", "beckmann"):
+        attributes["shadowing"] = "separable"
+    return attributes
+
+
 IMAGE_INTERPOLATION = {"Closest": "closest", "Linear": "linear", "Cubic": "cubic", "Smart": "smart"}
 IMAGE_EXTENSION = {"REPEAT": "periodic", "EXTEND": "extend", "CLIP": "clip", "MIRROR": "mirror"}
 IMAGE_PROJECTION = {"FLAT": "flat", "BOX": "box", "SPHERE": "sphere", "TUBE": "tube"}
@@ -232,7 +248,7 @@ class ShaderGraph:
     def bsdf_glossy(self, node, out):
         """Glossy / Anisotropic BSDF: anisotropy (Cycles 3.4 mapping), rotation, and the Normal and Tangent
         inputs; an unlinked tangent is Cycles' default in the renderer too (radial about generated Z)."""
-        el = self.add("glossy_bsdf", node.name, distribution=GLOSSY_DISTRIBUTION.get(node.distribution, "GGX"))
+        el = self.add("glossy_bsdf", node.name, **microfacet_attributes(node.distribution))
         self.set_input(el, "color", node.inputs["Color"])
         self.set_input(el, "roughness", node.inputs["Roughness"])
         anisotropy = node.inputs.get("Anisotropy")
@@ -246,7 +262,7 @@ class ShaderGraph:
         return (el.get("name"), "bsdf")
 
     def bsdf_glass(self, node, out, xml_type="glass_bsdf"):
-        el = self.add(xml_type, node.name, distribution=GLOSSY_DISTRIBUTION.get(node.distribution, "GGX"))
+        el = self.add(xml_type, node.name, **microfacet_attributes(node.distribution))
         self.set_input(el, "color", node.inputs["Color"])
         self.set_input(el, "roughness", node.inputs["Roughness"])
         self.set_input(el, "IOR", node.inputs["IOR"])
@@ -398,7 +414,7 @@ class ShaderGraph:
 
         diffuse = self.add("diffuse_bsdf", name + "_diffuse")
         self.set_input(diffuse, "color", base)
-        specular = self.add("glossy_bsdf", name + "_specular", distribution="GGX", color=(f0, f0, f0))
+        specular = self.add("glossy_bsdf", name + "_specular", color=(f0, f0, f0), **microfacet_attributes("GGX"))
         self.set_input(specular, "roughness", rough)
         dielectric = self.add("add_closure", name + "_dielectric")
         self.connect((diffuse.get("name"), "bsdf"), dielectric.get("name"), "closure1")
@@ -407,7 +423,7 @@ class ShaderGraph:
 
         t = constant(transmission, 0.0)
         if transmission is not None and (t is None or t > 0.0):
-            glass = self.add("glass_bsdf", name + "_glass", distribution="GGX")
+            glass = self.add("glass_bsdf", name + "_glass", **microfacet_attributes("GGX"))
             self.set_input(glass, "color", base)
             self.set_input(glass, "roughness", rough)
             self.set_input(glass, "IOR", ior)
@@ -422,7 +438,7 @@ class ShaderGraph:
 
         m = constant(metallic, 0.0)
         if m is None or m > 0.0:
-            metal = self.add("glossy_bsdf", name + "_metal", distribution="GGX")
+            metal = self.add("glossy_bsdf", name + "_metal", **microfacet_attributes("GGX"))
             self.set_input(metal, "color", base)
             self.set_input(metal, "roughness", rough)
             if m is not None and m >= 1.0:
