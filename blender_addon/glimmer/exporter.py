@@ -46,6 +46,22 @@ PRINCIPLED_SOCKETS = (("base_color", ("Base Color",)), ("metallic", ("Metallic",
                       ("clearcoat", ("Clearcoat", "Coat Weight")),
                       ("clearcoat_roughness", ("Clearcoat Roughness", "Coat Roughness")), ("alpha", ("Alpha",)),
                       ("emission", ("Emission", "Emission Color")), ("emission_strength", ("Emission Strength",)))
+# Cycles 3.x's GGX and Beckmann lobes use the separable Smith G1(wi) G1(wo) (4.x the height-correlated G2, the
+# closures' default): exported from Blender 3.x as `shadowing="separable"` (docs/microfacet.md). Multiscatter GGX
+# keeps the height-correlated G its energy tables need (the closure refuses the combination).
+SEPARABLE_SHADOWING = bpy.app.version < (4, 0, 0)
+
+
+def microfacet_attributes(distribution):
+    """The distribution attribute of a glossy/glass/refraction element (Blender's name -> Cycles XML) and, when
+    exporting from Blender 3.x, Cycles 3.x's separable shadowing for its single-scattering distributions."""
+    cycles_name = GLOSSY_DISTRIBUTION.get(distribution, "GGX")
+    attributes = {"distribution": cycles_name}
+    if SEPARABLE_SHADOWING and cycles_name in ("GGX", "beckmann"):
+        attributes["shadowing"] = "separable"
+    return attributes
+
+
 IMAGE_INTERPOLATION = {"Closest": "closest", "Linear": "linear", "Cubic": "cubic", "Smart": "smart"}
 IMAGE_EXTENSION = {"REPEAT": "periodic", "EXTEND": "extend", "CLIP": "clip", "MIRROR": "mirror"}
 IMAGE_PROJECTION = {"FLAT": "flat", "BOX": "box", "SPHERE": "sphere", "TUBE": "tube"}
@@ -238,7 +254,7 @@ class ShaderGraph:
     def bsdf_glossy(self, node, out):
         """Glossy / Anisotropic BSDF: anisotropy (Cycles 3.4 mapping), rotation, and the Normal and Tangent
         inputs; an unlinked tangent is Cycles' default in the renderer too (radial about generated Z)."""
-        el = self.add("glossy_bsdf", node.name, distribution=GLOSSY_DISTRIBUTION.get(node.distribution, "GGX"))
+        el = self.add("glossy_bsdf", node.name, **microfacet_attributes(node.distribution))
         self.set_input(el, "color", node.inputs["Color"])
         self.set_input(el, "roughness", node.inputs["Roughness"])
         anisotropy = node.inputs.get("Anisotropy")
@@ -252,7 +268,7 @@ class ShaderGraph:
         return (el.get("name"), "bsdf")
 
     def bsdf_glass(self, node, out, xml_type="glass_bsdf"):
-        el = self.add(xml_type, node.name, distribution=GLOSSY_DISTRIBUTION.get(node.distribution, "GGX"))
+        el = self.add(xml_type, node.name, **microfacet_attributes(node.distribution))
         self.set_input(el, "color", node.inputs["Color"])
         self.set_input(el, "roughness", node.inputs["Roughness"])
         self.set_input(el, "IOR", node.inputs["IOR"])

@@ -20,6 +20,8 @@ std::vector<SocketRow> microfacet_sockets(float color, float roughness, std::vec
       {.socket = "roughness", .role = R::Param, .param = "roughness", .default_value = roughness, .min = 0, .max = 1},
   };
   rows.insert(rows.end(), own.begin(), own.end());
+  // Glimmer's extension: the Smith G model (`separable` as Cycles 3.4, which the Blender addon exports from 3.x).
+  rows.push_back({.socket = "shadowing", .role = R::SchemaParam, .param = "shadowing"});
   rows.push_back({.socket = "normal", .role = R::Normal});
   rows.push_back({.socket = "surface_mix_weight", .role = R::Ignored});
   return rows;

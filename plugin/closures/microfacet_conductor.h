@@ -43,7 +43,7 @@ class MicrofacetConductorClosure : public OneLobeClosure<MicrofacetConductorClos
   static constexpr uint32_t kFlags = 0;
 
   static std::span<const GlimmerParamSpec> params() {
-    static const std::array<GlimmerParamSpec, 5> schema{{
+    static const std::array<GlimmerParamSpec, 6> schema{{
         {"distribution", GLIMMER_PARAM_ENUM, {0, 0, 0}, 0.0f, 0.0f, "ggx|beckmann|multi_ggx|sharp", "ggx",
          "microfacet distribution; multi_ggx = GGX with multiple-scattering energy compensation; sharp = mirror", 0},
         {"roughness", GLIMMER_PARAM_FLOAT, {0.5f, 0, 0}, 0.0f, 1.0f, nullptr, nullptr,
@@ -56,6 +56,7 @@ class MicrofacetConductorClosure : public OneLobeClosure<MicrofacetConductorClos
         {"bounce_tint", GLIMMER_PARAM_COLOR, {1.0f, 1.0f, 1.0f}, 0.0f, 1.0f, nullptr, nullptr,
          "multi_ggx only: per-bounce tint c of the multiple-scattering walk, as Cycles' Multiscatter GGX colour (k "
          "bounces -> c^k); the first factor c is the closure weight the host applies, the closure adds c^(k-1)", 0},
+        kShadowingParam,
     }};
     return schema;
   }
@@ -65,6 +66,7 @@ class MicrofacetConductorClosure : public OneLobeClosure<MicrofacetConductorClos
   struct Lobe {
     MicrofacetMode mode = kGgx;
     mf::Distribution dist = mf::Distribution::GGX;
+    mf::Shadowing shadowing = mf::Shadowing::HeightCorrelated;
     float ax = 0.25f, ay = 0.25f, alpha_table = 0.25f, e_avg = 1.0f;
     Spectrum f0{1.0f};
     bool white = true;
@@ -76,6 +78,7 @@ class MicrofacetConductorClosure : public OneLobeClosure<MicrofacetConductorClos
     void build(const MicrofacetLobeParams &lobe, const Spectrum &f0_in, const Spectrum &bounce_tint, bool need_rows) {
       mode = lobe.mode;
       dist = lobe.distribution;
+      shadowing = lobe.shadowing;
       ax = lobe.alpha_x;
       ay = lobe.alpha_y;
       alpha_table = lobe.alpha_table;
@@ -87,6 +90,7 @@ class MicrofacetConductorClosure : public OneLobeClosure<MicrofacetConductorClos
       if (mode == kMultiGgx) build_ms_cdf();
     }
 
+    float g2(const Vec3 &wi, const Vec3 &wo) const { return mf::G2(dist, wi, wo, ax, ay, shadowing); }
     Spectrum fresnel(float cos_i) const { return white ? Spectrum(1.0f) : mf::fresnel_schlick(cos_i, f0); }
 
     // Probability of sampling the multiple-scattering lobe: its Fresnel-free share 1 - E(mu_i).
@@ -144,9 +148,9 @@ class MicrofacetConductorClosure : public OneLobeClosure<MicrofacetConductorClos
       const float cos_ih = dot(wi, wh);
       if (!(cos_ih > 0.0f)) return {};
       const float d = mf::D(dist, wh, ax, ay);
-      const float g2 = mf::G2(dist, wi, wo, ax, ay);
+      const float g = g2(wi, wo);
       LocalEval e;
-      e.f_cos = fresnel(cos_ih) * (d * g2 / (4.0f * wi.z));
+      e.f_cos = fresnel(cos_ih) * (d * g / (4.0f * wi.z));
       e.pdf = mf::visible_D(dist, wi, wh, ax, ay) / (4.0f * cos_ih);
       return e;
     }

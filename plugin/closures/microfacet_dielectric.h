@@ -44,7 +44,7 @@ class MicrofacetDielectricClosure : public OneLobeClosure<MicrofacetDielectricCl
   static constexpr uint32_t kFlags = GLIMMER_CLOSURE_TRANSMISSIVE;
 
   static std::span<const GlimmerParamSpec> params() {
-    static const std::array<GlimmerParamSpec, 5> schema{{
+    static const std::array<GlimmerParamSpec, 6> schema{{
         {"distribution", GLIMMER_PARAM_ENUM, {0, 0, 0}, 0.0f, 0.0f, "ggx|beckmann|multi_ggx|sharp", "ggx",
          "microfacet distribution; multi_ggx = GGX with energy compensation; sharp = smooth interface", 0},
         {"roughness", GLIMMER_PARAM_FLOAT, {0.5f, 0, 0}, 0.0f, 1.0f, nullptr, nullptr,
@@ -55,6 +55,7 @@ class MicrofacetDielectricClosure : public OneLobeClosure<MicrofacetDielectricCl
          "glass = reflection + transmission; refraction = transmission only (Fresnel-free)", 0},
         {"anisotropy", GLIMMER_PARAM_FLOAT, {0.0f, 0, 0}, -1.0f, 1.0f, nullptr, nullptr,
          "anisotropy in [-1, 1] (Cycles 3.4 mapping, tangent from the shading context)", GLIMMER_PARAM_VARYING},
+        kShadowingParam,
     }};
     return schema;
   }

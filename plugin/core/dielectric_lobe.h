@@ -21,6 +21,7 @@ namespace mf = glimmer::microfacet;
 struct DielectricLobe {
   MicrofacetMode mode = kGgx;
   mf::Distribution dist = mf::Distribution::GGX;
+  mf::Shadowing shadowing = mf::Shadowing::HeightCorrelated;
   float ax = 0.25f, ay = 0.25f, alpha_table = 0.25f, ior = 1.45f;
   bool refraction_only = false, compensate = false;
   // E(mu) at this alpha for eta = ior and 1 / ior; built for the instance and,
@@ -31,6 +32,7 @@ struct DielectricLobe {
   void build(const MicrofacetLobeParams &lobe, float ior_in, bool refraction_only_in, bool need_rows) {
     mode = lobe.mode;
     dist = lobe.distribution;
+    shadowing = lobe.shadowing;
     ax = lobe.alpha_x;
     ay = lobe.alpha_y;
     alpha_table = lobe.alpha_table;
@@ -46,6 +48,8 @@ struct DielectricLobe {
     }
   }
 
+  float g2(const Vec3 &wi, const Vec3 &wo) const { return mf::G2(dist, wi, wo, ax, ay, shadowing); }
+
   // f * |cos(wo)| and pdf in the side-local frame (wi.z > 0, eta = n_wo_side / n_wi_side).
   LocalEval eval_local(const Vec3 &wi, const Vec3 &wo, float eta) const {
     LocalEval e;
@@ -58,8 +62,8 @@ struct DielectricLobe {
       if (!(cos_ih > 0.0f)) return {};
       const float F = mf::fresnel_dielectric(cos_ih, eta);
       const float d = mf::D(dist, wh, ax, ay);
-      const float g2 = mf::G2(dist, wi, wo, ax, ay);
-      e.f_cos = Spectrum(F * d * g2 / (4.0f * wi.z));
+      const float g = g2(wi, wo);
+      e.f_cos = Spectrum(F * d * g / (4.0f * wi.z));
       e.pdf = F * mf::visible_D(dist, wi, wh, ax, ay) / (4.0f * cos_ih);
     } else if (wo.z < 0.0f) {
       Vec3 wh;
@@ -72,9 +76,9 @@ struct DielectricLobe {
       const float T = refraction_only ? (F < 1.0f ? 1.0f : 0.0f) : 1.0f - F;
       if (!(T > 0.0f)) return {};
       const float d = mf::D(dist, wh, ax, ay);
-      const float g2 = mf::G2(dist, wi, wo, ax, ay);
+      const float g = g2(wi, wo);
       const float jac = mf::jacobian_transmit(wo, wh, eta, len2);  // eta^2 |wo.h| / (wi.h + eta wo.h)^2
-      e.f_cos = Spectrum(T * d * g2 * cos_ih * jac / wi.z);
+      e.f_cos = Spectrum(T * d * g * cos_ih * jac / wi.z);
       e.pdf = T * mf::visible_D(dist, wi, wh, ax, ay) * jac;
     }
     if (compensate) e.f_cos /= compensation(wi.z, eta);

@@ -42,6 +42,8 @@ class ParamReader {
   // Index of a declared parameter in the schema (for ShadingPoint::param_float
   // and param_color, which read varying values by index).
   uint32_t index(std::string_view name) const;
+  // The closure's name, for the messages of errors create() finds across parameters.
+  const std::string &closure_name() const { return closure_name_; }
 
  private:
   const GlimmerParamSpec &spec(std::string_view name) const;

@@ -77,6 +77,19 @@ std::vector<Chi2Config> configs() {
                        wi_from_z(z, 0.3f)});
       }
   }
+  // Isotropic multi_ggx glass: rejection sampling of f_ss cos / E (both sides, TIR inside).
+  for (float z : {0.9f, 0.2f, -0.3f, -0.9f})
+    for (float r : {0.5f, 1.0f})
+      out.push_back({"microfacet_dielectric", {"distribution=multi_ggx", "roughness=" + num(r), "ior=1.5"},
+                     wi_from_z(z), z > 0 ? 1.5f : 1 / 1.5f, true});
+  // Cycles 3.4's separable Smith G (shadowing=separable).
+  for (float z : {0.9f, 0.1f, -0.6f}) {
+    out.push_back({"microfacet_dielectric", {"distribution=ggx", "roughness=0.8", "ior=1.45", "shadowing=separable"},
+                   wi_from_z(z), z > 0 ? 1.45f : 1 / 1.45f, true});
+    if (z > 0.0f)
+      out.push_back({"microfacet_conductor", {"distribution=beckmann", "roughness=0.9", "anisotropy=0.4",
+                                              "shadowing=separable"}, wi_from_z(z, 1.1f)});
+  }
   out.push_back({"microfacet_conductor", {"distribution=ggx", "roughness=0.7", "anisotropy=0.9"}, wi_from_z(0.001f)});
   out.push_back({"microfacet_conductor", {"distribution=beckmann", "roughness=0.7", "anisotropy=0.9"},
                  wi_from_z(0.001f)});

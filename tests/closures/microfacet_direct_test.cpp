@@ -281,9 +281,68 @@ TEST(MicrofacetReciprocity, SingleScatterClosures) {
     auto rf = create<MicrofacetDielectricClosure>(
         Params().str("distribution", dist).num("roughness", 0.3f).num("ior", 2.0f).str("mode", "refraction"));
     check_reciprocity(*rf, 2.0f, dist, pairs, worst, checked);
+    // Cycles 3.4's separable G1(wi) G1(wo) is symmetric too.
+    auto cs = create<MicrofacetConductorClosure>(
+        Params().str("distribution", dist).num("roughness", 0.8f).str("shadowing", "separable").num("f0", 0.9f, 0.6f, 0.3f));
+    check_reciprocity(*cs, 1.0f, dist, pairs, worst, checked);
+    auto ds = create<MicrofacetDielectricClosure>(
+        Params().str("distribution", dist).num("roughness", 0.6f).num("ior", 1.45f).str("shadowing", "separable"));
+    check_reciprocity(*ds, 1.45f, dist, pairs, worst, checked);
   }
-  EXPECT_GT(checked, 600000);
-  std::printf("[reciprocity] %ld pairs (of %ld) with f > 1e-6: max relative violation %.3g\n", checked, 8 * pairs, worst);
+  EXPECT_GT(checked, 800000);
+  std::printf("[reciprocity] %ld pairs (of %ld) with f > 1e-6: max relative violation %.3g\n", checked, 12 * pairs, worst);
+}
+
+// ---- Smith G model (shadowing) ----------------------------------------------------
+// shadowing=separable is Cycles 3.4's G1(wi) G1(wo) in place of the height-correlated G2, nothing else: the eval
+// ratio separable / height-correlated is G1(wi) G1(wo) (1 + Lambda(wi) + Lambda(wo)) for reflection and
+// transmission pairs of both closures (the pdf, of visible-normal sampling, is unchanged), and multi_ggx refuses it.
+TEST(MicrofacetShadowing, SeparableReplacesOnlyG2) {
+  namespace mf = glimmer::microfacet;
+  const float rough = 0.9f, alpha = rough * rough;
+  auto c_hc = create<MicrofacetConductorClosure>(Params().str("distribution", "ggx").num("roughness", rough));
+  auto c_sep = create<MicrofacetConductorClosure>(
+      Params().str("distribution", "ggx").num("roughness", rough).str("shadowing", "separable"));
+  auto d_hc = create<MicrofacetDielectricClosure>(Params().str("distribution", "ggx").num("roughness", rough).num("ior", 1.45f));
+  auto d_sep = create<MicrofacetDielectricClosure>(
+      Params().str("distribution", "ggx").num("roughness", rough).num("ior", 1.45f).str("shadowing", "separable"));
+  Pcg32 rng(21);
+  double worst = 0.0, darkest = 1.0;
+  int checked = 0;
+  for (int i = 0; i < 4000; ++i) {
+    const float zi = 0.02f + 0.98f * rng.next_float(), zo = (i % 2 ? 1.0f : -1.0f) * (0.02f + 0.98f * rng.next_float());
+    const float pi_ = kTwoPi * rng.next_float(), po = kTwoPi * rng.next_float();
+    const Vec3 wi(std::sqrt(1 - zi * zi) * std::cos(pi_), std::sqrt(1 - zi * zi) * std::sin(pi_), zi);
+    const Vec3 wo(std::sqrt(1 - zo * zo) * std::cos(po), std::sqrt(1 - zo * zo) * std::sin(po), zo);
+    GlimmerShadingContext ctx = host::make_local_context(wi);
+    const ShadingPoint sp(&ctx);
+    const float g1g1 = mf::G1(mf::Distribution::GGX, wi, alpha, alpha) * mf::G1(mf::Distribution::GGX, wo, alpha, alpha);
+    const float expected = g1g1 / mf::G2(mf::Distribution::GGX, wi, wo, alpha, alpha);
+    const std::pair<LocalEval, LocalEval> evals[] = {{c_hc->eval(sp, wo), c_sep->eval(sp, wo)},
+                                                     {d_hc->eval(sp, wo), d_sep->eval(sp, wo)}};
+    for (const auto &[hc, sep] : evals) {
+      if (!(hc.f_cos.x > 1e-6f)) continue;
+      worst = std::max(worst, std::fabs(sep.f_cos.x / hc.f_cos.x / expected - 1.0));
+      worst = std::max(worst, std::fabs(sep.pdf / hc.pdf - 1.0));
+      darkest = std::min(darkest, double(sep.f_cos.x / hc.f_cos.x));
+      ++checked;
+    }
+  }
+  EXPECT_GT(checked, 3000);
+  EXPECT_LT(worst, 1e-4);
+  EXPECT_LT(darkest, 0.8);  // the models differ (G1 G1 <= G2, most at grazing angles)
+  std::printf("[shadowing] %d pairs: separable / height-correlated = G1 G1 / G2 within %.3g, smallest ratio %.3f\n",
+              checked, worst, darkest);
+  try {
+    create<MicrofacetConductorClosure>(Params().str("distribution", "multi_ggx").str("shadowing", "separable"));
+    ADD_FAILURE() << "multi_ggx with separable shadowing was accepted";
+  } catch (const ParamError &e) {
+    EXPECT_NE(std::string(e.what()).find("multi_ggx"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("microfacet_conductor"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(create<MicrofacetDielectricClosure>(
+                   Params().str("distribution", "multi_ggx").str("shadowing", "separable")),
+               ParamError);
 }
 
 // ---- Stress ---------------------------------------------------------------------
@@ -320,15 +379,19 @@ TEST(MicrofacetStress, RawOutputsFiniteNonNegative) {
     Any a;
     const char *dist = dists[rng.next_u32() % 4];
     const float aniso = (rng.next_u32() & 1) ? ((rng.next_u32() & 1) ? 1.0f : -1.0f) : 2 * rng.next_float() - 1;
+    // Cycles 3.4's separable G on a third of the single-scattering lobes (multi_ggx refuses it).
+    const char *shadowing = (std::string(dist) != "multi_ggx" && i % 9 < 3) ? "separable" : "height_correlated";
     if (i % 3 == 0)
-      a.c = create<MicrofacetConductorClosure>(Params().str("distribution", dist).num("roughness", extreme_roughness(rng))
+      a.c = create<MicrofacetConductorClosure>(Params().str("distribution", dist).str("shadowing", shadowing)
+                                                   .num("roughness", extreme_roughness(rng))
                                                    .num("anisotropy", aniso).num("f0", rng.next_float(), 0.0f, 1.0f)
                                                    .num("bounce_tint", rng.next_float(), (i % 2) ? 0.0f : 1.0f,
                                                         (i % 5) ? 1e-6f : 1.0f));
     else if (i % 3 == 1)
       a.d = create<MicrofacetDielectricClosure>(Params().str("distribution", dist).num("roughness", extreme_roughness(rng))
                                                     .num("anisotropy", aniso).num("ior", extreme_ior(rng))
-                                                    .str("mode", (rng.next_u32() & 1) ? "glass" : "refraction"));
+                                                    .str("mode", (rng.next_u32() & 1) ? "glass" : "refraction")
+                                                    .str("shadowing", shadowing));
     else
       a.w = create<MicrofacetRandomWalkClosure>(Params().str("type", (rng.next_u32() & 1) ? "conductor" : "dielectric")
                                                     .num("roughness", extreme_roughness(rng)).num("anisotropy", aniso)

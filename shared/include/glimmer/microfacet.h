@@ -140,6 +140,13 @@ inline float G2(Distribution dist, const Vec3 &wi, const Vec3 &wo, float ax, flo
   return std::isfinite(s) ? 1.0f / s : 0.0f;
 }
 
+// Smith masking-shadowing model: height-correlated (above; Cycles 4.x) or separable G1(wi) G1(wo) (Heitz 2014
+// eq. 98; Cycles 3.4), which counts a microfacet hidden from both directions twice. Both are <= G1(wi).
+enum class Shadowing { HeightCorrelated, Separable };
+inline float G2(Distribution dist, const Vec3 &wi, const Vec3 &wo, float ax, float ay, Shadowing model) {
+  return model == Shadowing::Separable ? G1(dist, wi, ax, ay) * G1(dist, wo, ax, ay) : G2(dist, wi, wo, ax, ay);
+}
+
 // ---- Visible normals --------------------------------------------------------
 // Distribution of visible normals (Heitz 2014 eq. 38, Heitz & d'Eon 2014):
 // D_wi(wh) = G1(wi) max(0, wi.wh) D(wh) / wi.z, for wi.z > 0.
