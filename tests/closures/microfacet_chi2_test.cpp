@@ -77,14 +77,6 @@ std::vector<Chi2Config> configs() {
                        wi_from_z(z, 0.3f)});
       }
   }
-  // Isotropic multi_ggx conductor: exact sampling (visible normal accepted with probability G2 / G1, the rejected
-  // mass drawn from the compensation lobe with the split rejected number), white and coloured, grazing to normal.
-  for (float z : {0.95f, 0.4f, 0.05f})
-    for (float r : {0.6f, 0.9f}) {
-      out.push_back({"microfacet_conductor", {"distribution=multi_ggx", "roughness=" + num(r)}, wi_from_z(z, 0.7f)});
-      out.push_back({"microfacet_conductor", {"distribution=multi_ggx", "roughness=" + num(r), "f0=0.9,0.5,0.2"},
-                     wi_from_z(z, 2.3f)});
-    }
   // Isotropic multi_ggx glass: rejection sampling of f_ss cos / E (both sides, TIR inside).
   for (float z : {0.9f, 0.2f, -0.3f, -0.9f})
     for (float r : {0.5f, 1.0f})

@@ -72,31 +72,6 @@ TEST(MicrofacetEnergy, UncompensatedLosesEnergy) {
   EXPECT_LT(sampled_albedo(*g, wi_at(0.5f), 64, 6).mean.x, 0.95f);
 }
 
-// Isotropic multi_ggx with F = 1 is sampled in proportion to f cos (visible normal accepted with probability
-// G2 / G1, the rejected mass drawn from the compensation lobe), so every sample weight is the albedo, 1, up to the
-// tables' error. Per-sample relative standard deviation of the weight; the lobe mixture the anisotropic lobe
-// still uses (anisotropy 0.02, nearly the same lobe) is the negative control: its weights spread far more.
-TEST(MicrofacetEnergy, ExactSamplingGivesConstantWeightForWhiteMultiGgx) {
-  double worst_exact = 0.0, least_mixture = 1e9;
-  for (float roughness : {0.3f, 0.6f, 0.9f, 1.0f})
-    for (float mu : {0.05f, 0.2f, 0.5f, 1.0f}) {
-      const std::string r = "roughness=" + num(roughness);
-      auto exact = make_closure("microfacet_conductor", {"distribution=multi_ggx", r});
-      auto mixture = make_closure("microfacet_conductor", {"distribution=multi_ggx", r, "anisotropy=0.02"});
-      const long n = 16 * 16 * 8;  // sampled_albedo's sample count at 32 strata
-      const Albedo a = sampled_albedo(*exact, wi_at(mu), 32, 11);
-      const Albedo b = sampled_albedo(*mixture, wi_at(mu), 32, 11);
-      const double std_exact = a.std_error * std::sqrt(double(n)) / a.mean.x;
-      const double std_mixture = b.std_error * std::sqrt(double(n)) / b.mean.x;
-      EXPECT_LT(std_exact, 0.01) << r << " mu=" << mu;
-      EXPECT_GT(std_mixture, 0.05) << r << " mu=" << mu;
-      worst_exact = std::max(worst_exact, std_exact);
-      least_mixture = std::min(least_mixture, std_mixture);
-    }
-  std::printf("[weights] white multi_ggx, per-sample relative std: exact sampling max %.4g, lobe mixture min %.4g\n",
-              worst_exact, least_mixture);
-}
-
 // Random-walk albedo = mean sampled throughput (f_cos / pdf is the walk's throughput).
 Spectrum random_walk_albedo(const host::ClosureInstance &c, const Vec3 &wi, long walks, uint64_t seed) {
   GlimmerShadingContext ctx = host::make_local_context(wi);
