@@ -112,6 +112,9 @@ void expect_qmc_slopes(const Ladder &ladder) {
   // Diffuse under a world that is a light (a constant world is not, see WorldSampling below).
   EXPECT_LT(slope_of("diffuse_world_light", kDiffuse, "", textured_white_world(), ladder), -0.8);
   EXPECT_LT(slope_of("conductor_multi_ggx", kMultiGgx, "", kWhiteWorld, ladder), ggx + 0.1);
+  // The same through a textured (light) world: where a rejection sampler's curved accept / reject boundary in
+  // the 3D sample cube lost the QMC rate (-0.69, docs/microfacet.md "Exact sampling").
+  EXPECT_LT(slope_of("conductor_multi_ggx_world_light", kMultiGgx, "", textured_white_world(), ladder), ggx + 0.1);
   EXPECT_LT(slope_of("mix_diffuse_ggx", kMix, "", kWhiteWorld, ladder), ggx + 0.1);
   const std::string one_event = "max_bounce=\"0\"";
   EXPECT_LT(slope_of("glass_ggx_one_event", kGlassGgx, one_event, kWhiteWorld, ladder), ggx + 0.1);
