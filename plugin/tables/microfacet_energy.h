@@ -212,8 +212,10 @@ struct GlassRow {
     e_[i] = ggx_glass_E_at(weights_, mu_cubic(grid::mu_of_node(i)));
     filled_ |= 1u << i;
   }
-  GlassWeights weights_{};
-  mutable float e_[grid::kMuCount] = {};
+  // Not zero-initialized (a closure may construct an unused scratch lobe per call): set() / build() set
+  // weights_, and a node is read only once its filled_ bit is set.
+  GlassWeights weights_;
+  mutable float e_[grid::kMuCount];
   mutable uint32_t filled_ = 0;  // bit i: e_[i] is filled
 };
 
