@@ -57,11 +57,13 @@ void BM_ClosureSample(benchmark::State &state, std::string name) {
 // mixture's MIS) with the point's varying roughness. `points_per_value`
 // shading points share a roughness value: 1 = every point its own value;
 // the four calls of a point always share it. Time per shading point.
-void BM_TexturedRoughnessShadingPoint(benchmark::State &state, std::string name, std::string distribution) {
+// `setting` = value of the closure's enum `setting_name` (distribution, or frosted_glass's method).
+void BM_TexturedRoughnessShadingPoint(benchmark::State &state, std::string name, std::string setting_name,
+                                      std::string setting) {
   const GlimmerClosureType *type = plugin().find(name);
   if (type == nullptr) { state.SkipWithError("closure not in plugin"); return; }
   host::ParamList params;
-  params.set_from_text(*type, "distribution", distribution);
+  params.set_from_text(*type, setting_name, setting);
   host::ClosureInstance instance(*type, params);
   const GlimmerParamSpec *roughness = host::find_param(*type, "roughness");
   GlimmerShadingContext ctx = host::make_local_context(Vec3(0.3f, 0.1f, 0.95f));
@@ -89,7 +91,11 @@ void BM_TexturedRoughnessShadingPoint(benchmark::State &state, std::string name,
 const bool registered = [] {
   for (const char *name : {"microfacet_conductor", "microfacet_dielectric"})
     benchmark::RegisterBenchmark((std::string("textured_roughness_point/") + name + "/multi_ggx").c_str(),
-                                 BM_TexturedRoughnessShadingPoint, std::string(name), std::string("multi_ggx"));
+                                 BM_TexturedRoughnessShadingPoint, std::string(name), std::string("distribution"),
+                                 std::string("multi_ggx"));
+  // frosted_glass builds its interface lobe (multi_ggx, compensation rows) at every call of a textured point.
+  benchmark::RegisterBenchmark("textured_roughness_point/frosted_glass/path", BM_TexturedRoughnessShadingPoint,
+                               std::string("frosted_glass"), std::string("method"), std::string("path"));
   for (const auto *type : plugin().closures()) {
     benchmark::RegisterBenchmark((std::string("eval/") + type->name).c_str(), BM_ClosureEval, std::string(type->name));
     benchmark::RegisterBenchmark((std::string("sample/") + type->name).c_str(), BM_ClosureSample,

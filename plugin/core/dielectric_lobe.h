@@ -24,12 +24,16 @@ struct DielectricLobe {
   mf::Shadowing shadowing = mf::Shadowing::HeightCorrelated;
   float ax = 0.25f, ay = 0.25f, alpha_table = 0.25f, ior = 1.45f;
   bool refraction_only = false, compensate = false;
-  // E(mu) at this alpha for eta = ior and 1 / ior; built for the instance and,
-  // per shading point, only when multi_ggx compensation needs them in eval.
+  // E(mu) at this alpha for eta = ior and 1 / ior: built whole for an instance
+  // (shared by the render threads) and, per shading point, only when multi_ggx
+  // compensation needs them in eval, then filled node by node as lookups need
+  // them (tables::GlassRow; the same values as a whole row, bit for bit).
   bool has_rows = false;
   tables::GlassRow e_outside, e_inside;
 
-  void build(const MicrofacetLobeParams &lobe, float ior_in, bool refraction_only_in, bool need_rows) {
+  // instance_lobe: the lobe of a closure instance (rows always, built whole, read by every thread); else
+  // the lobe of one shading point (rows only for multi_ggx, filled lazily by its own thread).
+  void build(const MicrofacetLobeParams &lobe, float ior_in, bool refraction_only_in, bool instance_lobe) {
     mode = lobe.mode;
     dist = lobe.distribution;
     shadowing = lobe.shadowing;
@@ -41,10 +45,13 @@ struct DielectricLobe {
     ior = ior_in;
     refraction_only = refraction_only_in;
     compensate = mode == kMultiGgx && !refraction_only;
-    has_rows = need_rows || compensate;
-    if (has_rows) {
+    has_rows = instance_lobe || compensate;
+    if (has_rows && instance_lobe) {
       e_outside.build(alpha_table, ior);
       e_inside.build(alpha_table, 1.0f / ior);
+    } else if (has_rows) {
+      e_outside.set(alpha_table, ior);
+      e_inside.set(alpha_table, 1.0f / ior);
     }
   }
 

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <algorithm>
+#include <cstdint>
 
 #include "glimmer/math.h"
 #include "glimmer/microfacet_energy_grid.h"
@@ -144,20 +145,30 @@ inline Spectrum ggx_E_Fms(float mu, float alpha, const Spectrum &f0) {
 
 // Dielectric R + T single-scatter albedo for wi with relative IOR eta
 // (n on the far side / n on wi's side; eta < 1 uses the inverse tables).
-inline float ggx_glass_E(float mu, float alpha, float eta) {
+// The weights along eta and alpha depend on the material only, so a row
+// (GlassRow) computes them once and evaluates each mu node with ggx_glass_E_at.
+struct GlassWeights {
+  const float (*table)[grid::kAlphaCount][grid::kMuCount];  // kGgxGlassE or kGgxGlassInvE
+  Cubic e, a;
+};
+inline GlassWeights ggx_glass_weights(float alpha, float eta) {
   const bool inverse = eta < 1.0f;
   const float ior = inverse ? 1.0f / eta : eta;
-  const auto &table = inverse ? kGgxGlassInvE : kGgxGlassE;
   // Catmull-Rom along eta too: near eta = 1 the grazing albedo is not monotonic in eta.
-  const Cubic e = catmull_rom(grid::eta_coord(ior), grid::kEtaCount);
-  const Cubic a = catmull_rom(grid::alpha_coord(alpha), grid::kAlphaCount);
-  const MuCubic m = mu_cubic(mu);
+  return {inverse ? kGgxGlassInvE : kGgxGlassE, catmull_rom(grid::eta_coord(ior), grid::kEtaCount),
+          catmull_rom(grid::alpha_coord(alpha), grid::kAlphaCount)};
+}
+inline float ggx_glass_E_at(const GlassWeights &w, const MuCubic &m) {
   auto bilinear = [&](int k) {
     float r = 0.0f;
-    for (int j = 0; j < 4; ++j) r += a.w[j] * mu_interp(table[k][a.i[j]], m);
+    for (int j = 0; j < 4; ++j) r += w.a.w[j] * mu_interp(w.table[k][w.a.i[j]], m);
     return r;
   };
-  return e.w[0] * bilinear(e.i[0]) + e.w[1] * bilinear(e.i[1]) + e.w[2] * bilinear(e.i[2]) + e.w[3] * bilinear(e.i[3]);
+  return w.e.w[0] * bilinear(w.e.i[0]) + w.e.w[1] * bilinear(w.e.i[1]) + w.e.w[2] * bilinear(w.e.i[2]) +
+         w.e.w[3] * bilinear(w.e.i[3]);
+}
+inline float ggx_glass_E(float mu, float alpha, float eta) {
+  return ggx_glass_E_at(ggx_glass_weights(alpha, eta), mu_cubic(mu));
 }
 
 inline float ggx_glass_E_avg(float alpha, float eta) {
@@ -171,14 +182,41 @@ inline float ggx_glass_E_avg(float alpha, float eta) {
   return r;
 }
 
-// Per-material row: E at the mu nodes for fixed (alpha, eta), built once at
-// create(); evaluation is then one 4-tap cubic in mu.
+// Row of E at the mu nodes for fixed (alpha, eta): node i holds
+// ggx_glass_E(mu_of_node(i), alpha, eta), and E(mu) is then one 4-tap cubic in mu.
+// build() fills every node (a material's row, read by all threads); set() only
+// records (alpha, eta) and each node is filled the first time a lookup needs it
+// (a shading point's row, private to its thread: a path vertex reads 4 to 8 of
+// the 32 nodes, so building them all per point cost more than the shading).
+// Either way a node's value is the same function of (alpha, eta, i), so a lazily
+// filled row equals the built row bit for bit.
 struct GlassRow {
-  float e[grid::kMuCount];
+  static_assert(grid::kMuCount <= 32, "one bit per mu node");
   void build(float alpha, float eta) {
-    for (int i = 0; i < grid::kMuCount; ++i) e[i] = ggx_glass_E(grid::mu_of_node(i), alpha, eta);
+    set(alpha, eta);
+    for (int i = 0; i < grid::kMuCount; ++i) node(i);
   }
-  float operator()(float mu) const { return mu_interp(e, mu_cubic(mu)); }
+  void set(float alpha, float eta) {
+    weights_ = ggx_glass_weights(alpha, eta);
+    filled_ = 0;
+  }
+  float operator()(float mu) const {
+    const MuCubic m = mu_cubic(mu);
+    for (int k = 0; k < 4; ++k) node(m.i[k]);
+    return mu_interp(e_, m);
+  }
+
+ private:
+  void node(int i) const {
+    if (filled_ & (1u << i)) return;
+    e_[i] = ggx_glass_E_at(weights_, mu_cubic(grid::mu_of_node(i)));
+    filled_ |= 1u << i;
+  }
+  // Not zero-initialized (a closure may construct an unused scratch lobe per call): set() / build() set
+  // weights_, and a node is read only once its filled_ bit is set.
+  GlassWeights weights_;
+  mutable float e_[grid::kMuCount];
+  mutable uint32_t filled_ = 0;  // bit i: e_[i] is filled
 };
 
 // Per-material conductor rows at the material's alpha, f0 and bounce tint: E(mu)

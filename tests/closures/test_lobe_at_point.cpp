@@ -6,11 +6,13 @@
 // evaluated before (another point, another instance with the same values).
 #include <gtest/gtest.h>
 
+#include <bit>
 #include <thread>
 #include <vector>
 
 #include "closures/closure_checks.h"
 #include "glimmer/rng.h"
+#include "tables/microfacet_energy.h"
 
 namespace glimmer::test {
 namespace {
@@ -73,6 +75,30 @@ TEST(LobeAtPoint, ReusedSetUpEqualsTheConstantClosureOfThatValue) {
     }
     EXPECT_EQ(differing, 6) << name;
   }
+}
+
+// A shading point's dielectric row fills its mu nodes as lookups need them (tables::GlassRow::set); every
+// lookup, in any order, must equal the instance's whole row (build) bit for bit. Control: a row of a
+// slightly different alpha differs.
+TEST(LobeAtPoint, LazilyFilledGlassRowEqualsTheBuiltRow) {
+  Pcg32 rng(7);
+  int control_differs = 0, lookups = 0;
+  for (const float alpha : {0.01f, 0.09f, 0.3f, 0.64f, 1.0f})
+    for (const float eta : {1.0001f, 1.1f, 1.45f, 2.4f, 1.0f / 1.45f, 1.0f / 1.1f}) {
+      tables::GlassRow whole, lazy, other;
+      whole.build(alpha, eta);
+      lazy.set(alpha, eta);
+      other.build(alpha * 0.95f, eta);
+      for (int i = 0; i < 200; ++i) {
+        const float mu = i < 2 ? float(i) : rng.next_float();  // both ends, then random order
+        const float e = lazy(mu);
+        ASSERT_EQ(std::bit_cast<uint32_t>(e), std::bit_cast<uint32_t>(whole(mu))) << alpha << " " << eta << " " << mu;
+        ASSERT_TRUE(e > 0.0f && e < 1.01f) << alpha << " " << eta << " " << mu;  // an albedo
+        control_differs += other(mu) != e;
+        ++lookups;
+      }
+    }
+  EXPECT_GT(control_differs, lookups * 9 / 10);
 }
 
 TEST(LobeAtPoint, ResultsDoNotDependOnThreads) {
