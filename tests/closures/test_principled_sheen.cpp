@@ -109,16 +109,7 @@ TEST(PrincipledSheen, StressNoInvalidValues) {
     for (const char *color : {"0,0,0", "1,1,1", "0.3,0.6,0.9", "0,0,1"})
       closures.push_back(
           make_closure("principled_sheen", {{"base_color", color}, {"sheen", "1"}, {"sheen_tint", tint}}));
-  std::vector<const host::ClosureInstance *> raw;
-  for (const auto &c : closures) raw.push_back(c.get());
-  EXPECT_CLOSURE_STRESS_CLEAN(raw);
-  const Vec3 grazing = direction_at_cos(1e-6);
-  for (const auto &c : closures) {
-    Spectrum f;
-    float pdf = -1.0f;
-    c->eval(host::make_local_context(grazing), Vec3(-grazing.x, -grazing.y, grazing.z), f, pdf);
-    EXPECT_TRUE(std::isfinite(f[0]) && f[0] >= 0.0f && pdf >= 0.0f);
-  }
+  expect_stress_and_grazing_clean(closures);
 }
 
 }  // namespace
