@@ -390,8 +390,8 @@ class ShaderGraph:
     def principled(self, node, out):
         """Principled BSDF as Cycles' principled_bsdf (the renderer expands it, bridge/render/principled.cpp):
         base colour, metallic, specular, specular tint, roughness, transmission, IOR, clearcoat and its roughness,
-        alpha, emission. Subsurface, sheen, anisotropy, transmission roughness: warned and dropped; a linked Normal is
-        reported unread (warn_unread_links)."""
+        sheen and sheen tint (3.x), alpha, emission. Subsurface, anisotropy, transmission roughness and 4.x's
+        microfiber sheen: warned and dropped; a linked Normal is reported unread (warn_unread_links)."""
         name = node.name
         el = self.add("principled_bsdf", name,
                       distribution=GLOSSY_DISTRIBUTION.get(getattr(node, "distribution", "GGX"), "GGX"))
@@ -402,6 +402,11 @@ class ShaderGraph:
         tint = _input(node, "Specular Tint")
         if tint is not None and tint.type == "VALUE":  # 3.x: a factor toward the base colour's hue (4.x: a colour)
             self.set_input(el, "specular_tint", tint)
+        sheen, sheen_tint = _input(node, "Sheen"), _input(node, "Sheen Tint")
+        # 3.x: Disney's sheen, its tint a factor toward the base colour's hue (4.x: a microfiber lobe, warned below)
+        if sheen is not None and sheen_tint is not None and sheen_tint.type == "VALUE":
+            self.set_input(el, "sheen", sheen)
+            self.set_input(el, "sheen_tint", sheen_tint)
         spec = _input(node, "Specular")
         if spec is not None:
             self.set_input(el, "specular", spec)
@@ -411,7 +416,7 @@ class ShaderGraph:
             f0 = ((eta - 1.0) / (eta + 1.0)) ** 2 * 2.0 * float(_value(level, 0.5))
             el.set("specular", fmt(min(max(f0, 0.0), 1.0) / 0.08))
         self.warn_unexported_values(node, (("Subsurface", "Subsurface Weight"), 0.0, "subsurface"),
-                                    (("Sheen", "Sheen Weight"), 0.0, "sheen"),
+                                    (("Sheen Weight",), 0.0, "sheen (4.x's microfiber sheen)"),
                                     (("Anisotropic",), 0.0, "anisotropy (rendered isotropic)"),
                                     (("Transmission Roughness",), 0.0, "transmission roughness"))
         return (el.get("name"), "bsdf")

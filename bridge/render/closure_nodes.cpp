@@ -126,6 +126,11 @@ const std::vector<ClosureNodeRow> &closure_node_rows() {
        .schema = true,
        .doc = "Cycles 3.4's Principled specular (GGX, Fresnel interpolated from cspec0 toward 1); sockets are the "
               "closure's parameters"},
+      {.node = "principled_sheen_bsdf",
+       .closure = "principled_sheen",
+       .schema = true,
+       .doc = "Cycles 3.4's Principled sheen (Burley 2012, Schlick weight at the half vector); sockets are the "
+              "closure's parameters"},
       principled_row(),
       {.node = "holdout", .kind = NodeKind::Holdout, .output = "holdout", .doc = "not supported: no closure (black)"},
   };

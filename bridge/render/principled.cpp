@@ -158,15 +158,16 @@ ClosureNodeRow principled_row() {
             .min = 0, .max = 1},
            {.socket = "emission", .role = R::Param, .param = "emission colour", .default_value = 0.0f},
            {.socket = "emission_strength", .role = R::Param, .param = "emission strength", .default_value = 1.0f},
-           {.socket = "sheen", .role = R::Unsupported, .default_value = 0.0f,
-            .note = "sheen not supported (no sheen closure in the plugin); dropped"},
+           {.socket = "sheen", .role = R::Param, .param = "principled_sheen amount", .default_value = 0.0f,
+            .min = 0, .max = 1},
+           {.socket = "sheen_tint", .role = R::Param, .param = "principled_sheen tint toward the base colour's hue",
+            .default_value = 0.5f, .min = 0, .max = 1},
            {.socket = "subsurface", .role = R::Unsupported, .default_value = 0.0f,
             .note = "subsurface scattering is not supported; dropped"},
            {.socket = "anisotropic", .role = R::Unsupported, .default_value = 0.0f,
             .note = "anisotropic is not supported; the specular lobes are isotropic"},
            {.socket = "transmission_roughness", .role = R::Unsupported, .default_value = 0.0f,
             .note = "transmission_roughness is not supported; the glass uses roughness"},
-           {.socket = "sheen_tint", .role = R::Ignored},
            {.socket = "subsurface_color", .role = R::Ignored},
            {.socket = "subsurface_radius", .role = R::Ignored},
            {.socket = "subsurface_ior", .role = R::Ignored},
@@ -178,7 +179,7 @@ ClosureNodeRow principled_row() {
            {.socket = "surface_mix_weight", .role = R::Ignored}},
       .distribution = true,
       .doc = "host composite (render/principled.cpp): mix(alpha, transparent, "
-             "mix(metallic, mix(transmission, principled_diffuse + principled_specular, glass), "
+             "mix(metallic, mix(transmission, principled_diffuse + principled_specular [+ principled_sheen], glass), "
              "principled_specular) + "
              "clearcoat_bsdf(0.25 clearcoat, clearcoat_roughness) + emission)"};
 }
@@ -212,6 +213,16 @@ std::string expand_principled(const ShaderGraph &g, const ShaderNode &n, ShaderG
   std::string result = c.add("dielectric", "add_closure");
   c.connect(diffuse, "bsdf", result, "closure1");
   c.connect(specular, "bsdf", result, "closure2");
+  // Sheen as Cycles 3.4 adds it (svm_closure.h): the principled sheen lobe of weight (1 - metallic)(1 -
+  // transmission), i.e. beside the diffuse, inside both mixes.
+  if (c.active("sheen", positive)) {
+    const std::string sheen = c.add("sheen", "principled_sheen_bsdf");
+    for (const char *socket : {"base_color", "sheen", "sheen_tint"}) c.carry(socket, sheen, socket);
+    const std::string sheened = c.add("sheen_layer", "add_closure");
+    c.connect(result, "closure", sheened, "closure1");
+    c.connect(sheen, "bsdf", sheened, "closure2");
+    result = sheened;
+  }
 
   if (c.active("transmission", positive)) {
     const std::string glass = c.add("glass", "glass_bsdf", {{"distribution", distribution}});

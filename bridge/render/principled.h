@@ -1,16 +1,18 @@
 // Cycles' Principled BSDF (v1, Blender 3.x) as a composite of the closure nodes the
 // host already maps (render/closure_nodes.cpp): the principled_bsdf node is expanded
-// into principled_diffuse, principled_specular, glass, clearcoat, mix/add, math, emission and transparent nodes in
+// into principled_diffuse, principled_specular, principled_sheen, glass, clearcoat, mix/add, math, emission and
+// transparent nodes in
 // a copy of its graph, which the shader system then compiles as any other graph, so a
 // linked socket (base_color, roughness, metallic, ...) is evaluated per shading point
 // exactly as it is on those nodes. The recipe (the Blender exporter writes Blender's
 // Principled BSDF as this node):
 //   specular   = principled_specular(base_color, metallic, specular, specular_tint, roughness)
 //   dielectric = principled_diffuse(base_color, roughness) + specular
+//                [+ principled_sheen(base_color, sheen, sheen_tint) when sheen > 0 or linked]
 //   base       = mix(transmission, dielectric, glass(base_color, roughness, ior))
 //   base       = mix(metallic, base, specular)
 // (Cycles 3.4's weights: diffuse (1 - metallic)(1 - transmission), glass (1 - metallic) transmission, specular
-// 1 - transmission (1 - metallic); the specular's Fresnel colour carries the metal, see
+// 1 - transmission (1 - metallic), sheen as the diffuse; the specular's Fresnel colour carries the metal, see
 // plugin/closures/principled_specular.h)
 //   coated     = base + clearcoat_bsdf(weight 0.25 * clearcoat, clearcoat_roughness)
 //   surface    = mix(alpha, transparent(1), coated + emission * emission_strength)

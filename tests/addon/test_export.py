@@ -86,6 +86,8 @@ p.name = "principled"
 p.inputs["Base Color"].default_value = (0.8, 0.1, 0.1, 1.0)
 p.inputs["Roughness"].default_value = 0.4
 p.inputs["Specular Tint"].default_value = 0.25
+p.inputs["Sheen"].default_value = 0.6
+p.inputs["Sheen Tint"].default_value = 0.3
 tree.links.new(p.outputs[0], out.inputs["Surface"])
 
 glint_mat, tree, out = material("Sparkle")
@@ -228,6 +230,8 @@ check(abs(float(plastic_p.get("roughness")) - 0.4) < 1e-6 and float(plastic_p.ge
 check(float(plastic_p.get("clearcoat")) == 0.0 and abs(float(plastic_p.get("clearcoat_roughness")) - 0.03) < 1e-6
       and float(plastic_p.get("alpha")) == 1.0, "principled clearcoat and alpha sockets written")
 check(float(plastic_p.get("specular_tint")) == 0.25, "principled specular tint written")
+check(abs(float(plastic_p.get("sheen")) - 0.6) < 1e-6 and abs(float(plastic_p.get("sheen_tint")) - 0.3) < 1e-6,
+      "principled sheen and sheen tint written")
 check(("principled bsdf", "output surface") in {(c.get("from"), c.get("to")) for c in plastic.findall("connect")},
       "principled_bsdf feeds the surface")
 sparkle = shaders["Sparkle"]
@@ -258,6 +262,7 @@ toon_el = shaders["Toon"]
 check(np.allclose(vec(toon_el.find("diffuse_bsdf"), "color"), [0.2, 0.9, 0.3]), "toon -> diffuse fallback")
 check(any("toon" in msg and "not supported" in msg for _, msg in reports), "unsupported node reported: %s" % reports)
 check(all(kind == {"WARNING"} for kind, _ in reports), "warnings only")
+check(not any("sheen" in msg for _, msg in reports), "sheen is exported, not warned: %s" % reports)
 
 # ---- meshes --------------------------------------------------------------------
 states = root.findall("state")

@@ -166,6 +166,45 @@ TEST(Principled, ClearcoatIsNotThePreviousGgxCoat) {
                                       ggx_clearcoat_over(kDielectric, "diel closure")});
 }
 
+// Sheen (Cycles 3.4): the principled sheen lobe beside the diffuse, weight (1 - metallic)(1 - transmission).
+std::string sheen_over(const std::string &base_nodes, const std::string &base_out, const char *tint) {
+  return base_nodes + "<principled_sheen_bsdf name=\"sh\" sheen=\"1\" sheen_tint=\"" + tint + "\" base_color=\"" +
+         kBase + "\" /><add_closure name=\"shl\" /><connect from=\"" + base_out + "\" to=\"shl closure1\" />"
+         "<connect from=\"sh bsdf\" to=\"shl closure2\" />" + to_output("shl closure");
+}
+
+TEST(Principled, SheenAddsThePrincipledSheenLobe) {
+  expect_principled_equals_reference({"sheen1", principled("sheen=\"1\" sheen_tint=\"1\""),
+                                      sheen_over(kDielectric, "diel closure", "1"),
+                                      kDielectric + to_output("diel closure")});
+}
+
+TEST(Principled, SheenTintTintsTheSheen) {
+  expect_principled_equals_reference({"sheen_tint1", principled("sheen=\"1\" sheen_tint=\"1\""),
+                                      sheen_over(kDielectric, "diel closure", "1"),
+                                      sheen_over(kDielectric, "diel closure", "0")});
+}
+
+TEST(Principled, SheenIsWeightedOneMinusMetallic) {
+  // Cycles 3.4: the sheen's weight is (1 - metallic)(1 - transmission), as the diffuse's (inside the metallic mix).
+  const std::string sheen = std::string("<principled_sheen_bsdf name=\"sh\" sheen=\"1\" sheen_tint=\"0.5\" base_color=\"") +
+                            kBase + "\" />";
+  auto mixed = [&](bool sheen_inside) {
+    const std::string base = sheen_inside ? "shl closure" : "diel closure";
+    std::string nodes = dielectric("metallic=\"0.3\"") + sheen;
+    if (sheen_inside)
+      nodes += "<add_closure name=\"shl\" /><connect from=\"diel closure\" to=\"shl closure1\" />"
+               "<connect from=\"sh bsdf\" to=\"shl closure2\" />";
+    nodes += "<mix_closure name=\"mm\" fac=\"0.3\" /><connect from=\"" + base + "\" to=\"mm closure1\" />"
+             "<connect from=\"sp bsdf\" to=\"mm closure2\" />";
+    if (sheen_inside) return nodes + to_output("mm closure");
+    return nodes + "<add_closure name=\"top\" /><connect from=\"mm closure\" to=\"top closure1\" />"
+                   "<connect from=\"sh bsdf\" to=\"top closure2\" />" + to_output("top closure");
+  };
+  expect_principled_equals_reference(
+      {"sheen_metallic03", principled("metallic=\"0.3\" sheen=\"1\""), mixed(true), mixed(false)});
+}
+
 TEST(Principled, AlphaMixesWithTransparent) {
   expect_principled_equals_reference({"alpha03", principled("alpha=\"0.3\""), alpha_over(kDielectric, "diel closure", "0.3"),
                                       alpha_over(kDielectric, "diel closure", "0.7")});
@@ -213,13 +252,16 @@ TEST(Principled, UnknownSocketIsAnError) {
   }
 }
 
-TEST(Principled, SheenWarnsOnceAtTheNodeAndNothingFallsBack) {
+TEST(Principled, SubsurfaceWarnsOnceAtTheNodeAndNothingFallsBack) {
   const std::string path = sphere_scene(
-      "sheen.xml", "<principled_bsdf name=\"p\" sheen=\"0.5\" clearcoat=\"0.5\" alpha=\"0.8\" />" + to_output("p bsdf"));
+      "subsurface.xml",
+      "<principled_bsdf name=\"p\" subsurface=\"0.5\" sheen=\"0.5\" clearcoat=\"0.5\" alpha=\"0.8\" />" +
+          to_output("p bsdf"));
   std::vector<std::string> warnings;
   render(path, &warnings);
-  const std::regex sheen(".*sheen\\.xml:8: warning: principled_bsdf: sheen not supported.*");
-  EXPECT_EQ(std::count_if(warnings.begin(), warnings.end(), [&](const std::string &w) { return std::regex_match(w, sheen); }),
+  const std::regex subsurface(".*subsurface\\.xml:8: warning: principled_bsdf: subsurface scattering is not supported.*");
+  EXPECT_EQ(std::count_if(warnings.begin(), warnings.end(),
+                          [&](const std::string &w) { return std::regex_match(w, subsurface); }),
             1);
   for (const auto &w : warnings)
     EXPECT_EQ(w.find("falls back"), std::string::npos) << w;

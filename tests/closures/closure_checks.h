@@ -235,6 +235,21 @@ inline ::testing::AssertionResult stress_clean(const std::vector<const host::Clo
 }
 #define EXPECT_CLOSURE_STRESS_CLEAN(...) EXPECT_TRUE(::glimmer::test::stress_clean(__VA_ARGS__))
 
+// The stress check over owned instances, then wi and wo both at grazing cos 1e-6 (opposite azimuths): each eval
+// finite and non-negative (value and pdf).
+inline void expect_stress_and_grazing_clean(const std::vector<std::shared_ptr<host::ClosureInstance>> &closures) {
+  std::vector<const host::ClosureInstance *> raw;
+  for (const auto &c : closures) raw.push_back(c.get());
+  EXPECT_CLOSURE_STRESS_CLEAN(raw);
+  const Vec3 grazing = direction_at_cos(1e-6);
+  for (const auto &c : closures) {
+    Spectrum f;
+    float pdf = -1.0f;
+    c->eval(host::make_local_context(grazing), Vec3(-grazing.x, -grazing.y, grazing.z), f, pdf);
+    EXPECT_TRUE(std::isfinite(f[0]) && f[0] >= 0.0f && pdf >= 0.0f) << c->type().name;
+  }
+}
+
 // ---- Tampering (negative controls) -----------------------------------------------------
 // A copy of a closure type whose entry points can be replaced, so a test can
 // prove that a check FAILS for a broken closure. The replacement functions

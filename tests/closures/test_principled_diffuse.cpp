@@ -111,17 +111,7 @@ TEST(PrincipledDiffuse, StressNoInvalidValues) {
   for (const char *roughness : {"0", "1e-6", "0.25", "0.5", "0.75", "1"})
     for (const char *color : {"0,0,0", "1,1,1", "0.3,0.6,0.9"})
       closures.push_back(make_closure("principled_diffuse", {{"color", color}, {"roughness", roughness}}));
-  std::vector<const host::ClosureInstance *> raw;
-  for (const auto &c : closures) raw.push_back(c.get());
-  EXPECT_CLOSURE_STRESS_CLEAN(raw);
-  // Both directions at grazing 1e-6: finite, non-negative.
-  const Vec3 grazing = direction_at_cos(1e-6);
-  for (const auto &c : closures) {
-    Spectrum f;
-    float pdf = -1.0f;
-    c->eval(host::make_local_context(grazing), Vec3(-grazing.x, -grazing.y, grazing.z), f, pdf);
-    EXPECT_TRUE(std::isfinite(f[0]) && f[0] >= 0.0f && pdf >= 0.0f);
-  }
+  expect_stress_and_grazing_clean(closures);
 }
 
 }  // namespace
