@@ -4,6 +4,7 @@
 #include <array>
 
 #include "core/closure.h"
+#include "core/cosine_lobe.h"
 #include "glimmer/sampling.h"
 
 namespace glimmer::plugin {
@@ -31,20 +32,15 @@ class DiffuseClosure {
 
   // The reflectance at this point (color is varying).
   Spectrum color(const ShadingPoint &sp) const { return sp.param_color(color_param_, color_); }
-
-  LocalEval eval(const ShadingPoint &sp, const Vec3 &wo) const {
-    if (!(wo.z > 0.0f)) return {};
-    return {color(sp) * (wo.z * kInvPi), cosine_hemisphere_pdf(wo.z)};
+  // f cos(wo) = color cos(wo) / pi, with the point's colour read once.
+  auto f_cos(const ShadingPoint &sp) const {
+    return [c = color(sp)](const Vec3 &wo) { return c * (wo.z * kInvPi); };
   }
 
+  LocalEval eval(const ShadingPoint &sp, const Vec3 &wo) const { return cosine_lobe::eval(wo, f_cos(sp)); }
+
   bool sample(const ShadingPoint &sp, const Vec3 &rand, LocalSample &out) const {
-    out.wo = sample_cosine_hemisphere(rand.x, rand.y);
-    if (!(out.wo.z > 0.0f)) return false;
-    out.pdf = cosine_hemisphere_pdf(out.wo.z);
-    out.f_cos = color(sp) * (out.wo.z * kInvPi);
-    out.roughness = 1.0f;
-    out.label = GLIMMER_LABEL_REFLECT | GLIMMER_LABEL_DIFFUSE;
-    return true;
+    return cosine_lobe::sample(rand, f_cos(sp), out);
   }
 
   Spectrum albedo(const ShadingPoint &sp) const { return color(sp); }

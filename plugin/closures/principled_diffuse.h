@@ -16,6 +16,7 @@
 #include <array>
 
 #include "core/closure.h"
+#include "core/cosine_lobe.h"
 #include "glimmer/microfacet.h"
 #include "glimmer/sampling.h"
 
@@ -64,18 +65,11 @@ class PrincipledDiffuseClosure {
   }
 
   LocalEval eval(const ShadingPoint &sp, const Vec3 &wo) const {
-    if (!(wo.z > 0.0f)) return {};
-    return {f_cos(sp, wo), cosine_hemisphere_pdf(wo.z)};
+    return cosine_lobe::eval(wo, [&](const Vec3 &w) { return f_cos(sp, w); });
   }
 
   bool sample(const ShadingPoint &sp, const Vec3 &rand, LocalSample &out) const {
-    out.wo = sample_cosine_hemisphere(rand.x, rand.y);
-    if (!(out.wo.z > 0.0f)) return false;
-    out.pdf = cosine_hemisphere_pdf(out.wo.z);
-    out.f_cos = f_cos(sp, out.wo);
-    out.roughness = 1.0f;
-    out.label = GLIMMER_LABEL_REFLECT | GLIMMER_LABEL_DIFFUSE;
-    return true;
+    return cosine_lobe::sample(rand, [&](const Vec3 &w) { return f_cos(sp, w); }, out);
   }
 
   // The closure-picking / Albedo estimate: the colour (as Cycles' sample weight).
