@@ -104,6 +104,17 @@ inline std::vector<std::pair<std::string, Vec3>> standard_wi() {
           {"grazing 1e-6", direction_at_cos(1e-6)}};
 }
 
+// Direction pairs (wi, wo) for checking a closure's value against its formula: normal to grazing 88 degrees
+// incidence, 5 to 89 degrees exitance, azimuths on both sides of the plane of incidence.
+inline std::vector<std::pair<Vec3, Vec3>> value_check_pairs() {
+  std::vector<std::pair<Vec3, Vec3>> pairs;
+  for (const Vec3 &wi : {spherical_dir(0, 0), spherical_dir(30, 10), spherical_dir(70, 200), spherical_dir(88, 0)})
+    for (const Vec3 &wo : {spherical_dir(5, 180), spherical_dir(40, 120), spherical_dir(80, 20), spherical_dir(89, 0),
+                           spherical_dir(60, 200)})
+      pairs.emplace_back(wi, wo);
+  return pairs;
+}
+
 inline std::string format_vec(const Vec3 &v) {
   std::ostringstream s;
   s << "(" << v.x << ", " << v.y << ", " << v.z << ")";

@@ -25,16 +25,14 @@ double burley_f(const Vec3 &wi, const Vec3 &wo, double roughness, double color) 
 // The largest relative |f cos / (burley_f cos) - 1| of `closure` (which has colour 0.6) over a set of directions.
 double worst_relative_error(const host::ClosureInstance &closure, double roughness) {
   double worst = 0.0;
-  for (const Vec3 &wi : {spherical_dir(0, 0), spherical_dir(30, 10), spherical_dir(70, 200), spherical_dir(88, 0)})
-    for (const Vec3 &wo : {spherical_dir(5, 180), spherical_dir(40, 120), spherical_dir(80, 20), spherical_dir(89, 0),
-                           spherical_dir(60, 200)}) {
-      Spectrum f;
-      float pdf = 0.0f;
-      closure.eval(host::make_local_context(wi), wo, f, pdf);
-      const double expected = burley_f(wi, wo, roughness, 0.6) * wo.z;
-      worst = std::max(worst, std::fabs(f[0] / expected - 1.0));
-      EXPECT_NEAR(pdf, wo.z / M_PI, 1e-6);
-    }
+  for (const auto &[wi, wo] : value_check_pairs()) {
+    Spectrum f;
+    float pdf = 0.0f;
+    closure.eval(host::make_local_context(wi), wo, f, pdf);
+    const double expected = burley_f(wi, wo, roughness, 0.6) * wo.z;
+    worst = std::max(worst, std::fabs(f[0] / expected - 1.0));
+    EXPECT_NEAR(pdf, wo.z / M_PI, 1e-6);
+  }
   return worst;
 }
 

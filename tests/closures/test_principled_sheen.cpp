@@ -33,15 +33,13 @@ std::array<double, 3> sheen_color(const std::array<double, 3> &base, double shee
 double worst_error(const host::ClosureInstance &closure, const std::array<double, 3> &color,
                    double (*formula)(const Vec3 &, const Vec3 &)) {
   double worst = 0.0;
-  for (const Vec3 &wi : {spherical_dir(0, 0), spherical_dir(30, 10), spherical_dir(70, 200), spherical_dir(88, 0)})
-    for (const Vec3 &wo : {spherical_dir(5, 180), spherical_dir(40, 120), spherical_dir(80, 20), spherical_dir(89, 0),
-                           spherical_dir(60, 200)}) {
-      Spectrum f;
-      float pdf = 0.0f;
-      closure.eval(host::make_local_context(wi), wo, f, pdf);
-      for (int i = 0; i < 3; ++i) worst = std::max(worst, std::fabs(f[i] / color[i] - formula(wi, wo)));
-      EXPECT_NEAR(pdf, wo.z / M_PI, 1e-6);
-    }
+  for (const auto &[wi, wo] : value_check_pairs()) {
+    Spectrum f;
+    float pdf = 0.0f;
+    closure.eval(host::make_local_context(wi), wo, f, pdf);
+    for (int i = 0; i < 3; ++i) worst = std::max(worst, std::fabs(f[i] / color[i] - formula(wi, wo)));
+    EXPECT_NEAR(pdf, wo.z / M_PI, 1e-6);
+  }
   return worst;
 }
 
