@@ -548,6 +548,8 @@ VALUE_NODES = {
     "ShaderNodeRGBToBW": ("rgb_to_bw", {}),
     # Shading normals and tangents (bridge/render/nodes/normal_nodes.cpp); the mesh's one UV map is used.
     "ShaderNodeBump": ("bump", {"invert": ("invert", None)}),
+    "ShaderNodeDisplacement": ("displacement", {"space": ("space", None)}),
+    "ShaderNodeNewGeometry": ("geometry", {}),
     "ShaderNodeNormalMap": ("normal_map", {"space": ("space", None)}),
     "ShaderNodeTangent": ("tangent", {"direction_type": ("direction_type", None), "axis": ("axis", None)}),
 }
@@ -769,8 +771,11 @@ class Exporter:
                 graph.connect(source, "output", "surface")
             if out is not None and out.inputs["Volume"].is_linked:
                 self.warn("%s: volumes are not exported" % owner)
-            if out is not None and out.inputs["Displacement"].is_linked:
-                self.warn("%s: displacement is not exported" % owner)
+            displacement = graph.source_of(out.inputs["Displacement"]) if out is not None else None
+            if displacement is not None:  # rendered as bump, Cycles' "Bump Only" (true displacement: warned)
+                graph.connect(displacement, "output", "displacement")
+                method = getattr(getattr(material, "cycles", None), "displacement_method", "BUMP")
+                el.set("displacement_method", {"DISPLACEMENT": "true", "BOTH": "both"}.get(method, "bump"))
             if graph.uses_generated:
                 self.object_space_shaders.add(name)
         # Shaders must come before the objects that use them.

@@ -5,6 +5,7 @@
 #include <functional>
 
 #include "render/nodes/shading_normal.h"
+#include "render/displacement_bump.h"
 #include "render/principled.h"
 #include "scene/xml_loader.h"
 
@@ -584,7 +585,9 @@ int ShaderSystem::make_leaf(const ShaderGraph &g, const ShaderNode &n, CompiledS
     if (leaf->emissive) out.has_emission = true;
   }
   if (!leaf->emissive && leaf->builtin == BuiltinClosure::None) out.has_bsdf = true;
-  leaf->frame.bump_shadowing = leaf->type && std::string(leaf->type->name) == "diffuse";
+  const scene::ShaderLink *normal = g.link_to(n.name, "normal");
+  leaf->frame.bump_shadowing = leaf->type && std::string(leaf->type->name) == "diffuse" &&
+                               !(normal && is_displacement_bump(normal->from_node));
   ClosureTreeNode node;
   node.kind = ClosureTreeNode::Kind::Leaf;
   node.leaf = static_cast<int>(leaves_.size());
@@ -657,13 +660,18 @@ int ShaderSystem::compile(int shader_index) {
       if (l.to_socket == "volume") {
         features_.volumes = true;
         warn(l.where, "shader '" + g.name + "': volume output is not supported; ignored");
-      } else if (l.to_socket == "displacement") {
-        warn(l.where, "shader '" + g.name + "': displacement/bump output is not supported; ignored");
-      } else if (l.to_socket != "surface") {
+      } else if (l.to_socket != "surface" && l.to_socket != "displacement") {
         warn(l.where, "shader '" + g.name + "': unknown output socket '" + l.to_socket + "'; ignored");
       }
     }
-    cs.root = compile_closure(g, "output", "surface", cs, 0);
+    auto bumped = std::make_unique<ShaderGraph>();
+    const auto warn_at = [this](const scene::SourceLocation &where, const std::string &m) { warn(where, m); };
+    if (expand_displacement_as_bump(g, *bumped, warn_at)) {
+      expanded_graphs_.push_back(std::move(bumped));
+      cs.root = compile_closure(*expanded_graphs_.back(), "output", "surface", cs, 0);
+    } else {
+      cs.root = compile_closure(g, "output", "surface", cs, 0);
+    }
   }
   compiled_.push_back(std::move(cs));
   const int index = static_cast<int>(compiled_.size()) - 1;

@@ -79,6 +79,7 @@ struct ShaderLink {
 
 struct ShaderGraph {
   std::string name;
+  std::string displacement_method = "bump";  // Cycles' <shader displacement_method>: bump | true | both
   std::vector<ShaderNode> nodes;
   std::vector<ShaderLink> links;
   SourceLocation where;

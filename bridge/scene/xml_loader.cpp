@@ -313,12 +313,18 @@ class Loader {
   }
 
   void read_shader(const XmlFile &f, const pugi::xml_node &node) {
-    check_attributes(f, node, {"name"},
+    check_attributes(f, node, {"name", "displacement_method"},
                      {"use_mis", "use_transparent_shadow", "heterogeneous_volume", "volume_sampling_method",
-                      "volume_interpolation_method", "displacement_method"});
+                      "volume_interpolation_method"});
     const std::string name = node.attribute("name").value();
     if (name.empty()) throw SceneError(loc(f, node), "<shader> needs a name");
     ShaderGraph g = read_graph(f, node, name);
+    if (const auto method = node.attribute("displacement_method")) {
+      g.displacement_method = method.value();
+      if (g.displacement_method != "bump" && g.displacement_method != "true" && g.displacement_method != "both")
+        throw SceneError(loc(f, node), "<shader> displacement_method '" + g.displacement_method +
+                                           "' is not one of bump, true, both");
+    }
     const int existing = scene_.find_shader(name);
     if (existing >= 0) {
       warn(f, node, "shader '" + name + "' redefined; the later definition replaces the earlier one");

@@ -1058,6 +1058,29 @@ def scene_bump_plane():
                ("bump strength 0 vs Cycles' 1", flat))
 
 
+def scene_displacement_plane():
+    """The bump plane's noise as the material's Displacement output (Displacement node, scale 0.3, midlevel 0.5;
+    Cycles' "Bump Only" method): rendered as a bump of the height along the normal. Negative control: Glimmer
+    with the displacement unlinked."""
+    scene = new_scene(samples=64)
+    add_camera(scene, (0.0, 0.0, 5.0), (0.0, 0.0, 0.0))
+    mat = material("Displaced", "ShaderNodeBsdfDiffuse")
+    mat.cycles.displacement_method = "BUMP"
+    tree = mat.node_tree
+    noise = noise_node(tree, 6.0, 1.0)
+    disp = tree.nodes.new("ShaderNodeDisplacement")
+    disp.inputs["Scale"].default_value = 0.3
+    tree.links.new(noise.outputs["Fac"], disp.inputs["Height"])
+    link = tree.links.new(disp.outputs["Displacement"], node_of(tree, "ShaderNodeOutputMaterial").inputs["Displacement"])
+    add_plane(4.0, mat=mat)
+    add_light(scene, "SUN", (0, 0, 3), (40.0, 0.0, 20.0), energy=3.0, angle=0.0)
+    glim, cyc = render_both("displacement_plane")
+    tree.links.remove(link)
+    flat = glimmer_variant("displacement_plane_unlinked")
+    check_grid("23b displacement output as bump (noise height), 8x6 regions", glim, cyc, full(glim), (8, 6),
+               ("displacement unlinked vs Cycles' bump", flat))
+
+
 def scene_normal_map_sphere():
     """UV sphere (smooth) with a tangent-space Normal Map of a procedural colour (noise mixed with the flat
     (0.5, 0.5, 1)), 0.8 diffuse, area light and grey world. Negative control: Glimmer with strength 0."""
@@ -1326,6 +1349,7 @@ SCENES = {
     "nodes_converters": scene_nodes_converters,
     "bump_plane": scene_bump_plane,
     "noise_roughness": scene_noise_roughness,
+    "displacement_plane": scene_displacement_plane,
     "normal_map_sphere": scene_normal_map_sphere,
     "anisotropic_cylinder": scene_anisotropic_cylinder,
     "principled_clearcoat": scene_principled_clearcoat,

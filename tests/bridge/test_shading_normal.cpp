@@ -18,6 +18,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <fstream>
+#include <iterator>
 #include <map>
 #include <set>
 #include <string>
@@ -384,30 +386,44 @@ double shadowing_term(const Vec3 &Ng, const Vec3 &N, const Vec3 &L) {
   return g >= 1.0 ? 1.0 : g < 0.0 ? 0.0 : -g * g * g + g * g + g;
 }
 
-// A bump of h = a x on the quad (normal -z) under a sun toward L: the pixel ratio to the flat quad.
-void check_bumped_quad(const Vec3 &L, float a, bool expect_shadowing) {
+// The nodes of a height h = 4 a generated.x (node "h", output "value"): the quad spans x in [-2, 2], so
+// generated.x = (x + 2) / 4 and dh/dx = a (the offset points move generated coordinates with the footprint).
+std::string linear_height_nodes(float a) {
+  return "<texture_coordinate name=\"tc\" />\n<separate_xyz name=\"sx\" />\n"
+         "<math name=\"h\" math_type=\"multiply\" value2=\"" + std::to_string(4.0f * a) + "\" />\n"
+         "<connect from=\"tc generated\" to=\"sx vector\" />\n<connect from=\"sx x\" to=\"h value1\" />\n";
+}
+
+struct BumpedRatio {
+  double measured, cosines, shadowing;
+  double want() const { return cosines * shadowing; }
+};
+
+// The pixel ratio of the quad (normal -z) with `normal_nodes` to the flat quad under a sun toward L, and what
+// a bump whose height has the gradient (g, 0, 0) in the plane z = 3 predicts.
+BumpedRatio bumped_quad_ratio(const Vec3 &L, float g, const std::string &normal_nodes, const std::string &name) {
   const Vec3 N(0, 0, -1);
-  // h = 4 a generated.x: the quad spans x in [-2, 2], so generated.x = (x + 2) / 4 and dh/dx = a (the offset
-  // points move generated coordinates with the footprint).
-  const std::string bump =
-      "<texture_coordinate name=\"tc\" />\n<separate_xyz name=\"sx\" />\n"
-      "<math name=\"h\" math_type=\"multiply\" value2=\"" + std::to_string(4.0f * a) + "\" />\n<bump name=\"b\" />\n"
-      "<connect from=\"tc generated\" to=\"sx vector\" />\n<connect from=\"sx x\" to=\"h value1\" />\n"
-      "<connect from=\"h value\" to=\"b height\" />\n<connect from=\"b normal\" to=\"d normal\" />";
   std::vector<std::string> warnings;
   const double flat = mean_red(sun_quad("flat.xml", L, ""));
-  const double bumped = mean_red(sun_quad("bumped.xml", L, bump), &warnings);
+  const double bumped = mean_red(sun_quad(name, L, normal_nodes), &warnings);
   for (const auto &w : warnings) ADD_FAILURE() << w;
-  const Vec3 bent = normalize(N - a * Vec3(1, 0, 0));  // gradient (a, 0, 0) in the plane z = 3
-  const double cosines = dot(bent, L) / dot(N, L), shadowing = shadowing_term(N, bent, L);
-  const double want = cosines * shadowing;
-  EXPECT_NEAR(bumped / flat, want, 1e-3) << "flat " << flat << " bumped " << bumped;
-  EXPECT_GT(std::fabs(want - 1.0), 0.2);  // negative control: the unperturbed normal (ratio 1) fails
+  const Vec3 bent = normalize(N - g * Vec3(1, 0, 0));
+  return {bumped / flat, dot(bent, L) / dot(N, L), shadowing_term(N, bent, L)};
+}
+
+// A bump of h = a x on the quad under a sun toward L: the pixel ratio to the flat quad.
+void check_bumped_quad(const Vec3 &L, float a, bool expect_shadowing) {
+  const std::string bump = linear_height_nodes(a) +
+                           "<bump name=\"b\" />\n<connect from=\"h value\" to=\"b height\" />\n"
+                           "<connect from=\"b normal\" to=\"d normal\" />";
+  const BumpedRatio r = bumped_quad_ratio(L, a, bump, "bumped.xml");
+  EXPECT_NEAR(r.measured, r.want(), 1e-3);
+  EXPECT_GT(std::fabs(r.want() - 1.0), 0.2);  // negative control: the unperturbed normal (ratio 1) fails
   if (expect_shadowing) {  // negative control: without the shadowing term the ratio is the cosines' alone
-    EXPECT_LT(shadowing, 0.95);
-    EXPECT_GT(std::fabs(cosines - bumped / flat), 0.05);
+    EXPECT_LT(r.shadowing, 0.95);
+    EXPECT_GT(std::fabs(r.cosines - r.measured), 0.05);
   } else {
-    EXPECT_EQ(shadowing, 1.0);
+    EXPECT_EQ(r.shadowing, 1.0);
   }
 }
 
@@ -436,6 +452,86 @@ TEST(ShadingNormalRender, NormalMappedQuadShadesWithTheMappedNormal) {
   const double want = std::max(0.0f, dot(mapped_n, L)) / dot(Vec3(0, 0, -1), L);
   EXPECT_NEAR(mapped / flat, want, 1e-3) << "flat " << flat << " mapped " << mapped;
   EXPECT_GT(std::fabs(want - 1.0), 0.1);  // negative control: the unperturbed normal fails
+}
+
+// The shader's displacement output renders as bump (Cycles' default displacement method): a float f linked to
+// it is the vector (f, f, f), whose height along the quad's normal (0, 0, -1) is -f, so h = 4 a generated.x
+// bumps as the gradient (-a, 0, 0); a displacement along x, perpendicular to the normal, leaves it flat.
+TEST(ShadingNormalRender, DisplacementOutputShadesAsABumpOfItsHeightAlongTheNormal) {
+  const Vec3 L = normalize(Vec3(0.6f, 0.0f, -0.8f));
+  const float a = 0.5f;
+  const BumpedRatio r = bumped_quad_ratio(
+      L, -a, linear_height_nodes(a) + "<connect from=\"h value\" to=\"output displacement\" />", "displaced.xml");
+  EXPECT_NEAR(r.measured, r.cosines, 1e-3);
+  EXPECT_GT(std::fabs(r.cosines - 1.0), 0.2);  // negative control: the unperturbed normal fails
+  const Vec3 unsigned_bent = normalize(Vec3(0, 0, -1) - a * Vec3(1, 0, 0));  // the height f, without N's sign
+  EXPECT_GT(std::fabs(dot(unsigned_bent, L) / dot(Vec3(0, 0, -1), L) - r.measured), 0.2);  // negative control
+  const BumpedRatio sideways = bumped_quad_ratio(
+      L, 0.0f,
+      linear_height_nodes(a) + "<combine_xyz name=\"v\" />\n<connect from=\"h value\" to=\"v x\" />\n"
+                               "<connect from=\"v vector\" to=\"output displacement\" />",
+      "sideways.xml");
+  EXPECT_NEAR(sideways.measured, 1.0, 1e-3);
+  // The bumped normal replaces the shading normal itself (Cycles' set_normal), so a diffuse closure is not
+  // "perturbed": no bump shadowing term, unlike the same bump linked into its normal socket (above).
+  const Vec3 grazing = normalize(Vec3(0.8f, 0.0f, -0.6f));
+  const BumpedRatio g = bumped_quad_ratio(
+      grazing, -a, linear_height_nodes(a) + "<connect from=\"h value\" to=\"output displacement\" />",
+      "displaced_grazing.xml");
+  EXPECT_LT(g.shadowing, 0.95);
+  EXPECT_NEAR(g.measured, g.cosines, 1e-3);
+  EXPECT_GT(std::fabs(g.want() - g.measured), 0.05);  // negative control: the shadowing term applied
+  // Blender's Displacement node: (height - midlevel) scale N, so its height along N is +h: the gradient (a, 0, 0).
+  const BumpedRatio node = bumped_quad_ratio(
+      L, a,
+      linear_height_nodes(a) + "<displacement name=\"disp\" midlevel=\"0\" />\n"
+                               "<connect from=\"h value\" to=\"disp height\" />\n"
+                               "<connect from=\"disp displacement\" to=\"output displacement\" />",
+      "displacement_node.xml");
+  EXPECT_NEAR(node.measured, node.cosines, 1e-3);
+  EXPECT_GT(std::fabs(node.cosines - r.cosines), 0.2);  // the two signs are told apart
+}
+
+TEST(ShadingNormalRender, TrueDisplacementIsReportedAndRendersAsBump) {
+  const Vec3 L = normalize(Vec3(0.6f, 0.0f, -0.8f));
+  std::ifstream in(sun_quad(
+      "displaced_true.xml", L, linear_height_nodes(0.5f) + "<connect from=\"h value\" to=\"output displacement\" />"));
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string shader = "<shader name=\"s\">";
+  text.replace(text.find(shader), shader.size(), "<shader name=\"s\" displacement_method=\"true\">");
+  const std::string path = write_file("displaced_true.xml", text);
+  std::vector<std::string> warnings;
+  mean_red(path, &warnings);
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find("displacement_method 'true'"), std::string::npos) << warnings[0];
+  const std::string method = "displacement_method=\"true\"";
+  text.replace(text.find(method), method.size(), "displacement_method=\"fake\"");
+  EXPECT_THROW(scene::load_scene(write_file("displaced_fake.xml", text)), scene::SceneError);
+}
+
+// Geometry node (Cycles svm_node_geometry) on a shading point: position, normal, true normal, incoming and
+// backfacing read the point; the tangent is radial about z and perpendicular to N.
+TEST(GeometryNode, ReadsTheShadingPoint) {
+  ShadingPoint sp;
+  sp.P = Vec3(1, 2, 3);
+  sp.N = normalize(Vec3(0.1f, 0.2f, 1.0f));
+  sp.Ng = Vec3(0, 0, 1);
+  sp.direction = normalize(Vec3(0.3f, 0.0f, -1.0f));
+  sp.backfacing = true;
+  sp.generated = Vec3(0.9f, 0.5f, 0.2f);
+  const auto out = [&](const char *socket) {
+    return run(*compile({{"geometry", "g", {}, {"test.xml", 2}}}, {}, std::string("g ") + socket), sp);
+  };
+  const auto same = [](const Vec3 &a, const Vec3 &b) { return a.x == b.x && a.y == b.y && a.z == b.z; };
+  EXPECT_TRUE(same(out("position"), sp.P));
+  EXPECT_TRUE(same(out("normal"), sp.N));
+  EXPECT_TRUE(same(out("true_normal"), sp.Ng));
+  EXPECT_TRUE(same(out("incoming"), -sp.direction));
+  EXPECT_EQ(out("backfacing").x, 1.0f);
+  const Vec3 t = out("tangent");  // radial about z at generated (0.9, 0.5): (0, 0.4, 0), made perpendicular to N
+  const Vec3 y(0, 1, 0), want = normalize(y - dot(y, sp.N) * sp.N);  // y's part in N's plane
+  EXPECT_LT(length(t - want), 1e-6f);
+  EXPECT_FALSE(same(out("normal"), out("true_normal")));  // negative control: the two normals are told apart
 }
 
 }  // namespace

@@ -32,6 +32,9 @@ GLIMMER_NODE_FNS(sky)
 
 void eval_hsv(const NodeSettings &, const ShadingPoint &, const Vec3 *, Vec3 *);
 void eval_texture_coordinate(const NodeSettings &, const ShadingPoint &, const Vec3 *, Vec3 *);
+void eval_geometry(const NodeSettings &, const ShadingPoint &, const Vec3 *, Vec3 *);
+void configure_displacement(const SettingsReader &, NodeSettings &);
+void eval_displacement(const NodeSettings &, const ShadingPoint &, const Vec3 *, Vec3 *);
 void eval_fresnel(const NodeSettings &, const ShadingPoint &, const Vec3 *, Vec3 *);
 void eval_layer_weight(const NodeSettings &, const ShadingPoint &, const Vec3 *, Vec3 *);
 void eval_light_path(const NodeSettings &, const ShadingPoint &, const Vec3 *, Vec3 *);

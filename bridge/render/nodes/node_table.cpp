@@ -87,6 +87,20 @@ const std::vector<NodeDef> &node_table() {
        nullptr, eval_texture_coordinate,
        "approximated: generated, uv, camera, reflection as Cycles; normal and object in world space (meshes are "
        "stored in world space); window unsupported (0, warned)"},
+      {"geometry",
+       {},
+       {{"position", V},
+        {"normal", V},
+        {"tangent", V},
+        {"true_normal", V},
+        {"incoming", V},
+        {"parametric", V, Vec3(0.0f), Implicit::None, "not supported: reads 0"},
+        {"backfacing", F},
+        {"pointiness", F, Vec3(0.0f), Implicit::None, "not supported (no pointiness attribute): reads 0"},
+        {"random_per_island", F, Vec3(0.0f), Implicit::None, "not supported (no island attribute): reads 0"}},
+       nullptr, eval_geometry,
+       "supported: position, normal, tangent (radial about object z, as Cycles with generated coordinates), "
+       "true_normal, incoming, backfacing; parametric, pointiness and random_per_island read 0 (warned)"},
       {"fresnel", {{"ior", F, Vec3(1.45f)}, kNormalInput}, {{"fac", F}}, nullptr, eval_fresnel, "supported"},
       {"layer_weight",
        {{"blend", F, Vec3(0.5f)}, kNormalInput},
@@ -140,6 +154,12 @@ const std::vector<NodeDef> &node_table() {
        "height graph), Mikkelsen's surface gradient, strength, distance, invert, terminator fix; "
        "use_object_space measures in world space",
        2},
+      {"displacement",
+       {{"height", F}, {"midlevel", F, Vec3(0.5f)}, {"scale", F, Vec3(1.0f)}, kNormalInput},
+       {{"displacement", V}},
+       configure_displacement, eval_displacement,
+       "supported: (height - midlevel) scale N, for the shader's displacement output (rendered as bump); object "
+       "space measured in world space (meshes are stored in world space)"},
       {"normal_map",
        {{"strength", F, Vec3(1.0f)}, {"color", C, Vec3(0.5f, 0.5f, 1.0f)}},
        {{"normal", V}},
@@ -174,7 +194,6 @@ const std::vector<UnsupportedNode> &unsupported_nodes() {
       {"normal", "the input keeps its constant (warned)"},
       {"uvmap", "the input keeps its constant (warned); use texture_coordinate uv"},
       {"attribute", "the input keeps its constant (warned)"},
-      {"geometry", "the input keeps its constant (warned)"},
       {"object_info", "the input keeps its constant (warned)"},
       {"vertex_color", "the input keeps its constant (warned)"},
       {"rgb_curves", "the input keeps its constant (warned)"},
@@ -198,7 +217,6 @@ const std::vector<UnsupportedNode> &unsupported_nodes() {
       {"light_falloff", "the input keeps its constant (warned)"},
       {"particle_info", "the input keeps its constant (warned)"},
       {"hair_info", "the input keeps its constant (warned)"},
-      {"displacement", "ignored (warned)"},
       {"vector_displacement", "ignored (warned)"},
   };
   return list;

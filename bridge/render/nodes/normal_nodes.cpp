@@ -54,6 +54,28 @@ Vec3 radial_tangent(const Vec3 &g, int axis) {
 
 Vec3 tangent_in_plane(const Vec3 &N, const Vec3 &t) { return cross(N, safe_normalize(cross(t, N))); }
 
+// out: position, normal, tangent, true_normal, incoming, parametric, backfacing, pointiness,
+// random_per_island (Cycles 3.4 svm_node_geometry). The tangent is Cycles' primitive_tangent with the generated
+// coordinates every mesh has here: radial about z in object space, then made perpendicular to N.
+void eval_geometry(const NodeSettings &, const ShadingPoint &sp, const Vec3 *, Vec3 *out) {
+  out[0] = sp.P;
+  out[1] = sp.N;
+  out[2] = tangent_in_plane(sp.N, sp.object_normal_to_world(radial_tangent(sp.generated, 2)));
+  out[3] = sp.Ng;
+  out[4] = sp.I();
+  out[5] = Vec3(0.0f);
+  out[6] = Vec3(sp.backfacing ? 1.0f : 0.0f);
+  out[7] = Vec3(0.0f);
+  out[8] = Vec3(0.0f);
+}
+
+void configure_displacement(const SettingsReader &r, NodeSettings &s) { s.mode[0] = r.choice("space", {"object", "world"}, 0); }
+
+// in: height, midlevel, scale, normal; out: displacement = (height - midlevel) scale N (svm_node_displacement).
+void eval_displacement(const NodeSettings &, const ShadingPoint &, const Vec3 *in, Vec3 *out) {
+  out[0] = (in[0].x - in[1].x) * in[2].x * in[3];
+}
+
 void configure_bump(const SettingsReader &r, NodeSettings &s) {
   s.flag = r.boolean("invert", false);
   if (r.boolean("use_object_space", false))
