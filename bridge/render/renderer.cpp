@@ -349,14 +349,15 @@ struct Renderer::Impl {
   }
 
   // Cycles' shadow terminator softening for diffuse closures whose normal N was perturbed (Chiang, Li and
-  // Burley 2019, "Taming the Shadow Terminator", eq. 3-4; Cycles' bump_shadowing_term): with
-  // g = cos(Ng, wo) / (cos(N, wo) cos(Ng, N)), the eval is scaled by 1 for g >= 1, 0 for g < 0, else
-  // -g^3 + g^2 + g, so light the geometric surface does not face fades out smoothly.
+  // Burley 2019, "Taming the Shadow Terminator", eq. 3-4; Cycles' bump_shadowing_term): with the point's
+  // unperturbed shading normal Ns (Cycles 3.4 passes sd->N) and g = cos(Ns, wo) / (cos(N, wo) cos(Ns, N)), the
+  // eval is scaled by 1 for g >= 1, 0 for g < 0, else -g^3 + g^2 + g, so light the unperturbed surface does not
+  // face fades out smoothly.
   static float bump_shadowing(const ShadingData &sd, const ActiveClosure &c, const Vec3 &wo) {
     if (!c.own_frame || !c.leaf->frame.bump_shadowing || (c.N.x == sd.N.x && c.N.y == sd.N.y && c.N.z == sd.N.z))
       return 1.0f;
-    const float denominator = dot(c.N, wo) * dot(sd.Ng, c.N);
-    const float g = denominator != 0.0f ? dot(sd.Ng, wo) / denominator : 0.0f;
+    const float denominator = dot(c.N, wo) * dot(sd.N, c.N);
+    const float g = denominator != 0.0f ? dot(sd.N, wo) / denominator : 0.0f;
     if (g >= 1.0f) return 1.0f;
     if (!(g >= 0.0f)) return 0.0f;
     return -g * g * g + g * g + g;
