@@ -3,7 +3,8 @@
 //      eval, interleaved blocks of the same queries, footprint areas 1e-8..1
 //      uv; counters glint_ns, ggx_ns, ratio (goal <= 2); with
 //      $GLIMMER_BENCH_BASELINE_PLUGIN set (path of an older plugin build) also
-//      that build's glint in the same blocks: base_ns, base_ratio.
+//      that build's glint in the same blocks: base_ns, base_ratio, and
+//      base_mismatches (queries whose f or pdf differs from it, bit for bit).
 //  glint/eval_vs_ggx_aspect/<aspect>  the same at footprint area 1e-6 uv
 //      (10 particles) with parallelograms of aspect 1..64, any rotation.
 //  glint/jakob14_eval/<log10 area>  the reference's eval cost at the same
@@ -21,6 +22,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <memory>
 #include <regex>
@@ -115,6 +117,20 @@ double time_block(const host::ClosureInstance &c, const std::vector<Query> &q) {
   return (thread_cpu_ns() - t0) / static_cast<double>(q.size());
 }
 
+// Queries whose eval (f and pdf) differs between two closures, bit for bit:
+// a speed change that keeps the particles gives 0 against the older build.
+int differing_evals(const host::ClosureInstance &a, const host::ClosureInstance &b, const std::vector<Query> &q) {
+  int differing = 0;
+  for (const auto &x : q) {
+    Spectrum fa, fb;
+    float pa = 0.0f, pb = 0.0f;
+    a.eval(x.ctx, x.wo, fa, pa);
+    b.eval(x.ctx, x.wo, fb, pb);
+    differing += std::memcmp(&fa, &fb, sizeof(Spectrum)) != 0 || std::memcmp(&pa, &pb, sizeof(float)) != 0;
+  }
+  return differing;
+}
+
 // glint and GGX eval on the same queries, interleaved blocks; median ns.
 void glint_vs_ggx(benchmark::State &state, const std::vector<Query> &q) {
   const std::vector<std::pair<std::string, std::string>> params = {
@@ -127,6 +143,7 @@ void glint_vs_ggx(benchmark::State &state, const std::vector<Query> &q) {
   }
   std::unique_ptr<host::ClosureInstance> base;
   if (host::PluginLibrary *b = baseline_plugin()) base = make("glint", params, *b);
+  if (base) state.counters["base_mismatches"] = static_cast<double>(differing_evals(*glint, *base, q));
   std::vector<double> g_ns, m_ns, b_ns;
   for (auto _ : state) {
     g_ns.push_back(time_block(*glint, q));

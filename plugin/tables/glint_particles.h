@@ -185,13 +185,16 @@ inline bool nodes_at_level(const Footprint &f, int level, NodeList &list) {
 // The nodes a footprint is counted over: those of the particle level it
 // overlaps, or, when there are more than kMaxNodes of them, the (at most
 // 2 x 2) nodes of the level whose node side is >= the footprint's bounding box.
-inline NodeList footprint_nodes(const Footprint &f, double density) {
-  NodeList list;
-  if (nodes_at_level(f, particle_level(density), list)) return list;
+inline void footprint_nodes(const Footprint &f, double density, NodeList &list) {
+  if (nodes_at_level(f, particle_level(density), list)) return;
   const double ex = 0.5 * (std::fabs(f.ax) + std::fabs(f.bx));
   const double ey = 0.5 * (std::fabs(f.ay) + std::fabs(f.by));
   const int e = binary_exponent(std::max(2.0 * std::max(ex, ey), 1e-30));  // extent < 2^e
   nodes_at_level(f, -e, list);
+}
+inline NodeList footprint_nodes(const Footprint &f, double density) {
+  NodeList list;
+  footprint_nodes(f, density, list);
   return list;
 }
 
@@ -469,15 +472,32 @@ inline GlintCount count_reflecting_particles(const Footprint &f, const NodeList 
   return count_reflecting_particles(f, nodes, density, std::span<const uint32_t>(&seed, 1), P, max_steps);
 }
 
+// The direction cells of (wi, wo) and the particle nodes of a footprint:
+// what a count needs besides P, so a caller can count at a bound of P first
+// (glint.cpp's dark test) and count again at P without recomputing them.
+struct GlintSite {
+  bool has_half_vector = false;  // false: no half vector above the surface, no glint
+  std::array<uint32_t, kDirectionGroups> cell_seeds{};
+  double group_density = 0.0;  // N / G
+  NodeList nodes;
+};
+
+inline void locate_glints(const Footprint &f, double density, const DirectionCellKeys &keys, const Vec3 &wi,
+                          const Vec3 &wo, float gamma_rad, GlintSite &site) {
+  site.has_half_vector = direction_cell_seeds(keys, wi, wo, gamma_rad, site.cell_seeds);
+  if (!site.has_half_vector) return;
+  site.group_density = density / kDirectionGroups;
+  footprint_nodes(f, site.group_density, site.nodes);
+}
+
 // Reflecting particles of a footprint over the kDirectionGroups groups
 // (density N / G each), each group counted in its own direction cell at
 // (wi, wo); the caller falls back to the mean when `complete` is false.
-inline GlintCount count_glints(const Footprint &f, double density, const DirectionCellKeys &keys, const Vec3 &wi,
-                               const Vec3 &wo, float gamma_rad, double P, int max_steps) {
-  std::array<uint32_t, kDirectionGroups> cell_seeds;
-  if (!direction_cell_seeds(keys, wi, wo, gamma_rad, cell_seeds)) return {};
-  const double group_density = density / kDirectionGroups;
-  return count_reflecting_particles(f, footprint_nodes(f, group_density), group_density, cell_seeds, P, max_steps);
+// The count never decreases as P grows (a node's lit set is nested in P and
+// its lit particles' positions do not depend on P), and neither do its steps.
+inline GlintCount count_glints(const Footprint &f, const GlintSite &site, double P, int max_steps) {
+  if (!site.has_half_vector) return {};
+  return count_reflecting_particles(f, site.nodes, site.group_density, site.cell_seeds, P, max_steps);
 }
 
 }  // namespace glimmer::plugin::glint

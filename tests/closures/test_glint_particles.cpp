@@ -8,12 +8,15 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <vector>
 
 #include "closures/closure_checks.h"
 #include "glimmer/rng.h"
+#include "glimmer/sampling.h"
 #include "tables/glint_common.h"
 #include "tables/glint_particles.h"
+#include "tables/glint_peak.h"
 
 namespace glimmer::test {
 namespace {
@@ -210,6 +213,98 @@ TEST(GlintParticles, LitCountBoundsAgreeWithTheTailWalk) {
   std::printf("[bounds] control (K = 1 from lambda^2/4): %lld disagreements with the walk\n",
               static_cast<long long>(control_disagreements));
   EXPECT_GT(control_disagreements, 1000);
+}
+
+// A table whose nodes are independent uniforms (every neighbour differs, so
+// a bound that misses one node a lookup reads is caught), LOD levels with
+// the real grids, level l's values in [0, l + 1) (a bound that misses a
+// level is caught too).
+pg::DirectionalTable random_table(uint64_t seed) {
+  pg::DirectionalTable table;
+  Pcg32 rng(seed);
+  for (int l = 0; l < pg::kLodCount; ++l) {
+    pg::LodLevel &level = table.levels[static_cast<size_t>(l)];
+    level.sigma_deg = pg::kLodSigmaDeg[static_cast<size_t>(l)];
+    level.step_deg = pg::kLodStepDeg[static_cast<size_t>(l)];
+    level.n_theta_o = 90 / level.step_deg + 1;
+    level.n_phi = 180 / level.step_deg + 1;
+    level.values.resize(static_cast<size_t>(pg::kThetaICount) * level.n_theta_o * level.n_phi);
+    for (float &v : level.values) v = static_cast<float>(1 + l) * rng.next_float();  // coarser levels larger
+  }
+  return table;
+}
+
+// The dark test's bound (tables/glint_peak.h): >= every lookup at a blur <=
+// the bound's, for random angles, angles on and an ulp below the 4-degree
+// block borders and the table nodes, and out-of-range angles (clamped), on
+// a table of independent random nodes. It is tight (a lookup at a node
+// reaches it within 1 %), and a lookup at a blur beyond the bound's (a level
+// it does not cover) exceeds it: the check catches a bound that misses a
+// node or a level.
+TEST(GlintParticles, PeakTableBoundsEveryLookupUpToItsBlur) {
+  const pg::DirectionalTable table = random_table(3);
+  Pcg32 rng(9);
+  auto angle = [&](float hi) {
+    switch (rng.next_u32() % 5) {
+      case 0: return hi * 1.1f * rng.next_float() - 0.05f * hi;  // a little out of range too
+      case 1: return static_cast<float>(4 * (rng.next_u32() % 46));            // block border
+      case 2: return std::nextafter(static_cast<float>(4 * (1 + rng.next_u32() % 45)), 0.0f);  // an ulp below it
+      case 3: return static_cast<float>(rng.next_u32() % 181);                 // a node of every level
+      default: return rng.next_float() * hi;
+    }
+  };
+  for (const float gamma : {0.5f, 2.0f, 5.0f, 10.0f}) {  // level sigmas: a lookup at sigma = gamma reads the top level alone
+    const pg::DirectionalPeakTable peak(table, gamma);
+    double tightest = 0.0;
+    int beyond = 0;
+    for (int q = 0; q < 200000; ++q) {
+      const float ti = angle(90.0f), to = angle(90.0f), dp = angle(180.0f);
+      const float sigma = gamma * rng.next_float() * 1.02f;
+      const float s = std::min(sigma, gamma);
+      const float bound = peak.bound(ti, to, dp), p = table.lookup(s, ti, to, dp);
+      ASSERT_LE(p, bound) << "gamma " << gamma << " sigma " << s << " at " << ti << ", " << to << ", " << dp;
+      tightest = std::max(tightest, static_cast<double>(p / bound));
+      beyond += table.lookup(gamma + 8.0f, ti, to, dp) > bound;
+    }
+    std::printf("[peak] gamma %4.1f: largest lookup / bound %.4f; %d lookups at a blur of gamma + 8 above it\n",
+                gamma, tightest, beyond);
+    EXPECT_GT(tightest, 0.99) << "gamma " << gamma;
+    EXPECT_GT(beyond, 100) << "gamma " << gamma;
+  }
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const pg::DirectionalPeakTable peak(table, 2.0f);
+  EXPECT_LE(table.lookup(2.0f, nan, nan, nan), peak.bound(nan, nan, nan));
+}
+
+// What the dark test relies on: the glint count of a footprint (all four
+// direction groups) and its steps never decrease as P grows, so a footprint
+// with no reflecting particle at P_max >= P has none at P. Random
+// footprints of 0.01..1000 particles and aspect 1..64, directions over the
+// hemisphere.
+TEST(GlintParticles, GlintCountNeverDecreasesWithP) {
+  Pcg32 rng(21);
+  const pg::DirectionCellKeys keys(7);
+  const double density = 1e7;
+  int increases = 0, dark_at_bound = 0;
+  for (int t = 0; t < 20000; ++t) {
+    const double area = std::pow(10.0, -9.0 + 5.0 * rng.next_double());
+    const pg::Footprint f = random_footprint(rng, area, std::pow(64.0, rng.next_double()));
+    const Vec3 wi = sample_cosine_hemisphere(rng.next_float(), rng.next_float());
+    const Vec3 wo = sample_cosine_hemisphere(rng.next_float(), rng.next_float());
+    pg::GlintSite site;
+    pg::locate_glints(f, density, keys, wi, wo, 0.035f, site);
+    const double p1 = 0.05 * rng.next_double() * rng.next_double(), p2 = p1 * (1.0 + 3.0 * rng.next_double());
+    const pg::GlintCount k1 = pg::count_glints(f, site, p1, 1 << 20), k2 = pg::count_glints(f, site, p2, 1 << 20);
+    ASSERT_TRUE(k1.complete && k2.complete);
+    ASSERT_LE(k1.count, k2.count) << "t " << t << " P " << p1 << " -> " << p2;
+    ASSERT_LE(k1.steps, k2.steps) << "t " << t;
+    increases += k2.count > k1.count;
+    dark_at_bound += k2.count == 0;
+  }
+  std::printf("[nested] count grew with P in %d of 20000 footprints; %d dark at the larger P\n", increases,
+              dark_at_bound);
+  EXPECT_GT(increases, 1000);
+  EXPECT_GT(dark_at_bound, 1000);
 }
 
 }  // namespace
