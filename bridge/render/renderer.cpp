@@ -11,6 +11,7 @@
 #include <mutex>
 #include <stdexcept>
 
+#include "glimmer/exit_lobe.h"
 #include "glimmer/rng.h"
 #include "glimmer/sampling.h"
 #include "host/log.h"
@@ -29,6 +30,10 @@ using Clock = std::chrono::steady_clock;
 double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 constexpr float kInf = std::numeric_limits<float>::infinity();
+
+// The light set (2D) of light sampling at an exit lobe (integrate_exit_lobe_direct_light) of path vertex v: far
+// from the film, lens and per-bounce sets of render/sampler.h.
+uint32_t exit_light_set(int vertex) { return 0x80000000u + static_cast<uint32_t>(vertex); }
 
 // Offset a ray origin off the surface along the geometric normal, on the side of `dir`.
 Vec3 offset_ray_origin(const Vec3 &P, const Vec3 &Ng, const Vec3 &dir) {
@@ -422,8 +427,8 @@ struct Renderer::Impl {
 
   // Radiance along a shadow ray from `P` toward `wi` over `dist`: 0 when
   // blocked, else the product of transparent closure weights passed through.
-  Spectrum shadow_transmittance(const ShadingData &sd, const Vec3 &wi, float dist) const {
-    Vec3 o = offset_ray_origin(sd.ctx.P, sd.Ng, wi);
+  Spectrum shadow_transmittance(const Vec3 &P, const Vec3 &Ng, const Vec3 &wi, float dist) const {
+    Vec3 o = offset_ray_origin(P, Ng, wi);
     float remaining = std::isfinite(dist) ? dist * (1.0f - 1e-4f) - 1e-4f : kInf;
     if (!features.transparent) return accel->occluded(o, wi, remaining) ? Spectrum(0.0f) : Spectrum(1.0f);
     Spectrum T(1.0f);
@@ -480,16 +485,27 @@ struct Renderer::Impl {
   // Returns the path's contribution (throughput included).
   Spectrum sample_direct_light(const ClosureSet &cs, const ShadingData &sd, const Spectrum &throughput, float total_sw,
                                float lu, float lv) const {
+    const auto mixture = [&](const Vec3 &wi) {
+      MixtureEval me = eval_mixture(cs, sd, wi);
+      me.pdf /= total_sw;
+      return me;
+    };
+    return direct_light_at(sd.ctx.P, sd.Ng, mixture, throughput, lu, lv);
+  }
+  // One light sample seen from P (surface normal Ng) through `bsdf(wi) -> MixtureEval` (f and the density
+  // with which the path samples wi), MIS-weighted against that density, times the shadow ray's transmittance.
+  template <class Bsdf>
+  Spectrum direct_light_at(const Vec3 &P, const Vec3 &Ng, const Bsdf &bsdf, const Spectrum &throughput, float lu,
+                           float lv) const {
     LightSample ls;
-    if (!lights->sample(lu, lv, sd.ctx.P, ls) || !(ls.pdf > 0.0f)) return Spectrum(0.0f);
-    MixtureEval me = eval_mixture(cs, sd, ls.wi);
-    me.pdf /= total_sw;
+    if (!lights->sample(lu, lv, P, ls) || !(ls.pdf > 0.0f)) return Spectrum(0.0f);
+    const MixtureEval me = bsdf(ls.wi);
     if (is_zero(me.f)) return Spectrum(0.0f);
     const bool use_bsdf_emission = options.strategy != LightStrategy::LightOnly;
     const float w = (ls.delta || !use_bsdf_emission) ? 1.0f : power_heuristic(ls.pdf, me.pdf);
     const Spectrum contribution = throughput * me.f * ls.radiance * (w / ls.pdf);
     if (is_zero(contribution)) return contribution;
-    return contribution * shadow_transmittance(sd, ls.wi, ls.dist);
+    return contribution * shadow_transmittance(P, Ng, ls.wi, ls.dist);
   }
 
   // Picks a closure by sample weight from `pick` in [0, total_sw): kTransparent for the
@@ -707,6 +723,34 @@ struct Renderer::Impl {
     if (!is_zero(direct)) add_contribution(pr, direct, ps.bounce);
   }
 
+  // ABI 2.4: a moved sample drawn from an exit lobe (frosted_glass sg: where light leaves the object). The lobe
+  // is the BSDF at the exit point: f = the sample's weight x its density p (glimmer/exit_lobe.h), so the
+  // singular sample's throughput (already applied) carries f / p and next-event estimation there sees p alone.
+  // One light sample from the exit point, MIS (power heuristic) with the continued path, whose emission hits
+  // are then weighted against light sampling at p(wo) instead of counted whole.
+  void integrate_exit_lobe_direct_light(const GlimmerSample &s, const Vec3 &wo, const PixelSampler &sampler,
+                                        PathState &ps, PathRadiance &pr) const {
+    if (!(s.flags & GLIMMER_SAMPLE_EXIT_LOBE) || !(s.flags & GLIMMER_SAMPLE_MOVED) || !options.exit_lobe_nee ||
+        !use_nee() || lights->count() == 0)
+      return;
+    const Vec3 n = normalize(Vec3(s.origin_Ng));
+    const ExitLobe lobe = ExitLobe::make(normalize(Vec3(s.lobe_axis)), s.lobe_sharpness, n);
+    const float continued_pdf = static_cast<float>(lobe.pdf(wo));
+    if (!is_finite(lobe.axis) || !is_finite(n) || !(continued_pdf > 0.0f) || !std::isfinite(continued_pdf)) return;
+    float lu, lv;  // a light set of its own per vertex (the vertex's light set served its entry point)
+    sampler.get2(exit_light_set(ps.sample_vertex()), lu, lv);
+    const auto exit_bsdf = [&](const Vec3 &wi) {
+      MixtureEval me;
+      me.pdf = static_cast<float>(lobe.pdf(wi));
+      me.f = Spectrum(me.pdf);
+      return me;
+    };
+    const Spectrum direct = direct_light_at(Vec3(s.origin), n, exit_bsdf, pr.throughput, lu, lv);
+    if (!is_zero(direct)) add_contribution(pr, direct, ps.bounce);
+    ps.last_singular = false;
+    ps.mis_ray_pdf = continued_pdf;
+  }
+
   // ABI 2.3: the closure moved the path (e.g. to where light leaves a frosted object).
   static bool moved(const GlimmerSample &s) { return (s.flags & GLIMMER_SAMPLE_MOVED) != 0; }
   // The next segment after sample s: from the surface, or from the sample's origin when it moved the path.
@@ -735,7 +779,7 @@ struct Renderer::Impl {
   // integrate_surface_bsdf_bssrdf_bounce). False ends the path.
   bool integrate_surface_bsdf_bounce(const ClosureSet &cs, const ShadingData &sd, const float bsdf_rand[4],
                                      float transparent_weight, float total_sw, const BounceLimits &limits,
-                                     PathState &ps, PathRadiance &pr, PathRay &ray) const {
+                                     PathState &ps, PathRadiance &pr, PathRay &ray, GlimmerSample &s) const {
     float pick = bsdf_rand[0] * total_sw;
     const int chosen = pick_closure(cs, pick, transparent_weight);
     if (chosen == kTransparent) {
@@ -748,8 +792,6 @@ struct Renderer::Impl {
     if (chosen < 0) return false;
     const float r3[3] = {std::clamp(pick / cs.closures[chosen].sample_weight, 0.0f, 0x1.fffffep-1f), bsdf_rand[1],
                          bsdf_rand[2]};
-    GlimmerSample s{};
-    s.struct_size = sizeof(GlimmerSample);
     if (!scatter(cs, sd, chosen, r3, total_sw, pr.throughput, ps, s, *pr.nan_count)) return false;
     const Vec3 wo = normalize(Vec3(s.wo));
     ps.advance(s.label, limits);
@@ -798,7 +840,11 @@ struct Renderer::Impl {
       const float total_sw = cs.sum_sample_weight + transparent_weight;
       if (total_sw <= 0.0f) break;
       integrate_surface_direct_light(cs, sd, total_sw, light_rand, ps, pr);
-      if (!integrate_surface_bsdf_bounce(cs, sd, bsdf_rand, transparent_weight, total_sw, limits, ps, pr, ray)) break;
+      GlimmerSample s{};
+      s.struct_size = sizeof(GlimmerSample);
+      if (!integrate_surface_bsdf_bounce(cs, sd, bsdf_rand, transparent_weight, total_sw, limits, ps, pr, ray, s))
+        break;
+      integrate_exit_lobe_direct_light(s, ray.D, sampler, ps, pr);
     }
     return pr.L;
   }

@@ -29,6 +29,9 @@ struct RenderOptions {
   double time_limit = 0.0;  // seconds, 0 = none: stops after the sample pass that exceeds it
   int tile_size = 32;
   LightStrategy strategy = LightStrategy::MIS;
+  // Light sampling (NEE + MIS) at exit lobes of moved samples (frosted_glass sg, ABI 2.4); off: they stay
+  // singular (the estimator before; tests and benchmarks compare the two).
+  bool exit_lobe_nee = true;
   bool aovs = true;       // Albedo, Normal, Depth
   const std::atomic<bool> *cancel = nullptr;  // set from a signal handler: stop after the current pass
   int sample_begin = 0, sample_end = 0;  // render samples [begin, end) of `samples`; both 0 = all of them

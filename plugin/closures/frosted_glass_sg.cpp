@@ -6,6 +6,7 @@
 #include <cmath>
 #include <limits>
 
+#include "glimmer/exit_lobe.h"
 #include "glimmer/microfacet_walk.h"
 #include "glimmer/rng.h"
 
@@ -209,16 +210,7 @@ GlimmerRay unbounded_ray(const Vec3 &origin, const Vec3 &dir) {
 }
 
 Vec3 sample_sg_direction(const SphericalGaussian &sg, float u1, float u2) {
-  const double k = std::max(double(sg.sharpness), 1e-6);
-  // Inverse CDF of cos theta for exp(k (cos theta - 1)) on [-1, 1].
-  const double u = std::clamp(double(u1), 0.0, 1.0);
-  double cos_t = 1.0 + std::log(u + (1.0 - u) * std::exp(-2.0 * k)) / k;
-  if (!std::isfinite(cos_t)) cos_t = 1.0;
-  cos_t = std::clamp(cos_t, -1.0, 1.0);
-  const double sin_t = std::sqrt(std::max(0.0, 1.0 - cos_t * cos_t));
-  const double phi = 2.0 * M_PI * double(u2);
-  const Frame f = Frame::from_normal(sg.axis);
-  return normalize(f.to_world(Vec3(float(sin_t * std::cos(phi)), float(sin_t * std::sin(phi)), float(cos_t))));
+  return sample_vmf(sg.axis, sg.sharpness, u1, u2);
 }
 
 bool trace_exit_lobe(const ShadingPoint &sp, const SgInputs &in, uint32_t seed, ExitLobe &out) {
@@ -287,7 +279,7 @@ bool trace_exit_lobe(const ShadingPoint &sp, const SgInputs &in, uint32_t seed, 
     if (in.variant == SgVariant::kNoExitRefraction) out.sg.axis = axis;
     out.origin = Vec3(seg.axis.hit.P);
     const Vec3 Ng = Vec3(seg.axis.hit.Ng);
-    out.origin_Ng = dot(Ng, n) >= 0.0f ? Ng : -Ng;
+    out.origin_Ng = normalize(dot(Ng, n) >= 0.0f ? Ng : -Ng);  // unit: the exit lobe's surface (exit_lobe.h)
     out.weight = hit_color(in, seg.axis.closure);
     for (int ch = 0; ch < 3; ++ch) out.weight[ch] *= std::exp(-in.sigma_a[ch] * inside_length);
     out.roughness = std::clamp(std::sqrt(std::sqrt(2.0f / out.sg.sharpness)), 0.0f, 1.0f);
@@ -305,14 +297,15 @@ bool sample_sg_transmission(const ShadingPoint &sp, const SgInputs &in, const Ve
   ExitLobe exit;
   if (!trace_exit_lobe(sp, in, seed, exit)) return false;
   // 6. One direction from the exit SG restricted to the outside of the exit surface (the lobe it was fitted to
-  // lies there): drawn again when it falls below (up to 16 times), then mirrored. The weight stays: the SG's
-  // energy is the lobe's, whatever its part below the surface.
+  // lies there): drawn again when it falls below (up to 16 times), then mirrored (glimmer/exit_lobe.h, whose
+  // density the host uses for light sampling at the exit). The weight stays: the SG's energy is the lobe's,
+  // whatever its part below the surface.
   mf::WalkRng rng(hash_u32x2(seed, 0x9e3779b9u));
-  Vec3 wo = sample_sg_direction(exit.sg, rng.next(), rng.next());
-  for (int k = 0; k < 16 && dot(wo, exit.origin_Ng) <= 0.0f; ++k)
-    wo = sample_sg_direction(exit.sg, rng.next(), rng.next());
-  const float below = dot(wo, exit.origin_Ng);
-  if (below <= 0.0f) wo = normalize(wo - exit.origin_Ng * (2.0f * below));
+  glimmer::ExitLobe lobe;
+  lobe.axis = exit.sg.axis;
+  lobe.kappa = exit.sg.sharpness;
+  lobe.n = exit.origin_Ng;
+  const Vec3 wo = lobe.sample([&rng] { return rng.next(); });
   if (!(dot(wo, exit.origin_Ng) > 0.0f)) return false;
   const Spectrum weight = front.f_cos / front.pdf * exit.weight;
   if (!is_finite(weight) || !is_finite(wo)) return false;
@@ -325,6 +318,9 @@ bool sample_sg_transmission(const ShadingPoint &sp, const SgInputs &in, const Ve
   out.moved = true;
   out.origin = exit.origin;
   out.origin_Ng = exit.origin_Ng;
+  out.exit_lobe = true;  // ABI 2.4: the host may sample lights at the exit with this lobe
+  out.lobe_axis = exit.sg.axis;
+  out.lobe_sharpness = exit.sg.sharpness;
   return true;
 }
 

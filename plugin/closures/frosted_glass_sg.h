@@ -40,10 +40,12 @@
 //     (Russian roulette on E_x: the weight is unchanged); after
 //     kMaxInternalReflections the lobe leaves at the critical angle (Wyman 2005);
 //  6. lighting: one direction is sampled from the exit SG (restricted to the
-//     outside of the exit surface) and the host
-//     continues the path from the exit point (GLIMMER_SAMPLE_MOVED). The
-//     pre-convolved environment and SG lights (paper sec. 5, eq. 14/15) are
-//     not implemented yet.
+//     outside of the exit surface by glimmer/exit_lobe.h's redraw rule) and the
+//     host continues the path from the exit point (GLIMMER_SAMPLE_MOVED); the
+//     sample also describes the exit lobe (ABI 2.4, GLIMMER_SAMPLE_EXIT_LOBE:
+//     axis and sharpness) so that the host samples the lights there with the
+//     lobe as the BSDF (NEE + MIS). The pre-convolved environment and SG
+//     lights (paper sec. 5, eq. 14/15) are not implemented yet.
 // The weight is the front sample's own f cos / pdf (exact front Fresnel), the
 // tints at entry and exit and Beer absorption over the axis' length inside.
 // When a step cannot be done (no trace_ray_closure, the axis does not leave

@@ -126,6 +126,10 @@ struct LocalSample {
   // ABI 2.3: the path continues from `origin` (world space, offset by the host along origin_Ng toward wo).
   bool moved = false;
   Vec3 origin{0.0f}, origin_Ng{0.0f};
+  // ABI 2.4: a moved sample drawn from an exit lobe (glimmer/exit_lobe.h) about lobe_axis (world space).
+  bool exit_lobe = false;
+  Vec3 lobe_axis{0.0f};
+  float lobe_sharpness = 0.0f;
 };
 
 // Keeps only finite, non-negative values: a closure must never hand NaN/Inf or
@@ -271,6 +275,15 @@ struct ClosureAdapter {
     out->flags = GLIMMER_SAMPLE_MOVED;
     out->origin = s.origin;
     out->origin_Ng = s.origin_Ng;
+#if GLIMMER_ABI_MINOR >= 4
+    // A 2.3 host does not hold the lobe: it gets the moved singular sample alone.
+    if (s.exit_lobe && GLIMMER_HAS_FIELD(out->struct_size, GlimmerSample, lobe_sharpness) &&
+        is_finite(s.lobe_axis) && std::isfinite(s.lobe_sharpness) && s.lobe_sharpness > 0.0f) {
+      out->flags |= GLIMMER_SAMPLE_EXIT_LOBE;
+      out->lobe_axis = s.lobe_axis;
+      out->lobe_sharpness = s.lobe_sharpness;
+    }
+#endif
     return true;
 #else
     (void)s;

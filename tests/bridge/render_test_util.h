@@ -3,6 +3,7 @@
 #pragma once
 
 #include <gtest/gtest.h>
+#include <tbb/global_control.h>
 
 #include <cmath>
 #include <cstdio>
@@ -39,6 +40,14 @@ inline render::RenderResult render_scene(const std::string &path, render::Render
   const scene::Scene scene = scene::load_scene(path);
   render::Renderer renderer(scene, plugin(), opt);
   return renderer.render();
+}
+
+// A render with at most `threads` worker threads and tiles of `tile_size` pixels (determinism tests).
+inline render::RenderResult render_scene_with(const std::string &path, render::RenderOptions opt, int threads,
+                                              int tile_size) {
+  tbb::global_control limit(tbb::global_control::max_allowed_parallelism, static_cast<size_t>(threads));
+  opt.tile_size = tile_size;
+  return render_scene(path, opt);
 }
 
 // A unit UV sphere centred at (0, 0, z) with exact normals, as a <mesh> element (use it smooth).

@@ -195,17 +195,7 @@ TEST(Integrator, DeterministicAcrossThreadsAndTiles) {
   const std::string path = mis_scene("area_quad", "<diffuse_bsdf name=\"f\" color=\"0.8 0.8 0.8\" />", "determinism");
   render::RenderOptions opt;
   opt.samples = 4;
-  render::RenderResult a, b;
-  {
-    tbb::global_control one(tbb::global_control::max_allowed_parallelism, 1);
-    opt.tile_size = 7;
-    a = render_scene(path, opt);
-  }
-  {
-    tbb::global_control many(tbb::global_control::max_allowed_parallelism, 4);
-    opt.tile_size = 16;
-    b = render_scene(path, opt);
-  }
+  const render::RenderResult a = render_scene_with(path, opt, 1, 7), b = render_scene_with(path, opt, 4, 16);
   ASSERT_EQ(a.combined.size(), b.combined.size());
   EXPECT_EQ(0, std::memcmp(a.combined.data(), b.combined.data(), a.combined.size() * sizeof(float)));
   EXPECT_EQ(0, std::memcmp(a.albedo.data(), b.albedo.data(), a.albedo.size() * sizeof(float)));

@@ -32,6 +32,7 @@
 #include "closures/frosted_test_host.h"
 #include "closures/microfacet_test_util.h"
 #include "closures/raw_output_checks.h"
+#include "glimmer/exit_lobe.h"
 #include "glimmer/rng.h"
 #include <bit>
 
@@ -549,6 +550,11 @@ TEST(FrostedGlassSg, StressRawOutputsFiniteNonNegative) {
         if (s.moved) {
           moved.fetch_add(1, std::memory_order_relaxed);
           if (!is_finite(s.origin) || !is_finite(s.origin_Ng) || !(s.label & GLIMMER_LABEL_SINGULAR)) ++n_bad;
+          // ABI 2.4: the exit lobe the host samples lights with; its density at the drawn direction is positive.
+          const glimmer::ExitLobe lobe = glimmer::ExitLobe::make(s.lobe_axis, s.lobe_sharpness, s.origin_Ng);
+          const double p = lobe.pdf(sp.frame.to_world(s.wo));
+          if (!s.exit_lobe || !is_finite(s.lobe_axis) || !(s.lobe_sharpness > 0.0f) || !(p > 0.0) || !std::isfinite(p))
+            ++n_bad;
         }
       }
       if (n_bad) bad_count.fetch_add(n_bad);

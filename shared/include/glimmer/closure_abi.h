@@ -40,6 +40,12 @@
  *        wi is in (eta = backfacing ? 1 / ior : ior). A host hands a
  *        TRANSMISSIVE closure of an older plugin the front-face N it expects.
  *        trace_ray hits report N and Ng facing the ray's origin.
+ *   2.4: GlimmerSample.lobe_axis / .lobe_sharpness (GLIMMER_SAMPLE_EXIT_LOBE):
+ *        a moved sample may describe the lobe its direction was drawn from
+ *        (frosted glass sg: the spherical Gaussian of the light leaving the
+ *        object), so the host can do next-event estimation and MIS at the
+ *        moved origin. Written only when the host's struct_size holds them;
+ *        a 2.3 plugin never sets the flag.
  *
  * Threading: create/prepare/destroy are called from one thread; eval/sample/
  * emit/albedo are called concurrently on an immutable, prepared instance and
@@ -59,7 +65,7 @@ extern "C" {
 #define GLIMMER_ABI_MAJOR 2u
 #endif
 #ifndef GLIMMER_ABI_MINOR
-#define GLIMMER_ABI_MINOR 3u
+#define GLIMMER_ABI_MINOR 4u
 #endif
 #ifndef GLIMMER_ABI_VERSION
 #define GLIMMER_ABI_VERSION ((GLIMMER_ABI_MAJOR << 16) | GLIMMER_ABI_MINOR)
@@ -245,9 +251,24 @@ typedef struct GlimmerSample {
   GlimmerVec3 origin;
   GlimmerVec3 origin_Ng;
 #endif
+#if GLIMMER_ABI_MINOR >= 4
+  /* ABI 2.4 (written only when the host's struct_size holds them). With
+   * GLIMMER_SAMPLE_EXIT_LOBE (only together with GLIMMER_SAMPLE_MOVED) wo was
+   * drawn at `origin` from the exit lobe: the normalised spherical Gaussian
+   * (von Mises-Fisher) about lobe_axis (unit) with sharpness lobe_sharpness
+   * (kappa > 0), restricted to the outside of the exit surface origin_Ng by
+   * this rule: draw; while below (origin_Ng . w <= 0) draw again, at most 16
+   * times; a last direction still below is mirrored about the surface. Its
+   * exact density is glimmer/exit_lobe.h's ExitLobe::pdf, and the lobe as a
+   * BSDF at `origin` is eval[] x that density (eval[] is the weight the
+   * singular sample carries), so a host may do next-event estimation and MIS
+   * there; a host that does not still gets the singular sample. */
+  GlimmerVec3 lobe_axis;
+  float lobe_sharpness;
+#endif
 } GlimmerSample;
 
-enum GlimmerSampleFlags { GLIMMER_SAMPLE_MOVED = 1u };
+enum GlimmerSampleFlags { GLIMMER_SAMPLE_MOVED = 1u, GLIMMER_SAMPLE_EXIT_LOBE = 2u };
 
 /* ---- Parameters: declared once per closure type, validated at create. ---- */
 typedef enum GlimmerParamType {

@@ -1,0 +1,141 @@
+// The exit lobe of a moved sample (closure ABI 2.4, GLIMMER_SAMPLE_EXIT_LOBE): the direction in which light
+// leaves a frosted object (frosted_glass method=sg, de Rousiers et al. 2012) is drawn from a normalised
+// spherical Gaussian (a von Mises-Fisher distribution) about `axis` with sharpness kappa,
+//   v(w) = kappa exp(kappa (axis . w - 1)) / (2 pi (1 - exp(-2 kappa))),
+// restricted to the outside of the exit surface (normal n) by the rule the plugin samples with:
+// draw; while the direction is below the surface (n . w <= 0) draw again, at most kRedraws times; a last
+// direction still below is mirrored about the surface. Its exact density outside is
+//   p(w) = v(w) (1 + q + ... + q^kRedraws) + q^kRedraws v(M w),   M w = w - 2 (n . w) n,
+// with q the SG's fraction below the surface (fraction_below). Plugin and host share this code: the plugin
+// samples with ExitLobe::sample, the host evaluates ExitLobe::pdf for next-event estimation and MIS at the
+// exit point (eval = the sample's weight x p, so eval / pdf is the weight the singular sample carried).
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+
+#include "glimmer/math.h"
+
+namespace glimmer {
+
+// von Mises-Fisher density about `axis` (unit) with sharpness kappa > 0 at unit w. 1 - axis . w is
+// computed as |axis - w|^2 / 2 (no cancellation: kappa reaches 1e7).
+inline double vmf_density(const Vec3 &axis, double kappa, const Vec3 &w) {
+  const double dx = double(axis.x) - w.x, dy = double(axis.y) - w.y, dz = double(axis.z) - w.z;
+  const double one_minus_cos = 0.5 * (dx * dx + dy * dy + dz * dz);
+  return kappa * std::exp(-kappa * one_minus_cos) / (2.0 * M_PI * -std::expm1(-2.0 * kappa));
+}
+
+// A direction from the vMF about `axis`: inverse CDF of cos theta for exp(kappa (cos theta - 1)) on [-1, 1],
+// phi uniform.
+inline Vec3 sample_vmf(const Vec3 &axis, double kappa, float u1, float u2) {
+  const double k = std::max(kappa, 1e-6);
+  const double u = std::clamp(double(u1), 0.0, 1.0);
+  double cos_t = 1.0 + std::log(u + (1.0 - u) * std::exp(-2.0 * k)) / k;
+  if (!std::isfinite(cos_t)) cos_t = 1.0;
+  cos_t = std::clamp(cos_t, -1.0, 1.0);
+  const double sin_t = std::sqrt(std::max(0.0, 1.0 - cos_t * cos_t));
+  const double phi = 2.0 * M_PI * double(u2);
+  const Frame f = Frame::from_normal(axis);
+  return normalize(f.to_world(Vec3(float(sin_t * std::cos(phi)), float(sin_t * std::sin(phi)), float(cos_t))));
+}
+
+// exp(-x) I0(x), the exponentially scaled modified Bessel function of order 0 (Abramowitz & Stegun 9.8.1 and
+// 9.8.2; relative error < 1e-6).
+inline double bessel_i0_scaled(double x) {
+  x = std::fabs(x);
+  if (x <= 3.75) {
+    const double t = (x / 3.75) * (x / 3.75);
+    const double i0 =
+        1.0 + t * (3.5156229 + t * (3.0899424 + t * (1.2067492 + t * (0.2659732 + t * (0.0360768 + t * 0.0045813)))));
+    return std::exp(-x) * i0;
+  }
+  const double t = 3.75 / x;
+  const double s =
+      0.39894228 +
+      t * (0.01328592 +
+           t * (0.00225319 +
+                t * (-0.00157565 +
+                     t * (0.00916281 + t * (-0.02057706 + t * (0.02635537 + t * (-0.01647633 + t * 0.00392377)))))));
+  return s / std::sqrt(x);
+}
+
+// The fraction q of the vMF (axis, kappa) below the plane with unit normal n. Around n, with beta the polar
+// angle and alpha = angle(axis, n), the azimuthal integral is 2 pi I0(kappa sin alpha sin beta), so
+//   q = kappa / (1 - exp(-2 kappa)) Int_{pi/2}^{pi} sin(beta) exp(kappa (cos(beta - alpha) - 1))
+//       I0e(kappa sin alpha sin beta) d beta,
+// a smooth integrand peaked at beta = alpha with width ~ 1 / sqrt(kappa): integrated by composite
+// Gauss-Legendre over the window where exp(kappa (cos(beta - alpha) - 1)) > exp(-40).
+inline double vmf_fraction_below(const Vec3 &axis, double kappa, const Vec3 &n) {
+  const double c = std::clamp(double(dot(axis, n)), -1.0, 1.0);
+  const double alpha = std::acos(c), sin_alpha = std::sqrt(std::max(0.0, 1.0 - c * c));
+  const double half_width = std::sqrt(80.0 / std::max(kappa, 1e-9));
+  const double lo = std::max(0.5 * M_PI, alpha - half_width), hi = std::min(M_PI, alpha + half_width);
+  if (!(hi > lo)) return 0.0;
+  // 8-point Gauss-Legendre nodes and weights on [-1, 1] (positive half).
+  static constexpr double kNode[4] = {0.1834346424956498, 0.5255324099163290, 0.7966664774136267, 0.9602898564975363};
+  static constexpr double kWeight[4] = {0.3626837833783620, 0.3137066458778873, 0.2223810344533745, 0.1012285362903763};
+  constexpr int kPanels = 16;
+  const double panel = (hi - lo) / kPanels;
+  double sum = 0.0;
+  for (int p = 0; p < kPanels; ++p) {
+    const double mid = lo + (p + 0.5) * panel;
+    for (int k = 0; k < 8; ++k) {
+      const double beta = mid + (k < 4 ? -kNode[k] : kNode[k - 4]) * 0.5 * panel;
+      const double s = std::sin(0.5 * (beta - alpha));
+      const double f =
+          std::sin(beta) * std::exp(-2.0 * kappa * s * s) * bessel_i0_scaled(kappa * sin_alpha * std::sin(beta));
+      sum += kWeight[k % 4] * f;
+    }
+  }
+  const double q = sum * 0.5 * panel * kappa / -std::expm1(-2.0 * kappa);
+  return std::clamp(q, 0.0, 1.0);
+}
+
+struct ExitLobe {
+  static constexpr int kRedraws = 16;  // draws after the first while the direction is below the surface
+
+  Vec3 axis{0.0f, 0.0f, 1.0f};  // unit
+  double kappa = 1.0;           // > 0
+  Vec3 n{0.0f, 0.0f, 1.0f};     // unit exit surface normal, outward (toward where the light goes)
+  double below = 0.0;           // q: the SG's fraction below the surface
+
+  static ExitLobe make(const Vec3 &axis, double kappa, const Vec3 &n) {
+    ExitLobe l;
+    l.axis = axis;
+    l.kappa = std::max(kappa, 1e-6);
+    l.n = n;
+    l.below = vmf_fraction_below(axis, l.kappa, n);
+    return l;
+  }
+
+  // The plugin's sampling rule; `uniform()` returns numbers in [0, 1). The result can be on the surface
+  // (n . w = 0, measure zero): the caller rejects it.
+  template <class Uniform>
+  Vec3 sample(Uniform &&uniform) const {
+    const auto draw = [&] {
+      const float u_phi = uniform();  // the order of frosted sg's draws since its first version
+      const float u_cos = uniform();
+      return sample_vmf(axis, kappa, u_cos, u_phi);
+    };
+    Vec3 w = draw();
+    for (int k = 0; k < kRedraws && dot(w, n) <= 0.0f; ++k) w = draw();
+    const float height = dot(w, n);
+    return height <= 0.0f ? normalize(w - n * (2.0f * height)) : w;
+  }
+
+  // The density of sample() at unit w (solid angle); 0 at and below the surface.
+  double pdf(const Vec3 &w) const {
+    const float height = dot(w, n);
+    if (!(height > 0.0f)) return 0.0;
+    double redraws = 0.0, power = 1.0;  // 1 + q + ... + q^kRedraws; power ends as q^kRedraws
+    for (int k = 0; k <= kRedraws; ++k) {
+      redraws += power;
+      if (k < kRedraws) power *= below;
+    }
+    const Vec3 mirrored = w - n * (2.0f * height);
+    return vmf_density(axis, kappa, w) * redraws + power * vmf_density(axis, kappa, mirrored);
+  }
+};
+
+}  // namespace glimmer
