@@ -65,6 +65,8 @@
 #include <cstdint>
 #include <optional>
 #include <span>
+#include <type_traits>
+#include <utility>
 
 #include "glimmer/math.h"
 #include "glimmer/rng.h"
@@ -400,8 +402,19 @@ struct FootprintFrame {
 // inside the footprint adds K without positions (closed form); a lit node on
 // the border draws the positions of its K lit particles (two hashes each) and
 // counts those inside the parallelogram.
+// Per-particle visitor of the count (default: none). A visitor with
+// kVisitsParticles is called as visit(h0, k) for every counted particle, k
+// its index among the lit particles of the node whose hash in the direction
+// cell is h0 (per-flake colours, glint_flake_colour.h).
+struct NoParticleVisitor {
+  static constexpr bool kVisitsParticles = false;
+  void operator()(uint32_t, uint32_t) {}
+};
+
+template <typename Visitor = NoParticleVisitor>
 inline GlintCount count_reflecting_particles(const Footprint &f, const NodeList &nodes, double density,
-                                             std::span<const uint32_t> seeds, double P, int max_steps) {
+                                             std::span<const uint32_t> seeds, double P, int max_steps,
+                                             Visitor &&visit = Visitor{}) {
   GlintCount result;
   if (!(P > 0.0)) return result;
   const FootprintFrame frame(f, nodes.size);
@@ -450,6 +463,8 @@ inline GlintCount count_reflecting_particles(const Footprint &f, const NodeList 
       }
       if (inside == 1) {
         result.count += static_cast<int>(K);
+        if constexpr (std::decay_t<Visitor>::kVisitsParticles)
+          for (int64_t k = 0; k < K; ++k) visit(h0, static_cast<uint32_t>(k));
         continue;
       }
       const uint32_t position_seed = hash_u32(h0 ^ 0x27d4eb2fu);
@@ -457,7 +472,10 @@ inline GlintCount count_reflecting_particles(const Footprint &f, const NodeList 
         const auto idx = static_cast<uint32_t>(2 * k + 1);
         const float ux = uint_to_unit_float(hash_u32(position_seed + idx * 0x9e3779b9u));
         const float uy = uint_to_unit_float(hash_u32(position_seed + (idx + 1u) * 0x9e3779b9u));
-        result.count += frame.particle_inside(origin, ux, uy) ? 1 : 0;
+        const bool counted = frame.particle_inside(origin, ux, uy);
+        result.count += counted ? 1 : 0;
+        if constexpr (std::decay_t<Visitor>::kVisitsParticles)
+          if (counted) visit(h0, static_cast<uint32_t>(k));
       }
     }
   }
@@ -472,12 +490,15 @@ inline GlintCount count_reflecting_particles(const Footprint &f, const NodeList 
 // Reflecting particles of a footprint over the kDirectionGroups groups
 // (density N / G each), each group counted in its own direction cell at
 // (wi, wo); the caller falls back to the mean when `complete` is false.
+template <typename Visitor = NoParticleVisitor>
 inline GlintCount count_glints(const Footprint &f, double density, const DirectionCellKeys &keys, const Vec3 &wi,
-                               const Vec3 &wo, float gamma_rad, double P, int max_steps) {
+                               const Vec3 &wo, float gamma_rad, double P, int max_steps,
+                               Visitor &&visit = Visitor{}) {
   std::array<uint32_t, kDirectionGroups> cell_seeds;
   if (!direction_cell_seeds(keys, wi, wo, gamma_rad, cell_seeds)) return {};
   const double group_density = density / kDirectionGroups;
-  return count_reflecting_particles(f, footprint_nodes(f, group_density), group_density, cell_seeds, P, max_steps);
+  return count_reflecting_particles(f, footprint_nodes(f, group_density), group_density, cell_seeds, P, max_steps,
+                                    std::forward<Visitor>(visit));
 }
 
 }  // namespace glimmer::plugin::glint
