@@ -45,7 +45,9 @@
 // identity; (2) uses W at the mean F0 of the counted flakes (Schlick is affine
 // in F0) and (3) W at the mean flake F0 (tables/glint_flake_colour.h).
 //
-// Footprint: a(A) = |duv_dx x duv_dy| uv_scale^2; a zero footprint is a point
+// Footprint: with placement="object" a triplanar projection of the
+// object-space footprint (tables/glint_placement.h); otherwise
+// a(A) = |duv_dx x duv_dy| uv_scale^2; a zero footprint is a point
 // query resolved at the particle scale (a square holding one particle on
 // average, 1 / N).
 #include <array>
@@ -57,6 +59,7 @@
 #include "tables/glint_common.h"
 #include "tables/glint_flake_colour.h"
 #include "tables/glint_particles.h"
+#include "tables/glint_placement.h"
 #include "tables/glint_tables.h"
 
 namespace glimmer::plugin {
@@ -76,7 +79,7 @@ class GlintClosure {
   static constexpr int kMaxSteps = 8192;
 
   static std::span<const GlimmerParamSpec> params() {
-    static const auto schema = with_varying_density(glint::particle_field_params<3>(
+    static const auto schema = with_varying_density(glint::particle_field_params<4>(
         {"base roughness (alpha = roughness^2, Cycles' mapping); values below 0.15 are treated as 0.15",
          "query cone half-angle in degrees (size of a glint in direction; Jakob 2014 use 1..6)",
          "particle reflectance at normal incidence (Schlick Fresnel F0; 1 = Fresnel-free)"},
@@ -87,7 +90,11 @@ class GlintClosure {
            "(0 = off)", 0},
           {"flake_value_variation", GLIMMER_PARAM_FLOAT, {0.0f, 0, 0}, 0.0f, 1.0f, nullptr, nullptr,
            "per-flake colour (car paint): half-width of each flake's uniform relative value (brightness) "
-           "offset from color (0 = off)", 0}}}));
+           "offset from color (0 = off)", 0},
+          {"placement", GLIMMER_PARAM_ENUM, {0, 0, 0}, 0, 0, "uv|object", "uv",
+           "where the particles live: uv (density per unit of scaled uv area) or object (a triplanar projection of "
+           "the object-space point, density per unit of object-space area scaled by uv_scale; for stretched or "
+           "shared UVs)", 0}}}));
     return schema;
   }
 
@@ -106,6 +113,7 @@ class GlintClosure {
     c->density_param_ = p.index("density");
     c->gamma_rad_ = c->field_.gamma_deg * glint::kDegToRad;
     c->cell_keys_ = glint::DirectionCellKeys(c->field_.seed);
+    c->placement_ = static_cast<glint::Placement>(p.get_enum("placement"));
     c->flakes_ = std::make_unique<const glint::FlakePalette>(c->field_.color, p.get_float("flake_hue_variation"),
                                                              p.get_float("flake_value_variation"));
     return c;
@@ -180,7 +188,7 @@ class GlintClosure {
       return Spectrum(0.0f);
     if (!(P > 0.0f)) return Spectrum(0.0f);
 
-    const glint::Footprint fp = field_.footprint(ctx);
+    const glint::Footprint fp = glint::placed_footprint(field_, placement_, ctx);
     const double area = fp.area();
     const double expected = static_cast<double>(density) * area * P;
     if (expected > threshold_ || sigma_deg > field_.gamma_deg) return weight * (P / cone_solid_angle_);  // (3)
@@ -244,6 +252,7 @@ class GlintClosure {
   std::shared_ptr<const glint::DirectionalTable> table_;
   float cone_solid_angle_ = 1.0f;
   uint32_t density_param_ = 0;
+  glint::Placement placement_ = glint::Placement::UV;
   std::unique_ptr<const glint::FlakePalette> flakes_;  // per-flake F0 (car paint); mean() = color when off
 };
 
