@@ -19,6 +19,7 @@
 #include "render/camera.h"
 #include "render/film_filter.h"
 #include "render/lights.h"
+#include "render/object_space.h"
 #include "render/path_state.h"
 #include "render/sampler.h"
 
@@ -64,6 +65,7 @@ struct Renderer::Impl {
   std::string cache_dir;
   std::unique_ptr<ShaderSystem> shaders;
   std::vector<int> mesh_shader;  // compiled shader per mesh
+  std::vector<ObjectSpace> mesh_object_space;  // per mesh: its object space (closure ABI 2.5 context fields)
   std::unique_ptr<LightSet> lights;
   Vec3 scene_center{0.0f};
   float scene_radius = 1.0f;
@@ -177,6 +179,7 @@ struct Renderer::Impl {
     std::vector<bool> used(scene.shaders.size(), false);
     for (const auto &m : scene.meshes) {
       mesh_shader.push_back(shaders->compile(m.shader));
+      mesh_object_space.emplace_back(m.object_to_world);
       if (m.shader >= 0) used[m.shader] = true;
     }
     shaders->compile_background(scene.background.shader);
@@ -215,6 +218,7 @@ struct Renderer::Impl {
     float duv1[2] = {1, 0}, duv2[2] = {0, 1};
     bool backfacing = false;
     int shader = -1;
+    const ObjectSpace *object_space = nullptr;  // the hit mesh's (fills the context's object-space fields)
   };
 
   void setup_shading(const SurfaceHit &h, const Vec3 &D, ShadingData &sd) const {
@@ -269,6 +273,8 @@ struct Renderer::Impl {
     ctx.backfacing = sd.backfacing ? 1u : 0u;
     ctx.host = &host;
     sd.shader = mesh_shader[h.mesh];
+    sd.object_space = &mesh_object_space[h.mesh];
+    sd.object_space->set_point(P, s.Ng, ctx);
     set_surface_derivatives(scene.meshes[h.mesh], s, sd);
   }
 
@@ -328,6 +334,7 @@ struct Renderer::Impl {
     const float width = 0.5f * (length(rd.dPdx + rd.dDdx * t) + length(rd.dPdy + rd.dDdy * t));
     rd.dPdx = footprint_on_plane(rd.dPdx, rd.dDdx, D, t, sd.Ng);
     rd.dPdy = footprint_on_plane(rd.dPdy, rd.dDdy, D, t, sd.Ng);
+    if (sd.object_space) sd.object_space->set_footprint(rd.dPdx, rd.dPdy, sd.ctx);
     float bx[2], by[2];
     barycentric_step(sd, rd.dPdx, bx);
     barycentric_step(sd, rd.dPdy, by);

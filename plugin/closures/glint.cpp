@@ -40,7 +40,14 @@
 // glint BRDF (2)/(3), so estimators stay unbiased wherever the glint BRDF is
 // non-zero (the cosine part covers the whole hemisphere).
 //
-// Footprint: a(A) = |duv_dx x duv_dy| uv_scale^2; a zero footprint is a point
+// Per-flake colour (flake_hue_variation / flake_value_variation, off by
+// default): each counted particle has its own F0, a pure function of its
+// identity; (2) uses W at the mean F0 of the counted flakes (Schlick is affine
+// in F0) and (3) W at the mean flake F0 (tables/glint_flake_colour.h).
+//
+// Footprint: with placement="object" a triplanar projection of the
+// object-space footprint (tables/glint_placement.h); otherwise
+// a(A) = |duv_dx x duv_dy| uv_scale^2; a zero footprint is a point
 // query resolved at the particle scale (a square holding one particle on
 // average, 1 / N).
 //
@@ -55,8 +62,10 @@
 #include "glimmer/microfacet.h"
 #include "glimmer/sampling.h"
 #include "tables/glint_common.h"
+#include "tables/glint_flake_colour.h"
 #include "tables/glint_particles.h"
 #include "tables/glint_peak.h"
+#include "tables/glint_placement.h"
 #include "tables/glint_tables.h"
 
 namespace glimmer::plugin {
@@ -76,12 +85,22 @@ class GlintClosure {
   static constexpr int kMaxSteps = 8192;
 
   static std::span<const GlimmerParamSpec> params() {
-    static const auto schema = with_varying_density(glint::particle_field_params<1>(
+    static const auto schema = with_varying_density(glint::particle_field_params<4>(
         {"base roughness (alpha = roughness^2, Cycles' mapping); values below 0.15 are treated as 0.15",
          "query cone half-angle in degrees (size of a glint in direction; Jakob 2014 use 1..6)",
          "particle reflectance at normal incidence (Schlick Fresnel F0; 1 = Fresnel-free)"},
         {{{"filter_threshold", GLIMMER_PARAM_FLOAT, {16.0f, 0, 0}, 0.0f, 1e9f, nullptr, nullptr,
-           "expected glints per footprint above which the filtered mean a(A) P is used (0 = always filtered)", 0}}}));
+           "expected glints per footprint above which the filtered mean a(A) P is used (0 = always filtered)", 0},
+          {"flake_hue_variation", GLIMMER_PARAM_FLOAT, {0.0f, 0, 0}, 0.0f, 180.0f, nullptr, nullptr,
+           "per-flake colour (car paint): half-width in degrees of each flake's uniform hue offset from color "
+           "(0 = off)", 0},
+          {"flake_value_variation", GLIMMER_PARAM_FLOAT, {0.0f, 0, 0}, 0.0f, 1.0f, nullptr, nullptr,
+           "per-flake colour (car paint): half-width of each flake's uniform relative value (brightness) "
+           "offset from color (0 = off)", 0},
+          {"placement", GLIMMER_PARAM_ENUM, {0, 0, 0}, 0, 0, "uv|object", "uv",
+           "where the particles live: uv (density per unit of scaled uv area) or object (a triplanar projection of "
+           "the object-space point, density per unit of object-space area scaled by uv_scale; for stretched or "
+           "shared UVs)", 0}}}));
     return schema;
   }
 
@@ -100,6 +119,9 @@ class GlintClosure {
     c->density_param_ = p.index("density");
     c->gamma_rad_ = c->field_.gamma_deg * glint::kDegToRad;
     c->cell_keys_ = glint::DirectionCellKeys(c->field_.seed);
+    c->placement_ = static_cast<glint::Placement>(p.get_enum("placement"));
+    c->flakes_ = std::make_unique<const glint::FlakePalette>(c->field_.color, p.get_float("flake_hue_variation"),
+                                                             p.get_float("flake_value_variation"));
     return c;
   }
 
@@ -209,12 +231,14 @@ class GlintClosure {
     // The lookup comes first: its loads overlap the weight's math.
     const float P = std::min(table_->lookup(sigma_deg, c.theta_i, c.theta_o, c.dphi), 1.0f);
     Spectrum weight;
-    if (!glint::glint_weight(field_.distribution, field_.alpha, field_.color, wi, wo, weight)) return Spectrum(0.0f);
+    if (!glint::glint_weight(field_.distribution, field_.alpha, flakes_->mean(), wi, wo, weight))
+      return Spectrum(0.0f);
     if (!(P > 0.0f)) return Spectrum(0.0f);
 
     const double area = parts.fp.area();
     const double expected = static_cast<double>(density) * area * P;
     if (expected > threshold_ || sigma_deg > field_.gamma_deg) return weight * (P / cone_solid_angle_);  // (3)
+    if (flakes_->varies()) return coloured_flakes_f_cos(wi, wo, density, P, weight, parts);
     // Twinkle: the particles are counted in the direction cells of (wi, wo).
     locate(wi, wo, density, parts);
     const glint::GlintCount k = glint::count_glints(parts.fp, parts.site, P, kMaxSteps);
@@ -232,7 +256,7 @@ class GlintClosure {
     const float density = sp.param_float(density_param_, field_.density);
     const TableCoords c = table_coords(sp.wi, wo);
     Particles parts;  // default-initialised: value-initialising would zero the 1 KB node list
-    parts.fp = field_.footprint(sp.ctx);
+    parts.fp = glint::placed_footprint(field_, placement_, sp.ctx);
     if (provably_dark(sp.wi, wo, c, sigma_deg, density, parts)) {
       pdf();
       return Spectrum(0.0f);
@@ -240,6 +264,24 @@ class GlintClosure {
     request_table(c, sigma_deg);
     pdf();
     return glint_f_cos(sp.wi, wo, c, sigma_deg, density, parts);
+  }
+
+  // Equation (2) with per-flake colours (tables/glint_flake_colour.h): the
+  // K counted flakes' Schlick F sum to K F(mean F0 of those flakes); `mean_weight`
+  // is W at the palette's mean F0, returned as (3) at the step cap.
+  Spectrum coloured_flakes_f_cos(const Vec3 &wi, const Vec3 &wo, float density, float P, const Spectrum &mean_weight,
+                                 Particles &parts) const {
+    locate(wi, wo, density, parts);
+    glint::FlakeColourSum flakes{*flakes_};
+    const glint::GlintCount k = glint::count_glints(parts.fp, parts.site, P, kMaxSteps, flakes);
+    if (!k.complete) return mean_weight * (P / cone_solid_angle_);
+    if (k.count == 0) return Spectrum(0.0f);
+    Spectrum weight;
+    const float inv_k = 1.0f / static_cast<float>(k.count);
+    if (!glint::glint_weight(field_.distribution, field_.alpha, flakes.sum * inv_k, wi, wo, weight))
+      return Spectrum(0.0f);
+    return weight * static_cast<float>(static_cast<double>(k.count) /
+                                       (static_cast<double>(density) * parts.fp.area() * cone_solid_angle_));
   }
 
   LocalEval eval(const ShadingPoint &sp, const Vec3 &wo) const {
@@ -264,7 +306,7 @@ class GlintClosure {
     return out.pdf > 0.0f;
   }
 
-  Spectrum albedo(const ShadingPoint &) const { return field_.color; }
+  Spectrum albedo(const ShadingPoint &) const { return flakes_->mean(); }
 
  private:
   glint::ParticleField field_;
@@ -275,6 +317,8 @@ class GlintClosure {
   glint::DirectionalPeakTable peak_;  // bounds of table_'s lookups in glint mode (the dark test)
   float cone_solid_angle_ = 1.0f;
   uint32_t density_param_ = 0;
+  glint::Placement placement_ = glint::Placement::UV;
+  std::unique_ptr<const glint::FlakePalette> flakes_;  // per-flake F0 (car paint); mean() = color when off
 };
 
 GLIMMER_REGISTER_CLOSURE(GlintClosure)

@@ -91,6 +91,12 @@ struct ParticleField {
     f.ay = ctx->duv_dx[1] * s;
     f.bx = ctx->duv_dy[0] * s;
     f.by = ctx->duv_dy[1] * s;
+    return valid_footprint(f);
+  }
+
+  // A footprint in the particles' plane (scaled units), with the rules
+  // above for a non-finite centre and a degenerate parallelogram.
+  Footprint valid_footprint(Footprint f) const {
     const bool finite = std::isfinite(f.ax) && std::isfinite(f.ay) && std::isfinite(f.bx) && std::isfinite(f.by);
     if (!std::isfinite(f.cx) || !std::isfinite(f.cy)) f.cx = f.cy = 0.0;
     if (!finite || !(f.area() > 1e-30) || !(f.area() < 1e30)) {

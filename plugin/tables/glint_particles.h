@@ -65,6 +65,8 @@
 #include <cstdint>
 #include <optional>
 #include <span>
+#include <type_traits>
+#include <utility>
 
 #include "glimmer/math.h"
 #include "glimmer/rng.h"
@@ -403,8 +405,19 @@ struct FootprintFrame {
 // inside the footprint adds K without positions (closed form); a lit node on
 // the border draws the positions of its K lit particles (two hashes each) and
 // counts those inside the parallelogram.
+// Per-particle visitor of the count (default: none). A visitor with
+// kVisitsParticles is called as visit(h0, k) for every counted particle, k
+// its index among the lit particles of the node whose hash in the direction
+// cell is h0 (per-flake colours, glint_flake_colour.h).
+struct NoParticleVisitor {
+  static constexpr bool kVisitsParticles = false;
+  void operator()(uint32_t, uint32_t) {}
+};
+
+template <typename Visitor = NoParticleVisitor>
 inline GlintCount count_reflecting_particles(const Footprint &f, const NodeList &nodes, double density,
-                                             std::span<const uint32_t> seeds, double P, int max_steps) {
+                                             std::span<const uint32_t> seeds, double P, int max_steps,
+                                             Visitor &&visit = Visitor{}) {
   GlintCount result;
   if (!(P > 0.0)) return result;
   const FootprintFrame frame(f, nodes.size);
@@ -453,6 +466,8 @@ inline GlintCount count_reflecting_particles(const Footprint &f, const NodeList 
       }
       if (inside == 1) {
         result.count += static_cast<int>(K);
+        if constexpr (std::decay_t<Visitor>::kVisitsParticles)
+          for (int64_t k = 0; k < K; ++k) visit(h0, static_cast<uint32_t>(k));
         continue;
       }
       const uint32_t position_seed = hash_u32(h0 ^ 0x27d4eb2fu);
@@ -460,7 +475,10 @@ inline GlintCount count_reflecting_particles(const Footprint &f, const NodeList 
         const auto idx = static_cast<uint32_t>(2 * k + 1);
         const float ux = uint_to_unit_float(hash_u32(position_seed + idx * 0x9e3779b9u));
         const float uy = uint_to_unit_float(hash_u32(position_seed + (idx + 1u) * 0x9e3779b9u));
-        result.count += frame.particle_inside(origin, ux, uy) ? 1 : 0;
+        const bool counted = frame.particle_inside(origin, ux, uy);
+        result.count += counted ? 1 : 0;
+        if constexpr (std::decay_t<Visitor>::kVisitsParticles)
+          if (counted) visit(h0, static_cast<uint32_t>(k));
       }
     }
   }
@@ -495,9 +513,12 @@ inline void locate_glints(const Footprint &f, double density, const DirectionCel
 // (wi, wo); the caller falls back to the mean when `complete` is false.
 // The count never decreases as P grows (a node's lit set is nested in P and
 // its lit particles' positions do not depend on P), and neither do its steps.
-inline GlintCount count_glints(const Footprint &f, const GlintSite &site, double P, int max_steps) {
+template <typename Visitor = NoParticleVisitor>
+inline GlintCount count_glints(const Footprint &f, const GlintSite &site, double P, int max_steps,
+                               Visitor &&visit = Visitor{}) {
   if (!site.has_half_vector) return {};
-  return count_reflecting_particles(f, site.nodes, site.group_density, site.cell_seeds, P, max_steps);
+  return count_reflecting_particles(f, site.nodes, site.group_density, site.cell_seeds, P, max_steps,
+                                    std::forward<Visitor>(visit));
 }
 
 }  // namespace glimmer::plugin::glint

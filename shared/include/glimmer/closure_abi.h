@@ -46,6 +46,11 @@
  *        object), so the host can do next-event estimation and MIS at the
  *        moved origin. Written only when the host's struct_size holds them;
  *        a 2.3 plugin never sets the flag.
+ *   2.5: object space in the shading context: GlimmerShadingContext.P_object /
+ *        .dPdx_object / .dPdy_object / .Ng_object (the point, its pixel
+ *        footprint and geometric normal before the object's transform; e.g.
+ *        glint placement="object"). A plugin reads them only when struct_size
+ *        holds them (GLIMMER_HAS_FIELD) and Ng_object is non-zero.
  *
  * Threading: create/prepare/destroy are called from one thread; eval/sample/
  * emit/albedo are called concurrently on an immutable, prepared instance and
@@ -65,7 +70,7 @@ extern "C" {
 #define GLIMMER_ABI_MAJOR 2u
 #endif
 #ifndef GLIMMER_ABI_MINOR
-#define GLIMMER_ABI_MINOR 4u
+#define GLIMMER_ABI_MINOR 5u
 #endif
 #ifndef GLIMMER_ABI_VERSION
 #define GLIMMER_ABI_VERSION ((GLIMMER_ABI_MAJOR << 16) | GLIMMER_ABI_MINOR)
@@ -228,6 +233,18 @@ typedef struct GlimmerShadingContext {
    * Read only when struct_size holds them (GLIMMER_HAS_FIELD). */
   uint32_t varying_count;
   const GlimmerVaryingValue *varying;
+#endif
+#if GLIMMER_ABI_MINOR >= 5
+  /* ABI 2.5. The shading point in the object's own space (before the
+   * object's transform): its position, its pixel footprint (the world-space
+   * ray-differential steps dP/dx, dP/dy on the surface, the same footprint
+   * duv_dx / duv_dy describe in uv, mapped by the inverse transform) and its
+   * geometric normal (unit, the mesh's outward side; zero when the host has
+   * no object space, e.g. the closure laboratory). Read only when
+   * struct_size holds them. */
+  GlimmerVec3 P_object;
+  GlimmerVec3 dPdx_object, dPdy_object;
+  GlimmerVec3 Ng_object;
 #endif
 } GlimmerShadingContext;
 

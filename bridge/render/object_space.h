@@ -1,0 +1,67 @@
+// Object space of a shading point (closure ABI 2.5: GlimmerShadingContext
+// .P_object, .dPdx_object, .dPdy_object, .Ng_object). Meshes are stored in
+// world space (scene.h); each keeps its object-to-world transform, whose
+// inverse maps the point and its footprint back to the object's own space.
+#pragma once
+
+#include <cmath>
+
+#include "glimmer/closure_abi.h"
+#include "glimmer/math.h"
+#include "scene/transform.h"
+
+namespace glimmer::render {
+
+// The world-to-object map of an object whose transform is `object_to_world`:
+// its affine inverse (the linear part's inverse by cofactors, then the
+// translation), and the transpose of the linear part, which takes a world
+// normal back to the object's (n_world ~ M^-T n_object).
+struct ObjectSpace {
+  scene::Transform world_to_object;
+  scene::Transform object_to_world;
+  bool valid = false;  // false for a singular transform: the context's object fields stay zero
+
+  explicit ObjectSpace(const scene::Transform &m) : object_to_world(m) {
+    const Vec3 c0(m.m[0][0], m.m[1][0], m.m[2][0]), c1(m.m[0][1], m.m[1][1], m.m[2][1]),
+        c2(m.m[0][2], m.m[1][2], m.m[2][2]);
+    const Vec3 r0 = cross(c1, c2), r1 = cross(c2, c0), r2 = cross(c0, c1);  // rows of the inverse times det
+    const float det = dot(c0, r0);
+    if (!(std::fabs(det) > 1e-30f) || !std::isfinite(det)) return;
+    const float inv = 1.0f / det;
+    const Vec3 rows[3] = {r0 * inv, r1 * inv, r2 * inv};
+    const Vec3 t(m.m[0][3], m.m[1][3], m.m[2][3]);
+    for (int i = 0; i < 3; ++i) {
+      world_to_object.m[i][0] = rows[i].x;
+      world_to_object.m[i][1] = rows[i].y;
+      world_to_object.m[i][2] = rows[i].z;
+      world_to_object.m[i][3] = -dot(rows[i], t);
+    }
+    valid = true;
+  }
+
+  // Unit object-space normal of the world normal `n_world`.
+  Vec3 normal(const Vec3 &n_world) const {
+    const auto &m = object_to_world.m;
+    const Vec3 n(m[0][0] * n_world.x + m[1][0] * n_world.y + m[2][0] * n_world.z,
+                 m[0][1] * n_world.x + m[1][1] * n_world.y + m[2][1] * n_world.z,
+                 m[0][2] * n_world.x + m[1][2] * n_world.y + m[2][2] * n_world.z);
+    const float len = length(n);
+    return len > 0.0f && std::isfinite(len) ? n / len : Vec3(0.0f);
+  }
+
+  // The point and its geometric normal (world, the mesh's outward side).
+  void set_point(const Vec3 &P, const Vec3 &Ng, GlimmerShadingContext &ctx) const {
+    if (!valid) return;
+    ctx.P_object = world_to_object.point(P);
+    ctx.Ng_object = normal(Ng);
+  }
+  // The footprint's world steps per pixel on the surface.
+  void set_footprint(const Vec3 &dPdx, const Vec3 &dPdy, GlimmerShadingContext &ctx) const {
+    if (!valid) return;
+    const Vec3 x = world_to_object.vector(dPdx), y = world_to_object.vector(dPdy);
+    ctx.dPdx_object = is_finite(x) ? x : Vec3(0.0f);
+    ctx.dPdy_object = is_finite(y) ? y : Vec3(0.0f);
+  }
+};
+
+}  // namespace glimmer::render
