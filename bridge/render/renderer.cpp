@@ -60,6 +60,7 @@ struct Renderer::Impl {
   std::unique_ptr<ShaderSystem> shaders;
   std::vector<int> mesh_shader;  // compiled shader per mesh
   std::unique_ptr<LightSet> lights;
+  uint32_t sampling_flags = 0;  // GlimmerShadingContext.sampling_flags of every shading point (set in prepare)
   Vec3 scene_center{0.0f};
   float scene_radius = 1.0f;
 
@@ -189,8 +190,11 @@ struct Renderer::Impl {
       scene_radius = std::max(length(hi - lo) * 0.5f, 1e-3f);
     }
     lights = std::make_unique<LightSet>(scene, *shaders, mesh_shader, scene_center, scene_radius,
-                                        constant_world_sampling(features, options.strategy == LightStrategy::LightOnly),
+                                        options.strategy == LightStrategy::LightOnly,
                                         features, warnings);
+    // No light strategy is MIS-combined with BSDF samples when nothing is light-sampled (ABI 2.4 flag; lights do
+    // not vary per vertex, so it holds for every bounce of the render).
+    sampling_flags = (!use_nee() || lights->count() == 0) ? static_cast<uint32_t>(GLIMMER_SAMPLING_UNCOMBINED) : 0u;
     times.prepare = seconds_since(t0);
 
     t0 = Clock::now();
@@ -263,6 +267,7 @@ struct Renderer::Impl {
     ctx.dPdv = dPdv;
     ctx.backfacing = sd.backfacing ? 1u : 0u;
     ctx.host = &host;
+    ctx.sampling_flags = sampling_flags;
     sd.shader = mesh_shader[h.mesh];
     set_surface_derivatives(scene.meshes[h.mesh], s, sd);
   }

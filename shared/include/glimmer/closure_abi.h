@@ -40,6 +40,11 @@
  *        wi is in (eta = backfacing ? 1 / ior : ior). A host hands a
  *        TRANSMISSIVE closure of an older plugin the front-face N it expects.
  *        trace_ray hits report N and Ng facing the ray's origin.
+ *   2.4: GlimmerShadingContext.sampling_flags (GLIMMER_SAMPLING_UNCOMBINED:
+ *        no light strategy is MIS-combined with this vertex's BSDF samples,
+ *        so a closure may pick a sampler that is best alone; eval's pdf must
+ *        follow the same choice). A plugin reads it only when struct_size
+ *        holds it; an older host's contexts mean "combined".
  *
  * Threading: create/prepare/destroy are called from one thread; eval/sample/
  * emit/albedo are called concurrently on an immutable, prepared instance and
@@ -59,7 +64,7 @@ extern "C" {
 #define GLIMMER_ABI_MAJOR 2u
 #endif
 #ifndef GLIMMER_ABI_MINOR
-#define GLIMMER_ABI_MINOR 3u
+#define GLIMMER_ABI_MINOR 4u
 #endif
 #ifndef GLIMMER_ABI_VERSION
 #define GLIMMER_ABI_VERSION ((GLIMMER_ABI_MAJOR << 16) | GLIMMER_ABI_MINOR)
@@ -223,7 +228,22 @@ typedef struct GlimmerShadingContext {
   uint32_t varying_count;
   const GlimmerVaryingValue *varying;
 #endif
+#if GLIMMER_ABI_MINOR >= 4
+  /* ABI 2.4. GlimmerSamplingFlags bits; read only when struct_size holds it. */
+  uint32_t sampling_flags;
+#endif
 } GlimmerShadingContext;
+
+/* GlimmerShadingContext.sampling_flags (ABI 2.4). */
+typedef enum GlimmerSamplingFlags {
+  /* No light strategy is MIS-combined with BSDF samples at this vertex (the
+   * host samples no light there: every light is found by BSDF rays only), so
+   * the closure's sample() is the only estimator of the light it reaches and
+   * may use a sampler whose point set is best alone (e.g. one whose weight is
+   * constant but whose warp is discontinuous in the sample cube). eval() must
+   * return the pdf of the sampler this flag selects. */
+  GLIMMER_SAMPLING_UNCOMBINED = 1u << 0
+} GlimmerSamplingFlags;
 
 /* ---- Sampling result. ---- */
 typedef struct GlimmerSample {
