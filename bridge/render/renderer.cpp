@@ -1,4 +1,5 @@
 #include "render/renderer.h"
+#include "render/nodes/shading_normal.h"
 
 #include <tbb/blocked_range2d.h>
 #include <tbb/parallel_for.h>
@@ -258,9 +259,12 @@ struct Renderer::Impl {
     ctx.struct_size = sizeof(GlimmerShadingContext);
     ctx.wi = -D;
     ctx.P = P;
-    ctx.N = N;
+    // Every closure's normal bent so that wi's mirror direction stays above Ng (Cycles 3.4 does this for all
+    // non-curve BSDFs in svm_node_closure_bsdf): at silhouettes of interpolated normals the closures would
+    // otherwise see wi below N or reflect below the surface (docs/architecture.md, equal-error scene (a)).
+    ctx.N = nodes::ensure_valid_reflection(Ng, -D, N);
     ctx.Ng = Ng;
-    ctx.T = Frame::from_normal_tangent(N, dPdu).s;
+    ctx.T = Frame::from_normal_tangent(Vec3(ctx.N), dPdu).s;
     ctx.uv[0] = uv[0];
     ctx.uv[1] = uv[1];
     ctx.dPdu = dPdu;
