@@ -260,10 +260,11 @@ int render_one(CliContext &ctx, const RenderArgs &a, const std::string &scene_pa
       return out.empty() ? std::string("none") : out;
     };
     std::printf("features: closures=%s lights=%s emissive_triangles=%d background=%s environment_map=%s "
-                "textures=%s transparent=%s volumes=%s shaders_used=%d shaders_unused=%d\n",
+                "textures=%s transparent=%s volumes=%s shaders_used=%d shaders_unused=%d world_sampling=%s\n",
                 join(f.closures).c_str(), join(f.light_types).c_str(), f.emissive_triangles,
                 f.background ? "yes" : "no", f.environment_map ? "yes" : "no", join(f.textures).c_str(),
-                f.transparent ? "yes" : "no", f.volumes ? "ignored" : "no", f.used_shaders, f.unused_shaders);
+                f.transparent ? "yes" : "no", f.volumes ? "ignored" : "no", f.used_shaders, f.unused_shaders,
+                f.world_sampling.c_str());
     std::printf("time: load=%.3fs bvh=%.3fs prepare=%.3fs render=%.3fs write=%.3fs\n", load_seconds,
                 renderer->times().bvh, renderer->times().prepare, result.render_seconds, write_seconds);
     std::printf("render: %dx%d samples=%d/%d paths=%llu samples_per_second=%.0f nan_dropped=%llu\n", result.width,

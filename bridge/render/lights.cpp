@@ -1,20 +1,51 @@
 #include "render/lights.h"
 
+#include "lab/closure_lab.h"
+
 #include <algorithm>
 #include <cmath>
 #include <type_traits>
 
 namespace glimmer::render {
 
-ConstantWorld constant_world_sampling(const FeatureSet &features, bool light_only) {
-  if (light_only) return ConstantWorld::AsLight;
-  for (const std::string &closure : features.closures)
-    if (closure != "diffuse" && closure != "emission") return ConstantWorld::AsLight;
+bool samples_with_constant_weight(const host::ClosureInstance &closure, uint32_t sampling_flags) {
+  const std::string name = closure.type().name;
+  if (name == "diffuse" || name == "emission") return true;
+  // Closures that trace rays or read the environment are not probed in the closure lab's empty context.
+  if (closure.type().flags & (GLIMMER_CLOSURE_STOCHASTIC_EVAL | GLIMMER_CLOSURE_REFERENCE | GLIMMER_CLOSURE_NEEDS_TRACE |
+                              GLIMMER_CLOSURE_NEEDS_ENVIRONMENT))
+    return false;
+  constexpr uint64_t kSamples = 64;
+  constexpr float kMaxRelativeStd = 0.02f;
+  const bool transmissive = closure.type().flags & GLIMMER_CLOSURE_TRANSMISSIVE;
+  for (const float mu : {1.0f, 0.5f, 0.1f, -0.5f}) {
+    if (mu < 0.0f && !transmissive) continue;
+    GlimmerShadingContext ctx = host::make_local_context(Vec3(std::sqrt(1.0f - mu * mu), 0.0f, mu));
+    ctx.sampling_flags = sampling_flags;
+    const lab::FurnaceResult r = lab::furnace(closure, ctx, kSamples, 1);
+    if (r.invalid_count > 0 || r.absorbed_count > 0) return false;
+    for (int c = 0; c < 3; ++c)
+      if (!(r.standard_error[c] * std::sqrt(static_cast<float>(kSamples)) <= kMaxRelativeStd * r.albedo[c]))
+        return false;
+  }
+  return true;
+}
+
+ConstantWorld constant_world_sampling(const ShaderSystem &shaders, bool light_only, bool other_lights) {
+  // Only a constant world asks (the probe is not run for other scenes).
+  if (light_only || !shaders.has_background() || !shaders.background_is_constant()) return ConstantWorld::AsLight;
+  const uint32_t flags = other_lights ? 0u : static_cast<uint32_t>(GLIMMER_SAMPLING_UNCOMBINED);
+  for (const auto &closure : shaders.instances())
+    if (!samples_with_constant_weight(*closure, flags)) return ConstantWorld::AsLight;
   return ConstantWorld::BsdfOnly;
 }
 
+const char *constant_world_name(ConstantWorld choice) {
+  return choice == ConstantWorld::BsdfOnly ? "bsdf_only" : "light";
+}
+
 LightSet::LightSet(const scene::Scene &scene, ShaderSystem &shaders, const std::vector<int> &mesh_shader, Vec3 center,
-                   float radius, ConstantWorld constant_world, FeatureSet &features, std::vector<std::string> &warnings) {
+                   float radius, bool light_only, FeatureSet &features, std::vector<std::string> &warnings) {
   (void)center;
   (void)warnings;
   const float disk_area = kPi * radius * radius;
@@ -24,8 +55,10 @@ LightSet::LightSet(const scene::Scene &scene, ShaderSystem &shaders, const std::
     add_lamp(l, strength, disk_area, features);
   }
   add_emissive_triangles(scene, shaders, mesh_shader, features);
-  // Background (a constant one only on request, see ConstantWorld).
-  if (shaders.has_background() && (!shaders.background_is_constant() || constant_world == ConstantWorld::AsLight)) {
+  // Background (a constant one only where that helps, see ConstantWorld; decided once the other lights are known).
+  constant_world_ = constant_world_sampling(shaders, light_only, !lights_.empty());
+  features.world_sampling = shaders.has_background() ? constant_world_name(constant_world_) : "none";
+  if (shaders.has_background() && constant_world_ == ConstantWorld::AsLight) {
     background_light_ = static_cast<int>(lights_.size());
     add_light(BackgroundLight(shaders), disk_area, true);
   }

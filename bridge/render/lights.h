@@ -28,19 +28,33 @@ namespace glimmer::render {
 // rays only (MIS weight 1, no NEE). Cycles' automatic world sampling always takes the second (scene/light.cpp,
 // test_enabled_lights: the background light is kept only when the world shader varies spatially or portals
 // exist). Measured on a white-world sphere (docs/architecture.md, "Constant-colour world"): right for
-// diffuse closures, whose cosine sampling integrates a constant world almost exactly (the uniform light only
-// adds noise: 11x lower RMSE at 16 spp), wrong for rough GGX (1.8x higher RMSE at 256 spp) and for the rarely
-// sampled Fresnel reflection of glass, where MIS with the uniform light is better.
+// closures whose BSDF sample weight eval / pdf is the same for every sample (diffuse: cosine sampling
+// integrates a constant world almost exactly, the uniform light only adds noise, 11x lower RMSE at 16 spp;
+// the isotropic multi_ggx conductor sampled exactly, which it does where no light is MIS-combined with its
+// samples, docs/microfacet.md), wrong for rough GGX (1.8x higher RMSE at 256 spp) and for the rarely sampled
+// Fresnel reflection of glass, where MIS with the uniform light is better.
 enum class ConstantWorld { BsdfOnly, AsLight };
-// BsdfOnly when every closure present is diffuse (and not light-only sampling), else AsLight.
-ConstantWorld constant_world_sampling(const FeatureSet &features, bool light_only);
+// BsdfOnly when the world is constant, sampling is not light-only and every closure instance samples with a
+// constant weight (samples_with_constant_weight), probed with GLIMMER_SAMPLING_UNCOMBINED when the world would
+// then be the only light source BSDF rays find (no lamps, no emissive triangles: `other_lights` false), i.e.
+// when the renderer will set that flag; else AsLight.
+ConstantWorld constant_world_sampling(const ShaderSystem &shaders, bool light_only, bool other_lights);
+// Probe of one closure instance in contexts with the given sampling_flags: the per-sample relative standard
+// deviation of its sample weight at a few incidence angles (64 samples each, both sides for transmissive
+// closures) is below 2 % and no sample is absorbed. Diffuse and emission are known constant; closures with a
+// stochastic eval, references and those that trace rays or read the environment are not probed (false).
+bool samples_with_constant_weight(const host::ClosureInstance &closure, uint32_t sampling_flags);
+// Name of the choice for reports (`glimmer render --stats`): "light" or "bsdf_only".
+const char *constant_world_name(ConstantWorld choice);
 
 class LightSet {
  public:
   LightSet(const scene::Scene &scene, ShaderSystem &shaders, const std::vector<int> &mesh_shader, Vec3 center,
-           float radius, ConstantWorld constant_world, FeatureSet &features, std::vector<std::string> &warnings);
+           float radius, bool light_only, FeatureSet &features, std::vector<std::string> &warnings);
 
   int count() const { return static_cast<int>(lights_.size()); }
+  // How a constant world is sampled (constant_world_sampling; AsLight when the world is not constant).
+  ConstantWorld constant_world() const { return constant_world_; }
   // u picks the light (power CDF) and, rescaled within the light's share, with v places the point on it.
   bool sample(float u, float v, const Vec3 &P, LightSample &out) const;
   // Lamps hit by the ray (o, d) before t_max, and the sun disk when the ray escapes (hit_surface false);
@@ -65,6 +79,7 @@ class LightSet {
   Distribution1D pick_;
   std::vector<std::vector<int>> triangle_light_;  // per mesh, per triangle: light index or -1
   int background_light_ = -1;
+  ConstantWorld constant_world_ = ConstantWorld::AsLight;
 
   float pick_probability(int i) const { return pick_.probability(i); }
   void add_lamp(const scene::Light &light, const Spectrum &strength, float disk_area, FeatureSet &features);

@@ -1,4 +1,5 @@
 #include "render/renderer.h"
+#include "render/nodes/shading_normal.h"
 
 #include <tbb/blocked_range2d.h>
 #include <tbb/parallel_for.h>
@@ -67,6 +68,7 @@ struct Renderer::Impl {
   std::vector<int> mesh_shader;  // compiled shader per mesh
   std::vector<ObjectSpace> mesh_object_space;  // per mesh: its object space (closure ABI 2.5 context fields)
   std::unique_ptr<LightSet> lights;
+  uint32_t sampling_flags = 0;  // GlimmerShadingContext.sampling_flags of every shading point (set in prepare)
   Vec3 scene_center{0.0f};
   float scene_radius = 1.0f;
 
@@ -197,8 +199,11 @@ struct Renderer::Impl {
       scene_radius = std::max(length(hi - lo) * 0.5f, 1e-3f);
     }
     lights = std::make_unique<LightSet>(scene, *shaders, mesh_shader, scene_center, scene_radius,
-                                        constant_world_sampling(features, options.strategy == LightStrategy::LightOnly),
+                                        options.strategy == LightStrategy::LightOnly,
                                         features, warnings);
+    // No light strategy is MIS-combined with BSDF samples when nothing is light-sampled (ABI 2.4 flag; lights do
+    // not vary per vertex, so it holds for every bounce of the render).
+    sampling_flags = (!use_nee() || lights->count() == 0) ? static_cast<uint32_t>(GLIMMER_SAMPLING_UNCOMBINED) : 0u;
     times.prepare = seconds_since(t0);
 
     t0 = Clock::now();
@@ -263,15 +268,19 @@ struct Renderer::Impl {
     ctx.struct_size = sizeof(GlimmerShadingContext);
     ctx.wi = -D;
     ctx.P = P;
-    ctx.N = N;
+    // Every closure's normal bent so that wi's mirror direction stays above Ng (Cycles 3.4 does this for all
+    // non-curve BSDFs in svm_node_closure_bsdf): at silhouettes of interpolated normals the closures would
+    // otherwise see wi below N or reflect below the surface (docs/architecture.md, equal-error scene (a)).
+    ctx.N = nodes::ensure_valid_reflection(Ng, -D, N);
     ctx.Ng = Ng;
-    ctx.T = Frame::from_normal_tangent(N, dPdu).s;
+    ctx.T = Frame::from_normal_tangent(Vec3(ctx.N), dPdu).s;
     ctx.uv[0] = uv[0];
     ctx.uv[1] = uv[1];
     ctx.dPdu = dPdu;
     ctx.dPdv = dPdv;
     ctx.backfacing = sd.backfacing ? 1u : 0u;
     ctx.host = &host;
+    ctx.sampling_flags = sampling_flags;
     sd.shader = mesh_shader[h.mesh];
     sd.object_space = &mesh_object_space[h.mesh];
     sd.object_space->set_point(P, s.Ng, ctx);

@@ -144,6 +144,7 @@ struct FeatureSet {
   bool transparent = false;
   bool volumes = false;  // volume nodes present (ignored)
   int used_shaders = 0, unused_shaders = 0;
+  std::string world_sampling = "none";  // the world as a "light" or by BSDF rays only ("bsdf_only"), lights.h
 };
 
 class ShaderSystem {
@@ -160,6 +161,8 @@ class ShaderSystem {
   void compile_background(int shader_index);
   bool has_background() const { return background_.active; }
   bool background_is_constant() const { return !background_.color.varies(); }
+  // Every closure instance the compiled shaders use (filter_glossy variants included).
+  const std::vector<std::unique_ptr<host::ClosureInstance>> &instances() const { return instances_; }
   Spectrum background(const Vec3 &direction) const;
   // Sun discs of sky textures in the world (directions the background light samples explicitly).
   std::vector<nodes::SunDisc> background_suns() const;

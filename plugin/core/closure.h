@@ -80,6 +80,17 @@ struct ShadingPoint {
 #endif
   }
 
+  // True when the host says no light strategy is MIS-combined with this vertex's BSDF samples (ABI 2.4
+  // GLIMMER_SAMPLING_UNCOMBINED): a closure may then sample with the strategy that is best alone.
+  bool uncombined() const {
+#if GLIMMER_ABI_MINOR >= 4
+    return GLIMMER_HAS_FIELD(ctx->struct_size, GlimmerShadingContext, sampling_flags) &&
+           (ctx->sampling_flags & GLIMMER_SAMPLING_UNCOMBINED) != 0;
+#else
+    return false;
+#endif
+  }
+
   // The value of schema parameter `param` at this point: the host's per-point
   // value when it lists one (clamped to the spec's range; a non-finite value
   // keeps the constant), else `constant` (the value given at create()).

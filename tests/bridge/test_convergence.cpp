@@ -14,6 +14,8 @@
 #include <OpenImageIO/imageio.h>
 
 #include <cmath>
+#include <fstream>
+#include <iterator>
 
 #include "render/convergence.h"
 #include "render_test_util.h"
@@ -111,10 +113,21 @@ void expect_qmc_slopes(const Ladder &ladder) {
   EXPECT_LT(ggx, -0.8);
   // Diffuse under a world that is a light (a constant world is not, see WorldSampling below).
   EXPECT_LT(slope_of("diffuse_world_light", kDiffuse, "", textured_white_world(), ladder), -0.8);
-  EXPECT_LT(slope_of("conductor_multi_ggx", kMultiGgx, "", kWhiteWorld, ladder), ggx + 0.1);
-  // The same through a textured (light) world: where a rejection sampler's curved accept / reject boundary in
-  // the 3D sample cube lost the QMC rate (-0.69, docs/microfacet.md "Exact sampling").
-  EXPECT_LT(slope_of("conductor_multi_ggx_world_light", kMultiGgx, "", textured_white_world(), ladder), ggx + 0.1);
+  // multi_ggx through a textured (light) world: the world is MIS-combined with the conductor's samples, so it
+  // keeps the lobe mixture, whose lobe choice must keep the QMC rate (a rejection sampler's curved accept /
+  // reject boundary in the 3D sample cube lost it: -0.69, docs/microfacet.md).
+  const render::ConvergenceResult mixture = convergence_of("conductor_multi_ggx_world_light", kMultiGgx, "",
+                                                           textured_white_world(), ladder.samples, ladder.reference_samples);
+  EXPECT_LT(mixture.slope_spp, ggx + 0.1);
+  // In the constant white world (no lamp) nothing is combined: the conductor samples exactly, the world is not a
+  // light (WorldSampling below) and the weight is 1 up to the tables' error, so there is no rate to fit (issue 13:
+  // this line asserted the mixture's slope here before; measured 0.00028 / 0.00027 / 0.00100 / 0.00101 / 0.00076
+  // at 16..256 spp, the residual being rare paths lost under the faceted sphere, in the reference too). It must
+  // beat the mixture at every sample count.
+  const render::ConvergenceResult exact =
+      convergence_of("conductor_multi_ggx", kMultiGgx, "", kWhiteWorld, ladder.samples, ladder.reference_samples);
+  for (size_t i = 0; i < exact.points.size(); ++i)
+    EXPECT_LT(exact.points[i].rmse, mixture.points[i].rmse) << exact.points[i].samples << " spp";
   EXPECT_LT(slope_of("mix_diffuse_ggx", kMix, "", kWhiteWorld, ladder), ggx + 0.1);
   const std::string one_event = "max_bounce=\"0\"";
   EXPECT_LT(slope_of("glass_ggx_one_event", kGlassGgx, one_event, kWhiteWorld, ladder), ggx + 0.1);
@@ -155,6 +168,23 @@ TEST(WorldSampling, ConstantWorldIsALightOnlyWhereThatHelps) {
   const std::string glossy = white_world_sphere("world_constant_ggx.xml", kGgx, "");
   EXPECT_NE(render(glossy, render::LightStrategy::MIS, 1).combined,
             render(glossy, render::LightStrategy::BsdfOnly, 1).combined);
+  // The isotropic multi_ggx conductor samples with weight = albedo where no light is MIS-combined with it
+  // (docs/microfacet.md), so the constant world is not a light there either (measured per closure instance,
+  // samples_with_constant_weight). Negative controls: the anisotropic multi_ggx conductor mixes its two lobes
+  // and multi_ggx glass weighs G2 / G1 / E: their weights vary, the world is a light.
+  const std::string exact = white_world_sphere("world_constant_multi_ggx.xml", kMultiGgx, "");
+  EXPECT_EQ(render(exact, render::LightStrategy::MIS, 1).combined,
+            render(exact, render::LightStrategy::BsdfOnly, 1).combined);
+  const std::string glass = white_world_sphere("world_constant_glass_multi_ggx.xml", kGlassMultiGgx, "");
+  EXPECT_NE(render(glass, render::LightStrategy::MIS, 1).combined,
+            render(glass, render::LightStrategy::BsdfOnly, 1).combined);
+  const std::string anisotropic = white_world_sphere(
+      "world_constant_multi_ggx_aniso.xml",
+      "<glossy_bsdf name=\"b\" distribution=\"multi_ggx\" roughness=\"0.9\" anisotropy=\"0.5\" color=\"1 1 1\" />"
+      "<connect from=\"b bsdf\" to=\"output surface\" />",
+      "");
+  EXPECT_NE(render(anisotropic, render::LightStrategy::MIS, 1).combined,
+            render(anisotropic, render::LightStrategy::BsdfOnly, 1).combined);
   const std::string textured = white_world_sphere("world_textured.xml", kDiffuse, "", textured_white_world());
   EXPECT_NE(render(textured, render::LightStrategy::MIS, 1).combined,
             render(textured, render::LightStrategy::BsdfOnly, 1).combined);
@@ -168,6 +198,33 @@ TEST(WorldSampling, ConstantWorldIsALightOnlyWhereThatHelps) {
   const double as_light =
       convergence_of("diffuse_world_as_light", kDiffuse, "", textured_white_world(), {16, 32}, 512).points[0].rmse;
   EXPECT_LT(bsdf_only, 0.25 * as_light);
+  const double multi_bsdf_only =
+      convergence_of("multi_ggx_bsdf_only_world", kMultiGgx, "", kWhiteWorld, {16, 32}, 512).points[0].rmse;
+  const double multi_as_light =
+      convergence_of("multi_ggx_world_as_light", kMultiGgx, "", textured_white_world(), {16, 32}, 512).points[0].rmse;
+  EXPECT_LT(multi_bsdf_only, 0.1 * multi_as_light);
+}
+
+// The choice is reported (`glimmer render --stats`: world_sampling=) and depends on the other lights: with a
+// lamp in the scene the lamp is MIS-combined with the multi_ggx conductor's BSDF samples, so the conductor keeps
+// the lobe mixture (its weight varies) and the constant world stays a light; without it, BSDF rays only.
+TEST(WorldSampling, ExactMultiGgxOnlyWhereNoLightIsCombined) {
+  auto world_sampling = [](const std::string &path) {
+    std::string log;
+    EXPECT_EQ(0, run_cli("render '" + path + "' -o '" + (temp_dir() / "world_choice.exr").string() +
+                             "' --samples 1 --stats --quiet",
+                         log))
+        << log;
+    const size_t at = log.find("world_sampling=");
+    return at == std::string::npos ? std::string("missing") : log.substr(at + 15, log.find_first_of(" \n", at) - at - 15);
+  };
+  EXPECT_EQ("bsdf_only", world_sampling(white_world_sphere("choice_multi_ggx.xml", kMultiGgx, "")));
+  EXPECT_EQ("bsdf_only", world_sampling(white_world_sphere("choice_diffuse.xml", kDiffuse, "")));
+  EXPECT_EQ("light", world_sampling(white_world_sphere("choice_ggx.xml", kGgx, "")));
+  std::ifstream in(white_world_sphere("choice_multi_ggx_lamp.xml", kMultiGgx, ""));
+  std::string xml((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  xml.replace(xml.find("</cycles>"), 9, "<light light_type=\"point\" co=\"0 3 4\" strength=\"100 100 100\" />\n</cycles>\n");
+  EXPECT_EQ("light", world_sampling(write_file("choice_multi_ggx_lamp.xml", xml)));
 }
 
 // Every surface a path meets draws from its own sample sets, transparent pass-throughs included: two

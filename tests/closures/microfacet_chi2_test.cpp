@@ -22,10 +22,12 @@ struct Chi2Config {
   Vec3 wi;
   float eta_rel = 1.5f;  // relative IOR seen from wi (dielectric), for the binning choice
   bool dielectric = false;
+  uint32_t sampling_flags = 0;  // GlimmerShadingContext.sampling_flags (UNCOMBINED: the closure may sample exactly)
   std::string label() const {
     std::ostringstream s;
     s << closure;
     for (const auto &p : params) s << " " << p;
+    if (sampling_flags & GLIMMER_SAMPLING_UNCOMBINED) s << " [uncombined]";
     s << " wi=(" << wi.x << "," << wi.y << "," << wi.z << ")";
     return s.str();
   }
@@ -90,6 +92,26 @@ std::vector<Chi2Config> configs() {
       out.push_back({"microfacet_conductor", {"distribution=beckmann", "roughness=0.9", "anisotropy=0.4",
                                               "shadowing=separable"}, wi_from_z(z, 1.1f)});
   }
+  // multi_ggx conductor where no light strategy is MIS-combined (GLIMMER_SAMPLING_UNCOMBINED): isotropic lobes
+  // sample exactly (accept / reject on the third number, docs/microfacet.md), white and coloured f0, rough to
+  // smooth, normal to grazing; the anisotropic lobe keeps the mixture under the flag too.
+  for (float z : {0.95f, 0.5f, 0.1f, 0.01f})
+    for (float r : {0.2f, 0.5f, 0.9f, 1.0f}) {
+      Chi2Config white{"microfacet_conductor", {"distribution=multi_ggx", "roughness=" + num(r)}, wi_from_z(z, 0.4f)};
+      white.sampling_flags = GLIMMER_SAMPLING_UNCOMBINED;
+      out.push_back(white);
+      if (r == 0.5f || r == 1.0f) {
+        Chi2Config tinted = white;
+        tinted.params.push_back("f0=0.9,0.5,0.2");
+        out.push_back(tinted);
+      }
+    }
+  for (float z : {0.8f, 0.1f}) {
+    Chi2Config anisotropic{"microfacet_conductor", {"distribution=multi_ggx", "roughness=0.8", "anisotropy=0.5"},
+                           wi_from_z(z, 1.2f)};
+    anisotropic.sampling_flags = GLIMMER_SAMPLING_UNCOMBINED;
+    out.push_back(anisotropic);
+  }
   out.push_back({"microfacet_conductor", {"distribution=ggx", "roughness=0.7", "anisotropy=0.9"}, wi_from_z(0.001f)});
   out.push_back({"microfacet_conductor", {"distribution=beckmann", "roughness=0.7", "anisotropy=0.9"},
                  wi_from_z(0.001f)});
@@ -111,7 +133,8 @@ TEST(MicrofacetChi2, SampleMatchesPdf) {
   tbb::parallel_for(size_t(0), cases.size(), [&](size_t i) {
     const Chi2Config &c = cases[i];
     auto closure = make_closure(c.closure, c.params);
-    const GlimmerShadingContext ctx = host::make_local_context(c.wi);
+    GlimmerShadingContext ctx = host::make_local_context(c.wi);
+    ctx.sampling_flags = c.sampling_flags;
     const bool near_delta = c.dielectric && std::fabs(c.eta_rel - 1.0f) < 0.05f;
     const uint64_t seed = (std::getenv("GLIMMER_CHI2_SEED") ? std::strtoull(std::getenv("GLIMMER_CHI2_SEED"), nullptr, 10) : 5000) + i;
     const ClosureChi2 r = near_delta ? closure_chi2(*closure, ctx, n, seed, -c.wi, 4.0) : closure_chi2(*closure, ctx, n, seed);

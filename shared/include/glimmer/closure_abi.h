@@ -51,6 +51,11 @@
  *        footprint and geometric normal before the object's transform; e.g.
  *        glint placement="object"). A plugin reads them only when struct_size
  *        holds them (GLIMMER_HAS_FIELD) and Ng_object is non-zero.
+ *   2.6: GlimmerShadingContext.sampling_flags (GLIMMER_SAMPLING_UNCOMBINED:
+ *        no light strategy is MIS-combined with this vertex's BSDF samples,
+ *        so a closure may pick a sampler that is best alone; eval's pdf must
+ *        follow the same choice). A plugin reads it only when struct_size
+ *        holds it; an older host's contexts mean "combined".
  *
  * Threading: create/prepare/destroy are called from one thread; eval/sample/
  * emit/albedo are called concurrently on an immutable, prepared instance and
@@ -70,7 +75,7 @@ extern "C" {
 #define GLIMMER_ABI_MAJOR 2u
 #endif
 #ifndef GLIMMER_ABI_MINOR
-#define GLIMMER_ABI_MINOR 5u
+#define GLIMMER_ABI_MINOR 6u
 #endif
 #ifndef GLIMMER_ABI_VERSION
 #define GLIMMER_ABI_VERSION ((GLIMMER_ABI_MAJOR << 16) | GLIMMER_ABI_MINOR)
@@ -246,7 +251,22 @@ typedef struct GlimmerShadingContext {
   GlimmerVec3 dPdx_object, dPdy_object;
   GlimmerVec3 Ng_object;
 #endif
+#if GLIMMER_ABI_MINOR >= 6
+  /* ABI 2.6. GlimmerSamplingFlags bits; read only when struct_size holds it. */
+  uint32_t sampling_flags;
+#endif
 } GlimmerShadingContext;
+
+/* GlimmerShadingContext.sampling_flags (ABI 2.6). */
+typedef enum GlimmerSamplingFlags {
+  /* No light strategy is MIS-combined with BSDF samples at this vertex (the
+   * host samples no light there: every light is found by BSDF rays only), so
+   * the closure's sample() is the only estimator of the light it reaches and
+   * may use a sampler whose point set is best alone (e.g. one whose weight is
+   * constant but whose warp is discontinuous in the sample cube). eval() must
+   * return the pdf of the sampler this flag selects. */
+  GLIMMER_SAMPLING_UNCOMBINED = 1u << 0
+} GlimmerSamplingFlags;
 
 /* ---- Sampling result. ---- */
 typedef struct GlimmerSample {
