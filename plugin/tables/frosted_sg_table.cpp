@@ -33,62 +33,91 @@ DielectricLobe interface_lobe(float eta, float roughness) {
 }
 
 // Calls visit(wo, weight, g) for each transmitted direction of the BTDF's
-// visible-normal sampling on a strata x strata midpoint grid: weight = g / p,
-// p the density of wo, so that Int h g = mean over the grid of h(wo) weight.
-// A cell whose corners disagree on whether the path transmits (total internal
-// reflection at the facet, or wo above the interface) holds the edge of the
-// lobe, where g has a square-root kink (Fresnel at the critical angle): it is
-// integrated on a kEdgeRefine^2 sub-grid instead of its midpoint. Without this
-// the sums jumped whenever a midpoint crossed the edge as theta_i, eta or the
-// roughness changed, and the table's interpolation failed on the leaving side.
-inline constexpr int kEdgeRefine = 8;
+// visible-normal sampling (the spherical-cap form of sample_ggx_visible_normal,
+// here in double) on a strata x strata midpoint grid in (u1, v): weight = g / p
+// times the Jacobian of the map below, p the density of wo, so that
+// Int h g = mean over the grid of h(wo) weight.
+//  - The tail: the cap's height runs linearly in u2, and u2 -> 1 are the facets
+//    near the horizon (slopes -> infinity). GGX's slope tail is heavy: the part
+//    of 1 - |M| (which sets the moment kappa) coming from slopes in [s, 2 s] is
+//    about the same for every s between alpha and 1, and on a uniform grid all
+//    slopes beyond ~7 alpha fell into the last row, where total internal
+//    reflection cuts the lobe. So u2 = 1 - (1 - v)^kTailPower, v uniform: row
+//    j from the end spans slopes alpha (strata / j)^(kTailPower / 2), about a
+//    factor 2 per row at the end (the last row starts beyond 300 alpha).
+//  - The edge: a cell whose corners disagree on whether the path transmits
+//    (total internal reflection at the facet, or wo above the interface) holds
+//    the edge of the lobe, where g has a square-root kink (Fresnel at the
+//    critical angle): it is integrated on a kEdgeRefine^2 sub-grid instead of
+//    its midpoint. Without this the sums jumped whenever a midpoint crossed the
+//    edge as theta_i, eta or the roughness changed. 16 (8 before fit version
+//    9): at roughness ~0.05 the TIR cut lies at slopes ~370 alpha, and with 8
+//    ln kappa still zig-zagged by ~0.03 from one roughness to the next.
+inline constexpr int kEdgeRefine = 16;
+inline constexpr int kTailPower = 3;
+
+// A direction in double (the quadrature's wo, normalised in double: the moment kappa of a sharp lobe is
+// 1 / (1 - |M|), and a float wo's length error of 6e-8 is 1 % of 1 - |M| at kappa 1.5e5).
+struct Direction {
+  double x, y, z;
+};
 
 template <typename Visit>
 void for_each_transmitted(const Vec3 &wi, float eta, float roughness, int strata, Visit &&visit) {
   namespace mf = glimmer::microfacet;
   const DielectricLobe lobe = interface_lobe(eta, roughness);
-  auto transmits = [&](float u1, float u2, Vec3 &m, Vec3 &wo) {
-    m = mf::sample_visible_normal(lobe.dist, wi, lobe.ax, lobe.ay, u1, u2);
+  // The stretched incident direction (isotropic GGX: ax = ay).
+  const double ax = lobe.ax, ay = lobe.ay;
+  double sx = ax * wi.x, sy = ay * wi.y, sz = wi.z;
+  const double sl = std::sqrt(sx * sx + sy * sy + sz * sz);
+  sx /= sl, sy /= sl, sz /= sl;
+  // The visible normal at (u1, w = 1 - u2): a point of the cap z in [-sz, 1], plus the stretched wi, unstretched.
+  auto normal_at = [&](double u1, double w) {
+    const double phi = 2.0 * M_PI * u1, z = w * (1.0 + sz) - sz;
+    const double st = std::sqrt(std::max(0.0, 1.0 - z * z));
+    const double hx = ax * (st * std::cos(phi) + sx), hy = ay * (st * std::sin(phi) + sy),
+                 hz = std::max(z + sz, 0.0);
+    const double len = std::sqrt(hx * hx + hy * hy + hz * hz);
+    if (!(len > 1e-300)) return Vec3(0.0f, 0.0f, 1.0f);
+    return Vec3(float(hx / len), float(hy / len), float(hz / len));
+  };
+  auto tail = [](double v) { return std::pow(1.0 - v, double(kTailPower)); };  // w = 1 - u2 at v
+  auto transmits = [&](double u1, double v, Vec3 &m, Vec3 &wo) {
+    m = normal_at(u1, std::max(tail(v), 1e-12));
     return mf::refract(wi, m, eta, wo) && wo.z < 0.0f;
   };
-  auto point = [&](float u1, float u2, double scale) {
+  auto point = [&](double u1, double v, double scale) {
     Vec3 m, wo;
-    if (!transmits(u1, u2, m, wo)) return;  // TIR at this microfacet, or wo above the interface
+    if (!transmits(u1, v, m, wo)) return;  // TIR at this microfacet, or wo above the interface
+    const double len = std::sqrt(double(wo.x) * wo.x + double(wo.y) * wo.y + double(wo.z) * wo.z);
+    const Direction dir{wo.x / len, wo.y / len, wo.z / len};
     wo = normalize(wo);
     const LocalEval e = lobe.eval_local(wi, wo, eta);
     // e.pdf = (1 - F) p(wo): the transmitted share of the sampling density.
     const float F = mf::fresnel_dielectric(dot(wi, m), eta);
     const double p = double(e.pdf) / std::max(1.0 - double(F), 1e-12);
     if (!(p > 0.0) || !(e.f_cos.x > 0.0f)) return;
-    visit(wo, scale * double(e.f_cos.x) / p, double(e.f_cos.x));
+    const double jacobian = kTailPower * std::pow(1.0 - v, double(kTailPower - 1));  // du2 / dv
+    visit(dir, scale * jacobian * double(e.f_cos.x) / p, double(e.f_cos.x));
   };
-  // Transmission at the grid's corners (u = a / strata, clamped inside the unit square).
+  // Transmission at the grid's corners.
   std::vector<char> corner(size_t(strata + 1) * (strata + 1));
   for (int a = 0; a <= strata; ++a)
     for (int b = 0; b <= strata; ++b) {
       Vec3 m, wo;
-      const float u1 = std::clamp(float(a) / strata, 1e-6f, 1.0f - 1e-6f);
-      const float u2 = std::clamp(float(b) / strata, 1e-6f, 1.0f - 1e-6f);
-      corner[size_t(a) * (strata + 1) + b] = transmits(u1, u2, m, wo) ? 1 : 0;
+      corner[size_t(a) * (strata + 1) + b] = transmits(double(a) / strata, double(b) / strata, m, wo) ? 1 : 0;
     }
   for (int a = 0; a < strata; ++a)
     for (int b = 0; b < strata; ++b) {
       auto c = [&](int da, int db) { return corner[size_t(a + da) * (strata + 1) + (b + db)]; };
-      // Leaving (eta < 1), the last row in u2 (u2 -> 1: facet slopes -> infinity, GGX's far tail, which
-      // decides the mean length of a sharp lobe) is always refined: the TIR cut lies in it and its outer
-      // corners (u2 = 1 - 1e-6) flip in and out of TIR as the parameters change, switching cells between 1
-      // and kEdgeRefine^2 points (ln kappa jumped between neighbouring nodes). Entering, the cut (wo at the
-      // horizon) lies mostly beyond the grid's reach; refining there too widened the moment lobe (fit error
-      // vs the BTDF 0.529 -> 0.566), so that side keeps the edge rule alone.
-      const bool tail = eta < 1.0f && b == strata - 1;
-      const bool edge = tail || c(0, 0) != c(1, 0) || c(0, 0) != c(0, 1) || c(0, 0) != c(1, 1);
+      const bool edge = c(0, 0) != c(1, 0) || c(0, 0) != c(0, 1) || c(0, 0) != c(1, 1);
       if (!edge) {
-        point((a + 0.5f) / strata, (b + 0.5f) / strata, 1.0);
+        point((a + 0.5) / strata, (b + 0.5) / strata, 1.0);
         continue;
       }
       for (int sa = 0; sa < kEdgeRefine; ++sa)
         for (int sb = 0; sb < kEdgeRefine; ++sb)
-          point((a + (sa + 0.5f) / kEdgeRefine) / strata, (b + (sb + 0.5f) / kEdgeRefine) / strata,
+          point((a + (sa + 0.5) / kEdgeRefine) / strata, (b + (sb + 0.5) / kEdgeRefine) / strata,
                 1.0 / (kEdgeRefine * kEdgeRefine));
     }
 }
@@ -100,8 +129,25 @@ Vec3 incident(float cos_theta_i) {
 
 }  // namespace
 
-double SphericalGaussian::eval(const Vec3 &w) const {
-  return double(amplitude) * std::exp(double(sharpness) * (double(dot(axis, w)) - 1.0));
+double SphericalGaussian::eval(const Vec3 &w) const { return eval(w.x, w.y, w.z); }
+
+namespace {
+// The axis of g normalised in double: a float axis has |p| = 1 +- 6e-8, which at kappa ~1e5 moved
+// exp(kappa (p . w - 1)) and the inner product below by several per cent.
+void unit_axis(const SphericalGaussian &g, double p[3]) {
+  const double x = g.axis.x, y = g.axis.y, z = g.axis.z, len = std::sqrt(x * x + y * y + z * z);
+  const double inv = len > 0.0 ? 1.0 / len : 0.0;
+  p[0] = x * inv, p[1] = y * inv, p[2] = z * inv;
+}
+}  // namespace
+
+double SphericalGaussian::eval(double x, double y, double z) const {
+  // kappa (p . w - 1) = -kappa |p - w|^2 / 2 for unit p and w, without the cancellation of 1 - p . w.
+  double p[3];
+  unit_axis(*this, p);
+  const double len = std::sqrt(x * x + y * y + z * z), inv = len > 0.0 ? 1.0 / len : 0.0;
+  const double dx = p[0] - x * inv, dy = p[1] - y * inv, dz = p[2] - z * inv;
+  return double(amplitude) * std::exp(-0.5 * double(sharpness) * (dx * dx + dy * dy + dz * dz));
 }
 double SphericalGaussian::integral() const {
   const double k = sharpness;
@@ -111,13 +157,17 @@ double SphericalGaussian::integral_squared() const { return sg_inner_product(*th
 
 double sg_inner_product(const SphericalGaussian &g1, const SphericalGaussian &g2) {
   const double k1 = g1.sharpness, k2 = g2.sharpness;
-  const double vx = k1 * g1.axis.x + k2 * g2.axis.x, vy = k1 * g1.axis.y + k2 * g2.axis.y,
-               vz = k1 * g1.axis.z + k2 * g2.axis.z;
-  const double d = std::sqrt(vx * vx + vy * vy + vz * vz);
+  double p1[3], p2[3];
+  unit_axis(g1, p1);
+  unit_axis(g2, p2);
+  // d = |k1 p1 + k2 p2|, d^2 = (k1 + k2)^2 - k1 k2 |p1 - p2|^2; d - k1 - k2 = -k1 k2 |p1 - p2|^2 / (d + k1 + k2)
+  // (no cancellation when the axes are close and kappa large).
+  const double s = (p1[0] - p2[0]) * (p1[0] - p2[0]) + (p1[1] - p2[1]) * (p1[1] - p2[1]) + (p1[2] - p2[2]) * (p1[2] - p2[2]);
+  const double d = std::sqrt(std::max(0.0, (k1 + k2) * (k1 + k2) - k1 * k2 * s));
   const double a = double(g1.amplitude) * g2.amplitude;
   // sinh(d) exp(-k1 - k2) / d written without overflow; -> exp(-k1 - k2) as d -> 0.
   if (d < 1e-6) return 4.0 * M_PI * a * std::exp(-k1 - k2);
-  return 2.0 * M_PI * a * std::exp(d - k1 - k2) * -std::expm1(-2.0 * d) / d;
+  return 2.0 * M_PI * a * std::exp(-k1 * k2 * s / (d + k1 + k2)) * -std::expm1(-2.0 * d) / d;
 }
 
 SphericalGaussian TransmissionLobe::sg(float cos_theta_i, float eta) const {
@@ -153,13 +203,13 @@ double sharpness_from_mean_length(double r) {
 TransmissionLobe fit_transmission_lobe(float cos_theta_i, float eta, float roughness, int strata, SharpnessFit how) {
   const Vec3 wi = incident(cos_theta_i);
   struct Sample {
-    Vec3 wo;
+    Direction wo;
     double weight;
   };
   std::vector<Sample> samples;
   samples.reserve(size_t(strata) * strata);
   double energy = 0.0, mx = 0.0, my = 0.0, mz = 0.0;
-  for_each_transmitted(wi, eta, roughness, strata, [&](const Vec3 &wo, double weight, double) {
+  for_each_transmitted(wi, eta, roughness, strata, [&](const Direction &wo, double weight, double) {
     samples.push_back({wo, weight});
     energy += weight;
     mx += weight * wo.x;
@@ -187,7 +237,7 @@ TransmissionLobe fit_transmission_lobe(float cos_theta_i, float eta, float rough
     trial.log_sharpness = float(log_k);
     const SphericalGaussian g = trial.sg(float(wi.z), eta);
     double cross = 0.0;
-    for (const Sample &s : samples) cross += s.weight * g.eval(s.wo);
+    for (const Sample &s : samples) cross += s.weight * g.eval(s.wo.x, s.wo.y, s.wo.z);
     return g.integral_squared() - 2.0 * cross / n;
   };
   // Golden-section search on ln(kappa) from the moment match up to 1000x sharper.
@@ -211,8 +261,8 @@ double transmission_fit_error(float cos_theta_i, float eta, float roughness, con
                               int strata) {
   const Vec3 wi = incident(cos_theta_i);
   double cross = 0.0, g2 = 0.0;
-  for_each_transmitted(wi, eta, roughness, strata, [&](const Vec3 &wo, double weight, double g) {
-    cross += weight * sg.eval(wo);
+  for_each_transmitted(wi, eta, roughness, strata, [&](const Direction &wo, double weight, double g) {
+    cross += weight * sg.eval(wo.x, wo.y, wo.z);
     g2 += weight * g;
   });
   const double n = double(strata) * strata;
@@ -222,7 +272,13 @@ double transmission_fit_error(float cos_theta_i, float eta, float roughness, con
   return std::sqrt(std::max(0.0, sg.integral_squared() - 2.0 * cross + g2) / g2);
 }
 
-float TransmissionSgTable::theta_at(int i) { return float(kThetaMaxDeg * kDegToRad * i / (kThetaNodes - 1)); }
+// Entering: theta_i = theta_max t (2 - t), t uniform: 2x the uniform spacing at normal incidence, crowding
+// toward grazing (spacing proportional to sqrt(theta_max - theta_i)), where the lobe's axis offset and
+// sharpness change fastest at low roughness; a function smooth in theta_max - theta_i is smooth in t.
+float TransmissionSgTable::theta_at(int i) {
+  const double t = double(i) / (kThetaNodes - 1);
+  return float(kThetaMaxDeg * kDegToRad * t * (2.0 - t));
+}
 
 namespace {
 // Past the onset of TIR the leaving side's first coordinate follows theta_i itself, from the critical angle
@@ -230,6 +286,21 @@ namespace {
 // x = ior and the last interval spanned 78.6..89.5 deg, energy errors up to 70 %).
 double critical_angle(float ior) { return std::asin(1.0 / double(ior)); }
 double theta_max() { return TransmissionSgTable::kThetaMaxDeg * kDegToRad; }
+// Past the onset the nodes crowd at both ends: s(t) = t^2 + 2 t^3 - 2 t^4 is t^2 at the onset (where the energy
+// of a sharp lobe falls by decades within a fraction of a degree) and 1 - 5 (1 - t)^2 at grazing (where the
+// energy goes to 0 and ln E curves most); s' = 2 t (1 - t) (1 + 4 t) >= 0.
+double onset_to_grazing(double t) { return t * t * (1.0 + 2.0 * t - 2.0 * t * t); }
+double inverse_onset_to_grazing(double s) {
+  s = std::clamp(s, 0.0, 1.0);
+  double t = s < 0.5 ? std::sqrt(s) * 0.85 : 1.0 - std::sqrt((1.0 - s) / 5.0);  // near the ends s ~ t^2, 1 - 5 (1-t)^2
+  for (int it = 0; it < 40; ++it) {  // safeguarded Newton (s' vanishes at both ends)
+    const double f = onset_to_grazing(t) - s, df = 2.0 * t * (1.0 - t) * (1.0 + 4.0 * t);
+    const double next = df > 1e-12 ? std::clamp(t - f / df, 0.0, 1.0) : t;
+    if (std::fabs(next - t) < 1e-12) break;
+    t = next;
+  }
+  return t;
+}
 }  // namespace
 
 float TransmissionSgTable::sine_at(int i, float ior) {
@@ -239,7 +310,7 @@ float TransmissionSgTable::sine_at(int i, float ior) {
     return 1.0f - (1.0f - t) * (1.0f - t);
   }
   const double t = double(i - half) / half, tc = critical_angle(ior);
-  return float(ior * std::sin(tc + (theta_max() - tc) * t * t));
+  return float(ior * std::sin(tc + (theta_max() - tc) * onset_to_grazing(t)));
 }
 
 namespace {
@@ -248,7 +319,7 @@ float sine_coordinate(float theta, float ior) {
   const int half = (TransmissionSgTable::kSineNodes - 1) / 2;
   const double x = ior * std::sin(double(theta)), tc = critical_angle(ior);
   if (x <= 1.0) return float((1.0 - std::sqrt(std::max(0.0, 1.0 - x))) * half);
-  const double t = std::sqrt(std::clamp((theta - tc) / (theta_max() - tc), 0.0, 1.0));
+  const double t = inverse_onset_to_grazing(std::clamp((theta - tc) / (theta_max() - tc), 0.0, 1.0));
   return float((1.0 + t) * half);
 }
 }  // namespace
@@ -307,9 +378,12 @@ namespace {
 constexpr char kCacheMagic[8] = {'G', 'L', 'M', 'F', 'R', 'S', 'G', 'T'};
 constexpr uint32_t kCacheFormat = 1;
 // Bump when the fit itself changes (the grid and fit constants are hashed below).
-constexpr uint32_t kFitVersion = 5;  // 2: leaving side over the Snell sine, axis as a sine offset; 3: edge refinement;
+constexpr uint32_t kFitVersion = 9;  // 2: leaving side over the Snell sine, axis as a sine offset; 3: edge refinement;
                                      // 4: the sine's upper segment ends at grazing for each ior; 5: the upper
-                                     // segment over theta_i, the leaving fit's tail row always refined
+                                     // segment over theta_i, the leaving fit's tail row always refined; 6: the
+                                     // fit's grid warped toward the slope tail; 7: node placement (entering toward
+                                     // grazing, leaving at both ends of the upper segment); 8: directions in
+                                     // double, the upper segment's s(t); 9: edge cells refined 16 x 16
 
 // The first 8 bytes of SHA-256 over the format, the grid and the fit's constants.
 uint64_t cache_key() {
@@ -403,6 +477,21 @@ std::unique_ptr<TransmissionSgTable> TransmissionSgTable::load(const std::string
   return table;
 }
 
+namespace {
+// A frosted_sg_*.bin in cache_dir other than `current` (an entry of an older fit or grid: the key is in the
+// name), or "".
+std::string other_cache_entry(const std::string &cache_dir, const std::string &current) {
+  std::error_code ec;
+  for (const auto &entry : std::filesystem::directory_iterator(cache_dir, ec)) {
+    const std::string name = entry.path().filename().string();
+    if (name.rfind("frosted_sg_", 0) == 0 && name.size() > 4 && name.compare(name.size() - 4, 4, ".bin") == 0 &&
+        entry.path().string() != current)
+      return entry.path().string();
+  }
+  return "";
+}
+}  // namespace
+
 const TransmissionSgTable &TransmissionSgTable::get(const GlimmerHostServices *host) {
   static std::mutex mutex;
   static std::unique_ptr<TransmissionSgTable> table;
@@ -418,6 +507,10 @@ const TransmissionSgTable &TransmissionSgTable::get(const GlimmerHostServices *h
     table = load(path, problem);
     if (!table && problem != "missing")
       log(GLIMMER_LOG_WARNING, "frosted_glass: cached SG table " + path + " is unusable (" + problem + "); rebuilding");
+    if (!table && problem == "missing")
+      if (const std::string old = other_cache_entry(host->cache_dir, path); !old.empty())
+        log(GLIMMER_LOG_WARNING, "frosted_glass: cached SG table " + old +
+                                     " is for another grid or fit version; rebuilding (" + path + ")");
   }
   if (!table) {
     const auto t0 = std::chrono::steady_clock::now();
@@ -440,28 +533,36 @@ bool TransmissionSgTable::lookup(float cos_theta_i, float eta, float roughness, 
   if (!(ior >= kIorMin && ior <= kIorMax && roughness >= kRoughnessMin && roughness <= 1.0f)) return false;
   if (!(theta <= float(kThetaMaxDeg * kDegToRad))) return false;
   // Continuous grid coordinates and their cells.
-  const float ct = side == 0 ? theta / float(kThetaMaxDeg * kDegToRad) * (kThetaNodes - 1)
+  const float ct = side == 0 ? float((1.0 - std::sqrt(std::max(0.0, 1.0 - theta / theta_max()))) * (kThetaNodes - 1))
                              : sine_coordinate(theta, ior);
   const float cr = (1.0f - std::log(roughness) / std::log(kRoughnessMin)) * (kRoughnessNodes - 1);
   const float ck = (ior - kIorMin) / (kIorMax - kIorMin) * (kIorNodes - 1);
-  // Catmull-Rom weights of the 4 nodes around c on each axis (indices clamped at the ends).
+  // Catmull-Rom weights of the 4 nodes around c on each axis (indices clamped at the ends). The first
+  // coordinate starts at normal incidence, where the lobe is symmetric: node -1 is node 1 mirrored (the energy
+  // and sharpness are even in theta_i, the axis offset odd), instead of a clamped node that puts a false slope
+  // into the first interval.
   struct Taps {
     int index[4];
     float weight[4];
+    float parity[4];  // -1 where a mirrored node's odd quantity (the axis offset) changes sign
   };
-  auto taps = [](float c, int nodes) {
+  auto taps = [](float c, int nodes, bool mirror_at_zero) {
     const int i0 = std::clamp(int(std::floor(c)), 0, nodes - 2);
     const float t = std::clamp(c - float(i0), 0.0f, 1.0f), t2 = t * t, t3 = t2 * t;
     Taps k;
     const float w[4] = {0.5f * (-t3 + 2 * t2 - t), 0.5f * (3 * t3 - 5 * t2 + 2), 0.5f * (-3 * t3 + 4 * t2 + t),
                         0.5f * (t3 - t2)};
     for (int n = 0; n < 4; ++n) {
-      k.index[n] = std::clamp(i0 - 1 + n, 0, nodes - 1);
+      const int i = i0 - 1 + n;
+      const bool mirrored = mirror_at_zero && i < 0;
+      k.index[n] = mirrored ? -i : std::clamp(i, 0, nodes - 1);
       k.weight[n] = w[n];
+      k.parity[n] = mirrored ? -1.0f : 1.0f;
     }
     return k;
   };
-  const Taps a = taps(ct, first_nodes(side)), b = taps(cr, kRoughnessNodes), c = taps(ck, kIorNodes);
+  const Taps a = taps(ct, first_nodes(side), true), b = taps(cr, kRoughnessNodes, false),
+             c = taps(ck, kIorNodes, false);
   TransmissionLobe acc;
   for (int x = 0; x < 4; ++x)
     for (int y = 0; y < 4; ++y)
@@ -470,7 +571,7 @@ bool TransmissionSgTable::lookup(float cos_theta_i, float eta, float roughness, 
         const TransmissionLobe &n = node(side, a.index[x], b.index[y], c.index[z]);
         acc.energy += w * log_energy_[index(side, a.index[x], b.index[y], c.index[z])];
         acc.log_sharpness += w * n.log_sharpness;
-        acc.axis_offset += w * n.axis_offset;
+        acc.axis_offset += w * a.parity[x] * n.axis_offset;
       }
   acc.energy = std::max(std::exp(acc.energy) - kEnergyFloor, 0.0f);  // interpolated ln(E + floor) -> E
   out = acc;

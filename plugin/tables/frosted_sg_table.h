@@ -10,7 +10,9 @@
 //
 // Fit (the paper's recipe: scale, mean and variance by sampling the BTDF):
 // the BTDF is integrated by its own visible-normal sampling on a fixed
-// stratified grid of random numbers (deterministic), giving the lobe's energy
+// stratified grid of random numbers (deterministic; the grid is warped toward
+// GGX's slope tail and refined 16 x 16 in cells cut by the lobe's edge, see
+// for_each_transmitted in the .cpp), giving the lobe's energy
 // E = Int g and mean vector M = Int g wo / E. The SG with the same energy and
 // mean: p = M / |M|, a = E kappa / (2 pi (1 - exp(-2 kappa))). The paper's
 // variance match (von Mises-Fisher: |M| = coth(kappa) - 1 / kappa) is kept as
@@ -33,17 +35,19 @@
 //    errors (mean relative L2 0.27 at cell centres, 0.29 along ior alone).
 //
 // Table T(., roughness, ior) for entering (eta = ior; first coordinate
-// theta_i) and leaving (eta = 1 / ior; first coordinate the Snell sine x up to
-// the onset of TIR, x = 1, one fixed node for every ior, then theta_i up to
-// grazing, where a sine is flat): built lazily on first use (once per
-// process, thread-safe; 30-60 s on the shared 2-core machine) and cached on
+// theta_i, nodes crowding toward grazing) and leaving (eta = 1 / ior; first
+// coordinate the Snell sine x up to the onset of TIR, x = 1, one fixed node
+// for every ior, then theta_i up to grazing, where a sine is flat; nodes
+// crowding at the onset and at grazing): built lazily on first use (once per
+// process, thread-safe; ~40 s CPU, see docs/frosted_glass.md) and cached on
 // disk like the glint tables (host->cache_dir, file keyed by the grid and the
 // fit; HMAC-authenticated, then validated: sizes, finite values, energies in
 // [0, 1.1], and 16 nodes re-fitted and compared; an unusable entry is rebuilt
 // with a warning). Lookups are Catmull-Rom in each coordinate (4^3 nodes;
 // trilinear left 498 entering cell centres above 1 % where this leaves 89) of
 // ln(E + 1e-4) (E falls by decades past the TIR onset), ln kappa and the axis
-// offset.
+// offset; at normal incidence the first coordinate is mirrored (E and kappa
+// even in theta_i, the axis offset odd).
 // Grid: see kThetaNodes etc. below.
 #pragma once
 
@@ -64,6 +68,7 @@ struct SphericalGaussian {
   float amplitude = 0.0f, sharpness = 1.0f;
 
   double eval(const Vec3 &w) const;
+  double eval(double x, double y, double z) const;  // w in double (normalised here)
   double integral() const;          // Int G over the sphere = 2 pi a (1 - exp(-2 kappa)) / kappa
   double integral_squared() const;  // Int G^2 = pi a^2 (1 - exp(-4 kappa)) / kappa
 };
@@ -111,11 +116,11 @@ double sharpness_from_mean_length(double mean_length);
 
 class TransmissionSgTable {
  public:
-  static constexpr int kThetaNodes = 61;       // entering: theta_i in [0, 89.5] degrees, uniform
+  static constexpr int kThetaNodes = 71;       // entering: theta_i in [0, 89.5] degrees, crowding toward grazing
   static constexpr float kThetaMaxDeg = 89.5f;
-  // Leaving: two quadratic segments crowding the nodes at the onset of TIR: the Snell sine x = ior sin(theta_i)
-  // = 1 - (1 - t)^2 up to 1, then theta_i = theta_c + (89.5 deg - theta_c) t^2 (theta_c = asin(1 / ior)).
-  // Odd, so that x = 1 is a node.
+  // Leaving: two segments crowding the nodes at the onset of TIR: the Snell sine x = ior sin(theta_i)
+  // = 1 - (1 - t)^2 up to 1, then theta_i = theta_c + (89.5 deg - theta_c) s(t), s = t^2 + 2 t^3 - 2 t^4
+  // (theta_c = asin(1 / ior); s ~ t^2 at the onset, 1 - 5 (1 - t)^2 at grazing). Odd, so that x = 1 is a node.
   static constexpr int kSineNodes = 81;
   static constexpr int kRoughnessNodes = 25;   // roughness in [0.04, 1], uniform in ln(roughness)
   static constexpr float kRoughnessMin = 0.04f;

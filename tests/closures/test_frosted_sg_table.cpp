@@ -146,24 +146,27 @@ TEST(FrostedSgFit, FitErrorOverTheRange) {
     p.err_moments = transmission_fit_error(c, p.eta, p.r, moments.sg(c, p.eta));
   });
   for (int side = 0; side < 2; ++side) {
-    std::vector<double> errs;
+    std::vector<double> errs, moments;
     double weighted = 0.0, weight = 0.0, moments_mean = 0.0;
     for (const Point &p : pts)
       if ((p.eta > 1.0f) == (side == 0) && p.energy > 1e-3) {
         ASSERT_TRUE(std::isfinite(p.err));
         moments_mean += p.err_moments;
+        moments.push_back(p.err_moments);
         errs.push_back(p.err);
         weighted += p.err * p.energy;
         weight += p.energy;
       }
     std::sort(errs.begin(), errs.end());
+    std::sort(moments.begin(), moments.end());
     std::printf("[sg fit error, L2 kappa] %s (eta %s): %zu lobes with energy > 1e-3: relative L2 median %.3f, mean %.3f, "
                 "energy-weighted mean %.3f, 90th pct %.3f, max %.3f\n",
                 side == 0 ? "entering" : "leaving", side == 0 ? "1.33..2.4" : "1/2.4..1/1.33", errs.size(),
                 errs[errs.size() / 2], std::accumulate(errs.begin(), errs.end(), 0.0) / errs.size(), weighted / weight,
                 errs[errs.size() * 9 / 10], errs.back());
-    std::printf("    (the variance-matched kappa of the paper's recipe, which the table stores: mean relative L2 %.3f)\n",
-                moments_mean / errs.size());
+    std::printf("    (the variance-matched kappa of the paper's recipe, which the table stores: relative L2 median %.3f, "
+                "mean %.3f, max %.3f)\n",
+                moments[moments.size() / 2], moments_mean / errs.size(), moments.back());
     // The L2 kappa must beat the variance match it starts from.
     EXPECT_LT(std::accumulate(errs.begin(), errs.end(), 0.0), moments_mean);
     for (float r : roughs) {
@@ -196,6 +199,20 @@ TEST(FrostedSgFit, FitErrorOverTheRange) {
 //    instead of the sine (which is flat at grazing), ln(E + 1e-4) interpolated
 //    instead of E, and the leaving fit's tail row always refined: 575 of 6411
 //    (89 entering, 486 leaving), mean 0.0058.
+//  - fit version 6, the fit's grid warped toward GGX's slope tail
+//    (u2 = 1 - (1 - v)^3): 123 of 6405 (46 entering at theta >= 80 deg,
+//    roughness <= 0.125; 73 leaving at grazing, energy), mean 0.0020;
+//  - 7: entering nodes crowding toward grazing (71), the leaving upper segment
+//    crowding at both ends, the first coordinate mirrored at normal incidence:
+//    8 of 6659, mean 0.0008, max 0.0203;
+//  - 8: quadrature directions and the SG algebra in double (a float |axis| =
+//    1 +- 6e-8 moved the L2 metric by ~1 % at kappa ~1e5), the upper segment
+//    s = t^2 + 2 t^3 - 2 t^4: 2 of 6659, mean 0.0007, max 0.0165;
+//  - 9: edge cells refined 16 x 16 instead of 8 x 8 (the moment kappa of
+//    roughness ~0.05 jittered by ~0.03 in ln kappa from one roughness to the
+//    next): 2 of 6659 above 1 % (leaving, roughness 0.21, ior 1.85, theta 81
+//    and 85 deg, lobes of energy 0.0011-0.0012: 1.08 % and 1.01 %), mean
+//    0.0006, max 0.0108. Still disabled: 2 points above.
 TEST(FrostedSgTable, DISABLED_InterpolationWithinOnePercent) {
   const TransmissionSgTable &table = TransmissionSgTable::get();
   // Cell centres in all three coordinates inside theta 0..89, roughness 0.05..1, IOR 1.33..2.4.
@@ -237,7 +254,10 @@ TEST(FrostedSgTable, DISABLED_InterpolationWithinOnePercent) {
     p.err_sharpness = with(&TransmissionLobe::log_sharpness);
     p.err_axis = with(&TransmissionLobe::axis_offset);
     // Negative control: the lobe of the nearest node in every coordinate (the lookup at a grid point).
-    const int i = int(std::lround(p.theta / TransmissionSgTable::theta_at(1)));
+    int i = 0;
+    for (int n = 1; n < TransmissionSgTable::kThetaNodes; ++n)
+      if (std::fabs(TransmissionSgTable::theta_at(n) - p.theta) < std::fabs(TransmissionSgTable::theta_at(i) - p.theta))
+        i = n;
     const float c_node = std::cos(TransmissionSgTable::theta_at(i));
     TransmissionLobe nearest;
     ASSERT_TRUE(table.lookup(c_node, eta, p.r, nearest));
@@ -245,6 +265,7 @@ TEST(FrostedSgTable, DISABLED_InterpolationWithinOnePercent) {
   });
   double worst = 0.0, worst_nearest = 0.0, mean = 0.0;
   long counted = 0;
+  std::vector<double> errs;
   for (const Point &p : pts) {
     if (p.energy < 1e-3) continue;  // total internal reflection: no lobe to interpolate
     EXPECT_LE(p.err, 0.01) << "theta=" << p.theta / kDeg << " r=" << p.r << " ior=" << p.ior << " side=" << p.side
@@ -253,12 +274,14 @@ TEST(FrostedSgTable, DISABLED_InterpolationWithinOnePercent) {
     worst = std::max(worst, p.err);
     worst_nearest = std::max(worst_nearest, p.nearest_err);
     mean += p.err;
+    errs.push_back(p.err);
     ++counted;
   }
   EXPECT_GT(worst_nearest, 0.01);
+  std::sort(errs.begin(), errs.end());
   std::printf("[sg table] %ld off-grid points (cell centres, energy > 1e-3): interpolated vs direct fit relative L2 "
-              "mean %.4f, max %.4f; nearest-theta-node control max %.4f\n",
-              counted, mean / std::max(counted, 1L), worst, worst_nearest);
+              "median %.5f, mean %.4f, max %.4f; nearest-theta-node control max %.4f\n",
+              counted, errs.empty() ? 0.0 : errs[errs.size() / 2], mean / std::max(counted, 1L), worst, worst_nearest);
 }
 
 }  // namespace
