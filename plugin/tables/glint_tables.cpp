@@ -22,7 +22,8 @@ namespace {
 constexpr double kPiD = 3.14159265358979323846;
 constexpr double kDeg = kPiD / 180.0;
 constexpr uint32_t kFormatVersion = 4;  // 2: LOD levels normalised by their W-weighted energy; 3: HMAC-SHA256;
-                                        // 4: P_gamma by a direct cone rule
+                                        // 4: P_gamma by a direct cone rule, 0.5-degree energy grid,
+                                        //    level 0 <= the smooth albedo (+0.1 %)
 constexpr char kMagic[8] = {'G', 'L', 'M', 'G', 'L', 'N', 'T', 'P'};
 
 struct D3 {
@@ -180,15 +181,23 @@ LodLevel make_level(int level, int n_theta_i_unused = kThetaICount) {
 
 // Step 4 (energy): the W-weighted reflected energy of one theta_i slice of a
 // level, E = Int W(wi, wo) P(wo) dwo (F = 1), by the midpoint rule on a
-// 1-degree (theta_o, dphi) grid through the level's own trilinear lookup (what
-// eval sees). `weight` holds W on that grid (weight_grid).
-constexpr int kEnergyTheta = 90, kEnergyPhi = 180;
+// 0.5-degree (theta_o, dphi) grid through the level's own trilinear lookup
+// (what eval sees). `weight` holds W on that grid (weight_grid). (A 1-degree
+// grid, used before, is 0.4 % off for a roughness-0.2 lobe, which the blurred
+// levels then inherited; 0.5 degrees is within ~0.15 % of a 0.1-degree grid.)
+constexpr int kEnergyCellsPerDegree = 2;
+constexpr int kEnergyTheta = 90 * kEnergyCellsPerDegree, kEnergyPhi = 180 * kEnergyCellsPerDegree;
+constexpr double kEnergyStepDeg = 1.0 / kEnergyCellsPerDegree;
+// Relative accuracy of the level-0 energy on that grid: level 0 is capped at
+// the smooth albedo times 1 + this (step 4).
+constexpr double kEnergyResolution = 1e-3;
 double slice_energy(const LodLevel &level, int ti, const std::vector<double> &weight) {
   double sum = 0.0;
   for (int t = 0; t < kEnergyTheta; ++t)
     for (int p = 0; p < kEnergyPhi; ++p)
       sum += weight[static_cast<size_t>(t) * kEnergyPhi + p] *
-             level.lookup(static_cast<float>(ti), static_cast<float>(t + 0.5), static_cast<float>(p + 0.5));
+             level.lookup(static_cast<float>(ti), static_cast<float>((t + 0.5) * kEnergyStepDeg),
+                          static_cast<float>((p + 0.5) * kEnergyStepDeg));
   return sum;
 }
 
@@ -203,7 +212,7 @@ std::vector<double> weight_grid(const TableSpec &spec, int ti) {
   if (!(wi.z > 0.0f)) return w;
   for (int t = 0; t < kEnergyTheta; ++t)
     for (int p = 0; p < kEnergyPhi; ++p) {
-      const D3 wo_d = spherical((t + 0.5) * kDeg, (p + 0.5) * kDeg);
+      const D3 wo_d = spherical((t + 0.5) * kEnergyStepDeg * kDeg, (p + 0.5) * kEnergyStepDeg * kDeg);
       const Vec3 wo(static_cast<float>(wo_d.x), static_cast<float>(wo_d.y), static_cast<float>(wo_d.z));
       Vec3 h;
       if (!microfacet::half_vector_reflect(wi, wo, h)) continue;
@@ -211,9 +220,36 @@ std::vector<double> weight_grid(const TableSpec &spec, int ti) {
       if (!(wi_h > 0.0f) || !(h.z > 0.0f)) continue;
       const double g2 = microfacet::G2(dist, wi, wo, spec.alpha, spec.alpha);
       w[static_cast<size_t>(t) * kEnergyPhi + p] =
-          2.0 * g2 * wi_h / (wi.z * h.z) * std::sin((t + 0.5) * kDeg) * kDeg * kDeg;
+          2.0 * g2 * wi_h / (wi.z * h.z) * std::sin((t + 0.5) * kEnergyStepDeg * kDeg) * sq(kEnergyStepDeg * kDeg);
     }
   return w;
+}
+
+// The smooth microfacet albedo Int F G2 D / (4 cos_i) dwo (F = 1) at theta_i:
+// the smooth model's white furnace, which level 0 must not exceed (step 4).
+// Over visible normals h ~ D_wi (Heitz 2014), f cos dwo = G2 / G1(wi) dD_wi
+// where wo = reflect(wi, h) is above the horizon: a bounded integrand,
+// integrated by the midpoint rule on the sampler's unit square (the horizon
+// cut is the only discontinuity; 256^2 points resolve it to ~1e-4, where a
+// 1-degree grid over wo is 2 % low at 89 degrees).
+double smooth_albedo(const TableSpec &spec, int ti) {
+  constexpr int kSide = 256;
+  const microfacet::Distribution dist =
+      spec.distribution == BaseDistribution::GGX ? microfacet::Distribution::GGX : microfacet::Distribution::Beckmann;
+  const D3 wi_d = spherical(ti * kDeg, 0.0);
+  const Vec3 wi(static_cast<float>(wi_d.x), static_cast<float>(wi_d.y), static_cast<float>(wi_d.z));
+  if (!(wi.z > 0.0f)) return 0.0;
+  const float g1 = microfacet::G1(dist, wi, spec.alpha, spec.alpha);
+  if (!(g1 > 0.0f)) return 0.0;
+  double sum = 0.0;
+  for (int a = 0; a < kSide; ++a)
+    for (int b = 0; b < kSide; ++b) {
+      const float u1 = (a + 0.5f) / kSide, u2 = (b + 0.5f) / kSide;
+      const Vec3 h = microfacet::sample_visible_normal(dist, wi, spec.alpha, spec.alpha, u1, u2);
+      const Vec3 wo = microfacet::reflect_about(wi, h);
+      if (wo.z > 0.0f) sum += microfacet::G2(dist, wi, wo, spec.alpha, spec.alpha) / g1;
+    }
+  return sum / (static_cast<double>(kSide) * kSide);
 }
 
 // Energy validation of a table read from disk, after its MAC: per theta_i,
@@ -359,7 +395,21 @@ std::unique_ptr<DirectionalTable> build_directional_table(const TableSpec &spec,
     // probability toward grazing wo, where W is large: without this the
     // albedo grew to 2..4.7 at grazing incidence).
     const std::vector<double> weight = weight_grid(spec, ti);
-    const double target_energy = slice_energy(table->levels[0], ti, weight);
+    // Level 0 first: the cone estimator W(wo) P_gamma(wo) / sigma averages
+    // W over the cone (W is convex near the horizon) and is read through
+    // trilinear lookups, so its albedo can exceed the smooth model's (GGX
+    // 0.35: +0.6..1.0 % at 86..89 degrees; GGX 0.2: +0.7 % at normal
+    // incidence). Where it exceeds it by more than the energy grid resolves
+    // (kEnergyResolution), level 0 is scaled down to that bound; elsewhere it
+    // is left exact.
+    double target_energy = slice_energy(table->levels[0], ti, weight);
+    const double bound = smooth_albedo(spec, ti) * cone_solid_angle_d(spec.gamma_deg * kDeg) * (1.0 + kEnergyResolution);
+    if (target_energy > bound && bound > 0.0) {
+      const float s = static_cast<float>(bound / target_energy);
+      float *out = table->levels[0].values.data() + static_cast<size_t>(ti) * slice_size;
+      for (size_t i = 0; i < slice_size; ++i) out[i] *= s;
+      target_energy = slice_energy(table->levels[0], ti, weight);
+    }
     for (int l = 1; l < kLodCount; ++l) {
       LodLevel &level = table->levels[l];
       const double energy = slice_energy(level, ti, weight);

@@ -14,7 +14,7 @@
 // For an isotropic D, P depends on (theta_i, theta_o, dphi) with dphi folded to
 // [0, 180] degrees.
 //
-// Construction (the paper's structure; steps 1-2 differ):
+// Construction (the paper's structure; steps 1-2 and the level-0 cap differ):
 //  1-2. P_gamma for the material's gamma on a 1-degree grid (91 x 91 x 181
 //     nodes), each node by a product rule over the cone (Gauss-Chebyshev
 //     across the plane of (wi, wo), Gauss-Legendre along it) with points
@@ -28,13 +28,16 @@
 //     levels 1..8 are P_gamma blurred over wo on the sphere (separable: along
 //     theta_o, then along phi with sigma / sin(theta_o)), stored at a step
 //     ~ sigma / 3;
-//  4. energy: each blurred level is scaled per theta_i so that its reflected
-//     energy weighted by the BRDF's W(wi, wo) (the factor eval multiplies P
-//     with, tables/glint_common.h), Int W P_sigma dwo, equals that of P_gamma
-//     (1-degree midpoint rule through the level's own trilinear lookup).
-//     Normalising the probability mass alone let the blur move P toward
-//     grazing wo, where W is large: the albedo grew to 2..4.7 at grazing
-//     incidence.
+//  4. energy: per theta_i, level 0 is scaled down to the smooth microfacet
+//     albedo (+0.1 %, the energy grid's accuracy) where its own W-weighted
+//     albedo exceeds it (the cone estimator averages W over the cone, and W
+//     is convex near the horizon); then each blurred level is scaled so that
+//     its reflected energy weighted by the BRDF's W(wi, wo) (the factor eval
+//     multiplies P with, tables/glint_common.h), Int W P_sigma dwo, equals
+//     that of level 0 (0.5-degree midpoint rule through the level's own
+//     trilinear lookup). Normalising the probability mass alone let the blur
+//     move P toward grazing wo, where W is large: the albedo grew to 2..4.7
+//     at grazing incidence.
 // Lookups are trilinear within a level and linear in sigma between levels.
 //
 // Tables are cached on disk (host->cache_dir) under a hash of their

@@ -25,9 +25,9 @@ pg::NdfFunction ndf_of(mf::Distribution dist, float alpha) {
 // Level 0 against the brute-force cone integral over the lobe core
 // (reference >= 5 % of the peak): theta_i 0..80 degrees, wo within a few
 // degrees of the mirror direction in and across the plane of incidence, at
-// table nodes. Per theta_i the ratio P / reference is reported as a scale
-// (the slice's largest ratio) and a shape error (its spread), so that a
-// per-slice energy normalisation of level 0 would show as a scale. `reference_gamma` is
+// table nodes. Per theta_i the ratio P / reference is a constant (the energy
+// cap of step 4 scales a whole theta_i slice down where the cone estimator's
+// albedo exceeds the smooth one) times 1 + shape error. `reference_gamma` is
 // the cone of the reference (the table's gamma, or a wider one for the
 // negative control).
 struct Level0Error {
@@ -58,8 +58,9 @@ Level0Error level0_error(const pg::DirectionalTable &table, const pg::NdfFunctio
 
 // The table's P_gamma has the shape of the brute-force cone integral (48
 // rings of equal solid angle x 192 azimuths; 200 rings change it by < 1e-5)
-// within 0.5 % over the lobe core, and its scale within 0.5 %, for lobes narrower than the cone (roughness 0.15
-// and 0.2 at gamma 2 degrees: alpha 1.3 and 2.3 degrees). Negative control:
+// within 0.5 % over the lobe core, up to the energy cap's per-slice scale
+// (at most 1 + 0.5 %, at least 0.98), for lobes narrower than the cone
+// (roughness 0.15 and 0.2 at gamma 2 degrees: alpha 1.3 and 2.3 degrees). Negative control:
 // the old table's accumulation added a 1-degree cone's spread to the gamma
 // cone's (second moment gamma^2 + 1 deg^2); the same table compared with a
 // cone of that spread, gamma' = sqrt(gamma^2 + 1), differs in shape by > 2 %.
@@ -83,8 +84,8 @@ TEST(GlintTables, Level0EqualsBruteForceConeIntegralForNarrowLobes) {
                 c.dist == mf::Distribution::GGX ? "ggx" : "beckmann", c.roughness, error.shape, control.shape,
                 error.lowest_scale, error.highest_scale, table->build_seconds);
     EXPECT_LE(error.shape, 0.005) << c.roughness;
-    EXPECT_LE(error.highest_scale, 1.005) << c.roughness;
-    EXPECT_GE(error.lowest_scale, 0.995) << c.roughness;
+    EXPECT_LE(error.highest_scale, 1.005) << c.roughness;  // the cap only lowers P
+    EXPECT_GE(error.lowest_scale, 0.98) << c.roughness;
     EXPECT_GT(control.shape, 0.02) << c.roughness;
   }
 }
