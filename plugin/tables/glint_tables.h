@@ -14,23 +14,30 @@
 // For an isotropic D, P depends on (theta_i, theta_o, dphi) with dphi folded to
 // [0, 180] degrees.
 //
-// Construction, as in the paper:
-//  1. P_1 at gamma = 1 degree on a 1-degree grid (91 x 91 x 181 nodes), each
-//     node integrated by a 7-point degree-5 cone quadrature of (1);
-//  2. accumulation for the material's gamma: P_gamma(wo) is the sum of P_1
-//     over the 1-degree cones tiling cone(wo, gamma) (trilinear P_1 lookups);
+// Construction (the paper's structure; steps 1-2 and the level-0 cap differ):
+//  1-2. P_gamma for the material's gamma on a 1-degree grid (91 x 91 x 181
+//     nodes), each node by a product rule over the cone (Gauss-Chebyshev
+//     across the plane of (wi, wo), Gauss-Legendre along it) with points
+//     per axis set by the scale on which q varies there (2 alpha (wi.h)
+//     across, 2 alpha along). The paper's route, P at gamma = 1 degree
+//     summed over 1-degree cones tiling the gamma cone, adds the small
+//     cone's spread to the large one's: at roughness 0.2 (a lobe narrower
+//     than the cone) the mean was 2.7..6.9 % low;
 //  3. 9 Gaussian LOD levels (sigma = 1, 2, 5, 10, 20, 30, 45, 60, 90 degrees).
 //     Level 0 ("1 degree") is P_gamma itself at the 1-degree base resolution;
 //     levels 1..8 are P_gamma blurred over wo on the sphere (separable: along
 //     theta_o, then along phi with sigma / sin(theta_o)), stored at a step
 //     ~ sigma / 3;
-//  4. energy: each blurred level is scaled per theta_i so that its reflected
-//     energy weighted by the BRDF's W(wi, wo) (the factor eval multiplies P
-//     with, tables/glint_common.h), Int W P_sigma dwo, equals that of P_gamma
-//     (1-degree midpoint rule through the level's own trilinear lookup).
-//     Normalising the probability mass alone let the blur move P toward
-//     grazing wo, where W is large: the albedo grew to 2..4.7 at grazing
-//     incidence.
+//  4. energy: per theta_i, level 0 is scaled down to the smooth microfacet
+//     albedo (+0.1 %, the energy grid's accuracy) where its own W-weighted
+//     albedo exceeds it (the cone estimator averages W over the cone, and W
+//     is convex near the horizon); then each blurred level is scaled so that
+//     its reflected energy weighted by the BRDF's W(wi, wo) (the factor eval
+//     multiplies P with, tables/glint_common.h), Int W P_sigma dwo, equals
+//     that of level 0 (0.5-degree midpoint rule through the level's own
+//     trilinear lookup). Normalising the probability mass alone let the blur
+//     move P toward grazing wo, where W is large: the albedo grew to 2..4.7
+//     at grazing incidence.
 // Lookups are trilinear within a level and linear in sigma between levels.
 //
 // Tables are cached on disk (host->cache_dir) under a hash of their

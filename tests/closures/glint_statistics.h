@@ -172,31 +172,48 @@ inline Doubling doubling(const host::ClosureInstance &c, const Config &cfg, int 
   return {correlation(k1, k2), static_cast<double>(drops) / footprints};
 }
 
+// White-furnace albedo of a closure at one footprint by its own sampler:
+// the mean of f cos / pdf over side^2 samples, stratified in the first two
+// numbers (sample s uses the running index first_index + s), and the
+// per-sample variance.
+struct AlbedoEstimate {
+  double mean = 0.0, variance = 0.0;
+  int samples = 0;
+  double standard_error() const { return std::sqrt(variance / (samples - 1)); }
+};
+
+inline AlbedoEstimate sampled_albedo(const host::ClosureInstance &c, const GlimmerShadingContext &ctx, int side,
+                                     uint32_t first_index = 0) {
+  double sum = 0.0, sum2 = 0.0;
+  const int samples = side * side;
+  for (int s = 0; s < samples; ++s) {
+    const uint32_t index = first_index + static_cast<uint32_t>(s);
+    const float r3[3] = {static_cast<float>(((s % side) + uint_to_unit_float(hash_u32(2 * index))) / side),
+                         static_cast<float>(((s / side) + uint_to_unit_float(hash_u32(2 * index + 1))) / side),
+                         uint_to_unit_float(hash_u32x2(index, 7u))};
+    GlimmerSample out{};
+    double w = 0.0;
+    if (c.sample(ctx, r3, out) && out.pdf > 0.0f) w = out.eval[0] / out.pdf;
+    sum += w;
+    sum2 += w * w;
+  }
+  const double mean = sum / samples;
+  return {mean, std::max(sum2 / samples - mean * mean, 0.0), samples};
+}
+
 // Coefficient of variation of the per-footprint albedo, Monte Carlo with the
-// Monte Carlo variance removed.
+// Monte Carlo variance removed (`samples` a square).
 inline double albedo_cv(const host::ClosureInstance &c, const Config &cfg, int footprints, int samples) {
   const Vec3 wi = cfg.wi();
+  const int side = static_cast<int>(std::lround(std::sqrt(static_cast<double>(samples))));
   std::vector<double> albedo;
   double mc_var = 0.0;
   uint32_t index = 0;
   for (const auto &[u, v] : centres(footprints)) {
-    const GlimmerShadingContext ctx = square_context(wi, u, v, kFootprintSide);
-    double sum = 0.0, sum2 = 0.0;
-    for (int s = 0; s < samples; ++s, ++index) {
-      // Stratified in the first two dimensions.
-      const int side = static_cast<int>(std::sqrt(static_cast<double>(samples)));
-      const float r3[3] = {static_cast<float>(((s % side) + uint_to_unit_float(hash_u32(2 * index))) / side),
-                           static_cast<float>(((s / side % side) + uint_to_unit_float(hash_u32(2 * index + 1))) / side),
-                           uint_to_unit_float(hash_u32x2(index, 7u))};
-      GlimmerSample out{};
-      double w = 0.0;
-      if (c.sample(ctx, r3, out) && out.pdf > 0.0f) w = out.eval[0] / out.pdf;
-      sum += w;
-      sum2 += w * w;
-    }
-    const double mean = sum / samples;
-    albedo.push_back(mean);
-    mc_var += std::max(sum2 / samples - mean * mean, 0.0) / (samples - 1);
+    const AlbedoEstimate a = sampled_albedo(c, square_context(wi, u, v, kFootprintSide), side, index);
+    index += static_cast<uint32_t>(a.samples);
+    albedo.push_back(a.mean);
+    mc_var += a.variance / (a.samples - 1);
   }
   double m = 0, v = 0;
   for (double a : albedo) m += a;

@@ -13,6 +13,7 @@
 #include <thread>
 
 #include "closures/closure_checks.h"
+#include "closures/glint_statistics.h"
 #include "closures/glint_test_util.h"
 #include "glimmer/microfacet.h"
 #include "glimmer/rng.h"
@@ -263,19 +264,29 @@ TEST(Glint, BlurWiderThanTheConeIsFiltered) {
 // the cone, convex near the horizon: docs/glints.md), measured, not asserted.
 // Before issue 10 (blurred P times the unblurred weight W): GGX 0.35 had
 // albedo 1.35 at 80 degrees and 2.26 at 88 degrees at the largest blur.
+// (The 0.5 x 1-degree wo grid under-resolves the smooth albedo at 88..89
+// degrees by ~2 %: the next test checks the smooth bound with a converged
+// reference.)
+
+// A white-furnace material: a glint of `c` in filtered mode (F0 = 1, gamma 2).
+struct FurnaceCase {
+  const char *dist;
+  mf::Distribution d;
+  double roughness;
+};
+std::shared_ptr<host::ClosureInstance> filtered_glint(const FurnaceCase &c) {
+  return make_closure("glint", {{"distribution", c.dist},
+                                {"roughness", std::to_string(c.roughness)},
+                                {"gamma", "2"},
+                                {"density", "1e6"},
+                                {"filter_threshold", "0"}});
+}
+
 TEST(Glint, LodBlurConservesEnergyAtEveryIncidence) {
-  struct Case {
-    const char *dist;
-    mf::Distribution d;
-    double roughness;
-  };
   double worst = 0.0;
-  for (const Case &c : {Case{"ggx", mf::Distribution::GGX, 0.35}, Case{"beckmann", mf::Distribution::Beckmann, 0.5}}) {
-    auto glint = make_closure("glint", {{"distribution", c.dist},
-                                        {"roughness", std::to_string(c.roughness)},
-                                        {"gamma", "2"},
-                                        {"density", "1e6"},
-                                        {"filter_threshold", "0"}});
+  for (const FurnaceCase &c :
+       {FurnaceCase{"ggx", mf::Distribution::GGX, 0.35}, FurnaceCase{"beckmann", mf::Distribution::Beckmann, 0.5}}) {
+    auto glint = filtered_glint(c);
     const double alpha = c.roughness * c.roughness;
     for (double theta_i : {0.0, 30.0, 60.0, 75.0, 80.0, 85.0, 88.0, 89.0}) {
       const Vec3 wi = spherical_dir(theta_i, 0.0);
@@ -299,6 +310,69 @@ TEST(Glint, LodBlurConservesEnergyAtEveryIncidence) {
     }
   }
   std::printf("[energy] largest blurred / unblurred albedo: %.4f\n", worst);
+}
+
+// Smooth microfacet white-furnace albedo Int G2 D / (4 cos_i) dwo (F = 1)
+// over visible normals: G2 / G1(wi) where reflect(wi, h) is above the
+// horizon, midpoint rule on the sampler's unit square (side^2 points). Its
+// only discontinuity is the horizon cut, so it converges where a grid over
+// wo does not (at 89 degrees a 0.5 x 1-degree wo grid is 2 % low for GGX 0.35).
+double smooth_albedo_vndf(mf::Distribution dist, double alpha, const Vec3 &wi, int side = 512) {
+  const float a = static_cast<float>(alpha);
+  const float g1 = mf::G1(dist, wi, a, a);
+  double sum = 0.0;
+  for (int i = 0; i < side; ++i)
+    for (int j = 0; j < side; ++j) {
+      const Vec3 h = mf::sample_visible_normal(dist, wi, a, a, (i + 0.5f) / side, (j + 0.5f) / side);
+      const Vec3 wo = mf::reflect_about(wi, h);
+      if (wo.z > 0.0f) sum += mf::G2(dist, wi, wo, a, a) / g1;
+    }
+  return sum / (static_cast<double>(side) * side);
+}
+
+// The issue-10 energy line: white-furnace albedo <= the smooth model's + 3
+// sigma at every incidence 0..89 degrees (every 5 degrees to 70, then each
+// degree, where the horizon makes W convex) and every LOD blur (0,
+// 1/4, 1/2, 1 x the cap 2 alpha), GGX 0.35, Beckmann 0.5 and GGX 0.2 (a lobe
+// narrower than the cone). sigma: the standard error of the glint albedo by
+// its own sampler (2^16 stratified samples); the smooth albedo by a 512^2
+// visible-normal quadrature, checked here against a 0.1-degree wo grid away
+// from grazing (within 0.05 %).
+TEST(Glint, WhiteFurnaceAtMostSmoothAtEveryIncidenceAndBlur) {
+  double worst_sigmas = -1e9;
+  for (const FurnaceCase &c :
+       {FurnaceCase{"ggx", mf::Distribution::GGX, 0.35}, FurnaceCase{"beckmann", mf::Distribution::Beckmann, 0.5},
+        FurnaceCase{"ggx", mf::Distribution::GGX, 0.2}}) {
+    auto glint = filtered_glint(c);
+    const double alpha = c.roughness * c.roughness;
+    for (double theta_check : {0.0, 60.0}) {  // the reference against a fine wo grid
+      const Vec3 wi = spherical_dir(theta_check, 0.0);
+      const double grid =
+          hemisphere_integral([&](const Vec3 &wo) { return smooth_f_cos(c.d, alpha, wi, wo); }, 900, 3600);
+      EXPECT_NEAR(smooth_albedo_vndf(c.d, alpha, wi), grid, 5e-4 * grid) << c.dist << " theta_i " << theta_check;
+    }
+    double case_worst = -1e9, case_worst_theta = 0.0, case_worst_ratio = 0.0, ratio_theta = 0.0, ratio_sigma = 0.0;
+    for (int theta_i = 0; theta_i <= 89; theta_i += theta_i < 70 ? 5 : 1) {
+      const Vec3 wi = spherical_dir(theta_i, 0.0);
+      const double smooth = smooth_albedo_vndf(c.d, alpha, wi);
+      for (double blur : {0.0, 0.25, 0.5, 1.0}) {
+        const GlimmerShadingContext ctx = context(wi, 0.3, 0.6, 0.1, static_cast<float>(blur * 2.0 * alpha));
+        const glint_stats::AlbedoEstimate a = glint_stats::sampled_albedo(*glint, ctx, 256);
+        const double sigmas = (a.mean - smooth) / a.standard_error();
+        if (sigmas > case_worst) case_worst = sigmas, case_worst_theta = theta_i;
+        if (a.mean / smooth > case_worst_ratio)
+          case_worst_ratio = a.mean / smooth, ratio_theta = theta_i, ratio_sigma = a.standard_error() / smooth;
+        EXPECT_LE(a.mean, smooth + 3.0 * a.standard_error())
+            << c.dist << " r=" << c.roughness << " theta_i " << theta_i << " blur " << blur << ": albedo " << a.mean
+            << " +- " << a.standard_error() << ", smooth " << smooth;
+      }
+    }
+    std::printf("[furnace] %s r=%.2f: largest (albedo - smooth) / sigma %.2f at theta_i %g; largest albedo / smooth "
+                "%.4f (sigma %.4f) at theta_i %g\n",
+                c.dist, c.roughness, case_worst, case_worst_theta, case_worst_ratio, ratio_sigma, ratio_theta);
+    worst_sigmas = std::max(worst_sigmas, case_worst);
+  }
+  std::printf("[furnace] largest (albedo - smooth) / sigma over all cases: %.2f\n", worst_sigmas);
 }
 
 // Resolution (issue 10): a pixel at single resolution and the mean of its

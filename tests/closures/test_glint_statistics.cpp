@@ -63,15 +63,16 @@ struct Row {
 
 // The acceptance lines of issue 10 the model meets (docs/glints.md lists
 // the measured deviations that are not asserted: the lit-set correlation at
-// gamma for roughness 0.2, the albedo CV at 80 degrees, the mean at
-// roughness 0.2, which the 1-degree tables resolve only to 2..5 %).
+// gamma for roughness 0.2, the albedo CV at 80 degrees). The mean is
+// asserted on every row (at roughness 0.2 it was 2.7..6.9 % low before the
+// table integrated P over the cone directly, tables/glint_tables.cpp).
 void expect_acceptance(const Row &r) {
   const std::string where = r.cfg.name();
   EXPECT_NEAR(r.corr[1][0], r.corr[1][1], 0.1) << where << ": lit-set correlation at 2 gamma";
   EXPECT_NEAR(r.corr[2][0], r.corr[2][1], 0.1) << where << ": lit-set correlation at 4 gamma";
+  EXPECT_NEAR(r.mean.ratio, 1.0, 0.01 + 3.0 * r.mean.standard_error) << where << ": mean";
   if (r.cfg.roughness >= 0.5) {
     EXPECT_NEAR(r.corr[0][0], r.corr[0][1], 0.1) << where << ": lit-set correlation at gamma";
-    EXPECT_NEAR(r.mean.ratio, 1.0, 0.01 + 3.0 * r.mean.standard_error) << where << ": mean";
   }
   if (r.cfg.theta_i_deg <= 40.0) {
     EXPECT_LE(r.cv[0], 1.5 * r.cv[1]) << where << ": albedo coefficient of variation";

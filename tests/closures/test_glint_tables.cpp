@@ -1,0 +1,95 @@
+// Tests of the directional probability table (tables/glint_tables.*) against
+// brute force: level 0 is P_gamma, the integral of the reflected-direction
+// density q over the query cone (glint_tables.h equation (1)).
+#include <gtest/gtest.h>
+
+#include <cstdio>
+
+#include "closures/closure_checks.h"
+#include "closures/glint_test_util.h"
+#include "tables/glint_tables.h"
+
+namespace glimmer::test {
+namespace {
+
+namespace pg = plugin::glint;
+
+pg::NdfFunction ndf_of(mf::Distribution dist, float alpha) {
+  return [dist, alpha](double cos_m) {
+    const double c = std::min(std::max(cos_m, 0.0), 1.0);
+    const Vec3 m(static_cast<float>(std::sqrt(1.0 - c * c)), 0.0f, static_cast<float>(c));
+    return static_cast<double>(mf::D(dist, m, alpha, alpha));
+  };
+}
+
+// Level 0 against the brute-force cone integral over the lobe core
+// (reference >= 5 % of the peak): theta_i 0..80 degrees, wo within a few
+// degrees of the mirror direction in and across the plane of incidence, at
+// table nodes. Per theta_i the ratio P / reference is a constant (the energy
+// cap of step 4 scales a whole theta_i slice down where the cone estimator's
+// albedo exceeds the smooth one) times 1 + shape error. `reference_gamma` is
+// the cone of the reference (the table's gamma, or a wider one for the
+// negative control).
+struct Level0Error {
+  double shape = 0.0;                          // largest max/min - 1 of the ratio within a theta_i slice
+  double lowest_scale = 1.0, highest_scale = 0.0;  // range of the slices' largest ratios
+};
+Level0Error level0_error(const pg::DirectionalTable &table, const pg::NdfFunction &ndf, double reference_gamma) {
+  Level0Error e;
+  for (int ti = 0; ti <= 80; ti += 5) {
+    const double peak = pg::directional_probability_reference(ndf, reference_gamma, ti, ti, 180, 48);
+    double lo = 1e30, hi = 0.0;
+    for (int d_to : {-3, -1, 0, 1, 2, 4})
+      for (int dphi : {180, 178, 175, 170}) {
+        const int to = ti + d_to;
+        if (to < 0) continue;
+        const double ref = pg::directional_probability_reference(ndf, reference_gamma, ti, to, dphi, 48);
+        if (!(ref >= 0.05 * peak)) continue;
+        const double p = table.levels[0].lookup(static_cast<float>(ti), static_cast<float>(to), static_cast<float>(dphi));
+        lo = std::min(lo, p / ref);
+        hi = std::max(hi, p / ref);
+      }
+    e.shape = std::max(e.shape, hi / lo - 1.0);
+    e.lowest_scale = std::min(e.lowest_scale, hi);
+    e.highest_scale = std::max(e.highest_scale, hi);
+  }
+  return e;
+}
+
+// The table's P_gamma has the shape of the brute-force cone integral (48
+// rings of equal solid angle x 192 azimuths; 200 rings change it by < 1e-5)
+// within 0.5 % over the lobe core, up to the energy cap's per-slice scale
+// (at most 1 + 0.5 %, at least 0.98), for lobes narrower than the cone
+// (roughness 0.15 and 0.2 at gamma 2 degrees: alpha 1.3 and 2.3 degrees). Negative control:
+// the old table's accumulation added a 1-degree cone's spread to the gamma
+// cone's (second moment gamma^2 + 1 deg^2); the same table compared with a
+// cone of that spread, gamma' = sqrt(gamma^2 + 1), differs in shape by > 2 %.
+TEST(GlintTables, Level0EqualsBruteForceConeIntegralForNarrowLobes) {
+  struct Case {
+    mf::Distribution dist;
+    double roughness;
+  };
+  for (const Case &c : {Case{mf::Distribution::GGX, 0.2}, Case{mf::Distribution::GGX, 0.15},
+                        Case{mf::Distribution::Beckmann, 0.2}}) {
+    pg::TableSpec spec;
+    spec.distribution = c.dist == mf::Distribution::GGX ? pg::BaseDistribution::GGX : pg::BaseDistribution::Beckmann;
+    spec.alpha = static_cast<float>(c.roughness * c.roughness);
+    spec.gamma_deg = 2.0f;
+    const pg::NdfFunction ndf = ndf_of(c.dist, spec.alpha);
+    const auto table = pg::build_directional_table(spec, ndf, 2);
+    const Level0Error error = level0_error(*table, ndf, spec.gamma_deg);
+    const Level0Error control = level0_error(*table, ndf, std::sqrt(sqr(spec.gamma_deg) + 1.0));
+    std::printf("[table] %s r=%.2f gamma 2: P / brute force within a theta_i slice varies by %.4f (control, gamma' = "
+                "sqrt(5): %.4f); slice scales %.4f..%.4f; built in %.2f s\n",
+                c.dist == mf::Distribution::GGX ? "ggx" : "beckmann", c.roughness, error.shape, control.shape,
+                error.lowest_scale, error.highest_scale, table->build_seconds);
+    EXPECT_LE(error.shape, 0.005) << c.roughness;
+    EXPECT_LE(error.highest_scale, 1.005) << c.roughness;  // the cap only lowers P
+    EXPECT_GE(error.lowest_scale, 0.98) << c.roughness;
+    EXPECT_GT(control.shape, 0.02) << c.roughness;
+  }
+}
+
+
+}  // namespace
+}  // namespace glimmer::test
