@@ -268,12 +268,37 @@ class ShaderGraph:
         return (el.get("name"), "bsdf")
 
     def bsdf_glass(self, node, out, xml_type="glass_bsdf"):
+        if xml_type == "glass_bsdf" and SEPARABLE_SHADOWING and node.distribution in ("GGX", "BECKMANN"):
+            return self.glass_as_cycles3(node)
         el = self.add(xml_type, node.name, **microfacet_attributes(node.distribution))
         self.set_input(el, "color", node.inputs["Color"])
         self.set_input(el, "roughness", node.inputs["Roughness"])
         self.set_input(el, "IOR", node.inputs["IOR"])
         self.link_frame(el, node, "Normal")
         return (el.get("name"), "bsdf")
+
+    def glass_as_cycles3(self, node):
+        """Cycles 3.x's rough Glass BSDF (GGX, Beckmann): a Fresnel-free reflection lobe weighted by the dielectric
+        Fresnel of the shading normal, F(N.I), plus a Fresnel-free refraction lobe weighted by 1 - F(N.I)
+        (svm_node_closure_bsdf), not Walter's single lobe with F at each microfacet that glass_bsdf is (Cycles 4.x):
+        exported from Blender 3.x as mix(fresnel, refraction, glossy) (docs/microfacet.md, differences)."""
+        fresnel = self.add("fresnel", node.name + "_fresnel")
+        self.set_input(fresnel, "ior", node.inputs["IOR"])
+        self.link_frame(fresnel, node, "Normal")
+        lobes = []
+        for xml_type, suffix in (("refraction_bsdf", "_refraction"), ("glossy_bsdf", "_reflection")):
+            el = self.add(xml_type, node.name + suffix, **microfacet_attributes(node.distribution))
+            self.set_input(el, "color", node.inputs["Color"])
+            self.set_input(el, "roughness", node.inputs["Roughness"])
+            if xml_type == "refraction_bsdf":
+                self.set_input(el, "IOR", node.inputs["IOR"])
+            self.link_frame(el, node, "Normal")
+            lobes.append(el.get("name"))
+        mix = self.add("mix_closure", node.name)
+        self.connect((fresnel.get("name"), "fac"), mix.get("name"), "fac")
+        self.connect((lobes[0], "bsdf"), mix.get("name"), "closure1")
+        self.connect((lobes[1], "bsdf"), mix.get("name"), "closure2")
+        return (mix.get("name"), "closure")
 
     def bsdf_refraction(self, node, out):
         return self.bsdf_glass(node, out, "refraction_bsdf")

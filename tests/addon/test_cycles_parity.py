@@ -1081,6 +1081,45 @@ def scene_displacement_plane():
                ("displacement unlinked vs Cycles' bump", flat))
 
 
+def single_lobe_glass(xml_path):
+    """The exported scene with every Cycles-3.x glass mix (fresnel, refraction, glossy) replaced by glass_bsdf, the
+    single Walter lobe with Fresnel at each microfacet: written next to `xml`, its path returned."""
+    import xml.etree.ElementTree as ET
+    tree = ET.parse(xml_path)
+    for shader in tree.getroot().iter("shader"):
+        for fresnel in shader.findall("fresnel"):
+            base = fresnel.get("name")[:-len("_fresnel")]
+            refraction = shader.find("refraction_bsdf[@name='%s_refraction']" % base)
+            glass = ET.SubElement(shader, "glass_bsdf", name=base + "_single")
+            for key in ("distribution", "roughness", "IOR", "color", "shadowing"):
+                if refraction.get(key) is not None:
+                    glass.set(key, refraction.get(key))
+            for c in shader.findall("connect"):
+                if c.get("from") == base + " closure":
+                    c.set("from", base + "_single bsdf")
+    out = xml_path.replace(".xml", "_single_lobe_glass.xml")
+    tree.write(out)
+    return out
+
+
+def scene_rough_glass():
+    """Rough Glass BSDF (GGX 0.3, IOR 1.45) sphere in a constant 0.5 world: Cycles 3.x's glass, Fresnel(N.I)-weighted
+    reflection and refraction lobes, exported so from Blender 3.x. Negative control: Walter's single lobe
+    (glass_bsdf) in its place: +1.0 % over the image (scene (b)'s bias, docs/microfacet.md), most at the silhouette."""
+    scene = new_scene(samples=512)
+    world = scene.world
+    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.5, 0.5, 0.5, 1.0)
+    world.node_tree.nodes["Background"].inputs["Strength"].default_value = 1.0
+    add_camera(scene, (0.0, -4.0, 0.0), (90.0, 0.0, 0.0))
+    add_sphere(1.0, (0.0, 0.0, 0.0), material("Glass", "ShaderNodeBsdfGlass", (1.0, 1.0, 1.0),
+                                                distribution="GGX", Roughness=0.3, IOR=1.45))
+    glim, cyc = render_both("rough_glass")
+    xml, _ = mod.exporter.export_scene(bpy.context.evaluated_depsgraph_get(), os.path.join(opts.out, "rough_glass_1"))
+    single = glimmer_pixels(single_lobe_glass(xml), "rough_glass_single_lobe", bpy.context.scene.glimmer.seed)
+    check_grid("25 rough glass sphere (Cycles 3.x lobes), 4x4 regions", glim, cyc, full(glim), (4, 4),
+               ("single-lobe glass_bsdf", single))
+
+
 def scene_normal_map_sphere():
     """UV sphere (smooth) with a tangent-space Normal Map of a procedural colour (noise mixed with the flat
     (0.5, 0.5, 1)), 0.8 diffuse, area light and grey world. Negative control: Glimmer with strength 0."""
@@ -1254,7 +1293,7 @@ def glimmer_principled_rewrite(name, former_specular):
     mix(metallic, diffuse + glossy(0.08 specular), glossy(base colour))."""
     import xml.etree.ElementTree as ET
     xml, _ = mod.exporter.export_scene(bpy.context.evaluated_depsgraph_get(), os.path.join(opts.out, name + "_export"))
-    tree = ET.parse(xml)
+    tree = ET.parse(xml_path)
     for shader in tree.getroot().iter("shader"):
         for p in shader.findall("principled_bsdf"):
             pname, get = p.get("name"), p.get
@@ -1288,7 +1327,7 @@ def glimmer_ggx_coat_variant(name):
     lobe of alpha clearcoat_roughness^2 and colour 0.25 * clearcoat * Fresnel(1.5, N.I), added on top."""
     import xml.etree.ElementTree as ET
     xml, _ = mod.exporter.export_scene(bpy.context.evaluated_depsgraph_get(), os.path.join(opts.out, name + "_export"))
-    tree = ET.parse(xml)
+    tree = ET.parse(xml_path)
     for shader in tree.getroot().iter("shader"):
         for p in shader.findall("principled_bsdf"):
             coat = float(p.get("clearcoat", "0"))
@@ -1351,6 +1390,7 @@ SCENES = {
     "noise_roughness": scene_noise_roughness,
     "displacement_plane": scene_displacement_plane,
     "normal_map_sphere": scene_normal_map_sphere,
+    "rough_glass": scene_rough_glass,
     "anisotropic_cylinder": scene_anisotropic_cylinder,
     "principled_clearcoat": scene_principled_clearcoat,
     "principled_base": scene_principled_base,

@@ -245,18 +245,28 @@ check(any(c.get("from") == "tex color" and c.get("to") == "glint color" for c in
 texture = sparkle.find("image_texture")
 check(texture is not None and os.path.isfile(texture.get("filename")), "generated image saved for the renderer")
 glassglow = shaders["GlassGlow"]
-check(glassglow.find("glass_bsdf").get("IOR") == "1.5", "glass IOR")
+# From Blender 3.x the rough (GGX) glass is Cycles 3.x's own: mix(fresnel(N.I), refraction, glossy); 4.x: glass_bsdf.
+CYCLES3_GLASS = bpy.app.version < (4, 0, 0)
+glass_lobe = glassglow.find("refraction_bsdf" if CYCLES3_GLASS else "glass_bsdf")
+check(glass_lobe.get("IOR") == "1.5", "glass IOR")
+if CYCLES3_GLASS:
+    check(glassglow.find("fresnel").get("ior") == "1.5", "glass Fresnel IOR")
+    check(glassglow.find("glossy_bsdf") is not None and glassglow.find("glass_bsdf") is None, "glass split in lobes")
+    glass_connects = {(c.get("from"), c.get("to")) for c in glassglow.findall("connect")}
+    check({("glass_fresnel fac", "glass fac"), ("glass_refraction bsdf", "glass closure1"),
+           ("glass_reflection bsdf", "glass closure2")} <= glass_connects, "glass lobes wiring %s" % glass_connects)
 check(glassglow.find("emission").get("strength") == "4", "emission strength")
 # Cycles 3.x's separable Smith G on the single-scattering microfacet lobes when exported from Blender 3.x (4.x:
 # the closures' height-correlated default); Multiscatter GGX keeps the height-correlated G its tables need.
 expected_shadowing = "separable" if bpy.app.version < (4, 0, 0) else None
 # The Principled BSDF is expanded by the renderer into Cycles 3.4's own lobes (principled_specular), not glossy_bsdf.
 check(plastic_p.get("shadowing") is None, "principled_bsdf carries no shadowing attribute")
-check(glassglow.find("glass_bsdf").get("shadowing") == expected_shadowing, "glass shadowing")
+check(glass_lobe.get("shadowing") == expected_shadowing, "glass shadowing")
 from glimmer import exporter as glimmer_exporter  # noqa: E402
 check("shadowing" not in glimmer_exporter.microfacet_attributes("MULTI_GGX"), "multiscatter GGX: no shadowing")
 connects = {(c.get("from"), c.get("to")) for c in glassglow.findall("connect")}
-check({("glass bsdf", "mix closure1"), ("emit emission", "mix closure2"), ("mix closure", "output surface")}
+check({("glass closure" if CYCLES3_GLASS else "glass bsdf", "mix closure1"), ("emit emission", "mix closure2"),
+       ("mix closure", "output surface")}
       <= connects, "mix wiring %s" % connects)
 toon_el = shaders["Toon"]
 check(np.allclose(vec(toon_el.find("diffuse_bsdf"), "color"), [0.2, 0.9, 0.3]), "toon -> diffuse fallback")
