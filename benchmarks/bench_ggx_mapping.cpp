@@ -16,7 +16,11 @@
 // cone in double (the integrand is smooth inside it). Counters: relative RMSE of the pixel estimates over 4096
 // pixels (rmse_<mapping>_<sampler>, in units of the exact value) and, for the independent rows, z of the mean
 // against the exact value (a check of the harness and of each mapping's density: |z| should be < 3, and the
-// three independent RMSEs equal within their statistical error of about 2 %).
+// three independent RMSEs equal within their statistical error of about 2 %). Checks of the point set, cap mapping:
+// owen_cap (the same Sobol dimensions with a per-node random Owen scramble instead of the sampler's hash),
+// rot_cap / rot_slopes (unscrambled Sobol with a per-pixel Cranley-Patterson rotation, the randomization Cycles
+// 3.4 applies to its PMJ02 points). With a pixel footprint (last argument, the emitter's axis moving with the film
+// position across the pixel: a curved mirror), j4d_cap takes film and BSDF numbers from one 4D set.
 //   ./glimmer_benchmarks --benchmark_filter=GgxMapping
 #include <benchmark/benchmark.h>
 
@@ -183,6 +187,8 @@ enum class Sampler {
   Renderer,     // PixelSampler: film set and bounce-0 BSDF set, each its own shuffle and scramble (padding)
   Joint4D,      // PixelSampler: one 4D set, BSDF = dims 0, 1 and film = dims 2, 3 (jointly stratified)
   OwenPerNode,  // Sobol dims 0, 1 (BSDF) with a per-node Owen scramble, film by PCG32
+  Rotated,      // Sobol dims 0, 1 (BSDF, a (0, m, 2)-net like PMJ02) with a per-pixel Cranley-Patterson
+                // rotation instead of a scramble, as Cycles 3.4 randomizes its PMJ02 points; film by PCG32
 };
 struct SampleNumbers {
   float u1, u2, fx, fy;
@@ -210,6 +216,14 @@ SampleNumbers numbers(Sampler k, int px, int i, Pcg32 &rng) {
       const uint32_t seed = hash_u32x2(1u, pixel);
       n.u1 = uint_to_unit_float(owen_scramble_per_node(render::sobol_by_matrix(0, index), seed));
       n.u2 = uint_to_unit_float(owen_scramble_per_node(render::sobol_by_matrix(1, index), seed ^ 0x5bd1e995u));
+      n.fx = rng.next_float();
+      n.fy = rng.next_float();
+      break;
+    }
+    case Sampler::Rotated: {
+      const uint32_t seed = hash_u32x2(1u, pixel);
+      n.u1 = uint_to_unit_float(render::sobol_by_matrix(0, index) + hash_u32x2(seed, 0u));  // + offset mod 1
+      n.u2 = uint_to_unit_float(render::sobol_by_matrix(1, index) + hash_u32x2(seed, 1u));
       n.fx = rng.next_float();
       n.fy = rng.next_float();
       break;
@@ -258,6 +272,8 @@ void BM_GgxMappingRmse(benchmark::State &state) {
       state.counters[std::string("z_") + names[k]] = r.z_mean;
     }
     state.counters["owen_cap"] = pixel_error(s, exact, Mapping::Cap, Sampler::OwenPerNode, spp).rel_rmse;
+    state.counters["rot_cap"] = pixel_error(s, exact, Mapping::Cap, Sampler::Rotated, spp).rel_rmse;
+    state.counters["rot_slopes"] = pixel_error(s, exact, Mapping::Slopes, Sampler::Rotated, spp).rel_rmse;
     if (footprint > 0.0f) state.counters["j4d_cap"] = pixel_error(s, exact, Mapping::Cap, Sampler::Joint4D, spp).rel_rmse;
     state.counters["exact"] = exact;
   }
