@@ -3,7 +3,7 @@
 Run headless (not part of `make test`; it takes minutes):
   blender -b --factory-startup --python benchmarks/cycles_equal_error.py -- --glimmer build/glimmer --out DIR
       [--scenes a,b,c] [--samples 256] [--reference-samples 4096] [--size 96] [--repeats 3]
-      [--reuse-references] [--ladder 16,32,64,128,256] [--noise-seeds 5]
+      [--reuse-references] [--ladder 16,32,64,128,256] [--noise-seeds 5] [--means]
 
 Scenes, built by script as tests/addon/test_cycles_parity.py builds its scenes (box filter width 1, no clamps,
 no filter glossy, no denoising, linear float EXR) and exported by the addon:
@@ -12,6 +12,7 @@ no filter glossy, no denoising, linear float EXR) and exported by the addon:
   c  a diffuse box lit by an area light with a glossy (GGX 0.3) sphere
   g  a white glass sphere (GGX 0.6, IOR 1.5) filling the frame in a constant white world (full depth)
   m  the same with multi_ggx glass
+  b1..b11  scene (b) with one part changed (scene_b_variant; BUILD lists them), to bisect its bias
 For each: a Cycles reference (seed 7), then Cycles and Glimmer at the same sample count, interleaved
 --repeats times in ABBA order (C G G C C G ...: the two renderers share the machine's load drift), seed 1,
 wall time of each render call (median of the repeats; the images are identical across repeats), RMSE against
@@ -25,6 +26,9 @@ rendering them again.
 ratio uses each renderer's mean RMSE over seeds 1..N (the seed-1 figures are printed too).
 --ladder 16,32,...: instead of the timing, each renderer's RMSE against its own reference at every rung and
 the fitted log-log slope (Cycles' convergence next to Glimmer's on the same exported scene).
+--means: instead of the timing, each renderer's image mean at --samples over seeds 1 and 2, its standard error
+(from the two seeds' per-pixel difference) and glimmer / cycles; no reference (docs/architecture.md
+"Scene (b)'s bias").
 """
 import argparse
 import os
