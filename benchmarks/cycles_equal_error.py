@@ -3,7 +3,7 @@
 Run headless (not part of `make test`; it takes minutes):
   blender -b --factory-startup --python benchmarks/cycles_equal_error.py -- --glimmer build/glimmer --out DIR
       [--scenes a,b,c] [--samples 256] [--reference-samples 4096] [--size 96] [--repeats 3]
-      [--reuse-references] [--ladder 16,32,64,128,256] [--noise-seeds 5]
+      [--reuse-references] [--ladder 16,32,64,128,256] [--noise-seeds 5] [--means]
 
 Scenes, built by script as tests/addon/test_cycles_parity.py builds its scenes (box filter width 1, no clamps,
 no filter glossy, no denoising, linear float EXR) and exported by the addon:
@@ -12,6 +12,7 @@ no filter glossy, no denoising, linear float EXR) and exported by the addon:
   c  a diffuse box lit by an area light with a glossy (GGX 0.3) sphere
   g  a white glass sphere (GGX 0.6, IOR 1.5) filling the frame in a constant white world (full depth)
   m  the same with multi_ggx glass
+  b1..b11  scene (b) with one part changed (scene_b_variant; BUILD lists them), to bisect its bias
 For each: a Cycles reference (seed 7), then Cycles and Glimmer at the same sample count, interleaved
 --repeats times in ABBA order (C G G C C G ...: the two renderers share the machine's load drift), seed 1,
 wall time of each render call (median of the repeats; the images are identical across repeats), RMSE against
@@ -25,6 +26,9 @@ rendering them again.
 ratio uses each renderer's mean RMSE over seeds 1..N (the seed-1 figures are printed too).
 --ladder 16,32,...: instead of the timing, each renderer's RMSE against its own reference at every rung and
 the fitted log-log slope (Cycles' convergence next to Glimmer's on the same exported scene).
+--means: instead of the timing, each renderer's image mean at --samples over seeds 1 and 2, its standard error
+(from the two seeds' per-pixel difference) and glimmer / cycles; no reference (docs/architecture.md
+"Scene (b)'s bias").
 """
 import argparse
 import os
@@ -52,6 +56,7 @@ parser.add_argument("--threads", type=int, default=2)
 parser.add_argument("--repeats", type=int, default=3)
 parser.add_argument("--reuse-references", action="store_true")
 parser.add_argument("--ladder", default="")
+parser.add_argument("--means", action="store_true")
 parser.add_argument("--noise-seeds", type=int, default=1)
 opts = parser.parse_args(argv)
 os.environ["GLIMMER_EXECUTABLE"] = os.path.abspath(opts.glimmer)
@@ -181,8 +186,68 @@ def white_world_glass(samples, distribution):
     return scene
 
 
+def fresnel_mix_glass(roughness, ior):
+    """Mix(Fresnel(ior), GGX Refraction, GGX Glossy): the macro-surface Fresnel split of Cycles 3.x's Glass BSDF."""
+    mat = material("FresnelMixGlass", "ShaderNodeBsdfGlossy", (1.0, 1.0, 1.0), distribution="GGX", Roughness=roughness)
+    tree = mat.node_tree
+    glossy = tree.nodes["Glossy BSDF"]
+    refraction = tree.nodes.new("ShaderNodeBsdfRefraction")
+    refraction.distribution = "GGX"
+    refraction.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    refraction.inputs["Roughness"].default_value = roughness
+    refraction.inputs["IOR"].default_value = ior
+    fresnel = tree.nodes.new("ShaderNodeFresnel")
+    fresnel.inputs["IOR"].default_value = ior
+    mix = tree.nodes.new("ShaderNodeMixShader")
+    tree.links.new(fresnel.outputs["Fac"], mix.inputs["Fac"])
+    tree.links.new(refraction.outputs[0], mix.inputs[1])
+    tree.links.new(glossy.outputs[0], mix.inputs[2])
+    tree.links.new(mix.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    return mat
+
+
+def scene_b_variant(samples, world="hdr", floor="glossy", sphere=True, world_sampling="AUTOMATIC",
+                    sphere_node="ShaderNodeBsdfGlass", roughness=0.3):
+    """Scene (b) with one part changed, to bisect its bias vs Cycles (--means): world "hdr" or "constant" (0.5),
+    floor "glossy", "diffuse" or None, the glass sphere or not; world_sampling is Cycles' only (Glimmer has none)."""
+    scene = new_scene(samples)
+    if world == "hdr":
+        hdr = os.path.join(opts.out, "sky.exr")
+        write_hdr(hdr)
+        set_world_hdr(scene, hdr)
+    else:
+        set_world_color(scene, (0.5, 0.5, 0.5))
+    scene.world.cycles.sampling_method = world_sampling
+    add_camera(scene, (0.0, -5.0, 1.6), (76.0, 0.0, 0.0))
+    if floor == "glossy":
+        add_plane(20.0, mat=material("Floor", "ShaderNodeBsdfGlossy", (0.6, 0.6, 0.6), distribution="GGX", Roughness=0.3))
+    elif floor == "diffuse":
+        add_plane(20.0, mat=material("Floor", "ShaderNodeBsdfDiffuse", (0.6, 0.6, 0.6)))
+    if sphere == "fresnel_mix":  # Cycles 3.x's Glass BSDF written out as nodes (see docs/architecture.md)
+        add_sphere(1.0, (0, 0, 1.0), fresnel_mix_glass(roughness, 1.45))
+    elif sphere:
+        ior = {} if sphere_node == "ShaderNodeBsdfGlossy" else {"IOR": 1.45}
+        add_sphere(1.0, (0, 0, 1.0), material("Sphere", sphere_node, (1.0, 1.0, 1.0), distribution="GGX",
+                                              Roughness=roughness, **ior))
+    return scene
+
+
 BUILD = {"a": scene_a, "b": scene_b, "c": scene_c, "g": lambda n: white_world_glass(n, "GGX"),
-         "m": lambda n: white_world_glass(n, "MULTI_GGX")}
+         "m": lambda n: white_world_glass(n, "MULTI_GGX"),
+         # scene (b)'s bisection variants (--means)
+         "b1": lambda n: scene_b_variant(n, floor="diffuse", sphere=False),  # the HDR sky alone on a diffuse floor
+         "b2": lambda n: scene_b_variant(n, sphere=False),  # the glossy floor alone
+         "b3": lambda n: scene_b_variant(n, world="constant", floor=None),  # the glass sphere alone, constant world
+         "b4": lambda n: scene_b_variant(n, world="constant"),  # (b) with a constant world
+         "b5": lambda n: scene_b_variant(n, world_sampling="NONE"),  # (b), Cycles' world importance sampling off
+         "b6": lambda n: scene_b_variant(n, floor="diffuse"),  # (b) with a diffuse floor
+         # the sphere alone in a constant world: smooth glass, the refraction and the reflection lobes alone
+         "b7": lambda n: scene_b_variant(n, world="constant", floor=None, roughness=0.0),
+         "b8": lambda n: scene_b_variant(n, world="constant", floor=None, sphere_node="ShaderNodeBsdfRefraction"),
+         "b9": lambda n: scene_b_variant(n, world="constant", floor=None, sphere_node="ShaderNodeBsdfGlossy"),
+         # the glass sphere as Cycles 3.x's split: Mix(Fresnel, Refraction, Glossy); constant world, then (b)'s
+         "b10": lambda n: scene_b_variant(n, world="constant", floor=None, sphere="fresnel_mix"),
+         "b11": lambda n: scene_b_variant(n, sphere="fresnel_mix")}  # (b) with a diffuse floor
 
 
 def render_cycles(name, seed):
@@ -271,8 +336,29 @@ def ladder(key, ref_c, ref_g):
         slope["c"], slope["g"])
 
 
+def image_means(key):
+    """Both renderers' image means at --samples with two seeds each: the mean of the four renders per renderer,
+    its standard error from the two seeds' per-pixel difference, and the ratio glimmer / cycles."""
+    BUILD[key](opts.samples)
+    stats = {}
+    for r, render in (("c", render_cycles), ("g", render_glimmer)):
+        a = render("%s_%s_s1" % (key, r), 1)[0]
+        b = render("%s_%s_s2" % (key, r), 2)[0]
+        mean = 0.5 * (a.mean() + b.mean())
+        se = float(np.sqrt(np.sum((a - b) ** 2) / 2.0)) / a.size / np.sqrt(2.0)
+        stats[r] = (float(mean), se)
+    (mc, sc), (mg, sg) = stats["c"], stats["g"]
+    ratio = mg / mc
+    return "scene %s %dx%d 2x%d spp means: cycles %.5f +- %.5f glimmer %.5f +- %.5f ratio %.4f +- %.4f" % (
+        key, opts.size, opts.size, opts.samples, mc, sc, mg, sg, ratio, ratio * np.hypot(sc / mc, sg / mg))
+
+
 lines = []
 for key in opts.scenes.split(","):
+    if opts.means:
+        lines.append(image_means(key))
+        print(lines[-1], flush=True)
+        continue
     BUILD[key](opts.reference_samples)
     ref_c, t_ref_c = reference(render_cycles, "%s_cycles_ref" % key)
     ref_g, t_ref_g = reference(render_glimmer, "%s_glimmer_ref" % key)
