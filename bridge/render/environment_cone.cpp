@@ -84,7 +84,7 @@ Spectrum EnvironmentCone::lookup(const ShaderSystem &shaders, const Vec3 &direct
   // cells (pi / height radians tall) are that wide.
   const float spacing = std::sqrt(kTwoPi * one_minus_cos / float(kConePoints));
   // Below level 2 the map's bilinear footprint would blur the cap's edge by more than a few percent of its width:
-  // the background is then evaluated at the points themselves (cones up to ~8 degrees: kConePoints shader
+  // the background is then evaluated at the points themselves (cones up to ~9 degrees: kConePoints shader
   // evaluations).
   const float level = std::log2(spacing / (kPi / float(kBaseHeight))) + kLevelBias;
   const bool direct = level < 2.0f;

@@ -11,7 +11,9 @@
 // cone_angle about `direction`, each read bilinearly from the mip level whose
 // cell is as wide as the spacing of those points (linear between two levels),
 // so the cap is covered without gaps: the radiance averaged uniformly over the
-// cap's solid angle. Thread-safe; the build is deterministic.
+// cap's solid angle. Narrow cones (that level below 2, up to ~9 degrees) read the
+// background at the spiral's points directly and build nothing. Thread-safe; the
+// build is deterministic.
 #pragma once
 
 #include <mutex>
