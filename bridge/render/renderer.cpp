@@ -18,6 +18,7 @@
 #include "host/log.h"
 #include "render/accel.h"
 #include "render/camera.h"
+#include "render/environment_cone.h"
 #include "render/film_filter.h"
 #include "render/lights.h"
 #include "render/object_space.h"
@@ -65,6 +66,7 @@ struct Renderer::Impl {
   GlimmerHostServices host{};
   std::string cache_dir;
   std::unique_ptr<ShaderSystem> shaders;
+  EnvironmentCone environment_cone;  // the world over a cone (environment_lookup), built on first use
   std::vector<int> mesh_shader;  // compiled shader per mesh
   std::vector<ObjectSpace> mesh_object_space;  // per mesh: its object space (closure ABI 2.5 context fields)
   std::unique_ptr<LightSet> lights;
@@ -135,8 +137,10 @@ struct Renderer::Impl {
     hit->uv[1] = s.uv[1];
     hit->object_id = static_cast<uint32_t>(h.mesh);
   }
-  static void host_environment(void *data, GlimmerVec3 direction, float, float out[3]) {
-    const Spectrum c = static_cast<Impl *>(data)->shaders->background(normalize(Vec3(direction)));
+  // Cone 0 (or a constant world) is the background itself; a cone reads the pre-filtered map (environment_cone.h).
+  static void host_environment(void *data, GlimmerVec3 direction, float cone_angle, float out[3]) {
+    const auto *self = static_cast<Impl *>(data);
+    const Spectrum c = self->environment_cone.lookup(*self->shaders, normalize(Vec3(direction)), cone_angle);
     out[0] = c.x;
     out[1] = c.y;
     out[2] = c.z;
