@@ -1293,7 +1293,7 @@ def glimmer_principled_rewrite(name, former_specular):
     mix(metallic, diffuse + glossy(0.08 specular), glossy(base colour))."""
     import xml.etree.ElementTree as ET
     xml, _ = mod.exporter.export_scene(bpy.context.evaluated_depsgraph_get(), os.path.join(opts.out, name + "_export"))
-    tree = ET.parse(xml_path)
+    tree = ET.parse(xml)
     for shader in tree.getroot().iter("shader"):
         for p in shader.findall("principled_bsdf"):
             pname, get = p.get("name"), p.get
@@ -1327,7 +1327,7 @@ def glimmer_ggx_coat_variant(name):
     lobe of alpha clearcoat_roughness^2 and colour 0.25 * clearcoat * Fresnel(1.5, N.I), added on top."""
     import xml.etree.ElementTree as ET
     xml, _ = mod.exporter.export_scene(bpy.context.evaluated_depsgraph_get(), os.path.join(opts.out, name + "_export"))
-    tree = ET.parse(xml_path)
+    tree = ET.parse(xml)
     for shader in tree.getroot().iter("shader"):
         for p in shader.findall("principled_bsdf"):
             coat = float(p.get("clearcoat", "0"))
