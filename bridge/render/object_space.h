@@ -13,31 +13,16 @@
 namespace glimmer::render {
 
 // The world-to-object map of an object whose transform is `object_to_world`:
-// its affine inverse (the linear part's inverse by cofactors, then the
-// translation), and the transpose of the linear part, which takes a world
-// normal back to the object's (n_world ~ M^-T n_object).
+// its affine inverse (scene::Transform::inverse), and the transpose of the
+// linear part, which takes a world normal back to the object's
+// (n_world ~ M^-T n_object).
 struct ObjectSpace {
   scene::Transform world_to_object;
   scene::Transform object_to_world;
   bool valid = false;  // false for a singular transform: the context's object fields stay zero
 
-  explicit ObjectSpace(const scene::Transform &m) : object_to_world(m) {
-    const Vec3 c0(m.m[0][0], m.m[1][0], m.m[2][0]), c1(m.m[0][1], m.m[1][1], m.m[2][1]),
-        c2(m.m[0][2], m.m[1][2], m.m[2][2]);
-    const Vec3 r0 = cross(c1, c2), r1 = cross(c2, c0), r2 = cross(c0, c1);  // rows of the inverse times det
-    const float det = dot(c0, r0);
-    if (!(std::fabs(det) > 1e-30f) || !std::isfinite(det)) return;
-    const float inv = 1.0f / det;
-    const Vec3 rows[3] = {r0 * inv, r1 * inv, r2 * inv};
-    const Vec3 t(m.m[0][3], m.m[1][3], m.m[2][3]);
-    for (int i = 0; i < 3; ++i) {
-      world_to_object.m[i][0] = rows[i].x;
-      world_to_object.m[i][1] = rows[i].y;
-      world_to_object.m[i][2] = rows[i].z;
-      world_to_object.m[i][3] = -dot(rows[i], t);
-    }
-    valid = true;
-  }
+  explicit ObjectSpace(const scene::Transform &m)
+      : object_to_world(m), valid(m.inverse(world_to_object, 1e-30f)) {}
 
   // Unit object-space normal of the world normal `n_world`.
   Vec3 normal(const Vec3 &n_world) const {

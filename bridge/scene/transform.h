@@ -68,6 +68,23 @@ struct Transform {
     const Vec3 out = r0 * n.x + r1 * n.y + r2 * n.z;
     return det < 0.0f ? -out : out;
   }
+  // The affine inverse: the linear part's inverse (its columns are the cross products of the rows over the
+  // determinant), then the translation. False, `out` untouched, when |det| <= min_abs_det or det is not finite.
+  bool inverse(Transform &out, float min_abs_det = 0.0f) const {
+    const Vec3 r0(m[0][0], m[0][1], m[0][2]), r1(m[1][0], m[1][1], m[1][2]), r2(m[2][0], m[2][1], m[2][2]);
+    const float det = dot(r0, cross(r1, r2));
+    if (!(std::fabs(det) > min_abs_det) || !std::isfinite(det)) return false;
+    const Vec3 c0 = cross(r1, r2) / det, c1 = cross(r2, r0) / det, c2 = cross(r0, r1) / det;
+    const Vec3 rows[3] = {{c0.x, c1.x, c2.x}, {c0.y, c1.y, c2.y}, {c0.z, c1.z, c2.z}};
+    const Vec3 t(m[0][3], m[1][3], m[2][3]);
+    for (int r = 0; r < 3; ++r) {
+      out.m[r][0] = rows[r].x;
+      out.m[r][1] = rows[r].y;
+      out.m[r][2] = rows[r].z;
+      out.m[r][3] = -dot(rows[r], t);
+    }
+    return true;
+  }
   float determinant() const {
     const Vec3 c0(m[0][0], m[1][0], m[2][0]), c1(m[0][1], m[1][1], m[2][1]), c2(m[0][2], m[1][2], m[2][2]);
     return dot(c0, cross(c1, c2));

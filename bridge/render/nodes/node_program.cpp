@@ -6,6 +6,7 @@
 #include <map>
 #include <set>
 
+#include "scene/transform.h"
 #include "scene/xml_loader.h"
 
 namespace glimmer::render::nodes {
@@ -31,21 +32,13 @@ std::string lower(std::string s) {
 
 // Inverse of an affine 3x4 row-major transform (zero when singular).
 std::array<float, 12> affine_inverse(const std::array<float, 12> &m) {
-  auto a = [&](int r, int c) { return m[4 * r + c]; };
-  const Vec3 r0(a(0, 0), a(0, 1), a(0, 2)), r1(a(1, 0), a(1, 1), a(1, 2)), r2(a(2, 0), a(2, 1), a(2, 2));
-  const float det = dot(r0, cross(r1, r2));
+  scene::Transform t, inverse;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 4; ++c) t.m[r][c] = m[4 * r + c];
   std::array<float, 12> out{};
-  if (det == 0.0f || !std::isfinite(det)) return out;
-  // Columns of the inverse are the cross products of the rows over det.
-  const Vec3 c0 = cross(r1, r2) / det, c1 = cross(r2, r0) / det, c2 = cross(r0, r1) / det;
-  const Vec3 rows[3] = {{c0.x, c1.x, c2.x}, {c0.y, c1.y, c2.y}, {c0.z, c1.z, c2.z}};
-  const Vec3 t(a(0, 3), a(1, 3), a(2, 3));
-  for (int r = 0; r < 3; ++r) {
-    out[4 * r + 0] = rows[r].x;
-    out[4 * r + 1] = rows[r].y;
-    out[4 * r + 2] = rows[r].z;
-    out[4 * r + 3] = -dot(rows[r], t);
-  }
+  if (!t.inverse(inverse)) return out;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 4; ++c) out[4 * r + c] = inverse.m[r][c];
   return out;
 }
 
