@@ -199,15 +199,22 @@ class GlimmerClosureNodeMixin:
         return out
 
 
+def _tag_node_tree(node, _context):
+    """A Python property's edit tags nothing by itself: without this the depsgraph's evaluated copy of the
+    material keeps the old value once evaluated, so the viewport render and the exporter would not see it."""
+    node.id_data.update_tag()
+
+
 def _property_for(param):
     doc = param.get("doc", "")
     label = schema_mod.socket_name(param["name"])
+    common = {"name": label, "description": doc, "update": _tag_node_tree}
     if param["type"] == "enum":
         items = [(c, c.replace("_", " ").title(), "") for c in param["choices"]]
-        return bpy.props.EnumProperty(name=label, description=doc, items=items, default=param["default"])
+        return bpy.props.EnumProperty(items=items, default=param["default"], **common)
     if param["type"] == "bool":
-        return bpy.props.BoolProperty(name=label, description=doc, default=bool(param["default"]))
-    return bpy.props.StringProperty(name=label, description=doc, default=param.get("default", ""))
+        return bpy.props.BoolProperty(default=bool(param["default"]), **common)
+    return bpy.props.StringProperty(default=param.get("default", ""), **common)
 
 
 def make_node_class(closure):
