@@ -10,8 +10,8 @@
 //   slopes  - Heitz & d'Eon 2014 slope space, as Cycles 3.4 maps GGX: slope x by the exact inverse of its
 //             marginal CDF in u1, slope y from u2 folded at 0.5 (here the exact inverse of the conditional CDF
 //             instead of Cycles' rational fit, so that the density is the same as the other two),
-// fed with either the renderer's Owen-scrambled Sobol points (render::PixelSampler, dims x, y of the bounce-0
-// BSDF set, as a single-closure conductor uses them) or independent PCG32 numbers. Each pixel has its own
+// fed with either the renderer's Owen-scrambled Sobol points (render::PixelSampler::get_path_start: film u, v and
+// BSDF x, y of the camera set, as a single-closure conductor uses them) or independent PCG32 numbers. Each pixel has its own
 // scramble (seed 1, pixel index) or its own PCG stream. The exact integral is a 2D midpoint quadrature over the
 // cone in double (the integrand is smooth inside it). Counters: relative RMSE of the pixel estimates over 4096
 // pixels (rmse_<mapping>_<sampler>, in units of the exact value) and, for the independent rows, z of the mean
@@ -20,7 +20,10 @@
 // owen_cap (the same Sobol dimensions with a per-node random Owen scramble instead of the sampler's hash),
 // rot_cap / rot_slopes (unscrambled Sobol with a per-pixel Cranley-Patterson rotation, the randomization Cycles
 // 3.4 applies to its PMJ02 points). With a pixel footprint (last argument, the emitter's axis moving with the film
-// position across the pixel: a curved mirror), j4d_cap takes film and BSDF numbers from one 4D set.
+// position across the pixel: a curved mirror), padded_cap takes film and BSDF numbers from two 2D sets (the
+// renderer's layout before issue 13, session 6: each its own index shuffle and scramble) and j4d23_cap from one
+// 4D set the other way round (BSDF = Sobol dimensions 0-1, film = 2-3); qmc_cap is the renderer's camera set
+// (film = 0-1, BSDF = 2-3).
 //   ./glimmer_benchmarks --benchmark_filter=GgxMapping
 #include <benchmark/benchmark.h>
 
@@ -184,7 +187,8 @@ uint32_t owen_scramble_per_node(uint32_t v, uint32_t seed) {
 // Where a pixel's (film, BSDF) numbers come from.
 enum class Sampler {
   Independent,  // PCG32
-  Renderer,     // PixelSampler: film set and bounce-0 BSDF set, each its own shuffle and scramble (padding)
+  Renderer,     // PixelSampler::get_path_start: the camera set, film = dims 0, 1 and BSDF = dims 2, 3
+  Padded,       // PixelSampler: film and BSDF from two 2D sets, each its own shuffle and scramble (padding)
   Joint4D,      // PixelSampler: one 4D set, BSDF = dims 0, 1 and film = dims 2, 3 (jointly stratified)
   OwenPerNode,  // Sobol dims 0, 1 (BSDF) with a per-node Owen scramble, film by PCG32
   Rotated,      // Sobol dims 0, 1 (BSDF, a (0, m, 2)-net like PMJ02) with a per-pixel Cranley-Patterson
@@ -203,6 +207,14 @@ SampleNumbers numbers(Sampler k, int px, int i, Pcg32 &rng) {
     case Sampler::Renderer: {
       float film[2], bsdf[4], light[2];
       render::PixelSampler(1u, pixel, index).get_path_start(film, bsdf, light);
+      n = {bsdf[0], bsdf[1], film[0], film[1]};
+      break;
+    }
+    case Sampler::Padded: {
+      float film[2], bsdf[2];
+      const render::PixelSampler sampler(1u, pixel, index);
+      sampler.get(0u, film);
+      sampler.get(render::bounce_set(0, render::kSetLight), bsdf);
       n = {bsdf[0], bsdf[1], film[0], film[1]};
       break;
     }
@@ -274,7 +286,10 @@ void BM_GgxMappingRmse(benchmark::State &state) {
     state.counters["owen_cap"] = pixel_error(s, exact, Mapping::Cap, Sampler::OwenPerNode, spp).rel_rmse;
     state.counters["rot_cap"] = pixel_error(s, exact, Mapping::Cap, Sampler::Rotated, spp).rel_rmse;
     state.counters["rot_slopes"] = pixel_error(s, exact, Mapping::Slopes, Sampler::Rotated, spp).rel_rmse;
-    if (footprint > 0.0f) state.counters["j4d_cap"] = pixel_error(s, exact, Mapping::Cap, Sampler::Joint4D, spp).rel_rmse;
+    if (footprint > 0.0f) {
+      state.counters["padded_cap"] = pixel_error(s, exact, Mapping::Cap, Sampler::Padded, spp).rel_rmse;
+      state.counters["j4d23_cap"] = pixel_error(s, exact, Mapping::Cap, Sampler::Joint4D, spp).rel_rmse;
+    }
     state.counters["exact"] = exact;
   }
 }

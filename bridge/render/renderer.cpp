@@ -672,7 +672,7 @@ struct Renderer::Impl {
     return ray;
   }
 
-  // The camera ray of one sample: filter-importance-sampled film position (film_uv: the film set), lens point
+  // The camera ray of one sample: filter-importance-sampled film position (film_uv: the camera set), lens point
   // with depth of field.
   PathRay sample_camera_ray(int px, int py, const float film_uv[2], const PixelSampler &sampler) const {
     const float ox = filter.offset(film_uv[0]), oy = filter.offset(film_uv[1]);
@@ -825,7 +825,8 @@ struct Renderer::Impl {
     const uint32_t pixel_index = static_cast<uint32_t>(py) * static_cast<uint32_t>(width) + static_cast<uint32_t>(px);
     const PixelSampler sampler(seed, pixel_index, sample_index);
     const uint32_t path_seed = hash_u32x3(seed, pixel_index, sample_index);
-    // The film set and the first vertex's sets, drawn together (docs/architecture.md "Sample dimensions").
+    // The camera set (film position and vertex 0's BSDF numbers, jointly stratified) and vertex 0's light set,
+    // drawn together (docs/architecture.md "Sample dimensions").
     float film_uv[2], bsdf_rand[4], light_rand[2];
     sampler.get_path_start(film_uv, bsdf_rand, light_rand);
     PathRay ray = sample_camera_ray(px, py, film_uv, sampler);
@@ -853,7 +854,7 @@ struct Renderer::Impl {
       if (ps.terminate_next) break;
       // The vertex's 4D BSDF set: x, y (closure pick, then the closure's direction), z (its third number),
       // rr (Russian roulette), and its 2D light set (u, v), drawn together so that the two chains overlap
-      // (vertex 0's with the film set above; every iteration that goes on advances the vertex).
+      // (vertex 0's from the camera set above; every iteration that goes on advances the vertex).
       if (ps.sample_vertex() > 0) sampler.get_vertex(ps.sample_vertex(), bsdf_rand, light_rand);
       if (!survives_russian_roulette(ps, limits, bsdf_rand[3], pr.throughput)) break;
       const float transparent_weight = std::fabs(average(cs.transparent));

@@ -1,12 +1,12 @@
 // Deterministic low-discrepancy sampling from (seed, pixel, sample, dimension set):
 // Owen-scrambled Sobol points with a per-set shuffled index (Burley 2020,
-// "Practical Hash-based Owen Scrambling", JCGT 9(4)). A set is 2 or 4 jointly
+// "Practical Hash-based Owen Scrambling", JCGT 9(4)). A set is 2, 4 or 6 jointly
 // stratified dimensions (the first Sobol dimensions); sets are decorrelated
 // from each other by their own index shuffle and scrambles ("padding").
 // Every value is a pure function of its arguments, so images do not depend on
 // thread count or tile size.
 //
-// Cost: the Sobol generator matrices of the four dimensions are precomputed (compile time) as byte tables
+// Cost: the Sobol generator matrices of the six dimensions are precomputed (compile time) as byte tables
 // of the bit-reversed columns, two dimensions per 64-bit entry, so a pair of dimensions is four table
 // look-ups, two Laine-Karras permutations and one 64-bit bit reversal; a set costs one seed hash and one
 // index shuffle for all its dimensions.
@@ -37,17 +37,17 @@ constexpr uint32_t laine_karras_permutation(uint32_t x, uint32_t seed) {
   return x;
 }
 
-// Sobol direction numbers v_k = m_k 2^(32-k) of the first four dimensions (Joe & Kuo 2008,
+// Sobol direction numbers v_k = m_k 2^(32-k) of the first six dimensions (Joe & Kuo 2008,
 // new-joe-kuo-6.21201: degree s, inner coefficients a, initial m; dimension 0 is van der Corput), by the
 // recurrence m_k = 2 a_1 m_{k-1} ^ 4 a_2 m_{k-2} ^ ... ^ 2^(s-1) a_(s-1) m_(k-s+1) ^ 2^s m_{k-s} ^ m_{k-s}.
-constexpr int kSobolDimensions = 4;
+constexpr int kSobolDimensions = 6;
 struct SobolPolynomial {
   int degree;
   uint32_t a;  // a_1 .. a_{s-1}, a_1 most significant
-  uint32_t m[3];
+  uint32_t m[4];
 };
 inline constexpr SobolPolynomial kSobolPolynomials[kSobolDimensions] = {
-    {0, 0, {0}}, {1, 0, {1}}, {2, 1, {1, 3}}, {3, 1, {1, 3, 1}},
+    {0, 0, {0}}, {1, 0, {1}}, {2, 1, {1, 3}}, {3, 1, {1, 3, 1}}, {3, 2, {1, 1, 1}}, {4, 1, {1, 1, 3, 3}},
 };
 constexpr std::array<uint32_t, 32> sobol_direction_numbers(int dim) {
   std::array<uint32_t, 32> v{};
@@ -130,28 +130,37 @@ constexpr uint64_t reverse_bits64(uint64_t x) {
 // Scramble seed of dimension d of a set: the (already hashed) set seed times a per-dimension odd constant,
 // a bijection, so every dimension's seed is as uniform as the set seed.
 constexpr uint32_t dimension_seed(uint32_t set_seed, int d) {
-  constexpr uint32_t kOdd[kSobolDimensions] = {0x9e3779b9u, 0x85ebca6bu, 0xc2b2ae35u, 0x27d4eb2fu};
+  constexpr uint32_t kOdd[kSobolDimensions] = {0x9e3779b9u, 0x85ebca6bu, 0xc2b2ae35u,
+                                               0x27d4eb2fu, 0x165667b1u, 0xd3a2646du};
   return set_seed * kOdd[d];
 }
 
 // Dimension sets (Cycles' PRNG_* layout in spirit; docs/architecture.md "Sample dimensions"). A set is
-// one shuffled index and the first 2 or 4 Sobol dimensions, jointly stratified.
-//   film: 2D (pixel filter position); lens: 2D (its own set far from the others).
-//   BSDF of bounce b: 4D (x, y, z, rr): x picks the closure of the mixture (rescaled), then the closure's
-//     own lobe choice (rescaled again) and with y the direction; z is the closure's third number
+// one shuffled index and the first 2, 4 or 6 Sobol dimensions, jointly stratified.
+//   camera (vertex 0): 6D, the film position (u, v) and vertex 0's BSDF numbers (x, y, z, rr) under one
+//     index, so the 4D point (film u, film v, x, y) is jointly stratified: at a highlight (a curved mirror
+//     whose reflected lobe moves with the film position across the pixel) film and lobe samples do not
+//     clump together as two independently scrambled 2D sets can. Film = Sobol dimensions 0-1 (a (0, 2)
+//     sequence, the best anti-aliasing of edges), x, y = 2-3, z, rr = 4-5 (dimensions 0-3 form the
+//     best-stratified 4D projection).
+//   lens: 2D (its own set far from the others).
+//   BSDF of bounce b >= 1: 4D (x, y, z, rr): x picks the closure of the mixture (rescaled), then the
+//     closure's own lobe choice (rescaled again) and with y the direction; z is the closure's third number
 //     (dielectric reflect/refract, decided on the sampled microfacet: jointly stratified with x, y); rr is
 //     Russian roulette. Each bounce has its own set (padding).
 //   light of bounce b: 2D (u, v): u picks the light (rescaled) and with v the point on it.
 //   b counts transparent pass-throughs too (PathState::sample_vertex), so every surface a path meets
 //   has its own sets.
 enum SampleSet : uint32_t {
-  kSetFilm = 0,
   kSetsPerBounce = 2,
   kSetBsdf = 0,   // within a bounce
   kSetLight = 1,  // within a bounce
 };
 constexpr uint32_t kSetLens = 0xfffffff0u;
 inline uint32_t bounce_set(int bounce, uint32_t which) { return 1u + static_cast<uint32_t>(bounce) * kSetsPerBounce + which; }
+// The camera set is vertex 0's BSDF set; its dimension pairs: film (u, v), BSDF (x, y), BSDF (z, rr).
+constexpr uint32_t kSetCamera = 1u;  // bounce_set(0, kSetBsdf)
+constexpr int kCameraFilmPair = 0, kCameraBsdfXyPair = 1, kCameraBsdfZrrPair = 2;
 
 struct PixelSampler {
   uint32_t pixel_seed;        // hash of (seed, pixel)
@@ -165,26 +174,38 @@ struct PixelSampler {
   template <int N>
   void get(uint32_t set, float (&out)[N]) const {
     const Set s = start_set(set);
-    for (int p = 0; 2 * p < N; ++p) pair_values(s, p, out);
+    for (int p = 0; 2 * p < N; ++p) pair_values(s, p, out, 2 * p);
+  }
+  // The camera set: the film position (u, v) and vertex 0's BSDF numbers (x, y, z, rr).
+  void get_camera(float (&film)[2], float (&bsdf)[4]) const {
+    const Set c = start_set(kSetCamera);
+    pair_values(c, kCameraFilmPair, film, 0);
+    pair_values(c, kCameraBsdfXyPair, bsdf, 0);
+    pair_values(c, kCameraBsdfZrrPair, bsdf, 2);
   }
   // The BSDF set (x, y, z, rr) and the light set (u, v) of a path vertex in one call: the same values as
   // get_bsdf and get_light, but the two dependent chains (seed hash, index shuffle, look-ups, scrambles,
   // reversal) are independent of each other and written side by side, so they overlap in the pipeline
-  // instead of the path waiting on each in turn.
+  // instead of the path waiting on each in turn. Vertex 0's BSDF numbers are those of the camera set.
   void get_vertex(int vertex, float (&bsdf)[4], float (&light)[2]) const {
+    if (vertex == 0) {
+      float film[2];
+      get_path_start(film, bsdf, light);
+      return;
+    }
     const Set b = start_set(bounce_set(vertex, kSetBsdf)), l = start_set(bounce_set(vertex, kSetLight));
-    pair_values(b, 0, bsdf);
-    pair_values(l, 0, light);
-    pair_values(b, 1, bsdf);
+    pair_values(b, 0, bsdf, 0);
+    pair_values(l, 0, light, 0);
+    pair_values(b, 1, bsdf, 2);
   }
-  // The film set (pixel filter position) with vertex 0's BSDF and light sets: three independent chains side by
-  // side at the start of a path (the same values as get2(kSetFilm, ...) and get_vertex(0, ...)).
+  // The camera set (film position and vertex 0's BSDF numbers) with vertex 0's light set: two independent
+  // chains side by side at the start of a path (the same values as get_camera and get_light(0, ...)).
   void get_path_start(float (&film)[2], float (&bsdf)[4], float (&light)[2]) const {
-    const Set f = start_set(kSetFilm), b = start_set(bounce_set(0, kSetBsdf)), l = start_set(bounce_set(0, kSetLight));
-    pair_values(f, 0, film);
-    pair_values(b, 0, bsdf);
-    pair_values(l, 0, light);
-    pair_values(b, 1, bsdf);
+    const Set c = start_set(kSetCamera), l = start_set(bounce_set(0, kSetLight));
+    pair_values(c, kCameraFilmPair, film, 0);
+    pair_values(l, 0, light, 0);
+    pair_values(c, kCameraBsdfXyPair, bsdf, 0);
+    pair_values(c, kCameraBsdfZrrPair, bsdf, 2);
   }
   void get2(uint32_t set, float &u, float &v) const {
     float uv[2];
@@ -192,8 +213,15 @@ struct PixelSampler {
     u = uv[0];
     v = uv[1];
   }
-  // The BSDF dimensions (x, y, z, rr) of a bounce.
-  void get_bsdf(int bounce, float (&out)[4]) const { get(bounce_set(bounce, kSetBsdf), out); }
+  // The BSDF dimensions (x, y, z, rr) of a bounce (bounce 0: from the camera set).
+  void get_bsdf(int bounce, float (&out)[4]) const {
+    if (bounce == 0) {
+      float film[2];
+      get_camera(film, out);
+      return;
+    }
+    get(bounce_set(bounce, kSetBsdf), out);
+  }
   void get_light(int bounce, float &u, float &v) const { get2(bounce_set(bounce, kSetLight), u, v); }
 
  private:
@@ -206,18 +234,18 @@ struct PixelSampler {
     const uint32_t set_seed = hash_combine(pixel_seed, set);
     return {set_seed, laine_karras_permutation(sample_reversed, set_seed)};
   }
-  // Dimensions 2p and 2p + 1 (if N has it) of set s into out.
+  // Dimensions 2p and 2p + 1 of set s into out[first] and out[first + 1] (the second only if N has it).
   template <int N>
-  [[gnu::always_inline]] static void pair_values(const Set &s, int p, float (&out)[N]) {
+  [[gnu::always_inline]] static void pair_values(const Set &s, int p, float (&out)[N], int first) {
     static_assert(N >= 1 && N <= kSobolDimensions);
     const uint64_t sobol = sobol_pair_reversed(p, s.index_reversed);
     const uint64_t lo = laine_karras_permutation(static_cast<uint32_t>(sobol), dimension_seed(s.seed, 2 * p));
-    const uint64_t hi = 2 * p + 1 < N
+    const uint64_t hi = first + 1 < N
                             ? laine_karras_permutation(static_cast<uint32_t>(sobol >> 32), dimension_seed(s.seed, 2 * p + 1))
                             : 0u;
     const uint64_t values = reverse_bits64(hi << 32 | lo);  // reverse_bits(lo) << 32 | reverse_bits(hi)
-    out[2 * p] = uint_to_unit_float(static_cast<uint32_t>(values >> 32));
-    if (2 * p + 1 < N) out[2 * p + 1] = uint_to_unit_float(static_cast<uint32_t>(values));
+    out[first] = uint_to_unit_float(static_cast<uint32_t>(values >> 32));
+    if (first + 1 < N) out[first + 1] = uint_to_unit_float(static_cast<uint32_t>(values));
   }
 };
 

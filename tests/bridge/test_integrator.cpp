@@ -228,7 +228,10 @@ double floor_noise(float filter_glossy) {
       "<mesh P=\"-3 1 2.3  3 1 2.3  3 1.7 2.3  -3 1.7 2.3\" nverts=\"4\" verts=\"0 1 2 3\" />\n</cycles>\n";
   const std::string path = write_file("filter_glossy.xml", xml);
   render::RenderOptions opt;
-  opt.samples = 16;
+  // 64 spp: the caustic is a rare event (at 16 spp about half of all images of the sharp mirror miss it
+  // entirely: 19 of 32 seeds with the sampler before issue 13's camera set, 24 of 32 with it), and the test
+  // needs it found in both images; at 64 spp 2-3 of 16 seeds miss it.
+  opt.samples = 64;
   opt.aovs = false;
   opt.seed = 1;
   const auto a = render_scene(path, opt);

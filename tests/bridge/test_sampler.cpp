@@ -31,11 +31,13 @@ TEST(Sampler, GeneratorTablesMatchTheRecurrence) {
     EXPECT_EQ(sobol_by_matrix(1, i), sobol_dim1_bitwise(i));
     for (int d = 0; d < kSobolDimensions; ++d) ASSERT_EQ(sobol_reversed(d, reverse_bits(i)), reverse_bits(sobol_by_matrix(d, i)));
   }
-  // Known points (Joe & Kuo): index 1 -> all 1/2; index 2 -> (1/4, 3/4, 3/4, 3/4); index 3 -> (3/4, 1/4, 1/4, 1/4).
-  for (int d = 0; d < 4; ++d) {
+  // Known points (Joe & Kuo): index 1 -> all 1/2; index 2 -> (1/4, 3/4, 3/4, 3/4, 1/4, 1/4); index 3 ->
+  // (3/4, 1/4, 1/4, 1/4, 3/4, 3/4) (dimensions 4 and 5 start with m_2 = 1).
+  for (int d = 0; d < kSobolDimensions; ++d) {
+    const bool quarter = d == 0 || d >= 4;
     EXPECT_EQ(sobol_by_matrix(d, 1), 0x80000000u);
-    EXPECT_EQ(sobol_by_matrix(d, 2), d == 0 ? 0x40000000u : 0xc0000000u);
-    EXPECT_EQ(sobol_by_matrix(d, 3), d == 0 ? 0xc0000000u : 0x40000000u);
+    EXPECT_EQ(sobol_by_matrix(d, 2), quarter ? 0x40000000u : 0xc0000000u);
+    EXPECT_EQ(sobol_by_matrix(d, 3), quarter ? 0xc0000000u : 0x40000000u);
   }
 }
 
@@ -58,15 +60,19 @@ TEST(Sampler, PairTablesGiveThePointsOfTheDefinition) {
   for (int k = 0; k < n; ++k) {
     const uint32_t seed = rng.next_u32(), pixel = rng.next_u32() & 0xfffffu;
     const uint32_t sample = k < 1000 ? static_cast<uint32_t>(k) : rng.next_u32() & 0xffffu;
-    const uint32_t set = k % 3 == 0 ? kSetLens : bounce_set(static_cast<int>(rng.next_u32() % 64u), k % 2);
+    const uint32_t set = k % 3 == 0 ? kSetLens : k % 5 == 0 ? kSetCamera : bounce_set(static_cast<int>(rng.next_u32() % 64u), k % 2);
     const PixelSampler sampler(seed, pixel, sample);
-    float v1[1], v2[2], v3[3], v4[4];
+    float v1[1], v2[2], v3[3], v4[4], v6[6];
     sampler.get(set, v1);
     sampler.get(set, v2);
     sampler.get(set, v3);
     sampler.get(set, v4);
-    for (int d = 0; d < 4; ++d) {
+    sampler.get(set, v6);
+    for (int d = 0; d < kSobolDimensions; ++d) {
       const float expected = sampler_by_definition(seed, pixel, sample, set, d);
+      ASSERT_EQ(v6[d], expected) << "dimension " << d << " sample " << sample;
+      if (sampler_by_definition(seed, pixel, sample, set, d, true) != v6[d]) ++swapped_differs;
+      if (d >= 4) continue;
       ASSERT_EQ(v4[d], expected) << "dimension " << d << " sample " << sample;
       if (d < 3) {
         ASSERT_EQ(v3[d], expected);
@@ -77,11 +83,27 @@ TEST(Sampler, PairTablesGiveThePointsOfTheDefinition) {
       if (d < 1) {
         ASSERT_EQ(v1[d], expected);
       }
-      if (sampler_by_definition(seed, pixel, sample, set, d, true) != v4[d]) ++swapped_differs;
     }
   }
   // Negative control: exchanging the words of a pair (a wrong half of the 64-bit reversal) is caught.
-  EXPECT_GT(swapped_differs, 4 * n * 9 / 10);
+  EXPECT_GT(swapped_differs, kSobolDimensions * n * 9 / 10);
+}
+
+// The camera set's pairs are dimensions 0-1 (film), 2-3 (BSDF x, y) and 4-5 (BSDF z, rr) of one set.
+TEST(Sampler, CameraSetIsOneSixDimensionalSet) {
+  for (uint32_t pixel : {0u, 17u, 4095u, 123456u})
+    for (uint32_t s = 0; s < 300; ++s) {
+      const PixelSampler sampler(99u, pixel, s);
+      float film[2], bsdf[4], six[6];
+      sampler.get_camera(film, bsdf);
+      sampler.get(kSetCamera, six);
+      ASSERT_EQ(film[0], six[2 * kCameraFilmPair]);
+      ASSERT_EQ(film[1], six[2 * kCameraFilmPair + 1]);
+      ASSERT_EQ(bsdf[0], six[2 * kCameraBsdfXyPair]);
+      ASSERT_EQ(bsdf[1], six[2 * kCameraBsdfXyPair + 1]);
+      ASSERT_EQ(bsdf[2], six[2 * kCameraBsdfZrrPair]);
+      ASSERT_EQ(bsdf[3], six[2 * kCameraBsdfZrrPair + 1]);
+    }
 }
 
 // Whether the points (in [0,1)^2) form a (0, m, 2)-net: every elementary box 2^-a x 2^-(m-a) holds one point.
@@ -108,15 +130,16 @@ TEST(Sampler, EverySetIsStratified) {
   const int m = 8;
   const size_t n = size_t{1} << m;
   for (uint32_t pixel : {0u, 17u, 4095u})
-    for (uint32_t set : {uint32_t{kSetFilm}, bounce_set(0, kSetBsdf), bounce_set(0, kSetLight), bounce_set(5, kSetBsdf), kSetLens}) {
-      std::vector<std::vector<float>> dims(4, std::vector<float>(n));
+    for (uint32_t set : {kSetCamera, bounce_set(0, kSetLight), bounce_set(5, kSetBsdf), kSetLens}) {
+      std::vector<std::vector<float>> dims(kSobolDimensions, std::vector<float>(n));
       for (uint32_t s = 0; s < n; ++s) {
         const PixelSampler sampler(12345u, pixel, s);
-        float v[4];
+        float v[kSobolDimensions];
         sampler.get(set, v);
-        for (int d = 0; d < 4; ++d) dims[d][s] = v[d];
+        for (int d = 0; d < kSobolDimensions; ++d) dims[d][s] = v[d];
       }
-      for (int d = 0; d < 4; ++d) EXPECT_TRUE(is_stratified_1d(dims[d], m)) << "pixel " << pixel << " set " << set << " dim " << d;
+      for (int d = 0; d < kSobolDimensions; ++d)
+        EXPECT_TRUE(is_stratified_1d(dims[d], m)) << "pixel " << pixel << " set " << set << " dim " << d;
       EXPECT_TRUE(is_0m2_net(dims[0], dims[1], m)) << "pixel " << pixel << " set " << set;
     }
   // Negative control: independent random numbers are not stratified.
@@ -125,6 +148,58 @@ TEST(Sampler, EverySetIsStratified) {
   for (size_t k = 0; k < n; ++k) x[k] = rng.next_float(), y[k] = rng.next_float();
   EXPECT_FALSE(is_stratified_1d(x, m));
   EXPECT_FALSE(is_0m2_net(x, y, m));
+}
+
+// Whether the n = 2^m points form a (t, m, s)-net: every elementary box of volume 2^(t-m) (2^a_j intervals
+// along dimension j, sum a_j = m - t) holds 2^t of them.
+bool is_tms_net(const std::vector<std::vector<float>> &points, int t, int m) {
+  const int s = static_cast<int>(points.size()), k = m - t;
+  std::vector<int> a(static_cast<size_t>(s), 0);
+  // Every split of k bits among the s dimensions (a_0 .. a_{s-2} enumerated, a_{s-1} the rest).
+  for (;;) {
+    int used = 0;
+    for (int j = 0; j + 1 < s; ++j) used += a[static_cast<size_t>(j)];
+    if (used <= k) {
+      a[static_cast<size_t>(s - 1)] = k - used;
+      std::vector<int> count(size_t{1} << k, 0);
+      for (size_t i = 0; i < points[0].size(); ++i) {
+        size_t box = 0;
+        for (int j = 0; j < s; ++j)
+          box = (box << a[static_cast<size_t>(j)]) |
+                static_cast<size_t>(points[static_cast<size_t>(j)][i] * static_cast<float>(1u << a[static_cast<size_t>(j)]));
+        ++count[box];
+      }
+      for (int c : count)
+        if (c != 1 << t) return false;
+    }
+    int j = 0;
+    while (j + 1 < s && ++a[static_cast<size_t>(j)] > k) a[static_cast<size_t>(j++)] = 0;
+    if (j + 1 >= s) return true;
+  }
+}
+
+// The point (film u, film v, BSDF x, BSDF y) of vertex 0 is a (3, 8, 4)-net in every pixel (Sobol dimensions
+// 0-3: t = 3 at 256 samples); film and BSDF numbers from two sets (the padded layout before issue 13, session 6)
+// are each stratified but not jointly: not even a (6, 8, 4)-net.
+TEST(Sampler, CameraSetIsJointlyStratifiedInFourDimensions) {
+  const int m = 8;
+  const size_t n = size_t{1} << m;
+  for (uint32_t pixel : {0u, 17u, 4095u}) {
+    std::vector<std::vector<float>> joint(4, std::vector<float>(n)), padded(4, std::vector<float>(n));
+    for (uint32_t s = 0; s < n; ++s) {
+      const PixelSampler sampler(12345u, pixel, s);
+      float film[2], bsdf[4], film_set[2], bsdf_set[2];
+      sampler.get_camera(film, bsdf);
+      sampler.get(0u, film_set);                       // a 2D set of its own (the old film set)
+      sampler.get(bounce_set(0, kSetLight), bsdf_set);  // another one
+      const float j[4] = {film[0], film[1], bsdf[0], bsdf[1]}, p[4] = {film_set[0], film_set[1], bsdf_set[0], bsdf_set[1]};
+      for (int d = 0; d < 4; ++d) joint[static_cast<size_t>(d)][s] = j[d], padded[static_cast<size_t>(d)][s] = p[d];
+    }
+    EXPECT_TRUE(is_tms_net(joint, 3, m)) << "pixel " << pixel;
+    EXPECT_FALSE(is_tms_net(padded, 6, m)) << "pixel " << pixel;
+    EXPECT_TRUE(is_0m2_net(padded[0], padded[1], m));
+    EXPECT_TRUE(is_0m2_net(padded[2], padded[3], m));
+  }
 }
 
 // get_vertex draws a vertex's BSDF and light sets side by side; the values must be exactly those of the
@@ -152,19 +227,20 @@ TEST(Sampler, VertexSetsTogetherEqualTheSetsApart) {
   EXPECT_GE(neighbour_differs, cases - 2);
 }
 
-// get_path_start: the film set and vertex 0's sets, exactly as drawn apart.
+// get_path_start: the camera set and vertex 0's light set, exactly as drawn apart.
 TEST(Sampler, PathStartSetsEqualTheSetsApart) {
   for (uint32_t pixel : {0u, 17u, 4095u, 123456u})
     for (uint32_t s = 0; s < 300; ++s) {
       const PixelSampler sampler(99u, pixel, s);
-      float film[2], bsdf[4], light[2], bsdf0[4], light0[2], fu, fv;
+      float film[2], bsdf[4], light[2], film0[2], bsdf0[4], lu, lv;
       sampler.get_path_start(film, bsdf, light);
-      sampler.get2(kSetFilm, fu, fv);
-      sampler.get_vertex(0, bsdf0, light0);
-      ASSERT_EQ(film[0], fu);
-      ASSERT_EQ(film[1], fv);
+      sampler.get_camera(film0, bsdf0);
+      sampler.get_light(0, lu, lv);
+      ASSERT_EQ(film[0], film0[0]);
+      ASSERT_EQ(film[1], film0[1]);
       for (int d = 0; d < 4; ++d) ASSERT_EQ(bsdf[d], bsdf0[d]);
-      for (int d = 0; d < 2; ++d) ASSERT_EQ(light[d], light0[d]);
+      ASSERT_EQ(light[0], lu);
+      ASSERT_EQ(light[1], lv);
     }
 }
 
