@@ -118,6 +118,7 @@ bool BackgroundLight::sample(float u, float v, const Vec3 &, float pick, LightSa
   out.pdf = pick * pdf(out.wi);
   out.radiance = shaders_->background(out.wi);
   out.delta = false;
+  out.world = true;
   return out.pdf > 0.0f;
 }
 

@@ -15,6 +15,7 @@ struct LightSample {
   Spectrum radiance{0.0f};  // incident radiance (delta lights: irradiance-like term, pdf = pick probability)
   float pdf = 0.0f;   // solid angle density including the pick probability
   bool delta = false;
+  bool world = false;  // drawn from the world (the background light)
 };
 
 struct LightHit {

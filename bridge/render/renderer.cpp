@@ -34,7 +34,7 @@ double seconds_since(Clock::time_point t0) { return std::chrono::duration<double
 
 constexpr float kInf = std::numeric_limits<float>::infinity();
 
-// The light set (2D) of light sampling at an exit lobe (integrate_exit_lobe_direct_light) of path vertex v: far
+// The light set (2D) of light sampling at an exit lobe (integrate_exit_lobe) of path vertex v: far
 // from the film, lens and per-bounce sets of render/sampler.h.
 uint32_t exit_light_set(int vertex) { return 0x80000000u + static_cast<uint32_t>(vertex); }
 
@@ -514,11 +514,12 @@ struct Renderer::Impl {
   }
   // One light sample seen from P (surface normal Ng) through `bsdf(wi) -> MixtureEval` (f and the density
   // with which the path samples wi), MIS-weighted against that density, times the shadow ray's transmittance.
+  // without_world: a sample drawn from the world counts 0 (the world is estimated otherwise there).
   template <class Bsdf>
   Spectrum direct_light_at(const Vec3 &P, const Vec3 &Ng, const Bsdf &bsdf, const Spectrum &throughput, float lu,
-                           float lv) const {
+                           float lv, bool without_world = false) const {
     LightSample ls;
-    if (!lights->sample(lu, lv, P, ls) || !(ls.pdf > 0.0f)) return Spectrum(0.0f);
+    if (!lights->sample(lu, lv, P, ls) || !(ls.pdf > 0.0f) || (without_world && ls.world)) return Spectrum(0.0f);
     const MixtureEval me = bsdf(ls.wi);
     if (is_zero(me.f)) return Spectrum(0.0f);
     const bool use_bsdf_emission = options.strategy != LightStrategy::LightOnly;
@@ -702,12 +703,23 @@ struct Renderer::Impl {
 
   // Lamps (spheres, area lights) crossed before the surface at t_hit and, when the ray escapes, the sun disk
   // and the world (Cycles' integrate_light and integrate_background); as in Cycles lamps do not block the ray.
+  // The world seen through the exit lobe the path just left (integrate_exit_lobe): one cone lookup.
+  struct ExitWorld {
+    bool active = false;
+    Vec3 axis{0.0f, 0.0f, 1.0f};
+    float cone = 0.0f;  // half-angle, radians
+  };
+  // exit_world: the ray left an exit lobe whose world is one cone lookup (integrate_exit_lobe).
   void integrate_lights_and_background(const PathRay &ray, float t_hit, bool hit_surface, const PathState &ps,
-                                       PathRadiance &pr) const {
+                                       const ExitWorld &exit_world, PathRadiance &pr) const {
     LightHits lhs;
     lights->intersect(ray.org, ray.D, t_hit, hit_surface, ps.bounce == 0, lhs);
     for (int i = 0; i < lhs.count; ++i) add_emission(pr, ps, lhs.hits[i].radiance, lhs.hits[i].pdf);
-    if (!hit_surface && !ps.transparent_background && shaders->has_background())
+    if (hit_surface || ps.transparent_background || !shaders->has_background()) return;
+    if (exit_world.active)
+      add_contribution(pr, pr.throughput * environment_cone.lookup(*shaders, exit_world.axis, exit_world.cone),
+                       ps.bounce);
+    else
       add_emission(pr, ps, shaders->background(ray.D), use_nee() ? lights->background_pdf(ray.D) : 0.0f);
   }
 
@@ -746,17 +758,27 @@ struct Renderer::Impl {
   // ABI 2.4: a moved sample drawn from an exit lobe (frosted_glass sg: where light leaves the object). The lobe
   // is the BSDF at the exit point: f = the sample's weight x its density p (glimmer/exit_lobe.h), so the
   // singular sample's throughput (already applied) carries f / p and next-event estimation there sees p alone.
-  // One light sample from the exit point, MIS (power heuristic) with the continued path, whose emission hits
-  // are then weighted against light sampling at p(wo) instead of counted whole.
-  void integrate_exit_lobe_direct_light(const GlimmerSample &s, const Vec3 &wo, const PixelSampler &sampler,
-                                        PathState &ps, PathRadiance &pr) const {
-    if (!(s.flags & GLIMMER_SAMPLE_EXIT_LOBE) || !(s.flags & GLIMMER_SAMPLE_MOVED) || !options.exit_lobe_nee ||
-        !use_nee() || lights->count() == 0)
-      return;
+  //  - the world (RenderOptions::exit_lobe_environment): when the continued path escapes, the world seen through
+  //    the lobe is one lookup of the pre-filtered environment along the lobe's axis over the cap that matches
+  //    the lobe (exit_world_cone), counted whole (de Rousiers 2012's pre-convolved environment: the lighting
+  //    integral over the lobe as a lookup, not a sampled direction); the world is then not light-sampled here.
+  //    Visibility stays sampled: the lookup counts only when the continued ray escapes.
+  //  - the lights (exit_lobe_nee): one light sample from the exit point, MIS (power heuristic) with the continued
+  //    path, whose emission hits are then weighted against light sampling at p(wo) instead of counted whole.
+  void integrate_exit_lobe(const GlimmerSample &s, const Vec3 &wo, const PixelSampler &sampler, PathState &ps,
+                           PathRadiance &pr, ExitWorld &exit_world) const {
+    exit_world.active = false;
+    if (!(s.flags & GLIMMER_SAMPLE_EXIT_LOBE) || !(s.flags & GLIMMER_SAMPLE_MOVED)) return;
     const Vec3 n = normalize(Vec3(s.origin_Ng));
-    const ExitLobe lobe = ExitLobe::make(normalize(Vec3(s.lobe_axis)), s.lobe_sharpness, n);
+    const Vec3 axis = normalize(Vec3(s.lobe_axis));
+    if (!is_finite(axis) || !is_finite(n) || !(s.lobe_sharpness > 0.0f)) return;
+    exit_world.active = options.exit_lobe_environment;
+    exit_world.axis = axis;
+    exit_world.cone = static_cast<float>(exit_world_cone(s.lobe_sharpness));
+    if (!options.exit_lobe_nee || !use_nee() || lights->count() == 0) return;
+    const ExitLobe lobe = ExitLobe::make(axis, s.lobe_sharpness, n);
     const float continued_pdf = static_cast<float>(lobe.pdf(wo));
-    if (!is_finite(lobe.axis) || !is_finite(n) || !(continued_pdf > 0.0f) || !std::isfinite(continued_pdf)) return;
+    if (!(continued_pdf > 0.0f) || !std::isfinite(continued_pdf)) return;
     float lu, lv;  // a light set of its own per vertex (the vertex's light set served its entry point)
     sampler.get2(exit_light_set(ps.sample_vertex()), lu, lv);
     const auto exit_bsdf = [&](const Vec3 &wi) {
@@ -765,7 +787,7 @@ struct Renderer::Impl {
       me.f = Spectrum(me.pdf);
       return me;
     };
-    const Spectrum direct = direct_light_at(Vec3(s.origin), n, exit_bsdf, pr.throughput, lu, lv);
+    const Spectrum direct = direct_light_at(Vec3(s.origin), n, exit_bsdf, pr.throughput, lu, lv, exit_world.active);
     if (!is_zero(direct)) add_contribution(pr, direct, ps.bounce);
     ps.last_singular = false;
     ps.mis_ray_pdf = continued_pdf;
@@ -835,10 +857,11 @@ struct Renderer::Impl {
     PathState ps;
     ps.transparent_background = scene.background.transparent;
     bool first_hit = true;
+    ExitWorld exit_world;  // set by integrate_exit_lobe for the segment after an exit lobe
     for (int step = 0; step < 4 * 1024; ++step) {
       SurfaceHit hit;
       const bool hit_surface = accel->intersect(ray.org, ray.D, ray.tmin, ray.tmax, hit);
-      integrate_lights_and_background(ray, hit_surface ? hit.t : kInf, hit_surface, ps, pr);
+      integrate_lights_and_background(ray, hit_surface ? hit.t : kInf, hit_surface, ps, exit_world, pr);
       if (!hit_surface) {
         if (ps.transparent_background) aov.alpha -= average(pr.throughput);
         break;
@@ -865,7 +888,7 @@ struct Renderer::Impl {
       s.struct_size = sizeof(GlimmerSample);
       if (!integrate_surface_bsdf_bounce(cs, sd, bsdf_rand, transparent_weight, total_sw, limits, ps, pr, ray, s))
         break;
-      integrate_exit_lobe_direct_light(s, ray.D, sampler, ps, pr);
+      integrate_exit_lobe(s, ray.D, sampler, ps, pr, exit_world);
     }
     return pr.L;
   }

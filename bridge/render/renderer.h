@@ -32,6 +32,10 @@ struct RenderOptions {
   // Light sampling (NEE + MIS) at exit lobes of moved samples (frosted_glass sg, ABI 2.4); off: they stay
   // singular (the estimator before; tests and benchmarks compare the two).
   bool exit_lobe_nee = true;
+  // Where the path continued from an exit lobe escapes, the world seen through the lobe is one pre-filtered cone
+  // lookup along its axis (EnvironmentCone) instead of the background at the ray's direction; off: the point
+  // lookup (the estimator before; tests and benchmarks compare the two).
+  bool exit_lobe_environment = true;
   bool aovs = true;       // Albedo, Normal, Depth
   const std::atomic<bool> *cancel = nullptr;  // set from a signal handler: stop after the current pass
   int sample_begin = 0, sample_end = 0;  // render samples [begin, end) of `samples`; both 0 = all of them

@@ -1,5 +1,5 @@
 // Light sampling at the exit of frosted_glass method=sg (closure ABI 2.4 exit lobes; the renderer's stage
-// integrate_exit_lobe_direct_light, docs/frosted_glass.md "Light sampling at the exit"). A frosted slab (the
+// integrate_exit_lobe, docs/frosted_glass.md "Light sampling at the exit"). A frosted slab (the
 // sphere mesh flattened to 0.16, roughness 0.3, IOR 1.5) with a small area light (0.1 x 0.1) 0.5 behind it and
 // a dim sky, rendered with method=sg with and without next-event estimation + MIS at the exit point:
 //  - the same image in expectation (an unbiased change of estimator): the mean difference over the slab, per

@@ -92,6 +92,22 @@ inline double vmf_fraction_below(const Vec3 &axis, double kappa, const Vec3 &n) 
   return std::clamp(q, 0.0, 1.0);
 }
 
+// The half-angle of the spherical cap about the axis that holds `fraction` of the vMF (axis, kappa)'s energy:
+//   1 - cos theta_c = -ln(1 - fraction (1 - e^(-2 kappa))) / kappa.
+inline double vmf_cap_angle(double kappa, double fraction) {
+  const double k = kappa > 1e-6 ? kappa : 1e-6;  // also NaN
+  const double f = std::clamp(fraction, 0.0, 1.0);
+  const double one_minus_cos = std::clamp(-std::log1p(f * std::expm1(-2.0 * k)) / k, 0.0, 2.0);
+  return 2.0 * std::asin(std::sqrt(0.5 * one_minus_cos));
+}
+
+// The uniform cap that stands for the exit lobe in a pre-filtered environment lookup (the host's
+// environment_lookup(direction, cone); docs/frosted_glass.md "The world behind the glass"): the cap holding
+// kExitWorldConeEnergy of the lobe's energy. Chosen by measurement against the vMF-weighted mean of a checker
+// world, kappa 4..3000 (tests/bridge/test_frosted_exit_world.cpp, FrostedExitWorld.ConeRule...).
+inline constexpr double kExitWorldConeEnergy = 0.8;
+inline double exit_world_cone(double kappa) { return vmf_cap_angle(kappa, kExitWorldConeEnergy); }
+
 struct ExitLobe {
   static constexpr int kRedraws = 16;  // draws after the first while the direction is below the surface
 
