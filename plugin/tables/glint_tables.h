@@ -180,6 +180,11 @@ std::unique_ptr<DirectionalTable> build_directional_table(const TableSpec &spec,
 double directional_probability_reference(const NdfFunction &ndf, double gamma_deg, double theta_i_deg,
                                          double theta_o_deg, double dphi_deg, int rings = 24);
 
+// P_gamma by the rim rule (exact for any lobe width; see glint_tables.cpp),
+// or -1 where the rim's half vectors leave the upper hemisphere; for tests.
+double directional_probability_by_rim(BaseDistribution dist, double alpha, double gamma_deg, double theta_i_deg,
+                                      double theta_o_deg, double dphi_deg);
+
 // Stable 64-bit key of a spec (file name of the cache entry).
 uint64_t table_key(const TableSpec &spec);
 
