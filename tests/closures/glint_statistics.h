@@ -58,7 +58,10 @@ struct Config {
   double theta_i_deg = 0.0;
   uint32_t seed = 11;
 
-  double alpha() const { return std::max(roughness * roughness, static_cast<double>(plugin::glint::ParticleField::kMinAlpha)); }
+  // The closures' alpha: roughness^2, at least the particle field's floor.
+  double alpha() const {
+    return std::max(roughness * roughness, static_cast<double>(plugin::glint::ParticleField::kMinAlpha));
+  }
   double density() const { return per_footprint / (kFootprintSide * kFootprintSide); }
   double gamma() const { return gamma_deg * M_PI / 180.0; }
   Vec3 wi() const { return spherical_dir(theta_i_deg, 0.0); }
@@ -279,23 +282,13 @@ struct MeanRatio {
   double standard_error = 0.0;  // of the ratio
 };
 
-// The exact mean of q over the query cone, P_gamma / sigma: by the dense
-// cone quadrature where the lobe is at least as wide as the cone, else by
-// brute force over the particle normals (LobeMassInCone; a cone quadrature
-// would need points on the lobe's scale).
-inline double exact_cone_mean_density(const Config &cfg, const Vec3 &wi, const Vec3 &wo) {
-  if (cfg.alpha() >= cfg.gamma()) return cone_mean_reflected_density(cfg.dist, cfg.alpha(), wi, wo, cfg.gamma_deg, 32);
-  const double sigma = 2.0 * M_PI * (1.0 - std::cos(cfg.gamma()));
-  return LobeMassInCone(cfg.dist, cfg.alpha())(wi, wo, cfg.gamma()) / sigma;
-}
-
 inline MeanRatio mean_ratio(const host::ClosureInstance &c, const Config &cfg, int footprints) {
   const Vec3 wi = cfg.wi(), wo = cfg.wo1();
   Spectrum weight;
   if (!plugin::glint::glint_weight(cfg.dist, static_cast<float>(cfg.alpha()), Spectrum(1.0f), wi, wo, weight))
     return {};
   // E[f] = W P / sigma = W * (mean of q over the cone).
-  const double expected = weight.x * exact_cone_mean_density(cfg, wi, wo);
+  const double expected = weight.x * cone_mean_reflected_density(cfg.dist, cfg.alpha(), wi, wo, cfg.gamma_deg, 32);
   double sum = 0, sum2 = 0;
   for (const auto &[u, v] : centres(footprints)) {
     const double f = f_at(c, square_context(wi, u, v, kFootprintSide), wo);

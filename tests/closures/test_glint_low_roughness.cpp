@@ -105,8 +105,6 @@ TEST(GlintLowRoughness, RimRuleMatchesBruteForceLobeMass) {
           const double brute = lobe(spherical_dir(ti, 0.0), spherical_dir(to, dphi), gamma_deg * M_PI / 180.0);
           if (rim < 0.0) continue;
           worst = std::max(worst, std::fabs(rim - brute));
-          std::printf("[rim] %d r=%.2f g=%.1f ti %.1f to %.1f dphi %.1f: rim %.6f brute %.6f\n", static_cast<int>(dist),
-                      roughness, gamma_deg, ti, to, dphi, rim, brute);
           EXPECT_NEAR(rim, brute, 2e-3) << roughness << " " << gamma_deg << " " << ti << " " << to << " " << dphi;
         }
       }
@@ -198,8 +196,8 @@ TEST(GlintLowRoughness, TableNodesEqualLobeMassWhereTheInteriorRuleRunsOutOfPoin
   const std::vector<int> slices = {0, 40, 70, 80};
   const TableError e = table_error(*table, mf::Distribution::GGX, spec.alpha, 5.0, slices, 0, true, 1024);
   const TableError control = table_error(*table, mf::Distribution::GGX, 1.1 * spec.alpha, 5.0, slices, 0, false, 1024);
-  std::printf("[lowr] ggx r=0.15 gamma 5: node shape %.4f (control, 1.1 alpha: %.4f), slice scales %.4f..%.4f; built in "
-              "%.1f s\n",
+  std::printf("[lowr] ggx r=0.15 gamma 5: node shape %.4f (control, 1.1 alpha: %.4f), slice scales %.4f..%.4f; "
+              "built in %.1f s\n",
               e.shape, control.shape, e.lowest_scale, e.highest_scale, table->build_seconds);
   EXPECT_LE(e.shape, 0.005);
   EXPECT_LE(e.highest_scale, 1.005);
@@ -219,7 +217,8 @@ TEST(GlintLowRoughness, MeasureTableAccuracy) {
         if (const char *only = std::getenv("GLIMMER_LOWR_ROUGHNESS"); only && std::atof(only) != roughness) continue;
         const pg::TableSpec spec = table_spec(dist, roughness, gamma_deg);
         const auto table = pg::build_directional_table(spec, ndf_of(dist, spec.alpha), 2);
-        const TableError e = table_error(*table, dist, spec.alpha, gamma_deg, {0, 10, 20, 30, 40, 50, 60, 70, 80}, 60, true);
+        const std::vector<int> slices = {0, 10, 20, 30, 40, 50, 60, 70, 80};
+        const TableError e = table_error(*table, dist, spec.alpha, gamma_deg, slices, 60, true);
         std::printf("[lowr] %s r=%.2f gamma %.1f: nodes worst %.4f (shape %.4f, slice scales %.4f..%.4f), between "
                     "nodes worst %.4f rms %.4f (built %.1f s)\n",
                     dist == mf::Distribution::GGX ? "ggx" : "beckmann", roughness, gamma_deg, e.node_worst, e.shape,
