@@ -21,9 +21,10 @@ namespace {
 
 constexpr double kPiD = 3.14159265358979323846;
 constexpr double kDeg = kPiD / 180.0;
-constexpr uint32_t kFormatVersion = 4;  // 2: LOD levels normalised by their W-weighted energy; 3: HMAC-SHA256;
+constexpr uint32_t kFormatVersion = 5;  // 2: LOD levels normalised by their W-weighted energy; 3: HMAC-SHA256;
                                         // 4: P_gamma by a direct cone rule, 0.5-degree energy grid,
-                                        //    level 0 <= the smooth albedo (+0.1 %)
+                                        //    level 0 <= the smooth albedo (+0.1 %);
+                                        // 5: the rim rule where the interior rule would exceed its points
 constexpr char kMagic[8] = {'G', 'L', 'M', 'G', 'L', 'N', 'T', 'P'};
 
 struct D3 {
@@ -114,6 +115,12 @@ class ConeQuadrature {
     for (int n = kMinPoints; n <= kMaxPoints; ++n) legendre_.emplace_back(n);
   }
 
+  // False where the lobe is too narrow for the rule at (wi, wo): an axis
+  // would need more than kMaxPoints (the rim rule is used there).
+  bool resolves(D3 wi, D3 wo) const {
+    return needed_points(across_scales(wi, wo)) <= kMaxPoints && needed_points(along_scales()) <= kMaxPoints;
+  }
+
   double operator()(const NdfFunction &ndf, D3 wi, D3 wo) const {
     D3 across = cross3(wi, wo);
     if (!(dot3(across, across) > 1e-20)) {  // wi and wo collinear: any frame
@@ -121,11 +128,8 @@ class ConeQuadrature {
       tangent_frame(wo, across, e2);
     }
     const D3 ex = normalized(across), ey = cross3(wo, ex);
-    const D3 s = wi + wo;
-    const double len = std::sqrt(dot3(s, s));
-    const double wi_h = len > 1e-9 ? std::max(dot3(wi, s) / len, 0.0) : 0.0;
-    const int n_x = points(2.0 * gamma_ / (2.0 * alpha_ * std::max(wi_h, 1e-3)));
-    const GaussLegendre &rule_y = legendre_[static_cast<size_t>(points(2.0 * gamma_ / (2.0 * alpha_)) - kMinPoints)];
+    const int n_x = points(across_scales(wi, wo));
+    const GaussLegendre &rule_y = legendre_[static_cast<size_t>(points(along_scales()) - kMinPoints)];
     double sum = 0.0;
     for (int k = 1; k <= n_x; ++k) {  // Gauss-Chebyshev (second kind) node u = cos(k pi / (n + 1))
       const double angle = k * kPiD / (n_x + 1);
@@ -145,12 +149,77 @@ class ConeQuadrature {
   }
 
  private:
-  static int points(double scales) {
-    return std::clamp(static_cast<int>(std::ceil(kPointsPerScale * scales)), kMinPoints, kMaxPoints);
+  // Lobe scales across the cone's diameter: 2 alpha (wi.h) across the plane of (wi, wo), 2 alpha along it.
+  double across_scales(D3 wi, D3 wo) const {
+    const D3 s = wi + wo;
+    const double len = std::sqrt(dot3(s, s));
+    const double wi_h = len > 1e-9 ? std::max(dot3(wi, s) / len, 0.0) : 0.0;
+    return 2.0 * gamma_ / (2.0 * alpha_ * std::max(wi_h, 1e-3));
   }
+  double along_scales() const { return 2.0 * gamma_ / (2.0 * alpha_); }
+  static int needed_points(double scales) { return static_cast<int>(std::ceil(kPointsPerScale * scales)); }
+  static int points(double scales) { return std::clamp(needed_points(scales), kMinPoints, kMaxPoints); }
   double gamma_, alpha_;
   std::vector<GaussLegendre> legendre_;
 };
+
+// P_gamma where the lobe is too narrow for the interior rule below
+// (ConeQuadrature::resolves: an axis would need more than its 24 points, e.g.
+// roughness 0.15 at gamma 5 degrees near grazing, where that rule was off by
+// -10..+6 %), by the cone's boundary instead of its interior. The
+// half-vector map h = normalize(wi + r) takes the cone onto a region R of
+// half vectors, and D(h) cos(theta_h) dh is the slope distribution P22(s) ds
+// (s = tan(theta_h) (cos phi_h, sin phi_h)), radially symmetric for an
+// isotropic D with the closed-form radial CDF C(rho) = Pr[|s| <= rho]:
+// GGX rho^2 / (alpha^2 + rho^2), Beckmann 1 - exp(-rho^2 / alpha^2). By
+// Green's theorem in polar coordinates, Int_R P22 ds = (1 / 2 pi) Loop C(rho)
+// dphi over the boundary of R, the image of the cone's rim r(psi). With
+// (x, y, z) = wi + r(psi) (h unnormalised), dphi = (x y' - y x') / (x^2 + y^2)
+// dpsi and rho^2 = (x^2 + y^2) / z^2, the integrand is
+//   g(rho) (x y' - y x') / z^2,  g = C / rho^2 (GGX 1 / (alpha^2 + rho^2)),
+// smooth even where the rim passes through the normal, and periodic in psi:
+// the trapezoid rule converges geometrically once its points resolve g, which
+// varies on the scale alpha in slope, i.e. alpha / |ds/dpsi| in psi. The
+// interior rule (ConeQuadrature) needs points on the lobe's scale over the
+// whole cone and capped at 24 per axis; this one only along the rim.
+// Returns -1 when the rim's half vectors leave the upper hemisphere (then R
+// is not a region of slopes; the caller uses the interior rule).
+double slope_cdf_over_rho2(BaseDistribution dist, double alpha, double rho2) {
+  const double a2 = alpha * alpha;
+  if (dist == BaseDistribution::GGX) return 1.0 / (a2 + rho2);
+  return rho2 > 1e-12 * a2 ? -std::expm1(-rho2 / a2) / rho2 : (1.0 - 0.5 * rho2 / a2) / a2;
+}
+double cone_probability_by_rim(BaseDistribution dist, double alpha, double gamma_rad, D3 wi, D3 wo) {
+  D3 e1, e2;
+  tangent_frame(wo, e1, e2);
+  const double sin_g = std::sin(gamma_rad), cos_g = std::cos(gamma_rad);
+  auto rim = [&](double psi) { return wi + wo * cos_g + (e1 * std::cos(psi) + e2 * std::sin(psi)) * sin_g; };
+  // Points: g varies on the slope scale max(alpha, rho) (1 / (alpha^2 + rho^2)
+  // for GGX), and the rim's image moves in slope at |ds/dpsi| <= |dp| (1 / z
+  // + |p| / z^2) <= sin(gamma) (1 + 2 / z) / z (|dp/dpsi| = sin(gamma), |p| <= 2):
+  // 8 points per that scale, with rho bounded below from a coarse pass.
+  constexpr int kCoarse = 64;
+  double z_min = 1e30, rho_min = 1e30;
+  for (int k = 0; k < kCoarse; ++k) {
+    const D3 p = rim(2.0 * kPiD * k / kCoarse);
+    z_min = std::min(z_min, p.z);
+    if (p.z > 0.0) rho_min = std::min(rho_min, std::sqrt(p.x * p.x + p.y * p.y) / p.z);
+  }
+  if (!(z_min > 0.05)) return -1.0;
+  const double speed = sin_g * (1.0 + 2.0 / z_min) / z_min;
+  const double scale = std::max(alpha, rho_min - speed * kPiD / kCoarse);  // rho within half a coarse step
+  const int n = std::clamp(static_cast<int>(std::ceil(8.0 * 2.0 * kPiD * speed / scale)), kCoarse, 1 << 16);
+  double sum = 0.0;
+  for (int k = 0; k < n; ++k) {
+    const double psi = 2.0 * kPiD * k / n;
+    const D3 p = rim(psi);                                                    // wi + r(psi)
+    const D3 dp = (e1 * -std::sin(psi) + e2 * std::cos(psi)) * sin_g;         // d/dpsi
+    if (!(p.z > 0.0)) return -1.0;
+    const double rho2 = (p.x * p.x + p.y * p.y) / (p.z * p.z);
+    sum += slope_cdf_over_rho2(dist, alpha, rho2) * (p.x * dp.y - p.y * dp.x) / (p.z * p.z);
+  }
+  return std::fabs(sum / n);  // (1 / 2 pi) * (2 pi / n) * sum; the map may reverse the rim's orientation
+}
 
 template <typename Fn>
 void parallel_for(int count, int threads, Fn fn) {
@@ -294,6 +363,12 @@ size_t DirectionalTable::byte_size() const {
   return s;
 }
 
+double directional_probability_by_rim(BaseDistribution dist, double alpha, double gamma_deg, double theta_i_deg,
+                                      double theta_o_deg, double dphi_deg) {
+  return cone_probability_by_rim(dist, alpha, gamma_deg * kDeg, spherical(theta_i_deg * kDeg, 0.0),
+                                 spherical(theta_o_deg * kDeg, dphi_deg * kDeg));
+}
+
 double directional_probability_reference(const NdfFunction &ndf, double gamma_deg, double theta_i_deg,
                                          double theta_o_deg, double dphi_deg, int rings) {
   const D3 wi = spherical(theta_i_deg * kDeg, 0.0);
@@ -326,8 +401,13 @@ std::unique_ptr<DirectionalTable> build_directional_table(const TableSpec &spec,
   parallel_for(kThetaICount, threads, [&](int ti) {
     const D3 wi = spherical(ti * kDeg, 0.0);
     for (int to = 0; to < kN; ++to)
-      for (int p = 0; p < kP; ++p)
-        pg[ti * slice_size + static_cast<size_t>(to) * kP + p] = cone(ndf, wi, spherical(to * kDeg, p * kDeg));
+      for (int p = 0; p < kP; ++p) {
+        const D3 wo = spherical(to * kDeg, p * kDeg);
+        const double rim = cone.resolves(wi, wo)
+                               ? -1.0
+                               : cone_probability_by_rim(spec.distribution, spec.alpha, spec.gamma_deg * kDeg, wi, wo);
+        pg[ti * slice_size + static_cast<size_t>(to) * kP + p] = rim >= 0.0 ? rim : cone(ndf, wi, wo);
+      }
   });
 
   // Step 3: LOD levels. Level 0 is P_gamma itself (the 1-degree base; no

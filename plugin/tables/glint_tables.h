@@ -19,7 +19,12 @@
 //     nodes), each node by a product rule over the cone (Gauss-Chebyshev
 //     across the plane of (wi, wo), Gauss-Legendre along it) with points
 //     per axis set by the scale on which q varies there (2 alpha (wi.h)
-//     across, 2 alpha along). The paper's route, P at gamma = 1 degree
+//     across, 2 alpha along); where an axis would need more than 24 points
+//     (lobes narrow against the cone, e.g. roughness 0.15 at gamma 5 near
+//     grazing) by the rim rule instead: Green's theorem turns the NDF's mass
+//     over the half vectors of the cone into a loop integral of the slope
+//     distribution's closed-form radial CDF along the image of the cone's
+//     rim (exact for any lobe width). The paper's route, P at gamma = 1 degree
 //     summed over 1-degree cones tiling the gamma cone, adds the small
 //     cone's spread to the large one's: at roughness 0.2 (a lobe narrower
 //     than the cone) the mean was 2.7..6.9 % low;
@@ -179,6 +184,11 @@ std::unique_ptr<DirectionalTable> build_directional_table(const TableSpec &spec,
 // Reference (no table) value of P_gamma by dense quadrature of (1); for tests.
 double directional_probability_reference(const NdfFunction &ndf, double gamma_deg, double theta_i_deg,
                                          double theta_o_deg, double dphi_deg, int rings = 24);
+
+// P_gamma by the rim rule (exact for any lobe width; see glint_tables.cpp),
+// or -1 where the rim's half vectors leave the upper hemisphere; for tests.
+double directional_probability_by_rim(BaseDistribution dist, double alpha, double gamma_deg, double theta_i_deg,
+                                      double theta_o_deg, double dphi_deg);
 
 // Stable 64-bit key of a spec (file name of the cache entry).
 uint64_t table_key(const TableSpec &spec);

@@ -58,7 +58,10 @@ struct Config {
   double theta_i_deg = 0.0;
   uint32_t seed = 11;
 
-  double alpha() const { return std::max(roughness * roughness, 0.0225); }
+  // The closures' alpha: roughness^2, at least the particle field's floor.
+  double alpha() const {
+    return std::max(roughness * roughness, static_cast<double>(plugin::glint::ParticleField::kMinAlpha));
+  }
   double density() const { return per_footprint / (kFootprintSide * kFootprintSide); }
   double gamma() const { return gamma_deg * M_PI / 180.0; }
   Vec3 wi() const { return spherical_dir(theta_i_deg, 0.0); }

@@ -5,9 +5,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <vector>
 
 #include "glimmer/math.h"
 #include "glimmer/microfacet.h"
+#include "tables/glint_hierarchy.h"
 
 namespace glimmer::test {
 
@@ -65,5 +67,51 @@ inline double cone_mean_reflected_density(mf::Distribution dist, double alpha, c
                                           double gamma_deg, int rings = 16) {
   return cone_mean_reflected_density(dist, alpha, alpha, wi, wo, gamma_deg, rings);
 }
+
+// Brute-force P_gamma for lobes of any width, over the particle normals
+// instead of the cone: Pr[reflect(wi, m) within gamma of wo] for m ~ D cos,
+// the fraction of an n_u x n_v midpoint grid of direction codes (u, v) of
+// glint_jakob14's particles whose particle reflects into the cone
+// (ParticleHierarchy::code_theta maps u to theta_m, v to phi_m = 2 pi v; the
+// test is ParticleHierarchy::reflects'). A cone quadrature of q needs points
+// on the lobe's scale; this needs them on the scale of the cone's edge in
+// code space (error ~ 1 / n_u).
+class LobeMassInCone {
+ public:
+  LobeMassInCone(mf::Distribution dist, double alpha, int n_u = 4096, int n_v = 2048) : n_u_(n_u), n_v_(n_v) {
+    const plugin::glint::ParticleHierarchy codes(dist, alpha, 1.0, 0);
+    for (int a = 0; a < n_u; ++a) {
+      const double theta = codes.code_theta((a + 0.5) / n_u);
+      sin_t_.push_back(std::sin(theta));
+      cos_t_.push_back(std::cos(theta));
+    }
+    for (int b = 0; b < n_v; ++b) {
+      const double phi = 2.0 * M_PI * (b + 0.5) / n_v;
+      cos_p_.push_back(std::cos(phi));
+      sin_p_.push_back(std::sin(phi));
+    }
+  }
+
+  double operator()(const Vec3 &wi_f, const Vec3 &wo_f, double gamma_rad) const {
+    const double wi[3] = {wi_f.x, wi_f.y, wi_f.z}, wo[3] = {wo_f.x, wo_f.y, wo_f.z};
+    const double cos_gamma = std::cos(gamma_rad);
+    // r = 2 (wi.m) m - wi, so r.wo = 2 (wi.m)(wo.m) - wi.wo.
+    const double wi_wo = wi[0] * wo[0] + wi[1] * wo[1] + wi[2] * wo[2];
+    long long hits = 0;
+    for (int b = 0; b < n_v_; ++b) {
+      const double ix = wi[0] * cos_p_[b] + wi[1] * sin_p_[b], ox = wo[0] * cos_p_[b] + wo[1] * sin_p_[b];
+      for (int a = 0; a < n_u_; ++a) {
+        const double wi_m = sin_t_[a] * ix + cos_t_[a] * wi[2];
+        const double wo_m = sin_t_[a] * ox + cos_t_[a] * wo[2];
+        hits += (wi_m > 0.0) & (2.0 * wi_m * wo_m - wi_wo > cos_gamma);
+      }
+    }
+    return static_cast<double>(hits) / (static_cast<double>(n_u_) * n_v_);
+  }
+
+ private:
+  int n_u_, n_v_;
+  std::vector<double> sin_t_, cos_t_, cos_p_, sin_p_;
+};
 
 }  // namespace glimmer::test
