@@ -101,17 +101,21 @@ inline int binary_exponent(double x) { return static_cast<int>((std::bit_cast<ui
 // 2^e for |e| <= 1022 (std::ldexp(1.0, e)).
 inline double power_of_two(int e) { return std::bit_cast<double>(static_cast<uint64_t>(1023 + e) << 52); }
 
-// The nodes a footprint is counted over (at most kMaxNodes).
+// The nodes a footprint is counted over (at most kMaxNodes), each with the
+// hash of its id (level, i, j), computed once when it is added, so the dark
+// test's count and the count at P (glint.cpp) hash a node once.
 inline constexpr int kMaxNodes = 64;
 struct NodeList {
-  int level = 0;
+  int level = 0;  // set before add()
   double size = 1.0;  // node side s = 2^-level
   int count = 0;
   std::array<int64_t, kMaxNodes> i, j;  // first `count` entries valid (not zeroed: 1 KB per eval)
+  std::array<uint32_t, kMaxNodes> id_hash;  // hash_u32x3(i, j, level) of the first `count` nodes
   bool add(int64_t ni, int64_t nj) {
     if (count == kMaxNodes) return false;
     i[count] = ni;
     j[count] = nj;
+    id_hash[count] = hash_u32x3(static_cast<uint32_t>(ni), static_cast<uint32_t>(nj), static_cast<uint32_t>(level));
     ++count;
     return true;
   }
@@ -155,7 +159,7 @@ inline bool nodes_at_level(const Footprint &f, int level, NodeList &list) {
   list.count = 0;
   list.level = level;
   list.size = power_of_two(-level);
-  const double inv = 1.0 / list.size;
+  const double inv = power_of_two(level);  // 1 / size, exactly
   const double ey = 0.5 * (std::fabs(f.ay) + std::fabs(f.by));
   const int64_t j0 = floor_to_int64((f.cy - ey) * inv);
   const int64_t j1 = floor_to_int64((f.cy + ey) * inv);
@@ -432,8 +436,7 @@ inline GlintCount count_reflecting_particles(const Footprint &f, const NodeList 
   std::optional<LitCountModel> model;  // built at the first node the bounds leave undecided
   for (int node = 0; node < nodes.count; ++node) {
     const int64_t i = nodes.i[node], j = nodes.j[node];
-    const uint32_t node_hash =
-        hash_u32x3(static_cast<uint32_t>(i), static_cast<uint32_t>(j), static_cast<uint32_t>(nodes.level));
+    const uint32_t node_hash = nodes.id_hash[node];
     // The node's hash per seed, and which may be lit, with no branch per
     // seed: whether a node is lit is random, so a branch per (node, seed)
     // was mispredicted about as often as it was lit.
