@@ -214,15 +214,17 @@ int render_one(CliContext &ctx, const RenderArgs &a, const std::string &scene_pa
   for (const auto &w : scene.warnings) std::fprintf(stderr, "%s\n", w.c_str());
   for (const auto &w : renderer->warnings()) std::fprintf(stderr, "%s\n", w.c_str());
 
-  // The image module (render/image_io.h) is loaded here, before a render is spent on an image it could not
-  // write: a missing or broken module is an installation problem (exit 2). Loading it on a background thread
-  // earlier, to overlap the scene load, the BVH or the render, made them slower by about the load's own wall
-  // time (docs/architecture.md "Start-up").
+  // The module that writes the output (render/image_io.h: OpenEXR's for .exr, OIIO's otherwise) is loaded
+  // here, before a render is spent on an image it could not write: a missing or broken module is an
+  // installation problem (exit 2). Loading OIIO's on a background thread earlier, to overlap the scene load,
+  // the BVH or the render, made them slower by about the load's own wall time (docs/architecture.md "Start-up").
+  t0 = Clock::now();
   try {
-    render::image_io();
+    render::load_output_module(output);
   } catch (const std::exception &e) {
     throw CliError(kExitPlugin, e.what());
   }
+  const double module_seconds = since(t0);
   const bool tty = ::isatty(STDOUT_FILENO) != 0;
   const auto render_start = Clock::now();
   render::RenderResult result;
@@ -265,8 +267,9 @@ int render_one(CliContext &ctx, const RenderArgs &a, const std::string &scene_pa
                 f.background ? "yes" : "no", f.environment_map ? "yes" : "no", join(f.textures).c_str(),
                 f.transparent ? "yes" : "no", f.volumes ? "ignored" : "no", f.used_shaders, f.unused_shaders,
                 f.world_sampling.c_str());
-    std::printf("time: load=%.3fs bvh=%.3fs prepare=%.3fs render=%.3fs write=%.3fs\n", load_seconds,
-                renderer->times().bvh, renderer->times().prepare, result.render_seconds, write_seconds);
+    std::printf("time: load=%.3fs bvh=%.3fs prepare=%.3fs module=%.3fs render=%.3fs write=%.3fs\n", load_seconds,
+                renderer->times().bvh, renderer->times().prepare, module_seconds, result.render_seconds,
+                write_seconds);
     std::printf("render: %dx%d samples=%d/%d paths=%llu samples_per_second=%.0f nan_dropped=%llu\n", result.width,
                 result.height, result.samples_done, result.samples_requested,
                 static_cast<unsigned long long>(result.paths),

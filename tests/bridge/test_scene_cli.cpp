@@ -229,7 +229,7 @@ TEST(FeatureScan, OnlyUsedShadersAreInstantiated) {
   EXPECT_NE(out.find("scan_bad.xml:3: "), std::string::npos) << out;
   // --stats names the phases and the feature set.
   EXPECT_EQ(0, run_cli("render '" + ok_path + "' -o '" + (temp_dir() / "scan.png").string() + "' --quiet --stats", out));
-  for (const char *want : {"features: closures=diffuse", "load=", "bvh=", "prepare=", "render=", "write=", "shaders_unused=1"})
+  for (const char *want : {"features: closures=diffuse", "load=", "bvh=", "prepare=", "module=", "render=", "write=", "shaders_unused=1"})
     EXPECT_NE(out.find(want), std::string::npos) << want << " in " << out;
 }
 
