@@ -15,10 +15,14 @@ no filter glossy, no denoising, linear float EXR) and exported by the addon:
   b1..b11  scene (b) with one part changed (scene_b_variant; BUILD lists them), to bisect its bias
 For each: a Cycles reference (seed 7), then Cycles and Glimmer at the same sample count, interleaved
 --repeats times in ABBA order (C G G C C G ...: the two renderers share the machine's load drift), seed 1,
-wall time of each render call (median of the repeats; the images are identical across repeats), RMSE against
+wall time of each render (median of the repeats; the images are identical across repeats), RMSE against
 the Cycles reference (and Glimmer's against its own reference, which separates its noise from model
 differences), and the equal-error time ratio
   time_glimmer / time_cycles x (rmse_glimmer / rmse_cycles)^2  (< 1: Glimmer reaches the same error sooner).
+TIMED SCOPE, the same on both sides: from the scene in Blender to the image file on disk. Cycles:
+bpy.ops.render.render() (depsgraph sync into Cycles, BVH, render) + save_render (the EXR write). Glimmer: the
+addon's export to Cycles XML (its sync) + the glimmer process (start-up, scene load, BVH, render, EXR write).
+Before session 6 Cycles' EXR write and Glimmer's export were both left out (a few ms each at 96x96).
 --reuse-references loads the reference EXRs an earlier run with the same settings left in --out instead of
 rendering them again.
 --noise-seeds N: the RMSE of one 256-spp image varies with the seed (scene c: 0.0252..0.0272 over Glimmer seeds
@@ -257,23 +261,24 @@ def render_cycles(name, seed):
     path = os.path.join(opts.out, name + ".exr")
     t0 = time.time()
     bpy.ops.render.render()
-    seconds = time.time() - t0
     bpy.data.images["Render Result"].save_render(path, scene=scene)
+    seconds = time.time() - t0  # as Glimmer's: from the Blender scene to the image file (see TIMED SCOPE)
     return load_pixels(path), seconds
 
 
 def render_glimmer(name, seed):
     scene = bpy.context.scene
+    t0 = time.time()
     xml, _ = mod.exporter.export_scene(bpy.context.evaluated_depsgraph_get(), os.path.join(opts.out, name + "_export"))
+    export_seconds = time.time() - t0
     exr = os.path.join(opts.out, name + ".exr")
     g = scene.glimmer
     cmd = mod.runner.render_command(opts.glimmer, xml, exr, g.samples, g.threads, seed, opts.size, opts.size)
-    t0 = time.time()
     proc = subprocess.run(cmd + ["--quiet", "--stats"], check=True, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
-    seconds = time.time() - t0
+    seconds = time.time() - t0  # the export (Cycles' sync) + the process (load, BVH, render, EXR write)
     stats = proc.stdout.decode(errors="replace")
     render_phase = float(stats.split("render=")[1].split("s")[0]) if "render=" in stats else float("nan")
-    TIMES[name] = (seconds, render_phase)
+    TIMES[name] = (seconds, render_phase, export_seconds)
     channels = mod.engine.exr_channels(exr)
     combined = [c for c in channels if ".Combined." in c]
     order = ["%s.Combined.%s" % (combined[0].split(".Combined.")[0], c) for c in "RGBA"] if combined else list("RGBA")
@@ -376,12 +381,12 @@ for key in opts.scenes.split(","):
     # Cycles can be exactly noise-free (its white multiscatter walk in a white world): the ratio is then infinite.
     ratio = t_g / t_c * (e_g / e_c) ** 2 if e_c > 0 else float("inf")
     ratio_own = t_g / t_c * (e_g_own / e_c) ** 2 if e_c > 0 else float("inf")
-    t_g_render = TIMES["%s_glimmer" % key][1]
-    line = ("scene %s %dx%d %d spp: cycles %.2f s rmse %.5f | glimmer %.2f s (render phase %.2f s) rmse %.5f "
+    t_g_render, t_g_export = TIMES["%s_glimmer" % key][1:]
+    line = ("scene %s %dx%d %d spp: cycles %.2f s rmse %.5f | glimmer %.2f s (export %.2f s, render phase %.2f s) rmse %.5f "
             "(vs own ref %.5f) | "
             "equal-error ratio %.2f (noise only %.2f) | refs %d spp: cycles %.1f s, glimmer %.1f s, "
             "mean cycles %.4f glimmer %.4f | rmse: mean of %d seed(s)" % (
-                key, opts.size, opts.size, opts.samples, t_c, e_c, t_g, t_g_render, e_g, e_g_own, ratio, ratio_own,
+                key, opts.size, opts.size, opts.samples, t_c, e_c, t_g, t_g_export, t_g_render, e_g, e_g_own, ratio, ratio_own,
                 opts.reference_samples, t_ref_c, t_ref_g, ref_c.mean(), ref_g.mean(), opts.noise_seeds))
     print(line, flush=True)
     lines.append(line)
