@@ -23,6 +23,8 @@ TIMED SCOPE, the same on both sides: from the scene in Blender to the image file
 bpy.ops.render.render() (depsgraph sync into Cycles, BVH, render) + save_render (the EXR write). Glimmer: the
 addon's export to Cycles XML (its sync) + the glimmer process (start-up, scene load, BVH, render, EXR write).
 Before session 6 Cycles' EXR write and Glimmer's export were both left out (a few ms each at 96x96).
+The CPU time (user + system) of each timed render is printed too: on the shared machine a process gets a share
+of the cores that the other engineers' load decides, so wall times alone mix speed with that share.
 --reuse-references loads the reference EXRs an earlier run with the same settings left in --out instead of
 rendering them again.
 --noise-seeds N: the RMSE of one 256-spp image varies with the seed (scene c: 0.0252..0.0272 over Glimmer seeds
@@ -36,6 +38,7 @@ the fitted log-log slope (Cycles' convergence next to Glimmer's on the same expo
 """
 import argparse
 import os
+import resource
 import subprocess
 import sys
 import time
@@ -259,15 +262,18 @@ def render_cycles(name, seed):
     scene.render.engine = "CYCLES"
     scene.cycles.seed = seed
     path = os.path.join(opts.out, name + ".exr")
+    cpu0 = cpu_seconds(resource.RUSAGE_SELF)
     t0 = time.time()
     bpy.ops.render.render()
     bpy.data.images["Render Result"].save_render(path, scene=scene)
     seconds = time.time() - t0  # as Glimmer's: from the Blender scene to the image file (see TIMED SCOPE)
+    CPU[name] = cpu_seconds(resource.RUSAGE_SELF) - cpu0
     return load_pixels(path), seconds
 
 
 def render_glimmer(name, seed):
     scene = bpy.context.scene
+    cpu0 = cpu_seconds(resource.RUSAGE_SELF) + cpu_seconds(resource.RUSAGE_CHILDREN)
     t0 = time.time()
     xml, _ = mod.exporter.export_scene(bpy.context.evaluated_depsgraph_get(), os.path.join(opts.out, name + "_export"))
     export_seconds = time.time() - t0
@@ -276,6 +282,7 @@ def render_glimmer(name, seed):
     cmd = mod.runner.render_command(opts.glimmer, xml, exr, g.samples, g.threads, seed, opts.size, opts.size)
     proc = subprocess.run(cmd + ["--quiet", "--stats"], check=True, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
     seconds = time.time() - t0  # the export (Cycles' sync) + the process (load, BVH, render, EXR write)
+    CPU[name] = cpu_seconds(resource.RUSAGE_SELF) + cpu_seconds(resource.RUSAGE_CHILDREN) - cpu0
     stats = proc.stdout.decode(errors="replace")
     render_phase = float(stats.split("render=")[1].split("s")[0]) if "render=" in stats else float("nan")
     TIMES[name] = (seconds, render_phase, export_seconds)
@@ -289,6 +296,12 @@ def render_glimmer(name, seed):
 
 
 TIMES = {}
+CPU = {}  # user + system CPU seconds of each render over the timed scope (Blender's process for Cycles)
+
+
+def cpu_seconds(who):
+    usage = resource.getrusage(who)
+    return usage.ru_utime + usage.ru_stime
 
 
 def rmse(a, b):
@@ -306,12 +319,17 @@ def reference(render, name):
 def interleaved(key):
     """Cycles and Glimmer renders of the scene, ABBA-interleaved; images of the first, median times."""
     times = {"c": [], "g": []}
+    cpu = {"c": [], "g": []}
     images = {}
     for i in range(opts.repeats):
         for r in ("cg" if i % 2 == 0 else "gc"):
-            image, seconds = (render_cycles if r == "c" else render_glimmer)("%s_%s" % (key, "cycles" if r == "c" else "glimmer"), 1)
+            name = "%s_%s" % (key, "cycles" if r == "c" else "glimmer")
+            image, seconds = (render_cycles if r == "c" else render_glimmer)(name, 1)
             images.setdefault(r, image)
             times[r].append(seconds)
+            cpu[r].append(CPU[name])
+    print("scene %s CPU seconds (user + sys), interleaved: cycles %s glimmer %s" %
+          (key, " ".join("%.2f" % t for t in cpu["c"]), " ".join("%.2f" % t for t in cpu["g"])), flush=True)
     return images["c"], images["g"], float(np.median(times["c"])), float(np.median(times["g"])), times
 
 
