@@ -296,6 +296,7 @@ def render_glimmer(name, seed):
 
 
 TIMES = {}
+PHASES = {}  # per scene: (render phase, export) of each timed Glimmer run
 CPU = {}  # user + system CPU seconds of each render over the timed scope (Blender's process for Cycles)
 
 
@@ -328,6 +329,8 @@ def interleaved(key):
             images.setdefault(r, image)
             times[r].append(seconds)
             cpu[r].append(CPU[name])
+            if r == "g":
+                PHASES.setdefault(key, []).append(TIMES[name][1:])
     print("scene %s CPU seconds (user + sys), interleaved: cycles %s glimmer %s" %
           (key, " ".join("%.2f" % t for t in cpu["c"]), " ".join("%.2f" % t for t in cpu["g"])), flush=True)
     return images["c"], images["g"], float(np.median(times["c"])), float(np.median(times["g"])), times
@@ -399,7 +402,7 @@ for key in opts.scenes.split(","):
     # Cycles can be exactly noise-free (its white multiscatter walk in a white world): the ratio is then infinite.
     ratio = t_g / t_c * (e_g / e_c) ** 2 if e_c > 0 else float("inf")
     ratio_own = t_g / t_c * (e_g_own / e_c) ** 2 if e_c > 0 else float("inf")
-    t_g_render, t_g_export = TIMES["%s_glimmer" % key][1:]
+    t_g_render, t_g_export = (float(np.median([p[k] for p in PHASES[key]])) for k in (0, 1))  # medians
     line = ("scene %s %dx%d %d spp: cycles %.2f s rmse %.5f | glimmer %.2f s (export %.2f s, render phase %.2f s) rmse %.5f "
             "(vs own ref %.5f) | "
             "equal-error ratio %.2f (noise only %.2f) | refs %d spp: cycles %.1f s, glimmer %.1f s, "
