@@ -61,6 +61,7 @@ struct RenderArgs {
   int samples = 0, threads = 0, width = 0, height = 0, seed = -1, tile_size = 32;
   double time_limit = 0.0;
   bool quiet = false, stats = false;
+  bool no_aovs = false;  // Combined only: the first hit's albedo, normal and depth are not computed
 };
 
 void parse_region(const std::string &text, int out[4]) {
@@ -157,6 +158,7 @@ int render_one(CliContext &ctx, const RenderArgs &a, const std::string &scene_pa
   opt.seed = a.seed;
   opt.time_limit = a.time_limit;
   opt.tile_size = a.tile_size;
+  opt.aovs = !a.no_aovs;
   opt.cancel = &g_interrupted;
   set_part(a, scene, opt);
   opt.scene_hash = render::scene_file_hash(scene_path);
@@ -207,6 +209,9 @@ int render_one(CliContext &ctx, const RenderArgs &a, const std::string &scene_pa
   std::optional<render::Film> resumed;
   if (a.resume && std::filesystem::exists(checkpoint)) {
     resumed = read_checkpoint(checkpoint, renderer->part());
+    if (resumed->aovs() && a.no_aovs)
+      throw CliError(kExitBadInput, "--resume: checkpoint '" + checkpoint +
+                                        "' has the Albedo, Normal and Depth passes; resume it without --no-aovs");
     if (!a.quiet)
       std::printf("Resuming %s from sample %d/%d\n", checkpoint.c_str(), resumed->passes(),
                   renderer->part().sample_end - renderer->part().sample_begin);
@@ -329,6 +334,8 @@ void add_render_options(CLI::App *cmd, RenderArgs &a) {
   cmd->add_option("--tile-size", a.tile_size, "tile edge in pixels (does not change the image)")
       ->check(CLI::Range(1, 4096));
   cmd->add_option("--strategy", a.strategy, "direct light estimator: mis (default), light (NEE only), bsdf");
+  cmd->add_flag("--no-aovs", a.no_aovs,
+                "write the Combined pass only (no Albedo, Normal, Depth; their first-hit work is skipped)");
   cmd->add_flag("--quiet", a.quiet, "no progress output");
   cmd->add_flag("--stats", a.stats, "print the feature set and the time per phase");
 }

@@ -32,7 +32,7 @@ struct RenderOptions {
   // Light sampling (NEE + MIS) at exit lobes of moved samples (frosted_glass sg, ABI 2.4); off: they stay
   // singular (the estimator before; tests and benchmarks compare the two).
   bool exit_lobe_nee = true;
-  bool aovs = true;       // Albedo, Normal, Depth
+  bool aovs = true;       // Albedo, Normal, Depth (false: not computed, the film keeps Combined only)
   const std::atomic<bool> *cancel = nullptr;  // set from a signal handler: stop after the current pass
   int sample_begin = 0, sample_end = 0;  // render samples [begin, end) of `samples`; both 0 = all of them
   std::string scene_hash;                // recorded in the part's metadata (render::scene_file_hash)
