@@ -22,6 +22,8 @@ differences), and the equal-error time ratio
 TIMED SCOPE, the same on both sides: from the scene in Blender to the image file on disk. Cycles:
 bpy.ops.render.render() (depsgraph sync into Cycles, BVH, render) + save_render (the EXR write). Glimmer: the
 addon's export to Cycles XML (its sync) + the glimmer process (start-up, scene load, BVH, render, EXR write).
+Both write the Combined pass only (Glimmer `--no-aovs` since session 6; its Albedo, Normal and Depth passes
+were computed at every sample's first hit before, work Cycles does not do here).
 Before session 6 Cycles' EXR write and Glimmer's export were both left out (a few ms each at 96x96).
 The CPU time (user + system) of each timed render is printed too: on the shared machine a process gets a share
 of the cores that the other engineers' load decides, so wall times alone mix speed with that share.
@@ -280,7 +282,8 @@ def render_glimmer(name, seed):
     exr = os.path.join(opts.out, name + ".exr")
     g = scene.glimmer
     cmd = mod.runner.render_command(opts.glimmer, xml, exr, g.samples, g.threads, seed, opts.size, opts.size)
-    proc = subprocess.run(cmd + ["--quiet", "--stats"], check=True, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    # --no-aovs: the Combined pass only, as Cycles renders here (no denoising data, no extra passes).
+    proc = subprocess.run(cmd + ["--quiet", "--stats", "--no-aovs"], check=True, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
     seconds = time.time() - t0  # the export (Cycles' sync) + the process (load, BVH, render, EXR write)
     CPU[name] = cpu_seconds(resource.RUSAGE_SELF) + cpu_seconds(resource.RUSAGE_CHILDREN) - cpu0
     stats = proc.stdout.decode(errors="replace")
