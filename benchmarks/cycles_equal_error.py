@@ -15,10 +15,18 @@ no filter glossy, no denoising, linear float EXR) and exported by the addon:
   b1..b11  scene (b) with one part changed (scene_b_variant; BUILD lists them), to bisect its bias
 For each: a Cycles reference (seed 7), then Cycles and Glimmer at the same sample count, interleaved
 --repeats times in ABBA order (C G G C C G ...: the two renderers share the machine's load drift), seed 1,
-wall time of each render call (median of the repeats; the images are identical across repeats), RMSE against
+wall time of each render (median of the repeats; the images are identical across repeats), RMSE against
 the Cycles reference (and Glimmer's against its own reference, which separates its noise from model
 differences), and the equal-error time ratio
   time_glimmer / time_cycles x (rmse_glimmer / rmse_cycles)^2  (< 1: Glimmer reaches the same error sooner).
+TIMED SCOPE, the same on both sides: from the scene in Blender to the image file on disk. Cycles:
+bpy.ops.render.render() (depsgraph sync into Cycles, BVH, render) + save_render (the EXR write). Glimmer: the
+addon's export to Cycles XML (its sync) + the glimmer process (start-up, scene load, BVH, render, EXR write).
+Both write the Combined pass only (Glimmer `--no-aovs` since session 6; its Albedo, Normal and Depth passes
+were computed at every sample's first hit before, work Cycles does not do here).
+Before session 6 Cycles' EXR write and Glimmer's export were both left out (a few ms each at 96x96).
+The CPU time (user + system) of each timed render is printed too: on the shared machine a process gets a share
+of the cores that the other engineers' load decides, so wall times alone mix speed with that share.
 --reuse-references loads the reference EXRs an earlier run with the same settings left in --out instead of
 rendering them again.
 --noise-seeds N: the RMSE of one 256-spp image varies with the seed (scene c: 0.0252..0.0272 over Glimmer seeds
@@ -32,6 +40,7 @@ the fitted log-log slope (Cycles' convergence next to Glimmer's on the same expo
 """
 import argparse
 import os
+import resource
 import subprocess
 import sys
 import time
@@ -255,25 +264,31 @@ def render_cycles(name, seed):
     scene.render.engine = "CYCLES"
     scene.cycles.seed = seed
     path = os.path.join(opts.out, name + ".exr")
+    cpu0 = cpu_seconds(resource.RUSAGE_SELF)
     t0 = time.time()
     bpy.ops.render.render()
-    seconds = time.time() - t0
     bpy.data.images["Render Result"].save_render(path, scene=scene)
+    seconds = time.time() - t0  # as Glimmer's: from the Blender scene to the image file (see TIMED SCOPE)
+    CPU[name] = cpu_seconds(resource.RUSAGE_SELF) - cpu0
     return load_pixels(path), seconds
 
 
 def render_glimmer(name, seed):
     scene = bpy.context.scene
+    cpu0 = cpu_seconds(resource.RUSAGE_SELF) + cpu_seconds(resource.RUSAGE_CHILDREN)
+    t0 = time.time()
     xml, _ = mod.exporter.export_scene(bpy.context.evaluated_depsgraph_get(), os.path.join(opts.out, name + "_export"))
+    export_seconds = time.time() - t0
     exr = os.path.join(opts.out, name + ".exr")
     g = scene.glimmer
     cmd = mod.runner.render_command(opts.glimmer, xml, exr, g.samples, g.threads, seed, opts.size, opts.size)
-    t0 = time.time()
-    proc = subprocess.run(cmd + ["--quiet", "--stats"], check=True, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
-    seconds = time.time() - t0
+    # --no-aovs: the Combined pass only, as Cycles renders here (no denoising data, no extra passes).
+    proc = subprocess.run(cmd + ["--quiet", "--stats", "--no-aovs"], check=True, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    seconds = time.time() - t0  # the export (Cycles' sync) + the process (load, BVH, render, EXR write)
+    CPU[name] = cpu_seconds(resource.RUSAGE_SELF) + cpu_seconds(resource.RUSAGE_CHILDREN) - cpu0
     stats = proc.stdout.decode(errors="replace")
     render_phase = float(stats.split("render=")[1].split("s")[0]) if "render=" in stats else float("nan")
-    TIMES[name] = (seconds, render_phase)
+    TIMES[name] = (seconds, render_phase, export_seconds)
     channels = mod.engine.exr_channels(exr)
     combined = [c for c in channels if ".Combined." in c]
     order = ["%s.Combined.%s" % (combined[0].split(".Combined.")[0], c) for c in "RGBA"] if combined else list("RGBA")
@@ -284,6 +299,13 @@ def render_glimmer(name, seed):
 
 
 TIMES = {}
+PHASES = {}  # per scene: (render phase, export) of each timed Glimmer run
+CPU = {}  # user + system CPU seconds of each render over the timed scope (Blender's process for Cycles)
+
+
+def cpu_seconds(who):
+    usage = resource.getrusage(who)
+    return usage.ru_utime + usage.ru_stime
 
 
 def rmse(a, b):
@@ -301,12 +323,19 @@ def reference(render, name):
 def interleaved(key):
     """Cycles and Glimmer renders of the scene, ABBA-interleaved; images of the first, median times."""
     times = {"c": [], "g": []}
+    cpu = {"c": [], "g": []}
     images = {}
     for i in range(opts.repeats):
         for r in ("cg" if i % 2 == 0 else "gc"):
-            image, seconds = (render_cycles if r == "c" else render_glimmer)("%s_%s" % (key, "cycles" if r == "c" else "glimmer"), 1)
+            name = "%s_%s" % (key, "cycles" if r == "c" else "glimmer")
+            image, seconds = (render_cycles if r == "c" else render_glimmer)(name, 1)
             images.setdefault(r, image)
             times[r].append(seconds)
+            cpu[r].append(CPU[name])
+            if r == "g":
+                PHASES.setdefault(key, []).append(TIMES[name][1:])
+    print("scene %s CPU seconds (user + sys), interleaved: cycles %s glimmer %s" %
+          (key, " ".join("%.2f" % t for t in cpu["c"]), " ".join("%.2f" % t for t in cpu["g"])), flush=True)
     return images["c"], images["g"], float(np.median(times["c"])), float(np.median(times["g"])), times
 
 
@@ -376,12 +405,12 @@ for key in opts.scenes.split(","):
     # Cycles can be exactly noise-free (its white multiscatter walk in a white world): the ratio is then infinite.
     ratio = t_g / t_c * (e_g / e_c) ** 2 if e_c > 0 else float("inf")
     ratio_own = t_g / t_c * (e_g_own / e_c) ** 2 if e_c > 0 else float("inf")
-    t_g_render = TIMES["%s_glimmer" % key][1]
-    line = ("scene %s %dx%d %d spp: cycles %.2f s rmse %.5f | glimmer %.2f s (render phase %.2f s) rmse %.5f "
+    t_g_render, t_g_export = (float(np.median([p[k] for p in PHASES[key]])) for k in (0, 1))  # medians
+    line = ("scene %s %dx%d %d spp: cycles %.2f s rmse %.5f | glimmer %.2f s (export %.2f s, render phase %.2f s) rmse %.5f "
             "(vs own ref %.5f) | "
             "equal-error ratio %.2f (noise only %.2f) | refs %d spp: cycles %.1f s, glimmer %.1f s, "
             "mean cycles %.4f glimmer %.4f | rmse: mean of %d seed(s)" % (
-                key, opts.size, opts.size, opts.samples, t_c, e_c, t_g, t_g_render, e_g, e_g_own, ratio, ratio_own,
+                key, opts.size, opts.size, opts.samples, t_c, e_c, t_g, t_g_export, t_g_render, e_g, e_g_own, ratio, ratio_own,
                 opts.reference_samples, t_ref_c, t_ref_g, ref_c.mean(), ref_g.mean(), opts.noise_seeds))
     print(line, flush=True)
     lines.append(line)

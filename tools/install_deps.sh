@@ -5,7 +5,7 @@ set -euo pipefail
 
 packages=(
   build-essential cmake ninja-build pkg-config git
-  libembree-dev libopenimageio-dev openimageio-tools libtbb-dev libopenvdb-dev
+  libembree-dev libopenimageio-dev libopenexr-dev openimageio-tools libtbb-dev libopenvdb-dev
   libpugixml-dev libeigen3-dev libcli11-dev nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   clang libclang-rt-14-dev

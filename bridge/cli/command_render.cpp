@@ -61,6 +61,7 @@ struct RenderArgs {
   int samples = 0, threads = 0, width = 0, height = 0, seed = -1, tile_size = 32;
   double time_limit = 0.0;
   bool quiet = false, stats = false;
+  bool no_aovs = false;  // Combined only: the first hit's albedo, normal and depth are not computed
 };
 
 void parse_region(const std::string &text, int out[4]) {
@@ -157,6 +158,7 @@ int render_one(CliContext &ctx, const RenderArgs &a, const std::string &scene_pa
   opt.seed = a.seed;
   opt.time_limit = a.time_limit;
   opt.tile_size = a.tile_size;
+  opt.aovs = !a.no_aovs;
   opt.cancel = &g_interrupted;
   set_part(a, scene, opt);
   opt.scene_hash = render::scene_file_hash(scene_path);
@@ -207,6 +209,9 @@ int render_one(CliContext &ctx, const RenderArgs &a, const std::string &scene_pa
   std::optional<render::Film> resumed;
   if (a.resume && std::filesystem::exists(checkpoint)) {
     resumed = read_checkpoint(checkpoint, renderer->part());
+    if (resumed->aovs() && a.no_aovs)
+      throw CliError(kExitBadInput, "--resume: checkpoint '" + checkpoint +
+                                        "' has the Albedo, Normal and Depth passes; resume it without --no-aovs");
     if (!a.quiet)
       std::printf("Resuming %s from sample %d/%d\n", checkpoint.c_str(), resumed->passes(),
                   renderer->part().sample_end - renderer->part().sample_begin);
@@ -214,15 +219,17 @@ int render_one(CliContext &ctx, const RenderArgs &a, const std::string &scene_pa
   for (const auto &w : scene.warnings) std::fprintf(stderr, "%s\n", w.c_str());
   for (const auto &w : renderer->warnings()) std::fprintf(stderr, "%s\n", w.c_str());
 
-  // The image module (render/image_io.h) is loaded here, before a render is spent on an image it could not
-  // write: a missing or broken module is an installation problem (exit 2). Loading it on a background thread
-  // earlier, to overlap the scene load, the BVH or the render, made them slower by about the load's own wall
-  // time (docs/architecture.md "Start-up").
+  // The module that writes the output (render/image_io.h: OpenEXR's for .exr, OIIO's otherwise) is loaded
+  // here, before a render is spent on an image it could not write: a missing or broken module is an
+  // installation problem (exit 2). Loading OIIO's on a background thread earlier, to overlap the scene load,
+  // the BVH or the render, made them slower by about the load's own wall time (docs/architecture.md "Start-up").
+  t0 = Clock::now();
   try {
-    render::image_io();
+    render::load_output_module(output);
   } catch (const std::exception &e) {
     throw CliError(kExitPlugin, e.what());
   }
+  const double module_seconds = since(t0);
   const bool tty = ::isatty(STDOUT_FILENO) != 0;
   const auto render_start = Clock::now();
   render::RenderResult result;
@@ -265,8 +272,9 @@ int render_one(CliContext &ctx, const RenderArgs &a, const std::string &scene_pa
                 f.background ? "yes" : "no", f.environment_map ? "yes" : "no", join(f.textures).c_str(),
                 f.transparent ? "yes" : "no", f.volumes ? "ignored" : "no", f.used_shaders, f.unused_shaders,
                 f.world_sampling.c_str());
-    std::printf("time: load=%.3fs bvh=%.3fs prepare=%.3fs render=%.3fs write=%.3fs\n", load_seconds,
-                renderer->times().bvh, renderer->times().prepare, result.render_seconds, write_seconds);
+    std::printf("time: load=%.3fs bvh=%.3fs prepare=%.3fs module=%.3fs render=%.3fs write=%.3fs\n", load_seconds,
+                renderer->times().bvh, renderer->times().prepare, module_seconds, result.render_seconds,
+                write_seconds);
     std::printf("render: %dx%d samples=%d/%d paths=%llu samples_per_second=%.0f nan_dropped=%llu\n", result.width,
                 result.height, result.samples_done, result.samples_requested,
                 static_cast<unsigned long long>(result.paths),
@@ -326,6 +334,8 @@ void add_render_options(CLI::App *cmd, RenderArgs &a) {
   cmd->add_option("--tile-size", a.tile_size, "tile edge in pixels (does not change the image)")
       ->check(CLI::Range(1, 4096));
   cmd->add_option("--strategy", a.strategy, "direct light estimator: mis (default), light (NEE only), bsdf");
+  cmd->add_flag("--no-aovs", a.no_aovs,
+                "write the Combined pass only (no Albedo, Normal, Depth; their first-hit work is skipped)");
   cmd->add_flag("--quiet", a.quiet, "no progress output");
   cmd->add_flag("--stats", a.stats, "print the feature set and the time per phase");
 }

@@ -16,12 +16,14 @@
 #include <vector>
 
 #include "glimmer/atomic_file.h"
+#include "image_io/render_layout.h"
 #include "render/image_io.h"
 #include "render/textures.h"
 
 namespace glimmer::render::oiio_module {
 
 namespace fs = std::filesystem;
+using namespace image_layout;
 
 // ---- Renders (render/image_output.h) ----
 
@@ -31,35 +33,6 @@ float srgb_encode(float v) {
   if (!(v > 0.0f)) return 0.0f;
   if (v >= 1.0f) return 1.0f;
   return linear_to_srgb(v);
-}
-
-// A checkpoint's per-pixel alpha sums (RenderResult::alpha_sum): not a Blender pass.
-constexpr const char *kAlphaSumChannel = "glimmer.alpha_sum";
-
-std::vector<std::string> exr_channel_names(bool aovs) {
-  std::vector<std::string> names = {"ViewLayer.Combined.R", "ViewLayer.Combined.G", "ViewLayer.Combined.B",
-                                    "ViewLayer.Combined.A"};
-  if (aovs) {
-    for (const char *c : {"R", "G", "B"}) names.push_back(std::string("ViewLayer.Albedo.") + c);
-    for (const char *c : {"X", "Y", "Z"}) names.push_back(std::string("ViewLayer.Normal.") + c);
-    names.push_back("ViewLayer.Depth.Z");
-  }
-  return names;
-}
-
-// glimmer:* attributes: what part of which render the image holds (render/film.h PartInfo).
-void write_part_metadata(const RenderResult &r, OIIO::ImageSpec &spec) {
-  const PartInfo &p = r.part;
-  if (!p.scene_hash.empty()) spec.attribute("glimmer:scene_hash", p.scene_hash);
-  spec.attribute("glimmer:strategy", p.strategy);
-  spec.attribute("glimmer:seed", p.seed);
-  spec.attribute("glimmer:samples_total", p.samples_total);
-  spec.attribute("glimmer:sample_begin", p.sample_begin);
-  spec.attribute("glimmer:sample_end", p.sample_end);
-  spec.attribute("glimmer:incomplete", r.samples_done != p.sample_end - p.sample_begin || r.interrupted ? 1 : 0);
-  spec.attribute("glimmer:nan_samples", std::to_string(r.nan_samples));
-  spec.attribute("glimmer:paths", std::to_string(r.paths));
-  if (r.film_sums) spec.attribute("glimmer:checkpoint", 1);
 }
 
 std::string lower_extension(const std::string &path) {
@@ -94,17 +67,12 @@ void write_image_file(const std::string &path, const OIIO::ImageSpec &spec, cons
 
 namespace {
 
-// A float EXR spec for `names`: the data window is the rendered window (a region writes just its crop), the display
-// window the whole image; Combined RGBA first.
-OIIO::ImageSpec exr_spec(const RenderResult &r, const std::vector<std::string> &names) {
-  const PartInfo &part = r.part;
-  const bool windowed = part.window[2] > part.window[0] && part.window[3] > part.window[1] &&
-                        part.full_width == r.width && part.full_height == r.height;
-  const int wx0 = windowed ? part.window[0] : 0, wy0 = windowed ? part.window[1] : 0;
-  OIIO::ImageSpec spec(windowed ? part.window[2] - wx0 : r.width, windowed ? part.window[3] - wy0 : r.height,
-                       static_cast<int>(names.size()), OIIO::TypeDesc::FLOAT);
-  spec.x = wx0;
-  spec.y = wy0;
+// A float spec for `names` over the render's data window (image_layout::data_window), Combined RGBA first.
+OIIO::ImageSpec float_spec(const RenderResult &r, const std::vector<std::string> &names) {
+  const DataWindow w = data_window(r);
+  OIIO::ImageSpec spec(w.width, w.height, static_cast<int>(names.size()), OIIO::TypeDesc::FLOAT);
+  spec.x = w.x;
+  spec.y = w.y;
   spec.full_x = spec.full_y = 0;
   spec.full_width = r.width;
   spec.full_height = r.height;
@@ -113,69 +81,38 @@ OIIO::ImageSpec exr_spec(const RenderResult &r, const std::vector<std::string> &
   return spec;
 }
 
-// The pixels of spec's data window, channel k of a pixel from channel(i, k) (i: the pixel's index in the full image).
-template <class Channel>
-std::vector<float> window_pixels(const OIIO::ImageSpec &spec, int full_width, Channel channel) {
-  const int nc = spec.nchannels;
-  std::vector<float> pixels(static_cast<size_t>(spec.width) * spec.height * nc);
-  for (int y = 0; y < spec.height; ++y)
-    for (int x = 0; x < spec.width; ++x) {
-      const size_t i = static_cast<size_t>(y + spec.y) * full_width + (x + spec.x);
-      float *p = &pixels[(static_cast<size_t>(y) * spec.width + x) * nc];
-      for (int k = 0; k < nc; ++k) p[k] = channel(i, k);
-    }
-  return pixels;
-}
-
 }  // namespace
 
+// A display image in a format other than EXR (EXR: the EXR module, render/image_io.h ExrWriter).
 void write_display_image(const std::string &path, const RenderResult &r) {
-  OIIO::ImageSpec spec = exr_spec(r, {"R", "G", "B", "A"});
-  spec.attribute("compression", "none");
+  OIIO::ImageSpec spec = float_spec(r, {"R", "G", "B", "A"});
   spec.attribute("glimmer:samples", r.samples_done);
-  const auto pixels = window_pixels(spec, r.width, [&r](size_t i, int k) { return r.combined[4 * i + k]; });
+  const auto pixels = window_pixels(data_window(r), r.width, 4, [&r](size_t i, int k) { return r.combined[4 * i + k]; });
   write_image_file(path, spec, pixels.data());
 }
 
+// 8-bit formats; renders and checkpoints as EXR are the EXR module's (render/image_output.cpp routes them there).
 void write_image(const std::string &path, const RenderResult &r) {
-  const std::string ext = lower_extension(path);
+  if (lower_extension(path) == ".exr")
+    throw std::logic_error("'" + path + "': EXR renders are written by " + std::string(kExrWriterFileName));
   const size_t npix = static_cast<size_t>(r.width) * r.height;
-  if (ext == ".exr") {
-    std::vector<std::string> names = exr_channel_names(r.albedo.size() == 3 * npix);
-    const bool aovs = names.size() > 4;
-    if (r.alpha_sum.size() == npix) names.push_back(kAlphaSumChannel);
-    OIIO::ImageSpec spec = exr_spec(r, names);
-    spec.z_channel = aovs ? 10 : -1;
-    spec.attribute("compression", "zip");
-    spec.attribute("glimmer:samples", r.samples_done);
-    write_part_metadata(r, spec);
-    const auto pixels = window_pixels(spec, r.width, [&r, aovs](size_t i, int k) {
-      if (k < 4) return r.combined[4 * i + k];
-      if (aovs && k < 7) return r.albedo[3 * i + k - 4];
-      if (aovs && k < 10) return r.normal[3 * i + k - 7];
-      if (aovs && k == 10) return r.depth[i];
-      return r.alpha_sum[i];
-    });
-    write_image_file(path, spec, pixels.data());
-  } else {
-    // 8-bit sRGB; RGBA with straight (unassociated) alpha, as Blender writes PNGs, where the format has alpha.
-    auto out = OIIO::ImageOutput::create(path);
-    const int nc = out && out->supports("alpha") ? 4 : 3;
-    OIIO::ImageSpec spec(r.width, r.height, nc, OIIO::TypeDesc::UINT8);
-    spec.attribute("oiio:ColorSpace", "sRGB");
-    if (nc == 4) spec.attribute("oiio:UnassociatedAlpha", 1);  // already straight: OIIO must not divide again
-    std::vector<unsigned char> pixels(npix * nc);
-    for (size_t i = 0; i < npix; ++i) {
-      const float alpha = std::clamp(r.combined[4 * i + 3], 0.0f, 1.0f);
-      // Premultiplied RGB over alpha 1 (or without an alpha channel) is written as it is.
-      const float straight = nc == 4 && alpha > 0.0f ? 1.0f / alpha : 1.0f;
-      for (int k = 0; k < 3; ++k)
-        pixels[nc * i + k] =
-            static_cast<unsigned char>(std::lround(srgb_encode(r.combined[4 * i + k] * straight) * 255.0f));
-      if (nc == 4) pixels[nc * i + 3] = static_cast<unsigned char>(std::lround(alpha * 255.0f));
-    }
-    write_image_file(path, spec, pixels.data());
+  // 8-bit sRGB; RGBA with straight (unassociated) alpha, as Blender writes PNGs, where the format has alpha.
+  auto out = OIIO::ImageOutput::create(path);
+  const int nc = out && out->supports("alpha") ? 4 : 3;
+  OIIO::ImageSpec spec(r.width, r.height, nc, OIIO::TypeDesc::UINT8);
+  spec.attribute("oiio:ColorSpace", "sRGB");
+  if (nc == 4) spec.attribute("oiio:UnassociatedAlpha", 1);  // already straight: OIIO must not divide again
+  std::vector<unsigned char> pixels(npix * nc);
+  for (size_t i = 0; i < npix; ++i) {
+    const float alpha = std::clamp(r.combined[4 * i + 3], 0.0f, 1.0f);
+    // Premultiplied RGB over alpha 1 (or without an alpha channel) is written as it is.
+    const float straight = nc == 4 && alpha > 0.0f ? 1.0f / alpha : 1.0f;
+    for (int k = 0; k < 3; ++k)
+      pixels[nc * i + k] =
+          static_cast<unsigned char>(std::lround(srgb_encode(r.combined[4 * i + k] * straight) * 255.0f));
+    if (nc == 4) pixels[nc * i + 3] = static_cast<unsigned char>(std::lround(alpha * 255.0f));
   }
+  write_image_file(path, spec, pixels.data());
 }
 
 RenderResult read_image(const std::string &path) {

@@ -72,9 +72,10 @@ Film::Film(int width, int height, bool aovs) : width_(width), height_(height), a
 void Film::resolve(float exposure, RenderResult &r) const {
   const size_t npix = sum_.size();
   r.combined.assign(npix * 4, 0.0f);
-  r.albedo.assign(npix * 3, 0.0f);
-  r.normal.assign(npix * 3, 0.0f);
-  r.depth.assign(npix, 0.0f);
+  // A film without AOVs gives none (the image then holds Combined only).
+  r.albedo.assign(aovs_ ? npix * 3 : 0, 0.0f);
+  r.normal.assign(aovs_ ? npix * 3 : 0, 0.0f);
+  r.depth.assign(aovs_ ? npix : 0, 0.0f);
   for (size_t i = 0; i < npix; ++i) {
     const float inv = count_[i] > 0 ? 1.0f / static_cast<float>(count_[i]) : 0.0f;
     Spectrum c = sum_[i] * (inv * exposure);

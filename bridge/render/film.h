@@ -47,6 +47,8 @@ class Film {
   int height() const { return height_; }
   // Sample passes completed over every pixel of the window (what a checkpoint records).
   int passes() const { return passes_; }
+  // Whether the film keeps the Albedo, Normal and Depth passes.
+  bool aovs() const { return aovs_; }
 
   // One sample of pixel i (row-major, full image): radiance L, alpha in [0, 1] (1 - the
   // throughput that escaped to a transparent background). Called concurrently for distinct pixels.

@@ -2,8 +2,11 @@
 // host loads with dlopen on first use instead of linking it: Debian's libOpenImageIO pulls in 260 shared
 // libraries whose loading dominated the start-up of every command (docs/architecture.md "Start-up"), so
 // commands that read or write no image (describe, lab, ...) no longer pay for it. `glimmer render` loads it
-// after preparing the scene and before the render. The module sits next to the glimmer executable (or the
-// test/benchmark binary); $GLIMMER_IMAGE_IO_PATH overrides the file.
+// after preparing the scene and before the render when its output is not an EXR. EXR renders, checkpoints and
+// display images are written by a second, light module, libglimmer_exr_io.so (OpenEXR alone, 5 libraries:
+// bridge/image_io/exr_writer_openexr.cpp), so a render to .exr loads no OIIO at all. Both modules sit next to
+// the glimmer executable (or the test/benchmark binary); $GLIMMER_IMAGE_IO_PATH / $GLIMMER_EXR_IO_PATH
+// override the files.
 #pragma once
 
 #include <cstdint>
@@ -47,6 +50,7 @@ class ImageIo {
   virtual ~ImageIo() = default;
   // Throws std::runtime_error when path's extension names no format that can be encoded to memory.
   virtual void check_output_format(const std::string &path) const = 0;
+  // Formats other than EXR (8-bit sRGB PNG, ...); .exr goes to the EXR module (ExrWriter) and is refused here.
   virtual void write_image(const std::string &path, const RenderResult &result) const = 0;
   virtual void write_display_image(const std::string &path, const RenderResult &result) const = 0;
   virtual RenderResult read_image(const std::string &path) const = 0;
@@ -70,5 +74,23 @@ using ImageIoEntry = const ImageIo *(*)();
 // The module, loaded on first use (thread safe). Throws std::runtime_error naming the
 // file and the loader's message when it cannot be loaded.
 const ImageIo &image_io();
+
+// The EXR module's functions (bridge/image_io/exr_writer_openexr.cpp; the file layout, shared with the OIIO
+// module's reader, in bridge/image_io/render_layout.h).
+class ExrWriter {
+ public:
+  virtual ~ExrWriter() = default;
+  // Multilayer float EXR (ViewLayer.Combined.RGBA, AOVs, a checkpoint's alpha sums), ZIP, glimmer:* metadata.
+  virtual void write_image(const std::string &path, const RenderResult &result) const = 0;
+  // Plain float R, G, B, A, uncompressed.
+  virtual void write_display_image(const std::string &path, const RenderResult &result) const = 0;
+};
+
+constexpr const char *kExrWriterEntry = "glimmer_exr_writer";
+constexpr const char *kExrWriterFileName = "libglimmer_exr_io.so";
+using ExrWriterEntry = const ExrWriter *(*)();
+
+// The EXR module, loaded on first use (thread safe); errors as image_io().
+const ExrWriter &exr_writer();
 
 }  // namespace glimmer::render

@@ -25,9 +25,20 @@ std::string frame_path(const std::string &pattern, int frame) {
   return pattern.substr(0, start) + number + pattern.substr(end);
 }
 
-bool known_writable_extension(const std::string &path) {
+namespace {
+
+std::string lower_extension(const std::string &path) {
   std::string ext = fs::path(path).extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return ext;
+}
+
+}  // namespace
+
+bool is_exr_path(const std::string &path) { return lower_extension(path) == ".exr"; }
+
+bool known_writable_extension(const std::string &path) {
+  const std::string ext = lower_extension(path);
   return std::find(kKnownWritableExtensions.begin(), kKnownWritableExtensions.end(), ext) !=
          kKnownWritableExtensions.end();
 }
@@ -47,11 +58,17 @@ void check_output_path(const std::string &path) {
 
 void write_image(const std::string &path, const RenderResult &result) {
   check_output_path(path);
-  image_io().write_image(path, result);
+  if (is_exr_path(path)) exr_writer().write_image(path, result);
+  else image_io().write_image(path, result);
 }
 void write_display_image(const std::string &path, const RenderResult &result) {
   check_output_path(path);
-  image_io().write_display_image(path, result);
+  if (is_exr_path(path)) exr_writer().write_display_image(path, result);
+  else image_io().write_display_image(path, result);
+}
+void load_output_module(const std::string &path) {
+  if (is_exr_path(path)) exr_writer();
+  else image_io();
 }
 RenderResult read_image(const std::string &path) { return image_io().read_image(path); }
 void write_8bit_image(const std::string &path, int width, int height, int channels, const unsigned char *pixels) {

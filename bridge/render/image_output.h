@@ -1,4 +1,5 @@
-// Writes a render with OpenImageIO (through the image module, render/image_io.h), atomically: encoded in memory, then
+// Writes a render, atomically: .exr with OpenEXR (the EXR module), other formats with OpenImageIO (the image
+// module; render/image_io.h says why both are modules loaded on first use); encoded in memory, then
 // written with glimmer/atomic_file.h (random O_EXCL|O_NOFOLLOW temporary
 // file in the target folder, fsync, rename).
 //  - .exr: float multilayer channels with Blender's names (view layer "ViewLayer"):
@@ -40,6 +41,10 @@ void check_output_path(const std::string &path);
 // Lower case; the test ImageModule.KnownWritableExtensionsAreWritable checks each against the module.
 inline constexpr std::array<std::string_view, 2> kKnownWritableExtensions = {".exr", ".png"};
 bool known_writable_extension(const std::string &path);
+// True when path's extension is .exr (any case): write_image and write_display_image use the EXR module.
+bool is_exr_path(const std::string &path);
+// Loads the module write_image needs for `path` (a missing or broken one throws std::runtime_error).
+void load_output_module(const std::string &path);
 
 // Encodes 8-bit `pixels` (width x height x channels, interleaved, row 0 = top) to the format of `path`'s
 // extension and writes the file atomically. Throws std::runtime_error naming the file.

@@ -872,7 +872,7 @@ struct Renderer::Impl {
       integrate_surface_emission(cs, sd, hit, ray, ps, pr);
       if (first_hit && !(cs.count == 0 && !is_zero(cs.transparent))) {
         first_hit = false;
-        write_first_hit_aovs(cs, sd, hit.t * ray.cam_dir_z, aov);
+        if (options.aovs) write_first_hit_aovs(cs, sd, hit.t * ray.cam_dir_z, aov);  // else the film drops them
       }
       if (ps.terminate_next) break;
       // The vertex's 4D BSDF set: x, y (closure pick, then the closure's direction), z (its third number),
@@ -967,6 +967,8 @@ RenderResult Renderer::render(const std::function<void(int, int)> &progress, con
     throw std::invalid_argument("the film to resume is " + std::to_string(film.width()) + "x" +
                                 std::to_string(film.height()) + ", the render " + std::to_string(im.width) + "x" +
                                 std::to_string(im.height));
+  if (film.aovs() && !im.options.aovs)  // its AOV passes would miss the new samples' values
+    throw std::invalid_argument("the film to resume has AOV passes, the render computes none");
   std::atomic<uint64_t> paths{0};
   const int x0 = part.window[0], y0 = part.window[1], x1 = part.window[2], y1 = part.window[3];
   const int tile = std::max(1, im.options.tile_size);

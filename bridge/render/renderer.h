@@ -36,7 +36,7 @@ struct RenderOptions {
   // lookup along its axis (EnvironmentCone) instead of the background at the ray's direction; off: the point
   // lookup (the estimator before; tests and benchmarks compare the two).
   bool exit_lobe_environment = true;
-  bool aovs = true;       // Albedo, Normal, Depth
+  bool aovs = true;       // Albedo, Normal, Depth (false: not computed, the film keeps Combined only)
   const std::atomic<bool> *cancel = nullptr;  // set from a signal handler: stop after the current pass
   int sample_begin = 0, sample_end = 0;  // render samples [begin, end) of `samples`; both 0 = all of them
   std::string scene_hash;                // recorded in the part's metadata (render::scene_file_hash)

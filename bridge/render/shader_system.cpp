@@ -712,6 +712,9 @@ void ShaderSystem::compile_background(int shader_index) {
 
 Spectrum ShaderSystem::background(const Vec3 &direction) const {
   if (!background_.active) return Spectrum(0.0f);
+  // A constant world (every escaped ray of a white-furnace scene): eval_input would return the constant too,
+  // without the texture coordinates built below.
+  if (!background_.color.varies()) return background_.color.constant * background_.strength;
   TexCoords tc;
   tc.direction = direction;
   tc.P = direction;

@@ -3,9 +3,11 @@
 // interruption, EXR channel names.
 #include <OpenImageIO/imageio.h>
 
+#include <cstring>
 #include <regex>
 #include <set>
 
+#include "render/image_output.h"
 #include "render_test_util.h"
 
 namespace glimmer::test {
@@ -157,6 +159,37 @@ TEST(Cli, ExrHasBlenderMultilayerChannels) {
   EXPECT_NEAR(px[centre + zi], 3.0f, 0.02f);
 }
 
+// --no-aovs: Combined only, the same Combined values bit for bit (the AOVs' first-hit work has no effect on the
+// path); resuming a checkpoint that has the AOV passes with --no-aovs is refused.
+TEST(Cli, NoAovsWritesTheSameCombinedOnly) {
+  const auto with = (temp_dir() / "with_aovs.exr").string(), without = (temp_dir() / "no_aovs.exr").string();
+  std::string out;
+  ASSERT_EQ(0, run_cli("render '" + small_scene() + "' -o '" + with + "' --samples 3 --seed 4 --quiet", out)) << out;
+  ASSERT_EQ(0, run_cli("render '" + small_scene() + "' -o '" + without + "' --samples 3 --seed 4 --no-aovs --quiet",
+                       out)) << out;
+  auto in = OIIO::ImageInput::open(without);
+  ASSERT_TRUE(in);
+  EXPECT_EQ(in->spec().nchannels, 4);  // ViewLayer.Combined.R/G/B/A
+  const render::RenderResult a = render::read_image(with), b = render::read_image(without);
+  EXPECT_EQ(a.albedo.size(), a.combined.size() / 4 * 3);  // control: the default writes the AOVs
+  EXPECT_TRUE(b.albedo.empty());
+  ASSERT_EQ(a.combined.size(), b.combined.size());
+  EXPECT_EQ(std::memcmp(a.combined.data(), b.combined.data(), a.combined.size() * sizeof(float)), 0);
+  double sum = 0.0;
+  for (float v : b.combined) sum += v;
+  EXPECT_GT(sum, 0.0);  // not an empty image
+  // A checkpoint with AOVs (written after every pass) cannot be resumed without them.
+  const auto part = (temp_dir() / "resume_aovs.exr").string();
+  const auto checkpoint = (temp_dir() / "resume_aovs.checkpoint.exr").string();
+  std::filesystem::remove(checkpoint);
+  const std::string base = "render '" + small_scene() + "' -o '" + part + "' --samples 4 --seed 4 --quiet";
+  ASSERT_EQ(0, run_cli(base + " --checkpoint-every 0 --time-limit 0.000001", out)) << out;
+  ASSERT_TRUE(std::filesystem::exists(checkpoint)) << out;
+  EXPECT_EQ(1, run_cli(base + " --resume --no-aovs", out)) << out;
+  EXPECT_NE(out.find("resume it without --no-aovs"), std::string::npos) << out;
+  EXPECT_EQ(0, run_cli(base + " --resume", out)) << out;  // control: resumed with the AOVs
+}
+
 TEST(Cli, SampleLinesWhenNotATerminal) {
   std::string out;
   ASSERT_EQ(0, run_cli("render '" + small_scene() + "' -o '" + (temp_dir() / "lines.png").string() + "' --samples 3", out));
@@ -229,7 +262,7 @@ TEST(FeatureScan, OnlyUsedShadersAreInstantiated) {
   EXPECT_NE(out.find("scan_bad.xml:3: "), std::string::npos) << out;
   // --stats names the phases and the feature set.
   EXPECT_EQ(0, run_cli("render '" + ok_path + "' -o '" + (temp_dir() / "scan.png").string() + "' --quiet --stats", out));
-  for (const char *want : {"features: closures=diffuse", "load=", "bvh=", "prepare=", "render=", "write=", "shaders_unused=1"})
+  for (const char *want : {"features: closures=diffuse", "load=", "bvh=", "prepare=", "module=", "render=", "write=", "shaders_unused=1"})
     EXPECT_NE(out.find(want), std::string::npos) << want << " in " << out;
 }
 
