@@ -10,8 +10,10 @@
 // method=sg: where the path enters a solid, the transmitted light is estimated
 // with spherical Gaussians (de Rousiers 2012, closures/frosted_glass_sg.h):
 // one SINGULAR sample that the host continues from the exit point; the front
-// reflection stays this rough dielectric lobe. Thin panes, paths arriving
-// from inside and cases the estimator cannot handle use path.
+// reflection stays this rough dielectric lobe. Thin panes: the same estimate
+// between two parallel faces (pane_sample_sg; the light leaves through either
+// face). Paths arriving from inside a solid and cases the estimator cannot
+// handle use path.
 // method=auto: sg or path per shading point (auto_picks_sg below): sg where its
 // measured error is small (entry roughness <= kAutoSgRoughnessMax) or where
 // the glass is only seen after a diffuse or glossy bounce (its bias blurred
@@ -109,7 +111,7 @@ class FrostedGlassClosure {
          "thin: distance between the pane's two interfaces (scene units; absorption path length)", 0},
         {"method", GLIMMER_PARAM_ENUM, {0, 0, 0}, 0.0f, 0.0f, "path|sg|auto", "path",
          "transmission estimator: path = exact stochastic refraction at every interface (reference); sg = "
-         "spherical-Gaussian estimate through the object (de Rousiers 2012; solids only); auto = sg at roughness "
+         "spherical-Gaussian estimate through the object (de Rousiers 2012; solids and thin panes); auto = sg at roughness "
          "<= 0.3 or after a diffuse/glossy bounce, path elsewhere", 0},
     }};
     return schema;
@@ -139,7 +141,7 @@ class FrostedGlassClosure {
   LocalEval eval(const ShadingPoint &sp, const Vec3 &wo) const {
     DielectricLobe scratch;
     const DielectricLobe &lobe = lobe_at(sp, scratch);
-    if (thin_) return pane_estimate(sp, lobe, wo);
+    if (thin_) return uses_sg_pane(sp) ? pane_front_reflection(sp, lobe, wo) : pane_estimate(sp, lobe, wo);
     if (uses_sg(sp) && wo.z < 0.0f) return {};  // sg: transmission is the singular sample alone
     LocalEval e = lobe.eval(sp.wi, wo);
     if (wo.z * sp.wi.z < 0.0f) e.f_cos *= color_at(sp);
@@ -150,7 +152,9 @@ class FrostedGlassClosure {
   bool sample(const ShadingPoint &sp, const Vec3 &rand, LocalSample &out) const {
     DielectricLobe scratch;
     const DielectricLobe &lobe = lobe_at(sp, scratch);
-    if (thin_) return pane_sample(sp, lobe, rand, out);
+    if (thin_)
+      return uses_sg_pane(sp) ? pane_sample_sg(sp, lobe, rand, out, frosted::SgVariant::kTracedCone)
+                              : pane_sample(sp, lobe, rand, out);
     if (!lobe.sample(sp.wi, rand, out)) return false;
     if (out.label & GLIMMER_LABEL_TRANSMIT) out.f_cos *= color_at(sp);
     out.f_cos *= interior_transmittance(sp);
@@ -175,6 +179,43 @@ class FrostedGlassClosure {
     in.variant = variant;
     LocalSample s;
     if (frosted::sample_sg_transmission(sp, in, rand, front, s)) front = s;
+  }
+  // method=sg through a thin pane (the paper's thin-object case, frosted_glass_sg.h): the front interface is
+  // sampled exactly; a transmission becomes one singular sample from the pane's exit lobe (either face).
+  // Decided per point only (eval must agree with sample): the table must cover the IOR.
+  bool uses_sg_pane(const ShadingPoint &sp) const {
+    if (!thin_ || table_ == nullptr) return false;
+    const float ior = sp.param_float(ior_param_, ior_);
+    if (!(ior >= frosted::TransmissionSgTable::kIorMin && ior <= frosted::TransmissionSgTable::kIorMax)) return false;
+    return method_ == Method::kSg || (method_ == Method::kAuto && auto_picks_sg(sp));
+  }
+  // The sg pane sample (public for the tests' variants): the front interface's reflection as in method=path, its
+  // transmission replaced by frosted::sample_pane_sg.
+  bool pane_sample_sg(const ShadingPoint &sp, const DielectricLobe &lobe, const Vec3 &rand, LocalSample &out,
+                      frosted::SgVariant variant) const {
+    const bool flip = sp.wi.z < 0.0f;
+    const Vec3 wi = flip ? mf::flip_z_local(sp.wi) : sp.wi;
+    LocalSample s;
+    if (!(wi.z > 0.0f) || !lobe.sample(wi, rand, s)) return false;
+    if (!(s.label & GLIMMER_LABEL_TRANSMIT)) {  // the front reflection: exact, eval's pane_front_reflection
+      if (flip) s.wo = mf::flip_z_local(s.wo);
+      out = s;
+      return true;
+    }
+    frosted::PaneSgInputs in;
+    in.table = table_;
+    in.roughness = sp.param_float(roughness_param_, roughness_);
+    in.ior = sp.param_float(ior_param_, ior_);
+    in.tint = color_at(sp);
+    in.sigma_a = beer_.sigma;
+    in.thickness = thickness_;
+    in.variant = variant;
+    return frosted::sample_pane_sg(sp, in, rand, s.f_cos / s.pdf * in.tint, flip, out);
+  }
+  // For the tests: the interface lobe at sp (per-point roughness and IOR).
+  bool pane_sample_sg(const ShadingPoint &sp, const Vec3 &rand, LocalSample &out, frosted::SgVariant variant) const {
+    DielectricLobe scratch;
+    return pane_sample_sg(sp, lobe_at(sp, scratch), rand, out, variant);
   }
   bool uses_sg(const ShadingPoint &sp) const {
     if (thin_ || !(sp.wi.z > 0.0f)) return false;
@@ -270,6 +311,15 @@ class FrostedGlassClosure {
     out.eta = 1.0f;  // air on both sides
     out.label = ((wo.z < 0.0f) ? GLIMMER_LABEL_TRANSMIT : GLIMMER_LABEL_REFLECT) | GLIMMER_LABEL_GLOSSY;
     return true;
+  }
+
+  // method=sg's pane: the front reflection alone (its transmission, either face, is the singular exit sample).
+  LocalEval pane_front_reflection(const ShadingPoint &sp, const DielectricLobe &lobe, const Vec3 &wo_in) const {
+    const bool flip = sp.wi.z < 0.0f;
+    const Vec3 wi = flip ? mf::flip_z_local(sp.wi) : sp.wi;
+    const Vec3 wo = flip ? mf::flip_z_local(wo_in) : wo_in;
+    if (!(wi.z > 0.0f) || !(wo.z > 0.0f)) return {};
+    return lobe.eval(wi, wo);
   }
 
   // Unbiased estimate of the pane's f cos(wo) and of pane_sample's density at

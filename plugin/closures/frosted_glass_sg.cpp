@@ -324,4 +324,132 @@ bool sample_sg_transmission(const ShadingPoint &sp, const SgInputs &in, const Ve
   return true;
 }
 
+// ---- Thin panes ----------------------------------------------------------------------------------------
+
+namespace {
+
+// The bounding directions of an internal lobe (axis, sharpness kappa) that reach the flat face with outward
+// normal n, as a Segment whose exit normals are all n: a pane's faces are parallel planes, nothing to trace.
+Segment flat_face_segment(const Vec3 &axis, float kappa, const Vec3 &n) {
+  Segment seg;
+  seg.mean_normal = n;
+  const float theta_b = bounding_angle(kappa);
+  const float c = std::cos(theta_b), s = std::sin(theta_b);
+  const Frame f = Frame::from_normal(axis);
+  for (const Vec3 &o : {f.s, -f.s, f.t, -f.t}) {
+    const Vec3 dir = normalize(axis * c + o * s);
+    if (!(dot(dir, n) > 0.0f)) continue;  // a wide lobe's edge that turns back: it meets the other face
+    seg.bounding_dir[seg.bounding_count] = dir;
+    seg.bounding_normal[seg.bounding_count++] = n;
+  }
+  return seg;
+}
+
+// Wyman 2005: a direction `d` inside meeting the face with outward normal n beyond the critical angle is
+// clamped to it (returned as the incident direction -d' seen from inside, for the leaving table).
+Vec3 incident_clamped_to_critical(const Vec3 &d, const Vec3 &n, float ior) {
+  const float sin_crit = 1.0f / ior, cos_in = std::clamp(dot(d, n), 0.0f, 1.0f);
+  if (!(std::sqrt(std::max(0.0f, 1.0f - cos_in * cos_in)) > sin_crit)) return -d;
+  const Vec3 tangential = normalize(d - n * cos_in);
+  return -normalize(tangential * sin_crit + n * std::sqrt(1.0f - sin_crit * sin_crit));
+}
+
+// Beer-Lambert over `length` (0 absorption stays exactly 1 at any length).
+Spectrum beer_transmittance(const Spectrum &sigma_a, float length) {
+  Spectrum t(1.0f);
+  for (int ch = 0; ch < 3; ++ch)
+    if (sigma_a[ch] > 0.0f) t[ch] = std::exp(-sigma_a[ch] * length);
+  return t;
+}
+
+}  // namespace
+
+bool pane_exit_lobe(const Vec3 &wi, const PaneSgInputs &in, uint32_t seed, PaneExitLobe &out) {
+  if (in.table == nullptr || !(wi.z > 0.0f) || !is_finite(wi)) return false;
+  const float ior = in.ior;
+  if (!(ior >= TransmissionSgTable::kIorMin && ior <= TransmissionSgTable::kIorMax)) return false;
+  const float roughness = std::clamp(std::isfinite(in.roughness) ? in.roughness : 0.0f,
+                                     TransmissionSgTable::kRoughnessMin, kTableRoughnessMax);
+  // 1. The front BTDF as an SG (entering, eta = ior) in the pane frame.
+  const Frame top = Frame::from_normal(Vec3(0.0f, 0.0f, 1.0f));
+  SphericalGaussian front;
+  float front_energy = 0.0f;
+  if (!table_lobe(*in.table, top, wi, ior, roughness, front, front_energy)) return false;
+  Vec3 axis = front.axis;
+  float kappa_in = front.sharpness;
+  const float alpha_d = roughness * roughness;
+  const float kappa_reflect = 2.0f / std::max(alpha_d * alpha_d, 1e-7f);  // NDF sharpness; reflected lobe: kappa / 4
+  Spectrum weight = in.tint;
+  for (int event = 0; event <= kMaxInternalReflections; ++event) {
+    // 2. The face the axis reaches (outward normal n) after one crossing of the pane.
+    const Vec3 n(0.0f, 0.0f, axis.z < 0.0f ? -1.0f : 1.0f);
+    weight *= beer_transmittance(in.sigma_a, in.thickness / std::max(std::fabs(axis.z), 1e-6f));
+    const Segment seg = flat_face_segment(axis, kappa_in, n);
+    const bool last = event == kMaxInternalReflections;
+    // 3. Leaving through the face: the table T(theta, 1 / ior, roughness) in the frame whose +z is inside.
+    SphericalGaussian exit;
+    float exit_energy = 0.0f;
+    const Vec3 incident = last ? incident_clamped_to_critical(axis, n, ior) : -axis;
+    if (!table_lobe(*in.table, Frame::from_normal(-n), incident, 1.0f / ior, roughness, exit, exit_energy))
+      return false;
+    // 4. Russian roulette between leaving (E_x over the axis and the bounding directions) and the reflection
+    // between the faces (1 - E_x): the weight is unchanged either way, so no energy is dropped.
+    const float transmitted = last ? 1.0f : mean_exit_energy(*in.table, seg, exit_energy, ior, roughness);
+    if (roulette(seed, event) >= transmitted) {
+      kappa_in = 1.0f / (1.0f / kappa_in + 4.0f / kappa_reflect);
+      axis = Vec3(axis.x, axis.y, -axis.z);
+      continue;
+    }
+    // The spread: the exit SG convolved with the internal width refracted out (Snell's magnification).
+    const float kappa_geometric = traced_cone_sharpness(seg, refract_out(axis, n, ior), ior);
+    out.sg = exit;
+    out.sg.sharpness = std::clamp(1.0f / (1.0f / exit.sharpness + 1.0f / kappa_geometric), 1e-3f, 1e7f);
+    if (in.variant == SgVariant::kNoExitRefraction) out.sg.axis = axis;
+    out.through = n.z < 0.0f;
+    out.weight = weight;
+    return is_finite(out.sg.axis) && is_finite(out.weight) && std::isfinite(out.sg.sharpness);
+  }
+  return false;
+}
+
+bool sample_pane_sg(const ShadingPoint &sp, const PaneSgInputs &in, const Vec3 &rand, const Spectrum &front_weight,
+                    bool flip, LocalSample &out) {
+  const GlimmerShadingContext &ctx = *sp.ctx;
+  const Vec3 wi = flip ? mf::flip_z_local(sp.wi) : sp.wi;
+  const uint32_t seed = hash_u32x4(ctx.path_seed, std::bit_cast<uint32_t>(rand.x), std::bit_cast<uint32_t>(rand.y),
+                                   std::bit_cast<uint32_t>(rand.z));
+  PaneExitLobe exit;
+  if (!pane_exit_lobe(wi, in, seed, exit)) return false;
+  const Vec3 axis = normalize(sp.frame.to_world(flip ? mf::flip_z_local(exit.sg.axis) : exit.sg.axis));
+  // The exit face's outward normal: the geometric normal on the far side of wi (through) or on wi's side.
+  Vec3 Ng(ctx.Ng);
+  if (!is_finite(Ng) || !(dot(Ng, Ng) > 1e-12f)) Ng = sp.frame.n;
+  Ng = normalize(Ng);
+  const bool wi_above = dot(Ng, Vec3(ctx.wi)) >= 0.0f;
+  const Vec3 n = (wi_above != exit.through) ? Ng : -Ng;
+  // One direction from the exit SG restricted to the outside of the exit face (glimmer/exit_lobe.h's rule,
+  // whose density the host uses for light sampling there).
+  mf::WalkRng rng(hash_u32x2(seed, 0x7f4a7c15u));
+  glimmer::ExitLobe lobe;
+  lobe.axis = axis;
+  lobe.kappa = exit.sg.sharpness;
+  lobe.n = n;
+  const Vec3 wo = lobe.sample([&rng] { return rng.next(); });
+  const Spectrum weight = front_weight * exit.weight;
+  if (!(dot(wo, n) > 0.0f) || !is_finite(wo) || !is_finite(weight) || !is_finite(axis)) return false;
+  out.wo = sp.frame.to_local(wo);
+  out.f_cos = weight;
+  out.pdf = 1.0f;
+  out.roughness = std::clamp(std::sqrt(std::sqrt(2.0f / exit.sg.sharpness)), 0.0f, 1.0f);
+  out.eta = 1.0f;  // air on both sides
+  out.label = (exit.through ? GLIMMER_LABEL_TRANSMIT : GLIMMER_LABEL_REFLECT) | GLIMMER_LABEL_SINGULAR;
+  out.moved = true;  // to the exit face of the same point: the host offsets the origin to that side
+  out.origin = Vec3(ctx.P);
+  out.origin_Ng = n;
+  out.exit_lobe = true;
+  out.lobe_axis = axis;
+  out.lobe_sharpness = exit.sg.sharpness;
+  return is_finite(out.origin);
+}
+
 }  // namespace glimmer::plugin::frosted

@@ -110,4 +110,46 @@ Vec3 sample_sg_direction(const SphericalGaussian &sg, float u1, float u2);
 bool sample_sg_transmission(const ShadingPoint &sp, const SgInputs &in, const Vec3 &rand, const LocalSample &front,
                             LocalSample &out);
 
+// ---- Thin panes (thin = 1): the paper's thin-object case --------------------------------------------------
+// Two parallel interfaces `thickness` apart, air on both sides, position-free (the lateral offset inside the
+// pane is ignored, as method=path's walk ignores it). In the pane frame (the entry side on top, +z):
+//  1. the front BTDF as an SG from T(theta_i, ior, roughness), as for solids;
+//  2. the axis and the 4 bounding directions of its 75 % cone reach the far interface (flat: its normal is
+//     -z for all of them, so nothing is traced);
+//  3. the axis leaves through T(theta, 1 / ior, roughness): with parallel faces the exit axis is the incident
+//     direction continued (Snell twice through parallel planes), the spread the exit SG convolved with the
+//     internal width magnified by Snell's law (the bounding directions refracted out, as the traced cone);
+//  4. the reflected remainder: with probability 1 - E_x (E_x averaged over the axis and the bounding
+//     directions, each at its own incidence) the axis reflects between the faces (lobe widened by the rough
+//     reflection) and meets the other interface; Beer absorption exp(-sigma thickness / |cos|) per crossing;
+//     after kMaxInternalReflections the axis is clamped to the critical angle (Wyman 2005) and leaves.
+// The light leaves either through the far face (transmitted) or back through the entry face (the pane's
+// internal reflection: energy not dropped).
+struct PaneSgInputs {
+  const TransmissionSgTable *table = nullptr;
+  float roughness = 0.3f, ior = 1.5f;  // at the shading point (both faces)
+  Spectrum tint{1.0f};                 // applied at the exit crossing (the entry's is in the front sample)
+  Spectrum sigma_a{0.0f};              // Beer absorption coefficient
+  float thickness = 0.01f;
+  SgVariant variant = SgVariant::kTracedCone;  // kNoExitRefraction: the test's negative control
+};
+
+// The pane's exit lobe in the pane frame (entry side +z): `through` = it leaves through the far face (-z side).
+struct PaneExitLobe {
+  SphericalGaussian sg;  // amplitude unused (the weight carries the energy)
+  bool through = true;
+  Spectrum weight{1.0f};  // exit tint x Beer over every crossing
+};
+
+// Steps 1-4 for wi (pane frame, wi.z > 0); `seed` drives the Russian roulette. False when the table does not
+// cover (ior, roughness) or a value is not finite.
+bool pane_exit_lobe(const Vec3 &wi, const PaneSgInputs &in, uint32_t seed, PaneExitLobe &out);
+
+// The whole sg sample through a pane: `front_weight` is the front interface's transmitted f cos / pdf (entry tint
+// included), `flip` whether sp's local frame has wi below (the pane frame is the local one mirrored in z). out
+// becomes a singular sample moved to the exit side of the same point, carrying its exit lobe (ABI 2.4: the host
+// samples the lights there). False: no sample.
+bool sample_pane_sg(const ShadingPoint &sp, const PaneSgInputs &in, const Vec3 &rand, const Spectrum &front_weight,
+                    bool flip, LocalSample &out);
+
 }  // namespace glimmer::plugin::frosted

@@ -11,7 +11,7 @@
 // Fit (the paper's recipe: scale, mean and variance by sampling the BTDF):
 // the BTDF is integrated by its own visible-normal sampling on a fixed
 // stratified grid of random numbers (deterministic; the grid is warped toward
-// GGX's slope tail and refined 16 x 16 in cells cut by the lobe's edge, see
+// GGX's slope tail and refined 16 x 16 in cells cut by the lobe's edge, 3 x 3 Gauss points elsewhere; see
 // for_each_transmitted in the .cpp), giving the lobe's energy
 // E = Int g and mean vector M = Int g wo / E. The SG with the same energy and
 // mean: p = M / |M|, a = E kappa / (2 pi (1 - exp(-2 kappa))). The paper's

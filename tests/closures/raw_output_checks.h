@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "core/closure.h"
+#include "glimmer/exit_lobe.h"
 
 namespace glimmer::test {
 
@@ -18,6 +19,17 @@ inline long bad_raw_outputs(const plugin::LocalEval &e, bool sampled, const plug
                   std::fabs(length(s.wo) - 1) > 1e-3f || !(s.eta > 0.0f) || !std::isfinite(s.eta) ||
                   bad(s.roughness)))
     ++n;
+  return n;
+}
+
+// A moved sample (frosted_glass sg: the path continues where the light leaves the glass): 1 when its origin or
+// exit normal is not finite, it is not singular, or its exit lobe (ABI 2.4, the host's light sampling there) is
+// missing or gives no positive finite density at the drawn direction (world space `wo_world`); else 0.
+inline long bad_moved_sample(const plugin::LocalSample &s, const Vec3 &wo_world) {
+  long n = (!is_finite(s.origin) || !is_finite(s.origin_Ng) || !(s.label & GLIMMER_LABEL_SINGULAR)) ? 1 : 0;
+  const ExitLobe lobe = ExitLobe::make(s.lobe_axis, s.lobe_sharpness, s.origin_Ng);
+  const double p = lobe.pdf(wo_world);
+  if (!s.exit_lobe || !is_finite(s.lobe_axis) || !(s.lobe_sharpness > 0.0f) || !(p > 0.0) || !std::isfinite(p)) ++n;
   return n;
 }
 

@@ -602,12 +602,7 @@ TEST(FrostedGlassSg, StressRawOutputsFiniteNonNegative) {
         samples.fetch_add(1, std::memory_order_relaxed);
         if (s.moved) {
           moved.fetch_add(1, std::memory_order_relaxed);
-          if (!is_finite(s.origin) || !is_finite(s.origin_Ng) || !(s.label & GLIMMER_LABEL_SINGULAR)) ++n_bad;
-          // ABI 2.4: the exit lobe the host samples lights with; its density at the drawn direction is positive.
-          const glimmer::ExitLobe lobe = glimmer::ExitLobe::make(s.lobe_axis, s.lobe_sharpness, s.origin_Ng);
-          const double p = lobe.pdf(sp.frame.to_world(s.wo));
-          if (!s.exit_lobe || !is_finite(s.lobe_axis) || !(s.lobe_sharpness > 0.0f) || !(p > 0.0) || !std::isfinite(p))
-            ++n_bad;
+          n_bad += glimmer::test::bad_moved_sample(s, sp.frame.to_world(s.wo));
         }
       }
       if (n_bad) bad_count.fetch_add(n_bad);

@@ -1,0 +1,318 @@
+// frosted_glass method=sg through thin panes (thin = 1, issue 12; the paper's
+// thin-object case, closures/frosted_glass_sg.h "Thin panes"):
+//  - accuracy: the light that enters a pane and leaves it (through the far
+//    face, T, and back through the entry face after reflections between the
+//    faces, R_int), lit by a smooth environment, for 8 incidence angles
+//    0..70 deg: sg vs method=path (the pane's exact random walk, itself
+//    validated against a path-traced slab in test_frosted_pane.cpp) at 16384
+//    paths per angle, computed in the same test; mean relative error per
+//    configuration. Both estimators share the front event (same random
+//    numbers, same interface), and the front reflection (exact in both) is
+//    left out: what is compared is what the SG replaces. Negative control: sg
+//    without the refraction at the exit face (the lobe keeps the internal axis);
+//  - white furnace: a lossless sg pane returns all the light (R + T = 1 within
+//    the interface's own compensation error): the reflection between the
+//    faces is carried, not dropped;
+//  - consistency: every non-singular sample (the front reflection) equals
+//    eval() at its direction (f cos and pdf); eval() has no transmission;
+//  - stress: no NaN / Inf / negative raw outputs over 1e6 calls (1e8 under
+//    make stress), IOR 2.4 and grazing included, thickness 1e-6..1e6.
+#include <gtest/gtest.h>
+#include <tbb/parallel_for.h>
+
+#include <atomic>
+#include <cstdio>
+#include <functional>
+
+#include "closures/frosted_glass.h"
+#include "closures/raw_output_checks.h"
+#include "glimmer/rng.h"
+#include "host/closure_instance.h"
+#include "test_support.h"
+
+namespace {
+
+using namespace glimmer;
+using namespace glimmer::plugin;
+using glimmer::test::stress_scale;
+
+struct PaneConfig {
+  float roughness, ior;
+  Vec3 absorb{1.0f};     // absorption colour at distance `thickness` (one normal crossing)
+  float thickness = 0.05f;
+};
+
+std::unique_ptr<FrostedGlassClosure> create_pane(const PaneConfig &c, const char *method, bool thin = true) {
+  const GlimmerParamValue values[] = {{"roughness", {c.roughness, 0, 0}, nullptr},
+                                      {"ior", {c.ior, 0, 0}, nullptr},
+                                      {"absorption_color", {c.absorb.x, c.absorb.y, c.absorb.z}, nullptr},
+                                      {"absorption_distance", {c.thickness, 0, 0}, nullptr},
+                                      {"thin", {thin ? 1.0f : 0.0f, 0, 0}, nullptr},
+                                      {"thickness", {c.thickness, 0, 0}, nullptr},
+                                      {"method", {0, 0, 0}, method}};
+  ParamReader reader(FrostedGlassClosure::kName, FrostedGlassClosure::params(), values);
+  auto closure = FrostedGlassClosure::create(reader);
+  closure->prepare(host::default_host_services());
+  return closure;
+}
+
+// Sky above the pane (a gradient), a broad bright lobe and a gradient below it (behind the pane).
+Spectrum environment(const Vec3 &d) {
+  const Vec3 c = normalize(Vec3(0.35f, 0.1f, -1.0f));
+  const float lobe = 1.5f * std::exp(6.0f * (dot(d, c) - 1.0f));
+  return Spectrum(0.3f + 0.25f * (d.x + 1.0f) + lobe, 0.35f + 0.2f * (d.y + 1.0f) + 0.2f * std::max(0.0f, d.z) + lobe,
+                  0.5f + 0.3f * std::max(0.0f, -d.z) + lobe);
+}
+
+// The pane is the plane z = 0 (normal +z) at the origin, seen from above at incidence theta (degrees).
+GlimmerShadingContext pane_context(float theta_deg) {
+  const float th = theta_deg * float(M_PI) / 180.0f;
+  GlimmerShadingContext ctx = host::make_local_context(Vec3(-std::sin(th), 0.0f, std::cos(th)));
+  ctx.P = Vec3(0.0f);
+  ctx.N = ctx.Ng = Vec3(0.0f, 0.0f, 1.0f);
+  ctx.T = Vec3(1.0f, 0.0f, 0.0f);
+  return ctx;
+}
+
+using Sampler = std::function<bool(const ShadingPoint &, const Vec3 &, LocalSample &)>;
+
+// Per angle: the mean luminance leaving through the far face (T) and back through the entry face after entering
+// (R_int), with standard errors.
+struct AngleEstimate {
+  double T = 0.0, R = 0.0, se_T = 0.0, se_R = 0.0;
+};
+constexpr int kAngles = 8;
+
+std::vector<AngleEstimate> estimate(const FrostedGlassClosure &front, const Sampler &sample, long paths,
+                                    uint64_t seed) {
+  std::vector<AngleEstimate> out(kAngles);
+  const auto schema = FrostedGlassClosure::params();
+  tbb::parallel_for(0, kAngles, [&](int a) {
+    Pcg32 rng(seed, 31 + uint64_t(a));
+    double sum[2] = {0, 0}, sum2[2] = {0, 0};
+    for (long i = 0; i < paths; ++i) {
+      GlimmerShadingContext ctx = pane_context(10.0f * float(a));
+      ctx.path_seed = rng.next_u32();
+      const ShadingPoint sp(&ctx, schema);
+      const Vec3 rand(rng.next_float(), rng.next_float(), rng.next_float());
+      // The front event (the solid closure's first interface, same numbers): a reflection there is left out.
+      LocalSample f, s;
+      if (!front.sample(sp, rand, f) || !(f.label & GLIMMER_LABEL_TRANSMIT)) continue;
+      if (!sample(sp, rand, s) || !(s.pdf > 0.0f)) continue;
+      const Vec3 wo = normalize(sp.frame.to_world(s.wo));
+      const double L = average(s.f_cos / s.pdf * environment(wo));
+      const int side = wo.z < 0.0f ? 0 : 1;
+      sum[side] += L;
+      sum2[side] += L * L;
+    }
+    AngleEstimate &e = out[a];
+    e.T = sum[0] / paths;
+    e.R = sum[1] / paths;
+    e.se_T = std::sqrt(std::max(0.0, sum2[0] / paths - e.T * e.T) / paths);
+    e.se_R = std::sqrt(std::max(0.0, sum2[1] / paths - e.R * e.R) / paths);
+  });
+  return out;
+}
+
+// Mean over angles of |est - ref| / ref for T, R_int and their sum; the reference's mean relative standard error.
+struct PaneError {
+  double T = 0.0, R = 0.0, total = 0.0, se_T = 0.0, se_R = 0.0;
+};
+PaneError compare(const std::vector<AngleEstimate> &est, const std::vector<AngleEstimate> &ref) {
+  PaneError e;
+  for (int a = 0; a < kAngles; ++a) {
+    e.T += std::fabs(est[a].T - ref[a].T) / ref[a].T;
+    e.R += std::fabs(est[a].R - ref[a].R) / ref[a].R;
+    e.total += std::fabs(est[a].T + est[a].R - ref[a].T - ref[a].R) / (ref[a].T + ref[a].R);
+    e.se_T += ref[a].se_T / ref[a].T;
+    e.se_R += ref[a].se_R / ref[a].R;
+  }
+  for (double *v : {&e.T, &e.R, &e.total, &e.se_T, &e.se_R}) *v /= kAngles;
+  return e;
+}
+
+constexpr double kGoal = 0.05;  // issue 12's goal for convex objects
+constexpr long kReferencePaths = 16384, kSgPaths = 4096;
+
+struct PaneCase {
+  PaneConfig config;
+  double bound_T, bound_R;  // the goal where met, else the measured error + ~30 % (a regression fails)
+  bool control;             // the negative control must fail here (it measured > 2x the goal)
+};
+
+void check_pane(const PaneCase &c) {
+  auto path = create_pane(c.config, "path"), sg = create_pane(c.config, "sg");
+  auto solid = create_pane(c.config, "path", false);  // its first event is the pane's front event
+  const Sampler path_sampler = [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
+    return path->sample(sp, r, s);
+  };
+  const Sampler sg_sampler = [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
+    return sg->sample(sp, r, s);
+  };
+  const Sampler control_sampler = [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
+    return sg->pane_sample_sg(sp, r, s, frosted::SgVariant::kNoExitRefraction);
+  };
+  const auto ref = estimate(*solid, path_sampler, kReferencePaths, 1);
+  const PaneError e = compare(estimate(*solid, sg_sampler, kSgPaths, 2), ref);
+  const PaneError ctl = compare(estimate(*solid, control_sampler, kSgPaths, 2), ref);
+  std::printf("[frosted sg pane] roughness %.2f ior %.2f%s: mean relative error sg T %.4f, R_int %.4f, T + R_int "
+              "%.4f (no exit refraction: T %.4f); reference se T %.4f R_int %.4f (%ld / %ld paths per angle)\n",
+              double(c.config.roughness), double(c.config.ior), c.config.absorb.x < 1.0f ? " absorbing" : "", e.T,
+              e.R, e.total, ctl.T, e.se_T, e.se_R, kReferencePaths, kSgPaths);
+  EXPECT_LT(e.T, c.bound_T) << "roughness " << c.config.roughness << " ior " << c.config.ior;
+  EXPECT_LT(e.R, c.bound_R) << "roughness " << c.config.roughness << " ior " << c.config.ior;
+  if (c.control) {
+    EXPECT_GT(ctl.T, 2.0 * kGoal) << "negative control passed: roughness " << c.config.roughness;
+  }
+}
+
+TEST(FrostedGlassSgPane, MatchesThePathReference) {
+  // Measured (fit version 10), mean relative error T / R_int / T + R_int: 0.1, 1.33: 0.0062 / 0.110 / 0.0047;
+  // 0.3, 1.5: 0.037 / 0.206 / 0.016; 0.5, 1.7: 0.125 / 0.147 / 0.095; 0.5, 1.5 absorbing: 0.058 / 0.708 / 0.025;
+  // 0.8, 1.5: 0.119 / 0.108 / 0.108 (reference se of R_int 0.026-0.047: R_int is a few % of the light and noisy).
+  // The goal is met for T at roughness <= 0.3 (auto's sg range); R_int (one SG for the light reflected between
+  // the faces) is not, nor T at 0.5-0.8 (one SG per interface, as for solids).
+  const PaneCase cases[] = {
+      {{0.1f, 1.33f}, kGoal, 0.145, true},
+      {{0.3f, 1.5f}, kGoal, 0.27, true},
+      {{0.5f, 1.7f}, 0.165, 0.19, false},
+      {{0.5f, 1.5f, Vec3(0.7f, 0.85f, 0.95f)}, 0.076, 0.92, false},
+      {{0.8f, 1.5f}, 0.155, 0.14, false},
+  };
+  for (const PaneCase &c : cases) check_pane(c);
+}
+
+// ---- White furnace: nothing dropped between the faces ------------------------------
+TEST(FrostedGlassSgPane, WhiteFurnaceKeepsTheReflectionBetweenTheFaces) {
+  const auto schema = FrostedGlassClosure::params();
+  double worst = 0.0, worst_z = 0.0, max_internal = 0.0;
+  for (float roughness : {0.1f, 0.5f, 1.0f})
+    for (float ior : {1.33f, 1.7f, 2.4f})
+      for (float mu : {1.0f, 0.5f, 0.1f}) {
+        auto sg = create_pane({roughness, ior}, "sg");
+        const long n = 200000;
+        Pcg32 rng(7, uint64_t(roughness * 100 + ior * 10 + mu * 1000));
+        double sum = 0.0, sum2 = 0.0, internal = 0.0;
+        for (long i = 0; i < n; ++i) {
+          GlimmerShadingContext ctx = host::make_local_context(Vec3(std::sqrt(1.0f - mu * mu), 0.0f, mu));
+          ctx.path_seed = rng.next_u32();
+          const ShadingPoint sp(&ctx, schema);
+          LocalSample s;
+          if (!sg->sample(sp, Vec3(rng.next_float(), rng.next_float(), rng.next_float()), s) || !(s.pdf > 0.0f))
+            continue;
+          const double w = average(s.f_cos / s.pdf);
+          sum += w;
+          sum2 += w * w;
+          if (s.moved && s.wo.z > 0.0f) internal += w;  // left back through the entry face
+        }
+        const double mean = sum / n, se = std::sqrt(std::max(0.0, sum2 / n - mean * mean) / n);
+        worst = std::max(worst, std::fabs(1.0 - mean));
+        worst_z = std::max(worst_z, std::fabs(1.0 - mean) / std::max(se, 1e-12));
+        max_internal = std::max(max_internal, internal / n);
+        // The bound of method=path's furnace (the interface's compensation error), plus 5 standard errors.
+        EXPECT_LT(std::fabs(1.0 - mean), 0.005 + 5.0 * se) << "roughness " << roughness << " ior " << ior << " mu "
+                                                           << mu;
+      }
+  EXPECT_GT(max_internal, 0.05);  // the reflection between the faces carries real energy in this set
+  std::printf("[frosted sg pane furnace] 27 cases (roughness 0.1/0.5/1, IOR 1.33/1.7/2.4, mu 1/0.5/0.1): max |1 - "
+              "(R + T)| %.5f (%.1f se); light leaving back through the entry face after entering: up to %.3f\n",
+              worst, worst_z, max_internal);
+}
+
+// ---- Consistency: non-singular samples are eval()'s; no transmission in eval() ----------
+TEST(FrostedGlassSgPane, SampleAgreesWithEval) {
+  const auto schema = FrostedGlassClosure::params();
+  long checked = 0, singular = 0, mismatched = 0, transmitting_eval = 0;
+  for (float roughness : {0.2f, 0.6f})
+    for (float ior : {1.5f, 2.4f}) {
+      auto sg = create_pane({roughness, ior}, "sg");
+      Pcg32 rng(11);
+      for (int i = 0; i < 20000; ++i) {
+        float z = rng.next_float();
+        if (i & 1) z = -z;  // both sides of the pane
+        const float phi = 2.0f * float(M_PI) * rng.next_float(), st = std::sqrt(std::max(0.0f, 1.0f - z * z));
+        GlimmerShadingContext ctx = host::make_local_context(Vec3(st * std::cos(phi), st * std::sin(phi), z));
+        ctx.path_seed = rng.next_u32();
+        const ShadingPoint sp(&ctx, schema);
+        LocalSample s;
+        if (!sg->sample(sp, Vec3(rng.next_float(), rng.next_float(), rng.next_float()), s)) continue;
+        // A direction on the far side of the pane (mirror of wi): eval() has no transmission.
+        const LocalEval through = sg->eval(sp, Vec3(-sp.wi.x, -sp.wi.y, -sp.wi.z));
+        if (through.pdf != 0.0f || !is_zero(through.f_cos)) ++transmitting_eval;
+        if (s.label & GLIMMER_LABEL_SINGULAR) {
+          ++singular;
+          continue;
+        }
+        const LocalEval e = sg->eval(sp, s.wo);
+        ++checked;
+        const double tol = 1e-4 * std::max(1.0, double(s.pdf));
+        if (std::fabs(e.pdf - s.pdf) > tol || std::fabs(e.f_cos.x - s.f_cos.x) > 1e-4 * std::max(1.0f, s.f_cos.x))
+          ++mismatched;
+      }
+    }
+  EXPECT_GT(checked, 1000);
+  EXPECT_GT(singular, 1000);
+  EXPECT_EQ(mismatched, 0);
+  EXPECT_EQ(transmitting_eval, 0);
+  std::printf("[frosted sg pane consistency] %ld front reflections equal eval() (f cos and pdf), %ld singular exit "
+              "samples; eval() transmission: %ld non-zero\n",
+              checked, singular, transmitting_eval);
+}
+
+// ---- Stress --------------------------------------------------------------------------
+TEST(FrostedGlassSgPane, StressRawOutputsFiniteNonNegative) {
+  Pcg32 rng(23);
+  const float roughs[] = {0.0f, 1e-3f, 0.04f, 0.1f, 0.5f, 1.0f};
+  const float iors[] = {1.0f, 1.2f, 1.33f, 1.7f, 2.5f, 1e3f, 1.0f / 2.4f};
+  const float thicknesses[] = {1e-6f, 1e-3f, 0.05f, 1.0f, 1e6f};
+  std::vector<std::unique_ptr<FrostedGlassClosure>> pool;
+  for (int i = 0; i < 60; ++i) {
+    PaneConfig c{(i & 1) ? roughs[rng.next_u32() % 6] : rng.next_float(),
+                 (i % 2 == 0) ? 2.4f : iors[rng.next_u32() % 7]};  // half TIR-heavy
+    if (i % 4 == 1) c.absorb = Vec3(rng.next_float(), 0.0f, 1e-6f);
+    c.thickness = thicknesses[rng.next_u32() % 5];
+    pool.push_back(create_pane(c, (i % 3 == 0) ? "auto" : "sg"));
+  }
+  const auto schema = FrostedGlassClosure::params();
+  const long calls = 1000000 * long(stress_scale());
+  const long blocks = 64;
+  std::atomic<long> bad_count{0}, moved{0}, samples{0};
+  tbb::parallel_for(long(0), blocks, [&](long b) {
+    Pcg32 r(700 + b);
+    const float zs[] = {0.0f, 1e-7f, 1e-6f, 1e-4f, 1e-3f, 0.01f, 0.5f, 1.0f - 1e-7f, 1.0f};
+    auto direction = [&](bool grazing) {
+      float z = (grazing || r.next_u32() % 3 == 0) ? zs[r.next_u32() % 9] : r.next_float();
+      if (r.next_u32() % 2 == 0) z = -z;  // both sides of the pane
+      const float phi = 2.0f * float(M_PI) * r.next_float(), st = std::sqrt(std::max(0.0f, 1 - z * z));
+      return Vec3(st * std::cos(phi), st * std::sin(phi), z);
+    };
+    for (long i = 0; i < calls / blocks; ++i) {
+      const FrostedGlassClosure &c = *pool[r.next_u32() % pool.size()];
+      const bool grazing = (i % 4) == 0;
+      GlimmerShadingContext ctx = host::make_local_context(direction(grazing));
+      ctx.path_seed = r.next_u32();
+      ctx.diffuse_bounce = int(r.next_u32() % 2);  // auto: both rules
+      const ShadingPoint sp(&ctx, schema);
+      const Vec3 wo = direction(grazing);
+      LocalSample s;
+      const LocalEval e = c.eval(sp, wo);
+      const bool ok = c.sample(sp, Vec3(r.next_float(), r.next_float(), r.next_float()), s);
+      long n_bad = glimmer::test::bad_raw_outputs(e, ok, s);
+      if (ok) {
+        samples.fetch_add(1, std::memory_order_relaxed);
+        if (s.moved) {
+          moved.fetch_add(1, std::memory_order_relaxed);
+          n_bad += glimmer::test::bad_moved_sample(s, sp.frame.to_world(s.wo));
+        }
+      }
+      if (n_bad) bad_count.fetch_add(n_bad);
+    }
+  });
+  EXPECT_EQ(bad_count.load(), 0);
+  EXPECT_GT(moved.load(), calls / 20);  // the sg pane estimator really ran
+  std::printf("[frosted sg pane stress] %ld eval + %ld sample calls (%ld sg exit samples), 1/4 grazing, half IOR "
+              "2.4, both sides, thickness 1e-6..1e6: %ld bad\n",
+              calls, samples.load(), moved.load(), bad_count.load());
+}
+
+}  // namespace
