@@ -8,30 +8,40 @@ namespace glimmer::render {
 
 // Pinhole camera: looks along +Z of camera space, +Y up, fov across the
 // shorter image side (Cycles' viewplane).
-// Camera ray through film position (x, y); (lens_u, lens_v) picks the point on the thin-lens aperture.
-void camera_ray(const scene::Camera &cam, int width, int height, float x, float y, Vec3 &org, Vec3 &dir,
-                Differentials &rd, float &dir_z, float lens_u, float lens_v) {
+CameraFrame camera_frame(const scene::Camera &cam, int width, int height) {
+  CameraFrame f;
+  f.width = width;
+  f.height = height;
   const float aspect = static_cast<float>(width) / static_cast<float>(height);
-  float half_w, half_h;
-  if (width >= height) { half_w = aspect; half_h = 1.0f; }
-  else { half_w = 1.0f; half_h = 1.0f / aspect; }
+  if (width >= height) { f.half_w = aspect; f.half_h = 1.0f; }
+  else { f.half_w = 1.0f; f.half_h = 1.0f / aspect; }
   const float t = std::tan(0.5f * cam.fov);
-  const float sx = (2.0f * x / width - 1.0f) * half_w * t;
-  const float sy = (1.0f - 2.0f * y / height) * half_h * t;
+  f.tan_half_fov = t;
+  f.dvx = Vec3(2.0f / width * f.half_w * t, 0.0f, 0.0f);
+  f.dvy = Vec3(0.0f, -2.0f / height * f.half_h * t, 0.0f);
+  f.dvx_world = cam.camera_to_world.vector(f.dvx);
+  f.dvy_world = cam.camera_to_world.vector(f.dvy);
+  f.origin = cam.camera_to_world.point(Vec3(0.0f));
+  f.view_axis = normalize(cam.camera_to_world.vector(Vec3(0, 0, 1)));
+  return f;
+}
+
+// Camera ray through film position (x, y); (lens_u, lens_v) picks the point on the thin-lens aperture.
+void camera_ray(const scene::Camera &cam, const CameraFrame &f, float x, float y, Vec3 &org, Vec3 &dir,
+                Differentials &rd, float &dir_z, float lens_u, float lens_v) {
+  const float t = f.tan_half_fov;
+  const float sx = (2.0f * x / f.width - 1.0f) * f.half_w * t;
+  const float sy = (1.0f - 2.0f * y / f.height) * f.half_h * t;
   const Vec3 v(sx, sy, 1.0f);
-  const Vec3 dvx(2.0f / width * half_w * t, 0.0f, 0.0f), dvy(0.0f, -2.0f / height * half_h * t, 0.0f);
-  const float len = length(v);
-  dir_z = 1.0f / len;
   // World-space direction and its derivative d(normalize(v))/dx = (v.v dv - v (v.dv)) / |v|^3.
   const Vec3 vw = cam.camera_to_world.vector(v);
-  const Vec3 dvxw = cam.camera_to_world.vector(dvx), dvyw = cam.camera_to_world.vector(dvy);
   const float lw = length(vw);
   dir = vw / lw;
   auto ddir = [&](const Vec3 &dv) { return (dv * dot(vw, vw) - vw * dot(vw, dv)) / (lw * lw * lw); };
-  rd.dDdx = ddir(dvxw);
-  rd.dDdy = ddir(dvyw);
+  rd.dDdx = ddir(f.dvx_world);
+  rd.dDdy = ddir(f.dvy_world);
   rd.dPdx = rd.dPdy = Vec3(0.0f);
-  org = cam.camera_to_world.point(Vec3(0.0f));
+  org = f.origin;
   if (cam.aperture_size > 0.0f) {
     // Cycles' thin lens (kernel/camera/camera.h): the point on the plane z = focaldistance seen through the
     // pinhole, reached from a uniform point on the aperture disk of radius aperturesize. The pixel's
@@ -56,7 +66,7 @@ void camera_ray(const scene::Camera &cam, int width, int height, float x, float 
     rd.lens = true;
   }
   // Depth of the first hit is measured along camera +Z in world units.
-  dir_z = dot(dir, normalize(cam.camera_to_world.vector(Vec3(0, 0, 1))));
+  dir_z = dot(dir, f.view_axis);
 }
 
 void fold_lens_differentials(Differentials &rd, const Vec3 &D, float t, const Vec3 &Ng) {

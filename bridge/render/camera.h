@@ -21,11 +21,27 @@ struct Differentials {
   bool lens = false;
 };
 
-// Camera ray through film position (x, y) of a width x height image; (lens_u,
+// What every camera ray of one image shares (computed once per render: the tangent and the transformed
+// axes were 3 % of a one-thread profile when computed per ray).
+struct CameraFrame {
+  int width = 1, height = 1;
+  float half_w = 1.0f, half_h = 1.0f;  // the film's half extents in units of the shorter side
+  float tan_half_fov = 1.0f;
+  Vec3 dvx{0.0f}, dvy{0.0f};            // camera-space film step per pixel in x and y
+  Vec3 dvx_world{0.0f}, dvy_world{0.0f};
+  Vec3 origin{0.0f}, view_axis{0.0f, 0.0f, 1.0f};  // world space
+};
+CameraFrame camera_frame(const scene::Camera &cam, int width, int height);
+
+// Camera ray through film position (x, y) of the frame's image; (lens_u,
 // lens_v) picks the point on the thin-lens aperture. dir_z is the cosine to the
 // view axis (depth = t * dir_z).
-void camera_ray(const scene::Camera &cam, int width, int height, float x, float y, Vec3 &org, Vec3 &dir,
+void camera_ray(const scene::Camera &cam, const CameraFrame &frame, float x, float y, Vec3 &org, Vec3 &dir,
                 Differentials &rd, float &dir_z, float lens_u = 0.5f, float lens_v = 0.5f);
+inline void camera_ray(const scene::Camera &cam, int width, int height, float x, float y, Vec3 &org, Vec3 &dir,
+                       Differentials &rd, float &dir_z, float lens_u = 0.5f, float lens_v = 0.5f) {
+  camera_ray(cam, camera_frame(cam, width, height), x, y, org, dir, rd, dir_z, lens_u, lens_v);
+}
 
 // A differential (dP, dD) of the ray (origin + t D) carried to the tangent plane of the hit at distance t with
 // geometric normal Ng (Igehy 1999, eq. 10): the footprint one step makes on the surface.

@@ -75,6 +75,7 @@ struct Renderer::Impl {
   float scene_radius = 1.0f;
 
   int width = 0, height = 0;
+  CameraFrame camera;  // per-image constants of the camera rays (set with width and height)
   int samples = 1;
   uint32_t seed = 0;
   FilmFilter filter;
@@ -176,6 +177,7 @@ struct Renderer::Impl {
     const auto &cam = scene.camera;
     width = options.width > 0 ? options.width : cam.width;
     height = options.height > 0 ? options.height : cam.height;
+    camera = camera_frame(cam, width, height);
     samples = options.samples > 0 ? options.samples : scene.integrator.samples;
     seed = static_cast<uint32_t>(options.seed >= 0 ? options.seed : scene.integrator.seed);
     part = describe_part(options, width, height, samples, seed);
@@ -666,7 +668,7 @@ struct Renderer::Impl {
   // near and far planes along its view axis; (lens_u, lens_v) picks the point on the aperture.
   PathRay camera_path_ray(float x, float y, float lens_u, float lens_v) const {
     PathRay ray;
-    camera_ray(scene.camera, width, height, x, y, ray.org, ray.D, ray.rd, ray.cam_dir_z, lens_u, lens_v);
+    camera_ray(scene.camera, camera, x, y, ray.org, ray.D, ray.rd, ray.cam_dir_z, lens_u, lens_v);
     ray.tmin = scene.camera.nearclip / std::max(ray.cam_dir_z, 1e-6f);
     ray.tmax = scene.camera.farclip / std::max(ray.cam_dir_z, 1e-6f);
     ray.pixel_spread = std::max(length(ray.rd.dDdx), length(ray.rd.dDdy));
