@@ -11,7 +11,8 @@
 // next-event random walks seeded by hash(ctx->path_seed, wo) (deterministic).
 // sample() returns the walk's exit direction with f_cos / pdf equal to the
 // walk's throughput; pdf is an unbiased estimate of the Fresnel-free walk's
-// exit density (eval_walks walks), floored at 1e-6 so MIS weights stay finite.
+// exit density (eval_walks walks of their own, independent of eval's f), floored
+// at 1e-6 so MIS weights stay finite.
 // GGX only.
 #pragma once
 
@@ -90,12 +91,18 @@ class MicrofacetRandomWalkClosure {
   LocalEval eval(const ShadingPoint &sp, const Vec3 &wo) const {
     const Vec3 &wi = sp.wi;
     if (!dielectric_ && (!(wi.z > 0.0f) || !(wo.z > 0.0f))) return {};
-    const uint32_t seed = direction_seed(sp.ctx->path_seed, wo);
     LocalEval e;
-    e.f_cos = estimate(wi, wo, seed, false);
-    // The exit density of the (Fresnel-free) walk is its f * cos.
-    e.pdf = dielectric_ ? e.f_cos.x : average(estimate(wi, wo, seed, true));
+    e.f_cos = estimate(wi, wo, direction_seed(sp.ctx->path_seed, wo), false);
+    e.pdf = pdf_estimate(wi, wo, sp);
     return e;
+  }
+  // The exit density of the (Fresnel-free) walk is its f * cos, estimated by walks independent of eval's f
+  // (their own seed): the host's MIS weight is a function of this estimate, and f * w(pdf) is unbiased only if f
+  // and pdf are independent (one shared walk made a frosted pane 14 % dark under MIS). sample() reports the same
+  // estimate, so the two strategies' expected weights sum to one.
+  float pdf_estimate(const Vec3 &wi, const Vec3 &wo, const ShadingPoint &sp) const {
+    const uint32_t seed = hash_u32x2(direction_seed(sp.ctx->path_seed, wo), 0x9e3779b9u);
+    return dielectric_ ? estimate(wi, wo, seed, false).x : average(estimate(wi, wo, seed, true));
   }
 
   bool sample(const ShadingPoint &sp, const Vec3 &rand, LocalSample &out) const {
@@ -114,10 +121,8 @@ class MicrofacetRandomWalkClosure {
     }
     if (order == 0 || !is_finite(wo) || wo.z == 0.0f) return false;
     const bool transmit = (wo.z > 0.0f) != (wi.z > 0.0f);
-    const uint32_t seed = direction_seed(sp.ctx->path_seed, wo);
-    const float pdf = dielectric_ ? estimate(wi, wo, seed, false).x : average(estimate(wi, wo, seed, true));
     out.wo = wo;
-    out.pdf = std::max(pdf, 1e-6f);
+    out.pdf = std::max(pdf_estimate(wi, wo, sp), 1e-6f);
     out.f_cos = throughput * out.pdf;
     out.roughness = std::sqrt(surface_.ax * surface_.ay);
     out.eta = transmit ? (wi.z > 0.0f ? ior_ : 1.0f / ior_) : 1.0f;
