@@ -33,4 +33,23 @@ inline long bad_moved_sample(const plugin::LocalSample &s, const Vec3 &wo_world)
   return n;
 }
 
+// One eval and one sample call of a stress loop at (sp, wo): the bad outputs of both (a moved sample's exit checked
+// too); counts the successful samples and the moved ones.
+template <class Closure, class Counter>
+long stress_eval_and_sample(const Closure &c, const plugin::ShadingPoint &sp, const Vec3 &wo, const Vec3 &rand,
+                            Counter &samples, Counter &moved) {
+  plugin::LocalSample s;
+  const plugin::LocalEval e = c.eval(sp, wo);
+  const bool ok = c.sample(sp, rand, s);
+  long n_bad = bad_raw_outputs(e, ok, s);
+  if (ok) {
+    samples.fetch_add(1, std::memory_order_relaxed);
+    if (s.moved) {
+      moved.fetch_add(1, std::memory_order_relaxed);
+      n_bad += bad_moved_sample(s, sp.frame.to_world(s.wo));
+    }
+  }
+  return n_bad;
+}
+
 }  // namespace glimmer::test

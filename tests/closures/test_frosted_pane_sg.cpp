@@ -294,17 +294,8 @@ TEST(FrostedGlassSgPane, StressRawOutputsFiniteNonNegative) {
       ctx.diffuse_bounce = int(r.next_u32() % 2);  // auto: both rules
       const ShadingPoint sp(&ctx, schema);
       const Vec3 wo = direction(grazing);
-      LocalSample s;
-      const LocalEval e = c.eval(sp, wo);
-      const bool ok = c.sample(sp, Vec3(r.next_float(), r.next_float(), r.next_float()), s);
-      long n_bad = glimmer::test::bad_raw_outputs(e, ok, s);
-      if (ok) {
-        samples.fetch_add(1, std::memory_order_relaxed);
-        if (s.moved) {
-          moved.fetch_add(1, std::memory_order_relaxed);
-          n_bad += glimmer::test::bad_moved_sample(s, sp.frame.to_world(s.wo));
-        }
-      }
+      const Vec3 rand(r.next_float(), r.next_float(), r.next_float());
+      const long n_bad = glimmer::test::stress_eval_and_sample(c, sp, wo, rand, samples, moved);
       if (n_bad) bad_count.fetch_add(n_bad);
     }
   });
