@@ -955,6 +955,11 @@ const GlimmerHostServices &Renderer::host_services() const { return impl_->host;
 
 const PartInfo &Renderer::part() const { return impl_->part; }
 
+// A batch of samples per parallel pass holds about this many paths (at most kMaxSamplesPerBatch samples per pixel,
+// so progress, checkpoints, cancel and the time limit still come every few seconds at most).
+constexpr int64_t kPathsPerBatch = 1 << 16;
+constexpr int kMaxSamplesPerBatch = 16;
+
 RenderResult Renderer::render(const std::function<void(int, int)> &progress, const Film *resume) {
   Impl &im = *impl_;
   const auto t0 = Clock::now();
@@ -975,18 +980,27 @@ RenderResult Renderer::render(const std::function<void(int, int)> &progress, con
   const int x0 = part.window[0], y0 = part.window[1], x1 = part.window[2], y1 = part.window[3];
   const int tile = std::max(1, im.options.tile_size);
   std::atomic<uint64_t> nan_total{0};
-  for (int s = part.sample_begin + film.passes(); s < part.sample_end; ++s) {
+  // Passes of `batch` samples per pixel (the first pass one sample, for the first display): one parallel loop
+  // per batch instead of per sample, so small images do not wait at a barrier 256 times. Each pixel still adds
+  // its samples in sample order, so the image is the same for any batch.
+  const int64_t window_pixels = int64_t(x1 - x0) * (y1 - y0);
+  const int batch = static_cast<int>(std::clamp<int64_t>(kPathsPerBatch / std::max<int64_t>(window_pixels, 1), 1,
+                                                         kMaxSamplesPerBatch));
+  for (int s = part.sample_begin + film.passes(); s < part.sample_end;) {
     if (im.options.cancel && im.options.cancel->load()) { res.interrupted = true; break; }
+    const int count = std::min(film.passes() == 0 ? 1 : batch, part.sample_end - s);
     tbb::parallel_for(tbb::blocked_range2d<int>(y0, y1, tile, x0, x1, tile), [&](const tbb::blocked_range2d<int> &br) {
       uint64_t nans = 0, traced = 0;
       for (int y = br.rows().begin(); y < br.rows().end(); ++y) {
         if (im.options.cancel && im.options.cancel->load()) break;  // answer SIGINT within a tile row
         for (int x = br.cols().begin(); x < br.cols().end(); ++x) {
-          Impl::PixelAov aov;
-          const Spectrum L = im.trace_path(x, y, static_cast<uint32_t>(s), aov, nans);
-          if (!film.add(static_cast<size_t>(y) * im.width + x, L, aov.alpha, aov.albedo, aov.normal, aov.depth))
-            ++nans;  // a finite sample can still overflow the pixel's sum: dropped and counted
-          ++traced;
+          for (int k = 0; k < count; ++k) {
+            Impl::PixelAov aov;
+            const Spectrum L = im.trace_path(x, y, static_cast<uint32_t>(s + k), aov, nans);
+            if (!film.add(static_cast<size_t>(y) * im.width + x, L, aov.alpha, aov.albedo, aov.normal, aov.depth))
+              ++nans;  // a finite sample can still overflow the pixel's sum: dropped and counted
+            ++traced;
+          }
         }
       }
       if (nans) nan_total += nans;
@@ -995,11 +1009,13 @@ RenderResult Renderer::render(const std::function<void(int, int)> &progress, con
     // A pass cut short by an interrupt does not count: samples_done = complete passes (its samples still
     // average into the pixels they reached).
     if (im.options.cancel && im.options.cancel->load()) { res.interrupted = true; break; }
-    film.end_pass();
+    for (int k = 0; k < count; ++k) {  // every sample of the batch is done: one progress line each
+      film.end_pass();
+      if (progress) progress(film.passes(), res.samples_requested);
+    }
+    s += count;
     if (im.options.after_pass) im.options.after_pass(film);
-    if (progress) progress(film.passes(), res.samples_requested);
-    if (im.options.time_limit > 0.0 && seconds_since(t0) >= im.options.time_limit &&
-        s + 1 < part.sample_end) {
+    if (im.options.time_limit > 0.0 && seconds_since(t0) >= im.options.time_limit && s < part.sample_end) {
       res.time_limited = true;
       break;
     }
