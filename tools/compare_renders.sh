@@ -2,8 +2,8 @@
 # Renders scenes with two glimmer builds (fixed seed, 8 samples, 2 threads) and compares every channel of every
 # pixel (oiiotool --dumpdata, float32 printed exactly): "IDENTICAL" or "DIFFERENT" per scene.
 #   tools/compare_renders.sh OLD_GLIMMER NEW_GLIMMER OUT_DIR scene.xml...
-# The plugin is the one next to each executable (copy libglimmer_closures.so, and libglimmer_image_io.so where
-# the build has it, along with an old build).
+# The plugin is the one next to each executable (copy libglimmer_closures.so, and libglimmer_image_io.so and
+# libglimmer_exr_io.so where the build has them, along with an old build).
 set -u
 old=$1 new=$2 out=$3
 shift 3
