@@ -159,6 +159,7 @@ int render_one(CliContext &ctx, const RenderArgs &a, const std::string &scene_pa
   opt.time_limit = a.time_limit;
   opt.tile_size = a.tile_size;
   opt.aovs = !a.no_aovs;
+  if (!a.display.empty()) opt.max_samples_per_pass = 1;  // a live display: an image after every sample
   opt.cancel = &g_interrupted;
   set_part(a, scene, opt);
   opt.scene_hash = render::scene_file_hash(scene_path);

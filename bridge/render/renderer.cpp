@@ -955,10 +955,9 @@ const GlimmerHostServices &Renderer::host_services() const { return impl_->host;
 
 const PartInfo &Renderer::part() const { return impl_->part; }
 
-// A batch of samples per parallel pass holds about this many paths (at most kMaxSamplesPerBatch samples per pixel,
-// so progress, checkpoints, cancel and the time limit still come every few seconds at most).
+// A batch of samples per parallel pass holds about this many paths (at most RenderOptions::max_samples_per_pass
+// samples per pixel, so progress, checkpoints, cancel and the time limit still come every few seconds at most).
 constexpr int64_t kPathsPerBatch = 1 << 16;
-constexpr int kMaxSamplesPerBatch = 16;
 
 RenderResult Renderer::render(const std::function<void(int, int)> &progress, const Film *resume) {
   Impl &im = *impl_;
@@ -985,7 +984,7 @@ RenderResult Renderer::render(const std::function<void(int, int)> &progress, con
   // its samples in sample order, so the image is the same for any batch.
   const int64_t window_pixels = int64_t(x1 - x0) * (y1 - y0);
   const int batch = static_cast<int>(std::clamp<int64_t>(kPathsPerBatch / std::max<int64_t>(window_pixels, 1), 1,
-                                                         kMaxSamplesPerBatch));
+                                                         std::max(1, im.options.max_samples_per_pass)));
   for (int s = part.sample_begin + film.passes(); s < part.sample_end;) {
     if (im.options.cancel && im.options.cancel->load()) { res.interrupted = true; break; }
     const int count = std::min(film.passes() == 0 ? 1 : batch, part.sample_end - s);

@@ -37,6 +37,9 @@ struct RenderOptions {
   // lookup (the estimator before; tests and benchmarks compare the two).
   bool exit_lobe_environment = true;
   bool aovs = true;       // Albedo, Normal, Depth (false: not computed, the film keeps Combined only)
+  // Samples per pixel per parallel pass at most (after_pass runs after each pass): 1 = after every sample (a live
+  // display); larger batches spare small images a barrier per sample (Renderer::render).
+  int max_samples_per_pass = 16;
   const std::atomic<bool> *cancel = nullptr;  // set from a signal handler: stop after the current pass
   int sample_begin = 0, sample_end = 0;  // render samples [begin, end) of `samples`; both 0 = all of them
   std::string scene_hash;                // recorded in the part's metadata (render::scene_file_hash)
