@@ -38,10 +38,6 @@ CameraFrame camera_frame(const scene::Camera &cam, int width, int height);
 // view axis (depth = t * dir_z).
 void camera_ray(const scene::Camera &cam, const CameraFrame &frame, float x, float y, Vec3 &org, Vec3 &dir,
                 Differentials &rd, float &dir_z, float lens_u = 0.5f, float lens_v = 0.5f);
-inline void camera_ray(const scene::Camera &cam, int width, int height, float x, float y, Vec3 &org, Vec3 &dir,
-                       Differentials &rd, float &dir_z, float lens_u = 0.5f, float lens_v = 0.5f) {
-  camera_ray(cam, camera_frame(cam, width, height), x, y, org, dir, rd, dir_z, lens_u, lens_v);
-}
 
 // A differential (dP, dD) of the ray (origin + t D) carried to the tangent plane of the hit at distance t with
 // geometric normal Ng (Igehy 1999, eq. 10): the footprint one step makes on the surface.

@@ -703,14 +703,14 @@ struct Renderer::Impl {
 
   bool use_nee() const { return options.strategy != LightStrategy::BsdfOnly; }
 
-  // Lamps (spheres, area lights) crossed before the surface at t_hit and, when the ray escapes, the sun disk
-  // and the world (Cycles' integrate_light and integrate_background); as in Cycles lamps do not block the ray.
   // The world seen through the exit lobe the path just left (integrate_exit_lobe): one cone lookup.
   struct ExitWorld {
     bool active = false;
     Vec3 axis{0.0f, 0.0f, 1.0f};
     float cone = 0.0f;  // half-angle, radians
   };
+  // Lamps (spheres, area lights) crossed before the surface at t_hit and, when the ray escapes, the sun disk
+  // and the world (Cycles' integrate_light and integrate_background); as in Cycles lamps do not block the ray.
   // exit_world: the ray left an exit lobe whose world is one cone lookup (integrate_exit_lobe).
   void integrate_lights_and_background(const PathRay &ray, float t_hit, bool hit_surface, const PathState &ps,
                                        const ExitWorld &exit_world, PathRadiance &pr) const {
