@@ -524,6 +524,10 @@ const TransmissionSgTable &TransmissionSgTable::get(const GlimmerHostServices *h
                                      " is for another grid or fit version; rebuilding (" + path + ")");
   }
   if (!table) {
+    // Said before the fit (minutes on a small machine), so a first render does not look hung.
+    log(GLIMMER_LOG_INFO, "frosted_glass: fitting the SG transmission table once" +
+                              (use_cache ? " (cached as " + path + ")" : std::string(" (no cache folder)")) +
+                              "; this takes minutes");
     const auto t0 = std::chrono::steady_clock::now();
     table = std::make_unique<TransmissionSgTable>();
     char msg[160];

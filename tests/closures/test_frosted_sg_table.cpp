@@ -26,6 +26,7 @@
 #include <vector>
 
 #include "glimmer/cache_blob.h"
+#include "host/closure_instance.h"
 #include "glimmer/rng.h"
 #include "core/dielectric_lobe.h"
 #include "core/microfacet_lobe_params.h"
@@ -218,7 +219,8 @@ TEST(FrostedSgFit, FitErrorOverTheRange) {
 //    slope tail's shape): 0 of 6658 above 1 %, median 0.00018, mean 0.0004,
 //    max 0.0067; nearest-node control max 113.
 TEST(FrostedSgTable, InterpolationWithinOnePercent) {
-  const TransmissionSgTable &table = TransmissionSgTable::get();
+  // The suite's table (built once by TableWarmUp below, loaded here; load() re-fits 16 nodes to check it).
+  const TransmissionSgTable &table = TransmissionSgTable::get(host::default_host_services());
   // Cell centres in all three coordinates inside theta 0..89, roughness 0.05..1, IOR 1.33..2.4.
   struct Point {
     float theta, r, ior;
@@ -295,12 +297,29 @@ namespace {
 using namespace glimmer;
 using namespace glimmer::plugin::frosted;
 
+// ---- The suite's table: built once, before every test that needs it ------------
+// ctest runs this first (tests/CMakeLists.txt: fixture glimmer_tables, its own long timeout); every closure,
+// bridge and frosted addon test requires the fixture and then loads the table from the cache instead of fitting
+// it again (13 min on the loaded 2-core machine: two test processes fitting it at once each ran past their
+// 900 s timeout, and every later test started over). Fails when the cache is not written or does not load back
+// equal to the table in memory.
+TEST(TableWarmUp, FrostedSgTableIsCachedForTheSuite) {
+  const GlimmerHostServices *services = host::default_host_services();
+  ASSERT_NE(services->cache_dir, nullptr);
+  ASSERT_NE(services->cache_dir[0], '\0') << "no cache folder: every test would fit the SG table again";
+  const TransmissionSgTable &table = TransmissionSgTable::get(services);
+  std::string problem;
+  auto loaded = TransmissionSgTable::load(TransmissionSgTable::cache_path(services->cache_dir), problem);
+  ASSERT_TRUE(loaded) << problem;
+  EXPECT_TRUE(*loaded == table);
+}
+
 // ---- Disk cache: round trip, corruption, crafted entries ------------------------
 TEST(FrostedSgTable, DiskCacheRoundTripAndValidation) {
   const auto dir = std::filesystem::temp_directory_path() / ("glimmer_frosted_sg_" + std::to_string(::getpid()));
   std::filesystem::remove_all(dir);
   const std::string path = TransmissionSgTable::cache_path(dir.string());
-  const TransmissionSgTable &built = TransmissionSgTable::get();
+  const TransmissionSgTable &built = TransmissionSgTable::get(host::default_host_services());
   ASSERT_EQ(built.save(path), "");
   std::string problem;
   auto loaded = TransmissionSgTable::load(path, problem);
