@@ -14,6 +14,12 @@ reference's), all relative to the region's reference mean.
 
 Variants: every frosted_glass_bsdf as `sg`, and each frosted shader alone as `sg` (the others `path`), so a
 region's bias can be told apart from light that reached it through another object.
+
+--per-light (issue 12, seventh session) adds, for each light source alone (each <light> with a black world, and the
+world without lamps), a `path` reference and two `sg` seeds, and prints each region's sg bias / offset per source
+and its absolute offset (the share of the full scene's offset that source carries). --no-clamp renders every
+variant with sample_clamp_indirect=0 (the estimators' own expectations; the clamp changes sg's and path's images
+differently, docs/frosted_glass.md "Lamps through the exit lobe").
 """
 import argparse
 import os
@@ -49,6 +55,35 @@ def id_scene(text, shaders):
                   r'<shader name="\1"><diffuse_bsdf name="d" color="0 0 0" />'
                   r'<connect from="d bsdf" to="output surface" /></shader>', text, flags=re.S)
     return text
+
+
+def light_sources(text):
+    """(name, scene) for each <light> alone with a black world, and the world alone without lamps."""
+    lights = re.findall(r"<light\b[^>]*/>", text)
+    out = []
+    for k, light in enumerate(lights):
+        t = text
+        for other in lights:
+            if other is not light:
+                t = t.replace(other, "", 1)
+        t = re.sub(r'<background name="([^"]*)"[^>]*/>', r'<background name="\1" color="0 0 0" strength="0" />', t)
+        out.append(("light%d" % k, t))
+    out.append(("world", re.sub(r"<light\b[^>]*/>", "", text)))
+    return out
+
+
+def split_line(region, mask, ref, ref_var_pixel, results):
+    """noise / bias / offset per variant for one region (relative to its reference mean)."""
+    rmean = ref[mask].mean()
+    ref_var = ref_var_pixel[mask].mean()
+    line = "%-16s %5d  ref mean %.4f" % (region, int(mask.sum()), rmean)
+    for name, (a, b) in results.items():
+        var = 0.5 * ((a - b)[mask] ** 2).mean()
+        m2 = (((a + b) / 2 - ref)[mask] ** 2).mean()
+        bias = np.sqrt(max(0.0, m2 - 0.5 * var - ref_var))
+        offset = ((a + b) / 2)[mask].mean() / rmean - 1.0
+        line += " | %s %.4f / %.4f / %+.4f" % (name, np.sqrt(var) / rmean, bias / rmean, offset)
+    return line
 
 
 def read_combined(exr, width, height):
@@ -88,6 +123,8 @@ def main():
     ap.add_argument("--reference-samples", type=int, default=4096)
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--out-dir", required=True)
+    ap.add_argument("--per-light", action="store_true", help="also split the sg bias by light source")
+    ap.add_argument("--no-clamp", action="store_true", help="sample_clamp_indirect=0 in every variant")
     args = ap.parse_args()
     os.makedirs(args.out_dir, exist_ok=True)
     with open(args.scene) as f:
@@ -95,6 +132,8 @@ def main():
     # The scene's relative mesh paths resolve against its folder: write the variants there via absolute paths.
     folder = os.path.dirname(os.path.abspath(args.scene))
     text = re.sub(r'src="([^"/][^"]*)"', lambda m: 'src="%s"' % os.path.join(folder, m.group(1)), text)
+    if args.no_clamp:
+        text = re.sub(r'sample_clamp_indirect="[^"]*"', 'sample_clamp_indirect="0"', text)
     shaders = [m.group(1) for m in re.finditer(r'<shader name="([^"]+)">(?:(?!</shader>).)*<frosted_glass_bsdf',
                                                 text, flags=re.S)]
     ids_rgb = render(args, id_scene(text, shaders), "ids", 16, 1)
@@ -116,20 +155,23 @@ def main():
                                                  render(args, vtext, name, args.samples, 2))
         results[name] = (a, b)
     for region, mask in regions.items():
-        n = int(mask.sum())
-        if n == 0:
-            continue
-        rmean = ref[mask].mean()
-        ref_var = ref_var_pixel[mask].mean()
-        line = "%-16s %5d  ref mean %.4f" % (region, n, rmean)
-        for name, (a, b) in results.items():
-            var = 0.5 * ((a - b)[mask] ** 2).mean()
-            m2 = (((a + b) / 2 - ref)[mask] ** 2).mean()
-            bias = np.sqrt(max(0.0, m2 - 0.5 * var - ref_var))
-            offset = ((a + b) / 2)[mask].mean() / rmean - 1.0
-            line += " | %s %.4f / %.4f / %+.4f" % (name, np.sqrt(var) / rmean, bias / rmean, offset)
-        print(line)
-
+        if mask.any():
+            print(split_line(region, mask, ref, ref_var_pixel, results))
+    if not args.per_light:
+        return
+    print("per light source: sg (every frosted shader) vs path, noise / bias / offset relative to the source's own "
+          "reference mean; abs = the source's absolute offset")
+    for source, stext in light_sources(text):
+        sref = render(args, set_method(stext, "path"), source + "_path", args.reference_samples, 101)
+        s1 = render(args, set_method(stext, "path"), source + "_path", args.samples, 1)
+        s2 = render(args, set_method(stext, "path"), source + "_path", args.samples, 2)
+        g1 = render(args, set_method(stext, "sg"), source + "_sg", args.samples, 1)
+        g2 = render(args, set_method(stext, "sg"), source + "_sg", args.samples, 2)
+        svar = 0.5 * (s1 - s2) ** 2 * args.samples / args.reference_samples
+        for region, mask in regions.items():
+            if mask.any():
+                absolute = ((g1 + g2) / 2 - sref)[mask].mean()
+                print("%-7s %s abs %+.4f" % (source, split_line(region, mask, sref, svar, {"sg": (g1, g2)}), absolute))
 
 if __name__ == "__main__":
     main()

@@ -16,6 +16,7 @@ struct LightSample {
   float pdf = 0.0f;   // solid angle density including the pick probability
   bool delta = false;
   bool world = false;  // drawn from the world (the background light)
+  bool lamp = false;   // drawn from a lamp (point, spot, area, sun), not an emissive triangle or the world
 };
 
 struct LightHit {

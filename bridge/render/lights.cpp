@@ -1,5 +1,7 @@
 #include "render/lights.h"
 
+#include "render/lamp_through_lobe.h"
+
 #include "lab/closure_lab.h"
 
 #include <algorithm>
@@ -115,7 +117,24 @@ bool LightSet::sample(float u, float v, const Vec3 &P, LightSample &out) const {
   // u picks the light and is rescaled within its bin for the point on it (stratification kept).
   const int index = pick_.sample(u, u);
   const float pick = pick_probability(index);
-  return std::visit([&](const auto &light) { return light.sample(u, v, P, pick, out); }, lights_[index].kind);
+  const auto &kind = lights_[index].kind;
+  const bool ok = std::visit([&](const auto &light) { return light.sample(u, v, P, pick, out); }, kind);
+  out.lamp = !std::holds_alternative<TriangleLight>(kind) && !std::holds_alternative<BackgroundLight>(kind);
+  return ok;
+}
+
+bool LightSet::lamp_through_lobe(int k, const Vec3 &P, const ExitLobe &lobe, float u, float v, float pick,
+                                 LampEstimate &out) const {
+  if (k < 0 || k >= lamp_count()) return false;
+  return std::visit(
+      [&](const auto &light) {
+        using Kind = std::decay_t<decltype(light)>;
+        if constexpr (std::is_same_v<Kind, TriangleLight> || std::is_same_v<Kind, BackgroundLight>)
+          return false;
+        else
+          return render::lamp_through_lobe(light, P, lobe, u, v, pick, out);
+      },
+      lights_[lamps_[k]].kind);
 }
 
 float LightSet::triangle_pdf(int mesh, int prim, const Vec3 &from, const Vec3 &P, const Vec3 &Ng, const Vec3 &d) const {

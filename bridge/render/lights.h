@@ -12,6 +12,7 @@
 
 #include "glimmer/math.h"
 #include "render/distribution.h"
+#include "render/lamp_through_lobe.h"
 #include "render/light_area.h"
 #include "render/light_background.h"
 #include "render/light_common.h"
@@ -61,6 +62,16 @@ class LightSet {
   // camera_ray: the ray comes from the camera (through transparent surfaces only), so lamps with
   // use_camera = false are skipped as in Cycles' lights_intersect.
   void intersect(const Vec3 &o, const Vec3 &d, float t_max, bool hit_surface, bool camera_ray, LightHits &out) const;
+  // Lamp k (0 <= k < lamp_count(): point, spot, area, sun; not emissive triangles, not the world) seen from P
+  // through an exit lobe (docs/frosted_glass.md, "Lamps through the exit lobe"): Int p(w) L(w) dw, p the lobe's
+  // density (ExitLobe::pdf), estimated by kLampStrata^2 points of the lamp's own sampling and kLampStrata^2
+  // directions of the lobe's vMF, each set stratified with the offset (u, v), combined by the balance heuristic
+  // (multi-sample MIS); `pick` chooses one of those points with probability proportional to its share, and the
+  // estimate is scaled so that value x V(point) is unbiased for Int p L V: one shadow ray per lamp (the caller's).
+  // False: no light of the lamp reaches P through the lobe.
+  int lamp_count() const { return static_cast<int>(lamps_.size()); }
+  bool lamp_through_lobe(int k, const Vec3 &P, const ExitLobe &lobe, float u, float v, float pick,
+                         LampEstimate &out) const;
   // Light-sampling pdf of an escaping ray in direction d (0 when the world is not a light).
   float background_pdf(const Vec3 &d) const;
   // Light-sampling pdf for a BSDF ray from `from` hitting emissive triangle (mesh, prim) at P.

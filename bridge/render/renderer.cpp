@@ -37,6 +37,8 @@ constexpr float kInf = std::numeric_limits<float>::infinity();
 // The light set (2D) of light sampling at an exit lobe (integrate_exit_lobe) of path vertex v: far
 // from the film, lens and per-bounce sets of render/sampler.h.
 uint32_t exit_light_set(int vertex) { return 0x80000000u + static_cast<uint32_t>(vertex); }
+// The set (2D: which point's visibility stands for each lamp, unused) of the lamps through an exit lobe.
+uint32_t exit_lamp_set(int vertex) { return 0xc0000000u + static_cast<uint32_t>(vertex); }
 
 // Offset a ray origin off the surface along the geometric normal, on the side of `dir`.
 Vec3 offset_ray_origin(const Vec3 &P, const Vec3 &Ng, const Vec3 &dir) {
@@ -516,12 +518,14 @@ struct Renderer::Impl {
   }
   // One light sample seen from P (surface normal Ng) through `bsdf(wi) -> MixtureEval` (f and the density
   // with which the path samples wi), MIS-weighted against that density, times the shadow ray's transmittance.
-  // without_world: a sample drawn from the world counts 0 (the world is estimated otherwise there).
+  // without_world / without_lamps: a sample drawn from the world / a lamp counts 0 (estimated otherwise there).
   template <class Bsdf>
   Spectrum direct_light_at(const Vec3 &P, const Vec3 &Ng, const Bsdf &bsdf, const Spectrum &throughput, float lu,
-                           float lv, bool without_world = false) const {
+                           float lv, bool without_world = false, bool without_lamps = false) const {
     LightSample ls;
-    if (!lights->sample(lu, lv, P, ls) || !(ls.pdf > 0.0f) || (without_world && ls.world)) return Spectrum(0.0f);
+    if (!lights->sample(lu, lv, P, ls) || !(ls.pdf > 0.0f) || (without_world && ls.world) ||
+        (without_lamps && ls.lamp))
+      return Spectrum(0.0f);
     const MixtureEval me = bsdf(ls.wi);
     if (is_zero(me.f)) return Spectrum(0.0f);
     const bool use_bsdf_emission = options.strategy != LightStrategy::LightOnly;
@@ -708,15 +712,18 @@ struct Renderer::Impl {
     bool active = false;
     Vec3 axis{0.0f, 0.0f, 1.0f};
     float cone = 0.0f;  // half-angle, radians
+    bool lamps = false;  // the lamps were integrated against the lobe at the exit: the segment's lamp hits count 0
   };
   // Lamps (spheres, area lights) crossed before the surface at t_hit and, when the ray escapes, the sun disk
   // and the world (Cycles' integrate_light and integrate_background); as in Cycles lamps do not block the ray.
   // exit_world: the ray left an exit lobe whose world is one cone lookup (integrate_exit_lobe).
   void integrate_lights_and_background(const PathRay &ray, float t_hit, bool hit_surface, const PathState &ps,
                                        const ExitWorld &exit_world, PathRadiance &pr) const {
-    LightHits lhs;
-    lights->intersect(ray.org, ray.D, t_hit, hit_surface, ps.bounce == 0, lhs);
-    for (int i = 0; i < lhs.count; ++i) add_emission(pr, ps, lhs.hits[i].radiance, lhs.hits[i].pdf);
+    if (!exit_world.lamps) {
+      LightHits lhs;
+      lights->intersect(ray.org, ray.D, t_hit, hit_surface, ps.bounce == 0, lhs);
+      for (int i = 0; i < lhs.count; ++i) add_emission(pr, ps, lhs.hits[i].radiance, lhs.hits[i].pdf);
+    }
     if (hit_surface || ps.transparent_background || !shaders->has_background()) return;
     if (exit_world.active)
       add_contribution(pr, pr.throughput * environment_cone.lookup(*shaders, exit_world.axis, exit_world.cone),
@@ -770,6 +777,7 @@ struct Renderer::Impl {
   void integrate_exit_lobe(const GlimmerSample &s, const Vec3 &wo, const PixelSampler &sampler, PathState &ps,
                            PathRadiance &pr, ExitWorld &exit_world) const {
     exit_world.active = false;
+    exit_world.lamps = false;
     if (!(s.flags & GLIMMER_SAMPLE_EXIT_LOBE) || !(s.flags & GLIMMER_SAMPLE_MOVED)) return;
     const Vec3 n = normalize(Vec3(s.origin_Ng));
     const Vec3 axis = normalize(Vec3(s.lobe_axis));
@@ -783,16 +791,36 @@ struct Renderer::Impl {
     if (!(continued_pdf > 0.0f) || !std::isfinite(continued_pdf)) return;
     float lu, lv;  // a light set of its own per vertex (the vertex's light set served its entry point)
     sampler.get2(exit_light_set(ps.sample_vertex()), lu, lv);
+    exit_world.lamps = options.exit_lobe_lamps && lights->lamp_count() > 0;
+    if (exit_world.lamps) integrate_exit_lamps(Vec3(s.origin), n, lobe, lu, lv, sampler, ps, pr);
     const auto exit_bsdf = [&](const Vec3 &wi) {
       MixtureEval me;
       me.pdf = static_cast<float>(lobe.pdf(wi));
       me.f = Spectrum(me.pdf);
       return me;
     };
-    const Spectrum direct = direct_light_at(Vec3(s.origin), n, exit_bsdf, pr.throughput, lu, lv, exit_world.active);
+    const Spectrum direct =
+        direct_light_at(Vec3(s.origin), n, exit_bsdf, pr.throughput, lu, lv, exit_world.active, exit_world.lamps);
     if (!is_zero(direct)) add_contribution(pr, direct, ps.bounce);
     ps.last_singular = false;
     ps.mis_ray_pdf = continued_pdf;
+  }
+
+  // The lamps seen from exit point P (exit surface normal n) through the exit lobe (RenderOptions::exit_lobe_lamps):
+  // each lamp integrated against the lobe (LightSet::lamp_through_lobe: stratified over the lamp and the lobe by
+  // (lu, lv), balance heuristic), its visibility one shadow ray toward a point picked in proportion to its share.
+  // The light of a lamp through the glass is then a low-noise integral, not one sampled direction (de Rousiers
+  // 2012's SG lights, eq. 14/15, with the exact lamp and lobe instead of their SG product).
+  void integrate_exit_lamps(const Vec3 &P, const Vec3 &n, const ExitLobe &lobe, float lu, float lv,
+                            const PixelSampler &sampler, const PathState &ps, PathRadiance &pr) const {
+    float pick, unused;
+    sampler.get2(exit_lamp_set(ps.sample_vertex()), pick, unused);
+    for (int k = 0; k < lights->lamp_count(); ++k) {
+      LampEstimate e;
+      if (!lights->lamp_through_lobe(k, P, lobe, lu, lv, pick, e)) continue;
+      const Spectrum c = pr.throughput * e.value;
+      if (!is_zero(c)) add_contribution(pr, c * shadow_transmittance(P, n, e.wi, e.dist), ps.bounce);
+    }
   }
 
   // ABI 2.3: the closure moved the path (e.g. to where light leaves a frosted object).

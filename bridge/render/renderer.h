@@ -37,6 +37,10 @@ struct RenderOptions {
   // lookup (the estimator before; tests and benchmarks compare the two).
   bool exit_lobe_environment = true;
   bool aovs = true;       // Albedo, Normal, Depth (false: not computed, the film keeps Combined only)
+  // The lamps seen through an exit lobe (with exit_lobe_nee): each lamp integrated against the lobe at the exit
+  // point (LightSet::lamp_through_lobe, stratified, one shadow ray per lamp) instead of one light sample there, and
+  // the continued path's lamp hits not counted; off: the lamps are light-sampled there (the estimator before).
+  bool exit_lobe_lamps = true;
   // Samples per pixel per parallel pass at most (after_pass runs after each pass): 1 = after every sample (a live
   // display); larger batches spare small images a barrier per sample (Renderer::render).
   int max_samples_per_pass = 16;

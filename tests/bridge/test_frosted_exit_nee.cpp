@@ -36,11 +36,13 @@ std::string slab_scene() {
   return write_file("frosted_exit_nee.xml", xml);
 }
 
-render::RenderResult render_slab(const std::string &path, bool exit_nee, int seed, int samples = 256) {
+render::RenderResult render_slab(const std::string &path, bool exit_nee, int seed, int samples = 256,
+                                 bool exit_lamps = false) {
   render::RenderOptions opt;
   opt.samples = samples;
   opt.seed = seed;
   opt.exit_lobe_nee = exit_nee;
+  opt.exit_lobe_lamps = exit_lamps;
   return render_scene(path, opt);
 }
 
@@ -94,6 +96,44 @@ TEST(FrostedExitNee, SameImageWithLowerNoise) {
       "%.4f, without %.4f; worst |z| of the difference %.2f; per-pixel noise with / without %.4f / %.4f = "
       "%.3f (equal-spp variance ratio %.3f)\n",
       mean_nee, mean_plain, worst_z, noise_nee, noise_plain, ratio, ratio * ratio);
+  EXPECT_LT(ratio, 0.8);
+}
+
+// Mean difference (a1 + a2 - b1 - b2) / 2 per channel over the slab in standard errors: the worst |z|.
+double worst_mean_z(const render::RenderResult &a1, const render::RenderResult &a2, const render::RenderResult &b1,
+                    const render::RenderResult &b2) {
+  double worst_z = 0.0;
+  for (int c = 0; c < 3; ++c) {
+    std::vector<double> d;
+    for (int y = 4; y < 20; ++y)
+      for (int x = 4; x < 20; ++x) {
+        const size_t i = 4 * (static_cast<size_t>(y) * a1.width + x) + c;
+        d.push_back(0.5 * (double(a1.combined[i]) + a2.combined[i] - b1.combined[i] - b2.combined[i]));
+      }
+    const MeanAndError e = mean_and_standard_error(d);
+    worst_z = std::max(worst_z, std::fabs(e.mean / e.standard_error));
+  }
+  return worst_z;
+}
+
+// The lamp integrated against the exit lobe (RenderOptions::exit_lobe_lamps, LightSet::lamp_through_lobe) instead
+// of one light sample at the exit: the same image in expectation (both unbiased for the lobe), lower noise.
+TEST(FrostedExitLamps, SameImageWithLowerNoise) {
+  const std::string path = slab_scene();
+  const auto lamps1 = render_slab(path, true, 1, 256, true), lamps2 = render_slab(path, true, 2, 256, true);
+  const auto nee1 = render_slab(path, true, 3), nee2 = render_slab(path, true, 4);
+  EXPECT_EQ(lamps1.nan_samples + lamps2.nan_samples, 0u);
+  EXPECT_NE(render_slab(path, true, 1, 16, true).combined, render_slab(path, true, 1, 16).combined);
+  const double noise_lamps = standard_deviation(differences(lamps1, lamps2));
+  const double noise_nee = standard_deviation(differences(nee1, nee2));
+  const double ratio = noise_lamps / noise_nee;
+  const double worst_z = worst_mean_z(lamps1, lamps2, nee1, nee2);
+  EXPECT_LT(worst_z, 4.0);
+  std::printf(
+      "[frosted exit lamps] slab + small light behind, sg, 256 spp, 24x24: mean (red, centre) lamps through the lobe "
+      "%.4f, one light sample %.4f; worst |z| of the difference %.2f; per-pixel noise %.4f / %.4f = %.3f\n",
+      mean_channel(lamps1, 0, 4, 4, 20, 20), mean_channel(nee1, 0, 4, 4, 20, 20), worst_z, noise_lamps, noise_nee,
+      ratio);
   EXPECT_LT(ratio, 0.8);
 }
 
