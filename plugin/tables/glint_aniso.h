@@ -7,11 +7,12 @@
 //   q(wi, r) = D(h; alpha_x, alpha_y) cos(theta_h) / (4 wi.h),  h = normalize(wi + r)
 // on the query cone of half-angle gamma around wo (the exponential map of a
 // disk of radius gamma in the tangent plane of wo, with its Jacobian
-// sin(rho) / rho). Where gamma <= 0.6 alpha_min (radians) the 7-point
-// degree-5 rule (centre 1/4, six points at radius sqrt(2/3) gamma, 1/8 each);
-// wider cones use 19 points: the centre and two rings of 9 at the Gauss-Radau
-// radii of t = rho^2 / gamma^2 (exact in t to degree 4, in the azimuth to
-// harmonic 8).
+// sin(rho) / rho). The rule follows the lobe's width against the cone
+// (AnisoConeRules below): the 7-point degree-5 rule (centre 1/4, six points
+// at radius sqrt(2/3) gamma, 1/8 each), 19 points (the centre and two rings
+// of 9 at the Gauss-Radau radii of t = rho^2 / gamma^2, exact in t to degree
+// 4, in the azimuth to harmonic 8), or a product rule with points per axis
+// set by the lobe's scale.
 //
 // LOD: the path's blur sigma_L (radians, capped at 2 alpha_max) widens the
 // NDF per axis, alpha_k^2 + (sigma_L / 2)^2 (as the sampling lobe already

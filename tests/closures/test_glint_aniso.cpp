@@ -114,10 +114,11 @@ TEST(GlintAniso, BruteForceConeMeanMatchesClosedFormAndConverges) {
 // measured. Queries where the product rule runs out of points (grazing
 // incidence, lobes narrower than ~1/10 of the cone across the plane of
 // incidence) are printed, not asserted. Negative control: the isotropic
-// stand-in sqrt(ax ay) is off by more than 50 % in every configuration
-// (design note: 88 % .. 1660 %).
+// stand-in sqrt(ax ay) fails the same comparison, its largest error over the
+// lobe core above 10x the tolerance (5 %) in every configuration (design
+// note, GGX: 88 % .. 1660 %).
 struct RuleError {
-  double worst = 0.0, worst_capped = 0.0, control = 1e9;
+  double worst = 0.0, worst_capped = 0.0, control = 0.0;
   int min_points = 1 << 30, max_points = 0, capped = 0;
 };
 
@@ -167,7 +168,7 @@ RuleError rule_error(mf::Distribution dist, double ax, double ay, double gamma_d
         }
         e.min_points = std::min(e.min_points, r.points);
         e.max_points = std::max(e.max_points, r.points);
-        e.control = std::min(e.control, std::fabs(r.iso / r.brute - 1.0) + (r.iso > 0 ? 0.0 : 1.0));
+        e.control = std::max(e.control, std::fabs(r.iso / r.brute - 1.0));
       }
     }
   return e;
@@ -179,11 +180,11 @@ TEST(GlintAniso, ProbabilityMatchesBruteForceConeMeanOverAllAzimuths) {
       for (const double gamma : {1.0, 2.0, 4.0}) {
         const RuleError e = rule_error(dist, ax, ay, gamma);
         std::printf("[aniso P] %s alpha %.4f x %.4f gamma %.0f: %d..%d points, max error %.5f; where the product "
-                    "rule runs out of points (%d queries) %.4f; isotropic sqrt(ax ay) min error %.3f\n",
+                    "rule runs out of points (%d queries) %.4f; isotropic sqrt(ax ay) max error %.3f\n",
                     dist == mf::Distribution::GGX ? "ggx" : "beckmann", ax, ay, gamma, e.min_points, e.max_points,
                     e.worst, e.capped, e.worst_capped, e.control);
         EXPECT_LE(e.worst, 5e-3) << ax << " x " << ay << " gamma " << gamma;
-        EXPECT_GT(e.control, 0.5) << "control: the isotropic stand-in must fail";
+        EXPECT_GT(e.control, 0.05) << "control: the isotropic stand-in must fail";
       }
 }
 
