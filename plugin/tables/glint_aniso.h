@@ -20,16 +20,17 @@
 // isotropic levels, P is scaled per wi so that the reflected energy of the
 // estimator, Int W(wi, wo) P(wi, wo) / sigma dwo, equals that of the unblurred
 // estimator capped at the smooth anisotropic albedo (+0.1 %). The scale is a
-// small table over theta_i (1-degree nodes), phi_i (5-degree nodes folded to
+// small table over theta_i (1-degree nodes), phi_i (10-degree nodes folded to
 // [0, 90]: D is symmetric about both tangent axes) and 5 blur levels
 // t = sigma_L / (2 alpha_max) in {0, 1/4, 1/2, 3/4, 1}, built when a material
-// first needs it (~1..4 s) and shared by every instance of the process.
+// first needs it (~20 s on the loaded 2-core machine) and shared by every
+// instance of the process.
 //
 // The energies come from swapping the two integrals: with the cone
 // indicator symmetric in (r, wo),
 //   Int W(wo) Int_cone(wo) q(r) dr dwo / sigma = Int q(r) Wbar(r) dr,
 // Wbar(r) the mean of W over the cone around r (7-point rule); q(r) dr is
-// D cos(theta_h) dh, integrated on a 24 x 24 midpoint grid of the visible-
+// D cos(theta_h) dh, integrated on a 64 x 64 midpoint grid of the visible-
 // normal sampler of the (widened) lobe with weight cos_i cos_h / (G1(wi) wi.h).
 // The smooth albedo Int G2 D / (4 cos_i) dwo uses the same grid (integrand
 // G2 / G1(wi) where the reflection is above the horizon).
@@ -294,8 +295,8 @@ struct AnisoSpec {
 // Energy scale of P per (theta_i, phi_i, blur level); see the file comment.
 class AnisoEnergyTable {
  public:
-  static constexpr int kTheta = 91, kPhi = 19, kLevels = 5, kGrid = 24;
-  static constexpr float kPhiStepDeg = 5.0f;
+  static constexpr int kTheta = 91, kPhi = 10, kLevels = 5, kGrid = 64;
+  static constexpr float kPhiStepDeg = 10.0f;
   static constexpr double kEnergyResolution = 1e-3;  // the cap: smooth albedo + 0.1 %, as the isotropic level 0
 
   AnisoSpec spec;
