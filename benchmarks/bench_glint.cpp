@@ -7,6 +7,10 @@
 //      base_mismatches (queries whose f or pdf differs from it, bit for bit).
 //  glint/eval_vs_ggx_aspect/<aspect>  the same at footprint area 1e-6 uv
 //      (10 particles) with parallelograms of aspect 1..64, any rotation.
+//  glint/aniso_eval/<log10 area>  anisotropic base (roughness_u 0.55,
+//      roughness_v 0.25: alpha 0.3 x 0.0625, P per query) vs the isotropic
+//      glint (roughness 0.4) vs GGX eval, interleaved blocks of the same
+//      queries; counters aniso_ns, iso_ns, ggx_ns, aniso_vs_iso, aniso_vs_ggx.
 //  glint/jakob14_eval/<log10 area>  the reference's eval cost at the same
 //      queries (counter ratio_vs_glint).
 //  glint/gi_scene_overhead          `glimmer render` of examples/glint.xml
@@ -177,6 +181,34 @@ BENCHMARK(BM_GlintVsGgxEvalAspect)
     ->Arg(1)->Arg(4)->Arg(16)->Arg(64)
     ->Iterations(25)
     ->Unit(benchmark::kMillisecond);
+
+void BM_GlintAnisoEval(benchmark::State &state) {
+  const std::vector<Query> q = make_queries(std::pow(10.0, static_cast<double>(state.range(0))));
+  auto aniso = make("glint", {{"roughness_u", "0.55"}, {"roughness_v", "0.25"}, {"gamma", "2"}, {"density", "1e7"}});
+  auto iso = make("glint", {{"roughness", "0.4"}, {"gamma", "2"}, {"density", "1e7"}});
+  auto ggx = make("microfacet_conductor", {{"roughness", "0.4"}, {"distribution", "ggx"}});
+  if (!aniso || !iso || !ggx) {
+    state.SkipWithError("glint or microfacet_conductor missing");
+    return;
+  }
+  std::vector<double> a_ns, i_ns, m_ns;
+  for (auto _ : state) {
+    a_ns.push_back(time_block(*aniso, q));
+    i_ns.push_back(time_block(*iso, q));
+    m_ns.push_back(time_block(*ggx, q));
+  }
+  auto median = [](std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    return v[v.size() / 2];
+  };
+  const double a = median(a_ns), i = median(i_ns), m = median(m_ns);
+  state.counters["aniso_ns"] = a;
+  state.counters["iso_ns"] = i;
+  state.counters["ggx_ns"] = m;
+  state.counters["aniso_vs_iso"] = a / i;
+  state.counters["aniso_vs_ggx"] = a / m;
+}
+BENCHMARK(BM_GlintAnisoEval)->Name("glint/aniso_eval")->DenseRange(-8, 0, 2)->Iterations(25)->Unit(benchmark::kMillisecond);
 
 void BM_Jakob14Eval(benchmark::State &state) {
   const double area = std::pow(10.0, static_cast<double>(state.range(0)));

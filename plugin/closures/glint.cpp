@@ -51,6 +51,16 @@
 // query resolved at the particle scale (a square holding one particle on
 // average, 1 / N).
 //
+// Anisotropic base (roughness_u != roughness_v, tables/glint_aniso.h):
+// alpha_x along the shading tangent (ctx.T), alpha_y along the bitangent. P
+// is computed per query by a 7- or 19-point disk rule of the analytic
+// anisotropic reflected density on the cone, the LOD blur widens the NDF
+// per axis, and a small per-wi energy table keeps the estimator's reflected
+// energy at the unblurred one's (capped at the smooth albedo), as the
+// isotropic levels do. Direction cells and the particle walk are unchanged;
+// sampling uses the anisotropic visible normals widened the same way.
+// roughness_u == roughness_v is the isotropic model exactly.
+//
 // Dark test (speed, exact): in glint mode a small footprint is first counted
 // at a bound P_max >= P (tables/glint_peak.h, L2-resident); no reflecting
 // particle at P_max means none at P (nested lit sets), and the eval returns
@@ -61,6 +71,7 @@
 #include "core/closure.h"
 #include "glimmer/microfacet.h"
 #include "glimmer/sampling.h"
+#include "tables/glint_aniso.h"
 #include "tables/glint_common.h"
 #include "tables/glint_flake_colour.h"
 #include "tables/glint_particles.h"
@@ -85,7 +96,7 @@ class GlintClosure {
   static constexpr int kMaxSteps = 8192;
 
   static std::span<const GlimmerParamSpec> params() {
-    static const auto schema = with_varying_density(glint::particle_field_params<4>(
+    static const auto schema = with_varying_density(glint::particle_field_params<6>(
         {"base roughness (alpha = roughness^2, Cycles' mapping); values below 0.15 are treated as 0.15",
          "query cone half-angle in degrees (size of a glint in direction; Jakob 2014 use 1..6)",
          "particle reflectance at normal incidence (Schlick Fresnel F0; 1 = Fresnel-free)"},
@@ -100,7 +111,13 @@ class GlintClosure {
           {"placement", GLIMMER_PARAM_ENUM, {0, 0, 0}, 0, 0, "uv|object", "uv",
            "where the particles live: uv (density per unit of scaled uv area) or object (a triplanar projection of "
            "the object-space point, density per unit of object-space area scaled by uv_scale; for stretched or "
-           "shared UVs)", 0}}}));
+           "shared UVs)", 0},
+          {"roughness_u", GLIMMER_PARAM_FLOAT, {-1.0f, 0, 0}, -1.0f, 1.0f, nullptr, nullptr,
+           "base roughness along the shading tangent (brushed / stretched flakes; alpha_x = roughness_u^2, floored "
+           "like roughness); negative (default -1) = roughness", 0},
+          {"roughness_v", GLIMMER_PARAM_FLOAT, {-1.0f, 0, 0}, -1.0f, 1.0f, nullptr, nullptr,
+           "base roughness along the bitangent (alpha_y = roughness_v^2, floored like roughness); negative "
+           "(default -1) = roughness", 0}}}));
     return schema;
   }
 
@@ -122,10 +139,30 @@ class GlintClosure {
     c->placement_ = static_cast<glint::Placement>(p.get_enum("placement"));
     c->flakes_ = std::make_unique<const glint::FlakePalette>(c->field_.color, p.get_float("flake_hue_variation"),
                                                              p.get_float("flake_value_variation"));
+    c->set_base_roughness(p);
     return c;
   }
 
+  // roughness_u / roughness_v (negative: roughness), floored like roughness.
+  // Equal alphas keep the isotropic model (tables) at that alpha.
+  void set_base_roughness(const ParamReader &p) {
+    const float ru = p.get_float("roughness_u"), rv = p.get_float("roughness_v");
+    const float ax = ru < 0.0f ? field_.alpha : std::max(sqr(ru), glint::ParticleField::kMinAlpha);
+    const float ay = rv < 0.0f ? field_.alpha : std::max(sqr(rv), glint::ParticleField::kMinAlpha);
+    alpha_x_ = ax;
+    alpha_y_ = ay;
+    anisotropic_ = ax != ay;
+    field_.alpha = std::max(ax, ay);  // isotropic: the alpha of the tables; anisotropic: caps the LOD blur
+    aniso_spec_ = {field_.distribution, ax, ay, field_.gamma_deg};
+    cone_rules_ = glint::AnisoConeRules(gamma_rad_);
+  }
+
   void prepare(const GlimmerHostServices *host) {
+    if (anisotropic_) {
+      energy_ = glint::acquire_aniso_energy(aniso_spec_);
+      cone_solid_angle_ = 6.283185307179586f * (1.0f - std::cos(gamma_rad_));
+      return;
+    }
     glint::TableSpec spec;
     spec.distribution =
         field_.distribution == mf::Distribution::GGX ? glint::BaseDistribution::GGX : glint::BaseDistribution::Beckmann;
@@ -162,6 +199,19 @@ class GlintClosure {
   float sampling_alpha(float sigma_deg) const {
     const float widen = 0.5f * (field_.gamma_deg + sigma_deg) * glint::kDegToRad;
     return std::sqrt(field_.alpha * field_.alpha + widen * widen);
+  }
+  // The sampling lobe per axis (both sampling_alpha when isotropic).
+  struct SamplingLobe {
+    float ax, ay;
+  };
+  SamplingLobe sampling_lobe(float sigma_deg) const {
+    if (!anisotropic_) {
+      const float a = sampling_alpha(sigma_deg);
+      return {a, a};
+    }
+    float ax, ay;
+    aniso_spec_.widened((field_.gamma_deg + sigma_deg) * glint::kDegToRad, ax, ay);
+    return {ax, ay};
   }
 
   // Table coordinates of (wi, wo) in degrees: polar angles and the folded
@@ -234,7 +284,35 @@ class GlintClosure {
     if (!glint::glint_weight(field_.distribution, field_.alpha, flakes_->mean(), wi, wo, weight))
       return Spectrum(0.0f);
     if (!(P > 0.0f)) return Spectrum(0.0f);
+    return glint_or_filtered(wi, wo, P, weight, sigma_deg, density, parts);
+  }
 
+  // P of the anisotropic base (tables/glint_aniso.h): the disk rule of the
+  // widened lobe on the cone, times the energy scale at (wi, blur).
+  float aniso_probability(const Vec3 &wi, const Vec3 &wo, float sigma_deg) const {
+    const float sigma = sigma_deg * glint::kDegToRad;
+    float ax, ay;
+    aniso_spec_.widened(sigma, ax, ay);
+    const float phi_i = std::atan2(std::fabs(wi.y), std::fabs(wi.x)) * glint::kRadToDeg;
+    const float t = sigma / (2.0f * aniso_spec_.alpha_max());
+    const float scale = energy_->lookup(fast_acos_deg(wi.z), phi_i, t);
+    return std::min(cone_solid_angle_ * scale * cone_rules_.cone_mean_q(field_.distribution, ax, ay, wi, wo), 1.0f);
+  }
+
+  // The glint BRDF times cos(wo) of the anisotropic base: (2) and (3) with P per query.
+  Spectrum aniso_f_cos(const Vec3 &wi, const Vec3 &wo, float sigma_deg, float density, Particles &parts) const {
+    if (!energy_ || !(wi.z > 0.0f) || !(wo.z > 0.0f)) return Spectrum(0.0f);
+    const float P = aniso_probability(wi, wo, sigma_deg);
+    Spectrum weight;
+    if (!glint::glint_weight(field_.distribution, alpha_x_, alpha_y_, flakes_->mean(), wi, wo, weight))
+      return Spectrum(0.0f);
+    if (!(P > 0.0f)) return Spectrum(0.0f);
+    return glint_or_filtered(wi, wo, P, weight, sigma_deg, density, parts);
+  }
+
+  // (2) or (3) once P and W are known.
+  Spectrum glint_or_filtered(const Vec3 &wi, const Vec3 &wo, float P, const Spectrum &weight, float sigma_deg,
+                             float density, Particles &parts) const {
     const double area = parts.fp.area();
     const double expected = static_cast<double>(density) * area * P;
     if (expected > threshold_ || sigma_deg > field_.gamma_deg) return weight * (P / cone_solid_angle_);  // (3)
@@ -257,6 +335,10 @@ class GlintClosure {
     const TableCoords c = table_coords(sp.wi, wo);
     Particles parts;  // default-initialised: value-initialising would zero the 1 KB node list
     parts.fp = glint::placed_footprint(field_, placement_, sp.ctx);
+    if (anisotropic_) {
+      pdf();
+      return aniso_f_cos(sp.wi, wo, sigma_deg, density, parts);
+    }
     if (provably_dark(sp.wi, wo, c, sigma_deg, density, parts)) {
       pdf();
       return Spectrum(0.0f);
@@ -278,7 +360,7 @@ class GlintClosure {
     if (k.count == 0) return Spectrum(0.0f);
     Spectrum weight;
     const float inv_k = 1.0f / static_cast<float>(k.count);
-    if (!glint::glint_weight(field_.distribution, field_.alpha, flakes.sum * inv_k, wi, wo, weight))
+    if (!glint::glint_weight(field_.distribution, alpha_x_, alpha_y_, flakes.sum * inv_k, wi, wo, weight))
       return Spectrum(0.0f);
     return weight * static_cast<float>(static_cast<double>(k.count) /
                                        (static_cast<double>(density) * parts.fp.area() * cone_solid_angle_));
@@ -288,7 +370,8 @@ class GlintClosure {
     const float sigma = lod_sigma_deg(sp.ctx);
     LocalEval e;
     e.f_cos = f_cos_and_pdf(sp, wo, sigma, [&] {
-      e.pdf = glint::smooth_lobe_pdf(field_.distribution, sampling_alpha(sigma), sp.wi, wo);
+      const SamplingLobe w = sampling_lobe(sigma);
+      e.pdf = glint::smooth_lobe_pdf(field_.distribution, w.ax, w.ay, sp.wi, wo);
     });
     return e;
   }
@@ -296,12 +379,13 @@ class GlintClosure {
   bool sample(const ShadingPoint &sp, const Vec3 &rand, LocalSample &out) const {
     const Vec3 &wi = sp.wi;
     const float sigma = lod_sigma_deg(sp.ctx);
-    const float alpha_w = sampling_alpha(sigma);
-    if (!glint::sample_smooth_lobe(field_.distribution, alpha_w, wi, rand, out.wo)) return false;
+    const SamplingLobe w = sampling_lobe(sigma);
+    if (!glint::sample_smooth_lobe(field_.distribution, w.ax, w.ay, wi, rand, out.wo)) return false;
     out.f_cos = f_cos_and_pdf(sp, out.wo, sigma, [&] {
-      out.pdf = glint::smooth_lobe_pdf(field_.distribution, alpha_w, wi, out.wo);
+      out.pdf = glint::smooth_lobe_pdf(field_.distribution, w.ax, w.ay, wi, out.wo);
     });
-    out.roughness = alpha_w;  // alpha units, as the conductor reports
+    // alpha units, as the conductor reports (sqrt(ax ay) when anisotropic)
+    out.roughness = anisotropic_ ? std::sqrt(w.ax * w.ay) : w.ax;
     out.label = GLIMMER_LABEL_REFLECT | GLIMMER_LABEL_GLOSSY;
     return out.pdf > 0.0f;
   }
@@ -319,6 +403,12 @@ class GlintClosure {
   uint32_t density_param_ = 0;
   glint::Placement placement_ = glint::Placement::UV;
   std::unique_ptr<const glint::FlakePalette> flakes_;  // per-flake F0 (car paint); mean() = color when off
+  // Base roughness per axis (tangent, bitangent); equal: the isotropic model.
+  float alpha_x_ = 0.16f, alpha_y_ = 0.16f;
+  bool anisotropic_ = false;
+  glint::AnisoSpec aniso_spec_;
+  glint::AnisoConeRules cone_rules_;
+  std::shared_ptr<const glint::AnisoEnergyTable> energy_;
 };
 
 GLIMMER_REGISTER_CLOSURE(GlintClosure)

@@ -114,44 +114,59 @@ struct ParticleField {
 // cos(wo) is W times the reflected-direction density (P / sigma for the
 // mean, K / (N a sigma) for a count K of reflecting particles). Zero when
 // either direction is below the surface.
-inline bool glint_weight(mf::Distribution dist, float alpha, const Spectrum &f0, const Vec3 &wi, const Vec3 &wo,
-                         Spectrum &weight) {
+// Anisotropic base (alpha_x along the tangent, alpha_y along the bitangent);
+// the isotropic overload below passes alpha for both.
+inline bool glint_weight(mf::Distribution dist, float alpha_x, float alpha_y, const Spectrum &f0, const Vec3 &wi,
+                         const Vec3 &wo, Spectrum &weight) {
   if (!(wi.z > 0.0f) || !(wo.z > 0.0f)) return false;
   Vec3 h;
   if (!mf::half_vector_reflect(wi, wo, h)) return false;
   const float wi_h = dot(wi, h);
   if (!(wi_h > 0.0f) || !(h.z > 0.0f)) return false;
-  const float g2 = mf::G2(dist, wi, wo, alpha, alpha);
+  const float g2 = mf::G2(dist, wi, wo, alpha_x, alpha_y);
   weight = mf::fresnel_schlick(wi_h, f0) * (g2 * wi_h / (wi.z * h.z));
   return true;
+}
+inline bool glint_weight(mf::Distribution dist, float alpha, const Spectrum &f0, const Vec3 &wi, const Vec3 &wo,
+                         Spectrum &weight) {
+  return glint_weight(dist, alpha, alpha, f0, wi, wo, weight);
 }
 
 // Sampler: visible normals of the smooth lobe at alpha_w (weight 1 - c) mixed
 // with cosine sampling (weight c), reflection only.
 inline constexpr float kCosineMixture = 0.1f;
 
-inline float smooth_lobe_pdf(mf::Distribution dist, float alpha_w, const Vec3 &wi, const Vec3 &wo) {
+// Anisotropic lobe (alpha_wx, alpha_wy); the isotropic overloads pass alpha_w for both.
+inline float smooth_lobe_pdf(mf::Distribution dist, float alpha_wx, float alpha_wy, const Vec3 &wi, const Vec3 &wo) {
   if (!(wi.z > 0.0f) || !(wo.z > 0.0f)) return 0.0f;
   float pdf = kCosineMixture * wo.z * kInvPi;
   Vec3 h;
   if (mf::half_vector_reflect(wi, wo, h) && dot(wi, h) > 0.0f) {
-    const float vndf = mf::visible_D(dist, wi, h, alpha_w, alpha_w);
+    const float vndf = mf::visible_D(dist, wi, h, alpha_wx, alpha_wy);
     pdf += (1.0f - kCosineMixture) * vndf / (4.0f * dot(wo, h));
   }
   return pdf;
 }
 
-inline bool sample_smooth_lobe(mf::Distribution dist, float alpha_w, const Vec3 &wi, const Vec3 &rand, Vec3 &wo) {
+inline float smooth_lobe_pdf(mf::Distribution dist, float alpha_w, const Vec3 &wi, const Vec3 &wo) {
+  return smooth_lobe_pdf(dist, alpha_w, alpha_w, wi, wo);
+}
+
+inline bool sample_smooth_lobe(mf::Distribution dist, float alpha_wx, float alpha_wy, const Vec3 &wi,
+                               const Vec3 &rand, Vec3 &wo) {
   if (!(wi.z > 0.0f)) return false;
   // Lobe choice on rand.x, rescaled and reused for the direction (keeps the 2D point stratified).
   float u = rand.x;
   if (choose_and_rescale(kCosineMixture, u)) {
     wo = sample_cosine_hemisphere(u, rand.y);
   } else {
-    const Vec3 h = mf::sample_visible_normal(dist, wi, alpha_w, alpha_w, u, rand.y);
+    const Vec3 h = mf::sample_visible_normal(dist, wi, alpha_wx, alpha_wy, u, rand.y);
     wo = mf::reflect_about(wi, h);
   }
   return wo.z > 0.0f;
+}
+inline bool sample_smooth_lobe(mf::Distribution dist, float alpha_w, const Vec3 &wi, const Vec3 &rand, Vec3 &wo) {
+  return sample_smooth_lobe(dist, alpha_w, alpha_w, wi, rand, wo);
 }
 
 }  // namespace glimmer::plugin::glint

@@ -1,0 +1,404 @@
+// Anisotropic base roughness of the glint closure (roughness_u / roughness_v;
+// issue 10, docs/glints.md "Anisotropic base roughness"). References are
+// computed by brute force here and checked themselves:
+//  * P: the brute-force cone mean of the analytic reflected density (ring
+//    quadrature, glint_test_util.h), checked against a closed form at
+//    wi = wo = N (the anisotropic GGX slope mass of a disk, one smooth
+//    periodic 1D integral) and for its own convergence (rings 48 vs 96);
+//  * energy: the smooth anisotropic albedo by a visible-normal quadrature,
+//    checked against a dense wo grid.
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <vector>
+
+#include "closures/closure_checks.h"
+#include "closures/glint_statistics.h"
+#include "closures/glint_test_util.h"
+#include "glimmer/microfacet.h"
+#include "glimmer/rng.h"
+#include "tables/glint_aniso.h"
+
+namespace glimmer::test {
+namespace {
+
+const bool kCacheDirSet = cache_tables_in_build_folder();
+
+constexpr double kDeg = M_PI / 180.0;
+
+namespace gl = plugin::glint;
+
+std::string fmt(double x) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.6g", x);
+  return b;
+}
+
+// A glint with base alphas (ax, ay) given as roughness = sqrt(alpha).
+std::shared_ptr<host::ClosureInstance> aniso_glint(const char *dist, double ax, double ay, Params extra = {}) {
+  Params p = {{"distribution", dist},
+              {"roughness_u", fmt(std::sqrt(ax))},
+              {"roughness_v", fmt(std::sqrt(ay))},
+              {"gamma", "2"},
+              {"density", "1e6"}};
+  for (auto &e : extra) p.push_back(e);
+  return make_closure("glint", p);
+}
+
+GlimmerShadingContext square_context(const Vec3 &wi, double u, double v, double side, float spread = 0.0f) {
+  GlimmerShadingContext ctx = footprint_context(wi, u, v, side, 0.0, 0.0, side);
+  ctx.spread_angle = spread;
+  return ctx;
+}
+
+float eval_f(const host::ClosureInstance &c, const GlimmerShadingContext &ctx, const Vec3 &wo, float *pdf = nullptr) {
+  Spectrum f;
+  float p;
+  c.eval(ctx, wo, f, p);
+  if (pdf) *pdf = p;
+  return f.x;
+}
+
+// ---- The brute-force reference, checked -------------------------------------
+// Anisotropic GGX at wi = wo = N: the reflection of N is within gamma of N
+// iff the half vector is within gamma / 2 of N, i.e. its slope within
+// rho = tan(gamma / 2); the slope density 1 / (pi ax ay (1 + s^T A s)^2) has
+// the radial integral (1 - 1 / (1 + rho^2 k)) / (2 k pi ax ay), k =
+// cos^2 phi / ax^2 + sin^2 phi / ay^2, left: a smooth periodic integral in phi
+// (trapezoid rule, converged at 4096 points).
+double ggx_disk_mass(double ax, double ay, double gamma_rad) {
+  const double rho2 = std::pow(std::tan(0.5 * gamma_rad), 2);
+  const int n = 4096;
+  double sum = 0.0;
+  for (int j = 0; j < n; ++j) {
+    const double phi = 2.0 * M_PI * j / n;
+    const double k = std::pow(std::cos(phi) / ax, 2) + std::pow(std::sin(phi) / ay, 2);
+    sum += (1.0 - 1.0 / (1.0 + rho2 * k)) / (2.0 * k * M_PI * ax * ay);
+  }
+  return sum * 2.0 * M_PI / n;
+}
+
+TEST(GlintAniso, BruteForceConeMeanMatchesClosedFormAndConverges) {
+  const Vec3 n(0.0f, 0.0f, 1.0f);
+  for (const auto &[ax, ay] : std::vector<std::pair<double, double>>{{0.25, 0.0625}, {0.36, 0.09}, {0.16, 0.0225}})
+    for (const double gamma : {1.0, 2.0, 4.0}) {
+      const double sigma = 2.0 * M_PI * (1.0 - std::cos(gamma * kDeg));
+      const double closed = ggx_disk_mass(ax, ay, gamma * kDeg);
+      const double brute = sigma * cone_mean_reflected_density(mf::Distribution::GGX, ax, ay, n, n, gamma, 48);
+      EXPECT_NEAR(brute / closed, 1.0, 2e-3) << ax << " x " << ay << " gamma " << gamma;
+      // Control: the swapped axes are the same disk mass at N, but a
+      // wrong factor 2 (the normal within gamma instead of the reflection) is not.
+      EXPECT_GT(std::fabs(ggx_disk_mass(ax, ay, 2.0 * gamma * kDeg) / closed - 1.0), 0.2);
+    }
+  // Convergence off the normal (48 vs 96 rings) where the tests below use it.
+  for (const double theta_i : {40.0, 85.0}) {
+    const Vec3 wi = spherical_dir(theta_i, 30.0), wo = spherical_dir(theta_i + 1.0, 212.0);
+    const double a = cone_mean_reflected_density(mf::Distribution::GGX, 0.16, 0.0225, wi, wo, 4.0, 48);
+    const double b = cone_mean_reflected_density(mf::Distribution::GGX, 0.16, 0.0225, wi, wo, 4.0, 96);
+    EXPECT_NEAR(a / b, 1.0, 2e-3) << theta_i;
+  }
+}
+
+// ---- P per query vs the brute force over all azimuths -----------------------
+// The closure's P / sigma (AnisoConeRules::cone_mean_q: the 7-point rule,
+// the 19-point rule or the product rule, by the lobe's width against the
+// cone) against the brute-force cone mean (48 rings) over the lobe core
+// (q >= 20 % of its peak on a 9 x 9 grid of wo around the mirror direction,
+// +-3 lobe widths), wi at 0, 40, 70, 85 degrees and 8 azimuths (every 45
+// degrees + 10: all quadrants of the tangent frame), GGX and Beckmann.
+// Threshold: 0.5 % wherever the product rule has its points (< 24 per axis),
+// set from the design note's 7-point figure (<= 0.14 % where gamma <= 0.6
+// alpha_min; 0.65..0.72 % at 0.8 alpha_min) before the rule choice was
+// measured. Queries where the product rule runs out of points (grazing
+// incidence, lobes narrower than ~1/10 of the cone across the plane of
+// incidence) are printed, not asserted. Negative control: the isotropic
+// stand-in sqrt(ax ay) fails the same comparison, its largest error over the
+// lobe core above 10x the tolerance (5 %) in every configuration (design
+// note, GGX: 88 % .. 1660 %).
+struct RuleError {
+  double worst = 0.0, worst_capped = 0.0, control = 0.0;
+  int min_points = 1 << 30, max_points = 0, capped = 0;
+};
+
+RuleError rule_error(mf::Distribution dist, double ax, double ay, double gamma_deg) {
+  const gl::AnisoConeRules rules(static_cast<float>(gamma_deg * kDeg));
+  const float fx = static_cast<float>(ax), fy = static_cast<float>(ay);
+  RuleError e;
+  const double a_geo = std::sqrt(ax * ay);
+  for (const double theta_i : {0.0, 40.0, 70.0, 85.0})
+    for (int k = 0; k < 8; ++k) {
+      const double phi_i = 45.0 * k + 10.0;
+      const Vec3 wi = spherical_dir(theta_i, phi_i);
+      const double span = 3.0 * 2.0 * std::max(ax, ay) / kDeg;
+      struct Row {
+        double q, brute, rule, iso;
+        int points;
+        bool capped;
+      };
+      std::vector<Row> rows;
+      double peak = 0.0;
+      constexpr int kGrid = 9;
+      for (int a = 0; a < kGrid; ++a)
+        for (int b = 0; b < kGrid; ++b) {
+          const double theta_o = theta_i + span * (2.0 * (a + 0.5) / kGrid - 1.0);
+          const double phi_o = phi_i + 180.0 + span * (2.0 * (b + 0.5) / kGrid - 1.0);
+          if (theta_o <= 0.0 || theta_o >= 89.5) continue;
+          const Vec3 wo = spherical_dir(theta_o, phi_o);
+          const double q = reflected_density(dist, ax, ay, wi, wo);
+          if (!(q > 0.0)) continue;
+          peak = std::max(peak, q);
+          int nx = 0, ny = 0;
+          rules.product_points(fx, fy, wi, wo, nx, ny);
+          const int points = rules.points(fx, fy, wi, wo);
+          const bool capped = points > 19 && (nx == gl::kProductMaxPoints || ny == gl::kProductMaxPoints);
+          rows.push_back({q, cone_mean_reflected_density(dist, ax, ay, wi, wo, gamma_deg, 48),
+                          rules.cone_mean_q(dist, fx, fy, wi, wo),
+                          cone_mean_reflected_density(dist, a_geo, wi, wo, gamma_deg, 24), points, capped});
+        }
+      for (const Row &r : rows) {
+        if (r.q < 0.2 * peak) continue;
+        const double err = std::fabs(r.rule / r.brute - 1.0);
+        if (r.capped) {
+          e.worst_capped = std::max(e.worst_capped, err);
+          ++e.capped;
+        } else {
+          e.worst = std::max(e.worst, err);
+        }
+        e.min_points = std::min(e.min_points, r.points);
+        e.max_points = std::max(e.max_points, r.points);
+        e.control = std::max(e.control, std::fabs(r.iso / r.brute - 1.0));
+      }
+    }
+  return e;
+}
+
+TEST(GlintAniso, ProbabilityMatchesBruteForceConeMeanOverAllAzimuths) {
+  for (const auto dist : {mf::Distribution::GGX, mf::Distribution::Beckmann})
+    for (const auto &[ax, ay] : std::vector<std::pair<double, double>>{{0.25, 0.0625}, {0.36, 0.09}, {0.16, 0.0225}})
+      for (const double gamma : {1.0, 2.0, 4.0}) {
+        const RuleError e = rule_error(dist, ax, ay, gamma);
+        std::printf("[aniso P] %s alpha %.4f x %.4f gamma %.0f: %d..%d points, max error %.5f; where the product "
+                    "rule runs out of points (%d queries) %.4f; isotropic sqrt(ax ay) max error %.3f\n",
+                    dist == mf::Distribution::GGX ? "ggx" : "beckmann", ax, ay, gamma, e.min_points, e.max_points,
+                    e.worst, e.capped, e.worst_capped, e.control);
+        EXPECT_LE(e.worst, 5e-3) << ax << " x " << ay << " gamma " << gamma;
+        EXPECT_GT(e.control, 0.05) << "control: the isotropic stand-in must fail";
+      }
+}
+
+// ---- Isotropic path unchanged -------------------------------------------------
+TEST(GlintAniso, EqualRoughnessIsTheIsotropicModelBitForBit) {
+  auto base = make_closure("glint", {{"roughness", "0.5"}, {"density", "1e6"}});
+  auto same = make_closure("glint", {{"roughness", "0.3"}, {"roughness_u", "0.5"}, {"roughness_v", "0.5"},
+                                     {"density", "1e6"}});
+  auto explicit_default = make_closure("glint", {{"roughness", "0.5"}, {"roughness_u", "-1"}, {"density", "1e6"}});
+  auto other = make_closure("glint", {{"roughness", "0.5"}, {"roughness_v", "0.45"}, {"density", "1e6"}});
+  Pcg32 rng(3);
+  int lit = 0, differing = 0;
+  for (int i = 0; i < 3000; ++i) {
+    const double theta = 80.0 * rng.next_double(), phi = 360.0 * rng.next_double();
+    const Vec3 wi = spherical_dir(theta, phi);
+    const Vec3 wo = spherical_dir(std::min(89.0, theta + 30.0 * (rng.next_double() - 0.5)),
+                                  phi + 180.0 + 30.0 * (rng.next_double() - 0.5));
+    const double side = std::pow(10.0, -1.0 - 3.0 * rng.next_double());
+    const GlimmerShadingContext ctx =
+        square_context(wi, rng.next_double(), rng.next_double(), side, (i % 3) * 0.1f);
+    float p0, p1, p2;
+    const float f0 = eval_f(*base, ctx, wo, &p0), f1 = eval_f(*same, ctx, wo, &p1), f2 = eval_f(*explicit_default, ctx, wo, &p2);
+    EXPECT_EQ(f0, f1);
+    EXPECT_EQ(p0, p1);
+    EXPECT_EQ(f0, f2);
+    EXPECT_EQ(p0, p2);
+    lit += f0 > 0.0f;
+    differing += eval_f(*other, ctx, wo) != f0;
+    const float r3[3] = {static_cast<float>(rng.next_double()), static_cast<float>(rng.next_double()), 0.5f};
+    GlimmerSample s0{}, s1{};
+    EXPECT_EQ(base->sample(ctx, r3, s0), same->sample(ctx, r3, s1));
+    EXPECT_EQ(s0.eval[0], s1.eval[0]);
+    EXPECT_EQ(s0.pdf, s1.pdf);
+    EXPECT_EQ(s0.roughness, s1.roughness);
+  }
+  EXPECT_GT(lit, 300);
+  EXPECT_GT(differing, lit / 2);  // control: a 10 % anisotropy changes the values
+}
+
+// ---- The tangent frame comes from ctx.T -----------------------------------------
+// Rotating T by 90 degrees about N with the axes' roughness swapped is the
+// same surface: equal values within the disk rule's error (its orientation
+// follows wo's own frame, not T's). Control: the rotation alone changes them.
+TEST(GlintAniso, TangentFrameFromContext) {
+  auto uv = aniso_glint("ggx", 0.25, 0.0625, {{"filter_threshold", "0"}});
+  auto vu = aniso_glint("ggx", 0.0625, 0.25, {{"filter_threshold", "0"}});
+  Pcg32 rng(5);
+  double worst = 0.0, control = 0.0;
+  int compared = 0;
+  for (int i = 0; i < 400; ++i) {
+    const double theta = 70.0 * rng.next_double(), phi = 360.0 * rng.next_double();
+    const Vec3 wi = spherical_dir(theta, phi);
+    const Vec3 wo = spherical_dir(std::min(88.0, theta + 12.0 * (rng.next_double() - 0.5)),
+                                  phi + 180.0 + 20.0 * (rng.next_double() - 0.5));
+    GlimmerShadingContext a = square_context(wi, 0.5, 0.5, 0.01);
+    GlimmerShadingContext b = a;
+    b.T = Vec3(0.0f, 1.0f, 0.0f);
+    const float fa = eval_f(*uv, a, wo), fb = eval_f(*vu, b, wo), fc = eval_f(*uv, b, wo);
+    if (!(fa > 1e-3f)) continue;
+    ++compared;
+    worst = std::max(worst, std::fabs(double(fb) / fa - 1.0));
+    control = std::max(control, std::fabs(double(fc) / fa - 1.0));
+  }
+  std::printf("[aniso frame] %d lit pairs: T rotated + axes swapped max rel. difference %.4f; rotated alone %.3f\n",
+              compared, worst, control);
+  EXPECT_GT(compared, 100);
+  EXPECT_LE(worst, 5e-3);
+  EXPECT_GT(control, 0.5);
+}
+
+// ---- White furnace vs the smooth anisotropic BRDF ---------------------------------
+// Smooth albedo Int G2 D / (4 cos_i) dwo (F = 1) by a 512^2 midpoint rule on
+// the visible-normal sampler's square (G2 / G1(wi) where the reflection is
+// above the horizon), checked against a 0.1 x 0.2-degree wo grid at two wi.
+double smooth_albedo_vndf(mf::Distribution dist, double ax, double ay, const Vec3 &wi, int side = 512) {
+  const float x = static_cast<float>(ax), y = static_cast<float>(ay);
+  const float g1 = mf::G1(dist, wi, x, y);
+  double sum = 0.0;
+  for (int i = 0; i < side; ++i)
+    for (int j = 0; j < side; ++j) {
+      const Vec3 h = mf::sample_visible_normal(dist, wi, x, y, (i + 0.5f) / side, (j + 0.5f) / side);
+      const Vec3 wo = mf::reflect_about(wi, h);
+      if (wo.z > 0.0f) sum += mf::G2(dist, wi, wo, x, y) / g1;
+    }
+  return sum / (static_cast<double>(side) * side);
+}
+
+double smooth_albedo_grid(mf::Distribution dist, double ax, double ay, const Vec3 &wi, int n_theta, int n_phi) {
+  const float x = static_cast<float>(ax), y = static_cast<float>(ay);
+  double sum = 0.0;
+  for (int t = 0; t < n_theta; ++t) {
+    const double theta = (t + 0.5) * 90.0 / n_theta;
+    const double w = std::sin(theta * kDeg) * (90.0 / n_theta * kDeg) * (360.0 / n_phi * kDeg);
+    for (int p = 0; p < n_phi; ++p) {
+      const Vec3 wo = spherical_dir(theta, (p + 0.5) * 360.0 / n_phi);
+      Vec3 h;
+      if (!mf::half_vector_reflect(wi, wo, h)) continue;
+      sum += w * mf::G2(dist, wi, wo, x, y) * mf::D(dist, h, x, y) / (4.0 * wi.z);
+    }
+  }
+  return sum;
+}
+
+// Asserted: |albedo - smooth| <= 3 sigma + 1 % (the task's line) and albedo
+// <= smooth + 3 sigma (issue 10's energy line; with the energy table's
+// first 24 x 24 grid this was 4.1 sigma at the largest blur).
+TEST(GlintAniso, WhiteFurnaceMatchesSmoothAnisotropicAlbedoAtEveryIncidenceAndBlur) {
+  struct Case {
+    const char *name;
+    mf::Distribution d;
+    double ax, ay;
+  };
+  double worst_sigmas = -1e9, worst_rel = 0.0;
+  for (const Case &c : {Case{"ggx", mf::Distribution::GGX, 0.3, 0.05}, Case{"beckmann", mf::Distribution::Beckmann, 0.5, 0.1},
+                        Case{"ggx", mf::Distribution::GGX, 0.1, 0.5}}) {
+    for (const double theta_check : {0.0, 60.0}) {
+      const Vec3 wi = spherical_dir(theta_check, 30.0);
+      const double grid = smooth_albedo_grid(c.d, c.ax, c.ay, wi, 900, 1800);
+      EXPECT_NEAR(smooth_albedo_vndf(c.d, c.ax, c.ay, wi), grid, 2e-3 * grid) << c.name << " " << theta_check;
+    }
+    // Large particle counts: the default filter_threshold switches to the mean.
+    auto glint = aniso_glint(c.name, c.ax, c.ay, {{"density", "1e12"}});
+    const double alpha_max = std::max(c.ax, c.ay);
+    for (const double theta_i : {0.0, 30.0, 60.0, 75.0, 80.0, 85.0, 88.0, 89.0})
+      for (const double phi_i : {0.0, 45.0, 90.0, 160.0}) {
+        const Vec3 wi = spherical_dir(theta_i, phi_i);
+        const double smooth = smooth_albedo_vndf(c.d, c.ax, c.ay, wi);
+        for (const double blur : {0.0, 0.5, 1.0}) {
+          const auto ctx = square_context(wi, 0.3, 0.6, 0.1, static_cast<float>(blur * 2.0 * alpha_max));
+          const glint_stats::AlbedoEstimate a = glint_stats::sampled_albedo(*glint, ctx, 128);
+          const double se = a.standard_error();
+          worst_sigmas = std::max(worst_sigmas, (a.mean - smooth) / se);
+          worst_rel = std::max(worst_rel, std::fabs(a.mean / smooth - 1.0));
+          std::printf("[aniso furnace] %s %.2f x %.2f theta_i %4.1f phi_i %5.1f blur %.1f: albedo %.4f +- %.4f, "
+                      "smooth %.4f\n", c.name, c.ax, c.ay, theta_i, phi_i, blur, a.mean, se, smooth);
+          EXPECT_LE(std::fabs(a.mean - smooth), 3.0 * se + 0.01 * smooth)
+              << c.name << " theta_i " << theta_i << " phi_i " << phi_i << " blur " << blur;
+          // Issue 10's energy line: never above the smooth albedo + 3 sigma.
+          EXPECT_LE(a.mean, smooth + 3.0 * se)
+              << c.name << " theta_i " << theta_i << " phi_i " << phi_i << " blur " << blur;
+        }
+      }
+  }
+  std::printf("[aniso furnace] largest (albedo - smooth) / sigma %.2f, largest |albedo / smooth - 1| %.4f\n",
+              worst_sigmas, worst_rel);
+}
+
+// ---- Sampling: chi2, eval/pdf consistency ------------------------------------------
+TEST(GlintAniso, Chi2SamplerMatchesPdf) {
+  std::vector<Chi2Config> configs;
+  for (const auto &[ax, ay] : std::vector<std::pair<double, double>>{{0.3, 0.05}, {0.5, 0.1}}) {
+    auto c = aniso_glint("ggx", ax, ay);
+    for (const double theta_i : {0.0, 40.0, 70.0})
+      for (const double phi_i : {0.0, 45.0, 90.0}) {
+        if (theta_i == 0.0 && phi_i > 0.0) continue;
+        const Vec3 wi = spherical_dir(theta_i, phi_i);
+        configs.push_back({"ggx " + fmt(ax) + "x" + fmt(ay) + " theta_i " + fmt(theta_i) + " phi_i " + fmt(phi_i), c,
+                           wi, square_context(wi, 0.3, 0.3, 1e-3)});
+      }
+    const Vec3 wi = spherical_dir(30.0, 60.0);
+    configs.push_back({"ggx " + fmt(ax) + "x" + fmt(ay) + " spread 10deg", c, wi,
+                       square_context(wi, 0.3, 0.3, 1e-3, static_cast<float>(10.0 * kDeg))});
+    auto b = aniso_glint("beckmann", ax, ay);
+    const Vec3 wb = spherical_dir(50.0, 135.0);
+    configs.push_back({"beckmann " + fmt(ax) + "x" + fmt(ay), b, wb, square_context(wb, 0.3, 0.3, 1e-3)});
+  }
+  expect_chi2_family(configs);
+}
+
+TEST(GlintAniso, EvalPdfConsistentWithSample) {
+  auto glint = aniso_glint("ggx", 0.3, 0.05);
+  for (const double theta_i : {0.0, 40.0, 70.0, 85.0})
+    for (const double side : {0.0, 1e-4, 1e-2})
+      EXPECT_TRUE(consistent(*glint, square_context(spherical_dir(theta_i, 30.0), 0.4, 0.6, side), 1e-4, 50000));
+  auto blurred = aniso_glint("beckmann", 0.5, 0.1);
+  EXPECT_TRUE(consistent(*blurred, square_context(spherical_dir(50.0, 100.0), 0.4, 0.6, 1e-3, 0.3f), 1e-4, 50000));
+}
+
+// ---- Stress ---------------------------------------------------------------------------
+TEST(GlintAniso, StressNoNanInfNegative) {
+  std::vector<std::shared_ptr<host::ClosureInstance>> keep;
+  for (const char *dist : {"ggx", "beckmann"})
+    for (const auto &[ru, rv, gamma, density] : std::vector<std::array<const char *, 4>>{
+             {"0.0001", "1", "0.1", "1"}, {"1", "0.0001", "10", "1e12"}, {"0.3", "0.9", "2", "1e6"},
+             {"1", "0.2", "10", "1"}, {"0.0001", "0.5", "10", "1e12"}}) {
+      keep.push_back(make_closure("glint", {{"distribution", dist}, {"roughness_u", ru}, {"roughness_v", rv},
+                                            {"gamma", gamma}, {"density", density}, {"uv_scale", "1000"}}));
+    }
+  expect_stress_and_grazing_clean(keep);
+  // Zero and huge footprints at grazing incidence.
+  for (const auto &c : keep)
+    for (const double side : {0.0, 1e30})
+      for (const double cos_i : {1e-6, 1e-3, 0.5}) {
+        const Vec3 wi = direction_at_cos(cos_i);
+        for (const Vec3 &wo : {Vec3(-wi.x, 0.0f, wi.z), spherical_dir(60.0, 170.0), direction_at_cos(1e-6)}) {
+          float pdf = -1.0f;
+          const float f = eval_f(*c, square_context(wi, 0.2, 0.7, side, 0.5f), wo, &pdf);
+          EXPECT_TRUE(std::isfinite(f) && f >= 0.0f && std::isfinite(pdf) && pdf >= 0.0f)
+              << c->type().name << " side " << side << " cos_i " << cos_i;
+        }
+      }
+}
+
+TEST(GlintAniso, RejectsBadRoughnessWithItsName) {
+  for (const auto &[name, value] : std::vector<std::pair<std::string, std::string>>{
+           {"roughness_u", "1.5"}, {"roughness_v", "-2"}}) {
+    try {
+      make_closure("glint", {{name, value}});
+      ADD_FAILURE() << name << "=" << value << " was accepted";
+    } catch (const std::exception &e) {
+      EXPECT_NE(std::string(e.what()).find(name), std::string::npos) << e.what();
+    }
+  }
+}
+
+}  // namespace
+}  // namespace glimmer::test
