@@ -1,6 +1,7 @@
 // The Owen-scrambled Sobol sampler (bridge/render/sampler.h): the precomputed generator-matrix tables agree
 // with the direction-number recurrence and with the bit-by-bit van der Corput / second-dimension
-// constructions, and the sampler's pair tables give the points of the per-dimension definition; the first
+// constructions, and the sampler's pair tables give the points of the per-dimension definition (the float of
+// each scrambled value by byte tables equals the reversal and conversion bit for bit); the first
 // 2^m samples of every set are stratified (each dimension one point per 1/2^m interval, dimensions 0-1 a
 // (0, m, 2)-net), which independent random numbers fail (negative control); values are a pure function of
 // (seed, pixel, sample, set). And choose_and_rescale keeps a stratified sample stratified within each branch.
@@ -39,6 +40,24 @@ TEST(Sampler, GeneratorTablesMatchTheRecurrence) {
     EXPECT_EQ(sobol_by_matrix(d, 2), quarter ? 0x40000000u : 0xc0000000u);
     EXPECT_EQ(sobol_by_matrix(d, 3), quarter ? 0xc0000000u : 0x40000000u);
   }
+}
+
+// The float of a scrambled reversed value from three byte tables equals the reversal and conversion, bit for
+// bit, for every value of the 24 bits that reach the float (and random top bytes, which do not). Negative
+// control: the tables applied to bytes 1-3 instead of 0-2 (a wrong shift) give other floats.
+TEST(Sampler, ReversedByteFloatsEqualTheReversalAndConversion) {
+  Pcg32 rng(5);
+  int shifted_differs = 0;
+  const auto &t = kReversedByteFloats.value;
+  for (uint32_t low = 0; low < (1u << 24); ++low) {
+    const uint32_t y = low | (rng.next_u32() & 0xff000000u);
+    ASSERT_EQ(reversed_to_unit_float(y), uint_to_unit_float(reverse_bits(y))) << y;
+    if ((low & 0xfffu) == 0u) {
+      const float shifted = (t[0][(y >> 8) & 0xffu] + t[1][(y >> 16) & 0xffu]) + t[2][y >> 24];
+      if (shifted != uint_to_unit_float(reverse_bits(y))) ++shifted_differs;
+    }
+  }
+  EXPECT_GT(shifted_differs, 4096 * 9 / 10);
 }
 
 // Dimension d of set `set` by its definition, one dimension at a time: the sample index shuffled by a nested
