@@ -259,7 +259,9 @@ struct Renderer::Impl {
       sd.duv2[k] = s.duv2[k];
     }
     const Vec3 gen = s.generated;
-    if (const scene::Mesh &mesh = scene.meshes[h.mesh]; mesh.generated.size() == mesh.P.size()) {
+    const int shader = mesh_shader[h.mesh];
+    const scene::Mesh &mesh = scene.meshes[h.mesh];
+    if (shaders->shader(shader).reads_footprint && mesh.generated.size() == mesh.P.size()) {  // texture footprint
       const auto &tri = mesh.triangles[h.prim];
       sd.dg1 = mesh.generated[tri[1]] - mesh.generated[tri[0]];
       sd.dg2 = mesh.generated[tri[2]] - mesh.generated[tri[0]];
@@ -271,8 +273,7 @@ struct Renderer::Impl {
     sd.tc.uv[1] = uv[1];
     sd.tc.direction = D;
     sd.tc.backfacing = sd.backfacing;
-    GlimmerShadingContext &ctx = sd.ctx;
-    ctx = GlimmerShadingContext{};
+    GlimmerShadingContext &ctx = sd.ctx;  // zero-initialised with sd (every caller passes a fresh one)
     ctx.struct_size = sizeof(GlimmerShadingContext);
     ctx.wi = -D;
     ctx.P = P;
@@ -289,7 +290,7 @@ struct Renderer::Impl {
     ctx.backfacing = sd.backfacing ? 1u : 0u;
     ctx.host = &host;
     ctx.sampling_flags = sampling_flags;
-    sd.shader = mesh_shader[h.mesh];
+    sd.shader = shader;
     sd.object_space = &mesh_object_space[h.mesh];
     sd.object_space->set_point(P, s.Ng, ctx);
     set_surface_derivatives(scene.meshes[h.mesh], s, sd);
@@ -346,9 +347,12 @@ struct Renderer::Impl {
   // Transfer the differentials to the hit plane and express them in barycentric
   // and uv space (Igehy 1999, eq. 10-12); fills the context's footprint. At the first
   // hit with depth of field, the aperture's share is added first (fold_lens_differentials).
+  // The texture coordinates' footprint (image filters, Bump) only for a shader with some texture or node
+  // program (CompiledShader::reads_footprint): nothing else reads it.
   void transfer_differentials(Differentials &rd, const Vec3 &D, float t, ShadingData &sd, float spread) const {
     fold_lens_differentials(rd, D, t, sd.Ng);  // depth of field: the circle of confusion joins the footprint
-    const float width = 0.5f * (length(rd.dPdx + rd.dDdx * t) + length(rd.dPdy + rd.dDdy * t));
+    const bool textures = shaders->shader(sd.shader).reads_footprint;
+    const float width = textures ? 0.5f * (length(rd.dPdx + rd.dDdx * t) + length(rd.dPdy + rd.dDdy * t)) : 0.0f;
     rd.dPdx = footprint_on_plane(rd.dPdx, rd.dDdx, D, t, sd.Ng);
     rd.dPdy = footprint_on_plane(rd.dPdy, rd.dDdy, D, t, sd.Ng);
     if (sd.object_space) sd.object_space->set_footprint(rd.dPdx, rd.dPdy, sd.ctx);
@@ -360,6 +364,20 @@ struct Renderer::Impl {
       const float y = sd.duv1[k] * by[0] + sd.duv2[k] * by[1];
       sd.ctx.duv_dx[k] = std::isfinite(x) ? x : 0.0f;
       sd.ctx.duv_dy[k] = std::isfinite(y) ? y : 0.0f;
+    }
+    if (textures) set_texture_footprint(rd, bx, by, width, sd);
+    sd.ctx.spread_angle = spread;
+    // Normal derivatives for specular propagation (stored in dn1/dn2 as per-pixel values).
+    const Vec3 dNx = sd.dn1 * bx[0] + sd.dn2 * bx[1];
+    const Vec3 dNy = sd.dn1 * by[0] + sd.dn2 * by[1];
+    sd.dn1 = dNx - sd.N * dot(sd.N, dNx);
+    sd.dn2 = dNy - sd.N * dot(sd.N, dNy);
+  }
+  // The footprint the texture nodes read: image textures filter over the uv footprint of the context, the
+  // position and generated steps; the Bump node over its own offsets (set_bump_footprint).
+  void set_texture_footprint(const Differentials &rd, const float bx[2], const float by[2], float width,
+                             ShadingData &sd) const {
+    for (int k = 0; k < 2; ++k) {
       sd.tc.duv_dx[k] = sd.ctx.duv_dx[k];  // image textures filter over the same footprint
       sd.tc.duv_dy[k] = sd.ctx.duv_dy[k];
     }
@@ -368,13 +386,7 @@ struct Renderer::Impl {
     sd.tc.dgenerated_dx = sd.dg1 * bx[0] + sd.dg2 * bx[1];
     sd.tc.dgenerated_dy = sd.dg1 * by[0] + sd.dg2 * by[1];
     scale_texture_footprint(sd.tc);
-    sd.ctx.spread_angle = spread;
     set_bump_footprint(width, sd);
-    // Normal derivatives for specular propagation (stored in dn1/dn2 as per-pixel values).
-    const Vec3 dNx = sd.dn1 * bx[0] + sd.dn2 * bx[1];
-    const Vec3 dNy = sd.dn1 * by[0] + sd.dn2 * by[1];
-    sd.dn1 = dNx - sd.N * dot(sd.N, dNx);
-    sd.dn2 = dNy - sd.N * dot(sd.N, dNy);
   }
 
   // Cycles' shadow terminator softening for diffuse closures whose normal N was perturbed (Chiang, Li and

@@ -673,10 +673,28 @@ int ShaderSystem::compile(int shader_index) {
       cs.root = compile_closure(g, "output", "surface", cs, 0);
     }
   }
+  cs.reads_footprint = any_varying_input(cs);
   compiled_.push_back(std::move(cs));
   const int index = static_cast<int>(compiled_.size()) - 1;
   compiled_index_[shader_index] = index;
   return index;
+}
+
+bool ShaderSystem::any_varying_input(const CompiledShader &cs) const {
+  for (const ClosureTreeNode &n : cs.tree) {
+    if (n.kind != ClosureTreeNode::Kind::Leaf) {
+      if (n.fac.varies()) return true;
+      continue;
+    }
+    if (n.leaf < 0) continue;
+    const ClosureLeaf &leaf = *leaves_[n.leaf];
+    if (leaf.weight.varies() || leaf.frame.normal.varies() || leaf.frame.tangent.varies() ||
+        leaf.frame.rotation.varies())
+      return true;
+    for (const ClosureLeaf::VaryingInput &v : leaf.varying)
+      if (v.input.varies()) return true;
+  }
+  return false;
 }
 
 void ShaderSystem::compile_background(int shader_index) {
@@ -751,19 +769,26 @@ void ShaderSystem::evaluate(int compiled, const TexCoords &tc, ClosureSet &out) 
   out.transparent = Spectrum(0.0f);
   const CompiledShader &cs = compiled_[compiled];
   if (cs.root < 0) return;
-  // Explicit stack: (tree node, accumulated weight).
-  struct Item { int node; Spectrum weight; };
+  // Explicit stack: (tree node, accumulated weight), trivially constructed (with a Spectrum member all 64
+  // entries were zeroed at every shading point: about half of this function's instructions for one closure).
+  struct Item {
+    int node;
+    float w[3];
+  };
   Item stack[64];
   int top = 0;
-  stack[top++] = {cs.root, Spectrum(1.0f)};
+  const auto push = [&](int node, const Spectrum &w) { stack[top++] = Item{node, {w.x, w.y, w.z}}; };
+  push(cs.root, Spectrum(1.0f));
   while (top > 0) {
-    const Item item = stack[--top];
-    if (item.node < 0 || is_zero(item.weight)) continue;
-    const ClosureTreeNode &n = cs.tree[item.node];
+    const Item &popped = stack[--top];
+    const int node = popped.node;
+    const Spectrum weight(popped.w[0], popped.w[1], popped.w[2]);
+    if (node < 0 || is_zero(weight)) continue;
+    const ClosureTreeNode &n = cs.tree[node];
     if (n.kind == ClosureTreeNode::Kind::Leaf) {
       const ClosureLeaf &leaf = *leaves_[n.leaf];
       Spectrum w = eval_input(leaf.weight, tc) * (leaf.strength * 1.0f);
-      w = max(w, Spectrum(0.0f)) * item.weight;
+      w = max(w, Spectrum(0.0f)) * weight;
       if (is_zero(w)) continue;
       if (leaf.builtin == BuiltinClosure::Transparent) {
         out.transparent += w;
@@ -790,11 +815,11 @@ void ShaderSystem::evaluate(int compiled, const TexCoords &tc, ClosureSet &out) 
     if (top + 2 > 64) continue;
     if (n.kind == ClosureTreeNode::Kind::Mix) {
       const float fac = saturate(eval_input(n.fac, tc).x);
-      stack[top++] = {n.b, item.weight * fac};
-      stack[top++] = {n.a, item.weight * (1.0f - fac)};
+      push(n.b, weight * fac);
+      push(n.a, weight * (1.0f - fac));
     } else {
-      stack[top++] = {n.b, item.weight};
-      stack[top++] = {n.a, item.weight};
+      push(n.b, weight);
+      push(n.a, weight);
     }
   }
 }

@@ -6,8 +6,10 @@
 
 #include <map>
 #include <memory>
+#include <new>
 #include <set>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "glimmer/closure_abi.h"
@@ -103,6 +105,10 @@ struct CompiledShader {
   bool has_emission = false;
   bool has_transparent = false;
   bool has_bsdf = false;
+  // Some input of its closure tree (a weight, a varying parameter, a frame socket, a mix factor) is a texture
+  // or a node program, i.e. may read the point's texture coordinates and their footprint (ShadingPoint's
+  // dPdx, duv_dx, dgenerated_dx, bump_*); false when every input is a constant (set by compile).
+  bool reads_footprint = false;
 };
 
 // One weighted closure at a shading point.
@@ -121,13 +127,24 @@ struct ActiveClosure {
 
 struct ClosureSet {
   static constexpr int kMax = 16;
-  ActiveClosure closures[kMax];
+  // Storage for kMax closures, of which the first `count` are constructed (by add): a ClosureSet is declared
+  // at every shading point, and constructing all 16 (their default members) cost more than the one or two used.
+  struct Slots {
+    alignas(ActiveClosure) unsigned char bytes[kMax * sizeof(ActiveClosure)];
+    ActiveClosure &operator[](int i) {
+      return *std::launder(reinterpret_cast<ActiveClosure *>(bytes + i * sizeof(ActiveClosure)));
+    }
+    const ActiveClosure &operator[](int i) const {
+      return *std::launder(reinterpret_cast<const ActiveClosure *>(bytes + i * sizeof(ActiveClosure)));
+    }
+  } closures;
+  static_assert(std::is_trivially_copyable_v<ActiveClosure> && std::is_trivially_destructible_v<ActiveClosure>);
   int count = 0;
   Spectrum transparent{0.0f};  // weight of the transparent closure (pass-through)
   float sum_sample_weight = 0.0f;
   void add(const ActiveClosure &c) {
     if (count < kMax) {
-      closures[count++] = c;
+      new (&closures.bytes[count++ * sizeof(ActiveClosure)]) ActiveClosure(c);
       sum_sample_weight += c.sample_weight;
     }
   }
@@ -203,6 +220,7 @@ class ShaderSystem {
   } background_;
 
   void warn(const scene::SourceLocation &where, const std::string &message);
+  bool any_varying_input(const CompiledShader &cs) const;  // CompiledShader::reads_footprint
   int compile_closure(const scene::ShaderGraph &g, const std::string &node, const std::string &socket,
                       CompiledShader &out, int depth);
   // One closure leaf from a node, driven by its ClosureNodeRow (-1: no row and no DSO closure of that name).
