@@ -114,4 +114,22 @@ class LobeMassInCone {
   std::vector<double> sin_t_, cos_t_, cos_p_, sin_p_;
 };
 
+// Smooth microfacet white-furnace albedo Int G2 D / (4 cos_i) dwo (F = 1), anisotropic roughness ax x ay
+// (ax = ay: isotropic), over visible normals: G2 / G1(wi) where reflect(wi, h) is above the horizon, midpoint
+// rule on the sampler's unit square (side^2 points). Its only discontinuity is the horizon cut, so it converges
+// where a grid over wo does not (at 89 degrees a 0.5 x 1-degree wo grid is 2 % low for GGX 0.35). The glint
+// furnace tests check it against a wo grid at moderate incidence.
+inline double smooth_albedo_vndf(mf::Distribution dist, double ax, double ay, const Vec3 &wi, int side = 512) {
+  const float x = static_cast<float>(ax), y = static_cast<float>(ay);
+  const float g1 = mf::G1(dist, wi, x, y);
+  double sum = 0.0;
+  for (int i = 0; i < side; ++i)
+    for (int j = 0; j < side; ++j) {
+      const Vec3 h = mf::sample_visible_normal(dist, wi, x, y, (i + 0.5f) / side, (j + 0.5f) / side);
+      const Vec3 wo = mf::reflect_about(wi, h);
+      if (wo.z > 0.0f) sum += mf::G2(dist, wi, wo, x, y) / g1;
+    }
+  return sum / (static_cast<double>(side) * side);
+}
+
 }  // namespace glimmer::test

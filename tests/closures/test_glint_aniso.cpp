@@ -256,22 +256,7 @@ TEST(GlintAniso, TangentFrameFromContext) {
 }
 
 // ---- White furnace vs the smooth anisotropic BRDF ---------------------------------
-// Smooth albedo Int G2 D / (4 cos_i) dwo (F = 1) by a 512^2 midpoint rule on
-// the visible-normal sampler's square (G2 / G1(wi) where the reflection is
-// above the horizon), checked against a 0.1 x 0.2-degree wo grid at two wi.
-double smooth_albedo_vndf(mf::Distribution dist, double ax, double ay, const Vec3 &wi, int side = 512) {
-  const float x = static_cast<float>(ax), y = static_cast<float>(ay);
-  const float g1 = mf::G1(dist, wi, x, y);
-  double sum = 0.0;
-  for (int i = 0; i < side; ++i)
-    for (int j = 0; j < side; ++j) {
-      const Vec3 h = mf::sample_visible_normal(dist, wi, x, y, (i + 0.5f) / side, (j + 0.5f) / side);
-      const Vec3 wo = mf::reflect_about(wi, h);
-      if (wo.z > 0.0f) sum += mf::G2(dist, wi, wo, x, y) / g1;
-    }
-  return sum / (static_cast<double>(side) * side);
-}
-
+// Smooth albedo: smooth_albedo_vndf (glint_test_util.h), checked against a 0.1 x 0.2-degree wo grid at two wi.
 double smooth_albedo_grid(mf::Distribution dist, double ax, double ay, const Vec3 &wi, int n_theta, int n_phi) {
   const float x = static_cast<float>(ax), y = static_cast<float>(ay);
   double sum = 0.0;
