@@ -9,6 +9,7 @@
 
 #include "glimmer/math.h"
 #include "glimmer/microfacet.h"
+#include "host/closure_instance.h"
 #include "tables/glint_hierarchy.h"
 
 namespace glimmer::test {
@@ -130,6 +131,15 @@ inline double smooth_albedo_vndf(mf::Distribution dist, double ax, double ay, co
       if (wo.z > 0.0f) sum += mf::G2(dist, wi, wo, x, y) / g1;
     }
   return sum / (static_cast<double>(side) * side);
+}
+
+// The red channel of a glint closure instance's eval at wo (and its pdf).
+inline float eval_f(const host::ClosureInstance &c, const GlimmerShadingContext &ctx, const Vec3 &wo, float *pdf = nullptr) {
+  Spectrum f;
+  float p;
+  c.eval(ctx, wo, f, p);
+  if (pdf) *pdf = p;
+  return f.x;
 }
 
 }  // namespace glimmer::test

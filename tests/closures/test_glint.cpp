@@ -43,14 +43,6 @@ double smooth_f_cos(mf::Distribution dist, double alpha, const Vec3 &wi, const V
   return mf::G2(dist, wi, wo, a, a) * mf::D(dist, h, a, a) / (4.0 * wi.z);
 }
 
-float eval_f(const host::ClosureInstance &c, const GlimmerShadingContext &ctx, const Vec3 &wo, float *pdf = nullptr) {
-  Spectrum f;
-  float p;
-  c.eval(ctx, wo, f, p);
-  if (pdf) *pdf = p;
-  return f.x;
-}
-
 // Midpoint quadrature of a function of wo over the upper hemisphere.
 template <typename Fn>
 double hemisphere_integral(Fn fn, int n_theta = 180, int n_phi = 360) {

@@ -53,14 +53,6 @@ GlimmerShadingContext square_context(const Vec3 &wi, double u, double v, double 
   return ctx;
 }
 
-float eval_f(const host::ClosureInstance &c, const GlimmerShadingContext &ctx, const Vec3 &wo, float *pdf = nullptr) {
-  Spectrum f;
-  float p;
-  c.eval(ctx, wo, f, p);
-  if (pdf) *pdf = p;
-  return f.x;
-}
-
 // ---- The brute-force reference, checked -------------------------------------
 // Anisotropic GGX at wi = wo = N: the reflection of N is within gamma of N
 // iff the half vector is within gamma / 2 of N, i.e. its slope within
