@@ -5,8 +5,13 @@ Cycles Glass BSDF fallback that Cycles renders (issue 12, Blender line).
 Scene: a frosted sphere (roughness 0.3, IOR 1.5) in front of an emissive
 checker wall under a dim world. Checked:
 - the exporter writes `frosted_glass_bsdf` with the node's method, roughness and IOR;
-- a Glimmer render through the engine equals the CLI render of the exported XML
-  (sg: the method reaches the renderer) and sg's image differs from path's;
+- a Glimmer render through the engine equals the CLI render of the XML the engine
+  exported (sg: the method reaches the renderer), the engine's scene.xml equals the
+  exporter's, and sg's image differs from path's. The CLI renders the engine's own
+  export, not a second export: Blender's vertex normals of one mesh differ by up to
+  one ulp between two evaluations (measured: 548 of 24192 normal components,
+  <= 6e-8), which moved up to 4 % of the pixels by <= 3e-6 and made the comparison
+  fail in 2 of 8 runs under load (docs/blender.md "Meshes");
 - on the sphere the means agree: sg vs path within 15 % (sg's measured bias on a
   frosted sphere is 4 %, docs/frosted_glass.md), Cycles' fallback (Glass BSDF,
   GGX) vs Glimmer's path within 10 %; the wall's light does pass (the sphere is
@@ -37,6 +42,7 @@ scene = util.empty_exr_scene(W, H)
 scene.glimmer.samples = SPP
 scene.glimmer.threads = 2
 scene.glimmer.seed = 3
+scene.glimmer.export_dir = os.path.join(opts.out, "engine_export")  # the engine keeps what it rendered
 util.add_camera(scene, (0.0, -5.0, 0.0), (math.pi / 2, 0.0, 0.0))
 util.set_world_color(scene, (0.05, 0.05, 0.05))
 
@@ -113,9 +119,12 @@ for method in ("path", "sg", "auto"):
     images[method] = render_engine("frosted_" + method)
     img = images[method]
     check(np.isfinite(img).all() and img.min() >= 0.0, "%s: finite, non-negative pixels" % method)
-    if method == "sg":  # the exported XML through the CLI renders the same image
+    if method == "sg":  # the XML the engine rendered, through the CLI, renders the same image
+        engine_xml = os.path.join(opts.out, "engine_export", "frame_%04d" % scene.frame_current, "scene.xml")
+        with open(engine_xml) as a, open(xml) as b:
+            check(a.read() == b.read(), "sg: the engine's scene.xml equals the exporter's")
         cli_exr = os.path.join(opts.out, "frosted_sg_cli.exr")
-        cmd = mod.runner.render_command(glimmer, xml, cli_exr, SPP, 2, 3, W, H)
+        cmd = mod.runner.render_command(glimmer, engine_xml, cli_exr, SPP, 2, 3, W, H)
         proc = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
         check(proc.returncode == 0, "CLI render: %s" % proc.stdout.decode(errors="replace")[-1500:])
         rgba = os.path.join(opts.out, "frosted_sg_cli_rgba.exr")
@@ -126,7 +135,7 @@ for method in ("path", "sg", "auto"):
         subprocess.run(["oiiotool", cli_exr, "--ch", ",".join(order), "--chnames", "R,G,B,A", "-d", "float", "-o",
                         rgba], check=True)
         diff = np.abs(pixels(rgba) - img).max()
-        check(diff <= 1e-6, "sg: engine render equals the CLI render of the exported XML (max diff %g)" % diff)
+        check(diff <= 1e-6, "sg: engine render equals the CLI render of the engine's XML (max diff %g)" % diff)
 
 means = {m: images[m][sphere_box].mean() for m in images}
 wall_mean = images["path"][wall_box].mean()
