@@ -10,7 +10,9 @@
 //  glint/aniso_eval/<log10 area>  anisotropic base (roughness_u 0.55,
 //      roughness_v 0.25: alpha 0.3 x 0.0625, P per query) vs the isotropic
 //      glint (roughness 0.4) vs GGX eval, interleaved blocks of the same
-//      queries; counters aniso_ns, iso_ns, ggx_ns, aniso_vs_iso, aniso_vs_ggx.
+//      queries; counters aniso_ns, iso_ns, ggx_ns, aniso_vs_iso, aniso_vs_ggx;
+//      with $GLIMMER_BENCH_BASELINE_PLUGIN also that build's anisotropic
+//      glint: base_aniso_ns, aniso_vs_base, base_mismatches.
 //  glint/jakob14_eval/<log10 area>  the reference's eval cost at the same
 //      queries (counter ratio_vs_glint).
 //  glint/gi_scene_overhead          `glimmer render` of examples/glint.xml
@@ -184,18 +186,25 @@ BENCHMARK(BM_GlintVsGgxEvalAspect)
 
 void BM_GlintAnisoEval(benchmark::State &state) {
   const std::vector<Query> q = make_queries(std::pow(10.0, static_cast<double>(state.range(0))));
-  auto aniso = make("glint", {{"roughness_u", "0.55"}, {"roughness_v", "0.25"}, {"gamma", "2"}, {"density", "1e7"}});
+  const std::vector<std::pair<std::string, std::string>> aniso_params = {
+      {"roughness_u", "0.55"}, {"roughness_v", "0.25"}, {"gamma", "2"}, {"density", "1e7"}};
+  auto aniso = make("glint", aniso_params);
   auto iso = make("glint", {{"roughness", "0.4"}, {"gamma", "2"}, {"density", "1e7"}});
   auto ggx = make("microfacet_conductor", {{"roughness", "0.4"}, {"distribution", "ggx"}});
   if (!aniso || !iso || !ggx) {
     state.SkipWithError("glint or microfacet_conductor missing");
     return;
   }
-  std::vector<double> a_ns, i_ns, m_ns;
+  // With $GLIMMER_BENCH_BASELINE_PLUGIN: that build's anisotropic glint in the same blocks.
+  std::unique_ptr<host::ClosureInstance> base;
+  if (host::PluginLibrary *b = baseline_plugin()) base = make("glint", aniso_params, *b);
+  if (base) state.counters["base_mismatches"] = static_cast<double>(differing_evals(*aniso, *base, q));
+  std::vector<double> a_ns, i_ns, m_ns, b_ns;
   for (auto _ : state) {
     a_ns.push_back(time_block(*aniso, q));
     i_ns.push_back(time_block(*iso, q));
     m_ns.push_back(time_block(*ggx, q));
+    if (base) b_ns.push_back(time_block(*base, q));
   }
   auto median = [](std::vector<double> v) {
     std::sort(v.begin(), v.end());
@@ -207,6 +216,10 @@ void BM_GlintAnisoEval(benchmark::State &state) {
   state.counters["ggx_ns"] = m;
   state.counters["aniso_vs_iso"] = a / i;
   state.counters["aniso_vs_ggx"] = a / m;
+  if (base) {
+    state.counters["base_aniso_ns"] = median(b_ns);
+    state.counters["aniso_vs_base"] = a / median(b_ns);
+  }
 }
 BENCHMARK(BM_GlintAnisoEval)->Name("glint/aniso_eval")->DenseRange(-8, 0, 2)->Iterations(25)->Unit(benchmark::kMillisecond);
 

@@ -159,7 +159,7 @@ class GlintClosure {
 
   void prepare(const GlimmerHostServices *host) {
     if (anisotropic_) {
-      energy_ = glint::acquire_aniso_energy(aniso_spec_);
+      energy_ = glint::acquire_aniso_energy(aniso_spec_, host);
       cone_solid_angle_ = 6.283185307179586f * (1.0f - std::cos(gamma_rad_));
       return;
     }

@@ -23,8 +23,10 @@
 // small table over theta_i (1-degree nodes), phi_i (10-degree nodes folded to
 // [0, 90]: D is symmetric about both tangent axes) and 5 blur levels
 // t = sigma_L / (2 alpha_max) in {0, 1/4, 1/2, 3/4, 1}, built when a material
-// first needs it (~20 s on the loaded 2-core machine) and shared by every
-// instance of the process.
+// first needs it (~20 s on the loaded 2-core machine), shared by every
+// instance of the process and cached on disk like the isotropic tables
+// (glint_A_<key>.bin in host->cache_dir, HMAC-SHA256, atomic write; see
+// glint_aniso_cache.cpp).
 //
 // The energies come from swapping the two integrals: with the cone
 // indicator symmetric in (r, wo),
@@ -38,16 +40,17 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
-#include <map>
 #include <memory>
-#include <mutex>
+#include <string>
 #include <thread>
 #include <tuple>
 #include <vector>
 
+#include "glimmer/closure_abi.h"
 #include "glimmer/math.h"
 #include "glimmer/microfacet.h"
 
@@ -157,9 +160,15 @@ struct ConeRule {
 // e = gamma / (alpha_min wi.h): the 7-point rule where e <= 1, the 19-point
 // rule where e <= 2 (both measured <= 0.2 % there, see docs/glints.md), else
 // a product rule with points per axis set by the scale (as the isotropic
-// tables' interior rule).
+// tables' interior rule). Along the plane of incidence the lobe's scale is
+// 2 alpha_min, at most 24 points at gamma <= 10 degrees (kProductMaxPoints);
+// across it the scale shrinks with wi.h (grazing incidence), and the
+// Gauss-Chebyshev axis takes up to kProductMaxAcross points: with the old
+// cap of 24 there, P was up to 38 % off at theta_i 85, gamma 4, alpha_min
+// 0.0225 (docs/glints.md). 768 covers e <= 256 at 3 points per scale
+// (theta_i <= 89 degrees at gamma 4 and the 0.0225 alpha floor: e <= 180).
 inline constexpr float kSevenPointsUpTo = 1.0f, kNineteenPointsUpTo = 2.0f;
-inline constexpr int kProductMaxPoints = 24;
+inline constexpr int kProductMaxPoints = 24, kProductMaxAcross = 768;
 
 // Gauss-Legendre nodes and weights on [-1, 1] (Newton on P_n), n <= kProductMaxPoints.
 struct GaussLegendre {
@@ -213,11 +222,12 @@ struct AnisoConeRules {
     product_points(ax, ay, wi, wo, nx, ny);
     return nx * ny;
   }
-  // 3 points per lobe scale across the cone's diameter, 4..24 per axis.
+  // 3 points per lobe scale across the cone's diameter: 4..kProductMaxAcross
+  // across the plane of incidence, 4..kProductMaxPoints along it.
   void product_points(float ax, float ay, const Vec3 &wi, const Vec3 &wo, int &nx, int &ny) const {
     const float along = 3.0f * gamma / std::min(ax, ay);
-    const float across = 3.0f * narrowness(ax, ay, wi, wo);
-    nx = std::clamp(static_cast<int>(std::ceil(across)), 4, kProductMaxPoints);
+    const float across = std::min(3.0f * narrowness(ax, ay, wi, wo), static_cast<float>(kProductMaxAcross));
+    nx = std::clamp(static_cast<int>(std::ceil(across)), 4, kProductMaxAcross);
     ny = std::clamp(static_cast<int>(std::ceil(along)), 4, kProductMaxPoints);
   }
 
@@ -267,13 +277,23 @@ struct AnisoConeRules {
 };
 
 // W(wi, wo) with F = 1: G2 (wi.h) / (cos_i cos_h) (tables/glint_common.h's glint_weight).
-inline float aniso_white_weight(mfa::Distribution dist, float ax, float ay, const Vec3 &wi, const Vec3 &wo) {
+// `lambda_i` is Lambda(wi) (mfa::lambda at |wi.z|): G2 = 1 / (1 + Lambda(wi)
+// + Lambda(wo)) with the operations of mfa::G2, so hoisting Lambda(wi) out of
+// a loop over wo gives the same floats.
+inline float aniso_white_weight(mfa::Distribution dist, float ax, float ay, const Vec3 &wi, float lambda_i,
+                                const Vec3 &wo) {
   if (!(wi.z > 0.0f) || !(wo.z > 0.0f)) return 0.0f;
   Vec3 h;
   if (!mfa::half_vector_reflect(wi, wo, h)) return 0.0f;
   const float wi_h = dot(wi, h);
   if (!(wi_h > 0.0f) || !(h.z > 0.0f)) return 0.0f;
-  return mfa::G2(dist, wi, wo, ax, ay) * wi_h / (wi.z * h.z);
+  const float lo = mfa::lambda(dist, Vec3(wo.x, wo.y, std::fabs(wo.z)), ax, ay);
+  const float s = 1.0f + lambda_i + lo;
+  const float g2 = std::isfinite(s) ? 1.0f / s : 0.0f;
+  return g2 * wi_h / (wi.z * h.z);
+}
+inline float aniso_white_weight(mfa::Distribution dist, float ax, float ay, const Vec3 &wi, const Vec3 &wo) {
+  return aniso_white_weight(dist, ax, ay, wi, mfa::lambda(dist, Vec3(wi.x, wi.y, std::fabs(wi.z)), ax, ay), wo);
 }
 
 struct AnisoSpec {
@@ -301,11 +321,16 @@ class AnisoEnergyTable {
 
   AnisoSpec spec;
   std::vector<float> scale;  // [(level * kTheta + ti) * kPhi + pi]
-  double build_seconds = 0.0;
+  double build_seconds = 0.0;  // 0 when loaded from the disk cache
+  bool loaded_from_cache = false;
 
   // Reflected energies at one wi for the unblurred lobe: the smooth albedo
   // and the estimator's; and the estimator's at blur level t. For tests too.
+  // (G1(wi) and Lambda(wi) are loop invariants: hoisted, same floats.)
   static double smooth_albedo(const AnisoSpec &s, const Vec3 &wi) {
+    const float g1 = mfa::G1(s.distribution, wi, s.alpha_x, s.alpha_y);
+    if (!(g1 > 0.0f)) return 0.0;
+    const float li = mfa::lambda(s.distribution, Vec3(wi.x, wi.y, std::fabs(wi.z)), s.alpha_x, s.alpha_y);
     double sum = 0.0;
     for (int a = 0; a < kGrid; ++a)
       for (int b = 0; b < kGrid; ++b) {
@@ -313,8 +338,9 @@ class AnisoEnergyTable {
                                                   (b + 0.5f) / kGrid);
         const Vec3 r = mfa::reflect_about(wi, h);
         if (!(r.z > 0.0f)) continue;
-        const float g1 = mfa::G1(s.distribution, wi, s.alpha_x, s.alpha_y);
-        if (g1 > 0.0f) sum += mfa::G2(s.distribution, wi, r, s.alpha_x, s.alpha_y) / g1;
+        const float lo = mfa::lambda(s.distribution, Vec3(r.x, r.y, std::fabs(r.z)), s.alpha_x, s.alpha_y);
+        const float sum_l = 1.0f + li + lo;
+        sum += (std::isfinite(sum_l) ? 1.0f / sum_l : 0.0f) / g1;
       }
     return sum / (kGrid * kGrid);
   }
@@ -324,6 +350,7 @@ class AnisoEnergyTable {
     const ConeRule rule = ConeRule::place(disk_rule7(), s.gamma_deg * 0.017453292519943295f);
     const float g1 = mfa::G1(s.distribution, wi, ax, ay);
     if (!(g1 > 0.0f) || !(wi.z > 0.0f)) return 0.0;
+    const float li = mfa::lambda(s.distribution, Vec3(wi.x, wi.y, std::fabs(wi.z)), s.alpha_x, s.alpha_y);
     double sum = 0.0;
     for (int a = 0; a < kGrid; ++a)
       for (int b = 0; b < kGrid; ++b) {
@@ -332,7 +359,7 @@ class AnisoEnergyTable {
         if (!(wi_h > 0.0f) || !(h.z > 0.0f)) continue;
         const Vec3 r = mfa::reflect_about(wi, h);
         const float wbar = rule.mean(r, [&](const Vec3 &wo) {
-          return aniso_white_weight(s.distribution, s.alpha_x, s.alpha_y, wi, wo);
+          return aniso_white_weight(s.distribution, s.alpha_x, s.alpha_y, wi, li, wo);
         });
         sum += static_cast<double>(wbar) * h.z * wi.z / (g1 * wi_h);
       }
@@ -357,18 +384,22 @@ class AnisoEnergyTable {
     }
   }
 
+  // Nodes are independent (each writes only its own entries), handed out
+  // one at a time from an atomic counter: the values do not depend on the
+  // thread count or the order (GlintAnisoCache.BuildIsIndependentOfThreadCount).
   static std::unique_ptr<AnisoEnergyTable> build(const AnisoSpec &s, int threads) {
     auto table = std::make_unique<AnisoEnergyTable>();
     table->spec = s;
     table->scale.assign(static_cast<size_t>(kLevels) * kTheta * kPhi, 1.0f);
     const auto start = std::chrono::steady_clock::now();
-    std::vector<std::thread> pool;
+    std::atomic<int> next{0};
+    auto work = [&table, &next] {
+      for (int node = next++; node < kTheta * kPhi; node = next++) table->build_node(node / kPhi, node % kPhi);
+    };
     threads = std::max(1, std::min(threads, 8));
-    for (int w = 0; w < threads; ++w)
-      pool.emplace_back([&table, w, threads] {
-        for (int ti = w; ti < kTheta; ti += threads)
-          for (int pi = 0; pi < kPhi; ++pi) table->build_node(ti, pi);
-      });
+    std::vector<std::thread> pool;
+    for (int w = 1; w < threads; ++w) pool.emplace_back(work);
+    work();
     for (auto &t : pool) t.join();
     table->build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return table;
@@ -395,17 +426,21 @@ class AnisoEnergyTable {
   }
 };
 
+// Disk cache (glint_aniso_cache.cpp; the isotropic tables' scheme): files
+// glint_A_<key>.bin, 0600 in the private cache folder, written atomically,
+// HMAC-SHA256 keyed by the folder's secret. load returns nullptr and sets
+// `problem` when the entry is missing, not a regular file (removed),
+// truncated, fails its MAC, is for other parameters, holds non-finite or
+// out-of-range scales, or disagrees with nodes recomputed on load.
+uint64_t aniso_energy_key(const AnisoSpec &spec);
+std::string aniso_energy_cache_path(const std::string &cache_dir, const AnisoSpec &spec);
+bool save_aniso_energy(const std::string &path, const AnisoEnergyTable &table, std::string &problem);
+std::unique_ptr<AnisoEnergyTable> load_aniso_energy(const std::string &path, const AnisoSpec &spec,
+                                                    std::string &problem, int spot_checks = 3);
+
 // Process-wide provider: one table per spec, shared by instances (weakly
-// held), built on first use.
-inline std::shared_ptr<const AnisoEnergyTable> acquire_aniso_energy(const AnisoSpec &spec) {
-  static std::mutex mutex;
-  static std::map<AnisoSpec, std::weak_ptr<const AnisoEnergyTable>> shared;
-  std::lock_guard<std::mutex> lock(mutex);
-  if (auto table = shared[spec].lock()) return table;
-  std::shared_ptr<const AnisoEnergyTable> table =
-      AnisoEnergyTable::build(spec, static_cast<int>(std::max(1u, std::thread::hardware_concurrency())));
-  shared[spec] = table;
-  return table;
-}
+// held), loaded from / written to host->cache_dir, built on first use; a
+// corrupt entry is rebuilt with a warning through host->log.
+std::shared_ptr<const AnisoEnergyTable> acquire_aniso_energy(const AnisoSpec &spec, const GlimmerHostServices *host);
 
 }  // namespace glimmer::plugin::glint
