@@ -66,7 +66,22 @@ enum class SgVariant {
   kTracedCone,        // as above (the default)
   kToksvig,           // the paper's exit spread: Toksvig roughness of the exit normals + the magnified internal width
   kNoExitRefraction,  // negative control: the exit lobe keeps the internal axis (exit refraction ignored)
+  kMixture,           // the exit as a mixture of lobes, one per traced ray (below: "exit lobe mixture")
 };
+
+// The exit lobe mixture (SgVariant::kMixture, issue 12): instead of one SG about the axis refracted through the
+// mean exit normal, the axis and each bounding ray that left through the material are refracted through their
+// OWN exit normal (the leaving table at their own incidence: axis, sharpness kappa_exit,i and energy E_i), each a
+// lobe. The internal lobe (sharpness kappa_in) is represented by the axis and the 4 bounding directions at
+// theta_b with weights w_0 = 1 - s, w_1..4 = s / 4 (times their E_i); the points carry the fraction
+// v = s kappa_in theta_b^2 / 2 of the internal lobe's variance per axis, the rest is each lobe's own residual
+// width, 1 / kappa_i = 1 / kappa_exit,i + (1 - v) / kappa_geo (kappa_geo the traced cone's, as the single SG).
+// `mixture_variance` is v (0: one lobe per ray with all the weight on the axis; 1: the points alone).
+inline constexpr float kDefaultMixtureVariance = 0.5f;
+// Heavier tails (a second knob of the same mixture): each lobe split into a core (weight 1 - t, sharpness
+// kappa (1 - t) / (1 - 4 t)) and a tail (weight t, sharpness kappa / 4) of the same axis and the same variance
+// (t < 1/4); t = 0 keeps one lobe per ray.
+inline constexpr float kDefaultMixtureTail = 0.0f;
 
 // What the estimator needs from the closure at the entry point.
 struct SgInputs {
@@ -80,6 +95,8 @@ struct SgInputs {
   float ior = 1.5f;               // at the entry point
   Spectrum sigma_a{0.0f};         // Beer absorption coefficient
   SgVariant variant = SgVariant::kTracedCone;
+  float mixture_variance = kDefaultMixtureVariance;  // kMixture: v above (tests sweep it)
+  float mixture_tail = kDefaultMixtureTail;          // kMixture: t above
 };
 
 inline constexpr int kMaxInternalReflections = 16;
@@ -90,6 +107,13 @@ struct ExitLobe {
   Vec3 origin{0.0f}, origin_Ng{0.0f, 0.0f, 1.0f};
   Spectrum weight{1.0f};  // tint at the exit, Beer absorption inside
   float roughness = 0.0f;  // width of the exit lobe as a Cycles roughness (footprint)
+  // kMixture: the lobes (component 0 = the axis; sg above is the single-SG lobe, unused then), each with its
+  // own exit point and normal, and its share of the transmitted energy (sums to 1).
+  static constexpr int kMaxLobes = 10;  // 5 rays, each a core and a tail
+  int lobe_count = 0;
+  SphericalGaussian lobe[kMaxLobes];
+  Vec3 lobe_origin[kMaxLobes], lobe_Ng[kMaxLobes];
+  float lobe_weight[kMaxLobes] = {};
 };
 
 // Steps 1-5 for the path entering at sp (wi outside, sp.wi.z > 0); `seed` drives the Russian roulette at
