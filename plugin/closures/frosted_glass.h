@@ -158,7 +158,8 @@ class FrostedGlassClosure {
     if (!lobe.sample(sp.wi, rand, out)) return false;
     if (out.label & GLIMMER_LABEL_TRANSMIT) out.f_cos *= color_at(sp);
     out.f_cos *= interior_transmittance(sp);
-    if (uses_sg(sp) && (out.label & GLIMMER_LABEL_TRANSMIT)) sample_sg(sp, rand, out, frosted::SgVariant::kTracedCone);
+    if (uses_sg(sp) && (out.label & GLIMMER_LABEL_TRANSMIT))
+      sample_sg(sp, rand, out, frosted::default_sg_variant(sp.param_float(roughness_param_, roughness_)));
     return true;
   }
 

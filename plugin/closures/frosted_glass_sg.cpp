@@ -116,6 +116,7 @@ struct Segment {
   int bounding_count = 0;  // bounding rays that left through the same material
   Vec3 bounding_dir[4], bounding_normal[4];
   Vec3 bounding_P[4], bounding_Ng[4];  // the bounding rays' exit points and geometric normals
+  float bounding_t[4] = {};            // and their lengths inside
 };
 bool trace_segment(const GlimmerHostServices *host, const SgInputs &in, const Vec3 &origin, const Vec3 &axis,
                    float kappa_in, Segment &seg) {
@@ -134,6 +135,7 @@ bool trace_segment(const GlimmerHostServices *host, const SgInputs &in, const Ve
       ++count;
       seg.bounding_dir[seg.bounding_count] = dir;
       seg.bounding_P[seg.bounding_count] = Vec3(h.hit.P);
+      seg.bounding_t[seg.bounding_count] = h.hit.t;
       seg.bounding_Ng[seg.bounding_count] = Vec3(h.hit.Ng);
       seg.bounding_normal[seg.bounding_count++] = h.normal;
     }
@@ -229,6 +231,7 @@ bool build_exit_mixture(const TransmissionSgTable &table, const Segment &seg, co
     out.lobe_origin[k] = i < 0 ? Vec3(seg.axis.hit.P) : seg.bounding_P[i];
     out.lobe_Ng[k] = outward_unit(i < 0 ? Vec3(seg.axis.hit.Ng) : seg.bounding_Ng[i], n);
     out.lobe_weight[k] = w;
+    out.lobe_length[k] = i < 0 ? seg.axis.hit.t : seg.bounding_t[i];
     total += w;
   }
   if (!(total > 0.0f)) return false;
@@ -241,6 +244,7 @@ bool build_exit_mixture(const TransmissionSgTable &table, const Segment &seg, co
       out.lobe[n + k].sharpness = std::max(out.lobe[k].sharpness * 0.25f, 1e-3f);
       out.lobe_origin[n + k] = out.lobe_origin[k];
       out.lobe_Ng[n + k] = out.lobe_Ng[k];
+      out.lobe_length[n + k] = out.lobe_length[k];
       out.lobe_weight[n + k] = out.lobe_weight[k] * t;
       out.lobe[k].sharpness = std::min(out.lobe[k].sharpness * (1.0f - t) / (1.0f - 4.0f * t), 1e7f);
       out.lobe_weight[k] *= 1.0f - t;
@@ -344,9 +348,11 @@ bool trace_exit_lobe(const ShadingPoint &sp, const SgInputs &in, uint32_t seed, 
     out.roughness = std::clamp(std::sqrt(std::sqrt(2.0f / out.sg.sharpness)), 0.0f, 1.0f);
     (void)front_energy;
     out.lobe_count = 0;
+    out.axis_length = seg.axis.hit.t;
     if (in.variant == SgVariant::kMixture &&
         !build_exit_mixture(*in.table, seg, axis, kappa_in, kappa_geometric, ior, roughness_exit,
-                            in.mixture_variance, in.mixture_tail, out))
+                            in.mixture_variance,
+                            in.mixture_tail < 0.0f ? mixture_tail_for(in.roughness) : in.mixture_tail, out))
       return false;
     return is_finite(out.origin) && is_finite(out.sg.axis) && is_finite(out.weight);
   }
@@ -377,6 +383,8 @@ bool sample_sg_transmission(const ShadingPoint &sp, const SgInputs &in, const Ve
     int k = 0;
     wo = mixture.sample([&rng] { return rng.next(); }, &k);
     exit.sg = exit.lobe[k];
+    for (int ch = 0; ch < 3; ++ch)  // Beer over the picked ray's own last length instead of the axis'
+      if (in.sigma_a[ch] > 0.0f) exit.weight[ch] *= std::exp(-in.sigma_a[ch] * (exit.lobe_length[k] - exit.axis_length));
     exit.origin = exit.lobe_origin[k];
     exit.origin_Ng = exit.lobe_Ng[k];
     exit.roughness = std::clamp(std::sqrt(std::sqrt(2.0f / exit.sg.sharpness)), 0.0f, 1.0f);

@@ -485,9 +485,11 @@ double image_l1(const ImageEstimate &est, const ImageEstimate &ref) {
 struct MixtureKnobs {
   float variance, tail;  // frosted::SgInputs::mixture_variance / mixture_tail
 };
-constexpr MixtureKnobs kHarnessMixtures[] = {{0.0f, 0.0f},  {0.5f, 0.0f},  {1.0f, 0.0f},  {0.0f, 0.1f},
-                                             {0.0f, 0.15f}, {0.0f, 0.2f},  {0.5f, 0.1f}, {0.5f, 0.15f},
-                                             {0.5f, 0.2f}};
+// The last one is method=sg's default (frosted::default_sg_variant: the mixture with kDefaultMixtureVariance and
+// t = mixture_tail_for up to roughness kMixtureRoughnessMax, the single SG above).
+constexpr MixtureKnobs kHarnessMixtures[] = {{0.0f, 0.0f},  {0.5f, 0.0f}, {1.0f, 0.0f},  {0.0f, 0.15f},
+                                             {0.0f, 0.2f},  {0.5f, 0.1f}, {0.5f, 0.15f}, {0.5f, 0.2f},
+                                             {frosted::kDefaultMixtureVariance, frosted::kDefaultMixtureTail}};
 constexpr int kHarnessV = int(std::size(kHarnessMixtures));
 // Summed over the directions, in the reference's units (so the summary is the L1 over all pixels of all
 // directions relative to their total: a direction the light barely reaches weighs by its light).
@@ -495,7 +497,7 @@ struct HarnessErrors {
   double reference = 0.0;
   double single = 0.0, control = 0.0, mixture[kHarnessV] = {};  // sum |sg - ref| over pixels
   double single_signed = 0.0, mixture_signed[kHarnessV] = {};   // |sum (sg - ref)| per direction
-  int directions = 0;
+  int directions = 0, checked = 0;  // checked: directions where plain path checked the reference
 };
 
 HarnessErrors exit_harness(AnalyticScene::Kind kind, float roughness, float ior, int reference_spp, int sg_spp) {
@@ -522,10 +524,17 @@ HarnessErrors exit_harness(AnalyticScene::Kind kind, float roughness, float ior,
     scene.light_dir = Vec3(std::sin(a), 0.0f, -std::cos(a));
     const ImageEstimate ref = render_tiny(scene, path_sampler, reference_spp, 1, &path_eval);
     const ImageEstimate plain = render_tiny(scene, path_sampler, reference_spp / 4, 3);
+    // Plain path tracing checks the light-sampled reference where it sees the light often enough to have a
+    // meaningful standard error (relative se < 20 %: where the light is reached by rare paths only, its se is
+    // itself unreliable, e.g. 0.0008 +- 0.0002 against 0.0053 at roughness 0.1, 35 degrees).
+    const double plain_rel_se = image_total_se(plain) / std::max(image_total(plain), 1e-12);
     const double z = (image_total(ref) - image_total(plain)) / std::hypot(image_total_se(ref), image_total_se(plain));
-    EXPECT_LT(std::fabs(z), 5.0) << "light-sampled reference vs plain path, " << degrees << " deg: "
-                                 << image_total(ref) << " (se " << image_total_se(ref) << ") vs "
-                                 << image_total(plain) << " (se " << image_total_se(plain) << ")";
+    if (plain_rel_se < 0.2) {
+      ++out.checked;
+      EXPECT_LT(std::fabs(z), 5.0) << "light-sampled reference vs plain path, " << degrees << " deg: "
+                                   << image_total(ref) << " (se " << image_total_se(ref) << ") vs "
+                                   << image_total(plain) << " (se " << image_total_se(plain) << ")";
+    }
     const double total = image_total(ref);
     const ImageEstimate single = render_tiny(scene, variant(frosted::SgVariant::kTracedCone, {}), sg_spp, 2);
     const ImageEstimate ctl = render_tiny(scene, variant(frosted::SgVariant::kNoExitRefraction, {}), sg_spp, 2);
@@ -539,8 +548,11 @@ HarnessErrors exit_harness(AnalyticScene::Kind kind, float roughness, float ior,
                 double(roughness), double(degrees), total, 100.0 * image_total_se(ref) / total, std::fabs(z),
                 100.0 * e_single, 100.0 * image_l1(single, ref));
     for (int i = 0; i < kHarnessV; ++i) {
-      const ImageEstimate mix =
-          render_tiny(scene, variant(frosted::SgVariant::kMixture, kHarnessMixtures[i]), sg_spp, 2);
+      const bool is_default = i == kHarnessV - 1;  // method=sg as it is: the mixture up to kMixtureRoughnessMax
+      const ImageEstimate mix = render_tiny(
+          scene, variant(is_default ? frosted::default_sg_variant(roughness) : frosted::SgVariant::kMixture,
+                         kHarnessMixtures[i]),
+          sg_spp, 2);
       const double e = image_total(mix) / total - 1.0;
       out.mixture[i] += image_l1(mix, ref) * total;
       out.mixture_signed[i] += std::fabs(e) * total;
@@ -557,7 +569,7 @@ TEST(FrostedSgExitHarness, SmallLightMovedAroundSphereAndSlab) {
   const bool full = stress_scale() > 1;
   const int reference_spp = full ? 16384 : 4096, sg_spp = full ? 4096 : 1024;
   for (const AnalyticScene::Kind kind : {AnalyticScene::kSphere, AnalyticScene::kSlab}) {
-    for (const float roughness : {0.1f, 0.3f, 0.5f}) {
+    for (const float roughness : {0.1f, 0.3f, 0.5f, 0.8f}) {
       const HarnessErrors e = exit_harness(kind, roughness, 1.5f, reference_spp, sg_spp);
       const double n = e.reference;
       std::printf("[frosted harness] %s r %.1f over %d directions (light-weighted): L1 single %.1f %%, mixture",
@@ -573,6 +585,7 @@ TEST(FrostedSgExitHarness, SmallLightMovedAroundSphereAndSlab) {
       if (roughness <= 0.3f) {
         EXPECT_GT(e.control, 1.5 * e.single) << "negative control: " << roughness;
       }
+      EXPECT_GE(e.checked, 2) << "the reference was checked in too few directions";
     }
   }
 }
