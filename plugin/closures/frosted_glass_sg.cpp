@@ -383,8 +383,9 @@ bool sample_sg_transmission(const ShadingPoint &sp, const SgInputs &in, const Ve
     int k = 0;
     wo = mixture.sample([&rng] { return rng.next(); }, &k);
     exit.sg = exit.lobe[k];
-    for (int ch = 0; ch < 3; ++ch)  // Beer over the picked ray's own last length instead of the axis'
-      if (in.sigma_a[ch] > 0.0f) exit.weight[ch] *= std::exp(-in.sigma_a[ch] * (exit.lobe_length[k] - exit.axis_length));
+    const float extra_length = exit.lobe_length[k] - exit.axis_length;  // Beer over the picked ray's own length
+    for (int ch = 0; ch < 3; ++ch)
+      if (in.sigma_a[ch] > 0.0f) exit.weight[ch] *= std::exp(-in.sigma_a[ch] * extra_length);
     exit.origin = exit.lobe_origin[k];
     exit.origin_Ng = exit.lobe_Ng[k];
     exit.roughness = std::clamp(std::sqrt(std::sqrt(2.0f / exit.sg.sharpness)), 0.0f, 1.0f);

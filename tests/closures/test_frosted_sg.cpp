@@ -486,8 +486,8 @@ double image_l1(const ImageEstimate &est, const ImageEstimate &ref) {
 struct MixtureKnobs {
   float variance, tail;  // frosted::SgInputs::mixture_variance / mixture_tail
 };
-// The last one is method=sg's default (frosted::default_sg_variant: the mixture with kDefaultMixtureVariance and
-// t = mixture_tail_for up to roughness kMixtureRoughnessMax, the single SG above).
+// The last one is the proposed rule (frosted::mixture_rule_variant: the mixture with kDefaultMixtureVariance and
+// t = mixture_tail_for up to roughness kMixtureRoughnessMax, the single SG above; not method=sg's default yet).
 constexpr MixtureKnobs kHarnessMixtures[] = {{0.0f, 0.0f},  {0.5f, 0.0f}, {1.0f, 0.0f},  {0.0f, 0.15f},
                                              {0.0f, 0.2f},  {0.5f, 0.1f}, {0.5f, 0.15f}, {0.5f, 0.2f},
                                              {frosted::kDefaultMixtureVariance, frosted::kDefaultMixtureTail}};
@@ -552,10 +552,11 @@ HarnessErrors exit_harness(AnalyticScene::Kind kind, float roughness, float ior,
                 double(roughness), double(degrees), total, 100.0 * image_total_se(ref) / total, std::fabs(z),
                 100.0 * e_single, 100.0 * image_l1(single, ref));
     for (int i = 0; i < kHarnessV; ++i) {
-      const bool is_default = i == kHarnessV - 1;  // method=sg as it is: the mixture up to kMixtureRoughnessMax
+      // The last column: the proposed rule (the mixture up to kMixtureRoughnessMax, the single SG above).
+      const bool is_default = i == kHarnessV - 1;
       const std::clock_t c1 = std::clock();
       const ImageEstimate mix = render_tiny(
-          scene, variant(is_default ? frosted::default_sg_variant(roughness) : frosted::SgVariant::kMixture,
+          scene, variant(is_default ? frosted::mixture_rule_variant(roughness) : frosted::SgVariant::kMixture,
                          kHarnessMixtures[i]),
           sg_spp, 2);
       if (is_default) out.default_seconds += double(std::clock() - c1) / CLOCKS_PER_SEC;
@@ -587,10 +588,11 @@ TEST(FrostedSgExitHarness, SmallLightMovedAroundSphereAndSlab) {
       std::printf("; |signed| single %.1f %%, mixture", 100.0 * e.single_signed / n);
       for (int i = 0; i < kHarnessV; ++i) std::printf(" %.1f %%", 100.0 * e.mixture_signed[i] / n);
       std::printf("; control %.1f %%\n", 100.0 * e.control / n);
-      std::printf("[frosted harness] %s r %.1f: CPU time of the renders, default / single SG %.2f (%.1f / %.1f s)\n",
+      std::printf("[frosted harness] %s r %.1f: CPU time of the renders, mixture rule / single SG %.2f "
+                  "(%.1f / %.1f s)\n",
                   kind == AnalyticScene::kSphere ? "sphere" : "slab", double(roughness),
                   e.default_seconds / std::max(e.single_seconds, 1e-9), e.default_seconds, e.single_seconds);
-      // method=sg's mixture where it is used (roughness <= 0.4) against the single SG: measured light-weighted L1
+      // The mixture rule where it uses the mixture (roughness <= 0.4) against the single SG: measured light-weighted L1
       // at 1024 / 4096 paths, single -> default: sphere 0.1: 0.077 -> 0.094, 0.3: 0.527 -> 0.136; slab 0.1: 0.056
       // -> 0.029, 0.3: 0.425 -> 0.110. Bounds: at 0.3 the default at most half the single SG's error, and each
       // measured figure + ~30 %.
@@ -728,7 +730,7 @@ TEST(FrostedGlassSg, StressRawOutputsFiniteNonNegative) {
   const auto schema = FrostedGlassClosure::params();
   const long calls = 1000000 * long(stress_scale());
   const long blocks = 64;
-  std::atomic<long> bad_count{0}, moved{0}, samples{0};
+  std::atomic<long> bad_count{0}, moved{0}, samples{0}, mixture_moved{0};
   tbb::parallel_for(long(0), blocks, [&](long b) {
     Pcg32 r(900 + b);
     for (long i = 0; i < calls / blocks; ++i) {
@@ -751,12 +753,30 @@ TEST(FrostedGlassSg, StressRawOutputsFiniteNonNegative) {
       const ShadingPoint sp(&ctx, schema);
       const Vec3 wo = stress_direction(r, grazing);
       const Vec3 rand(r.next_float(), r.next_float(), r.next_float());
-      const long n_bad = glimmer::test::stress_eval_and_sample(c, sp, wo, rand, samples, moved);
+      long n_bad = glimmer::test::stress_eval_and_sample(c, sp, wo, rand, samples, moved);
+      // The exit lobe mixture (not method=sg's default yet): the same queries through kMixture, v and t at the
+      // ends of their ranges and NaN (clamped).
+      if (i % 2 == 0) {
+        LocalSample s;
+        if (c.sample(sp, rand, s) && c.uses_sg(sp) && (s.label & GLIMMER_LABEL_TRANSMIT)) {
+          const float vs[] = {0.0f, 0.5f, 1.0f, std::numeric_limits<float>::quiet_NaN()};
+          const float ts[] = {0.0f, 0.2f, 0.25f, -1.0f};
+          c.sample_sg(sp, rand, s, frosted::SgVariant::kMixture, vs[i / 2 % 4], ts[i / 4 % 4]);
+          n_bad += glimmer::test::bad_raw_outputs(LocalEval{}, true, s);
+          if (s.moved) {
+            mixture_moved.fetch_add(1);
+            n_bad += glimmer::test::bad_moved_sample(s, sp.frame.to_world(s.wo));
+          }
+        }
+      }
       if (n_bad) bad_count.fetch_add(n_bad);
     }
   });
   EXPECT_EQ(bad_count.load(), 0);
   EXPECT_GT(moved.load(), calls / 20);  // the sg estimator really ran
+  EXPECT_GT(mixture_moved.load(), calls / 40);  // and the mixture
+  std::printf("[frosted sg stress] exit lobe mixture: %ld moved samples (v 0..1 / NaN, t 0..0.25 / rule)\n",
+              mixture_moved.load());
   std::printf("[frosted sg stress] %ld eval + %ld sample calls (%ld sg moved samples), 1/4 grazing, half IOR 2.4; "
               "sphere / slab / odd host (t 0..inf, NaN, -1; NaN or zero normals; other closures): %ld bad\n",
               calls, samples.load(), moved.load(), bad_count.load());
