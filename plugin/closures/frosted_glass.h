@@ -158,13 +158,16 @@ class FrostedGlassClosure {
     if (!lobe.sample(sp.wi, rand, out)) return false;
     if (out.label & GLIMMER_LABEL_TRANSMIT) out.f_cos *= color_at(sp);
     out.f_cos *= interior_transmittance(sp);
-    if (uses_sg(sp) && (out.label & GLIMMER_LABEL_TRANSMIT)) sample_sg(sp, rand, out, frosted::SgVariant::kTracedCone);
+    if (uses_sg(sp) && (out.label & GLIMMER_LABEL_TRANSMIT))
+      sample_sg(sp, rand, out, frosted::default_sg_variant(sp.param_float(roughness_param_, roughness_)));
     return true;
   }
 
   // method=sg's transmission: replaces `front` (the front interface's transmitted sample) by the SG estimate
   // through the object when it applies (else `front` stays, as method=path). Public for the tests' variants.
-  void sample_sg(const ShadingPoint &sp, const Vec3 &rand, LocalSample &front, frosted::SgVariant variant) const {
+  void sample_sg(const ShadingPoint &sp, const Vec3 &rand, LocalSample &front, frosted::SgVariant variant,
+                 float mixture_variance = frosted::kDefaultMixtureVariance,
+                 float mixture_tail = frosted::kDefaultMixtureTail) const {
     frosted::SgInputs in;
     in.table = table_;
     in.self = reinterpret_cast<const GlimmerInstance *>(this);
@@ -177,6 +180,8 @@ class FrostedGlassClosure {
     in.ior = sp.param_float(ior_param_, ior_);
     in.sigma_a = beer_.sigma;
     in.variant = variant;
+    in.mixture_variance = mixture_variance;
+    in.mixture_tail = mixture_tail;
     LocalSample s;
     if (frosted::sample_sg_transmission(sp, in, rand, front, s)) front = s;
   }

@@ -115,6 +115,8 @@ struct Segment {
   float mean_length = 1.0f;
   int bounding_count = 0;  // bounding rays that left through the same material
   Vec3 bounding_dir[4], bounding_normal[4];
+  Vec3 bounding_P[4], bounding_Ng[4];  // the bounding rays' exit points and geometric normals
+  float bounding_t[4] = {};            // and their lengths inside
 };
 bool trace_segment(const GlimmerHostServices *host, const SgInputs &in, const Vec3 &origin, const Vec3 &axis,
                    float kappa_in, Segment &seg) {
@@ -132,6 +134,9 @@ bool trace_segment(const GlimmerHostServices *host, const SgInputs &in, const Ve
       sum += h.normal;
       ++count;
       seg.bounding_dir[seg.bounding_count] = dir;
+      seg.bounding_P[seg.bounding_count] = Vec3(h.hit.P);
+      seg.bounding_t[seg.bounding_count] = h.hit.t;
+      seg.bounding_Ng[seg.bounding_count] = Vec3(h.hit.Ng);
       seg.bounding_normal[seg.bounding_count++] = h.normal;
     }
   }
@@ -189,6 +194,64 @@ float mean_exit_energy(const TransmissionSgTable &table, const Segment &seg, flo
 
 float roulette(uint32_t seed, int event) {
   return float(hash_u32x3(seed, uint32_t(event), 0x5bd1e995u) >> 8) * 0x1p-24f;
+}
+
+Vec3 outward_unit(const Vec3 &Ng, const Vec3 &n) {
+  const Vec3 g = is_finite(Ng) && dot(Ng, Ng) > 1e-12f ? normalize(Ng) : n;
+  return dot(g, n) >= 0.0f ? g : -g;
+}
+
+// SgVariant::kMixture (frosted_glass_sg.h, "exit lobe mixture"): one lobe per traced ray that left, each refracted
+// through its own exit normal by the leaving table, weights (1 - s, s / 4 ...) x E_i, each lobe's width its exit
+// roughness convolved with the residual (1 - v) of the traced geometric spread. False: no lobe has energy.
+bool build_exit_mixture(const TransmissionSgTable &table, const Segment &seg, const Vec3 &axis, float kappa_in,
+                        float kappa_geometric, float ior, float roughness_exit, float variance, float tail,
+                        ExitLobe &out) {
+  const float v = std::clamp(std::isfinite(variance) ? variance : 0.0f, 0.0f, 1.0f);
+  const float theta_b = bounding_angle(kappa_in);
+  const float point_var = 0.5f * std::max(kappa_in, 1e-6f) * theta_b * theta_b;  // the variance share at s = 1
+  const float s = seg.bounding_count > 0 ? std::clamp(v / std::max(point_var, 1e-6f), 0.0f, 1.0f) : 0.0f;
+  const float residual = 1.0f - std::min(1.0f, s * point_var);  // the variance the points do not carry
+  const float r = std::clamp(roughness_exit, TransmissionSgTable::kRoughnessMin, kTableRoughnessMax);
+  out.lobe_count = 0;
+  float total = 0.0f;
+  for (int i = -1; i < seg.bounding_count; ++i) {
+    const Vec3 d = i < 0 ? axis : seg.bounding_dir[i];
+    const Vec3 n = i < 0 ? seg.axis.normal : seg.bounding_normal[i];
+    SphericalGaussian lobe;
+    float energy = 0.0f;
+    if (!table_lobe(table, Frame::from_normal(-n), -d, 1.0f / ior, r, lobe, energy)) continue;
+    const float share = i < 0 ? 1.0f - s * float(seg.bounding_count) / 4.0f : s / 4.0f;
+    const float w = share * energy;
+    if (!(w > 0.0f) || !is_finite(lobe.axis)) continue;
+    const int k = out.lobe_count++;
+    out.lobe[k] = lobe;
+    out.lobe[k].sharpness =
+        std::clamp(1.0f / (1.0f / lobe.sharpness + residual / std::max(kappa_geometric, 1e-6f)), 1e-3f, 1e7f);
+    out.lobe_origin[k] = i < 0 ? Vec3(seg.axis.hit.P) : seg.bounding_P[i];
+    out.lobe_Ng[k] = outward_unit(i < 0 ? Vec3(seg.axis.hit.Ng) : seg.bounding_Ng[i], n);
+    out.lobe_weight[k] = w;
+    out.lobe_length[k] = i < 0 ? seg.axis.hit.t : seg.bounding_t[i];
+    total += w;
+  }
+  if (!(total > 0.0f)) return false;
+  for (int k = 0; k < out.lobe_count; ++k) out.lobe_weight[k] /= total;
+  const float t = std::clamp(std::isfinite(tail) ? tail : 0.0f, 0.0f, 0.2f);
+  if (t > 0.0f) {  // core (1 - t, kappa (1 - t) / (1 - 4 t)) + tail (t, kappa / 4): the same variance
+    const int n = out.lobe_count;
+    for (int k = 0; k < n; ++k) {
+      out.lobe[n + k] = out.lobe[k];
+      out.lobe[n + k].sharpness = std::max(out.lobe[k].sharpness * 0.25f, 1e-3f);
+      out.lobe_origin[n + k] = out.lobe_origin[k];
+      out.lobe_Ng[n + k] = out.lobe_Ng[k];
+      out.lobe_length[n + k] = out.lobe_length[k];
+      out.lobe_weight[n + k] = out.lobe_weight[k] * t;
+      out.lobe[k].sharpness = std::min(out.lobe[k].sharpness * (1.0f - t) / (1.0f - 4.0f * t), 1e7f);
+      out.lobe_weight[k] *= 1.0f - t;
+    }
+    out.lobe_count = 2 * n;
+  }
+  return true;
 }
 
 }  // namespace
@@ -284,6 +347,13 @@ bool trace_exit_lobe(const ShadingPoint &sp, const SgInputs &in, uint32_t seed, 
     for (int ch = 0; ch < 3; ++ch) out.weight[ch] *= std::exp(-in.sigma_a[ch] * inside_length);
     out.roughness = std::clamp(std::sqrt(std::sqrt(2.0f / out.sg.sharpness)), 0.0f, 1.0f);
     (void)front_energy;
+    out.lobe_count = 0;
+    out.axis_length = seg.axis.hit.t;
+    if (in.variant == SgVariant::kMixture &&
+        !build_exit_mixture(*in.table, seg, axis, kappa_in, kappa_geometric, ior, roughness_exit,
+                            in.mixture_variance,
+                            in.mixture_tail < 0.0f ? mixture_tail_for(in.roughness) : in.mixture_tail, out))
+      return false;
     return is_finite(out.origin) && is_finite(out.sg.axis) && is_finite(out.weight);
   }
   return false;
@@ -301,11 +371,31 @@ bool sample_sg_transmission(const ShadingPoint &sp, const SgInputs &in, const Ve
   // density the host uses for light sampling at the exit). The weight stays: the SG's energy is the lobe's,
   // whatever its part below the surface.
   mf::WalkRng rng(hash_u32x2(seed, 0x9e3779b9u));
-  glimmer::ExitLobe lobe;
-  lobe.axis = exit.sg.axis;
-  lobe.kappa = exit.sg.sharpness;
-  lobe.n = exit.origin_Ng;
-  const Vec3 wo = lobe.sample([&rng] { return rng.next(); });
+  Vec3 wo;
+  if (exit.lobe_count > 0) {  // kMixture: one lobe picked by its share (the expectation is the mixture's)
+    glimmer::ExitLobeMixture mixture;
+    mixture.count = std::min(exit.lobe_count, glimmer::ExitLobeMixture::kMaxLobes);
+    for (int k = 0; k < mixture.count; ++k) {
+      mixture.lobe[k] = glimmer::ExitLobe{exit.lobe[k].axis, exit.lobe[k].sharpness, exit.lobe_Ng[k], 0.0};
+      mixture.weight[k] = exit.lobe_weight[k];
+    }
+    mixture.normalize();
+    int k = 0;
+    wo = mixture.sample([&rng] { return rng.next(); }, &k);
+    exit.sg = exit.lobe[k];
+    const float extra_length = exit.lobe_length[k] - exit.axis_length;  // Beer over the picked ray's own length
+    for (int ch = 0; ch < 3; ++ch)
+      if (in.sigma_a[ch] > 0.0f) exit.weight[ch] *= std::exp(-in.sigma_a[ch] * extra_length);
+    exit.origin = exit.lobe_origin[k];
+    exit.origin_Ng = exit.lobe_Ng[k];
+    exit.roughness = std::clamp(std::sqrt(std::sqrt(2.0f / exit.sg.sharpness)), 0.0f, 1.0f);
+  } else {
+    glimmer::ExitLobe lobe;
+    lobe.axis = exit.sg.axis;
+    lobe.kappa = exit.sg.sharpness;
+    lobe.n = exit.origin_Ng;
+    wo = lobe.sample([&rng] { return rng.next(); });
+  }
   if (!(dot(wo, exit.origin_Ng) > 0.0f)) return false;
   const Spectrum weight = front.f_cos / front.pdf * exit.weight;
   if (!is_finite(weight) || !is_finite(wo)) return false;

@@ -107,12 +107,13 @@ TEST(FrostedExitLobe, DensityIntegratesToOneOutside) {
 
 // chi2 of draws by ExitLobe::sample against `pdf`, on an equal-area (cos beta, phi) grid of the outside;
 // expected counts by a 12 x 12 midpoint sub-grid per cell, cells below 5 expected pooled.
-double exit_lobe_chi2_p(const ExitLobe &lobe, const std::function<double(const Vec3 &)> &pdf, long n_draws) {
+double exit_lobe_chi2_p(const std::function<Vec3(Pcg32 &)> &draw, const std::function<double(const Vec3 &)> &pdf,
+                        long n_draws) {
   constexpr int kMu = 64, kPhi = 128, kSub = 12;
   std::vector<double> observed(kMu * kPhi, 0.0), expected(kMu * kPhi, 0.0);
   Pcg32 rng(12345);
   for (long i = 0; i < n_draws; ++i) {
-    const Vec3 w = lobe.sample([&rng] { return rng.next_float(); });
+    const Vec3 w = draw(rng);
     if (!(w.z > 0.0f)) continue;
     const int mu = std::min(int(w.z * kMu), kMu - 1);
     double phi = std::atan2(double(w.y), double(w.x));
@@ -148,6 +149,10 @@ double exit_lobe_chi2_p(const ExitLobe &lobe, const std::function<double(const V
   }
   return lab::chi2_survival(chi2, std::max(cells - 1, 1));
 }
+double exit_lobe_chi2_p(const ExitLobe &lobe, const std::function<double(const Vec3 &)> &pdf, long n_draws) {
+  return exit_lobe_chi2_p([&lobe](Pcg32 &rng) { return lobe.sample([&rng] { return rng.next_float(); }); }, pdf,
+                          n_draws);
+}
 
 TEST(FrostedExitLobe, SamplingMatchesTheDensityChi2) {
   const Vec3 n(0, 0, 1);
@@ -171,6 +176,100 @@ TEST(FrostedExitLobe, SamplingMatchesTheDensityChi2) {
     }
   }
   std::printf("[exit lobe] chi2, %zu lobes x 1e6 draws: min p %.4f (Sidak threshold %.2e)\n", std::size(configs), min_p,
+              threshold);
+}
+
+// ---- The exit lobe mixture (ExitLobeMixture, frosted sg's kMixture exit, issue 12) ----------------------------
+// Mixtures like the ones the plugin builds: 5 lobes (an axis and 4 around it at the bounding angle's image),
+// weights 1 - s, s / 4 (times unequal energies), some split into a core and a tail (sharper and 4x wider), some with
+// the exit surface tilted per lobe (each lobe leaves at its own exit point).
+ExitLobeMixture test_mixture(int which) {
+  ExitLobeMixture m;
+  const double tilt = which == 2 ? 12.0 : 0.0;  // per-lobe exit normals tilted by up to this (degrees)
+  const double base_alpha[3] = {20.0, 70.0, 40.0}, base_kappa[3] = {40.0, 25.0, 200.0};
+  const double spread = 9.0;  // degrees between the axis and the others
+  for (int k = 0; k < 5; ++k) {
+    const double phi = k == 0 ? 0.0 : (k - 1) * 0.5 * M_PI;
+    const double off = k == 0 ? 0.0 : spread * M_PI / 180.0;
+    const Vec3 a = axis_at(base_alpha[which]);
+    const Frame f = Frame::from_normal(a);
+    const Vec3 axis = normalize(f.to_world(Vec3(float(std::sin(off) * std::cos(phi)),
+                                                float(std::sin(off) * std::sin(phi)), float(std::cos(off)))));
+    const double t = tilt * M_PI / 180.0 * (k == 0 ? 0.0 : 1.0);
+    const Vec3 n = normalize(Vec3(float(std::sin(t) * std::cos(phi)), float(std::sin(t) * std::sin(phi)),
+                                  float(std::cos(t))));
+    m.lobe[m.count] = ExitLobe::make(axis, base_kappa[which] * (1.0 + 0.3 * k), n);
+    m.weight[m.count++] = (k == 0 ? 0.6 : 0.1) * (1.0 - 0.05 * k);
+  }
+  if (which == 1) {  // core (0.9, kappa x 1.5) + tail (0.1, kappa / 4) per lobe
+    const int n = m.count;
+    for (int k = 0; k < n; ++k) {
+      m.lobe[n + k] = ExitLobe::make(m.lobe[k].axis, m.lobe[k].kappa * 0.25, m.lobe[k].n);
+      m.weight[n + k] = 0.1 * m.weight[k];
+      m.lobe[k] = ExitLobe::make(m.lobe[k].axis, m.lobe[k].kappa * 1.5, m.lobe[k].n);
+      m.weight[k] *= 0.9;
+    }
+    m.count = 2 * n;
+  }
+  m.normalize();
+  return m;
+}
+
+// Int over the whole sphere of f (midpoint rule in (beta, phi) about +z).
+double integrate_sphere(const std::function<double(const Vec3 &)> &f, int n_beta, int n_phi) {
+  double sum = 0.0;
+  const double d_beta = M_PI / n_beta, d_phi = 2.0 * M_PI / n_phi;
+  for (int i = 0; i < n_beta; ++i) {
+    const double beta = (i + 0.5) * d_beta, sb = std::sin(beta), cb = std::cos(beta);
+    double row = 0.0;
+    for (int j = 0; j < n_phi; ++j) {
+      const double phi = (j + 0.5) * d_phi;
+      row += f(Vec3(float(sb * std::cos(phi)), float(sb * std::sin(phi)), float(cb)));
+    }
+    sum += row * sb;
+  }
+  return sum * d_beta * d_phi;
+}
+
+TEST(FrostedExitLobe, MixtureDensityIntegratesToOne) {
+  double worst = 0.0;
+  for (int which = 0; which < 3; ++which) {
+    const ExitLobeMixture m = test_mixture(which);
+    double wsum = 0.0;
+    for (int k = 0; k < m.count; ++k) wsum += m.weight[k];
+    EXPECT_NEAR(wsum, 1.0, 1e-12);
+    const double integral = integrate_sphere([&](const Vec3 &w) { return m.pdf(w); }, 8192, 2048);
+    worst = std::max(worst, std::fabs(integral - 1.0));
+    EXPECT_NEAR(integral, 1.0, 2e-4) << "mixture " << which;
+    // Negative control: the weights left unnormalised (the energies' sum, not 1) integrate to that sum.
+    ExitLobeMixture raw = test_mixture(which);
+    double raw_sum = 0.0;
+    for (int k = 0; k < raw.count; ++k) raw_sum += (raw.weight[k] *= 0.9 + 0.02 * k);
+    const double raw_integral = integrate_sphere([&](const Vec3 &w) { return raw.pdf(w); }, 2048, 1024);
+    EXPECT_GT(std::fabs(raw_integral - 1.0), 50 * 2e-4) << "mixture " << which;
+    EXPECT_NEAR(raw_integral, raw_sum, 1e-3) << "mixture " << which;
+  }
+  std::printf("[exit lobe] mixture Int pdf over the sphere, 3 mixtures (5 lobes; core + tail; tilted exit normals): "
+              "worst |1 - Int| = %.2e\n", worst);
+}
+
+TEST(FrostedExitLobe, MixtureSamplingMatchesTheDensityChi2) {
+  const double threshold = glimmer::mftest::sidak_threshold(3);
+  double min_p = 1.0;
+  for (int which = 0; which < 3; ++which) {
+    const ExitLobeMixture m = test_mixture(which);
+    const auto draw = [&m](Pcg32 &rng) { return m.sample([&rng] { return rng.next_float(); }); };
+    const double p = exit_lobe_chi2_p(draw, [&](const Vec3 &w) { return m.pdf(w); }, 1000000);
+    min_p = std::min(min_p, p);
+    EXPECT_GT(p, threshold) << "mixture " << which;
+    // Negative control: the density with equal weights (the picking rule ignored) is rejected.
+    ExitLobeMixture equal = m;
+    for (int k = 0; k < equal.count; ++k) equal.weight[k] = 1.0 / equal.count;
+    const double p_wrong = exit_lobe_chi2_p(draw, [&](const Vec3 &w) { return equal.pdf(w); }, 1000000);
+    EXPECT_LT(p_wrong, threshold) << "mixture " << which;
+    std::printf("[exit lobe] mixture %d: chi2 p %.4f; equal-weights density p %.2e\n", which, p, p_wrong);
+  }
+  std::printf("[exit lobe] mixture chi2, 3 mixtures x 1e6 draws: min p %.4f (Sidak threshold %.2e)\n", min_p,
               threshold);
 }
 

@@ -154,4 +154,47 @@ struct ExitLobe {
   }
 };
 
+// A mixture of exit lobes (frosted_glass method=sg's exit lobe mixture, issue 12: one lobe per traced ray, each
+// with its own axis, sharpness, exit surface and share of the energy). Sampling picks lobe k with probability
+// weight[k] (the first uniform number), then draws from it by ExitLobe::sample; the density is
+// sum_k weight[k] ExitLobe::pdf_k(w), which integrates to sum_k weight[k] = 1 (each lobe over its own outside).
+// The plugin reports the picked lobe to the host (ABI 2.4 fields), so the host's estimators (exit NEE, lamps
+// through the lobe, the world's cone lookup) see one lobe per sample: their expectation is the mixture's.
+struct ExitLobeMixture {
+  static constexpr int kMaxLobes = 10;
+  int count = 0;
+  ExitLobe lobe[kMaxLobes];
+  double weight[kMaxLobes] = {};  // >= 0, sum 1 (normalize())
+
+  void normalize() {
+    double sum = 0.0;
+    for (int k = 0; k < count; ++k) sum += weight[k] > 0.0 ? weight[k] : 0.0;
+    for (int k = 0; k < count; ++k) weight[k] = sum > 0.0 && weight[k] > 0.0 ? weight[k] / sum : 0.0;
+  }
+  // The lobe the number u in [0, 1) picks (by the cumulative weights; never one of weight 0 unless all are).
+  int pick(double u) const {
+    double c = 0.0;
+    int last = 0;
+    for (int k = 0; k < count; ++k) {
+      if (!(weight[k] > 0.0)) continue;
+      last = k;
+      c += weight[k];
+      if (u < c) return k;
+    }
+    return last;
+  }
+  template <class Uniform>
+  Vec3 sample(Uniform &&uniform, int *picked = nullptr) const {
+    const int k = pick(double(uniform()));
+    if (picked) *picked = k;
+    return lobe[k].sample(uniform);
+  }
+  double pdf(const Vec3 &w) const {
+    double p = 0.0;
+    for (int k = 0; k < count; ++k)
+      if (weight[k] > 0.0) p += weight[k] * lobe[k].pdf(w);
+    return p;
+  }
+};
+
 }  // namespace glimmer
