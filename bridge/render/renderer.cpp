@@ -884,16 +884,15 @@ struct Renderer::Impl {
   }
 
   // One path (Cycles' integrator loop: intersect_closest, shade_light / shade_background, shade_surface).
-  // `sets` is pixel (px, py)'s sampler state, started for this sample's pass (render()).
-  Spectrum trace_path(int px, int py, PixelSets &sets, uint32_t sample_index, PixelAov &aov,
-                      uint64_t &nan_count) const {
+  Spectrum trace_path(int px, int py, uint32_t sample_index, PixelAov &aov, uint64_t &nan_count) const {
     const BounceLimits limits(scene.integrator);
-    const PixelSampler sampler = sets.sampler(sample_index);
-    const uint32_t path_seed = hash_combine(sets.pixel_seed(), sample_index);  // hash_u32x3(seed, pixel, sample)
+    const uint32_t pixel_index = static_cast<uint32_t>(py) * static_cast<uint32_t>(width) + static_cast<uint32_t>(px);
+    const PixelSampler sampler(seed, pixel_index, sample_index);
+    const uint32_t path_seed = hash_u32x3(seed, pixel_index, sample_index);
     // The camera set (film position and vertex 0's BSDF numbers, jointly stratified) and vertex 0's light set,
     // drawn together (docs/architecture.md "Sample dimensions").
     float film_uv[2], bsdf_rand[4], light_rand[2];
-    sets.get_path_start(sampler, film_uv, bsdf_rand, light_rand);
+    sampler.get_path_start(film_uv, bsdf_rand, light_rand);
     PathRay ray = sample_camera_ray(px, py, film_uv, sampler);
     PathRadiance pr;
     pr.nan_count = &nan_count;
@@ -921,7 +920,7 @@ struct Renderer::Impl {
       // The vertex's 4D BSDF set: x, y (closure pick, then the closure's direction), z (its third number),
       // rr (Russian roulette), and its 2D light set (u, v), drawn together so that the two chains overlap
       // (vertex 0's from the camera set above; every iteration that goes on advances the vertex).
-      if (ps.sample_vertex() > 0) sets.get_vertex(sampler, ps.sample_vertex(), bsdf_rand, light_rand);
+      if (ps.sample_vertex() > 0) sampler.get_vertex(ps.sample_vertex(), bsdf_rand, light_rand);
       if (!survives_russian_roulette(ps, limits, bsdf_rand[3], pr.throughput)) break;
       const float transparent_weight = std::fabs(average(cs.transparent));
       const float total_sw = cs.sum_sample_weight + transparent_weight;
@@ -1031,15 +1030,12 @@ RenderResult Renderer::render(const std::function<void(int, int)> &progress, con
     const int count = std::min(film.passes() == 0 ? 1 : batch, part.sample_end - s);
     tbb::parallel_for(tbb::blocked_range2d<int>(y0, y1, tile, x0, x1, tile), [&](const tbb::blocked_range2d<int> &br) {
       uint64_t nans = 0, traced = 0;
-      PixelSets sets;  // a pixel's sampler state, started per pixel: its seeds serve the pass's samples
       for (int y = br.rows().begin(); y < br.rows().end(); ++y) {
         if (im.options.cancel && im.options.cancel->load()) break;  // answer SIGINT within a tile row
         for (int x = br.cols().begin(); x < br.cols().end(); ++x) {
-          const uint32_t pixel_index = static_cast<uint32_t>(y) * static_cast<uint32_t>(im.width) + static_cast<uint32_t>(x);
-          sets.start(hash_u32x2(im.seed, pixel_index), count);
           for (int k = 0; k < count; ++k) {
             Impl::PixelAov aov;
-            const Spectrum L = im.trace_path(x, y, sets, static_cast<uint32_t>(s + k), aov, nans);
+            const Spectrum L = im.trace_path(x, y, static_cast<uint32_t>(s + k), aov, nans);
             if (!film.add(static_cast<size_t>(y) * im.width + x, L, aov.alpha, aov.albedo, aov.normal, aov.depth))
               ++nans;  // a finite sample can still overflow the pixel's sum: dropped and counted
             ++traced;

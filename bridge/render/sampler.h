@@ -179,14 +179,9 @@ constexpr int kCameraFilmPair = 0, kCameraBsdfXyPair = 1, kCameraBsdfZrrPair = 2
 struct PixelSampler {
   uint32_t pixel_seed;        // hash of (seed, pixel)
   uint32_t sample_reversed;   // reverse_bits(sample index)
-  friend class PixelSets;
 
   PixelSampler(uint32_t seed, uint32_t pixel_index, uint32_t sample_index)
       : pixel_seed(hash_u32x2(seed, pixel_index)), sample_reversed(reverse_bits(sample_index)) {}
-  // From the pixel's seed (hash_u32x2(seed, pixel_index)), already computed.
-  struct FromPixelSeed {};
-  PixelSampler(FromPixelSeed, uint32_t pixel_seed_, uint32_t sample_index)
-      : pixel_seed(pixel_seed_), sample_reversed(reverse_bits(sample_index)) {}
 
   // The first N Sobol dimensions of set `set` at this sample, each in [0, 1). Dimensions go by pairs: one
   // table look-up per index byte for both, one scramble each, one 64-bit reversal for both.
@@ -249,8 +244,8 @@ struct PixelSampler {
   struct Set {
     uint32_t seed, index_reversed;
   };
-  [[gnu::always_inline]] Set start_set(uint32_t set) const { return start_set_seeded(sample_reversed, hash_combine(pixel_seed, set)); }
-  [[gnu::always_inline]] static Set start_set_seeded(uint32_t sample_reversed, uint32_t set_seed) {
+  [[gnu::always_inline]] Set start_set(uint32_t set) const {
+    const uint32_t set_seed = hash_combine(pixel_seed, set);
     return {set_seed, laine_karras_permutation(sample_reversed, set_seed)};
   }
   // Dimensions 2p and 2p + 1 of set s into out[first] and out[first + 1] (the second only if N has it): one
@@ -263,77 +258,6 @@ struct PixelSampler {
     if (first + 1 < N)
       out[first + 1] =
           reversed_to_unit_float(laine_karras_permutation(static_cast<uint32_t>(sobol >> 32), dimension_seed(s.seed, 2 * p + 1)));
-  }
-};
-
-// A pixel's sampler state across the samples it draws in one render pass (the render loop keeps one per
-// thread and starts it at every pixel): the set seeds hash_combine(pixel_seed, set) (a PCG hash each), which
-// depend on the pixel and the set but not on the sample, are computed once per pixel and pass instead of
-// once per path. Seeds are added lazily, vertex by vertex, as the pass's paths reach them (kCachedVertices at
-// most; deeper vertices draw as PixelSampler does). A pass of one sample per pixel (large images) gains
-// nothing from it, so there every draw is PixelSampler's. The values are PixelSampler's bit for bit
-// (Sampler.PixelSetsDrawThePixelSamplersValues), except vertex 0's rr, which get_path_start does not draw:
-// Russian roulette needs bounce > min_bounce + 1 >= 1 (survives_russian_roulette; min_bounce >= 0 by the
-// schema), so no path reads it; it is set to 1, with which a path that did read it would end at once (the
-// golden images would show it).
-class PixelSets {
- public:
-  static constexpr int kCachedVertices = 16;
-  static constexpr int kMinSamples = 2;
-
-  // Starts pixel `pixel_seed` (hash_u32x2(seed, pixel index)) for `count` samples.
-  void start(uint32_t pixel_seed, int count) {
-    pixel_seed_ = pixel_seed;
-    cached_ = count >= kMinSamples;
-    vertices_ = 0;
-  }
-  uint32_t pixel_seed() const { return pixel_seed_; }
-  bool cached() const { return cached_; }
-  // The sampler of one sample of this pixel (lens and exit sets, and the draws below).
-  PixelSampler sampler(uint32_t sample_index) const { return {PixelSampler::FromPixelSeed{}, pixel_seed_, sample_index}; }
-
-  // PixelSampler::get_path_start of sample s, without vertex 0's rr (bsdf[3] = 1).
-  void get_path_start(const PixelSampler &s, float (&film)[2], float (&bsdf)[4], float (&light)[2]) {
-    uint32_t camera_seed, light_seed;
-    if (cached_) {
-      if (vertices_ == 0) add_vertices(0);
-      camera_seed = seeds_[0][kSetBsdf];
-      light_seed = seeds_[0][kSetLight];
-    } else {
-      camera_seed = hash_combine(pixel_seed_, kSetCamera);
-      light_seed = hash_combine(pixel_seed_, bounce_set(0, kSetLight));
-    }
-    const PixelSampler::Set c = PixelSampler::start_set_seeded(s.sample_reversed, camera_seed);
-    const PixelSampler::Set l = PixelSampler::start_set_seeded(s.sample_reversed, light_seed);
-    PixelSampler::pair_values(c, kCameraFilmPair, film, 0);
-    PixelSampler::pair_values(l, 0, light, 0);
-    PixelSampler::pair_values(c, kCameraBsdfXyPair, bsdf, 0);
-    float z[1];
-    PixelSampler::pair_values(c, kCameraBsdfZrrPair, z, 0);
-    bsdf[2] = z[0];
-    bsdf[3] = 1.0f;  // vertex 0's rr: never read (see above)
-  }
-  // PixelSampler::get_vertex of sample s, for vertex >= 1 (vertex 0's sets come from get_path_start).
-  void get_vertex(const PixelSampler &s, int vertex, float (&bsdf)[4], float (&light)[2]) {
-    if (!cached_ || vertex >= kCachedVertices) return s.get_vertex(vertex, bsdf, light);
-    if (vertex >= vertices_) add_vertices(vertex);
-    const PixelSampler::Set b = PixelSampler::start_set_seeded(s.sample_reversed, seeds_[vertex][kSetBsdf]);
-    const PixelSampler::Set l = PixelSampler::start_set_seeded(s.sample_reversed, seeds_[vertex][kSetLight]);
-    PixelSampler::pair_values(b, 0, bsdf, 0);
-    PixelSampler::pair_values(l, 0, light, 0);
-    PixelSampler::pair_values(b, 1, bsdf, 2);
-  }
-
- private:
-  uint32_t pixel_seed_ = 0u;
-  bool cached_ = false;
-  int vertices_ = 0;
-  uint32_t seeds_[kCachedVertices][kSetsPerBounce];  // [vertex][kSetBsdf / kSetLight]; vertex 0: the camera set
-
-  // The set seeds of vertices vertices_ .. last (once per pixel and pass each).
-  [[gnu::noinline]] void add_vertices(int last) {
-    for (; vertices_ <= last; ++vertices_)
-      for (uint32_t which : {kSetBsdf, kSetLight}) seeds_[vertices_][which] = hash_combine(pixel_seed_, bounce_set(vertices_, which));
   }
 };
 

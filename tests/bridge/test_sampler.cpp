@@ -263,64 +263,6 @@ TEST(Sampler, PathStartSetsEqualTheSetsApart) {
     }
 }
 
-// PixelSets (a pixel's sampler state across the samples of a pass: its set seeds, computed once) draws exactly
-// PixelSampler's values: passes of 1 (uncached) and 2+ samples, high sample indices, vertices drawn out of
-// order (lazy filling) and past the cache. Vertex 0's rr is not drawn (1). Negative control: a state not
-// restarted for the next pixel gives other values.
-TEST(Sampler, PixelSetsDrawThePixelSamplersValues) {
-  struct Pass {
-    uint32_t first, last;
-  };
-  const Pass passes[] = {{0, 0}, {0, 1}, {0, 6}, {250, 262}, {65533, 65540}, {4000000000u, 4000000006u}};
-  int cached = 0, uncached = 0;
-  for (uint32_t pixel : {0u, 17u, 4095u, 123456u})
-    for (const Pass &pass : passes) {
-      PixelSets sets;
-      const int count = static_cast<int>(pass.last - pass.first + 1);
-      sets.start(hash_u32x2(99u, pixel), count);
-      ASSERT_EQ(sets.pixel_seed(), PixelSampler(99u, pixel, 0u).pixel_seed);
-      ASSERT_EQ(sets.cached(), count >= PixelSets::kMinSamples);
-      for (uint32_t s = pass.first; s <= pass.last; ++s) {
-        const PixelSampler reference(99u, pixel, s), sampler = sets.sampler(s);
-        ASSERT_EQ(sampler.sample_reversed, reference.sample_reversed);
-        float film[2], bsdf[4], light[2], film0[2], bsdf0[4], light0[2];
-        sets.get_path_start(sampler, film, bsdf, light);
-        reference.get_path_start(film0, bsdf0, light0);
-        for (int d = 0; d < 2; ++d) ASSERT_EQ(film[d], film0[d]) << pixel << " " << s;
-        for (int d = 0; d < 3; ++d) ASSERT_EQ(bsdf[d], bsdf0[d]) << pixel << " " << s;
-        ASSERT_EQ(bsdf[3], 1.0f);
-        for (int d = 0; d < 2; ++d) ASSERT_EQ(light[d], light0[d]) << pixel << " " << s;
-        // Vertices in a different order per sample: the state fills lazily, whatever the order.
-        for (int k = 1; k < PixelSets::kCachedVertices + 4; ++k) {
-          const int vertex = 1 + static_cast<int>((static_cast<uint32_t>(k) * 7u + s) % (PixelSets::kCachedVertices + 3));
-          sets.get_vertex(sampler, vertex, bsdf, light);
-          reference.get_vertex(vertex, bsdf0, light0);
-          for (int d = 0; d < 4; ++d) ASSERT_EQ(bsdf[d], bsdf0[d]) << pixel << " " << s << " " << vertex;
-          for (int d = 0; d < 2; ++d) ASSERT_EQ(light[d], light0[d]) << pixel << " " << s << " " << vertex;
-          ++(sets.cached() ? cached : uncached);
-        }
-      }
-    }
-  EXPECT_GT(cached, 1000);
-  EXPECT_GT(uncached, 50);
-  // Negative control: the state of pixel p (filled to vertex 4) used for pixel p + 1 without a restart.
-  int differs = 0, checked = 0;
-  for (uint32_t pixel = 0; pixel < 64; ++pixel) {
-    PixelSets sets;
-    sets.start(hash_u32x2(99u, pixel), 4);
-    float bsdf[4], light[2], bsdf0[4], light0[2];
-    for (int vertex = 1; vertex < 5; ++vertex) sets.get_vertex(sets.sampler(0u), vertex, bsdf, light);
-    const PixelSampler next(99u, pixel + 1, 1u);
-    for (int vertex = 1; vertex < 5; ++vertex) {
-      sets.get_vertex(next, vertex, bsdf, light);
-      next.get_vertex(vertex, bsdf0, light0);
-      ++checked;
-      if (bsdf[0] != bsdf0[0] || bsdf[1] != bsdf0[1] || light[0] != light0[0]) ++differs;
-    }
-  }
-  EXPECT_GT(differs, checked * 9 / 10);
-}
-
 TEST(Sampler, PureFunctionOfItsArguments) {
   float a[4], b[4], c[4], d[4];
   PixelSampler(7u, 100u, 33u).get(bounce_set(2, kSetBsdf), a);
