@@ -3,6 +3,7 @@
 #include "tables/frosted_sg_table.h"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -216,11 +217,11 @@ TransmissionLobe fit_transmission_lobe(float cos_theta_i, float eta, float rough
     Direction wo;
     double weight;
   };
-  std::vector<Sample> samples;
-  samples.reserve(size_t(strata) * strata);
+  std::vector<Sample> samples;  // for the L2 sharpness only (the table's moment fit needs the sums)
+  if (how == SharpnessFit::kL2) samples.reserve(size_t(strata) * strata);
   double energy = 0.0, mx = 0.0, my = 0.0, mz = 0.0;
   for_each_transmitted(wi, eta, roughness, strata, [&](const Direction &wo, double weight, double) {
-    samples.push_back({wo, weight});
+    if (how == SharpnessFit::kL2) samples.push_back({wo, weight});
     energy += weight;
     mx += weight * wo.x;
     my += weight * wo.y;
@@ -339,7 +340,7 @@ float TransmissionSgTable::roughness_at(int j) {
 }
 float TransmissionSgTable::ior_at(int k) { return kIorMin + (kIorMax - kIorMin) * k / (kIorNodes - 1); }
 
-TransmissionLobe TransmissionSgTable::fit_node(size_t idx) const {
+TransmissionLobe TransmissionSgTable::fit_node(size_t idx) {
   const int k = int(idx % kIorNodes), j = int(idx / kIorNodes % kRoughnessNodes);
   const int first = int(idx / (size_t(kIorNodes) * kRoughnessNodes));  // theta nodes, then sine nodes
   const int side = first < kThetaNodes ? 0 : 1;
@@ -355,16 +356,31 @@ TransmissionLobe TransmissionSgTable::fit_node(size_t idx) const {
   return fit_transmission_lobe(cos_theta, side == 0 ? ior : 1.0f / ior, roughness_at(j));
 }
 
-TransmissionSgTable::TransmissionSgTable(Empty) : nodes_(size_t(kThetaNodes + kSineNodes) * kRoughnessNodes * kIorNodes) {}
+TransmissionSgTable::TransmissionSgTable(Empty) : nodes_(node_count()) {}
 
-TransmissionSgTable::TransmissionSgTable() : TransmissionSgTable(Empty{}) {
-  const unsigned workers = std::max(1u, std::thread::hardware_concurrency());
-  std::vector<std::thread> threads;
-  for (unsigned w = 0; w < workers; ++w)
-    threads.emplace_back([this, w, workers] {
-      for (size_t idx = w; idx < nodes_.size(); idx += workers) nodes_[idx] = fit_node(idx);
-    });
-  for (auto &t : threads) t.join();
+std::vector<TransmissionLobe> TransmissionSgTable::fit_nodes(const std::vector<size_t> &indices, unsigned threads) {
+  std::vector<TransmissionLobe> out(indices.size());
+  if (threads == 0) threads = std::max(1u, std::thread::hardware_concurrency());
+  threads = unsigned(std::min<size_t>(threads, std::max<size_t>(1, indices.size())));
+  // Dynamic chunks instead of a fixed share per thread: a thread that drew cheap nodes takes more, so all
+  // threads finish together. Which thread fits a node changes nothing in its result.
+  constexpr size_t kChunk = 16;
+  std::atomic<size_t> next{0};
+  auto work = [&] {
+    for (size_t begin; (begin = next.fetch_add(kChunk)) < indices.size();)
+      for (size_t n = begin; n < std::min(begin + kChunk, indices.size()); ++n) out[n] = fit_node(indices[n]);
+  };
+  std::vector<std::thread> pool;
+  for (unsigned w = 1; w < threads; ++w) pool.emplace_back(work);
+  work();
+  for (auto &t : pool) t.join();
+  return out;
+}
+
+TransmissionSgTable::TransmissionSgTable(unsigned threads) : TransmissionSgTable(Empty{}) {
+  std::vector<size_t> all(nodes_.size());
+  for (size_t i = 0; i < all.size(); ++i) all[i] = i;
+  nodes_ = fit_nodes(all, threads);
   derive_interpolated();
 }
 
