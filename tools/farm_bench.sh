@@ -5,6 +5,6 @@
 # GLIMMER_FARM_BENCH_ARGS overrides the render size (default: 640x400, 240 samples; GLIMMER_FARM_BENCH_REPS repetitions, 2).
 set -euo pipefail
 build=${BUILD:-build}
-cmake --build "$build" --target test_bridge glimmer > /dev/null
-exec "$build/test_bridge" --gtest_also_run_disabled_tests \
+cmake --build "$build" --target test_bridge_images glimmer > /dev/null
+exec "$build/test_bridge_images" --gtest_also_run_disabled_tests \
   --gtest_filter='Slurm.DISABLED_BenchFourWaySplitOverheadVsOneProcess'

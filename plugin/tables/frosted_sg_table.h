@@ -151,7 +151,20 @@ class TransmissionSgTable {
   static float roughness_at(int j);
   static float ior_at(int k);
 
-  TransmissionSgTable();  // builds every node (slow: use get())
+  // Builds every node (slow: use get()) on `threads` threads (0: one per hardware thread). Each node is fitted
+  // on its own by a fixed quadrature (no random numbers, no shared state), so the table is bit-identical for
+  // any thread count (FrostedSgTable.FitIsBitIdenticalForAnyThreadCount).
+  explicit TransmissionSgTable(unsigned threads = 0);
+
+  // The nodes in storage order (side, first coordinate, roughness, ior), node_count() of them.
+  static constexpr size_t node_count() {
+    return size_t(kThetaNodes + kSineNodes) * kRoughnessNodes * kIorNodes;
+  }
+  const TransmissionLobe &node_at(size_t idx) const { return nodes_[idx]; }
+  // The fits of the nodes `indices` (storage order) on `threads` threads (0: one per hardware thread): the
+  // threads take chunks of nodes from a shared counter (the cost per node varies ~10x with the incidence and
+  // the roughness), and result[n] is the fit of node indices[n] whichever thread computed it.
+  static std::vector<TransmissionLobe> fit_nodes(const std::vector<size_t> &indices, unsigned threads);
 
  private:
   static constexpr int first_nodes(int side) { return side == 0 ? kThetaNodes : kSineNodes; }
@@ -173,7 +186,7 @@ class TransmissionSgTable {
   explicit TransmissionSgTable(Empty);  // no nodes built (load fills them)
   // Where validation refits nodes: (first coordinate index over both sides, roughness, ior).
   static std::array<std::array<int, 3>, 16> check_nodes();
-  TransmissionLobe fit_node(size_t idx) const;
+  static TransmissionLobe fit_node(size_t idx);
 };
 
 }  // namespace glimmer::plugin::frosted

@@ -17,6 +17,7 @@
 
 #include <algorithm>
 #include <numeric>
+#include <set>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -312,6 +313,36 @@ TEST(TableWarmUp, FrostedSgTableIsCachedForTheSuite) {
   auto loaded = TransmissionSgTable::load(TransmissionSgTable::cache_path(services->cache_dir), problem);
   ASSERT_TRUE(loaded) << problem;
   EXPECT_TRUE(*loaded == table);
+}
+
+// The table's fit is bit-identical for any thread count: 106 nodes spread over both sides, every roughness and
+// ior, fitted on 1 and on 3 threads, equal bit for bit to each other and to the suite's table (built by
+// TableWarmUp on one thread per core, dynamic chunks, and loaded from the cache here). Control: the nodes are
+// not all alike (the comparison would pass on a constant), and a reversed index list gives the reversed fits.
+TEST(FrostedSgTable, FitIsBitIdenticalForAnyThreadCount) {
+  const TransmissionSgTable &table = TransmissionSgTable::get(host::default_host_services());
+  std::vector<size_t> indices;
+  for (size_t idx = 7; idx < TransmissionSgTable::node_count(); idx += 503) indices.push_back(idx);
+  ASSERT_EQ(indices.size(), 106u);
+  const std::vector<TransmissionLobe> one = TransmissionSgTable::fit_nodes(indices, 1);
+  const std::vector<TransmissionLobe> three = TransmissionSgTable::fit_nodes(indices, 3);
+  std::vector<size_t> reversed(indices.rbegin(), indices.rend());
+  const std::vector<TransmissionLobe> back = TransmissionSgTable::fit_nodes(reversed, 2);
+  auto same_bits = [](const TransmissionLobe &a, const TransmissionLobe &b) {
+    return std::memcmp(&a.energy, &b.energy, sizeof(float)) == 0 &&
+           std::memcmp(&a.log_sharpness, &b.log_sharpness, sizeof(float)) == 0 &&
+           std::memcmp(&a.axis_offset, &b.axis_offset, sizeof(float)) == 0;
+  };
+  std::set<float> energies, sharpness;
+  for (size_t n = 0; n < indices.size(); ++n) {
+    EXPECT_TRUE(same_bits(one[n], three[n])) << "node " << indices[n] << ": 1 vs 3 threads";
+    EXPECT_TRUE(same_bits(one[n], table.node_at(indices[n]))) << "node " << indices[n] << ": vs the suite's table";
+    EXPECT_TRUE(same_bits(one[n], back[indices.size() - 1 - n])) << "node " << indices[n] << ": reversed list";
+    energies.insert(one[n].energy);
+    sharpness.insert(one[n].log_sharpness);
+  }
+  EXPECT_GT(energies.size(), indices.size() / 2);
+  EXPECT_GT(sharpness.size(), indices.size() / 2);
 }
 
 // ---- Disk cache: round trip, corruption, crafted entries ------------------------
