@@ -447,29 +447,20 @@ uint64_t cache_key() {
 }  // namespace
 
 std::string TransmissionSgTable::cache_path(const std::string &cache_dir) {
-  char name[64];
-  std::snprintf(name, sizeof(name), "frosted_sg_%016llx.bin", static_cast<unsigned long long>(cache_key()));
-  return (std::filesystem::path(cache_dir) / name).string();
+  return cache_entry_path(cache_dir, "frosted_sg_", cache_key());
 }
 
 // File: magic, format, key, node count, then (E, ln kappa, axis offset) per node, then the MAC (cache_blob.h).
 std::string TransmissionSgTable::save(const std::string &path) const {
-  std::vector<unsigned char> bytes;
-  auto put = [&](const void *p, size_t n) {
-    const auto *c = static_cast<const unsigned char *>(p);
-    bytes.insert(bytes.end(), c, c + n);
-  };
-  const uint64_t key = cache_key(), count = nodes_.size();
-  put(kCacheMagic, sizeof(kCacheMagic));
-  put(&kCacheFormat, sizeof(kCacheFormat));
-  put(&key, sizeof(key));
-  put(&count, sizeof(count));
+  ByteWriter out;
+  out.put_header(kCacheMagic, kCacheFormat, cache_key());
+  out.put(uint64_t(nodes_.size()));
   for (const TransmissionLobe &n : nodes_) {
-    put(&n.energy, sizeof(float));
-    put(&n.log_sharpness, sizeof(float));
-    put(&n.axis_offset, sizeof(float));
+    out.put(n.energy);
+    out.put(n.log_sharpness);
+    out.put(n.axis_offset);
   }
-  return write_cache_blob(path, std::move(bytes));
+  return write_cache_blob(path, std::move(out.bytes));
 }
 
 std::array<std::array<int, 3>, 16> TransmissionSgTable::check_nodes() {
@@ -487,11 +478,8 @@ std::unique_ptr<TransmissionSgTable> TransmissionSgTable::load(const std::string
   auto table = std::unique_ptr<TransmissionSgTable>(new TransmissionSgTable(Empty{}));
   ByteReader in{bytes};
   auto get = [&](void *p, size_t n) { return in.get(p, n); };
-  char magic[8];
-  uint32_t format = 0;
-  uint64_t key = 0, count = 0;
-  if (!get(magic, 8) || std::memcmp(magic, kCacheMagic, 8) != 0 || !get(&format, 4) || format != kCacheFormat ||
-      !get(&key, 8) || key != cache_key() || !get(&count, 8) || count != table->nodes_.size()) {
+  uint64_t count = 0;
+  if (!in.get_header(kCacheMagic, kCacheFormat, cache_key()) || !get(&count, 8) || count != table->nodes_.size()) {
     problem = "bad header (not a frosted SG table of this grid and fit)";
     return nullptr;
   }

@@ -18,9 +18,7 @@
 #include <mutex>
 #include <random>
 
-#include "glimmer/atomic_file.h"
-#include "glimmer/cache_key.h"
-#include "glimmer/sha256.h"
+#include "glimmer/cache_blob.h"
 #include "tables/glint_aniso.h"
 
 namespace glimmer::plugin::glint {
@@ -31,15 +29,6 @@ constexpr char kAnisoMagic[8] = {'G', 'L', 'M', 'G', 'L', 'N', 'T', 'A'};
 // Relative tolerance of a recomputed node against the file (the build is
 // deterministic; this only absorbs another compiler's rounding).
 constexpr double kSpotCheckTolerance = 1e-5;
-
-uint64_t fnv1a(const void *data, size_t size, uint64_t h = 1469598103934665603ull) {
-  const auto *p = static_cast<const unsigned char *>(data);
-  for (size_t i = 0; i < size; ++i) {
-    h ^= p[i];
-    h *= 1099511628211ull;
-  }
-  return h;
-}
 
 // The table's shape and construction constants, in the key and the header.
 std::array<int32_t, 4> table_dims() {
@@ -89,89 +78,52 @@ bool plausible_scales(const AnisoEnergyTable &table, std::string &problem) {
 }  // namespace
 
 uint64_t aniso_energy_key(const AnisoSpec &spec) {
-  uint64_t h = fnv1a(kAnisoMagic, sizeof(kAnisoMagic));
-  h = fnv1a(&kAnisoFormatVersion, sizeof(kAnisoFormatVersion), h);
-  const int32_t dist = static_cast<int32_t>(spec.distribution);
-  h = fnv1a(&dist, sizeof(dist), h);
-  h = fnv1a(&spec.alpha_x, sizeof(float), h);
-  h = fnv1a(&spec.alpha_y, sizeof(float), h);
-  h = fnv1a(&spec.gamma_deg, sizeof(float), h);
-  const std::array<int32_t, 4> dims = table_dims();
-  h = fnv1a(dims.data(), sizeof(dims), h);
   const float phi_step = AnisoEnergyTable::kPhiStepDeg;
   const double resolution = AnisoEnergyTable::kEnergyResolution;
-  h = fnv1a(&phi_step, sizeof(phi_step), h);
-  return fnv1a(&resolution, sizeof(resolution), h);
+  return Fnv1a{}
+      .add(kAnisoMagic)
+      .add(kAnisoFormatVersion)
+      .add(static_cast<int32_t>(spec.distribution))
+      .add(spec.alpha_x)
+      .add(spec.alpha_y)
+      .add(spec.gamma_deg)
+      .add(table_dims())
+      .add(phi_step)
+      .add(resolution)
+      .h;
 }
 
 std::string aniso_energy_cache_path(const std::string &cache_dir, const AnisoSpec &spec) {
-  char name[64];
-  std::snprintf(name, sizeof(name), "glint_A_%016llx.bin", static_cast<unsigned long long>(aniso_energy_key(spec)));
-  return (std::filesystem::path(cache_dir) / name).string();
+  return cache_entry_path(cache_dir, "glint_A_", aniso_energy_key(spec));
 }
 
 // File: magic, version, key, distribution, alpha_x, alpha_y, gamma, the four
 // dimensions, the scales, then the HMAC-SHA256 of everything before it.
 bool save_aniso_energy(const std::string &path, const AnisoEnergyTable &table, std::string &problem) {
-  std::vector<unsigned char> bytes;
-  auto put = [&](const void *p, size_t n) {
-    const auto *c = static_cast<const unsigned char *>(p);
-    bytes.insert(bytes.end(), c, c + n);
-  };
-  const uint64_t key = aniso_energy_key(table.spec);
-  const int32_t dist = static_cast<int32_t>(table.spec.distribution);
-  const std::array<int32_t, 4> dims = table_dims();
-  put(kAnisoMagic, sizeof(kAnisoMagic));
-  put(&kAnisoFormatVersion, sizeof(kAnisoFormatVersion));
-  put(&key, sizeof(key));
-  put(&dist, sizeof(dist));
-  put(&table.spec.alpha_x, sizeof(float));
-  put(&table.spec.alpha_y, sizeof(float));
-  put(&table.spec.gamma_deg, sizeof(float));
-  put(dims.data(), sizeof(dims));
-  put(table.scale.data(), table.scale.size() * sizeof(float));
-  const std::string dir = std::filesystem::path(path).parent_path().string();
-  CacheKey secret;
-  problem = ensure_private_directory(dir);
-  if (problem.empty()) problem = cache_secret_key(dir, secret);
-  if (!problem.empty()) return false;
-  const Digest256 mac = hmac_sha256(secret.data(), secret.size(), bytes.data(), bytes.size());
-  put(mac.data(), mac.size());
-  problem = write_file_atomically(path, bytes.data(), bytes.size(), 0600);
+  ByteWriter out;
+  out.put_header(kAnisoMagic, kAnisoFormatVersion, aniso_energy_key(table.spec));
+  out.put(static_cast<int32_t>(table.spec.distribution));
+  out.put(table.spec.alpha_x);
+  out.put(table.spec.alpha_y);
+  out.put(table.spec.gamma_deg);
+  out.put(table_dims());
+  out.put(table.scale.data(), table.scale.size() * sizeof(float));
+  problem = write_cache_blob(path, std::move(out.bytes));
   return problem.empty();
 }
 
 std::unique_ptr<AnisoEnergyTable> load_aniso_energy(const std::string &path, const AnisoSpec &spec,
                                                     std::string &problem, int spot_checks) {
-  std::error_code junk_ec;
-  const auto status = std::filesystem::symlink_status(path, junk_ec);
-  if (!junk_ec && std::filesystem::exists(status) && !std::filesystem::is_regular_file(status)) {
-    std::filesystem::remove_all(path, junk_ec);
-    problem = "not a regular file; removed";
-    return nullptr;
-  }
-  std::ifstream f(path, std::ios::binary);
-  if (!f) {
-    problem = "missing";
-    return nullptr;
-  }
-  const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-  size_t pos = 0;
-  auto get = [&](void *p, size_t n) {
-    if (pos + n > bytes.size()) return false;
-    std::memcpy(p, bytes.data() + pos, n);
-    pos += n;
-    return true;
-  };
-  char magic[8];
-  uint32_t version = 0;
-  uint64_t key = 0;
+  std::vector<unsigned char> bytes;
+  problem = read_cache_file(path, bytes);
+  if (!problem.empty()) return nullptr;
+  ByteReader in{bytes};
+  auto get = [&](void *p, size_t n) { return in.get(p, n); };
   int32_t dist = -1;
   std::array<int32_t, 4> dims{};
   auto table = std::make_unique<AnisoEnergyTable>();
   AnisoSpec &s = table->spec;
-  if (!get(magic, 8) || std::memcmp(magic, kAnisoMagic, 8) != 0 || !get(&version, 4) ||
-      version != kAnisoFormatVersion || !get(&key, 8) || key != aniso_energy_key(spec) || !get(&dist, 4) ||
+  if (!in.get_header(kAnisoMagic, kAnisoFormatVersion, aniso_energy_key(spec)) || !get(&dist, 4) ||
       !get(&s.alpha_x, 4) || !get(&s.alpha_y, 4) || !get(&s.gamma_deg, 4) || !get(dims.data(), sizeof(dims)) ||
       dims != table_dims()) {
     problem = "bad header (not an anisotropic glint energy table of this version and parameters)";
@@ -190,19 +142,8 @@ std::unique_ptr<AnisoEnergyTable> load_aniso_energy(const std::string &path, con
     problem = "truncated";
     return nullptr;
   }
-  const size_t data_end = pos;
-  CacheKey secret;
-  if (const std::string key_problem = cache_secret_key(std::filesystem::path(path).parent_path().string(), secret);
-      !key_problem.empty()) {
-    problem = key_problem;
-    return nullptr;
-  }
-  Digest256 mac{};
-  if (!get(mac.data(), mac.size()) || pos != bytes.size() ||
-      mac != hmac_sha256(secret.data(), secret.size(), bytes.data(), data_end)) {
-    problem = "MAC mismatch (corrupt or crafted file)";
-    return nullptr;
-  }
+  problem = check_cache_mac(path, bytes, in.pos);
+  if (!problem.empty()) return nullptr;
   if (!plausible_scales(*table, problem) || !spot_check(*table, spot_checks, problem)) return nullptr;
   table->loaded_from_cache = true;
   return table;

@@ -11,10 +11,8 @@
 #include <mutex>
 #include <thread>
 
-#include "glimmer/atomic_file.h"
-#include "glimmer/cache_key.h"
+#include "glimmer/cache_blob.h"
 #include "glimmer/microfacet.h"
-#include "glimmer/sha256.h"
 
 namespace glimmer::plugin::glint {
 namespace {
@@ -346,15 +344,6 @@ bool plausible_energy(const DirectionalTable &table, const TableSpec &spec, int 
   return true;
 }
 
-uint64_t fnv1a(const void *data, size_t size, uint64_t h = 1469598103934665603ull) {
-  const auto *p = static_cast<const unsigned char *>(data);
-  for (size_t i = 0; i < size; ++i) {
-    h ^= p[i];
-    h *= 1099511628211ull;
-  }
-  return h;
-}
-
 }  // namespace
 
 size_t DirectionalTable::byte_size() const {
@@ -504,87 +493,51 @@ std::unique_ptr<DirectionalTable> build_directional_table(const TableSpec &spec,
 }
 
 uint64_t table_key(const TableSpec &spec) {
-  uint64_t h = fnv1a(kMagic, sizeof(kMagic));
-  h = fnv1a(&kFormatVersion, sizeof(kFormatVersion), h);
-  const int dist = static_cast<int>(spec.distribution);
-  h = fnv1a(&dist, sizeof(dist), h);
-  h = fnv1a(&spec.alpha, sizeof(spec.alpha), h);
-  h = fnv1a(&spec.gamma_deg, sizeof(spec.gamma_deg), h);
-  h = fnv1a(kLodSigmaDeg.data(), sizeof(kLodSigmaDeg), h);
-  h = fnv1a(kLodStepDeg.data(), sizeof(kLodStepDeg), h);
-  return h;
+  return Fnv1a{}
+      .add(kMagic)
+      .add(kFormatVersion)
+      .add(static_cast<int>(spec.distribution))
+      .add(spec.alpha)
+      .add(spec.gamma_deg)
+      .add(kLodSigmaDeg)
+      .add(kLodStepDeg)
+      .h;
 }
 
 std::string table_cache_path(const std::string &cache_dir, const TableSpec &spec) {
-  char name[64];
-  std::snprintf(name, sizeof(name), "glint_P_%016llx.bin", static_cast<unsigned long long>(table_key(spec)));
-  return (std::filesystem::path(cache_dir) / name).string();
+  return cache_entry_path(cache_dir, "glint_P_", table_key(spec));
 }
 
 // File: magic, version, key, spec, then per level (n_theta_o, n_phi, values),
 // then HMAC-SHA256 of everything before it, keyed by the cache folder's
 // secret (glimmer/cache_key.h).
 bool save_table(const std::string &path, const DirectionalTable &table, std::string &problem) {
-  std::vector<unsigned char> bytes;
-  auto put = [&](const void *p, size_t n) {
-    const auto *c = static_cast<const unsigned char *>(p);
-    bytes.insert(bytes.end(), c, c + n);
-  };
-  const uint64_t key = table_key(table.spec);
-  const int dist = static_cast<int>(table.spec.distribution);
-  put(kMagic, sizeof(kMagic));
-  put(&kFormatVersion, sizeof(kFormatVersion));
-  put(&key, sizeof(key));
-  put(&dist, sizeof(dist));
-  put(&table.spec.alpha, sizeof(float));
-  put(&table.spec.gamma_deg, sizeof(float));
+  ByteWriter out;
+  out.put_header(kMagic, kFormatVersion, table_key(table.spec));
+  out.put(static_cast<int>(table.spec.distribution));
+  out.put(table.spec.alpha);
+  out.put(table.spec.gamma_deg);
   for (const auto &l : table.levels) {
-    put(&l.n_theta_o, sizeof(int));
-    put(&l.n_phi, sizeof(int));
-    put(l.values.data(), l.values.size() * sizeof(float));
+    out.put(l.n_theta_o);
+    out.put(l.n_phi);
+    out.put(l.values.data(), l.values.size() * sizeof(float));
   }
   // One private cache folder, a MAC keyed by its secret, one atomic write
-  // (random O_EXCL|O_NOFOLLOW temporary, fsync, rename).
-  const std::string dir = std::filesystem::path(path).parent_path().string();
-  CacheKey secret;
-  problem = ensure_private_directory(dir);
-  if (problem.empty()) problem = cache_secret_key(dir, secret);
-  if (!problem.empty()) return false;
-  const Digest256 mac = hmac_sha256(secret.data(), secret.size(), bytes.data(), bytes.size());
-  put(mac.data(), mac.size());
-  problem = write_file_atomically(path, bytes.data(), bytes.size(), 0600);
+  // (random O_EXCL|O_NOFOLLOW temporary, fsync, rename): write_cache_blob.
+  problem = write_cache_blob(path, std::move(out.bytes));
   return problem.empty();
 }
 
 std::unique_ptr<DirectionalTable> load_table(const std::string &path, const TableSpec &spec, std::string &problem) {
   // Junk at the entry path (a directory, a FIFO, a symlink) is removed so the rebuilt table can take its place.
-  std::error_code junk_ec;
-  const auto status = std::filesystem::symlink_status(path, junk_ec);
-  if (!junk_ec && std::filesystem::exists(status) && !std::filesystem::is_regular_file(status)) {
-    std::filesystem::remove_all(path, junk_ec);
-    problem = "not a regular file; removed";
-    return nullptr;
-  }
-  std::ifstream f(path, std::ios::binary);
-  if (!f) {
-    problem = "missing";
-    return nullptr;
-  }
-  std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-  size_t pos = 0;
-  auto get = [&](void *p, size_t n) {
-    if (pos + n > bytes.size()) return false;
-    std::memcpy(p, bytes.data() + pos, n);
-    pos += n;
-    return true;
-  };
-  char magic[8];
-  uint32_t version = 0;
-  uint64_t key = 0;
+  std::vector<unsigned char> bytes;
+  problem = read_cache_file(path, bytes);
+  if (!problem.empty()) return nullptr;
+  ByteReader in{bytes};
+  auto get = [&](void *p, size_t n) { return in.get(p, n); };
   int dist = -1;
   auto table = std::make_unique<DirectionalTable>();
-  if (!get(magic, 8) || std::memcmp(magic, kMagic, 8) != 0 || !get(&version, 4) || version != kFormatVersion ||
-      !get(&key, 8) || key != table_key(spec) || !get(&dist, 4) || !get(&table->spec.alpha, 4) ||
+  if (!in.get_header(kMagic, kFormatVersion, table_key(spec)) || !get(&dist, 4) || !get(&table->spec.alpha, 4) ||
       !get(&table->spec.gamma_deg, 4)) {
     problem = "bad header (not a glint table of this version and parameters)";
     return nullptr;
@@ -605,19 +558,8 @@ std::unique_ptr<DirectionalTable> load_table(const std::string &path, const Tabl
       return nullptr;
     }
   }
-  const size_t data_end = pos;
-  Digest256 mac{};
-  CacheKey secret;
-  if (const std::string key_problem = cache_secret_key(std::filesystem::path(path).parent_path().string(), secret);
-      !key_problem.empty()) {
-    problem = key_problem;
-    return nullptr;
-  }
-  if (!get(mac.data(), mac.size()) || pos != bytes.size() ||
-      mac != hmac_sha256(secret.data(), secret.size(), bytes.data(), data_end)) {
-    problem = "MAC mismatch (corrupt or crafted file)";
-    return nullptr;
-  }
+  problem = check_cache_mac(path, bytes, in.pos);
+  if (!problem.empty()) return nullptr;
   for (const auto &l : table->levels)
     for (float v : l.values)
       if (!std::isfinite(v) || v < 0.0f) {
