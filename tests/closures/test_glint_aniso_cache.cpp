@@ -12,6 +12,7 @@
 #include <functional>
 #include <vector>
 
+#include "closures/cache_test_util.h"
 #include "closures/closure_checks.h"
 #include "glimmer/sha256.h"
 #include "tables/glint_aniso.h"
@@ -23,22 +24,6 @@ namespace {
 namespace fs = std::filesystem;
 namespace gl = plugin::glint;
 namespace mf = glimmer::microfacet;
-
-std::vector<std::string> g_log;
-void capture(void *, int level, const char *message) { g_log.push_back(std::to_string(level) + ": " + message); }
-bool logged(const std::string &text) {
-  for (const auto &m : g_log)
-    if (m.find(text) != std::string::npos) return true;
-  return false;
-}
-
-std::vector<char> read_bytes(const fs::path &p) {
-  std::ifstream in(p, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
-void write_bytes(const fs::path &p, const std::vector<char> &bytes) {
-  std::ofstream(p, std::ios::binary | std::ios::trunc).write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-}
 
 // File layout (glint_aniso_cache.cpp): magic 8, version 4, key 8,
 // distribution 4, alpha_x 4, alpha_y 4, gamma 4, dims 16, then
@@ -52,25 +37,6 @@ void scale_levels(std::vector<char> &bytes, size_t first, size_t last, float fac
     v *= factor;
     std::memcpy(bytes.data() + kHeader + 4 * i, &v, 4);
   }
-}
-void rewrite_mac(std::vector<char> &bytes, const std::vector<char> &key) {
-  const Digest256 mac = hmac_sha256(key.data(), key.size(), bytes.data(), bytes.size() - 32);
-  std::memcpy(bytes.data() + bytes.size() - 32, mac.data(), 32);
-}
-void rewrite_fnv(std::vector<char> &bytes) {  // the old unkeyed checksum an attacker can recompute
-  uint64_t h = 1469598103934665603ull;
-  for (size_t i = 0; i + 32 < bytes.size(); ++i) {
-    h ^= static_cast<unsigned char>(bytes[i]);
-    h *= 1099511628211ull;
-  }
-  std::memcpy(bytes.data() + bytes.size() - 32, &h, 8);
-}
-
-GlimmerHostServices host_caching_in(const std::string &dir) {
-  GlimmerHostServices host = *host::default_host_services();
-  host.cache_dir = dir.c_str();
-  host.log = &capture;
-  return host;
 }
 
 // roughness_u 0.5 x roughness_v 0.3 (alpha 0.25 x 0.09), gamma 2: a spec no other test uses.
@@ -125,7 +91,7 @@ const CachedEntry &cached_entry() {
     fs::remove_all(root);
     c.dir = (root / "glimmer").string();
     const GlimmerHostServices host = host_caching_in(c.dir);
-    g_log.clear();
+    g_cache_log.clear();
     c.built_evals = evals(host);
     c.build_logged = logged("precomputed anisotropic energy table");
     c.entry = gl::aniso_energy_cache_path(c.dir, brushed_spec());
@@ -149,7 +115,7 @@ TEST(GlintAnisoCache, RoundTripIsBitIdenticalAndSkipsTheBuild) {
   // A new instance (the first one is gone, so nothing is shared in memory)
   // loads the file silently and evaluates bit for bit as the built table.
   const GlimmerHostServices host = host_caching_in(c.dir);
-  g_log.clear();
+  g_cache_log.clear();
   EXPECT_EQ(evals(host), c.built_evals);
   EXPECT_FALSE(logged("precomputed")) << "loaded, not rebuilt";
   EXPECT_FALSE(logged("recomputing"));
@@ -256,9 +222,9 @@ TEST(GlintAnisoCache, CraftedEntryIsRebuiltAndReplaced) {
   rewrite_mac(crafted, c.key);
   write_bytes(c.entry, crafted);
   const GlimmerHostServices host = host_caching_in(c.dir);
-  g_log.clear();
+  g_cache_log.clear();
   EXPECT_EQ(evals(host), c.built_evals);
-  EXPECT_TRUE(logged("recomputing")) << (g_log.empty() ? "" : g_log[0]);
+  EXPECT_TRUE(logged("recomputing")) << (g_cache_log.empty() ? "" : g_cache_log[0]);
   EXPECT_TRUE(logged("does not match its recomputation"));
   EXPECT_EQ(read_bytes(c.entry), c.original);
 }

@@ -11,6 +11,7 @@
 #include <fstream>
 #include <vector>
 
+#include "closures/cache_test_util.h"
 #include "closures/closure_checks.h"
 #include "glimmer/sha256.h"
 
@@ -18,42 +19,6 @@ namespace glimmer::test {
 namespace {
 
 namespace fs = std::filesystem;
-
-std::vector<std::string> g_messages;
-void capture(void *, int level, const char *message) { g_messages.push_back(std::to_string(level) + ": " + message); }
-
-bool logged(const std::string &text) {
-  for (const auto &m : g_messages)
-    if (m.find(text) != std::string::npos) return true;
-  return false;
-}
-
-std::vector<char> read_bytes(const fs::path &p) {
-  std::ifstream in(p, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
-
-void write_bytes(const fs::path &p, const std::vector<char> &bytes) {
-  std::ofstream(p, std::ios::binary | std::ios::trunc).write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-}
-
-// Recomputes the file's trailing 32-byte HMAC-SHA256 with `key` (what an
-// attacker who could read the key would do).
-void rewrite_mac(std::vector<char> &bytes, const std::vector<char> &key) {
-  const Digest256 mac = hmac_sha256(key.data(), key.size(), bytes.data(), bytes.size() - 32);
-  std::memcpy(bytes.data() + bytes.size() - 32, mac.data(), 32);
-}
-
-// The old, unkeyed integrity check: FNV-1a over the content, which anyone can
-// recompute; written over the first 8 bytes of the MAC.
-void rewrite_fnv(std::vector<char> &bytes) {
-  uint64_t h = 1469598103934665603ull;
-  for (size_t i = 0; i + 32 < bytes.size(); ++i) {
-    h ^= static_cast<unsigned char>(bytes[i]);
-    h *= 1099511628211ull;
-  }
-  std::memcpy(bytes.data() + bytes.size() - 32, &h, 8);
-}
 
 // Scales the float values of LOD levels [first, last) by `factor`.
 // Layout: magic 8, version 4, key 8, distribution 4, alpha 4, gamma 4, then
@@ -79,14 +44,6 @@ void scale_levels(std::vector<char> &bytes, int first, int last, float factor) {
 
 // The MAC's building blocks against published test vectors (FIPS 180-4
 // examples, RFC 4231 test case 2).
-// Host services caching in `dir` and logging to g_messages.
-GlimmerHostServices host_caching_in(const std::string &dir) {
-  GlimmerHostServices host = *host::default_host_services();
-  host.cache_dir = dir.c_str();
-  host.log = &capture;
-  return host;
-}
-
 // A glint closure's parameters.
 host::ParamList glint_params(const char *roughness, const char *gamma) {
   host::ParamList params;
@@ -119,7 +76,7 @@ TEST(GlintCacheHostile, CraftedTablesAreRejectedAndJunkIsReplaced) {
   const Vec3 wi = spherical_dir(30.0, 0.0), wo = spherical_dir(32.0, 175.0);
   const GlimmerShadingContext ctx = footprint_context(wi, 0.5, 0.5, 0.05, 0.0, 0.0, 0.05);
   auto eval_now = [&] {
-    g_messages.clear();
+    g_cache_log.clear();
     host::ClosureInstance c(type, params, &host);
     Spectrum f;
     float pdf = 0.0f;
@@ -170,7 +127,7 @@ TEST(GlintCacheHostile, CraftedTablesAreRejectedAndJunkIsReplaced) {
     write_bytes(entry, crafted);
     EXPECT_EQ(eval_now(), reference);
     EXPECT_TRUE(logged("recomputing")) << "expected a warning";
-    EXPECT_TRUE(logged(a.expected)) << (g_messages.empty() ? "" : g_messages[0]);
+    EXPECT_TRUE(logged(a.expected)) << (g_cache_log.empty() ? "" : g_cache_log[0]);
     EXPECT_EQ(read_bytes(entry), original) << "the rebuilt table replaces the crafted file";
   }
 
@@ -178,7 +135,7 @@ TEST(GlintCacheHostile, CraftedTablesAreRejectedAndJunkIsReplaced) {
   fs::remove(entry);
   fs::create_directories(entry / "junk");
   EXPECT_EQ(eval_now(), reference);
-  EXPECT_TRUE(logged("not a regular file; removed")) << (g_messages.empty() ? "" : g_messages[0]);
+  EXPECT_TRUE(logged("not a regular file; removed")) << (g_cache_log.empty() ? "" : g_cache_log[0]);
   EXPECT_TRUE(fs::is_regular_file(fs::symlink_status(entry)));
   EXPECT_EQ(read_bytes(entry), original);
   fs::remove_all(root);
