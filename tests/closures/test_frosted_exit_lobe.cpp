@@ -63,10 +63,10 @@ TEST(FrostedExitLobe, FractionBelowMatchesClosedFormsAndBruteForce) {
   std::printf("[exit lobe] fraction below: closed forms within 1e-6; vs 1e6 counted draws, worst %.2f sigma\n", worst);
 }
 
-// Int over the outside hemisphere of f, midpoint rule on a (beta, phi) grid about n = +z.
-double integrate_outside(const std::function<double(const Vec3 &)> &f, int n_beta, int n_phi) {
+// Int of f over the polar cap beta <= beta_max about +z, midpoint rule on a (beta, phi) grid.
+double integrate_cap(const std::function<double(const Vec3 &)> &f, double beta_max, int n_beta, int n_phi) {
   double sum = 0.0;
-  const double d_beta = 0.5 * M_PI / n_beta, d_phi = 2.0 * M_PI / n_phi;
+  const double d_beta = beta_max / n_beta, d_phi = 2.0 * M_PI / n_phi;
   for (int i = 0; i < n_beta; ++i) {
     const double beta = (i + 0.5) * d_beta, sb = std::sin(beta), cb = std::cos(beta);
     double row = 0.0;
@@ -77,6 +77,11 @@ double integrate_outside(const std::function<double(const Vec3 &)> &f, int n_bet
     sum += row * sb;
   }
   return sum * d_beta * d_phi;
+}
+
+// Int over the outside hemisphere of f (n = +z).
+double integrate_outside(const std::function<double(const Vec3 &)> &f, int n_beta, int n_phi) {
+  return integrate_cap(f, 0.5 * M_PI, n_beta, n_phi);
 }
 
 TEST(FrostedExitLobe, DensityIntegratesToOneOutside) {
@@ -215,20 +220,9 @@ ExitLobeMixture test_mixture(int which) {
   return m;
 }
 
-// Int over the whole sphere of f (midpoint rule in (beta, phi) about +z).
+// Int over the whole sphere of f.
 double integrate_sphere(const std::function<double(const Vec3 &)> &f, int n_beta, int n_phi) {
-  double sum = 0.0;
-  const double d_beta = M_PI / n_beta, d_phi = 2.0 * M_PI / n_phi;
-  for (int i = 0; i < n_beta; ++i) {
-    const double beta = (i + 0.5) * d_beta, sb = std::sin(beta), cb = std::cos(beta);
-    double row = 0.0;
-    for (int j = 0; j < n_phi; ++j) {
-      const double phi = (j + 0.5) * d_phi;
-      row += f(Vec3(float(sb * std::cos(phi)), float(sb * std::sin(phi)), float(cb)));
-    }
-    sum += row * sb;
-  }
-  return sum * d_beta * d_phi;
+  return integrate_cap(f, M_PI, n_beta, n_phi);
 }
 
 TEST(FrostedExitLobe, MixtureDensityIntegratesToOne) {
