@@ -13,7 +13,10 @@
 
 #include "closures/cache_test_util.h"
 #include "closures/closure_checks.h"
+#include "glimmer/cache_blob.h"
 #include "glimmer/sha256.h"
+#include "tables/glint_aniso.h"
+#include "tables/glint_tables.h"
 
 namespace glimmer::test {
 namespace {
@@ -139,6 +142,59 @@ TEST(GlintCacheHostile, CraftedTablesAreRejectedAndJunkIsReplaced) {
   EXPECT_TRUE(fs::is_regular_file(fs::symlink_status(entry)));
   EXPECT_EQ(read_bytes(entry), original);
   fs::remove_all(root);
+}
+
+// The cache files' names and headers as the files in users' folders have them
+// (the keys are those of files main wrote before cache_blob.h's ByteWriter /
+// Fnv1a replaced each table's own copy): a change of the key chain or of the
+// header renames or orphans every cached table.
+TEST(GlintCacheHostile, CacheKeysAndHeaderArePinned) {
+  // The chain's start value and two strings, computed by hand (Python) with it.
+  EXPECT_EQ(Fnv1a{}.h, 0x14650fb0739d0383ull);
+  EXPECT_EQ(Fnv1a{}.add("a", 1).h, 0x44bd8ad473cd9906ull);
+  EXPECT_EQ(Fnv1a{}.add("a", 1).h, Fnv1a{}.add('a').h);
+  auto from_bits = [](uint32_t bits) {
+    float f;
+    std::memcpy(&f, &bits, 4);
+    return f;
+  };
+  // glint_P_030cca93e58152cb.bin: GGX, alpha 0x3d23d70b (0.04), gamma 2.
+  plugin::glint::TableSpec p;
+  p.distribution = plugin::glint::BaseDistribution::GGX;
+  p.alpha = from_bits(0x3d23d70bu);
+  p.gamma_deg = 2.0f;
+  EXPECT_EQ(plugin::glint::table_key(p), 0x030cca93e58152cbull);
+  EXPECT_EQ(fs::path(plugin::glint::table_cache_path("/c", p)).filename().string(), "glint_P_030cca93e58152cb.bin");
+  // glint_A_c547ed6736770f18.bin: GGX, alpha 0.25 x 0.0625, gamma 2.
+  plugin::glint::AnisoSpec a;
+  a.distribution = microfacet::Distribution::GGX;
+  a.alpha_x = 0.25f;
+  a.alpha_y = 0.0625f;
+  a.gamma_deg = 2.0f;
+  EXPECT_EQ(plugin::glint::aniso_energy_key(a), 0xc547ed6736770f18ull);
+  // Negative controls: any field changes the key.
+  p.gamma_deg = std::nextafter(2.0f, 3.0f);
+  EXPECT_NE(plugin::glint::table_key(p), 0x030cca93e58152cbull);
+  a.alpha_y = 0.25f;
+  EXPECT_NE(plugin::glint::aniso_energy_key(a), 0xc547ed6736770f18ull);
+
+  // Header: 8-byte magic, uint32 version, uint64 key, little-endian, no padding.
+  constexpr char magic[8] = {'G', 'L', 'M', 'G', 'L', 'N', 'T', 'A'};
+  ByteWriter out;
+  out.put_header(magic, 1u, 0xc547ed6736770f18ull);
+  const std::vector<unsigned char> expected = {'G', 'L', 'M',  'G',  'L',  'N',  'T',  'A',  1,    0,
+                                               0,   0,   0x18, 0x0f, 0x77, 0x36, 0x67, 0xed, 0x47, 0xc5};
+  EXPECT_EQ(out.bytes, expected);
+  ByteReader in{out.bytes};
+  EXPECT_TRUE(in.get_header(magic, 1u, 0xc547ed6736770f18ull));
+  EXPECT_TRUE(in.at_end());
+  // Negative controls: another magic, version or key, or a header cut short, is refused.
+  constexpr char other[8] = {'G', 'L', 'M', 'G', 'L', 'N', 'T', 'P'};
+  EXPECT_FALSE((ByteReader{out.bytes}.get_header(other, 1u, 0xc547ed6736770f18ull)));
+  EXPECT_FALSE((ByteReader{out.bytes}.get_header(magic, 2u, 0xc547ed6736770f18ull)));
+  EXPECT_FALSE((ByteReader{out.bytes}.get_header(magic, 1u, 0xc547ed6736770f19ull)));
+  const std::vector<unsigned char> cut(out.bytes.begin(), out.bytes.end() - 1);
+  EXPECT_FALSE((ByteReader{cut}.get_header(magic, 1u, 0xc547ed6736770f18ull)));
 }
 
 // Found while interrupting renders: gamma in (2, 2.5] (and (1, 1.5]) gives an

@@ -56,8 +56,7 @@ inline std::string read_cache_file(const std::string &path, std::vector<unsigned
 // HMAC-SHA256 under the secret of the folder of `path`, else why not. For
 // loaders that parse the payload before the MAC (their "truncated" or "bad
 // header" verdicts come first).
-inline std::string check_cache_mac(const std::string &path, const std::vector<unsigned char> &bytes,
-                                   size_t data_end) {
+inline std::string check_cache_mac(const std::string &path, const std::vector<unsigned char> &bytes, size_t data_end) {
   CacheKey secret;
   if (std::string problem = cache_secret_key(std::filesystem::path(path).parent_path().string(), secret);
       !problem.empty())
@@ -88,7 +87,9 @@ inline std::string cache_entry_path(const std::string &dir, const char *prefix, 
 }
 
 // 64-bit FNV-1a, chained: the key that names a cache file (glint_*_<key>.bin).
-// add(x) hashes the bytes of x (an object, a C array or a std::array).
+// add(x) hashes the bytes of x (an object, a C array or a std::array). The
+// start value is not FNV's published offset basis (14695981039346656037): a
+// digit short since the first glint cache; kept, as it names existing files.
 struct Fnv1a {
   uint64_t h = 1469598103934665603ull;
   Fnv1a &add(const void *data, size_t size) {
@@ -99,7 +100,10 @@ struct Fnv1a {
     }
     return *this;
   }
-  template <class T> Fnv1a &add(const T &value) { return add(&value, sizeof(T)); }
+  template <class T>
+  Fnv1a &add(const T &value) {
+    return add(&value, sizeof(T));
+  }
 };
 
 // Appends bytes to a payload (native byte order, as the readers expect).
@@ -109,7 +113,10 @@ struct ByteWriter {
     const auto *c = static_cast<const unsigned char *>(data);
     bytes.insert(bytes.end(), c, c + size);
   }
-  template <class T> void put(const T &value) { put(&value, sizeof(T)); }
+  template <class T>
+  void put(const T &value) {
+    put(&value, sizeof(T));
+  }
   // The header every table cache starts with: magic, format version, key.
   void put_header(const char (&magic)[8], uint32_t version, uint64_t key) {
     put(magic);
