@@ -137,6 +137,12 @@ int differing_evals(const host::ClosureInstance &a, const host::ClosureInstance 
   return differing;
 }
 
+// The median of the per-block times (the middle element; the blocks are alternated between closures).
+double median_ns(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
 // glint and GGX eval on the same queries, interleaved blocks; median ns.
 void glint_vs_ggx(benchmark::State &state, const std::vector<Query> &q) {
   const std::vector<std::pair<std::string, std::string>> params = {
@@ -156,17 +162,13 @@ void glint_vs_ggx(benchmark::State &state, const std::vector<Query> &q) {
     m_ns.push_back(time_block(*ggx, q));
     if (base) b_ns.push_back(time_block(*base, q));
   }
-  auto median = [](std::vector<double> v) {
-    std::sort(v.begin(), v.end());
-    return v[v.size() / 2];
-  };
-  const double g = median(g_ns), m = median(m_ns);
+  const double g = median_ns(g_ns), m = median_ns(m_ns);
   state.counters["glint_ns"] = g;
   state.counters["ggx_ns"] = m;
   state.counters["ratio"] = g / m;
   if (base) {
-    state.counters["base_ns"] = median(b_ns);
-    state.counters["base_ratio"] = median(b_ns) / m;
+    state.counters["base_ns"] = median_ns(b_ns);
+    state.counters["base_ratio"] = median_ns(b_ns) / m;
   }
 }
 
@@ -206,19 +208,15 @@ void BM_GlintAnisoEval(benchmark::State &state) {
     m_ns.push_back(time_block(*ggx, q));
     if (base) b_ns.push_back(time_block(*base, q));
   }
-  auto median = [](std::vector<double> v) {
-    std::sort(v.begin(), v.end());
-    return v[v.size() / 2];
-  };
-  const double a = median(a_ns), i = median(i_ns), m = median(m_ns);
+  const double a = median_ns(a_ns), i = median_ns(i_ns), m = median_ns(m_ns);
   state.counters["aniso_ns"] = a;
   state.counters["iso_ns"] = i;
   state.counters["ggx_ns"] = m;
   state.counters["aniso_vs_iso"] = a / i;
   state.counters["aniso_vs_ggx"] = a / m;
   if (base) {
-    state.counters["base_aniso_ns"] = median(b_ns);
-    state.counters["aniso_vs_base"] = a / median(b_ns);
+    state.counters["base_aniso_ns"] = median_ns(b_ns);
+    state.counters["aniso_vs_base"] = a / median_ns(b_ns);
   }
 }
 BENCHMARK(BM_GlintAnisoEval)->Name("glint/aniso_eval")->DenseRange(-8, 0, 2)->Iterations(25)->Unit(benchmark::kMillisecond);
