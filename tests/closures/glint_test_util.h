@@ -9,6 +9,7 @@
 
 #include "glimmer/math.h"
 #include "glimmer/microfacet.h"
+#include "closures/closure_checks.h"
 #include "host/closure_instance.h"
 #include "tables/glint_hierarchy.h"
 
@@ -140,6 +141,22 @@ inline float eval_f(const host::ClosureInstance &c, const GlimmerShadingContext 
   c.eval(ctx, wo, f, p);
   if (pdf) *pdf = p;
   return f.x;
+}
+
+// Outgoing directions on a grid x grid raster around the mirror direction of wi = (theta_i, phi_i): polar angle
+// and azimuth each within +-span degrees of (theta_i, phi_i + 180), cell centres, only those with polar angle in
+// (0, theta_max) degrees.
+inline std::vector<Vec3> directions_around_mirror(double theta_i, double phi_i, double span, int grid,
+                                                  double theta_max) {
+  std::vector<Vec3> wos;
+  for (int a = 0; a < grid; ++a)
+    for (int b = 0; b < grid; ++b) {
+      const double theta_o = theta_i + span * (2.0 * (a + 0.5) / grid - 1.0);
+      const double phi_o = phi_i + 180.0 + span * (2.0 * (b + 0.5) / grid - 1.0);
+      if (theta_o <= 0.0 || theta_o >= theta_max) continue;
+      wos.push_back(spherical_dir(theta_o, phi_o));
+    }
+  return wos;
 }
 
 }  // namespace glimmer::test

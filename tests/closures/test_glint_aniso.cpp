@@ -173,15 +173,7 @@ RuleError rule_error(mf::Distribution dist, double ax, double ay, double gamma_d
       const Vec3 mirror(-wi.x, -wi.y, wi.z);
       double peak = reflected_density(dist, ax, ay, wi, mirror);
       // wo: the 9 x 9 grid and the mirror direction itself.
-      std::vector<Vec3> wos;
-      constexpr int kGrid = 9;
-      for (int a = 0; a < kGrid; ++a)
-        for (int b = 0; b < kGrid; ++b) {
-          const double theta_o = theta_i + span * (2.0 * (a + 0.5) / kGrid - 1.0);
-          const double phi_o = phi_i + 180.0 + span * (2.0 * (b + 0.5) / kGrid - 1.0);
-          if (theta_o <= 0.0 || theta_o >= 89.5) continue;
-          wos.push_back(spherical_dir(theta_o, phi_o));
-        }
+      std::vector<Vec3> wos = directions_around_mirror(theta_i, phi_i, span, 9, 89.5);
       if (theta_i < 89.5) wos.push_back(mirror);
       for (const Vec3 &wo : wos) {
         const double q = reflected_density(dist, ax, ay, wi, wo);

@@ -508,24 +508,18 @@ AnisoError aniso_cone_error(double ax, double ay, double gamma_deg) {
       std::vector<std::array<double, 4>> rows;  // q_aniso, P_aniso, ratio-min approx, ratio-geo approx, naive below
       std::vector<double> naive, disk7;
       double peak = 0.0;
-      constexpr int kGrid = 15;
-      for (int a = 0; a < kGrid; ++a)
-        for (int b = 0; b < kGrid; ++b) {
-          const double theta_o = theta_i + span * (2.0 * (a + 0.5) / kGrid - 1.0);
-          const double phi_o = phi_i + 180.0 + span * (2.0 * (b + 0.5) / kGrid - 1.0);
-          if (theta_o <= 0.0 || theta_o >= 89.0) continue;
-          const Vec3 wo = spherical_dir(theta_o, phi_o);
-          const double q = reflected_density(dist, ax, ay, wi, wo);
-          if (!(q > 0.0)) continue;
-          peak = std::max(peak, q);
-          const double p_aniso = sigma * cone_mean_reflected_density(dist, ax, ay, wi, wo, gamma_deg);
-          const double p_min = sigma * cone_mean_reflected_density(dist, a_min, wi, wo, gamma_deg);
-          const double p_geo = sigma * cone_mean_reflected_density(dist, a_geo, wi, wo, gamma_deg);
-          rows.push_back({q, p_aniso, p_min * q / reflected_density(dist, a_min, wi, wo),
-                          p_geo * q / reflected_density(dist, a_geo, wi, wo)});
-          naive.push_back(p_geo);
-          disk7.push_back(sigma * disk7_cone_mean(dist, ax, ay, wi, wo, gamma_deg));
-        }
+      for (const Vec3 &wo : directions_around_mirror(theta_i, phi_i, span, 15, 89.0)) {
+        const double q = reflected_density(dist, ax, ay, wi, wo);
+        if (!(q > 0.0)) continue;
+        peak = std::max(peak, q);
+        const double p_aniso = sigma * cone_mean_reflected_density(dist, ax, ay, wi, wo, gamma_deg);
+        const double p_min = sigma * cone_mean_reflected_density(dist, a_min, wi, wo, gamma_deg);
+        const double p_geo = sigma * cone_mean_reflected_density(dist, a_geo, wi, wo, gamma_deg);
+        rows.push_back({q, p_aniso, p_min * q / reflected_density(dist, a_min, wi, wo),
+                        p_geo * q / reflected_density(dist, a_geo, wi, wo)});
+        naive.push_back(p_geo);
+        disk7.push_back(sigma * disk7_cone_mean(dist, ax, ay, wi, wo, gamma_deg));
+      }
       for (size_t k = 0; k < rows.size(); ++k) {
         if (rows[k][0] < 0.2 * peak) continue;
         const double p = rows[k][1];
