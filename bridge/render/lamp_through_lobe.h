@@ -40,8 +40,10 @@ inline bool lamp_hit(const Kind &light, const Vec3 &P, const Vec3 &d, LightHit &
 
 // The estimate for one lamp (a point, spot, area or distant light); false when none of its light reaches P
 // through the lobe.
-template <class Kind>
-inline bool lamp_through_lobe(const Kind &light, const Vec3 &P, const ExitLobe &lobe, float u, float v, float pick,
+// `lobe`: an ExitLobe, or an ExitLobeMixture (ABI 2.7: the whole mixture; p its density, the lobe's directions
+// drawn from the vMF mixture).
+template <class Kind, class Lobe>
+inline bool lamp_through_lobe(const Kind &light, const Vec3 &P, const Lobe &lobe, float u, float v, float pick,
                               LampEstimate &out) {
   constexpr int n = kLampStrata, count = n * n;
   struct Point {
@@ -74,16 +76,16 @@ inline bool lamp_through_lobe(const Kind &light, const Vec3 &P, const ExitLobe &
       add(ls.wi, ls.dist, ls.radiance * float(p));
       break;
     }
-    add(ls.wi, ls.dist, ls.radiance * float(p * power_weight(ls.pdf, vmf_density(lobe.axis, lobe.kappa, ls.wi))));
+    add(ls.wi, ls.dist, ls.radiance * float(p * power_weight(ls.pdf, lobe.draw_density(ls.wi))));
   }
   for (int k = 0; k < count && !delta; ++k) {  // the lobe's directions (its vMF, stratified)
     const float uc = (float(k % n) + v) / n, up = (float(k / n) + u) / n;
-    const Vec3 wi = sample_vmf(lobe.axis, lobe.kappa, std::min(uc, 0x1.fffffep-1f), std::min(up, 0x1.fffffep-1f));
+    const Vec3 wi = lobe.draw(std::min(uc, 0x1.fffffep-1f), std::min(up, 0x1.fffffep-1f));
     const double p = lobe.pdf(wi);
     LightHit h;
     if (!(p > 0.0) || !lamp_hit(light, P, wi, h)) continue;
     add(wi, h.delta ? std::numeric_limits<float>::infinity() : h.t,
-        h.radiance * float(p * power_weight(vmf_density(lobe.axis, lobe.kappa, wi), h.pdf)));
+        h.radiance * float(p * power_weight(lobe.draw_density(wi), h.pdf)));
   }
   if (used == 0) return false;
   // The point whose visibility stands for the lamp's, picked with probability a_i / sum(a) (a: the shares'

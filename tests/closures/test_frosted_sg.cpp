@@ -740,7 +740,7 @@ TEST(FrostedGlassSg, StressRawOutputsFiniteNonNegative) {
   const auto schema = FrostedGlassClosure::params();
   const long calls = 1000000 * long(stress_scale());
   const long blocks = 64;
-  std::atomic<long> bad_count{0}, moved{0}, samples{0}, mixture_moved{0};
+  std::atomic<long> bad_count{0}, moved{0}, samples{0}, mixture_moved{0}, mixture_written{0};
   tbb::parallel_for(long(0), blocks, [&](long b) {
     Pcg32 r(900 + b);
     for (long i = 0; i < calls / blocks; ++i) {
@@ -764,10 +764,12 @@ TEST(FrostedGlassSg, StressRawOutputsFiniteNonNegative) {
       const Vec3 wo = stress_direction(r, grazing);
       const Vec3 rand(r.next_float(), r.next_float(), r.next_float());
       long n_bad = glimmer::test::stress_eval_and_sample(c, sp, wo, rand, samples, moved);
-      // The exit lobe mixture (not method=sg's default yet): the same queries through kMixture, v and t at the
-      // ends of their ranges and NaN (clamped).
+      // The exit lobe mixture (method=sg's default up to roughness 0.4): the same queries through kMixture, v and
+      // t at the ends of their ranges and NaN (clamped), the whole mixture written to a host buffer (ABI 2.7).
       if (i % 2 == 0) {
         LocalSample s;
+        GlimmerExitMixture buffer;
+        s.mixture_out = &buffer;
         if (c.sample(sp, rand, s) && c.uses_sg(sp) && (s.label & GLIMMER_LABEL_TRANSMIT)) {
           const float vs[] = {0.0f, 0.5f, 1.0f, std::numeric_limits<float>::quiet_NaN()};
           const float ts[] = {0.0f, 0.2f, 0.25f, -1.0f};
@@ -776,6 +778,8 @@ TEST(FrostedGlassSg, StressRawOutputsFiniteNonNegative) {
           if (s.moved) {
             mixture_moved.fetch_add(1);
             n_bad += glimmer::test::bad_moved_sample(s, sp.frame.to_world(s.wo));
+            n_bad += glimmer::test::bad_exit_mixture(s, buffer, sp.frame.to_world(s.wo));
+            mixture_written.fetch_add(s.exit_mixture ? 1 : 0);
           }
         }
       }
@@ -785,8 +789,10 @@ TEST(FrostedGlassSg, StressRawOutputsFiniteNonNegative) {
   EXPECT_EQ(bad_count.load(), 0);
   EXPECT_GT(moved.load(), calls / 20);  // the sg estimator really ran
   EXPECT_GT(mixture_moved.load(), calls / 40);  // and the mixture
-  std::printf("[frosted sg stress] exit lobe mixture: %ld moved samples (v 0..1 / NaN, t 0..0.25 / rule)\n",
-              mixture_moved.load());
+  EXPECT_GT(mixture_written.load(), mixture_moved.load() / 2);  // handed to the host whole
+  std::printf("[frosted sg stress] exit lobe mixture: %ld moved samples (v 0..1 / NaN, t 0..0.25 / rule), %ld "
+              "written whole to the host's buffer\n",
+              mixture_moved.load(), mixture_written.load());
   std::printf("[frosted sg stress] %ld eval + %ld sample calls (%ld sg moved samples), 1/4 grazing, half IOR 2.4; "
               "sphere / slab / odd host (t 0..inf, NaN, -1; NaN or zero normals; other closures): %ld bad\n",
               calls, samples.load(), moved.load(), bad_count.load());

@@ -152,19 +152,41 @@ struct ExitLobe {
     const Vec3 mirrored = w - n * (2.0f * height);
     return vmf_density(axis, kappa, w) * redraws + power * vmf_density(axis, kappa, mirrored);
   }
+
+  // One unrestricted draw from the lobe's vMF (uc: cos theta, up: phi) and that draw's density: the direction
+  // set of the host's lamp integral (render/lamp_through_lobe.h), shared with ExitLobeMixture.
+  Vec3 draw(float uc, float up) const { return sample_vmf(axis, kappa, uc, up); }
+  double draw_density(const Vec3 &w) const { return vmf_density(axis, kappa, w); }
 };
 
+// The lobe the number u in [0, 1) picks from `count` weights (>= 0, summing to 1) by their cumulative sums; never
+// one of weight 0 unless all are.
+template <class W>
+inline int pick_mixture_lobe(const W *weight, int count, double u) {
+  double c = 0.0;
+  int last = 0;
+  for (int k = 0; k < count; ++k) {
+    if (!(weight[k] > W(0))) continue;
+    last = k;
+    c += double(weight[k]);
+    if (u < c) return k;
+  }
+  return last;
+}
+
 // A mixture of exit lobes (frosted_glass method=sg's exit lobe mixture, issue 12: one lobe per traced ray, each
-// with its own axis, sharpness, exit surface and share of the energy). Sampling picks lobe k with probability
-// weight[k] (the first uniform number), then draws from it by ExitLobe::sample; the density is
-// sum_k weight[k] ExitLobe::pdf_k(w), which integrates to sum_k weight[k] = 1 (each lobe over its own outside).
-// The plugin reports the picked lobe to the host (ABI 2.4 fields), so the host's estimators (exit NEE, lamps
-// through the lobe, the world's cone lookup) see one lobe per sample: their expectation is the mixture's.
+// with its own axis, sharpness and share of the energy, all leaving from one exit point; a lobe's surface `n`
+// may differ in the tests). Sampling picks lobe k with probability weight[k] (the first uniform number), then
+// draws from it by ExitLobe::sample; the density is sum_k weight[k] ExitLobe::pdf_k(w), which integrates to
+// sum_k weight[k] = 1 (each lobe over its own outside). The plugin hands the host the whole mixture (ABI 2.7,
+// GlimmerExitMixture), and the host's estimators at the exit (NEE with MIS against this density, the lamps
+// through the lobe, the world's cone lookup) evaluate it whole; a 2.6 host gets the picked lobe alone (its
+// expectation is the mixture's, with more variance). Only the first `count` entries are set.
 struct ExitLobeMixture {
   static constexpr int kMaxLobes = 10;
   int count = 0;
   ExitLobe lobe[kMaxLobes];
-  double weight[kMaxLobes] = {};  // >= 0, sum 1 (normalize())
+  double weight[kMaxLobes];  // >= 0, sum 1 (normalize()); entries from `count` on are not read
 
   void normalize() {
     double sum = 0.0;
@@ -172,17 +194,7 @@ struct ExitLobeMixture {
     for (int k = 0; k < count; ++k) weight[k] = sum > 0.0 && weight[k] > 0.0 ? weight[k] / sum : 0.0;
   }
   // The lobe the number u in [0, 1) picks (by the cumulative weights; never one of weight 0 unless all are).
-  int pick(double u) const {
-    double c = 0.0;
-    int last = 0;
-    for (int k = 0; k < count; ++k) {
-      if (!(weight[k] > 0.0)) continue;
-      last = k;
-      c += weight[k];
-      if (u < c) return k;
-    }
-    return last;
-  }
+  int pick(double u) const { return pick_mixture_lobe(weight, count, u); }
   template <class Uniform>
   Vec3 sample(Uniform &&uniform, int *picked = nullptr) const {
     const int k = pick(double(uniform()));
@@ -193,6 +205,27 @@ struct ExitLobeMixture {
     double p = 0.0;
     for (int k = 0; k < count; ++k)
       if (weight[k] > 0.0) p += weight[k] * lobe[k].pdf(w);
+    return p;
+  }
+  // One unrestricted draw from the vMF mixture: uc picks the lobe by the cumulative weights and, rescaled within
+  // the lobe's interval, is its cos theta number (stratified sets of uc stay stratified within each lobe); one
+  // lobe of weight 1 draws exactly as ExitLobe::draw. draw_density is the mixture of the vMF densities.
+  Vec3 draw(float uc, float up) const {
+    double lo = 0.0;
+    int picked = 0;
+    for (int k = 0; k < count; ++k) {
+      if (!(weight[k] > 0.0)) continue;
+      picked = k;
+      if (double(uc) < lo + weight[k]) break;
+      lo += weight[k];
+    }
+    const double u = std::clamp((double(uc) - lo) / weight[picked], 0.0, double(0x1.fffffep-1f));
+    return lobe[picked].draw(float(u), up);
+  }
+  double draw_density(const Vec3 &w) const {
+    double p = 0.0;
+    for (int k = 0; k < count; ++k)
+      if (weight[k] > 0.0) p += weight[k] * lobe[k].draw_density(w);
     return p;
   }
 };
