@@ -813,6 +813,7 @@ struct Renderer::Impl {
     }
     if (!options.exit_lobe_nee || !use_nee() || lights->count() == 0) return;
     for (int k = 0; k < lobe.count; ++k) lobe.lobe[k].below = vmf_fraction_below(lobe.lobe[k].axis, lobe.lobe[k].kappa, n);
+    lobe.prepare();
     const float continued_pdf = static_cast<float>(lobe.pdf(wo));
     if (!(continued_pdf > 0.0f) || !std::isfinite(continued_pdf)) return;
     float lu, lv;  // a light set of its own per vertex (the vertex's light set served its entry point)

@@ -222,7 +222,8 @@ TEST(LampThroughLobe, SphereAndPointLampsMatchTheirIntegrals) {
 
 // ABI 2.7: the whole exit lobe mixture (glimmer::ExitLobeMixture: frosted sg's core + tail lobes of 5 rays, axes
 // spread over ~12 degrees, one exit surface) through quad lamps, against the brute-force integral of the mixture's
-// density; the estimate draws its lobe directions from the vMF mixture (ExitLobeMixture::draw). Negative control:
+// density (unprepared: each lobe's ExitLobe::pdf); the estimate uses the prepared mixture, as the renderer (cached
+// per-lobe constants), and draws its lobe directions from the vMF mixture (ExitLobeMixture::draw). Negative control:
 // the host seeing only the first (axis core) lobe with all the weight, a 2.6 host's view of one picked lobe.
 ExitLobeMixture mixture_at(double tilt, double kappa) {
   ExitLobeMixture m;
@@ -252,7 +253,9 @@ TEST(LampThroughLobe, WholeMixtureMatchesTheBruteForceIntegral) {
     const scene::Light l = quad_lamp(P, d, c.dist, c.size);
     const render::AreaLight lamp(l, Spectrum(4.0f * c.size * c.size));
     const BruteForce ref = brute_force(l, P, m, 1024);
-    const Stats s = estimate(lamp, P, m, 2048, 13);
+    ExitLobeMixture prepared = m;  // as the renderer evaluates it (per-lobe constants cached)
+    prepared.prepare();
+    const Stats s = estimate(lamp, P, prepared, 2048, 13);
     if (ref.integral == 0.0) {
       EXPECT_EQ(s.mean, 0.0) << "tilt " << c.tilt_deg << " kappa " << c.kappa << " off-axis " << c.off_axis_deg;
       continue;
