@@ -487,7 +487,7 @@ struct MixtureKnobs {
   float variance, tail;  // frosted::SgInputs::mixture_variance / mixture_tail
 };
 // The last one is the proposed rule (frosted::mixture_rule_variant: the mixture with kDefaultMixtureVariance and
-// t = mixture_tail_for up to roughness kMixtureRoughnessMax, the single SG above; not method=sg's default yet).
+// t = mixture_tail_for up to roughness kMixtureRoughnessMax, the single SG above; method=sg's default since ABI 2.7).
 constexpr MixtureKnobs kHarnessMixtures[] = {{0.0f, 0.0f},  {0.5f, 0.0f}, {1.0f, 0.0f},  {0.0f, 0.15f},
                                              {0.0f, 0.2f},  {0.5f, 0.1f}, {0.5f, 0.15f}, {0.5f, 0.2f},
                                              {frosted::kDefaultMixtureVariance, frosted::kDefaultMixtureTail}};
