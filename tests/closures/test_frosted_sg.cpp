@@ -23,6 +23,7 @@
 
 #include <atomic>
 #include <cstdio>
+#include <cstring>
 #include <ctime>
 #include <functional>
 #include <limits>
@@ -684,6 +685,89 @@ TEST(FrostedGlassAuto, SamplesAreSgsWhereTheRulePicksSgAndPathsElsewhere) {
     } else {
       EXPECT_EQ(moved, 0) << "roughness " << c.roughness;
     }
+  }
+}
+
+// ---- ABI 2.7: the whole exit mixture handed to the host ------------------------------------------------------
+// Through the plugin's C entry point (ClosureAdapter::sample) on the analytic sphere, entry points with wi above
+// and (every 8th) below the surface:
+//  - a 2.7 host (full struct_size, a buffer): every moved sample at roughness 0.3 (the mixture rule) flags
+//    GLIMMER_SAMPLE_EXIT_MIXTURE with 1..10 lobes, weights summing to 1, the picked lobe in lobe_axis among them;
+//  - a 2.6 host (struct_size up to lobe_sharpness) with guard bytes after it: nothing written beyond its
+//    struct_size (also on "no sample"), the same moved direction and picked lobe, EXIT_LOBE without the mixture
+//    flag (it still gets the single-lobe behaviour);
+//  - a 2.7 host with a NULL buffer, and roughness 0.6 (the single SG): no mixture flag.
+TEST(FrostedGlassSg, ExitMixtureThroughTheAbiForNewAndOldHosts) {
+  using Adapter = ClosureAdapter<FrostedGlassClosure>;
+  for (const float roughness : {0.3f, 0.6f}) {
+    auto sg = create_method(roughness, 1.5f, "sg");
+    const auto *inst = reinterpret_cast<const GlimmerInstance *>(sg.get());
+    AnalyticScene scene(AnalyticScene::kSphere);
+    scene.material = inst;
+    Pcg32 rng(91);
+    int moved = 0, mixtures = 0, bad = 0, none = 0;
+    for (int i = 0; i < 1500; ++i) {
+      const Vec3 n_out = normalize(Vec3(rng.next_float() - 0.5f, rng.next_float() - 0.5f, rng.next_float() - 0.5f));
+      const Frame f = Frame::from_normal(n_out);
+      const float z = i % 8 == 7 ? -0.5f : 0.2f + rng.next_float();
+      const Vec3 wi_local = normalize(Vec3(rng.next_float() - 0.5f, rng.next_float() - 0.5f, z));
+      GlimmerShadingContext ctx = host::make_local_context(f.to_world(wi_local), &scene.services);
+      ctx.P = n_out;
+      ctx.N = ctx.Ng = n_out;
+      ctx.T = f.s;
+      ctx.path_seed = rng.next_u32();
+      const float r3[3] = {rng.next_float(), rng.next_float(), rng.next_float()};
+      // 2.7 host.
+      GlimmerExitMixture buffer{};
+      GlimmerSample full{};
+      full.struct_size = sizeof(GlimmerSample);
+      full.exit_mixture = &buffer;
+      const uint32_t label = Adapter::sample(inst, &ctx, r3, &full);
+      // 2.6 host: its sample ends before exit_mixture; guard bytes after it.
+      constexpr size_t kOld = offsetof(GlimmerSample, exit_mixture);
+      alignas(GlimmerSample) unsigned char raw[sizeof(GlimmerSample) + 64];
+      std::memset(raw, 0xAB, sizeof raw);
+      GlimmerSample *old = reinterpret_cast<GlimmerSample *>(raw);
+      old->struct_size = uint32_t(kOld);
+      const uint32_t old_label = Adapter::sample(inst, &ctx, r3, old);
+      for (size_t b = kOld; b < sizeof raw; ++b) bad += raw[b] != 0xAB;
+      // 2.7 host without a buffer.
+      GlimmerSample no_buffer{};
+      no_buffer.struct_size = sizeof(GlimmerSample);
+      Adapter::sample(inst, &ctx, r3, &no_buffer);
+      bad += (no_buffer.flags & GLIMMER_SAMPLE_EXIT_MIXTURE) != 0;
+      if (label == GLIMMER_LABEL_NONE) {
+        ++none;
+        bad += old_label != GLIMMER_LABEL_NONE;
+        continue;
+      }
+      bad += old_label != label || old->wo.x != full.wo.x || old->wo.y != full.wo.y || old->wo.z != full.wo.z;
+      if (!(full.flags & GLIMMER_SAMPLE_MOVED)) continue;
+      ++moved;
+      bad += (old->flags & GLIMMER_SAMPLE_EXIT_MIXTURE) != 0 || !(old->flags & GLIMMER_SAMPLE_EXIT_LOBE) ||
+             old->lobe_sharpness != full.lobe_sharpness;
+      if (!(full.flags & GLIMMER_SAMPLE_EXIT_MIXTURE)) continue;
+      ++mixtures;
+      double sum = 0.0;
+      bool picked_listed = false;
+      for (uint32_t k = 0; k < buffer.count && k < GLIMMER_EXIT_MAX_LOBES; ++k) {
+        sum += buffer.weight[k];
+        picked_listed |= buffer.axis[k].x == full.lobe_axis.x && buffer.axis[k].y == full.lobe_axis.y &&
+                         buffer.axis[k].z == full.lobe_axis.z && buffer.sharpness[k] == full.lobe_sharpness;
+      }
+      bad += !(buffer.count >= 1 && buffer.count <= GLIMMER_EXIT_MAX_LOBES) || std::fabs(sum - 1.0) > 1e-4 ||
+             !picked_listed;
+    }
+    std::printf("[frosted sg abi] roughness %.1f: %d moved samples, %d with the whole mixture; %d no-sample calls; "
+                "%d bad (old host's guard bytes, labels, directions, flags, mixture contents)\n",
+                double(roughness), moved, mixtures, none, bad);
+    EXPECT_EQ(bad, 0) << "roughness " << roughness;
+    EXPECT_GT(moved, 300) << "roughness " << roughness;
+    EXPECT_GT(none, 100) << "roughness " << roughness;  // the no-sample path (clear) ran for the old host
+    if (roughness <= frosted::kMixtureRoughnessMax)
+      EXPECT_EQ(mixtures, moved);
+    else
+      EXPECT_EQ(mixtures, 0);
   }
 }
 
