@@ -696,9 +696,21 @@ TEST(FrostedGlassAuto, SamplesAreSgsWhereTheRulePicksSgAndPathsElsewhere) {
 //  - a 2.6 host (struct_size up to lobe_sharpness) with guard bytes after it: nothing written beyond its
 //    struct_size (also on "no sample"), the same moved direction and picked lobe, EXIT_LOBE without the mixture
 //    flag (it still gets the single-lobe behaviour);
-//  - a 2.7 host with a NULL buffer, and roughness 0.6 (the single SG): no mixture flag.
+//  - a 2.7 host with a NULL buffer, and roughness 0.6 (the single SG): no mixture flag;
+//  - negative control: the former whole-struct "no sample" trips the guard check.
 TEST(FrostedGlassSg, ExitMixtureThroughTheAbiForNewAndOldHosts) {
   using Adapter = ClosureAdapter<FrostedGlassClosure>;
+  {  // Negative control of the guard check: the plugin core's former "no sample" (a whole-struct assignment).
+    constexpr size_t kOld = offsetof(GlimmerSample, exit_mixture);
+    alignas(GlimmerSample) unsigned char raw[sizeof(GlimmerSample) + 64];
+    std::memset(raw, 0xAB, sizeof raw);
+    GlimmerSample *old = reinterpret_cast<GlimmerSample *>(raw);
+    old->struct_size = uint32_t(kOld);
+    *old = GlimmerSample{};
+    int overwritten = 0;
+    for (size_t b = kOld; b < sizeof raw; ++b) overwritten += raw[b] != 0xAB;
+    EXPECT_GT(overwritten, 0);
+  }
   for (const float roughness : {0.3f, 0.6f}) {
     auto sg = create_method(roughness, 1.5f, "sg");
     const auto *inst = reinterpret_cast<const GlimmerInstance *>(sg.get());
