@@ -40,8 +40,10 @@ inline bool lamp_hit(const Kind &light, const Vec3 &P, const Vec3 &d, LightHit &
 
 // The estimate for one lamp (a point, spot, area or distant light); false when none of its light reaches P
 // through the lobe.
-template <class Kind>
-inline bool lamp_through_lobe(const Kind &light, const Vec3 &P, const ExitLobe &lobe, float u, float v, float pick,
+// `lobe`: an ExitLobe, or an ExitLobeMixture (ABI 2.7: the whole mixture; p its density, the lobe's directions
+// drawn from the vMF mixture).
+template <class Kind, class Lobe>
+inline bool lamp_through_lobe(const Kind &light, const Vec3 &P, const Lobe &lobe, float u, float v, float pick,
                               LampEstimate &out) {
   constexpr int n = kLampStrata, count = n * n;
   struct Point {
@@ -65,7 +67,8 @@ inline bool lamp_through_lobe(const Kind &light, const Vec3 &P, const ExitLobe &
     LightSample ls;
     const float lu = (float(k % n) + u) / n, lv = (float(k / n) + v) / n;
     if (!light.sample(std::min(lu, 0x1.fffffep-1f), std::min(lv, 0x1.fffffep-1f), P, 1.0f, ls)) continue;
-    const double p = lobe.pdf(ls.wi);
+    double draw_density = 0.0;
+    const double p = lobe.pdf_and_draw_density(ls.wi, draw_density);
     if (!(p > 0.0)) continue;
     if (ls.delta) {  // one point carries it all (the lobe cannot find it)
       delta = true;
@@ -74,16 +77,18 @@ inline bool lamp_through_lobe(const Kind &light, const Vec3 &P, const ExitLobe &
       add(ls.wi, ls.dist, ls.radiance * float(p));
       break;
     }
-    add(ls.wi, ls.dist, ls.radiance * float(p * power_weight(ls.pdf, vmf_density(lobe.axis, lobe.kappa, ls.wi))));
+    add(ls.wi, ls.dist, ls.radiance * float(p * power_weight(ls.pdf, draw_density)));
   }
   for (int k = 0; k < count && !delta; ++k) {  // the lobe's directions (its vMF, stratified)
     const float uc = (float(k % n) + v) / n, up = (float(k / n) + u) / n;
-    const Vec3 wi = sample_vmf(lobe.axis, lobe.kappa, std::min(uc, 0x1.fffffep-1f), std::min(up, 0x1.fffffep-1f));
-    const double p = lobe.pdf(wi);
+    const Vec3 wi = lobe.draw(std::min(uc, 0x1.fffffep-1f), std::min(up, 0x1.fffffep-1f));
     LightHit h;
-    if (!(p > 0.0) || !lamp_hit(light, P, wi, h)) continue;
+    if (!lamp_hit(light, P, wi, h)) continue;
+    double draw_density = 0.0;
+    const double p = lobe.pdf_and_draw_density(wi, draw_density);
+    if (!(p > 0.0)) continue;
     add(wi, h.delta ? std::numeric_limits<float>::infinity() : h.t,
-        h.radiance * float(p * power_weight(vmf_density(lobe.axis, lobe.kappa, wi), h.pdf)));
+        h.radiance * float(p * power_weight(draw_density, h.pdf)));
   }
   if (used == 0) return false;
   // The point whose visibility stands for the lamp's, picked with probability a_i / sum(a) (a: the shares'

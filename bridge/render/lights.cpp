@@ -123,18 +123,31 @@ bool LightSet::sample(float u, float v, const Vec3 &P, LightSample &out) const {
   return ok;
 }
 
-bool LightSet::lamp_through_lobe(int k, const Vec3 &P, const ExitLobe &lobe, float u, float v, float pick,
-                                 LampEstimate &out) const {
-  if (k < 0 || k >= lamp_count()) return false;
+namespace {
+template <class Kind, class Lobe>
+bool lamp_kind_through_lobe(const Kind &kind, const Vec3 &P, const Lobe &lobe, float u, float v, float pick,
+                            LampEstimate &out) {
   return std::visit(
       [&](const auto &light) {
-        using Kind = std::decay_t<decltype(light)>;
-        if constexpr (std::is_same_v<Kind, TriangleLight> || std::is_same_v<Kind, BackgroundLight>)
+        using Light = std::decay_t<decltype(light)>;
+        if constexpr (std::is_same_v<Light, TriangleLight> || std::is_same_v<Light, BackgroundLight>)
           return false;
         else
           return render::lamp_through_lobe(light, P, lobe, u, v, pick, out);
       },
-      lights_[lamps_[k]].kind);
+      kind);
+}
+}  // namespace
+
+bool LightSet::lamp_through_lobe(int k, const Vec3 &P, const ExitLobe &lobe, float u, float v, float pick,
+                                 LampEstimate &out) const {
+  if (k < 0 || k >= lamp_count()) return false;
+  return lamp_kind_through_lobe(lights_[lamps_[k]].kind, P, lobe, u, v, pick, out);
+}
+bool LightSet::lamp_through_lobe(int k, const Vec3 &P, const ExitLobeMixture &lobe, float u, float v, float pick,
+                                 LampEstimate &out) const {
+  if (k < 0 || k >= lamp_count()) return false;
+  return lamp_kind_through_lobe(lights_[lamps_[k]].kind, P, lobe, u, v, pick, out);
 }
 
 float LightSet::triangle_pdf(int mesh, int prim, const Vec3 &from, const Vec3 &P, const Vec3 &Ng, const Vec3 &d) const {

@@ -720,11 +720,19 @@ struct Renderer::Impl {
   bool use_nee() const { return options.strategy != LightStrategy::BsdfOnly; }
 
   // The world seen through the exit lobe the path just left (integrate_exit_lobe): one cone lookup.
+  // A mixture (ABI 2.7) is looked up lobe by lobe: the weighted sum of its lobes' cone lookups.
   struct ExitWorld {
     bool active = false;
-    Vec3 axis{0.0f, 0.0f, 1.0f};
-    float cone = 0.0f;  // half-angle, radians
+    int count = 0;
+    Vec3 axis[ExitLobeMixture::kMaxLobes];
+    float cone[ExitLobeMixture::kMaxLobes] = {};  // half-angles, radians
+    float weight[ExitLobeMixture::kMaxLobes] = {};
     bool lamps = false;  // the lamps were integrated against the lobe at the exit: the segment's lamp hits count 0
+    Spectrum lookup(const EnvironmentCone &env, const ShaderSystem &shaders) const {
+      Spectrum sum(0.0f);
+      for (int k = 0; k < count; ++k) sum += env.lookup(shaders, axis[k], cone[k]) * weight[k];
+      return sum;
+    }
   };
   // Lamps (spheres, area lights) crossed before the surface at t_hit and, when the ray escapes, the sun disk
   // and the world (Cycles' integrate_light and integrate_background); as in Cycles lamps do not block the ray.
@@ -738,8 +746,7 @@ struct Renderer::Impl {
     }
     if (hit_surface || ps.transparent_background || !shaders->has_background()) return;
     if (exit_world.active)
-      add_contribution(pr, pr.throughput * environment_cone.lookup(*shaders, exit_world.axis, exit_world.cone),
-                       ps.bounce);
+      add_contribution(pr, pr.throughput * exit_world.lookup(environment_cone, *shaders), ps.bounce);
     else
       add_emission(pr, ps, shaders->background(ray.D), use_nee() ? lights->background_pdf(ray.D) : 0.0f);
   }
@@ -786,19 +793,27 @@ struct Renderer::Impl {
   //    Visibility stays sampled: the lookup counts only when the continued ray escapes.
   //  - the lights (exit_lobe_nee): one light sample from the exit point, MIS (power heuristic) with the continued
   //    path, whose emission hits are then weighted against light sampling at p(wo) instead of counted whole.
+  // ABI 2.7: with GLIMMER_SAMPLE_EXIT_MIXTURE the lobe is the whole mixture (glimmer::ExitLobeMixture, all lobes
+  // at the sample's origin): its density for NEE and MIS, its lobes' lamp integrals and cone lookups summed by
+  // weight, so that the host's estimators do not see which lobe drew wo. Otherwise the one lobe of ABI 2.4.
   void integrate_exit_lobe(const GlimmerSample &s, const Vec3 &wo, const PixelSampler &sampler, PathState &ps,
                            PathRadiance &pr, ExitWorld &exit_world) const {
     exit_world.active = false;
     exit_world.lamps = false;
     if (!(s.flags & GLIMMER_SAMPLE_EXIT_LOBE) || !(s.flags & GLIMMER_SAMPLE_MOVED)) return;
     const Vec3 n = normalize(Vec3(s.origin_Ng));
-    const Vec3 axis = normalize(Vec3(s.lobe_axis));
-    if (!is_finite(axis) || !is_finite(n) || !(s.lobe_sharpness > 0.0f)) return;
+    ExitLobeMixture lobe;
+    if (!is_finite(n) || !exit_mixture_of(s, n, lobe)) return;
     exit_world.active = options.exit_lobe_environment;
-    exit_world.axis = axis;
-    exit_world.cone = static_cast<float>(exit_world_cone(s.lobe_sharpness));
+    exit_world.count = lobe.count;
+    for (int k = 0; k < lobe.count; ++k) {
+      exit_world.axis[k] = lobe.lobe[k].axis;
+      exit_world.cone[k] = static_cast<float>(exit_world_cone(lobe.lobe[k].kappa));
+      exit_world.weight[k] = static_cast<float>(lobe.weight[k]);
+    }
     if (!options.exit_lobe_nee || !use_nee() || lights->count() == 0) return;
-    const ExitLobe lobe = ExitLobe::make(axis, s.lobe_sharpness, n);
+    for (int k = 0; k < lobe.count; ++k) lobe.lobe[k].below = vmf_fraction_below(lobe.lobe[k].axis, lobe.lobe[k].kappa, n);
+    lobe.prepare();
     const float continued_pdf = static_cast<float>(lobe.pdf(wo));
     if (!(continued_pdf > 0.0f) || !std::isfinite(continued_pdf)) return;
     float lu, lv;  // a light set of its own per vertex (the vertex's light set served its entry point)
@@ -818,12 +833,34 @@ struct Renderer::Impl {
     ps.mis_ray_pdf = continued_pdf;
   }
 
+  // The lobes of exit sample s about the exit normal n: the whole mixture (ABI 2.7) or the sample's one lobe, with
+  // normalised weights (invalid lobes dropped); `below` not set (only NEE needs it). False: no valid lobe.
+  static bool exit_mixture_of(const GlimmerSample &s, const Vec3 &n, ExitLobeMixture &m) {
+    const auto add = [&](const Vec3 &axis_in, float kappa, float weight) {
+      const Vec3 axis = normalize(axis_in);
+      if (!is_finite(axis) || !(kappa > 0.0f) || !std::isfinite(kappa) || !(weight > 0.0f) || !std::isfinite(weight))
+        return;
+      m.lobe[m.count] = ExitLobe{axis, std::max(double(kappa), 1e-6), n, 0.0};
+      m.weight[m.count++] = weight;
+    };
+    m.count = 0;
+    if ((s.flags & GLIMMER_SAMPLE_EXIT_MIXTURE) && s.exit_mixture != nullptr) {
+      const GlimmerExitMixture &x = *s.exit_mixture;
+      const int count = static_cast<int>(std::min<uint32_t>(x.count, GLIMMER_EXIT_MAX_LOBES));
+      for (int k = 0; k < count && m.count < ExitLobeMixture::kMaxLobes; ++k)
+        add(Vec3(x.axis[k]), x.sharpness[k], x.weight[k]);
+    }
+    if (m.count == 0) add(Vec3(s.lobe_axis), s.lobe_sharpness, 1.0f);
+    m.normalize();
+    return m.count > 0;
+  }
+
   // The lamps seen from exit point P (exit surface normal n) through the exit lobe (RenderOptions::exit_lobe_lamps):
   // each lamp integrated against the lobe (LightSet::lamp_through_lobe: stratified over the lamp and the lobe by
   // (lu, lv), balance heuristic), its visibility one shadow ray toward a point picked in proportion to its share.
   // The light of a lamp through the glass is then a low-noise integral, not one sampled direction (de Rousiers
   // 2012's SG lights, eq. 14/15, with the exact lamp and lobe instead of their SG product).
-  void integrate_exit_lamps(const Vec3 &P, const Vec3 &n, const ExitLobe &lobe, float lu, float lv,
+  void integrate_exit_lamps(const Vec3 &P, const Vec3 &n, const ExitLobeMixture &lobe, float lu, float lv,
                             const PixelSampler &sampler, const PathState &ps, PathRadiance &pr) const {
     float pick, unused;
     sampler.get2(exit_lamp_set(ps.sample_vertex()), pick, unused);
@@ -928,6 +965,8 @@ struct Renderer::Impl {
       integrate_surface_direct_light(cs, sd, total_sw, light_rand, ps, pr);
       GlimmerSample s{};
       s.struct_size = sizeof(GlimmerSample);
+      GlimmerExitMixture exit_mixture;  // ABI 2.7: written by a closure that hands over a whole exit mixture
+      s.exit_mixture = &exit_mixture;
       if (!integrate_surface_bsdf_bounce(cs, sd, bsdf_rand, transparent_weight, total_sw, limits, ps, pr, ray, s))
         break;
       integrate_exit_lobe(s, ray.D, sampler, ps, pr, exit_world);

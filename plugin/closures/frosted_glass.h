@@ -153,7 +153,8 @@ class FrostedGlassClosure {
     DielectricLobe scratch;
     const DielectricLobe &lobe = lobe_at(sp, scratch);
     if (thin_)
-      return uses_sg_pane(sp) ? pane_sample_sg(sp, lobe, rand, out, frosted::SgVariant::kTracedCone)
+      return uses_sg_pane(sp) ? pane_sample_sg(sp, lobe, rand, out,
+                                               frosted::default_sg_variant(sp.param_float(roughness_param_, roughness_)))
                               : pane_sample(sp, lobe, rand, out);
     if (!lobe.sample(sp.wi, rand, out)) return false;
     if (out.label & GLIMMER_LABEL_TRANSMIT) out.f_cos *= color_at(sp);
@@ -183,6 +184,9 @@ class FrostedGlassClosure {
     in.mixture_variance = mixture_variance;
     in.mixture_tail = mixture_tail;
     LocalSample s;
+#if GLIMMER_ABI_MINOR >= 7
+    s.mixture_out = front.mixture_out;  // the host's buffer for the whole exit mixture (ABI 2.7)
+#endif
     if (frosted::sample_sg_transmission(sp, in, rand, front, s)) front = s;
   }
   // method=sg through a thin pane (the paper's thin-object case, frosted_glass_sg.h): the front interface is

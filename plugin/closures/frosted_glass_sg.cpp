@@ -115,8 +115,6 @@ struct Segment {
   float mean_length = 1.0f;
   int bounding_count = 0;  // bounding rays that left through the same material
   Vec3 bounding_dir[4], bounding_normal[4];
-  Vec3 bounding_P[4], bounding_Ng[4];  // the bounding rays' exit points and geometric normals
-  float bounding_t[4] = {};            // and their lengths inside
 };
 bool trace_segment(const GlimmerHostServices *host, const SgInputs &in, const Vec3 &origin, const Vec3 &axis,
                    float kappa_in, Segment &seg) {
@@ -134,9 +132,6 @@ bool trace_segment(const GlimmerHostServices *host, const SgInputs &in, const Ve
       sum += h.normal;
       ++count;
       seg.bounding_dir[seg.bounding_count] = dir;
-      seg.bounding_P[seg.bounding_count] = Vec3(h.hit.P);
-      seg.bounding_t[seg.bounding_count] = h.hit.t;
-      seg.bounding_Ng[seg.bounding_count] = Vec3(h.hit.Ng);
       seg.bounding_normal[seg.bounding_count++] = h.normal;
     }
   }
@@ -196,11 +191,6 @@ float roulette(uint32_t seed, int event) {
   return float(hash_u32x3(seed, uint32_t(event), 0x5bd1e995u) >> 8) * 0x1p-24f;
 }
 
-Vec3 outward_unit(const Vec3 &Ng, const Vec3 &n) {
-  const Vec3 g = is_finite(Ng) && dot(Ng, Ng) > 1e-12f ? normalize(Ng) : n;
-  return dot(g, n) >= 0.0f ? g : -g;
-}
-
 // SgVariant::kMixture (frosted_glass_sg.h, "exit lobe mixture"): one lobe per traced ray that left, each refracted
 // through its own exit normal by the leaving table, weights (1 - s, s / 4 ...) x E_i, each lobe's width its exit
 // roughness convolved with the residual (1 - v) of the traced geometric spread. False: no lobe has energy.
@@ -224,30 +214,24 @@ bool build_exit_mixture(const TransmissionSgTable &table, const Segment &seg, co
     const float share = i < 0 ? 1.0f - s * float(seg.bounding_count) / 4.0f : s / 4.0f;
     const float w = share * energy;
     if (!(w > 0.0f) || !is_finite(lobe.axis)) continue;
-    const int k = out.lobe_count++;
-    out.lobe[k] = lobe;
-    out.lobe[k].sharpness =
+    ExitLobe::MixtureLobe &l = out.lobe[out.lobe_count++];
+    l.axis = lobe.axis;
+    l.sharpness =
         std::clamp(1.0f / (1.0f / lobe.sharpness + residual / std::max(kappa_geometric, 1e-6f)), 1e-3f, 1e7f);
-    out.lobe_origin[k] = i < 0 ? Vec3(seg.axis.hit.P) : seg.bounding_P[i];
-    out.lobe_Ng[k] = outward_unit(i < 0 ? Vec3(seg.axis.hit.Ng) : seg.bounding_Ng[i], n);
-    out.lobe_weight[k] = w;
-    out.lobe_length[k] = i < 0 ? seg.axis.hit.t : seg.bounding_t[i];
+    l.weight = w;
     total += w;
   }
   if (!(total > 0.0f)) return false;
-  for (int k = 0; k < out.lobe_count; ++k) out.lobe_weight[k] /= total;
+  for (int k = 0; k < out.lobe_count; ++k) out.lobe[k].weight /= total;
   const float t = std::clamp(std::isfinite(tail) ? tail : 0.0f, 0.0f, 0.2f);
   if (t > 0.0f) {  // core (1 - t, kappa (1 - t) / (1 - 4 t)) + tail (t, kappa / 4): the same variance
     const int n = out.lobe_count;
     for (int k = 0; k < n; ++k) {
-      out.lobe[n + k] = out.lobe[k];
+      out.lobe[n + k].axis = out.lobe[k].axis;
       out.lobe[n + k].sharpness = std::max(out.lobe[k].sharpness * 0.25f, 1e-3f);
-      out.lobe_origin[n + k] = out.lobe_origin[k];
-      out.lobe_Ng[n + k] = out.lobe_Ng[k];
-      out.lobe_length[n + k] = out.lobe_length[k];
-      out.lobe_weight[n + k] = out.lobe_weight[k] * t;
+      out.lobe[n + k].weight = out.lobe[k].weight * t;
       out.lobe[k].sharpness = std::min(out.lobe[k].sharpness * (1.0f - t) / (1.0f - 4.0f * t), 1e7f);
-      out.lobe_weight[k] *= 1.0f - t;
+      out.lobe[k].weight *= 1.0f - t;
     }
     out.lobe_count = 2 * n;
   }
@@ -348,7 +332,6 @@ bool trace_exit_lobe(const ShadingPoint &sp, const SgInputs &in, uint32_t seed, 
     out.roughness = std::clamp(std::sqrt(std::sqrt(2.0f / out.sg.sharpness)), 0.0f, 1.0f);
     (void)front_energy;
     out.lobe_count = 0;
-    out.axis_length = seg.axis.hit.t;
     if (in.variant == SgVariant::kMixture &&
         !build_exit_mixture(*in.table, seg, axis, kappa_in, kappa_geometric, ior, roughness_exit,
                             in.mixture_variance,
@@ -372,28 +355,31 @@ bool sample_sg_transmission(const ShadingPoint &sp, const SgInputs &in, const Ve
   // whatever its part below the surface.
   mf::WalkRng rng(hash_u32x2(seed, 0x9e3779b9u));
   Vec3 wo;
-  if (exit.lobe_count > 0) {  // kMixture: one lobe picked by its share (the expectation is the mixture's)
-    glimmer::ExitLobeMixture mixture;
-    mixture.count = std::min(exit.lobe_count, glimmer::ExitLobeMixture::kMaxLobes);
-    for (int k = 0; k < mixture.count; ++k) {
-      mixture.lobe[k] = glimmer::ExitLobe{exit.lobe[k].axis, exit.lobe[k].sharpness, exit.lobe_Ng[k], 0.0};
-      mixture.weight[k] = exit.lobe_weight[k];
-    }
-    mixture.normalize();
-    int k = 0;
-    wo = mixture.sample([&rng] { return rng.next(); }, &k);
-    exit.sg = exit.lobe[k];
-    const float extra_length = exit.lobe_length[k] - exit.axis_length;  // Beer over the picked ray's own length
-    for (int ch = 0; ch < 3; ++ch)
-      if (in.sigma_a[ch] > 0.0f) exit.weight[ch] *= std::exp(-in.sigma_a[ch] * extra_length);
-    exit.origin = exit.lobe_origin[k];
-    exit.origin_Ng = exit.lobe_Ng[k];
+  if (exit.lobe_count > 0) {
+    // kMixture: the whole mixture leaves from the axis' exit point, every lobe restricted to its surface (the
+    // host evaluates it whole there, ABI 2.7); one lobe picked by its share draws the continued direction.
+    float weights[ExitLobe::kMaxLobes];
+    for (int j = 0; j < exit.lobe_count; ++j) weights[j] = exit.lobe[j].weight;
+    const int k = glimmer::pick_mixture_lobe(weights, exit.lobe_count, double(rng.next()));
+    const glimmer::ExitLobe picked{Vec3(exit.lobe[k].axis), exit.lobe[k].sharpness, exit.origin_Ng, 0.0};
+    wo = picked.sample([&rng] { return rng.next(); });
+    exit.sg.axis = Vec3(exit.lobe[k].axis);
+    exit.sg.sharpness = exit.lobe[k].sharpness;
     exit.roughness = std::clamp(std::sqrt(std::sqrt(2.0f / exit.sg.sharpness)), 0.0f, 1.0f);
+#if GLIMMER_ABI_MINOR >= 7
+    if (out.mixture_out != nullptr) {
+      GlimmerExitMixture &m = *out.mixture_out;
+      m.count = uint32_t(exit.lobe_count);
+      for (int j = 0; j < exit.lobe_count; ++j) {
+        m.axis[j] = exit.lobe[j].axis;
+        m.sharpness[j] = exit.lobe[j].sharpness;
+        m.weight[j] = exit.lobe[j].weight;
+      }
+      out.exit_mixture = true;
+    }
+#endif
   } else {
-    glimmer::ExitLobe lobe;
-    lobe.axis = exit.sg.axis;
-    lobe.kappa = exit.sg.sharpness;
-    lobe.n = exit.origin_Ng;
+    const glimmer::ExitLobe lobe{exit.sg.axis, exit.sg.sharpness, exit.origin_Ng, 0.0};
     wo = lobe.sample([&rng] { return rng.next(); });
   }
   if (!(dot(wo, exit.origin_Ng) > 0.0f)) return false;
@@ -423,6 +409,7 @@ namespace {
 Segment flat_face_segment(const Vec3 &axis, float kappa, const Vec3 &n) {
   Segment seg;
   seg.mean_normal = n;
+  seg.axis.normal = n;
   const float theta_b = bounding_angle(kappa);
   const float c = std::cos(theta_b), s = std::sin(theta_b);
   const Frame f = Frame::from_normal(axis);
@@ -497,6 +484,15 @@ bool pane_exit_lobe(const Vec3 &wi, const PaneSgInputs &in, uint32_t seed, PaneE
     if (in.variant == SgVariant::kNoExitRefraction) out.sg.axis = axis;
     out.through = n.z < 0.0f;
     out.weight = weight;
+    out.lobe_count = 0;
+    if (in.variant == SgVariant::kMixture) {
+      ExitLobe mixture;
+      if (!build_exit_mixture(*in.table, seg, axis, kappa_in, kappa_geometric, ior, roughness,
+                              kDefaultMixtureVariance, mixture_tail_for(roughness), mixture))
+        return false;
+      out.lobe_count = mixture.lobe_count;
+      for (int k = 0; k < mixture.lobe_count; ++k) out.lobe[k] = mixture.lobe[k];
+    }
     return is_finite(out.sg.axis) && is_finite(out.weight) && std::isfinite(out.sg.sharpness);
   }
   return false;
@@ -520,25 +516,42 @@ bool sample_pane_sg(const ShadingPoint &sp, const PaneSgInputs &in, const Vec3 &
   // One direction from the exit SG restricted to the outside of the exit face (glimmer/exit_lobe.h's rule,
   // whose density the host uses for light sampling there).
   mf::WalkRng rng(hash_u32x2(seed, 0x7f4a7c15u));
-  glimmer::ExitLobe lobe;
-  lobe.axis = axis;
-  lobe.kappa = exit.sg.sharpness;
-  lobe.n = n;
+  const auto to_world = [&](const Vec3 &a) { return normalize(sp.frame.to_world(flip ? mf::flip_z_local(a) : a)); };
+  glimmer::ExitLobe lobe{axis, exit.sg.sharpness, n, 0.0};
+  if (exit.lobe_count > 0) {  // kMixture: one lobe picked by its share; the whole mixture to the host (ABI 2.7)
+    float weights[ExitLobe::kMaxLobes];
+    for (int j = 0; j < exit.lobe_count; ++j) weights[j] = exit.lobe[j].weight;
+    const int k = glimmer::pick_mixture_lobe(weights, exit.lobe_count, double(rng.next()));
+    lobe.axis = to_world(Vec3(exit.lobe[k].axis));
+    lobe.kappa = exit.lobe[k].sharpness;
+#if GLIMMER_ABI_MINOR >= 7
+    if (out.mixture_out != nullptr) {
+      GlimmerExitMixture &m = *out.mixture_out;
+      m.count = uint32_t(exit.lobe_count);
+      for (int j = 0; j < exit.lobe_count; ++j) {
+        m.axis[j] = to_world(Vec3(exit.lobe[j].axis));
+        m.sharpness[j] = exit.lobe[j].sharpness;
+        m.weight[j] = exit.lobe[j].weight;
+      }
+      out.exit_mixture = true;
+    }
+#endif
+  }
   const Vec3 wo = lobe.sample([&rng] { return rng.next(); });
   const Spectrum weight = front_weight * exit.weight;
   if (!(dot(wo, n) > 0.0f) || !is_finite(wo) || !is_finite(weight) || !is_finite(axis)) return false;
   out.wo = sp.frame.to_local(wo);
   out.f_cos = weight;
   out.pdf = 1.0f;
-  out.roughness = std::clamp(std::sqrt(std::sqrt(2.0f / exit.sg.sharpness)), 0.0f, 1.0f);
+  out.roughness = std::clamp(std::sqrt(std::sqrt(2.0f / float(lobe.kappa))), 0.0f, 1.0f);
   out.eta = 1.0f;  // air on both sides
   out.label = (exit.through ? GLIMMER_LABEL_TRANSMIT : GLIMMER_LABEL_REFLECT) | GLIMMER_LABEL_SINGULAR;
   out.moved = true;  // to the exit face of the same point: the host offsets the origin to that side
   out.origin = Vec3(ctx.P);
   out.origin_Ng = n;
   out.exit_lobe = true;
-  out.lobe_axis = axis;
-  out.lobe_sharpness = exit.sg.sharpness;
+  out.lobe_axis = lobe.axis;
+  out.lobe_sharpness = float(lobe.kappa);
   return is_finite(out.origin);
 }
 

@@ -19,8 +19,8 @@
 //     (kappa_exit). The geometric spread is combined with it as an SG
 //     convolution, 1 / kappa_out = 1 / kappa_exit + 1 / kappa_geo, with
 //     kappa_geo from one of:
-//     - traced cone (SgVariant::kTracedCone, the default; SgVariant::kMixture below is the exit lobe mixture,
-//       not on by default yet): each bounding ray
+//     - traced cone (SgVariant::kTracedCone, the default above roughness 0.4; SgVariant::kMixture below is the
+//       exit lobe mixture, the default up to 0.4): each bounding ray
 //       refracted through its own exit normal; their mean angle to the
 //       refracted axis is the 75 % cone of the outgoing lobe (inverse of the
 //       theta_b relation). This keeps the internal width, Snell's
@@ -64,10 +64,10 @@ namespace glimmer::plugin::frosted {
 
 // Variants of the estimator, for the tests' negative controls.
 enum class SgVariant {
-  kTracedCone,        // as above (method=sg's single SG: the default)
+  kTracedCone,        // as above (method=sg's single SG: the default above kMixtureRoughnessMax)
   kToksvig,           // the paper's exit spread: Toksvig roughness of the exit normals + the magnified internal width
   kNoExitRefraction,  // negative control: the exit lobe keeps the internal axis (exit refraction ignored)
-  kMixture,           // the exit as a mixture of lobes, one per traced ray (below); not the default yet
+  kMixture,           // the exit as a mixture of lobes, one per traced ray (below); the default up to 0.4
 };
 
 // The exit lobe mixture (SgVariant::kMixture, issue 12): instead of one SG about the axis refracted through the
@@ -92,12 +92,13 @@ inline constexpr float kDefaultMixtureTail = -1.0f;
 // (sphere and slab); at 0.5 the mixture took the absorbing sphere of the accuracy set over its 5 % goal with
 // t = 0.15 / 0.1 / 0.05 (0.0511 / 0.0504 / 0.0501, single SG 0.0443), so it stops below 0.5.
 inline constexpr float kMixtureRoughnessMax = 0.4f;
-// NOT the default (kMixtureByDefault = false): with one lobe picked per sample the host's estimators see more
-// variance, and two of the renderer's noise tests fail with it (FrostedExitNee.SameImageWithLowerNoise: exit NEE
-// noise ratio 0.39 -> 1.10, bound 0.8; FrostedExitWorld.SphereUnderTheWorldLessNoiseLittleMoreBias: cone lookup /
-// point lookup noise 0.27 -> 0.59, bound 0.5). Turning it on needs the host to evaluate the whole mixture
-// (ABI 2.7, docs/frosted_glass.md "Exit lobe mixture"). The proposed rule is mixture_rule_variant.
-inline constexpr bool kMixtureByDefault = false;
+// The default since ABI 2.7 (kMixtureByDefault): the plugin hands the host the whole mixture (GlimmerExitMixture)
+// and the host evaluates it whole at the exit (NEE and MIS with its density, lamps and the world's cone lookup summed
+// over the lobes). With one lobe picked per sample and seen alone by the host (ABI 2.6) it added variance: two of the
+// renderer's noise tests failed (FrostedExitNee.SameImageWithLowerNoise: exit NEE noise ratio 0.39 -> 1.10, bound
+// 0.8; FrostedExitWorld.SphereUnderTheWorldLessNoiseLittleMoreBias: cone / point lookup noise 0.27 -> 0.59, bound
+// 0.5), so it stayed off until the host took the whole mixture (docs/frosted_glass.md "Exit lobe mixture").
+inline constexpr bool kMixtureByDefault = true;
 inline SgVariant mixture_rule_variant(float entry_roughness) {
   return entry_roughness <= kMixtureRoughnessMax ? SgVariant::kMixture : SgVariant::kTracedCone;
 }
@@ -134,15 +135,22 @@ struct ExitLobe {
   Vec3 origin{0.0f}, origin_Ng{0.0f, 0.0f, 1.0f};
   Spectrum weight{1.0f};  // tint at the exit, Beer absorption inside
   float roughness = 0.0f;  // width of the exit lobe as a Cycles roughness (footprint)
-  // kMixture: the lobes (component 0 = the axis; sg above is the single-SG lobe, unused then), each with its
-  // own exit point and normal, and its share of the transmitted energy (sums to 1).
+  // kMixture: the lobes (component 0 = the axis; sg above is the single-SG lobe, unused then), each refracted
+  // through its own ray's exit normal, all leaving from `origin` (restricted to origin_Ng, one exit point for the
+  // host's whole-mixture estimators, ABI 2.7), with its share of the transmitted energy (sums to 1). Plain data,
+  // not initialised: only the first lobe_count are written and read (an sg sample without the mixture pays
+  // nothing for them).
+  struct MixtureLobe {
+    GlimmerVec3 axis;  // unit, world space
+    float sharpness;
+    float weight;
+  };
   static constexpr int kMaxLobes = 10;  // 5 rays, each a core and a tail
+#if GLIMMER_ABI_MINOR >= 7
+  static_assert(kMaxLobes <= GLIMMER_EXIT_MAX_LOBES);
+#endif
   int lobe_count = 0;
-  SphericalGaussian lobe[kMaxLobes];
-  Vec3 lobe_origin[kMaxLobes], lobe_Ng[kMaxLobes];
-  float lobe_weight[kMaxLobes] = {};
-  float lobe_length[kMaxLobes] = {};  // each ray's length inside on the last segment (Beer), and the axis'
-  float axis_length = 0.0f;
+  MixtureLobe lobe[kMaxLobes];
 };
 
 // Steps 1-5 for the path entering at sp (wi outside, sp.wi.z > 0); `seed` drives the Russian roulette at
@@ -192,6 +200,10 @@ struct PaneExitLobe {
   SphericalGaussian sg;  // amplitude unused (the weight carries the energy)
   bool through = true;
   Spectrum weight{1.0f};  // exit tint x Beer over every crossing
+  // kMixture (the default up to kMixtureRoughnessMax): the exit lobe mixture as for solids, in the pane frame; the
+  // faces are parallel planes, so every ray's own exit normal is the face's (only the rays' incidences differ).
+  int lobe_count = 0;
+  ExitLobe::MixtureLobe lobe[ExitLobe::kMaxLobes];
 };
 
 // Steps 1-4 for wi (pane frame, wi.z > 0); `seed` drives the Russian roulette. False when the table does not

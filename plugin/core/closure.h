@@ -141,6 +141,12 @@ struct LocalSample {
   bool exit_lobe = false;
   Vec3 lobe_axis{0.0f};
   float lobe_sharpness = 0.0f;
+#if GLIMMER_ABI_MINOR >= 7
+  // ABI 2.7: the host's buffer for an exit lobe mixture (NULL: the host does not take one). A closure that
+  // writes it (world space, every lobe leaving from `origin`, restricted to origin_Ng) sets exit_mixture.
+  GlimmerExitMixture *mixture_out = nullptr;
+  bool exit_mixture = false;
+#endif
 };
 
 // Keeps only finite, non-negative values: a closure must never hand NaN/Inf or
@@ -242,16 +248,30 @@ struct ClosureAdapter {
   }
 
   // "No sample", keeping the host's struct_size.
+  // Only the host's struct_size bytes are written (an older host's buffer is smaller), and the host's
+  // exit_mixture buffer pointer (ABI 2.7) is kept.
   static void clear(GlimmerSample *out) {
     const uint32_t size = out->struct_size;
-    *out = GlimmerSample{};
+#if GLIMMER_ABI_MINOR >= 7
+    GlimmerExitMixture *const buffer =
+        GLIMMER_HAS_FIELD(size, GlimmerSample, exit_mixture) ? out->exit_mixture : nullptr;
+#endif
+    const GlimmerSample zero{};
+    std::memcpy(static_cast<void *>(out), &zero,
+                size == 0 ? offsetof(GlimmerSample, label) + sizeof(uint32_t) : std::min<size_t>(size, sizeof zero));
     out->struct_size = size;
+#if GLIMMER_ABI_MINOR >= 7
+    if (GLIMMER_HAS_FIELD(size, GlimmerSample, exit_mixture)) out->exit_mixture = buffer;
+#endif
   }
 
   static uint32_t sample_unguarded(const GlimmerInstance *inst, const GlimmerShadingContext *ctx,
                                    const float rand3[3], GlimmerSample *out) {
     const ShadingPoint sp = shading_point(ctx);
     LocalSample s;
+#if GLIMMER_ABI_MINOR >= 7
+    if (GLIMMER_HAS_FIELD(out->struct_size, GlimmerSample, exit_mixture)) s.mixture_out = out->exit_mixture;
+#endif
     const bool ok = scatters(sp) && self(inst).sample(sp, Vec3(rand3[0], rand3[1], rand3[2]), s);
     const Vec3 wo = sp.frame.to_world(s.wo);
     const float pdf = sanitize(s.pdf);
@@ -293,6 +313,9 @@ struct ClosureAdapter {
       out->flags |= GLIMMER_SAMPLE_EXIT_LOBE;
       out->lobe_axis = s.lobe_axis;
       out->lobe_sharpness = s.lobe_sharpness;
+#if GLIMMER_ABI_MINOR >= 7
+      if (s.exit_mixture && s.mixture_out != nullptr) out->flags |= GLIMMER_SAMPLE_EXIT_MIXTURE;
+#endif
     }
 #endif
     return true;

@@ -33,6 +33,30 @@ inline long bad_moved_sample(const plugin::LocalSample &s, const Vec3 &wo_world)
   return n;
 }
 
+// ABI 2.7: the whole exit mixture a moved sample wrote into the host's buffer: 1..GLIMMER_EXIT_MAX_LOBES lobes,
+// unit finite axes, finite positive sharpness, weights >= 0 summing to 1, and its density at wo (every lobe
+// about origin_Ng) finite and positive. 0 when the sample did not write one.
+inline long bad_exit_mixture(const plugin::LocalSample &s, const GlimmerExitMixture &m, const Vec3 &wo_world) {
+  if (!s.exit_mixture) return 0;
+  if (!(m.count >= 1 && m.count <= GLIMMER_EXIT_MAX_LOBES)) return 1;
+  ExitLobeMixture mix;
+  double sum = 0.0;
+  long n = 0;
+  for (uint32_t k = 0; k < m.count; ++k) {
+    const Vec3 axis(m.axis[k]);
+    if (!is_finite(axis) || std::fabs(length(axis) - 1.0f) > 1e-3f || !std::isfinite(m.sharpness[k]) ||
+        !(m.sharpness[k] > 0.0f) || !std::isfinite(m.weight[k]) || m.weight[k] < 0.0f)
+      ++n;
+    sum += m.weight[k];
+    mix.lobe[mix.count] = ExitLobe::make(axis, m.sharpness[k], s.origin_Ng);
+    mix.weight[mix.count++] = m.weight[k];
+  }
+  if (std::fabs(sum - 1.0) > 1e-4) ++n;
+  const double p = mix.pdf(wo_world);
+  if (!(p > 0.0) || !std::isfinite(p)) ++n;
+  return n;
+}
+
 // One eval and one sample call of a stress loop at (sp, wo): the bad outputs of both (a moved sample's exit checked
 // too); counts the successful samples and the moved ones.
 template <class Closure, class Counter>

@@ -23,6 +23,7 @@
 
 #include <atomic>
 #include <cstdio>
+#include <cstring>
 #include <ctime>
 #include <functional>
 #include <limits>
@@ -487,7 +488,7 @@ struct MixtureKnobs {
   float variance, tail;  // frosted::SgInputs::mixture_variance / mixture_tail
 };
 // The last one is the proposed rule (frosted::mixture_rule_variant: the mixture with kDefaultMixtureVariance and
-// t = mixture_tail_for up to roughness kMixtureRoughnessMax, the single SG above; not method=sg's default yet).
+// t = mixture_tail_for up to roughness kMixtureRoughnessMax, the single SG above; method=sg's default since ABI 2.7).
 constexpr MixtureKnobs kHarnessMixtures[] = {{0.0f, 0.0f},  {0.5f, 0.0f}, {1.0f, 0.0f},  {0.0f, 0.15f},
                                              {0.0f, 0.2f},  {0.5f, 0.1f}, {0.5f, 0.15f}, {0.5f, 0.2f},
                                              {frosted::kDefaultMixtureVariance, frosted::kDefaultMixtureTail}};
@@ -687,6 +688,101 @@ TEST(FrostedGlassAuto, SamplesAreSgsWhereTheRulePicksSgAndPathsElsewhere) {
   }
 }
 
+// ---- ABI 2.7: the whole exit mixture handed to the host ------------------------------------------------------
+// Through the plugin's C entry point (ClosureAdapter::sample) on the analytic sphere, entry points with wi above
+// and (every 8th) below the surface:
+//  - a 2.7 host (full struct_size, a buffer): every moved sample at roughness 0.3 (the mixture rule) flags
+//    GLIMMER_SAMPLE_EXIT_MIXTURE with 1..10 lobes, weights summing to 1, the picked lobe in lobe_axis among them;
+//  - a 2.6 host (struct_size up to lobe_sharpness) with guard bytes after it: nothing written beyond its
+//    struct_size (also on "no sample"), the same moved direction and picked lobe, EXIT_LOBE without the mixture
+//    flag (it still gets the single-lobe behaviour);
+//  - a 2.7 host with a NULL buffer, and roughness 0.6 (the single SG): no mixture flag;
+//  - negative control: the former whole-struct "no sample" trips the guard check.
+TEST(FrostedGlassSg, ExitMixtureThroughTheAbiForNewAndOldHosts) {
+  using Adapter = ClosureAdapter<FrostedGlassClosure>;
+  {  // Negative control of the guard check: the plugin core's former "no sample" (a whole-struct assignment).
+    constexpr size_t kOld = offsetof(GlimmerSample, exit_mixture);
+    alignas(GlimmerSample) unsigned char raw[sizeof(GlimmerSample) + 64];
+    std::memset(raw, 0xAB, sizeof raw);
+    GlimmerSample *old = reinterpret_cast<GlimmerSample *>(raw);
+    old->struct_size = uint32_t(kOld);
+    *old = GlimmerSample{};
+    int overwritten = 0;
+    for (size_t b = kOld; b < sizeof raw; ++b) overwritten += raw[b] != 0xAB;
+    EXPECT_GT(overwritten, 0);
+  }
+  for (const float roughness : {0.3f, 0.6f}) {
+    auto sg = create_method(roughness, 1.5f, "sg");
+    const auto *inst = reinterpret_cast<const GlimmerInstance *>(sg.get());
+    AnalyticScene scene(AnalyticScene::kSphere);
+    scene.material = inst;
+    Pcg32 rng(91);
+    int moved = 0, mixtures = 0, bad = 0, none = 0;
+    for (int i = 0; i < 1500; ++i) {
+      const Vec3 n_out = normalize(Vec3(rng.next_float() - 0.5f, rng.next_float() - 0.5f, rng.next_float() - 0.5f));
+      const Frame f = Frame::from_normal(n_out);
+      const float z = i % 8 == 7 ? -0.5f : 0.2f + rng.next_float();
+      const Vec3 wi_local = normalize(Vec3(rng.next_float() - 0.5f, rng.next_float() - 0.5f, z));
+      GlimmerShadingContext ctx = host::make_local_context(f.to_world(wi_local), &scene.services);
+      ctx.P = n_out;
+      ctx.N = ctx.Ng = n_out;
+      ctx.T = f.s;
+      ctx.path_seed = rng.next_u32();
+      const float r3[3] = {rng.next_float(), rng.next_float(), rng.next_float()};
+      // 2.7 host.
+      GlimmerExitMixture buffer{};
+      GlimmerSample full{};
+      full.struct_size = sizeof(GlimmerSample);
+      full.exit_mixture = &buffer;
+      const uint32_t label = Adapter::sample(inst, &ctx, r3, &full);
+      // 2.6 host: its sample ends before exit_mixture; guard bytes after it.
+      constexpr size_t kOld = offsetof(GlimmerSample, exit_mixture);
+      alignas(GlimmerSample) unsigned char raw[sizeof(GlimmerSample) + 64];
+      std::memset(raw, 0xAB, sizeof raw);
+      GlimmerSample *old = reinterpret_cast<GlimmerSample *>(raw);
+      old->struct_size = uint32_t(kOld);
+      const uint32_t old_label = Adapter::sample(inst, &ctx, r3, old);
+      for (size_t b = kOld; b < sizeof raw; ++b) bad += raw[b] != 0xAB;
+      // 2.7 host without a buffer.
+      GlimmerSample no_buffer{};
+      no_buffer.struct_size = sizeof(GlimmerSample);
+      Adapter::sample(inst, &ctx, r3, &no_buffer);
+      bad += (no_buffer.flags & GLIMMER_SAMPLE_EXIT_MIXTURE) != 0;
+      if (label == GLIMMER_LABEL_NONE) {
+        ++none;
+        bad += old_label != GLIMMER_LABEL_NONE;
+        continue;
+      }
+      bad += old_label != label || old->wo.x != full.wo.x || old->wo.y != full.wo.y || old->wo.z != full.wo.z;
+      if (!(full.flags & GLIMMER_SAMPLE_MOVED)) continue;
+      ++moved;
+      bad += (old->flags & GLIMMER_SAMPLE_EXIT_MIXTURE) != 0 || !(old->flags & GLIMMER_SAMPLE_EXIT_LOBE) ||
+             old->lobe_sharpness != full.lobe_sharpness;
+      if (!(full.flags & GLIMMER_SAMPLE_EXIT_MIXTURE)) continue;
+      ++mixtures;
+      double sum = 0.0;
+      bool picked_listed = false;
+      for (uint32_t k = 0; k < buffer.count && k < GLIMMER_EXIT_MAX_LOBES; ++k) {
+        sum += buffer.weight[k];
+        picked_listed |= buffer.axis[k].x == full.lobe_axis.x && buffer.axis[k].y == full.lobe_axis.y &&
+                         buffer.axis[k].z == full.lobe_axis.z && buffer.sharpness[k] == full.lobe_sharpness;
+      }
+      bad += !(buffer.count >= 1 && buffer.count <= GLIMMER_EXIT_MAX_LOBES) || std::fabs(sum - 1.0) > 1e-4 ||
+             !picked_listed;
+    }
+    std::printf("[frosted sg abi] roughness %.1f: %d moved samples, %d with the whole mixture; %d no-sample calls; "
+                "%d bad (old host's guard bytes, labels, directions, flags, mixture contents)\n",
+                double(roughness), moved, mixtures, none, bad);
+    EXPECT_EQ(bad, 0) << "roughness " << roughness;
+    EXPECT_GT(moved, 300) << "roughness " << roughness;
+    EXPECT_GT(none, 100) << "roughness " << roughness;  // the no-sample path (clear) ran for the old host
+    if (roughness <= frosted::kMixtureRoughnessMax)
+      EXPECT_EQ(mixtures, moved);
+    else
+      EXPECT_EQ(mixtures, 0);
+  }
+}
+
 // ---- Stress --------------------------------------------------------------------
 using glimmer::test::bad_raw_outputs;
 
@@ -740,7 +836,7 @@ TEST(FrostedGlassSg, StressRawOutputsFiniteNonNegative) {
   const auto schema = FrostedGlassClosure::params();
   const long calls = 1000000 * long(stress_scale());
   const long blocks = 64;
-  std::atomic<long> bad_count{0}, moved{0}, samples{0}, mixture_moved{0};
+  std::atomic<long> bad_count{0}, moved{0}, samples{0}, mixture_moved{0}, mixture_written{0};
   tbb::parallel_for(long(0), blocks, [&](long b) {
     Pcg32 r(900 + b);
     for (long i = 0; i < calls / blocks; ++i) {
@@ -764,10 +860,12 @@ TEST(FrostedGlassSg, StressRawOutputsFiniteNonNegative) {
       const Vec3 wo = stress_direction(r, grazing);
       const Vec3 rand(r.next_float(), r.next_float(), r.next_float());
       long n_bad = glimmer::test::stress_eval_and_sample(c, sp, wo, rand, samples, moved);
-      // The exit lobe mixture (not method=sg's default yet): the same queries through kMixture, v and t at the
-      // ends of their ranges and NaN (clamped).
+      // The exit lobe mixture (method=sg's default up to roughness 0.4): the same queries through kMixture, v and
+      // t at the ends of their ranges and NaN (clamped), the whole mixture written to a host buffer (ABI 2.7).
       if (i % 2 == 0) {
         LocalSample s;
+        GlimmerExitMixture buffer;
+        s.mixture_out = &buffer;
         if (c.sample(sp, rand, s) && c.uses_sg(sp) && (s.label & GLIMMER_LABEL_TRANSMIT)) {
           const float vs[] = {0.0f, 0.5f, 1.0f, std::numeric_limits<float>::quiet_NaN()};
           const float ts[] = {0.0f, 0.2f, 0.25f, -1.0f};
@@ -776,6 +874,8 @@ TEST(FrostedGlassSg, StressRawOutputsFiniteNonNegative) {
           if (s.moved) {
             mixture_moved.fetch_add(1);
             n_bad += glimmer::test::bad_moved_sample(s, sp.frame.to_world(s.wo));
+            n_bad += glimmer::test::bad_exit_mixture(s, buffer, sp.frame.to_world(s.wo));
+            mixture_written.fetch_add(s.exit_mixture ? 1 : 0);
           }
         }
       }
@@ -785,8 +885,10 @@ TEST(FrostedGlassSg, StressRawOutputsFiniteNonNegative) {
   EXPECT_EQ(bad_count.load(), 0);
   EXPECT_GT(moved.load(), calls / 20);  // the sg estimator really ran
   EXPECT_GT(mixture_moved.load(), calls / 40);  // and the mixture
-  std::printf("[frosted sg stress] exit lobe mixture: %ld moved samples (v 0..1 / NaN, t 0..0.25 / rule)\n",
-              mixture_moved.load());
+  EXPECT_GT(mixture_written.load(), mixture_moved.load() / 2);  // handed to the host whole
+  std::printf("[frosted sg stress] exit lobe mixture: %ld moved samples (v 0..1 / NaN, t 0..0.25 / rule), %ld "
+              "written whole to the host's buffer\n",
+              mixture_moved.load(), mixture_written.load());
   std::printf("[frosted sg stress] %ld eval + %ld sample calls (%ld sg moved samples), 1/4 grazing, half IOR 2.4; "
               "sphere / slab / odd host (t 0..inf, NaN, -1; NaN or zero normals; other closures): %ld bad\n",
               calls, samples.load(), moved.load(), bad_count.load());

@@ -56,6 +56,14 @@
  *        so a closure may pick a sampler that is best alone; eval's pdf must
  *        follow the same choice). A plugin reads it only when struct_size
  *        holds it; an older host's contexts mean "combined".
+ *   2.7: GlimmerSample.exit_mixture (GLIMMER_SAMPLE_EXIT_MIXTURE): a moved
+ *        exit-lobe sample may describe the whole mixture of lobes its
+ *        direction was drawn from (GlimmerExitMixture, written into a buffer
+ *        the host owns), so the host evaluates the mixture whole (NEE and MIS
+ *        with the mixture's density, lamps and the world's cone lookup as
+ *        weighted sums over the lobes). A plugin writes it only when the
+ *        host's struct_size holds the field and the pointer is not NULL; a
+ *        2.6 host still gets the picked lobe in lobe_axis / lobe_sharpness.
  *
  * Threading: create/prepare/destroy are called from one thread; eval/sample/
  * emit/albedo are called concurrently on an immutable, prepared instance and
@@ -75,7 +83,7 @@ extern "C" {
 #define GLIMMER_ABI_MAJOR 2u
 #endif
 #ifndef GLIMMER_ABI_MINOR
-#define GLIMMER_ABI_MINOR 6u
+#define GLIMMER_ABI_MINOR 7u
 #endif
 #ifndef GLIMMER_ABI_VERSION
 #define GLIMMER_ABI_VERSION ((GLIMMER_ABI_MAJOR << 16) | GLIMMER_ABI_MINOR)
@@ -268,6 +276,23 @@ typedef enum GlimmerSamplingFlags {
   GLIMMER_SAMPLING_UNCOMBINED = 1u << 0
 } GlimmerSamplingFlags;
 
+#if GLIMMER_ABI_MINOR >= 7
+/* ABI 2.7: an exit lobe mixture (GlimmerSample.exit_mixture). Lobe k is the
+ * exit lobe of ABI 2.4 (the vMF about axis[k] with sharpness[k] > 0,
+ * restricted to the outside of the sample's origin_Ng by the same redraw
+ * rule) and is picked with probability weight[k] (>= 0, summing to 1); the
+ * mixture's density is sum_k weight[k] ExitLobe_k::pdf (glimmer/exit_lobe.h,
+ * ExitLobeMixture) and the lobe as a BSDF at `origin` is eval[] x that
+ * density. All lobes leave from the sample's origin. */
+#define GLIMMER_EXIT_MAX_LOBES 10
+typedef struct GlimmerExitMixture {
+  uint32_t count; /* 1..GLIMMER_EXIT_MAX_LOBES; entries beyond count are not written */
+  GlimmerVec3 axis[GLIMMER_EXIT_MAX_LOBES];
+  float sharpness[GLIMMER_EXIT_MAX_LOBES];
+  float weight[GLIMMER_EXIT_MAX_LOBES];
+} GlimmerExitMixture;
+#endif
+
 /* ---- Sampling result. ---- */
 typedef struct GlimmerSample {
   uint32_t struct_size; /* the host's buffer size; the plugin writes the fields it holds (0 = the 2.0 fields) */
@@ -303,9 +328,21 @@ typedef struct GlimmerSample {
   GlimmerVec3 lobe_axis;
   float lobe_sharpness;
 #endif
+#if GLIMMER_ABI_MINOR >= 7
+  /* ABI 2.7. Set by the host (its own buffer, or NULL; the plugin never
+   * allocates): a plugin whose exit lobe is a mixture writes it there and sets
+   * GLIMMER_SAMPLE_EXIT_MIXTURE (only together with GLIMMER_SAMPLE_EXIT_LOBE;
+   * lobe_axis / lobe_sharpness then hold the lobe wo was drawn from, for hosts
+   * that read only those). Read only when the flag is set. */
+  GlimmerExitMixture *exit_mixture;
+#endif
 } GlimmerSample;
 
-enum GlimmerSampleFlags { GLIMMER_SAMPLE_MOVED = 1u, GLIMMER_SAMPLE_EXIT_LOBE = 2u };
+enum GlimmerSampleFlags {
+  GLIMMER_SAMPLE_MOVED = 1u,
+  GLIMMER_SAMPLE_EXIT_LOBE = 2u,
+  GLIMMER_SAMPLE_EXIT_MIXTURE = 4u /* ABI 2.7 */
+};
 
 /* ---- Parameters: declared once per closure type, validated at create. ---- */
 typedef enum GlimmerParamType {
