@@ -159,8 +159,8 @@ constexpr uint32_t dimension_seed(uint32_t set_seed, int d) {
 //     best-stratified 4D projection).
 //   lens: 2D (its own set far from the others).
 //   vertex 0's light: 2D (u, v): u picks the light (rescaled) and with v the point on it.
-//   vertex b >= 1: one 6D set (since issue 13, session 9): light (u, v) = Sobol dimensions 0-1, BSDF x, y =
-//     2-3, z = 4, rr = 5. x picks the closure of the mixture (rescaled), then the closure's own lobe choice
+//   vertex b >= 1: one 6D set (since issue 13, session 9): BSDF x, y = Sobol dimensions 0-1, light (u, v) =
+//     2-3, BSDF z = 4, rr = 5. x picks the closure of the mixture (rescaled), then the closure's own lobe choice
 //     (rescaled again) and with y the direction; z is the closure's third number (dielectric
 //     reflect/refract, decided on the sampled microfacet: jointly stratified with x, y); rr is Russian
 //     roulette. Each vertex has its own set (padding).
@@ -179,8 +179,8 @@ inline uint32_t bounce_set(int bounce, uint32_t which) { return 1u + static_cast
 // The camera set is vertex 0's BSDF set; its dimension pairs: film (u, v), BSDF (x, y), BSDF (z, rr).
 constexpr uint32_t kSetCamera = 1u;  // bounce_set(0, kSetBsdf)
 constexpr int kCameraFilmPair = 0, kCameraBsdfXyPair = 1, kCameraBsdfZrrPair = 2;
-// The set of vertex b >= 1 is bounce_set(b, kSetBsdf); its pairs: light (u, v), BSDF (x, y), BSDF (z, rr).
-constexpr int kVertexLightPair = 0, kVertexBsdfXyPair = 1, kVertexBsdfZrrPair = 2;
+// The set of vertex b >= 1 is bounce_set(b, kSetBsdf); its pairs: BSDF (x, y), light (u, v), BSDF (z, rr).
+constexpr int kVertexBsdfXyPair = 0, kVertexLightPair = 1, kVertexBsdfZrrPair = 2;
 // What an undrawn number reads: rr = 1 ends a path that would wrongly read it (rr >= q for every q <= 1);
 // light numbers are not read where they are not drawn.
 constexpr float kUndrawnRr = 1.0f, kUndrawnLight = 0.5f;
@@ -259,7 +259,10 @@ struct PixelSampler {
     }
     float six[6];
     get(bounce_set(vertex, kSetBsdf), six);
-    for (int d = 0; d < 4; ++d) out[d] = six[2 * kVertexBsdfXyPair + d];
+    for (int d = 0; d < 2; ++d) {
+      out[d] = six[2 * kVertexBsdfXyPair + d];
+      out[2 + d] = six[2 * kVertexBsdfZrrPair + d];
+    }
   }
   // The light numbers of a vertex (vertex 0: its own 2D set).
   void get_light(int vertex, float &u, float &v) const {
@@ -267,10 +270,10 @@ struct PixelSampler {
       get2(bounce_set(0, kSetLight), u, v);
       return;
     }
-    float two[2];
-    get(bounce_set(vertex, kSetBsdf), two);
-    u = two[2 * kVertexLightPair];
-    v = two[2 * kVertexLightPair + 1];
+    float six[6];
+    get(bounce_set(vertex, kSetBsdf), six);
+    u = six[2 * kVertexLightPair];
+    v = six[2 * kVertexLightPair + 1];
   }
 
  private:
@@ -286,7 +289,8 @@ struct PixelSampler {
   // Dimension d of set s from its pair's table word `sobol` (sobol_pair_reversed(d / 2, ...)): its scramble and
   // the float of the reversed bits.
   [[gnu::always_inline]] static float value(const Set &s, uint64_t sobol, int d) {
-    return reversed_to_unit_float(laine_karras_permutation(static_cast<uint32_t>(sobol >> (32 * (d % 2))), dimension_seed(s.seed, d)));
+    const uint32_t word = static_cast<uint32_t>(sobol >> (32 * (d % 2)));
+    return reversed_to_unit_float(laine_karras_permutation(word, dimension_seed(s.seed, d)));
   }
   // Dimensions 2p and 2p + 1 of set s into out[first] and out[first + 1] (the second only if N has it): one
   // table look-up per index byte for both, then per dimension its scramble and the float of the reversed bits.

@@ -274,7 +274,7 @@ TEST(Sampler, PathStartSetsEqualTheSetsApart) {
     }
 }
 
-// A vertex b >= 1 draws one 6D set: light (u, v) = Sobol dimensions 0-1, BSDF (x, y) = 2-3, (z, rr) = 4-5.
+// A vertex b >= 1 draws one 6D set: BSDF (x, y) = Sobol dimensions 0-1, light (u, v) = 2-3, BSDF (z, rr) = 4-5.
 // The numbers it skips (light without a light sample, rr where roulette cannot fire) read the undrawn
 // constants, and the numbers it draws do not depend on which are skipped. Control: the neighbouring vertex's
 // set differs, so a set id mixed up between vertices would be caught.
@@ -291,7 +291,9 @@ TEST(Sampler, VertexSetIsOneSixDimensionalSetAndSkipsUnreadNumbers) {
           const bool need_light = (need & 1) != 0, need_rr = (need & 2) != 0;
           float bsdf[4], light[2];
           sampler.get_vertex(vertex, bsdf, light, need_light, need_rr);
-          for (int d = 0; d < 3; ++d) ASSERT_EQ(bsdf[d], six[2 * kVertexBsdfXyPair + d]);
+          ASSERT_EQ(bsdf[0], six[2 * kVertexBsdfXyPair]);
+          ASSERT_EQ(bsdf[1], six[2 * kVertexBsdfXyPair + 1]);
+          ASSERT_EQ(bsdf[2], six[2 * kVertexBsdfZrrPair]);
           ASSERT_EQ(bsdf[3], need_rr ? six[2 * kVertexBsdfZrrPair + 1] : kUndrawnRr);
           ASSERT_EQ(light[0], need_light ? six[2 * kVertexLightPair] : kUndrawnLight);
           ASSERT_EQ(light[1], need_light ? six[2 * kVertexLightPair + 1] : kUndrawnLight);
@@ -302,7 +304,7 @@ TEST(Sampler, VertexSetIsOneSixDimensionalSetAndSkipsUnreadNumbers) {
   EXPECT_GE(neighbour_differs, cases - 2);
 }
 
-// The light numbers and the BSDF (x, y) of a vertex >= 1 are Sobol dimensions 0-3 of one index: a (3, 8, 4)-net
+// The BSDF (x, y) and the light numbers of a vertex >= 1 are Sobol dimensions 0-3 of one index: a (3, 8, 4)-net
 // at 256 samples, like the camera set's film and BSDF numbers. Control: light numbers from vertex 0's own 2D set
 // with the BSDF numbers of another vertex's set (two independently shuffled sets) are not a (6, 8, 4)-net.
 TEST(Sampler, VertexSetIsJointlyStratifiedInFourDimensions) {
@@ -315,11 +317,11 @@ TEST(Sampler, VertexSetIsJointlyStratifiedInFourDimensions) {
       float bsdf[4], light[2], other_light[2];
       sampler.get_vertex(3, bsdf, light);
       sampler.get(bounce_set(0, kSetLight), other_light);
-      const float j[4] = {light[0], light[1], bsdf[0], bsdf[1]}, a[4] = {other_light[0], other_light[1], bsdf[0], bsdf[1]};
+      const float j[4] = {bsdf[0], bsdf[1], light[0], light[1]}, a[4] = {bsdf[0], bsdf[1], other_light[0], other_light[1]};
       for (int d = 0; d < 4; ++d) joint[static_cast<size_t>(d)][s] = j[d], apart[static_cast<size_t>(d)][s] = a[d];
     }
     EXPECT_TRUE(is_tms_net(joint, 3, m)) << "pixel " << pixel;
-    EXPECT_TRUE(is_0m2_net(joint[0], joint[1], m)) << "pixel " << pixel;
+    EXPECT_TRUE(is_0m2_net(joint[0], joint[1], m)) << "pixel " << pixel;  // BSDF (x, y): Sobol dimensions 0-1
     EXPECT_FALSE(is_tms_net(apart, 6, m)) << "pixel " << pixel;
   }
 }
