@@ -918,7 +918,7 @@ struct Renderer::Impl {
         if (options.aovs) write_first_hit_aovs(cs, sd, hit.t * ray.cam_dir_z, aov);  // else the film drops them
       }
       if (ps.terminate_next) break;
-      // The vertex's 6D set: BSDF x, y (closure pick, then the closure's direction), light (u, v), z (the
+      // The vertex's 6D set: light (u, v), BSDF x, y (closure pick, then the closure's direction), z (the
       // closure's third number), rr (Russian roulette); light numbers only for a light sample, rr only where
       // roulette can fire (vertex 0's from the path start above; every iteration that goes on advances the vertex).
       if (ps.sample_vertex() > 0)

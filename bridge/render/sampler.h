@@ -159,8 +159,8 @@ constexpr uint32_t dimension_seed(uint32_t set_seed, int d) {
 //     best-stratified 4D projection).
 //   lens: 2D (its own set far from the others).
 //   vertex 0's light: 2D (u, v): u picks the light (rescaled) and with v the point on it.
-//   vertex b >= 1: one 6D set (since issue 13, session 9): BSDF x, y = Sobol dimensions 0-1, light (u, v) =
-//     2-3, BSDF z = 4, rr = 5. x picks the closure of the mixture (rescaled), then the closure's own lobe choice
+//   vertex b >= 1: one 6D set (since issue 13, session 9): light (u, v) = Sobol dimensions 0-1, BSDF x, y =
+//     2-3, z = 4, rr = 5. x picks the closure of the mixture (rescaled), then the closure's own lobe choice
 //     (rescaled again) and with y the direction; z is the closure's third number (dielectric
 //     reflect/refract, decided on the sampled microfacet: jointly stratified with x, y); rr is Russian
 //     roulette. Each vertex has its own set (padding).
@@ -179,8 +179,8 @@ inline uint32_t bounce_set(int bounce, uint32_t which) { return 1u + static_cast
 // The camera set is vertex 0's BSDF set; its dimension pairs: film (u, v), BSDF (x, y), BSDF (z, rr).
 constexpr uint32_t kSetCamera = 1u;  // bounce_set(0, kSetBsdf)
 constexpr int kCameraFilmPair = 0, kCameraBsdfXyPair = 1, kCameraBsdfZrrPair = 2;
-// The set of vertex b >= 1 is bounce_set(b, kSetBsdf); its pairs: BSDF (x, y), light (u, v), BSDF (z, rr).
-constexpr int kVertexBsdfXyPair = 0, kVertexLightPair = 1, kVertexBsdfZrrPair = 2;
+// The set of vertex b >= 1 is bounce_set(b, kSetBsdf); its pairs: light (u, v), BSDF (x, y), BSDF (z, rr).
+constexpr int kVertexLightPair = 0, kVertexBsdfXyPair = 1, kVertexBsdfZrrPair = 2;
 // What an undrawn number reads: rr = 1 ends a path that would wrongly read it (rr >= q for every q <= 1);
 // light numbers are not read where they are not drawn.
 constexpr float kUndrawnRr = 1.0f, kUndrawnLight = 0.5f;

@@ -274,7 +274,7 @@ TEST(Sampler, PathStartSetsEqualTheSetsApart) {
     }
 }
 
-// A vertex b >= 1 draws one 6D set: BSDF (x, y) = Sobol dimensions 0-1, light (u, v) = 2-3, BSDF (z, rr) = 4-5.
+// A vertex b >= 1 draws one 6D set: light (u, v) = Sobol dimensions 0-1, BSDF (x, y) = 2-3, (z, rr) = 4-5.
 // The numbers it skips (light without a light sample, rr where roulette cannot fire) read the undrawn
 // constants, and the numbers it draws do not depend on which are skipped. Control: the neighbouring vertex's
 // set differs, so a set id mixed up between vertices would be caught.
@@ -304,7 +304,7 @@ TEST(Sampler, VertexSetIsOneSixDimensionalSetAndSkipsUnreadNumbers) {
   EXPECT_GE(neighbour_differs, cases - 2);
 }
 
-// The BSDF (x, y) and the light numbers of a vertex >= 1 are Sobol dimensions 0-3 of one index: a (3, 8, 4)-net
+// The light numbers and the BSDF (x, y) of a vertex >= 1 are Sobol dimensions 0-3 of one index: a (3, 8, 4)-net
 // at 256 samples, like the camera set's film and BSDF numbers. Control: light numbers from vertex 0's own 2D set
 // with the BSDF numbers of another vertex's set (two independently shuffled sets) are not a (6, 8, 4)-net.
 TEST(Sampler, VertexSetIsJointlyStratifiedInFourDimensions) {
@@ -317,11 +317,13 @@ TEST(Sampler, VertexSetIsJointlyStratifiedInFourDimensions) {
       float bsdf[4], light[2], other_light[2];
       sampler.get_vertex(3, bsdf, light);
       sampler.get(bounce_set(0, kSetLight), other_light);
-      const float j[4] = {bsdf[0], bsdf[1], light[0], light[1]}, a[4] = {bsdf[0], bsdf[1], other_light[0], other_light[1]};
-      for (int d = 0; d < 4; ++d) joint[static_cast<size_t>(d)][s] = j[d], apart[static_cast<size_t>(d)][s] = a[d];
+      // In Sobol dimension order: light (u, v) in pair kVertexLightPair, BSDF (x, y) in pair kVertexBsdfXyPair.
+      const size_t l = 2 * kVertexLightPair, b = 2 * kVertexBsdfXyPair;
+      joint[l][s] = light[0], joint[l + 1][s] = light[1], joint[b][s] = bsdf[0], joint[b + 1][s] = bsdf[1];
+      apart[l][s] = other_light[0], apart[l + 1][s] = other_light[1], apart[b][s] = bsdf[0], apart[b + 1][s] = bsdf[1];
     }
     EXPECT_TRUE(is_tms_net(joint, 3, m)) << "pixel " << pixel;
-    EXPECT_TRUE(is_0m2_net(joint[0], joint[1], m)) << "pixel " << pixel;  // BSDF (x, y): Sobol dimensions 0-1
+    EXPECT_TRUE(is_0m2_net(joint[0], joint[1], m)) << "pixel " << pixel;  // Sobol dimensions 0-1
     EXPECT_FALSE(is_tms_net(apart, 6, m)) << "pixel " << pixel;
   }
 }
