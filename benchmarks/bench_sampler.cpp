@@ -82,7 +82,8 @@ BENCHMARK(BM_SamplerPathVertices);
 
 // A path waits on its numbers: here each vertex's set index depends on the previous vertex's values (through a
 // zero the compiler cannot see), so the chains of consecutive vertices cannot overlap, as in a render. Apart:
-// the BSDF set, then the light set (two chains one after the other); together: get_vertex (side by side).
+// get_bsdf, then get_light (one chain after the other; since issue 13, session 9, both read the vertex's one 6D
+// set, so apart starts it twice); together: get_vertex (one set start, every number drawn).
 template <bool kTogether>
 void sampler_dependent_path(benchmark::State &state) {
   uint32_t sample = 0, zero = 0;

@@ -927,9 +927,10 @@ struct Renderer::Impl {
     const PixelSampler sampler(seed, pixel_index, sample_index);
     const uint32_t path_seed = hash_u32x3(seed, pixel_index, sample_index);
     // The camera set (film position and vertex 0's BSDF numbers, jointly stratified) and vertex 0's light set,
-    // drawn together (docs/architecture.md "Sample dimensions").
+    // drawn together (docs/architecture.md "Sample dimensions"); the light set only where lights are sampled.
+    const bool nee = use_nee() && lights->count() > 0;
     float film_uv[2], bsdf_rand[4], light_rand[2];
-    sampler.get_path_start(film_uv, bsdf_rand, light_rand);
+    sampler.get_path_start(film_uv, bsdf_rand, light_rand, nee);
     PathRay ray = sample_camera_ray(px, py, film_uv, sampler);
     PathRadiance pr;
     pr.nan_count = &nan_count;
@@ -954,10 +955,12 @@ struct Renderer::Impl {
         if (options.aovs) write_first_hit_aovs(cs, sd, hit.t * ray.cam_dir_z, aov);  // else the film drops them
       }
       if (ps.terminate_next) break;
-      // The vertex's 4D BSDF set: x, y (closure pick, then the closure's direction), z (its third number),
-      // rr (Russian roulette), and its 2D light set (u, v), drawn together so that the two chains overlap
-      // (vertex 0's from the camera set above; every iteration that goes on advances the vertex).
-      if (ps.sample_vertex() > 0) sampler.get_vertex(ps.sample_vertex(), bsdf_rand, light_rand);
+      // The vertex's 6D set: light (u, v), BSDF x, y (closure pick, then the closure's direction), z (the
+      // closure's third number), rr (Russian roulette); light numbers only for a light sample, rr only where
+      // roulette can fire (vertex 0's from the path start above; every iteration that goes on advances the vertex).
+      if (ps.sample_vertex() > 0)
+        sampler.get_vertex(ps.sample_vertex(), bsdf_rand, light_rand, nee && has_smooth_closure(cs),
+                           ps.bounce > limits.min_bounce);
       if (!survives_russian_roulette(ps, limits, bsdf_rand[3], pr.throughput)) break;
       const float transparent_weight = std::fabs(average(cs.transparent));
       const float total_sw = cs.sum_sample_weight + transparent_weight;

@@ -158,11 +158,15 @@ constexpr uint32_t dimension_seed(uint32_t set_seed, int d) {
 //     sequence, the best anti-aliasing of edges), x, y = 2-3, z, rr = 4-5 (dimensions 0-3 form the
 //     best-stratified 4D projection).
 //   lens: 2D (its own set far from the others).
-//   BSDF of bounce b >= 1: 4D (x, y, z, rr): x picks the closure of the mixture (rescaled), then the
-//     closure's own lobe choice (rescaled again) and with y the direction; z is the closure's third number
-//     (dielectric reflect/refract, decided on the sampled microfacet: jointly stratified with x, y); rr is
-//     Russian roulette. Each bounce has its own set (padding).
-//   light of bounce b: 2D (u, v): u picks the light (rescaled) and with v the point on it.
+//   vertex 0's light: 2D (u, v): u picks the light (rescaled) and with v the point on it.
+//   vertex b >= 1: one 6D set (since issue 13, session 9): light (u, v) = Sobol dimensions 0-1, BSDF x, y =
+//     2-3, z = 4, rr = 5. x picks the closure of the mixture (rescaled), then the closure's own lobe choice
+//     (rescaled again) and with y the direction; z is the closure's third number (dielectric
+//     reflect/refract, decided on the sampled microfacet: jointly stratified with x, y); rr is Russian
+//     roulette. Each vertex has its own set (padding).
+//   Values nobody reads are not drawn: vertex 0's rr (Russian roulette never applies at vertices 0 and 1),
+//   rr wherever bounce <= min_bounce, the light numbers where no light sample is taken. The others are the
+//   same either way (every value is a pure function of seed, pixel, sample, set and dimension).
 //   b counts transparent pass-throughs too (PathState::sample_vertex), so every surface a path meets
 //   has its own sets.
 enum SampleSet : uint32_t {
@@ -175,6 +179,11 @@ inline uint32_t bounce_set(int bounce, uint32_t which) { return 1u + static_cast
 // The camera set is vertex 0's BSDF set; its dimension pairs: film (u, v), BSDF (x, y), BSDF (z, rr).
 constexpr uint32_t kSetCamera = 1u;  // bounce_set(0, kSetBsdf)
 constexpr int kCameraFilmPair = 0, kCameraBsdfXyPair = 1, kCameraBsdfZrrPair = 2;
+// The set of vertex b >= 1 is bounce_set(b, kSetBsdf); its pairs: light (u, v), BSDF (x, y), BSDF (z, rr).
+constexpr int kVertexLightPair = 0, kVertexBsdfXyPair = 1, kVertexBsdfZrrPair = 2;
+// What an undrawn number reads: rr = 1 ends a path that would wrongly read it (rr >= q for every q <= 1);
+// light numbers are not read where they are not drawn.
+constexpr float kUndrawnRr = 1.0f, kUndrawnLight = 0.5f;
 
 struct PixelSampler {
   uint32_t pixel_seed;        // hash of (seed, pixel)
@@ -197,29 +206,43 @@ struct PixelSampler {
     pair_values(c, kCameraBsdfXyPair, bsdf, 0);
     pair_values(c, kCameraBsdfZrrPair, bsdf, 2);
   }
-  // The BSDF set (x, y, z, rr) and the light set (u, v) of a path vertex in one call: the same values as
-  // get_bsdf and get_light, but the two dependent chains (seed hash, index shuffle, look-ups, scrambles,
-  // reversal) are independent of each other and written side by side, so they overlap in the pipeline
-  // instead of the path waiting on each in turn. Vertex 0's BSDF numbers are those of the camera set.
-  void get_vertex(int vertex, float (&bsdf)[4], float (&light)[2]) const {
+  // The BSDF numbers (x, y, z, rr) and light numbers (u, v) of path vertex >= 1, from the vertex's one 6D set
+  // (one seed hash and one index shuffle). need_light: a light sample will be taken here; need_rr: Russian
+  // roulette can fire here (bounce > min_bounce). Numbers not needed are not drawn (kUndrawnLight, kUndrawnRr);
+  // the others do not depend on which are drawn. Vertex 0's numbers are those of get_path_start.
+  void get_vertex(int vertex, float (&bsdf)[4], float (&light)[2], bool need_light = true, bool need_rr = true) const {
     if (vertex == 0) {
       float film[2];
-      get_path_start(film, bsdf, light);
+      get_path_start(film, bsdf, light, need_light);
       return;
     }
-    const Set b = start_set(bounce_set(vertex, kSetBsdf)), l = start_set(bounce_set(vertex, kSetLight));
-    pair_values(b, 0, bsdf, 0);
-    pair_values(l, 0, light, 0);
-    pair_values(b, 1, bsdf, 2);
+    const Set v = start_set(bounce_set(vertex, kSetBsdf));
+    pair_values(v, kVertexBsdfXyPair, bsdf, 0);
+    const uint64_t zrr = sobol_pair_reversed(kVertexBsdfZrrPair, v.index_reversed);
+    bsdf[2] = value(v, zrr, 2 * kVertexBsdfZrrPair);
+    bsdf[3] = need_rr ? value(v, zrr, 2 * kVertexBsdfZrrPair + 1) : kUndrawnRr;
+    if (need_light) {
+      pair_values(v, kVertexLightPair, light, 0);
+    } else {
+      light[0] = light[1] = kUndrawnLight;
+    }
   }
-  // The camera set (film position and vertex 0's BSDF numbers) with vertex 0's light set: two independent
-  // chains side by side at the start of a path (the same values as get_camera and get_light(0, ...)).
-  void get_path_start(float (&film)[2], float (&bsdf)[4], float (&light)[2]) const {
-    const Set c = start_set(kSetCamera), l = start_set(bounce_set(0, kSetLight));
-    pair_values(c, kCameraFilmPair, film, 0);
-    pair_values(l, 0, light, 0);
+  // The camera set (film position and vertex 0's BSDF numbers x, y, z; its rr is never read: Russian roulette
+  // needs bounce > min_bounce >= 1) with vertex 0's light set when need_light: two independent chains side
+  // by side at the start of a path (the same values as get_camera and get_light(0, ...)).
+  void get_path_start(float (&film)[2], float (&bsdf)[4], float (&light)[2], bool need_light = true) const {
+    const Set c = start_set(kSetCamera);
+    if (need_light) {
+      const Set l = start_set(bounce_set(0, kSetLight));
+      pair_values(c, kCameraFilmPair, film, 0);
+      pair_values(l, 0, light, 0);
+    } else {
+      pair_values(c, kCameraFilmPair, film, 0);
+      light[0] = light[1] = kUndrawnLight;
+    }
     pair_values(c, kCameraBsdfXyPair, bsdf, 0);
-    pair_values(c, kCameraBsdfZrrPair, bsdf, 2);
+    bsdf[2] = value(c, sobol_pair_reversed(kCameraBsdfZrrPair, c.index_reversed), 2 * kCameraBsdfZrrPair);
+    bsdf[3] = kUndrawnRr;
   }
   void get2(uint32_t set, float &u, float &v) const {
     float uv[2];
@@ -227,16 +250,31 @@ struct PixelSampler {
     u = uv[0];
     v = uv[1];
   }
-  // The BSDF dimensions (x, y, z, rr) of a bounce (bounce 0: from the camera set).
-  void get_bsdf(int bounce, float (&out)[4]) const {
-    if (bounce == 0) {
+  // The BSDF dimensions (x, y, z, rr) of a vertex (vertex 0: from the camera set), every one drawn.
+  void get_bsdf(int vertex, float (&out)[4]) const {
+    if (vertex == 0) {
       float film[2];
       get_camera(film, out);
       return;
     }
-    get(bounce_set(bounce, kSetBsdf), out);
+    float six[6];
+    get(bounce_set(vertex, kSetBsdf), six);
+    for (int d = 0; d < 2; ++d) {
+      out[d] = six[2 * kVertexBsdfXyPair + d];
+      out[2 + d] = six[2 * kVertexBsdfZrrPair + d];
+    }
   }
-  void get_light(int bounce, float &u, float &v) const { get2(bounce_set(bounce, kSetLight), u, v); }
+  // The light numbers of a vertex (vertex 0: its own 2D set).
+  void get_light(int vertex, float &u, float &v) const {
+    if (vertex == 0) {
+      get2(bounce_set(0, kSetLight), u, v);
+      return;
+    }
+    float six[6];
+    get(bounce_set(vertex, kSetBsdf), six);
+    u = six[2 * kVertexLightPair];
+    v = six[2 * kVertexLightPair + 1];
+  }
 
  private:
   // A set's seed and its shuffled index (Burley 2020, sec. 4: a nested uniform scramble of the sample index,
@@ -247,6 +285,12 @@ struct PixelSampler {
   [[gnu::always_inline]] Set start_set(uint32_t set) const {
     const uint32_t set_seed = hash_combine(pixel_seed, set);
     return {set_seed, laine_karras_permutation(sample_reversed, set_seed)};
+  }
+  // Dimension d of set s from its pair's table word `sobol` (sobol_pair_reversed(d / 2, ...)): its scramble and
+  // the float of the reversed bits.
+  [[gnu::always_inline]] static float value(const Set &s, uint64_t sobol, int d) {
+    const uint32_t word = static_cast<uint32_t>(sobol >> (32 * (d % 2)));
+    return reversed_to_unit_float(laine_karras_permutation(word, dimension_seed(s.seed, d)));
   }
   // Dimensions 2p and 2p + 1 of set s into out[first] and out[first + 1] (the second only if N has it): one
   // table look-up per index byte for both, then per dimension its scramble and the float of the reversed bits.

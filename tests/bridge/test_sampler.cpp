@@ -234,7 +234,9 @@ TEST(Sampler, VertexSetsTogetherEqualTheSetsApart) {
         sampler.get_vertex(vertex, bsdf, light);
         sampler.get_bsdf(vertex, bsdf_apart);
         sampler.get_light(vertex, lu, lv);
-        for (int d = 0; d < 4; ++d) ASSERT_EQ(bsdf[d], bsdf_apart[d]) << pixel << " " << s << " " << vertex << " " << d;
+        for (int d = 0; d < 3; ++d) ASSERT_EQ(bsdf[d], bsdf_apart[d]) << pixel << " " << s << " " << vertex << " " << d;
+        // Vertex 0's rr is never read (roulette needs bounce > min_bounce >= 1), so it is not drawn.
+        ASSERT_EQ(bsdf[3], vertex == 0 ? kUndrawnRr : bsdf_apart[3]);
         ASSERT_EQ(light[0], lu);
         ASSERT_EQ(light[1], lv);
         float next_bsdf[4], next_u, next_v;
@@ -257,10 +259,73 @@ TEST(Sampler, PathStartSetsEqualTheSetsApart) {
       sampler.get_light(0, lu, lv);
       ASSERT_EQ(film[0], film0[0]);
       ASSERT_EQ(film[1], film0[1]);
-      for (int d = 0; d < 4; ++d) ASSERT_EQ(bsdf[d], bsdf0[d]);
+      for (int d = 0; d < 3; ++d) ASSERT_EQ(bsdf[d], bsdf0[d]);
+      ASSERT_EQ(bsdf[3], kUndrawnRr);  // never read at vertex 0, not drawn
       ASSERT_EQ(light[0], lu);
       ASSERT_EQ(light[1], lv);
+      // Without a light sample the light set is not drawn; the other numbers stay the same.
+      float film_n[2], bsdf_n[4], light_n[2];
+      sampler.get_path_start(film_n, bsdf_n, light_n, false);
+      ASSERT_EQ(film_n[0], film[0]);
+      ASSERT_EQ(film_n[1], film[1]);
+      for (int d = 0; d < 4; ++d) ASSERT_EQ(bsdf_n[d], bsdf[d]);
+      ASSERT_EQ(light_n[0], kUndrawnLight);
+      ASSERT_EQ(light_n[1], kUndrawnLight);
     }
+}
+
+// A vertex b >= 1 draws one 6D set: light (u, v) = Sobol dimensions 0-1, BSDF (x, y) = 2-3, (z, rr) = 4-5.
+// The numbers it skips (light without a light sample, rr where roulette cannot fire) read the undrawn
+// constants, and the numbers it draws do not depend on which are skipped. Control: the neighbouring vertex's
+// set differs, so a set id mixed up between vertices would be caught.
+TEST(Sampler, VertexSetIsOneSixDimensionalSetAndSkipsUnreadNumbers) {
+  int cases = 0, neighbour_differs = 0;
+  for (uint32_t pixel : {0u, 17u, 4095u, 123456u})
+    for (uint32_t s = 0; s < 300; ++s)
+      for (int vertex = 1; vertex < 12; ++vertex) {
+        const PixelSampler sampler(99u, pixel, s);
+        float six[6], next[6];
+        sampler.get(bounce_set(vertex, kSetBsdf), six);
+        sampler.get(bounce_set(vertex + 1, kSetBsdf), next);
+        for (int need = 0; need < 4; ++need) {
+          const bool need_light = (need & 1) != 0, need_rr = (need & 2) != 0;
+          float bsdf[4], light[2];
+          sampler.get_vertex(vertex, bsdf, light, need_light, need_rr);
+          ASSERT_EQ(bsdf[0], six[2 * kVertexBsdfXyPair]);
+          ASSERT_EQ(bsdf[1], six[2 * kVertexBsdfXyPair + 1]);
+          ASSERT_EQ(bsdf[2], six[2 * kVertexBsdfZrrPair]);
+          ASSERT_EQ(bsdf[3], need_rr ? six[2 * kVertexBsdfZrrPair + 1] : kUndrawnRr);
+          ASSERT_EQ(light[0], need_light ? six[2 * kVertexLightPair] : kUndrawnLight);
+          ASSERT_EQ(light[1], need_light ? six[2 * kVertexLightPair + 1] : kUndrawnLight);
+        }
+        ++cases;
+        if (six[0] != next[0] && six[2] != next[2] && six[4] != next[4]) ++neighbour_differs;
+      }
+  EXPECT_GE(neighbour_differs, cases - 2);
+}
+
+// The light numbers and the BSDF (x, y) of a vertex >= 1 are Sobol dimensions 0-3 of one index: a (3, 8, 4)-net
+// at 256 samples, like the camera set's film and BSDF numbers. Control: light numbers from vertex 0's own 2D set
+// with the BSDF numbers of another vertex's set (two independently shuffled sets) are not a (6, 8, 4)-net.
+TEST(Sampler, VertexSetIsJointlyStratifiedInFourDimensions) {
+  const int m = 8;
+  const size_t n = size_t{1} << m;
+  for (uint32_t pixel : {0u, 17u, 4095u}) {
+    std::vector<std::vector<float>> joint(4, std::vector<float>(n)), apart(4, std::vector<float>(n));
+    for (uint32_t s = 0; s < n; ++s) {
+      const PixelSampler sampler(12345u, pixel, s);
+      float bsdf[4], light[2], other_light[2];
+      sampler.get_vertex(3, bsdf, light);
+      sampler.get(bounce_set(0, kSetLight), other_light);
+      // In Sobol dimension order: light (u, v) in pair kVertexLightPair, BSDF (x, y) in pair kVertexBsdfXyPair.
+      const size_t l = 2 * kVertexLightPair, b = 2 * kVertexBsdfXyPair;
+      joint[l][s] = light[0], joint[l + 1][s] = light[1], joint[b][s] = bsdf[0], joint[b + 1][s] = bsdf[1];
+      apart[l][s] = other_light[0], apart[l + 1][s] = other_light[1], apart[b][s] = bsdf[0], apart[b + 1][s] = bsdf[1];
+    }
+    EXPECT_TRUE(is_tms_net(joint, 3, m)) << "pixel " << pixel;
+    EXPECT_TRUE(is_0m2_net(joint[0], joint[1], m)) << "pixel " << pixel;  // Sobol dimensions 0-1
+    EXPECT_FALSE(is_tms_net(apart, 6, m)) << "pixel " << pixel;
+  }
 }
 
 TEST(Sampler, PureFunctionOfItsArguments) {
