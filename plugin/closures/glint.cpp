@@ -135,7 +135,7 @@ class GlintClosure {
     c->threshold_ = p.get_float("filter_threshold");
     c->density_param_ = p.index("density");
     c->gamma_rad_ = c->field_.gamma_deg * glint::kDegToRad;
-    c->cell_keys_ = glint::DirectionCellKeys(c->field_.seed);
+    c->cell_keys_ = glint::DirectionCellKeys(c->field_.seed, c->gamma_rad_);
     c->placement_ = static_cast<glint::Placement>(p.get_enum("placement"));
     c->flakes_ = std::make_unique<const glint::FlakePalette>(c->field_.color, p.get_float("flake_hue_variation"),
                                                              p.get_float("flake_value_variation"));

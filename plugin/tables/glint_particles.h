@@ -132,24 +132,40 @@ inline int particle_level(double density) {
   return 1 - e;  // 2^(e-1) <= value < 2^e
 }
 
-// x extent of the footprint parallelogram inside the band y0 <= y <= y1
-// (its four corners clipped to the band, Sutherland-Hodgman); false when the
-// band misses it.
-inline bool footprint_x_range_in_band(const Footprint &f, double y0, double y1, double &x_min, double &x_max) {
-  const double cx[4] = {f.cx - 0.5 * f.ax - 0.5 * f.bx, f.cx + 0.5 * f.ax - 0.5 * f.bx, f.cx + 0.5 * f.ax + 0.5 * f.bx,
-                        f.cx - 0.5 * f.ax + 0.5 * f.bx};
-  const double cy[4] = {f.cy - 0.5 * f.ay - 0.5 * f.by, f.cy + 0.5 * f.ay - 0.5 * f.by, f.cy + 0.5 * f.ay + 0.5 * f.by,
-                        f.cy - 0.5 * f.ay + 0.5 * f.by};
-  x_min = 1e300, x_max = -1e300;
-  for (int k = 0; k < 4; ++k) {
-    const double ax = cx[k], ay = cy[k], bx = cx[(k + 1) % 4], by = cy[(k + 1) % 4];
-    if (ay >= y0 && ay <= y1) x_min = std::min(x_min, ax), x_max = std::max(x_max, ax);
-    for (const double yc : {y0, y1})  // edge crossings of the band's borders
+// The footprint parallelogram's four corners, in order around it.
+struct FootprintCorners {
+  double x[4], y[4];
+  explicit FootprintCorners(const Footprint &f)
+      : x{f.cx - 0.5 * f.ax - 0.5 * f.bx, f.cx + 0.5 * f.ax - 0.5 * f.bx, f.cx + 0.5 * f.ax + 0.5 * f.bx,
+          f.cx - 0.5 * f.ax + 0.5 * f.bx},
+        y{f.cy - 0.5 * f.ay - 0.5 * f.by, f.cy + 0.5 * f.ay - 0.5 * f.by, f.cy + 0.5 * f.ay + 0.5 * f.by,
+          f.cy - 0.5 * f.ay + 0.5 * f.by} {}
+};
+
+// The x range [lo, hi] of the footprint's edges that cross the line y = yc
+// strictly (lo > hi when none does).
+struct EdgeCrossings {
+  double yc, lo, hi;
+  EdgeCrossings(const FootprintCorners &c, double y) : yc(y), lo(1e300), hi(-1e300) {
+    for (int k = 0; k < 4; ++k) {
+      const double ax = c.x[k], ay = c.y[k], bx = c.x[(k + 1) % 4], by = c.y[(k + 1) % 4];
       if ((ay - yc) * (by - yc) < 0.0) {
-        const double x = ax + (bx - ax) * (yc - ay) / (by - ay);
-        x_min = std::min(x_min, x), x_max = std::max(x_max, x);
+        const double xc = ax + (bx - ax) * (yc - ay) / (by - ay);
+        lo = std::min(lo, xc), hi = std::max(hi, xc);
       }
+    }
   }
+};
+
+// x extent of the footprint parallelogram inside the band y0 <= y <= y1 (its
+// corners in the band and its edges' crossings of the band's borders,
+// Sutherland-Hodgman); false when the band misses it. The crossings of y0
+// are passed in (a row's upper border is the next row's lower one).
+inline bool footprint_x_range_in_band(const FootprintCorners &c, const EdgeCrossings &at_y0,
+                                      const EdgeCrossings &at_y1, double &x_min, double &x_max) {
+  x_min = std::min(at_y0.lo, at_y1.lo), x_max = std::max(at_y0.hi, at_y1.hi);
+  for (int k = 0; k < 4; ++k)
+    if (c.y[k] >= at_y0.yc && c.y[k] <= at_y1.yc) x_min = std::min(x_min, c.x[k]), x_max = std::max(x_max, c.x[k]);
   return x_min <= x_max;
 }
 
@@ -175,10 +191,18 @@ inline bool nodes_at_level(const Footprint &f, int level, NodeList &list) {
       for (int64_t i = box_i0; i <= box_i1; ++i) list.add(i, j);
     return true;
   }
+  // The corners once per footprint and each row border's crossings once
+  // (they were computed per row and per side; same values, same nodes).
+  const FootprintCorners corners(f);
+  EdgeCrossings below(corners, static_cast<double>(j0) * list.size);
   for (int64_t j = j0; j <= j1; ++j) {
     double x_min, x_max;
     const double y0 = static_cast<double>(j) * list.size;
-    if (!footprint_x_range_in_band(f, y0, y0 + list.size, x_min, x_max)) continue;
+    if (below.yc != y0) below = EdgeCrossings(corners, y0);
+    const EdgeCrossings above(corners, y0 + list.size);
+    const bool hit = footprint_x_range_in_band(corners, below, above, x_min, x_max);
+    below = above;
+    if (!hit) continue;
     const int64_t i0 = floor_to_int64(x_min * inv);
     const int64_t i1 = floor_to_int64(x_max * inv);
     if (i1 - i0 >= kMaxNodes) return false;
@@ -243,36 +267,46 @@ inline constexpr std::array<std::array<float, 2>, kDirectionGroups> kGroupShift 
 // hashed once per material instead of once per eval (same seeds).
 struct DirectionCellKeys {
   std::array<uint32_t, kDirectionGroups> group{};
-  explicit DirectionCellKeys(uint32_t seed) {
+  float gamma_rad = 0.0f;          // the cone of cell_scale (0: none given)
+  float cell_scale = 0.0f;         // 2 / (kCellSize gamma_rad): cells per unit of the chart
+  explicit DirectionCellKeys(uint32_t seed, float gamma = 0.0f) : gamma_rad(gamma) {
     for (int g = 0; g < kDirectionGroups; ++g) group[g] = hash_u32x2(seed, static_cast<uint32_t>(g));
+    if (gamma > 0.0f) cell_scale = 2.0f / (kCellSize * gamma);
   }
+  // 2 / (kCellSize gamma), divided once per material when gamma is the keys' own.
+  float inv_cell(float gamma) const { return gamma == gamma_rad ? cell_scale : 2.0f / (kCellSize * gamma); }
 };
 
 // Seed of the particle field of each group's direction cell at (wi, wo);
 // false when there is no half vector above the surface.
 inline bool direction_cell_seeds(const DirectionCellKeys &keys, const Vec3 &wi, const Vec3 &wo, float gamma_rad,
                                  std::array<uint32_t, kDirectionGroups> &seeds) {
-  const Vec3 sum = wi + wo;
-  const float len = length(sum);
-  if (!(len > 1e-6f)) return false;
-  const Vec3 h = sum / len;
-  if (!(h.z > 0.0f)) return false;
-  // Stereographic chart of h.
-  const float k = 2.0f / (1.0f + h.z);
-  float px = k * h.x, py = k * h.y;
-  // Compress by wi.h across the plane of incidence: n = wi x h (tangent at h),
-  // its chart direction e = k (n.xy - n.z / (1 + h.z) h.xy).
-  const float wi_h = dot(wi, h);
-  const Vec3 n = cross(wi, h);
-  float ex = n.x - n.z / (1.0f + h.z) * h.x, ey = n.y - n.z / (1.0f + h.z) * h.y;
-  const float e_len = std::sqrt(ex * ex + ey * ey);
-  if (e_len > 1e-12f) {
-    ex /= e_len, ey /= e_len;
-    const float along = (wi_h - 1.0f) * (px * ex + py * ey);
+  // In terms of s = wi + wo (h = s / |s|), with two divisions and one square
+  // root (issue 10, sixth speed session; was nine and two: h per component,
+  // 2 / (1 + h.z) and n.z / (1 + h.z) apart, e normalised, 1 / cell per
+  // call). Same cells up to the rounding of the chart (docs/glints.md,
+  // "Session 6").
+  const Vec3 s = wi + wo;
+  const float len2 = dot(s, s);
+  if (!(len2 > 1e-12f) || !(s.z > 0.0f)) return false;
+  const float len = std::sqrt(len2);
+  // Stereographic chart of h: p = 2 h.xy / (1 + h.z) = 2 s.xy / (|s| + s.z).
+  const float d = 1.0f / (len + s.z);
+  float px = 2.0f * d * s.x, py = 2.0f * d * s.y;
+  // Compress by wi.h across the plane of incidence: n = wi x h (tangent at
+  // h) has the chart direction e ~ n.xy - n.z / (1 + h.z) h.xy, parallel to
+  // c.xy - c.z d s.xy with c = wi x s; the component of p along e is
+  // (p.e) e / |e|^2 (no normalisation), and wi.h = |s| / 2 for unit wi, wo.
+  const Vec3 c = cross(wi, s);
+  const float t = c.z * d;
+  const float ex = c.x - t * s.x, ey = c.y - t * s.y;
+  const float e2 = ex * ex + ey * ey;
+  if (e2 > 1e-24f * len2) {
+    const float along = (0.5f * len - 1.0f) * (px * ex + py * ey) / e2;
     px += along * ex;
     py += along * ey;
   }
-  const float inv_cell = 2.0f / (kCellSize * gamma_rad);
+  const float inv_cell = keys.inv_cell(gamma_rad);
   for (int g = 0; g < kDirectionGroups; ++g) {
     const int32_t cx = floor_to_int32(px * inv_cell + kGroupShift[g][0]);
     const int32_t cy = floor_to_int32(py * inv_cell + kGroupShift[g][1]);
