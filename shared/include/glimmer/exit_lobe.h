@@ -151,15 +151,24 @@ struct ExitLobe {
     return height <= 0.0f ? normalize(w - n * (2.0f * height)) : w;
   }
 
+  // The redraw factor 1 + q + ... + q^kRedraws of the density for below-surface fraction q; power ends as
+  // q^kRedraws (the mirrored part's weight).
+  static double redraw_series(double q, double &power) {
+    double redraws = 0.0;
+    power = 1.0;
+    for (int k = 0; k <= kRedraws; ++k) {
+      redraws += power;
+      if (k < kRedraws) power *= q;
+    }
+    return redraws;
+  }
+
   // The density of sample() at unit w (solid angle); 0 at and below the surface.
   double pdf(const Vec3 &w) const {
     const float height = dot(w, n);
     if (!(height > 0.0f)) return 0.0;
-    double redraws = 0.0, power = 1.0;  // 1 + q + ... + q^kRedraws; power ends as q^kRedraws
-    for (int k = 0; k <= kRedraws; ++k) {
-      redraws += power;
-      if (k < kRedraws) power *= below;
-    }
+    double power;
+    const double redraws = redraw_series(below, power);
     const double outside = vmf_density(axis, kappa, w) * redraws;
     if (!(power > 0.0)) return outside;  // q = 0 (the lobe far above its surface): no mirrored part, exactly
     const Vec3 mirrored = w - n * (2.0f * height);
@@ -175,11 +184,8 @@ struct ExitLobe {
     draw = vmf_density(axis, kappa, w);
     const float height = dot(w, n);
     if (!(height > 0.0f)) return 0.0;
-    double redraws = 0.0, power = 1.0;
-    for (int k = 0; k <= kRedraws; ++k) {
-      redraws += power;
-      if (k < kRedraws) power *= below;
-    }
+    double power;
+    const double redraws = redraw_series(below, power);
     const double outside = draw * redraws;
     if (!(power > 0.0)) return outside;
     return outside + power * vmf_density(axis, kappa, w - n * (2.0f * height));
@@ -226,11 +232,8 @@ struct ExitLobeMixture {
   void prepare() {
     for (int k = 0; k < count; ++k) {
       const ExitLobe &l = lobe[k];
-      double redraws = 0.0, power = 1.0;
-      for (int r = 0; r <= ExitLobe::kRedraws; ++r) {
-        redraws += power;
-        if (r < ExitLobe::kRedraws) power *= l.below;
-      }
+      double power;
+      const double redraws = ExitLobe::redraw_series(l.below, power);
       constants[k] = {l.kappa / (2.0 * M_PI * -std::expm1(-2.0 * l.kappa)), redraws, power};
     }
     prepared = true;
