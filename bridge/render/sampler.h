@@ -10,7 +10,8 @@
 // of the bit-reversed columns, two dimensions per 64-bit entry, so a pair of dimensions is four table
 // look-ups and two Laine-Karras permutations; each scrambled (still bit-reversed) value becomes its float by
 // three byte look-ups and two exact additions, no bit reversal; a set costs one seed hash and one index
-// shuffle for all its dimensions.
+// shuffle for all its dimensions. On CPUs with AVX2, get_vertex and get_path_start compute the same values
+// with the six (seven) scrambles and floats in the lanes of one vector register (sampler_draw.h/.cpp).
 #pragma once
 
 #include <array>

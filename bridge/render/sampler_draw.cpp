@@ -4,6 +4,7 @@
 
 #include <immintrin.h>
 
+#include <array>
 #include <cstdlib>
 #include <cstring>
 
@@ -100,16 +101,65 @@ inline __m256 reversed_to_unit_float8(__m256i y) {
   return _mm256_mul_ps(_mm256_cvtepi32_ps(r), _mm256_set1_ps(1.0f / 16777216.0f));
 }
 
-// Lanes 2p and 2p + 1 hold dimensions 2p and 2p + 1 of pair word p (its low and high 32 bits).
-inline __m256i pair_words(uint64_t p0, uint64_t p1, uint64_t p2, uint64_t p3) {
-  return _mm256_set_epi64x(static_cast<long long>(p3), static_cast<long long>(p2), static_cast<long long>(p1),
-                           static_cast<long long>(p0));
+// The Sobol generator matrices of dimensions 0-5 for the vector draw, by index nibble: row [n][v] holds in lane d
+// the XOR of the bit-reversed columns for the set bits of v at nibble n (bits 4n..4n+3) of the bit-reversed
+// index, i.e. sobol_reversed(d, v << 4n) (the same matrices as kSobolPairTables, cut by nibble instead of
+// byte). A set's six Sobol words are then the XOR of eight 32-byte rows: 4 KB of table, which stays in the L1
+// cache where the pair tables take 24 KB, and the rows are loaded straight into a vector register.
+struct SobolNibbleRows {
+  Lanes8 row[8][16];
+};
+constexpr SobolNibbleRows make_sobol_nibble_rows() {
+  SobolNibbleRows t{};
+  for (int d = 0; d < kSobolDimensions; ++d) {
+    const std::array<uint32_t, 32> v = sobol_direction_numbers(d);
+    for (int n = 0; n < 8; ++n)
+      for (uint32_t nib = 0; nib < 16u; ++nib) {
+        uint32_t r = 0u;
+        for (int bit = 0; bit < 4; ++bit)
+          if ((nib >> bit) & 1u) r ^= reverse_bits(v[31 - (4 * n + bit)]);
+        t.row[n][nib].lane[d] = r;
+      }
+  }
+  return t;
+}
+alignas(32) constexpr SobolNibbleRows kSobolNibbleRows = make_sobol_nibble_rows();
+
+// Lane d (0-5) = sobol_reversed(d, index_reversed); lanes 6-7 zero.
+// The row of nibble n is at byte offset 512 n + 32 v: v * 32 = (r >> (4 n - 5)) & 0x1e0, one shift and one mask.
+template <int N>
+inline __m256i nibble_row(const char *rows, uint32_t r) {
+  constexpr int kShift = 4 * N - 5;
+  const uint32_t offset = (kShift >= 0 ? r >> (kShift < 0 ? 0 : kShift) : r << (kShift < 0 ? -kShift : 0)) & 0x1e0u;
+  return _mm256_load_si256(reinterpret_cast<const __m256i *>(rows + 512 * N + offset));
+}
+inline __m256i sobol_words8(uint32_t index_reversed) {
+  static_assert(sizeof(Lanes8) == 32 && sizeof(SobolNibbleRows) == 8 * 16 * 32);
+  const char *rows = reinterpret_cast<const char *>(opaque(&kSobolNibbleRows));
+  const uint32_t r = index_reversed;
+  const __m256i a = _mm256_xor_si256(nibble_row<0>(rows, r), nibble_row<1>(rows, r));
+  const __m256i b = _mm256_xor_si256(nibble_row<2>(rows, r), nibble_row<3>(rows, r));
+  const __m256i c = _mm256_xor_si256(nibble_row<4>(rows, r), nibble_row<5>(rows, r));
+  const __m256i d = _mm256_xor_si256(nibble_row<6>(rows, r), nibble_row<7>(rows, r));
+  return _mm256_xor_si256(_mm256_xor_si256(a, b), _mm256_xor_si256(c, d));
 }
 
 // Two floats to out[0], out[1]: lanes 0-1 (store_low) or 2-3 (store_high) of `lanes`.
 inline void store_low(float *out, __m128 lanes) { _mm_storel_pi(reinterpret_cast<__m64 *>(out), lanes); }
 inline void store_high(float *out, __m128 lanes) { _mm_storeh_pi(reinterpret_cast<__m64 *>(out), lanes); }
 
+}  // namespace
+
+namespace {
+// Per-lane dimension seeds: lanes 0-5 take dimensions 0-5 of the set whose seed is in lanes 0-5 of
+// set_seeds, lanes 6-7 dimensions 0-1 of the set in lanes 6-7 (get_path_start's light set).
+inline __m256i lane_seeds(__m256i set_seeds) {
+  alignas(32) static constexpr Lanes8 kOdd = {{kDimensionSeedOdd[0], kDimensionSeedOdd[1], kDimensionSeedOdd[2],
+                                               kDimensionSeedOdd[3], kDimensionSeedOdd[4], kDimensionSeedOdd[5],
+                                               kDimensionSeedOdd[0], kDimensionSeedOdd[1]}};
+  return _mm256_mullo_epi32(set_seeds, load(*opaque(&kOdd)));
+}
+inline __m256i set1(uint32_t x) { return _mm256_set1_epi32(static_cast<int>(x)); }
 }  // namespace
 
 // get_vertex_scalar's values (vertex >= 1): one 6D set, lanes 0-5 = Sobol dimensions 0-5 = light (u, v),
@@ -119,13 +169,7 @@ void vertex_avx2(const PixelSampler &sampler, int vertex, float (&bsdf)[4], floa
                  bool need_rr) {
   static_assert(kVertexLightPair == 0 && kVertexBsdfXyPair == 1 && kVertexBsdfZrrPair == 2);
   const PixelSampler::Set v = sampler.start_set(bounce_set(vertex, kSetBsdf));
-  const __m256i words = pair_words(sobol_pair_reversed(0, v.index_reversed), sobol_pair_reversed(1, v.index_reversed),
-                                   sobol_pair_reversed(2, v.index_reversed), 0u);
-  const __m256i odd = _mm256_setr_epi32(
-      static_cast<int>(kDimensionSeedOdd[0]), static_cast<int>(kDimensionSeedOdd[1]), static_cast<int>(kDimensionSeedOdd[2]),
-      static_cast<int>(kDimensionSeedOdd[3]), static_cast<int>(kDimensionSeedOdd[4]), static_cast<int>(kDimensionSeedOdd[5]), 0, 0);
-  const __m256i seeds = _mm256_mullo_epi32(_mm256_set1_epi32(static_cast<int>(v.seed)), odd);
-  const __m256 f = reversed_to_unit_float8(laine_karras8(words, seeds));
+  const __m256 f = reversed_to_unit_float8(laine_karras8(sobol_words8(v.index_reversed), lane_seeds(set1(v.seed))));
   const __m128 lo = _mm256_castps256_ps128(f), hi = _mm256_extractf128_ps(f, 1);
   store_high(bsdf, lo);
   store_low(bsdf + 2, hi);
@@ -137,8 +181,8 @@ void vertex_avx2(const PixelSampler &sampler, int vertex, float (&bsdf)[4], floa
   }
 }
 
-// get_path_start_scalar's values: the camera set's pairs 0-2 in lanes 0-5 (film u, v; BSDF x, y; z and the
-// undrawn rr) and vertex 0's light set's pair 0 in lanes 6-7, each lane with its own set's seed.
+// get_path_start_scalar's values in one vector: the camera set's Sobol dimensions 0-5 in lanes 0-5 (film u,
+// v; BSDF x, y; z and the undrawn rr), vertex 0's light set's pair 0 (its pair-table word) in lanes 6-7.
 void path_start_avx2(const PixelSampler &sampler, float (&film)[2], float (&bsdf)[4], float (&light)[2],
                      bool need_light) {
   static_assert(kCameraFilmPair == 0 && kCameraBsdfXyPair == 1 && kCameraBsdfZrrPair == 2);
@@ -149,15 +193,10 @@ void path_start_avx2(const PixelSampler &sampler, float (&film)[2], float (&bsdf
     l = sampler.start_set(bounce_set(0, kSetLight));
     light_word = sobol_pair_reversed(0, l.index_reversed);
   }
-  const __m256i words = pair_words(sobol_pair_reversed(0, c.index_reversed), sobol_pair_reversed(1, c.index_reversed),
-                                   sobol_pair_reversed(2, c.index_reversed), light_word);
-  const int cs = static_cast<int>(c.seed), ls = static_cast<int>(l.seed);
-  const __m256i set_seeds = _mm256_setr_epi32(cs, cs, cs, cs, cs, cs, ls, ls);
-  const __m256i odd = _mm256_setr_epi32(
-      static_cast<int>(kDimensionSeedOdd[0]), static_cast<int>(kDimensionSeedOdd[1]), static_cast<int>(kDimensionSeedOdd[2]),
-      static_cast<int>(kDimensionSeedOdd[3]), static_cast<int>(kDimensionSeedOdd[4]), static_cast<int>(kDimensionSeedOdd[5]),
-      static_cast<int>(kDimensionSeedOdd[0]), static_cast<int>(kDimensionSeedOdd[1]));
-  const __m256 f = reversed_to_unit_float8(laine_karras8(words, _mm256_mullo_epi32(set_seeds, odd)));
+  const __m256i words = _mm256_xor_si256(sobol_words8(c.index_reversed),  // lanes 6-7 of the rows are zero
+                                         _mm256_set_epi64x(static_cast<long long>(light_word), 0, 0, 0));
+  const __m256i set_seeds = _mm256_blend_epi32(set1(c.seed), set1(l.seed), 0xc0);
+  const __m256 f = reversed_to_unit_float8(laine_karras8(words, lane_seeds(set_seeds)));
   const __m128 lo = _mm256_castps256_ps128(f), hi = _mm256_extractf128_ps(f, 1);
   store_low(film, lo);
   store_high(bsdf, lo);
