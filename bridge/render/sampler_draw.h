@@ -3,8 +3,9 @@
 // a seed multiply, a four-round Laine-Karras permutation (Burley 2020, "Practical Hash-based Owen
 // Scrambling", JCGT 9(4), sec. 3) and the float of the reversed bits; the vector draw does them in the lanes
 // of one 256-bit register: vpmulld for the seeds and the rounds, vpshufb for the byte order and the bit
-// reversal of the three bytes that reach the float, one exact conversion and scale. The set's seed hash, its
-// index shuffle and the Sobol pair-table look-ups stay scalar (shared with the scalar code).
+// reversal of the three bytes that reach the float, one exact conversion and scale. The set's seed hash and its
+// index shuffle stay scalar (shared with the scalar code); the six Sobol words come from eight 32-byte
+// nibble-row loads straight into the vector (4 KB of table), vertex 0's light pair from its pair-table word.
 //
 // Dispatch: the variant is chosen once at start-up (CPU support, and GLIMMER_SAMPLER_DRAW=scalar forces the
 // scalar code), and read by PixelSampler::get_vertex / get_path_start, which call the whole draw: a
