@@ -10,7 +10,8 @@
 // of the bit-reversed columns, two dimensions per 64-bit entry, so a pair of dimensions is four table
 // look-ups and two Laine-Karras permutations; each scrambled (still bit-reversed) value becomes its float by
 // three byte look-ups and two exact additions, no bit reversal; a set costs one seed hash and one index
-// shuffle for all its dimensions.
+// shuffle for all its dimensions. On CPUs with AVX2, get_vertex and get_path_start compute the same values
+// with the six (seven) scrambles and floats in the lanes of one vector register (sampler_draw.h/.cpp).
 #pragma once
 
 #include <array>
@@ -29,12 +30,13 @@ constexpr uint32_t reverse_bits(uint32_t x) {
 
 // Laine-Karras style hash permutation of the reversed bits (Burley 2020, sec. 3): bit k of the result
 // depends only on bits <= k of x, so applied to reversed bits it is a nested uniform (Owen) scramble.
+inline constexpr uint32_t kLaineKarrasRounds[4] = {0x6c50b47cu, 0xb82f1e52u, 0xc7afe638u, 0x8d22f6e6u};
 constexpr uint32_t laine_karras_permutation(uint32_t x, uint32_t seed) {
   x += seed;
-  x ^= x * 0x6c50b47cu;
-  x ^= x * 0xb82f1e52u;
-  x ^= x * 0xc7afe638u;
-  x ^= x * 0x8d22f6e6u;
+  x ^= x * kLaineKarrasRounds[0];
+  x ^= x * kLaineKarrasRounds[1];
+  x ^= x * kLaineKarrasRounds[2];
+  x ^= x * kLaineKarrasRounds[3];
   return x;
 }
 
@@ -143,11 +145,9 @@ inline float reversed_to_unit_float(uint32_t y) {
 
 // Scramble seed of dimension d of a set: the (already hashed) set seed times a per-dimension odd constant,
 // a bijection, so every dimension's seed is as uniform as the set seed.
-constexpr uint32_t dimension_seed(uint32_t set_seed, int d) {
-  constexpr uint32_t kOdd[kSobolDimensions] = {0x9e3779b9u, 0x85ebca6bu, 0xc2b2ae35u,
-                                               0x27d4eb2fu, 0x165667b1u, 0xd3a2646du};
-  return set_seed * kOdd[d];
-}
+inline constexpr uint32_t kDimensionSeedOdd[kSobolDimensions] = {0x9e3779b9u, 0x85ebca6bu, 0xc2b2ae35u,
+                                                                  0x27d4eb2fu, 0x165667b1u, 0xd3a2646du};
+constexpr uint32_t dimension_seed(uint32_t set_seed, int d) { return set_seed * kDimensionSeedOdd[d]; }
 
 // Dimension sets (Cycles' PRNG_* layout in spirit; docs/architecture.md "Sample dimensions"). A set is
 // one shuffled index and the first 2, 4 or 6 Sobol dimensions, jointly stratified.
@@ -185,6 +185,19 @@ constexpr int kVertexLightPair = 0, kVertexBsdfXyPair = 1, kVertexBsdfZrrPair = 
 // light numbers are not read where they are not drawn.
 constexpr float kUndrawnRr = 1.0f, kUndrawnLight = 0.5f;
 
+struct PixelSampler;
+// Which code computes get_vertex's and get_path_start's values (bridge/render/sampler_draw.h): the scalar
+// code below, or the same values with AVX2 (sampler_draw.cpp), chosen once at start-up from the CPU (and
+// GLIMMER_SAMPLER_DRAW=scalar). Both give the same floats bit for bit (Sampler.VectorDrawEqualsScalarDraw).
+namespace sampler_draw {
+enum class Variant : uint8_t { kScalar = 0, kAvx2 = 1 };
+extern Variant g_active;  // scalar until the start-up choice
+void vertex_avx2(const PixelSampler &sampler, int vertex, float (&bsdf)[4], float (&light)[2], bool need_light,
+                 bool need_rr);
+void path_start_avx2(const PixelSampler &sampler, float (&film)[2], float (&bsdf)[4], float (&light)[2],
+                     bool need_light);
+}  // namespace sampler_draw
+
 struct PixelSampler {
   uint32_t pixel_seed;        // hash of (seed, pixel)
   uint32_t sample_reversed;   // reverse_bits(sample index)
@@ -216,6 +229,14 @@ struct PixelSampler {
       get_path_start(film, bsdf, light, need_light);
       return;
     }
+    if (sampler_draw::g_active == sampler_draw::Variant::kAvx2) {
+      sampler_draw::vertex_avx2(*this, vertex, bsdf, light, need_light, need_rr);
+      return;
+    }
+    get_vertex_scalar(vertex, bsdf, light, need_light, need_rr);
+  }
+  // get_vertex's values by the scalar code (vertex >= 1), whatever the active variant.
+  void get_vertex_scalar(int vertex, float (&bsdf)[4], float (&light)[2], bool need_light, bool need_rr) const {
     const Set v = start_set(bounce_set(vertex, kSetBsdf));
     pair_values(v, kVertexBsdfXyPair, bsdf, 0);
     const uint64_t zrr = sobol_pair_reversed(kVertexBsdfZrrPair, v.index_reversed);
@@ -231,6 +252,14 @@ struct PixelSampler {
   // needs bounce > min_bounce >= 1) with vertex 0's light set when need_light: two independent chains side
   // by side at the start of a path (the same values as get_camera and get_light(0, ...)).
   void get_path_start(float (&film)[2], float (&bsdf)[4], float (&light)[2], bool need_light = true) const {
+    if (sampler_draw::g_active == sampler_draw::Variant::kAvx2) {
+      sampler_draw::path_start_avx2(*this, film, bsdf, light, need_light);
+      return;
+    }
+    get_path_start_scalar(film, bsdf, light, need_light);
+  }
+  // get_path_start's values by the scalar code, whatever the active variant.
+  void get_path_start_scalar(float (&film)[2], float (&bsdf)[4], float (&light)[2], bool need_light) const {
     const Set c = start_set(kSetCamera);
     if (need_light) {
       const Set l = start_set(bounce_set(0, kSetLight));
@@ -276,9 +305,8 @@ struct PixelSampler {
     v = six[2 * kVertexLightPair + 1];
   }
 
- private:
   // A set's seed and its shuffled index (Burley 2020, sec. 4: a nested uniform scramble of the sample index,
-  // kept reversed).
+  // kept reversed). Public for the vector draws (sampler_draw.cpp), which share this scalar start.
   struct Set {
     uint32_t seed, index_reversed;
   };
@@ -286,6 +314,8 @@ struct PixelSampler {
     const uint32_t set_seed = hash_combine(pixel_seed, set);
     return {set_seed, laine_karras_permutation(sample_reversed, set_seed)};
   }
+
+ private:
   // Dimension d of set s from its pair's table word `sobol` (sobol_pair_reversed(d / 2, ...)): its scramble and
   // the float of the reversed bits.
   [[gnu::always_inline]] static float value(const Set &s, uint64_t sobol, int d) {

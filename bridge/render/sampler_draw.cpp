@@ -1,0 +1,222 @@
+// The sampler's vector draws (sampler_draw.h): AVX2 code behind a runtime check, with the scalar code of
+// sampler.h as the fallback.
+#include "render/sampler_draw.h"
+
+#include <immintrin.h>
+
+#include <array>
+#include <cstdlib>
+#include <cstring>
+
+namespace glimmer::render::sampler_draw {
+
+namespace {
+Variant choose_at_startup() {
+  const char *forced = std::getenv("GLIMMER_SAMPLER_DRAW");
+  if (forced != nullptr && std::strcmp(forced, "scalar") == 0) return Variant::kScalar;
+  return supported(Variant::kAvx2) ? Variant::kAvx2 : Variant::kScalar;
+}
+const Variant g_startup_choice = choose_at_startup();
+}  // namespace
+
+// Zero-initialised (scalar) before the dynamic initialisation below, so a draw before it is still correct.
+Variant g_active = g_startup_choice;
+
+bool supported(Variant variant) {
+  if (variant == Variant::kScalar) return true;
+  __builtin_cpu_init();  // needed before __builtin_cpu_supports in code that may run before main
+  return __builtin_cpu_supports("avx2") != 0;
+}
+Variant startup_choice() { return g_startup_choice; }
+Variant set_active(Variant variant) {
+  const Variant before = g_active;
+  g_active = supported(variant) ? variant : Variant::kScalar;
+  return before;
+}
+const char *name(Variant variant) { return variant == Variant::kAvx2 ? "avx2" : "scalar"; }
+
+// Everything from here on is compiled for AVX2 and only called when supported(Variant::kAvx2). The inline
+// functions of sampler.h (included above) keep the baseline target and are inlined into these.
+#pragma GCC push_options
+#pragma GCC target("avx2")
+
+namespace {
+
+// Four Laine-Karras rounds on eight 32-bit lanes (sampler.h laine_karras_permutation): x += seed, then
+// x ^= x * c for each round constant c. vpmulld keeps the low 32 bits of each product, as the scalar multiply.
+// The four constants are arguments so a test can pass wrong ones (production: laine_karras8 below).
+inline __m256i laine_karras8_with(__m256i x, __m256i seed, __m256i c0, __m256i c1, __m256i c2, __m256i c3) {
+  x = _mm256_add_epi32(x, seed);
+  x = _mm256_xor_si256(x, _mm256_mullo_epi32(x, c0));
+  x = _mm256_xor_si256(x, _mm256_mullo_epi32(x, c1));
+  x = _mm256_xor_si256(x, _mm256_mullo_epi32(x, c2));
+  x = _mm256_xor_si256(x, _mm256_mullo_epi32(x, c3));
+  return x;
+}
+inline __m256i broadcast(uint32_t c) { return _mm256_set1_epi32(static_cast<int>(c)); }
+// Eight copies of each production round constant, read from memory by the multiplies (vpmulld's memory
+// operand), which GCC does not do for _mm256_set1_epi32 of a constant (it builds each in three instructions).
+struct alignas(32) Lanes8 {
+  uint32_t lane[8];
+};
+constexpr Lanes8 eight(uint32_t c) { return {{c, c, c, c, c, c, c, c}}; }
+alignas(32) constexpr Lanes8 kRounds8[4] = {eight(kLaineKarrasRounds[0]), eight(kLaineKarrasRounds[1]),
+                                            eight(kLaineKarrasRounds[2]), eight(kLaineKarrasRounds[3])};
+inline __m256i load(const Lanes8 &l) { return _mm256_load_si256(reinterpret_cast<const __m256i *>(l.lane)); }
+// The empty asm hides the table's contents from GCC, which would otherwise see the constants through the
+// load and build them again in registers.
+template <typename T>
+inline const T *opaque(const T *p) {
+  __asm__("" : "+r"(p));
+  return p;
+}
+inline __m256i laine_karras8(__m256i x, __m256i seed) {
+  const Lanes8 *r = opaque(kRounds8);
+  return laine_karras8_with(x, seed, load(r[0]), load(r[1]), load(r[2]), load(r[3]));
+}
+
+alignas(32) constexpr Lanes8 kNibbleMask = eight(0x0f0f0f0fu);
+// uint_to_unit_float(reverse_bits(y)) in each lane, bit for bit as reversed_to_unit_float: the float keeps
+// reverse_bits(y) >> 8 = rev8(y0) << 16 | rev8(y1) << 8 | rev8(y2) (yk: byte k of y, rev8: its bits
+// reversed). One vpshufb moves bytes 0, 1, 2 to 2, 1, 0 and clears byte 3; two vpshufb of 16-entry tables
+// reverse the two nibbles of every byte and swap them. The 24-bit integer converts exactly and the scale by
+// 2^-24 is exact.
+inline __m256 reversed_to_unit_float8(__m256i y) {
+  const __m256i byte_order = _mm256_setr_epi8(2, 1, 0, -128, 6, 5, 4, -128, 10, 9, 8, -128, 14, 13, 12, -128,  //
+                                              2, 1, 0, -128, 6, 5, 4, -128, 10, 9, 8, -128, 14, 13, 12, -128);
+  // rev4(n) << 4 (a low nibble reversed into the high one) and rev4(n) (a high nibble into the low one).
+#define GLIMMER_REV4_HIGH 0x00, 0x80, 0x40, 0xc0, 0x20, 0xa0, 0x60, 0xe0, 0x10, 0x90, 0x50, 0xd0, 0x30, 0xb0, 0x70, 0xf0
+#define GLIMMER_REV4_LOW 0x0, 0x8, 0x4, 0xc, 0x2, 0xa, 0x6, 0xe, 0x1, 0x9, 0x5, 0xd, 0x3, 0xb, 0x7, 0xf
+  alignas(32) static constexpr uint8_t kLowToHigh[32] = {GLIMMER_REV4_HIGH, GLIMMER_REV4_HIGH};
+  alignas(32) static constexpr uint8_t kHighToLow[32] = {GLIMMER_REV4_LOW, GLIMMER_REV4_LOW};
+#undef GLIMMER_REV4_HIGH
+#undef GLIMMER_REV4_LOW
+  const __m256i low_to_high = _mm256_load_si256(reinterpret_cast<const __m256i *>(kLowToHigh));
+  const __m256i high_to_low = _mm256_load_si256(reinterpret_cast<const __m256i *>(kHighToLow));
+  const __m256i nibble = load(*opaque(&kNibbleMask));
+  const __m256i z = _mm256_shuffle_epi8(y, byte_order);
+  const __m256i lo = _mm256_and_si256(z, nibble);
+  const __m256i hi = _mm256_and_si256(_mm256_srli_epi16(z, 4), nibble);
+  const __m256i r = _mm256_or_si256(_mm256_shuffle_epi8(low_to_high, lo), _mm256_shuffle_epi8(high_to_low, hi));
+  return _mm256_mul_ps(_mm256_cvtepi32_ps(r), _mm256_set1_ps(1.0f / 16777216.0f));
+}
+
+// The Sobol generator matrices of dimensions 0-5 for the vector draw, by index nibble: row [n][v] holds in lane d
+// the XOR of the bit-reversed columns for the set bits of v at nibble n (bits 4n..4n+3) of the bit-reversed
+// index, i.e. sobol_reversed(d, v << 4n) (the same matrices as kSobolPairTables, cut by nibble instead of
+// byte). A set's six Sobol words are then the XOR of eight 32-byte rows: 4 KB of table, which stays in the L1
+// cache where the pair tables take 24 KB, and the rows are loaded straight into a vector register.
+struct SobolNibbleRows {
+  Lanes8 row[8][16];
+};
+constexpr SobolNibbleRows make_sobol_nibble_rows() {
+  SobolNibbleRows t{};
+  for (int d = 0; d < kSobolDimensions; ++d) {
+    const std::array<uint32_t, 32> v = sobol_direction_numbers(d);
+    for (int n = 0; n < 8; ++n)
+      for (uint32_t nib = 0; nib < 16u; ++nib) {
+        uint32_t r = 0u;
+        for (int bit = 0; bit < 4; ++bit)
+          if ((nib >> bit) & 1u) r ^= reverse_bits(v[31 - (4 * n + bit)]);
+        t.row[n][nib].lane[d] = r;
+      }
+  }
+  return t;
+}
+alignas(32) constexpr SobolNibbleRows kSobolNibbleRows = make_sobol_nibble_rows();
+
+// Lane d (0-5) = sobol_reversed(d, index_reversed); lanes 6-7 zero.
+// The row of nibble n is at byte offset 512 n + 32 v: v * 32 = (r >> (4 n - 5)) & 0x1e0, one shift and one mask.
+template <int N>
+inline __m256i nibble_row(const char *rows, uint32_t r) {
+  constexpr int kShift = 4 * N - 5;
+  const uint32_t offset = (kShift >= 0 ? r >> (kShift < 0 ? 0 : kShift) : r << (kShift < 0 ? -kShift : 0)) & 0x1e0u;
+  return _mm256_load_si256(reinterpret_cast<const __m256i *>(rows + 512 * N + offset));
+}
+inline __m256i sobol_words8(uint32_t index_reversed) {
+  static_assert(sizeof(Lanes8) == 32 && sizeof(SobolNibbleRows) == 8 * 16 * 32);
+  const char *rows = reinterpret_cast<const char *>(opaque(&kSobolNibbleRows));
+  const uint32_t r = index_reversed;
+  const __m256i a = _mm256_xor_si256(nibble_row<0>(rows, r), nibble_row<1>(rows, r));
+  const __m256i b = _mm256_xor_si256(nibble_row<2>(rows, r), nibble_row<3>(rows, r));
+  const __m256i c = _mm256_xor_si256(nibble_row<4>(rows, r), nibble_row<5>(rows, r));
+  const __m256i d = _mm256_xor_si256(nibble_row<6>(rows, r), nibble_row<7>(rows, r));
+  return _mm256_xor_si256(_mm256_xor_si256(a, b), _mm256_xor_si256(c, d));
+}
+
+// Two floats to out[0], out[1]: lanes 0-1 (store_low) or 2-3 (store_high) of `lanes`.
+inline void store_low(float *out, __m128 lanes) { _mm_storel_pi(reinterpret_cast<__m64 *>(out), lanes); }
+inline void store_high(float *out, __m128 lanes) { _mm_storeh_pi(reinterpret_cast<__m64 *>(out), lanes); }
+
+}  // namespace
+
+namespace {
+// Per-lane dimension seeds: lanes 0-5 take dimensions 0-5 of the set whose seed is in lanes 0-5 of
+// set_seeds, lanes 6-7 dimensions 0-1 of the set in lanes 6-7 (get_path_start's light set).
+inline __m256i lane_seeds(__m256i set_seeds) {
+  alignas(32) static constexpr Lanes8 kOdd = {{kDimensionSeedOdd[0], kDimensionSeedOdd[1], kDimensionSeedOdd[2],
+                                               kDimensionSeedOdd[3], kDimensionSeedOdd[4], kDimensionSeedOdd[5],
+                                               kDimensionSeedOdd[0], kDimensionSeedOdd[1]}};
+  return _mm256_mullo_epi32(set_seeds, load(*opaque(&kOdd)));
+}
+inline __m256i set1(uint32_t x) { return _mm256_set1_epi32(static_cast<int>(x)); }
+}  // namespace
+
+// get_vertex_scalar's values (vertex >= 1): one 6D set, lanes 0-5 = Sobol dimensions 0-5 = light (u, v),
+// BSDF (x, y), (z, rr). All six are scrambled (the lanes cost the same); the numbers not needed are then
+// overwritten with the undrawn constants, as the scalar code never draws them.
+void vertex_avx2(const PixelSampler &sampler, int vertex, float (&bsdf)[4], float (&light)[2], bool need_light,
+                 bool need_rr) {
+  static_assert(kVertexLightPair == 0 && kVertexBsdfXyPair == 1 && kVertexBsdfZrrPair == 2);
+  const PixelSampler::Set v = sampler.start_set(bounce_set(vertex, kSetBsdf));
+  const __m256 f = reversed_to_unit_float8(laine_karras8(sobol_words8(v.index_reversed), lane_seeds(set1(v.seed))));
+  const __m128 lo = _mm256_castps256_ps128(f), hi = _mm256_extractf128_ps(f, 1);
+  store_high(bsdf, lo);
+  store_low(bsdf + 2, hi);
+  if (!need_rr) bsdf[3] = kUndrawnRr;
+  if (need_light) {
+    store_low(light, lo);
+  } else {
+    light[0] = light[1] = kUndrawnLight;
+  }
+}
+
+// get_path_start_scalar's values in one vector: the camera set's Sobol dimensions 0-5 in lanes 0-5 (film u,
+// v; BSDF x, y; z and the undrawn rr), vertex 0's light set's pair 0 (its pair-table word) in lanes 6-7.
+void path_start_avx2(const PixelSampler &sampler, float (&film)[2], float (&bsdf)[4], float (&light)[2],
+                     bool need_light) {
+  static_assert(kCameraFilmPair == 0 && kCameraBsdfXyPair == 1 && kCameraBsdfZrrPair == 2);
+  const PixelSampler::Set c = sampler.start_set(kSetCamera);
+  PixelSampler::Set l{0u, 0u};
+  uint64_t light_word = 0u;
+  if (need_light) {
+    l = sampler.start_set(bounce_set(0, kSetLight));
+    light_word = sobol_pair_reversed(0, l.index_reversed);
+  }
+  const __m256i words = _mm256_xor_si256(sobol_words8(c.index_reversed),  // lanes 6-7 of the rows are zero
+                                         _mm256_set_epi64x(static_cast<long long>(light_word), 0, 0, 0));
+  const __m256i set_seeds = _mm256_blend_epi32(set1(c.seed), set1(l.seed), 0xc0);
+  const __m256 f = reversed_to_unit_float8(laine_karras8(words, lane_seeds(set_seeds)));
+  const __m128 lo = _mm256_castps256_ps128(f), hi = _mm256_extractf128_ps(f, 1);
+  store_low(film, lo);
+  store_high(bsdf, lo);
+  bsdf[2] = _mm_cvtss_f32(hi);
+  bsdf[3] = kUndrawnRr;
+  if (need_light) {
+    store_high(light, hi);
+  } else {
+    light[0] = light[1] = kUndrawnLight;
+  }
+}
+
+void scramble_to_floats_avx2(const uint32_t (&words)[8], const uint32_t (&seeds)[8], const uint32_t (&rounds)[4],
+                             float (&out)[8]) {
+  const __m256i w = _mm256_loadu_si256(reinterpret_cast<const __m256i *>(words));
+  const __m256i s = _mm256_loadu_si256(reinterpret_cast<const __m256i *>(seeds));
+  const __m256i x = laine_karras8_with(w, s, broadcast(rounds[0]), broadcast(rounds[1]), broadcast(rounds[2]), broadcast(rounds[3]));
+  _mm256_storeu_ps(out, reversed_to_unit_float8(x));
+}
+
+#pragma GCC pop_options
+
+}  // namespace glimmer::render::sampler_draw
