@@ -1,13 +1,16 @@
 // Microfacet closures side by side in one run (make bench): ns per eval and
 // per sample for the conductor, the dielectric and their energy-compensated
-// (multi_ggx) variants, roughness 0.5, ior 1.5. The compensation overhead is
+// (multi_ggx) variants, roughness 0.5, ior 1.5, and visible-normal sampling
+// alone (microfacet_vndf/*). The compensation overhead is
 // the ratio multi_ggx / ggx of the same operation in this run.
 #include <benchmark/benchmark.h>
 
+#include <cmath>
 #include <memory>
 #include <string>
 #include <vector>
 
+#include "glimmer/microfacet.h"
 #include "glimmer/rng.h"
 #include "host/closure_instance.h"
 #include "host/plugin_library.h"
@@ -60,6 +63,24 @@ void BM_MicrofacetSample(benchmark::State &state, std::string name, std::vector<
     benchmark::DoNotOptimize(instance->sample(ctx, r, s));
   }
 }
+
+// Visible-normal sampling alone (glimmer/microfacet.h), ns per sample at the
+// incidence state.range(0) degrees, alpha 0.5: Beckmann inverts its slope CDF
+// (erfc + exp per Halley step, plus an inverse erf), GGX is closed form.
+void BM_VisibleNormalSample(benchmark::State &state, microfacet::Distribution dist) {
+  const float theta = static_cast<float>(state.range(0)) * kPi / 180.0f;
+  const Vec3 wi(std::sin(theta), 0.0f, std::cos(theta));
+  uint32_t i = 0;
+  for (auto _ : state) {
+    const float u1 = uint_to_unit_float(hash_u32x2(i, 1)), u2 = uint_to_unit_float(hash_u32x2(i, 2));
+    ++i;
+    benchmark::DoNotOptimize(microfacet::sample_visible_normal(dist, wi, 0.5f, 0.5f, u1, u2));
+  }
+}
+BENCHMARK_CAPTURE(BM_VisibleNormalSample, ggx, microfacet::Distribution::GGX)
+    ->Name("microfacet_vndf/ggx")->Arg(30)->Arg(60)->Arg(85);
+BENCHMARK_CAPTURE(BM_VisibleNormalSample, beckmann, microfacet::Distribution::Beckmann)
+    ->Name("microfacet_vndf/beckmann")->Arg(30)->Arg(60)->Arg(85);
 
 const bool registered = [] {
   const std::vector<std::pair<std::string, std::pair<std::string, std::vector<std::string>>>> configs = {
