@@ -146,13 +146,18 @@ struct FootprintCorners {
 // strictly (lo > hi when none does).
 struct EdgeCrossings {
   double yc, lo, hi;
+  // Without a branch per edge (issue 10, seventh speed session): whether an
+  // edge crosses is random, and the branch was mispredicted ~5 times per
+  // eval at footprint area 1e-4. Every edge's crossing is computed (a
+  // non-crossing edge's value, possibly inf or NaN, is discarded by the
+  // select), so the crossings and the nodes are the same.
   EdgeCrossings(const FootprintCorners &c, double y) : yc(y), lo(1e300), hi(-1e300) {
     for (int k = 0; k < 4; ++k) {
       const double ax = c.x[k], ay = c.y[k], bx = c.x[(k + 1) % 4], by = c.y[(k + 1) % 4];
-      if ((ay - yc) * (by - yc) < 0.0) {
-        const double xc = ax + (bx - ax) * (yc - ay) / (by - ay);
-        lo = std::min(lo, xc), hi = std::max(hi, xc);
-      }
+      const bool crosses = (ay - yc) * (by - yc) < 0.0;
+      const double xc = ax + (bx - ax) * (yc - ay) / (by - ay);
+      lo = crosses ? std::min(lo, xc) : lo;
+      hi = crosses ? std::max(hi, xc) : hi;
     }
   }
 };
@@ -164,8 +169,11 @@ struct EdgeCrossings {
 inline bool footprint_x_range_in_band(const FootprintCorners &c, const EdgeCrossings &at_y0,
                                       const EdgeCrossings &at_y1, double &x_min, double &x_max) {
   x_min = std::min(at_y0.lo, at_y1.lo), x_max = std::max(at_y0.hi, at_y1.hi);
-  for (int k = 0; k < 4; ++k)
-    if (c.y[k] >= at_y0.yc && c.y[k] <= at_y1.yc) x_min = std::min(x_min, c.x[k]), x_max = std::max(x_max, c.x[k]);
+  for (int k = 0; k < 4; ++k) {  // selects, not branches (see EdgeCrossings)
+    const bool in_band = (c.y[k] >= at_y0.yc) & (c.y[k] <= at_y1.yc);
+    x_min = in_band ? std::min(x_min, c.x[k]) : x_min;
+    x_max = in_band ? std::max(x_max, c.x[k]) : x_max;
+  }
   return x_min <= x_max;
 }
 
@@ -422,14 +430,18 @@ struct FootprintFrame {
     const double px = x0 - f.cx, py = y0 - f.cy;
     return {(px * f.by - py * f.bx) * inv_det, (f.ax * py - f.ay * px) * inv_det};
   }
-  static bool inside(double s, double t) { return std::fabs(s) <= 0.5 && std::fabs(t) <= 0.5; }
+  // Both coordinates tested without a short-circuit branch, and a node's four
+  // corners all tested (issue 10, seventh speed session: these outcomes are
+  // random, and their branches were ~12 mispredictions per eval at
+  // footprint area 1e-4); same results.
+  static bool inside(double s, double t) { return (std::fabs(s) <= 0.5) & (std::fabs(t) <= 0.5); }
   // The whole node square inside the footprint (its four corners; it is convex).
   bool node_inside(const NodeOrigin &o) const {
     if (!nodes_can_be_inside) return false;
+    bool all = true;
     for (const double a : {0.0, 1.0})
-      for (const double b : {0.0, 1.0})
-        if (!inside(o.s + a * ds_ux + b * ds_uy, o.t + a * dt_ux + b * dt_uy)) return false;
-    return true;
+      for (const double b : {0.0, 1.0}) all &= inside(o.s + a * ds_ux + b * ds_uy, o.t + a * dt_ux + b * dt_uy);
+    return all;
   }
   bool particle_inside(const NodeOrigin &o, float ux, float uy) const {
     return inside(o.s + ux * ds_ux + uy * ds_uy, o.t + ux * dt_ux + uy * dt_uy);
