@@ -67,6 +67,9 @@
 #include <span>
 #include <type_traits>
 #include <utility>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 #include "glimmer/math.h"
 #include "glimmer/rng.h"
@@ -146,13 +149,18 @@ struct FootprintCorners {
 // strictly (lo > hi when none does).
 struct EdgeCrossings {
   double yc, lo, hi;
+  // Without a branch per edge (issue 10, seventh speed session): whether an
+  // edge crosses is random, and the branch was mispredicted ~5 times per
+  // eval at footprint area 1e-4. Every edge's crossing is computed (a
+  // non-crossing edge's value, possibly inf or NaN, is discarded by the
+  // select), so the crossings and the nodes are the same.
   EdgeCrossings(const FootprintCorners &c, double y) : yc(y), lo(1e300), hi(-1e300) {
     for (int k = 0; k < 4; ++k) {
       const double ax = c.x[k], ay = c.y[k], bx = c.x[(k + 1) % 4], by = c.y[(k + 1) % 4];
-      if ((ay - yc) * (by - yc) < 0.0) {
-        const double xc = ax + (bx - ax) * (yc - ay) / (by - ay);
-        lo = std::min(lo, xc), hi = std::max(hi, xc);
-      }
+      const bool crosses = (ay - yc) * (by - yc) < 0.0;
+      const double xc = ax + (bx - ax) * (yc - ay) / (by - ay);
+      lo = crosses ? std::min(lo, xc) : lo;
+      hi = crosses ? std::max(hi, xc) : hi;
     }
   }
 };
@@ -164,8 +172,11 @@ struct EdgeCrossings {
 inline bool footprint_x_range_in_band(const FootprintCorners &c, const EdgeCrossings &at_y0,
                                       const EdgeCrossings &at_y1, double &x_min, double &x_max) {
   x_min = std::min(at_y0.lo, at_y1.lo), x_max = std::max(at_y0.hi, at_y1.hi);
-  for (int k = 0; k < 4; ++k)
-    if (c.y[k] >= at_y0.yc && c.y[k] <= at_y1.yc) x_min = std::min(x_min, c.x[k]), x_max = std::max(x_max, c.x[k]);
+  for (int k = 0; k < 4; ++k) {  // selects, not branches (see EdgeCrossings)
+    const bool in_band = (c.y[k] >= at_y0.yc) & (c.y[k] <= at_y1.yc);
+    x_min = in_band ? std::min(x_min, c.x[k]) : x_min;
+    x_max = in_band ? std::max(x_max, c.x[k]) : x_max;
+  }
   return x_min <= x_max;
 }
 
@@ -277,6 +288,36 @@ struct DirectionCellKeys {
   float inv_cell(float gamma) const { return gamma == gamma_rad ? cell_scale : 2.0f / (kCellSize * gamma); }
 };
 
+// The groups' cell coordinates floor_to_int32(x + kGroupShift[g][0]) and
+// floor_to_int32(y + kGroupShift[g][1]); with SSE2 the four groups in the
+// lanes of one register (issue 10, seventh speed session: the eight scalar
+// floors were ~100 instructions per eval). Same clamp (NaN to -kLimit, as
+// maxps returns its second operand when unordered), same values.
+inline void floor_cells(float x, float y, std::array<int32_t, kDirectionGroups> &cx,
+                        std::array<int32_t, kDirectionGroups> &cy) {
+#if defined(__SSE2__)
+  static_assert(kDirectionGroups == 4);
+  const __m128 limit = _mm_set1_ps(1.07e9f), neg_limit = _mm_set1_ps(-1.07e9f);
+  const auto floor4 = [&](__m128 v) {
+    v = _mm_max_ps(_mm_min_ps(limit, v), neg_limit);  // NaN: min gives NaN, max gives -limit
+    const __m128i i = _mm_cvttps_epi32(v);
+    // i - 1 where the truncation rounded up (negative non-integers)
+    return _mm_add_epi32(i, _mm_castps_si128(_mm_cmpgt_ps(_mm_cvtepi32_ps(i), v)));
+  };
+  const __m128i ix = floor4(_mm_add_ps(_mm_set1_ps(x), _mm_setr_ps(kGroupShift[0][0], kGroupShift[1][0],
+                                                                    kGroupShift[2][0], kGroupShift[3][0])));
+  const __m128i iy = floor4(_mm_add_ps(_mm_set1_ps(y), _mm_setr_ps(kGroupShift[0][1], kGroupShift[1][1],
+                                                                    kGroupShift[2][1], kGroupShift[3][1])));
+  _mm_storeu_si128(reinterpret_cast<__m128i *>(cx.data()), ix);
+  _mm_storeu_si128(reinterpret_cast<__m128i *>(cy.data()), iy);
+#else
+  for (int g = 0; g < kDirectionGroups; ++g) {
+    cx[g] = floor_to_int32(x + kGroupShift[g][0]);
+    cy[g] = floor_to_int32(y + kGroupShift[g][1]);
+  }
+#endif
+}
+
 // Seed of the particle field of each group's direction cell at (wi, wo);
 // false when there is no half vector above the surface.
 inline bool direction_cell_seeds(const DirectionCellKeys &keys, const Vec3 &wi, const Vec3 &wo, float gamma_rad,
@@ -307,11 +348,10 @@ inline bool direction_cell_seeds(const DirectionCellKeys &keys, const Vec3 &wi, 
     py += along * ey;
   }
   const float inv_cell = keys.inv_cell(gamma_rad);
-  for (int g = 0; g < kDirectionGroups; ++g) {
-    const int32_t cx = floor_to_int32(px * inv_cell + kGroupShift[g][0]);
-    const int32_t cy = floor_to_int32(py * inv_cell + kGroupShift[g][1]);
-    seeds[g] = hash_combine(hash_combine(keys.group[g], static_cast<uint32_t>(cx)), static_cast<uint32_t>(cy));
-  }
+  std::array<int32_t, kDirectionGroups> cx, cy;
+  floor_cells(px * inv_cell, py * inv_cell, cx, cy);
+  for (int g = 0; g < kDirectionGroups; ++g)
+    seeds[g] = hash_combine(hash_combine(keys.group[g], static_cast<uint32_t>(cx[g])), static_cast<uint32_t>(cy[g]));
   return true;
 }
 
@@ -422,14 +462,18 @@ struct FootprintFrame {
     const double px = x0 - f.cx, py = y0 - f.cy;
     return {(px * f.by - py * f.bx) * inv_det, (f.ax * py - f.ay * px) * inv_det};
   }
-  static bool inside(double s, double t) { return std::fabs(s) <= 0.5 && std::fabs(t) <= 0.5; }
+  // Both coordinates tested without a short-circuit branch, and a node's four
+  // corners all tested (issue 10, seventh speed session: these outcomes are
+  // random, and their branches were ~12 mispredictions per eval at
+  // footprint area 1e-4); same results.
+  static bool inside(double s, double t) { return (std::fabs(s) <= 0.5) & (std::fabs(t) <= 0.5); }
   // The whole node square inside the footprint (its four corners; it is convex).
   bool node_inside(const NodeOrigin &o) const {
     if (!nodes_can_be_inside) return false;
+    bool all = true;
     for (const double a : {0.0, 1.0})
-      for (const double b : {0.0, 1.0})
-        if (!inside(o.s + a * ds_ux + b * ds_uy, o.t + a * dt_ux + b * dt_uy)) return false;
-    return true;
+      for (const double b : {0.0, 1.0}) all &= inside(o.s + a * ds_ux + b * ds_uy, o.t + a * dt_ux + b * dt_uy);
+    return all;
   }
   bool particle_inside(const NodeOrigin &o, float ux, float uy) const {
     return inside(o.s + ux * ds_ux + uy * ds_uy, o.t + ux * dt_ux + uy * dt_uy);

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -213,6 +214,43 @@ TEST(GlintParticles, LitCountBoundsAgreeWithTheTailWalk) {
   std::printf("[bounds] control (K = 1 from lambda^2/4): %lld disagreements with the walk\n",
               static_cast<long long>(control_disagreements));
   EXPECT_GT(control_disagreements, 1000);
+}
+
+// The direction cells' floors (floor_cells: the four groups in SSE2 lanes,
+// issue 10's seventh speed session) equal the scalar floor_to_int32 of
+// x + kGroupShift[g] for every group, on random values of every magnitude,
+// integers and values an ulp from them, +-0, the clamp's limits, infinities
+// and NaN. Negative control: a floor without the round-down correction
+// (plain truncation) differs on negative non-integers.
+TEST(GlintParticles, VectorCellFloorsMatchTheScalarFloor) {
+  std::vector<float> xs = {0.0f, -0.0f, 0.5f, -0.5f, 1.0f, -1.0f, -0.25f, -0.75f, 1.07e9f, -1.07e9f, 2e9f, -2e9f,
+                           std::numeric_limits<float>::infinity(), -std::numeric_limits<float>::infinity(),
+                           std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::denorm_min(),
+                           -std::numeric_limits<float>::denorm_min()};
+  Pcg32 rng(17);
+  for (int n = 0; n < 200000; ++n) {
+    const float m = std::ldexp(2.0f * rng.next_float() - 1.0f, static_cast<int>(rng.next_u32() % 40) - 10);
+    xs.push_back(m);
+    const float r = std::round(m);
+    xs.push_back(r), xs.push_back(std::nextafter(r, 1e30f)), xs.push_back(std::nextafter(r, -1e30f));
+    for (int g = 0; g < pg::kDirectionGroups; ++g) xs.push_back(r - pg::kGroupShift[g][0]);
+  }
+  int64_t compared = 0, control_differs = 0;
+  for (size_t a = 0; a < xs.size(); ++a) {
+    const float x = xs[a], y = xs[(a * 7 + 3) % xs.size()];
+    std::array<int32_t, pg::kDirectionGroups> cx, cy;
+    pg::floor_cells(x, y, cx, cy);
+    for (int g = 0; g < pg::kDirectionGroups; ++g) {
+      ASSERT_EQ(cx[g], pg::floor_to_int32(x + pg::kGroupShift[g][0])) << "x " << x << " group " << g;
+      ASSERT_EQ(cy[g], pg::floor_to_int32(y + pg::kGroupShift[g][1])) << "y " << y << " group " << g;
+      const float v = x + pg::kGroupShift[g][0];
+      if (std::isfinite(v) && std::fabs(v) < 1e9f) control_differs += static_cast<int32_t>(v) != cx[g];
+      ++compared;
+    }
+  }
+  std::printf("[cells] %lld floors equal to the scalar floor; truncation differs on %lld\n",
+              static_cast<long long>(compared), static_cast<long long>(control_differs));
+  EXPECT_GT(control_differs, 10000);
 }
 
 // A table whose nodes are independent uniforms (every neighbour differs, so
