@@ -837,6 +837,7 @@ TEST(FrostedGlassSg, StressRawOutputsFiniteNonNegative) {
   const long calls = 1000000 * long(stress_scale());
   const long blocks = 64;
   std::atomic<long> bad_count{0}, moved{0}, samples{0}, mixture_moved{0}, mixture_written{0};
+  std::atomic<long> host_queries{0}, host_moved{0}, host_mixtures{0};
   tbb::parallel_for(long(0), blocks, [&](long b) {
     Pcg32 r(900 + b);
     for (long i = 0; i < calls / blocks; ++i) {
@@ -860,6 +861,21 @@ TEST(FrostedGlassSg, StressRawOutputsFiniteNonNegative) {
       const Vec3 wo = stress_direction(r, grazing);
       const Vec3 rand(r.next_float(), r.next_float(), r.next_float());
       long n_bad = glimmer::test::stress_eval_and_sample(c, sp, wo, rand, samples, moved);
+      // The same query as the renderer makes it (C entry point, a 2.7 host's sample with its whole-mixture buffer):
+      // what the host reads (bad_host_sample), mixture included wherever the default rule writes one.
+      {
+        GlimmerExitMixture buffer;
+        GlimmerSample hs{};
+        hs.struct_size = sizeof(GlimmerSample);
+        hs.exit_mixture = &buffer;
+        const float r3[3] = {rand.x, rand.y, rand.z};
+        const uint32_t label = ClosureAdapter<FrostedGlassClosure>::sample(self, &ctx, r3, &hs);
+        long mixtures = 0;
+        n_bad += glimmer::test::bad_host_sample(label, hs, buffer, r.next_float(), r.next_float(), mixtures);
+        host_queries.fetch_add(1, std::memory_order_relaxed);
+        if (hs.flags & GLIMMER_SAMPLE_MOVED) host_moved.fetch_add(1, std::memory_order_relaxed);
+        if (mixtures) host_mixtures.fetch_add(1, std::memory_order_relaxed);
+      }
       // The exit lobe mixture (method=sg's default up to roughness 0.4): the same queries through kMixture, v and
       // t at the ends of their ranges and NaN (clamped), the whole mixture written to a host buffer (ABI 2.7).
       if (i % 2 == 0) {
@@ -886,6 +902,10 @@ TEST(FrostedGlassSg, StressRawOutputsFiniteNonNegative) {
   EXPECT_GT(moved.load(), calls / 20);  // the sg estimator really ran
   EXPECT_GT(mixture_moved.load(), calls / 40);  // and the mixture
   EXPECT_GT(mixture_written.load(), mixture_moved.load() / 2);  // handed to the host whole
+  EXPECT_GT(host_mixtures.load(), calls / 40);                  // and read whole through the C entry point
+  std::printf("[frosted sg stress] through the C entry point (2.7 host): %ld sample queries, %ld moved, %ld whole "
+              "exit mixtures read (axes, sharpness, weights, host density at wo and a lamp-integral draw)\n",
+              host_queries.load(), host_moved.load(), host_mixtures.load());
   std::printf("[frosted sg stress] exit lobe mixture: %ld moved samples (v 0..1 / NaN, t 0..0.25 / rule), %ld "
               "written whole to the host's buffer\n",
               mixture_moved.load(), mixture_written.load());
