@@ -822,6 +822,68 @@ Vec3 stress_direction(Pcg32 &r, bool grazing) {
   return Vec3(s * std::cos(phi), s * std::sin(phi), z);
 }
 
+// Negative control of the stress's host-side check (bad_host_sample): real whole-mixture samples from the C entry
+// point pass it, and each broken copy (a NaN or non-unit axis, sharpness 0 / inf, a negative weight, weights
+// summing to 0.9, count 0 or 11, the picked lobe missing, the flag without the buffer) fails it.
+TEST(FrostedGlassSg, HostSampleCheckCatchesBrokenMixtures) {
+  auto sg = create_method(0.3f, 1.5f, "sg");
+  const auto *inst = reinterpret_cast<const GlimmerInstance *>(sg.get());
+  AnalyticScene scene(AnalyticScene::kSphere);
+  scene.material = inst;
+  Pcg32 rng(5);
+  int checked = 0, missed = 0, valid_bad = 0;
+  for (int i = 0; i < 400 && checked < 50; ++i) {
+    const Vec3 n_out = normalize(Vec3(rng.next_float() - 0.5f, rng.next_float() - 0.5f, rng.next_float() - 0.5f));
+    const Frame f = Frame::from_normal(n_out);
+    GlimmerShadingContext ctx = host::make_local_context(
+        f.to_world(normalize(Vec3(rng.next_float() - 0.5f, rng.next_float() - 0.5f, 0.2f + rng.next_float()))),
+        &scene.services);
+    ctx.P = n_out;
+    ctx.N = ctx.Ng = n_out;
+    ctx.T = f.s;
+    ctx.path_seed = rng.next_u32();
+    const float r3[3] = {rng.next_float(), rng.next_float(), rng.next_float()};
+    GlimmerExitMixture buffer;
+    GlimmerSample hs{};
+    hs.struct_size = sizeof(GlimmerSample);
+    hs.exit_mixture = &buffer;
+    const uint32_t label = ClosureAdapter<FrostedGlassClosure>::sample(inst, &ctx, r3, &hs);
+    if (!(hs.flags & GLIMMER_SAMPLE_EXIT_MIXTURE) || buffer.count < 2) continue;
+    ++checked;
+    long mixtures = 0;
+    valid_bad += int(glimmer::test::bad_host_sample(label, hs, buffer, 0.3f, 0.7f, mixtures));
+    const float nan = std::numeric_limits<float>::quiet_NaN(), inf = std::numeric_limits<float>::infinity();
+    const uint32_t last = buffer.count - 1;  // not the picked lobe when the picked one is lobe 0
+    const std::function<void(GlimmerSample &, GlimmerExitMixture &)> breaks[] = {
+        [&](GlimmerSample &, GlimmerExitMixture &m) { m.axis[last].x = nan; },
+        [&](GlimmerSample &, GlimmerExitMixture &m) { m.axis[last] = Vec3(m.axis[last]) * 1.1f; },
+        [&](GlimmerSample &, GlimmerExitMixture &m) { m.sharpness[last] = 0.0f; },
+        [&](GlimmerSample &, GlimmerExitMixture &m) { m.sharpness[last] = inf; },
+        [&](GlimmerSample &, GlimmerExitMixture &m) { m.weight[last] = -m.weight[last]; },
+        [&](GlimmerSample &, GlimmerExitMixture &m) {
+          for (uint32_t k = 0; k < m.count; ++k) m.weight[k] *= 0.9f;
+        },
+        [&](GlimmerSample &, GlimmerExitMixture &m) { m.count = 0; },
+        [&](GlimmerSample &, GlimmerExitMixture &m) { m.count = GLIMMER_EXIT_MAX_LOBES + 1; },
+        [&](GlimmerSample &h, GlimmerExitMixture &) { h.lobe_sharpness *= 1.5f; },
+        [&](GlimmerSample &h, GlimmerExitMixture &) { h.exit_mixture = nullptr; },
+    };
+    for (const auto &broken : breaks) {
+      GlimmerExitMixture m = buffer;
+      GlimmerSample h = hs;
+      h.exit_mixture = &m;
+      broken(h, m);
+      long unused = 0;
+      missed += glimmer::test::bad_host_sample(label, h, m, 0.3f, 0.7f, unused) == 0;
+    }
+  }
+  std::printf("[frosted sg stress check] %d real whole-mixture samples: %d flagged bad; broken copies (10 kinds each) "
+              "not flagged: %d\n", checked, valid_bad, missed);
+  EXPECT_GE(checked, 20);
+  EXPECT_EQ(valid_bad, 0);
+  EXPECT_EQ(missed, 0);
+}
+
 TEST(FrostedGlassSg, StressRawOutputsFiniteNonNegative) {
   Pcg32 rng(21);
   const float roughs[] = {0.0f, 1e-3f, 0.04f, 0.1f, 0.5f, 1.0f};
