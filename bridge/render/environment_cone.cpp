@@ -74,32 +74,34 @@ Spectrum EnvironmentCone::filtered(const Vec3 &direction, float level) const {
   return t > 0.0f ? a * (1.0f - t) + levels_[size_t(l1)].bilinear(u, v) * t : a;
 }
 
-Spectrum EnvironmentCone::lookup(const ShaderSystem &shaders, const Vec3 &direction, float cone_angle) const {
+Spectrum EnvironmentCone::lookup(const ShaderSystem &shaders, const Vec3 &direction, float cone_angle,
+                                 int points) const {
+  const int n = std::clamp(points, 1, kConePoints);
   const bool finite = std::isfinite(direction.x) && std::isfinite(direction.y) && std::isfinite(direction.z);
   if (!(cone_angle > 0.0f) || !finite || shaders.background_is_constant()) return shaders.background(direction);
   const float half = std::min(cone_angle, kPi);
   // 1 - cos(half) as 2 sin^2(half / 2): exact for the narrowest cones.
   const float one_minus_cos = 2.0f * std::pow(std::sin(0.5f * half), 2.0f);
-  // Spacing of kConePoints points spread over the cap's solid angle 2 pi (1 - cos), and the level whose
+  // Spacing of n points spread over the cap's solid angle 2 pi (1 - cos), and the level whose
   // cells (pi / height radians tall) are that wide.
-  const float spacing = std::sqrt(kTwoPi * one_minus_cos / float(kConePoints));
+  const float spacing = std::sqrt(kTwoPi * one_minus_cos / float(n));
   // Below level 2 the map's bilinear footprint would blur the cap's edge by more than a few percent of its width:
   // the background is then evaluated at the points themselves (cones up to ~9 degrees: kConePoints shader
-  // evaluations).
+  // evaluations at most).
   const float level = std::log2(spacing / (kPi / float(kBaseHeight))) + kLevelBias;
   const bool direct = level < 2.0f;
   if (!direct) std::call_once(once_, [&] { build(shaders); });
   const Frame frame = Frame::from_normal(direction);
   Spectrum sum(0.0f);
-  for (int i = 0; i < kConePoints; ++i) {
+  for (int i = 0; i < n; ++i) {
     // Fibonacci spiral over the cap: equal solid angle per point (1 - cos uniform), azimuth by the golden angle.
-    const float omc = (i + 0.5f) / float(kConePoints) * one_minus_cos;
+    const float omc = (i + 0.5f) / float(n) * one_minus_cos;
     const float sin_t = std::sqrt(std::max(0.0f, omc * (2.0f - omc))), phi = kGoldenAngle * float(i);
     const Vec3 local(sin_t * std::cos(phi), sin_t * std::sin(phi), 1.0f - omc);
     const Vec3 d = normalize(frame.to_world(local));
     sum += direct ? shaders.background(d) : filtered(d, level);
   }
-  return sum * (1.0f / float(kConePoints));
+  return sum * (1.0f / float(n));
 }
 
 }  // namespace glimmer::render

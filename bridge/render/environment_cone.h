@@ -30,8 +30,11 @@ class EnvironmentCone {
   static constexpr float kLevelBias = 0.5f;  // levels coarser than the points' spacing: no gaps between them
 
   // Radiance around unit `direction`, averaged over the cone of half-angle `cone_angle` radians
-  // (clamped to pi: the whole sphere).
-  Spectrum lookup(const ShaderSystem &shaders, const Vec3 &direction, float cone_angle) const;
+  // (clamped to pi: the whole sphere). `points` (1..kConePoints) spiral points: fewer points read a coarser level
+  // (the one as wide as their spacing), so the cap stays covered, blurred a little more (the exit lobe mixture
+  // gives each lobe points in proportion to its weight, renderer.cpp ExitWorld).
+  Spectrum lookup(const ShaderSystem &shaders, const Vec3 &direction, float cone_angle,
+                  int points = kConePoints) const;
   // Whether the map has been built (it is built only by a cone lookup on a non-constant world).
   bool built() const { return !levels_.empty(); }
 

@@ -105,6 +105,31 @@ TEST(EnvironmentCone, ConeAverageMatchesBruteForce) {
   EXPECT_TRUE(env.built());
 }
 
+// Fewer spiral points (what an exit lobe mixture's light lobes get: 64 x weight, at least 16) read a coarser level:
+// the cap stays covered, the average against the brute force a little blurrier. Bounds: measured + ~30 % (docs
+// "Error vs time on a fair scene"); negative control as above (the point lookup).
+TEST(EnvironmentCone, FewerPointsStillMatchTheBruteForce) {
+  World w(kCheckerWorld, "env_cone_checker_few");
+  const render::EnvironmentCone env;
+  for (int points : {8, 16}) {
+    double worst_mean = 0.0, worst_max = 0.0;
+    for (float cone_deg : {5.0f, 15.0f, 30.0f, 60.0f}) {
+      const ConeError e = cone_error(*w.shaders, cone_deg, 48, [&](const Vec3 &d, float c) {
+        return env.lookup(*w.shaders, d, c, points);
+      });
+      const ConeError full = cone_error(*w.shaders, cone_deg, 48, [&](const Vec3 &d, float c) {
+        return env.lookup(*w.shaders, d, c);
+      });
+      std::printf("cone %4.0f deg, %2d points: rel. error mean %.4f max %.4f (64 points: %.4f / %.4f)\n", cone_deg,
+                  points, e.mean, e.max, full.mean, full.max);
+      worst_mean = std::max(worst_mean, e.mean);
+      worst_max = std::max(worst_max, e.max);
+    }
+    EXPECT_LT(worst_mean, points == 8 ? 0.29 : 0.14) << points << " points";  // measured 0.221 / 0.104 (5 deg)
+    EXPECT_LT(worst_max, points == 8 ? 1.7 : 0.9) << points << " points";     // measured 1.32 / 0.70 (5 deg)
+  }
+}
+
 TEST(EnvironmentCone, ConeZeroIsThePointLookupAndBuildsNothing) {
   World w(kCheckerWorld, "env_cone_point");
   const render::EnvironmentCone env;

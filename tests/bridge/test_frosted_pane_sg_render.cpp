@@ -9,6 +9,8 @@
 //    (1024 spp, BSDF sampling only: see render_at). Negative control: the
 //    same scene seen through a pane of roughness 0.7 (path) differs by more
 //    than the bound;
+//    A small light behind the pane: against a reference whose own error is checked (two seeds), sg's measured
+//    error (0.069) bounds a regression; the 5 % goal is a disabled test (not met: the exit lobe's tails);
 //  - determinism: 1 thread / tile 5 and 4 threads / tile 16 give the same image;
 //  - method=path through the pane: MIS agrees with BSDF sampling alone and light sampling alone.
 #include "render_test_util.h"
@@ -106,13 +108,75 @@ void check_behind(int behind, const char *what, double bound, int reference_spp 
 }
 
 TEST(FrostedSgPaneRender, MatchesPathInFrontOfAnEmissiveQuad) { check_behind(1, "quad", 0.05); }
-// DISABLED: no converged reference yet. Behind the small light the path reference is heavy-tailed: with BSDF
-// sampling only, at 1024 spp, path at 256 spp was 0.04 off it with one set of sampler points and 0.08 with the
-// camera set (sg likewise); at 16384 spp sg (1024 spp) and path (256 spp) were both still 0.095-0.099 off it, i.e.
-// the reference, not sg, is what moves; path with MIS (unbiased since the pane's pdf walk is independent) is as
-// noisy. Threshold unchanged; re-enable with a reference whose own error is checked to be << 5 %.
+
+// The small area light 0.6 behind the pane (issue 12, tenth session). Its reference is method=path with BSDF
+// sampling only on two seeds, averaged; its own error is checked: the two seeds' images differ by `ref_noise` (the
+// same quarter measure), so the average is off by about ref_noise / 2. Light sampling is the noisier estimator
+// here (the pane's walk estimate of f toward a lamp point: 4 seeds at 2048 spp spread 9.7..11.6 over the lamp's
+// quarter, BSDF sampling 10.74..10.97, MIS 10.27..11.07; same means), so BSDF sampling is the reference.
+// What the small light needs of sg is the lobe's tails: in the quarters away from the lamp path gets 10-25 % of
+// their light from the lamp through the rough interfaces' wide GGX tails, and sg's exit lobe (a vMF mixture whose
+// widest lobes are kappa / 4) gets almost none of it (docs/frosted_glass.md "The small light behind a pane").
+struct SmallLightRenders {
+  render::RenderResult sg, other;
+  double ref_noise = 0.0, d_sg = 0.0, d_other = 0.0;
+  int reference_spp = 0;
+};
+const SmallLightRenders &small_light_renders() {
+  static const SmallLightRenders r = [] {
+    SmallLightRenders out;
+    out.reference_spp = stress_scale() > 1 ? 16384 : 8192;
+    const std::string world = "0.05 0.05 0.05";
+    const std::string path_scene = pane_scene("frosted_pane_path_small_light", pane(0.2f, "path"), world, 2);
+    render::RenderOptions opt;
+    opt.samples = out.reference_spp;
+    opt.strategy = render::LightStrategy::BsdfOnly;
+    opt.seed = 1;
+    const auto ref_a = render_scene(path_scene, opt);
+    opt.seed = 2;
+    const auto ref_b = render_scene(path_scene, opt);
+    render::RenderResult ref = ref_a;
+    for (size_t i = 0; i < ref.combined.size(); ++i) ref.combined[i] = 0.5f * (ref_a.combined[i] + ref_b.combined[i]);
+    out.ref_noise = quarter_difference(ref_a, ref_b);
+    opt = render::RenderOptions{};
+    opt.samples = 1024;
+    opt.seed = 3;
+    out.sg = render_scene(pane_scene("frosted_pane_sg_small_light", pane(0.2f, "sg"), world, 2), opt);
+    opt.samples = 256;
+    opt.strategy = render::LightStrategy::BsdfOnly;
+    out.other = render_scene(pane_scene("frosted_pane_other_small_light", pane(0.7f, "path"), world, 2), opt);
+    out.d_sg = quarter_difference(out.sg, ref);
+    out.d_other = quarter_difference(out.other, ref);
+    std::printf("[frosted sg pane render] small light: reference path %d spp x 2 seeds (BSDF sampling), the seeds "
+                "differ by %.4f (its own error ~%.4f); sg (1024 spp, MIS) %.4f off it; roughness 0.7 instead of 0.2 "
+                "(negative control) %.4f\n",
+                out.reference_spp, out.ref_noise, 0.5 * out.ref_noise, out.d_sg, out.d_other);
+    return out;
+  }();
+  return r;
+}
+
+// Checked reference and sg's measured figure: the reference's own error well under the 5 % goal (seed difference
+// < 0.025: measured 0.011 / 0.012 at 16384 spp on two seed pairs), sg within its measured error + ~30 % (0.069 /
+// 0.084 on those pairs, the spread is the reference's noise in the dim quarters; the cause is the lobe's tails,
+// above), the negative control far outside that (6.7).
+TEST(FrostedSgPaneRender, SmallLightAgainstACheckedReference) {
+  const SmallLightRenders &r = small_light_renders();
+  EXPECT_EQ(r.sg.nan_samples, 0u);
+  EXPECT_LT(r.ref_noise, 0.025);
+  EXPECT_LT(r.d_sg, 0.11);
+  EXPECT_GT(r.d_other, 0.11);
+}
+
+// The 5 % goal (issue 12) behind the small light, threshold unchanged. DISABLED: not met, sg is 0.069 / 0.084 off
+// the checked reference above (16384 spp x 2 seeds; its own error ~0.006): the exit lobe's missing tails.
+// Before the tenth session it was disabled for an unconverged reference (one BSDF-sampled seed; path at 256 spp
+// was as far off it as sg, from its own noise in the dim quarters).
 TEST(FrostedSgPaneRender, DISABLED_MatchesPathInFrontOfASmallLight) {
-  check_behind(2, "small_light", 0.05, 16384, 1024);
+  const SmallLightRenders &r = small_light_renders();
+  EXPECT_LT(r.ref_noise, 0.025);
+  EXPECT_LT(r.d_sg, 0.05);
+  EXPECT_GT(r.d_other, 0.05);
 }
 
 // method=path through a pane, in front of the emissive quad: MIS, BSDF sampling alone and light sampling alone are

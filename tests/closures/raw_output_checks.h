@@ -57,6 +57,67 @@ inline long bad_exit_mixture(const plugin::LocalSample &s, const GlimmerExitMixt
   return n;
 }
 
+// A sample as the host reads it through the C ABI (ClosureAdapter::sample into a 2.7 host's GlimmerSample whose
+// exit_mixture points at `buffer`; bridge/render/renderer.cpp integrate_exit_lobe / exit_mixture_of): the number
+// of bad results (0 when the label is NONE). A returned sample: finite non-negative eval, positive finite pdf, unit
+// finite wo. MOVED: finite origin and unit origin_Ng, singular. EXIT_LOBE: unit finite lobe_axis, finite positive
+// sharpness. EXIT_MIXTURE (the whole mixture, read only with the flag): count 1..GLIMMER_EXIT_MAX_LOBES, unit finite
+// axes, finite sharpness > 0, finite weights >= 0 summing to 1, the picked lobe (lobe_axis / lobe_sharpness) among
+// them, and the host's estimators' numbers finite: each lobe's below-surface fraction in [0, 1], the prepared
+// mixture density (NEE / MIS) at wo finite and positive, a draw of the lamp integral (ExitLobeMixture::draw at
+// (u1, u2)) unit and finite with finite pdf and draw density. `mixtures` counts the mixtures read.
+inline long bad_host_sample(uint32_t label, const GlimmerSample &s, const GlimmerExitMixture &buffer, float u1,
+                            float u2, long &mixtures) {
+  if (label == GLIMMER_LABEL_NONE) return (s.flags != 0 || s.label != GLIMMER_LABEL_NONE) ? 1 : 0;
+  const Vec3 wo(s.wo);
+  long n = (bad(s.eval[0]) || bad(s.eval[1]) || bad(s.eval[2]) || !(s.pdf > 0.0f) || bad(s.pdf) || !is_finite(wo) ||
+            std::fabs(length(wo) - 1.0f) > 1e-3f || s.label != label)
+               ? 1
+               : 0;
+  const uint32_t lobe_flags = GLIMMER_SAMPLE_EXIT_LOBE | GLIMMER_SAMPLE_EXIT_MIXTURE;
+  if (!(s.flags & GLIMMER_SAMPLE_MOVED)) return n + ((s.flags & lobe_flags) ? 1 : 0);
+  const Vec3 Ng(s.origin_Ng);
+  if (!is_finite(Vec3(s.origin)) || !is_finite(Ng) || std::fabs(length(Ng) - 1.0f) > 1e-3f ||
+      !(s.label & GLIMMER_LABEL_SINGULAR))
+    ++n;
+  if (!(s.flags & GLIMMER_SAMPLE_EXIT_LOBE)) return n + ((s.flags & GLIMMER_SAMPLE_EXIT_MIXTURE) ? 1 : 0);
+  const Vec3 lobe_axis(s.lobe_axis);
+  if (!is_finite(lobe_axis) || std::fabs(length(lobe_axis) - 1.0f) > 1e-3f || !std::isfinite(s.lobe_sharpness) ||
+      !(s.lobe_sharpness > 0.0f))
+    ++n;
+  if (!(s.flags & GLIMMER_SAMPLE_EXIT_MIXTURE)) return n;
+  if (s.exit_mixture != &buffer) return n + 1;
+  ++mixtures;
+  if (!(buffer.count >= 1 && buffer.count <= GLIMMER_EXIT_MAX_LOBES)) return n + 1;
+  ExitLobeMixture mix;
+  double sum = 0.0;
+  bool picked_listed = false;
+  for (uint32_t k = 0; k < buffer.count; ++k) {
+    const Vec3 axis(buffer.axis[k]);
+    const float kappa = buffer.sharpness[k], w = buffer.weight[k];
+    if (!is_finite(axis) || std::fabs(length(axis) - 1.0f) > 1e-3f || !std::isfinite(kappa) || !(kappa > 0.0f) ||
+        !std::isfinite(w) || w < 0.0f)
+      ++n;
+    sum += w;
+    picked_listed |=
+        axis.x == lobe_axis.x && axis.y == lobe_axis.y && axis.z == lobe_axis.z && kappa == s.lobe_sharpness;
+    mix.lobe[mix.count] = ExitLobe::make(axis, kappa, Ng);
+    if (!(mix.lobe[mix.count].below >= 0.0 && mix.lobe[mix.count].below <= 1.0)) ++n;
+    mix.weight[mix.count++] = w;
+  }
+  if (std::fabs(sum - 1.0) > 1e-4 || !picked_listed) ++n;
+  mix.prepare();
+  const double p = mix.pdf(wo);
+  if (!(p > 0.0) || !std::isfinite(p)) ++n;
+  const Vec3 d = mix.draw(u1, u2);
+  double draw = 0.0;
+  const double pd = mix.pdf_and_draw_density(d, draw);
+  if (!is_finite(d) || std::fabs(length(d) - 1.0f) > 1e-3f || !std::isfinite(pd) || pd < 0.0 ||
+      !std::isfinite(draw) || !(draw > 0.0))
+    ++n;
+  return n;
+}
+
 // One eval and one sample call of a stress loop at (sp, wo): the bad outputs of both (a moved sample's exit checked
 // too); counts the successful samples and the moved ones.
 template <class Closure, class Counter>

@@ -22,6 +22,7 @@
 
 #include <atomic>
 #include <cstdio>
+#include <cstdlib>
 #include <functional>
 
 #include "closures/frosted_glass.h"
@@ -274,10 +275,17 @@ TEST(FrostedGlassSgPane, StressRawOutputsFiniteNonNegative) {
     pool.push_back(create_pane(c, (i % 3 == 0) ? "auto" : "sg"));
   }
   const auto schema = FrostedGlassClosure::params();
-  const long calls = 1000000 * long(stress_scale());
   const long blocks = 64;
-  std::atomic<long> bad_count{0}, moved{0}, samples{0};
-  tbb::parallel_for(long(0), blocks, [&](long b) {
+  // GLIMMER_STRESS_BLOCKS="first,end": only blocks [first, end) of the 64. A block's queries depend on its index
+  // alone, so runs over disjoint ranges together are exactly the whole run (a make-stress run split over processes
+  // or sessions: 1e8 queries here cost ~1 CPU hour).
+  long first = 0, end = blocks;
+  if (const char *range = std::getenv("GLIMMER_STRESS_BLOCKS"))
+    if (std::sscanf(range, "%ld,%ld", &first, &end) != 2 || !(0 <= first && first < end && end <= blocks))
+      first = 0, end = blocks;
+  const long calls = 1000000 * long(stress_scale()) / blocks * (end - first);
+  std::atomic<long> bad_count{0}, moved{0}, samples{0}, host_queries{0}, host_mixtures{0};
+  tbb::parallel_for(first, end, [&](long b) {
     Pcg32 r(700 + b);
     const float zs[] = {0.0f, 1e-7f, 1e-6f, 1e-4f, 1e-3f, 0.01f, 0.5f, 1.0f - 1e-7f, 1.0f};
     auto direction = [&](bool grazing) {
@@ -286,7 +294,7 @@ TEST(FrostedGlassSgPane, StressRawOutputsFiniteNonNegative) {
       const float phi = 2.0f * float(M_PI) * r.next_float(), st = std::sqrt(std::max(0.0f, 1 - z * z));
       return Vec3(st * std::cos(phi), st * std::sin(phi), z);
     };
-    for (long i = 0; i < calls / blocks; ++i) {
+    for (long i = 0; i < calls / (end - first); ++i) {
       const FrostedGlassClosure &c = *pool[r.next_u32() % pool.size()];
       const bool grazing = (i % 4) == 0;
       GlimmerShadingContext ctx = host::make_local_context(direction(grazing));
@@ -295,15 +303,32 @@ TEST(FrostedGlassSgPane, StressRawOutputsFiniteNonNegative) {
       const ShadingPoint sp(&ctx, schema);
       const Vec3 wo = direction(grazing);
       const Vec3 rand(r.next_float(), r.next_float(), r.next_float());
-      const long n_bad = glimmer::test::stress_eval_and_sample(c, sp, wo, rand, samples, moved);
+      long n_bad = glimmer::test::stress_eval_and_sample(c, sp, wo, rand, samples, moved);
+      // The same query through the C entry point into a 2.7 host's sample with its whole-mixture buffer: what the
+      // renderer reads (the default rule writes the exit mixture up to roughness 0.4).
+      GlimmerExitMixture buffer;
+      GlimmerSample hs{};
+      hs.struct_size = sizeof(GlimmerSample);
+      hs.exit_mixture = &buffer;
+      const float r3[3] = {rand.x, rand.y, rand.z};
+      const uint32_t label =
+          ClosureAdapter<FrostedGlassClosure>::sample(reinterpret_cast<const GlimmerInstance *>(&c), &ctx, r3, &hs);
+      long mixtures = 0;
+      n_bad += glimmer::test::bad_host_sample(label, hs, buffer, r.next_float(), r.next_float(), mixtures);
+      host_queries.fetch_add(1, std::memory_order_relaxed);
+      if (mixtures) host_mixtures.fetch_add(1, std::memory_order_relaxed);
       if (n_bad) bad_count.fetch_add(n_bad);
     }
   });
   EXPECT_EQ(bad_count.load(), 0);
   EXPECT_GT(moved.load(), calls / 20);  // the sg pane estimator really ran
-  std::printf("[frosted sg pane stress] %ld eval + %ld sample calls (%ld sg exit samples), 1/4 grazing, half IOR "
-              "2.4, both sides, thickness 1e-6..1e6: %ld bad\n",
-              calls, samples.load(), moved.load(), bad_count.load());
+  EXPECT_GT(host_mixtures.load(), calls / 40);  // and the whole exit mixture reached the host
+  std::printf("[frosted sg pane stress] through the C entry point (2.7 host): %ld sample queries, %ld whole exit "
+              "mixtures read (axes, sharpness, weights, host density at wo and a lamp-integral draw)\n",
+              host_queries.load(), host_mixtures.load());
+  std::printf("[frosted sg pane stress] blocks %ld..%ld of %ld: %ld eval + %ld sample calls (%ld sg exit samples), 1/4 "
+              "grazing, half IOR 2.4, both sides, thickness 1e-6..1e6: %ld bad\n",
+              first, end - 1, blocks, calls, samples.load(), moved.load(), bad_count.load());
 }
 
 }  // namespace

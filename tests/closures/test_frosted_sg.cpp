@@ -822,6 +822,68 @@ Vec3 stress_direction(Pcg32 &r, bool grazing) {
   return Vec3(s * std::cos(phi), s * std::sin(phi), z);
 }
 
+// Negative control of the stress's host-side check (bad_host_sample): real whole-mixture samples from the C entry
+// point pass it, and each broken copy (a NaN or non-unit axis, sharpness 0 / inf, a negative weight, weights
+// summing to 0.9, count 0 or 11, the picked lobe missing, the flag without the buffer) fails it.
+TEST(FrostedGlassSg, HostSampleCheckCatchesBrokenMixtures) {
+  auto sg = create_method(0.3f, 1.5f, "sg");
+  const auto *inst = reinterpret_cast<const GlimmerInstance *>(sg.get());
+  AnalyticScene scene(AnalyticScene::kSphere);
+  scene.material = inst;
+  Pcg32 rng(5);
+  int checked = 0, missed = 0, valid_bad = 0;
+  for (int i = 0; i < 400 && checked < 50; ++i) {
+    const Vec3 n_out = normalize(Vec3(rng.next_float() - 0.5f, rng.next_float() - 0.5f, rng.next_float() - 0.5f));
+    const Frame f = Frame::from_normal(n_out);
+    GlimmerShadingContext ctx = host::make_local_context(
+        f.to_world(normalize(Vec3(rng.next_float() - 0.5f, rng.next_float() - 0.5f, 0.2f + rng.next_float()))),
+        &scene.services);
+    ctx.P = n_out;
+    ctx.N = ctx.Ng = n_out;
+    ctx.T = f.s;
+    ctx.path_seed = rng.next_u32();
+    const float r3[3] = {rng.next_float(), rng.next_float(), rng.next_float()};
+    GlimmerExitMixture buffer;
+    GlimmerSample hs{};
+    hs.struct_size = sizeof(GlimmerSample);
+    hs.exit_mixture = &buffer;
+    const uint32_t label = ClosureAdapter<FrostedGlassClosure>::sample(inst, &ctx, r3, &hs);
+    if (!(hs.flags & GLIMMER_SAMPLE_EXIT_MIXTURE) || buffer.count < 2) continue;
+    ++checked;
+    long mixtures = 0;
+    valid_bad += int(glimmer::test::bad_host_sample(label, hs, buffer, 0.3f, 0.7f, mixtures));
+    const float nan = std::numeric_limits<float>::quiet_NaN(), inf = std::numeric_limits<float>::infinity();
+    const uint32_t last = buffer.count - 1;  // not the picked lobe when the picked one is lobe 0
+    const std::function<void(GlimmerSample &, GlimmerExitMixture &)> breaks[] = {
+        [&](GlimmerSample &, GlimmerExitMixture &m) { m.axis[last].x = nan; },
+        [&](GlimmerSample &, GlimmerExitMixture &m) { m.axis[last] = Vec3(m.axis[last]) * 1.1f; },
+        [&](GlimmerSample &, GlimmerExitMixture &m) { m.sharpness[last] = 0.0f; },
+        [&](GlimmerSample &, GlimmerExitMixture &m) { m.sharpness[last] = inf; },
+        [&](GlimmerSample &, GlimmerExitMixture &m) { m.weight[last] = -m.weight[last]; },
+        [&](GlimmerSample &, GlimmerExitMixture &m) {
+          for (uint32_t k = 0; k < m.count; ++k) m.weight[k] *= 0.9f;
+        },
+        [&](GlimmerSample &, GlimmerExitMixture &m) { m.count = 0; },
+        [&](GlimmerSample &, GlimmerExitMixture &m) { m.count = GLIMMER_EXIT_MAX_LOBES + 1; },
+        [&](GlimmerSample &h, GlimmerExitMixture &) { h.lobe_sharpness *= 1.5f; },
+        [&](GlimmerSample &h, GlimmerExitMixture &) { h.exit_mixture = nullptr; },
+    };
+    for (const auto &broken : breaks) {
+      GlimmerExitMixture m = buffer;
+      GlimmerSample h = hs;
+      h.exit_mixture = &m;
+      broken(h, m);
+      long unused = 0;
+      missed += glimmer::test::bad_host_sample(label, h, m, 0.3f, 0.7f, unused) == 0;
+    }
+  }
+  std::printf("[frosted sg stress check] %d real whole-mixture samples: %d flagged bad; broken copies (10 kinds each) "
+              "not flagged: %d\n", checked, valid_bad, missed);
+  EXPECT_GE(checked, 20);
+  EXPECT_EQ(valid_bad, 0);
+  EXPECT_EQ(missed, 0);
+}
+
 TEST(FrostedGlassSg, StressRawOutputsFiniteNonNegative) {
   Pcg32 rng(21);
   const float roughs[] = {0.0f, 1e-3f, 0.04f, 0.1f, 0.5f, 1.0f};
@@ -837,6 +899,7 @@ TEST(FrostedGlassSg, StressRawOutputsFiniteNonNegative) {
   const long calls = 1000000 * long(stress_scale());
   const long blocks = 64;
   std::atomic<long> bad_count{0}, moved{0}, samples{0}, mixture_moved{0}, mixture_written{0};
+  std::atomic<long> host_queries{0}, host_moved{0}, host_mixtures{0};
   tbb::parallel_for(long(0), blocks, [&](long b) {
     Pcg32 r(900 + b);
     for (long i = 0; i < calls / blocks; ++i) {
@@ -860,6 +923,21 @@ TEST(FrostedGlassSg, StressRawOutputsFiniteNonNegative) {
       const Vec3 wo = stress_direction(r, grazing);
       const Vec3 rand(r.next_float(), r.next_float(), r.next_float());
       long n_bad = glimmer::test::stress_eval_and_sample(c, sp, wo, rand, samples, moved);
+      // The same query as the renderer makes it (C entry point, a 2.7 host's sample with its whole-mixture buffer):
+      // what the host reads (bad_host_sample), mixture included wherever the default rule writes one.
+      {
+        GlimmerExitMixture buffer;
+        GlimmerSample hs{};
+        hs.struct_size = sizeof(GlimmerSample);
+        hs.exit_mixture = &buffer;
+        const float r3[3] = {rand.x, rand.y, rand.z};
+        const uint32_t label = ClosureAdapter<FrostedGlassClosure>::sample(self, &ctx, r3, &hs);
+        long mixtures = 0;
+        n_bad += glimmer::test::bad_host_sample(label, hs, buffer, r.next_float(), r.next_float(), mixtures);
+        host_queries.fetch_add(1, std::memory_order_relaxed);
+        if (hs.flags & GLIMMER_SAMPLE_MOVED) host_moved.fetch_add(1, std::memory_order_relaxed);
+        if (mixtures) host_mixtures.fetch_add(1, std::memory_order_relaxed);
+      }
       // The exit lobe mixture (method=sg's default up to roughness 0.4): the same queries through kMixture, v and
       // t at the ends of their ranges and NaN (clamped), the whole mixture written to a host buffer (ABI 2.7).
       if (i % 2 == 0) {
@@ -886,6 +964,10 @@ TEST(FrostedGlassSg, StressRawOutputsFiniteNonNegative) {
   EXPECT_GT(moved.load(), calls / 20);  // the sg estimator really ran
   EXPECT_GT(mixture_moved.load(), calls / 40);  // and the mixture
   EXPECT_GT(mixture_written.load(), mixture_moved.load() / 2);  // handed to the host whole
+  EXPECT_GT(host_mixtures.load(), calls / 40);                  // and read whole through the C entry point
+  std::printf("[frosted sg stress] through the C entry point (2.7 host): %ld sample queries, %ld moved, %ld whole "
+              "exit mixtures read (axes, sharpness, weights, host density at wo and a lamp-integral draw)\n",
+              host_queries.load(), host_moved.load(), host_mixtures.load());
   std::printf("[frosted sg stress] exit lobe mixture: %ld moved samples (v 0..1 / NaN, t 0..0.25 / rule), %ld "
               "written whole to the host's buffer\n",
               mixture_moved.load(), mixture_written.load());
