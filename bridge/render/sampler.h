@@ -185,6 +185,23 @@ constexpr int kVertexLightPair = 0, kVertexBsdfXyPair = 1, kVertexBsdfZrrPair = 
 // light numbers are not read where they are not drawn.
 constexpr float kUndrawnRr = 1.0f, kUndrawnLight = 0.5f;
 
+// The numbers a path starts with (PixelSampler::get_path_start), packed in one 32-byte row: film u, v; vertex
+// 0's BSDF x, y, z and rr (kUndrawnRr: never read); vertex 0's light u, v (kUndrawnLight when not drawn).
+struct alignas(32) PathStart {
+  float value[8];
+  const float *film() const { return value; }
+  const float *bsdf() const { return value + 2; }
+  const float *light() const { return value + 6; }
+};
+// Path starts drawn together by draw_path_starts (at most this many per call).
+constexpr int kPathStartBatch = 8;
+// out[i] = the path start of (seed, pixels[i], samples[i]) for i < n <= kPathStartBatch, the same floats bit for
+// bit as PixelSampler(seed, pixels[i], samples[i]).get_path_start(..., need_light). The draws are independent,
+// so their dependent chains (seed hashes, index shuffle, table rows, scrambles) overlap instead of each
+// waiting at the start of its path; with AVX2 the hashes and shuffles of all n run in the lanes of a vector.
+void draw_path_starts(uint32_t seed, const uint32_t *pixels, const uint32_t *samples, int n, bool need_light,
+                      PathStart *out);
+
 struct PixelSampler;
 // Which code computes get_vertex's and get_path_start's values (bridge/render/sampler_draw.h): the scalar
 // code below, or the same values with AVX2 (sampler_draw.cpp), chosen once at start-up from the CPU (and
@@ -196,6 +213,8 @@ void vertex_avx2(const PixelSampler &sampler, int vertex, float (&bsdf)[4], floa
                  bool need_rr);
 void path_start_avx2(const PixelSampler &sampler, float (&film)[2], float (&bsdf)[4], float (&light)[2],
                      bool need_light);
+void path_starts_avx2(uint32_t seed, const uint32_t *pixels, const uint32_t *samples, int n, bool need_light,
+                      PathStart *out);
 }  // namespace sampler_draw
 
 struct PixelSampler {

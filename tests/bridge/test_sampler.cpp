@@ -402,6 +402,63 @@ TEST(Sampler, VectorDrawEqualsScalarDraw) {
             sampler_draw::supported(Variant::kAvx2) && !scalar_forced ? Variant::kAvx2 : Variant::kScalar);
 }
 
+// draw_path_starts (the render loop's batched path starts) against get_path_start_scalar path by path, bit for
+// bit, for every variant this CPU can run: batches of 1-8 paths mixing pixels and samples (extremes and random,
+// a pixel's consecutive samples as the render loop passes them), with and without the light set; the rows past
+// n are not written. Control: each row compared with the next path's scalar values (a batch whose lanes are
+// shifted by one, a bug the comparison must catch) differs in almost every case.
+TEST(Sampler, BatchedPathStartsEqualPathByPath) {
+  using sampler_draw::Variant;
+  Pcg32 rng(29);
+  const uint32_t extremes[6] = {0u, 1u, 255u, 0x80000000u, 0xfffffffeu, 0xffffffffu};
+  int variants_run = 0;
+  for (Variant variant : {Variant::kScalar, Variant::kAvx2}) {
+    if (!sampler_draw::supported(variant)) continue;
+    ++variants_run;
+    const Variant before = sampler_draw::set_active(variant);
+    long paths = 0, compared = 0, shifted_differs = 0;
+    for (int batch = 0; batch < 3000; ++batch) {
+      const int n = 1 + batch % kPathStartBatch;
+      const bool need_light = (batch / kPathStartBatch) % 2 == 0;
+      const uint32_t seed = batch % 5 == 0 ? extremes[batch % 6] : rng.next_u32();
+      uint32_t pixels[kPathStartBatch + 1], samples[kPathStartBatch + 1];
+      const uint32_t first_pixel = batch % 3 == 0 ? extremes[(batch / 3) % 6] : rng.next_u32() % 65536u;
+      const uint32_t first_sample = batch % 7 == 0 ? extremes[(batch / 7) % 6] : rng.next_u32() % 4096u;
+      const int per_pixel = 1 + batch % 4;  // consecutive samples of a pixel, then the next pixel
+      for (int i = 0; i <= n; ++i) {
+        pixels[i] = batch % 11 == 0 ? rng.next_u32() : first_pixel + static_cast<uint32_t>(i / per_pixel);
+        samples[i] = first_sample + static_cast<uint32_t>(i % per_pixel);
+      }
+      PathStart out[kPathStartBatch];
+      for (PathStart &p : out) std::fill(std::begin(p.value), std::end(p.value), -7.0f);
+      draw_path_starts(seed, pixels, samples, n, need_light, out);
+      float expected[kPathStartBatch + 1][8];
+      for (int i = 0; i <= n; ++i) {
+        float film[2], bsdf[4], light[2];
+        PixelSampler(seed, pixels[i], samples[i]).get_path_start_scalar(film, bsdf, light, need_light);
+        const float row[8] = {film[0], film[1], bsdf[0], bsdf[1], bsdf[2], bsdf[3], light[0], light[1]};
+        std::copy(std::begin(row), std::end(row), expected[i]);
+      }
+      for (int i = 0; i < n; ++i) {
+        ASSERT_TRUE(same_bits(out[i].value, expected[i], 8))
+            << sampler_draw::name(variant) << " batch " << batch << " path " << i << " of " << n;
+        ++paths;
+        if (pixels[i + 1] != pixels[i] || samples[i + 1] != samples[i]) {
+          ++compared;
+          if (!same_bits(out[i].value, expected[i + 1], 5)) ++shifted_differs;
+        }
+      }
+      for (int i = n; i < kPathStartBatch; ++i) EXPECT_EQ(out[i].value[0], -7.0f) << "row " << i << " past n " << n;
+    }
+    sampler_draw::set_active(before);
+    EXPECT_GE(shifted_differs, compared - 2) << sampler_draw::name(variant);
+    EXPECT_GT(compared, paths / 2);
+    std::printf("[          ] %s: %ld batched path starts equal the scalar code; shifted by one: %ld of %ld differ\n",
+                sampler_draw::name(variant), paths, shifted_differs, compared);
+  }
+  EXPECT_GE(variants_run, 1);
+}
+
 // The vector kernel alone: eight lanes of (word, seed) scrambled and converted equal the scalar
 // reversed_to_unit_float(laine_karras_permutation(word, seed)) bit for bit, over random and extreme lanes.
 // Negative control (a test-only copy of the kernel with one wrong round constant, a bug the test must
