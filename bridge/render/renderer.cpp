@@ -932,12 +932,12 @@ struct Renderer::Impl {
   // One path (Cycles' integrator loop: intersect_closest, shade_light / shade_background, shade_surface).
   // `start`: the path's camera set (film position and vertex 0's BSDF numbers, jointly stratified) and vertex
   // 0's light set (docs/architecture.md "Sample dimensions"), drawn by trace_row with those of other paths.
-  Spectrum trace_path(int px, int py, uint32_t sample_index, const PathStart &start, PixelAov &aov,
-                      uint64_t &nan_count) const {
+  // It also holds the path's sampler, path seed (hash_u32x3(seed, pixel, sample)) and vertex 1's set start.
+  Spectrum trace_path(int px, int py, const PathStart &start, PixelAov &aov, uint64_t &nan_count) const {
     const BounceLimits limits(scene.integrator);
-    const uint32_t pixel_index = static_cast<uint32_t>(py) * static_cast<uint32_t>(width) + static_cast<uint32_t>(px);
-    const PixelSampler sampler(seed, pixel_index, sample_index);
-    const uint32_t path_seed = hash_u32x3(seed, pixel_index, sample_index);
+    const PixelSampler sampler(start);
+    sampler_draw::NextVertex next = PixelSampler::first_vertex(start);
+    const uint32_t path_seed = start.path_seed;
     const bool nee = use_nee() && lights->count() > 0;
     const float film_uv[2] = {start.film()[0], start.film()[1]};
     float bsdf_rand[4] = {start.bsdf()[0], start.bsdf()[1], start.bsdf()[2], start.bsdf()[3]};
@@ -969,8 +969,8 @@ struct Renderer::Impl {
       // The vertex's 6D set: light (u, v), BSDF x, y (closure pick, then the closure's direction), z (the
       // closure's third number), rr (Russian roulette); light numbers only for a light sample, rr only where
       // roulette can fire (vertex 0's from the path start above; every iteration that goes on advances the vertex).
-      if (ps.sample_vertex() > 0)
-        sampler.get_vertex(ps.sample_vertex(), bsdf_rand, light_rand, nee && has_smooth_closure(cs),
+      if (ps.sample_vertex() > 0)  // each vertex's set start drawn ahead (`next`: vertex 1's with the path start)
+        sampler.get_vertex(ps.sample_vertex(), next, bsdf_rand, light_rand, nee && has_smooth_closure(cs),
                            ps.bounce > limits.min_bounce);
       if (!survives_russian_roulette(ps, limits, bsdf_rand[3], pr.throughput)) break;
       const float transparent_weight = std::fabs(average(cs.transparent));
@@ -994,20 +994,23 @@ struct Renderer::Impl {
   void trace_row(int y, int xb, int xe, int s, int count, Film &film, uint64_t &nans, uint64_t &traced) const {
     const bool nee = use_nee() && lights->count() > 0;
     const int items = (xe - xb) * count;
+    int x = xb, k = 0;  // the next item to draw
     for (int j0 = 0; j0 < items; j0 += kPathStartBatch) {
       const int n = std::min(kPathStartBatch, items - j0);
       uint32_t pixels[kPathStartBatch], samples[kPathStartBatch];
+      int xs[kPathStartBatch];
       for (int i = 0; i < n; ++i) {
-        pixels[i] = static_cast<uint32_t>(y) * static_cast<uint32_t>(width) + static_cast<uint32_t>(xb + (j0 + i) / count);
-        samples[i] = static_cast<uint32_t>(s + (j0 + i) % count);
+        xs[i] = x;
+        pixels[i] = static_cast<uint32_t>(y) * static_cast<uint32_t>(width) + static_cast<uint32_t>(x);
+        samples[i] = static_cast<uint32_t>(s + k);
+        if (++k == count) k = 0, ++x;
       }
       PathStart starts[kPathStartBatch];
       draw_path_starts(seed, pixels, samples, n, nee, starts);
       for (int i = 0; i < n; ++i) {
-        const int x = xb + (j0 + i) / count;
         PixelAov aov;
-        const Spectrum L = trace_path(x, y, samples[i], starts[i], aov, nans);
-        if (!film.add(static_cast<size_t>(y) * width + x, L, aov.alpha, aov.albedo, aov.normal, aov.depth))
+        const Spectrum L = trace_path(xs[i], y, starts[i], aov, nans);
+        if (!film.add(static_cast<size_t>(y) * width + xs[i], L, aov.alpha, aov.albedo, aov.normal, aov.depth))
           ++nans;  // a finite sample can still overflow the pixel's sum: dropped and counted
         ++traced;
       }

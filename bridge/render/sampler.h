@@ -185,10 +185,14 @@ constexpr int kVertexLightPair = 0, kVertexBsdfXyPair = 1, kVertexBsdfZrrPair = 
 // light numbers are not read where they are not drawn.
 constexpr float kUndrawnRr = 1.0f, kUndrawnLight = 0.5f;
 
-// The numbers a path starts with (PixelSampler::get_path_start), packed in one 32-byte row: film u, v; vertex
-// 0's BSDF x, y, z and rr (kUndrawnRr: never read); vertex 0's light u, v (kUndrawnLight when not drawn).
+// What a path starts with, drawn ahead for several paths at once (draw_path_starts):
+//   value: PixelSampler::get_path_start's numbers in one 32-byte row: film u, v; vertex 0's BSDF x, y, z and
+//     rr (kUndrawnRr: never read); vertex 0's light u, v (kUndrawnLight when not drawn);
+//   pixel_seed, sample_reversed: the path's PixelSampler; path_seed = hash_u32x3(seed, pixel, sample);
+//   vertex1_seed, vertex1_index: the start of vertex 1's set (PixelSampler::start_set(bounce_set(1, kSetBsdf))).
 struct alignas(32) PathStart {
   float value[8];
+  uint32_t pixel_seed, sample_reversed, path_seed, vertex1_seed, vertex1_index;
   const float *film() const { return value; }
   const float *bsdf() const { return value + 2; }
   const float *light() const { return value + 6; }
@@ -196,9 +200,10 @@ struct alignas(32) PathStart {
 // Path starts drawn together by draw_path_starts (at most this many per call).
 constexpr int kPathStartBatch = 8;
 // out[i] = the path start of (seed, pixels[i], samples[i]) for i < n <= kPathStartBatch, the same floats bit for
-// bit as PixelSampler(seed, pixels[i], samples[i]).get_path_start(..., need_light). The draws are independent,
-// so their dependent chains (seed hashes, index shuffle, table rows, scrambles) overlap instead of each
-// waiting at the start of its path; with AVX2 the hashes and shuffles of all n run in the lanes of a vector.
+// bit as PixelSampler(seed, pixels[i], samples[i]).get_path_start(..., need_light), and the members above. The
+// draws are independent, so their dependent chains (seed hashes, index shuffle, table rows, scrambles) overlap
+// instead of each waiting at the start of its path; with AVX2 the hashes and shuffles of all n run in the lanes
+// of a vector.
 void draw_path_starts(uint32_t seed, const uint32_t *pixels, const uint32_t *samples, int n, bool need_light,
                       PathStart *out);
 
@@ -211,6 +216,9 @@ enum class Variant : uint8_t { kScalar = 0, kAvx2 = 1 };
 extern Variant g_active;  // scalar until the start-up choice
 void vertex_avx2(const PixelSampler &sampler, int vertex, float (&bsdf)[4], float (&light)[2], bool need_light,
                  bool need_rr);
+struct NextVertex;
+void vertex_next_avx2(const PixelSampler &sampler, int vertex, NextVertex &next, float (&bsdf)[4],
+                      float (&light)[2], bool need_light, bool need_rr);
 void path_start_avx2(const PixelSampler &sampler, float (&film)[2], float (&bsdf)[4], float (&light)[2],
                      bool need_light);
 void path_starts_avx2(uint32_t seed, const uint32_t *pixels, const uint32_t *samples, int n, bool need_light,
@@ -223,6 +231,8 @@ struct PixelSampler {
 
   PixelSampler(uint32_t seed, uint32_t pixel_index, uint32_t sample_index)
       : pixel_seed(hash_u32x2(seed, pixel_index)), sample_reversed(reverse_bits(sample_index)) {}
+  // The sampler of a path whose start was drawn by draw_path_starts (the same members).
+  explicit PixelSampler(const PathStart &start) : pixel_seed(start.pixel_seed), sample_reversed(start.sample_reversed) {}
 
   // The first N Sobol dimensions of set `set` at this sample, each in [0, 1). Dimensions go by pairs: one
   // table look-up per index byte for both, one scramble each, one 64-bit reversal for both.
@@ -250,6 +260,18 @@ struct PixelSampler {
     }
     if (sampler_draw::g_active == sampler_draw::Variant::kAvx2) {
       sampler_draw::vertex_avx2(*this, vertex, bsdf, light, need_light, need_rr);
+      return;
+    }
+    get_vertex_scalar(vertex, bsdf, light, need_light, need_rr);
+  }
+  // get_vertex's values along a path (vertex >= 1), with `next` carried from one vertex to the next: when it holds
+  // this vertex's set start (drawn ahead) the draw begins at its table rows; then it starts vertex + 1's set into
+  // `next`, beside this draw's chain instead of at the head of the next one. The same values as get_vertex
+  // whatever `next` holds (Sampler.VertexDrawnAheadEqualsScalarDraw).
+  void get_vertex(int vertex, sampler_draw::NextVertex &next, float (&bsdf)[4], float (&light)[2], bool need_light,
+                  bool need_rr) const {
+    if (sampler_draw::g_active == sampler_draw::Variant::kAvx2) {
+      sampler_draw::vertex_next_avx2(*this, vertex, next, bsdf, light, need_light, need_rr);
       return;
     }
     get_vertex_scalar(vertex, bsdf, light, need_light, need_rr);
@@ -333,6 +355,8 @@ struct PixelSampler {
     const uint32_t set_seed = hash_combine(pixel_seed, set);
     return {set_seed, laine_karras_permutation(sample_reversed, set_seed)};
   }
+  // The start of a path's first vertex set, drawn with its path start.
+  static sampler_draw::NextVertex first_vertex(const PathStart &start);
 
  private:
   // Dimension d of set s from its pair's table word `sobol` (sobol_pair_reversed(d / 2, ...)): its scramble and
@@ -353,5 +377,17 @@ struct PixelSampler {
           reversed_to_unit_float(laine_karras_permutation(static_cast<uint32_t>(sobol >> 32), dimension_seed(s.seed, 2 * p + 1)));
   }
 };
+
+namespace sampler_draw {
+// A vertex set's start drawn ahead (PixelSampler::get_vertex with `next`): set = start_set(bounce_set(vertex,
+// kSetBsdf)) when vertex > 0; vertex 0 holds nothing.
+struct NextVertex {
+  int vertex = 0;
+  PixelSampler::Set set{0u, 0u};
+};
+}  // namespace sampler_draw
+inline sampler_draw::NextVertex PixelSampler::first_vertex(const PathStart &start) {
+  return {1, {start.vertex1_seed, start.vertex1_index}};
+}
 
 }  // namespace glimmer::render

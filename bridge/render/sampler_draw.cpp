@@ -168,10 +168,10 @@ inline __m256i set1(uint32_t x) { return _mm256_set1_epi32(static_cast<int>(x));
 // get_vertex_scalar's values (vertex >= 1): one 6D set, lanes 0-5 = Sobol dimensions 0-5 = light (u, v),
 // BSDF (x, y), (z, rr). All six are scrambled (the lanes cost the same); the numbers not needed are then
 // overwritten with the undrawn constants, as the scalar code never draws them.
-void vertex_avx2(const PixelSampler &sampler, int vertex, float (&bsdf)[4], float (&light)[2], bool need_light,
-                 bool need_rr) {
+namespace {
+inline void vertex_draw(const PixelSampler::Set &v, float (&bsdf)[4], float (&light)[2], bool need_light,
+                        bool need_rr) {
   static_assert(kVertexLightPair == 0 && kVertexBsdfXyPair == 1 && kVertexBsdfZrrPair == 2);
-  const PixelSampler::Set v = sampler.start_set(bounce_set(vertex, kSetBsdf));
   const __m256 f = reversed_to_unit_float8(laine_karras8(sobol_words8(v.index_reversed), lane_seeds(set1(v.seed))));
   const __m128 lo = _mm256_castps256_ps128(f), hi = _mm256_extractf128_ps(f, 1);
   store_high(bsdf, lo);
@@ -182,6 +182,22 @@ void vertex_avx2(const PixelSampler &sampler, int vertex, float (&bsdf)[4], floa
   } else {
     light[0] = light[1] = kUndrawnLight;
   }
+}
+}  // namespace
+
+void vertex_avx2(const PixelSampler &sampler, int vertex, float (&bsdf)[4], float (&light)[2], bool need_light,
+                 bool need_rr) {
+  vertex_draw(sampler.start_set(bounce_set(vertex, kSetBsdf)), bsdf, light, need_light, need_rr);
+}
+
+// vertex_avx2 with the set's start from `next` when it was drawn ahead for this vertex; vertex + 1's start
+// (seed hash and index shuffle, scalar) then goes into `next`, independent of this draw's chain.
+void vertex_next_avx2(const PixelSampler &sampler, int vertex, NextVertex &next, float (&bsdf)[4],
+                      float (&light)[2], bool need_light, bool need_rr) {
+  const PixelSampler::Set v = next.vertex == vertex ? next.set : sampler.start_set(bounce_set(vertex, kSetBsdf));
+  next.vertex = vertex + 1;
+  next.set = sampler.start_set(bounce_set(vertex + 1, kSetBsdf));
+  vertex_draw(v, bsdf, light, need_light, need_rr);
 }
 
 // get_path_start_scalar's values in one vector: the camera set's Sobol dimensions 0-5 in lanes 0-5 (film u,
@@ -240,7 +256,7 @@ struct PathStartSets {
   alignas(32) uint32_t camera_seed[8], camera_index[8], light_seed[8], light_index[8];
 };
 void start_sets8(uint32_t seed, const uint32_t *pixels, const uint32_t *samples, int n, bool need_light,
-                 PathStartSets &sets) {
+                 PathStartSets &sets, PathStart *out) {
   alignas(32) uint32_t pixel[8] = {}, sample[8] = {};
   for (int i = 0; i < n; ++i) {
     pixel[i] = pixels[i];
@@ -249,6 +265,22 @@ void start_sets8(uint32_t seed, const uint32_t *pixels, const uint32_t *samples,
   const __m256i pixel_seed =
       hash_combine8(set1(hash_u32(seed)), _mm256_load_si256(reinterpret_cast<const __m256i *>(pixel)));
   const __m256i sample_reversed = reverse_bits8(_mm256_load_si256(reinterpret_cast<const __m256i *>(sample)));
+  // The members of PathStart besides the numbers: five words per path, transposed from the lanes.
+  const __m256i vertex1_seed = hash_combine8(pixel_seed, set1(bounce_set(1, kSetBsdf)));
+  alignas(32) uint32_t words[5][8];
+  _mm256_store_si256(reinterpret_cast<__m256i *>(words[0]), pixel_seed);
+  _mm256_store_si256(reinterpret_cast<__m256i *>(words[1]), sample_reversed);
+  _mm256_store_si256(reinterpret_cast<__m256i *>(words[2]),
+                     hash_combine8(pixel_seed, _mm256_load_si256(reinterpret_cast<const __m256i *>(sample))));
+  _mm256_store_si256(reinterpret_cast<__m256i *>(words[3]), vertex1_seed);
+  _mm256_store_si256(reinterpret_cast<__m256i *>(words[4]), laine_karras8(sample_reversed, vertex1_seed));
+  for (int i = 0; i < n; ++i) {
+    out[i].pixel_seed = words[0][i];
+    out[i].sample_reversed = words[1][i];
+    out[i].path_seed = words[2][i];
+    out[i].vertex1_seed = words[3][i];
+    out[i].vertex1_index = words[4][i];
+  }
   const __m256i camera_seed = hash_combine8(pixel_seed, set1(kSetCamera));
   _mm256_store_si256(reinterpret_cast<__m256i *>(sets.camera_seed), camera_seed);
   _mm256_store_si256(reinterpret_cast<__m256i *>(sets.camera_index), laine_karras8(sample_reversed, camera_seed));
@@ -268,7 +300,7 @@ void start_sets8(uint32_t seed, const uint32_t *pixels, const uint32_t *samples,
 void path_starts_avx2(uint32_t seed, const uint32_t *pixels, const uint32_t *samples, int n, bool need_light,
                       PathStart *out) {
   PathStartSets sets;
-  start_sets8(seed, pixels, samples, n, need_light, sets);
+  start_sets8(seed, pixels, samples, n, need_light, sets, out);
   const __m256 undrawn = _mm256_setr_ps(0.0f, 0.0f, 0.0f, 0.0f, 0.0f, kUndrawnRr, kUndrawnLight, kUndrawnLight);
   const __m256 take_undrawn =
       _mm256_castsi256_ps(_mm256_setr_epi32(0, 0, 0, 0, 0, -1, need_light ? 0 : -1, need_light ? 0 : -1));
@@ -304,10 +336,17 @@ void draw_path_starts(uint32_t seed, const uint32_t *pixels, const uint32_t *sam
   }
   for (int i = 0; i < n; ++i) {
     float film[2], bsdf[4], light[2];
-    PixelSampler(seed, pixels[i], samples[i]).get_path_start_scalar(film, bsdf, light, need_light);
+    const PixelSampler sampler(seed, pixels[i], samples[i]);
+    sampler.get_path_start_scalar(film, bsdf, light, need_light);
     float *v = out[i].value;
     v[0] = film[0], v[1] = film[1], v[2] = bsdf[0], v[3] = bsdf[1], v[4] = bsdf[2], v[5] = bsdf[3];
     v[6] = light[0], v[7] = light[1];
+    out[i].pixel_seed = sampler.pixel_seed;
+    out[i].sample_reversed = sampler.sample_reversed;
+    out[i].path_seed = hash_u32x3(seed, pixels[i], samples[i]);
+    const PixelSampler::Set vertex1 = sampler.start_set(bounce_set(1, kSetBsdf));
+    out[i].vertex1_seed = vertex1.seed;
+    out[i].vertex1_index = vertex1.index_reversed;
   }
 }
 
