@@ -146,6 +146,54 @@ void BM_SamplerPathStartPaddedReference(benchmark::State &state) {
 }
 BENCHMARK(BM_SamplerPathStart);
 BENCHMARK(BM_SamplerPathStartPaddedReference);
+// The render loop's path starts (issue 13, session 11): draw_path_starts, eight paths per call (their set
+// starts in vector lanes, the eight draws independent), also giving each path's sampler, path seed and vertex 1's
+// set start; per path.
+void BM_SamplerPathStartsBatched(benchmark::State &state) {
+  uint32_t sample = 0;
+  float acc = 0.0f;
+  for (auto _ : state) {
+    uint32_t pixels[kPathStartBatch], samples[kPathStartBatch];
+    for (int i = 0; i < kPathStartBatch; ++i) {
+      pixels[i] = (sample + static_cast<uint32_t>(i)) & 0xffffu;
+      samples[i] = (sample + static_cast<uint32_t>(i)) >> 16;
+    }
+    PathStart out[kPathStartBatch];
+    draw_path_starts(1u, pixels, samples, kPathStartBatch, true, out);
+    for (const PathStart &p : out)
+      for (float v : p.value) acc += v;
+    sample += kPathStartBatch;
+  }
+  benchmark::DoNotOptimize(acc);
+  state.SetItemsProcessed(state.iterations() * kPathStartBatch);
+}
+BENCHMARK(BM_SamplerPathStartsBatched);
+
+// BM_SamplerDependentPathVerticesTogether's path (each vertex waiting on the one before) with the render loop's
+// draw since session 11: get_vertex with `next`, each vertex's set start drawn ahead at the vertex before (vertex
+// 1's before the chain, as draw_path_starts gives it); vertices 1..kBounces (Together: 0..kBounces - 1).
+void BM_SamplerDependentPathVerticesAhead(benchmark::State &state) {
+  uint32_t sample = 0, zero = 0;
+  benchmark::DoNotOptimize(zero);
+  float acc = 0.0f;
+  for (auto _ : state) {
+    const PixelSampler sampler(1u, sample & 0xffffu, sample >> 16);
+    // vertex 1's set start, as draw_path_starts gives it (in the render it is drawn eight paths at a time)
+    sampler_draw::NextVertex next{1, sampler.start_set(bounce_set(1, kSetBsdf))};
+    uint32_t carry = 0u;
+    for (int b = 1; b <= kBounces; ++b) {
+      const int vertex = b + static_cast<int>(carry & zero);
+      float bsdf[4], light[2];
+      sampler.get_vertex(vertex, next, bsdf, light, true, true);
+      carry = static_cast<uint32_t>((bsdf[3] + light[1]) * 16777216.0f);
+      acc += bsdf[0] + bsdf[1] + bsdf[2] + bsdf[3] + light[0] + light[1];
+    }
+    ++sample;
+  }
+  benchmark::DoNotOptimize(acc);
+  state.SetItemsProcessed(state.iterations() * kBounces);
+}
+BENCHMARK(BM_SamplerDependentPathVerticesAhead);
 
 void BM_SamplerPathVerticesPerDimensionTablesReference(benchmark::State &state) {
   uint32_t sample = 0;
