@@ -11,7 +11,10 @@
 // look-ups and two Laine-Karras permutations; each scrambled (still bit-reversed) value becomes its float by
 // three byte look-ups and two exact additions, no bit reversal; a set costs one seed hash and one index
 // shuffle for all its dimensions. On CPUs with AVX2, get_vertex and get_path_start compute the same values
-// with the six (seven) scrambles and floats in the lanes of one vector register (sampler_draw.h/.cpp).
+// with the six (seven) scrambles and floats in the lanes of one vector register (sampler_draw.h/.cpp). The
+// render loop draws path starts eight at a time (draw_path_starts) and each vertex's set start one vertex ahead
+// (get_vertex with NextVertex), so the draws' dependent chains overlap with other work instead of stalling the
+// path that waits on them (docs/architecture.md "Draws ahead of the chain that waits on them").
 #pragma once
 
 #include <array>
