@@ -170,16 +170,19 @@ void BM_SamplerPathStartsBatched(benchmark::State &state) {
 BENCHMARK(BM_SamplerPathStartsBatched);
 
 // BM_SamplerDependentPathVerticesTogether's path (each vertex waiting on the one before) with the render loop's
-// draw since session 11: get_vertex with `next`, each vertex's set start drawn ahead at the vertex before (vertex
-// 1's before the chain, as draw_path_starts gives it); vertices 1..kBounces (Together: 0..kBounces - 1).
+// draw since session 11: get_vertex with `next`, each vertex's set start and Sobol words drawn ahead at the vertex
+// before (vertex 1's by draw_path_starts of this one path, timed too: compare with Together + PathStart);
+// vertices 1..kBounces (Together: 0..kBounces - 1).
 void BM_SamplerDependentPathVerticesAhead(benchmark::State &state) {
   uint32_t sample = 0, zero = 0;
   benchmark::DoNotOptimize(zero);
   float acc = 0.0f;
   for (auto _ : state) {
-    const PixelSampler sampler(1u, sample & 0xffffu, sample >> 16);
-    // vertex 1's set start, as draw_path_starts gives it (in the render it is drawn eight paths at a time)
-    sampler_draw::NextVertex next{1, sampler.start_set(bounce_set(1, kSetBsdf))};
+    const uint32_t pixel = sample & 0xffffu, index = sample >> 16;
+    PathStart start;  // in the render drawn eight paths at a time; here one, inside the timed loop
+    draw_path_starts(1u, &pixel, &index, 1, true, &start);
+    const PixelSampler sampler(start);
+    sampler_draw::NextVertex next = PixelSampler::first_vertex(start);
     uint32_t carry = 0u;
     for (int b = 1; b <= kBounces; ++b) {
       const int vertex = b + static_cast<int>(carry & zero);

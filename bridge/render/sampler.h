@@ -192,10 +192,12 @@ constexpr float kUndrawnRr = 1.0f, kUndrawnLight = 0.5f;
 //   value: PixelSampler::get_path_start's numbers in one 32-byte row: film u, v; vertex 0's BSDF x, y, z and
 //     rr (kUndrawnRr: never read); vertex 0's light u, v (kUndrawnLight when not drawn);
 //   pixel_seed, sample_reversed: the path's PixelSampler; path_seed = hash_u32x3(seed, pixel, sample);
-//   vertex1_seed, vertex1_index: the start of vertex 1's set (PixelSampler::start_set(bounce_set(1, kSetBsdf))).
+//   vertex1_seed, vertex1_index: the start of vertex 1's set (PixelSampler::start_set(bounce_set(1, kSetBsdf)))
+//     and vertex1_words its six Sobol words.
 struct alignas(32) PathStart {
   float value[8];
   uint32_t pixel_seed, sample_reversed, path_seed, vertex1_seed, vertex1_index;
+  alignas(32) uint32_t vertex1_words[8];  // lanes 0-5: the Sobol words of vertex 1's set (sobol_reversed(d, index))
   const float *film() const { return value; }
   const float *bsdf() const { return value + 2; }
   const float *light() const { return value + 6; }
@@ -385,12 +387,17 @@ namespace sampler_draw {
 // A vertex set's start drawn ahead (PixelSampler::get_vertex with `next`): set = start_set(bounce_set(vertex,
 // kSetBsdf)) when vertex > 0; vertex 0 holds nothing.
 struct NextVertex {
+  alignas(32) uint32_t words[8] = {};  // lanes 0-5: sobol_reversed(d, set.index_reversed), lanes 6-7 zero
   int vertex = 0;
   PixelSampler::Set set{0u, 0u};
 };
 }  // namespace sampler_draw
 inline sampler_draw::NextVertex PixelSampler::first_vertex(const PathStart &start) {
-  return {1, {start.vertex1_seed, start.vertex1_index}};
+  sampler_draw::NextVertex next;
+  for (int d = 0; d < 8; ++d) next.words[d] = start.vertex1_words[d];
+  next.vertex = 1;
+  next.set = {start.vertex1_seed, start.vertex1_index};
+  return next;
 }
 
 }  // namespace glimmer::render

@@ -169,10 +169,10 @@ inline __m256i set1(uint32_t x) { return _mm256_set1_epi32(static_cast<int>(x));
 // BSDF (x, y), (z, rr). All six are scrambled (the lanes cost the same); the numbers not needed are then
 // overwritten with the undrawn constants, as the scalar code never draws them.
 namespace {
-inline void vertex_draw(const PixelSampler::Set &v, float (&bsdf)[4], float (&light)[2], bool need_light,
-                        bool need_rr) {
+inline void vertex_draw_words(__m256i words, uint32_t seed, float (&bsdf)[4], float (&light)[2], bool need_light,
+                              bool need_rr) {
   static_assert(kVertexLightPair == 0 && kVertexBsdfXyPair == 1 && kVertexBsdfZrrPair == 2);
-  const __m256 f = reversed_to_unit_float8(laine_karras8(sobol_words8(v.index_reversed), lane_seeds(set1(v.seed))));
+  const __m256 f = reversed_to_unit_float8(laine_karras8(words, lane_seeds(set1(seed))));
   const __m128 lo = _mm256_castps256_ps128(f), hi = _mm256_extractf128_ps(f, 1);
   store_high(bsdf, lo);
   store_low(bsdf + 2, hi);
@@ -183,6 +183,10 @@ inline void vertex_draw(const PixelSampler::Set &v, float (&bsdf)[4], float (&li
     light[0] = light[1] = kUndrawnLight;
   }
 }
+inline void vertex_draw(const PixelSampler::Set &v, float (&bsdf)[4], float (&light)[2], bool need_light,
+                        bool need_rr) {
+  vertex_draw_words(sobol_words8(v.index_reversed), v.seed, bsdf, light, need_light, need_rr);
+}
 }  // namespace
 
 void vertex_avx2(const PixelSampler &sampler, int vertex, float (&bsdf)[4], float (&light)[2], bool need_light,
@@ -190,14 +194,19 @@ void vertex_avx2(const PixelSampler &sampler, int vertex, float (&bsdf)[4], floa
   vertex_draw(sampler.start_set(bounce_set(vertex, kSetBsdf)), bsdf, light, need_light, need_rr);
 }
 
-// vertex_avx2 with the set's start from `next` when it was drawn ahead for this vertex; vertex + 1's start
-// (seed hash and index shuffle, scalar) then goes into `next`, independent of this draw's chain.
+// vertex_avx2 with the set's start and Sobol words from `next` when they were drawn ahead for this vertex;
+// vertex + 1's (seed hash and index shuffle, scalar; its eight table rows) then go into `next`, independent of
+// this draw's chain.
 void vertex_next_avx2(const PixelSampler &sampler, int vertex, NextVertex &next, float (&bsdf)[4],
                       float (&light)[2], bool need_light, bool need_rr) {
-  const PixelSampler::Set v = next.vertex == vertex ? next.set : sampler.start_set(bounce_set(vertex, kSetBsdf));
+  const bool ahead = next.vertex == vertex;
+  const PixelSampler::Set v = ahead ? next.set : sampler.start_set(bounce_set(vertex, kSetBsdf));
+  const __m256i words = ahead ? _mm256_load_si256(reinterpret_cast<const __m256i *>(next.words))
+                              : sobol_words8(v.index_reversed);
   next.vertex = vertex + 1;
   next.set = sampler.start_set(bounce_set(vertex + 1, kSetBsdf));
-  vertex_draw(v, bsdf, light, need_light, need_rr);
+  _mm256_store_si256(reinterpret_cast<__m256i *>(next.words), sobol_words8(next.set.index_reversed));
+  vertex_draw_words(words, v.seed, bsdf, light, need_light, need_rr);
 }
 
 // get_path_start_scalar's values in one vector: the camera set's Sobol dimensions 0-5 in lanes 0-5 (film u,
@@ -311,6 +320,7 @@ void path_starts_avx2(uint32_t seed, const uint32_t *pixels, const uint32_t *sam
     const __m256i set_seeds = _mm256_blend_epi32(set1(sets.camera_seed[i]), set1(sets.light_seed[i]), 0xc0);
     const __m256 f = reversed_to_unit_float8(laine_karras8(words, lane_seeds(set_seeds)));
     _mm256_store_ps(out[i].value, _mm256_blendv_ps(f, undrawn, take_undrawn));
+    _mm256_store_si256(reinterpret_cast<__m256i *>(out[i].vertex1_words), sobol_words8(out[i].vertex1_index));
   }
 }
 
@@ -347,6 +357,8 @@ void draw_path_starts(uint32_t seed, const uint32_t *pixels, const uint32_t *sam
     const PixelSampler::Set vertex1 = sampler.start_set(bounce_set(1, kSetBsdf));
     out[i].vertex1_seed = vertex1.seed;
     out[i].vertex1_index = vertex1.index_reversed;
+    for (int d = 0; d < 8; ++d)
+      out[i].vertex1_words[d] = d < kSobolDimensions ? sobol_reversed(d, vertex1.index_reversed) : 0u;
   }
 }
 

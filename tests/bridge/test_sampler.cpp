@@ -450,6 +450,8 @@ TEST(Sampler, BatchedPathStartsEqualPathByPath) {
         const PixelSampler::Set vertex1 = sampler.start_set(bounce_set(1, kSetBsdf));
         ASSERT_EQ(out[i].vertex1_seed, vertex1.seed);
         ASSERT_EQ(out[i].vertex1_index, vertex1.index_reversed);
+        for (int d = 0; d < 8; ++d)
+          ASSERT_EQ(out[i].vertex1_words[d], d < kSobolDimensions ? sobol_reversed(d, vertex1.index_reversed) : 0u);
         ++paths;
         if (pixels[i + 1] != pixels[i] || samples[i + 1] != samples[i]) {
           ++compared;
@@ -499,7 +501,13 @@ TEST(Sampler, VertexDrawnAheadEqualsScalarDraw) {
         ++draws;
       }
       if (variant == Variant::kAvx2) {
-        sampler_draw::NextVertex wrong{5, sampler.start_set(bounce_set(6, kSetBsdf))};
+        PathStart other = start;  // vertex 6's set start and words, labelled as vertex 5's
+        const PixelSampler::Set six = sampler.start_set(bounce_set(6, kSetBsdf));
+        other.vertex1_seed = six.seed;
+        other.vertex1_index = six.index_reversed;
+        for (int d = 0; d < kSobolDimensions; ++d) other.vertex1_words[d] = sobol_reversed(d, six.index_reversed);
+        sampler_draw::NextVertex wrong = PixelSampler::first_vertex(other);
+        wrong.vertex = 5;
         float bsdf[4], light[2], bsdf_s[4], light_s[2];
         sampler.get_vertex(5, wrong, bsdf, light, true, true);
         sampler.get_vertex_scalar(5, bsdf_s, light_s, true, true);
