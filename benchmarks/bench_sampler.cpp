@@ -169,34 +169,58 @@ void BM_SamplerPathStartsBatched(benchmark::State &state) {
 }
 BENCHMARK(BM_SamplerPathStartsBatched);
 
-// BM_SamplerDependentPathVerticesTogether's path (each vertex waiting on the one before) with the render loop's
-// draw since session 11: get_vertex with `next`, each vertex's set start and Sobol words drawn ahead at the vertex
-// before (vertex 1's by draw_path_starts of this one path, timed too: compare with Together + PathStart);
-// vertices 1..kBounces (Together: 0..kBounces - 1).
-void BM_SamplerDependentPathVerticesAhead(benchmark::State &state) {
+// Eight paths of a start and kBounces vertices each, every draw waiting on the one before it (through a zero
+// the compiler cannot see), as in a render where a path waits on its numbers and the next path starts after it.
+// Path by path (main before session 11): get_path_start, then get_vertex for vertices 1..kBounces. Batched (the
+// render loop since session 11): the eight path starts drawn first by draw_path_starts (as trace_row does, before
+// its paths), then per path get_vertex with `next` (each vertex's set start and Sobol words drawn one vertex
+// ahead). Per path.
+template <bool kBatched>
+void sampler_dependent_paths(benchmark::State &state) {
   uint32_t sample = 0, zero = 0;
   benchmark::DoNotOptimize(zero);
   float acc = 0.0f;
+  uint32_t carry = 0u;
   for (auto _ : state) {
-    const uint32_t pixel = sample & 0xffffu, index = sample >> 16;
-    PathStart start;  // in the render drawn eight paths at a time; here one, inside the timed loop
-    draw_path_starts(1u, &pixel, &index, 1, true, &start);
-    const PixelSampler sampler(start);
-    sampler_draw::NextVertex next = PixelSampler::first_vertex(start);
-    uint32_t carry = 0u;
-    for (int b = 1; b <= kBounces; ++b) {
-      const int vertex = b + static_cast<int>(carry & zero);
-      float bsdf[4], light[2];
-      sampler.get_vertex(vertex, next, bsdf, light, true, true);
-      carry = static_cast<uint32_t>((bsdf[3] + light[1]) * 16777216.0f);
-      acc += bsdf[0] + bsdf[1] + bsdf[2] + bsdf[3] + light[0] + light[1];
+    uint32_t pixels[kPathStartBatch], samples[kPathStartBatch];
+    for (int i = 0; i < kPathStartBatch; ++i) {
+      pixels[i] = (sample + static_cast<uint32_t>(i)) & 0xffffu;
+      samples[i] = (sample + static_cast<uint32_t>(i)) >> 16;
     }
-    ++sample;
+    PathStart starts[kPathStartBatch];
+    if constexpr (kBatched) draw_path_starts(1u, pixels, samples, kPathStartBatch, true, starts);
+    for (int i = 0; i < kPathStartBatch; ++i) {
+      float bsdf[4], light[2];
+      if constexpr (kBatched) {
+        const PixelSampler sampler(starts[i]);
+        sampler_draw::NextVertex next = PixelSampler::first_vertex(starts[i]);
+        acc += starts[i].value[static_cast<int>(carry & zero)];  // the path begins after the one before
+        for (int b = 1; b <= kBounces; ++b) {
+          sampler.get_vertex(b + static_cast<int>(carry & zero), next, bsdf, light, true, true);
+          carry = static_cast<uint32_t>((bsdf[3] + light[1]) * 16777216.0f);
+          acc += bsdf[0] + light[0];
+        }
+      } else {
+        const PixelSampler sampler(1u, pixels[i] + (carry & zero), samples[i]);
+        float film[2];
+        sampler.get_path_start(film, bsdf, light);
+        acc += film[0];
+        for (int b = 1; b <= kBounces; ++b) {
+          sampler.get_vertex(b + static_cast<int>(carry & zero), bsdf, light, true, true);
+          carry = static_cast<uint32_t>((bsdf[3] + light[1]) * 16777216.0f);
+          acc += bsdf[0] + light[0];
+        }
+      }
+    }
+    sample += kPathStartBatch;
   }
   benchmark::DoNotOptimize(acc);
-  state.SetItemsProcessed(state.iterations() * kBounces);
+  state.SetItemsProcessed(state.iterations() * kPathStartBatch);
 }
-BENCHMARK(BM_SamplerDependentPathVerticesAhead);
+void BM_SamplerDependentPathsPathByPath(benchmark::State &state) { sampler_dependent_paths<false>(state); }
+void BM_SamplerDependentPathsBatched(benchmark::State &state) { sampler_dependent_paths<true>(state); }
+BENCHMARK(BM_SamplerDependentPathsPathByPath);
+BENCHMARK(BM_SamplerDependentPathsBatched);
 
 void BM_SamplerPathVerticesPerDimensionTablesReference(benchmark::State &state) {
   uint32_t sample = 0;
