@@ -146,6 +146,81 @@ void BM_SamplerPathStartPaddedReference(benchmark::State &state) {
 }
 BENCHMARK(BM_SamplerPathStart);
 BENCHMARK(BM_SamplerPathStartPaddedReference);
+// The render loop's path starts (issue 13, session 11): draw_path_starts, eight paths per call (their set
+// starts in vector lanes, the eight draws independent), also giving each path's sampler, path seed and vertex 1's
+// set start; per path.
+void BM_SamplerPathStartsBatched(benchmark::State &state) {
+  uint32_t sample = 0;
+  float acc = 0.0f;
+  for (auto _ : state) {
+    uint32_t pixels[kPathStartBatch], samples[kPathStartBatch];
+    for (int i = 0; i < kPathStartBatch; ++i) {
+      pixels[i] = (sample + static_cast<uint32_t>(i)) & 0xffffu;
+      samples[i] = (sample + static_cast<uint32_t>(i)) >> 16;
+    }
+    PathStart out[kPathStartBatch];
+    draw_path_starts(1u, pixels, samples, kPathStartBatch, true, out);
+    for (const PathStart &p : out)
+      for (float v : p.value) acc += v;
+    sample += kPathStartBatch;
+  }
+  benchmark::DoNotOptimize(acc);
+  state.SetItemsProcessed(state.iterations() * kPathStartBatch);
+}
+BENCHMARK(BM_SamplerPathStartsBatched);
+
+// Eight paths of a start and kBounces vertices each, every draw waiting on the one before it (through a zero
+// the compiler cannot see), as in a render where a path waits on its numbers and the next path starts after it.
+// Path by path (main before session 11): get_path_start, then get_vertex for vertices 1..kBounces. Batched (the
+// render loop since session 11): the eight path starts drawn first by draw_path_starts (as trace_row does, before
+// its paths), then per path get_vertex with `next` (each vertex's set start and Sobol words drawn one vertex
+// ahead). Per path.
+template <bool kBatched>
+void sampler_dependent_paths(benchmark::State &state) {
+  uint32_t sample = 0, zero = 0;
+  benchmark::DoNotOptimize(zero);
+  float acc = 0.0f;
+  uint32_t carry = 0u;
+  for (auto _ : state) {
+    uint32_t pixels[kPathStartBatch], samples[kPathStartBatch];
+    for (int i = 0; i < kPathStartBatch; ++i) {
+      pixels[i] = (sample + static_cast<uint32_t>(i)) & 0xffffu;
+      samples[i] = (sample + static_cast<uint32_t>(i)) >> 16;
+    }
+    PathStart starts[kPathStartBatch];
+    if constexpr (kBatched) draw_path_starts(1u, pixels, samples, kPathStartBatch, true, starts);
+    for (int i = 0; i < kPathStartBatch; ++i) {
+      float bsdf[4], light[2];
+      if constexpr (kBatched) {
+        const PixelSampler sampler(starts[i]);
+        sampler_draw::NextVertex next = PixelSampler::first_vertex(starts[i]);
+        acc += starts[i].value[static_cast<int>(carry & zero)];  // the path begins after the one before
+        for (int b = 1; b <= kBounces; ++b) {
+          sampler.get_vertex(b + static_cast<int>(carry & zero), next, bsdf, light, true, true);
+          carry = static_cast<uint32_t>((bsdf[3] + light[1]) * 16777216.0f);
+          acc += bsdf[0] + light[0];
+        }
+      } else {
+        const PixelSampler sampler(1u, pixels[i] + (carry & zero), samples[i]);
+        float film[2];
+        sampler.get_path_start(film, bsdf, light);
+        acc += film[0];
+        for (int b = 1; b <= kBounces; ++b) {
+          sampler.get_vertex(b + static_cast<int>(carry & zero), bsdf, light, true, true);
+          carry = static_cast<uint32_t>((bsdf[3] + light[1]) * 16777216.0f);
+          acc += bsdf[0] + light[0];
+        }
+      }
+    }
+    sample += kPathStartBatch;
+  }
+  benchmark::DoNotOptimize(acc);
+  state.SetItemsProcessed(state.iterations() * kPathStartBatch);
+}
+void BM_SamplerDependentPathsPathByPath(benchmark::State &state) { sampler_dependent_paths<false>(state); }
+void BM_SamplerDependentPathsBatched(benchmark::State &state) { sampler_dependent_paths<true>(state); }
+BENCHMARK(BM_SamplerDependentPathsPathByPath);
+BENCHMARK(BM_SamplerDependentPathsBatched);
 
 void BM_SamplerPathVerticesPerDimensionTablesReference(benchmark::State &state) {
   uint32_t sample = 0;

@@ -930,16 +930,18 @@ struct Renderer::Impl {
   }
 
   // One path (Cycles' integrator loop: intersect_closest, shade_light / shade_background, shade_surface).
-  Spectrum trace_path(int px, int py, uint32_t sample_index, PixelAov &aov, uint64_t &nan_count) const {
+  // `start`: the path's camera set (film position and vertex 0's BSDF numbers, jointly stratified) and vertex
+  // 0's light set (docs/architecture.md "Sample dimensions"), drawn by trace_row with those of other paths.
+  // It also holds the path's sampler, path seed (hash_u32x3(seed, pixel, sample)) and vertex 1's set start.
+  Spectrum trace_path(int px, int py, const PathStart &start, PixelAov &aov, uint64_t &nan_count) const {
     const BounceLimits limits(scene.integrator);
-    const uint32_t pixel_index = static_cast<uint32_t>(py) * static_cast<uint32_t>(width) + static_cast<uint32_t>(px);
-    const PixelSampler sampler(seed, pixel_index, sample_index);
-    const uint32_t path_seed = hash_u32x3(seed, pixel_index, sample_index);
-    // The camera set (film position and vertex 0's BSDF numbers, jointly stratified) and vertex 0's light set,
-    // drawn together (docs/architecture.md "Sample dimensions"); the light set only where lights are sampled.
+    const PixelSampler sampler(start);
+    sampler_draw::NextVertex next = PixelSampler::first_vertex(start);
+    const uint32_t path_seed = start.path_seed;
     const bool nee = use_nee() && lights->count() > 0;
-    float film_uv[2], bsdf_rand[4], light_rand[2];
-    sampler.get_path_start(film_uv, bsdf_rand, light_rand, nee);
+    const float film_uv[2] = {start.film()[0], start.film()[1]};
+    float bsdf_rand[4] = {start.bsdf()[0], start.bsdf()[1], start.bsdf()[2], start.bsdf()[3]};
+    float light_rand[2] = {start.light()[0], start.light()[1]};
     PathRay ray = sample_camera_ray(px, py, film_uv, sampler);
     PathRadiance pr;
     pr.nan_count = &nan_count;
@@ -967,8 +969,8 @@ struct Renderer::Impl {
       // The vertex's 6D set: light (u, v), BSDF x, y (closure pick, then the closure's direction), z (the
       // closure's third number), rr (Russian roulette); light numbers only for a light sample, rr only where
       // roulette can fire (vertex 0's from the path start above; every iteration that goes on advances the vertex).
-      if (ps.sample_vertex() > 0)
-        sampler.get_vertex(ps.sample_vertex(), bsdf_rand, light_rand, nee && has_smooth_closure(cs),
+      if (ps.sample_vertex() > 0)  // each vertex's set start drawn ahead (`next`: vertex 1's with the path start)
+        sampler.get_vertex(ps.sample_vertex(), next, bsdf_rand, light_rand, nee && has_smooth_closure(cs),
                            ps.bounce > limits.min_bounce);
       if (!survives_russian_roulette(ps, limits, bsdf_rand[3], pr.throughput)) break;
       const float transparent_weight = std::fabs(average(cs.transparent));
@@ -984,6 +986,35 @@ struct Renderer::Impl {
       integrate_exit_lobe(s, ray.D, sampler, ps, pr, exit_world);
     }
     return pr.L;
+  }
+
+  // The samples [s, s + count) of the pixels [xb, xe) of row y, pixel by pixel and each pixel's in sample order,
+  // into the film. The path starts are drawn kPathStartBatch at a time (draw_path_starts: the same values as
+  // drawn path by path), so their dependent chains overlap instead of each stalling the start of its path.
+  void trace_row(int y, int xb, int xe, int s, int count, Film &film, uint64_t &nans, uint64_t &traced) const {
+    const bool nee = use_nee() && lights->count() > 0;
+    const int items = (xe - xb) * count;
+    int x = xb, k = 0;  // the next item to draw
+    for (int j0 = 0; j0 < items; j0 += kPathStartBatch) {
+      const int n = std::min(kPathStartBatch, items - j0);
+      uint32_t pixels[kPathStartBatch], samples[kPathStartBatch];
+      int xs[kPathStartBatch];
+      for (int i = 0; i < n; ++i) {
+        xs[i] = x;
+        pixels[i] = static_cast<uint32_t>(y) * static_cast<uint32_t>(width) + static_cast<uint32_t>(x);
+        samples[i] = static_cast<uint32_t>(s + k);
+        if (++k == count) k = 0, ++x;
+      }
+      PathStart starts[kPathStartBatch];
+      draw_path_starts(seed, pixels, samples, n, nee, starts);
+      for (int i = 0; i < n; ++i) {
+        PixelAov aov;
+        const Spectrum L = trace_path(xs[i], y, starts[i], aov, nans);
+        if (!film.add(static_cast<size_t>(y) * width + xs[i], L, aov.alpha, aov.albedo, aov.normal, aov.depth))
+          ++nans;  // a finite sample can still overflow the pixel's sum: dropped and counted
+        ++traced;
+      }
+    }
   }
 
   // True when every closure at the shading point scatters singularly (probe() follows those).
@@ -1083,15 +1114,7 @@ RenderResult Renderer::render(const std::function<void(int, int)> &progress, con
       uint64_t nans = 0, traced = 0;
       for (int y = br.rows().begin(); y < br.rows().end(); ++y) {
         if (im.options.cancel && im.options.cancel->load()) break;  // answer SIGINT within a tile row
-        for (int x = br.cols().begin(); x < br.cols().end(); ++x) {
-          for (int k = 0; k < count; ++k) {
-            Impl::PixelAov aov;
-            const Spectrum L = im.trace_path(x, y, static_cast<uint32_t>(s + k), aov, nans);
-            if (!film.add(static_cast<size_t>(y) * im.width + x, L, aov.alpha, aov.albedo, aov.normal, aov.depth))
-              ++nans;  // a finite sample can still overflow the pixel's sum: dropped and counted
-            ++traced;
-          }
-        }
+        im.trace_row(y, br.cols().begin(), br.cols().end(), s, count, film, nans, traced);
       }
       if (nans) nan_total += nans;
       paths += traced;

@@ -11,7 +11,10 @@
 // look-ups and two Laine-Karras permutations; each scrambled (still bit-reversed) value becomes its float by
 // three byte look-ups and two exact additions, no bit reversal; a set costs one seed hash and one index
 // shuffle for all its dimensions. On CPUs with AVX2, get_vertex and get_path_start compute the same values
-// with the six (seven) scrambles and floats in the lanes of one vector register (sampler_draw.h/.cpp).
+// with the six (seven) scrambles and floats in the lanes of one vector register (sampler_draw.h/.cpp). The
+// render loop draws path starts eight at a time (draw_path_starts) and each vertex's set start one vertex ahead
+// (get_vertex with NextVertex), so the draws' dependent chains overlap with other work instead of stalling the
+// path that waits on them (docs/architecture.md "Draws ahead of the chain that waits on them").
 #pragma once
 
 #include <array>
@@ -185,6 +188,30 @@ constexpr int kVertexLightPair = 0, kVertexBsdfXyPair = 1, kVertexBsdfZrrPair = 
 // light numbers are not read where they are not drawn.
 constexpr float kUndrawnRr = 1.0f, kUndrawnLight = 0.5f;
 
+// What a path starts with, drawn ahead for several paths at once (draw_path_starts):
+//   value: PixelSampler::get_path_start's numbers in one 32-byte row: film u, v; vertex 0's BSDF x, y, z and
+//     rr (kUndrawnRr: never read); vertex 0's light u, v (kUndrawnLight when not drawn);
+//   pixel_seed, sample_reversed: the path's PixelSampler; path_seed = hash_u32x3(seed, pixel, sample);
+//   vertex1_seed, vertex1_index: the start of vertex 1's set (PixelSampler::start_set(bounce_set(1, kSetBsdf)))
+//     and vertex1_words its six Sobol words.
+struct alignas(32) PathStart {
+  float value[8];
+  uint32_t pixel_seed, sample_reversed, path_seed, vertex1_seed, vertex1_index;
+  alignas(32) uint32_t vertex1_words[8];  // lanes 0-5: the Sobol words of vertex 1's set (sobol_reversed(d, index))
+  const float *film() const { return value; }
+  const float *bsdf() const { return value + 2; }
+  const float *light() const { return value + 6; }
+};
+// Path starts drawn together by draw_path_starts (at most this many per call).
+constexpr int kPathStartBatch = 8;
+// out[i] = the path start of (seed, pixels[i], samples[i]) for i < n <= kPathStartBatch, the same floats bit for
+// bit as PixelSampler(seed, pixels[i], samples[i]).get_path_start(..., need_light), and the members above. The
+// draws are independent, so their dependent chains (seed hashes, index shuffle, table rows, scrambles) overlap
+// instead of each waiting at the start of its path; with AVX2 the hashes and shuffles of all n run in the lanes
+// of a vector.
+void draw_path_starts(uint32_t seed, const uint32_t *pixels, const uint32_t *samples, int n, bool need_light,
+                      PathStart *out);
+
 struct PixelSampler;
 // Which code computes get_vertex's and get_path_start's values (bridge/render/sampler_draw.h): the scalar
 // code below, or the same values with AVX2 (sampler_draw.cpp), chosen once at start-up from the CPU (and
@@ -194,8 +221,13 @@ enum class Variant : uint8_t { kScalar = 0, kAvx2 = 1 };
 extern Variant g_active;  // scalar until the start-up choice
 void vertex_avx2(const PixelSampler &sampler, int vertex, float (&bsdf)[4], float (&light)[2], bool need_light,
                  bool need_rr);
+struct NextVertex;
+void vertex_next_avx2(const PixelSampler &sampler, int vertex, NextVertex &next, float (&bsdf)[4],
+                      float (&light)[2], bool need_light, bool need_rr);
 void path_start_avx2(const PixelSampler &sampler, float (&film)[2], float (&bsdf)[4], float (&light)[2],
                      bool need_light);
+void path_starts_avx2(uint32_t seed, const uint32_t *pixels, const uint32_t *samples, int n, bool need_light,
+                      PathStart *out);
 }  // namespace sampler_draw
 
 struct PixelSampler {
@@ -204,6 +236,8 @@ struct PixelSampler {
 
   PixelSampler(uint32_t seed, uint32_t pixel_index, uint32_t sample_index)
       : pixel_seed(hash_u32x2(seed, pixel_index)), sample_reversed(reverse_bits(sample_index)) {}
+  // The sampler of a path whose start was drawn by draw_path_starts (the same members).
+  explicit PixelSampler(const PathStart &start) : pixel_seed(start.pixel_seed), sample_reversed(start.sample_reversed) {}
 
   // The first N Sobol dimensions of set `set` at this sample, each in [0, 1). Dimensions go by pairs: one
   // table look-up per index byte for both, one scramble each, one 64-bit reversal for both.
@@ -231,6 +265,18 @@ struct PixelSampler {
     }
     if (sampler_draw::g_active == sampler_draw::Variant::kAvx2) {
       sampler_draw::vertex_avx2(*this, vertex, bsdf, light, need_light, need_rr);
+      return;
+    }
+    get_vertex_scalar(vertex, bsdf, light, need_light, need_rr);
+  }
+  // get_vertex's values along a path (vertex >= 1), with `next` carried from one vertex to the next: when it holds
+  // this vertex's set start (drawn ahead) the draw begins at its table rows; then it starts vertex + 1's set into
+  // `next`, beside this draw's chain instead of at the head of the next one. The same values as get_vertex
+  // whatever `next` holds (Sampler.VertexDrawnAheadEqualsScalarDraw).
+  void get_vertex(int vertex, sampler_draw::NextVertex &next, float (&bsdf)[4], float (&light)[2], bool need_light,
+                  bool need_rr) const {
+    if (sampler_draw::g_active == sampler_draw::Variant::kAvx2) {
+      sampler_draw::vertex_next_avx2(*this, vertex, next, bsdf, light, need_light, need_rr);
       return;
     }
     get_vertex_scalar(vertex, bsdf, light, need_light, need_rr);
@@ -314,6 +360,8 @@ struct PixelSampler {
     const uint32_t set_seed = hash_combine(pixel_seed, set);
     return {set_seed, laine_karras_permutation(sample_reversed, set_seed)};
   }
+  // The start of a path's first vertex set, drawn with its path start.
+  static sampler_draw::NextVertex first_vertex(const PathStart &start);
 
  private:
   // Dimension d of set s from its pair's table word `sobol` (sobol_pair_reversed(d / 2, ...)): its scramble and
@@ -334,5 +382,22 @@ struct PixelSampler {
           reversed_to_unit_float(laine_karras_permutation(static_cast<uint32_t>(sobol >> 32), dimension_seed(s.seed, 2 * p + 1)));
   }
 };
+
+namespace sampler_draw {
+// A vertex set's start drawn ahead (PixelSampler::get_vertex with `next`): set = start_set(bounce_set(vertex,
+// kSetBsdf)) when vertex > 0; vertex 0 holds nothing.
+struct NextVertex {
+  alignas(32) uint32_t words[8] = {};  // lanes 0-5: sobol_reversed(d, set.index_reversed), lanes 6-7 zero
+  int vertex = 0;
+  PixelSampler::Set set{0u, 0u};
+};
+}  // namespace sampler_draw
+inline sampler_draw::NextVertex PixelSampler::first_vertex(const PathStart &start) {
+  sampler_draw::NextVertex next;
+  for (int d = 0; d < 8; ++d) next.words[d] = start.vertex1_words[d];
+  next.vertex = 1;
+  next.set = {start.vertex1_seed, start.vertex1_index};
+  return next;
+}
 
 }  // namespace glimmer::render

@@ -76,6 +76,22 @@ inline __m256i laine_karras8(__m256i x, __m256i seed) {
 }
 
 alignas(32) constexpr Lanes8 kNibbleMask = eight(0x0f0f0f0fu);
+// rev4(n) << 4 (a low nibble reversed into the high one) and rev4(n) (a high nibble into the low one).
+#define GLIMMER_REV4_HIGH 0x00, 0x80, 0x40, 0xc0, 0x20, 0xa0, 0x60, 0xe0, 0x10, 0x90, 0x50, 0xd0, 0x30, 0xb0, 0x70, 0xf0
+#define GLIMMER_REV4_LOW 0x0, 0x8, 0x4, 0xc, 0x2, 0xa, 0x6, 0xe, 0x1, 0x9, 0x5, 0xd, 0x3, 0xb, 0x7, 0xf
+alignas(32) constexpr uint8_t kLowToHigh[32] = {GLIMMER_REV4_HIGH, GLIMMER_REV4_HIGH};
+alignas(32) constexpr uint8_t kHighToLow[32] = {GLIMMER_REV4_LOW, GLIMMER_REV4_LOW};
+#undef GLIMMER_REV4_HIGH
+#undef GLIMMER_REV4_LOW
+// The bits of every byte reversed (rev8 of each byte): two vpshufb of 16-entry tables reverse and swap its nibbles.
+inline __m256i reverse_byte_bits8(__m256i z) {
+  const __m256i low_to_high = _mm256_load_si256(reinterpret_cast<const __m256i *>(kLowToHigh));
+  const __m256i high_to_low = _mm256_load_si256(reinterpret_cast<const __m256i *>(kHighToLow));
+  const __m256i nibble = load(*opaque(&kNibbleMask));
+  const __m256i lo = _mm256_and_si256(z, nibble);
+  const __m256i hi = _mm256_and_si256(_mm256_srli_epi16(z, 4), nibble);
+  return _mm256_or_si256(_mm256_shuffle_epi8(low_to_high, lo), _mm256_shuffle_epi8(high_to_low, hi));
+}
 // uint_to_unit_float(reverse_bits(y)) in each lane, bit for bit as reversed_to_unit_float: the float keeps
 // reverse_bits(y) >> 8 = rev8(y0) << 16 | rev8(y1) << 8 | rev8(y2) (yk: byte k of y, rev8: its bits
 // reversed). One vpshufb moves bytes 0, 1, 2 to 2, 1, 0 and clears byte 3; two vpshufb of 16-entry tables
@@ -84,20 +100,7 @@ alignas(32) constexpr Lanes8 kNibbleMask = eight(0x0f0f0f0fu);
 inline __m256 reversed_to_unit_float8(__m256i y) {
   const __m256i byte_order = _mm256_setr_epi8(2, 1, 0, -128, 6, 5, 4, -128, 10, 9, 8, -128, 14, 13, 12, -128,  //
                                               2, 1, 0, -128, 6, 5, 4, -128, 10, 9, 8, -128, 14, 13, 12, -128);
-  // rev4(n) << 4 (a low nibble reversed into the high one) and rev4(n) (a high nibble into the low one).
-#define GLIMMER_REV4_HIGH 0x00, 0x80, 0x40, 0xc0, 0x20, 0xa0, 0x60, 0xe0, 0x10, 0x90, 0x50, 0xd0, 0x30, 0xb0, 0x70, 0xf0
-#define GLIMMER_REV4_LOW 0x0, 0x8, 0x4, 0xc, 0x2, 0xa, 0x6, 0xe, 0x1, 0x9, 0x5, 0xd, 0x3, 0xb, 0x7, 0xf
-  alignas(32) static constexpr uint8_t kLowToHigh[32] = {GLIMMER_REV4_HIGH, GLIMMER_REV4_HIGH};
-  alignas(32) static constexpr uint8_t kHighToLow[32] = {GLIMMER_REV4_LOW, GLIMMER_REV4_LOW};
-#undef GLIMMER_REV4_HIGH
-#undef GLIMMER_REV4_LOW
-  const __m256i low_to_high = _mm256_load_si256(reinterpret_cast<const __m256i *>(kLowToHigh));
-  const __m256i high_to_low = _mm256_load_si256(reinterpret_cast<const __m256i *>(kHighToLow));
-  const __m256i nibble = load(*opaque(&kNibbleMask));
-  const __m256i z = _mm256_shuffle_epi8(y, byte_order);
-  const __m256i lo = _mm256_and_si256(z, nibble);
-  const __m256i hi = _mm256_and_si256(_mm256_srli_epi16(z, 4), nibble);
-  const __m256i r = _mm256_or_si256(_mm256_shuffle_epi8(low_to_high, lo), _mm256_shuffle_epi8(high_to_low, hi));
+  const __m256i r = reverse_byte_bits8(_mm256_shuffle_epi8(y, byte_order));
   return _mm256_mul_ps(_mm256_cvtepi32_ps(r), _mm256_set1_ps(1.0f / 16777216.0f));
 }
 
@@ -165,11 +168,11 @@ inline __m256i set1(uint32_t x) { return _mm256_set1_epi32(static_cast<int>(x));
 // get_vertex_scalar's values (vertex >= 1): one 6D set, lanes 0-5 = Sobol dimensions 0-5 = light (u, v),
 // BSDF (x, y), (z, rr). All six are scrambled (the lanes cost the same); the numbers not needed are then
 // overwritten with the undrawn constants, as the scalar code never draws them.
-void vertex_avx2(const PixelSampler &sampler, int vertex, float (&bsdf)[4], float (&light)[2], bool need_light,
-                 bool need_rr) {
+namespace {
+inline void vertex_draw_words(__m256i words, uint32_t seed, float (&bsdf)[4], float (&light)[2], bool need_light,
+                              bool need_rr) {
   static_assert(kVertexLightPair == 0 && kVertexBsdfXyPair == 1 && kVertexBsdfZrrPair == 2);
-  const PixelSampler::Set v = sampler.start_set(bounce_set(vertex, kSetBsdf));
-  const __m256 f = reversed_to_unit_float8(laine_karras8(sobol_words8(v.index_reversed), lane_seeds(set1(v.seed))));
+  const __m256 f = reversed_to_unit_float8(laine_karras8(words, lane_seeds(set1(seed))));
   const __m128 lo = _mm256_castps256_ps128(f), hi = _mm256_extractf128_ps(f, 1);
   store_high(bsdf, lo);
   store_low(bsdf + 2, hi);
@@ -179,6 +182,31 @@ void vertex_avx2(const PixelSampler &sampler, int vertex, float (&bsdf)[4], floa
   } else {
     light[0] = light[1] = kUndrawnLight;
   }
+}
+inline void vertex_draw(const PixelSampler::Set &v, float (&bsdf)[4], float (&light)[2], bool need_light,
+                        bool need_rr) {
+  vertex_draw_words(sobol_words8(v.index_reversed), v.seed, bsdf, light, need_light, need_rr);
+}
+}  // namespace
+
+void vertex_avx2(const PixelSampler &sampler, int vertex, float (&bsdf)[4], float (&light)[2], bool need_light,
+                 bool need_rr) {
+  vertex_draw(sampler.start_set(bounce_set(vertex, kSetBsdf)), bsdf, light, need_light, need_rr);
+}
+
+// vertex_avx2 with the set's start and Sobol words from `next` when they were drawn ahead for this vertex;
+// vertex + 1's (seed hash and index shuffle, scalar; its eight table rows) then go into `next`, independent of
+// this draw's chain.
+void vertex_next_avx2(const PixelSampler &sampler, int vertex, NextVertex &next, float (&bsdf)[4],
+                      float (&light)[2], bool need_light, bool need_rr) {
+  const bool ahead = next.vertex == vertex;
+  const PixelSampler::Set v = ahead ? next.set : sampler.start_set(bounce_set(vertex, kSetBsdf));
+  const __m256i words = ahead ? _mm256_load_si256(reinterpret_cast<const __m256i *>(next.words))
+                              : sobol_words8(v.index_reversed);
+  next.vertex = vertex + 1;
+  next.set = sampler.start_set(bounce_set(vertex + 1, kSetBsdf));
+  _mm256_store_si256(reinterpret_cast<__m256i *>(next.words), sobol_words8(next.set.index_reversed));
+  vertex_draw_words(words, v.seed, bsdf, light, need_light, need_rr);
 }
 
 // get_path_start_scalar's values in one vector: the camera set's Sobol dimensions 0-5 in lanes 0-5 (film u,
@@ -209,6 +237,93 @@ void path_start_avx2(const PixelSampler &sampler, float (&film)[2], float (&bsdf
   }
 }
 
+namespace {
+// reverse_bits in each lane: the byte swap by one vpshufb, then each byte's bits reversed.
+inline __m256i reverse_bits8(__m256i x) {
+  const __m256i byte_swap = _mm256_setr_epi8(3, 2, 1, 0, 7, 6, 5, 4, 11, 10, 9, 8, 15, 14, 13, 12,  //
+                                             3, 2, 1, 0, 7, 6, 5, 4, 11, 10, 9, 8, 15, 14, 13, 12);
+  return reverse_byte_bits8(_mm256_shuffle_epi8(x, byte_swap));
+}
+// hash_u32 (glimmer/rng.h) in each lane: vpmulld for the multiplies, vpsrlvd for the state-dependent shift.
+alignas(32) constexpr Lanes8 kHashMul[2] = {eight(747796405u), eight(277803737u)};
+inline __m256i hash_u32_8(__m256i v) {
+  const Lanes8 *m = opaque(kHashMul);
+  const __m256i state = _mm256_add_epi32(_mm256_mullo_epi32(v, load(m[0])), set1(2891336453u));
+  const __m256i shift = _mm256_add_epi32(_mm256_srli_epi32(state, 28), set1(4u));
+  const __m256i word = _mm256_mullo_epi32(_mm256_xor_si256(_mm256_srlv_epi32(state, shift), state), load(m[1]));
+  return _mm256_xor_si256(_mm256_srli_epi32(word, 22), word);
+}
+// hash_combine(seed, v) in each lane.
+inline __m256i hash_combine8(__m256i seed, __m256i v) {
+  const __m256i mix = _mm256_add_epi32(_mm256_add_epi32(v, set1(0x9e3779b9u)),
+                                       _mm256_add_epi32(_mm256_slli_epi32(seed, 6), _mm256_srli_epi32(seed, 2)));
+  return hash_u32_8(_mm256_xor_si256(seed, mix));
+}
+// The starts (seed, shuffled index) of the camera set and of vertex 0's light set for up to eight paths, lane i
+// = path i: pixel seed hash_u32x2(seed, pixel), the set seeds, the reversed sample index and its shuffles.
+struct PathStartSets {
+  alignas(32) uint32_t camera_seed[8], camera_index[8], light_seed[8], light_index[8];
+};
+void start_sets8(uint32_t seed, const uint32_t *pixels, const uint32_t *samples, int n, bool need_light,
+                 PathStartSets &sets, PathStart *out) {
+  alignas(32) uint32_t pixel[8] = {}, sample[8] = {};
+  for (int i = 0; i < n; ++i) {
+    pixel[i] = pixels[i];
+    sample[i] = samples[i];
+  }
+  const __m256i pixel_seed =
+      hash_combine8(set1(hash_u32(seed)), _mm256_load_si256(reinterpret_cast<const __m256i *>(pixel)));
+  const __m256i sample_reversed = reverse_bits8(_mm256_load_si256(reinterpret_cast<const __m256i *>(sample)));
+  // The members of PathStart besides the numbers: five words per path, transposed from the lanes.
+  const __m256i vertex1_seed = hash_combine8(pixel_seed, set1(bounce_set(1, kSetBsdf)));
+  alignas(32) uint32_t words[5][8];
+  _mm256_store_si256(reinterpret_cast<__m256i *>(words[0]), pixel_seed);
+  _mm256_store_si256(reinterpret_cast<__m256i *>(words[1]), sample_reversed);
+  _mm256_store_si256(reinterpret_cast<__m256i *>(words[2]),
+                     hash_combine8(pixel_seed, _mm256_load_si256(reinterpret_cast<const __m256i *>(sample))));
+  _mm256_store_si256(reinterpret_cast<__m256i *>(words[3]), vertex1_seed);
+  _mm256_store_si256(reinterpret_cast<__m256i *>(words[4]), laine_karras8(sample_reversed, vertex1_seed));
+  for (int i = 0; i < n; ++i) {
+    out[i].pixel_seed = words[0][i];
+    out[i].sample_reversed = words[1][i];
+    out[i].path_seed = words[2][i];
+    out[i].vertex1_seed = words[3][i];
+    out[i].vertex1_index = words[4][i];
+  }
+  const __m256i camera_seed = hash_combine8(pixel_seed, set1(kSetCamera));
+  _mm256_store_si256(reinterpret_cast<__m256i *>(sets.camera_seed), camera_seed);
+  _mm256_store_si256(reinterpret_cast<__m256i *>(sets.camera_index), laine_karras8(sample_reversed, camera_seed));
+  __m256i light_seed = _mm256_setzero_si256(), light_index = _mm256_setzero_si256();
+  if (need_light) {
+    light_seed = hash_combine8(pixel_seed, set1(bounce_set(0, kSetLight)));
+    light_index = laine_karras8(sample_reversed, light_seed);
+  }
+  _mm256_store_si256(reinterpret_cast<__m256i *>(sets.light_seed), light_seed);
+  _mm256_store_si256(reinterpret_cast<__m256i *>(sets.light_index), light_index);
+}
+}  // namespace
+
+// path_start_avx2's values for up to eight paths: their set starts side by side in the lanes (start_sets8),
+// then per path the one-vector draw, whose chains are independent of each other; each path's eight floats are
+// stored as one row (the undrawn numbers blended in).
+void path_starts_avx2(uint32_t seed, const uint32_t *pixels, const uint32_t *samples, int n, bool need_light,
+                      PathStart *out) {
+  PathStartSets sets;
+  start_sets8(seed, pixels, samples, n, need_light, sets, out);
+  const __m256 undrawn = _mm256_setr_ps(0.0f, 0.0f, 0.0f, 0.0f, 0.0f, kUndrawnRr, kUndrawnLight, kUndrawnLight);
+  const __m256 take_undrawn =
+      _mm256_castsi256_ps(_mm256_setr_epi32(0, 0, 0, 0, 0, -1, need_light ? 0 : -1, need_light ? 0 : -1));
+  for (int i = 0; i < n; ++i) {
+    const uint64_t light_word = need_light ? sobol_pair_reversed(0, sets.light_index[i]) : 0u;
+    const __m256i words = _mm256_xor_si256(sobol_words8(sets.camera_index[i]),  // lanes 6-7 of the rows are zero
+                                           _mm256_set_epi64x(static_cast<long long>(light_word), 0, 0, 0));
+    const __m256i set_seeds = _mm256_blend_epi32(set1(sets.camera_seed[i]), set1(sets.light_seed[i]), 0xc0);
+    const __m256 f = reversed_to_unit_float8(laine_karras8(words, lane_seeds(set_seeds)));
+    _mm256_store_ps(out[i].value, _mm256_blendv_ps(f, undrawn, take_undrawn));
+    _mm256_store_si256(reinterpret_cast<__m256i *>(out[i].vertex1_words), sobol_words8(out[i].vertex1_index));
+  }
+}
+
 void scramble_to_floats_avx2(const uint32_t (&words)[8], const uint32_t (&seeds)[8], const uint32_t (&rounds)[4],
                              float (&out)[8]) {
   const __m256i w = _mm256_loadu_si256(reinterpret_cast<const __m256i *>(words));
@@ -220,3 +335,31 @@ void scramble_to_floats_avx2(const uint32_t (&words)[8], const uint32_t (&seeds)
 #pragma GCC pop_options
 
 }  // namespace glimmer::render::sampler_draw
+
+namespace glimmer::render {
+
+void draw_path_starts(uint32_t seed, const uint32_t *pixels, const uint32_t *samples, int n, bool need_light,
+                      PathStart *out) {
+  if (sampler_draw::g_active == sampler_draw::Variant::kAvx2) {
+    sampler_draw::path_starts_avx2(seed, pixels, samples, n, need_light, out);
+    return;
+  }
+  for (int i = 0; i < n; ++i) {
+    float film[2], bsdf[4], light[2];
+    const PixelSampler sampler(seed, pixels[i], samples[i]);
+    sampler.get_path_start_scalar(film, bsdf, light, need_light);
+    float *v = out[i].value;
+    v[0] = film[0], v[1] = film[1], v[2] = bsdf[0], v[3] = bsdf[1], v[4] = bsdf[2], v[5] = bsdf[3];
+    v[6] = light[0], v[7] = light[1];
+    out[i].pixel_seed = sampler.pixel_seed;
+    out[i].sample_reversed = sampler.sample_reversed;
+    out[i].path_seed = hash_u32x3(seed, pixels[i], samples[i]);
+    const PixelSampler::Set vertex1 = sampler.start_set(bounce_set(1, kSetBsdf));
+    out[i].vertex1_seed = vertex1.seed;
+    out[i].vertex1_index = vertex1.index_reversed;
+    for (int d = 0; d < 8; ++d)
+      out[i].vertex1_words[d] = d < kSobolDimensions ? sobol_reversed(d, vertex1.index_reversed) : 0u;
+  }
+}
+
+}  // namespace glimmer::render

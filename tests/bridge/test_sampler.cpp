@@ -402,6 +402,127 @@ TEST(Sampler, VectorDrawEqualsScalarDraw) {
             sampler_draw::supported(Variant::kAvx2) && !scalar_forced ? Variant::kAvx2 : Variant::kScalar);
 }
 
+// draw_path_starts (the render loop's batched path starts) against the scalar code path by path, bit for bit,
+// for every variant this CPU can run: batches of 1-8 paths mixing pixels and samples (extremes and random, a
+// pixel's consecutive samples as the render loop passes them), with and without the light set: the path start
+// (get_path_start_scalar), the sampler's members, the path seed and vertex 1's set start; the rows past n are not
+// written. Control: each row compared with the next path's scalar values (a batch whose lanes are shifted by
+// one, a bug the comparison must catch) differs in almost every case.
+TEST(Sampler, BatchedPathStartsEqualPathByPath) {
+  using sampler_draw::Variant;
+  Pcg32 rng(29);
+  const uint32_t extremes[6] = {0u, 1u, 255u, 0x80000000u, 0xfffffffeu, 0xffffffffu};
+  int variants_run = 0;
+  for (Variant variant : {Variant::kScalar, Variant::kAvx2}) {
+    if (!sampler_draw::supported(variant)) continue;
+    ++variants_run;
+    const Variant before = sampler_draw::set_active(variant);
+    long paths = 0, compared = 0, shifted_differs = 0;
+    for (int batch = 0; batch < 3000; ++batch) {
+      const int n = 1 + batch % kPathStartBatch;
+      const bool need_light = (batch / kPathStartBatch) % 2 == 0;
+      const uint32_t seed = batch % 5 == 0 ? extremes[batch % 6] : rng.next_u32();
+      uint32_t pixels[kPathStartBatch + 1], samples[kPathStartBatch + 1];
+      const uint32_t first_pixel = batch % 3 == 0 ? extremes[(batch / 3) % 6] : rng.next_u32() % 65536u;
+      const uint32_t first_sample = batch % 7 == 0 ? extremes[(batch / 7) % 6] : rng.next_u32() % 4096u;
+      const int per_pixel = 1 + batch % 4;  // consecutive samples of a pixel, then the next pixel
+      for (int i = 0; i <= n; ++i) {
+        pixels[i] = batch % 11 == 0 ? rng.next_u32() : first_pixel + static_cast<uint32_t>(i / per_pixel);
+        samples[i] = first_sample + static_cast<uint32_t>(i % per_pixel);
+      }
+      PathStart out[kPathStartBatch];
+      for (PathStart &p : out) std::fill(std::begin(p.value), std::end(p.value), -7.0f);
+      draw_path_starts(seed, pixels, samples, n, need_light, out);
+      float expected[kPathStartBatch + 1][8];
+      for (int i = 0; i <= n; ++i) {
+        float film[2], bsdf[4], light[2];
+        PixelSampler(seed, pixels[i], samples[i]).get_path_start_scalar(film, bsdf, light, need_light);
+        const float row[8] = {film[0], film[1], bsdf[0], bsdf[1], bsdf[2], bsdf[3], light[0], light[1]};
+        std::copy(std::begin(row), std::end(row), expected[i]);
+      }
+      for (int i = 0; i < n; ++i) {
+        ASSERT_TRUE(same_bits(out[i].value, expected[i], 8))
+            << sampler_draw::name(variant) << " batch " << batch << " path " << i << " of " << n;
+        const PixelSampler sampler(seed, pixels[i], samples[i]);
+        ASSERT_EQ(out[i].pixel_seed, sampler.pixel_seed);
+        ASSERT_EQ(out[i].sample_reversed, sampler.sample_reversed);
+        ASSERT_EQ(out[i].path_seed, hash_u32x3(seed, pixels[i], samples[i]));
+        const PixelSampler::Set vertex1 = sampler.start_set(bounce_set(1, kSetBsdf));
+        ASSERT_EQ(out[i].vertex1_seed, vertex1.seed);
+        ASSERT_EQ(out[i].vertex1_index, vertex1.index_reversed);
+        for (int d = 0; d < 8; ++d)
+          ASSERT_EQ(out[i].vertex1_words[d], d < kSobolDimensions ? sobol_reversed(d, vertex1.index_reversed) : 0u);
+        ++paths;
+        if (pixels[i + 1] != pixels[i] || samples[i + 1] != samples[i]) {
+          ++compared;
+          if (!same_bits(out[i].value, expected[i + 1], 5)) ++shifted_differs;
+        }
+      }
+      for (int i = n; i < kPathStartBatch; ++i) EXPECT_EQ(out[i].value[0], -7.0f) << "row " << i << " past n " << n;
+    }
+    sampler_draw::set_active(before);
+    EXPECT_GE(shifted_differs, compared - 2) << sampler_draw::name(variant);
+    EXPECT_GT(compared, paths / 2);
+    std::printf("[          ] %s: %ld batched path starts equal the scalar code; shifted by one: %ld of %ld differ\n",
+                sampler_draw::name(variant), paths, shifted_differs, compared);
+  }
+  EXPECT_GE(variants_run, 1);
+}
+
+// get_vertex along a path with the set start drawn ahead (`next`, from the path start for vertex 1) equals
+// get_vertex_scalar bit for bit, for every variant: vertices 1..40 in order, and with vertices skipped (a
+// `next` for another vertex must not be used), every combination of the flags. Control (AVX2, the variant that
+// uses `next`): a `next` naming the right vertex with another vertex's set gives other numbers, so the draw
+// does read it.
+TEST(Sampler, VertexDrawnAheadEqualsScalarDraw) {
+  using sampler_draw::Variant;
+  Pcg32 rng(31);
+  int variants_run = 0;
+  for (Variant variant : {Variant::kScalar, Variant::kAvx2}) {
+    if (!sampler_draw::supported(variant)) continue;
+    ++variants_run;
+    const Variant before = sampler_draw::set_active(variant);
+    long draws = 0, wrong_set_differs = 0, wrong_set_draws = 0;
+    for (int path = 0; path < 400; ++path) {
+      const uint32_t seed = path < 4 ? 0xffffffffu * (path & 1) : rng.next_u32();
+      const uint32_t pixel = path < 4 ? 0xffffffffu * (path >> 1) : rng.next_u32(), sample = rng.next_u32() >> (path % 32);
+      PathStart start;
+      draw_path_starts(seed, &pixel, &sample, 1, true, &start);
+      const PixelSampler sampler(start);
+      const int step = 1 + path % 3;  // 1: every vertex in order; 2, 3: vertices skipped
+      const int need = path % 4;
+      sampler_draw::NextVertex next = PixelSampler::first_vertex(start);
+      for (int vertex = 1; vertex <= 40; vertex += step) {
+        float bsdf[4], light[2], bsdf_s[4], light_s[2];
+        sampler.get_vertex(vertex, next, bsdf, light, (need & 1) != 0, (need & 2) != 0);
+        sampler.get_vertex_scalar(vertex, bsdf_s, light_s, (need & 1) != 0, (need & 2) != 0);
+        ASSERT_TRUE(same_bits(bsdf, bsdf_s, 4) && same_bits(light, light_s, 2))
+            << sampler_draw::name(variant) << " path " << path << " vertex " << vertex;
+        ++draws;
+      }
+      if (variant == Variant::kAvx2) {
+        PathStart other = start;  // vertex 6's set start and words, labelled as vertex 5's
+        const PixelSampler::Set six = sampler.start_set(bounce_set(6, kSetBsdf));
+        other.vertex1_seed = six.seed;
+        other.vertex1_index = six.index_reversed;
+        for (int d = 0; d < kSobolDimensions; ++d) other.vertex1_words[d] = sobol_reversed(d, six.index_reversed);
+        sampler_draw::NextVertex wrong = PixelSampler::first_vertex(other);
+        wrong.vertex = 5;
+        float bsdf[4], light[2], bsdf_s[4], light_s[2];
+        sampler.get_vertex(5, wrong, bsdf, light, true, true);
+        sampler.get_vertex_scalar(5, bsdf_s, light_s, true, true);
+        ++wrong_set_draws;
+        if (!same_bits(bsdf, bsdf_s, 3)) ++wrong_set_differs;
+      }
+    }
+    sampler_draw::set_active(before);
+    EXPECT_GE(wrong_set_differs, wrong_set_draws - 2) << sampler_draw::name(variant);
+    std::printf("[          ] %s: %ld vertex draws with the start drawn ahead equal the scalar code; wrong set: %ld of %ld differ\n",
+                sampler_draw::name(variant), draws, wrong_set_differs, wrong_set_draws);
+  }
+  EXPECT_GE(variants_run, 1);
+}
+
 // The vector kernel alone: eight lanes of (word, seed) scrambled and converted equal the scalar
 // reversed_to_unit_float(laine_karras_permutation(word, seed)) bit for bit, over random and extreme lanes.
 // Negative control (a test-only copy of the kernel with one wrong round constant, a bug the test must
