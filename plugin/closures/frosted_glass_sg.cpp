@@ -431,6 +431,35 @@ Vec3 incident_clamped_to_critical(const Vec3 &d, const Vec3 &n, float ior) {
   return -normalize(tangential * sin_crit + n * std::sqrt(1.0f - sin_crit * sin_crit));
 }
 
+// PaneTail (frosted_glass_sg.h): the cores keep their axes, their weights x (1 - sum t_j) and their sharpness x
+// core_scale; the tail lobes sit about lobe 0 (the axis ray's) at its unscaled sharpness / 4^j. The sum of the t_j
+// is capped at 0.9 (the cores keep at least 10 %); weights still sum to 1.
+void add_tail_ladder(const PaneTail &tail, ExitLobe &m) {
+  if (m.lobe_count <= 0) return;
+  const int levels = std::clamp(tail.levels, 0, ExitLobe::kMaxLobes - m.lobe_count);
+  const float first = std::isfinite(tail.first) ? std::max(tail.first, 0.0f) : 0.0f;
+  const float ratio = std::clamp(std::isfinite(tail.ratio) ? tail.ratio : 0.0f, 0.0f, 1.0f);
+  float share[ExitLobe::kMaxLobes], total = 0.0f, t = first;
+  for (int j = 0; j < levels; ++j, t *= ratio) total += share[j] = t;
+  const float scale = total > 0.9f ? 0.9f / total : 1.0f;
+  total *= scale;
+  const float core = std::clamp(std::isfinite(tail.core_scale) ? tail.core_scale : 1.0f, 0.05f, 20.0f);
+  float kappa = m.lobe[0].sharpness;
+  const GlimmerVec3 axis = m.lobe[0].axis;
+  for (int k = 0; k < m.lobe_count; ++k) {
+    m.lobe[k].weight *= 1.0f - total;
+    m.lobe[k].sharpness = std::clamp(m.lobe[k].sharpness * core, 1e-3f, 1e7f);
+  }
+  for (int j = 0; j < levels; ++j) {
+    kappa *= 0.25f;
+    if (!(share[j] * scale > 0.0f)) continue;
+    ExitLobe::MixtureLobe &l = m.lobe[m.lobe_count++];
+    l.axis = axis;
+    l.sharpness = std::max(kappa, 1e-3f);
+    l.weight = share[j] * scale;
+  }
+}
+
 // Beer-Lambert over `length` (0 absorption stays exactly 1 at any length).
 Spectrum beer_transmittance(const Spectrum &sigma_a, float length) {
   Spectrum t(1.0f);
@@ -485,11 +514,13 @@ bool pane_exit_lobe(const Vec3 &wi, const PaneSgInputs &in, uint32_t seed, PaneE
     out.through = n.z < 0.0f;
     out.weight = weight;
     out.lobe_count = 0;
-    if (in.variant == SgVariant::kMixture) {
+    if (in.variant == SgVariant::kMixture || in.variant == SgVariant::kMixtureShortTail) {
       ExitLobe mixture;
+      const bool ladder = in.variant == SgVariant::kMixture;
       if (!build_exit_mixture(*in.table, seg, axis, kappa_in, kappa_geometric, ior, roughness,
-                              kDefaultMixtureVariance, mixture_tail_for(roughness), mixture))
+                              kDefaultMixtureVariance, ladder ? 0.0f : mixture_tail_for(roughness), mixture))
         return false;
+      if (ladder) add_tail_ladder(in.tail, mixture);
       out.lobe_count = mixture.lobe_count;
       for (int k = 0; k < mixture.lobe_count; ++k) out.lobe[k] = mixture.lobe[k];
     }

@@ -68,6 +68,7 @@ enum class SgVariant {
   kToksvig,           // the paper's exit spread: Toksvig roughness of the exit normals + the magnified internal width
   kNoExitRefraction,  // negative control: the exit lobe keeps the internal axis (exit refraction ignored)
   kMixture,           // the exit as a mixture of lobes, one per traced ray (below); the default up to 0.4
+  kMixtureShortTail,  // panes: the tenth session's mixture (a kappa / 4 tail per ray, no PaneTail; the control)
 };
 
 // The exit lobe mixture (SgVariant::kMixture, issue 12): instead of one SG about the axis refracted through the
@@ -186,6 +187,25 @@ bool sample_sg_transmission(const ShadingPoint &sp, const SgInputs &in, const Ve
 //     after kMaxInternalReflections the axis is clamped to the critical angle (Wyman 2005) and leaves.
 // The light leaves either through the far face (transmitted) or back through the entry face (the pane's
 // internal reflection: energy not dropped).
+// The pane's heavy tail (kMixture, issue 12, eleventh session). Both rough interfaces are GGX, whose small-angle
+// NDF a^2 / (pi (a^2 + theta^2)^2) = Int_0^inf a^2 e^(-a^2 s) (s / pi) e^(-s theta^2) ds is a scale mixture of
+// Gaussians (vMFs of sharpness 2 s) with exponentially distributed precision s: over sharpness bands kappa / 4^j
+// its weight falls ~4x per step (a theta^-4 tail), the same at any roughness (GGX is a scale family in tan theta).
+// A vMF mixture whose widest lobe is kappa / 4 has no such tail: 20-60 deg off axis it carried 3 % of the exact
+// transmission's light at roughness 0.2 (tests/closures/test_frosted_pane_sg.cpp, ExitLobeShapeAgainstThePath).
+// So the pane's exit mixture is the per-ray cores (weights x (1 - sum t_j), sharpness x core_scale) plus `levels`
+// tail lobes about lobe 0's axis (the axis ray's) at its sharpness / 4^j with weights t_j = first ratio^(j-1),
+// j = 1..levels (5 cores + 4 tails, the widest at kappa / 256: 9 of the ABI's 10 lobes). The numbers are a fit to
+// the pane's exact walk per angular band at roughness 0.2 / 0.3, IOR 1.5, then checked in the small-light render
+// (ratio 0.18, not the asymptotic 1/4: at 0.22 the 20-60 deg band already got +17 % at roughness 0.2);
+// docs/frosted_glass.md "The pane's heavy tail".
+struct PaneTail {
+  float first = 0.12f;      // t_1
+  int levels = 4;           // tail lobes (at most ExitLobe::kMaxLobes minus the cores)
+  float ratio = 0.18f;      // t_(j+1) / t_j
+  float core_scale = 5.0f;  // the cores' sharpness factor
+};
+
 struct PaneSgInputs {
   const TransmissionSgTable *table = nullptr;
   float roughness = 0.3f, ior = 1.5f;  // at the shading point (both faces)
@@ -193,6 +213,7 @@ struct PaneSgInputs {
   Spectrum sigma_a{0.0f};              // Beer absorption coefficient
   float thickness = 0.01f;
   SgVariant variant = SgVariant::kTracedCone;  // kNoExitRefraction: the test's negative control
+  PaneTail tail;                               // kMixture: the heavy tail (above)
 };
 
 // The pane's exit lobe in the pane frame (entry side +z): `through` = it leaves through the far face (-z side).
