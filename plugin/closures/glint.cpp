@@ -182,14 +182,6 @@ class GlintClosure {
     peak_ = glint::DirectionalPeakTable(*table_, field_.gamma_deg);
   }
 
-  // acos in degrees, |error| < 0.004 degrees (Abramowitz & Stegun 4.4.45):
-  // far below the 1-degree table bins, and 3x cheaper than std::acos.
-  static float fast_acos_deg(float x) {
-    const float ax = std::fabs(x), a = ax < 1.0f ? ax : 1.0f;  // NaN stays NaN (std::fmin is a library call)
-    const float r = std::sqrt(1.0f - a) * (1.5707288f + a * (-0.2121144f + a * (0.0742610f - 0.0187293f * a)));
-    return (x >= 0.0f ? r : kPi - r) * glint::kRadToDeg;
-  }
-
   // LOD blur in degrees: the path's spread, capped by the lobe width 2 alpha.
   float lod_sigma_deg(const GlimmerShadingContext *ctx) const {
     const float spread = std::isfinite(ctx->spread_angle) ? std::max(ctx->spread_angle, 0.0f) : 0.0f;
@@ -214,16 +206,9 @@ class GlintClosure {
     return {ax, ay};
   }
 
-  // Table coordinates of (wi, wo) in degrees: polar angles and the folded
-  // azimuth difference.
-  struct TableCoords {
-    float theta_i, theta_o, dphi;
-  };
-  static TableCoords table_coords(const Vec3 &wi, const Vec3 &wo) {
-    const float denom2 = (wi.x * wi.x + wi.y * wi.y) * (wo.x * wo.x + wo.y * wo.y);
-    const float cos_dphi = denom2 > 1e-24f ? (wi.x * wo.x + wi.y * wo.y) / std::sqrt(denom2) : 1.0f;
-    return {fast_acos_deg(wi.z), fast_acos_deg(wo.z), fast_acos_deg(cos_dphi)};
-  }
+  using TableCoords = glint::TableCoords;
+  static TableCoords table_coords(const Vec3 &wi, const Vec3 &wo) { return glint::table_coords(wi, wo); }
+  static float fast_acos_deg(float x) { return glint::fast_acos_deg(x); }
 
   // Requests the cache lines of the lookup at `c`: the lookup is a random
   // access into several MB, and its miss was the largest single cost of eval;
