@@ -210,11 +210,16 @@ class GlintClosure {
   static TableCoords table_coords(const Vec3 &wi, const Vec3 &wo) { return glint::table_coords(wi, wo); }
   static float fast_acos_deg(float x) { return glint::fast_acos_deg(x); }
 
-  // Requests the cache lines of the lookup at `c`: the lookup is a random
-  // access into several MB, and its miss was the largest single cost of eval;
-  // the caller computes the pdf while it loads.
-  void request_table(const TableCoords &c, float sigma_deg) const {
-    if (table_) table_->prefetch(sigma_deg, c.theta_i, c.theta_o, c.dphi);
+  // Locates the lookup at `c` and requests its cache lines: the lookup is a
+  // random access into several MB, and its miss was the largest single cost
+  // of eval; the caller computes the pdf while it loads.
+  using TableLookup = glint::DirectionalTable::Located;
+  TableLookup request_table(const TableCoords &c, float sigma_deg) const {
+    TableLookup at{};
+    if (!table_) return at;
+    at = table_->locate(sigma_deg, c.theta_i, c.theta_o, c.dphi);
+    table_->prefetch(at);
+    return at;
   }
 
   // The footprint of a shading point and, once located, the direction cells
@@ -258,15 +263,15 @@ class GlintClosure {
     return k.complete && k.count == 0;
   }
 
-  // The glint BRDF times cos(wo): equations (2) and (3); the table's lines
-  // requested by request_table.
-  Spectrum glint_f_cos(const Vec3 &wi, const Vec3 &wo, const TableCoords &c, float sigma_deg, float density,
-                       Particles &parts) const {
+  // The glint BRDF times cos(wo): equations (2) and (3) at the lookup
+  // located and requested by request_table; `h` the half vector of (wi, wo).
+  Spectrum glint_f_cos(const Vec3 &wi, const Vec3 &wo, const TableLookup &at, const glint::HalfVector &h,
+                       float sigma_deg, float density, Particles &parts) const {
     if (!table_ || !(wi.z > 0.0f) || !(wo.z > 0.0f)) return Spectrum(0.0f);
     // The lookup comes first: its loads overlap the weight's math.
-    const float P = std::min(table_->lookup(sigma_deg, c.theta_i, c.theta_o, c.dphi), 1.0f);
+    const float P = std::min(table_->lookup(at), 1.0f);
     Spectrum weight;
-    if (!glint::glint_weight(field_.distribution, field_.alpha, flakes_->mean(), wi, wo, weight))
+    if (!glint::glint_weight(field_.distribution, field_.alpha, field_.alpha, flakes_->mean(), wi, wo, h, weight))
       return Spectrum(0.0f);
     if (!(P > 0.0f)) return Spectrum(0.0f);
     return glint_or_filtered(wi, wo, P, weight, sigma_deg, density, parts);
@@ -313,24 +318,26 @@ class GlintClosure {
   }
 
   // f_cos at wo for eval and sample: the dark test first (no table read),
-  // else the lookup requested before `pdf` is computed, then the BRDF.
+  // else the lookup requested before `pdf(h)` is computed, then the BRDF;
+  // the half vector h of (wi, wo) computed once for the pdf and the weight.
   template <typename Pdf>
   Spectrum f_cos_and_pdf(const ShadingPoint &sp, const Vec3 &wo, float sigma_deg, Pdf &&pdf) const {
     const float density = sp.param_float(density_param_, field_.density);
     const TableCoords c = table_coords(sp.wi, wo);
+    const glint::HalfVector h = glint::reflection_half_vector(sp.wi, wo);
     Particles parts;  // default-initialised: value-initialising would zero the 1 KB node list
     parts.fp = glint::placed_footprint(field_, placement_, sp.ctx);
     if (anisotropic_) {
-      pdf();
+      pdf(h);
       return aniso_f_cos(sp.wi, wo, sigma_deg, density, parts);
     }
     if (provably_dark(sp.wi, wo, c, sigma_deg, density, parts)) {
-      pdf();
+      pdf(h);
       return Spectrum(0.0f);
     }
-    request_table(c, sigma_deg);
-    pdf();
-    return glint_f_cos(sp.wi, wo, c, sigma_deg, density, parts);
+    const TableLookup at = request_table(c, sigma_deg);
+    pdf(h);
+    return glint_f_cos(sp.wi, wo, at, h, sigma_deg, density, parts);
   }
 
   // Equation (2) with per-flake colours (tables/glint_flake_colour.h): the
@@ -354,9 +361,9 @@ class GlintClosure {
   LocalEval eval(const ShadingPoint &sp, const Vec3 &wo) const {
     const float sigma = lod_sigma_deg(sp.ctx);
     LocalEval e;
-    e.f_cos = f_cos_and_pdf(sp, wo, sigma, [&] {
+    e.f_cos = f_cos_and_pdf(sp, wo, sigma, [&](const glint::HalfVector &h) {
       const SamplingLobe w = sampling_lobe(sigma);
-      e.pdf = glint::smooth_lobe_pdf(field_.distribution, w.ax, w.ay, sp.wi, wo);
+      e.pdf = glint::smooth_lobe_pdf(field_.distribution, w.ax, w.ay, sp.wi, wo, h);
     });
     return e;
   }
@@ -366,8 +373,8 @@ class GlintClosure {
     const float sigma = lod_sigma_deg(sp.ctx);
     const SamplingLobe w = sampling_lobe(sigma);
     if (!glint::sample_smooth_lobe(field_.distribution, w.ax, w.ay, wi, rand, out.wo)) return false;
-    out.f_cos = f_cos_and_pdf(sp, out.wo, sigma, [&] {
-      out.pdf = glint::smooth_lobe_pdf(field_.distribution, w.ax, w.ay, wi, out.wo);
+    out.f_cos = f_cos_and_pdf(sp, out.wo, sigma, [&](const glint::HalfVector &h) {
+      out.pdf = glint::smooth_lobe_pdf(field_.distribution, w.ax, w.ay, wi, out.wo, h);
     });
     // alpha units, as the conductor reports (sqrt(ax ay) when anisotropic)
     out.roughness = anisotropic_ ? std::sqrt(w.ax * w.ay) : w.ax;

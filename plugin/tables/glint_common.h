@@ -167,16 +167,32 @@ struct ParticleField {
 // either direction is below the surface.
 // Anisotropic base (alpha_x along the tangent, alpha_y along the bitangent);
 // the isotropic overload below passes alpha for both.
-inline bool glint_weight(mf::Distribution dist, float alpha_x, float alpha_y, const Spectrum &f0, const Vec3 &wi,
-                         const Vec3 &wo, Spectrum &weight) {
-  if (!(wi.z > 0.0f) || !(wo.z > 0.0f)) return false;
+// The reflection half vector of (wi, wo) (mf::half_vector_reflect), computed
+// once per eval for both the weight and the pdf.
+struct HalfVector {
   Vec3 h;
-  if (!mf::half_vector_reflect(wi, wo, h)) return false;
+  bool valid;
+};
+inline HalfVector reflection_half_vector(const Vec3 &wi, const Vec3 &wo) {
+  HalfVector r;
+  r.valid = mf::half_vector_reflect(wi, wo, r.h);
+  return r;
+}
+
+inline bool glint_weight(mf::Distribution dist, float alpha_x, float alpha_y, const Spectrum &f0, const Vec3 &wi,
+                         const Vec3 &wo, const HalfVector &half, Spectrum &weight) {
+  if (!(wi.z > 0.0f) || !(wo.z > 0.0f)) return false;
+  if (!half.valid) return false;
+  const Vec3 &h = half.h;
   const float wi_h = dot(wi, h);
   if (!(wi_h > 0.0f) || !(h.z > 0.0f)) return false;
   const float g2 = mf::G2(dist, wi, wo, alpha_x, alpha_y);
   weight = mf::fresnel_schlick(wi_h, f0) * (g2 * wi_h / (wi.z * h.z));
   return true;
+}
+inline bool glint_weight(mf::Distribution dist, float alpha_x, float alpha_y, const Spectrum &f0, const Vec3 &wi,
+                         const Vec3 &wo, Spectrum &weight) {
+  return glint_weight(dist, alpha_x, alpha_y, f0, wi, wo, reflection_half_vector(wi, wo), weight);
 }
 inline bool glint_weight(mf::Distribution dist, float alpha, const Spectrum &f0, const Vec3 &wi, const Vec3 &wo,
                          Spectrum &weight) {
@@ -188,15 +204,18 @@ inline bool glint_weight(mf::Distribution dist, float alpha, const Spectrum &f0,
 inline constexpr float kCosineMixture = 0.1f;
 
 // Anisotropic lobe (alpha_wx, alpha_wy); the isotropic overloads pass alpha_w for both.
-inline float smooth_lobe_pdf(mf::Distribution dist, float alpha_wx, float alpha_wy, const Vec3 &wi, const Vec3 &wo) {
+inline float smooth_lobe_pdf(mf::Distribution dist, float alpha_wx, float alpha_wy, const Vec3 &wi, const Vec3 &wo,
+                             const HalfVector &half) {
   if (!(wi.z > 0.0f) || !(wo.z > 0.0f)) return 0.0f;
   float pdf = kCosineMixture * wo.z * kInvPi;
-  Vec3 h;
-  if (mf::half_vector_reflect(wi, wo, h) && dot(wi, h) > 0.0f) {
-    const float vndf = mf::visible_D(dist, wi, h, alpha_wx, alpha_wy);
-    pdf += (1.0f - kCosineMixture) * vndf / (4.0f * dot(wo, h));
+  if (half.valid && dot(wi, half.h) > 0.0f) {
+    const float vndf = mf::visible_D(dist, wi, half.h, alpha_wx, alpha_wy);
+    pdf += (1.0f - kCosineMixture) * vndf / (4.0f * dot(wo, half.h));
   }
   return pdf;
+}
+inline float smooth_lobe_pdf(mf::Distribution dist, float alpha_wx, float alpha_wy, const Vec3 &wi, const Vec3 &wo) {
+  return smooth_lobe_pdf(dist, alpha_wx, alpha_wy, wi, wo, reflection_half_vector(wi, wo));
 }
 
 inline float smooth_lobe_pdf(mf::Distribution dist, float alpha_w, const Vec3 &wi, const Vec3 &wo) {
