@@ -155,6 +155,7 @@ class GlintClosure {
     field_.alpha = std::max(ax, ay);  // isotropic: the alpha of the tables; anisotropic: caps the LOD blur
     aniso_spec_ = {field_.distribution, ax, ay, field_.gamma_deg};
     cone_rules_ = glint::AnisoConeRules(gamma_rad_);
+    sampling_alpha_unblurred_ = widened_alpha(0.0f);
   }
 
   void prepare(const GlimmerHostServices *host) {
@@ -188,7 +189,11 @@ class GlintClosure {
     return std::min(spread, 2.0f * field_.alpha) * glint::kRadToDeg;
   }
 
+  // At zero blur (camera rays, the common case) the value computed at set-up.
   float sampling_alpha(float sigma_deg) const {
+    return sigma_deg == 0.0f ? sampling_alpha_unblurred_ : widened_alpha(sigma_deg);
+  }
+  float widened_alpha(float sigma_deg) const {
     const float widen = 0.5f * (field_.gamma_deg + sigma_deg) * glint::kDegToRad;
     return std::sqrt(field_.alpha * field_.alpha + widen * widen);
   }
@@ -392,6 +397,7 @@ class GlintClosure {
   std::shared_ptr<const glint::DirectionalTable> table_;
   glint::DirectionalPeakTable peak_;  // bounds of table_'s lookups in glint mode (the dark test)
   float cone_solid_angle_ = 1.0f;
+  float sampling_alpha_unblurred_ = 0.16f;  // sampling_alpha(0), set with the base roughness
   uint32_t density_param_ = 0;
   glint::Placement placement_ = glint::Placement::UV;
   std::unique_ptr<const glint::FlakePalette> flakes_;  // per-flake F0 (car paint); mean() = color when off
