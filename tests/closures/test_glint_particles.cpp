@@ -339,6 +339,7 @@ TEST(GlintParticles, PeakTableBoundsEveryLookupUpToItsBlur) {
       const float s = std::min(sigma, gamma);
       const float bound = peak.bound(ti, to, dp), p = table.lookup(s, ti, to, dp);
       ASSERT_LE(p, bound) << "gamma " << gamma << " sigma " << s << " at " << ti << ", " << to << ", " << dp;
+      ASSERT_EQ(bound, peak.bound_scalar(ti, to, dp)) << "SSE blocks at " << ti << ", " << to << ", " << dp;
       tightest = std::max(tightest, static_cast<double>(p / bound));
       beyond += table.lookup(gamma + 8.0f, ti, to, dp) > bound;
     }
@@ -350,6 +351,10 @@ TEST(GlintParticles, PeakTableBoundsEveryLookupUpToItsBlur) {
   const float nan = std::numeric_limits<float>::quiet_NaN();
   const pg::DirectionalPeakTable peak(table, 2.0f);
   EXPECT_LE(table.lookup(2.0f, nan, nan, nan), peak.bound(nan, nan, nan));
+  const float inf = std::numeric_limits<float>::infinity();
+  for (const float x : {nan, inf, -inf, -0.0f, 0.0f, 1e30f, -1e30f, 179.99998f, 180.0f, 89.99999f, 90.0f, 4.0f})
+    for (const float y : {nan, 0.0f, 90.0f, 3.9999998f, inf})
+      EXPECT_EQ(peak.bound(x, y, x), peak.bound_scalar(x, y, x)) << x << " " << y;
 }
 
 // What the dark test relies on: the glint count of a footprint (all four
