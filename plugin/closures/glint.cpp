@@ -231,6 +231,7 @@ class GlintClosure {
   // and nodes of its particles (computed once per eval or sample).
   struct Particles {
     glint::Footprint fp;
+    double area;  // fp.area(), computed once
     glint::GlintSite site;
     bool located = false;
   };
@@ -257,7 +258,7 @@ class GlintClosure {
   // glint_f_cos counts again at P over the same cells and nodes.
   bool provably_dark(const Vec3 &wi, const Vec3 &wo, const TableCoords &c, float sigma_deg, float density,
                      Particles &parts) const {
-    const double particles = static_cast<double>(density) * parts.fp.area();
+    const double particles = static_cast<double>(density) * parts.area;
     if (peak_.empty() || sigma_deg > field_.gamma_deg || !(particles <= kDarkTestMaxParticles)) return false;
     const float P_max = std::min(peak_.bound(c.theta_i, c.theta_o, c.dphi), 1.0f);
     const double expected_max = particles * P_max;
@@ -308,7 +309,7 @@ class GlintClosure {
   // (2) or (3) once P and W are known.
   Spectrum glint_or_filtered(const Vec3 &wi, const Vec3 &wo, float P, const Spectrum &weight, float sigma_deg,
                              float density, Particles &parts) const {
-    const double area = parts.fp.area();
+    const double area = parts.area;
     const double expected = static_cast<double>(density) * area * P;
     if (expected > threshold_ || sigma_deg > field_.gamma_deg) return weight * (P / cone_solid_angle_);  // (3)
     if (flakes_->varies()) return coloured_flakes_f_cos(wi, wo, density, P, weight, parts);
@@ -332,6 +333,7 @@ class GlintClosure {
     const glint::HalfVector h = glint::reflection_half_vector(sp.wi, wo);
     Particles parts;  // default-initialised: value-initialising would zero the 1 KB node list
     parts.fp = glint::placed_footprint(field_, placement_, sp.ctx);
+    parts.area = parts.fp.area();
     if (anisotropic_) {
       pdf(h);
       return aniso_f_cos(sp.wi, wo, sigma_deg, density, parts);
@@ -360,7 +362,7 @@ class GlintClosure {
     if (!glint::glint_weight(field_.distribution, alpha_x_, alpha_y_, flakes.sum * inv_k, wi, wo, weight))
       return Spectrum(0.0f);
     return weight * static_cast<float>(static_cast<double>(k.count) /
-                                       (static_cast<double>(density) * parts.fp.area() * cone_solid_angle_));
+                                       (static_cast<double>(density) * parts.area * cone_solid_angle_));
   }
 
   LocalEval eval(const ShadingPoint &sp, const Vec3 &wo) const {

@@ -150,7 +150,8 @@ struct ParticleField {
   Footprint valid_footprint(Footprint f) const {
     const bool finite = std::isfinite(f.ax) && std::isfinite(f.ay) && std::isfinite(f.bx) && std::isfinite(f.by);
     if (!std::isfinite(f.cx) || !std::isfinite(f.cy)) f.cx = f.cy = 0.0;
-    if (!finite || !(f.area() > 1e-30) || !(f.area() < 1e30)) {
+    const double area = f.area();
+    if (!finite || !(area > 1e-30) || !(area < 1e30)) {
       const double side = 1.0 / std::sqrt(static_cast<double>(density));
       f.ax = side;
       f.ay = 0.0;
