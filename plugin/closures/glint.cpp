@@ -155,6 +155,7 @@ class GlintClosure {
     field_.alpha = std::max(ax, ay);  // isotropic: the alpha of the tables; anisotropic: caps the LOD blur
     aniso_spec_ = {field_.distribution, ax, ay, field_.gamma_deg};
     cone_rules_ = glint::AnisoConeRules(gamma_rad_);
+    sampling_alpha_unblurred_ = widened_alpha(0.0f);
   }
 
   void prepare(const GlimmerHostServices *host) {
@@ -182,21 +183,17 @@ class GlintClosure {
     peak_ = glint::DirectionalPeakTable(*table_, field_.gamma_deg);
   }
 
-  // acos in degrees, |error| < 0.004 degrees (Abramowitz & Stegun 4.4.45):
-  // far below the 1-degree table bins, and 3x cheaper than std::acos.
-  static float fast_acos_deg(float x) {
-    const float ax = std::fabs(x), a = ax < 1.0f ? ax : 1.0f;  // NaN stays NaN (std::fmin is a library call)
-    const float r = std::sqrt(1.0f - a) * (1.5707288f + a * (-0.2121144f + a * (0.0742610f - 0.0187293f * a)));
-    return (x >= 0.0f ? r : kPi - r) * glint::kRadToDeg;
-  }
-
   // LOD blur in degrees: the path's spread, capped by the lobe width 2 alpha.
   float lod_sigma_deg(const GlimmerShadingContext *ctx) const {
     const float spread = std::isfinite(ctx->spread_angle) ? std::max(ctx->spread_angle, 0.0f) : 0.0f;
     return std::min(spread, 2.0f * field_.alpha) * glint::kRadToDeg;
   }
 
+  // At zero blur (camera rays, the common case) the value computed at set-up.
   float sampling_alpha(float sigma_deg) const {
+    return sigma_deg == 0.0f ? sampling_alpha_unblurred_ : widened_alpha(sigma_deg);
+  }
+  float widened_alpha(float sigma_deg) const {
     const float widen = 0.5f * (field_.gamma_deg + sigma_deg) * glint::kDegToRad;
     return std::sqrt(field_.alpha * field_.alpha + widen * widen);
   }
@@ -214,28 +211,27 @@ class GlintClosure {
     return {ax, ay};
   }
 
-  // Table coordinates of (wi, wo) in degrees: polar angles and the folded
-  // azimuth difference.
-  struct TableCoords {
-    float theta_i, theta_o, dphi;
-  };
-  static TableCoords table_coords(const Vec3 &wi, const Vec3 &wo) {
-    const float denom2 = (wi.x * wi.x + wi.y * wi.y) * (wo.x * wo.x + wo.y * wo.y);
-    const float cos_dphi = denom2 > 1e-24f ? (wi.x * wo.x + wi.y * wo.y) / std::sqrt(denom2) : 1.0f;
-    return {fast_acos_deg(wi.z), fast_acos_deg(wo.z), fast_acos_deg(cos_dphi)};
-  }
+  using TableCoords = glint::TableCoords;
+  static TableCoords table_coords(const Vec3 &wi, const Vec3 &wo) { return glint::table_coords(wi, wo); }
+  static float fast_acos_deg(float x) { return glint::fast_acos_deg(x); }
 
-  // Requests the cache lines of the lookup at `c`: the lookup is a random
-  // access into several MB, and its miss was the largest single cost of eval;
-  // the caller computes the pdf while it loads.
-  void request_table(const TableCoords &c, float sigma_deg) const {
-    if (table_) table_->prefetch(sigma_deg, c.theta_i, c.theta_o, c.dphi);
+  // Locates the lookup at `c` and requests its cache lines: the lookup is a
+  // random access into several MB, and its miss was the largest single cost
+  // of eval; the caller computes the pdf while it loads.
+  using TableLookup = glint::DirectionalTable::Located;
+  TableLookup request_table(const TableCoords &c, float sigma_deg) const {
+    TableLookup at{};
+    if (!table_) return at;
+    at = table_->locate(sigma_deg, c.theta_i, c.theta_o, c.dphi);
+    table_->prefetch(at);
+    return at;
   }
 
   // The footprint of a shading point and, once located, the direction cells
   // and nodes of its particles (computed once per eval or sample).
   struct Particles {
     glint::Footprint fp;
+    double area;  // fp.area(), computed once
     glint::GlintSite site;
     bool located = false;
   };
@@ -262,7 +258,7 @@ class GlintClosure {
   // glint_f_cos counts again at P over the same cells and nodes.
   bool provably_dark(const Vec3 &wi, const Vec3 &wo, const TableCoords &c, float sigma_deg, float density,
                      Particles &parts) const {
-    const double particles = static_cast<double>(density) * parts.fp.area();
+    const double particles = static_cast<double>(density) * parts.area;
     if (peak_.empty() || sigma_deg > field_.gamma_deg || !(particles <= kDarkTestMaxParticles)) return false;
     const float P_max = std::min(peak_.bound(c.theta_i, c.theta_o, c.dphi), 1.0f);
     const double expected_max = particles * P_max;
@@ -273,15 +269,15 @@ class GlintClosure {
     return k.complete && k.count == 0;
   }
 
-  // The glint BRDF times cos(wo): equations (2) and (3); the table's lines
-  // requested by request_table.
-  Spectrum glint_f_cos(const Vec3 &wi, const Vec3 &wo, const TableCoords &c, float sigma_deg, float density,
-                       Particles &parts) const {
+  // The glint BRDF times cos(wo): equations (2) and (3) at the lookup
+  // located and requested by request_table; `h` the half vector of (wi, wo).
+  Spectrum glint_f_cos(const Vec3 &wi, const Vec3 &wo, const TableLookup &at, const glint::HalfVector &h,
+                       float sigma_deg, float density, Particles &parts) const {
     if (!table_ || !(wi.z > 0.0f) || !(wo.z > 0.0f)) return Spectrum(0.0f);
     // The lookup comes first: its loads overlap the weight's math.
-    const float P = std::min(table_->lookup(sigma_deg, c.theta_i, c.theta_o, c.dphi), 1.0f);
+    const float P = std::min(table_->lookup(at), 1.0f);
     Spectrum weight;
-    if (!glint::glint_weight(field_.distribution, field_.alpha, flakes_->mean(), wi, wo, weight))
+    if (!glint::glint_weight(field_.distribution, field_.alpha, field_.alpha, flakes_->mean(), wi, wo, h, weight))
       return Spectrum(0.0f);
     if (!(P > 0.0f)) return Spectrum(0.0f);
     return glint_or_filtered(wi, wo, P, weight, sigma_deg, density, parts);
@@ -313,7 +309,7 @@ class GlintClosure {
   // (2) or (3) once P and W are known.
   Spectrum glint_or_filtered(const Vec3 &wi, const Vec3 &wo, float P, const Spectrum &weight, float sigma_deg,
                              float density, Particles &parts) const {
-    const double area = parts.fp.area();
+    const double area = parts.area;
     const double expected = static_cast<double>(density) * area * P;
     if (expected > threshold_ || sigma_deg > field_.gamma_deg) return weight * (P / cone_solid_angle_);  // (3)
     if (flakes_->varies()) return coloured_flakes_f_cos(wi, wo, density, P, weight, parts);
@@ -328,24 +324,27 @@ class GlintClosure {
   }
 
   // f_cos at wo for eval and sample: the dark test first (no table read),
-  // else the lookup requested before `pdf` is computed, then the BRDF.
+  // else the lookup requested before `pdf(h)` is computed, then the BRDF;
+  // the half vector h of (wi, wo) computed once for the pdf and the weight.
   template <typename Pdf>
   Spectrum f_cos_and_pdf(const ShadingPoint &sp, const Vec3 &wo, float sigma_deg, Pdf &&pdf) const {
     const float density = sp.param_float(density_param_, field_.density);
     const TableCoords c = table_coords(sp.wi, wo);
+    const glint::HalfVector h = glint::reflection_half_vector(sp.wi, wo);
     Particles parts;  // default-initialised: value-initialising would zero the 1 KB node list
     parts.fp = glint::placed_footprint(field_, placement_, sp.ctx);
+    parts.area = parts.fp.area();
     if (anisotropic_) {
-      pdf();
+      pdf(h);
       return aniso_f_cos(sp.wi, wo, sigma_deg, density, parts);
     }
     if (provably_dark(sp.wi, wo, c, sigma_deg, density, parts)) {
-      pdf();
+      pdf(h);
       return Spectrum(0.0f);
     }
-    request_table(c, sigma_deg);
-    pdf();
-    return glint_f_cos(sp.wi, wo, c, sigma_deg, density, parts);
+    const TableLookup at = request_table(c, sigma_deg);
+    pdf(h);
+    return glint_f_cos(sp.wi, wo, at, h, sigma_deg, density, parts);
   }
 
   // Equation (2) with per-flake colours (tables/glint_flake_colour.h): the
@@ -363,15 +362,15 @@ class GlintClosure {
     if (!glint::glint_weight(field_.distribution, alpha_x_, alpha_y_, flakes.sum * inv_k, wi, wo, weight))
       return Spectrum(0.0f);
     return weight * static_cast<float>(static_cast<double>(k.count) /
-                                       (static_cast<double>(density) * parts.fp.area() * cone_solid_angle_));
+                                       (static_cast<double>(density) * parts.area * cone_solid_angle_));
   }
 
   LocalEval eval(const ShadingPoint &sp, const Vec3 &wo) const {
     const float sigma = lod_sigma_deg(sp.ctx);
     LocalEval e;
-    e.f_cos = f_cos_and_pdf(sp, wo, sigma, [&] {
+    e.f_cos = f_cos_and_pdf(sp, wo, sigma, [&](const glint::HalfVector &h) {
       const SamplingLobe w = sampling_lobe(sigma);
-      e.pdf = glint::smooth_lobe_pdf(field_.distribution, w.ax, w.ay, sp.wi, wo);
+      e.pdf = glint::smooth_lobe_pdf(field_.distribution, w.ax, w.ay, sp.wi, wo, h);
     });
     return e;
   }
@@ -381,8 +380,8 @@ class GlintClosure {
     const float sigma = lod_sigma_deg(sp.ctx);
     const SamplingLobe w = sampling_lobe(sigma);
     if (!glint::sample_smooth_lobe(field_.distribution, w.ax, w.ay, wi, rand, out.wo)) return false;
-    out.f_cos = f_cos_and_pdf(sp, out.wo, sigma, [&] {
-      out.pdf = glint::smooth_lobe_pdf(field_.distribution, w.ax, w.ay, wi, out.wo);
+    out.f_cos = f_cos_and_pdf(sp, out.wo, sigma, [&](const glint::HalfVector &h) {
+      out.pdf = glint::smooth_lobe_pdf(field_.distribution, w.ax, w.ay, wi, out.wo, h);
     });
     // alpha units, as the conductor reports (sqrt(ax ay) when anisotropic)
     out.roughness = anisotropic_ ? std::sqrt(w.ax * w.ay) : w.ax;
@@ -400,6 +399,7 @@ class GlintClosure {
   std::shared_ptr<const glint::DirectionalTable> table_;
   glint::DirectionalPeakTable peak_;  // bounds of table_'s lookups in glint mode (the dark test)
   float cone_solid_angle_ = 1.0f;
+  float sampling_alpha_unblurred_ = 0.16f;  // sampling_alpha(0), set with the base roughness
   uint32_t density_param_ = 0;
   glint::Placement placement_ = glint::Placement::UV;
   std::unique_ptr<const glint::FlakePalette> flakes_;  // per-flake F0 (car paint); mean() = color when off

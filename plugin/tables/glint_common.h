@@ -8,16 +8,67 @@
 #include <cstddef>
 #include <cstdint>
 
+#include <emmintrin.h>
+
 #include "core/params.h"
 #include "glimmer/closure_abi.h"
 #include "glimmer/math.h"
 #include "glimmer/microfacet.h"
 #include "glimmer/sampling.h"
 #include "tables/glint_particles.h"
+#include "tables/glint_tables.h"
 
 namespace glimmer::plugin::glint {
 
 namespace mf = glimmer::microfacet;
+
+// ---- Table coordinates -------------------------------------------------------
+// acos in degrees, |error| < 0.004 degrees (Abramowitz & Stegun 4.4.45): far
+// below the 1-degree table bins, and 3x cheaper than std::acos. |x| > 1 and
+// NaN are read as |x| = 1 (a NaN x gives 180).
+inline float fast_acos_deg(float x) {
+  const float ax = std::fabs(x), a = ax < 1.0f ? ax : 1.0f;  // comparisons: std::fmin is a library call
+  const float r = std::sqrt(1.0f - a) * (1.5707288f + a * (-0.2121144f + a * (0.0742610f - 0.0187293f * a)));
+  return (x >= 0.0f ? r : kPi - r) * kRadToDeg;
+}
+
+// Table coordinates of (wi, wo) in degrees: polar angles and the folded
+// azimuth difference.
+struct TableCoords {
+  float theta_i, theta_o, dphi;
+};
+
+// cos of the azimuth difference of wi and wo (1 when either is along z).
+inline float cos_azimuth_difference(const Vec3 &wi, const Vec3 &wo) {
+  const float denom2 = (wi.x * wi.x + wi.y * wi.y) * (wo.x * wo.x + wo.y * wo.y);
+  return denom2 > 1e-24f ? (wi.x * wo.x + wi.y * wo.y) / std::sqrt(denom2) : 1.0f;
+}
+
+// The three fast_acos_deg in scalar code (the reference of table_coords).
+inline TableCoords table_coords_scalar(const Vec3 &wi, const Vec3 &wo) {
+  return {fast_acos_deg(wi.z), fast_acos_deg(wo.z), fast_acos_deg(cos_azimuth_difference(wi, wo))};
+}
+
+// The same three fast_acos_deg in the lanes of one SSE register: the same
+// float operations in the same order (no fused multiply-add in this build),
+// so the same bits as table_coords_scalar (tests/closures/test_glint.cpp,
+// GlintCoords.*), with one square root instead of three.
+inline TableCoords table_coords(const Vec3 &wi, const Vec3 &wo) {
+  const __m128 x = _mm_setr_ps(wi.z, wo.z, cos_azimuth_difference(wi, wo), 0.0f);
+  const __m128 one = _mm_set1_ps(1.0f);
+  const __m128 ax = _mm_andnot_ps(_mm_set1_ps(-0.0f), x);
+  const __m128 a = _mm_min_ps(ax, one);  // ax < 1 ? ax : 1, as the scalar select (NaN -> 1)
+  __m128 poly = _mm_sub_ps(_mm_set1_ps(0.0742610f), _mm_mul_ps(_mm_set1_ps(0.0187293f), a));
+  poly = _mm_add_ps(_mm_set1_ps(-0.2121144f), _mm_mul_ps(a, poly));
+  poly = _mm_add_ps(_mm_set1_ps(1.5707288f), _mm_mul_ps(a, poly));
+  const __m128 r = _mm_mul_ps(_mm_sqrt_ps(_mm_sub_ps(one, a)), poly);
+  const __m128 upper = _mm_cmpge_ps(x, _mm_setzero_ps());  // x >= 0 (false for NaN)
+  const __m128 folded = _mm_sub_ps(_mm_set1_ps(kPi), r);
+  const __m128 angle = _mm_or_ps(_mm_and_ps(upper, r), _mm_andnot_ps(upper, folded));
+  alignas(16) float deg[4];
+  _mm_store_ps(deg, _mm_mul_ps(angle, _mm_set1_ps(kRadToDeg)));
+  return {deg[0], deg[1], deg[2]};
+}
 
 // ---- The particle field ------------------------------------------------------
 // Both closures describe the same surface: N particles per unit of scaled uv
@@ -99,7 +150,8 @@ struct ParticleField {
   Footprint valid_footprint(Footprint f) const {
     const bool finite = std::isfinite(f.ax) && std::isfinite(f.ay) && std::isfinite(f.bx) && std::isfinite(f.by);
     if (!std::isfinite(f.cx) || !std::isfinite(f.cy)) f.cx = f.cy = 0.0;
-    if (!finite || !(f.area() > 1e-30) || !(f.area() < 1e30)) {
+    const double area = f.area();
+    if (!finite || !(area > 1e-30) || !(area < 1e30)) {
       const double side = 1.0 / std::sqrt(static_cast<double>(density));
       f.ax = side;
       f.ay = 0.0;
@@ -116,16 +168,32 @@ struct ParticleField {
 // either direction is below the surface.
 // Anisotropic base (alpha_x along the tangent, alpha_y along the bitangent);
 // the isotropic overload below passes alpha for both.
-inline bool glint_weight(mf::Distribution dist, float alpha_x, float alpha_y, const Spectrum &f0, const Vec3 &wi,
-                         const Vec3 &wo, Spectrum &weight) {
-  if (!(wi.z > 0.0f) || !(wo.z > 0.0f)) return false;
+// The reflection half vector of (wi, wo) (mf::half_vector_reflect), computed
+// once per eval for both the weight and the pdf.
+struct HalfVector {
   Vec3 h;
-  if (!mf::half_vector_reflect(wi, wo, h)) return false;
+  bool valid;
+};
+inline HalfVector reflection_half_vector(const Vec3 &wi, const Vec3 &wo) {
+  HalfVector r;
+  r.valid = mf::half_vector_reflect(wi, wo, r.h);
+  return r;
+}
+
+inline bool glint_weight(mf::Distribution dist, float alpha_x, float alpha_y, const Spectrum &f0, const Vec3 &wi,
+                         const Vec3 &wo, const HalfVector &half, Spectrum &weight) {
+  if (!(wi.z > 0.0f) || !(wo.z > 0.0f)) return false;
+  if (!half.valid) return false;
+  const Vec3 &h = half.h;
   const float wi_h = dot(wi, h);
   if (!(wi_h > 0.0f) || !(h.z > 0.0f)) return false;
   const float g2 = mf::G2(dist, wi, wo, alpha_x, alpha_y);
   weight = mf::fresnel_schlick(wi_h, f0) * (g2 * wi_h / (wi.z * h.z));
   return true;
+}
+inline bool glint_weight(mf::Distribution dist, float alpha_x, float alpha_y, const Spectrum &f0, const Vec3 &wi,
+                         const Vec3 &wo, Spectrum &weight) {
+  return glint_weight(dist, alpha_x, alpha_y, f0, wi, wo, reflection_half_vector(wi, wo), weight);
 }
 inline bool glint_weight(mf::Distribution dist, float alpha, const Spectrum &f0, const Vec3 &wi, const Vec3 &wo,
                          Spectrum &weight) {
@@ -137,15 +205,18 @@ inline bool glint_weight(mf::Distribution dist, float alpha, const Spectrum &f0,
 inline constexpr float kCosineMixture = 0.1f;
 
 // Anisotropic lobe (alpha_wx, alpha_wy); the isotropic overloads pass alpha_w for both.
-inline float smooth_lobe_pdf(mf::Distribution dist, float alpha_wx, float alpha_wy, const Vec3 &wi, const Vec3 &wo) {
+inline float smooth_lobe_pdf(mf::Distribution dist, float alpha_wx, float alpha_wy, const Vec3 &wi, const Vec3 &wo,
+                             const HalfVector &half) {
   if (!(wi.z > 0.0f) || !(wo.z > 0.0f)) return 0.0f;
   float pdf = kCosineMixture * wo.z * kInvPi;
-  Vec3 h;
-  if (mf::half_vector_reflect(wi, wo, h) && dot(wi, h) > 0.0f) {
-    const float vndf = mf::visible_D(dist, wi, h, alpha_wx, alpha_wy);
-    pdf += (1.0f - kCosineMixture) * vndf / (4.0f * dot(wo, h));
+  if (half.valid && dot(wi, half.h) > 0.0f) {
+    const float vndf = mf::visible_D(dist, wi, half.h, alpha_wx, alpha_wy);
+    pdf += (1.0f - kCosineMixture) * vndf / (4.0f * dot(wo, half.h));
   }
   return pdf;
+}
+inline float smooth_lobe_pdf(mf::Distribution dist, float alpha_wx, float alpha_wy, const Vec3 &wi, const Vec3 &wo) {
+  return smooth_lobe_pdf(dist, alpha_wx, alpha_wy, wi, wo, reflection_half_vector(wi, wo));
 }
 
 inline float smooth_lobe_pdf(mf::Distribution dist, float alpha_w, const Vec3 &wi, const Vec3 &wo) {

@@ -22,7 +22,10 @@
 #pragma once
 
 #include <algorithm>
+#include <cstdint>
 #include <vector>
+
+#include <emmintrin.h>
 
 #include "tables/glint_tables.h"
 
@@ -49,7 +52,22 @@ class DirectionalPeakTable {
 
   // >= DirectionalTable::lookup(sigma, theta_i, theta_o, dphi) for every sigma
   // <= max_sigma_deg of the constructor (angles in degrees, as lookup takes them).
+  // The three block_of in SSE lanes (the same comparisons, product and
+  // truncation, so the same blocks; GlintParticles.PeakTable* tests).
   float bound(float theta_i_deg, float theta_o_deg, float dphi_deg) const {
+    const __m128 x = _mm_setr_ps(theta_i_deg, theta_o_deg, dphi_deg, 0.0f);
+    const __m128 clamped = _mm_and_ps(_mm_cmpgt_ps(x, _mm_setzero_ps()),  // clamp_deg: x > 0 ? min : 0 (NaN: 0)
+                                      _mm_min_ps(x, _mm_setr_ps(90.0f, 90.0f, 180.0f, 0.0f)));
+    const __m128i b = _mm_cvttps_epi32(_mm_mul_ps(clamped, _mm_set1_ps(kInvBlockDeg)));
+    const __m128i last = _mm_setr_epi32(n_[0] - 1, n_[1] - 1, n_[2] - 1, 0);
+    const __m128i over = _mm_cmpgt_epi32(b, last);
+    const __m128i block = _mm_or_si128(_mm_and_si128(over, last), _mm_andnot_si128(over, b));  // min(b, last)
+    alignas(16) int32_t blk[4];
+    _mm_store_si128(reinterpret_cast<__m128i *>(blk), block);
+    return peak_[(static_cast<size_t>(blk[0]) * n_[1] + blk[1]) * n_[2] + blk[2]];
+  }
+  // The scalar form of bound() (the reference of its test).
+  float bound_scalar(float theta_i_deg, float theta_o_deg, float dphi_deg) const {
     const int bi = block_of(theta_i_deg, 90.0f, n_[0]);
     const int bo = block_of(theta_o_deg, 90.0f, n_[1]);
     const int bp = block_of(dphi_deg, 180.0f, n_[2]);

@@ -115,7 +115,10 @@ struct LodLevel {
 
   // Trilinear lookup.
   float lookup(float theta_i_deg, float theta_o_deg, float dphi_deg) const {
-    const Cell c = cell(theta_i_deg, theta_o_deg, dphi_deg);
+    return lookup(cell(theta_i_deg, theta_o_deg, dphi_deg));
+  }
+  // The same at a cell located by cell() (the eval locates it once for prefetch and lookup).
+  float lookup(const Cell &c) const {
     const size_t si = theta_i_stride(), so = theta_o_stride();
     auto lerp_phi = [&](const float *p) { return p[0] + (p[1] - p[0]) * c.tp; };
     const float a = lerp_phi(c.base) + (lerp_phi(c.base + so) - lerp_phi(c.base)) * c.to;
@@ -125,7 +128,9 @@ struct LodLevel {
 
   // Starts loading the cache lines of a lookup (a hint; no value read).
   void prefetch(float theta_i_deg, float theta_o_deg, float dphi_deg) const {
-    const Cell c = cell(theta_i_deg, theta_o_deg, dphi_deg);
+    prefetch(cell(theta_i_deg, theta_o_deg, dphi_deg));
+  }
+  void prefetch(const Cell &c) const {
     const size_t si = theta_i_stride(), so = theta_o_stride();
     for (const size_t offset : {size_t{0}, so, si, si + so}) __builtin_prefetch(c.base + offset);
   }
@@ -157,18 +162,36 @@ class DirectionalTable {
 
   // P at LOD blur sigma: linear between the two levels bracketing sigma.
   float lookup(float sigma_deg, float theta_i_deg, float theta_o_deg, float dphi_deg) const {
-    const LevelPair lp = levels_at(sigma_deg);
-    const float a = levels[lp.first].lookup(theta_i_deg, theta_o_deg, dphi_deg);
-    if (!(lp.t > 0.0f)) return a;
-    const float b = levels[lp.first + 1].lookup(theta_i_deg, theta_o_deg, dphi_deg);
-    return a + (b - a) * lp.t;
+    return lookup(locate(sigma_deg, theta_i_deg, theta_o_deg, dphi_deg));
   }
 
   // Starts loading what lookup() will read (see LodLevel::prefetch).
   void prefetch(float sigma_deg, float theta_i_deg, float theta_o_deg, float dphi_deg) const {
-    const LevelPair lp = levels_at(sigma_deg);
-    levels[lp.first].prefetch(theta_i_deg, theta_o_deg, dphi_deg);
-    if (lp.t > 0.0f) levels[lp.first + 1].prefetch(theta_i_deg, theta_o_deg, dphi_deg);
+    prefetch(locate(sigma_deg, theta_i_deg, theta_o_deg, dphi_deg));
+  }
+
+  // A lookup located once (levels and cells), then prefetched and read:
+  // the same arithmetic as lookup(sigma, ...) above, without locating twice.
+  struct Located {
+    LevelPair lp;
+    LodLevel::Cell first{}, second{};  // second: only when lp.t > 0
+  };
+  Located locate(float sigma_deg, float theta_i_deg, float theta_o_deg, float dphi_deg) const {
+    Located at;
+    at.lp = levels_at(sigma_deg);
+    at.first = levels[at.lp.first].cell(theta_i_deg, theta_o_deg, dphi_deg);
+    if (at.lp.t > 0.0f) at.second = levels[at.lp.first + 1].cell(theta_i_deg, theta_o_deg, dphi_deg);
+    return at;
+  }
+  void prefetch(const Located &at) const {
+    levels[at.lp.first].prefetch(at.first);
+    if (at.lp.t > 0.0f) levels[at.lp.first + 1].prefetch(at.second);
+  }
+  float lookup(const Located &at) const {
+    const float a = levels[at.lp.first].lookup(at.first);
+    if (!(at.lp.t > 0.0f)) return a;
+    const float b = levels[at.lp.first + 1].lookup(at.second);
+    return a + (b - a) * at.lp.t;
   }
 
   size_t byte_size() const;
