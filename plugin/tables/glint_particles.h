@@ -576,10 +576,15 @@ struct GroupReject {
       : all_pass(maybe_lit_below > 0xffffffffu), below(static_cast<uint32_t>(std::min<uint64_t>(maybe_lit_below, 0xffffffffu))) {}
 };
 
-// The four groups' node_seed_hash in the lanes of one SSE2 register, and
-// their quick rejects as one 4-bit mask (bit g: hash g < below). Without SSE2
-// the scalar loop, same values.
-inline uint32_t group_hashes_scalar(uint32_t key, const uint32_t *seeds, const GroupReject &reject, uint32_t *out) {
+// The four groups' node_seed_hash and their quick rejects as one 4-bit mask
+// (bit g: hash g < below). group_hashes (the walk's): four independent scalar
+// hashes; group_hashes_sse2: the four groups in the lanes of one SSE2
+// register, the same values (GlintParticles.GroupHashLanesMatchTheScalarHash),
+// but 1..7 % slower per eval in the walk on this project's machine (SSE2 has
+// no 32-bit lane multiply: two pmuludq and shuffles per multiply, a longer
+// dependency chain before the mask's branch; docs/glints.md "Session 8").
+// Kept for a build with SSE4.1 / AVX2 lanes.
+inline uint32_t group_hashes(uint32_t key, const uint32_t *seeds, const GroupReject &reject, uint32_t *out) {
   uint32_t mask = 0;
   for (int g = 0; g < kDirectionGroups; ++g) {
     out[g] = node_seed_hash(key, seeds[g]);
@@ -587,7 +592,7 @@ inline uint32_t group_hashes_scalar(uint32_t key, const uint32_t *seeds, const G
   }
   return mask;
 }
-inline uint32_t group_hashes(uint32_t key, const uint32_t *seeds, const GroupReject &reject, uint32_t *out) {
+inline uint32_t group_hashes_sse2(uint32_t key, const uint32_t *seeds, const GroupReject &reject, uint32_t *out) {
 #if defined(__SSE2__)
   static_assert(kDirectionGroups == 4);
   const __m128i h = mix_u32x4(
@@ -599,32 +604,20 @@ inline uint32_t group_hashes(uint32_t key, const uint32_t *seeds, const GroupRej
                                      _mm_xor_si128(_mm_set1_epi32(static_cast<int>(reject.below)), bias));
   return static_cast<uint32_t>(_mm_movemask_ps(_mm_castsi128_ps(lt)));
 #else
-  return group_hashes_scalar(key, seeds, reject, out);
+  return group_hashes(key, seeds, reject, out);
 #endif
 }
 
-// Positions (u_x, u_y in [0, 1)) of the lit particles k and k + 1 of the node
-// whose hash in the direction cell is h0: lanes mix_u32(h0 ^ C + (2 k + 1 + m) W),
-// m = 0..3, one 4-lane hash for two particles (issue 10, eighth speed
-// session; before, a position seed hash_u32(h0 ^ C) per node and two PCG
-// hashes per particle). Without SSE2 the scalar form, same values.
+// Position (u_x, u_y in [0, 1)) of lit particle k of the node whose hash in
+// the direction cell is h0: mix_u32 of (h0 ^ C) + (2 k + 1) W and of that
+// + W (issue 10, eighth speed session; before, a position-seed hash
+// hash_u32(h0 ^ C) per node and two PCG hashes per particle). Two particles
+// per 4-lane SSE2 hash gave the same values but was slower in the walk
+// (an extra loop and its mispredicted branches; docs/glints.md "Session 8").
 inline constexpr uint32_t kPositionKey = 0x27d4eb2fu;
-inline void particle_positions_scalar(uint32_t h0, uint32_t k, std::array<float, 4> &out) {
-  const uint32_t base = (h0 ^ kPositionKey) + (2u * k + 1u) * kNodeKeyStep;
-  for (uint32_t m = 0; m < 4; ++m) out[m] = uint_to_unit_float(mix_u32(base + m * kNodeKeyStep));
-}
-inline void particle_positions(uint32_t h0, uint32_t k, std::array<float, 4> &out) {
-#if defined(__SSE2__)
-  const uint32_t base = (h0 ^ kPositionKey) + (2u * k + 1u) * kNodeKeyStep;
-  const __m128i in = _mm_add_epi32(_mm_set1_epi32(static_cast<int>(base)),
-                                   _mm_setr_epi32(0, static_cast<int>(kNodeKeyStep), static_cast<int>(2u * kNodeKeyStep),
-                                                  static_cast<int>(3u * kNodeKeyStep)));
-  // uint_to_unit_float: the top 24 bits, exactly representable, times 2^-24
-  const __m128 u = _mm_mul_ps(_mm_cvtepi32_ps(_mm_srli_epi32(mix_u32x4(in), 8)), _mm_set1_ps(1.0f / 16777216.0f));
-  _mm_storeu_ps(out.data(), u);
-#else
-  particle_positions_scalar(h0, k, out);
-#endif
+inline std::array<float, 2> particle_position(uint32_t h0, uint32_t k) {
+  const uint32_t key = (h0 ^ kPositionKey) + (2u * k + 1u) * kNodeKeyStep;
+  return {uint_to_unit_float(mix_u32(key)), uint_to_unit_float(mix_u32(key + kNodeKeyStep))};
 }
 
 // Counts the reflecting particles of a footprint over the given cell seeds
@@ -632,7 +625,7 @@ inline void particle_positions(uint32_t h0, uint32_t k, std::array<float, 4> &ou
 // LitCountModel). Per node and seed: one hash, the uniform u of K; a node
 // with K = 0 (most of them) stops at an integer compare. A lit node
 // inside the footprint adds K without positions (closed form); a lit node on
-// the border draws the positions of its K lit particles (particle_positions) and
+// the border draws the positions of its K lit particles (particle_position) and
 // counts those inside the parallelogram.
 // Per-particle visitor of the count (default: none). A visitor with
 // kVisitsParticles is called as visit(h0, k) for every counted particle, k
@@ -704,16 +697,12 @@ inline GlintCount count_reflecting_particles(const Footprint &f, const NodeList 
           for (int64_t k = 0; k < K; ++k) visit(h0, static_cast<uint32_t>(k));
         continue;
       }
-      for (int64_t k = 0; k < K; k += 2) {  // two particles' positions per 4-lane hash
-        std::array<float, 4> pos;
-        particle_positions(h0, static_cast<uint32_t>(k), pos);
-        for (int64_t m = k; m < std::min<int64_t>(k + 2, K); ++m) {
-          const size_t at = static_cast<size_t>(2 * (m - k));
-          const bool counted = frame.particle_inside(origin, pos[at], pos[at + 1]);
-          result.count += counted ? 1 : 0;
-          if constexpr (std::decay_t<Visitor>::kVisitsParticles)
-            if (counted) visit(h0, static_cast<uint32_t>(m));
-        }
+      for (int64_t k = 0; k < K; ++k) {
+        const auto [ux, uy] = particle_position(h0, static_cast<uint32_t>(k));
+        const bool counted = frame.particle_inside(origin, ux, uy);
+        result.count += counted ? 1 : 0;
+        if constexpr (std::decay_t<Visitor>::kVisitsParticles)
+          if (counted) visit(h0, static_cast<uint32_t>(k));
       }
     }
   }

@@ -271,8 +271,8 @@ TEST(GlintParticles, GroupHashLanesMatchTheScalarHash) {
     const uint64_t below = n % 3 == 0 ? edge[static_cast<size_t>(n / 3) % edge.size()] : rng.next_u32();
     const pg::GroupReject reject(below);
     std::array<uint32_t, pg::kDirectionGroups> lanes, scalar;
-    const uint32_t mask = pg::group_hashes(key, seeds.data(), reject, lanes.data());
-    ASSERT_EQ(mask, pg::group_hashes_scalar(key, seeds.data(), reject, scalar.data())) << "key " << key;
+    const uint32_t mask = pg::group_hashes_sse2(key, seeds.data(), reject, lanes.data());
+    ASSERT_EQ(mask, pg::group_hashes(key, seeds.data(), reject, scalar.data())) << "key " << key;
     for (int g = 0; g < pg::kDirectionGroups; ++g) {
       ASSERT_EQ(lanes[g], scalar[g]) << "key " << key << " group " << g;
       ASSERT_EQ(scalar[g], pg::node_seed_hash(key, seeds[g]));
@@ -387,13 +387,12 @@ TEST(GlintParticles, NodeHashesAlongARowAreIndependent) {
   EXPECT_GT(std::fabs(control), 0.2);
 }
 
-// Lit particles' positions, two particles per 4-lane hash (issue 10, eighth
-// speed session): the lanes equal the scalar form; over 2^18 nodes x 8
-// particles the positions pass a 16 x 16-bin chi-square and the correlations
-// of u_x with u_y, and of a particle's u_x with the next particle's u_x, are
-// within 5 standard errors of 0. Negative control: the unmixed lane inputs
-// as positions fail the chi-square.
-TEST(GlintParticles, ParticlePositionsAreUniformAndMatchTheScalarForm) {
+// Lit particles' positions (particle_position, issue 10, eighth speed
+// session): over 2^18 nodes x 8 particles the positions pass a 16 x 16-bin
+// chi-square and the correlations of u_x with u_y, and of a particle's u_x
+// with the next particle's u_x, are within 5 standard errors of 0. Negative
+// control: the unmixed hash inputs as positions fail the chi-square.
+TEST(GlintParticles, ParticlePositionsAreUniform) {
   Pcg32 rng(37);
   constexpr int kNodes = 1 << 18, kPerNode = 8, kBins = 16;
   std::vector<double> bins(kBins * kBins, 0.0), control(kBins * kBins, 0.0);
@@ -403,10 +402,11 @@ TEST(GlintParticles, ParticlePositionsAreUniformAndMatchTheScalarForm) {
     const uint32_t h0 = rng.next_u32();
     float prev_x = -1.0f;
     for (uint32_t k = 0; k < kPerNode; k += 2) {
-      std::array<float, 4> lanes, scalar;
-      pg::particle_positions(h0, k, lanes);
-      pg::particle_positions_scalar(h0, k, scalar);
-      for (int m = 0; m < 4; ++m) ASSERT_EQ(lanes[m], scalar[m]) << "h0 " << h0 << " k " << k;
+      std::array<float, 4> lanes;
+      for (uint32_t m = 0; m < 2; ++m) {
+        const auto [ux, uy] = pg::particle_position(h0, k + m);
+        lanes[2 * m] = ux, lanes[2 * m + 1] = uy;
+      }
       for (int m = 0; m < 4; m += 2) {
         const double x = lanes[m], y = lanes[m + 1];
         bins[static_cast<size_t>(static_cast<int>(x * kBins) * kBins + static_cast<int>(y * kBins))] += 1.0;
