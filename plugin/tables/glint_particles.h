@@ -104,24 +104,83 @@ inline int binary_exponent(double x) { return static_cast<int>((std::bit_cast<ui
 // 2^e for |e| <= 1022 (std::ldexp(1.0, e)).
 inline double power_of_two(int e) { return std::bit_cast<double>(static_cast<uint64_t>(1023 + e) << 52); }
 
-// The nodes a footprint is counted over (at most kMaxNodes), each with the
-// hash of its id (level, i, j), computed once when it is added, so the dark
-// test's count and the count at P (glint.cpp) hash a node once.
+// A multiply-xorshift integer hash without a data-dependent shift
+// ("lowbias32", C. Wellons 2018: two multiplies, three xorshifts; a bijection
+// of 32-bit words), so the four direction groups of a node hash in the 32-bit
+// lanes of one SSE2 register (group_hashes) with the same values as this
+// scalar form (issue 10, eighth speed session; the groups used hash_combine,
+// PCG's hash, whose per-lane variable shift has no SSE2 form).
+constexpr uint32_t mix_u32(uint32_t x) {
+  x ^= x >> 16;
+  x *= 0x7feb352du;
+  x ^= x >> 15;
+  x *= 0x846ca68bu;
+  x ^= x >> 16;
+  return x;
+}
+
+#if defined(__SSE2__)
+inline __m128i mullo_u32x4(__m128i a, uint32_t c) {  // a * c per 32-bit lane (SSE2 has no pmulld)
+  const __m128i k = _mm_set1_epi32(static_cast<int>(c));
+  const __m128i even = _mm_mul_epu32(a, k);                         // lanes 0, 2 (64-bit products)
+  const __m128i odd = _mm_mul_epu32(_mm_srli_epi64(a, 32), k);      // lanes 1, 3
+  return _mm_unpacklo_epi32(_mm_shuffle_epi32(even, _MM_SHUFFLE(0, 0, 2, 0)),
+                            _mm_shuffle_epi32(odd, _MM_SHUFFLE(0, 0, 2, 0)));
+}
+inline __m128i mix_u32x4(__m128i x) {
+  x = _mm_xor_si128(x, _mm_srli_epi32(x, 16));
+  x = mullo_u32x4(x, 0x7feb352du);
+  x = _mm_xor_si128(x, _mm_srli_epi32(x, 15));
+  x = mullo_u32x4(x, 0x846ca68bu);
+  return _mm_xor_si128(x, _mm_srli_epi32(x, 16));
+}
+#endif
+
+// Node keys. The key of node (level, i, j) is row_key(level, j) + i W (W the
+// golden-ratio Weyl step): one pair of hashes per row of a footprint instead
+// of three hashes per node (issue 10, eighth speed session). A key is not
+// itself random along a row; every use of it goes through mix_u32 of the key
+// xor a direction cell's seed (group_hashes), which decorrelates
+// neighbouring nodes (GlintParticles.NodeHashesAlongARowAreIndependent).
+inline constexpr uint32_t kNodeKeyStep = 0x9e3779b9u;
+inline uint32_t node_row_key(int level, int64_t j) {
+  return hash_combine(hash_u32(static_cast<uint32_t>(j) ^ 0x5851f42du), static_cast<uint32_t>(level));
+}
+inline uint32_t node_key(int level, int64_t i, int64_t j) {
+  return node_row_key(level, j) + static_cast<uint32_t>(i) * kNodeKeyStep;
+}
+
+// The nodes a footprint is counted over (at most kMaxNodes), each with its
+// key (node_key), computed once when it is added, so the dark test's count
+// and the count at P (glint.cpp) key a node once; the row key is kept from
+// the previous add of the same row.
 inline constexpr int kMaxNodes = 64;
 struct NodeList {
   int level = 0;  // set before add()
   double size = 1.0;  // node side s = 2^-level
   int count = 0;
   std::array<int64_t, kMaxNodes> i, j;  // first `count` entries valid (not zeroed: 1 KB per eval)
-  std::array<uint32_t, kMaxNodes> id_hash;  // hash_u32x3(i, j, level) of the first `count` nodes
+  std::array<uint32_t, kMaxNodes> id_hash;  // node_key(level, i, j) of the first `count` nodes
   bool add(int64_t ni, int64_t nj) {
     if (count == kMaxNodes) return false;
     i[count] = ni;
     j[count] = nj;
-    id_hash[count] = hash_u32x3(static_cast<uint32_t>(ni), static_cast<uint32_t>(nj), static_cast<uint32_t>(level));
+    if (!(row_valid_ && nj == row_j_ && level == row_level_)) {
+      row_key_ = node_row_key(level, nj);
+      row_j_ = nj;
+      row_level_ = level;
+      row_valid_ = true;
+    }
+    id_hash[count] = row_key_ + static_cast<uint32_t>(ni) * kNodeKeyStep;
     ++count;
     return true;
   }
+
+ private:
+  bool row_valid_ = false;
+  int row_level_ = 0;
+  int64_t row_j_ = 0;
+  uint32_t row_key_ = 0;
 };
 
 // Nodes of the particle level hold kNodeParticles / 4 .. kNodeParticles
@@ -273,9 +332,8 @@ inline constexpr std::array<std::array<float, 2>, kDirectionGroups> kGroupShift 
     {{0.0f, 0.0f}, {0.5f, 0.25f}, {0.25f, 0.75f}, {0.75f, 0.5f}}};
 
 // The part of the cell seeds that depends on the material only: the seed of
-// group g's cell (cx, cy) is hash_u32x4(seed, g, cx, cy), i.e.
-// hash_combine(hash_combine(key[g], cx), cy) with key[g] = hash_u32x2(seed, g),
-// hashed once per material instead of once per eval (same seeds).
+// group g's cell (cx, cy) is cell_seed(key[g], cx, cy) with
+// key[g] = hash_u32x2(seed, g), hashed once per material instead of once per eval.
 struct DirectionCellKeys {
   std::array<uint32_t, kDirectionGroups> group{};
   float gamma_rad = 0.0f;          // the cone of cell_scale (0: none given)
@@ -318,6 +376,30 @@ inline void floor_cells(float x, float y, std::array<int32_t, kDirectionGroups> 
 #endif
 }
 
+// Seed of group g's direction cell (cx, cy): mix_u32(mix_u32(key + cx W) ^ cy),
+// key the group's material key; the four groups in SSE2 lanes, the scalar
+// form without SSE2, same values (issue 10, eighth speed session; before,
+// hash_combine(hash_combine(key, cx), cy), eight PCG hashes per eval).
+inline uint32_t cell_seed(uint32_t key, int32_t cx, int32_t cy) {
+  return mix_u32(mix_u32(key + static_cast<uint32_t>(cx) * kNodeKeyStep) ^ static_cast<uint32_t>(cy));
+}
+inline void cell_seeds_scalar(const uint32_t *keys, const std::array<int32_t, kDirectionGroups> &cx,
+                              const std::array<int32_t, kDirectionGroups> &cy,
+                              std::array<uint32_t, kDirectionGroups> &seeds) {
+  for (int g = 0; g < kDirectionGroups; ++g) seeds[g] = cell_seed(keys[g], cx[g], cy[g]);
+}
+inline void cell_seeds(const uint32_t *keys, const std::array<int32_t, kDirectionGroups> &cx,
+                       const std::array<int32_t, kDirectionGroups> &cy, std::array<uint32_t, kDirectionGroups> &seeds) {
+#if defined(__SSE2__)
+  const __m128i k = _mm_loadu_si128(reinterpret_cast<const __m128i *>(keys));
+  const __m128i x = mullo_u32x4(_mm_loadu_si128(reinterpret_cast<const __m128i *>(cx.data())), kNodeKeyStep);
+  const __m128i y = _mm_loadu_si128(reinterpret_cast<const __m128i *>(cy.data()));
+  _mm_storeu_si128(reinterpret_cast<__m128i *>(seeds.data()), mix_u32x4(_mm_xor_si128(mix_u32x4(_mm_add_epi32(k, x)), y)));
+#else
+  cell_seeds_scalar(keys, cx, cy, seeds);
+#endif
+}
+
 // Seed of the particle field of each group's direction cell at (wi, wo);
 // false when there is no half vector above the surface.
 inline bool direction_cell_seeds(const DirectionCellKeys &keys, const Vec3 &wi, const Vec3 &wo, float gamma_rad,
@@ -350,8 +432,7 @@ inline bool direction_cell_seeds(const DirectionCellKeys &keys, const Vec3 &wi, 
   const float inv_cell = keys.inv_cell(gamma_rad);
   std::array<int32_t, kDirectionGroups> cx, cy;
   floor_cells(px * inv_cell, py * inv_cell, cx, cy);
-  for (int g = 0; g < kDirectionGroups; ++g)
-    seeds[g] = hash_combine(hash_combine(keys.group[g], static_cast<uint32_t>(cx[g])), static_cast<uint32_t>(cy[g]));
+  cell_seeds(keys.group.data(), cx, cy, seeds);
   return true;
 }
 
@@ -480,12 +561,71 @@ struct FootprintFrame {
   }
 };
 
+// The uniform of node x direction cell: mix_u32(node key ^ cell seed). Its
+// 32 bits give the node's lit count (u = (hash + 1/2) 2^-32) and seed its lit
+// particles' positions. Until issue 10's eighth speed session
+// hash_combine(node hash, seed ^ 0x3c6ef372) of a hashed node id.
+inline uint32_t node_seed_hash(uint32_t node_key_value, uint32_t seed) { return mix_u32(node_key_value ^ seed); }
+
+// The quick reject of a (node, cell) pair, hash < below (below up to 2^32 + 1;
+// at or above 2^32 every hash passes), in the form the SIMD compare uses.
+struct GroupReject {
+  bool all_pass;
+  uint32_t below;  // valid when !all_pass
+  explicit GroupReject(uint64_t maybe_lit_below)
+      : all_pass(maybe_lit_below > 0xffffffffu), below(static_cast<uint32_t>(std::min<uint64_t>(maybe_lit_below, 0xffffffffu))) {}
+};
+
+// The four groups' node_seed_hash and their quick rejects as one 4-bit mask
+// (bit g: hash g < below). group_hashes (the walk's): four independent scalar
+// hashes; group_hashes_sse2: the four groups in the lanes of one SSE2
+// register, the same values (GlintParticles.GroupHashLanesMatchTheScalarHash),
+// but 1..7 % slower per eval in the walk on this project's machine (SSE2 has
+// no 32-bit lane multiply: two pmuludq and shuffles per multiply, a longer
+// dependency chain before the mask's branch; docs/glints.md "Session 8").
+// Kept for a build with SSE4.1 / AVX2 lanes.
+inline uint32_t group_hashes(uint32_t key, const uint32_t *seeds, const GroupReject &reject, uint32_t *out) {
+  uint32_t mask = 0;
+  for (int g = 0; g < kDirectionGroups; ++g) {
+    out[g] = node_seed_hash(key, seeds[g]);
+    mask |= static_cast<uint32_t>(reject.all_pass || out[g] < reject.below) << g;
+  }
+  return mask;
+}
+inline uint32_t group_hashes_sse2(uint32_t key, const uint32_t *seeds, const GroupReject &reject, uint32_t *out) {
+#if defined(__SSE2__)
+  static_assert(kDirectionGroups == 4);
+  const __m128i h = mix_u32x4(
+      _mm_xor_si128(_mm_set1_epi32(static_cast<int>(key)), _mm_loadu_si128(reinterpret_cast<const __m128i *>(seeds))));
+  _mm_storeu_si128(reinterpret_cast<__m128i *>(out), h);
+  if (reject.all_pass) return 0xfu;
+  const __m128i bias = _mm_set1_epi32(static_cast<int>(0x80000000u));  // unsigned compare as signed
+  const __m128i lt = _mm_cmplt_epi32(_mm_xor_si128(h, bias),
+                                     _mm_xor_si128(_mm_set1_epi32(static_cast<int>(reject.below)), bias));
+  return static_cast<uint32_t>(_mm_movemask_ps(_mm_castsi128_ps(lt)));
+#else
+  return group_hashes(key, seeds, reject, out);
+#endif
+}
+
+// Position (u_x, u_y in [0, 1)) of lit particle k of the node whose hash in
+// the direction cell is h0: mix_u32 of (h0 ^ C) + (2 k + 1) W and of that
+// + W (issue 10, eighth speed session; before, a position-seed hash
+// hash_u32(h0 ^ C) per node and two PCG hashes per particle). Two particles
+// per 4-lane SSE2 hash gave the same values but was slower in the walk
+// (an extra loop and its mispredicted branches; docs/glints.md "Session 8").
+inline constexpr uint32_t kPositionKey = 0x27d4eb2fu;
+inline std::array<float, 2> particle_position(uint32_t h0, uint32_t k) {
+  const uint32_t key = (h0 ^ kPositionKey) + (2u * k + 1u) * kNodeKeyStep;
+  return {uint_to_unit_float(mix_u32(key)), uint_to_unit_float(mix_u32(key + kNodeKeyStep))};
+}
+
 // Counts the reflecting particles of a footprint over the given cell seeds
 // (one particle field each, same density; see the header comment and
 // LitCountModel). Per node and seed: one hash, the uniform u of K; a node
 // with K = 0 (most of them) stops at an integer compare. A lit node
 // inside the footprint adds K without positions (closed form); a lit node on
-// the border draws the positions of its K lit particles (two hashes each) and
+// the border draws the positions of its K lit particles (particle_position) and
 // counts those inside the parallelogram.
 // Per-particle visitor of the count (default: none). A visitor with
 // kVisitsParticles is called as visit(h0, k) for every counted particle, k
@@ -510,6 +650,7 @@ inline GlintCount count_reflecting_particles(const Footprint &f, const NodeList 
   constexpr size_t kMaxSeeds = 32;
   if (seeds.size() > kMaxSeeds) return {0, 0, false};  // callers pass 1 or kDirectionGroups seeds
   const size_t n_seeds = seeds.size();
+  const GroupReject reject(maybe_lit_below);
   const LitCountBounds bounds(lambda);  // decides most nodes without the model's exp
   std::optional<LitCountModel> model;  // built at the first node the bounds leave undecided
   for (int node = 0; node < nodes.count; ++node) {
@@ -519,10 +660,15 @@ inline GlintCount count_reflecting_particles(const Footprint &f, const NodeList 
     // seed: whether a node is lit is random, so a branch per (node, seed)
     // was mispredicted about as often as it was lit.
     std::array<uint32_t, kMaxSeeds> hashes;
-    uint32_t maybe_lit = 0;  // bit g: seed g passes the quick reject
-    for (size_t g = 0; g < n_seeds; ++g) {
-      hashes[g] = hash_combine(node_hash, seeds[g] ^ 0x3c6ef372u);
-      maybe_lit |= static_cast<uint32_t>(hashes[g] < maybe_lit_below) << g;
+    uint32_t maybe_lit;  // bit g: seed g passes the quick reject
+    if (n_seeds == kDirectionGroups) {
+      maybe_lit = group_hashes(node_hash, seeds.data(), reject, hashes.data());
+    } else {
+      maybe_lit = 0;
+      for (size_t g = 0; g < n_seeds; ++g) {
+        hashes[g] = node_seed_hash(node_hash, seeds[g]);
+        maybe_lit |= static_cast<uint32_t>(hashes[g] < maybe_lit_below) << g;
+      }
     }
     if (maybe_lit == 0) continue;  // K = 0 for every seed
     int inside = -1;  // node inside the footprint: tested at its first lit group (-1 = not yet)
@@ -551,11 +697,8 @@ inline GlintCount count_reflecting_particles(const Footprint &f, const NodeList 
           for (int64_t k = 0; k < K; ++k) visit(h0, static_cast<uint32_t>(k));
         continue;
       }
-      const uint32_t position_seed = hash_u32(h0 ^ 0x27d4eb2fu);
       for (int64_t k = 0; k < K; ++k) {
-        const auto idx = static_cast<uint32_t>(2 * k + 1);
-        const float ux = uint_to_unit_float(hash_u32(position_seed + idx * 0x9e3779b9u));
-        const float uy = uint_to_unit_float(hash_u32(position_seed + (idx + 1u) * 0x9e3779b9u));
+        const auto [ux, uy] = particle_position(h0, static_cast<uint32_t>(k));
         const bool counted = frame.particle_inside(origin, ux, uy);
         result.count += counted ? 1 : 0;
         if constexpr (std::decay_t<Visitor>::kVisitsParticles)

@@ -291,6 +291,190 @@ TEST(GlintCoords, VectorTableCoordsMatchTheScalarFormula) {
   EXPECT_GT(control_differs, compared / 2);
 }
 
+// The four direction groups' node x cell hashes in SIMD lanes (issue 10,
+// eighth speed session): the same hashes and the same quick-reject mask as
+// the scalar mix_u32 loop, for random keys, seeds and thresholds and the
+// thresholds' edge values (0, 1, 2^31, 2^32 - 1, every hash passing).
+// Negative controls: a signed compare of the lanes (the classic SSE2 bug)
+// and a multiply that keeps the low 16 bits of the constant give other values.
+TEST(GlintParticles, GroupHashLanesMatchTheScalarHash) {
+  Pcg32 rng(29);
+  const std::vector<uint64_t> edge = {0u, 1u, 0x80000000u, 0xffffffffu, 0x100000000u, 0x100000001u};
+  int64_t compared = 0, signed_differs = 0, short_mul_differs = 0;
+  for (int n = 0; n < 400000; ++n) {
+    const uint32_t key = n < 64 ? (n < 32 ? static_cast<uint32_t>(n) : 0xffffffffu - static_cast<uint32_t>(n)) : rng.next_u32();
+    std::array<uint32_t, pg::kDirectionGroups> seeds;
+    for (auto &v : seeds) v = rng.next_u32();
+    if (n % 5 == 0) seeds[static_cast<size_t>(n / 5) % 4] = key;  // a zero lane input
+    const uint64_t below = n % 3 == 0 ? edge[static_cast<size_t>(n / 3) % edge.size()] : rng.next_u32();
+    const pg::GroupReject reject(below);
+    std::array<uint32_t, pg::kDirectionGroups> lanes, scalar;
+    const uint32_t mask = pg::group_hashes_sse2(key, seeds.data(), reject, lanes.data());
+    ASSERT_EQ(mask, pg::group_hashes(key, seeds.data(), reject, scalar.data())) << "key " << key;
+    for (int g = 0; g < pg::kDirectionGroups; ++g) {
+      ASSERT_EQ(lanes[g], scalar[g]) << "key " << key << " group " << g;
+      ASSERT_EQ(scalar[g], pg::node_seed_hash(key, seeds[g]));
+      ASSERT_EQ(((mask >> g) & 1u) != 0, static_cast<uint64_t>(scalar[g]) < below);
+      if (!reject.all_pass)
+        signed_differs += (static_cast<int32_t>(scalar[g]) < static_cast<int32_t>(reject.below)) != ((mask >> g) & 1u);
+      uint32_t x = key ^ seeds[g];  // mix_u32 with the constants cut to 16 bits
+      x ^= x >> 16, x *= 0x352du, x ^= x >> 15, x *= 0xa68bu, x ^= x >> 16;
+      short_mul_differs += x != scalar[g];
+      ++compared;
+    }
+  }
+  for (int n = 0; n < 100000; ++n) {  // the direction cells' seeds, lanes against the scalar form
+    std::array<uint32_t, pg::kDirectionGroups> keys, lanes, scalar;
+    std::array<int32_t, pg::kDirectionGroups> cx, cy;
+    for (int g = 0; g < pg::kDirectionGroups; ++g) {
+      keys[g] = rng.next_u32();
+      cx[g] = static_cast<int32_t>(rng.next_u32()) >> (rng.next_u32() % 32);
+      cy[g] = static_cast<int32_t>(rng.next_u32()) >> (rng.next_u32() % 32);
+    }
+    pg::cell_seeds(keys.data(), cx, cy, lanes);
+    pg::cell_seeds_scalar(keys.data(), cx, cy, scalar);
+    for (int g = 0; g < pg::kDirectionGroups; ++g) ASSERT_EQ(lanes[g], scalar[g]) << "cell seed, group " << g;
+  }
+  std::printf("[group hash] %lld lanes equal to the scalar hash; signed compare differs on %lld, 16-bit multiply "
+              "on %lld\n", static_cast<long long>(compared), static_cast<long long>(signed_differs),
+              static_cast<long long>(short_mul_differs));
+  EXPECT_GT(signed_differs, 10000);
+  EXPECT_GT(short_mul_differs, compared / 2);
+}
+
+// Node keys are a Weyl sequence along a row (node_key): the hashes that
+// decide the lit counts must still be independent between neighbouring nodes
+// of a row, of a column, and between the groups of a node. Over rows of
+// 4096 nodes: the hash's uniform passes a 64-bin chi-square, and the
+// correlations of u and of the lit indicator (u < 0.01) between row
+// neighbours, column neighbours and groups are within 5 standard errors of
+// 0. Negative control: the key itself as the uniform (no mix) is correlated
+// along the row (|r| ~ 0.4).
+TEST(GlintParticles, NodeHashesAlongARowAreIndependent) {
+  constexpr int kRows = 64, kCols = 4096;
+  Pcg32 rng(31);
+  std::array<uint32_t, pg::kDirectionGroups> seeds;
+  for (auto &v : seeds) v = rng.next_u32();
+  const int level = 9;
+  std::vector<std::array<uint32_t, pg::kDirectionGroups>> h(static_cast<size_t>(kRows) * kCols);
+  std::vector<uint32_t> keys(h.size());
+  const int64_t i0 = -1000, j0 = 12345;
+  for (int r = 0; r < kRows; ++r) {
+    pg::NodeList list;
+    list.level = level;
+    for (int c = 0; c < kCols; ++c) {
+      if (list.count == pg::kMaxNodes) list.count = 0;
+      list.add(i0 + c, j0 + r);
+      const uint32_t key = list.id_hash[static_cast<size_t>(list.count - 1)];
+      ASSERT_EQ(key, pg::node_key(level, i0 + c, j0 + r));
+      const size_t at = static_cast<size_t>(r) * kCols + static_cast<size_t>(c);
+      keys[at] = key;
+      pg::group_hashes(key, seeds.data(), pg::GroupReject(0u), h[at].data());
+    }
+  }
+  const auto unit = [](uint32_t v) { return (static_cast<double>(v) + 0.5) / 4294967296.0; };
+  // Pearson correlation of f(a) and f(b) over the pairs (a, b) given by `pair`.
+  const auto corr = [&](auto f, auto pair, int n) {
+    double sa = 0, sb = 0, saa = 0, sbb = 0, sab = 0;
+    for (int k = 0; k < n; ++k) {
+      const auto [a, b] = pair(k);
+      const double x = f(a), y = f(b);
+      sa += x, sb += y, saa += x * x, sbb += y * y, sab += x * y;
+    }
+    const double ma = sa / n, mb = sb / n;
+    return (sab / n - ma * mb) / std::sqrt((saa / n - ma * ma) * (sbb / n - mb * mb));
+  };
+  std::array<double, 64> bins{};
+  for (const auto &v : h)
+    for (const uint32_t x : v) bins[x >> 26] += 1.0;
+  const double expected = 4.0 * static_cast<double>(h.size()) / 64.0;
+  double chi2 = 0;
+  for (const double b : bins) chi2 += (b - expected) * (b - expected) / expected;
+  EXPECT_LT(chi2, 63.0 + 5.0 * std::sqrt(2.0 * 63.0)) << "64-bin chi-square of the node hashes";
+  const int n_row = kRows * (kCols - 1), n_col = (kRows - 1) * kCols, n_all = kRows * kCols;
+  const auto row_pair = [&](int g) {
+    return [&, g](int k) {
+      const size_t r = static_cast<size_t>(k / (kCols - 1)), c = static_cast<size_t>(k % (kCols - 1));
+      return std::pair<uint32_t, uint32_t>{h[r * kCols + c][g], h[r * kCols + c + 1][g]};
+    };
+  };
+  const auto col_pair = [&](int g) {
+    return [&, g](int k) { return std::pair<uint32_t, uint32_t>{h[static_cast<size_t>(k)][g], h[static_cast<size_t>(k) + kCols][g]}; };
+  };
+  const auto group_pair = [&](int g) {
+    return [&, g](int k) { return std::pair<uint32_t, uint32_t>{h[static_cast<size_t>(k)][g], h[static_cast<size_t>(k)][(g + 1) % 4]}; };
+  };
+  const auto u = [&](uint32_t v) { return unit(v); };
+  const auto lit = [&](uint32_t v) { return unit(v) < 0.01 ? 1.0 : 0.0; };
+  double worst = 0;
+  for (int g = 0; g < pg::kDirectionGroups; ++g) {
+    const double r[6] = {corr(u, row_pair(g), n_row) * std::sqrt(n_row), corr(lit, row_pair(g), n_row) * std::sqrt(n_row),
+                         corr(u, col_pair(g), n_col) * std::sqrt(n_col), corr(lit, col_pair(g), n_col) * std::sqrt(n_col),
+                         corr(u, group_pair(g), n_all) * std::sqrt(n_all), corr(lit, group_pair(g), n_all) * std::sqrt(n_all)};
+    for (int k = 0; k < 6; ++k) {
+      EXPECT_LT(std::fabs(r[k]), 5.0) << "group " << g << " statistic " << k << " (in standard errors)";
+      worst = std::max(worst, std::fabs(r[k]));
+    }
+  }
+  const double control = corr(u, [&](int k) {
+    const size_t r = static_cast<size_t>(k / (kCols - 1)), c = static_cast<size_t>(k % (kCols - 1));
+    return std::pair<uint32_t, uint32_t>{keys[r * kCols + c], keys[r * kCols + c + 1]};
+  }, n_row);
+  std::printf("[node hash] chi2 %.1f (63 dof); worst |correlation| %.2f standard errors; unmixed keys along a row "
+              "%.3f\n", chi2, worst, control);
+  EXPECT_GT(std::fabs(control), 0.2);
+}
+
+// Lit particles' positions (particle_position, issue 10, eighth speed
+// session): over 2^18 nodes x 8 particles the positions pass a 16 x 16-bin
+// chi-square and the correlations of u_x with u_y, and of a particle's u_x
+// with the next particle's u_x, are within 5 standard errors of 0. Negative
+// control: the unmixed hash inputs as positions fail the chi-square.
+TEST(GlintParticles, ParticlePositionsAreUniform) {
+  Pcg32 rng(37);
+  constexpr int kNodes = 1 << 18, kPerNode = 8, kBins = 16;
+  std::vector<double> bins(kBins * kBins, 0.0), control(kBins * kBins, 0.0);
+  double sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0, snext = 0;
+  int64_t n = 0, n_next = 0;
+  for (int t = 0; t < kNodes; ++t) {
+    const uint32_t h0 = rng.next_u32();
+    float prev_x = -1.0f;
+    for (uint32_t k = 0; k < kPerNode; k += 2) {
+      std::array<float, 4> lanes;
+      for (uint32_t m = 0; m < 2; ++m) {
+        const auto [ux, uy] = pg::particle_position(h0, k + m);
+        lanes[2 * m] = ux, lanes[2 * m + 1] = uy;
+      }
+      for (int m = 0; m < 4; m += 2) {
+        const double x = lanes[m], y = lanes[m + 1];
+        bins[static_cast<size_t>(static_cast<int>(x * kBins) * kBins + static_cast<int>(y * kBins))] += 1.0;
+        sx += x, sy += y, sxx += x * x, syy += y * y, sxy += x * y, ++n;
+        if (prev_x >= 0.0f) snext += (prev_x - 0.5) * (x - 0.5), ++n_next;
+        prev_x = static_cast<float>(x);
+        const uint32_t base = (h0 ^ pg::kPositionKey) + (2u * (k + static_cast<uint32_t>(m / 2)) + 1u) * pg::kNodeKeyStep;
+        const double cx = uint_to_unit_float(base), cy = uint_to_unit_float(base + pg::kNodeKeyStep);
+        control[static_cast<size_t>(static_cast<int>(cx * kBins) * kBins + static_cast<int>(cy * kBins))] += 1.0;
+      }
+    }
+  }
+  const double expected = static_cast<double>(n) / (kBins * kBins), dof = kBins * kBins - 1;
+  double chi2 = 0, chi2_control = 0;
+  for (size_t b = 0; b < bins.size(); ++b) {
+    chi2 += (bins[b] - expected) * (bins[b] - expected) / expected;
+    chi2_control += (control[b] - expected) * (control[b] - expected) / expected;
+  }
+  const double nn = static_cast<double>(n);
+  const double rxy = (sxy / nn - sx / nn * sy / nn) /
+                     std::sqrt((sxx / nn - sx / nn * sx / nn) * (syy / nn - sy / nn * sy / nn));
+  const double r_next = snext / static_cast<double>(n_next) * 12.0;  // variance of a uniform is 1/12
+  std::printf("[positions] chi2 %.1f (%g dof), unmixed %.0f; corr(ux, uy) %.2f se, corr(ux, next ux) %.2f se\n", chi2,
+              dof, chi2_control, rxy * std::sqrt(nn), r_next * std::sqrt(static_cast<double>(n_next)));
+  EXPECT_LT(chi2, dof + 5.0 * std::sqrt(2.0 * dof));
+  EXPECT_LT(std::fabs(rxy) * std::sqrt(nn), 5.0);
+  EXPECT_LT(std::fabs(r_next) * std::sqrt(static_cast<double>(n_next)), 5.0);
+  EXPECT_GT(chi2_control, dof + 5.0 * std::sqrt(2.0 * dof));
+}
+
 // A table whose nodes are independent uniforms (every neighbour differs, so
 // a bound that misses one node a lookup reads is caught), LOD levels with
 // the real grids, level l's values in [0, l + 1) (a bound that misses a
