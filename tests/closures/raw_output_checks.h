@@ -118,6 +118,23 @@ inline long bad_host_sample(uint32_t label, const GlimmerSample &s, const Glimme
   return n;
 }
 
+// The same query as the renderer makes it: the C entry point (ClosureAdapter<Closure>::sample) into a 2.7 host's
+// GlimmerSample with its whole-mixture buffer, checked by bad_host_sample with the lamp-integral draw at (u1, u2).
+// Returns the bad count; `flags` gets the sample's flags, `mixtures` counts the whole mixtures read.
+template <class Closure>
+long bad_host_query(const Closure &c, GlimmerShadingContext &ctx, const Vec3 &rand, float u1, float u2,
+                    uint32_t &flags, long &mixtures) {
+  GlimmerExitMixture buffer;
+  GlimmerSample hs{};
+  hs.struct_size = sizeof(GlimmerSample);
+  hs.exit_mixture = &buffer;
+  const float r3[3] = {rand.x, rand.y, rand.z};
+  const uint32_t label =
+      plugin::ClosureAdapter<Closure>::sample(reinterpret_cast<const GlimmerInstance *>(&c), &ctx, r3, &hs);
+  flags = hs.flags;
+  return bad_host_sample(label, hs, buffer, u1, u2, mixtures);
+}
+
 // One eval and one sample call of a stress loop at (sp, wo): the bad outputs of both (a moved sample's exit checked
 // too); counts the successful samples and the moved ones.
 template <class Closure, class Counter>

@@ -78,6 +78,36 @@ GlimmerShadingContext pane_context(float theta_deg) {
 
 using Sampler = std::function<bool(const ShadingPoint &, const Vec3 &, LocalSample &)>;
 
+// The samplers a comparison runs: `path`'s and `sg`'s own sample, and sg's pane estimator in `variant` (a
+// negative control or an older form).
+struct PaneSamplers {
+  Sampler path, sg, variant;
+};
+PaneSamplers pane_samplers(const FrostedGlassClosure &path, const FrostedGlassClosure &sg, frosted::SgVariant variant) {
+  return {[&path](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) { return path.sample(sp, r, s); },
+          [&sg](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) { return sg.sample(sp, r, s); },
+          [&sg, variant](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
+            return sg.pane_sample_sg(sp, r, s, variant);
+          }};
+}
+
+// One path entering the pane at `theta_deg` (numbers from `rng`): false when the front event (the solid closure's
+// first interface, same numbers) reflects, a reflection there being left out, or when `sample` fails; else its
+// sample `s` and world direction `wo`.
+bool entering_sample(const FrostedGlassClosure &front, const Sampler &sample, float theta_deg, Pcg32 &rng,
+                     LocalSample &s, Vec3 &wo) {
+  static const auto schema = FrostedGlassClosure::params();
+  GlimmerShadingContext ctx = pane_context(theta_deg);
+  ctx.path_seed = rng.next_u32();
+  const ShadingPoint sp(&ctx, schema);
+  const Vec3 rand(rng.next_float(), rng.next_float(), rng.next_float());
+  LocalSample f;
+  if (!front.sample(sp, rand, f) || !(f.label & GLIMMER_LABEL_TRANSMIT)) return false;
+  if (!sample(sp, rand, s) || !(s.pdf > 0.0f)) return false;
+  wo = normalize(sp.frame.to_world(s.wo));
+  return true;
+}
+
 // Per angle: the mean luminance leaving through the far face (T) and back through the entry face after entering
 // (R_int), with standard errors.
 struct AngleEstimate {
@@ -88,20 +118,13 @@ constexpr int kAngles = 8;
 std::vector<AngleEstimate> estimate(const FrostedGlassClosure &front, const Sampler &sample, long paths,
                                     uint64_t seed) {
   std::vector<AngleEstimate> out(kAngles);
-  const auto schema = FrostedGlassClosure::params();
   tbb::parallel_for(0, kAngles, [&](int a) {
     Pcg32 rng(seed, 31 + uint64_t(a));
     double sum[2] = {0, 0}, sum2[2] = {0, 0};
     for (long i = 0; i < paths; ++i) {
-      GlimmerShadingContext ctx = pane_context(10.0f * float(a));
-      ctx.path_seed = rng.next_u32();
-      const ShadingPoint sp(&ctx, schema);
-      const Vec3 rand(rng.next_float(), rng.next_float(), rng.next_float());
-      // The front event (the solid closure's first interface, same numbers): a reflection there is left out.
-      LocalSample f, s;
-      if (!front.sample(sp, rand, f) || !(f.label & GLIMMER_LABEL_TRANSMIT)) continue;
-      if (!sample(sp, rand, s) || !(s.pdf > 0.0f)) continue;
-      const Vec3 wo = normalize(sp.frame.to_world(s.wo));
+      LocalSample s;
+      Vec3 wo;
+      if (!entering_sample(front, sample, 10.0f * float(a), rng, s, wo)) continue;
       const double L = average(s.f_cos / s.pdf * environment(wo));
       const int side = wo.z < 0.0f ? 0 : 1;
       sum[side] += L;
@@ -145,15 +168,8 @@ struct PaneCase {
 void check_pane(const PaneCase &c) {
   auto path = create_pane(c.config, "path"), sg = create_pane(c.config, "sg");
   auto solid = create_pane(c.config, "path", false);  // its first event is the pane's front event
-  const Sampler path_sampler = [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
-    return path->sample(sp, r, s);
-  };
-  const Sampler sg_sampler = [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
-    return sg->sample(sp, r, s);
-  };
-  const Sampler control_sampler = [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
-    return sg->pane_sample_sg(sp, r, s, frosted::SgVariant::kNoExitRefraction);
-  };
+  const auto [path_sampler, sg_sampler, control_sampler] =
+      pane_samplers(*path, *sg, frosted::SgVariant::kNoExitRefraction);
   const auto ref = estimate(*solid, path_sampler, kReferencePaths, 1);
   const PaneError e = compare(estimate(*solid, sg_sampler, kSgPaths, 2), ref);
   const PaneError ctl = compare(estimate(*solid, control_sampler, kSgPaths, 2), ref);
@@ -201,7 +217,6 @@ struct BandMass {
 BandMass band_mass(const FrostedGlassClosure &front, const Sampler &sample, float theta_deg, long paths,
                    uint64_t seed) {
   constexpr int kChunks = 16;
-  const auto schema = FrostedGlassClosure::params();
   const float th = theta_deg * float(M_PI) / 180.0f;
   const Vec3 axis(std::sin(th), 0.0f, -std::cos(th));  // -wi: the incident direction continued
   std::vector<std::array<double, 2 * kBands + 1>> acc(kChunks);
@@ -210,14 +225,9 @@ BandMass band_mass(const FrostedGlassClosure &front, const Sampler &sample, floa
     auto &a = acc[chunk];
     a.fill(0.0);
     for (long i = chunk; i < paths; i += kChunks) {
-      GlimmerShadingContext ctx = pane_context(theta_deg);
-      ctx.path_seed = rng.next_u32();
-      const ShadingPoint sp(&ctx, schema);
-      const Vec3 rand(rng.next_float(), rng.next_float(), rng.next_float());
-      LocalSample f, s;
-      if (!front.sample(sp, rand, f) || !(f.label & GLIMMER_LABEL_TRANSMIT)) continue;
-      if (!sample(sp, rand, s) || !(s.pdf > 0.0f)) continue;
-      const Vec3 wo = normalize(sp.frame.to_world(s.wo));
+      LocalSample s;
+      Vec3 wo;
+      if (!entering_sample(front, sample, theta_deg, rng, s, wo)) continue;
       if (!(wo.z < 0.0f)) continue;  // back through the entry face: not what the band measure is about
       const double w = average(s.f_cos / s.pdf);
       const double deg = std::acos(std::clamp(double(dot(wo, axis)), -1.0, 1.0)) * 180.0 / M_PI;
@@ -289,15 +299,8 @@ TEST(FrostedGlassSgPane, ExitLobeShapeAgainstThePath) {
   for (const ShapeCase &c : cases) {
     auto path = create_pane(c.config, "path"), sg = create_pane(c.config, "sg");
     auto solid = create_pane(c.config, "path", false);
-    const Sampler path_sampler = [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
-      return path->sample(sp, r, s);
-    };
-    const Sampler sg_sampler = [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
-      return sg->sample(sp, r, s);
-    };
-    const Sampler old_sampler = [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
-      return sg->pane_sample_sg(sp, r, s, frosted::SgVariant::kMixtureShortTail);
-    };
+    const auto [path_sampler, sg_sampler, old_sampler] =
+        pane_samplers(*path, *sg, frosted::SgVariant::kMixtureShortTail);
     const BandMass ref = band_mass(*solid, path_sampler, c.theta, ref_paths, 1);
     const BandMass now = band_mass(*solid, sg_sampler, c.theta, sg_paths, 2);
     const BandMass old = band_mass(*solid, old_sampler, c.theta, sg_paths, 2);
@@ -448,15 +451,9 @@ TEST(FrostedGlassSgPane, StressRawOutputsFiniteNonNegative) {
       long n_bad = glimmer::test::stress_eval_and_sample(c, sp, wo, rand, samples, moved);
       // The same query through the C entry point into a 2.7 host's sample with its whole-mixture buffer: what the
       // renderer reads (the default rule writes the exit mixture up to roughness 0.4).
-      GlimmerExitMixture buffer;
-      GlimmerSample hs{};
-      hs.struct_size = sizeof(GlimmerSample);
-      hs.exit_mixture = &buffer;
-      const float r3[3] = {rand.x, rand.y, rand.z};
-      const uint32_t label =
-          ClosureAdapter<FrostedGlassClosure>::sample(reinterpret_cast<const GlimmerInstance *>(&c), &ctx, r3, &hs);
       long mixtures = 0;
-      n_bad += glimmer::test::bad_host_sample(label, hs, buffer, r.next_float(), r.next_float(), mixtures);
+      uint32_t flags = 0;
+      n_bad += glimmer::test::bad_host_query(c, ctx, rand, r.next_float(), r.next_float(), flags, mixtures);
       host_queries.fetch_add(1, std::memory_order_relaxed);
       if (mixtures) host_mixtures.fetch_add(1, std::memory_order_relaxed);
       if (n_bad) bad_count.fetch_add(n_bad);

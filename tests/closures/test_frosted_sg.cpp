@@ -926,16 +926,11 @@ TEST(FrostedGlassSg, StressRawOutputsFiniteNonNegative) {
       // The same query as the renderer makes it (C entry point, a 2.7 host's sample with its whole-mixture buffer):
       // what the host reads (bad_host_sample), mixture included wherever the default rule writes one.
       {
-        GlimmerExitMixture buffer;
-        GlimmerSample hs{};
-        hs.struct_size = sizeof(GlimmerSample);
-        hs.exit_mixture = &buffer;
-        const float r3[3] = {rand.x, rand.y, rand.z};
-        const uint32_t label = ClosureAdapter<FrostedGlassClosure>::sample(self, &ctx, r3, &hs);
         long mixtures = 0;
-        n_bad += glimmer::test::bad_host_sample(label, hs, buffer, r.next_float(), r.next_float(), mixtures);
+        uint32_t flags = 0;
+        n_bad += glimmer::test::bad_host_query(c, ctx, rand, r.next_float(), r.next_float(), flags, mixtures);
         host_queries.fetch_add(1, std::memory_order_relaxed);
-        if (hs.flags & GLIMMER_SAMPLE_MOVED) host_moved.fetch_add(1, std::memory_order_relaxed);
+        if (flags & GLIMMER_SAMPLE_MOVED) host_moved.fetch_add(1, std::memory_order_relaxed);
         if (mixtures) host_mixtures.fetch_add(1, std::memory_order_relaxed);
       }
       // The exit lobe mixture (method=sg's default up to roughness 0.4): the same queries through kMixture, v and
