@@ -193,7 +193,7 @@ void sampler_dependent_paths(benchmark::State &state) {
       float bsdf[4], light[2];
       if constexpr (kBatched) {
         const PixelSampler sampler(starts[i]);
-        sampler_draw::NextVertex next = PixelSampler::first_vertex(starts[i]);
+        sampler_draw::NextVertex next = starts[i].vertex1;
         acc += starts[i].value[static_cast<int>(carry & zero)];  // the path begins after the one before
         for (int b = 1; b <= kBounces; ++b) {
           sampler.get_vertex(b + static_cast<int>(carry & zero), next, bsdf, light, true, true);

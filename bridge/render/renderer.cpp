@@ -933,12 +933,12 @@ struct Renderer::Impl {
   // `start`: the path's camera set (film position and vertex 0's BSDF numbers, jointly stratified) and vertex
   // 0's light set (docs/architecture.md "Sample dimensions"), drawn by trace_row with those of other paths.
   // It also holds the path's sampler, path seed (hash_u32x3(seed, pixel, sample)) and vertex 1's set start.
-  Spectrum trace_path(int px, int py, const PathStart &start, PixelAov &aov, uint64_t &nan_count) const {
+  // `nee`: light samples are taken (use_nee() and the scene has lights), decided once per row by trace_row.
+  Spectrum trace_path(int px, int py, const PathStart &start, bool nee, PixelAov &aov, uint64_t &nan_count) const {
     const BounceLimits limits(scene.integrator);
     const PixelSampler sampler(start);
-    sampler_draw::NextVertex next = PixelSampler::first_vertex(start);
+    sampler_draw::NextVertex next = start.vertex1;
     const uint32_t path_seed = start.path_seed;
-    const bool nee = use_nee() && lights->count() > 0;
     const float film_uv[2] = {start.film()[0], start.film()[1]};
     float bsdf_rand[4] = {start.bsdf()[0], start.bsdf()[1], start.bsdf()[2], start.bsdf()[3]};
     float light_rand[2] = {start.light()[0], start.light()[1]};
@@ -1009,7 +1009,7 @@ struct Renderer::Impl {
       draw_path_starts(seed, pixels, samples, n, nee, starts);
       for (int i = 0; i < n; ++i) {
         PixelAov aov;
-        const Spectrum L = trace_path(xs[i], y, starts[i], aov, nans);
+        const Spectrum L = trace_path(xs[i], y, starts[i], nee, aov, nans);
         if (!film.add(static_cast<size_t>(y) * width + xs[i], L, aov.alpha, aov.albedo, aov.normal, aov.depth))
           ++nans;  // a finite sample can still overflow the pixel's sum: dropped and counted
         ++traced;

@@ -188,16 +188,31 @@ constexpr int kVertexLightPair = 0, kVertexBsdfXyPair = 1, kVertexBsdfZrrPair = 
 // light numbers are not read where they are not drawn.
 constexpr float kUndrawnRr = 1.0f, kUndrawnLight = 0.5f;
 
+// A set's seed and its shuffled index (Burley 2020, sec. 4: a nested uniform scramble of the sample index,
+// kept reversed): PixelSampler::start_set.
+struct SobolSetStart {
+  uint32_t seed, index_reversed;
+};
+namespace sampler_draw {
+// A vertex set's start drawn ahead (PixelSampler::get_vertex with `next`): set = start_set(bounce_set(vertex,
+// kSetBsdf)) when vertex > 0; vertex 0 holds nothing.
+struct NextVertex {
+  alignas(32) uint32_t words[8] = {};  // lanes 0-5: sobol_reversed(d, set.index_reversed), lanes 6-7 zero
+  int vertex = 0;
+  SobolSetStart set{0u, 0u};
+};
+}  // namespace sampler_draw
+
 // What a path starts with, drawn ahead for several paths at once (draw_path_starts):
 //   value: PixelSampler::get_path_start's numbers in one 32-byte row: film u, v; vertex 0's BSDF x, y, z and
 //     rr (kUndrawnRr: never read); vertex 0's light u, v (kUndrawnLight when not drawn);
-//   pixel_seed, sample_reversed: the path's PixelSampler; path_seed = hash_u32x3(seed, pixel, sample);
-//   vertex1_seed, vertex1_index: the start of vertex 1's set (PixelSampler::start_set(bounce_set(1, kSetBsdf)))
-//     and vertex1_words its six Sobol words.
+//   vertex1: vertex 1's set start (PixelSampler::start_set(bounce_set(1, kSetBsdf))) and its six Sobol words,
+//     the `next` of the path's first get_vertex;
+//   pixel_seed, sample_reversed: the path's PixelSampler; path_seed = hash_u32x3(seed, pixel, sample).
 struct alignas(32) PathStart {
   float value[8];
-  uint32_t pixel_seed, sample_reversed, path_seed, vertex1_seed, vertex1_index;
-  alignas(32) uint32_t vertex1_words[8];  // lanes 0-5: the Sobol words of vertex 1's set (sobol_reversed(d, index))
+  sampler_draw::NextVertex vertex1;
+  uint32_t pixel_seed, sample_reversed, path_seed;
   const float *film() const { return value; }
   const float *bsdf() const { return value + 2; }
   const float *light() const { return value + 6; }
@@ -221,7 +236,6 @@ enum class Variant : uint8_t { kScalar = 0, kAvx2 = 1 };
 extern Variant g_active;  // scalar until the start-up choice
 void vertex_avx2(const PixelSampler &sampler, int vertex, float (&bsdf)[4], float (&light)[2], bool need_light,
                  bool need_rr);
-struct NextVertex;
 void vertex_next_avx2(const PixelSampler &sampler, int vertex, NextVertex &next, float (&bsdf)[4],
                       float (&light)[2], bool need_light, bool need_rr);
 void path_start_avx2(const PixelSampler &sampler, float (&film)[2], float (&bsdf)[4], float (&light)[2],
@@ -351,17 +365,12 @@ struct PixelSampler {
     v = six[2 * kVertexLightPair + 1];
   }
 
-  // A set's seed and its shuffled index (Burley 2020, sec. 4: a nested uniform scramble of the sample index,
-  // kept reversed). Public for the vector draws (sampler_draw.cpp), which share this scalar start.
-  struct Set {
-    uint32_t seed, index_reversed;
-  };
+  // A set's start (SobolSetStart). Public for the vector draws (sampler_draw.cpp), which share this scalar start.
+  using Set = SobolSetStart;
   [[gnu::always_inline]] Set start_set(uint32_t set) const {
     const uint32_t set_seed = hash_combine(pixel_seed, set);
     return {set_seed, laine_karras_permutation(sample_reversed, set_seed)};
   }
-  // The start of a path's first vertex set, drawn with its path start.
-  static sampler_draw::NextVertex first_vertex(const PathStart &start);
 
  private:
   // Dimension d of set s from its pair's table word `sobol` (sobol_pair_reversed(d / 2, ...)): its scramble and
@@ -382,22 +391,5 @@ struct PixelSampler {
           reversed_to_unit_float(laine_karras_permutation(static_cast<uint32_t>(sobol >> 32), dimension_seed(s.seed, 2 * p + 1)));
   }
 };
-
-namespace sampler_draw {
-// A vertex set's start drawn ahead (PixelSampler::get_vertex with `next`): set = start_set(bounce_set(vertex,
-// kSetBsdf)) when vertex > 0; vertex 0 holds nothing.
-struct NextVertex {
-  alignas(32) uint32_t words[8] = {};  // lanes 0-5: sobol_reversed(d, set.index_reversed), lanes 6-7 zero
-  int vertex = 0;
-  PixelSampler::Set set{0u, 0u};
-};
-}  // namespace sampler_draw
-inline sampler_draw::NextVertex PixelSampler::first_vertex(const PathStart &start) {
-  sampler_draw::NextVertex next;
-  for (int d = 0; d < 8; ++d) next.words[d] = start.vertex1_words[d];
-  next.vertex = 1;
-  next.set = {start.vertex1_seed, start.vertex1_index};
-  return next;
-}
 
 }  // namespace glimmer::render

@@ -274,7 +274,8 @@ void start_sets8(uint32_t seed, const uint32_t *pixels, const uint32_t *samples,
   const __m256i pixel_seed =
       hash_combine8(set1(hash_u32(seed)), _mm256_load_si256(reinterpret_cast<const __m256i *>(pixel)));
   const __m256i sample_reversed = reverse_bits8(_mm256_load_si256(reinterpret_cast<const __m256i *>(sample)));
-  // The members of PathStart besides the numbers: five words per path, transposed from the lanes.
+  // The members of PathStart besides the numbers: five words per path, transposed from the lanes (vertex 1's
+  // Sobol words are stored by the caller).
   const __m256i vertex1_seed = hash_combine8(pixel_seed, set1(bounce_set(1, kSetBsdf)));
   alignas(32) uint32_t words[5][8];
   _mm256_store_si256(reinterpret_cast<__m256i *>(words[0]), pixel_seed);
@@ -287,8 +288,8 @@ void start_sets8(uint32_t seed, const uint32_t *pixels, const uint32_t *samples,
     out[i].pixel_seed = words[0][i];
     out[i].sample_reversed = words[1][i];
     out[i].path_seed = words[2][i];
-    out[i].vertex1_seed = words[3][i];
-    out[i].vertex1_index = words[4][i];
+    out[i].vertex1.vertex = 1;
+    out[i].vertex1.set = {words[3][i], words[4][i]};
   }
   const __m256i camera_seed = hash_combine8(pixel_seed, set1(kSetCamera));
   _mm256_store_si256(reinterpret_cast<__m256i *>(sets.camera_seed), camera_seed);
@@ -320,7 +321,7 @@ void path_starts_avx2(uint32_t seed, const uint32_t *pixels, const uint32_t *sam
     const __m256i set_seeds = _mm256_blend_epi32(set1(sets.camera_seed[i]), set1(sets.light_seed[i]), 0xc0);
     const __m256 f = reversed_to_unit_float8(laine_karras8(words, lane_seeds(set_seeds)));
     _mm256_store_ps(out[i].value, _mm256_blendv_ps(f, undrawn, take_undrawn));
-    _mm256_store_si256(reinterpret_cast<__m256i *>(out[i].vertex1_words), sobol_words8(out[i].vertex1_index));
+    _mm256_store_si256(reinterpret_cast<__m256i *>(out[i].vertex1.words), sobol_words8(out[i].vertex1.set.index_reversed));
   }
 }
 
@@ -355,10 +356,10 @@ void draw_path_starts(uint32_t seed, const uint32_t *pixels, const uint32_t *sam
     out[i].sample_reversed = sampler.sample_reversed;
     out[i].path_seed = hash_u32x3(seed, pixels[i], samples[i]);
     const PixelSampler::Set vertex1 = sampler.start_set(bounce_set(1, kSetBsdf));
-    out[i].vertex1_seed = vertex1.seed;
-    out[i].vertex1_index = vertex1.index_reversed;
+    out[i].vertex1.vertex = 1;
+    out[i].vertex1.set = vertex1;
     for (int d = 0; d < 8; ++d)
-      out[i].vertex1_words[d] = d < kSobolDimensions ? sobol_reversed(d, vertex1.index_reversed) : 0u;
+      out[i].vertex1.words[d] = d < kSobolDimensions ? sobol_reversed(d, vertex1.index_reversed) : 0u;
   }
 }
 

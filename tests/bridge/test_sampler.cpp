@@ -448,10 +448,11 @@ TEST(Sampler, BatchedPathStartsEqualPathByPath) {
         ASSERT_EQ(out[i].sample_reversed, sampler.sample_reversed);
         ASSERT_EQ(out[i].path_seed, hash_u32x3(seed, pixels[i], samples[i]));
         const PixelSampler::Set vertex1 = sampler.start_set(bounce_set(1, kSetBsdf));
-        ASSERT_EQ(out[i].vertex1_seed, vertex1.seed);
-        ASSERT_EQ(out[i].vertex1_index, vertex1.index_reversed);
+        ASSERT_EQ(out[i].vertex1.vertex, 1);
+        ASSERT_EQ(out[i].vertex1.set.seed, vertex1.seed);
+        ASSERT_EQ(out[i].vertex1.set.index_reversed, vertex1.index_reversed);
         for (int d = 0; d < 8; ++d)
-          ASSERT_EQ(out[i].vertex1_words[d], d < kSobolDimensions ? sobol_reversed(d, vertex1.index_reversed) : 0u);
+          ASSERT_EQ(out[i].vertex1.words[d], d < kSobolDimensions ? sobol_reversed(d, vertex1.index_reversed) : 0u);
         ++paths;
         if (pixels[i + 1] != pixels[i] || samples[i + 1] != samples[i]) {
           ++compared;
@@ -491,7 +492,7 @@ TEST(Sampler, VertexDrawnAheadEqualsScalarDraw) {
       const PixelSampler sampler(start);
       const int step = 1 + path % 3;  // 1: every vertex in order; 2, 3: vertices skipped
       const int need = path % 4;
-      sampler_draw::NextVertex next = PixelSampler::first_vertex(start);
+      sampler_draw::NextVertex next = start.vertex1;
       for (int vertex = 1; vertex <= 40; vertex += step) {
         float bsdf[4], light[2], bsdf_s[4], light_s[2];
         sampler.get_vertex(vertex, next, bsdf, light, (need & 1) != 0, (need & 2) != 0);
@@ -501,12 +502,10 @@ TEST(Sampler, VertexDrawnAheadEqualsScalarDraw) {
         ++draws;
       }
       if (variant == Variant::kAvx2) {
-        PathStart other = start;  // vertex 6's set start and words, labelled as vertex 5's
+        sampler_draw::NextVertex wrong;  // vertex 6's set start and words, labelled as vertex 5's
         const PixelSampler::Set six = sampler.start_set(bounce_set(6, kSetBsdf));
-        other.vertex1_seed = six.seed;
-        other.vertex1_index = six.index_reversed;
-        for (int d = 0; d < kSobolDimensions; ++d) other.vertex1_words[d] = sobol_reversed(d, six.index_reversed);
-        sampler_draw::NextVertex wrong = PixelSampler::first_vertex(other);
+        wrong.set = six;
+        for (int d = 0; d < kSobolDimensions; ++d) wrong.words[d] = sobol_reversed(d, six.index_reversed);
         wrong.vertex = 5;
         float bsdf[4], light[2], bsdf_s[4], light_s[2];
         sampler.get_vertex(5, wrong, bsdf, light, true, true);
