@@ -110,6 +110,12 @@ inline float mixture_tail_for(float roughness) {
   (void)roughness;
   return 0.2f;
 }
+// Solids (method=sg / auto, not thin): always the mixture; trace_exit_lobe decides from the traced exit what it
+// holds (a planar exit: the heavy-tail ladder at any roughness; a curved one: the per-ray kappa / 4 tails up to
+// kMixtureRoughnessMax, the single SG above). See "A tail for solids" in docs/frosted_glass.md.
+inline SgVariant solid_sg_variant(float entry_roughness) {
+  return kMixtureByDefault ? SgVariant::kMixture : default_sg_variant(entry_roughness);
+}
 
 
 // What the estimator needs from the closure at the entry point.
