@@ -264,14 +264,16 @@ bool build_exit_mixture(const TransmissionSgTable &table, const Segment &seg, co
 // An explicit mixture_tail (>= 0, the tests' variants) is the per-ray mixture with that tail. lobe_count 0: the
 // single SG (out.sg). False: no lobe has energy.
 constexpr float kPlanarExitCurvature = 0.1f;
+constexpr float kCurvedSingleSgBelow = 0.2f;
 constexpr PaneTail kPlanarSolidTail{0.06f, 4, 0.18f, 3.0f};
 bool solid_exit_mixture(const SgInputs &in, const Segment &seg, const Vec3 &axis, float kappa_in,
                         float kappa_geometric, float ior, float roughness_exit, ExitLobe &out) {
   out.lobe_count = 0;
   const bool by_rule = in.mixture_tail < 0.0f;
-  const bool wide = in.roughness > kMixtureRoughnessMax;
-  const bool ladder = by_rule && wide && exit_curvature(seg, axis) < kPlanarExitCurvature;
-  if (by_rule && wide && !ladder) return true;  // the single SG
+  const bool wide = in.roughness > kMixtureRoughnessMax, narrow = in.roughness < kCurvedSingleSgBelow;
+  const bool planar = exit_curvature(seg, axis) < kPlanarExitCurvature;
+  const bool ladder = by_rule && wide && planar;
+  if (by_rule && !planar && (wide || narrow)) return true;  // the single SG
   const float tail = ladder ? 0.0f : (by_rule ? mixture_tail_for(in.roughness) : in.mixture_tail);
   if (!build_exit_mixture(*in.table, seg, axis, kappa_in, kappa_geometric, ior, roughness_exit, in.mixture_variance,
                           tail, out))

@@ -604,13 +604,14 @@ void expect_exit_harness(bool full) {
       // The mixture rule where it uses the mixture (roughness <= 0.4) against the single SG: measured light-weighted L1
       // at 1024 / 4096 paths, single -> default: sphere 0.1: 0.077 -> 0.094, 0.3: 0.527 -> 0.136; slab 0.1: 0.056
       // -> 0.029, 0.3: 0.425 -> 0.110. Bounds: at 0.3 the default at most half the single SG's error, and each
-      // measured figure + ~30 %.
+      // measured figure + ~30 %. Twelfth session: a curved exit below roughness 0.2 is the single SG (sphere 0.1:
+      // 0.094 -> 0.077), bound 0.125 -> 0.10.
       const double default_l1 = e.mixture[kHarnessV - 1] / n, single_l1 = e.single / n;
       if (roughness == 0.3f) {
         EXPECT_LT(default_l1, 0.5 * single_l1) << "mixture vs single SG at roughness 0.3";
       }
       if (roughness <= 0.4f) {
-        const double bound = kind == AnalyticScene::kSphere ? (roughness < 0.2f ? 0.125 : 0.18)
+        const double bound = kind == AnalyticScene::kSphere ? (roughness < 0.2f ? 0.10 : 0.18)
                                                             : (roughness < 0.2f ? 0.04 : 0.145);
         EXPECT_LT(default_l1, bound) << "roughness " << roughness;
       }
