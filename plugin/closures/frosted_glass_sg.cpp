@@ -258,9 +258,11 @@ bool build_exit_mixture(const TransmissionSgTable &table, const Segment &seg, co
 // method=sg's rule (SgInputs::mixture_tail < 0) by what the traced rays measured:
 //  - a planar exit (exit_curvature < kPlanarExitCurvature: a slab's back face) above kMixtureRoughnessMax: the
 //    per-ray lobes as cores (sharpness x 3) plus the pane's heavy-tail ladder about the axis lobe (add_tail_ladder,
-//    kPlanarSolidTail), where the rule had the single SG;
-//  - a curved exit (a sphere focuses: the pane's ladder made it worse, 0.0424 -> 0.0534 on the accuracy set) and
-//    any exit up to kMixtureRoughnessMax: as before (per-ray kappa / 4 tails up to 0.4, the single SG above).
+//    kPlanarSolidTail), where the rule had the single SG (slab 0.5 / 0.8: 0.087 / 0.095 -> 0.039 / 0.031);
+//  - a curved exit (a sphere focuses) below kCurvedSingleSgBelow: no tail, the single SG (exit harness, sphere
+//    r 0.1: 9.4 -> 7.7 %); above kMixtureRoughnessMax the single SG as before (the pane's ladder made the sphere
+//    worse: accuracy set 0.0424 -> 0.0534);
+//  - otherwise (0.2..0.4 curved, <= 0.4 planar) the per-ray kappa / 4 tails as before.
 // An explicit mixture_tail (>= 0, the tests' variants) is the per-ray mixture with that tail. lobe_count 0: the
 // single SG (out.sg). False: no lobe has energy.
 constexpr float kPlanarExitCurvature = 0.1f;

@@ -745,7 +745,9 @@ void print_solid_bands(const char *what, const SolidBands &m, const SolidBands *
 
 // Measured (100000 / 25000 paths per pixel), band L1 default / per-ray kappa / 4 tails (tenth session) / single SG:
 // slab r 0.1 0.158 / 0.158 / 0.272, r 0.3 0.050 / 0.050 / 0.431, r 0.5 0.169 / (single SG) / 0.257 (the ladder;
-// the per-ray kappa / 4 tails would give 0.185); sphere r 0.1 0.091 / 0.091 / 0.011, r 0.3 0.153 / 0.153 / 0.435.
+// the per-ray kappa / 4 tails would give 0.185); sphere r 0.1 0.011 (the single SG: a curved exit below 0.2) / 0.091
+// / 0.011, r 0.3 0.153 / 0.153 / 0.435. Tried on the slab, not kept: the pane's ladder at 0.1 0.090, cores x3 +
+// first 0.06 at 0.3 0.083 (the small light and the harness disagreed, docs "A tail for solids").
 constexpr double kPlanarLadderBandL1 = 0.21;
 TEST(FrostedGlassSg, ExitLobeShapeOfSolidsAgainstThePath) {
   const int ref_paths = stress_scale() > 1 ? 400000 : 100000, sg_paths = ref_paths / 4;
