@@ -160,7 +160,7 @@ class FrostedGlassClosure {
     if (out.label & GLIMMER_LABEL_TRANSMIT) out.f_cos *= color_at(sp);
     out.f_cos *= interior_transmittance(sp);
     if (uses_sg(sp) && (out.label & GLIMMER_LABEL_TRANSMIT))
-      sample_sg(sp, rand, out, frosted::default_sg_variant(sp.param_float(roughness_param_, roughness_)));
+      sample_sg(sp, rand, out, frosted::solid_sg_variant(sp.param_float(roughness_param_, roughness_)));
     return true;
   }
 

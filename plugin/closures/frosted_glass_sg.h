@@ -110,6 +110,14 @@ inline float mixture_tail_for(float roughness) {
   (void)roughness;
   return 0.2f;
 }
+// Solids (method=sg / auto, not thin): kMixture at every roughness; trace_exit_lobe then decides from the traced
+// exit's curvature what the mixture holds (frosted_glass_sg.cpp, solid_exit_mixture): a planar exit (a slab's back
+// face) the per-ray kappa / 4 tails up to kMixtureRoughnessMax and the pane's heavy-tail ladder above; a curved exit
+// (a sphere: it focuses) the single SG below roughness 0.2 and above kMixtureRoughnessMax, the per-ray kappa / 4
+// tails between. docs/frosted_glass.md "A tail for solids (twelfth session)".
+inline SgVariant solid_sg_variant(float entry_roughness) {
+  return kMixtureByDefault ? SgVariant::kMixture : default_sg_variant(entry_roughness);
+}
 
 
 // What the estimator needs from the closure at the entry point.

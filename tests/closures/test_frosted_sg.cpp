@@ -21,6 +21,7 @@
 #include <gtest/gtest.h>
 #include <tbb/parallel_for.h>
 
+#include <array>
 #include <atomic>
 #include <cstdio>
 #include <cstring>
@@ -305,7 +306,9 @@ constexpr double kGoal = 0.05;
 // Each configuration's bound per scene (sphere, slab): the goal where the model reaches it; else what it achieves
 // (measured + ~30 %, see docs/frosted_glass.md: one SG per lobe, the exit lookup at the axis' incidence only, the
 // Beer length along the axis only), so a regression still fails. The negative control is asserted where the exit
-// refraction decides the result (roughness <= 0.3; wider lobes blur the axis' direction).
+// refraction decides the result (roughness <= 0.3; wider lobes blur the axis' direction). Twelfth session: the slab
+// (a planar exit) at roughness 0.5 / 0.5 absorbing / 0.8 takes the heavy-tail ladder: 0.0873 / 0.0532 / 0.0945 ->
+// 0.0386 / 0.0281 / 0.0314, bounds 0.125 / 0.08 / 0.135 -> the goal.
 struct Config {
   float roughness, ior;
   Vec3 absorb;
@@ -313,9 +316,9 @@ struct Config {
 };
 const Config kConfigs[] = {{0.1f, 1.33f, Vec3(1.0f), {kGoal, kGoal}},
                            {0.3f, 1.5f, Vec3(1.0f), {kGoal, kGoal}},
-                           {0.5f, 1.7f, Vec3(1.0f), {kGoal, 0.125}},
-                           {0.5f, 1.7f, Vec3(0.7f, 0.85f, 0.95f), {kGoal, 0.08}},
-                           {0.8f, 1.5f, Vec3(1.0f), {0.175, 0.135}}};
+                           {0.5f, 1.7f, Vec3(1.0f), {kGoal, kGoal}},
+                           {0.5f, 1.7f, Vec3(0.7f, 0.85f, 0.95f), {kGoal, kGoal}},
+                           {0.8f, 1.5f, Vec3(1.0f), {0.175, kGoal}}};
 constexpr int kReferenceSpp = 16384;
 constexpr int kSgSpp = 2048;
 
@@ -456,8 +459,10 @@ TEST(FrostedGlassSg, SmallLightBehindSlabMatchesThePathReference) {
   // Measured (16k, plain path reference): 0.0285 / 0.248 / 0.209: one SG exit lobe cannot follow the image of a
   // small light (a narrow peak through a rough slab). The reference now samples the light (transmitted_radiance's
   // light_eval): at make test's 4096 paths its relative se is 0.015 / 0.037 / 0.032 (plain path: 0.020 / 0.072 /
-  // 0.072), sg's error against it 0.023 / 0.252 / 0.227.
-  const SetCase cases[] = {{0.1f, 1.5f, kGoal, true}, {0.3f, 1.5f, 0.33, true}, {0.5f, 1.33f, 0.29, true}};
+  // 0.072), sg's error against it 0.023 / 0.252 / 0.227. Twelfth session (a planar exit above roughness 0.4: the
+  // heavy-tail ladder instead of the single SG, frosted_glass_sg.cpp solid_exit_mixture): roughness 0.5 0.227 ->
+  // 0.122 (4096 / 1024; 16k: 0.211 -> 0.106), bound 0.29 -> 0.16; 0.1 / 0.3 unchanged.
+  const SetCase cases[] = {{0.1f, 1.5f, kGoal, true}, {0.3f, 1.5f, 0.33, true}, {0.5f, 1.33f, 0.16, true}};
   check_set_scene({"slab, small light behind", AnalyticScene::kSlab, false, true}, cases);
 }
 
@@ -557,7 +562,7 @@ HarnessErrors exit_harness(AnalyticScene::Kind kind, float roughness, float ior,
       const bool is_default = i == kHarnessV - 1;
       const std::clock_t c1 = std::clock();
       const ImageEstimate mix = render_tiny(
-          scene, variant(is_default ? frosted::mixture_rule_variant(roughness) : frosted::SgVariant::kMixture,
+          scene, variant(is_default ? frosted::solid_sg_variant(roughness) : frosted::SgVariant::kMixture,
                          kHarnessMixtures[i]),
           sg_spp, 2);
       if (is_default) out.default_seconds += double(std::clock() - c1) / CLOCKS_PER_SEC;
@@ -599,13 +604,14 @@ void expect_exit_harness(bool full) {
       // The mixture rule where it uses the mixture (roughness <= 0.4) against the single SG: measured light-weighted L1
       // at 1024 / 4096 paths, single -> default: sphere 0.1: 0.077 -> 0.094, 0.3: 0.527 -> 0.136; slab 0.1: 0.056
       // -> 0.029, 0.3: 0.425 -> 0.110. Bounds: at 0.3 the default at most half the single SG's error, and each
-      // measured figure + ~30 %.
+      // measured figure + ~30 %. Twelfth session: a curved exit below roughness 0.2 is the single SG (sphere 0.1:
+      // 0.094 -> 0.077), bound 0.125 -> 0.10.
       const double default_l1 = e.mixture[kHarnessV - 1] / n, single_l1 = e.single / n;
       if (roughness == 0.3f) {
         EXPECT_LT(default_l1, 0.5 * single_l1) << "mixture vs single SG at roughness 0.3";
       }
       if (roughness <= 0.4f) {
-        const double bound = kind == AnalyticScene::kSphere ? (roughness < 0.2f ? 0.125 : 0.18)
+        const double bound = kind == AnalyticScene::kSphere ? (roughness < 0.2f ? 0.10 : 0.18)
                                                             : (roughness < 0.2f ? 0.04 : 0.145);
         EXPECT_LT(default_l1, bound) << "roughness " << roughness;
       }
@@ -623,6 +629,176 @@ TEST(FrostedSgExitHarness, SmallLightMovedAroundSphereAndSlab) { expect_exit_har
 TEST(FrostedSgExitHarness, SmallLightMovedAroundSphereAndSlabStress) {
   if (stress_scale() == 1) GTEST_SKIP() << "make stress only";
   expect_exit_harness(true);
+}
+
+// ---- The solid exit lobe's shape (issue 12, twelfth session) -------------------------------------------------
+// The light transmitted through the slab and the sphere of the accuracy set, per camera pixel, binned by the angle
+// of its escape direction off the pixel's exit axis (slab: the incident direction continued, as a pane's; sphere:
+// the chief ray refracted by smooth interfaces at entry and exit): the fraction of the transmitted energy per band,
+// method=path's exact walk vs sg (the default rule; the tenth session's per-ray kappa / 4 tails; the single SG).
+// Summed over the pixels (each pixel's paths weigh equally). What a small light off axis needs is the mass
+// 10-60 deg off axis (the slab's small light sits 20 deg off the normal, its pixels 0..70 deg).
+constexpr int kShapeBands = 8;
+constexpr double kShapeEdge[kShapeBands + 1] = {0, 2, 5, 10, 20, 30, 45, 60, 180};  // degrees
+
+struct SolidBands {
+  double mass[kShapeBands] = {}, se[kShapeBands] = {};  // fraction of the transmitted energy per band
+  double total = 0.0;                                    // transmitted energy per entering path
+};
+
+// Smooth refraction of d (unit) at a surface with unit normal n facing against d, relative index eta = n1 / n2.
+bool smooth_refract(const Vec3 &d, const Vec3 &n, float eta, Vec3 &out) {
+  const float c = -dot(d, n), k = 1.0f - eta * eta * (1.0f - c * c);
+  if (k < 0.0f) return false;
+  out = normalize(d * eta + n * (eta * c - std::sqrt(k)));
+  return true;
+}
+// The pixel's exit axis: the slab's incident direction; the sphere's chief ray through smooth interfaces.
+Vec3 exit_axis(const AnalyticScene &scene, const Pixel &p, float ior) {
+  if (scene.kind == AnalyticScene::kSlab) return p.D;
+  Vec3 inside, out;
+  if (!smooth_refract(p.D, p.hit.N, 1.0f / ior, inside)) return p.D;
+  Hit far;
+  if (!scene.intersect(frosted::offset_origin(p.hit.P, p.hit.N, inside), inside, 0.0f, 100.0f, far)) return p.D;
+  return smooth_refract(inside, -far.N, ior, out) ? out : p.D;
+}
+
+SolidBands solid_bands(const AnalyticScene &scene, const Sampler &sample, float ior, int paths_per_pixel,
+                       uint64_t seed) {
+  const std::vector<Pixel> px = camera_pixels(scene);
+  std::vector<std::array<double, 2 * kShapeBands + 2>> acc(px.size());
+  tbb::parallel_for(size_t(0), px.size(), [&](size_t k) {
+    auto &a = acc[k];
+    a.fill(0.0);
+    const Vec3 axis = exit_axis(scene, px[k], ior);
+    Pcg32 rng(seed, 31 + k);
+    const auto schema = FrostedGlassClosure::params();
+    for (int i = 0; i < paths_per_pixel; ++i) {
+      Hit hit = px[k].hit;
+      Vec3 D = px[k].D;
+      Spectrum throughput(1.0f);
+      for (int event = 0; event < 512; ++event) {
+        GlimmerShadingContext ctx = host::make_local_context(-D, &scene.services);
+        ctx.P = hit.P;
+        ctx.N = ctx.Ng = hit.N;
+        ctx.T = Frame::from_normal(hit.N).s;
+        ctx.path_seed = rng.next_u32();
+        const ShadingPoint sp(&ctx, schema);
+        LocalSample s;
+        if (!sample(sp, Vec3(rng.next_float(), rng.next_float(), rng.next_float()), s) || !(s.pdf > 0.0f)) break;
+        if (event == 0 && !(s.label & GLIMMER_LABEL_TRANSMIT)) break;
+        throughput *= s.f_cos / s.pdf;
+        const Vec3 wo = normalize(sp.frame.to_world(s.wo));
+        const Vec3 origin = s.moved ? frosted::offset_origin(s.origin, s.origin_Ng, wo)
+                                    : frosted::offset_origin(hit.P, hit.N, wo);
+        Hit next;
+        if (!scene.intersect(origin, wo, 0.0f, std::numeric_limits<float>::infinity(), next)) {
+          if (scene.kind == AnalyticScene::kSlab && wo.z > 0.0f) break;  // back through the entry face
+          const double w = average(throughput);
+          const double deg = std::acos(std::clamp(double(dot(wo, axis)), -1.0, 1.0)) * 180.0 / M_PI;
+          int b = 0;
+          while (b + 1 < kShapeBands && deg >= kShapeEdge[b + 1]) ++b;
+          a[b] += w;
+          a[kShapeBands + b] += w * w;
+          a[2 * kShapeBands] += w;
+          break;
+        }
+        hit = next;
+        D = wo;
+      }
+    }
+  });
+  SolidBands out;
+  double sum[kShapeBands] = {}, sum2[kShapeBands] = {};
+  for (const auto &a : acc) {
+    for (int b = 0; b < kShapeBands; ++b) sum[b] += a[b], sum2[b] += a[kShapeBands + b];
+    out.total += a[2 * kShapeBands];
+  }
+  const double n = double(paths_per_pixel) * double(px.size());
+  for (int b = 0; b < kShapeBands; ++b) {
+    out.mass[b] = sum[b] / out.total;
+    const double m = sum[b] / n;
+    out.se[b] = std::sqrt(std::max(0.0, sum2[b] / n - m * m) / n) * n / out.total;
+  }
+  out.total /= n;
+  return out;
+}
+
+double solid_band_sum(const SolidBands &m, int from, int to) {
+  double s = 0.0;
+  for (int b = from; b <= to; ++b) s += m.mass[b];
+  return s;
+}
+double solid_band_l1(const SolidBands &sg, const SolidBands &ref) {
+  double d = 0.0;
+  for (int b = 0; b < kShapeBands; ++b) d += std::fabs(sg.mass[b] - ref.mass[b]);
+  return d;
+}
+void print_solid_bands(const char *what, const SolidBands &m, const SolidBands *ref) {
+  std::printf("  %-22s T %.4f |", what, m.total);
+  for (int b = 0; b < kShapeBands; ++b) std::printf(" %.2e", m.mass[b]);
+  if (ref != nullptr)
+    std::printf(" | 10-60 %+.3f, L1 %.3f", solid_band_sum(m, 3, 6) / solid_band_sum(*ref, 3, 6) - 1.0,
+                solid_band_l1(m, *ref));
+  std::printf("\n");
+}
+
+// Measured (100000 / 25000 paths per pixel), band L1 default / per-ray kappa / 4 tails (tenth session) / single SG:
+// slab r 0.1 0.158 / 0.158 / 0.272, r 0.3 0.050 / 0.050 / 0.431, r 0.5 0.169 / (single SG) / 0.257 (the ladder;
+// the per-ray kappa / 4 tails would give 0.185); sphere r 0.1 0.011 (the single SG: a curved exit below 0.2) / 0.091
+// / 0.011, r 0.3 0.153 / 0.153 / 0.435. Tried on the slab, not kept: the pane's ladder at 0.1 0.090, cores x3 +
+// first 0.06 at 0.3 0.083 (the small light and the harness disagreed, docs "A tail for solids").
+constexpr double kPlanarLadderBandL1 = 0.21;
+TEST(FrostedGlassSg, ExitLobeShapeOfSolidsAgainstThePath) {
+  const int ref_paths = stress_scale() > 1 ? 400000 : 100000, sg_paths = ref_paths / 4;
+  struct ShapeCase {
+    AnalyticScene::Kind kind;
+    float roughness, ior;
+  };
+  const ShapeCase cases[] = {{AnalyticScene::kSlab, 0.1f, 1.5f},   {AnalyticScene::kSlab, 0.3f, 1.5f},
+                             {AnalyticScene::kSlab, 0.5f, 1.5f},   {AnalyticScene::kSphere, 0.1f, 1.5f},
+                             {AnalyticScene::kSphere, 0.3f, 1.5f}};
+  for (const ShapeCase &c : cases) {
+    auto path = create_raw(c.roughness, c.ior, false);
+    auto sg = create_raw(c.roughness, c.ior, true);
+    AnalyticScene scene(c.kind);
+    scene.material = reinterpret_cast<const GlimmerInstance *>(sg.get());
+    const Sampler path_sampler = [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
+      return path->sample(sp, r, s);
+    };
+    const Sampler sg_sampler = [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
+      return sg->sample(sp, r, s);
+    };
+    auto variant = [&](frosted::SgVariant v, float tail) {
+      return Sampler([&path, &sg, v, tail](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
+        if (!path->sample(sp, r, s)) return false;
+        if (sg->uses_sg(sp) && (s.label & GLIMMER_LABEL_TRANSMIT))
+          sg->sample_sg(sp, r, s, v, frosted::kDefaultMixtureVariance, tail);
+        return true;
+      });
+    };
+    const SolidBands ref = solid_bands(scene, path_sampler, c.ior, ref_paths, 1);
+    const SolidBands now = solid_bands(scene, sg_sampler, c.ior, sg_paths, 2);
+    const SolidBands old = solid_bands(scene, variant(frosted::SgVariant::kMixture, 0.2f), c.ior, sg_paths, 2);
+    const SolidBands single = solid_bands(scene, variant(frosted::SgVariant::kTracedCone, 0.0f), c.ior, sg_paths, 2);
+    std::printf("[frosted sg solid shape] %s roughness %.2f ior %.2f: fraction of T per band (deg) 0-2 2-5 5-10 "
+                "10-20 20-30 30-45 45-60 60-180\n",
+                c.kind == AnalyticScene::kSlab ? "slab" : "sphere", double(c.roughness), double(c.ior));
+    print_solid_bands("path (reference)", ref, nullptr);
+    std::printf("  %-22s          |", "path se");
+    for (int b = 0; b < kShapeBands; ++b) std::printf(" %.2e", ref.se[b]);
+    std::printf("\n");
+    print_solid_bands("sg (default)", now, &ref);
+    print_solid_bands("sg, kappa/4 tails (s10)", old, &ref);
+    print_solid_bands("sg, single SG", single, &ref);
+    // The slab above kMixtureRoughnessMax (a planar exit: the ladder, where the rule had the single SG): the band
+    // distribution's L1 against the exact walk, bound measured + ~25 %; the single SG (the control) must miss it.
+    if (c.kind == AnalyticScene::kSlab && c.roughness > frosted::kMixtureRoughnessMax) {
+      EXPECT_LT(solid_band_l1(now, ref), kPlanarLadderBandL1) << "slab roughness " << c.roughness;
+      EXPECT_GT(solid_band_l1(single, ref), kPlanarLadderBandL1) << "control passed: slab " << c.roughness;
+    }
+    EXPECT_NEAR(now.total, ref.total, 0.04 * ref.total) << "transmitted energy, roughness " << c.roughness;
+  }
 }
 
 // ---- method=auto ----------------------------------------------------------------
@@ -889,21 +1065,30 @@ TEST(FrostedGlassSg, StressRawOutputsFiniteNonNegative) {
   const float roughs[] = {0.0f, 1e-3f, 0.04f, 0.1f, 0.5f, 1.0f};
   const float iors[] = {1.0f, 1.2f, 1.33f, 1.7f, 2.5f, 1e3f, 1.0f / 2.4f};
   std::vector<std::unique_ptr<FrostedGlassClosure>> pool;
+  std::vector<float> pool_roughness;
   for (int i = 0; i < 60; ++i) {
     const float rough = (i & 1) ? roughs[rng.next_u32() % 6] : rng.next_float();
     const float ior = (i % 2 == 0) ? 2.4f : iors[rng.next_u32() % 7];  // half TIR-heavy
     const Vec3 absorb = (i % 4 == 1) ? Vec3(rng.next_float(), 0.0f, 1e-6f) : Vec3(1.0f);
     pool.push_back(create_raw(rough, ior, true, absorb));
+    pool_roughness.push_back(rough);
   }
   const auto schema = FrostedGlassClosure::params();
-  const long calls = 1000000 * long(stress_scale());
   const long blocks = 64;
+  // GLIMMER_STRESS_BLOCKS="first,end": only blocks [first, end) of the 64 (as the pane's stress): a block's queries
+  // depend on its index alone, so runs over disjoint ranges together are exactly the whole make-stress run.
+  long first = 0, end = blocks;
+  if (const char *range = std::getenv("GLIMMER_STRESS_BLOCKS"))
+    if (std::sscanf(range, "%ld,%ld", &first, &end) != 2 || !(0 <= first && first < end && end <= blocks))
+      first = 0, end = blocks;
+  const long calls = 1000000 * long(stress_scale()) / blocks * (end - first);
   std::atomic<long> bad_count{0}, moved{0}, samples{0}, mixture_moved{0}, mixture_written{0};
-  std::atomic<long> host_queries{0}, host_moved{0}, host_mixtures{0};
-  tbb::parallel_for(long(0), blocks, [&](long b) {
+  std::atomic<long> host_queries{0}, host_moved{0}, host_mixtures{0}, planar_wide{0};
+  tbb::parallel_for(first, end, [&](long b) {
     Pcg32 r(900 + b);
-    for (long i = 0; i < calls / blocks; ++i) {
-      const FrostedGlassClosure &c = *pool[r.next_u32() % pool.size()];
+    for (long i = 0; i < calls / (end - first); ++i) {
+      const size_t pick = r.next_u32() % pool.size();
+      const FrostedGlassClosure &c = *pool[pick];
       const GlimmerInstance *self = reinterpret_cast<const GlimmerInstance *>(&c);
       const bool grazing = (i % 4) == 0;
       const int which = int(r.next_u32() % 3);  // sphere, slab, odd host
@@ -932,6 +1117,9 @@ TEST(FrostedGlassSg, StressRawOutputsFiniteNonNegative) {
         host_queries.fetch_add(1, std::memory_order_relaxed);
         if (flags & GLIMMER_SAMPLE_MOVED) host_moved.fetch_add(1, std::memory_order_relaxed);
         if (mixtures) host_mixtures.fetch_add(1, std::memory_order_relaxed);
+        // A planar exit above roughness 0.4: the heavy-tail ladder (twelfth session), read whole by the host.
+        if (mixtures && which == 1 && pool_roughness[pick] > frosted::kMixtureRoughnessMax)
+          planar_wide.fetch_add(1, std::memory_order_relaxed);
       }
       // The exit lobe mixture (method=sg's default up to roughness 0.4): the same queries through kMixture, v and
       // t at the ends of their ranges and NaN (clamped), the whole mixture written to a host buffer (ABI 2.7).
@@ -960,15 +1148,17 @@ TEST(FrostedGlassSg, StressRawOutputsFiniteNonNegative) {
   EXPECT_GT(mixture_moved.load(), calls / 40);  // and the mixture
   EXPECT_GT(mixture_written.load(), mixture_moved.load() / 2);  // handed to the host whole
   EXPECT_GT(host_mixtures.load(), calls / 40);                  // and read whole through the C entry point
+  EXPECT_GT(planar_wide.load(), calls / 1000);                  // the planar exits' ladder among them
   std::printf("[frosted sg stress] through the C entry point (2.7 host): %ld sample queries, %ld moved, %ld whole "
               "exit mixtures read (axes, sharpness, weights, host density at wo and a lamp-integral draw)\n",
               host_queries.load(), host_moved.load(), host_mixtures.load());
   std::printf("[frosted sg stress] exit lobe mixture: %ld moved samples (v 0..1 / NaN, t 0..0.25 / rule), %ld "
               "written whole to the host's buffer\n",
               mixture_moved.load(), mixture_written.load());
-  std::printf("[frosted sg stress] %ld eval + %ld sample calls (%ld sg moved samples), 1/4 grazing, half IOR 2.4; "
-              "sphere / slab / odd host (t 0..inf, NaN, -1; NaN or zero normals; other closures): %ld bad\n",
-              calls, samples.load(), moved.load(), bad_count.load());
+  std::printf("[frosted sg stress] blocks %ld..%ld of %ld: %ld eval + %ld sample calls (%ld sg moved samples), 1/4 "
+              "grazing, half IOR 2.4; sphere / slab / odd host (t 0..inf, NaN, -1; NaN or zero normals; other "
+              "closures): %ld bad; %ld whole mixtures of a planar exit above roughness 0.4 (the ladder)\n",
+              first, end - 1, blocks, calls, samples.load(), moved.load(), bad_count.load(), planar_wide.load());
 }
 
 }  // namespace
