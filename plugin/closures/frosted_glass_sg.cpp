@@ -529,14 +529,13 @@ bool pane_exit_lobe(const Vec3 &wi, const PaneSgInputs &in, uint32_t seed, PaneE
   return false;
 }
 
-bool sample_pane_sg(const ShadingPoint &sp, const PaneSgInputs &in, const Vec3 &rand, const Spectrum &front_weight,
-                    bool flip, LocalSample &out) {
+namespace {
+
+// One singular sample from the pane's exit lobe `exit` (pane frame), moved to the exit face of the same point and
+// carrying the lobe (ABI 2.4; the whole mixture, ABI 2.7). `weight`: the sample's f cos / pdf.
+bool emit_pane_sample(const ShadingPoint &sp, const PaneExitLobe &exit, uint32_t seed, const Spectrum &weight,
+                      bool flip, LocalSample &out) {
   const GlimmerShadingContext &ctx = *sp.ctx;
-  const Vec3 wi = flip ? mf::flip_z_local(sp.wi) : sp.wi;
-  const uint32_t seed = hash_u32x4(ctx.path_seed, std::bit_cast<uint32_t>(rand.x), std::bit_cast<uint32_t>(rand.y),
-                                   std::bit_cast<uint32_t>(rand.z));
-  PaneExitLobe exit;
-  if (!pane_exit_lobe(wi, in, seed, exit)) return false;
   const Vec3 axis = normalize(sp.frame.to_world(flip ? mf::flip_z_local(exit.sg.axis) : exit.sg.axis));
   // The exit face's outward normal: the geometric normal on the far side of wi (through) or on wi's side.
   Vec3 Ng(ctx.Ng);
@@ -569,7 +568,6 @@ bool sample_pane_sg(const ShadingPoint &sp, const PaneSgInputs &in, const Vec3 &
 #endif
   }
   const Vec3 wo = lobe.sample([&rng] { return rng.next(); });
-  const Spectrum weight = front_weight * exit.weight;
   if (!(dot(wo, n) > 0.0f) || !is_finite(wo) || !is_finite(weight) || !is_finite(axis)) return false;
   out.wo = sp.frame.to_local(wo);
   out.f_cos = weight;
@@ -584,6 +582,45 @@ bool sample_pane_sg(const ShadingPoint &sp, const PaneSgInputs &in, const Vec3 &
   out.lobe_axis = lobe.axis;
   out.lobe_sharpness = float(lobe.kappa);
   return is_finite(out.origin);
+}
+
+uint32_t pane_seed(const ShadingPoint &sp, const Vec3 &rand) {
+  return hash_u32x4(sp.ctx->path_seed, std::bit_cast<uint32_t>(rand.x), std::bit_cast<uint32_t>(rand.y),
+                    std::bit_cast<uint32_t>(rand.z));
+}
+
+}  // namespace
+
+bool sample_pane_sg(const ShadingPoint &sp, const PaneSgInputs &in, const Vec3 &rand, const Spectrum &front_weight,
+                    bool flip, LocalSample &out) {
+  const Vec3 wi = flip ? mf::flip_z_local(sp.wi) : sp.wi;
+  const uint32_t seed = pane_seed(sp, rand);
+  PaneExitLobe exit;
+  if (!pane_exit_lobe(wi, in, seed, exit)) return false;
+  return emit_pane_sample(sp, exit, seed, front_weight * exit.weight, flip, out);
+}
+
+bool pane_exit_lobe_at(const Vec3 &d, const PaneSgInputs &in, PaneExitLobe &out) {
+  if (in.table == nullptr || !is_finite(d) || d.z == 0.0f) return false;
+  const float ior = in.ior;
+  if (!(ior >= TransmissionSgTable::kIorMin && ior <= TransmissionSgTable::kIorMax)) return false;
+  const float roughness = std::clamp(std::isfinite(in.roughness) ? in.roughness : 0.0f,
+                                     TransmissionSgTable::kRoughnessMin, kTableRoughnessMax);
+  const Vec3 n(0.0f, 0.0f, d.z < 0.0f ? -1.0f : 1.0f);
+  float energy = 0.0f;
+  if (!table_lobe(*in.table, Frame::from_normal(-n), -normalize(d), 1.0f / ior, roughness, out.sg, energy))
+    return false;
+  out.through = n.z < 0.0f;
+  out.weight = Spectrum(1.0f);
+  out.lobe_count = 0;
+  return is_finite(out.sg.axis) && std::isfinite(out.sg.sharpness);
+}
+
+bool sample_pane_sg_at(const ShadingPoint &sp, const PaneSgInputs &in, const Vec3 &rand, const Vec3 &d,
+                       const Spectrum &weight, bool flip, LocalSample &out) {
+  PaneExitLobe exit;
+  if (!pane_exit_lobe_at(d, in, exit)) return false;
+  return emit_pane_sample(sp, exit, pane_seed(sp, rand), weight, flip, out);
 }
 
 }  // namespace glimmer::plugin::frosted

@@ -69,6 +69,7 @@ enum class SgVariant {
   kNoExitRefraction,  // negative control: the exit lobe keeps the internal axis (exit refraction ignored)
   kMixture,           // the exit as a mixture of lobes, one per traced ray (below); the default up to 0.4
   kMixtureShortTail,  // panes: the tenth session's mixture (a kappa / 4 tail per ray, no PaneTail; the control)
+  kPaneWalk,          // panes: the exact walk between the faces, the exit as the leaving table's SG (below)
 };
 
 // The exit lobe mixture (SgVariant::kMixture, issue 12): instead of one SG about the axis refracted through the
@@ -227,6 +228,14 @@ struct PaneExitLobe {
   ExitLobe::MixtureLobe lobe[ExitLobe::kMaxLobes];
 };
 
+// The pane's estimator by its roughness (method=sg / auto on a thin pane): the mixture with the heavy tail up to
+// kMixtureRoughnessMax, above it the exact walk with the leaving table's SG (kPaneWalk; twelfth session: the single
+// SG there put 3-7 % too little light through the far face and the wrong shape, band L1 0.31 against 0.07;
+// docs/frosted_glass.md "Rough panes (twelfth session)").
+inline SgVariant default_pane_variant(float roughness) {
+  return roughness <= kMixtureRoughnessMax ? SgVariant::kMixture : SgVariant::kPaneWalk;
+}
+
 // Steps 1-4 for wi (pane frame, wi.z > 0); `seed` drives the Russian roulette. False when the table does not
 // cover (ior, roughness) or a value is not finite.
 bool pane_exit_lobe(const Vec3 &wi, const PaneSgInputs &in, uint32_t seed, PaneExitLobe &out);
@@ -237,5 +246,14 @@ bool pane_exit_lobe(const Vec3 &wi, const PaneSgInputs &in, uint32_t seed, PaneE
 // samples the lights there). False: no sample.
 bool sample_pane_sg(const ShadingPoint &sp, const PaneSgInputs &in, const Vec3 &rand, const Spectrum &front_weight,
                     bool flip, LocalSample &out);
+
+// Rough panes (issue 12, twelfth session): the walk between the faces is sampled exactly (the closure's interface
+// lobe, as method=path; it decides the face the light leaves through and carries Beer over every crossing), and
+// the leaving crossing's direction is replaced by the exit lobe: the leaving table's SG T(theta, 1 / ior,
+// roughness) at the last internal direction `d` (pane frame, the entry side +z; d.z < 0: through the far face).
+bool pane_exit_lobe_at(const Vec3 &d, const PaneSgInputs &in, PaneExitLobe &out);
+// The sample as sample_pane_sg's, from the walk's last internal direction `d`; `weight` = the walk's f cos / pdf.
+bool sample_pane_sg_at(const ShadingPoint &sp, const PaneSgInputs &in, const Vec3 &rand, const Vec3 &d,
+                       const Spectrum &weight, bool flip, LocalSample &out);
 
 }  // namespace glimmer::plugin::frosted
