@@ -201,7 +201,7 @@ class FrostedGlassClosure {
   // The sg pane sample (public for the tests' variants): the front interface's reflection as in method=path, its
   // transmission replaced by frosted::sample_pane_sg.
   bool pane_sample_sg(const ShadingPoint &sp, const DielectricLobe &lobe, const Vec3 &rand, LocalSample &out,
-                      frosted::SgVariant variant, const frosted::PaneTail &tail = {}) const {
+                      frosted::SgVariant variant, const frosted::PaneLadder &ladder = frosted::kPaneLadder) const {
     const bool flip = sp.wi.z < 0.0f;
     const Vec3 wi = flip ? mf::flip_z_local(sp.wi) : sp.wi;
     LocalSample s;
@@ -219,7 +219,7 @@ class FrostedGlassClosure {
     in.sigma_a = beer_.sigma;
     in.thickness = thickness_;
     in.variant = variant;
-    in.tail = tail;
+    in.ladder = &ladder;
     if (variant == frosted::SgVariant::kPaneWalk) return pane_sample_sg_walk(sp, lobe, in, rand, s, flip, out);
     return frosted::sample_pane_sg(sp, in, rand, s.f_cos / s.pdf * in.tint, flip, out);
   }
@@ -246,9 +246,9 @@ class FrostedGlassClosure {
   }
   // For the tests: the interface lobe at sp (per-point roughness and IOR).
   bool pane_sample_sg(const ShadingPoint &sp, const Vec3 &rand, LocalSample &out, frosted::SgVariant variant,
-                      const frosted::PaneTail &tail = {}) const {
+                      const frosted::PaneLadder &ladder = frosted::kPaneLadder) const {
     DielectricLobe scratch;
-    return pane_sample_sg(sp, lobe_at(sp, scratch), rand, out, variant, tail);
+    return pane_sample_sg(sp, lobe_at(sp, scratch), rand, out, variant, ladder);
   }
   bool uses_sg(const ShadingPoint &sp) const {
     if (thin_ || !(sp.wi.z > 0.0f)) return false;

@@ -432,31 +432,23 @@ Vec3 incident_clamped_to_critical(const Vec3 &d, const Vec3 &n, float ior) {
 }
 
 // PaneTail (frosted_glass_sg.h): the cores keep their axes, their weights x (1 - sum t_j) and their sharpness x
-// core_scale; the tail lobes sit about lobe 0 (the axis ray's) at its unscaled sharpness / 4^j. The sum of the t_j
-// is capped at 0.9 (the cores keep at least 10 %); weights still sum to 1.
-void add_tail_ladder(const PaneTail &tail, ExitLobe &m) {
-  if (m.lobe_count <= 0) return;
-  const int levels = std::clamp(tail.levels, 0, ExitLobe::kMaxLobes - m.lobe_count);
-  const float first = std::isfinite(tail.first) ? std::max(tail.first, 0.0f) : 0.0f;
-  const float ratio = std::clamp(std::isfinite(tail.ratio) ? tail.ratio : 0.0f, 0.0f, 1.0f);
-  float share[ExitLobe::kMaxLobes], total = 0.0f, t = first;
-  for (int j = 0; j < levels; ++j, t *= ratio) total += share[j] = t;
-  const float scale = total > 0.9f ? 0.9f / total : 1.0f;
-  total *= scale;
-  const float core = std::clamp(std::isfinite(tail.core_scale) ? tail.core_scale : 1.0f, 0.05f, 20.0f);
+// core_scale; the tail lobes sit about lobe 0 (the axis ray's) at its unscaled sharpness / 4^j. The ladder was
+// validated once (make_pane_ladder: sum t_j <= 0.9, the lobes fit); weights still sum to 1.
+void add_tail_ladder(const PaneLadder &ladder, ExitLobe &m) {
+  if (m.lobe_count <= 0 || !ladder.valid || m.lobe_count + ladder.levels > ExitLobe::kMaxLobes) return;
   float kappa = m.lobe[0].sharpness;
   const GlimmerVec3 axis = m.lobe[0].axis;
   for (int k = 0; k < m.lobe_count; ++k) {
-    m.lobe[k].weight *= 1.0f - total;
-    m.lobe[k].sharpness = std::clamp(m.lobe[k].sharpness * core, 1e-3f, 1e7f);
+    m.lobe[k].weight *= 1.0f - ladder.total;
+    m.lobe[k].sharpness = std::clamp(m.lobe[k].sharpness * ladder.core_scale, 1e-3f, 1e7f);
   }
-  for (int j = 0; j < levels; ++j) {
+  for (int j = 0; j < ladder.levels; ++j) {
     kappa *= 0.25f;
-    if (!(share[j] * scale > 0.0f)) continue;
+    if (!(ladder.share[j] > 0.0f)) continue;
     ExitLobe::MixtureLobe &l = m.lobe[m.lobe_count++];
     l.axis = axis;
     l.sharpness = std::max(kappa, 1e-3f);
-    l.weight = share[j] * scale;
+    l.weight = ladder.share[j];
   }
 }
 
@@ -520,7 +512,7 @@ bool pane_exit_lobe(const Vec3 &wi, const PaneSgInputs &in, uint32_t seed, PaneE
       if (!build_exit_mixture(*in.table, seg, axis, kappa_in, kappa_geometric, ior, roughness,
                               kDefaultMixtureVariance, ladder ? 0.0f : mixture_tail_for(roughness), mixture))
         return false;
-      if (ladder) add_tail_ladder(in.tail, mixture);
+      if (ladder && in.ladder != nullptr) add_tail_ladder(*in.ladder, mixture);
       out.lobe_count = mixture.lobe_count;
       for (int k = 0; k < mixture.lobe_count; ++k) out.lobe[k] = mixture.lobe[k];
     }

@@ -206,6 +206,35 @@ struct PaneTail {
   float ratio = 0.18f;      // t_(j+1) / t_j
   float core_scale = 5.0f;  // the cores' sharpness factor
 };
+// The cores of a pane's mixture: the axis and the 4 bounding directions.
+inline constexpr int kPaneCores = 5;
+// A PaneTail as add_tail_ladder applies it (the shares t_j, their sum, the cores' factor), built and checked ONCE:
+// at compile time for the default (kPaneLadder, static_assert below), at set-up for a test's own PaneTail (the test
+// asserts `valid`). Valid: t_1 and the ratio in [0, 1], the cores' factor in [0.05, 20], the cores and the tail
+// lobes within the ABI's lobes, sum t_j <= 0.9 (the cores keep at least 10 %). Invalid: no tail (levels 0).
+struct PaneLadder {
+  int levels = 0;
+  float share[ExitLobe::kMaxLobes] = {};
+  float total = 0.0f;
+  float core_scale = 1.0f;
+  bool valid = false;
+};
+constexpr PaneLadder make_pane_ladder(const PaneTail &t) {
+  // NaN fails every comparison: a non-finite field makes the ladder invalid.
+  if (!(t.first >= 0.0f && t.first <= 1.0f && t.ratio >= 0.0f && t.ratio <= 1.0f && t.core_scale >= 0.05f &&
+        t.core_scale <= 20.0f && t.levels >= 0 && t.levels <= ExitLobe::kMaxLobes - kPaneCores))
+    return PaneLadder{};
+  PaneLadder l;
+  float s = t.first;
+  for (int j = 0; j < t.levels; ++j, s *= t.ratio) l.total += l.share[j] = s;
+  if (!(l.total <= 0.9f)) return PaneLadder{};
+  l.levels = t.levels;
+  l.core_scale = t.core_scale;
+  l.valid = true;
+  return l;
+}
+inline constexpr PaneLadder kPaneLadder = make_pane_ladder(PaneTail{});
+static_assert(kPaneLadder.valid && kPaneLadder.levels == 4, "the default pane tail must be a valid ladder");
 
 struct PaneSgInputs {
   const TransmissionSgTable *table = nullptr;
@@ -214,7 +243,7 @@ struct PaneSgInputs {
   Spectrum sigma_a{0.0f};              // Beer absorption coefficient
   float thickness = 0.01f;
   SgVariant variant = SgVariant::kTracedCone;  // kNoExitRefraction: the test's negative control
-  PaneTail tail;                               // kMixture: the heavy tail (above)
+  const PaneLadder *ladder = &kPaneLadder;     // kMixture: the heavy tail (above), validated once
 };
 
 // The pane's exit lobe in the pane frame (entry side +z): `through` = it leaves through the far face (-z side).
