@@ -193,6 +193,17 @@ void check_pane(const PaneCase &c) {
               ctl.T, ctl.R, e.se_T, e.se_R, kReferencePaths, kSgPaths);
   std::printf("[frosted sg pane] noise of T per path over path's: sg %.3f, control %.3f\n", noise_sg / noise_path,
               noise_ctl / noise_path);
+  {  // The walk (the default above 0.4) at this roughness too: printed, for the rule's next step.
+    const Sampler walk = [&sg](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
+      return sg->pane_sample_sg(sp, r, s, frosted::SgVariant::kPaneWalk);
+    };
+    const auto est_walk = estimate(*solid, walk, kSgPaths, 2);
+    const PaneError w = compare(est_walk, ref);
+    double noise_walk = 0.0;
+    for (int a = 0; a < kAngles; ++a) noise_walk += est_walk[a].se_T / est_walk[a].T * std::sqrt(double(kSgPaths));
+    std::printf("[frosted sg pane] kPaneWalk here: T %.4f, R_int %.4f, noise of T per path over path's %.3f\n", w.T,
+                w.R, noise_walk / noise_path);
+  }
   EXPECT_LT(e.T, c.bound_T) << "roughness " << c.config.roughness << " ior " << c.config.ior;
   EXPECT_LT(e.R, c.bound_R) << "roughness " << c.config.roughness << " ior " << c.config.ior;
   if (c.control) {
