@@ -12,7 +12,8 @@
 // one SINGULAR sample that the host continues from the exit point; the front
 // reflection stays this rough dielectric lobe. Thin panes: the same estimate
 // between two parallel faces (pane_sample_sg; the light leaves through either
-// face). Paths arriving from inside a solid and cases the estimator cannot
+// face; above roughness 0.4 the walk between the faces is exact and only the
+// leaving crossing is an SG, frosted::default_pane_variant). Paths arriving from inside a solid and cases the estimator cannot
 // handle use path.
 // method=auto: sg or path per shading point (auto_picks_sg below): sg where its
 // measured error is small (entry roughness <= kAutoSgRoughnessMax) or where
