@@ -452,6 +452,10 @@ void add_tail_ladder(const PaneLadder &ladder, ExitLobe &m) {
   }
 }
 
+// For a caller holding a PaneTail (main's planar-solid tail, frosted12e, calls add_tail_ladder(kPlanarSolidTail, m)):
+// builds its ladder at the call. Prefer a PaneLadder made once (constexpr make_pane_ladder + static_assert).
+[[maybe_unused]] void add_tail_ladder(const PaneTail &tail, ExitLobe &m) { add_tail_ladder(make_pane_ladder(tail), m); }
+
 // Beer-Lambert over `length` (0 absorption stays exactly 1 at any length).
 Spectrum beer_transmittance(const Spectrum &sigma_a, float length) {
   Spectrum t(1.0f);
