@@ -12,7 +12,8 @@
 // one SINGULAR sample that the host continues from the exit point; the front
 // reflection stays this rough dielectric lobe. Thin panes: the same estimate
 // between two parallel faces (pane_sample_sg; the light leaves through either
-// face). Paths arriving from inside a solid and cases the estimator cannot
+// face; above roughness 0.4 the walk between the faces is exact and only the
+// leaving crossing is an SG, frosted::default_pane_variant). Paths arriving from inside a solid and cases the estimator cannot
 // handle use path.
 // method=auto: sg or path per shading point (auto_picks_sg below): sg where its
 // measured error is small (entry roughness <= kAutoSgRoughnessMax) or where
@@ -154,7 +155,7 @@ class FrostedGlassClosure {
     const DielectricLobe &lobe = lobe_at(sp, scratch);
     if (thin_)
       return uses_sg_pane(sp) ? pane_sample_sg(sp, lobe, rand, out,
-                                               frosted::default_sg_variant(sp.param_float(roughness_param_, roughness_)))
+                                               frosted::default_pane_variant(sp.param_float(roughness_param_, roughness_)))
                               : pane_sample(sp, lobe, rand, out);
     if (!lobe.sample(sp.wi, rand, out)) return false;
     if (out.label & GLIMMER_LABEL_TRANSMIT) out.f_cos *= color_at(sp);
@@ -201,7 +202,7 @@ class FrostedGlassClosure {
   // The sg pane sample (public for the tests' variants): the front interface's reflection as in method=path, its
   // transmission replaced by frosted::sample_pane_sg.
   bool pane_sample_sg(const ShadingPoint &sp, const DielectricLobe &lobe, const Vec3 &rand, LocalSample &out,
-                      frosted::SgVariant variant, const frosted::PaneTail &tail = {}) const {
+                      frosted::SgVariant variant, const frosted::PaneLadder &ladder = frosted::kPaneLadder) const {
     const bool flip = sp.wi.z < 0.0f;
     const Vec3 wi = flip ? mf::flip_z_local(sp.wi) : sp.wi;
     LocalSample s;
@@ -219,14 +220,36 @@ class FrostedGlassClosure {
     in.sigma_a = beer_.sigma;
     in.thickness = thickness_;
     in.variant = variant;
-    in.tail = tail;
+    in.ladder = &ladder;
+    if (variant == frosted::SgVariant::kPaneWalk) return pane_sample_sg_walk(sp, lobe, in, rand, s, flip, out);
     return frosted::sample_pane_sg(sp, in, rand, s.f_cos / s.pdf * in.tint, flip, out);
+  }
+  // SgVariant::kPaneWalk (rough panes): the walk between the faces as pane_sample's (same numbers), its leaving
+  // direction replaced by the exit lobe at the last internal direction (frosted::sample_pane_sg_at).
+  bool pane_sample_sg_walk(const ShadingPoint &sp, const DielectricLobe &lobe, const frosted::PaneSgInputs &in,
+                           const Vec3 &rand, const LocalSample &front, bool flip, LocalSample &out) const {
+    Spectrum throughput = front.f_cos / front.pdf * in.tint;
+    mf::WalkRng rng(hash_u32x4(sp.ctx->path_seed, std::bit_cast<uint32_t>(rand.x), std::bit_cast<uint32_t>(rand.y),
+                               std::bit_cast<uint32_t>(rand.z)));
+    Vec3 d = front.wo;
+    LocalSample s;
+    for (int event = 0; event < kMaxPaneEvents; ++event) {
+      if (d.z == 0.0f) return false;
+      const bool bottom = d.z < 0.0f;
+      throughput *= crossing(d.z);
+      if (!lobe.sample(at_interface(-d, bottom), Vec3(rng.next(), rng.next(), rng.next()), s)) return false;
+      throughput *= s.f_cos / s.pdf;
+      if (s.label & GLIMMER_LABEL_TRANSMIT)
+        return frosted::sample_pane_sg_at(sp, in, rand, d, throughput * in.tint, flip, out);
+      d = at_interface(s.wo, bottom);
+    }
+    return false;
   }
   // For the tests: the interface lobe at sp (per-point roughness and IOR).
   bool pane_sample_sg(const ShadingPoint &sp, const Vec3 &rand, LocalSample &out, frosted::SgVariant variant,
-                      const frosted::PaneTail &tail = {}) const {
+                      const frosted::PaneLadder &ladder = frosted::kPaneLadder) const {
     DielectricLobe scratch;
-    return pane_sample_sg(sp, lobe_at(sp, scratch), rand, out, variant, tail);
+    return pane_sample_sg(sp, lobe_at(sp, scratch), rand, out, variant, ladder);
   }
   bool uses_sg(const ShadingPoint &sp) const {
     if (thin_ || !(sp.wi.z > 0.0f)) return false;

@@ -187,7 +187,7 @@ float mean_exit_energy(const TransmissionSgTable &table, const Segment &seg, flo
   return sum / float(count);
 }
 
-void add_tail_ladder(const PaneTail &tail, ExitLobe &m);  // the pane's ladder (below), reused for planar exits
+void add_tail_ladder(const PaneLadder &ladder, ExitLobe &m);  // the pane's ladder (below), reused for planar exits
 
 // How much the exit surface turns under the traced rays: the mean over the bounding rays of the angle between
 // their exit normal and the axis ray's, over the angle between their direction and the axis (0: a planar exit;
@@ -268,6 +268,8 @@ bool build_exit_mixture(const TransmissionSgTable &table, const Segment &seg, co
 constexpr float kPlanarExitCurvature = 0.1f;
 constexpr float kCurvedSingleSgBelow = 0.2f;
 constexpr PaneTail kPlanarSolidTail{0.06f, 4, 0.18f, 3.0f};
+constexpr PaneLadder kPlanarSolidLadder = make_pane_ladder(kPlanarSolidTail);  // validated once, at compile time
+static_assert(kPlanarSolidLadder.valid, "the planar-solid tail must be a valid ladder");
 bool solid_exit_mixture(const SgInputs &in, const Segment &seg, const Vec3 &axis, float kappa_in,
                         float kappa_geometric, float ior, float roughness_exit, ExitLobe &out) {
   out.lobe_count = 0;
@@ -280,7 +282,7 @@ bool solid_exit_mixture(const SgInputs &in, const Segment &seg, const Vec3 &axis
   if (!build_exit_mixture(*in.table, seg, axis, kappa_in, kappa_geometric, ior, roughness_exit, in.mixture_variance,
                           tail, out))
     return false;
-  if (ladder) add_tail_ladder(kPlanarSolidTail, out);
+  if (ladder) add_tail_ladder(kPlanarSolidLadder, out);
   return true;
 }
 
@@ -476,33 +478,26 @@ Vec3 incident_clamped_to_critical(const Vec3 &d, const Vec3 &n, float ior) {
 }
 
 // PaneTail (frosted_glass_sg.h): the cores keep their axes, their weights x (1 - sum t_j) and their sharpness x
-// core_scale; the tail lobes sit about lobe 0 (the axis ray's) at its unscaled sharpness / 4^j. The sum of the t_j
-// is capped at 0.9 (the cores keep at least 10 %); weights still sum to 1.
-void add_tail_ladder(const PaneTail &tail, ExitLobe &m) {
-  if (m.lobe_count <= 0) return;
-  const int levels = std::clamp(tail.levels, 0, ExitLobe::kMaxLobes - m.lobe_count);
-  const float first = std::isfinite(tail.first) ? std::max(tail.first, 0.0f) : 0.0f;
-  const float ratio = std::clamp(std::isfinite(tail.ratio) ? tail.ratio : 0.0f, 0.0f, 1.0f);
-  float share[ExitLobe::kMaxLobes], total = 0.0f, t = first;
-  for (int j = 0; j < levels; ++j, t *= ratio) total += share[j] = t;
-  const float scale = total > 0.9f ? 0.9f / total : 1.0f;
-  total *= scale;
-  const float core = std::clamp(std::isfinite(tail.core_scale) ? tail.core_scale : 1.0f, 0.05f, 20.0f);
+// core_scale; the tail lobes sit about lobe 0 (the axis ray's) at its unscaled sharpness / 4^j. The ladder was
+// validated once (make_pane_ladder: sum t_j <= 0.9, the lobes fit); weights still sum to 1.
+void add_tail_ladder(const PaneLadder &ladder, ExitLobe &m) {
+  if (m.lobe_count <= 0 || !ladder.valid || m.lobe_count + ladder.levels > ExitLobe::kMaxLobes) return;
   float kappa = m.lobe[0].sharpness;
   const GlimmerVec3 axis = m.lobe[0].axis;
   for (int k = 0; k < m.lobe_count; ++k) {
-    m.lobe[k].weight *= 1.0f - total;
-    m.lobe[k].sharpness = std::clamp(m.lobe[k].sharpness * core, 1e-3f, 1e7f);
+    m.lobe[k].weight *= 1.0f - ladder.total;
+    m.lobe[k].sharpness = std::clamp(m.lobe[k].sharpness * ladder.core_scale, 1e-3f, 1e7f);
   }
-  for (int j = 0; j < levels; ++j) {
+  for (int j = 0; j < ladder.levels; ++j) {
     kappa *= 0.25f;
-    if (!(share[j] * scale > 0.0f)) continue;
+    if (!(ladder.share[j] > 0.0f)) continue;
     ExitLobe::MixtureLobe &l = m.lobe[m.lobe_count++];
     l.axis = axis;
     l.sharpness = std::max(kappa, 1e-3f);
-    l.weight = share[j] * scale;
+    l.weight = ladder.share[j];
   }
 }
+
 
 // Beer-Lambert over `length` (0 absorption stays exactly 1 at any length).
 Spectrum beer_transmittance(const Spectrum &sigma_a, float length) {
@@ -564,7 +559,7 @@ bool pane_exit_lobe(const Vec3 &wi, const PaneSgInputs &in, uint32_t seed, PaneE
       if (!build_exit_mixture(*in.table, seg, axis, kappa_in, kappa_geometric, ior, roughness,
                               kDefaultMixtureVariance, ladder ? 0.0f : mixture_tail_for(roughness), mixture))
         return false;
-      if (ladder) add_tail_ladder(in.tail, mixture);
+      if (ladder && in.ladder != nullptr) add_tail_ladder(*in.ladder, mixture);
       out.lobe_count = mixture.lobe_count;
       for (int k = 0; k < mixture.lobe_count; ++k) out.lobe[k] = mixture.lobe[k];
     }
@@ -573,14 +568,13 @@ bool pane_exit_lobe(const Vec3 &wi, const PaneSgInputs &in, uint32_t seed, PaneE
   return false;
 }
 
-bool sample_pane_sg(const ShadingPoint &sp, const PaneSgInputs &in, const Vec3 &rand, const Spectrum &front_weight,
-                    bool flip, LocalSample &out) {
+namespace {
+
+// One singular sample from the pane's exit lobe `exit` (pane frame), moved to the exit face of the same point and
+// carrying the lobe (ABI 2.4; the whole mixture, ABI 2.7). `weight`: the sample's f cos / pdf.
+bool emit_pane_sample(const ShadingPoint &sp, const PaneExitLobe &exit, uint32_t seed, const Spectrum &weight,
+                      bool flip, LocalSample &out) {
   const GlimmerShadingContext &ctx = *sp.ctx;
-  const Vec3 wi = flip ? mf::flip_z_local(sp.wi) : sp.wi;
-  const uint32_t seed = hash_u32x4(ctx.path_seed, std::bit_cast<uint32_t>(rand.x), std::bit_cast<uint32_t>(rand.y),
-                                   std::bit_cast<uint32_t>(rand.z));
-  PaneExitLobe exit;
-  if (!pane_exit_lobe(wi, in, seed, exit)) return false;
   const Vec3 axis = normalize(sp.frame.to_world(flip ? mf::flip_z_local(exit.sg.axis) : exit.sg.axis));
   // The exit face's outward normal: the geometric normal on the far side of wi (through) or on wi's side.
   Vec3 Ng(ctx.Ng);
@@ -613,7 +607,6 @@ bool sample_pane_sg(const ShadingPoint &sp, const PaneSgInputs &in, const Vec3 &
 #endif
   }
   const Vec3 wo = lobe.sample([&rng] { return rng.next(); });
-  const Spectrum weight = front_weight * exit.weight;
   if (!(dot(wo, n) > 0.0f) || !is_finite(wo) || !is_finite(weight) || !is_finite(axis)) return false;
   out.wo = sp.frame.to_local(wo);
   out.f_cos = weight;
@@ -628,6 +621,45 @@ bool sample_pane_sg(const ShadingPoint &sp, const PaneSgInputs &in, const Vec3 &
   out.lobe_axis = lobe.axis;
   out.lobe_sharpness = float(lobe.kappa);
   return is_finite(out.origin);
+}
+
+uint32_t pane_seed(const ShadingPoint &sp, const Vec3 &rand) {
+  return hash_u32x4(sp.ctx->path_seed, std::bit_cast<uint32_t>(rand.x), std::bit_cast<uint32_t>(rand.y),
+                    std::bit_cast<uint32_t>(rand.z));
+}
+
+}  // namespace
+
+bool sample_pane_sg(const ShadingPoint &sp, const PaneSgInputs &in, const Vec3 &rand, const Spectrum &front_weight,
+                    bool flip, LocalSample &out) {
+  const Vec3 wi = flip ? mf::flip_z_local(sp.wi) : sp.wi;
+  const uint32_t seed = pane_seed(sp, rand);
+  PaneExitLobe exit;
+  if (!pane_exit_lobe(wi, in, seed, exit)) return false;
+  return emit_pane_sample(sp, exit, seed, front_weight * exit.weight, flip, out);
+}
+
+bool pane_exit_lobe_at(const Vec3 &d, const PaneSgInputs &in, PaneExitLobe &out) {
+  if (in.table == nullptr || !is_finite(d) || d.z == 0.0f) return false;
+  const float ior = in.ior;
+  if (!(ior >= TransmissionSgTable::kIorMin && ior <= TransmissionSgTable::kIorMax)) return false;
+  const float roughness = std::clamp(std::isfinite(in.roughness) ? in.roughness : 0.0f,
+                                     TransmissionSgTable::kRoughnessMin, kTableRoughnessMax);
+  const Vec3 n(0.0f, 0.0f, d.z < 0.0f ? -1.0f : 1.0f);
+  float energy = 0.0f;
+  if (!table_lobe(*in.table, Frame::from_normal(-n), -normalize(d), 1.0f / ior, roughness, out.sg, energy))
+    return false;
+  out.through = n.z < 0.0f;
+  out.weight = Spectrum(1.0f);
+  out.lobe_count = 0;
+  return is_finite(out.sg.axis) && std::isfinite(out.sg.sharpness);
+}
+
+bool sample_pane_sg_at(const ShadingPoint &sp, const PaneSgInputs &in, const Vec3 &rand, const Vec3 &d,
+                       const Spectrum &weight, bool flip, LocalSample &out) {
+  PaneExitLobe exit;
+  if (!pane_exit_lobe_at(d, in, exit)) return false;
+  return emit_pane_sample(sp, exit, pane_seed(sp, rand), weight, flip, out);
 }
 
 }  // namespace glimmer::plugin::frosted

@@ -69,6 +69,7 @@ enum class SgVariant {
   kNoExitRefraction,  // negative control: the exit lobe keeps the internal axis (exit refraction ignored)
   kMixture,           // the exit as a mixture of lobes, one per traced ray (below); the default up to 0.4
   kMixtureShortTail,  // panes: the tenth session's mixture (a kappa / 4 tail per ray, no PaneTail; the control)
+  kPaneWalk,          // panes: the exact walk between the faces, the exit as the leaving table's SG (below)
 };
 
 // The exit lobe mixture (SgVariant::kMixture, issue 12): instead of one SG about the axis refracted through the
@@ -213,6 +214,35 @@ struct PaneTail {
   float ratio = 0.18f;      // t_(j+1) / t_j
   float core_scale = 5.0f;  // the cores' sharpness factor
 };
+// The cores of a pane's mixture: the axis and the 4 bounding directions.
+inline constexpr int kPaneCores = 5;
+// A PaneTail as add_tail_ladder applies it (the shares t_j, their sum, the cores' factor), built and checked ONCE:
+// at compile time for the default (kPaneLadder, static_assert below), at set-up for a test's own PaneTail (the test
+// asserts `valid`). Valid: t_1 and the ratio in [0, 1], the cores' factor in [0.05, 20], the cores and the tail
+// lobes within the ABI's lobes, sum t_j <= 0.9 (the cores keep at least 10 %). Invalid: no tail (levels 0).
+struct PaneLadder {
+  int levels = 0;
+  float share[ExitLobe::kMaxLobes] = {};
+  float total = 0.0f;
+  float core_scale = 1.0f;
+  bool valid = false;
+};
+constexpr PaneLadder make_pane_ladder(const PaneTail &t) {
+  // NaN fails every comparison: a non-finite field makes the ladder invalid.
+  if (!(t.first >= 0.0f && t.first <= 1.0f && t.ratio >= 0.0f && t.ratio <= 1.0f && t.core_scale >= 0.05f &&
+        t.core_scale <= 20.0f && t.levels >= 0 && t.levels <= ExitLobe::kMaxLobes - kPaneCores))
+    return PaneLadder{};
+  PaneLadder l;
+  float s = t.first;
+  for (int j = 0; j < t.levels; ++j, s *= t.ratio) l.total += l.share[j] = s;
+  if (!(l.total <= 0.9f)) return PaneLadder{};
+  l.levels = t.levels;
+  l.core_scale = t.core_scale;
+  l.valid = true;
+  return l;
+}
+inline constexpr PaneLadder kPaneLadder = make_pane_ladder(PaneTail{});
+static_assert(kPaneLadder.valid && kPaneLadder.levels == 4, "the default pane tail must be a valid ladder");
 
 struct PaneSgInputs {
   const TransmissionSgTable *table = nullptr;
@@ -221,7 +251,7 @@ struct PaneSgInputs {
   Spectrum sigma_a{0.0f};              // Beer absorption coefficient
   float thickness = 0.01f;
   SgVariant variant = SgVariant::kTracedCone;  // kNoExitRefraction: the test's negative control
-  PaneTail tail;                               // kMixture: the heavy tail (above)
+  const PaneLadder *ladder = &kPaneLadder;     // kMixture: the heavy tail (above), validated once
 };
 
 // The pane's exit lobe in the pane frame (entry side +z): `through` = it leaves through the far face (-z side).
@@ -235,6 +265,14 @@ struct PaneExitLobe {
   ExitLobe::MixtureLobe lobe[ExitLobe::kMaxLobes];
 };
 
+// The pane's estimator by its roughness (method=sg / auto on a thin pane): the mixture with the heavy tail up to
+// kMixtureRoughnessMax, above it the exact walk with the leaving table's SG (kPaneWalk; twelfth session: the single
+// SG there put 3-7 % too little light through the far face and the wrong shape, band L1 0.31 against 0.07;
+// docs/frosted_glass.md "Rough panes (twelfth session)").
+inline SgVariant default_pane_variant(float roughness) {
+  return roughness <= kMixtureRoughnessMax ? SgVariant::kMixture : SgVariant::kPaneWalk;
+}
+
 // Steps 1-4 for wi (pane frame, wi.z > 0); `seed` drives the Russian roulette. False when the table does not
 // cover (ior, roughness) or a value is not finite.
 bool pane_exit_lobe(const Vec3 &wi, const PaneSgInputs &in, uint32_t seed, PaneExitLobe &out);
@@ -245,5 +283,14 @@ bool pane_exit_lobe(const Vec3 &wi, const PaneSgInputs &in, uint32_t seed, PaneE
 // samples the lights there). False: no sample.
 bool sample_pane_sg(const ShadingPoint &sp, const PaneSgInputs &in, const Vec3 &rand, const Spectrum &front_weight,
                     bool flip, LocalSample &out);
+
+// Rough panes (issue 12, twelfth session): the walk between the faces is sampled exactly (the closure's interface
+// lobe, as method=path; it decides the face the light leaves through and carries Beer over every crossing), and
+// the leaving crossing's direction is replaced by the exit lobe: the leaving table's SG T(theta, 1 / ior,
+// roughness) at the last internal direction `d` (pane frame, the entry side +z; d.z < 0: through the far face).
+bool pane_exit_lobe_at(const Vec3 &d, const PaneSgInputs &in, PaneExitLobe &out);
+// The sample as sample_pane_sg's, from the walk's last internal direction `d`; `weight` = the walk's f cos / pdf.
+bool sample_pane_sg_at(const ShadingPoint &sp, const PaneSgInputs &in, const Vec3 &rand, const Vec3 &d,
+                       const Spectrum &weight, bool flip, LocalSample &out);
 
 }  // namespace glimmer::plugin::frosted

@@ -25,6 +25,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <functional>
+#include <limits>
 
 #include "closures/frosted_glass.h"
 #include "closures/raw_output_checks.h"
@@ -163,20 +164,46 @@ struct PaneCase {
   PaneConfig config;
   double bound_T, bound_R;  // the goal where met, else the measured error + ~30 % (a regression fails)
   bool control;             // the negative control must fail here (it measured > 2x the goal)
+  // The control: sg without the exit refraction; at roughness > 0.4 the single SG that was the default there
+  // before the twelfth session (3-7 % of T missing, the wrong shape).
+  frosted::SgVariant control_variant = frosted::SgVariant::kNoExitRefraction;
 };
 
 void check_pane(const PaneCase &c) {
   auto path = create_pane(c.config, "path"), sg = create_pane(c.config, "sg");
   auto solid = create_pane(c.config, "path", false);  // its first event is the pane's front event
-  const auto [path_sampler, sg_sampler, control_sampler] =
-      pane_samplers(*path, *sg, frosted::SgVariant::kNoExitRefraction);
+  const auto [path_sampler, sg_sampler, control_sampler] = pane_samplers(*path, *sg, c.control_variant);
   const auto ref = estimate(*solid, path_sampler, kReferencePaths, 1);
-  const PaneError e = compare(estimate(*solid, sg_sampler, kSgPaths, 2), ref);
-  const PaneError ctl = compare(estimate(*solid, control_sampler, kSgPaths, 2), ref);
+  const auto est = estimate(*solid, sg_sampler, kSgPaths, 2);
+  const PaneError e = compare(est, ref);
+  const auto est_ctl = estimate(*solid, control_sampler, kSgPaths, 2);
+  const PaneError ctl = compare(est_ctl, ref);
+  // Noise per path of T, sg over path: the mean relative se, each scaled to one path.
+  double noise_sg = 0.0, noise_path = 0.0, noise_ctl = 0.0;
+  for (int a = 0; a < kAngles; ++a) {
+    noise_sg += est[a].se_T / est[a].T * std::sqrt(double(kSgPaths));
+    noise_ctl += est_ctl[a].se_T / est_ctl[a].T * std::sqrt(double(kSgPaths));
+    noise_path += ref[a].se_T / ref[a].T * std::sqrt(double(kReferencePaths));
+  }
   std::printf("[frosted sg pane] roughness %.2f ior %.2f%s: mean relative error sg T %.4f, R_int %.4f, T + R_int "
-              "%.4f (no exit refraction: T %.4f); reference se T %.4f R_int %.4f (%ld / %ld paths per angle)\n",
+              "%.4f (%s: T %.4f R_int %.4f); reference se T %.4f R_int %.4f (%ld / %ld paths per angle)\n",
               double(c.config.roughness), double(c.config.ior), c.config.absorb.x < 1.0f ? " absorbing" : "", e.T,
-              e.R, e.total, ctl.T, e.se_T, e.se_R, kReferencePaths, kSgPaths);
+              e.R, e.total,
+              c.control_variant == frosted::SgVariant::kNoExitRefraction ? "no exit refraction" : "single SG",
+              ctl.T, ctl.R, e.se_T, e.se_R, kReferencePaths, kSgPaths);
+  std::printf("[frosted sg pane] noise of T per path over path's: sg %.3f, control %.3f\n", noise_sg / noise_path,
+              noise_ctl / noise_path);
+  {  // The walk (the default above 0.4) at this roughness too: printed, for the rule's next step.
+    const Sampler walk = [&sg](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
+      return sg->pane_sample_sg(sp, r, s, frosted::SgVariant::kPaneWalk);
+    };
+    const auto est_walk = estimate(*solid, walk, kSgPaths, 2);
+    const PaneError w = compare(est_walk, ref);
+    double noise_walk = 0.0;
+    for (int a = 0; a < kAngles; ++a) noise_walk += est_walk[a].se_T / est_walk[a].T * std::sqrt(double(kSgPaths));
+    std::printf("[frosted sg pane] kPaneWalk here: T %.4f, R_int %.4f, noise of T per path over path's %.3f\n", w.T,
+                w.R, noise_walk / noise_path);
+  }
   EXPECT_LT(e.T, c.bound_T) << "roughness " << c.config.roughness << " ior " << c.config.ior;
   EXPECT_LT(e.R, c.bound_R) << "roughness " << c.config.roughness << " ior " << c.config.ior;
   if (c.control) {
@@ -186,16 +213,17 @@ void check_pane(const PaneCase &c) {
 
 TEST(FrostedGlassSgPane, MatchesThePathReference) {
   // Measured (fit version 10), mean relative error T / R_int / T + R_int: 0.1, 1.33: 0.0062 / 0.110 / 0.0047;
-  // 0.3, 1.5: 0.037 / 0.206 / 0.016; 0.5, 1.7: 0.125 / 0.147 / 0.095; 0.5, 1.5 absorbing: 0.058 / 0.708 / 0.025;
-  // 0.8, 1.5: 0.119 / 0.108 / 0.108 (reference se of R_int 0.026-0.047: R_int is a few % of the light and noisy).
-  // The goal is met for T at roughness <= 0.3 (auto's sg range); R_int (one SG for the light reflected between
-  // the faces) is not, nor T at 0.5-0.8 (one SG per interface, as for solids).
+  // 0.3, 1.5: 0.029 / 0.211 / 0.011 (the mixture with the heavy tail). Above roughness 0.4 the pane's default is
+  // the exact walk between the faces with the leaving table's SG (kPaneWalk, twelfth session): 0.5, 1.7: 0.0099 /
+  // 0.037 / 0.008; 0.5, 1.5 absorbing: 0.011 / 0.039 / 0.010; 0.8, 1.5: 0.015 / 0.040 / 0.012 (the single SG before:
+  // 0.125 / 0.147, 0.058 / 0.708, 0.119 / 0.108; reference se T 0.006-0.009, R_int 0.026-0.034). The goal is met
+  // for T at every roughness and for R_int above 0.4; R_int at 0.1-0.3 (the mixture's axis roulette) is not.
   const PaneCase cases[] = {
       {{0.1f, 1.33f}, kGoal, 0.145, true},
       {{0.3f, 1.5f}, kGoal, 0.27, true},
-      {{0.5f, 1.7f}, 0.165, 0.19, false},
-      {{0.5f, 1.5f, Vec3(0.7f, 0.85f, 0.95f)}, 0.076, 0.92, false},
-      {{0.8f, 1.5f}, 0.155, 0.14, false},
+      {{0.5f, 1.7f}, kGoal, kGoal, true, frosted::SgVariant::kTracedCone},
+      {{0.5f, 1.5f, Vec3(0.7f, 0.85f, 0.95f)}, kGoal, kGoal, false, frosted::SgVariant::kTracedCone},
+      {{0.8f, 1.5f}, kGoal, kGoal, true, frosted::SgVariant::kTracedCone},
   };
   for (const PaneCase &c : cases) check_pane(c);
 }
@@ -212,6 +240,7 @@ constexpr double kBandEdge[kBands + 1] = {0, 2, 5, 10, 20, 30, 45, 60, 90};  // 
 struct BandMass {
   double mass[kBands] = {}, se[kBands] = {};  // fraction of the transmitted energy per band, its standard error
   double total = 0.0;                          // transmitted energy per entering path
+  double reflected = 0.0;                      // energy per entering path leaving back through the entry face
 };
 
 BandMass band_mass(const FrostedGlassClosure &front, const Sampler &sample, float theta_deg, long paths,
@@ -219,7 +248,7 @@ BandMass band_mass(const FrostedGlassClosure &front, const Sampler &sample, floa
   constexpr int kChunks = 16;
   const float th = theta_deg * float(M_PI) / 180.0f;
   const Vec3 axis(std::sin(th), 0.0f, -std::cos(th));  // -wi: the incident direction continued
-  std::vector<std::array<double, 2 * kBands + 1>> acc(kChunks);
+  std::vector<std::array<double, 2 * kBands + 2>> acc(kChunks);
   tbb::parallel_for(0, kChunks, [&](int chunk) {
     Pcg32 rng(seed, 97 + uint64_t(chunk));
     auto &a = acc[chunk];
@@ -228,8 +257,11 @@ BandMass band_mass(const FrostedGlassClosure &front, const Sampler &sample, floa
       LocalSample s;
       Vec3 wo;
       if (!entering_sample(front, sample, theta_deg, rng, s, wo)) continue;
-      if (!(wo.z < 0.0f)) continue;  // back through the entry face: not what the band measure is about
       const double w = average(s.f_cos / s.pdf);
+      if (!(wo.z < 0.0f)) {  // back through the entry face: not in the bands, its energy apart
+        a[2 * kBands + 1] += w;
+        continue;
+      }
       const double deg = std::acos(std::clamp(double(dot(wo, axis)), -1.0, 1.0)) * 180.0 / M_PI;
       int b = 0;
       while (b + 1 < kBands && deg >= kBandEdge[b + 1]) ++b;
@@ -243,6 +275,7 @@ BandMass band_mass(const FrostedGlassClosure &front, const Sampler &sample, floa
   for (const auto &a : acc) {
     for (int b = 0; b < kBands; ++b) sum[b] += a[b], sum2[b] += a[kBands + b];
     out.total += a[2 * kBands];
+    out.reflected += a[2 * kBands + 1];
   }
   for (int b = 0; b < kBands; ++b) {
     out.mass[b] = sum[b] / out.total;
@@ -250,6 +283,7 @@ BandMass band_mass(const FrostedGlassClosure &front, const Sampler &sample, floa
     out.se[b] = std::sqrt(std::max(0.0, sum2[b] / paths - m * m) / paths) * paths / out.total;
   }
   out.total /= paths;
+  out.reflected /= paths;
   return out;
 }
 
@@ -283,6 +317,14 @@ void print_bands(const char *what, const BandMass &m) {
 // -0.003 / -0.040 and -0.172 / -0.003 (reference relative se 0.014 / 0.014 / 0.006 / 0.005). Bound 0.3 where the ladder reaches the band; the tenth session's mixture (the control) must miss
 // it at roughness 0.2 (the small light's pane). At roughness 0.1 (IOR 1.33) the band holds 1e-4 of the light and
 // the ladder's widest lobe (kappa / 256) is still narrower than 20 deg: printed, not asserted.
+// The ladder is validated once, at compile time for the default (frosted_glass_sg.h); invalid tails give no tail.
+static_assert(frosted::kPaneLadder.valid && frosted::kPaneLadder.total > 0.146f && frosted::kPaneLadder.total < 0.147f);
+static_assert(!frosted::make_pane_ladder({0.5f, 4, 1.0f, 5.0f}).valid);  // sum t_j 2 > 0.9
+static_assert(!frosted::make_pane_ladder({0.12f, 6, 0.18f, 5.0f}).valid);  // 5 cores + 6 > the ABI's 10 lobes
+static_assert(!frosted::make_pane_ladder({std::numeric_limits<float>::quiet_NaN(), 4, 0.18f, 5.0f}).valid);
+static_assert(!frosted::make_pane_ladder({0.12f, 4, 0.18f, std::numeric_limits<float>::infinity()}).valid);
+static_assert(frosted::make_pane_ladder({0.0f, 0, 0.0f, 1.0f}).valid);  // no tail at all is a valid ladder
+
 TEST(FrostedGlassSgPane, ExitLobeShapeAgainstThePath) {
   const long ref_paths = stress_scale() > 1 ? 8000000 : 1000000, sg_paths = ref_paths / 4;
   struct ShapeCase {
@@ -328,6 +370,74 @@ TEST(FrostedGlassSgPane, ExitLobeShapeAgainstThePath) {
   }
 }
 
+// ---- Rough panes (twelfth session): where sg's error at roughness 0.5-0.8 came from ----------------------------
+// Per (roughness 0.5 / 0.65 / 0.8, IOR 1.33 / 1.5 / 1.7, incidence 0 / 40 / 70 deg): the transmitted energy T, the
+// energy back through the entry face R_int and the band distribution of T (ExitLobeShapeAgainstThePath's bands),
+// path's exact walk vs (a) the single SG that was the default above 0.4 (the negative control), (b) the mixture
+// with the heavy-tail ladder (tried: no better), (c) the default now, kPaneWalk (the exact walk between the faces,
+// the leaving table's SG at the last internal direction). Measured at 40000 / 20000 paths: (a) mean band L1 0.308,
+// mean |dT| 0.027 (worst 0.060, T always short: R_int 5-34 % too high); (b) 0.343 / 0.027; (c) 0.073 / 0.004
+// (worst 0.011). GLIMMER_PANE_TAIL="first,ratio,core,levels" overrides the ladder of (b); GLIMMER_PANE_BANDS=1
+// prints the bands.
+TEST(FrostedGlassSgPane, RoughPaneShapeAndEnergyAgainstThePath) {
+  frosted::PaneTail tail;
+  if (const char *t = std::getenv("GLIMMER_PANE_TAIL"))
+    std::sscanf(t, "%f,%f,%f,%d", &tail.first, &tail.ratio, &tail.core_scale, &tail.levels);
+  const frosted::PaneLadder ladder = frosted::make_pane_ladder(tail);  // validated once
+  ASSERT_TRUE(ladder.valid);
+  long ref_paths = stress_scale() > 1 ? 400000 : 40000;
+  if (const char *n = std::getenv("GLIMMER_PANE_PATHS")) ref_paths = std::atol(n);
+  constexpr int kEstimators = 3;
+  const char *names[kEstimators] = {"single SG (control)", "ladder", "walk (default)"};
+  const frosted::SgVariant variants[kEstimators] = {frosted::SgVariant::kTracedCone, frosted::SgVariant::kMixture,
+                                                    frosted::SgVariant::kPaneWalk};
+  double sum_l1[kEstimators] = {}, sum_dt[kEstimators] = {}, worst_dt[kEstimators] = {}, worst_l1[kEstimators] = {};
+  int n_cases = 0;
+  for (float roughness : {0.5f, 0.65f, 0.8f})
+    for (float ior : {1.33f, 1.5f, 1.7f})
+      for (float theta : {0.0f, 40.0f, 70.0f}) {
+        const PaneConfig config{roughness, ior};
+        auto path = create_pane(config, "path"), sg = create_pane(config, "sg");
+        auto solid = create_pane(config, "path", false);
+        const BandMass ref = band_mass(
+            *solid, [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) { return path->sample(sp, r, s); },
+            theta, ref_paths, 1);
+        std::printf("[rough pane] r %.2f ior %.2f theta %2.0f | path T %.4f R_int %.4f |", double(roughness),
+                    double(ior), double(theta), ref.total, ref.reflected);
+        BandMass est[kEstimators];
+        for (int k = 0; k < kEstimators; ++k) {
+          const frosted::SgVariant v = variants[k];
+          est[k] = band_mass(
+              *solid,
+              [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) { return sg->pane_sample_sg(sp, r, s, v, ladder); },
+              theta, ref_paths / 2, 2);
+          const double dt = est[k].total / ref.total - 1.0, l1 = band_l1(est[k], ref);
+          sum_l1[k] += l1;
+          sum_dt[k] += std::fabs(dt);
+          worst_dt[k] = std::max(worst_dt[k], std::fabs(dt));
+          worst_l1[k] = std::max(worst_l1[k], l1);
+          std::printf(" %s dT %+.3f dR %+.3f L1 %.3f |", k == 0 ? "single" : k == 1 ? "ladder" : "walk", dt,
+                      est[k].reflected / ref.reflected - 1.0, l1);
+        }
+        std::printf("\n");
+        if (std::getenv("GLIMMER_PANE_BANDS")) {
+          print_bands("path", ref);
+          for (int k = 0; k < kEstimators; ++k) print_bands(names[k], est[k]);
+        }
+        ++n_cases;
+      }
+  for (int k = 0; k < kEstimators; ++k)
+    std::printf("[rough pane] %d cases, %s: band L1 mean %.3f worst %.3f, |T / T_path - 1| mean %.4f worst %.4f\n",
+                n_cases, names[k], sum_l1[k] / n_cases, worst_l1[k], sum_dt[k] / n_cases, worst_dt[k]);
+  // The default: the energy through the far face within 2 % everywhere (measured worst 1.1 %; the reference's own
+  // relative se ~0.3 %), the shape within a band L1 of 0.1 on average (measured 0.073).
+  EXPECT_LT(worst_dt[2], 0.02);
+  EXPECT_LT(sum_l1[2] / n_cases, 0.1);
+  // The control (the single SG that was the default here) fails both.
+  EXPECT_GT(worst_dt[0], 0.02);
+  EXPECT_GT(sum_l1[0] / n_cases, 0.1);
+}
+
 // ---- White furnace: nothing dropped between the faces ------------------------------
 TEST(FrostedGlassSgPane, WhiteFurnaceKeepsTheReflectionBetweenTheFaces) {
   const auto schema = FrostedGlassClosure::params();
@@ -354,6 +464,9 @@ TEST(FrostedGlassSgPane, WhiteFurnaceKeepsTheReflectionBetweenTheFaces) {
         const double mean = sum / n, se = std::sqrt(std::max(0.0, sum2 / n - mean * mean) / n);
         worst = std::max(worst, std::fabs(1.0 - mean));
         worst_z = std::max(worst_z, std::fabs(1.0 - mean) / std::max(se, 1e-12));
+        if (std::getenv("GLIMMER_PANE_FURNACE_CASES"))
+          std::printf("  roughness %.1f ior %.2f mu %.1f: R + T %.5f (se %.5f)\n", double(roughness), double(ior),
+                      double(mu), mean, se);
         max_internal = std::max(max_internal, internal / n);
         // The bound of method=path's furnace (the interface's compensation error), plus 5 standard errors.
         EXPECT_LT(std::fabs(1.0 - mean), 0.005 + 5.0 * se) << "roughness " << roughness << " ior " << ior << " mu "
