@@ -588,7 +588,7 @@ namespace pg = plugin::glint;
 // change of a few particles.
 TEST(GlintParticles, PairPassesMatchTheNodeLoop) {
   Pcg32 rng(29);
-  int compared = 0, lit = 0, capped = 0, big = 0, control_differs = 0;
+  int compared = 0, lit = 0, capped = 0, big = 0, control_differs = 0, in_passes = 0;
   for (int t = 0; t < 40000; ++t) {
     const double density = std::exp(std::log(1e3) + rng.next_double() * std::log(1e4));
     const double particles = std::exp(std::log(0.1) + rng.next_double() * std::log(5e4));
@@ -609,6 +609,7 @@ TEST(GlintParticles, PairPassesMatchTheNodeLoop) {
       ASSERT_EQ(passes.steps, loop.steps) << "query " << t;
     }
     ++compared;
+    in_passes += pg::FootprintFrame(f, nodes.size).nodes_can_be_inside;  // the walk takes the passes
     lit += loop.complete && loop.count > 0;
     capped += !loop.complete;
     big += loop.complete && loop.steps > 256;
@@ -616,8 +617,9 @@ TEST(GlintParticles, PairPassesMatchTheNodeLoop) {
                                                         pg::NoParticleVisitor{}, true);
     control_differs += shifted.complete && passes.complete && shifted.count != passes.count;
   }
-  std::printf("[pair passes] %d queries equal (%d lit, %d capped, %d over 256 lit particles); control P (1 + 1e-3) "
-              "differs on %d\n", compared, lit, capped, big, control_differs);
+  std::printf("[pair passes] %d queries equal (%d counted in passes, %d lit, %d capped, %d over 256 lit particles); "
+              "control P (1 + 1e-3) differs on %d\n", compared, in_passes, lit, capped, big, control_differs);
+  EXPECT_GT(in_passes, 10000);
   EXPECT_GT(lit, 10000);
   EXPECT_GT(capped, 1000);
   EXPECT_GT(big, 100);
