@@ -110,18 +110,14 @@ inline double select_double(bool c, double a, double b) {
   const uint64_t m = uint64_t{0} - static_cast<uint64_t>(c);
   return std::bit_cast<double>((std::bit_cast<uint64_t>(a) & m) | (std::bit_cast<uint64_t>(b) & ~m));
 }
-// std::min(x, c ? a : b) and std::max, where c is the SSE2 compare mask of
-// a scalar (all ones or zeros in the low lane; same values as above, fewer
-// moves between register files).
+// Two double lanes: m ? a : b per lane (m a compare mask), and the smaller /
+// larger lane. The rasteriser's four edges and corners in two registers:
+// the same values as the scalar selects, in any order (min / max of finite
+// values and +-1e300).
 #if defined(__SSE2__)
-inline double min_select(double x, __m128d c, double a, double b) {
-  const __m128d v = _mm_or_pd(_mm_and_pd(c, _mm_set_sd(a)), _mm_andnot_pd(c, _mm_set_sd(b)));
-  return _mm_cvtsd_f64(_mm_min_sd(v, _mm_set_sd(x)));  // (v < x) ? v : x, std::min(x, v)
-}
-inline double max_select(double x, __m128d c, double a, double b) {
-  const __m128d v = _mm_or_pd(_mm_and_pd(c, _mm_set_sd(a)), _mm_andnot_pd(c, _mm_set_sd(b)));
-  return _mm_cvtsd_f64(_mm_max_sd(v, _mm_set_sd(x)));  // (v > x) ? v : x, std::max(x, v)
-}
+inline __m128d blend_pd(__m128d m, __m128d a, __m128d b) { return _mm_or_pd(_mm_and_pd(m, a), _mm_andnot_pd(m, b)); }
+inline double lane_min(__m128d v) { return _mm_cvtsd_f64(_mm_min_sd(v, _mm_unpackhi_pd(v, v))); }
+inline double lane_max(__m128d v) { return _mm_cvtsd_f64(_mm_max_sd(v, _mm_unpackhi_pd(v, v))); }
 #endif
 
 // A multiply-xorshift integer hash without a data-dependent shift
@@ -257,19 +253,28 @@ struct EdgeCrossings {
   // non-crossing edge's value, possibly inf or NaN, is discarded by the
   // select), so the crossings and the nodes are the same.
   EdgeCrossings(const FootprintCorners &c, double y) : yc(y), lo(1e300), hi(-1e300) {
+#if defined(__SSE2__)  // edges (0, 1), (1, 2) and (2, 3), (3, 0) in two registers
+    const __m128d ycv = _mm_set1_pd(yc);
+    __m128d lo2 = _mm_set1_pd(1e300), hi2 = _mm_set1_pd(-1e300);
+    for (int h = 0; h < 2; ++h) {
+      const __m128d ax = _mm_loadu_pd(c.x + 2 * h), ay = _mm_loadu_pd(c.y + 2 * h);
+      const __m128d bx = h == 0 ? _mm_loadu_pd(c.x + 1) : _mm_set_pd(c.x[0], c.x[3]);
+      const __m128d by = h == 0 ? _mm_loadu_pd(c.y + 1) : _mm_set_pd(c.y[0], c.y[3]);
+      const __m128d xc = _mm_add_pd(ax, _mm_div_pd(_mm_mul_pd(_mm_sub_pd(bx, ax), _mm_sub_pd(ycv, ay)), _mm_sub_pd(by, ay)));
+      const __m128d crosses = _mm_cmplt_pd(_mm_mul_pd(_mm_sub_pd(ay, ycv), _mm_sub_pd(by, ycv)), _mm_setzero_pd());
+      lo2 = _mm_min_pd(blend_pd(crosses, xc, _mm_set1_pd(1e300)), lo2);
+      hi2 = _mm_max_pd(blend_pd(crosses, xc, _mm_set1_pd(-1e300)), hi2);
+    }
+    lo = lane_min(lo2), hi = lane_max(hi2);
+#else
     for (int k = 0; k < 4; ++k) {
       const double ax = c.x[k], ay = c.y[k], bx = c.x[(k + 1) % 4], by = c.y[(k + 1) % 4];
       const double xc = ax + (bx - ax) * (yc - ay) / (by - ay);
-#if defined(__SSE2__)
-      const __m128d crosses = _mm_cmplt_sd(_mm_set_sd((ay - yc) * (by - yc)), _mm_setzero_pd());
-      lo = min_select(lo, crosses, xc, 1e300);
-      hi = max_select(hi, crosses, xc, -1e300);
-#else
       const bool crosses = (ay - yc) * (by - yc) < 0.0;
       lo = std::min(lo, select_double(crosses, xc, 1e300));
       hi = std::max(hi, select_double(crosses, xc, -1e300));
-#endif
     }
+#endif
   }
 };
 
@@ -280,18 +285,21 @@ struct EdgeCrossings {
 inline bool footprint_x_range_in_band(const FootprintCorners &c, const EdgeCrossings &at_y0,
                                       const EdgeCrossings &at_y1, double &x_min, double &x_max) {
   x_min = std::min(at_y0.lo, at_y1.lo), x_max = std::max(at_y0.hi, at_y1.hi);
-  for (int k = 0; k < 4; ++k) {  // selects, not branches (see EdgeCrossings)
-#if defined(__SSE2__)
-    const __m128d y = _mm_set_sd(c.y[k]);
-    const __m128d in_band = _mm_and_pd(_mm_cmpge_sd(y, _mm_set_sd(at_y0.yc)), _mm_cmple_sd(y, _mm_set_sd(at_y1.yc)));
-    x_min = min_select(x_min, in_band, c.x[k], 1e300);
-    x_max = max_select(x_max, in_band, c.x[k], -1e300);
+#if defined(__SSE2__)  // the four corners in two registers (see EdgeCrossings)
+  const __m128d y0 = _mm_set1_pd(at_y0.yc), y1 = _mm_set1_pd(at_y1.yc);
+  const __m128d x01 = _mm_loadu_pd(c.x), x23 = _mm_loadu_pd(c.x + 2), ya = _mm_loadu_pd(c.y), yb = _mm_loadu_pd(c.y + 2);
+  const __m128d in01 = _mm_and_pd(_mm_cmpge_pd(ya, y0), _mm_cmple_pd(ya, y1));
+  const __m128d in23 = _mm_and_pd(_mm_cmpge_pd(yb, y0), _mm_cmple_pd(yb, y1));
+  const __m128d big = _mm_set1_pd(1e300), small = _mm_set1_pd(-1e300);
+  x_min = std::min(x_min, lane_min(_mm_min_pd(blend_pd(in01, x01, big), blend_pd(in23, x23, big))));
+  x_max = std::max(x_max, lane_max(_mm_max_pd(blend_pd(in01, x01, small), blend_pd(in23, x23, small))));
 #else
+  for (int k = 0; k < 4; ++k) {  // selects, not branches (see EdgeCrossings)
     const bool in_band = (c.y[k] >= at_y0.yc) & (c.y[k] <= at_y1.yc);
     x_min = std::min(x_min, select_double(in_band, c.x[k], 1e300));
     x_max = std::max(x_max, select_double(in_band, c.x[k], -1e300));
-#endif
   }
+#endif
   return x_min <= x_max;
 }
 
