@@ -574,3 +574,57 @@ TEST(GlintParticles, GlintCountNeverDecreasesWithP) {
 
 }  // namespace
 }  // namespace glimmer::test
+
+namespace glimmer::test {
+namespace {
+namespace pg = plugin::glint;
+
+// The walk's pair passes (count_four_groups_in_passes, issue 10's ninth speed
+// session) give the same count, steps and completeness as the node-by-node
+// loop, over footprints of 0.1..5000 particles, aspects 1..64 (rasterised
+// rows and the coarse fallback level, whose large K fill and flush the
+// particle list), P up to 1 and step caps that are reached. Control: the node
+// loop at P (1 + 1e-3) differs on some queries, so the comparison sees a
+// change of a few particles.
+TEST(GlintParticles, PairPassesMatchTheNodeLoop) {
+  Pcg32 rng(29);
+  int compared = 0, lit = 0, capped = 0, big = 0, control_differs = 0, in_passes = 0;
+  for (int t = 0; t < 40000; ++t) {
+    const double density = std::exp(std::log(1e3) + rng.next_double() * std::log(1e4));
+    const double particles = std::exp(std::log(0.1) + rng.next_double() * std::log(5e4));
+    const double aspect = std::exp(rng.next_double() * std::log(64.0));
+    const pg::Footprint f = random_footprint(rng, particles / density, aspect);
+    const double P = t % 16 == 0 ? 1.0 : std::exp(std::log(1e-4) + rng.next_double() * std::log(1e4));
+    const int max_steps = t % 4 == 0 ? 1 + static_cast<int>(rng.next_u32() % 64u) : 1 << 30;
+    const std::array<uint32_t, pg::kDirectionGroups> seeds = {rng.next_u32(), rng.next_u32(), rng.next_u32(),
+                                                              rng.next_u32()};
+    const double group_density = density / pg::kDirectionGroups;
+    const pg::NodeList nodes = pg::footprint_nodes(f, group_density);
+    const auto passes = pg::count_reflecting_particles(f, nodes, group_density, seeds, P, max_steps);
+    const auto loop = pg::count_reflecting_particles(f, nodes, group_density, seeds, P, max_steps,
+                                                     pg::NoParticleVisitor{}, true);
+    ASSERT_EQ(passes.complete, loop.complete) << "query " << t;
+    if (loop.complete) {
+      ASSERT_EQ(passes.count, loop.count) << "query " << t;
+      ASSERT_EQ(passes.steps, loop.steps) << "query " << t;
+    }
+    ++compared;
+    in_passes += pg::FootprintFrame(f, nodes.size).nodes_can_be_inside;  // the walk takes the passes
+    lit += loop.complete && loop.count > 0;
+    capped += !loop.complete;
+    big += loop.complete && loop.steps > 256;
+    const auto shifted = pg::count_reflecting_particles(f, nodes, group_density, seeds, P * (1.0 + 1e-3), max_steps,
+                                                        pg::NoParticleVisitor{}, true);
+    control_differs += shifted.complete && passes.complete && shifted.count != passes.count;
+  }
+  std::printf("[pair passes] %d queries equal (%d counted in passes, %d lit, %d capped, %d over 256 lit particles); "
+              "control P (1 + 1e-3) differs on %d\n", compared, in_passes, lit, capped, big, control_differs);
+  EXPECT_GT(in_passes, 10000);
+  EXPECT_GT(lit, 10000);
+  EXPECT_GT(capped, 1000);
+  EXPECT_GT(big, 100);
+  EXPECT_GT(control_differs, 10);
+}
+
+}  // namespace
+}  // namespace glimmer::test
