@@ -7,6 +7,8 @@
 //      base_mismatches (queries whose f or pdf differs from it, bit for bit).
 //  glint/eval_vs_ggx_aspect/<aspect>  the same at footprint area 1e-6 uv
 //      (10 particles) with parallelograms of aspect 1..64, any rotation.
+//  glint/eval_vs_ggx_beckmann/<log10 area>  the same for the GI scene's floor
+//      glint (Beckmann 0.5, gamma 3, density 2e5) vs GGX at roughness 0.5.
 //  glint/aniso_eval/<log10 area>  anisotropic base (roughness_u 0.55,
 //      roughness_v 0.25: alpha 0.3 x 0.0625, P per query) vs the isotropic
 //      glint (roughness 0.4) vs GGX eval, interleaved blocks of the same
@@ -144,11 +146,12 @@ double median_ns(std::vector<double> v) {
 }
 
 // glint and GGX eval on the same queries, interleaved blocks; median ns.
-void glint_vs_ggx(benchmark::State &state, const std::vector<Query> &q) {
-  const std::vector<std::pair<std::string, std::string>> params = {
-      {"roughness", "0.4"}, {"gamma", "2"}, {"density", "1e7"}};
+const std::vector<std::pair<std::string, std::string>> kGgxGlint = {
+    {"roughness", "0.4"}, {"gamma", "2"}, {"density", "1e7"}};
+void glint_vs_ggx(benchmark::State &state, const std::vector<Query> &q,
+                  const std::vector<std::pair<std::string, std::string>> &params = kGgxGlint) {
   auto glint = make("glint", params);
-  auto ggx = make("microfacet_conductor", {{"roughness", "0.4"}, {"distribution", "ggx"}});
+  auto ggx = make("microfacet_conductor", {{"roughness", params[0].second}, {"distribution", "ggx"}});
   if (!glint || !ggx) {
     state.SkipWithError("glint or microfacet_conductor missing");
     return;
@@ -176,6 +179,19 @@ void BM_GlintVsGgxEval(benchmark::State &state) {
   glint_vs_ggx(state, make_queries(std::pow(10.0, static_cast<double>(state.range(0)))));
 }
 BENCHMARK(BM_GlintVsGgxEval)->Name("glint/eval_vs_ggx")->DenseRange(-8, 0, 2)->Iterations(25)->Unit(benchmark::kMillisecond);
+
+// The GI scene's floor glint (examples/glint.xml: Beckmann, roughness 0.5,
+// gamma 3, density 2e5; 0.2 particles per footprint at 1e-6, filtered at 1)
+// against a GGX conductor of the same roughness, as in the scene's twin.
+void BM_GlintBeckmannVsGgxEval(benchmark::State &state) {
+  glint_vs_ggx(state, make_queries(std::pow(10.0, static_cast<double>(state.range(0)))),
+               {{"roughness", "0.5"}, {"distribution", "beckmann"}, {"gamma", "3"}, {"density", "2e5"}});
+}
+BENCHMARK(BM_GlintBeckmannVsGgxEval)
+    ->Name("glint/eval_vs_ggx_beckmann")
+    ->DenseRange(-6, 0, 2)
+    ->Iterations(25)
+    ->Unit(benchmark::kMillisecond);
 
 void BM_GlintVsGgxEvalAspect(benchmark::State &state) {
   glint_vs_ggx(state, make_queries(1e-6, static_cast<double>(state.range(0))));

@@ -3,6 +3,7 @@
 // and the smooth-lobe sampler whose density pdf() returns exactly.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstddef>
@@ -162,6 +163,75 @@ struct ParticleField {
   }
 };
 
+// Beckmann Lambda without erfc and exp (the glint closures' per-eval path;
+// issue 10, session 9). a Lambda(a) = exp(-a^2) / (2 sqrt(pi)) - a erfc(a) / 2
+// is smooth on [0, 4]: a degree-19 polynomial in x = a / 2 - 1 (Chebyshev
+// interpolation at 20 nodes, fitted in 40-digit arithmetic; max error
+// 1.9e-10 of a Lambda, so of Lambda 1.9e-10 / a) evaluated in double. Beyond
+// a = 4, Lambda < 2.5e-10 and 0 is returned (1 + Lambda rounds to 1 in float
+// from a ~ 3.5). Same contract as mf::beckmann_lambda (w.z < 0: -1 - Lambda(-w));
+// test GlintCoords.BeckmannLambdaFastMatchesTheErfcForm compares the two.
+inline float beckmann_lambda_fast(const Vec3 &w, float ax, float ay) {
+  if (w.z == 0.0f) return INFINITY;
+  const double a2 = mf::alpha2_tan2(w, ax, ay);
+  double l;
+  if (!(a2 > 0.0)) {
+    l = 0.0;
+  } else if (!std::isfinite(a2)) {
+    l = INFINITY;
+  } else {
+    const double a = 1.0 / std::sqrt(a2);
+    if (a >= 4.0) {
+      l = 0.0;
+    } else {
+      static constexpr double c[20] = {
+          0.0004890113652203955,  -0.004677734800970086, 0.02066698372428487,   -0.05511199698701841,
+          0.09644599897942761,    -0.1102227279168954,   0.0698072884330441,    0.004183614241949296,
+          -0.05405087929182188,   0.045357117865371305,  -0.0026295178972669643, -0.02484822617710974,
+          0.017932224600181706,   0.0025396699187721994, -0.010012549308498082, 0.003021427364006197,
+          0.0027247767695632854,  -0.0015518315693354918, -0.0003259410760252298, 0.0002632927807307566};
+      const double x = 0.5 * a - 1.0, x2 = x * x;
+      // Two Horner chains (even and odd powers) for latency.
+      double pe = c[18], po = c[19];
+      for (int k = 16; k >= 0; k -= 2) {
+        pe = pe * x2 + c[k];
+        po = po * x2 + c[k + 1];
+      }
+      l = (pe + x * po) / a;
+    }
+  }
+  const float lf = static_cast<float>(std::max(l, 0.0));
+  return w.z > 0.0f ? lf : -1.0f - lf;
+}
+
+inline float lambda_fast(mf::Distribution dist, const Vec3 &w, float ax, float ay) {
+  return dist == mf::Distribution::GGX ? mf::ggx_lambda(w, ax, ay) : beckmann_lambda_fast(w, ax, ay);
+}
+
+// Smith G1 and height-correlated G2 as mf::G1 / mf::G2, with Beckmann's
+// Lambda from beckmann_lambda_fast (no erfc / exp; within 2e-10 of the
+// double erfc form).
+inline float smith_g1(mf::Distribution dist, const Vec3 &w, float ax, float ay) {
+  const float l = lambda_fast(dist, Vec3(w.x, w.y, std::fabs(w.z)), ax, ay);
+  return std::isfinite(l) ? 1.0f / (1.0f + l) : 0.0f;
+}
+inline float smith_g2(mf::Distribution dist, const Vec3 &wi, const Vec3 &wo, float ax, float ay) {
+  const float li = lambda_fast(dist, Vec3(wi.x, wi.y, std::fabs(wi.z)), ax, ay);
+  const float lo = lambda_fast(dist, Vec3(wo.x, wo.y, std::fabs(wo.z)), ax, ay);
+  const float s = 1.0f + li + lo;
+  return std::isfinite(s) ? 1.0f / s : 0.0f;
+}
+
+// The visible-normal lobe's density of the reflected direction,
+// D_wi(h) / (4 wo.h) = G1(wi) (wi.h) D(h) / (wi.z 4 wo.h) with wi.h = wo.h
+// for the reflection half vector: G1(wi) D(h) / (4 wi.z). For wi.z > 0,
+// wi.h > 0 (the caller's tests). Differs from the uncancelled form by
+// rounding (test GlintCoords.LobeDensityMatchesTheUncancelledForm).
+inline float lobe_density(mf::Distribution dist, float ax, float ay, const Vec3 &wi, const Vec3 &h) {
+  const float v = smith_g1(dist, wi, ax, ay) * mf::D(dist, h, ax, ay) / (4.0f * wi.z);
+  return std::isfinite(v) ? v : 0.0f;
+}
+
 // W(wi, wo) = F(wi.h) G2(wi, wo) (wi.h) / (cos_i cos_h): the glint BRDF times
 // cos(wo) is W times the reflected-direction density (P / sigma for the
 // mean, K / (N a sigma) for a count K of reflecting particles). Zero when
@@ -187,7 +257,7 @@ inline bool glint_weight(mf::Distribution dist, float alpha_x, float alpha_y, co
   const Vec3 &h = half.h;
   const float wi_h = dot(wi, h);
   if (!(wi_h > 0.0f) || !(h.z > 0.0f)) return false;
-  const float g2 = mf::G2(dist, wi, wo, alpha_x, alpha_y);
+  const float g2 = smith_g2(dist, wi, wo, alpha_x, alpha_y);
   weight = mf::fresnel_schlick(wi_h, f0) * (g2 * wi_h / (wi.z * h.z));
   return true;
 }
@@ -209,10 +279,7 @@ inline float smooth_lobe_pdf(mf::Distribution dist, float alpha_wx, float alpha_
                              const HalfVector &half) {
   if (!(wi.z > 0.0f) || !(wo.z > 0.0f)) return 0.0f;
   float pdf = kCosineMixture * wo.z * kInvPi;
-  if (half.valid && dot(wi, half.h) > 0.0f) {
-    const float vndf = mf::visible_D(dist, wi, half.h, alpha_wx, alpha_wy);
-    pdf += (1.0f - kCosineMixture) * vndf / (4.0f * dot(wo, half.h));
-  }
+  if (half.valid && dot(wi, half.h) > 0.0f) pdf += (1.0f - kCosineMixture) * lobe_density(dist, alpha_wx, alpha_wy, wi, half.h);
   return pdf;
 }
 inline float smooth_lobe_pdf(mf::Distribution dist, float alpha_wx, float alpha_wy, const Vec3 &wi, const Vec3 &wo) {

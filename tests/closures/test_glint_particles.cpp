@@ -291,6 +291,109 @@ TEST(GlintCoords, VectorTableCoordsMatchTheScalarFormula) {
   EXPECT_GT(control_differs, compared / 2);
 }
 
+// Beckmann Lambda from the polynomial (glint_common.h, issue 10 session 9)
+// against the double erfc + exp form (mf::beckmann_lambda) over random
+// directions (cos theta log-uniform down to 1e-7, both sides), alpha 1e-4..1
+// per axis, and edges (z = +-0, +-1, denormals, NaN, huge slopes). Error
+// measured on 1 + Lambda (what every G1 / G2 uses): |fast - exact| /
+// max(1, |exact|) <= 2 float ulps of 1. Negative controls: the same
+// polynomial cut off at a = 2.5 instead of 4, and Walter 2007's rational
+// approximation (eq. 27), each exceed the bound.
+TEST(GlintCoords, BeckmannLambdaFastMatchesTheErfcForm) {
+  namespace mf = microfacet;
+  Pcg32 rng(31);
+  const float nan = std::numeric_limits<float>::quiet_NaN(), den = std::numeric_limits<float>::denorm_min();
+  std::vector<std::array<float, 5>> q = {{0, 0, 1, 0.5f, 0.5f},   {0, 0, -1, 0.5f, 0.5f},  {1, 0, 0, 0.3f, 0.3f},
+                                         {1, 0, -0.0f, 0.3f, 0.3f}, {den, 0, 1, 1e-4f, 1e-4f}, {1, 0, den, 1, 1},
+                                         {nan, 0, 0.5f, 0.5f, 0.5f}, {0.6f, 0.8f, 1e-30f, 1e-4f, 1}, {1, 0, 1, 1e-4f, 1e-4f}};
+  for (int n = 0; n < 1000000; ++n) {
+    const float c = n % 2 ? rng.next_float() : std::exp(-16.0f * rng.next_float());  // cos theta, half log-uniform
+    const float s = std::sqrt(std::max(0.0f, 1.0f - c * c)), phi = 6.2831853f * rng.next_float();
+    const float ax = std::exp(std::log(1e-4f) * rng.next_float()), ay = n % 3 ? ax : std::exp(std::log(1e-4f) * rng.next_float());
+    q.push_back({s * std::cos(phi), s * std::sin(phi), n % 5 == 0 ? -c : c, ax, ay});
+  }
+  auto walter = [](const Vec3 &w, float ax, float ay) {  // Walter 2007 eq. 27 (the control)
+    const float a = 1.0f / std::sqrt(mf::alpha2_tan2(w, ax, ay));
+    const float l = a < 1.6f ? (1.0f - 1.259f * a + 0.396f * a * a) / (3.535f * a + 2.181f * a * a) : 0.0f;
+    return w.z > 0.0f ? l : -1.0f - l;
+  };
+  auto cut = [](const Vec3 &w, float ax, float ay) {  // the polynomial cut off at a = 2.5 (the control)
+    const float a2 = mf::alpha2_tan2(w, ax, ay);
+    return a2 > 0.0f && a2 < 0.16f ? (w.z > 0.0f ? 0.0f : -1.0f) : pg::beckmann_lambda_fast(w, ax, ay);
+  };
+  auto err = [](float f, float e) {
+    if (std::isnan(e) || std::isinf(e)) return f == e || (std::isnan(f) && std::isnan(e)) ? 0.0 : 1.0;
+    return std::fabs(static_cast<double>(f) - e) / std::max(1.0, std::fabs(static_cast<double>(e)));
+  };
+  double worst = 0.0, worst_walter = 0.0, worst_cut = 0.0;
+  int64_t identical = 0;
+  for (const auto &r : q) {
+    const Vec3 w(r[0], r[1], r[2]);
+    const float f = pg::beckmann_lambda_fast(w, r[3], r[4]), e = mf::beckmann_lambda(w, r[3], r[4]);
+    const double d = err(f, e);
+    ASSERT_LE(d, 2.4e-7) << "w " << w.x << " " << w.y << " " << w.z << " alpha " << r[3] << " " << r[4] << ": " << f
+                         << " vs " << e;
+    worst = std::max(worst, d);
+    identical += std::memcmp(&f, &e, sizeof f) == 0;
+    if (std::isfinite(e) && mf::alpha2_tan2(w, r[3], r[4]) > 0.0f) worst_walter = std::max(worst_walter, err(walter(w, r[3], r[4]), e));
+    worst_cut = std::max(worst_cut, err(cut(w, r[3], r[4]), e));
+  }
+  std::printf("[lambda] %zu queries: worst |d(1 + Lambda)| %.3g, %lld bit-identical; controls: cut at 2.5 %.3g, "
+              "Walter %.3g\n",
+              q.size(), worst, static_cast<long long>(identical), worst_cut, worst_walter);
+  EXPECT_GT(worst_cut, 2.4e-7);
+  EXPECT_GT(worst_walter, 2.4e-7);
+}
+
+// The sampling lobe's density with wi.h / wo.h cancelled (lobe_density =
+// G1 D / (4 wi.z), Beckmann G1 from the polynomial) against the former
+// mf::visible_D / (4 wo.h) over random and extreme (wi, wo, alpha), GGX and
+// Beckmann: relative difference <= 1e-5 + 2 |wi.h / wo.h - 1| (the second
+// term: the former form's factor, not 1 for float directions near the
+// horizon of h), and finite, non-negative everywhere. Negative control: a density that forgets G1
+// (D / (4 wi.z)) exceeds the bound.
+TEST(GlintCoords, LobeDensityMatchesTheUncancelledForm) {
+  namespace mf = microfacet;
+  Pcg32 rng(37);
+  double worst = 0.0, worst_scaled = 0.0, worst_away = 0.0, worst_control = 0.0;
+  int64_t compared = 0;
+  for (int n = 0; n < 400000; ++n) {
+    const mf::Distribution dist = n % 2 ? mf::Distribution::GGX : mf::Distribution::Beckmann;
+    auto dir = [&]() {
+      const float c = rng.next_float() < 0.3f ? std::exp(-14.0f * rng.next_float()) : rng.next_float();
+      const float s = std::sqrt(std::max(0.0f, 1.0f - c * c)), phi = 6.2831853f * rng.next_float();
+      return Vec3(s * std::cos(phi), s * std::sin(phi), c);
+    };
+    const Vec3 wi = dir(), wo = dir();
+    const float ax = std::exp(std::log(1e-3f) * rng.next_float()), ay = n % 3 ? ax : std::exp(std::log(1e-3f) * rng.next_float());
+    const pg::HalfVector h = pg::reflection_half_vector(wi, wo);
+    if (!h.valid || !(wi.z > 0.0f) || !(dot(wi, h.h) > 0.0f)) continue;
+    const float fresh = pg::lobe_density(dist, ax, ay, wi, h.h);
+    ASSERT_TRUE(std::isfinite(fresh) && fresh >= 0.0f);
+    const float old = mf::visible_D(dist, wi, h.h, ax, ay) / (4.0f * dot(wo, h.h));
+    if (!(old > 1e-30f)) continue;
+    // The former form's factor wi.h / wo.h is 1 only for unit wi, wo: float
+    // directions' norms differ by ~1e-7, and wi.h - wo.h = (|wi|^2 - |wo|^2) / (2 |wi + wo|)
+    // grows near the horizon of h. That factor (in double) is allowed on top of 1e-5.
+    const double hi = static_cast<double>(wi.x) * h.h.x + static_cast<double>(wi.y) * h.h.y + static_cast<double>(wi.z) * h.h.z;
+    const double ho = static_cast<double>(wo.x) * h.h.x + static_cast<double>(wo.y) * h.h.y + static_cast<double>(wo.z) * h.h.z;
+    const double d = std::fabs(static_cast<double>(fresh) - old) / old, bound = 1e-5 + 2.0 * std::fabs(hi / ho - 1.0);
+    worst_scaled = std::max(worst_scaled, d / bound);
+    if (hi > 0.1) worst_away = std::max(worst_away, d);
+    ASSERT_LE(d, bound) << "wi " << wi.x << " " << wi.y << " " << wi.z << " wo " << wo.x << " " << wo.y << " " << wo.z
+                       << " alpha " << ax << " " << ay << ": " << fresh << " vs " << old;
+    worst = std::max(worst, d);
+    const float control = mf::D(dist, h.h, ax, ay) / (4.0f * wi.z);
+    worst_control = std::max(worst_control, std::fabs(static_cast<double>(control) - old) / old);
+    ++compared;
+  }
+  std::printf("[lobe] %lld densities: worst relative difference %.3g (%.3g of the bound), %.3g at wi.h > 0.1; "
+              "control without G1 %.3g\n",
+              static_cast<long long>(compared), worst, worst_scaled, worst_away, worst_control);
+  EXPECT_GT(compared, 100000);
+  EXPECT_GT(worst_control, 1e-5);
+}
+
 // The four direction groups' node x cell hashes in SIMD lanes (issue 10,
 // eighth speed session): the same hashes and the same quick-reject mask as
 // the scalar mix_u32 loop, for random keys, seeds and thresholds and the
