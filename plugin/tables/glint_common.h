@@ -172,36 +172,23 @@ struct ParticleField {
 // from a ~ 3.5). Same contract as mf::beckmann_lambda (w.z < 0: -1 - Lambda(-w));
 // test GlintCoords.BeckmannLambdaFastMatchesTheErfcForm compares the two.
 inline float beckmann_lambda_fast(const Vec3 &w, float ax, float ay) {
-  if (w.z == 0.0f) return INFINITY;
-  const double a2 = mf::alpha2_tan2(w, ax, ay);
-  double l;
-  if (!(a2 > 0.0)) {
-    l = 0.0;
-  } else if (!std::isfinite(a2)) {
-    l = INFINITY;
-  } else {
-    const double a = 1.0 / std::sqrt(a2);
-    if (a >= 4.0) {
-      l = 0.0;
-    } else {
-      static constexpr double c[20] = {
-          0.0004890113652203955,  -0.004677734800970086, 0.02066698372428487,   -0.05511199698701841,
-          0.09644599897942761,    -0.1102227279168954,   0.0698072884330441,    0.004183614241949296,
-          -0.05405087929182188,   0.045357117865371305,  -0.0026295178972669643, -0.02484822617710974,
-          0.017932224600181706,   0.0025396699187721994, -0.010012549308498082, 0.003021427364006197,
-          0.0027247767695632854,  -0.0015518315693354918, -0.0003259410760252298, 0.0002632927807307566};
-      const double x = 0.5 * a - 1.0, x2 = x * x;
-      // Two Horner chains (even and odd powers) for latency.
-      double pe = c[18], po = c[19];
-      for (int k = 16; k >= 0; k -= 2) {
-        pe = pe * x2 + c[k];
-        po = po * x2 + c[k + 1];
-      }
-      l = (pe + x * po) / a;
+  return mf::beckmann_lambda_with(w, ax, ay, [](double a) {
+    if (a >= 4.0) return 0.0;
+    static constexpr double c[20] = {
+        0.0004890113652203955,  -0.004677734800970086, 0.02066698372428487,   -0.05511199698701841,
+        0.09644599897942761,    -0.1102227279168954,   0.0698072884330441,    0.004183614241949296,
+        -0.05405087929182188,   0.045357117865371305,  -0.0026295178972669643, -0.02484822617710974,
+        0.017932224600181706,   0.0025396699187721994, -0.010012549308498082, 0.003021427364006197,
+        0.0027247767695632854,  -0.0015518315693354918, -0.0003259410760252298, 0.0002632927807307566};
+    const double x = 0.5 * a - 1.0, x2 = x * x;
+    // Two Horner chains (even and odd powers) for latency.
+    double pe = c[18], po = c[19];
+    for (int k = 16; k >= 0; k -= 2) {
+      pe = pe * x2 + c[k];
+      po = po * x2 + c[k + 1];
     }
-  }
-  const float lf = static_cast<float>(std::max(l, 0.0));
-  return w.z > 0.0f ? lf : -1.0f - lf;
+    return (pe + x * po) / a;
+  });
 }
 
 inline float lambda_fast(mf::Distribution dist, const Vec3 &w, float ax, float ay) {

@@ -177,6 +177,17 @@ using Sampler = std::function<bool(const ShadingPoint &, const Vec3 &, LocalSamp
 // degrees wide, so a BTDF-sampled exit rarely finds it).
 using Evaluator = std::function<LocalEval(const ShadingPoint &, const Vec3 &)>;
 
+// The closure's shading context at `hit` for a ray travelling along D: position, normals, tangent and a path seed
+// from rng (the caller adds per-point parameters such as textured roughness).
+GlimmerShadingContext context_at(const AnalyticScene &scene, const Hit &hit, const Vec3 &D, Pcg32 &rng) {
+  GlimmerShadingContext ctx = host::make_local_context(-D, &scene.services);
+  ctx.P = hit.P;
+  ctx.N = ctx.Ng = hit.N;
+  ctx.T = Frame::from_normal(hit.N).s;
+  ctx.path_seed = rng.next_u32();
+  return ctx;
+}
+
 // Radiance a path entering at the camera hit brings back through the object (0 when the first event
 // reflects: transmitted light only); follows every later interface, moved samples from their origin. With
 // `light_eval` (a small light, the exact closure) the light is also sampled at every later interface.
@@ -195,11 +206,7 @@ Spectrum transmitted_radiance(const AnalyticScene &scene, const Sampler &sample,
   Spectrum throughput(1.0f);
   const auto schema = FrostedGlassClosure::params();
   for (int event = 0; event < 512; ++event) {
-    GlimmerShadingContext ctx = host::make_local_context(-D, &scene.services);
-    ctx.P = hit.P;
-    ctx.N = ctx.Ng = hit.N;
-    ctx.T = Frame::from_normal(hit.N).s;
-    ctx.path_seed = rng.next_u32();
+    GlimmerShadingContext ctx = context_at(scene, hit, D, rng);
     const GlimmerVaryingValue roughness = scene.roughness_value(hit.P);
     if (scene.textured_roughness) {
       ctx.varying_count = 1;
@@ -678,11 +685,7 @@ SolidBands solid_bands(const AnalyticScene &scene, const Sampler &sample, float 
       Vec3 D = px[k].D;
       Spectrum throughput(1.0f);
       for (int event = 0; event < 512; ++event) {
-        GlimmerShadingContext ctx = host::make_local_context(-D, &scene.services);
-        ctx.P = hit.P;
-        ctx.N = ctx.Ng = hit.N;
-        ctx.T = Frame::from_normal(hit.N).s;
-        ctx.path_seed = rng.next_u32();
+        GlimmerShadingContext ctx = context_at(scene, hit, D, rng);
         const ShadingPoint sp(&ctx, schema);
         LocalSample s;
         if (!sample(sp, Vec3(rng.next_float(), rng.next_float(), rng.next_float()), s) || !(s.pdf > 0.0f)) break;

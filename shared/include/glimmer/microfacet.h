@@ -95,10 +95,12 @@ inline float ggx_lambda(const Vec3 &w, float ax, float ay) {
   return w.z > 0.0f ? l : -1.0f - l;
 }
 
-// Beckmann Lambda (Heitz 2014 eq. 84) with a = 1 / sqrt(a2):
-// (erf(a) - 1) / 2 + exp(-a^2) / (2 a sqrt(pi)) = (exp(-a^2)/(a sqrt(pi)) - erfc(a)) / 2,
-// evaluated in double (the two terms cancel for large a).
-inline float beckmann_lambda(const Vec3 &w, float ax, float ay) {
+// Beckmann Lambda's contract around Lambda as a function of a = 1 / sqrt(alpha2_tan2(w)) (`of_a`, a > 0):
+// w.z == 0: infinite; a normal direction (a2 = 0): 0; a2 infinite: infinite; negative values of of_a clamp to 0;
+// w.z < 0: -1 - Lambda(-w). Shared by beckmann_lambda (below) and the glint closures' polynomial form
+// (glint::beckmann_lambda_fast), so both keep the same edges.
+template <class LambdaOfA>
+inline float beckmann_lambda_with(const Vec3 &w, float ax, float ay, LambdaOfA of_a) {
   if (w.z == 0.0f) return INFINITY;
   const double a2 = alpha2_tan2(w, ax, ay);
   double l;
@@ -107,15 +109,20 @@ inline float beckmann_lambda(const Vec3 &w, float ax, float ay) {
   } else if (!std::isfinite(a2)) {
     l = INFINITY;
   } else {
-    const double a = 1.0 / std::sqrt(a2);
-    if (a > 6.0) {
-      l = 0.0;  // below 1e-17
-    } else {
-      l = 0.5 * (std::exp(-a * a) / (a * 1.7724538509055160273) - std::erfc(a));
-    }
+    l = of_a(1.0 / std::sqrt(a2));
   }
   const float lf = static_cast<float>(std::max(l, 0.0));
   return w.z > 0.0f ? lf : -1.0f - lf;
+}
+
+// Beckmann Lambda (Heitz 2014 eq. 84) with a = 1 / sqrt(a2):
+// (erf(a) - 1) / 2 + exp(-a^2) / (2 a sqrt(pi)) = (exp(-a^2)/(a sqrt(pi)) - erfc(a)) / 2,
+// evaluated in double (the two terms cancel for large a).
+inline float beckmann_lambda(const Vec3 &w, float ax, float ay) {
+  return beckmann_lambda_with(w, ax, ay, [](double a) {
+    if (a > 6.0) return 0.0;  // below 1e-17
+    return 0.5 * (std::exp(-a * a) / (a * 1.7724538509055160273) - std::erfc(a));
+  });
 }
 
 inline float lambda(Distribution dist, const Vec3 &w, float ax, float ay) {
