@@ -224,26 +224,15 @@ class FrostedGlassClosure {
     if (variant == frosted::SgVariant::kPaneWalk) return pane_sample_sg_walk(sp, lobe, in, rand, s, flip, out);
     return frosted::sample_pane_sg(sp, in, rand, s.f_cos / s.pdf * in.tint, flip, out);
   }
-  // SgVariant::kPaneWalk (rough panes): the walk between the faces as pane_sample's (same numbers), its leaving
-  // direction replaced by the exit lobe at the last internal direction (frosted::sample_pane_sg_at).
+  // SgVariant::kPaneWalk (rough panes): the walk between the faces as pane_sample's (walk_to_exit: the same
+  // numbers), its leaving direction replaced by the exit lobe at the last internal direction
+  // (frosted::sample_pane_sg_at).
   bool pane_sample_sg_walk(const ShadingPoint &sp, const DielectricLobe &lobe, const frosted::PaneSgInputs &in,
                            const Vec3 &rand, const LocalSample &front, bool flip, LocalSample &out) const {
     Spectrum throughput = front.f_cos / front.pdf * in.tint;
-    mf::WalkRng rng(hash_u32x4(sp.ctx->path_seed, std::bit_cast<uint32_t>(rand.x), std::bit_cast<uint32_t>(rand.y),
-                               std::bit_cast<uint32_t>(rand.z)));
-    Vec3 d = front.wo;
-    LocalSample s;
-    for (int event = 0; event < kMaxPaneEvents; ++event) {
-      if (d.z == 0.0f) return false;
-      const bool bottom = d.z < 0.0f;
-      throughput *= crossing(d.z);
-      if (!lobe.sample(at_interface(-d, bottom), Vec3(rng.next(), rng.next(), rng.next()), s)) return false;
-      throughput *= s.f_cos / s.pdf;
-      if (s.label & GLIMMER_LABEL_TRANSMIT)
-        return frosted::sample_pane_sg_at(sp, in, rand, d, throughput * in.tint, flip, out);
-      d = at_interface(s.wo, bottom);
-    }
-    return false;
+    Vec3 d = front.wo, leaving;
+    if (!walk_to_exit(sp, lobe, rand, d, throughput, leaving)) return false;
+    return frosted::sample_pane_sg_at(sp, in, rand, d, throughput * in.tint, flip, out);
   }
   // For the tests: the interface lobe at sp (per-point roughness and IOR).
   bool pane_sample_sg(const ShadingPoint &sp, const Vec3 &rand, LocalSample &out, frosted::SgVariant variant,
@@ -308,6 +297,31 @@ class FrostedGlassClosure {
   }
   Spectrum crossing(float cos_inside) const { return beer_.transmittance(thickness_ / std::fabs(cos_inside)); }
 
+  // The walk between the faces after entering (method=path's pane and sg's rough pane): from the internal direction
+  // `d` (pane frame, entry side +z), at each crossing Beer over the crossing and a sample of the interface lobe,
+  // until one transmits. True: `d` is the last internal direction, `leaving` the direction outside, `throughput`
+  // times every crossing's attenuation and f cos / pdf (the tint is the caller's). Its numbers: a WalkRng seeded by
+  // (path seed, rand). False: a failed sample, d.z = 0, or no exit within kMaxPaneEvents.
+  bool walk_to_exit(const ShadingPoint &sp, const DielectricLobe &lobe, const Vec3 &rand, Vec3 &d,
+                    Spectrum &throughput, Vec3 &leaving) const {
+    mf::WalkRng rng(hash_u32x4(sp.ctx->path_seed, std::bit_cast<uint32_t>(rand.x), std::bit_cast<uint32_t>(rand.y),
+                               std::bit_cast<uint32_t>(rand.z)));
+    LocalSample s;
+    for (int event = 0; event < kMaxPaneEvents; ++event) {
+      if (d.z == 0.0f) return false;
+      const bool bottom = d.z < 0.0f;
+      throughput *= crossing(d.z);
+      if (!lobe.sample(at_interface(-d, bottom), Vec3(rng.next(), rng.next(), rng.next()), s)) return false;
+      throughput *= s.f_cos / s.pdf;
+      const Vec3 next = at_interface(s.wo, bottom);
+      if (s.label & GLIMMER_LABEL_TRANSMIT) {
+        leaving = next;
+        return true;
+      }
+      d = next;
+    }
+    return false;
+  }
   bool pane_sample(const ShadingPoint &sp, const DielectricLobe &lobe, const Vec3 &rand, LocalSample &out) const {
     const bool flip = sp.wi.z < 0.0f;
     const Vec3 wi = flip ? mf::flip_z_local(sp.wi) : sp.wi;
@@ -318,22 +332,9 @@ class FrostedGlassClosure {
     Vec3 wo = s.wo;
     if (s.label & GLIMMER_LABEL_TRANSMIT) {  // entered: walk until the path leaves the pane
       throughput *= tint;
-      mf::WalkRng rng(hash_u32x4(sp.ctx->path_seed, std::bit_cast<uint32_t>(rand.x), std::bit_cast<uint32_t>(rand.y),
-                                 std::bit_cast<uint32_t>(rand.z)));
       Vec3 d = s.wo;
-      bool left = false;
-      for (int event = 0; event < kMaxPaneEvents && !left; ++event) {
-        if (d.z == 0.0f) return false;
-        const bool bottom = d.z < 0.0f;
-        throughput *= crossing(d.z);
-        if (!lobe.sample(at_interface(-d, bottom), Vec3(rng.next(), rng.next(), rng.next()), s)) return false;
-        throughput *= s.f_cos / s.pdf;
-        d = at_interface(s.wo, bottom);
-        left = (s.label & GLIMMER_LABEL_TRANSMIT) != 0;
-        if (left) throughput *= tint;
-      }
-      if (!left) return false;
-      wo = d;
+      if (!walk_to_exit(sp, lobe, rand, d, throughput, wo)) return false;
+      throughput *= tint;
     }
     if (wo.z == 0.0f || !is_finite(throughput)) return false;
     const Vec3 wo_local = flip ? mf::flip_z_local(wo) : wo;
