@@ -34,10 +34,11 @@
 //    integrated inside the closure by a position-free random walk between the
 //    two interfaces (lateral offset ignored): sample() walks it (weight =
 //    product of f cos / pdf of each event, absorption exp(-sigma thickness /
-//    |cos|) per crossing); eval() is an unbiased estimate of f cos and of
-//    sample()'s density from one such walk with next-event connections to wo,
-//    seeded by (path_seed, wo): deterministic, STOCHASTIC as
-//    microfacet_random_walk's. A transmitted sample keeps eta = 1.
+//    |cos|) per crossing) and returns it as one SINGULAR sample; eval() is the
+//    front interface's reflection alone (deterministic, light-sampled), so
+//    the host never light-samples through the pane (a one-walk estimate of
+//    f there had rare huge values: MIS 27x noisier than BSDF sampling on a
+//    world-lit pane). A transmitted sample keeps eta = 1.
 //
 // colour tints transmitted light at each interface crossing (a solid object
 // or a pane seen through gives colour^2; reflections stay white).
@@ -142,7 +143,7 @@ class FrostedGlassClosure {
   LocalEval eval(const ShadingPoint &sp, const Vec3 &wo) const {
     DielectricLobe scratch;
     const DielectricLobe &lobe = lobe_at(sp, scratch);
-    if (thin_) return uses_sg_pane(sp) ? pane_front_reflection(sp, lobe, wo) : pane_estimate(sp, lobe, wo);
+    if (thin_) return pane_front_reflection(sp, lobe, wo);  // the walk through the pane is singular (both methods)
     if (uses_sg(sp) && wo.z < 0.0f) return {};  // sg: transmission is the singular sample alone
     LocalEval e = lobe.eval(sp.wi, wo);
     if (wo.z * sp.wi.z < 0.0f) e.f_cos *= color_at(sp);
@@ -292,9 +293,6 @@ class FrostedGlassClosure {
   // The pane frame has the walk's wi side on top (z > 0). The top interface's
   // outward normal is +z, the bottom one's -z: its local frame flips z.
   static Vec3 at_interface(const Vec3 &v, bool bottom) { return bottom ? mf::flip_z_local(v) : v; }
-  static uint32_t direction_seed(uint32_t seed, const Vec3 &w) {
-    return hash_u32x4(seed, std::bit_cast<uint32_t>(w.x), std::bit_cast<uint32_t>(w.y), std::bit_cast<uint32_t>(w.z));
-  }
   Spectrum crossing(float cos_inside) const { return beer_.transmittance(thickness_ / std::fabs(cos_inside)); }
 
   // The walk between the faces after entering (method=path's pane and sg's rough pane): from the internal direction
@@ -322,96 +320,47 @@ class FrostedGlassClosure {
     }
     return false;
   }
+  // method=path's pane: the front reflection is an ordinary rough lobe (eval's pane_front_reflection: light-sampled
+  // and MIS-combined); every path that enters leaves as one SINGULAR sample (weight: the walk's product of f cos /
+  // pdf, pdf 1), so the host gives its emission hits MIS weight 1 and takes no light sample through the pane. A
+  // one-walk estimate of f toward a light direction is the walk's weight times the exit interface's density at the
+  // walk's own internal direction: at roughness 0.2 that peaks at ~600 / sr where the pane's density is ~0.1-1, so
+  // light samples through the pane were rare huge values (docs/frosted_glass.md "Light sampling through a pane").
+  // Not moved (the path goes on from P, as before): a host then propagates its ray differentials specularly
+  // (no widening by the roughness), and C-ABI callers without GlimmerSample.struct_size still get the sample.
   bool pane_sample(const ShadingPoint &sp, const DielectricLobe &lobe, const Vec3 &rand, LocalSample &out) const {
     const bool flip = sp.wi.z < 0.0f;
     const Vec3 wi = flip ? mf::flip_z_local(sp.wi) : sp.wi;
-    const Spectrum tint = color_at(sp);
     LocalSample s;
     if (!(wi.z > 0.0f) || !lobe.sample(wi, rand, s)) return false;
-    Spectrum throughput = s.f_cos / s.pdf;
-    Vec3 wo = s.wo;
-    if (s.label & GLIMMER_LABEL_TRANSMIT) {  // entered: walk until the path leaves the pane
-      throughput *= tint;
-      Vec3 d = s.wo;
-      if (!walk_to_exit(sp, lobe, rand, d, throughput, wo)) return false;
-      throughput *= tint;
+    if (!(s.label & GLIMMER_LABEL_TRANSMIT)) {  // the front reflection, exact
+      if (flip) s.wo = mf::flip_z_local(s.wo);
+      out = s;
+      return true;
     }
+    const Spectrum tint = color_at(sp);
+    Spectrum throughput = s.f_cos / s.pdf * tint;
+    Vec3 d = s.wo, wo;
+    if (!walk_to_exit(sp, lobe, rand, d, throughput, wo)) return false;
+    throughput *= tint;
     if (wo.z == 0.0f || !is_finite(throughput)) return false;
-    const Vec3 wo_local = flip ? mf::flip_z_local(wo) : wo;
-    out.wo = wo_local;
-    // floored as microfacet_random_walk's: MIS weights stay finite
-    out.pdf = std::max(pane_pdf_estimate(sp, lobe, wo_local), 1e-6f);
-    out.f_cos = throughput * out.pdf;        // so that f_cos / pdf is the walk's own weight
+    out.wo = flip ? mf::flip_z_local(wo) : wo;
+    out.f_cos = throughput;
+    out.pdf = 1.0f;
     out.roughness = std::sqrt(lobe.ax * lobe.ay);
     out.eta = 1.0f;  // air on both sides
-    out.label = ((wo.z < 0.0f) ? GLIMMER_LABEL_TRANSMIT : GLIMMER_LABEL_REFLECT) | GLIMMER_LABEL_GLOSSY;
+    out.label = ((wo.z < 0.0f) ? GLIMMER_LABEL_TRANSMIT : GLIMMER_LABEL_REFLECT) | GLIMMER_LABEL_GLOSSY |
+                GLIMMER_LABEL_SINGULAR;
     return true;
   }
 
-  // method=sg's pane: the front reflection alone (its transmission, either face, is the singular exit sample).
+  // The pane's eval (both methods): the front reflection alone (the light that enters leaves as a singular sample).
   LocalEval pane_front_reflection(const ShadingPoint &sp, const DielectricLobe &lobe, const Vec3 &wo_in) const {
     const bool flip = sp.wi.z < 0.0f;
     const Vec3 wi = flip ? mf::flip_z_local(sp.wi) : sp.wi;
     const Vec3 wo = flip ? mf::flip_z_local(wo_in) : wo_in;
     if (!(wi.z > 0.0f) || !(wo.z > 0.0f)) return {};
     return lobe.eval(wi, wo);
-  }
-
-  // Unbiased estimates of the pane's f cos(wo) and of pane_sample's density at wo: the front reflection
-  // exactly, plus a walk sampled as pane_sample walks, adding at every interface it reaches from inside the
-  // exit toward wo (f: times the walk's weight so far; pdf: the exit density alone). f and pdf come from two
-  // independent walks: the host's MIS weight is a function of the pdf estimate, and an NEE contribution
-  // f * w(pdf) is unbiased only if the two are independent (one shared walk: path panes 14 % dark under MIS,
-  // tests/bridge/test_frosted_pane_sg_render.cpp). The pdf walk has the same distribution here as in
-  // pane_sample, so the expected weights of the two strategies sum to one.
-  LocalEval pane_estimate(const ShadingPoint &sp, const DielectricLobe &lobe, const Vec3 &wo_in) const {
-    const bool flip = sp.wi.z < 0.0f;
-    const Vec3 wi = flip ? mf::flip_z_local(sp.wi) : sp.wi;
-    const Vec3 wo = flip ? mf::flip_z_local(wo_in) : wo_in;
-    if (!(wi.z > 0.0f) || wo.z == 0.0f) return {};
-    const LocalEval front = wo.z > 0.0f ? lobe.eval(wi, wo) : LocalEval{};
-    LocalEval sum;
-    sum.f_cos = front.f_cos + pane_walk_to(sp, lobe, wi, wo, direction_seed(sp.ctx->path_seed, wo)).f_cos;
-    sum.pdf = front.pdf + pane_walk_to(sp, lobe, wi, wo, pdf_walk_seed(sp, wo)).pdf;
-    return sum;
-  }
-  // pane_estimate's pdf alone (pane_sample's density for the host's MIS weight).
-  float pane_pdf_estimate(const ShadingPoint &sp, const DielectricLobe &lobe, const Vec3 &wo_in) const {
-    const bool flip = sp.wi.z < 0.0f;
-    const Vec3 wi = flip ? mf::flip_z_local(sp.wi) : sp.wi;
-    const Vec3 wo = flip ? mf::flip_z_local(wo_in) : wo_in;
-    if (!(wi.z > 0.0f) || wo.z == 0.0f) return 0.0f;
-    return (wo.z > 0.0f ? lobe.eval(wi, wo).pdf : 0.0f) + pane_walk_to(sp, lobe, wi, wo, pdf_walk_seed(sp, wo)).pdf;
-  }
-  static uint32_t pdf_walk_seed(const ShadingPoint &sp, const Vec3 &wo) {
-    return hash_u32x2(direction_seed(sp.ctx->path_seed, wo), 0x9e3779b9u);
-  }
-  // One walk from wi into the pane (random numbers from seed), connected toward wo at every interface wo is
-  // beyond: the transmitted part of pane_estimate (f cos and pdf of that one walk).
-  LocalEval pane_walk_to(const ShadingPoint &sp, const DielectricLobe &lobe, const Vec3 &wi, const Vec3 &wo,
-                         uint32_t seed) const {
-    LocalEval sum;
-    const Spectrum tint = color_at(sp);
-    mf::WalkRng rng(seed);
-    LocalSample s;
-    if (!lobe.sample(wi, Vec3(rng.next(), rng.next(), rng.next()), s) || !(s.label & GLIMMER_LABEL_TRANSMIT))
-      return sum;
-    Spectrum throughput = tint * s.f_cos / s.pdf;
-    Vec3 d = s.wo;
-    for (int event = 0; event < kMaxPaneEvents && d.z != 0.0f; ++event) {
-      const bool bottom = d.z < 0.0f;
-      throughput *= crossing(d.z);
-      const Vec3 up = at_interface(-d, bottom);
-      if (bottom == (wo.z < 0.0f)) {  // wo is on the far side of this interface: connect
-        const LocalEval exit = lobe.eval(up, at_interface(wo, bottom));
-        sum.f_cos += throughput * tint * exit.f_cos;
-        sum.pdf += exit.pdf;
-      }
-      if (!lobe.sample(up, Vec3(rng.next(), rng.next(), rng.next()), s) || (s.label & GLIMMER_LABEL_TRANSMIT)) break;
-      throughput *= s.f_cos / s.pdf;
-      d = at_interface(s.wo, bottom);
-    }
-    return sum;
   }
 
   Spectrum color_{1.0f};
