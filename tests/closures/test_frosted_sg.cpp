@@ -386,6 +386,12 @@ SceneError measure(const SceneSetup &setup, const Config &c, int reference_spp =
                 mean_relative_se(ref), mean_relative_se(plain), reference_spp / 4, reference_spp, worst_z);
   }
   const ImageEstimate est = render_tiny(scene, sg_sampler, sg_spp, 2);
+  if (setup.small_light) {  // per pixel (the slab's incidences 0..70 deg): where the error is
+    std::printf("[frosted sg] small light, roughness %.2f, per pixel sg / reference:", double(c.roughness));
+    for (size_t k = 0; k < ref.mean.size(); ++k)
+      std::printf(" %.3f/%.3f", double(average(est.mean[k])), double(average(ref.mean[k])));
+    std::printf("\n");
+  }
   const ImageEstimate ctl = render_tiny(scene, variant(frosted::SgVariant::kNoExitRefraction), sg_spp, 2);
   const ImageEstimate toksvig = render_tiny(scene, variant(frosted::SgVariant::kToksvig), sg_spp, 2);
   SceneError e{mean_relative_error(est, ref), mean_relative_error(ctl, ref), mean_relative_se(ref),
@@ -434,7 +440,11 @@ struct SetCase {
 };
 void check_set_scene(const SceneSetup &setup, std::span<const SetCase> cases) {
   const bool full = stress_scale() > 1;
-  const int reference_spp = full ? kReferenceSpp : 4096, sg_spp = full ? kSgSpp : 1024;
+  int reference_spp = full ? kReferenceSpp : 4096, sg_spp = full ? kSgSpp : 1024;
+  // GLIMMER_FROSTED_SET_SPP=N: N reference and N sg paths per pixel (separates sg's bias from its noise: at make
+  // stress's 2048 sg paths the small light's sg noise alone is ~0.11 relative per pixel at roughness 0.3).
+  if (const char *n = std::getenv("GLIMMER_FROSTED_SET_SPP"); n != nullptr && std::atoi(n) > 0)
+    reference_spp = sg_spp = std::atoi(n);
   double sum = 0.0;
   for (const SetCase &c : cases) {
     const Config config{c.roughness, c.ior, Vec3(1.0f), {c.bound, c.bound}};
@@ -801,6 +811,166 @@ TEST(FrostedGlassSg, ExitLobeShapeOfSolidsAgainstThePath) {
       EXPECT_GT(solid_band_l1(single, ref), kPlanarLadderBandL1) << "control passed: slab " << c.roughness;
     }
     EXPECT_NEAR(now.total, ref.total, 0.04 * ref.total) << "transmitted energy, roughness " << c.roughness;
+  }
+}
+
+// ---- The skew of the slab's oblique exit lobe (issue 12, thirteenth session) -----------------------------------
+// The slab of the accuracy set at incidences 0 / 30 / 50 / 70 deg (the exit axis is the incident direction
+// continued): each transmitted path binned by the angle of its escape direction off the exit axis and by its
+// azimuth about the axis relative to the exit's plane of incidence: toward the normal (within 45 deg of the
+// azimuth of the exit normal), sideways, toward grazing. A vMF about the axis is symmetric in azimuth; the exact
+// lobe is not (the refraction's Jacobian stretches it toward grazing): the small light behind the slab sits 20 deg
+// off the normal, so at 50 / 70 deg incidence it is 30 / 50 deg off axis toward the normal. Compared: the default
+// (symmetric vMFs) and SgVariant::kMixtureSkewed (the tail carried out through the exit's Jacobian, not kept).
+constexpr int kSkewBands = 7, kSkewSectors = 3;
+constexpr double kSkewEdge[kSkewBands + 1] = {0, 5, 10, 20, 30, 45, 60, 180};  // degrees
+struct SkewBands {
+  double mass[kSkewBands][kSkewSectors] = {};  // fraction of the pixel's transmitted energy
+  double total = 0.0;                          // transmitted energy per entering path
+};
+SkewBands skew_bands(const AnalyticScene &scene, const Sampler &sample, const Pixel &px, int paths, uint64_t seed) {
+  constexpr int kChunks = 16;
+  std::array<std::array<double, kSkewBands * kSkewSectors + 1>, kChunks> acc{};
+  const Vec3 axis = px.D;
+  // The exit normal (outward, -z) projected off the axis: azimuth 0 = toward the normal.
+  Vec3 toward = Vec3(0.0f, 0.0f, -1.0f) - axis * dot(Vec3(0.0f, 0.0f, -1.0f), axis);
+  toward = dot(toward, toward) > 1e-8f ? normalize(toward) : Vec3(-1.0f, 0.0f, 0.0f);
+  tbb::parallel_for(0, kChunks, [&](int c) {
+    auto &a = acc[size_t(c)];
+    Pcg32 rng(seed, 101 + uint64_t(c));
+    const auto schema = FrostedGlassClosure::params();
+    for (int i = c; i < paths; i += kChunks) {
+      Hit hit = px.hit;
+      Vec3 D = px.D;
+      Spectrum throughput(1.0f);
+      for (int event = 0; event < 512; ++event) {
+        GlimmerShadingContext ctx = context_at(scene, hit, D, rng);
+        const ShadingPoint sp(&ctx, schema);
+        LocalSample s;
+        if (!sample(sp, Vec3(rng.next_float(), rng.next_float(), rng.next_float()), s) || !(s.pdf > 0.0f)) break;
+        if (event == 0 && !(s.label & GLIMMER_LABEL_TRANSMIT)) break;
+        throughput *= s.f_cos / s.pdf;
+        const Vec3 wo = normalize(sp.frame.to_world(s.wo));
+        const Vec3 origin = s.moved ? frosted::offset_origin(s.origin, s.origin_Ng, wo)
+                                    : frosted::offset_origin(hit.P, hit.N, wo);
+        Hit next;
+        if (!scene.intersect(origin, wo, 0.0f, std::numeric_limits<float>::infinity(), next)) {
+          if (wo.z > 0.0f) break;  // back through the entry face
+          const double w = average(throughput);
+          const double deg = std::acos(std::clamp(double(dot(wo, axis)), -1.0, 1.0)) * 180.0 / M_PI;
+          int b = 0;
+          while (b + 1 < kSkewBands && deg >= kSkewEdge[b + 1]) ++b;
+          const Vec3 side = wo - axis * dot(wo, axis);
+          const double cos_az = dot(side, side) > 1e-12f ? double(dot(normalize(side), toward)) : 1.0;
+          const int sector = cos_az > std::sqrt(0.5) ? 0 : (cos_az > -std::sqrt(0.5) ? 1 : 2);
+          a[size_t(b * kSkewSectors + sector)] += w;
+          a[kSkewBands * kSkewSectors] += w;
+          break;
+        }
+        hit = next;
+        D = wo;
+      }
+    }
+  });
+  SkewBands out;
+  for (const auto &a : acc) {
+    for (int b = 0; b < kSkewBands; ++b)
+      for (int s = 0; s < kSkewSectors; ++s) out.mass[b][s] += a[size_t(b * kSkewSectors + s)];
+    out.total += a[kSkewBands * kSkewSectors];
+  }
+  for (auto &band : out.mass)
+    for (double &m : band) m /= std::max(out.total, 1e-30);
+  out.total /= double(paths);
+  return out;
+}
+// L1 of the 2D band masses, and the mass toward the normal 20-60 deg off axis (where the small light is seen).
+double skew_l1(const SkewBands &a, const SkewBands &b) {
+  double d = 0.0;
+  for (int k = 0; k < kSkewBands; ++k)
+    for (int s = 0; s < kSkewSectors; ++s) d += std::fabs(a.mass[k][s] - b.mass[k][s]);
+  return d;
+}
+double skew_toward_normal(const SkewBands &a) { return a.mass[3][0] + a.mass[4][0] + a.mass[5][0]; }
+void print_skew(const char *what, const SkewBands &m, const SkewBands *ref) {
+  std::printf("  %-16s T %.4f |", what, m.total);
+  for (int b = 0; b < kSkewBands; ++b) {
+    if (ref == nullptr) {
+      std::printf(" %.1e/%.1e/%.1e", m.mass[b][0], m.mass[b][1], m.mass[b][2]);
+    } else {
+      auto ratio = [&](int s) { return m.mass[b][s] / std::max(ref->mass[b][s], 1e-12); };
+      std::printf(" %7.2f/%.2f/%.2f", ratio(0), ratio(1), ratio(2));
+    }
+  }
+  if (ref != nullptr)
+    std::printf(" | L1 %.3f, toward normal 20-60 x%.2f", skew_l1(m, *ref), skew_toward_normal(m) / skew_toward_normal(*ref));
+  std::printf("\n");
+}
+
+struct SkewResult {
+  double l1_now = 0.0, l1_skewed = 0.0, normal_now = 0.0, normal_skewed = 0.0;  // summed over incidences
+};
+SkewResult measure_skew(float roughness, float ior, int ref_paths, int sg_paths) {
+  auto path = create_raw(roughness, ior, false);
+  auto sg = create_raw(roughness, ior, true);
+  AnalyticScene scene(AnalyticScene::kSlab);
+  scene.material = reinterpret_cast<const GlimmerInstance *>(sg.get());
+  const Sampler path_sampler = [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
+    return path->sample(sp, r, s);
+  };
+  const Sampler sg_sampler = [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
+    return sg->sample(sp, r, s);
+  };
+  const Sampler skewed = [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
+    if (!path->sample(sp, r, s)) return false;
+    if (sg->uses_sg(sp) && (s.label & GLIMMER_LABEL_TRANSMIT)) sg->sample_sg(sp, r, s, frosted::SgVariant::kMixtureSkewed);
+    return true;
+  };
+  SkewResult res;
+  std::printf("[frosted sg skew] slab roughness %.2f ior %.2f: per band (deg) 0-5 5-10 10-20 20-30 30-45 45-60 "
+              "60-180, sectors toward normal / sideways / toward grazing (path: mass; sg: ratio to path)\n",
+              double(roughness), double(ior));
+  for (const float degrees : {0.0f, 30.0f, 50.0f, 70.0f}) {
+    const float th = degrees * float(M_PI) / 180.0f;
+    Pixel px{{}, Vec3(std::sin(th), 0.0f, -std::cos(th))};
+    scene.intersect(Vec3(0.0f) - px.D * 5.0f, px.D, 0.0f, 100.0f, px.hit);
+    const SkewBands ref = skew_bands(scene, path_sampler, px, ref_paths, 1);
+    const SkewBands now = skew_bands(scene, sg_sampler, px, sg_paths, 2);
+    const SkewBands skew = skew_bands(scene, skewed, px, sg_paths, 2);
+    std::printf(" incidence %2.0f deg\n", double(degrees));
+    print_skew("path", ref, nullptr);
+    print_skew("sg (default)", now, &ref);
+    print_skew("sg (skewed tail)", skew, &ref);
+    // The reference's own check: at normal incidence the binning is symmetric (toward the normal = toward grazing
+    // within 10 % over 0-20 deg); at 50 deg and roughness 0.3 the exact lobe is skewed (measured 20-30 deg: 2.3e-2
+    // toward grazing against 1.2e-2 toward the normal; at 0.5 the horizon, 40 deg off axis, cuts the grazing side).
+    const double normal_0_20 = ref.mass[0][0] + ref.mass[1][0] + ref.mass[2][0];
+    const double grazing_0_20 = ref.mass[0][2] + ref.mass[1][2] + ref.mass[2][2];
+    if (degrees == 0.0f) {
+      EXPECT_NEAR(normal_0_20 / grazing_0_20, 1.0, 0.1) << "roughness " << roughness;
+    }
+    if (degrees == 50.0f && roughness < 0.4f) {
+      EXPECT_GT(ref.mass[3][2], 1.5 * ref.mass[3][0]) << "roughness " << roughness;
+    }
+    res.l1_now += skew_l1(now, ref);
+    res.l1_skewed += skew_l1(skew, ref);
+    res.normal_now += std::fabs(skew_toward_normal(now) / skew_toward_normal(ref) - 1.0);
+    res.normal_skewed += std::fabs(skew_toward_normal(skew) / skew_toward_normal(ref) - 1.0);
+  }
+  std::printf("[frosted sg skew] slab roughness %.2f: summed over the 4 incidences: 2D band L1 default %.3f / "
+              "skewed tail %.3f; |toward normal 20-60 deg / path - 1| default %.3f / skewed tail %.3f\n",
+              double(roughness), res.l1_now, res.l1_skewed, res.normal_now, res.normal_skewed);
+  return res;
+}
+
+// Measured (100000 / 25000 paths per pixel), 2D band L1 summed over the 4 incidences, default / skewed tail:
+// roughness 0.3 0.782 / 0.862, 0.5 0.773 / 0.773 (the ladder above kMixtureRoughnessMax is not skewed). Bound:
+// the default's measured + ~20 %, so a regression of the solid mixture's shape fails.
+constexpr double kSkewBandL1Bound = 0.95;
+TEST(FrostedGlassSg, ExitLobeSkewOfTheSlabAgainstThePath) {
+  const int ref_paths = stress_scale() > 1 ? 400000 : 100000, sg_paths = ref_paths / 4;
+  for (const float roughness : {0.3f, 0.5f}) {
+    const SkewResult r = measure_skew(roughness, 1.5f, ref_paths, sg_paths);
+    EXPECT_LT(r.l1_now, kSkewBandL1Bound) << "roughness " << roughness;
   }
 }
 
