@@ -257,7 +257,7 @@ bool build_exit_mixture(const TransmissionSgTable &table, const Segment &seg, co
 // A tail for solids (issue 12, twelfth session; docs/frosted_glass.md "A tail for solids"). The exit mixture of
 // method=sg's rule (SgInputs::mixture_tail < 0) by what the traced rays measured:
 //  - a planar exit (exit_curvature < kPlanarExitCurvature: a slab's back face) above kMixtureRoughnessMax: the
-//    per-ray lobes as cores (sharpness x 3) plus the pane's heavy-tail ladder about the axis lobe (add_tail_ladder,
+//    per-ray lobes as cores (sharpness x 2; x 3 until the thirteenth session) plus the pane's heavy-tail ladder about the axis lobe (add_tail_ladder,
 //    kPlanarSolidTail), where the rule had the single SG (slab 0.5 / 0.8: 0.087 / 0.095 -> 0.039 / 0.031);
 //  - a curved exit (a sphere focuses) below kCurvedSingleSgBelow: no tail, the single SG (exit harness, sphere
 //    r 0.1: 9.4 -> 7.7 %); above kMixtureRoughnessMax the single SG as before (the pane's ladder made the sphere
@@ -267,7 +267,11 @@ bool build_exit_mixture(const TransmissionSgTable &table, const Segment &seg, co
 // single SG (out.sg). False: no lobe has energy.
 constexpr float kPlanarExitCurvature = 0.1f;
 constexpr float kCurvedSingleSgBelow = 0.2f;
-constexpr PaneTail kPlanarSolidTail{0.06f, 4, 0.18f, 3.0f};
+// Thirteenth session: cores x 3 -> x 2, measured with exit light sampling in the small light's test (its former
+// 4096 / 1024 figures, which chose x 3, were mostly sg's noise): small light r 0.5 0.139 -> 0.085, slab band L1 r 0.5
+// 0.169 -> 0.086, 2D band L1 0.773 -> 0.601, slab r 0.5 absorbing 0.0281 -> 0.0250, r 0.8 0.0314 -> 0.0308; slab r 0.5
+// 0.0386 -> 0.0419 (docs/frosted_glass.md "A skewed exit lobe").
+constexpr PaneTail kPlanarSolidTail{0.06f, 4, 0.18f, 2.0f};
 constexpr PaneLadder kPlanarSolidLadder = make_pane_ladder(kPlanarSolidTail);  // validated once, at compile time
 static_assert(kPlanarSolidLadder.valid, "the planar-solid tail must be a valid ladder");
 // ---- A skewed exit lobe (issue 12, thirteenth session; docs/frosted_glass.md "A skewed exit lobe") -----------

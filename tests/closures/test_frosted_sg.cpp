@@ -30,6 +30,7 @@
 #include <limits>
 #include <span>
 #include <string>
+#include <utility>
 
 #include "closures/frosted_glass.h"
 #include "closures/frosted_test_host.h"
@@ -544,8 +545,10 @@ TEST(FrostedGlassSg, SmallLightBehindSlabMatchesThePathReference) {
   // 0.122 (4096 / 1024; 16k: 0.211 -> 0.106), bound 0.29 -> 0.16; 0.1 / 0.3 unchanged. Thirteenth session: sg with
   // the renderer's light sampling at the exit (measure(): about half of 0.192 at roughness 0.3 was sg's own noise):
   // 0.0163 / 0.1125 / 0.1316 (4096 / 1024), 0.0097 / 0.1166 / 0.1392 (16k / 2048), 0.0125 / 0.1069 / 0.1405 with
-  // 65536 / 65536 paths and no exit light sampling (the bias); bound at 0.3 0.33 -> 0.15 (0.5 stays 0.16).
-  const SetCase cases[] = {{0.1f, 1.5f, kGoal, true}, {0.3f, 1.5f, 0.15, true}, {0.5f, 1.33f, 0.16, true}};
+  // 65536 / 65536 paths and no exit light sampling (the bias); bound at 0.3 0.33 -> 0.15. Then the planar ladder's
+  // cores x 3 -> x 2 (frosted_glass_sg.cpp kPlanarSolidTail): roughness 0.5 0.1392 -> 0.0853 (16k; 4096 / 1024:
+  // 0.1316 -> 0.0835), bound 0.16 -> 0.11.
+  const SetCase cases[] = {{0.1f, 1.5f, kGoal, true}, {0.3f, 1.5f, 0.15, true}, {0.5f, 1.33f, 0.11, true}};
   check_set_scene({"slab, small light behind", AnalyticScene::kSlab, false, true}, cases);
 }
 
@@ -827,7 +830,8 @@ void print_solid_bands(const char *what, const SolidBands &m, const SolidBands *
 // the per-ray kappa / 4 tails would give 0.185); sphere r 0.1 0.011 (the single SG: a curved exit below 0.2) / 0.091
 // / 0.011, r 0.3 0.153 / 0.153 / 0.435. Tried on the slab, not kept: the pane's ladder at 0.1 0.090, cores x3 +
 // first 0.06 at 0.3 0.083 (the small light and the harness disagreed, docs "A tail for solids").
-constexpr double kPlanarLadderBandL1 = 0.21;
+// Thirteenth session: the ladder's cores x 3 -> x 2: slab r 0.5 0.169 -> 0.086, bound 0.21 -> 0.11.
+constexpr double kPlanarLadderBandL1 = 0.11;
 TEST(FrostedGlassSg, ExitLobeShapeOfSolidsAgainstThePath) {
   const int ref_paths = stress_scale() > 1 ? 400000 : 100000, sg_paths = ref_paths / 4;
   struct ShapeCase {
@@ -1029,14 +1033,13 @@ SkewResult measure_skew(float roughness, float ior, int ref_paths, int sg_paths)
 }
 
 // Measured (100000 / 25000 paths per pixel), 2D band L1 summed over the 4 incidences, default / skewed tail:
-// roughness 0.3 0.782 / 0.862, 0.5 0.773 / 0.773 (the ladder above kMixtureRoughnessMax is not skewed). Bound:
-// the default's measured + ~20 %, so a regression of the solid mixture's shape fails.
-constexpr double kSkewBandL1Bound = 0.95;
+// roughness 0.3 0.782 / 0.862, 0.5 0.601 / 0.601 (the ladder above kMixtureRoughnessMax is not skewed; with its
+// former cores x 3: 0.773). Bounds: the default's measured + ~20 %, so a regression of the mixture's shape fails.
 TEST(FrostedGlassSg, ExitLobeSkewOfTheSlabAgainstThePath) {
   const int ref_paths = stress_scale() > 1 ? 400000 : 100000, sg_paths = ref_paths / 4;
-  for (const float roughness : {0.3f, 0.5f}) {
+  for (const auto &[roughness, bound] : {std::pair{0.3f, 0.95}, std::pair{0.5f, 0.73}}) {
     const SkewResult r = measure_skew(roughness, 1.5f, ref_paths, sg_paths);
-    EXPECT_LT(r.l1_now, kSkewBandL1Bound) << "roughness " << roughness;
+    EXPECT_LT(r.l1_now, bound) << "roughness " << roughness;
   }
 }
 
