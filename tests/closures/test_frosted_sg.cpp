@@ -30,6 +30,7 @@
 #include <limits>
 #include <span>
 #include <string>
+#include <utility>
 
 #include "closures/frosted_glass.h"
 #include "closures/frosted_test_host.h"
@@ -191,9 +192,32 @@ GlimmerShadingContext context_at(const AnalyticScene &scene, const Hit &hit, con
 // Radiance a path entering at the camera hit brings back through the object (0 when the first event
 // reflects: transmitted light only); follows every later interface, moved samples from their origin. With
 // `light_eval` (a small light, the exact closure) the light is also sampled at every later interface.
+// `exit_nee` (sg, a small light): the renderer's light sampling at the exit (ABI 2.4 / 2.7): at an sg sample that
+// carries its exit lobe (mixture), one light sample from the light's vMF weighted by the lobe's density there, MIS
+// (power heuristic) with the lobe's own direction. The same expectation as without, less noise.
+// The exit lobe of an sg sample as the host sees it (the whole mixture, or the single lobe), restricted to origin_Ng.
+glimmer::ExitLobeMixture exit_mixture_of(const LocalSample &s, const GlimmerExitMixture &buffer) {
+  glimmer::ExitLobeMixture m;
+  const Vec3 n = normalize(s.origin_Ng);
+  if (s.exit_mixture) {
+    m.count = int(std::min<uint32_t>(buffer.count, GLIMMER_EXIT_MAX_LOBES));
+    for (int k = 0; k < m.count; ++k) {
+      m.lobe[k] = glimmer::ExitLobe::make(Vec3(buffer.axis[k]), double(buffer.sharpness[k]), n);
+      m.weight[k] = double(buffer.weight[k]);
+    }
+  } else {
+    m.count = 1;
+    m.lobe[0] = glimmer::ExitLobe::make(s.lobe_axis, double(s.lobe_sharpness), n);
+    m.weight[0] = 1.0;
+  }
+  m.normalize();
+  return m;
+}
+
 Spectrum transmitted_radiance(const AnalyticScene &scene, const Sampler &sample, Hit hit, Vec3 D, Pcg32 &rng,
-                              const Evaluator *light_eval = nullptr) {
+                              const Evaluator *light_eval = nullptr, bool exit_nee = false) {
   const bool nee = light_eval != nullptr && scene.small_light;
+  const bool lobe_nee = exit_nee && scene.small_light;
   const auto light_pdf = [&scene](const Vec3 &w) {
     return vmf_density(scene.light_axis(), AnalyticScene::kLightSharpness, w);
   };
@@ -222,15 +246,32 @@ Spectrum transmitted_radiance(const AnalyticScene &scene, const Sampler &sample,
         L += throughput * e.f_cos * scene.small_light_radiance(wl) * float(pl / (pl * pl + pb * pb));
     }
     LocalSample s;
+    GlimmerExitMixture buffer{};
+    s.mixture_out = &buffer;
     if (!sample(sp, Vec3(rng.next_float(), rng.next_float(), rng.next_float()), s) || !(s.pdf > 0.0f)) return L;
     if (event == 0 && !(s.label & GLIMMER_LABEL_TRANSMIT)) return Spectrum(0.0f);
     throughput *= s.f_cos / s.pdf;
     bsdf_pdf_of_last = s.pdf;
     const Vec3 wo = normalize(sp.frame.to_world(s.wo));
+    const bool at_exit = lobe_nee && s.moved && s.exit_lobe;
+    glimmer::ExitLobeMixture lobe;
+    if (at_exit) {  // the light sampled from the exit, weighted by the lobe's density (the lobe as the BSDF)
+      lobe = exit_mixture_of(s, buffer);
+      const float u1 = rng.next_float(), u2 = rng.next_float();
+      const Vec3 wl = sample_vmf(scene.light_axis(), AnalyticScene::kLightSharpness, u1, u2);
+      const double pl = light_pdf(wl), pm = lobe.pdf(wl);
+      if (pm > 0.0 && pl > 0.0 && escapes(s.origin, s.origin_Ng, wl))
+        L += throughput * scene.small_light_radiance(wl) * float(pm * pl / (pl * pl + pm * pm));
+    }
     const Vec3 origin = s.moved ? frosted::offset_origin(s.origin, s.origin_Ng, wo)
                                 : frosted::offset_origin(hit.P, hit.N, wo);
     Hit next;
     if (!scene.intersect(origin, wo, 0.0f, std::numeric_limits<float>::infinity(), next)) {
+      if (at_exit) {  // the lobe's own direction: its MIS share of the light
+        const double pm = lobe.pdf(wo), pl = light_pdf(wo);
+        const Spectrum light = scene.small_light_radiance(wo);
+        return L + throughput * (scene.environment(wo) - light + light * float(pm * pm / (pm * pm + pl * pl)));
+      }
       if (!nee || event == 0) return L + throughput * scene.environment(wo);
       const double pb = bsdf_pdf_of_last, pl = light_pdf(wo);
       const Spectrum light = scene.small_light_radiance(wo);
@@ -274,7 +315,7 @@ struct ImageEstimate {
   std::vector<double> se;  // standard error of the luminance mean per pixel
 };
 ImageEstimate render_tiny(const AnalyticScene &scene, const Sampler &sample, int spp, uint64_t seed,
-                          const Evaluator *light_eval = nullptr) {
+                          const Evaluator *light_eval = nullptr, bool exit_nee = false) {
   const std::vector<Pixel> px = camera_pixels(scene);
   ImageEstimate out;
   out.mean.assign(px.size(), Spectrum(0.0f));
@@ -283,7 +324,7 @@ ImageEstimate render_tiny(const AnalyticScene &scene, const Sampler &sample, int
     Pcg32 rng(seed, 17 + k);
     double sum[3] = {0, 0, 0}, sum2 = 0.0;
     for (int s = 0; s < spp; ++s) {
-      const Spectrum L = transmitted_radiance(scene, sample, px[k].hit, px[k].D, rng, light_eval);
+      const Spectrum L = transmitted_radiance(scene, sample, px[k].hit, px[k].D, rng, light_eval, exit_nee);
       for (int ch = 0; ch < 3; ++ch) sum[ch] += L[ch];
       sum2 += sqr(average(L));
     }
@@ -385,7 +426,36 @@ SceneError measure(const SceneSetup &setup, const Config &c, int reference_spp =
                 "at %d paths (relative, %d paths per pixel); worst |z| between them %.2f\n", double(c.roughness),
                 mean_relative_se(ref), mean_relative_se(plain), reference_spp / 4, reference_spp, worst_z);
   }
-  const ImageEstimate est = render_tiny(scene, sg_sampler, sg_spp, 2);
+  // The small light (thirteenth session): sg with the renderer's light sampling at the exit (exit_nee; without it
+  // sg's own noise was about half of its error at 2048 paths, relative se 0.11 per pixel at roughness 0.3), checked
+  // against sg reading the light through its lobe samples alone at 4x the paths (the same expectation: every pixel
+  // within 5 combined standard errors; at 1x a rarely hit light's se is underestimated: |z| 5.2 at roughness 0.5).
+  const ImageEstimate est_lobe_only = render_tiny(scene, sg_sampler, setup.small_light ? 4 * sg_spp : sg_spp, 2);
+  const ImageEstimate est = setup.small_light ? render_tiny(scene, sg_sampler, sg_spp, 4, nullptr, true) : est_lobe_only;
+  if (setup.small_light) {
+    double worst_z = 0.0;
+    for (size_t k = 0; k < est.mean.size(); ++k) {
+      const double z = (average(est.mean[k]) - average(est_lobe_only.mean[k])) / std::hypot(est.se[k], est_lobe_only.se[k]);
+      worst_z = std::max(worst_z, std::fabs(z));
+      EXPECT_LT(std::fabs(z), 5.0) << "pixel " << k << ": sg with exit light sampling " << average(est.mean[k])
+                                   << ", without " << average(est_lobe_only.mean[k]);
+    }
+    std::printf("[frosted sg] small light, roughness %.2f: sg without exit light sampling (%d paths): mean relative "
+                "error %.4f, relative se %.4f; with it (%d paths): se %.4f; worst |z| between them %.2f\n",
+                double(c.roughness), 4 * sg_spp, mean_relative_error(est_lobe_only, ref),
+                mean_relative_se(est_lobe_only), sg_spp, mean_relative_se(est), worst_z);
+  }
+  if (setup.small_light) {  // per pixel (the slab's incidences 0..70 deg): where the error is
+    std::printf("[frosted sg] small light, roughness %.2f, per pixel sg / reference:", double(c.roughness));
+    for (size_t k = 0; k < ref.mean.size(); ++k)
+      std::printf(" %.3f/%.3f", double(average(est.mean[k])), double(average(ref.mean[k])));
+    // The error an unbiased sg would show from the noise alone: E|N(0, s)| = sqrt(2 / pi) s per pixel, s the
+    // combined standard error of sg and the reference, relative to the reference, mean over the pixels.
+    double floor = 0.0;
+    for (size_t k = 0; k < ref.mean.size(); ++k)
+      floor += std::sqrt(2.0 / M_PI) * std::hypot(est.se[k], ref.se[k]) / std::max(double(average(ref.mean[k])), 1e-9);
+    std::printf("; noise floor of the mean relative error %.4f\n", floor / double(ref.mean.size()));
+  }
   const ImageEstimate ctl = render_tiny(scene, variant(frosted::SgVariant::kNoExitRefraction), sg_spp, 2);
   const ImageEstimate toksvig = render_tiny(scene, variant(frosted::SgVariant::kToksvig), sg_spp, 2);
   SceneError e{mean_relative_error(est, ref), mean_relative_error(ctl, ref), mean_relative_se(ref),
@@ -434,7 +504,11 @@ struct SetCase {
 };
 void check_set_scene(const SceneSetup &setup, std::span<const SetCase> cases) {
   const bool full = stress_scale() > 1;
-  const int reference_spp = full ? kReferenceSpp : 4096, sg_spp = full ? kSgSpp : 1024;
+  int reference_spp = full ? kReferenceSpp : 4096, sg_spp = full ? kSgSpp : 1024;
+  // GLIMMER_FROSTED_SET_SPP=N: N reference and N sg paths per pixel (separates sg's bias from its noise: at make
+  // stress's 2048 sg paths the small light's sg noise alone is ~0.11 relative per pixel at roughness 0.3).
+  if (const char *n = std::getenv("GLIMMER_FROSTED_SET_SPP"); n != nullptr && std::atoi(n) > 0)
+    reference_spp = sg_spp = std::atoi(n);
   double sum = 0.0;
   for (const SetCase &c : cases) {
     const Config config{c.roughness, c.ior, Vec3(1.0f), {c.bound, c.bound}};
@@ -468,8 +542,13 @@ TEST(FrostedGlassSg, SmallLightBehindSlabMatchesThePathReference) {
   // light_eval): at make test's 4096 paths its relative se is 0.015 / 0.037 / 0.032 (plain path: 0.020 / 0.072 /
   // 0.072), sg's error against it 0.023 / 0.252 / 0.227. Twelfth session (a planar exit above roughness 0.4: the
   // heavy-tail ladder instead of the single SG, frosted_glass_sg.cpp solid_exit_mixture): roughness 0.5 0.227 ->
-  // 0.122 (4096 / 1024; 16k: 0.211 -> 0.106), bound 0.29 -> 0.16; 0.1 / 0.3 unchanged.
-  const SetCase cases[] = {{0.1f, 1.5f, kGoal, true}, {0.3f, 1.5f, 0.33, true}, {0.5f, 1.33f, 0.16, true}};
+  // 0.122 (4096 / 1024; 16k: 0.211 -> 0.106), bound 0.29 -> 0.16; 0.1 / 0.3 unchanged. Thirteenth session: sg with
+  // the renderer's light sampling at the exit (measure(): about half of 0.192 at roughness 0.3 was sg's own noise):
+  // 0.0163 / 0.1125 / 0.1316 (4096 / 1024), 0.0097 / 0.1166 / 0.1392 (16k / 2048), 0.0125 / 0.1069 / 0.1405 with
+  // 65536 / 65536 paths and no exit light sampling (the bias); bound at 0.3 0.33 -> 0.15. Then the planar ladder's
+  // cores x 3 -> x 2 (frosted_glass_sg.cpp kPlanarSolidTail): roughness 0.5 0.1392 -> 0.0853 (16k; 4096 / 1024:
+  // 0.1316 -> 0.0835), bound 0.16 -> 0.11.
+  const SetCase cases[] = {{0.1f, 1.5f, kGoal, true}, {0.3f, 1.5f, 0.15, true}, {0.5f, 1.33f, 0.11, true}};
   check_set_scene({"slab, small light behind", AnalyticScene::kSlab, false, true}, cases);
 }
 
@@ -751,7 +830,8 @@ void print_solid_bands(const char *what, const SolidBands &m, const SolidBands *
 // the per-ray kappa / 4 tails would give 0.185); sphere r 0.1 0.011 (the single SG: a curved exit below 0.2) / 0.091
 // / 0.011, r 0.3 0.153 / 0.153 / 0.435. Tried on the slab, not kept: the pane's ladder at 0.1 0.090, cores x3 +
 // first 0.06 at 0.3 0.083 (the small light and the harness disagreed, docs "A tail for solids").
-constexpr double kPlanarLadderBandL1 = 0.21;
+// Thirteenth session: the ladder's cores x 3 -> x 2: slab r 0.5 0.169 -> 0.086, bound 0.21 -> 0.11.
+constexpr double kPlanarLadderBandL1 = 0.11;
 TEST(FrostedGlassSg, ExitLobeShapeOfSolidsAgainstThePath) {
   const int ref_paths = stress_scale() > 1 ? 400000 : 100000, sg_paths = ref_paths / 4;
   struct ShapeCase {
@@ -801,6 +881,165 @@ TEST(FrostedGlassSg, ExitLobeShapeOfSolidsAgainstThePath) {
       EXPECT_GT(solid_band_l1(single, ref), kPlanarLadderBandL1) << "control passed: slab " << c.roughness;
     }
     EXPECT_NEAR(now.total, ref.total, 0.04 * ref.total) << "transmitted energy, roughness " << c.roughness;
+  }
+}
+
+// ---- The skew of the slab's oblique exit lobe (issue 12, thirteenth session) -----------------------------------
+// The slab of the accuracy set at incidences 0 / 30 / 50 / 70 deg (the exit axis is the incident direction
+// continued): each transmitted path binned by the angle of its escape direction off the exit axis and by its
+// azimuth about the axis relative to the exit's plane of incidence: toward the normal (within 45 deg of the
+// azimuth of the exit normal), sideways, toward grazing. A vMF about the axis is symmetric in azimuth; the exact
+// lobe is not (the refraction's Jacobian stretches it toward grazing): the small light behind the slab sits 20 deg
+// off the normal, so at 50 / 70 deg incidence it is 30 / 50 deg off axis toward the normal. Compared: the default
+// (symmetric vMFs) and SgVariant::kMixtureSkewed (the tail carried out through the exit's Jacobian, not kept).
+constexpr int kSkewBands = 7, kSkewSectors = 3;
+constexpr double kSkewEdge[kSkewBands + 1] = {0, 5, 10, 20, 30, 45, 60, 180};  // degrees
+struct SkewBands {
+  double mass[kSkewBands][kSkewSectors] = {};  // fraction of the pixel's transmitted energy
+  double total = 0.0;                          // transmitted energy per entering path
+};
+SkewBands skew_bands(const AnalyticScene &scene, const Sampler &sample, const Pixel &px, int paths, uint64_t seed) {
+  constexpr int kChunks = 16;
+  std::array<std::array<double, kSkewBands * kSkewSectors + 1>, kChunks> acc{};
+  const Vec3 axis = px.D;
+  // The exit normal (outward, -z) projected off the axis: azimuth 0 = toward the normal.
+  Vec3 toward = Vec3(0.0f, 0.0f, -1.0f) - axis * dot(Vec3(0.0f, 0.0f, -1.0f), axis);
+  toward = dot(toward, toward) > 1e-8f ? normalize(toward) : Vec3(-1.0f, 0.0f, 0.0f);
+  tbb::parallel_for(0, kChunks, [&](int c) {
+    auto &a = acc[size_t(c)];
+    Pcg32 rng(seed, 101 + uint64_t(c));
+    const auto schema = FrostedGlassClosure::params();
+    for (int i = c; i < paths; i += kChunks) {
+      Hit hit = px.hit;
+      Vec3 D = px.D;
+      Spectrum throughput(1.0f);
+      for (int event = 0; event < 512; ++event) {
+        GlimmerShadingContext ctx = context_at(scene, hit, D, rng);
+        const ShadingPoint sp(&ctx, schema);
+        LocalSample s;
+        if (!sample(sp, Vec3(rng.next_float(), rng.next_float(), rng.next_float()), s) || !(s.pdf > 0.0f)) break;
+        if (event == 0 && !(s.label & GLIMMER_LABEL_TRANSMIT)) break;
+        throughput *= s.f_cos / s.pdf;
+        const Vec3 wo = normalize(sp.frame.to_world(s.wo));
+        const Vec3 origin = s.moved ? frosted::offset_origin(s.origin, s.origin_Ng, wo)
+                                    : frosted::offset_origin(hit.P, hit.N, wo);
+        Hit next;
+        if (!scene.intersect(origin, wo, 0.0f, std::numeric_limits<float>::infinity(), next)) {
+          if (wo.z > 0.0f) break;  // back through the entry face
+          const double w = average(throughput);
+          const double deg = std::acos(std::clamp(double(dot(wo, axis)), -1.0, 1.0)) * 180.0 / M_PI;
+          int b = 0;
+          while (b + 1 < kSkewBands && deg >= kSkewEdge[b + 1]) ++b;
+          const Vec3 side = wo - axis * dot(wo, axis);
+          const double cos_az = dot(side, side) > 1e-12f ? double(dot(normalize(side), toward)) : 1.0;
+          const int sector = cos_az > std::sqrt(0.5) ? 0 : (cos_az > -std::sqrt(0.5) ? 1 : 2);
+          a[size_t(b * kSkewSectors + sector)] += w;
+          a[kSkewBands * kSkewSectors] += w;
+          break;
+        }
+        hit = next;
+        D = wo;
+      }
+    }
+  });
+  SkewBands out;
+  for (const auto &a : acc) {
+    for (int b = 0; b < kSkewBands; ++b)
+      for (int s = 0; s < kSkewSectors; ++s) out.mass[b][s] += a[size_t(b * kSkewSectors + s)];
+    out.total += a[kSkewBands * kSkewSectors];
+  }
+  for (auto &band : out.mass)
+    for (double &m : band) m /= std::max(out.total, 1e-30);
+  out.total /= double(paths);
+  return out;
+}
+// L1 of the 2D band masses, and the mass toward the normal 20-60 deg off axis (where the small light is seen).
+double skew_l1(const SkewBands &a, const SkewBands &b) {
+  double d = 0.0;
+  for (int k = 0; k < kSkewBands; ++k)
+    for (int s = 0; s < kSkewSectors; ++s) d += std::fabs(a.mass[k][s] - b.mass[k][s]);
+  return d;
+}
+double skew_toward_normal(const SkewBands &a) { return a.mass[3][0] + a.mass[4][0] + a.mass[5][0]; }
+void print_skew(const char *what, const SkewBands &m, const SkewBands *ref) {
+  std::printf("  %-16s T %.4f |", what, m.total);
+  for (int b = 0; b < kSkewBands; ++b) {
+    if (ref == nullptr) {
+      std::printf(" %.1e/%.1e/%.1e", m.mass[b][0], m.mass[b][1], m.mass[b][2]);
+    } else {
+      auto ratio = [&](int s) { return m.mass[b][s] / std::max(ref->mass[b][s], 1e-12); };
+      std::printf(" %7.2f/%.2f/%.2f", ratio(0), ratio(1), ratio(2));
+    }
+  }
+  if (ref != nullptr)
+    std::printf(" | L1 %.3f, toward normal 20-60 x%.2f", skew_l1(m, *ref), skew_toward_normal(m) / skew_toward_normal(*ref));
+  std::printf("\n");
+}
+
+struct SkewResult {
+  double l1_now = 0.0, l1_skewed = 0.0, normal_now = 0.0, normal_skewed = 0.0;  // summed over incidences
+};
+SkewResult measure_skew(float roughness, float ior, int ref_paths, int sg_paths) {
+  auto path = create_raw(roughness, ior, false);
+  auto sg = create_raw(roughness, ior, true);
+  AnalyticScene scene(AnalyticScene::kSlab);
+  scene.material = reinterpret_cast<const GlimmerInstance *>(sg.get());
+  const Sampler path_sampler = [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
+    return path->sample(sp, r, s);
+  };
+  const Sampler sg_sampler = [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
+    return sg->sample(sp, r, s);
+  };
+  const Sampler skewed = [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
+    if (!path->sample(sp, r, s)) return false;
+    if (sg->uses_sg(sp) && (s.label & GLIMMER_LABEL_TRANSMIT)) sg->sample_sg(sp, r, s, frosted::SgVariant::kMixtureSkewed);
+    return true;
+  };
+  SkewResult res;
+  std::printf("[frosted sg skew] slab roughness %.2f ior %.2f: per band (deg) 0-5 5-10 10-20 20-30 30-45 45-60 "
+              "60-180, sectors toward normal / sideways / toward grazing (path: mass; sg: ratio to path)\n",
+              double(roughness), double(ior));
+  for (const float degrees : {0.0f, 30.0f, 50.0f, 70.0f}) {
+    const float th = degrees * float(M_PI) / 180.0f;
+    Pixel px{{}, Vec3(std::sin(th), 0.0f, -std::cos(th))};
+    scene.intersect(Vec3(0.0f) - px.D * 5.0f, px.D, 0.0f, 100.0f, px.hit);
+    const SkewBands ref = skew_bands(scene, path_sampler, px, ref_paths, 1);
+    const SkewBands now = skew_bands(scene, sg_sampler, px, sg_paths, 2);
+    const SkewBands skew = skew_bands(scene, skewed, px, sg_paths, 2);
+    std::printf(" incidence %2.0f deg\n", double(degrees));
+    print_skew("path", ref, nullptr);
+    print_skew("sg (default)", now, &ref);
+    print_skew("sg (skewed tail)", skew, &ref);
+    // The reference's own check: at normal incidence the binning is symmetric (toward the normal = toward grazing
+    // within 10 % over 0-20 deg); at 50 deg and roughness 0.3 the exact lobe is skewed (measured 20-30 deg: 2.3e-2
+    // toward grazing against 1.2e-2 toward the normal; at 0.5 the horizon, 40 deg off axis, cuts the grazing side).
+    const double normal_0_20 = ref.mass[0][0] + ref.mass[1][0] + ref.mass[2][0];
+    const double grazing_0_20 = ref.mass[0][2] + ref.mass[1][2] + ref.mass[2][2];
+    if (degrees == 0.0f) {
+      EXPECT_NEAR(normal_0_20 / grazing_0_20, 1.0, 0.1) << "roughness " << roughness;
+    }
+    if (degrees == 50.0f && roughness < 0.4f) {
+      EXPECT_GT(ref.mass[3][2], 1.5 * ref.mass[3][0]) << "roughness " << roughness;
+    }
+    res.l1_now += skew_l1(now, ref);
+    res.l1_skewed += skew_l1(skew, ref);
+    res.normal_now += std::fabs(skew_toward_normal(now) / skew_toward_normal(ref) - 1.0);
+    res.normal_skewed += std::fabs(skew_toward_normal(skew) / skew_toward_normal(ref) - 1.0);
+  }
+  std::printf("[frosted sg skew] slab roughness %.2f: summed over the 4 incidences: 2D band L1 default %.3f / "
+              "skewed tail %.3f; |toward normal 20-60 deg / path - 1| default %.3f / skewed tail %.3f\n",
+              double(roughness), res.l1_now, res.l1_skewed, res.normal_now, res.normal_skewed);
+  return res;
+}
+
+// Measured (100000 / 25000 paths per pixel), 2D band L1 summed over the 4 incidences, default / skewed tail:
+// roughness 0.3 0.782 / 0.862, 0.5 0.601 / 0.601 (the ladder above kMixtureRoughnessMax is not skewed; with its
+// former cores x 3: 0.773). Bounds: the default's measured + ~20 %, so a regression of the mixture's shape fails.
+TEST(FrostedGlassSg, ExitLobeSkewOfTheSlabAgainstThePath) {
+  const int ref_paths = stress_scale() > 1 ? 400000 : 100000, sg_paths = ref_paths / 4;
+  for (const auto &[roughness, bound] : {std::pair{0.3f, 0.95}, std::pair{0.5f, 0.73}}) {
+    const SkewResult r = measure_skew(roughness, 1.5f, ref_paths, sg_paths);
+    EXPECT_LT(r.l1_now, bound) << "roughness " << roughness;
   }
 }
 
@@ -1085,7 +1324,7 @@ TEST(FrostedGlassSg, StressRawOutputsFiniteNonNegative) {
     if (std::sscanf(range, "%ld,%ld", &first, &end) != 2 || !(0 <= first && first < end && end <= blocks))
       first = 0, end = blocks;
   const long calls = 1000000 * long(stress_scale()) / blocks * (end - first);
-  std::atomic<long> bad_count{0}, moved{0}, samples{0}, mixture_moved{0}, mixture_written{0};
+  std::atomic<long> bad_count{0}, moved{0}, samples{0}, mixture_moved{0}, mixture_written{0}, skewed_written{0};
   std::atomic<long> host_queries{0}, host_moved{0}, host_mixtures{0}, planar_wide{0};
   tbb::parallel_for(first, end, [&](long b) {
     Pcg32 r(900 + b);
@@ -1133,7 +1372,11 @@ TEST(FrostedGlassSg, StressRawOutputsFiniteNonNegative) {
         if (c.sample(sp, rand, s) && c.uses_sg(sp) && (s.label & GLIMMER_LABEL_TRANSMIT)) {
           const float vs[] = {0.0f, 0.5f, 1.0f, std::numeric_limits<float>::quiet_NaN()};
           const float ts[] = {0.0f, 0.2f, 0.25f, -1.0f};
-          c.sample_sg(sp, rand, s, frosted::SgVariant::kMixture, vs[i / 2 % 4], ts[i / 4 % 4]);
+          // Every other block of 16: the skewed tail (thirteenth session's variant, planar exits by the rule).
+          const bool skewed = i / 16 % 2 == 1;
+          c.sample_sg(sp, rand, s, skewed ? frosted::SgVariant::kMixtureSkewed : frosted::SgVariant::kMixture,
+                      vs[i / 2 % 4], ts[i / 4 % 4]);
+          if (skewed && s.moved && s.exit_mixture) skewed_written.fetch_add(1);
           n_bad += glimmer::test::bad_raw_outputs(LocalEval{}, true, s);
           if (s.moved) {
             mixture_moved.fetch_add(1);
@@ -1152,12 +1395,13 @@ TEST(FrostedGlassSg, StressRawOutputsFiniteNonNegative) {
   EXPECT_GT(mixture_written.load(), mixture_moved.load() / 2);  // handed to the host whole
   EXPECT_GT(host_mixtures.load(), calls / 40);                  // and read whole through the C entry point
   EXPECT_GT(planar_wide.load(), calls / 1000);                  // the planar exits' ladder among them
+  EXPECT_GT(skewed_written.load(), calls / 1000);               // the skewed variant's mixtures checked too
   std::printf("[frosted sg stress] through the C entry point (2.7 host): %ld sample queries, %ld moved, %ld whole "
               "exit mixtures read (axes, sharpness, weights, host density at wo and a lamp-integral draw)\n",
               host_queries.load(), host_moved.load(), host_mixtures.load());
   std::printf("[frosted sg stress] exit lobe mixture: %ld moved samples (v 0..1 / NaN, t 0..0.25 / rule), %ld "
-              "written whole to the host's buffer\n",
-              mixture_moved.load(), mixture_written.load());
+              "written whole to the host's buffer (%ld of them the skewed variant's)\n",
+              mixture_moved.load(), mixture_written.load(), skewed_written.load());
   std::printf("[frosted sg stress] blocks %ld..%ld of %ld: %ld eval + %ld sample calls (%ld sg moved samples), 1/4 "
               "grazing, half IOR 2.4; sphere / slab / odd host (t 0..inf, NaN, -1; NaN or zero normals; other "
               "closures): %ld bad; %ld whole mixtures of a planar exit above roughness 0.4 (the ladder)\n",
