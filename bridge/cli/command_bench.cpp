@@ -33,6 +33,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <regex>
 #include <sstream>
@@ -467,6 +468,43 @@ bench::Reference render_reference(const RunContext &c, const std::string &source
   return ref;
 }
 
+// Every method at every rung of the ladder: the rows over all pixels, per region, and the regions CSV's text.
+struct Ladder {
+  std::vector<Row> rows;
+  std::vector<std::vector<Row>> region_rows;
+  std::ostringstream region_csv;
+};
+
+void measure_ladder(const RunContext &c, const std::vector<std::string> &methods, const std::vector<int> &ladder,
+                    const Regions &regions, const std::function<const bench::Reference &(const std::string &)> &reference_of,
+                    Ladder &out) {
+  const int region_count = static_cast<int>(regions.names.size());
+  out.region_rows.resize(regions.names.size());
+  out.region_csv << "method,samples,seconds,region,pixels,rmse,rmse_raw\n";
+  for (const auto &m : methods)
+    for (int spp : ladder) {
+      const bench::Reference &ref = reference_of(m);
+      const std::string image = (c.work / (m + "_" + std::to_string(spp) + ".exr")).string();
+      const double t = render(c.exe, c.plugin, c.scenes[m], image, spp, c.a, -1, strategy_of(m, c.material, c.a));
+      int w2 = 0, h2 = 0;
+      const auto errors = bench::region_errors(read_pixels(image, w2, h2), ref, regions.index, region_count);
+      out.rows.push_back({m, spp, t, errors.back().rmse()});
+      std::printf("%-15s %5d spp  %8.3f s  RMSE %.5f", m.c_str(), spp, t, errors.back().rmse());
+      if (ref.count >= 2) std::printf(" (raw %.5f)", errors.back().rmse_raw());
+      std::printf("\n");
+      for (size_t k = 0; k < regions.names.size(); ++k) {
+        const bench::RegionError &e = errors[k];
+        if (e.pixels == 0) continue;
+        out.region_rows[k].push_back({m, spp, t, e.rmse()});
+        out.region_csv << m << "," << spp << "," << t << "," << regions.names[k] << "," << e.pixels << "," << e.rmse()
+                       << "," << e.rmse_raw() << "\n";
+        std::printf("    %-14s %5zu px  RMSE %.5f (raw %.5f)\n", regions.names[k].c_str(), e.pixels, e.rmse(),
+                    e.rmse_raw());
+      }
+      std::fflush(stdout);
+    }
+}
+
 void write_outputs(const BenchArgs &a, const Material &material, const std::vector<Row> &rows,
                    const std::vector<std::string> &methods, const std::string &region_csv) {
   const std::string csv = (std::filesystem::path(a.out_dir) / (output_name(a, material) + ".csv")).string();
@@ -485,13 +523,16 @@ void write_outputs(const BenchArgs &a, const Material &material, const std::vect
   std::printf("wrote %s\n", rcsv.c_str());
 }
 
-void run(const BenchArgs &a, CliContext &ctx) {
-  if (!a.from_csv.empty()) return plot_only(a);
-  std::ifstream in(a.scene);
-  if (!in) throw CliError(kExitBadInput, "cannot read scene " + a.scene);
+std::string read_scene_text(const std::string &path) {
+  std::ifstream in(path);
+  if (!in) throw CliError(kExitBadInput, "cannot read scene " + path);
   std::stringstream ss;
   ss << in.rdbuf();
-  const std::string text = ss.str();
+  return ss.str();
+}
+
+// The material whose methods the bench compares in the scene (--material, or the one the scene uses).
+const Material &scene_material(const BenchArgs &a, const std::string &text) {
   const Material &material = [&]() -> const Material & {
     try {
       return pick_material(a.material, text, {});
@@ -501,6 +542,13 @@ void run(const BenchArgs &a, CliContext &ctx) {
   }();
   if (!uses_node(text, material))
     throw CliError(kExitBadInput, a.scene + ": the scene has no <" + material.node + "> node to compare methods on");
+  return material;
+}
+
+void run(const BenchArgs &a, CliContext &ctx) {
+  if (!a.from_csv.empty()) return plot_only(a);
+  const std::string text = read_scene_text(a.scene);
+  const Material &material = scene_material(a, text);
   const std::vector<std::string> methods = split(a.methods.empty() ? material.methods : a.methods, ',');
   for (const auto &m : methods) rewrite_scene(text, material, m);  // validates every name before any file is written
   if (!a.reference_images.empty() && a.reference == "own")
@@ -563,40 +611,13 @@ void run(const BenchArgs &a, CliContext &ctx) {
   for (const auto &m : methods)
     render(c.exe, c.plugin, scenes[m], (work / "warm_up.exr").string(), 1, a, -1, strategy_of(m, material, a));
 
-  const int region_count = static_cast<int>(regions.names.size());
-  std::vector<Row> rows;
-  std::vector<std::vector<Row>> region_rows(regions.names.size());
-  std::ostringstream region_csv;
-  region_csv << "method,samples,seconds,region,pixels,rmse,rmse_raw\n";
-  for (const auto &m : methods)
-    for (int spp : ladder) {
-      const bench::Reference &ref = reference_of(m);
-      const std::string out = (work / (m + "_" + std::to_string(spp) + ".exr")).string();
-      const double t = render(c.exe, c.plugin, scenes[m], out, spp, a, -1, strategy_of(m, material, a));
-      int w2 = 0, h2 = 0;
-      const auto errors = bench::region_errors(read_pixels(out, w2, h2), ref, regions.index, region_count);
-      rows.push_back({m, spp, t, errors.back().rmse()});
-      std::printf("%-15s %5d spp  %8.3f s  RMSE %.5f", m.c_str(), spp, t, errors.back().rmse());
-      if (ref.count >= 2) std::printf(" (raw %.5f)", errors.back().rmse_raw());
-      std::printf("\n");
-      for (int k = 0; k < region_count; ++k) {
-        const bench::RegionError &e = errors[static_cast<size_t>(k)];
-        if (e.pixels == 0) continue;
-        region_rows[static_cast<size_t>(k)].push_back({m, spp, t, e.rmse()});
-        region_csv << m << "," << spp << "," << t << "," << regions.names[static_cast<size_t>(k)] << "," << e.pixels
-                   << "," << e.rmse() << "," << e.rmse_raw() << "\n";
-        std::printf("    %-14s %5zu px  RMSE %.5f (raw %.5f)\n", regions.names[static_cast<size_t>(k)].c_str(),
-                    e.pixels, e.rmse(), e.rmse_raw());
-      }
-      std::fflush(stdout);
-    }
-
-  write_outputs(a, material, rows, methods, regions.index.empty() ? std::string() : region_csv.str());
-  report(rows, methods, material, a.at_seconds);
-  for (int k = 0; k < region_count; ++k)
-    if (!region_rows[static_cast<size_t>(k)].empty())
-      report_at(region_rows[static_cast<size_t>(k)], methods, material, a.at_seconds,
-                "region " + regions.names[static_cast<size_t>(k)] + ": ");
+  Ladder out;
+  measure_ladder(c, methods, ladder, regions, reference_of, out);
+  write_outputs(a, material, out.rows, methods, regions.index.empty() ? std::string() : out.region_csv.str());
+  report(out.rows, methods, material, a.at_seconds);
+  for (size_t k = 0; k < out.region_rows.size(); ++k)
+    if (!out.region_rows[k].empty())
+      report_at(out.region_rows[k], methods, material, a.at_seconds, "region " + regions.names[k] + ": ");
 }
 
 // At the RMSE the reference method reaches in `at_seconds`: each other method's time to it (`label` prefixes
