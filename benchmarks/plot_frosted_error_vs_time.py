@@ -48,9 +48,9 @@ def error_at_time(points, seconds):
     return None
 
 
-def plot_region(ax, rows, a, region):
+def plot_region(ax, rows, a, region, colours):
     for method, points in rows.items():
-        ax.plot([p[0] for p in points], [p[1] for p in points], "o-", label=method, ms=3)
+        ax.plot([p[0] for p in points], [p[1] for p in points], "o-", label=method, ms=3, color=colours[method])
         for t, e, spp in points:
             ax.annotate(str(spp), (t, e), textcoords="offset points", xytext=(3, 3), fontsize=6)
     if a.at_seconds and a.reference in rows:
@@ -89,8 +89,10 @@ def main():
     names = a.region or list(regions)
     fig, axes = plt.subplots(1, len(names), figsize=(7 if len(names) == 1 else 4.2 * len(names), 4.5), dpi=110,
                              squeeze=False)
+    methods = list(dict.fromkeys(m for name in names for m in regions[name]))
+    colours = {m: "C%d" % k for k, m in enumerate(methods)}  # one colour per method in every panel
     for ax, name in zip(axes[0], names):
-        plot_region(ax, regions[name], a, name if len(names) > 1 or name != "all" else None)
+        plot_region(ax, regions[name], a, name if len(names) > 1 or name != "all" else None, colours)
     fig.suptitle(a.title, fontsize=10)
     fig.tight_layout()
     fig.savefig(a.output)
