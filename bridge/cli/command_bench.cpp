@@ -348,6 +348,7 @@ void plot_only(const BenchArgs &a) {
     if (std::find(methods.begin(), methods.end(), parts[0]) == methods.end()) methods.push_back(parts[0]);
   }
   const Material &material = pick_material(a.material, {}, methods);
+  std::filesystem::create_directories(a.out_dir);
   const std::string png = (std::filesystem::path(a.out_dir) / (output_name(a, material) + ".png")).string();
   write_plot(png, rows, methods);
   std::printf("wrote %s\n", png.c_str());
