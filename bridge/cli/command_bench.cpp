@@ -18,6 +18,13 @@
 // render (its Monte Carlo error: two glint models are different particle
 // fields, so against jakob14 a glint model's error stops at the difference of
 // two realizations), and the RMSE between the converged renders is reported.
+// --reference-seeds N renders N references on different seeds; their spread's
+// variance of the mean is subtracted from every MSE (bench_error.h), so the
+// figures are the methods' own errors, not the reference's noise. --regions
+// adds the same figures per region of an id pass (one per shader) or of a
+// mask image. --path-strategy sets the direct-light estimator (mis | bsdf) of
+// the reference method's renders; path-mis / path-bsdf are frosted methods
+// that render path with that estimator whatever --path-strategy is.
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
@@ -26,6 +33,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <regex>
 #include <sstream>
@@ -34,6 +42,7 @@
 
 #include <tbb/global_control.h>
 
+#include "cli/bench_error.h"
 #include "cli/commands.h"
 #include "render/convergence.h"
 #include "scene/xml_loader.h"
@@ -58,6 +67,10 @@ struct BenchArgs {
   std::string name;  // empty: <material>_error_vs_time
   std::string from_csv;  // re-plot an existing CSV without rendering
   std::string reference = "material";  // "material": the material's reference method (jakob14, path); "own": each method's own
+  std::string path_strategy = "mis";   // direct-light estimator of the reference method's renders (ladder + reference)
+  int reference_seeds = 1;             // references on different seeds; >= 2: their noise is subtracted
+  std::string reference_images;        // comma list of EXRs used as the references instead of rendering them
+  std::string regions = "none";        // none | auto (an id pass, one region per shader) | an id / mask image
 };
 
 std::string self_path() {
@@ -98,8 +111,12 @@ std::string rewrite_glint(const std::string &text, const std::string &method) {
 }
 
 // The frosted glass scene text with every frosted_glass_bsdf's method set to `method`.
-std::string rewrite_frosted(const std::string &text, const std::string &method) {
-  if (method != "path" && method != "sg" && method != "auto") return {};
+// path-mis / path-bsdf are method=path (rendered with that direct-light strategy, strategy_of below).
+std::string rewrite_frosted(const std::string &text, const std::string &method_name) {
+  const std::string method = method_name.rfind("path-", 0) == 0 ? "path" : method_name;
+  if ((method != "path" && method != "sg" && method != "auto") ||
+      (method_name != method && method_name != "path-mis" && method_name != "path-bsdf"))
+    return {};
   const std::string t = std::regex_replace(text, std::regex("(<frosted_glass_bsdf\\b[^>]*?)\\s+method=\"[^\"]*\""), "$1");
   return std::regex_replace(t, std::regex("<frosted_glass_bsdf\\b"), "<frosted_glass_bsdf method=\"" + method + "\"");
 }
@@ -109,13 +126,15 @@ struct Material {
   const char *name;
   const char *node;       // the XML node the methods rewrite
   const char *reference;  // the method of the converged reference
-  const char *methods;    // default list, and every accepted name
+  const char *methods;    // default list
+  const char *accepted;   // every accepted name
   const char *unrated;    // a method shown but not given a speed-up (not an estimator of the reference), or ""
   std::string (*rewrite)(const std::string &text, const std::string &method);
 };
 constexpr Material kMaterials[] = {
-    {"glint", "glint_bsdf", "jakob14", "jakob14,dsm-unfiltered,dsm-filtered,ggx", "ggx", rewrite_glint},
-    {"frosted", "frosted_glass_bsdf", "path", "path,sg", "", rewrite_frosted},
+    {"glint", "glint_bsdf", "jakob14", "jakob14,dsm-unfiltered,dsm-filtered,ggx",
+     "jakob14,dsm-unfiltered,dsm-filtered,ggx", "ggx", rewrite_glint},
+    {"frosted", "frosted_glass_bsdf", "path", "path,sg", "path,sg,auto,path-mis,path-bsdf", "", rewrite_frosted},
 };
 
 bool uses_node(const std::string &text, const Material &m) {
@@ -155,7 +174,7 @@ std::string rewrite_scene(const std::string &text, const Material &material, con
   std::string t = material.rewrite(text, method);
   if (t.empty())
     throw CliError(kExitBadInput, "bench error-vs-time: unknown method '" + method + "' for " + material.name +
-                                      " (expected one of " + material.methods + ")");
+                                      " (expected one of " + material.accepted + ")");
   return t;
 }
 
@@ -168,12 +187,13 @@ double children_cpu_seconds() {
 // Runs `glimmer render` and returns its seconds: the render phase's wall time (--clock wall), or the render
 // process's whole CPU time (--clock cpu: loading included, steadier than wall time on a shared machine).
 double render(const std::string &exe, const std::string &plugin, const std::string &scene, const std::string &out,
-              int samples, const BenchArgs &a, int seed = -1) {
+              int samples, const BenchArgs &a, int seed = -1, const std::string &strategy = "") {
   std::string cmd = "'" + exe + "'";
   if (!plugin.empty()) cmd += " --plugin '" + plugin + "'";
   cmd += " render '" + scene + "' -o '" + out + "' --samples " + std::to_string(samples) + " --width " +
          std::to_string(a.width) + " --height " + std::to_string(a.height) + " --threads " +
          std::to_string(a.threads) + (seed >= 0 ? " --seed " + std::to_string(seed) : std::string()) +
+         (strategy.empty() ? std::string() : " --strategy " + strategy) +
          " --quiet --stats 2>&1";
   const double cpu_before = children_cpu_seconds();
   FILE *p = popen(cmd.c_str(), "r");
@@ -194,12 +214,6 @@ std::vector<float> read_pixels(const std::string &path, int &w, int &h) {
   } catch (const std::runtime_error &e) {
     throw CliError(kExitBadInput, e.what());
   }
-}
-
-double rmse(const std::vector<float> &a, const std::vector<float> &b) {
-  double s = 0.0;
-  for (size_t i = 0; i < a.size(); ++i) s += (double(a[i]) - b[i]) * (double(a[i]) - b[i]);
-  return std::sqrt(s / static_cast<double>(a.size()));
 }
 
 struct Row {
@@ -297,8 +311,24 @@ double error_at_time(const std::vector<Row> &rows, const std::string &method, do
   return -1.0;
 }
 
+// The RMSE of the (unbiased) reference method after `seconds` beyond its ladder: MSE x time is constant for an
+// unbiased estimator, taken as the mean of error^2 x seconds over its last (up to) 3 rungs; <0 when the ladder
+// already reaches `seconds` or has no rung.
+double extrapolated_error(const std::vector<Row> &rows, const std::string &method, double seconds) {
+  std::vector<const Row *> own;
+  for (const auto &r : rows)
+    if (r.method == method && r.seconds > 0 && r.error > 0) own.push_back(&r);
+  if (own.empty() || own.back()->seconds >= seconds) return -1.0;
+  double sum = 0.0;
+  const size_t first = own.size() > 3 ? own.size() - 3 : 0;
+  for (size_t k = first; k < own.size(); ++k) sum += own[k]->error * own[k]->error * own[k]->seconds;
+  return std::sqrt(sum / static_cast<double>(own.size() - first) / seconds);
+}
+
 void report(const std::vector<Row> &rows, const std::vector<std::string> &methods, const Material &material,
             double at_seconds);
+void report_at(const std::vector<Row> &rows, const std::vector<std::string> &methods, const Material &material,
+               double at_seconds, const std::string &label);
 
 std::string output_name(const BenchArgs &a, const Material &material) {
   return a.name.empty() ? std::string(material.name) + "_error_vs_time" : a.name;
@@ -318,19 +348,192 @@ void plot_only(const BenchArgs &a) {
     if (std::find(methods.begin(), methods.end(), parts[0]) == methods.end()) methods.push_back(parts[0]);
   }
   const Material &material = pick_material(a.material, {}, methods);
+  std::filesystem::create_directories(a.out_dir);
   const std::string png = (std::filesystem::path(a.out_dir) / (output_name(a, material) + ".png")).string();
   write_plot(png, rows, methods);
   std::printf("wrote %s\n", png.c_str());
   report(rows, methods, material, a.at_seconds);
 }
 
-void run(const BenchArgs &a, CliContext &ctx) {
-  if (!a.from_csv.empty()) return plot_only(a);
-  std::ifstream in(a.scene);
-  if (!in) throw CliError(kExitBadInput, "cannot read scene " + a.scene);
+// The direct-light strategy a method renders with ("" = the renderer's default, mis).
+std::string strategy_of(const std::string &method, const Material &material, const BenchArgs &a) {
+  if (method == "path-mis") return "mis";
+  if (method == "path-bsdf") return "bsdf";
+  return method == material.reference ? a.path_strategy : std::string();
+}
+
+// The scene as an id pass: no lamps, a black world, and shader k an emitter of the binary colour k + 1 (bits R, G,
+// B; bench_error.h binary_id_regions). Returns the shader names in order; more than 7 shaders is an error.
+std::string id_scene(const std::string &text, std::vector<std::string> &shaders) {
+  std::string t = std::regex_replace(text, std::regex("<light\\b[^>]*/>"), "");
+  t = std::regex_replace(t, std::regex("<background>[\\s\\S]*?</background>"),
+                         "<background><background name=\"sky\" color=\"0 0 0\" strength=\"0\" />"
+                         "<connect from=\"sky background\" to=\"output surface\" /></background>");
+  const std::regex shader("<shader\\s+name=\"([^\"]+)\"[^>]*>[\\s\\S]*?</shader>");
+  std::string out;
+  auto last = t.cbegin();
+  for (std::sregex_iterator it(t.begin(), t.end(), shader), end; it != end; ++it) {
+    shaders.push_back((*it)[1].str());
+    const int k = static_cast<int>(shaders.size());
+    if (k > 7)
+      throw CliError(kExitBadInput, "bench error-vs-time --regions auto: more than 7 shaders; pass an id image "
+                                    "(--regions FILE) instead");
+    const std::string colour = std::to_string(k & 1) + " " + std::to_string((k >> 1) & 1) + " " +
+                               std::to_string((k >> 2) & 1);
+    out.append(last, (*it)[0].first);
+    out += "<shader name=\"" + shaders.back() + "\"><emission name=\"bench_id\" color=\"" + colour +
+           "\" strength=\"1\" /><connect from=\"bench_id emission\" to=\"output surface\" /></shader>";
+    last = (*it)[0].second;
+  }
+  out.append(last, t.cend());
+  return out;
+}
+
+// Per-pixel regions (bench_error.h) and their names: index 0 = black ("world" for the id pass), 1..7 = shader
+// k or id colour k, 8 = "edges" (mixed ids).
+struct Regions {
+  std::vector<int> index;  // empty: no regions
+  std::vector<std::string> names;
+};
+
+struct RunContext {
+  const BenchArgs &a;
+  const Material &material;
+  std::string exe, plugin;
+  std::filesystem::path work;
+  std::map<std::string, std::string> &scenes;
+};
+
+Regions make_regions(const RunContext &c, const std::string &text, const std::string &scene_dir_variant) {
+  Regions r;
+  if (c.a.regions == "none") return r;
+  std::vector<float> ids;
+  int w = 0, h = 0;
+  std::vector<std::string> shaders;
+  if (c.a.regions == "auto") {
+    const std::string id_text = id_scene(text, shaders);
+    if (const std::string problem = write_file_atomically(scene_dir_variant, id_text); !problem.empty())
+      throw CliError(kExitBadInput, problem);
+    c.scenes["(ids)"] = scene_dir_variant;
+    const std::string out = (c.work / "ids.exr").string();
+    render(c.exe, c.plugin, scene_dir_variant, out, 16, c.a, 1);
+    ids = read_pixels(out, w, h);
+  } else {
+    ids = read_pixels(c.a.regions, w, h);
+    if (w != c.a.width || h != c.a.height)
+      throw CliError(kExitBadInput, "--regions " + c.a.regions + ": " + std::to_string(w) + "x" + std::to_string(h) +
+                                        ", the bench renders " + std::to_string(c.a.width) + "x" +
+                                        std::to_string(c.a.height));
+  }
+  r.index = bench::binary_id_regions(ids);
+  r.names.push_back(c.a.regions == "auto" ? "world" : "id0");
+  for (int k = 1; k <= 7; ++k)
+    r.names.push_back(c.a.regions == "auto" ? (k <= static_cast<int>(shaders.size()) ? shaders[k - 1] : "id" +
+                                                   std::to_string(k)) : "id" + std::to_string(k));
+  r.names.push_back("edges");
+  return r;
+}
+
+// The converged reference of a method's source (N seeds, or the given images), combined (bench_error.h).
+bench::Reference render_reference(const RunContext &c, const std::string &source) {
+  std::vector<std::vector<float>> images;
+  if (!c.a.reference_images.empty()) {
+    for (const auto &path : split(c.a.reference_images, ',')) {
+      int w = 0, h = 0;
+      images.push_back(read_pixels(path, w, h));
+      if (w != c.a.width || h != c.a.height)
+        throw CliError(kExitBadInput, "--reference-images " + path + ": not " + std::to_string(c.a.width) + "x" +
+                                          std::to_string(c.a.height));
+    }
+    std::printf("reference: %s from %zu image(s)\n", source.c_str(), images.size());
+  } else {
+    const std::string strategy = strategy_of(source, c.material, c.a);
+    for (int k = 0; k < c.a.reference_seeds; ++k) {
+      const int seed = 7919 + 1013 * k;
+      std::printf("reference: %s at %d spp%s (seed %d)...\n", source.c_str(), c.a.reference_samples,
+                  strategy.empty() ? "" : (", strategy " + strategy).c_str(), seed);
+      std::fflush(stdout);
+      const std::string ref_path = (c.work / ("reference_" + source + "_" + std::to_string(k) + ".exr")).string();
+      const double t = render(c.exe, c.plugin, c.scenes[source], ref_path, c.a.reference_samples, c.a, seed, strategy);
+      int w = 0, h = 0;
+      images.push_back(read_pixels(ref_path, w, h));
+      std::printf("reference: %s %.2f s\n", source.c_str(), t);
+    }
+  }
+  bench::Reference ref = bench::combine_references(images);
+  if (ref.count >= 2) {
+    const auto all = bench::region_errors(ref.mean, ref, {}, 0).back();
+    std::printf("reference: %d images, RMS noise of their mean %.5f (subtracted from every MSE)\n", ref.count,
+                std::sqrt(all.var_ref_mean));
+  }
+  return ref;
+}
+
+// Every method at every rung of the ladder: the rows over all pixels, per region, and the regions CSV's text.
+struct Ladder {
+  std::vector<Row> rows;
+  std::vector<std::vector<Row>> region_rows;
+  std::ostringstream region_csv;
+};
+
+void measure_ladder(const RunContext &c, const std::vector<std::string> &methods, const std::vector<int> &ladder,
+                    const Regions &regions, const std::function<const bench::Reference &(const std::string &)> &reference_of,
+                    Ladder &out) {
+  const int region_count = static_cast<int>(regions.names.size());
+  out.region_rows.resize(regions.names.size());
+  out.region_csv << "method,samples,seconds,region,pixels,rmse,rmse_raw\n";
+  for (const auto &m : methods)
+    for (int spp : ladder) {
+      const bench::Reference &ref = reference_of(m);
+      const std::string image = (c.work / (m + "_" + std::to_string(spp) + ".exr")).string();
+      const double t = render(c.exe, c.plugin, c.scenes[m], image, spp, c.a, -1, strategy_of(m, c.material, c.a));
+      int w2 = 0, h2 = 0;
+      const auto errors = bench::region_errors(read_pixels(image, w2, h2), ref, regions.index, region_count);
+      out.rows.push_back({m, spp, t, errors.back().rmse()});
+      std::printf("%-15s %5d spp  %8.3f s  RMSE %.5f", m.c_str(), spp, t, errors.back().rmse());
+      if (ref.count >= 2) std::printf(" (raw %.5f)", errors.back().rmse_raw());
+      std::printf("\n");
+      for (size_t k = 0; k < regions.names.size(); ++k) {
+        const bench::RegionError &e = errors[k];
+        if (e.pixels == 0) continue;
+        out.region_rows[k].push_back({m, spp, t, e.rmse()});
+        out.region_csv << m << "," << spp << "," << t << "," << regions.names[k] << "," << e.pixels << "," << e.rmse()
+                       << "," << e.rmse_raw() << "\n";
+        std::printf("    %-14s %5zu px  RMSE %.5f (raw %.5f)\n", regions.names[k].c_str(), e.pixels, e.rmse(),
+                    e.rmse_raw());
+      }
+      std::fflush(stdout);
+    }
+}
+
+void write_outputs(const BenchArgs &a, const Material &material, const std::vector<Row> &rows,
+                   const std::vector<std::string> &methods, const std::string &region_csv) {
+  const std::string csv = (std::filesystem::path(a.out_dir) / (output_name(a, material) + ".csv")).string();
+  std::ostringstream table;
+  table << "method,samples,seconds,rmse\n";
+  for (const auto &r : rows) table << r.method << "," << r.samples << "," << r.seconds << "," << r.error << "\n";
+  if (const std::string problem = write_file_atomically(csv, table.str()); !problem.empty())
+    throw CliError(kExitBadInput, problem);
+  const std::string png = (std::filesystem::path(a.out_dir) / (output_name(a, material) + ".png")).string();
+  write_plot(png, rows, methods);
+  std::printf("wrote %s and %s\n", csv.c_str(), png.c_str());
+  if (region_csv.empty()) return;
+  const std::string rcsv = (std::filesystem::path(a.out_dir) / (output_name(a, material) + "_regions.csv")).string();
+  if (const std::string problem = write_file_atomically(rcsv, region_csv); !problem.empty())
+    throw CliError(kExitBadInput, problem);
+  std::printf("wrote %s\n", rcsv.c_str());
+}
+
+std::string read_scene_text(const std::string &path) {
+  std::ifstream in(path);
+  if (!in) throw CliError(kExitBadInput, "cannot read scene " + path);
   std::stringstream ss;
   ss << in.rdbuf();
-  const std::string text = ss.str();
+  return ss.str();
+}
+
+// The material whose methods the bench compares in the scene (--material, or the one the scene uses).
+const Material &scene_material(const BenchArgs &a, const std::string &text) {
   const Material &material = [&]() -> const Material & {
     try {
       return pick_material(a.material, text, {});
@@ -340,11 +543,19 @@ void run(const BenchArgs &a, CliContext &ctx) {
   }();
   if (!uses_node(text, material))
     throw CliError(kExitBadInput, a.scene + ": the scene has no <" + material.node + "> node to compare methods on");
+  return material;
+}
+
+void run(const BenchArgs &a, CliContext &ctx) {
+  if (!a.from_csv.empty()) return plot_only(a);
+  const std::string text = read_scene_text(a.scene);
+  const Material &material = scene_material(a, text);
   const std::vector<std::string> methods = split(a.methods.empty() ? material.methods : a.methods, ',');
   for (const auto &m : methods) rewrite_scene(text, material, m);  // validates every name before any file is written
+  if (!a.reference_images.empty() && a.reference == "own")
+    throw CliError(kExitBadInput, "bench error-vs-time: --reference-images needs --reference material");
   std::vector<int> ladder;
   for (const auto &s : split(a.ladder, ',')) ladder.push_back(std::stoi(s));
-  const std::string exe = self_path();
   const std::filesystem::path scene_dir = std::filesystem::absolute(a.scene).parent_path();
   // A fresh private folder with a random name (mkdtemp: 0700, never an existing one).
   std::string work_template = (std::filesystem::temp_directory_path() / "glimmer_bench_XXXXXX").string();
@@ -365,65 +576,74 @@ void run(const BenchArgs &a, CliContext &ctx) {
   };
   std::map<std::string, std::string> scenes;
   const Cleanup cleanup{scenes, work};
+  // Named after the private work folder too: two runs on one scene never write or remove each other's variants.
+  auto variant_path = [&](const std::string &method) {
+    return (scene_dir / (".bench_" + work.filename().string() + "_" + method + ".xml")).string();
+  };
   auto variant = [&](const std::string &method) {
-    // Named after the private work folder too: two runs on one scene never write or remove each other's variants.
-    const std::string p = (scene_dir / (".bench_" + work.filename().string() + "_" + method + ".xml")).string();
+    const std::string p = variant_path(method);
     if (const std::string problem = write_file_atomically(p, rewrite_scene(text, material, method)); !problem.empty())
       throw CliError(kExitBadInput, problem);
     return p;
   };
   for (const auto &m : methods) scenes[m] = variant(m);
   if (!scenes.count(material.reference)) scenes[material.reference] = variant(material.reference);
+  const RunContext c{a, material, self_path(), ctx.plugin_path, work, scenes};
+  const Regions regions = make_regions(c, text, variant_path("ids"));
 
-  // The converged render of a method. Another sampling seed than the ladder:
-  // the ladder's first samples must not be the reference's own samples (that
-  // correlation would fake convergence).
-  std::map<std::string, std::vector<float>> references;
-  auto reference_of = [&](const std::string &m) -> const std::vector<float> & {
+  // The converged renders. Other sampling seeds than the ladder: the ladder's
+  // first samples must not be the reference's own samples (that correlation
+  // would fake convergence).
+  std::map<std::string, bench::Reference> references;
+  auto reference_of = [&](const std::string &m) -> const bench::Reference & {
     const std::string source = a.reference == "own" ? m : std::string(material.reference);
     if (!references.count(source)) {
-      std::printf("reference: %s at %d spp...\n", source.c_str(), a.reference_samples);
-      std::fflush(stdout);
-      const std::string ref_path = (work / ("reference_" + source + ".exr")).string();
-      const double ref_time = render(exe, ctx.plugin_path, scenes[source], ref_path, a.reference_samples, a, 7919);
-      int w = 0, h = 0;
-      references[source] = read_pixels(ref_path, w, h);
-      std::printf("reference: %s %.2f s\n", source.c_str(), ref_time);
+      references[source] = render_reference(c, source);
       if (source != material.reference && references.count(material.reference))
         std::printf("converged %s vs converged %s: RMSE %.5f\n", source.c_str(), material.reference,
-                    rmse(references[source], references[material.reference]));
+                    bench::region_errors(references[source].mean, references[material.reference], {}, 0)
+                        .back().rmse_raw());
     }
     return references[source];
   };
   reference_of(material.reference);
 
   // One 1-spp render per method before the clock counts: lazily built tables (glint, frosted sg) reach the cache.
-  for (const auto &m : methods) render(exe, ctx.plugin_path, scenes[m], (work / "warm_up.exr").string(), 1, a);
-
-  std::vector<Row> rows;
   for (const auto &m : methods)
-    for (int spp : ladder) {
-      const std::vector<float> &ref = reference_of(m);
-      const std::string out = (work / (m + "_" + std::to_string(spp) + ".exr")).string();
-      const double t = render(exe, ctx.plugin_path, scenes[m], out, spp, a);
-      int w2 = 0, h2 = 0;
-      const double e = rmse(read_pixels(out, w2, h2), ref);
-      rows.push_back({m, spp, t, e});
-      std::printf("%-15s %5d spp  %8.3f s  RMSE %.5f\n", m.c_str(), spp, t, e);
-      std::fflush(stdout);
-    }
+    render(c.exe, c.plugin, scenes[m], (work / "warm_up.exr").string(), 1, a, -1, strategy_of(m, material, a));
 
-  const std::string csv = (std::filesystem::path(a.out_dir) / (output_name(a, material) + ".csv")).string();
-  std::ostringstream table;
-  table << "method,samples,seconds,rmse\n";
-  for (const auto &r : rows) table << r.method << "," << r.samples << "," << r.seconds << "," << r.error << "\n";
-  if (const std::string problem = write_file_atomically(csv, table.str()); !problem.empty())
-    throw CliError(kExitBadInput, problem);
-  const std::string png = (std::filesystem::path(a.out_dir) / (output_name(a, material) + ".png")).string();
-  write_plot(png, rows, methods);
-  std::printf("wrote %s and %s\n", csv.c_str(), png.c_str());
+  Ladder out;
+  measure_ladder(c, methods, ladder, regions, reference_of, out);
+  write_outputs(a, material, out.rows, methods, regions.index.empty() ? std::string() : out.region_csv.str());
+  report(out.rows, methods, material, a.at_seconds);
+  for (size_t k = 0; k < out.region_rows.size(); ++k)
+    if (!out.region_rows[k].empty())
+      report_at(out.region_rows[k], methods, material, a.at_seconds, "region " + regions.names[k] + ": ");
+}
 
-  report(rows, methods, material, a.at_seconds);
+// At the RMSE the reference method reaches in `at_seconds`: each other method's time to it (`label` prefixes
+// every line).
+void report_at(const std::vector<Row> &rows, const std::vector<std::string> &methods, const Material &material,
+               double at_seconds, const std::string &label) {
+  const std::string ref = material.reference;
+  double target = error_at_time(rows, ref, at_seconds);
+  if (target < 0) target = extrapolated_error(rows, ref, at_seconds);
+  if (target < 0) {
+    std::printf("%s%s's ladder does not span %.4g s: no comparison at its %.4g-s RMSE\n", label.c_str(), ref.c_str(),
+                at_seconds, at_seconds);
+    return;
+  }
+  if (error_at_time(rows, ref, at_seconds) < 0)
+    std::printf("%s%s's %.4g-s RMSE %.5f is extrapolated from its last rungs (MSE x time constant: the reference "
+                "method is unbiased)\n", label.c_str(), ref.c_str(), at_seconds, target);
+  for (const auto &m : methods) {
+    if (m == ref || m == material.unrated) continue;
+    const double t = time_at_error(rows, m, target);
+    if (t > 0) std::printf("%sat %s's %.4g-s RMSE %.5f: %s %.3f s, speed-up %.1fx\n", label.c_str(), ref.c_str(),
+                           at_seconds, target, m.c_str(), t, at_seconds / t);
+    else std::printf("%sat %s's %.4g-s RMSE %.5f: %s never reaches it on the ladder\n", label.c_str(), ref.c_str(),
+                     at_seconds, target, m.c_str());
+  }
 }
 
 // Speed-up at equal RMSE: the reference method's errors (and the one it reaches in `at_seconds`), reached by
@@ -442,20 +662,7 @@ void report(const std::vector<Row> &rows, const std::vector<std::string> &method
                        r.seconds, m.c_str());
     }
   }
-  const double target = error_at_time(rows, ref, at_seconds);
-  if (target < 0) {
-    std::printf("%s's ladder does not span %.4g s: no comparison at its %.4g-s RMSE\n", ref.c_str(), at_seconds,
-                at_seconds);
-    return;
-  }
-  for (const auto &m : methods) {
-    if (m == ref || m == material.unrated) continue;
-    const double t = time_at_error(rows, m, target);
-    if (t > 0) std::printf("at %s's %.4g-s RMSE %.5f: %s %.3f s, speed-up %.1fx\n", ref.c_str(), at_seconds, target,
-                           m.c_str(), t, at_seconds / t);
-    else std::printf("at %s's %.4g-s RMSE %.5f: %s never reaches it on the ladder\n", ref.c_str(), at_seconds,
-                     target, m.c_str());
-  }
+  report_at(rows, methods, material, at_seconds, "");
 }
 
 struct ConvergenceArgs {
@@ -544,6 +751,23 @@ void add_bench_command(CLI::App &app, CliContext &ctx) {
                   "material: every method against one converged render of the material's reference method (glint: "
                   "jakob14, frosted: path); own: each method against its own converged render (Monte Carlo error only)")
       ->check(CLI::IsMember({"material", "own"}));
+  evt->add_option("--path-strategy", args->path_strategy,
+                  "direct-light estimator of the reference method's renders, its ladder and its converged reference: "
+                  "mis (default) or bsdf (BSDF sampling only; the firefly-free path through frosted panes)")
+      ->check(CLI::IsMember({"mis", "bsdf"}));
+  evt->add_option("--reference-seeds", args->reference_seeds,
+                  "converged references on this many seeds; >= 2: every MSE has the variance of their mean (from their "
+                  "spread) subtracted, so the RMSE is the method's own (default 1: nothing subtracted)")
+      ->check(CLI::Range(1, 64));
+  evt->add_option("--reference-images", args->reference_images,
+                  "comma list of EXRs (same scene, size and reference method) used as the references instead of "
+                  "rendering them; 2 or more: their noise is subtracted as with --reference-seeds")
+      ->excludes("--reference-seeds");
+  evt->add_option("--regions", args->regions,
+                  "none (default); auto: an id pass (lamps off, black world, shader k an emitter of a binary colour) "
+                  "gives one region per shader, 'world' and 'edges'; or an id / mask image of the bench's size whose "
+                  "pixels are 0 or 1 per channel (regions id0..id7, other values 'edges'): RMSE and the speed-up "
+                  "summary also per region, and <name>_regions.csv");
   evt->callback([args, &ctx] { run(*args, ctx); });
 
   auto cargs = std::make_shared<ConvergenceArgs>();

@@ -139,4 +139,45 @@ TEST(BenchErrorVsTime, FrostedMethodsRenderAgainstThePathReference) {
   std::filesystem::remove_all(dir);
 }
 
+TEST(BenchErrorVsTime, FrostedTwoReferenceSeedsRegionsAndPathStrategy) {
+  // --path-strategy bsdf reaches the path renders (ladder and references), path-mis renders path with MIS,
+  // --reference-seeds 2 renders two references on two seeds and subtracts their noise, --regions auto splits the
+  // figures per shader of the scene's id pass.
+  const std::filesystem::path dir = std::filesystem::path(GLIMMER_TEST_BINARY_DIR) / "bench_evt_frosted_regions";
+  std::filesystem::create_directories(dir);
+  std::string out;
+  const int code = run(std::string("bench error-vs-time ") + GLIMMER_TEST_SOURCE_DIR +
+                           "/examples/frosted_closeup.xml --methods path,path-mis,sg --samples 1,2 "
+                           "--reference-samples 4 --reference-seeds 2 --regions auto --path-strategy bsdf "
+                           "--width 12 --height 8 --threads 1 --clock cpu --at-seconds 1000 --out-dir " + dir.string(),
+                       out);
+  EXPECT_EQ(code, 0) << out;
+  EXPECT_NE(out.find("reference: path at 4 spp, strategy bsdf (seed 7919)"), std::string::npos) << out;
+  EXPECT_NE(out.find("reference: path at 4 spp, strategy bsdf (seed 8932)"), std::string::npos) << out;
+  EXPECT_NE(out.find("reference: 2 images, RMS noise of their mean"), std::string::npos) << out;
+  EXPECT_NE(out.find("(raw "), std::string::npos) << out;
+  EXPECT_NE(out.find("path's 1000-s RMSE"), std::string::npos) << out;
+  EXPECT_NE(out.find("is extrapolated from its last rungs"), std::string::npos) << out;
+  std::ifstream csv(dir / "frosted_error_vs_time_regions.csv");
+  std::string line, all;
+  std::getline(csv, line);
+  EXPECT_EQ(line, "method,samples,seconds,region,pixels,rmse,rmse_raw");
+  while (std::getline(csv, line)) all += line + "\n";
+  // The closeup's camera sees its floor and its frosted objects: regions named after their shaders.
+  EXPECT_NE(all.find("path-mis,2,"), std::string::npos) << all;
+  EXPECT_NE(all.find(",floor,"), std::string::npos) << all;
+  EXPECT_NE(all.find(",frost"), std::string::npos) << all;
+  EXPECT_NE(out.find("region floor: at path's 1000-s RMSE"), std::string::npos) << out;
+  std::filesystem::remove_all(dir);
+}
+
+TEST(BenchErrorVsTime, FrostedPathStrategyAndRegionImageAreChecked) {
+  const std::string scene = std::string(GLIMMER_TEST_SOURCE_DIR) + "/examples/frosted_closeup.xml";
+  expect_bad_input(scene + " --path-strategy light --samples 1 --reference-samples 1", "--path-strategy");
+  expect_bad_input(scene + " --methods path,path-light --samples 1 --reference-samples 1",
+                   "unknown method 'path-light' for frosted");
+  expect_bad_input(scene + " --regions /nonexistent/ids.exr --samples 1 --reference-samples 1 --width 4 --height 4",
+                   "/nonexistent/ids.exr");
+}
+
 }  // namespace
