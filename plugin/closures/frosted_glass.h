@@ -302,8 +302,7 @@ class FrostedGlassClosure {
   // (path seed, rand). False: a failed sample, d.z = 0, or no exit within kMaxPaneEvents.
   bool walk_to_exit(const ShadingPoint &sp, const DielectricLobe &lobe, const Vec3 &rand, Vec3 &d,
                     Spectrum &throughput, Vec3 &leaving) const {
-    mf::WalkRng rng(hash_u32x4(sp.ctx->path_seed, std::bit_cast<uint32_t>(rand.x), std::bit_cast<uint32_t>(rand.y),
-                               std::bit_cast<uint32_t>(rand.z)));
+    mf::WalkRng rng(sp.seed_for(rand));
     LocalSample s;
     for (int event = 0; event < kMaxPaneEvents; ++event) {
       if (d.z == 0.0f) return false;

@@ -512,8 +512,7 @@ bool trace_exit_lobe(const ShadingPoint &sp, const SgInputs &in, uint32_t seed, 
 bool sample_sg_transmission(const ShadingPoint &sp, const SgInputs &in, const Vec3 &rand, const LocalSample &front,
                             LocalSample &out) {
   if (!(front.label & GLIMMER_LABEL_TRANSMIT) || !(front.pdf > 0.0f)) return false;
-  const uint32_t seed = hash_u32x4(sp.ctx->path_seed, std::bit_cast<uint32_t>(rand.x),
-                                   std::bit_cast<uint32_t>(rand.y), std::bit_cast<uint32_t>(rand.z));
+  const uint32_t seed = sp.seed_for(rand);
   ExitLobe exit;
   if (!trace_exit_lobe(sp, in, seed, exit)) return false;
   // 6. One direction from the exit SG restricted to the outside of the exit surface (the lobe it was fitted to
@@ -744,17 +743,12 @@ bool emit_pane_sample(const ShadingPoint &sp, const PaneExitLobe &exit, uint32_t
   return is_finite(out.origin);
 }
 
-uint32_t pane_seed(const ShadingPoint &sp, const Vec3 &rand) {
-  return hash_u32x4(sp.ctx->path_seed, std::bit_cast<uint32_t>(rand.x), std::bit_cast<uint32_t>(rand.y),
-                    std::bit_cast<uint32_t>(rand.z));
-}
-
 }  // namespace
 
 bool sample_pane_sg(const ShadingPoint &sp, const PaneSgInputs &in, const Vec3 &rand, const Spectrum &front_weight,
                     bool flip, LocalSample &out) {
   const Vec3 wi = flip ? mf::flip_z_local(sp.wi) : sp.wi;
-  const uint32_t seed = pane_seed(sp, rand);
+  const uint32_t seed = sp.seed_for(rand);
   PaneExitLobe exit;
   if (!pane_exit_lobe(wi, in, seed, exit)) return false;
   return emit_pane_sample(sp, exit, seed, front_weight * exit.weight, flip, out);
@@ -780,7 +774,7 @@ bool sample_pane_sg_at(const ShadingPoint &sp, const PaneSgInputs &in, const Vec
                        const Spectrum &weight, bool flip, LocalSample &out) {
   PaneExitLobe exit;
   if (!pane_exit_lobe_at(d, in, exit)) return false;
-  return emit_pane_sample(sp, exit, pane_seed(sp, rand), weight, flip, out);
+  return emit_pane_sample(sp, exit, sp.seed_for(rand), weight, flip, out);
 }
 
 }  // namespace glimmer::plugin::frosted

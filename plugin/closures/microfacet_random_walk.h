@@ -67,10 +67,6 @@ class MicrofacetRandomWalkClosure {
     return c;
   }
 
-  static uint32_t direction_seed(uint32_t seed, const Vec3 &w) {
-    return hash_u32x4(seed, std::bit_cast<uint32_t>(w.x), std::bit_cast<uint32_t>(w.y), std::bit_cast<uint32_t>(w.z));
-  }
-
   // Unbiased estimate of f * |cos(wo)| (and with white = true the Fresnel-free value).
   Spectrum estimate(const Vec3 &wi, const Vec3 &wo, uint32_t seed, bool white) const {
     mf::WalkRng rng(seed);
@@ -92,7 +88,7 @@ class MicrofacetRandomWalkClosure {
     const Vec3 &wi = sp.wi;
     if (!dielectric_ && (!(wi.z > 0.0f) || !(wo.z > 0.0f))) return {};
     LocalEval e;
-    e.f_cos = estimate(wi, wo, direction_seed(sp.ctx->path_seed, wo), false);
+    e.f_cos = estimate(wi, wo, sp.seed_for(wo), false);
     e.pdf = pdf_estimate(wi, wo, sp);
     return e;
   }
@@ -101,15 +97,14 @@ class MicrofacetRandomWalkClosure {
   // and pdf are independent (one shared walk made a frosted pane 14 % dark under MIS). sample() reports the same
   // estimate, so the two strategies' expected weights sum to one.
   float pdf_estimate(const Vec3 &wi, const Vec3 &wo, const ShadingPoint &sp) const {
-    const uint32_t seed = hash_u32x2(direction_seed(sp.ctx->path_seed, wo), 0x9e3779b9u);
+    const uint32_t seed = hash_u32x2(sp.seed_for(wo), 0x9e3779b9u);
     return dielectric_ ? estimate(wi, wo, seed, false).x : average(estimate(wi, wo, seed, true));
   }
 
   bool sample(const ShadingPoint &sp, const Vec3 &rand, LocalSample &out) const {
     const Vec3 &wi = sp.wi;
     if (wi.z == 0.0f || (!dielectric_ && !(wi.z > 0.0f))) return false;
-    mf::WalkRng rng(hash_u32x4(sp.ctx->path_seed, std::bit_cast<uint32_t>(rand.x), std::bit_cast<uint32_t>(rand.y),
-                               std::bit_cast<uint32_t>(rand.z)));
+    mf::WalkRng rng(sp.seed_for(rand));
     int order = 0;
     Spectrum throughput(1.0f);
     Vec3 wo;

@@ -29,6 +29,7 @@
 #include "core/params.h"
 #include "glimmer/closure_abi.h"
 #include "glimmer/math.h"
+#include "glimmer/rng.h"
 
 namespace glimmer::plugin {
 
@@ -68,6 +69,14 @@ struct ShadingPoint {
 #else
     return true;
 #endif
+  }
+
+  // The seed of a closure's own random numbers here (stochastic walks, an exit lobe's numbers): a pure function of
+  // the path's seed and v (the sampler's numbers for sample(), or wo for an estimate in eval()), so images are the
+  // same for any thread count and tile size.
+  uint32_t seed_for(const Vec3 &v) const {
+    return hash_u32x4(ctx->path_seed, std::bit_cast<uint32_t>(v.x), std::bit_cast<uint32_t>(v.y),
+                      std::bit_cast<uint32_t>(v.z));
   }
 
   // True when the host lists per-point values for any varying parameter (ABI 2.1 contexts).
