@@ -27,6 +27,7 @@
 #include <functional>
 #include <limits>
 
+#include "closures/angle_bands.h"
 #include "closures/frosted_glass.h"
 #include "closures/raw_output_checks.h"
 #include "glimmer/rng.h"
@@ -37,6 +38,9 @@ namespace {
 
 using namespace glimmer;
 using namespace glimmer::plugin;
+using glimmer::test::angle_band;
+using glimmer::test::BandSums;
+using glimmer::test::degrees_between;
 using glimmer::test::stress_scale;
 
 struct PaneConfig {
@@ -248,41 +252,34 @@ BandMass band_mass(const FrostedGlassClosure &front, const Sampler &sample, floa
   constexpr int kChunks = 16;
   const float th = theta_deg * float(M_PI) / 180.0f;
   const Vec3 axis(std::sin(th), 0.0f, -std::cos(th));  // -wi: the incident direction continued
-  std::vector<std::array<double, 2 * kBands + 2>> acc(kChunks);
+  struct Sums {
+    BandSums<kBands> through;  // through the far face
+    double reflected = 0.0;    // back through the entry face
+  };
+  std::vector<Sums> acc(kChunks);
   tbb::parallel_for(0, kChunks, [&](int chunk) {
     Pcg32 rng(seed, 97 + uint64_t(chunk));
-    auto &a = acc[chunk];
-    a.fill(0.0);
+    auto &a = acc[size_t(chunk)];
     for (long i = chunk; i < paths; i += kChunks) {
       LocalSample s;
       Vec3 wo;
       if (!entering_sample(front, sample, theta_deg, rng, s, wo)) continue;
       const double w = average(s.f_cos / s.pdf);
       if (!(wo.z < 0.0f)) {  // back through the entry face: not in the bands, its energy apart
-        a[2 * kBands + 1] += w;
+        a.reflected += w;
         continue;
       }
-      const double deg = std::acos(std::clamp(double(dot(wo, axis)), -1.0, 1.0)) * 180.0 / M_PI;
-      int b = 0;
-      while (b + 1 < kBands && deg >= kBandEdge[b + 1]) ++b;
-      a[b] += w;
-      a[kBands + b] += w * w;
-      a[2 * kBands] += w;
+      a.through.add(angle_band(kBandEdge, degrees_between(wo, axis)), w);
     }
   });
+  BandSums<kBands> sum;
   BandMass out;
-  double sum[kBands] = {}, sum2[kBands] = {};
   for (const auto &a : acc) {
-    for (int b = 0; b < kBands; ++b) sum[b] += a[b], sum2[b] += a[kBands + b];
-    out.total += a[2 * kBands];
-    out.reflected += a[2 * kBands + 1];
+    sum += a.through;
+    out.reflected += a.reflected;
   }
-  for (int b = 0; b < kBands; ++b) {
-    out.mass[b] = sum[b] / out.total;
-    const double m = sum[b] / paths;
-    out.se[b] = std::sqrt(std::max(0.0, sum2[b] / paths - m * m) / paths) * paths / out.total;
-  }
-  out.total /= paths;
+  sum.fractions(double(paths), out.mass, out.se);
+  out.total = sum.total / double(paths);
   out.reflected /= paths;
   return out;
 }

@@ -32,6 +32,7 @@
 #include <string>
 #include <utility>
 
+#include "closures/angle_bands.h"
 #include "closures/frosted_glass.h"
 #include "closures/frosted_test_host.h"
 #include "closures/microfacet_test_util.h"
@@ -44,6 +45,9 @@ namespace {
 
 using namespace glimmer;
 using namespace glimmer::plugin;
+using glimmer::test::angle_band;
+using glimmer::test::BandSums;
+using glimmer::test::degrees_between;
 using glimmer::test::stress_scale;  // 100 under make stress
 
 std::unique_ptr<FrostedGlassClosure> create_method(float roughness, float ior, const char *method,
@@ -749,60 +753,55 @@ Vec3 exit_axis(const AnalyticScene &scene, const Pixel &p, float ior) {
   return smooth_refract(inside, -far.N, ior, out) ? out : p.D;
 }
 
+// One path from the pixel through the object until it leaves: its weight and the direction it leaves in. False when
+// it fails, reflects at the first event, stays inside (512 events) or leaves a slab back through its entry face.
+bool trace_through(const AnalyticScene &scene, const Sampler &sample, const Pixel &px, Pcg32 &rng,
+                   Spectrum &throughput, Vec3 &leaving) {
+  const auto schema = FrostedGlassClosure::params();
+  Hit hit = px.hit;
+  Vec3 D = px.D;
+  throughput = Spectrum(1.0f);
+  for (int event = 0; event < 512; ++event) {
+    GlimmerShadingContext ctx = context_at(scene, hit, D, rng);
+    const ShadingPoint sp(&ctx, schema);
+    LocalSample s;
+    if (!sample(sp, Vec3(rng.next_float(), rng.next_float(), rng.next_float()), s) || !(s.pdf > 0.0f)) return false;
+    if (event == 0 && !(s.label & GLIMMER_LABEL_TRANSMIT)) return false;
+    throughput *= s.f_cos / s.pdf;
+    const Vec3 wo = normalize(sp.frame.to_world(s.wo));
+    const Vec3 origin = s.moved ? frosted::offset_origin(s.origin, s.origin_Ng, wo)
+                                : frosted::offset_origin(hit.P, hit.N, wo);
+    Hit next;
+    if (!scene.intersect(origin, wo, 0.0f, std::numeric_limits<float>::infinity(), next)) {
+      leaving = wo;
+      return !(scene.kind == AnalyticScene::kSlab && wo.z > 0.0f);  // not back through the entry face
+    }
+    hit = next;
+    D = wo;
+  }
+  return false;
+}
+
 SolidBands solid_bands(const AnalyticScene &scene, const Sampler &sample, float ior, int paths_per_pixel,
                        uint64_t seed) {
   const std::vector<Pixel> px = camera_pixels(scene);
-  std::vector<std::array<double, 2 * kShapeBands + 2>> acc(px.size());
+  std::vector<BandSums<kShapeBands>> acc(px.size());
   tbb::parallel_for(size_t(0), px.size(), [&](size_t k) {
-    auto &a = acc[k];
-    a.fill(0.0);
     const Vec3 axis = exit_axis(scene, px[k], ior);
     Pcg32 rng(seed, 31 + k);
-    const auto schema = FrostedGlassClosure::params();
     for (int i = 0; i < paths_per_pixel; ++i) {
-      Hit hit = px[k].hit;
-      Vec3 D = px[k].D;
-      Spectrum throughput(1.0f);
-      for (int event = 0; event < 512; ++event) {
-        GlimmerShadingContext ctx = context_at(scene, hit, D, rng);
-        const ShadingPoint sp(&ctx, schema);
-        LocalSample s;
-        if (!sample(sp, Vec3(rng.next_float(), rng.next_float(), rng.next_float()), s) || !(s.pdf > 0.0f)) break;
-        if (event == 0 && !(s.label & GLIMMER_LABEL_TRANSMIT)) break;
-        throughput *= s.f_cos / s.pdf;
-        const Vec3 wo = normalize(sp.frame.to_world(s.wo));
-        const Vec3 origin = s.moved ? frosted::offset_origin(s.origin, s.origin_Ng, wo)
-                                    : frosted::offset_origin(hit.P, hit.N, wo);
-        Hit next;
-        if (!scene.intersect(origin, wo, 0.0f, std::numeric_limits<float>::infinity(), next)) {
-          if (scene.kind == AnalyticScene::kSlab && wo.z > 0.0f) break;  // back through the entry face
-          const double w = average(throughput);
-          const double deg = std::acos(std::clamp(double(dot(wo, axis)), -1.0, 1.0)) * 180.0 / M_PI;
-          int b = 0;
-          while (b + 1 < kShapeBands && deg >= kShapeEdge[b + 1]) ++b;
-          a[b] += w;
-          a[kShapeBands + b] += w * w;
-          a[2 * kShapeBands] += w;
-          break;
-        }
-        hit = next;
-        D = wo;
-      }
+      Spectrum throughput;
+      Vec3 wo;
+      if (trace_through(scene, sample, px[k], rng, throughput, wo))
+        acc[k].add(angle_band(kShapeEdge, degrees_between(wo, axis)), average(throughput));
     }
   });
+  BandSums<kShapeBands> sum;
+  for (const auto &a : acc) sum += a;
   SolidBands out;
-  double sum[kShapeBands] = {}, sum2[kShapeBands] = {};
-  for (const auto &a : acc) {
-    for (int b = 0; b < kShapeBands; ++b) sum[b] += a[b], sum2[b] += a[kShapeBands + b];
-    out.total += a[2 * kShapeBands];
-  }
   const double n = double(paths_per_pixel) * double(px.size());
-  for (int b = 0; b < kShapeBands; ++b) {
-    out.mass[b] = sum[b] / out.total;
-    const double m = sum[b] / n;
-    out.se[b] = std::sqrt(std::max(0.0, sum2[b] / n - m * m) / n) * n / out.total;
-  }
-  out.total /= n;
+  sum.fractions(n, out.mass, out.se);
+  out.total = sum.total / n;
   return out;
 }
 
@@ -908,38 +907,17 @@ SkewBands skew_bands(const AnalyticScene &scene, const Sampler &sample, const Pi
   tbb::parallel_for(0, kChunks, [&](int c) {
     auto &a = acc[size_t(c)];
     Pcg32 rng(seed, 101 + uint64_t(c));
-    const auto schema = FrostedGlassClosure::params();
     for (int i = c; i < paths; i += kChunks) {
-      Hit hit = px.hit;
-      Vec3 D = px.D;
-      Spectrum throughput(1.0f);
-      for (int event = 0; event < 512; ++event) {
-        GlimmerShadingContext ctx = context_at(scene, hit, D, rng);
-        const ShadingPoint sp(&ctx, schema);
-        LocalSample s;
-        if (!sample(sp, Vec3(rng.next_float(), rng.next_float(), rng.next_float()), s) || !(s.pdf > 0.0f)) break;
-        if (event == 0 && !(s.label & GLIMMER_LABEL_TRANSMIT)) break;
-        throughput *= s.f_cos / s.pdf;
-        const Vec3 wo = normalize(sp.frame.to_world(s.wo));
-        const Vec3 origin = s.moved ? frosted::offset_origin(s.origin, s.origin_Ng, wo)
-                                    : frosted::offset_origin(hit.P, hit.N, wo);
-        Hit next;
-        if (!scene.intersect(origin, wo, 0.0f, std::numeric_limits<float>::infinity(), next)) {
-          if (wo.z > 0.0f) break;  // back through the entry face
-          const double w = average(throughput);
-          const double deg = std::acos(std::clamp(double(dot(wo, axis)), -1.0, 1.0)) * 180.0 / M_PI;
-          int b = 0;
-          while (b + 1 < kSkewBands && deg >= kSkewEdge[b + 1]) ++b;
-          const Vec3 side = wo - axis * dot(wo, axis);
-          const double cos_az = dot(side, side) > 1e-12f ? double(dot(normalize(side), toward)) : 1.0;
-          const int sector = cos_az > std::sqrt(0.5) ? 0 : (cos_az > -std::sqrt(0.5) ? 1 : 2);
-          a[size_t(b * kSkewSectors + sector)] += w;
-          a[kSkewBands * kSkewSectors] += w;
-          break;
-        }
-        hit = next;
-        D = wo;
-      }
+      Spectrum throughput;
+      Vec3 wo;
+      if (!trace_through(scene, sample, px, rng, throughput, wo)) continue;
+      const double w = average(throughput);
+      const int b = angle_band(kSkewEdge, degrees_between(wo, axis));
+      const Vec3 side = wo - axis * dot(wo, axis);
+      const double cos_az = dot(side, side) > 1e-12f ? double(dot(normalize(side), toward)) : 1.0;
+      const int sector = cos_az > std::sqrt(0.5) ? 0 : (cos_az > -std::sqrt(0.5) ? 1 : 2);
+      a[size_t(b * kSkewSectors + sector)] += w;
+      a[kSkewBands * kSkewSectors] += w;
     }
   });
   SkewBands out;
