@@ -585,10 +585,11 @@ struct Renderer::Impl {
   }
 
   // Ray differentials for the next segment: specular propagation after a singular
-  // scatter, else a cone widened by beta = 2 alpha (Wang 2018, sec. 4.6).
+  // scatter, else a cone widened by beta = 2 alpha (Wang 2018, sec. 4.6). A singular sample
+  // that reports a width (a thin pane's walk: many rough events as one sample) widens too.
   void next_differentials(Differentials &rd, const Vec3 &D, const Vec3 &wo, const ShadingData &sd,
                           const GlimmerSample &s, bool singular, float pixel_spread, PathState &ps) const {
-    if (singular) {
+    if (singular && !(s.roughness > 0.0f)) {
       propagate_specular(rd, D, wo, sd.N, sd.Ng, sd.dn1, sd.dn2, s.eta);
       return;
     }

@@ -75,6 +75,29 @@ TEST(Differentials, ThroughAPlanarMirror) {
   EXPECT_GT(fx, 1.5f * pixel_size(3.0f) / 4.0f);
 }
 
+// A thin frosted pane (method=path) returns its walk between the faces as one singular sample: the path behind it
+// must still widen by the pane's roughness (beta = 2 alpha, alpha = roughness^2), as a rough closure's does; a
+// sharp mirror (roughness 0, ThroughAPlanarMirror) keeps spread 0.
+TEST(Differentials, ARoughPaneWidensThePathBehindIt) {
+  if (!plugin().find("frosted_glass")) GTEST_SKIP() << "needs frosted_glass";
+  for (const float roughness : {0.1f, 0.3f, 0.6f}) {
+    scene::Scene scene;
+    char body[1024];
+    std::snprintf(body, sizeof(body),
+                  "<shader name=\"pane\"><frosted_glass_bsdf name=\"g\" roughness=\"%g\" ior=\"1.5\" thin=\"1\" "
+                  "thickness=\"0.02\" method=\"path\" /><connect from=\"g bsdf\" to=\"output surface\" /></shader>\n"
+                  "<state shader=\"pane\"><mesh P=\"-2 -2 2  2 -2 2  2 2 2  -2 2 2\" nverts=\"4\" verts=\"0 1 2 3\" />"
+                  "</state>\n<mesh P=\"-4 -4 5  4 -4 5  4 4 5  -4 4 5\" nverts=\"4\" verts=\"0 1 2 3\" "
+                  "UV=\"0 0 1 0 1 1 0 1\" />\n",
+                  double(roughness));
+    auto r = make_renderer("diff_pane.xml", body, scene);
+    GlimmerShadingContext ctx{};
+    ASSERT_TRUE(r->probe(kW * 0.5f, kH * 0.5f, ctx)) << roughness;
+    EXPECT_NEAR(ctx.P.z, 5.0f, 1e-3f) << "the probe stops at the plane behind the pane";
+    EXPECT_NEAR(ctx.spread_angle, 2.0f * roughness * roughness, 1e-5f) << roughness;
+  }
+}
+
 // Depth of field: seen through lens points at radius A that all focus at depth f, a point at depth d
 // spreads over the circle of confusion of radius A |1 - d / f| (P(d) = (d / f) focus + (1 - d / f) lens).
 // The footprint at the first hit adds it to the pixel's: on the 4-unit plane facing the camera,

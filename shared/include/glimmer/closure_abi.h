@@ -299,7 +299,7 @@ typedef struct GlimmerSample {
   GlimmerVec3 wo;  /* sampled direction, world space, unit */
   float eval[3];   /* f * |cos(N, wo)| (singular: the delta weight) */
   float pdf;       /* solid-angle density of wo (singular: 1) */
-  float roughness; /* effective roughness of the sampled lobe (footprint widening, filter_glossy) */
+  float roughness; /* effective roughness of the sampled lobe (footprint widening, also of a singular sample: > 0 for a walk through a pane; filter_glossy) */
   float eta;       /* relative IOR crossed for transmission, 1 otherwise */
   uint32_t label;  /* GlimmerLabel bits; 0 = no sample */
 #if GLIMMER_ABI_MINOR >= 3
