@@ -311,6 +311,12 @@ inline bool nodes_at_level(const Footprint &f, int level, NodeList &list) {
   list.size = power_of_two(-level);
   const double inv = power_of_two(level);  // 1 / size, exactly
   const double ey = 0.5 * (std::fabs(f.ay) + std::fabs(f.by));
+  const double ex = 0.5 * (std::fabs(f.ax) + std::fabs(f.bx));
+  // Far more than kMaxNodes across (or a non-finite extent): the clamped
+  // floors below would differ by 2^63, which wraps, and the row loop would
+  // run ~2^62 times (a thin finite footprint such as (0, 3e38) x (3e-38, 0)
+  // has area 9 and reached it).
+  if (!(ex * inv < 1e15) || !(ey * inv < 1e15)) return false;
   const int64_t j0 = floor_to_int64((f.cy - ey) * inv);
   const int64_t j1 = floor_to_int64((f.cy + ey) * inv);
   if (j1 - j0 >= kMaxNodes) return false;
@@ -318,7 +324,6 @@ inline bool nodes_at_level(const Footprint &f, int level, NodeList &list) {
   // footprint smaller than a node) takes the whole box: clipping the rows
   // costs more than the one node it may save, and the count is the same
   // (membership is exact).
-  const double ex = 0.5 * (std::fabs(f.ax) + std::fabs(f.bx));
   const int64_t box_i0 = floor_to_int64((f.cx - ex) * inv), box_i1 = floor_to_int64((f.cx + ex) * inv);
   if (j1 - j0 <= 1 && box_i1 - box_i0 <= 1) {
     for (int64_t j = j0; j <= j1; ++j) list.add_row(box_i0, box_i1, j);

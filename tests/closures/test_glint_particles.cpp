@@ -10,6 +10,8 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <cstdlib>
+#include <future>
 #include <limits>
 #include <vector>
 
@@ -81,6 +83,37 @@ TEST(GlintParticles, RasterisedFootprintCountsEveryParticle) {
               compared, lit, nodes_raster / compared, nodes_box / compared);
   EXPECT_GT(compared, 3000);
   EXPECT_GT(lit, 2000);
+}
+
+// Thin footprints of finite, moderate area but extreme extent (the host's float uv differentials, e.g.
+// (0, 3e38) x (3e-38, 0): area 9, not a degenerate footprint for valid_footprint) finish, with the coarse
+// fallback's <= 2 x 2 nodes whose side covers the extent. Before the guard in nodes_at_level the clamped floors
+// differed by 2^63, which wrapped, and the row loop ran ~2^62 times: the watchdog fails the test instead of
+// letting it hang.
+TEST(GlintParticles, ExtremeThinFootprintsFinishWithTheCoarseNodes) {
+  auto run = std::async(std::launch::async, [] {
+    int checked = 0;
+    const double big = 3e38, small = 3e-38;
+    const pg::Footprint shapes[] = {
+        {0.3, 0.7, 0.0, big, small, 0.0},   {0.3, 0.7, big, 0.0, 0.0, small}, {-5.0, 2.0, big, big, small, -small},
+        {0.3, 0.7, 0.0, -big, -small, 0.0}, {0.3, 0.7, 1e20, 1e21, 1e-20, 0.0}, {1e30, -1e30, 0.0, big, small, 0.0}};
+    for (const pg::Footprint &f : shapes)
+      for (const double density : {1.0, 1e4, 1e7, 1e10}) {
+        const pg::NodeList nodes = pg::footprint_nodes(f, density);
+        const double extent = std::max(std::fabs(f.ax) + std::fabs(f.bx), std::fabs(f.ay) + std::fabs(f.by));
+        EXPECT_GE(nodes.count, 1);
+        EXPECT_LE(nodes.count, 4) << "the coarse fallback";
+        EXPECT_GE(nodes.size, extent) << "its node side covers the footprint";
+        ++checked;
+      }
+    return checked;
+  });
+  if (run.wait_for(std::chrono::seconds(60)) != std::future_status::ready) {
+    ADD_FAILURE() << "footprint_nodes did not finish within 60 s on a thin extreme footprint";
+    std::fflush(nullptr);
+    std::quick_exit(1);  // the worker is stuck in the row loop: do not join it
+  }
+  EXPECT_EQ(run.get(), 24);
 }
 
 // Aspect 1..64 footprints holding ~100 particles: every eval is an exact
