@@ -86,12 +86,20 @@ Inputs make_inputs(uint64_t seed, uint64_t index, const GlimmerHostServices *hos
   in.ctx.wi = frame.to_world(normalize(wi_local));
   in.wo = frame.to_world(normalize(wo_local));
 
-  // Footprint: zero (point query), tiny, huge, random, or degenerate (dx = dy).
+  // Footprint: zero (point query), tiny, huge, along one axis at the float range's ends (with the other
+  // differential so, a thin footprint of moderate area, e.g. (0, 3e38) x (1e-44, 0)), random, or degenerate
+  // (dx = dy).
   auto footprint = [&](float out[2]) {
-    switch (pick(5)) {
+    switch (pick(6)) {
       case 0: out[0] = out[1] = 0.0f; break;
       case 1: out[0] = 1e-12f; out[1] = -1e-12f; break;
       case 2: out[0] = 1e6f; out[1] = 1e6f; break;
+      case 3: {
+        const int axis = pick(2);
+        out[axis] = (pick(2) == 0 ? 3e38f : 1e-44f) * (pick(2) == 0 ? 1.0f : -1.0f);
+        out[1 - axis] = 0.0f;
+        break;
+      }
       default: {
         const float scale = std::pow(10.0f, -8.0f + 10.0f * u());
         out[0] = (2.0f * u() - 1.0f) * scale;
