@@ -325,8 +325,9 @@ class FrostedGlassClosure {
   // one-walk estimate of f toward a light direction is the walk's weight times the exit interface's density at the
   // walk's own internal direction: at roughness 0.2 that peaks at ~600 / sr where the pane's density is ~0.1-1, so
   // light samples through the pane were rare huge values (docs/frosted_glass.md "Light sampling through a pane").
-  // Not moved (the path goes on from P, as before): a host then propagates its ray differentials specularly
-  // (no widening by the roughness), and C-ABI callers without GlimmerSample.struct_size still get the sample.
+  // Not moved (the path goes on from P, as before), so C-ABI callers without GlimmerSample.struct_size still get
+  // the sample; it reports the pane's roughness, by which the host widens the footprint (a singular sample with
+  // roughness > 0, bridge/render/renderer.cpp next_differentials).
   bool pane_sample(const ShadingPoint &sp, const DielectricLobe &lobe, const Vec3 &rand, LocalSample &out) const {
     const bool flip = sp.wi.z < 0.0f;
     const Vec3 wi = flip ? mf::flip_z_local(sp.wi) : sp.wi;
