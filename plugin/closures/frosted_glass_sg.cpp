@@ -274,121 +274,6 @@ constexpr float kCurvedSingleSgBelow = 0.2f;
 constexpr PaneTail kPlanarSolidTail{0.06f, 4, 0.18f, 2.0f};
 constexpr PaneLadder kPlanarSolidLadder = make_pane_ladder(kPlanarSolidTail);  // validated once, at compile time
 static_assert(kPlanarSolidLadder.valid, "the planar-solid tail must be a valid ladder");
-// ---- A skewed exit lobe (issue 12, thirteenth session; docs/frosted_glass.md "A skewed exit lobe") -----------
-// At an oblique planar exit the exact lobe is not symmetric about its axis: a direction inside at angle theta_in
-// from the exit normal leaves at sin theta_out = ior sin theta_in, which spreads the lobe's grazing side and
-// compresses its normal side (d theta_out / d theta_in = ior cos theta_in / cos theta_out). A vMF about the axis
-// puts as much light toward the normal as toward grazing.
-// The skewed tail: the per-ray tails (t = mixture_tail_for, one per ray about that ray's axis) are merged into one
-// wide lobe about the axis ray's lobe (weight t, the variance of the five about that axis), taken back inside
-// (the direction that refracts to its axis, the sharpness times the refraction's solid-angle Jacobian
-// ior^2 cos theta_in / cos theta_out there) and carried out again as kSkewNodes vMFs: a centre and four nodes
-// kSkewRing * (its 1-sigma angle) off it inside, two in the plane of incidence (toward the normal / grazing) and
-// two across it; each node refracted smoothly through the exit normal, its residual width (the part of the
-// variance the nodes do not carry) magnified by the Jacobian at the node, its weight the node's share times the
-// smooth exit's Fresnel transmittance (nodes beyond the critical angle dropped), renormalised to t.
-constexpr int kSkewNodes = 5;
-constexpr float kSkewCentre = 0.2f;         // the centre node's share
-constexpr float kSkewNodeVariance = 0.6f;   // the fraction of the tail's variance the nodes' placement carries
-
-// Smooth refraction through a planar exit with outward normal n (relative index ior inside): the inside travel
-// direction d (dot(d, n) > 0) to the outside one; false beyond the critical angle.
-bool refract_exit(const Vec3 &d, const Vec3 &n, float ior, Vec3 &out, float &cos_in, float &cos_out) {
-  cos_in = dot(d, n);
-  if (!(cos_in > 0.0f)) return false;
-  const Vec3 t = (d - n * cos_in) * ior;
-  const float s2 = dot(t, t);
-  if (!(s2 < 1.0f)) return false;
-  cos_out = std::sqrt(1.0f - s2);
-  out = normalize(t + n * cos_out);
-  return is_finite(out);
-}
-// The inside travel direction that leaves along w (dot(w, n) > 0).
-Vec3 unrefract_exit(const Vec3 &w, const Vec3 &n, float ior) {
-  const float c = std::clamp(dot(w, n), 0.0f, 1.0f);
-  const Vec3 t = (w - n * c) / ior;
-  return normalize(t + n * std::sqrt(std::max(0.0f, 1.0f - dot(t, t))));
-}
-// The refraction's solid-angle magnification d omega_out / d omega_in = ior^2 cos_in / cos_out (bounded).
-float exit_jacobian(float ior, float cos_in, float cos_out) {
-  return std::clamp(ior * ior * cos_in / std::max(cos_out, 0.02f), 1e-3f, 1e4f);
-}
-
-// The skewed tail's nodes for an internal lobe about c_in (unit, travelling toward the exit) of per-axis variance
-// var_in: kSkewNodes vMFs outside (nodes beyond the critical angle left out), weights relative to the centre's
-// transmittance t0. Returns the count and the nodes' variance about a0 (weighted, per axis).
-int place_skew_nodes(const Vec3 &c_in, const Vec3 &a0, const Vec3 &n, float ior, float var_in, float t0,
-                     ExitLobe::MixtureLobe (&nodes)[kSkewNodes], float &variance_out) {
-  const float rho = std::min(std::sqrt(2.0f * kSkewNodeVariance * var_in / (1.0f - kSkewCentre)), 1.2f);
-  const float residual_in = (1.0f - kSkewNodeVariance) * var_in;
-  Vec3 u = n - c_in * dot(n, c_in);  // in the plane of incidence, toward the normal
-  u = dot(u, u) > 1e-10f ? normalize(u) : Frame::from_normal(c_in).s;
-  const Vec3 v = cross(c_in, u);
-  const Vec3 offsets[kSkewNodes] = {Vec3(0.0f), u, -u, v, -v};
-  int count = 0;
-  float total = 0.0f, variance = 0.0f;
-  for (int j = 0; j < kSkewNodes; ++j) {
-    const Vec3 d = j == 0 ? c_in : normalize(c_in * std::cos(rho) + offsets[j] * std::sin(rho));
-    Vec3 w;
-    float ci = 0.0f, co = 0.0f;
-    if (!refract_exit(d, n, ior, w, ci, co)) continue;
-    const float share = (j == 0 ? kSkewCentre : (1.0f - kSkewCentre) / 4.0f) *
-                        (1.0f - mf::fresnel_dielectric(ci, 1.0f / ior)) / t0;
-    if (!(share > 0.0f)) continue;
-    ExitLobe::MixtureLobe &l = nodes[count++];
-    l.axis = w;
-    l.sharpness = std::clamp(1.0f / std::max(residual_in * exit_jacobian(ior, ci, co), 1e-7f), 1e-3f, 1e7f);
-    l.weight = share;
-    total += share;
-    variance += share * (1.0f / l.sharpness + 1.0f - std::clamp(dot(w, a0), -1.0f, 1.0f));
-  }
-  variance_out = total > 0.0f ? variance / total : 0.0f;
-  return count;
-}
-
-// Replaces the tails m.lobe[cores .. 2 cores) (build_exit_mixture's per-ray tails) by the skewed tail about the
-// planar exit normal n. The internal variance is set so that the nodes' variance outside equals the tails' (three
-// fixed-point steps: the Jacobian varies over the lobe, largest toward grazing). Unchanged when the tail cannot be
-// built (no node leaves).
-void skew_planar_tail(ExitLobe &m, int cores, const Vec3 &n, float ior) {
-  if (cores <= 0 || m.lobe_count != 2 * cores || cores + kSkewNodes > ExitLobe::kMaxLobes) return;
-  const Vec3 a0(m.lobe[cores].axis);
-  float weight = 0.0f, variance = 0.0f;  // per-axis variance of the tails about a0
-  for (int k = cores; k < 2 * cores; ++k) {
-    const float w = m.lobe[k].weight, d = 1.0f - std::clamp(dot(Vec3(m.lobe[k].axis), a0), -1.0f, 1.0f);
-    weight += w;
-    variance += w * (1.0f / m.lobe[k].sharpness + d);  // |a_k - a0|^2 / 2 = 1 - cos
-  }
-  if (!(weight > 0.0f) || !(dot(a0, n) > 1e-3f)) return;
-  variance /= weight;
-  const Vec3 c_in = unrefract_exit(a0, n, ior);
-  float cos_in = 0.0f, cos_out = 0.0f;
-  Vec3 check;
-  if (!refract_exit(c_in, n, ior, check, cos_in, cos_out)) return;
-  // Relative to the centre node's transmittance (the per-ray energies already hold the axis'): a node the exit
-  // transmits less (toward grazing) or not at all (beyond the critical angle) loses weight; the whole mixture is
-  // renormalised, so what it loses goes to the cores and the other nodes, not to its neighbours alone.
-  const float t0 = 1.0f - mf::fresnel_dielectric(cos_in, 1.0f / ior);
-  if (!(t0 > 0.0f)) return;
-  float var_in = variance / exit_jacobian(ior, cos_in, cos_out), achieved = 0.0f;
-  ExitLobe::MixtureLobe nodes[kSkewNodes];
-  int count = 0;
-  for (int step = 0; step < 4; ++step) {
-    count = place_skew_nodes(c_in, a0, n, ior, var_in, t0, nodes, achieved);
-    if (count == 0 || !(achieved > 0.0f)) return;
-    if (step < 3) var_in = std::clamp(var_in * variance / achieved, 1e-8f, 1.0f);
-  }
-  float sum = 0.0f;
-  for (int k = 0; k < cores; ++k) sum += m.lobe[k].weight;
-  for (int j = 0; j < count; ++j) {
-    nodes[j].weight *= weight;
-    sum += nodes[j].weight;
-    m.lobe[cores + j] = nodes[j];
-  }
-  m.lobe_count = cores + count;
-  for (int k = 0; k < m.lobe_count; ++k) m.lobe[k].weight /= sum;
-}
-
 bool solid_exit_mixture(const SgInputs &in, const Segment &seg, const Vec3 &axis, float kappa_in,
                         float kappa_geometric, float ior, float roughness_exit, ExitLobe &out) {
   out.lobe_count = 0;
@@ -402,8 +287,6 @@ bool solid_exit_mixture(const SgInputs &in, const Segment &seg, const Vec3 &axis
                           tail, out))
     return false;
   if (ladder) add_tail_ladder(kPlanarSolidLadder, out);
-  const bool skew = by_rule && planar && !ladder && in.variant == SgVariant::kMixtureSkewed;
-  if (skew) skew_planar_tail(out, out.lobe_count / 2, seg.axis.normal, ior);
   return true;
 }
 
@@ -501,7 +384,7 @@ bool trace_exit_lobe(const ShadingPoint &sp, const SgInputs &in, uint32_t seed, 
     out.roughness = std::clamp(std::sqrt(std::sqrt(2.0f / out.sg.sharpness)), 0.0f, 1.0f);
     (void)front_energy;
     out.lobe_count = 0;
-    if ((in.variant == SgVariant::kMixture || in.variant == SgVariant::kMixtureSkewed) &&
+    if (in.variant == SgVariant::kMixture &&
         !solid_exit_mixture(in, seg, axis, kappa_in, kappa_geometric, ior, roughness_exit, out))
       return false;
     return is_finite(out.origin) && is_finite(out.sg.axis) && is_finite(out.weight);

@@ -70,9 +70,6 @@ enum class SgVariant {
   kMixture,           // the exit as a mixture of lobes, one per traced ray (below); the default up to 0.4
   kMixtureShortTail,  // panes: the tenth session's mixture (a kappa / 4 tail per ray, no PaneTail; the control)
   kPaneWalk,          // panes: the exact walk between the faces, the exit as the leaving table's SG (below)
-  kMixtureSkewed,     // solids: kMixture's rule with the skewed tail at planar exits up to kMixtureRoughnessMax
-                      // (thirteenth session, not the default: it doubled the small light's bias at roughness 0.3;
-                      // frosted_glass_sg.cpp skew_planar_tail, docs/frosted_glass.md "A skewed exit lobe")
 };
 
 // The exit lobe mixture (SgVariant::kMixture, issue 12): instead of one SG about the axis refracted through the

@@ -890,7 +890,8 @@ TEST(FrostedGlassSg, ExitLobeShapeOfSolidsAgainstThePath) {
 // azimuth of the exit normal), sideways, toward grazing. A vMF about the axis is symmetric in azimuth; the exact
 // lobe is not (the refraction's Jacobian stretches it toward grazing): the small light behind the slab sits 20 deg
 // off the normal, so at 50 / 70 deg incidence it is 30 / 50 deg off axis toward the normal. Compared: the default
-// (symmetric vMFs) and SgVariant::kMixtureSkewed (the tail carried out through the exit's Jacobian, not kept).
+// and the thirteenth session's rule (the per-ray kappa / 4 tails at every planar exit up to kMixtureRoughnessMax; the
+// skewed tail it was compared with there, SgVariant::kMixtureSkewed, was removed in the fourteenth session).
 constexpr int kSkewBands = 7, kSkewSectors = 3;
 constexpr double kSkewEdge[kSkewBands + 1] = {0, 5, 10, 20, 30, 45, 60, 180};  // degrees
 struct SkewBands {
@@ -955,7 +956,7 @@ void print_skew(const char *what, const SkewBands &m, const SkewBands *ref) {
 }
 
 struct SkewResult {
-  double l1_now = 0.0, l1_skewed = 0.0, normal_now = 0.0, normal_skewed = 0.0;  // summed over incidences
+  double l1_now = 0.0, l1_s13 = 0.0, normal_now = 0.0, normal_s13 = 0.0;  // summed over incidences
 };
 SkewResult measure_skew(float roughness, float ior, int ref_paths, int sg_paths) {
   auto path = create_raw(roughness, ior, false);
@@ -968,9 +969,10 @@ SkewResult measure_skew(float roughness, float ior, int ref_paths, int sg_paths)
   const Sampler sg_sampler = [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
     return sg->sample(sp, r, s);
   };
-  const Sampler skewed = [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
+  const Sampler s13 = [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {  // per-ray kappa / 4 tails
     if (!path->sample(sp, r, s)) return false;
-    if (sg->uses_sg(sp) && (s.label & GLIMMER_LABEL_TRANSMIT)) sg->sample_sg(sp, r, s, frosted::SgVariant::kMixtureSkewed);
+    if (sg->uses_sg(sp) && (s.label & GLIMMER_LABEL_TRANSMIT))
+      sg->sample_sg(sp, r, s, frosted::SgVariant::kMixture, frosted::kDefaultMixtureVariance, 0.2f);
     return true;
   };
   SkewResult res;
@@ -983,11 +985,11 @@ SkewResult measure_skew(float roughness, float ior, int ref_paths, int sg_paths)
     scene.intersect(Vec3(0.0f) - px.D * 5.0f, px.D, 0.0f, 100.0f, px.hit);
     const SkewBands ref = skew_bands(scene, path_sampler, px, ref_paths, 1);
     const SkewBands now = skew_bands(scene, sg_sampler, px, sg_paths, 2);
-    const SkewBands skew = skew_bands(scene, skewed, px, sg_paths, 2);
+    const SkewBands old = skew_bands(scene, s13, px, sg_paths, 2);
     std::printf(" incidence %2.0f deg\n", double(degrees));
     print_skew("path", ref, nullptr);
     print_skew("sg (default)", now, &ref);
-    print_skew("sg (skewed tail)", skew, &ref);
+    print_skew("sg (s13 tails)", old, &ref);
     // The reference's own check: at normal incidence the binning is symmetric (toward the normal = toward grazing
     // within 10 % over 0-20 deg); at 50 deg and roughness 0.3 the exact lobe is skewed (measured 20-30 deg: 2.3e-2
     // toward grazing against 1.2e-2 toward the normal; at 0.5 the horizon, 40 deg off axis, cuts the grazing side).
@@ -1000,13 +1002,13 @@ SkewResult measure_skew(float roughness, float ior, int ref_paths, int sg_paths)
       EXPECT_GT(ref.mass[3][2], 1.5 * ref.mass[3][0]) << "roughness " << roughness;
     }
     res.l1_now += skew_l1(now, ref);
-    res.l1_skewed += skew_l1(skew, ref);
+    res.l1_s13 += skew_l1(old, ref);
     res.normal_now += std::fabs(skew_toward_normal(now) / skew_toward_normal(ref) - 1.0);
-    res.normal_skewed += std::fabs(skew_toward_normal(skew) / skew_toward_normal(ref) - 1.0);
+    res.normal_s13 += std::fabs(skew_toward_normal(old) / skew_toward_normal(ref) - 1.0);
   }
   std::printf("[frosted sg skew] slab roughness %.2f: summed over the 4 incidences: 2D band L1 default %.3f / "
-              "skewed tail %.3f; |toward normal 20-60 deg / path - 1| default %.3f / skewed tail %.3f\n",
-              double(roughness), res.l1_now, res.l1_skewed, res.normal_now, res.normal_skewed);
+              "s13 tails %.3f; |toward normal 20-60 deg / path - 1| default %.3f / s13 tails %.3f\n",
+              double(roughness), res.l1_now, res.l1_s13, res.normal_now, res.normal_s13);
   return res;
 }
 
@@ -1302,7 +1304,7 @@ TEST(FrostedGlassSg, StressRawOutputsFiniteNonNegative) {
     if (std::sscanf(range, "%ld,%ld", &first, &end) != 2 || !(0 <= first && first < end && end <= blocks))
       first = 0, end = blocks;
   const long calls = 1000000 * long(stress_scale()) / blocks * (end - first);
-  std::atomic<long> bad_count{0}, moved{0}, samples{0}, mixture_moved{0}, mixture_written{0}, skewed_written{0};
+  std::atomic<long> bad_count{0}, moved{0}, samples{0}, mixture_moved{0}, mixture_written{0};
   std::atomic<long> host_queries{0}, host_moved{0}, host_mixtures{0}, planar_wide{0};
   tbb::parallel_for(first, end, [&](long b) {
     Pcg32 r(900 + b);
@@ -1350,11 +1352,7 @@ TEST(FrostedGlassSg, StressRawOutputsFiniteNonNegative) {
         if (c.sample(sp, rand, s) && c.uses_sg(sp) && (s.label & GLIMMER_LABEL_TRANSMIT)) {
           const float vs[] = {0.0f, 0.5f, 1.0f, std::numeric_limits<float>::quiet_NaN()};
           const float ts[] = {0.0f, 0.2f, 0.25f, -1.0f};
-          // Every other block of 16: the skewed tail (thirteenth session's variant, planar exits by the rule).
-          const bool skewed = i / 16 % 2 == 1;
-          c.sample_sg(sp, rand, s, skewed ? frosted::SgVariant::kMixtureSkewed : frosted::SgVariant::kMixture,
-                      vs[i / 2 % 4], ts[i / 4 % 4]);
-          if (skewed && s.moved && s.exit_mixture) skewed_written.fetch_add(1);
+          c.sample_sg(sp, rand, s, frosted::SgVariant::kMixture, vs[i / 2 % 4], ts[i / 4 % 4]);
           n_bad += glimmer::test::bad_raw_outputs(LocalEval{}, true, s);
           if (s.moved) {
             mixture_moved.fetch_add(1);
@@ -1373,13 +1371,12 @@ TEST(FrostedGlassSg, StressRawOutputsFiniteNonNegative) {
   EXPECT_GT(mixture_written.load(), mixture_moved.load() / 2);  // handed to the host whole
   EXPECT_GT(host_mixtures.load(), calls / 40);                  // and read whole through the C entry point
   EXPECT_GT(planar_wide.load(), calls / 1000);                  // the planar exits' ladder among them
-  EXPECT_GT(skewed_written.load(), calls / 1000);               // the skewed variant's mixtures checked too
   std::printf("[frosted sg stress] through the C entry point (2.7 host): %ld sample queries, %ld moved, %ld whole "
               "exit mixtures read (axes, sharpness, weights, host density at wo and a lamp-integral draw)\n",
               host_queries.load(), host_moved.load(), host_mixtures.load());
   std::printf("[frosted sg stress] exit lobe mixture: %ld moved samples (v 0..1 / NaN, t 0..0.25 / rule), %ld "
-              "written whole to the host's buffer (%ld of them the skewed variant's)\n",
-              mixture_moved.load(), mixture_written.load(), skewed_written.load());
+              "written whole to the host's buffer\n",
+              mixture_moved.load(), mixture_written.load());
   std::printf("[frosted sg stress] blocks %ld..%ld of %ld: %ld eval + %ld sample calls (%ld sg moved samples), 1/4 "
               "grazing, half IOR 2.4; sphere / slab / odd host (t 0..inf, NaN, -1; NaN or zero normals; other "
               "closures): %ld bad; %ld whole mixtures of a planar exit above roughness 0.4 (the ladder)\n",
