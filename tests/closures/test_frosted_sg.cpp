@@ -506,7 +506,9 @@ struct SetCase {
   double bound;
   bool control;
 };
-void check_set_scene(const SceneSetup &setup, std::span<const SetCase> cases) {
+// mean_goal > 0: the scene's mean over the cases must be within it at make stress's paths (16384 / 2048 or more; at make
+// test's 4096 / 1024 the reference's own noise is a large part of the small light's figure, ~0.034 at roughness 0.3).
+void check_set_scene(const SceneSetup &setup, std::span<const SetCase> cases, double mean_goal = 0.0) {
   const bool full = stress_scale() > 1;
   int reference_spp = full ? kReferenceSpp : 4096, sg_spp = full ? kSgSpp : 1024;
   // GLIMMER_FROSTED_SET_SPP=N: N reference and N sg paths per pixel (separates sg's bias from its noise: at make
@@ -525,6 +527,9 @@ void check_set_scene(const SceneSetup &setup, std::span<const SetCase> cases) {
   }
   std::printf("[frosted sg] %s: mean relative error over the %zu configurations %.4f\n", setup.name, cases.size(),
               sum / double(cases.size()));
+  if (mean_goal > 0.0 && reference_spp >= kReferenceSpp && sg_spp >= kSgSpp) {
+    EXPECT_LT(sum / double(cases.size()), mean_goal) << setup.name;
+  }
 }
 
 TEST(FrostedGlassSg, NonConvexShellMatchesThePathReference) {
@@ -551,9 +556,13 @@ TEST(FrostedGlassSg, SmallLightBehindSlabMatchesThePathReference) {
   // 0.0163 / 0.1125 / 0.1316 (4096 / 1024), 0.0097 / 0.1166 / 0.1392 (16k / 2048), 0.0125 / 0.1069 / 0.1405 with
   // 65536 / 65536 paths and no exit light sampling (the bias); bound at 0.3 0.33 -> 0.15. Then the planar ladder's
   // cores x 3 -> x 2 (frosted_glass_sg.cpp kPlanarSolidTail): roughness 0.5 0.1392 -> 0.0853 (16k; 4096 / 1024:
-  // 0.1316 -> 0.0835), bound 0.16 -> 0.11.
-  const SetCase cases[] = {{0.1f, 1.5f, kGoal, true}, {0.3f, 1.5f, 0.15, true}, {0.5f, 1.33f, 0.11, true}};
-  check_set_scene({"slab, small light behind", AnalyticScene::kSlab, false, true}, cases);
+  // 0.1316 -> 0.0835), bound 0.16 -> 0.11. Fourteenth session: the reflected remainder leaves with its own axis at a
+  // planar exit (frosted_glass_sg.cpp reflected_axis): 0.0097 / 0.1166 / 0.0853 -> 0.0097 / 0.0575 / 0.0773 (16k /
+  // 2048; mean 0.0705 -> 0.0482), 0.0163 / 0.1125 / 0.0835 -> 0.0163 / 0.0814 / 0.0791 at 4096 / 1024 (mean 0.0708 ->
+  // 0.0589); bounds at 0.3 / 0.5 0.15 / 0.11 -> 0.105 / 0.10 (the 4096 figures + ~30 %), and the 5 % goal on the
+  // scene's mean at 16384 / 2048 (make stress).
+  const SetCase cases[] = {{0.1f, 1.5f, kGoal, true}, {0.3f, 1.5f, 0.105, true}, {0.5f, 1.33f, 0.10, true}};
+  check_set_scene({"slab, small light behind", AnalyticScene::kSlab, false, true}, cases, kGoal);
 }
 
 // ---- The exit-lobe harness (issue 12): a small light moved around the object ------------------------------
@@ -1015,9 +1024,11 @@ SkewResult measure_skew(float roughness, float ior, int ref_paths, int sg_paths)
 // Measured (100000 / 25000 paths per pixel), 2D band L1 summed over the 4 incidences, default / skewed tail:
 // roughness 0.3 0.782 / 0.862, 0.5 0.601 / 0.601 (the ladder above kMixtureRoughnessMax is not skewed; with its
 // former cores x 3: 0.773). Bounds: the default's measured + ~20 %, so a regression of the mixture's shape fails.
+// Fourteenth session (the reflected remainder's own axis at planar exits): 0.782 -> 0.741, 0.601 -> 0.459; bounds
+// 0.95 / 0.73 -> 0.89 / 0.55.
 TEST(FrostedGlassSg, ExitLobeSkewOfTheSlabAgainstThePath) {
   const int ref_paths = stress_scale() > 1 ? 400000 : 100000, sg_paths = ref_paths / 4;
-  for (const auto &[roughness, bound] : {std::pair{0.3f, 0.95}, std::pair{0.5f, 0.73}}) {
+  for (const auto &[roughness, bound] : {std::pair{0.3f, 0.89}, std::pair{0.5f, 0.55}}) {
     const SkewResult r = measure_skew(roughness, 1.5f, ref_paths, sg_paths);
     EXPECT_LT(r.l1_now, bound) << "roughness " << roughness;
   }
