@@ -36,7 +36,10 @@
 //       measured 2-3x the error of the traced cone on a sphere at roughness
 //       0.3-0.5 (tests/closures/test_frosted_sg.cpp, docs/frosted_glass.md);
 //  5. the reflected remainder 1 - E_x is not dropped: with probability
-//     1 - E_x the axis reflects about the mean normal (lobe widened by the
+//     1 - E_x the reflected part of the lobe (at a planar exit its axis the
+//     mean of the axis and the bounding rays weighted by their reflectance
+//     1 - E_i: at an oblique exit the rays beyond the critical angle, toward
+//     grazing; fourteenth session) reflects about the mean normal (lobe widened by the
 //     rough reflection) and the pipeline repeats from the reflection point
 //     (Russian roulette on E_x: the weight is unchanged); after
 //     kMaxInternalReflections the lobe leaves at the critical angle (Wyman 2005);
@@ -70,9 +73,6 @@ enum class SgVariant {
   kMixture,           // the exit as a mixture of lobes, one per traced ray (below); the default up to 0.4
   kMixtureShortTail,  // panes: the tenth session's mixture (a kappa / 4 tail per ray, no PaneTail; the control)
   kPaneWalk,          // panes: the exact walk between the faces, the exit as the leaving table's SG (below)
-  kMixtureSkewed,     // solids: kMixture's rule with the skewed tail at planar exits up to kMixtureRoughnessMax
-                      // (thirteenth session, not the default: it doubled the small light's bias at roughness 0.3;
-                      // frosted_glass_sg.cpp skew_planar_tail, docs/frosted_glass.md "A skewed exit lobe")
 };
 
 // The exit lobe mixture (SgVariant::kMixture, issue 12): instead of one SG about the axis refracted through the

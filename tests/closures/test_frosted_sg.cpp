@@ -506,7 +506,9 @@ struct SetCase {
   double bound;
   bool control;
 };
-void check_set_scene(const SceneSetup &setup, std::span<const SetCase> cases) {
+// mean_goal > 0: the scene's mean over the cases must be within it at make stress's paths (16384 / 2048 or more; at make
+// test's 4096 / 1024 the reference's own noise is a large part of the small light's figure, ~0.034 at roughness 0.3).
+void check_set_scene(const SceneSetup &setup, std::span<const SetCase> cases, double mean_goal = 0.0) {
   const bool full = stress_scale() > 1;
   int reference_spp = full ? kReferenceSpp : 4096, sg_spp = full ? kSgSpp : 1024;
   // GLIMMER_FROSTED_SET_SPP=N: N reference and N sg paths per pixel (separates sg's bias from its noise: at make
@@ -525,6 +527,9 @@ void check_set_scene(const SceneSetup &setup, std::span<const SetCase> cases) {
   }
   std::printf("[frosted sg] %s: mean relative error over the %zu configurations %.4f\n", setup.name, cases.size(),
               sum / double(cases.size()));
+  if (mean_goal > 0.0 && reference_spp >= kReferenceSpp && sg_spp >= kSgSpp) {
+    EXPECT_LT(sum / double(cases.size()), mean_goal) << setup.name;
+  }
 }
 
 TEST(FrostedGlassSg, NonConvexShellMatchesThePathReference) {
@@ -551,9 +556,13 @@ TEST(FrostedGlassSg, SmallLightBehindSlabMatchesThePathReference) {
   // 0.0163 / 0.1125 / 0.1316 (4096 / 1024), 0.0097 / 0.1166 / 0.1392 (16k / 2048), 0.0125 / 0.1069 / 0.1405 with
   // 65536 / 65536 paths and no exit light sampling (the bias); bound at 0.3 0.33 -> 0.15. Then the planar ladder's
   // cores x 3 -> x 2 (frosted_glass_sg.cpp kPlanarSolidTail): roughness 0.5 0.1392 -> 0.0853 (16k; 4096 / 1024:
-  // 0.1316 -> 0.0835), bound 0.16 -> 0.11.
-  const SetCase cases[] = {{0.1f, 1.5f, kGoal, true}, {0.3f, 1.5f, 0.15, true}, {0.5f, 1.33f, 0.11, true}};
-  check_set_scene({"slab, small light behind", AnalyticScene::kSlab, false, true}, cases);
+  // 0.1316 -> 0.0835), bound 0.16 -> 0.11. Fourteenth session: the reflected remainder leaves with its own axis at a
+  // planar exit (frosted_glass_sg.cpp reflected_axis): 0.0097 / 0.1166 / 0.0853 -> 0.0097 / 0.0575 / 0.0773 (16k /
+  // 2048; mean 0.0705 -> 0.0482), 0.0163 / 0.1125 / 0.0835 -> 0.0163 / 0.0814 / 0.0791 at 4096 / 1024 (mean 0.0708 ->
+  // 0.0589); bounds at 0.3 / 0.5 0.15 / 0.11 -> 0.105 / 0.10 (the 4096 figures + ~30 %), and the 5 % goal on the
+  // scene's mean at 16384 / 2048 (make stress).
+  const SetCase cases[] = {{0.1f, 1.5f, kGoal, true}, {0.3f, 1.5f, 0.105, true}, {0.5f, 1.33f, 0.10, true}};
+  check_set_scene({"slab, small light behind", AnalyticScene::kSlab, false, true}, cases, kGoal);
 }
 
 // ---- The exit-lobe harness (issue 12): a small light moved around the object ------------------------------
@@ -890,7 +899,8 @@ TEST(FrostedGlassSg, ExitLobeShapeOfSolidsAgainstThePath) {
 // azimuth of the exit normal), sideways, toward grazing. A vMF about the axis is symmetric in azimuth; the exact
 // lobe is not (the refraction's Jacobian stretches it toward grazing): the small light behind the slab sits 20 deg
 // off the normal, so at 50 / 70 deg incidence it is 30 / 50 deg off axis toward the normal. Compared: the default
-// (symmetric vMFs) and SgVariant::kMixtureSkewed (the tail carried out through the exit's Jacobian, not kept).
+// and the thirteenth session's rule (the per-ray kappa / 4 tails at every planar exit up to kMixtureRoughnessMax; the
+// skewed tail it was compared with there, SgVariant::kMixtureSkewed, was removed in the fourteenth session).
 constexpr int kSkewBands = 7, kSkewSectors = 3;
 constexpr double kSkewEdge[kSkewBands + 1] = {0, 5, 10, 20, 30, 45, 60, 180};  // degrees
 struct SkewBands {
@@ -955,7 +965,7 @@ void print_skew(const char *what, const SkewBands &m, const SkewBands *ref) {
 }
 
 struct SkewResult {
-  double l1_now = 0.0, l1_skewed = 0.0, normal_now = 0.0, normal_skewed = 0.0;  // summed over incidences
+  double l1_now = 0.0, l1_s13 = 0.0, normal_now = 0.0, normal_s13 = 0.0;  // summed over incidences
 };
 SkewResult measure_skew(float roughness, float ior, int ref_paths, int sg_paths) {
   auto path = create_raw(roughness, ior, false);
@@ -968,9 +978,10 @@ SkewResult measure_skew(float roughness, float ior, int ref_paths, int sg_paths)
   const Sampler sg_sampler = [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
     return sg->sample(sp, r, s);
   };
-  const Sampler skewed = [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
+  const Sampler s13 = [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {  // per-ray kappa / 4 tails
     if (!path->sample(sp, r, s)) return false;
-    if (sg->uses_sg(sp) && (s.label & GLIMMER_LABEL_TRANSMIT)) sg->sample_sg(sp, r, s, frosted::SgVariant::kMixtureSkewed);
+    if (sg->uses_sg(sp) && (s.label & GLIMMER_LABEL_TRANSMIT))
+      sg->sample_sg(sp, r, s, frosted::SgVariant::kMixture, frosted::kDefaultMixtureVariance, 0.2f);
     return true;
   };
   SkewResult res;
@@ -983,11 +994,11 @@ SkewResult measure_skew(float roughness, float ior, int ref_paths, int sg_paths)
     scene.intersect(Vec3(0.0f) - px.D * 5.0f, px.D, 0.0f, 100.0f, px.hit);
     const SkewBands ref = skew_bands(scene, path_sampler, px, ref_paths, 1);
     const SkewBands now = skew_bands(scene, sg_sampler, px, sg_paths, 2);
-    const SkewBands skew = skew_bands(scene, skewed, px, sg_paths, 2);
+    const SkewBands old = skew_bands(scene, s13, px, sg_paths, 2);
     std::printf(" incidence %2.0f deg\n", double(degrees));
     print_skew("path", ref, nullptr);
     print_skew("sg (default)", now, &ref);
-    print_skew("sg (skewed tail)", skew, &ref);
+    print_skew("sg (s13 tails)", old, &ref);
     // The reference's own check: at normal incidence the binning is symmetric (toward the normal = toward grazing
     // within 10 % over 0-20 deg); at 50 deg and roughness 0.3 the exact lobe is skewed (measured 20-30 deg: 2.3e-2
     // toward grazing against 1.2e-2 toward the normal; at 0.5 the horizon, 40 deg off axis, cuts the grazing side).
@@ -1000,22 +1011,24 @@ SkewResult measure_skew(float roughness, float ior, int ref_paths, int sg_paths)
       EXPECT_GT(ref.mass[3][2], 1.5 * ref.mass[3][0]) << "roughness " << roughness;
     }
     res.l1_now += skew_l1(now, ref);
-    res.l1_skewed += skew_l1(skew, ref);
+    res.l1_s13 += skew_l1(old, ref);
     res.normal_now += std::fabs(skew_toward_normal(now) / skew_toward_normal(ref) - 1.0);
-    res.normal_skewed += std::fabs(skew_toward_normal(skew) / skew_toward_normal(ref) - 1.0);
+    res.normal_s13 += std::fabs(skew_toward_normal(old) / skew_toward_normal(ref) - 1.0);
   }
   std::printf("[frosted sg skew] slab roughness %.2f: summed over the 4 incidences: 2D band L1 default %.3f / "
-              "skewed tail %.3f; |toward normal 20-60 deg / path - 1| default %.3f / skewed tail %.3f\n",
-              double(roughness), res.l1_now, res.l1_skewed, res.normal_now, res.normal_skewed);
+              "s13 tails %.3f; |toward normal 20-60 deg / path - 1| default %.3f / s13 tails %.3f\n",
+              double(roughness), res.l1_now, res.l1_s13, res.normal_now, res.normal_s13);
   return res;
 }
 
 // Measured (100000 / 25000 paths per pixel), 2D band L1 summed over the 4 incidences, default / skewed tail:
 // roughness 0.3 0.782 / 0.862, 0.5 0.601 / 0.601 (the ladder above kMixtureRoughnessMax is not skewed; with its
 // former cores x 3: 0.773). Bounds: the default's measured + ~20 %, so a regression of the mixture's shape fails.
+// Fourteenth session (the reflected remainder's own axis at planar exits): 0.782 -> 0.741, 0.601 -> 0.459; bounds
+// 0.95 / 0.73 -> 0.89 / 0.55.
 TEST(FrostedGlassSg, ExitLobeSkewOfTheSlabAgainstThePath) {
   const int ref_paths = stress_scale() > 1 ? 400000 : 100000, sg_paths = ref_paths / 4;
-  for (const auto &[roughness, bound] : {std::pair{0.3f, 0.95}, std::pair{0.5f, 0.73}}) {
+  for (const auto &[roughness, bound] : {std::pair{0.3f, 0.89}, std::pair{0.5f, 0.55}}) {
     const SkewResult r = measure_skew(roughness, 1.5f, ref_paths, sg_paths);
     EXPECT_LT(r.l1_now, bound) << "roughness " << roughness;
   }
@@ -1302,7 +1315,7 @@ TEST(FrostedGlassSg, StressRawOutputsFiniteNonNegative) {
     if (std::sscanf(range, "%ld,%ld", &first, &end) != 2 || !(0 <= first && first < end && end <= blocks))
       first = 0, end = blocks;
   const long calls = 1000000 * long(stress_scale()) / blocks * (end - first);
-  std::atomic<long> bad_count{0}, moved{0}, samples{0}, mixture_moved{0}, mixture_written{0}, skewed_written{0};
+  std::atomic<long> bad_count{0}, moved{0}, samples{0}, mixture_moved{0}, mixture_written{0};
   std::atomic<long> host_queries{0}, host_moved{0}, host_mixtures{0}, planar_wide{0};
   tbb::parallel_for(first, end, [&](long b) {
     Pcg32 r(900 + b);
@@ -1350,11 +1363,7 @@ TEST(FrostedGlassSg, StressRawOutputsFiniteNonNegative) {
         if (c.sample(sp, rand, s) && c.uses_sg(sp) && (s.label & GLIMMER_LABEL_TRANSMIT)) {
           const float vs[] = {0.0f, 0.5f, 1.0f, std::numeric_limits<float>::quiet_NaN()};
           const float ts[] = {0.0f, 0.2f, 0.25f, -1.0f};
-          // Every other block of 16: the skewed tail (thirteenth session's variant, planar exits by the rule).
-          const bool skewed = i / 16 % 2 == 1;
-          c.sample_sg(sp, rand, s, skewed ? frosted::SgVariant::kMixtureSkewed : frosted::SgVariant::kMixture,
-                      vs[i / 2 % 4], ts[i / 4 % 4]);
-          if (skewed && s.moved && s.exit_mixture) skewed_written.fetch_add(1);
+          c.sample_sg(sp, rand, s, frosted::SgVariant::kMixture, vs[i / 2 % 4], ts[i / 4 % 4]);
           n_bad += glimmer::test::bad_raw_outputs(LocalEval{}, true, s);
           if (s.moved) {
             mixture_moved.fetch_add(1);
@@ -1373,13 +1382,12 @@ TEST(FrostedGlassSg, StressRawOutputsFiniteNonNegative) {
   EXPECT_GT(mixture_written.load(), mixture_moved.load() / 2);  // handed to the host whole
   EXPECT_GT(host_mixtures.load(), calls / 40);                  // and read whole through the C entry point
   EXPECT_GT(planar_wide.load(), calls / 1000);                  // the planar exits' ladder among them
-  EXPECT_GT(skewed_written.load(), calls / 1000);               // the skewed variant's mixtures checked too
   std::printf("[frosted sg stress] through the C entry point (2.7 host): %ld sample queries, %ld moved, %ld whole "
               "exit mixtures read (axes, sharpness, weights, host density at wo and a lamp-integral draw)\n",
               host_queries.load(), host_moved.load(), host_mixtures.load());
   std::printf("[frosted sg stress] exit lobe mixture: %ld moved samples (v 0..1 / NaN, t 0..0.25 / rule), %ld "
-              "written whole to the host's buffer (%ld of them the skewed variant's)\n",
-              mixture_moved.load(), mixture_written.load(), skewed_written.load());
+              "written whole to the host's buffer\n",
+              mixture_moved.load(), mixture_written.load());
   std::printf("[frosted sg stress] blocks %ld..%ld of %ld: %ld eval + %ld sample calls (%ld sg moved samples), 1/4 "
               "grazing, half IOR 2.4; sphere / slab / odd host (t 0..inf, NaN, -1; NaN or zero normals; other "
               "closures): %ld bad; %ld whole mixtures of a planar exit above roughness 0.4 (the ladder)\n",
