@@ -256,7 +256,8 @@ class GlintClosure {
   // footprint holds no reflecting particle at P_max >= P (tables/glint_peak.h),
   // hence none at P (the count is nested in P). When it is not dark,
   // glint_f_cos counts again at P over the same cells and nodes.
-  bool provably_dark(const Vec3 &wi, const Vec3 &wo, const TableCoords &c, float sigma_deg, float density,
+  // Out of line (session 14: GCC inlined it into f_cos_and_pdf, 81 instructions per eval more at area 1e-8).
+  [[gnu::noinline]] bool provably_dark(const Vec3 &wi, const Vec3 &wo, const TableCoords &c, float sigma_deg, float density,
                      Particles &parts) const {
     const double particles = static_cast<double>(density) * parts.area;
     if (peak_.empty() || sigma_deg > field_.gamma_deg || !(particles <= kDarkTestMaxParticles)) return false;
@@ -271,14 +272,14 @@ class GlintClosure {
 
   // The glint BRDF times cos(wo): equations (2) and (3) at the lookup
   // located and requested by request_table; `h` the half vector of (wi, wo).
+  // `lambdas` from glint::eval_lambdas (W's G2 at the base alpha).
   Spectrum glint_f_cos(const Vec3 &wi, const Vec3 &wo, const TableLookup &at, const glint::HalfVector &h,
-                       float sigma_deg, float density, Particles &parts) const {
+                       const glint::EvalLambdas &lambdas, float sigma_deg, float density, Particles &parts) const {
     if (!table_ || !(wi.z > 0.0f) || !(wo.z > 0.0f)) return Spectrum(0.0f);
     // The lookup comes first: its loads overlap the weight's math.
     const float P = std::min(table_->lookup(at), 1.0f);
     Spectrum weight;
-    if (!glint::glint_weight(field_.distribution, field_.alpha, field_.alpha, flakes_->mean(), wi, wo, h, weight))
-      return Spectrum(0.0f);
+    if (!glint::glint_weight_of(flakes_->mean(), wi, wo, h, lambdas.wi, lambdas.wo, weight)) return Spectrum(0.0f);
     if (!(P > 0.0f)) return Spectrum(0.0f);
     return glint_or_filtered(wi, wo, P, weight, sigma_deg, density, parts);
   }
@@ -323,28 +324,40 @@ class GlintClosure {
     return weight * static_cast<float>(scale);  // (2)
   }
 
-  // f_cos at wo for eval and sample: the dark test first (no table read),
-  // else the lookup requested before `pdf(h)` is computed, then the BRDF;
-  // the half vector h of (wi, wo) computed once for the pdf and the weight.
-  template <typename Pdf>
-  Spectrum f_cos_and_pdf(const ShadingPoint &sp, const Vec3 &wo, float sigma_deg, Pdf &&pdf) const {
+  // f_cos at wo and the pdf of sampling lobe `w` for eval and sample: the
+  // dark test first (no table read), else the lookup requested before the
+  // pdf is computed, then the BRDF; the half vector h of (wi, wo) computed
+  // once for the pdf and the weight, and (isotropic base) the three Smith
+  // Lambdas of W and the pdf in one packed computation (glint::eval_lambdas).
+  Spectrum f_cos_and_pdf(const ShadingPoint &sp, const Vec3 &wo, float sigma_deg, const SamplingLobe &w,
+                         float &pdf) const {
+    const glint::HalfVector h = glint::reflection_half_vector(sp.wi, wo);
+    if (anisotropic_) {
+      const float density = sp.param_float(density_param_, field_.density);
+      Particles parts;  // default-initialised: value-initialising would zero the 1 KB node list
+      parts.fp = glint::placed_footprint(field_, placement_, sp.ctx);
+      parts.area = parts.fp.area();
+      pdf = glint::smooth_lobe_pdf(field_.distribution, w.ax, w.ay, sp.wi, wo, h);
+      return aniso_f_cos(sp.wi, wo, sigma_deg, density, parts);
+    }
+    // Below the surface (either side) the pdf and the BRDF are 0 (smooth_lobe_pdf's and glint_f_cos's own tests).
+    if (!(sp.wi.z > 0.0f) || !(wo.z > 0.0f)) {
+      pdf = 0.0f;
+      return Spectrum(0.0f);
+    }
     const float density = sp.param_float(density_param_, field_.density);
     const TableCoords c = table_coords(sp.wi, wo);
-    const glint::HalfVector h = glint::reflection_half_vector(sp.wi, wo);
     Particles parts;  // default-initialised: value-initialising would zero the 1 KB node list
     parts.fp = glint::placed_footprint(field_, placement_, sp.ctx);
     parts.area = parts.fp.area();
-    if (anisotropic_) {
-      pdf(h);
-      return aniso_f_cos(sp.wi, wo, sigma_deg, density, parts);
-    }
     if (provably_dark(sp.wi, wo, c, sigma_deg, density, parts)) {
-      pdf(h);
+      pdf = glint::smooth_lobe_pdf(field_.distribution, w.ax, w.ay, sp.wi, wo, h);  // one Lambda, no W
       return Spectrum(0.0f);
     }
     const TableLookup at = request_table(c, sigma_deg);
-    pdf(h);
-    return glint_f_cos(sp.wi, wo, at, h, sigma_deg, density, parts);
+    const glint::EvalLambdas lambdas = glint::eval_lambdas(field_.distribution, field_.alpha, w.ax, sp.wi, wo);
+    pdf = glint::smooth_lobe_pdf_of(field_.distribution, w.ax, sp.wi, wo, h, lambdas.wi_lobe);
+    return glint_f_cos(sp.wi, wo, at, h, lambdas, sigma_deg, density, parts);
   }
 
   // Equation (2) with per-flake colours (tables/glint_flake_colour.h): the
@@ -368,10 +381,7 @@ class GlintClosure {
   LocalEval eval(const ShadingPoint &sp, const Vec3 &wo) const {
     const float sigma = lod_sigma_deg(sp.ctx);
     LocalEval e;
-    e.f_cos = f_cos_and_pdf(sp, wo, sigma, [&](const glint::HalfVector &h) {
-      const SamplingLobe w = sampling_lobe(sigma);
-      e.pdf = glint::smooth_lobe_pdf(field_.distribution, w.ax, w.ay, sp.wi, wo, h);
-    });
+    e.f_cos = f_cos_and_pdf(sp, wo, sigma, sampling_lobe(sigma), e.pdf);
     return e;
   }
 
@@ -380,9 +390,7 @@ class GlintClosure {
     const float sigma = lod_sigma_deg(sp.ctx);
     const SamplingLobe w = sampling_lobe(sigma);
     if (!glint::sample_smooth_lobe(field_.distribution, w.ax, w.ay, wi, rand, out.wo)) return false;
-    out.f_cos = f_cos_and_pdf(sp, out.wo, sigma, [&](const glint::HalfVector &h) {
-      out.pdf = glint::smooth_lobe_pdf(field_.distribution, w.ax, w.ay, wi, out.wo, h);
-    });
+    out.f_cos = f_cos_and_pdf(sp, out.wo, sigma, w, out.pdf);
     // alpha units, as the conductor reports (sqrt(ax ay) when anisotropic)
     out.roughness = anisotropic_ ? std::sqrt(w.ax * w.ay) : w.ax;
     out.label = GLIMMER_LABEL_REFLECT | GLIMMER_LABEL_GLOSSY;
