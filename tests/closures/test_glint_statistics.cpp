@@ -161,7 +161,8 @@ TEST(GlintStatistics, ModelVersusReferenceGrid) { measure_grid(false); }
 // Measurement of chosen rows over several realisations (particle seeds),
 // for decisions (docs/glints.md "Statistics"): the mean and standard error
 // over the seeds of each statistic. Skipped unless GLIMMER_STATS_ROWS is set,
-// e.g. GLIMMER_STATS_ROWS="0.2:1000:80,0.5:10:80" (roughness:particles:theta_i);
+// e.g. GLIMMER_STATS_ROWS="0.2:1000:80,b0.5:10:80" (roughness:particles:theta_i,
+// GGX; a leading b: Beckmann);
 // GLIMMER_STATS_SEEDS (default 4), GLIMMER_STATS_SCALE (footprints x, default
 // 1), GLIMMER_STATS_REF=1 to measure the reference too, GLIMMER_STATS_SAMPLES
 // (albedo samples per footprint and half, default 4096),
@@ -184,8 +185,10 @@ TEST(GlintStatistics, MeasureRows) {
   size_t at = 0;
   while (at < rows.size()) {
     const size_t end = std::min(rows.find(',', at), rows.size());
-    const std::string row = rows.substr(at, end - at);
+    std::string row = rows.substr(at, end - at);
     at = end + 1;
+    const bool beckmann = !row.empty() && row[0] == 'b';  // "b0.5:10:80": Beckmann
+    if (beckmann) row.erase(0, 1);
     double r = 0, n = 0, t = 0;
     if (std::sscanf(row.c_str(), "%lf:%lf:%lf", &r, &n, &t) != 3) continue;
     const int base = static_cast<int>(1000 * scale);
@@ -194,6 +197,7 @@ TEST(GlintStatistics, MeasureRows) {
     for (int s = 0; s < seeds; ++s) {
       Config cfg;
       cfg.roughness = r, cfg.per_footprint = n, cfg.theta_i_deg = t, cfg.seed = 11 + static_cast<uint32_t>(s);
+      if (beckmann) cfg.dist = mf::Distribution::Beckmann;
       for (int m = 0; m < (with_ref ? 2 : 1); ++m) {
         auto c = make_closure(m == 0 ? "glint" : "glint_jakob14", cfg.params(m == 1));
         const int corr_footprints = 4 * base * std::max(1, static_cast<int>(100.0 / n));
@@ -218,7 +222,7 @@ TEST(GlintStatistics, MeasureRows) {
         mean /= static_cast<double>(x.size());
         for (double a : x) var += (a - mean) * (a - mean);
         const double se = x.size() > 1 ? std::sqrt(var / static_cast<double>(x.size() - 1) / static_cast<double>(x.size())) : 0.0;
-        std::printf("[measure] r=%.2g n=%g theta_i=%g %-9s %s %.4f +- %.4f (%zu seeds:", r, n, t, names[k],
+        std::printf("[measure] %s r=%.2g n=%g theta_i=%g %-9s %s %.4f +- %.4f (%zu seeds:", beckmann ? "beckmann" : "ggx", r, n, t, names[k],
                     m == 0 ? "model" : "ref  ", mean, se, x.size());
         for (double a : x) std::printf(" %.3f", a);
         std::printf(")\n");
