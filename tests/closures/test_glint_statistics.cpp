@@ -8,6 +8,9 @@
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <cstdlib>
+#include <string>
+#include <vector>
 
 #include "closures/glint_statistics.h"
 
@@ -54,6 +57,31 @@ TEST(GlintStatistics, ReferenceMatchesClosedForms) {
   EXPECT_NEAR(cv_mc_sparse, cv_closed_sparse, 0.25 * cv_closed_sparse);
 }
 
+// The albedo CV estimator of the grid (split-half covariance, albedo_cv)
+// does not depend on the Monte Carlo noise: on glint at roughness 0.2,
+// theta_i 80, 1000 particles per footprint (the Monte Carlo noise of 1024
+// samples exceeds the footprints' spread) the estimates at 32^2 and 64^2
+// samples per half agree within 30 %. Negative control: the former
+// estimator (the i.i.d. Monte Carlo variance subtracted from one estimate;
+// the samples are stratified, so it over-subtracts) reads less than half of
+// it at 32^2 samples.
+TEST(GlintStatistics, AlbedoCvEstimatorIsUnbiased) {
+  Config cfg;
+  cfg.roughness = 0.2;
+  cfg.per_footprint = 1000;
+  cfg.theta_i_deg = 80;
+  auto model = make_closure("glint", cfg.params(false));
+  const int footprints = 300;
+  const double coarse = glint_stats::albedo_cv(*model, cfg, footprints, 1024);
+  const double fine = glint_stats::albedo_cv(*model, cfg, footprints, 4096);
+  const double subtracted = glint_stats::albedo_cv(*model, cfg, footprints, 1024,
+                                                   glint_stats::AlbedoCvEstimator::SubtractedVariance);
+  std::printf("[stats] albedo cv (r 0.2, 1000 particles, 80 deg): split half 2 x 1024 samples %.4f, 2 x 4096 %.4f; "
+              "subtracted variance 1024 %.4f\n", coarse, fine, subtracted);
+  EXPECT_NEAR(coarse, fine, 0.3 * fine);
+  EXPECT_LT(subtracted, 0.5 * fine);
+}
+
 struct Row {
   Config cfg;
   double corr[3][2];  // separations gamma, 2 gamma, 4 gamma; [model, reference]
@@ -63,10 +91,12 @@ struct Row {
 };
 
 // The acceptance lines of issue 10 the model meets (docs/glints.md lists
-// the measured deviations that are not asserted: the lit-set correlation at
-// gamma for roughness 0.2, the albedo CV at 80 degrees). The mean is
-// asserted on every row (at roughness 0.2 it was 2.7..6.9 % low before the
-// table integrated P over the cone directly, tables/glint_tables.cpp).
+// the measured deviation that is not asserted: the lit-set correlation at
+// gamma for roughness 0.2). The mean is asserted on every row (at roughness
+// 0.2 it was 2.7..6.9 % low before the table integrated P over the cone
+// directly, tables/glint_tables.cpp), and the albedo CV on every row since
+// the split-half estimator (glint_statistics.h, albedo_cv: the former
+// estimator read the CV up to 1.55x low at 80 degrees).
 void expect_acceptance(const Row &r) {
   const std::string where = r.cfg.name();
   EXPECT_NEAR(r.corr[1][0], r.corr[1][1], 0.1) << where << ": lit-set correlation at 2 gamma";
@@ -75,10 +105,8 @@ void expect_acceptance(const Row &r) {
   if (r.cfg.roughness >= 0.5) {
     EXPECT_NEAR(r.corr[0][0], r.corr[0][1], 0.1) << where << ": lit-set correlation at gamma";
   }
-  if (r.cfg.theta_i_deg <= 40.0) {
-    EXPECT_LE(r.cv[0], 1.5 * r.cv[1]) << where << ": albedo coefficient of variation";
-    EXPECT_GE(r.cv[0], r.cv[1] / 1.5) << where << ": albedo coefficient of variation";
-  }
+  EXPECT_LE(r.cv[0], 1.5 * r.cv[1]) << where << ": albedo coefficient of variation";
+  EXPECT_GE(r.cv[0], r.cv[1] / 1.5) << where << ": albedo coefficient of variation";
   EXPECT_GE(r.doubling[0].correlation, 0.9) << where << ": count correlation across a level boundary";
   EXPECT_EQ(r.doubling[0].drop_fraction, 0.0) << where << ": counts dropping as the footprint grows";
 }
@@ -129,6 +157,79 @@ std::vector<Row> measure_grid(bool full) {
 // 0.9..1.0 at 4 gamma, albedo CV 3..30x, count correlation ~0 across a level
 // boundary with 3..40 % drops.
 TEST(GlintStatistics, ModelVersusReferenceGrid) { measure_grid(false); }
+
+// Measurement of chosen rows over several realisations (particle seeds),
+// for decisions (docs/glints.md "Statistics"): the mean and standard error
+// over the seeds of each statistic. Skipped unless GLIMMER_STATS_ROWS is set,
+// e.g. GLIMMER_STATS_ROWS="0.2:1000:80,b0.5:10:80" (roughness:particles:theta_i,
+// GGX; a leading b: Beckmann);
+// GLIMMER_STATS_SEEDS (default 4), GLIMMER_STATS_SCALE (footprints x, default
+// 1), GLIMMER_STATS_REF=1 to measure the reference too, GLIMMER_STATS_SAMPLES
+// (albedo samples per footprint and half, default 4096),
+// GLIMMER_STATS_CV_SUBTRACTED=1 for the former albedo CV estimator,
+// GLIMMER_STATS_WHAT (any of "corr,cv,doubling,mean"; default all).
+TEST(GlintStatistics, MeasureRows) {
+  const char *rows_env = std::getenv("GLIMMER_STATS_ROWS");
+  if (rows_env == nullptr) GTEST_SKIP() << "set GLIMMER_STATS_ROWS to measure";
+  const auto env_int = [](const char *name, int fallback) {
+    const char *v = std::getenv(name);
+    return v != nullptr ? std::atoi(v) : fallback;
+  };
+  const int seeds = std::max(env_int("GLIMMER_STATS_SEEDS", 4), 1);
+  const double scale = std::getenv("GLIMMER_STATS_SCALE") ? std::atof(std::getenv("GLIMMER_STATS_SCALE")) : 1.0;
+  const bool with_ref = env_int("GLIMMER_STATS_REF", 0) != 0;
+  const int samples = env_int("GLIMMER_STATS_SAMPLES", 4096);
+  const std::string what = std::getenv("GLIMMER_STATS_WHAT") ? std::getenv("GLIMMER_STATS_WHAT") : "corr,cv,doubling,mean";
+  const auto wants = [&](const char *k) { return what.find(k) != std::string::npos; };
+  std::string rows = rows_env;
+  size_t at = 0;
+  while (at < rows.size()) {
+    const size_t end = std::min(rows.find(',', at), rows.size());
+    std::string row = rows.substr(at, end - at);
+    at = end + 1;
+    const bool beckmann = !row.empty() && row[0] == 'b';  // "b0.5:10:80": Beckmann
+    if (beckmann) row.erase(0, 1);
+    double r = 0, n = 0, t = 0;
+    if (std::sscanf(row.c_str(), "%lf:%lf:%lf", &r, &n, &t) != 3) continue;
+    const int base = static_cast<int>(1000 * scale);
+    // statistic k (corr g, 2g, 4g, cv, doubling, mean) of model [0] and reference [1] per seed
+    std::vector<double> v[6][2];
+    for (int s = 0; s < seeds; ++s) {
+      Config cfg;
+      cfg.roughness = r, cfg.per_footprint = n, cfg.theta_i_deg = t, cfg.seed = 11 + static_cast<uint32_t>(s);
+      if (beckmann) cfg.dist = mf::Distribution::Beckmann;
+      for (int m = 0; m < (with_ref ? 2 : 1); ++m) {
+        auto c = make_closure(m == 0 ? "glint" : "glint_jakob14", cfg.params(m == 1));
+        const int corr_footprints = 4 * base * std::max(1, static_cast<int>(100.0 / n));
+        if (wants("corr"))
+          for (int k = 0; k < 3; ++k) v[k][m].push_back(glint_stats::lit_correlation(*c, cfg, (1 << k) * cfg.gamma(), corr_footprints));
+        const auto estimator = std::getenv("GLIMMER_STATS_CV_SUBTRACTED") ? glint_stats::AlbedoCvEstimator::SubtractedVariance
+                                                                          : glint_stats::AlbedoCvEstimator::SplitHalf;
+        if (wants("cv"))
+          v[3][m].push_back(m == 0 ? glint_stats::albedo_cv(*c, cfg, base / 5, samples, estimator)
+                                   : glint_stats::reference_albedo_cv(cfg, base / 4));
+        if (wants("doubling")) v[4][m].push_back(glint_stats::doubling(*c, cfg, base).correlation);
+        if (wants("mean") && m == 0) v[5][m].push_back(glint_stats::mean_ratio(*c, cfg, 4 * base).ratio);
+      }
+    }
+    static const char *names[6] = {"corr g", "corr 2g", "corr 4g", "albedo cv", "doubling", "mean"};
+    for (int k = 0; k < 6; ++k)
+      for (int m = 0; m < 2; ++m) {
+        const auto &x = v[k][m];
+        if (x.empty()) continue;
+        double mean = 0, var = 0;
+        for (double a : x) mean += a;
+        mean /= static_cast<double>(x.size());
+        for (double a : x) var += (a - mean) * (a - mean);
+        const double se = x.size() > 1 ? std::sqrt(var / static_cast<double>(x.size() - 1) / static_cast<double>(x.size())) : 0.0;
+        std::printf("[measure] %s r=%.2g n=%g theta_i=%g %-9s %s %.4f +- %.4f (%zu seeds:", beckmann ? "beckmann" : "ggx", r, n, t, names[k],
+                    m == 0 ? "model" : "ref  ", mean, se, x.size());
+        for (double a : x) std::printf(" %.3f", a);
+        std::printf(")\n");
+      }
+    std::fflush(stdout);
+  }
+}
 
 TEST(GlintStatistics, ModelVersusReferenceGridStress) {
   if (stress_scale() == 1) GTEST_SKIP() << "make stress only";
