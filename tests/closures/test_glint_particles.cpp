@@ -287,6 +287,22 @@ TEST(GlintParticles, VectorCellFloorsMatchTheScalarFloor) {
   EXPECT_GT(control_differs, 10000);
 }
 
+// The directions of the bit-comparison tests below: the edge cases, then n random ones (a third uniform on the
+// sphere, the others within 2^-24..1 of a pole or of the horizon, both hemispheres).
+std::vector<Vec3> edge_and_random_directions(const std::vector<Vec3> &edges, int n, Pcg32 &rng) {
+  std::vector<Vec3> dirs(edges);
+  for (int k = 0; k < n; ++k) {
+    if (k % 3 == 0) {
+      dirs.push_back(sample_uniform_sphere(rng.next_float(), rng.next_float()));
+      continue;
+    }
+    const float t = std::ldexp(rng.next_float(), -static_cast<int>(rng.next_u32() % 24));  // near a pole / horizon
+    const float phi = 6.2831853f * rng.next_float(), s = k % 3 == 1 ? t : std::sqrt(1.0f - t * t);
+    dirs.emplace_back(s * std::cos(phi), s * std::sin(phi), (k % 3 == 1 ? std::sqrt(1.0f - t * t) : t) * (k % 2 ? 1 : -1));
+  }
+  return dirs;
+}
+
 // The glint eval's table coordinates (tables/glint_common.h): the SSE
 // version equals the scalar fast_acos_deg of wi.z, wo.z and cos(dphi) bit
 // for bit, on random directions (uniform and near the pole and the horizon)
@@ -299,14 +315,7 @@ TEST(GlintCoords, VectorTableCoordsMatchTheScalarFormula) {
   const std::vector<Vec3> edges = {{0, 0, 1},    {0, 0, -1},   {1, 0, 0},     {0, 1, 0},  {0, 0, 0},
                                    {0, 0, -0.0f}, {0, 0, 1.0000001f}, {den, 0, 1}, {0, den, -1}, {nan, 0, 0.5f},
                                    {0.3f, 0.4f, nan}, {1e-13f, 0, 1}, {-1, 0, 1e-30f}};
-  auto random_dir = [&](int n) {
-    if (n % 3 == 0) return sample_uniform_sphere(rng.next_float(), rng.next_float());
-    const float t = std::ldexp(rng.next_float(), -static_cast<int>(rng.next_u32() % 24));  // near a pole / horizon
-    const float phi = 6.2831853f * rng.next_float(), s = n % 3 == 1 ? t : std::sqrt(1.0f - t * t);
-    return Vec3(s * std::cos(phi), s * std::sin(phi), (n % 3 == 1 ? std::sqrt(1.0f - t * t) : t) * (n % 2 ? 1 : -1));
-  };
-  std::vector<Vec3> dirs(edges);
-  for (int n = 0; n < 400000; ++n) dirs.push_back(random_dir(n));
+  const std::vector<Vec3> dirs = edge_and_random_directions(edges, 400000, rng);
   int64_t compared = 0, control_differs = 0;
   auto same = [](float a, float b) { return std::memcmp(&a, &b, sizeof a) == 0; };
   for (size_t a = 0; a < dirs.size(); ++a) {
@@ -444,14 +453,7 @@ TEST(GlintCoords, PackedLambdasMatchTheScalarForm) {
   const std::vector<Vec3> edges = {{0, 0, 1},  {0, 0, -1},     {1, 0, 0},   {0, 1, -0.0f}, {0, 0, 0},   {den, 0, 1},
                                    {1, 0, den}, {nan, 0, 0.5f}, {0.3f, 0.4f, nan}, {0.6f, 0.8f, 1e-30f}, {1e30f, 0, 1},
                                    {-1, 0, 1e-20f}};
-  auto random_dir = [&](int n) {
-    if (n % 3 == 0) return sample_uniform_sphere(rng.next_float(), rng.next_float());
-    const float t = std::ldexp(rng.next_float(), -static_cast<int>(rng.next_u32() % 24));  // near a pole / horizon
-    const float phi = 6.2831853f * rng.next_float(), s = n % 3 == 1 ? t : std::sqrt(1.0f - t * t);
-    return Vec3(s * std::cos(phi), s * std::sin(phi), (n % 3 == 1 ? std::sqrt(1.0f - t * t) : t) * (n % 2 ? 1 : -1));
-  };
-  std::vector<Vec3> dirs(edges);
-  for (int n = 0; n < 300000; ++n) dirs.push_back(random_dir(n));
+  const std::vector<Vec3> dirs = edge_and_random_directions(edges, 300000, rng);
   const std::vector<float> edge_alphas = {0.0f, den, 1e-4f, 1.0f, inf, nan};
   auto same = [](float a, float b) { return std::memcmp(&a, &b, sizeof a) == 0; };
   int64_t compared = 0, control_differs = 0, fallback = 0;
