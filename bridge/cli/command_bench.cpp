@@ -427,9 +427,14 @@ Regions make_regions(const RunContext &c, const std::string &text, const std::st
   }
   r.index = bench::binary_id_regions(ids);
   r.names.push_back(c.a.regions == "auto" ? "world" : "id0");
+  // A shader named like one of the bench's own regions ("all": the whole image, "world", "edges") is "shader:NAME".
+  const auto shader_region = [](const std::string &name) {
+    return (name == "all" || name == "world" || name == "edges") ? "shader:" + name : name;
+  };
   for (int k = 1; k <= 7; ++k)
-    r.names.push_back(c.a.regions == "auto" ? (k <= static_cast<int>(shaders.size()) ? shaders[k - 1] : "id" +
-                                                   std::to_string(k)) : "id" + std::to_string(k));
+    r.names.push_back(c.a.regions == "auto" ? (k <= static_cast<int>(shaders.size()) ? shader_region(shaders[k - 1])
+                                                                                        : "id" + std::to_string(k))
+                                            : "id" + std::to_string(k));
   r.names.push_back("edges");
   return r;
 }
@@ -502,6 +507,10 @@ void measure_ladder(const RunContext &c, const std::vector<std::string> &methods
         std::printf("    %-14s %5zu px  RMSE %.5f (raw %.5f)\n", regions.names[k].c_str(), e.pixels, e.rmse(),
                     e.rmse_raw());
       }
+      // The whole image too, as region "all": the fit and plot scripts read every region, "all" included, from
+      // this one file (before, "all" was only in the plain CSV and had to be merged in by hand).
+      out.region_csv << m << "," << spp << "," << t << ",all," << errors.back().pixels << "," << errors.back().rmse()
+                     << "," << errors.back().rmse_raw() << "\n";
       std::fflush(stdout);
     }
 }
@@ -767,7 +776,7 @@ void add_bench_command(CLI::App &app, CliContext &ctx) {
                   "none (default); auto: an id pass (lamps off, black world, shader k an emitter of a binary colour) "
                   "gives one region per shader, 'world' and 'edges'; or an id / mask image of the bench's size whose "
                   "pixels are 0 or 1 per channel (regions id0..id7, other values 'edges'): RMSE and the speed-up "
-                  "summary also per region, and <name>_regions.csv");
+                  "summary also per region, and <name>_regions.csv (with the whole image as region 'all')");
   evt->callback([args, &ctx] { run(*args, ctx); });
 
   auto cargs = std::make_shared<ConvergenceArgs>();

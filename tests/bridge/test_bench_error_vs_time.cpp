@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <string>
 #include <sys/wait.h>
 
@@ -167,6 +168,22 @@ TEST(BenchErrorVsTime, FrostedTwoReferenceSeedsRegionsAndPathStrategy) {
   EXPECT_NE(all.find("path-mis,2,"), std::string::npos) << all;
   EXPECT_NE(all.find(",floor,"), std::string::npos) << all;
   EXPECT_NE(all.find(",frost"), std::string::npos) << all;
+  // The whole image is in the regions CSV too (region "all"), with the plain CSV's RMSE and every pixel.
+  std::ifstream plain(dir / "frosted_error_vs_time.csv");
+  std::getline(plain, line);
+  int plain_rows = 0;
+  while (std::getline(plain, line)) {
+    std::istringstream fields(line);
+    std::string method, samples, seconds, rmse;
+    std::getline(fields, method, ',');
+    std::getline(fields, samples, ',');
+    std::getline(fields, seconds, ',');
+    std::getline(fields, rmse, ',');
+    EXPECT_NE(all.find(method + "," + samples + "," + seconds + ",all,96," + rmse + ","), std::string::npos)
+        << line << "\n" << all;
+    ++plain_rows;
+  }
+  EXPECT_EQ(plain_rows, 6);
   EXPECT_NE(out.find("region floor: at path's 1000-s RMSE"), std::string::npos) << out;
   std::filesystem::remove_all(dir);
 }
