@@ -287,28 +287,27 @@ inline HalfVector reflection_half_vector(const Vec3 &wi, const Vec3 &wo) {
   return r;
 }
 
+// W with G2 from `g2()`, called only when the directions and h pass the tests.
+template <typename G2>
+inline bool glint_weight_with(const Spectrum &f0, const Vec3 &wi, const Vec3 &wo, const HalfVector &half, G2 &&g2,
+                              Spectrum &weight) {
+  if (!(wi.z > 0.0f) || !(wo.z > 0.0f)) return false;
+  if (!half.valid) return false;
+  const Vec3 &h = half.h;
+  const float wi_h = dot(wi, h);
+  if (!(wi_h > 0.0f) || !(h.z > 0.0f)) return false;
+  const float g = g2();
+  weight = mf::fresnel_schlick(wi_h, f0) * (g * wi_h / (wi.z * h.z));
+  return true;
+}
 // W with G2 from given Lambdas of wi and wo (eval_lambdas; isotropic).
 inline bool glint_weight_of(const Spectrum &f0, const Vec3 &wi, const Vec3 &wo, const HalfVector &half, float lambda_wi,
                             float lambda_wo, Spectrum &weight) {
-  if (!(wi.z > 0.0f) || !(wo.z > 0.0f)) return false;
-  if (!half.valid) return false;
-  const Vec3 &h = half.h;
-  const float wi_h = dot(wi, h);
-  if (!(wi_h > 0.0f) || !(h.z > 0.0f)) return false;
-  const float g2 = smith_g2_of(lambda_wi, lambda_wo);
-  weight = mf::fresnel_schlick(wi_h, f0) * (g2 * wi_h / (wi.z * h.z));
-  return true;
+  return glint_weight_with(f0, wi, wo, half, [&] { return smith_g2_of(lambda_wi, lambda_wo); }, weight);
 }
 inline bool glint_weight(mf::Distribution dist, float alpha_x, float alpha_y, const Spectrum &f0, const Vec3 &wi,
                          const Vec3 &wo, const HalfVector &half, Spectrum &weight) {
-  if (!(wi.z > 0.0f) || !(wo.z > 0.0f)) return false;
-  if (!half.valid) return false;
-  const Vec3 &h = half.h;
-  const float wi_h = dot(wi, h);
-  if (!(wi_h > 0.0f) || !(h.z > 0.0f)) return false;
-  const float g2 = smith_g2(dist, wi, wo, alpha_x, alpha_y);
-  weight = mf::fresnel_schlick(wi_h, f0) * (g2 * wi_h / (wi.z * h.z));
-  return true;
+  return glint_weight_with(f0, wi, wo, half, [&] { return smith_g2(dist, wi, wo, alpha_x, alpha_y); }, weight);
 }
 inline bool glint_weight(mf::Distribution dist, float alpha_x, float alpha_y, const Spectrum &f0, const Vec3 &wi,
                          const Vec3 &wo, Spectrum &weight) {
@@ -323,22 +322,27 @@ inline bool glint_weight(mf::Distribution dist, float alpha, const Spectrum &f0,
 // with cosine sampling (weight c), reflection only.
 inline constexpr float kCosineMixture = 0.1f;
 
+// The mixture's density with the lobe's part from `lobe_density_at(h)`, called only where h is a valid half vector
+// facing wi.
+template <typename LobeDensity>
+inline float smooth_lobe_pdf_with(const Vec3 &wi, const Vec3 &wo, const HalfVector &half,
+                                  LobeDensity &&lobe_density_at) {
+  if (!(wi.z > 0.0f) || !(wo.z > 0.0f)) return 0.0f;
+  float pdf = kCosineMixture * wo.z * kInvPi;
+  if (half.valid && dot(wi, half.h) > 0.0f) pdf += (1.0f - kCosineMixture) * lobe_density_at(half.h);
+  return pdf;
+}
 // Anisotropic lobe (alpha_wx, alpha_wy); the isotropic overloads pass alpha_w for both.
 inline float smooth_lobe_pdf(mf::Distribution dist, float alpha_wx, float alpha_wy, const Vec3 &wi, const Vec3 &wo,
                              const HalfVector &half) {
-  if (!(wi.z > 0.0f) || !(wo.z > 0.0f)) return 0.0f;
-  float pdf = kCosineMixture * wo.z * kInvPi;
-  if (half.valid && dot(wi, half.h) > 0.0f) pdf += (1.0f - kCosineMixture) * lobe_density(dist, alpha_wx, alpha_wy, wi, half.h);
-  return pdf;
+  return smooth_lobe_pdf_with(wi, wo, half,
+                              [&](const Vec3 &h) { return lobe_density(dist, alpha_wx, alpha_wy, wi, h); });
 }
 // The same with Lambda(wi) at the lobe's alpha given (eval_lambdas; isotropic lobe).
 inline float smooth_lobe_pdf_of(mf::Distribution dist, float alpha_w, const Vec3 &wi, const Vec3 &wo,
                                 const HalfVector &half, float lambda_wi) {
-  if (!(wi.z > 0.0f) || !(wo.z > 0.0f)) return 0.0f;
-  float pdf = kCosineMixture * wo.z * kInvPi;
-  if (half.valid && dot(wi, half.h) > 0.0f)
-    pdf += (1.0f - kCosineMixture) * lobe_density_of(dist, alpha_w, alpha_w, wi, half.h, lambda_wi);
-  return pdf;
+  return smooth_lobe_pdf_with(
+      wi, wo, half, [&](const Vec3 &h) { return lobe_density_of(dist, alpha_w, alpha_w, wi, h, lambda_wi); });
 }
 inline float smooth_lobe_pdf(mf::Distribution dist, float alpha_wx, float alpha_wy, const Vec3 &wi, const Vec3 &wo) {
   return smooth_lobe_pdf(dist, alpha_wx, alpha_wy, wi, wo, reflection_half_vector(wi, wo));
