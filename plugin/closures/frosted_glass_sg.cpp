@@ -399,7 +399,8 @@ bool trace_exit_lobe(const ShadingPoint &sp, const SgInputs &in, uint32_t seed, 
     // 5. Russian roulette between the exit (E_x) and the internal reflection (1 - E_x). E_x is averaged over the
     // axis and the bounding rays, each at its own incidence on its own exit normal: the directions of a wide lobe
     // far from its axis reach the exit beyond the critical angle and reflect, which the axis alone does not see.
-    const ExitEnergies energies = exit_energies(*in.table, seg, exit_energy, ior, roughness_exit);
+    // The last event always exits: no roulette, so the bounding rays' energies are not looked up there.
+    const ExitEnergies energies = last ? ExitEnergies{} : exit_energies(*in.table, seg, exit_energy, ior, roughness_exit);
     const float transmitted = last ? exit_energy : energies.mean();
     if (!last && roulette(seed, event) >= transmitted) {
       const float kappa_reflect = 2.0f / std::max(alpha2, 1e-7f);  // NDF sharpness; reflected lobe: kappa / 4
