@@ -83,6 +83,12 @@ struct SlabResult {
   std::vector<Vec3> exits;        // exit directions (when kept)
 };
 
+// Mean and standard error of a flux from its sums over m samples.
+std::pair<double, double> mean_se(double sum, double sum2, double m) {
+  const double mean = sum / m;
+  return {mean, std::sqrt(std::max(0.0, sum2 / m - mean * mean) / m)};
+}
+
 // Per-channel mean of the weights over paths, their channel-0 standard errors.
 struct Tally {
   double sum[2][3] = {{0, 0, 0}, {0, 0, 0}}, sum2[2] = {0, 0};
@@ -99,8 +105,8 @@ struct Tally {
   void finish(long n, SlabResult &r) const {
     r.R = Spectrum(float(sum[0][0] / n), float(sum[0][1] / n), float(sum[0][2] / n));
     r.T = Spectrum(float(sum[1][0] / n), float(sum[1][1] / n), float(sum[1][2] / n));
-    r.se_R = std::sqrt(std::max(0.0, sum2[0] / n - double(r.R.x) * r.R.x) / n);
-    r.se_T = std::sqrt(std::max(0.0, sum2[1] / n - double(r.T.x) * r.T.x) / n);
+    r.se_R = mean_se(sum[0][0], sum2[0], double(n)).second;
+    r.se_T = mean_se(sum[1][0], sum2[1], double(n)).second;
   }
 };
 
@@ -457,13 +463,9 @@ TEST(FrostedGlassThin, EvalIsTheFrontReflectionAndTheWalkIsSingular) {
       t.inconsistent += x.inconsistent;
     }
     const double m = double(n / kBlocks * kBlocks);
-    auto mean_se = [&](double sum, double sum2) {
-      const double mean = sum / m;
-      return std::pair(mean, std::sqrt(std::max(0.0, sum2 / m - mean * mean) / m));
-    };
-    const auto [eR, seR] = mean_se(e[0], e[1]);
-    const auto [eP, seP] = mean_se(e[2], e[3]);
-    const auto [sR, se_sR] = mean_se(t.front, t.front2);
+    const auto [eR, seR] = mean_se(e[0], e[1], m);
+    const auto [eP, seP] = mean_se(e[2], e[3], m);
+    const auto [sR, se_sR] = mean_se(t.front, t.front2, m);
     const double frac = t.smooth / m, se_frac = std::sqrt(frac * (1 - frac) / m) + 1e-6;
     const double near = t.near_side / m, se_near = std::sqrt(near * (1 - near) / m) + 1e-6;
     const double dR = std::fabs(eR - sR) / std::hypot(seR, se_sR), dP = std::fabs(eP - frac) / std::hypot(seP, se_frac);
@@ -571,19 +573,10 @@ Fluxes flux_from(const host::ClosureInstance &pane, const DielectricLobe &energy
   return total;
 }
 
-// Mean and standard error of a flux from its sums over m samples.
-std::pair<double, double> mean_se(double sum, double sum2, double m) {
-  const double mean = sum / m;
-  return {mean, std::sqrt(std::max(0.0, sum2 / m - mean * mean) / m)};
-}
-
 }  // namespace reciprocity
 
 TEST(FrostedGlassThin, ReciprocalUpToTheCompensation) {
   using namespace reciprocity;
-  using glimmer::plugin::DielectricLobe;
-  using glimmer::plugin::MicrofacetLobeParams;
-  using glimmer::plugin::kMultiGgx;
   const std::vector<Cone> cones = {Cone(mftest::direction_from(0.95f, 0.3f)), Cone(mftest::direction_from(0.45f, 3.6f)),
                                    Cone(mftest::direction_from(-0.85f, 3.4f)),
                                    Cone(mftest::direction_from(-0.35f, 0.7f))};
