@@ -620,6 +620,41 @@ bool pane_exit_lobe(const Vec3 &wi, const PaneSgInputs &in, uint32_t seed, PaneE
   return false;
 }
 
+// SgVariant::kPaneWalkMixture (fifteenth session): the exit lobe of the light that crosses the pane without a
+// reflection between the faces (the walk decided that, and its weight): pane_exit_lobe's first event without the
+// roulette, the mixture with the heavy-tail ladder at the far face. The weight is the caller's (the walk's, Beer over
+// its crossing included).
+bool pane_exit_lobe_through(const Vec3 &wi, const PaneSgInputs &in, PaneExitLobe &out) {
+  if (in.table == nullptr || !(wi.z > 0.0f) || !is_finite(wi)) return false;
+  const float ior = in.ior;
+  if (!(ior >= TransmissionSgTable::kIorMin && ior <= TransmissionSgTable::kIorMax)) return false;
+  const float roughness = std::clamp(std::isfinite(in.roughness) ? in.roughness : 0.0f,
+                                     TransmissionSgTable::kRoughnessMin, kTableRoughnessMax);
+  SphericalGaussian front;
+  float front_energy = 0.0f;
+  if (!table_lobe(*in.table, Frame::from_normal(Vec3(0.0f, 0.0f, 1.0f)), wi, ior, roughness, front, front_energy))
+    return false;
+  const Vec3 axis = front.axis, n(0.0f, 0.0f, -1.0f);  // entering: the axis goes down, to the far face
+  if (!(axis.z < 0.0f)) return false;
+  const Segment seg = flat_face_segment(axis, front.sharpness, n);
+  SphericalGaussian exit;
+  float exit_energy = 0.0f;
+  if (!table_lobe(*in.table, Frame::from_normal(-n), -axis, 1.0f / ior, roughness, exit, exit_energy)) return false;
+  const float kappa_geometric = traced_cone_sharpness(seg, refract_out(axis, n, ior), ior);
+  out.sg = exit;
+  out.sg.sharpness = std::clamp(1.0f / (1.0f / exit.sharpness + 1.0f / kappa_geometric), 1e-3f, 1e7f);
+  out.through = true;
+  out.weight = Spectrum(1.0f);
+  ExitLobe mixture;
+  if (!build_exit_mixture(*in.table, seg, axis, front.sharpness, kappa_geometric, ior, roughness,
+                          kDefaultMixtureVariance, 0.0f, mixture))
+    return false;
+  if (in.ladder != nullptr) add_tail_ladder(*in.ladder, mixture);
+  out.lobe_count = mixture.lobe_count;
+  for (int k = 0; k < mixture.lobe_count; ++k) out.lobe[k] = mixture.lobe[k];
+  return is_finite(out.sg.axis) && std::isfinite(out.sg.sharpness);
+}
+
 namespace {
 
 // One singular sample from the pane's exit lobe `exit` (pane frame), moved to the exit face of the same point and
@@ -706,6 +741,13 @@ bool sample_pane_sg_at(const ShadingPoint &sp, const PaneSgInputs &in, const Vec
                        const Spectrum &weight, bool flip, LocalSample &out) {
   PaneExitLobe exit;
   if (!pane_exit_lobe_at(d, in, exit)) return false;
+  return emit_pane_sample(sp, exit, sp.seed_for(rand), weight, flip, out);
+}
+
+bool sample_pane_sg_through(const ShadingPoint &sp, const PaneSgInputs &in, const Vec3 &rand, const Vec3 &wi,
+                            const Spectrum &weight, bool flip, LocalSample &out) {
+  PaneExitLobe exit;
+  if (!pane_exit_lobe_through(wi, in, exit)) return false;
   return emit_pane_sample(sp, exit, sp.seed_for(rand), weight, flip, out);
 }
 

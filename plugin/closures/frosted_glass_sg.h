@@ -73,6 +73,7 @@ enum class SgVariant {
   kMixture,           // the exit as a mixture of lobes, one per traced ray (below); the default up to 0.4
   kMixtureShortTail,  // panes: the tenth session's mixture (a kappa / 4 tail per ray, no PaneTail; the control)
   kPaneWalk,          // panes: the exact walk between the faces, the exit as the leaving table's SG (below)
+  kPaneWalkMixture,   // panes: the exact walk; the exit the mixture when it crossed without reflection (below)
 };
 
 // The exit lobe mixture (SgVariant::kMixture, issue 12): instead of one SG about the axis refracted through the
@@ -273,7 +274,7 @@ struct PaneExitLobe {
 // SG there put 3-7 % too little light through the far face and the wrong shape, band L1 0.31 against 0.07;
 // docs/frosted_glass.md "Rough panes (twelfth session)").
 inline SgVariant default_pane_variant(float roughness) {
-  return roughness <= kMixtureRoughnessMax ? SgVariant::kMixture : SgVariant::kPaneWalk;
+  return roughness <= kMixtureRoughnessMax ? SgVariant::kPaneWalkMixture : SgVariant::kPaneWalk;
 }
 
 // Steps 1-4 for wi (pane frame, wi.z > 0); `seed` drives the Russian roulette. False when the table does not
@@ -295,5 +296,18 @@ bool pane_exit_lobe_at(const Vec3 &d, const PaneSgInputs &in, PaneExitLobe &out)
 // The sample as sample_pane_sg's, from the walk's last internal direction `d`; `weight` = the walk's f cos / pdf.
 bool sample_pane_sg_at(const ShadingPoint &sp, const PaneSgInputs &in, const Vec3 &rand, const Vec3 &d,
                        const Spectrum &weight, bool flip, LocalSample &out);
+
+// Thin panes at roughness <= kMixtureRoughnessMax (SgVariant::kPaneWalkMixture, the default there since the
+// fifteenth session): the walk between the faces is sampled exactly as for kPaneWalk; it decides the face the light
+// leaves through, the weight (Beer over every crossing) and the number of reflections between the faces. Light that
+// crosses without a reflection (most of T) leaves as the kMixture exit lobe of the front SG (per-ray cores + the
+// heavy-tail ladder, fitted to the small light behind a pane); light that reflected between the faces (R_int and the
+// rest of T) as kPaneWalk's, the leaving table's SG at the walk's last internal direction. So the split between T
+// and R_int is the walk's (the mixture's axis roulette had R_int 11-21 % off and T up to 10 % short at 70 deg);
+// docs/frosted_glass.md "Smooth panes: the walk's split (fifteenth session)".
+bool pane_exit_lobe_through(const Vec3 &wi, const PaneSgInputs &in, PaneExitLobe &out);
+// The sample as sample_pane_sg's, `wi` in the pane frame, `weight` = the walk's f cos / pdf (tint included).
+bool sample_pane_sg_through(const ShadingPoint &sp, const PaneSgInputs &in, const Vec3 &rand, const Vec3 &wi,
+                            const Spectrum &weight, bool flip, LocalSample &out);
 
 }  // namespace glimmer::plugin::frosted
