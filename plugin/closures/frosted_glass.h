@@ -12,9 +12,11 @@
 // one SINGULAR sample that the host continues from the exit point; the front
 // reflection stays this rough dielectric lobe. Thin panes: the same estimate
 // between two parallel faces (pane_sample_sg; the light leaves through either
-// face; above roughness 0.4 the walk between the faces is exact and only the
-// leaving crossing is an SG, frosted::default_pane_variant). Paths arriving from inside a solid and cases the estimator cannot
-// handle use path.
+// face; the walk between the faces is exact and only the leaving crossing is
+// an SG: above roughness 0.4 the leaving table's, up to 0.4 the exit mixture for
+// light that crossed without a reflection between the faces,
+// frosted::default_pane_variant). Paths arriving from inside a solid and cases
+// the estimator cannot handle use path.
 // method=auto: sg or path per shading point (auto_picks_sg below): sg where its
 // measured error is small (entry roughness <= kAutoSgRoughnessMax) or where
 // the glass is only seen after a diffuse or glossy bounce (its bias blurred
