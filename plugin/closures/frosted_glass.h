@@ -12,9 +12,11 @@
 // one SINGULAR sample that the host continues from the exit point; the front
 // reflection stays this rough dielectric lobe. Thin panes: the same estimate
 // between two parallel faces (pane_sample_sg; the light leaves through either
-// face; above roughness 0.4 the walk between the faces is exact and only the
-// leaving crossing is an SG, frosted::default_pane_variant). Paths arriving from inside a solid and cases the estimator cannot
-// handle use path.
+// face; the walk between the faces is exact and only the leaving crossing is
+// an SG: above roughness 0.4 the leaving table's, up to 0.4 the exit mixture for
+// light that crossed without a reflection between the faces,
+// frosted::default_pane_variant). Paths arriving from inside a solid and cases
+// the estimator cannot handle use path.
 // method=auto: sg or path per shading point (auto_picks_sg below): sg where its
 // measured error is small (entry roughness <= kAutoSgRoughnessMax) or where
 // the glass is only seen after a diffuse or glossy bounce (its bias blurred
@@ -223,16 +225,23 @@ class FrostedGlassClosure {
     in.variant = variant;
     in.ladder = &ladder;
     if (variant == frosted::SgVariant::kPaneWalk) return pane_sample_sg_walk(sp, lobe, in, rand, s, flip, out);
+    if (variant == frosted::SgVariant::kPaneWalkMixture) return pane_sample_sg_walk(sp, lobe, in, rand, s, flip, out, &wi);
     return frosted::sample_pane_sg(sp, in, rand, s.f_cos / s.pdf * in.tint, flip, out);
   }
-  // SgVariant::kPaneWalk (rough panes): the walk between the faces as pane_sample's (walk_to_exit: the same
-  // numbers), its leaving direction replaced by the exit lobe at the last internal direction
-  // (frosted::sample_pane_sg_at).
+  // SgVariant::kPaneWalk (rough panes) and kPaneWalkMixture (smooth panes): the walk between the faces as
+  // pane_sample's (walk_to_exit: the same numbers), its leaving direction replaced by the exit lobe at the last
+  // internal direction (frosted::sample_pane_sg_at). kPaneWalkMixture (`wi` given, pane frame): light that leaves
+  // through the far face without a reflection between the faces leaves as the mixture with the heavy-tail ladder
+  // (frosted::sample_pane_sg_through) instead.
   bool pane_sample_sg_walk(const ShadingPoint &sp, const DielectricLobe &lobe, const frosted::PaneSgInputs &in,
-                           const Vec3 &rand, const LocalSample &front, bool flip, LocalSample &out) const {
+                           const Vec3 &rand, const LocalSample &front, bool flip, LocalSample &out,
+                           const Vec3 *mixture_wi = nullptr) const {
     Spectrum throughput = front.f_cos / front.pdf * in.tint;
     Vec3 d = front.wo, leaving;
-    if (!walk_to_exit(sp, lobe, rand, d, throughput, leaving)) return false;
+    int reflections = 0;
+    if (!walk_to_exit(sp, lobe, rand, d, throughput, leaving, &reflections)) return false;
+    if (mixture_wi != nullptr && reflections == 0)
+      return frosted::sample_pane_sg_through(sp, in, rand, *mixture_wi, throughput * in.tint, flip, out);
     return frosted::sample_pane_sg_at(sp, in, rand, d, throughput * in.tint, flip, out);
   }
   // For the tests: the interface lobe at sp (per-point roughness and IOR).
@@ -301,7 +310,7 @@ class FrostedGlassClosure {
   // times every crossing's attenuation and f cos / pdf (the tint is the caller's). Its numbers: a WalkRng seeded by
   // (path seed, rand). False: a failed sample, d.z = 0, or no exit within kMaxPaneEvents.
   bool walk_to_exit(const ShadingPoint &sp, const DielectricLobe &lobe, const Vec3 &rand, Vec3 &d,
-                    Spectrum &throughput, Vec3 &leaving) const {
+                    Spectrum &throughput, Vec3 &leaving, int *reflections = nullptr) const {
     mf::WalkRng rng(sp.seed_for(rand));
     LocalSample s;
     for (int event = 0; event < kMaxPaneEvents; ++event) {
@@ -313,6 +322,7 @@ class FrostedGlassClosure {
       const Vec3 next = at_interface(s.wo, bottom);
       if (s.label & GLIMMER_LABEL_TRANSMIT) {
         leaving = next;
+        if (reflections != nullptr) *reflections = event;  // reflections between the faces before leaving
         return true;
       }
       d = next;

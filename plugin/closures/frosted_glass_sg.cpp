@@ -559,19 +559,50 @@ Spectrum beer_transmittance(const Spectrum &sigma_a, float length) {
   return t;
 }
 
+// The front BTDF as an SG (entering, eta = ior) in the pane frame, for wi (pane frame, wi.z > 0); `roughness` the
+// pane's as the table reads it. False when the table does not cover the IOR or a value is not finite.
+bool pane_front_lobe(const Vec3 &wi, const PaneSgInputs &in, float &roughness, SphericalGaussian &front) {
+  if (in.table == nullptr || !(wi.z > 0.0f) || !is_finite(wi)) return false;
+  if (!(in.ior >= TransmissionSgTable::kIorMin && in.ior <= TransmissionSgTable::kIorMax)) return false;
+  roughness = std::clamp(std::isfinite(in.roughness) ? in.roughness : 0.0f, TransmissionSgTable::kRoughnessMin,
+                         kTableRoughnessMax);
+  float energy = 0.0f;
+  return table_lobe(*in.table, Frame::from_normal(Vec3(0.0f, 0.0f, 1.0f)), wi, in.ior, roughness, front, energy);
+}
+
+// The internal lobe (axis, sharpness kappa_in; its bounding directions `seg`) leaves through the face with outward
+// normal n, whose leaving table SG is `exit`: the exit SG convolved with the internal width refracted out (Snell's
+// magnification), and for the mixture variants the exit lobe mixture (kMixtureShortTail: a kappa / 4 tail per ray;
+// kMixture and kPaneWalkMixture: the heavy-tail ladder). Sets sg, through and the lobes; the weight is the caller's.
+bool pane_leave(const PaneSgInputs &in, const Segment &seg, const Vec3 &axis, float kappa_in, const Vec3 &n,
+                const SphericalGaussian &exit, float roughness, PaneExitLobe &out) {
+  const float ior = in.ior;
+  const float kappa_geometric = traced_cone_sharpness(seg, refract_out(axis, n, ior), ior);
+  out.sg = exit;
+  out.sg.sharpness = std::clamp(1.0f / (1.0f / exit.sharpness + 1.0f / kappa_geometric), 1e-3f, 1e7f);
+  out.through = n.z < 0.0f;
+  out.lobe_count = 0;
+  const bool short_tail = in.variant == SgVariant::kMixtureShortTail;
+  if (in.variant == SgVariant::kMixture || in.variant == SgVariant::kPaneWalkMixture || short_tail) {
+    ExitLobe mixture;
+    if (!build_exit_mixture(*in.table, seg, axis, kappa_in, kappa_geometric, ior, roughness,
+                            kDefaultMixtureVariance, short_tail ? mixture_tail_for(roughness) : 0.0f, mixture))
+      return false;
+    if (!short_tail && in.ladder != nullptr) add_tail_ladder(*in.ladder, mixture);
+    out.lobe_count = mixture.lobe_count;
+    for (int k = 0; k < mixture.lobe_count; ++k) out.lobe[k] = mixture.lobe[k];
+  }
+  return true;
+}
+
 }  // namespace
 
 bool pane_exit_lobe(const Vec3 &wi, const PaneSgInputs &in, uint32_t seed, PaneExitLobe &out) {
-  if (in.table == nullptr || !(wi.z > 0.0f) || !is_finite(wi)) return false;
-  const float ior = in.ior;
-  if (!(ior >= TransmissionSgTable::kIorMin && ior <= TransmissionSgTable::kIorMax)) return false;
-  const float roughness = std::clamp(std::isfinite(in.roughness) ? in.roughness : 0.0f,
-                                     TransmissionSgTable::kRoughnessMin, kTableRoughnessMax);
   // 1. The front BTDF as an SG (entering, eta = ior) in the pane frame.
-  const Frame top = Frame::from_normal(Vec3(0.0f, 0.0f, 1.0f));
+  float roughness = 0.0f;
   SphericalGaussian front;
-  float front_energy = 0.0f;
-  if (!table_lobe(*in.table, top, wi, ior, roughness, front, front_energy)) return false;
+  if (!pane_front_lobe(wi, in, roughness, front)) return false;
+  const float ior = in.ior;
   Vec3 axis = front.axis;
   float kappa_in = front.sharpness;
   const float alpha_d = roughness * roughness;
@@ -598,26 +629,35 @@ bool pane_exit_lobe(const Vec3 &wi, const PaneSgInputs &in, uint32_t seed, PaneE
       continue;
     }
     // The spread: the exit SG convolved with the internal width refracted out (Snell's magnification).
-    const float kappa_geometric = traced_cone_sharpness(seg, refract_out(axis, n, ior), ior);
-    out.sg = exit;
-    out.sg.sharpness = std::clamp(1.0f / (1.0f / exit.sharpness + 1.0f / kappa_geometric), 1e-3f, 1e7f);
+    if (!pane_leave(in, seg, axis, kappa_in, n, exit, roughness, out)) return false;
     if (in.variant == SgVariant::kNoExitRefraction) out.sg.axis = axis;
-    out.through = n.z < 0.0f;
     out.weight = weight;
-    out.lobe_count = 0;
-    if (in.variant == SgVariant::kMixture || in.variant == SgVariant::kMixtureShortTail) {
-      ExitLobe mixture;
-      const bool ladder = in.variant == SgVariant::kMixture;
-      if (!build_exit_mixture(*in.table, seg, axis, kappa_in, kappa_geometric, ior, roughness,
-                              kDefaultMixtureVariance, ladder ? 0.0f : mixture_tail_for(roughness), mixture))
-        return false;
-      if (ladder && in.ladder != nullptr) add_tail_ladder(*in.ladder, mixture);
-      out.lobe_count = mixture.lobe_count;
-      for (int k = 0; k < mixture.lobe_count; ++k) out.lobe[k] = mixture.lobe[k];
-    }
     return is_finite(out.sg.axis) && is_finite(out.weight) && std::isfinite(out.sg.sharpness);
   }
   return false;
+}
+
+// SgVariant::kPaneWalkMixture (fifteenth session): the exit lobe of the light that crosses the pane without a
+// reflection between the faces (the walk decided that, and its weight): pane_exit_lobe's first event without the
+// roulette, the mixture with the heavy-tail ladder at the far face. The weight is the caller's (the walk's, Beer over
+// its crossing included).
+bool pane_exit_lobe_through(const Vec3 &wi, const PaneSgInputs &in, PaneExitLobe &out) {
+  float roughness = 0.0f;
+  SphericalGaussian front;
+  if (!pane_front_lobe(wi, in, roughness, front)) return false;
+  const Vec3 axis = front.axis, n(0.0f, 0.0f, -1.0f);  // entering: the axis goes down, to the far face
+  if (!(axis.z < 0.0f)) return false;
+  SphericalGaussian exit;
+  float exit_energy = 0.0f;
+  if (!table_lobe(*in.table, Frame::from_normal(-n), -axis, 1.0f / in.ior, roughness, exit, exit_energy))
+    return false;
+  PaneSgInputs mixture = in;
+  mixture.variant = SgVariant::kPaneWalkMixture;
+  if (!pane_leave(mixture, flat_face_segment(axis, front.sharpness, n), axis, front.sharpness, n, exit, roughness,
+                  out))
+    return false;
+  out.weight = Spectrum(1.0f);
+  return is_finite(out.sg.axis) && std::isfinite(out.sg.sharpness);
 }
 
 namespace {
@@ -706,6 +746,13 @@ bool sample_pane_sg_at(const ShadingPoint &sp, const PaneSgInputs &in, const Vec
                        const Spectrum &weight, bool flip, LocalSample &out) {
   PaneExitLobe exit;
   if (!pane_exit_lobe_at(d, in, exit)) return false;
+  return emit_pane_sample(sp, exit, sp.seed_for(rand), weight, flip, out);
+}
+
+bool sample_pane_sg_through(const ShadingPoint &sp, const PaneSgInputs &in, const Vec3 &rand, const Vec3 &wi,
+                            const Spectrum &weight, bool flip, LocalSample &out) {
+  PaneExitLobe exit;
+  if (!pane_exit_lobe_through(wi, in, exit)) return false;
   return emit_pane_sample(sp, exit, sp.seed_for(rand), weight, flip, out);
 }
 
