@@ -77,6 +77,7 @@
 #include "tables/glint_particles.h"
 #include "tables/glint_peak.h"
 #include "tables/glint_placement.h"
+#include "tables/glint_pseudo_normals.h"
 #include "tables/glint_tables.h"
 
 namespace glimmer::plugin {
@@ -156,7 +157,10 @@ class GlintClosure {
     aniso_spec_ = {field_.distribution, ax, ay, field_.gamma_deg};
     cone_rules_ = glint::AnisoConeRules(gamma_rad_);
     sampling_alpha_unblurred_ = widened_alpha(0.0f);
+    pseudo_normals_ = !anisotropic_ && glint::uses_pseudo_normals(field_.alpha, gamma_rad_);
+    pseudo_ = glint::PseudoNormalField(field_.distribution, field_.alpha, gamma_rad_, field_.seed);
   }
+
 
   void prepare(const GlimmerHostServices *host) {
     if (anisotropic_) {
@@ -234,10 +238,30 @@ class GlintClosure {
     double area;  // fp.area(), computed once
     glint::GlintSite site;
     bool located = false;
+    glint::GlintCount pseudo_count;  // the pseudo-normal count, once counted (pseudo_counted)
+    bool pseudo_counted;             // set by pseudo_normals_dark (read only where pseudo_normal_query)
   };
   void locate(const Vec3 &wi, const Vec3 &wo, float density, Particles &parts) const {
     if (!parts.located) glint::locate_glints(parts.fp, density, cell_keys_, wi, wo, gamma_rad_, parts.site);
     parts.located = true;
+  }
+
+  // Lobes narrower than the cone, unblurred (camera) queries: particles with
+  // their own normals (tables/glint_pseudo_normals.h) instead of the
+  // direction cells.
+  bool pseudo_normal_query(float sigma_deg) const { return pseudo_normals_ && sigma_deg == 0.0f; }
+
+  // The glint count of a footprint at (wi, wo): the pseudo-normal count
+  // where it runs (its tiles fit), else the direction cells' count at P.
+  template <typename Visitor = glint::NoParticleVisitor>
+  glint::GlintCount count_particles(const Vec3 &wi, const Vec3 &wo, float P, float sigma_deg, float density,
+                                    Particles &parts, Visitor &&visit = Visitor{}) const {
+    if (pseudo_normal_query(sigma_deg)) {
+      glint::GlintCount k;
+      if (pseudo_normal_count(wi, wo, density, parts, k, visit)) return k;
+    }
+    locate(wi, wo, density, parts);
+    return glint::count_glints(parts.fp, parts.site, P, kMaxSteps, std::forward<Visitor>(visit));
   }
 
   // The dark test is tried on footprints of at most kDarkTestMaxParticles
@@ -268,6 +292,47 @@ class GlintClosure {
     if (parts.site.nodes.count > kDarkTestMaxNodes) return false;
     const glint::GlintCount k = glint::count_glints(parts.fp, parts.site, P_max, kMaxSteps);
     return k.complete && k.count == 0;
+  }
+
+  // The pseudo-normal count of a footprint (false: the query's tiles do not
+  // fit, the caller counts in the direction cells); out of line, so the
+  // direction cells' path keeps its code (session 15: inlined, glint at
+  // roughness 0.4 took +27 instructions per eval at area 1e-8).
+  template <typename Visitor>
+  [[gnu::noinline]] bool pseudo_normal_count(const Vec3 &wi, const Vec3 &wo, float density, Particles &parts,
+                                             glint::GlintCount &k, Visitor &visit) const {
+    if constexpr (!std::decay_t<Visitor>::kVisitsParticles)
+      if (parts.pseudo_counted) {  // counted by pseudo_normals_dark
+        k = parts.pseudo_count;
+        return true;
+      }
+    glint::PseudoNormalTiles tiles;
+    if (!glint::pseudo_normal_tiles(pseudo_, wi, wo, glint::PseudoNormalField::kMargin, tiles)) return false;
+    glint::footprint_nodes(parts.fp, density, parts.site.nodes);
+    k = glint::count_pseudo_normal_glints(parts.fp, parts.site.nodes, density, pseudo_, tiles, wi, wo, kMaxSteps,
+                                          visit);
+    return true;
+  }
+
+  // The dark test of the pseudo-normal count (unblurred query, lobe
+  // narrower than the cone): where glint mode is certain (N a P_max <=
+  // filter_threshold) the count does not depend on P, so it is done first;
+  // none lit: f = 0 without the table's read; else glint_or_filtered takes
+  // the count (parts.pseudo_count). Any footprint size: the count is needed
+  // anyway.
+  [[gnu::noinline]] bool pseudo_normals_dark(const Vec3 &wi, const Vec3 &wo, const TableCoords &c, float density,
+                                             Particles &parts) const {
+    parts.pseudo_counted = false;
+    if (peak_.empty() || flakes_->varies()) return false;
+    const float P_max = std::min(peak_.bound(c.theta_i, c.theta_o, c.dphi), 1.0f);
+    if (!(static_cast<double>(density) * parts.area * P_max <= threshold_)) return false;
+    glint::PseudoNormalTiles tiles;
+    if (!glint::pseudo_normal_tiles(pseudo_, wi, wo, glint::PseudoNormalField::kMargin, tiles)) return false;
+    glint::footprint_nodes(parts.fp, density, parts.site.nodes);
+    parts.pseudo_count = glint::count_pseudo_normal_glints(parts.fp, parts.site.nodes, density, pseudo_, tiles, wi,
+                                                           wo, kMaxSteps);
+    parts.pseudo_counted = true;
+    return parts.pseudo_count.complete && parts.pseudo_count.count == 0;
   }
 
   // The glint BRDF times cos(wo): equations (2) and (3) at the lookup
@@ -313,10 +378,9 @@ class GlintClosure {
     const double area = parts.area;
     const double expected = static_cast<double>(density) * area * P;
     if (expected > threshold_ || sigma_deg > field_.gamma_deg) return weight * (P / cone_solid_angle_);  // (3)
-    if (flakes_->varies()) return coloured_flakes_f_cos(wi, wo, density, P, weight, parts);
-    // Twinkle: the particles are counted in the direction cells of (wi, wo).
-    locate(wi, wo, density, parts);
-    const glint::GlintCount k = glint::count_glints(parts.fp, parts.site, P, kMaxSteps);
+    if (flakes_->varies()) return coloured_flakes_f_cos(wi, wo, density, P, weight, sigma_deg, parts);
+    // Twinkle: the particles are counted in the direction cells of (wi, wo) (or by their pseudo-normals).
+    const glint::GlintCount k = count_particles(wi, wo, P, sigma_deg, density, parts);
     if (!k.complete) return weight * (P / cone_solid_angle_);  // step cap: the mean (3)
     if (k.count == 0) return Spectrum(0.0f);
     const double scale =
@@ -340,6 +404,7 @@ class GlintClosure {
       pdf = glint::smooth_lobe_pdf(field_.distribution, w.ax, w.ay, sp.wi, wo, h);
       return aniso_f_cos(sp.wi, wo, sigma_deg, density, parts);
     }
+    if (pseudo_normal_query(sigma_deg)) return pseudo_normal_f_cos_and_pdf(sp, wo, w, h, pdf);
     // Below the surface (either side) the pdf and the BRDF are 0 (smooth_lobe_pdf's and glint_f_cos's own tests).
     if (!(sp.wi.z > 0.0f) || !(wo.z > 0.0f)) {
       pdf = 0.0f;
@@ -360,14 +425,37 @@ class GlintClosure {
     return glint_f_cos(sp.wi, wo, at, h, lambdas, sigma_deg, density, parts);
   }
 
+  // f_cos_and_pdf of an unblurred query on a lobe narrower than the cone
+  // (isotropic base): the same steps with the pseudo-normals' dark test
+  // (out of line: the direction cells' path keeps its code).
+  [[gnu::noinline]] Spectrum pseudo_normal_f_cos_and_pdf(const ShadingPoint &sp, const Vec3 &wo, const SamplingLobe &w,
+                                                         const glint::HalfVector &h, float &pdf) const {
+    if (!(sp.wi.z > 0.0f) || !(wo.z > 0.0f)) {
+      pdf = 0.0f;
+      return Spectrum(0.0f);
+    }
+    const float density = sp.param_float(density_param_, field_.density);
+    const TableCoords c = table_coords(sp.wi, wo);
+    Particles parts;  // default-initialised: value-initialising would zero the 1 KB node list
+    parts.fp = glint::placed_footprint(field_, placement_, sp.ctx);
+    parts.area = parts.fp.area();
+    if (pseudo_normals_dark(sp.wi, wo, c, density, parts)) {
+      pdf = glint::smooth_lobe_pdf(field_.distribution, w.ax, w.ay, sp.wi, wo, h);
+      return Spectrum(0.0f);
+    }
+    const TableLookup at = request_table(c, 0.0f);
+    const glint::EvalLambdas lambdas = glint::eval_lambdas(field_.distribution, field_.alpha, w.ax, sp.wi, wo);
+    pdf = glint::smooth_lobe_pdf_of(field_.distribution, w.ax, sp.wi, wo, h, lambdas.wi_lobe);
+    return glint_f_cos(sp.wi, wo, at, h, lambdas, 0.0f, density, parts);
+  }
+
   // Equation (2) with per-flake colours (tables/glint_flake_colour.h): the
   // K counted flakes' Schlick F sum to K F(mean F0 of those flakes); `mean_weight`
   // is W at the palette's mean F0, returned as (3) at the step cap.
   Spectrum coloured_flakes_f_cos(const Vec3 &wi, const Vec3 &wo, float density, float P, const Spectrum &mean_weight,
-                                 Particles &parts) const {
-    locate(wi, wo, density, parts);
+                                 float sigma_deg, Particles &parts) const {
     glint::FlakeColourSum flakes{*flakes_};
-    const glint::GlintCount k = glint::count_glints(parts.fp, parts.site, P, kMaxSteps, flakes);
+    const glint::GlintCount k = count_particles(wi, wo, P, sigma_deg, density, parts, flakes);
     if (!k.complete) return mean_weight * (P / cone_solid_angle_);
     if (k.count == 0) return Spectrum(0.0f);
     Spectrum weight;
@@ -417,6 +505,8 @@ class GlintClosure {
   glint::AnisoSpec aniso_spec_;
   glint::AnisoConeRules cone_rules_;
   std::shared_ptr<const glint::AnisoEnergyTable> energy_;
+  bool pseudo_normals_ = false;  // isotropic lobe narrower than the cone (glint::uses_pseudo_normals)
+  glint::PseudoNormalField pseudo_;
 };
 
 GLIMMER_REGISTER_CLOSURE(GlintClosure)
