@@ -61,6 +61,12 @@
 // sampling uses the anisotropic visible normals widened the same way.
 // roughness_u == roughness_v is the isotropic model exactly.
 //
+// Lobes narrower than the cone (alpha <= 1.5 gamma; tables/glint_pseudo_normals.h):
+// unblurred queries count particles with their own normals (m ~ D cos, lit
+// iff the mirror direction of wi is within gamma of wo) instead of the
+// direction cells, whose nested lit sets cannot follow a lobe narrower than
+// the cone (docs/glints.md, "Pseudo-normals for lobes narrower than the cone").
+//
 // Dark test (speed, exact): in glint mode a small footprint is first counted
 // at a bound P_max >= P (tables/glint_peak.h, L2-resident); no reflecting
 // particle at P_max means none at P (nested lit sets), and the eval returns
@@ -159,6 +165,7 @@ class GlintClosure {
     sampling_alpha_unblurred_ = widened_alpha(0.0f);
     pseudo_normals_ = !anisotropic_ && glint::uses_pseudo_normals(field_.alpha, gamma_rad_);
     pseudo_ = glint::PseudoNormalField(field_.distribution, field_.alpha, gamma_rad_, field_.seed);
+    special_path_ = anisotropic_ || pseudo_normals_;
   }
 
 
@@ -238,8 +245,12 @@ class GlintClosure {
     double area;  // fp.area(), computed once
     glint::GlintSite site;
     bool located = false;
-    glint::GlintCount pseudo_count;  // the pseudo-normal count, once counted (pseudo_counted)
-    bool pseudo_counted;             // set by pseudo_normals_dark (read only where pseudo_normal_query)
+    // The pseudo-normal count once counted (pseudo_counted; set by
+    // pseudo_normals_dark, read only where pseudo_normal_query). Plain
+    // fields, not a GlintCount: its initialisers cost the direction cells'
+    // path ~11 instructions per eval (session 15).
+    int pseudo_count, pseudo_steps;
+    bool pseudo_complete, pseudo_counted;
   };
   void locate(const Vec3 &wi, const Vec3 &wo, float density, Particles &parts) const {
     if (!parts.located) glint::locate_glints(parts.fp, density, cell_keys_, wi, wo, gamma_rad_, parts.site);
@@ -303,7 +314,7 @@ class GlintClosure {
                                              glint::GlintCount &k, Visitor &visit) const {
     if constexpr (!std::decay_t<Visitor>::kVisitsParticles)
       if (parts.pseudo_counted) {  // counted by pseudo_normals_dark
-        k = parts.pseudo_count;
+        k.count = parts.pseudo_count, k.steps = parts.pseudo_steps, k.complete = parts.pseudo_complete;
         return true;
       }
     glint::PseudoNormalTiles tiles;
@@ -329,10 +340,11 @@ class GlintClosure {
     glint::PseudoNormalTiles tiles;
     if (!glint::pseudo_normal_tiles(pseudo_, wi, wo, glint::PseudoNormalField::kMargin, tiles)) return false;
     glint::footprint_nodes(parts.fp, density, parts.site.nodes);
-    parts.pseudo_count = glint::count_pseudo_normal_glints(parts.fp, parts.site.nodes, density, pseudo_, tiles, wi,
-                                                           wo, kMaxSteps);
+    const glint::GlintCount k = glint::count_pseudo_normal_glints(parts.fp, parts.site.nodes, density, pseudo_, tiles,
+                                                                  wi, wo, kMaxSteps);
+    parts.pseudo_count = k.count, parts.pseudo_steps = k.steps, parts.pseudo_complete = k.complete;
     parts.pseudo_counted = true;
-    return parts.pseudo_count.complete && parts.pseudo_count.count == 0;
+    return k.complete && k.count == 0;
   }
 
   // The glint BRDF times cos(wo): equations (2) and (3) at the lookup
@@ -396,15 +408,17 @@ class GlintClosure {
   Spectrum f_cos_and_pdf(const ShadingPoint &sp, const Vec3 &wo, float sigma_deg, const SamplingLobe &w,
                          float &pdf) const {
     const glint::HalfVector h = glint::reflection_half_vector(sp.wi, wo);
-    if (anisotropic_) {
-      const float density = sp.param_float(density_param_, field_.density);
-      Particles parts;  // default-initialised: value-initialising would zero the 1 KB node list
-      parts.fp = glint::placed_footprint(field_, placement_, sp.ctx);
-      parts.area = parts.fp.area();
-      pdf = glint::smooth_lobe_pdf(field_.distribution, w.ax, w.ay, sp.wi, wo, h);
-      return aniso_f_cos(sp.wi, wo, sigma_deg, density, parts);
+    if (special_path_) {  // anisotropic base, or pseudo-normals: one test on the direction cells' path
+      if (anisotropic_) {
+        const float density = sp.param_float(density_param_, field_.density);
+        Particles parts;  // default-initialised: value-initialising would zero the 1 KB node list
+        parts.fp = glint::placed_footprint(field_, placement_, sp.ctx);
+        parts.area = parts.fp.area();
+        pdf = glint::smooth_lobe_pdf(field_.distribution, w.ax, w.ay, sp.wi, wo, h);
+        return aniso_f_cos(sp.wi, wo, sigma_deg, density, parts);
+      }
+      if (pseudo_normal_query(sigma_deg)) return pseudo_normal_f_cos_and_pdf(sp, wo, w, h, pdf);
     }
-    if (pseudo_normal_query(sigma_deg)) return pseudo_normal_f_cos_and_pdf(sp, wo, w, h, pdf);
     // Below the surface (either side) the pdf and the BRDF are 0 (smooth_lobe_pdf's and glint_f_cos's own tests).
     if (!(sp.wi.z > 0.0f) || !(wo.z > 0.0f)) {
       pdf = 0.0f;
@@ -506,6 +520,7 @@ class GlintClosure {
   glint::AnisoConeRules cone_rules_;
   std::shared_ptr<const glint::AnisoEnergyTable> energy_;
   bool pseudo_normals_ = false;  // isotropic lobe narrower than the cone (glint::uses_pseudo_normals)
+  bool special_path_ = false;    // anisotropic_ || pseudo_normals_ (f_cos_and_pdf tests it once)
   glint::PseudoNormalField pseudo_;
 };
 
