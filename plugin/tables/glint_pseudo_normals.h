@@ -52,7 +52,7 @@ inline bool uses_pseudo_normals(float alpha, float gamma_rad) { return alpha <= 
 struct PseudoNormalField {
   static constexpr float kTileInGamma = 1.0f;  // tile side T in the chart, in units of gamma
   static constexpr float kMargin = 1.1f;       // on the lit region's first-order semi-axes
-  static constexpr int kMaxTiles = 192;        // beyond (wi.h < ~0.05, grazing): not used, the caller uses the cells
+  static constexpr int kMaxTiles = 192;        // beyond (wi.h below ~0.02, grazing): not used, the caller uses the cells
   microfacet::Distribution dist = microfacet::Distribution::GGX;
   float alpha = 0.04f;
   float gamma_rad = 0.0349f;
