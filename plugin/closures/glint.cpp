@@ -61,6 +61,12 @@
 // sampling uses the anisotropic visible normals widened the same way.
 // roughness_u == roughness_v is the isotropic model exactly.
 //
+// Lobes narrower than the cone (alpha <= 1.5 gamma; tables/glint_pseudo_normals.h):
+// unblurred queries count particles with their own normals (m ~ D cos, lit
+// iff the mirror direction of wi is within gamma of wo) instead of the
+// direction cells, whose nested lit sets cannot follow a lobe narrower than
+// the cone (docs/glints.md, "Pseudo-normals for lobes narrower than the cone").
+//
 // Dark test (speed, exact): in glint mode a small footprint is first counted
 // at a bound P_max >= P (tables/glint_peak.h, L2-resident); no reflecting
 // particle at P_max means none at P (nested lit sets), and the eval returns
@@ -77,6 +83,7 @@
 #include "tables/glint_particles.h"
 #include "tables/glint_peak.h"
 #include "tables/glint_placement.h"
+#include "tables/glint_pseudo_normals.h"
 #include "tables/glint_tables.h"
 
 namespace glimmer::plugin {
@@ -156,7 +163,11 @@ class GlintClosure {
     aniso_spec_ = {field_.distribution, ax, ay, field_.gamma_deg};
     cone_rules_ = glint::AnisoConeRules(gamma_rad_);
     sampling_alpha_unblurred_ = widened_alpha(0.0f);
+    pseudo_normals_ = !anisotropic_ && glint::uses_pseudo_normals(field_.alpha, gamma_rad_);
+    pseudo_ = glint::PseudoNormalField(field_.distribution, field_.alpha, gamma_rad_, field_.seed);
+    special_path_ = anisotropic_ || pseudo_normals_;
   }
+
 
   void prepare(const GlimmerHostServices *host) {
     if (anisotropic_) {
@@ -234,10 +245,34 @@ class GlintClosure {
     double area;  // fp.area(), computed once
     glint::GlintSite site;
     bool located = false;
+    // The pseudo-normal count once counted (pseudo_counted; set by
+    // pseudo_normals_dark, read only where pseudo_normal_query). Plain
+    // fields, not a GlintCount: its initialisers cost the direction cells'
+    // path ~11 instructions per eval (session 15).
+    int pseudo_count, pseudo_steps;
+    bool pseudo_complete, pseudo_counted;
   };
   void locate(const Vec3 &wi, const Vec3 &wo, float density, Particles &parts) const {
     if (!parts.located) glint::locate_glints(parts.fp, density, cell_keys_, wi, wo, gamma_rad_, parts.site);
     parts.located = true;
+  }
+
+  // Lobes narrower than the cone, unblurred (camera) queries: particles with
+  // their own normals (tables/glint_pseudo_normals.h) instead of the
+  // direction cells.
+  bool pseudo_normal_query(float sigma_deg) const { return pseudo_normals_ && sigma_deg == 0.0f; }
+
+  // The glint count of a footprint at (wi, wo): the pseudo-normal count
+  // where it runs (its tiles fit), else the direction cells' count at P.
+  template <typename Visitor = glint::NoParticleVisitor>
+  glint::GlintCount count_particles(const Vec3 &wi, const Vec3 &wo, float P, float sigma_deg, float density,
+                                    Particles &parts, Visitor &&visit = Visitor{}) const {
+    if (pseudo_normal_query(sigma_deg)) {
+      glint::GlintCount k;
+      if (pseudo_normal_count(wi, wo, density, parts, k, visit)) return k;
+    }
+    locate(wi, wo, density, parts);
+    return glint::count_glints(parts.fp, parts.site, P, kMaxSteps, std::forward<Visitor>(visit));
   }
 
   // The dark test is tried on footprints of at most kDarkTestMaxParticles
@@ -267,6 +302,48 @@ class GlintClosure {
     locate(wi, wo, density, parts);
     if (parts.site.nodes.count > kDarkTestMaxNodes) return false;
     const glint::GlintCount k = glint::count_glints(parts.fp, parts.site, P_max, kMaxSteps);
+    return k.complete && k.count == 0;
+  }
+
+  // The pseudo-normal count of a footprint (false: the query's tiles do not
+  // fit, the caller counts in the direction cells); out of line, so the
+  // direction cells' path keeps its code (session 15: inlined, glint at
+  // roughness 0.4 took +27 instructions per eval at area 1e-8).
+  template <typename Visitor>
+  [[gnu::noinline]] bool pseudo_normal_count(const Vec3 &wi, const Vec3 &wo, float density, Particles &parts,
+                                             glint::GlintCount &k, Visitor &visit) const {
+    if constexpr (!std::decay_t<Visitor>::kVisitsParticles)
+      if (parts.pseudo_counted) {  // counted by pseudo_normals_dark
+        k.count = parts.pseudo_count, k.steps = parts.pseudo_steps, k.complete = parts.pseudo_complete;
+        return true;
+      }
+    glint::PseudoNormalTiles tiles;
+    if (!glint::pseudo_normal_tiles(pseudo_, wi, wo, glint::PseudoNormalField::kMargin, tiles)) return false;
+    glint::footprint_nodes(parts.fp, density, parts.site.nodes);
+    k = glint::count_pseudo_normal_glints(parts.fp, parts.site.nodes, density, pseudo_, tiles, wi, wo, kMaxSteps,
+                                          visit);
+    return true;
+  }
+
+  // The dark test of the pseudo-normal count (unblurred query, lobe
+  // narrower than the cone): where glint mode is certain (N a P_max <=
+  // filter_threshold) the count does not depend on P, so it is done first;
+  // none lit: f = 0 without the table's read; else glint_or_filtered takes
+  // the count (parts.pseudo_count). Any footprint size: the count is needed
+  // anyway.
+  [[gnu::noinline]] bool pseudo_normals_dark(const Vec3 &wi, const Vec3 &wo, const TableCoords &c, float density,
+                                             Particles &parts) const {
+    parts.pseudo_counted = false;
+    if (peak_.empty() || flakes_->varies()) return false;
+    const float P_max = std::min(peak_.bound(c.theta_i, c.theta_o, c.dphi), 1.0f);
+    if (!(static_cast<double>(density) * parts.area * P_max <= threshold_)) return false;
+    glint::PseudoNormalTiles tiles;
+    if (!glint::pseudo_normal_tiles(pseudo_, wi, wo, glint::PseudoNormalField::kMargin, tiles)) return false;
+    glint::footprint_nodes(parts.fp, density, parts.site.nodes);
+    const glint::GlintCount k = glint::count_pseudo_normal_glints(parts.fp, parts.site.nodes, density, pseudo_, tiles,
+                                                                  wi, wo, kMaxSteps);
+    parts.pseudo_count = k.count, parts.pseudo_steps = k.steps, parts.pseudo_complete = k.complete;
+    parts.pseudo_counted = true;
     return k.complete && k.count == 0;
   }
 
@@ -313,10 +390,9 @@ class GlintClosure {
     const double area = parts.area;
     const double expected = static_cast<double>(density) * area * P;
     if (expected > threshold_ || sigma_deg > field_.gamma_deg) return weight * (P / cone_solid_angle_);  // (3)
-    if (flakes_->varies()) return coloured_flakes_f_cos(wi, wo, density, P, weight, parts);
-    // Twinkle: the particles are counted in the direction cells of (wi, wo).
-    locate(wi, wo, density, parts);
-    const glint::GlintCount k = glint::count_glints(parts.fp, parts.site, P, kMaxSteps);
+    if (flakes_->varies()) return coloured_flakes_f_cos(wi, wo, density, P, weight, sigma_deg, parts);
+    // Twinkle: the particles are counted in the direction cells of (wi, wo) (or by their pseudo-normals).
+    const glint::GlintCount k = count_particles(wi, wo, P, sigma_deg, density, parts);
     if (!k.complete) return weight * (P / cone_solid_angle_);  // step cap: the mean (3)
     if (k.count == 0) return Spectrum(0.0f);
     const double scale =
@@ -332,13 +408,16 @@ class GlintClosure {
   Spectrum f_cos_and_pdf(const ShadingPoint &sp, const Vec3 &wo, float sigma_deg, const SamplingLobe &w,
                          float &pdf) const {
     const glint::HalfVector h = glint::reflection_half_vector(sp.wi, wo);
-    if (anisotropic_) {
-      const float density = sp.param_float(density_param_, field_.density);
-      Particles parts;  // default-initialised: value-initialising would zero the 1 KB node list
-      parts.fp = glint::placed_footprint(field_, placement_, sp.ctx);
-      parts.area = parts.fp.area();
-      pdf = glint::smooth_lobe_pdf(field_.distribution, w.ax, w.ay, sp.wi, wo, h);
-      return aniso_f_cos(sp.wi, wo, sigma_deg, density, parts);
+    if (special_path_) {  // anisotropic base, or pseudo-normals: one test on the direction cells' path
+      if (anisotropic_) {
+        const float density = sp.param_float(density_param_, field_.density);
+        Particles parts;  // default-initialised: value-initialising would zero the 1 KB node list
+        parts.fp = glint::placed_footprint(field_, placement_, sp.ctx);
+        parts.area = parts.fp.area();
+        pdf = glint::smooth_lobe_pdf(field_.distribution, w.ax, w.ay, sp.wi, wo, h);
+        return aniso_f_cos(sp.wi, wo, sigma_deg, density, parts);
+      }
+      if (pseudo_normal_query(sigma_deg)) return pseudo_normal_f_cos_and_pdf(sp, wo, w, h, pdf);
     }
     // Below the surface (either side) the pdf and the BRDF are 0 (smooth_lobe_pdf's and glint_f_cos's own tests).
     if (!(sp.wi.z > 0.0f) || !(wo.z > 0.0f)) {
@@ -360,14 +439,37 @@ class GlintClosure {
     return glint_f_cos(sp.wi, wo, at, h, lambdas, sigma_deg, density, parts);
   }
 
+  // f_cos_and_pdf of an unblurred query on a lobe narrower than the cone
+  // (isotropic base): the same steps with the pseudo-normals' dark test
+  // (out of line: the direction cells' path keeps its code).
+  [[gnu::noinline]] Spectrum pseudo_normal_f_cos_and_pdf(const ShadingPoint &sp, const Vec3 &wo, const SamplingLobe &w,
+                                                         const glint::HalfVector &h, float &pdf) const {
+    if (!(sp.wi.z > 0.0f) || !(wo.z > 0.0f)) {
+      pdf = 0.0f;
+      return Spectrum(0.0f);
+    }
+    const float density = sp.param_float(density_param_, field_.density);
+    const TableCoords c = table_coords(sp.wi, wo);
+    Particles parts;  // default-initialised: value-initialising would zero the 1 KB node list
+    parts.fp = glint::placed_footprint(field_, placement_, sp.ctx);
+    parts.area = parts.fp.area();
+    if (pseudo_normals_dark(sp.wi, wo, c, density, parts)) {
+      pdf = glint::smooth_lobe_pdf(field_.distribution, w.ax, w.ay, sp.wi, wo, h);
+      return Spectrum(0.0f);
+    }
+    const TableLookup at = request_table(c, 0.0f);
+    const glint::EvalLambdas lambdas = glint::eval_lambdas(field_.distribution, field_.alpha, w.ax, sp.wi, wo);
+    pdf = glint::smooth_lobe_pdf_of(field_.distribution, w.ax, sp.wi, wo, h, lambdas.wi_lobe);
+    return glint_f_cos(sp.wi, wo, at, h, lambdas, 0.0f, density, parts);
+  }
+
   // Equation (2) with per-flake colours (tables/glint_flake_colour.h): the
   // K counted flakes' Schlick F sum to K F(mean F0 of those flakes); `mean_weight`
   // is W at the palette's mean F0, returned as (3) at the step cap.
   Spectrum coloured_flakes_f_cos(const Vec3 &wi, const Vec3 &wo, float density, float P, const Spectrum &mean_weight,
-                                 Particles &parts) const {
-    locate(wi, wo, density, parts);
+                                 float sigma_deg, Particles &parts) const {
     glint::FlakeColourSum flakes{*flakes_};
-    const glint::GlintCount k = glint::count_glints(parts.fp, parts.site, P, kMaxSteps, flakes);
+    const glint::GlintCount k = count_particles(wi, wo, P, sigma_deg, density, parts, flakes);
     if (!k.complete) return mean_weight * (P / cone_solid_angle_);
     if (k.count == 0) return Spectrum(0.0f);
     Spectrum weight;
@@ -417,6 +519,9 @@ class GlintClosure {
   glint::AnisoSpec aniso_spec_;
   glint::AnisoConeRules cone_rules_;
   std::shared_ptr<const glint::AnisoEnergyTable> energy_;
+  bool pseudo_normals_ = false;  // isotropic lobe narrower than the cone (glint::uses_pseudo_normals)
+  bool special_path_ = false;    // anisotropic_ || pseudo_normals_ (f_cos_and_pdf tests it once)
+  glint::PseudoNormalField pseudo_;
 };
 
 GLIMMER_REGISTER_CLOSURE(GlintClosure)

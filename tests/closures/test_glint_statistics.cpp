@@ -90,9 +90,10 @@ struct Row {
   glint_stats::MeanRatio mean;
 };
 
-// The acceptance lines of issue 10 the model meets (docs/glints.md lists
-// the measured deviation that is not asserted: the lit-set correlation at
-// gamma for roughness 0.2). The mean is asserted on every row (at roughness
+// The acceptance lines of issue 10, every one on every row (the lit-set
+// correlation at gamma at roughness 0.2 since the pseudo-normals of narrow
+// lobes, tables/glint_pseudo_normals.h: 0.23..0.36 against 0.43..0.47
+// before, with the direction cells). The mean is asserted on every row (at roughness
 // 0.2 it was 2.7..6.9 % low before the table integrated P over the cone
 // directly, tables/glint_tables.cpp), and the albedo CV on every row since
 // the split-half estimator (glint_statistics.h, albedo_cv: the former
@@ -102,9 +103,7 @@ void expect_acceptance(const Row &r) {
   EXPECT_NEAR(r.corr[1][0], r.corr[1][1], 0.1) << where << ": lit-set correlation at 2 gamma";
   EXPECT_NEAR(r.corr[2][0], r.corr[2][1], 0.1) << where << ": lit-set correlation at 4 gamma";
   EXPECT_NEAR(r.mean.ratio, 1.0, 0.01 + 3.0 * r.mean.standard_error) << where << ": mean";
-  if (r.cfg.roughness >= 0.5) {
-    EXPECT_NEAR(r.corr[0][0], r.corr[0][1], 0.1) << where << ": lit-set correlation at gamma";
-  }
+  EXPECT_NEAR(r.corr[0][0], r.corr[0][1], 0.1) << where << ": lit-set correlation at gamma";
   EXPECT_LE(r.cv[0], 1.5 * r.cv[1]) << where << ": albedo coefficient of variation";
   EXPECT_GE(r.cv[0], r.cv[1] / 1.5) << where << ": albedo coefficient of variation";
   EXPECT_GE(r.doubling[0].correlation, 0.9) << where << ": count correlation across a level boundary";
