@@ -400,6 +400,13 @@ class GlintClosure {
     return weight * static_cast<float>(scale);  // (2)
   }
 
+  // The footprint the particles are counted over (the placement's parallelogram and its area); the walk fills the
+  // node list.
+  void place_footprint(const ShadingPoint &sp, Particles &parts) const {
+    parts.fp = glint::placed_footprint(field_, placement_, sp.ctx);
+    parts.area = parts.fp.area();
+  }
+
   // f_cos at wo and the pdf of sampling lobe `w` for eval and sample: the
   // dark test first (no table read), else the lookup requested before the
   // pdf is computed, then the BRDF; the half vector h of (wi, wo) computed
@@ -412,8 +419,7 @@ class GlintClosure {
       if (anisotropic_) {
         const float density = sp.param_float(density_param_, field_.density);
         Particles parts;  // default-initialised: value-initialising would zero the 1 KB node list
-        parts.fp = glint::placed_footprint(field_, placement_, sp.ctx);
-        parts.area = parts.fp.area();
+        place_footprint(sp, parts);
         pdf = glint::smooth_lobe_pdf(field_.distribution, w.ax, w.ay, sp.wi, wo, h);
         return aniso_f_cos(sp.wi, wo, sigma_deg, density, parts);
       }
@@ -427,8 +433,7 @@ class GlintClosure {
     const float density = sp.param_float(density_param_, field_.density);
     const TableCoords c = table_coords(sp.wi, wo);
     Particles parts;  // default-initialised: value-initialising would zero the 1 KB node list
-    parts.fp = glint::placed_footprint(field_, placement_, sp.ctx);
-    parts.area = parts.fp.area();
+    place_footprint(sp, parts);
     if (provably_dark(sp.wi, wo, c, sigma_deg, density, parts)) {
       pdf = glint::smooth_lobe_pdf(field_.distribution, w.ax, w.ay, sp.wi, wo, h);  // one Lambda, no W
       return Spectrum(0.0f);
@@ -451,8 +456,7 @@ class GlintClosure {
     const float density = sp.param_float(density_param_, field_.density);
     const TableCoords c = table_coords(sp.wi, wo);
     Particles parts;  // default-initialised: value-initialising would zero the 1 KB node list
-    parts.fp = glint::placed_footprint(field_, placement_, sp.ctx);
-    parts.area = parts.fp.area();
+    place_footprint(sp, parts);
     if (pseudo_normals_dark(sp.wi, wo, c, density, parts)) {
       pdf = glint::smooth_lobe_pdf(field_.distribution, w.ax, w.ay, sp.wi, wo, h);
       return Spectrum(0.0f);

@@ -312,6 +312,14 @@ BandMass band_mass(const FrostedGlassClosure &front, const Sampler &sample, floa
   return out;
 }
 
+// The reference: method=path's exact walk through the pane, its front event the solid closure's first interface.
+BandMass path_band_mass(const FrostedGlassClosure &solid, const PaneConfig &config, float theta_deg, long paths) {
+  auto path = create_pane(config, "path");
+  return band_mass(
+      solid, [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) { return path->sample(sp, r, s); }, theta_deg,
+      paths, 1);
+}
+
 // Relative error of the mass 20-60 deg off axis (bands 4..6), sg vs path; the reference's relative se of it.
 double tail_error(const BandMass &sg, const BandMass &ref) {
   double a = 0.0, r = 0.0;
@@ -422,11 +430,8 @@ TEST(FrostedGlassSgPane, RoughPaneShapeAndEnergyAgainstThePath) {
     for (float ior : {1.33f, 1.5f, 1.7f})
       for (float theta : {0.0f, 40.0f, 70.0f}) {
         const PaneConfig config{roughness, ior};
-        auto path = create_pane(config, "path"), sg = create_pane(config, "sg");
-        auto solid = create_pane(config, "path", false);
-        const BandMass ref = band_mass(
-            *solid, [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) { return path->sample(sp, r, s); },
-            theta, ref_paths, 1);
+        auto sg = create_pane(config, "sg"), solid = create_pane(config, "path", false);
+        const BandMass ref = path_band_mass(*solid, config, theta, ref_paths);
         std::printf("[rough pane] r %.2f ior %.2f theta %2.0f | path T %.4f R_int %.4f |", double(roughness),
                     double(ior), double(theta), ref.total, ref.reflected);
         BandMass est[kEstimators];
@@ -491,11 +496,8 @@ TEST(FrostedGlassSgPane, SmoothPaneShapeAndEnergyAgainstThePath) {
     for (float ior : {1.33f, 1.5f, 1.7f})
       for (float theta : {0.0f, 40.0f, 70.0f}) {
         const PaneConfig config{roughness, ior};
-        auto path = create_pane(config, "path"), sg = create_pane(config, "sg");
-        auto solid = create_pane(config, "path", false);
-        const BandMass ref = band_mass(
-            *solid, [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) { return path->sample(sp, r, s); },
-            theta, ref_paths, 1);
+        auto sg = create_pane(config, "sg"), solid = create_pane(config, "path", false);
+        const BandMass ref = path_band_mass(*solid, config, theta, ref_paths);
         const double se_r = ref.reflected_se / ref.reflected;
         sum_se_r += se_r;
         worst_se_r = std::max(worst_se_r, se_r);
