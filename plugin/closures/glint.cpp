@@ -425,6 +425,24 @@ class GlintClosure {
       }
       if (pseudo_normal_query(sigma_deg)) return pseudo_normal_f_cos_and_pdf(sp, wo, w, h, pdf);
     }
+    return counted_f_cos_and_pdf<false>(sp, wo, sigma_deg, w, h, pdf);
+  }
+
+  // f_cos_and_pdf of an unblurred query on a lobe narrower than the cone
+  // (isotropic base): the same steps with the pseudo-normals' dark test
+  // (out of line: the direction cells' path keeps its code).
+  [[gnu::noinline]] Spectrum pseudo_normal_f_cos_and_pdf(const ShadingPoint &sp, const Vec3 &wo, const SamplingLobe &w,
+                                                         const glint::HalfVector &h, float &pdf) const {
+    return counted_f_cos_and_pdf<true>(sp, wo, 0.0f, w, h, pdf);
+  }
+
+  // The counted BRDF and its pdf (isotropic base): the dark test first (the
+  // pseudo-normals' or the direction cells'), else the table lookup, the
+  // packed Lambdas, the pdf and the weight.
+  template <bool kPseudoNormals>
+  [[gnu::always_inline]] Spectrum counted_f_cos_and_pdf(const ShadingPoint &sp, const Vec3 &wo, float sigma_deg,
+                                                        const SamplingLobe &w, const glint::HalfVector &h,
+                                                        float &pdf) const {
     // Below the surface (either side) the pdf and the BRDF are 0 (smooth_lobe_pdf's and glint_f_cos's own tests).
     if (!(sp.wi.z > 0.0f) || !(wo.z > 0.0f)) {
       pdf = 0.0f;
@@ -434,7 +452,9 @@ class GlintClosure {
     const TableCoords c = table_coords(sp.wi, wo);
     Particles parts;  // default-initialised: value-initialising would zero the 1 KB node list
     place_footprint(sp, parts);
-    if (provably_dark(sp.wi, wo, c, sigma_deg, density, parts)) {
+    const bool dark = kPseudoNormals ? pseudo_normals_dark(sp.wi, wo, c, density, parts)
+                                     : provably_dark(sp.wi, wo, c, sigma_deg, density, parts);
+    if (dark) {
       pdf = glint::smooth_lobe_pdf(field_.distribution, w.ax, w.ay, sp.wi, wo, h);  // one Lambda, no W
       return Spectrum(0.0f);
     }
@@ -442,29 +462,6 @@ class GlintClosure {
     const glint::EvalLambdas lambdas = glint::eval_lambdas(field_.distribution, field_.alpha, w.ax, sp.wi, wo);
     pdf = glint::smooth_lobe_pdf_of(field_.distribution, w.ax, sp.wi, wo, h, lambdas.wi_lobe);
     return glint_f_cos(sp.wi, wo, at, h, lambdas, sigma_deg, density, parts);
-  }
-
-  // f_cos_and_pdf of an unblurred query on a lobe narrower than the cone
-  // (isotropic base): the same steps with the pseudo-normals' dark test
-  // (out of line: the direction cells' path keeps its code).
-  [[gnu::noinline]] Spectrum pseudo_normal_f_cos_and_pdf(const ShadingPoint &sp, const Vec3 &wo, const SamplingLobe &w,
-                                                         const glint::HalfVector &h, float &pdf) const {
-    if (!(sp.wi.z > 0.0f) || !(wo.z > 0.0f)) {
-      pdf = 0.0f;
-      return Spectrum(0.0f);
-    }
-    const float density = sp.param_float(density_param_, field_.density);
-    const TableCoords c = table_coords(sp.wi, wo);
-    Particles parts;  // default-initialised: value-initialising would zero the 1 KB node list
-    place_footprint(sp, parts);
-    if (pseudo_normals_dark(sp.wi, wo, c, density, parts)) {
-      pdf = glint::smooth_lobe_pdf(field_.distribution, w.ax, w.ay, sp.wi, wo, h);
-      return Spectrum(0.0f);
-    }
-    const TableLookup at = request_table(c, 0.0f);
-    const glint::EvalLambdas lambdas = glint::eval_lambdas(field_.distribution, field_.alpha, w.ax, sp.wi, wo);
-    pdf = glint::smooth_lobe_pdf_of(field_.distribution, w.ax, sp.wi, wo, h, lambdas.wi_lobe);
-    return glint_f_cos(sp.wi, wo, at, h, lambdas, 0.0f, density, parts);
   }
 
   // Equation (2) with per-flake colours (tables/glint_flake_colour.h): the

@@ -589,18 +589,6 @@ struct LitCountBounds {
   }
 };
 
-// K of the node whose lit-count hash is h0 (u = its midpoint in (0, 1)): the
-// bounds where they decide, else the exact tail walk (the model, with its
-// exp, built at the first undecided node of a query). -1: walk refused.
-[[gnu::always_inline]] inline int64_t node_lit_count(uint32_t h0, const LitCountBounds &bounds,
-                                                     std::optional<LitCountModel> &model, double lambda) {
-  const double u = (static_cast<double>(h0) + 0.5) * (1.0 / 4294967296.0);
-  const int64_t K = bounds.lit(u);
-  if (K != LitCountBounds::kUndecided) return K;
-  if (!model) model.emplace(lambda);
-  return u < model->p_any ? model->lit(u) : 0;
-}
-
 // The footprint's parallelogram coordinates (s, t), inside when |s|, |t| <=
 // 1/2, are affine in the position; over a node of side `size` at (x0, y0)
 // they are (s, t) = origin + u_x d_ux + u_y d_uy for the position
@@ -824,7 +812,12 @@ inline GlintCount count_four_groups_in_passes(const FootprintFrame &frame, const
   int64_t steps = 0;
   for (int p = 0; p < n_pairs; ++p) {  // (3)
     const uint32_t h0 = pc.pair_hash[static_cast<size_t>(p)];
-    const int64_t K = node_lit_count(h0, bounds, model, lambda);
+    const double u = (static_cast<double>(h0) + 0.5) * (1.0 / 4294967296.0);
+    int64_t K = bounds.lit(u);
+    if (K == LitCountBounds::kUndecided) {
+      if (!model) model.emplace(lambda);
+      K = u < model->p_any ? model->lit(u) : 0;
+    }
     steps += K;
     if (K < 0 || steps > max_steps) return {0, 0, false};
     pc.add_lit(pc.pair_node[static_cast<size_t>(p)], h0, K);
@@ -882,7 +875,12 @@ inline GlintCount count_reflecting_particles(const Footprint &f, const NodeList 
     FootprintFrame::NodeOrigin origin{};
     for (; maybe_lit != 0; maybe_lit &= maybe_lit - 1) {
       const uint32_t h0 = hashes[static_cast<size_t>(std::countr_zero(maybe_lit))];
-      const int64_t K = node_lit_count(h0, bounds, model, lambda);
+      const double u = (static_cast<double>(h0) + 0.5) * (1.0 / 4294967296.0);
+      int64_t K = bounds.lit(u);
+      if (K == LitCountBounds::kUndecided) {
+        if (!model) model.emplace(lambda);
+        K = u < model->p_any ? model->lit(u) : 0;
+      }
       if (K == 0) continue;
       if (K < 0 || result.steps + K > max_steps) {
         result.complete = false;
