@@ -168,7 +168,6 @@ class GlintClosure {
     special_path_ = anisotropic_ || pseudo_normals_;
   }
 
-
   void prepare(const GlimmerHostServices *host) {
     if (anisotropic_) {
       energy_ = glint::acquire_aniso_energy(aniso_spec_, host);
@@ -337,11 +336,9 @@ class GlintClosure {
     if (peak_.empty() || flakes_->varies()) return false;
     const float P_max = std::min(peak_.bound(c.theta_i, c.theta_o, c.dphi), 1.0f);
     if (!(static_cast<double>(density) * parts.area * P_max <= threshold_)) return false;
-    glint::PseudoNormalTiles tiles;
-    if (!glint::pseudo_normal_tiles(pseudo_, wi, wo, glint::PseudoNormalField::kMargin, tiles)) return false;
-    glint::footprint_nodes(parts.fp, density, parts.site.nodes);
-    const glint::GlintCount k = glint::count_pseudo_normal_glints(parts.fp, parts.site.nodes, density, pseudo_, tiles,
-                                                                  wi, wo, kMaxSteps);
+    glint::GlintCount k;
+    glint::NoParticleVisitor no_visit;
+    if (!pseudo_normal_count(wi, wo, density, parts, k, no_visit)) return false;
     parts.pseudo_count = k.count, parts.pseudo_steps = k.steps, parts.pseudo_complete = k.complete;
     parts.pseudo_counted = true;
     return k.complete && k.count == 0;
