@@ -98,13 +98,7 @@ inline constexpr uint32_t kNormalKey = 0x165667b1u;
 struct PseudoNormalDraw {
   float ux, uy, w;
 };
-inline PseudoNormalDraw pseudo_normal_draw(uint32_t h0, uint32_t k) {
-  const uint32_t key = (h0 ^ kNormalKey) + (2u * k + 1u) * kNodeKeyStep;
-  const uint32_t a = mix_u32(key), b = mix_u32(key + kNodeKeyStep);
-  return {(static_cast<float>(a & 0xffffu) + 0.5f) * (1.0f / 65536.0f),
-          (static_cast<float>(a >> 16) + 0.5f) * (1.0f / 65536.0f), uint_to_unit_float(b)};
-}
-// The same uniforms apart (the reflection-first order draws the thinning
+// The uniforms one at a time (the reflection-first order draws the thinning
 // uniform only for candidates that reflect into the cone).
 inline uint32_t pseudo_normal_key(uint32_t h0, uint32_t k) { return (h0 ^ kNormalKey) + (2u * k + 1u) * kNodeKeyStep; }
 inline std::array<float, 2> pseudo_normal_chart_uniforms(uint32_t key) {
@@ -112,6 +106,19 @@ inline std::array<float, 2> pseudo_normal_chart_uniforms(uint32_t key) {
   return {(static_cast<float>(a & 0xffffu) + 0.5f) * (1.0f / 65536.0f), (static_cast<float>(a >> 16) + 0.5f) * (1.0f / 65536.0f)};
 }
 inline float pseudo_normal_thinning_uniform(uint32_t key) { return uint_to_unit_float(mix_u32(key + kNodeKeyStep)); }
+inline PseudoNormalDraw pseudo_normal_draw(uint32_t h0, uint32_t k) {
+  const uint32_t key = pseudo_normal_key(h0, k);
+  const auto [ux, uy] = pseudo_normal_chart_uniforms(key);
+  return {ux, uy, pseudo_normal_thinning_uniform(key)};
+}
+// Whether the pseudo-normal at chart point (mx, my) reflects wi into the cone
+// of half-angle gamma around wo.
+[[gnu::always_inline]] inline bool pseudo_normal_reflects_into_cone(float mx, float my, const Vec3 &wi, const Vec3 &wo, float cos_gamma) {
+  const Vec3 m = PseudoNormalField::chart_normal(mx, my);
+  const float wim = dot(wi, m);
+  const Vec3 r = (2.0f * wim) * m - wi;
+  return wim > 0.0f && dot(r, wo) >= cos_gamma;
+}
 
 // The tiles a query visits: rows ty0..ty1 of the chart, row r holding tiles
 // tx0[r]..tx1[r] (the lit region's ellipse rasterised row by row, each row's
@@ -238,18 +245,12 @@ template <bool kPositionFirst, typename Visitor>
             const PseudoNormalDraw d = pseudo_normal_draw(h0, kk);
             const float mx = x0 + d.ux * field.tile, my = y0 + d.uy * field.tile;
             if (!(d.w * g_max < field.chart_density(mx, my))) continue;  // thinned
-            const Vec3 m = PseudoNormalField::chart_normal(mx, my);
-            const float wim = dot(wi, m);
-            const Vec3 r = (2.0f * wim) * m - wi;
-            if (!(wim > 0.0f) || !(dot(r, wo) >= field.cos_gamma)) continue;
+            if (!pseudo_normal_reflects_into_cone(mx, my, wi, wo, field.cos_gamma)) continue;
           } else {  // the reflection first (one hash), then the position and the thinning
             const uint32_t key = pseudo_normal_key(h0, kk);
             const auto [cu, cv] = pseudo_normal_chart_uniforms(key);
             const float mx = x0 + cu * field.tile, my = y0 + cv * field.tile;
-            const Vec3 m = PseudoNormalField::chart_normal(mx, my);
-            const float wim = dot(wi, m);
-            const Vec3 r = (2.0f * wim) * m - wi;
-            if (!(wim > 0.0f) || !(dot(r, wo) >= field.cos_gamma)) continue;
+            if (!pseudo_normal_reflects_into_cone(mx, my, wi, wo, field.cos_gamma)) continue;
             if (!in) {
               const auto [ux, uy] = particle_position(h0, kk);
               if (!frame.particle_inside(o, ux, uy)) continue;
