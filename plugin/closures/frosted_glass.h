@@ -37,10 +37,14 @@
 //    two interfaces (lateral offset ignored): sample() walks it (weight =
 //    product of f cos / pdf of each event, absorption exp(-sigma thickness /
 //    |cos|) per crossing) and returns it as one SINGULAR sample; eval() is the
-//    front interface's reflection alone (deterministic, light-sampled), so
-//    the host never light-samples through the pane (a one-walk estimate of
-//    f there had rare huge values: MIS 27x noisier than BSDF sampling on a
-//    world-lit pane). A transmitted sample keeps eta = 1.
+//    front interface's reflection alone (deterministic, light-sampled): a
+//    one-walk estimate of f through the pane at the entry had rare huge
+//    values (MIS 27x noisier than BSDF sampling on a world-lit pane). Since
+//    ABI 2.8 method=path's walk sample hands the host the state of its last
+//    interface (PaneExitState, eval_exit), so the host light-samples through
+//    that interface at the shading point with MIS, unbiased by the 1 / P_T
+//    factor the state carries (docs/frosted_glass.md "Light sampling at a
+//    pane's exit"). A transmitted sample keeps eta = 1.
 //
 // colour tints transmitted light at each interface crossing (a solid object
 // or a pane seen through gives colour^2; reflections stay white).

@@ -16,7 +16,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-const std::string kHostVersion = host::abi_version_name(GLIMMER_ABI_VERSION);  // "2.7"
+const std::string kHostVersion = host::abi_version_name(GLIMMER_ABI_VERSION);  // "2.8"
 
 TEST(PluginLoading, LoadsTheClosureDso) {
   const auto library = host::PluginLibrary::load(GLIMMER_TEST_PLUGIN_PATH);
