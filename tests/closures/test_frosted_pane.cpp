@@ -666,9 +666,13 @@ TEST(FrostedGlassThin, ReciprocalUpToTheCompensation) {
 //    the near side), E[Int eval_exit(w) g(w) dw] over the walk samples = E[weight g(wo)] (the BSDF estimator of
 //    the same integral): the paired differences within 4 standard errors of 0 (the integral by importance
 //    sampling about wo, a mixture of three vMFs and the uniform sphere);
-//  - the pdf is the unconditional density: E[T Int pdf_T(d, w) dw] = 1 within 4 se.
-// Negative control: without T (a state weight W, i.e. no 1 / P_T) the first two are rejected (> 4 se) wherever the
-// pane traps light (60 degrees, and every roughness at normal incidence through its internal reflections).
+//  - the pdf is the unconditional density: E[T Int pdf_T(d, w) dw] = 1 within 4 se;
+//  - the exit direction given the state: the histogram of the samples' wo (12 x 12 cells of cos theta and phi)
+//    against E_c = sum over the states of T Int_c pdf_T(d, w) dw, chi2 with the expected counts' own Monte Carlo
+//    variance (conservative: the two are positively correlated), (chi2 - dof) / sqrt(2 dof) < 4.
+// Negative control: without T (a state weight W, i.e. no 1 / P_T) the first three are rejected (> 4 se / z > 4)
+// wherever the pane traps light (60 degrees, and every roughness at normal incidence through its internal
+// reflections; the chi2 where more than 5 % of the walks have T > 1).
 struct VmfMix {
   // q(w) = 0.1 uniform + 0.3 each vMF(mu, kappa_k), kappa 10 / 100 / 1000.
   static constexpr float kKappa[3] = {10.0f, 100.0f, 1000.0f};
@@ -702,6 +706,16 @@ TEST(FrostedGlassThin, EvalExitIsTheWalksLastInterfaceWithItsLeavingProbability)
   // per block: [0..2] paired differences (LHS - RHS) for g0..g2 and their squares [3..5]; [6..8] the same without
   // T (control); [9..11]; [12] T Int pdf, [13] its square; [14] Int pdf (control), [15] its square.
   constexpr int kAcc = 16;
+  // The exit direction given the state: the histogram of the samples' wo over (cos theta, phi) cells against the
+  // expected counts E_c = sum over states of T Int_c pdf_T(d, w) dw (the same importance-sampled directions), with
+  // their own Monte Carlo variance V_c: chi2 = sum_c (O_c - E_c)^2 / (E_c + V_c) over the cells with E_c >= 20.
+  constexpr int kCosCells = 12, kPhiCells = 12, kCells = kCosCells * kPhiCells;
+  const auto cell_of = [&](const Vec3 &w) {
+    const int i = std::clamp(int((w.z + 1.0f) * 0.5f * kCosCells), 0, kCosCells - 1);
+    const float phi = std::atan2(w.y, w.x) + float(M_PI);
+    return i * kPhiCells + std::clamp(int(phi / float(2.0 * M_PI) * kPhiCells), 0, kPhiCells - 1);
+  };
+  double worst_chi2_z = 0.0, control_min_chi2_z = 1e30;
   double worst_z = 0.0, worst_pdf_z = 0.0, control_min_z = 1e30;
   for (float rough : {0.1f, 0.3f, 0.6f}) {
     for (float deg : {0.0f, 60.0f}) {
@@ -710,6 +724,8 @@ TEST(FrostedGlassThin, EvalExitIsTheWalksLastInterfaceWithItsLeavingProbability)
                                                  "thickness=0.2"});
       const Vec3 wi = mftest::direction_from(std::cos(deg * float(M_PI) / 180.0f), 0.3f);
       std::vector<std::array<double, kAcc>> acc(kBlocks, std::array<double, kAcc>{});
+      // per block and cell: observed count, expected (with T, without T: control) and their squares per state
+      std::vector<std::array<std::array<double, 5>, kCells>> cells(kBlocks);
       std::vector<long> walks(kBlocks, 0), missing(kBlocks, 0), bad_ratio(kBlocks, 0), multi(kBlocks, 0),
           most(kBlocks, 0);
       tbb::parallel_for(long(0), kBlocks, [&](long b) {
@@ -746,6 +762,8 @@ TEST(FrostedGlassThin, EvalExitIsTheWalksLastInterfaceWithItsLeavingProbability)
           if (trials > 1.0) ++multi[b];
           most[b] = std::max(most[b], long(trials));
           double lhs[3] = {0, 0, 0}, pdf_integral = 0.0;
+          std::array<double, kCells> mine{};  // this state's T Int_c pdf
+          int touched[kDirs];
           for (int i = 0; i < kDirs; ++i) {
             const Vec3 w = VmfMix::sample(wo, rng);
             const double q = VmfMix::pdf(wo, w);
@@ -754,6 +772,18 @@ TEST(FrostedGlassThin, EvalExitIsTheWalksLastInterfaceWithItsLeavingProbability)
             pane->eval_exit(ctx, state, w, fw, pw);
             for (int j = 0; j < 3; ++j) lhs[j] += double(fw.x) * g(j, w) / q / kDirs;
             pdf_integral += double(pw) / q / kDirs;
+            touched[i] = cell_of(w);
+            mine[touched[i]] += trials * double(pw) / q / kDirs;
+          }
+          cells[b][cell_of(wo)][0] += 1.0;
+          for (int i = 0; i < kDirs; ++i) {
+            const int c = touched[i];
+            if (mine[c] == 0.0) continue;  // counted already (or no density)
+            cells[b][c][1] += mine[c];
+            cells[b][c][2] += mine[c] * mine[c];
+            cells[b][c][3] += mine[c] / trials;
+            cells[b][c][4] += mine[c] * mine[c] / (trials * trials);
+            mine[c] = 0.0;
           }
           for (int j = 0; j < 3; ++j) {
             const double rhs = double(weight.x) * g(j, wo);
@@ -798,8 +828,39 @@ TEST(FrostedGlassThin, EvalExitIsTheWalksLastInterfaceWithItsLeavingProbability)
       control_min_z = std::min(control_min_z, std::max(std::fabs(z_of(6, 0)), std::fabs(z_of(14, 1))));
       EXPECT_GT(std::fabs(z_of(6, 0)), 4.0) << "control: without the trials the exit's light is not unbiased";
       EXPECT_GT(std::fabs(z_of(14, 1)), 4.0) << "control: Int pdf alone is P_T, not 1";
+      double chi2 = 0.0, chi2_control = 0.0;
+      int dof = 0, dof_control = 0;
+      for (int c = 0; c < kCells; ++c) {
+        double o = 0.0, e = 0.0, e2 = 0.0, ec = 0.0, ec2 = 0.0;
+        for (long b = 0; b < kBlocks; ++b) {
+          o += cells[b][c][0];
+          e += cells[b][c][1];
+          e2 += cells[b][c][2];
+          ec += cells[b][c][3];
+          ec2 += cells[b][c][4];
+        }
+        const double v = std::max(0.0, e2 - e * e / double(m)), vc = std::max(0.0, ec2 - ec * ec / double(m));
+        if (e >= 20.0) {
+          chi2 += (o - e) * (o - e) / (e + v);
+          ++dof;
+        }
+        if (ec >= 20.0) {
+          chi2_control += (o - ec) * (o - ec) / (ec + vc);
+          ++dof_control;
+        }
+      }
+      const double chi2_z = (chi2 - dof) / std::sqrt(2.0 * dof),
+                   control_z = (chi2_control - dof_control) / std::sqrt(2.0 * dof_control);
+      std::printf("[frosted pane exit]   exit direction given the state: chi2 %.1f over %d cells (z %+.2f); control "
+                  "(no T) %.1f over %d (z %+.2f)\n", chi2, dof, chi2_z, chi2_control, dof_control, control_z);
+      worst_chi2_z = std::max(worst_chi2_z, chi2_z);
+      control_min_chi2_z = std::min(control_min_chi2_z, control_z);
+      EXPECT_LT(chi2_z, 4.0);
+      // The control needs walks whose T is not 1 (at roughness 0.1 head-on 4 % of them: z 4.96 there).
+      if (many > m / 20) EXPECT_GT(control_z, 4.0) << "control: the exit directions against pdf_T without T";
     }
   }
-  std::printf("[frosted pane exit] worst |z| %.2f (integrals), %.2f (T Int pdf); control min |z| %.2f\n", worst_z,
-              worst_pdf_z, control_min_z);
+  std::printf("[frosted pane exit] worst |z| %.2f (integrals), %.2f (T Int pdf); control min |z| %.2f; exit direction "
+              "chi2 worst z %+.2f, control (no T) min z %+.2f\n", worst_z, worst_pdf_z, control_min_z, worst_chi2_z,
+              control_min_chi2_z);
 }
