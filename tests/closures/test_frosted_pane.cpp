@@ -653,6 +653,8 @@ TEST(FrostedGlassThin, ReciprocalUpToTheCompensation) {
 
 }  // namespace
 
+namespace {
+
 // ---- ABI 2.8: light sampling at the pane's exit (sixteenth session) ----------------------------------------------
 // method=path's pane hands the host, with its singular walk sample, the state of the walk's last interface
 // (GLIMMER_SAMPLE_EXIT_STATE) and eval_exit(state, w) = W T f_T(d, w) cos, pdf_T(d, w): W the walk's weight up to
@@ -694,173 +696,166 @@ struct VmfMix {
   }
 };
 
-TEST(FrostedGlassThin, EvalExitIsTheWalksLastInterfaceWithItsLeavingProbability) {
-  const long n = 1 << 16;
-  constexpr int kDirs = 16;
-  const Vec3 axis = normalize(Vec3(0.4f, 0.1f, -1.0f));  // g1: a smooth lobe on the far side, off its axis
-  const auto g = [&](int j, const Vec3 &w) -> double {
-    if (j == 0) return 1.0;
-    if (j == 1) return std::exp(6.0 * (double(dot(w, axis)) - 1.0));
-    return w.z > 0.0f ? 1.0 : 0.0;  // the near side: exits back through the entry face
-  };
-  // per block: [0..2] paired differences (LHS - RHS) for g0..g2 and their squares [3..5]; [6..8] the same without
-  // T (control); [9..11]; [12] T Int pdf, [13] its square; [14] Int pdf (control), [15] its square.
-  constexpr int kAcc = 16;
-  // The exit direction given the state: the histogram of the samples' wo over (cos theta, phi) cells against the
-  // expected counts E_c = sum over states of T Int_c pdf_T(d, w) dw (the same importance-sampled directions), with
-  // their own Monte Carlo variance V_c: chi2 = sum_c (O_c - E_c)^2 / (E_c + V_c) over the cells with E_c >= 20.
-  constexpr int kCosCells = 12, kPhiCells = 12, kCells = kCosCells * kPhiCells;
-  const auto cell_of = [&](const Vec3 &w) {
+// One pane's tallies over its walk samples (per block, summed after).
+struct ExitTally {
+  static constexpr int kCosCells = 12, kPhiCells = 12, kCells = kCosCells * kPhiCells;
+  // [0..2] paired differences LHS - RHS for g0..g2, [3..5] their squares; [6..11] the same without T (control);
+  // [12] T Int pdf, [13] its square; [14] Int pdf (control), [15] its square.
+  std::array<double, 16> acc{};
+  // per cell: observed count, expected with T and its per-state square, the same without T
+  std::array<std::array<double, 5>, kCells> cells{};
+  long walks = 0, missing = 0, bad_ratio = 0, multi = 0, largest = 0;
+
+  static int cell_of(const Vec3 &w) {
     const int i = std::clamp(int((w.z + 1.0f) * 0.5f * kCosCells), 0, kCosCells - 1);
     const float phi = std::atan2(w.y, w.x) + float(M_PI);
     return i * kPhiCells + std::clamp(int(phi / float(2.0 * M_PI) * kPhiCells), 0, kPhiCells - 1);
-  };
-  double worst_chi2_z = 0.0, control_min_chi2_z = 1e30;
-  double worst_z = 0.0, worst_pdf_z = 0.0, control_min_z = 1e30;
+  }
+  static double g(int j, const Vec3 &w) {  // the test functions
+    if (j == 0) return 1.0;
+    if (j == 1) return std::exp(6.0 * (double(dot(w, normalize(Vec3(0.4f, 0.1f, -1.0f)))) - 1.0));  // far side
+    return w.z > 0.0f ? 1.0 : 0.0;  // the near side: exits back through the entry face
+  }
+  void add(const ExitTally &o) {
+    for (size_t j = 0; j < acc.size(); ++j) acc[j] += o.acc[j];
+    for (int c = 0; c < kCells; ++c)
+      for (int k = 0; k < 5; ++k) cells[c][k] += o.cells[c][k];
+    walks += o.walks, missing += o.missing, bad_ratio += o.bad_ratio, multi += o.multi;
+    largest = std::max(largest, o.largest);
+  }
+
+  // One sample of the pane at ctx through the C ABI.
+  void sample(const host::ClosureInstance &pane, const GlimmerShadingContext &ctx, Pcg32 &rng) {
+    constexpr int kDirs = 16;
+    const float u[3] = {rng.next_float(), rng.next_float(), rng.next_float()};
+    GlimmerSample s{};
+    s.struct_size = sizeof(GlimmerSample);
+    GlimmerExitState state{};
+    s.exit_state = &state;
+    if (!(pane.sample(ctx, u, s) & GLIMMER_LABEL_SINGULAR)) return;  // none, or the front reflection
+    const Spectrum weight(s.eval[0], s.eval[1], s.eval[2]);
+    const Vec3 wo(s.wo);
+    if (!(std::min({weight.x, weight.y, weight.z}) > 1e-30f)) return;  // absorbed (Beer) or denormal
+    ++walks;
+    if (!(s.flags & GLIMMER_SAMPLE_EXIT_STATE)) {
+      ++missing;
+      return;
+    }
+    Spectrum f;
+    float pdf;
+    pane.eval_exit(ctx, state, wo, f, pdf);
+    const double trials = pdf > 0.0f ? std::round(double(f.x) / pdf / weight.x) : 0.0;
+    bool ok = trials >= 1.0;
+    for (int c = 0; c < 3; ++c) ok = ok && std::fabs(double(f[c]) / pdf / weight[c] - trials) < 1e-3 * trials;
+    if (!ok) {
+      ++bad_ratio;
+      return;
+    }
+    multi += trials > 1.0 ? 1 : 0;
+    largest = std::max(largest, long(trials));
+    double lhs[3] = {0, 0, 0}, pdf_integral = 0.0;
+    std::array<double, kCells> mine{};  // this state's T Int_c pdf
+    int touched[kDirs];
+    for (int i = 0; i < kDirs; ++i) {
+      const Vec3 w = VmfMix::sample(wo, rng);
+      const double q = VmfMix::pdf(wo, w);
+      Spectrum fw;
+      float pw;
+      pane.eval_exit(ctx, state, w, fw, pw);
+      for (int j = 0; j < 3; ++j) lhs[j] += double(fw.x) * g(j, w) / q / kDirs;
+      pdf_integral += double(pw) / q / kDirs;
+      touched[i] = cell_of(w);
+      mine[touched[i]] += trials * double(pw) / q / kDirs;
+    }
+    for (int j = 0; j < 3; ++j) {
+      const double rhs = double(weight.x) * g(j, wo), d = lhs[j] - rhs, dc = lhs[j] / trials - rhs;
+      acc[j] += d, acc[3 + j] += d * d, acc[6 + j] += dc, acc[9 + j] += dc * dc;
+    }
+    acc[12] += trials * pdf_integral, acc[13] += trials * pdf_integral * trials * pdf_integral;
+    acc[14] += pdf_integral, acc[15] += pdf_integral * pdf_integral;
+    cells[cell_of(wo)][0] += 1.0;
+    for (int i = 0; i < kDirs; ++i) {
+      const double x = mine[touched[i]];
+      if (x == 0.0) continue;  // counted already (or no density)
+      cells[touched[i]][1] += x, cells[touched[i]][2] += x * x;
+      cells[touched[i]][3] += x / trials, cells[touched[i]][4] += x * x / (trials * trials);
+      mine[touched[i]] = 0.0;
+    }
+  }
+
+  long resolved() const { return walks - missing - bad_ratio; }
+  // z of the mean of acc[i] (its square at `square`) against `expect`.
+  double z(int i, int square, double expect) const {
+    const auto [mean, se] = mean_se(acc[i], acc[square], double(resolved()));
+    return (mean - expect) / se;
+  }
+  // (chi2 - dof) / sqrt(2 dof) of the observed exit directions against the expected counts (cells with E >= 20),
+  // with T (control: without).
+  double chi2_z(bool control) const {
+    double chi2 = 0.0;
+    int dof = 0;
+    for (const auto &c : cells) {
+      const double e = control ? c[3] : c[1], e2 = control ? c[4] : c[2];
+      if (e < 20.0) continue;
+      chi2 += (c[0] - e) * (c[0] - e) / (e + std::max(0.0, e2 - e * e / double(resolved())));
+      ++dof;
+    }
+    return (chi2 - dof) / std::sqrt(2.0 * dof);
+  }
+};
+
+ExitTally tally_pane_exit(float rough, float deg, long n) {
+  auto pane = make_closure("frosted_glass", {"roughness=" + num(rough), "ior=1.5", "thin=1", "color=0.9,0.8,0.7",
+                                             "absorption_color=0.7,0.7,0.7", "absorption_distance=0.3",
+                                             "thickness=0.2"});
+  const Vec3 wi = mftest::direction_from(std::cos(deg * float(M_PI) / 180.0f), 0.3f);
+  std::vector<ExitTally> blocks(kBlocks);
+  tbb::parallel_for(long(0), kBlocks, [&](long b) {
+    Pcg32 rng(7100 + uint64_t(rough * 100) + uint64_t(deg), uint64_t(b) + 1);
+    GlimmerShadingContext ctx = host::make_local_context(wi);
+    for (long k = 0; k < n / kBlocks; ++k) {
+      ctx.path_seed = rng.next_u32();
+      blocks[b].sample(*pane, ctx, rng);
+    }
+  });
+  ExitTally total;
+  for (const ExitTally &t : blocks) total.add(t);
+  return total;
+}
+
+TEST(FrostedGlassThin, EvalExitIsTheWalksLastInterfaceWithItsLeavingProbability) {
+  double worst_z = 0.0, worst_pdf_z = 0.0, control_min_z = 1e30, worst_chi2_z = -1e30, control_min_chi2_z = 1e30;
   for (float rough : {0.1f, 0.3f, 0.6f}) {
     for (float deg : {0.0f, 60.0f}) {
-      auto pane = make_closure("frosted_glass", {"roughness=" + num(rough), "ior=1.5", "thin=1", "color=0.9,0.8,0.7",
-                                                 "absorption_color=0.7,0.7,0.7", "absorption_distance=0.3",
-                                                 "thickness=0.2"});
-      const Vec3 wi = mftest::direction_from(std::cos(deg * float(M_PI) / 180.0f), 0.3f);
-      std::vector<std::array<double, kAcc>> acc(kBlocks, std::array<double, kAcc>{});
-      // per block and cell: observed count, expected (with T, without T: control) and their squares per state
-      std::vector<std::array<std::array<double, 5>, kCells>> cells(kBlocks);
-      std::vector<long> walks(kBlocks, 0), missing(kBlocks, 0), bad_ratio(kBlocks, 0), multi(kBlocks, 0),
-          most(kBlocks, 0);
-      tbb::parallel_for(long(0), kBlocks, [&](long b) {
-        Pcg32 rng(7100 + uint64_t(rough * 100) + uint64_t(deg), uint64_t(b) + 1);
-        GlimmerShadingContext ctx = host::make_local_context(wi);
-        for (long k = 0; k < n / kBlocks; ++k) {
-          ctx.path_seed = rng.next_u32();
-          const float u[3] = {rng.next_float(), rng.next_float(), rng.next_float()};
-          GlimmerSample s{};
-          s.struct_size = sizeof(GlimmerSample);
-          GlimmerExitState state{};
-          s.exit_state = &state;
-          const uint32_t label = pane->sample(ctx, u, s);
-          if (!(label & GLIMMER_LABEL_SINGULAR)) continue;  // none, or the front reflection
-          const Spectrum weight(s.eval[0], s.eval[1], s.eval[2]);
-          const Vec3 wo(s.wo);
-          if (!(std::min({weight.x, weight.y, weight.z}) > 1e-30f)) continue;  // absorbed (Beer) or denormal
-          ++walks[b];
-          if (!(s.flags & GLIMMER_SAMPLE_EXIT_STATE)) {
-            ++missing[b];
-            continue;
-          }
-          Spectrum f;
-          float pdf;
-          pane->eval_exit(ctx, state, wo, f, pdf);
-          const double ratio = pdf > 0.0f ? double(f.x) / pdf / weight.x : 0.0;
-          const double trials = std::round(ratio);
-          bool ok = trials >= 1.0 && std::fabs(ratio - trials) < 1e-3 * trials;
-          for (int c = 1; c < 3; ++c) ok = ok && std::fabs(double(f[c]) / pdf / weight[c] - trials) < 1e-3 * trials;
-          if (!ok) {
-            ++bad_ratio[b];
-            continue;
-          }
-          if (trials > 1.0) ++multi[b];
-          most[b] = std::max(most[b], long(trials));
-          double lhs[3] = {0, 0, 0}, pdf_integral = 0.0;
-          std::array<double, kCells> mine{};  // this state's T Int_c pdf
-          int touched[kDirs];
-          for (int i = 0; i < kDirs; ++i) {
-            const Vec3 w = VmfMix::sample(wo, rng);
-            const double q = VmfMix::pdf(wo, w);
-            Spectrum fw;
-            float pw;
-            pane->eval_exit(ctx, state, w, fw, pw);
-            for (int j = 0; j < 3; ++j) lhs[j] += double(fw.x) * g(j, w) / q / kDirs;
-            pdf_integral += double(pw) / q / kDirs;
-            touched[i] = cell_of(w);
-            mine[touched[i]] += trials * double(pw) / q / kDirs;
-          }
-          cells[b][cell_of(wo)][0] += 1.0;
-          for (int i = 0; i < kDirs; ++i) {
-            const int c = touched[i];
-            if (mine[c] == 0.0) continue;  // counted already (or no density)
-            cells[b][c][1] += mine[c];
-            cells[b][c][2] += mine[c] * mine[c];
-            cells[b][c][3] += mine[c] / trials;
-            cells[b][c][4] += mine[c] * mine[c] / (trials * trials);
-            mine[c] = 0.0;
-          }
-          for (int j = 0; j < 3; ++j) {
-            const double rhs = double(weight.x) * g(j, wo);
-            const double d = lhs[j] - rhs, dc = lhs[j] / trials - rhs;
-            acc[b][j] += d;
-            acc[b][3 + j] += d * d;
-            acc[b][6 + j] += dc;
-            acc[b][9 + j] += dc * dc;
-          }
-          acc[b][12] += trials * pdf_integral;
-          acc[b][13] += trials * pdf_integral * trials * pdf_integral;
-          acc[b][14] += pdf_integral;
-          acc[b][15] += pdf_integral * pdf_integral;
-        }
-      });
-      std::array<double, kAcc> tot{};
-      long m = 0, miss = 0, bad = 0, many = 0, largest = 0;
-      for (long b = 0; b < kBlocks; ++b) {
-        for (int j = 0; j < kAcc; ++j) tot[j] += acc[b][j];
-        m += walks[b] - missing[b] - bad_ratio[b];
-        miss += missing[b];
-        bad += bad_ratio[b];
-        many += multi[b];
-        largest = std::max(largest, most[b]);
-      }
-      const auto z_of = [&](int i, double expect) {
-        const auto [mean, se] = mean_se(tot[i], tot[i + 1 + (i >= 12 ? 0 : 2)], double(m));
-        return (mean - expect) / se;
-      };
-      EXPECT_EQ(miss, 0) << "walk samples without an exit state";
-      EXPECT_EQ(bad, 0) << "eval_exit's f / pdf at wo is not the weight x a whole number of trials";
+      const ExitTally t = tally_pane_exit(rough, deg, 1 << 16);
+      EXPECT_EQ(t.missing, 0) << "walk samples without an exit state";
+      EXPECT_EQ(t.bad_ratio, 0) << "eval_exit's f / pdf at wo is not the weight x a whole number of trials";
+      const long m = t.resolved();
       std::printf("[frosted pane exit] roughness %.1f, %2.0f deg: %ld walks (%.2f %% with T > 1, largest T %ld); z (g0, "
-                  "g1, g2) %+.2f %+.2f %+.2f, T Int pdf %+.2f; control (no T) %+.2f %+.2f %+.2f, Int pdf %+.2f\n",
-                  rough, deg, m, 100.0 * many / std::max<long>(m, 1), largest, z_of(0, 0), z_of(1, 0), z_of(2, 0), z_of(12, 1),
-                  z_of(6, 0), z_of(7, 0), z_of(8, 0), z_of(14, 1));
+                  "g1, g2) %+.2f %+.2f %+.2f, T Int pdf %+.2f; control (no T) %+.2f %+.2f %+.2f, Int pdf %+.2f; exit "
+                  "direction chi2 z %+.2f, control %+.2f\n",
+                  rough, deg, m, 100.0 * t.multi / std::max<long>(m, 1), t.largest, t.z(0, 3, 0), t.z(1, 4, 0),
+                  t.z(2, 5, 0), t.z(12, 13, 1), t.z(6, 9, 0), t.z(7, 10, 0), t.z(8, 11, 0), t.z(14, 15, 1),
+                  t.chi2_z(false), t.chi2_z(true));
       for (int j = 0; j < 3; ++j) {
-        worst_z = std::max(worst_z, std::fabs(z_of(j, 0)));
-        EXPECT_LT(std::fabs(z_of(j, 0)), 4.0) << "g" << j;
+        worst_z = std::max(worst_z, std::fabs(t.z(j, 3 + j, 0)));
+        EXPECT_LT(std::fabs(t.z(j, 3 + j, 0)), 4.0) << "g" << j;
       }
-      worst_pdf_z = std::max(worst_pdf_z, std::fabs(z_of(12, 1)));
-      EXPECT_LT(std::fabs(z_of(12, 1)), 4.0);
-      control_min_z = std::min(control_min_z, std::max(std::fabs(z_of(6, 0)), std::fabs(z_of(14, 1))));
-      EXPECT_GT(std::fabs(z_of(6, 0)), 4.0) << "control: without the trials the exit's light is not unbiased";
-      EXPECT_GT(std::fabs(z_of(14, 1)), 4.0) << "control: Int pdf alone is P_T, not 1";
-      double chi2 = 0.0, chi2_control = 0.0;
-      int dof = 0, dof_control = 0;
-      for (int c = 0; c < kCells; ++c) {
-        double o = 0.0, e = 0.0, e2 = 0.0, ec = 0.0, ec2 = 0.0;
-        for (long b = 0; b < kBlocks; ++b) {
-          o += cells[b][c][0];
-          e += cells[b][c][1];
-          e2 += cells[b][c][2];
-          ec += cells[b][c][3];
-          ec2 += cells[b][c][4];
-        }
-        const double v = std::max(0.0, e2 - e * e / double(m)), vc = std::max(0.0, ec2 - ec * ec / double(m));
-        if (e >= 20.0) {
-          chi2 += (o - e) * (o - e) / (e + v);
-          ++dof;
-        }
-        if (ec >= 20.0) {
-          chi2_control += (o - ec) * (o - ec) / (ec + vc);
-          ++dof_control;
-        }
-      }
-      const double chi2_z = (chi2 - dof) / std::sqrt(2.0 * dof),
-                   control_z = (chi2_control - dof_control) / std::sqrt(2.0 * dof_control);
-      std::printf("[frosted pane exit]   exit direction given the state: chi2 %.1f over %d cells (z %+.2f); control "
-                  "(no T) %.1f over %d (z %+.2f)\n", chi2, dof, chi2_z, chi2_control, dof_control, control_z);
-      worst_chi2_z = std::max(worst_chi2_z, chi2_z);
-      control_min_chi2_z = std::min(control_min_chi2_z, control_z);
-      EXPECT_LT(chi2_z, 4.0);
+      worst_pdf_z = std::max(worst_pdf_z, std::fabs(t.z(12, 13, 1)));
+      EXPECT_LT(std::fabs(t.z(12, 13, 1)), 4.0);
+      worst_chi2_z = std::max(worst_chi2_z, t.chi2_z(false));
+      EXPECT_LT(t.chi2_z(false), 4.0);
+      control_min_z = std::min(control_min_z, std::min(std::fabs(t.z(6, 9, 0)), std::fabs(t.z(14, 15, 1))));
+      EXPECT_GT(std::fabs(t.z(6, 9, 0)), 4.0) << "control: without the trials the exit's light is not unbiased";
+      EXPECT_GT(std::fabs(t.z(14, 15, 1)), 4.0) << "control: Int pdf alone is P_T, not 1";
+      control_min_chi2_z = std::min(control_min_chi2_z, t.chi2_z(true));
       // The control needs walks whose T is not 1 (at roughness 0.1 head-on 4 % of them: z 4.96 there).
-      if (many > m / 20) EXPECT_GT(control_z, 4.0) << "control: the exit directions against pdf_T without T";
+      if (t.multi > m / 20) EXPECT_GT(t.chi2_z(true), 4.0) << "control: the exit directions without T";
     }
   }
   std::printf("[frosted pane exit] worst |z| %.2f (integrals), %.2f (T Int pdf); control min |z| %.2f; exit direction "
               "chi2 worst z %+.2f, control (no T) min z %+.2f\n", worst_z, worst_pdf_z, control_min_z, worst_chi2_z,
               control_min_chi2_z);
 }
+
+}  // namespace
