@@ -53,6 +53,7 @@ namespace {
 
 struct RenderArgs {
   std::string scene, output, region, frames, strategy = "mis";
+  bool no_exit_state_nee = false;
   std::string sample_range, sample_split, tile, progress_format = "sample";
   double checkpoint_every = -1.0;  // seconds between checkpoints; < 0 = none
   std::string display;             // the image so far, for a viewer (render::write_display_image)
@@ -196,6 +197,7 @@ int render_one(CliContext &ctx, const RenderArgs &a, const std::string &scene_pa
   if (a.strategy == "light") opt.strategy = render::LightStrategy::LightOnly;
   else if (a.strategy == "bsdf") opt.strategy = render::LightStrategy::BsdfOnly;
   else if (a.strategy != "mis") throw CliError(kExitBadInput, "--strategy must be mis, light or bsdf");
+  opt.exit_state_nee = !a.no_exit_state_nee;
 
   try {
     renderer = std::make_unique<render::Renderer>(scene, plugin, opt);
@@ -335,6 +337,9 @@ void add_render_options(CLI::App *cmd, RenderArgs &a) {
   cmd->add_option("--tile-size", a.tile_size, "tile edge in pixels (does not change the image)")
       ->check(CLI::Range(1, 4096));
   cmd->add_option("--strategy", a.strategy, "direct light estimator: mis (default), light (NEE only), bsdf");
+  cmd->add_flag("--no-exit-state-nee", a.no_exit_state_nee,
+                "no light sampling through a thin frosted pane's last interface (ABI 2.8; the estimator before, for "
+                "comparisons)");
   cmd->add_flag("--no-aovs", a.no_aovs,
                 "write the Combined pass only (no Albedo, Normal, Depth; their first-hit work is skipped)");
   cmd->add_flag("--quiet", a.quiet, "no progress output");

@@ -93,6 +93,20 @@ class ClosureInstance {
     GlimmerShadingContext scratch;
     return type_.sample(instance_, &as_expected(ctx, scratch), rand3, &out);
   }
+#if GLIMMER_ABI_MINOR >= 8
+  // ABI 2.8: whether the type has eval_exit, and f cos / pdf toward wo of the exit state a sample wrote.
+  bool has_eval_exit() const {
+    return GLIMMER_HAS_FIELD(type_.struct_size, GlimmerClosureType, eval_exit) && type_.eval_exit != nullptr;
+  }
+  void eval_exit(const GlimmerShadingContext &ctx, const GlimmerExitState &state, const Vec3 &wo, Spectrum &f_cos,
+                 float &pdf) const {
+    float rgb[3] = {0.0f, 0.0f, 0.0f};
+    pdf = 0.0f;
+    GlimmerShadingContext scratch;
+    if (has_eval_exit()) type_.eval_exit(instance_, &as_expected(ctx, scratch), &state, wo, rgb, &pdf);
+    f_cos = Spectrum(rgb[0], rgb[1], rgb[2]);
+  }
+#endif
   Spectrum albedo(const GlimmerShadingContext &ctx) const;
   Spectrum emit(const GlimmerShadingContext &ctx) const;
 

@@ -882,6 +882,44 @@ struct Renderer::Impl {
     }
   }
 
+  // The scatter integrate_surface_bsdf_bounce took, for integrate_exit_state.
+  struct ExitStateScatter {
+    int chosen = -1;       // the closure sampled (-1: none, or the transparent pass-through)
+    Spectrum scale{0.0f};  // the throughput before the scatter x the closure's weight / its pick probability
+    int bounce = 0;        // the scatter's bounce (before it)
+  };
+  // ABI 2.8: a singular sample that stays at the shading point with an exit state (frosted_glass method=path's
+  // thin pane: the walk's last interface). One light sample at the shading point through that interface
+  // (eval_exit's f cos, which carries the walk's weight; the shadow ray leaves on the light's side), power
+  // heuristic against eval_exit's pdf, and the continued path's emission hits weighted against eval_exit's pdf at
+  // wo instead of counted whole. Both weights are functions of the state and the direction alone, so they sum to
+  // 1 for every direction: unbiased for any such pdf (docs/frosted_glass.md "Light sampling at a pane's exit").
+  void integrate_exit_state(const ClosureSet &cs, const ShadingData &sd, const ExitStateScatter &xs,
+                            const GlimmerSample &s, const Vec3 &wo, const PixelSampler &sampler, PathState &ps,
+                            PathRadiance &pr) const {
+    if (!(s.flags & GLIMMER_SAMPLE_EXIT_STATE) || moved(s) || s.exit_state == nullptr || xs.chosen < 0) return;
+    if (!options.exit_state_nee || !use_nee() || lights->count() == 0) return;
+    const ActiveClosure &c = cs.closures[xs.chosen];
+    if (!c.instance || !c.instance->has_eval_exit()) return;
+    GlimmerShadingContext scratch;
+    const GlimmerShadingContext &ctx = context_for(sd, c, scratch);
+    const auto exit_bsdf = [&](const Vec3 &w) {
+      MixtureEval me;
+      c.instance->eval_exit(ctx, *s.exit_state, w, me.f, me.pdf);
+      if (!is_finite(me.f) || !std::isfinite(me.pdf)) return MixtureEval{};
+      me.f *= bump_shadowing(sd, c, w);
+      return me;
+    };
+    const float continued_pdf = exit_bsdf(wo).pdf;
+    if (!(continued_pdf > 0.0f)) return;
+    float lu, lv;  // a light set of its own per vertex (the vertex's light set served the surface's own NEE)
+    sampler.get2(exit_light_set(ps.sample_vertex()), lu, lv);
+    const Spectrum direct = direct_light_at(sd.ctx.P, sd.Ng, exit_bsdf, xs.scale, lu, lv);
+    if (!is_zero(direct)) add_contribution(pr, direct, xs.bounce);
+    ps.last_singular = false;
+    ps.mis_ray_pdf = continued_pdf;
+  }
+
   // ABI 2.3: the closure moved the path (e.g. to where light leaves a frosted object).
   static bool moved(const GlimmerSample &s) { return (s.flags & GLIMMER_SAMPLE_MOVED) != 0; }
   // The next segment after sample s: from the surface, or from the sample's origin when it moved the path.
@@ -908,11 +946,15 @@ struct Renderer::Impl {
   // Picks a closure (or the transparent pass-through) with x of the bounce's BSDF set, rescaled and reused for
   // the direction, and scatters: the next ray, throughput and path state (Cycles'
   // integrate_surface_bsdf_bssrdf_bounce). False ends the path.
+  // xs: the closure picked, the path's throughput times its weight over its pick probability, and the bounce
+  // (for an exit state, integrate_exit_state).
   bool integrate_surface_bsdf_bounce(const ClosureSet &cs, const ShadingData &sd, const float bsdf_rand[4],
                                      float transparent_weight, float total_sw, const BounceLimits &limits,
-                                     PathState &ps, PathRadiance &pr, PathRay &ray, GlimmerSample &s) const {
+                                     PathState &ps, PathRadiance &pr, PathRay &ray, GlimmerSample &s,
+                                     ExitStateScatter &xs) const {
     float pick = bsdf_rand[0] * total_sw;
     const int chosen = pick_closure(cs, pick, transparent_weight);
+    xs.chosen = -1;
     if (chosen == kTransparent) {
       // Transparent: continue straight on; does not count as a bounce.
       pr.throughput *= cs.transparent / (transparent_weight / total_sw);
@@ -923,6 +965,9 @@ struct Renderer::Impl {
     if (chosen < 0) return false;
     const float r3[3] = {std::clamp(pick / cs.closures[chosen].sample_weight, 0.0f, 0x1.fffffep-1f), bsdf_rand[1],
                          bsdf_rand[2]};
+    xs.chosen = chosen;
+    xs.scale = pr.throughput * cs.closures[chosen].weight * (total_sw / cs.closures[chosen].sample_weight);
+    xs.bounce = ps.bounce;
     if (!scatter(cs, sd, chosen, r3, total_sw, pr.throughput, ps, s, *pr.nan_count)) return false;
     const Vec3 wo = normalize(Vec3(s.wo));
     ps.advance(s.label, limits);
@@ -982,9 +1027,14 @@ struct Renderer::Impl {
       s.struct_size = sizeof(GlimmerSample);
       GlimmerExitMixture exit_mixture;  // ABI 2.7: written by a closure that hands over a whole exit mixture
       s.exit_mixture = &exit_mixture;
-      if (!integrate_surface_bsdf_bounce(cs, sd, bsdf_rand, transparent_weight, total_sw, limits, ps, pr, ray, s))
+      GlimmerExitState exit_state;  // ABI 2.8: written by a closure that hands over its last scatter
+      s.exit_state = options.exit_state_nee && nee ? &exit_state : nullptr;
+      ExitStateScatter xs;
+      if (!integrate_surface_bsdf_bounce(cs, sd, bsdf_rand, transparent_weight, total_sw, limits, ps, pr, ray, s,
+                                         xs))
         break;
       integrate_exit_lobe(s, ray.D, sampler, ps, pr, exit_world);
+      integrate_exit_state(cs, sd, xs, s, ray.D, sampler, ps, pr);
     }
     return pr.L;
   }

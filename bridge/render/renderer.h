@@ -41,6 +41,10 @@ struct RenderOptions {
   // point (LightSet::lamp_through_lobe, stratified, one shadow ray per lamp) instead of one light sample there, and
   // the continued path's lamp hits not counted; off: the lamps are light-sampled there (the estimator before).
   bool exit_lobe_lamps = true;
+  // Light sampling (NEE + MIS) through the last interface of a singular sample that hands over an exit state (ABI
+  // 2.8: frosted_glass method=path's thin pane, at the shading point); off: the host passes no buffer and the
+  // sample stays singular, MIS weight 1 (the estimator before; tests and benchmarks compare the two).
+  bool exit_state_nee = true;
   // Samples per pixel per parallel pass at most (after_pass runs after each pass): 1 = after every sample (a live
   // display); larger batches spare small images a barrier per sample (Renderer::render).
   int max_samples_per_pass = 16;

@@ -37,10 +37,14 @@
 //    two interfaces (lateral offset ignored): sample() walks it (weight =
 //    product of f cos / pdf of each event, absorption exp(-sigma thickness /
 //    |cos|) per crossing) and returns it as one SINGULAR sample; eval() is the
-//    front interface's reflection alone (deterministic, light-sampled), so
-//    the host never light-samples through the pane (a one-walk estimate of
-//    f there had rare huge values: MIS 27x noisier than BSDF sampling on a
-//    world-lit pane). A transmitted sample keeps eta = 1.
+//    front interface's reflection alone (deterministic, light-sampled): a
+//    one-walk estimate of f through the pane at the entry had rare huge
+//    values (MIS 27x noisier than BSDF sampling on a world-lit pane). Since
+//    ABI 2.8 method=path's walk sample hands the host the state of its last
+//    interface (PaneExitState, eval_exit), so the host light-samples through
+//    that interface at the shading point with MIS, unbiased by the 1 / P_T
+//    factor the state carries (docs/frosted_glass.md "Light sampling at a
+//    pane's exit"). A transmitted sample keeps eta = 1.
 //
 // colour tints transmitted light at each interface crossing (a solid object
 // or a pane seen through gives colour^2; reflections stay white).
@@ -51,6 +55,7 @@
 #include <array>
 #include <bit>
 #include <cmath>
+#include <cstring>
 
 #include "core/closure.h"
 #include "core/dielectric_lobe.h"
@@ -262,6 +267,52 @@ class FrostedGlassClosure {
            ctx.diffuse_bounce + ctx.glossy_bounce > 0;
   }
 
+#if GLIMMER_ABI_MINOR >= 8
+  // ABI 2.8, method=path's pane: the state of the walk's last interface (pane_sample), read back by eval_exit.
+  // d: the last internal direction (pane frame: entry side +z); weight: the walk's throughput up to that interface
+  // (its crossing's Beer and both tints included, the interface's own f cos / pdf not); trials: the number of
+  // independent draws of the interface's sampler at d until the first that leaves (>= 1; its expectation is
+  // 1 / P_T(d), P_T the probability that the sampler leaves at d). docs/frosted_glass.md "Light sampling at a
+  // pane's exit (sixteenth session)" derives why NEE at the exit weighted by trials is unbiased.
+  struct PaneExitState {
+    Vec3 d{0.0f};
+    Spectrum weight{0.0f};
+    float trials = 0.0f;
+    void write(GlimmerExitState &st) const {
+      static_assert(7 * sizeof(float) <= sizeof(GlimmerExitState));
+      const float v[7] = {d.x, d.y, d.z, weight.x, weight.y, weight.z, trials};
+      std::memcpy(st.words, v, sizeof v);
+    }
+    static PaneExitState read(const GlimmerExitState &st) {
+      float v[7];
+      std::memcpy(v, st.words, sizeof v);
+      PaneExitState x;
+      x.d = Vec3(v[0], v[1], v[2]);
+      x.weight = Spectrum(v[3], v[4], v[5]);
+      x.trials = v[6];
+      return x;
+    }
+  };
+  // f cos and pdf toward w (local) of the pane's last interface in `state`: the exit interface's transmission
+  // from the last internal direction (Walter's BTDF with the energy compensation the sampler uses), f cos times
+  // the state's weight x trials, pdf the sampler's unconditional density of that transmitted direction (the
+  // leaving probability included). Zero on the other side of the exit face.
+  LocalEval eval_exit(const ShadingPoint &sp, const GlimmerExitState &state, const Vec3 &w) const {
+    if (!thin_ || uses_sg_pane(sp)) return {};
+    const PaneExitState x = PaneExitState::read(state);
+    if (!(x.trials > 0.0f) || x.d.z == 0.0f) return {};
+    DielectricLobe scratch;
+    const DielectricLobe &lobe = lobe_at(sp, scratch);
+    const bool flip = sp.wi.z < 0.0f;
+    const Vec3 wo = flip ? mf::flip_z_local(w) : w;
+    const bool bottom = x.d.z < 0.0f;
+    if (bottom ? !(wo.z < 0.0f) : !(wo.z > 0.0f)) return {};
+    LocalEval e = lobe.eval(at_interface(-x.d, bottom), at_interface(wo, bottom));
+    e.f_cos *= x.weight * x.trials;
+    return e;
+  }
+#endif
+
   // R + T with the tint on T is not tabulated: the lossless interface's albedo
   // (1 with compensation) is an upper bound; the tint and absorption are the
   // host's to see in the sample weights.
@@ -309,8 +360,10 @@ class FrostedGlassClosure {
   // until one transmits. True: `d` is the last internal direction, `leaving` the direction outside, `throughput`
   // times every crossing's attenuation and f cos / pdf (the tint is the caller's). Its numbers: a WalkRng seeded by
   // (path seed, rand). False: a failed sample, d.z = 0, or no exit within kMaxPaneEvents.
+  // before_exit (optional): the throughput before the leaving event's f cos / pdf (its crossing's Beer included).
   bool walk_to_exit(const ShadingPoint &sp, const DielectricLobe &lobe, const Vec3 &rand, Vec3 &d,
-                    Spectrum &throughput, Vec3 &leaving, int *reflections = nullptr) const {
+                    Spectrum &throughput, Vec3 &leaving, int *reflections = nullptr,
+                    Spectrum *before_exit = nullptr) const {
     mf::WalkRng rng(sp.seed_for(rand));
     LocalSample s;
     for (int event = 0; event < kMaxPaneEvents; ++event) {
@@ -318,11 +371,13 @@ class FrostedGlassClosure {
       const bool bottom = d.z < 0.0f;
       throughput *= crossing(d.z);
       if (!lobe.sample(at_interface(-d, bottom), Vec3(rng.next(), rng.next(), rng.next()), s)) return false;
+      const Spectrum before = throughput;
       throughput *= s.f_cos / s.pdf;
       const Vec3 next = at_interface(s.wo, bottom);
       if (s.label & GLIMMER_LABEL_TRANSMIT) {
         leaving = next;
         if (reflections != nullptr) *reflections = event;  // reflections between the faces before leaving
+        if (before_exit != nullptr) *before_exit = before;
         return true;
       }
       d = next;
@@ -349,11 +404,25 @@ class FrostedGlassClosure {
       return true;
     }
     const Spectrum tint = color_at(sp);
-    Spectrum throughput = s.f_cos / s.pdf * tint;
+    Spectrum throughput = s.f_cos / s.pdf * tint, before_exit(0.0f);
     Vec3 d = s.wo, wo;
-    if (!walk_to_exit(sp, lobe, rand, d, throughput, wo)) return false;
+    if (!walk_to_exit(sp, lobe, rand, d, throughput, wo, nullptr, &before_exit)) return false;
     throughput *= tint;
     if (wo.z == 0.0f || !is_finite(throughput)) return false;
+#if GLIMMER_ABI_MINOR >= 8
+    // ABI 2.8: the exit state for light sampling through the last interface (only where the host combines a light
+    // strategy with this sample: else nothing would read it).
+    if (out.state_out != nullptr && !sp.uncombined() && max_component(before_exit) > 0.0f) {
+      PaneExitState x;
+      x.d = d;
+      x.weight = before_exit * tint;
+      x.trials = static_cast<float>(exit_trials(sp, lobe, rand, d));
+      if (x.trials > 0.0f && is_finite(x.weight)) {
+        x.write(*out.state_out);
+        out.exit_state = true;
+      }
+    }
+#endif
     out.wo = flip ? mf::flip_z_local(wo) : wo;
     out.f_cos = throughput;
     out.pdf = 1.0f;
@@ -362,6 +431,21 @@ class FrostedGlassClosure {
     out.label = ((wo.z < 0.0f) ? GLIMMER_LABEL_TRANSMIT : GLIMMER_LABEL_REFLECT) | GLIMMER_LABEL_GLOSSY |
                 GLIMMER_LABEL_SINGULAR;
     return true;
+  }
+
+  // The number of independent draws of the interface's sampler from the internal direction d (pane frame) until the
+  // first that leaves the pane (a TRANSMIT sample), from numbers of their own (a WalkRng seeded by the path seed,
+  // rand and a tag): geometric with mean 1 / P_T(d), independent of the walk given d. 0 when none leaves within
+  // kMaxPaneEvents draws (then no exit state: P_T(d) < ~1e-3 there, and the walk did leave at d).
+  int exit_trials(const ShadingPoint &sp, const DielectricLobe &lobe, const Vec3 &rand, const Vec3 &d) const {
+    mf::WalkRng rng(hash_u32x2(sp.seed_for(rand), 0x65786974u));
+    const bool bottom = d.z < 0.0f;
+    const Vec3 inside = at_interface(-d, bottom);
+    LocalSample s;
+    for (int n = 1; n <= kMaxPaneEvents; ++n)
+      if (lobe.sample(inside, Vec3(rng.next(), rng.next(), rng.next()), s) && (s.label & GLIMMER_LABEL_TRANSMIT))
+        return n;
+    return 0;
   }
 
   // The pane's eval (both methods): the front reflection alone (the light that enters leaves as a singular sample).

@@ -11,6 +11,8 @@
 //   void prepare(const GlimmerHostServices *host);               // lazy tables; throws on failure
 //   Spectrum albedo(const ShadingPoint &sp) const;
 //   Spectrum emit(const ShadingPoint &sp) const;                 // with GLIMMER_CLOSURE_EMISSIVE
+//   LocalEval eval_exit(const ShadingPoint &sp, const GlimmerExitState &state, const Vec3 &w_local) const;
+//                                          // ABI 2.8: the last scatter of a sample that set LocalSample::exit_state
 // Directions handed to eval/sample are in the local shading frame (z = N,
 // x = tangent; for GLIMMER_CLOSURE_TRANSMISSIVE closures z = the outward
 // normal, see LocalFrame); the adapter converts to and from world space.
@@ -156,6 +158,12 @@ struct LocalSample {
   GlimmerExitMixture *mixture_out = nullptr;
   bool exit_mixture = false;
 #endif
+#if GLIMMER_ABI_MINOR >= 8
+  // ABI 2.8: the host's buffer for an exit state (NULL: the host does not take one). A closure that writes it (a
+  // singular sample that is not moved) sets exit_state; the host then calls the closure's eval_exit with it.
+  GlimmerExitState *state_out = nullptr;
+  bool exit_state = false;
+#endif
 };
 
 // Keeps only finite, non-negative values: a closure must never hand NaN/Inf or
@@ -176,6 +184,12 @@ template <typename T>
 concept HasAlbedo = requires(const T &t, const ShadingPoint &sp) { t.albedo(sp); };
 template <typename T>
 concept HasEmit = requires(const T &t, const ShadingPoint &sp) { t.emit(sp); };
+#if GLIMMER_ABI_MINOR >= 8
+template <typename T>
+concept HasEvalExit = requires(const T &t, const ShadingPoint &sp, const GlimmerExitState &st, const Vec3 &w) {
+  t.eval_exit(sp, st, w);
+};
+#endif
 
 // The shading point closure class T sees: its schema and local frame
 // (LocalFrame::Interface for GLIMMER_CLOSURE_TRANSMISSIVE closures).
@@ -265,12 +279,19 @@ struct ClosureAdapter {
     GlimmerExitMixture *const buffer =
         GLIMMER_HAS_FIELD(size, GlimmerSample, exit_mixture) ? out->exit_mixture : nullptr;
 #endif
+#if GLIMMER_ABI_MINOR >= 8
+    GlimmerExitState *const state_buffer =
+        GLIMMER_HAS_FIELD(size, GlimmerSample, exit_state) ? out->exit_state : nullptr;
+#endif
     const GlimmerSample zero{};
     std::memcpy(static_cast<void *>(out), &zero,
                 size == 0 ? offsetof(GlimmerSample, label) + sizeof(uint32_t) : std::min<size_t>(size, sizeof zero));
     out->struct_size = size;
 #if GLIMMER_ABI_MINOR >= 7
     if (GLIMMER_HAS_FIELD(size, GlimmerSample, exit_mixture)) out->exit_mixture = buffer;
+#endif
+#if GLIMMER_ABI_MINOR >= 8
+    if (GLIMMER_HAS_FIELD(size, GlimmerSample, exit_state)) out->exit_state = state_buffer;
 #endif
   }
 
@@ -280,6 +301,10 @@ struct ClosureAdapter {
     LocalSample s;
 #if GLIMMER_ABI_MINOR >= 7
     if (GLIMMER_HAS_FIELD(out->struct_size, GlimmerSample, exit_mixture)) s.mixture_out = out->exit_mixture;
+#endif
+#if GLIMMER_ABI_MINOR >= 8
+    if constexpr (HasEvalExit<T>)
+      if (GLIMMER_HAS_FIELD(out->struct_size, GlimmerSample, exit_state)) s.state_out = out->exit_state;
 #endif
     const bool ok = scatters(sp) && self(inst).sample(sp, Vec3(rand3[0], rand3[1], rand3[2]), s);
     const Vec3 wo = sp.frame.to_world(s.wo);
@@ -304,6 +329,12 @@ struct ClosureAdapter {
       clear(out);
       return GLIMMER_LABEL_NONE;
     }
+#if GLIMMER_ABI_MINOR >= 8
+    // An exit state only on a singular sample that stays at the shading point, in the host's own buffer.
+    if (s.exit_state && s.state_out != nullptr && !s.moved && (s.label & GLIMMER_LABEL_SINGULAR) &&
+        GLIMMER_HAS_FIELD(out->struct_size, GlimmerSample, flags))
+      out->flags |= GLIMMER_SAMPLE_EXIT_STATE;
+#endif
     return s.label;
   }
 
@@ -364,6 +395,26 @@ struct ClosureAdapter {
     out_rgb[2] = e.z;
   }
 
+#if GLIMMER_ABI_MINOR >= 8
+  static void eval_exit(const GlimmerInstance *inst, const GlimmerShadingContext *ctx, const GlimmerExitState *state,
+                        GlimmerVec3 w, float out_eval[3], float *out_pdf) noexcept {
+    LocalEval e;
+    if constexpr (HasEvalExit<T>) {
+      try {
+        const ShadingPoint sp = shading_point(ctx);
+        if (state != nullptr && scatters(sp)) e = self(inst).eval_exit(sp, *state, sp.frame.to_local(Vec3(w)));
+      } catch (...) {
+        e = LocalEval{};
+      }
+    }
+    const Spectrum f = sanitize(e.f_cos);
+    out_eval[0] = f.x;
+    out_eval[1] = f.y;
+    out_eval[2] = f.z;
+    *out_pdf = sanitize(e.pdf);
+  }
+#endif
+
   static GlimmerClosureType make_type() {
     const auto schema = T::params();
     GlimmerClosureType type{};
@@ -383,6 +434,9 @@ struct ClosureAdapter {
     type.emit = HasEmit<T> ? &emit : nullptr;
 #if GLIMMER_ABI_MINOR >= 2
     type.abi_version = GLIMMER_ABI_VERSION;
+#endif
+#if GLIMMER_ABI_MINOR >= 8
+    if constexpr (HasEvalExit<T>) type.eval_exit = &eval_exit;
 #endif
     return type;
   }

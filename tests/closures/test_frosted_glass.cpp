@@ -6,7 +6,8 @@
 //    applied once per transmission: albedo(colour c) = R + c T per channel;
 //  - chi2 of sample() against pdf (1e6 samples, pooled, Sidak) + eval/pdf consistency;
 //  - reciprocity f(wi, wo) / n_o^2 = f(wo, wi) / n_i^2 on raw (unsanitized) outputs;
-//  - stress: no NaN / Inf / negative raw outputs (1e6 calls, 1e8 under make stress),
+//  - stress: no NaN / Inf / negative raw outputs (1e6 calls, 1e8 under make stress; thin panes' exit states and
+//    eval_exit at two directions each, ABI 2.8),
 //    TIR-heavy IOR 2.4 at grazing angles included, per-point (varying) values too.
 // The closure class is compiled in for the raw checks (until it has a header,
 // as the microfacet closures do); its table and parameter code come from the
@@ -277,7 +278,7 @@ TEST(FrostedGlassPath, StressRawOutputsFiniteNonNegative) {
   const uint32_t rough_i = index_of("roughness"), ior_i = index_of("ior"), color_i = index_of("color");
   const long calls = 1000000 * long(stress_scale());
   const long blocks = 64;
-  std::atomic<long> bad_count{0}, samples{0};
+  std::atomic<long> bad_count{0}, samples{0}, states{0};
   tbb::parallel_for(long(0), blocks, [&](long b) {
     Pcg32 r(500 + b);
     const float odd[] = {-1.0f, 0.0f, 1e-6f, 0.5f, 2.4f, 1e6f, std::numeric_limits<float>::quiet_NaN(),
@@ -297,15 +298,23 @@ TEST(FrostedGlassPath, StressRawOutputsFiniteNonNegative) {
       const ShadingPoint sp = shading_point_for<FrostedGlassClosure>(&ctx);
       const Vec3 wo = extreme_direction(r, grazing);
       LocalSample s;
+      GlimmerExitState state{};  // ABI 2.8: the pane's exit state, evaluated at wo and at the sample's own wo
+      s.state_out = &state;
       const LocalEval e = c.eval(sp, wo);
       const bool ok = c.sample(sp, Vec3(r.next_float(), r.next_float(), r.next_float()), s);
       if (ok) samples.fetch_add(1, std::memory_order_relaxed);
       if (const long n_bad = bad_raw_outputs(e, ok, s)) bad_count.fetch_add(n_bad);
+      if (ok && s.exit_state) {
+        states.fetch_add(1, std::memory_order_relaxed);
+        for (const Vec3 &w : {wo, s.wo})
+          if (const long n_bad = bad_raw_outputs(c.eval_exit(sp, state, w), false, s)) bad_count.fetch_add(n_bad);
+      }
     }
   });
   EXPECT_EQ(bad_count.load(), 0);
-  std::printf("[frosted stress] %ld eval + %ld successful sample calls (raw), 1/4 grazing, 1/3 of closures IOR 2.4: "
-              "%ld bad\n", calls, samples.load(), bad_count.load());
+  EXPECT_GT(states.load(), 0);
+  std::printf("[frosted stress] %ld eval + %ld successful sample calls (raw), 1/4 grazing, 1/3 of closures IOR 2.4, "
+              "%ld exit states x 2 eval_exit: %ld bad\n", calls, samples.load(), states.load(), bad_count.load());
   std::printf("[frosted stress] the pool: 1/4 absorbing (host trace_ray returning 0, 1e-30, 1e30, inf, NaN, -1 "
               "or a miss), 1/4 thin panes (thickness 1e-6..1e6)\n");
 }

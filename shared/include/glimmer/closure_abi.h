@@ -64,6 +64,17 @@
  *        weighted sums over the lobes). A plugin writes it only when the
  *        host's struct_size holds the field and the pointer is not NULL; a
  *        2.6 host still gets the picked lobe in lobe_axis / lobe_sharpness.
+ *   2.8: exit states: GlimmerSample.exit_state (a buffer the host owns, or
+ *        NULL) and GlimmerClosureType.eval_exit. A SINGULAR sample that is
+ *        not moved may hand over, with GLIMMER_SAMPLE_EXIT_STATE, the state
+ *        of the last scatter inside the closure (frosted_glass's thin pane:
+ *        the walk's last internal direction and weight), so the host can do
+ *        next-event estimation at the shading point through that last
+ *        interface and MIS-combine it with the continued path (eval_exit's
+ *        pdf at wo). A plugin writes it only when the host's struct_size holds
+ *        the field and the pointer is not NULL; a host calls eval_exit only
+ *        when the type's struct_size holds it and it is not NULL. Older hosts
+ *        and plugins keep the singular sample (MIS weight 1, no NEE).
  *
  * Threading: create/prepare/destroy are called from one thread; eval/sample/
  * emit/albedo are called concurrently on an immutable, prepared instance and
@@ -83,7 +94,7 @@ extern "C" {
 #define GLIMMER_ABI_MAJOR 2u
 #endif
 #ifndef GLIMMER_ABI_MINOR
-#define GLIMMER_ABI_MINOR 7u
+#define GLIMMER_ABI_MINOR 8u
 #endif
 #ifndef GLIMMER_ABI_VERSION
 #define GLIMMER_ABI_VERSION ((GLIMMER_ABI_MAJOR << 16) | GLIMMER_ABI_MINOR)
@@ -293,6 +304,16 @@ typedef struct GlimmerExitMixture {
 } GlimmerExitMixture;
 #endif
 
+#if GLIMMER_ABI_MINOR >= 8
+/* ABI 2.8: an exit state (GlimmerSample.exit_state), opaque to the host: the
+ * plugin writes it in sample() and reads it back in its type's eval_exit(),
+ * for the same instance and shading context, in the same thread. */
+#define GLIMMER_EXIT_STATE_WORDS 16
+typedef struct GlimmerExitState {
+  uint32_t words[GLIMMER_EXIT_STATE_WORDS];
+} GlimmerExitState;
+#endif
+
 /* ---- Sampling result. ---- */
 typedef struct GlimmerSample {
   uint32_t struct_size; /* the host's buffer size; the plugin writes the fields it holds (0 = the 2.0 fields) */
@@ -336,12 +357,26 @@ typedef struct GlimmerSample {
    * that read only those). Read only when the flag is set. */
   GlimmerExitMixture *exit_mixture;
 #endif
+#if GLIMMER_ABI_MINOR >= 8
+  /* ABI 2.8. Set by the host (its own buffer, or NULL; the plugin never
+   * allocates). With GLIMMER_SAMPLE_EXIT_STATE (only on a SINGULAR sample
+   * that is not MOVED: the path goes on from the shading point) the plugin
+   * wrote there the state its type's eval_exit() reads: the sample's
+   * continuation was drawn from eval_exit's density given that state, so a
+   * host may take a light sample at the shading point with eval_exit's f cos
+   * (in the same units as eval[]: it multiplies both by the same closure
+   * weight and pick probability) and MIS-combine it (power or balance
+   * heuristic) with the continued path, whose emission hits it then weights
+   * against eval_exit's pdf at wo instead of counting them whole. */
+  GlimmerExitState *exit_state;
+#endif
 } GlimmerSample;
 
 enum GlimmerSampleFlags {
   GLIMMER_SAMPLE_MOVED = 1u,
   GLIMMER_SAMPLE_EXIT_LOBE = 2u,
-  GLIMMER_SAMPLE_EXIT_MIXTURE = 4u /* ABI 2.7 */
+  GLIMMER_SAMPLE_EXIT_MIXTURE = 4u, /* ABI 2.7 */
+  GLIMMER_SAMPLE_EXIT_STATE = 8u    /* ABI 2.8 */
 };
 
 /* ---- Parameters: declared once per closure type, validated at create. ---- */
@@ -442,6 +477,14 @@ typedef struct GlimmerClosureType {
   /* ABI 2.2: GLIMMER_ABI_VERSION the plugin was built with (a type whose
    * struct_size does not hold this field is 2.0 or 2.1). */
   uint32_t abi_version;
+#endif
+#if GLIMMER_ABI_MINOR >= 8
+  /* ABI 2.8 (may be NULL): f * |cos| and pdf toward world direction w of
+   * the last scatter described by `state` (written by this type's sample()
+   * at `ctx` with GLIMMER_SAMPLE_EXIT_STATE). Zero where that scatter cannot
+   * send light (e.g. the other side of the exit face). */
+  void (*eval_exit)(const GlimmerInstance *instance, const GlimmerShadingContext *ctx,
+                    const GlimmerExitState *state, GlimmerVec3 w, float out_eval[3], float *out_pdf);
 #endif
 } GlimmerClosureType;
 
