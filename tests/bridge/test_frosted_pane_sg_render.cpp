@@ -255,11 +255,18 @@ double seed_noise(const render::RenderResult &a, const render::RenderResult &b) 
   return std::sqrt(sum / double(n));
 }
 
-TEST(FrostedPanePathRender, MisUnderTheWorldNoNoisierThanBsdfSampling) {
-  const std::string scene = world_pane_scene("frosted_pane_path_world");
+// MIS against BSDF sampling alone on one scene, two seeds each at `samples` spp: the per-pixel noise of each
+// strategy (seed_noise), the mean of the per-pixel MIS - BSDF difference (channel average) with its standard
+// error, and the BSDF image's mean.
+struct MisVersusBsdf {
+  double noise_mis = 0.0, noise_bsdf = 0.0, mean_bsdf = 0.0;
+  MeanAndError difference;
+  uint64_t nan_samples = 0;
+};
+MisVersusBsdf mis_versus_bsdf(const std::string &scene, int samples) {
   const auto render_seed = [&](render::LightStrategy strategy, int seed) {
     render::RenderOptions opt;
-    opt.samples = 256;
+    opt.samples = samples;
     opt.strategy = strategy;
     opt.seed = seed;
     return render_scene(scene, opt);
@@ -267,26 +274,34 @@ TEST(FrostedPanePathRender, MisUnderTheWorldNoNoisierThanBsdfSampling) {
   const auto mis_a = render_seed(render::LightStrategy::MIS, 1), mis_b = render_seed(render::LightStrategy::MIS, 2);
   const auto bsdf_a = render_seed(render::LightStrategy::BsdfOnly, 3),
              bsdf_b = render_seed(render::LightStrategy::BsdfOnly, 4);
-  EXPECT_EQ(mis_a.nan_samples + mis_b.nan_samples + bsdf_a.nan_samples + bsdf_b.nan_samples, 0u);
-  const double noise_mis = seed_noise(mis_a, mis_b), noise_bsdf = seed_noise(bsdf_a, bsdf_b);
+  MisVersusBsdf r;
+  r.nan_samples = mis_a.nan_samples + mis_b.nan_samples + bsdf_a.nan_samples + bsdf_b.nan_samples;
+  r.noise_mis = seed_noise(mis_a, mis_b);
+  r.noise_bsdf = seed_noise(bsdf_a, bsdf_b);
   std::vector<double> d;  // per pixel, the channel average of the seed averages' difference
-  double mean_bsdf = 0.0;
   for (size_t i = 0; i < size_t(mis_a.width) * mis_a.height; ++i) {
     double v = 0.0;
     for (int c = 0; c < 3; ++c) {
       v += (mis_a.combined[4 * i + c] + mis_b.combined[4 * i + c] - bsdf_a.combined[4 * i + c] -
             bsdf_b.combined[4 * i + c]) / 6.0;
-      mean_bsdf += (bsdf_a.combined[4 * i + c] + bsdf_b.combined[4 * i + c]) / 6.0;
+      r.mean_bsdf += (bsdf_a.combined[4 * i + c] + bsdf_b.combined[4 * i + c]) / 6.0;
     }
     d.push_back(v);
   }
-  mean_bsdf /= double(d.size());
-  const MeanAndError e = mean_and_standard_error(d);
+  r.mean_bsdf /= double(d.size());
+  r.difference = mean_and_standard_error(d);
+  return r;
+}
+
+TEST(FrostedPanePathRender, MisUnderTheWorldNoNoisierThanBsdfSampling) {
+  const MisVersusBsdf m = mis_versus_bsdf(world_pane_scene("frosted_pane_path_world"), 256);
+  EXPECT_EQ(m.nan_samples, 0u);
+  const MeanAndError &e = m.difference;
   std::printf("[frosted path pane render] world only, 256 spp: per-pixel noise MIS %.4f, BSDF only %.4f (ratio "
               "%.2f); mean MIS - BSDF %.5f (se %.5f) on %.4f\n",
-              noise_mis, noise_bsdf, noise_mis / noise_bsdf, e.mean, e.standard_error, mean_bsdf);
+              m.noise_mis, m.noise_bsdf, m.noise_mis / m.noise_bsdf, e.mean, e.standard_error, m.mean_bsdf);
   EXPECT_LT(std::fabs(e.mean), 4.5 * e.standard_error);
-  EXPECT_LE(noise_mis, 1.5 * noise_bsdf);
+  EXPECT_LE(m.noise_mis, 1.5 * m.noise_bsdf);
 }
 
 // method=path's pane (its walk seeded by the path seed and the sample's numbers): the same image for any thread
@@ -363,38 +378,18 @@ TEST(FrostedPanePathRender, ExitLightSamplingAgreesWithBsdfSamplingBehindAPane) 
       const std::string scene = tilted_small_light_scene(
           "frosted_pane_exit_nee_" + std::to_string(int(roughness * 10)) + "_" + std::to_string(int(degrees)),
           roughness, degrees);
-      const auto render_seed = [&](render::LightStrategy strategy, int seed) {
-        render::RenderOptions opt;
-        opt.samples = 256;
-        opt.strategy = strategy;
-        opt.seed = seed;
-        return render_scene(scene, opt);
-      };
-      const auto mis_a = render_seed(render::LightStrategy::MIS, 1), mis_b = render_seed(render::LightStrategy::MIS, 2);
-      const auto bsdf_a = render_seed(render::LightStrategy::BsdfOnly, 3),
-                 bsdf_b = render_seed(render::LightStrategy::BsdfOnly, 4);
-      EXPECT_EQ(mis_a.nan_samples + mis_b.nan_samples + bsdf_a.nan_samples + bsdf_b.nan_samples, 0u);
-      std::vector<double> d;
-      double mean_bsdf = 0.0;
-      for (size_t i = 0; i < size_t(mis_a.width) * mis_a.height; ++i) {
-        double v = 0.0;
-        for (int c = 0; c < 3; ++c) {
-          v += (mis_a.combined[4 * i + c] + mis_b.combined[4 * i + c] - bsdf_a.combined[4 * i + c] -
-                bsdf_b.combined[4 * i + c]) / 6.0;
-          mean_bsdf += (bsdf_a.combined[4 * i + c] + bsdf_b.combined[4 * i + c]) / 6.0;
-        }
-        d.push_back(v);
-      }
-      mean_bsdf /= double(d.size());
-      const MeanAndError e = mean_and_standard_error(d);
-      const double noise_mis = seed_noise(mis_a, mis_b), noise_bsdf = seed_noise(bsdf_a, bsdf_b);
+      const MisVersusBsdf m = mis_versus_bsdf(scene, 256);
+      EXPECT_EQ(m.nan_samples, 0u);
+      const MeanAndError &e = m.difference;
       std::printf("[frosted path pane exit NEE] roughness %.1f, %2.0f deg, 256 spp: mean MIS - BSDF %+.5f (se %.5f, "
                   "z %+.2f) on %.4f; per-pixel noise MIS %.4f, BSDF only %.4f (ratio %.2f)\n",
-                  roughness, degrees, e.mean, e.standard_error, e.mean / e.standard_error, mean_bsdf, noise_mis,
-                  noise_bsdf, noise_mis / noise_bsdf);
+                  roughness, degrees, e.mean, e.standard_error, e.mean / e.standard_error, m.mean_bsdf, m.noise_mis,
+                  m.noise_bsdf, m.noise_mis / m.noise_bsdf);
       worst_z = std::max(worst_z, std::fabs(e.mean / e.standard_error));
       EXPECT_LT(std::fabs(e.mean), 3.0 * e.standard_error) << roughness << " " << degrees;
-      if (roughness > 0.5f) EXPECT_LE(noise_mis, 0.6 * noise_bsdf) << degrees;
+      if (roughness > 0.5f) {
+        EXPECT_LE(m.noise_mis, 0.6 * m.noise_bsdf) << degrees;
+      }
     }
   }
   std::printf("[frosted path pane exit NEE] worst |z| %.2f\n", worst_z);
