@@ -920,6 +920,48 @@ TEST(GlintParticles, PseudoNormalTilesHoldEveryLitNormal) {
   }
 }
 
+// Every candidate of every (node, tile) pair of a pseudo-normal count,
+// enumerated here without the walk: those inside the footprint, kept by the
+// thinning and reflecting wi into the cone around wo. Controls: the thinning
+// uniform taken from the chart hash (kWrongThinningUniform), no thinning
+// (kNoThinning: the tile's bound density everywhere in it).
+enum class Enumeration { kExact, kWrongThinningUniform, kNoThinning };
+int64_t enumerate_pseudo_normal_count(const pg::Footprint &f, const pg::NodeList &nodes, double density,
+                                      const pg::PseudoNormalField &field, const pg::PseudoNormalTiles &tiles,
+                                      const Vec3 &wi, const Vec3 &wo, Enumeration mode = Enumeration::kExact) {
+  int64_t lit = 0;
+  const pg::FootprintFrame frame(f, nodes.size);
+  const double per_node = density * nodes.size * nodes.size;
+  for (int32_t ty = tiles.ty0; ty <= tiles.ty1; ++ty)
+    for (int32_t tx = tiles.tx0[static_cast<size_t>(ty - tiles.ty0)]; tx <= tiles.tx1[static_cast<size_t>(ty - tiles.ty0)];
+         ++tx) {
+      const float g_max = pg::pseudo_normal_tile_bound(field, tx, ty);
+      const double lambda = per_node * g_max * field.tile * field.tile;
+      if (!(lambda > 0.0)) continue;
+      const pg::LitCountModel model(lambda);
+      for (int nd = 0; nd < nodes.count; ++nd) {
+        const uint32_t h0 = pg::node_seed_hash(nodes.id_hash[nd], field.tile_seed(tx, ty));
+        const double u = (static_cast<double>(h0) + 0.5) * (1.0 / 4294967296.0);
+        const int64_t K = u < model.p_any ? model.lit(u) : 0;
+        const auto o = frame.origin(static_cast<double>(nodes.i[nd]) * nodes.size, static_cast<double>(nodes.j[nd]) * nodes.size);
+        for (int64_t q = 0; q < K; ++q) {
+          const auto [ux, uy] = pg::particle_position(h0, static_cast<uint32_t>(q));
+          if (!frame.particle_inside(o, ux, uy)) continue;
+          pg::PseudoNormalDraw d = pg::pseudo_normal_draw(h0, static_cast<uint32_t>(q));
+          if (mode == Enumeration::kWrongThinningUniform) d.w = uint_to_unit_float(pg::mix_u32(pg::pseudo_normal_key(h0, static_cast<uint32_t>(q))));
+          const float mx = static_cast<float>(tx) * field.tile + d.ux * field.tile;
+          const float my = static_cast<float>(ty) * field.tile + d.uy * field.tile;
+          if (mode != Enumeration::kNoThinning && !(d.w * g_max < field.chart_density(mx, my))) continue;
+          const Vec3 m = pg::PseudoNormalField::chart_normal(mx, my);
+          const float wim = dot(wi, m);
+          const Vec3 r = (2.0f * wim) * m - wi;
+          lit += (wim > 0.0f) && dot(r, wo) >= field.cos_gamma;
+        }
+      }
+    }
+  return lit;
+}
+
 // The pseudo-normal count of a footprint is Poisson with mean N a P, P the
 // lobe mass in the cone by brute force over the chart (above): mean within
 // 4 standard errors and 1.5 %, variance / mean within 5 % over 20000
@@ -949,32 +991,8 @@ TEST(GlintParticles, PseudoNormalCountIsPoissonWithTheLobeMassInTheCone) {
         ASSERT_TRUE(c.complete);
         sum += c.count, sum2 += static_cast<double>(c.count) * c.count;
         if (k < 2000) {  // control: thinning off (the bound's density everywhere in a tile)
-          int kept = 0;
-          // every candidate of the tiles, inside the footprint and lit (no thinning test)
-          const pg::FootprintFrame frame(f, nodes.size);
-          const double per_node = density * nodes.size * nodes.size;
-          for (int32_t ty = tiles.ty0; ty <= tiles.ty1; ++ty)
-            for (int32_t tx = tiles.tx0[static_cast<size_t>(ty - tiles.ty0)];
-                 tx <= tiles.tx1[static_cast<size_t>(ty - tiles.ty0)]; ++tx) {
-              const double lambda = per_node * pg::pseudo_normal_tile_bound(field, tx, ty) * field.tile * field.tile;
-              if (!(lambda > 0.0)) continue;
-              const pg::LitCountModel model(lambda);
-              for (int nd = 0; nd < nodes.count; ++nd) {
-                const uint32_t h0 = pg::node_seed_hash(nodes.id_hash[nd], field.tile_seed(tx, ty));
-                const double u = (static_cast<double>(h0) + 0.5) * (1.0 / 4294967296.0);
-                const int64_t K = u < model.p_any ? model.lit(u) : 0;
-                const auto o = frame.origin(static_cast<double>(nodes.i[nd]) * nodes.size, static_cast<double>(nodes.j[nd]) * nodes.size);
-                for (int64_t q = 0; q < K; ++q) {
-                  const auto [ux, uy] = pg::particle_position(h0, static_cast<uint32_t>(q));
-                  if (!frame.particle_inside(o, ux, uy)) continue;
-                  const pg::PseudoNormalDraw d = pg::pseudo_normal_draw(h0, static_cast<uint32_t>(q));
-                  const Vec3 m = pg::PseudoNormalField::chart_normal((tx + d.ux) * field.tile, (ty + d.uy) * field.tile);
-                  const Vec3 r = (2.0f * dot(wi, m)) * m - wi;
-                  kept += dot(r, wo) >= field.cos_gamma;
-                }
-              }
-            }
-          sum_unthinned += kept;
+          sum_unthinned += static_cast<double>(
+              enumerate_pseudo_normal_count(f, nodes, density, field, tiles, wi, wo, Enumeration::kNoThinning));
         }
       }
       const double expected = density * side * side * P;
@@ -1002,41 +1020,6 @@ struct RecordingVisitor {
   std::vector<std::pair<uint32_t, uint32_t>> seen;
   void operator()(uint32_t h0, uint32_t k) { seen.emplace_back(h0, k); }
 };
-int64_t enumerate_pseudo_normal_count(const pg::Footprint &f, const pg::NodeList &nodes, double density,
-                                      const pg::PseudoNormalField &field, const pg::PseudoNormalTiles &tiles,
-                                      const Vec3 &wi, const Vec3 &wo, bool wrong_thinning_uniform) {
-  int64_t lit = 0;
-  const pg::FootprintFrame frame(f, nodes.size);
-  const double per_node = density * nodes.size * nodes.size;
-  for (int32_t ty = tiles.ty0; ty <= tiles.ty1; ++ty)
-    for (int32_t tx = tiles.tx0[static_cast<size_t>(ty - tiles.ty0)]; tx <= tiles.tx1[static_cast<size_t>(ty - tiles.ty0)];
-         ++tx) {
-      const float g_max = pg::pseudo_normal_tile_bound(field, tx, ty);
-      const double lambda = per_node * g_max * field.tile * field.tile;
-      if (!(lambda > 0.0)) continue;
-      const pg::LitCountModel model(lambda);
-      for (int nd = 0; nd < nodes.count; ++nd) {
-        const uint32_t h0 = pg::node_seed_hash(nodes.id_hash[nd], field.tile_seed(tx, ty));
-        const double u = (static_cast<double>(h0) + 0.5) * (1.0 / 4294967296.0);
-        const int64_t K = u < model.p_any ? model.lit(u) : 0;
-        const auto o = frame.origin(static_cast<double>(nodes.i[nd]) * nodes.size, static_cast<double>(nodes.j[nd]) * nodes.size);
-        for (int64_t q = 0; q < K; ++q) {
-          const auto [ux, uy] = pg::particle_position(h0, static_cast<uint32_t>(q));
-          if (!frame.particle_inside(o, ux, uy)) continue;
-          pg::PseudoNormalDraw d = pg::pseudo_normal_draw(h0, static_cast<uint32_t>(q));
-          if (wrong_thinning_uniform) d.w = uint_to_unit_float(pg::mix_u32(pg::pseudo_normal_key(h0, static_cast<uint32_t>(q))));
-          const float mx = static_cast<float>(tx) * field.tile + d.ux * field.tile;
-          const float my = static_cast<float>(ty) * field.tile + d.uy * field.tile;
-          if (!(d.w * g_max < field.chart_density(mx, my))) continue;
-          const Vec3 m = pg::PseudoNormalField::chart_normal(mx, my);
-          const float wim = dot(wi, m);
-          const Vec3 r = (2.0f * wim) * m - wi;
-          lit += (wim > 0.0f) && dot(r, wo) >= field.cos_gamma;
-        }
-      }
-    }
-  return lit;
-}
 
 TEST(GlintParticles, PseudoNormalTestOrdersCountTheSameParticles) {
   const double density = 1e7;
@@ -1074,7 +1057,7 @@ TEST(GlintParticles, PseudoNormalTestOrdersCountTheSameParticles) {
             ++incomplete;
             continue;
           }
-          const int64_t expected = enumerate_pseudo_normal_count(f, nodes, density, field, tiles, wi, wo, false);
+          const int64_t expected = enumerate_pseudo_normal_count(f, nodes, density, field, tiles, wi, wo);
           ASSERT_EQ(a.count, expected) << "log area " << log_area << " aspect " << aspect << " rep " << rep;
           ASSERT_EQ(b.count, expected) << "log area " << log_area << " aspect " << aspect << " rep " << rep;
           ASSERT_EQ(c.count, expected);
@@ -1082,7 +1065,7 @@ TEST(GlintParticles, PseudoNormalTestOrdersCountTheSameParticles) {
           ASSERT_EQ(a.steps, c.steps);
           ASSERT_EQ(pos.seen, refl.seen);
           ASSERT_EQ(static_cast<int64_t>(pos.seen.size()), expected);
-          control_differs += enumerate_pseudo_normal_count(f, nodes, density, field, tiles, wi, wo, true) != expected;
+          control_differs += enumerate_pseudo_normal_count(f, nodes, density, field, tiles, wi, wo, Enumeration::kWrongThinningUniform) != expected;
           const bool first = f.area() < pg::kPositionFirstCover * nodes.count * nodes.size * nodes.size;
           position_first += first, reflection_first += !first;
           ++queries, lit_queries += expected > 0, lit_total += static_cast<int>(expected);
