@@ -850,7 +850,9 @@ TEST(FrostedGlassThin, EvalExitIsTheWalksLastInterfaceWithItsLeavingProbability)
       EXPECT_GT(std::fabs(t.z(14, 15, 1)), 4.0) << "control: Int pdf alone is P_T, not 1";
       control_min_chi2_z = std::min(control_min_chi2_z, t.chi2_z(true));
       // The control needs walks whose T is not 1 (at roughness 0.1 head-on 4 % of them: z 4.96 there).
-      if (t.multi > m / 20) EXPECT_GT(t.chi2_z(true), 4.0) << "control: the exit directions without T";
+      if (t.multi > m / 20) {
+        EXPECT_GT(t.chi2_z(true), 4.0) << "control: the exit directions without T";
+      }
     }
   }
   std::printf("[frosted pane exit] worst |z| %.2f (integrals), %.2f (T Int pdf); control min |z| %.2f; exit direction "
