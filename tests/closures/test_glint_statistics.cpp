@@ -112,7 +112,7 @@ void expect_acceptance(const Row &r) {
 
 // Rows [first, last] of the grid (0-based, in its loop order; printed as
 // "row k") from GLIMMER_STATS_GRID_ROWS="first-last", so the stress grid
-// (~2.5 h on one core) can be run in pieces or in parallel; unset: all rows.
+// (~1 h on one core once the tables are cached) can be run in pieces or in parallel; unset: all rows.
 bool grid_row_wanted(int index) {
   const char *range = std::getenv("GLIMMER_STATS_GRID_ROWS");
   if (range == nullptr) return true;
