@@ -47,8 +47,7 @@ void BM_ClosureSample(benchmark::State &state, std::string name) {
     const float r[3] = {uint_to_unit_float(hash_u32x2(i, 1)), uint_to_unit_float(hash_u32x2(i, 2)),
                         uint_to_unit_float(hash_u32x2(i, 3))};
     ++i;
-    GlimmerSample s{};  // no exit buffers (ABI 2.7 / 2.8 write them only when set)
-    s.struct_size = sizeof(GlimmerSample);
+    GlimmerSample s = glimmer_blank_sample();
     benchmark::DoNotOptimize(instance.sample(ctx, r, s));
   }
 }
@@ -83,8 +82,7 @@ void BM_TexturedRoughnessShadingPoint(benchmark::State &state, std::string name,
     benchmark::DoNotOptimize(instance.albedo(ctx));
     instance.eval(ctx, light, f, pdf);
     benchmark::DoNotOptimize(f);
-    GlimmerSample s{};  // no exit buffers (ABI 2.7 / 2.8 write them only when set)
-    s.struct_size = sizeof(GlimmerSample);
+    GlimmerSample s = glimmer_blank_sample();
     if (instance.sample(ctx, r, s) != 0) instance.eval(ctx, Vec3(s.wo), f, pdf);
     benchmark::DoNotOptimize(f);
   }

@@ -59,8 +59,7 @@ void BM_MicrofacetSample(benchmark::State &state, std::string name, std::vector<
     const float r[3] = {uint_to_unit_float(hash_u32x2(i, 1)), uint_to_unit_float(hash_u32x2(i, 2)),
                         uint_to_unit_float(hash_u32x2(i, 3))};
     ++i;
-    GlimmerSample s{};  // no exit buffers (ABI 2.7 / 2.8 write them only when set)
-    s.struct_size = sizeof(GlimmerSample);
+    GlimmerSample s = glimmer_blank_sample();
     benchmark::DoNotOptimize(instance->sample(ctx, r, s));
   }
 }

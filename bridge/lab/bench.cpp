@@ -48,8 +48,7 @@ BenchResult bench(const host::ClosureInstance &instance, const GlimmerShadingCon
 
     start = Clock::now();
     for (uint64_t i = 0; i < n; ++i) {
-      GlimmerSample s{};  // no exit buffers (ABI 2.7 / 2.8 write them only when set)
-      s.struct_size = sizeof(GlimmerSample);
+      GlimmerSample s = glimmer_blank_sample();
       instance.sample(ctx, &rand[3 * i], s);
       acc += s.pdf;
     }

@@ -51,8 +51,7 @@ FurnaceResult furnace(const host::ClosureInstance &instance, const GlimmerShadin
   };
   const auto partial = detail::for_each_block<Accumulator>(samples, [&](uint64_t begin, uint64_t end, Accumulator &acc) {
     for (uint64_t i = begin; i < end; ++i) {
-      GlimmerSample s{};  // no exit buffers (ABI 2.7 / 2.8 write them only when set)
-      s.struct_size = sizeof(GlimmerSample);
+      GlimmerSample s = glimmer_blank_sample();
       const uint32_t label = detail::sample_at(instance, ctx, seed, i, s);
       if (label == GLIMMER_LABEL_NONE) {
         ++acc.absorbed;
@@ -141,8 +140,7 @@ ConsistencyResult consistency(const host::ClosureInstance &instance, const Glimm
   };
   const auto partial = detail::for_each_block<Accumulator>(samples, [&](uint64_t begin, uint64_t end, Accumulator &acc) {
     for (uint64_t i = begin; i < end; ++i) {
-      GlimmerSample s{};  // no exit buffers (ABI 2.7 / 2.8 write them only when set)
-      s.struct_size = sizeof(GlimmerSample);
+      GlimmerSample s = glimmer_blank_sample();
       const uint32_t label = detail::sample_at(instance, ctx, seed, i, s);
       if (label == GLIMMER_LABEL_NONE || (label & GLIMMER_LABEL_SINGULAR)) continue;
       Spectrum f_cos;

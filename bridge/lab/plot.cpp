@@ -62,8 +62,7 @@ void plot_lobe(const host::ClosureInstance &instance, const GlimmerShadingContex
     detail::for_each_block<char>(options.samples, [&](uint64_t begin, uint64_t end, char &) {
       auto &histogram = per_thread.local();
       for (uint64_t i = begin; i < end; ++i) {
-        GlimmerSample s{};  // no exit buffers (ABI 2.7 / 2.8 write them only when set)
-        s.struct_size = sizeof(GlimmerSample);
+        GlimmerSample s = glimmer_blank_sample();
         const uint32_t label = detail::sample_at(instance, ctx, options.seed, i, s);
         if (label == GLIMMER_LABEL_NONE || (label & GLIMMER_LABEL_SINGULAR) || !detail::is_unit_direction(Vec3(s.wo)))
           continue;

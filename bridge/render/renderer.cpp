@@ -836,9 +836,20 @@ struct Renderer::Impl {
       me.f = Spectrum(me.pdf);
       return me;
     };
-    const Spectrum direct =
-        direct_light_at(Vec3(s.origin), n, exit_bsdf, pr.throughput, lu, lv, exit_world.active, exit_world.lamps);
-    if (!is_zero(direct)) add_contribution(pr, direct, ps.bounce);
+    light_sample_at_exit(Vec3(s.origin), n, exit_bsdf, pr.throughput, ps.bounce, lu, lv, continued_pdf, ps, pr,
+                         exit_world.active, exit_world.lamps);
+  }
+
+  // The tail of integrate_exit_lobe and integrate_exit_state: one light sample from exit point P (normal n) with
+  // the exit's BSDF (its f cos and pdf; the world or the lamps left out when the exit integrates them itself),
+  // added at `bounce` with `scale` (the path's throughput up to the exit), and the continued path's emission hits
+  // weighted against light sampling at continued_pdf (the exit BSDF's pdf at the continued direction) from here on.
+  template <class ExitBsdf>
+  void light_sample_at_exit(const Vec3 &P, const Vec3 &n, const ExitBsdf &exit_bsdf, const Spectrum &scale,
+                            int bounce, float lu, float lv, float continued_pdf, PathState &ps, PathRadiance &pr,
+                            bool without_world = false, bool without_lamps = false) const {
+    const Spectrum direct = direct_light_at(P, n, exit_bsdf, scale, lu, lv, without_world, without_lamps);
+    if (!is_zero(direct)) add_contribution(pr, direct, bounce);
     ps.last_singular = false;
     ps.mis_ray_pdf = continued_pdf;
   }
@@ -914,10 +925,7 @@ struct Renderer::Impl {
     if (!(continued_pdf > 0.0f)) return;
     float lu, lv;  // a light set of its own per vertex (the vertex's light set served the surface's own NEE)
     sampler.get2(exit_light_set(ps.sample_vertex()), lu, lv);
-    const Spectrum direct = direct_light_at(sd.ctx.P, sd.Ng, exit_bsdf, xs.scale, lu, lv);
-    if (!is_zero(direct)) add_contribution(pr, direct, xs.bounce);
-    ps.last_singular = false;
-    ps.mis_ray_pdf = continued_pdf;
+    light_sample_at_exit(sd.ctx.P, sd.Ng, exit_bsdf, xs.scale, xs.bounce, lu, lv, continued_pdf, ps, pr);
   }
 
   // ABI 2.3: the closure moved the path (e.g. to where light leaves a frosted object).
@@ -1023,8 +1031,7 @@ struct Renderer::Impl {
       const float total_sw = cs.sum_sample_weight + transparent_weight;
       if (total_sw <= 0.0f) break;
       integrate_surface_direct_light(cs, sd, total_sw, light_rand, ps, pr);
-      GlimmerSample s{};
-      s.struct_size = sizeof(GlimmerSample);
+      GlimmerSample s = glimmer_blank_sample();
       GlimmerExitMixture exit_mixture;  // ABI 2.7: written by a closure that hands over a whole exit mixture
       s.exit_mixture = &exit_mixture;
       GlimmerExitState exit_state;  // ABI 2.8: written by a closure that hands over its last scatter
@@ -1098,8 +1105,7 @@ struct Renderer::Impl {
         out = sd.ctx;
         return true;
       }
-      GlimmerSample s{};
-      s.struct_size = sizeof(GlimmerSample);
+      GlimmerSample s = glimmer_blank_sample();
       const float r3[3] = {0.5f, 0.5f, 0.5f};
       const ActiveClosure &c = cs.closures[0];
       GlimmerShadingContext scratch;

@@ -134,8 +134,7 @@ Spectrum random_walk_albedo(const host::ClosureInstance &c, const Vec3 &wi, long
   for (long i = 0; i < walks; ++i) {
     ctx.path_seed = uint32_t(i * 2654435761u + seed);
     const float u[3] = {rng.next_float(), rng.next_float(), rng.next_float()};
-    GlimmerSample s{};  // no exit buffers (ABI 2.7 / 2.8 write them only when set)
-    s.struct_size = sizeof(GlimmerSample);
+    GlimmerSample s = glimmer_blank_sample();
     if (c.sample(ctx, u, s) == GLIMMER_LABEL_NONE) continue;
     for (int k = 0; k < 3; ++k) sum[k] += s.eval[k] / s.pdf;
   }

@@ -63,8 +63,7 @@ inline Albedo sampled_albedo(const host::ClosureInstance &c, const Vec3 &wi, int
     for (int j = 0; j < sxy; ++j)
       for (int k = 0; k < sz; ++k) {
         const float u[3] = {(i + rng.next_float()) / sxy, (j + rng.next_float()) / sxy, (k + rng.next_float()) / sz};
-        GlimmerSample s{};  // no exit buffers (ABI 2.7 / 2.8 write them only when set)
-        s.struct_size = sizeof(GlimmerSample);
+        GlimmerSample s = glimmer_blank_sample();
         const uint32_t label = c.sample(ctx, u, s);
         if (label == GLIMMER_LABEL_NONE) continue;
         double *acc = (label & GLIMMER_LABEL_TRANSMIT) ? t : r;
@@ -106,8 +105,7 @@ inline ClosureChi2 closure_chi2(const host::ClosureInstance &closure, const Glim
   for (long i = 0; i < n_samples; i += 64) {
     float u[3];
     lab::sample_random3(seed, uint64_t(i), u);
-    GlimmerSample s{};  // no exit buffers (ABI 2.7 / 2.8 write them only when set)
-    s.struct_size = sizeof(GlimmerSample);
+    GlimmerSample s = glimmer_blank_sample();
     if (closure.sample(ctx, u, s) == GLIMMER_LABEL_NONE) continue;
     Spectrum f;
     float pdf;

@@ -125,8 +125,7 @@ template <class Closure>
 long bad_host_query(const Closure &c, GlimmerShadingContext &ctx, const Vec3 &rand, float u1, float u2,
                     uint32_t &flags, long &mixtures) {
   GlimmerExitMixture buffer;
-  GlimmerSample hs{};
-  hs.struct_size = sizeof(GlimmerSample);
+  GlimmerSample hs = glimmer_blank_sample();
   hs.exit_mixture = &buffer;
   const float r3[3] = {rand.x, rand.y, rand.z};
   const uint32_t label =

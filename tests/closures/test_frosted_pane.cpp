@@ -138,8 +138,7 @@ SlabResult trace_slab(const host::ClosureInstance &solid, const SlabHost &slab, 
       for (int event = 0; event < 256; ++event) {
         const GlimmerShadingContext ctx = slab_context(w, bottom, slab.thickness, &slab.services);
         const float u[3] = {rng.next_float(), rng.next_float(), rng.next_float()};
-        GlimmerSample s{};  // no exit buffers (ABI 2.7 / 2.8 write them only when set)
-        s.struct_size = sizeof(GlimmerSample);
+        GlimmerSample s = glimmer_blank_sample();
         if (solid.sample(ctx, u, s) == GLIMMER_LABEL_NONE) break;
         throughput *= Spectrum(s.eval[0], s.eval[1], s.eval[2]) / s.pdf;
         const Vec3 wo(s.wo);
@@ -168,8 +167,7 @@ SlabResult sample_pane(const host::ClosureInstance &pane, const Vec3 &wi, long n
     for (long i = 0; i < n / kBlocks; ++i) {
       ctx.path_seed = rng.next_u32();
       const float u[3] = {rng.next_float(), rng.next_float(), rng.next_float()};
-      GlimmerSample s{};  // no exit buffers (ABI 2.7 / 2.8 write them only when set)
-      s.struct_size = sizeof(GlimmerSample);
+      GlimmerSample s = glimmer_blank_sample();
       const uint32_t label = pane.sample(ctx, u, s);
       if (label == GLIMMER_LABEL_NONE) continue;
       tallies[b].add((label & GLIMMER_LABEL_TRANSMIT) ? 1 : 0, Spectrum(s.eval[0], s.eval[1], s.eval[2]) / s.pdf);
@@ -427,8 +425,7 @@ TEST(FrostedGlassThin, EvalIsTheFrontReflectionAndTheWalkIsSingular) {
       for (long k = 0; k < n / kBlocks; ++k) {
         ctx.path_seed = rng.next_u32();
         const float u[3] = {rng.next_float(), rng.next_float(), rng.next_float()};
-        GlimmerSample s{};
-        s.struct_size = sizeof(GlimmerSample);
+        GlimmerSample s = glimmer_blank_sample();
         const uint32_t label = pane->sample(ctx, u, s);
         if (label == GLIMMER_LABEL_NONE) continue;
         const Vec3 wo(s.wo);
@@ -547,8 +544,7 @@ Fluxes flux_from(const host::ClosureInstance &pane, const DielectricLobe &energy
       GlimmerShadingContext ctx = host::make_local_context(wi);
       ctx.path_seed = rng.next_u32();
       const float u[3] = {rng.next_float(), rng.next_float(), rng.next_float()};
-      GlimmerSample s{};
-      s.struct_size = sizeof(GlimmerSample);
+      GlimmerSample s = glimmer_blank_sample();
       if (pane.sample(ctx, u, s) == GLIMMER_LABEL_NONE) continue;
       const Vec3 wo = normalize(Vec3(s.wo));
       const double raw = from.solid_angle() * std::fabs(wi.z) * s.eval[0] / s.pdf;
@@ -728,8 +724,7 @@ struct ExitTally {
   void sample(const host::ClosureInstance &pane, const GlimmerShadingContext &ctx, Pcg32 &rng) {
     constexpr int kDirs = 16;
     const float u[3] = {rng.next_float(), rng.next_float(), rng.next_float()};
-    GlimmerSample s{};
-    s.struct_size = sizeof(GlimmerSample);
+    GlimmerSample s = glimmer_blank_sample();
     GlimmerExitState state{};
     s.exit_state = &state;
     if (!(pane.sample(ctx, u, s) & GLIMMER_LABEL_SINGULAR)) return;  // none, or the front reflection

@@ -1140,8 +1140,7 @@ TEST(FrostedGlassSg, ExitMixtureThroughTheAbiForNewAndOldHosts) {
       const float r3[3] = {rng.next_float(), rng.next_float(), rng.next_float()};
       // 2.7 host.
       GlimmerExitMixture buffer{};
-      GlimmerSample full{};
-      full.struct_size = sizeof(GlimmerSample);
+      GlimmerSample full = glimmer_blank_sample();
       full.exit_mixture = &buffer;
       const uint32_t label = Adapter::sample(inst, &ctx, r3, &full);
       // 2.6 host: its sample ends before exit_mixture; guard bytes after it.
@@ -1153,8 +1152,7 @@ TEST(FrostedGlassSg, ExitMixtureThroughTheAbiForNewAndOldHosts) {
       const uint32_t old_label = Adapter::sample(inst, &ctx, r3, old);
       for (size_t b = kOld; b < sizeof raw; ++b) bad += raw[b] != 0xAB;
       // 2.7 host without a buffer.
-      GlimmerSample no_buffer{};
-      no_buffer.struct_size = sizeof(GlimmerSample);
+      GlimmerSample no_buffer = glimmer_blank_sample();
       Adapter::sample(inst, &ctx, r3, &no_buffer);
       bad += (no_buffer.flags & GLIMMER_SAMPLE_EXIT_MIXTURE) != 0;
       if (label == GLIMMER_LABEL_NONE) {
@@ -1253,8 +1251,7 @@ TEST(FrostedGlassSg, HostSampleCheckCatchesBrokenMixtures) {
     ctx.path_seed = rng.next_u32();
     const float r3[3] = {rng.next_float(), rng.next_float(), rng.next_float()};
     GlimmerExitMixture buffer;
-    GlimmerSample hs{};
-    hs.struct_size = sizeof(GlimmerSample);
+    GlimmerSample hs = glimmer_blank_sample();
     hs.exit_mixture = &buffer;
     const uint32_t label = ClosureAdapter<FrostedGlassClosure>::sample(inst, &ctx, r3, &hs);
     if (!(hs.flags & GLIMMER_SAMPLE_EXIT_MIXTURE) || buffer.count < 2) continue;

@@ -483,8 +483,7 @@ TEST(Glint, DeterministicAcrossThreads) {
           const GlimmerShadingContext ctx =
               context(wi, rng.next_double() * 10.0, rng.next_double(), std::pow(10.0, -4.0 * rng.next_double()));
           const float r3[3] = {rng.next_float(), rng.next_float(), rng.next_float()};
-          GlimmerSample s{};  // no exit buffers (ABI 2.7 / 2.8 write them only when set)
-          s.struct_size = sizeof(GlimmerSample);
+          GlimmerSample s = glimmer_blank_sample();
           glint->sample(ctx, r3, s);
           out[2 * i] = eval_f(*glint, ctx, spherical_dir(60.0 * rng.next_double(), 360.0 * rng.next_double()));
           out[2 * i + 1] = s.eval[0];

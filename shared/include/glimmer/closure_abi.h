@@ -379,6 +379,20 @@ enum GlimmerSampleFlags {
   GLIMMER_SAMPLE_EXIT_STATE = 8u    /* ABI 2.8 */
 };
 
+/* The GlimmerSample a host passes to sample() when it offers no exit buffers:
+ * every field zero (exit_mixture and exit_state NULL, so a plugin writes
+ * neither) and struct_size this header's size. A host that offers a buffer
+ * sets its pointer afterwards. */
+static inline GlimmerSample glimmer_blank_sample(void) {
+#ifdef __cplusplus
+  GlimmerSample s{};
+#else
+  GlimmerSample s = {0};
+#endif
+  s.struct_size = (uint32_t)sizeof(GlimmerSample);
+  return s;
+}
+
 /* ---- Parameters: declared once per closure type, validated at create. ---- */
 typedef enum GlimmerParamType {
   GLIMMER_PARAM_FLOAT = 0,
