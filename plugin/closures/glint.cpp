@@ -251,8 +251,19 @@ class GlintClosure {
     int pseudo_count, pseudo_steps;
     bool pseudo_complete, pseudo_counted;
   };
+  // This thread's last footprint node list (glint::FootprintNodeMemo): the
+  // host calls a shading point's closures several times over one footprint.
+  // A pure memo (the same list as computed afresh), so images do not depend
+  // on threads or call order.
+  // Out of line: inlined, GCC recomputed the thread-local's address (a call
+  // of __tls_get_addr) at every use.
+  [[gnu::noinline]] static glint::FootprintNodeMemo *node_memo() {
+    static thread_local glint::FootprintNodeMemo memo;
+    return &memo;
+  }
   void locate(const Vec3 &wi, const Vec3 &wo, float density, Particles &parts) const {
-    if (!parts.located) glint::locate_glints(parts.fp, density, cell_keys_, wi, wo, gamma_rad_, parts.site);
+    if (!parts.located)
+      glint::locate_glints(parts.fp, density, cell_keys_, wi, wo, gamma_rad_, parts.site, node_memo);
     parts.located = true;
   }
 
@@ -299,7 +310,7 @@ class GlintClosure {
     const double expected_max = particles * P_max;
     if (!(expected_max <= threshold_) || !(expected_max <= kDarkTestMaxExpected)) return false;
     locate(wi, wo, density, parts);
-    if (parts.site.nodes.count > kDarkTestMaxNodes) return false;
+    if (parts.site.node_list().count > kDarkTestMaxNodes) return false;
     const glint::GlintCount k = glint::count_glints(parts.fp, parts.site, P_max, kMaxSteps);
     return k.complete && k.count == 0;
   }
@@ -318,8 +329,8 @@ class GlintClosure {
       }
     glint::PseudoNormalTiles tiles;
     if (!glint::pseudo_normal_tiles(pseudo_, wi, wo, glint::PseudoNormalField::kMargin, tiles)) return false;
-    glint::footprint_nodes(parts.fp, density, parts.site.nodes);
-    k = glint::count_pseudo_normal_glints(parts.fp, parts.site.nodes, density, pseudo_, tiles, wi, wo, kMaxSteps,
+    const glint::NodeList &nodes = glint::footprint_nodes(parts.fp, density, parts.site.nodes, node_memo);
+    k = glint::count_pseudo_normal_glints(parts.fp, nodes, density, pseudo_, tiles, wi, wo, kMaxSteps,
                                           visit);
     return true;
   }

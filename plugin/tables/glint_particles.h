@@ -305,7 +305,14 @@ inline bool footprint_x_range_in_band(const FootprintCorners &c, const EdgeCross
 
 // The nodes of `level` the footprint overlaps, row by row (the parallelogram
 // rasterised, not its bounding box); false when there are more than kMaxNodes.
-inline bool nodes_at_level(const Footprint &f, int level, NodeList &list) {
+// In two parts (session 17, so the node-list memo can step in between them):
+// nodes_at_level_start sets the list's level, finds the rows and fills a
+// small footprint's box; nodes_at_level_rows rasterises the others.
+struct NodeRows {
+  enum Kind { kDone, kTooMany, kRows } kind;
+  int64_t j0, j1;
+};
+inline NodeRows nodes_at_level_start(const Footprint &f, int level, NodeList &list) {
   list.count = 0;
   list.level = level;
   list.size = power_of_two(-level);
@@ -316,10 +323,10 @@ inline bool nodes_at_level(const Footprint &f, int level, NodeList &list) {
   // floors below would differ by 2^63, which wraps, and the row loop would
   // run ~2^62 times (a thin finite footprint such as (0, 3e38) x (3e-38, 0)
   // has area 9 and reached it).
-  if (!(ex * inv < 1e15) || !(ey * inv < 1e15)) return false;
+  if (!(ex * inv < 1e15) || !(ey * inv < 1e15)) return {NodeRows::kTooMany, 0, 0};
   const int64_t j0 = floor_to_int64((f.cy - ey) * inv);
   const int64_t j1 = floor_to_int64((f.cy + ey) * inv);
-  if (j1 - j0 >= kMaxNodes) return false;
+  if (j1 - j0 >= kMaxNodes) return {NodeRows::kTooMany, 0, 0};
   // A footprint whose bounding box spans at most 2 x 2 nodes (every
   // footprint smaller than a node) takes the whole box: clipping the rows
   // costs more than the one node it may save, and the count is the same
@@ -327,8 +334,13 @@ inline bool nodes_at_level(const Footprint &f, int level, NodeList &list) {
   const int64_t box_i0 = floor_to_int64((f.cx - ex) * inv), box_i1 = floor_to_int64((f.cx + ex) * inv);
   if (j1 - j0 <= 1 && box_i1 - box_i0 <= 1) {
     for (int64_t j = j0; j <= j1; ++j) list.add_row(box_i0, box_i1, j);
-    return true;
+    return {NodeRows::kDone, j0, j1};
   }
+  return {NodeRows::kRows, j0, j1};
+}
+// Rows j0..j1 of `list` (level and size set, count 0); false beyond kMaxNodes.
+inline bool nodes_at_level_rows(const Footprint &f, int64_t j0, int64_t j1, NodeList &list) {
+  const double inv = power_of_two(list.level);
   // The corners once per footprint and each row border's crossings once
   // (they were computed per row and per side; same values, same nodes).
   const FootprintCorners corners(f);
@@ -347,21 +359,89 @@ inline bool nodes_at_level(const Footprint &f, int level, NodeList &list) {
   }
   return true;
 }
+inline bool nodes_at_level(const Footprint &f, int level, NodeList &list) {
+  const NodeRows rows = nodes_at_level_start(f, level, list);
+  if (rows.kind != NodeRows::kRows) return rows.kind == NodeRows::kDone;
+  return nodes_at_level_rows(f, rows.j0, rows.j1, list);
+}
 
-// The nodes a footprint is counted over: those of the particle level it
-// overlaps, or, when there are more than kMaxNodes of them, the (at most
-// 2 x 2) nodes of the level whose node side is >= the footprint's bounding box.
-inline void footprint_nodes(const Footprint &f, double density, NodeList &list) {
-  if (nodes_at_level(f, particle_level(density), list)) return;
+// The coarse fallback: the (at most 2 x 2) nodes of the level whose node side is >= the footprint's bounding box.
+inline void coarse_footprint_nodes(const Footprint &f, NodeList &list) {
   const double ex = 0.5 * (std::fabs(f.ax) + std::fabs(f.bx));
   const double ey = 0.5 * (std::fabs(f.ay) + std::fabs(f.by));
   const int e = binary_exponent(std::max(2.0 * std::max(ex, ey), 1e-30));  // extent < 2^e
   nodes_at_level(f, -e, list);
 }
+// The nodes a footprint is counted over: those of the particle level it
+// overlaps, or, when there are more than kMaxNodes of them, the coarse fallback.
+inline void footprint_nodes_at(const Footprint &f, int particle_level, NodeList &list) {
+  if (nodes_at_level(f, particle_level, list)) return;
+  coarse_footprint_nodes(f, list);
+}
+inline void footprint_nodes(const Footprint &f, double density, NodeList &list) {
+  footprint_nodes_at(f, particle_level(density), list);
+}
 inline NodeList footprint_nodes(const Footprint &f, double density) {
   NodeList list;
   footprint_nodes(f, density, list);
   return list;
+}
+
+// The last footprint's node list, kept by the caller (glint.cpp: one per
+// thread). A host calls a shading point's closure several times over the
+// same footprint (the light sample's eval, the BSDF sample, the mixture's
+// evals at another closure's sample), and the list depends only on the
+// footprint and the particle level; the direction cells differ per call.
+// Issue 10, session 17: in examples/glint.xml (160 x 100, 4 spp)
+// nodes_at_level was 92 M of the glint render's 365 M instructions above
+// its GGX twin (1311 per call); 37 % of the calls find their list here
+// (92 M -> 61 M), and a lookup that misses costs ~130 instructions
+// (docs/glints.md, "Session 17").
+struct FootprintNodeMemo {
+  uint64_t cx = 0, cy = 0, ax = 0, ay = 0, bx = 0, by = 0;  // the footprint's bits
+  int level = 0;  // the particle level the list was made for
+  bool valid = false;
+  NodeList nodes;
+  // Whether the list is that of f at `lvl` (the bits compared: -0 and NaN are keys like any other).
+  bool holds(const Footprint &f, int lvl) const {
+    const uint64_t d = (std::bit_cast<uint64_t>(f.cx) ^ cx) | (std::bit_cast<uint64_t>(f.cy) ^ cy) |
+                       (std::bit_cast<uint64_t>(f.ax) ^ ax) | (std::bit_cast<uint64_t>(f.ay) ^ ay) |
+                       (std::bit_cast<uint64_t>(f.bx) ^ bx) | (std::bit_cast<uint64_t>(f.by) ^ by);
+    return d == 0 && valid && level == lvl;
+  }
+  void set_key(const Footprint &f, int lvl) {
+    cx = std::bit_cast<uint64_t>(f.cx), cy = std::bit_cast<uint64_t>(f.cy), ax = std::bit_cast<uint64_t>(f.ax);
+    ay = std::bit_cast<uint64_t>(f.ay), bx = std::bit_cast<uint64_t>(f.bx), by = std::bit_cast<uint64_t>(f.by);
+    level = lvl;
+    valid = true;
+  }
+};
+
+// footprint_nodes through the memo: the same list (bit for bit; the key is
+// the footprint's bits and the level), returned by reference: `list` or the
+// memo's own list (valid until the next call with this memo; no copy).
+// Footprints whose bounding box spans at most 2 x 2 particle nodes take
+// nodes_at_level's box into `list` without the memo. get_memo() returns the
+// memo (called only when it is used: a thread-local's address is a call in
+// a shared library).
+template <typename GetMemo>
+inline const NodeList &footprint_nodes(const Footprint &f, double density, NodeList &list, GetMemo &&get_memo) {
+  const int level = particle_level(density);
+  const NodeRows rows = nodes_at_level_start(f, level, list);
+  if (rows.kind != NodeRows::kRows) {
+    if (rows.kind == NodeRows::kTooMany) coarse_footprint_nodes(f, list);
+    return list;
+  }
+  FootprintNodeMemo &memo = *get_memo();
+  if (memo.holds(f, level)) return memo.nodes;
+  memo.valid = false;
+  NodeList &out = memo.nodes;
+  out.count = 0;
+  out.level = list.level;
+  out.size = list.size;
+  if (!nodes_at_level_rows(f, rows.j0, rows.j1, out)) coarse_footprint_nodes(f, out);
+  memo.set_key(f, level);
+  return out;
 }
 
 // Per-node random stream: the node seed comes from 8 TEA rounds, the values
@@ -668,7 +748,8 @@ struct GroupReject {
 // but 1..7 % slower per eval in the walk on this project's machine (SSE2 has
 // no 32-bit lane multiply: two pmuludq and shuffles per multiply, a longer
 // dependency chain before the mask's branch; docs/glints.md "Session 8").
-// Kept for a build with SSE4.1 / AVX2 lanes.
+// Kept for a build with SSE4.1 / AVX2 lanes. count_four_groups_in_passes
+// hashes in mix_u32x4 lanes (its compaction does not branch on them).
 inline uint32_t group_hashes(uint32_t key, const uint32_t *seeds, const GroupReject &reject, uint32_t *out) {
   uint32_t mask = 0;
   for (int g = 0; g < kDirectionGroups; ++g) {
@@ -793,13 +874,25 @@ inline GlintCount count_four_groups_in_passes(const FootprintFrame &frame, const
   PairPassCounter pc(frame);
   int n_pairs = 0;
   const bool can_be_inside = frame.nodes_can_be_inside;
+#if defined(__SSE2__)
+  const __m128i seed_lanes = _mm_loadu_si128(reinterpret_cast<const __m128i *>(seeds));
+#endif
   for (int node = 0; node < nodes.count; ++node) {  // (1) and (2)
     const auto at = static_cast<size_t>(node);
     const auto o = frame.origin(static_cast<double>(nodes.i[at]) * nodes.size, static_cast<double>(nodes.j[at]) * nodes.size);
     pc.origin[at] = o;
     pc.inside_mask[at] = can_be_inside && frame.node_inside(o) ? -1 : 0;
-    uint32_t h[kDirectionGroups];
+    // The four groups' hashes in the lanes of one SSE2 register (mix_u32x4,
+    // the same values as group_hashes): no branch reads them here, unlike
+    // the node loop where the lanes measured slower (session 8). Session 17:
+    // 1e-4 5714 -> 5470 instructions per eval, same f and pdf bits.
+    alignas(16) uint32_t h[kDirectionGroups];
+#if defined(__SSE2__)
+    _mm_store_si128(reinterpret_cast<__m128i *>(h),
+                    mix_u32x4(_mm_xor_si128(_mm_set1_epi32(static_cast<int>(nodes.id_hash[at])), seed_lanes)));
+#else
     group_hashes(nodes.id_hash[at], seeds, reject, h);
+#endif
     for (int g = 0; g < kDirectionGroups; ++g) {
       pc.pair_hash[static_cast<size_t>(n_pairs)] = h[g];
       pc.pair_node[static_cast<size_t>(n_pairs)] = static_cast<uint8_t>(node);
@@ -921,7 +1014,9 @@ struct GlintSite {
   bool has_half_vector = false;  // false: no half vector above the surface, no glint
   std::array<uint32_t, kDirectionGroups> cell_seeds{};
   double group_density = 0.0;  // N / G
-  NodeList nodes;
+  NodeList nodes;                       // the footprint's nodes, unless memo_nodes is set
+  const NodeList *memo_nodes = nullptr;  // a FootprintNodeMemo's list (locate_glints with a memo)
+  const NodeList &node_list() const { return memo_nodes != nullptr ? *memo_nodes : nodes; }
 };
 
 inline void locate_glints(const Footprint &f, double density, const DirectionCellKeys &keys, const Vec3 &wi,
@@ -929,7 +1024,18 @@ inline void locate_glints(const Footprint &f, double density, const DirectionCel
   site.has_half_vector = direction_cell_seeds(keys, wi, wo, gamma_rad, site.cell_seeds);
   if (!site.has_half_vector) return;
   site.group_density = density / kDirectionGroups;
+  site.memo_nodes = nullptr;
   footprint_nodes(f, site.group_density, site.nodes);
+}
+// The same through the caller's node-list memo (footprint_nodes with get_memo).
+template <typename GetMemo>
+inline void locate_glints(const Footprint &f, double density, const DirectionCellKeys &keys, const Vec3 &wi,
+                          const Vec3 &wo, float gamma_rad, GlintSite &site, GetMemo &&get_memo) {
+  site.has_half_vector = direction_cell_seeds(keys, wi, wo, gamma_rad, site.cell_seeds);
+  if (!site.has_half_vector) return;
+  site.group_density = density / kDirectionGroups;
+  const NodeList &list = footprint_nodes(f, site.group_density, site.nodes, get_memo);
+  site.memo_nodes = &list == &site.nodes ? nullptr : &list;
 }
 
 // Reflecting particles of a footprint over the kDirectionGroups groups
@@ -941,7 +1047,7 @@ template <typename Visitor = NoParticleVisitor>
 inline GlintCount count_glints(const Footprint &f, const GlintSite &site, double P, int max_steps,
                                Visitor &&visit = Visitor{}) {
   if (!site.has_half_vector) return {};
-  return count_reflecting_particles(f, site.nodes, site.group_density, site.cell_seeds, P, max_steps,
+  return count_reflecting_particles(f, site.node_list(), site.group_density, site.cell_seeds, P, max_steps,
                                     std::forward<Visitor>(visit));
 }
 

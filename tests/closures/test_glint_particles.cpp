@@ -117,6 +117,77 @@ TEST(GlintParticles, ExtremeThinFootprintsFinishWithTheCoarseNodes) {
   EXPECT_EQ(run.get(), 24);
 }
 
+// The node-list memo (FootprintNodeMemo, session 17) returns the list
+// footprint_nodes computes afresh, entry for entry, over a random sequence of
+// repeated and interleaved footprints and densities: the box path, the
+// rasterised rows, the coarse fallback (more than kMaxNodes), signed zeros
+// and footprints one ulp apart. Control: a memo relabelled to another
+// density's level (a key without the level) returns a stale list.
+bool same_nodes(const pg::NodeList &a, const pg::NodeList &b) {
+  if (a.level != b.level || a.size != b.size || a.count != b.count) return false;
+  for (int n = 0; n < a.count; ++n) {
+    const auto at = static_cast<size_t>(n);
+    if (a.i[at] != b.i[at] || a.j[at] != b.j[at] || a.id_hash[at] != b.id_hash[at]) return false;
+  }
+  return true;
+}
+
+TEST(GlintParticles, NodeListMemoReturnsTheFreshList) {
+  Pcg32 rng(17);
+  const double densities[] = {2.5e5, 2.5e6, 5e6};
+  std::vector<pg::Footprint> pool;
+  for (int k = 0; k < 60; ++k) {
+    const double area = std::exp(std::log(1e-7) + rng.next_double() * std::log(1e5));  // 1e-7..1e-2
+    pool.push_back(random_footprint(rng, area, std::exp(rng.next_double() * std::log(64.0))));
+  }
+  pool.push_back({0.25, 0.5, 0.02, 0.0, 0.0, 0.02});   // rows
+  pool.push_back({0.25, 0.5, 0.02, -0.0, 0.0, 0.02});  // the same with -0: another key, the same list
+  pool.push_back({std::nextafter(0.25, 1.0), 0.5, 0.02, 0.0, 0.0, 0.02});  // one ulp apart
+  pool.push_back({0.25, 0.5, 2.0, 0.0, 0.0, 0.5});  // more than kMaxNodes: the coarse fallback
+  pg::FootprintNodeMemo memo;
+  const auto get_memo = [&memo] { return &memo; };
+  int hits = 0, rows = 0, boxes = 0, coarse = 0, wrong = 0;
+  for (int q = 0; q < 40000; ++q) {
+    // Runs of one footprint (a shading point's calls), then a jump.
+    const pg::Footprint &f = pool[static_cast<size_t>(q % 4 == 0 ? rng.next_u32() % pool.size() : (q / 4) % pool.size())];
+    const double density = densities[rng.next_u32() % 3];
+    const bool was = memo.holds(f, pg::particle_level(density));
+    pg::NodeList list;
+    const pg::NodeList &got = pg::footprint_nodes(f, density, list, get_memo);
+    const pg::NodeList fresh = pg::footprint_nodes(f, density);
+    wrong += same_nodes(got, fresh) ? 0 : 1;
+    hits += was ? 1 : 0;
+    boxes += &got == &list ? 1 : 0;
+    rows += &got == &memo.nodes ? 1 : 0;
+    coarse += fresh.level != pg::particle_level(density) ? 1 : 0;
+  }
+  std::printf("[memo] 40000 queries: %d from the memo, %d through it, %d box lists, %d coarse\n", hits, rows, boxes,
+              coarse);
+  EXPECT_EQ(wrong, 0);
+  EXPECT_GT(hits, 5000);
+  EXPECT_GT(rows - hits, 5000);  // misses that filled the memo
+  EXPECT_GT(boxes, 5000);
+  EXPECT_GT(coarse, 100);
+  // Control: a memo whose key leaves out the level (relabelled after a fill at another density) is wrong.
+  int stale = 0, tried = 0;
+  for (size_t k = 0; k < pool.size(); ++k) {
+    pg::NodeList list;
+    const pg::NodeList &first = pg::footprint_nodes(pool[k], densities[0], list, get_memo);
+    const pg::NodeList fresh = pg::footprint_nodes(pool[k], densities[1]);
+    // rows at both particle levels (not the coarse fallback, whose level does not depend on the density)
+    if (&first != &memo.nodes || first.level != pg::particle_level(densities[0]) ||
+        fresh.level != pg::particle_level(densities[1]))
+      continue;
+    memo.level = pg::particle_level(densities[1]);
+    const pg::NodeList &got = pg::footprint_nodes(pool[k], densities[1], list, get_memo);
+    ++tried;
+    stale += same_nodes(got, fresh) ? 0 : 1;
+  }
+  std::printf("[memo] control: %d of %d relabelled lookups returned a stale list\n", stale, tried);
+  EXPECT_GT(tried, 10);
+  EXPECT_EQ(stale, tried) << "the relabelled memo must return the stale list";
+}
+
 // Aspect 1..64 footprints holding ~100 particles: every eval is an exact
 // count (f N a sigma / W an integer), none falls back to the mean (before
 // issue 10, 90 % of aspect-64 evals hit the 1024-step cap and returned it).
