@@ -191,11 +191,16 @@ ExitEnergies exit_energies(const TransmissionSgTable &table, const Segment &seg,
   e.axis = axis_energy;
   e.count = seg.bounding_count;
   const float r = std::clamp(roughness, TransmissionSgTable::kRoughnessMin, kTableRoughnessMax);
+  // The 4 lookups share (1 / ior, r): one batch (the same energies as 4 lookup() calls, bit for bit).
+  static_assert(4 <= TransmissionSgTable::kMaxEnergyBatch);
+  float cos_i[4], energy[4];
+  bool valid[4];
+  for (int i = 0; i < seg.bounding_count; ++i)
+    cos_i[i] = std::clamp(dot(seg.bounding_dir[i], seg.bounding_normal[i]), 1e-4f, 1.0f);
+  table.lookup_energies(cos_i, seg.bounding_count, 1.0f / ior, r, energy, valid);
   for (int i = 0; i < seg.bounding_count; ++i) {
-    TransmissionLobe lobe;
-    const float cos_i = std::clamp(dot(seg.bounding_dir[i], seg.bounding_normal[i]), 1e-4f, 1.0f);
-    if (!table.lookup(cos_i, 1.0f / ior, r, lobe)) continue;
-    e.ray[i] = std::clamp(lobe.energy, 0.0f, 1.0f);
+    if (!valid[i]) continue;
+    e.ray[i] = std::clamp(energy[i], 0.0f, 1.0f);
     e.valid[i] = true;
   }
   return e;
