@@ -13,21 +13,26 @@ on the relative error (each rung weighted by 1 / MSE); path's RMSE at --at-secon
 
 Input: a bench CSV (method,samples,seconds,rmse) or a regions CSV (…,region,pixels,rmse,rmse_raw). The fit of b is
 not meaningful for heavy-tailed noise (path's MIS fireflies): read b next to the curves.
+
+--instruction-time path=1,sg=1.98,auto=1.47 --seconds-per-sample 0.0024628 (seventeenth session) replaces every rung's
+seconds by samples x the method's cost per sample relative to path's (e.g. callgrind instructions per camera path) x
+path's seconds per sample: time that the machine's load does not move.
 """
 import argparse
 import csv
 import math
 
-import numpy as np
-
 
 def fit(points):
-    """(b^2, k) of MSE = b^2 + k / t, weighted by 1 / MSE; b^2 clamped at 0."""
-    t = np.array([p[0] for p in points])
-    e2 = np.array([p[1] ** 2 for p in points])
-    a = np.stack([np.ones_like(t), 1.0 / t], 1) / e2[:, None]
-    (b2, k), *_ = np.linalg.lstsq(a, np.ones_like(t), rcond=None)
-    return max(float(b2), 0.0), float(k)
+    """(b^2, k) of MSE = b^2 + k / t, weighted by 1 / MSE, by least squares (its 2x2 normal equations: no numpy);
+    b^2 clamped at 0."""
+    s11 = s12 = s22 = r1 = r2 = 0.0
+    for t, e in points:
+        x1, x2 = 1.0 / (e * e), 1.0 / (t * e * e)  # the row of MSE = b^2 + k / t divided by MSE; its target is 1
+        s11, s12, s22, r1, r2 = s11 + x1 * x1, s12 + x1 * x2, s22 + x2 * x2, r1 + x1, r2 + x2
+    det = s11 * s22 - s12 * s12
+    b2, k = (r1 * s22 - s12 * r2) / det, (s11 * r2 - s12 * r1) / det
+    return max(b2, 0.0), k
 
 
 def main():
@@ -35,12 +40,18 @@ def main():
     ap.add_argument("csv")
     ap.add_argument("--at-seconds", type=float, default=60.0)
     ap.add_argument("--reference", default="path")
+    ap.add_argument("--instruction-time", default="", help="method=cost relative to path's, comma list (see above)")
+    ap.add_argument("--seconds-per-sample", type=float, default=0.0, help="path's, with --instruction-time")
     a = ap.parse_args()
+    cost = {m: float(v) for m, v in (x.split("=") for x in a.instruction_time.split(",") if x)}
     regions = {}
     with open(a.csv, newline="") as f:
         for r in csv.DictReader(f):
             rows = regions.setdefault(r.get("region", "all"), {})
-            rows.setdefault(r["method"], []).append((float(r["seconds"]), float(r["rmse"])))
+            seconds = float(r["seconds"])
+            if cost:
+                seconds = int(r["samples"]) * cost[r["method"]] * a.seconds_per_sample
+            rows.setdefault(r["method"], []).append((seconds, float(r["rmse"])))
     for region, rows in regions.items():
         path = [p for p in rows.get(a.reference, []) if p[0] > 0 and p[1] > 0]
         if not path:

@@ -210,7 +210,8 @@ class FrostedGlassClosure {
   // The sg pane sample (public for the tests' variants): the front interface's reflection as in method=path, its
   // transmission replaced by frosted::sample_pane_sg.
   bool pane_sample_sg(const ShadingPoint &sp, const DielectricLobe &lobe, const Vec3 &rand, LocalSample &out,
-                      frosted::SgVariant variant, const frosted::PaneLadder &ladder = frosted::kPaneLadder) const {
+                      frosted::SgVariant variant, const frosted::PaneLadder &ladder = frosted::kPaneLadder,
+                      int split = frosted::kPaneWalkSplit) const {
     const bool flip = sp.wi.z < 0.0f;
     const Vec3 wi = flip ? mf::flip_z_local(sp.wi) : sp.wi;
     LocalSample s;
@@ -229,7 +230,11 @@ class FrostedGlassClosure {
     in.thickness = thickness_;
     in.variant = variant;
     in.ladder = &ladder;
-    if (variant == frosted::SgVariant::kPaneWalk) return pane_sample_sg_walk(sp, lobe, in, rand, s, flip, out);
+    if (variant == frosted::SgVariant::kPaneWalk) {
+      if (split > 1 && frosted::pane_split_applies(in.sigma_a))
+        return pane_sample_sg_split(sp, lobe, in, rand, wi, s, flip, out, std::min(split, frosted::kPaneWalkSplit));
+      return pane_sample_sg_walk(sp, lobe, in, rand, s, flip, out);
+    }
     if (variant == frosted::SgVariant::kPaneWalkMixture) return pane_sample_sg_walk(sp, lobe, in, rand, s, flip, out, &wi);
     return frosted::sample_pane_sg(sp, in, rand, s.f_cos / s.pdf * in.tint, flip, out);
   }
@@ -249,11 +254,68 @@ class FrostedGlassClosure {
       return frosted::sample_pane_sg_through(sp, in, rand, *mixture_wi, throughput * in.tint, flip, out);
     return frosted::sample_pane_sg_at(sp, in, rand, d, throughput * in.tint, flip, out);
   }
+  // kPaneWalk split (frosted_glass_sg.h, kPaneWalkSplit): the primary walk from `front` (the front sample drawn from
+  // `rand`, wi in the pane frame) and split - 1 more front samples from numbers hashed from `rand`, those that
+  // transmit kept with their own walks (a walk that fails is kept with zero throughput: it counts in n).
+  // count_rejected: the tests' negative control, the extra front samples that reflect counted in n as zero walks
+  // (biased low by the front's transmission probability).
+  bool pane_sample_sg_split(const ShadingPoint &sp, const DielectricLobe &lobe, const frosted::PaneSgInputs &in,
+                            const Vec3 &rand, const Vec3 &wi, const LocalSample &front, bool flip, LocalSample &out,
+                            int split, bool count_rejected = false) const {
+    frosted::PaneWalkEnd walks[frosted::kPaneWalkSplit];
+    int n = 0;
+    const auto add_walk = [&](const Vec3 &numbers, const LocalSample &s) {
+      frosted::PaneWalkEnd &w = walks[n++];
+      Spectrum throughput = s.f_cos / s.pdf * in.tint;
+      Vec3 d = s.wo, leaving;
+      if (!walk_to_exit(sp, lobe, numbers, d, throughput, leaving)) return;
+      w.d = d;
+      w.throughput = throughput * in.tint;
+    };
+    add_walk(rand, front);
+    mf::WalkRng rng(hash_u32x2(sp.seed_for(rand), 0x73706c74u));
+    for (int k = 1; k < split; ++k) {
+      const Vec3 numbers(rng.next(), rng.next(), rng.next());
+      LocalSample s;
+      if (!lobe.sample(wi, numbers, s) || !(s.label & GLIMMER_LABEL_TRANSMIT) || !(s.pdf > 0.0f)) {
+        if (count_rejected) walks[n++] = frosted::PaneWalkEnd{};
+        continue;
+      }
+      add_walk(numbers, s);
+    }
+    return frosted::sample_pane_sg_split(sp, in, rand, walks, n, flip, out);
+  }
+  // For the tests: the rough pane's split sample (kPaneWalk) with its negative control (count_rejected above).
+  bool pane_sample_sg_split(const ShadingPoint &sp, const Vec3 &rand, LocalSample &out, int split,
+                            bool count_rejected) const {
+    DielectricLobe scratch;
+    const DielectricLobe &lobe = lobe_at(sp, scratch);
+    const bool flip = sp.wi.z < 0.0f;
+    const Vec3 wi = flip ? mf::flip_z_local(sp.wi) : sp.wi;
+    LocalSample s;
+    if (!thin_ || !(wi.z > 0.0f) || !lobe.sample(wi, rand, s)) return false;
+    if (!(s.label & GLIMMER_LABEL_TRANSMIT)) {
+      if (flip) s.wo = mf::flip_z_local(s.wo);
+      out = s;
+      return true;
+    }
+    frosted::PaneSgInputs in;
+    in.table = table_;
+    in.roughness = sp.param_float(roughness_param_, roughness_);
+    in.ior = sp.param_float(ior_param_, ior_);
+    in.tint = color_at(sp);
+    in.sigma_a = beer_.sigma;
+    in.thickness = thickness_;
+    in.variant = frosted::SgVariant::kPaneWalk;
+    return pane_sample_sg_split(sp, lobe, in, rand, wi, s, flip, out, std::clamp(split, 1, frosted::kPaneWalkSplit),
+                                count_rejected);
+  }
   // For the tests: the interface lobe at sp (per-point roughness and IOR).
   bool pane_sample_sg(const ShadingPoint &sp, const Vec3 &rand, LocalSample &out, frosted::SgVariant variant,
-                      const frosted::PaneLadder &ladder = frosted::kPaneLadder) const {
+                      const frosted::PaneLadder &ladder = frosted::kPaneLadder,
+                      int split = frosted::kPaneWalkSplit) const {
     DielectricLobe scratch;
-    return pane_sample_sg(sp, lobe_at(sp, scratch), rand, out, variant, ladder);
+    return pane_sample_sg(sp, lobe_at(sp, scratch), rand, out, variant, ladder, split);
   }
   bool uses_sg(const ShadingPoint &sp) const {
     if (thin_ || !(sp.wi.z > 0.0f)) return false;

@@ -191,11 +191,16 @@ ExitEnergies exit_energies(const TransmissionSgTable &table, const Segment &seg,
   e.axis = axis_energy;
   e.count = seg.bounding_count;
   const float r = std::clamp(roughness, TransmissionSgTable::kRoughnessMin, kTableRoughnessMax);
+  // The 4 lookups share (1 / ior, r): one batch (the same energies as 4 lookup() calls, bit for bit).
+  static_assert(4 <= TransmissionSgTable::kMaxEnergyBatch);
+  float cos_i[4], energy[4];
+  bool valid[4];
+  for (int i = 0; i < seg.bounding_count; ++i)
+    cos_i[i] = std::clamp(dot(seg.bounding_dir[i], seg.bounding_normal[i]), 1e-4f, 1.0f);
+  table.lookup_energies(cos_i, seg.bounding_count, 1.0f / ior, r, energy, valid);
   for (int i = 0; i < seg.bounding_count; ++i) {
-    TransmissionLobe lobe;
-    const float cos_i = std::clamp(dot(seg.bounding_dir[i], seg.bounding_normal[i]), 1e-4f, 1.0f);
-    if (!table.lookup(cos_i, 1.0f / ior, r, lobe)) continue;
-    e.ray[i] = std::clamp(lobe.energy, 0.0f, 1.0f);
+    if (!valid[i]) continue;
+    e.ray[i] = std::clamp(energy[i], 0.0f, 1.0f);
     e.valid[i] = true;
   }
   return e;
@@ -754,6 +759,46 @@ bool sample_pane_sg_through(const ShadingPoint &sp, const PaneSgInputs &in, cons
   PaneExitLobe exit;
   if (!pane_exit_lobe_through(wi, in, exit)) return false;
   return emit_pane_sample(sp, exit, sp.seed_for(rand), weight, flip, out);
+}
+
+bool sample_pane_sg_split(const ShadingPoint &sp, const PaneSgInputs &in, const Vec3 &rand, const PaneWalkEnd *walks,
+                          int n, bool flip, LocalSample &out) {
+  if (n < 1 || n > kPaneWalkSplit) return false;
+  PaneExitLobe lobes[kPaneWalkSplit];
+  float t[kPaneWalkSplit];
+  Spectrum sum_T(0.0f);
+  double t_all = 0.0, t_through = 0.0;
+  for (int k = 0; k < n; ++k) {
+    t[k] = 0.0f;
+    const Spectrum &T = walks[k].throughput;
+    if (!(max_component(T) > 0.0f) || !is_finite(T) || !pane_exit_lobe_at(walks[k].d, in, lobes[k])) continue;
+    t[k] = average(T);
+    if (!(t[k] > 0.0f)) continue;
+    sum_T += T;
+    t_all += t[k];
+    if (lobes[k].through) t_through += t[k];
+  }
+  if (!(t_all > 0.0)) return false;
+  // The face: through with probability t_through / t_all (a number of its own, hashed from the closure's).
+  const uint32_t seed = sp.seed_for(rand);
+  const double u = double(hash_u32x2(seed, 0x66616365u) >> 8) * 0x1p-24;
+  const bool through = u * t_all < t_through;
+  const double t_face = through ? t_through : t_all - t_through;
+  if (!(t_face > 0.0)) return false;
+  PaneExitLobe exit;
+  exit.through = through;
+  exit.lobe_count = 0;
+  for (int k = 0; k < n; ++k) {
+    if (!(t[k] > 0.0f) || lobes[k].through != through) continue;
+    if (exit.lobe_count == 0) exit.sg = lobes[k].sg;
+    ExitLobe::MixtureLobe &l = exit.lobe[exit.lobe_count++];
+    l.axis = lobes[k].sg.axis;
+    l.sharpness = lobes[k].sg.sharpness;
+    l.weight = float(t[k] / t_face);
+  }
+  if (exit.lobe_count == 0) return false;
+  if (exit.lobe_count == 1) exit.lobe_count = 0;  // one lobe: the single SG (exit.sg), as the unsplit sample
+  return emit_pane_sample(sp, exit, seed, sum_T / float(n), flip, out);
 }
 
 }  // namespace glimmer::plugin::frosted

@@ -314,4 +314,33 @@ bool pane_exit_lobe_through(const Vec3 &wi, const PaneSgInputs &in, PaneExitLobe
 bool sample_pane_sg_through(const ShadingPoint &sp, const PaneSgInputs &in, const Vec3 &rand, const Vec3 &wi,
                             const Spectrum &weight, bool flip, LocalSample &out);
 
+// Rough panes, split (kPaneWalk, issue 12, seventeenth session; docs/frosted_glass.md "Seventeenth session: sg's
+// noise gain"). On the caustic scene the pane's front sample (its microfacet: the internal direction d) and the
+// walk between the faces carried most of sg's variance, not the exit lobe's direction nor the light sample there.
+// So one sg sample through a rough pane carries kPaneWalkSplit walks: the primary (the front sample the closure
+// drew from its stratified numbers, and its walk, as before) and kPaneWalkSplit - 1 more front samples from hashed
+// numbers, those that transmit kept (each is then distributed as the primary given that it transmits) with their own
+// walks. Walk k ends at the internal direction d_k with throughput T_k (the tints and Beer included; zero when its
+// walk or its exit lobe failed), leaving through the far face or back through the entry face. The sample leaves
+// through face F with probability t_F / t (t_k = average(T_k), t_F the sum over the walks leaving through F, t over
+// all n kept walks), weight sum_k T_k / n, as the mixture of F's walks' exit lobes (the leaving table's SG at d_k)
+// with weights t_k / t_F. Its expectation, sum_F (t_F / t) (sum T / n) sum_{k in F} (t_k / t_F) L_k =
+// (1 / n) sum_k T_k L_k when every T_k has the same colour, is the mean of n of today's estimates, each of
+// which is unbiased for today's expectation: the same expectation, less variance. The colours agree when Beer is
+// grey (the tint is the point's, the interfaces are colourless); with coloured Beer (walks of different lengths)
+// the split is off (kPaneWalkSplit walks only where pane_split_applies).
+inline constexpr int kPaneWalkSplit = 4;
+static_assert(kPaneWalkSplit >= 1 && kPaneWalkSplit <= ExitLobe::kMaxLobes);
+inline bool pane_split_applies(const Spectrum &sigma_a) { return sigma_a.x == sigma_a.y && sigma_a.y == sigma_a.z; }
+// One kept walk: its last internal direction (pane frame, entry side +z) and its throughput (zero: a failed walk,
+// still counted in n).
+struct PaneWalkEnd {
+  Vec3 d{0.0f};
+  Spectrum throughput{0.0f};
+};
+// The split sample from the n kept walks (n <= kPaneWalkSplit); `rand` the closure's numbers (its face pick is
+// hashed from them). False: every walk failed or carries nothing.
+bool sample_pane_sg_split(const ShadingPoint &sp, const PaneSgInputs &in, const Vec3 &rand, const PaneWalkEnd *walks,
+                          int n, bool flip, LocalSample &out);
+
 }  // namespace glimmer::plugin::frosted

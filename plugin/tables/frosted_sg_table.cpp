@@ -565,6 +565,35 @@ const TransmissionSgTable &TransmissionSgTable::get(const GlimmerHostServices *h
   return *table;
 }
 
+namespace {
+
+// Catmull-Rom weights of the 4 nodes around c on each axis (indices clamped at the ends). The first
+// coordinate starts at normal incidence, where the lobe is symmetric: node -1 is node 1 mirrored (the energy
+// and sharpness are even in theta_i, the axis offset odd), instead of a clamped node that puts a false slope
+// into the first interval.
+struct Taps {
+  int index[4];
+  float weight[4];
+  float parity[4];  // -1 where a mirrored node's odd quantity (the axis offset) changes sign
+};
+Taps catmull_rom_taps(float c, int nodes, bool mirror_at_zero) {
+  const int i0 = std::clamp(int(std::floor(c)), 0, nodes - 2);
+  const float t = std::clamp(c - float(i0), 0.0f, 1.0f), t2 = t * t, t3 = t2 * t;
+  Taps k;
+  const float w[4] = {0.5f * (-t3 + 2 * t2 - t), 0.5f * (3 * t3 - 5 * t2 + 2), 0.5f * (-3 * t3 + 4 * t2 + t),
+                      0.5f * (t3 - t2)};
+  for (int n = 0; n < 4; ++n) {
+    const int i = i0 - 1 + n;
+    const bool mirrored = mirror_at_zero && i < 0;
+    k.index[n] = mirrored ? -i : std::clamp(i, 0, nodes - 1);
+    k.weight[n] = w[n];
+    k.parity[n] = mirrored ? -1.0f : 1.0f;
+  }
+  return k;
+}
+
+}  // namespace
+
 bool TransmissionSgTable::lookup(float cos_theta_i, float eta, float roughness, TransmissionLobe &out) const {
   const float ior = eta >= 1.0f ? eta : 1.0f / eta;
   const int side = eta >= 1.0f ? 0 : 1;
@@ -576,32 +605,8 @@ bool TransmissionSgTable::lookup(float cos_theta_i, float eta, float roughness, 
                              : sine_coordinate(theta, ior);
   const float cr = (1.0f - std::log(roughness) / std::log(kRoughnessMin)) * (kRoughnessNodes - 1);
   const float ck = (ior - kIorMin) / (kIorMax - kIorMin) * (kIorNodes - 1);
-  // Catmull-Rom weights of the 4 nodes around c on each axis (indices clamped at the ends). The first
-  // coordinate starts at normal incidence, where the lobe is symmetric: node -1 is node 1 mirrored (the energy
-  // and sharpness are even in theta_i, the axis offset odd), instead of a clamped node that puts a false slope
-  // into the first interval.
-  struct Taps {
-    int index[4];
-    float weight[4];
-    float parity[4];  // -1 where a mirrored node's odd quantity (the axis offset) changes sign
-  };
-  auto taps = [](float c, int nodes, bool mirror_at_zero) {
-    const int i0 = std::clamp(int(std::floor(c)), 0, nodes - 2);
-    const float t = std::clamp(c - float(i0), 0.0f, 1.0f), t2 = t * t, t3 = t2 * t;
-    Taps k;
-    const float w[4] = {0.5f * (-t3 + 2 * t2 - t), 0.5f * (3 * t3 - 5 * t2 + 2), 0.5f * (-3 * t3 + 4 * t2 + t),
-                        0.5f * (t3 - t2)};
-    for (int n = 0; n < 4; ++n) {
-      const int i = i0 - 1 + n;
-      const bool mirrored = mirror_at_zero && i < 0;
-      k.index[n] = mirrored ? -i : std::clamp(i, 0, nodes - 1);
-      k.weight[n] = w[n];
-      k.parity[n] = mirrored ? -1.0f : 1.0f;
-    }
-    return k;
-  };
-  const Taps a = taps(ct, first_nodes(side), true), b = taps(cr, kRoughnessNodes, false),
-             c = taps(ck, kIorNodes, false);
+  const Taps a = catmull_rom_taps(ct, first_nodes(side), true), b = catmull_rom_taps(cr, kRoughnessNodes, false),
+             c = catmull_rom_taps(ck, kIorNodes, false);
   TransmissionLobe acc;
   for (int x = 0; x < 4; ++x)
     for (int y = 0; y < 4; ++y)
@@ -615,6 +620,36 @@ bool TransmissionSgTable::lookup(float cos_theta_i, float eta, float roughness, 
   acc.energy = std::max(std::exp(acc.energy) - kEnergyFloor, 0.0f);  // interpolated ln(E + floor) -> E
   out = acc;
   return true;
+}
+
+void TransmissionSgTable::lookup_energies(const float *cos_theta_i, int n, float eta, float roughness, float *energy,
+                                          bool *valid) const {
+  const float ior = eta >= 1.0f ? eta : 1.0f / eta;
+  const int side = eta >= 1.0f ? 0 : 1;
+  const bool covered = ior >= kIorMin && ior <= kIorMax && roughness >= kRoughnessMin && roughness <= 1.0f;
+  n = std::clamp(n, 0, kMaxEnergyBatch);
+  for (int i = 0; i < n; ++i) valid[i] = false, energy[i] = 0.0f;
+  if (!covered) return;
+  const float cr = (1.0f - std::log(roughness) / std::log(kRoughnessMin)) * (kRoughnessNodes - 1);
+  const float ck = (ior - kIorMin) / (kIorMax - kIorMin) * (kIorNodes - 1);
+  const Taps b = catmull_rom_taps(cr, kRoughnessNodes, false), c = catmull_rom_taps(ck, kIorNodes, false);
+  for (int i = 0; i < n; ++i) {
+    const float theta = std::acos(std::clamp(cos_theta_i[i], 0.0f, 1.0f));
+    if (!(theta <= float(kThetaMaxDeg * kDegToRad))) continue;
+    const float ct = side == 0
+                         ? float((1.0 - std::sqrt(std::max(0.0, 1.0 - theta / theta_max()))) * (kThetaNodes - 1))
+                         : sine_coordinate(theta, ior);
+    const Taps a = catmull_rom_taps(ct, first_nodes(side), true);
+    float e = 0.0f;  // the same sums in the same order as lookup()'s acc.energy
+    for (int x = 0; x < 4; ++x)
+      for (int y = 0; y < 4; ++y)
+        for (int z = 0; z < 4; ++z) {
+          const float w = a.weight[x] * b.weight[y] * c.weight[z];
+          e += w * log_energy_[index(side, a.index[x], b.index[y], c.index[z])];
+        }
+    energy[i] = std::max(std::exp(e) - kEnergyFloor, 0.0f);
+    valid[i] = true;
+  }
 }
 
 }  // namespace glimmer::plugin::frosted

@@ -144,6 +144,11 @@ class TransmissionSgTable {
   // when ior = max(eta, 1 / eta) or roughness lies outside the grid (the caller
   // then fits directly).
   bool lookup(float cos_theta_i, float eta, float roughness, TransmissionLobe &out) const;
+  // lookup()'s energy alone (the same value, bit for bit) at n <= kMaxEnergyBatch incidences for one (eta,
+  // roughness): the roughness and IOR taps once, the energy's 64 nodes per incidence (the sg exit energies of a
+  // segment's 4 bounding rays). valid[i] false where lookup() would return false.
+  static constexpr int kMaxEnergyBatch = 8;
+  void lookup_energies(const float *cos_theta_i, int n, float eta, float roughness, float *energy, bool *valid) const;
 
   // Node coordinates (for the tests' off-grid points).
   static float theta_at(int i);

@@ -30,6 +30,7 @@
 #include "closures/angle_bands.h"
 #include "closures/frosted_glass.h"
 #include "closures/raw_output_checks.h"
+#include "glimmer/exit_lobe.h"
 #include "glimmer/rng.h"
 #include "host/closure_instance.h"
 #include "test_support.h"
@@ -621,6 +622,146 @@ TEST(FrostedGlassSgPane, SampleAgreesWithEval) {
   std::printf("[frosted sg pane consistency] %ld front reflections equal eval() (f cos and pdf), %ld singular exit "
               "samples; eval() transmission: %ld non-zero\n",
               checked, singular, transmitting_eval);
+}
+
+// ---- The rough pane's split sample (seventeenth session) ------------------------------------------------------
+// kPaneWalk carries kPaneWalkSplit walks per sample (frosted_glass_sg.h): the same expectation as one walk, less
+// variance. What the host's lamp integral sees of a sample is its weight times its exit mixture's density toward the
+// lamp, so per incidence angle the estimate of E[weight x p(w_j)] toward 5 fixed directions (3 through the far face,
+// 2 back through the entry face; a front reflection counts 0) is compared between the split and one walk (split =
+// 1, bit-identical to the unsplit sample, checked below) on independent numbers: every (angle, direction) within
+// 4.5 standard errors, and the sums over them within 4 (pooled). Negative control: the split that counts the
+// extra front samples that reflect in n (biased low by ~the front's reflectance) must be > 6 pooled standard errors
+// off. The per-sample variance of the split over one walk's is printed and bounded by what was measured.
+struct SplitSums {
+  static constexpr int kDirs = 5;
+  double sum[kDirs] = {}, sum2[kDirs] = {};
+  long samples = 0;
+};
+SplitSums split_estimate(const FrostedGlassClosure &pane, float theta_deg, int split, bool count_rejected,
+                         uint64_t seed, long samples, long *mixtures = nullptr) {
+  static const auto schema = FrostedGlassClosure::params();
+  const Vec3 dirs[SplitSums::kDirs] = {Vec3(0.0f, 0.0f, -1.0f), normalize(Vec3(0.5f, 0.0f, -1.0f)),
+                                       normalize(Vec3(-0.4f, 0.3f, -1.0f)), Vec3(0.0f, 0.0f, 1.0f),
+                                       normalize(Vec3(0.6f, 0.0f, 1.0f))};
+  SplitSums out;
+  Pcg32 rng(seed, 7);
+  for (long i = 0; i < samples; ++i) {
+    GlimmerShadingContext ctx = pane_context(theta_deg);
+    ctx.path_seed = rng.next_u32();
+    const ShadingPoint sp(&ctx, schema);
+    const Vec3 rand(rng.next_float(), rng.next_float(), rng.next_float());
+    GlimmerExitMixture buffer{};
+    LocalSample s;
+    s.mixture_out = &buffer;
+    ++out.samples;
+    if (!pane.pane_sample_sg_split(sp, rand, s, split, count_rejected) || !(s.label & GLIMMER_LABEL_SINGULAR) ||
+        !s.exit_lobe)
+      continue;  // a front reflection (or no sample): 0 toward every direction
+    const Vec3 n = normalize(s.origin_Ng);
+    ExitLobeMixture m;
+    if (s.exit_mixture) {
+      for (uint32_t k = 0; k < buffer.count; ++k) {
+        m.lobe[m.count] = ExitLobe::make(normalize(Vec3(buffer.axis[k])), buffer.sharpness[k], n);
+        m.weight[m.count++] = buffer.weight[k];
+      }
+      if (mixtures) ++*mixtures;
+    } else {
+      m.lobe[0] = ExitLobe::make(normalize(s.lobe_axis), s.lobe_sharpness, n);
+      m.weight[0] = 1.0;
+      m.count = 1;
+    }
+    m.normalize();
+    const double w = average(s.f_cos / s.pdf);
+    for (int j = 0; j < SplitSums::kDirs; ++j) {
+      const double v = w * m.pdf(dirs[j]);
+      out.sum[j] += v;
+      out.sum2[j] += v * v;
+    }
+  }
+  return out;
+}
+
+TEST(FrostedGlassSgPane, RoughPaneSplitSameExpectationLessNoise) {
+  const PaneConfig configs[] = {{0.5f, 1.5f}, {0.8f, 1.5f}, {0.6f, 1.7f, Vec3(0.7f), 0.05f}};
+  const float angles[] = {0.0f, 30.0f, 60.0f};
+  constexpr long kSamples = 32768;
+  long mixtures = 0;
+  for (const PaneConfig &c : configs) {
+    auto pane = create_pane(c, "sg");
+    double pooled_split = 0.0, pooled_one = 0.0, pooled_ctl = 0.0, var_split = 0.0, var_one = 0.0, var_ctl = 0.0;
+    double sample_var_split = 0.0, sample_var_one = 0.0;
+    double worst_z = 0.0;
+    for (float theta : angles) {
+      const SplitSums one = split_estimate(*pane, theta, 1, false, 101, kSamples);
+      const SplitSums split = split_estimate(*pane, theta, frosted::kPaneWalkSplit, false, 202, kSamples, &mixtures);
+      const SplitSums ctl = split_estimate(*pane, theta, frosted::kPaneWalkSplit, true, 202, kSamples);
+      for (int j = 0; j < SplitSums::kDirs; ++j) {
+        const auto moments = [](const SplitSums &e, int d, double &mean, double &var) {
+          mean = e.sum[d] / double(e.samples);
+          var = std::max(0.0, e.sum2[d] / double(e.samples) - mean * mean);  // per sample
+        };
+        double m1, v1, ms, vs, mc, vc;
+        moments(one, j, m1, v1);
+        moments(split, j, ms, vs);
+        moments(ctl, j, mc, vc);
+        const double se = std::sqrt((v1 + vs) / double(kSamples));
+        const double z = se > 0.0 ? (ms - m1) / se : 0.0;
+        worst_z = std::max(worst_z, std::fabs(z));
+        EXPECT_LT(std::fabs(z), 4.5) << "roughness " << c.roughness << " ior " << c.ior << " theta " << theta
+                                     << " direction " << j << ": split " << ms << " one walk " << m1;
+        pooled_one += m1, pooled_split += ms, pooled_ctl += mc;
+        var_one += v1 / kSamples, var_split += vs / kSamples, var_ctl += vc / kSamples;
+        sample_var_one += v1, sample_var_split += vs;
+      }
+    }
+    const double z_split = (pooled_split - pooled_one) / std::sqrt(var_one + var_split);
+    const double z_ctl = (pooled_ctl - pooled_one) / std::sqrt(var_one + var_ctl);
+    const double ratio = sample_var_split / sample_var_one;
+    std::printf("[frosted sg pane split] roughness %.2f ior %.2f%s: %d walks vs 1, pooled z %.2f (worst |z| %.2f over "
+                "15); control (rejected counted) z %.1f (%.4f vs %.4f); variance per sample split / one walk %.3f\n",
+                double(c.roughness), double(c.ior), c.absorb.x < 1.0f ? " grey Beer" : "", frosted::kPaneWalkSplit,
+                z_split, worst_z, z_ctl, pooled_ctl, pooled_one, ratio);
+    EXPECT_LT(std::fabs(z_split), 4.0) << "roughness " << c.roughness;
+    EXPECT_LT(z_ctl, -6.0) << "negative control passed: roughness " << c.roughness;
+    EXPECT_LT(ratio, 0.5) << "roughness " << c.roughness;  // measured 0.35-0.40
+  }
+  EXPECT_GT(mixtures, 10000);  // the split samples do hand the host a mixture
+}
+
+// split = 1 is the unsplit sample bit for bit; coloured Beer keeps one walk (the split would be biased there).
+TEST(FrostedGlassSgPane, RoughPaneSplitOfOneIsTheWalk) {
+  const auto schema = FrostedGlassClosure::params();
+  long compared = 0, differing = 0, coloured_same = 0, coloured = 0;
+  for (const PaneConfig &c : {PaneConfig{0.6f, 1.5f}, PaneConfig{0.9f, 2.4f}, PaneConfig{0.5f, 1.5f, Vec3(0.9f, 0.5f, 0.2f)}}) {
+    auto pane = create_pane(c, "sg");
+    const bool coloured_beer = c.absorb.x != c.absorb.y;
+    Pcg32 rng(5);
+    for (int i = 0; i < 4000; ++i) {
+      GlimmerShadingContext ctx = pane_context(70.0f * rng.next_float());
+      ctx.path_seed = rng.next_u32();
+      const ShadingPoint sp(&ctx, schema);
+      const Vec3 rand(rng.next_float(), rng.next_float(), rng.next_float());
+      LocalSample a, b;
+      // A sample of zero weight (a walk absorbed to 0 by Beer) is the split's "no sample": both count 0.
+      const bool ok_a = pane->pane_sample_sg_split(sp, rand, a, 1, false) && max_component(a.f_cos) > 0.0f;
+      const bool ok_b = pane->pane_sample_sg(sp, rand, b, frosted::SgVariant::kPaneWalk, frosted::kPaneLadder,
+                                             coloured_beer ? frosted::kPaneWalkSplit : 1) &&
+                        max_component(b.f_cos) > 0.0f;
+      const bool same = ok_a == ok_b && (!ok_a || (a.wo.x == b.wo.x && a.wo.y == b.wo.y && a.wo.z == b.wo.z &&
+                                                   a.f_cos.x == b.f_cos.x && a.f_cos.z == b.f_cos.z &&
+                                                   a.label == b.label && a.lobe_sharpness == b.lobe_sharpness));
+      if (coloured_beer) {
+        ++coloured;
+        coloured_same += same;
+      } else {
+        ++compared;
+        differing += !same;
+      }
+    }
+  }
+  EXPECT_EQ(differing, 0) << "of " << compared;
+  EXPECT_EQ(coloured_same, coloured);
 }
 
 // ---- Stress --------------------------------------------------------------------------

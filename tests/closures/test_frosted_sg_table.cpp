@@ -319,6 +319,37 @@ TEST(TableWarmUp, FrostedSgTableIsCachedForTheSuite) {
 // ior, fitted on 1 and on 3 threads, equal bit for bit to each other and to the suite's table (built by
 // TableWarmUp on one thread per core, dynamic chunks, and loaded from the cache here). Control: the nodes are
 // not all alike (the comparison would pass on a constant), and a reversed index list gives the reversed fits.
+// lookup_energies (the sg exit energies of a segment's bounding rays, seventeenth session) is lookup()'s energy bit
+// for bit, with the same coverage: both sides (entering / leaving), roughness and IOR inside and outside the grid,
+// incidences from normal to beyond the grid's last angle, batches of 1..8.
+TEST(FrostedSgTable, BatchedEnergiesAreTheLookupsEnergies) {
+  const TransmissionSgTable &table = TransmissionSgTable::get(host::default_host_services());
+  Pcg32 rng(41);
+  long compared = 0, differing = 0, valid = 0;
+  for (int trial = 0; trial < 20000; ++trial) {
+    const float ior = 1.1f + 1.5f * rng.next_float();  // 1.1..2.6: outside the grid at both ends
+    const float eta = (trial & 1) ? 1.0f / ior : ior;
+    const float roughness = (trial % 7 == 0) ? 0.001f : 1.05f * rng.next_float();
+    const int n = 1 + int(rng.next_u32() % TransmissionSgTable::kMaxEnergyBatch);
+    float cos_i[TransmissionSgTable::kMaxEnergyBatch], energy[TransmissionSgTable::kMaxEnergyBatch];
+    bool ok[TransmissionSgTable::kMaxEnergyBatch];
+    for (int i = 0; i < n; ++i) cos_i[i] = (trial % 5 == 0) ? 1e-4f * rng.next_float() : rng.next_float();
+    table.lookup_energies(cos_i, n, eta, roughness, energy, ok);
+    for (int i = 0; i < n; ++i) {
+      TransmissionLobe lobe;
+      const bool expected = table.lookup(cos_i[i], eta, roughness, lobe);
+      ++compared;
+      valid += expected;
+      if (ok[i] != expected || (expected && std::memcmp(&energy[i], &lobe.energy, sizeof(float)) != 0)) ++differing;
+    }
+  }
+  std::printf("[frosted sg table] batched energies: %ld compared (%ld covered), %ld differ from lookup()\n", compared,
+              valid, differing);
+  EXPECT_EQ(differing, 0);
+  EXPECT_GT(valid, compared / 3);
+  EXPECT_LT(valid, compared);  // the uncovered cases were exercised too
+}
+
 TEST(FrostedSgTable, FitIsBitIdenticalForAnyThreadCount) {
   const TransmissionSgTable &table = TransmissionSgTable::get(host::default_host_services());
   std::vector<size_t> indices;

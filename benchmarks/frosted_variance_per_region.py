@@ -1,0 +1,112 @@
+#!/usr/bin/python3
+"""Per-region variance per sample of glimmer renders, and the total-effect variance of one random decision
+(docs/frosted_glass.md, "Seventeenth session: sg's noise gain"). Pure Python; reads the EXRs and the region mask
+with `oiiotool --dumpdata`. Regions: a mask image whose pixels are 0 or 1 per channel (id = R + 2 G + 4 B, named
+by --names; anything else 'edges'), as `glimmer bench error-vs-time --regions <mask>`.
+
+  variance: the same scene and spp on two or more seeds (A.exr B.exr ...): per region the mean over its pixel
+            values (Combined RGB) of their sample variance x spp (one sample's variance), and, with --references,
+            the mean offset and the rms bias (the renders' mean against the references' mean, both noises taken
+            out) as bench_error.h does
+      python3 benchmarks/frosted_variance_per_region.py variance 1024 sg_11.exr sg_12.exr \\
+          --mask benchmarks/scenes/frosted_fair_caustic_mask_64x40.png --references ref_7919.exr,ref_8932.exr
+  pairs:    one seed rendered twice, the second time with one decision re-drawn (the diagnostic build of
+            benchmarks/frosted_decomposition_salts.patch, GLIMMER_DECOMP_SALT=<bit>): mean((A - B)^2) / 2 x spp per
+            region, that decision's total-effect variance E[Var(X | every other number)]
+      python3 benchmarks/frosted_variance_per_region.py pairs 1024 base.exr walk=salt4.exr front=salt8.exr --mask M
+"""
+import argparse
+import re
+import subprocess
+
+
+def dump(path, channels=None):
+    """{(x, y): [values]} of `channels` (all when None) of an image, through oiiotool."""
+    out = subprocess.run(["oiiotool", "--dumpdata", path], check=True, capture_output=True, text=True).stdout
+    idx = None
+    if channels:
+        info = subprocess.run(["oiiotool", "--info", "-v", path], check=True, capture_output=True, text=True).stdout
+        names = [c.strip() for c in re.search(r"channel list: (.*)", info).group(1).split(",")]
+        idx = [names.index(c) for c in channels]
+    px = {}
+    for m in re.finditer(r"Pixel \((\d+), (\d+)\): (.*)", out):
+        text = m.group(3)
+        v = text.split("(")[-1].rstrip(")").split() if "(" in text else text.split()  # 8-bit: the floats in ()
+        v = [float(x) for x in v]
+        px[(int(m.group(1)), int(m.group(2)))] = [v[i] for i in idx] if idx else v[:3]
+    return px
+
+
+def combined(path):
+    return dump(path, ["ViewLayer.Combined." + c for c in "RGB"])
+
+
+def regions(mask, names):
+    reg = {}
+    for k, v in dump(mask).items():
+        if all(abs(c) < 1e-3 or abs(c - 1) < 1e-3 for c in v):
+            i = sum(1 << j for j, c in enumerate(v) if abs(c - 1) < 1e-3)
+            reg[k] = names[i] if i < len(names) else "id%d" % i
+        else:
+            reg[k] = "edges"
+    return reg
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("mode", choices=["variance", "pairs"])
+    ap.add_argument("spp", type=float)
+    ap.add_argument("images", nargs="+")
+    ap.add_argument("--mask", required=True)
+    ap.add_argument("--names", default="lit,glass,shadow", help="names of the mask ids 0, 1, 2, ...")
+    ap.add_argument("--references", default="", help="comma list of reference EXRs (variance mode: bias)")
+    a = ap.parse_args()
+    reg = regions(a.mask, a.names.split(","))
+    order = ["all"] + sorted(set(reg.values()) - {"edges"}) + ["edges"]
+    if a.mode == "pairs":
+        base = combined(a.images[0])
+        print("%-12s" % "decision" + "".join("%11s" % n for n in order))
+        for lab in a.images[1:]:
+            label, path = lab.split("=", 1)
+            other = combined(path)
+            acc = {n: [0.0, 0] for n in order}
+            for k, r in reg.items():
+                for c in range(3):
+                    d = (base[k][c] - other[k][c]) ** 2 / 2
+                    for n in ("all", r):
+                        acc[n][0] += d
+                        acc[n][1] += 1
+            print("%-12s" % label + "".join("%11.5f" % (acc[n][0] / acc[n][1] * a.spp) for n in order))
+        return
+    imgs = [combined(p) for p in a.images]
+    refs = [combined(p) for p in a.references.split(",")] if a.references else []
+    n = len(imgs)
+    acc = {r: [0.0, 0.0, 0.0, 0] for r in order}  # variance, offset, bias^2, values
+    for k, r in reg.items():
+        for c in range(3):
+            vals = [im[k][c] for im in imgs]
+            mean = sum(vals) / n
+            var = sum((v - mean) ** 2 for v in vals) / (n - 1)
+            off = b2 = 0.0
+            if refs:
+                rv = [ref[k][c] for ref in refs]
+                rm = sum(rv) / len(rv)
+                rvar = sum((v - rm) ** 2 for v in rv) / (len(rv) - 1) / len(rv) if len(rv) > 1 else 0.0
+                off = mean - rm
+                b2 = off * off - var / n - rvar
+            for name in ("all", r):
+                s = acc[name]
+                s[0] += var
+                s[1] += off
+                s[2] += b2
+                s[3] += 1
+    print("%-8s %7s %12s %10s %10s" % ("region", "values", "var/sample", "offset", "bias_rms"))
+    for r in order:
+        s = acc[r]
+        if s[3]:
+            print("%-8s %7d %12.5f %10.5f %10.5f" % (r, s[3], s[0] / s[3] * a.spp, s[1] / s[3],
+                                                     max(s[2] / s[3], 0.0) ** 0.5))
+
+
+if __name__ == "__main__":
+    main()
