@@ -207,20 +207,23 @@ class FrostedGlassClosure {
     if (!(ior >= frosted::TransmissionSgTable::kIorMin && ior <= frosted::TransmissionSgTable::kIorMax)) return false;
     return method_ == Method::kSg || (method_ == Method::kAuto && auto_picks_sg(sp));
   }
-  // The sg pane sample (public for the tests' variants): the front interface's reflection as in method=path, its
-  // transmission replaced by frosted::sample_pane_sg.
-  bool pane_sample_sg(const ShadingPoint &sp, const DielectricLobe &lobe, const Vec3 &rand, LocalSample &out,
-                      frosted::SgVariant variant, const frosted::PaneLadder &ladder = frosted::kPaneLadder,
-                      int split = frosted::kPaneWalkSplit) const {
-    const bool flip = sp.wi.z < 0.0f;
-    const Vec3 wi = flip ? mf::flip_z_local(sp.wi) : sp.wi;
-    LocalSample s;
-    if (!(wi.z > 0.0f) || !lobe.sample(wi, rand, s)) return false;
-    if (!(s.label & GLIMMER_LABEL_TRANSMIT)) {  // the front reflection: exact, eval's pane_front_reflection
-      if (flip) s.wo = mf::flip_z_local(s.wo);
-      out = s;
-      return true;
-    }
+  // The pane's front interface for the sg samples: wi the incidence in the pane frame (flip: sp.wi was below it), s
+  // the front sample from `rand`. kReflected: the sample is the front reflection (exact, as eval's
+  // pane_front_reflection), written to out; kEntered: s transmits into the pane; kNone: no sample.
+  enum class PaneFront { kNone, kReflected, kEntered };
+  PaneFront pane_front_sample(const ShadingPoint &sp, const DielectricLobe &lobe, const Vec3 &rand, Vec3 &wi,
+                              bool &flip, LocalSample &s, LocalSample &out) const {
+    flip = sp.wi.z < 0.0f;
+    wi = flip ? mf::flip_z_local(sp.wi) : sp.wi;
+    if (!(wi.z > 0.0f) || !lobe.sample(wi, rand, s)) return PaneFront::kNone;
+    if (s.label & GLIMMER_LABEL_TRANSMIT) return PaneFront::kEntered;
+    if (flip) s.wo = mf::flip_z_local(s.wo);
+    out = s;
+    return PaneFront::kReflected;
+  }
+  // The sg pane's inputs at sp (per-point roughness and IOR, the tint, Beer, the thickness).
+  frosted::PaneSgInputs pane_sg_inputs(const ShadingPoint &sp, frosted::SgVariant variant,
+                                       const frosted::PaneLadder &ladder) const {
     frosted::PaneSgInputs in;
     in.table = table_;
     in.roughness = sp.param_float(roughness_param_, roughness_);
@@ -230,6 +233,19 @@ class FrostedGlassClosure {
     in.thickness = thickness_;
     in.variant = variant;
     in.ladder = &ladder;
+    return in;
+  }
+  // The sg pane sample (public for the tests' variants): the front interface's reflection as in method=path, its
+  // transmission replaced by frosted::sample_pane_sg.
+  bool pane_sample_sg(const ShadingPoint &sp, const DielectricLobe &lobe, const Vec3 &rand, LocalSample &out,
+                      frosted::SgVariant variant, const frosted::PaneLadder &ladder = frosted::kPaneLadder,
+                      int split = frosted::kPaneWalkSplit) const {
+    Vec3 wi;
+    bool flip;
+    LocalSample s;
+    const PaneFront front = pane_front_sample(sp, lobe, rand, wi, flip, s, out);
+    if (front != PaneFront::kEntered) return front == PaneFront::kReflected;
+    const frosted::PaneSgInputs in = pane_sg_inputs(sp, variant, ladder);
     if (variant == frosted::SgVariant::kPaneWalk) {
       if (split > 1 && frosted::pane_split_applies(in.sigma_a))
         return pane_sample_sg_split(sp, lobe, in, rand, wi, s, flip, out, std::min(split, frosted::kPaneWalkSplit));
@@ -290,23 +306,13 @@ class FrostedGlassClosure {
                             bool count_rejected) const {
     DielectricLobe scratch;
     const DielectricLobe &lobe = lobe_at(sp, scratch);
-    const bool flip = sp.wi.z < 0.0f;
-    const Vec3 wi = flip ? mf::flip_z_local(sp.wi) : sp.wi;
+    Vec3 wi;
+    bool flip;
     LocalSample s;
-    if (!thin_ || !(wi.z > 0.0f) || !lobe.sample(wi, rand, s)) return false;
-    if (!(s.label & GLIMMER_LABEL_TRANSMIT)) {
-      if (flip) s.wo = mf::flip_z_local(s.wo);
-      out = s;
-      return true;
-    }
-    frosted::PaneSgInputs in;
-    in.table = table_;
-    in.roughness = sp.param_float(roughness_param_, roughness_);
-    in.ior = sp.param_float(ior_param_, ior_);
-    in.tint = color_at(sp);
-    in.sigma_a = beer_.sigma;
-    in.thickness = thickness_;
-    in.variant = frosted::SgVariant::kPaneWalk;
+    if (!thin_) return false;
+    const PaneFront front = pane_front_sample(sp, lobe, rand, wi, flip, s, out);
+    if (front != PaneFront::kEntered) return front == PaneFront::kReflected;
+    const frosted::PaneSgInputs in = pane_sg_inputs(sp, frosted::SgVariant::kPaneWalk, frosted::kPaneLadder);
     return pane_sample_sg_split(sp, lobe, in, rand, wi, s, flip, out, std::clamp(split, 1, frosted::kPaneWalkSplit),
                                 count_rejected);
   }
