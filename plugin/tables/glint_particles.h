@@ -881,6 +881,7 @@ inline GlintCount count_four_groups_in_passes(const FootprintFrame &frame, const
   // with a pair passing the quick reject (no other pass reads them; ~1/3 of
   // the nodes have none at area 1e-4), listed without a branch per node:
   // 1e-4 5615 -> 5380 instructions per eval, same f and pdf bits.
+  static_assert(kMaxNodes <= 256, "paired_nodes holds node indices in bytes");
   std::array<uint8_t, kMaxNodes> paired_nodes;
   int n_paired = 0;
   for (int node = 0; node < nodes.count; ++node) {  // (2)
