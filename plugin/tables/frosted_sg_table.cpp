@@ -592,21 +592,32 @@ Taps catmull_rom_taps(float c, int nodes, bool mirror_at_zero) {
   return k;
 }
 
+// lookup()'s continuous grid coordinates (lookup_energies uses the same): the roughness and IOR axes, and the
+// first axis (entering: theta; leaving: the Snell sine).
+using Table = TransmissionSgTable;
+bool in_grid(float ior, float roughness) {
+  return ior >= Table::kIorMin && ior <= Table::kIorMax && roughness >= Table::kRoughnessMin && roughness <= 1.0f;
+}
+float roughness_coordinate(float roughness) {
+  return (1.0f - std::log(roughness) / std::log(Table::kRoughnessMin)) * (Table::kRoughnessNodes - 1);
+}
+float ior_coordinate(float ior) { return (ior - Table::kIorMin) / (Table::kIorMax - Table::kIorMin) * (Table::kIorNodes - 1); }
+float first_coordinate(float theta, int side, float ior) {
+  return side == 0 ? float((1.0 - std::sqrt(std::max(0.0, 1.0 - theta / theta_max()))) * (Table::kThetaNodes - 1))
+                   : sine_coordinate(theta, ior);
+}
+
 }  // namespace
 
 bool TransmissionSgTable::lookup(float cos_theta_i, float eta, float roughness, TransmissionLobe &out) const {
   const float ior = eta >= 1.0f ? eta : 1.0f / eta;
   const int side = eta >= 1.0f ? 0 : 1;
   const float theta = std::acos(std::clamp(cos_theta_i, 0.0f, 1.0f));
-  if (!(ior >= kIorMin && ior <= kIorMax && roughness >= kRoughnessMin && roughness <= 1.0f)) return false;
+  if (!in_grid(ior, roughness)) return false;
   if (!(theta <= float(kThetaMaxDeg * kDegToRad))) return false;
-  // Continuous grid coordinates and their cells.
-  const float ct = side == 0 ? float((1.0 - std::sqrt(std::max(0.0, 1.0 - theta / theta_max()))) * (kThetaNodes - 1))
-                             : sine_coordinate(theta, ior);
-  const float cr = (1.0f - std::log(roughness) / std::log(kRoughnessMin)) * (kRoughnessNodes - 1);
-  const float ck = (ior - kIorMin) / (kIorMax - kIorMin) * (kIorNodes - 1);
-  const Taps a = catmull_rom_taps(ct, first_nodes(side), true), b = catmull_rom_taps(cr, kRoughnessNodes, false),
-             c = catmull_rom_taps(ck, kIorNodes, false);
+  const Taps a = catmull_rom_taps(first_coordinate(theta, side, ior), first_nodes(side), true),
+             b = catmull_rom_taps(roughness_coordinate(roughness), kRoughnessNodes, false),
+             c = catmull_rom_taps(ior_coordinate(ior), kIorNodes, false);
   TransmissionLobe acc;
   for (int x = 0; x < 4; ++x)
     for (int y = 0; y < 4; ++y)
@@ -626,20 +637,15 @@ void TransmissionSgTable::lookup_energies(const float *cos_theta_i, int n, float
                                           bool *valid) const {
   const float ior = eta >= 1.0f ? eta : 1.0f / eta;
   const int side = eta >= 1.0f ? 0 : 1;
-  const bool covered = ior >= kIorMin && ior <= kIorMax && roughness >= kRoughnessMin && roughness <= 1.0f;
   n = std::clamp(n, 0, kMaxEnergyBatch);
   for (int i = 0; i < n; ++i) valid[i] = false, energy[i] = 0.0f;
-  if (!covered) return;
-  const float cr = (1.0f - std::log(roughness) / std::log(kRoughnessMin)) * (kRoughnessNodes - 1);
-  const float ck = (ior - kIorMin) / (kIorMax - kIorMin) * (kIorNodes - 1);
-  const Taps b = catmull_rom_taps(cr, kRoughnessNodes, false), c = catmull_rom_taps(ck, kIorNodes, false);
+  if (!in_grid(ior, roughness)) return;
+  const Taps b = catmull_rom_taps(roughness_coordinate(roughness), kRoughnessNodes, false),
+             c = catmull_rom_taps(ior_coordinate(ior), kIorNodes, false);
   for (int i = 0; i < n; ++i) {
     const float theta = std::acos(std::clamp(cos_theta_i[i], 0.0f, 1.0f));
     if (!(theta <= float(kThetaMaxDeg * kDegToRad))) continue;
-    const float ct = side == 0
-                         ? float((1.0 - std::sqrt(std::max(0.0, 1.0 - theta / theta_max()))) * (kThetaNodes - 1))
-                         : sine_coordinate(theta, ior);
-    const Taps a = catmull_rom_taps(ct, first_nodes(side), true);
+    const Taps a = catmull_rom_taps(first_coordinate(theta, side, ior), first_nodes(side), true);
     float e = 0.0f;  // the same sums in the same order as lookup()'s acc.energy
     for (int x = 0; x < 4; ++x)
       for (int y = 0; y < 4; ++y)
