@@ -1,0 +1,145 @@
+// Instruction-count driver for glint eval (issue 10): not a Google Benchmark
+// and not a test. Run it under callgrind with the script beside it,
+// benchmarks/glint_eval_instructions.sh, which counts only eval_loop():
+//   valgrind --tool=callgrind --collect-atstart=no --toggle-collect='*eval_loop*'
+//       build/glint_eval_instructions <row> [plugin]
+// Rows reproduce bench_glint.cpp's glint/eval_vs_ggx queries (4096 queries,
+// Pcg32(11), square footprints of the given uv area, or rectangles of the
+// given aspect at area 1e-6; gamma 2, density 1e7), evaluated twice each
+// (2 x 4096 evals):
+//   r04_a-8 r04_a-6 r04_a-4 r04_asp64   glint roughness 0.4
+//   r02_a-8 r02_a-6 r02_a-4 r02_asp64   glint roughness 0.2
+//   ggx04 ggx02                         microfacet_conductor GGX at area 1e-4
+// It prints the row, the number of evals and a 64-bit FNV-1a hash of the bits
+// of every f and pdf (computed outside the counted loop), so two builds can be
+// shown to give the same values.
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "glimmer/rng.h"
+#include "host/closure_instance.h"
+#include "host/plugin_library.h"
+
+namespace {
+
+using namespace glimmer;
+
+struct Query {
+  GlimmerShadingContext ctx;
+  Vec3 wo;
+};
+
+// As bench_glint.cpp's make_queries.
+std::vector<Query> make_queries(double area, double aspect) {
+  std::vector<Query> q(4096);
+  Pcg32 rng(11);
+  const float side = static_cast<float>(std::sqrt(area / aspect));
+  for (auto &x : q) {
+    const float ti = 1.4f * rng.next_float();
+    x.ctx = host::make_local_context(Vec3(std::sin(ti), 0.0f, std::cos(ti)));
+    x.ctx.uv[0] = rng.next_float();
+    x.ctx.uv[1] = rng.next_float();
+    const float rot = 6.2831853f * rng.next_float(), c = std::cos(rot), s = std::sin(rot);
+    x.ctx.duv_dx[0] = static_cast<float>(aspect) * side * c;
+    x.ctx.duv_dx[1] = static_cast<float>(aspect) * side * s;
+    x.ctx.duv_dy[0] = -side * s;
+    x.ctx.duv_dy[1] = side * c;
+    const Vec3 mirror(-std::sin(ti), 0.0f, std::cos(ti));
+    x.wo = normalize(mirror + Vec3(0.6f * (rng.next_float() - 0.5f), 0.6f * (rng.next_float() - 0.5f),
+                                   0.3f * rng.next_float()));
+    if (x.wo.z <= 0.05f) x.wo.z = 0.05f;
+    x.wo = normalize(x.wo);
+  }
+  return q;
+}
+
+struct Result {
+  Spectrum f;
+  float pdf;
+};
+
+// The counted loop (callgrind --toggle-collect='*eval_loop*').
+__attribute__((noinline)) void eval_loop(const host::ClosureInstance &c, const std::vector<Query> &q,
+                                         std::vector<Result> &out) {
+  for (std::size_t i = 0; i < q.size(); ++i) c.eval(q[i].ctx, q[i].wo, out[i].f, out[i].pdf);
+}
+
+std::uint64_t fnv1a(std::uint64_t h, const void *data, std::size_t n) {
+  const auto *p = static_cast<const unsigned char *>(data);
+  for (std::size_t i = 0; i < n; ++i) h = (h ^ p[i]) * 0x100000001b3ull;
+  return h;
+}
+
+}  // namespace
+
+int main(int argc, char **argv) {
+  if (argc < 2) {
+    std::fprintf(stderr, "usage: %s <row> [plugin]\n", argv[0]);
+    return 2;
+  }
+  const std::string row = argv[1];
+  const char *plugin_path = argc > 2 ? argv[2] : GLIMMER_BENCH_PLUGIN_PATH;
+  std::unique_ptr<host::PluginLibrary> plugin = host::PluginLibrary::load(plugin_path);
+  if (!plugin) {
+    std::fprintf(stderr, "cannot load %s\n", plugin_path);
+    return 1;
+  }
+  std::string name = "glint", roughness;
+  double area = 1e-4, aspect = 1.0;
+  if (row.rfind("ggx", 0) == 0) {
+    name = "microfacet_conductor";
+    roughness = row == "ggx02" ? "0.2" : "0.4";
+  } else if (row.size() > 4 && (row.rfind("r04_", 0) == 0 || row.rfind("r02_", 0) == 0)) {
+    roughness = row[2] == '4' ? "0.4" : "0.2";
+    const std::string tail = row.substr(4);
+    if (tail == "asp64") {
+      area = 1e-6;
+      aspect = 64.0;
+    } else if (tail.rfind("a", 0) == 0) {
+      area = std::pow(10.0, std::stod(tail.substr(1)));
+    } else {
+      std::fprintf(stderr, "unknown row %s\n", row.c_str());
+      return 2;
+    }
+  } else {
+    std::fprintf(stderr, "unknown row %s\n", row.c_str());
+    return 2;
+  }
+  const GlimmerClosureType *type = plugin->find(name);
+  if (type == nullptr) {
+    std::fprintf(stderr, "no closure %s\n", name.c_str());
+    return 1;
+  }
+  host::ParamList params;
+  params.set_from_text(*type, "roughness", roughness);
+  if (name == "glint") {
+    params.set_from_text(*type, "gamma", "2");
+    params.set_from_text(*type, "density", "1e7");
+  } else {
+    params.set_from_text(*type, "distribution", "ggx");
+  }
+  const host::ClosureInstance closure(*type, params);
+  const std::vector<Query> q = make_queries(area, aspect);
+  std::vector<Result> out(q.size());
+  // One eval outside the counted loop builds or loads the lazily-built tables.
+  // (Not through eval_loop, which callgrind counts.)
+  closure.eval(q[0].ctx, q[0].wo, out[0].f, out[0].pdf);
+  std::uint64_t hash = 0xcbf29ce484222325ull;
+  constexpr int kPasses = 2;
+  for (int pass = 0; pass < kPasses; ++pass) {
+    eval_loop(closure, q, out);
+    for (const Result &r : out) {
+      hash = fnv1a(hash, &r.f, sizeof(r.f));
+      hash = fnv1a(hash, &r.pdf, sizeof(r.pdf));
+    }
+  }
+  std::printf("row %s evals %zu hash %016llx\n", row.c_str(), q.size() * kPasses,
+              static_cast<unsigned long long>(hash));
+  return 0;
+}
