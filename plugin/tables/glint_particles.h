@@ -339,7 +339,10 @@ inline NodeRows nodes_at_level_start(const Footprint &f, int level, NodeList &li
   return {NodeRows::kRows, j0, j1};
 }
 // Rows j0..j1 of `list` (level and size set, count 0); false beyond kMaxNodes.
-inline bool nodes_at_level_rows(const Footprint &f, int64_t j0, int64_t j1, NodeList &list) {
+// The per-row form with EdgeCrossings and footprint_x_range_in_band (the
+// rasteriser until session 19; nodes_at_level_rows gives the same nodes:
+// GlintParticles.RowRasteriserMatchesTheScalarForm).
+inline bool nodes_at_level_rows_scalar(const Footprint &f, int64_t j0, int64_t j1, NodeList &list) {
   const double inv = power_of_two(list.level);
   // The corners once per footprint and each row border's crossings once
   // (they were computed per row and per side; same values, same nodes).
@@ -358,6 +361,84 @@ inline bool nodes_at_level_rows(const Footprint &f, int64_t j0, int64_t j1, Node
     if (i1 - i0 >= kMaxNodes || !list.add_row(i0, i1, j)) return false;
   }
   return true;
+}
+#if defined(__SSE2__)
+// The rasteriser's rows in SSE2 registers (issue 10, session 19): the four
+// edges' constants (start, b - a) once per footprint, a row border's four
+// crossings and the band's corners kept in two-lane registers, with the
+// lanes that do not count (an edge that does not cross, a corner outside the
+// band) set to NaN by an OR with the negated compare mask: MINPD / MAXPD
+// return their second operand when either is NaN, so min(masked, acc) skips
+// them without a blend. The same crossings (the same expressions: x = ax +
+// (bx - ax) (y - ay) / (by - ay); crossing iff (ay - y)(by - y) < 0, here as
+// (y - ay)(y - by), the same product) and the same corners as
+// nodes_at_level_rows_scalar, so the same x extents (min / max of the same
+// set, up to the sign of a zero, which floor ignores) and the same nodes.
+struct RowRasteriser {
+  __m128d ax[2], ay[2], by[2], dx[2], dy[2];  // edges (0, 1), (1, 2) and (2, 3), (3, 0)
+  __m128d cx[2], cy[2];                       // corners 0, 1 and 2, 3
+  struct Crossings {
+    __m128d lo, hi;  // per lane the smallest / largest crossing of its edges (+-1e300 when none); never NaN
+  };
+  explicit RowRasteriser(const FootprintCorners &c) {
+    ax[0] = _mm_loadu_pd(c.x), ay[0] = _mm_loadu_pd(c.y);
+    ax[1] = _mm_loadu_pd(c.x + 2), ay[1] = _mm_loadu_pd(c.y + 2);
+    const __m128d bx0 = _mm_loadu_pd(c.x + 1), bx1 = _mm_set_pd(c.x[0], c.x[3]);
+    by[0] = _mm_loadu_pd(c.y + 1), by[1] = _mm_set_pd(c.y[0], c.y[3]);
+    dx[0] = _mm_sub_pd(bx0, ax[0]), dx[1] = _mm_sub_pd(bx1, ax[1]);
+    dy[0] = _mm_sub_pd(by[0], ay[0]), dy[1] = _mm_sub_pd(by[1], ay[1]);
+    cx[0] = ax[0], cx[1] = ax[1], cy[0] = ay[0], cy[1] = ay[1];
+  }
+  Crossings at(double y) const {
+    const __m128d yv = _mm_set1_pd(y);
+    __m128d lo = _mm_set1_pd(1e300), hi = _mm_set1_pd(-1e300);
+    for (int h = 0; h < 2; ++h) {
+      const __m128d t = _mm_sub_pd(yv, ay[h]);
+      const __m128d xc = _mm_add_pd(ax[h], _mm_div_pd(_mm_mul_pd(dx[h], t), dy[h]));
+      const __m128d no_cross = _mm_cmpnlt_pd(_mm_mul_pd(t, _mm_sub_pd(yv, by[h])), _mm_setzero_pd());
+      const __m128d masked = _mm_or_pd(xc, no_cross);  // NaN where the edge does not cross
+      lo = _mm_min_pd(masked, lo), hi = _mm_max_pd(masked, hi);
+    }
+    return {lo, hi};
+  }
+  // The band y0 <= y <= y1's x extent from its borders' crossings and its corners; false when it misses.
+  bool band(const Crossings &below, const Crossings &above, double y0, double y1, double &x_min,
+            double &x_max) const {
+    __m128d lo = _mm_min_pd(below.lo, above.lo), hi = _mm_max_pd(below.hi, above.hi);
+    const __m128d y0v = _mm_set1_pd(y0), y1v = _mm_set1_pd(y1);
+    for (int h = 0; h < 2; ++h) {
+      const __m128d out = _mm_or_pd(_mm_cmpnge_pd(cy[h], y0v), _mm_cmpnle_pd(cy[h], y1v));
+      const __m128d masked = _mm_or_pd(cx[h], out);  // NaN where the corner is outside the band
+      lo = _mm_min_pd(masked, lo), hi = _mm_max_pd(masked, hi);
+    }
+    x_min = lane_min(lo), x_max = lane_max(hi);
+    return x_min <= x_max;
+  }
+};
+#endif
+// Rows j0..j1 of `list` (level and size set, count 0); false beyond kMaxNodes.
+inline bool nodes_at_level_rows(const Footprint &f, int64_t j0, int64_t j1, NodeList &list) {
+#if defined(__SSE2__)
+  const double inv = power_of_two(list.level);
+  const RowRasteriser raster{FootprintCorners(f)};
+  double below_y = static_cast<double>(j0) * list.size;
+  RowRasteriser::Crossings below = raster.at(below_y);
+  for (int64_t j = j0; j <= j1; ++j) {
+    const double y0 = static_cast<double>(j) * list.size, y1 = y0 + list.size;
+    if (below_y != y0) below = raster.at(y0);
+    const RowRasteriser::Crossings above = raster.at(y1);
+    double x_min, x_max;
+    const bool hit = raster.band(below, above, y0, y1, x_min, x_max);
+    below = above, below_y = y1;
+    if (!hit) continue;
+    const int64_t i0 = floor_to_int64(x_min * inv);
+    const int64_t i1 = floor_to_int64(x_max * inv);
+    if (i1 - i0 >= kMaxNodes || !list.add_row(i0, i1, j)) return false;
+  }
+  return true;
+#else
+  return nodes_at_level_rows_scalar(f, j0, j1, list);
+#endif
 }
 inline bool nodes_at_level(const Footprint &f, int level, NodeList &list) {
   const NodeRows rows = nodes_at_level_start(f, level, list);
