@@ -63,6 +63,7 @@
 #include <bit>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <optional>
 #include <span>
 #include <type_traits>
@@ -143,11 +144,23 @@ inline __m128i mullo_u32x4(__m128i a, uint32_t c) {  // a * c per 32-bit lane (S
   return _mm_unpacklo_epi32(_mm_shuffle_epi32(even, _MM_SHUFFLE(0, 0, 2, 0)),
                             _mm_shuffle_epi32(odd, _MM_SHUFFLE(0, 0, 2, 0)));
 }
+// a * c per lane with lanes 1 and 2 swapped (result lanes a0 c, a2 c, a1 c,
+// a3 c): the two products' low halves gathered by one SHUFPS instead of two
+// PSHUFD and a PUNPCKLDQ. The swap is its own inverse, so two of these in a
+// row (mix_u32x4; the xorshifts between them are per lane) give the lanes in
+// order.
+inline __m128i mullo_u32x4_swap12(__m128i a, __m128i k) {
+  const __m128 even = _mm_castsi128_ps(_mm_mul_epu32(a, k));                     // lanes 0, 2
+  const __m128 odd = _mm_castsi128_ps(_mm_mul_epu32(_mm_srli_epi64(a, 32), k));  // lanes 1, 3
+  return _mm_castps_si128(_mm_shuffle_ps(even, odd, _MM_SHUFFLE(2, 0, 2, 0)));
+}
+// mix_u32 per 32-bit lane (the same values). Session 19: the multiplies by
+// mullo_u32x4_swap12, 27 -> 23 instructions.
 inline __m128i mix_u32x4(__m128i x) {
   x = _mm_xor_si128(x, _mm_srli_epi32(x, 16));
-  x = mullo_u32x4(x, 0x7feb352du);
+  x = mullo_u32x4_swap12(x, _mm_set1_epi32(static_cast<int>(0x7feb352du)));  // lanes 0 2 1 3
   x = _mm_xor_si128(x, _mm_srli_epi32(x, 15));
-  x = mullo_u32x4(x, 0x846ca68bu);
+  x = mullo_u32x4_swap12(x, _mm_set1_epi32(static_cast<int>(0x846ca68bu)));  // lanes 0 1 2 3 again
   return _mm_xor_si128(x, _mm_srli_epi32(x, 16));
 }
 #endif
@@ -905,8 +918,11 @@ struct PairPassCounter {
   const FootprintFrame &frame;
   std::array<FootprintFrame::NodeOrigin, kMaxNodes> origin;
   std::array<int32_t, kMaxNodes> inside_mask;  // -1 inside, 0 not
-  std::array<uint32_t, kMaxPairs> pair_hash;
-  std::array<uint8_t, kMaxPairs> pair_node;
+  // Session 19: every node's four group hashes (node_hash[4 node + g]), and
+  // the passing pairs compacted as indices 4 node + g into them (a 4-byte
+  // store per node, hence the slack).
+  alignas(16) std::array<uint32_t, kMaxPairs> node_hash;
+  std::array<uint8_t, kMaxPairs + 3> pair_index;
   std::array<uint32_t, kMaxParticles> part_hash, part_k, part_node;  // 32-bit nodes: no memset call per fill
   int n_parts = 0;
   int64_t count = 0;
@@ -948,6 +964,24 @@ struct PairPassCounter {
   }
 };
 
+// The groups whose bit is set in a 4-bit mask, in order, as the bytes of a
+// 32-bit word (low byte first; the unused bytes 0), and their number.
+struct PassingGroups {
+  uint32_t bytes;
+  int count;
+};
+inline constexpr std::array<PassingGroups, 16> kPassingGroups = [] {
+  std::array<PassingGroups, 16> t{};
+  for (uint32_t m = 0; m < 16; ++m) {
+    int n = 0;
+    uint32_t b = 0;
+    for (uint32_t g = 0; g < 4; ++g)
+      if ((m >> g) & 1u) b |= g << (8 * n++);
+    t[m] = {b, n};
+  }
+  return t;
+}();
+
 inline GlintCount count_four_groups_in_passes(const FootprintFrame &frame, const NodeList &nodes,
                                               const uint32_t *seeds, const GroupReject &reject, double lambda,
                                               int max_steps) {
@@ -957,6 +991,9 @@ inline GlintCount count_four_groups_in_passes(const FootprintFrame &frame, const
   const bool can_be_inside = frame.nodes_can_be_inside;
 #if defined(__SSE2__)
   const __m128i seed_lanes = _mm_loadu_si128(reinterpret_cast<const __m128i *>(seeds));
+  const __m128i bias = _mm_set1_epi32(static_cast<int>(0x80000000u));  // unsigned compare as signed
+  const __m128i below_biased = _mm_xor_si128(_mm_set1_epi32(static_cast<int>(reject.below)), bias);
+  const uint32_t all_pass_mask = reject.all_pass ? 0xfu : 0u;
 #endif
   // Session 17 (glintwalk17b): the origin and inside flag of only the nodes
   // with a pair passing the quick reject (no other pass reads them; ~1/3 of
@@ -972,18 +1009,23 @@ inline GlintCount count_four_groups_in_passes(const FootprintFrame &frame, const
     // the same values as group_hashes): no branch reads them here, unlike
     // the node loop where the lanes measured slower (session 8). Session 17:
     // 1e-4 5714 -> 5470 instructions per eval, same f and pdf bits.
-    alignas(16) uint32_t h[kDirectionGroups];
+    // Session 19: the passing groups as a 4-bit mask (the lanes' unsigned
+    // compare, as group_hashes_sse2) and compacted by a table of 16 entries
+    // (kPassingGroups: the mask's groups in order, as bytes, and their
+    // number) with one 4-byte store, instead of a store, a compare and an
+    // add per group.
+    uint32_t *h = pc.node_hash.data() + kDirectionGroups * at;
 #if defined(__SSE2__)
-    _mm_store_si128(reinterpret_cast<__m128i *>(h),
-                    mix_u32x4(_mm_xor_si128(_mm_set1_epi32(static_cast<int>(nodes.id_hash[at])), seed_lanes)));
+    const __m128i hv = mix_u32x4(_mm_xor_si128(_mm_set1_epi32(static_cast<int>(nodes.id_hash[at])), seed_lanes));
+    _mm_store_si128(reinterpret_cast<__m128i *>(h), hv);
+    const uint32_t mask = all_pass_mask | static_cast<uint32_t>(_mm_movemask_ps(
+                                              _mm_castsi128_ps(_mm_cmplt_epi32(_mm_xor_si128(hv, bias), below_biased))));
 #else
-    group_hashes(nodes.id_hash[at], seeds, reject, h);
+    const uint32_t mask = group_hashes(nodes.id_hash[at], seeds, reject, h);
 #endif
-    for (int g = 0; g < kDirectionGroups; ++g) {
-      pc.pair_hash[static_cast<size_t>(n_pairs)] = h[g];
-      pc.pair_node[static_cast<size_t>(n_pairs)] = static_cast<uint8_t>(node);
-      n_pairs += h[g] < reject.limit ? 1 : 0;
-    }
+    const uint32_t bytes = kPassingGroups[mask].bytes + static_cast<uint32_t>(kDirectionGroups * node) * 0x01010101u;
+    std::memcpy(pc.pair_index.data() + n_pairs, &bytes, sizeof(bytes));
+    n_pairs += kPassingGroups[mask].count;
     paired_nodes[static_cast<size_t>(n_paired)] = static_cast<uint8_t>(node);
     n_paired += n_pairs != pairs_before ? 1 : 0;
   }
@@ -998,7 +1040,8 @@ inline GlintCount count_four_groups_in_passes(const FootprintFrame &frame, const
   std::optional<LitCountModel> model;
   int64_t steps = 0;
   for (int p = 0; p < n_pairs; ++p) {  // (3)
-    const uint32_t h0 = pc.pair_hash[static_cast<size_t>(p)];
+    const uint32_t pair = pc.pair_index[static_cast<size_t>(p)];
+    const uint32_t h0 = pc.node_hash[pair];
     const double u = (static_cast<double>(h0) + 0.5) * (1.0 / 4294967296.0);
     int64_t K = bounds.lit(u);
     if (K == LitCountBounds::kUndecided) {
@@ -1007,7 +1050,7 @@ inline GlintCount count_four_groups_in_passes(const FootprintFrame &frame, const
     }
     steps += K;
     if (K < 0 || steps > max_steps) return {0, 0, false};
-    pc.add_lit(pc.pair_node[static_cast<size_t>(p)], h0, K);
+    pc.add_lit(static_cast<int>(pair / kDirectionGroups), h0, K);
   }
   pc.flush();  // (4)
   result.count = static_cast<int>(pc.count);
