@@ -102,19 +102,44 @@ struct Renderer::Impl {
     SurfaceHit h;
     if (!self->accel->intersect(Vec3(ray->origin), Vec3(ray->direction), ray->t_min, ray->t_max, h)) return 0;
     self->fill_ray_hit(h, *ray, *hit);
-    if (out != nullptr && GLIMMER_HAS_FIELD(out->struct_size, GlimmerHitClosure, varying))
-      self->describe_hit_closure(h, Vec3(ray->direction), *out);
+    if (out != nullptr && GLIMMER_HAS_FIELD(out->struct_size, GlimmerHitClosure, varying)) {
+      const MeshHitClosure &m = self->mesh_hit_closure[h.mesh];
+      if (m.constant)
+        copy_hit_closure(m.description, *out);
+      else
+        self->describe_hit_closure(h, Vec3(ray->direction), *out);
+    }
     return 1;
   }
+  // Per mesh: its shader's hit-closure description when the shader is constant (CompiledShader::reads_footprint
+  // false: every weight, mix factor and varying parameter is a constant, so the shader's closures, and the
+  // principal one with its parameter values, are the same at every point). Made once in prepare, copied per ray
+  // instead of evaluating the shader at every hit (describe_hit_closure).
+  struct MeshHitClosure {
+    bool constant = false;
+    GlimmerHitClosure description{};
+  };
+  std::vector<MeshHitClosure> mesh_hit_closure;
+  static void copy_hit_closure(const GlimmerHitClosure &from, GlimmerHitClosure &out) {
+    out.type = from.type;
+    out.instance = from.instance;
+    out.varying_count = from.varying_count;
+    for (uint32_t k = 0; k < from.varying_count; ++k) out.varying[k] = from.varying[k];
+  }
   void describe_hit_closure(const SurfaceHit &h, const Vec3 &D, GlimmerHitClosure &out) const {
-    out.type = nullptr;
-    out.instance = nullptr;
-    out.varying_count = 0;
     ShadingData sd;
     setup_shading(h, D, sd);
     sd.tc.path.camera = false;
     ClosureSet cs;
     shaders->evaluate(sd.shader, sd.tc, cs);
+    describe_principal_closure(cs, out);
+  }
+  // The description of a shader's closures: the principal closure (largest sample weight, emission excluded)
+  // and its varying parameters' values.
+  static void describe_principal_closure(const ClosureSet &cs, GlimmerHitClosure &out) {
+    out.type = nullptr;
+    out.instance = nullptr;
+    out.varying_count = 0;
     const ActiveClosure *best = nullptr;
     for (int i = 0; i < cs.count; ++i) {
       const ActiveClosure &c = cs.closures[i];
@@ -197,6 +222,18 @@ struct Renderer::Impl {
     for (const auto &l : scene.lights)
       if (l.shader >= 0) used[l.shader] = true;
     for (bool u : used) (u ? features.used_shaders : features.unused_shaders)++;
+    // Constant shaders' hit-closure descriptions (trace_ray_closure): their inputs read no point, so any
+    // shading point gives the same closures.
+    mesh_hit_closure.resize(mesh_shader.size());
+    for (size_t m = 0; m < mesh_shader.size(); ++m) {
+      if (shaders->shader(mesh_shader[m]).reads_footprint) continue;
+      TexCoords tc;
+      tc.path.camera = false;
+      ClosureSet cs;
+      shaders->evaluate(mesh_shader[m], tc, cs);
+      mesh_hit_closure[m].constant = true;
+      describe_principal_closure(cs, mesh_hit_closure[m].description);
+    }
 
     // Scene bounds (for sun/background power estimates).
     Vec3 lo(kInf), hi(-kInf);
@@ -1131,6 +1168,14 @@ Renderer::~Renderer() = default;
 bool Renderer::probe(float x, float y, GlimmerShadingContext &out) const { return impl_->probe(x, y, out); }
 
 const GlimmerHostServices &Renderer::host_services() const { return impl_->host; }
+
+int Renderer::trace_ray_closure_shaded(const GlimmerRay &ray, GlimmerRayHit &hit, GlimmerHitClosure &out) const {
+  SurfaceHit h;
+  if (!impl_->accel->intersect(Vec3(ray.origin), Vec3(ray.direction), ray.t_min, ray.t_max, h)) return 0;
+  impl_->fill_ray_hit(h, ray, hit);
+  impl_->describe_hit_closure(h, Vec3(ray.direction), out);
+  return 1;
+}
 
 const PartInfo &Renderer::part() const { return impl_->part; }
 

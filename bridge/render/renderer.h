@@ -97,6 +97,9 @@ class Renderer {
   bool probe(float x, float y, GlimmerShadingContext &out) const;
   // The services closures get (trace_ray, trace_ray_closure, environment, log, cache): for tests and tools.
   const GlimmerHostServices &host_services() const;
+  // For tests: host_services().trace_ray_closure, but always evaluating the hit's shader there (never the
+  // per-mesh description of a constant shader that trace_ray_closure copies).
+  int trace_ray_closure_shaded(const GlimmerRay &ray, GlimmerRayHit &hit, GlimmerHitClosure &out) const;
 
   const FeatureSet &features() const { return features_; }
   const std::vector<std::string> &warnings() const { return warnings_; }
