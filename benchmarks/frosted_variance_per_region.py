@@ -60,9 +60,17 @@ def main():
     ap.add_argument("--mask", required=True)
     ap.add_argument("--names", default="lit,glass,shadow", help="names of the mask ids 0, 1, 2, ...")
     ap.add_argument("--references", default="", help="comma list of reference EXRs (variance mode: bias)")
+    ap.add_argument("--split-x", type=int, default=0,
+                    help="also report each region's pixels left (<name>_L) and right (<name>_R) of this column "
+                         "(frosted_fair_caustic at 64x40: 32 separates the sphere's side from the pane's)")
     a = ap.parse_args()
     reg = regions(a.mask, a.names.split(","))
     order = ["all"] + sorted(set(reg.values()) - {"edges"}) + ["edges"]
+    side = {}
+    if a.split_x > 0:
+        names = sorted(set(reg.values()) - {"edges"})
+        order += [n + s for n in names for s in ("_L", "_R")]
+        side = {k: r + ("_L" if k[0] < a.split_x else "_R") for k, r in reg.items() if r != "edges"}
     if a.mode == "pairs":
         base = combined(a.images[0])
         print("%-12s" % "decision" + "".join("%11s" % n for n in order))
@@ -94,7 +102,7 @@ def main():
                 rvar = sum((v - rm) ** 2 for v in rv) / (len(rv) - 1) / len(rv) if len(rv) > 1 else 0.0
                 off = mean - rm
                 b2 = off * off - var / n - rvar
-            for name in ("all", r):
+            for name in ("all", r) + ((side[k],) if k in side else ()):
                 s = acc[name]
                 s[0] += var
                 s[1] += off

@@ -177,7 +177,7 @@ class FrostedGlassClosure {
   // through the object when it applies (else `front` stays, as method=path). Public for the tests' variants.
   void sample_sg(const ShadingPoint &sp, const Vec3 &rand, LocalSample &front, frosted::SgVariant variant,
                  float mixture_variance = frosted::kDefaultMixtureVariance,
-                 float mixture_tail = frosted::kDefaultMixtureTail) const {
+                 float mixture_tail = frosted::kDefaultMixtureTail, float curved_tail = -1.0f) const {
     frosted::SgInputs in;
     in.table = table_;
     in.self = reinterpret_cast<const GlimmerInstance *>(this);
@@ -192,6 +192,7 @@ class FrostedGlassClosure {
     in.variant = variant;
     in.mixture_variance = mixture_variance;
     in.mixture_tail = mixture_tail;
+    in.curved_tail = curved_tail;
     LocalSample s;
 #if GLIMMER_ABI_MINOR >= 7
     s.mixture_out = front.mixture_out;  // the host's buffer for the whole exit mixture (ABI 2.7)

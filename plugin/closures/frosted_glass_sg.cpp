@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <cstdlib>
 #include <limits>
 
 #include "glimmer/exit_lobe.h"
@@ -314,6 +315,32 @@ bool build_exit_mixture(const TransmissionSgTable &table, const Segment &seg, co
 //  - otherwise (0.2..0.4 curved, <= 0.4 planar) the per-ray kappa / 4 tails as before.
 // An explicit mixture_tail (>= 0, the tests' variants) is the per-ray mixture with that tail. lobe_count 0: the
 // single SG (out.sg). False: no lobe has energy.
+// kCurvedTail, or for measurements only (docs/frosted_glass.md "Eighteenth / nineteenth session": the bench's
+// before / after with one build) the environment's GLIMMER_FROSTED_CURVED_TAIL (0: the unsplit single SG), read once.
+float curved_tail() {
+  static const float t = [] {
+    const char *e = std::getenv("GLIMMER_FROSTED_CURVED_TAIL");
+    if (e == nullptr || *e == '\0') return kCurvedTail;
+    const float v = std::strtof(e, nullptr);
+    return std::isfinite(v) ? std::clamp(v, 0.0f, 0.2f) : kCurvedTail;
+  }();
+  return t;
+}
+// The single SG (out.sg) as a core (1 - t, kappa (1 - t) / (1 - 4 t)) and a tail (t, kappa / 4) of the same axis
+// and variance (frosted_glass_sg.h, kCurvedTail); t <= 0 (or not finite): the single SG (lobe_count 0).
+void split_single_sg(float t, ExitLobe &out) {
+  out.lobe_count = 0;
+  if (!(t > 0.0f)) return;
+  t = std::min(t, 0.2f);
+  ExitLobe::MixtureLobe &core = out.lobe[0], &tail = out.lobe[1];
+  core.axis = out.sg.axis;
+  core.sharpness = std::min(out.sg.sharpness * (1.0f - t) / (1.0f - 4.0f * t), 1e7f);
+  core.weight = 1.0f - t;
+  tail.axis = out.sg.axis;
+  tail.sharpness = std::max(out.sg.sharpness * 0.25f, 1e-3f);
+  tail.weight = t;
+  out.lobe_count = 2;
+}
 constexpr float kPlanarExitCurvature = 0.1f;
 constexpr float kCurvedSingleSgBelow = 0.2f;
 // Thirteenth session: cores x 3 -> x 2, measured with exit light sampling in the small light's test (its former
@@ -330,7 +357,10 @@ bool solid_exit_mixture(const SgInputs &in, const Segment &seg, const Vec3 &axis
   const bool wide = in.roughness > kMixtureRoughnessMax, narrow = in.roughness < kCurvedSingleSgBelow;
   const bool planar = exit_curvature(seg, axis) < kPlanarExitCurvature;
   const bool ladder = by_rule && wide && planar;
-  if (by_rule && !planar && (wide || narrow)) return true;  // the single SG
+  if (by_rule && !planar && (wide || narrow)) {  // the single SG, split into a core and a tail when wide
+    if (wide && in.roughness <= kCurvedSplitMax) split_single_sg(in.curved_tail < 0.0f ? curved_tail() : in.curved_tail, out);
+    return true;
+  }
   const float tail = ladder ? 0.0f : (by_rule ? mixture_tail_for(in.roughness) : in.mixture_tail);
   if (!build_exit_mixture(*in.table, seg, axis, kappa_in, kappa_geometric, ior, roughness_exit, in.mixture_variance,
                           tail, out))

@@ -79,25 +79,34 @@ inline double vmf_fraction_below(const Vec3 &axis, double kappa, const Vec3 &n) 
   static constexpr double kWeight[4] = {0.3626837833783620, 0.3137066458778873, 0.2223810344533745, 0.1012285362903763};
   constexpr int kPanels = 8;
   const double panel = (hi - lo) / kPanels;
-  // The panels are equal, so the nodes sit at the same offsets d_k from each panel's middle: sin(beta) and
-  // sin((beta - alpha) / 2) by angle addition from one sincos per panel and per offset (not two sines per node).
-  double sin_d[8], cos_d[8], sin_h[8], cos_h[8];
-  for (int k = 0; k < 8; ++k) {
-    const double d = (k < 4 ? -kNode[k] : kNode[k - 4]) * 0.5 * panel;
-    sin_d[k] = std::sin(d), cos_d[k] = std::cos(d);
-    sin_h[k] = std::sin(0.5 * d), cos_h[k] = std::cos(0.5 * d);
+  // The panels are equal, so the nodes sit at the same offsets +-d_k from each panel's middle, and the middles step
+  // by `panel`: sin(beta) and sin((beta - alpha) / 2) by angle addition. One sincos per offset's half angle (the
+  // offset's own by the double angle; -d_k by symmetry), one for the half step (the step by the double angle), one
+  // each for the first middle and its half angle off alpha, then rotations: 7 sincos per call (32 before).
+  double sin_d[4], cos_d[4], sin_h[4], cos_h[4];
+  for (int k = 0; k < 4; ++k) {
+    const double half = 0.25 * kNode[k] * panel;  // d_k / 2, d_k = kNode[k] panel / 2
+    sin_h[k] = std::sin(half), cos_h[k] = std::cos(half);
+    sin_d[k] = 2.0 * sin_h[k] * cos_h[k], cos_d[k] = 1.0 - 2.0 * sin_h[k] * sin_h[k];
   }
+  const double sin_step_h = std::sin(0.5 * panel), cos_step_h = std::cos(0.5 * panel);
+  const double sin_step = 2.0 * sin_step_h * cos_step_h, cos_step = 1.0 - 2.0 * sin_step_h * sin_step_h;
+  const double mid0 = lo + 0.5 * panel;
+  double sin_m = std::sin(mid0), cos_m = std::cos(mid0);
+  double sin_mh = std::sin(0.5 * (mid0 - alpha)), cos_mh = std::cos(0.5 * (mid0 - alpha));
   double sum = 0.0;
   for (int p = 0; p < kPanels; ++p) {
-    const double mid = lo + (p + 0.5) * panel;
-    const double sin_m = std::sin(mid), cos_m = std::cos(mid);
-    const double sin_mh = std::sin(0.5 * (mid - alpha)), cos_mh = std::cos(0.5 * (mid - alpha));
     for (int k = 0; k < 8; ++k) {
-      const double sin_beta = sin_m * cos_d[k] + cos_m * sin_d[k];
-      const double s = sin_mh * cos_h[k] + cos_mh * sin_h[k];  // sin((beta - alpha) / 2)
+      const int j = k < 4 ? k : k - 4;
+      const double sd = k < 4 ? -sin_d[j] : sin_d[j], sh = k < 4 ? -sin_h[j] : sin_h[j];
+      const double sin_beta = sin_m * cos_d[j] + cos_m * sd;
+      const double s = sin_mh * cos_h[j] + cos_mh * sh;  // sin((beta - alpha) / 2)
       const double f = sin_beta * std::exp(-2.0 * kappa * s * s) * bessel_i0_scaled(kappa * sin_alpha * sin_beta);
-      sum += kWeight[k % 4] * f;
+      sum += kWeight[j] * f;
     }
+    const double sm = sin_m * cos_step + cos_m * sin_step, cm = cos_m * cos_step - sin_m * sin_step;
+    const double smh = sin_mh * cos_step_h + cos_mh * sin_step_h, cmh = cos_mh * cos_step_h - sin_mh * sin_step_h;
+    sin_m = sm, cos_m = cm, sin_mh = smh, cos_mh = cmh;
   }
   const double q = sum * 0.5 * panel * kappa / -std::expm1(-2.0 * kappa);
   return std::clamp(q, 0.0, 1.0);
