@@ -930,7 +930,27 @@ struct PairPassCounter {
   explicit PairPassCounter(const FootprintFrame &fr) : frame(fr) {}
   void flush() {
     int64_t c = 0;
-    for (int q = 0; q < n_parts; ++q) {
+    int q = 0;
+#if defined(__SSE2__)
+    // Session 19: two particles' positions per mix_u32x4 (lanes: particle
+    // q's two keys, particle q + 1's), the same values as particle_position
+    // (uint_to_unit_float in lanes: v >> 8 < 2^24 converts exactly as a
+    // signed integer, and the scale is a power of two).
+    const __m128i step = _mm_set_epi32(static_cast<int>(kNodeKeyStep), 0, static_cast<int>(kNodeKeyStep), 0);
+    const __m128 scale = _mm_set1_ps(1.0f / 16777216.0f);
+    for (; q + 1 < n_parts; q += 2) {
+      const auto a = static_cast<size_t>(q), b = a + 1;
+      const uint32_t ka = (part_hash[a] ^ kPositionKey) + (2u * part_k[a] + 1u) * kNodeKeyStep;
+      const uint32_t kb = (part_hash[b] ^ kPositionKey) + (2u * part_k[b] + 1u) * kNodeKeyStep;
+      const __m128i keys = _mm_add_epi32(
+          _mm_set_epi32(static_cast<int>(kb), static_cast<int>(kb), static_cast<int>(ka), static_cast<int>(ka)), step);
+      alignas(16) float u[4];
+      _mm_store_ps(u, _mm_mul_ps(_mm_cvtepi32_ps(_mm_srli_epi32(mix_u32x4(keys), 8)), scale));
+      c += frame.particle_inside(origin[part_node[a]], u[0], u[1]) ? 1 : 0;
+      c += frame.particle_inside(origin[part_node[b]], u[2], u[3]) ? 1 : 0;
+    }
+#endif
+    for (; q < n_parts; ++q) {
       const auto [ux, uy] = particle_position(part_hash[static_cast<size_t>(q)], part_k[static_cast<size_t>(q)]);
       c += frame.particle_inside(origin[part_node[static_cast<size_t>(q)]], ux, uy) ? 1 : 0;
     }
