@@ -202,6 +202,26 @@ struct NodeList {
     const int64_t n = i1 - i0 + 1;
     if (n > kMaxNodes - count) return false;
     const uint32_t key = node_row_key(level, nj);
+#if defined(__SSE2__)
+    // Session 19: a chunk's four keys, i and j in SSE2 lanes (the keys
+    // key + (i0 + b + c) W mod 2^32 stepped by 4 W per chunk: the same words).
+    static_assert(kRowChunk == 4);
+    constexpr uint32_t W = kNodeKeyStep;
+    __m128i ids = _mm_add_epi32(_mm_set1_epi32(static_cast<int>(key + static_cast<uint32_t>(i0) * W)),
+                                _mm_set_epi32(static_cast<int>(3u * W), static_cast<int>(2u * W), static_cast<int>(W), 0));
+    __m128i iv = _mm_set_epi64x(i0 + 1, i0);
+    const __m128i jv = _mm_set1_epi64x(nj), two = _mm_set1_epi64x(2), four = _mm_set1_epi64x(4);
+    const __m128i ids_step = _mm_set1_epi32(static_cast<int>(4u * W));
+    for (int64_t b = 0; b < n; b += kRowChunk) {
+      const auto at = static_cast<size_t>(count + b);
+      _mm_storeu_si128(reinterpret_cast<__m128i *>(id_hash.data() + at), ids);
+      _mm_storeu_si128(reinterpret_cast<__m128i *>(i.data() + at), iv);
+      _mm_storeu_si128(reinterpret_cast<__m128i *>(i.data() + at + 2), _mm_add_epi64(iv, two));
+      _mm_storeu_si128(reinterpret_cast<__m128i *>(j.data() + at), jv);
+      _mm_storeu_si128(reinterpret_cast<__m128i *>(j.data() + at + 2), jv);
+      ids = _mm_add_epi32(ids, ids_step), iv = _mm_add_epi64(iv, four);
+    }
+#else
     for (int64_t b = 0; b < n; b += kRowChunk)
       for (int c = 0; c < kRowChunk; ++c) {
         const auto at = static_cast<size_t>(count + b + c);
@@ -209,6 +229,7 @@ struct NodeList {
         j[at] = nj;
         id_hash[at] = key + static_cast<uint32_t>(i0 + b + c) * kNodeKeyStep;
       }
+#endif
     count += static_cast<int>(n);
     row_valid_ = false;
     return true;
