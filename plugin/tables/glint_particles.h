@@ -959,16 +959,26 @@ struct PairPassCounter {
     // signed integer, and the scale is a power of two).
     const __m128i step = _mm_set_epi32(static_cast<int>(kNodeKeyStep), 0, static_cast<int>(kNodeKeyStep), 0);
     const __m128 scale = _mm_set1_ps(1.0f / 16777216.0f);
+    const __m128d ds_ux = _mm_set1_pd(frame.ds_ux), ds_uy = _mm_set1_pd(frame.ds_uy);
+    const __m128d dt_ux = _mm_set1_pd(frame.dt_ux), dt_uy = _mm_set1_pd(frame.dt_uy);
+    const __m128d sign = _mm_set1_pd(-0.0), half = _mm_set1_pd(0.5);
     for (; q + 1 < n_parts; q += 2) {
       const auto a = static_cast<size_t>(q), b = a + 1;
       const uint32_t ka = (part_hash[a] ^ kPositionKey) + (2u * part_k[a] + 1u) * kNodeKeyStep;
       const uint32_t kb = (part_hash[b] ^ kPositionKey) + (2u * part_k[b] + 1u) * kNodeKeyStep;
       const __m128i keys = _mm_add_epi32(
           _mm_set_epi32(static_cast<int>(kb), static_cast<int>(kb), static_cast<int>(ka), static_cast<int>(ka)), step);
-      alignas(16) float u[4];
-      _mm_store_ps(u, _mm_mul_ps(_mm_cvtepi32_ps(_mm_srli_epi32(mix_u32x4(keys), 8)), scale));
-      c += frame.particle_inside(origin[part_node[a]], u[0], u[1]) ? 1 : 0;
-      c += frame.particle_inside(origin[part_node[b]], u[2], u[3]) ? 1 : 0;
+      const __m128 u = _mm_mul_ps(_mm_cvtepi32_ps(_mm_srli_epi32(mix_u32x4(keys), 8)), scale);  // ax ay bx by
+      // Session 19: both particles' membership in double lanes: particle_inside's
+      // expressions ((o + ux d_ux) + uy d_uy, |s|, |t| <= 1/2), the same values.
+      const __m128d ux = _mm_cvtps_pd(_mm_shuffle_ps(u, u, _MM_SHUFFLE(2, 0, 2, 0)));  // ax bx
+      const __m128d uy = _mm_cvtps_pd(_mm_shuffle_ps(u, u, _MM_SHUFFLE(3, 1, 3, 1)));  // ay by
+      const __m128d oa = _mm_loadu_pd(&origin[part_node[a]].s), ob = _mm_loadu_pd(&origin[part_node[b]].s);
+      const __m128d s = _mm_add_pd(_mm_add_pd(_mm_unpacklo_pd(oa, ob), _mm_mul_pd(ux, ds_ux)), _mm_mul_pd(uy, ds_uy));
+      const __m128d t = _mm_add_pd(_mm_add_pd(_mm_unpackhi_pd(oa, ob), _mm_mul_pd(ux, dt_ux)), _mm_mul_pd(uy, dt_uy));
+      const __m128d in = _mm_and_pd(_mm_cmple_pd(_mm_andnot_pd(sign, s), half), _mm_cmple_pd(_mm_andnot_pd(sign, t), half));
+      const int m = _mm_movemask_pd(in);
+      c += (m & 1) + (m >> 1);
     }
 #endif
     for (; q < n_parts; ++q) {
