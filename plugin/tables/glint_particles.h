@@ -1080,10 +1080,24 @@ inline GlintCount count_four_groups_in_passes(const FootprintFrame &frame, const
     paired_nodes[static_cast<size_t>(n_paired)] = static_cast<uint8_t>(node);
     n_paired += n_pairs != pairs_before ? 1 : 0;
   }
+#if defined(__SSE2__)
+  const __m128d centre = _mm_set_pd(frame.f.cy, frame.f.cx), by_ax = _mm_set_pd(frame.f.ax, frame.f.by);
+  const __m128d bx_ay = _mm_set_pd(frame.f.ay, frame.f.bx), inv_det = _mm_set1_pd(frame.inv_det);
+#endif
   for (int q = 0; q < n_paired; ++q) {  // (1)
     const auto at = static_cast<size_t>(paired_nodes[static_cast<size_t>(q)]);
+#if defined(__SSE2__)
+    // (s, t) in double lanes: origin()'s products and differences in the same
+    // order (a product's operands commute exactly), the same values.
+    const __m128d p = _mm_sub_pd(_mm_set_pd(static_cast<double>(nodes.j[at]) * nodes.size,
+                                            static_cast<double>(nodes.i[at]) * nodes.size), centre);  // px py
+    const __m128d st = _mm_mul_pd(_mm_sub_pd(_mm_mul_pd(p, by_ax), _mm_mul_pd(_mm_shuffle_pd(p, p, 1), bx_ay)), inv_det);
+    _mm_storeu_pd(&pc.origin[at].s, st);
+    const FootprintFrame::NodeOrigin o = pc.origin[at];
+#else
     const auto o = frame.origin(static_cast<double>(nodes.i[at]) * nodes.size, static_cast<double>(nodes.j[at]) * nodes.size);
     pc.origin[at] = o;
+#endif
     pc.inside_mask[at] = can_be_inside && frame.node_inside(o) ? -1 : 0;
   }
   GlintCount result;
