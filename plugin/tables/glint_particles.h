@@ -202,6 +202,26 @@ struct NodeList {
     const int64_t n = i1 - i0 + 1;
     if (n > kMaxNodes - count) return false;
     const uint32_t key = node_row_key(level, nj);
+#if defined(__SSE2__)
+    // Session 19: a chunk's four keys, i and j in SSE2 lanes (the keys
+    // key + (i0 + b + c) W mod 2^32 stepped by 4 W per chunk: the same words).
+    static_assert(kRowChunk == 4);
+    constexpr uint32_t W = kNodeKeyStep;
+    __m128i ids = _mm_add_epi32(_mm_set1_epi32(static_cast<int>(key + static_cast<uint32_t>(i0) * W)),
+                                _mm_set_epi32(static_cast<int>(3u * W), static_cast<int>(2u * W), static_cast<int>(W), 0));
+    __m128i iv = _mm_set_epi64x(i0 + 1, i0);
+    const __m128i jv = _mm_set1_epi64x(nj), two = _mm_set1_epi64x(2), four = _mm_set1_epi64x(4);
+    const __m128i ids_step = _mm_set1_epi32(static_cast<int>(4u * W));
+    for (int64_t b = 0; b < n; b += kRowChunk) {
+      const auto at = static_cast<size_t>(count + b);
+      _mm_storeu_si128(reinterpret_cast<__m128i *>(id_hash.data() + at), ids);
+      _mm_storeu_si128(reinterpret_cast<__m128i *>(i.data() + at), iv);
+      _mm_storeu_si128(reinterpret_cast<__m128i *>(i.data() + at + 2), _mm_add_epi64(iv, two));
+      _mm_storeu_si128(reinterpret_cast<__m128i *>(j.data() + at), jv);
+      _mm_storeu_si128(reinterpret_cast<__m128i *>(j.data() + at + 2), jv);
+      ids = _mm_add_epi32(ids, ids_step), iv = _mm_add_epi64(iv, four);
+    }
+#else
     for (int64_t b = 0; b < n; b += kRowChunk)
       for (int c = 0; c < kRowChunk; ++c) {
         const auto at = static_cast<size_t>(count + b + c);
@@ -209,6 +229,7 @@ struct NodeList {
         j[at] = nj;
         id_hash[at] = key + static_cast<uint32_t>(i0 + b + c) * kNodeKeyStep;
       }
+#endif
     count += static_cast<int>(n);
     row_valid_ = false;
     return true;
@@ -930,7 +951,37 @@ struct PairPassCounter {
   explicit PairPassCounter(const FootprintFrame &fr) : frame(fr) {}
   void flush() {
     int64_t c = 0;
-    for (int q = 0; q < n_parts; ++q) {
+    int q = 0;
+#if defined(__SSE2__)
+    // Session 19: two particles' positions per mix_u32x4 (lanes: particle
+    // q's two keys, particle q + 1's), the same values as particle_position
+    // (uint_to_unit_float in lanes: v >> 8 < 2^24 converts exactly as a
+    // signed integer, and the scale is a power of two).
+    const __m128i step = _mm_set_epi32(static_cast<int>(kNodeKeyStep), 0, static_cast<int>(kNodeKeyStep), 0);
+    const __m128 scale = _mm_set1_ps(1.0f / 16777216.0f);
+    const __m128d ds_ux = _mm_set1_pd(frame.ds_ux), ds_uy = _mm_set1_pd(frame.ds_uy);
+    const __m128d dt_ux = _mm_set1_pd(frame.dt_ux), dt_uy = _mm_set1_pd(frame.dt_uy);
+    const __m128d sign = _mm_set1_pd(-0.0), half = _mm_set1_pd(0.5);
+    for (; q + 1 < n_parts; q += 2) {
+      const auto a = static_cast<size_t>(q), b = a + 1;
+      const uint32_t ka = (part_hash[a] ^ kPositionKey) + (2u * part_k[a] + 1u) * kNodeKeyStep;
+      const uint32_t kb = (part_hash[b] ^ kPositionKey) + (2u * part_k[b] + 1u) * kNodeKeyStep;
+      const __m128i keys = _mm_add_epi32(
+          _mm_set_epi32(static_cast<int>(kb), static_cast<int>(kb), static_cast<int>(ka), static_cast<int>(ka)), step);
+      const __m128 u = _mm_mul_ps(_mm_cvtepi32_ps(_mm_srli_epi32(mix_u32x4(keys), 8)), scale);  // ax ay bx by
+      // Session 19: both particles' membership in double lanes: particle_inside's
+      // expressions ((o + ux d_ux) + uy d_uy, |s|, |t| <= 1/2), the same values.
+      const __m128d ux = _mm_cvtps_pd(_mm_shuffle_ps(u, u, _MM_SHUFFLE(2, 0, 2, 0)));  // ax bx
+      const __m128d uy = _mm_cvtps_pd(_mm_shuffle_ps(u, u, _MM_SHUFFLE(3, 1, 3, 1)));  // ay by
+      const __m128d oa = _mm_loadu_pd(&origin[part_node[a]].s), ob = _mm_loadu_pd(&origin[part_node[b]].s);
+      const __m128d s = _mm_add_pd(_mm_add_pd(_mm_unpacklo_pd(oa, ob), _mm_mul_pd(ux, ds_ux)), _mm_mul_pd(uy, ds_uy));
+      const __m128d t = _mm_add_pd(_mm_add_pd(_mm_unpackhi_pd(oa, ob), _mm_mul_pd(ux, dt_ux)), _mm_mul_pd(uy, dt_uy));
+      const __m128d in = _mm_and_pd(_mm_cmple_pd(_mm_andnot_pd(sign, s), half), _mm_cmple_pd(_mm_andnot_pd(sign, t), half));
+      const int m = _mm_movemask_pd(in);
+      c += (m & 1) + (m >> 1);
+    }
+#endif
+    for (; q < n_parts; ++q) {
       const auto [ux, uy] = particle_position(part_hash[static_cast<size_t>(q)], part_k[static_cast<size_t>(q)]);
       c += frame.particle_inside(origin[part_node[static_cast<size_t>(q)]], ux, uy) ? 1 : 0;
     }
@@ -1029,10 +1080,24 @@ inline GlintCount count_four_groups_in_passes(const FootprintFrame &frame, const
     paired_nodes[static_cast<size_t>(n_paired)] = static_cast<uint8_t>(node);
     n_paired += n_pairs != pairs_before ? 1 : 0;
   }
+#if defined(__SSE2__)
+  const __m128d centre = _mm_set_pd(frame.f.cy, frame.f.cx), by_ax = _mm_set_pd(frame.f.ax, frame.f.by);
+  const __m128d bx_ay = _mm_set_pd(frame.f.ay, frame.f.bx), inv_det = _mm_set1_pd(frame.inv_det);
+#endif
   for (int q = 0; q < n_paired; ++q) {  // (1)
     const auto at = static_cast<size_t>(paired_nodes[static_cast<size_t>(q)]);
+#if defined(__SSE2__)
+    // (s, t) in double lanes: origin()'s products and differences in the same
+    // order (a product's operands commute exactly), the same values.
+    const __m128d p = _mm_sub_pd(_mm_set_pd(static_cast<double>(nodes.j[at]) * nodes.size,
+                                            static_cast<double>(nodes.i[at]) * nodes.size), centre);  // px py
+    const __m128d st = _mm_mul_pd(_mm_sub_pd(_mm_mul_pd(p, by_ax), _mm_mul_pd(_mm_shuffle_pd(p, p, 1), bx_ay)), inv_det);
+    _mm_storeu_pd(&pc.origin[at].s, st);
+    const FootprintFrame::NodeOrigin o = pc.origin[at];
+#else
     const auto o = frame.origin(static_cast<double>(nodes.i[at]) * nodes.size, static_cast<double>(nodes.j[at]) * nodes.size);
     pc.origin[at] = o;
+#endif
     pc.inside_mask[at] = can_be_inside && frame.node_inside(o) ? -1 : 0;
   }
   GlintCount result;
