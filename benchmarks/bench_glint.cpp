@@ -42,6 +42,8 @@
 #include "host/closure_instance.h"
 #include "host/plugin_library.h"
 
+#include "glint_queries.h"
+
 namespace {
 
 using namespace glimmer;
@@ -73,37 +75,7 @@ std::unique_ptr<host::ClosureInstance> make(const std::string &name,
   return std::make_unique<host::ClosureInstance>(*type, list);
 }
 
-struct Query {
-  GlimmerShadingContext ctx;
-  Vec3 wo;
-};
-
-// 4096 queries: random positions, view and light directions around the lobe,
-// a square footprint of the given uv area.
-std::vector<Query> make_queries(double area, double aspect = 1.0) {
-  std::vector<Query> q(4096);
-  Pcg32 rng(11);
-  const float side = static_cast<float>(std::sqrt(area / aspect));
-  for (auto &x : q) {
-    const float ti = 1.4f * rng.next_float();
-    x.ctx = host::make_local_context(Vec3(std::sin(ti), 0.0f, std::cos(ti)));
-    x.ctx.uv[0] = rng.next_float();
-    x.ctx.uv[1] = rng.next_float();
-    // Rectangle side x (aspect side), rotated by a random angle.
-    const float rot = 6.2831853f * rng.next_float(), c = std::cos(rot), s = std::sin(rot);
-    x.ctx.duv_dx[0] = static_cast<float>(aspect) * side * c;
-    x.ctx.duv_dx[1] = static_cast<float>(aspect) * side * s;
-    x.ctx.duv_dy[0] = -side * s;
-    x.ctx.duv_dy[1] = side * c;
-    // wo: the mirror direction jittered by the lobe width (most light queries hit the lobe).
-    const Vec3 mirror(-std::sin(ti), 0.0f, std::cos(ti));
-    x.wo = normalize(mirror + Vec3(0.6f * (rng.next_float() - 0.5f), 0.6f * (rng.next_float() - 0.5f),
-                                   0.3f * rng.next_float()));
-    if (x.wo.z <= 0.05f) x.wo.z = 0.05f;
-    x.wo = normalize(x.wo);
-  }
-  return q;
-}
+using Query = bench::GlintQuery;  // benchmarks/glint_queries.h
 
 // Thread CPU time (not wall time: the machine is shared, and preemption
 // inflates wall-clock blocks several-fold), ns per eval.
@@ -176,7 +148,7 @@ void glint_vs_ggx(benchmark::State &state, const std::vector<Query> &q,
 }
 
 void BM_GlintVsGgxEval(benchmark::State &state) {
-  glint_vs_ggx(state, make_queries(std::pow(10.0, static_cast<double>(state.range(0)))));
+  glint_vs_ggx(state, bench::make_glint_queries(std::pow(10.0, static_cast<double>(state.range(0)))));
 }
 BENCHMARK(BM_GlintVsGgxEval)->Name("glint/eval_vs_ggx")->DenseRange(-8, 0, 2)->Iterations(25)->Unit(benchmark::kMillisecond);
 
@@ -184,7 +156,7 @@ BENCHMARK(BM_GlintVsGgxEval)->Name("glint/eval_vs_ggx")->DenseRange(-8, 0, 2)->I
 // gamma 3, density 2e5; 0.2 particles per footprint at 1e-6, filtered at 1)
 // against a GGX conductor of the same roughness, as in the scene's twin.
 void BM_GlintBeckmannVsGgxEval(benchmark::State &state) {
-  glint_vs_ggx(state, make_queries(std::pow(10.0, static_cast<double>(state.range(0)))),
+  glint_vs_ggx(state, bench::make_glint_queries(std::pow(10.0, static_cast<double>(state.range(0)))),
                {{"roughness", "0.5"}, {"distribution", "beckmann"}, {"gamma", "3"}, {"density", "2e5"}});
 }
 BENCHMARK(BM_GlintBeckmannVsGgxEval)
@@ -194,7 +166,7 @@ BENCHMARK(BM_GlintBeckmannVsGgxEval)
     ->Unit(benchmark::kMillisecond);
 
 void BM_GlintVsGgxEvalAspect(benchmark::State &state) {
-  glint_vs_ggx(state, make_queries(1e-6, static_cast<double>(state.range(0))));
+  glint_vs_ggx(state, bench::make_glint_queries(1e-6, static_cast<double>(state.range(0))));
 }
 BENCHMARK(BM_GlintVsGgxEvalAspect)
     ->Name("glint/eval_vs_ggx_aspect")
@@ -203,7 +175,7 @@ BENCHMARK(BM_GlintVsGgxEvalAspect)
     ->Unit(benchmark::kMillisecond);
 
 void BM_GlintAnisoEval(benchmark::State &state) {
-  const std::vector<Query> q = make_queries(std::pow(10.0, static_cast<double>(state.range(0))));
+  const std::vector<Query> q = bench::make_glint_queries(std::pow(10.0, static_cast<double>(state.range(0))));
   const std::vector<std::pair<std::string, std::string>> aniso_params = {
       {"roughness_u", "0.55"}, {"roughness_v", "0.25"}, {"gamma", "2"}, {"density", "1e7"}};
   auto aniso = make("glint", aniso_params);
@@ -241,7 +213,7 @@ void BM_Jakob14Eval(benchmark::State &state) {
   const double area = std::pow(10.0, static_cast<double>(state.range(0)));
   auto glint = make("glint", {{"roughness", "0.4"}, {"gamma", "2"}, {"density", "1e7"}});
   auto jakob = make("glint_jakob14", {{"roughness", "0.4"}, {"gamma", "2"}, {"density", "1e7"}});
-  std::vector<Query> q = make_queries(area);
+  std::vector<Query> q = bench::make_glint_queries(area);
   q.resize(256);
   double j = 0.0, g = 0.0;
   for (auto _ : state) {

@@ -26,38 +26,13 @@
 #include "host/closure_instance.h"
 #include "host/plugin_library.h"
 
+#include "glint_queries.h"
+
 namespace {
 
 using namespace glimmer;
 
-struct Query {
-  GlimmerShadingContext ctx;
-  Vec3 wo;
-};
-
-// As bench_glint.cpp's make_queries.
-std::vector<Query> make_queries(double area, double aspect) {
-  std::vector<Query> q(4096);
-  Pcg32 rng(11);
-  const float side = static_cast<float>(std::sqrt(area / aspect));
-  for (auto &x : q) {
-    const float ti = 1.4f * rng.next_float();
-    x.ctx = host::make_local_context(Vec3(std::sin(ti), 0.0f, std::cos(ti)));
-    x.ctx.uv[0] = rng.next_float();
-    x.ctx.uv[1] = rng.next_float();
-    const float rot = 6.2831853f * rng.next_float(), c = std::cos(rot), s = std::sin(rot);
-    x.ctx.duv_dx[0] = static_cast<float>(aspect) * side * c;
-    x.ctx.duv_dx[1] = static_cast<float>(aspect) * side * s;
-    x.ctx.duv_dy[0] = -side * s;
-    x.ctx.duv_dy[1] = side * c;
-    const Vec3 mirror(-std::sin(ti), 0.0f, std::cos(ti));
-    x.wo = normalize(mirror + Vec3(0.6f * (rng.next_float() - 0.5f), 0.6f * (rng.next_float() - 0.5f),
-                                   0.3f * rng.next_float()));
-    if (x.wo.z <= 0.05f) x.wo.z = 0.05f;
-    x.wo = normalize(x.wo);
-  }
-  return q;
-}
+using Query = bench::GlintQuery;  // benchmarks/glint_queries.h
 
 struct Result {
   Spectrum f;
@@ -125,7 +100,7 @@ int main(int argc, char **argv) {
     params.set_from_text(*type, "distribution", "ggx");
   }
   const host::ClosureInstance closure(*type, params);
-  const std::vector<Query> q = make_queries(area, aspect);
+  const std::vector<Query> q = bench::make_glint_queries(area, aspect);
   std::vector<Result> out(q.size());
   // One eval outside the counted loop builds or loads the lazily-built tables.
   // (Not through eval_loop, which callgrind counts.)
