@@ -79,9 +79,18 @@ inline bool lamp_through_lobe(const Kind &light, const Vec3 &P, const Lobe &lobe
     }
     add(ls.wi, ls.dist, ls.radiance * float(p * power_weight(ls.pdf, draw_density)));
   }
-  for (int k = 0; k < count && !delta; ++k) {  // the lobe's directions (its vMF, stratified)
-    const float uc = (float(k % n) + v) / n, up = (float(k / n) + u) / n;
-    const Vec3 wi = lobe.draw(std::min(uc, 0x1.fffffep-1f), std::min(up, 0x1.fffffep-1f));
+  // The lobe's directions (its vMF, stratified): the n x n draws share n cos theta numbers and n phi numbers, so
+  // each half of the draw is made n times, not n^2 (the same directions bit for bit as lobe.draw(uc, up)).
+  typename Lobe::DrawCos cos_part[n];
+  VmfPhi phi_part[n];
+  if (!delta)
+    for (int i = 0; i < n; ++i) {
+      const float uc = (float(i) + v) / n, up = (float(i) + u) / n;
+      cos_part[i] = lobe.draw_cos(std::min(uc, 0x1.fffffep-1f));
+      phi_part[i] = vmf_phi(std::min(up, 0x1.fffffep-1f));
+    }
+  for (int k = 0; k < count && !delta; ++k) {
+    const Vec3 wi = Lobe::draw_at(cos_part[k % n], phi_part[k / n]);
     LightHit h;
     if (!lamp_hit(light, P, wi, h)) continue;
     double draw_density = 0.0;

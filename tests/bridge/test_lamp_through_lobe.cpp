@@ -10,6 +10,7 @@
 //    point approximation p(centre) L Omega (what a light reduced to its centre gives) fail the same check.
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 
 #include "glimmer/rng.h"
 #include "render/lamp_through_lobe.h"
@@ -100,6 +101,50 @@ ExitLobe lobe_at(double tilt, double kappa) {
 }
 
 constexpr double kDeg = M_PI / 180.0;
+
+// The lamp integral draws its n x n lobe directions in two halves (draw_cos per cos theta number, vmf_phi per phi
+// number, each made n times): they must be the lobe's draw(uc, up) bit for bit, for single lobes and mixtures, over
+// random axes, sharpness 1e-3..1e7 and numbers including 0 and the largest below 1. Negative control: a phi half
+// from a neighbouring number (up + 1 ulp) must differ somewhere.
+TEST(LampThroughLobe, SplitDrawIsTheLobesDrawBitForBit) {
+  Pcg32 rng(2026, 19);
+  const auto same = [](const Vec3 &a, const Vec3 &b) {
+    return std::memcmp(&a.x, &b.x, sizeof(float)) == 0 && std::memcmp(&a.y, &b.y, sizeof(float)) == 0 &&
+           std::memcmp(&a.z, &b.z, sizeof(float)) == 0;
+  };
+  const auto unit = [&] {
+    const float z = 2.0f * rng.next_float() - 1.0f, phi = 2.0f * float(M_PI) * rng.next_float();
+    const float r = std::sqrt(std::max(0.0f, 1.0f - z * z));
+    return normalize(Vec3(r * std::cos(phi), r * std::sin(phi), z));
+  };
+  const auto number = [&] {
+    const float x = rng.next_float();
+    return x < 0.05f ? 0.0f : x > 0.95f ? 0x1.fffffep-1f : x;
+  };
+  int checked = 0, differ = 0, control_differs = 0;
+  for (int trial = 0; trial < 20000; ++trial) {
+    ExitLobeMixture m;
+    m.count = 1 + int(rng.next_float() * 3.0f);
+    for (int k = 0; k < m.count; ++k) {
+      const double kappa = std::pow(10.0, -3.0 + 10.0 * rng.next_float());
+      m.lobe[k] = ExitLobe::make(unit(), kappa, unit());
+      m.weight[k] = 0.05 + rng.next_float();
+    }
+    m.normalize();
+    m.prepare();
+    const float uc = number(), up = number();
+    const Vec3 split = ExitLobeMixture::draw_at(m.draw_cos(uc), vmf_phi(up)), whole = m.draw(uc, up);
+    const Vec3 split1 = ExitLobe::draw_at(m.lobe[0].draw_cos(uc), vmf_phi(up)), whole1 = m.lobe[0].draw(uc, up);
+    checked += 2;
+    differ += !same(split, whole) + !same(split1, whole1);
+    const Vec3 control = ExitLobe::draw_at(m.lobe[0].draw_cos(uc), vmf_phi(std::nextafter(up, 0.0f)));
+    control_differs += !same(control, whole1);
+  }
+  std::printf("split draw: %d of %d differ from the whole draw; control (phi number 1 ulp off) differs at %d\n", differ,
+              checked, control_differs);
+  EXPECT_EQ(differ, 0);
+  EXPECT_GT(control_differs, 1000);
+}
 
 TEST(LampThroughLobe, BruteForceIsTheQuadsSolidAngleForAConstantDensity) {
   const Vec3 P(0.1f, -0.2f, 0.3f);

@@ -40,6 +40,33 @@ inline Vec3 sample_vmf(const Vec3 &axis, double kappa, float u1, float u2) {
   return normalize(f.to_world(Vec3(float(sin_t * std::cos(phi)), float(sin_t * std::sin(phi)), float(cos_t))));
 }
 
+// sample_vmf in its two halves, for a stratified set of draws that share their cos theta numbers and their phi
+// numbers (the host's lamp integral, render/lamp_through_lobe.h: 4 x 4 draws, 4 of each): the same operations in
+// the same order, so vmf_direction(axis frame, vmf_cos(kappa, u1), vmf_phi(u2)) equals sample_vmf(axis, kappa, u1,
+// u2) bit for bit (tested: LampThroughLobe.SplitDrawIsTheLobesDrawBitForBit).
+struct VmfCos {
+  double cos_t, sin_t;
+};
+inline VmfCos vmf_cos(double kappa, float u1) {
+  const double k = std::max(kappa, 1e-6);
+  const double u = std::clamp(double(u1), 0.0, 1.0);
+  double cos_t = 1.0 + std::log(u + (1.0 - u) * std::exp(-2.0 * k)) / k;
+  if (!std::isfinite(cos_t)) cos_t = 1.0;
+  cos_t = std::clamp(cos_t, -1.0, 1.0);
+  return {cos_t, std::sqrt(std::max(0.0, 1.0 - cos_t * cos_t))};
+}
+struct VmfPhi {
+  double cos_phi, sin_phi;
+};
+inline VmfPhi vmf_phi(float u2) {
+  const double phi = 2.0 * M_PI * double(u2);
+  return {std::cos(phi), std::sin(phi)};
+}
+inline Vec3 vmf_direction(const Frame &f, const VmfCos &c, const VmfPhi &phi) {
+  return normalize(
+      f.to_world(Vec3(float(c.sin_t * phi.cos_phi), float(c.sin_t * phi.sin_phi), float(c.cos_t))));
+}
+
 // exp(-x) I0(x), the exponentially scaled modified Bessel function of order 0 (Abramowitz & Stegun 9.8.1 and
 // 9.8.2; relative error < 1e-6).
 inline double bessel_i0_scaled(double x) {
@@ -188,6 +215,13 @@ struct ExitLobe {
   // set of the host's lamp integral (render/lamp_through_lobe.h), shared with ExitLobeMixture.
   Vec3 draw(float uc, float up) const { return sample_vmf(axis, kappa, uc, up); }
   double draw_density(const Vec3 &w) const { return vmf_density(axis, kappa, w); }
+  // draw(uc, up) in two halves: draw_at(draw_cos(uc), vmf_phi(up)) == draw(uc, up) bit for bit.
+  struct DrawCos {
+    Frame frame;
+    VmfCos c;
+  };
+  DrawCos draw_cos(float uc) const { return {Frame::from_normal(axis), vmf_cos(kappa, uc)}; }
+  static Vec3 draw_at(const DrawCos &d, const VmfPhi &phi) { return vmf_direction(d.frame, d.c, phi); }
   // pdf(w) and draw_density(w) together (one vMF evaluation for both).
   double pdf_and_draw_density(const Vec3 &w, double &draw) const {
     draw = vmf_density(axis, kappa, w);
@@ -314,6 +348,21 @@ struct ExitLobeMixture {
     const double u = std::clamp((double(uc) - lo) / weight[picked], 0.0, double(0x1.fffffep-1f));
     return lobe[picked].draw(float(u), up);
   }
+  // draw(uc, up) in two halves (as ExitLobe's): draw_at(draw_cos(uc), vmf_phi(up)) == draw(uc, up) bit for bit.
+  using DrawCos = ExitLobe::DrawCos;
+  DrawCos draw_cos(float uc) const {
+    double lo = 0.0;
+    int picked = 0;
+    for (int k = 0; k < count; ++k) {
+      if (!(weight[k] > 0.0)) continue;
+      picked = k;
+      if (double(uc) < lo + weight[k]) break;
+      lo += weight[k];
+    }
+    const double u = std::clamp((double(uc) - lo) / weight[picked], 0.0, double(0x1.fffffep-1f));
+    return lobe[picked].draw_cos(float(u));
+  }
+  static Vec3 draw_at(const DrawCos &d, const VmfPhi &phi) { return ExitLobe::draw_at(d, phi); }
   double draw_density(const Vec3 &w) const {
     double p = 0.0;
     for (int k = 0; k < count; ++k)
