@@ -1033,13 +1033,39 @@ inline constexpr std::array<PassingGroups, 16> kPassingGroups = [] {
   return t;
 }();
 
+// Pass (1) of count_four_groups_in_passes: the origin and inside flag of the
+// nodes listed in paired (those with a pair passing the quick reject).
+inline void paired_node_origins(const FootprintFrame &frame, const NodeList &nodes, const uint8_t *paired,
+                                int n_paired, PairPassCounter &pc) {
+  const bool can_be_inside = frame.nodes_can_be_inside;
+#if defined(__SSE2__)
+  const __m128d centre = _mm_set_pd(frame.f.cy, frame.f.cx), by_ax = _mm_set_pd(frame.f.ax, frame.f.by);
+  const __m128d bx_ay = _mm_set_pd(frame.f.ay, frame.f.bx), inv_det = _mm_set1_pd(frame.inv_det);
+#endif
+  for (int q = 0; q < n_paired; ++q) {
+    const auto at = static_cast<size_t>(paired[q]);
+#if defined(__SSE2__)
+    // (s, t) in double lanes: origin()'s products and differences in the same
+    // order (a product's operands commute exactly), the same values.
+    const __m128d p = _mm_sub_pd(_mm_set_pd(static_cast<double>(nodes.j[at]) * nodes.size,
+                                            static_cast<double>(nodes.i[at]) * nodes.size), centre);  // px py
+    const __m128d st = _mm_mul_pd(_mm_sub_pd(_mm_mul_pd(p, by_ax), _mm_mul_pd(_mm_shuffle_pd(p, p, 1), bx_ay)), inv_det);
+    _mm_storeu_pd(&pc.origin[at].s, st);
+    const FootprintFrame::NodeOrigin o = pc.origin[at];
+#else
+    const auto o = frame.origin(static_cast<double>(nodes.i[at]) * nodes.size, static_cast<double>(nodes.j[at]) * nodes.size);
+    pc.origin[at] = o;
+#endif
+    pc.inside_mask[at] = can_be_inside && frame.node_inside(o) ? -1 : 0;
+  }
+}
+
 inline GlintCount count_four_groups_in_passes(const FootprintFrame &frame, const NodeList &nodes,
                                               const uint32_t *seeds, const GroupReject &reject, double lambda,
                                               int max_steps) {
   static_assert(kDirectionGroups == 4);
   PairPassCounter pc(frame);
   int n_pairs = 0;
-  const bool can_be_inside = frame.nodes_can_be_inside;
 #if defined(__SSE2__)
   const __m128i seed_lanes = _mm_loadu_si128(reinterpret_cast<const __m128i *>(seeds));
   const __m128i bias = _mm_set1_epi32(static_cast<int>(0x80000000u));  // unsigned compare as signed
@@ -1080,26 +1106,7 @@ inline GlintCount count_four_groups_in_passes(const FootprintFrame &frame, const
     paired_nodes[static_cast<size_t>(n_paired)] = static_cast<uint8_t>(node);
     n_paired += n_pairs != pairs_before ? 1 : 0;
   }
-#if defined(__SSE2__)
-  const __m128d centre = _mm_set_pd(frame.f.cy, frame.f.cx), by_ax = _mm_set_pd(frame.f.ax, frame.f.by);
-  const __m128d bx_ay = _mm_set_pd(frame.f.ay, frame.f.bx), inv_det = _mm_set1_pd(frame.inv_det);
-#endif
-  for (int q = 0; q < n_paired; ++q) {  // (1)
-    const auto at = static_cast<size_t>(paired_nodes[static_cast<size_t>(q)]);
-#if defined(__SSE2__)
-    // (s, t) in double lanes: origin()'s products and differences in the same
-    // order (a product's operands commute exactly), the same values.
-    const __m128d p = _mm_sub_pd(_mm_set_pd(static_cast<double>(nodes.j[at]) * nodes.size,
-                                            static_cast<double>(nodes.i[at]) * nodes.size), centre);  // px py
-    const __m128d st = _mm_mul_pd(_mm_sub_pd(_mm_mul_pd(p, by_ax), _mm_mul_pd(_mm_shuffle_pd(p, p, 1), bx_ay)), inv_det);
-    _mm_storeu_pd(&pc.origin[at].s, st);
-    const FootprintFrame::NodeOrigin o = pc.origin[at];
-#else
-    const auto o = frame.origin(static_cast<double>(nodes.i[at]) * nodes.size, static_cast<double>(nodes.j[at]) * nodes.size);
-    pc.origin[at] = o;
-#endif
-    pc.inside_mask[at] = can_be_inside && frame.node_inside(o) ? -1 : 0;
-  }
+  paired_node_origins(frame, nodes, paired_nodes.data(), n_paired, pc);  // (1)
   GlintCount result;
   const LitCountBounds bounds(lambda);
   std::optional<LitCountModel> model;
