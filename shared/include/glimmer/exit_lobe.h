@@ -337,6 +337,12 @@ struct ExitLobeMixture {
   // the lobe's interval, is its cos theta number (stratified sets of uc stay stratified within each lobe); one
   // lobe of weight 1 draws exactly as ExitLobe::draw. draw_density is the mixture of the vMF densities.
   Vec3 draw(float uc, float up) const {
+    float u;
+    const int picked = pick_for_draw(uc, u);
+    return lobe[picked].draw(u, up);
+  }
+  // The lobe uc picks by the cumulative weights, and uc rescaled within its interval (u in [0, 1)).
+  int pick_for_draw(float uc, float &u) const {
     double lo = 0.0;
     int picked = 0;
     for (int k = 0; k < count; ++k) {
@@ -345,22 +351,15 @@ struct ExitLobeMixture {
       if (double(uc) < lo + weight[k]) break;
       lo += weight[k];
     }
-    const double u = std::clamp((double(uc) - lo) / weight[picked], 0.0, double(0x1.fffffep-1f));
-    return lobe[picked].draw(float(u), up);
+    u = float(std::clamp((double(uc) - lo) / weight[picked], 0.0, double(0x1.fffffep-1f)));
+    return picked;
   }
   // draw(uc, up) in two halves (as ExitLobe's): draw_at(draw_cos(uc), vmf_phi(up)) == draw(uc, up) bit for bit.
   using DrawCos = ExitLobe::DrawCos;
   DrawCos draw_cos(float uc) const {
-    double lo = 0.0;
-    int picked = 0;
-    for (int k = 0; k < count; ++k) {
-      if (!(weight[k] > 0.0)) continue;
-      picked = k;
-      if (double(uc) < lo + weight[k]) break;
-      lo += weight[k];
-    }
-    const double u = std::clamp((double(uc) - lo) / weight[picked], 0.0, double(0x1.fffffep-1f));
-    return lobe[picked].draw_cos(float(u));
+    float u;
+    const int picked = pick_for_draw(uc, u);
+    return lobe[picked].draw_cos(u);
   }
   static Vec3 draw_at(const DrawCos &d, const VmfPhi &phi) { return ExitLobe::draw_at(d, phi); }
   double draw_density(const Vec3 &w) const {
