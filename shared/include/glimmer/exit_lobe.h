@@ -26,24 +26,9 @@ inline double vmf_density(const Vec3 &axis, double kappa, const Vec3 &w) {
   return kappa * std::exp(-kappa * one_minus_cos) / (2.0 * M_PI * -std::expm1(-2.0 * kappa));
 }
 
-// A direction from the vMF about `axis`: inverse CDF of cos theta for exp(kappa (cos theta - 1)) on [-1, 1],
-// phi uniform.
-inline Vec3 sample_vmf(const Vec3 &axis, double kappa, float u1, float u2) {
-  const double k = std::max(kappa, 1e-6);
-  const double u = std::clamp(double(u1), 0.0, 1.0);
-  double cos_t = 1.0 + std::log(u + (1.0 - u) * std::exp(-2.0 * k)) / k;
-  if (!std::isfinite(cos_t)) cos_t = 1.0;
-  cos_t = std::clamp(cos_t, -1.0, 1.0);
-  const double sin_t = std::sqrt(std::max(0.0, 1.0 - cos_t * cos_t));
-  const double phi = 2.0 * M_PI * double(u2);
-  const Frame f = Frame::from_normal(axis);
-  return normalize(f.to_world(Vec3(float(sin_t * std::cos(phi)), float(sin_t * std::sin(phi)), float(cos_t))));
-}
-
-// sample_vmf in its two halves, for a stratified set of draws that share their cos theta numbers and their phi
-// numbers (the host's lamp integral, render/lamp_through_lobe.h: 4 x 4 draws, 4 of each): the same operations in
-// the same order, so vmf_direction(axis frame, vmf_cos(kappa, u1), vmf_phi(u2)) equals sample_vmf(axis, kappa, u1,
-// u2) bit for bit (tested: LampThroughLobe.SplitDrawIsTheLobesDrawBitForBit).
+// A draw from the vMF in its two halves, cos theta (vmf_cos) and phi (vmf_phi), joined by vmf_direction; a
+// stratified set of draws that share their cos theta numbers and their phi numbers makes each half once (the
+// host's lamp integral, render/lamp_through_lobe.h: 4 x 4 draws, 4 of each). sample_vmf is the three in one.
 struct VmfCos {
   double cos_t, sin_t;
 };
@@ -65,6 +50,12 @@ inline VmfPhi vmf_phi(float u2) {
 inline Vec3 vmf_direction(const Frame &f, const VmfCos &c, const VmfPhi &phi) {
   return normalize(
       f.to_world(Vec3(float(c.sin_t * phi.cos_phi), float(c.sin_t * phi.sin_phi), float(c.cos_t))));
+}
+
+// A direction from the vMF about `axis`: inverse CDF of cos theta for exp(kappa (cos theta - 1)) on [-1, 1],
+// phi uniform.
+inline Vec3 sample_vmf(const Vec3 &axis, double kappa, float u1, float u2) {
+  return vmf_direction(Frame::from_normal(axis), vmf_cos(kappa, u1), vmf_phi(u2));
 }
 
 // exp(-x) I0(x), the exponentially scaled modified Bessel function of order 0 (Abramowitz & Stegun 9.8.1 and
