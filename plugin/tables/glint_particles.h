@@ -863,8 +863,8 @@ struct GroupReject {
 // but 1..7 % slower per eval in the walk on this project's machine (SSE2 has
 // no 32-bit lane multiply: two pmuludq and shuffles per multiply, a longer
 // dependency chain before the mask's branch; docs/glints.md "Session 8").
-// Kept for a build with SSE4.1 / AVX2 lanes. count_four_groups_in_passes
-// hashes in mix_u32x4 lanes (its compaction does not branch on them).
+// The node loop keeps the scalar form; count_four_groups_in_passes calls
+// this one (its compaction does not branch on the mask).
 inline uint32_t group_hashes(uint32_t key, const uint32_t *seeds, const GroupReject &reject, uint32_t *out) {
   uint32_t mask = 0;
   for (int g = 0; g < kDirectionGroups; ++g) {
@@ -879,11 +879,11 @@ inline uint32_t group_hashes_sse2(uint32_t key, const uint32_t *seeds, const Gro
   const __m128i h = mix_u32x4(
       _mm_xor_si128(_mm_set1_epi32(static_cast<int>(key)), _mm_loadu_si128(reinterpret_cast<const __m128i *>(seeds))));
   _mm_storeu_si128(reinterpret_cast<__m128i *>(out), h);
-  if (reject.all_pass) return 0xfu;
   const __m128i bias = _mm_set1_epi32(static_cast<int>(0x80000000u));  // unsigned compare as signed
   const __m128i lt = _mm_cmplt_epi32(_mm_xor_si128(h, bias),
                                      _mm_xor_si128(_mm_set1_epi32(static_cast<int>(reject.below)), bias));
-  return static_cast<uint32_t>(_mm_movemask_ps(_mm_castsi128_ps(lt)));
+  // all_pass without a branch (the pair passes call this per node).
+  return (reject.all_pass ? 0xfu : 0u) | static_cast<uint32_t>(_mm_movemask_ps(_mm_castsi128_ps(lt)));
 #else
   return group_hashes(key, seeds, reject, out);
 #endif
@@ -1066,12 +1066,6 @@ inline GlintCount count_four_groups_in_passes(const FootprintFrame &frame, const
   static_assert(kDirectionGroups == 4);
   PairPassCounter pc(frame);
   int n_pairs = 0;
-#if defined(__SSE2__)
-  const __m128i seed_lanes = _mm_loadu_si128(reinterpret_cast<const __m128i *>(seeds));
-  const __m128i bias = _mm_set1_epi32(static_cast<int>(0x80000000u));  // unsigned compare as signed
-  const __m128i below_biased = _mm_xor_si128(_mm_set1_epi32(static_cast<int>(reject.below)), bias);
-  const uint32_t all_pass_mask = reject.all_pass ? 0xfu : 0u;
-#endif
   // Session 17 (glintwalk17b): the origin and inside flag of only the nodes
   // with a pair passing the quick reject (no other pass reads them; ~1/3 of
   // the nodes have none at area 1e-4), listed without a branch per node:
@@ -1086,20 +1080,13 @@ inline GlintCount count_four_groups_in_passes(const FootprintFrame &frame, const
     // the same values as group_hashes): no branch reads them here, unlike
     // the node loop where the lanes measured slower (session 8). Session 17:
     // 1e-4 5714 -> 5470 instructions per eval, same f and pdf bits.
-    // Session 19: the passing groups as a 4-bit mask (the lanes' unsigned
-    // compare, as group_hashes_sse2) and compacted by a table of 16 entries
+    // Session 19: the passing groups as a 4-bit mask (group_hashes_sse2)
+    // compacted by a table of 16 entries
     // (kPassingGroups: the mask's groups in order, as bytes, and their
     // number) with one 4-byte store, instead of a store, a compare and an
     // add per group.
-    uint32_t *h = pc.node_hash.data() + kDirectionGroups * at;
-#if defined(__SSE2__)
-    const __m128i hv = mix_u32x4(_mm_xor_si128(_mm_set1_epi32(static_cast<int>(nodes.id_hash[at])), seed_lanes));
-    _mm_store_si128(reinterpret_cast<__m128i *>(h), hv);
-    const uint32_t mask = all_pass_mask | static_cast<uint32_t>(_mm_movemask_ps(
-                                              _mm_castsi128_ps(_mm_cmplt_epi32(_mm_xor_si128(hv, bias), below_biased))));
-#else
-    const uint32_t mask = group_hashes(nodes.id_hash[at], seeds, reject, h);
-#endif
+    const uint32_t mask =
+        group_hashes_sse2(nodes.id_hash[at], seeds, reject, pc.node_hash.data() + kDirectionGroups * at);
     const uint32_t bytes = kPassingGroups[mask].bytes + static_cast<uint32_t>(kDirectionGroups * node) * 0x01010101u;
     std::memcpy(pc.pair_index.data() + n_pairs, &bytes, sizeof(bytes));
     n_pairs += kPassingGroups[mask].count;
