@@ -73,6 +73,7 @@
 // 0 without the table's cache miss.
 #include <array>
 #include <memory>
+#include <string_view>
 
 #include "core/closure.h"
 #include "glimmer/microfacet.h"
@@ -90,6 +91,15 @@ namespace glimmer::plugin {
 
 namespace mf = glimmer::microfacet;
 
+// The schema with density marked varying: it may be textured (glint_f_cos reads it per shading point).
+// constexpr, so GlintClosure::params() is a constant-initialised static.
+template <typename Schema>
+constexpr Schema with_varying_density(Schema schema) {
+  for (auto &spec : schema)
+    if (std::string_view(spec.name) == "density") spec.flags |= GLIMMER_PARAM_VARYING;
+  return schema;
+}
+
 class GlintClosure {
  public:
   static constexpr const char *kName = "glint";
@@ -102,8 +112,10 @@ class GlintClosure {
   // filter_threshold (hundreds of glints per footprint).
   static constexpr int kMaxSteps = 8192;
 
+  // The schema is a constant (constexpr) static: every eval's ShadingPoint takes it (the adapter's
+  // shading_point_for), and a dynamically initialised static cost a call and its guard per eval.
   static std::span<const GlimmerParamSpec> params() {
-    static const auto schema = with_varying_density(glint::particle_field_params<6>(
+    static constexpr auto schema = with_varying_density(glint::particle_field_params<6>(
         {"base roughness (alpha = roughness^2, Cycles' mapping); values below 0.15 are treated as 0.15",
          "query cone half-angle in degrees (size of a glint in direction; Jakob 2014 use 1..6)",
          "particle reflectance at normal incidence (Schlick Fresnel F0; 1 = Fresnel-free)"},
@@ -128,13 +140,6 @@ class GlintClosure {
     return schema;
   }
 
-  // density may be textured: glint_f_cos reads it per shading point.
-  template <typename Schema>
-  static Schema with_varying_density(Schema schema) {
-    for (auto &spec : schema)
-      if (std::string_view(spec.name) == "density") spec.flags |= GLIMMER_PARAM_VARYING;
-    return schema;
-  }
 
   static std::unique_ptr<GlintClosure> create(const ParamReader &p) {
     auto c = std::make_unique<GlintClosure>();

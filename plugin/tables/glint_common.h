@@ -85,9 +85,10 @@ struct ParticleFieldDocs {
 inline constexpr size_t kParticleFieldParamCount = 7;
 
 // The schema entries of the particle field followed by a closure's own
-// `extra` entries (N of them).
+// `extra` entries (N of them). constexpr, so a closure's schema can be a
+// constant-initialised static (no guard and no call per shading point).
 template <size_t N = 0>
-std::array<GlimmerParamSpec, kParticleFieldParamCount + N> particle_field_params(
+constexpr std::array<GlimmerParamSpec, kParticleFieldParamCount + N> particle_field_params(
     const ParticleFieldDocs &docs, const std::array<GlimmerParamSpec, N> &extra = {}) {
   std::array<GlimmerParamSpec, kParticleFieldParamCount + N> schema{{
       {"distribution", GLIMMER_PARAM_ENUM, {0, 0, 0}, 0, 0, "ggx|beckmann", "ggx",
