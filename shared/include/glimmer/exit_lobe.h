@@ -278,7 +278,16 @@ struct ExitLobeMixture {
     const double dx = double(a.x) - w.x, dy = double(a.y) - w.y, dz = double(a.z) - w.z;
     return constants[k].norm * std::exp(-lobe[k].kappa * 0.5 * (dx * dx + dy * dy + dz * dz));
   }
-  // pdf(w) and draw_density(w) together; prepared: one exponential per lobe (two where q^kRedraws > 0).
+  // The mirrored part of lobe k's density (mirror x its vMF at the mirrored direction, at most mirror x norm: the
+  // exponential of a number <= 0 is <= 1) cannot change the outside part pk in the sum pk + mirror part when
+  // mirror x norm < 2^-54 pk: a term below half an ulp of pk (pk normal, >= 2^-960 so that 2^-54 pk is exact)
+  // rounds away, so the sum is pk bit for bit and its exponential need not be made
+  // (LampThroughLobe.SkippedMirrorPartsCannotChangeTheDensity).
+  bool mirror_negligible(int k, double pk) const {
+    return constants[k].mirror * constants[k].norm < 0x1p-54 * pk && pk >= 0x1p-960;
+  }
+  // pdf(w) and draw_density(w) together; prepared: one exponential per lobe (two where q^kRedraws > 0 and the
+  // mirrored part is not negligible).
   double pdf_and_draw_density(const Vec3 &w, double &draw) const {
     draw = 0.0;
     double p = 0.0;
@@ -295,7 +304,8 @@ struct ExitLobeMixture {
       const float height = dot(w, lobe[k].n);
       if (!(height > 0.0f)) continue;
       double pk = v * constants[k].redraws;
-      if (constants[k].mirror > 0.0) pk += constants[k].mirror * prepared_vmf(k, w - lobe[k].n * (2.0f * height));
+      if (constants[k].mirror > 0.0 && !mirror_negligible(k, pk))
+        pk += constants[k].mirror * prepared_vmf(k, w - lobe[k].n * (2.0f * height));
       p += weight[k] * pk;
     }
     return p;
