@@ -101,26 +101,35 @@ inline double vmf_fraction_below(const Vec3 &axis, double kappa, const Vec3 &n) 
   // by `panel`: sin(beta) and sin((beta - alpha) / 2) by angle addition. One sincos per offset's half angle (the
   // offset's own by the double angle; -d_k by symmetry), one for the half step (the step by the double angle), one
   // each for the first middle and its half angle off alpha, then rotations: 7 sincos per call (32 before).
-  double sin_d[4], cos_d[4], sin_h[4], cos_h[4];
+  // Per node of a panel (the 4 offsets -d_k, then the 4 offsets +d_k), signed: sin and cos of the offset and of its
+  // half, and the weight.
+  double sin_d[8], cos_d[8], sin_h[8], cos_h[8], weight[8];
   for (int k = 0; k < 4; ++k) {
     const double half = 0.25 * kNode[k] * panel;  // d_k / 2, d_k = kNode[k] panel / 2
-    sin_h[k] = std::sin(half), cos_h[k] = std::cos(half);
-    sin_d[k] = 2.0 * sin_h[k] * cos_h[k], cos_d[k] = 1.0 - 2.0 * sin_h[k] * sin_h[k];
+    const double sh = std::sin(half), ch = std::cos(half);
+    const double sd = 2.0 * sh * ch, cd = 1.0 - 2.0 * sh * sh;
+    sin_d[k] = -sd, sin_d[k + 4] = sd, cos_d[k] = cos_d[k + 4] = cd;
+    sin_h[k] = -sh, sin_h[k + 4] = sh, cos_h[k] = cos_h[k + 4] = ch;
+    weight[k] = weight[k + 4] = kWeight[k];
   }
   const double sin_step_h = std::sin(0.5 * panel), cos_step_h = std::cos(0.5 * panel);
   const double sin_step = 2.0 * sin_step_h * cos_step_h, cos_step = 1.0 - 2.0 * sin_step_h * sin_step_h;
   const double mid0 = lo + 0.5 * panel;
   double sin_m = std::sin(mid0), cos_m = std::cos(mid0);
   double sin_mh = std::sin(0.5 * (mid0 - alpha)), cos_mh = std::cos(0.5 * (mid0 - alpha));
+  const double minus_2k = -2.0 * kappa, k_sin_alpha = kappa * sin_alpha;
   double sum = 0.0;
   for (int p = 0; p < kPanels; ++p) {
+    // The panel's 8 nodes: sin(beta) and the exponent first, then the integrand summed in node order.
+    double sin_beta[8], exponent[8];
     for (int k = 0; k < 8; ++k) {
-      const int j = k < 4 ? k : k - 4;
-      const double sd = k < 4 ? -sin_d[j] : sin_d[j], sh = k < 4 ? -sin_h[j] : sin_h[j];
-      const double sin_beta = sin_m * cos_d[j] + cos_m * sd;
-      const double s = sin_mh * cos_h[j] + cos_mh * sh;  // sin((beta - alpha) / 2)
-      const double f = sin_beta * std::exp(-2.0 * kappa * s * s) * bessel_i0_scaled(kappa * sin_alpha * sin_beta);
-      sum += kWeight[j] * f;
+      sin_beta[k] = sin_m * cos_d[k] + cos_m * sin_d[k];
+      const double s = sin_mh * cos_h[k] + cos_mh * sin_h[k];  // sin((beta - alpha) / 2)
+      exponent[k] = minus_2k * s * s;
+    }
+    for (int k = 0; k < 8; ++k) {
+      const double f = sin_beta[k] * std::exp(exponent[k]) * bessel_i0_scaled(k_sin_alpha * sin_beta[k]);
+      sum += weight[k] * f;
     }
     const double sm = sin_m * cos_step + cos_m * sin_step, cm = cos_m * cos_step - sin_m * sin_step;
     const double smh = sin_mh * cos_step_h + cos_mh * sin_step_h, cmh = cos_mh * cos_step_h - sin_mh * sin_step_h;
