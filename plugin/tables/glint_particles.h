@@ -89,6 +89,20 @@
 
 namespace glimmer::plugin::glint {
 
+// Whether the walk uses its AVX2 forms (the pair passes; session 20): where the CPU has AVX2, unless the environment says
+// GLIMMER_GLINT_WALK=sse2 (read once, when the plugin loads).
+inline bool detect_walk_avx2() {
+#if GLIMMER_GLINT_WALK_AVX2
+  __builtin_cpu_init();
+  if (!__builtin_cpu_supports("avx2")) return false;
+  const char *env = std::getenv("GLIMMER_GLINT_WALK");
+  return env == nullptr || std::string_view(env) != "sse2";
+#else
+  return false;
+#endif
+}
+inline const bool kWalkAvx2 = detect_walk_avx2();
+
 // Parallelogram c + s a + t b, |s|, |t| <= 1/2, in scaled uv units.
 struct Footprint {
   double cx = 0, cy = 0;
@@ -1087,9 +1101,9 @@ inline void group_pass_sse2(const NodeList &nodes, int first, const uint32_t *se
 // group_pass_sse2 from node 0 with two nodes per step: their eight (node,
 // group) hashes in one register, one 8-bit mask, each node's four bits
 // compacted as before; an odd last node by group_pass_sse2. The same lists
-// (GlintParticles.GroupPassAvx2MatchesSse2). Out of line: a target("avx2")
-// function is not inlined into the SSE2 caller.
-[[gnu::target("avx2"), gnu::noinline]] inline void group_pass_avx2(const NodeList &nodes, const uint32_t *seeds,
+// (GlintParticles.GroupPassAvx2MatchesSse2). Inlined into
+// count_four_groups_in_passes_avx2; an SSE2 caller calls it out of line.
+[[gnu::target("avx2")]] inline void group_pass_avx2(const NodeList &nodes, const uint32_t *seeds,
                                                                    const GroupReject &reject, PairPassCounter &pc,
                                                                    uint8_t *paired, int &n_pairs, int &n_paired) {
   const __m256i seeds8 = _mm256_broadcastsi128_si256(_mm_loadu_si128(reinterpret_cast<const __m128i *>(seeds)));
@@ -1124,20 +1138,6 @@ inline void group_pass_sse2(const NodeList &nodes, int first, const uint32_t *se
   if (node < nodes.count) group_pass_sse2(nodes, node, seeds, reject, pc, paired, n_pairs, n_paired);
 }
 #endif
-
-// Which form of pass 2 the walk uses: AVX2 where the CPU has it, unless the
-// environment says GLIMMER_GLINT_WALK=sse2 (read once, when the plugin loads).
-inline bool detect_walk_avx2() {
-#if GLIMMER_GLINT_WALK_AVX2
-  __builtin_cpu_init();
-  if (!__builtin_cpu_supports("avx2")) return false;
-  const char *env = std::getenv("GLIMMER_GLINT_WALK");
-  return env == nullptr || std::string_view(env) != "sse2";
-#else
-  return false;
-#endif
-}
-inline const bool kWalkAvx2 = detect_walk_avx2();
 
 // Pass (2) in the form `avx2` says (AVX2 only where compiled in).
 inline void group_pass(bool avx2, const NodeList &nodes, const uint32_t *seeds, const GroupReject &reject,
@@ -1177,9 +1177,14 @@ inline void paired_node_origins(const FootprintFrame &frame, const NodeList &nod
   }
 }
 
-inline GlintCount count_four_groups_in_passes(const FootprintFrame &frame, const NodeList &nodes,
-                                              const uint32_t *seeds, const GroupReject &reject, double lambda,
-                                              int max_steps, bool avx2 = kWalkAvx2) {
+// The passes' body; kAvx2: pass 2 in AVX2 (inlined into
+// count_four_groups_in_passes_avx2, whose target("avx2") also gives the other
+// passes VEX three-operand forms; no FMA, so the same values).
+template <bool kAvx2>
+[[gnu::always_inline]] inline GlintCount count_four_groups_in_passes_body(const FootprintFrame &frame,
+                                                                          const NodeList &nodes, const uint32_t *seeds,
+                                                                          const GroupReject &reject, double lambda,
+                                                                          int max_steps) {
   static_assert(kDirectionGroups == 4);
   PairPassCounter pc(frame);
   int n_pairs = 0;
@@ -1190,7 +1195,12 @@ inline GlintCount count_four_groups_in_passes(const FootprintFrame &frame, const
   static_assert(kMaxNodes <= 256, "paired_nodes holds node indices in bytes");
   std::array<uint8_t, kMaxNodes> paired_nodes;
   int n_paired = 0;
-  group_pass(avx2, nodes, seeds, reject, pc, paired_nodes.data(), n_pairs, n_paired);  // (2)
+#if GLIMMER_GLINT_WALK_AVX2
+  if constexpr (kAvx2)
+    group_pass_avx2(nodes, seeds, reject, pc, paired_nodes.data(), n_pairs, n_paired);  // (2)
+  else
+#endif
+    group_pass_sse2(nodes, 0, seeds, reject, pc, paired_nodes.data(), n_pairs, n_paired);
   paired_node_origins(frame, nodes, paired_nodes.data(), n_paired, pc);  // (1)
   GlintCount result;
   const LitCountBounds bounds(lambda);
@@ -1213,6 +1223,24 @@ inline GlintCount count_four_groups_in_passes(const FootprintFrame &frame, const
   result.count = static_cast<int>(pc.count);
   result.steps = static_cast<int>(steps);
   return result;
+}
+#if GLIMMER_GLINT_WALK_AVX2
+[[gnu::target("avx2"), gnu::noinline]] inline GlintCount count_four_groups_in_passes_avx2(
+    const FootprintFrame &frame, const NodeList &nodes, const uint32_t *seeds, const GroupReject &reject, double lambda,
+    int max_steps) {
+  return count_four_groups_in_passes_body<true>(frame, nodes, seeds, reject, lambda, max_steps);
+}
+#endif
+// The pair passes in the form `avx2` says (kWalkAvx2: AVX2 where the CPU has it).
+inline GlintCount count_four_groups_in_passes(const FootprintFrame &frame, const NodeList &nodes,
+                                              const uint32_t *seeds, const GroupReject &reject, double lambda,
+                                              int max_steps, bool avx2 = kWalkAvx2) {
+#if GLIMMER_GLINT_WALK_AVX2
+  if (avx2) return count_four_groups_in_passes_avx2(frame, nodes, seeds, reject, lambda, max_steps);
+#else
+  (void)avx2;
+#endif
+  return count_four_groups_in_passes_body<false>(frame, nodes, seeds, reject, lambda, max_steps);
 }
 
 // node_loop: always the node-by-node loop (for the test that compares the two).

@@ -978,7 +978,8 @@ TEST(GlintParticles, PairPassesMatchTheNodeLoop) {
 // hashes per 256-bit register, an odd last node by the SSE2 form) writes the
 // same hashes, pair list and paired-node list as the SSE2 form
 // (group_pass_sse2), and the whole pair-pass count (count, steps,
-// completeness) is the same with either, over the footprints of
+// completeness; count_four_groups_in_passes_avx2, the passes compiled for
+// AVX2 with this pass inlined) is the same with either, over the footprints of
 // PairPassesMatchTheNodeLoop (1..64 nodes, odd and even counts, P up to 1 so
 // that every pair passes). The walk uses the AVX2 form on a CPU with AVX2
 // (kWalkAvx2, checked). Control: the SSE2 form with one seed's lowest bit
