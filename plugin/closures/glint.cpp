@@ -237,7 +237,7 @@ class GlintClosure {
   TableLookup request_table(const TableCoords &c, float sigma_deg) const {
     TableLookup at{};
     if (!table_) return at;
-    at = table_->locate(sigma_deg, c.theta_i, c.theta_o, c.dphi);
+    at = table_->locate(sigma_deg, c.lanes());
     table_->prefetch(at);
     return at;
   }
@@ -311,7 +311,7 @@ class GlintClosure {
                      Particles &parts) const {
     const double particles = static_cast<double>(density) * parts.area;
     if (peak_.empty() || sigma_deg > field_.gamma_deg || !(particles <= kDarkTestMaxParticles)) return false;
-    const float P_max = std::min(peak_.bound(c.theta_i, c.theta_o, c.dphi), 1.0f);
+    const float P_max = std::min(peak_.bound(c.lanes()), 1.0f);
     const double expected_max = particles * P_max;
     if (!(expected_max <= threshold_) || !(expected_max <= kDarkTestMaxExpected)) return false;
     locate(wi, wo, density, parts);
@@ -350,7 +350,7 @@ class GlintClosure {
                                              Particles &parts) const {
     parts.pseudo_counted = false;
     if (peak_.empty() || flakes_->varies()) return false;
-    const float P_max = std::min(peak_.bound(c.theta_i, c.theta_o, c.dphi), 1.0f);
+    const float P_max = std::min(peak_.bound(c.lanes()), 1.0f);
     if (!(static_cast<double>(density) * parts.area * P_max <= threshold_)) return false;
     glint::GlintCount k;
     glint::NoParticleVisitor no_visit;
