@@ -8,7 +8,9 @@
 # usage: benchmarks/glint_gi_instructions.sh [build dir] [width height spp] [plugin .so]
 #   defaults: ./build 160 100 4 (issue 10's figure is 320 200 8: ~15-30 min per render)
 # The glimmer binary loads its image modules (libglimmer_exr_io.so) from beside it.
-# Env: GLIMMER_CACHE_DIR (tables), GI_OUT (output dir, default a temp dir, kept), GI_ONLY=glint|twin.
+# Env: GLIMMER_CACHE_DIR (tables), GI_OUT (output dir, default a temp dir, kept), GI_ONLY=glint|twin,
+#   GI_CALLGRIND_OPTS (more callgrind options, e.g. --dump-instr=yes for callgrind_annotate of a -g build),
+#   GI_PLUGIN_TWIN (the twin's plugin, default the same as the glint's).
 set -euo pipefail
 build=$(cd "${1:-build}" && pwd)
 width=${2:-160}
@@ -31,22 +33,23 @@ text = re.sub(r' (gamma|density|uv_scale|seed|filter_threshold)="[^"]*"', '', te
 text = text.replace('<glint_bsdf', '<glossy_bsdf')
 open(sys.argv[2], 'w').write(text)
 PY
-run() {  # name scene
-  local name=$1 scene=$2
-  (cd "$build" && valgrind --tool=callgrind --collect-atstart=no \
+run() {  # name scene plugin
+  local name=$1 scene=$2 lib=$3
+  # shellcheck disable=SC2086
+  (cd "$build" && valgrind --tool=callgrind --collect-atstart=no ${GI_CALLGRIND_OPTS:-} \
      --toggle-collect='glimmer::render::Renderer::render*' --callgrind-out-file="$out/cg.$name" \
-     ./glimmer --plugin "$plugin" render "$scene" -o "$out/$name.exr" --samples "$spp" --threads 1 \
+     ./glimmer --plugin "$lib" render "$scene" -o "$out/$name.exr" --samples "$spp" --threads 1 \
      --width "$width" --height "$height" --quiet > "$out/$name.log" 2>&1)
   grep -m1 '^summary:' "$out/cg.$name" | awk '{print $2}'
 }
 echo "GI ${width}x${height} ${spp} spp, plugin $plugin, output $out"
 t="" g=""
 if [ "${GI_ONLY:-}" != glint ]; then
-  t=$(run twin "$twin")
+  t=$(run twin "$twin" "${GI_PLUGIN_TWIN:-$plugin}")
   printf 'twin  %10.1f M  md5 %s\n' "$(awk -v x="$t" 'BEGIN{print x/1e6}')" "$(md5sum < "$out/twin.exr" | cut -c1-32)"
 fi
 if [ "${GI_ONLY:-}" != twin ]; then
-  g=$(run glint "$src")
+  g=$(run glint "$src" "$plugin")
   printf 'glint %10.1f M  md5 %s\n' "$(awk -v x="$g" 'BEGIN{print x/1e6}')" "$(md5sum < "$out/glint.exr" | cut -c1-32)"
 fi
 if [ -n "$t" ] && [ -n "$g" ]; then

@@ -63,13 +63,25 @@
 #include <bit>
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
 #include <cstring>
 #include <optional>
 #include <span>
+#include <string_view>
 #include <type_traits>
 #include <utility>
 #if defined(__SSE2__)
 #include <emmintrin.h>
+#endif
+// Session 20: pass 2 of the pair passes has an AVX2 form (two nodes' four
+// group hashes per 256-bit register, VPMULLD), chosen at load time where the
+// CPU has AVX2 (GCC / Clang on x86-64; `#pragma`-free: only the functions
+// marked target("avx2") use it, so the rest of the plugin stays SSE2).
+#if defined(__SSE2__) && defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#define GLIMMER_GLINT_WALK_AVX2 1
+#include <immintrin.h>
+#else
+#define GLIMMER_GLINT_WALK_AVX2 0
 #endif
 
 #include "glimmer/math.h"
@@ -1033,6 +1045,111 @@ inline constexpr std::array<PassingGroups, 16> kPassingGroups = [] {
   return t;
 }();
 
+// Pass (2) of count_four_groups_in_passes from node `first` on: every node's
+// four group hashes into pc.node_hash (node_hash[4 node + g]), the (node, group)
+// pairs passing the quick reject appended to pc.pair_index as 4 node + g, and
+// the nodes with at least one such pair appended to `paired` (n_pairs,
+// n_paired: the lists' lengths, updated).
+inline void group_pass_sse2(const NodeList &nodes, int first, const uint32_t *seeds, const GroupReject &reject,
+                            PairPassCounter &pc, uint8_t *paired, int &n_pairs, int &n_paired) {
+  for (int node = first; node < nodes.count; ++node) {
+    const auto at = static_cast<size_t>(node);
+    const int pairs_before = n_pairs;
+    // The four groups' hashes in the lanes of one SSE2 register (mix_u32x4,
+    // the same values as group_hashes): no branch reads them here, unlike
+    // the node loop where the lanes measured slower (session 8). Session 17:
+    // 1e-4 5714 -> 5470 instructions per eval, same f and pdf bits.
+    // Session 19: the passing groups as a 4-bit mask (group_hashes_sse2)
+    // compacted by a table of 16 entries
+    // (kPassingGroups: the mask's groups in order, as bytes, and their
+    // number) with one 4-byte store, instead of a store, a compare and an
+    // add per group.
+    const uint32_t mask =
+        group_hashes_sse2(nodes.id_hash[at], seeds, reject, pc.node_hash.data() + kDirectionGroups * at);
+    const uint32_t bytes = kPassingGroups[mask].bytes + static_cast<uint32_t>(kDirectionGroups * node) * 0x01010101u;
+    std::memcpy(pc.pair_index.data() + n_pairs, &bytes, sizeof(bytes));
+    n_pairs += kPassingGroups[mask].count;
+    paired[static_cast<size_t>(n_paired)] = static_cast<uint8_t>(node);
+    n_paired += n_pairs != pairs_before ? 1 : 0;
+  }
+}
+
+#if GLIMMER_GLINT_WALK_AVX2
+// mix_u32 per 32-bit lane of a 256-bit register (VPMULLD: one instruction per
+// multiply; SSE2 needs two PMULUDQ and a shuffle). The same values.
+[[gnu::target("avx2")]] inline __m256i mix_u32x8(__m256i x) {
+  x = _mm256_xor_si256(x, _mm256_srli_epi32(x, 16));
+  x = _mm256_mullo_epi32(x, _mm256_set1_epi32(static_cast<int>(0x7feb352du)));
+  x = _mm256_xor_si256(x, _mm256_srli_epi32(x, 15));
+  x = _mm256_mullo_epi32(x, _mm256_set1_epi32(static_cast<int>(0x846ca68bu)));
+  return _mm256_xor_si256(x, _mm256_srli_epi32(x, 16));
+}
+// group_pass_sse2 from node 0 with two nodes per step: their eight (node,
+// group) hashes in one register, one 8-bit mask, each node's four bits
+// compacted as before; an odd last node by group_pass_sse2. The same lists
+// (GlintParticles.GroupPassAvx2MatchesSse2). Out of line: a target("avx2")
+// function is not inlined into the SSE2 caller.
+[[gnu::target("avx2"), gnu::noinline]] inline void group_pass_avx2(const NodeList &nodes, const uint32_t *seeds,
+                                                                   const GroupReject &reject, PairPassCounter &pc,
+                                                                   uint8_t *paired, int &n_pairs, int &n_paired) {
+  const __m256i seeds8 = _mm256_broadcastsi128_si256(_mm_loadu_si128(reinterpret_cast<const __m128i *>(seeds)));
+  const __m256i bias = _mm256_set1_epi32(static_cast<int>(0x80000000u));  // unsigned compare as signed
+  const __m256i below = _mm256_set1_epi32(static_cast<int>(reject.below ^ 0x80000000u));
+  const __m256i spread = _mm256_setr_epi32(0, 0, 0, 0, 1, 1, 1, 1);
+  const uint32_t all = reject.all_pass ? 0xffu : 0u;
+  int node = 0, pairs = n_pairs, with_pair = n_paired;
+  for (; node + 1 < nodes.count; node += 2) {
+    const auto at = static_cast<size_t>(node);
+    uint64_t two_keys;
+    std::memcpy(&two_keys, nodes.id_hash.data() + at, sizeof(two_keys));
+    const __m256i keys =
+        _mm256_permutevar8x32_epi32(_mm256_castsi128_si256(_mm_cvtsi64_si128(static_cast<long long>(two_keys))), spread);
+    const __m256i h = mix_u32x8(_mm256_xor_si256(keys, seeds8));
+    _mm256_storeu_si256(reinterpret_cast<__m256i *>(pc.node_hash.data() + kDirectionGroups * at), h);
+    const __m256i lt = _mm256_cmpgt_epi32(below, _mm256_xor_si256(h, bias));
+    const uint32_t mask = all | static_cast<uint32_t>(_mm256_movemask_ps(_mm256_castsi256_ps(lt)));
+    const uint32_t m0 = mask & 0xfu, m1 = mask >> 4;
+    const uint32_t b0 = kPassingGroups[m0].bytes + static_cast<uint32_t>(kDirectionGroups * node) * 0x01010101u;
+    std::memcpy(pc.pair_index.data() + pairs, &b0, sizeof(b0));
+    pairs += kPassingGroups[m0].count;
+    paired[static_cast<size_t>(with_pair)] = static_cast<uint8_t>(node);
+    with_pair += m0 != 0 ? 1 : 0;
+    const uint32_t b1 = kPassingGroups[m1].bytes + static_cast<uint32_t>(kDirectionGroups * (node + 1)) * 0x01010101u;
+    std::memcpy(pc.pair_index.data() + pairs, &b1, sizeof(b1));
+    pairs += kPassingGroups[m1].count;
+    paired[static_cast<size_t>(with_pair)] = static_cast<uint8_t>(node + 1);
+    with_pair += m1 != 0 ? 1 : 0;
+  }
+  n_pairs = pairs, n_paired = with_pair;
+  if (node < nodes.count) group_pass_sse2(nodes, node, seeds, reject, pc, paired, n_pairs, n_paired);
+}
+#endif
+
+// Which form of pass 2 the walk uses: AVX2 where the CPU has it, unless the
+// environment says GLIMMER_GLINT_WALK=sse2 (read once, when the plugin loads).
+inline bool detect_walk_avx2() {
+#if GLIMMER_GLINT_WALK_AVX2
+  __builtin_cpu_init();
+  if (!__builtin_cpu_supports("avx2")) return false;
+  const char *env = std::getenv("GLIMMER_GLINT_WALK");
+  return env == nullptr || std::string_view(env) != "sse2";
+#else
+  return false;
+#endif
+}
+inline const bool kWalkAvx2 = detect_walk_avx2();
+
+// Pass (2) in the form `avx2` says (AVX2 only where compiled in).
+inline void group_pass(bool avx2, const NodeList &nodes, const uint32_t *seeds, const GroupReject &reject,
+                       PairPassCounter &pc, uint8_t *paired, int &n_pairs, int &n_paired) {
+#if GLIMMER_GLINT_WALK_AVX2
+  if (avx2) return group_pass_avx2(nodes, seeds, reject, pc, paired, n_pairs, n_paired);
+#else
+  (void)avx2;
+#endif
+  group_pass_sse2(nodes, 0, seeds, reject, pc, paired, n_pairs, n_paired);
+}
+
 // Pass (1) of count_four_groups_in_passes: the origin and inside flag of the
 // nodes listed in paired (those with a pair passing the quick reject).
 inline void paired_node_origins(const FootprintFrame &frame, const NodeList &nodes, const uint8_t *paired,
@@ -1062,7 +1179,7 @@ inline void paired_node_origins(const FootprintFrame &frame, const NodeList &nod
 
 inline GlintCount count_four_groups_in_passes(const FootprintFrame &frame, const NodeList &nodes,
                                               const uint32_t *seeds, const GroupReject &reject, double lambda,
-                                              int max_steps) {
+                                              int max_steps, bool avx2 = kWalkAvx2) {
   static_assert(kDirectionGroups == 4);
   PairPassCounter pc(frame);
   int n_pairs = 0;
@@ -1073,26 +1190,7 @@ inline GlintCount count_four_groups_in_passes(const FootprintFrame &frame, const
   static_assert(kMaxNodes <= 256, "paired_nodes holds node indices in bytes");
   std::array<uint8_t, kMaxNodes> paired_nodes;
   int n_paired = 0;
-  for (int node = 0; node < nodes.count; ++node) {  // (2)
-    const auto at = static_cast<size_t>(node);
-    const int pairs_before = n_pairs;
-    // The four groups' hashes in the lanes of one SSE2 register (mix_u32x4,
-    // the same values as group_hashes): no branch reads them here, unlike
-    // the node loop where the lanes measured slower (session 8). Session 17:
-    // 1e-4 5714 -> 5470 instructions per eval, same f and pdf bits.
-    // Session 19: the passing groups as a 4-bit mask (group_hashes_sse2)
-    // compacted by a table of 16 entries
-    // (kPassingGroups: the mask's groups in order, as bytes, and their
-    // number) with one 4-byte store, instead of a store, a compare and an
-    // add per group.
-    const uint32_t mask =
-        group_hashes_sse2(nodes.id_hash[at], seeds, reject, pc.node_hash.data() + kDirectionGroups * at);
-    const uint32_t bytes = kPassingGroups[mask].bytes + static_cast<uint32_t>(kDirectionGroups * node) * 0x01010101u;
-    std::memcpy(pc.pair_index.data() + n_pairs, &bytes, sizeof(bytes));
-    n_pairs += kPassingGroups[mask].count;
-    paired_nodes[static_cast<size_t>(n_paired)] = static_cast<uint8_t>(node);
-    n_paired += n_pairs != pairs_before ? 1 : 0;
-  }
+  group_pass(avx2, nodes, seeds, reject, pc, paired_nodes.data(), n_pairs, n_paired);  // (2)
   paired_node_origins(frame, nodes, paired_nodes.data(), n_paired, pc);  // (1)
   GlintCount result;
   const LitCountBounds bounds(lambda);

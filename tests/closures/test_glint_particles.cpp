@@ -974,6 +974,84 @@ TEST(GlintParticles, PairPassesMatchTheNodeLoop) {
   EXPECT_GT(control_differs, 10);
 }
 
+// Session 20: pass 2's AVX2 form (group_pass_avx2: two nodes' four group
+// hashes per 256-bit register, an odd last node by the SSE2 form) writes the
+// same hashes, pair list and paired-node list as the SSE2 form
+// (group_pass_sse2), and the whole pair-pass count (count, steps,
+// completeness) is the same with either, over the footprints of
+// PairPassesMatchTheNodeLoop (1..64 nodes, odd and even counts, P up to 1 so
+// that every pair passes). The walk uses the AVX2 form on a CPU with AVX2
+// (kWalkAvx2, checked). Control: the SSE2 form with one seed's lowest bit
+// flipped gives another pair list on most queries with a passing pair
+// (those where not every pair passes).
+TEST(GlintParticles, GroupPassAvx2MatchesSse2) {
+#if !GLIMMER_GLINT_WALK_AVX2
+  GTEST_SKIP() << "no AVX2 form in this build";
+#else
+  if (!__builtin_cpu_supports("avx2")) GTEST_SKIP() << "CPU without AVX2";
+  if (std::getenv("GLIMMER_GLINT_WALK") == nullptr) {
+    EXPECT_TRUE(pg::kWalkAvx2);
+  }
+  Pcg32 rng(31);
+  int compared = 0, odd = 0, with_pairs = 0, all_pass = 0, control_differs = 0, control_queries = 0, lit = 0;
+  for (int t = 0; t < 20000; ++t) {
+    const double density = std::exp(std::log(1e3) + rng.next_double() * std::log(1e4));
+    const double particles = std::exp(std::log(0.1) + rng.next_double() * std::log(5e4));
+    const double aspect = std::exp(rng.next_double() * std::log(64.0));
+    const pg::Footprint f = random_footprint(rng, particles / density, aspect);
+    const double P = t % 16 == 0 ? 1.0 : std::exp(std::log(1e-4) + rng.next_double() * std::log(1e4));
+    const int max_steps = t % 4 == 0 ? 1 + static_cast<int>(rng.next_u32() % 64u) : 1 << 30;
+    const std::array<uint32_t, pg::kDirectionGroups> seeds = {rng.next_u32(), rng.next_u32(), rng.next_u32(),
+                                                              rng.next_u32()};
+    const double group_density = density / pg::kDirectionGroups;
+    const pg::NodeList nodes = pg::footprint_nodes(f, group_density);
+    const pg::FootprintFrame frame(f, nodes.size);
+    const double lambda = std::min(group_density * nodes.size * nodes.size, 4.0e18) * std::min(P, 1.0);
+    const pg::GroupReject reject(static_cast<uint64_t>(std::min(lambda, 1.0) * 4294967296.0) + 1u);
+    pg::PairPassCounter a(frame), b(frame), c(frame);
+    std::array<uint8_t, pg::kMaxNodes> paired_a{}, paired_b{}, paired_c{};
+    int pairs_a = 0, nodes_a = 0, pairs_b = 0, nodes_b = 0, pairs_c = 0, nodes_c = 0;
+    pg::group_pass(true, nodes, seeds.data(), reject, a, paired_a.data(), pairs_a, nodes_a);
+    pg::group_pass(false, nodes, seeds.data(), reject, b, paired_b.data(), pairs_b, nodes_b);
+    ASSERT_EQ(pairs_a, pairs_b) << "query " << t;
+    ASSERT_EQ(nodes_a, nodes_b) << "query " << t;
+    for (int i = 0; i < pg::kDirectionGroups * nodes.count; ++i)
+      ASSERT_EQ(a.node_hash[static_cast<size_t>(i)], b.node_hash[static_cast<size_t>(i)]) << "query " << t;
+    for (int p = 0; p < pairs_a; ++p)
+      ASSERT_EQ(a.pair_index[static_cast<size_t>(p)], b.pair_index[static_cast<size_t>(p)]) << "query " << t;
+    for (int q = 0; q < nodes_a; ++q)
+      ASSERT_EQ(paired_a[static_cast<size_t>(q)], paired_b[static_cast<size_t>(q)]) << "query " << t;
+    const pg::GlintCount ka = pg::count_four_groups_in_passes(frame, nodes, seeds.data(), reject, lambda, max_steps, true);
+    const pg::GlintCount kb = pg::count_four_groups_in_passes(frame, nodes, seeds.data(), reject, lambda, max_steps, false);
+    ASSERT_EQ(ka.complete, kb.complete) << "query " << t;
+    ASSERT_EQ(ka.count, kb.count) << "query " << t;
+    ASSERT_EQ(ka.steps, kb.steps) << "query " << t;
+    std::array<uint32_t, pg::kDirectionGroups> flipped = seeds;
+    flipped[static_cast<size_t>(t % pg::kDirectionGroups)] ^= 1u;
+    pg::group_pass(false, nodes, flipped.data(), reject, c, paired_c.data(), pairs_c, nodes_c);
+    bool differs = pairs_c != pairs_a;
+    for (int p = 0; !differs && p < pairs_a; ++p)
+      differs = c.pair_index[static_cast<size_t>(p)] != a.pair_index[static_cast<size_t>(p)];
+    ++compared;
+    odd += nodes.count % 2;
+    with_pairs += pairs_a > 0;
+    all_pass += reject.all_pass;
+    lit += ka.complete && ka.count > 0;
+    control_queries += pairs_a > 0 && !reject.all_pass;  // every pair passes whatever the seeds when all_pass
+    control_differs += pairs_a > 0 && !reject.all_pass && differs;
+  }
+  std::printf("[group pass avx2] %d queries equal (%d odd node counts, %d with a passing pair, %d all passing, %d lit); "
+              "control (a seed bit flipped) differs on %d of the %d with a pair and a reject\n",
+              compared, odd, with_pairs, all_pass, lit, control_differs, control_queries);
+  EXPECT_GT(odd, 5000);
+  EXPECT_GT(with_pairs, 10000);
+  EXPECT_GT(all_pass, 500);
+  EXPECT_GT(lit, 5000);
+  EXPECT_GT(control_queries, 3000);
+  EXPECT_GT(control_differs, control_queries / 2);
+#endif
+}
+
 // ---- Pseudo-normals of narrow lobes (tables/glint_pseudo_normals.h) --------
 namespace mf = microfacet;
 
