@@ -145,6 +145,7 @@ class GlintClosure {
     auto c = std::make_unique<GlintClosure>();
     c->field_ = glint::ParticleField::parse(p);
     c->threshold_ = p.get_float("filter_threshold");
+    c->dark_test_cap_ = std::min(static_cast<double>(c->threshold_), kDarkTestMaxExpected);
     c->density_param_ = p.index("density");
     c->gamma_rad_ = c->field_.gamma_deg * glint::kDegToRad;
     c->cell_keys_ = glint::DirectionCellKeys(c->field_.seed, c->gamma_rad_);
@@ -171,6 +172,7 @@ class GlintClosure {
     pseudo_normals_ = !anisotropic_ && glint::uses_pseudo_normals(field_.alpha, gamma_rad_);
     pseudo_ = glint::PseudoNormalField(field_.distribution, field_.alpha, gamma_rad_, field_.seed);
     special_path_ = anisotropic_ || pseudo_normals_;
+    max_spread_ = 2.0f * field_.alpha;
   }
 
   void prepare(const GlimmerHostServices *host) {
@@ -201,7 +203,7 @@ class GlintClosure {
   // LOD blur in degrees: the path's spread, capped by the lobe width 2 alpha.
   float lod_sigma_deg(const GlimmerShadingContext *ctx) const {
     const float spread = std::isfinite(ctx->spread_angle) ? std::max(ctx->spread_angle, 0.0f) : 0.0f;
-    return std::min(spread, 2.0f * field_.alpha) * glint::kRadToDeg;
+    return std::min(spread, max_spread_) * glint::kRadToDeg;
   }
 
   // At zero blur (camera rays, the common case) the value computed at set-up.
@@ -237,7 +239,7 @@ class GlintClosure {
   TableLookup request_table(const TableCoords &c, float sigma_deg) const {
     TableLookup at{};
     if (!table_) return at;
-    at = table_->locate(sigma_deg, c.theta_i, c.theta_o, c.dphi);
+    at = table_->locate(sigma_deg, c.lanes());
     table_->prefetch(at);
     return at;
   }
@@ -311,9 +313,9 @@ class GlintClosure {
                      Particles &parts) const {
     const double particles = static_cast<double>(density) * parts.area;
     if (peak_.empty() || sigma_deg > field_.gamma_deg || !(particles <= kDarkTestMaxParticles)) return false;
-    const float P_max = std::min(peak_.bound(c.theta_i, c.theta_o, c.dphi), 1.0f);
+    const float P_max = std::min(peak_.bound(c.lanes()), 1.0f);
     const double expected_max = particles * P_max;
-    if (!(expected_max <= threshold_) || !(expected_max <= kDarkTestMaxExpected)) return false;
+    if (!(expected_max <= dark_test_cap_)) return false;  // <= threshold_ and <= kDarkTestMaxExpected
     locate(wi, wo, density, parts);
     if (parts.site.node_list().count > kDarkTestMaxNodes) return false;
     const glint::GlintCount k = glint::count_glints(parts.fp, parts.site, P_max, kMaxSteps);
@@ -350,7 +352,7 @@ class GlintClosure {
                                              Particles &parts) const {
     parts.pseudo_counted = false;
     if (peak_.empty() || flakes_->varies()) return false;
-    const float P_max = std::min(peak_.bound(c.theta_i, c.theta_o, c.dphi), 1.0f);
+    const float P_max = std::min(peak_.bound(c.lanes()), 1.0f);
     if (!(static_cast<double>(density) * parts.area * P_max <= threshold_)) return false;
     glint::GlintCount k;
     glint::NoParticleVisitor no_visit;
@@ -518,6 +520,8 @@ class GlintClosure {
  private:
   glint::ParticleField field_;
   float threshold_ = 16.0f;
+  double dark_test_cap_ = 1.0;  // min(threshold_, kDarkTestMaxExpected): the dark test's two bounds as one
+  float max_spread_ = 0.32f;    // 2 alpha, the LOD blur's cap (lod_sigma_deg)
   float gamma_rad_ = 0.035f;
   glint::DirectionCellKeys cell_keys_{0};  // per-material part of the direction-cell seeds
   std::shared_ptr<const glint::DirectionalTable> table_;

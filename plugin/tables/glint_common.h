@@ -34,9 +34,12 @@ inline float fast_acos_deg(float x) {
 }
 
 // Table coordinates of (wi, wo) in degrees: polar angles and the folded
-// azimuth difference.
-struct TableCoords {
+// azimuth difference; aligned with a fourth float (unused, any value) so the
+// three are one SSE load (lanes()) for the table's cell and the peak bound.
+struct alignas(16) TableCoords {
   float theta_i, theta_o, dphi;
+  float unused = 0.0f;
+  __m128 lanes() const { return _mm_load_ps(&theta_i); }
 };
 
 // cos of the azimuth difference of wi and wo (1 when either is along z).
@@ -66,9 +69,9 @@ inline TableCoords table_coords(const Vec3 &wi, const Vec3 &wo) {
   const __m128 upper = _mm_cmpge_ps(x, _mm_setzero_ps());  // x >= 0 (false for NaN)
   const __m128 folded = _mm_sub_ps(_mm_set1_ps(kPi), r);
   const __m128 angle = _mm_or_ps(_mm_and_ps(upper, r), _mm_andnot_ps(upper, folded));
-  alignas(16) float deg[4];
-  _mm_store_ps(deg, _mm_mul_ps(angle, _mm_set1_ps(kRadToDeg)));
-  return {deg[0], deg[1], deg[2]};
+  TableCoords c;
+  _mm_store_ps(&c.theta_i, _mm_mul_ps(angle, _mm_set1_ps(kRadToDeg)));  // lane 3: acos(0) in degrees
+  return c;
 }
 
 // ---- The particle field ------------------------------------------------------

@@ -55,7 +55,10 @@ class DirectionalPeakTable {
   // The three block_of in SSE lanes (the same comparisons, product and
   // truncation, so the same blocks; GlintParticles.PeakTable* tests).
   float bound(float theta_i_deg, float theta_o_deg, float dphi_deg) const {
-    const __m128 x = _mm_setr_ps(theta_i_deg, theta_o_deg, dphi_deg, 0.0f);
+    return bound(_mm_setr_ps(theta_i_deg, theta_o_deg, dphi_deg, 0.0f));
+  }
+  // The same with the angles in lanes 0..2 of `x` (lane 3 unused, any value: its block is clamped to 0).
+  float bound(__m128 x) const {
     const __m128 clamped = _mm_and_ps(_mm_cmpgt_ps(x, _mm_setzero_ps()),  // clamp_deg: x > 0 ? min : 0 (NaN: 0)
                                       _mm_min_ps(x, _mm_setr_ps(90.0f, 90.0f, 180.0f, 0.0f)));
     const __m128i b = _mm_cvttps_epi32(_mm_mul_ps(clamped, _mm_set1_ps(kInvBlockDeg)));

@@ -58,6 +58,8 @@
 #include <string>
 #include <vector>
 
+#include <emmintrin.h>
+
 #include "glimmer/closure_abi.h"
 
 namespace glimmer::plugin::glint {
@@ -101,7 +103,32 @@ struct LodLevel {
   };
   size_t theta_o_stride() const { return static_cast<size_t>(n_phi); }
   size_t theta_i_stride() const { return static_cast<size_t>(n_theta_o) * n_phi; }
+  // The three axes in the lanes of one SSE register (issue 10, session 20):
+  // the same clamps (x > 0 ? min(x, hi) : 0, NaN to 0), the same product by
+  // 1 / step (theta_i's lane times 1, exact), truncation, integer minimum and
+  // differences as cell_scalar, so the same corner and fractions
+  // (test GlintTables.CellInLanesMatchesTheScalarForm).
   Cell cell(float theta_i_deg, float theta_o_deg, float dphi_deg) const {
+    return cell(_mm_setr_ps(theta_i_deg, theta_o_deg, dphi_deg, 0.0f));
+  }
+  // The same with the angles in lanes 0..2 of `x` (lane 3 unused, any value).
+  Cell cell(__m128 x) const {
+    const __m128 clamped = _mm_and_ps(_mm_cmpgt_ps(x, _mm_setzero_ps()),
+                                      _mm_min_ps(x, _mm_setr_ps(90.0f, 90.0f, 180.0f, 0.0f)));
+    const float inv_step = 1.0f / static_cast<float>(step_deg);
+    const __m128 f = _mm_mul_ps(clamped, _mm_setr_ps(1.0f, inv_step, inv_step, 0.0f));
+    const __m128i k = _mm_cvttps_epi32(f);
+    const __m128i last = _mm_setr_epi32(kThetaICount - 2, n_theta_o - 2, n_phi - 2, 0);
+    const __m128i over = _mm_cmpgt_epi32(k, last);
+    const __m128i corner = _mm_or_si128(_mm_and_si128(over, last), _mm_andnot_si128(over, k));  // min(k, last)
+    alignas(16) int32_t c[4];
+    alignas(16) float t[4];
+    _mm_store_si128(reinterpret_cast<__m128i *>(c), corner);
+    _mm_store_ps(t, _mm_sub_ps(f, _mm_cvtepi32_ps(corner)));
+    return {values.data() + (static_cast<size_t>(c[0]) * n_theta_o + c[1]) * n_phi + c[2], t[0], t[1], t[2]};
+  }
+  // The scalar form of cell() (the reference of its test).
+  Cell cell_scalar(float theta_i_deg, float theta_o_deg, float dphi_deg) const {
     const float inv_step = 1.0f / static_cast<float>(step_deg);
     const float fi = clamp_deg(theta_i_deg, 90.0f);
     const float fo = clamp_deg(theta_o_deg, 90.0f) * inv_step;
@@ -118,7 +145,23 @@ struct LodLevel {
     return lookup(cell(theta_i_deg, theta_o_deg, dphi_deg));
   }
   // The same at a cell located by cell() (the eval locates it once for prefetch and lookup).
+  // The four dphi pairs in lanes (rows theta_i, theta_o + (0, 0), (1, 0), (0, 1), (1, 1) in the order 00, 10, 01,
+  // 11), then the two theta_o lerps in two lanes: the same operations in the same order as lookup_scalar
+  // (test GlintTables.LookupInLanesMatchesTheScalarForm).
   float lookup(const Cell &c) const {
+    const size_t si = theta_i_stride(), so = theta_o_stride();
+    auto pair = [](const float *p) { return _mm_castsi128_ps(_mm_loadl_epi64(reinterpret_cast<const __m128i *>(p))); };
+    const __m128 r00 = pair(c.base), r01 = pair(c.base + so), r10 = pair(c.base + si), r11 = pair(c.base + si + so);
+    const __m128 lo = _mm_unpacklo_ps(r00, r10), hi = _mm_unpacklo_ps(r01, r11);  // (00 p0, 10 p0, 00 p1, 10 p1), ...
+    const __m128 p0 = _mm_movelh_ps(lo, hi), p1 = _mm_movehl_ps(hi, lo);        // lanes 00, 10, 01, 11
+    const __m128 l = _mm_add_ps(p0, _mm_mul_ps(_mm_sub_ps(p1, p0), _mm_set1_ps(c.tp)));
+    const __m128 l1 = _mm_movehl_ps(l, l);                                        // lanes 01, 11
+    const __m128 ab = _mm_add_ps(l, _mm_mul_ps(_mm_sub_ps(l1, l), _mm_set1_ps(c.to)));  // lanes a, b
+    const float a = _mm_cvtss_f32(ab), b = _mm_cvtss_f32(_mm_shuffle_ps(ab, ab, 1));
+    return a + (b - a) * c.ti;
+  }
+  // The scalar form of lookup(const Cell &) (the reference of its test).
+  float lookup_scalar(const Cell &c) const {
     const size_t si = theta_i_stride(), so = theta_o_stride();
     auto lerp_phi = [&](const float *p) { return p[0] + (p[1] - p[0]) * c.tp; };
     const float a = lerp_phi(c.base) + (lerp_phi(c.base + so) - lerp_phi(c.base)) * c.to;
@@ -177,10 +220,14 @@ class DirectionalTable {
     LodLevel::Cell first{}, second{};  // second: only when lp.t > 0
   };
   Located locate(float sigma_deg, float theta_i_deg, float theta_o_deg, float dphi_deg) const {
+    return locate(sigma_deg, _mm_setr_ps(theta_i_deg, theta_o_deg, dphi_deg, 0.0f));
+  }
+  // The same with the angles in lanes 0..2 of `deg` (lane 3 unused).
+  Located locate(float sigma_deg, __m128 deg) const {
     Located at;
     at.lp = levels_at(sigma_deg);
-    at.first = levels[at.lp.first].cell(theta_i_deg, theta_o_deg, dphi_deg);
-    if (at.lp.t > 0.0f) at.second = levels[at.lp.first + 1].cell(theta_i_deg, theta_o_deg, dphi_deg);
+    at.first = levels[at.lp.first].cell(deg);
+    if (at.lp.t > 0.0f) at.second = levels[at.lp.first + 1].cell(deg);
     return at;
   }
   void prefetch(const Located &at) const {
