@@ -101,6 +101,28 @@ ExitLobe lobe_at(double tilt, double kappa) {
   return ExitLobe::make(Vec3(float(std::sin(tilt)), 0.0f, float(std::cos(tilt))), kappa, Vec3(0.0f, 0.0f, 1.0f));
 }
 
+// A direction uniform on the sphere.
+Vec3 random_unit(Pcg32 &rng) {
+  const float z = 2.0f * rng.next_float() - 1.0f, phi = 2.0f * float(M_PI) * rng.next_float();
+  const float r = std::sqrt(std::max(0.0f, 1.0f - z * z));
+  return normalize(Vec3(r * std::cos(phi), r * std::sin(phi), z));
+}
+
+// A prepared mixture of 1-3 lobes: axes and normals anywhere, sharpness 1e-3..1e7, weights 0.05..1.05 normalised.
+ExitLobeMixture random_prepared_mixture(Pcg32 &rng) {
+  const auto unit = [&] { return random_unit(rng); };
+  ExitLobeMixture m;
+  m.count = 1 + int(rng.next_float() * 3.0f);
+  for (int k = 0; k < m.count; ++k) {
+    const double kappa = std::pow(10.0, -3.0 + 10.0 * rng.next_float());
+    m.lobe[k] = ExitLobe::make(unit(), kappa, unit());
+    m.weight[k] = 0.05 + rng.next_float();
+  }
+  m.normalize();
+  m.prepare();
+  return m;
+}
+
 constexpr double kDeg = M_PI / 180.0;
 
 // The lamp integral draws its n x n lobe directions in two halves (draw_cos per cos theta number, vmf_phi per phi
@@ -113,26 +135,13 @@ TEST(LampThroughLobe, SplitDrawIsTheLobesDrawBitForBit) {
     return std::memcmp(&a.x, &b.x, sizeof(float)) == 0 && std::memcmp(&a.y, &b.y, sizeof(float)) == 0 &&
            std::memcmp(&a.z, &b.z, sizeof(float)) == 0;
   };
-  const auto unit = [&] {
-    const float z = 2.0f * rng.next_float() - 1.0f, phi = 2.0f * float(M_PI) * rng.next_float();
-    const float r = std::sqrt(std::max(0.0f, 1.0f - z * z));
-    return normalize(Vec3(r * std::cos(phi), r * std::sin(phi), z));
-  };
   const auto number = [&] {
     const float x = rng.next_float();
     return x < 0.05f ? 0.0f : x > 0.95f ? 0x1.fffffep-1f : x;
   };
   int checked = 0, differ = 0, control_differs = 0;
   for (int trial = 0; trial < 20000; ++trial) {
-    ExitLobeMixture m;
-    m.count = 1 + int(rng.next_float() * 3.0f);
-    for (int k = 0; k < m.count; ++k) {
-      const double kappa = std::pow(10.0, -3.0 + 10.0 * rng.next_float());
-      m.lobe[k] = ExitLobe::make(unit(), kappa, unit());
-      m.weight[k] = 0.05 + rng.next_float();
-    }
-    m.normalize();
-    m.prepare();
+    ExitLobeMixture m = random_prepared_mixture(rng);
     const float uc = number(), up = number();
     const Vec3 split = ExitLobeMixture::draw_at(m.draw_cos(uc), vmf_phi(up)), whole = m.draw(uc, up);
     const Vec3 split1 = ExitLobe::draw_at(m.lobe[0].draw_cos(uc), vmf_phi(up)), whole1 = m.lobe[0].draw(uc, up);
@@ -154,11 +163,7 @@ TEST(LampThroughLobe, SplitDrawIsTheLobesDrawBitForBit) {
 // control: the same skip with 2^-30 instead of 2^-54 changes p somewhere.
 TEST(LampThroughLobe, SkippedMirrorPartsCannotChangeTheDensity) {
   Pcg32 rng(2026, 20);
-  const auto unit = [&] {
-    const float z = 2.0f * rng.next_float() - 1.0f, phi = 2.0f * float(M_PI) * rng.next_float();
-    const float r = std::sqrt(std::max(0.0f, 1.0f - z * z));
-    return normalize(Vec3(r * std::cos(phi), r * std::sin(phi), z));
-  };
+  const auto unit = [&] { return random_unit(rng); };
   // The density with every mirrored part added (skip_below 0), or skipped below skip_below x pk (the control).
   const auto reference = [](const ExitLobeMixture &m, const Vec3 &w, double skip_below, double &draw) {
     draw = 0.0;
@@ -183,15 +188,7 @@ TEST(LampThroughLobe, SkippedMirrorPartsCannotChangeTheDensity) {
   };
   long checked = 0, differ = 0, skipped = 0, mirrored = 0, control_differs = 0;
   for (int trial = 0; trial < 20000; ++trial) {
-    ExitLobeMixture m;
-    m.count = 1 + int(rng.next_float() * 3.0f);
-    for (int k = 0; k < m.count; ++k) {
-      const double kappa = std::pow(10.0, -3.0 + 10.0 * rng.next_float());
-      m.lobe[k] = ExitLobe::make(unit(), kappa, unit());
-      m.weight[k] = 0.05 + rng.next_float();
-    }
-    m.normalize();
-    m.prepare();
+    ExitLobeMixture m = random_prepared_mixture(rng);
     for (int j = 0; j < 16; ++j) {
       // half uniform, half drawn from the mixture (where its density is not negligible)
       const Vec3 w = j < 8 ? unit() : m.draw(rng.next_float(), rng.next_float());

@@ -927,6 +927,31 @@ namespace glimmer::test {
 namespace {
 namespace pg = plugin::glint;
 
+// A query of the pair-pass tests: density 1e3..1e7, 0.1..5000 particles, aspect 1..64, P 1e-4..1 (1 on every
+// 16th query t), a step cap of 1..64 on every 4th, random direction-group seeds, and the footprint's node list.
+struct PassQuery {
+  pg::Footprint f;
+  double P;
+  int max_steps;
+  std::array<uint32_t, pg::kDirectionGroups> seeds;
+  double group_density;
+  pg::NodeList nodes;
+};
+
+PassQuery random_pass_query(Pcg32 &rng, int t) {
+  PassQuery q;
+  const double density = std::exp(std::log(1e3) + rng.next_double() * std::log(1e4));
+  const double particles = std::exp(std::log(0.1) + rng.next_double() * std::log(5e4));
+  const double aspect = std::exp(rng.next_double() * std::log(64.0));
+  q.f = random_footprint(rng, particles / density, aspect);
+  q.P = t % 16 == 0 ? 1.0 : std::exp(std::log(1e-4) + rng.next_double() * std::log(1e4));
+  q.max_steps = t % 4 == 0 ? 1 + static_cast<int>(rng.next_u32() % 64u) : 1 << 30;
+  q.seeds = {rng.next_u32(), rng.next_u32(), rng.next_u32(), rng.next_u32()};
+  q.group_density = density / pg::kDirectionGroups;
+  q.nodes = pg::footprint_nodes(q.f, q.group_density);
+  return q;
+}
+
 // The walk's pair passes (count_four_groups_in_passes, issue 10's ninth speed
 // session) give the same count, steps and completeness as the node-by-node
 // loop, over footprints of 0.1..5000 particles, aspects 1..64 (rasterised
@@ -938,16 +963,12 @@ TEST(GlintParticles, PairPassesMatchTheNodeLoop) {
   Pcg32 rng(29);
   int compared = 0, lit = 0, capped = 0, big = 0, control_differs = 0, in_passes = 0;
   for (int t = 0; t < 40000; ++t) {
-    const double density = std::exp(std::log(1e3) + rng.next_double() * std::log(1e4));
-    const double particles = std::exp(std::log(0.1) + rng.next_double() * std::log(5e4));
-    const double aspect = std::exp(rng.next_double() * std::log(64.0));
-    const pg::Footprint f = random_footprint(rng, particles / density, aspect);
-    const double P = t % 16 == 0 ? 1.0 : std::exp(std::log(1e-4) + rng.next_double() * std::log(1e4));
-    const int max_steps = t % 4 == 0 ? 1 + static_cast<int>(rng.next_u32() % 64u) : 1 << 30;
-    const std::array<uint32_t, pg::kDirectionGroups> seeds = {rng.next_u32(), rng.next_u32(), rng.next_u32(),
-                                                              rng.next_u32()};
-    const double group_density = density / pg::kDirectionGroups;
-    const pg::NodeList nodes = pg::footprint_nodes(f, group_density);
+    const PassQuery q = random_pass_query(rng, t);
+    const pg::Footprint &f = q.f;
+    const double P = q.P, group_density = q.group_density;
+    const int max_steps = q.max_steps;
+    const std::array<uint32_t, pg::kDirectionGroups> &seeds = q.seeds;
+    const pg::NodeList &nodes = q.nodes;
     const auto passes = pg::count_reflecting_particles(f, nodes, group_density, seeds, P, max_steps);
     const auto loop = pg::count_reflecting_particles(f, nodes, group_density, seeds, P, max_steps,
                                                      pg::NoParticleVisitor{}, true);
@@ -996,16 +1017,12 @@ TEST(GlintParticles, GroupPassAvx2MatchesSse2) {
   Pcg32 rng(31);
   int compared = 0, odd = 0, with_pairs = 0, all_pass = 0, control_differs = 0, control_queries = 0, lit = 0;
   for (int t = 0; t < 20000; ++t) {
-    const double density = std::exp(std::log(1e3) + rng.next_double() * std::log(1e4));
-    const double particles = std::exp(std::log(0.1) + rng.next_double() * std::log(5e4));
-    const double aspect = std::exp(rng.next_double() * std::log(64.0));
-    const pg::Footprint f = random_footprint(rng, particles / density, aspect);
-    const double P = t % 16 == 0 ? 1.0 : std::exp(std::log(1e-4) + rng.next_double() * std::log(1e4));
-    const int max_steps = t % 4 == 0 ? 1 + static_cast<int>(rng.next_u32() % 64u) : 1 << 30;
-    const std::array<uint32_t, pg::kDirectionGroups> seeds = {rng.next_u32(), rng.next_u32(), rng.next_u32(),
-                                                              rng.next_u32()};
-    const double group_density = density / pg::kDirectionGroups;
-    const pg::NodeList nodes = pg::footprint_nodes(f, group_density);
+    const PassQuery q = random_pass_query(rng, t);
+    const pg::Footprint &f = q.f;
+    const double P = q.P, group_density = q.group_density;
+    const int max_steps = q.max_steps;
+    const std::array<uint32_t, pg::kDirectionGroups> &seeds = q.seeds;
+    const pg::NodeList &nodes = q.nodes;
     const pg::FootprintFrame frame(f, nodes.size);
     const double lambda = std::min(group_density * nodes.size * nodes.size, 4.0e18) * std::min(P, 1.0);
     const pg::GroupReject reject(static_cast<uint64_t>(std::min(lambda, 1.0) * 4294967296.0) + 1u);
