@@ -91,25 +91,20 @@ def main():
     for f in rows:
         extra = f" {incl[f] / per:10.1f}" if per else ""
         print(f"{incl[f]:14,d} {self_ir[f]:14,d} {called[f]:10,d}{extra}  {f[:160]}")
-    if args.callees:
-        target = next((f for f in sorted(fns | set(self_ir), key=lambda f: -incl[f]) if re.search(args.callees, f)),
-                      None)
-        if target is None:
-            sys.exit("no function matches --callees")
-        print(f"\ncallees of {target[:160]} (inclusive {incl[target]:,d}, self {self_ir[target]:,d}):")
-        out = [(b, calls_ir[(a, b)], calls_n[(a, b)]) for (a, b) in calls_ir if a == target]
-        for b, ir, n in sorted(out, key=lambda x: -x[1]):
-            print(f"{ir:14,d} {n:10,d}  {b[:160]}")
 
-    if args.callers:
-        target = next((f for f in sorted(set(self_ir) | set(incl), key=lambda f: -incl[f])
-                       if re.search(args.callers, f)), None)
+    def neighbours(pattern, pool, side, title):  # the calls into (side 1) or out of (side 0) the best match
+        target = next((f for f in sorted(pool, key=lambda f: -incl[f]) if re.search(pattern, f)), None)
         if target is None:
-            sys.exit("no function matches --callers")
-        print(f"\ncallers of {target[:160]} (inclusive {incl[target]:,d}, self {self_ir[target]:,d}):")
-        out = [(a, calls_ir[(a, b)], calls_n[(a, b)]) for (a, b) in calls_ir if b == target]
-        for a, ir, n in sorted(out, key=lambda x: -x[1]):
-            print(f"{ir:14,d} {n:10,d}  {a[:160]}")
+            sys.exit(f"no function matches --{title}")
+        print(f"\n{title} of {target[:160]} (inclusive {incl[target]:,d}, self {self_ir[target]:,d}):")
+        out = [(pair[1 - side], calls_ir[pair], calls_n[pair]) for pair in calls_ir if pair[side] == target]
+        for other, ir, n in sorted(out, key=lambda x: -x[1]):
+            print(f"{ir:14,d} {n:10,d}  {other[:160]}")
+
+    if args.callees:
+        neighbours(args.callees, fns | set(self_ir), 0, "callees")
+    if args.callers:
+        neighbours(args.callers, set(self_ir) | set(incl), 1, "callers")
 
 
 if __name__ == "__main__":

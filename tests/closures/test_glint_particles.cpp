@@ -963,12 +963,7 @@ TEST(GlintParticles, PairPassesMatchTheNodeLoop) {
   Pcg32 rng(29);
   int compared = 0, lit = 0, capped = 0, big = 0, control_differs = 0, in_passes = 0;
   for (int t = 0; t < 40000; ++t) {
-    const PassQuery q = random_pass_query(rng, t);
-    const pg::Footprint &f = q.f;
-    const double P = q.P, group_density = q.group_density;
-    const int max_steps = q.max_steps;
-    const std::array<uint32_t, pg::kDirectionGroups> &seeds = q.seeds;
-    const pg::NodeList &nodes = q.nodes;
+    const auto &[f, P, max_steps, seeds, group_density, nodes] = random_pass_query(rng, t);
     const auto passes = pg::count_reflecting_particles(f, nodes, group_density, seeds, P, max_steps);
     const auto loop = pg::count_reflecting_particles(f, nodes, group_density, seeds, P, max_steps,
                                                      pg::NoParticleVisitor{}, true);
@@ -1017,12 +1012,7 @@ TEST(GlintParticles, GroupPassAvx2MatchesSse2) {
   Pcg32 rng(31);
   int compared = 0, odd = 0, with_pairs = 0, all_pass = 0, control_differs = 0, control_queries = 0, lit = 0;
   for (int t = 0; t < 20000; ++t) {
-    const PassQuery q = random_pass_query(rng, t);
-    const pg::Footprint &f = q.f;
-    const double P = q.P, group_density = q.group_density;
-    const int max_steps = q.max_steps;
-    const std::array<uint32_t, pg::kDirectionGroups> &seeds = q.seeds;
-    const pg::NodeList &nodes = q.nodes;
+    const auto &[f, P, max_steps, seeds, group_density, nodes] = random_pass_query(rng, t);
     const pg::FootprintFrame frame(f, nodes.size);
     const double lambda = std::min(group_density * nodes.size * nodes.size, 4.0e18) * std::min(P, 1.0);
     const pg::GroupReject reject(static_cast<uint64_t>(std::min(lambda, 1.0) * 4294967296.0) + 1u);
