@@ -1059,6 +1059,17 @@ inline constexpr std::array<PassingGroups, 16> kPassingGroups = [] {
   return t;
 }();
 
+// Appends `node`'s (node, group) pairs passing the quick reject (`mask`, 4 bits) to pc.pair_index as
+// 4 node + g, by kPassingGroups with one 4-byte store, and `node` to `paired` when it has one.
+inline void append_passing_pairs(int node, uint32_t mask, PairPassCounter &pc, uint8_t *paired, int &n_pairs,
+                                 int &n_paired) {
+  const uint32_t bytes = kPassingGroups[mask].bytes + static_cast<uint32_t>(kDirectionGroups * node) * 0x01010101u;
+  std::memcpy(pc.pair_index.data() + n_pairs, &bytes, sizeof(bytes));
+  n_pairs += kPassingGroups[mask].count;
+  paired[static_cast<size_t>(n_paired)] = static_cast<uint8_t>(node);
+  n_paired += mask != 0 ? 1 : 0;
+}
+
 // Pass (2) of count_four_groups_in_passes from node `first` on: every node's
 // four group hashes into pc.node_hash (node_hash[4 node + g]), the (node, group)
 // pairs passing the quick reject appended to pc.pair_index as 4 node + g, and
@@ -1068,7 +1079,6 @@ inline void group_pass_sse2(const NodeList &nodes, int first, const uint32_t *se
                             PairPassCounter &pc, uint8_t *paired, int &n_pairs, int &n_paired) {
   for (int node = first; node < nodes.count; ++node) {
     const auto at = static_cast<size_t>(node);
-    const int pairs_before = n_pairs;
     // The four groups' hashes in the lanes of one SSE2 register (mix_u32x4,
     // the same values as group_hashes): no branch reads them here, unlike
     // the node loop where the lanes measured slower (session 8). Session 17:
@@ -1080,11 +1090,7 @@ inline void group_pass_sse2(const NodeList &nodes, int first, const uint32_t *se
     // add per group.
     const uint32_t mask =
         group_hashes_sse2(nodes.id_hash[at], seeds, reject, pc.node_hash.data() + kDirectionGroups * at);
-    const uint32_t bytes = kPassingGroups[mask].bytes + static_cast<uint32_t>(kDirectionGroups * node) * 0x01010101u;
-    std::memcpy(pc.pair_index.data() + n_pairs, &bytes, sizeof(bytes));
-    n_pairs += kPassingGroups[mask].count;
-    paired[static_cast<size_t>(n_paired)] = static_cast<uint8_t>(node);
-    n_paired += n_pairs != pairs_before ? 1 : 0;
+    append_passing_pairs(node, mask, pc, paired, n_pairs, n_paired);
   }
 }
 
@@ -1122,17 +1128,8 @@ inline void group_pass_sse2(const NodeList &nodes, int first, const uint32_t *se
     _mm256_storeu_si256(reinterpret_cast<__m256i *>(pc.node_hash.data() + kDirectionGroups * at), h);
     const __m256i lt = _mm256_cmpgt_epi32(below, _mm256_xor_si256(h, bias));
     const uint32_t mask = all | static_cast<uint32_t>(_mm256_movemask_ps(_mm256_castsi256_ps(lt)));
-    const uint32_t m0 = mask & 0xfu, m1 = mask >> 4;
-    const uint32_t b0 = kPassingGroups[m0].bytes + static_cast<uint32_t>(kDirectionGroups * node) * 0x01010101u;
-    std::memcpy(pc.pair_index.data() + pairs, &b0, sizeof(b0));
-    pairs += kPassingGroups[m0].count;
-    paired[static_cast<size_t>(with_pair)] = static_cast<uint8_t>(node);
-    with_pair += m0 != 0 ? 1 : 0;
-    const uint32_t b1 = kPassingGroups[m1].bytes + static_cast<uint32_t>(kDirectionGroups * (node + 1)) * 0x01010101u;
-    std::memcpy(pc.pair_index.data() + pairs, &b1, sizeof(b1));
-    pairs += kPassingGroups[m1].count;
-    paired[static_cast<size_t>(with_pair)] = static_cast<uint8_t>(node + 1);
-    with_pair += m1 != 0 ? 1 : 0;
+    append_passing_pairs(node, mask & 0xfu, pc, paired, pairs, with_pair);
+    append_passing_pairs(node + 1, mask >> 4, pc, paired, pairs, with_pair);
   }
   n_pairs = pairs, n_paired = with_pair;
   if (node < nodes.count) group_pass_sse2(nodes, node, seeds, reject, pc, paired, n_pairs, n_paired);
