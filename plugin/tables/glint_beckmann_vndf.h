@@ -8,8 +8,10 @@
 // - erfc(z) = erfcx(z) exp(-z^2) for z in [0, 8], erfcx by a degree-14
 //   polynomial in s = 12 / (4 + z) - 2 (Chebyshev interpolation of
 //   erfcx(4 (1 - t) / t) on t in [1/3, 1], converted to monomials; relative
-//   error < 2e-12; tools/erfcx_fit.py makes the coefficients);
-// - log only for starting guesses (atanh series, relative error < 1e-10).
+//   error < 2e-12; tools/glint_vndf_fit.py makes the coefficients);
+// - log (atanh series, absolute error < 1e-12);
+// - the inverse erf for y~ as x R(w), w = -log(1 - x^2), R by two polynomials
+//   (relative error < 4e-12), no Newton step.
 // The CDF is then the exact one to ~1e-12 relative and the same safeguarded
 // Householder iteration from the same tabulated start (the shared
 // detail::beckmann_slope_guess table) inverts it; the test
@@ -54,7 +56,7 @@ inline double exp_nonpositive(double x) {
   return p * scale;
 }
 
-// log(x) for normal x > 0, relative error < 1e-10 (used for starting guesses only).
+// log(x) for normal x > 0, absolute error < 1e-12 (atanh series to s^13).
 inline double log_positive(double x) {
   std::uint64_t bits;
   std::memcpy(&bits, &x, sizeof bits);
@@ -67,7 +69,8 @@ inline double log_positive(double x) {
     ++e;
   }
   const double s = (m - 1.0) / (m + 1.0), s2 = s * s;  // |s| <= 0.172
-  const double p = 1.0 + s2 * (1.0 / 3 + s2 * (1.0 / 5 + s2 * (1.0 / 7 + s2 * (1.0 / 9 + s2 * (1.0 / 11)))));
+  const double p =
+      1.0 + s2 * (1.0 / 3 + s2 * (1.0 / 5 + s2 * (1.0 / 7 + s2 * (1.0 / 9 + s2 * (1.0 / 11 + s2 * (1.0 / 13))))));
   return e * 0.6931471805599453 + 2.0 * s * p;
 }
 
@@ -75,21 +78,21 @@ inline double log_positive(double x) {
 struct ErfcxPoly {
   double operator()(double z) const {
     const double s = 12.0 / (4.0 + std::min(z, 8.0)) - 2.0;  // t = 4 / (4 + z) in [1/3, 1] -> s in [-1, 1]
-    double p = 2.9988882488396483e-10;
-    p = 5.667095024364244e-08 + s * p;
-    p = 1.1217465025007793e-07 + s * p;
-    p = -1.284086894296858e-06 + s * p;
-    p = -7.265412072972784e-06 + s * p;
-    p = 2.6480678354090517e-06 + s * p;
-    p = 0.000224398387327381 + s * p;
-    p = 0.0015442636822781944 + s * p;
-    p = 0.006685681723471045 + s * p;
-    p = 0.021762554326063124 + s * p;
-    p = 0.056663898965316865 + s * p;
-    p = 0.1213097926813364 + s * p;
-    p = 0.216030080651361 + s * p;
-    p = 0.3203893855581382 + s * p;
-    p = 0.25539567631050586 + s * p;
+    double p = 3.011772757114765e-10;
+    p = 5.6671435307483384e-08 + s * p;
+    p = 1.1217047036401102e-07 + s * p;
+    p = -1.2840884612804379e-06 + s * p;
+    p = -7.265406858062799e-06 + s * p;
+    p = 2.6480697785065862e-06 + s * p;
+    p = 0.00022439838421674333 + s * p;
+    p = 0.0015442636811318522 + s * p;
+    p = 0.006685681724356588 + s * p;
+    p = 0.02176255432638497 + s * p;
+    p = 0.05666389896521743 + s * p;
+    p = 0.12130979268129895 + s * p;
+    p = 0.21603008065136262 + s * p;
+    p = 0.32038938555813934 + s * p;
+    p = 0.25539567631050597 + s * p;
     return p;
   }
 };
@@ -168,56 +171,74 @@ inline double slope_x(double cos_t, double sin_t, double u) {
   return solve_slope(c, target, clamp(x, -8.0, c.x_max), -8.0, c.x_max);
 }
 
-// y with erf(y) = 2 u - 1 for u in [1e-9, 1 - 1e-9]: Giles' single-precision
-// approximation (2010, GPU Computing Gems) as the guess (the guess of
-// microfacet::detail::erfinv_2u_minus_1), then one Halley step on erfc written
-// against 2 u or 2 (1 - u) (no cancellation in either tail).
-template <typename Erfcx = ErfcxPoly>
-inline double erfinv_2u_minus_1(double u) {
-  const double x = 2.0 * u - 1.0;
-  float w = static_cast<float>(-log_positive(4.0 * u * (1.0 - u))), p;
-  if (w < 5.0f) {
-    w = w - 2.5f;
-    p = 2.81022636e-08f;
-    p = 3.43273939e-07f + p * w;
-    p = -3.5233877e-06f + p * w;
-    p = -4.39150654e-06f + p * w;
-    p = 0.00021858087f + p * w;
-    p = -0.00125372503f + p * w;
-    p = -0.00417768164f + p * w;
-    p = 0.246640727f + p * w;
-    p = 1.50140941f + p * w;
-  } else {
-    w = std::sqrt(w) - 3.0f;
-    p = -0.000200214257f;
-    p = 0.000100950558f + p * w;
-    p = 0.00134934322f + p * w;
-    p = -0.00367342844f + p * w;
-    p = 0.00573950773f + p * w;
-    p = -0.0076224613f + p * w;
-    p = 0.00943887047f + p * w;
-    p = 1.00167406f + p * w;
-    p = 2.83297682f + p * w;
+// erfinv(x) / x for x^2 = 1 - exp(-w), w in [0, 20.25] (1 - |x| >= 2e-9): two
+// polynomials (the form of Giles 2010, "Approximating the erfinv function",
+// with coefficients of our own: Chebyshev interpolants from
+// tools/glint_vndf_fit.py erfinv1 / erfinv2), relative error < 4e-12.
+struct ErfinvRatioPoly {
+  double operator()(double w) const {
+    if (w < 6.25) {
+      const double v = w * 0.32 - 1.0;  // w / 3.125 - 1
+      double p = 1.9338714243049787e-07;
+      p = -8.358844805864945e-07 + v * p;
+      p = -1.25117661381784e-07 + v * p;
+      p = 6.623516877452322e-06 + v * p;
+      p = -1.1753793802092654e-05 + v * p;
+      p = -1.4514358540776918e-05 + v * p;
+      p = 9.362306993038521e-05 + v * p;
+      p = -0.00011717167430280075 + v * p;
+      p = -0.00026446908852887296 + v * p;
+      p = 0.001232572323216379 + v * p;
+      p = -0.0012716803967058484 + v * p;
+      p = -0.004137328356113808 + v * p;
+      p = 0.017808360975457283 + v * p;
+      p = -0.022604446447928382 + v * p;
+      p = -0.05892256708626069 + v * p;
+      p = 0.7504943200589564 + v * p;
+      p = 1.653654562683103 + v * p;
+      return p;
+    }
+    const double v = std::sqrt(w) - 3.5;
+    double p = 6.139218991544718e-07;
+    p = -9.436087869592787e-07 + v * p;
+    p = -2.860369537908506e-06 + v * p;
+    p = 1.0482554694135615e-05 + v * p;
+    p = -1.341284976206225e-05 + v * p;
+    p = -6.25568451179485e-06 + v * p;
+    p = 7.844002852076907e-05 + v * p;
+    p = -0.00022478361067517955 + v * p;
+    p = 0.0004307672008091383 + v * p;
+    p = -0.0006799186909956251 + v * p;
+    p = 0.0010934567909945514 + v * p;
+    p = -0.002063169340638075 + v * p;
+    p = 0.0032768662076646457 + v * p;
+    p = 1.0073688125908868 + v * p;
+    p = 3.3354857170835577 + v * p;
+    return p;
   }
-  const double y = static_cast<double>(p) * x;
-  const double e = exp_nonpositive(-y * y);
-  const double tail = Erfcx()(std::fabs(y)) * e;             // erfc(|y|)
-  const double f = u < 0.5 ? tail - 2.0 * u : 2.0 * (1.0 - u) - tail;  // erf(y) - x, no cancellation
-  const double d = f / (1.1283791670955126 * e);            // f / f'
-  return y - d / (1.0 + y * d);                             // Halley: f''/f' = -2y
+};
+
+// y with erf(y) = 2 u - 1 for u in [1e-9, 1 - 1e-9]: y = (2 u - 1) R(w),
+// w = -log(4 u (1 - u)), no Newton step (erfc(|y|) within 1e-10 of 2 min(u, 1 - u)).
+template <typename Ratio = ErfinvRatioPoly>
+inline double erfinv_2u_minus_1(double u) {
+  return (2.0 * u - 1.0) * Ratio()(-log_positive(4.0 * u * (1.0 - u)));
 }
 
 // Beckmann visible normal for wi.z > 0 at (ax, ay): the distribution of
-// microfacet::sample_beckmann_visible_normal (whose pdf is visible_D).
+// microfacet::sample_beckmann_visible_normal (whose pdf is visible_D). Out of
+// line: inlined into glint.cpp's sample it made GCC stop inlining glint_f_cos
+// into f_cos_and_pdf (the unit's growth limits; +2.4 M instructions on the GI
+// scene's evals).
 template <typename Erfcx = ErfcxPoly>
-inline Vec3 sample_visible_normal(const Vec3 &wi, float ax, float ay, float u1, float u2) {
+[[gnu::noinline]] inline Vec3 sample_visible_normal(const Vec3 &wi, float ax, float ay, float u1, float u2) {
   const Vec3 wi_std = normalize(Vec3(ax * wi.x, ay * wi.y, std::max(wi.z, 1e-7f)));
   const double cos_t = wi_std.z;
   const double sin_t = std::sqrt(std::max(0.0, 1.0 - cos_t * cos_t));
   // Normal incidence (rare): the shared sampler's closed form.
   if (sin_t < 1e-6) return glimmer::microfacet::sample_beckmann_visible_normal(wi, ax, ay, u1, u2);
   const double slope_x_std = slope_x<Erfcx>(cos_t, sin_t, static_cast<double>(u1));
-  const double slope_y_std = erfinv_2u_minus_1<Erfcx>(clamp(static_cast<double>(u2), 1e-9, 1.0 - 1e-9));
+  const double slope_y_std = erfinv_2u_minus_1(clamp(static_cast<double>(u2), 1e-9, 1.0 - 1e-9));
   // Rotate from the plane of incidence and unstretch (Heitz & d'Eon 2014 Alg. 2).
   const double len_xy = std::sqrt(double(wi_std.x) * wi_std.x + double(wi_std.y) * wi_std.y);
   const double cos_phi = len_xy > 0.0 ? wi_std.x / len_xy : 1.0;
