@@ -16,6 +16,7 @@
 #include "glimmer/math.h"
 #include "glimmer/microfacet.h"
 #include "glimmer/sampling.h"
+#include "tables/glint_beckmann_vndf.h"
 #include "tables/glint_particles.h"
 #include "tables/glint_tables.h"
 
@@ -364,7 +365,10 @@ inline bool sample_smooth_lobe(mf::Distribution dist, float alpha_wx, float alph
   if (choose_and_rescale(kCosineMixture, u)) {
     wo = sample_cosine_hemisphere(u, rand.y);
   } else {
-    const Vec3 h = mf::sample_visible_normal(dist, wi, alpha_wx, alpha_wy, u, rand.y);
+    // Beckmann by glint's library-free sampler (the same distribution as the shared one, see its header).
+    const Vec3 h = dist == mf::Distribution::Beckmann
+                       ? beckmann_vndf::sample_visible_normal(wi, alpha_wx, alpha_wy, u, rand.y)
+                       : mf::sample_visible_normal(dist, wi, alpha_wx, alpha_wy, u, rand.y);
     wo = mf::reflect_about(wi, h);
   }
   return wo.z > 0.0f;

@@ -1,0 +1,252 @@
+// Glint's own Beckmann visible-normal sampler: the distribution of
+// microfacet::sample_beckmann_visible_normal (Heitz & d'Eon 2014, sec. 4: the
+// stretched visible slope x~ by inverting its exact CDF, y~ ~ N(0, 1/2)), with
+// the transcendental functions of the inversion replaced by library-free
+// double approximations:
+// - exp(x), x <= 0: Cody-Waite reduction by ln 2 and a degree-11 Taylor
+//   polynomial (relative error < 1e-14);
+// - erfc(z) = erfcx(z) exp(-z^2) for z in [0, 8], erfcx by a degree-14
+//   polynomial in s = 12 / (4 + z) - 2 (Chebyshev interpolation of
+//   erfcx(4 (1 - t) / t) on t in [1/3, 1], converted to monomials; relative
+//   error < 2e-12; tools/glint_vndf_fit.py makes the coefficients);
+// - log (atanh series, absolute error < 1e-12);
+// - the inverse erf for y~ as x R(w), w = -log(1 - x^2), R by two polynomials
+//   (relative error < 4e-12), no Newton step.
+// The CDF is then the exact one to ~1e-12 relative and the same safeguarded
+// Householder iteration from the same tabulated start (the shared
+// detail::beckmann_slope_guess table) inverts it; the test
+// GlintBeckmannVndf.SlopeInverseMatchesLongDouble bounds the inverse against a
+// long-double bisection over the whole domain. The shared sampler stays the
+// one the tables are built with; this one only draws glint's samples (the pdf
+// glint reports is the exact visible_D of both).
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+
+#include "glimmer/math.h"
+#include "glimmer/microfacet.h"
+
+namespace glimmer::plugin::glint::beckmann_vndf {
+
+// exp(x) for x <= 0 (x below -700 is read as -700: exp < 1e-304).
+inline double exp_nonpositive(double x) {
+  constexpr double kLog2e = 1.4426950408889634, kRound = 6755399441055744.0;  // 1.5 * 2^52
+  constexpr double kLn2Hi = 6.93147180369123816490e-01, kLn2Lo = 1.90821492927058770002e-10;
+  x = std::max(x, -700.0);
+  const double kd = (x * kLog2e + kRound) - kRound;  // round to nearest
+  const double r = (x - kd * kLn2Hi) - kd * kLn2Lo;  // |r| <= ln 2 / 2
+  double p = 1.0 / 39916800.0;                       // 1 / 11!
+  p = 1.0 / 3628800.0 + r * p;
+  p = 1.0 / 362880.0 + r * p;
+  p = 1.0 / 40320.0 + r * p;
+  p = 1.0 / 5040.0 + r * p;
+  p = 1.0 / 720.0 + r * p;
+  p = 1.0 / 120.0 + r * p;
+  p = 1.0 / 24.0 + r * p;
+  p = 1.0 / 6.0 + r * p;
+  p = 0.5 + r * p;
+  p = 1.0 + r * p;
+  p = 1.0 + r * p;
+  const std::uint64_t bits = static_cast<std::uint64_t>(static_cast<std::int64_t>(kd) + 1023) << 52;
+  double scale;
+  std::memcpy(&scale, &bits, sizeof scale);
+  return p * scale;
+}
+
+// log(x) for normal x > 0, absolute error < 1e-12 (atanh series to s^13).
+inline double log_positive(double x) {
+  std::uint64_t bits;
+  std::memcpy(&bits, &x, sizeof bits);
+  int e = static_cast<int>((bits >> 52) & 0x7ff) - 1023;
+  bits = (bits & 0x000fffffffffffffull) | 0x3ff0000000000000ull;  // mantissa in [1, 2)
+  double m;
+  std::memcpy(&m, &bits, sizeof m);
+  if (m > 1.4142135623730951) {
+    m *= 0.5;
+    ++e;
+  }
+  const double s = (m - 1.0) / (m + 1.0), s2 = s * s;  // |s| <= 0.172
+  const double p =
+      1.0 + s2 * (1.0 / 3 + s2 * (1.0 / 5 + s2 * (1.0 / 7 + s2 * (1.0 / 9 + s2 * (1.0 / 11 + s2 * (1.0 / 13))))));
+  return e * 0.6931471805599453 + 2.0 * s * p;
+}
+
+// erfcx(z) = exp(z^2) erfc(z) for z in [0, 8] (larger z read as 8).
+struct ErfcxPoly {
+  double operator()(double z) const {
+    const double s = 12.0 / (4.0 + std::min(z, 8.0)) - 2.0;  // t = 4 / (4 + z) in [1/3, 1] -> s in [-1, 1]
+    double p = 3.011772757114765e-10;
+    p = 5.6671435307483384e-08 + s * p;
+    p = 1.1217047036401102e-07 + s * p;
+    p = -1.2840884612804379e-06 + s * p;
+    p = -7.265406858062799e-06 + s * p;
+    p = 2.6480697785065862e-06 + s * p;
+    p = 0.00022439838421674333 + s * p;
+    p = 0.0015442636811318522 + s * p;
+    p = 0.006685681724356588 + s * p;
+    p = 0.02176255432638497 + s * p;
+    p = 0.05666389896521743 + s * p;
+    p = 0.12130979268129895 + s * p;
+    p = 0.21603008065136262 + s * p;
+    p = 0.32038938555813934 + s * p;
+    p = 0.25539567631050597 + s * p;
+    return p;
+  }
+};
+
+// The stretched visible-slope CDF of microfacet::detail::BeckmannSlopeCdf,
+// C(x) = cos t erfc(-x) / 2 + sin t exp(-x^2) / (2 sqrt(pi)), x <= x_max = min(cot t, 8),
+// evaluated by the approximations above.
+template <typename Erfcx = ErfcxPoly>
+struct SlopeCdf {
+  static constexpr double kInvSqrtPi = 0.56418958354775628695;
+  double cos_t, sin_t, x_max, total, e_max;
+  SlopeCdf(double c, double s) : cos_t(c), sin_t(s) {
+    x_max = sin_t * 8.0 < cos_t ? 8.0 : cos_t / sin_t;
+    e_max = exp_nonpositive(-x_max * x_max);
+    total = x_max > 6.0 ? cos_t : at(x_max, e_max);
+  }
+  // C(x) given e = exp(-x^2); erfc(-x) from erfc(|x|) = erfcx(|x|) e without cancellation for x <= 0.
+  double at(double x, double e) const {
+    const double tail = Erfcx()(std::fabs(x)) * e;  // erfc(|x|)
+    return 0.5 * (cos_t * (x > 0.0 ? 2.0 - tail : tail) + sin_t * e * kInvSqrtPi);
+  }
+  double upper_tail_guess(double target) const {
+    const double k = sin_t * e_max * kInvSqrtPi;
+    return k > 0.0 ? x_max - std::sqrt(2.0 * std::max(total - target, 0.0) / k) : -8.0;
+  }
+  double lower_tail_guess(double target) const {
+    const double l = log_positive(2.0 * target / kInvSqrtPi);
+    double z = std::sqrt(std::max(-l + log_positive(sin_t + 0.5 * cos_t), 1.0));
+    z = std::sqrt(std::max(-l + log_positive(sin_t + cos_t * (1.0 - 0.5 / (z * z)) / z), 1.0));
+    return -z;
+  }
+};
+
+// Safeguarded Householder iteration of order 3 for C(x) = target from x in
+// [lo, hi] (the method of microfacet::detail::solve_beckmann_slope): stops when
+// |C - target| < 1e-12 min(C(x_max), 1e3 target) (as the shared solver), or after a step below 1e-3
+// whose curvature term is below 1e-2 (the error is then ~step^4); bisects when
+// a step leaves the bracket or the curvature term dominates.
+template <typename Erfcx>
+inline double solve_slope(const SlopeCdf<Erfcx> &c, double target, double x, double lo, double hi) {
+  constexpr double isp = SlopeCdf<Erfcx>::kInvSqrtPi;
+  const double tolerance = 1e-12 * std::min(c.total, 1e3 * target);
+  for (int it = 0; it < 64; ++it) {
+    const double e = exp_nonpositive(-x * x);
+    const double value = c.at(x, e) - target;
+    if (std::fabs(value) < tolerance) break;
+    if (value > 0.0) hi = x; else lo = x;
+    const double g = c.cos_t - x * c.sin_t;                         // f' = g exp(-x^2) / sqrt(pi)
+    const double n = value / (g * e * isp);                         // f / f'
+    const double a2 = (-c.sin_t - 2.0 * x * g) / g;                 // f'' / f'
+    const double a3 = (4.0 * x * (c.sin_t + x * g) - 2.0 * g) / g;  // f''' / f'
+    const double na2 = n * a2;
+    const bool smooth = g > 0.0 && e > 0.0 && std::fabs(na2) < 0.5;
+    double next = smooth ? x - n * (6.0 - 3.0 * na2) / (6.0 - 6.0 * na2 + n * n * a3) : 0.5 * (lo + hi);
+    if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
+    const double step = std::fabs(next - x);
+    x = next;
+    if ((smooth && step < 1e-3 && std::fabs(na2) < 1e-2) || hi - lo < 1e-13) break;
+  }
+  return x;
+}
+
+// The stretched slope x~ of CDF fraction u (clamped to [1e-9, 1 - 1e-9]) at
+// incidence (cos t, sin t), sin t >= 1e-6: the shared sampler's start (table,
+// tail asymptotes), then solve_slope.
+template <typename Erfcx = ErfcxPoly>
+inline double slope_x(double cos_t, double sin_t, double u) {
+  namespace md = glimmer::microfacet::detail;
+  const SlopeCdf<Erfcx> c(cos_t, sin_t);
+  u = clamp(u, 1e-9, 1.0 - 1e-9);
+  const double target = u * c.total, v = 1.0 - std::sqrt(1.0 - u);
+  double x = md::beckmann_slope_guess().guess(sin_t / (sin_t + cos_t), v);
+  if (v < md::BeckmannSlopeGuess::kFirstCell) x = c.lower_tail_guess(target);
+  if (c.x_max < 8.0 && (x >= c.x_max || v > 1.0 - md::BeckmannSlopeGuess::kFirstCell))
+    x = std::max(std::min(x, c.x_max), c.upper_tail_guess(target));
+  return solve_slope(c, target, clamp(x, -8.0, c.x_max), -8.0, c.x_max);
+}
+
+// erfinv(x) / x for x^2 = 1 - exp(-w), w in [0, 20.25] (1 - |x| >= 2e-9): two
+// polynomials (the form of Giles 2010, "Approximating the erfinv function",
+// with coefficients of our own: Chebyshev interpolants from
+// tools/glint_vndf_fit.py erfinv1 / erfinv2), relative error < 4e-12.
+struct ErfinvRatioPoly {
+  double operator()(double w) const {
+    if (w < 6.25) {
+      const double v = w * 0.32 - 1.0;  // w / 3.125 - 1
+      double p = 1.9338714243049787e-07;
+      p = -8.358844805864945e-07 + v * p;
+      p = -1.25117661381784e-07 + v * p;
+      p = 6.623516877452322e-06 + v * p;
+      p = -1.1753793802092654e-05 + v * p;
+      p = -1.4514358540776918e-05 + v * p;
+      p = 9.362306993038521e-05 + v * p;
+      p = -0.00011717167430280075 + v * p;
+      p = -0.00026446908852887296 + v * p;
+      p = 0.001232572323216379 + v * p;
+      p = -0.0012716803967058484 + v * p;
+      p = -0.004137328356113808 + v * p;
+      p = 0.017808360975457283 + v * p;
+      p = -0.022604446447928382 + v * p;
+      p = -0.05892256708626069 + v * p;
+      p = 0.7504943200589564 + v * p;
+      p = 1.653654562683103 + v * p;
+      return p;
+    }
+    const double v = std::sqrt(w) - 3.5;
+    double p = 6.139218991544718e-07;
+    p = -9.436087869592787e-07 + v * p;
+    p = -2.860369537908506e-06 + v * p;
+    p = 1.0482554694135615e-05 + v * p;
+    p = -1.341284976206225e-05 + v * p;
+    p = -6.25568451179485e-06 + v * p;
+    p = 7.844002852076907e-05 + v * p;
+    p = -0.00022478361067517955 + v * p;
+    p = 0.0004307672008091383 + v * p;
+    p = -0.0006799186909956251 + v * p;
+    p = 0.0010934567909945514 + v * p;
+    p = -0.002063169340638075 + v * p;
+    p = 0.0032768662076646457 + v * p;
+    p = 1.0073688125908868 + v * p;
+    p = 3.3354857170835577 + v * p;
+    return p;
+  }
+};
+
+// y with erf(y) = 2 u - 1 for u in [1e-9, 1 - 1e-9]: y = (2 u - 1) R(w),
+// w = -log(4 u (1 - u)), no Newton step (erfc(|y|) within 1e-10 of 2 min(u, 1 - u)).
+template <typename Ratio = ErfinvRatioPoly>
+inline double erfinv_2u_minus_1(double u) {
+  return (2.0 * u - 1.0) * Ratio()(-log_positive(4.0 * u * (1.0 - u)));
+}
+
+// Beckmann visible normal for wi.z > 0 at (ax, ay): the distribution of
+// microfacet::sample_beckmann_visible_normal (whose pdf is visible_D). Out of
+// line: inlined into glint.cpp's sample it made GCC stop inlining glint_f_cos
+// into f_cos_and_pdf (the unit's growth limits; +2.4 M instructions on the GI
+// scene's evals).
+template <typename Erfcx = ErfcxPoly>
+[[gnu::noinline]] inline Vec3 sample_visible_normal(const Vec3 &wi, float ax, float ay, float u1, float u2) {
+  const Vec3 wi_std = normalize(Vec3(ax * wi.x, ay * wi.y, std::max(wi.z, 1e-7f)));
+  const double cos_t = wi_std.z;
+  const double sin_t = std::sqrt(std::max(0.0, 1.0 - cos_t * cos_t));
+  // Normal incidence (rare): the shared sampler's closed form.
+  if (sin_t < 1e-6) return glimmer::microfacet::sample_beckmann_visible_normal(wi, ax, ay, u1, u2);
+  const double slope_x_std = slope_x<Erfcx>(cos_t, sin_t, static_cast<double>(u1));
+  const double slope_y_std = erfinv_2u_minus_1(clamp(static_cast<double>(u2), 1e-9, 1.0 - 1e-9));
+  // Rotate from the plane of incidence and unstretch (Heitz & d'Eon 2014 Alg. 2).
+  const double len_xy = std::sqrt(double(wi_std.x) * wi_std.x + double(wi_std.y) * wi_std.y);
+  const double cos_phi = len_xy > 0.0 ? wi_std.x / len_xy : 1.0;
+  const double sin_phi = len_xy > 0.0 ? wi_std.y / len_xy : 0.0;
+  const double sx = (cos_phi * slope_x_std - sin_phi * slope_y_std) * ax;
+  const double sy = (sin_phi * slope_x_std + cos_phi * slope_y_std) * ay;
+  const double inv_len = 1.0 / std::sqrt(sx * sx + sy * sy + 1.0);
+  return Vec3(static_cast<float>(-sx * inv_len), static_cast<float>(-sy * inv_len), static_cast<float>(inv_len));
+}
+
+}  // namespace glimmer::plugin::glint::beckmann_vndf
