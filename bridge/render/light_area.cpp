@@ -12,6 +12,8 @@ AreaLight::AreaLight(const scene::Light &light, const Spectrum &strength)
       co_(light.co),
       U_(light.axisu * light.sizeu),
       V_(light.axisv * light.sizev),
+      u_length2_(length_squared(U_)),
+      v_length2_(length_squared(V_)),
       area_(length(cross(U_, V_)) * (light.round ? kPi * 0.25f : 1.0f)),
       round_(light.round) {
   // The emitting plane is spanned by axisu/axisv; `dir` only picks its emitting side.

@@ -30,6 +30,7 @@ class AreaLight {
   Spectrum strength_;
   Vec3 co_, dir_;  // centre; emitting normal (unit)
   Vec3 U_, V_;     // full extents along axisu, axisv
+  float u_length2_, v_length2_;  // length_squared(U_), length_squared(V_): inside() per ray, made once
   float area_;
   bool round_;
   float tan_spread_ = 0.0f, normalize_spread_ = 1.0f;  // Cycles 3.4 spread (scene/light.cpp)
@@ -46,7 +47,7 @@ inline float AreaLight::spread_attenuation(float cos_to_normal) const {
 }
 
 inline bool AreaLight::inside(const Vec3 &q) const {
-  const float su = dot(q, U_) / length_squared(U_), sv = dot(q, V_) / length_squared(V_);
+  const float su = dot(q, U_) / u_length2_, sv = dot(q, V_) / v_length2_;
   return round_ ? (4.0f * (su * su + sv * sv) <= 1.0f) : (std::fabs(su) <= 0.5f && std::fabs(sv) <= 0.5f);
 }
 

@@ -154,7 +154,8 @@ struct Renderer::Impl {
   }
   void fill_ray_hit(const SurfaceHit &h, const GlimmerRay &ray, GlimmerRayHit &out) const {
     GlimmerRayHit *hit = &out;
-    const scene::SurfacePoint s = scene.meshes[h.mesh].surface_at(h.prim, h.u, h.v);
+    // surface_at's P, N, Ng and uv, the same bits without what only shading reads (Mesh::hit_geometry).
+    const scene::HitGeometry s = scene.meshes[h.mesh].hit_geometry(h.prim, h.u, h.v);
     // As at a shading point (closure_abi.h): N and Ng face the ray's origin.
     hit->backfacing = dot(s.Ng, Vec3(ray.direction)) > 0.0f ? 1u : 0u;
     hit->t = h.t;

@@ -11,6 +11,9 @@
 #include <filesystem>
 #include <mutex>
 #include <thread>
+#include <type_traits>
+
+#include <xmmintrin.h>
 
 #include "core/dielectric_lobe.h"
 #include "core/microfacet_lobe_params.h"
@@ -348,8 +351,9 @@ namespace {
 // Continuous node coordinate of the leaving side at (theta_i, ior) (inverse of sine_at).
 float sine_coordinate(float theta, float ior) {
   const int half = (TransmissionSgTable::kSineNodes - 1) / 2;
-  const double x = ior * std::sin(double(theta)), tc = critical_angle(ior);
+  const double x = ior * std::sin(double(theta));
   if (x <= 1.0) return float((1.0 - std::sqrt(std::max(0.0, 1.0 - x))) * half);
+  const double tc = critical_angle(ior);  // only past the onset of TIR (no asin before it)
   const double t = inverse_onset_to_grazing(std::clamp((theta - tc) / (theta_max() - tc), 0.0, 1.0));
   return float((1.0 + t) * half);
 }
@@ -407,6 +411,9 @@ TransmissionSgTable::TransmissionSgTable(unsigned threads) : TransmissionSgTable
 void TransmissionSgTable::derive_interpolated() {
   log_energy_.resize(nodes_.size());
   for (size_t i = 0; i < nodes_.size(); ++i) log_energy_[i] = std::log(std::max(nodes_[i].energy, 0.0f) + kEnergyFloor);
+  lookup_nodes_.resize(nodes_.size());
+  for (size_t i = 0; i < nodes_.size(); ++i)
+    lookup_nodes_[i] = {log_energy_[i], nodes_[i].log_sharpness, nodes_[i].axis_offset, 0.0f};
 }
 
 bool TransmissionSgTable::operator==(const TransmissionSgTable &o) const {
@@ -618,6 +625,60 @@ bool TransmissionSgTable::lookup(float cos_theta_i, float eta, float roughness, 
   const Taps a = catmull_rom_taps(first_coordinate(theta, side, ior), first_nodes(side), true),
              b = catmull_rom_taps(roughness_coordinate(roughness), kRoughnessNodes, false),
              c = catmull_rom_taps(ior_coordinate(ior), kIorNodes, false);
+  // The 64 taps, in x, y, z order, each summed into (ln(E + floor), ln kappa, axis offset) as one 4-lane product
+  // and sum (lookup_nodes_): lane by lane the same float operations in the same order as the scalar sums
+  //   energy += w * ln(E + floor), log_sharpness += w * ln kappa, axis_offset += (w * parity) * offset,
+  //   w = (a.weight[x] * b.weight[y]) * c.weight[z]
+  // (packed single-precision multiplies and adds round as the scalar ones: the same bits,
+  // FrostedSgTable.LookupIsTheScalarTapSumBitForBit).
+  // Per x, the IOR weights with the axis lane's parity folded in: (w_xy c_z) parity = w_xy (c_z parity) exactly
+  // (parity is +-1). The IOR taps are 4 consecutive nodes except at the grid's ends (clamped indices): then fixed
+  // offsets from the row.
+  size_t b_offset[4];
+  for (int y = 0; y < 4; ++y) b_offset[y] = size_t(b.index[y]) * kIorNodes + size_t(c.index[0]);
+  const auto sum_taps = [&](auto contiguous) {
+    size_t c_offset[4];
+    for (int z = 0; z < 4; ++z) c_offset[z] = size_t(c.index[z] - c.index[0]);
+    __m128 acc = _mm_setzero_ps();
+    for (int x = 0; x < 4; ++x) {
+      const float p = a.parity[x];
+      const __m128 cw[4] = {_mm_setr_ps(c.weight[0], c.weight[0], c.weight[0] * p, c.weight[0]),
+                            _mm_setr_ps(c.weight[1], c.weight[1], c.weight[1] * p, c.weight[1]),
+                            _mm_setr_ps(c.weight[2], c.weight[2], c.weight[2] * p, c.weight[2]),
+                            _mm_setr_ps(c.weight[3], c.weight[3], c.weight[3] * p, c.weight[3])};
+      const std::array<float, 4> *plane = &lookup_nodes_[index(side, a.index[x], 0, 0)];
+      for (int y = 0; y < 4; ++y) {
+        const __m128 wxy = _mm_set1_ps(a.weight[x] * b.weight[y]);
+        const std::array<float, 4> *row = plane + b_offset[y];
+        for (int z = 0; z < 4; ++z) {
+          const size_t at = decltype(contiguous)::value ? size_t(z) : c_offset[z];
+          acc = _mm_add_ps(acc, _mm_mul_ps(_mm_mul_ps(wxy, cw[z]), _mm_loadu_ps(row[at].data())));
+        }
+      }
+    }
+    return acc;
+  };
+  const bool c_contiguous = c.index[1] == c.index[0] + 1 && c.index[2] == c.index[0] + 2 && c.index[3] == c.index[0] + 3;
+  const __m128 acc = c_contiguous ? sum_taps(std::true_type{}) : sum_taps(std::false_type{});
+  alignas(16) float sum[4];
+  _mm_store_ps(sum, acc);
+  TransmissionLobe lobe;
+  lobe.energy = std::max(std::exp(sum[0]) - kEnergyFloor, 0.0f);  // interpolated ln(E + floor) -> E
+  lobe.log_sharpness = sum[1];
+  lobe.axis_offset = sum[2];
+  out = lobe;
+  return true;
+}
+
+bool TransmissionSgTable::lookup_scalar(float cos_theta_i, float eta, float roughness, TransmissionLobe &out) const {
+  const float ior = eta >= 1.0f ? eta : 1.0f / eta;
+  const int side = eta >= 1.0f ? 0 : 1;
+  const float theta = std::acos(std::clamp(cos_theta_i, 0.0f, 1.0f));
+  if (!in_grid(ior, roughness)) return false;
+  if (!(theta <= float(kThetaMaxDeg * kDegToRad))) return false;
+  const Taps a = catmull_rom_taps(first_coordinate(theta, side, ior), first_nodes(side), true),
+             b = catmull_rom_taps(roughness_coordinate(roughness), kRoughnessNodes, false),
+             c = catmull_rom_taps(ior_coordinate(ior), kIorNodes, false);
   TransmissionLobe acc;
   for (int x = 0; x < 4; ++x)
     for (int y = 0; y < 4; ++y)
@@ -642,17 +703,40 @@ void TransmissionSgTable::lookup_energies(const float *cos_theta_i, int n, float
   if (!in_grid(ior, roughness)) return;
   const Taps b = catmull_rom_taps(roughness_coordinate(roughness), kRoughnessNodes, false),
              c = catmull_rom_taps(ior_coordinate(ior), kIorNodes, false);
+  const __m128 c_weight = _mm_setr_ps(c.weight[0], c.weight[1], c.weight[2], c.weight[3]);
+  // The IOR taps are 4 consecutive nodes except at the grid's ends (clamped indices).
+  const bool c_contiguous =
+      c.index[1] == c.index[0] + 1 && c.index[2] == c.index[0] + 2 && c.index[3] == c.index[0] + 3;
+  size_t b_offset[4];  // from a first-coordinate plane to the row's first IOR tap
+  for (int y = 0; y < 4; ++y) b_offset[y] = size_t(b.index[y]) * kIorNodes + size_t(c.index[0]);
+  size_t c_offset[4];
+  for (int z = 0; z < 4; ++z) c_offset[z] = size_t(c.index[z] - c.index[0]);
+  // One incidence's sum: the same sums in the same order as lookup()'s energy lane,
+  // e += ((a.weight[x] * b.weight[y]) * c.weight[z]) x ln(E + floor) tap by tap; a row's 4 products made as one
+  // 4-lane product (the same roundings), then added in z order.
+  const auto energy_sum = [&](const Taps &a, auto contiguous) {
+    float e = 0.0f;
+    for (int x = 0; x < 4; ++x) {
+      const float *plane = &log_energy_[index(side, a.index[x], 0, 0)];
+      for (int y = 0; y < 4; ++y) {
+        const float *row = plane + b_offset[y];
+        const __m128 values = decltype(contiguous)::value
+                                  ? _mm_loadu_ps(row)
+                                  : _mm_setr_ps(row[c_offset[0]], row[c_offset[1]], row[c_offset[2]], row[c_offset[3]]);
+        const __m128 p = _mm_mul_ps(_mm_mul_ps(_mm_set1_ps(a.weight[x] * b.weight[y]), c_weight), values);
+        e += _mm_cvtss_f32(p);
+        e += _mm_cvtss_f32(_mm_shuffle_ps(p, p, _MM_SHUFFLE(1, 1, 1, 1)));
+        e += _mm_cvtss_f32(_mm_movehl_ps(p, p));
+        e += _mm_cvtss_f32(_mm_shuffle_ps(p, p, _MM_SHUFFLE(3, 3, 3, 3)));
+      }
+    }
+    return e;
+  };
   for (int i = 0; i < n; ++i) {
     const float theta = std::acos(std::clamp(cos_theta_i[i], 0.0f, 1.0f));
     if (!(theta <= float(kThetaMaxDeg * kDegToRad))) continue;
     const Taps a = catmull_rom_taps(first_coordinate(theta, side, ior), first_nodes(side), true);
-    float e = 0.0f;  // the same sums in the same order as lookup()'s acc.energy
-    for (int x = 0; x < 4; ++x)
-      for (int y = 0; y < 4; ++y)
-        for (int z = 0; z < 4; ++z) {
-          const float w = a.weight[x] * b.weight[y] * c.weight[z];
-          e += w * log_energy_[index(side, a.index[x], b.index[y], c.index[z])];
-        }
+    const float e = c_contiguous ? energy_sum(a, std::true_type{}) : energy_sum(a, std::false_type{});
     energy[i] = std::max(std::exp(e) - kEnergyFloor, 0.0f);
     valid[i] = true;
   }

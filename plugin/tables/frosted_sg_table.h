@@ -148,6 +148,9 @@ class TransmissionSgTable {
   // roughness): the roughness and IOR taps once, the energy's 64 nodes per incidence (the sg exit energies of a
   // segment's 4 bounding rays). valid[i] false where lookup() would return false.
   static constexpr int kMaxEnergyBatch = 8;
+  // lookup() by three scalar sums over the 64 taps (lookup() before the twenty-first session, which makes them one
+  // 4-lane sum): the tests' reference for lookup()'s bits.
+  bool lookup_scalar(float cos_theta_i, float eta, float roughness, TransmissionLobe &out) const;
   void lookup_energies(const float *cos_theta_i, int n, float eta, float roughness, float *energy, bool *valid) const;
 
   // Node coordinates (for the tests' off-grid points).
@@ -185,6 +188,9 @@ class TransmissionSgTable {
   // of the smallest lobe energy the checks count, 1e-3) keeps nodes without a lobe (E = 0) finite.
   static constexpr float kEnergyFloor = 1e-4f;
   std::vector<float> log_energy_;
+  // lookup()'s three interpolated quantities of each node side by side, (ln(E + floor), ln kappa, axis offset, 0):
+  // one 4-lane product and sum per tap (derived with log_energy_).
+  std::vector<std::array<float, 4>> lookup_nodes_;
   void derive_interpolated();
   bool loaded_from_cache_ = false;
   struct Empty {};

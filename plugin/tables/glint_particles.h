@@ -260,6 +260,51 @@ struct NodeList {
     row_valid_ = false;
     return true;
   }
+#if GLIMMER_GLINT_WALK_AVX2
+  // add_row with the row key given (node_row_key(level, nj), computed by the
+  // caller) and each chunk's i and j in one 256-bit store each (session 21:
+  // nodes_at_level_start_avx2's box rows). The same entries as add_row.
+  [[gnu::target("avx2"), gnu::always_inline]] bool add_row_keyed_avx2(int64_t i0, int64_t i1, int64_t nj, uint32_t key) {
+    const int64_t n = i1 - i0 + 1;
+    if (n > kMaxNodes - count) return false;
+    static_assert(kRowChunk == 4);
+    constexpr uint32_t W = kNodeKeyStep;
+    __m128i ids = _mm_add_epi32(_mm_set1_epi32(static_cast<int>(key + static_cast<uint32_t>(i0) * W)),
+                                _mm_setr_epi32(0, static_cast<int>(W), static_cast<int>(2u * W), static_cast<int>(3u * W)));
+    __m256i iv = _mm256_add_epi64(_mm256_set1_epi64x(i0), _mm256_setr_epi64x(0, 1, 2, 3));
+    const __m256i jv = _mm256_set1_epi64x(nj), four = _mm256_set1_epi64x(4);
+    const __m128i ids_step = _mm_set1_epi32(static_cast<int>(4u * W));
+    for (int64_t b = 0; b < n; b += kRowChunk) {
+      const auto at = static_cast<size_t>(count + b);
+      _mm_storeu_si128(reinterpret_cast<__m128i *>(id_hash.data() + at), ids);
+      _mm256_storeu_si256(reinterpret_cast<__m256i *>(i.data() + at), iv);
+      _mm256_storeu_si256(reinterpret_cast<__m256i *>(j.data() + at), jv);
+      ids = _mm_add_epi32(ids, ids_step), iv = _mm256_add_epi64(iv, four);
+    }
+    count += static_cast<int>(n);
+    row_valid_ = false;
+    return true;
+  }
+  // Nodes i0 .. i0 + n - 1 of row nj with the row key given, n >= 1, and room
+  // checked by the caller (nodes_at_level_rows_avx2; same entries as add_row).
+  [[gnu::target("avx2"), gnu::always_inline]] void put_row_avx2(int64_t i0, int64_t n, int64_t nj, uint32_t key) {
+    constexpr uint32_t W = kNodeKeyStep;
+    __m128i ids = _mm_add_epi32(_mm_set1_epi32(static_cast<int>(key + static_cast<uint32_t>(i0) * W)),
+                                _mm_setr_epi32(0, static_cast<int>(W), static_cast<int>(2u * W), static_cast<int>(3u * W)));
+    __m256i iv = _mm256_add_epi64(_mm256_set1_epi64x(i0), _mm256_setr_epi64x(0, 1, 2, 3));
+    const __m256i jv = _mm256_set1_epi64x(nj);
+    auto at = static_cast<size_t>(count);
+    for (int64_t b = 0; b < n; b += kRowChunk, at += kRowChunk) {
+      _mm_storeu_si128(reinterpret_cast<__m128i *>(id_hash.data() + at), ids);
+      _mm256_storeu_si256(reinterpret_cast<__m256i *>(i.data() + at), iv);
+      _mm256_storeu_si256(reinterpret_cast<__m256i *>(j.data() + at), jv);
+      ids = _mm_add_epi32(ids, _mm_set1_epi32(static_cast<int>(4u * W)));
+      iv = _mm256_add_epi64(iv, _mm256_set1_epi64x(4));
+    }
+    count += static_cast<int>(n);
+  }
+  void forget_row_key() { row_valid_ = false; }
+#endif
   bool add(int64_t ni, int64_t nj) {
     if (count == kMaxNodes) return false;
     i[count] = ni;
@@ -477,7 +522,8 @@ struct RowRasteriser {
 };
 #endif
 // Rows j0..j1 of `list` (level and size set, count 0); false beyond kMaxNodes.
-inline bool nodes_at_level_rows(const Footprint &f, int64_t j0, int64_t j1, NodeList &list) {
+// The SSE2 form (session 19); nodes_at_level_rows chooses it or the AVX2 form.
+[[gnu::noinline]] inline bool nodes_at_level_rows_sse2(const Footprint &f, int64_t j0, int64_t j1, NodeList &list) {
 #if defined(__SSE2__)
   const double inv = power_of_two(list.level);
   const RowRasteriser raster{FootprintCorners(f)};
@@ -499,6 +545,166 @@ inline bool nodes_at_level_rows(const Footprint &f, int64_t j0, int64_t j1, Node
 #else
   return nodes_at_level_rows_scalar(f, j0, j1, list);
 #endif
+}
+#if GLIMMER_GLINT_WALK_AVX2
+// node_row_key of four rows (32-bit lanes; hash_u32's variable shift by
+// VPSRLVD): the same words as the scalar hash.
+[[gnu::target("avx2"), gnu::always_inline]] inline __m128i hash_u32x4_avx2(__m128i v) {
+  const __m128i state = _mm_add_epi32(_mm_mullo_epi32(v, _mm_set1_epi32(747796405)),
+                                      _mm_set1_epi32(static_cast<int>(2891336453u)));
+  const __m128i shift = _mm_add_epi32(_mm_srli_epi32(state, 28), _mm_set1_epi32(4));
+  const __m128i word = _mm_mullo_epi32(_mm_xor_si128(_mm_srlv_epi32(state, shift), state), _mm_set1_epi32(277803737));
+  return _mm_xor_si128(_mm_srli_epi32(word, 22), word);
+}
+[[gnu::target("avx2"), gnu::always_inline]] inline __m128i node_row_keys_avx2(int level, __m128i j) {
+  const __m128i seed = hash_u32x4_avx2(_mm_xor_si128(j, _mm_set1_epi32(0x5851f42d)));
+  // hash_combine(seed, level): seed ^ (level + 0x9e3779b9 + (seed << 6) + (seed >> 2))
+  const __m128i v = _mm_set1_epi32(static_cast<int>(static_cast<uint32_t>(level) + 0x9e3779b9u));
+  const __m128i mixed = _mm_add_epi32(_mm_add_epi32(v, _mm_slli_epi32(seed, 6)), _mm_srli_epi32(seed, 2));
+  return hash_u32x4_avx2(_mm_xor_si128(seed, mixed));
+}
+// The AVX2 forms' fallbacks (rare), out of line: glint.cpp now reaches GCC's
+// inline-unit-growth limit (since session 21 glint_f_cos is no longer inlined
+// into f_cos_and_pdf, ~+2.5 M in the GI scene), and inlined copies of these
+// would use more of it.
+[[gnu::noinline, gnu::cold]] inline bool nodes_at_level_rows_sse2_cold(const Footprint &f, int64_t j0, int64_t j1,
+                                                                       NodeList &list) {
+  return nodes_at_level_rows_sse2(f, j0, j1, list);
+}
+[[gnu::noinline, gnu::cold]] inline NodeRows nodes_at_level_start_cold(const Footprint &f, int level, NodeList &list) {
+  return nodes_at_level_start(f, level, list);
+}
+// One edge's crossings of four row borders yv into the borders' lo / hi (the SSE2 form's expressions).
+[[gnu::target("avx2"), gnu::always_inline]] inline void raster_edge_avx2(__m256d yv, __m256d ax, __m256d ay, __m256d by,
+                                                                        __m256d dx, __m256d dy, __m256d &lo,
+                                                                        __m256d &hi) {
+  const __m256d t = _mm256_sub_pd(yv, ay);
+  const __m256d xc = _mm256_add_pd(ax, _mm256_div_pd(_mm256_mul_pd(dx, t), dy));
+  const __m256d no_cross = _mm256_cmp_pd(_mm256_mul_pd(t, _mm256_sub_pd(yv, by)), _mm256_setzero_pd(), _CMP_NLT_UQ);
+  const __m256d masked = _mm256_or_pd(xc, no_cross);  // NaN where the edge does not cross
+  lo = _mm256_min_pd(masked, lo), hi = _mm256_max_pd(masked, hi);
+}
+// One corner (cx, cy) into four bands y0 <= y <= y1's lo / hi where it lies in the band.
+[[gnu::target("avx2"), gnu::always_inline]] inline void raster_corner_avx2(__m256d y0, __m256d y1, __m256d cx, __m256d cy,
+                                                                          __m256d &lo, __m256d &hi) {
+  const __m256d out = _mm256_or_pd(_mm256_cmp_pd(cy, y0, _CMP_NGE_UQ), _mm256_cmp_pd(cy, y1, _CMP_NLE_UQ));
+  const __m256d masked = _mm256_or_pd(cx, out);  // NaN where the corner is outside the band
+  lo = _mm256_min_pd(masked, lo), hi = _mm256_max_pd(masked, hi);
+}
+// The rasteriser four rows at a time (issue 10, session 21): the row borders
+// y_k = (j0 + k) s, k = 0..rows, in the lanes of 256-bit registers, each
+// edge's crossings of four borders by one set of the SSE2 form's operations
+// (t = y - ay; x = ax + (dx t) / dy; no crossing iff !(t (y - by) < 0), as a
+// NaN lane), then each band's extent from its two borders and the corners
+// (a corner outside y_r <= y <= y_(r+1) a NaN lane), the floors by VROUNDPD
+// and the row keys four at a time. MINPD / MAXPD with the masked value first
+// skip the NaN lanes as the SSE2 form does, so every band's extent is the
+// min / max of the same set of doubles (up to the sign of a zero, which the
+// floor ignores): the same nodes in the same order
+// (GlintParticles.RowRasteriserAvx2MatchesSse2). The SSE2 form's borders are
+// j s and j s + s, the same doubles as (j0 + k) s while |j| < 2^52 (integers
+// below 2^53 times a power of two); beyond that, and where a floor leaves
+// +-2^51, the SSE2 form lists the rows.
+[[gnu::target("avx2")]] inline bool nodes_at_level_rows_avx2(const Footprint &f, int64_t j0, int64_t j1,
+                                                             NodeList &list) {
+  constexpr double kExact = 2251799813685248.0;  // 2^51
+  const int64_t rows = j1 - j0 + 1;               // 1..kMaxNodes (nodes_at_level_start)
+  if (!(j0 > -(int64_t{1} << 52) && j1 < (int64_t{1} << 52)) || rows > kMaxNodes || rows < 1)
+    return nodes_at_level_rows_sse2_cold(f, j0, j1, list);
+  // The corners (FootprintCorners: x_k = (cx +- ax / 2) +- bx / 2, the same
+  // doubles: a - b is a + (-b)) in one register, and each edge (k, k + 1)'s
+  // start, end and differences broadcast from it.
+  const __m256d sa = _mm256_setr_pd(-1.0, 1.0, 1.0, -1.0), sb = _mm256_setr_pd(-1.0, -1.0, 1.0, 1.0);
+  const __m256d X = _mm256_add_pd(_mm256_add_pd(_mm256_set1_pd(f.cx), _mm256_mul_pd(sa, _mm256_set1_pd(0.5 * f.ax))),
+                                  _mm256_mul_pd(sb, _mm256_set1_pd(0.5 * f.bx)));
+  const __m256d Y = _mm256_add_pd(_mm256_add_pd(_mm256_set1_pd(f.cy), _mm256_mul_pd(sa, _mm256_set1_pd(0.5 * f.ay))),
+                                  _mm256_mul_pd(sb, _mm256_set1_pd(0.5 * f.by)));
+  const __m256d Xn = _mm256_permute4x64_pd(X, _MM_SHUFFLE(0, 3, 2, 1)), Yn = _mm256_permute4x64_pd(Y, _MM_SHUFFLE(0, 3, 2, 1));
+  const __m256d DX = _mm256_sub_pd(Xn, X), DY = _mm256_sub_pd(Yn, Y);
+  const double size = list.size, inv = power_of_two(list.level);
+  const __m256d sizev = _mm256_set1_pd(size), lane = _mm256_setr_pd(0.0, 1.0, 2.0, 3.0);
+  const __m256d j0v = _mm256_set1_pd(static_cast<double>(j0));
+  // Borders 0..rows in groups of four.
+  alignas(32) double y[kMaxNodes + 8], lo[kMaxNodes + 8], hi[kMaxNodes + 8];
+  const __m256d zero = _mm256_setzero_pd();
+  int64_t k = 0;
+  for (; k <= rows; k += 4) {
+    const __m256d yv = _mm256_mul_pd(_mm256_add_pd(j0v, _mm256_add_pd(_mm256_set1_pd(static_cast<double>(k)), lane)),
+                                     sizev);
+    __m256d lov = _mm256_set1_pd(1e300), hiv = _mm256_set1_pd(-1e300);
+#define GLIMMER_GLINT_EDGE(e)                                                                                      \
+  raster_edge_avx2(yv, _mm256_permute4x64_pd(X, e), _mm256_permute4x64_pd(Y, e), _mm256_permute4x64_pd(Yn, e),      \
+                   _mm256_permute4x64_pd(DX, e), _mm256_permute4x64_pd(DY, e), lov, hiv)
+    GLIMMER_GLINT_EDGE(0x00);
+    GLIMMER_GLINT_EDGE(0x55);
+    GLIMMER_GLINT_EDGE(0xaa);
+    GLIMMER_GLINT_EDGE(0xff);
+#undef GLIMMER_GLINT_EDGE
+    _mm256_store_pd(y + k, yv), _mm256_store_pd(lo + k, lov), _mm256_store_pd(hi + k, hiv);
+  }
+  // The last row group's unused lanes read up to four entries further: zeros, not stack garbage.
+  _mm256_store_pd(y + k, zero), _mm256_store_pd(lo + k, zero), _mm256_store_pd(hi + k, zero);
+  // Each row's band: its extent, floors (i0, width n; n = 0 where the band
+  // misses) and key. Whether the rows fit is decided for all of them at once:
+  // the SSE2 form returns false at the first row wider than kMaxNodes or
+  // beyond the list's room, which happens iff some row is wider than
+  // kMaxNodes or the widths sum past the room (the list is not used after false).
+  const __m256d invv = _mm256_set1_pd(inv), limit = _mm256_set1_pd(kExact);
+  const __m256d magic = _mm256_set1_pd(6755399441055744.0);  // 2^52 + 2^51: an integer below 2^51 in the low bits
+  const __m256i magic_bits = _mm256_castpd_si256(magic), one = _mm256_set1_epi64x(1);
+  const __m256i max_width = _mm256_set1_epi64x(kMaxNodes);
+  const __m256d abs_mask = _mm256_castsi256_pd(_mm256_set1_epi64x(0x7fffffffffffffffll));
+  alignas(32) int64_t i0s[kMaxNodes + 4], ns[kMaxNodes + 4];
+  alignas(16) uint32_t keys[kMaxNodes + 4];
+  __m256i total = _mm256_setzero_si256(), wide = _mm256_setzero_si256();
+  __m256d inexact = _mm256_setzero_pd();
+  const __m256d rows_left = _mm256_set1_pd(static_cast<double>(rows));
+  for (int64_t r = 0; r < rows; r += 4) {
+    const __m256d y0 = _mm256_load_pd(y + r), y1 = _mm256_loadu_pd(y + r + 1);
+    __m256d lov = _mm256_min_pd(_mm256_load_pd(lo + r), _mm256_loadu_pd(lo + r + 1));
+    __m256d hiv = _mm256_max_pd(_mm256_load_pd(hi + r), _mm256_loadu_pd(hi + r + 1));
+    raster_corner_avx2(y0, y1, _mm256_permute4x64_pd(X, 0x00), _mm256_permute4x64_pd(Y, 0x00), lov, hiv);
+    raster_corner_avx2(y0, y1, _mm256_permute4x64_pd(X, 0x55), _mm256_permute4x64_pd(Y, 0x55), lov, hiv);
+    raster_corner_avx2(y0, y1, _mm256_permute4x64_pd(X, 0xaa), _mm256_permute4x64_pd(Y, 0xaa), lov, hiv);
+    raster_corner_avx2(y0, y1, _mm256_permute4x64_pd(X, 0xff), _mm256_permute4x64_pd(Y, 0xff), lov, hiv);
+    // Rows that exist (r + lane < rows) and whose band meets the footprint.
+    const __m256d hit = _mm256_and_pd(_mm256_cmp_pd(lov, hiv, _CMP_LE_OQ),
+                                      _mm256_cmp_pd(_mm256_add_pd(_mm256_set1_pd(static_cast<double>(r)), lane), rows_left,
+                                                    _CMP_LT_OQ));
+    const __m256d xs = _mm256_mul_pd(lov, invv), xe = _mm256_mul_pd(hiv, invv);
+    inexact = _mm256_or_pd(inexact, _mm256_andnot_pd(_mm256_and_pd(_mm256_cmp_pd(_mm256_and_pd(xs, abs_mask), limit, _CMP_LT_OQ),
+                                                                   _mm256_cmp_pd(_mm256_and_pd(xe, abs_mask), limit, _CMP_LT_OQ)),
+                                                     hit));
+    const __m256i i0 = _mm256_sub_epi64(
+        _mm256_castpd_si256(_mm256_add_pd(_mm256_round_pd(xs, _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC), magic)), magic_bits);
+    const __m256i i1 = _mm256_sub_epi64(
+        _mm256_castpd_si256(_mm256_add_pd(_mm256_round_pd(xe, _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC), magic)), magic_bits);
+    const __m256i n = _mm256_and_si256(_mm256_add_epi64(_mm256_sub_epi64(i1, i0), one), _mm256_castpd_si256(hit));
+    total = _mm256_add_epi64(total, n);
+    wide = _mm256_or_si256(wide, _mm256_cmpgt_epi64(n, max_width));
+    _mm256_store_si256(reinterpret_cast<__m256i *>(i0s + r), i0);
+    _mm256_store_si256(reinterpret_cast<__m256i *>(ns + r), n);
+    const __m128i jv = _mm_add_epi32(_mm_set1_epi32(static_cast<int>(static_cast<uint32_t>(j0 + r))),
+                                     _mm_setr_epi32(0, 1, 2, 3));
+    _mm_store_si128(reinterpret_cast<__m128i *>(keys + r), node_row_keys_avx2(list.level, jv));
+  }
+  if (_mm256_movemask_pd(inexact) != 0) return nodes_at_level_rows_sse2_cold(f, j0, j1, list);  // a floor beyond +-2^51
+  alignas(32) int64_t sum[4];
+  _mm256_store_si256(reinterpret_cast<__m256i *>(sum), total);
+  if (!_mm256_testz_si256(wide, wide) || sum[0] + sum[1] + sum[2] + sum[3] > kMaxNodes - list.count) return false;
+  for (int64_t r = 0; r < rows; ++r)
+    if (ns[r] != 0) list.put_row_avx2(i0s[r], ns[r], j0 + r, keys[r]);
+  list.forget_row_key();
+  return true;
+}
+#endif
+// Rows j0..j1 of `list` (level and size set, count 0); false beyond kMaxNodes.
+// The AVX2 form where the walk uses AVX2 (kWalkAvx2), else the SSE2 form.
+inline bool nodes_at_level_rows(const Footprint &f, int64_t j0, int64_t j1, NodeList &list) {
+#if GLIMMER_GLINT_WALK_AVX2
+  if (kWalkAvx2) return nodes_at_level_rows_avx2(f, j0, j1, list);
+#endif
+  return nodes_at_level_rows_sse2_cold(f, j0, j1, list);
 }
 inline bool nodes_at_level(const Footprint &f, int level, NodeList &list) {
   const NodeRows rows = nodes_at_level_start(f, level, list);
@@ -558,15 +764,74 @@ struct FootprintNodeMemo {
   }
 };
 
-// footprint_nodes through the memo: the same list (bit for bit; the key is
-// the footprint's bits and the level), returned by reference: `list` or the
-// memo's own list (valid until the next call with this memo; no copy).
-// Footprints whose bounding box spans at most 2 x 2 particle nodes take
-// nodes_at_level's box into `list` without the memo. get_memo() returns the
-// memo (called only when it is used: a thread-local's address is a call in
-// a shared library).
+#if GLIMMER_GLINT_WALK_AVX2
+// nodes_at_level_start with its four floors (the rows' and the box's ends) in
+// one register (VROUNDPD; session 21) and a small footprint's box rows keyed
+// by node_row_keys_avx2: the same result and entries (floors of doubles below
+// 2^51 in magnitude are exact integers; otherwise, and for NaN, the scalar
+// form decides). GlintParticles.NodeListStartAvx2MatchesTheScalarStart.
+[[gnu::target("avx2"), gnu::always_inline]] inline NodeRows nodes_at_level_start_avx2_body(const Footprint &f, int level,
+                                                                                      NodeList &list) {
+  list.count = 0;
+  list.level = level;
+  list.size = power_of_two(-level);
+  const double inv = power_of_two(level);
+  const double ey = 0.5 * (std::fabs(f.ay) + std::fabs(f.by));
+  const double ex = 0.5 * (std::fabs(f.ax) + std::fabs(f.bx));
+  if (!(ex * inv < 1e15) || !(ey * inv < 1e15)) return {NodeRows::kTooMany, 0, 0};
+  const __m256d v = _mm256_mul_pd(_mm256_setr_pd(f.cy - ey, f.cy + ey, f.cx - ex, f.cx + ex), _mm256_set1_pd(inv));
+  const __m256d abs_v = _mm256_and_pd(v, _mm256_castsi256_pd(_mm256_set1_epi64x(0x7fffffffffffffffll)));
+  if (_mm256_movemask_pd(_mm256_cmp_pd(abs_v, _mm256_set1_pd(2251799813685248.0), _CMP_LT_OQ)) != 0xf)
+    return nodes_at_level_start_cold(f, level, list);  // beyond 2^51 or NaN
+  const __m256d magic = _mm256_set1_pd(6755399441055744.0);  // 2^52 + 2^51
+  alignas(32) int64_t e[4];                                  // j0, j1, box_i0, box_i1
+  _mm256_store_si256(reinterpret_cast<__m256i *>(e),
+                     _mm256_sub_epi64(_mm256_castpd_si256(_mm256_add_pd(
+                                          _mm256_round_pd(v, _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC), magic)),
+                                      _mm256_castpd_si256(magic)));
+  const int64_t j0 = e[0], j1 = e[1];
+  if (j1 - j0 >= kMaxNodes) return {NodeRows::kTooMany, 0, 0};
+  if (j1 - j0 <= 1 && e[3] - e[2] <= 1) {  // the box (see nodes_at_level_start)
+    alignas(16) uint32_t keys[4];
+    _mm_store_si128(reinterpret_cast<__m128i *>(keys),
+                    node_row_keys_avx2(level, _mm_add_epi32(_mm_set1_epi32(static_cast<int>(static_cast<uint32_t>(j0))),
+                                                            _mm_setr_epi32(0, 1, 0, 0))));
+    list.add_row_keyed_avx2(e[2], e[3], j0, keys[0]);
+    if (j1 > j0) list.add_row_keyed_avx2(e[2], e[3], j1, keys[1]);
+    return {NodeRows::kDone, j0, j1};
+  }
+  return {NodeRows::kRows, j0, j1};
+}
+// The same, out of line (for the tests; footprint_nodes_avx2 inlines the body).
+[[gnu::target("avx2")]] inline NodeRows nodes_at_level_start_avx2(const Footprint &f, int level, NodeList &list) {
+  return nodes_at_level_start_avx2_body(f, level, list);
+}
+// footprint_nodes through the memo (below) with the AVX2 start (inlined) and rows.
 template <typename GetMemo>
-inline const NodeList &footprint_nodes(const Footprint &f, double density, NodeList &list, GetMemo &&get_memo) {
+[[gnu::target("avx2"), gnu::noinline]] inline const NodeList &footprint_nodes_avx2(const Footprint &f, double density, NodeList &list,
+                                                                   GetMemo &&get_memo) {
+  const int level = particle_level(density);
+  const NodeRows rows = nodes_at_level_start_avx2_body(f, level, list);
+  if (rows.kind != NodeRows::kRows) {
+    if (rows.kind == NodeRows::kTooMany) coarse_footprint_nodes(f, list);
+    return list;
+  }
+  FootprintNodeMemo &memo = *get_memo();
+  if (memo.holds(f, level)) return memo.nodes;
+  memo.valid = false;
+  NodeList &out = memo.nodes;
+  out.count = 0;
+  out.level = list.level;
+  out.size = list.size;
+  if (!nodes_at_level_rows_avx2(f, rows.j0, rows.j1, out)) coarse_footprint_nodes(f, out);
+  memo.set_key(f, level);
+  return out;
+}
+#endif
+// footprint_nodes through the memo with the SSE2 start and rows (out of line, as footprint_nodes was until session 21).
+template <typename GetMemo>
+[[gnu::noinline]] inline const NodeList &footprint_nodes_sse2(const Footprint &f, double density, NodeList &list,
+                                                             GetMemo &&get_memo) {
   const int level = particle_level(density);
   const NodeRows rows = nodes_at_level_start(f, level, list);
   if (rows.kind != NodeRows::kRows) {
@@ -583,6 +848,23 @@ inline const NodeList &footprint_nodes(const Footprint &f, double density, NodeL
   if (!nodes_at_level_rows(f, rows.j0, rows.j1, out)) coarse_footprint_nodes(f, out);
   memo.set_key(f, level);
   return out;
+}
+// footprint_nodes through the memo: the same list (bit for bit; the key is
+// the footprint's bits and the level), returned by reference: `list` or the
+// memo's own list (valid until the next call with this memo; no copy).
+// Footprints whose bounding box spans at most 2 x 2 particle nodes take
+// nodes_at_level's box into `list` without the memo. get_memo() returns the
+// memo (called only when it is used: a thread-local's address is a call in
+// a shared library).
+// Session 21: the AVX2 form (footprint_nodes_avx2) where the walk uses AVX2, else the SSE2 form; this
+// dispatch is inlined into the caller (no call in between).
+template <typename GetMemo>
+[[gnu::always_inline]] inline const NodeList &footprint_nodes(const Footprint &f, double density, NodeList &list,
+                                                             GetMemo &&get_memo) {
+#if GLIMMER_GLINT_WALK_AVX2
+  if (kWalkAvx2) return footprint_nodes_avx2(f, density, list, get_memo);
+#endif
+  return footprint_nodes_sse2(f, density, list, get_memo);
 }
 
 // Per-node random stream: the node seed comes from 8 TEA rounds, the values
@@ -975,7 +1257,8 @@ struct PairPassCounter {
   int64_t count = 0;
 
   explicit PairPassCounter(const FootprintFrame &fr) : frame(fr) {}
-  void flush() {
+  // Inlined into the pair passes (as GCC chose until session 21; out of line it cost ~3 M in the GI scene's 160x100 render).
+  [[gnu::always_inline]] void flush() {
     int64_t c = 0;
     int q = 0;
 #if defined(__SSE2__)

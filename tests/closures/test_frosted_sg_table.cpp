@@ -350,6 +350,44 @@ TEST(FrostedSgTable, BatchedEnergiesAreTheLookupsEnergies) {
   EXPECT_LT(valid, compared);  // the uncovered cases were exercised too
 }
 
+// lookup() sums its 64 taps as one 4-lane product and sum (twenty-first session); lookup_scalar is the three scalar
+// sums it replaced. Bit for bit equal over the coverage of BatchedEnergiesAreTheLookupsEnergies. Control: the
+// comparison is not vacuous (lookups with a nonzero axis offset and different values were compared), and a lookup
+// one roughness ulp away differs somewhere.
+TEST(FrostedSgTable, LookupIsTheScalarTapSumBitForBit) {
+  const TransmissionSgTable &table = TransmissionSgTable::get(host::default_host_services());
+  Pcg32 rng(43);
+  long compared = 0, differing = 0, valid = 0, offset_nonzero = 0, neighbour_differs = 0;
+  for (int trial = 0; trial < 40000; ++trial) {
+    const float ior = 1.1f + 1.5f * rng.next_float();
+    const float eta = (trial & 1) ? 1.0f / ior : ior;
+    const float roughness = (trial % 7 == 0) ? 0.001f : 1.05f * rng.next_float();
+    const float cos_i = (trial % 5 == 0) ? 1e-4f * rng.next_float() : rng.next_float();
+    TransmissionLobe packed, scalar;
+    const bool ok = table.lookup(cos_i, eta, roughness, packed), expected = table.lookup_scalar(cos_i, eta, roughness, scalar);
+    ++compared;
+    valid += expected;
+    if (ok != expected || (expected && (std::memcmp(&packed.energy, &scalar.energy, sizeof(float)) != 0 ||
+                                        std::memcmp(&packed.log_sharpness, &scalar.log_sharpness, sizeof(float)) != 0 ||
+                                        std::memcmp(&packed.axis_offset, &scalar.axis_offset, sizeof(float)) != 0)))
+      ++differing;
+    if (!expected) continue;
+    offset_nonzero += scalar.axis_offset != 0.0f;
+    TransmissionLobe near;
+    if (table.lookup(cos_i, eta, std::nextafter(roughness, 2.0f), near))
+      neighbour_differs += near.energy != scalar.energy || near.log_sharpness != scalar.log_sharpness ||
+                           near.axis_offset != scalar.axis_offset;
+  }
+  std::printf("[frosted sg table] packed lookup: %ld compared (%ld covered, %ld with an axis offset), %ld differ from "
+              "the scalar sums; a roughness ulp away: %ld differ\n",
+              compared, valid, offset_nonzero, differing, neighbour_differs);
+  EXPECT_EQ(differing, 0);
+  EXPECT_GT(valid, compared / 3);
+  EXPECT_LT(valid, compared);
+  EXPECT_GT(offset_nonzero, valid / 2);
+  EXPECT_GT(neighbour_differs, valid / 10);
+}
+
 TEST(FrostedSgTable, FitIsBitIdenticalForAnyThreadCount) {
   const TransmissionSgTable &table = TransmissionSgTable::get(host::default_host_services());
   std::vector<size_t> indices;

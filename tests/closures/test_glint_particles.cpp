@@ -267,6 +267,167 @@ TEST(GlintParticles, RowRasteriserMatchesTheScalarForm) {
   EXPECT_GT(control_differs, compared / 20) << "the control must miss nodes";
 }
 
+// The AVX2 row rasteriser (nodes_at_level_rows_avx2, session 21: four row
+// borders per register, the floors by VROUNDPD, four row keys per hash) lists
+// the same nodes, entry for entry (i, j and key), as the SSE2 form
+// (nodes_at_level_rows_sse2) over 1e5 random footprints of 1..64 rows, with the
+// same degenerate, flat-edge and on-border cases as above, plus footprints far
+// from the origin (rows beyond 2^52 and floors beyond 2^51: the AVX2 form hands
+// those to the SSE2 form). The row keys alone: node_row_keys_avx2 equals
+// node_row_key over random rows and levels. Controls: the per-row form without
+// the band corners differs from the AVX2 list on many footprints, and the
+// vector row keys at level + 1 differ from the scalar ones.
+#if GLIMMER_GLINT_WALK_AVX2
+// node_row_keys_avx2 is always inlined: called here from an AVX2 function.
+[[gnu::target("avx2")]] __m128i row_keys_avx2(int level, __m128i j) { return pg::node_row_keys_avx2(level, j); }
+#endif
+TEST(GlintParticles, RowRasteriserAvx2MatchesSse2) {
+#if !GLIMMER_GLINT_WALK_AVX2
+  GTEST_SKIP() << "no AVX2 form in this build";
+#else
+  if (!__builtin_cpu_supports("avx2")) GTEST_SKIP() << "CPU without AVX2";
+  Pcg32 rng(21);
+  int64_t compared = 0, differ = 0, control_differs = 0, too_many = 0, far = 0;
+  std::array<int, pg::kMaxNodes + 1> by_rows{};
+  for (int t = 0; t < 100000; ++t) {
+    const int level = 4 + static_cast<int>(rng.next_u32() % 12);
+    const double size = std::ldexp(1.0, -level);
+    const double area = size * size * std::exp(std::log(0.05) + rng.next_double() * std::log(2000.0));
+    const double aspect = std::exp(rng.next_double() * std::log(1024.0));
+    pg::Footprint f = random_footprint(rng, area, aspect);
+    bool is_far = false;
+    switch (t % 10) {
+      case 1:  // corners on row borders
+        f.cy = std::round(f.cy / size) * size;
+        f.ay = std::round(f.ay / size) * size, f.by = std::round(f.by / (0.5 * size)) * 0.5 * size;
+        break;
+      case 2:  // an edge parallel to the rows
+        (rng.next_u32() % 2 == 0 ? f.ay : f.by) = 0.0;
+        break;
+      case 3:  // degenerate: zero area, or a zero edge
+        if (rng.next_u32() % 2 == 0) {
+          f.bx = 0.5 * f.ax, f.by = 0.5 * f.ay;
+        } else {
+          f.bx = 0.0, f.by = 0.0;
+        }
+        break;
+      case 4:  // corners on borders and an edge along a border
+        f.cy = std::round(f.cy / size) * size + 0.5 * size;
+        f.ay = 0.0, f.by = std::round(f.by / size) * size;
+        break;
+      case 5: {  // far from the origin: node indices around 2^49..2^54 in x or y (the AVX2 form's limits)
+        const double at = std::ldexp(1.0 + rng.next_double(), 49 + static_cast<int>(rng.next_u32() % 6)) * size;
+        (rng.next_u32() % 2 == 0 ? f.cx : f.cy) = rng.next_u32() % 2 == 0 ? at : -at;
+        is_far = true;
+        break;
+      }
+      default:
+        break;
+    }
+    pg::NodeList start;
+    const pg::NodeRows rows = pg::nodes_at_level_start(f, level, start);
+    if (rows.kind != pg::NodeRows::kRows) continue;
+    pg::NodeList avx2 = start, sse2 = start, control = start;
+    const bool ok_avx2 = pg::nodes_at_level_rows_avx2(f, rows.j0, rows.j1, avx2);
+    const bool ok_sse2 = pg::nodes_at_level_rows_sse2(f, rows.j0, rows.j1, sse2);
+    const bool ok_control = rows_without_band_corners(f, rows.j0, rows.j1, control);
+    ++compared;
+    ++by_rows[static_cast<size_t>(rows.j1 - rows.j0 + 1)];
+    far += is_far ? 1 : 0;
+    too_many += ok_sse2 ? 0 : 1;
+    differ += ok_avx2 != ok_sse2 || (ok_sse2 && !same_nodes(avx2, sse2)) ? 1 : 0;
+    control_differs += ok_control != ok_avx2 || (ok_avx2 && !same_nodes(control, avx2)) ? 1 : 0;
+  }
+  int rows_1_4 = 0, rows_5_16 = 0, rows_17_64 = 0;
+  for (size_t n = 1; n < by_rows.size(); ++n) (n <= 4 ? rows_1_4 : n <= 16 ? rows_5_16 : rows_17_64) += by_rows[n];
+  std::printf("[rows avx2] %lld footprints (%lld far from the origin; %lld beyond kMaxNodes; rows 1..4 %d, 5..16 %d, "
+              "17..64 %d): %lld differ from SSE2; control without the band corners: %lld differ\n",
+              static_cast<long long>(compared), static_cast<long long>(far),
+              static_cast<long long>(too_many), rows_1_4, rows_5_16, rows_17_64, static_cast<long long>(differ),
+              static_cast<long long>(control_differs));
+  EXPECT_GT(compared, 40000);
+  EXPECT_GT(far, 2000);
+  EXPECT_GT(rows_17_64, 1000);
+  EXPECT_EQ(differ, 0);
+  EXPECT_GT(control_differs, compared / 20) << "the control must miss nodes";
+  // The row keys four at a time.
+  int key_differs = 0, key_control_same = 0;
+  for (int t = 0; t < 20000; ++t) {
+    const int level = static_cast<int>(rng.next_u32() % 64) - 20;
+    const auto j0 = static_cast<int64_t>(static_cast<int32_t>(rng.next_u32())) * (t % 2 == 0 ? 1 : 4096);
+    alignas(16) uint32_t keys[4], wrong[4];
+    const __m128i jv = _mm_add_epi32(_mm_set1_epi32(static_cast<int>(static_cast<uint32_t>(j0))), _mm_setr_epi32(0, 1, 2, 3));
+    _mm_store_si128(reinterpret_cast<__m128i *>(keys), row_keys_avx2(level, jv));
+    _mm_store_si128(reinterpret_cast<__m128i *>(wrong), row_keys_avx2(level + 1, jv));
+    for (int b = 0; b < 4; ++b) {
+      key_differs += keys[b] != pg::node_row_key(level, j0 + b) ? 1 : 0;
+      key_control_same += wrong[b] == pg::node_row_key(level, j0 + b) ? 1 : 0;
+    }
+  }
+  std::printf("[rows avx2] 80000 row keys: %d differ from node_row_key; control at level + 1: %d equal\n", key_differs,
+              key_control_same);
+  EXPECT_EQ(key_differs, 0);
+  EXPECT_LT(key_control_same, 10) << "the control must differ";
+#endif
+}
+
+// The AVX2 start of a node list (nodes_at_level_start_avx2, session 21: the
+// four floors in one register, a small footprint's box rows keyed four at a
+// time) gives the scalar start's result (kind, rows) and, for a box, the same
+// entries, over footprints from far below a node to beyond kMaxNodes, far from
+// the origin (floors beyond 2^51: the scalar form decides), with NaN or
+// infinite coordinates. Control: the AVX2 start one level finer differs.
+TEST(GlintParticles, NodeListStartAvx2MatchesTheScalarStart) {
+#if !GLIMMER_GLINT_WALK_AVX2
+  GTEST_SKIP() << "no AVX2 form in this build";
+#else
+  if (!__builtin_cpu_supports("avx2")) GTEST_SKIP() << "CPU without AVX2";
+  Pcg32 rng(2121);
+  int compared = 0, differ = 0, control_differs = 0, boxes = 0, rows = 0, too_many = 0, odd = 0;
+  for (int t = 0; t < 50000; ++t) {
+    const int level = static_cast<int>(rng.next_u32() % 20) - 2;
+    const double size = std::ldexp(1.0, -level);
+    const double area = size * size * std::exp(std::log(1e-4) + rng.next_double() * std::log(1e7));
+    pg::Footprint f = random_footprint(rng, area, std::exp(rng.next_double() * std::log(256.0)));
+    if (t % 7 == 1) f.cx = std::round(f.cx / size) * size, f.cy = std::round(f.cy / size) * size;  // centre on a corner
+    if (t % 7 == 2) {  // far from the origin: near and beyond the 2^51 floors
+      const double at = std::ldexp(1.0 + rng.next_double(), 48 + static_cast<int>(rng.next_u32() % 8)) * size;
+      (rng.next_u32() % 2 == 0 ? f.cx : f.cy) = rng.next_u32() % 2 == 0 ? at : -at;
+      ++odd;
+    }
+    if (t % 97 == 3) {  // non-finite
+      const double bad[] = {std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity(),
+                            -std::numeric_limits<double>::infinity()};
+      (&f.cx)[rng.next_u32() % 6] = bad[rng.next_u32() % 3];
+      ++odd;
+    }
+    pg::NodeList a, b, c;
+    const pg::NodeRows ra = pg::nodes_at_level_start_avx2(f, level, a);
+    const pg::NodeRows rb = pg::nodes_at_level_start(f, level, b);
+    const pg::NodeRows rc = pg::nodes_at_level_start_avx2(f, level + 1, c);
+    ++compared;
+    const auto same = [](const pg::NodeRows &x, const pg::NodeRows &y, const pg::NodeList &lx, const pg::NodeList &ly) {
+      if (x.kind != y.kind) return false;
+      if (x.kind == pg::NodeRows::kTooMany) return true;
+      return x.j0 == y.j0 && x.j1 == y.j1 && same_nodes(lx, ly);
+    };
+    differ += same(ra, rb, a, b) ? 0 : 1;
+    control_differs += same(rc, rb, c, b) ? 0 : 1;
+    boxes += rb.kind == pg::NodeRows::kDone ? 1 : 0;
+    rows += rb.kind == pg::NodeRows::kRows ? 1 : 0;
+    too_many += rb.kind == pg::NodeRows::kTooMany ? 1 : 0;
+  }
+  std::printf("[start avx2] %d footprints (%d far or non-finite; %d boxes, %d rows, %d beyond kMaxNodes): %d differ "
+              "from the scalar start; control one level finer: %d differ\n",
+              compared, odd, boxes, rows, too_many, differ, control_differs);
+  EXPECT_EQ(differ, 0);
+  EXPECT_GT(boxes, 5000);
+  EXPECT_GT(rows, 5000);
+  EXPECT_GT(too_many, 1000);
+  EXPECT_GT(control_differs, compared / 2) << "the control must differ";
+#endif
+}
+
 // Aspect 1..64 footprints holding ~100 particles: every eval is an exact
 // count (f N a sigma / W an integer), none falls back to the mean (before
 // issue 10, 90 % of aspect-64 evals hit the 1024-step cap and returned it).
