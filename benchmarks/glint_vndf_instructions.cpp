@@ -1,6 +1,7 @@
 // Instructions per Beckmann visible-normal sample (issue 10): the shared exact
 // sampler (microfacet::sample_beckmann_visible_normal, libm) and glint's
-// library-free one (plugin/tables/glint_beckmann_vndf.h) over the same inputs,
+// library-free one (draw_visible_normal, plugin/tables/glint_beckmann_vndf.cpp:
+// the out-of-line function glint calls) over the same inputs,
 // each in its own loop for callgrind (glint_vndf_instructions.sh counts
 // `shared_loop` and `glint_loop`). Inputs: wi uniform over the hemisphere
 // (cosine-distributed polar angle, any azimuth), alpha uniform in
@@ -40,8 +41,8 @@ __attribute__((noinline)) void shared_loop(const std::vector<Input> &in, std::ve
 }
 __attribute__((noinline)) void glint_loop(const std::vector<Input> &in, std::vector<Vec3> &out) {
   for (std::size_t i = 0; i < in.size(); ++i)
-    out[i] = glimmer::plugin::glint::beckmann_vndf::sample_visible_normal(in[i].wi, in[i].alpha, in[i].alpha,
-                                                                          in[i].u1, in[i].u2);
+    out[i] = glimmer::plugin::glint::beckmann_vndf::draw_visible_normal(in[i].wi, in[i].alpha, in[i].alpha,
+                                                                        in[i].u1, in[i].u2);
 }
 }  // namespace
 

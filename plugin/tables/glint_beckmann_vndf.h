@@ -226,12 +226,9 @@ inline double erfinv_2u_minus_1(double u) {
 }
 
 // Beckmann visible normal for wi.z > 0 at (ax, ay): the distribution of
-// microfacet::sample_beckmann_visible_normal (whose pdf is visible_D). Out of
-// line: inlined into glint.cpp's sample it made GCC stop inlining glint_f_cos
-// into f_cos_and_pdf (the unit's growth limits; +2.4 M instructions on the GI
-// scene's evals).
+// microfacet::sample_beckmann_visible_normal (whose pdf is visible_D).
 template <typename Erfcx = ErfcxPoly>
-[[gnu::noinline]] inline Vec3 sample_visible_normal(const Vec3 &wi, float ax, float ay, float u1, float u2) {
+inline Vec3 sample_visible_normal(const Vec3 &wi, float ax, float ay, float u1, float u2) {
   const Vec3 wi_std = normalize(Vec3(ax * wi.x, ay * wi.y, std::max(wi.z, 1e-7f)));
   const double cos_t = wi_std.z;
   const double sin_t = std::sqrt(std::max(0.0, 1.0 - cos_t * cos_t));
@@ -248,5 +245,11 @@ template <typename Erfcx = ErfcxPoly>
   const double inv_len = 1.0 / std::sqrt(sx * sx + sy * sy + 1.0);
   return Vec3(static_cast<float>(-sx * inv_len), static_cast<float>(-sy * inv_len), static_cast<float>(inv_len));
 }
+
+// sample_visible_normal as the glint closures draw it, compiled in its own unit
+// (glint_beckmann_vndf.cpp): inlined into glint.cpp's sample, the sampler made
+// GCC stop inlining glint_f_cos into f_cos_and_pdf (+2.4 M instructions on the
+// GI scene's evals), and a noinline copy in that unit did the same.
+Vec3 draw_visible_normal(const Vec3 &wi, float ax, float ay, float u1, float u2);
 
 }  // namespace glimmer::plugin::glint::beckmann_vndf

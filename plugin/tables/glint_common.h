@@ -367,7 +367,7 @@ inline bool sample_smooth_lobe(mf::Distribution dist, float alpha_wx, float alph
   } else {
     // Beckmann by glint's library-free sampler (the same distribution as the shared one, see its header).
     const Vec3 h = dist == mf::Distribution::Beckmann
-                       ? beckmann_vndf::sample_visible_normal(wi, alpha_wx, alpha_wy, u, rand.y)
+                       ? beckmann_vndf::draw_visible_normal(wi, alpha_wx, alpha_wy, u, rand.y)
                        : mf::sample_visible_normal(dist, wi, alpha_wx, alpha_wy, u, rand.y);
     wo = mf::reflect_about(wi, h);
   }
