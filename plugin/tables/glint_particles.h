@@ -584,6 +584,45 @@ struct RowRasteriser {
   const __m256d masked = _mm256_or_pd(xc, no_cross);  // NaN where the edge does not cross
   lo = _mm256_min_pd(masked, lo), hi = _mm256_max_pd(masked, hi);
 }
+// The corners of f (FootprintCorners: x_k = (cx +- ax / 2) +- bx / 2, the
+// same doubles: a - b is a + (-b)) in two registers, and the extent of the
+// footprint on each row border y = (j0 + k) size, k = 0..rows, written to
+// y / lo / hi (four borders per step; the last group's unused lanes and the
+// four entries after it are zeros, not stack garbage).
+struct RasterCornersAvx2 {
+  __m256d X, Y;
+};
+[[gnu::target("avx2")]] inline RasterCornersAvx2 raster_borders_avx2(const Footprint &f, int64_t j0, int64_t rows,
+                                                                      double size, double *y, double *lo, double *hi) {
+  const __m256d sa = _mm256_setr_pd(-1.0, 1.0, 1.0, -1.0), sb = _mm256_setr_pd(-1.0, -1.0, 1.0, 1.0);
+  const __m256d X = _mm256_add_pd(_mm256_add_pd(_mm256_set1_pd(f.cx), _mm256_mul_pd(sa, _mm256_set1_pd(0.5 * f.ax))),
+                                  _mm256_mul_pd(sb, _mm256_set1_pd(0.5 * f.bx)));
+  const __m256d Y = _mm256_add_pd(_mm256_add_pd(_mm256_set1_pd(f.cy), _mm256_mul_pd(sa, _mm256_set1_pd(0.5 * f.ay))),
+                                  _mm256_mul_pd(sb, _mm256_set1_pd(0.5 * f.by)));
+  const __m256d Xn = _mm256_permute4x64_pd(X, _MM_SHUFFLE(0, 3, 2, 1)), Yn = _mm256_permute4x64_pd(Y, _MM_SHUFFLE(0, 3, 2, 1));
+  const __m256d DX = _mm256_sub_pd(Xn, X), DY = _mm256_sub_pd(Yn, Y);
+  const __m256d sizev = _mm256_set1_pd(size), lane = _mm256_setr_pd(0.0, 1.0, 2.0, 3.0);
+  const __m256d j0v = _mm256_set1_pd(static_cast<double>(j0));
+  const __m256d zero = _mm256_setzero_pd();
+  int64_t k = 0;
+  for (; k <= rows; k += 4) {
+    const __m256d yv = _mm256_mul_pd(_mm256_add_pd(j0v, _mm256_add_pd(_mm256_set1_pd(static_cast<double>(k)), lane)),
+                                     sizev);
+    __m256d lov = _mm256_set1_pd(1e300), hiv = _mm256_set1_pd(-1e300);
+#define GLIMMER_GLINT_EDGE(e)                                                                                      \
+  raster_edge_avx2(yv, _mm256_permute4x64_pd(X, e), _mm256_permute4x64_pd(Y, e), _mm256_permute4x64_pd(Yn, e),      \
+                   _mm256_permute4x64_pd(DX, e), _mm256_permute4x64_pd(DY, e), lov, hiv)
+    GLIMMER_GLINT_EDGE(0x00);
+    GLIMMER_GLINT_EDGE(0x55);
+    GLIMMER_GLINT_EDGE(0xaa);
+    GLIMMER_GLINT_EDGE(0xff);
+#undef GLIMMER_GLINT_EDGE
+    _mm256_store_pd(y + k, yv), _mm256_store_pd(lo + k, lov), _mm256_store_pd(hi + k, hiv);
+  }
+  _mm256_store_pd(y + k, zero), _mm256_store_pd(lo + k, zero), _mm256_store_pd(hi + k, zero);
+  return {X, Y};
+}
+
 // One corner (cx, cy) into four bands y0 <= y <= y1's lo / hi where it lies in the band.
 [[gnu::target("avx2"), gnu::always_inline]] inline void raster_corner_avx2(__m256d y0, __m256d y1, __m256d cx, __m256d cy,
                                                                           __m256d &lo, __m256d &hi) {
@@ -611,39 +650,10 @@ struct RowRasteriser {
   const int64_t rows = j1 - j0 + 1;               // 1..kMaxNodes (nodes_at_level_start)
   if (!(j0 > -(int64_t{1} << 52) && j1 < (int64_t{1} << 52)) || rows > kMaxNodes || rows < 1)
     return nodes_at_level_rows_sse2_cold(f, j0, j1, list);
-  // The corners (FootprintCorners: x_k = (cx +- ax / 2) +- bx / 2, the same
-  // doubles: a - b is a + (-b)) in one register, and each edge (k, k + 1)'s
-  // start, end and differences broadcast from it.
-  const __m256d sa = _mm256_setr_pd(-1.0, 1.0, 1.0, -1.0), sb = _mm256_setr_pd(-1.0, -1.0, 1.0, 1.0);
-  const __m256d X = _mm256_add_pd(_mm256_add_pd(_mm256_set1_pd(f.cx), _mm256_mul_pd(sa, _mm256_set1_pd(0.5 * f.ax))),
-                                  _mm256_mul_pd(sb, _mm256_set1_pd(0.5 * f.bx)));
-  const __m256d Y = _mm256_add_pd(_mm256_add_pd(_mm256_set1_pd(f.cy), _mm256_mul_pd(sa, _mm256_set1_pd(0.5 * f.ay))),
-                                  _mm256_mul_pd(sb, _mm256_set1_pd(0.5 * f.by)));
-  const __m256d Xn = _mm256_permute4x64_pd(X, _MM_SHUFFLE(0, 3, 2, 1)), Yn = _mm256_permute4x64_pd(Y, _MM_SHUFFLE(0, 3, 2, 1));
-  const __m256d DX = _mm256_sub_pd(Xn, X), DY = _mm256_sub_pd(Yn, Y);
   const double size = list.size, inv = power_of_two(list.level);
-  const __m256d sizev = _mm256_set1_pd(size), lane = _mm256_setr_pd(0.0, 1.0, 2.0, 3.0);
-  const __m256d j0v = _mm256_set1_pd(static_cast<double>(j0));
-  // Borders 0..rows in groups of four.
+  const __m256d lane = _mm256_setr_pd(0.0, 1.0, 2.0, 3.0);
   alignas(32) double y[kMaxNodes + 8], lo[kMaxNodes + 8], hi[kMaxNodes + 8];
-  const __m256d zero = _mm256_setzero_pd();
-  int64_t k = 0;
-  for (; k <= rows; k += 4) {
-    const __m256d yv = _mm256_mul_pd(_mm256_add_pd(j0v, _mm256_add_pd(_mm256_set1_pd(static_cast<double>(k)), lane)),
-                                     sizev);
-    __m256d lov = _mm256_set1_pd(1e300), hiv = _mm256_set1_pd(-1e300);
-#define GLIMMER_GLINT_EDGE(e)                                                                                      \
-  raster_edge_avx2(yv, _mm256_permute4x64_pd(X, e), _mm256_permute4x64_pd(Y, e), _mm256_permute4x64_pd(Yn, e),      \
-                   _mm256_permute4x64_pd(DX, e), _mm256_permute4x64_pd(DY, e), lov, hiv)
-    GLIMMER_GLINT_EDGE(0x00);
-    GLIMMER_GLINT_EDGE(0x55);
-    GLIMMER_GLINT_EDGE(0xaa);
-    GLIMMER_GLINT_EDGE(0xff);
-#undef GLIMMER_GLINT_EDGE
-    _mm256_store_pd(y + k, yv), _mm256_store_pd(lo + k, lov), _mm256_store_pd(hi + k, hiv);
-  }
-  // The last row group's unused lanes read up to four entries further: zeros, not stack garbage.
-  _mm256_store_pd(y + k, zero), _mm256_store_pd(lo + k, zero), _mm256_store_pd(hi + k, zero);
+  const auto [X, Y] = raster_borders_avx2(f, j0, rows, size, y, lo, hi);
   // Each row's band: its extent, floors (i0, width n; n = 0 where the band
   // misses) and key. Whether the rows fit is decided for all of them at once:
   // the SSE2 form returns false at the first row wider than kMaxNodes or
