@@ -126,33 +126,14 @@ struct SlopeCdf {
   }
 };
 
-// Safeguarded Householder iteration of order 3 for C(x) = target from x in
-// [lo, hi] (the method of microfacet::detail::solve_beckmann_slope): stops when
-// |C - target| < 1e-12 min(C(x_max), 1e3 target) (as the shared solver), or after a step below 1e-3
-// whose curvature term is below 1e-2 (the error is then ~step^4); bisects when
-// a step leaves the bracket or the curvature term dominates.
+// The shared sampler's safeguarded Householder iteration of order 3 for C(x) =
+// target from x in [lo, hi] (microfacet::detail::solve_beckmann_slope_by: the
+// same steps, stopping rule and bisection) with glint's exp and C(x).
 template <typename Erfcx>
 inline double solve_slope(const SlopeCdf<Erfcx> &c, double target, double x, double lo, double hi) {
-  constexpr double isp = SlopeCdf<Erfcx>::kInvSqrtPi;
-  const double tolerance = 1e-12 * std::min(c.total, 1e3 * target);
-  for (int it = 0; it < 64; ++it) {
-    const double e = exp_nonpositive(-x * x);
-    const double value = c.at(x, e) - target;
-    if (std::fabs(value) < tolerance) break;
-    if (value > 0.0) hi = x; else lo = x;
-    const double g = c.cos_t - x * c.sin_t;                         // f' = g exp(-x^2) / sqrt(pi)
-    const double n = value / (g * e * isp);                         // f / f'
-    const double a2 = (-c.sin_t - 2.0 * x * g) / g;                 // f'' / f'
-    const double a3 = (4.0 * x * (c.sin_t + x * g) - 2.0 * g) / g;  // f''' / f'
-    const double na2 = n * a2;
-    const bool smooth = g > 0.0 && e > 0.0 && std::fabs(na2) < 0.5;
-    double next = smooth ? x - n * (6.0 - 3.0 * na2) / (6.0 - 6.0 * na2 + n * n * a3) : 0.5 * (lo + hi);
-    if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
-    const double step = std::fabs(next - x);
-    x = next;
-    if ((smooth && step < 1e-3 && std::fabs(na2) < 1e-2) || hi - lo < 1e-13) break;
-  }
-  return x;
+  return glimmer::microfacet::detail::solve_beckmann_slope_by(
+      c, [](double z) { return exp_nonpositive(z); }, [&c](double xs, double e) { return c.at(xs, e); }, target, x, lo,
+      hi);
 }
 
 // The stretched slope x~ of CDF fraction u (clamped to [1e-9, 1 - 1e-9]) at

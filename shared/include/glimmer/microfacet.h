@@ -270,12 +270,17 @@ struct BeckmannSlopeCdf {
 // step below kStepDone whose curvature term f f'' / f'^2 is below
 // kCurvatureDone; a step that leaves the bracket, or whose curvature term
 // would dominate (next to x_max, where c -> 0), bisects instead.
-inline double solve_beckmann_slope(const BeckmannSlopeCdf &c, double target, double x, double lo, double hi) {
-  constexpr double isp = BeckmannSlopeCdf::kInvSqrtPi, kStepDone = 1e-3, kCurvatureDone = 1e-2;
+// The iteration for any evaluation of exp(-x^2) (exp_neg(-x * x)) and of C(x)
+// given that exponential (cdf_at(x, e)): the shared sampler's below uses libm,
+// glint's (plugin/tables/glint_beckmann_vndf.h) its own library-free forms.
+template <typename Cdf, typename ExpNeg, typename CdfAt>
+inline double solve_beckmann_slope_by(const Cdf &c, ExpNeg &&exp_neg, CdfAt &&cdf_at, double target, double x, double lo,
+                                      double hi) {
+  constexpr double isp = Cdf::kInvSqrtPi, kStepDone = 1e-3, kCurvatureDone = 1e-2;
   const double tolerance = 1e-12 * std::min(c.total, 1e3 * target);  // relative 1e-9 in the lower tail
   for (int it = 0; it < 64; ++it) {
-    const double e = std::exp(-x * x);
-    const double value = 0.5 * (c.cos_t * std::erfc(-x) + c.sin_t * e * isp) - target;
+    const double e = exp_neg(-x * x);
+    const double value = cdf_at(x, e) - target;
     if (std::fabs(value) < tolerance) break;
     if (value > 0.0) hi = x; else lo = x;
     const double g = c.cos_t - x * c.sin_t;                            // f' = g exp(-x^2) / sqrt(pi)
@@ -291,6 +296,12 @@ inline double solve_beckmann_slope(const BeckmannSlopeCdf &c, double target, dou
     if ((smooth && step < kStepDone && std::fabs(na2) < kCurvatureDone) || hi - lo < 1e-13) break;
   }
   return x;
+}
+inline double solve_beckmann_slope(const BeckmannSlopeCdf &c, double target, double x, double lo, double hi) {
+  return solve_beckmann_slope_by(
+      c, [](double z) { return std::exp(z); },
+      [&c](double xs, double e) { return 0.5 * (c.cos_t * std::erfc(-xs) + c.sin_t * e * BeckmannSlopeCdf::kInvSqrtPi); },
+      target, x, lo, hi);
 }
 
 // Start of the iteration: the quantile x(w, v) tabulated on rows
