@@ -816,49 +816,45 @@ struct FootprintNodeMemo {
 [[gnu::target("avx2")]] inline NodeRows nodes_at_level_start_avx2(const Footprint &f, int level, NodeList &list) {
   return nodes_at_level_start_avx2_body(f, level, list);
 }
+#endif
+// The body of footprint_nodes_avx2 and footprint_nodes_sse2 (session 22: one
+// copy; a macro, not a template, because the AVX2 start must be inlined into
+// a target("avx2") function and GCC refuses to inline it into a generic
+// helper): the start (`start`: the form's nodes_at_level_start) gives the box
+// or the coarse list in `list`, else the memo's list when it holds f at the
+// level, else the rows (`rows_of`: the form's rasteriser) into the memo's list.
+#define GLIMMER_GLINT_FOOTPRINT_NODES_BODY(start, rows_of)                       \
+  const int level = particle_level(density);                                     \
+  const NodeRows rows = start(f, level, list);                                   \
+  if (rows.kind != NodeRows::kRows) {                                            \
+    if (rows.kind == NodeRows::kTooMany) coarse_footprint_nodes(f, list);        \
+    return list;                                                                 \
+  }                                                                              \
+  FootprintNodeMemo &memo = *get_memo();                                         \
+  if (memo.holds(f, level)) return memo.nodes;                                   \
+  memo.valid = false;                                                            \
+  NodeList &out = memo.nodes;                                                    \
+  out.count = 0;                                                                 \
+  out.level = list.level;                                                        \
+  out.size = list.size;                                                          \
+  if (!rows_of(f, rows.j0, rows.j1, out)) coarse_footprint_nodes(f, out);        \
+  memo.set_key(f, level);                                                        \
+  return out
+#if GLIMMER_GLINT_WALK_AVX2
 // footprint_nodes through the memo (below) with the AVX2 start (inlined) and rows.
 template <typename GetMemo>
 [[gnu::target("avx2"), gnu::noinline]] inline const NodeList &footprint_nodes_avx2(const Footprint &f, double density, NodeList &list,
                                                                    GetMemo &&get_memo) {
-  const int level = particle_level(density);
-  const NodeRows rows = nodes_at_level_start_avx2_body(f, level, list);
-  if (rows.kind != NodeRows::kRows) {
-    if (rows.kind == NodeRows::kTooMany) coarse_footprint_nodes(f, list);
-    return list;
-  }
-  FootprintNodeMemo &memo = *get_memo();
-  if (memo.holds(f, level)) return memo.nodes;
-  memo.valid = false;
-  NodeList &out = memo.nodes;
-  out.count = 0;
-  out.level = list.level;
-  out.size = list.size;
-  if (!nodes_at_level_rows_avx2(f, rows.j0, rows.j1, out)) coarse_footprint_nodes(f, out);
-  memo.set_key(f, level);
-  return out;
+  GLIMMER_GLINT_FOOTPRINT_NODES_BODY(nodes_at_level_start_avx2_body, nodes_at_level_rows_avx2);
 }
 #endif
 // footprint_nodes through the memo with the SSE2 start and rows (out of line, as footprint_nodes was until session 21).
 template <typename GetMemo>
 [[gnu::noinline]] inline const NodeList &footprint_nodes_sse2(const Footprint &f, double density, NodeList &list,
                                                              GetMemo &&get_memo) {
-  const int level = particle_level(density);
-  const NodeRows rows = nodes_at_level_start(f, level, list);
-  if (rows.kind != NodeRows::kRows) {
-    if (rows.kind == NodeRows::kTooMany) coarse_footprint_nodes(f, list);
-    return list;
-  }
-  FootprintNodeMemo &memo = *get_memo();
-  if (memo.holds(f, level)) return memo.nodes;
-  memo.valid = false;
-  NodeList &out = memo.nodes;
-  out.count = 0;
-  out.level = list.level;
-  out.size = list.size;
-  if (!nodes_at_level_rows(f, rows.j0, rows.j1, out)) coarse_footprint_nodes(f, out);
-  memo.set_key(f, level);
-  return out;
+  GLIMMER_GLINT_FOOTPRINT_NODES_BODY(nodes_at_level_start, nodes_at_level_rows);
 }
+#undef GLIMMER_GLINT_FOOTPRINT_NODES_BODY
 // footprint_nodes through the memo: the same list (bit for bit; the key is
 // the footprint's bits and the level), returned by reference: `list` or the
 // memo's own list (valid until the next call with this memo; no copy).
