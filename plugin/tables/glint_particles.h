@@ -1393,6 +1393,31 @@ inline void group_pass_sse2(const NodeList &nodes, int first, const uint32_t *se
   x = _mm256_mullo_epi32(x, _mm256_set1_epi32(static_cast<int>(0x846ca68bu)));
   return _mm256_xor_si256(x, _mm256_srli_epi32(x, 16));
 }
+// Two nodes' passing pairs from their 8-bit mask (bits 0..3: the first node's
+// groups, 4..7: the second's) in one entry (session 22): the passing bits'
+// positions b in order as the bytes of `pairs` (the pair 4 node + b is
+// pairs' byte + 4 node), their number, the nodes with a passing pair (0: the
+// first, 1: the second) as the bytes of `nodes`, and their number. The
+// unused bytes are 0.
+struct PassingPairs8 {
+  uint64_t pairs;
+  uint16_t nodes;
+  uint8_t n_pairs, n_nodes;
+};
+inline constexpr std::array<PassingPairs8, 256> kPassingPairs8 = [] {
+  std::array<PassingPairs8, 256> t{};
+  for (uint32_t m = 0; m < 256; ++m) {
+    uint64_t pairs = 0;
+    uint16_t nodes = 0;
+    int n = 0, k = 0;
+    for (uint32_t b = 0; b < 8; ++b)
+      if ((m >> b) & 1u) pairs |= uint64_t{b} << (8 * n++);
+    for (uint32_t d = 0; d < 2; ++d)
+      if ((m >> (4 * d)) & 0xfu) nodes = static_cast<uint16_t>(nodes | (d << (8 * k++)));
+    t[m] = {pairs, nodes, static_cast<uint8_t>(n), static_cast<uint8_t>(k)};
+  }
+  return t;
+}();
 // group_pass_sse2 from node 0 with two nodes per step: their eight (node,
 // group) hashes in one register, one 8-bit mask, each node's four bits
 // compacted as before; an odd last node by group_pass_sse2. The same lists
@@ -1417,8 +1442,16 @@ inline void group_pass_sse2(const NodeList &nodes, int first, const uint32_t *se
     _mm256_storeu_si256(reinterpret_cast<__m256i *>(pc.node_hash.data() + kDirectionGroups * at), h);
     const __m256i lt = _mm256_cmpgt_epi32(below, _mm256_xor_si256(h, bias));
     const uint32_t mask = all | static_cast<uint32_t>(_mm256_movemask_ps(_mm256_castsi256_ps(lt)));
-    append_passing_pairs(node, mask & 0xfu, pc, paired, pairs, with_pair);
-    append_passing_pairs(node + 1, mask >> 4, pc, paired, pairs, with_pair);
+    // Both nodes' pairs by one kPassingPairs8 entry: an 8-byte and a 2-byte
+    // store (session 22; before, append_passing_pairs per node). The stores
+    // stay in the arrays: pairs <= 4 node <= 248 and with_pair <= node.
+    const PassingPairs8 &e = kPassingPairs8[mask];
+    const uint64_t pair_bytes = e.pairs + static_cast<uint64_t>(kDirectionGroups * node) * 0x0101010101010101ull;
+    std::memcpy(pc.pair_index.data() + pairs, &pair_bytes, sizeof(pair_bytes));
+    pairs += e.n_pairs;
+    const auto node_bytes = static_cast<uint16_t>(e.nodes + static_cast<uint32_t>(node) * 0x0101u);
+    std::memcpy(paired + with_pair, &node_bytes, sizeof(node_bytes));
+    with_pair += e.n_nodes;
   }
   n_pairs = pairs, n_paired = with_pair;
   if (node < nodes.count) group_pass_sse2(nodes, node, seeds, reject, pc, paired, n_pairs, n_paired);
