@@ -816,49 +816,45 @@ struct FootprintNodeMemo {
 [[gnu::target("avx2")]] inline NodeRows nodes_at_level_start_avx2(const Footprint &f, int level, NodeList &list) {
   return nodes_at_level_start_avx2_body(f, level, list);
 }
+#endif
+// The body of footprint_nodes_avx2 and footprint_nodes_sse2 (session 22: one
+// copy; a macro, not a template, because the AVX2 start must be inlined into
+// a target("avx2") function and GCC refuses to inline it into a generic
+// helper): the start (`start`: the form's nodes_at_level_start) gives the box
+// or the coarse list in `list`, else the memo's list when it holds f at the
+// level, else the rows (`rows_of`: the form's rasteriser) into the memo's list.
+#define GLIMMER_GLINT_FOOTPRINT_NODES_BODY(start, rows_of)                       \
+  const int level = particle_level(density);                                     \
+  const NodeRows rows = start(f, level, list);                                   \
+  if (rows.kind != NodeRows::kRows) {                                            \
+    if (rows.kind == NodeRows::kTooMany) coarse_footprint_nodes(f, list);        \
+    return list;                                                                 \
+  }                                                                              \
+  FootprintNodeMemo &memo = *get_memo();                                         \
+  if (memo.holds(f, level)) return memo.nodes;                                   \
+  memo.valid = false;                                                            \
+  NodeList &out = memo.nodes;                                                    \
+  out.count = 0;                                                                 \
+  out.level = list.level;                                                        \
+  out.size = list.size;                                                          \
+  if (!rows_of(f, rows.j0, rows.j1, out)) coarse_footprint_nodes(f, out);        \
+  memo.set_key(f, level);                                                        \
+  return out
+#if GLIMMER_GLINT_WALK_AVX2
 // footprint_nodes through the memo (below) with the AVX2 start (inlined) and rows.
 template <typename GetMemo>
 [[gnu::target("avx2"), gnu::noinline]] inline const NodeList &footprint_nodes_avx2(const Footprint &f, double density, NodeList &list,
                                                                    GetMemo &&get_memo) {
-  const int level = particle_level(density);
-  const NodeRows rows = nodes_at_level_start_avx2_body(f, level, list);
-  if (rows.kind != NodeRows::kRows) {
-    if (rows.kind == NodeRows::kTooMany) coarse_footprint_nodes(f, list);
-    return list;
-  }
-  FootprintNodeMemo &memo = *get_memo();
-  if (memo.holds(f, level)) return memo.nodes;
-  memo.valid = false;
-  NodeList &out = memo.nodes;
-  out.count = 0;
-  out.level = list.level;
-  out.size = list.size;
-  if (!nodes_at_level_rows_avx2(f, rows.j0, rows.j1, out)) coarse_footprint_nodes(f, out);
-  memo.set_key(f, level);
-  return out;
+  GLIMMER_GLINT_FOOTPRINT_NODES_BODY(nodes_at_level_start_avx2_body, nodes_at_level_rows_avx2);
 }
 #endif
 // footprint_nodes through the memo with the SSE2 start and rows (out of line, as footprint_nodes was until session 21).
 template <typename GetMemo>
 [[gnu::noinline]] inline const NodeList &footprint_nodes_sse2(const Footprint &f, double density, NodeList &list,
                                                              GetMemo &&get_memo) {
-  const int level = particle_level(density);
-  const NodeRows rows = nodes_at_level_start(f, level, list);
-  if (rows.kind != NodeRows::kRows) {
-    if (rows.kind == NodeRows::kTooMany) coarse_footprint_nodes(f, list);
-    return list;
-  }
-  FootprintNodeMemo &memo = *get_memo();
-  if (memo.holds(f, level)) return memo.nodes;
-  memo.valid = false;
-  NodeList &out = memo.nodes;
-  out.count = 0;
-  out.level = list.level;
-  out.size = list.size;
-  if (!nodes_at_level_rows(f, rows.j0, rows.j1, out)) coarse_footprint_nodes(f, out);
-  memo.set_key(f, level);
-  return out;
+  GLIMMER_GLINT_FOOTPRINT_NODES_BODY(nodes_at_level_start, nodes_at_level_rows);
 }
+#undef GLIMMER_GLINT_FOOTPRINT_NODES_BODY
 // footprint_nodes through the memo: the same list (bit for bit; the key is
 // the footprint's bits and the level), returned by reference: `list` or the
 // memo's own list (valid until the next call with this memo; no copy).
@@ -1397,6 +1393,31 @@ inline void group_pass_sse2(const NodeList &nodes, int first, const uint32_t *se
   x = _mm256_mullo_epi32(x, _mm256_set1_epi32(static_cast<int>(0x846ca68bu)));
   return _mm256_xor_si256(x, _mm256_srli_epi32(x, 16));
 }
+// Two nodes' passing pairs from their 8-bit mask (bits 0..3: the first node's
+// groups, 4..7: the second's) in one entry (session 22): the passing bits'
+// positions b in order as the bytes of `pairs` (the pair 4 node + b is
+// pairs' byte + 4 node), their number, the nodes with a passing pair (0: the
+// first, 1: the second) as the bytes of `nodes`, and their number. The
+// unused bytes are 0.
+struct PassingPairs8 {
+  uint64_t pairs;
+  uint16_t nodes;
+  uint8_t n_pairs, n_nodes;
+};
+inline constexpr std::array<PassingPairs8, 256> kPassingPairs8 = [] {
+  std::array<PassingPairs8, 256> t{};
+  for (uint32_t m = 0; m < 256; ++m) {
+    uint64_t pairs = 0;
+    uint16_t nodes = 0;
+    int n = 0, k = 0;
+    for (uint32_t b = 0; b < 8; ++b)
+      if ((m >> b) & 1u) pairs |= uint64_t{b} << (8 * n++);
+    for (uint32_t d = 0; d < 2; ++d)
+      if ((m >> (4 * d)) & 0xfu) nodes = static_cast<uint16_t>(nodes | (d << (8 * k++)));
+    t[m] = {pairs, nodes, static_cast<uint8_t>(n), static_cast<uint8_t>(k)};
+  }
+  return t;
+}();
 // group_pass_sse2 from node 0 with two nodes per step: their eight (node,
 // group) hashes in one register, one 8-bit mask, each node's four bits
 // compacted as before; an odd last node by group_pass_sse2. The same lists
@@ -1421,8 +1442,16 @@ inline void group_pass_sse2(const NodeList &nodes, int first, const uint32_t *se
     _mm256_storeu_si256(reinterpret_cast<__m256i *>(pc.node_hash.data() + kDirectionGroups * at), h);
     const __m256i lt = _mm256_cmpgt_epi32(below, _mm256_xor_si256(h, bias));
     const uint32_t mask = all | static_cast<uint32_t>(_mm256_movemask_ps(_mm256_castsi256_ps(lt)));
-    append_passing_pairs(node, mask & 0xfu, pc, paired, pairs, with_pair);
-    append_passing_pairs(node + 1, mask >> 4, pc, paired, pairs, with_pair);
+    // Both nodes' pairs by one kPassingPairs8 entry: an 8-byte and a 2-byte
+    // store (session 22; before, append_passing_pairs per node). The stores
+    // stay in the arrays: pairs <= 4 node <= 248 and with_pair <= node.
+    const PassingPairs8 &e = kPassingPairs8[mask];
+    const uint64_t pair_bytes = e.pairs + static_cast<uint64_t>(kDirectionGroups * node) * 0x0101010101010101ull;
+    std::memcpy(pc.pair_index.data() + pairs, &pair_bytes, sizeof(pair_bytes));
+    pairs += e.n_pairs;
+    const auto node_bytes = static_cast<uint16_t>(e.nodes + static_cast<uint32_t>(node) * 0x0101u);
+    std::memcpy(paired + with_pair, &node_bytes, sizeof(node_bytes));
+    with_pair += e.n_nodes;
   }
   n_pairs = pairs, n_paired = with_pair;
   if (node < nodes.count) group_pass_sse2(nodes, node, seeds, reject, pc, paired, n_pairs, n_paired);
