@@ -133,6 +133,15 @@ inline SgVariant solid_sg_variant(float entry_roughness) {
 // docs/frosted_glass.md "Eighteenth / nineteenth session". Above kCurvedSplitMax the single SG (not measured there).
 inline constexpr float kCurvedTail = 0.1f;
 inline constexpr float kCurvedSplitMax = 0.65f;
+// A curved exit's lobe shape about the single SG's axis, for measurements and fits (session 22, frostedexit22):
+// up to kCurvedShapeLobes vMFs with shares `weight` (normalised when applied) and sharpness `factor` x the single
+// SG's kappa; count 0: not set. kCurvedTail's split is {2, {1 - t, t}, {(1 - t) / (1 - 4 t), 1 / 4}}.
+inline constexpr int kCurvedShapeLobes = 3;
+struct CurvedShape {
+  int count = 0;
+  float weight[kCurvedShapeLobes] = {};
+  float factor[kCurvedShapeLobes] = {};
+};
 
 
 // What the estimator needs from the closure at the entry point.
@@ -150,6 +159,7 @@ struct SgInputs {
   float mixture_variance = kDefaultMixtureVariance;  // kMixture: v above (tests sweep it)
   float mixture_tail = kDefaultMixtureTail;          // kMixture: t above
   float curved_tail = -1.0f;  // the curved exit's split (kCurvedTail above); < 0: kCurvedTail (tests sweep it, 0: none)
+  const CurvedShape *curved_shape = nullptr;  // tests' sweeps: the curved exit's shape instead of the split (above)
 };
 
 inline constexpr int kMaxInternalReflections = 16;
