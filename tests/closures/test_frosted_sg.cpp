@@ -1312,7 +1312,7 @@ TEST(FrostedGlassSg, ExitMixtureThroughTheAbiForNewAndOldHosts) {
     for (size_t b = kOld; b < sizeof raw; ++b) overwritten += raw[b] != 0xAB;
     EXPECT_GT(overwritten, 0);
   }
-  // Roughness 0.3: the per-ray mixture; 0.6: the sphere's split single SG (a 2-lobe mixture, kCurvedTail); 0.8: the
+  // Roughness 0.3: the per-ray mixture; 0.6: the sphere's curved exit (a 2-lobe mixture, kCurvedExitShape); 0.8: the
   // single SG, no mixture.
   for (const float roughness : {0.3f, 0.6f, 0.8f}) {
     auto sg = create_method(roughness, 1.5f, "sg");
