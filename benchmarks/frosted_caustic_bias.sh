@@ -5,13 +5,14 @@
 # frosted_variance_per_region.py against the two 65536-spp path references (--split-x 32: the sphere's side x < 32,
 # the pane's x >= 32). The environment passes through (GLIMMER_FROSTED_CURVED_TAIL / _SHAPE for a before / after
 # with one build).
-#   benchmarks/frosted_caustic_bias.sh build/glimmer /tmp/out label ref_7919.exr ref_8932.exr [spp]
+#   benchmarks/frosted_caustic_bias.sh build/glimmer /tmp/out label ref_7919.exr ref_8932.exr [spp] [method]
+# (method: sg by default; auto renders every frosted shader with method="auto")
 set -euo pipefail
-glimmer=$1 out=$2 label=$3 ref_a=$4 ref_b=$5 spp=${6:-1024}
+glimmer=$1 out=$2 label=$3 ref_a=$4 ref_b=$5 spp=${6:-1024} method=${7:-sg}
 here=$(cd "$(dirname "$0")" && pwd)
 mkdir -p "$out"
-scene="$out/caustic_sg.xml"
-sed -e 's|frosted_glass_bsdf name="g"|frosted_glass_bsdf name="g" method="sg"|' \
+scene="$out/caustic_$method.xml"
+sed -e "s|frosted_glass_bsdf name=\"g\"|frosted_glass_bsdf name=\"g\" method=\"$method\"|" \
     -e "s|../../examples/sphere.obj|$here/../examples/sphere.obj|" "$here/scenes/frosted_fair_caustic.xml" > "$scene"
 for seed in 11 12; do
   "$glimmer" render "$scene" -o "$out/${label}_$seed.exr" --samples "$spp" --seed "$seed" --strategy mis \

@@ -317,12 +317,14 @@ bool build_exit_mixture(const TransmissionSgTable &table, const Segment &seg, co
 // single SG (out.sg). False: no lobe has energy.
 // kCurvedTail, or for measurements only (docs/frosted_glass.md "Eighteenth / nineteenth session": the bench's
 // before / after with one build) the environment's GLIMMER_FROSTED_CURVED_TAIL (0: the unsplit single SG), read once.
+// Session 22: the default is kCurvedExitShape (below); the split with t is the nineteenth session's, still reachable
+// for before / after runs; unset: -1.
 float curved_tail() {
   static const float t = [] {
     const char *e = std::getenv("GLIMMER_FROSTED_CURVED_TAIL");
-    if (e == nullptr || *e == '\0') return kCurvedTail;
+    if (e == nullptr || *e == '\0') return -1.0f;
     const float v = std::strtof(e, nullptr);
-    return std::isfinite(v) ? std::clamp(v, 0.0f, 0.2f) : kCurvedTail;
+    return std::isfinite(v) ? std::clamp(v, 0.0f, 0.2f) : -1.0f;
   }();
   return t;
 }
@@ -398,13 +400,13 @@ Vec3 refracted_mean_shift(const Segment &seg, const Vec3 &axis, float ior) {
   const Vec3 shift = normalize(sum) - r0;
   return is_finite(shift) ? shift : Vec3(0.0f);
 }
-// For measurements only: GLIMMER_FROSTED_CURVED_SHIFT = k scales the shift (0: none), read once.
+// kCurvedAxisShift, or for measurements only GLIMMER_FROSTED_CURVED_SHIFT = k (0: none), read once.
 float curved_shift() {
   static const float k = [] {
     const char *e = std::getenv("GLIMMER_FROSTED_CURVED_SHIFT");
-    if (e == nullptr || *e == '\0') return 0.0f;
+    if (e == nullptr || *e == '\0') return kCurvedAxisShift;
     const float v = std::strtof(e, nullptr);
-    return std::isfinite(v) ? std::clamp(v, -4.0f, 4.0f) : 0.0f;
+    return std::isfinite(v) ? std::clamp(v, -4.0f, 4.0f) : kCurvedAxisShift;
   }();
   return k;
 }
@@ -430,11 +432,20 @@ bool solid_exit_mixture(const SgInputs &in, const Segment &seg, const Vec3 &axis
         const Vec3 shifted = normalize(out.sg.axis + refracted_mean_shift(seg, axis, ior) * k);
         if (is_finite(shifted)) out.sg.axis = shifted;
       }
-      const CurvedShape *shape = in.curved_shape != nullptr ? in.curved_shape : curved_shape_override();
+      // The shape: a test's (curved_shape, or curved_tail: the nineteenth session's split, 0 the single SG), else the
+      // environment's (measurements: a shape, or the split's t), else kCurvedExitShape.
+      const CurvedShape *shape = in.curved_shape;
+      float t = in.curved_tail;
+      if (shape == nullptr && t < 0.0f) {
+        shape = curved_shape_override();
+        t = curved_tail();
+      }
       if (shape != nullptr)
         apply_curved_shape(*shape, out);
+      else if (t >= 0.0f)
+        split_single_sg(t, out);
       else
-        split_single_sg(in.curved_tail < 0.0f ? curved_tail() : in.curved_tail, out);
+        apply_curved_shape(kCurvedExitShape, out);
     }
     return true;
   }

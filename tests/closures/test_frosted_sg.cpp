@@ -891,7 +891,9 @@ double solid_radial_offset(const SolidBands &m, const SolidBands &ref, const std
 constexpr double kPlanarLadderBandL1 = 0.11;
 // Eighteenth / nineteenth session: the sphere at roughness 0.5 / 0.6, the single SG split into a core and a tail
 // (kCurvedTail); bound set from this session's measurement (docs/frosted_glass.md "Eighteenth / nineteenth session").
-constexpr double kCurvedSplitBandL1 = 0.165;
+// Session 22: kCurvedExitShape about the shifted axis, 0.135 / 0.130 -> 0.053 / 0.094 (the control, the single SG
+// about the same axis, 0.222 / 0.166); bound 0.165 -> 0.12.
+constexpr double kCurvedSplitBandL1 = 0.12;
 TEST(FrostedGlassSg, ExitLobeShapeOfSolidsAgainstThePath) {
   const int ref_paths = stress_scale() > 1 ? 400000 : 100000, sg_paths = ref_paths / 4;
   struct ShapeCase {
@@ -936,8 +938,8 @@ TEST(FrostedGlassSg, ExitLobeShapeOfSolidsAgainstThePath) {
     print_solid_bands("sg, kappa/4 tails (s10)", old, &ref);
     print_solid_bands("sg, single SG", single, &ref);
     // The sphere above kMixtureRoughnessMax (a curved exit: the single SG split into a core and a tail,
-    // kCurvedTail): its band L1 against the exact walk, bound measured + ~25 %; the unsplit single SG (the
-    // control, curved_tail 0) must miss it.
+    // kCurvedExitShape since session 22, kCurvedTail before): its band L1 against the exact walk, bound measured
+    // + ~25 %; the unsplit single SG (the control, curved_tail 0) must miss it.
     if (c.kind == AnalyticScene::kSphere && c.roughness > frosted::kMixtureRoughnessMax &&
         c.roughness <= frosted::kCurvedSplitMax) {
       const Sampler unsplit([&path, &sg](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
@@ -970,6 +972,8 @@ TEST(FrostedGlassSg, ExitLobeShapeOfSolidsAgainstThePath) {
 // mean exit direction's offset from the path's (the axis itself).
 struct SphereExitCase {
   float roughness, ior;
+  double bound;    // the default's band L1 (measured + ~25 %, session 22); 0: printed only
+  bool control;    // the single SG (the same axis) must miss the bound
 };
 struct SphereExitRow {
   SolidBands ref, now, unsplit;
@@ -1059,16 +1063,22 @@ void print_sphere_exit(const SphereExitCase &c, const SphereExitRow &r) {
 }
 TEST(FrostedGlassSg, ExitOfTheSphereAroundTheCausticBench) {
   const int ref_paths = stress_scale() > 1 ? 200000 : 50000, sg_paths = ref_paths / 4;
-  const SphereExitCase cases[] = {{0.4f, 1.5f}, {0.5f, 1.33f}, {0.5f, 1.5f}, {0.5f, 1.7f},
-                                  {0.6f, 1.5f}, {0.65f, 1.33f}, {0.65f, 1.7f}};
+  // Session 22 (kCurvedExitShape about the shifted axis), band L1 default / single SG: r 0.5 IOR 1.33 0.062 / 0.278,
+  // 1.5 0.049 / 0.221, 1.7 0.052 / 0.225; r 0.6 1.5 0.093 / 0.168; r 0.65 1.33 0.125 / 0.186, 1.7 0.208 / 0.248 (the
+  // nineteenth session's split: 0.128, 0.133, 0.137, 0.131, 0.153, 0.257). r 0.4 is the per-ray mixture (0.212).
+  const SphereExitCase cases[] = {{0.4f, 1.5f, 0.0, false},   {0.5f, 1.33f, 0.08, true}, {0.5f, 1.5f, 0.065, true},
+                                  {0.5f, 1.7f, 0.065, true},  {0.6f, 1.5f, 0.12, true},  {0.65f, 1.33f, 0.16, true},
+                                  {0.65f, 1.7f, 0.26, false}};
   for (const SphereExitCase &c : cases) {
     const SphereExitRow r = measure_sphere_exit(c, ref_paths, sg_paths);
     print_sphere_exit(c, r);
     // sg's transmitted energy is the path's (measured within 0.2 % in every case): the shape, not the energy.
     EXPECT_NEAR(r.now.total, r.ref.total, 0.02 * r.ref.total) << "roughness " << c.roughness << " ior " << c.ior;
-    // The bench's own case: the curved exit's lobe beats the single SG it replaces (measured 0.133 vs 0.228).
-    if (c.roughness == 0.5f && c.ior == 1.5f) {
-      EXPECT_LT(solid_band_l1(r.now, r.ref), 0.8 * solid_band_l1(r.unsplit, r.ref));
+    if (c.bound > 0.0) {
+      EXPECT_LT(solid_band_l1(r.now, r.ref), c.bound) << "roughness " << c.roughness << " ior " << c.ior;
+    }
+    if (c.control) {
+      EXPECT_GT(solid_band_l1(r.unsplit, r.ref), c.bound) << "control passed: " << c.roughness << " " << c.ior;
     }
   }
 }
@@ -1302,7 +1312,7 @@ TEST(FrostedGlassSg, ExitMixtureThroughTheAbiForNewAndOldHosts) {
     for (size_t b = kOld; b < sizeof raw; ++b) overwritten += raw[b] != 0xAB;
     EXPECT_GT(overwritten, 0);
   }
-  // Roughness 0.3: the per-ray mixture; 0.6: the sphere's split single SG (a 2-lobe mixture, kCurvedTail); 0.8: the
+  // Roughness 0.3: the per-ray mixture; 0.6: the sphere's curved exit (a 2-lobe mixture, kCurvedExitShape); 0.8: the
   // single SG, no mixture.
   for (const float roughness : {0.3f, 0.6f, 0.8f}) {
     auto sg = create_method(roughness, 1.5f, "sg");
