@@ -176,6 +176,27 @@ class TransmissionSgTable {
 
  private:
   static constexpr int first_nodes(int side) { return side == 0 ? kThetaNodes : kSineNodes; }
+ public:
+  // Catmull-Rom weights of the 4 nodes around a grid coordinate on one axis (frosted_sg_table.cpp catmull_rom_taps).
+  struct Taps {
+    int index[4];
+    float weight[4];
+    float parity[4];  // -1 where a mirrored node's odd quantity (the axis offset) changes sign
+  };
+  // The lookups' setup, shared by lookup(), lookup_scalar() and lookup_energies(): for one (eta, roughness) the side
+  // (0 entering, 1 leaving), ior = max(eta, 1 / eta), whether the grid covers them, and then the roughness taps b
+  // and the IOR taps c; per incidence the first axis' taps a (theta entering, the Snell sine leaving), false where
+  // lookup() returns false (off the grid, or theta_i beyond kThetaMaxDeg).
+  struct Axes {
+    int side = 0;
+    float ior = 1.0f;
+    bool in_grid = false;
+    Taps b{}, c{};
+  };
+  static Axes axes(float eta, float roughness);
+  static bool first_taps(float cos_theta_i, const Axes &axes, Taps &a);
+
+ private:
   static size_t index(int side, int i, int j, int k) {
     return ((size_t(side) * kThetaNodes + i) * kRoughnessNodes + j) * kIorNodes + k;
   }
