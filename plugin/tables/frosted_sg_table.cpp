@@ -617,6 +617,7 @@ namespace {
 // on the caustic scene's sg render).
 [[gnu::always_inline]] inline Table::Axes make_axes(float eta, float roughness) {
   Table::Axes ax;
+  ax.eta = eta;
   ax.ior = eta >= 1.0f ? eta : 1.0f / eta;
   ax.side = eta >= 1.0f ? 0 : 1;
   ax.in_grid = in_grid(ax.ior, roughness);
@@ -643,7 +644,10 @@ bool TransmissionSgTable::first_taps(float cos_theta_i, const Axes &ax, Taps &a)
 }
 
 bool TransmissionSgTable::lookup(float cos_theta_i, float eta, float roughness, TransmissionLobe &out) const {
-  const Axes ax = make_axes(eta, roughness);
+  return lookup(cos_theta_i, make_axes(eta, roughness), out);
+}
+
+bool TransmissionSgTable::lookup(float cos_theta_i, const Axes &ax, TransmissionLobe &out) const {
   Taps a;
   if (!make_first_taps(cos_theta_i, ax, a)) return false;
   const int side = ax.side;
@@ -716,9 +720,13 @@ bool TransmissionSgTable::lookup_scalar(float cos_theta_i, float eta, float roug
 
 void TransmissionSgTable::lookup_energies(const float *cos_theta_i, int n, float eta, float roughness, float *energy,
                                           bool *valid) const {
+  lookup_energies(cos_theta_i, n, make_axes(eta, roughness), energy, valid);
+}
+
+void TransmissionSgTable::lookup_energies(const float *cos_theta_i, int n, const Axes &ax, float *energy,
+                                          bool *valid) const {
   n = std::clamp(n, 0, kMaxEnergyBatch);
   for (int i = 0; i < n; ++i) valid[i] = false, energy[i] = 0.0f;
-  const Axes ax = make_axes(eta, roughness);
   if (!ax.in_grid) return;
   const int side = ax.side;
   const Taps &b = ax.b, &c = ax.c;
