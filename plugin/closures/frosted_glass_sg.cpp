@@ -80,21 +80,31 @@ Spectrum hit_color(const SgInputs &in, const GlimmerHitClosure &c) {
 
 // The table's SG for incidence `wi_dir` (unit, on the +z side of the frame) turned into world space: the
 // table's frame has wi = (sin theta, 0, cos theta); x here is wi's tangential direction.
-bool table_lobe(const TransmissionSgTable &table, const Frame &frame, const Vec3 &wi_dir, float eta, float roughness,
-                SphericalGaussian &sg, float &energy) {
+// `axes`: the table's axes of (eta, roughness) (table_axes), made once for the lookups that share them.
+bool table_lobe(const TransmissionSgTable &table, const TransmissionSgTable::Axes &axes, const Frame &frame,
+                const Vec3 &wi_dir, SphericalGaussian &sg, float &energy) {
   const Vec3 w = frame.to_local(wi_dir);
   const float cos_i = std::clamp(w.z, 1e-4f, 1.0f);
   const float tx = w.x, ty = w.y, tl = std::sqrt(tx * tx + ty * ty);
   const Vec3 x_dir = tl > 1e-7f ? frame.to_world(Vec3(tx / tl, ty / tl, 0.0f)) : frame.s;
   TransmissionLobe lobe;
-  if (!table.lookup(cos_i, eta, std::clamp(roughness, TransmissionSgTable::kRoughnessMin, kTableRoughnessMax), lobe))
-    return false;
-  const SphericalGaussian local = lobe.sg(cos_i, eta);
+  if (!table.lookup(cos_i, axes, lobe)) return false;
+  const SphericalGaussian local = lobe.sg(cos_i, axes.eta);
   sg.axis = normalize(x_dir * local.axis.x + frame.n * local.axis.z);
   sg.sharpness = std::clamp(local.sharpness, 1e-3f, 1e7f);
   sg.amplitude = local.amplitude;
   energy = std::clamp(lobe.energy, 0.0f, 1.0f);
   return is_finite(sg.axis);
+}
+// The table's axes for relative IOR eta and `roughness` as the lookups read it (clamped to the table's range): the
+// roughness and IOR taps, the same for every incidence (issue 12, session 22: made once per shading point, or once
+// per exit event, instead of once per lookup).
+TransmissionSgTable::Axes table_axes(float eta, float roughness) {
+  return TransmissionSgTable::axes(eta, std::clamp(roughness, TransmissionSgTable::kRoughnessMin, kTableRoughnessMax));
+}
+bool table_lobe(const TransmissionSgTable &table, const Frame &frame, const Vec3 &wi_dir, float eta, float roughness,
+                SphericalGaussian &sg, float &energy) {
+  return table_lobe(table, table_axes(eta, roughness), frame, wi_dir, sg, energy);
 }
 
 // Polar angle of the cone around an SG's axis holding kBoundingEnergy of its energy (de Rousiers eq. 9).
@@ -186,19 +196,19 @@ struct ExitEnergies {
     return sum / float(n);
   }
 };
-ExitEnergies exit_energies(const TransmissionSgTable &table, const Segment &seg, float axis_energy, float ior,
-                           float roughness) {
+// `exit_axes`: the leaving table's axes, table_axes(1 / ior, roughness).
+ExitEnergies exit_energies(const TransmissionSgTable &table, const Segment &seg, float axis_energy,
+                           const TransmissionSgTable::Axes &exit_axes) {
   ExitEnergies e;
   e.axis = axis_energy;
   e.count = seg.bounding_count;
-  const float r = std::clamp(roughness, TransmissionSgTable::kRoughnessMin, kTableRoughnessMax);
   // The 4 lookups share (1 / ior, r): one batch (the same energies as 4 lookup() calls, bit for bit).
   static_assert(4 <= TransmissionSgTable::kMaxEnergyBatch);
   float cos_i[4], energy[4];
   bool valid[4];
   for (int i = 0; i < seg.bounding_count; ++i)
     cos_i[i] = std::clamp(dot(seg.bounding_dir[i], seg.bounding_normal[i]), 1e-4f, 1.0f);
-  table.lookup_energies(cos_i, seg.bounding_count, 1.0f / ior, r, energy, valid);
+  table.lookup_energies(cos_i, seg.bounding_count, exit_axes, energy, valid);
   for (int i = 0; i < seg.bounding_count; ++i) {
     if (!valid[i]) continue;
     e.ray[i] = std::clamp(energy[i], 0.0f, 1.0f);
@@ -206,9 +216,9 @@ ExitEnergies exit_energies(const TransmissionSgTable &table, const Segment &seg,
   }
   return e;
 }
-float mean_exit_energy(const TransmissionSgTable &table, const Segment &seg, float axis_energy, float ior,
-                       float roughness) {
-  return exit_energies(table, seg, axis_energy, ior, roughness).mean();
+float mean_exit_energy(const TransmissionSgTable &table, const Segment &seg, float axis_energy,
+                       const TransmissionSgTable::Axes &exit_axes) {
+  return exit_energies(table, seg, axis_energy, exit_axes).mean();
 }
 
 // The part of the internal lobe that the exit reflects (issue 12, fourteenth session; docs/frosted_glass.md "The
@@ -268,7 +278,7 @@ bool build_exit_mixture(const TransmissionSgTable &table, const Segment &seg, co
   const float point_var = 0.5f * std::max(kappa_in, 1e-6f) * theta_b * theta_b;  // the variance share at s = 1
   const float s = seg.bounding_count > 0 ? std::clamp(v / std::max(point_var, 1e-6f), 0.0f, 1.0f) : 0.0f;
   const float residual = 1.0f - std::min(1.0f, s * point_var);  // the variance the points do not carry
-  const float r = std::clamp(roughness_exit, TransmissionSgTable::kRoughnessMin, kTableRoughnessMax);
+  const TransmissionSgTable::Axes exit_axes = table_axes(1.0f / ior, roughness_exit);  // the lobes' (1 / ior, r)
   out.lobe_count = 0;
   float total = 0.0f;
   for (int i = -1; i < seg.bounding_count; ++i) {
@@ -276,7 +286,7 @@ bool build_exit_mixture(const TransmissionSgTable &table, const Segment &seg, co
     const Vec3 n = i < 0 ? seg.axis.normal : seg.bounding_normal[i];
     SphericalGaussian lobe;
     float energy = 0.0f;
-    if (!table_lobe(table, Frame::from_normal(-n), -d, 1.0f / ior, r, lobe, energy)) continue;
+    if (!table_lobe(table, exit_axes, Frame::from_normal(-n), -d, lobe, energy)) continue;
     const float share = i < 0 ? 1.0f - s * float(seg.bounding_count) / 4.0f : s / 4.0f;
     const float w = share * energy;
     if (!(w > 0.0f) || !is_finite(lobe.axis)) continue;
@@ -518,12 +528,13 @@ bool trace_exit_lobe(const ShadingPoint &sp, const SgInputs &in, uint32_t seed, 
     }
     SphericalGaussian exit;
     float exit_energy = 0.0f;
-    if (!table_lobe(*in.table, exit_frame, incident, 1.0f / ior, roughness_exit, exit, exit_energy)) return false;
+    const TransmissionSgTable::Axes exit_axes = table_axes(1.0f / ior, roughness_exit);  // the exit's lookups
+    if (!table_lobe(*in.table, exit_axes, exit_frame, incident, exit, exit_energy)) return false;
     // 5. Russian roulette between the exit (E_x) and the internal reflection (1 - E_x). E_x is averaged over the
     // axis and the bounding rays, each at its own incidence on its own exit normal: the directions of a wide lobe
     // far from its axis reach the exit beyond the critical angle and reflect, which the axis alone does not see.
     // The last event always exits: no roulette, so the bounding rays' energies are not looked up there.
-    const ExitEnergies energies = last ? ExitEnergies{} : exit_energies(*in.table, seg, exit_energy, ior, roughness_exit);
+    const ExitEnergies energies = last ? ExitEnergies{} : exit_energies(*in.table, seg, exit_energy, exit_axes);
     const float transmitted = last ? exit_energy : energies.mean();
     if (!last && roulette(seed, event) >= transmitted) {
       const float kappa_reflect = 2.0f / std::max(alpha2, 1e-7f);  // NDF sharpness; reflected lobe: kappa / 4
@@ -730,6 +741,7 @@ bool pane_exit_lobe(const Vec3 &wi, const PaneSgInputs &in, uint32_t seed, PaneE
   float kappa_in = front.sharpness;
   const float alpha_d = roughness * roughness;
   const float kappa_reflect = 2.0f / std::max(alpha_d * alpha_d, 1e-7f);  // NDF sharpness; reflected lobe: kappa / 4
+  const TransmissionSgTable::Axes exit_axes = table_axes(1.0f / ior, roughness);  // every event's exit lookups
   Spectrum weight = in.tint;
   for (int event = 0; event <= kMaxInternalReflections; ++event) {
     // 2. The face the axis reaches (outward normal n) after one crossing of the pane.
@@ -741,11 +753,10 @@ bool pane_exit_lobe(const Vec3 &wi, const PaneSgInputs &in, uint32_t seed, PaneE
     SphericalGaussian exit;
     float exit_energy = 0.0f;
     const Vec3 incident = last ? incident_clamped_to_critical(axis, n, ior) : -axis;
-    if (!table_lobe(*in.table, Frame::from_normal(-n), incident, 1.0f / ior, roughness, exit, exit_energy))
-      return false;
+    if (!table_lobe(*in.table, exit_axes, Frame::from_normal(-n), incident, exit, exit_energy)) return false;
     // 4. Russian roulette between leaving (E_x over the axis and the bounding directions) and the reflection
     // between the faces (1 - E_x): the weight is unchanged either way, so no energy is dropped.
-    const float transmitted = last ? 1.0f : mean_exit_energy(*in.table, seg, exit_energy, ior, roughness);
+    const float transmitted = last ? 1.0f : mean_exit_energy(*in.table, seg, exit_energy, exit_axes);
     if (roulette(seed, event) >= transmitted) {
       kappa_in = 1.0f / (1.0f / kappa_in + 4.0f / kappa_reflect);
       axis = Vec3(axis.x, axis.y, -axis.z);

@@ -140,10 +140,33 @@ class TransmissionSgTable {
   bool loaded_from_cache() const { return loaded_from_cache_; }
   bool operator==(const TransmissionSgTable &o) const;
 
+  // Catmull-Rom weights of the 4 nodes around a grid coordinate on one axis (frosted_sg_table.cpp catmull_rom_taps).
+  struct Taps {
+    int index[4];
+    float weight[4];
+    float parity[4];  // -1 where a mirrored node's odd quantity (the axis offset) changes sign
+  };
+  // The lookups' setup, shared by lookup(), lookup_scalar() and lookup_energies(): for one (eta, roughness) the side
+  // (0 entering, 1 leaving), ior = max(eta, 1 / eta), whether the grid covers them, and then the roughness taps b
+  // and the IOR taps c; per incidence the first axis' taps a (theta entering, the Snell sine leaving), false where
+  // lookup() returns false (off the grid, or theta_i beyond kThetaMaxDeg). The axes are the same for every lookup
+  // with one (eta, roughness) (two catmull_rom_taps and a logf, ~115 instructions): a material makes them once and
+  // passes them to its lookups (frosted_glass_sg.cpp table_axes; issue 12, session 22).
+  struct Axes {
+    float eta = 1.0f;
+    int side = 0;
+    float ior = 1.0f;
+    bool in_grid = false;
+    Taps b{}, c{};
+  };
+  static Axes axes(float eta, float roughness);
+  static bool first_taps(float cos_theta_i, const Axes &axes, Taps &a);
   // Interpolated lobe for relative IOR eta (> 1 entering, < 1 leaving); false
   // when ior = max(eta, 1 / eta) or roughness lies outside the grid (the caller
   // then fits directly).
   bool lookup(float cos_theta_i, float eta, float roughness, TransmissionLobe &out) const;
+  // The same with the axes of (eta, roughness) made beforehand by axes(): the same bits.
+  bool lookup(float cos_theta_i, const Axes &axes, TransmissionLobe &out) const;
   // lookup()'s energy alone (the same value, bit for bit) at n <= kMaxEnergyBatch incidences for one (eta,
   // roughness): the roughness and IOR taps once, the energy's 64 nodes per incidence (the sg exit energies of a
   // segment's 4 bounding rays). valid[i] false where lookup() would return false.
@@ -152,6 +175,7 @@ class TransmissionSgTable {
   // 4-lane sum): the tests' reference for lookup()'s bits.
   bool lookup_scalar(float cos_theta_i, float eta, float roughness, TransmissionLobe &out) const;
   void lookup_energies(const float *cos_theta_i, int n, float eta, float roughness, float *energy, bool *valid) const;
+  void lookup_energies(const float *cos_theta_i, int n, const Axes &axes, float *energy, bool *valid) const;
 
   // Node coordinates (for the tests' off-grid points).
   static float theta_at(int i);

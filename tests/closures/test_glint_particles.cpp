@@ -210,53 +210,97 @@ bool rows_without_band_corners(const pg::Footprint &f, int64_t j0, int64_t j1, p
   return true;
 }
 
+// The two row rasteriser tests' footprints: level 4..15, area 0.05..100 node areas, aspect 1..1024, and by `kind`
+// (the test's t % 8 or t % 10) 1: corners on row borders (the centre and the edges' y multiples of the node side),
+// 2: an edge parallel to the rows (no crossing: 0 / 0), 3: degenerate (zero area, or a zero edge), 4: corners on
+// borders and an edge along a border, 5 with `far`: far from the origin (node indices around 2^49..2^54 in x or y,
+// the AVX2 form's limits); other kinds as drawn.
+enum class RowCase { kDrawn, kOnBorder, kFlat, kDegenerate, kOnBorderFlat, kFar };
+struct RowFootprint {
+  int level = 0;
+  pg::Footprint f;
+  RowCase kind = RowCase::kDrawn;
+};
+RowFootprint random_row_footprint(Pcg32 &rng, int kind, bool far) {
+  RowFootprint r;
+  r.level = 4 + static_cast<int>(rng.next_u32() % 12);
+  const double size = std::ldexp(1.0, -r.level);
+  const double area = size * size * std::exp(std::log(0.05) + rng.next_double() * std::log(2000.0));
+  const double aspect = std::exp(rng.next_double() * std::log(1024.0));
+  r.f = random_footprint(rng, area, aspect);
+  pg::Footprint &f = r.f;
+  switch (kind) {
+    case 1:
+      f.cy = std::round(f.cy / size) * size;
+      f.ay = std::round(f.ay / size) * size, f.by = std::round(f.by / (0.5 * size)) * 0.5 * size;
+      r.kind = RowCase::kOnBorder;
+      break;
+    case 2:
+      (rng.next_u32() % 2 == 0 ? f.ay : f.by) = 0.0;
+      r.kind = RowCase::kFlat;
+      break;
+    case 3:
+      if (rng.next_u32() % 2 == 0) {
+        f.bx = 0.5 * f.ax, f.by = 0.5 * f.ay;
+      } else {
+        f.bx = 0.0, f.by = 0.0;
+      }
+      r.kind = RowCase::kDegenerate;
+      break;
+    case 4:
+      f.cy = std::round(f.cy / size) * size + 0.5 * size;
+      f.ay = 0.0, f.by = std::round(f.by / size) * size;
+      r.kind = RowCase::kOnBorderFlat;
+      break;
+    case 5:
+      if (!far) break;
+      {
+        const double at = std::ldexp(1.0 + rng.next_double(), 49 + static_cast<int>(rng.next_u32() % 6)) * size;
+        (rng.next_u32() % 2 == 0 ? f.cx : f.cy) = rng.next_u32() % 2 == 0 ? at : -at;
+      }
+      r.kind = RowCase::kFar;
+      break;
+    default:
+      break;
+  }
+  return r;
+}
+
+// One footprint's rows listed by the form under test, the reference form and the control
+// (rows_without_band_corners), each from nodes_at_level_start's list; false unless the footprint is drawn by rows.
+struct RowLists {
+  pg::NodeRows rows;
+  pg::NodeList tested, reference, control;
+  bool ok_tested = false, ok_reference = false, ok_control = false;
+};
+template <class Tested, class Reference>
+bool rasterise_rows(const RowFootprint &r, Tested tested, Reference reference, RowLists &out) {
+  pg::NodeList start;
+  out.rows = pg::nodes_at_level_start(r.f, r.level, start);
+  if (out.rows.kind != pg::NodeRows::kRows) return false;
+  out.tested = out.reference = out.control = start;
+  out.ok_tested = tested(r.f, out.rows.j0, out.rows.j1, out.tested);
+  out.ok_reference = reference(r.f, out.rows.j0, out.rows.j1, out.reference);
+  out.ok_control = rows_without_band_corners(r.f, out.rows.j0, out.rows.j1, out.control);
+  return true;
+}
+
 TEST(GlintParticles, RowRasteriserMatchesTheScalarForm) {
   Pcg32 rng(19);
   int64_t compared = 0, differ = 0, control_differs = 0, too_many = 0;
   int degenerate = 0, on_border = 0, flat = 0;
+  RowLists l;
   for (int t = 0; t < 60000; ++t) {
-    const int level = 4 + static_cast<int>(rng.next_u32() % 12);
-    const double size = std::ldexp(1.0, -level);
-    const double area = size * size * std::exp(std::log(0.05) + rng.next_double() * std::log(2000.0));
-    const double aspect = std::exp(rng.next_double() * std::log(1024.0));
-    pg::Footprint f = random_footprint(rng, area, aspect);
-    switch (t % 8) {
-      case 1:  // corners on row borders: the centre and the edges' y multiples of the node side
-        f.cy = std::round(f.cy / size) * size;
-        f.ay = std::round(f.ay / size) * size, f.by = std::round(f.by / (0.5 * size)) * 0.5 * size;
-        ++on_border;
-        break;
-      case 2:  // an edge parallel to the rows
-        (rng.next_u32() % 2 == 0 ? f.ay : f.by) = 0.0;
-        ++flat;
-        break;
-      case 3:  // degenerate: zero area, or a zero edge
-        if (rng.next_u32() % 2 == 0) {
-          f.bx = 0.5 * f.ax, f.by = 0.5 * f.ay;
-        } else {
-          f.bx = 0.0, f.by = 0.0;
-        }
-        ++degenerate;
-        break;
-      case 4:  // both: corners on borders and an edge along a border
-        f.cy = std::round(f.cy / size) * size + 0.5 * size;
-        f.ay = 0.0, f.by = std::round(f.by / size) * size;
-        ++on_border;
-        break;
-      default:
-        break;
-    }
-    pg::NodeList start;
-    const pg::NodeRows rows = pg::nodes_at_level_start(f, level, start);
-    if (rows.kind != pg::NodeRows::kRows) continue;
-    pg::NodeList simd = start, scalar = start, control = start;
-    const bool ok_simd = pg::nodes_at_level_rows(f, rows.j0, rows.j1, simd);
-    const bool ok_scalar = pg::nodes_at_level_rows_scalar(f, rows.j0, rows.j1, scalar);
-    const bool ok_control = rows_without_band_corners(f, rows.j0, rows.j1, control);
+    const RowFootprint r = random_row_footprint(rng, t % 8, false);
+    on_border += r.kind == RowCase::kOnBorder || r.kind == RowCase::kOnBorderFlat ? 1 : 0;
+    flat += r.kind == RowCase::kFlat ? 1 : 0;
+    degenerate += r.kind == RowCase::kDegenerate ? 1 : 0;
+    if (!rasterise_rows(r, pg::nodes_at_level_rows, pg::nodes_at_level_rows_scalar, l)) continue;
     ++compared;
-    too_many += ok_scalar ? 0 : 1;
-    differ += ok_simd != ok_scalar || (ok_scalar && !same_nodes(simd, scalar)) ? 1 : 0;
-    control_differs += ok_control != ok_scalar || (ok_scalar && !same_nodes(control, scalar)) ? 1 : 0;
+    too_many += l.ok_reference ? 0 : 1;
+    differ += l.ok_tested != l.ok_reference || (l.ok_reference && !same_nodes(l.tested, l.reference)) ? 1 : 0;
+    control_differs +=
+        l.ok_control != l.ok_reference || (l.ok_reference && !same_nodes(l.control, l.reference)) ? 1 : 0;
   }
   std::printf("[rows] %lld footprints rasterised (%lld beyond kMaxNodes; %d on-border, %d flat-edge, %d degenerate "
               "drawn): %lld differ; control without the band corners: %lld differ\n",
@@ -289,54 +333,16 @@ TEST(GlintParticles, RowRasteriserAvx2MatchesSse2) {
   Pcg32 rng(21);
   int64_t compared = 0, differ = 0, control_differs = 0, too_many = 0, far = 0;
   std::array<int, pg::kMaxNodes + 1> by_rows{};
+  RowLists l;
   for (int t = 0; t < 100000; ++t) {
-    const int level = 4 + static_cast<int>(rng.next_u32() % 12);
-    const double size = std::ldexp(1.0, -level);
-    const double area = size * size * std::exp(std::log(0.05) + rng.next_double() * std::log(2000.0));
-    const double aspect = std::exp(rng.next_double() * std::log(1024.0));
-    pg::Footprint f = random_footprint(rng, area, aspect);
-    bool is_far = false;
-    switch (t % 10) {
-      case 1:  // corners on row borders
-        f.cy = std::round(f.cy / size) * size;
-        f.ay = std::round(f.ay / size) * size, f.by = std::round(f.by / (0.5 * size)) * 0.5 * size;
-        break;
-      case 2:  // an edge parallel to the rows
-        (rng.next_u32() % 2 == 0 ? f.ay : f.by) = 0.0;
-        break;
-      case 3:  // degenerate: zero area, or a zero edge
-        if (rng.next_u32() % 2 == 0) {
-          f.bx = 0.5 * f.ax, f.by = 0.5 * f.ay;
-        } else {
-          f.bx = 0.0, f.by = 0.0;
-        }
-        break;
-      case 4:  // corners on borders and an edge along a border
-        f.cy = std::round(f.cy / size) * size + 0.5 * size;
-        f.ay = 0.0, f.by = std::round(f.by / size) * size;
-        break;
-      case 5: {  // far from the origin: node indices around 2^49..2^54 in x or y (the AVX2 form's limits)
-        const double at = std::ldexp(1.0 + rng.next_double(), 49 + static_cast<int>(rng.next_u32() % 6)) * size;
-        (rng.next_u32() % 2 == 0 ? f.cx : f.cy) = rng.next_u32() % 2 == 0 ? at : -at;
-        is_far = true;
-        break;
-      }
-      default:
-        break;
-    }
-    pg::NodeList start;
-    const pg::NodeRows rows = pg::nodes_at_level_start(f, level, start);
-    if (rows.kind != pg::NodeRows::kRows) continue;
-    pg::NodeList avx2 = start, sse2 = start, control = start;
-    const bool ok_avx2 = pg::nodes_at_level_rows_avx2(f, rows.j0, rows.j1, avx2);
-    const bool ok_sse2 = pg::nodes_at_level_rows_sse2(f, rows.j0, rows.j1, sse2);
-    const bool ok_control = rows_without_band_corners(f, rows.j0, rows.j1, control);
+    const RowFootprint r = random_row_footprint(rng, t % 10, true);
+    if (!rasterise_rows(r, pg::nodes_at_level_rows_avx2, pg::nodes_at_level_rows_sse2, l)) continue;
     ++compared;
-    ++by_rows[static_cast<size_t>(rows.j1 - rows.j0 + 1)];
-    far += is_far ? 1 : 0;
-    too_many += ok_sse2 ? 0 : 1;
-    differ += ok_avx2 != ok_sse2 || (ok_sse2 && !same_nodes(avx2, sse2)) ? 1 : 0;
-    control_differs += ok_control != ok_avx2 || (ok_avx2 && !same_nodes(control, avx2)) ? 1 : 0;
+    ++by_rows[static_cast<size_t>(l.rows.j1 - l.rows.j0 + 1)];
+    far += r.kind == RowCase::kFar ? 1 : 0;
+    too_many += l.ok_reference ? 0 : 1;
+    differ += l.ok_tested != l.ok_reference || (l.ok_reference && !same_nodes(l.tested, l.reference)) ? 1 : 0;
+    control_differs += l.ok_control != l.ok_tested || (l.ok_tested && !same_nodes(l.control, l.tested)) ? 1 : 0;
   }
   int rows_1_4 = 0, rows_5_16 = 0, rows_17_64 = 0;
   for (size_t n = 1; n < by_rows.size(); ++n) (n <= 4 ? rows_1_4 : n <= 16 ? rows_5_16 : rows_17_64) += by_rows[n];
