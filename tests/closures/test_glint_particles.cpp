@@ -851,6 +851,48 @@ TEST(GlintParticles, GroupHashLanesMatchTheScalarHash) {
   EXPECT_GT(short_mul_differs, compared / 2);
 }
 
+// The direction cells' seeds in AVX2 lanes (direction_cell_seeds_avx2, session 22: VROUNDPS floors, VPMULLD
+// multiplies, the chart's float operations in VEX forms) equal the SSE2 form's bit for bit, and both report the
+// same "no half vector", on random direction pairs (uniform, near a pole, near the horizon, both hemispheres), edge
+// inputs (+-0, denormals, NaN, z just above 1), cones of 0.1..10 degrees and the keys' own cone. Negative control:
+// the SSE2 form one cone size away (gamma x 1.001) differs on most pairs.
+TEST(GlintParticles, DirectionCellSeedsAvx2MatchSse2) {
+#if !GLIMMER_GLINT_WALK_AVX2
+  GTEST_SKIP() << "no AVX2 form in this build";
+#else
+  if (!__builtin_cpu_supports("avx2")) GTEST_SKIP() << "CPU without AVX2";
+  Pcg32 rng(41);
+  const float nan = std::numeric_limits<float>::quiet_NaN(), den = std::numeric_limits<float>::denorm_min();
+  const std::vector<Vec3> edges = {{0, 0, 1},     {0, 0, -1},        {1, 0, 0},     {0, 1, 0},    {0, 0, 0},
+                                   {0, 0, -0.0f}, {0, 0, 1.0000001f}, {den, 0, 1}, {0, den, -1}, {nan, 0, 0.5f},
+                                   {0.3f, 0.4f, nan}, {1e-13f, 0, 1}, {-1, 0, 1e-30f}, {0.6f, 0.8f, 0}};
+  const std::vector<Vec3> dirs = edge_and_random_directions(edges, 300000, rng);
+  int64_t compared = 0, with_half_vector = 0, control_differs = 0;
+  for (size_t a = 0; a < dirs.size(); ++a) {
+    const Vec3 &wi = dirs[a], &wo = dirs[(a * 7 + 3) % dirs.size()];
+    const float gamma = 0.0017453292f * std::exp(std::log(100.0f) * rng.next_float());  // 0.1..10 degrees
+    const pg::DirectionCellKeys keys(rng.next_u32(), a % 2 ? gamma : 0.0f);
+    std::array<uint32_t, pg::kDirectionGroups> v{}, s{}, c{};
+    const bool hv = pg::direction_cell_seeds_avx2(keys, wi, wo, gamma, v);
+    const bool hs = pg::direction_cell_seeds_sse2(keys, wi, wo, gamma, s);
+    ASSERT_EQ(hv, hs) << "wi " << wi.x << " " << wi.y << " " << wi.z << " wo " << wo.x << " " << wo.y << " " << wo.z;
+    ++compared;
+    if (!hs) continue;
+    ++with_half_vector;
+    for (int g = 0; g < pg::kDirectionGroups; ++g)
+      ASSERT_EQ(v[g], s[g]) << "group " << g << " wi " << wi.x << " " << wi.y << " " << wi.z << " wo " << wo.x << " "
+                            << wo.y << " " << wo.z << " gamma " << gamma;
+    pg::direction_cell_seeds_sse2(keys, wi, wo, gamma * 1.001f, c);
+    control_differs += c != s;
+  }
+  std::printf("[cells avx2] %lld pairs (%lld with a half vector) equal to the SSE2 form; gamma x 1.001 differs on "
+              "%lld\n", static_cast<long long>(compared), static_cast<long long>(with_half_vector),
+              static_cast<long long>(control_differs));
+  EXPECT_GT(with_half_vector, compared / 3);
+  EXPECT_GT(control_differs, with_half_vector / 10);
+#endif
+}
+
 // Node keys are a Weyl sequence along a row (node_key): the hashes that
 // decide the lit counts must still be independent between neighbouring nodes
 // of a row, of a column, and between the groups of a node. Over rows of
