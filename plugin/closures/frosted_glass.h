@@ -177,7 +177,8 @@ class FrostedGlassClosure {
   // through the object when it applies (else `front` stays, as method=path). Public for the tests' variants.
   void sample_sg(const ShadingPoint &sp, const Vec3 &rand, LocalSample &front, frosted::SgVariant variant,
                  float mixture_variance = frosted::kDefaultMixtureVariance,
-                 float mixture_tail = frosted::kDefaultMixtureTail, float curved_tail = -1.0f) const {
+                 float mixture_tail = frosted::kDefaultMixtureTail, float curved_tail = -1.0f,
+                 const frosted::CurvedShape *curved_shape = nullptr) const {
     frosted::SgInputs in;
     in.table = table_;
     in.self = reinterpret_cast<const GlimmerInstance *>(this);
@@ -193,6 +194,7 @@ class FrostedGlassClosure {
     in.mixture_variance = mixture_variance;
     in.mixture_tail = mixture_tail;
     in.curved_tail = curved_tail;
+    in.curved_shape = curved_shape;
     LocalSample s;
 #if GLIMMER_ABI_MINOR >= 7
     s.mixture_out = front.mixture_out;  // the host's buffer for the whole exit mixture (ABI 2.7)

@@ -317,12 +317,14 @@ bool build_exit_mixture(const TransmissionSgTable &table, const Segment &seg, co
 // single SG (out.sg). False: no lobe has energy.
 // kCurvedTail, or for measurements only (docs/frosted_glass.md "Eighteenth / nineteenth session": the bench's
 // before / after with one build) the environment's GLIMMER_FROSTED_CURVED_TAIL (0: the unsplit single SG), read once.
+// Session 22: the default is kCurvedExitShape (below); the split with t is the nineteenth session's, still reachable
+// for before / after runs; unset: -1.
 float curved_tail() {
   static const float t = [] {
     const char *e = std::getenv("GLIMMER_FROSTED_CURVED_TAIL");
-    if (e == nullptr || *e == '\0') return kCurvedTail;
+    if (e == nullptr || *e == '\0') return -1.0f;
     const float v = std::strtof(e, nullptr);
-    return std::isfinite(v) ? std::clamp(v, 0.0f, 0.2f) : kCurvedTail;
+    return std::isfinite(v) ? std::clamp(v, 0.0f, 0.2f) : -1.0f;
   }();
   return t;
 }
@@ -341,6 +343,73 @@ void split_single_sg(float t, ExitLobe &out) {
   tail.weight = t;
   out.lobe_count = 2;
 }
+// A CurvedShape applied to the single SG (out.sg): its lobes about the SG's axis; false (lobe_count 0) when the
+// shape has no lobe with a positive share and a finite positive factor.
+bool apply_curved_shape(const CurvedShape &shape, ExitLobe &out) {
+  out.lobe_count = 0;
+  float total = 0.0f;
+  for (int k = 0; k < std::min(shape.count, kCurvedShapeLobes); ++k) {
+    const float w = shape.weight[k], f = shape.factor[k];
+    if (!(w > 0.0f && f > 0.0f && std::isfinite(w) && std::isfinite(f))) continue;
+    ExitLobe::MixtureLobe &l = out.lobe[out.lobe_count++];
+    l.axis = out.sg.axis;
+    l.sharpness = std::clamp(out.sg.sharpness * f, 1e-3f, 1e7f);
+    l.weight = w;
+    total += w;
+  }
+  if (!(total > 0.0f)) return out.lobe_count = 0, false;
+  for (int k = 0; k < out.lobe_count; ++k) out.lobe[k].weight /= total;
+  return true;
+}
+// For measurements only: the environment's GLIMMER_FROSTED_CURVED_SHAPE = "w:f,w:f[,w:f]" (shares and sharpness
+// factors of the curved exit's lobes, CurvedShape) replaces the split, read once; unset or unparsable: nullptr.
+const CurvedShape *curved_shape_override() {
+  static const CurvedShape shape = [] {
+    CurvedShape c;
+    const char *e = std::getenv("GLIMMER_FROSTED_CURVED_SHAPE");
+    while (e != nullptr && *e != '\0' && c.count < kCurvedShapeLobes) {
+      char *end = nullptr;
+      const float w = std::strtof(e, &end);
+      if (end == e || *end != ':') return CurvedShape{};
+      e = end + 1;
+      const float f = std::strtof(e, &end);
+      if (end == e) return CurvedShape{};
+      c.weight[c.count] = w;
+      c.factor[c.count++] = f;
+      e = *end == ',' ? end + 1 : nullptr;
+    }
+    return c;
+  }();
+  return shape.count > 0 ? &shape : nullptr;
+}
+// The curved exit's axis shift (session 22, frostedexit22): refracting the internal lobe's axis alone maps the
+// lobe's mean through a nonlinear map (Snell's law bends the rays further from the normal more): the exact walk's
+// mean exit direction leans outward of it on the sphere (~1.5 deg at roughness 0.5, IOR 1.5;
+// FrostedGlassSg.ExitOfTheSphereAroundTheCausticBench). The mean of the smooth refractions of the axis and the 4
+// bounding rays, each through its own exit normal, as a quadrature of the internal lobe (the points' second moment
+// the vMF's: weight 1 - 1 / ln 4 on the bounding rays, theta_b^2 = 2 ln 4 / kappa), minus the axis' own refraction:
+// the shift. Zero unless all 4 bounding rays left through the material.
+Vec3 refracted_mean_shift(const Segment &seg, const Vec3 &axis, float ior) {
+  if (seg.bounding_count != 4) return Vec3(0.0f);
+  constexpr float kBoundingShare = 1.0f - 0.72134752f;  // 1 - 1 / ln 4 on the axis
+  const Vec3 r0 = refract_out(axis, seg.axis.normal, ior);
+  Vec3 sum = r0 * kBoundingShare;
+  for (int i = 0; i < 4; ++i)
+    sum += refract_out(seg.bounding_dir[i], seg.bounding_normal[i], ior) * ((1.0f - kBoundingShare) * 0.25f);
+  if (!(dot(sum, sum) > 1e-12f)) return Vec3(0.0f);
+  const Vec3 shift = normalize(sum) - r0;
+  return is_finite(shift) ? shift : Vec3(0.0f);
+}
+// kCurvedAxisShift, or for measurements only GLIMMER_FROSTED_CURVED_SHIFT = k (0: none), read once.
+float curved_shift() {
+  static const float k = [] {
+    const char *e = std::getenv("GLIMMER_FROSTED_CURVED_SHIFT");
+    if (e == nullptr || *e == '\0') return kCurvedAxisShift;
+    const float v = std::strtof(e, nullptr);
+    return std::isfinite(v) ? std::clamp(v, -4.0f, 4.0f) : kCurvedAxisShift;
+  }();
+  return k;
+}
 constexpr float kPlanarExitCurvature = 0.1f;
 constexpr float kCurvedSingleSgBelow = 0.2f;
 // Thirteenth session: cores x 3 -> x 2, measured with exit light sampling in the small light's test (its former
@@ -358,7 +427,26 @@ bool solid_exit_mixture(const SgInputs &in, const Segment &seg, const Vec3 &axis
   const bool planar = exit_curvature(seg, axis) < kPlanarExitCurvature;
   const bool ladder = by_rule && wide && planar;
   if (by_rule && !planar && (wide || narrow)) {  // the single SG, split into a core and a tail when wide
-    if (wide && in.roughness <= kCurvedSplitMax) split_single_sg(in.curved_tail < 0.0f ? curved_tail() : in.curved_tail, out);
+    if (wide && in.roughness <= kCurvedSplitMax) {
+      if (const float k = curved_shift(); k != 0.0f) {
+        const Vec3 shifted = normalize(out.sg.axis + refracted_mean_shift(seg, axis, ior) * k);
+        if (is_finite(shifted)) out.sg.axis = shifted;
+      }
+      // The shape: a test's (curved_shape, or curved_tail: the nineteenth session's split, 0 the single SG), else the
+      // environment's (measurements: a shape, or the split's t), else kCurvedExitShape.
+      const CurvedShape *shape = in.curved_shape;
+      float t = in.curved_tail;
+      if (shape == nullptr && t < 0.0f) {
+        shape = curved_shape_override();
+        t = curved_tail();
+      }
+      if (shape != nullptr)
+        apply_curved_shape(*shape, out);
+      else if (t >= 0.0f)
+        split_single_sg(t, out);
+      else
+        apply_curved_shape(kCurvedExitShape, out);
+    }
     return true;
   }
   const float tail = ladder ? 0.0f : (by_rule ? mixture_tail_for(in.roughness) : in.mixture_tail);

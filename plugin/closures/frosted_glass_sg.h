@@ -133,6 +133,25 @@ inline SgVariant solid_sg_variant(float entry_roughness) {
 // docs/frosted_glass.md "Eighteenth / nineteenth session". Above kCurvedSplitMax the single SG (not measured there).
 inline constexpr float kCurvedTail = 0.1f;
 inline constexpr float kCurvedSplitMax = 0.65f;
+// A curved exit's lobe shape about the single SG's axis (session 22, frostedexit22): up to kCurvedShapeLobes vMFs
+// with shares `weight` (normalised when applied) and sharpness `factor` x the single SG's kappa; count 0: not set.
+// kCurvedTail's split is {2, {1 - t, t}, {(1 - t) / (1 - 4 t), 1 / 4}}.
+inline constexpr int kCurvedShapeLobes = 3;
+struct CurvedShape {
+  int count = 0;
+  float weight[kCurvedShapeLobes] = {};
+  float factor[kCurvedShapeLobes] = {};
+};
+// Session 22: the curved exit (above kMixtureRoughnessMax up to kCurvedSplitMax) is kCurvedExitShape about an axis
+// moved by kCurvedAxisShift x (the mean of the smooth refractions of the internal axis and its 4 bounding rays, each
+// through its own exit normal, minus the axis' own): the exact walk's shape at roughness 0.5 (a sharper core, x 2.2,
+// weight 0.65, and a wider, heavier tail, x 0.4, weight 0.35: 1.17x the single SG's variance), fitted by
+// benchmarks/frosted_sphere_exit_fit.cpp to FrostedGlassSg.ExitOfTheSphereAroundTheCausticBench's path bands; the
+// shift is what the caustic bench's sphere shadow needed (the image of the lobe's mean through the curved exit, not
+// the refraction of its axis alone). docs/frosted_glass.md "Session 22 (frostedexit22)". The nineteenth session's
+// split (kCurvedTail) stays for before / after runs (GLIMMER_FROSTED_CURVED_TAIL; 0: the single SG).
+inline constexpr CurvedShape kCurvedExitShape{2, {0.65f, 0.35f}, {2.2f, 0.4f}};
+inline constexpr float kCurvedAxisShift = 1.0f;
 
 
 // What the estimator needs from the closure at the entry point.
@@ -149,7 +168,8 @@ struct SgInputs {
   SgVariant variant = SgVariant::kTracedCone;
   float mixture_variance = kDefaultMixtureVariance;  // kMixture: v above (tests sweep it)
   float mixture_tail = kDefaultMixtureTail;          // kMixture: t above
-  float curved_tail = -1.0f;  // the curved exit's split (kCurvedTail above); < 0: kCurvedTail (tests sweep it, 0: none)
+  float curved_tail = -1.0f;  // >= 0: the curved exit as the split (kCurvedTail above) with this t (0: the single SG)
+  const CurvedShape *curved_shape = nullptr;  // tests' sweeps: the curved exit's shape instead of the split (above)
 };
 
 inline constexpr int kMaxInternalReflections = 16;

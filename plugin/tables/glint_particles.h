@@ -816,49 +816,45 @@ struct FootprintNodeMemo {
 [[gnu::target("avx2")]] inline NodeRows nodes_at_level_start_avx2(const Footprint &f, int level, NodeList &list) {
   return nodes_at_level_start_avx2_body(f, level, list);
 }
+#endif
+// The body of footprint_nodes_avx2 and footprint_nodes_sse2 (session 22: one
+// copy; a macro, not a template, because the AVX2 start must be inlined into
+// a target("avx2") function and GCC refuses to inline it into a generic
+// helper): the start (`start`: the form's nodes_at_level_start) gives the box
+// or the coarse list in `list`, else the memo's list when it holds f at the
+// level, else the rows (`rows_of`: the form's rasteriser) into the memo's list.
+#define GLIMMER_GLINT_FOOTPRINT_NODES_BODY(start, rows_of)                       \
+  const int level = particle_level(density);                                     \
+  const NodeRows rows = start(f, level, list);                                   \
+  if (rows.kind != NodeRows::kRows) {                                            \
+    if (rows.kind == NodeRows::kTooMany) coarse_footprint_nodes(f, list);        \
+    return list;                                                                 \
+  }                                                                              \
+  FootprintNodeMemo &memo = *get_memo();                                         \
+  if (memo.holds(f, level)) return memo.nodes;                                   \
+  memo.valid = false;                                                            \
+  NodeList &out = memo.nodes;                                                    \
+  out.count = 0;                                                                 \
+  out.level = list.level;                                                        \
+  out.size = list.size;                                                          \
+  if (!rows_of(f, rows.j0, rows.j1, out)) coarse_footprint_nodes(f, out);        \
+  memo.set_key(f, level);                                                        \
+  return out
+#if GLIMMER_GLINT_WALK_AVX2
 // footprint_nodes through the memo (below) with the AVX2 start (inlined) and rows.
 template <typename GetMemo>
 [[gnu::target("avx2"), gnu::noinline]] inline const NodeList &footprint_nodes_avx2(const Footprint &f, double density, NodeList &list,
                                                                    GetMemo &&get_memo) {
-  const int level = particle_level(density);
-  const NodeRows rows = nodes_at_level_start_avx2_body(f, level, list);
-  if (rows.kind != NodeRows::kRows) {
-    if (rows.kind == NodeRows::kTooMany) coarse_footprint_nodes(f, list);
-    return list;
-  }
-  FootprintNodeMemo &memo = *get_memo();
-  if (memo.holds(f, level)) return memo.nodes;
-  memo.valid = false;
-  NodeList &out = memo.nodes;
-  out.count = 0;
-  out.level = list.level;
-  out.size = list.size;
-  if (!nodes_at_level_rows_avx2(f, rows.j0, rows.j1, out)) coarse_footprint_nodes(f, out);
-  memo.set_key(f, level);
-  return out;
+  GLIMMER_GLINT_FOOTPRINT_NODES_BODY(nodes_at_level_start_avx2_body, nodes_at_level_rows_avx2);
 }
 #endif
 // footprint_nodes through the memo with the SSE2 start and rows (out of line, as footprint_nodes was until session 21).
 template <typename GetMemo>
 [[gnu::noinline]] inline const NodeList &footprint_nodes_sse2(const Footprint &f, double density, NodeList &list,
                                                              GetMemo &&get_memo) {
-  const int level = particle_level(density);
-  const NodeRows rows = nodes_at_level_start(f, level, list);
-  if (rows.kind != NodeRows::kRows) {
-    if (rows.kind == NodeRows::kTooMany) coarse_footprint_nodes(f, list);
-    return list;
-  }
-  FootprintNodeMemo &memo = *get_memo();
-  if (memo.holds(f, level)) return memo.nodes;
-  memo.valid = false;
-  NodeList &out = memo.nodes;
-  out.count = 0;
-  out.level = list.level;
-  out.size = list.size;
-  if (!nodes_at_level_rows(f, rows.j0, rows.j1, out)) coarse_footprint_nodes(f, out);
-  memo.set_key(f, level);
-  return out;
+  GLIMMER_GLINT_FOOTPRINT_NODES_BODY(nodes_at_level_start, nodes_at_level_rows);
 }
+#undef GLIMMER_GLINT_FOOTPRINT_NODES_BODY
 // footprint_nodes through the memo: the same list (bit for bit; the key is
 // the footprint's bits and the level), returned by reference: `list` or the
 // memo's own list (valid until the next call with this memo; no copy).
@@ -1170,7 +1166,7 @@ struct FootprintFrame {
   double ds_ux, ds_uy, dt_ux, dt_uy;  // steps of (s, t) per unit of u_x, u_y
   bool nodes_can_be_inside;           // the footprint is at least as large as a node
 
-  FootprintFrame(const Footprint &fp, double node_size)
+  [[gnu::always_inline]] FootprintFrame(const Footprint &fp, double node_size)
       : f(fp), inv_det(1.0 / (fp.ax * fp.by - fp.ay * fp.bx)), size(node_size),
         ds_ux(node_size * fp.by * inv_det), ds_uy(-node_size * fp.bx * inv_det),
         dt_ux(-node_size * fp.ay * inv_det), dt_uy(node_size * fp.ax * inv_det),
@@ -1292,6 +1288,18 @@ struct NoParticleVisitor {
   void operator()(uint32_t, uint32_t) {}
 };
 
+#if GLIMMER_GLINT_WALK_AVX2
+// mix_u32 per 32-bit lane of a 256-bit register (VPMULLD: one instruction per
+// multiply; SSE2 needs two PMULUDQ and a shuffle). The same values.
+[[gnu::target("avx2")]] inline __m256i mix_u32x8(__m256i x) {
+  x = _mm256_xor_si256(x, _mm256_srli_epi32(x, 16));
+  x = _mm256_mullo_epi32(x, _mm256_set1_epi32(static_cast<int>(0x7feb352du)));
+  x = _mm256_xor_si256(x, _mm256_srli_epi32(x, 15));
+  x = _mm256_mullo_epi32(x, _mm256_set1_epi32(static_cast<int>(0x846ca68bu)));
+  return _mm256_xor_si256(x, _mm256_srli_epi32(x, 16));
+}
+#endif
+
 // The four direction groups' count without a visitor, in passes with few
 // random branches (issue 10, ninth speed session; the same count, steps and
 // completeness as the node-by-node loop below, which the visitor and other
@@ -1325,9 +1333,50 @@ struct PairPassCounter {
 
   explicit PairPassCounter(const FootprintFrame &fr) : frame(fr) {}
   // Inlined into the pair passes (as GCC chose until session 21; out of line it cost ~3 M in the GI scene's 160x100 render).
-  [[gnu::always_inline]] void flush() {
+  [[gnu::always_inline]] void flush() { flush_from(0, 0); }
+#if GLIMMER_GLINT_WALK_AVX2
+  // flush with four particles per step first (session 22: their eight
+  // position keys in one mix_u32x8, their (s, t) in 256-bit double lanes by
+  // flush_from's expressions, the same values), the rest by flush_from.
+  [[gnu::target("avx2")]] void flush_avx2() {
     int64_t c = 0;
     int q = 0;
+    const __m128i position_key = _mm_set1_epi32(static_cast<int>(kPositionKey));
+    const __m128i step2 = _mm_set1_epi32(static_cast<int>(2u * kNodeKeyStep));
+    const __m128i step1 = _mm_set1_epi32(static_cast<int>(kNodeKeyStep));
+    const __m256i spread = _mm256_setr_epi32(0, 0, 1, 1, 2, 2, 3, 3);
+    const __m256i second = _mm256_setr_epi32(0, static_cast<int>(kNodeKeyStep), 0, static_cast<int>(kNodeKeyStep), 0,
+                                             static_cast<int>(kNodeKeyStep), 0, static_cast<int>(kNodeKeyStep));
+    const __m256i split = _mm256_setr_epi32(0, 2, 4, 6, 1, 3, 5, 7);  // the x's, then the y's
+    const __m256 scale = _mm256_set1_ps(1.0f / 16777216.0f);
+    const __m256d ds_ux = _mm256_set1_pd(frame.ds_ux), ds_uy = _mm256_set1_pd(frame.ds_uy);
+    const __m256d dt_ux = _mm256_set1_pd(frame.dt_ux), dt_uy = _mm256_set1_pd(frame.dt_uy);
+    const __m256d sign = _mm256_set1_pd(-0.0), half = _mm256_set1_pd(0.5);
+    for (; q + 3 < n_parts; q += 4) {
+      const auto a = static_cast<size_t>(q);
+      // (h ^ C) + (2 k + 1) W = (h ^ C) + k (2 W) + W per particle, mod 2^32.
+      const __m128i k = _mm_loadu_si128(reinterpret_cast<const __m128i *>(part_k.data() + a));
+      const __m128i h = _mm_loadu_si128(reinterpret_cast<const __m128i *>(part_hash.data() + a));
+      const __m128i keys = _mm_add_epi32(_mm_add_epi32(_mm_xor_si128(h, position_key), _mm_mullo_epi32(k, step2)), step1);
+      const __m256i keys8 = _mm256_add_epi32(_mm256_permutevar8x32_epi32(_mm256_castsi128_si256(keys), spread), second);
+      const __m256 u = _mm256_mul_ps(_mm256_cvtepi32_ps(_mm256_srli_epi32(mix_u32x8(keys8), 8)), scale);
+      const __m256 xy = _mm256_permutevar8x32_ps(u, split);
+      const __m256d ux = _mm256_cvtps_pd(_mm256_castps256_ps128(xy)), uy = _mm256_cvtps_pd(_mm256_extractf128_ps(xy, 1));
+      const __m128d o0 = _mm_loadu_pd(&origin[part_node[a]].s), o1 = _mm_loadu_pd(&origin[part_node[a + 1]].s);
+      const __m128d o2 = _mm_loadu_pd(&origin[part_node[a + 2]].s), o3 = _mm_loadu_pd(&origin[part_node[a + 3]].s);
+      const __m256d o02 = _mm256_set_m128d(o2, o0), o13 = _mm256_set_m128d(o3, o1);
+      const __m256d s = _mm256_add_pd(_mm256_add_pd(_mm256_unpacklo_pd(o02, o13), _mm256_mul_pd(ux, ds_ux)), _mm256_mul_pd(uy, ds_uy));
+      const __m256d t = _mm256_add_pd(_mm256_add_pd(_mm256_unpackhi_pd(o02, o13), _mm256_mul_pd(ux, dt_ux)), _mm256_mul_pd(uy, dt_uy));
+      const __m256d in = _mm256_and_pd(_mm256_cmp_pd(_mm256_andnot_pd(sign, s), half, _CMP_LE_OS),
+                                       _mm256_cmp_pd(_mm256_andnot_pd(sign, t), half, _CMP_LE_OS));
+      const auto m = static_cast<uint32_t>(_mm256_movemask_pd(in));
+      c += (0x4332322132212110ull >> (4 * m)) & 0xfu;  // the number of set bits of m (4 bits per entry)
+    }
+    flush_from(q, c);
+  }
+#endif
+  // flush from particle q on with c already counted.
+  [[gnu::always_inline]] void flush_from(int q, int64_t c) {
 #if defined(__SSE2__)
     // Session 19: two particles' positions per mix_u32x4 (lanes: particle
     // q's two keys, particle q + 1's), the same values as particle_position
@@ -1364,29 +1413,39 @@ struct PairPassCounter {
     count += c;
     n_parts = 0;
   }
+  // add_lit's rare case, out of line (session 22: inlined, its flush kept the
+  // pair pass's counters in memory): the list flushed, and K >= kMaxParticles
+  // (only at the coarse fallback level) counted here (true: done).
+  [[gnu::noinline]] bool flush_for(int node, uint32_t h0, int64_t K, int32_t in) {
+    flush();
+    if (K < kMaxParticles) return false;
+    if (in == 0)
+      for (int64_t k = 0; k < K; ++k) {
+        const auto [ux, uy] = particle_position(h0, static_cast<uint32_t>(k));
+        count += frame.particle_inside(origin[static_cast<size_t>(node)], ux, uy) ? 1 : 0;
+      }
+    return true;
+  }
   // K lit particles of pair (node, h0): interior nodes add K, border nodes list them.
-  void add_lit(int node, uint32_t h0, int64_t K) {
+  [[gnu::always_inline]] void add_lit(int node, uint32_t h0, int64_t K) {
     const int32_t in = inside_mask[static_cast<size_t>(node)];
     count += K & static_cast<int64_t>(in);
-    if (K >= kMaxParticles - n_parts) {  // keeps one free slot for the write below
-      flush();
-      if (K >= kMaxParticles) {  // only at the coarse fallback level: count them here
-        if (in == 0)
-          for (int64_t k = 0; k < K; ++k) {
-            const auto [ux, uy] = particle_position(h0, static_cast<uint32_t>(k));
-            count += frame.particle_inside(origin[static_cast<size_t>(node)], ux, uy) ? 1 : 0;
-          }
-        return;
-      }
-    }
-    // The first entry always, more only for K >= 2; the list grows by K on
-    // the border and by 0 inside (or when K = 0).
+    // Keeps two free slots for the writes below.
+    if (K >= kMaxParticles - 1 - n_parts) [[unlikely]]
+      if (flush_for(node, h0, K, in)) return;
+    // The first two entries always (K is mostly 0 or 1), more only for K >= 3
+    // (session 22; the loop from k = 1 was vectorised with a setup paid at
+    // every K >= 2); the list grows by K on the border and by 0 inside (or
+    // when K = 0).
     const auto at = static_cast<size_t>(n_parts);
-    part_hash[at] = h0, part_k[at] = 0, part_node[at] = static_cast<uint32_t>(node);
-    for (int64_t k = 1; k < K; ++k) {
-      const auto a = at + static_cast<size_t>(k);
-      part_hash[a] = h0, part_k[a] = static_cast<uint32_t>(k), part_node[a] = static_cast<uint32_t>(node);
-    }
+    const auto nd = static_cast<uint32_t>(node);
+    part_hash[at] = h0, part_k[at] = 0, part_node[at] = nd;
+    part_hash[at + 1] = h0, part_k[at + 1] = 1, part_node[at + 1] = nd;
+    if (K > 2) [[unlikely]]
+      for (int64_t k = 2; k < K; ++k) {
+        const auto a = at + static_cast<size_t>(k);
+        part_hash[a] = h0, part_k[a] = static_cast<uint32_t>(k), part_node[a] = nd;
+      }
     n_parts += static_cast<int>(K & static_cast<int64_t>(~in));
   }
 };
@@ -1445,15 +1504,31 @@ inline void group_pass_sse2(const NodeList &nodes, int first, const uint32_t *se
 }
 
 #if GLIMMER_GLINT_WALK_AVX2
-// mix_u32 per 32-bit lane of a 256-bit register (VPMULLD: one instruction per
-// multiply; SSE2 needs two PMULUDQ and a shuffle). The same values.
-[[gnu::target("avx2")]] inline __m256i mix_u32x8(__m256i x) {
-  x = _mm256_xor_si256(x, _mm256_srli_epi32(x, 16));
-  x = _mm256_mullo_epi32(x, _mm256_set1_epi32(static_cast<int>(0x7feb352du)));
-  x = _mm256_xor_si256(x, _mm256_srli_epi32(x, 15));
-  x = _mm256_mullo_epi32(x, _mm256_set1_epi32(static_cast<int>(0x846ca68bu)));
-  return _mm256_xor_si256(x, _mm256_srli_epi32(x, 16));
-}
+// Two nodes' passing pairs from their 8-bit mask (bits 0..3: the first node's
+// groups, 4..7: the second's) in one entry (session 22): the passing bits'
+// positions b in order as the bytes of `pairs` (the pair 4 node + b is
+// pairs' byte + 4 node), their number, the nodes with a passing pair (0: the
+// first, 1: the second) as the bytes of `nodes`, and their number. The
+// unused bytes are 0.
+struct PassingPairs8 {
+  uint64_t pairs;
+  uint16_t nodes;
+  uint8_t n_pairs, n_nodes;
+};
+inline constexpr std::array<PassingPairs8, 256> kPassingPairs8 = [] {
+  std::array<PassingPairs8, 256> t{};
+  for (uint32_t m = 0; m < 256; ++m) {
+    uint64_t pairs = 0;
+    uint16_t nodes = 0;
+    int n = 0, k = 0;
+    for (uint32_t b = 0; b < 8; ++b)
+      if ((m >> b) & 1u) pairs |= uint64_t{b} << (8 * n++);
+    for (uint32_t d = 0; d < 2; ++d)
+      if ((m >> (4 * d)) & 0xfu) nodes = static_cast<uint16_t>(nodes | (d << (8 * k++)));
+    t[m] = {pairs, nodes, static_cast<uint8_t>(n), static_cast<uint8_t>(k)};
+  }
+  return t;
+}();
 // group_pass_sse2 from node 0 with two nodes per step: their eight (node,
 // group) hashes in one register, one 8-bit mask, each node's four bits
 // compacted as before; an odd last node by group_pass_sse2. The same lists
@@ -1478,8 +1553,16 @@ inline void group_pass_sse2(const NodeList &nodes, int first, const uint32_t *se
     _mm256_storeu_si256(reinterpret_cast<__m256i *>(pc.node_hash.data() + kDirectionGroups * at), h);
     const __m256i lt = _mm256_cmpgt_epi32(below, _mm256_xor_si256(h, bias));
     const uint32_t mask = all | static_cast<uint32_t>(_mm256_movemask_ps(_mm256_castsi256_ps(lt)));
-    append_passing_pairs(node, mask & 0xfu, pc, paired, pairs, with_pair);
-    append_passing_pairs(node + 1, mask >> 4, pc, paired, pairs, with_pair);
+    // Both nodes' pairs by one kPassingPairs8 entry: an 8-byte and a 2-byte
+    // store (session 22; before, append_passing_pairs per node). The stores
+    // stay in the arrays: pairs <= 4 node <= 248 and with_pair <= node.
+    const PassingPairs8 &e = kPassingPairs8[mask];
+    const uint64_t pair_bytes = e.pairs + static_cast<uint64_t>(kDirectionGroups * node) * 0x0101010101010101ull;
+    std::memcpy(pc.pair_index.data() + pairs, &pair_bytes, sizeof(pair_bytes));
+    pairs += e.n_pairs;
+    const auto node_bytes = static_cast<uint16_t>(e.nodes + static_cast<uint32_t>(node) * 0x0101u);
+    std::memcpy(paired + with_pair, &node_bytes, sizeof(node_bytes));
+    with_pair += e.n_nodes;
   }
   n_pairs = pairs, n_paired = with_pair;
   if (node < nodes.count) group_pass_sse2(nodes, node, seeds, reject, pc, paired, n_pairs, n_paired);
@@ -1548,6 +1631,9 @@ template <bool kAvx2>
   else
 #endif
     group_pass_sse2(nodes, 0, seeds, reject, pc, paired_nodes.data(), n_pairs, n_paired);
+  // No pair passes the quick reject (~70 % of the walks in examples/glint.xml): count 0, no steps,
+  // complete, without the other passes' set-up (the bounds' division, the frame's constants; session 22).
+  if (n_pairs == 0) return {};
   paired_node_origins(frame, nodes, paired_nodes.data(), n_paired, pc);  // (1)
   GlintCount result;
   const LitCountBounds bounds(lambda);
@@ -1566,7 +1652,12 @@ template <bool kAvx2>
     if (K < 0 || steps > max_steps) return {0, 0, false};
     pc.add_lit(static_cast<int>(pair / kDirectionGroups), h0, K);
   }
-  pc.flush();  // (4)
+#if GLIMMER_GLINT_WALK_AVX2
+  if constexpr (kAvx2)
+    pc.flush_avx2();  // (4)
+  else
+#endif
+    pc.flush();  // (4)
   result.count = static_cast<int>(pc.count);
   result.steps = static_cast<int>(steps);
   return result;

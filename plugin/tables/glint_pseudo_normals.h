@@ -133,7 +133,7 @@ struct PseudoNormalTiles {
     return ty >= ty0 && ty <= ty1 && tx >= tx0[static_cast<size_t>(ty - ty0)] && tx <= tx1[static_cast<size_t>(ty - ty0)];
   }
 };
-inline bool pseudo_normal_tiles(const PseudoNormalField &field, const Vec3 &wi, const Vec3 &wo, float margin,
+[[gnu::noinline]] inline bool pseudo_normal_tiles(const PseudoNormalField &field, const Vec3 &wi, const Vec3 &wo, float margin,
                                 PseudoNormalTiles &tiles) {
   const Vec3 s = wi + wo;
   const float len2 = dot(s, s);

@@ -24,6 +24,7 @@
 #include <array>
 #include <atomic>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <ctime>
 #include <functional>
@@ -743,6 +744,11 @@ constexpr double kShapeEdge[kShapeBands + 1] = {0, 2, 5, 10, 20, 30, 45, 60, 180
 struct SolidBands {
   double mass[kShapeBands] = {}, se[kShapeBands] = {};  // fraction of the transmitted energy per band
   double total = 0.0;                                    // transmitted energy per entering path
+  // Per pixel: the weighted sum of the leaving directions (its direction: the pixel's mean exit direction) and the
+  // transmitted energy per entering path; the light-weighted mean angle off the pixel's exit axis (degrees).
+  std::vector<Vec3> pixel_mean;
+  std::vector<double> pixel_total;
+  double mean_angle = 0.0;
 };
 
 // Smooth refraction of d (unit) at a surface with unit normal n facing against d, relative index eta = n1 / n2.
@@ -795,22 +801,34 @@ SolidBands solid_bands(const AnalyticScene &scene, const Sampler &sample, float 
                        uint64_t seed) {
   const std::vector<Pixel> px = camera_pixels(scene);
   std::vector<BandSums<kShapeBands>> acc(px.size());
+  std::vector<std::array<double, 4>> moments(px.size());  // sum w wo (x, y, z), sum w angle
   tbb::parallel_for(size_t(0), px.size(), [&](size_t k) {
     const Vec3 axis = exit_axis(scene, px[k], ior);
     Pcg32 rng(seed, 31 + k);
     for (int i = 0; i < paths_per_pixel; ++i) {
       Spectrum throughput;
       Vec3 wo;
-      if (trace_through(scene, sample, px[k], rng, throughput, wo))
-        acc[k].add(angle_band(kShapeEdge, degrees_between(wo, axis)), average(throughput));
+      if (trace_through(scene, sample, px[k], rng, throughput, wo)) {
+        const double w = average(throughput), deg = degrees_between(wo, axis);
+        acc[k].add(angle_band(kShapeEdge, deg), w);
+        if (deg < 30.0) moments[k][0] += w * wo.x, moments[k][1] += w * wo.y, moments[k][2] += w * wo.z;
+        moments[k][3] += w * deg;
+      }
     }
   });
   BandSums<kShapeBands> sum;
-  for (const auto &a : acc) sum += a;
   SolidBands out;
+  double angle_sum = 0.0;
+  for (size_t k = 0; k < px.size(); ++k) {
+    sum += acc[k];
+    out.pixel_mean.push_back(Vec3(float(moments[k][0]), float(moments[k][1]), float(moments[k][2])));
+    out.pixel_total.push_back(acc[k].total / double(paths_per_pixel));
+    angle_sum += moments[k][3];
+  }
   const double n = double(paths_per_pixel) * double(px.size());
   sum.fractions(n, out.mass, out.se);
   out.total = sum.total / n;
+  out.mean_angle = angle_sum / std::max(sum.total, 1e-30);
   return out;
 }
 
@@ -833,6 +851,37 @@ void print_solid_bands(const char *what, const SolidBands &m, const SolidBands *
   std::printf("\n");
 }
 
+// The pixels' mean exit directions of two measurements: the angle (degrees) between them, averaged over the
+// pixels weighted by the reference's transmitted energy (an axis shift of the lobe, not its width).
+double solid_axis_offset(const SolidBands &m, const SolidBands &ref) {
+  double sum = 0.0, weight = 0.0;
+  for (size_t k = 0; k < ref.pixel_mean.size() && k < m.pixel_mean.size(); ++k) {
+    if (!(dot(ref.pixel_mean[k], ref.pixel_mean[k]) > 0.0f) || !(dot(m.pixel_mean[k], m.pixel_mean[k]) > 0.0f))
+      continue;
+    sum += ref.pixel_total[k] * degrees_between(normalize(m.pixel_mean[k]), normalize(ref.pixel_mean[k]));
+    weight += ref.pixel_total[k];
+  }
+  return weight > 0.0 ? sum / weight : 0.0;
+}
+// The same offset's signed radial part on the sphere's pixels (orthographic rays down -z): the angle of the mean
+// direction toward the pixel's radial direction (x, y, 0) minus the reference's, light-weighted; > 0: m leans
+// further out than the reference (degrees).
+double solid_radial_offset(const SolidBands &m, const SolidBands &ref, const std::vector<Pixel> &px) {
+  double sum = 0.0, weight = 0.0;
+  for (size_t k = 0; k < ref.pixel_mean.size() && k < m.pixel_mean.size() && k < px.size(); ++k) {
+    const Vec3 radial(px[k].hit.P.x, px[k].hit.P.y, 0.0f);
+    if (!(dot(radial, radial) > 1e-8f) || !(dot(ref.pixel_mean[k], ref.pixel_mean[k]) > 0.0f) ||
+        !(dot(m.pixel_mean[k], m.pixel_mean[k]) > 0.0f))
+      continue;
+    const Vec3 r = normalize(radial);
+    const double a = std::asin(std::clamp(double(dot(normalize(m.pixel_mean[k]), r)), -1.0, 1.0));
+    const double b = std::asin(std::clamp(double(dot(normalize(ref.pixel_mean[k]), r)), -1.0, 1.0));
+    sum += ref.pixel_total[k] * (a - b) * 180.0 / M_PI;
+    weight += ref.pixel_total[k];
+  }
+  return weight > 0.0 ? sum / weight : 0.0;
+}
+
 // Measured (100000 / 25000 paths per pixel), band L1 default / per-ray kappa / 4 tails (tenth session) / single SG:
 // slab r 0.1 0.158 / 0.158 / 0.272, r 0.3 0.050 / 0.050 / 0.431, r 0.5 0.169 / (single SG) / 0.257 (the ladder;
 // the per-ray kappa / 4 tails would give 0.185); sphere r 0.1 0.011 (the single SG: a curved exit below 0.2) / 0.091
@@ -842,7 +891,9 @@ void print_solid_bands(const char *what, const SolidBands &m, const SolidBands *
 constexpr double kPlanarLadderBandL1 = 0.11;
 // Eighteenth / nineteenth session: the sphere at roughness 0.5 / 0.6, the single SG split into a core and a tail
 // (kCurvedTail); bound set from this session's measurement (docs/frosted_glass.md "Eighteenth / nineteenth session").
-constexpr double kCurvedSplitBandL1 = 0.165;
+// Session 22: kCurvedExitShape about the shifted axis, 0.135 / 0.130 -> 0.053 / 0.094 (the control, the single SG
+// about the same axis, 0.222 / 0.166); bound 0.165 -> 0.12.
+constexpr double kCurvedSplitBandL1 = 0.12;
 TEST(FrostedGlassSg, ExitLobeShapeOfSolidsAgainstThePath) {
   const int ref_paths = stress_scale() > 1 ? 400000 : 100000, sg_paths = ref_paths / 4;
   struct ShapeCase {
@@ -887,8 +938,8 @@ TEST(FrostedGlassSg, ExitLobeShapeOfSolidsAgainstThePath) {
     print_solid_bands("sg, kappa/4 tails (s10)", old, &ref);
     print_solid_bands("sg, single SG", single, &ref);
     // The sphere above kMixtureRoughnessMax (a curved exit: the single SG split into a core and a tail,
-    // kCurvedTail): its band L1 against the exact walk, bound measured + ~25 %; the unsplit single SG (the
-    // control, curved_tail 0) must miss it.
+    // kCurvedExitShape since session 22, kCurvedTail before): its band L1 against the exact walk, bound measured
+    // + ~25 %; the unsplit single SG (the control, curved_tail 0) must miss it.
     if (c.kind == AnalyticScene::kSphere && c.roughness > frosted::kMixtureRoughnessMax &&
         c.roughness <= frosted::kCurvedSplitMax) {
       const Sampler unsplit([&path, &sg](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
@@ -910,6 +961,125 @@ TEST(FrostedGlassSg, ExitLobeShapeOfSolidsAgainstThePath) {
       EXPECT_GT(solid_band_l1(single, ref), kPlanarLadderBandL1) << "control passed: slab " << c.roughness;
     }
     EXPECT_NEAR(now.total, ref.total, 0.04 * ref.total) << "transmitted energy, roughness " << c.roughness;
+  }
+}
+
+// ---- The sphere's exit around the caustic bench (issue 12, session 22) ------------------------------------------
+// The caustic bench's sphere is roughness 0.5, IOR 1.5 (benchmarks/scenes/frosted_fair_caustic.xml); its shadow zone
+// (a small lamp seen through the sphere's exit lobe, off its axis) held sg's largest bias. Per (roughness, IOR) around
+// it: the fraction of the transmitted energy per band of angle off the pixel's exit axis, path's exact walk vs sg (the
+// default, and the unsplit single SG), the transmitted energy T, the light-weighted mean angle off the axis and the
+// mean exit direction's offset from the path's (the axis itself).
+struct SphereExitCase {
+  float roughness, ior;
+  double bound;    // the default's band L1 (measured + ~25 %, session 22); 0: printed only
+  bool control;    // the single SG (the same axis) must miss the bound
+};
+struct SphereExitRow {
+  SolidBands ref, now, unsplit;
+};
+SphereExitRow measure_sphere_exit(const SphereExitCase &c, int ref_paths, int sg_paths) {
+  auto path = create_raw(c.roughness, c.ior, false);
+  auto sg = create_raw(c.roughness, c.ior, true);
+  AnalyticScene scene(AnalyticScene::kSphere);
+  scene.material = reinterpret_cast<const GlimmerInstance *>(sg.get());
+  const Sampler path_sampler = [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
+    return path->sample(sp, r, s);
+  };
+  const Sampler sg_sampler = [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
+    return sg->sample(sp, r, s);
+  };
+  const frosted::CurvedShape single{1, {1.0f}, {1.0f}};
+  const Sampler unsplit([&path, &sg, &single](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
+    if (!path->sample(sp, r, s)) return false;
+    if (sg->uses_sg(sp) && (s.label & GLIMMER_LABEL_TRANSMIT))
+      sg->sample_sg(sp, r, s, frosted::SgVariant::kMixture, frosted::kDefaultMixtureVariance,
+                    frosted::kDefaultMixtureTail, 0.0f, &single);
+    return true;
+  });
+  SphereExitRow row;
+  row.ref = solid_bands(scene, path_sampler, c.ior, ref_paths, 1);
+  // For fits outside the test (benchmarks/frosted_sphere_exit_fit.py): GLIMMER_SPHERE_EXIT_DUMP=<dir> writes the
+  // single SG of every sg sample (float32 records: pixel, weight, axis xyz, sharpness, exit Ng xyz, the pixel's exit
+  // axis xyz) and the path's band masses and T (text).
+  if (const char *dir = std::getenv("GLIMMER_SPHERE_EXIT_DUMP"); dir != nullptr && *dir != '\0') {
+    char name[512];
+    std::snprintf(name, sizeof name, "%s/sphere_r%.2f_ior%.2f", dir, double(c.roughness), double(c.ior));
+    const std::string base(name);
+    if (FILE *f = std::fopen((base + "_path.txt").c_str(), "w")) {
+      for (int b = 0; b < kShapeBands; ++b) std::fprintf(f, "%.9g ", row.ref.mass[b]);
+      std::fprintf(f, "%.9g\n", row.ref.total);
+      std::fclose(f);
+    }
+    const std::vector<Pixel> px = camera_pixels(scene);
+    std::vector<std::vector<float>> rec(px.size());
+    tbb::parallel_for(size_t(0), px.size(), [&](size_t k) {
+      const Vec3 axis = exit_axis(scene, px[k], c.ior);
+      const auto schema = FrostedGlassClosure::params();
+      Pcg32 rng(2, 31 + k);
+      for (int i = 0; i < sg_paths; ++i) {
+        GlimmerShadingContext ctx = context_at(scene, px[k].hit, px[k].D, rng);
+        const ShadingPoint sp(&ctx, schema);
+        LocalSample smp;
+        GlimmerExitMixture buffer{};
+        smp.mixture_out = &buffer;
+        if (!unsplit(sp, Vec3(rng.next_float(), rng.next_float(), rng.next_float()), smp) || !(smp.pdf > 0.0f) ||
+            !(smp.label & GLIMMER_LABEL_TRANSMIT) || !smp.moved || !smp.exit_lobe)
+          continue;
+        const Vec3 n = normalize(smp.origin_Ng);
+        const float r[] = {float(k), average(smp.f_cos / smp.pdf), smp.lobe_axis.x, smp.lobe_axis.y, smp.lobe_axis.z,
+                           smp.lobe_sharpness, n.x, n.y, n.z, axis.x, axis.y, axis.z};
+        rec[k].insert(rec[k].end(), std::begin(r), std::end(r));
+      }
+    });
+    if (FILE *f = std::fopen((base + "_sg.bin").c_str(), "wb")) {
+      for (const auto &v : rec) std::fwrite(v.data(), sizeof(float), v.size(), f);
+      std::fclose(f);
+    }
+  }
+  row.now = solid_bands(scene, sg_sampler, c.ior, sg_paths, 2);
+  row.unsplit = solid_bands(scene, unsplit, c.ior, sg_paths, 2);
+  return row;
+}
+void print_sphere_exit(const SphereExitCase &c, const SphereExitRow &r) {
+  std::printf("[frosted sphere exit] roughness %.2f ior %.2f: T, fraction of T per band (deg) 0-2 2-5 5-10 10-20 "
+              "20-30 30-45 45-60 60-180 | mean angle | axis offset vs path | L1\n",
+              double(c.roughness), double(c.ior));
+  auto line = [&](const char *what, const SolidBands &m, bool is_ref) {
+    std::printf("  %-16s T %.4f |", what, m.total);
+    for (int b = 0; b < kShapeBands; ++b)
+      std::printf(is_ref ? " %.2e" : " %8.3f", is_ref ? m.mass[b] : m.mass[b] / std::max(r.ref.mass[b], 1e-12));
+    std::printf(" | %5.2f deg", m.mean_angle);
+    if (!is_ref)
+      std::printf(" | %.2f deg (radial %+.2f) | L1 %.3f (T x%.3f)", solid_axis_offset(m, r.ref),
+                  solid_radial_offset(m, r.ref, camera_pixels(AnalyticScene(AnalyticScene::kSphere))),
+                  solid_band_l1(m, r.ref), m.total / r.ref.total);
+    std::printf("\n");
+  };
+  line("path", r.ref, true);
+  std::printf("  (sg rows: band fraction / path's)\n");
+  line("sg (default)", r.now, false);
+  line("sg, single SG", r.unsplit, false);
+}
+TEST(FrostedGlassSg, ExitOfTheSphereAroundTheCausticBench) {
+  const int ref_paths = stress_scale() > 1 ? 200000 : 50000, sg_paths = ref_paths / 4;
+  // Session 22 (kCurvedExitShape about the shifted axis), band L1 default / single SG: r 0.5 IOR 1.33 0.062 / 0.278,
+  // 1.5 0.049 / 0.221, 1.7 0.052 / 0.225; r 0.6 1.5 0.093 / 0.168; r 0.65 1.33 0.125 / 0.186, 1.7 0.208 / 0.248 (the
+  // nineteenth session's split: 0.128, 0.133, 0.137, 0.131, 0.153, 0.257). r 0.4 is the per-ray mixture (0.212).
+  const SphereExitCase cases[] = {{0.4f, 1.5f, 0.0, false},   {0.5f, 1.33f, 0.08, true}, {0.5f, 1.5f, 0.065, true},
+                                  {0.5f, 1.7f, 0.065, true},  {0.6f, 1.5f, 0.12, true},  {0.65f, 1.33f, 0.16, true},
+                                  {0.65f, 1.7f, 0.26, false}};
+  for (const SphereExitCase &c : cases) {
+    const SphereExitRow r = measure_sphere_exit(c, ref_paths, sg_paths);
+    print_sphere_exit(c, r);
+    // sg's transmitted energy is the path's (measured within 0.2 % in every case): the shape, not the energy.
+    EXPECT_NEAR(r.now.total, r.ref.total, 0.02 * r.ref.total) << "roughness " << c.roughness << " ior " << c.ior;
+    if (c.bound > 0.0) {
+      EXPECT_LT(solid_band_l1(r.now, r.ref), c.bound) << "roughness " << c.roughness << " ior " << c.ior;
+    }
+    if (c.control) {
+      EXPECT_GT(solid_band_l1(r.unsplit, r.ref), c.bound) << "control passed: " << c.roughness << " " << c.ior;
+    }
   }
 }
 
@@ -1142,7 +1312,7 @@ TEST(FrostedGlassSg, ExitMixtureThroughTheAbiForNewAndOldHosts) {
     for (size_t b = kOld; b < sizeof raw; ++b) overwritten += raw[b] != 0xAB;
     EXPECT_GT(overwritten, 0);
   }
-  // Roughness 0.3: the per-ray mixture; 0.6: the sphere's split single SG (a 2-lobe mixture, kCurvedTail); 0.8: the
+  // Roughness 0.3: the per-ray mixture; 0.6: the sphere's curved exit (a 2-lobe mixture, kCurvedExitShape); 0.8: the
   // single SG, no mixture.
   for (const float roughness : {0.3f, 0.6f, 0.8f}) {
     auto sg = create_method(roughness, 1.5f, "sg");
