@@ -176,15 +176,17 @@ struct ParticleField {
 // a = 4, Lambda < 2.5e-10 and 0 is returned (1 + Lambda rounds to 1 in float
 // from a ~ 3.5). Same contract as mf::beckmann_lambda (w.z < 0: -1 - Lambda(-w));
 // test GlintCoords.BeckmannLambdaFastMatchesTheErfcForm compares the two.
-inline float beckmann_lambda_fast(const Vec3 &w, float ax, float ay) {
-  return mf::beckmann_lambda_with(w, ax, ay, [](double a) {
-    if (a >= 4.0) return 0.0;
-    static constexpr double c[20] = {
+// The polynomial's coefficients (beckmann_lambda_fast, eval_lambdas_beckmann_avx2).
+inline constexpr double kBeckmannLambdaPoly[20] = {
         0.0004890113652203955,  -0.004677734800970086, 0.02066698372428487,   -0.05511199698701841,
         0.09644599897942761,    -0.1102227279168954,   0.0698072884330441,    0.004183614241949296,
         -0.05405087929182188,   0.045357117865371305,  -0.0026295178972669643, -0.02484822617710974,
         0.017932224600181706,   0.0025396699187721994, -0.010012549308498082, 0.003021427364006197,
         0.0027247767695632854,  -0.0015518315693354918, -0.0003259410760252298, 0.0002632927807307566};
+inline float beckmann_lambda_fast(const Vec3 &w, float ax, float ay) {
+  return mf::beckmann_lambda_with(w, ax, ay, [](double a) {
+    if (a >= 4.0) return 0.0;
+    const double *c = kBeckmannLambdaPoly;
     const double x = 0.5 * a - 1.0, x2 = x * x;
     // Two Horner chains (even and odd powers) for latency.
     double pe = c[18], po = c[19];
@@ -236,11 +238,54 @@ inline EvalLambdas eval_lambdas_scalar(mf::Distribution dist, float alpha, float
   return {lambda_fast(dist, ai, alpha, alpha), lambda_fast(dist, ao, alpha, alpha),
           lambda_fast(dist, ai, alpha_lobe, alpha_lobe)};
 }
+#if GLIMMER_GLINT_WALK_AVX2
+// Beckmann's three Lambdas in the lanes of AVX registers (session 22), where
+// the walk uses AVX2 (kWalkAvx2): per lane beckmann_lambda_with's steps for
+// (x, y, |z|) (alpha2_tan2 in float, a = 1 / sqrt(a2) in double, 0 for
+// a >= 4, else the polynomial's two Horner chains and (pe + x po) / a, then
+// max(l, 0) to float), the same operations in the same order (no FMA: avx2
+// does not enable it), so the same bits as eval_lambdas_scalar; a lane
+// outside the regular case (|z| not > 0, a2 not > 0 or not finite) sends all
+// three to the scalar form. GlintCoords.BeckmannLambdaLanesMatchTheScalarForm.
+[[gnu::target("avx2"), gnu::noinline]] inline EvalLambdas eval_lambdas_beckmann_avx2(float alpha, float alpha_lobe,
+                                                                                     const Vec3 &wi, const Vec3 &wo) {
+  const __m128 sign = _mm_set1_ps(-0.0f);
+  const __m128 x = _mm_setr_ps(wi.x, wo.x, wi.x, wi.x), y = _mm_setr_ps(wi.y, wo.y, wi.y, wi.y);
+  const __m128 z = _mm_andnot_ps(sign, _mm_setr_ps(wi.z, wo.z, wi.z, wi.z));
+  const __m128 al = _mm_setr_ps(alpha, alpha, alpha_lobe, alpha_lobe);
+  const __m128 ax = _mm_mul_ps(al, x), ay = _mm_mul_ps(al, y);
+  const __m128 a2 = _mm_div_ps(_mm_add_ps(_mm_mul_ps(ax, ax), _mm_mul_ps(ay, ay)), _mm_mul_ps(z, z));
+  const __m128 regular = _mm_and_ps(_mm_and_ps(_mm_cmpgt_ps(z, _mm_setzero_ps()), _mm_cmpgt_ps(a2, _mm_setzero_ps())),
+                                    _mm_cmple_ps(a2, _mm_set1_ps(3.4028234664e38f)));
+  if (_mm_movemask_ps(regular) != 0xf) return eval_lambdas_scalar(mf::Distribution::Beckmann, alpha, alpha_lobe, wi, wo);
+  const __m256d one = _mm256_set1_pd(1.0);
+  const __m256d a = _mm256_div_pd(one, _mm256_sqrt_pd(_mm256_cvtps_pd(a2)));
+  const __m256d t = _mm256_sub_pd(_mm256_mul_pd(_mm256_set1_pd(0.5), a), one), t2 = _mm256_mul_pd(t, t);
+  const double *c = kBeckmannLambdaPoly;
+  __m256d pe = _mm256_set1_pd(c[18]), po = _mm256_set1_pd(c[19]);
+  for (int k = 16; k >= 0; k -= 2) {
+    pe = _mm256_add_pd(_mm256_mul_pd(pe, t2), _mm256_set1_pd(c[k]));
+    po = _mm256_add_pd(_mm256_mul_pd(po, t2), _mm256_set1_pd(c[k + 1]));
+  }
+  __m256d l = _mm256_div_pd(_mm256_add_pd(pe, _mm256_mul_pd(t, po)), a);
+  l = _mm256_andnot_pd(_mm256_cmp_pd(a, _mm256_set1_pd(4.0), _CMP_GE_OQ), l);  // a >= 4: 0
+  const __m128 lf = _mm256_cvtpd_ps(_mm256_max_pd(_mm256_setzero_pd(), l));   // std::max(l, 0.0): l < 0 -> 0
+  alignas(16) float out[4];
+  _mm_store_ps(out, lf);
+  return {out[0], out[1], out[2]};
+}
+#endif
 inline EvalLambdas eval_lambdas(mf::Distribution dist, float alpha, float alpha_lobe, const Vec3 &wi,
                                 const Vec3 &wo) {
-  // Beckmann: the scalar polynomial (the same polynomial in double lanes, two registers for the three Lambdas,
-  // measured no fewer instructions per eval: 1133 -> 1138 at footprint area 1).
-  if (dist != mf::Distribution::GGX) return eval_lambdas_scalar(dist, alpha, alpha_lobe, wi, wo);
+  // Beckmann: the scalar polynomial (the same polynomial in SSE2 double lanes, two registers for the three Lambdas,
+  // measured no fewer instructions per eval: 1133 -> 1138 at footprint area 1); session 22: one AVX register for
+  // the three where the walk uses AVX2.
+  if (dist != mf::Distribution::GGX) {
+#if GLIMMER_GLINT_WALK_AVX2
+    if (kWalkAvx2) return eval_lambdas_beckmann_avx2(alpha, alpha_lobe, wi, wo);
+#endif
+    return eval_lambdas_scalar(dist, alpha, alpha_lobe, wi, wo);
+  }
   // lanes: wi at alpha, wo at alpha, wi at alpha_lobe, (wi at alpha_lobe again, discarded)
   const __m128 sign = _mm_set1_ps(-0.0f);
   const __m128 x = _mm_setr_ps(wi.x, wo.x, wi.x, wi.x), y = _mm_setr_ps(wi.y, wo.y, wi.y, wi.y);

@@ -975,10 +975,12 @@ inline void cell_seeds(const uint32_t *keys, const std::array<int32_t, kDirectio
 #endif
 }
 
-// Seed of the particle field of each group's direction cell at (wi, wo);
-// false when there is no half vector above the surface.
-inline bool direction_cell_seeds(const DirectionCellKeys &keys, const Vec3 &wi, const Vec3 &wo, float gamma_rad,
-                                 std::array<uint32_t, kDirectionGroups> &seeds) {
+// The cell coordinates (before the groups' shifts and floors) of (wi, wo)
+// in units of cells: (x, y); false when there is no half vector above the
+// surface. direction_cell_seeds' chart, shared by its SSE2 and AVX2 forms
+// (the same float operations in the same order: the same x, y).
+[[gnu::always_inline]] inline bool direction_cell_coords(const DirectionCellKeys &keys, const Vec3 &wi, const Vec3 &wo,
+                                                         float gamma_rad, float &x, float &y) {
   // In terms of s = wi + wo (h = s / |s|), with two divisions and one square
   // root (issue 10, sixth speed session; was nine and two: h per component,
   // 2 / (1 + h.z) and n.z / (1 + h.z) apart, e normalised, 1 / cell per
@@ -1005,10 +1007,65 @@ inline bool direction_cell_seeds(const DirectionCellKeys &keys, const Vec3 &wi, 
     py += along * ey;
   }
   const float inv_cell = keys.inv_cell(gamma_rad);
+  x = px * inv_cell, y = py * inv_cell;
+  return true;
+}
+#if GLIMMER_GLINT_WALK_AVX2
+// floor_cells' floor4 (NaN to -limit, the clamp, then an exact floor) by VROUNDPS.
+[[gnu::target("avx2"), gnu::always_inline]] inline __m128i floor_cells4_avx2(__m128 v) {
+  v = _mm_max_ps(_mm_min_ps(_mm_set1_ps(1.07e9f), v), _mm_set1_ps(-1.07e9f));
+  return _mm_cvttps_epi32(_mm_round_ps(v, _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC));
+}
+// mix_u32 per 32-bit lane by VPMULLD (mix_u32x4's words).
+[[gnu::target("avx2"), gnu::always_inline]] inline __m128i mix_u32x4_avx2(__m128i v) {
+  v = _mm_xor_si128(v, _mm_srli_epi32(v, 16));
+  v = _mm_mullo_epi32(v, _mm_set1_epi32(static_cast<int>(0x7feb352du)));
+  v = _mm_xor_si128(v, _mm_srli_epi32(v, 15));
+  v = _mm_mullo_epi32(v, _mm_set1_epi32(static_cast<int>(0x846ca68bu)));
+  return _mm_xor_si128(v, _mm_srli_epi32(v, 16));
+}
+// direction_cell_seeds where the walk uses AVX2 (session 22): the same chart
+// (direction_cell_coords, inlined: VEX forms of the same float operations;
+// avx2 enables no FMA), the floors by VROUNDPS (floor_cells' clamp first:
+// the same integers) and the seeds' five 32-bit lane multiplies by VPMULLD
+// instead of SSE2's PMULUDQ pairs and shuffles (the same words).
+// GlintParticles.DirectionCellSeedsAvx2MatchSse2.
+[[gnu::target("avx2"), gnu::noinline]] inline bool direction_cell_seeds_avx2(const DirectionCellKeys &keys,
+                                                                             const Vec3 &wi, const Vec3 &wo,
+                                                                             float gamma_rad,
+                                                                             std::array<uint32_t, kDirectionGroups> &seeds) {
+  float x, y;
+  if (!direction_cell_coords(keys, wi, wo, gamma_rad, x, y)) return false;
+  static_assert(kDirectionGroups == 4);
+  const __m128i ix = floor_cells4_avx2(_mm_add_ps(_mm_set1_ps(x), _mm_setr_ps(kGroupShift[0][0], kGroupShift[1][0],
+                                                                    kGroupShift[2][0], kGroupShift[3][0])));
+  const __m128i iy = floor_cells4_avx2(_mm_add_ps(_mm_set1_ps(y), _mm_setr_ps(kGroupShift[0][1], kGroupShift[1][1],
+                                                                    kGroupShift[2][1], kGroupShift[3][1])));
+  const __m128i k = _mm_loadu_si128(reinterpret_cast<const __m128i *>(keys.group.data()));
+  const __m128i h = mix_u32x4_avx2(_mm_add_epi32(k, _mm_mullo_epi32(ix, _mm_set1_epi32(static_cast<int>(kNodeKeyStep)))));
+  _mm_storeu_si128(reinterpret_cast<__m128i *>(seeds.data()), mix_u32x4_avx2(_mm_xor_si128(h, iy)));
+  return true;
+}
+#endif
+// The SSE2 form (and the form without SSE2): floor_cells and cell_seeds.
+inline bool direction_cell_seeds_sse2(const DirectionCellKeys &keys, const Vec3 &wi, const Vec3 &wo, float gamma_rad,
+                                      std::array<uint32_t, kDirectionGroups> &seeds) {
+  float x, y;
+  if (!direction_cell_coords(keys, wi, wo, gamma_rad, x, y)) return false;
   std::array<int32_t, kDirectionGroups> cx, cy;
-  floor_cells(px * inv_cell, py * inv_cell, cx, cy);
+  floor_cells(x, y, cx, cy);
   cell_seeds(keys.group.data(), cx, cy, seeds);
   return true;
+}
+// Seed of the particle field of each group's direction cell at (wi, wo);
+// false when there is no half vector above the surface. The AVX2 form where
+// the walk uses AVX2 (kWalkAvx2), else the SSE2 form: the same seeds.
+inline bool direction_cell_seeds(const DirectionCellKeys &keys, const Vec3 &wi, const Vec3 &wo, float gamma_rad,
+                                 std::array<uint32_t, kDirectionGroups> &seeds) {
+#if GLIMMER_GLINT_WALK_AVX2
+  if (kWalkAvx2) return direction_cell_seeds_avx2(keys, wi, wo, gamma_rad, seeds);
+#endif
+  return direction_cell_seeds_sse2(keys, wi, wo, gamma_rad, seeds);
 }
 
 struct GlintCount {

@@ -754,6 +754,61 @@ TEST(GlintCoords, LobeDensityMatchesTheUncancelledForm) {
   EXPECT_GT(worst_control, 1e-5);
 }
 
+// Beckmann's three Lambdas in AVX lanes (eval_lambdas_beckmann_avx2, session 22) equal eval_lambdas_scalar's bit
+// for bit: random direction pairs (uniform, near a pole, near the horizon), alphas 1e-4..1 and edge directions and
+// alphas (0, denormals, inf, NaN: the scalar fallback). Negative control: the same polynomial as one Horner chain
+// (another rounding) differs on some of them (80 of 106 301 Lambdas on the polynomial, a < 4, after the cast to float).
+TEST(GlintCoords, BeckmannLambdaLanesMatchTheScalarForm) {
+#if !GLIMMER_GLINT_WALK_AVX2
+  GTEST_SKIP() << "no AVX2 form in this build";
+#else
+  if (!__builtin_cpu_supports("avx2")) GTEST_SKIP() << "CPU without AVX2";
+  namespace mf = microfacet;
+  Pcg32 rng(43);
+  const float nan = std::numeric_limits<float>::quiet_NaN(), den = std::numeric_limits<float>::denorm_min(),
+              inf = std::numeric_limits<float>::infinity();
+  const std::vector<Vec3> edges = {{0, 0, 1},  {0, 0, -1},     {1, 0, 0},   {0, 1, -0.0f}, {0, 0, 0},   {den, 0, 1},
+                                   {1, 0, den}, {nan, 0, 0.5f}, {0.3f, 0.4f, nan}, {0.6f, 0.8f, 1e-30f}, {1e30f, 0, 1},
+                                   {-1, 0, 1e-20f}};
+  const std::vector<Vec3> dirs = edge_and_random_directions(edges, 300000, rng);
+  const std::vector<float> edge_alphas = {0.0f, den, 1e-4f, 1.0f, inf, nan};
+  auto same = [](float a, float b) { return std::memcmp(&a, &b, sizeof a) == 0; };
+  auto one_chain = [](const Vec3 &w, float al) {  // the control: one Horner chain
+    return mf::beckmann_lambda_with(w, al, al, [](double a) {
+      if (a >= 4.0) return 0.0;
+      const double x = 0.5 * a - 1.0;
+      double p = pg::kBeckmannLambdaPoly[19];
+      for (int k = 18; k >= 0; --k) p = p * x + pg::kBeckmannLambdaPoly[k];
+      return p / a;
+    });
+  };
+  int64_t compared = 0, on_polynomial = 0, control_differs = 0;
+  for (size_t a = 0; a < dirs.size(); ++a) {
+    const Vec3 &wi = dirs[a], &wo = dirs[(a * 7 + 3) % dirs.size()];
+    const float alpha = a < 600 ? edge_alphas[a % 6] : std::exp(std::log(1e-4f) * rng.next_float());
+    const float alpha_lobe = a < 600 ? edge_alphas[(a / 6) % 6] : std::exp(std::log(1e-4f) * rng.next_float());
+    const pg::EvalLambdas v = pg::eval_lambdas_beckmann_avx2(alpha, alpha_lobe, wi, wo);
+    const pg::EvalLambdas s = pg::eval_lambdas_scalar(mf::Distribution::Beckmann, alpha, alpha_lobe, wi, wo);
+    ASSERT_TRUE(same(v.wi, s.wi) && same(v.wo, s.wo) && same(v.wi_lobe, s.wi_lobe))
+        << "wi " << wi.x << " " << wi.y << " " << wi.z << " wo " << wo.x << " " << wo.y << " " << wo.z << " alpha "
+        << alpha << " " << alpha_lobe << ": " << v.wi << " " << v.wo << " " << v.wi_lobe << " vs " << s.wi << " "
+        << s.wo << " " << s.wi_lobe;
+    ++compared;
+    const Vec3 ai(wi.x, wi.y, std::fabs(wi.z));
+    const float a2 = mf::alpha2_tan2(ai, alpha, alpha);
+    if (ai.z > 0.0f && a2 > 1.0f / 16.0f && std::isfinite(a2)) {
+      ++on_polynomial;
+      control_differs += !same(one_chain(ai, alpha), s.wi);
+    }
+  }
+  std::printf("[beckmann lanes] %lld Lambda triples equal to the scalar form (%lld wi Lambdas on the polynomial); one "
+              "Horner chain differs on %lld\n", static_cast<long long>(compared), static_cast<long long>(on_polynomial),
+              static_cast<long long>(control_differs));
+  EXPECT_GT(on_polynomial, compared / 10);
+  EXPECT_GT(control_differs, 20);  // a one-rounding change shows in the float Lambda only now and then
+#endif
+}
+
 // The three Smith Lambdas of one isotropic eval in SSE lanes
 // (pg::eval_lambdas, issue 10 session 14: W's Lambda(wi), Lambda(wo) at the
 // base alpha, the pdf's Lambda(wi) at the sampling lobe's alpha) against the
@@ -855,6 +910,48 @@ TEST(GlintParticles, GroupHashLanesMatchTheScalarHash) {
               static_cast<long long>(short_mul_differs));
   EXPECT_GT(signed_differs, 10000);
   EXPECT_GT(short_mul_differs, compared / 2);
+}
+
+// The direction cells' seeds in AVX2 lanes (direction_cell_seeds_avx2, session 22: VROUNDPS floors, VPMULLD
+// multiplies, the chart's float operations in VEX forms) equal the SSE2 form's bit for bit, and both report the
+// same "no half vector", on random direction pairs (uniform, near a pole, near the horizon, both hemispheres), edge
+// inputs (+-0, denormals, NaN, z just above 1), cones of 0.1..10 degrees and the keys' own cone. Negative control:
+// the SSE2 form one cone size away (gamma x 1.001) differs on most pairs.
+TEST(GlintParticles, DirectionCellSeedsAvx2MatchSse2) {
+#if !GLIMMER_GLINT_WALK_AVX2
+  GTEST_SKIP() << "no AVX2 form in this build";
+#else
+  if (!__builtin_cpu_supports("avx2")) GTEST_SKIP() << "CPU without AVX2";
+  Pcg32 rng(41);
+  const float nan = std::numeric_limits<float>::quiet_NaN(), den = std::numeric_limits<float>::denorm_min();
+  const std::vector<Vec3> edges = {{0, 0, 1},     {0, 0, -1},        {1, 0, 0},     {0, 1, 0},    {0, 0, 0},
+                                   {0, 0, -0.0f}, {0, 0, 1.0000001f}, {den, 0, 1}, {0, den, -1}, {nan, 0, 0.5f},
+                                   {0.3f, 0.4f, nan}, {1e-13f, 0, 1}, {-1, 0, 1e-30f}, {0.6f, 0.8f, 0}};
+  const std::vector<Vec3> dirs = edge_and_random_directions(edges, 300000, rng);
+  int64_t compared = 0, with_half_vector = 0, control_differs = 0;
+  for (size_t a = 0; a < dirs.size(); ++a) {
+    const Vec3 &wi = dirs[a], &wo = dirs[(a * 7 + 3) % dirs.size()];
+    const float gamma = 0.0017453292f * std::exp(std::log(100.0f) * rng.next_float());  // 0.1..10 degrees
+    const pg::DirectionCellKeys keys(rng.next_u32(), a % 2 ? gamma : 0.0f);
+    std::array<uint32_t, pg::kDirectionGroups> v{}, s{}, c{};
+    const bool hv = pg::direction_cell_seeds_avx2(keys, wi, wo, gamma, v);
+    const bool hs = pg::direction_cell_seeds_sse2(keys, wi, wo, gamma, s);
+    ASSERT_EQ(hv, hs) << "wi " << wi.x << " " << wi.y << " " << wi.z << " wo " << wo.x << " " << wo.y << " " << wo.z;
+    ++compared;
+    if (!hs) continue;
+    ++with_half_vector;
+    for (int g = 0; g < pg::kDirectionGroups; ++g)
+      ASSERT_EQ(v[g], s[g]) << "group " << g << " wi " << wi.x << " " << wi.y << " " << wi.z << " wo " << wo.x << " "
+                            << wo.y << " " << wo.z << " gamma " << gamma;
+    pg::direction_cell_seeds_sse2(keys, wi, wo, gamma * 1.001f, c);
+    control_differs += c != s;
+  }
+  std::printf("[cells avx2] %lld pairs (%lld with a half vector) equal to the SSE2 form; gamma x 1.001 differs on "
+              "%lld\n", static_cast<long long>(compared), static_cast<long long>(with_half_vector),
+              static_cast<long long>(control_differs));
+  EXPECT_GT(with_half_vector, compared / 3);
+  EXPECT_GT(control_differs, with_half_vector / 10);
+#endif
 }
 
 // Node keys are a Weyl sequence along a row (node_key): the hashes that
