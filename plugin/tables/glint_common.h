@@ -238,6 +238,17 @@ inline EvalLambdas eval_lambdas_scalar(mf::Distribution dist, float alpha, float
   return {lambda_fast(dist, ai, alpha, alpha), lambda_fast(dist, ao, alpha, alpha),
           lambda_fast(dist, ai, alpha_lobe, alpha_lobe)};
 }
+// alpha2_tan2 = (sqr(ax x) + sqr(ay y)) / sqr(z) of the eval's three Lambdas in SSE lanes: wi at alpha, wo at alpha,
+// wi at alpha_lobe (and the third again, discarded); `z` gets |z| per lane for the caller's regular-case test.
+// Shared by eval_lambdas (GGX) and eval_lambdas_beckmann_avx2 (inlined into both: the same operations).
+[[gnu::always_inline]] inline __m128 eval_alpha2_tan2_lanes(float alpha, float alpha_lobe, const Vec3 &wi,
+                                                            const Vec3 &wo, __m128 &z) {
+  const __m128 x = _mm_setr_ps(wi.x, wo.x, wi.x, wi.x), y = _mm_setr_ps(wi.y, wo.y, wi.y, wi.y);
+  z = _mm_andnot_ps(_mm_set1_ps(-0.0f), _mm_setr_ps(wi.z, wo.z, wi.z, wi.z));
+  const __m128 a = _mm_setr_ps(alpha, alpha, alpha_lobe, alpha_lobe);
+  const __m128 ax = _mm_mul_ps(a, x), ay = _mm_mul_ps(a, y);
+  return _mm_div_ps(_mm_add_ps(_mm_mul_ps(ax, ax), _mm_mul_ps(ay, ay)), _mm_mul_ps(z, z));
+}
 #if GLIMMER_GLINT_WALK_AVX2
 // Beckmann's three Lambdas in the lanes of AVX registers (session 22), where
 // the walk uses AVX2 (kWalkAvx2): per lane beckmann_lambda_with's steps for
@@ -249,12 +260,8 @@ inline EvalLambdas eval_lambdas_scalar(mf::Distribution dist, float alpha, float
 // three to the scalar form. GlintCoords.BeckmannLambdaLanesMatchTheScalarForm.
 [[gnu::target("avx2"), gnu::noinline]] inline EvalLambdas eval_lambdas_beckmann_avx2(float alpha, float alpha_lobe,
                                                                                      const Vec3 &wi, const Vec3 &wo) {
-  const __m128 sign = _mm_set1_ps(-0.0f);
-  const __m128 x = _mm_setr_ps(wi.x, wo.x, wi.x, wi.x), y = _mm_setr_ps(wi.y, wo.y, wi.y, wi.y);
-  const __m128 z = _mm_andnot_ps(sign, _mm_setr_ps(wi.z, wo.z, wi.z, wi.z));
-  const __m128 al = _mm_setr_ps(alpha, alpha, alpha_lobe, alpha_lobe);
-  const __m128 ax = _mm_mul_ps(al, x), ay = _mm_mul_ps(al, y);
-  const __m128 a2 = _mm_div_ps(_mm_add_ps(_mm_mul_ps(ax, ax), _mm_mul_ps(ay, ay)), _mm_mul_ps(z, z));
+  __m128 z;
+  const __m128 a2 = eval_alpha2_tan2_lanes(alpha, alpha_lobe, wi, wo, z);
   const __m128 regular = _mm_and_ps(_mm_and_ps(_mm_cmpgt_ps(z, _mm_setzero_ps()), _mm_cmpgt_ps(a2, _mm_setzero_ps())),
                                     _mm_cmple_ps(a2, _mm_set1_ps(3.4028234664e38f)));
   if (_mm_movemask_ps(regular) != 0xf) return eval_lambdas_scalar(mf::Distribution::Beckmann, alpha, alpha_lobe, wi, wo);
@@ -286,14 +293,8 @@ inline EvalLambdas eval_lambdas(mf::Distribution dist, float alpha, float alpha_
 #endif
     return eval_lambdas_scalar(dist, alpha, alpha_lobe, wi, wo);
   }
-  // lanes: wi at alpha, wo at alpha, wi at alpha_lobe, (wi at alpha_lobe again, discarded)
-  const __m128 sign = _mm_set1_ps(-0.0f);
-  const __m128 x = _mm_setr_ps(wi.x, wo.x, wi.x, wi.x), y = _mm_setr_ps(wi.y, wo.y, wi.y, wi.y);
-  const __m128 z = _mm_andnot_ps(sign, _mm_setr_ps(wi.z, wo.z, wi.z, wi.z));
-  const __m128 a = _mm_setr_ps(alpha, alpha, alpha_lobe, alpha_lobe);
-  // alpha2_tan2: (sqr(ax x) + sqr(ay y)) / sqr(z)
-  const __m128 ax = _mm_mul_ps(a, x), ay = _mm_mul_ps(a, y);
-  const __m128 a2 = _mm_div_ps(_mm_add_ps(_mm_mul_ps(ax, ax), _mm_mul_ps(ay, ay)), _mm_mul_ps(z, z));
+  __m128 z;
+  const __m128 a2 = eval_alpha2_tan2_lanes(alpha, alpha_lobe, wi, wo, z);
   const __m128 regular_z = _mm_cmpgt_ps(z, _mm_setzero_ps());
   const __m128 finite = _mm_cmple_ps(a2, _mm_set1_ps(3.4028234664e38f));  // false for inf and NaN
   if (_mm_movemask_ps(_mm_and_ps(regular_z, finite)) != 0xf) return eval_lambdas_scalar(dist, alpha, alpha_lobe, wi, wo);

@@ -754,6 +754,33 @@ TEST(GlintCoords, LobeDensityMatchesTheUncancelledForm) {
   EXPECT_GT(worst_control, 1e-5);
 }
 
+// The Lambda lane tests' queries (GlintCoords.BeckmannLambdaLanesMatchTheScalarForm, ...PackedLambdasMatchTheScalarForm):
+// edge directions (z = +-0, +-1, denormals, NaN, slopes of 1e30) then 300 000 random ones (uniform, near a pole, near
+// the horizon), wo another of them; the first 600 queries take every pair of the edge alphas (0, denormal, 1e-4, 1,
+// inf, NaN), the rest alphas log-uniform in 1e-4..1 (drawn in query order: alpha, then alpha_lobe).
+struct LambdaQuery {
+  Vec3 wi, wo;
+  float alpha, alpha_lobe;
+};
+std::vector<LambdaQuery> lambda_queries(Pcg32 &rng) {
+  const float nan = std::numeric_limits<float>::quiet_NaN(), den = std::numeric_limits<float>::denorm_min(),
+              inf = std::numeric_limits<float>::infinity();
+  const std::vector<Vec3> edges = {{0, 0, 1},  {0, 0, -1},     {1, 0, 0},   {0, 1, -0.0f}, {0, 0, 0},   {den, 0, 1},
+                                   {1, 0, den}, {nan, 0, 0.5f}, {0.3f, 0.4f, nan}, {0.6f, 0.8f, 1e-30f}, {1e30f, 0, 1},
+                                   {-1, 0, 1e-20f}};
+  const std::vector<Vec3> dirs = edge_and_random_directions(edges, 300000, rng);
+  const std::vector<float> edge_alphas = {0.0f, den, 1e-4f, 1.0f, inf, nan};
+  std::vector<LambdaQuery> queries;
+  queries.reserve(dirs.size());
+  for (size_t a = 0; a < dirs.size(); ++a) {
+    const float alpha = a < 600 ? edge_alphas[a % 6] : std::exp(std::log(1e-4f) * rng.next_float());
+    const float alpha_lobe = a < 600 ? edge_alphas[(a / 6) % 6] : std::exp(std::log(1e-4f) * rng.next_float());
+    queries.push_back({dirs[a], dirs[(a * 7 + 3) % dirs.size()], alpha, alpha_lobe});
+  }
+  return queries;
+}
+bool same_float_bits(float a, float b) { return std::memcmp(&a, &b, sizeof a) == 0; }
+
 // Beckmann's three Lambdas in AVX lanes (eval_lambdas_beckmann_avx2, session 22) equal eval_lambdas_scalar's bit
 // for bit: random direction pairs (uniform, near a pole, near the horizon), alphas 1e-4..1 and edge directions and
 // alphas (0, denormals, inf, NaN: the scalar fallback). Negative control: the same polynomial as one Horner chain
@@ -765,14 +792,8 @@ TEST(GlintCoords, BeckmannLambdaLanesMatchTheScalarForm) {
   if (!__builtin_cpu_supports("avx2")) GTEST_SKIP() << "CPU without AVX2";
   namespace mf = microfacet;
   Pcg32 rng(43);
-  const float nan = std::numeric_limits<float>::quiet_NaN(), den = std::numeric_limits<float>::denorm_min(),
-              inf = std::numeric_limits<float>::infinity();
-  const std::vector<Vec3> edges = {{0, 0, 1},  {0, 0, -1},     {1, 0, 0},   {0, 1, -0.0f}, {0, 0, 0},   {den, 0, 1},
-                                   {1, 0, den}, {nan, 0, 0.5f}, {0.3f, 0.4f, nan}, {0.6f, 0.8f, 1e-30f}, {1e30f, 0, 1},
-                                   {-1, 0, 1e-20f}};
-  const std::vector<Vec3> dirs = edge_and_random_directions(edges, 300000, rng);
-  const std::vector<float> edge_alphas = {0.0f, den, 1e-4f, 1.0f, inf, nan};
-  auto same = [](float a, float b) { return std::memcmp(&a, &b, sizeof a) == 0; };
+  const std::vector<LambdaQuery> queries = lambda_queries(rng);
+  const auto same = same_float_bits;
   auto one_chain = [](const Vec3 &w, float al) {  // the control: one Horner chain
     return mf::beckmann_lambda_with(w, al, al, [](double a) {
       if (a >= 4.0) return 0.0;
@@ -783,10 +804,9 @@ TEST(GlintCoords, BeckmannLambdaLanesMatchTheScalarForm) {
     });
   };
   int64_t compared = 0, on_polynomial = 0, control_differs = 0;
-  for (size_t a = 0; a < dirs.size(); ++a) {
-    const Vec3 &wi = dirs[a], &wo = dirs[(a * 7 + 3) % dirs.size()];
-    const float alpha = a < 600 ? edge_alphas[a % 6] : std::exp(std::log(1e-4f) * rng.next_float());
-    const float alpha_lobe = a < 600 ? edge_alphas[(a / 6) % 6] : std::exp(std::log(1e-4f) * rng.next_float());
+  for (const LambdaQuery &q : queries) {
+    const Vec3 &wi = q.wi, &wo = q.wo;
+    const float alpha = q.alpha, alpha_lobe = q.alpha_lobe;
     const pg::EvalLambdas v = pg::eval_lambdas_beckmann_avx2(alpha, alpha_lobe, wi, wo);
     const pg::EvalLambdas s = pg::eval_lambdas_scalar(mf::Distribution::Beckmann, alpha, alpha_lobe, wi, wo);
     ASSERT_TRUE(same(v.wi, s.wi) && same(v.wo, s.wo) && same(v.wi_lobe, s.wi_lobe))
@@ -821,19 +841,12 @@ TEST(GlintCoords, BeckmannLambdaLanesMatchTheScalarForm) {
 TEST(GlintCoords, PackedLambdasMatchTheScalarForm) {
   namespace mf = microfacet;
   Pcg32 rng(41);
-  const float nan = std::numeric_limits<float>::quiet_NaN(), den = std::numeric_limits<float>::denorm_min(),
-              inf = std::numeric_limits<float>::infinity();
-  const std::vector<Vec3> edges = {{0, 0, 1},  {0, 0, -1},     {1, 0, 0},   {0, 1, -0.0f}, {0, 0, 0},   {den, 0, 1},
-                                   {1, 0, den}, {nan, 0, 0.5f}, {0.3f, 0.4f, nan}, {0.6f, 0.8f, 1e-30f}, {1e30f, 0, 1},
-                                   {-1, 0, 1e-20f}};
-  const std::vector<Vec3> dirs = edge_and_random_directions(edges, 300000, rng);
-  const std::vector<float> edge_alphas = {0.0f, den, 1e-4f, 1.0f, inf, nan};
-  auto same = [](float a, float b) { return std::memcmp(&a, &b, sizeof a) == 0; };
+  const std::vector<LambdaQuery> queries = lambda_queries(rng);
+  const auto same = same_float_bits;
   int64_t compared = 0, control_differs = 0, fallback = 0;
-  for (size_t a = 0; a < dirs.size(); ++a) {
-    const Vec3 &wi = dirs[a], &wo = dirs[(a * 7 + 3) % dirs.size()];
-    const float alpha = a < 600 ? edge_alphas[a % 6] : std::exp(std::log(1e-4f) * rng.next_float());
-    const float alpha_lobe = a < 600 ? edge_alphas[(a / 6) % 6] : std::exp(std::log(1e-4f) * rng.next_float());
+  for (const LambdaQuery &q : queries) {
+    const Vec3 &wi = q.wi, &wo = q.wo;
+    const float alpha = q.alpha, alpha_lobe = q.alpha_lobe;
     for (const mf::Distribution dist : {mf::Distribution::GGX, mf::Distribution::Beckmann}) {
       const pg::EvalLambdas v = pg::eval_lambdas(dist, alpha, alpha_lobe, wi, wo);
       const pg::EvalLambdas s = pg::eval_lambdas_scalar(dist, alpha, alpha_lobe, wi, wo);
@@ -858,7 +871,7 @@ TEST(GlintCoords, PackedLambdasMatchTheScalarForm) {
               "regular case); the control (sqrt(1 + a2) - 1) / 2 differs on %lld\n",
               static_cast<long long>(compared), static_cast<long long>(fallback), static_cast<long long>(control_differs));
   EXPECT_GT(fallback, 100);
-  EXPECT_GT(control_differs, static_cast<int64_t>(dirs.size()) / 10);
+  EXPECT_GT(control_differs, static_cast<int64_t>(queries.size()) / 10);
 }
 
 // The four direction groups' node x cell hashes in SIMD lanes (issue 10,
