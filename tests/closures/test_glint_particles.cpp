@@ -780,6 +780,15 @@ std::vector<LambdaQuery> lambda_queries(Pcg32 &rng) {
   return queries;
 }
 bool same_float_bits(float a, float b) { return std::memcmp(&a, &b, sizeof a) == 0; }
+// The three Lambdas of a query equal bit for bit, else the query and both triples.
+::testing::AssertionResult same_lambdas(const LambdaQuery &q, const pg::EvalLambdas &v, const pg::EvalLambdas &s) {
+  if (same_float_bits(v.wi, s.wi) && same_float_bits(v.wo, s.wo) && same_float_bits(v.wi_lobe, s.wi_lobe))
+    return ::testing::AssertionSuccess();
+  return ::testing::AssertionFailure() << "wi " << q.wi.x << " " << q.wi.y << " " << q.wi.z << " wo " << q.wo.x << " "
+                                       << q.wo.y << " " << q.wo.z << " alpha " << q.alpha << " " << q.alpha_lobe << ": "
+                                       << v.wi << " " << v.wo << " " << v.wi_lobe << " vs " << s.wi << " " << s.wo
+                                       << " " << s.wi_lobe;
+}
 
 // Beckmann's three Lambdas in AVX lanes (eval_lambdas_beckmann_avx2, session 22) equal eval_lambdas_scalar's bit
 // for bit: random direction pairs (uniform, near a pole, near the horizon), alphas 1e-4..1 and edge directions and
@@ -809,10 +818,7 @@ TEST(GlintCoords, BeckmannLambdaLanesMatchTheScalarForm) {
     const float alpha = q.alpha, alpha_lobe = q.alpha_lobe;
     const pg::EvalLambdas v = pg::eval_lambdas_beckmann_avx2(alpha, alpha_lobe, wi, wo);
     const pg::EvalLambdas s = pg::eval_lambdas_scalar(mf::Distribution::Beckmann, alpha, alpha_lobe, wi, wo);
-    ASSERT_TRUE(same(v.wi, s.wi) && same(v.wo, s.wo) && same(v.wi_lobe, s.wi_lobe))
-        << "wi " << wi.x << " " << wi.y << " " << wi.z << " wo " << wo.x << " " << wo.y << " " << wo.z << " alpha "
-        << alpha << " " << alpha_lobe << ": " << v.wi << " " << v.wo << " " << v.wi_lobe << " vs " << s.wi << " "
-        << s.wo << " " << s.wi_lobe;
+    ASSERT_TRUE(same_lambdas(q, v, s));
     ++compared;
     const Vec3 ai(wi.x, wi.y, std::fabs(wi.z));
     const float a2 = mf::alpha2_tan2(ai, alpha, alpha);
@@ -850,10 +856,7 @@ TEST(GlintCoords, PackedLambdasMatchTheScalarForm) {
     for (const mf::Distribution dist : {mf::Distribution::GGX, mf::Distribution::Beckmann}) {
       const pg::EvalLambdas v = pg::eval_lambdas(dist, alpha, alpha_lobe, wi, wo);
       const pg::EvalLambdas s = pg::eval_lambdas_scalar(dist, alpha, alpha_lobe, wi, wo);
-      ASSERT_TRUE(same(v.wi, s.wi) && same(v.wo, s.wo) && same(v.wi_lobe, s.wi_lobe))
-          << "wi " << wi.x << " " << wi.y << " " << wi.z << " wo " << wo.x << " " << wo.y << " " << wo.z << " alpha "
-          << alpha << " " << alpha_lobe << ": " << v.wi << " " << v.wo << " " << v.wi_lobe << " vs " << s.wi << " "
-          << s.wo << " " << s.wi_lobe;
+      ASSERT_TRUE(same_lambdas(q, v, s));
       ++compared;
     }
     // The scalar definition: each Lambda of (x, y, |z|) at its alpha.
