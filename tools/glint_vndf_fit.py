@@ -2,8 +2,8 @@
 """Coefficients of the polynomials in plugin/tables/glint_beckmann_vndf.h.
 
 Each is a Chebyshev interpolant at n + 1 nodes on [-1, 1] of a mapped variable,
-converted to monomials exactly (fractions) and printed highest degree first
-(Horner order), with the maximum relative error of the double Horner form on a
+converted to monomials exactly (fractions) and printed lowest degree first
+(the coefficient arrays that glimmer::horner evaluates), with the maximum relative error of the double Horner form on a
 fine grid. Pure Python (math.erfc), no numpy.
   erfcx  : erfcx(z) = exp(z^2) erfc(z), z in [0, 8], variable s = 12 / (4 + z) - 2
            (t = 4 / (4 + z) in [1/3, 1]); degree 14.
@@ -94,8 +94,7 @@ def main():
                 tail_err = max(tail_err, abs(math.erfc(p * r) / math.erfc(y) - 1.0))
     extra = f", erfc(|y|) relative {tail_err:.3g}" if name != "erfcx" else ""
     print(f"{name} degree {n}: max relative error {err:.3g}{extra}")
-    for a in reversed(coef):
-        print(f"{a!r},")
+    print(", ".join(repr(a) for a in coef))
 
 
 if __name__ == "__main__":
