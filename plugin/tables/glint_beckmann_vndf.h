@@ -178,14 +178,7 @@ inline Vec3 sample_visible_normal(const Vec3 &wi, float ax, float ay, float u1, 
   if (sin_t < 1e-6) return glimmer::microfacet::sample_beckmann_visible_normal(wi, ax, ay, u1, u2);
   const double slope_x_std = slope_x<Erfcx>(cos_t, sin_t, static_cast<double>(u1));
   const double slope_y_std = erfinv_2u_minus_1(clamp(static_cast<double>(u2), 1e-9, 1.0 - 1e-9));
-  // Rotate from the plane of incidence and unstretch (Heitz & d'Eon 2014 Alg. 2).
-  const double len_xy = std::sqrt(double(wi_std.x) * wi_std.x + double(wi_std.y) * wi_std.y);
-  const double cos_phi = len_xy > 0.0 ? wi_std.x / len_xy : 1.0;
-  const double sin_phi = len_xy > 0.0 ? wi_std.y / len_xy : 0.0;
-  const double sx = (cos_phi * slope_x_std - sin_phi * slope_y_std) * ax;
-  const double sy = (sin_phi * slope_x_std + cos_phi * slope_y_std) * ay;
-  const double inv_len = 1.0 / std::sqrt(sx * sx + sy * sy + 1.0);
-  return Vec3(static_cast<float>(-sx * inv_len), static_cast<float>(-sy * inv_len), static_cast<float>(inv_len));
+  return glimmer::microfacet::detail::beckmann_normal_of_std_slopes(wi_std, slope_x_std, slope_y_std, ax, ay);
 }
 
 // sample_visible_normal as the glint closures draw it, compiled in its own unit

@@ -342,6 +342,18 @@ inline const BeckmannSlopeGuess &beckmann_slope_guess() {
   return table;
 }
 
+// The microfacet normal of the stretched (alpha = 1) slopes (slope_x, slope_y) drawn in wi_std's plane of
+// incidence: rotated to wi_std's azimuth and unstretched by (ax, ay) (Heitz & d'Eon 2014 Alg. 2); the normal of
+// slope (sx, sy) is (-sx, -sy, 1) normalized. Shared by sample_beckmann_visible_normal and glint's own sampler.
+inline Vec3 beckmann_normal_of_std_slopes(const Vec3 &wi_std, double slope_x, double slope_y, float ax, float ay) {
+  const double len_xy = std::sqrt(double(wi_std.x) * wi_std.x + double(wi_std.y) * wi_std.y);
+  const double cos_phi = len_xy > 0.0 ? wi_std.x / len_xy : 1.0;
+  const double sin_phi = len_xy > 0.0 ? wi_std.y / len_xy : 0.0;
+  const double sx = (cos_phi * slope_x - sin_phi * slope_y) * ax;
+  const double sy = (sin_phi * slope_x + cos_phi * slope_y) * ay;
+  const double inv_len = 1.0 / std::sqrt(sx * sx + sy * sy + 1.0);
+  return Vec3(static_cast<float>(-sx * inv_len), static_cast<float>(-sy * inv_len), static_cast<float>(inv_len));
+}
 }  // namespace detail
 
 // Beckmann visible-normal sampling for wi.z > 0 (Heitz & d'Eon 2014,
@@ -372,15 +384,7 @@ inline Vec3 sample_beckmann_visible_normal(const Vec3 &wi, float ax, float ay, f
     slope_x = detail::solve_beckmann_slope(c, target, clamp(x, -8.0, c.x_max), -8.0, c.x_max);
     slope_y = detail::erfinv_2u_minus_1(clamp(static_cast<double>(u2), 1e-9, 1.0 - 1e-9));
   }
-  // Rotate from the plane of incidence and unstretch (Heitz & d'Eon 2014 Alg. 2).
-  const double len_xy = std::sqrt(double(wi_std.x) * wi_std.x + double(wi_std.y) * wi_std.y);
-  const double cos_phi = len_xy > 0.0 ? wi_std.x / len_xy : 1.0;
-  const double sin_phi = len_xy > 0.0 ? wi_std.y / len_xy : 0.0;
-  const double sx = (cos_phi * slope_x - sin_phi * slope_y) * ax;
-  const double sy = (sin_phi * slope_x + cos_phi * slope_y) * ay;
-  // The microfacet normal of slope (sx, sy) is (-sx, -sy, 1) normalized.
-  const double inv_len = 1.0 / std::sqrt(sx * sx + sy * sy + 1.0);
-  return Vec3(static_cast<float>(-sx * inv_len), static_cast<float>(-sy * inv_len), static_cast<float>(inv_len));
+  return detail::beckmann_normal_of_std_slopes(wi_std, slope_x, slope_y, ax, ay);
 }
 
 // Visible-normal sampling for wi.z > 0; pdf of the result is visible_D().
