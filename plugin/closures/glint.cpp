@@ -365,8 +365,12 @@ class GlintClosure {
   // The glint BRDF times cos(wo): equations (2) and (3) at the lookup
   // located and requested by request_table; `h` the half vector of (wi, wo).
   // `lambdas` from glint::eval_lambdas (W's G2 at the base alpha).
-  Spectrum glint_f_cos(const Vec3 &wi, const Vec3 &wo, const TableLookup &at, const glint::HalfVector &h,
-                       const glint::EvalLambdas &lambdas, float sigma_deg, float density, Particles &parts) const {
+  // Inlining pinned (session 23): glint.cpp sits at GCC's inline-unit-growth limit, so a header edit elsewhere
+  // could flip GCC's choices; f_cos_and_pdf, glint_f_cos and glint_or_filtered stay out of line and
+  // place_footprint, request_table and locate inlined, as GCC chose on main 4b4755c.
+  [[gnu::noinline]] Spectrum glint_f_cos(const Vec3 &wi, const Vec3 &wo, const TableLookup &at,
+                                        const glint::HalfVector &h, const glint::EvalLambdas &lambdas, float sigma_deg,
+                                        float density, Particles &parts) const {
     if (!table_ || !(wi.z > 0.0f) || !(wo.z > 0.0f)) return Spectrum(0.0f);
     // The lookup comes first: its loads overlap the weight's math.
     const float P = std::min(table_->lookup(at), 1.0f);
@@ -400,8 +404,8 @@ class GlintClosure {
   }
 
   // (2) or (3) once P and W are known.
-  Spectrum glint_or_filtered(const Vec3 &wi, const Vec3 &wo, float P, const Spectrum &weight, float sigma_deg,
-                             float density, Particles &parts) const {
+  [[gnu::noinline]] Spectrum glint_or_filtered(const Vec3 &wi, const Vec3 &wo, float P, const Spectrum &weight,
+                                              float sigma_deg, float density, Particles &parts) const {
     const double area = parts.area;
     const double expected = static_cast<double>(density) * area * P;
     if (expected > threshold_ || sigma_deg > field_.gamma_deg) return weight * (P / cone_solid_angle_);  // (3)
@@ -427,8 +431,8 @@ class GlintClosure {
   // pdf is computed, then the BRDF; the half vector h of (wi, wo) computed
   // once for the pdf and the weight, and (isotropic base) the three Smith
   // Lambdas of W and the pdf in one packed computation (glint::eval_lambdas).
-  Spectrum f_cos_and_pdf(const ShadingPoint &sp, const Vec3 &wo, float sigma_deg, const SamplingLobe &w,
-                         float &pdf) const {
+  [[gnu::noinline]] Spectrum f_cos_and_pdf(const ShadingPoint &sp, const Vec3 &wo, float sigma_deg, const SamplingLobe &w,
+                                           float &pdf) const {
     const glint::HalfVector h = glint::reflection_half_vector(sp.wi, wo);
     if (special_path_) {  // anisotropic base, or pseudo-normals: one test on the direction cells' path
       if (anisotropic_) {
