@@ -210,6 +210,13 @@ inline uint32_t node_key(int level, int64_t i, int64_t j) {
 // and the count at P (glint.cpp) key a node once; the row key is kept from
 // the previous add of the same row (add_row: once per row).
 inline constexpr int kMaxNodes = 64;
+// The box path of nodes_at_level_start: a footprint whose bounding box spans at
+// most `box_span` x `box_span` nodes takes the whole box. kSmallBoxSpan (2)
+// covers every footprint smaller than a node; kBoxSpan (4, session 23) is the
+// direction cells' walk (footprint_nodes), whose extra nodes cost less than
+// the rasteriser they save. A node outside the footprint adds no particle (the
+// membership test is exact), so the counts are the same for any span.
+inline constexpr int64_t kSmallBoxSpan = 2, kBoxSpan = 4;
 struct NodeList {
   static constexpr int kRowChunk = 4;  // add_row writes whole chunks of this many entries
   int level = 0;  // set before add()
@@ -417,7 +424,8 @@ struct NodeRows {
   enum Kind { kDone, kTooMany, kRows } kind;
   int64_t j0, j1;
 };
-inline NodeRows nodes_at_level_start(const Footprint &f, int level, NodeList &list) {
+inline NodeRows nodes_at_level_start(const Footprint &f, int level, NodeList &list,
+                                     int64_t box_span = kSmallBoxSpan) {
   list.count = 0;
   list.level = level;
   list.size = power_of_two(-level);
@@ -432,12 +440,12 @@ inline NodeRows nodes_at_level_start(const Footprint &f, int level, NodeList &li
   const int64_t j0 = floor_to_int64((f.cy - ey) * inv);
   const int64_t j1 = floor_to_int64((f.cy + ey) * inv);
   if (j1 - j0 >= kMaxNodes) return {NodeRows::kTooMany, 0, 0};
-  // A footprint whose bounding box spans at most 2 x 2 nodes (every
-  // footprint smaller than a node) takes the whole box: clipping the rows
-  // costs more than the one node it may save, and the count is the same
-  // (membership is exact).
+  // A footprint whose bounding box spans at most box_span x box_span nodes
+  // (2: every footprint smaller than a node) takes the whole box: clipping
+  // the rows costs more than the nodes it may save, and the count is the
+  // same (membership is exact).
   const int64_t box_i0 = floor_to_int64((f.cx - ex) * inv), box_i1 = floor_to_int64((f.cx + ex) * inv);
-  if (j1 - j0 <= 1 && box_i1 - box_i0 <= 1) {
+  if (j1 - j0 < box_span && box_i1 - box_i0 < box_span) {
     for (int64_t j = j0; j <= j1; ++j) list.add_row(box_i0, box_i1, j);
     return {NodeRows::kDone, j0, j1};
   }
@@ -571,8 +579,9 @@ struct RowRasteriser {
                                                                        NodeList &list) {
   return nodes_at_level_rows_sse2(f, j0, j1, list);
 }
-[[gnu::noinline, gnu::cold]] inline NodeRows nodes_at_level_start_cold(const Footprint &f, int level, NodeList &list) {
-  return nodes_at_level_start(f, level, list);
+[[gnu::noinline, gnu::cold]] inline NodeRows nodes_at_level_start_cold(const Footprint &f, int level, NodeList &list,
+                                                                      int64_t box_span) {
+  return nodes_at_level_start(f, level, list, box_span);
 }
 // One edge's crossings of four row borders yv into the borders' lo / hi (the SSE2 form's expressions).
 [[gnu::target("avx2"), gnu::always_inline]] inline void raster_edge_avx2(__m256d yv, __m256d ax, __m256d ay, __m256d by,
@@ -716,8 +725,8 @@ inline bool nodes_at_level_rows(const Footprint &f, int64_t j0, int64_t j1, Node
 #endif
   return nodes_at_level_rows_sse2_cold(f, j0, j1, list);
 }
-inline bool nodes_at_level(const Footprint &f, int level, NodeList &list) {
-  const NodeRows rows = nodes_at_level_start(f, level, list);
+inline bool nodes_at_level(const Footprint &f, int level, NodeList &list, int64_t box_span = kSmallBoxSpan) {
+  const NodeRows rows = nodes_at_level_start(f, level, list, box_span);
   if (rows.kind != NodeRows::kRows) return rows.kind == NodeRows::kDone;
   return nodes_at_level_rows(f, rows.j0, rows.j1, list);
 }
@@ -730,9 +739,10 @@ inline void coarse_footprint_nodes(const Footprint &f, NodeList &list) {
   nodes_at_level(f, -e, list);
 }
 // The nodes a footprint is counted over: those of the particle level it
-// overlaps, or, when there are more than kMaxNodes of them, the coarse fallback.
+// overlaps, or, when there are more than kMaxNodes of them, the coarse fallback
+// (the list footprint_nodes gives through the memo with kBoxSpan).
 inline void footprint_nodes_at(const Footprint &f, int particle_level, NodeList &list) {
-  if (nodes_at_level(f, particle_level, list)) return;
+  if (nodes_at_level(f, particle_level, list, kBoxSpan)) return;
   coarse_footprint_nodes(f, list);
 }
 inline void footprint_nodes(const Footprint &f, double density, NodeList &list) {
@@ -781,7 +791,8 @@ struct FootprintNodeMemo {
 // 2^51 in magnitude are exact integers; otherwise, and for NaN, the scalar
 // form decides). GlintParticles.NodeListStartAvx2MatchesTheScalarStart.
 [[gnu::target("avx2"), gnu::always_inline]] inline NodeRows nodes_at_level_start_avx2_body(const Footprint &f, int level,
-                                                                                      NodeList &list) {
+                                                                                      NodeList &list,
+                                                                                      int64_t box_span) {
   list.count = 0;
   list.level = level;
   list.size = power_of_two(-level);
@@ -792,7 +803,7 @@ struct FootprintNodeMemo {
   const __m256d v = _mm256_mul_pd(_mm256_setr_pd(f.cy - ey, f.cy + ey, f.cx - ex, f.cx + ex), _mm256_set1_pd(inv));
   const __m256d abs_v = _mm256_and_pd(v, _mm256_castsi256_pd(_mm256_set1_epi64x(0x7fffffffffffffffll)));
   if (_mm256_movemask_pd(_mm256_cmp_pd(abs_v, _mm256_set1_pd(2251799813685248.0), _CMP_LT_OQ)) != 0xf)
-    return nodes_at_level_start_cold(f, level, list);  // beyond 2^51 or NaN
+    return nodes_at_level_start_cold(f, level, list, box_span);  // beyond 2^51 or NaN
   const __m256d magic = _mm256_set1_pd(6755399441055744.0);  // 2^52 + 2^51
   alignas(32) int64_t e[4];                                  // j0, j1, box_i0, box_i1
   _mm256_store_si256(reinterpret_cast<__m256i *>(e),
@@ -810,11 +821,21 @@ struct FootprintNodeMemo {
     if (j1 > j0) list.add_row_keyed_avx2(e[2], e[3], j1, keys[1]);
     return {NodeRows::kDone, j0, j1};
   }
+  if (j1 - j0 < box_span && e[3] - e[2] < box_span) {  // a larger box (box_span <= 4: the four rows' keys at once)
+    alignas(16) uint32_t keys[4];
+    _mm_store_si128(reinterpret_cast<__m128i *>(keys),
+                    node_row_keys_avx2(level, _mm_add_epi32(_mm_set1_epi32(static_cast<int>(static_cast<uint32_t>(j0))),
+                                                            _mm_setr_epi32(0, 1, 2, 3))));
+    for (int64_t r = 0; r <= j1 - j0; ++r) list.add_row_keyed_avx2(e[2], e[3], j0 + r, keys[r]);
+    return {NodeRows::kDone, j0, j1};
+  }
   return {NodeRows::kRows, j0, j1};
 }
 // The same, out of line (for the tests; footprint_nodes_avx2 inlines the body).
-[[gnu::target("avx2")]] inline NodeRows nodes_at_level_start_avx2(const Footprint &f, int level, NodeList &list) {
-  return nodes_at_level_start_avx2_body(f, level, list);
+// box_span at most 4.
+[[gnu::target("avx2")]] inline NodeRows nodes_at_level_start_avx2(const Footprint &f, int level, NodeList &list,
+                                                                   int64_t box_span = kSmallBoxSpan) {
+  return nodes_at_level_start_avx2_body(f, level, list, box_span);
 }
 #endif
 // The body of footprint_nodes_avx2 and footprint_nodes_sse2 (session 22: one
@@ -825,7 +846,7 @@ struct FootprintNodeMemo {
 // level, else the rows (`rows_of`: the form's rasteriser) into the memo's list.
 #define GLIMMER_GLINT_FOOTPRINT_NODES_BODY(start, rows_of)                       \
   const int level = particle_level(density);                                     \
-  const NodeRows rows = start(f, level, list);                                   \
+  const NodeRows rows = start(f, level, list, kSpan);                            \
   if (rows.kind != NodeRows::kRows) {                                            \
     if (rows.kind == NodeRows::kTooMany) coarse_footprint_nodes(f, list);        \
     return list;                                                                 \
@@ -842,14 +863,14 @@ struct FootprintNodeMemo {
   return out
 #if GLIMMER_GLINT_WALK_AVX2
 // footprint_nodes through the memo (below) with the AVX2 start (inlined) and rows.
-template <typename GetMemo>
+template <int64_t kSpan, typename GetMemo>
 [[gnu::target("avx2"), gnu::noinline]] inline const NodeList &footprint_nodes_avx2(const Footprint &f, double density, NodeList &list,
                                                                    GetMemo &&get_memo) {
   GLIMMER_GLINT_FOOTPRINT_NODES_BODY(nodes_at_level_start_avx2_body, nodes_at_level_rows_avx2);
 }
 #endif
 // footprint_nodes through the memo with the SSE2 start and rows (out of line, as footprint_nodes was until session 21).
-template <typename GetMemo>
+template <int64_t kSpan, typename GetMemo>
 [[gnu::noinline]] inline const NodeList &footprint_nodes_sse2(const Footprint &f, double density, NodeList &list,
                                                              GetMemo &&get_memo) {
   GLIMMER_GLINT_FOOTPRINT_NODES_BODY(nodes_at_level_start, nodes_at_level_rows);
@@ -858,19 +879,22 @@ template <typename GetMemo>
 // footprint_nodes through the memo: the same list (bit for bit; the key is
 // the footprint's bits and the level), returned by reference: `list` or the
 // memo's own list (valid until the next call with this memo; no copy).
-// Footprints whose bounding box spans at most 2 x 2 particle nodes take
-// nodes_at_level's box into `list` without the memo. get_memo() returns the
-// memo (called only when it is used: a thread-local's address is a call in
+// Footprints whose bounding box spans at most kSpan x kSpan particle nodes
+// (kBoxSpan for the direction cells' walk since session 23, kSmallBoxSpan for
+// the pseudo-normal count, whose extra nodes cost more) take
+// nodes_at_level_start's box into `list` without the memo. get_memo() returns
+// the memo (called only when it is used: a thread-local's address is a call in
 // a shared library).
 // Session 21: the AVX2 form (footprint_nodes_avx2) where the walk uses AVX2, else the SSE2 form; this
 // dispatch is inlined into the caller (no call in between).
-template <typename GetMemo>
+template <int64_t kSpan = kBoxSpan, typename GetMemo>
 [[gnu::always_inline]] inline const NodeList &footprint_nodes(const Footprint &f, double density, NodeList &list,
                                                              GetMemo &&get_memo) {
+  static_assert(kSpan >= kSmallBoxSpan && kSpan <= 4);
 #if GLIMMER_GLINT_WALK_AVX2
-  if (kWalkAvx2) return footprint_nodes_avx2(f, density, list, get_memo);
+  if (kWalkAvx2) return footprint_nodes_avx2<kSpan>(f, density, list, get_memo);
 #endif
-  return footprint_nodes_sse2(f, density, list, get_memo);
+  return footprint_nodes_sse2<kSpan>(f, density, list, get_memo);
 }
 
 // Per-node random stream: the node seed comes from 8 TEA rounds, the values

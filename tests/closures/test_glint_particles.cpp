@@ -169,6 +169,13 @@ TEST(GlintParticles, NodeListMemoReturnsTheFreshList) {
   EXPECT_GT(boxes, 5000);
   EXPECT_GT(coarse, 100);
   // Control: a memo whose key leaves out the level (relabelled after a fill at another density) is wrong.
+  // Session 23: footprints within 4 x 4 nodes take the box (kBoxSpan), so the control also draws 400 long
+  // footprints (area 1e-5..1e-3, aspect 4..64, their own generator), many of them rasterised at both levels.
+  Pcg32 rng_larger(1723);
+  for (int k = 0; k < 400; ++k) {
+    const double area = std::exp(std::log(1e-5) + rng_larger.next_double() * std::log(1e2));
+    pool.push_back(random_footprint(rng_larger, area, std::exp(std::log(4.0) + rng_larger.next_double() * std::log(16.0))));
+  }
   int stale = 0, tried = 0;
   for (size_t k = 0; k < pool.size(); ++k) {
     pg::NodeList list;
@@ -390,6 +397,7 @@ TEST(GlintParticles, NodeListStartAvx2MatchesTheScalarStart) {
   if (!__builtin_cpu_supports("avx2")) GTEST_SKIP() << "CPU without AVX2";
   Pcg32 rng(2121);
   int compared = 0, differ = 0, control_differs = 0, boxes = 0, rows = 0, too_many = 0, odd = 0;
+  int differ_span = 0, larger_boxes = 0;
   for (int t = 0; t < 50000; ++t) {
     const int level = static_cast<int>(rng.next_u32() % 20) - 2;
     const double size = std::ldexp(1.0, -level);
@@ -411,6 +419,10 @@ TEST(GlintParticles, NodeListStartAvx2MatchesTheScalarStart) {
     const pg::NodeRows ra = pg::nodes_at_level_start_avx2(f, level, a);
     const pg::NodeRows rb = pg::nodes_at_level_start(f, level, b);
     const pg::NodeRows rc = pg::nodes_at_level_start_avx2(f, level + 1, c);
+    // Session 23: the larger box path (kBoxSpan, the direction cells' walk) in both forms too.
+    pg::NodeList d, e;
+    const pg::NodeRows rd = pg::nodes_at_level_start_avx2(f, level, d, pg::kBoxSpan);
+    const pg::NodeRows re = pg::nodes_at_level_start(f, level, e, pg::kBoxSpan);
     ++compared;
     const auto same = [](const pg::NodeRows &x, const pg::NodeRows &y, const pg::NodeList &lx, const pg::NodeList &ly) {
       if (x.kind != y.kind) return false;
@@ -418,6 +430,8 @@ TEST(GlintParticles, NodeListStartAvx2MatchesTheScalarStart) {
       return x.j0 == y.j0 && x.j1 == y.j1 && same_nodes(lx, ly);
     };
     differ += same(ra, rb, a, b) ? 0 : 1;
+    differ_span += same(rd, re, d, e) ? 0 : 1;
+    larger_boxes += re.kind == pg::NodeRows::kDone && rb.kind == pg::NodeRows::kRows ? 1 : 0;
     control_differs += same(rc, rb, c, b) ? 0 : 1;
     boxes += rb.kind == pg::NodeRows::kDone ? 1 : 0;
     rows += rb.kind == pg::NodeRows::kRows ? 1 : 0;
@@ -426,7 +440,11 @@ TEST(GlintParticles, NodeListStartAvx2MatchesTheScalarStart) {
   std::printf("[start avx2] %d footprints (%d far or non-finite; %d boxes, %d rows, %d beyond kMaxNodes): %d differ "
               "from the scalar start; control one level finer: %d differ\n",
               compared, odd, boxes, rows, too_many, differ, control_differs);
+  std::printf("[start avx2] box span %d: %d more boxes, %d differ from the scalar start\n",
+              static_cast<int>(pg::kBoxSpan), larger_boxes, differ_span);
   EXPECT_EQ(differ, 0);
+  EXPECT_EQ(differ_span, 0);
+  EXPECT_GT(larger_boxes, 1000);
   EXPECT_GT(boxes, 5000);
   EXPECT_GT(rows, 5000);
   EXPECT_GT(too_many, 1000);
