@@ -448,6 +448,7 @@ Vec3 moment_mean_shift(const TransmissionSgTable &table, const Segment &seg, con
 // (refracted_mean_shift, session 22) or the exit lobe's first moment (moment_mean_shift); read once.
 struct CurvedAxisRule {
   bool core_moment = false, tail_moment = false;
+  bool tail_for_mean = false;  // the tails' axis such that the whole mixture's first moment is the exit lobe's
 };
 CurvedAxisRule curved_axis_rule() {
   static const CurvedAxisRule rule = [] {
@@ -456,6 +457,7 @@ CurvedAxisRule curved_axis_rule() {
     if (v == "moment") return CurvedAxisRule{true, true};
     if (v == "skew") return CurvedAxisRule{true, false};
     if (v == "skewrev") return CurvedAxisRule{false, true};
+    if (v == "skewmean") return CurvedAxisRule{false, true, true};
     return CurvedAxisRule{false, false};
   }();
   return rule;
@@ -504,7 +506,7 @@ bool solid_exit_mixture(const SgInputs &in, const Segment &seg, const Vec3 &axis
       }
       out.sg.axis = core_axis;
       // The shape: a test's (curved_shape, or curved_tail: the nineteenth session's split, 0 the single SG), else the
-      // environment's (measurements: a shape, or the split's t), else kCurvedExitShape.
+      // environment's (measurements: a shape, or the split's t), else curved_exit_shape (kCurvedExitShape up to 0.5).
       const CurvedShape *shape = in.curved_shape;
       float t = in.curved_tail;
       if (shape == nullptr && t < 0.0f) {
@@ -516,7 +518,25 @@ bool solid_exit_mixture(const SgInputs &in, const Segment &seg, const Vec3 &axis
       else if (t >= 0.0f)
         split_single_sg(t, out);
       else
-        apply_curved_shape(kCurvedExitShape, out);
+        apply_curved_shape(curved_exit_shape(in.roughness), out);
+      if (rule.tail_for_mean && k != 0.0f) {
+        // The tails' axis t solves sum_core w A(kappa) core_axis + sum_tail w A(kappa) t = (sum_all w A) m, m the
+        // exit lobe's first moment's direction (tail_axis above): the mixture's mean is the exact lobe's.
+        Vec3 core_sum(0.0f);
+        float tail_len = 0.0f, all_len = 0.0f;
+        for (int j = 0; j < out.lobe_count; ++j) {
+          const float wa = out.lobe[j].weight * vmf_mean_length(out.lobe[j].sharpness);
+          all_len += wa;
+          if (out.lobe[j].sharpness < out.sg.sharpness)
+            tail_len += wa;
+          else
+            core_sum += core_axis * wa;
+        }
+        if (tail_len > 1e-6f) {
+          const Vec3 v = normalize((tail_axis * all_len - core_sum) / tail_len);
+          if (is_finite(v)) tail_axis = v;
+        }
+      }
       for (int j = 0; j < out.lobe_count; ++j)
         if (out.lobe[j].sharpness < out.sg.sharpness) out.lobe[j].axis = tail_axis;
     }
