@@ -8,6 +8,8 @@
 #              the lamp and the world through the exit lobe, light after internal reflections)
 #   black_lamp the floor black and the world 0: the lamp seen on / through the sphere
 #   lamp       the world 0: everything the lamp lights
+#   world, black_world  the lamp off (and the floor black): the uniform world alone, which tests a class's energy
+#              whatever its directions
 # A variant <v>:<c> renders <v> with GLIMMER_DIAG_CLASS=<c>: only the camera paths whose events on the sphere are of
 # class c (100 the front reflection, 0 light that left after no internal reflection, 1 after one or more); it needs
 # a diagnostic build with benchmarks/frosted_glass_event_split.patch applied (never committed in the code).
@@ -34,6 +36,8 @@ scene_for() {  # variant method -> scene file
                     -e 's|color="0.05 0.05 0.06" strength="1"|color="0.05 0.05 0.06" strength="0"|') ;;
     lamp) e+=(-e 's|color="0.05 0.05 0.06" strength="1"|color="0.05 0.05 0.06" strength="0"|') ;;
     world) e+=(-e 's|strength="120 100 80"|strength="0 0 0"|') ;;
+    black_world) e+=(-e 's|diffuse_bsdf name="d" color="0.6 0.6 0.6"|diffuse_bsdf name="d" color="0 0 0"|'
+                     -e 's|strength="120 100 80"|strength="0 0 0"|') ;;
     *) echo "unknown variant $v" >&2; exit 1 ;;
   esac
   sed "${e[@]}" "$here/scenes/frosted_fair_caustic.xml" > "$f"
