@@ -13,6 +13,8 @@
 # A variant <v>:<c> renders <v> with GLIMMER_DIAG_CLASS=<c>: only the camera paths whose events on the sphere are of
 # class c (100 the front reflection, 0 light that left after no internal reflection, 1 after one or more); it needs
 # a diagnostic build with benchmarks/frosted_glass_event_split.patch applied (never committed in the code).
+# GLIMMER_DIAG_SKIP=1 (exported) classifies from the path's second vertex (the camera sees the floor: the light that
+# reached the floor's point through / off the sphere; the first vertex's own contributions are dropped).
 # Each variant is rendered on the crop (--region 19,9,31,21) by path (2 seeds x <path_spp>, the reference) and by
 # the method (2 seeds x <spp>), then frosted_variance_per_region.py compares them (per region with the references'
 # own noise taken out).
@@ -24,7 +26,8 @@ glimmer=$1 out=$2 label=$3 spp=${4:-16384} path_spp=${5:-65536} method=${6:-sg}
 variants=${7:-full black black_lamp lamp}
 here=$(cd "$(dirname "$0")" && pwd)
 mkdir -p "$out"
-region=19,9,31,21
+region=${REGION:-19,9,31,21}  # REGION=14,17,29,28: the sphere's shadow (shadow_L), with SKIP=1 below
+show=${SHOW:-glass_L}
 scene_for() {  # variant method -> scene file
   local v=$1 m=$2 f="$out/scene_${1}_$2.xml"
   local e=(-e "s|frosted_glass_bsdf name=\"g\"|frosted_glass_bsdf name=\"g\" method=\"$m\"|"
@@ -58,5 +61,5 @@ for vc in $variants; do
   echo "== $vc ($method $spp spp x 2 against path $path_spp spp x 2)"
   python3 "$here/frosted_variance_per_region.py" variance "$spp" "$out/${label}_${name}_11.exr" \
       "$out/${label}_${name}_12.exr" --mask "$here/scenes/frosted_fair_caustic_mask_64x40.png" \
-      --references "$out/ref_${name}_7919.exr,$out/ref_${name}_8932.exr" --split-x 32 | grep -E "^(region|glass_L) "
+      --references "$out/ref_${name}_7919.exr,$out/ref_${name}_8932.exr" --split-x 32 | grep -E "^(region|$show) "
 done
