@@ -1271,15 +1271,16 @@ TEST(GlintParticles, PairPassesMatchTheNodeLoop) {
 }
 
 // Session 20: pass 2's AVX2 form (group_pass_avx2: two nodes' four group
-// hashes per 256-bit register, an odd last node by the SSE2 form) writes the
-// same hashes, pair list and paired-node list as the SSE2 form
+// hashes per 256-bit register, an odd last node as a step with a second key
+// of 0 since session 23) writes the same hashes and passing pairs (as the
+// bits of PairMasks' words since session 23) as the SSE2 form
 // (group_pass_sse2), and the whole pair-pass count (count, steps,
 // completeness; count_four_groups_in_passes_avx2, the passes compiled for
 // AVX2 with this pass inlined) is the same with either, over the footprints of
 // PairPassesMatchTheNodeLoop (1..64 nodes, odd and even counts, P up to 1 so
 // that every pair passes). The walk uses the AVX2 form on a CPU with AVX2
 // (kWalkAvx2, checked). Control: the SSE2 form with one seed's lowest bit
-// flipped gives another pair list on most queries with a passing pair
+// flipped gives other passing pairs on most queries with a passing pair
 // (those where not every pair passes).
 TEST(GlintParticles, GroupPassAvx2MatchesSse2) {
 #if !GLIMMER_GLINT_WALK_AVX2
@@ -1293,33 +1294,25 @@ TEST(GlintParticles, GroupPassAvx2MatchesSse2) {
   int compared = 0, odd = 0, with_pairs = 0, all_pass = 0, control_differs = 0, control_queries = 0, lit = 0;
   for (int t = 0; t < 20000; ++t) {
     const auto &[f, P, max_steps, seeds, group_density, nodes] = random_pass_query(rng, t);
-    const pg::FootprintFrame frame(f, nodes.size);
     const double lambda = std::min(group_density * nodes.size * nodes.size, 4.0e18) * std::min(P, 1.0);
     const pg::GroupReject reject(static_cast<uint64_t>(std::min(lambda, 1.0) * 4294967296.0) + 1u);
-    pg::PairPassCounter a(frame), b(frame), c(frame);
-    std::array<uint8_t, pg::kMaxNodes> paired_a{}, paired_b{}, paired_c{};
-    int pairs_a = 0, nodes_a = 0, pairs_b = 0, nodes_b = 0, pairs_c = 0, nodes_c = 0;
-    pg::group_pass(true, nodes, seeds.data(), reject, a, paired_a.data(), pairs_a, nodes_a);
-    pg::group_pass(false, nodes, seeds.data(), reject, b, paired_b.data(), pairs_b, nodes_b);
-    ASSERT_EQ(pairs_a, pairs_b) << "query " << t;
-    ASSERT_EQ(nodes_a, nodes_b) << "query " << t;
+    pg::PairMasks a, b, c;
+    pg::group_pass(true, nodes, seeds.data(), reject, a);
+    pg::group_pass(false, nodes, seeds.data(), reject, b);
     for (int i = 0; i < pg::kDirectionGroups * nodes.count; ++i)
       ASSERT_EQ(a.node_hash[static_cast<size_t>(i)], b.node_hash[static_cast<size_t>(i)]) << "query " << t;
-    for (int p = 0; p < pairs_a; ++p)
-      ASSERT_EQ(a.pair_index[static_cast<size_t>(p)], b.pair_index[static_cast<size_t>(p)]) << "query " << t;
-    for (int q = 0; q < nodes_a; ++q)
-      ASSERT_EQ(paired_a[static_cast<size_t>(q)], paired_b[static_cast<size_t>(q)]) << "query " << t;
-    const pg::GlintCount ka = pg::count_four_groups_in_passes(frame, nodes, seeds.data(), reject, lambda, max_steps, true);
-    const pg::GlintCount kb = pg::count_four_groups_in_passes(frame, nodes, seeds.data(), reject, lambda, max_steps, false);
+    for (size_t w = 0; w < a.mask.size(); ++w) ASSERT_EQ(a.mask[w], b.mask[w]) << "query " << t;
+    int pairs_a = 0;
+    for (const uint64_t m : a.mask) pairs_a += std::popcount(m);
+    const pg::GlintCount ka = pg::count_four_groups_in_passes(f, nodes, seeds.data(), reject, lambda, max_steps, true);
+    const pg::GlintCount kb = pg::count_four_groups_in_passes(f, nodes, seeds.data(), reject, lambda, max_steps, false);
     ASSERT_EQ(ka.complete, kb.complete) << "query " << t;
     ASSERT_EQ(ka.count, kb.count) << "query " << t;
     ASSERT_EQ(ka.steps, kb.steps) << "query " << t;
     std::array<uint32_t, pg::kDirectionGroups> flipped = seeds;
     flipped[static_cast<size_t>(t % pg::kDirectionGroups)] ^= 1u;
-    pg::group_pass(false, nodes, flipped.data(), reject, c, paired_c.data(), pairs_c, nodes_c);
-    bool differs = pairs_c != pairs_a;
-    for (int p = 0; !differs && p < pairs_a; ++p)
-      differs = c.pair_index[static_cast<size_t>(p)] != a.pair_index[static_cast<size_t>(p)];
+    pg::group_pass(false, nodes, flipped.data(), reject, c);
+    const bool differs = c.mask != a.mask;
     ++compared;
     odd += nodes.count % 2;
     with_pairs += pairs_a > 0;
