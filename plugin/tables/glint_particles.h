@@ -1155,6 +1155,68 @@ struct LitCountBounds {
   }
 };
 
+// LitCountModel's K for a pair's 32-bit hash h (u = (h + 1/2) 2^-32) by
+// integer compares (issue 10, session 23), for the queries whose lambda > 1
+// (LitCountBounds decides nothing there, and every pair of the footprint
+// passes the quick reject): the model's tail walk visits the same terms
+// Pr(K > k) for every u, and it goes past term k iff u < Pr(K > k) and its
+// pmf is not 0 there (the tails never increase, and a pmf of 0 stays 0), so
+// K >= k + 1 iff h < below[k], the number of hashes whose u is under the
+// k-th tail (0 once the pmf is 0). below[] is made once per query (the
+// model's exp and kSteps terms), and a pair costs kSteps integer compares
+// instead of the walk's double compares and a division per step. K >=
+// kSteps continues the model's walk from its kSteps-th term (the same
+// values). Not walkable (lambda > kMaxNodeMean): -1 where the model's is
+// (u < p_any), else 0. GlintParticles.LitCountTableMatchesTheTailWalk.
+struct LitCountTable {
+  static constexpr int kSteps = 4;
+  std::array<uint64_t, kSteps> below{};  // non-increasing
+  double lambda, pmf = 0.0, tail = 0.0;  // the walk's terms at k = kSteps
+  bool walkable;
+
+  // The number of h in [0, 2^32) with (h + 1/2) 2^-32 < tail: h < x =
+  // tail 2^32 - 1/2 (the scale by a power of two is exact, and so is the
+  // difference wherever x > 0: tail 2^32 in [1/4, 2^33)).
+  static uint64_t hashes_below(double tail) {
+    const double x = tail * 4294967296.0 - 0.5;
+    if (!(x > 0.0)) return 0;  // also NaN
+    if (x >= 4294967295.0) return uint64_t{1} << 32;
+    return static_cast<uint64_t>(std::ceil(x));
+  }
+  explicit LitCountTable(const LitCountModel &m) : lambda(m.lambda), walkable(m.walkable) {
+    if (!walkable) {
+      below.fill(hashes_below(m.p_any));  // K is 0 or kSteps, and lit() gives -1 for the latter
+      return;
+    }
+    double p = m.p_none, t = m.p_any;
+    for (size_t k = 0; k < below.size(); ++k) {
+      below[k] = p > 0.0 ? hashes_below(t) : 0;
+      p *= lambda / static_cast<double>(k + 1);
+      t -= p;
+    }
+    pmf = p, tail = t;
+  }
+  int64_t lit(uint32_t h) const {
+    int64_t K = 0;
+    for (size_t k = 0; k < below.size(); ++k) K += h < below[k] ? 1 : 0;
+    if (K == kSteps) [[unlikely]] return walk_on(h);
+    return K;
+  }
+  // K >= kSteps: the model's walk from its kSteps-th term on (-1: not walkable).
+  [[gnu::noinline]] int64_t walk_on(uint32_t h) const {
+    if (!walkable) return -1;
+    const double u = (static_cast<double>(h) + 0.5) * (1.0 / 4294967296.0);
+    double p = pmf, t = tail;
+    int64_t k = kSteps;
+    while (u < t && p > 0.0) {
+      ++k;
+      p *= lambda / static_cast<double>(k);
+      t -= p;
+    }
+    return k;
+  }
+};
+
 // The footprint's parallelogram coordinates (s, t), inside when |s|, |t| <=
 // 1/2, are affine in the position; over a node of side `size` at (x0, y0)
 // they are (s, t) = origin + u_x d_ux + u_y d_uy for the position
@@ -1601,23 +1663,40 @@ template <bool kAvx2>
   // eval, same f and pdf bits.
   paired_node_origins(frame, nodes, pm, pc);  // (1)
   GlintCount result;
-  const LitCountBounds bounds(lambda);
-  std::optional<LitCountModel> model;
   int64_t steps = 0;
-  for (int w = 0; w < PairMasks::words(nodes.count); ++w)  // (3): the pairs 4 node + g in order
-    for (uint64_t m = pm.mask[static_cast<size_t>(w)]; m != 0; m &= m - 1) {
-      const auto pair = static_cast<uint32_t>(64 * w + std::countr_zero(m));
-      const uint32_t h0 = pm.node_hash[pair];
+  // (3): the pairs 4 node + g in order, K by lit_of(h0).
+  const auto lit_pass = [&](auto &&lit_of) {
+    for (int w = 0; w < PairMasks::words(nodes.count); ++w)
+      for (uint64_t m = pm.mask[static_cast<size_t>(w)]; m != 0; m &= m - 1) {
+        const auto pair = static_cast<uint32_t>(64 * w + std::countr_zero(m));
+        const uint32_t h0 = pm.node_hash[pair];
+        const int64_t K = lit_of(h0);
+        steps += K;
+        if (K < 0 || steps > max_steps) return false;
+        pc.add_lit(static_cast<int>(pair / kDirectionGroups), h0, K);
+      }
+    return true;
+  };
+  bool walked;
+  if (lambda > 1.0) {
+    // Session 23: every pair passes the quick reject, and the bounds decide
+    // none: the walk's thresholds once (LitCountTable), then integer compares.
+    const LitCountTable table{LitCountModel(lambda)};
+    walked = lit_pass([&](uint32_t h0) { return table.lit(h0); });
+  } else {
+    const LitCountBounds bounds(lambda);
+    std::optional<LitCountModel> model;
+    walked = lit_pass([&](uint32_t h0) {
       const double u = (static_cast<double>(h0) + 0.5) * (1.0 / 4294967296.0);
       int64_t K = bounds.lit(u);
       if (K == LitCountBounds::kUndecided) {
         if (!model) model.emplace(lambda);
         K = u < model->p_any ? model->lit(u) : 0;
       }
-      steps += K;
-      if (K < 0 || steps > max_steps) return {0, 0, false};
-      pc.add_lit(static_cast<int>(pair / kDirectionGroups), h0, K);
-    }
+      return K;
+    });
+  }
+  if (!walked) return {0, 0, false};
 #if GLIMMER_GLINT_WALK_AVX2
   if constexpr (kAvx2)
     pc.flush_avx2();  // (4)

@@ -1270,6 +1270,58 @@ TEST(GlintParticles, PairPassesMatchTheNodeLoop) {
   EXPECT_GT(control_differs, 10);
 }
 
+// Session 23: LitCountTable (pass 3's lit count for lambda > 1 by integer
+// compares of the pair's hash) gives LitCountModel's K (the walk as the passes
+// call it, -1 where the walk refuses) for every hash it is asked about: the
+// hashes within 3 of each of its thresholds and of each term of the walk's
+// tail it passes, 0, 2^32 - 1 and 200 random hashes, over 4000 lambdas
+// log-uniform in 1e-12..700 (not walkable above 600), and 2000 in 1..12
+// (where K >= kSteps continues the walk). Negative control: thresholds one
+// hash lower (the tail compared by <= instead of <) disagree on many hashes.
+TEST(GlintParticles, LitCountTableMatchesTheTailWalk) {
+  Pcg32 rng(37);
+  int64_t checked = 0, continued = 0, refused = 0, control_disagreements = 0;
+  for (int q = 0; q < 6000; ++q) {
+    const double v = rng.next_float();
+    const double lambda = q < 4000 ? std::exp(std::log(1e-12) + v * (std::log(700.0) - std::log(1e-12))) : 1.0 + 11.0 * v;
+    const pg::LitCountModel model(lambda);
+    const pg::LitCountTable table(model);
+    pg::LitCountTable control = table;
+    for (uint64_t &b : control.below) b = b > 0 ? b - 1 : 0;
+    const auto check = [&](int64_t h) {
+      if (h < 0 || h > 0xffffffffll) return;
+      const double u = (static_cast<double>(h) + 0.5) * (1.0 / 4294967296.0);
+      const int64_t walk = u < model.p_any ? model.lit(u) : 0;
+      const int64_t k = table.lit(static_cast<uint32_t>(h));
+      ASSERT_EQ(k, walk) << "lambda " << lambda << " h " << h;
+      ++checked;
+      continued += k >= pg::LitCountTable::kSteps;
+      refused += k < 0;
+      control_disagreements += control.lit(static_cast<uint32_t>(h)) != walk;
+    };
+    for (const uint64_t b : table.below)
+      for (int d = -3; d <= 3; ++d) check(static_cast<int64_t>(b) + d);
+    double pmf = model.p_none, tail = model.p_any;
+    for (int k = 1; k <= 12 && model.walkable; ++k) {
+      const auto h = static_cast<int64_t>(std::floor(tail * 4294967296.0));
+      for (int d = -3; d <= 3; ++d) check(h + d);
+      pmf *= lambda / k;
+      tail -= pmf;
+    }
+    check(0);
+    check(0xffffffffll);
+    for (int r = 0; r < 200; ++r) check(rng.next_u32());
+  }
+  std::printf("[lit table] %lld hashes equal to the walk (%lld with K >= %d, %lld refused); control (thresholds one "
+              "lower) disagrees on %lld\n",
+              static_cast<long long>(checked), static_cast<long long>(continued), pg::LitCountTable::kSteps,
+              static_cast<long long>(refused), static_cast<long long>(control_disagreements));
+  EXPECT_GT(checked, 1000000);
+  EXPECT_GT(continued, 10000);
+  EXPECT_GT(refused, 1000);
+  EXPECT_GT(control_disagreements, 1000);
+}
+
 // Session 20: pass 2's AVX2 form (group_pass_avx2: two nodes' four group
 // hashes per 256-bit register, an odd last node as a step with a second key
 // of 0 since session 23) writes the same hashes and passing pairs (as the
