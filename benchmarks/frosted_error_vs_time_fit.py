@@ -12,7 +12,8 @@ on the relative error (each rung weighted by 1 / MSE); path's RMSE at --at-secon
     python3 benchmarks/frosted_error_vs_time_fit.py docs/frosted_error_vs_time_caustic_regions.csv --at-seconds 60
 
 Input: a bench CSV (method,samples,seconds,rmse) or a regions CSV (…,region,pixels,rmse,rmse_raw). The fit of b is
-not meaningful for heavy-tailed noise (path's MIS fireflies): read b next to the curves.
+not meaningful for heavy-tailed noise (path's MIS fireflies): read b next to the curves. The bench's rmse already
+has each region's own reference noise taken out (not the whole image's); "ref noise" prints it (from rmse_raw).
 
 --instruction-time path=1,sg=1.98,auto=1.47 --seconds-per-sample 0.0024628 (seventeenth session) replaces every rung's
 seconds by samples x the method's cost per sample relative to path's (e.g. callgrind instructions per camera path) x
@@ -45,6 +46,7 @@ def main():
     a = ap.parse_args()
     cost = {m: float(v) for m, v in (x.split("=") for x in a.instruction_time.split(",") if x)}
     regions = {}
+    noise = {}
     with open(a.csv, newline="") as f:
         for r in csv.DictReader(f):
             rows = regions.setdefault(r.get("region", "all"), {})
@@ -52,6 +54,8 @@ def main():
             if cost:
                 seconds = int(r["samples"]) * cost[r["method"]] * a.seconds_per_sample
             rows.setdefault(r["method"], []).append((seconds, float(r["rmse"])))
+            if r["method"] == a.reference and r.get("rmse_raw"):  # the references' noise the bench took out
+                noise.setdefault(r.get("region", "all"), []).append(float(r["rmse_raw"]) ** 2 - float(r["rmse"]) ** 2)
     for region, rows in regions.items():
         path = [p for p in rows.get(a.reference, []) if p[0] > 0 and p[1] > 0]
         if not path:
@@ -60,6 +64,8 @@ def main():
         k_path = sum(e * e * t for t, e in last) / len(last)
         e = math.sqrt(k_path / a.at_seconds)
         line = "%-12s %s %g-s RMSE %.5f |" % (region, a.reference, a.at_seconds, e)
+        if region in noise:  # each region's own (bench_error.h region_errors), not the whole image's
+            line += " ref noise %.5f |" % math.sqrt(max(sum(noise[region]) / len(noise[region]), 0.0))
         for method, points in rows.items():
             points = [p for p in points if p[0] > 0 and p[1] > 0]
             if method == a.reference or len(points) < 3:

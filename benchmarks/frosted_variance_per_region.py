@@ -79,6 +79,8 @@ def main():
             other = combined(path)
             acc = {n: [0.0, 0] for n in order}
             for k, r in reg.items():
+                if k not in base or k not in other:
+                    continue
                 for c in range(3):
                     d = (base[k][c] - other[k][c]) ** 2 / 2
                     for n in ("all", r):
@@ -89,13 +91,15 @@ def main():
     imgs = [combined(p) for p in a.images]
     refs = [combined(p) for p in a.references.split(",")] if a.references else []
     n = len(imgs)
-    acc = {r: [0.0, 0.0, 0.0, 0] for r in order}  # variance, offset, bias^2, values
+    acc = {r: [0.0, 0.0, 0.0, 0, 0.0] for r in order}  # variance, offset, bias^2, values, reference sum
     for k, r in reg.items():
+        if any(k not in im for im in imgs + refs):  # crops (--region renders): only the pixels they hold
+            continue
         for c in range(3):
             vals = [im[k][c] for im in imgs]
             mean = sum(vals) / n
             var = sum((v - mean) ** 2 for v in vals) / (n - 1)
-            off = b2 = 0.0
+            off = b2 = rm = 0.0
             if refs:
                 rv = [ref[k][c] for ref in refs]
                 rm = sum(rv) / len(rv)
@@ -108,12 +112,13 @@ def main():
                 s[1] += off
                 s[2] += b2
                 s[3] += 1
-    print("%-8s %7s %12s %10s %10s" % ("region", "values", "var/sample", "offset", "bias_rms"))
+                s[4] += rm
+    print("%-8s %7s %12s %10s %10s %10s" % ("region", "values", "var/sample", "offset", "bias_rms", "ref_mean"))
     for r in order:
         s = acc[r]
         if s[3]:
-            print("%-8s %7d %12.5f %10.5f %10.5f" % (r, s[3], s[0] / s[3] * a.spp, s[1] / s[3],
-                                                     max(s[2] / s[3], 0.0) ** 0.5))
+            print("%-8s %7d %12.5f %10.5f %10.5f %10.5f" % (r, s[3], s[0] / s[3] * a.spp, s[1] / s[3],
+                                                            max(s[2] / s[3], 0.0) ** 0.5, s[4] / s[3]))
 
 
 if __name__ == "__main__":

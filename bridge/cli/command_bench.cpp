@@ -468,8 +468,8 @@ bench::Reference render_reference(const RunContext &c, const std::string &source
   bench::Reference ref = bench::combine_references(images);
   if (ref.count >= 2) {
     const auto all = bench::region_errors(ref.mean, ref, {}, 0).back();
-    std::printf("reference: %d images, RMS noise of their mean %.5f (subtracted from every MSE)\n", ref.count,
-                std::sqrt(all.var_ref_mean));
+    std::printf("reference: %d images, RMS noise of their mean %.5f over the image (each region's own noise is "
+                "subtracted from its MSE)\n", ref.count, std::sqrt(all.var_ref_mean));
   }
   return ref;
 }
@@ -498,6 +498,12 @@ void measure_ladder(const RunContext &c, const std::vector<std::string> &methods
       std::printf("%-15s %5d spp  %8.3f s  RMSE %.5f", m.c_str(), spp, t, errors.back().rmse());
       if (ref.count >= 2) std::printf(" (raw %.5f)", errors.back().rmse_raw());
       std::printf("\n");
+      if (spp == ladder.front() && ref.count >= 2 && region_count > 0) {  // once per method: the same for every rung
+        std::printf("    reference noise per region (RMS of their mean, subtracted):");
+        for (size_t k = 0; k < regions.names.size(); ++k)
+          if (errors[k].pixels > 0) std::printf(" %s %.5f", regions.names[k].c_str(), std::sqrt(errors[k].var_ref_mean));
+        std::printf("\n");
+      }
       for (size_t k = 0; k < regions.names.size(); ++k) {
         const bench::RegionError &e = errors[k];
         if (e.pixels == 0) continue;

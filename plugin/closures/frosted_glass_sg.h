@@ -151,7 +151,34 @@ struct CurvedShape {
 // the refraction of its axis alone). docs/frosted_glass.md "Session 22 (frostedexit22)". The nineteenth session's
 // split (kCurvedTail) stays for before / after runs (GLIMMER_FROSTED_CURVED_TAIL; 0: the single SG).
 inline constexpr CurvedShape kCurvedExitShape{2, {0.65f, 0.35f}, {2.2f, 0.4f}};
+// Session 23 (frostedexit23): the shift from the exit lobe's exact first moment (frosted_glass_sg.cpp,
+// moment_mean_shift; GLIMMER_FROSTED_CURVED_AXIS=moment) puts the harness' axis right (-0.90 -> +0.16 deg at the
+// bench's case) but doubles the caustic bench's shadow bias (0.0092 -> 0.0175, 2 x 8192 spp) and misses the analytic
+// shadow (SphereShadowOfAFarLampAgainstThePath 0.056 -> 0.084): not kept, the smooth shift stays.
 inline constexpr float kCurvedAxisShift = 1.0f;
+// Session 23 (frostedexit23): a shape per roughness. kCurvedExitShape up to kCurvedShapeRoughness[0] (0.5, the
+// caustic bench's sphere, unchanged there), kCurvedExitShapeWide (a core x 1.8, weight 0.7, a tail x 0.3, weight 0.3)
+// from kCurvedShapeRoughness[1] (0.6) up to kCurvedSplitMax, the shares and factors interpolated linearly between.
+// Chosen where the exit harness (ExitOfTheSphereAroundTheCausticBench) and the far lamp's shadow
+// (SphereShadowOfAFarLampAgainstThePath) both improve at roughness 0.6: band L1 0.093 -> 0.057, shadow 0.048 ->
+// 0.045 (the harness' own best, 0.75:1.5,0.25:0.25, makes the shadow worse: 0.084). docs/frosted_glass.md
+// "Session 23 (frostedexit23)".
+inline constexpr CurvedShape kCurvedExitShapeWide{2, {0.7f, 0.3f}, {1.8f, 0.3f}};
+inline constexpr float kCurvedShapeRoughness[2] = {0.5f, 0.6f};
+// The default curved exit shape at (entry) roughness r: kCurvedExitShape itself at r <= 0.5 (the same bits).
+inline CurvedShape curved_exit_shape(float roughness) {
+  if (!(roughness > kCurvedShapeRoughness[0])) return kCurvedExitShape;
+  if (roughness >= kCurvedShapeRoughness[1]) return kCurvedExitShapeWide;
+  const float a = (roughness - kCurvedShapeRoughness[0]) / (kCurvedShapeRoughness[1] - kCurvedShapeRoughness[0]);
+  CurvedShape s;
+  s.count = 2;
+  for (int k = 0; k < 2; ++k) {
+    s.weight[k] = kCurvedExitShape.weight[k] + a * (kCurvedExitShapeWide.weight[k] - kCurvedExitShape.weight[k]);
+    s.factor[k] = kCurvedExitShape.factor[k] + a * (kCurvedExitShapeWide.factor[k] - kCurvedExitShape.factor[k]);
+  }
+  return s;
+}
+static_assert(kCurvedExitShape.count == 2 && kCurvedExitShapeWide.count == 2);
 
 
 // What the estimator needs from the closure at the entry point.

@@ -1179,6 +1179,68 @@ struct LitCountBounds {
   }
 };
 
+// LitCountModel's K for a pair's 32-bit hash h (u = (h + 1/2) 2^-32) by
+// integer compares (issue 10, session 23), for the queries whose lambda > 1
+// (LitCountBounds decides nothing there, and every pair of the footprint
+// passes the quick reject): the model's tail walk visits the same terms
+// Pr(K > k) for every u, and it goes past term k iff u < Pr(K > k) and its
+// pmf is not 0 there (the tails never increase, and a pmf of 0 stays 0), so
+// K >= k + 1 iff h < below[k], the number of hashes whose u is under the
+// k-th tail (0 once the pmf is 0). below[] is made once per query (the
+// model's exp and kSteps terms), and a pair costs kSteps integer compares
+// instead of the walk's double compares and a division per step. K >=
+// kSteps continues the model's walk from its kSteps-th term (the same
+// values). Not walkable (lambda > kMaxNodeMean): -1 where the model's is
+// (u < p_any), else 0. GlintParticles.LitCountTableMatchesTheTailWalk.
+struct LitCountTable {
+  static constexpr int kSteps = 4;
+  std::array<uint64_t, kSteps> below{};  // non-increasing
+  double lambda, pmf = 0.0, tail = 0.0;  // the walk's terms at k = kSteps
+  bool walkable;
+
+  // The number of h in [0, 2^32) with (h + 1/2) 2^-32 < tail: h < x =
+  // tail 2^32 - 1/2 (the scale by a power of two is exact, and so is the
+  // difference wherever x > 0: tail 2^32 in [1/4, 2^33)).
+  static uint64_t hashes_below(double tail) {
+    const double x = tail * 4294967296.0 - 0.5;
+    if (!(x > 0.0)) return 0;  // also NaN
+    if (x >= 4294967295.0) return uint64_t{1} << 32;
+    return static_cast<uint64_t>(std::ceil(x));
+  }
+  explicit LitCountTable(const LitCountModel &m) : lambda(m.lambda), walkable(m.walkable) {
+    if (!walkable) {
+      below.fill(hashes_below(m.p_any));  // K is 0 or kSteps, and lit() gives -1 for the latter
+      return;
+    }
+    double p = m.p_none, t = m.p_any;
+    for (size_t k = 0; k < below.size(); ++k) {
+      below[k] = p > 0.0 ? hashes_below(t) : 0;
+      p *= lambda / static_cast<double>(k + 1);
+      t -= p;
+    }
+    pmf = p, tail = t;
+  }
+  int64_t lit(uint32_t h) const {
+    int64_t K = 0;
+    for (size_t k = 0; k < below.size(); ++k) K += h < below[k] ? 1 : 0;
+    if (K == kSteps) [[unlikely]] return walk_on(h);
+    return K;
+  }
+  // K >= kSteps: the model's walk from its kSteps-th term on (-1: not walkable).
+  [[gnu::noinline]] int64_t walk_on(uint32_t h) const {
+    if (!walkable) return -1;
+    const double u = (static_cast<double>(h) + 0.5) * (1.0 / 4294967296.0);
+    double p = pmf, t = tail;
+    int64_t k = kSteps;
+    while (u < t && p > 0.0) {
+      ++k;
+      p *= lambda / static_cast<double>(k);
+      t -= p;
+    }
+    return k;
+  }
+};
+
 // The footprint's parallelogram coordinates (s, t), inside when |s|, |t| <=
 // 1/2, are affine in the position; over a node of side `size` at (x0, y0)
 // they are (s, t) = origin + u_x d_ux + u_y d_uy for the position
@@ -1340,17 +1402,41 @@ struct NoParticleVisitor {
 // in one flat loop. The count is a sum of integers: the order does not
 // change it, and the step total is the same sum, so the cap is reached iff
 // the node loop reaches it.
-struct PairPassCounter {
+// Pass (2)'s result: every node's four group hashes (node_hash[4 node + g],
+// session 19), and the (node, group) pairs passing the quick reject as the
+// set bits 4 node + g of `mask` (one 64-bit word per 16 nodes; the bits of
+// nodes past the list 0). Session 23: bits, not lists of pairs and of nodes
+// with a pair: the other passes take the pairs and nodes from the words' set
+// bits in order (a bit scan where they loaded a list entry), so pass 2 does
+// no compaction; and apart from PairPassCounter, whose frame and set-up are
+// made only when a pair passes.
+struct PairMasks {
   static constexpr int kMaxPairs = kMaxNodes * kDirectionGroups;
+  static constexpr int kWords = kMaxPairs / 64;
+  alignas(32) std::array<uint32_t, kMaxPairs> node_hash;
+  alignas(32) std::array<uint64_t, kWords> mask;
+  // The words of a list of `count` nodes.
+  static int words(int count) { return (count + 15) / 16; }
+  // Bit 4 n set where node 16 w + n has a passing pair in the word m (w's).
+  static uint64_t nodes_with_pair(uint64_t m) {
+    m |= m >> 1;
+    return (m | (m >> 2)) & 0x1111111111111111ull;
+  }
+  // The words of a list of `count` nodes whose every pair passes.
+  void set_all(int count) {
+    for (int w = 0; w < kWords; ++w) {
+      const int left = kDirectionGroups * count - 64 * w;
+      mask[static_cast<size_t>(w)] = left >= 64 ? ~uint64_t{0} : left <= 0 ? 0 : (uint64_t{1} << left) - 1u;
+    }
+  }
+};
+static_assert(kMaxNodes <= 64 && kDirectionGroups == 4, "PairMasks: 16 nodes per word, at most four words");
+
+struct PairPassCounter {
   static constexpr int kMaxParticles = 256;  // flushed when full
   const FootprintFrame &frame;
   std::array<FootprintFrame::NodeOrigin, kMaxNodes> origin;
   std::array<int32_t, kMaxNodes> inside_mask;  // -1 inside, 0 not
-  // Session 19: every node's four group hashes (node_hash[4 node + g]), and
-  // the passing pairs compacted as indices 4 node + g into them (a 4-byte
-  // store per node, hence the slack).
-  alignas(16) std::array<uint32_t, kMaxPairs> node_hash;
-  std::array<uint8_t, kMaxPairs + 3> pair_index;
   std::array<uint32_t, kMaxParticles> part_hash, part_k, part_node;  // 32-bit nodes: no memset call per fill
   int n_parts = 0;
   int64_t count = 0;
@@ -1474,147 +1560,88 @@ struct PairPassCounter {
   }
 };
 
-// The groups whose bit is set in a 4-bit mask, in order, as the bytes of a
-// 32-bit word (low byte first; the unused bytes 0), and their number.
-struct PassingGroups {
-  uint32_t bytes;
-  int count;
-};
-inline constexpr std::array<PassingGroups, 16> kPassingGroups = [] {
-  std::array<PassingGroups, 16> t{};
-  for (uint32_t m = 0; m < 16; ++m) {
-    int n = 0;
-    uint32_t b = 0;
-    for (uint32_t g = 0; g < 4; ++g)
-      if ((m >> g) & 1u) b |= g << (8 * n++);
-    t[m] = {b, n};
-  }
-  return t;
-}();
-
-// Appends `node`'s (node, group) pairs passing the quick reject (`mask`, 4 bits) to pc.pair_index as
-// 4 node + g, by kPassingGroups with one 4-byte store, and `node` to `paired` when it has one.
-inline void append_passing_pairs(int node, uint32_t mask, PairPassCounter &pc, uint8_t *paired, int &n_pairs,
-                                 int &n_paired) {
-  const uint32_t bytes = kPassingGroups[mask].bytes + static_cast<uint32_t>(kDirectionGroups * node) * 0x01010101u;
-  std::memcpy(pc.pair_index.data() + n_pairs, &bytes, sizeof(bytes));
-  n_pairs += kPassingGroups[mask].count;
-  paired[static_cast<size_t>(n_paired)] = static_cast<uint8_t>(node);
-  n_paired += mask != 0 ? 1 : 0;
-}
-
-// Pass (2) of count_four_groups_in_passes from node `first` on: every node's
-// four group hashes into pc.node_hash (node_hash[4 node + g]), the (node, group)
-// pairs passing the quick reject appended to pc.pair_index as 4 node + g, and
-// the nodes with at least one such pair appended to `paired` (n_pairs,
-// n_paired: the lists' lengths, updated).
-inline void group_pass_sse2(const NodeList &nodes, int first, const uint32_t *seeds, const GroupReject &reject,
-                            PairPassCounter &pc, uint8_t *paired, int &n_pairs, int &n_paired) {
-  for (int node = first; node < nodes.count; ++node) {
+// Pass (2) of count_four_groups_in_passes: every node's four group hashes
+// into pm.node_hash and their quick rejects into pm.mask (bit 4 node + g).
+inline void group_pass_sse2(const NodeList &nodes, const uint32_t *seeds, const GroupReject &reject, PairMasks &pm) {
+  pm.mask = {};
+  for (int node = 0; node < nodes.count; ++node) {
     const auto at = static_cast<size_t>(node);
     // The four groups' hashes in the lanes of one SSE2 register (mix_u32x4,
     // the same values as group_hashes): no branch reads them here, unlike
     // the node loop where the lanes measured slower (session 8). Session 17:
     // 1e-4 5714 -> 5470 instructions per eval, same f and pdf bits.
-    // Session 19: the passing groups as a 4-bit mask (group_hashes_sse2)
-    // compacted by a table of 16 entries
-    // (kPassingGroups: the mask's groups in order, as bytes, and their
-    // number) with one 4-byte store, instead of a store, a compare and an
-    // add per group.
+    // Session 19: the passing groups as a 4-bit mask (group_hashes_sse2);
+    // session 23: or-ed into the node's word.
     const uint32_t mask =
-        group_hashes_sse2(nodes.id_hash[at], seeds, reject, pc.node_hash.data() + kDirectionGroups * at);
-    append_passing_pairs(node, mask, pc, paired, n_pairs, n_paired);
+        group_hashes_sse2(nodes.id_hash[at], seeds, reject, pm.node_hash.data() + kDirectionGroups * at);
+    pm.mask[at / 16] |= uint64_t{mask} << (kDirectionGroups * (at % 16));
   }
 }
 
 #if GLIMMER_GLINT_WALK_AVX2
-// Two nodes' passing pairs from their 8-bit mask (bits 0..3: the first node's
-// groups, 4..7: the second's) in one entry (session 22): the passing bits'
-// positions b in order as the bytes of `pairs` (the pair 4 node + b is
-// pairs' byte + 4 node), their number, the nodes with a passing pair (0: the
-// first, 1: the second) as the bytes of `nodes`, and their number. The
-// unused bytes are 0.
-struct PassingPairs8 {
-  uint64_t pairs;
-  uint16_t nodes;
-  uint8_t n_pairs, n_nodes;
-};
-inline constexpr std::array<PassingPairs8, 256> kPassingPairs8 = [] {
-  std::array<PassingPairs8, 256> t{};
-  for (uint32_t m = 0; m < 256; ++m) {
-    uint64_t pairs = 0;
-    uint16_t nodes = 0;
-    int n = 0, k = 0;
-    for (uint32_t b = 0; b < 8; ++b)
-      if ((m >> b) & 1u) pairs |= uint64_t{b} << (8 * n++);
-    for (uint32_t d = 0; d < 2; ++d)
-      if ((m >> (4 * d)) & 0xfu) nodes = static_cast<uint16_t>(nodes | (d << (8 * k++)));
-    t[m] = {pairs, nodes, static_cast<uint8_t>(n), static_cast<uint8_t>(k)};
-  }
-  return t;
-}();
-// group_pass_sse2 from node 0 with two nodes per step: their eight (node,
-// group) hashes in one register, one 8-bit mask, each node's four bits
-// compacted as before; an odd last node by group_pass_sse2. The same lists
+// One step of group_pass_avx2: the two nodes whose keys are the low two
+// lanes of two_keys, their eight (node, group) hashes stored from
+// node_hash (the first node's), and their 8-bit mask (bit 4 d + g: node d of
+// the two, group g).
+[[gnu::target("avx2"), gnu::always_inline]] inline uint32_t group_pass_step_avx2(__m128i two_keys, __m256i seeds8,
+                                                                                __m256i below, uint32_t *node_hash) {
+  const __m256i keys = _mm256_permutevar8x32_epi32(_mm256_castsi128_si256(two_keys), _mm256_setr_epi32(0, 0, 0, 0, 1, 1, 1, 1));
+  const __m256i h = mix_u32x8(_mm256_xor_si256(keys, seeds8));
+  _mm256_storeu_si256(reinterpret_cast<__m256i *>(node_hash), h);
+  const __m256i bias = _mm256_set1_epi32(static_cast<int>(0x80000000u));  // unsigned compare as signed
+  const __m256i lt = _mm256_cmpgt_epi32(below, _mm256_xor_si256(h, bias));
+  return static_cast<uint32_t>(_mm256_movemask_ps(_mm256_castsi256_ps(lt)));
+}
+// group_pass_sse2 with two nodes per step (session 20): their eight (node,
+// group) hashes in one register, and their 8-bit mask stored as byte s of
+// the words (session 23; before, each step compacted its pairs into a list by
+// a table entry: 35 -> 20 instructions per step). An odd last node is a step
+// whose second key is 0 (its hashes stored past the list's, never read; its
+// mask bits cleared) instead of the SSE2 form. The same hashes and words
 // (GlintParticles.GroupPassAvx2MatchesSse2). Inlined into
 // count_four_groups_in_passes_avx2; an SSE2 caller calls it out of line.
 [[gnu::target("avx2")]] inline void group_pass_avx2(const NodeList &nodes, const uint32_t *seeds,
-                                                                   const GroupReject &reject, PairPassCounter &pc,
-                                                                   uint8_t *paired, int &n_pairs, int &n_paired) {
+                                                   const GroupReject &reject, PairMasks &pm) {
   const __m256i seeds8 = _mm256_broadcastsi128_si256(_mm_loadu_si128(reinterpret_cast<const __m128i *>(seeds)));
-  const __m256i bias = _mm256_set1_epi32(static_cast<int>(0x80000000u));  // unsigned compare as signed
   const __m256i below = _mm256_set1_epi32(static_cast<int>(reject.below ^ 0x80000000u));
-  const __m256i spread = _mm256_setr_epi32(0, 0, 0, 0, 1, 1, 1, 1);
-  const uint32_t all = reject.all_pass ? 0xffu : 0u;
-  int node = 0, pairs = n_pairs, with_pair = n_paired;
-  for (; node + 1 < nodes.count; node += 2) {
-    const auto at = static_cast<size_t>(node);
-    uint64_t two_keys;
-    std::memcpy(&two_keys, nodes.id_hash.data() + at, sizeof(two_keys));
-    const __m256i keys =
-        _mm256_permutevar8x32_epi32(_mm256_castsi128_si256(_mm_cvtsi64_si128(static_cast<long long>(two_keys))), spread);
-    const __m256i h = mix_u32x8(_mm256_xor_si256(keys, seeds8));
-    _mm256_storeu_si256(reinterpret_cast<__m256i *>(pc.node_hash.data() + kDirectionGroups * at), h);
-    const __m256i lt = _mm256_cmpgt_epi32(below, _mm256_xor_si256(h, bias));
-    const uint32_t mask = all | static_cast<uint32_t>(_mm256_movemask_ps(_mm256_castsi256_ps(lt)));
-    // Both nodes' pairs by one kPassingPairs8 entry: an 8-byte and a 2-byte
-    // store (session 22; before, append_passing_pairs per node). The stores
-    // stay in the arrays: pairs <= 4 node <= 248 and with_pair <= node.
-    const PassingPairs8 &e = kPassingPairs8[mask];
-    const uint64_t pair_bytes = e.pairs + static_cast<uint64_t>(kDirectionGroups * node) * 0x0101010101010101ull;
-    std::memcpy(pc.pair_index.data() + pairs, &pair_bytes, sizeof(pair_bytes));
-    pairs += e.n_pairs;
-    const auto node_bytes = static_cast<uint16_t>(e.nodes + static_cast<uint32_t>(node) * 0x0101u);
-    std::memcpy(paired + with_pair, &node_bytes, sizeof(node_bytes));
-    with_pair += e.n_nodes;
-  }
-  n_pairs = pairs, n_paired = with_pair;
-  if (node < nodes.count) group_pass_sse2(nodes, node, seeds, reject, pc, paired, n_pairs, n_paired);
+  pm.mask = {};
+  auto *mask_bytes = reinterpret_cast<unsigned char *>(pm.mask.data());  // byte s: bits 8 s .. 8 s + 7 (little-endian)
+  const int full = nodes.count / 2;
+  for (int s = 0; s < full; ++s)
+    mask_bytes[s] = static_cast<unsigned char>(group_pass_step_avx2(
+        _mm_loadl_epi64(reinterpret_cast<const __m128i *>(nodes.id_hash.data() + 2 * s)), seeds8, below,
+        pm.node_hash.data() + 2 * kDirectionGroups * s));
+  if (nodes.count & 1)
+    mask_bytes[full] = static_cast<unsigned char>(
+        0xfu & group_pass_step_avx2(_mm_cvtsi32_si128(static_cast<int>(nodes.id_hash[static_cast<size_t>(2 * full)])),
+                                    seeds8, below, pm.node_hash.data() + 2 * kDirectionGroups * full));
+  if (reject.all_pass) pm.set_all(nodes.count);
 }
 #endif
 
 // Pass (2) in the form `avx2` says (AVX2 only where compiled in).
 inline void group_pass(bool avx2, const NodeList &nodes, const uint32_t *seeds, const GroupReject &reject,
-                       PairPassCounter &pc, uint8_t *paired, int &n_pairs, int &n_paired) {
+                       PairMasks &pm) {
 #if GLIMMER_GLINT_WALK_AVX2
-  if (avx2) return group_pass_avx2(nodes, seeds, reject, pc, paired, n_pairs, n_paired);
+  if (avx2) return group_pass_avx2(nodes, seeds, reject, pm);
 #else
   (void)avx2;
 #endif
-  group_pass_sse2(nodes, 0, seeds, reject, pc, paired, n_pairs, n_paired);
+  group_pass_sse2(nodes, seeds, reject, pm);
 }
 
 // Pass (1) of count_four_groups_in_passes: the origin and inside flag of the
-// nodes listed in paired (those with a pair passing the quick reject).
-inline void paired_node_origins(const FootprintFrame &frame, const NodeList &nodes, const uint8_t *paired,
-                                int n_paired, PairPassCounter &pc) {
+// nodes with a pair passing the quick reject (pm.mask's).
+inline void paired_node_origins(const FootprintFrame &frame, const NodeList &nodes, const PairMasks &pm,
+                                PairPassCounter &pc) {
   const bool can_be_inside = frame.nodes_can_be_inside;
 #if defined(__SSE2__)
   const __m128d centre = _mm_set_pd(frame.f.cy, frame.f.cx), by_ax = _mm_set_pd(frame.f.ax, frame.f.by);
   const __m128d bx_ay = _mm_set_pd(frame.f.ay, frame.f.bx), inv_det = _mm_set1_pd(frame.inv_det);
 #endif
-  for (int q = 0; q < n_paired; ++q) {
-    const auto at = static_cast<size_t>(paired[q]);
+  for (int w = 0; w < PairMasks::words(nodes.count); ++w)
+    for (uint64_t with = PairMasks::nodes_with_pair(pm.mask[static_cast<size_t>(w)]); with != 0; with &= with - 1) {
+    const auto at = static_cast<size_t>(16 * w + std::countr_zero(with) / 4);
 #if defined(__SSE2__)
     // (s, t) in double lanes: origin()'s products and differences in the same
     // order (a product's operands commute exactly), the same values.
@@ -1635,47 +1662,65 @@ inline void paired_node_origins(const FootprintFrame &frame, const NodeList &nod
 // count_four_groups_in_passes_avx2, whose target("avx2") also gives the other
 // passes VEX three-operand forms; no FMA, so the same values).
 template <bool kAvx2>
-[[gnu::always_inline]] inline GlintCount count_four_groups_in_passes_body(const FootprintFrame &frame,
-                                                                          const NodeList &nodes, const uint32_t *seeds,
+[[gnu::always_inline]] inline GlintCount count_four_groups_in_passes_body(const Footprint &f, const NodeList &nodes,
+                                                                          const uint32_t *seeds,
                                                                           const GroupReject &reject, double lambda,
                                                                           int max_steps) {
   static_assert(kDirectionGroups == 4);
-  PairPassCounter pc(frame);
-  int n_pairs = 0;
-  // Session 17 (glintwalk17b): the origin and inside flag of only the nodes
-  // with a pair passing the quick reject (no other pass reads them; ~1/3 of
-  // the nodes have none at area 1e-4), listed without a branch per node:
-  // 1e-4 5615 -> 5380 instructions per eval, same f and pdf bits.
-  static_assert(kMaxNodes <= 256, "paired_nodes holds node indices in bytes");
-  std::array<uint8_t, kMaxNodes> paired_nodes;
-  int n_paired = 0;
+  PairMasks pm;
 #if GLIMMER_GLINT_WALK_AVX2
   if constexpr (kAvx2)
-    group_pass_avx2(nodes, seeds, reject, pc, paired_nodes.data(), n_pairs, n_paired);  // (2)
+    group_pass_avx2(nodes, seeds, reject, pm);  // (2)
   else
 #endif
-    group_pass_sse2(nodes, 0, seeds, reject, pc, paired_nodes.data(), n_pairs, n_paired);
+    group_pass_sse2(nodes, seeds, reject, pm);
   // No pair passes the quick reject (~70 % of the walks in examples/glint.xml): count 0, no steps,
-  // complete, without the other passes' set-up (the bounds' division, the frame's constants; session 22).
-  if (n_pairs == 0) return {};
-  paired_node_origins(frame, nodes, paired_nodes.data(), n_paired, pc);  // (1)
+  // complete, without the other passes' set-up (the bounds' division, the frame's constants; session 22;
+  // session 23: the frame itself, its division and products, made here and not by the caller).
+  static_assert(PairMasks::kWords == 4);
+  if ((pm.mask[0] | pm.mask[1] | pm.mask[2] | pm.mask[3]) == 0) return {};
+  const FootprintFrame frame(f, nodes.size);
+  PairPassCounter pc(frame);
+  // Session 17 (glintwalk17b): the origin and inside flag of only the nodes
+  // with a pair passing the quick reject (no other pass reads them; ~1/3 of
+  // the nodes have none at area 1e-4): 1e-4 5615 -> 5380 instructions per
+  // eval, same f and pdf bits.
+  paired_node_origins(frame, nodes, pm, pc);  // (1)
   GlintCount result;
-  const LitCountBounds bounds(lambda);
-  std::optional<LitCountModel> model;
   int64_t steps = 0;
-  for (int p = 0; p < n_pairs; ++p) {  // (3)
-    const uint32_t pair = pc.pair_index[static_cast<size_t>(p)];
-    const uint32_t h0 = pc.node_hash[pair];
-    const double u = (static_cast<double>(h0) + 0.5) * (1.0 / 4294967296.0);
-    int64_t K = bounds.lit(u);
-    if (K == LitCountBounds::kUndecided) {
-      if (!model) model.emplace(lambda);
-      K = u < model->p_any ? model->lit(u) : 0;
-    }
-    steps += K;
-    if (K < 0 || steps > max_steps) return {0, 0, false};
-    pc.add_lit(static_cast<int>(pair / kDirectionGroups), h0, K);
+  // (3): the pairs 4 node + g in order, K by lit_of(h0).
+  const auto lit_pass = [&](auto &&lit_of) {
+    for (int w = 0; w < PairMasks::words(nodes.count); ++w)
+      for (uint64_t m = pm.mask[static_cast<size_t>(w)]; m != 0; m &= m - 1) {
+        const auto pair = static_cast<uint32_t>(64 * w + std::countr_zero(m));
+        const uint32_t h0 = pm.node_hash[pair];
+        const int64_t K = lit_of(h0);
+        steps += K;
+        if (K < 0 || steps > max_steps) return false;
+        pc.add_lit(static_cast<int>(pair / kDirectionGroups), h0, K);
+      }
+    return true;
+  };
+  bool walked;
+  if (lambda > 1.0) {
+    // Session 23: every pair passes the quick reject, and the bounds decide
+    // none: the walk's thresholds once (LitCountTable), then integer compares.
+    const LitCountTable table{LitCountModel(lambda)};
+    walked = lit_pass([&](uint32_t h0) { return table.lit(h0); });
+  } else {
+    const LitCountBounds bounds(lambda);
+    std::optional<LitCountModel> model;
+    walked = lit_pass([&](uint32_t h0) {
+      const double u = (static_cast<double>(h0) + 0.5) * (1.0 / 4294967296.0);
+      int64_t K = bounds.lit(u);
+      if (K == LitCountBounds::kUndecided) {
+        if (!model) model.emplace(lambda);
+        K = u < model->p_any ? model->lit(u) : 0;
+      }
+      return K;
+    });
   }
+  if (!walked) return {0, 0, false};
 #if GLIMMER_GLINT_WALK_AVX2
   if constexpr (kAvx2)
     pc.flush_avx2();  // (4)
@@ -1688,21 +1733,33 @@ template <bool kAvx2>
 }
 #if GLIMMER_GLINT_WALK_AVX2
 [[gnu::target("avx2"), gnu::noinline]] inline GlintCount count_four_groups_in_passes_avx2(
-    const FootprintFrame &frame, const NodeList &nodes, const uint32_t *seeds, const GroupReject &reject, double lambda,
+    const Footprint &f, const NodeList &nodes, const uint32_t *seeds, const GroupReject &reject, double lambda,
     int max_steps) {
-  return count_four_groups_in_passes_body<true>(frame, nodes, seeds, reject, lambda, max_steps);
+  return count_four_groups_in_passes_body<true>(f, nodes, seeds, reject, lambda, max_steps);
 }
 #endif
-// The pair passes in the form `avx2` says (kWalkAvx2: AVX2 where the CPU has it).
-inline GlintCount count_four_groups_in_passes(const FootprintFrame &frame, const NodeList &nodes,
-                                              const uint32_t *seeds, const GroupReject &reject, double lambda,
-                                              int max_steps, bool avx2 = kWalkAvx2) {
+// Out of line too (session 23: inlined into the dispatch below, its frame's
+// set-up ran before the dispatch's test, ~20 instructions per AVX2 walk).
+[[gnu::noinline]] inline GlintCount count_four_groups_in_passes_sse2(const Footprint &f, const NodeList &nodes,
+                                                                     const uint32_t *seeds, const GroupReject &reject,
+                                                                     double lambda, int max_steps) {
+  return count_four_groups_in_passes_body<false>(f, nodes, seeds, reject, lambda, max_steps);
+}
+// The pair passes in the form `avx2` says (kWalkAvx2: AVX2 where the CPU has
+// it), over the nodes of a footprint at least as large as a node (the
+// caller's test, FootprintFrame::nodes_can_be_inside). Out of line, as GCC
+// chose while the SSE2 body was inlined here: inlined into
+// count_reflecting_particles, it left that out of line in glint.cpp's
+// provably_dark (session 23: r0.4 area 1e-8 +14, 1e-6 +19 instructions per eval).
+[[gnu::noinline]] inline GlintCount count_four_groups_in_passes(const Footprint &f, const NodeList &nodes, const uint32_t *seeds,
+                                              const GroupReject &reject, double lambda, int max_steps,
+                                              bool avx2 = kWalkAvx2) {
 #if GLIMMER_GLINT_WALK_AVX2
-  if (avx2) return count_four_groups_in_passes_avx2(frame, nodes, seeds, reject, lambda, max_steps);
+  if (avx2) return count_four_groups_in_passes_avx2(f, nodes, seeds, reject, lambda, max_steps);
 #else
   (void)avx2;
 #endif
-  return count_four_groups_in_passes_body<false>(frame, nodes, seeds, reject, lambda, max_steps);
+  return count_four_groups_in_passes_sse2(f, nodes, seeds, reject, lambda, max_steps);
 }
 
 // node_loop: always the node-by-node loop (for the test that compares the two).
@@ -1712,7 +1769,6 @@ inline GlintCount count_reflecting_particles(const Footprint &f, const NodeList 
                                              Visitor &&visit = Visitor{}, bool node_loop = false) {
   GlintCount result;
   if (!(P > 0.0)) return result;
-  const FootprintFrame frame(f, nodes.size);
   const double lambda = std::min(density * nodes.size * nodes.size, 4.0e18) * std::min(P, 1.0);
   // Quick reject on the node's 32-bit hash: hash >= floor(lambda 2^32) + 1
   // means u = (hash + 1/2) 2^-32 > lambda >= Pr(K >= 1), so K = 0.
@@ -1721,9 +1777,11 @@ inline GlintCount count_reflecting_particles(const Footprint &f, const NodeList 
   // than a node: many nodes, many random branches); on smaller footprints
   // (1..4 nodes, aspect 64 at area 1e-6) they measured 2..5 % slower than
   // the node loop.
+  // (FootprintFrame::nodes_can_be_inside's test without the frame: the passes make it only when a pair passes.)
   if constexpr (!std::decay_t<Visitor>::kVisitsParticles)
-    if (!node_loop && seeds.size() == kDirectionGroups && frame.nodes_can_be_inside)
-      return count_four_groups_in_passes(frame, nodes, seeds.data(), GroupReject(maybe_lit_below), lambda, max_steps);
+    if (!node_loop && seeds.size() == kDirectionGroups && f.area() >= nodes.size * nodes.size)
+      return count_four_groups_in_passes(f, nodes, seeds.data(), GroupReject(maybe_lit_below), lambda, max_steps);
+  const FootprintFrame frame(f, nodes.size);
   constexpr size_t kMaxSeeds = 32;
   if (seeds.size() > kMaxSeeds) return {0, 0, false};  // callers pass 1 or kDirectionGroups seeds
   const size_t n_seeds = seeds.size();

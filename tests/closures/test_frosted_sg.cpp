@@ -1066,8 +1066,10 @@ TEST(FrostedGlassSg, ExitOfTheSphereAroundTheCausticBench) {
   // Session 22 (kCurvedExitShape about the shifted axis), band L1 default / single SG: r 0.5 IOR 1.33 0.062 / 0.278,
   // 1.5 0.049 / 0.221, 1.7 0.052 / 0.225; r 0.6 1.5 0.093 / 0.168; r 0.65 1.33 0.125 / 0.186, 1.7 0.208 / 0.248 (the
   // nineteenth session's split: 0.128, 0.133, 0.137, 0.131, 0.153, 0.257). r 0.4 is the per-ray mixture (0.212).
+  // Session 23 (the shape per roughness, kCurvedExitShapeWide from 0.6): r 0.6 0.093 -> 0.057, r 0.65 IOR 1.33
+  // 0.125 -> 0.089, 1.7 0.208 -> 0.196 (r 0.5 unchanged); bounds 0.12 -> 0.075, 0.16 -> 0.11.
   const SphereExitCase cases[] = {{0.4f, 1.5f, 0.0, false},   {0.5f, 1.33f, 0.08, true}, {0.5f, 1.5f, 0.065, true},
-                                  {0.5f, 1.7f, 0.065, true},  {0.6f, 1.5f, 0.12, true},  {0.65f, 1.33f, 0.16, true},
+                                  {0.5f, 1.7f, 0.065, true},  {0.6f, 1.5f, 0.075, true}, {0.65f, 1.33f, 0.11, true},
                                   {0.65f, 1.7f, 0.26, false}};
   for (const SphereExitCase &c : cases) {
     const SphereExitRow r = measure_sphere_exit(c, ref_paths, sg_paths);
@@ -1080,6 +1082,105 @@ TEST(FrostedGlassSg, ExitOfTheSphereAroundTheCausticBench) {
     if (c.control) {
       EXPECT_GT(solid_band_l1(r.unsplit, r.ref), c.bound) << "control passed: " << c.roughness << " " << c.ior;
     }
+  }
+}
+
+// ---- The sphere's shadow of a far lamp, as on the caustic bench (issue 12, session 23) ---------------------------
+// The caustic bench's sphere touches the floor; its shadow zone is lit by the small lamp (53 deg above the horizon)
+// through the sphere: a floor point's paths enter the sphere's lower side and leave toward the lamp. Here the unit
+// sphere on the plane z = -1, the lamp a far cone (kShadowLampDeg half-angle about the bench's lamp direction): for floor
+// points along the shadow's axis (distance s from the contact point, in radii, toward the shadow's centre at 0.77),
+// cosine-weighted directions from the floor point, the transmitted weight leaving within the cone, per floor point:
+// path's exact walk vs sg (the process' default; the axis rules through GLIMMER_FROSTED_CURVED_AXIS / _SHIFT).
+// The directions only: no finite lamp distance, no exit-point offset (the bench's lamp is 2.5 radii away).
+constexpr double kShadowLampDeg = 4.0;
+struct ShadowPoint {
+  double value = 0.0, se = 0.0;  // the lamp cone's transmitted weight per floor path
+};
+std::vector<ShadowPoint> sphere_shadow(const AnalyticScene &scene, const Sampler &sample, const Vec3 &lamp,
+                                       const std::vector<Vec3> &floor_points, int paths, uint64_t seed) {
+  std::vector<ShadowPoint> out(floor_points.size());
+  const double cos_cone = std::cos(kShadowLampDeg * M_PI / 180.0);
+  tbb::parallel_for(size_t(0), floor_points.size(), [&](size_t k) {
+    constexpr int kChunks = 16;
+    std::array<std::array<double, 2>, kChunks> acc{};
+    tbb::parallel_for(0, kChunks, [&](int c) {
+      Pcg32 rng(seed, 7 + 131 * k + uint64_t(c));
+      for (int i = c; i < paths; i += kChunks) {
+        const float u1 = rng.next_float(), u2 = rng.next_float(), r = std::sqrt(u1), phi = 2.0f * float(M_PI) * u2;
+        const Vec3 D(r * std::cos(phi), r * std::sin(phi), std::sqrt(std::max(0.0f, 1.0f - u1)));
+        Pixel px{{}, D};
+        if (!scene.intersect(floor_points[k], D, 0.0f, 100.0f, px.hit)) continue;
+        Spectrum throughput;
+        Vec3 wo;
+        if (!trace_through(scene, sample, px, rng, throughput, wo)) continue;
+        if (double(dot(normalize(wo), lamp)) < cos_cone) continue;
+        const double w = average(throughput);
+        acc[size_t(c)][0] += w;
+        acc[size_t(c)][1] += w * w;
+      }
+    });
+    double sum = 0.0, sum2 = 0.0;
+    for (const auto &a : acc) sum += a[0], sum2 += a[1];
+    const double m = sum / paths;
+    out[k] = {m, std::sqrt(std::max(0.0, sum2 / paths - m * m) / paths)};
+  });
+  return out;
+}
+// Measured (session 23, 2M / 0.5M paths per floor point), relative L1 default / the single SG about the same axis
+// (the control): r 0.5 0.0589 / 0.2526, r 0.6 0.0433 / 0.1616. At 4M / 1M, r 0.5 / 0.6: 0.0562 / 0.0445; the axis
+// rules at r 0.5: no shift 0.1016, the exit lobe's first moment 0.0835, session 22's smooth shift (the default)
+// 0.0562; r 0.6 with session 22's shape 0.0478, the harness' best 0.75:1.5,0.25:0.25 0.0839. Bounds: measured + ~25 %;
+// the control must miss them.
+TEST(FrostedGlassSg, SphereShadowOfAFarLampAgainstThePath) {
+  const int ref_paths = stress_scale() > 1 ? 8000000 : 2000000, sg_paths = ref_paths / 4;
+  const Vec3 lamp = normalize(Vec3(0.9f, 1.6f, 2.4f));  // the bench's lamp seen from the sphere's centre
+  const Vec3 toward = normalize(Vec3(-lamp.x, -lamp.y, 0.0f));
+  std::vector<Vec3> floor_points;
+  const std::vector<float> distances = {0.2f, 0.45f, 0.7f, 0.95f, 1.2f, 1.45f};
+  for (const float d : distances) floor_points.push_back(Vec3(0.0f, 0.0f, -1.0f + 1e-4f) + toward * d);
+  struct ShadowCase {
+    float roughness, ior;
+    double bound;
+  };
+  for (const auto &[roughness, ior, bound] : {ShadowCase{0.5f, 1.5f, 0.07}, ShadowCase{0.6f, 1.5f, 0.056}}) {
+    auto path = create_raw(roughness, ior, false);
+    auto sg = create_raw(roughness, ior, true);
+    AnalyticScene scene(AnalyticScene::kSphere);
+    scene.material = reinterpret_cast<const GlimmerInstance *>(sg.get());
+    const Sampler path_sampler = [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
+      return path->sample(sp, r, s);
+    };
+    const Sampler sg_sampler = [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
+      return sg->sample(sp, r, s);
+    };
+    const std::vector<ShadowPoint> ref = sphere_shadow(scene, path_sampler, lamp, floor_points, ref_paths, 1);
+    const std::vector<ShadowPoint> now = sphere_shadow(scene, sg_sampler, lamp, floor_points, sg_paths, 2);
+    const frosted::CurvedShape single{1, {1.0f}, {1.0f}};  // the control: the single SG about the same axis
+    const Sampler single_sampler([&path, &sg, &single](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
+      if (!path->sample(sp, r, s)) return false;
+      if (sg->uses_sg(sp) && (s.label & GLIMMER_LABEL_TRANSMIT))
+        sg->sample_sg(sp, r, s, frosted::SgVariant::kMixture, frosted::kDefaultMixtureVariance,
+                      frosted::kDefaultMixtureTail, 0.0f, &single);
+      return true;
+    });
+    const std::vector<ShadowPoint> ctl = sphere_shadow(scene, single_sampler, lamp, floor_points, sg_paths, 2);
+    std::printf("[frosted sphere shadow] roughness %.2f ior %.2f, lamp cone %.0f deg: floor distance | path (se) | "
+                "sg / path (se) | single SG / path\n", double(roughness), double(ior), kShadowLampDeg);
+    double l1 = 0.0, l1_ctl = 0.0, total = 0.0;
+    for (size_t k = 0; k < floor_points.size(); ++k) {
+      const double ratio = now[k].value / std::max(ref[k].value, 1e-30);
+      std::printf("  %.2f | %.3e (%.1e) | %.3f (%.3f) | %.3f\n", double(distances[k]), ref[k].value, ref[k].se, ratio,
+                  std::hypot(now[k].se, ref[k].se * ratio) / std::max(ref[k].value, 1e-30),
+                  ctl[k].value / std::max(ref[k].value, 1e-30));
+      l1 += std::fabs(now[k].value - ref[k].value);
+      l1_ctl += std::fabs(ctl[k].value - ref[k].value);
+      total += ref[k].value;
+    }
+    std::printf("  relative L1 over the floor points %.4f (single SG %.4f)\n", l1 / std::max(total, 1e-30),
+                l1_ctl / std::max(total, 1e-30));
+    EXPECT_LT(l1 / total, bound) << "roughness " << roughness;
+    EXPECT_GT(l1_ctl / total, bound) << "control passed: roughness " << roughness;
   }
 }
 

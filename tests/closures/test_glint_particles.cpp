@@ -1288,16 +1288,69 @@ TEST(GlintParticles, PairPassesMatchTheNodeLoop) {
   EXPECT_GT(control_differs, 10);
 }
 
+// Session 23: LitCountTable (pass 3's lit count for lambda > 1 by integer
+// compares of the pair's hash) gives LitCountModel's K (the walk as the passes
+// call it, -1 where the walk refuses) for every hash it is asked about: the
+// hashes within 3 of each of its thresholds and of each term of the walk's
+// tail it passes, 0, 2^32 - 1 and 200 random hashes, over 4000 lambdas
+// log-uniform in 1e-12..700 (not walkable above 600), and 2000 in 1..12
+// (where K >= kSteps continues the walk). Negative control: thresholds one
+// hash lower (the tail compared by <= instead of <) disagree on many hashes.
+TEST(GlintParticles, LitCountTableMatchesTheTailWalk) {
+  Pcg32 rng(37);
+  int64_t checked = 0, continued = 0, refused = 0, control_disagreements = 0;
+  for (int q = 0; q < 6000; ++q) {
+    const double v = rng.next_float();
+    const double lambda = q < 4000 ? std::exp(std::log(1e-12) + v * (std::log(700.0) - std::log(1e-12))) : 1.0 + 11.0 * v;
+    const pg::LitCountModel model(lambda);
+    const pg::LitCountTable table(model);
+    pg::LitCountTable control = table;
+    for (uint64_t &b : control.below) b = b > 0 ? b - 1 : 0;
+    const auto check = [&](int64_t h) {
+      if (h < 0 || h > 0xffffffffll) return;
+      const double u = (static_cast<double>(h) + 0.5) * (1.0 / 4294967296.0);
+      const int64_t walk = u < model.p_any ? model.lit(u) : 0;
+      const int64_t k = table.lit(static_cast<uint32_t>(h));
+      ASSERT_EQ(k, walk) << "lambda " << lambda << " h " << h;
+      ++checked;
+      continued += k >= pg::LitCountTable::kSteps;
+      refused += k < 0;
+      control_disagreements += control.lit(static_cast<uint32_t>(h)) != walk;
+    };
+    for (const uint64_t b : table.below)
+      for (int d = -3; d <= 3; ++d) check(static_cast<int64_t>(b) + d);
+    double pmf = model.p_none, tail = model.p_any;
+    for (int k = 1; k <= 12 && model.walkable; ++k) {
+      const auto h = static_cast<int64_t>(std::floor(tail * 4294967296.0));
+      for (int d = -3; d <= 3; ++d) check(h + d);
+      pmf *= lambda / k;
+      tail -= pmf;
+    }
+    check(0);
+    check(0xffffffffll);
+    for (int r = 0; r < 200; ++r) check(rng.next_u32());
+  }
+  std::printf("[lit table] %lld hashes equal to the walk (%lld with K >= %d, %lld refused); control (thresholds one "
+              "lower) disagrees on %lld\n",
+              static_cast<long long>(checked), static_cast<long long>(continued), pg::LitCountTable::kSteps,
+              static_cast<long long>(refused), static_cast<long long>(control_disagreements));
+  EXPECT_GT(checked, 1000000);
+  EXPECT_GT(continued, 10000);
+  EXPECT_GT(refused, 1000);
+  EXPECT_GT(control_disagreements, 1000);
+}
+
 // Session 20: pass 2's AVX2 form (group_pass_avx2: two nodes' four group
-// hashes per 256-bit register, an odd last node by the SSE2 form) writes the
-// same hashes, pair list and paired-node list as the SSE2 form
+// hashes per 256-bit register, an odd last node as a step with a second key
+// of 0 since session 23) writes the same hashes and passing pairs (as the
+// bits of PairMasks' words since session 23) as the SSE2 form
 // (group_pass_sse2), and the whole pair-pass count (count, steps,
 // completeness; count_four_groups_in_passes_avx2, the passes compiled for
 // AVX2 with this pass inlined) is the same with either, over the footprints of
 // PairPassesMatchTheNodeLoop (1..64 nodes, odd and even counts, P up to 1 so
 // that every pair passes). The walk uses the AVX2 form on a CPU with AVX2
 // (kWalkAvx2, checked). Control: the SSE2 form with one seed's lowest bit
-// flipped gives another pair list on most queries with a passing pair
+// flipped gives other passing pairs on most queries with a passing pair
 // (those where not every pair passes).
 TEST(GlintParticles, GroupPassAvx2MatchesSse2) {
 #if !GLIMMER_GLINT_WALK_AVX2
@@ -1311,33 +1364,25 @@ TEST(GlintParticles, GroupPassAvx2MatchesSse2) {
   int compared = 0, odd = 0, with_pairs = 0, all_pass = 0, control_differs = 0, control_queries = 0, lit = 0;
   for (int t = 0; t < 20000; ++t) {
     const auto &[f, P, max_steps, seeds, group_density, nodes] = random_pass_query(rng, t);
-    const pg::FootprintFrame frame(f, nodes.size);
     const double lambda = std::min(group_density * nodes.size * nodes.size, 4.0e18) * std::min(P, 1.0);
     const pg::GroupReject reject(static_cast<uint64_t>(std::min(lambda, 1.0) * 4294967296.0) + 1u);
-    pg::PairPassCounter a(frame), b(frame), c(frame);
-    std::array<uint8_t, pg::kMaxNodes> paired_a{}, paired_b{}, paired_c{};
-    int pairs_a = 0, nodes_a = 0, pairs_b = 0, nodes_b = 0, pairs_c = 0, nodes_c = 0;
-    pg::group_pass(true, nodes, seeds.data(), reject, a, paired_a.data(), pairs_a, nodes_a);
-    pg::group_pass(false, nodes, seeds.data(), reject, b, paired_b.data(), pairs_b, nodes_b);
-    ASSERT_EQ(pairs_a, pairs_b) << "query " << t;
-    ASSERT_EQ(nodes_a, nodes_b) << "query " << t;
+    pg::PairMasks a, b, c;
+    pg::group_pass(true, nodes, seeds.data(), reject, a);
+    pg::group_pass(false, nodes, seeds.data(), reject, b);
     for (int i = 0; i < pg::kDirectionGroups * nodes.count; ++i)
       ASSERT_EQ(a.node_hash[static_cast<size_t>(i)], b.node_hash[static_cast<size_t>(i)]) << "query " << t;
-    for (int p = 0; p < pairs_a; ++p)
-      ASSERT_EQ(a.pair_index[static_cast<size_t>(p)], b.pair_index[static_cast<size_t>(p)]) << "query " << t;
-    for (int q = 0; q < nodes_a; ++q)
-      ASSERT_EQ(paired_a[static_cast<size_t>(q)], paired_b[static_cast<size_t>(q)]) << "query " << t;
-    const pg::GlintCount ka = pg::count_four_groups_in_passes(frame, nodes, seeds.data(), reject, lambda, max_steps, true);
-    const pg::GlintCount kb = pg::count_four_groups_in_passes(frame, nodes, seeds.data(), reject, lambda, max_steps, false);
+    for (size_t w = 0; w < a.mask.size(); ++w) ASSERT_EQ(a.mask[w], b.mask[w]) << "query " << t;
+    int pairs_a = 0;
+    for (const uint64_t m : a.mask) pairs_a += std::popcount(m);
+    const pg::GlintCount ka = pg::count_four_groups_in_passes(f, nodes, seeds.data(), reject, lambda, max_steps, true);
+    const pg::GlintCount kb = pg::count_four_groups_in_passes(f, nodes, seeds.data(), reject, lambda, max_steps, false);
     ASSERT_EQ(ka.complete, kb.complete) << "query " << t;
     ASSERT_EQ(ka.count, kb.count) << "query " << t;
     ASSERT_EQ(ka.steps, kb.steps) << "query " << t;
     std::array<uint32_t, pg::kDirectionGroups> flipped = seeds;
     flipped[static_cast<size_t>(t % pg::kDirectionGroups)] ^= 1u;
-    pg::group_pass(false, nodes, flipped.data(), reject, c, paired_c.data(), pairs_c, nodes_c);
-    bool differs = pairs_c != pairs_a;
-    for (int p = 0; !differs && p < pairs_a; ++p)
-      differs = c.pair_index[static_cast<size_t>(p)] != a.pair_index[static_cast<size_t>(p)];
+    pg::group_pass(false, nodes, flipped.data(), reject, c);
+    const bool differs = c.mask != a.mask;
     ++compared;
     odd += nodes.count % 2;
     with_pairs += pairs_a > 0;
