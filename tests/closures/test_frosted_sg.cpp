@@ -176,6 +176,10 @@ struct AnalyticScene {
 
 // One sample of a closure at a shading point (the variant hook for the negative control).
 using Sampler = std::function<bool(const ShadingPoint &, const Vec3 &, LocalSample &)>;
+// A closure's own sample() as a Sampler (the closure outlives it).
+Sampler sampler_of(const FrostedGlassClosure &closure) {
+  return [&closure](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) { return closure.sample(sp, r, s); };
+}
 
 // The reference's light sampling of the small light (scene.small_light): the exact closure's eval, used at every
 // interface after the first (light reached through the object), power-heuristic MIS with the closure's own
@@ -400,12 +404,7 @@ SceneError measure(const SceneSetup &setup, const Config &c, int reference_spp =
   auto path = create_raw(c.roughness, c.ior, false, c.absorb);
   auto sg = create_raw(c.roughness, c.ior, true, c.absorb);
   scene.material = reinterpret_cast<const GlimmerInstance *>(sg.get());
-  const Sampler path_sampler = [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
-    return path->sample(sp, r, s);
-  };
-  const Sampler sg_sampler = [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
-    return sg->sample(sp, r, s);
-  };
+  const Sampler path_sampler = sampler_of(*path), sg_sampler = sampler_of(*sg);
   // Negative control: the exit refraction ignored (the SG keeps the axis it had inside).
   auto variant = [&](frosted::SgVariant v) {
     return Sampler([&path, &sg, v](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
@@ -909,12 +908,7 @@ TEST(FrostedGlassSg, ExitLobeShapeOfSolidsAgainstThePath) {
     auto sg = create_raw(c.roughness, c.ior, true);
     AnalyticScene scene(c.kind);
     scene.material = reinterpret_cast<const GlimmerInstance *>(sg.get());
-    const Sampler path_sampler = [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
-      return path->sample(sp, r, s);
-    };
-    const Sampler sg_sampler = [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
-      return sg->sample(sp, r, s);
-    };
+    const Sampler path_sampler = sampler_of(*path), sg_sampler = sampler_of(*sg);
     auto variant = [&](frosted::SgVariant v, float tail) {
       return Sampler([&path, &sg, v, tail](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
         if (!path->sample(sp, r, s)) return false;
@@ -983,12 +977,7 @@ SphereExitRow measure_sphere_exit(const SphereExitCase &c, int ref_paths, int sg
   auto sg = create_raw(c.roughness, c.ior, true);
   AnalyticScene scene(AnalyticScene::kSphere);
   scene.material = reinterpret_cast<const GlimmerInstance *>(sg.get());
-  const Sampler path_sampler = [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
-    return path->sample(sp, r, s);
-  };
-  const Sampler sg_sampler = [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
-    return sg->sample(sp, r, s);
-  };
+  const Sampler path_sampler = sampler_of(*path), sg_sampler = sampler_of(*sg);
   const frosted::CurvedShape single{1, {1.0f}, {1.0f}};
   const Sampler unsplit([&path, &sg, &single](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
     if (!path->sample(sp, r, s)) return false;
@@ -1148,12 +1137,7 @@ TEST(FrostedGlassSg, SphereShadowOfAFarLampAgainstThePath) {
     auto sg = create_raw(roughness, ior, true);
     AnalyticScene scene(AnalyticScene::kSphere);
     scene.material = reinterpret_cast<const GlimmerInstance *>(sg.get());
-    const Sampler path_sampler = [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
-      return path->sample(sp, r, s);
-    };
-    const Sampler sg_sampler = [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
-      return sg->sample(sp, r, s);
-    };
+    const Sampler path_sampler = sampler_of(*path), sg_sampler = sampler_of(*sg);
     const std::vector<ShadowPoint> ref = sphere_shadow(scene, path_sampler, lamp, floor_points, ref_paths, 1);
     const std::vector<ShadowPoint> now = sphere_shadow(scene, sg_sampler, lamp, floor_points, sg_paths, 2);
     const frosted::CurvedShape single{1, {1.0f}, {1.0f}};  // the control: the single SG about the same axis
@@ -1264,12 +1248,7 @@ SkewResult measure_skew(float roughness, float ior, int ref_paths, int sg_paths)
   auto sg = create_raw(roughness, ior, true);
   AnalyticScene scene(AnalyticScene::kSlab);
   scene.material = reinterpret_cast<const GlimmerInstance *>(sg.get());
-  const Sampler path_sampler = [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
-    return path->sample(sp, r, s);
-  };
-  const Sampler sg_sampler = [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
-    return sg->sample(sp, r, s);
-  };
+  const Sampler path_sampler = sampler_of(*path), sg_sampler = sampler_of(*sg);
   const Sampler s13 = [&](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {  // per-ray kappa / 4 tails
     if (!path->sample(sp, r, s)) return false;
     if (sg->uses_sg(sp) && (s.label & GLIMMER_LABEL_TRANSMIT))
