@@ -1256,7 +1256,9 @@ struct FootprintFrame {
       : f(fp), inv_det(1.0 / (fp.ax * fp.by - fp.ay * fp.bx)), size(node_size),
         ds_ux(node_size * fp.by * inv_det), ds_uy(-node_size * fp.bx * inv_det),
         dt_ux(-node_size * fp.ay * inv_det), dt_uy(node_size * fp.ax * inv_det),
-        nodes_can_be_inside(fp.area() >= node_size * node_size) {}
+        nodes_can_be_inside(can_hold_a_node(fp, node_size)) {}
+  // The footprint is at least as large as a node (nodes_can_be_inside, without the frame).
+  static bool can_hold_a_node(const Footprint &fp, double node_size) { return fp.area() >= node_size * node_size; }
 
   struct NodeOrigin {
     double s, t;
@@ -1777,9 +1779,9 @@ inline GlintCount count_reflecting_particles(const Footprint &f, const NodeList 
   // than a node: many nodes, many random branches); on smaller footprints
   // (1..4 nodes, aspect 64 at area 1e-6) they measured 2..5 % slower than
   // the node loop.
-  // (FootprintFrame::nodes_can_be_inside's test without the frame: the passes make it only when a pair passes.)
+  // (The frame's nodes_can_be_inside without the frame: the passes make it only when a pair passes.)
   if constexpr (!std::decay_t<Visitor>::kVisitsParticles)
-    if (!node_loop && seeds.size() == kDirectionGroups && f.area() >= nodes.size * nodes.size)
+    if (!node_loop && seeds.size() == kDirectionGroups && FootprintFrame::can_hold_a_node(f, nodes.size))
       return count_four_groups_in_passes(f, nodes, seeds.data(), GroupReject(maybe_lit_below), lambda, max_steps);
   const FootprintFrame frame(f, nodes.size);
   constexpr size_t kMaxSeeds = 32;
