@@ -1538,13 +1538,23 @@ struct PairPassCounter {
       }
     return true;
   }
-  // K lit particles of pair (node, h0): interior nodes add K, border nodes list them.
-  [[gnu::always_inline]] void add_lit(int node, uint32_t h0, int64_t K) {
+  // K >= 0 lit particles of pair (node, h0): interior nodes add K, border
+  // nodes list them. False (nothing added) when the list is full and
+  // stop() says so (session 24: the caller's step cap is tested there, not
+  // per pair).
+  template <typename Stop>
+  [[gnu::always_inline]] bool add_lit(int node, uint32_t h0, int64_t K, Stop &&stop) {
     const int32_t in = inside_mask[static_cast<size_t>(node)];
     count += K & static_cast<int64_t>(in);
-    // Keeps two free slots for the writes below.
-    if (K >= kMaxParticles - 1 - n_parts) [[unlikely]]
-      if (flush_for(node, h0, K, in)) return;
+    // Keeps two free slots for the writes below (n_parts + K: one add, session 24).
+    if (n_parts + K >= kMaxParticles - 1) [[unlikely]] {
+      if (stop()) return false;
+      if (flush_for(node, h0, K, in)) return true;
+    }
+    add_listed(node, h0, K, in);
+    return true;
+  }
+  [[gnu::always_inline]] void add_listed(int node, uint32_t h0, int64_t K, int32_t in) {
     // The first two entries always (K is mostly 0 or 1), more only for K >= 3
     // (session 22; the loop from k = 1 was vectorised with a setup paid at
     // every K >= 2); the list grows by K on the border and by 0 inside (or
@@ -1621,6 +1631,14 @@ inline void group_pass_sse2(const NodeList &nodes, const uint32_t *seeds, const 
 }
 #endif
 
+#if GLIMMER_GLINT_WALK_AVX2
+// No pair passes: the four words in one VPTEST (session 24; three ORs of loads before).
+[[gnu::target("avx2")]] inline bool pair_masks_empty_avx2(const PairMasks &pm) {
+  const __m256i m = _mm256_load_si256(reinterpret_cast<const __m256i *>(pm.mask.data()));
+  return _mm256_testz_si256(m, m) != 0;
+}
+#endif
+
 // Pass (2) in the form `avx2` says (AVX2 only where compiled in).
 inline void group_pass(bool avx2, const NodeList &nodes, const uint32_t *seeds, const GroupReject &reject,
                        PairMasks &pm) {
@@ -1660,16 +1678,63 @@ inline void paired_node_origins(const FootprintFrame &frame, const NodeList &nod
   }
 }
 
+#if GLIMMER_GLINT_WALK_AVX2
+// paired_node_origins with node_inside's four corners in the lanes of two
+// 256-bit registers (session 24): (s, s + ds_ux, t, t + dt_ux) from the
+// origin's register, and those + (ds_uy, ds_uy, dt_uy, dt_uy), the same sums
+// as node_inside's two 128-bit rows; every corner |s|, |t| <= 1/2 (four lanes
+// of one AND, where node_inside had three ANDs over eight lanes). The same
+// origins and flags (GlintParticles.GroupPassAvx2MatchesSse2 compares the
+// whole passes of both forms).
+[[gnu::target("avx2")]] inline void paired_node_origins_avx2(const FootprintFrame &frame, const NodeList &nodes,
+                                                            const PairMasks &pm, PairPassCounter &pc) {
+  const int32_t can_be_inside = frame.nodes_can_be_inside ? -1 : 0;
+  const __m128d centre = _mm_set_pd(frame.f.cy, frame.f.cx), by_ax = _mm_set_pd(frame.f.ax, frame.f.by);
+  const __m128d bx_ay = _mm_set_pd(frame.f.ay, frame.f.bx), inv_det = _mm_set1_pd(frame.inv_det);
+  const __m256d row0 = _mm256_setr_pd(0.0, frame.ds_ux, 0.0, frame.dt_ux);
+  const __m256d row1 = _mm256_setr_pd(frame.ds_uy, frame.ds_uy, frame.dt_uy, frame.dt_uy);
+  const __m256d sign = _mm256_set1_pd(-0.0), half = _mm256_set1_pd(0.5);
+  for (int w = 0; w < PairMasks::words(nodes.count); ++w)
+    for (uint64_t with = PairMasks::nodes_with_pair(pm.mask[static_cast<size_t>(w)]); with != 0; with &= with - 1) {
+      const auto at = static_cast<size_t>(16 * w + std::countr_zero(with) / 4);
+      const __m128d p = _mm_sub_pd(_mm_set_pd(static_cast<double>(nodes.j[at]) * nodes.size,
+                                              static_cast<double>(nodes.i[at]) * nodes.size), centre);  // px py
+      const __m128d st = _mm_mul_pd(_mm_sub_pd(_mm_mul_pd(p, by_ax), _mm_mul_pd(_mm_shuffle_pd(p, p, 1), bx_ay)), inv_det);
+      _mm_storeu_pd(&pc.origin[at].s, st);
+      const __m256d c0 = _mm256_add_pd(_mm256_permute4x64_pd(_mm256_castpd128_pd256(st), _MM_SHUFFLE(1, 1, 0, 0)), row0);
+      const __m256d c1 = _mm256_add_pd(c0, row1);
+      const __m256d in = _mm256_and_pd(_mm256_cmp_pd(_mm256_andnot_pd(sign, c0), half, _CMP_LE_OS),
+                                       _mm256_cmp_pd(_mm256_andnot_pd(sign, c1), half, _CMP_LE_OS));
+      const auto m = static_cast<uint32_t>(_mm256_movemask_pd(in));  // 15: all four corners inside
+      pc.inside_mask[at] = can_be_inside & -static_cast<int32_t>((m + 1u) >> 4);
+    }
+}
+#endif
+
 // The passes' body; kAvx2: pass 2 in AVX2 (inlined into
 // count_four_groups_in_passes_avx2, whose target("avx2") also gives the other
 // passes VEX three-operand forms; no FMA, so the same values).
+// Session 24: from this lambda on the passes make LitCountTable (the
+// model's exp and thresholds) before pass 2, and its below[0] (the hashes
+// with K >= 1, exactly) is the quick reject: pass 3 visits no pair with K =
+// 0 (at lambda ~ 0.5..1 a fifth to a third of the pairs passing the reject of
+// Pr(K >= 1) <= lambda, each ~40 instructions in pass 3 for nothing), and
+// pass 3 takes K by the table's compares, where the bounds left a third of
+// the pairs undecided (u < lambda^2 / 2) to the tail walk. Below it the walks
+// rarely have a pair (no exp: the bounds and the reject of lambda as before).
+inline constexpr double kLitTableFrom = 1.0 / 16.0;
 template <bool kAvx2>
 [[gnu::always_inline]] inline GlintCount count_four_groups_in_passes_body(const Footprint &f, const NodeList &nodes,
                                                                           const uint32_t *seeds,
-                                                                          const GroupReject &reject, double lambda,
-                                                                          int max_steps) {
+                                                                          const GroupReject &lambda_reject,
+                                                                          double lambda, int max_steps) {
   static_assert(kDirectionGroups == 4);
   PairMasks pm;
+  std::optional<LitCountTable> table;
+  if (lambda >= kLitTableFrom) table.emplace(LitCountModel(lambda));
+  // h >= below[0]: u >= Pr(K >= 1), K = 0 (a walkable table's below[0] <= lambda_reject's limit; not
+  // walkable: K = -1 below it, see below).
+  const GroupReject reject = table && table->walkable ? GroupReject(table->below[0]) : lambda_reject;
 #if GLIMMER_GLINT_WALK_AVX2
   if constexpr (kAvx2)
     group_pass_avx2(nodes, seeds, reject, pm);  // (2)
@@ -1680,14 +1745,24 @@ template <bool kAvx2>
   // complete, without the other passes' set-up (the bounds' division, the frame's constants; session 22;
   // session 23: the frame itself, its division and products, made here and not by the caller).
   static_assert(PairMasks::kWords == 4);
-  if ((pm.mask[0] | pm.mask[1] | pm.mask[2] | pm.mask[3]) == 0) return {};
+#if GLIMMER_GLINT_WALK_AVX2
+  if constexpr (kAvx2) {
+    if (pair_masks_empty_avx2(pm)) return {};
+  } else
+#endif
+    if ((pm.mask[0] | pm.mask[1] | pm.mask[2] | pm.mask[3]) == 0) return {};
   const FootprintFrame frame(f, nodes.size);
   PairPassCounter pc(frame);
   // Session 17 (glintwalk17b): the origin and inside flag of only the nodes
   // with a pair passing the quick reject (no other pass reads them; ~1/3 of
   // the nodes have none at area 1e-4): 1e-4 5615 -> 5380 instructions per
   // eval, same f and pdf bits.
-  paired_node_origins(frame, nodes, pm, pc);  // (1)
+#if GLIMMER_GLINT_WALK_AVX2
+  if constexpr (kAvx2)
+    paired_node_origins_avx2(frame, nodes, pm, pc);  // (1)
+  else
+#endif
+    paired_node_origins(frame, nodes, pm, pc);  // (1)
   GlintCount result;
   int64_t steps = 0;
   // (3): the pairs 4 node + g in order, K by lit_of(h0).
@@ -1697,18 +1772,29 @@ template <bool kAvx2>
         const auto pair = static_cast<uint32_t>(64 * w + std::countr_zero(m));
         const uint32_t h0 = pm.node_hash[pair];
         const int64_t K = lit_of(h0);
+        if (K < 0) __builtin_unreachable();  // lit_of's K >= 0 (a refused walk is handled before)
         steps += K;
-        if (K < 0 || steps > max_steps) return false;
-        pc.add_lit(static_cast<int>(pair / kDirectionGroups), h0, K);
+        // Session 24: the step cap tested after the loop, and where the list
+        // is flushed (bounding the work past the cap), not per pair: the
+        // steps only grow, so the cap is passed iff the total passes it.
+        if (!pc.add_lit(static_cast<int>(pair / kDirectionGroups), h0, K, [&] { return steps > max_steps; }))
+          return false;
       }
-    return true;
+    return steps <= max_steps;
   };
   bool walked;
-  if (lambda > 1.0) {
-    // Session 23: every pair passes the quick reject, and the bounds decide
-    // none: the walk's thresholds once (LitCountTable), then integer compares.
-    const LitCountTable table{LitCountModel(lambda)};
-    walked = lit_pass([&](uint32_t h0) { return table.lit(h0); });
+  if (table) {
+    // Session 23: for lambda > 1 every pair passed the quick reject, and the
+    // bounds decided none: the walk's thresholds once (LitCountTable), then
+    // integer compares. Session 24: from kLitTableFrom on.
+    if (!table->walkable) [[unlikely]] {
+      // The walk refuses (K = -1: incomplete) every pair whose u < Pr(K >= 1), and gives K = 0 to the others.
+      for (int w = 0; w < PairMasks::words(nodes.count); ++w)
+        for (uint64_t m = pm.mask[static_cast<size_t>(w)]; m != 0; m &= m - 1)
+          if (table->lit(pm.node_hash[static_cast<size_t>(64 * w + std::countr_zero(m))]) < 0) return {0, 0, false};
+      return {};
+    }
+    walked = lit_pass([&](uint32_t h0) { return table->lit(h0); });
   } else {
     const LitCountBounds bounds(lambda);
     std::optional<LitCountModel> model;

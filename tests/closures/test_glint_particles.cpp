@@ -1259,7 +1259,7 @@ PassQuery random_pass_query(Pcg32 &rng, int t) {
 // change of a few particles.
 TEST(GlintParticles, PairPassesMatchTheNodeLoop) {
   Pcg32 rng(29);
-  int compared = 0, lit = 0, capped = 0, big = 0, control_differs = 0, in_passes = 0;
+  int compared = 0, lit = 0, capped = 0, big = 0, control_differs = 0, in_passes = 0, tabled = 0, refused = 0;
   for (int t = 0; t < 40000; ++t) {
     const auto &[f, P, max_steps, seeds, group_density, nodes] = random_pass_query(rng, t);
     const auto passes = pg::count_reflecting_particles(f, nodes, group_density, seeds, P, max_steps);
@@ -1271,7 +1271,12 @@ TEST(GlintParticles, PairPassesMatchTheNodeLoop) {
       ASSERT_EQ(passes.steps, loop.steps) << "query " << t;
     }
     ++compared;
-    in_passes += pg::FootprintFrame(f, nodes.size).nodes_can_be_inside;  // the walk takes the passes
+    const bool passes_taken = pg::FootprintFrame(f, nodes.size).nodes_can_be_inside;  // the walk takes the passes
+    in_passes += passes_taken;
+    // Session 24: the passes' exact reject (LitCountTable's below[0]) from kLitTableFrom on, and the refused walk.
+    const double lambda = std::min(group_density * nodes.size * nodes.size, 4.0e18) * std::min(P, 1.0);
+    tabled += passes_taken && lambda >= pg::kLitTableFrom;
+    refused += passes_taken && lambda > pg::LitCountModel::kMaxNodeMean;
     lit += loop.complete && loop.count > 0;
     capped += !loop.complete;
     big += loop.complete && loop.steps > 256;
@@ -1279,9 +1284,12 @@ TEST(GlintParticles, PairPassesMatchTheNodeLoop) {
                                                         pg::NoParticleVisitor{}, true);
     control_differs += shifted.complete && passes.complete && shifted.count != passes.count;
   }
-  std::printf("[pair passes] %d queries equal (%d counted in passes, %d lit, %d capped, %d over 256 lit particles); "
-              "control P (1 + 1e-3) differs on %d\n", compared, in_passes, lit, capped, big, control_differs);
+  std::printf("[pair passes] %d queries equal (%d counted in passes, %d of them with lambda >= %g, %d over %g; %d lit, "
+              "%d capped, %d over 256 lit particles); control P (1 + 1e-3) differs on %d\n",
+              compared, in_passes, tabled, pg::kLitTableFrom, refused, pg::LitCountModel::kMaxNodeMean, lit, capped, big,
+              control_differs);
   EXPECT_GT(in_passes, 10000);
+  EXPECT_GT(tabled, 1000);
   EXPECT_GT(lit, 10000);
   EXPECT_GT(capped, 1000);
   EXPECT_GT(big, 100);
