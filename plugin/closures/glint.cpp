@@ -85,6 +85,7 @@
 #include "tables/glint_peak.h"
 #include "tables/glint_placement.h"
 #include "tables/glint_pseudo_normals.h"
+#include "tables/glint_small_dark.h"
 #include "tables/glint_tables.h"
 
 namespace glimmer::plugin {
@@ -149,6 +150,8 @@ class GlintClosure {
     c->density_param_ = p.index("density");
     c->gamma_rad_ = c->field_.gamma_deg * glint::kDegToRad;
     c->cell_keys_ = glint::DirectionCellKeys(c->field_.seed, c->gamma_rad_);
+    c->small_dark_ = glint::make_small_dark_field(c->cell_keys_, c->gamma_rad_, kDarkTestMaxNodes, kMaxSteps,
+                                                  c->field_.density);
     c->placement_ = static_cast<glint::Placement>(p.get_enum("placement"));
     c->flakes_ = std::make_unique<const glint::FlakePalette>(c->field_.color, p.get_float("flake_hue_variation"),
                                                              p.get_float("flake_value_variation"));
@@ -316,6 +319,20 @@ class GlintClosure {
     const float P_max = std::min(peak_.bound(c.lanes()), 1.0f);
     const double expected_max = particles * P_max;
     if (!(expected_max <= dark_test_cap_)) return false;  // <= threshold_ and <= kDarkTestMaxExpected
+#if GLIMMER_GLINT_WALK_AVX2
+    // Session 24: a footprint of at most kDarkTestMaxNodes nodes in a box of at most kBoxSpan x kBoxSpan, smaller
+    // than a node, without the node list (tables/glint_small_dark.h); the same answer as the count below.
+    if (glint::kWalkAvx2) {
+      const glint::SmallDark d =
+          glint::small_footprint_dark_avx2(*small_dark_, parts.fp, parts.area, density, wi, wo, P_max, parts.site);
+      if (d == glint::SmallDark::kDark) return true;
+      if (d == glint::SmallDark::kNotDark) {  // the cells are located: the node list for the count at P
+        glint::locate_glint_nodes(parts.fp, parts.site, node_memo);
+        parts.located = true;
+        return false;
+      }
+    }
+#endif
     locate(wi, wo, density, parts);
     if (parts.site.node_list().count > kDarkTestMaxNodes) return false;
     const glint::GlintCount k = glint::count_glints(parts.fp, parts.site, P_max, kMaxSteps);
@@ -529,6 +546,9 @@ class GlintClosure {
   float max_spread_ = 0.32f;    // 2 alpha, the LOD blur's cap (lod_sigma_deg)
   float gamma_rad_ = 0.035f;
   glint::DirectionCellKeys cell_keys_{0};  // per-material part of the direction-cell seeds
+  // The dark test's constants for small footprints (glint_small_dark.h), made out of line and held by pointer (this
+  // file is at GCC's inlining budget; docs/glints.md, "Session 24 (glintdark24)").
+  std::unique_ptr<const glint::SmallDarkField> small_dark_;
   std::shared_ptr<const glint::DirectionalTable> table_;
   glint::DirectionalPeakTable peak_;  // bounds of table_'s lookups in glint mode (the dark test)
   float cone_solid_angle_ = 1.0f;

@@ -1054,10 +1054,10 @@ inline void cell_seeds(const uint32_t *keys, const std::array<int32_t, kDirectio
 // the same integers) and the seeds' five 32-bit lane multiplies by VPMULLD
 // instead of SSE2's PMULUDQ pairs and shuffles (the same words).
 // GlintParticles.DirectionCellSeedsAvx2MatchSse2.
-[[gnu::target("avx2"), gnu::noinline]] inline bool direction_cell_seeds_avx2(const DirectionCellKeys &keys,
-                                                                             const Vec3 &wi, const Vec3 &wo,
-                                                                             float gamma_rad,
-                                                                             std::array<uint32_t, kDirectionGroups> &seeds) {
+// The body (always inlined; session 24: also inlined into glint_small_dark.h's dark test for small footprints).
+[[gnu::target("avx2"), gnu::always_inline]] inline bool direction_cell_seeds_avx2_body(
+    const DirectionCellKeys &keys, const Vec3 &wi, const Vec3 &wo, float gamma_rad,
+    std::array<uint32_t, kDirectionGroups> &seeds) {
   float x, y;
   if (!direction_cell_coords(keys, wi, wo, gamma_rad, x, y)) return false;
   static_assert(kDirectionGroups == 4);
@@ -1069,6 +1069,12 @@ inline void cell_seeds(const uint32_t *keys, const std::array<int32_t, kDirectio
   const __m128i h = mix_u32x4_avx2(_mm_add_epi32(k, _mm_mullo_epi32(ix, _mm_set1_epi32(static_cast<int>(kNodeKeyStep)))));
   _mm_storeu_si128(reinterpret_cast<__m128i *>(seeds.data()), mix_u32x4_avx2(_mm_xor_si128(h, iy)));
   return true;
+}
+[[gnu::target("avx2"), gnu::noinline]] inline bool direction_cell_seeds_avx2(const DirectionCellKeys &keys,
+                                                                             const Vec3 &wi, const Vec3 &wo,
+                                                                             float gamma_rad,
+                                                                             std::array<uint32_t, kDirectionGroups> &seeds) {
+  return direction_cell_seeds_avx2_body(keys, wi, wo, gamma_rad, seeds);
 }
 #endif
 // The SSE2 form (and the form without SSE2): floor_cells and cell_seeds.

@@ -22,6 +22,7 @@
 #include "tables/glint_particles.h"
 #include "tables/glint_peak.h"
 #include "tables/glint_pseudo_normals.h"
+#include "tables/glint_small_dark.h"
 
 namespace glimmer::test {
 namespace {
@@ -1666,6 +1667,93 @@ TEST(GlintParticles, PseudoNormalTestOrdersCountTheSameParticles) {
   EXPECT_GE(reflection_first, 250);
   EXPECT_GE(lit_queries, 500);
   EXPECT_GE(control_differs, 400);
+}
+
+
+// Session 24: the dark test's small-footprint route (small_footprint_dark_avx2, tables/glint_small_dark.h) gives the
+// general route's answer: locate_glints, then "not dark" when the node list has more than 4 nodes, else dark iff
+// count_glints at P is complete and 0. Random footprints of 0.001..200 particles (density 1e5..1e8, aspect 1..64),
+// directions over the whole sphere (below the surface: no half vector), P 1e-5..1 (0 and 2 on a few), step caps of
+// 1..3 on every 8th query, the particle level from the material's density or computed per query. Where it decides (kNotDark), its cells and the node list then made
+// (locate_glint_nodes) are the general route's. Control: the footprint moved by 3 % of a node's side changes the
+// answer on some of the decided queries.
+TEST(GlintParticles, SmallFootprintDarkMatchesTheCount) {
+#if !GLIMMER_GLINT_WALK_AVX2
+  GTEST_SKIP() << "no AVX2 form in this build";
+#else
+  if (!__builtin_cpu_supports("avx2")) GTEST_SKIP() << "CPU without AVX2";
+  Pcg32 rng(43);
+  int64_t decided = 0, dark = 0, not_dark = 0, generic = 0, capped = 0, multi_node = 0, no_half = 0,
+          control_differs = 0;
+  for (int t = 0; t < 200000; ++t) {
+    const double density = std::exp(std::log(1e5) + rng.next_double() * std::log(1e3));
+    const double particles = std::exp(std::log(1e-3) + rng.next_double() * std::log(2e5));
+    const pg::Footprint f = random_footprint(rng, particles / density, std::exp(rng.next_double() * std::log(64.0)));
+    const Vec3 wi = t % 16 == 5 ? sample_uniform_sphere(rng.next_float(), rng.next_float())
+                                : sample_cosine_hemisphere(rng.next_float(), rng.next_float());
+    const Vec3 wo = sample_cosine_hemisphere(rng.next_float(), rng.next_float());
+    const double P = t % 64 == 0 ? 0.0 : t % 64 == 1 ? 2.0 : std::exp(std::log(1e-5) + rng.next_double() * std::log(1e5));
+    const int max_steps = t % 8 == 3 ? 1 + static_cast<int>(rng.next_u32() % 3u) : 8192;
+    const float gamma = 0.0174533f * (0.5f + 4.0f * rng.next_float());
+    const pg::DirectionCellKeys keys(rng.next_u32(), gamma);
+    // The general route (glint.cpp's provably_dark before session 24).
+    pg::GlintSite ref;
+    pg::locate_glints(f, density, keys, wi, wo, gamma, ref);
+    bool ref_dark = false, ref_capped = false;
+    if (ref.node_list().count <= 4) {
+      const pg::GlintCount k = pg::count_glints(f, ref, P, max_steps);
+      ref_dark = k.complete && k.count == 0;
+      ref_capped = !k.complete;
+    }
+    pg::GlintSite site;
+    // The material's density (its level computed once) on odd queries, another (a textured density) on even ones.
+    const pg::SmallDarkField field(keys, gamma, 4, max_steps, t % 2 ? density : 2.0 * density);
+    const pg::SmallDark d = pg::small_footprint_dark_avx2(field, f, f.area(), density, wi, wo, P, site);
+    if (d == pg::SmallDark::kGeneric) {
+      ++generic;
+      continue;
+    }
+    ++decided;
+    ASSERT_EQ(d == pg::SmallDark::kDark, ref_dark) << "query " << t << " P " << P << " area " << f.area();
+    dark += ref_dark;
+    not_dark += !ref_dark;
+    capped += ref_capped;
+    multi_node += ref.node_list().count > 1;
+    no_half += !ref.has_half_vector;
+    if (d == pg::SmallDark::kNotDark) {
+      ASSERT_TRUE(site.has_half_vector && ref.has_half_vector) << "query " << t;
+      ASSERT_EQ(site.cell_seeds, ref.cell_seeds) << "query " << t;
+      ASSERT_EQ(site.group_density, ref.group_density) << "query " << t;
+      pg::FootprintNodeMemo memo;
+      pg::locate_glint_nodes(f, site, [&] { return &memo; });
+      const pg::NodeList &a = site.node_list(), &b = ref.node_list();
+      ASSERT_EQ(a.count, b.count) << "query " << t;
+      ASSERT_EQ(a.level, b.level) << "query " << t;
+      for (int n = 0; n < a.count; ++n) {
+        const auto at = static_cast<size_t>(n);
+        ASSERT_TRUE(a.i[at] == b.i[at] && a.j[at] == b.j[at] && a.id_hash[at] == b.id_hash[at]) << "query " << t;
+      }
+    }
+    pg::Footprint moved = f;
+    moved.cx += 0.03 * ref.nodes.size;
+    pg::GlintSite other;
+    const pg::SmallDark dm = pg::small_footprint_dark_avx2(field, moved, moved.area(), density, wi, wo, P, other);
+    control_differs += dm != pg::SmallDark::kGeneric && (dm == pg::SmallDark::kDark) != ref_dark;
+  }
+  std::printf("[small dark] %lld decided equal to the count (%lld dark, %lld not dark, %lld capped, %lld over more "
+              "than one node, %lld without a half vector), %lld left to the general route; control (moved by 3 %% "
+              "of a node) differs on %lld\n", static_cast<long long>(decided), static_cast<long long>(dark),
+              static_cast<long long>(not_dark), static_cast<long long>(capped), static_cast<long long>(multi_node),
+              static_cast<long long>(no_half), static_cast<long long>(generic),
+              static_cast<long long>(control_differs));
+  EXPECT_GT(dark, 20000);
+  EXPECT_GT(not_dark, 5000);
+  EXPECT_GT(capped, 500);
+  EXPECT_GT(multi_node, 5000);
+  EXPECT_GT(no_half, 1000);
+  EXPECT_GT(generic, 1000);
+  EXPECT_GT(control_differs, 1000);
+#endif
 }
 
 }  // namespace
