@@ -38,6 +38,24 @@ inline bool lamp_hit(const Kind &light, const Vec3 &P, const Vec3 &d, LightHit &
     return light.intersect(P, d, std::numeric_limits<float>::infinity(), 1.0f, h);
 }
 
+// An exit lobe whose value is not its density (session 24, frostedpane24: method=sg's rough pane hands the exact
+// exit's value q(w) through the closure's eval_exit): the integral is Int q(w) L(w) dw, the vMF mixture stays the
+// proposal of the lobe's directions (and its draw density the MIS weights'), so every point's weight is as for the
+// mixture itself and the estimate is unbiased for q wherever the lamp's own points cover it.
+struct ValuedExitLobe {
+  const ExitLobeMixture *proposal = nullptr;
+  double (*value)(const void *context, const Vec3 &w) = nullptr;
+  const void *context = nullptr;
+  double pdf_and_draw_density(const Vec3 &w, double &draw) const {
+    proposal->pdf_and_draw_density(w, draw);
+    return value(context, w);
+  }
+  double pdf(const Vec3 &w) const { return value(context, w); }  // the value (the tests' brute force reads it)
+  using DrawCos = ExitLobeMixture::DrawCos;
+  DrawCos draw_cos(float uc) const { return proposal->draw_cos(uc); }
+  static Vec3 draw_at(const DrawCos &d, const VmfPhi &phi) { return ExitLobeMixture::draw_at(d, phi); }
+};
+
 // The estimate for one lamp (a point, spot, area or distant light); false when none of its light reaches P
 // through the lobe.
 // `lobe`: an ExitLobe, or an ExitLobeMixture (ABI 2.7: the whole mixture; p its density, the lobe's directions

@@ -149,6 +149,11 @@ bool LightSet::lamp_through_lobe(int k, const Vec3 &P, const ExitLobeMixture &lo
   if (k < 0 || k >= lamp_count()) return false;
   return lamp_kind_through_lobe(lights_[lamps_[k]].kind, P, lobe, u, v, pick, out);
 }
+bool LightSet::lamp_through_lobe(int k, const Vec3 &P, const ValuedExitLobe &lobe, float u, float v, float pick,
+                                 LampEstimate &out) const {
+  if (k < 0 || k >= lamp_count() || lobe.proposal == nullptr || lobe.value == nullptr) return false;
+  return lamp_kind_through_lobe(lights_[lamps_[k]].kind, P, lobe, u, v, pick, out);
+}
 
 float LightSet::triangle_pdf(int mesh, int prim, const Vec3 &from, const Vec3 &P, const Vec3 &Ng, const Vec3 &d) const {
   if (mesh < 0 || triangle_light_[mesh].empty()) return 0.0f;

@@ -75,6 +75,9 @@ class LightSet {
   // The same through a whole exit lobe mixture (ABI 2.7): p its density, the lobe's directions from its vMFs.
   bool lamp_through_lobe(int k, const Vec3 &P, const ExitLobeMixture &lobe, float u, float v, float pick,
                          LampEstimate &out) const;
+  // The same with the lobe's value given apart from its proposal (ValuedExitLobe: the exact exit of a pane).
+  bool lamp_through_lobe(int k, const Vec3 &P, const ValuedExitLobe &lobe, float u, float v, float pick,
+                         LampEstimate &out) const;
   // Light-sampling pdf of an escaping ray in direction d (0 when the world is not a light).
   float background_pdf(const Vec3 &d) const;
   // Light-sampling pdf for a BSDF ray from `from` hitting emissive triangle (mesh, prim) at P.

@@ -831,6 +831,13 @@ struct Renderer::Impl {
     if (!is_zero(direct)) add_contribution(pr, direct, ps.bounce);
   }
 
+  // The scatter integrate_surface_bsdf_bounce took, for integrate_exit_state.
+  struct ExitStateScatter {
+    int chosen = -1;       // the closure sampled (-1: none, or the transparent pass-through)
+    Spectrum scale{0.0f};  // the throughput before the scatter x the closure's weight / its pick probability
+    int bounce = 0;        // the scatter's bounce (before it)
+  };
+
   // ABI 2.4: a moved sample drawn from an exit lobe (frosted_glass sg: where light leaves the object). The lobe
   // is the BSDF at the exit point: f = the sample's weight x its density p (glimmer/exit_lobe.h), so the
   // singular sample's throughput (already applied) carries f / p and next-event estimation there sees p alone.
@@ -844,7 +851,10 @@ struct Renderer::Impl {
   // ABI 2.7: with GLIMMER_SAMPLE_EXIT_MIXTURE the lobe is the whole mixture (glimmer::ExitLobeMixture, all lobes
   // at the sample's origin): its density for NEE and MIS, its lobes' lamp integrals and cone lookups summed by
   // weight, so that the host's estimators do not see which lobe drew wo. Otherwise the one lobe of ABI 2.4.
-  void integrate_exit_lobe(const GlimmerSample &s, const Vec3 &wo, const PixelSampler &sampler, PathState &ps,
+  // Session 24: a moved exit-lobe sample with an exit state (frosted_glass sg's rough pane) has its lamps valued by
+  // the closure's eval_exit (the exact exit, ValuedExitLobe), the mixture their proposal (exact_lamps below).
+  void integrate_exit_lobe(const ClosureSet &cs, const ShadingData &sd, const ExitStateScatter &xs,
+                           const GlimmerSample &s, const Vec3 &wo, const PixelSampler &sampler, PathState &ps,
                            PathRadiance &pr, ExitWorld &exit_world) const {
     exit_world.active = false;
     exit_world.lamps = false;
@@ -867,7 +877,14 @@ struct Renderer::Impl {
     float lu, lv;  // a light set of its own per vertex (the vertex's light set served its entry point)
     sampler.get2(exit_light_set(ps.sample_vertex()), lu, lv);
     exit_world.lamps = options.exit_lobe_lamps && lights->lamp_count() > 0;
-    if (exit_world.lamps) integrate_exit_lamps(Vec3(s.origin), n, lobe, lu, lv, sampler, ps, pr);
+    if (exit_world.lamps) {
+      ExactExit exact;
+      if (exact_lamps(cs, sd, xs, s, exact))
+        integrate_exit_lamps(Vec3(s.origin), n, ValuedExitLobe{&lobe, &ExactExit::value, &exact}, lu, lv, sampler,
+                             ps, pr);
+      else
+        integrate_exit_lamps(Vec3(s.origin), n, lobe, lu, lv, sampler, ps, pr);
+    }
     const auto exit_bsdf = [&](const Vec3 &wi) {
       MixtureEval me;
       me.pdf = static_cast<float>(lobe.pdf(wi));
@@ -919,7 +936,33 @@ struct Renderer::Impl {
   // (lu, lv), balance heuristic), its visibility one shadow ray toward a point picked in proportion to its share.
   // The light of a lamp through the glass is then a low-noise integral, not one sampled direction (de Rousiers
   // 2012's SG lights, eq. 14/15, with the exact lamp and lobe instead of their SG product).
-  void integrate_exit_lamps(const Vec3 &P, const Vec3 &n, const ExitLobeMixture &lobe, float lu, float lv,
+  // The exact exit of a moved exit-lobe sample's state (ValuedExitLobe's value: eval_exit's f cos, grey).
+  struct ExactExit {
+    const host::ClosureInstance *instance = nullptr;
+    const GlimmerShadingContext *ctx = nullptr;
+    const GlimmerExitState *state = nullptr;
+    static double value(const void *self, const Vec3 &w) {
+      const ExactExit &x = *static_cast<const ExactExit *>(self);
+      Spectrum f(0.0f);
+      float pdf = 0.0f;
+      x.instance->eval_exit(*x.ctx, *x.state, w, f, pdf);
+      const double v = average(f);
+      return v > 0.0 && std::isfinite(v) ? v : 0.0;
+    }
+    GlimmerShadingContext scratch;
+  };
+  bool exact_lamps(const ClosureSet &cs, const ShadingData &sd, const ExitStateScatter &xs, const GlimmerSample &s,
+                   ExactExit &x) const {
+    if (!(s.flags & GLIMMER_SAMPLE_EXIT_STATE) || s.exit_state == nullptr || xs.chosen < 0) return false;
+    const ActiveClosure &c = cs.closures[xs.chosen];
+    if (!c.instance || !c.instance->has_eval_exit()) return false;
+    x.instance = c.instance;
+    x.ctx = &context_for(sd, c, x.scratch);
+    x.state = s.exit_state;
+    return true;
+  }
+  template <class Lobe>
+  void integrate_exit_lamps(const Vec3 &P, const Vec3 &n, const Lobe &lobe, float lu, float lv,
                             const PixelSampler &sampler, const PathState &ps, PathRadiance &pr) const {
     float pick, unused;
     sampler.get2(exit_lamp_set(ps.sample_vertex()), pick, unused);
@@ -931,12 +974,7 @@ struct Renderer::Impl {
     }
   }
 
-  // The scatter integrate_surface_bsdf_bounce took, for integrate_exit_state.
-  struct ExitStateScatter {
-    int chosen = -1;       // the closure sampled (-1: none, or the transparent pass-through)
-    Spectrum scale{0.0f};  // the throughput before the scatter x the closure's weight / its pick probability
-    int bounce = 0;        // the scatter's bounce (before it)
-  };
+
   // ABI 2.8: a singular sample that stays at the shading point with an exit state (frosted_glass method=path's
   // thin pane: the walk's last interface). One light sample at the shading point through that interface
   // (eval_exit's f cos, which carries the walk's weight; the shadow ray leaves on the light's side), power
@@ -1078,7 +1116,7 @@ struct Renderer::Impl {
       if (!integrate_surface_bsdf_bounce(cs, sd, bsdf_rand, transparent_weight, total_sw, limits, ps, pr, ray, s,
                                          xs))
         break;
-      integrate_exit_lobe(s, ray.D, sampler, ps, pr, exit_world);
+      integrate_exit_lobe(cs, sd, xs, s, ray.D, sampler, ps, pr, exit_world);
       integrate_exit_state(cs, sd, xs, s, ray.D, sampler, ps, pr);
     }
     return pr.L;

@@ -368,8 +368,12 @@ class FrostedGlassClosure {
   // from the last internal direction (Walter's BTDF with the energy compensation the sampler uses), f cos times
   // the state's weight x trials, pdf the sampler's unconditional density of that transmitted direction (the
   // leaving probability included). Zero on the other side of the exit face.
+  // method=sg's rough pane (a moved exit-lobe sample with frosted::PaneSgExitState): f cos = pdf = q(w), the exact
+  // exit's value over the sample's weight, sum_k c_k f_k(w) over the state's walks (f_k the exit interface's f cos
+  // from d_k, as above), for the host's lamps through the exit lobe.
   LocalEval eval_exit(const ShadingPoint &sp, const GlimmerExitState &state, const Vec3 &w) const {
-    if (!thin_ || uses_sg_pane(sp)) return {};
+    if (!thin_) return {};
+    if (uses_sg_pane(sp)) return eval_exit_sg(sp, state, w);
     const PaneExitState x = PaneExitState::read(state);
     if (!(x.trials > 0.0f) || x.d.z == 0.0f) return {};
     DielectricLobe scratch;
@@ -380,6 +384,23 @@ class FrostedGlassClosure {
     if (bottom ? !(wo.z < 0.0f) : !(wo.z > 0.0f)) return {};
     LocalEval e = lobe.eval(at_interface(-x.d, bottom), at_interface(wo, bottom));
     e.f_cos *= x.weight * x.trials;
+    return e;
+  }
+  LocalEval eval_exit_sg(const ShadingPoint &sp, const GlimmerExitState &state, const Vec3 &w) const {
+    const frosted::PaneSgExitState x = frosted::PaneSgExitState::read(state);
+    DielectricLobe scratch;
+    const DielectricLobe &lobe = lobe_at(sp, scratch);
+    const Vec3 wo = sp.wi.z < 0.0f ? mf::flip_z_local(w) : w;
+    float q = 0.0f;
+    for (int k = 0; k < frosted::PaneSgExitState::kWalks; ++k) {
+      if (!(x.c[k] > 0.0f) || x.d[k].z == 0.0f) continue;
+      const bool bottom = x.d[k].z < 0.0f;
+      if (bottom ? !(wo.z < 0.0f) : !(wo.z > 0.0f)) continue;
+      q += x.c[k] * average(lobe.eval(at_interface(-x.d[k], bottom), at_interface(wo, bottom)).f_cos);
+    }
+    LocalEval e;
+    e.f_cos = Spectrum(q);
+    e.pdf = q;
     return e;
   }
 #endif

@@ -330,8 +330,9 @@ struct ClosureAdapter {
       return GLIMMER_LABEL_NONE;
     }
 #if GLIMMER_ABI_MINOR >= 8
-    // An exit state only on a singular sample that stays at the shading point, in the host's own buffer.
-    if (s.exit_state && s.state_out != nullptr && !s.moved && (s.label & GLIMMER_LABEL_SINGULAR) &&
+    // An exit state only on a singular sample that stays at the shading point, or on a moved exit-lobe sample
+    // (frosted_glass sg's rough pane: the exact exit for the lamps through the lobe), in the host's own buffer.
+    if (s.exit_state && s.state_out != nullptr && (!s.moved || s.exit_lobe) && (s.label & GLIMMER_LABEL_SINGULAR) &&
         GLIMMER_HAS_FIELD(out->struct_size, GlimmerSample, flags))
       out->flags |= GLIMMER_SAMPLE_EXIT_STATE;
 #endif

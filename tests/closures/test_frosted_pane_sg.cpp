@@ -764,6 +764,115 @@ TEST(FrostedGlassSgPane, RoughPaneSplitOfOneIsTheWalk) {
   EXPECT_EQ(coloured_same, coloured);
 }
 
+// ---- The rough pane's exact exit for the lamps (session 24, frostedpane24) -------------------------------------
+// The split sample hands the host the picked face's walks (frosted::PaneSgExitState), and eval_exit gives the exact
+// exit's value over the sample's weight, q(w) = sum_k (t_k / t_F) f_k(w) / E_k. So W q(w) (W the sample's weight) is
+// an estimate of the pane's f cos toward w (the front reflection excluded), as method=path's exit state is
+// (eval_exit = W_path T f_T(d, w) cos, checked in test_frosted_pane.cpp). Per incidence angle (0 / 30 / 60 deg)
+// and 5 fixed directions (3 through the far face, 2 back through the entry face), the two estimates' means on
+// independent numbers: every (angle, direction) within 4.5 standard errors and the sum over them within 4 (pooled).
+// Negative control: the SG mixture the host integrated before (W x the mixture's density) must be > 6 standard
+// errors off path in at least one (angle, direction) (at 32768 samples: worst |z| 46.8 at roughness 0.5, the
+// mixture 25 % low toward the far face's off-axis direction at 30 deg; 5.7 at 0.8). Every split sample carries a
+// state.
+struct ExitSums {
+  static constexpr int kDirs = 5;
+  double sum[kDirs] = {}, sum2[kDirs] = {}, ctl[kDirs] = {}, ctl2[kDirs] = {};
+  long samples = 0, exits = 0, states = 0;
+};
+ExitSums exact_exit_estimate(const FrostedGlassClosure &pane, bool sg, float theta_deg, uint64_t seed, long samples) {
+  static const auto schema = FrostedGlassClosure::params();
+  const Vec3 dirs[ExitSums::kDirs] = {Vec3(0.0f, 0.0f, -1.0f), normalize(Vec3(0.5f, 0.0f, -1.0f)),
+                                      normalize(Vec3(-0.4f, 0.3f, -1.0f)), Vec3(0.0f, 0.0f, 1.0f),
+                                      normalize(Vec3(0.6f, 0.0f, 1.0f))};
+  ExitSums out;
+  Pcg32 rng(seed, 9);
+  for (long i = 0; i < samples; ++i) {
+    GlimmerShadingContext ctx = pane_context(theta_deg);
+    ctx.path_seed = rng.next_u32();
+    const ShadingPoint sp(&ctx, schema);
+    const Vec3 rand(rng.next_float(), rng.next_float(), rng.next_float());
+    GlimmerExitMixture buffer{};
+    GlimmerExitState state{};
+    LocalSample s;
+    s.mixture_out = &buffer;
+    s.state_out = &state;
+    ++out.samples;
+    if (!pane.sample(sp, rand, s) || !(s.label & GLIMMER_LABEL_SINGULAR)) continue;  // 0 toward every direction
+    ++out.exits;
+    out.states += s.exit_state;
+    ExitLobeMixture m;
+    if (sg && s.exit_lobe) {
+      const Vec3 n = normalize(s.origin_Ng);
+      if (s.exit_mixture)
+        for (uint32_t k = 0; k < buffer.count; ++k) {
+          m.lobe[m.count] = ExitLobe::make(normalize(Vec3(buffer.axis[k])), buffer.sharpness[k], n);
+          m.weight[m.count++] = buffer.weight[k];
+        }
+      else {
+        m.lobe[0] = ExitLobe::make(normalize(s.lobe_axis), s.lobe_sharpness, n);
+        m.weight[0] = 1.0;
+        m.count = 1;
+      }
+      m.normalize();
+    }
+    const double w = average(s.f_cos / s.pdf);
+    for (int j = 0; j < ExitSums::kDirs; ++j) {
+      double v = 0.0, c = 0.0;
+      if (s.exit_state) {
+        const double e = average(pane.eval_exit(sp, state, dirs[j]).f_cos);
+        v = sg ? w * e : e;  // sg: the value over the weight; path: the walk's f cos estimate itself
+      }
+      if (sg && m.count > 0) c = w * m.pdf(dirs[j]);
+      out.sum[j] += v, out.sum2[j] += v * v;
+      out.ctl[j] += c, out.ctl2[j] += c * c;
+    }
+  }
+  return out;
+}
+
+TEST(FrostedGlassSgPane, RoughPaneExactExitAgainstThePathsExitState) {
+  const PaneConfig configs[] = {{0.5f, 1.5f}, {0.8f, 1.5f}};
+  const float angles[] = {0.0f, 30.0f, 60.0f};
+  constexpr long kSamples = 131072;
+  for (const PaneConfig &c : configs) {
+    auto sg = create_pane(c, "sg"), path = create_pane(c, "path");
+    double pooled_sg = 0.0, pooled_path = 0.0, var_sg = 0.0, var_path = 0.0, worst_z = 0.0, worst_ctl = 0.0;
+    for (float theta : angles) {
+      const ExitSums a = exact_exit_estimate(*sg, true, theta, 303, kSamples);
+      const ExitSums b = exact_exit_estimate(*path, false, theta, 404, kSamples);
+      EXPECT_EQ(a.states, a.exits) << "roughness " << c.roughness << " theta " << theta;
+      EXPECT_GT(a.states, kSamples / 2);
+      for (int j = 0; j < ExitSums::kDirs; ++j) {
+        const auto moments = [](double sum, double sum2, double &mean, double &var) {
+          mean = sum / double(kSamples);
+          var = std::max(0.0, sum2 / double(kSamples) - mean * mean) / double(kSamples);  // of the mean
+        };
+        double ms, vs, mp, vp, mc, vc;
+        moments(a.sum[j], a.sum2[j], ms, vs);
+        moments(b.sum[j], b.sum2[j], mp, vp);
+        moments(a.ctl[j], a.ctl2[j], mc, vc);
+        const double z = (ms - mp) / std::sqrt(std::max(vs + vp, 1e-300));
+        const double z_ctl = (mc - mp) / std::sqrt(std::max(vc + vp, 1e-300));
+        worst_z = std::max(worst_z, std::fabs(z));
+        worst_ctl = std::max(worst_ctl, std::fabs(z_ctl));
+        EXPECT_LT(std::fabs(z), 4.5) << "roughness " << c.roughness << " theta " << theta << " direction " << j
+                                     << ": sg exact exit " << ms << ", path " << mp;
+        std::printf("[frosted sg pane exact exit] roughness %.1f theta %2.0f direction %d: path %.5f, sg exact "
+                    "%.5f (z %+.2f), SG mixture %.5f (z %+.2f)\n",
+                    double(c.roughness), double(theta), j, mp, ms, z, mc, z_ctl);
+        pooled_sg += ms, pooled_path += mp, var_sg += vs, var_path += vp;
+      }
+    }
+    const double z_pooled = (pooled_sg - pooled_path) / std::sqrt(var_sg + var_path);
+    std::printf("[frosted sg pane exact exit] roughness %.1f: pooled z %.2f, worst |z| %.2f over 15; the SG "
+                "mixture's worst |z| %.1f (negative control)\n",
+                double(c.roughness), z_pooled, worst_z, worst_ctl);
+    EXPECT_LT(std::fabs(z_pooled), 4.0) << "roughness " << c.roughness;
+    EXPECT_GT(worst_ctl, 6.0) << "negative control passed: roughness " << c.roughness;
+  }
+}
+
 // ---- Stress --------------------------------------------------------------------------
 TEST(FrostedGlassSgPane, StressRawOutputsFiniteNonNegative) {
   Pcg32 rng(23);

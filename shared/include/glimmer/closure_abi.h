@@ -65,14 +65,14 @@
  *        host's struct_size holds the field and the pointer is not NULL; a
  *        2.6 host still gets the picked lobe in lobe_axis / lobe_sharpness.
  *   2.8: exit states: GlimmerSample.exit_state (a buffer the host owns, or
- *        NULL) and GlimmerClosureType.eval_exit. A SINGULAR sample that is
- *        not moved may hand over, with GLIMMER_SAMPLE_EXIT_STATE, the state
- *        of the last scatter inside the closure (frosted_glass's thin pane:
- *        the walk's last internal direction and weight), so the host can do
- *        next-event estimation at the shading point through that last
- *        interface and MIS-combine it with the continued path (eval_exit's
- *        pdf at wo). A plugin writes it only when the host's struct_size holds
- *        the field and the pointer is not NULL; a host calls eval_exit only
+ *        NULL) and GlimmerClosureType.eval_exit. A SINGULAR sample may hand
+ *        over, with GLIMMER_SAMPLE_EXIT_STATE, the state of the last scatter
+ *        inside the closure: not moved (frosted_glass's path pane: the walk's
+ *        last interface), the host may do NEE at the shading point through it,
+ *        MIS-combined with the continued path (eval_exit's pdf at wo); MOVED
+ *        with EXIT_LOBE (sg's rough pane), eval_exit is the exit's value over
+ *        eval[] (lamps through the lobe). A plugin writes it only when the
+ *        host's struct_size holds the field and the pointer is not NULL; a host calls eval_exit only
  *        when the type's struct_size holds it and it is not NULL. Older hosts
  *        and plugins keep the singular sample (MIS weight 1, no NEE).
  *
@@ -359,8 +359,8 @@ typedef struct GlimmerSample {
 #endif
 #if GLIMMER_ABI_MINOR >= 8
   /* ABI 2.8. Set by the host (its own buffer, or NULL; the plugin never
-   * allocates). With GLIMMER_SAMPLE_EXIT_STATE (only on a SINGULAR sample
-   * that is not MOVED: the path goes on from the shading point) the plugin
+   * allocates). With GLIMMER_SAMPLE_EXIT_STATE (on a SINGULAR sample; if
+   * MOVED, see the 2.8 note above) the plugin
    * wrote there the state its type's eval_exit() reads: the sample's
    * continuation was drawn from eval_exit's density given that state, so a
    * host may take a light sample at the shading point with eval_exit's f cos
