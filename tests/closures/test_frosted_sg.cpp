@@ -1114,8 +1114,9 @@ TEST(FrostedGlassSg, ExitOfTheSphereAroundTheCausticBench) {
 // sphere on the plane z = -1, the lamp a far cone (kShadowLampDeg half-angle about the bench's lamp direction): for floor
 // points along the shadow's axis (distance s from the contact point, in radii, toward the shadow's centre at 0.77),
 // cosine-weighted directions from the floor point, the transmitted weight leaving within the cone, per floor point:
-// path's exact walk vs sg (the process' default; the axis rules through GLIMMER_FROSTED_CURVED_AXIS / _SHIFT).
-// The directions only: no finite lamp distance, no exit-point offset (the bench's lamp is 2.5 radii away).
+// path's exact walk vs sg (the process' default; the axis shift through GLIMMER_FROSTED_CURVED_SHIFT).
+// The directions only: no finite lamp distance, no exit-point offset (the bench's lamp is 5.04 radii from the
+// sphere's centre; SphereShadowDirectionsAroundTheLamp measures the difference it makes).
 constexpr double kShadowLampDeg = 4.0;
 struct ShadowPoint {
   double value = 0.0, se = 0.0;  // the lamp cone's transmitted weight per floor path
