@@ -1210,16 +1210,18 @@ TEST(FrostedGlassSg, SphereShadowOfAFarLampAgainstThePath) {
 // 15 deg the light-weighted mean, standard deviation and skewness along the lamp's "up" (the plane of the lamp, the
 // zenith and the shadow's axis: the sphere's radial direction there) and sideways; and the weight whose leaving ray
 // (from its own exit point: sg's is the mixture's one origin) hits the bench's lamp, a ball at its distance (5.04
-// radii, the 0.25 x 0.25 square's cross-section; GLIMMER_SHADOW_LAMP_SCALE = s: s times as far and as large). The
-// directions are the same at every lamp distance: what changes with it is where the light leaves from.
+// radii, the 0.25 x 0.25 square's cross-section; GLIMMER_SHADOW_LAMP_SCALE = s: s times as far and as large), and
+// the same with every leaving ray moved to the exit point of the entry's smooth chief ray (one origin per entry, as
+// sg's mixture has). The directions are the same at every lamp distance: what changes with it is where light leaves.
 constexpr float kBenchLampDistance = 3.0216f / 0.6f, kBenchLampRadius = 0.141f / 0.6f;
 struct LampDirections {
   double within[6] = {};  // weight per path leaving within 2 / 4 / 8 / 16 / 32 / 180 deg of the lamp
   double near = 0.0;      // weight per path whose leaving ray hits the bench's lamp (a ball at its distance)
+  double near_at_axis = 0.0;  // the same with every leaving ray moved to the entry's smooth chief ray's exit point
   double w = 0.0, a = 0.0, aa = 0.0, aaa = 0.0, b = 0.0, bb = 0.0;  // within 15 deg, radians
 };
 LampDirections lamp_directions(const AnalyticScene &scene, const Sampler &sample, const Vec3 &lamp, const Vec3 &at,
-                               int paths, uint64_t seed) {
+                               int paths, uint64_t seed, float ior) {
   constexpr int kChunks = 16;
   std::array<LampDirections, kChunks> acc{};
   // GLIMMER_SHADOW_LAMP_SCALE = s: the lamp s times as far and as large (the same solid angle from the centre).
@@ -1238,11 +1240,19 @@ LampDirections lamp_directions(const AnalyticScene &scene, const Sampler &sample
       Vec3 wo, from;
       if (!trace_through(scene, sample, px, rng, throughput, wo, &from)) continue;
       const double deg = degrees_between(normalize(wo), lamp), w = average(throughput);
-      {  // the bench's lamp: 3.02 / 0.6 radii from the sphere's centre, a ball of the square's cross-section
-        const Vec3 c = lamp * (kBenchLampDistance * lamp_scale) - from, d = normalize(wo);
+      // the bench's lamp: 3.02 / 0.6 radii from the sphere's centre, a ball of the square's cross-section
+      auto hits_lamp = [&](const Vec3 &origin) {
+        const Vec3 c = lamp * (kBenchLampDistance * lamp_scale) - origin, d = normalize(wo);
         const float along = dot(c, d), miss2 = dot(c, c) - along * along, r = kBenchLampRadius * lamp_scale;
-        if (along > 0.0f && miss2 < r * r) o.near += w;
-      }
+        return along > 0.0f && miss2 < r * r;
+      };
+      if (hits_lamp(from)) o.near += w;
+      Vec3 inside;  // the entry's smooth chief ray's exit point (where sg's mixture leaves from, nearly)
+      Hit far;
+      if (smooth_refract(D, px.hit.N, 1.0f / ior, inside) &&
+          scene.intersect(frosted::offset_origin(px.hit.P, px.hit.N, inside), inside, 0.0f, 100.0f, far) &&
+          hits_lamp(far.P))
+        o.near_at_axis += w;
       for (int k = 0; k < 6; ++k)
         if (deg < 2.0 * double(1 << k) || k == 5) o.within[k] += w;
       if (deg < 15.0) {
@@ -1255,6 +1265,7 @@ LampDirections lamp_directions(const AnalyticScene &scene, const Sampler &sample
   for (const auto &o : acc) {
     for (int k = 0; k < 6; ++k) out.within[k] += o.within[k] / paths;
     out.near += o.near / paths;
+    out.near_at_axis += o.near_at_axis / paths;
     out.w += o.w, out.a += o.a, out.aa += o.aa, out.aaa += o.aaa, out.b += o.b, out.bb += o.bb;
   }
   return out;
@@ -1280,16 +1291,18 @@ TEST(FrostedGlassSg, SphereShadowDirectionsAroundTheLamp) {
   }
   for (const float d : distances) {
     const Vec3 at = Vec3(0.0f, 0.0f, -1.0f + 1e-4f) + toward * d;
-    const LampDirections ref = lamp_directions(scene, path_sampler, lamp, at, ref_paths, 1);
-    const LampDirections now = lamp_directions(scene, sg_sampler, lamp, at, sg_paths, 2);
+    const LampDirections ref = lamp_directions(scene, path_sampler, lamp, at, ref_paths, 1, ior);
+    const LampDirections now = lamp_directions(scene, sg_sampler, lamp, at, sg_paths, 2, ior);
     for (const auto &[what, m] : {std::pair<const char *, const LampDirections &>{"path", ref}, {"sg", now}}) {
       const double ma = m.a / m.w, sa = std::sqrt(std::max(m.aa / m.w - ma * ma, 0.0));
       const double m3 = m.aaa / m.w - 3.0 * ma * m.aa / m.w + 2.0 * ma * ma * ma;
       const double mb = m.b / m.w, sb = std::sqrt(std::max(m.bb / m.w - mb * mb, 0.0));
       constexpr double kDeg = 180.0 / M_PI;
-      std::printf("  %.2f | %-4s | %.3e %.3e %.3e %.3e %.3e T %.3e | up %+.2f %.2f %+.2f, side %+.2f %.2f | w15 %.3e | near lamp %.3e\n", double(d), what,
+      std::printf("  %.2f | %-4s | %.3e %.3e %.3e %.3e %.3e T %.3e | up %+.2f %.2f %+.2f, side %+.2f %.2f | w15 %.3e "
+                  "| near lamp %.3e | from the axis' exit %.3e\n", double(d), what,
                   m.within[0], m.within[1], m.within[2], m.within[3], m.within[4], m.within[5], ma * kDeg, sa * kDeg, m3 / (sa * sa * sa + 1e-30),
-                  mb * kDeg, sb * kDeg, m.w / (what[0] == 'p' ? ref_paths : sg_paths), m.near);
+                  mb * kDeg, sb * kDeg, m.w / (what[0] == 'p' ? ref_paths : sg_paths), m.near,
+                  m.near_at_axis);
     }
   }
 }
