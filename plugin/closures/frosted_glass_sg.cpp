@@ -411,57 +411,6 @@ Vec3 refracted_mean_shift(const Segment &seg, const Vec3 &axis, float ior) {
   const Vec3 shift = normalize(sum) - r0;
   return is_finite(shift) ? shift : Vec3(0.0f);
 }
-// The vMF's mean resultant length coth(kappa) - 1 / kappa: the length of an SG lobe's first moment per unit energy.
-float vmf_mean_length(float kappa) {
-  if (!(kappa > 1e-3f)) return std::max(kappa, 0.0f) / 3.0f;
-  if (kappa > 20.0f) return 1.0f - 1.0f / kappa;  // coth(kappa) = 1 within 1e-17
-  return 1.0f / std::tanh(kappa) - 1.0f / kappa;
-}
-// The curved exit's axis shift from the exit lobe's exact first moment (session 23, frostedexit23): the axis and the
-// 4 bounding rays as the same quadrature of the internal lobe as refracted_mean_shift (1 - 1 / ln 4 on the axis), each
-// leaving through its own exit normal by the leaving table (eta 1 / ior, the exit roughness: the rough refraction's
-// mean direction and its transmitted energy E_i, the Fresnel of that ray), each lobe's first moment E_i A(kappa_i)
-// axis_i (the table's axis is the BTDF lobe's mean direction and kappa its vMF match of the mean length); the
-// normalised sum minus the axis ray's own lobe axis: the shift. Zero unless all 4 bounding rays left through the
-// material and every lookup has a lobe.
-Vec3 moment_mean_shift(const TransmissionSgTable &table, const Segment &seg, const Vec3 &axis,
-                       const TransmissionSgTable::Axes &exit_axes) {
-  if (seg.bounding_count != 4) return Vec3(0.0f);
-  constexpr float kBoundingShare = 1.0f - 0.72134752f;  // 1 - 1 / ln 4 on the axis
-  Vec3 sum(0.0f), a0(0.0f);
-  for (int i = -1; i < 4; ++i) {
-    const Vec3 d = i < 0 ? axis : seg.bounding_dir[i];
-    const Vec3 n = i < 0 ? seg.axis.normal : seg.bounding_normal[i];
-    SphericalGaussian lobe;
-    float energy = 0.0f;
-    if (!table_lobe(table, exit_axes, Frame::from_normal(-n), -d, lobe, energy)) return Vec3(0.0f);
-    const float share = i < 0 ? kBoundingShare : (1.0f - kBoundingShare) * 0.25f;
-    sum += lobe.axis * (share * energy * vmf_mean_length(lobe.sharpness));
-    if (i < 0) a0 = lobe.axis;
-  }
-  if (!(dot(sum, sum) > 1e-12f)) return Vec3(0.0f);
-  const Vec3 shift = normalize(sum) - a0;
-  return is_finite(shift) ? shift : Vec3(0.0f);
-}
-// Which shift each lobe of the curved exit takes (measurements: GLIMMER_FROSTED_CURVED_AXIS = smooth | moment | skew |
-// skewrev): the core lobes (sharpness factor >= 1) and the tail lobes (< 1) each the smooth refractions' shift
-// (refracted_mean_shift, session 22) or the exit lobe's first moment (moment_mean_shift); read once.
-struct CurvedAxisRule {
-  bool core_moment = false, tail_moment = false;
-  bool tail_for_mean = false;  // the tails' axis such that the whole mixture's first moment is the exit lobe's
-};
-CurvedAxisRule curved_axis_rule() {
-  static const CurvedAxisRule rule = [] {
-    const char *e = std::getenv("GLIMMER_FROSTED_CURVED_AXIS");
-    const std::string_view v = e != nullptr ? std::string_view(e) : std::string_view();
-    if (v == "moment") return CurvedAxisRule{true, true};
-    if (v == "skew") return CurvedAxisRule{true, false};
-    if (v == "skewrev") return CurvedAxisRule{false, true};
-    if (v == "skewmean") return CurvedAxisRule{false, true, true};
-    return CurvedAxisRule{false, false};
-  }();
-  return rule;
-}
 // kCurvedAxisShift, or for measurements only GLIMMER_FROSTED_CURVED_SHIFT = k (0: none), read once.
 float curved_shift() {
   static const float k = [] {
@@ -490,23 +439,15 @@ bool solid_exit_mixture(const SgInputs &in, const Segment &seg, const Vec3 &axis
   const bool ladder = by_rule && wide && planar;
   if (by_rule && !planar && (wide || narrow)) {  // the single SG, split into a core and a tail when wide
     if (wide && in.roughness <= kCurvedSplitMax) {
-      const float k = curved_shift();
-      const CurvedAxisRule rule = curved_axis_rule();
-      const Vec3 base = out.sg.axis;
-      Vec3 core_axis = base, tail_axis = base;
-      if (k != 0.0f) {
-        const Vec3 smooth = refracted_mean_shift(seg, axis, ior);
-        const Vec3 moment = rule.core_moment || rule.tail_moment
-                                ? moment_mean_shift(*in.table, seg, axis, table_axes(1.0f / ior, roughness_exit))
-                                : Vec3(0.0f);
-        const Vec3 c = normalize(base + (rule.core_moment ? moment : smooth) * k);
-        const Vec3 t = normalize(base + (rule.tail_moment ? moment : smooth) * k);
-        if (is_finite(c)) core_axis = c;
-        if (is_finite(t)) tail_axis = t;
+      // The axis moved by the smooth refractions' mean shift (kCurvedAxisShift; session 23's first-moment rules were
+      // measured and not kept, docs/frosted_glass.md "Session 23 (frostedexit23)"; removed in session 24).
+      if (const float k = curved_shift(); k != 0.0f) {
+        const Vec3 shifted = normalize(out.sg.axis + refracted_mean_shift(seg, axis, ior) * k);
+        if (is_finite(shifted)) out.sg.axis = shifted;
       }
-      out.sg.axis = core_axis;
-      // The shape: a test's (curved_shape, or curved_tail: the nineteenth session's split, 0 the single SG), else the
-      // environment's (measurements: a shape, or the split's t), else curved_exit_shape (kCurvedExitShape up to 0.5).
+      // The shape about out.sg.axis: a test's (curved_shape, or curved_tail: the nineteenth session's split, 0 the
+      // single SG), else the environment's (measurements: a shape, or the split's t), else curved_exit_shape
+      // (kCurvedExitShape up to 0.5).
       const CurvedShape *shape = in.curved_shape;
       float t = in.curved_tail;
       if (shape == nullptr && t < 0.0f) {
@@ -519,26 +460,6 @@ bool solid_exit_mixture(const SgInputs &in, const Segment &seg, const Vec3 &axis
         split_single_sg(t, out);
       else
         apply_curved_shape(curved_exit_shape(in.roughness), out);
-      if (rule.tail_for_mean && k != 0.0f) {
-        // The tails' axis t solves sum_core w A(kappa) core_axis + sum_tail w A(kappa) t = (sum_all w A) m, m the
-        // exit lobe's first moment's direction (tail_axis above): the mixture's mean is the exact lobe's.
-        Vec3 core_sum(0.0f);
-        float tail_len = 0.0f, all_len = 0.0f;
-        for (int j = 0; j < out.lobe_count; ++j) {
-          const float wa = out.lobe[j].weight * vmf_mean_length(out.lobe[j].sharpness);
-          all_len += wa;
-          if (out.lobe[j].sharpness < out.sg.sharpness)
-            tail_len += wa;
-          else
-            core_sum += core_axis * wa;
-        }
-        if (tail_len > 1e-6f) {
-          const Vec3 v = normalize((tail_axis * all_len - core_sum) / tail_len);
-          if (is_finite(v)) tail_axis = v;
-        }
-      }
-      for (int j = 0; j < out.lobe_count; ++j)
-        if (out.lobe[j].sharpness < out.sg.sharpness) out.lobe[j].axis = tail_axis;
     }
     return true;
   }

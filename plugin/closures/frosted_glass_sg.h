@@ -152,10 +152,10 @@ struct CurvedShape {
 // the refraction of its axis alone). docs/frosted_glass.md "Session 22 (frostedexit22)". The nineteenth session's
 // split (kCurvedTail) stays for before / after runs (GLIMMER_FROSTED_CURVED_TAIL; 0: the single SG).
 inline constexpr CurvedShape kCurvedExitShape{2, {0.65f, 0.35f}, {2.2f, 0.4f}};
-// Session 23 (frostedexit23): the shift from the exit lobe's exact first moment (frosted_glass_sg.cpp,
-// moment_mean_shift; GLIMMER_FROSTED_CURVED_AXIS=moment) puts the harness' axis right (-0.90 -> +0.16 deg at the
-// bench's case) but doubles the caustic bench's shadow bias (0.0092 -> 0.0175, 2 x 8192 spp) and misses the analytic
-// shadow (SphereShadowOfAFarLampAgainstThePath 0.056 -> 0.084): not kept, the smooth shift stays.
+// Session 23 (frostedexit23): the shift from the exit lobe's exact first moment (its measurement switch
+// GLIMMER_FROSTED_CURVED_AXIS and moment_mean_shift were removed in session 24) puts the harness' axis right (-0.90 ->
+// +0.16 deg at the bench's case) but doubles the caustic bench's shadow bias (0.0092 -> 0.0175, 2 x 8192 spp) and
+// misses the analytic shadow (SphereShadowOfAFarLampAgainstThePath 0.056 -> 0.084): not kept, the smooth shift stays.
 inline constexpr float kCurvedAxisShift = 1.0f;
 // Session 23 (frostedexit23): a shape per roughness. kCurvedExitShape up to kCurvedShapeRoughness[0] (0.5, the
 // caustic bench's sphere, unchanged there), kCurvedExitShapeWide (a core x 1.8, weight 0.7, a tail x 0.3, weight 0.3)

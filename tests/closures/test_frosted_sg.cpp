@@ -748,6 +748,10 @@ struct SolidBands {
   std::vector<Vec3> pixel_mean;
   std::vector<double> pixel_total;
   double mean_angle = 0.0;
+  // Session 24: the spread within 30 deg of the pixel's exit axis along the pixel's radial direction (in the exit
+  // axis' tangent plane, the sphere's plane of incidence) and across it (tangential), light-weighted over the pixels
+  // (radians, about each pixel's own mean): the mean radial offset, the two standard deviations, the radial skewness.
+  double radial_mean = 0.0, radial_sd = 0.0, tangential_sd = 0.0, radial_skew = 0.0;
 };
 
 // Smooth refraction of d (unit) at a surface with unit normal n facing against d, relative index eta = n1 / n2.
@@ -770,7 +774,7 @@ Vec3 exit_axis(const AnalyticScene &scene, const Pixel &p, float ior) {
 // One path from the pixel through the object until it leaves: its weight and the direction it leaves in. False when
 // it fails, reflects at the first event, stays inside (512 events) or leaves a slab back through its entry face.
 bool trace_through(const AnalyticScene &scene, const Sampler &sample, const Pixel &px, Pcg32 &rng,
-                   Spectrum &throughput, Vec3 &leaving) {
+                   Spectrum &throughput, Vec3 &leaving, Vec3 *leaving_from = nullptr) {
   const auto schema = FrostedGlassClosure::params();
   Hit hit = px.hit;
   Vec3 D = px.D;
@@ -788,6 +792,7 @@ bool trace_through(const AnalyticScene &scene, const Sampler &sample, const Pixe
     Hit next;
     if (!scene.intersect(origin, wo, 0.0f, std::numeric_limits<float>::infinity(), next)) {
       leaving = wo;
+      if (leaving_from != nullptr) *leaving_from = origin;
       return !(scene.kind == AnalyticScene::kSlab && wo.z > 0.0f);  // not back through the entry face
     }
     hit = next;
@@ -801,8 +806,13 @@ SolidBands solid_bands(const AnalyticScene &scene, const Sampler &sample, float 
   const std::vector<Pixel> px = camera_pixels(scene);
   std::vector<BandSums<kShapeBands>> acc(px.size());
   std::vector<std::array<double, 4>> moments(px.size());  // sum w wo (x, y, z), sum w angle
+  std::vector<std::array<double, 6>> spread(px.size());   // sum w, w u_r, w u_r^2, w u_r^3, w u_t, w u_t^2
   tbb::parallel_for(size_t(0), px.size(), [&](size_t k) {
     const Vec3 axis = exit_axis(scene, px[k], ior);
+    const Vec3 radial(px[k].hit.P.x, px[k].hit.P.y, 0.0f);
+    Vec3 er = radial - axis * dot(radial, axis);
+    er = dot(er, er) > 1e-10f ? normalize(er) : Vec3(1.0f, 0.0f, 0.0f);
+    const Vec3 et = normalize(cross(axis, er));
     Pcg32 rng(seed, 31 + k);
     for (int i = 0; i < paths_per_pixel; ++i) {
       Spectrum throughput;
@@ -810,7 +820,12 @@ SolidBands solid_bands(const AnalyticScene &scene, const Sampler &sample, float 
       if (trace_through(scene, sample, px[k], rng, throughput, wo)) {
         const double w = average(throughput), deg = degrees_between(wo, axis);
         acc[k].add(angle_band(kShapeEdge, deg), w);
-        if (deg < 30.0) moments[k][0] += w * wo.x, moments[k][1] += w * wo.y, moments[k][2] += w * wo.z;
+        if (deg < 30.0) {
+          moments[k][0] += w * wo.x, moments[k][1] += w * wo.y, moments[k][2] += w * wo.z;
+          const double ur = dot(wo, er), ut = dot(wo, et);
+          auto &q = spread[k];
+          q[0] += w, q[1] += w * ur, q[2] += w * ur * ur, q[3] += w * ur * ur * ur, q[4] += w * ut, q[5] += w * ut * ut;
+        }
         moments[k][3] += w * deg;
       }
     }
@@ -823,6 +838,23 @@ SolidBands solid_bands(const AnalyticScene &scene, const Sampler &sample, float 
     out.pixel_mean.push_back(Vec3(float(moments[k][0]), float(moments[k][1]), float(moments[k][2])));
     out.pixel_total.push_back(acc[k].total / double(paths_per_pixel));
     angle_sum += moments[k][3];
+  }
+  double spread_weight = 0.0;
+  for (size_t k = 0; k < px.size(); ++k) {
+    const auto &q = spread[k];
+    if (!(q[0] > 0.0)) continue;
+    const double mr = q[1] / q[0], vr = std::max(q[2] / q[0] - mr * mr, 0.0);
+    const double mt = q[4] / q[0], vt = std::max(q[5] / q[0] - mt * mt, 0.0);
+    const double m3 = q[3] / q[0] - 3.0 * mr * q[2] / q[0] + 2.0 * mr * mr * mr;
+    out.radial_mean += q[0] * mr;
+    out.radial_sd += q[0] * std::sqrt(vr);
+    out.tangential_sd += q[0] * std::sqrt(vt);
+    out.radial_skew += q[0] * (vr > 0.0 ? m3 / (vr * std::sqrt(vr)) : 0.0);
+    spread_weight += q[0];
+  }
+  if (spread_weight > 0.0) {
+    out.radial_mean /= spread_weight, out.radial_sd /= spread_weight;
+    out.tangential_sd /= spread_weight, out.radial_skew /= spread_weight;
   }
   const double n = double(paths_per_pixel) * double(px.size());
   sum.fractions(n, out.mass, out.se);
@@ -1039,6 +1071,8 @@ void print_sphere_exit(const SphereExitCase &c, const SphereExitRow &r) {
     for (int b = 0; b < kShapeBands; ++b)
       std::printf(is_ref ? " %.2e" : " %8.3f", is_ref ? m.mass[b] : m.mass[b] / std::max(r.ref.mass[b], 1e-12));
     std::printf(" | %5.2f deg", m.mean_angle);
+    std::printf(" | radial mean %+.2f sd %.2f skew %+.2f, tangential sd %.2f deg", m.radial_mean * 180.0 / M_PI,
+                m.radial_sd * 180.0 / M_PI, m.radial_skew, m.tangential_sd * 180.0 / M_PI);
     if (!is_ref)
       std::printf(" | %.2f deg (radial %+.2f) | L1 %.3f (T x%.3f)", solid_axis_offset(m, r.ref),
                   solid_radial_offset(m, r.ref, camera_pixels(AnalyticScene(AnalyticScene::kSphere))),
@@ -1080,8 +1114,9 @@ TEST(FrostedGlassSg, ExitOfTheSphereAroundTheCausticBench) {
 // sphere on the plane z = -1, the lamp a far cone (kShadowLampDeg half-angle about the bench's lamp direction): for floor
 // points along the shadow's axis (distance s from the contact point, in radii, toward the shadow's centre at 0.77),
 // cosine-weighted directions from the floor point, the transmitted weight leaving within the cone, per floor point:
-// path's exact walk vs sg (the process' default; the axis rules through GLIMMER_FROSTED_CURVED_AXIS / _SHIFT).
-// The directions only: no finite lamp distance, no exit-point offset (the bench's lamp is 2.5 radii away).
+// path's exact walk vs sg (the process' default; the axis shift through GLIMMER_FROSTED_CURVED_SHIFT).
+// The directions only: no finite lamp distance, no exit-point offset (the bench's lamp is 5.04 radii from the
+// sphere's centre; SphereShadowDirectionsAroundTheLamp measures the difference it makes).
 constexpr double kShadowLampDeg = 4.0;
 struct ShadowPoint {
   double value = 0.0, se = 0.0;  // the lamp cone's transmitted weight per floor path
@@ -1165,6 +1200,110 @@ TEST(FrostedGlassSg, SphereShadowOfAFarLampAgainstThePath) {
                 l1_ctl / std::max(total, 1e-30));
     EXPECT_LT(l1 / total, bound) << "roughness " << roughness;
     EXPECT_GT(l1_ctl / total, bound) << "control passed: roughness " << roughness;
+  }
+}
+
+// ---- The lamp's caustic in direction space and at the bench's lamp distance (issue 12, session 24) --------------
+// Measurement only (skipped unless GLIMMER_SHADOW_DIRECTIONS=1: it bounds nothing). At floor points of
+// SphereShadowOfAFarLampAgainstThePath (0.2..1.2 radii; GLIMMER_SHADOW_SCAN=1: 0.5..1.0 by 0.05 at half the paths),
+// path vs sg, r 0.5 IOR 1.5: the weight leaving within 2 / 4 / 8 / 16 / 32 / 180 deg of the lamp direction; within
+// 15 deg the light-weighted mean, standard deviation and skewness along the lamp's "up" (the plane of the lamp, the
+// zenith and the shadow's axis: the sphere's radial direction there) and sideways; and the weight whose leaving ray
+// (from its own exit point: sg's is the mixture's one origin) hits the bench's lamp, a ball at its distance (5.04
+// radii, the 0.25 x 0.25 square's cross-section; GLIMMER_SHADOW_LAMP_SCALE = s: s times as far and as large), and
+// the same with every leaving ray moved to the exit point of the entry's smooth chief ray (one origin per entry, as
+// sg's mixture has). The directions are the same at every lamp distance: what changes with it is where light leaves.
+constexpr float kBenchLampDistance = 3.0216f / 0.6f, kBenchLampRadius = 0.141f / 0.6f;
+struct LampDirections {
+  double within[6] = {};  // weight per path leaving within 2 / 4 / 8 / 16 / 32 / 180 deg of the lamp
+  double near = 0.0;      // weight per path whose leaving ray hits the bench's lamp (a ball at its distance)
+  double near_at_axis = 0.0;  // the same with every leaving ray moved to the entry's smooth chief ray's exit point
+  double w = 0.0, a = 0.0, aa = 0.0, aaa = 0.0, b = 0.0, bb = 0.0;  // within 15 deg, radians
+};
+LampDirections lamp_directions(const AnalyticScene &scene, const Sampler &sample, const Vec3 &lamp, const Vec3 &at,
+                               int paths, uint64_t seed, float ior) {
+  constexpr int kChunks = 16;
+  std::array<LampDirections, kChunks> acc{};
+  // GLIMMER_SHADOW_LAMP_SCALE = s: the lamp s times as far and as large (the same solid angle from the centre).
+  const char *scale_env = std::getenv("GLIMMER_SHADOW_LAMP_SCALE");
+  const float lamp_scale = scale_env != nullptr ? std::max(std::strtof(scale_env, nullptr), 0.01f) : 1.0f;
+  const Vec3 up = normalize(Vec3(0.0f, 0.0f, 1.0f) - lamp * lamp.z), side = normalize(cross(lamp, up));
+  tbb::parallel_for(0, kChunks, [&](int c) {
+    Pcg32 rng(seed, 7 + uint64_t(c));
+    LampDirections &o = acc[size_t(c)];
+    for (int i = c; i < paths; i += kChunks) {
+      const float u1 = rng.next_float(), u2 = rng.next_float(), r = std::sqrt(u1), phi = 2.0f * float(M_PI) * u2;
+      const Vec3 D(r * std::cos(phi), r * std::sin(phi), std::sqrt(std::max(0.0f, 1.0f - u1)));
+      Pixel px{{}, D};
+      if (!scene.intersect(at, D, 0.0f, 100.0f, px.hit)) continue;
+      Spectrum throughput;
+      Vec3 wo, from;
+      if (!trace_through(scene, sample, px, rng, throughput, wo, &from)) continue;
+      const double deg = degrees_between(normalize(wo), lamp), w = average(throughput);
+      // the bench's lamp: 3.02 / 0.6 radii from the sphere's centre, a ball of the square's cross-section
+      auto hits_lamp = [&](const Vec3 &origin) {
+        const Vec3 c = lamp * (kBenchLampDistance * lamp_scale) - origin, d = normalize(wo);
+        const float along = dot(c, d), miss2 = dot(c, c) - along * along, r = kBenchLampRadius * lamp_scale;
+        return along > 0.0f && miss2 < r * r;
+      };
+      if (hits_lamp(from)) o.near += w;
+      Vec3 inside;  // the entry's smooth chief ray's exit point (where sg's mixture leaves from, nearly)
+      Hit far;
+      if (smooth_refract(D, px.hit.N, 1.0f / ior, inside) &&
+          scene.intersect(frosted::offset_origin(px.hit.P, px.hit.N, inside), inside, 0.0f, 100.0f, far) &&
+          hits_lamp(far.P))
+        o.near_at_axis += w;
+      for (int k = 0; k < 6; ++k)
+        if (deg < 2.0 * double(1 << k) || k == 5) o.within[k] += w;
+      if (deg < 15.0) {
+        const double a = dot(wo, up), b = dot(wo, side);
+        o.w += w, o.a += w * a, o.aa += w * a * a, o.aaa += w * a * a * a, o.b += w * b, o.bb += w * b * b;
+      }
+    }
+  });
+  LampDirections out;
+  for (const auto &o : acc) {
+    for (int k = 0; k < 6; ++k) out.within[k] += o.within[k] / paths;
+    out.near += o.near / paths;
+    out.near_at_axis += o.near_at_axis / paths;
+    out.w += o.w, out.a += o.a, out.aa += o.aa, out.aaa += o.aaa, out.b += o.b, out.bb += o.bb;
+  }
+  return out;
+}
+TEST(FrostedGlassSg, SphereShadowDirectionsAroundTheLamp) {
+  if (std::getenv("GLIMMER_SHADOW_DIRECTIONS") == nullptr) GTEST_SKIP() << "measurement: GLIMMER_SHADOW_DIRECTIONS=1";
+  const char *scan = std::getenv("GLIMMER_SHADOW_SCAN");
+  const int ref_paths = scan != nullptr ? 2000000 : 4000000, sg_paths = ref_paths / 4;
+  const Vec3 lamp = normalize(Vec3(0.9f, 1.6f, 2.4f));
+  const Vec3 toward = normalize(Vec3(-lamp.x, -lamp.y, 0.0f));
+  const float roughness = 0.5f, ior = 1.5f;
+  auto path = create_raw(roughness, ior, false);
+  auto sg = create_raw(roughness, ior, true);
+  AnalyticScene scene(AnalyticScene::kSphere);
+  scene.material = reinterpret_cast<const GlimmerInstance *>(sg.get());
+  const Sampler path_sampler = sampler_of(*path), sg_sampler = sampler_of(*sg);
+  std::printf("[frosted shadow directions] roughness 0.50 ior 1.50: floor distance | method | within 2 / 4 / 8 deg "
+              "| within 15 deg: up mean sd skew, side mean sd (deg)\n");
+  std::vector<float> distances = {0.2f, 0.45f, 0.7f, 0.95f, 1.2f};
+  if (scan != nullptr) {
+    distances.clear();
+    for (int i = 0; i <= 10; ++i) distances.push_back(0.5f + 0.05f * float(i));
+  }
+  for (const float d : distances) {
+    const Vec3 at = Vec3(0.0f, 0.0f, -1.0f + 1e-4f) + toward * d;
+    const LampDirections ref = lamp_directions(scene, path_sampler, lamp, at, ref_paths, 1, ior);
+    const LampDirections now = lamp_directions(scene, sg_sampler, lamp, at, sg_paths, 2, ior);
+    for (const auto &[what, m] : {std::pair<const char *, const LampDirections &>{"path", ref}, {"sg", now}}) {
+      const double ma = m.a / m.w, sa = std::sqrt(std::max(m.aa / m.w - ma * ma, 0.0));
+      const double m3 = m.aaa / m.w - 3.0 * ma * m.aa / m.w + 2.0 * ma * ma * ma;
+      const double mb = m.b / m.w, sb = std::sqrt(std::max(m.bb / m.w - mb * mb, 0.0));
+      constexpr double kDeg = 180.0 / M_PI;
+      std::printf("  %.2f | %-4s | %.3e %.3e %.3e %.3e %.3e T %.3e | up %+.2f %.2f %+.2f, side %+.2f %.2f | w15 %.3e "
+                  "| near lamp %.3e | from the axis' exit %.3e\n", double(d), what,
+                  m.within[0], m.within[1], m.within[2], m.within[3], m.within[4], m.within[5], ma * kDeg, sa * kDeg, m3 / (sa * sa * sa + 1e-30),
+                  mb * kDeg, sb * kDeg, m.w / (what[0] == 'p' ? ref_paths : sg_paths), m.near,
+                  m.near_at_axis);
+    }
   }
 }
 
