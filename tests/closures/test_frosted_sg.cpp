@@ -1218,6 +1218,9 @@ struct LampDirections {
   double within[6] = {};  // weight per path leaving within 2 / 4 / 8 / 16 / 32 / 180 deg of the lamp
   double near = 0.0;      // weight per path whose leaving ray hits the bench's lamp (a ball at its distance)
   double near_at_axis = 0.0;  // the same with every leaving ray moved to the entry's smooth chief ray's exit point
+  // Per entry, the leaving direction about the entry's smooth chief ray's exit direction c (within 30 deg of it):
+  // along the lamp's "up" projected off c, and sideways (radians): weight, sums of u, u^2, u^3, v, v^2.
+  double e_w = 0.0, e_u = 0.0, e_uu = 0.0, e_uuu = 0.0, e_v = 0.0, e_vv = 0.0;
   double w = 0.0, a = 0.0, aa = 0.0, aaa = 0.0, b = 0.0, bb = 0.0;  // within 15 deg, radians
 };
 LampDirections lamp_directions(const AnalyticScene &scene, const Sampler &sample, const Vec3 &lamp, const Vec3 &at,
@@ -1250,9 +1253,20 @@ LampDirections lamp_directions(const AnalyticScene &scene, const Sampler &sample
       Vec3 inside;  // the entry's smooth chief ray's exit point (where sg's mixture leaves from, nearly)
       Hit far;
       if (smooth_refract(D, px.hit.N, 1.0f / ior, inside) &&
-          scene.intersect(frosted::offset_origin(px.hit.P, px.hit.N, inside), inside, 0.0f, 100.0f, far) &&
-          hits_lamp(far.P))
-        o.near_at_axis += w;
+          scene.intersect(frosted::offset_origin(px.hit.P, px.hit.N, inside), inside, 0.0f, 100.0f, far)) {
+        if (hits_lamp(far.P)) o.near_at_axis += w;
+        Vec3 chief;
+        if (smooth_refract(inside, -far.N, ior, chief) && degrees_between(normalize(wo), chief) < 30.0) {
+          Vec3 eu = up - chief * dot(up, chief);
+          if (dot(eu, eu) > 1e-8f) {
+            eu = normalize(eu);
+            const Vec3 ev = normalize(cross(chief, eu));
+            const double u = dot(normalize(wo), eu), v = dot(normalize(wo), ev);
+            o.e_w += w, o.e_u += w * u, o.e_uu += w * u * u, o.e_uuu += w * u * u * u, o.e_v += w * v;
+            o.e_vv += w * v * v;
+          }
+        }
+      }
       for (int k = 0; k < 6; ++k)
         if (deg < 2.0 * double(1 << k) || k == 5) o.within[k] += w;
       if (deg < 15.0) {
@@ -1266,6 +1280,7 @@ LampDirections lamp_directions(const AnalyticScene &scene, const Sampler &sample
     for (int k = 0; k < 6; ++k) out.within[k] += o.within[k] / paths;
     out.near += o.near / paths;
     out.near_at_axis += o.near_at_axis / paths;
+    out.e_w += o.e_w, out.e_u += o.e_u, out.e_uu += o.e_uu, out.e_uuu += o.e_uuu, out.e_v += o.e_v, out.e_vv += o.e_vv;
     out.w += o.w, out.a += o.a, out.aa += o.aa, out.aaa += o.aaa, out.b += o.b, out.bb += o.bb;
   }
   return out;
@@ -1303,6 +1318,11 @@ TEST(FrostedGlassSg, SphereShadowDirectionsAroundTheLamp) {
                   m.within[0], m.within[1], m.within[2], m.within[3], m.within[4], m.within[5], ma * kDeg, sa * kDeg, m3 / (sa * sa * sa + 1e-30),
                   mb * kDeg, sb * kDeg, m.w / (what[0] == 'p' ? ref_paths : sg_paths), m.near,
                   m.near_at_axis);
+      const double eu = m.e_u / m.e_w, su = std::sqrt(std::max(m.e_uu / m.e_w - eu * eu, 0.0));
+      const double ku = (m.e_uuu / m.e_w - 3.0 * eu * m.e_uu / m.e_w + 2.0 * eu * eu * eu) / (su * su * su + 1e-30);
+      const double ev = m.e_v / m.e_w, sv = std::sqrt(std::max(m.e_vv / m.e_w - ev * ev, 0.0));
+      std::printf("         per entry, about its chief ray's exit (within 30 deg): up %+.2f sd %.2f skew %+.2f, side "
+                  "%+.2f sd %.2f deg\n", eu * kDeg, su * kDeg, ku, ev * kDeg, sv * kDeg);
     }
   }
 }
