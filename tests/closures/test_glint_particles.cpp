@@ -1297,6 +1297,48 @@ TEST(GlintParticles, PairPassesMatchTheNodeLoop) {
   EXPECT_GT(control_differs, 10);
 }
 
+// Session 24: the passes' exact reject is not made where the walk is refused
+// (lambda > LitCountModel::kMaxNodeMean): there the count is incomplete iff a
+// pair's u < Pr(K >= 1), as in the node loop. The footprints of
+// PairPassesMatchTheNodeLoop counted at a density 10^4..10^7 times their
+// nodes' (lambda up to ~10^7), and at one that puts lambda just above 600:
+// the passes and the node loop agree on completeness (and count and steps where complete).
+// Control: the same queries at lambda just below 600 are complete with
+// many particles, so the comparison sees the refusal.
+TEST(GlintParticles, PairPassesRefuseWhereTheWalkDoes) {
+  Pcg32 rng(43);
+  int refused = 0, compared = 0, control_complete = 0;
+  for (int t = 0; t < 20000 && compared < 2000; ++t) {
+    const auto &[f, P, max_steps, seeds, group_density, nodes] = random_pass_query(rng, t);
+    if (!pg::FootprintFrame(f, nodes.size).nodes_can_be_inside) continue;  // the walk takes the node loop
+    const double lambda0 = group_density * nodes.size * nodes.size * std::min(P, 1.0);
+    if (!(lambda0 > 0.0)) continue;
+    const double scale = t % 2 == 0 ? std::exp(std::log(1e4) + rng.next_double() * std::log(1e3))
+                                    : 601.0 / lambda0;
+    const double density = group_density * scale;
+    const int steps = 1 << 30;
+    const auto passes = pg::count_reflecting_particles(f, nodes, density, seeds, P, steps);
+    const auto loop = pg::count_reflecting_particles(f, nodes, density, seeds, P, steps, pg::NoParticleVisitor{}, true);
+    ASSERT_EQ(passes.complete, loop.complete) << "query " << t;
+    if (loop.complete) {
+      ASSERT_EQ(passes.count, loop.count) << "query " << t;
+      ASSERT_EQ(passes.steps, loop.steps) << "query " << t;
+    }
+    const double lambda = std::min(density * nodes.size * nodes.size, 4.0e18) * std::min(P, 1.0);
+    ++compared;
+    refused += lambda > pg::LitCountModel::kMaxNodeMean && !passes.complete;
+    if (t % 2 == 1) {
+      const auto below = pg::count_reflecting_particles(f, nodes, group_density * (599.0 / lambda0), seeds, P, steps);
+      control_complete += below.complete && below.count > 0;
+    }
+  }
+  std::printf("[pair passes refused] %d queries equal, %d refused (lambda > %g); control (lambda 599): %d complete and "
+              "lit\n", compared, refused, pg::LitCountModel::kMaxNodeMean, control_complete);
+  EXPECT_GE(compared, 2000);
+  EXPECT_GT(refused, 1500);
+  EXPECT_GT(control_complete, 500);
+}
+
 // Session 23: LitCountTable (pass 3's lit count for lambda > 1 by integer
 // compares of the pair's hash) gives LitCountModel's K (the walk as the passes
 // call it, -1 where the walk refuses) for every hash it is asked about: the
