@@ -247,23 +247,42 @@ Vec3 lamp_direction(const ExitLobe &lobe, double off_axis) {
                                    float(std::cos(off_axis)))));
 }
 
+// Case c's quad lamp, c.off_axis_deg off `lobe`'s axis (lamp_direction), seen from P, and its area light of radiance 1
+// (S / (4 A) = 1).
+struct CaseLamp {
+  Vec3 direction;
+  scene::Light light;
+  render::AreaLight area;
+  CaseLamp(const Case &c, const Vec3 &P, const ExitLobe &lobe)
+      : direction(lamp_direction(lobe, c.off_axis_deg * kDeg)),
+        light(quad_lamp(P, direction, c.dist, c.size)),
+        area(light, Spectrum(4.0f * c.size * c.size)) {}
+};
+
+// An estimate's relative error against the brute force, and its tolerance: 1 % + 4 standard errors.
+double relative_error(const Stats &s, const BruteForce &ref) { return std::fabs(s.mean - ref.integral) / ref.integral; }
+double tolerance(const Stats &s, const BruteForce &ref) { return 0.01 + 4.0 * s.se / ref.integral; }
+
+// A lamp below the exit surface: the brute force is 0 and the estimate must be 0 exactly (true: skip the case).
+bool lamp_gives_nothing(const Case &c, const Stats &s, const BruteForce &ref) {
+  if (ref.integral != 0.0) return false;
+  EXPECT_EQ(s.mean, 0.0) << "tilt " << c.tilt_deg << " kappa " << c.kappa << " off-axis " << c.off_axis_deg;
+  return true;
+}
+
 TEST(LampThroughLobe, QuadLampsMatchTheBruteForceIntegral) {
   const Vec3 P(0.0f);
   double worst = 0.0, worst_ratio = 0.0, worst_q_dropped = 0.0, worst_point = 0.0;
   int q_dropped_fail = 0, point_fail = 0;
   for (const Case &c : kCases) {
     const ExitLobe lobe = lobe_at(c.tilt_deg * kDeg, c.kappa);
-    const Vec3 d = lamp_direction(lobe, c.off_axis_deg * kDeg);
-    const scene::Light l = quad_lamp(P, d, c.dist, c.size);
-    const render::AreaLight lamp(l, Spectrum(4.0f * c.size * c.size));  // radiance S / (4 A) = 1
-    const BruteForce ref = brute_force(l, P, lobe, 1024);
+    const CaseLamp at(c, P, lobe);
+    const Vec3 &d = at.direction;
+    const render::AreaLight &lamp = at.area;
+    const BruteForce ref = brute_force(at.light, P, lobe, 1024);
     const Stats s = estimate(lamp, P, lobe, 2048, 11);
-    if (ref.integral == 0.0) {  // the lamp below the exit surface: nothing, exactly
-      EXPECT_EQ(s.mean, 0.0) << "tilt " << c.tilt_deg << " kappa " << c.kappa << " off-axis " << c.off_axis_deg;
-      continue;
-    }
-    const double err = std::fabs(s.mean - ref.integral) / ref.integral;
-    const double tol = 0.01 + 4.0 * s.se / ref.integral;
+    if (lamp_gives_nothing(c, s, ref)) continue;
+    const double err = relative_error(s, ref), tol = tolerance(s, ref);
     EXPECT_LT(err, tol) << "tilt " << c.tilt_deg << " kappa " << c.kappa << " off-axis " << c.off_axis_deg
                         << " size " << c.size << " dist " << c.dist << ": estimate " << s.mean << " (se " << s.se
                         << "), brute force " << ref.integral;
@@ -363,20 +382,15 @@ TEST(LampThroughLobe, WholeMixtureMatchesTheBruteForceIntegral) {
   for (const Case &c : kCases) {
     if (c.kappa > 1000) continue;  // the mixture's spread (12 degrees) dominates sharper lobes anyway
     const ExitLobeMixture m = mixture_at(c.tilt_deg * kDeg, c.kappa);
-    const Vec3 d = lamp_direction(m.lobe[0], c.off_axis_deg * kDeg);
-    const scene::Light l = quad_lamp(P, d, c.dist, c.size);
-    const render::AreaLight lamp(l, Spectrum(4.0f * c.size * c.size));
-    const BruteForce ref = brute_force(l, P, m, 1024);
+    const CaseLamp at(c, P, m.lobe[0]);
+    const render::AreaLight &lamp = at.area;
+    const BruteForce ref = brute_force(at.light, P, m, 1024);
     ExitLobeMixture prepared = m;  // as the renderer evaluates it (per-lobe constants cached)
     prepared.prepare();
     const Stats s = estimate(lamp, P, prepared, 2048, 13);
-    if (ref.integral == 0.0) {
-      EXPECT_EQ(s.mean, 0.0) << "tilt " << c.tilt_deg << " kappa " << c.kappa << " off-axis " << c.off_axis_deg;
-      continue;
-    }
+    if (lamp_gives_nothing(c, s, ref)) continue;
     ++cases;
-    const double err = std::fabs(s.mean - ref.integral) / ref.integral;
-    const double tol = 0.01 + 4.0 * s.se / ref.integral;
+    const double err = relative_error(s, ref), tol = tolerance(s, ref);
     EXPECT_LT(err, tol) << "mixture: tilt " << c.tilt_deg << " kappa " << c.kappa << " off-axis "
                         << c.off_axis_deg << " size " << c.size << " dist " << c.dist << ": estimate " << s.mean
                         << " (se " << s.se << "), brute force " << ref.integral;
@@ -386,7 +400,7 @@ TEST(LampThroughLobe, WholeMixtureMatchesTheBruteForceIntegral) {
     first.count = 1;
     first.weight[0] = 1.0;
     const Stats wrong = estimate(lamp, P, first, 2048, 13);
-    first_lobe_fail += std::fabs(wrong.mean - ref.integral) / ref.integral > 0.01 + 4.0 * wrong.se / ref.integral;
+    first_lobe_fail += relative_error(wrong, ref) > tolerance(wrong, ref);
   }
   std::printf("[lamp through lobe] whole mixture, %d cases: worst relative error %.4f; the first lobe alone fails "
               "in %d\n", cases, worst, first_lobe_fail);
@@ -418,24 +432,19 @@ TEST(LampThroughLobe, ValuedLobeMatchesTheBruteForceIntegralOfItsValue) {
     v.turned = mixture_at((c.tilt_deg + 8.0) * kDeg, c.kappa * 0.7);
     v.turned.prepare();
     const render::ValuedExitLobe lobe{&proposal, &SkewedValue::value, &v};
-    const Vec3 d = lamp_direction(proposal.lobe[0], c.off_axis_deg * kDeg);
-    const scene::Light l = quad_lamp(P, d, c.dist, c.size);
-    const render::AreaLight lamp(l, Spectrum(4.0f * c.size * c.size));
-    const BruteForce ref = brute_force(l, P, lobe, 1024);
+    const CaseLamp at(c, P, proposal.lobe[0]);
+    const render::AreaLight &lamp = at.area;
+    const BruteForce ref = brute_force(at.light, P, lobe, 1024);
     const Stats s = estimate(lamp, P, lobe, 2048, 17);
-    if (ref.integral == 0.0) {
-      EXPECT_EQ(s.mean, 0.0) << "tilt " << c.tilt_deg << " kappa " << c.kappa << " off-axis " << c.off_axis_deg;
-      continue;
-    }
+    if (lamp_gives_nothing(c, s, ref)) continue;
     ++cases;
-    const double err = std::fabs(s.mean - ref.integral) / ref.integral;
-    const double tol = 0.01 + 4.0 * s.se / ref.integral;
+    const double err = relative_error(s, ref), tol = tolerance(s, ref);
     EXPECT_LT(err, tol) << "valued: tilt " << c.tilt_deg << " kappa " << c.kappa << " off-axis " << c.off_axis_deg
                         << " size " << c.size << " dist " << c.dist << ": estimate " << s.mean << " (se " << s.se
                         << "), brute force " << ref.integral;
     worst = std::max(worst, err);
     const Stats wrong = estimate(lamp, P, proposal, 2048, 17);
-    proposal_fail += std::fabs(wrong.mean - ref.integral) / ref.integral > 0.01 + 4.0 * wrong.se / ref.integral;
+    proposal_fail += relative_error(wrong, ref) > tolerance(wrong, ref);
   }
   std::printf("[lamp through lobe] valued lobe, %d cases: worst relative error %.4f; the proposal's density fails "
               "in %d\n", cases, worst, proposal_fail);

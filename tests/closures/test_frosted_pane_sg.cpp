@@ -633,6 +633,46 @@ TEST(FrostedGlassSgPane, SampleAgreesWithEval) {
 // 4.5 standard errors, and the sums over them within 4 (pooled). Negative control: the split that counts the
 // extra front samples that reflect in n (biased low by ~the front's reflectance) must be > 6 pooled standard errors
 // off. The per-sample variance of the split over one walk's is printed and bounded by what was measured.
+// The five probe directions of the split and exact-exit tests: 3 through the far face, 2 back through the entry face.
+const Vec3 kPaneProbeDirections[5] = {Vec3(0.0f, 0.0f, -1.0f), normalize(Vec3(0.5f, 0.0f, -1.0f)),
+                                      normalize(Vec3(-0.4f, 0.3f, -1.0f)), Vec3(0.0f, 0.0f, 1.0f),
+                                      normalize(Vec3(0.6f, 0.0f, 1.0f))};
+
+// One draw of the split and exact-exit tests: the pane's context at theta_deg with a fresh path seed, its shading
+// point, and the closure's three numbers.
+struct PaneDraw {
+  GlimmerShadingContext ctx;
+  ShadingPoint sp;
+  Vec3 rand;
+  template <typename Schema>
+  PaneDraw(float theta_deg, Pcg32 &rng, const Schema &schema)
+      : ctx(seeded(pane_context(theta_deg), rng.next_u32())), sp(&ctx, schema) {
+    rand = Vec3(rng.next_float(), rng.next_float(), rng.next_float());
+  }
+  static GlimmerShadingContext seeded(GlimmerShadingContext ctx, uint32_t seed) {
+    ctx.path_seed = seed;
+    return ctx;
+  }
+};
+
+// The exit lobe a pane sample hands the host (its ABI 2.7 mixture, else its single SG), normalised.
+ExitLobeMixture sampled_exit_mixture(const LocalSample &s, const GlimmerExitMixture &buffer) {
+  const Vec3 n = normalize(s.origin_Ng);
+  ExitLobeMixture m;
+  if (s.exit_mixture) {
+    for (uint32_t k = 0; k < buffer.count; ++k) {
+      m.lobe[m.count] = ExitLobe::make(normalize(Vec3(buffer.axis[k])), buffer.sharpness[k], n);
+      m.weight[m.count++] = buffer.weight[k];
+    }
+  } else {
+    m.lobe[0] = ExitLobe::make(normalize(s.lobe_axis), s.lobe_sharpness, n);
+    m.weight[0] = 1.0;
+    m.count = 1;
+  }
+  m.normalize();
+  return m;
+}
+
 struct SplitSums {
   static constexpr int kDirs = 5;
   double sum[kDirs] = {}, sum2[kDirs] = {};
@@ -641,16 +681,13 @@ struct SplitSums {
 SplitSums split_estimate(const FrostedGlassClosure &pane, float theta_deg, int split, bool count_rejected,
                          uint64_t seed, long samples, long *mixtures = nullptr) {
   static const auto schema = FrostedGlassClosure::params();
-  const Vec3 dirs[SplitSums::kDirs] = {Vec3(0.0f, 0.0f, -1.0f), normalize(Vec3(0.5f, 0.0f, -1.0f)),
-                                       normalize(Vec3(-0.4f, 0.3f, -1.0f)), Vec3(0.0f, 0.0f, 1.0f),
-                                       normalize(Vec3(0.6f, 0.0f, 1.0f))};
+  const auto &dirs = kPaneProbeDirections;
   SplitSums out;
   Pcg32 rng(seed, 7);
   for (long i = 0; i < samples; ++i) {
-    GlimmerShadingContext ctx = pane_context(theta_deg);
-    ctx.path_seed = rng.next_u32();
-    const ShadingPoint sp(&ctx, schema);
-    const Vec3 rand(rng.next_float(), rng.next_float(), rng.next_float());
+    const PaneDraw draw(theta_deg, rng, schema);
+    const ShadingPoint &sp = draw.sp;
+    const Vec3 &rand = draw.rand;
     GlimmerExitMixture buffer{};
     LocalSample s;
     s.mixture_out = &buffer;
@@ -658,20 +695,8 @@ SplitSums split_estimate(const FrostedGlassClosure &pane, float theta_deg, int s
     if (!pane.pane_sample_sg_split(sp, rand, s, split, count_rejected) || !(s.label & GLIMMER_LABEL_SINGULAR) ||
         !s.exit_lobe)
       continue;  // a front reflection (or no sample): 0 toward every direction
-    const Vec3 n = normalize(s.origin_Ng);
-    ExitLobeMixture m;
-    if (s.exit_mixture) {
-      for (uint32_t k = 0; k < buffer.count; ++k) {
-        m.lobe[m.count] = ExitLobe::make(normalize(Vec3(buffer.axis[k])), buffer.sharpness[k], n);
-        m.weight[m.count++] = buffer.weight[k];
-      }
-      if (mixtures) ++*mixtures;
-    } else {
-      m.lobe[0] = ExitLobe::make(normalize(s.lobe_axis), s.lobe_sharpness, n);
-      m.weight[0] = 1.0;
-      m.count = 1;
-    }
-    m.normalize();
+    if (s.exit_mixture && mixtures) ++*mixtures;
+    const ExitLobeMixture m = sampled_exit_mixture(s, buffer);
     const double w = average(s.f_cos / s.pdf);
     for (int j = 0; j < SplitSums::kDirs; ++j) {
       const double v = w * m.pdf(dirs[j]);
@@ -782,16 +807,13 @@ struct ExitSums {
 };
 ExitSums exact_exit_estimate(const FrostedGlassClosure &pane, bool sg, float theta_deg, uint64_t seed, long samples) {
   static const auto schema = FrostedGlassClosure::params();
-  const Vec3 dirs[ExitSums::kDirs] = {Vec3(0.0f, 0.0f, -1.0f), normalize(Vec3(0.5f, 0.0f, -1.0f)),
-                                      normalize(Vec3(-0.4f, 0.3f, -1.0f)), Vec3(0.0f, 0.0f, 1.0f),
-                                      normalize(Vec3(0.6f, 0.0f, 1.0f))};
+  const auto &dirs = kPaneProbeDirections;
   ExitSums out;
   Pcg32 rng(seed, 9);
   for (long i = 0; i < samples; ++i) {
-    GlimmerShadingContext ctx = pane_context(theta_deg);
-    ctx.path_seed = rng.next_u32();
-    const ShadingPoint sp(&ctx, schema);
-    const Vec3 rand(rng.next_float(), rng.next_float(), rng.next_float());
+    const PaneDraw draw(theta_deg, rng, schema);
+    const ShadingPoint &sp = draw.sp;
+    const Vec3 &rand = draw.rand;
     GlimmerExitMixture buffer{};
     GlimmerExitState state{};
     LocalSample s;
@@ -802,20 +824,7 @@ ExitSums exact_exit_estimate(const FrostedGlassClosure &pane, bool sg, float the
     ++out.exits;
     out.states += s.exit_state;
     ExitLobeMixture m;
-    if (sg && s.exit_lobe) {
-      const Vec3 n = normalize(s.origin_Ng);
-      if (s.exit_mixture)
-        for (uint32_t k = 0; k < buffer.count; ++k) {
-          m.lobe[m.count] = ExitLobe::make(normalize(Vec3(buffer.axis[k])), buffer.sharpness[k], n);
-          m.weight[m.count++] = buffer.weight[k];
-        }
-      else {
-        m.lobe[0] = ExitLobe::make(normalize(s.lobe_axis), s.lobe_sharpness, n);
-        m.weight[0] = 1.0;
-        m.count = 1;
-      }
-      m.normalize();
-    }
+    if (sg && s.exit_lobe) m = sampled_exit_mixture(s, buffer);
     const double w = average(s.f_cos / s.pdf);
     for (int j = 0; j < ExitSums::kDirs; ++j) {
       double v = 0.0, c = 0.0;
