@@ -1730,51 +1730,37 @@ inline void paired_node_origins(const FootprintFrame &frame, const NodeList &nod
 // bounds and the reject of lambda, no exp unless a pair is undecided (GI
 // render, 160 x 100 4 spp: from 1/16 652.2 M, 1/8 651.9 M, 1/4 651.8 M).
 inline constexpr double kLitTableFrom = 1.0 / 4.0;
+// (2) and its empty test: true when some pair passes the quick reject (pm holds the passing pairs' masks). No pair
+// passes in ~70 % of the walks in examples/glint.xml: count 0, no steps, complete, without the other passes' set-up
+// (the bounds' division, the frame's constants; session 22; session 23: the frame itself, its division and
+// products, made by the caller only after this).
 template <bool kAvx2>
-[[gnu::always_inline]] inline GlintCount count_four_groups_in_passes_body(const Footprint &f, const NodeList &nodes,
-                                                                          const uint32_t *seeds,
-                                                                          const GroupReject &lambda_reject,
-                                                                          double lambda, int max_steps) {
-  static_assert(kDirectionGroups == 4);
-  PairMasks pm;
-  std::optional<LitCountTable> table;
-  if (lambda >= kLitTableFrom) table.emplace(LitCountModel(lambda));
-  // h >= below[0]: u >= Pr(K >= 1), K = 0 (a walkable table's below[0] <= lambda_reject's limit; not
-  // walkable: K = -1 below it, see below).
-  const GroupReject reject = table && table->walkable ? GroupReject(table->below[0]) : lambda_reject;
+[[gnu::always_inline]] inline bool group_pass_finds_a_pair(const NodeList &nodes, const uint32_t *seeds,
+                                                           const GroupReject &reject, PairMasks &pm) {
 #if GLIMMER_GLINT_WALK_AVX2
   if constexpr (kAvx2)
     group_pass_avx2(nodes, seeds, reject, pm);  // (2)
   else
 #endif
     group_pass_sse2(nodes, seeds, reject, pm);
-  // No pair passes the quick reject (~70 % of the walks in examples/glint.xml): count 0, no steps,
-  // complete, without the other passes' set-up (the bounds' division, the frame's constants; session 22;
-  // session 23: the frame itself, its division and products, made here and not by the caller).
   static_assert(PairMasks::kWords == 4);
 #if GLIMMER_GLINT_WALK_AVX2
-  if constexpr (kAvx2) {
-    if (pair_masks_empty_avx2(pm)) return {};
-  } else
+  if constexpr (kAvx2) return !pair_masks_empty_avx2(pm);
 #endif
-    if ((pm.mask[0] | pm.mask[1] | pm.mask[2] | pm.mask[3]) == 0) return {};
-  const FootprintFrame frame(f, nodes.size);
-  PairPassCounter pc(frame);
-  // Session 17 (glintwalk17b): the origin and inside flag of only the nodes
-  // with a pair passing the quick reject (no other pass reads them; ~1/3 of
-  // the nodes have none at area 1e-4): 1e-4 5615 -> 5380 instructions per
-  // eval, same f and pdf bits.
-#if GLIMMER_GLINT_WALK_AVX2
-  if constexpr (kAvx2)
-    paired_node_origins_avx2(frame, nodes, pm, pc);  // (1)
-  else
-#endif
-    paired_node_origins(frame, nodes, pm, pc);  // (1)
-  GlintCount result;
-  int64_t steps = 0;
-  // (3): the pairs 4 node + g in order, K by lit_of(h0).
+  return (pm.mask[0] | pm.mask[1] | pm.mask[2] | pm.mask[3]) != 0;
+}
+
+// (3)'s outcome: the walk is incomplete (the step cap, or a pair the walk refuses), no pair is lit (a refused
+// walk's table gave every pair K = 0), or the lit pairs were added to the counter.
+enum class LitPairs { kIncomplete, kNoneLit, kAdded };
+
+// (3): the pairs 4 node + g in order, K by the table's compares (from kLitTableFrom) or by the bounds, added to pc;
+// `steps` their total.
+[[gnu::always_inline]] inline LitPairs lit_pairs_pass(const PairMasks &pm, int node_count,
+                                                     const std::optional<LitCountTable> &table, double lambda,
+                                                     int max_steps, PairPassCounter &pc, int64_t &steps) {
   const auto lit_pass = [&](auto &&lit_of) {
-    for (int w = 0; w < PairMasks::words(nodes.count); ++w)
+    for (int w = 0; w < PairMasks::words(node_count); ++w)
       for (uint64_t m = pm.mask[static_cast<size_t>(w)]; m != 0; m &= m - 1) {
         const auto pair = static_cast<uint32_t>(64 * w + std::countr_zero(m));
         const uint32_t h0 = pm.node_hash[pair];
@@ -1796,10 +1782,11 @@ template <bool kAvx2>
     // integer compares. Session 24: from kLitTableFrom on.
     if (!table->walkable) [[unlikely]] {
       // The walk refuses (K = -1: incomplete) every pair whose u < Pr(K >= 1), and gives K = 0 to the others.
-      for (int w = 0; w < PairMasks::words(nodes.count); ++w)
+      for (int w = 0; w < PairMasks::words(node_count); ++w)
         for (uint64_t m = pm.mask[static_cast<size_t>(w)]; m != 0; m &= m - 1)
-          if (table->lit(pm.node_hash[static_cast<size_t>(64 * w + std::countr_zero(m))]) < 0) return {0, 0, false};
-      return {};
+          if (table->lit(pm.node_hash[static_cast<size_t>(64 * w + std::countr_zero(m))]) < 0)
+            return LitPairs::kIncomplete;
+      return LitPairs::kNoneLit;
     }
     walked = lit_pass([&](uint32_t h0) { return table->lit(h0); });
   } else {
@@ -1815,13 +1802,47 @@ template <bool kAvx2>
       return K;
     });
   }
-  if (!walked) return {0, 0, false};
+  return walked ? LitPairs::kAdded : LitPairs::kIncomplete;
+}
+
+template <bool kAvx2>
+[[gnu::always_inline]] inline GlintCount count_four_groups_in_passes_body(const Footprint &f, const NodeList &nodes,
+                                                                          const uint32_t *seeds,
+                                                                          const GroupReject &lambda_reject,
+                                                                          double lambda, int max_steps) {
+  static_assert(kDirectionGroups == 4);
+  PairMasks pm;
+  std::optional<LitCountTable> table;
+  if (lambda >= kLitTableFrom) table.emplace(LitCountModel(lambda));
+  // h >= below[0]: u >= Pr(K >= 1), K = 0 (a walkable table's below[0] <= lambda_reject's limit; not
+  // walkable: K = -1 below it, see lit_pairs_pass).
+  const GroupReject reject = table && table->walkable ? GroupReject(table->below[0]) : lambda_reject;
+  if (!group_pass_finds_a_pair<kAvx2>(nodes, seeds, reject, pm)) return {};
+  const FootprintFrame frame(f, nodes.size);
+  PairPassCounter pc(frame);
+  // Session 17 (glintwalk17b): the origin and inside flag of only the nodes
+  // with a pair passing the quick reject (no other pass reads them; ~1/3 of
+  // the nodes have none at area 1e-4): 1e-4 5615 -> 5380 instructions per
+  // eval, same f and pdf bits.
+#if GLIMMER_GLINT_WALK_AVX2
+  if constexpr (kAvx2)
+    paired_node_origins_avx2(frame, nodes, pm, pc);  // (1)
+  else
+#endif
+    paired_node_origins(frame, nodes, pm, pc);  // (1)
+  int64_t steps = 0;
+  switch (lit_pairs_pass(pm, nodes.count, table, lambda, max_steps, pc, steps)) {  // (3)
+    case LitPairs::kIncomplete: return {0, 0, false};
+    case LitPairs::kNoneLit: return {};
+    case LitPairs::kAdded: break;
+  }
 #if GLIMMER_GLINT_WALK_AVX2
   if constexpr (kAvx2)
     pc.flush_avx2();  // (4)
   else
 #endif
     pc.flush();  // (4)
+  GlintCount result;
   result.count = static_cast<int>(pc.count);
   result.steps = static_cast<int>(steps);
   return result;
