@@ -42,7 +42,6 @@ class DirectionalPeakTable {
   // Bounds of every lookup at a LOD blur sigma <= max_sigma_deg.
   DirectionalPeakTable(const DirectionalTable &table, float max_sigma_deg) {
     const int last_level = levels_up_to(max_sigma_deg);
-    n_[0] = blocks(90.0f), n_[1] = blocks(90.0f), n_[2] = blocks(180.0f);
     peak_.assign(static_cast<size_t>(n_[0]) * n_[1] * n_[2], 0.0f);
     for (int l = 0; l <= last_level; ++l) add_level(table.levels[static_cast<size_t>(l)]);
     for (float &p : peak_) p *= kRoundingMargin;
@@ -58,16 +57,16 @@ class DirectionalPeakTable {
     return bound(_mm_setr_ps(theta_i_deg, theta_o_deg, dphi_deg, 0.0f));
   }
   // The same with the angles in lanes 0..2 of `x` (lane 3 unused, any value: its block is clamped to 0).
+  // block_of's min(b, n - 1) is left out (session 24): the clamped angle is at most hi, and hi / 4 (an exact
+  // product) truncates to n - 1, so the min never changes a block; the grid's sizes are constants.
   float bound(__m128 x) const {
     const __m128 clamped = _mm_and_ps(_mm_cmpgt_ps(x, _mm_setzero_ps()),  // clamp_deg: x > 0 ? min : 0 (NaN: 0)
                                       _mm_min_ps(x, _mm_setr_ps(90.0f, 90.0f, 180.0f, 0.0f)));
     const __m128i b = _mm_cvttps_epi32(_mm_mul_ps(clamped, _mm_set1_ps(kInvBlockDeg)));
-    const __m128i last = _mm_setr_epi32(n_[0] - 1, n_[1] - 1, n_[2] - 1, 0);
-    const __m128i over = _mm_cmpgt_epi32(b, last);
-    const __m128i block = _mm_or_si128(_mm_and_si128(over, last), _mm_andnot_si128(over, b));  // min(b, last)
-    alignas(16) int32_t blk[4];
-    _mm_store_si128(reinterpret_cast<__m128i *>(blk), block);
-    return peak_[(static_cast<size_t>(blk[0]) * n_[1] + blk[1]) * n_[2] + blk[2]];
+    const auto bi = static_cast<uint32_t>(_mm_cvtsi128_si32(b));
+    const auto bo = static_cast<uint32_t>(_mm_cvtsi128_si32(_mm_shuffle_epi32(b, _MM_SHUFFLE(1, 1, 1, 1))));
+    const auto bp = static_cast<uint32_t>(_mm_cvtsi128_si32(_mm_shuffle_epi32(b, _MM_SHUFFLE(2, 2, 2, 2))));
+    return peak_[(static_cast<size_t>(bi) * n_[1] + bo) * n_[2] + bp];
   }
   // The scalar form of bound() (the reference of its test).
   float bound_scalar(float theta_i_deg, float theta_o_deg, float dphi_deg) const {
@@ -78,10 +77,12 @@ class DirectionalPeakTable {
   }
 
  private:
-  int n_[3] = {0, 0, 0};
+  static constexpr int n_[3] = {static_cast<int>(90.0f * kInvBlockDeg) + 1, static_cast<int>(90.0f * kInvBlockDeg) + 1,
+                                 static_cast<int>(180.0f * kInvBlockDeg) + 1};  // blocks(90), blocks(90), blocks(180)
+  static_assert(static_cast<int>(90.0f * kInvBlockDeg) == n_[0] - 1 && static_cast<int>(180.0f * kInvBlockDeg) == n_[2] - 1,
+                "bound() relies on the largest clamped angle falling in the last block");
   std::vector<float> peak_;
 
-  static int blocks(float hi) { return static_cast<int>(hi * kInvBlockDeg) + 1; }
   static int block_of(float x_deg, float hi, int n) {
     return std::min(static_cast<int>(LodLevel::clamp_deg(x_deg, hi) * kInvBlockDeg), n - 1);
   }
