@@ -375,29 +375,30 @@ class FrostedGlassClosure {
     if (!thin_) return {};
     if (uses_sg_pane(sp)) return eval_exit_sg(sp, state, w);
     const PaneExitState x = PaneExitState::read(state);
-    if (!(x.trials > 0.0f) || x.d.z == 0.0f) return {};
+    if (!(x.trials > 0.0f)) return {};
     DielectricLobe scratch;
-    const DielectricLobe &lobe = lobe_at(sp, scratch);
-    const bool flip = sp.wi.z < 0.0f;
-    const Vec3 wo = flip ? mf::flip_z_local(w) : w;
-    const bool bottom = x.d.z < 0.0f;
-    if (bottom ? !(wo.z < 0.0f) : !(wo.z > 0.0f)) return {};
-    LocalEval e = lobe.eval(at_interface(-x.d, bottom), at_interface(wo, bottom));
+    LocalEval e = exit_interface_eval(lobe_at(sp, scratch), x.d, entry_side(sp, w));
     e.f_cos *= x.weight * x.trials;
     return e;
+  }
+  // w (local) on the entry side's frame: flipped when wi is below the pane.
+  static Vec3 entry_side(const ShadingPoint &sp, const Vec3 &w) { return sp.wi.z < 0.0f ? mf::flip_z_local(w) : w; }
+  // The exit interface's transmission toward wo (entry_side) from the last internal direction d (Walter's BTDF
+  // with the sampler's energy compensation); zero on the other side of the exit face or for d in the plane.
+  static LocalEval exit_interface_eval(const DielectricLobe &lobe, const Vec3 &d, const Vec3 &wo) {
+    if (d.z == 0.0f) return {};
+    const bool bottom = d.z < 0.0f;
+    if (bottom ? !(wo.z < 0.0f) : !(wo.z > 0.0f)) return {};
+    return lobe.eval(at_interface(-d, bottom), at_interface(wo, bottom));
   }
   LocalEval eval_exit_sg(const ShadingPoint &sp, const GlimmerExitState &state, const Vec3 &w) const {
     const frosted::PaneSgExitState x = frosted::PaneSgExitState::read(state);
     DielectricLobe scratch;
     const DielectricLobe &lobe = lobe_at(sp, scratch);
-    const Vec3 wo = sp.wi.z < 0.0f ? mf::flip_z_local(w) : w;
+    const Vec3 wo = entry_side(sp, w);
     float q = 0.0f;
-    for (int k = 0; k < frosted::PaneSgExitState::kWalks; ++k) {
-      if (!(x.c[k] > 0.0f) || x.d[k].z == 0.0f) continue;
-      const bool bottom = x.d[k].z < 0.0f;
-      if (bottom ? !(wo.z < 0.0f) : !(wo.z > 0.0f)) continue;
-      q += x.c[k] * average(lobe.eval(at_interface(-x.d[k], bottom), at_interface(wo, bottom)).f_cos);
-    }
+    for (int k = 0; k < frosted::PaneSgExitState::kWalks; ++k)
+      if (x.c[k] > 0.0f) q += x.c[k] * average(exit_interface_eval(lobe, x.d[k], wo).f_cos);
     LocalEval e;
     e.f_cos = Spectrum(q);
     e.pdf = q;
