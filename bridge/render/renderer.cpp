@@ -951,19 +951,13 @@ struct Renderer::Impl {
     }
     GlimmerShadingContext scratch;
   };
-  // The closure that sampled s and handed over an exit state (ABI 2.8) its eval_exit reads, or nullptr.
-  static const ActiveClosure *exit_state_closure(const ClosureSet &cs, const ExitStateScatter &xs,
-                                                 const GlimmerSample &s) {
-    if (!(s.flags & GLIMMER_SAMPLE_EXIT_STATE) || s.exit_state == nullptr || xs.chosen < 0) return nullptr;
-    const ActiveClosure &c = cs.closures[xs.chosen];
-    return c.instance && c.instance->has_eval_exit() ? &c : nullptr;
-  }
   bool exact_lamps(const ClosureSet &cs, const ShadingData &sd, const ExitStateScatter &xs, const GlimmerSample &s,
                    ExactExit &x) const {
-    const ActiveClosure *c = exit_state_closure(cs, xs, s);
-    if (c == nullptr) return false;
-    x.instance = c->instance;
-    x.ctx = &context_for(sd, *c, x.scratch);
+    if (!(s.flags & GLIMMER_SAMPLE_EXIT_STATE) || s.exit_state == nullptr || xs.chosen < 0) return false;
+    const ActiveClosure &c = cs.closures[xs.chosen];
+    if (!c.instance || !c.instance->has_eval_exit()) return false;
+    x.instance = c.instance;
+    x.ctx = &context_for(sd, c, x.scratch);
     x.state = s.exit_state;
     return true;
   }
@@ -980,6 +974,7 @@ struct Renderer::Impl {
     }
   }
 
+
   // ABI 2.8: a singular sample that stays at the shading point with an exit state (frosted_glass method=path's
   // thin pane: the walk's last interface). One light sample at the shading point through that interface
   // (eval_exit's f cos, which carries the walk's weight; the shadow ray leaves on the light's side), power
@@ -989,10 +984,10 @@ struct Renderer::Impl {
   void integrate_exit_state(const ClosureSet &cs, const ShadingData &sd, const ExitStateScatter &xs,
                             const GlimmerSample &s, const Vec3 &wo, const PixelSampler &sampler, PathState &ps,
                             PathRadiance &pr) const {
-    if (moved(s) || !options.exit_state_nee || !use_nee() || lights->count() == 0) return;
-    const ActiveClosure *exit_closure = exit_state_closure(cs, xs, s);
-    if (exit_closure == nullptr) return;
-    const ActiveClosure &c = *exit_closure;
+    if (!(s.flags & GLIMMER_SAMPLE_EXIT_STATE) || moved(s) || s.exit_state == nullptr || xs.chosen < 0) return;
+    if (!options.exit_state_nee || !use_nee() || lights->count() == 0) return;
+    const ActiveClosure &c = cs.closures[xs.chosen];
+    if (!c.instance || !c.instance->has_eval_exit()) return;
     GlimmerShadingContext scratch;
     const GlimmerShadingContext &ctx = context_for(sd, c, scratch);
     const auto exit_bsdf = [&](const Vec3 &w) {
