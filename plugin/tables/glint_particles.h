@@ -1985,6 +1985,13 @@ inline void locate_glints(const Footprint &f, double density, const DirectionCel
   site.memo_nodes = nullptr;
   footprint_nodes(f, site.group_density, site.nodes);
 }
+// The node list of a site whose direction cells and group density are set: footprint_nodes at
+// site.group_density through the caller's memo (locate_glints below; glint_small_dark.h's kNotDark).
+template <typename GetMemo>
+inline void locate_glint_nodes(const Footprint &f, GlintSite &site, GetMemo &&get_memo) {
+  const NodeList &list = footprint_nodes(f, site.group_density, site.nodes, get_memo);
+  site.memo_nodes = &list == &site.nodes ? nullptr : &list;
+}
 // The same through the caller's node-list memo (footprint_nodes with get_memo).
 template <typename GetMemo>
 inline void locate_glints(const Footprint &f, double density, const DirectionCellKeys &keys, const Vec3 &wi,
@@ -1992,8 +1999,7 @@ inline void locate_glints(const Footprint &f, double density, const DirectionCel
   site.has_half_vector = direction_cell_seeds(keys, wi, wo, gamma_rad, site.cell_seeds);
   if (!site.has_half_vector) return;
   site.group_density = density / kDirectionGroups;
-  const NodeList &list = footprint_nodes(f, site.group_density, site.nodes, get_memo);
-  site.memo_nodes = &list == &site.nodes ? nullptr : &list;
+  locate_glint_nodes(f, site, get_memo);
 }
 
 // Reflecting particles of a footprint over the kDirectionGroups groups

@@ -48,15 +48,6 @@ enum class SmallDark {
   kGeneric,  // not decided here: the general route (locate_glints, count_glints) decides
 };
 
-// The node list of a located site whose direction cells were filled by
-// small_footprint_dark_avx2 (kNotDark): footprint_nodes at site.group_density
-// through the caller's memo, as locate_glints would have made it.
-template <typename GetMemo>
-inline void locate_glint_nodes(const Footprint &f, GlintSite &site, GetMemo &&get_memo) {
-  const NodeList &list = footprint_nodes(f, site.group_density, site.nodes, get_memo);
-  site.memo_nodes = &list == &site.nodes ? nullptr : &list;
-}
-
 // The per-material constants of small_footprint_dark_avx2: the direction cells' keys and cone, the dark test's
 // node and step caps, and the particle level of the material's density (a textured density computes its own).
 struct SmallDarkField {
