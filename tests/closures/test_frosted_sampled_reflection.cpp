@@ -21,7 +21,6 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
-#include <limits>
 #include <vector>
 
 #include "closures/frosted_glass.h"
@@ -33,8 +32,6 @@ namespace {
 
 using namespace glimmer;
 using namespace glimmer::plugin;
-
-#if GLIMMER_ABI_MINOR >= 8
 
 std::unique_ptr<FrostedGlassClosure> create_closure(float roughness, float ior, const char *method) {
   const GlimmerParamValue values[] = {{"roughness", {roughness, 0, 0}, nullptr},
@@ -265,7 +262,5 @@ TEST(FrostedSgSampledReflection, ReflectedLightOfTheSphereAgainstThePath) {
   EXPECT_GE(reflected_only, 3);
   EXPECT_GE(2 * before_failed, reflected_only) << "the negative control must fail the bound";
 }
-
-#endif
 
 }  // namespace
