@@ -178,7 +178,7 @@ class FrostedGlassClosure {
   void sample_sg(const ShadingPoint &sp, const Vec3 &rand, LocalSample &front, frosted::SgVariant variant,
                  float mixture_variance = frosted::kDefaultMixtureVariance,
                  float mixture_tail = frosted::kDefaultMixtureTail, float curved_tail = -1.0f,
-                 const frosted::CurvedShape *curved_shape = nullptr) const {
+                 const frosted::CurvedShape *curved_shape = nullptr, int sampled_reflection = -1) const {
     frosted::SgInputs in;
     in.table = table_;
     in.self = reinterpret_cast<const GlimmerInstance *>(this);
@@ -195,6 +195,9 @@ class FrostedGlassClosure {
     in.mixture_tail = mixture_tail;
     in.curved_tail = curved_tail;
     in.curved_shape = curved_shape;
+    DielectricLobe scratch;  // the reflections' lobe (frosted::kSampledReflection), built only where it applies
+    in.sampled_reflection = frosted::sampled_reflection_at(sp, sampled_reflection);
+    if (in.sampled_reflection) in.lobe = &lobe_at(sp, scratch), in.lobe_roughness = in.roughness;
     LocalSample s;
 #if GLIMMER_ABI_MINOR >= 7
     s.mixture_out = front.mixture_out;  // the host's buffer for the whole exit mixture (ABI 2.7)

@@ -89,6 +89,9 @@ struct AnalyticScene {
   float slab_thickness = 0.3f;
   float shell_cavity = 0.55f;
   bool textured_roughness = false;  // the closure's roughness varies over the surface (roughness_at)
+  // The paths' diffuse bounces before the object (context_at): 1 where the object is seen from the floor, as the
+  // renderer's floor vertex sees it (sg's sampled internal reflection is the camera-seen solid's only, session 25).
+  uint32_t diffuse_bounce = 0;
   bool small_light = false;         // the environment is a dim sky and a small bright light behind the object
   uint32_t roughness_param = 0;     // the closure's roughness parameter index (textured_roughness)
   const GlimmerInstance *material = nullptr;  // the closure reported at every hit
@@ -195,6 +198,7 @@ GlimmerShadingContext context_at(const AnalyticScene &scene, const Hit &hit, con
   ctx.N = ctx.Ng = hit.N;
   ctx.T = Frame::from_normal(hit.N).s;
   ctx.path_seed = rng.next_u32();
+  ctx.diffuse_bounce = scene.diffuse_bounce;
   return ctx;
 }
 
@@ -1172,6 +1176,7 @@ TEST(FrostedGlassSg, SphereShadowOfAFarLampAgainstThePath) {
     auto sg = create_raw(roughness, ior, true);
     AnalyticScene scene(AnalyticScene::kSphere);
     scene.material = reinterpret_cast<const GlimmerInstance *>(sg.get());
+    scene.diffuse_bounce = 1;  // the floor's view of the sphere (the renderer's floor vertex scattered diffusely)
     const Sampler path_sampler = sampler_of(*path), sg_sampler = sampler_of(*sg);
     const std::vector<ShadowPoint> ref = sphere_shadow(scene, path_sampler, lamp, floor_points, ref_paths, 1);
     const std::vector<ShadowPoint> now = sphere_shadow(scene, sg_sampler, lamp, floor_points, sg_paths, 2);
@@ -1296,6 +1301,7 @@ TEST(FrostedGlassSg, SphereShadowDirectionsAroundTheLamp) {
   auto sg = create_raw(roughness, ior, true);
   AnalyticScene scene(AnalyticScene::kSphere);
   scene.material = reinterpret_cast<const GlimmerInstance *>(sg.get());
+  scene.diffuse_bounce = 1;  // the floor's view of the sphere, as in SphereShadowOfAFarLampAgainstThePath
   const Sampler path_sampler = sampler_of(*path), sg_sampler = sampler_of(*sg);
   std::printf("[frosted shadow directions] roughness 0.50 ior 1.50: floor distance | method | within 2 / 4 / 8 deg "
               "| within 15 deg: up mean sd skew, side mean sd (deg)\n");
