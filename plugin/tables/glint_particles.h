@@ -1399,7 +1399,15 @@ struct NoParticleVisitor {
 // mix_u32x8, uint_to_unit_float by lanes, and particle_inside's (s, t) in
 // 256-bit double lanes by its expressions (no FMA: the same values).
 // GlintParticles.NodeLoopAvx2MatchesTheNodeLoop.
-[[gnu::target("avx2"), gnu::always_inline]] inline uint32_t particles_inside4_avx2(const FootprintFrame &frame,
+// The frame's steps in lanes, made once per count (the caller's registers, not a broadcast per lit pair).
+struct FrameLanesAvx2 {
+  __m256d ds_ux, ds_uy, dt_ux, dt_uy;
+};
+[[gnu::target("avx2"), gnu::always_inline]] inline FrameLanesAvx2 frame_lanes_avx2(const FootprintFrame &frame) {
+  return {_mm256_set1_pd(frame.ds_ux), _mm256_set1_pd(frame.ds_uy), _mm256_set1_pd(frame.dt_ux),
+          _mm256_set1_pd(frame.dt_uy)};
+}
+[[gnu::target("avx2"), gnu::always_inline]] inline uint32_t particles_inside4_avx2(const FrameLanesAvx2 &frame,
                                                                                   const FootprintFrame::NodeOrigin &o,
                                                                                   uint32_t h0, uint32_t k0) {
   const uint32_t base = (h0 ^ kPositionKey) + (2u * k0 + 1u) * kNodeKeyStep;
@@ -1412,10 +1420,10 @@ struct NoParticleVisitor {
                                  _mm256_set1_ps(1.0f / 16777216.0f));
   const __m256 xy = _mm256_permutevar8x32_ps(u, _mm256_setr_epi32(0, 2, 4, 6, 1, 3, 5, 7));  // the x's, the y's
   const __m256d ux = _mm256_cvtps_pd(_mm256_castps256_ps128(xy)), uy = _mm256_cvtps_pd(_mm256_extractf128_ps(xy, 1));
-  const __m256d s = _mm256_add_pd(_mm256_add_pd(_mm256_set1_pd(o.s), _mm256_mul_pd(ux, _mm256_set1_pd(frame.ds_ux))),
-                                  _mm256_mul_pd(uy, _mm256_set1_pd(frame.ds_uy)));
-  const __m256d t = _mm256_add_pd(_mm256_add_pd(_mm256_set1_pd(o.t), _mm256_mul_pd(ux, _mm256_set1_pd(frame.dt_ux))),
-                                  _mm256_mul_pd(uy, _mm256_set1_pd(frame.dt_uy)));
+  const __m256d s = _mm256_add_pd(_mm256_add_pd(_mm256_set1_pd(o.s), _mm256_mul_pd(ux, frame.ds_ux)),
+                                  _mm256_mul_pd(uy, frame.ds_uy));
+  const __m256d t = _mm256_add_pd(_mm256_add_pd(_mm256_set1_pd(o.t), _mm256_mul_pd(ux, frame.dt_ux)),
+                                  _mm256_mul_pd(uy, frame.dt_uy));
   const __m256d sign = _mm256_set1_pd(-0.0), half = _mm256_set1_pd(0.5);
   const __m256d in = _mm256_and_pd(_mm256_cmp_pd(_mm256_andnot_pd(sign, s), half, _CMP_LE_OS),
                                    _mm256_cmp_pd(_mm256_andnot_pd(sign, t), half, _CMP_LE_OS));
@@ -1918,8 +1926,9 @@ template <bool kAvx2>
 // origin and node_inside at its first lit pair, the positions and
 // particle_inside four particles per step (particles_inside4_avx2), the
 // visits in k order. The same count, steps, completeness and visits
-// (GlintParticles.NodeLoopAvx2MatchesTheNodeLoop); the frame is made at the
-// first lit pair (the scalar loop makes it first: the same values).
+// (GlintParticles.NodeLoopAvx2MatchesTheNodeLoop). The frame's steps are
+// broadcast once per count (FrameLanesAvx2; per lit pair, as GCC placed
+// them when the frame was made at the first lit pair: aspect 64 +16.5 per eval).
 inline constexpr int kNodeLoopChunk = 16;
 [[gnu::target("avx2"), gnu::always_inline]] inline uint64_t node_loop_pass1_avx2(const uint32_t *keys, int n,
                                                                                 __m128i seeds, __m128i below,
@@ -1947,7 +1956,8 @@ template <typename Visitor>
   const uint32_t all_pass = reject.all_pass ? 0xfu : 0u;
   const LitCountBounds bounds(lambda);
   std::optional<LitCountModel> model;
-  std::optional<FootprintFrame> frame;
+  const FootprintFrame frame(f, nodes.size);
+  const FrameLanesAvx2 lanes = frame_lanes_avx2(frame);
   for (int first = 0; first < nodes.count; first += kNodeLoopChunk) {
     alignas(16) uint32_t hashes[kNodeLoopChunk][kDirectionGroups];
     uint64_t pairs = node_loop_pass1_avx2(nodes.id_hash.data() + first, std::min(nodes.count - first, kNodeLoopChunk),
@@ -1970,12 +1980,11 @@ template <typename Visitor>
         return result;
       }
       result.steps += static_cast<int>(K);
-      if (!frame) frame.emplace(f, nodes.size);
       if (origin_of != c) {
         const auto at = static_cast<size_t>(first + c);
-        origin = frame->origin(static_cast<double>(nodes.i[at]) * nodes.size,
-                               static_cast<double>(nodes.j[at]) * nodes.size);
-        inside = frame->node_inside(origin);
+        origin = frame.origin(static_cast<double>(nodes.i[at]) * nodes.size,
+                              static_cast<double>(nodes.j[at]) * nodes.size);
+        inside = frame.node_inside(origin);
         origin_of = c;
       }
       if (inside) {
@@ -1985,7 +1994,7 @@ template <typename Visitor>
         continue;
       }
       for (int64_t k = 0; k < K; k += 4) {  // four positions per step (particles_inside4_avx2)
-        uint32_t in = particles_inside4_avx2(*frame, origin, h0, static_cast<uint32_t>(k));
+        uint32_t in = particles_inside4_avx2(lanes, origin, h0, static_cast<uint32_t>(k));
         if (K - k < 4) in &= (1u << (K - k)) - 1u;
         result.count += static_cast<int>((0x4332322132212110ull >> (4 * in)) & 0xfu);  // set bits of in
         if constexpr (std::decay_t<Visitor>::kVisitsParticles)
