@@ -1936,7 +1936,19 @@ inline constexpr int kNodeLoopChunk = 16;
                                                                                 uint32_t (*hashes)[kDirectionGroups]) {
   const __m128i bias = _mm_set1_epi32(static_cast<int>(0x80000000u));  // unsigned compare as signed
   uint64_t pairs = 0;
-  for (int c = 0; c < n; ++c) {
+  int c = 0;
+  // Two nodes per mix_u32x8 (the same words), then an odd last node by the 4-lane form.
+  const __m256i seeds8 = _mm256_set_m128i(seeds, seeds), below8 = _mm256_set_m128i(below, below);
+  const __m256i bias8 = _mm256_set_m128i(bias, bias);
+  for (; c + 1 < n; c += 2) {
+    const __m256i k = _mm256_set_m128i(_mm_set1_epi32(static_cast<int>(keys[c + 1])),
+                                       _mm_set1_epi32(static_cast<int>(keys[c])));
+    const __m256i h = mix_u32x8(_mm256_xor_si256(k, seeds8));
+    _mm256_storeu_si256(reinterpret_cast<__m256i *>(hashes[c]), h);
+    const int lt = _mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpgt_epi32(below8, _mm256_xor_si256(h, bias8))));
+    pairs |= static_cast<uint64_t>((all_pass * 0x11u) | static_cast<uint32_t>(lt)) << (kDirectionGroups * c);
+  }
+  for (; c < n; ++c) {
     const __m128i h = mix_u32x4_avx2(_mm_xor_si128(_mm_set1_epi32(static_cast<int>(keys[c])), seeds));
     _mm_store_si128(reinterpret_cast<__m128i *>(hashes[c]), h);
     const int lt = _mm_movemask_ps(_mm_castsi128_ps(_mm_cmpgt_epi32(below, _mm_xor_si128(h, bias))));
