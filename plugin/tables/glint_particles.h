@@ -1392,6 +1392,43 @@ struct NoParticleVisitor {
   x = _mm256_mullo_epi32(x, _mm256_set1_epi32(static_cast<int>(0x846ca68bu)));
   return _mm256_xor_si256(x, _mm256_srli_epi32(x, 16));
 }
+// Session 25 (glintcount25): which of the lit particles k0 .. k0 + 3 of a node
+// (its hash h0 in the direction cell, its origin o in `frame`) lie inside the
+// footprint, as bits 0..3 (all four computed; the caller masks those >= K):
+// particle_position's eight keys (h0 ^ C) + (2 k + 1) W and that + W in one
+// mix_u32x8, uint_to_unit_float by lanes, and particle_inside's (s, t) in
+// 256-bit double lanes by its expressions (no FMA: the same values).
+// GlintParticles.NodeLoopAvx2MatchesTheNodeLoop.
+// The frame's steps in lanes, made once per count (the caller's registers, not a broadcast per lit pair).
+struct FrameLanesAvx2 {
+  __m256d ds_ux, ds_uy, dt_ux, dt_uy;
+};
+[[gnu::target("avx2"), gnu::always_inline]] inline FrameLanesAvx2 frame_lanes_avx2(const FootprintFrame &frame) {
+  return {_mm256_set1_pd(frame.ds_ux), _mm256_set1_pd(frame.ds_uy), _mm256_set1_pd(frame.dt_ux),
+          _mm256_set1_pd(frame.dt_uy)};
+}
+[[gnu::target("avx2"), gnu::always_inline]] inline uint32_t particles_inside4_avx2(const FrameLanesAvx2 &frame,
+                                                                                  const FootprintFrame::NodeOrigin &o,
+                                                                                  uint32_t h0, uint32_t k0) {
+  const uint32_t base = (h0 ^ kPositionKey) + (2u * k0 + 1u) * kNodeKeyStep;
+  constexpr uint32_t W = kNodeKeyStep;
+  const auto lane = [](uint32_t m) { return static_cast<int>(m * W); };  // m W mod 2^32
+  const __m256i keys = _mm256_add_epi32(_mm256_set1_epi32(static_cast<int>(base)),
+                                        _mm256_setr_epi32(0, lane(1), lane(2), lane(3), lane(4), lane(5), lane(6),
+                                                          lane(7)));
+  const __m256 u = _mm256_mul_ps(_mm256_cvtepi32_ps(_mm256_srli_epi32(mix_u32x8(keys), 8)),
+                                 _mm256_set1_ps(1.0f / 16777216.0f));
+  const __m256 xy = _mm256_permutevar8x32_ps(u, _mm256_setr_epi32(0, 2, 4, 6, 1, 3, 5, 7));  // the x's, the y's
+  const __m256d ux = _mm256_cvtps_pd(_mm256_castps256_ps128(xy)), uy = _mm256_cvtps_pd(_mm256_extractf128_ps(xy, 1));
+  const __m256d s = _mm256_add_pd(_mm256_add_pd(_mm256_set1_pd(o.s), _mm256_mul_pd(ux, frame.ds_ux)),
+                                  _mm256_mul_pd(uy, frame.ds_uy));
+  const __m256d t = _mm256_add_pd(_mm256_add_pd(_mm256_set1_pd(o.t), _mm256_mul_pd(ux, frame.dt_ux)),
+                                  _mm256_mul_pd(uy, frame.dt_uy));
+  const __m256d sign = _mm256_set1_pd(-0.0), half = _mm256_set1_pd(0.5);
+  const __m256d in = _mm256_and_pd(_mm256_cmp_pd(_mm256_andnot_pd(sign, s), half, _CMP_LE_OS),
+                                   _mm256_cmp_pd(_mm256_andnot_pd(sign, t), half, _CMP_LE_OS));
+  return static_cast<uint32_t>(_mm256_movemask_pd(in));
+}
 #endif
 
 // The four direction groups' count without a visitor, in passes with few
@@ -1878,7 +1915,110 @@ template <bool kAvx2>
   return count_four_groups_in_passes_sse2(f, nodes, seeds, reject, lambda, max_steps);
 }
 
-// node_loop: always the node-by-node loop (for the test that compares the two).
+#if GLIMMER_GLINT_WALK_AVX2
+// Session 25 (glintcount25): count_reflecting_particles' node loop with four
+// seeds where the walk uses AVX2 (the footprints smaller than a node, and
+// the visitor's counts): sixteen nodes at a time, pass 1 each node's four
+// group hashes in one register (mix_u32x4_avx2: node_seed_hash's words) and
+// their quick rejects as one compare, the passing pairs as bits 4 c + g; then
+// the loop's steps over those pairs in its order (node by node, groups in
+// order): the lit count K by the bounds or the model, the step cap, the node's
+// origin and node_inside at its first lit pair, the positions and
+// particle_inside four particles per step (particles_inside4_avx2), the
+// visits in k order. The same count, steps, completeness and visits
+// (GlintParticles.NodeLoopAvx2MatchesTheNodeLoop). The frame's steps are
+// broadcast once per count (FrameLanesAvx2; per lit pair, as GCC placed
+// them when the frame was made at the first lit pair: aspect 64 +16.5 per eval).
+inline constexpr int kNodeLoopChunk = 16;
+[[gnu::target("avx2"), gnu::always_inline]] inline uint64_t node_loop_pass1_avx2(const uint32_t *keys, int n,
+                                                                                __m128i seeds, __m128i below,
+                                                                                uint32_t all_pass,
+                                                                                uint32_t (*hashes)[kDirectionGroups]) {
+  const __m128i bias = _mm_set1_epi32(static_cast<int>(0x80000000u));  // unsigned compare as signed
+  uint64_t pairs = 0;
+  int c = 0;
+  // Two nodes per mix_u32x8 (the same words), then an odd last node by the 4-lane form.
+  const __m256i seeds8 = _mm256_set_m128i(seeds, seeds), below8 = _mm256_set_m128i(below, below);
+  const __m256i bias8 = _mm256_set_m128i(bias, bias);
+  for (; c + 1 < n; c += 2) {
+    const __m256i k = _mm256_set_m128i(_mm_set1_epi32(static_cast<int>(keys[c + 1])),
+                                       _mm_set1_epi32(static_cast<int>(keys[c])));
+    const __m256i h = mix_u32x8(_mm256_xor_si256(k, seeds8));
+    _mm256_storeu_si256(reinterpret_cast<__m256i *>(hashes[c]), h);
+    const int lt = _mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpgt_epi32(below8, _mm256_xor_si256(h, bias8))));
+    pairs |= static_cast<uint64_t>((all_pass * 0x11u) | static_cast<uint32_t>(lt)) << (kDirectionGroups * c);
+  }
+  for (; c < n; ++c) {
+    const __m128i h = mix_u32x4_avx2(_mm_xor_si128(_mm_set1_epi32(static_cast<int>(keys[c])), seeds));
+    _mm_store_si128(reinterpret_cast<__m128i *>(hashes[c]), h);
+    const int lt = _mm_movemask_ps(_mm_castsi128_ps(_mm_cmpgt_epi32(below, _mm_xor_si128(h, bias))));
+    pairs |= static_cast<uint64_t>(all_pass | static_cast<uint32_t>(lt)) << (kDirectionGroups * c);
+  }
+  return pairs;
+}
+template <typename Visitor>
+[[gnu::target("avx2"), gnu::noinline]] inline GlintCount count_node_loop_avx2(const Footprint &f, const NodeList &nodes,
+                                                                             const uint32_t *seed_words, double lambda,
+                                                                             const GroupReject &reject, int max_steps,
+                                                                             Visitor &visit) {
+  GlintCount result;
+  const __m128i seeds = _mm_loadu_si128(reinterpret_cast<const __m128i *>(seed_words));
+  const __m128i below = _mm_xor_si128(_mm_set1_epi32(static_cast<int>(reject.below)),
+                                      _mm_set1_epi32(static_cast<int>(0x80000000u)));
+  const uint32_t all_pass = reject.all_pass ? 0xfu : 0u;
+  const LitCountBounds bounds(lambda);
+  std::optional<LitCountModel> model;
+  const FootprintFrame frame(f, nodes.size);
+  const FrameLanesAvx2 lanes = frame_lanes_avx2(frame);
+  for (int first = 0; first < nodes.count; first += kNodeLoopChunk) {
+    alignas(16) uint32_t hashes[kNodeLoopChunk][kDirectionGroups];
+    uint64_t pairs = node_loop_pass1_avx2(nodes.id_hash.data() + first, std::min(nodes.count - first, kNodeLoopChunk),
+                                          seeds, below, all_pass, hashes);
+    int origin_of = -1;  // the node whose origin (and node_inside) is below
+    FootprintFrame::NodeOrigin origin{};
+    bool inside = false;
+    for (; pairs != 0; pairs &= pairs - 1) {
+      const int pair = std::countr_zero(pairs), c = pair / kDirectionGroups;
+      const uint32_t h0 = hashes[c][pair % kDirectionGroups];
+      const double u = (static_cast<double>(h0) + 0.5) * (1.0 / 4294967296.0);
+      int64_t K = bounds.lit(u);
+      if (K == LitCountBounds::kUndecided) {
+        if (!model) model.emplace(lambda);
+        K = u < model->p_any ? model->lit(u) : 0;
+      }
+      if (K == 0) continue;
+      if (K < 0 || result.steps + K > max_steps) {
+        result.complete = false;
+        return result;
+      }
+      result.steps += static_cast<int>(K);
+      if (origin_of != c) {
+        const auto at = static_cast<size_t>(first + c);
+        origin = frame.origin(static_cast<double>(nodes.i[at]) * nodes.size,
+                              static_cast<double>(nodes.j[at]) * nodes.size);
+        inside = frame.node_inside(origin);
+        origin_of = c;
+      }
+      if (inside) {
+        result.count += static_cast<int>(K);
+        if constexpr (std::decay_t<Visitor>::kVisitsParticles)
+          for (int64_t k = 0; k < K; ++k) visit(h0, static_cast<uint32_t>(k));
+        continue;
+      }
+      for (int64_t k = 0; k < K; k += 4) {  // four positions per step (particles_inside4_avx2)
+        uint32_t in = particles_inside4_avx2(lanes, origin, h0, static_cast<uint32_t>(k));
+        if (K - k < 4) in &= (1u << (K - k)) - 1u;
+        result.count += static_cast<int>((0x4332322132212110ull >> (4 * in)) & 0xfu);  // set bits of in
+        if constexpr (std::decay_t<Visitor>::kVisitsParticles)
+          for (; in != 0; in &= in - 1) visit(h0, static_cast<uint32_t>(k + std::countr_zero(in)));
+      }
+    }
+  }
+  return result;
+}
+#endif
+
+// node_loop: always the scalar node-by-node loop (for the tests that compare the passes and the AVX2 loop with it).
 template <typename Visitor = NoParticleVisitor>
 inline GlintCount count_reflecting_particles(const Footprint &f, const NodeList &nodes, double density,
                                              std::span<const uint32_t> seeds, double P, int max_steps,
@@ -1886,17 +2026,17 @@ inline GlintCount count_reflecting_particles(const Footprint &f, const NodeList 
   GlintCount result;
   if (!(P > 0.0)) return result;
   const double lambda = std::min(density * nodes.size * nodes.size, 4.0e18) * std::min(P, 1.0);
-  // Quick reject on the node's 32-bit hash: hash >= floor(lambda 2^32) + 1
-  // means u = (hash + 1/2) 2^-32 > lambda >= Pr(K >= 1), so K = 0.
+  // Quick reject on the node's 32-bit hash: hash >= floor(lambda 2^32) + 1 means u > lambda >= Pr(K >= 1): K = 0.
   const uint64_t maybe_lit_below = static_cast<uint64_t>(std::min(lambda, 1.0) * 4294967296.0) + 1u;
-  // The passes pay where nodes can lie inside the footprint (it is larger
-  // than a node: many nodes, many random branches); on smaller footprints
-  // (1..4 nodes, aspect 64 at area 1e-6) they measured 2..5 % slower than
-  // the node loop.
-  // (The frame's nodes_can_be_inside without the frame: the passes make it only when a pair passes.)
+  // The passes pay where nodes can lie inside the footprint (larger than a node; on 1..4 nodes they measured 2..5 %
+  // slower than the node loop). can_hold_a_node: the frame's nodes_can_be_inside without the frame.
   if constexpr (!std::decay_t<Visitor>::kVisitsParticles)
     if (!node_loop && seeds.size() == kDirectionGroups && FootprintFrame::can_hold_a_node(f, nodes.size))
       return count_four_groups_in_passes(f, nodes, seeds.data(), GroupReject(maybe_lit_below), lambda, max_steps);
+#if GLIMMER_GLINT_WALK_AVX2
+  if (!node_loop && kWalkAvx2 && seeds.size() == kDirectionGroups)
+    return count_node_loop_avx2(f, nodes, seeds.data(), lambda, GroupReject(maybe_lit_below), max_steps, visit);
+#endif
   const FootprintFrame frame(f, nodes.size);
   constexpr size_t kMaxSeeds = 32;
   if (seeds.size() > kMaxSeeds) return {0, 0, false};  // callers pass 1 or kDirectionGroups seeds
@@ -1907,10 +2047,7 @@ inline GlintCount count_reflecting_particles(const Footprint &f, const NodeList 
   for (int node = 0; node < nodes.count; ++node) {
     const int64_t i = nodes.i[node], j = nodes.j[node];
     const uint32_t node_hash = nodes.id_hash[node];
-    // The node's hash per seed, and which may be lit, with no branch per
-    // seed: whether a node is lit is random, so a branch per (node, seed)
-    // was mispredicted about as often as it was lit.
-    std::array<uint32_t, kMaxSeeds> hashes;
+    std::array<uint32_t, kMaxSeeds> hashes;  // per seed, no branch per seed (a node's lit state is random)
     uint32_t maybe_lit;  // bit g: seed g passes the quick reject
     if (n_seeds == kDirectionGroups) {
       maybe_lit = group_hashes(node_hash, seeds.data(), reject, hashes.data());

@@ -1726,7 +1726,7 @@ TEST(GlintParticles, SmallFootprintDarkMatchesTheCount) {
   if (!__builtin_cpu_supports("avx2")) GTEST_SKIP() << "CPU without AVX2";
   Pcg32 rng(43);
   int64_t decided = 0, dark = 0, not_dark = 0, generic = 0, capped = 0, multi_node = 0, no_half = 0,
-          control_differs = 0;
+          control_differs = 0, counted_lit = 0;
   for (int t = 0; t < 200000; ++t) {
     const double density = std::exp(std::log(1e5) + rng.next_double() * std::log(1e3));
     const double particles = std::exp(std::log(1e-3) + rng.next_double() * std::log(2e5));
@@ -1775,6 +1775,12 @@ TEST(GlintParticles, SmallFootprintDarkMatchesTheCount) {
         const auto at = static_cast<size_t>(n);
         ASSERT_TRUE(a.i[at] == b.i[at] && a.j[at] == b.j[at] && a.id_hash[at] == b.id_hash[at]) << "query " << t;
       }
+      // Session 25: glint.cpp's count at P <= P_max over this site (the AVX2 node loop) equals the general route's.
+      const double P_at = 0.5 * P;
+      const pg::GlintCount ka = pg::count_glints(f, site, P_at, max_steps);
+      const pg::GlintCount kb = pg::count_glints(f, ref, P_at, max_steps);
+      ASSERT_TRUE(ka.count == kb.count && ka.steps == kb.steps && ka.complete == kb.complete) << "query " << t;
+      counted_lit += ka.complete && ka.count > 0;
     }
     pg::Footprint moved = f;
     moved.cx += 0.03 * ref.nodes.size;
@@ -1784,10 +1790,10 @@ TEST(GlintParticles, SmallFootprintDarkMatchesTheCount) {
   }
   std::printf("[small dark] %lld decided equal to the count (%lld dark, %lld not dark, %lld capped, %lld over more "
               "than one node, %lld without a half vector), %lld left to the general route; control (moved by 3 %% "
-              "of a node) differs on %lld\n", static_cast<long long>(decided), static_cast<long long>(dark),
-              static_cast<long long>(not_dark), static_cast<long long>(capped), static_cast<long long>(multi_node),
-              static_cast<long long>(no_half), static_cast<long long>(generic),
-              static_cast<long long>(control_differs));
+              "of a node) differs on %lld; %lld not dark ones lit at a lower P\n", static_cast<long long>(decided),
+              static_cast<long long>(dark), static_cast<long long>(not_dark), static_cast<long long>(capped),
+              static_cast<long long>(multi_node), static_cast<long long>(no_half), static_cast<long long>(generic),
+              static_cast<long long>(control_differs), static_cast<long long>(counted_lit));
   EXPECT_GT(dark, 20000);
   EXPECT_GT(not_dark, 5000);
   EXPECT_GT(capped, 500);
@@ -1795,6 +1801,57 @@ TEST(GlintParticles, SmallFootprintDarkMatchesTheCount) {
   EXPECT_GT(no_half, 1000);
   EXPECT_GT(generic, 1000);
   EXPECT_GT(control_differs, 1000);
+  EXPECT_GT(counted_lit, 5000);
+#endif
+}
+
+// Session 25 (glintcount25): the node loop's AVX2 form (count_node_loop_avx2, the walk's count of footprints
+// smaller than a node and of the visitor's counts) gives the scalar node loop's count, steps and completeness (also
+// where the step cap ends it: the same partial count) and visits the same particles in the same order, over
+// random_pass_query's footprints (0.1..5000 particles, aspect 1..64, lists of 1..64 nodes in chunks of 16, step caps
+// reached). Control: the AVX2 loop with the seeds of groups 0 and 1 swapped (a lane mix-up) differs in its visits.
+TEST(GlintParticles, NodeLoopAvx2MatchesTheNodeLoop) {
+#if !GLIMMER_GLINT_WALK_AVX2
+  GTEST_SKIP() << "no AVX2 form in this build";
+#else
+  if (!pg::kWalkAvx2) GTEST_SKIP() << "the walk does not use AVX2 here";
+  Pcg32 rng(53);
+  int compared = 0, sub_node = 0, lit = 0, capped = 0, larger_lit = 0, chunks = 0, control_differs = 0;
+  for (int t = 0; t < 40000; ++t) {
+    const auto &[f, P, max_steps, seeds, group_density, nodes] = random_pass_query(rng, t);
+    RecordingVisitor avx2_seen, loop_seen;
+    const auto a = pg::count_reflecting_particles(f, nodes, group_density, seeds, P, max_steps, avx2_seen);
+    const auto b = pg::count_reflecting_particles(f, nodes, group_density, seeds, P, max_steps, loop_seen, true);
+    ASSERT_TRUE(a.count == b.count && a.steps == b.steps && a.complete == b.complete) << "query " << t;
+    ASSERT_EQ(avx2_seen.seen, loop_seen.seen) << "query " << t;
+    const bool small = !pg::FootprintFrame::can_hold_a_node(f, nodes.size);
+    if (small) {  // the walk's own count (no visitor) takes this loop too
+      const auto c = pg::count_reflecting_particles(f, nodes, group_density, seeds, P, max_steps);
+      ASSERT_TRUE(c.count == b.count && c.steps == b.steps && c.complete == b.complete) << "query " << t;
+    }
+    ++compared;
+    sub_node += small;
+    lit += b.complete && b.count > 0;
+    capped += !b.complete;
+    larger_lit += b.complete && !small && b.count > 0;  // nodes inside the footprint are possible
+    chunks += nodes.count > pg::kNodeLoopChunk;
+    if (!(P > 0.0)) continue;
+    const double lambda = std::min(group_density * nodes.size * nodes.size, 4.0e18) * std::min(P, 1.0);
+    const pg::GroupReject reject(static_cast<uint64_t>(std::min(lambda, 1.0) * 4294967296.0) + 1u);
+    const std::array<uint32_t, pg::kDirectionGroups> swapped = {seeds[1], seeds[0], seeds[2], seeds[3]};
+    RecordingVisitor control_seen;
+    pg::count_node_loop_avx2(f, nodes, swapped.data(), lambda, reject, max_steps, control_seen);
+    control_differs += control_seen.seen != loop_seen.seen;
+  }
+  std::printf("[node loop avx2] %d queries equal (%d smaller than a node, %d lit, %d capped, %d lit at least as "
+              "large as a node, %d over %d nodes); control (groups 0 and 1 swapped) differs on %d\n", compared,
+              sub_node, lit, capped, larger_lit, chunks, pg::kNodeLoopChunk, control_differs);
+  EXPECT_GT(sub_node, 5000);
+  EXPECT_GT(lit, 10000);
+  EXPECT_GT(capped, 1000);
+  EXPECT_GT(larger_lit, 5000);
+  EXPECT_GT(chunks, 5000);
+  EXPECT_GT(control_differs, 5000);
 #endif
 }
 
