@@ -20,6 +20,11 @@
 #include "tables/glint_particles.h"
 #include "tables/glint_tables.h"
 
+// Finiteness is tested as x - x == 0 here (ParticleField::valid_footprint), which -ffinite-math-only folds to true.
+#if defined(__FINITE_MATH_ONLY__) && __FINITE_MATH_ONLY__
+#error "glint_common.h needs IEEE infinities and NaNs (no -ffinite-math-only / -ffast-math)"
+#endif
+
 namespace glimmer::plugin::glint {
 
 namespace mf = glimmer::microfacet;
@@ -153,11 +158,14 @@ struct ParticleField {
 
   // A footprint in the particles' plane (scaled units), with the rules
   // above for a non-finite centre and a degenerate parallelogram.
+  // The finiteness tests (session 25): x - x is 0 exactly when x is finite (inf - inf and NaN are NaN; this file
+  // must not be built with -ffinite-math-only, which would fold it to 0: see the #error above); a non-finite
+  // ax, ay, bx or by makes the area inf or NaN (inf times anything is inf or NaN, and so is inf minus inf), which
+  // the range test refuses, so the four need no test of their own. GlintCoords.ValidFootprintMatchesTheIsfiniteForm.
   Footprint valid_footprint(Footprint f) const {
-    const bool finite = std::isfinite(f.ax) && std::isfinite(f.ay) && std::isfinite(f.bx) && std::isfinite(f.by);
-    if (!std::isfinite(f.cx) || !std::isfinite(f.cy)) f.cx = f.cy = 0.0;
+    if (!((f.cx - f.cx) + (f.cy - f.cy) == 0.0)) f.cx = f.cy = 0.0;
     const double area = f.area();
-    if (!finite || !(area > 1e-30) || !(area < 1e30)) {
+    if (!(area > 1e-30) || !(area < 1e30)) {
       const double side = 1.0 / std::sqrt(static_cast<double>(density));
       f.ax = side;
       f.ay = 0.0;

@@ -670,6 +670,56 @@ TEST(GlintCoords, VectorTableCoordsMatchTheScalarFormula) {
   EXPECT_GT(control_differs, compared / 2);
 }
 
+// ParticleField::valid_footprint (session 25) tests finiteness as x - x == 0 and leaves a non-finite ax..by to the
+// area's range test; it must equal the std::isfinite form it replaced (below) bit for bit, on footprints whose six
+// values are drawn from normal, huge (area overflows to inf), tiny, zero, denormal, NaN and +-inf values. Negative
+// controls: a centre test that catches NaN only (cx == cx), and a range test without the upper bound (area > 1e-30
+// alone), each differ.
+pg::Footprint valid_footprint_isfinite(const pg::ParticleField &field, pg::Footprint f, bool nan_only_centre,
+                                       bool no_upper_bound) {
+  const bool finite = std::isfinite(f.ax) && std::isfinite(f.ay) && std::isfinite(f.bx) && std::isfinite(f.by);
+  const bool centre_ok = nan_only_centre ? f.cx == f.cx && f.cy == f.cy : std::isfinite(f.cx) && std::isfinite(f.cy);
+  if (!centre_ok) f.cx = f.cy = 0.0;
+  const double area = f.area();
+  const bool bad = no_upper_bound ? !(area > 1e-30) : (!finite || !(area > 1e-30) || !(area < 1e30));
+  if (bad) {
+    const double side = 1.0 / std::sqrt(static_cast<double>(field.density));
+    f.ax = side, f.ay = 0.0, f.bx = 0.0, f.by = side;
+  }
+  return f;
+}
+
+TEST(GlintCoords, ValidFootprintMatchesTheIsfiniteForm) {
+  Pcg32 rng(2525);
+  pg::ParticleField field;
+  field.density = 3.7e5f;
+  const double inf = std::numeric_limits<double>::infinity(), nan = std::numeric_limits<double>::quiet_NaN();
+  const double specials[] = {nan, inf, -inf, 1e200, -1e200, 1e-200, 0.0, -0.0, 4.9e-324, 1e15};
+  auto same = [](const pg::Footprint &a, const pg::Footprint &b) { return std::memcmp(&a, &b, sizeof a) == 0; };
+  int compared = 0, replaced = 0, recentred = 0, control_centre = 0, control_range = 0;
+  for (int t = 0; t < 400000; ++t) {
+    pg::Footprint f = random_footprint(rng, std::exp(std::log(1e-12) + rng.next_double() * std::log(1e12)),
+                                       std::exp(rng.next_double() * std::log(256.0)));
+    for (int k = 0; k < 6; ++k)  // each value special with probability 1/8
+      if (rng.next_u32() % 8 == 0) (&f.cx)[k] = specials[rng.next_u32() % std::size(specials)];
+    const pg::Footprint got = field.valid_footprint(f), ref = valid_footprint_isfinite(field, f, false, false);
+    ASSERT_TRUE(same(got, ref)) << "t " << t << ": " << f.cx << " " << f.cy << " " << f.ax << " " << f.ay << " " << f.bx
+                                << " " << f.by;
+    ++compared;
+    replaced += ref.ax != f.ax || ref.by != f.by ? 1 : 0;
+    recentred += !(std::isfinite(f.cx) && std::isfinite(f.cy));
+    control_centre += same(valid_footprint_isfinite(field, f, true, false), ref) ? 0 : 1;
+    control_range += same(valid_footprint_isfinite(field, f, false, true), ref) ? 0 : 1;
+  }
+  std::printf("[valid footprint] %d equal to the isfinite form (%d replaced by the point query, %d re-centred); "
+              "controls differ: NaN-only centre test %d, no upper bound %d\n",
+              compared, replaced, recentred, control_centre, control_range);
+  EXPECT_GT(replaced, 10000);
+  EXPECT_GT(recentred, 10000);
+  EXPECT_GT(control_centre, 1000);
+  EXPECT_GT(control_range, 1000);
+}
+
 // Beckmann Lambda from the polynomial (glint_common.h, issue 10 session 9)
 // against the double erfc + exp form (mf::beckmann_lambda) over random
 // directions (cos theta log-uniform down to 1e-7, both sides), alpha 1e-4..1
