@@ -447,10 +447,10 @@ class GlintClosure {
   }
 
   // The footprint the particles are counted over (the placement's parallelogram and its area); the walk fills the
-  // node list.
-  void place_footprint(const ShadingPoint &sp, Particles &parts) const {
-    parts.fp = glint::placed_footprint(field_, placement_, sp.ctx);
-    parts.area = parts.fp.area();
+  // node list. Inlining pinned (session 25: with placed_footprint pinned, GCC outlined this one, r0.4 area 1e-8
+  // +11 instructions per eval).
+  [[gnu::always_inline]] void place_footprint(const ShadingPoint &sp, Particles &parts) const {
+    parts.fp = glint::placed_footprint(field_, placement_, sp.ctx, parts.area);
   }
 
   // f_cos at wo and the pdf of sampling lobe `w` for eval and sample: the

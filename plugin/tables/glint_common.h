@@ -145,6 +145,11 @@ struct ParticleField {
   // differentials around its uv. A non-finite uv is queried at the origin; a
   // zero, huge or non-finite footprint becomes a point query (a 1/N square).
   Footprint footprint(const GlimmerShadingContext *ctx) const {
+    double area;
+    return footprint(ctx, area);
+  }
+  // The same and its area (f.area(), from valid_footprint's own test: computed once per eval).
+  Footprint footprint(const GlimmerShadingContext *ctx, double &area) const {
     Footprint f;
     const double s = uv_scale;
     f.cx = ctx->uv[0] * s;
@@ -153,7 +158,7 @@ struct ParticleField {
     f.ay = ctx->duv_dx[1] * s;
     f.bx = ctx->duv_dy[0] * s;
     f.by = ctx->duv_dy[1] * s;
-    return valid_footprint(f);
+    return valid_footprint(f, area);
   }
 
   // A footprint in the particles' plane (scaled units), with the rules
@@ -163,14 +168,20 @@ struct ParticleField {
   // ax, ay, bx or by makes the area inf or NaN (inf times anything is inf or NaN, and so is inf minus inf), which
   // the range test refuses, so the four need no test of their own. GlintCoords.ValidFootprintMatchesTheIsfiniteForm.
   Footprint valid_footprint(Footprint f) const {
+    double area;
+    return valid_footprint(f, area);
+  }
+  // The same and the returned footprint's area (f.area()).
+  Footprint valid_footprint(Footprint f, double &area) const {
     if (!((f.cx - f.cx) + (f.cy - f.cy) == 0.0)) f.cx = f.cy = 0.0;
-    const double area = f.area();
+    area = f.area();
     if (!(area > 1e-30) || !(area < 1e30)) {
       const double side = 1.0 / std::sqrt(static_cast<double>(density));
       f.ax = side;
       f.ay = 0.0;
       f.bx = 0.0;
       f.by = side;
+      area = f.area();
     }
     return f;
   }

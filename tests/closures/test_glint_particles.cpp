@@ -671,10 +671,10 @@ TEST(GlintCoords, VectorTableCoordsMatchTheScalarFormula) {
 }
 
 // ParticleField::valid_footprint (session 25) tests finiteness as x - x == 0 and leaves a non-finite ax..by to the
-// area's range test; it must equal the std::isfinite form it replaced (below) bit for bit, on footprints whose six
-// values are drawn from normal, huge (area overflows to inf), tiny, zero, denormal, NaN and +-inf values. Negative
-// controls: a centre test that catches NaN only (cx == cx), and a range test without the upper bound (area > 1e-30
-// alone), each differ.
+// area's range test; it must equal the std::isfinite form it replaced (below) bit for bit, and the area it returns
+// the footprint's area(), on footprints whose six values are drawn from normal, huge (area overflows to inf), tiny,
+// zero, denormal, NaN and +-inf values. Negative controls: a centre test that catches NaN only (cx == cx), and a
+// range test without the upper bound (area > 1e-30 alone), each differ.
 pg::Footprint valid_footprint_isfinite(const pg::ParticleField &field, pg::Footprint f, bool nan_only_centre,
                                        bool no_upper_bound) {
   const bool finite = std::isfinite(f.ax) && std::isfinite(f.ay) && std::isfinite(f.bx) && std::isfinite(f.by);
@@ -702,9 +702,13 @@ TEST(GlintCoords, ValidFootprintMatchesTheIsfiniteForm) {
                                        std::exp(rng.next_double() * std::log(256.0)));
     for (int k = 0; k < 6; ++k)  // each value special with probability 1/8
       if (rng.next_u32() % 8 == 0) (&f.cx)[k] = specials[rng.next_u32() % std::size(specials)];
-    const pg::Footprint got = field.valid_footprint(f), ref = valid_footprint_isfinite(field, f, false, false);
+    double area = -1.0;
+    const pg::Footprint got = field.valid_footprint(f, area), ref = valid_footprint_isfinite(field, f, false, false);
     ASSERT_TRUE(same(got, ref)) << "t " << t << ": " << f.cx << " " << f.cy << " " << f.ax << " " << f.ay << " " << f.bx
                                 << " " << f.by;
+    const double ref_area = ref.area();
+    ASSERT_EQ(std::memcmp(&area, &ref_area, sizeof area), 0) << "t " << t;
+    ASSERT_TRUE(same(field.valid_footprint(f), ref));
     ++compared;
     replaced += ref.ax != f.ax || ref.by != f.by ? 1 : 0;
     recentred += !(std::isfinite(f.cx) && std::isfinite(f.cy));
