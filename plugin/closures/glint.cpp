@@ -402,7 +402,8 @@ class GlintClosure {
     // The lookup comes first: its loads overlap the weight's math.
     const float P = std::min(table_->lookup(at), 1.0f);
     Spectrum weight;
-    if (!glint::glint_weight_of(flakes_->mean(), wi, wo, h, lambdas.wi, lambdas.wo, weight)) return Spectrum(0.0f);
+    if (!glint::glint_weight_of(flakes_->mean(), flakes_->mean_is_white(), wi, wo, h, lambdas.wi, lambdas.wo, weight))
+      return Spectrum(0.0f);
     if (!(P > 0.0f)) return Spectrum(0.0f);
     return glint_or_filtered(wi, wo, P, weight, sigma_deg, density, parts);
   }

@@ -360,22 +360,25 @@ inline HalfVector reflection_half_vector(const Vec3 &wi, const Vec3 &wo) {
 }
 
 // W with G2 from `g2()`, called only when the directions and h pass the tests.
+// `f0_white`: f0 is (1, 1, 1), where Schlick's F is 1 exactly (f0 + (1 - f0) s = 1 + 0 s), so it is not evaluated:
+// the same bits (1 x is x).
 template <typename G2>
 inline bool glint_weight_with(const Spectrum &f0, const Vec3 &wi, const Vec3 &wo, const HalfVector &half, G2 &&g2,
-                              Spectrum &weight) {
+                              Spectrum &weight, bool f0_white = false) {
   if (!(wi.z > 0.0f) || !(wo.z > 0.0f)) return false;
   if (!half.valid) return false;
   const Vec3 &h = half.h;
   const float wi_h = dot(wi, h);
   if (!(wi_h > 0.0f) || !(h.z > 0.0f)) return false;
   const float g = g2();
-  weight = mf::fresnel_schlick(wi_h, f0) * (g * wi_h / (wi.z * h.z));
+  const float s = g * wi_h / (wi.z * h.z);
+  weight = f0_white ? Spectrum(s) : mf::fresnel_schlick(wi_h, f0) * s;
   return true;
 }
 // W with G2 from given Lambdas of wi and wo (eval_lambdas; isotropic).
-inline bool glint_weight_of(const Spectrum &f0, const Vec3 &wi, const Vec3 &wo, const HalfVector &half, float lambda_wi,
-                            float lambda_wo, Spectrum &weight) {
-  return glint_weight_with(f0, wi, wo, half, [&] { return smith_g2_of(lambda_wi, lambda_wo); }, weight);
+inline bool glint_weight_of(const Spectrum &f0, bool f0_white, const Vec3 &wi, const Vec3 &wo, const HalfVector &half,
+                            float lambda_wi, float lambda_wo, Spectrum &weight) {
+  return glint_weight_with(f0, wi, wo, half, [&] { return smith_g2_of(lambda_wi, lambda_wo); }, weight, f0_white);
 }
 inline bool glint_weight(mf::Distribution dist, float alpha_x, float alpha_y, const Spectrum &f0, const Vec3 &wi,
                          const Vec3 &wo, const HalfVector &half, Spectrum &weight) {

@@ -19,6 +19,7 @@
 #include "glimmer/rng.h"
 #include "glimmer/sampling.h"
 #include "tables/glint_common.h"
+#include "tables/glint_flake_colour.h"
 #include "tables/glint_particles.h"
 #include "tables/glint_peak.h"
 #include "tables/glint_pseudo_normals.h"
@@ -722,6 +723,42 @@ TEST(GlintCoords, ValidFootprintMatchesTheIsfiniteForm) {
   EXPECT_GT(recentred, 10000);
   EXPECT_GT(control_centre, 1000);
   EXPECT_GT(control_range, 1000);
+}
+
+// W at a white F0 (session 25): glint_weight_of skips Schlick's F when told f0 is (1, 1, 1) (FlakePalette::
+// mean_is_white), where F is 1 exactly; the weight and its validity are the same bits as with F evaluated, over
+// random directions on both sides and random Lambdas. Negative control: the skip at F0 (0.9, 0.95, 1) differs.
+TEST(GlintCoords, WhiteF0WeightSkipsFresnelWithTheSameBits) {
+  Pcg32 rng(2526);
+  const std::vector<Vec3> dirs = edge_and_random_directions({{0, 0, 1}, {1, 0, 0}, {0.6f, 0, 0.8f}}, 200000, rng);
+  auto same = [](const Spectrum &a, const Spectrum &b) { return std::memcmp(&a, &b, sizeof a) == 0; };
+  int compared = 0, valid = 0, control_differs = 0;
+  for (size_t a = 0; a < dirs.size(); ++a) {
+    const Vec3 &wi = dirs[a], &wo = dirs[(a * 7 + 3) % dirs.size()];
+    const pg::HalfVector h = pg::reflection_half_vector(wi, wo);
+    const float li = static_cast<float>(3.0 * rng.next_double()), lo = static_cast<float>(3.0 * rng.next_double());
+    Spectrum w_skip(-1.0f), w_full(-1.0f), c_skip(-1.0f), c_full(-1.0f);
+    const bool ok_skip = pg::glint_weight_of(Spectrum(1.0f), true, wi, wo, h, li, lo, w_skip);
+    const bool ok_full = pg::glint_weight_of(Spectrum(1.0f), false, wi, wo, h, li, lo, w_full);
+    ASSERT_EQ(ok_skip, ok_full) << a;
+    ASSERT_TRUE(same(w_skip, w_full)) << a << ": " << w_skip.x << " vs " << w_full.x;
+    const Spectrum off(0.9f, 0.95f, 1.0f);
+    pg::glint_weight_of(off, true, wi, wo, h, li, lo, c_skip);
+    pg::glint_weight_of(off, false, wi, wo, h, li, lo, c_full);
+    ++compared;
+    valid += ok_full;
+    control_differs += ok_full && !same(c_skip, c_full);
+  }
+  const bool white = pg::FlakePalette(Spectrum(1.0f), 0.0f, 0.0f).mean_is_white();
+  const bool almost = pg::FlakePalette(Spectrum(1.0f, 1.0f, 0.999f), 0.0f, 0.0f).mean_is_white();
+  const bool paint = pg::FlakePalette(Spectrum(0.85f, 0.88f, 0.95f), 20.0f, 0.3f).mean_is_white();
+  std::printf("[white F0] %d weights (%d valid) equal with and without F; control F0 (0.9, 0.95, 1) differs on %d\n",
+              compared, valid, control_differs);
+  EXPECT_TRUE(white);
+  EXPECT_FALSE(almost);
+  EXPECT_FALSE(paint);
+  EXPECT_GT(valid, compared / 8);
+  EXPECT_GT(control_differs, valid / 2);
 }
 
 // Beckmann Lambda from the polynomial (glint_common.h, issue 10 session 9)
