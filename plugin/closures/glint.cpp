@@ -498,7 +498,12 @@ class GlintClosure {
     const float density = sp.param_float(density_param_, field_.density);
     const TableCoords c = table_coords(sp.wi, wo);
     Particles parts;  // default-initialised: value-initialising would zero the 1 KB node list
-    place_footprint(sp, parts);
+    // A blur wider than the cone is the filtered mean (3), which needs no footprint (neither does the dark test,
+    // which it refuses): area 0 stands for it (session 25).
+    if (kPseudoNormals || !(sigma_deg > field_.gamma_deg))
+      place_footprint(sp, parts);
+    else
+      parts.area = 0.0;
     const bool dark = kPseudoNormals ? pseudo_normals_dark(sp.wi, wo, c, density, parts)
                                      : provably_dark_if_applies(sp.wi, wo, c, sigma_deg, density, parts);
     if (dark) {
