@@ -405,6 +405,7 @@ class GlintClosure {
     if (!glint::glint_weight_of(flakes_->mean(), flakes_->mean_is_white(), wi, wo, h, lambdas.wi, lambdas.wo, weight))
       return Spectrum(0.0f);
     if (!(P > 0.0f)) return Spectrum(0.0f);
+    if (sigma_deg > field_.gamma_deg) return weight * (P / cone_solid_angle_);  // (3) here: no call (session 25)
     return glint_or_filtered(wi, wo, P, weight, sigma_deg, density, parts);
   }
 
