@@ -311,14 +311,14 @@ class GlintClosure {
   // footprint holds no reflecting particle at P_max >= P (tables/glint_peak.h),
   // hence none at P (the count is nested in P). When it is not dark,
   // glint_f_cos counts again at P over the same cells and nodes.
-  // Out of line (session 14: GCC inlined it into f_cos_and_pdf, 81 instructions per eval more at area 1e-8).
-  [[gnu::noinline]] bool provably_dark(const Vec3 &wi, const Vec3 &wo, const TableCoords &c, float sigma_deg, float density,
-                     Particles &parts) const {
-    const double particles = static_cast<double>(density) * parts.area;
-    if (peak_.empty() || sigma_deg > field_.gamma_deg || !(particles <= kDarkTestMaxParticles)) return false;
-    const float P_max = std::min(peak_.bound(c.lanes()), 1.0f);
-    const double expected_max = particles * P_max;
-    if (!(expected_max <= dark_test_cap_)) return false;  // <= threshold_ and <= kDarkTestMaxExpected
+  // Its cheap refusals (dark_test_applies) are taken inline, before the call: in the GI scene they end almost
+  // every eval's test (session 25). The body out of line (session 14: GCC inlined it into f_cos_and_pdf, 81
+  // instructions per eval more at area 1e-8).
+  bool dark_test_applies(float sigma_deg, double particles) const {
+    return !peak_.empty() && !(sigma_deg > field_.gamma_deg) && particles <= kDarkTestMaxParticles;
+  }
+  [[gnu::noinline]] bool provably_dark(const Vec3 &wi, const Vec3 &wo, float density, float P_max,
+                                       Particles &parts) const {
 #if GLIMMER_GLINT_WALK_AVX2
     // Session 24: a footprint of at most kDarkTestMaxNodes nodes in a box of at most kBoxSpan x kBoxSpan, smaller
     // than a node, without the node list (tables/glint_small_dark.h); the same answer as the count below.
@@ -337,6 +337,15 @@ class GlintClosure {
     if (parts.site.node_list().count > kDarkTestMaxNodes) return false;
     const glint::GlintCount k = glint::count_glints(parts.fp, parts.site, P_max, kMaxSteps);
     return k.complete && k.count == 0;
+  }
+  bool provably_dark_if_applies(const Vec3 &wi, const Vec3 &wo, const TableCoords &c, float sigma_deg, float density,
+                                Particles &parts) const {
+    const double particles = static_cast<double>(density) * parts.area;
+    if (!dark_test_applies(sigma_deg, particles)) return false;
+    const float P_max = std::min(peak_.bound(c.lanes()), 1.0f);
+    const double expected_max = particles * P_max;
+    if (!(expected_max <= dark_test_cap_)) return false;  // <= threshold_ and <= kDarkTestMaxExpected
+    return provably_dark(wi, wo, density, P_max, parts);
   }
 
   // The pseudo-normal count of a footprint (false: the query's tiles do not
@@ -393,8 +402,10 @@ class GlintClosure {
     // The lookup comes first: its loads overlap the weight's math.
     const float P = std::min(table_->lookup(at), 1.0f);
     Spectrum weight;
-    if (!glint::glint_weight_of(flakes_->mean(), wi, wo, h, lambdas.wi, lambdas.wo, weight)) return Spectrum(0.0f);
+    if (!glint::glint_weight_of(flakes_->mean(), flakes_->mean_is_white(), wi, wo, h, lambdas.wi, lambdas.wo, weight))
+      return Spectrum(0.0f);
     if (!(P > 0.0f)) return Spectrum(0.0f);
+    if (sigma_deg > field_.gamma_deg) return weight * (P / cone_solid_angle_);  // (3) here: no call (session 25)
     return glint_or_filtered(wi, wo, P, weight, sigma_deg, density, parts);
   }
 
@@ -438,10 +449,10 @@ class GlintClosure {
   }
 
   // The footprint the particles are counted over (the placement's parallelogram and its area); the walk fills the
-  // node list.
-  void place_footprint(const ShadingPoint &sp, Particles &parts) const {
-    parts.fp = glint::placed_footprint(field_, placement_, sp.ctx);
-    parts.area = parts.fp.area();
+  // node list. Inlining pinned (session 25: with placed_footprint pinned, GCC outlined this one, r0.4 area 1e-8
+  // +11 instructions per eval).
+  [[gnu::always_inline]] void place_footprint(const ShadingPoint &sp, Particles &parts) const {
+    parts.fp = glint::placed_footprint(field_, placement_, sp.ctx, parts.area);
   }
 
   // f_cos at wo and the pdf of sampling lobe `w` for eval and sample: the
@@ -488,9 +499,14 @@ class GlintClosure {
     const float density = sp.param_float(density_param_, field_.density);
     const TableCoords c = table_coords(sp.wi, wo);
     Particles parts;  // default-initialised: value-initialising would zero the 1 KB node list
-    place_footprint(sp, parts);
+    // A blur wider than the cone is the filtered mean (3), which needs no footprint (neither does the dark test,
+    // which it refuses): area 0 stands for it (session 25).
+    if (kPseudoNormals || !(sigma_deg > field_.gamma_deg))
+      place_footprint(sp, parts);
+    else
+      parts.area = 0.0;
     const bool dark = kPseudoNormals ? pseudo_normals_dark(sp.wi, wo, c, density, parts)
-                                     : provably_dark(sp.wi, wo, c, sigma_deg, density, parts);
+                                     : provably_dark_if_applies(sp.wi, wo, c, sigma_deg, density, parts);
     if (dark) {
       pdf = glint::smooth_lobe_pdf(field_.distribution, w.ax, w.ay, sp.wi, wo, h);  // one Lambda, no W
       return Spectrum(0.0f);

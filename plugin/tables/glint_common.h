@@ -20,6 +20,11 @@
 #include "tables/glint_particles.h"
 #include "tables/glint_tables.h"
 
+// Finiteness is tested as x - x == 0 here (ParticleField::valid_footprint), which -ffinite-math-only folds to true.
+#if defined(__FINITE_MATH_ONLY__) && __FINITE_MATH_ONLY__
+#error "glint_common.h needs IEEE infinities and NaNs (no -ffinite-math-only / -ffast-math)"
+#endif
+
 namespace glimmer::plugin::glint {
 
 namespace mf = glimmer::microfacet;
@@ -140,6 +145,11 @@ struct ParticleField {
   // differentials around its uv. A non-finite uv is queried at the origin; a
   // zero, huge or non-finite footprint becomes a point query (a 1/N square).
   Footprint footprint(const GlimmerShadingContext *ctx) const {
+    double area;
+    return footprint(ctx, area);
+  }
+  // The same and its area (f.area(), from valid_footprint's own test: computed once per eval).
+  Footprint footprint(const GlimmerShadingContext *ctx, double &area) const {
     Footprint f;
     const double s = uv_scale;
     f.cx = ctx->uv[0] * s;
@@ -148,21 +158,30 @@ struct ParticleField {
     f.ay = ctx->duv_dx[1] * s;
     f.bx = ctx->duv_dy[0] * s;
     f.by = ctx->duv_dy[1] * s;
-    return valid_footprint(f);
+    return valid_footprint(f, area);
   }
 
   // A footprint in the particles' plane (scaled units), with the rules
   // above for a non-finite centre and a degenerate parallelogram.
+  // The finiteness tests (session 25): x - x is 0 exactly when x is finite (inf - inf and NaN are NaN; this file
+  // must not be built with -ffinite-math-only, which would fold it to 0: see the #error above); a non-finite
+  // ax, ay, bx or by makes the area inf or NaN (inf times anything is inf or NaN, and so is inf minus inf), which
+  // the range test refuses, so the four need no test of their own. GlintCoords.ValidFootprintMatchesTheIsfiniteForm.
   Footprint valid_footprint(Footprint f) const {
-    const bool finite = std::isfinite(f.ax) && std::isfinite(f.ay) && std::isfinite(f.bx) && std::isfinite(f.by);
-    if (!std::isfinite(f.cx) || !std::isfinite(f.cy)) f.cx = f.cy = 0.0;
-    const double area = f.area();
-    if (!finite || !(area > 1e-30) || !(area < 1e30)) {
+    double area;
+    return valid_footprint(f, area);
+  }
+  // The same and the returned footprint's area (f.area()).
+  Footprint valid_footprint(Footprint f, double &area) const {
+    if (!((f.cx - f.cx) + (f.cy - f.cy) == 0.0)) f.cx = f.cy = 0.0;
+    area = f.area();
+    if (!(area > 1e-30) || !(area < 1e30)) {
       const double side = 1.0 / std::sqrt(static_cast<double>(density));
       f.ax = side;
       f.ay = 0.0;
       f.bx = 0.0;
       f.by = side;
+      area = f.area();
     }
     return f;
   }
@@ -341,22 +360,25 @@ inline HalfVector reflection_half_vector(const Vec3 &wi, const Vec3 &wo) {
 }
 
 // W with G2 from `g2()`, called only when the directions and h pass the tests.
+// `f0_white`: f0 is (1, 1, 1), where Schlick's F is 1 exactly (f0 + (1 - f0) s = 1 + 0 s), so it is not evaluated:
+// the same bits (1 x is x).
 template <typename G2>
 inline bool glint_weight_with(const Spectrum &f0, const Vec3 &wi, const Vec3 &wo, const HalfVector &half, G2 &&g2,
-                              Spectrum &weight) {
+                              Spectrum &weight, bool f0_white = false) {
   if (!(wi.z > 0.0f) || !(wo.z > 0.0f)) return false;
   if (!half.valid) return false;
   const Vec3 &h = half.h;
   const float wi_h = dot(wi, h);
   if (!(wi_h > 0.0f) || !(h.z > 0.0f)) return false;
   const float g = g2();
-  weight = mf::fresnel_schlick(wi_h, f0) * (g * wi_h / (wi.z * h.z));
+  const float s = g * wi_h / (wi.z * h.z);
+  weight = f0_white ? Spectrum(s) : mf::fresnel_schlick(wi_h, f0) * s;
   return true;
 }
 // W with G2 from given Lambdas of wi and wo (eval_lambdas; isotropic).
-inline bool glint_weight_of(const Spectrum &f0, const Vec3 &wi, const Vec3 &wo, const HalfVector &half, float lambda_wi,
-                            float lambda_wo, Spectrum &weight) {
-  return glint_weight_with(f0, wi, wo, half, [&] { return smith_g2_of(lambda_wi, lambda_wo); }, weight);
+inline bool glint_weight_of(const Spectrum &f0, bool f0_white, const Vec3 &wi, const Vec3 &wo, const HalfVector &half,
+                            float lambda_wi, float lambda_wo, Spectrum &weight) {
+  return glint_weight_with(f0, wi, wo, half, [&] { return smith_g2_of(lambda_wi, lambda_wo); }, weight, f0_white);
 }
 inline bool glint_weight(mf::Distribution dist, float alpha_x, float alpha_y, const Spectrum &f0, const Vec3 &wi,
                          const Vec3 &wo, const HalfVector &half, Spectrum &weight) {

@@ -92,6 +92,7 @@ class FlakePalette {
   // mean() is `base` exactly, so the closure's results are unchanged.
   FlakePalette(const Spectrum &base, float hue_variation_deg, float value_variation)
       : mean_(base), varies_(hue_variation_deg > 0.0f || value_variation > 0.0f) {
+    white_ = mean_.x == 1.0f && mean_.y == 1.0f && mean_.z == 1.0f;
     if (!varies_) return;
     const Hsv hsv = rgb_to_hsv(base);
     const float hue_half_width = hue_variation_deg / 360.0f;  // turns
@@ -105,11 +106,14 @@ class FlakePalette {
     }
     mean_ = Spectrum(static_cast<float>(sum[0] / kSize), static_cast<float>(sum[1] / kSize),
                      static_cast<float>(sum[2] / kSize));
+    white_ = mean_.x == 1.0f && mean_.y == 1.0f && mean_.z == 1.0f;
   }
 
   bool varies() const { return varies_; }
   // The mean flake colour: the filtered lobe's F0.
   const Spectrum &mean() const { return mean_; }
+  // mean() is (1, 1, 1) exactly: Schlick's F at that F0 is 1 exactly (1 + 0 x), so W skips it (session 25).
+  bool mean_is_white() const { return white_; }
   // Flake k of the lit particles whose node hash (in their direction cell) is node_hash.
   const Spectrum &colour(uint32_t node_hash, uint32_t k) const {
     return colours_[hash_combine(node_hash ^ 0x85ebca6bu, k) >> 24];
@@ -119,6 +123,7 @@ class FlakePalette {
   std::array<Spectrum, kSize> colours_{};
   Spectrum mean_;
   bool varies_ = false;
+  bool white_ = false;  // mean_ == (1, 1, 1)
 };
 
 // Visitor of count_glints that sums the F0 of the counted flakes.

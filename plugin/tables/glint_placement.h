@@ -36,8 +36,10 @@ enum class Placement { UV = 0, Object = 1 };
 // three projections use disjoint parts of the particle field.
 inline constexpr double kAxisPlaneOffset = 4099.37;
 
-// The footprint of `ctx` in the particles' plane for the given placement.
-inline Footprint placed_footprint(const ParticleField &field, Placement placement, const GlimmerShadingContext *ctx) {
+// The footprint of `ctx` in the particles' plane for the given placement, and its area (f.area(), computed once).
+// Inlining pinned (session 25): with the area passed out, GCC made this a function of its own in glint.cpp.
+[[gnu::always_inline]] inline Footprint placed_footprint(const ParticleField &field, Placement placement,
+                                                        const GlimmerShadingContext *ctx, double &area) {
 #if GLIMMER_ABI_MINOR >= 4
   if (placement == Placement::Object && GLIMMER_HAS_FIELD(ctx->struct_size, GlimmerShadingContext, Ng_object)) {
     const float n[3] = {std::fabs(ctx->Ng_object.x), std::fabs(ctx->Ng_object.y), std::fabs(ctx->Ng_object.z)};
@@ -55,13 +57,13 @@ inline Footprint placed_footprint(const ParticleField &field, Placement placemen
       f.ay = coord(ctx->dPdx_object, b) * scale;
       f.bx = coord(ctx->dPdy_object, a) * scale;
       f.by = coord(ctx->dPdy_object, b) * scale;
-      return field.valid_footprint(f);
+      return field.valid_footprint(f, area);
     }
   }
 #else
   (void)placement;
 #endif
-  return field.footprint(ctx);
+  return field.footprint(ctx, area);
 }
 
 }  // namespace glimmer::plugin::glint

@@ -542,6 +542,49 @@ TEST(Glint, StressNoNanInfNegative) {
   EXPECT_TRUE(stress_clean(instances, 50000 * instances.size()));  // 50000 calls per instance
 }
 
+// The footprint's finiteness guard (ParticleField::valid_footprint, x - x == 0 since session 25) still fires in the
+// closure: a NaN or infinite uv is read as uv (0, 0), and a NaN or infinite uv differential as the point query (a
+// zero footprint), so those evals equal the evals at the sanitised context bit for bit (f and pdf), and are finite.
+// Negative control: the same comparison against uv (0.5, 0.5) instead of (0, 0) differs.
+TEST(Glint, NonFiniteFootprintIsSanitised) {
+  auto glint = make_closure("glint", {{"roughness", "0.3"}, {"density", "1e6"}});
+  const float inf = std::numeric_limits<float>::infinity(), nan = std::numeric_limits<float>::quiet_NaN();
+  Pcg32 rng(25);
+  int compared = 0, lit = 0, control_differs = 0;
+  for (int i = 0; i < 3000; ++i) {
+    const double theta = 60.0 * rng.next_double();
+    const Vec3 wi = spherical_dir(theta, 0.0);
+    const Vec3 wo = spherical_dir(theta + 10.0 * (rng.next_double() - 0.5), 180.0 + 10.0 * (rng.next_double() - 0.5));
+    const float bad = i % 3 == 0 ? nan : (i % 3 == 1 ? inf : -inf);
+    const double side = 6e-3;  // ~36 particles: glint mode, a few lit
+    // uv not finite: as uv (0, 0)
+    GlimmerShadingContext c_bad = footprint_context(wi, 0.0, 0.0, side, 0.0, 0.0, side);
+    c_bad.uv[i % 2] = bad;
+    const GlimmerShadingContext c_origin = footprint_context(wi, 0.0, 0.0, side, 0.0, 0.0, side);
+    const GlimmerShadingContext c_control = footprint_context(wi, 0.5, 0.5, side, 0.0, 0.0, side);
+    // a differential not finite: the point query, as a zero footprint
+    GlimmerShadingContext d_bad = footprint_context(wi, 0.3, 0.7, side, 0.0, 0.0, side);
+    (i % 4 < 2 ? d_bad.duv_dx : d_bad.duv_dy)[i % 2] = bad;
+    const GlimmerShadingContext d_point = footprint_context(wi, 0.3, 0.7, 0.0, 0.0, 0.0, 0.0);
+    float p_bad, p_ref, q_bad, q_ref, p_control;
+    const float f_bad = eval_f(*glint, c_bad, wo, &p_bad), f_ref = eval_f(*glint, c_origin, wo, &p_ref);
+    const float g_bad = eval_f(*glint, d_bad, wo, &q_bad), g_ref = eval_f(*glint, d_point, wo, &q_ref);
+    const float f_control = eval_f(*glint, c_control, wo, &p_control);
+    ASSERT_TRUE(std::isfinite(f_bad) && std::isfinite(g_bad) && std::isfinite(p_bad) && std::isfinite(q_bad)) << i;
+    ASSERT_EQ(f_bad, f_ref) << i;
+    ASSERT_EQ(p_bad, p_ref) << i;
+    ASSERT_EQ(g_bad, g_ref) << i;
+    ASSERT_EQ(q_bad, q_ref) << i;
+    ++compared;
+    lit += f_ref > 0.0f || g_ref > 0.0f;
+    control_differs += f_control != f_ref;
+  }
+  std::printf("[non-finite footprint] %d evals equal to the sanitised context's (%d lit); control (uv 0.5) differs "
+              "on %d\n", compared, lit, control_differs);
+  EXPECT_GT(lit, 100);
+  EXPECT_GT(control_differs, 50);
+}
+
 // The seed is an integer taken exactly (ABI 2.2 payload): 2^24 and 2^24 + 1,
 // one float apart from nothing, are different particle fields (a seed read as
 // a float would make them one field), and each field is its own seed's.

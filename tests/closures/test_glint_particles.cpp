@@ -19,6 +19,7 @@
 #include "glimmer/rng.h"
 #include "glimmer/sampling.h"
 #include "tables/glint_common.h"
+#include "tables/glint_flake_colour.h"
 #include "tables/glint_particles.h"
 #include "tables/glint_peak.h"
 #include "tables/glint_pseudo_normals.h"
@@ -668,6 +669,96 @@ TEST(GlintCoords, VectorTableCoordsMatchTheScalarFormula) {
   std::printf("[coords] %lld coordinate triples equal to the scalar formula; std::acos differs on %lld\n",
               static_cast<long long>(compared), static_cast<long long>(control_differs));
   EXPECT_GT(control_differs, compared / 2);
+}
+
+// ParticleField::valid_footprint (session 25) tests finiteness as x - x == 0 and leaves a non-finite ax..by to the
+// area's range test; it must equal the std::isfinite form it replaced (below) bit for bit, and the area it returns
+// the footprint's area(), on footprints whose six values are drawn from normal, huge (area overflows to inf), tiny,
+// zero, denormal, NaN and +-inf values. Negative controls: a centre test that catches NaN only (cx == cx), and a
+// range test without the upper bound (area > 1e-30 alone), each differ.
+pg::Footprint valid_footprint_isfinite(const pg::ParticleField &field, pg::Footprint f, bool nan_only_centre,
+                                       bool no_upper_bound) {
+  const bool finite = std::isfinite(f.ax) && std::isfinite(f.ay) && std::isfinite(f.bx) && std::isfinite(f.by);
+  const bool centre_ok = nan_only_centre ? f.cx == f.cx && f.cy == f.cy : std::isfinite(f.cx) && std::isfinite(f.cy);
+  if (!centre_ok) f.cx = f.cy = 0.0;
+  const double area = f.area();
+  const bool bad = no_upper_bound ? !(area > 1e-30) : (!finite || !(area > 1e-30) || !(area < 1e30));
+  if (bad) {
+    const double side = 1.0 / std::sqrt(static_cast<double>(field.density));
+    f.ax = side, f.ay = 0.0, f.bx = 0.0, f.by = side;
+  }
+  return f;
+}
+
+TEST(GlintCoords, ValidFootprintMatchesTheIsfiniteForm) {
+  Pcg32 rng(2525);
+  pg::ParticleField field;
+  field.density = 3.7e5f;
+  const double inf = std::numeric_limits<double>::infinity(), nan = std::numeric_limits<double>::quiet_NaN();
+  const double specials[] = {nan, inf, -inf, 1e200, -1e200, 1e-200, 0.0, -0.0, 4.9e-324, 1e15};
+  auto same = [](const pg::Footprint &a, const pg::Footprint &b) { return std::memcmp(&a, &b, sizeof a) == 0; };
+  int compared = 0, replaced = 0, recentred = 0, control_centre = 0, control_range = 0;
+  for (int t = 0; t < 400000; ++t) {
+    pg::Footprint f = random_footprint(rng, std::exp(std::log(1e-12) + rng.next_double() * std::log(1e12)),
+                                       std::exp(rng.next_double() * std::log(256.0)));
+    for (int k = 0; k < 6; ++k)  // each value special with probability 1/8
+      if (rng.next_u32() % 8 == 0) (&f.cx)[k] = specials[rng.next_u32() % std::size(specials)];
+    double area = -1.0;
+    const pg::Footprint got = field.valid_footprint(f, area), ref = valid_footprint_isfinite(field, f, false, false);
+    ASSERT_TRUE(same(got, ref)) << "t " << t << ": " << f.cx << " " << f.cy << " " << f.ax << " " << f.ay << " " << f.bx
+                                << " " << f.by;
+    const double ref_area = ref.area();
+    ASSERT_EQ(std::memcmp(&area, &ref_area, sizeof area), 0) << "t " << t;
+    ASSERT_TRUE(same(field.valid_footprint(f), ref));
+    ++compared;
+    replaced += ref.ax != f.ax || ref.by != f.by ? 1 : 0;
+    recentred += !(std::isfinite(f.cx) && std::isfinite(f.cy));
+    control_centre += same(valid_footprint_isfinite(field, f, true, false), ref) ? 0 : 1;
+    control_range += same(valid_footprint_isfinite(field, f, false, true), ref) ? 0 : 1;
+  }
+  std::printf("[valid footprint] %d equal to the isfinite form (%d replaced by the point query, %d re-centred); "
+              "controls differ: NaN-only centre test %d, no upper bound %d\n",
+              compared, replaced, recentred, control_centre, control_range);
+  EXPECT_GT(replaced, 10000);
+  EXPECT_GT(recentred, 10000);
+  EXPECT_GT(control_centre, 1000);
+  EXPECT_GT(control_range, 1000);
+}
+
+// W at a white F0 (session 25): glint_weight_of skips Schlick's F when told f0 is (1, 1, 1) (FlakePalette::
+// mean_is_white), where F is 1 exactly; the weight and its validity are the same bits as with F evaluated, over
+// random directions on both sides and random Lambdas. Negative control: the skip at F0 (0.9, 0.95, 1) differs.
+TEST(GlintCoords, WhiteF0WeightSkipsFresnelWithTheSameBits) {
+  Pcg32 rng(2526);
+  const std::vector<Vec3> dirs = edge_and_random_directions({{0, 0, 1}, {1, 0, 0}, {0.6f, 0, 0.8f}}, 200000, rng);
+  auto same = [](const Spectrum &a, const Spectrum &b) { return std::memcmp(&a, &b, sizeof a) == 0; };
+  int compared = 0, valid = 0, control_differs = 0;
+  for (size_t a = 0; a < dirs.size(); ++a) {
+    const Vec3 &wi = dirs[a], &wo = dirs[(a * 7 + 3) % dirs.size()];
+    const pg::HalfVector h = pg::reflection_half_vector(wi, wo);
+    const float li = static_cast<float>(3.0 * rng.next_double()), lo = static_cast<float>(3.0 * rng.next_double());
+    Spectrum w_skip(-1.0f), w_full(-1.0f), c_skip(-1.0f), c_full(-1.0f);
+    const bool ok_skip = pg::glint_weight_of(Spectrum(1.0f), true, wi, wo, h, li, lo, w_skip);
+    const bool ok_full = pg::glint_weight_of(Spectrum(1.0f), false, wi, wo, h, li, lo, w_full);
+    ASSERT_EQ(ok_skip, ok_full) << a;
+    ASSERT_TRUE(same(w_skip, w_full)) << a << ": " << w_skip.x << " vs " << w_full.x;
+    const Spectrum off(0.9f, 0.95f, 1.0f);
+    pg::glint_weight_of(off, true, wi, wo, h, li, lo, c_skip);
+    pg::glint_weight_of(off, false, wi, wo, h, li, lo, c_full);
+    ++compared;
+    valid += ok_full;
+    control_differs += ok_full && !same(c_skip, c_full);
+  }
+  const bool white = pg::FlakePalette(Spectrum(1.0f), 0.0f, 0.0f).mean_is_white();
+  const bool almost = pg::FlakePalette(Spectrum(1.0f, 1.0f, 0.999f), 0.0f, 0.0f).mean_is_white();
+  const bool paint = pg::FlakePalette(Spectrum(0.85f, 0.88f, 0.95f), 20.0f, 0.3f).mean_is_white();
+  std::printf("[white F0] %d weights (%d valid) equal with and without F; control F0 (0.9, 0.95, 1) differs on %d\n",
+              compared, valid, control_differs);
+  EXPECT_TRUE(white);
+  EXPECT_FALSE(almost);
+  EXPECT_FALSE(paint);
+  EXPECT_GT(valid, compared / 8);
+  EXPECT_GT(control_differs, valid / 2);
 }
 
 // Beckmann Lambda from the polynomial (glint_common.h, issue 10 session 9)
