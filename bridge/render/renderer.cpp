@@ -878,12 +878,12 @@ struct Renderer::Impl {
     sampler.get2(exit_light_set(ps.sample_vertex()), lu, lv);
     exit_world.lamps = options.exit_lobe_lamps && lights->lamp_count() > 0;
     if (exit_world.lamps) {
-      const ExitPoints at{Vec3(s.origin), lamp_origin_of(s), n};
       ExactExit exact;
       if (exact_lamps(cs, sd, xs, s, exact))
-        integrate_exit_lamps(at, ValuedExitLobe{&lobe, &ExactExit::value, &exact}, lu, lv, sampler, ps, pr);
+        integrate_exit_lamps(Vec3(s.origin), n, ValuedExitLobe{&lobe, &ExactExit::value, &exact}, lu, lv, sampler,
+                             ps, pr);
       else
-        integrate_exit_lamps(at, lobe, lu, lv, sampler, ps, pr);
+        integrate_exit_lamps(Vec3(s.origin), n, lobe, lu, lv, sampler, ps, pr);
     }
     const auto exit_bsdf = [&](const Vec3 &wi) {
       MixtureEval me;
@@ -961,39 +961,17 @@ struct Renderer::Impl {
     x.state = s.exit_state;
     return true;
   }
-  // Where the lamps are integrated from: the exit point P (normal n; the shadow rays start there) and the point the
-  // lobe is aimed from (ABI 2.9's lamp_origin, else P).
-  struct ExitPoints {
-    Vec3 P, aim, n;
-  };
-  static Vec3 lamp_origin_of(const GlimmerSample &s) {
-    if (!(s.flags & GLIMMER_SAMPLE_LAMP_ORIGIN)) return Vec3(s.origin);
-    const Vec3 o(s.lamp_origin);
-    return is_finite(o) ? o : Vec3(s.origin);
-  }
   template <class Lobe>
-  void integrate_exit_lamps(const ExitPoints &at, const Lobe &lobe, float lu, float lv, const PixelSampler &sampler,
-                            const PathState &ps, PathRadiance &pr) const {
+  void integrate_exit_lamps(const Vec3 &P, const Vec3 &n, const Lobe &lobe, float lu, float lv,
+                            const PixelSampler &sampler, const PathState &ps, PathRadiance &pr) const {
     float pick, unused;
     sampler.get2(exit_lamp_set(ps.sample_vertex()), pick, unused);
     for (int k = 0; k < lights->lamp_count(); ++k) {
       LampEstimate e;
-      if (!lights->lamp_through_lobe(k, at.aim, lobe, lu, lv, pick, e)) continue;
+      if (!lights->lamp_through_lobe(k, P, lobe, lu, lv, pick, e)) continue;
       const Spectrum c = pr.throughput * e.value;
-      if (is_zero(c)) continue;
-      aim_shadow_from_exit(at, e);
-      add_contribution(pr, c * shadow_transmittance(at.P, at.n, e.wi, e.dist), ps.bounce);
+      if (!is_zero(c)) add_contribution(pr, c * shadow_transmittance(P, n, e.wi, e.dist), ps.bounce);
     }
-  }
-  // ABI 2.9: a lamp point found from the aim point is tested for visibility from the exit point (the same point of
-  // the lamp; a distant light's direction is the same from both).
-  static void aim_shadow_from_exit(const ExitPoints &at, LampEstimate &e) {
-    if (!(std::isfinite(e.dist)) || (at.aim.x == at.P.x && at.aim.y == at.P.y && at.aim.z == at.P.z)) return;
-    const Vec3 to = at.aim + e.wi * e.dist - at.P;
-    const float dist = length(to);
-    if (!(dist > 0.0f) || !is_finite(to)) return;
-    e.wi = to / dist;
-    e.dist = dist;
   }
 
 

@@ -127,7 +127,6 @@ struct Segment {
   float mean_length = 1.0f;
   int bounding_count = 0;  // bounding rays that left through the same material
   Vec3 bounding_dir[4], bounding_normal[4];
-  Vec3 bounding_P[4];  // the bounding rays' exit points (curved_lamp_origin)
 };
 bool trace_segment(const GlimmerHostServices *host, const SgInputs &in, const Vec3 &origin, const Vec3 &axis,
                    float kappa_in, Segment &seg) {
@@ -145,8 +144,7 @@ bool trace_segment(const GlimmerHostServices *host, const SgInputs &in, const Ve
       sum += h.normal;
       ++count;
       seg.bounding_dir[seg.bounding_count] = dir;
-      seg.bounding_normal[seg.bounding_count] = h.normal;
-      seg.bounding_P[seg.bounding_count++] = Vec3(h.hit.P);
+      seg.bounding_normal[seg.bounding_count++] = h.normal;
     }
   }
   sum /= float(count);
@@ -465,62 +463,6 @@ float curved_shift() {
   }();
   return k;
 }
-// kCurvedLampOrigin (1: curved_lamp_origin's t*; 0: none, the lamps aimed from the exit point as before), or for
-// measurements only GLIMMER_FROSTED_LAMP_ORIGIN = k (t* scaled by k), read once.
-float lamp_origin_scale() {
-  static const float k = [] {
-    const char *e = std::getenv("GLIMMER_FROSTED_LAMP_ORIGIN");
-    if (e == nullptr || *e == '\0') return kCurvedLampOrigin;
-    const float v = std::strtof(e, nullptr);
-    return std::isfinite(v) ? std::clamp(v, 0.0f, 4.0f) : kCurvedLampOrigin;
-  }();
-  return k;
-}
-// The curved exit's lamp origin (session 25, frostedorigin25; closure ABI 2.9, GlimmerSample.lamp_origin): the point
-// the exit bundle's directions appear to leave from. Light leaves a sphere from points spread about the chief ray's
-// exit P0 (the internal lobe's rays reach the surface apart) and each point's direction goes with it; the mixture
-// leaves from P0 alone, so a near lamp sees the wrong spread. Per ray i of the internal lobe's 5-point quadrature
-// (the axis, weight 1 - 1 / ln 4, the 4 bounding rays 1 / (4 ln 4): refracted_mean_shift's), in the frame of the
-// chief ray's smooth exit direction d0: A_i the ray's lateral offset where it crosses the plane through P0 normal to
-// d0, theta_i its smooth exit direction's lateral slope (d_i - d0 (d_i . d0)) / (d_i . d0). At distance t along d0
-// the bundle's lateral offsets are A_i + t theta_i + the exit's rough scatter (mean 0, 2D variance v_r, independent
-// of i); the weighted least-squares point of the bundle (its waist; the point of closest approach of the rays with
-// the scatter as a regulariser) minimises E|A + t theta - m|^2 over t and the lateral centre m:
-//   t* = -Cov(A, theta) / (Var(theta) + v_r),  m = E[A] + t* E[theta],  lamp origin = P0 + m + t* d0.
-// A sphere's bundle diverges behind its exit (t* < 0). v_r = 2 (1 / kappa_out - 1 / kappa_geometric): the exit lobe's
-// variance less its traced geometric part (kappa_out = the single SG's sharpness before the shape). Without the
-// roughness (v_r = 0) this is the rays' geometric virtual source; with it, the far-field point from which the lobe's
-// directions reproduce the bundle's spread (the covariance of position and direction). False unless all 4 bounding
-// rays left through the material.
-bool curved_lamp_origin(const Segment &seg, const Vec3 &axis, float ior, float kappa_out, float kappa_geometric,
-                        Vec3 &origin) {
-  const float k = lamp_origin_scale();
-  if (seg.bounding_count != 4 || !(k > 0.0f)) return false;
-  constexpr float kAxisShare = 1.0f - 0.72134752f, kRayShare = 0.72134752f * 0.25f;
-  const Vec3 P0(seg.axis.hit.P), d0 = refract_out(axis, seg.axis.normal, ior);
-  Vec3 mean_A(0.0f), mean_th(0.0f), A[4], th[4];
-  for (int i = 0; i < 4; ++i) {
-    const Vec3 d = refract_out(seg.bounding_dir[i], seg.bounding_normal[i], ior), r = seg.bounding_P[i] - P0;
-    const float along = dot(d, d0);
-    if (!(along > 0.05f)) return false;
-    th[i] = (d - d0 * along) / along;
-    const float c = dot(r, d0);
-    A[i] = (r - d0 * c) - th[i] * c;  // carried along the ray to the plane through P0
-    mean_A += A[i] * kRayShare, mean_th += th[i] * kRayShare;
-  }
-  // Centred moments over the 5 points (the axis ray sits at A = theta = 0).
-  float cov = 0.0f, var = 0.0f;
-  for (int i = 0; i < 4; ++i) {
-    cov += kRayShare * dot(A[i] - mean_A, th[i] - mean_th);
-    var += kRayShare * dot(th[i] - mean_th, th[i] - mean_th);
-  }
-  cov += kAxisShare * dot(mean_A, mean_th), var += kAxisShare * dot(mean_th, mean_th);
-  const float v_r = 2.0f * std::max(0.0f, 1.0f / std::max(kappa_out, 1e-3f) - 1.0f / std::max(kappa_geometric, 1e-3f));
-  if (!(var + v_r > 1e-12f)) return false;
-  const float t = -cov / (var + v_r) * k;
-  origin = P0 + mean_A + mean_th * t + d0 * t;
-  return is_finite(origin);
-}
 constexpr float kCurvedSingleSgBelow = 0.2f;
 // Thirteenth session: cores x 3 -> x 2, measured with exit light sampling in the small light's test (its former
 // 4096 / 1024 figures, which chose x 3, were mostly sg's noise): small light r 0.5 0.139 -> 0.085, slab band L1 r 0.5
@@ -538,7 +480,6 @@ bool solid_exit_mixture(const SgInputs &in, const Segment &seg, const Vec3 &axis
   const bool ladder = by_rule && wide && planar;
   if (by_rule && !planar && (wide || narrow)) {  // the single SG, split into a core and a tail when wide
     if (wide && in.roughness <= kCurvedSplitMax) {
-      out.has_lamp_origin = curved_lamp_origin(seg, axis, ior, out.sg.sharpness, kappa_geometric, out.lamp_origin);
       // The axis moved by the smooth refractions' mean shift (kCurvedAxisShift; session 23's first-moment rules were
       // measured and not kept, docs/frosted_glass.md "Session 23 (frostedexit23)"; removed in session 24).
       if (const float k = curved_shift(); k != 0.0f) {
@@ -737,8 +678,6 @@ bool sample_sg_transmission(const ShadingPoint &sp, const SgInputs &in, const Ve
   out.origin = exit.origin;
   out.origin_Ng = exit.origin_Ng;
   out.exit_lobe = true;  // ABI 2.4: the host may sample lights at the exit with this lobe
-  out.has_lamp_origin = exit.has_lamp_origin;  // ABI 2.9: where the host aims at lamps from (curved exits)
-  out.lamp_origin = exit.lamp_origin;
   out.lobe_axis = exit.sg.axis;
   out.lobe_sharpness = exit.sg.sharpness;
   return true;

@@ -156,16 +156,7 @@ inline constexpr CurvedShape kCurvedExitShape{2, {0.65f, 0.35f}, {2.2f, 0.4f}};
 // GLIMMER_FROSTED_CURVED_AXIS and moment_mean_shift were removed in session 24) puts the harness' axis right (-0.90 ->
 // +0.16 deg at the bench's case) but doubles the caustic bench's shadow bias (0.0092 -> 0.0175, 2 x 8192 spp) and
 // misses the analytic shadow (SphereShadowOfAFarLampAgainstThePath 0.056 -> 0.084): not kept, the smooth shift stays.
-// Session 25 (frostedorigin25): 1 -> 1.5, together with kCurvedLampOrigin. Session 24 measured k 1.5 alone (the
-// bench's shadow 0.0092 -> 0.0064, but the sphere's own glass, glass_L, 0.0217 -> 0.0247: not kept); with the lamps
-// aimed from the exit bundle's waist the pair gives, 4 seeds x 8192 spp: shadow 0.00919 -> 0.00599, all 0.00890 ->
-// 0.00690, edges 0.0453 -> 0.0331, glass_L 0.02170 -> 0.02211, glass 0.01660 -> 0.01690 (docs/frosted_glass.md
-// "Session 25 (frostedorigin25)").
-inline constexpr float kCurvedAxisShift = 1.5f;
-// Session 25 (frostedorigin25): a curved exit (the curved shape's range) hands the host the point its lobe's
-// directions appear to leave from (frosted_glass_sg.cpp, curved_lamp_origin: the exit bundle's least-squares waist),
-// scaled along the chief ray by this factor (0: none; GLIMMER_FROSTED_LAMP_ORIGIN for measurements).
-inline constexpr float kCurvedLampOrigin = 1.0f;
+inline constexpr float kCurvedAxisShift = 1.0f;
 // Session 23 (frostedexit23): a shape per roughness. kCurvedExitShape up to kCurvedShapeRoughness[0] (0.5, the
 // caustic bench's sphere, unchanged there), kCurvedExitShapeWide (a core x 1.8, weight 0.7, a tail x 0.3, weight 0.3)
 // from kCurvedShapeRoughness[1] (0.6) up to kCurvedSplitMax, the shares and factors interpolated linearly between.
@@ -258,9 +249,6 @@ struct ExitLobe {
 #endif
   int lobe_count = 0;
   MixtureLobe lobe[kMaxLobes];
-  // Session 25: a curved exit's lamp origin (the bundle's waist, ABI 2.9 GlimmerSample.lamp_origin), when set.
-  bool has_lamp_origin = false;
-  Vec3 lamp_origin{0.0f};
 };
 
 // Steps 1-5 for the path entering at sp (wi outside, sp.wi.z > 0); `seed` drives the Russian roulette at

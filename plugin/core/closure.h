@@ -164,10 +164,6 @@ struct LocalSample {
   GlimmerExitState *state_out = nullptr;
   bool exit_state = false;
 #endif
-  // ABI 2.9: with exit_lobe, the point the lobe's directions appear to leave from (world space), for the host's
-  // lamps through the lobe (GlimmerSample.lamp_origin); written when has_lamp_origin.
-  bool has_lamp_origin = false;
-  Vec3 lamp_origin{0.0f};
 };
 
 // Keeps only finite, non-negative values: a closure must never hand NaN/Inf or
@@ -360,13 +356,6 @@ struct ClosureAdapter {
       out->lobe_sharpness = s.lobe_sharpness;
 #if GLIMMER_ABI_MINOR >= 7
       if (s.exit_mixture && s.mixture_out != nullptr) out->flags |= GLIMMER_SAMPLE_EXIT_MIXTURE;
-#endif
-#if GLIMMER_ABI_MINOR >= 9
-      if (s.has_lamp_origin && GLIMMER_HAS_FIELD(out->struct_size, GlimmerSample, lamp_origin) &&
-          is_finite(s.lamp_origin)) {
-        out->flags |= GLIMMER_SAMPLE_LAMP_ORIGIN;
-        out->lamp_origin = s.lamp_origin;
-      }
 #endif
     }
 #endif

@@ -777,10 +777,8 @@ Vec3 exit_axis(const AnalyticScene &scene, const Pixel &p, float ior) {
 
 // One path from the pixel through the object until it leaves: its weight and the direction it leaves in. False when
 // it fails, reflects at the first event, stays inside (512 events) or leaves a slab back through its entry face.
-// leaving_from: where the leaving ray starts; aimed_from (closure ABI 2.9): where a host aims at lamps from (the last
-// sample's lamp_origin when it has one, else leaving_from).
 bool trace_through(const AnalyticScene &scene, const Sampler &sample, const Pixel &px, Pcg32 &rng,
-                   Spectrum &throughput, Vec3 &leaving, Vec3 *leaving_from = nullptr, Vec3 *aimed_from = nullptr) {
+                   Spectrum &throughput, Vec3 &leaving, Vec3 *leaving_from = nullptr) {
   const auto schema = FrostedGlassClosure::params();
   Hit hit = px.hit;
   Vec3 D = px.D;
@@ -799,7 +797,6 @@ bool trace_through(const AnalyticScene &scene, const Sampler &sample, const Pixe
     if (!scene.intersect(origin, wo, 0.0f, std::numeric_limits<float>::infinity(), next)) {
       leaving = wo;
       if (leaving_from != nullptr) *leaving_from = origin;
-      if (aimed_from != nullptr) *aimed_from = s.moved && s.has_lamp_origin ? s.lamp_origin : origin;
       return !(scene.kind == AnalyticScene::kSlab && wo.z > 0.0f);  // not back through the entry face
     }
     hit = next;
@@ -1336,104 +1333,6 @@ TEST(FrostedGlassSg, SphereShadowDirectionsAroundTheLamp) {
   }
 }
 
-// ---- The sphere's shadow under a near lamp: where the exit lobe is aimed from (issue 12, session 25) ------------
-// The light of a lamp (a ball of the bench's cross-section along the bench's lamp direction) reaching floor points
-// through the sphere (r 0.5, IOR 1.5, the bench's case), at lamp distances 2.5 / 5.04 (the bench's) / 40 radii from
-// its centre. Brute force: method=path's leaving rays, each from its own exit point, counted when they hit the ball.
-// sg: the same count for its leaving rays from the point the host aims at lamps from (closure ABI 2.9's lamp origin,
-// frosted_glass_sg.cpp curved_lamp_origin) and, the negative control, from the exit point (the single origin before
-// session 25), on the same sg paths. The directions are the same at every distance; the origins count near the lamp.
-constexpr float kNearLampDistances[3] = {2.5f, kBenchLampDistance, 8.0f * kBenchLampDistance};
-struct NearLampHits {
-  double path[3] = {}, aimed[3] = {}, exit[3] = {};  // weight per entering path hitting the lamp at each distance
-  double offset = 0.0, offset_along = 0.0, leaving = 0.0;  // sums of |aimed - from|, (aimed - from) . wo; count
-};
-NearLampHits near_lamp_hits(const AnalyticScene &scene, const Sampler &sample, const Vec3 &lamp, const Vec3 &at,
-                            int paths, uint64_t seed) {
-  constexpr int kChunks = 16;
-  std::array<NearLampHits, kChunks> acc{};
-  tbb::parallel_for(0, kChunks, [&](int c) {
-    Pcg32 rng(seed, 11 + uint64_t(c));
-    NearLampHits &o = acc[size_t(c)];
-    for (int i = c; i < paths; i += kChunks) {
-      const float u1 = rng.next_float(), u2 = rng.next_float(), r = std::sqrt(u1), phi = 2.0f * float(M_PI) * u2;
-      Pixel px{{}, Vec3(r * std::cos(phi), r * std::sin(phi), std::sqrt(std::max(0.0f, 1.0f - u1)))};
-      if (!scene.intersect(at, px.D, 0.0f, 100.0f, px.hit)) continue;
-      Spectrum throughput;
-      Vec3 wo, from, aimed;
-      if (!trace_through(scene, sample, px, rng, throughput, wo, &from, &aimed)) continue;
-      const Vec3 d = normalize(wo);
-      const double w = average(throughput);
-      o.offset += length(aimed - from), o.offset_along += dot(aimed - from, d), o.leaving += 1.0;
-      for (int k = 0; k < 3; ++k) {  // the lamp a ball whose radius grows with its distance (the same solid angle)
-        const float dist = kNearLampDistances[k], radius = kBenchLampRadius * dist / kBenchLampDistance;
-        const auto hits = [&](const Vec3 &origin) {
-          const Vec3 to = lamp * dist - origin;
-          const float along = dot(to, d);
-          return along > 0.0f && dot(to, to) - along * along < radius * radius;
-        };
-        if (hits(from)) o.exit[k] += w;
-        if (hits(aimed)) o.aimed[k] += w;
-      }
-    }
-  });
-  NearLampHits out;
-  for (const auto &o : acc) {
-    out.offset += o.offset, out.offset_along += o.offset_along, out.leaving += o.leaving;
-  }
-  for (const auto &o : acc)
-    for (int k = 0; k < 3; ++k) {
-      out.exit[k] += o.exit[k] / paths;
-      out.aimed[k] += o.aimed[k] / paths;
-      out.path[k] += o.exit[k] / paths;
-    }
-  return out;
-}
-// Measured (session 25; 1M path / 1M sg paths per floor point, floor points 0.55..1.0 radii), relative L1 at lamp
-// distances 2.5 / 5.04 / 40.3 radii, sg from the lamp origin / from the exit point (the control: the same sg paths):
-// 0.0584 / 0.0577, 0.0231 / 0.0278, 0.0655 / 0.0591. Before (kCurvedAxisShift 1, GLIMMER_FROSTED_CURVED_SHIFT=1):
-// 0.0914 / 0.0857, 0.0729 / 0.0633, 0.0824 / 0.0764 (main's sg: the exit point's 0.0633 at the bench's lamp). The
-// origin helps at the bench's distance only together with the axis shift 1.5, as on the bench (its shadow 0.00919 ->
-// 0.00599); at 2.5 radii it is neutral and at 40 it costs (0.0591 -> 0.0655: its lateral centre moves the far caustic).
-// Bound at the bench's lamp: measured + ~12 %; the control (the single origin) must miss it.
-TEST(FrostedGlassSg, SphereShadowOfANearLampFromTheLampOrigin) {
-  const int paths = stress_scale() > 1 ? 4000000 : 1000000;
-  const Vec3 lamp = normalize(Vec3(0.9f, 1.6f, 2.4f));  // the bench's lamp seen from the sphere's centre
-  const Vec3 toward = normalize(Vec3(-lamp.x, -lamp.y, 0.0f));
-  const float roughness = 0.5f, ior = 1.5f;
-  auto path = create_raw(roughness, ior, false);
-  auto sg = create_raw(roughness, ior, true);
-  AnalyticScene scene(AnalyticScene::kSphere);
-  scene.material = reinterpret_cast<const GlimmerInstance *>(sg.get());
-  const Sampler path_sampler = sampler_of(*path), sg_sampler = sampler_of(*sg);
-  double l1_aimed[3] = {}, l1_exit[3] = {}, total[3] = {};
-  std::printf("[frosted near lamp] r 0.50 IOR 1.50, lamp at 2.5 / 5.04 / 40.3 radii: floor point | path | sg from the "
-              "lamp origin / path | sg from the exit point / path\n");
-  for (int i = 0; i <= 9; ++i) {
-    const float dfloor = 0.55f + 0.05f * float(i);
-    const Vec3 at = Vec3(0.0f, 0.0f, -1.0f + 1e-4f) + toward * dfloor;
-    const NearLampHits ref = near_lamp_hits(scene, path_sampler, lamp, at, paths, 1);
-    const NearLampHits now = near_lamp_hits(scene, sg_sampler, lamp, at, paths, 2);
-    std::printf("  %.2f", double(dfloor));
-    for (int k = 0; k < 3; ++k) {
-      const double p = std::max(ref.path[k], 1e-30);
-      std::printf(" | %.3e %.3f %.3f", ref.path[k], now.aimed[k] / p, now.exit[k] / p);
-      l1_aimed[k] += std::fabs(now.aimed[k] - ref.path[k]);
-      l1_exit[k] += std::fabs(now.exit[k] - ref.path[k]);
-      total[k] += ref.path[k];
-    }
-    std::printf(" | lamp origin - exit point: %.3f, along the ray %+.3f radii\n", now.offset / now.leaving,
-                now.offset_along / now.leaving);
-  }
-  for (int k = 0; k < 3; ++k)
-    std::printf("  lamp at %.1f radii: relative L1 from the lamp origin %.4f, from the exit point %.4f\n",
-                double(kNearLampDistances[k]), l1_aimed[k] / total[k], l1_exit[k] / total[k]);
-  constexpr double kBound = 0.026;  // the bench's lamp (k = 1)
-  EXPECT_LT(l1_aimed[1] / total[1], kBound);
-  EXPECT_GT(l1_exit[1] / total[1], kBound) << "control passed: the single origin";
-  EXPECT_LT(l1_aimed[0] / total[0], 0.075);  // 2.5 radii: no worse than measured + ~25 %
-}
-
 // ---- The skew of the slab's oblique exit lobe (issue 12, thirteenth session) -----------------------------------
 // The slab of the accuracy set at incidences 0 / 30 / 50 / 70 deg (the exit axis is the incident direction
 // continued): each transmitted path binned by the angle of its escape direction off the exit axis and by its
@@ -1666,7 +1565,7 @@ TEST(FrostedGlassSg, ExitMixtureThroughTheAbiForNewAndOldHosts) {
     AnalyticScene scene(AnalyticScene::kSphere);
     scene.material = inst;
     Pcg32 rng(91);
-    int moved = 0, mixtures = 0, bad = 0, none = 0, lamp_origins = 0;
+    int moved = 0, mixtures = 0, bad = 0, none = 0;
     for (int i = 0; i < 1500; ++i) {
       const Vec3 n_out = normalize(Vec3(rng.next_float() - 0.5f, rng.next_float() - 0.5f, rng.next_float() - 0.5f));
       const Frame f = Frame::from_normal(n_out);
@@ -1679,7 +1578,7 @@ TEST(FrostedGlassSg, ExitMixtureThroughTheAbiForNewAndOldHosts) {
       ctx.path_seed = rng.next_u32();
       const float r3[3] = {rng.next_float(), rng.next_float(), rng.next_float()};
       // 2.7 host.
-      GlimmerExitMixture buffer{}, buffer28{};
+      GlimmerExitMixture buffer{};
       GlimmerSample full = glimmer_blank_sample();
       full.exit_mixture = &buffer;
       const uint32_t label = Adapter::sample(inst, &ctx, r3, &full);
@@ -1691,22 +1590,6 @@ TEST(FrostedGlassSg, ExitMixtureThroughTheAbiForNewAndOldHosts) {
       old->struct_size = uint32_t(kOld);
       const uint32_t old_label = Adapter::sample(inst, &ctx, r3, old);
       for (size_t b = kOld; b < sizeof raw; ++b) bad += raw[b] != 0xAB;
-      // 2.8 host: its sample ends before lamp_origin (ABI 2.9); guard bytes after it.
-      constexpr size_t k28 = offsetof(GlimmerSample, lamp_origin);
-      alignas(GlimmerSample) unsigned char raw28[sizeof(GlimmerSample) + 64];
-      std::memset(raw28, 0xAB, sizeof raw28);
-      GlimmerSample *s28 = reinterpret_cast<GlimmerSample *>(raw28);
-      s28->struct_size = uint32_t(k28);
-      s28->exit_mixture = &buffer28;
-      s28->exit_state = nullptr;
-      const uint32_t label28 = Adapter::sample(inst, &ctx, r3, s28);
-      for (size_t b = k28; b < sizeof raw28; ++b) bad += raw28[b] != 0xAB;
-      bad += label28 != label || (s28->flags & GLIMMER_SAMPLE_LAMP_ORIGIN) != 0;
-      if (full.flags & GLIMMER_SAMPLE_LAMP_ORIGIN) {  // only on an exit lobe, finite, near the exit point
-        ++lamp_origins;
-        const Vec3 o(full.lamp_origin), p(full.origin);
-        bad += !(full.flags & GLIMMER_SAMPLE_EXIT_LOBE) || !is_finite(o) || !(length(o - p) < 20.0f);
-      }
       // 2.7 host without a buffer.
       GlimmerSample no_buffer = glimmer_blank_sample();
       Adapter::sample(inst, &ctx, r3, &no_buffer);
@@ -1733,9 +1616,9 @@ TEST(FrostedGlassSg, ExitMixtureThroughTheAbiForNewAndOldHosts) {
       bad += !(buffer.count >= 1 && buffer.count <= GLIMMER_EXIT_MAX_LOBES) || std::fabs(sum - 1.0) > 1e-4 ||
              !picked_listed;
     }
-    std::printf("[frosted sg abi] roughness %.1f: %d moved samples, %d with the whole mixture, %d with a lamp origin; "
-                "%d no-sample calls; %d bad (old hosts' guard bytes, labels, directions, flags, mixture contents)\n",
-                double(roughness), moved, mixtures, lamp_origins, none, bad);
+    std::printf("[frosted sg abi] roughness %.1f: %d moved samples, %d with the whole mixture; %d no-sample calls; "
+                "%d bad (old host's guard bytes, labels, directions, flags, mixture contents)\n",
+                double(roughness), moved, mixtures, none, bad);
     EXPECT_EQ(bad, 0) << "roughness " << roughness;
     EXPECT_GT(moved, 300) << "roughness " << roughness;
     EXPECT_GT(none, 100) << "roughness " << roughness;  // the no-sample path (clear) ran for the old host
@@ -1743,12 +1626,6 @@ TEST(FrostedGlassSg, ExitMixtureThroughTheAbiForNewAndOldHosts) {
       EXPECT_EQ(mixtures, moved);
     else
       EXPECT_EQ(mixtures, 0);
-    // ABI 2.9: the curved exit's lamp origin (roughness above kMixtureRoughnessMax up to kCurvedSplitMax) on most of
-    // its moved samples (all 4 bounding rays left through the sphere); none elsewhere.
-    if (roughness > frosted::kMixtureRoughnessMax && roughness <= frosted::kCurvedSplitMax)
-      EXPECT_GT(lamp_origins, moved / 2) << "roughness " << roughness;
-    else
-      EXPECT_EQ(lamp_origins, 0) << "roughness " << roughness;
   }
 }
 

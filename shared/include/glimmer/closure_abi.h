@@ -75,14 +75,6 @@
  *        host's struct_size holds the field and the pointer is not NULL; a host calls eval_exit only
  *        when the type's struct_size holds it and it is not NULL. Older hosts
  *        and plugins keep the singular sample (MIS weight 1, no NEE).
- *   2.9: GlimmerSample.lamp_origin (GLIMMER_SAMPLE_LAMP_ORIGIN, only together
- *        with GLIMMER_SAMPLE_EXIT_LOBE): the point the exit lobe's directions
- *        appear to leave from (frosted_glass sg's sphere: the exit bundle's
- *        least-squares waist, usually behind the exit surface). A host that
- *        integrates lamps through the lobe may aim at them from there (the
- *        lobe's density read along the direction from lamp_origin to the lamp
- *        point) while the shadow ray still starts at `origin`. Written only
- *        when the host's struct_size holds it; older hosts aim from `origin`.
  *
  * Threading: create/prepare/destroy are called from one thread; eval/sample/
  * emit/albedo are called concurrently on an immutable, prepared instance and
@@ -102,7 +94,7 @@ extern "C" {
 #define GLIMMER_ABI_MAJOR 2u
 #endif
 #ifndef GLIMMER_ABI_MINOR
-#define GLIMMER_ABI_MINOR 9u
+#define GLIMMER_ABI_MINOR 8u
 #endif
 #ifndef GLIMMER_ABI_VERSION
 #define GLIMMER_ABI_VERSION ((GLIMMER_ABI_MAJOR << 16) | GLIMMER_ABI_MINOR)
@@ -378,26 +370,13 @@ typedef struct GlimmerSample {
    * against eval_exit's pdf at wo instead of counting them whole. */
   GlimmerExitState *exit_state;
 #endif
-#if GLIMMER_ABI_MINOR >= 9
-  /* ABI 2.9 (written only when the host's struct_size holds it). With
-   * GLIMMER_SAMPLE_LAMP_ORIGIN (only together with GLIMMER_SAMPLE_EXIT_LOBE)
-   * the exit lobe's (or mixture's) directions appear to diverge from this
-   * point rather than from `origin`: light leaves a curved exit from points
-   * spread about `origin`, with directions that go with the points. A host
-   * that integrates a lamp through the lobe may evaluate the lobe along the
-   * direction from lamp_origin to each lamp point (its distance to a near lamp
-   * then counts), the shadow ray still from `origin` to that point; the
-   * continued path, the world and a host that ignores it use `origin`. */
-  GlimmerVec3 lamp_origin;
-#endif
 } GlimmerSample;
 
 enum GlimmerSampleFlags {
   GLIMMER_SAMPLE_MOVED = 1u,
   GLIMMER_SAMPLE_EXIT_LOBE = 2u,
   GLIMMER_SAMPLE_EXIT_MIXTURE = 4u, /* ABI 2.7 */
-  GLIMMER_SAMPLE_EXIT_STATE = 8u,   /* ABI 2.8 */
-  GLIMMER_SAMPLE_LAMP_ORIGIN = 16u  /* ABI 2.9 */
+  GLIMMER_SAMPLE_EXIT_STATE = 8u    /* ABI 2.8 */
 };
 
 /* The GlimmerSample a host passes to sample() when it offers no exit buffers:
