@@ -23,6 +23,7 @@
 #include <cstdio>
 #include <vector>
 
+#include "closures/frosted_exit_mixture.h"
 #include "closures/frosted_glass.h"
 #include "closures/frosted_test_host.h"
 #include "glimmer/exit_lobe.h"
@@ -174,20 +175,8 @@ std::array<double, kDirections> sg_walk(const FrostedGlassClosure &sg, const Fro
                frosted::kDefaultMixtureTail, -1.0f, nullptr, sampled_reflection);
   if (!(s.label & GLIMMER_LABEL_TRANSMIT) || !s.moved || !s.exit_lobe || !(s.pdf > 0.0f)) return v;
   const double weight = average(s.f_cos) / double(s.pdf);
-  glimmer::ExitLobeMixture m;
+  const glimmer::ExitLobeMixture m = glimmer::test::exit_mixture_of(s, buffer);
   const Vec3 n = normalize(s.origin_Ng);
-  if (s.exit_mixture) {
-    m.count = int(buffer.count);
-    for (int k = 0; k < m.count; ++k) {
-      m.lobe[k] = glimmer::ExitLobe::make(Vec3(buffer.axis[k]), double(buffer.sharpness[k]), n);
-      m.weight[k] = double(buffer.weight[k]);
-    }
-  } else {
-    m.count = 1;
-    m.lobe[0] = glimmer::ExitLobe::make(s.lobe_axis, double(s.lobe_sharpness), n);
-    m.weight[0] = 1.0;
-  }
-  m.normalize();
   for (int j = 0; j < kDirections; ++j)
     if (dot(w[j], n) > 0.0f && SphereHost::escapes(s.origin, n, w[j])) v[j] = weight * m.pdf(w[j]);
   return v;

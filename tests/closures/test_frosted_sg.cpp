@@ -34,6 +34,7 @@
 #include <utility>
 
 #include "closures/angle_bands.h"
+#include "closures/frosted_exit_mixture.h"
 #include "closures/frosted_glass.h"
 #include "closures/frosted_test_host.h"
 #include "closures/microfacet_test_util.h"
@@ -49,6 +50,7 @@ using namespace glimmer::plugin;
 using glimmer::test::angle_band;
 using glimmer::test::BandSums;
 using glimmer::test::degrees_between;
+using glimmer::test::exit_mixture_of;
 using glimmer::test::stress_scale;  // 100 under make stress
 
 std::unique_ptr<FrostedGlassClosure> create_method(float roughness, float ior, const char *method,
@@ -208,25 +210,6 @@ GlimmerShadingContext context_at(const AnalyticScene &scene, const Hit &hit, con
 // `exit_nee` (sg, a small light): the renderer's light sampling at the exit (ABI 2.4 / 2.7): at an sg sample that
 // carries its exit lobe (mixture), one light sample from the light's vMF weighted by the lobe's density there, MIS
 // (power heuristic) with the lobe's own direction. The same expectation as without, less noise.
-// The exit lobe of an sg sample as the host sees it (the whole mixture, or the single lobe), restricted to origin_Ng.
-glimmer::ExitLobeMixture exit_mixture_of(const LocalSample &s, const GlimmerExitMixture &buffer) {
-  glimmer::ExitLobeMixture m;
-  const Vec3 n = normalize(s.origin_Ng);
-  if (s.exit_mixture) {
-    m.count = int(std::min<uint32_t>(buffer.count, GLIMMER_EXIT_MAX_LOBES));
-    for (int k = 0; k < m.count; ++k) {
-      m.lobe[k] = glimmer::ExitLobe::make(Vec3(buffer.axis[k]), double(buffer.sharpness[k]), n);
-      m.weight[k] = double(buffer.weight[k]);
-    }
-  } else {
-    m.count = 1;
-    m.lobe[0] = glimmer::ExitLobe::make(s.lobe_axis, double(s.lobe_sharpness), n);
-    m.weight[0] = 1.0;
-  }
-  m.normalize();
-  return m;
-}
-
 Spectrum transmitted_radiance(const AnalyticScene &scene, const Sampler &sample, Hit hit, Vec3 D, Pcg32 &rng,
                               const Evaluator *light_eval = nullptr, bool exit_nee = false) {
   const bool nee = light_eval != nullptr && scene.small_light;
