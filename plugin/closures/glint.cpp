@@ -266,9 +266,10 @@ class GlintClosure {
   // A pure memo (the same list as computed afresh), so images do not depend
   // on threads or call order.
   // Out of line: inlined, GCC recomputed the thread-local's address (a call
-  // of __tls_get_addr) at every use.
+  // of __tls_get_addr) at every use. constinit (session 26): no guard variable and no dynamic initialisation, one
+  // __tls_get_addr per call instead of two (33 -> ~16 instructions per call).
   [[gnu::noinline]] static glint::FootprintNodeMemo *node_memo() {
-    static thread_local glint::FootprintNodeMemo memo;
+    static thread_local constinit glint::FootprintNodeMemo memo;
     return &memo;
   }
   void locate(const Vec3 &wi, const Vec3 &wo, float density, Particles &parts) const {

@@ -219,6 +219,11 @@ inline constexpr int kMaxNodes = 64;
 inline constexpr int64_t kSmallBoxSpan = 2, kBoxSpan = 4;
 struct NodeList {
   static constexpr int kRowChunk = 4;  // add_row writes whole chunks of this many entries
+  NodeList() = default;  // the entries left uninitialised (1 KB per eval)
+  // Every entry zeroed, as a constant expression (session 26: FootprintNodeMemo's thread_local is constant-initialised,
+  // so reading it needs no guard and one __tls_get_addr, not two).
+  struct Zeroed {};
+  explicit constexpr NodeList(Zeroed) : i{}, j{}, id_hash{} {}
   int level = 0;  // set before add()
   double size = 1.0;  // node side s = 2^-level
   int count = 0;
@@ -768,7 +773,7 @@ struct FootprintNodeMemo {
   uint64_t cx = 0, cy = 0, ax = 0, ay = 0, bx = 0, by = 0;  // the footprint's bits
   int level = 0;  // the particle level the list was made for
   bool valid = false;
-  NodeList nodes;
+  NodeList nodes{NodeList::Zeroed{}};
   // Whether the list is that of f at `lvl` (the bits compared: -0 and NaN are keys like any other).
   bool holds(const Footprint &f, int lvl) const {
     const uint64_t d = (std::bit_cast<uint64_t>(f.cx) ^ cx) | (std::bit_cast<uint64_t>(f.cy) ^ cy) |
