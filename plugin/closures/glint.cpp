@@ -363,8 +363,7 @@ class GlintClosure {
       }
     glint::PseudoNormalTiles tiles;
     if (!glint::pseudo_normal_tiles(pseudo_, wi, wo, glint::PseudoNormalField::kMargin, tiles)) return false;
-    const glint::NodeList &nodes = glint::footprint_nodes<glint::kSmallBoxSpan>(parts.fp, density, parts.site.nodes,
-                                                                                     node_memo);
+    const glint::NodeList &nodes = glint::footprint_nodes<glint::kSmallBoxSpan>(parts.fp, density, node_memo);
     k = glint::count_pseudo_normal_glints(parts.fp, nodes, density, pseudo_, tiles, wi, wo, kMaxSteps,
                                           visit);
     return true;

@@ -763,29 +763,43 @@ inline NodeList footprint_nodes(const Footprint &f, double density) {
 // thread). A host calls a shading point's closure several times over the
 // same footprint (the light sample's eval, the BSDF sample, the mixture's
 // evals at another closure's sample), and the list depends only on the
-// footprint and the particle level; the direction cells differ per call.
+// footprint, the density (the particle level) and the box span; the
+// direction cells differ per call.
 // Issue 10, session 17: in examples/glint.xml (160 x 100, 4 spp)
 // nodes_at_level was 92 M of the glint render's 365 M instructions above
 // its GGX twin (1311 per call); 37 % of the calls find their list here
 // (92 M -> 61 M), and a lookup that misses costs ~130 instructions
-// (docs/glints.md, "Session 17").
+// (docs/glints.md, "Session 17"). Session 26: the memo holds the box lists
+// too and is asked first (the key is the density's bits, not the level, so
+// a hit skips the level, the start and the box fill).
 struct FootprintNodeMemo {
-  uint64_t cx = 0, cy = 0, ax = 0, ay = 0, bx = 0, by = 0;  // the footprint's bits
-  int level = 0;  // the particle level the list was made for
-  bool valid = false;
+  // The key: the footprint's six doubles' bits, the density's bits (the particle level is a function of them) and
+  // the box span the list was made with (kSmallBoxSpan or kBoxSpan; 0: no list). In Footprint's order, so that
+  // holds() compares it in four SSE2 registers (-0 and NaN are keys like any other).
+  alignas(16) std::array<uint64_t, 8> key{};
   NodeList nodes{NodeList::Zeroed{}};
-  // Whether the list is that of f at `lvl` (the bits compared: -0 and NaN are keys like any other).
-  bool holds(const Footprint &f, int lvl) const {
-    const uint64_t d = (std::bit_cast<uint64_t>(f.cx) ^ cx) | (std::bit_cast<uint64_t>(f.cy) ^ cy) |
-                       (std::bit_cast<uint64_t>(f.ax) ^ ax) | (std::bit_cast<uint64_t>(f.ay) ^ ay) |
-                       (std::bit_cast<uint64_t>(f.bx) ^ bx) | (std::bit_cast<uint64_t>(f.by) ^ by);
-    return d == 0 && valid && level == lvl;
+  static_assert(sizeof(Footprint) == 6 * sizeof(double) && std::is_standard_layout_v<Footprint>);
+  [[gnu::always_inline]] bool holds(const Footprint &f, double density, int64_t span) const {
+#if defined(__SSE2__)
+    const auto *k = reinterpret_cast<const __m128i *>(key.data());
+    const auto *p = reinterpret_cast<const __m128i *>(&f.cx);
+    __m128i eq = _mm_and_si128(_mm_cmpeq_epi32(_mm_loadu_si128(p), _mm_load_si128(k)),
+                               _mm_cmpeq_epi32(_mm_loadu_si128(p + 1), _mm_load_si128(k + 1)));
+    eq = _mm_and_si128(eq, _mm_cmpeq_epi32(_mm_loadu_si128(p + 2), _mm_load_si128(k + 2)));
+    const __m128i tail = _mm_unpacklo_epi64(_mm_castpd_si128(_mm_set_sd(density)), _mm_cvtsi64_si128(span));
+    eq = _mm_and_si128(eq, _mm_cmpeq_epi32(tail, _mm_load_si128(k + 3)));
+    return _mm_movemask_epi8(eq) == 0xffff;
+#else
+    return std::bit_cast<std::array<uint64_t, 6>>(f) == std::array<uint64_t, 6>{key[0], key[1], key[2], key[3], key[4],
+                                                                              key[5]} &&
+           std::bit_cast<uint64_t>(density) == key[6] && static_cast<uint64_t>(span) == key[7];
+#endif
   }
-  void set_key(const Footprint &f, int lvl) {
-    cx = std::bit_cast<uint64_t>(f.cx), cy = std::bit_cast<uint64_t>(f.cy), ax = std::bit_cast<uint64_t>(f.ax);
-    ay = std::bit_cast<uint64_t>(f.ay), bx = std::bit_cast<uint64_t>(f.bx), by = std::bit_cast<uint64_t>(f.by);
-    level = lvl;
-    valid = true;
+  void clear() { key[7] = 0; }
+  void set_key(const Footprint &f, double density, int64_t span) {
+    key = {std::bit_cast<uint64_t>(f.cx), std::bit_cast<uint64_t>(f.cy), std::bit_cast<uint64_t>(f.ax),
+           std::bit_cast<uint64_t>(f.ay), std::bit_cast<uint64_t>(f.bx), std::bit_cast<uint64_t>(f.by),
+           std::bit_cast<uint64_t>(density), static_cast<uint64_t>(span)};
   }
 };
 
@@ -846,60 +860,52 @@ struct FootprintNodeMemo {
 // The body of footprint_nodes_avx2 and footprint_nodes_sse2 (session 22: one
 // copy; a macro, not a template, because the AVX2 start must be inlined into
 // a target("avx2") function and GCC refuses to inline it into a generic
-// helper): the start (`start`: the form's nodes_at_level_start) gives the box
-// or the coarse list in `list`, else the memo's list when it holds f at the
-// level, else the rows (`rows_of`: the form's rasteriser) into the memo's list.
-#define GLIMMER_GLINT_FOOTPRINT_NODES_BODY(start, rows_of)                       \
-  const int level = particle_level(density);                                     \
-  const NodeRows rows = start(f, level, list, kSpan);                            \
-  if (rows.kind != NodeRows::kRows) {                                            \
-    if (rows.kind == NodeRows::kTooMany) coarse_footprint_nodes(f, list);        \
-    return list;                                                                 \
-  }                                                                              \
-  FootprintNodeMemo &memo = *get_memo();                                         \
-  if (memo.holds(f, level)) return memo.nodes;                                   \
-  memo.valid = false;                                                            \
-  NodeList &out = memo.nodes;                                                    \
-  out.count = 0;                                                                 \
-  out.level = list.level;                                                        \
-  out.size = list.size;                                                          \
-  if (!rows_of(f, rows.j0, rows.j1, out)) coarse_footprint_nodes(f, out);        \
-  memo.set_key(f, level);                                                        \
+// helper): the start (`start`: the form's nodes_at_level_start: the box,
+// or the coarse list) or the rows (`rows_of`: the form's rasteriser) into
+// the memo's list, keyed (f, density, kSpan); footprint_nodes has asked the
+// memo first.
+#define GLIMMER_GLINT_FOOTPRINT_NODES_BODY(start, rows_of)                                          \
+  memo.clear();                                                                                     \
+  NodeList &out = memo.nodes;                                                                       \
+  const NodeRows rows = start(f, particle_level(density), out, kSpan);                              \
+  if (rows.kind == NodeRows::kTooMany || (rows.kind == NodeRows::kRows && !rows_of(f, rows.j0, rows.j1, out))) \
+    coarse_footprint_nodes(f, out);                                                                 \
+  memo.set_key(f, density, kSpan);                                                                  \
   return out
 #if GLIMMER_GLINT_WALK_AVX2
 // footprint_nodes through the memo (below) with the AVX2 start (inlined) and rows.
-template <int64_t kSpan, typename GetMemo>
-[[gnu::target("avx2"), gnu::noinline]] inline const NodeList &footprint_nodes_avx2(const Footprint &f, double density, NodeList &list,
-                                                                   GetMemo &&get_memo) {
+template <int64_t kSpan>
+[[gnu::target("avx2"), gnu::noinline]] inline const NodeList &footprint_nodes_avx2(const Footprint &f, double density,
+                                                                                   FootprintNodeMemo &memo) {
   GLIMMER_GLINT_FOOTPRINT_NODES_BODY(nodes_at_level_start_avx2_body, nodes_at_level_rows_avx2);
 }
 #endif
 // footprint_nodes through the memo with the SSE2 start and rows (out of line, as footprint_nodes was until session 21).
-template <int64_t kSpan, typename GetMemo>
-[[gnu::noinline]] inline const NodeList &footprint_nodes_sse2(const Footprint &f, double density, NodeList &list,
-                                                             GetMemo &&get_memo) {
+template <int64_t kSpan>
+[[gnu::noinline]] inline const NodeList &footprint_nodes_sse2(const Footprint &f, double density,
+                                                             FootprintNodeMemo &memo) {
   GLIMMER_GLINT_FOOTPRINT_NODES_BODY(nodes_at_level_start, nodes_at_level_rows);
 }
 #undef GLIMMER_GLINT_FOOTPRINT_NODES_BODY
 // footprint_nodes through the memo: the same list (bit for bit; the key is
-// the footprint's bits and the level), returned by reference: `list` or the
-// memo's own list (valid until the next call with this memo; no copy).
+// the footprint's bits, the density's and the span), returned by reference:
+// the memo's own list (valid until the next call with this memo; no copy).
 // Footprints whose bounding box spans at most kSpan x kSpan particle nodes
 // (kBoxSpan for the direction cells' walk since session 23, kSmallBoxSpan for
 // the pseudo-normal count, whose extra nodes cost more) take
-// nodes_at_level_start's box into `list` without the memo. get_memo() returns
-// the memo (called only when it is used: a thread-local's address is a call in
-// a shared library).
+// nodes_at_level_start's box, the others the rasterised rows. get_memo()
+// returns the memo (a thread-local's address is a call in a shared library).
 // Session 21: the AVX2 form (footprint_nodes_avx2) where the walk uses AVX2, else the SSE2 form; this
 // dispatch is inlined into the caller (no call in between).
 template <int64_t kSpan = kBoxSpan, typename GetMemo>
-[[gnu::always_inline]] inline const NodeList &footprint_nodes(const Footprint &f, double density, NodeList &list,
-                                                             GetMemo &&get_memo) {
+[[gnu::always_inline]] inline const NodeList &footprint_nodes(const Footprint &f, double density, GetMemo &&get_memo) {
   static_assert(kSpan >= kSmallBoxSpan && kSpan <= 4);
+  FootprintNodeMemo &memo = *get_memo();
+  if (memo.holds(f, density, kSpan)) return memo.nodes;  // session 26: the hit without a call (~25 fewer per hit)
 #if GLIMMER_GLINT_WALK_AVX2
-  if (kWalkAvx2) return footprint_nodes_avx2<kSpan>(f, density, list, get_memo);
+  if (kWalkAvx2) return footprint_nodes_avx2<kSpan>(f, density, memo);
 #endif
-  return footprint_nodes_sse2<kSpan>(f, density, list, get_memo);
+  return footprint_nodes_sse2<kSpan>(f, density, memo);
 }
 
 // Per-node random stream: the node seed comes from 8 TEA rounds, the values
@@ -2131,8 +2137,7 @@ inline void locate_glints(const Footprint &f, double density, const DirectionCel
 // site.group_density through the caller's memo (locate_glints below; glint_small_dark.h's kNotDark).
 template <typename GetMemo>
 inline void locate_glint_nodes(const Footprint &f, GlintSite &site, GetMemo &&get_memo) {
-  const NodeList &list = footprint_nodes(f, site.group_density, site.nodes, get_memo);
-  site.memo_nodes = &list == &site.nodes ? nullptr : &list;
+  site.memo_nodes = &footprint_nodes(f, site.group_density, get_memo);
 }
 // The same through the caller's node-list memo (footprint_nodes with get_memo).
 template <typename GetMemo>

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -121,10 +122,12 @@ TEST(GlintParticles, ExtremeThinFootprintsFinishWithTheCoarseNodes) {
 
 // The node-list memo (FootprintNodeMemo, session 17) returns the list
 // footprint_nodes computes afresh, entry for entry, over a random sequence of
-// repeated and interleaved footprints and densities: the box path, the
-// rasterised rows, the coarse fallback (more than kMaxNodes), signed zeros
-// and footprints one ulp apart. Control: a memo relabelled to another
-// density's level (a key without the level) returns a stale list.
+// repeated and interleaved footprints, densities and box spans: the box path,
+// the rasterised rows, the coarse fallback (more than kMaxNodes), signed zeros
+// and footprints one ulp apart. Session 26: every list goes through the memo
+// (the box lists too), keyed by the footprint's bits, the density's and the
+// span. Controls: a memo relabelled to another density, or to the other span,
+// returns a stale list.
 bool same_nodes(const pg::NodeList &a, const pg::NodeList &b) {
   if (a.level != b.level || a.size != b.size || a.count != b.count) return false;
   for (int n = 0; n < a.count; ++n) {
@@ -132,6 +135,18 @@ bool same_nodes(const pg::NodeList &a, const pg::NodeList &b) {
     if (a.i[at] != b.i[at] || a.j[at] != b.j[at] || a.id_hash[at] != b.id_hash[at]) return false;
   }
   return true;
+}
+// The list afresh without a memo (footprint_nodes_at with the span given).
+pg::NodeList fresh_nodes(const pg::Footprint &f, double density, int64_t span) {
+  pg::NodeList list;
+  if (!pg::nodes_at_level(f, pg::particle_level(density), list, span)) pg::coarse_footprint_nodes(f, list);
+  return list;
+}
+// Through the memo, at span kSmallBoxSpan or kBoxSpan.
+const pg::NodeList &memo_nodes(const pg::Footprint &f, double density, int64_t span, pg::FootprintNodeMemo &memo) {
+  const auto get_memo = [&memo] { return &memo; };
+  return span == pg::kBoxSpan ? pg::footprint_nodes<pg::kBoxSpan>(f, density, get_memo)
+                              : pg::footprint_nodes<pg::kSmallBoxSpan>(f, density, get_memo);
 }
 
 TEST(GlintParticles, NodeListMemoReturnsTheFreshList) {
@@ -145,56 +160,106 @@ TEST(GlintParticles, NodeListMemoReturnsTheFreshList) {
   pool.push_back({0.25, 0.5, 0.02, 0.0, 0.0, 0.02});   // rows
   pool.push_back({0.25, 0.5, 0.02, -0.0, 0.0, 0.02});  // the same with -0: another key, the same list
   pool.push_back({std::nextafter(0.25, 1.0), 0.5, 0.02, 0.0, 0.0, 0.02});  // one ulp apart
+  pool.push_back({0.25, 0.5, 0.02, 0.0, 0.0, std::nextafter(0.02, 1.0)});  // one ulp apart in the last double
   pool.push_back({0.25, 0.5, 2.0, 0.0, 0.0, 0.5});  // more than kMaxNodes: the coarse fallback
   pg::FootprintNodeMemo memo;
-  const auto get_memo = [&memo] { return &memo; };
-  int hits = 0, rows = 0, boxes = 0, coarse = 0, wrong = 0;
+  int hits = 0, rows = 0, boxes = 0, coarse = 0, wrong = 0, small_span = 0;
+  double density = densities[0];
+  int64_t span = pg::kBoxSpan;
   for (int q = 0; q < 40000; ++q) {
-    // Runs of one footprint (a shading point's calls), then a jump.
+    // Runs of one footprint (a shading point's calls), then a jump; the density and the span mostly kept in a run.
     const pg::Footprint &f = pool[static_cast<size_t>(q % 4 == 0 ? rng.next_u32() % pool.size() : (q / 4) % pool.size())];
-    const double density = densities[rng.next_u32() % 3];
-    const bool was = memo.holds(f, pg::particle_level(density));
-    pg::NodeList list;
-    const pg::NodeList &got = pg::footprint_nodes(f, density, list, get_memo);
-    const pg::NodeList fresh = pg::footprint_nodes(f, density);
-    wrong += same_nodes(got, fresh) ? 0 : 1;
+    if (rng.next_u32() % 4 == 0) density = densities[rng.next_u32() % 3];
+    if (rng.next_u32() % 8 == 0) span = span == pg::kBoxSpan ? pg::kSmallBoxSpan : pg::kBoxSpan;
+    const bool was = memo.holds(f, density, span);
+    const pg::NodeList &got = memo_nodes(f, density, span, memo);
+    const pg::NodeList fresh = fresh_nodes(f, density, span);
+    wrong += same_nodes(got, fresh) && &got == &memo.nodes ? 0 : 1;
     hits += was ? 1 : 0;
-    boxes += &got == &list ? 1 : 0;
-    rows += &got == &memo.nodes ? 1 : 0;
+    small_span += span == pg::kSmallBoxSpan ? 1 : 0;
+    pg::NodeList start_list;
+    const pg::NodeRows kind = pg::nodes_at_level_start(f, pg::particle_level(density), start_list, span);
+    boxes += kind.kind == pg::NodeRows::kDone ? 1 : 0;
+    rows += kind.kind == pg::NodeRows::kRows ? 1 : 0;
     coarse += fresh.level != pg::particle_level(density) ? 1 : 0;
   }
-  std::printf("[memo] 40000 queries: %d from the memo, %d through it, %d box lists, %d coarse\n", hits, rows, boxes,
-              coarse);
+  std::printf("[memo] 40000 queries (%d at span 2): %d from the memo, %d box lists, %d rasterised, %d coarse\n",
+              small_span, hits, boxes, rows, coarse);
   EXPECT_EQ(wrong, 0);
   EXPECT_GT(hits, 5000);
-  EXPECT_GT(rows - hits, 5000);  // misses that filled the memo
+  EXPECT_GT(40000 - hits, 5000);  // misses that filled the memo
   EXPECT_GT(boxes, 5000);
+  EXPECT_GT(rows, 5000);
   EXPECT_GT(coarse, 100);
-  // Control: a memo whose key leaves out the level (relabelled after a fill at another density) is wrong.
-  // Session 23: footprints within 4 x 4 nodes take the box (kBoxSpan), so the control also draws 400 long
-  // footprints (area 1e-5..1e-3, aspect 4..64, their own generator), many of them rasterised at both levels.
+  EXPECT_GT(small_span, 5000);
+  // Controls: a memo whose key leaves out the density (relabelled after a fill at another density), or the span
+  // (relabelled after a fill at the other span), is wrong. Session 23: footprints within 4 x 4 nodes take the box
+  // (kBoxSpan), so the controls also draw 400 long footprints (area 1e-5..1e-3, aspect 4..64, their own generator).
   Pcg32 rng_larger(1723);
   for (int k = 0; k < 400; ++k) {
     const double area = std::exp(std::log(1e-5) + rng_larger.next_double() * std::log(1e2));
     pool.push_back(random_footprint(rng_larger, area, std::exp(std::log(4.0) + rng_larger.next_double() * std::log(16.0))));
   }
-  int stale = 0, tried = 0;
+  int stale = 0, tried = 0, stale_span = 0, tried_span = 0;
   for (size_t k = 0; k < pool.size(); ++k) {
-    pg::NodeList list;
-    const pg::NodeList &first = pg::footprint_nodes(pool[k], densities[0], list, get_memo);
-    const pg::NodeList fresh = pg::footprint_nodes(pool[k], densities[1]);
-    // rows at both particle levels (not the coarse fallback, whose level does not depend on the density)
-    if (&first != &memo.nodes || first.level != pg::particle_level(densities[0]) ||
-        fresh.level != pg::particle_level(densities[1]))
-      continue;
-    memo.level = pg::particle_level(densities[1]);
-    const pg::NodeList &got = pg::footprint_nodes(pool[k], densities[1], list, get_memo);
-    ++tried;
-    stale += same_nodes(got, fresh) ? 0 : 1;
+    const pg::NodeList fresh = fresh_nodes(pool[k], densities[1], pg::kBoxSpan);
+    memo_nodes(pool[k], densities[0], pg::kBoxSpan, memo);
+    if (!same_nodes(memo.nodes, fresh)) {  // lists that differ between the two densities
+      memo.set_key(pool[k], densities[1], pg::kBoxSpan);
+      ++tried;
+      stale += same_nodes(memo_nodes(pool[k], densities[1], pg::kBoxSpan, memo), fresh) ? 0 : 1;
+    }
+    const pg::NodeList fresh_small = fresh_nodes(pool[k], densities[1], pg::kSmallBoxSpan);
+    memo_nodes(pool[k], densities[1], pg::kBoxSpan, memo);
+    if (!same_nodes(memo.nodes, fresh_small)) {  // a box at span 4 that span 2 rasterises
+      memo.set_key(pool[k], densities[1], pg::kSmallBoxSpan);
+      ++tried_span;
+      stale_span += same_nodes(memo_nodes(pool[k], densities[1], pg::kSmallBoxSpan, memo), fresh_small) ? 0 : 1;
+    }
   }
-  std::printf("[memo] control: %d of %d relabelled lookups returned a stale list\n", stale, tried);
+  std::printf("[memo] controls: %d of %d relabelled densities and %d of %d relabelled spans returned a stale list\n",
+              stale, tried, stale_span, tried_span);
   EXPECT_GT(tried, 10);
   EXPECT_EQ(stale, tried) << "the relabelled memo must return the stale list";
+  EXPECT_GT(tried_span, 10);
+  EXPECT_EQ(stale_span, tried_span) << "the relabelled memo must return the stale list";
+}
+
+// FootprintNodeMemo::holds (session 26: the eight key words in four SSE2 compares) against the plain form (all
+// eight words equal) over random keys, each query the key or the key with one bit of one word flipped. Control:
+// the plain form without the span word (as the key before session 26 had no span) differs on the span's flips.
+TEST(GlintParticles, NodeListMemoKeyComparesEveryWord) {
+  Pcg32 rng(2617);
+  pg::FootprintNodeMemo memo;
+  int differ = 0, held = 0, control_differs = 0;
+  const int queries = 100000;
+  for (int q = 0; q < queries; ++q) {
+    std::array<uint64_t, 8> w;
+    for (auto &x : w) x = (static_cast<uint64_t>(rng.next_u32()) << 32) | rng.next_u32();
+    w[7] = rng.next_u32() % 2 == 0 ? pg::kSmallBoxSpan : pg::kBoxSpan;
+    const auto as_f = [](const std::array<uint64_t, 8> &v) {
+      return pg::Footprint{std::bit_cast<double>(v[0]), std::bit_cast<double>(v[1]), std::bit_cast<double>(v[2]),
+                           std::bit_cast<double>(v[3]), std::bit_cast<double>(v[4]), std::bit_cast<double>(v[5])};
+    };
+    memo.set_key(as_f(w), std::bit_cast<double>(w[6]), static_cast<int64_t>(w[7]));
+    std::array<uint64_t, 8> asked = w;
+    if (q % 5 != 0) asked[rng.next_u32() % 8] ^= uint64_t{1} << (rng.next_u32() % 64);
+    const bool got = memo.holds(as_f(asked), std::bit_cast<double>(asked[6]), static_cast<int64_t>(asked[7]));
+    const bool plain = asked == w;
+    bool without_span = true;
+    for (int k = 0; k < 7; ++k) without_span = without_span && asked[static_cast<size_t>(k)] == w[static_cast<size_t>(k)];
+    differ += got != plain;
+    held += got;
+    control_differs += without_span != plain;
+  }
+  std::printf("[memo key] %d queries: %d held, %d differ from the plain form; control (no span word) differs on %d\n",
+              queries, held, differ, control_differs);
+  EXPECT_EQ(differ, 0);
+  EXPECT_GT(held, queries / 10);
+  EXPECT_GT(control_differs, queries / 20);
+  pg::FootprintNodeMemo empty;  // no list: never holds, not even the all-zero key at span 0
+  EXPECT_FALSE(empty.holds(pg::Footprint{}, 0.0, pg::kBoxSpan));
+  EXPECT_FALSE(empty.holds(pg::Footprint{}, 0.0, pg::kSmallBoxSpan));
 }
 
 // The SSE2 row rasteriser (nodes_at_level_rows, session 19: a row border's
