@@ -1820,7 +1820,7 @@ enum class LitPairs { kIncomplete, kNoneLit, kAdded };
 // (3): the pairs 4 node + g in order, K by the table's compares (from kLitTableFrom) or by the bounds, added to pc;
 // `steps` their total.
 [[gnu::always_inline]] inline LitPairs lit_pairs_pass(const PairMasks &pm, int node_count,
-                                                     const std::optional<LitCountTable> &table, double lambda,
+                                                     const LitCountTable *table, double lambda,
                                                      int max_steps, PairPassCounter &pc, int64_t &steps) {
   const auto lit_pass = [&](auto &&lit_of) {
     for (int w = 0; w < PairMasks::words(node_count); ++w)
@@ -1860,19 +1860,14 @@ enum class LitPairs { kIncomplete, kNoneLit, kAdded };
   return walked ? LitPairs::kAdded : LitPairs::kIncomplete;
 }
 
+// Passes (1), (3) and (4), for a walk where pass 2 found a pair (pm). Out of line (session 26, glintK26): in the
+// GI render ~70 % of the walks end after pass 2, and with these passes in the same function each of them paid
+// its frame (the callee-saved registers, the stack realigned for the flush's 256-bit spills) and set-up.
 template <bool kAvx2>
-[[gnu::always_inline]] inline GlintCount count_four_groups_in_passes_body(const Footprint &f, const NodeList &nodes,
-                                                                          const uint32_t *seeds,
-                                                                          const GroupReject &lambda_reject,
-                                                                          double lambda, int max_steps) {
-  static_assert(kDirectionGroups == 4);
-  PairMasks pm;
-  std::optional<LitCountTable> table;
-  if (lambda >= kLitTableFrom) table.emplace(LitCountModel(lambda));
-  // h >= below[0]: u >= Pr(K >= 1), K = 0 (a walkable table's below[0] <= lambda_reject's limit; not
-  // walkable: K = -1 below it, see lit_pairs_pass).
-  const GroupReject reject = table && table->walkable ? GroupReject(table->below[0]) : lambda_reject;
-  if (!group_pass_finds_a_pair<kAvx2>(nodes, seeds, reject, pm)) return {};
+[[gnu::always_inline]] inline GlintCount count_paired_body(const Footprint &f, const NodeList &nodes,
+                                                           const PairMasks &pm,
+                                                           const LitCountTable *table, double lambda,
+                                                           int max_steps) {
   const FootprintFrame frame(f, nodes.size);
   PairPassCounter pc(frame);
   // Session 17 (glintwalk17b): the origin and inside flag of only the nodes
@@ -1901,6 +1896,73 @@ template <bool kAvx2>
   result.count = static_cast<int>(pc.count);
   result.steps = static_cast<int>(steps);
   return result;
+}
+#if GLIMMER_GLINT_WALK_AVX2
+[[gnu::target("avx2"), gnu::noinline]] inline GlintCount count_paired_avx2(const Footprint &f, const NodeList &nodes,
+                                                                          const PairMasks &pm,
+                                                                          const LitCountTable *table,
+                                                                          double lambda, int max_steps) {
+  return count_paired_body<true>(f, nodes, pm, table, lambda, max_steps);
+}
+#endif
+[[gnu::noinline]] inline GlintCount count_paired_sse2(const Footprint &f, const NodeList &nodes, const PairMasks &pm,
+                                                      const LitCountTable *table, double lambda,
+                                                      int max_steps) {
+  return count_paired_body<false>(f, nodes, pm, table, lambda, max_steps);
+}
+
+template <bool kAvx2>
+[[gnu::always_inline]] inline GlintCount count_paired(const Footprint &f, const NodeList &nodes, const PairMasks &pm,
+                                                      const LitCountTable *table, double lambda, int max_steps) {
+#if GLIMMER_GLINT_WALK_AVX2
+  if constexpr (kAvx2) return count_paired_avx2(f, nodes, pm, table, lambda, max_steps);
+#endif
+  return count_paired_sse2(f, nodes, pm, table, lambda, max_steps);
+}
+
+// The passes from lambda >= kLitTableFrom (session 24): LitCountTable (the model's exp and thresholds) made before
+// pass 2, whose below[0] (h >= below[0]: u >= Pr(K >= 1), K = 0; a walkable table's below[0] <= lambda_reject's
+// limit) is pass 2's exact reject; not walkable: lambda's reject, K = -1 below below[0] (see lit_pairs_pass). Out of
+// line (session 26): the walks below kLitTableFrom, most of them ending after pass 2, keep a frame without the
+// table, its exp call and the registers saved across it.
+template <bool kAvx2>
+[[gnu::always_inline]] inline GlintCount count_tabled_body(const Footprint &f, const NodeList &nodes,
+                                                           const uint32_t *seeds, const GroupReject &lambda_reject,
+                                                           double lambda, int max_steps) {
+  const LitCountTable table{LitCountModel(lambda)};
+  const GroupReject reject = table.walkable ? GroupReject(table.below[0]) : lambda_reject;
+  PairMasks pm;
+  if (!group_pass_finds_a_pair<kAvx2>(nodes, seeds, reject, pm)) return {};
+  return count_paired<kAvx2>(f, nodes, pm, &table, lambda, max_steps);
+}
+#if GLIMMER_GLINT_WALK_AVX2
+[[gnu::target("avx2"), gnu::noinline]] inline GlintCount count_tabled_avx2(const Footprint &f, const NodeList &nodes,
+                                                                          const uint32_t *seeds,
+                                                                          const GroupReject &lambda_reject,
+                                                                          double lambda, int max_steps) {
+  return count_tabled_body<true>(f, nodes, seeds, lambda_reject, lambda, max_steps);
+}
+#endif
+[[gnu::noinline]] inline GlintCount count_tabled_sse2(const Footprint &f, const NodeList &nodes, const uint32_t *seeds,
+                                                      const GroupReject &lambda_reject, double lambda, int max_steps) {
+  return count_tabled_body<false>(f, nodes, seeds, lambda_reject, lambda, max_steps);
+}
+
+template <bool kAvx2>
+[[gnu::always_inline]] inline GlintCount count_four_groups_in_passes_body(const Footprint &f, const NodeList &nodes,
+                                                                          const uint32_t *seeds,
+                                                                          const GroupReject &lambda_reject,
+                                                                          double lambda, int max_steps) {
+  static_assert(kDirectionGroups == 4);
+  if (lambda >= kLitTableFrom) {
+#if GLIMMER_GLINT_WALK_AVX2
+    if constexpr (kAvx2) return count_tabled_avx2(f, nodes, seeds, lambda_reject, lambda, max_steps);
+#endif
+    return count_tabled_sse2(f, nodes, seeds, lambda_reject, lambda, max_steps);
+  }
+  PairMasks pm;
+  if (!group_pass_finds_a_pair<kAvx2>(nodes, seeds, lambda_reject, pm)) return {};
+  return count_paired<kAvx2>(f, nodes, pm, nullptr, lambda, max_steps);
 }
 #if GLIMMER_GLINT_WALK_AVX2
 [[gnu::target("avx2"), gnu::noinline]] inline GlintCount count_four_groups_in_passes_avx2(
