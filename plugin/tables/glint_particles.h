@@ -1258,6 +1258,14 @@ struct LitCountTable {
     if (K == kSteps) [[unlikely]] return walk_on(h);
     return K;
   }
+  // lit(h) for a walkable table's h < below[0] (K >= 1: the pair passes' exact reject let it through; session 26):
+  // the first compare known, one register fewer in pass 3.
+  int64_t lit_passed(uint32_t h) const {
+    int64_t K = 1;
+    for (size_t k = 1; k < below.size(); ++k) K += h < below[k] ? 1 : 0;
+    if (K == kSteps) [[unlikely]] return walk_on(h);
+    return K;
+  }
   // K >= kSteps: the model's walk from its kSteps-th term on (-1: not walkable).
   [[gnu::noinline]] int64_t walk_on(uint32_t h) const {
     if (!walkable) return -1;
@@ -1851,7 +1859,7 @@ enum class LitPairs { kIncomplete, kNoneLit, kAdded };
             return LitPairs::kIncomplete;
       return LitPairs::kNoneLit;
     }
-    walked = lit_pass([&](uint32_t h0) { return table->lit(h0); });
+    walked = lit_pass([&](uint32_t h0) { return table->lit_passed(h0); });  // h0 < below[0]: pass 2's reject
   } else {
     const LitCountBounds bounds(lambda);
     std::optional<LitCountModel> model;
