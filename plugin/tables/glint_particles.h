@@ -1868,6 +1868,117 @@ enum class LitPairs { kIncomplete, kNoneLit, kAdded };
   return walked ? LitPairs::kAdded : LitPairs::kIncomplete;
 }
 
+#if GLIMMER_GLINT_WALK_AVX2
+// tabled_layers_pass' layers 1..3 in AVX2: eight hashes per compare, bytes in pass 2's layout (before the AND with
+// layer 0 and the thresholds' all_pass).
+[[gnu::target("avx2")]] inline void tabled_layer_bytes_avx2(
+    const PairMasks &pm, int node_count, const GroupReject &r1, const GroupReject &r2, const GroupReject &r3,
+    std::array<std::array<uint64_t, PairMasks::kWords>, 4> &layer) {
+  const __m256i bias = _mm256_set1_epi32(static_cast<int>(0x80000000u));
+  const __m256i b1 = _mm256_set1_epi32(static_cast<int>(r1.below ^ 0x80000000u));
+  const __m256i b2 = _mm256_set1_epi32(static_cast<int>(r2.below ^ 0x80000000u));
+  const __m256i b3 = _mm256_set1_epi32(static_cast<int>(r3.below ^ 0x80000000u));
+  auto *l1 = reinterpret_cast<unsigned char *>(layer[1].data());
+  auto *l2 = reinterpret_cast<unsigned char *>(layer[2].data());
+  auto *l3 = reinterpret_cast<unsigned char *>(layer[3].data());
+  for (int st = 0; st < (node_count + 1) / 2; ++st) {
+    const __m256i h = _mm256_xor_si256(
+        _mm256_load_si256(reinterpret_cast<const __m256i *>(pm.node_hash.data() + 2 * kDirectionGroups * st)), bias);
+    l1[st] = static_cast<unsigned char>(_mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpgt_epi32(b1, h))));
+    l2[st] = static_cast<unsigned char>(_mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpgt_epi32(b2, h))));
+    l3[st] = static_cast<unsigned char>(_mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpgt_epi32(b3, h))));
+  }
+}
+#endif
+
+// Pass (3) for a walkable table (session 26, glintK26): every pair pass 2 let through has K >= 1 (its exact
+// reject), K = 1 + [h < below[1]] + [h < below[2]] + [h < below[3]] (lit_passed), so the pairs with K >= k + 1
+// are the bits of layer k: layer 0 pm.mask, layers 1..3 from the hashes' compares with below[1..3] (AVX2: eight
+// hashes per compare, the bytes of pass 2's layout). The steps are the layers' bit counts plus K - 3 of each
+// layer-3 pair (LitCountTable::walk_on); the cap is tested on that total before any particle (the steps only
+// grow, so it is passed iff the node loop passes it). Interior nodes add their pairs' layer bits; border pairs
+// list particle k for each layer k they are in (and k >= 3 from walk_on), flushed as the list fills. The same
+// particles as lit_pairs_pass, so the same count and steps (GlintParticles.PairPassesMatchTheNodeLoop).
+template <bool kAvx2>
+[[gnu::always_inline]] inline bool tabled_layers_pass(const PairMasks &pm, int node_count, const LitCountTable &t,
+                                                      int max_steps, PairPassCounter &pc, int64_t &steps) {
+  constexpr int kW = PairMasks::kWords;
+  const int W = PairMasks::words(node_count);  // the words holding the list's nodes (one up to 16 nodes)
+  std::array<std::array<uint64_t, kW>, 4> layer{};
+  layer[0] = pm.mask;
+  const GroupReject r1(t.below[1]), r2(t.below[2]), r3(t.below[3]);
+#if GLIMMER_GLINT_WALK_AVX2
+  if constexpr (kAvx2) {
+    tabled_layer_bytes_avx2(pm, node_count, r1, r2, r3, layer);
+  } else
+#endif
+  {
+    for (int w = 0; w < W; ++w)
+      for (uint64_t m = layer[0][static_cast<size_t>(w)]; m != 0; m &= m - 1) {
+        const int bit = std::countr_zero(m);
+        const uint64_t h = pm.node_hash[static_cast<size_t>(64 * w + bit)];
+        layer[1][static_cast<size_t>(w)] |= static_cast<uint64_t>(h < r1.limit) << bit;
+        layer[2][static_cast<size_t>(w)] |= static_cast<uint64_t>(h < r2.limit) << bit;
+        layer[3][static_cast<size_t>(w)] |= static_cast<uint64_t>(h < r3.limit) << bit;
+      }
+  }
+  std::array<uint64_t, kW> interior{};
+  int64_t total = 0;
+  for (int w = 0; w < W; ++w) {
+    const auto a = static_cast<size_t>(w);
+    layer[1][a] = (r1.all_pass ? ~uint64_t{0} : layer[1][a]) & layer[0][a];
+    layer[2][a] = (r2.all_pass ? ~uint64_t{0} : layer[2][a]) & layer[0][a];
+    layer[3][a] = (r3.all_pass ? ~uint64_t{0} : layer[3][a]) & layer[0][a];
+    total += std::popcount(layer[0][a]) + std::popcount(layer[1][a]) + std::popcount(layer[2][a]);
+    for (uint64_t with = PairMasks::nodes_with_pair(layer[0][a]); with != 0; with &= with - 1) {
+      const int bit = std::countr_zero(with);
+      interior[a] |= static_cast<uint64_t>(static_cast<uint32_t>(pc.inside_mask[static_cast<size_t>(16 * w + bit / 4)]) & 0xfu)
+                     << bit;
+    }
+  }
+  for (int w = 0; w < W; ++w)  // K >= 4 (rare): the walk's K
+    for (uint64_t m = layer[3][static_cast<size_t>(w)]; m != 0; m &= m - 1)
+      total += t.walk_on(pm.node_hash[static_cast<size_t>(64 * w + std::countr_zero(m))]) - 3;
+  steps = total;
+  if (total > max_steps) return false;
+  const auto list_full = [&](int room) {
+    if (pc.n_parts + room <= PairPassCounter::kMaxParticles) return;
+#if GLIMMER_GLINT_WALK_AVX2
+    if constexpr (kAvx2) return pc.flush_avx2();
+#endif
+    pc.flush();
+  };
+  for (int k = 0; k < 3; ++k)
+    for (int w = 0; w < W; ++w) {
+      const auto a = static_cast<size_t>(w);
+      pc.count += std::popcount(layer[static_cast<size_t>(k)][a] & interior[a]);
+      uint64_t border = layer[static_cast<size_t>(k)][a] & ~interior[a];
+      if (border == 0) continue;
+      list_full(64);
+      for (; border != 0; border &= border - 1) {
+        const auto pair = static_cast<uint32_t>(64 * w + std::countr_zero(border));
+        const auto n = static_cast<size_t>(pc.n_parts++);
+        pc.part_hash[n] = pm.node_hash[pair], pc.part_k[n] = static_cast<uint32_t>(k), pc.part_node[n] = pair / 4;
+      }
+    }
+  for (int w = 0; w < W; ++w)
+    for (uint64_t m = layer[3][static_cast<size_t>(w)]; m != 0; m &= m - 1) {
+      const auto pair = static_cast<uint32_t>(64 * w + std::countr_zero(m));
+      const uint32_t h0 = pm.node_hash[pair];
+      const int64_t K = t.walk_on(h0);
+      if (interior[static_cast<size_t>(w)] >> (pair % 64) & 1u) {
+        pc.count += K - 3;
+        continue;
+      }
+      for (int64_t k = 3; k < K; ++k) {
+        list_full(1);
+        const auto n = static_cast<size_t>(pc.n_parts++);
+        pc.part_hash[n] = h0, pc.part_k[n] = static_cast<uint32_t>(k), pc.part_node[n] = pair / 4;
+      }
+    }
+  return true;
+}
+
 // Passes (1), (3) and (4), for a walk where pass 2 found a pair (pm). Out of line (session 26, glintK26): in the
 // GI render ~70 % of the walks end after pass 2, and with these passes in the same function each of them paid
 // its frame (the callee-saved registers, the stack realigned for the flush's 256-bit spills) and set-up.
@@ -1889,10 +2000,14 @@ template <bool kAvx2>
 #endif
     paired_node_origins(frame, nodes, pm, pc);  // (1)
   int64_t steps = 0;
-  switch (lit_pairs_pass(pm, nodes.count, table, lambda, max_steps, pc, steps)) {  // (3)
-    case LitPairs::kIncomplete: return {0, 0, false};
-    case LitPairs::kNoneLit: return {};
-    case LitPairs::kAdded: break;
+  if (table != nullptr && table->walkable) {
+    if (!tabled_layers_pass<kAvx2>(pm, nodes.count, *table, max_steps, pc, steps)) return {0, 0, false};  // (3)
+  } else {
+    switch (lit_pairs_pass(pm, nodes.count, table, lambda, max_steps, pc, steps)) {  // (3)
+      case LitPairs::kIncomplete: return {0, 0, false};
+      case LitPairs::kNoneLit: return {};
+      case LitPairs::kAdded: break;
+    }
   }
 #if GLIMMER_GLINT_WALK_AVX2
   if constexpr (kAvx2)
@@ -1906,7 +2021,7 @@ template <bool kAvx2>
   return result;
 }
 #if GLIMMER_GLINT_WALK_AVX2
-[[gnu::target("avx2"), gnu::noinline]] inline GlintCount count_paired_avx2(const Footprint &f, const NodeList &nodes,
+[[gnu::target("avx2,popcnt"), gnu::noinline]] inline GlintCount count_paired_avx2(const Footprint &f, const NodeList &nodes,
                                                                           const PairMasks &pm,
                                                                           const LitCountTable *table,
                                                                           double lambda, int max_steps) {
