@@ -1196,6 +1196,32 @@ struct LitCountBounds {
   }
 };
 
+// The lit count K of a (node, group) pair from its 32-bit hash h0 (u = (h0 +
+// 1/2) 2^-32): the bounds where they decide, else LitCountModel's tail walk
+// (the model made at the first undecided pair; K = 0 for u >= Pr(K >= 1)).
+// The walks' shared step (the scalar and AVX2 node loops, the pair passes
+// below the table, glint_small_dark.cpp, glint_pseudo_normals.h; session 26,
+// glintK26). Always inline: a shared step out of line cost ~10 instructions
+// per eval (session 24). glint_pseudo_normals.h takes u first and its lazily
+// made bounds after (lit_count_at_uniform): with lit_count_at after the
+// bounds, roughness 0.2 area 1e-4 measured +165 instructions per eval.
+[[gnu::always_inline]] inline double lit_count_uniform(uint32_t h0) {
+  return (static_cast<double>(h0) + 0.5) * (1.0 / 4294967296.0);
+}
+[[gnu::always_inline]] inline int64_t lit_count_at_uniform(double u, const LitCountBounds &bounds,
+                                                           std::optional<LitCountModel> &model, double lambda) {
+  int64_t K = bounds.lit(u);
+  if (K == LitCountBounds::kUndecided) {
+    if (!model) model.emplace(lambda);
+    K = u < model->p_any ? model->lit(u) : 0;
+  }
+  return K;
+}
+[[gnu::always_inline]] inline int64_t lit_count_at(uint32_t h0, const LitCountBounds &bounds,
+                                                   std::optional<LitCountModel> &model, double lambda) {
+  return lit_count_at_uniform(lit_count_uniform(h0), bounds, model, lambda);
+}
+
 // LitCountModel's K for a pair's 32-bit hash h (u = (h + 1/2) 2^-32) by
 // integer compares (issue 10, session 23), for the queries whose lambda > 1
 // (LitCountBounds decides nothing there, and every pair of the footprint
@@ -1240,6 +1266,14 @@ struct LitCountTable {
   int64_t lit(uint32_t h) const {
     int64_t K = 0;
     for (size_t k = 0; k < below.size(); ++k) K += h < below[k] ? 1 : 0;
+    if (K == kSteps) [[unlikely]] return walk_on(h);
+    return K;
+  }
+  // lit(h) for a walkable table's h < below[0] (K >= 1: the pair passes' exact reject let it through; session 26):
+  // the first compare known, one register fewer in pass 3.
+  int64_t lit_passed(uint32_t h) const {
+    int64_t K = 1;
+    for (size_t k = 1; k < below.size(); ++k) K += h < below[k] ? 1 : 0;
     if (K == kSteps) [[unlikely]] return walk_on(h);
     return K;
   }
@@ -1805,7 +1839,7 @@ enum class LitPairs { kIncomplete, kNoneLit, kAdded };
 // (3): the pairs 4 node + g in order, K by the table's compares (from kLitTableFrom) or by the bounds, added to pc;
 // `steps` their total.
 [[gnu::always_inline]] inline LitPairs lit_pairs_pass(const PairMasks &pm, int node_count,
-                                                     const std::optional<LitCountTable> &table, double lambda,
+                                                     const LitCountTable *table, double lambda,
                                                      int max_steps, PairPassCounter &pc, int64_t &steps) {
   const auto lit_pass = [&](auto &&lit_of) {
     for (int w = 0; w < PairMasks::words(node_count); ++w)
@@ -1836,36 +1870,134 @@ enum class LitPairs { kIncomplete, kNoneLit, kAdded };
             return LitPairs::kIncomplete;
       return LitPairs::kNoneLit;
     }
-    walked = lit_pass([&](uint32_t h0) { return table->lit(h0); });
+    walked = lit_pass([&](uint32_t h0) { return table->lit_passed(h0); });  // h0 < below[0]: pass 2's reject
   } else {
     const LitCountBounds bounds(lambda);
     std::optional<LitCountModel> model;
-    walked = lit_pass([&](uint32_t h0) {
-      const double u = (static_cast<double>(h0) + 0.5) * (1.0 / 4294967296.0);
-      int64_t K = bounds.lit(u);
-      if (K == LitCountBounds::kUndecided) {
-        if (!model) model.emplace(lambda);
-        K = u < model->p_any ? model->lit(u) : 0;
-      }
-      return K;
-    });
+    walked = lit_pass([&](uint32_t h0) { return lit_count_at(h0, bounds, model, lambda); });
   }
   return walked ? LitPairs::kAdded : LitPairs::kIncomplete;
 }
 
+#if GLIMMER_GLINT_WALK_AVX2
+// tabled_layers_pass' layers 1..3 in AVX2: eight hashes per compare, bytes in pass 2's layout (before the AND with
+// layer 0 and the thresholds' all_pass).
+[[gnu::target("avx2")]] inline void tabled_layer_bytes_avx2(
+    const PairMasks &pm, int node_count, const GroupReject &r1, const GroupReject &r2, const GroupReject &r3,
+    std::array<std::array<uint64_t, PairMasks::kWords>, 4> &layer) {
+  const __m256i bias = _mm256_set1_epi32(static_cast<int>(0x80000000u));
+  const __m256i b1 = _mm256_set1_epi32(static_cast<int>(r1.below ^ 0x80000000u));
+  const __m256i b2 = _mm256_set1_epi32(static_cast<int>(r2.below ^ 0x80000000u));
+  const __m256i b3 = _mm256_set1_epi32(static_cast<int>(r3.below ^ 0x80000000u));
+  auto *l1 = reinterpret_cast<unsigned char *>(layer[1].data());
+  auto *l2 = reinterpret_cast<unsigned char *>(layer[2].data());
+  auto *l3 = reinterpret_cast<unsigned char *>(layer[3].data());
+  for (int st = 0; st < (node_count + 1) / 2; ++st) {
+    const __m256i h = _mm256_xor_si256(
+        _mm256_load_si256(reinterpret_cast<const __m256i *>(pm.node_hash.data() + 2 * kDirectionGroups * st)), bias);
+    l1[st] = static_cast<unsigned char>(_mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpgt_epi32(b1, h))));
+    l2[st] = static_cast<unsigned char>(_mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpgt_epi32(b2, h))));
+    l3[st] = static_cast<unsigned char>(_mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpgt_epi32(b3, h))));
+  }
+}
+#endif
+
+// Pass (3) for a walkable table (session 26, glintK26): every pair pass 2 let through has K >= 1 (its exact
+// reject), K = 1 + [h < below[1]] + [h < below[2]] + [h < below[3]] (lit_passed), so the pairs with K >= k + 1
+// are the bits of layer k: layer 0 pm.mask, layers 1..3 from the hashes' compares with below[1..3] (AVX2: eight
+// hashes per compare, the bytes of pass 2's layout). The steps are the layers' bit counts plus K - 3 of each
+// layer-3 pair (LitCountTable::walk_on); the cap is tested on that total before any particle (the steps only
+// grow, so it is passed iff the node loop passes it). Interior nodes add their pairs' layer bits; border pairs
+// list particle k for each layer k they are in (and k >= 3 from walk_on), flushed as the list fills. The same
+// particles as lit_pairs_pass, so the same count and steps (GlintParticles.PairPassesMatchTheNodeLoop).
 template <bool kAvx2>
-[[gnu::always_inline]] inline GlintCount count_four_groups_in_passes_body(const Footprint &f, const NodeList &nodes,
-                                                                          const uint32_t *seeds,
-                                                                          const GroupReject &lambda_reject,
-                                                                          double lambda, int max_steps) {
-  static_assert(kDirectionGroups == 4);
-  PairMasks pm;
-  std::optional<LitCountTable> table;
-  if (lambda >= kLitTableFrom) table.emplace(LitCountModel(lambda));
-  // h >= below[0]: u >= Pr(K >= 1), K = 0 (a walkable table's below[0] <= lambda_reject's limit; not
-  // walkable: K = -1 below it, see lit_pairs_pass).
-  const GroupReject reject = table && table->walkable ? GroupReject(table->below[0]) : lambda_reject;
-  if (!group_pass_finds_a_pair<kAvx2>(nodes, seeds, reject, pm)) return {};
+[[gnu::always_inline]] inline bool tabled_layers_pass(const PairMasks &pm, int node_count, const LitCountTable &t,
+                                                      int max_steps, PairPassCounter &pc, int64_t &steps) {
+  constexpr int kW = PairMasks::kWords;
+  const int W = PairMasks::words(node_count);  // the words holding the list's nodes (one up to 16 nodes)
+  std::array<std::array<uint64_t, kW>, 4> layer{};
+  layer[0] = pm.mask;
+  const GroupReject r1(t.below[1]), r2(t.below[2]), r3(t.below[3]);
+#if GLIMMER_GLINT_WALK_AVX2
+  if constexpr (kAvx2) {
+    tabled_layer_bytes_avx2(pm, node_count, r1, r2, r3, layer);
+  } else
+#endif
+  {
+    for (int w = 0; w < W; ++w)
+      for (uint64_t m = layer[0][static_cast<size_t>(w)]; m != 0; m &= m - 1) {
+        const int bit = std::countr_zero(m);
+        const uint64_t h = pm.node_hash[static_cast<size_t>(64 * w + bit)];
+        layer[1][static_cast<size_t>(w)] |= static_cast<uint64_t>(h < r1.limit) << bit;
+        layer[2][static_cast<size_t>(w)] |= static_cast<uint64_t>(h < r2.limit) << bit;
+        layer[3][static_cast<size_t>(w)] |= static_cast<uint64_t>(h < r3.limit) << bit;
+      }
+  }
+  std::array<uint64_t, kW> interior{};
+  int64_t total = 0;
+  for (int w = 0; w < W; ++w) {
+    const auto a = static_cast<size_t>(w);
+    layer[1][a] = (r1.all_pass ? ~uint64_t{0} : layer[1][a]) & layer[0][a];
+    layer[2][a] = (r2.all_pass ? ~uint64_t{0} : layer[2][a]) & layer[0][a];
+    layer[3][a] = (r3.all_pass ? ~uint64_t{0} : layer[3][a]) & layer[0][a];
+    total += std::popcount(layer[0][a]) + std::popcount(layer[1][a]) + std::popcount(layer[2][a]);
+    for (uint64_t with = PairMasks::nodes_with_pair(layer[0][a]); with != 0; with &= with - 1) {
+      const int bit = std::countr_zero(with);
+      interior[a] |= static_cast<uint64_t>(static_cast<uint32_t>(pc.inside_mask[static_cast<size_t>(16 * w + bit / 4)]) & 0xfu)
+                     << bit;
+    }
+  }
+  for (int w = 0; w < W; ++w)  // K >= 4 (rare): the walk's K
+    for (uint64_t m = layer[3][static_cast<size_t>(w)]; m != 0; m &= m - 1)
+      total += t.walk_on(pm.node_hash[static_cast<size_t>(64 * w + std::countr_zero(m))]) - 3;
+  steps = total;
+  if (total > max_steps) return false;
+  const auto list_full = [&](int room) {
+    if (pc.n_parts + room <= PairPassCounter::kMaxParticles) return;
+#if GLIMMER_GLINT_WALK_AVX2
+    if constexpr (kAvx2) return pc.flush_avx2();
+#endif
+    pc.flush();
+  };
+  for (int k = 0; k < 3; ++k)
+    for (int w = 0; w < W; ++w) {
+      const auto a = static_cast<size_t>(w);
+      pc.count += std::popcount(layer[static_cast<size_t>(k)][a] & interior[a]);
+      uint64_t border = layer[static_cast<size_t>(k)][a] & ~interior[a];
+      if (border == 0) continue;
+      list_full(64);
+      for (; border != 0; border &= border - 1) {
+        const auto pair = static_cast<uint32_t>(64 * w + std::countr_zero(border));
+        const auto n = static_cast<size_t>(pc.n_parts++);
+        pc.part_hash[n] = pm.node_hash[pair], pc.part_k[n] = static_cast<uint32_t>(k), pc.part_node[n] = pair / 4;
+      }
+    }
+  for (int w = 0; w < W; ++w)
+    for (uint64_t m = layer[3][static_cast<size_t>(w)]; m != 0; m &= m - 1) {
+      const auto pair = static_cast<uint32_t>(64 * w + std::countr_zero(m));
+      const uint32_t h0 = pm.node_hash[pair];
+      const int64_t K = t.walk_on(h0);
+      if (interior[static_cast<size_t>(w)] >> (pair % 64) & 1u) {
+        pc.count += K - 3;
+        continue;
+      }
+      for (int64_t k = 3; k < K; ++k) {
+        list_full(1);
+        const auto n = static_cast<size_t>(pc.n_parts++);
+        pc.part_hash[n] = h0, pc.part_k[n] = static_cast<uint32_t>(k), pc.part_node[n] = pair / 4;
+      }
+    }
+  return true;
+}
+
+// Passes (1), (3) and (4), for a walk where pass 2 found a pair (pm). Out of line (session 26, glintK26): in the
+// GI render ~70 % of the walks end after pass 2, and with these passes in the same function each of them paid
+// its frame (the callee-saved registers, the stack realigned for the flush's 256-bit spills) and set-up.
+template <bool kAvx2>
+[[gnu::always_inline]] inline GlintCount count_paired_body(const Footprint &f, const NodeList &nodes,
+                                                           const PairMasks &pm,
+                                                           const LitCountTable *table, double lambda,
+                                                           int max_steps) {
   const FootprintFrame frame(f, nodes.size);
   PairPassCounter pc(frame);
   // Session 17 (glintwalk17b): the origin and inside flag of only the nodes
@@ -1879,10 +2011,14 @@ template <bool kAvx2>
 #endif
     paired_node_origins(frame, nodes, pm, pc);  // (1)
   int64_t steps = 0;
-  switch (lit_pairs_pass(pm, nodes.count, table, lambda, max_steps, pc, steps)) {  // (3)
-    case LitPairs::kIncomplete: return {0, 0, false};
-    case LitPairs::kNoneLit: return {};
-    case LitPairs::kAdded: break;
+  if (table != nullptr && table->walkable) {
+    if (!tabled_layers_pass<kAvx2>(pm, nodes.count, *table, max_steps, pc, steps)) return {0, 0, false};  // (3)
+  } else {
+    switch (lit_pairs_pass(pm, nodes.count, table, lambda, max_steps, pc, steps)) {  // (3)
+      case LitPairs::kIncomplete: return {0, 0, false};
+      case LitPairs::kNoneLit: return {};
+      case LitPairs::kAdded: break;
+    }
   }
 #if GLIMMER_GLINT_WALK_AVX2
   if constexpr (kAvx2)
@@ -1894,6 +2030,73 @@ template <bool kAvx2>
   result.count = static_cast<int>(pc.count);
   result.steps = static_cast<int>(steps);
   return result;
+}
+#if GLIMMER_GLINT_WALK_AVX2
+[[gnu::target("avx2,popcnt"), gnu::noinline]] inline GlintCount count_paired_avx2(const Footprint &f, const NodeList &nodes,
+                                                                          const PairMasks &pm,
+                                                                          const LitCountTable *table,
+                                                                          double lambda, int max_steps) {
+  return count_paired_body<true>(f, nodes, pm, table, lambda, max_steps);
+}
+#endif
+[[gnu::noinline]] inline GlintCount count_paired_sse2(const Footprint &f, const NodeList &nodes, const PairMasks &pm,
+                                                      const LitCountTable *table, double lambda,
+                                                      int max_steps) {
+  return count_paired_body<false>(f, nodes, pm, table, lambda, max_steps);
+}
+
+template <bool kAvx2>
+[[gnu::always_inline]] inline GlintCount count_paired(const Footprint &f, const NodeList &nodes, const PairMasks &pm,
+                                                      const LitCountTable *table, double lambda, int max_steps) {
+#if GLIMMER_GLINT_WALK_AVX2
+  if constexpr (kAvx2) return count_paired_avx2(f, nodes, pm, table, lambda, max_steps);
+#endif
+  return count_paired_sse2(f, nodes, pm, table, lambda, max_steps);
+}
+
+// The passes from lambda >= kLitTableFrom (session 24): LitCountTable (the model's exp and thresholds) made before
+// pass 2, whose below[0] (h >= below[0]: u >= Pr(K >= 1), K = 0; a walkable table's below[0] <= lambda_reject's
+// limit) is pass 2's exact reject; not walkable: lambda's reject, K = -1 below below[0] (see lit_pairs_pass). Out of
+// line (session 26): the walks below kLitTableFrom, most of them ending after pass 2, keep a frame without the
+// table, its exp call and the registers saved across it.
+template <bool kAvx2>
+[[gnu::always_inline]] inline GlintCount count_tabled_body(const Footprint &f, const NodeList &nodes,
+                                                           const uint32_t *seeds, const GroupReject &lambda_reject,
+                                                           double lambda, int max_steps) {
+  const LitCountTable table{LitCountModel(lambda)};
+  const GroupReject reject = table.walkable ? GroupReject(table.below[0]) : lambda_reject;
+  PairMasks pm;
+  if (!group_pass_finds_a_pair<kAvx2>(nodes, seeds, reject, pm)) return {};
+  return count_paired<kAvx2>(f, nodes, pm, &table, lambda, max_steps);
+}
+#if GLIMMER_GLINT_WALK_AVX2
+[[gnu::target("avx2"), gnu::noinline]] inline GlintCount count_tabled_avx2(const Footprint &f, const NodeList &nodes,
+                                                                          const uint32_t *seeds,
+                                                                          const GroupReject &lambda_reject,
+                                                                          double lambda, int max_steps) {
+  return count_tabled_body<true>(f, nodes, seeds, lambda_reject, lambda, max_steps);
+}
+#endif
+[[gnu::noinline]] inline GlintCount count_tabled_sse2(const Footprint &f, const NodeList &nodes, const uint32_t *seeds,
+                                                      const GroupReject &lambda_reject, double lambda, int max_steps) {
+  return count_tabled_body<false>(f, nodes, seeds, lambda_reject, lambda, max_steps);
+}
+
+template <bool kAvx2>
+[[gnu::always_inline]] inline GlintCount count_four_groups_in_passes_body(const Footprint &f, const NodeList &nodes,
+                                                                          const uint32_t *seeds,
+                                                                          const GroupReject &lambda_reject,
+                                                                          double lambda, int max_steps) {
+  static_assert(kDirectionGroups == 4);
+  if (lambda >= kLitTableFrom) {
+#if GLIMMER_GLINT_WALK_AVX2
+    if constexpr (kAvx2) return count_tabled_avx2(f, nodes, seeds, lambda_reject, lambda, max_steps);
+#endif
+    return count_tabled_sse2(f, nodes, seeds, lambda_reject, lambda, max_steps);
+  }
+  PairMasks pm;
+  if (!group_pass_finds_a_pair<kAvx2>(nodes, seeds, lambda_reject, pm)) return {};
+  return count_paired<kAvx2>(f, nodes, pm, nullptr, lambda, max_steps);
 }
 #if GLIMMER_GLINT_WALK_AVX2
 [[gnu::target("avx2"), gnu::noinline]] inline GlintCount count_four_groups_in_passes_avx2(
@@ -1991,12 +2194,7 @@ template <typename Visitor>
     for (; pairs != 0; pairs &= pairs - 1) {
       const int pair = std::countr_zero(pairs), c = pair / kDirectionGroups;
       const uint32_t h0 = hashes[c][pair % kDirectionGroups];
-      const double u = (static_cast<double>(h0) + 0.5) * (1.0 / 4294967296.0);
-      int64_t K = bounds.lit(u);
-      if (K == LitCountBounds::kUndecided) {
-        if (!model) model.emplace(lambda);
-        K = u < model->p_any ? model->lit(u) : 0;
-      }
+      const int64_t K = lit_count_at(h0, bounds, model, lambda);
       if (K == 0) continue;
       if (K < 0 || result.steps + K > max_steps) {
         result.complete = false;
@@ -2074,12 +2272,7 @@ inline GlintCount count_reflecting_particles(const Footprint &f, const NodeList 
     FootprintFrame::NodeOrigin origin{};
     for (; maybe_lit != 0; maybe_lit &= maybe_lit - 1) {
       const uint32_t h0 = hashes[static_cast<size_t>(std::countr_zero(maybe_lit))];
-      const double u = (static_cast<double>(h0) + 0.5) * (1.0 / 4294967296.0);
-      int64_t K = bounds.lit(u);
-      if (K == LitCountBounds::kUndecided) {
-        if (!model) model.emplace(lambda);
-        K = u < model->p_any ? model->lit(u) : 0;
-      }
+      const int64_t K = lit_count_at(h0, bounds, model, lambda);
       if (K == 0) continue;
       if (K < 0 || result.steps + K > max_steps) {
         result.complete = false;

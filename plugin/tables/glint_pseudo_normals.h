@@ -220,13 +220,9 @@ template <bool kPositionFirst, typename Visitor>
       for (int n = 0; n < nodes.count; ++n) {
         const uint32_t h0 = node_seed_hash(nodes.id_hash[n], seed);
         if (h0 >= below) continue;
-        const double u = (static_cast<double>(h0) + 0.5) * (1.0 / 4294967296.0);
+        const double u = lit_count_uniform(h0);
         if (!bounds) bounds.emplace(lambda);
-        int64_t K = bounds->lit(u);
-        if (K == LitCountBounds::kUndecided) {
-          if (!model) model.emplace(lambda);
-          K = u < model->p_any ? model->lit(u) : 0;
-        }
+        const int64_t K = lit_count_at_uniform(u, *bounds, model, lambda);
         if (K == 0) continue;
         if (K < 0 || result.steps + K > max_steps) {
           result.complete = false;

@@ -89,12 +89,7 @@ std::unique_ptr<const SmallDarkField> make_small_dark_field(const DirectionCellK
   for (; pairs != 0; pairs &= pairs - 1) {
     const int pair = std::countr_zero(pairs), node = pair / kDirectionGroups;
     const uint32_t h0 = hashes[node][pair % kDirectionGroups];
-    const double u = (static_cast<double>(h0) + 0.5) * (1.0 / 4294967296.0);
-    int64_t K = bounds.lit(u);
-    if (K == LitCountBounds::kUndecided) {
-      if (!model) model.emplace(lambda);
-      K = u < model->p_any ? model->lit(u) : 0;
-    }
+    const int64_t K = lit_count_at(h0, bounds, model, lambda);
     if (K == 0) continue;
     if (K < 0 || steps + K > m.max_steps) return SmallDark::kNotDark;  // incomplete
     steps += static_cast<int>(K);

@@ -1503,9 +1503,13 @@ TEST(GlintParticles, PairPassesRefuseWhereTheWalkDoes) {
 // log-uniform in 1e-12..700 (not walkable above 600), and 2000 in 1..12
 // (where K >= kSteps continues the walk). Negative control: thresholds one
 // hash lower (the tail compared by <= instead of <) disagree on many hashes.
+// Session 26: lit_passed (K from the first compare known, for the hashes
+// under below[0] that pass 3 gets) equals the walk on every such hash; the
+// same control disagrees there too.
 TEST(GlintParticles, LitCountTableMatchesTheTailWalk) {
   Pcg32 rng(37);
   int64_t checked = 0, continued = 0, refused = 0, control_disagreements = 0;
+  int64_t passed_checked = 0, passed_control_disagreements = 0;
   for (int q = 0; q < 6000; ++q) {
     const double v = rng.next_float();
     const double lambda = q < 4000 ? std::exp(std::log(1e-12) + v * (std::log(700.0) - std::log(1e-12))) : 1.0 + 11.0 * v;
@@ -1523,6 +1527,13 @@ TEST(GlintParticles, LitCountTableMatchesTheTailWalk) {
       continued += k >= pg::LitCountTable::kSteps;
       refused += k < 0;
       control_disagreements += control.lit(static_cast<uint32_t>(h)) != walk;
+      // Session 26: lit_passed (pass 3's form for the hashes its exact reject lets through, h < below[0]).
+      if (model.walkable && static_cast<uint64_t>(h) < table.below[0]) {
+        ASSERT_EQ(table.lit_passed(static_cast<uint32_t>(h)), walk) << "lambda " << lambda << " h " << h;
+        ++passed_checked;
+        passed_control_disagreements += static_cast<uint64_t>(h) < control.below[0] &&
+                                        control.lit_passed(static_cast<uint32_t>(h)) != walk;
+      }
     };
     for (const uint64_t b : table.below)
       for (int d = -3; d <= 3; ++d) check(static_cast<int64_t>(b) + d);
@@ -1541,6 +1552,11 @@ TEST(GlintParticles, LitCountTableMatchesTheTailWalk) {
               "lower) disagrees on %lld\n",
               static_cast<long long>(checked), static_cast<long long>(continued), pg::LitCountTable::kSteps,
               static_cast<long long>(refused), static_cast<long long>(control_disagreements));
+  std::printf("[lit table] lit_passed: %lld hashes under below[0] equal to the walk; control (thresholds one lower) "
+              "disagrees on %lld\n",
+              static_cast<long long>(passed_checked), static_cast<long long>(passed_control_disagreements));
+  EXPECT_GT(passed_checked, 100000);
+  EXPECT_GT(passed_control_disagreements, 1000);
   EXPECT_GT(checked, 1000000);
   EXPECT_GT(continued, 10000);
   EXPECT_GT(refused, 1000);
