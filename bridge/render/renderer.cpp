@@ -657,14 +657,18 @@ struct Renderer::Impl {
     return false;
   }
 
-  // The path's counters and seed in the shading context.
-  static void set_path_context(const PathState &ps, uint32_t path_seed, ShadingData &sd) {
+  // The path's counters and seed in the shading context, and (ABI 2.9) the limits PathState::advance applies to them.
+  void set_path_context(const PathState &ps, const BounceLimits &limits, uint32_t path_seed, ShadingData &sd) const {
     GlimmerShadingContext &ctx = sd.ctx;
     ctx.bounce = static_cast<uint32_t>(ps.bounce);
     ctx.diffuse_bounce = static_cast<uint32_t>(ps.diffuse_bounce);
     ctx.glossy_bounce = static_cast<uint32_t>(ps.glossy_bounce);
     ctx.transmission_bounce = static_cast<uint32_t>(ps.transmission_bounce);
     ctx.path_seed = path_seed;
+    const auto limit = [&](int v) { return options.bounce_limits_in_context ? static_cast<uint32_t>(std::max(v, 0)) : 0u; };
+    ctx.max_bounce = limit(limits.bounce);
+    ctx.max_glossy_bounce = limit(limits.glossy);
+    ctx.max_transmission_bounce = limit(limits.transmission);
   }
 
   // Samples closure `chosen` and updates the throughput with the one-sample MIS
@@ -807,7 +811,7 @@ struct Renderer::Impl {
     sd.tc.path = nodes::path_info(ps.last_label, hit.t, ps.bounce, ps.diffuse_bounce, ps.glossy_bounce,
                                   ps.transparent_bounce, ps.transmission_bounce);
     transfer_differentials(ray.rd, ray.D, hit.t, sd, ps.spread);
-    set_path_context(ps, path_seed, sd);
+    set_path_context(ps, BounceLimits(scene.integrator), path_seed, sd);
     shaders->evaluate(sd.shader, sd.tc, cs);
     apply_filter_glossy(ps, cs);
   }

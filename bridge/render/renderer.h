@@ -45,6 +45,10 @@ struct RenderOptions {
   // 2.8: frosted_glass method=path's thin pane, at the shading point); off: the host passes no buffer and the
   // sample stays singular, MIS weight 1 (the estimator before; tests and benchmarks compare the two).
   bool exit_state_nee = true;
+  // The path's bounce limits in every shading context (ABI 2.9: GlimmerShadingContext.max_bounce ...), so that a
+  // closure whose one sample stands for several scatters (frosted_glass sg's walk through a solid) drops the light
+  // the path would have ended; off: 0 there, no limits (the estimator before; tests and benchmarks compare the two).
+  bool bounce_limits_in_context = true;
   // Samples per pixel per parallel pass at most (after_pass runs after each pass): 1 = after every sample (a live
   // display); larger batches spare small images a barrier per sample (Renderer::render).
   int max_samples_per_pass = 16;

@@ -169,13 +169,14 @@ class FrostedGlassClosure {
     if (out.label & GLIMMER_LABEL_TRANSMIT) out.f_cos *= color_at(sp);
     out.f_cos *= interior_transmittance(sp);
     if (uses_sg(sp) && (out.label & GLIMMER_LABEL_TRANSMIT))
-      sample_sg(sp, rand, out, frosted::solid_sg_variant(sp.param_float(roughness_param_, roughness_)));
+      return sample_sg(sp, rand, out, frosted::solid_sg_variant(sp.param_float(roughness_param_, roughness_)));
     return true;
   }
 
   // method=sg's transmission: replaces `front` (the front interface's transmitted sample) by the SG estimate
-  // through the object when it applies (else `front` stays, as method=path). Public for the tests' variants.
-  void sample_sg(const ShadingPoint &sp, const Vec3 &rand, LocalSample &front, frosted::SgVariant variant,
+  // through the object when it applies (else `front` stays, as method=path). False: no sample, the light is lost
+  // (the host's bounce limits end the walk inside: frosted::reflections_allowed). Public for the tests' variants.
+  bool sample_sg(const ShadingPoint &sp, const Vec3 &rand, LocalSample &front, frosted::SgVariant variant,
                  float mixture_variance = frosted::kDefaultMixtureVariance,
                  float mixture_tail = frosted::kDefaultMixtureTail, float curved_tail = -1.0f,
                  const frosted::CurvedShape *curved_shape = nullptr, int sampled_reflection = -1) const {
@@ -202,7 +203,9 @@ class FrostedGlassClosure {
 #if GLIMMER_ABI_MINOR >= 7
     s.mixture_out = front.mixture_out;  // the host's buffer for the whole exit mixture (ABI 2.7)
 #endif
-    if (frosted::sample_sg_transmission(sp, in, rand, front, s)) front = s;
+    bool lost = false;
+    if (frosted::sample_sg_transmission(sp, in, rand, front, s, &lost)) front = s;
+    return !lost;
   }
   // method=sg through a thin pane (the paper's thin-object case, frosted_glass_sg.h): the front interface is
   // sampled exactly; a transmission becomes one singular sample from the pane's exit lobe (either face).

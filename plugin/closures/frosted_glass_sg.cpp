@@ -534,12 +534,30 @@ Vec3 sample_sg_direction(const SphericalGaussian &sg, float u1, float u2) {
   return sample_vmf(sg.axis, sg.sharpness, u1, u2);
 }
 
+int reflections_allowed(const GlimmerShadingContext &ctx) {
+#if GLIMMER_ABI_MINOR >= 9
+  if (!GLIMMER_HAS_FIELD(ctx.struct_size, GlimmerShadingContext, max_transmission_bounce))
+    return kMaxInternalReflections;
+  // PathState::advance: a scatter after which a count reaches its limit ends the path at the next surface.
+  const int64_t bounce = int64_t(ctx.bounce) + 1, glossy = ctx.glossy_bounce;  // after the entry
+  if ((ctx.max_bounce > 0 && bounce >= ctx.max_bounce) ||
+      (ctx.max_transmission_bounce > 0 && int64_t(ctx.transmission_bounce) + 1 >= ctx.max_transmission_bounce))
+    return -1;
+  int64_t allowed = kMaxInternalReflections;
+  if (ctx.max_bounce > 0) allowed = std::min<int64_t>(allowed, int64_t(ctx.max_bounce) - bounce - 1);
+  if (ctx.max_glossy_bounce > 0) allowed = std::min<int64_t>(allowed, int64_t(ctx.max_glossy_bounce) - glossy - 1);
+  return int(std::max<int64_t>(allowed, 0));
+#else
+  (void)ctx;
+  return kMaxInternalReflections;
+#endif
+}
+
 bool trace_exit_lobe(const ShadingPoint &sp, const SgInputs &in, uint32_t seed, ExitLobe &out) {
   const GlimmerShadingContext &ctx = *sp.ctx;
   if (in.table == nullptr || !host_can_trace_closures(ctx.host) || !(sp.wi.z > 0.0f)) return false;
   const float ior = in.ior;
   if (!(ior >= TransmissionSgTable::kIorMin && ior <= TransmissionSgTable::kIorMax)) return false;
-
   // 1. The front BTDF as an SG (entering: eta = ior), in world space.
   SphericalGaussian front;
   float front_energy = 0.0f;
@@ -549,7 +567,8 @@ bool trace_exit_lobe(const ShadingPoint &sp, const SgInputs &in, uint32_t seed, 
   float kappa_in = front.sharpness;
   Vec3 origin = offset_origin(Vec3(ctx.P), Vec3(ctx.Ng), axis);
   float inside_length = 0.0f;
-  for (int event = 0; event <= kMaxInternalReflections; ++event) {
+  for (int event = 0, allowed = reflections_allowed(ctx); event <= kMaxInternalReflections; ++event) {
+    if (event > allowed) return out.lost = true, false;  // the host's path would have ended inside (ABI 2.9)
     // 2-3. Axis and bounding rays to the far side; mean normal, Toksvig width, exit roughness.
     Segment seg;
     if (!trace_segment(ctx.host, in, origin, axis, kappa_in, seg)) return false;
@@ -627,11 +646,14 @@ bool sampled_reflection_at(const ShadingPoint &sp, int mode) {
 }
 
 bool sample_sg_transmission(const ShadingPoint &sp, const SgInputs &in, const Vec3 &rand, const LocalSample &front,
-                            LocalSample &out) {
+                            LocalSample &out, bool *lost) {
   if (!(front.label & GLIMMER_LABEL_TRANSMIT) || !(front.pdf > 0.0f)) return false;
   const uint32_t seed = sp.seed_for(rand);
   ExitLobe exit;
-  if (!trace_exit_lobe(sp, in, seed, exit)) return false;
+  if (!trace_exit_lobe(sp, in, seed, exit)) {
+    if (lost != nullptr) *lost = exit.lost;
+    return false;
+  }
   // 6. One direction from the exit SG restricted to the outside of the exit surface (the lobe it was fitted to
   // lies there): drawn again when it falls below (up to 16 times), then mirrored (glimmer/exit_lobe.h, whose
   // density the host uses for light sampling at the exit). The weight stays: the SG's energy is the lobe's,

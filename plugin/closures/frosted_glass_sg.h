@@ -249,10 +249,24 @@ struct ExitLobe {
 #endif
   int lobe_count = 0;
   MixtureLobe lobe[kMaxLobes];
+  bool lost = false;  // trace_exit_lobe failed because the host's path would have ended inside (reflections_allowed)
 };
 
+// The host's bounce limits in the walk (issue 12, session 26, frostedfloor26; closure ABI 2.9; docs/frosted_glass.md
+// "Session 26 (frostedfloor26)"). method=path's walk through a solid is one host scatter per event: the entry (a
+// transmission), each internal reflection (glossy) and the exit, and the host ends the path at the next surface once
+// a count reaches its limit (max_glossy_bounce 7 and max_bounce 12 in the caustic bench: the light after >= 8 internal
+// reflections never leaves; 12 % of the sphere's reflected light, 2.6 % of all it sends to the camera under a uniform
+// world). sg's walk is one scatter for the host, so it applies the same limits itself: the number of internal
+// reflections the path could take at ctx (its counts before the entry) before a limit ends it; -1: the entry already
+// ends it; kMaxInternalReflections without limits (older hosts, the closure laboratory, the tests' contexts). The
+// exit's own count (the path's next surface then adds only its emission) and the counts after the exit (the host
+// counts the whole walk as one transmission) are not applied.
+int reflections_allowed(const GlimmerShadingContext &ctx);
+
 // Steps 1-5 for the path entering at sp (wi outside, sp.wi.z > 0); `seed` drives the Russian roulette at
-// internal reflections. False when the estimator cannot be applied (see above).
+// internal reflections. False when the estimator cannot be applied (see above), or (out.lost) when the walk needs
+// more internal reflections than reflections_allowed.
 bool trace_exit_lobe(const ShadingPoint &sp, const SgInputs &in, uint32_t seed, ExitLobe &out);
 
 // A ray origin off a surface along its geometric normal, on the side of `dir` (as the renderer offsets its rays).
@@ -265,9 +279,10 @@ Vec3 sample_sg_direction(const SphericalGaussian &sg, float u1, float u2);
 
 // The whole sg transmission sample: `front` is the front interface's transmitted sample (local frame, its
 // f_cos / pdf the front weight, entry tint included); out becomes a SINGULAR moved sample (world-space
-// origin and direction converted by the adapter). False: use `front` as method=path would.
+// origin and direction converted by the adapter). False: use `front` as method=path would, unless *lost is set
+// (trace_exit_lobe's out.lost): then the light is lost (no sample), as the host's path would lose it.
 bool sample_sg_transmission(const ShadingPoint &sp, const SgInputs &in, const Vec3 &rand, const LocalSample &front,
-                            LocalSample &out);
+                            LocalSample &out, bool *lost = nullptr);
 
 // ---- Thin panes (thin = 1): the paper's thin-object case --------------------------------------------------
 // Two parallel interfaces `thickness` apart, air on both sides, position-free (the lateral offset inside the

@@ -75,6 +75,12 @@
  *        host's struct_size holds the field and the pointer is not NULL; a host calls eval_exit only
  *        when the type's struct_size holds it and it is not NULL. Older hosts
  *        and plugins keep the singular sample (MIS weight 1, no NEE).
+ *   2.9: GlimmerShadingContext.max_bounce / .max_glossy_bounce /
+ *        .max_transmission_bounce: the path's bounce limits as the host
+ *        applies them, so that a closure folding several scatters into one
+ *        sample (frosted_glass sg's walk through a solid) drops the light the
+ *        host's path would have ended. Read only when struct_size holds them;
+ *        0 (older hosts, the closure laboratory): no limit.
  *
  * Threading: create/prepare/destroy are called from one thread; eval/sample/
  * emit/albedo are called concurrently on an immutable, prepared instance and
@@ -94,7 +100,7 @@ extern "C" {
 #define GLIMMER_ABI_MAJOR 2u
 #endif
 #ifndef GLIMMER_ABI_MINOR
-#define GLIMMER_ABI_MINOR 8u
+#define GLIMMER_ABI_MINOR 9u
 #endif
 #ifndef GLIMMER_ABI_VERSION
 #define GLIMMER_ABI_VERSION ((GLIMMER_ABI_MAJOR << 16) | GLIMMER_ABI_MINOR)
@@ -273,6 +279,20 @@ typedef struct GlimmerShadingContext {
 #if GLIMMER_ABI_MINOR >= 6
   /* ABI 2.6. GlimmerSamplingFlags bits; read only when struct_size holds it. */
   uint32_t sampling_flags;
+#endif
+#if GLIMMER_ABI_MINOR >= 9
+  /* ABI 2.9. The path's bounce limits as the host applies them (Cycles'
+   * path_state_next): a scatter after which `bounce` reaches max_bounce (for
+   * a reflection that is not diffuse glossy_bounce max_glossy_bounce, for a
+   * transmission transmission_bounce max_transmission_bounce) is the path's
+   * last: the next surface adds only its emission. A closure whose one sample
+   * stands for several scatters (frosted_glass sg: the entry, the internal
+   * reflections, the exit) drops the light that needed more than the limits
+   * allow, as the host's path would. 0: no limit. Read only when struct_size
+   * holds them. */
+  uint32_t max_bounce;
+  uint32_t max_glossy_bounce;
+  uint32_t max_transmission_bounce;
 #endif
 } GlimmerShadingContext;
 
