@@ -805,13 +805,13 @@ struct Renderer::Impl {
 
   // The shading point of a hit: geometry, footprint from the ray differentials, the path's counters, and
   // the closures of its shader (with filter_glossy applied).
-  void shade_surface(const SurfaceHit &hit, PathRay &ray, const PathState &ps, uint32_t path_seed, ShadingData &sd,
-                     ClosureSet &cs) const {
+  void shade_surface(const SurfaceHit &hit, PathRay &ray, const PathState &ps, const BounceLimits &limits,
+                     uint32_t path_seed, ShadingData &sd, ClosureSet &cs) const {
     setup_shading(hit, ray.D, sd);
     sd.tc.path = nodes::path_info(ps.last_label, hit.t, ps.bounce, ps.diffuse_bounce, ps.glossy_bounce,
                                   ps.transparent_bounce, ps.transmission_bounce);
     transfer_differentials(ray.rd, ray.D, hit.t, sd, ps.spread);
-    set_path_context(ps, BounceLimits(scene.integrator), path_seed, sd);
+    set_path_context(ps, limits, path_seed, sd);
     shaders->evaluate(sd.shader, sd.tc, cs);
     apply_filter_glossy(ps, cs);
   }
@@ -1093,7 +1093,7 @@ struct Renderer::Impl {
       }
       ShadingData sd;
       ClosureSet cs;
-      shade_surface(hit, ray, ps, path_seed, sd, cs);
+      shade_surface(hit, ray, ps, limits, path_seed, sd, cs);
       integrate_surface_emission(cs, sd, hit, ray, ps, pr);
       if (first_hit && !(cs.count == 0 && !is_zero(cs.transparent))) {
         first_hit = false;
@@ -1180,7 +1180,7 @@ struct Renderer::Impl {
       if (!accel->intersect(ray.org, ray.D, ray.tmin, ray.tmax, hit)) return false;
       ShadingData sd;
       ClosureSet cs;
-      shade_surface(hit, ray, ps, 0, sd, cs);
+      shade_surface(hit, ray, ps, limits, 0, sd, cs);
       if (!all_singular(cs, sd)) {
         out = sd.ctx;
         return true;
