@@ -267,7 +267,8 @@ float exit_curvature(const Segment &seg, const Vec3 &axis, bool facing_only = fa
 // kSampledReflection (frosted_glass_sg.h): direction d (inside) reflected at hit h (h.normal outward) by the interface
 // lobe at `roughness` (SgInputs::lobe when it is the lobe's, else built), drawn until one draw reflects (at most 64,
 // from numbers of their own); d becomes it. False: no reflection within 64 draws, or one that does not go back in.
-bool sample_reflection(const SgInputs &in, const InteriorHit &h, float roughness, uint32_t seed, Vec3 &d) {
+bool sample_reflection(const SgInputs &in, const InteriorHit &h, float roughness, uint32_t seed, Vec3 &d,
+                       float first_u = -1.0f) {
   if (in.lobe == nullptr) return false;
   DielectricLobe scratch;
   if (roughness != in.lobe_roughness)
@@ -278,7 +279,11 @@ bool sample_reflection(const SgInputs &in, const InteriorHit &h, float roughness
   mf::WalkRng rng(hash_u32x2(seed, 0x7265666cu));
   LocalSample s;
   for (int k = 0; k < 64; ++k) {
-    if (!lobe.sample(wi, Vec3(rng.next(), rng.next(), rng.next()), s) || !(s.label & GLIMMER_LABEL_REFLECT)) continue;
+    // The numbers in the order GCC evaluated the former Vec3(rng.next(), rng.next(), rng.next()) (right to left:
+    // the same draws as before bit for bit); the first draw's x is first_u when given.
+    const float u2 = rng.next(), u1 = rng.next(), u0 = rng.next();
+    const Vec3 numbers(k == 0 && first_u >= 0.0f ? first_u : u0, u1, u2);
+    if (!lobe.sample(wi, numbers, s) || !(s.label & GLIMMER_LABEL_REFLECT)) continue;
     const Vec3 r = normalize(f.to_world(s.wo));
     if (!(dot(r, h.normal) < 0.0f) || !is_finite(r)) return false;
     d = r;
@@ -295,10 +300,10 @@ constexpr float kPlanarExitCurvature = 0.1f;  // exit_curvature below it: a plan
 // mirrored about the mean normal (at a planar exit the reflected part's axis first, reflected_axis) and the lobe
 // widened by the rough reflection. False: no reflection drawn.
 bool reflect_internal(const SgInputs &in, const Segment &seg, const ExitEnergies &energies, const Vec3 &n,
-                      float alpha2, uint32_t seed, Vec3 &axis, float &kappa_in) {
+                      float alpha2, uint32_t seed, Vec3 &axis, float &kappa_in, float first_u) {
   const bool planar = exit_curvature(seg, axis, true) < kPlanarExitCurvature;
   if (in.sampled_reflection && !planar)
-    return sample_reflection(in, seg.axis, hit_roughness(in, seg.axis.closure), seed, axis);
+    return sample_reflection(in, seg.axis, hit_roughness(in, seg.axis.closure), seed, axis, first_u);
   const float kappa_reflect = 2.0f / std::max(alpha2, 1e-7f);  // NDF sharpness; reflected lobe: kappa / 4
   if (planar) axis = reflected_axis(seg, axis, energies);
   kappa_in = 1.0f / (1.0f / kappa_in + 4.0f / kappa_reflect);
@@ -308,6 +313,25 @@ bool reflect_internal(const SgInputs &in, const Segment &seg, const ExitEnergies
 
 float roulette(uint32_t seed, int event) {
   return float(hash_u32x3(seed, uint32_t(event), 0x5bd1e995u) >> 8) * 0x1p-24f;
+}
+// Step 5's roulette number at `event`: stratified_first_roulette's `first_u` at event 0 when given (>= 0), else the
+// hashed one; the walk leaves when u < E_x. `rest`: what is left of a stratified number given the outcome (level 2),
+// u / E_x given the exit, (u - E_x) / (1 - E_x) given a reflection (uniform on [0, 1) either way); -1: none.
+struct RouletteNumber {
+  float u = 0.0f, rest = -1.0f;
+  bool leaves = false;
+};
+RouletteNumber roulette_number(const SgInputs &in, uint32_t seed, int event, float first_u, float transmitted) {
+  RouletteNumber r;
+  const bool stratified = event == 0 && first_u >= 0.0f;
+  r.u = stratified ? first_u : roulette(seed, event);
+  r.leaves = !(r.u >= transmitted);
+  const int level = stratified_roulette_level(in);
+  if (stratified && (level == 2 || level == kStratifiedDrawControl)) {
+    const float rest = r.leaves ? r.u / transmitted : (r.u - transmitted) / (1.0f - transmitted);
+    if (std::isfinite(rest)) r.rest = std::clamp(rest, 0.0f, 0x1.fffffep-1f);
+  }
+  return r;
 }
 
 // SgVariant::kMixture (frosted_glass_sg.h, "exit lobe mixture"): one lobe per traced ray that left, each refracted
@@ -553,7 +577,30 @@ int reflections_allowed(const GlimmerShadingContext &ctx) {
 #endif
 }
 
-bool trace_exit_lobe(const ShadingPoint &sp, const SgInputs &in, uint32_t seed, ExitLobe &out) {
+namespace {
+// Step 5: the roulette between the exit (E_x) and the internal reflection (1 - E_x) at a segment whose axis leaves with
+// the leaving table's energy `axis_energy`. E_x is averaged over the axis and the bounding rays, each at its own
+// incidence on its own exit normal: the directions of a wide lobe far from its axis reach the exit beyond the
+// critical angle and reflect, which the axis alone does not see. The last event always exits: no roulette, so the
+// bounding rays' energies are not looked up there. The number: roulette_number.
+struct ExitRoulette : RouletteNumber {
+  ExitEnergies energies;
+};
+ExitRoulette exit_roulette(const SgInputs &in, const Segment &seg, const Vec3 &axis, float axis_energy,
+                           const TransmissionSgTable::Axes &exit_axes, uint32_t seed, int event, bool last,
+                           float first_u) {
+  ExitRoulette r;
+  // The stratified number at curved exits only (a planar one, a slab's back face, keeps the hashed route: there it was
+  // not measured on the bench, and the exit harness' slab moved by its noise; docs/frosted_glass.md "Session 27").
+  if (event == 0 && first_u >= 0.0f && exit_curvature(seg, axis, true) < kPlanarExitCurvature) first_u = -1.0f;
+  if (!last) r.energies = exit_energies(*in.table, seg, axis_energy, exit_axes);
+  static_cast<RouletteNumber &>(r) =
+      roulette_number(in, seed, event, first_u, last ? axis_energy : r.energies.mean());
+  return r;
+}
+}  // namespace
+
+bool trace_exit_lobe(const ShadingPoint &sp, const SgInputs &in, uint32_t seed, ExitLobe &out, float first_u) {
   const GlimmerShadingContext &ctx = *sp.ctx;
   if (in.table == nullptr || !host_can_trace_closures(ctx.host) || !(sp.wi.z > 0.0f)) return false;
   const float ior = in.ior;
@@ -594,19 +641,16 @@ bool trace_exit_lobe(const ShadingPoint &sp, const SgInputs &in, uint32_t seed, 
     float exit_energy = 0.0f;
     const TransmissionSgTable::Axes exit_axes = table_axes(1.0f / ior, roughness_exit);  // the exit's lookups
     if (!table_lobe(*in.table, exit_axes, exit_frame, incident, exit, exit_energy)) return false;
-    // 5. Russian roulette between the exit (E_x) and the internal reflection (1 - E_x). E_x is averaged over the
-    // axis and the bounding rays, each at its own incidence on its own exit normal: the directions of a wide lobe
-    // far from its axis reach the exit beyond the critical angle and reflect, which the axis alone does not see.
-    // The last event always exits: no roulette, so the bounding rays' energies are not looked up there.
-    const ExitEnergies energies = last ? ExitEnergies{} : exit_energies(*in.table, seg, exit_energy, exit_axes);
-    const float transmitted = last ? exit_energy : energies.mean();
-    if (!last && roulette(seed, event) >= transmitted) {
-      if (!reflect_internal(in, seg, energies, n, alpha2, hash_u32x2(seed, uint32_t(event)), axis, kappa_in))
+    // 5. Russian roulette between the exit (E_x) and the internal reflection (1 - E_x): exit_roulette.
+    const ExitRoulette r = exit_roulette(in, seg, axis, exit_energy, exit_axes, seed, event, last, first_u);
+    if (!last && !r.leaves) {
+      if (!reflect_internal(in, seg, r.energies, n, alpha2, hash_u32x2(seed, uint32_t(event)), axis, kappa_in, r.rest))
         return false;
       origin = offset_origin(Vec3(seg.axis.hit.P), Vec3(seg.axis.hit.Ng), axis);
       if (!is_finite(axis) || !is_finite(origin)) return false;
       continue;
     }
+    if (r.leaves) out.leftover = r.rest;
     float kappa_geometric;
     if (toksvig) {  // the internal lobe's width reaches the outside magnified by Snell's law
       const float cos_out = std::max(std::fabs(dot(exit.axis, n)), 0.05f);
@@ -645,12 +689,66 @@ bool sampled_reflection_at(const ShadingPoint &sp, int mode) {
   return mode < 0 ? by_rule : mode != 0;
 }
 
+int stratified_first_roulette_level() {
+  static const int level = [] {
+    const char *e = std::getenv("GLIMMER_FROSTED_STRATIFIED_ROULETTE");
+    return e == nullptr || *e == '\0' ? kStratifiedFirstRoulette : std::clamp(std::atoi(e), 0, 2);
+  }();
+  return level;
+}
+
+namespace {
+// rand.z rescaled to the front transmission of wi into wo (local frame, wi.z > 0 > wo.z; entering, eta = ior):
+// (rand.z - F) / (1 - F), F the Fresnel reflectance at the transmission's microfacet, the generalised half vector
+// -(wi + eta wo) (Walter 2007 eq. 16); `control`: rand.z itself (the tests' negative control). -1: none.
+float transmitted_rest(const Vec3 &wi, const Vec3 &wo, float ior, float rand_z, bool control) {
+  if (!(wi.z > 0.0f) || !(wo.z < 0.0f)) return -1.0f;
+  Vec3 m = -(wi + wo * ior);
+  if (m.z < 0.0f) m = -m;
+  if (!(dot(m, m) > 1e-20f)) return -1.0f;
+  m = normalize(m);
+  const float F = mf::fresnel_dielectric(dot(wi, m), ior);
+  if (!(F < 1.0f) || !std::isfinite(F)) return -1.0f;
+  const float u = control ? rand_z : (rand_z - F) / (1.0f - F);
+  return std::isfinite(u) ? std::clamp(u, 0.0f, 0x1.fffffep-1f) : -1.0f;
+}
+}  // namespace
+
+float stratified_first_roulette(const ShadingPoint &sp, const SgInputs &in, const Vec3 &rand,
+                                const LocalSample &front) {
+  const int level = stratified_roulette_level(in);
+  if (level <= 0 || !in.sampled_reflection) return -1.0f;
+  return transmitted_rest(sp.wi, front.wo, in.ior, rand.z, level == kStratifiedRouletteControl);
+}
+
+namespace {
+// The exit draw's numbers (ExitLobe::leftover, stratified_first_roulette level 2): the lobe pick from the leftover
+// when there is one; what is left of it within the picked lobe's share (cumulative weights as pick_mixture_lobe's)
+// is the first draw's cos theta number (ExitLobe::sample reads u_phi, then u_cos, per draw); else the hashed ones.
+float pick_u(float leftover, float hashed) { return leftover >= 0.0f ? leftover : hashed; }
+float picked_rest(float leftover, const float *weight, int count, int k) {
+  if (!(leftover >= 0.0f)) return -1.0f;
+  double c = 0.0;
+  for (int j = 0; j < k && j < count; ++j)
+    if (weight[j] > 0.0f) c += double(weight[j]);
+  if (!(weight[k] > 0.0f)) return -1.0f;
+  const double r = (double(leftover) - c) / double(weight[k]);
+  return std::isfinite(r) ? float(std::clamp(r, 0.0, double(0x1.fffffep-1f))) : -1.0f;
+}
+auto exit_draw_numbers(mf::WalkRng &rng, float first_cos) {
+  return [&rng, first_cos, call = 0]() mutable {
+    const float u = rng.next();  // drawn either way: the later draws' numbers as before
+    return call++ == 1 && first_cos >= 0.0f ? first_cos : u;
+  };
+}
+}  // namespace
+
 bool sample_sg_transmission(const ShadingPoint &sp, const SgInputs &in, const Vec3 &rand, const LocalSample &front,
                             LocalSample &out, bool *lost) {
   if (!(front.label & GLIMMER_LABEL_TRANSMIT) || !(front.pdf > 0.0f)) return false;
   const uint32_t seed = sp.seed_for(rand);
   ExitLobe exit;
-  if (!trace_exit_lobe(sp, in, seed, exit)) {
+  if (!trace_exit_lobe(sp, in, seed, exit, stratified_first_roulette(sp, in, rand, front))) {
     if (lost != nullptr) *lost = exit.lost;
     return false;
   }
@@ -659,15 +757,19 @@ bool sample_sg_transmission(const ShadingPoint &sp, const SgInputs &in, const Ve
   // density the host uses for light sampling at the exit). The weight stays: the SG's energy is the lobe's,
   // whatever its part below the surface.
   mf::WalkRng rng(hash_u32x2(seed, 0x9e3779b9u));
+  const int level = stratified_roulette_level(in);
   Vec3 wo;
   if (exit.lobe_count > 0) {
     // kMixture: the whole mixture leaves from the axis' exit point, every lobe restricted to its surface (the
     // host evaluates it whole there, ABI 2.7); one lobe picked by its share draws the continued direction.
     float weights[ExitLobe::kMaxLobes];
     for (int j = 0; j < exit.lobe_count; ++j) weights[j] = exit.lobe[j].weight;
-    const int k = glimmer::pick_mixture_lobe(weights, exit.lobe_count, double(rng.next()));
+    const float u_pick = rng.next();
+    const int k = glimmer::pick_mixture_lobe(weights, exit.lobe_count, double(pick_u(exit.leftover, u_pick)));
     const glimmer::ExitLobe picked{Vec3(exit.lobe[k].axis), exit.lobe[k].sharpness, exit.origin_Ng, 0.0};
-    wo = picked.sample([&rng] { return rng.next(); });
+    const float rest = level == kStratifiedDrawControl ? exit.leftover  // the control: not rescaled to the lobe
+                                                       : picked_rest(exit.leftover, weights, exit.lobe_count, k);
+    wo = picked.sample(exit_draw_numbers(rng, rest));
     exit.sg.axis = Vec3(exit.lobe[k].axis);
     exit.sg.sharpness = exit.lobe[k].sharpness;
     exit.roughness = std::clamp(std::sqrt(std::sqrt(2.0f / exit.sg.sharpness)), 0.0f, 1.0f);
@@ -685,7 +787,7 @@ bool sample_sg_transmission(const ShadingPoint &sp, const SgInputs &in, const Ve
 #endif
   } else {
     const glimmer::ExitLobe lobe{exit.sg.axis, exit.sg.sharpness, exit.origin_Ng, 0.0};
-    wo = lobe.sample([&rng] { return rng.next(); });
+    wo = lobe.sample(exit_draw_numbers(rng, exit.leftover));
   }
   if (!(dot(wo, exit.origin_Ng) > 0.0f)) return false;
   const Spectrum weight = front.f_cos / front.pdf * exit.weight;

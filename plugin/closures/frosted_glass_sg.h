@@ -203,6 +203,10 @@ struct SgInputs {
   bool sampled_reflection = false;
   const DielectricLobe *lobe = nullptr;
   float lobe_roughness = 0.3f;
+  // Session 27 (frostedcost27): the first exit's roulette from the stratified numbers (stratified_first_roulette):
+  // -1 by the rule (stratified_first_roulette_level), 0..2 a test's level, kStratifiedRouletteControl the tests'
+  // negative control (rand.z itself as the number, not rescaled to the transmission: not uniform given it, biased).
+  int stratified_roulette = -1;
 };
 
 inline constexpr int kMaxInternalReflections = 16;
@@ -250,6 +254,9 @@ struct ExitLobe {
   int lobe_count = 0;
   MixtureLobe lobe[kMaxLobes];
   bool lost = false;  // trace_exit_lobe failed because the host's path would have ended inside (reflections_allowed)
+  // The first exit's stratified roulette number u rescaled to [0, 1) when the walk left there (u / E_x: uniform given
+  // that it left), for the exit direction's draw (stratified_first_roulette); -1: none.
+  float leftover = -1.0f;
 };
 
 // The host's bounce limits in the walk (issue 12, session 26, frostedfloor26; closure ABI 2.9; docs/frosted_glass.md
@@ -266,8 +273,32 @@ int reflections_allowed(const GlimmerShadingContext &ctx);
 
 // Steps 1-5 for the path entering at sp (wi outside, sp.wi.z > 0); `seed` drives the Russian roulette at
 // internal reflections. False when the estimator cannot be applied (see above), or (out.lost) when the walk needs
-// more internal reflections than reflections_allowed.
-bool trace_exit_lobe(const ShadingPoint &sp, const SgInputs &in, uint32_t seed, ExitLobe &out);
+// more internal reflections than reflections_allowed. `first_u` in [0, 1): the first exit's roulette number instead
+// of the hashed one (stratified_first_roulette below); < 0: hashed.
+bool trace_exit_lobe(const ShadingPoint &sp, const SgInputs &in, uint32_t seed, ExitLobe &out, float first_u = -1.0f);
+
+// The first exit's roulette from the host's stratified numbers (issue 12, session 27, frostedcost27;
+// docs/frosted_glass.md "Session 27 (frostedcost27)"). The front interface transmitted `front` because rand.z >= F
+// (DielectricLobe::sample, F the Fresnel reflectance at its microfacet), so (rand.z - F) / (1 - F) is uniform on
+// [0, 1) given the transmission and independent of the microfacet (rand.x, rand.y); it decides the first leave /
+// reflect choice (the roulette on E_x) in place of a hashed number, so that the pixel's samples split between leaving
+// and reflecting as its stratified rand.z does. The same expectation. Where sampled_reflection applies (the solid
+// seen directly, SgInputs::sampled_reflection: method=auto's sg part stays as it was) and the first exit is curved
+// (exit_curvature, as the sampled reflection's rule: a slab's planar exit keeps the hashed route). Level 2 also
+// reuses what is left of the number: given a reflection, (u - E_x) / (1 - E_x) is the first draw's first number of
+// the sampled reflection (sample_reflection); given the exit, u / E_x picks the exit mixture's lobe and, rescaled
+// again to the picked lobe's share, is the first draw's cos theta number (ExitLobe::leftover).
+// kStratifiedFirstRoulette (0 off, 1 the roulette, 2 the roulette and the rest), for measurements
+// GLIMMER_FROSTED_STRATIFIED_ROULETTE (0 / 1 / 2), read once. Returns the number, or -1 where it does not apply.
+inline constexpr int kStratifiedFirstRoulette = 2;
+inline constexpr int kStratifiedRouletteControl = 9;  // SgInputs::stratified_roulette: the tests' negative control
+// The tests' negative control of the exit draw: level 2 with the leftover not rescaled to the picked lobe's share.
+inline constexpr int kStratifiedDrawControl = 8;
+int stratified_first_roulette_level();
+inline int stratified_roulette_level(const SgInputs &in) {
+  return in.stratified_roulette >= 0 ? in.stratified_roulette : stratified_first_roulette_level();
+}
+float stratified_first_roulette(const ShadingPoint &sp, const SgInputs &in, const Vec3 &rand, const LocalSample &front);
 
 // A ray origin off a surface along its geometric normal, on the side of `dir` (as the renderer offsets its rays).
 Vec3 offset_origin(const Vec3 &P, const Vec3 &Ng, const Vec3 &dir);

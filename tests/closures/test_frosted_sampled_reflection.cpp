@@ -252,4 +252,109 @@ TEST(FrostedSgSampledReflection, ReflectedLightOfTheSphereAgainstThePath) {
   EXPECT_GE(2 * before_failed, reflected_only) << "the negative control must fail the bound";
 }
 
+// The first exit's stratified roulette (session 27, frostedcost27; frosted_glass_sg.h stratified_first_roulette):
+// the camera-seen sphere's sg sample with its first leave / reflect choice from the front sample's own rand.z,
+// rescaled to the transmission (level 1; level 2 also what is left of it for the exit draw's lobe pick and cos theta
+// or the reflection's first number), against the hashed route of before (level 0). At a fixed camera hit the walk to
+// the first exit does not depend on the front sample (the front SG is the table's at wi), so the samples that leave
+// there share one exit point X0 (the most common origin) and one exit mixture, and leave with probability E_x:
+//  - the fraction leaving at X0 with rand.z stratified over the N samples against the hashed route's (binomial
+//    standard error): |z| < 5 per hit and pooled; negative control (kStratifiedRouletteControl: rand.z itself, not
+//    uniform given the transmission) pooled z beyond 5;
+//  - the continued directions of those samples (binned about the exit normal: 5 cos x 8 phi) against the hashed
+//    route's, two-sample chi2 (39 dof) below 80 per hit (p ~ 1e-4); negative control (kStratifiedDrawControl: the
+//    leftover not rescaled to the picked lobe's share) above 200 at some hit.
+struct FirstExit {
+  double left = 0.0;  // samples that left at X0
+  double transmitted = 0.0;
+  std::array<double, 40> bins{};
+};
+FirstExit first_exits(const FrostedGlassClosure &sg, const FrostedGlassClosure &path, const SphereHost &host,
+                      const Vec3 &P, int level, int samples) {
+  const auto schema = FrostedGlassClosure::params();
+  struct Out {
+    Vec3 origin, n, wo;
+  };
+  std::vector<Out> outs;
+  Pcg32 rng(27, 5);
+  for (int i = 0; i < samples; ++i) {
+    const Vec3 rand(rng.next_float(), rng.next_float(), (float(i) + rng.next_float()) / float(samples));
+    GlimmerShadingContext ctx = host::make_local_context(Vec3(0.0f, 0.0f, 1.0f), &host.services);
+    ctx.P = P;
+    ctx.N = ctx.Ng = normalize(P);
+    ctx.T = Frame::from_normal(normalize(P)).s;
+    ctx.path_seed = rng.next_u32();
+    const ShadingPoint sp(&ctx, schema);
+    LocalSample s;
+    GlimmerExitMixture buffer{};
+    s.mixture_out = &buffer;
+    if (!path.sample(sp, rand, s) || !(s.label & GLIMMER_LABEL_TRANSMIT)) continue;
+    sg.sample_sg(sp, rand, s, frosted::solid_sg_variant(0.5f), frosted::kDefaultMixtureVariance,
+                 frosted::kDefaultMixtureTail, -1.0f, nullptr, 1, level);
+    outs.push_back({Vec3(s.origin), normalize(Vec3(s.origin_Ng)), normalize(sp.frame.to_world(s.wo))});
+  }
+  // X0: the most common origin (E_x of the samples leave there).
+  std::vector<int> count(outs.size(), 0);
+  int best = 0;
+  for (size_t k = 0; k < outs.size() && k < 64; ++k) {
+    for (const Out &o : outs) count[k] += o.origin.x == outs[k].origin.x && o.origin.y == outs[k].origin.y;
+    if (count[k] > count[best]) best = int(k);
+  }
+  FirstExit e;
+  e.transmitted = double(outs.size());
+  for (const Out &o : outs) {
+    if (!(o.origin.x == outs[best].origin.x && o.origin.y == outs[best].origin.y)) continue;
+    e.left += 1.0;
+    const Frame f = Frame::from_normal(o.n);
+    const Vec3 l = f.to_local(o.wo);
+    const int c = std::clamp(int(5.0f * std::clamp(l.z, 0.0f, 0.999999f)), 0, 4);
+    const int ph = std::clamp(int(8.0 * (std::atan2(double(l.y), double(l.x)) + M_PI) / (2.0 * M_PI)), 0, 7);
+    e.bins[c * 8 + ph] += 1.0;
+  }
+  return e;
+}
+
+TEST(FrostedSgStratifiedRoulette, FirstExitAsTheHashedRoute) {
+  SphereHost host;
+  auto sg = create_closure(0.5f, 1.5f, "sg");
+  auto path = create_closure(0.5f, 1.5f, "path");
+  host.material = reinterpret_cast<const GlimmerInstance *>(sg.get());
+  const Vec3 hits[] = {normalize(Vec3(0.05f, 0.1f, 1.0f)), normalize(Vec3(0.3f, 0.4f, 0.8f)),
+                       normalize(Vec3(-0.6f, 0.3f, 0.6f))};
+  constexpr int kSamples = 100000;
+  const int levels[] = {1, 2, frosted::kStratifiedRouletteControl, frosted::kStratifiedDrawControl};
+  constexpr int kLevels = 4;
+  double z_sum[kLevels] = {}, chi2_max[kLevels] = {};
+  for (const Vec3 &P : hits) {
+    const FirstExit hashed = first_exits(*sg, *path, host, P, 0, kSamples);
+    const double f0 = hashed.left / hashed.transmitted;
+    for (int l = 0; l < kLevels; ++l) {
+      const FirstExit e = first_exits(*sg, *path, host, P, levels[l], kSamples);
+      const double f = e.left / e.transmitted, se = std::sqrt(f0 * (1.0 - f0) / hashed.transmitted);
+      const double z = (f - f0) / std::max(se, 1e-12);
+      double chi2 = 0.0;
+      for (size_t b = 0; b < e.bins.size(); ++b) {  // two-sample chi2 on counts scaled to the same total
+        const double a = e.bins[b] * (hashed.left / e.left), h = hashed.bins[b];
+        if (a + h > 0.0) chi2 += (a - h) * (a - h) / (a * (hashed.left / e.left) + h);
+      }
+      z_sum[l] += z;
+      chi2_max[l] = std::max(chi2_max[l], chi2);
+      std::printf("[frosted stratified roulette] hit (%.2f %.2f %.2f) level %d: left at the first exit %.4f vs hashed "
+                  "%.4f (z %+.2f), continued directions chi2 %.1f (39 dof)\n",
+                  double(P.x), double(P.y), double(P.z), levels[l], f, f0, z, chi2);
+      if (l < 2) {
+        EXPECT_LT(std::fabs(z), 5.0) << "level " << levels[l];
+        EXPECT_LT(chi2, 80.0) << "level " << levels[l];
+      }
+    }
+  }
+  const double pooled = std::sqrt(3.0);
+  for (int l = 0; l < 2; ++l) EXPECT_LT(std::fabs(z_sum[l] / pooled), 5.0) << "level " << levels[l];
+  std::printf("[frosted stratified roulette] pooled z: levels 1-2 %+.2f %+.2f; controls: roulette z %+.2f, draw chi2 "
+              "max %.1f\n",
+              z_sum[0] / pooled, z_sum[1] / pooled, z_sum[2] / pooled, chi2_max[3]);
+  EXPECT_GT(std::fabs(z_sum[2] / pooled), 5.0) << "the roulette's negative control must be off";
+  EXPECT_GT(chi2_max[3], 200.0) << "the exit draw's negative control must be off";
+}
+
 }  // namespace
