@@ -298,14 +298,16 @@ struct NodeList {
     return true;
   }
   // Nodes i0 .. i0 + n - 1 of row nj with the row key given, n >= 1, and room
-  // checked by the caller (nodes_at_level_rows_avx2; same entries as add_row).
-  [[gnu::target("avx2"), gnu::always_inline]] void put_row_avx2(int64_t i0, int64_t n, int64_t nj, uint32_t key) {
+  // checked by the caller (nodes_at_level_rows_avx2; same entries as add_row),
+  // from entry `at` on; the caller adds n to count (session 27: its rows' count
+  // in a register; stored through the entries' words it was reloaded per row).
+  [[gnu::target("avx2"), gnu::always_inline]] void put_row_at_avx2(size_t at, int64_t i0, int64_t n, int64_t nj,
+                                                                   uint32_t key) {
     constexpr uint32_t W = kNodeKeyStep;
     __m128i ids = _mm_add_epi32(_mm_set1_epi32(static_cast<int>(key + static_cast<uint32_t>(i0) * W)),
                                 _mm_setr_epi32(0, static_cast<int>(W), static_cast<int>(2u * W), static_cast<int>(3u * W)));
     __m256i iv = _mm256_add_epi64(_mm256_set1_epi64x(i0), _mm256_setr_epi64x(0, 1, 2, 3));
     const __m256i jv = _mm256_set1_epi64x(nj);
-    auto at = static_cast<size_t>(count);
     for (int64_t b = 0; b < n; b += kRowChunk, at += kRowChunk) {
       _mm_storeu_si128(reinterpret_cast<__m128i *>(id_hash.data() + at), ids);
       _mm256_storeu_si256(reinterpret_cast<__m256i *>(i.data() + at), iv);
@@ -313,7 +315,6 @@ struct NodeList {
       ids = _mm_add_epi32(ids, _mm_set1_epi32(static_cast<int>(4u * W)));
       iv = _mm256_add_epi64(iv, _mm256_set1_epi64x(4));
     }
-    count += static_cast<int>(n);
   }
   void forget_row_key() { row_valid_ = false; }
 #endif
@@ -716,8 +717,10 @@ struct RasterCornersAvx2 {
   alignas(32) int64_t sum[4];
   _mm256_store_si256(reinterpret_cast<__m256i *>(sum), total);
   if (!_mm256_testz_si256(wide, wide) || sum[0] + sum[1] + sum[2] + sum[3] > kMaxNodes - list.count) return false;
+  auto at = static_cast<size_t>(list.count);
   for (int64_t r = 0; r < rows; ++r)
-    if (ns[r] != 0) list.put_row_avx2(i0s[r], ns[r], j0 + r, keys[r]);
+    if (ns[r] != 0) list.put_row_at_avx2(at, i0s[r], ns[r], j0 + r, keys[r]), at += static_cast<size_t>(ns[r]);
+  list.count = static_cast<int>(at);
   list.forget_row_key();
   return true;
 }
