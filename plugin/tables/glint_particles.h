@@ -1717,6 +1717,8 @@ inline void group_pass_sse2(const NodeList &nodes, const uint32_t *seeds, const 
   pm.mask = {};
   auto *mask_bytes = reinterpret_cast<unsigned char *>(pm.mask.data());  // byte s: bits 8 s .. 8 s + 7 (little-endian)
   const int full = nodes.count / 2;
+  // Session 27: unrolled by two (four nodes per iteration): GI -0.27 M, r0.4 1e-4 -5.5 per eval.
+#pragma GCC unroll 2
   for (int s = 0; s < full; ++s)
     mask_bytes[s] = static_cast<unsigned char>(group_pass_step_avx2(
         _mm_loadl_epi64(reinterpret_cast<const __m128i *>(nodes.id_hash.data() + 2 * s)), seeds8, below,
