@@ -1652,6 +1652,19 @@ struct PairPassCounter {
     add_listed(node, h0, K, in);
     return true;
   }
+  // The pairs 64 w + b of the set bits b of `border` (their hashes in node_hash), each with the step `step` (room
+  // checked by the caller; tabled_layers_pass). Session 27: the list's length in a register (the uint32 stores may
+  // alias n_parts: it was reloaded and stored per particle); the empty asm hides its progression from GCC, which
+  // otherwise split the loop into one loop per array (loop distribution: ~20 instructions per particle, not 13).
+  [[gnu::always_inline]] void list_pairs(uint64_t border, int w, uint32_t step, const uint32_t *node_hash) {
+    auto n = static_cast<size_t>(n_parts);
+    for (; border != 0; border &= border - 1, ++n) {
+      asm("" : "+r"(n));
+      const auto pair = static_cast<uint32_t>(64 * w + std::countr_zero(border));
+      part_hash[n] = node_hash[pair], part_step[n] = step, part_node[n] = pair / 4;
+    }
+    n_parts = static_cast<int>(n);
+  }
   [[gnu::always_inline]] void add_listed(int node, uint32_t h0, int64_t K, int32_t in) {
     // The first two entries always (K is mostly 0 or 1), more only for K >= 3
     // (session 22; the loop from k = 1 was vectorised with a setup paid at
@@ -1979,16 +1992,7 @@ template <bool kAvx2>
       uint64_t border = layer[static_cast<size_t>(k)][a] & ~interior[a];
       if (border == 0) continue;
       list_full(64);
-      // Session 27: the list's length in a register (the uint32 stores may alias pc.n_parts: it was reloaded and
-      // stored per particle). The empty asm hides n's progression from GCC, which otherwise split the loop into
-      // one loop per array (loop distribution: ~20 instructions per particle instead of ~11).
-      auto n = static_cast<size_t>(pc.n_parts);
-      for (; border != 0; border &= border - 1, ++n) {
-        asm("" : "+r"(n));
-        const auto pair = static_cast<uint32_t>(64 * w + std::countr_zero(border));
-        pc.part_hash[n] = pm.node_hash[pair], pc.part_step[n] = step, pc.part_node[n] = pair / 4;
-      }
-      pc.n_parts = static_cast<int>(n);
+      pc.list_pairs(border, w, step, pm.node_hash.data());
     }
   }
   for (int w = 0; w < W; ++w)
