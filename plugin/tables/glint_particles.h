@@ -298,14 +298,16 @@ struct NodeList {
     return true;
   }
   // Nodes i0 .. i0 + n - 1 of row nj with the row key given, n >= 1, and room
-  // checked by the caller (nodes_at_level_rows_avx2; same entries as add_row).
-  [[gnu::target("avx2"), gnu::always_inline]] void put_row_avx2(int64_t i0, int64_t n, int64_t nj, uint32_t key) {
+  // checked by the caller (nodes_at_level_rows_avx2; same entries as add_row),
+  // from entry `at` on; the caller adds n to count (session 27: its rows' count
+  // in a register; stored through the entries' words it was reloaded per row).
+  [[gnu::target("avx2"), gnu::always_inline]] void put_row_at_avx2(size_t at, int64_t i0, int64_t n, int64_t nj,
+                                                                   uint32_t key) {
     constexpr uint32_t W = kNodeKeyStep;
     __m128i ids = _mm_add_epi32(_mm_set1_epi32(static_cast<int>(key + static_cast<uint32_t>(i0) * W)),
                                 _mm_setr_epi32(0, static_cast<int>(W), static_cast<int>(2u * W), static_cast<int>(3u * W)));
     __m256i iv = _mm256_add_epi64(_mm256_set1_epi64x(i0), _mm256_setr_epi64x(0, 1, 2, 3));
     const __m256i jv = _mm256_set1_epi64x(nj);
-    auto at = static_cast<size_t>(count);
     for (int64_t b = 0; b < n; b += kRowChunk, at += kRowChunk) {
       _mm_storeu_si128(reinterpret_cast<__m128i *>(id_hash.data() + at), ids);
       _mm256_storeu_si256(reinterpret_cast<__m256i *>(i.data() + at), iv);
@@ -313,7 +315,6 @@ struct NodeList {
       ids = _mm_add_epi32(ids, _mm_set1_epi32(static_cast<int>(4u * W)));
       iv = _mm256_add_epi64(iv, _mm256_set1_epi64x(4));
     }
-    count += static_cast<int>(n);
   }
   void forget_row_key() { row_valid_ = false; }
 #endif
@@ -716,8 +717,10 @@ struct RasterCornersAvx2 {
   alignas(32) int64_t sum[4];
   _mm256_store_si256(reinterpret_cast<__m256i *>(sum), total);
   if (!_mm256_testz_si256(wide, wide) || sum[0] + sum[1] + sum[2] + sum[3] > kMaxNodes - list.count) return false;
+  auto at = static_cast<size_t>(list.count);
   for (int64_t r = 0; r < rows; ++r)
-    if (ns[r] != 0) list.put_row_avx2(i0s[r], ns[r], j0 + r, keys[r]);
+    if (ns[r] != 0) list.put_row_at_avx2(at, i0s[r], ns[r], j0 + r, keys[r]), at += static_cast<size_t>(ns[r]);
+  list.count = static_cast<int>(at);
   list.forget_row_key();
   return true;
 }
@@ -1406,9 +1409,15 @@ inline uint32_t group_hashes_sse2(uint32_t key, const uint32_t *seeds, const Gro
 // per 4-lane SSE2 hash gave the same values but was slower in the walk
 // (an extra loop and its mispredicted branches; docs/glints.md "Session 8").
 inline constexpr uint32_t kPositionKey = 0x27d4eb2fu;
-inline std::array<float, 2> particle_position(uint32_t h0, uint32_t k) {
-  const uint32_t key = (h0 ^ kPositionKey) + (2u * k + 1u) * kNodeKeyStep;
+// Session 27 (glintpass27): the pair passes' particle list holds particle k's step (2 k + 1) W (position_step),
+// not k, so the flush adds it to h0 ^ C without a multiply; particle_position_stepped gives the same values.
+inline constexpr uint32_t position_step(uint32_t k) { return (2u * k + 1u) * kNodeKeyStep; }
+inline std::array<float, 2> particle_position_stepped(uint32_t h0, uint32_t step) {
+  const uint32_t key = (h0 ^ kPositionKey) + step;
   return {uint_to_unit_float(mix_u32(key)), uint_to_unit_float(mix_u32(key + kNodeKeyStep))};
+}
+inline std::array<float, 2> particle_position(uint32_t h0, uint32_t k) {
+  return particle_position_stepped(h0, position_step(k));
 }
 
 // Counts the reflecting particles of a footprint over the given cell seeds
@@ -1527,7 +1536,8 @@ struct PairPassCounter {
   const FootprintFrame &frame;
   std::array<FootprintFrame::NodeOrigin, kMaxNodes> origin;
   std::array<int32_t, kMaxNodes> inside_mask;  // -1 inside, 0 not
-  std::array<uint32_t, kMaxParticles> part_hash, part_k, part_node;  // 32-bit nodes: no memset call per fill
+  // Listed particle: its pair's hash h0, its position_step(k) and its node (32-bit nodes: no memset call per fill).
+  std::array<uint32_t, kMaxParticles> part_hash, part_step, part_node;
   int n_parts = 0;
   int64_t count = 0;
 
@@ -1538,12 +1548,12 @@ struct PairPassCounter {
   // flush with four particles per step first (session 22: their eight
   // position keys in one mix_u32x8, their (s, t) in 256-bit double lanes by
   // flush_from's expressions, the same values), the rest by flush_from.
-  [[gnu::target("avx2")]] void flush_avx2() {
+  // Session 27: the steps (2 k + 1) W listed (no multiply per step), the bits counted by POPCNT; noinline: with
+  // count_paired_avx2's target GCC inlined it there (GI +2 M: the pair passes' registers).
+  [[gnu::target("avx2,popcnt"), gnu::noinline]] void flush_avx2() {
     int64_t c = 0;
     int q = 0;
     const __m128i position_key = _mm_set1_epi32(static_cast<int>(kPositionKey));
-    const __m128i step2 = _mm_set1_epi32(static_cast<int>(2u * kNodeKeyStep));
-    const __m128i step1 = _mm_set1_epi32(static_cast<int>(kNodeKeyStep));
     const __m256i spread = _mm256_setr_epi32(0, 0, 1, 1, 2, 2, 3, 3);
     const __m256i second = _mm256_setr_epi32(0, static_cast<int>(kNodeKeyStep), 0, static_cast<int>(kNodeKeyStep), 0,
                                              static_cast<int>(kNodeKeyStep), 0, static_cast<int>(kNodeKeyStep));
@@ -1554,10 +1564,10 @@ struct PairPassCounter {
     const __m256d sign = _mm256_set1_pd(-0.0), half = _mm256_set1_pd(0.5);
     for (; q + 3 < n_parts; q += 4) {
       const auto a = static_cast<size_t>(q);
-      // (h ^ C) + (2 k + 1) W = (h ^ C) + k (2 W) + W per particle, mod 2^32.
-      const __m128i k = _mm_loadu_si128(reinterpret_cast<const __m128i *>(part_k.data() + a));
+      // (h ^ C) + (2 k + 1) W per particle, mod 2^32 (the step listed).
+      const __m128i step = _mm_loadu_si128(reinterpret_cast<const __m128i *>(part_step.data() + a));
       const __m128i h = _mm_loadu_si128(reinterpret_cast<const __m128i *>(part_hash.data() + a));
-      const __m128i keys = _mm_add_epi32(_mm_add_epi32(_mm_xor_si128(h, position_key), _mm_mullo_epi32(k, step2)), step1);
+      const __m128i keys = _mm_add_epi32(_mm_xor_si128(h, position_key), step);
       const __m256i keys8 = _mm256_add_epi32(_mm256_permutevar8x32_epi32(_mm256_castsi128_si256(keys), spread), second);
       const __m256 u = _mm256_mul_ps(_mm256_cvtepi32_ps(_mm256_srli_epi32(mix_u32x8(keys8), 8)), scale);
       const __m256 xy = _mm256_permutevar8x32_ps(u, split);
@@ -1570,7 +1580,7 @@ struct PairPassCounter {
       const __m256d in = _mm256_and_pd(_mm256_cmp_pd(_mm256_andnot_pd(sign, s), half, _CMP_LE_OS),
                                        _mm256_cmp_pd(_mm256_andnot_pd(sign, t), half, _CMP_LE_OS));
       const auto m = static_cast<uint32_t>(_mm256_movemask_pd(in));
-      c += (0x4332322132212110ull >> (4 * m)) & 0xfu;  // the number of set bits of m (4 bits per entry)
+      c += std::popcount(m);
     }
     flush_from(q, c);
   }
@@ -1589,8 +1599,8 @@ struct PairPassCounter {
     const __m128d sign = _mm_set1_pd(-0.0), half = _mm_set1_pd(0.5);
     for (; q + 1 < n_parts; q += 2) {
       const auto a = static_cast<size_t>(q), b = a + 1;
-      const uint32_t ka = (part_hash[a] ^ kPositionKey) + (2u * part_k[a] + 1u) * kNodeKeyStep;
-      const uint32_t kb = (part_hash[b] ^ kPositionKey) + (2u * part_k[b] + 1u) * kNodeKeyStep;
+      const uint32_t ka = (part_hash[a] ^ kPositionKey) + part_step[a];
+      const uint32_t kb = (part_hash[b] ^ kPositionKey) + part_step[b];
       const __m128i keys = _mm_add_epi32(
           _mm_set_epi32(static_cast<int>(kb), static_cast<int>(kb), static_cast<int>(ka), static_cast<int>(ka)), step);
       const __m128 u = _mm_mul_ps(_mm_cvtepi32_ps(_mm_srli_epi32(mix_u32x4(keys), 8)), scale);  // ax ay bx by
@@ -1607,7 +1617,7 @@ struct PairPassCounter {
     }
 #endif
     for (; q < n_parts; ++q) {
-      const auto [ux, uy] = particle_position(part_hash[static_cast<size_t>(q)], part_k[static_cast<size_t>(q)]);
+      const auto [ux, uy] = particle_position_stepped(part_hash[static_cast<size_t>(q)], part_step[static_cast<size_t>(q)]);
       c += frame.particle_inside(origin[part_node[static_cast<size_t>(q)]], ux, uy) ? 1 : 0;
     }
     count += c;
@@ -1642,6 +1652,19 @@ struct PairPassCounter {
     add_listed(node, h0, K, in);
     return true;
   }
+  // The pairs 64 w + b of the set bits b of `border` (their hashes in node_hash), each with the step `step` (room
+  // checked by the caller; tabled_layers_pass). Session 27: the list's length in a register (the uint32 stores may
+  // alias n_parts: it was reloaded and stored per particle); the empty asm hides its progression from GCC, which
+  // otherwise split the loop into one loop per array (loop distribution: ~20 instructions per particle, not 13).
+  [[gnu::always_inline]] void list_pairs(uint64_t border, int w, uint32_t step, const uint32_t *node_hash) {
+    auto n = static_cast<size_t>(n_parts);
+    for (; border != 0; border &= border - 1, ++n) {
+      asm("" : "+r"(n));
+      const auto pair = static_cast<uint32_t>(64 * w + std::countr_zero(border));
+      part_hash[n] = node_hash[pair], part_step[n] = step, part_node[n] = pair / 4;
+    }
+    n_parts = static_cast<int>(n);
+  }
   [[gnu::always_inline]] void add_listed(int node, uint32_t h0, int64_t K, int32_t in) {
     // The first two entries always (K is mostly 0 or 1), more only for K >= 3
     // (session 22; the loop from k = 1 was vectorised with a setup paid at
@@ -1649,12 +1672,12 @@ struct PairPassCounter {
     // when K = 0).
     const auto at = static_cast<size_t>(n_parts);
     const auto nd = static_cast<uint32_t>(node);
-    part_hash[at] = h0, part_k[at] = 0, part_node[at] = nd;
-    part_hash[at + 1] = h0, part_k[at + 1] = 1, part_node[at + 1] = nd;
+    part_hash[at] = h0, part_step[at] = position_step(0), part_node[at] = nd;
+    part_hash[at + 1] = h0, part_step[at + 1] = position_step(1), part_node[at + 1] = nd;
     if (K > 2) [[unlikely]]
       for (int64_t k = 2; k < K; ++k) {
         const auto a = at + static_cast<size_t>(k);
-        part_hash[a] = h0, part_k[a] = static_cast<uint32_t>(k), part_node[a] = nd;
+        part_hash[a] = h0, part_step[a] = position_step(static_cast<uint32_t>(k)), part_node[a] = nd;
       }
     n_parts += static_cast<int>(K & static_cast<int64_t>(~in));
   }
@@ -1707,6 +1730,8 @@ inline void group_pass_sse2(const NodeList &nodes, const uint32_t *seeds, const 
   pm.mask = {};
   auto *mask_bytes = reinterpret_cast<unsigned char *>(pm.mask.data());  // byte s: bits 8 s .. 8 s + 7 (little-endian)
   const int full = nodes.count / 2;
+  // Session 27: unrolled by two (four nodes per iteration): GI -0.27 M, r0.4 1e-4 -5.5 per eval.
+#pragma GCC unroll 2
   for (int s = 0; s < full; ++s)
     mask_bytes[s] = static_cast<unsigned char>(group_pass_step_avx2(
         _mm_loadl_epi64(reinterpret_cast<const __m128i *>(nodes.id_hash.data() + 2 * s)), seeds8, below,
@@ -1959,19 +1984,17 @@ template <bool kAvx2>
 #endif
     pc.flush();
   };
-  for (int k = 0; k < 3; ++k)
+  for (int k = 0; k < 3; ++k) {
+    const uint32_t step = position_step(static_cast<uint32_t>(k));
     for (int w = 0; w < W; ++w) {
       const auto a = static_cast<size_t>(w);
       pc.count += std::popcount(layer[static_cast<size_t>(k)][a] & interior[a]);
       uint64_t border = layer[static_cast<size_t>(k)][a] & ~interior[a];
       if (border == 0) continue;
       list_full(64);
-      for (; border != 0; border &= border - 1) {
-        const auto pair = static_cast<uint32_t>(64 * w + std::countr_zero(border));
-        const auto n = static_cast<size_t>(pc.n_parts++);
-        pc.part_hash[n] = pm.node_hash[pair], pc.part_k[n] = static_cast<uint32_t>(k), pc.part_node[n] = pair / 4;
-      }
+      pc.list_pairs(border, w, step, pm.node_hash.data());
     }
+  }
   for (int w = 0; w < W; ++w)
     for (uint64_t m = layer[3][static_cast<size_t>(w)]; m != 0; m &= m - 1) {
       const auto pair = static_cast<uint32_t>(64 * w + std::countr_zero(m));
@@ -1984,7 +2007,7 @@ template <bool kAvx2>
       for (int64_t k = 3; k < K; ++k) {
         list_full(1);
         const auto n = static_cast<size_t>(pc.n_parts++);
-        pc.part_hash[n] = h0, pc.part_k[n] = static_cast<uint32_t>(k), pc.part_node[n] = pair / 4;
+        pc.part_hash[n] = h0, pc.part_step[n] = position_step(static_cast<uint32_t>(k)), pc.part_node[n] = pair / 4;
       }
     }
   return true;
