@@ -393,9 +393,10 @@ class GlintClosure {
   // located and requested by request_table; `h` the half vector of (wi, wo).
   // `lambdas` from glint::eval_lambdas (W's G2 at the base alpha).
   // Inlining pinned (session 23): glint.cpp sits at GCC's inline-unit-growth limit, so a header edit elsewhere
-  // could flip GCC's choices; f_cos_and_pdf, glint_f_cos and glint_or_filtered stay out of line and
-  // place_footprint, request_table and locate inlined, as GCC chose on main 4b4755c.
-  [[gnu::noinline]] Spectrum glint_f_cos(const Vec3 &wi, const Vec3 &wo, const TableLookup &at,
+  // could flip GCC's choices; f_cos_and_pdf and glint_or_filtered stay out of line and place_footprint,
+  // request_table and locate inlined, as GCC chose on main 4b4755c. Session 27 (glintfixed27): glint_f_cos
+  // inlined into counted_f_cos_and_pdf (no call, no second test of wi.z and wo.z): GI glint 635.4 -> 633.2 M.
+  [[gnu::always_inline]] Spectrum glint_f_cos(const Vec3 &wi, const Vec3 &wo, const TableLookup &at,
                                         const glint::HalfVector &h, const glint::EvalLambdas &lambdas, float sigma_deg,
                                         float density, Particles &parts) const {
     if (!table_ || !(wi.z > 0.0f) || !(wo.z > 0.0f)) return Spectrum(0.0f);
