@@ -288,10 +288,13 @@ class GlintClosure {
   template <typename Visitor = glint::NoParticleVisitor>
   glint::GlintCount count_particles(const Vec3 &wi, const Vec3 &wo, float P, float sigma_deg, float density,
                                     Particles &parts, Visitor &&visit = Visitor{}) const {
-    if (pseudo_normal_query(sigma_deg)) {
-      glint::GlintCount k;
-      if (pseudo_normal_count(wi, wo, density, parts, k, visit)) return k;
-    }
+    // pseudo_normal_query(sigma_deg) as a branch on pseudo_normals_ first (session 27: as one expression GCC made it
+    // branch-free, ~7 instructions per count where pseudo_normals_ is false).
+    if (pseudo_normals_) [[unlikely]]
+      if (sigma_deg == 0.0f) {
+        glint::GlintCount k;
+        if (pseudo_normal_count(wi, wo, density, parts, k, visit)) return k;
+      }
     locate(wi, wo, density, parts);
     return glint::count_glints(parts.fp, parts.site, P, kMaxSteps, std::forward<Visitor>(visit));
   }
