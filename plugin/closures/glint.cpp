@@ -73,7 +73,9 @@
 // 0 without the table's cache miss.
 #include <array>
 #include <memory>
+#include <new>
 #include <string_view>
+#include <type_traits>
 
 #include "core/closure.h"
 #include "glimmer/microfacet.h"
@@ -249,10 +251,19 @@ class GlintClosure {
 
   // The footprint of a shading point and, once located, the direction cells
   // and nodes of its particles (computed once per eval or sample).
+  // fp and site are variant members, constructed where they are first written (place_footprint; locate and
+  // provably_dark): their default member initialisers cost every eval ~15 stores (session 27), and fp is not
+  // needed on the filtered route (area 0), site only where the particles are located. Both are trivially
+  // destructible.
   struct Particles {
-    glint::Footprint fp;
+    Particles() {}  // NOLINT: fp and site left unconstructed (see above)
+    union {
+      glint::Footprint fp;
+    };
     double area;  // fp.area(), computed once
-    glint::GlintSite site;
+    union {
+      glint::GlintSite site;
+    };
     bool located = false;
     // The pseudo-normal count once counted (pseudo_counted; set by
     // pseudo_normals_dark, read only where pseudo_normal_query). Plain
@@ -261,6 +272,8 @@ class GlintClosure {
     int pseudo_count, pseudo_steps;
     bool pseudo_complete, pseudo_counted;
   };
+  static_assert(std::is_trivially_destructible_v<glint::Footprint> &&
+                std::is_trivially_destructible_v<glint::GlintSite>);  // Particles never destroys them
   // This thread's last footprint node list (glint::FootprintNodeMemo): the
   // host calls a shading point's closures several times over one footprint.
   // A pure memo (the same list as computed afresh), so images do not depend
@@ -273,8 +286,10 @@ class GlintClosure {
     return &memo;
   }
   void locate(const Vec3 &wi, const Vec3 &wo, float density, Particles &parts) const {
-    if (!parts.located)
+    if (!parts.located) {
+      new (&parts.site) glint::GlintSite;
       glint::locate_glints(parts.fp, density, cell_keys_, wi, wo, gamma_rad_, parts.site, node_memo);
+    }
     parts.located = true;
   }
 
@@ -327,6 +342,7 @@ class GlintClosure {
     // Session 24: a footprint of at most kDarkTestMaxNodes nodes in a box of at most kBoxSpan x kBoxSpan, smaller
     // than a node, without the node list (tables/glint_small_dark.h); the same answer as the count below.
     if (glint::kWalkAvx2) {
+      new (&parts.site) glint::GlintSite;
       const glint::SmallDark d =
           glint::small_footprint_dark_avx2(*small_dark_, parts.fp, parts.area, density, wi, wo, P_max, parts.site);
       if (d == glint::SmallDark::kDark) return true;
@@ -456,7 +472,7 @@ class GlintClosure {
   // node list. Inlining pinned (session 25: with placed_footprint pinned, GCC outlined this one, r0.4 area 1e-8
   // +11 instructions per eval).
   [[gnu::always_inline]] void place_footprint(const ShadingPoint &sp, Particles &parts) const {
-    parts.fp = glint::placed_footprint(field_, placement_, sp.ctx, parts.area);
+    new (&parts.fp) glint::Footprint(glint::placed_footprint(field_, placement_, sp.ctx, parts.area));
   }
 
   // f_cos at wo and the pdf of sampling lobe `w` for eval and sample: the
