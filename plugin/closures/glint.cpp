@@ -531,8 +531,10 @@ class GlintClosure {
       pdf = glint::smooth_lobe_pdf(field_.distribution, w.ax, w.ay, sp.wi, wo, h);  // one Lambda, no W
       return Spectrum(0.0f);
     }
-    const TableLookup at = request_table(c, sigma_deg);
+    // The Lambdas before the lookup (session 27): Beckmann's are a call, and fewer values are live across it here
+    // (the lookup's pointers and fractions were spilled and reloaded around it).
     const glint::EvalLambdas lambdas = glint::eval_lambdas(field_.distribution, field_.alpha, w.ax, sp.wi, wo);
+    const TableLookup at = request_table(c, sigma_deg);
     pdf = glint::smooth_lobe_pdf_of(field_.distribution, w.ax, sp.wi, wo, h, lambdas.wi_lobe);
     return glint_f_cos(sp.wi, wo, at, h, lambdas, sigma_deg, density, parts);
   }
