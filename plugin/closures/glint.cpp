@@ -412,7 +412,7 @@ class GlintClosure {
   // located and requested by request_table; `h` the half vector of (wi, wo).
   // `lambdas` from glint::eval_lambdas (W's G2 at the base alpha).
   // Inlining pinned (session 23): glint.cpp sits at GCC's inline-unit-growth limit, so a header edit elsewhere
-  // could flip GCC's choices; f_cos_and_pdf and glint_or_filtered stay out of line and place_footprint,
+  // could flip GCC's choices; f_cos_and_pdf and counted_glint_f_cos stay out of line and place_footprint,
   // request_table and locate inlined, as GCC chose on main 4b4755c. Session 27 (glintfixed27): glint_f_cos
   // inlined into counted_f_cos_and_pdf (no call, no second test of wi.z and wo.z): GI glint 635.4 -> 633.2 M.
   [[gnu::always_inline]] Spectrum glint_f_cos(const Vec3 &wi, const Vec3 &wo, const TableLookup &at,
@@ -452,12 +452,18 @@ class GlintClosure {
     return glint_or_filtered(wi, wo, P, weight, sigma_deg, density, parts);
   }
 
-  // (2) or (3) once P and W are known.
-  [[gnu::noinline]] Spectrum glint_or_filtered(const Vec3 &wi, const Vec3 &wo, float P, const Spectrum &weight,
-                                              float sigma_deg, float density, Particles &parts) const {
-    const double area = parts.area;
-    const double expected = static_cast<double>(density) * area * P;
+  // (2) or (3) once P and W are known. The filtered test inline, the count out of line (session 27: the calls that
+  // end at (3) no longer pay the count's call and register saves).
+  [[gnu::always_inline]] Spectrum glint_or_filtered(const Vec3 &wi, const Vec3 &wo, float P, const Spectrum &weight,
+                                                   float sigma_deg, float density, Particles &parts) const {
+    const double expected = static_cast<double>(density) * parts.area * P;
     if (expected > threshold_ || sigma_deg > field_.gamma_deg) return weight * (P / cone_solid_angle_);  // (3)
+    return counted_glint_f_cos(wi, wo, P, weight, sigma_deg, density, parts);
+  }
+  // (2) where glint mode holds (the expected count at most filter_threshold, the blur at most gamma).
+  [[gnu::noinline]] Spectrum counted_glint_f_cos(const Vec3 &wi, const Vec3 &wo, float P, const Spectrum &weight,
+                                                float sigma_deg, float density, Particles &parts) const {
+    const double area = parts.area;
     if (flakes_->varies()) return coloured_flakes_f_cos(wi, wo, density, P, weight, sigma_deg, parts);
     // Twinkle: the particles are counted in the direction cells of (wi, wo) (or by their pseudo-normals).
     const glint::GlintCount k = count_particles(wi, wo, P, sigma_deg, density, parts);
