@@ -237,16 +237,13 @@ class GlintClosure {
   static TableCoords table_coords(const Vec3 &wi, const Vec3 &wo) { return glint::table_coords(wi, wo); }
   static float fast_acos_deg(float x) { return glint::fast_acos_deg(x); }
 
-  // Locates the lookup at `c` and requests its cache lines: the lookup is a
-  // random access into several MB, and its miss was the largest single cost
-  // of eval; the caller computes the pdf while it loads.
-  using TableLookup = glint::DirectionalTable::Located;
-  TableLookup request_table(const TableCoords &c, float sigma_deg) const {
-    TableLookup at{};
-    if (!table_) return at;
-    at = table_->locate(sigma_deg, c.lanes());
-    table_->prefetch(at);
-    return at;
+  // P at `c` (min(lookup, 1); 0 without a table). The lookup is a random access into several MB, and its miss was
+  // the largest single cost of eval: the caller reads P before the Lambdas and the pdf, whose math (independent of
+  // P) runs while the loads are outstanding. Session 27: read at once instead of prefetched and read after the pdf,
+  // so the located cell is not kept (spilled and reloaded) across the pdf's calls (Beckmann's Lambdas and exp).
+  float table_probability(const TableCoords &c, float sigma_deg) const {
+    if (!table_) return 0.0f;
+    return std::min(table_->lookup(table_->locate(sigma_deg, c.lanes())), 1.0f);
   }
 
   // The footprint of a shading point and, once located, the direction cells
@@ -408,19 +405,16 @@ class GlintClosure {
     return k.complete && k.count == 0;
   }
 
-  // The glint BRDF times cos(wo): equations (2) and (3) at the lookup
-  // located and requested by request_table; `h` the half vector of (wi, wo).
+  // The glint BRDF times cos(wo): equations (2) and (3) at P (table_probability); `h` the half vector of (wi, wo).
   // `lambdas` from glint::eval_lambdas (W's G2 at the base alpha).
   // Inlining pinned (session 23): glint.cpp sits at GCC's inline-unit-growth limit, so a header edit elsewhere
   // could flip GCC's choices; f_cos_and_pdf and counted_glint_f_cos stay out of line and place_footprint,
-  // request_table and locate inlined, as GCC chose on main 4b4755c. Session 27 (glintfixed27): glint_f_cos
+  // table_probability and locate inlined, as GCC chose on main 4b4755c. Session 27 (glintfixed27): glint_f_cos
   // inlined into counted_f_cos_and_pdf (no call, no second test of wi.z and wo.z): GI glint 635.4 -> 633.2 M.
-  [[gnu::always_inline]] Spectrum glint_f_cos(const Vec3 &wi, const Vec3 &wo, const TableLookup &at,
-                                        const glint::HalfVector &h, const glint::EvalLambdas &lambdas, float sigma_deg,
-                                        float density, Particles &parts) const {
+  [[gnu::always_inline]] Spectrum glint_f_cos(const Vec3 &wi, const Vec3 &wo, float P, const glint::HalfVector &h,
+                                              const glint::EvalLambdas &lambdas, float sigma_deg, float density,
+                                              Particles &parts) const {
     if (!table_ || !(wi.z > 0.0f) || !(wo.z > 0.0f)) return Spectrum(0.0f);
-    // The lookup comes first: its loads overlap the weight's math.
-    const float P = std::min(table_->lookup(at), 1.0f);
     Spectrum weight;
     if (!glint::glint_weight_of(flakes_->mean(), flakes_->mean_is_white(), wi, wo, h, lambdas.wi, lambdas.wo, weight))
       return Spectrum(0.0f);
@@ -537,12 +531,10 @@ class GlintClosure {
       pdf = glint::smooth_lobe_pdf(field_.distribution, w.ax, w.ay, sp.wi, wo, h);  // one Lambda, no W
       return Spectrum(0.0f);
     }
-    // The Lambdas before the lookup (session 27): Beckmann's are a call, and fewer values are live across it here
-    // (the lookup's pointers and fractions were spilled and reloaded around it).
+    const float P = table_probability(c, sigma_deg);  // first: the Lambdas' and the pdf's math overlaps its loads
     const glint::EvalLambdas lambdas = glint::eval_lambdas(field_.distribution, field_.alpha, w.ax, sp.wi, wo);
-    const TableLookup at = request_table(c, sigma_deg);
     pdf = glint::smooth_lobe_pdf_of(field_.distribution, w.ax, sp.wi, wo, h, lambdas.wi_lobe);
-    return glint_f_cos(sp.wi, wo, at, h, lambdas, sigma_deg, density, parts);
+    return glint_f_cos(sp.wi, wo, P, h, lambdas, sigma_deg, density, parts);
   }
 
   // Equation (2) with per-flake colours (tables/glint_flake_colour.h): the
