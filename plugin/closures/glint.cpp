@@ -414,7 +414,8 @@ class GlintClosure {
   [[gnu::always_inline]] Spectrum glint_f_cos(const Vec3 &wi, const Vec3 &wo, float P, const glint::HalfVector &h,
                                               const glint::EvalLambdas &lambdas, float sigma_deg, float density,
                                               Particles &parts) const {
-    if (!table_ || !(wi.z > 0.0f) || !(wo.z > 0.0f)) return Spectrum(0.0f);
+    // No test of its own (session 27): the caller tested wi.z and wo.z, glint_weight_of tests them again (sp.wi is
+    // reloaded after the Lambdas' call), and without a table P is 0.
     Spectrum weight;
     if (!glint::glint_weight_of(flakes_->mean(), flakes_->mean_is_white(), wi, wo, h, lambdas.wi, lambdas.wo, weight))
       return Spectrum(0.0f);
