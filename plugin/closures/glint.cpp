@@ -73,7 +73,9 @@
 // 0 without the table's cache miss.
 #include <array>
 #include <memory>
+#include <new>
 #include <string_view>
+#include <type_traits>
 
 #include "core/closure.h"
 #include "glimmer/microfacet.h"
@@ -235,24 +237,30 @@ class GlintClosure {
   static TableCoords table_coords(const Vec3 &wi, const Vec3 &wo) { return glint::table_coords(wi, wo); }
   static float fast_acos_deg(float x) { return glint::fast_acos_deg(x); }
 
-  // Locates the lookup at `c` and requests its cache lines: the lookup is a
-  // random access into several MB, and its miss was the largest single cost
-  // of eval; the caller computes the pdf while it loads.
-  using TableLookup = glint::DirectionalTable::Located;
-  TableLookup request_table(const TableCoords &c, float sigma_deg) const {
-    TableLookup at{};
-    if (!table_) return at;
-    at = table_->locate(sigma_deg, c.lanes());
-    table_->prefetch(at);
-    return at;
+  // P at `c` (min(lookup, 1); 0 without a table). The lookup is a random access into several MB, and its miss was
+  // the largest single cost of eval: the caller reads P before the Lambdas and the pdf, whose math (independent of
+  // P) runs while the loads are outstanding. Session 27: read at once instead of prefetched and read after the pdf,
+  // so the located cell is not kept (spilled and reloaded) across the pdf's calls (Beckmann's Lambdas and exp).
+  float table_probability(const TableCoords &c, float sigma_deg) const {
+    if (!table_) return 0.0f;
+    return std::min(table_->lookup(table_->locate(sigma_deg, c.lanes())), 1.0f);
   }
 
   // The footprint of a shading point and, once located, the direction cells
   // and nodes of its particles (computed once per eval or sample).
+  // fp and site are variant members, constructed where they are first written (place_footprint; locate and
+  // provably_dark): their default member initialisers cost every eval ~15 stores (session 27), and fp is not
+  // needed on the filtered route (area 0), site only where the particles are located. Both are trivially
+  // destructible.
   struct Particles {
-    glint::Footprint fp;
+    Particles() {}  // NOLINT: fp and site left unconstructed (see above)
+    union {
+      glint::Footprint fp;
+    };
     double area;  // fp.area(), computed once
-    glint::GlintSite site;
+    union {
+      glint::GlintSite site;
+    };
     bool located = false;
     // The pseudo-normal count once counted (pseudo_counted; set by
     // pseudo_normals_dark, read only where pseudo_normal_query). Plain
@@ -261,6 +269,8 @@ class GlintClosure {
     int pseudo_count, pseudo_steps;
     bool pseudo_complete, pseudo_counted;
   };
+  static_assert(std::is_trivially_destructible_v<glint::Footprint> &&
+                std::is_trivially_destructible_v<glint::GlintSite>);  // Particles never destroys them
   // This thread's last footprint node list (glint::FootprintNodeMemo): the
   // host calls a shading point's closures several times over one footprint.
   // A pure memo (the same list as computed afresh), so images do not depend
@@ -273,8 +283,10 @@ class GlintClosure {
     return &memo;
   }
   void locate(const Vec3 &wi, const Vec3 &wo, float density, Particles &parts) const {
-    if (!parts.located)
+    if (!parts.located) {
+      new (&parts.site) glint::GlintSite;
       glint::locate_glints(parts.fp, density, cell_keys_, wi, wo, gamma_rad_, parts.site, node_memo);
+    }
     parts.located = true;
   }
 
@@ -288,10 +300,13 @@ class GlintClosure {
   template <typename Visitor = glint::NoParticleVisitor>
   glint::GlintCount count_particles(const Vec3 &wi, const Vec3 &wo, float P, float sigma_deg, float density,
                                     Particles &parts, Visitor &&visit = Visitor{}) const {
-    if (pseudo_normal_query(sigma_deg)) {
-      glint::GlintCount k;
-      if (pseudo_normal_count(wi, wo, density, parts, k, visit)) return k;
-    }
+    // pseudo_normal_query(sigma_deg) as a branch on pseudo_normals_ first (session 27: as one expression GCC made it
+    // branch-free, ~7 instructions per count where pseudo_normals_ is false).
+    if (pseudo_normals_) [[unlikely]]
+      if (sigma_deg == 0.0f) {
+        glint::GlintCount k;
+        if (pseudo_normal_count(wi, wo, density, parts, k, visit)) return k;
+      }
     locate(wi, wo, density, parts);
     return glint::count_glints(parts.fp, parts.site, P, kMaxSteps, std::forward<Visitor>(visit));
   }
@@ -324,6 +339,7 @@ class GlintClosure {
     // Session 24: a footprint of at most kDarkTestMaxNodes nodes in a box of at most kBoxSpan x kBoxSpan, smaller
     // than a node, without the node list (tables/glint_small_dark.h); the same answer as the count below.
     if (glint::kWalkAvx2) {
+      new (&parts.site) glint::GlintSite;
       const glint::SmallDark d =
           glint::small_footprint_dark_avx2(*small_dark_, parts.fp, parts.area, density, wi, wo, P_max, parts.site);
       if (d == glint::SmallDark::kDark) return true;
@@ -389,18 +405,17 @@ class GlintClosure {
     return k.complete && k.count == 0;
   }
 
-  // The glint BRDF times cos(wo): equations (2) and (3) at the lookup
-  // located and requested by request_table; `h` the half vector of (wi, wo).
+  // The glint BRDF times cos(wo): equations (2) and (3) at P (table_probability); `h` the half vector of (wi, wo).
   // `lambdas` from glint::eval_lambdas (W's G2 at the base alpha).
   // Inlining pinned (session 23): glint.cpp sits at GCC's inline-unit-growth limit, so a header edit elsewhere
-  // could flip GCC's choices; f_cos_and_pdf, glint_f_cos and glint_or_filtered stay out of line and
-  // place_footprint, request_table and locate inlined, as GCC chose on main 4b4755c.
-  [[gnu::noinline]] Spectrum glint_f_cos(const Vec3 &wi, const Vec3 &wo, const TableLookup &at,
-                                        const glint::HalfVector &h, const glint::EvalLambdas &lambdas, float sigma_deg,
-                                        float density, Particles &parts) const {
-    if (!table_ || !(wi.z > 0.0f) || !(wo.z > 0.0f)) return Spectrum(0.0f);
-    // The lookup comes first: its loads overlap the weight's math.
-    const float P = std::min(table_->lookup(at), 1.0f);
+  // could flip GCC's choices; f_cos_and_pdf and counted_glint_f_cos stay out of line and place_footprint,
+  // table_probability and locate inlined, as GCC chose on main 4b4755c. Session 27 (glintfixed27): glint_f_cos
+  // inlined into counted_f_cos_and_pdf (no call, no second test of wi.z and wo.z): GI glint 635.4 -> 633.2 M.
+  [[gnu::always_inline]] Spectrum glint_f_cos(const Vec3 &wi, const Vec3 &wo, float P, const glint::HalfVector &h,
+                                              const glint::EvalLambdas &lambdas, float sigma_deg, float density,
+                                              Particles &parts) const {
+    // No test of its own (session 27): the caller tested wi.z and wo.z, glint_weight_of tests them again (sp.wi is
+    // reloaded after the Lambdas' call), and without a table P is 0.
     Spectrum weight;
     if (!glint::glint_weight_of(flakes_->mean(), flakes_->mean_is_white(), wi, wo, h, lambdas.wi, lambdas.wo, weight))
       return Spectrum(0.0f);
@@ -432,12 +447,18 @@ class GlintClosure {
     return glint_or_filtered(wi, wo, P, weight, sigma_deg, density, parts);
   }
 
-  // (2) or (3) once P and W are known.
-  [[gnu::noinline]] Spectrum glint_or_filtered(const Vec3 &wi, const Vec3 &wo, float P, const Spectrum &weight,
-                                              float sigma_deg, float density, Particles &parts) const {
-    const double area = parts.area;
-    const double expected = static_cast<double>(density) * area * P;
+  // (2) or (3) once P and W are known. The filtered test inline, the count out of line (session 27: the calls that
+  // end at (3) no longer pay the count's call and register saves).
+  [[gnu::always_inline]] Spectrum glint_or_filtered(const Vec3 &wi, const Vec3 &wo, float P, const Spectrum &weight,
+                                                   float sigma_deg, float density, Particles &parts) const {
+    const double expected = static_cast<double>(density) * parts.area * P;
     if (expected > threshold_ || sigma_deg > field_.gamma_deg) return weight * (P / cone_solid_angle_);  // (3)
+    return counted_glint_f_cos(wi, wo, P, weight, sigma_deg, density, parts);
+  }
+  // (2) where glint mode holds (the expected count at most filter_threshold, the blur at most gamma).
+  [[gnu::noinline]] Spectrum counted_glint_f_cos(const Vec3 &wi, const Vec3 &wo, float P, const Spectrum &weight,
+                                                float sigma_deg, float density, Particles &parts) const {
+    const double area = parts.area;
     if (flakes_->varies()) return coloured_flakes_f_cos(wi, wo, density, P, weight, sigma_deg, parts);
     // Twinkle: the particles are counted in the direction cells of (wi, wo) (or by their pseudo-normals).
     const glint::GlintCount k = count_particles(wi, wo, P, sigma_deg, density, parts);
@@ -452,7 +473,7 @@ class GlintClosure {
   // node list. Inlining pinned (session 25: with placed_footprint pinned, GCC outlined this one, r0.4 area 1e-8
   // +11 instructions per eval).
   [[gnu::always_inline]] void place_footprint(const ShadingPoint &sp, Particles &parts) const {
-    parts.fp = glint::placed_footprint(field_, placement_, sp.ctx, parts.area);
+    new (&parts.fp) glint::Footprint(glint::placed_footprint(field_, placement_, sp.ctx, parts.area));
   }
 
   // f_cos at wo and the pdf of sampling lobe `w` for eval and sample: the
@@ -511,10 +532,10 @@ class GlintClosure {
       pdf = glint::smooth_lobe_pdf(field_.distribution, w.ax, w.ay, sp.wi, wo, h);  // one Lambda, no W
       return Spectrum(0.0f);
     }
-    const TableLookup at = request_table(c, sigma_deg);
+    const float P = table_probability(c, sigma_deg);  // first: the Lambdas' and the pdf's math overlaps its loads
     const glint::EvalLambdas lambdas = glint::eval_lambdas(field_.distribution, field_.alpha, w.ax, sp.wi, wo);
     pdf = glint::smooth_lobe_pdf_of(field_.distribution, w.ax, sp.wi, wo, h, lambdas.wi_lobe);
-    return glint_f_cos(sp.wi, wo, at, h, lambdas, sigma_deg, density, parts);
+    return glint_f_cos(sp.wi, wo, P, h, lambdas, sigma_deg, density, parts);
   }
 
   // Equation (2) with per-flake colours (tables/glint_flake_colour.h): the

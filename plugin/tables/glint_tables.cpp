@@ -239,9 +239,7 @@ LodLevel make_level(int level, int n_theta_i_unused = kThetaICount) {
   (void)n_theta_i_unused;
   LodLevel l;
   l.sigma_deg = kLodSigmaDeg[level];
-  l.step_deg = kLodStepDeg[level];
-  l.n_theta_o = 90 / l.step_deg + 1;
-  l.n_phi = 180 / l.step_deg + 1;
+  l.set_step(kLodStepDeg[level]);
   l.values.assign(static_cast<size_t>(kThetaICount) * l.n_theta_o * l.n_phi, 0.0f);
   return l;
 }

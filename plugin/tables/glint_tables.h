@@ -88,7 +88,16 @@ struct LodLevel {
   int step_deg = 1;
   int n_theta_o = 91;
   int n_phi = 181;
+  float inv_step = 1.0f;  // 1 / step_deg in float, as cell() multiplies by it (session 27: was divided per lookup)
   std::vector<float> values;
+
+  // The grid of a level at `step` degrees: step_deg, inv_step and the node counts (values not sized).
+  void set_step(int step) {
+    step_deg = step;
+    inv_step = 1.0f / static_cast<float>(step);
+    n_theta_o = 90 / step + 1;
+    n_phi = 180 / step + 1;
+  }
 
   // x clamped to [0, hi], NaN to 0 (comparisons, not std::fmin/fmax: without
   // -ffinite-math-only those are library calls, 9 per lookup).
@@ -115,7 +124,6 @@ struct LodLevel {
   Cell cell(__m128 x) const {
     const __m128 clamped = _mm_and_ps(_mm_cmpgt_ps(x, _mm_setzero_ps()),
                                       _mm_min_ps(x, _mm_setr_ps(90.0f, 90.0f, 180.0f, 0.0f)));
-    const float inv_step = 1.0f / static_cast<float>(step_deg);
     const __m128 f = _mm_mul_ps(clamped, _mm_setr_ps(1.0f, inv_step, inv_step, 0.0f));
     const __m128i k = _mm_cvttps_epi32(f);
     const __m128i last = _mm_setr_epi32(kThetaICount - 2, n_theta_o - 2, n_phi - 2, 0);

@@ -1288,9 +1288,7 @@ pg::DirectionalTable random_table(uint64_t seed) {
   for (int l = 0; l < pg::kLodCount; ++l) {
     pg::LodLevel &level = table.levels[static_cast<size_t>(l)];
     level.sigma_deg = pg::kLodSigmaDeg[static_cast<size_t>(l)];
-    level.step_deg = pg::kLodStepDeg[static_cast<size_t>(l)];
-    level.n_theta_o = 90 / level.step_deg + 1;
-    level.n_phi = 180 / level.step_deg + 1;
+    level.set_step(pg::kLodStepDeg[static_cast<size_t>(l)]);
     level.values.resize(static_cast<size_t>(pg::kThetaICount) * level.n_theta_o * level.n_phi);
     for (float &v : level.values) v = static_cast<float>(1 + l) * rng.next_float();  // coarser levels larger
   }

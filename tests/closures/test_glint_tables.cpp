@@ -118,9 +118,7 @@ TEST(GlintTables, CellAndLookupInLanesMatchTheScalarForm) {
   int64_t cells = 0, control_cells = 0, control_values = 0;
   for (int level = 0; level < pg::kLodCount; ++level) {
     pg::LodLevel l;
-    l.step_deg = pg::kLodStepDeg[static_cast<size_t>(level)];
-    l.n_theta_o = 90 / l.step_deg + 1;
-    l.n_phi = 180 / l.step_deg + 1;
+    l.set_step(pg::kLodStepDeg[static_cast<size_t>(level)]);
     l.values.resize(static_cast<size_t>(pg::kThetaICount) * l.n_theta_o * l.n_phi);
     for (float &v : l.values) v = rng.next_float();
     auto angle = [&](float hi) {
