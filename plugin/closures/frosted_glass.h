@@ -179,7 +179,8 @@ class FrostedGlassClosure {
   bool sample_sg(const ShadingPoint &sp, const Vec3 &rand, LocalSample &front, frosted::SgVariant variant,
                  float mixture_variance = frosted::kDefaultMixtureVariance,
                  float mixture_tail = frosted::kDefaultMixtureTail, float curved_tail = -1.0f,
-                 const frosted::CurvedShape *curved_shape = nullptr, int sampled_reflection = -1) const {
+                 const frosted::CurvedShape *curved_shape = nullptr, int sampled_reflection = -1,
+                 float exit_centroid = -1.0f) const {
     frosted::SgInputs in;
     in.table = table_;
     in.self = reinterpret_cast<const GlimmerInstance *>(this);
@@ -196,6 +197,7 @@ class FrostedGlassClosure {
     in.mixture_tail = mixture_tail;
     in.curved_tail = curved_tail;
     in.curved_shape = curved_shape;
+    in.exit_centroid = exit_centroid;
     DielectricLobe scratch;  // the reflections' lobe (frosted::kSampledReflection), built only where it applies
     in.sampled_reflection = frosted::sampled_reflection_at(sp, sampled_reflection);
     if (in.sampled_reflection) in.lobe = &lobe_at(sp, scratch), in.lobe_roughness = in.roughness;
