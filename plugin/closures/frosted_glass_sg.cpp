@@ -504,6 +504,51 @@ Vec3 exit_centroid_offset(const Segment &seg, const Vec3 &axis, float ior, const
   const Vec3 offset = mean_A - d0 * (dot(mean_A, n0) / dn);
   return is_finite(offset) ? offset : Vec3(0.0f);
 }
+// kCurvedExitWaist, or for measurements only GLIMMER_FROSTED_EXIT_WAIST = w (0: none), read once.
+float exit_waist_scale() {
+  static const float w = [] {
+    const char *e = std::getenv("GLIMMER_FROSTED_EXIT_WAIST");
+    if (e == nullptr || *e == '\0') return kCurvedExitWaist;
+    const float v = std::strtof(e, nullptr);
+    return std::isfinite(v) ? std::clamp(v, 0.0f, 4.0f) : kCurvedExitWaist;
+  }();
+  return w;
+}
+// kCurvedExitWaist's t* (frosted_glass_sg.h; frostedorigin26's curved_lamp_origin, its waist only): per quadrature
+// ray i (exit_centroid_offset's) A_i its lateral offset in the plane normal to d0 through P0, theta_i its smooth exit
+// direction's lateral slope; t* = -Cov(A, theta) / (Var(theta) + v_r), v_r = 2 (1 / kappa_out - 1 / kappa_geometric)
+// the exit's rough scatter (kappa_out the single SG's sharpness before the shape). 0 unless all 4 bounding rays left
+// and the waist lies behind the exit.
+float bundle_waist(const Segment &seg, const Vec3 &axis, float ior, float kappa_out, float kappa_geometric,
+                   const Vec3 &n0) {
+  if (seg.bounding_count != 4) return 0.0f;
+  for (int i = 0; i < 4; ++i) {  // convex exits only (exit_centroid_offset's check)
+    const Vec3 r = seg.bounding_P[i] - Vec3(seg.axis.hit.P);
+    if (!(dot(r, n0) <= 1e-3f * length(r))) return 0.0f;
+  }
+  constexpr float kAxisShare = 1.0f - 0.72134752f, kRayShare = 0.72134752f * 0.25f;
+  const Vec3 P0(seg.axis.hit.P), d0 = refract_out(axis, seg.axis.normal, ior);
+  Vec3 mean_A(0.0f), mean_th(0.0f), A[4], th[4];
+  for (int i = 0; i < 4; ++i) {
+    const Vec3 d = refract_out(seg.bounding_dir[i], seg.bounding_normal[i], ior), r = seg.bounding_P[i] - P0;
+    const float along = dot(d, d0);
+    if (!(along > 0.05f)) return 0.0f;
+    th[i] = (d - d0 * along) / along;
+    const float c = dot(r, d0);
+    A[i] = (r - d0 * c) - th[i] * c;
+    mean_A += A[i] * kRayShare, mean_th += th[i] * kRayShare;
+  }
+  float cov = 0.0f, var = 0.0f;
+  for (int i = 0; i < 4; ++i) {
+    cov += kRayShare * dot(A[i] - mean_A, th[i] - mean_th);
+    var += kRayShare * dot(th[i] - mean_th, th[i] - mean_th);
+  }
+  cov += kAxisShare * dot(mean_A, mean_th), var += kAxisShare * dot(mean_th, mean_th);
+  const float v_r = 2.0f * std::max(0.0f, 1.0f / std::max(kappa_out, 1e-3f) - 1.0f / std::max(kappa_geometric, 1e-3f));
+  if (!(var + v_r > 1e-12f)) return 0.0f;
+  const float t = -cov / (var + v_r);
+  return std::isfinite(t) ? std::min(t, 0.0f) : 0.0f;
+}
 // Thirteenth session: cores x 3 -> x 2, measured with exit light sampling in the small light's test (its former
 // 4096 / 1024 figures, which chose x 3, were mostly sg's noise): small light r 0.5 0.139 -> 0.085, slab band L1 r 0.5
 // 0.169 -> 0.086, 2D band L1 0.773 -> 0.601, slab r 0.5 absorbing 0.0281 -> 0.0250, r 0.8 0.0314 -> 0.0308; slab r 0.5
@@ -526,6 +571,8 @@ bool solid_exit_mixture(const SgInputs &in, const Segment &seg, const Vec3 &axis
         const Vec3 shifted = normalize(out.sg.axis + refracted_mean_shift(seg, axis, ior) * k);
         if (is_finite(shifted)) out.sg.axis = shifted;
       }
+      if (const float w = in.exit_waist >= 0.0f ? in.exit_waist : exit_waist_scale(); w != 0.0f)
+        out.waist_t = bundle_waist(seg, axis, ior, out.sg.sharpness, kappa_geometric, out.origin_Ng) * w;
       if (const float c = in.exit_centroid >= 0.0f ? in.exit_centroid : exit_centroid_scale(); c != 0.0f) {
         const Vec3 moved = out.origin + exit_centroid_offset(seg, axis, ior, out.origin_Ng) * c;
         if (is_finite(moved)) out.origin = moved;
@@ -732,6 +779,14 @@ bool sample_sg_transmission(const ShadingPoint &sp, const SgInputs &in, const Ve
     wo = lobe.sample([&rng] { return rng.next(); });
   }
   if (!(dot(wo, exit.origin_Ng) > 0.0f)) return false;
+  if (exit.waist_t < 0.0f && sp.ctx->diffuse_bounce + sp.ctx->glossy_bounce == 0) {  // kCurvedExitWaist: where wo's ray from the waist crosses the exit's tangent plane
+    const Vec3 W = exit.origin + exit.sg.axis * exit.waist_t;
+    const float dn = dot(wo, exit.origin_Ng);
+    if (dn > 0.1f) {
+      const Vec3 x = W + wo * (dot(exit.origin - W, exit.origin_Ng) / dn);
+      if (is_finite(x)) exit.origin = x;
+    }
+  }
   const Spectrum weight = front.f_cos / front.pdf * exit.weight;
   if (!is_finite(weight) || !is_finite(wo)) return false;
   out.wo = sp.frame.to_local(wo);
