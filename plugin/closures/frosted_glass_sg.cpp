@@ -382,6 +382,15 @@ bool build_exit_mixture(const TransmissionSgTable &table, const Segment &seg, co
   return true;
 }
 
+// A measurement knob (docs/frosted_glass.md's before / after runs): the environment variable `name` as a float clamped
+// to [lo, hi]; `fallback` (the default) when unset, empty or not finite. Each caller reads it once (a static).
+float measurement_knob(const char *name, float fallback, float lo, float hi) {
+  const char *e = std::getenv(name);
+  if (e == nullptr || *e == '\0') return fallback;
+  const float v = std::strtof(e, nullptr);
+  return std::isfinite(v) ? std::clamp(v, lo, hi) : fallback;
+}
+
 // A tail for solids (issue 12, twelfth session; docs/frosted_glass.md "A tail for solids"). The exit mixture of
 // method=sg's rule (SgInputs::mixture_tail < 0) by what the traced rays measured:
 //  - a planar exit (exit_curvature < kPlanarExitCurvature: a slab's back face) above kMixtureRoughnessMax: the
@@ -398,12 +407,7 @@ bool build_exit_mixture(const TransmissionSgTable &table, const Segment &seg, co
 // Session 22: the default is kCurvedExitShape (below); the split with t is the nineteenth session's, still reachable
 // for before / after runs; unset: -1.
 float curved_tail() {
-  static const float t = [] {
-    const char *e = std::getenv("GLIMMER_FROSTED_CURVED_TAIL");
-    if (e == nullptr || *e == '\0') return -1.0f;
-    const float v = std::strtof(e, nullptr);
-    return std::isfinite(v) ? std::clamp(v, 0.0f, 0.2f) : -1.0f;
-  }();
+  static const float t = measurement_knob("GLIMMER_FROSTED_CURVED_TAIL", -1.0f, 0.0f, 0.2f);
   return t;
 }
 // The single SG (out.sg) as a core (1 - t, kappa (1 - t) / (1 - 4 t)) and a tail (t, kappa / 4) of the same axis
@@ -480,23 +484,13 @@ Vec3 refracted_mean_shift(const Segment &seg, const Vec3 &axis, float ior) {
 }
 // kCurvedAxisShift, or for measurements only GLIMMER_FROSTED_CURVED_SHIFT = k (0: none), read once.
 float curved_shift() {
-  static const float k = [] {
-    const char *e = std::getenv("GLIMMER_FROSTED_CURVED_SHIFT");
-    if (e == nullptr || *e == '\0') return kCurvedAxisShift;
-    const float v = std::strtof(e, nullptr);
-    return std::isfinite(v) ? std::clamp(v, -4.0f, 4.0f) : kCurvedAxisShift;
-  }();
+  static const float k = measurement_knob("GLIMMER_FROSTED_CURVED_SHIFT", kCurvedAxisShift, -4.0f, 4.0f);
   return k;
 }
 constexpr float kCurvedSingleSgBelow = 0.2f;
 // kCurvedExitCentroid, or for measurements only GLIMMER_FROSTED_EXIT_CENTROID = s (0: the axis' exit point), read once.
 float exit_centroid_scale() {
-  static const float s = [] {
-    const char *e = std::getenv("GLIMMER_FROSTED_EXIT_CENTROID");
-    if (e == nullptr || *e == '\0') return kCurvedExitCentroid;
-    const float v = std::strtof(e, nullptr);
-    return std::isfinite(v) ? std::clamp(v, -4.0f, 4.0f) : kCurvedExitCentroid;
-  }();
+  static const float s = measurement_knob("GLIMMER_FROSTED_EXIT_CENTROID", kCurvedExitCentroid, -4.0f, 4.0f);
   return s;
 }
 // The exit points' mean as seen by the leaving bundle: each of the internal lobe's 5 quadrature rays
@@ -530,12 +524,7 @@ Vec3 exit_centroid_offset(const Segment &seg, const Vec3 &axis, float ior, const
 }
 // kCurvedExitWaist, or for measurements only GLIMMER_FROSTED_EXIT_WAIST = w (0: none), read once.
 float exit_waist_scale() {
-  static const float w = [] {
-    const char *e = std::getenv("GLIMMER_FROSTED_EXIT_WAIST");
-    if (e == nullptr || *e == '\0') return kCurvedExitWaist;
-    const float v = std::strtof(e, nullptr);
-    return std::isfinite(v) ? std::clamp(v, 0.0f, 4.0f) : kCurvedExitWaist;
-  }();
+  static const float w = measurement_knob("GLIMMER_FROSTED_EXIT_WAIST", kCurvedExitWaist, 0.0f, 4.0f);
   return w;
 }
 // kCurvedExitWaist's t* (frosted_glass_sg.h; frostedorigin26's curved_lamp_origin, its waist only): per quadrature

@@ -1104,6 +1104,26 @@ TEST(FrostedGlassSg, ExitOfTheSphereAroundTheCausticBench) {
 // path's exact walk vs sg (the process' default; the axis shift through GLIMMER_FROSTED_CURVED_SHIFT).
 // The directions only: no finite lamp distance, no exit-point offset (the bench's lamp is 5.04 radii from the
 // sphere's centre; SphereShadowDirectionsAroundTheLamp measures the difference it makes).
+// The mean of per_path(rng) over `paths` paths and its standard error, in 16 chunks run in parallel (chunk c's paths
+// c, c + 16, ... draw from Pcg32(seed, stream + c)): the same figures for any thread count. A path that does not
+// count returns 0.
+template <typename PerPath>
+std::pair<double, double> chunked_mean(int paths, uint64_t seed, uint64_t stream, const PerPath &per_path) {
+  constexpr int kChunks = 16;
+  std::array<std::array<double, 2>, kChunks> acc{};
+  tbb::parallel_for(0, kChunks, [&](int c) {
+    Pcg32 rng(seed, stream + uint64_t(c));
+    for (int i = c; i < paths; i += kChunks) {
+      const double w = per_path(rng);
+      acc[size_t(c)][0] += w;
+      acc[size_t(c)][1] += w * w;
+    }
+  });
+  double sum = 0.0, sum2 = 0.0;
+  for (const auto &a : acc) sum += a[0], sum2 += a[1];
+  const double m = sum / paths;
+  return {m, std::sqrt(std::max(0.0, sum2 / paths - m * m) / paths)};
+}
 constexpr double kShadowLampDeg = 4.0;
 struct ShadowPoint {
   double value = 0.0, se = 0.0;  // the lamp cone's transmitted weight per floor path
@@ -1113,28 +1133,18 @@ std::vector<ShadowPoint> sphere_shadow(const AnalyticScene &scene, const Sampler
   std::vector<ShadowPoint> out(floor_points.size());
   const double cos_cone = std::cos(kShadowLampDeg * M_PI / 180.0);
   tbb::parallel_for(size_t(0), floor_points.size(), [&](size_t k) {
-    constexpr int kChunks = 16;
-    std::array<std::array<double, 2>, kChunks> acc{};
-    tbb::parallel_for(0, kChunks, [&](int c) {
-      Pcg32 rng(seed, 7 + 131 * k + uint64_t(c));
-      for (int i = c; i < paths; i += kChunks) {
-        const float u1 = rng.next_float(), u2 = rng.next_float(), r = std::sqrt(u1), phi = 2.0f * float(M_PI) * u2;
-        const Vec3 D(r * std::cos(phi), r * std::sin(phi), std::sqrt(std::max(0.0f, 1.0f - u1)));
-        Pixel px{{}, D};
-        if (!scene.intersect(floor_points[k], D, 0.0f, 100.0f, px.hit)) continue;
-        Spectrum throughput;
-        Vec3 wo;
-        if (!trace_through(scene, sample, px, rng, throughput, wo)) continue;
-        if (double(dot(normalize(wo), lamp)) < cos_cone) continue;
-        const double w = average(throughput);
-        acc[size_t(c)][0] += w;
-        acc[size_t(c)][1] += w * w;
-      }
+    const auto [m, se] = chunked_mean(paths, seed, 7 + 131 * k, [&](Pcg32 &rng) -> double {
+      const float u1 = rng.next_float(), u2 = rng.next_float(), r = std::sqrt(u1), phi = 2.0f * float(M_PI) * u2;
+      const Vec3 D(r * std::cos(phi), r * std::sin(phi), std::sqrt(std::max(0.0f, 1.0f - u1)));
+      Pixel px{{}, D};
+      if (!scene.intersect(floor_points[k], D, 0.0f, 100.0f, px.hit)) return 0.0;
+      Spectrum throughput;
+      Vec3 wo;
+      if (!trace_through(scene, sample, px, rng, throughput, wo)) return 0.0;
+      if (double(dot(normalize(wo), lamp)) < cos_cone) return 0.0;
+      return double(average(throughput));
     });
-    double sum = 0.0, sum2 = 0.0;
-    for (const auto &a : acc) sum += a[0], sum2 += a[1];
-    const double m = sum / paths;
-    out[k] = {m, std::sqrt(std::max(0.0, sum2 / paths - m * m) / paths)};
+    out[k] = {m, se};
   });
   return out;
 }
@@ -1841,25 +1851,15 @@ std::vector<Value> leaving_values(const AnalyticScene &scene, const Sampler &sam
                                   int paths, uint64_t seed, const Target &target) {
   std::vector<Value> out(starts.size());
   tbb::parallel_for(size_t(0), starts.size(), [&](size_t k) {
-    constexpr int kChunks = 16;
-    std::array<std::array<double, 2>, kChunks> acc{};
-    tbb::parallel_for(0, kChunks, [&](int c) {
-      Pcg32 rng(seed, 11 + 137 * k + uint64_t(c));
-      for (int i = c; i < paths; i += kChunks) {
-        Pixel px;
-        if (!starts[k](rng, px)) continue;
-        Spectrum throughput;
-        Vec3 wo, from;
-        if (!trace_through(scene, sample, px, rng, throughput, wo, &from)) continue;
-        const double w = average(throughput) * target(from, normalize(wo));
-        acc[size_t(c)][0] += w;
-        acc[size_t(c)][1] += w * w;
-      }
+    const auto [m, se] = chunked_mean(paths, seed, 11 + 137 * k, [&](Pcg32 &rng) -> double {
+      Pixel px;
+      if (!starts[k](rng, px)) return 0.0;
+      Spectrum throughput;
+      Vec3 wo, from;
+      if (!trace_through(scene, sample, px, rng, throughput, wo, &from)) return 0.0;
+      return average(throughput) * target(from, normalize(wo));
     });
-    double sum = 0.0, sum2 = 0.0;
-    for (const auto &a : acc) sum += a[0], sum2 += a[1];
-    const double m = sum / paths;
-    out[k] = {m, std::sqrt(std::max(0.0, sum2 / paths - m * m) / paths)};
+    out[k] = {m, se};
   });
   return out;
 }
