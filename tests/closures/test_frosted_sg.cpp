@@ -1874,6 +1874,23 @@ double relative_se(const std::vector<Value> &now, const std::vector<Value> &ref)
   for (size_t k = 0; k < ref.size(); ++k) var += now[k].se * now[k].se + ref[k].se * ref[k].se, total += ref[k].mean;
   return std::sqrt(var) / std::max(total, 1e-30);
 }
+// The rule's relative L1 against path over the starts, and its two controls' (the axis' exit point; the centroid
+// alone, no waist), with the rule's noise: path (ref_paths, seed 1) vs sg (sg_paths, seed 2) for one target.
+struct RuleAndControls {
+  double rule = 0.0, axis_exit = 0.0, centroid_only = 0.0, se = 0.0;
+  std::vector<Value> ref, now, axis_exit_values;  // per start: path, the rule, the first control
+};
+template <class Start, class Target>
+RuleAndControls rule_and_controls(const AnalyticScene &scene, const Sampler &path_sampler,
+                                  const FrostedGlassClosure &path, const FrostedGlassClosure &sg, float roughness,
+                                  const std::vector<Start> &starts, int ref_paths, int sg_paths, const Target &target) {
+  const auto values_with = [&](float scale, float waist) {
+    return leaving_values(scene, sg_with_centroid(path, sg, roughness, scale, waist), starts, sg_paths, 2, target);
+  };
+  const auto ref = leaving_values(scene, path_sampler, starts, ref_paths, 1, target);
+  const auto now = values_with(-1.0f, -1.0f), ctl = values_with(0.0f, 0.0f), two = values_with(1.0f, 0.0f);
+  return {relative_l1(now, ref), relative_l1(ctl, ref), relative_l1(two, ref), relative_se(now, ref), ref, now, ctl};
+}
 }  // namespace centroid_test
 
 // The floor seen through the camera-seen sphere: the accuracy set's 16 orthographic camera rays (down -z), a
@@ -1909,15 +1926,9 @@ TEST(FrostedGlassSg, FloorThroughTheSphereFromTheExitPointsMean) {
       const Vec3 p = from + d * ((z - from.z) / d.z);
       return 1.0 + 0.8 * std::sin(4.0 * p.x + 3.0 * p.y);
     };
-    const auto ref = leaving_values(scene, path_sampler, starts, ref_paths, 1, floor_value);
-    const auto now =
-        leaving_values(scene, sg_with_centroid(*path, *sg, roughness, -1.0f, -1.0f), starts, sg_paths, 2, floor_value);
-    const auto ctl =
-        leaving_values(scene, sg_with_centroid(*path, *sg, roughness, 0.0f, 0.0f), starts, sg_paths, 2, floor_value);
-    const auto two =
-        leaving_values(scene, sg_with_centroid(*path, *sg, roughness, 1.0f, 0.0f), starts, sg_paths, 2, floor_value);
-    const double l1 = relative_l1(now, ref), l1_ctl = relative_l1(ctl, ref), l1_two = relative_l1(two, ref);
-    const double se = relative_se(now, ref);
+    const RuleAndControls r =
+        rule_and_controls(scene, path_sampler, *path, *sg, roughness, starts, ref_paths, sg_paths, floor_value);
+    const double l1 = r.rule, l1_ctl = r.axis_exit, l1_two = r.centroid_only, se = r.se;
     std::printf("  %.2f | %.4f | %.4f | %.4f | %.4f\n", double(gap), l1, l1_ctl, l1_two, se);
     EXPECT_LT(l1, bound) << "gap " << gap;
     EXPECT_GT(l1_ctl, bound) << "control (axis' exit point) passed at gap " << gap;
@@ -1967,15 +1978,9 @@ TEST(FrostedGlassSg, NearLampThroughTheSphereFromTheExitPointsMean) {
       const float along = dot(oc, d);
       return along > 0.0f && dot(oc, oc) - along * along < radius * radius ? 1.0 : 0.0;
     };
-    const auto ref = leaving_values(scene, path_sampler, starts, ref_paths, 1, hits_lamp);
-    const auto now =
-        leaving_values(scene, sg_with_centroid(*path, *sg, roughness, -1.0f, -1.0f), starts, sg_paths, 2, hits_lamp);
-    const auto ctl =
-        leaving_values(scene, sg_with_centroid(*path, *sg, roughness, 0.0f, 0.0f), starts, sg_paths, 2, hits_lamp);
-    const auto two =
-        leaving_values(scene, sg_with_centroid(*path, *sg, roughness, 1.0f, 0.0f), starts, sg_paths, 2, hits_lamp);
-    const double l1 = relative_l1(now, ref), l1_ctl = relative_l1(ctl, ref), l1_two = relative_l1(two, ref);
-    const double se = relative_se(now, ref);
+    const RuleAndControls r =
+        rule_and_controls(scene, path_sampler, *path, *sg, roughness, starts, ref_paths, sg_paths, hits_lamp);
+    const double l1 = r.rule, l1_ctl = r.axis_exit, l1_two = r.centroid_only, se = r.se;
     std::printf("  %.2f | %.4f | %.4f | %.4f | %.4f\n", double(distance), l1, l1_ctl, l1_two, se);
     if (distance < 10.0f) {
       EXPECT_LT(l1, 0.040);
@@ -1983,9 +1988,9 @@ TEST(FrostedGlassSg, NearLampThroughTheSphereFromTheExitPointsMean) {
     } else {
       EXPECT_LT(l1, l1_ctl + 2.0 * se);
     }
-    for (size_t k = 0; k < ref.size(); ++k)
-      std::printf("    point %zu: path %.4e, sg / path %.3f, control %.3f\n", k, ref[k].mean, now[k].mean / ref[k].mean,
-                  ctl[k].mean / ref[k].mean);
+    for (size_t k = 0; k < r.ref.size(); ++k)
+      std::printf("    point %zu: path %.4e, sg / path %.3f, control %.3f\n", k, r.ref[k].mean,
+                  r.now[k].mean / r.ref[k].mean, r.axis_exit_values[k].mean / r.ref[k].mean);
   }
 }
 
