@@ -16,6 +16,7 @@
 #include <type_traits>
 
 #include "glimmer/exit_lobe.h"
+#include "render/light_area.h"
 #include "render/light_common.h"
 #include "render/light_distant.h"
 
@@ -56,6 +57,26 @@ struct ValuedExitLobe {
   static Vec3 draw_at(const DrawCos &d, const VmfPhi &phi) { return ExitLobeMixture::draw_at(d, phi); }
 };
 
+// An area lamp wholly below every exit lobe's surface (AreaLight::wholly_below; session 28, frostedcost28): an
+// ExitLobe's or ExitLobeMixture's density is 0 at and below its surface, so none of lamp_through_lobe's points would
+// count (its lamp points lie below, and a lobe direction that hits the lamp goes below) and its estimate is false:
+// known before the 32 points are made. The exit lobes of the sphere seen through from the camera leave toward the
+// floor, often with the lamp below their horizon. Other lamps and lobes (the pane's exact exit, ValuedExitLobe,
+// valued by the closure): false (no skip).
+template <class Kind, class Lobe>
+inline bool lamp_below_exit(const Kind &light, const Vec3 &P, const Lobe &lobe) {
+  if constexpr (std::is_same_v<Kind, AreaLight> && std::is_same_v<Lobe, ExitLobe>) {
+    return light.wholly_below(P, lobe.n);
+  } else if constexpr (std::is_same_v<Kind, AreaLight> && std::is_same_v<Lobe, ExitLobeMixture>) {
+    for (int k = 0; k < lobe.count; ++k)
+      if (lobe.weight[k] > 0.0 && !light.wholly_below(P, lobe.lobe[k].n)) return false;
+    return true;
+  } else {
+    (void)light, (void)P, (void)lobe;
+    return false;
+  }
+}
+
 // The estimate for one lamp (a point, spot, area or distant light); false when none of its light reaches P
 // through the lobe.
 // `lobe`: an ExitLobe, or an ExitLobeMixture (ABI 2.7: the whole mixture; p its density, the lobe's directions
@@ -63,6 +84,7 @@ struct ValuedExitLobe {
 template <class Kind, class Lobe>
 inline bool lamp_through_lobe(const Kind &light, const Vec3 &P, const Lobe &lobe, float u, float v, float pick,
                               LampEstimate &out) {
+  if (lamp_below_exit(light, P, lobe)) return false;
   constexpr int n = kLampStrata, count = n * n;
   struct Point {
     Vec3 wi;

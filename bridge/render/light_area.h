@@ -18,6 +18,10 @@ class AreaLight {
   float power(float scene_disk_area) const;  // the area is not in it (radiance S / (4 A))
   bool sample(float u, float v, const Vec3 &P, float pick, LightSample &out) const;
   bool intersect(const Vec3 &o, const Vec3 &d, float t_max, float pick, LightHit &out) const;
+  // Whether the whole lamp lies below the plane through P with unit normal n, with a margin that rounding cannot
+  // cross: every point that sample() or intersect() can give makes a direction from P with n . w < 0 (the host's
+  // lamps through an exit lobe, render/lamp_through_lobe.h, skip such a lamp).
+  bool wholly_below(const Vec3 &P, const Vec3 &n) const;
 
  private:
   // Radiance leaving at cosine cos_l to the normal, and the solid-angle density of a point at squared
@@ -44,6 +48,20 @@ inline float AreaLight::spread_attenuation(float cos_to_normal) const {
   const float sin_a = std::sqrt(std::max(0.0f, 1.0f - cos_to_normal * cos_to_normal));
   const float tan_a = sin_a / cos_to_normal;
   return std::max((1.0f - tan_spread_ * tan_a) * normalize_spread_, 0.0f);
+}
+
+// The quad's corners (a round lamp's bounding quad): every lamp point x is a convex combination of them, so
+// n . (x - P) < -1e-4 |x - P| - 1e-6 s when each corner's is (the triangle inequality); s bounds the coordinates, and
+// 1e-6 s the rounding of a sampled or hit point and of x - P, 1e-4 that of the unit direction and its dot with n.
+inline bool AreaLight::wholly_below(const Vec3 &P, const Vec3 &n) const {
+  const auto extent = [](const Vec3 &v) { return std::max(std::fabs(v.x), std::max(std::fabs(v.y), std::fabs(v.z))); };
+  const float slack = 1e-6f * (1.0f + extent(P) + extent(co_) + extent(U_) + extent(V_));
+  for (const float su : {-0.5f, 0.5f})
+    for (const float sv : {-0.5f, 0.5f}) {
+      const Vec3 d = co_ + U_ * su + V_ * sv - P;
+      if (!(dot(d, n) < -1e-4f * length(d) - slack)) return false;
+    }
+  return true;
 }
 
 inline bool AreaLight::inside(const Vec3 &q) const {

@@ -452,5 +452,66 @@ TEST(LampThroughLobe, ValuedLobeMatchesTheBruteForceIntegralOfItsValue) {
   EXPECT_GE(proposal_fail, cases / 2);
 }
 
+// Session 28 (frostedcost28): lamp_through_lobe returns false at once for an area lamp wholly below every exit lobe's
+// surface (lamp_below_exit, AreaLight::wholly_below). Against the estimate without that skip (the same mixture behind
+// a ValuedExitLobe whose value is the mixture's own density: the same points and sums, no skip), over random prepared
+// mixtures (1-3 lobes sharing one exit normal, as the host's), exit points, quad and round lamps near the exit's
+// horizon (elevation -30..+30 deg, distances 0.3..5, sizes 0.05..2, tilted), numbers (u, v, pick): the same result,
+// estimate, direction and distance bit for bit, with many lamps skipped. Negative control: a skip by the lamp's centre
+// alone (below the plane) must differ from the unskipped estimate somewhere (a lamp straddling the horizon).
+TEST(LampThroughLobe, LampWhollyBelowTheExitIsSkippedExactly) {
+  Pcg32 rng(2028, 28);
+  const auto unit = [&] { return random_unit(rng); };
+  const auto bits_equal = [](const auto &a, const auto &b) { return std::memcmp(&a, &b, sizeof a) == 0; };
+  struct Own {
+    static double value(const void *m, const Vec3 &w) { return static_cast<const ExitLobeMixture *>(m)->pdf(w); }
+  };
+  int trials = 0, skipped = 0, differ = 0, reached = 0, control_differs = 0;
+  for (int trial = 0; trial < 4000; ++trial) {
+    const Vec3 n = unit(), P(rng.next_float() - 0.5f, rng.next_float() - 0.5f, rng.next_float() - 0.5f);
+    ExitLobeMixture m;
+    m.count = 1 + int(rng.next_float() * 3.0f);
+    for (int k = 0; k < m.count; ++k) {
+      Vec3 axis = unit();
+      if (dot(axis, n) < 0.0f) axis = -axis;  // the lobes leave the exit (their redraw rule's side)
+      m.lobe[k] = ExitLobe::make(axis, std::pow(10.0, -1.0 + 4.0 * rng.next_float()), n);
+      m.weight[k] = 0.05 + rng.next_float();
+    }
+    m.normalize();
+    m.prepare();
+    const render::ValuedExitLobe unskipped{&m, &Own::value, &m};
+    // The lamp's direction from P at elevation -30..+30 deg above the exit plane.
+    const Frame f = Frame::from_normal(n);
+    const float elevation = float((rng.next_float() * 60.0 - 30.0) * kDeg), phi = 2.0f * float(M_PI) * rng.next_float();
+    const Vec3 d = normalize(f.to_world(Vec3(std::cos(elevation) * std::cos(phi), std::cos(elevation) * std::sin(phi),
+                                             std::sin(elevation))));
+    scene::Light l = quad_lamp(P, d, 0.3f + 4.7f * rng.next_float(), 0.05f + 1.95f * rng.next_float());
+    const Frame tilt = Frame::from_normal(normalize(-d + unit() * 0.5f));
+    l.axisu = tilt.s, l.axisv = tilt.t, l.dir = tilt.n;  // tilted, facing P within ~30 deg
+    l.round = rng.next_float() < 0.3f;
+    const render::AreaLight lamp(l, Spectrum(4.0f * l.sizeu * l.sizev));
+    const bool below = lamp.wholly_below(P, n);
+    for (int j = 0; j < 4; ++j) {
+      const float u = rng.next_float(), v = rng.next_float(), pick = rng.next_float();
+      LampEstimate a, b;
+      const bool ra = render::lamp_through_lobe(lamp, P, m, u, v, pick, a);
+      const bool rb = render::lamp_through_lobe(lamp, P, unskipped, u, v, pick, b);
+      ++trials;
+      skipped += below;
+      reached += rb;
+      differ += ra != rb || (ra && !(bits_equal(a.value, b.value) && bits_equal(a.wi, b.wi) && bits_equal(a.dist, b.dist)));
+      const bool control = dot(l.co - P, n) < 0.0f ? false : rb;  // skipped by the centre alone
+      control_differs += control != rb;
+    }
+  }
+  std::printf("[lamp through lobe] lamp below the exit: %d of %d estimates skipped, %d reach the lamp; differ from "
+              "the unskipped estimate: %d; control (the centre alone below) differs at %d\n",
+              skipped, trials, reached, differ, control_differs);
+  EXPECT_EQ(differ, 0);
+  EXPECT_GT(skipped, trials / 5);
+  EXPECT_GT(reached, trials / 5);
+  EXPECT_GT(control_differs, 20);
+}
+
 }  // namespace
 }  // namespace glimmer::test
