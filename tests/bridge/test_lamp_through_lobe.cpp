@@ -499,7 +499,8 @@ TEST(LampThroughLobe, LampWhollyBelowTheExitIsSkippedExactly) {
       ++trials;
       skipped += below;
       reached += rb;
-      differ += ra != rb || (ra && !(bits_equal(a.value, b.value) && bits_equal(a.wi, b.wi) && bits_equal(a.dist, b.dist)));
+      const bool same = bits_equal(a.value, b.value) && bits_equal(a.wi, b.wi) && bits_equal(a.dist, b.dist);
+      differ += ra != rb || (ra && !same);
       const bool control = dot(l.co - P, n) < 0.0f ? false : rb;  // skipped by the centre alone
       control_differs += control != rb;
     }
