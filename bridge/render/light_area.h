@@ -51,11 +51,12 @@ inline float AreaLight::spread_attenuation(float cos_to_normal) const {
 }
 
 // The quad's corners (a round lamp's bounding quad): every lamp point x is a convex combination of them, so
-// n . (x - P) < -1e-4 |x - P| - 1e-6 s when each corner's is (the triangle inequality); s bounds the coordinates, and
-// 1e-6 s the rounding of a sampled or hit point and of x - P, 1e-4 that of the unit direction and its dot with n.
+// n . (x - P) < -1e-4 |x - P| - 1e-5 s when each corner's is (the triangle inequality); s bounds the coordinates, and
+// 1e-5 s covers the rounding of a sampled or hit point (~1e-6 s) and of x - P, 1e-4 |x - P| that of the hit's
+// distance along the ray, of the unit direction and of its dot with n.
 inline bool AreaLight::wholly_below(const Vec3 &P, const Vec3 &n) const {
   const auto extent = [](const Vec3 &v) { return std::max(std::fabs(v.x), std::max(std::fabs(v.y), std::fabs(v.z))); };
-  const float slack = 1e-6f * (1.0f + extent(P) + extent(co_) + extent(U_) + extent(V_));
+  const float slack = 1e-5f * (1.0f + extent(P) + extent(co_) + extent(U_) + extent(V_));
   for (const float su : {-0.5f, 0.5f})
     for (const float sv : {-0.5f, 0.5f}) {
       const Vec3 d = co_ + U_ * su + V_ * sv - P;
