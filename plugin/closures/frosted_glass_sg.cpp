@@ -17,6 +17,10 @@ namespace glimmer::plugin::frosted {
 namespace {
 
 constexpr float kTableRoughnessMax = 1.0f;
+
+// The solid seen directly (no diffuse or glossy bounce before the entry): where kSampledReflection, the stratified
+// first roulette and kCurvedExitWaist apply.
+bool seen_directly(const GlimmerShadingContext &ctx) { return ctx.diffuse_bounce + ctx.glossy_bounce == 0; }
 // Fraction of an SG's energy inside the bounding cone (the paper's 75 %).
 constexpr double kBoundingEnergy = 0.75;
 
@@ -99,9 +103,25 @@ bool table_lobe(const TransmissionSgTable &table, const TransmissionSgTable::Axe
 }
 // The table's axes for relative IOR eta and `roughness` as the lookups read it (clamped to the table's range): the
 // roughness and IOR taps, the same for every incidence (issue 12, session 22: made once per shading point, or once
-// per exit event, instead of once per lookup).
+// per exit event, instead of once per lookup). Session 28 (frostedcost28): this thread's last two (eta, roughness)
+// and their axes kept (a solid's entry and exits, a pane's front samples and exits: one entering and one leaving
+// pair per material; ~330 instructions each made): returned when eta and the clamped roughness compare equal (the
+// same inputs, so the same bits; NaN never equal).
 TransmissionSgTable::Axes table_axes(float eta, float roughness) {
-  return TransmissionSgTable::axes(eta, std::clamp(roughness, TransmissionSgTable::kRoughnessMin, kTableRoughnessMax));
+  struct Kept {
+    float eta = std::numeric_limits<float>::quiet_NaN(), roughness = 0.0f;
+    TransmissionSgTable::Axes axes;
+  };
+  thread_local Kept kept[2];
+  thread_local int oldest = 0;
+  const float r = std::clamp(roughness, TransmissionSgTable::kRoughnessMin, kTableRoughnessMax);
+  for (const Kept &k : kept)
+    if (k.eta == eta && k.roughness == r) return k.axes;
+  Kept &k = kept[oldest];
+  oldest ^= 1;
+  k.axes = TransmissionSgTable::axes(eta, r);
+  k.eta = eta, k.roughness = r;
+  return k.axes;
 }
 bool table_lobe(const TransmissionSgTable &table, const Frame &frame, const Vec3 &wi_dir, float eta, float roughness,
                 SphericalGaussian &sg, float &energy) {
@@ -127,7 +147,31 @@ struct Segment {
   float mean_length = 1.0f;
   int bounding_count = 0;  // bounding rays that left through the same material
   Vec3 bounding_dir[4], bounding_normal[4], bounding_P[4];
+  // exit_curvature over all bounding rays and over the facing ones (trace_segment; a pane's flat face: unset).
+  float curvature = std::numeric_limits<float>::infinity(), curvature_facing = std::numeric_limits<float>::infinity();
 };
+// How much the exit surface turns under the traced rays: the mean over the bounding rays of the angle between
+// their exit normal and the axis ray's, over the angle between their direction and the axis (0: a planar exit;
+// the unit sphere's 1-2). Not measured (no bounding ray left through the material): infinite, treated as curved.
+// `curvature_facing`: only the bounding rays whose exit normal faces the axis ray's (a wide lobe's ray that turns back
+// to a slab's entry face is left out; reflected_axis' planarity test); none of them: infinite. Both in one pass, once
+// per segment (session 28: the roulette, the reflection and the exit mixture each made one before; the same sums).
+void exit_curvature(Segment &seg, const Vec3 &axis) {
+  float sum = 0.0f, sum_facing = 0.0f;
+  int count = 0, count_facing = 0;
+  for (int i = 0; i < seg.bounding_count; ++i) {
+    const float c = dot(seg.bounding_normal[i], seg.axis.normal);
+    const float dn = std::acos(std::clamp(c, -1.0f, 1.0f));
+    const float dd = std::acos(std::clamp(dot(seg.bounding_dir[i], axis), -1.0f, 1.0f));
+    const float turn = dn / std::max(dd, 1e-6f);
+    sum += turn;
+    ++count;
+    if (c > 0.0f) sum_facing += turn, ++count_facing;
+  }
+  constexpr float kInf = std::numeric_limits<float>::infinity();
+  seg.curvature = count > 0 ? sum / float(count) : kInf;
+  seg.curvature_facing = count_facing > 0 ? sum_facing / float(count_facing) : kInf;
+}
 bool trace_segment(const GlimmerHostServices *host, const SgInputs &in, const Vec3 &origin, const Vec3 &axis,
                    float kappa_in, Segment &seg) {
   if (!trace_interior(host, in, origin, axis, seg.axis) || !seg.axis.same_material) return false;
@@ -151,6 +195,7 @@ bool trace_segment(const GlimmerHostServices *host, const SgInputs &in, const Ve
   sum /= float(count);
   seg.mean_length = length(sum);
   seg.mean_normal = seg.mean_length > 1e-6f ? sum / seg.mean_length : seg.axis.normal;
+  exit_curvature(seg, axis);
   return true;
 }
 
@@ -246,25 +291,6 @@ Vec3 reflected_axis(const Segment &seg, const Vec3 &axis, const ExitEnergies &e)
 
 void add_tail_ladder(const PaneLadder &ladder, ExitLobe &m);  // the pane's ladder (below), reused for planar exits
 
-// How much the exit surface turns under the traced rays: the mean over the bounding rays of the angle between
-// their exit normal and the axis ray's, over the angle between their direction and the axis (0: a planar exit;
-// the unit sphere's 1-2). Not measured (no bounding ray left through the material): infinite, treated as curved.
-// `facing_only`: only the bounding rays whose exit normal faces the axis ray's (a wide lobe's ray that turns back to a
-// slab's entry face is left out; reflected_axis' planarity test); none of them: infinite.
-float exit_curvature(const Segment &seg, const Vec3 &axis, bool facing_only = false) {
-  float sum = 0.0f;
-  int count = 0;
-  for (int i = 0; i < seg.bounding_count; ++i) {
-    const float c = dot(seg.bounding_normal[i], seg.axis.normal);
-    if (facing_only && !(c > 0.0f)) continue;
-    const float dn = std::acos(std::clamp(c, -1.0f, 1.0f));
-    const float dd = std::acos(std::clamp(dot(seg.bounding_dir[i], axis), -1.0f, 1.0f));
-    sum += dn / std::max(dd, 1e-6f);
-    ++count;
-  }
-  return count > 0 ? sum / float(count) : std::numeric_limits<float>::infinity();
-}
-
 // kSampledReflection (frosted_glass_sg.h): direction d (inside) reflected at hit h (h.normal outward) by the interface
 // lobe at `roughness` (SgInputs::lobe when it is the lobe's, else built), drawn until one draw reflects (at most 64,
 // from numbers of their own); d becomes it. False: no reflection within 64 draws, or one that does not go back in.
@@ -302,7 +328,7 @@ constexpr float kPlanarExitCurvature = 0.1f;  // exit_curvature below it: a plan
 // widened by the rough reflection. False: no reflection drawn.
 bool reflect_internal(const SgInputs &in, const Segment &seg, const ExitEnergies &energies, const Vec3 &n,
                       float alpha2, uint32_t seed, Vec3 &axis, float &kappa_in, float first_u) {
-  const bool planar = exit_curvature(seg, axis, true) < kPlanarExitCurvature;
+  const bool planar = seg.curvature_facing < kPlanarExitCurvature;
   if (in.sampled_reflection && !planar)
     return sample_reflection(in, seg.axis, hit_roughness(in, seg.axis.closure), seed, axis, first_u);
   const float kappa_reflect = 2.0f / std::max(alpha2, 1e-7f);  // NDF sharpness; reflected lobe: kappa / 4
@@ -389,6 +415,12 @@ float measurement_knob(const char *name, float fallback, float lo, float hi) {
   if (e == nullptr || *e == '\0') return fallback;
   const float v = std::strtof(e, nullptr);
   return std::isfinite(v) ? std::clamp(v, lo, hi) : fallback;
+}
+// Its int form (the switches: levels, on / off): `name` read as atoi does (no number: 0), clamped to [lo, hi].
+int measurement_knob(const char *name, int fallback, int lo, int hi) {
+  const char *e = std::getenv(name);
+  if (e == nullptr || *e == '\0') return fallback;
+  return std::clamp(std::atoi(e), lo, hi);
 }
 
 // A tail for solids (issue 12, twelfth session; docs/frosted_glass.md "A tail for solids"). The exit mixture of
@@ -493,33 +525,48 @@ float exit_centroid_scale() {
   static const float s = measurement_knob("GLIMMER_FROSTED_EXIT_CENTROID", kCurvedExitCentroid, -4.0f, 4.0f);
   return s;
 }
-// The exit points' mean as seen by the leaving bundle: each of the internal lobe's 5 quadrature rays
-// (refracted_mean_shift's weights) carried along its own smooth exit direction d_i to the plane through the axis'
-// exit point P0 normal to the axis' own smooth exit direction d0 (lateral offsets A_i, the axis' 0), their mean
-// E[A], then slid along d0 back to P0's tangent plane (normal n0, the exit lobe's surface): the returned offset
-// from P0, which leaves the bundle's lateral position at every distance along d0 unchanged. Zero unless all 4
-// bounding rays left through the material and the exit is convex there (every exit point on or below P0's tangent
-// plane, to a slope of 1e-3 for a mesh's facets; at a concave exit, the shell's cavity, the plane lies inside the
-// glass: without this check the accuracy set's shell went 0.0647 -> 0.0734).
-Vec3 exit_centroid_offset(const Segment &seg, const Vec3 &axis, float ior, const Vec3 &n0) {
-  if (seg.bounding_count != 4) return Vec3(0.0f);
+// The leaving bundle of a segment (session 28, frostedcost28: built once per segment for both of session 27's origin
+// rules, the exit-point centroid and the waist, which made it each): the internal lobe's 5 quadrature rays
+// (refracted_mean_shift's weights: 1 - 1 / ln 4 on the axis, 1 / (4 ln 4) on each bounding ray), each carried along
+// its own smooth exit direction d_i (refract_out) from its exit point P_i to the plane through the axis' exit point P0
+// normal to the axis' own smooth exit direction d0: per bounding ray its lateral slope theta_i = (d_i - d0 (d_i . d0))
+// / (d_i . d0) and its lateral offset A_i in that plane (the axis' 0), and their mean E[A]. Not valid unless all 4
+// bounding rays left through the material, every d_i . d0 > 0.05, and the exit is convex there (every exit point on or
+// below P0's tangent plane, normal n0, to a slope of 1e-3 for a mesh's facets; at a concave exit, the shell's cavity,
+// the plane lies inside the glass: without this check the accuracy set's shell went 0.0647 -> 0.0734).
+struct ExitBundle {
+  bool valid = false;
+  Vec3 d0{0.0f}, mean_A{0.0f};
+  Vec3 A[4], theta[4];
+};
+constexpr float kBundleRayShare = 0.72134752f * 0.25f;  // 1 / (4 ln 4): refracted_mean_shift's bounding weight
+ExitBundle exit_bundle(const Segment &seg, const Vec3 &axis, float ior, const Vec3 &n0) {
+  ExitBundle b;
+  if (seg.bounding_count != 4) return b;
   const Vec3 P0(seg.axis.hit.P);
   for (int i = 0; i < 4; ++i)
-    if (!(dot(seg.bounding_P[i] - P0, n0) <= 1e-3f * length(seg.bounding_P[i] - P0))) return Vec3(0.0f);
-  constexpr float kRayShare = 0.72134752f * 0.25f;  // 1 / (4 ln 4): refracted_mean_shift's bounding weight
-  const Vec3 d0 = refract_out(axis, seg.axis.normal, ior);
-  Vec3 mean_A(0.0f);
+    if (!(dot(seg.bounding_P[i] - P0, n0) <= 1e-3f * length(seg.bounding_P[i] - P0))) return b;
+  b.d0 = refract_out(axis, seg.axis.normal, ior);
   for (int i = 0; i < 4; ++i) {
     const Vec3 d = refract_out(seg.bounding_dir[i], seg.bounding_normal[i], ior), r = seg.bounding_P[i] - P0;
-    const float along = dot(d, d0);
-    if (!(along > 0.05f)) return Vec3(0.0f);
-    const Vec3 th = (d - d0 * along) / along;
-    const float c = dot(r, d0);
-    mean_A += ((r - d0 * c) - th * c) * kRayShare;
+    const float along = dot(d, b.d0);
+    if (!(along > 0.05f)) return b;
+    b.theta[i] = (d - b.d0 * along) / along;
+    const float c = dot(r, b.d0);
+    b.A[i] = (r - b.d0 * c) - b.theta[i] * c;
+    b.mean_A += b.A[i] * kBundleRayShare;
   }
-  const float dn = dot(d0, n0);
+  b.valid = true;
+  return b;
+}
+// kCurvedExitCentroid's offset: the bundle's E[A] slid along d0 back to P0's tangent plane (normal n0, the exit lobe's
+// surface), which leaves the bundle's lateral position at every distance along d0 unchanged. Zero unless the bundle is
+// valid and d0 leaves the plane by more than 0.1.
+Vec3 exit_centroid_offset(const ExitBundle &b, const Vec3 &n0) {
+  if (!b.valid) return Vec3(0.0f);
+  const float dn = dot(b.d0, n0);
   if (!(dn > 0.1f)) return Vec3(0.0f);
-  const Vec3 offset = mean_A - d0 * (dot(mean_A, n0) / dn);
+  const Vec3 offset = b.mean_A - b.d0 * (dot(b.mean_A, n0) / dn);
   return is_finite(offset) ? offset : Vec3(0.0f);
 }
 // kCurvedExitWaist, or for measurements only GLIMMER_FROSTED_EXIT_WAIST = w (0: none), read once.
@@ -527,36 +574,21 @@ float exit_waist_scale() {
   static const float w = measurement_knob("GLIMMER_FROSTED_EXIT_WAIST", kCurvedExitWaist, 0.0f, 4.0f);
   return w;
 }
-// kCurvedExitWaist's t* (frosted_glass_sg.h; frostedorigin26's curved_lamp_origin, its waist only): per quadrature
-// ray i (exit_centroid_offset's) A_i its lateral offset in the plane normal to d0 through P0, theta_i its smooth exit
-// direction's lateral slope; t* = -Cov(A, theta) / (Var(theta) + v_r), v_r = 2 (1 / kappa_out - 1 / kappa_geometric)
-// the exit's rough scatter (kappa_out the single SG's sharpness before the shape). 0 unless all 4 bounding rays left
-// and the waist lies behind the exit.
-float bundle_waist(const Segment &seg, const Vec3 &axis, float ior, float kappa_out, float kappa_geometric,
-                   const Vec3 &n0) {
-  if (seg.bounding_count != 4) return 0.0f;
-  for (int i = 0; i < 4; ++i) {  // convex exits only (exit_centroid_offset's check)
-    const Vec3 r = seg.bounding_P[i] - Vec3(seg.axis.hit.P);
-    if (!(dot(r, n0) <= 1e-3f * length(r))) return 0.0f;
-  }
-  constexpr float kAxisShare = 1.0f - 0.72134752f, kRayShare = 0.72134752f * 0.25f;
-  const Vec3 P0(seg.axis.hit.P), d0 = refract_out(axis, seg.axis.normal, ior);
-  Vec3 mean_A(0.0f), mean_th(0.0f), A[4], th[4];
-  for (int i = 0; i < 4; ++i) {
-    const Vec3 d = refract_out(seg.bounding_dir[i], seg.bounding_normal[i], ior), r = seg.bounding_P[i] - P0;
-    const float along = dot(d, d0);
-    if (!(along > 0.05f)) return 0.0f;
-    th[i] = (d - d0 * along) / along;
-    const float c = dot(r, d0);
-    A[i] = (r - d0 * c) - th[i] * c;
-    mean_A += A[i] * kRayShare, mean_th += th[i] * kRayShare;
-  }
+// kCurvedExitWaist's t* (frosted_glass_sg.h; frostedorigin26's curved_lamp_origin, its waist only) from the bundle's
+// A_i and theta_i: t* = -Cov(A, theta) / (Var(theta) + v_r), v_r = 2 (1 / kappa_out - 1 / kappa_geometric) the exit's
+// rough scatter (kappa_out the single SG's sharpness before the shape). 0 unless the bundle is valid and the waist lies
+// behind the exit.
+float bundle_waist(const ExitBundle &b, float kappa_out, float kappa_geometric) {
+  if (!b.valid) return 0.0f;
+  constexpr float kAxisShare = 1.0f - 0.72134752f;
+  Vec3 mean_th(0.0f);
+  for (int i = 0; i < 4; ++i) mean_th += b.theta[i] * kBundleRayShare;
   float cov = 0.0f, var = 0.0f;
   for (int i = 0; i < 4; ++i) {
-    cov += kRayShare * dot(A[i] - mean_A, th[i] - mean_th);
-    var += kRayShare * dot(th[i] - mean_th, th[i] - mean_th);
+    cov += kBundleRayShare * dot(b.A[i] - b.mean_A, b.theta[i] - mean_th);
+    var += kBundleRayShare * dot(b.theta[i] - mean_th, b.theta[i] - mean_th);
   }
-  cov += kAxisShare * dot(mean_A, mean_th), var += kAxisShare * dot(mean_th, mean_th);
+  cov += kAxisShare * dot(b.mean_A, mean_th), var += kAxisShare * dot(mean_th, mean_th);
   const float v_r = 2.0f * std::max(0.0f, 1.0f / std::max(kappa_out, 1e-3f) - 1.0f / std::max(kappa_geometric, 1e-3f));
   if (!(var + v_r > 1e-12f)) return 0.0f;
   const float t = -cov / (var + v_r);
@@ -569,12 +601,13 @@ float bundle_waist(const Segment &seg, const Vec3 &axis, float ior, float kappa_
 constexpr PaneTail kPlanarSolidTail{0.06f, 4, 0.18f, 2.0f};
 constexpr PaneLadder kPlanarSolidLadder = make_pane_ladder(kPlanarSolidTail);  // validated once, at compile time
 static_assert(kPlanarSolidLadder.valid, "the planar-solid tail must be a valid ladder");
+// `seen_directly`: the waist (applied only there, sample_sg_transmission) is made only then.
 bool solid_exit_mixture(const SgInputs &in, const Segment &seg, const Vec3 &axis, float kappa_in,
-                        float kappa_geometric, float ior, float roughness_exit, ExitLobe &out) {
+                        float kappa_geometric, float ior, float roughness_exit, bool seen_directly, ExitLobe &out) {
   out.lobe_count = 0;
   const bool by_rule = in.mixture_tail < 0.0f;
   const bool wide = in.roughness > kMixtureRoughnessMax, narrow = in.roughness < kCurvedSingleSgBelow;
-  const bool planar = exit_curvature(seg, axis) < kPlanarExitCurvature;
+  const bool planar = seg.curvature < kPlanarExitCurvature;
   const bool ladder = by_rule && wide && planar;
   if (by_rule && !planar && (wide || narrow)) {  // the single SG, split into a core and a tail when wide
     if (wide && in.roughness <= kCurvedSplitMax) {
@@ -584,11 +617,16 @@ bool solid_exit_mixture(const SgInputs &in, const Segment &seg, const Vec3 &axis
         const Vec3 shifted = normalize(out.sg.axis + refracted_mean_shift(seg, axis, ior) * k);
         if (is_finite(shifted)) out.sg.axis = shifted;
       }
-      if (const float w = in.exit_waist >= 0.0f ? in.exit_waist : exit_waist_scale(); w != 0.0f)
-        out.waist_t = bundle_waist(seg, axis, ior, out.sg.sharpness, kappa_geometric, out.origin_Ng) * w;
-      if (const float c = in.exit_centroid >= 0.0f ? in.exit_centroid : exit_centroid_scale(); c != 0.0f) {
-        const Vec3 moved = out.origin + exit_centroid_offset(seg, axis, ior, out.origin_Ng) * c;
-        if (is_finite(moved)) out.origin = moved;
+      // Session 27's origin rules from one bundle (exit_bundle); the waist only where it is applied (seen_directly).
+      const float w = seen_directly ? (in.exit_waist >= 0.0f ? in.exit_waist : exit_waist_scale()) : 0.0f;
+      const float c = in.exit_centroid >= 0.0f ? in.exit_centroid : exit_centroid_scale();
+      if (w != 0.0f || c != 0.0f) {
+        const ExitBundle bundle = exit_bundle(seg, axis, ior, out.origin_Ng);
+        if (w != 0.0f) out.waist_t = bundle_waist(bundle, out.sg.sharpness, kappa_geometric) * w;
+        if (c != 0.0f) {
+          const Vec3 moved = out.origin + exit_centroid_offset(bundle, out.origin_Ng) * c;
+          if (is_finite(moved)) out.origin = moved;
+        }
       }
       // The shape about out.sg.axis: a test's (curved_shape, or curved_tail: the nineteenth session's split, 0 the
       // single SG), else the environment's (measurements: a shape, or the split's t), else curved_exit_shape
@@ -666,13 +704,13 @@ namespace {
 struct ExitRoulette : RouletteNumber {
   ExitEnergies energies;
 };
-ExitRoulette exit_roulette(const SgInputs &in, const Segment &seg, const Vec3 &axis, float axis_energy,
+ExitRoulette exit_roulette(const SgInputs &in, const Segment &seg, float axis_energy,
                            const TransmissionSgTable::Axes &exit_axes, uint32_t seed, int event, bool last,
                            float first_u) {
   ExitRoulette r;
   // The stratified number at curved exits only (a planar one, a slab's back face, keeps the hashed route: there it was
   // not measured on the bench, and the exit harness' slab moved by its noise; docs/frosted_glass.md "Session 27").
-  if (event == 0 && first_u >= 0.0f && exit_curvature(seg, axis, true) < kPlanarExitCurvature) first_u = -1.0f;
+  if (event == 0 && first_u >= 0.0f && seg.curvature_facing < kPlanarExitCurvature) first_u = -1.0f;
   if (!last) r.energies = exit_energies(*in.table, seg, axis_energy, exit_axes);
   static_cast<RouletteNumber &>(r) =
       roulette_number(in, seed, event, first_u, last ? axis_energy : r.energies.mean());
@@ -722,7 +760,7 @@ bool trace_exit_lobe(const ShadingPoint &sp, const SgInputs &in, uint32_t seed, 
     const TransmissionSgTable::Axes exit_axes = table_axes(1.0f / ior, roughness_exit);  // the exit's lookups
     if (!table_lobe(*in.table, exit_axes, exit_frame, incident, exit, exit_energy)) return false;
     // 5. Russian roulette between the exit (E_x) and the internal reflection (1 - E_x): exit_roulette.
-    const ExitRoulette r = exit_roulette(in, seg, axis, exit_energy, exit_axes, seed, event, last, first_u);
+    const ExitRoulette r = exit_roulette(in, seg, exit_energy, exit_axes, seed, event, last, first_u);
     if (!last && !r.leaves) {
       if (!reflect_internal(in, seg, r.energies, n, alpha2, hash_u32x2(seed, uint32_t(event)), axis, kappa_in, r.rest))
         return false;
@@ -749,10 +787,9 @@ bool trace_exit_lobe(const ShadingPoint &sp, const SgInputs &in, uint32_t seed, 
     out.weight = hit_color(in, seg.axis.closure);
     for (int ch = 0; ch < 3; ++ch) out.weight[ch] *= std::exp(-in.sigma_a[ch] * inside_length);
     out.roughness = std::clamp(std::sqrt(std::sqrt(2.0f / out.sg.sharpness)), 0.0f, 1.0f);
-    (void)front_energy;
     out.lobe_count = 0;
     if (in.variant == SgVariant::kMixture &&
-        !solid_exit_mixture(in, seg, axis, kappa_in, kappa_geometric, ior, roughness_exit, out))
+        !solid_exit_mixture(in, seg, axis, kappa_in, kappa_geometric, ior, roughness_exit, seen_directly(ctx), out))
       return false;
     return is_finite(out.origin) && is_finite(out.sg.axis) && is_finite(out.weight);
   }
@@ -760,20 +797,14 @@ bool trace_exit_lobe(const ShadingPoint &sp, const SgInputs &in, uint32_t seed, 
 }
 
 bool sampled_reflection_at(const ShadingPoint &sp, int mode) {
-  static const bool by_rule = [] {
-    const char *e = std::getenv("GLIMMER_FROSTED_SAMPLED_REFLECTION");
-    return e == nullptr || *e == '\0' ? kSampledReflectionByDefault : std::atoi(e) != 0;
-  }();
-  const GlimmerShadingContext &ctx = *sp.ctx;
-  if (ctx.diffuse_bounce + ctx.glossy_bounce > 0) return false;
+  static const bool by_rule = measurement_knob("GLIMMER_FROSTED_SAMPLED_REFLECTION", int(kSampledReflectionByDefault),
+                                               std::numeric_limits<int>::min(), std::numeric_limits<int>::max()) != 0;
+  if (!seen_directly(*sp.ctx)) return false;
   return mode < 0 ? by_rule : mode != 0;
 }
 
 int stratified_first_roulette_level() {
-  static const int level = [] {
-    const char *e = std::getenv("GLIMMER_FROSTED_STRATIFIED_ROULETTE");
-    return e == nullptr || *e == '\0' ? kStratifiedFirstRoulette : std::clamp(std::atoi(e), 0, 2);
-  }();
+  static const int level = measurement_knob("GLIMMER_FROSTED_STRATIFIED_ROULETTE", kStratifiedFirstRoulette, 0, 2);
   return level;
 }
 
@@ -870,7 +901,9 @@ bool sample_sg_transmission(const ShadingPoint &sp, const SgInputs &in, const Ve
     wo = lobe.sample(exit_draw_numbers(rng, exit.leftover));
   }
   if (!(dot(wo, exit.origin_Ng) > 0.0f)) return false;
-  if (exit.waist_t < 0.0f && sp.ctx->diffuse_bounce + sp.ctx->glossy_bounce == 0) {  // kCurvedExitWaist: where wo's ray from the waist crosses the exit's tangent plane
+  // kCurvedExitWaist (seen directly only; trace_exit_lobe makes it only there): where wo's ray from the waist crosses
+  // the exit's tangent plane.
+  if (exit.waist_t < 0.0f && seen_directly(*sp.ctx)) {
     const Vec3 W = exit.origin + exit.sg.axis * exit.waist_t;
     const float dn = dot(wo, exit.origin_Ng);
     if (dn > 0.1f) {
