@@ -680,6 +680,7 @@ ExitRoulette exit_roulette(const SgInputs &in, const Segment &seg, const Vec3 &a
 }
 }  // namespace
 
+namespace {
 // kEntryAxis, or for measurements only GLIMMER_FROSTED_ENTRY_AXIS = m (0: the front SG's axis and width), read once;
 // kEntryKappa or GLIMMER_FROSTED_ENTRY_KAPPA the internal lobe's sharpness about a drawn axis.
 int entry_axis_mode(const SgInputs &in) {
@@ -713,6 +714,20 @@ bool drawn_entry_axis(const ShadingPoint &sp, const SgInputs &in, const Vec3 *en
   return true;
 }
 
+// The next segment inside (trace_segment); after a drawn entry axis (`drawn`: drawn_entry_axis, the first segment)
+// only where its exit is curved: at a planar one (a slab's back face) the front SG's axis and width again (kEntryAxis).
+bool next_segment(const GlimmerShadingContext &ctx, const SgInputs &in, const SphericalGaussian &front, bool drawn,
+                  Vec3 &axis, float &kappa_in, Vec3 &origin, Segment &seg) {
+  if (!trace_segment(ctx.host, in, origin, axis, kappa_in, seg)) return false;
+  if (!drawn || !(exit_curvature(seg, axis) < kPlanarExitCurvature)) return true;
+  axis = front.axis, kappa_in = front.sharpness;
+  origin = offset_origin(Vec3(ctx.P), Vec3(ctx.Ng), axis);
+  seg = Segment{};  // trace_segment appends the bounding rays
+  return trace_segment(ctx.host, in, origin, axis, kappa_in, seg);
+}
+
+}  // namespace
+
 bool trace_exit_lobe(const ShadingPoint &sp, const SgInputs &in, uint32_t seed, ExitLobe &out, float first_u,
                      const Vec3 *entry) {
   const GlimmerShadingContext &ctx = *sp.ctx;
@@ -726,14 +741,14 @@ bool trace_exit_lobe(const ShadingPoint &sp, const SgInputs &in, uint32_t seed, 
 
   Vec3 axis = front.axis;
   float kappa_in = front.sharpness;
-  drawn_entry_axis(sp, in, entry, seed, front, axis, kappa_in);
+  const bool drawn = drawn_entry_axis(sp, in, entry, seed, front, axis, kappa_in);
   Vec3 origin = offset_origin(Vec3(ctx.P), Vec3(ctx.Ng), axis);
   float inside_length = 0.0f;
   for (int event = 0, allowed = reflections_allowed(ctx); event <= kMaxInternalReflections; ++event) {
     if (event > allowed) return out.lost = true, false;  // the host's path would have ended inside (ABI 2.9)
     // 2-3. Axis and bounding rays to the far side; mean normal, Toksvig width, exit roughness.
     Segment seg;
-    if (!trace_segment(ctx.host, in, origin, axis, kappa_in, seg)) return false;
+    if (!next_segment(ctx, in, front, event == 0 && drawn, axis, kappa_in, origin, seg)) return false;
     inside_length += seg.axis.hit.t;
     const Vec3 n = seg.mean_normal;  // outward
     const float alpha_d = sqr(hit_roughness(in, seg.axis.closure));
