@@ -718,7 +718,56 @@ ExitRoulette exit_roulette(const SgInputs &in, const Segment &seg, float axis_en
 }
 }  // namespace
 
-bool trace_exit_lobe(const ShadingPoint &sp, const SgInputs &in, uint32_t seed, ExitLobe &out, float first_u) {
+namespace {
+// kEntryAxis, or for measurements only GLIMMER_FROSTED_ENTRY_AXIS = m (0: the front SG's axis and width), read once;
+// kEntryKappa or GLIMMER_FROSTED_ENTRY_KAPPA the internal lobe's sharpness about a drawn axis.
+int entry_axis_mode(const SgInputs &in) {
+  static const int m = measurement_knob("GLIMMER_FROSTED_ENTRY_AXIS", kEntryAxis, 0, 2);
+  return in.entry_axis >= 0 ? in.entry_axis : m;
+}
+float entry_kappa() {
+  static const float k = measurement_knob("GLIMMER_FROSTED_ENTRY_KAPPA", kEntryKappa, 1.0f, 1e7f);
+  return k;
+}
+// kEntryAxis (frosted_glass_sg.h) where the solid is seen directly (sampled_reflection_at's test): the internal axis
+// is the front sample's own refracted direction (m 1, `entry`) or a draw from the front SG (m 2), the internal lobe
+// about it of sharpness entry_kappa or 100 x the front SG's (the shell's roughness 0.1: its front SG is narrower
+// than kEntryKappa); false (the front SG kept) otherwise.
+bool drawn_entry_axis(const ShadingPoint &sp, const SgInputs &in, const Vec3 *entry, uint32_t seed,
+                      const SphericalGaussian &front, Vec3 &axis, float &kappa_in) {
+  const int mode = entry_axis_mode(in);
+  if (mode == 0 || !seen_directly(*sp.ctx)) return false;
+  Vec3 d;
+  if (mode == 1) {
+    if (entry == nullptr) return false;
+    d = *entry;
+  } else {
+    mf::WalkRng rng(hash_u32x2(seed, 0x7f4a7c15u));
+    const float u1 = rng.next(), u2 = rng.next();
+    d = glimmer::sample_vmf(Vec3(front.axis), double(front.sharpness), u1, u2);
+  }
+  if (!is_finite(d) || !(dot(d, Vec3(sp.ctx->Ng)) < 0.0f)) return false;
+  axis = normalize(d);
+  kappa_in = std::max(entry_kappa(), front.sharpness * 100.0f);  // at most 1 % of the front lobe's variance
+  return true;
+}
+
+// The next segment inside (trace_segment); after a drawn entry axis (`drawn`: drawn_entry_axis, the first segment)
+// only where its exit is curved: at a planar one (a slab's back face) the front SG's axis and width again (kEntryAxis).
+bool next_segment(const GlimmerShadingContext &ctx, const SgInputs &in, const SphericalGaussian &front, bool drawn,
+                  Vec3 &axis, float &kappa_in, Vec3 &origin, Segment &seg) {
+  if (!trace_segment(ctx.host, in, origin, axis, kappa_in, seg)) return false;
+  if (!drawn || !(seg.curvature < kPlanarExitCurvature)) return true;
+  axis = front.axis, kappa_in = front.sharpness;
+  origin = offset_origin(Vec3(ctx.P), Vec3(ctx.Ng), axis);
+  seg = Segment{};  // trace_segment appends the bounding rays
+  return trace_segment(ctx.host, in, origin, axis, kappa_in, seg);
+}
+
+}  // namespace
+
+bool trace_exit_lobe(const ShadingPoint &sp, const SgInputs &in, uint32_t seed, ExitLobe &out, float first_u,
+                     const Vec3 *entry) {
   const GlimmerShadingContext &ctx = *sp.ctx;
   if (in.table == nullptr || !host_can_trace_closures(ctx.host) || !(sp.wi.z > 0.0f)) return false;
   const float ior = in.ior;
@@ -730,13 +779,14 @@ bool trace_exit_lobe(const ShadingPoint &sp, const SgInputs &in, uint32_t seed, 
 
   Vec3 axis = front.axis;
   float kappa_in = front.sharpness;
+  const bool drawn = drawn_entry_axis(sp, in, entry, seed, front, axis, kappa_in);
   Vec3 origin = offset_origin(Vec3(ctx.P), Vec3(ctx.Ng), axis);
   float inside_length = 0.0f;
   for (int event = 0, allowed = reflections_allowed(ctx); event <= kMaxInternalReflections; ++event) {
     if (event > allowed) return out.lost = true, false;  // the host's path would have ended inside (ABI 2.9)
     // 2-3. Axis and bounding rays to the far side; mean normal, Toksvig width, exit roughness.
     Segment seg;
-    if (!trace_segment(ctx.host, in, origin, axis, kappa_in, seg)) return false;
+    if (!next_segment(ctx, in, front, event == 0 && drawn, axis, kappa_in, origin, seg)) return false;
     inside_length += seg.axis.hit.t;
     const Vec3 n = seg.mean_normal;  // outward
     const float alpha_d = sqr(hit_roughness(in, seg.axis.closure));
@@ -859,7 +909,8 @@ bool sample_sg_transmission(const ShadingPoint &sp, const SgInputs &in, const Ve
   if (!(front.label & GLIMMER_LABEL_TRANSMIT) || !(front.pdf > 0.0f)) return false;
   const uint32_t seed = sp.seed_for(rand);
   ExitLobe exit;
-  if (!trace_exit_lobe(sp, in, seed, exit, stratified_first_roulette(sp, in, rand, front))) {
+  const Vec3 entry = normalize(sp.frame.to_world(Vec3(front.wo)));
+  if (!trace_exit_lobe(sp, in, seed, exit, stratified_first_roulette(sp, in, rand, front), &entry)) {
     if (lost != nullptr) *lost = exit.lost;
     return false;
   }

@@ -289,10 +289,11 @@ FirstExit first_exits(const FrostedGlassClosure &sg, const FrostedGlassClosure &
     GlimmerExitMixture buffer{};
     s.mixture_out = &buffer;
     if (!path.sample(sp, rand, s) || !(s.label & GLIMMER_LABEL_TRANSMIT)) continue;
-    // The exit's origin rules off (centroid and waist scale 0): the test tells the first exit by its origin, and the
-    // waist moves each sample's origin with its direction. The rules move origins only, not the draws tested here.
+    // The exit's origin rules off (centroid and waist scale 0) and the front SG's axis (entry_axis 0, not session 28's
+    // drawn entry axis): the test tells the first exit by its origin, and the waist moves each sample's origin with
+    // its direction, the drawn axis with its entry. These move origins and axes only, not the draws tested here.
     sg.sample_sg(sp, rand, s, frosted::solid_sg_variant(0.5f), frosted::kDefaultMixtureVariance,
-                 frosted::kDefaultMixtureTail, -1.0f, nullptr, 1, level, 0.0f, 0.0f);
+                 frosted::kDefaultMixtureTail, -1.0f, nullptr, 1, level, 0.0f, 0.0f, 0);
     outs.push_back({Vec3(s.origin), normalize(Vec3(s.origin_Ng)), normalize(sp.frame.to_world(s.wo))});
   }
   // X0: the most common origin (E_x of the samples leave there).

@@ -989,22 +989,30 @@ struct SphereExitCase {
   bool control;    // the single SG (the same axis) must miss the bound
 };
 struct SphereExitRow {
-  SolidBands ref, now, unsplit;
+  SolidBands ref, now, unsplit, entry;  // entry: session 28's kEntryAxis (printed, not bounded)
 };
 SphereExitRow measure_sphere_exit(const SphereExitCase &c, int ref_paths, int sg_paths) {
   auto path = create_raw(c.roughness, c.ior, false);
   auto sg = create_raw(c.roughness, c.ior, true);
   AnalyticScene scene(AnalyticScene::kSphere);
   scene.material = reinterpret_cast<const GlimmerInstance *>(sg.get());
-  const Sampler path_sampler = sampler_of(*path), sg_sampler = sampler_of(*sg);
+  // The exit lobe's shape about the front SG's axis and width (entry_axis 0): what the shape was fitted to and what the
+  // floor's view still uses. Session 28's drawn entry axis (kEntryAxis 1, the camera-seen default) leaves only the
+  // exit's rough scatter in the shaped lobe: its row is printed (band L1 r 0.5 IOR 1.33 / 1.5 / 1.7 0.108 / 0.073 /
+  // 0.045 against the front SG's 0.055 / 0.058 / 0.055: wider than path's near the axis), not bounded: a shape for
+  // that case is the next item (docs/frosted_glass.md "Session 28 (frostedbias28)").
+  const Sampler path_sampler = sampler_of(*path);
   const frosted::CurvedShape single{1, {1.0f}, {1.0f}};
-  const Sampler unsplit([&path, &sg, &single](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
-    if (!path->sample(sp, r, s)) return false;
-    if (sg->uses_sg(sp) && (s.label & GLIMMER_LABEL_TRANSMIT))
-      sg->sample_sg(sp, r, s, frosted::SgVariant::kMixture, frosted::kDefaultMixtureVariance,
-                    frosted::kDefaultMixtureTail, 0.0f, &single);
-    return true;
-  });
+  const auto with = [&path, &sg](float curved_tail, const frosted::CurvedShape *shape, int entry_axis) {
+    return Sampler([&path, &sg, curved_tail, shape, entry_axis](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
+      if (!path->sample(sp, r, s)) return false;
+      if (!sg->uses_sg(sp) || !(s.label & GLIMMER_LABEL_TRANSMIT)) return true;
+      const bool kept = sg->sample_sg(sp, r, s, frosted::SgVariant::kMixture, frosted::kDefaultMixtureVariance,
+                                      frosted::kDefaultMixtureTail, curved_tail, shape, -1, -1, -1.0f, -1.0f, entry_axis);
+      return kept || shape != nullptr;  // the single SG's row as before: its lost samples keep path's front sample
+    });
+  };
+  const Sampler sg_sampler = with(-1.0f, nullptr, 0), unsplit = with(0.0f, &single, 0), entry = with(-1.0f, nullptr, 1);
   SphereExitRow row;
   row.ref = solid_bands(scene, path_sampler, c.ior, ref_paths, 1);
   // For fits outside the test (benchmarks/frosted_sphere_exit_fit.py): GLIMMER_SPHERE_EXIT_DUMP=<dir> writes the
@@ -1047,6 +1055,7 @@ SphereExitRow measure_sphere_exit(const SphereExitCase &c, int ref_paths, int sg
   }
   row.now = solid_bands(scene, sg_sampler, c.ior, sg_paths, 2);
   row.unsplit = solid_bands(scene, unsplit, c.ior, sg_paths, 2);
+  row.entry = solid_bands(scene, entry, c.ior, sg_paths, 2);
   return row;
 }
 void print_sphere_exit(const SphereExitCase &c, const SphereExitRow &r) {
@@ -1070,6 +1079,7 @@ void print_sphere_exit(const SphereExitCase &c, const SphereExitRow &r) {
   std::printf("  (sg rows: band fraction / path's)\n");
   line("sg (default)", r.now, false);
   line("sg, single SG", r.unsplit, false);
+  line("sg, entry drawn", r.entry, false);
 }
 TEST(FrostedGlassSg, ExitOfTheSphereAroundTheCausticBench) {
   const int ref_paths = stress_scale() > 1 ? 200000 : 50000, sg_paths = ref_paths / 4;
@@ -1830,14 +1840,15 @@ TEST(FrostedGlassSg, StressRawOutputsFiniteNonNegative) {
 // SgInputs::exit_centroid). The same unit sphere as the accuracy set (roughness 0.5, IOR 1.5, the bench's).
 namespace centroid_test {
 // sg with the exit-point centroid at `scale` and the waist at `waist` (-1: the rules, kCurvedExitCentroid /
-// kCurvedExitWaist).
+// kCurvedExitWaist), under the front SG's axis and width (entry_axis 0: session 28's kEntryAxis draws the camera-seen
+// internal axis with a narrow lobe, where the origin rules have nothing left to move; they act in the floor's view).
 Sampler sg_with_centroid(const FrostedGlassClosure &path, const FrostedGlassClosure &sg, float roughness, float scale,
                          float waist) {
   return [&path, &sg, roughness, scale, waist](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
     if (!path.sample(sp, r, s)) return false;
     if (sg.uses_sg(sp) && (s.label & GLIMMER_LABEL_TRANSMIT))
       return sg.sample_sg(sp, r, s, frosted::solid_sg_variant(roughness), frosted::kDefaultMixtureVariance,
-                          frosted::kDefaultMixtureTail, -1.0f, nullptr, -1, -1, scale, waist);
+                          frosted::kDefaultMixtureTail, -1.0f, nullptr, -1, -1, scale, waist, 0);
     return true;
   };
 }
@@ -1994,4 +2005,66 @@ TEST(FrostedGlassSg, NearLampThroughTheSphereFromTheExitPointsMean) {
   }
 }
 
+
+// ---- The camera-seen sphere's rim (issue 12, session 28, frostedbias28) -------------------------------------------
+// The caustic bench's sphere seen by the camera is too bright where it leaves directly (its glass +3..5 %, its bottom
+// rim +40..+87 %: event split, docs/frosted_glass.md "Session 28 (frostedbias28)"); with the internal axis drawn at the
+// entry the split's excess left. Brute force: path's exact walk; sg with kEntryAxis (SgInputs::entry_axis) against
+// the front SG's axis and width (0, main before: the control). Orthographic camera rays down -z at impact radii 0.5 ..
+// 0.97 (the rim: grazing entries) over 6 azimuths, a textured floor just below the sphere (gap 0.02 radii, the
+// bench's floor touches it) and a far world with a gradient; relative L1 over the starts.
+TEST(FrostedGlassSg, RimOfTheCameraSeenSphereWithTheEntryAxisDrawn) {
+  using namespace centroid_test;
+  const int ref_paths = stress_scale() > 1 ? 200000 : 50000, sg_paths = ref_paths / 2;
+  const float roughness = 0.5f, ior = 1.5f;
+  auto path = create_raw(roughness, ior, false);
+  auto sg = create_raw(roughness, ior, true);
+  AnalyticScene scene(AnalyticScene::kSphere);
+  scene.material = reinterpret_cast<const GlimmerInstance *>(sg.get());
+  std::vector<std::function<bool(Pcg32 &, Pixel &)>> starts;
+  for (const float rho : {0.5f, 0.8f, 0.9f, 0.97f})
+    for (int a = 0; a < 6; ++a) {
+      const float phi = float(a) * float(M_PI) / 3.0f + 0.2f;
+      Pixel p{{}, Vec3(0.0f, 0.0f, -1.0f)};
+      if (!scene.intersect(Vec3(rho * std::cos(phi), rho * std::sin(phi), 5.0f), p.D, 0.0f, 100.0f, p.hit)) continue;
+      starts.push_back([p](Pcg32 &, Pixel &out) { return out = p, true; });
+    }
+  ASSERT_EQ(starts.size(), 24u);
+  const Sampler path_sampler = sampler_of(*path);
+  const auto with_entry = [&](int mode) {
+    return Sampler([&path, &sg, mode](const ShadingPoint &sp, const Vec3 &r, LocalSample &s) {
+      if (!path->sample(sp, r, s)) return false;
+      if (sg->uses_sg(sp) && (s.label & GLIMMER_LABEL_TRANSMIT))
+        return sg->sample_sg(sp, r, s, frosted::SgVariant::kMixture, frosted::kDefaultMixtureVariance,
+                             frosted::kDefaultMixtureTail, -1.0f, nullptr, -1, -1, -1.0f, -1.0f, mode);
+      return true;
+    });
+  };
+  const auto floor_value = [](const Vec3 &from, const Vec3 &d) {
+    const float z = -1.02f;
+    if (!(d.z < -1e-4f) || !(from.z > z)) return 0.0;
+    const Vec3 p = from + d * ((z - from.z) / d.z);
+    return 1.0 + 0.8 * std::sin(4.0 * p.x + 3.0 * p.y);
+  };
+  const auto world_value = [](const Vec3 &, const Vec3 &d) { return 1.0 + 0.8 * d.x + 0.6 * d.z; };
+  std::printf("[frosted rim of the camera-seen sphere] roughness %.2f ior %.2f: target | rel. L1 sg (rule, "
+              "kEntryAxis %d) | front SG's axis (control) | noise (se)\n",
+              double(roughness), double(ior), frosted::kEntryAxis);
+  const auto run = [&](const char *name, const auto &target, double bound) {
+    const auto ref = leaving_values(scene, path_sampler, starts, ref_paths, 1, target);
+    const auto now = leaving_values(scene, with_entry(-1), starts, sg_paths, 2, target);
+    const auto ctl = leaving_values(scene, with_entry(0), starts, sg_paths, 2, target);
+    const double l1 = relative_l1(now, ref), l1_ctl = relative_l1(ctl, ref), se = relative_se(now, ref);
+    std::printf("  %s | %.4f | %.4f | %.4f\n", name, l1, l1_ctl, se);
+    for (size_t k = 0; k < ref.size(); k += 6)
+      std::printf("    radius %zu: path %.4e, sg / path %.3f, control %.3f\n", k / 6, ref[k].mean,
+                  now[k].mean / ref[k].mean, ctl[k].mean / ref[k].mean);
+    EXPECT_LT(l1, bound) << name;
+    EXPECT_GT(l1_ctl, bound) << "control passed: " << name;
+  };
+  // Measured (session 28; deterministic: fixed seeds and chunks): floor 0.0065 (control 0.1257: +8..+18 % per
+  // radius), world 0.0060 (control 0.0359), noise 0.0016 / 0.0015. Bounds the rule + 3 se, which the control misses.
+  run("floor", floor_value, 0.012);
+  run("world", world_value, 0.011);
+}
 }  // namespace
