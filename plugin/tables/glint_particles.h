@@ -65,6 +65,7 @@
 #include <cstdint>
 #include <cstdlib>
 #include <cstring>
+#include <limits>
 #include <optional>
 #include <span>
 #include <string_view>
@@ -1534,10 +1535,13 @@ static_assert(kMaxNodes <= 64 && kDirectionGroups == 4, "PairMasks: 16 nodes per
 struct PairPassCounter {
   static constexpr int kMaxParticles = 256;  // flushed when full
   const FootprintFrame &frame;
-  std::array<FootprintFrame::NodeOrigin, kMaxNodes> origin;
+  // kMaxNodes + 1: flush_avx2's padding node kPadNode.
+  std::array<FootprintFrame::NodeOrigin, kMaxNodes + 1> origin;
+  static constexpr uint32_t kPadNode = kMaxNodes;
   std::array<int32_t, kMaxNodes> inside_mask;  // -1 inside, 0 not
-  // Listed particle: its pair's hash h0, its position_step(k) and its node (32-bit nodes: no memset call per fill).
-  std::array<uint32_t, kMaxParticles> part_hash, part_step, part_node;
+  // Listed particle: its pair's hash h0, its position_step(k) and its node (32-bit nodes: no memset call per fill);
+  // 4 more for flush_avx2's padding (its four entries from n_parts <= kMaxParticles on).
+  std::array<uint32_t, kMaxParticles + 4> part_hash, part_step, part_node;
   int n_parts = 0;
   int64_t count = 0;
 
@@ -1550,9 +1554,19 @@ struct PairPassCounter {
   // flush_from's expressions, the same values), the rest by flush_from.
   // Session 27: the steps (2 k + 1) W listed (no multiply per step), the bits counted by POPCNT; noinline: with
   // count_paired_avx2's target GCC inlined it there (GI +2 M: the pair passes' registers).
+  // Session 28 (glintwalk28): the list padded to a multiple of four by particles of node kPadNode, whose origin
+  // (+inf, +inf) puts them outside (s = inf + finite; NaN where the frame's steps are not finite: outside too), so
+  // the last one to three particles take a step of four too (they took flush_from's SSE2 pair and scalar steps:
+  // ~77 instructions per flush in the GI render).
   [[gnu::target("avx2,popcnt"), gnu::noinline]] void flush_avx2() {
     int64_t c = 0;
     int q = 0;
+    const auto end = static_cast<size_t>(n_parts);
+    _mm_storeu_si128(reinterpret_cast<__m128i *>(part_node.data() + end), _mm_set1_epi32(static_cast<int>(kPadNode)));
+    _mm_storeu_si128(reinterpret_cast<__m128i *>(part_hash.data() + end), _mm_setzero_si128());
+    _mm_storeu_si128(reinterpret_cast<__m128i *>(part_step.data() + end), _mm_setzero_si128());
+    constexpr double kOutside = std::numeric_limits<double>::infinity();
+    origin[kPadNode] = {kOutside, kOutside};
     const __m128i position_key = _mm_set1_epi32(static_cast<int>(kPositionKey));
     const __m256i spread = _mm256_setr_epi32(0, 0, 1, 1, 2, 2, 3, 3);
     const __m256i second = _mm256_setr_epi32(0, static_cast<int>(kNodeKeyStep), 0, static_cast<int>(kNodeKeyStep), 0,
@@ -1562,7 +1576,7 @@ struct PairPassCounter {
     const __m256d ds_ux = _mm256_set1_pd(frame.ds_ux), ds_uy = _mm256_set1_pd(frame.ds_uy);
     const __m256d dt_ux = _mm256_set1_pd(frame.dt_ux), dt_uy = _mm256_set1_pd(frame.dt_uy);
     const __m256d sign = _mm256_set1_pd(-0.0), half = _mm256_set1_pd(0.5);
-    for (; q + 3 < n_parts; q += 4) {
+    for (; q < n_parts; q += 4) {
       const auto a = static_cast<size_t>(q);
       // (h ^ C) + (2 k + 1) W per particle, mod 2^32 (the step listed).
       const __m128i step = _mm_loadu_si128(reinterpret_cast<const __m128i *>(part_step.data() + a));
@@ -1582,7 +1596,8 @@ struct PairPassCounter {
       const auto m = static_cast<uint32_t>(_mm256_movemask_pd(in));
       c += std::popcount(m);
     }
-    flush_from(q, c);
+    count += c;
+    n_parts = 0;
   }
 #endif
   // flush from particle q on with c already counted.
