@@ -94,6 +94,7 @@ struct LodLevel {
   // n_theta_o - 2, n_phi - 2, 0). The defaults are step 1's.
   alignas(16) float lane_scale[4] = {1.0f, 1.0f, 1.0f, 0.0f};
   alignas(16) int32_t lane_last[4] = {kThetaICount - 2, 89, 179, 0};
+  size_t i_stride = 91 * 181;  // theta_i_stride(), n_theta_o n_phi, set with the step (not multiplied per lookup)
   std::vector<float> values;
 
   // The grid of a level at `step` degrees: step_deg, inv_step, the node counts and cell()'s lane constants (values
@@ -106,6 +107,7 @@ struct LodLevel {
     lane_scale[1] = lane_scale[2] = inv_step;
     lane_last[1] = n_theta_o - 2;
     lane_last[2] = n_phi - 2;
+    i_stride = static_cast<size_t>(n_theta_o) * n_phi;
   }
 
   // x clamped to [0, hi], NaN to 0 (comparisons, not std::fmin/fmax: without
@@ -120,7 +122,7 @@ struct LodLevel {
     float ti, to, tp;
   };
   size_t theta_o_stride() const { return static_cast<size_t>(n_phi); }
-  size_t theta_i_stride() const { return static_cast<size_t>(n_theta_o) * n_phi; }
+  size_t theta_i_stride() const { return i_stride; }
   // The three axes in the lanes of one SSE register (issue 10, session 20):
   // the same clamps (x > 0 ? min(x, hi) : 0, NaN to 0), the same product by
   // 1 / step (theta_i's lane times 1, exact), truncation, integer minimum and
@@ -179,7 +181,7 @@ struct LodLevel {
   }
   // The scalar form of lookup(const Cell &) (the reference of its test).
   float lookup_scalar(const Cell &c) const {
-    const size_t si = theta_i_stride(), so = theta_o_stride();
+    const size_t si = static_cast<size_t>(n_theta_o) * n_phi, so = n_phi;  // from the counts (i_stride is checked)
     auto lerp_phi = [&](const float *p) { return p[0] + (p[1] - p[0]) * c.tp; };
     const float a = lerp_phi(c.base) + (lerp_phi(c.base + so) - lerp_phi(c.base)) * c.to;
     const float b = lerp_phi(c.base + si) + (lerp_phi(c.base + si + so) - lerp_phi(c.base + si)) * c.to;
