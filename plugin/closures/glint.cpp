@@ -533,9 +533,9 @@ class GlintClosure {
       return Spectrum(0.0f);
     }
     const float P = table_probability(c, sigma_deg);  // first: the Lambdas' and the pdf's math overlaps its loads
-    const glint::EvalLambdas lambdas = glint::eval_lambdas(field_.distribution, field_.alpha, w.ax, sp.wi, wo);
-    pdf = glint::smooth_lobe_pdf_of(field_.distribution, w.ax, sp.wi, wo, h, lambdas.wi_lobe);
-    return glint_f_cos(sp.wi, wo, P, h, lambdas, sigma_deg, density, parts);
+    const glint::EvalLambdasPdf lp = glint::eval_lambdas_and_pdf(field_.distribution, field_.alpha, w.ax, sp.wi, wo, h);
+    pdf = lp.pdf;
+    return glint_f_cos(sp.wi, wo, P, h, lp.lambdas, sigma_deg, density, parts);
   }
 
   // Equation (2) with per-flake colours (tables/glint_flake_colour.h): the

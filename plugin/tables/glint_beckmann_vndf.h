@@ -3,8 +3,8 @@
 // stretched visible slope x~ by inverting its exact CDF, y~ ~ N(0, 1/2)), with
 // the transcendental functions of the inversion replaced by library-free
 // double approximations:
-// - exp(x), x <= 0: Cody-Waite reduction by ln 2 and a degree-11 Taylor
-//   polynomial (relative error < 1e-14);
+// - exp(x), x <= 0: Cody-Waite reduction by ln 2 / 32, a table of 2^(j/32)
+//   and a degree-5 Taylor polynomial (relative error < 1e-14);
 // - erfc(z) = erfcx(z) exp(-z^2) for z in [0, 8], erfcx by a degree-14
 //   polynomial in s = 12 / (4 + z) - 2 (Chebyshev interpolation of
 //   erfcx(4 (1 - t) / t) on t in [1/3, 1], converted to monomials; relative
@@ -22,7 +22,9 @@
 #pragma once
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
 #include <cstring>
 
@@ -32,21 +34,33 @@
 
 namespace glimmer::plugin::glint::beckmann_vndf {
 
-// exp(x) for x <= 0 (x below -700 is read as -700: exp < 1e-304).
+// exp(x) for x <= 0 (x below -700 is read as -700: exp < 1e-304): x = (32 q + j) ln 2 / 32 + r, |r| <= ln 2 / 64
+// (Cody-Waite: the high part of ln 2 has 32 significant bits, so kd times it is exact), exp(x) = 2^q 2^(j/32) e^r
+// with 2^(j/32) from a table of correctly rounded doubles and e^r by its degree-5 Taylor polynomial (truncation
+// r^6 / 720 < 2.3e-15; relative error < 1e-14 with the roundings, GlintBeckmannVndf.HelpersMatchLibm). Session 28:
+// was a reduction by ln 2 and a degree-11 polynomial (~30 fewer instructions per call, 2..3 calls per draw).
+inline constexpr std::array<double, 32> kExp2Fraction = {  // 2^(j/32), j = 0..31
+    1.0, 1.0218971486541166, 1.0442737824274138, 1.0671404006768237,
+    1.0905077326652577, 1.1143867425958924, 1.1387886347566916, 1.1637248587775775,
+    1.189207115002721, 1.215247359980469, 1.241857812073484, 1.2690509571917332,
+    1.2968395546510096, 1.3252366431597413, 1.3542555469368927, 1.383909881963832,
+    1.4142135623730951, 1.4451808069770467, 1.4768261459394993, 1.5091644275934228,
+    1.5422108254079407, 1.5759808451078865, 1.6104903319492543, 1.645755478153965,
+    1.681792830507429, 1.718619298122478, 1.7562521603732995, 1.7947090750031072,
+    1.8340080864093424, 1.8741676341103, 1.9152065613971474, 1.9571441241754002};
 inline double exp_nonpositive(double x) {
-  constexpr double kLog2e = 1.4426950408889634, kRound = 6755399441055744.0;  // 1.5 * 2^52
-  constexpr double kLn2Hi = 6.93147180369123816490e-01, kLn2Lo = 1.90821492927058770002e-10;
+  constexpr double k32Log2e = 32.0 * 1.4426950408889634, kRound = 6755399441055744.0;  // 1.5 * 2^52
+  constexpr double kLn2Hi = 6.93147180369123816490e-01 / 32.0, kLn2Lo = 1.90821492927058770002e-10 / 32.0;
   x = std::max(x, -700.0);
-  const double kd = (x * kLog2e + kRound) - kRound;  // round to nearest
-  const double r = (x - kd * kLn2Hi) - kd * kLn2Lo;  // |r| <= ln 2 / 2
-  static constexpr std::array<double, 12> kExpSeries = {  // 1 / k!, k = 0..11
-      1.0, 1.0, 0.5, 1.0 / 6.0, 1.0 / 24.0, 1.0 / 120.0, 1.0 / 720.0, 1.0 / 5040.0, 1.0 / 40320.0, 1.0 / 362880.0,
-      1.0 / 3628800.0, 1.0 / 39916800.0};
+  const double kd = (x * k32Log2e + kRound) - kRound;  // round to nearest
+  const double r = (x - kd * kLn2Hi) - kd * kLn2Lo;    // |r| <= ln 2 / 64
+  static constexpr std::array<double, 6> kExpSeries = {1.0, 1.0, 0.5, 1.0 / 6.0, 1.0 / 24.0, 1.0 / 120.0};
   const double p = horner(r, kExpSeries);
-  const std::uint64_t bits = static_cast<std::uint64_t>(static_cast<std::int64_t>(kd) + 1023) << 52;
+  const std::int64_t k = static_cast<std::int64_t>(kd);
+  const std::uint64_t bits = static_cast<std::uint64_t>((k >> 5) + 1023) << 52;  // k >> 5 = floor(k / 32)
   double scale;
   std::memcpy(&scale, &bits, sizeof scale);
-  return p * scale;
+  return p * kExp2Fraction[static_cast<std::size_t>(k & 31)] * scale;
 }
 
 // log(x) for normal x > 0, absolute error < 1e-12 (atanh series to s^13).

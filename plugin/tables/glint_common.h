@@ -279,8 +279,11 @@ struct EvalLambdas {
 // does not enable it), so the same bits as eval_lambdas_scalar; a lane
 // outside the regular case (|z| not > 0, a2 not > 0 or not finite) sends all
 // three to the scalar form. GlintCoords.BeckmannLambdaLanesMatchTheScalarForm.
-[[gnu::target("avx2"), gnu::noinline]] inline EvalLambdas eval_lambdas_beckmann_avx2(float alpha, float alpha_lobe,
-                                                                                     const Vec3 &wi, const Vec3 &wo) {
+// The body (always inlined): into eval_lambdas_beckmann_avx2 and eval_lambdas_and_pdf_beckmann_avx2.
+[[gnu::target("avx2"), gnu::always_inline]] inline EvalLambdas beckmann_lambdas_avx2_body(float alpha,
+                                                                                         float alpha_lobe,
+                                                                                         const Vec3 &wi,
+                                                                                         const Vec3 &wo) {
   __m128 z;
   const __m128 a2 = eval_alpha2_tan2_lanes(alpha, alpha_lobe, wi, wo, z);
   const __m128 regular = _mm_and_ps(_mm_and_ps(_mm_cmpgt_ps(z, _mm_setzero_ps()), _mm_cmpgt_ps(a2, _mm_setzero_ps())),
@@ -301,6 +304,10 @@ struct EvalLambdas {
   alignas(16) float out[4];
   _mm_store_ps(out, lf);
   return {out[0], out[1], out[2]};
+}
+[[gnu::target("avx2"), gnu::noinline]] inline EvalLambdas eval_lambdas_beckmann_avx2(float alpha, float alpha_lobe,
+                                                                                     const Vec3 &wi, const Vec3 &wo) {
+  return beckmann_lambdas_avx2_body(alpha, alpha_lobe, wi, wo);
 }
 #endif
 inline EvalLambdas eval_lambdas(mf::Distribution dist, float alpha, float alpha_lobe, const Vec3 &wi,
@@ -421,6 +428,38 @@ inline float smooth_lobe_pdf_of(mf::Distribution dist, float alpha_w, const Vec3
 }
 inline float smooth_lobe_pdf(mf::Distribution dist, float alpha_wx, float alpha_wy, const Vec3 &wi, const Vec3 &wo) {
   return smooth_lobe_pdf(dist, alpha_wx, alpha_wy, wi, wo, reflection_half_vector(wi, wo));
+}
+
+// The three Lambdas of an isotropic eval (eval_lambdas) and the pdf of the sampling lobe (smooth_lobe_pdf_of at
+// Lambda(wi) at the lobe's alpha), for wi.z > 0 and wo.z > 0 (the caller's tests). Session 28: Beckmann's in one
+// AVX2 call (its Lambdas' lanes, then the pdf with D's expf called from there, the result through `out`), so the
+// eval pays one call's register saves around the Lambdas and expf instead of two; the same operations in the same
+// order (no FMA), so the same bits as eval_lambdas and smooth_lobe_pdf_of (GlintCoords.LambdasAndPdfMatchTheTwoCalls).
+struct EvalLambdasPdf {
+  EvalLambdas lambdas;
+  float pdf;
+};
+#if GLIMMER_GLINT_WALK_AVX2
+[[gnu::target("avx2"), gnu::noinline]] inline void eval_lambdas_and_pdf_beckmann_avx2(float alpha, float alpha_lobe,
+                                                                                      const Vec3 &wi, const Vec3 &wo,
+                                                                                      const HalfVector &half,
+                                                                                      EvalLambdasPdf &out) {
+  const EvalLambdas l = beckmann_lambdas_avx2_body(alpha, alpha_lobe, wi, wo);
+  out.lambdas = l;
+  out.pdf = smooth_lobe_pdf_of(mf::Distribution::Beckmann, alpha_lobe, wi, wo, half, l.wi_lobe);
+}
+#endif
+inline EvalLambdasPdf eval_lambdas_and_pdf(mf::Distribution dist, float alpha, float alpha_lobe, const Vec3 &wi,
+                                           const Vec3 &wo, const HalfVector &half) {
+#if GLIMMER_GLINT_WALK_AVX2
+  if (dist != mf::Distribution::GGX && kWalkAvx2) {
+    EvalLambdasPdf r;
+    eval_lambdas_and_pdf_beckmann_avx2(alpha, alpha_lobe, wi, wo, half, r);
+    return r;
+  }
+#endif
+  const EvalLambdas l = eval_lambdas(dist, alpha, alpha_lobe, wi, wo);
+  return {l, smooth_lobe_pdf_of(dist, alpha_lobe, wi, wo, half, l.wi_lobe)};
 }
 
 inline float smooth_lobe_pdf(mf::Distribution dist, float alpha_w, const Vec3 &wi, const Vec3 &wo) {

@@ -89,14 +89,25 @@ struct LodLevel {
   int n_theta_o = 91;
   int n_phi = 181;
   float inv_step = 1.0f;  // 1 / step_deg in float, as cell() multiplies by it (session 27: was divided per lookup)
+  // cell()'s lane constants, set with the step (session 28: were assembled per lookup from inv_step, n_theta_o and
+  // n_phi, ~10 instructions): the scale (1, inv_step, inv_step, 0) and the last corners (kThetaICount - 2,
+  // n_theta_o - 2, n_phi - 2, 0). The defaults are step 1's.
+  alignas(16) float lane_scale[4] = {1.0f, 1.0f, 1.0f, 0.0f};
+  alignas(16) int32_t lane_last[4] = {kThetaICount - 2, 89, 179, 0};
+  size_t i_stride = 91 * 181;  // theta_i_stride(), n_theta_o n_phi, set with the step (not multiplied per lookup)
   std::vector<float> values;
 
-  // The grid of a level at `step` degrees: step_deg, inv_step and the node counts (values not sized).
+  // The grid of a level at `step` degrees: step_deg, inv_step, the node counts and cell()'s lane constants (values
+  // not sized).
   void set_step(int step) {
     step_deg = step;
     inv_step = 1.0f / static_cast<float>(step);
     n_theta_o = 90 / step + 1;
     n_phi = 180 / step + 1;
+    lane_scale[1] = lane_scale[2] = inv_step;
+    lane_last[1] = n_theta_o - 2;
+    lane_last[2] = n_phi - 2;
+    i_stride = static_cast<size_t>(n_theta_o) * n_phi;
   }
 
   // x clamped to [0, hi], NaN to 0 (comparisons, not std::fmin/fmax: without
@@ -111,7 +122,7 @@ struct LodLevel {
     float ti, to, tp;
   };
   size_t theta_o_stride() const { return static_cast<size_t>(n_phi); }
-  size_t theta_i_stride() const { return static_cast<size_t>(n_theta_o) * n_phi; }
+  size_t theta_i_stride() const { return i_stride; }
   // The three axes in the lanes of one SSE register (issue 10, session 20):
   // the same clamps (x > 0 ? min(x, hi) : 0, NaN to 0), the same product by
   // 1 / step (theta_i's lane times 1, exact), truncation, integer minimum and
@@ -124,9 +135,9 @@ struct LodLevel {
   Cell cell(__m128 x) const {
     const __m128 clamped = _mm_and_ps(_mm_cmpgt_ps(x, _mm_setzero_ps()),
                                       _mm_min_ps(x, _mm_setr_ps(90.0f, 90.0f, 180.0f, 0.0f)));
-    const __m128 f = _mm_mul_ps(clamped, _mm_setr_ps(1.0f, inv_step, inv_step, 0.0f));
+    const __m128 f = _mm_mul_ps(clamped, _mm_load_ps(lane_scale));
     const __m128i k = _mm_cvttps_epi32(f);
-    const __m128i last = _mm_setr_epi32(kThetaICount - 2, n_theta_o - 2, n_phi - 2, 0);
+    const __m128i last = _mm_load_si128(reinterpret_cast<const __m128i *>(lane_last));
     const __m128i over = _mm_cmpgt_epi32(k, last);
     const __m128i corner = _mm_or_si128(_mm_and_si128(over, last), _mm_andnot_si128(over, k));  // min(k, last)
     alignas(16) int32_t c[4];
@@ -170,7 +181,7 @@ struct LodLevel {
   }
   // The scalar form of lookup(const Cell &) (the reference of its test).
   float lookup_scalar(const Cell &c) const {
-    const size_t si = theta_i_stride(), so = theta_o_stride();
+    const size_t si = static_cast<size_t>(n_theta_o) * n_phi, so = n_phi;  // from the counts (i_stride is checked)
     auto lerp_phi = [&](const float *p) { return p[0] + (p[1] - p[0]) * c.tp; };
     const float a = lerp_phi(c.base) + (lerp_phi(c.base + so) - lerp_phi(c.base)) * c.to;
     const float b = lerp_phi(c.base + si) + (lerp_phi(c.base + si + so) - lerp_phi(c.base + si)) * c.to;

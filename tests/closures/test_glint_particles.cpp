@@ -1010,6 +1010,41 @@ TEST(GlintCoords, BeckmannLambdaLanesMatchTheScalarForm) {
 #endif
 }
 
+// The Lambdas and the sampling lobe's pdf of one eval in one call (pg::eval_lambdas_and_pdf, session 28: Beckmann's
+// in one AVX2 function that also calls D's expf) equal the two calls they replace, eval_lambdas then
+// smooth_lobe_pdf_of at Lambda(wi) at the lobe's alpha, bit for bit, GGX and Beckmann, over the Lambda queries with
+// wi and wo above the surface (the caller's contract) and their reflection half vector. Negative control: the pdf's
+// D at the base alpha instead of the lobe's (a plausible mix-up of the two alphas) differs on most lobe pdfs.
+TEST(GlintCoords, LambdasAndPdfMatchTheTwoCalls) {
+  namespace mf = microfacet;
+  Pcg32 rng(47);
+  const std::vector<LambdaQuery> queries = lambda_queries(rng);
+  int64_t compared = 0, lobe_pdfs = 0, control_differs = 0;
+  for (const LambdaQuery &q : queries) {
+    const Vec3 &wi = q.wi, &wo = q.wo;
+    if (!(wi.z > 0.0f) || !(wo.z > 0.0f)) continue;
+    const pg::HalfVector half = pg::reflection_half_vector(wi, wo);
+    for (const mf::Distribution dist : {mf::Distribution::GGX, mf::Distribution::Beckmann}) {
+      const pg::EvalLambdasPdf v = pg::eval_lambdas_and_pdf(dist, q.alpha, q.alpha_lobe, wi, wo, half);
+      const pg::EvalLambdas s = pg::eval_lambdas(dist, q.alpha, q.alpha_lobe, wi, wo);
+      const float pdf = pg::smooth_lobe_pdf_of(dist, q.alpha_lobe, wi, wo, half, s.wi_lobe);
+      ASSERT_TRUE(same_lambdas(q, v.lambdas, s));
+      ASSERT_TRUE(same_float_bits(v.pdf, pdf)) << "pdf " << v.pdf << " vs " << pdf << " dist " << static_cast<int>(dist)
+                                               << " alpha " << q.alpha << " " << q.alpha_lobe;
+      ++compared;
+      if (dist != mf::Distribution::Beckmann || !(pdf > pg::kCosineMixture * wo.z * kInvPi)) continue;
+      ++lobe_pdfs;  // the lobe's part is not 0
+      control_differs += !same_float_bits(v.pdf, pg::smooth_lobe_pdf_of(dist, q.alpha, wi, wo, half, s.wi_lobe));
+    }
+  }
+  std::printf("[lambdas and pdf] %lld (Lambdas, pdf) equal to the two calls; %lld Beckmann pdfs with a lobe part, "
+              "the control (D at the base alpha) differs on %lld\n",
+              static_cast<long long>(compared), static_cast<long long>(lobe_pdfs),
+              static_cast<long long>(control_differs));
+  EXPECT_GT(lobe_pdfs, static_cast<int64_t>(compared) / 20);
+  EXPECT_GT(control_differs, lobe_pdfs / 2);
+}
+
 // The three Smith Lambdas of one isotropic eval in SSE lanes
 // (pg::eval_lambdas, issue 10 session 14: W's Lambda(wi), Lambda(wo) at the
 // base alpha, the pdf's Lambda(wi) at the sampling lobe's alpha) against the
