@@ -1839,6 +1839,16 @@ TEST(FrostedGlassSg, StressRawOutputsFiniteNonNegative) {
 // path's exact walk, each leaving ray from its own exit point; sg from its sample's origin (kCurvedExitCentroid,
 // SgInputs::exit_centroid). The same unit sphere as the accuracy set (roughness 0.5, IOR 1.5, the bench's).
 namespace centroid_test {
+// The bench's unit sphere (the accuracy set's) as path and sg closures of one roughness and IOR, the scene's material
+// the sg one (the exit-point and rim tests below).
+struct BenchSphere {
+  std::unique_ptr<FrostedGlassClosure> path, sg;
+  AnalyticScene scene{AnalyticScene::kSphere};
+  BenchSphere(float roughness, float ior)
+      : path(create_raw(roughness, ior, false)), sg(create_raw(roughness, ior, true)) {
+    scene.material = reinterpret_cast<const GlimmerInstance *>(sg.get());
+  }
+};
 // sg with the exit-point centroid at `scale` and the waist at `waist` (-1: the rules, kCurvedExitCentroid /
 // kCurvedExitWaist), under the front SG's axis and width (entry_axis 0: session 28's kEntryAxis draws the camera-seen
 // internal axis with a narrow lobe, where the origin rules have nothing left to move; they act in the floor's view).
@@ -1911,10 +1921,9 @@ TEST(FrostedGlassSg, FloorThroughTheSphereFromTheExitPointsMean) {
   using namespace centroid_test;
   const int ref_paths = stress_scale() > 1 ? 400000 : 100000, sg_paths = ref_paths / 2;
   const float roughness = 0.5f, ior = 1.5f;
-  auto path = create_raw(roughness, ior, false);
-  auto sg = create_raw(roughness, ior, true);
-  AnalyticScene scene(AnalyticScene::kSphere);
-  scene.material = reinterpret_cast<const GlimmerInstance *>(sg.get());
+  BenchSphere rig(roughness, ior);
+  auto &path = rig.path, &sg = rig.sg;
+  AnalyticScene &scene = rig.scene;
   std::vector<std::function<bool(Pcg32 &, Pixel &)>> starts;
   for (const Pixel &p : camera_pixels(scene)) starts.push_back([p](Pcg32 &, Pixel &out) { return out = p, true; });
   const Sampler path_sampler = sampler_of(*path);
@@ -1955,10 +1964,9 @@ TEST(FrostedGlassSg, NearLampThroughTheSphereFromTheExitPointsMean) {
   using namespace centroid_test;
   const int ref_paths = stress_scale() > 1 ? 4000000 : 1000000, sg_paths = ref_paths / 2;
   const float roughness = 0.5f, ior = 1.5f;
-  auto path = create_raw(roughness, ior, false);
-  auto sg = create_raw(roughness, ior, true);
-  AnalyticScene scene(AnalyticScene::kSphere);
-  scene.material = reinterpret_cast<const GlimmerInstance *>(sg.get());
+  BenchSphere rig(roughness, ior);
+  auto &path = rig.path, &sg = rig.sg;
+  AnalyticScene &scene = rig.scene;
   scene.diffuse_bounce = 1;
   const Vec3 lamp = normalize(Vec3(0.9f, 1.6f, 2.4f));
   const Vec3 toward = normalize(Vec3(-lamp.x, -lamp.y, 0.0f));
@@ -2017,10 +2025,9 @@ TEST(FrostedGlassSg, RimOfTheCameraSeenSphereWithTheEntryAxisDrawn) {
   using namespace centroid_test;
   const int ref_paths = stress_scale() > 1 ? 200000 : 50000, sg_paths = ref_paths / 2;
   const float roughness = 0.5f, ior = 1.5f;
-  auto path = create_raw(roughness, ior, false);
-  auto sg = create_raw(roughness, ior, true);
-  AnalyticScene scene(AnalyticScene::kSphere);
-  scene.material = reinterpret_cast<const GlimmerInstance *>(sg.get());
+  BenchSphere rig(roughness, ior);
+  auto &path = rig.path, &sg = rig.sg;
+  AnalyticScene &scene = rig.scene;
   std::vector<std::function<bool(Pcg32 &, Pixel &)>> starts;
   for (const float rho : {0.5f, 0.8f, 0.9f, 0.97f})
     for (int a = 0; a < 6; ++a) {
