@@ -952,9 +952,9 @@ bool sample_sg_transmission(const ShadingPoint &sp, const SgInputs &in, const Ve
     wo = lobe.sample(exit_draw_numbers(rng, exit.leftover));
   }
   if (!(dot(wo, exit.origin_Ng) > 0.0f)) return false;
-  // kCurvedExitWaist (seen directly only; trace_exit_lobe makes it only there): where wo's ray from the waist crosses
-  // the exit's tangent plane.
-  if (exit.waist_t < 0.0f && seen_directly(*sp.ctx)) {
+  // kCurvedExitWaist: where wo's ray from the waist crosses the exit's tangent plane (waist_t < 0 only where the solid
+  // is seen directly: solid_exit_mixture makes it only there).
+  if (exit.waist_t < 0.0f) {
     const Vec3 W = exit.origin + exit.sg.axis * exit.waist_t;
     const float dn = dot(wo, exit.origin_Ng);
     if (dn > 0.1f) {
