@@ -374,117 +374,124 @@ double directional_probability_reference(const NdfFunction &ndf, double gamma_de
   return sum / (rings * n_phi) * cone_solid_angle_d(gamma_deg * kDeg);
 }
 
+namespace {
+constexpr int kDirN = 91, kDirP = 181;  // the 1-degree base grid: theta_o 0..90, dphi 0..180
+constexpr size_t kDirSliceSize = static_cast<size_t>(kDirN) * kDirP;
+
+// Steps 1-2: P_gamma on the 1-degree grid, each node by the cone rule.
+std::vector<double> cone_probability_grid(const TableSpec &spec, const NdfFunction &ndf, int threads) {
+  const ConeQuadrature cone(static_cast<double>(spec.gamma_deg) * kDeg, static_cast<double>(spec.alpha));
+  std::vector<double> pg(static_cast<size_t>(kThetaICount) * kDirSliceSize);
+  parallel_for(kThetaICount, threads, [&](int ti) {
+    const D3 wi = spherical(ti * kDeg, 0.0);
+    for (int to = 0; to < kDirN; ++to)
+      for (int p = 0; p < kDirP; ++p) {
+        const D3 wo = spherical(to * kDeg, p * kDeg);
+        const double rim = cone.resolves(wi, wo)
+                               ? -1.0
+                               : cone_probability_by_rim(spec.distribution, spec.alpha, spec.gamma_deg * kDeg, wi, wo);
+        pg[ti * kDirSliceSize + static_cast<size_t>(to) * kDirP + p] = rim >= 0.0 ? rim : cone(ndf, wi, wo);
+      }
+  });
+  return pg;
+}
+
+// Step 3 for one theta_i slice and one level l >= 1: P_gamma blurred by a Gaussian of sigma_L over wo, separably on
+// the sphere with 1-degree taps (theta: through the pole, zero below the horizon; phi: sigma_L / sin(theta),
+// periodic). kernel and pass1 are the caller's scratch.
+void blur_slice(const double *slice, int ti, LodLevel &level, std::vector<double> &kernel, std::vector<double> &pass1) {
+  auto src = [&](int t, int p) -> double {  // integer-degree sample with the sphere's topology
+    if (t < 0) {
+      t = -t;
+      p = 180 - p;
+    }
+    if (t > 90) return 0.0;
+    p = ((p % 360) + 360) % 360;
+    if (p > 180) p = 360 - p;
+    return slice[static_cast<size_t>(t) * kDirP + p];
+  };
+  const double sigma = level.sigma_deg;
+  const int step = level.step_deg;
+  // Pass 1 (theta): output theta nodes of this level x all 1-degree dphi nodes.
+  const int half = static_cast<int>(std::ceil(std::min(3.0 * sigma, 180.0)));
+  kernel.resize(2 * half + 1);
+  double norm = 0.0;
+  for (int k = -half; k <= half; ++k) norm += kernel[k + half] = std::exp(-0.5 * sq(k / sigma));
+  for (auto &w : kernel) w /= norm;
+  pass1.assign(static_cast<size_t>(level.n_theta_o) * kDirP, 0.0);
+  for (int to = 0; to < level.n_theta_o; ++to)
+    for (int p = 0; p < kDirP; ++p) {
+      double sum = 0.0;
+      for (int k = -half; k <= half; ++k) sum += kernel[k + half] * src(to * step + k, p);
+      pass1[static_cast<size_t>(to) * kDirP + p] = sum;
+    }
+  // Pass 2 (phi): along the parallel, sigma_phi = sigma / sin(theta_o), periodic.
+  float *out = level.values.data() + static_cast<size_t>(ti) * level.n_theta_o * level.n_phi;
+  for (int to = 0; to < level.n_theta_o; ++to) {
+    const double sin_t = std::max(std::sin(to * step * kDeg), std::sin(0.5 * kDeg));
+    const double sigma_phi = sigma / sin_t;
+    const int half_phi = static_cast<int>(std::ceil(std::min(3.0 * sigma_phi, 180.0)));
+    kernel.resize(2 * half_phi + 1);
+    double norm_phi = 0.0;
+    for (int k = -half_phi; k <= half_phi; ++k) norm_phi += kernel[k + half_phi] = std::exp(-0.5 * sq(k / sigma_phi));
+    const double *row = pass1.data() + static_cast<size_t>(to) * kDirP;
+    for (int p = 0; p < level.n_phi; ++p) {
+      double sum = 0.0;
+      for (int k = -half_phi; k <= half_phi; ++k) {
+        int q = ((p * step + k) % 360 + 360) % 360;
+        if (q > 180) q = 360 - q;
+        sum += kernel[k + half_phi] * row[q];
+      }
+      out[static_cast<size_t>(to) * level.n_phi + p] = static_cast<float>(sum / norm_phi);
+    }
+  }
+}
+
+// Step 4 for one theta_i slice: the blurred lobe weighted by the same W that eval multiplies it with must reflect
+// the energy of the unblurred one (blurring P moves probability toward grazing wo, where W is large: without this
+// the albedo grew to 2..4.7 at grazing incidence).
+// Level 0 first: the cone estimator W(wo) P_gamma(wo) / sigma averages W over the cone (W is convex near the
+// horizon) and is read through trilinear lookups, so its albedo can exceed the smooth model's (GGX 0.35: +0.6..1.0 %
+// at 86..89 degrees; GGX 0.2: +0.7 % at normal incidence). Where it exceeds it by more than the energy grid resolves
+// (kEnergyResolution), level 0 is scaled down to that bound; elsewhere it is left exact.
+void normalise_slice_energy(const TableSpec &spec, int ti, DirectionalTable &table) {
+  const std::vector<double> weight = weight_grid(spec, ti);
+  double target_energy = slice_energy(table.levels[0], ti, weight);
+  const double bound = smooth_albedo(spec, ti) * cone_solid_angle_d(spec.gamma_deg * kDeg) * (1.0 + kEnergyResolution);
+  if (target_energy > bound && bound > 0.0) {
+    const float s = static_cast<float>(bound / target_energy);
+    float *out = table.levels[0].values.data() + static_cast<size_t>(ti) * kDirSliceSize;
+    for (size_t i = 0; i < kDirSliceSize; ++i) out[i] *= s;
+    target_energy = slice_energy(table.levels[0], ti, weight);
+  }
+  for (int l = 1; l < kLodCount; ++l) {
+    LodLevel &level = table.levels[l];
+    const double energy = slice_energy(level, ti, weight);
+    if (!(energy > 0.0) || !(target_energy > 0.0)) continue;
+    const float s = static_cast<float>(target_energy / energy);
+    float *out = level.values.data() + static_cast<size_t>(ti) * level.n_theta_o * level.n_phi;
+    for (size_t i = 0; i < static_cast<size_t>(level.n_theta_o) * level.n_phi; ++i) out[i] *= s;
+  }
+}
+}  // namespace
+
 std::unique_ptr<DirectionalTable> build_directional_table(const TableSpec &spec, const NdfFunction &ndf,
                                                           int threads) {
   const auto start = std::chrono::steady_clock::now();
   auto table = std::make_unique<DirectionalTable>();
   table->spec = spec;
-  constexpr int kN = 91, kP = 181;
-  const size_t slice_size = static_cast<size_t>(kN) * kP;
-
-  // Steps 1-2: P_gamma on the 1-degree grid, each node by the cone rule.
-  const ConeQuadrature cone(static_cast<double>(spec.gamma_deg) * kDeg, static_cast<double>(spec.alpha));
-  std::vector<double> pg(static_cast<size_t>(kThetaICount) * slice_size);
-  parallel_for(kThetaICount, threads, [&](int ti) {
-    const D3 wi = spherical(ti * kDeg, 0.0);
-    for (int to = 0; to < kN; ++to)
-      for (int p = 0; p < kP; ++p) {
-        const D3 wo = spherical(to * kDeg, p * kDeg);
-        const double rim = cone.resolves(wi, wo)
-                               ? -1.0
-                               : cone_probability_by_rim(spec.distribution, spec.alpha, spec.gamma_deg * kDeg, wi, wo);
-        pg[ti * slice_size + static_cast<size_t>(to) * kP + p] = rim >= 0.0 ? rim : cone(ndf, wi, wo);
-      }
-  });
-
-  // Step 3: LOD levels. Level 0 is P_gamma itself (the 1-degree base; no
-  // blur, so camera rays see the exact lobe up to the horizon). Levels 1..8
-  // are P_gamma blurred by a Gaussian of sigma_L over wo, separably on the
-  // sphere with 1-degree taps (theta: through the pole, zero below the
-  // horizon; phi: sigma_L / sin(theta), periodic), then normalised to the
-  // W-weighted energy of P_gamma (step 4 below).
+  const std::vector<double> pg = cone_probability_grid(spec, ndf, threads);  // steps 1-2
+  // Step 3: LOD levels. Level 0 is P_gamma itself (the 1-degree base; no blur, so camera rays see the exact lobe up
+  // to the horizon). Levels 1..8 are P_gamma blurred (blur_slice), then normalised to the W-weighted energy of
+  // P_gamma (step 4, normalise_slice_energy).
   for (int l = 0; l < kLodCount; ++l) table->levels[l] = make_level(l);
   parallel_for(kThetaICount, threads, [&](int ti) {
-    const double *slice = pg.data() + ti * slice_size;
-    std::vector<float> fslice(slice, slice + slice_size);
-    std::copy(fslice.begin(), fslice.end(), table->levels[0].values.begin() + ti * slice_size);
-    auto src = [&](int t, int p) -> double {  // integer-degree sample with the sphere's topology
-      if (t < 0) {
-        t = -t;
-        p = 180 - p;
-      }
-      if (t > 90) return 0.0;
-      p = ((p % 360) + 360) % 360;
-      if (p > 180) p = 360 - p;
-      return slice[static_cast<size_t>(t) * kP + p];
-    };
+    const double *slice = pg.data() + ti * kDirSliceSize;
+    std::vector<float> fslice(slice, slice + kDirSliceSize);
+    std::copy(fslice.begin(), fslice.end(), table->levels[0].values.begin() + ti * kDirSliceSize);
     std::vector<double> kernel, pass1;
-    for (int l = 1; l < kLodCount; ++l) {
-      LodLevel &level = table->levels[l];
-      const double sigma = level.sigma_deg;
-      const int step = level.step_deg;
-      // Pass 1 (theta): output theta nodes of this level x all 1-degree dphi nodes.
-      const int half = static_cast<int>(std::ceil(std::min(3.0 * sigma, 180.0)));
-      kernel.resize(2 * half + 1);
-      double norm = 0.0;
-      for (int k = -half; k <= half; ++k) norm += kernel[k + half] = std::exp(-0.5 * sq(k / sigma));
-      for (auto &w : kernel) w /= norm;
-      pass1.assign(static_cast<size_t>(level.n_theta_o) * kP, 0.0);
-      for (int to = 0; to < level.n_theta_o; ++to)
-        for (int p = 0; p < kP; ++p) {
-          double sum = 0.0;
-          for (int k = -half; k <= half; ++k) sum += kernel[k + half] * src(to * step + k, p);
-          pass1[static_cast<size_t>(to) * kP + p] = sum;
-        }
-      // Pass 2 (phi): along the parallel, sigma_phi = sigma / sin(theta_o), periodic.
-      float *out = level.values.data() + static_cast<size_t>(ti) * level.n_theta_o * level.n_phi;
-      for (int to = 0; to < level.n_theta_o; ++to) {
-        const double sin_t = std::max(std::sin(to * step * kDeg), std::sin(0.5 * kDeg));
-        const double sigma_phi = sigma / sin_t;
-        const int half_phi = static_cast<int>(std::ceil(std::min(3.0 * sigma_phi, 180.0)));
-        kernel.resize(2 * half_phi + 1);
-        double norm_phi = 0.0;
-        for (int k = -half_phi; k <= half_phi; ++k) norm_phi += kernel[k + half_phi] = std::exp(-0.5 * sq(k / sigma_phi));
-        const double *row = pass1.data() + static_cast<size_t>(to) * kP;
-        for (int p = 0; p < level.n_phi; ++p) {
-          double sum = 0.0;
-          for (int k = -half_phi; k <= half_phi; ++k) {
-            int q = ((p * step + k) % 360 + 360) % 360;
-            if (q > 180) q = 360 - q;
-            sum += kernel[k + half_phi] * row[q];
-          }
-          out[static_cast<size_t>(to) * level.n_phi + p] = static_cast<float>(sum / norm_phi);
-        }
-      }
-    }
-    // Step 4: the blurred lobe weighted by the same W that eval multiplies it
-    // with must reflect the energy of the unblurred one (blurring P moves
-    // probability toward grazing wo, where W is large: without this the
-    // albedo grew to 2..4.7 at grazing incidence).
-    const std::vector<double> weight = weight_grid(spec, ti);
-    // Level 0 first: the cone estimator W(wo) P_gamma(wo) / sigma averages
-    // W over the cone (W is convex near the horizon) and is read through
-    // trilinear lookups, so its albedo can exceed the smooth model's (GGX
-    // 0.35: +0.6..1.0 % at 86..89 degrees; GGX 0.2: +0.7 % at normal
-    // incidence). Where it exceeds it by more than the energy grid resolves
-    // (kEnergyResolution), level 0 is scaled down to that bound; elsewhere it
-    // is left exact.
-    double target_energy = slice_energy(table->levels[0], ti, weight);
-    const double bound = smooth_albedo(spec, ti) * cone_solid_angle_d(spec.gamma_deg * kDeg) * (1.0 + kEnergyResolution);
-    if (target_energy > bound && bound > 0.0) {
-      const float s = static_cast<float>(bound / target_energy);
-      float *out = table->levels[0].values.data() + static_cast<size_t>(ti) * slice_size;
-      for (size_t i = 0; i < slice_size; ++i) out[i] *= s;
-      target_energy = slice_energy(table->levels[0], ti, weight);
-    }
-    for (int l = 1; l < kLodCount; ++l) {
-      LodLevel &level = table->levels[l];
-      const double energy = slice_energy(level, ti, weight);
-      if (!(energy > 0.0) || !(target_energy > 0.0)) continue;
-      const float s = static_cast<float>(target_energy / energy);
-      float *out = level.values.data() + static_cast<size_t>(ti) * level.n_theta_o * level.n_phi;
-      for (size_t i = 0; i < static_cast<size_t>(level.n_theta_o) * level.n_phi; ++i) out[i] *= s;
-    }
+    for (int l = 1; l < kLodCount; ++l) blur_slice(slice, ti, table->levels[l], kernel, pass1);
+    normalise_slice_energy(spec, ti, *table);
   });
   table->build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return table;

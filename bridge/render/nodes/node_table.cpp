@@ -18,10 +18,10 @@ std::string format_float(float v) {
 constexpr SocketType F = SocketType::Float, C = SocketType::Color, V = SocketType::Vector;
 const SocketDecl kTextureVector{"vector", V, Vec3(0.0f), Implicit::Generated};
 const SocketDecl kNormalInput{"normal", V, Vec3(0.0f), Implicit::Normal};
-}  // namespace
 
-const std::vector<NodeDef> &node_table() {
-  static const std::vector<NodeDef> table = {
+// Procedural textures, the colour ramp, math, mixing and mapping.
+void add_texture_and_math_rows(std::vector<NodeDef> &t) {
+  const std::vector<NodeDef> rows = {
       {"noise_texture",
        {kTextureVector, {"w", F}, {"scale", F, Vec3(5.0f)}, {"detail", F, Vec3(2.0f)}, {"roughness", F, Vec3(0.5f)},
         {"distortion", F}},
@@ -75,6 +75,13 @@ const std::vector<NodeDef> &node_table() {
        {{"vector", V}, {"location", V}, {"rotation", V}, {"scale", V, Vec3(1.0f)}},
        {{"vector", V}},
        configure_mapping, eval_mapping, "supported: point, texture, vector, normal; XYZ Euler rotation"},
+  };
+  t.insert(t.end(), rows.begin(), rows.end());
+}
+
+// Input nodes (texture coordinate, geometry, fresnel, light path) and two more textures.
+void add_input_rows(std::vector<NodeDef> &t) {
+  const std::vector<NodeDef> rows = {
       {"texture_coordinate",
        {},
        {{"generated", V},
@@ -123,6 +130,13 @@ const std::vector<NodeDef> &node_table() {
        {kTextureVector, {"w", F}},
        {{"value", F}, {"color", C}},
        configure_white_noise, eval_white_noise, "supported: 1D-4D"},
+  };
+  t.insert(t.end(), rows.begin(), rows.end());
+}
+
+// Converters, the shading normal / tangent nodes and the sky texture.
+void add_converter_normal_and_sky_rows(std::vector<NodeDef> &t) {
+  const std::vector<NodeDef> rows = {
       {"value", {}, {{"value", F}}, configure_value, eval_value, "supported (`value` attribute)"},
       {"color", {}, {{"color", C}}, configure_value, eval_value, "supported (`value` attribute, RGB)"},
       {"invert", {{"fac", F, Vec3(1.0f)}, {"color", C}}, {{"color", C}}, nullptr, eval_invert, "supported"},
@@ -182,6 +196,19 @@ const std::vector<NodeDef> &node_table() {
        "and importance-sampled by the world light when the vector is unlinked), preetham; hosek_wilkie "
        "approximated by preetham (warned); texture mapping attributes unsupported"},
   };
+  t.insert(t.end(), rows.begin(), rows.end());
+}
+
+}  // namespace
+
+const std::vector<NodeDef> &node_table() {
+  static const std::vector<NodeDef> table = [] {
+    std::vector<NodeDef> t;
+    add_texture_and_math_rows(t);
+    add_input_rows(t);
+    add_converter_normal_and_sky_rows(t);
+    return t;
+  }();
   return table;
 }
 
