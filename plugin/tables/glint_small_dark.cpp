@@ -18,6 +18,34 @@ std::unique_ptr<const SmallDarkField> make_small_dark_field(const DirectionCellK
 }
 
 #if GLIMMER_GLINT_WALK_AVX2
+namespace {
+// small_footprint_dark_avx2's pass 1: every node's four group hashes (node_seed_hash in lanes) and quick rejects, as
+// bit 4 n + g of the result (n the node in row-major order of the rows x cols box from (i0, j0)).
+[[gnu::target("avx2"), gnu::always_inline]] inline uint64_t passing_pairs(
+    int level, int64_t i0, int64_t j0, int64_t rows, int64_t cols, __m128i seeds, __m128i below, __m128i bias,
+    uint32_t all_pass, uint32_t (*hashes)[kDirectionGroups], int64_t *node_i, int64_t *node_j) {
+  uint64_t pairs = 0;
+  int n = 0;
+  for (int64_t r = 0; r < rows; ++r) {
+    const int64_t j = j0 + r;
+    const uint32_t row_key = node_row_key(level, j);
+    for (int64_t c = 0; c < cols; ++c, ++n) {
+      const int64_t i = i0 + c;
+      const uint32_t key = row_key + static_cast<uint32_t>(i) * kNodeKeyStep;
+      const __m128i h = mix_u32x4_avx2(_mm_xor_si128(_mm_set1_epi32(static_cast<int>(key)), seeds));
+      _mm_store_si128(reinterpret_cast<__m128i *>(hashes[n]), h);
+      node_i[n] = i, node_j[n] = j;
+      pairs |= static_cast<uint64_t>(
+                   all_pass | static_cast<uint32_t>(_mm_movemask_ps(_mm_castsi128_ps(_mm_cmpgt_epi32(below, _mm_xor_si128(h, bias))))))
+               << (kDirectionGroups * n);
+    }
+  }
+  return pairs;
+}
+}  // namespace
+#endif
+
+#if GLIMMER_GLINT_WALK_AVX2
 [[gnu::target("avx2")]] SmallDark small_footprint_dark_avx2(const SmallDarkField &m,
                                                                                   const Footprint &f, double area,
                                                                                   double density, const Vec3 &wi,
@@ -62,22 +90,7 @@ std::unique_ptr<const SmallDarkField> make_small_dark_field(const DirectionCellK
   // Pass 1: every node's four group hashes (node_seed_hash in lanes) and quick rejects, as bit 4 n + g of `pairs`.
   alignas(16) uint32_t hashes[kBoxSpan * kBoxSpan][kDirectionGroups];
   int64_t node_i[kBoxSpan * kBoxSpan], node_j[kBoxSpan * kBoxSpan];
-  uint64_t pairs = 0;
-  int n = 0;
-  for (int64_t r = 0; r < rows; ++r) {
-    const int64_t j = j0 + r;
-    const uint32_t row_key = node_row_key(level, j);
-    for (int64_t c = 0; c < cols; ++c, ++n) {
-      const int64_t i = i0 + c;
-      const uint32_t key = row_key + static_cast<uint32_t>(i) * kNodeKeyStep;
-      const __m128i h = mix_u32x4_avx2(_mm_xor_si128(_mm_set1_epi32(static_cast<int>(key)), seeds));
-      _mm_store_si128(reinterpret_cast<__m128i *>(hashes[n]), h);
-      node_i[n] = i, node_j[n] = j;
-      pairs |= static_cast<uint64_t>(
-                   all_pass | static_cast<uint32_t>(_mm_movemask_ps(_mm_castsi128_ps(_mm_cmpgt_epi32(below, _mm_xor_si128(h, bias))))))
-               << (kDirectionGroups * n);
-    }
-  }
+  uint64_t pairs = passing_pairs(level, i0, j0, rows, cols, seeds, below, bias, all_pass, hashes, node_i, node_j);
   if (pairs == 0) return SmallDark::kDark;  // K = 0 in every pair
   // Pass 2: the pairs in count_reflecting_particles' order (node by node, groups in order).
   const LitCountBounds bounds(lambda);
