@@ -47,9 +47,14 @@ struct ValuedExitLobe {
   const ExitLobeMixture *proposal = nullptr;
   double (*value)(const void *context, const Vec3 &w) = nullptr;
   const void *context = nullptr;
+  // The value first: where it is not > 0 the point does not count (lamp_through_lobe reads `draw` only after a p > 0),
+  // so the proposal's density (an exp per lobe) is made only where it does (session 29, frostedcost29: the pane's
+  // exits leave by one face, and its lamp points on the other side, most of the bench's, all have value 0).
   double pdf_and_draw_density(const Vec3 &w, double &draw) const {
-    proposal->pdf_and_draw_density(w, draw);
-    return value(context, w);
+    const double v = value(context, w);
+    draw = 0.0;
+    if (v > 0.0) proposal->pdf_and_draw_density(w, draw);
+    return v;
   }
   double pdf(const Vec3 &w) const { return value(context, w); }  // the value (the tests' brute force reads it)
   using DrawCos = ExitLobeMixture::DrawCos;

@@ -768,7 +768,7 @@ struct Renderer::Impl {
     bool active = false;
     int count = 0;
     Vec3 axis[ExitLobeMixture::kMaxLobes];
-    float cone[ExitLobeMixture::kMaxLobes] = {};  // half-angles, radians
+    double kappa[ExitLobeMixture::kMaxLobes] = {};  // the lobes' sharpness: the cone made in lookup (exit_world_cone)
     float weight[ExitLobeMixture::kMaxLobes] = {};
     bool lamps = false;  // the lamps were integrated against the lobe at the exit: the segment's lamp hits count 0
     // A mixture's lobe gets spiral points in proportion to its weight (at least kMixtureConePointsMin): 64 per lobe
@@ -781,7 +781,10 @@ struct Renderer::Impl {
         const int points = count == 1 ? EnvironmentCone::kConePoints
                                       : std::clamp(int(std::ceil(float(EnvironmentCone::kConePoints) * weight[k])),
                                                    kMixtureConePointsMin, EnvironmentCone::kConePoints);
-        sum += env.lookup(shaders, axis[k], cone[k], points) * weight[k];
+        // The cap's half-angle, radians; made here, only for an exit ray that escapes (session 29: in
+        // integrate_exit_lobe it was made for every exit, a log1p, an expm1 and an asin per lobe; the same value).
+        const float cone = static_cast<float>(exit_world_cone(kappa[k]));
+        sum += env.lookup(shaders, axis[k], cone, points) * weight[k];
       }
       return sum;
     }
@@ -870,7 +873,7 @@ struct Renderer::Impl {
     exit_world.count = lobe.count;
     for (int k = 0; k < lobe.count; ++k) {
       exit_world.axis[k] = lobe.lobe[k].axis;
-      exit_world.cone[k] = static_cast<float>(exit_world_cone(lobe.lobe[k].kappa));
+      exit_world.kappa[k] = lobe.lobe[k].kappa;
       exit_world.weight[k] = static_cast<float>(lobe.weight[k]);
     }
     if (!options.exit_lobe_nee || !use_nee() || lights->count() == 0) return;

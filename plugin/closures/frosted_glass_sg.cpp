@@ -172,8 +172,9 @@ void exit_curvature(Segment &seg, const Vec3 &axis) {
   seg.curvature = count > 0 ? sum / float(count) : kInf;
   seg.curvature_facing = count_facing > 0 ? sum_facing / float(count_facing) : kInf;
 }
+// `rays`: the bounding rays traced, the first `rays` of (+s, -s, +t, -t) (4: the paper's; bounding_rays' rule).
 bool trace_segment(const GlimmerHostServices *host, const SgInputs &in, const Vec3 &origin, const Vec3 &axis,
-                   float kappa_in, Segment &seg) {
+                   float kappa_in, Segment &seg, int rays = 4) {
   if (!trace_interior(host, in, origin, axis, seg.axis) || !seg.axis.same_material) return false;
   Vec3 sum = seg.axis.normal;
   int count = 1;
@@ -181,7 +182,8 @@ bool trace_segment(const GlimmerHostServices *host, const SgInputs &in, const Ve
   const float c = std::cos(theta_b), s = std::sin(theta_b);
   const Frame f = Frame::from_normal(axis);
   const Vec3 offsets[4] = {f.s, -f.s, f.t, -f.t};
-  for (const Vec3 &o : offsets) {
+  for (int i = 0; i < rays; ++i) {
+    const Vec3 &o = offsets[i];
     InteriorHit h;
     const Vec3 dir = normalize(axis * c + o * s);
     if (trace_interior(host, in, origin, dir, h) && h.same_material) {
@@ -752,16 +754,33 @@ bool drawn_entry_axis(const ShadingPoint &sp, const SgInputs &in, const Vec3 *en
   return true;
 }
 
-// The next segment inside (trace_segment); after a drawn entry axis (`drawn`: drawn_entry_axis, the first segment)
-// only where its exit is curved: at a planar one (a slab's back face) the front SG's axis and width again (kEntryAxis).
+// A narrow internal lobe's segment (session 29, frostedcost29): where kappa_in >= kNarrowPairKappa (the camera-seen
+// solid's drawn entry axis, kappa >= kEntryKappa, and the sampled reflections after it, which keep that width) the
+// bounding cone is ~1 deg wide (theta_b = sqrt(2 ln 4 / kappa) = 0.017 at 1e4) and its 4 rays see the axis' exit
+// again: only the +-s pair is traced (the mean normal, curvature, energies and traced cone from 2 rays; the exit
+// bundle and the axis shift, which need all 4, are ~theta_b^2 there). For measurements only
+// GLIMMER_FROSTED_NARROW_PAIR_KAPPA = k (0: always 4 rays, main's images), read once.
+constexpr float kNarrowPairKappa = 1e3f;
+float narrow_pair_kappa() {
+  static const float k = measurement_knob("GLIMMER_FROSTED_NARROW_PAIR_KAPPA", kNarrowPairKappa, 0.0f, 1e30f);
+  return k;
+}
+int bounding_rays(float kappa_in) {
+  const float k = narrow_pair_kappa();
+  return k > 0.0f && kappa_in >= k ? 2 : 4;
+}
+
+// The next segment inside (trace_segment; bounding_rays); after a drawn entry axis (`drawn`: drawn_entry_axis, the
+// first segment) only where its exit is curved: at a planar one (a slab's back face) the front SG's axis and width
+// again (kEntryAxis).
 bool next_segment(const GlimmerShadingContext &ctx, const SgInputs &in, const SphericalGaussian &front, bool drawn,
                   Vec3 &axis, float &kappa_in, Vec3 &origin, Segment &seg) {
-  if (!trace_segment(ctx.host, in, origin, axis, kappa_in, seg)) return false;
+  if (!trace_segment(ctx.host, in, origin, axis, kappa_in, seg, bounding_rays(kappa_in))) return false;
   if (!drawn || !(seg.curvature < kPlanarExitCurvature)) return true;
   axis = front.axis, kappa_in = front.sharpness;
   origin = offset_origin(Vec3(ctx.P), Vec3(ctx.Ng), axis);
   seg = Segment{};  // trace_segment appends the bounding rays
-  return trace_segment(ctx.host, in, origin, axis, kappa_in, seg);
+  return trace_segment(ctx.host, in, origin, axis, kappa_in, seg, bounding_rays(kappa_in));
 }
 
 }  // namespace

@@ -514,5 +514,83 @@ TEST(LampThroughLobe, LampWhollyBelowTheExitIsSkippedExactly) {
   EXPECT_GT(control_differs, 20);
 }
 
+// Session 29 (frostedcost29): ValuedExitLobe::pdf_and_draw_density makes the proposal's draw density only where the
+// value is > 0 (lamp_through_lobe reads it only after p > 0). Against the former order (the proposal's density for
+// every point, then the value; a test-local copy) over random prepared mixtures sharing one exit normal, a value that
+// is the mixture's density on one side of a random plane through P and 0 on the other (the pane's exact exit is 0 on
+// the other side of its exit face), quad and round lamps in random directions, numbers (u, v, pick): the same result,
+// estimate, direction and distance bit for bit. Negative control: the proposal's density skipped everywhere (draw 0)
+// must differ somewhere.
+struct HalfSpaceValue {
+  const ExitLobeMixture *m;
+  Vec3 side;
+  static double value(const void *self, const Vec3 &w) {
+    const HalfSpaceValue &h = *static_cast<const HalfSpaceValue *>(self);
+    return dot(w, h.side) > 0.0f ? h.m->pdf(w) : 0.0;
+  }
+};
+struct ProposalAlwaysFirst : render::ValuedExitLobe {  // the order before session 29
+  double pdf_and_draw_density(const Vec3 &w, double &draw) const {
+    proposal->pdf_and_draw_density(w, draw);
+    return value(context, w);
+  }
+};
+struct ProposalNever : render::ValuedExitLobe {  // the negative control
+  double pdf_and_draw_density(const Vec3 &w, double &draw) const {
+    draw = 0.0;
+    return value(context, w);
+  }
+};
+TEST(LampThroughLobe, ValuedLobeWithoutTheProposalWhereTheValueIsZero) {
+  Pcg32 rng(2029, 29);
+  const auto unit = [&] { return random_unit(rng); };
+  const auto bits_equal = [](const auto &a, const auto &b) { return std::memcmp(&a, &b, sizeof a) == 0; };
+  int trials = 0, reached = 0, differ = 0, control_differs = 0;
+  for (int trial = 0; trial < 3000; ++trial) {
+    const Vec3 n = unit(), P(rng.next_float() - 0.5f, rng.next_float() - 0.5f, rng.next_float() - 0.5f);
+    ExitLobeMixture m;
+    m.count = 1 + int(rng.next_float() * 3.0f);
+    for (int k = 0; k < m.count; ++k) {
+      Vec3 axis = unit();
+      if (dot(axis, n) < 0.0f) axis = -axis;
+      m.lobe[k] = ExitLobe::make(axis, std::pow(10.0, -1.0 + 4.0 * rng.next_float()), n);
+      m.weight[k] = 0.05 + rng.next_float();
+    }
+    m.normalize();
+    m.prepare();
+    const HalfSpaceValue half{&m, unit()};
+    const render::ValuedExitLobe valued{&m, &HalfSpaceValue::value, &half};
+    const ProposalAlwaysFirst before{valued};
+    const ProposalNever control{valued};
+    Vec3 d = unit();
+    if (dot(d, n) < 0.0f) d = -d;  // above the exit: the lamp can count
+    scene::Light l = quad_lamp(P, d, 0.3f + 4.7f * rng.next_float(), 0.05f + 1.95f * rng.next_float());
+    const Frame tilt = Frame::from_normal(normalize(-d + unit() * 0.5f));
+    l.axisu = tilt.s, l.axisv = tilt.t, l.dir = tilt.n;
+    l.round = rng.next_float() < 0.3f;
+    const render::AreaLight lamp(l, Spectrum(4.0f * l.sizeu * l.sizev));
+    for (int j = 0; j < 4; ++j) {
+      const float u = rng.next_float(), v = rng.next_float(), pick = rng.next_float();
+      LampEstimate a, b, c;
+      const bool ra = render::lamp_through_lobe(lamp, P, valued, u, v, pick, a);
+      const bool rb = render::lamp_through_lobe(lamp, P, before, u, v, pick, b);
+      const bool rc = render::lamp_through_lobe(lamp, P, control, u, v, pick, c);
+      ++trials;
+      reached += rb;
+      const auto same = [&](const LampEstimate &x) {
+        return bits_equal(x.value, b.value) && bits_equal(x.wi, b.wi) && bits_equal(x.dist, b.dist);
+      };
+      differ += ra != rb || (ra && !same(a));
+      control_differs += rc != rb || (rc && !same(c));
+    }
+  }
+  std::printf("[lamp through lobe] valued lobe, the proposal only where the value is > 0: %d estimates, %d reach the "
+              "lamp; differ from the former order: %d; control (no proposal density) differs at %d\n",
+              trials, reached, differ, control_differs);
+  EXPECT_EQ(differ, 0);
+  EXPECT_GT(reached, trials / 5);
+  EXPECT_GT(control_differs, 20);
+}
+
 }  // namespace
 }  // namespace glimmer::test
