@@ -740,11 +740,11 @@ float floor_view_share() {
 // s of their angle (or, GLIMMER_FROSTED_FLOOR_VIEW_SG, drawn from a vMF about the front axis of sharpness
 // kappa_front / s^2), the drawn part's angular variance s^2 of the front lobe's; the internal lobe about it keeps the
 // rest, kappa_in = kappa_front / (1 - s^2) (a vMF's angular variance ~ 2 / kappa), at most drawn_entry_axis' cap.
-// False (the front SG kept) for s = 0 or no usable entry. Measured and not kept (kFloorView 0).
-bool floor_view_axis(const ShadingPoint &sp, const Vec3 *entry, uint32_t seed, const SphericalGaussian &front,
-                     Vec3 &axis, float &kappa_in) {
+// Called for s > 0 only (drawn_entry_axis); false (the front SG kept) without a usable entry. Measured, not kept.
+[[gnu::noinline]] bool floor_view_axis(const ShadingPoint &sp, const Vec3 *entry, uint32_t seed,
+                                       const SphericalGaussian &front, Vec3 &axis, float &kappa_in) {
   const float s = floor_view_share();
-  if (!(s > 0.0f) || entry == nullptr || !is_finite(*entry)) return false;
+  if (entry == nullptr || !is_finite(*entry)) return false;
   static const bool from_sg = measurement_knob("GLIMMER_FROSTED_FLOOR_VIEW_SG", 0, 0, 1) != 0;
   const Vec3 a = normalize(Vec3(front.axis)), d = normalize(*entry);
   Vec3 turned = a;
@@ -769,7 +769,8 @@ bool floor_view_axis(const ShadingPoint &sp, const Vec3 *entry, uint32_t seed, c
 // than kEntryKappa); false (the front SG kept) otherwise. The floor's view: floor_view_axis.
 bool drawn_entry_axis(const ShadingPoint &sp, const SgInputs &in, const Vec3 *entry, uint32_t seed,
                       const SphericalGaussian &front, Vec3 &axis, float &kappa_in) {
-  if (!seen_directly(*sp.ctx)) return floor_view_axis(sp, entry, seed, front, axis, kappa_in);
+  if (!seen_directly(*sp.ctx))  // the floor's view: main's front SG unless kFloorView (a call only then)
+    return floor_view_share() > 0.0f && floor_view_axis(sp, entry, seed, front, axis, kappa_in);
   const int mode = entry_axis_mode(in);
   if (mode == 0) return false;
   Vec3 d;
