@@ -731,14 +731,50 @@ float entry_kappa() {
   static const float k = measurement_knob("GLIMMER_FROSTED_ENTRY_KAPPA", kEntryKappa, 1.0f, 1e7f);
   return k;
 }
+// kFloorView, or for measurements only GLIMMER_FROSTED_FLOOR_VIEW = s (0: the front SG, main's images) and
+// GLIMMER_FROSTED_FLOOR_VIEW_SG (1: the drawn part from the front SG), read once.
+float floor_view_share() {
+  static const float s = measurement_knob("GLIMMER_FROSTED_FLOOR_VIEW", kFloorView, 0.0f, 1.0f);
+  return s;
+}
+// kFloorView (frosted_glass_sg.h) where the solid is not seen directly (the floor's view), a partial draw: the
+// internal axis turned from the front SG's axis towards the front sample's refracted direction `entry` by the share
+// s of their angle (or, GLIMMER_FROSTED_FLOOR_VIEW_SG, drawn from a vMF about the front axis of sharpness
+// kappa_front / s^2), the drawn part's angular variance s^2 of the front lobe's; the internal lobe about it keeps the
+// rest, kappa_in = kappa_front / (1 - s^2) (a vMF's angular variance ~ 2 / kappa), at most drawn_entry_axis' cap.
+// Called for s > 0 only (drawn_entry_axis); false (the front SG kept) without a usable entry. Measured, not kept.
+[[gnu::noinline]] bool floor_view_axis(const ShadingPoint &sp, const Vec3 *entry, uint32_t seed,
+                                       const SphericalGaussian &front, Vec3 &axis, float &kappa_in) {
+  const float s = floor_view_share();
+  if (entry == nullptr || !is_finite(*entry)) return false;
+  static const bool from_sg = measurement_knob("GLIMMER_FROSTED_FLOOR_VIEW_SG", 0, 0, 1) != 0;
+  const Vec3 a = normalize(Vec3(front.axis)), d = normalize(*entry);
+  Vec3 turned = a;
+  if (from_sg) {
+    mf::WalkRng rng(hash_u32x2(seed, 0x7f4a7c15u));
+    const float u1 = rng.next(), u2 = rng.next();
+    turned = glimmer::sample_vmf(a, double(front.sharpness / (s * s)), u1, u2);
+  } else if (const float c = std::clamp(dot(a, d), -1.0f, 1.0f); 1.0f - c > 1e-9f) {
+    const Vec3 t = d - a * c;
+    const float angle = s * std::acos(c), tl = length(t);
+    if (tl > 1e-6f) turned = a * std::cos(angle) + t * (std::sin(angle) / tl);
+  }
+  if (!is_finite(turned) || !(dot(turned, Vec3(sp.ctx->Ng)) < 0.0f)) return false;
+  axis = normalize(turned);
+  const float cap = std::max(entry_kappa(), front.sharpness * 100.0f);
+  kappa_in = s >= 1.0f ? cap : std::min(cap, front.sharpness / (1.0f - s * s));
+  return true;
+}
 // kEntryAxis (frosted_glass_sg.h) where the solid is seen directly (sampled_reflection_at's test): the internal axis
 // is the front sample's own refracted direction (m 1, `entry`) or a draw from the front SG (m 2), the internal lobe
 // about it of sharpness entry_kappa or 100 x the front SG's (the shell's roughness 0.1: its front SG is narrower
-// than kEntryKappa); false (the front SG kept) otherwise.
+// than kEntryKappa); false (the front SG kept) otherwise. The floor's view: floor_view_axis.
 bool drawn_entry_axis(const ShadingPoint &sp, const SgInputs &in, const Vec3 *entry, uint32_t seed,
                       const SphericalGaussian &front, Vec3 &axis, float &kappa_in) {
+  if (!seen_directly(*sp.ctx))  // the floor's view: main's front SG unless kFloorView (a call only then)
+    return floor_view_share() > 0.0f && floor_view_axis(sp, entry, seed, front, axis, kappa_in);
   const int mode = entry_axis_mode(in);
-  if (mode == 0 || !seen_directly(*sp.ctx)) return false;
+  if (mode == 0) return false;
   Vec3 d;
   if (mode == 1) {
     if (entry == nullptr) return false;

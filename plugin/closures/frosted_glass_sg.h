@@ -190,6 +190,12 @@ inline constexpr float kCurvedExitWaist = 1.0f;
 // per sample 0.185 -> 0.490 (path's 0.439).
 inline constexpr int kEntryAxis = 1;
 inline constexpr float kEntryKappa = 1e4f;
+// Session 29 (frostedshadow29; docs/frosted_glass.md "Session 29 (frostedshadow29)"): a partial draw of the internal
+// axis in the floor's view (the solid not seen directly; floor_view_axis): turned from the front SG's axis towards
+// the front sample's refracted direction by the share kFloorView of their angle, the internal lobe's sharpness
+// kappa_front / (1 - kFloorView^2). Measured and not kept (0: the front SG, as before): on the caustic bench's
+// caustic crop (2 x 16384) every share widens the caustic's core and multiplies its variance (s 0.3 x 1.9, 0.5 x 4).
+inline constexpr float kFloorView = 0.0f;
 // Session 23 (frostedexit23): a shape per roughness. kCurvedExitShape up to kCurvedShapeRoughness[0] (0.5, the
 // caustic bench's sphere, unchanged there), kCurvedExitShapeWide (a core x 1.8, weight 0.7, a tail x 0.3, weight 0.3)
 // from kCurvedShapeRoughness[1] (0.6) up to kCurvedSplitMax, the shares and factors interpolated linearly between.
