@@ -1697,7 +1697,8 @@ struct PairPassCounter {
   // same order as list_pairs (~13 instructions per particle there; ~2.5 border pairs per nonzero byte in the GI
   // render). Session 29 (glintpaired29): the bytes in order from the first nonzero one to the last (a zero byte
   // between them stores entries the list does not take: its count adds 0), the hashes' address and the byte's
-  // first pair advanced by eight per byte: no tzcnt / shift / clear per byte (26 -> 16 instructions per byte; GI 111 353 bytes for 101 299 nonzero).
+  // first pair advanced by eight per byte: no tzcnt / shift / clear per byte (26 -> 16 instructions per byte; in
+  // the GI render 111 353 bytes for 101 299 nonzero ones).
   // `border` != 0 (the caller's test).
   [[gnu::target("avx2,popcnt")]] void list_pairs_avx2(uint64_t border, int w, uint32_t step,
                                                        const uint32_t *node_hash) {
@@ -1913,6 +1914,20 @@ struct TabledOriginLanesAvx2 {
 [[gnu::target("avx2"), gnu::always_inline]] inline __m256d within_half_avx2(__m256d v) {
   return _mm256_cmp_pd(_mm256_andnot_pd(_mm256_set1_pd(-0.0), v), _mm256_set1_pd(0.5), _CMP_LE_OS);
 }
+// The four corners c, c + d_ux, c + d_uy, (c + d_ux) + d_uy (node_inside's sums) all within 1/2 per lane, as the
+// largest |corner| <= 1/2 (session 29, glintpaired29: three VMAXPD and one compare where four compares and three
+// ANDs were). The same flags, NaN included: VMAXPD returns its second operand when either is NaN, and a NaN
+// corner makes (c + d_ux) + d_uy NaN (c NaN makes every corner NaN; c + d_ux NaN makes the last one NaN; c + d_uy
+// NaN with c not NaN is d_uy NaN or c = -d_uy = +-inf, and then (c + d_ux) + d_uy is NaN for every d_ux), which is
+// the second operand of both maxima it goes through: the maximum is NaN and the compare false.
+[[gnu::target("avx2"), gnu::always_inline]] inline __m256d corners_within_half_avx2(__m256d c, __m256d d_ux,
+                                                                                 __m256d d_uy) {
+  const __m256d sign = _mm256_set1_pd(-0.0), c10 = _mm256_add_pd(c, d_ux);
+  const __m256d near = _mm256_max_pd(_mm256_andnot_pd(sign, c), _mm256_andnot_pd(sign, c10));
+  const __m256d far = _mm256_max_pd(_mm256_andnot_pd(sign, _mm256_add_pd(c, d_uy)),
+                                    _mm256_andnot_pd(sign, _mm256_add_pd(c10, d_uy)));
+  return _mm256_cmp_pd(_mm256_max_pd(near, far), _mm256_set1_pd(0.5), _CMP_LE_OS);
+}
 // Nodes a0, a1, a2, a3: their origins stored at a0 .. a0 + 3, and bit k set where node ak lies inside.
 [[gnu::target("avx2"), gnu::always_inline]] inline uint32_t tabled_origins_chunk_avx2(const TabledOriginLanesAvx2 &l,
                                                                                     const NodeList &nodes,
@@ -1928,14 +1943,8 @@ struct TabledOriginLanesAvx2 {
   const __m256d lo = _mm256_unpacklo_pd(s, t), hi = _mm256_unpackhi_pd(s, t);  // (s0 t0 s2 t2), (s1 t1 s3 t3)
   _mm256_storeu_pd(&pc.origin[a0].s, _mm256_permute2f128_pd(lo, hi, 0x20));
   _mm256_storeu_pd(&pc.origin[a0 + 2].s, _mm256_permute2f128_pd(lo, hi, 0x31));
-  const __m256d s10 = _mm256_add_pd(s, l.ds_ux), t10 = _mm256_add_pd(t, l.dt_ux);
-  const __m256d in_s = _mm256_and_pd(_mm256_and_pd(within_half_avx2(s), within_half_avx2(s10)),
-                                     _mm256_and_pd(within_half_avx2(_mm256_add_pd(s, l.ds_uy)),
-                                                   within_half_avx2(_mm256_add_pd(s10, l.ds_uy))));
-  const __m256d in_t = _mm256_and_pd(_mm256_and_pd(within_half_avx2(t), within_half_avx2(t10)),
-                                     _mm256_and_pd(within_half_avx2(_mm256_add_pd(t, l.dt_uy)),
-                                                   within_half_avx2(_mm256_add_pd(t10, l.dt_uy))));
-  return static_cast<uint32_t>(_mm256_movemask_pd(_mm256_and_pd(in_s, in_t)));
+  return static_cast<uint32_t>(
+      _mm256_movemask_pd(_mm256_and_pd(corners_within_half_avx2(s, l.ds_ux, l.ds_uy), corners_within_half_avx2(t, l.dt_ux, l.dt_uy))));
 }
 // Nibble k of the result 0xf where bit k of m (< 16) is set: four lanes' flags to their nodes' four pairs.
 inline constexpr std::array<uint16_t, 16> kFlagNibbles = [] {
