@@ -1903,8 +1903,8 @@ inline std::array<uint64_t, PairMasks::kWords> interior_words(const PairMasks &p
 // instructions one by one): the origins by origin()'s products in the same order (the same values, stored for the
 // flush), node_inside's four corners (s, s + ds_ux, s + ds_uy, (s + ds_ux) + ds_uy, the same for t: its sums), and
 // the nodes inside as the nibbles of `interior` (interior_words' bits, and those of inside nodes without a pair,
-// which no layer bit reads). No inside_mask: the tabled walk reads only `interior`. The last chunk repeats node
-// count - 1 in its missing lanes (their bits cleared). GlintParticles.PairPassesMatchTheNodeLoop and
+// which no layer bit reads). No inside_mask: the tabled walk reads only `interior`. The last chunk's missing lanes
+// have their bits cleared (their origins, stored past the list's, are not read). GlintParticles.PairPassesMatchTheNodeLoop and
 // GroupPassAvx2MatchesSse2 (the SSE2 passes: paired_node_origins and interior_words).
 // The frame's constants in lanes (tabled_node_origins_avx2).
 struct TabledOriginLanesAvx2 {
@@ -1928,15 +1928,11 @@ struct TabledOriginLanesAvx2 {
                                     _mm256_andnot_pd(sign, _mm256_add_pd(c10, d_uy)));
   return _mm256_cmp_pd(_mm256_max_pd(near, far), _mm256_set1_pd(0.5), _CMP_LE_OS);
 }
-// Nodes a0, a1, a2, a3: their origins stored at a0 .. a0 + 3, and bit k set where node ak lies inside.
+// Nodes a0 .. a0 + 3 at (x, y) (their i, j as doubles): their origins stored at a0 .. a0 + 3, and bit k set where
+// node a0 + k lies inside.
 [[gnu::target("avx2"), gnu::always_inline]] inline uint32_t tabled_origins_chunk_avx2(const TabledOriginLanesAvx2 &l,
-                                                                                    const NodeList &nodes,
-                                                                                    PairPassCounter &pc, size_t a0,
-                                                                                    size_t a1, size_t a2, size_t a3) {
-  const __m256d x = _mm256_setr_pd(static_cast<double>(nodes.i[a0]), static_cast<double>(nodes.i[a1]),
-                                   static_cast<double>(nodes.i[a2]), static_cast<double>(nodes.i[a3]));
-  const __m256d y = _mm256_setr_pd(static_cast<double>(nodes.j[a0]), static_cast<double>(nodes.j[a1]),
-                                   static_cast<double>(nodes.j[a2]), static_cast<double>(nodes.j[a3]));
+                                                                                    __m256d x, __m256d y,
+                                                                                    PairPassCounter &pc, size_t a0) {
   const __m256d px = _mm256_sub_pd(_mm256_mul_pd(x, l.size), l.cx), py = _mm256_sub_pd(_mm256_mul_pd(y, l.size), l.cy);
   const __m256d s = _mm256_mul_pd(_mm256_sub_pd(_mm256_mul_pd(px, l.by), _mm256_mul_pd(py, l.bx)), l.inv_det);
   const __m256d t = _mm256_mul_pd(_mm256_sub_pd(_mm256_mul_pd(py, l.ax), _mm256_mul_pd(px, l.ay)), l.inv_det);
@@ -1954,29 +1950,77 @@ inline constexpr std::array<uint16_t, 16> kFlagNibbles = [] {
   return t;
 }();
 inline uint64_t flag_nibbles(uint32_t m) { return kFlagNibbles[m]; }
+// Exact int64 -> double per lane for -2^51 <= v < 2^51 (session 29, glintpaired29): v + 2^51 as the mantissa of 2^52,
+// minus 2^52 + 2^51 (both steps exact). `range` collects v + 2^51: every lane was in range iff its bits from 52 up
+// are clear (tabled_node_origins_avx2 then redoes the pass with the scalar conversions).
+[[gnu::target("avx2"), gnu::always_inline]] inline __m256d small_int64_to_double_avx2(__m256i v, __m256i &range) {
+  const __m256i biased = _mm256_add_epi64(v, _mm256_set1_epi64x(int64_t{1} << 51));
+  range = _mm256_or_si256(range, biased);
+  return _mm256_sub_pd(_mm256_castsi256_pd(_mm256_or_si256(biased, _mm256_set1_epi64x(0x4330000000000000ll))),
+                       _mm256_set1_pd(6755399441055744.0));
+}
+// The frame's constants in lanes.
+[[gnu::target("avx2"), gnu::always_inline]] inline TabledOriginLanesAvx2 tabled_origin_lanes_avx2(const FootprintFrame &fr,
+                                                                                              double size) {
+  return {_mm256_set1_pd(fr.f.cx),    _mm256_set1_pd(fr.f.cy),    _mm256_set1_pd(size),
+          _mm256_set1_pd(fr.f.ax),    _mm256_set1_pd(fr.f.ay),    _mm256_set1_pd(fr.f.bx),
+          _mm256_set1_pd(fr.f.by),    _mm256_set1_pd(fr.inv_det), _mm256_set1_pd(fr.ds_ux),
+          _mm256_set1_pd(fr.ds_uy),   _mm256_set1_pd(fr.dt_ux),   _mm256_set1_pd(fr.dt_uy)};
+}
+// v[a], v[a + 1], v[a + 2], v[a + 3] as doubles (cvtsi2sd), past `last` v[last].
+[[gnu::target("avx2"), gnu::always_inline]] inline __m256d converted_lanes_avx2(const int64_t *v, size_t a, size_t last) {
+  return _mm256_setr_pd(static_cast<double>(v[a]), static_cast<double>(v[std::min(a + 1, last)]),
+                        static_cast<double>(v[std::min(a + 2, last)]), static_cast<double>(v[std::min(a + 3, last)]));
+}
+// The pass with i, j converted one by one (cvtsi2sd: exact or rounded as the SSE2 passes' conversions), where some
+// |i| or |j| >= 2^51 (out of line, cold). The last chunk repeats node count - 1 in its missing lanes.
+[[gnu::target("avx2"), gnu::noinline, gnu::cold]] inline void tabled_node_origins_far_avx2(
+    const FootprintFrame &frame, const NodeList &nodes, PairPassCounter &pc,
+    std::array<uint64_t, PairMasks::kWords> &interior) {
+  const TabledOriginLanesAvx2 l = tabled_origin_lanes_avx2(frame, nodes.size);
+  const uint32_t can_be_inside = frame.nodes_can_be_inside ? 0xfu : 0u;
+  interior = {};
+  const int n = nodes.count;
+  for (int c = 0; c < n; c += 4) {
+    const auto a = static_cast<size_t>(c), last = static_cast<size_t>(n - 1);
+    const uint32_t m = tabled_origins_chunk_avx2(l, converted_lanes_avx2(nodes.i.data(), a, last), converted_lanes_avx2(nodes.j.data(), a, last), pc, a) & can_be_inside &
+                       ((1u << std::min(n - c, 4)) - 1u);
+    interior[a / 16] |= flag_nibbles(m) << (4 * (a % 16));
+  }
+}
+// Session 29 (glintpaired29): i and j four per step by small_int64_to_double_avx2 (two adds, an OR and a subtract per
+// register, where eight scalar conversions and six shuffles were), the last one to three nodes by a masked load
+// (the lanes past the list read 0: node (0, 0), its bits cleared); where some |i| or |j| >= 2^51 (never in the
+// renders: the coordinates of a footprint 2^51 nodes from the origin), the pass again by
+// tabled_node_origins_far_avx2. The same origins and bits (GlintParticles.TabledOriginsFarFromTheOriginMatchSse2).
 [[gnu::target("avx2")]] inline void tabled_node_origins_avx2(const FootprintFrame &frame, const NodeList &nodes,
                                                             PairPassCounter &pc,
                                                             std::array<uint64_t, PairMasks::kWords> &interior) {
-  const FootprintFrame &fr = frame;
-  const TabledOriginLanesAvx2 l{_mm256_set1_pd(fr.f.cx),    _mm256_set1_pd(fr.f.cy),    _mm256_set1_pd(nodes.size),
-                                _mm256_set1_pd(fr.f.ax),    _mm256_set1_pd(fr.f.ay),    _mm256_set1_pd(fr.f.bx),
-                                _mm256_set1_pd(fr.f.by),    _mm256_set1_pd(fr.inv_det), _mm256_set1_pd(fr.ds_ux),
-                                _mm256_set1_pd(fr.ds_uy),   _mm256_set1_pd(fr.dt_ux),   _mm256_set1_pd(fr.dt_uy)};
-  const uint32_t can_be_inside = fr.nodes_can_be_inside ? 0xfu : 0u;
+  const TabledOriginLanesAvx2 l = tabled_origin_lanes_avx2(frame, nodes.size);
+  const uint32_t can_be_inside = frame.nodes_can_be_inside ? 0xfu : 0u;
+  const auto *ni = reinterpret_cast<const long long *>(nodes.i.data());
+  const auto *nj = reinterpret_cast<const long long *>(nodes.j.data());
+  __m256i range = _mm256_setzero_si256();
   interior = {};
   const int n = nodes.count;
   int c = 0;
   for (; c + 4 <= n; c += 4) {
     const auto a = static_cast<size_t>(c);
-    const uint32_t m = tabled_origins_chunk_avx2(l, nodes, pc, a, a + 1, a + 2, a + 3) & can_be_inside;
+    const __m256d x = small_int64_to_double_avx2(_mm256_loadu_si256(reinterpret_cast<const __m256i *>(ni + a)), range);
+    const __m256d y = small_int64_to_double_avx2(_mm256_loadu_si256(reinterpret_cast<const __m256i *>(nj + a)), range);
+    const uint32_t m = tabled_origins_chunk_avx2(l, x, y, pc, a) & can_be_inside;
     interior[a / 16] |= flag_nibbles(m) << (4 * (a % 16));
   }
   if (c < n) {
-    const auto last = static_cast<size_t>(n - 1), a = static_cast<size_t>(c);
-    const uint32_t m = tabled_origins_chunk_avx2(l, nodes, pc, a, std::min(a + 1, last), std::min(a + 2, last), last) &
-                       can_be_inside & ((1u << (n - c)) - 1u);
+    const auto a = static_cast<size_t>(c);
+    const __m256i in_list = _mm256_cmpgt_epi64(_mm256_set1_epi64x(n - c), _mm256_setr_epi64x(0, 1, 2, 3));
+    const __m256d x = small_int64_to_double_avx2(_mm256_maskload_epi64(ni + a, in_list), range);
+    const __m256d y = small_int64_to_double_avx2(_mm256_maskload_epi64(nj + a, in_list), range);
+    const uint32_t m = tabled_origins_chunk_avx2(l, x, y, pc, a) & can_be_inside & ((1u << (n - c)) - 1u);
     interior[a / 16] |= flag_nibbles(m) << (4 * (a % 16));
   }
+  if (!_mm256_testz_si256(range, _mm256_set1_epi64x(-(int64_t{1} << 52)))) [[unlikely]]
+    tabled_node_origins_far_avx2(frame, nodes, pc, interior);
 }
 #endif
 
