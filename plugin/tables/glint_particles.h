@@ -2106,7 +2106,9 @@ enum class LitPairs { kIncomplete, kNoneLit, kAdded };
 
 #if GLIMMER_GLINT_WALK_AVX2
 // tabled_layers_pass' layers 1..3 in AVX2: eight hashes per compare, bytes in pass 2's layout (before the AND with
-// layer 0 and the thresholds' all_pass).
+// layer 0 and the thresholds' all_pass). The words holding the list's nodes are written: every byte the steps write,
+// and the last word zeroed first for its bytes past (node_count + 1) / 2 (session 29, glintpaired29: the caller zeroed
+// all twelve words, a `rep stos` per walk).
 [[gnu::target("avx2")]] inline void tabled_layer_bytes_avx2(
     const PairMasks &pm, int node_count, const GroupReject &r1, const GroupReject &r2, const GroupReject &r3,
     std::array<std::array<uint64_t, PairMasks::kWords>, 4> &layer) {
@@ -2117,6 +2119,8 @@ enum class LitPairs { kIncomplete, kNoneLit, kAdded };
   auto *l1 = reinterpret_cast<unsigned char *>(layer[1].data());
   auto *l2 = reinterpret_cast<unsigned char *>(layer[2].data());
   auto *l3 = reinterpret_cast<unsigned char *>(layer[3].data());
+  const auto last = static_cast<size_t>(PairMasks::words(node_count) - 1);
+  layer[1][last] = layer[2][last] = layer[3][last] = 0;
   for (int st = 0; st < (node_count + 1) / 2; ++st) {
     const __m256i h = _mm256_xor_si256(
         _mm256_load_si256(reinterpret_cast<const __m256i *>(pm.node_hash.data() + 2 * kDirectionGroups * st)), bias);
@@ -2141,15 +2145,11 @@ template <bool kAvx2>
                                                       int max_steps, PairPassCounter &pc, int64_t &steps) {
   constexpr int kW = PairMasks::kWords;
   const int W = PairMasks::words(node_count);  // the words holding the list's nodes (one up to 16 nodes)
-  // Only words < W are read. Session 29 (glintpaired29): AVX2 writes every byte of them but the last word's past
-  // (node_count + 1) / 2: that word zeroed first, not all twelve (a `rep stos` of 12 words per walk).
-  std::array<std::array<uint64_t, kW>, 4> layer;
+  std::array<std::array<uint64_t, kW>, 4> layer;  // words < W read (session 29: not zeroed here)
   layer[0] = pm.mask;
   const GroupReject r1(t.below[1]), r2(t.below[2]), r3(t.below[3]);
 #if GLIMMER_GLINT_WALK_AVX2
   if constexpr (kAvx2) {
-    const auto last = static_cast<size_t>(W - 1);
-    layer[1][last] = layer[2][last] = layer[3][last] = 0;
     tabled_layer_bytes_avx2(pm, node_count, r1, r2, r3, layer);
   } else
 #endif
