@@ -1596,11 +1596,14 @@ struct PairPassCounter {
       const __m256 u = _mm256_mul_ps(_mm256_cvtepi32_ps(_mm256_srli_epi32(mix_u32x8(keys8), 8)), scale);
       const __m256 xy = _mm256_permutevar8x32_ps(u, split);
       const __m256d ux = _mm256_cvtps_pd(_mm256_castps256_ps128(xy)), uy = _mm256_cvtps_pd(_mm256_extractf128_ps(xy, 1));
-      const __m128d o0 = _mm_loadu_pd(&origin[part_node[a]].s), o1 = _mm_loadu_pd(&origin[part_node[a + 1]].s);
-      const __m128d o2 = _mm_loadu_pd(&origin[part_node[a + 2]].s), o3 = _mm_loadu_pd(&origin[part_node[a + 3]].s);
-      const __m256d o02 = _mm256_set_m128d(o2, o0), o13 = _mm256_set_m128d(o3, o1);
-      const __m256d s = _mm256_add_pd(_mm256_add_pd(_mm256_unpacklo_pd(o02, o13), _mm256_mul_pd(ux, ds_ux)), _mm256_mul_pd(uy, ds_uy));
-      const __m256d t = _mm256_add_pd(_mm256_add_pd(_mm256_unpackhi_pd(o02, o13), _mm256_mul_pd(ux, dt_ux)), _mm256_mul_pd(uy, dt_uy));
+      // Session 29 (glintpaired29): the four origins' s and t by two VGATHERDPD at the doubles 2 node and 2 node + 1
+      // (were four index loads and shifts, four 128-bit loads, two inserts and two unpacks); the same lanes.
+      const __m128i at = _mm_slli_epi32(_mm_loadu_si128(reinterpret_cast<const __m128i *>(part_node.data() + a)), 1);
+      const __m256d all = _mm256_castsi256_pd(_mm256_set1_epi64x(-1));  // every lane gathered (the masked form:
+      const __m256d os = _mm256_mask_i32gather_pd(_mm256_setzero_pd(), &origin[0].s, at, all, 8);  // GCC 12 warns
+      const __m256d ot = _mm256_mask_i32gather_pd(_mm256_setzero_pd(), &origin[0].t, at, all, 8);  // on the other)
+      const __m256d s = _mm256_add_pd(_mm256_add_pd(os, _mm256_mul_pd(ux, ds_ux)), _mm256_mul_pd(uy, ds_uy));
+      const __m256d t = _mm256_add_pd(_mm256_add_pd(ot, _mm256_mul_pd(ux, dt_ux)), _mm256_mul_pd(uy, dt_uy));
       const __m256d in = _mm256_and_pd(_mm256_cmp_pd(_mm256_andnot_pd(sign, s), half, _CMP_LE_OS),
                                        _mm256_cmp_pd(_mm256_andnot_pd(sign, t), half, _CMP_LE_OS));
       const auto m = static_cast<uint32_t>(_mm256_movemask_pd(in));
