@@ -1596,11 +1596,14 @@ struct PairPassCounter {
       const __m256 u = _mm256_mul_ps(_mm256_cvtepi32_ps(_mm256_srli_epi32(mix_u32x8(keys8), 8)), scale);
       const __m256 xy = _mm256_permutevar8x32_ps(u, split);
       const __m256d ux = _mm256_cvtps_pd(_mm256_castps256_ps128(xy)), uy = _mm256_cvtps_pd(_mm256_extractf128_ps(xy, 1));
-      const __m128d o0 = _mm_loadu_pd(&origin[part_node[a]].s), o1 = _mm_loadu_pd(&origin[part_node[a + 1]].s);
-      const __m128d o2 = _mm_loadu_pd(&origin[part_node[a + 2]].s), o3 = _mm_loadu_pd(&origin[part_node[a + 3]].s);
-      const __m256d o02 = _mm256_set_m128d(o2, o0), o13 = _mm256_set_m128d(o3, o1);
-      const __m256d s = _mm256_add_pd(_mm256_add_pd(_mm256_unpacklo_pd(o02, o13), _mm256_mul_pd(ux, ds_ux)), _mm256_mul_pd(uy, ds_uy));
-      const __m256d t = _mm256_add_pd(_mm256_add_pd(_mm256_unpackhi_pd(o02, o13), _mm256_mul_pd(ux, dt_ux)), _mm256_mul_pd(uy, dt_uy));
+      // Session 29 (glintpaired29): the four origins' s and t by two VGATHERDPD at the doubles 2 node and 2 node + 1
+      // (were four index loads and shifts, four 128-bit loads, two inserts and two unpacks); the same lanes.
+      const __m128i at = _mm_slli_epi32(_mm_loadu_si128(reinterpret_cast<const __m128i *>(part_node.data() + a)), 1);
+      const __m256d all = _mm256_castsi256_pd(_mm256_set1_epi64x(-1));  // every lane gathered (the masked form:
+      const __m256d os = _mm256_mask_i32gather_pd(_mm256_setzero_pd(), &origin[0].s, at, all, 8);  // GCC 12 warns
+      const __m256d ot = _mm256_mask_i32gather_pd(_mm256_setzero_pd(), &origin[0].t, at, all, 8);  // on the other)
+      const __m256d s = _mm256_add_pd(_mm256_add_pd(os, _mm256_mul_pd(ux, ds_ux)), _mm256_mul_pd(uy, ds_uy));
+      const __m256d t = _mm256_add_pd(_mm256_add_pd(ot, _mm256_mul_pd(ux, dt_ux)), _mm256_mul_pd(uy, dt_uy));
       const __m256d in = _mm256_and_pd(_mm256_cmp_pd(_mm256_andnot_pd(sign, s), half, _CMP_LE_OS),
                                        _mm256_cmp_pd(_mm256_andnot_pd(sign, t), half, _CMP_LE_OS));
       const auto m = static_cast<uint32_t>(_mm256_movemask_pd(in));
@@ -1691,28 +1694,35 @@ struct PairPassCounter {
     n_parts = static_cast<int>(n);
   }
 #if GLIMMER_GLINT_WALK_AVX2
-  // list_pairs by bytes of `border` (session 28, glintwalk28): a nonzero byte's (two nodes') set bits compacted in
-  // one VPERMD of its eight hashes (kCompactLanes: the set bits' lanes in order), their nodes by the same lanes, the
+  // list_pairs by bytes of `border` (session 28, glintwalk28): a byte's (two nodes') set bits compacted in one
+  // VPERMD of its eight hashes (kCompactLanes: the set bits' lanes in order), their nodes by the same lanes, the
   // step broadcast; eight entries stored per array, the list grown by the byte's bit count. The same entries in the
   // same order as list_pairs (~13 instructions per particle there; ~2.5 border pairs per nonzero byte in the GI
-  // render).
+  // render). Session 29 (glintpaired29): the bytes in order from the first nonzero one to the last (a zero byte
+  // between them stores entries the list does not take: its count adds 0), the hashes' address and the byte's
+  // first pair advanced by eight per byte: no tzcnt / shift / clear per byte (26 -> 16 instructions per byte; in
+  // the GI render 111 353 bytes for 101 299 nonzero ones).
+  // `border` != 0 (the caller's test).
   [[gnu::target("avx2,popcnt")]] void list_pairs_avx2(uint64_t border, int w, uint32_t step,
-                                                                         const uint32_t *node_hash) {
+                                                       const uint32_t *node_hash) {
     auto n = static_cast<size_t>(n_parts);
     const __m256i steps = _mm256_set1_epi32(static_cast<int>(step));
-    const __m256i word_pair = _mm256_set1_epi32(64 * w);  // the word's first pair
-    for (; border != 0;) {
-      const int at = std::countr_zero(border) & ~7;  // the first nonzero byte's first bit
-      const auto byte = static_cast<uint32_t>(border >> at) & 0xffu;
-      border &= ~uint64_t{0xff} << at;  // that byte and the (clear) bits below it
+    const int at = std::countr_zero(border) & ~7;  // the first nonzero byte's first bit
+    border >>= at;
+    const uint32_t *h = node_hash + 64 * w + at;
+    __m256i pairs = _mm256_set1_epi32(64 * w + at);  // the byte's first pair
+    do {
+      const auto byte = static_cast<uint32_t>(border & 0xffu);
       const __m256i lanes = _mm256_cvtepu8_epi32(_mm_loadl_epi64(reinterpret_cast<const __m128i *>(kCompactLanes[byte].data())));
-      const __m256i h = _mm256_loadu_si256(reinterpret_cast<const __m256i *>(node_hash + 64 * w + at));
-      _mm256_storeu_si256(reinterpret_cast<__m256i *>(part_hash.data() + n), _mm256_permutevar8x32_epi32(h, lanes));
-      const __m256i pairs = _mm256_add_epi32(_mm256_add_epi32(word_pair, _mm256_set1_epi32(at)), lanes);
-      _mm256_storeu_si256(reinterpret_cast<__m256i *>(part_node.data() + n), _mm256_srli_epi32(pairs, 2));
+      _mm256_storeu_si256(reinterpret_cast<__m256i *>(part_hash.data() + n),
+                          _mm256_permutevar8x32_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i *>(h)), lanes));
+      _mm256_storeu_si256(reinterpret_cast<__m256i *>(part_node.data() + n), _mm256_srli_epi32(_mm256_add_epi32(pairs, lanes), 2));
       _mm256_storeu_si256(reinterpret_cast<__m256i *>(part_step.data() + n), steps);
       n += static_cast<size_t>(std::popcount(byte));
-    }
+      h += 8;
+      pairs = _mm256_add_epi32(pairs, _mm256_set1_epi32(8));
+      border >>= 8;
+    } while (border != 0);
     n_parts = static_cast<int>(n);
   }
 #endif
@@ -1896,8 +1906,8 @@ inline std::array<uint64_t, PairMasks::kWords> interior_words(const PairMasks &p
 // instructions one by one): the origins by origin()'s products in the same order (the same values, stored for the
 // flush), node_inside's four corners (s, s + ds_ux, s + ds_uy, (s + ds_ux) + ds_uy, the same for t: its sums), and
 // the nodes inside as the nibbles of `interior` (interior_words' bits, and those of inside nodes without a pair,
-// which no layer bit reads). No inside_mask: the tabled walk reads only `interior`. The last chunk repeats node
-// count - 1 in its missing lanes (their bits cleared). GlintParticles.PairPassesMatchTheNodeLoop and
+// which no layer bit reads). No inside_mask: the tabled walk reads only `interior`. The last chunk's missing lanes
+// have their bits cleared (their origins, stored past the list's, are not read). GlintParticles.PairPassesMatchTheNodeLoop and
 // GroupPassAvx2MatchesSse2 (the SSE2 passes: paired_node_origins and interior_words).
 // The frame's constants in lanes (tabled_node_origins_avx2).
 struct TabledOriginLanesAvx2 {
@@ -1907,29 +1917,33 @@ struct TabledOriginLanesAvx2 {
 [[gnu::target("avx2"), gnu::always_inline]] inline __m256d within_half_avx2(__m256d v) {
   return _mm256_cmp_pd(_mm256_andnot_pd(_mm256_set1_pd(-0.0), v), _mm256_set1_pd(0.5), _CMP_LE_OS);
 }
-// Nodes a0, a1, a2, a3: their origins stored at a0 .. a0 + 3, and bit k set where node ak lies inside.
+// The four corners c, c + d_ux, c + d_uy, (c + d_ux) + d_uy (node_inside's sums) all within 1/2 per lane, as the
+// largest |corner| <= 1/2 (session 29, glintpaired29: three VMAXPD and one compare where four compares and three
+// ANDs were). The same flags, NaN included: VMAXPD returns its second operand when either is NaN, and a NaN
+// corner makes (c + d_ux) + d_uy NaN (c NaN makes every corner NaN; c + d_ux NaN makes the last one NaN; c + d_uy
+// NaN with c not NaN is d_uy NaN or c = -d_uy = +-inf, and then (c + d_ux) + d_uy is NaN for every d_ux), which is
+// the second operand of both maxima it goes through: the maximum is NaN and the compare false.
+[[gnu::target("avx2"), gnu::always_inline]] inline __m256d corners_within_half_avx2(__m256d c, __m256d d_ux,
+                                                                                 __m256d d_uy) {
+  const __m256d sign = _mm256_set1_pd(-0.0), c10 = _mm256_add_pd(c, d_ux);
+  const __m256d near = _mm256_max_pd(_mm256_andnot_pd(sign, c), _mm256_andnot_pd(sign, c10));
+  const __m256d far = _mm256_max_pd(_mm256_andnot_pd(sign, _mm256_add_pd(c, d_uy)),
+                                    _mm256_andnot_pd(sign, _mm256_add_pd(c10, d_uy)));
+  return _mm256_cmp_pd(_mm256_max_pd(near, far), _mm256_set1_pd(0.5), _CMP_LE_OS);
+}
+// Nodes a0 .. a0 + 3 at (x, y) (their i, j as doubles): their origins stored at a0 .. a0 + 3, and bit k set where
+// node a0 + k lies inside.
 [[gnu::target("avx2"), gnu::always_inline]] inline uint32_t tabled_origins_chunk_avx2(const TabledOriginLanesAvx2 &l,
-                                                                                    const NodeList &nodes,
-                                                                                    PairPassCounter &pc, size_t a0,
-                                                                                    size_t a1, size_t a2, size_t a3) {
-  const __m256d x = _mm256_setr_pd(static_cast<double>(nodes.i[a0]), static_cast<double>(nodes.i[a1]),
-                                   static_cast<double>(nodes.i[a2]), static_cast<double>(nodes.i[a3]));
-  const __m256d y = _mm256_setr_pd(static_cast<double>(nodes.j[a0]), static_cast<double>(nodes.j[a1]),
-                                   static_cast<double>(nodes.j[a2]), static_cast<double>(nodes.j[a3]));
+                                                                                    __m256d x, __m256d y,
+                                                                                    PairPassCounter &pc, size_t a0) {
   const __m256d px = _mm256_sub_pd(_mm256_mul_pd(x, l.size), l.cx), py = _mm256_sub_pd(_mm256_mul_pd(y, l.size), l.cy);
   const __m256d s = _mm256_mul_pd(_mm256_sub_pd(_mm256_mul_pd(px, l.by), _mm256_mul_pd(py, l.bx)), l.inv_det);
   const __m256d t = _mm256_mul_pd(_mm256_sub_pd(_mm256_mul_pd(py, l.ax), _mm256_mul_pd(px, l.ay)), l.inv_det);
   const __m256d lo = _mm256_unpacklo_pd(s, t), hi = _mm256_unpackhi_pd(s, t);  // (s0 t0 s2 t2), (s1 t1 s3 t3)
   _mm256_storeu_pd(&pc.origin[a0].s, _mm256_permute2f128_pd(lo, hi, 0x20));
   _mm256_storeu_pd(&pc.origin[a0 + 2].s, _mm256_permute2f128_pd(lo, hi, 0x31));
-  const __m256d s10 = _mm256_add_pd(s, l.ds_ux), t10 = _mm256_add_pd(t, l.dt_ux);
-  const __m256d in_s = _mm256_and_pd(_mm256_and_pd(within_half_avx2(s), within_half_avx2(s10)),
-                                     _mm256_and_pd(within_half_avx2(_mm256_add_pd(s, l.ds_uy)),
-                                                   within_half_avx2(_mm256_add_pd(s10, l.ds_uy))));
-  const __m256d in_t = _mm256_and_pd(_mm256_and_pd(within_half_avx2(t), within_half_avx2(t10)),
-                                     _mm256_and_pd(within_half_avx2(_mm256_add_pd(t, l.dt_uy)),
-                                                   within_half_avx2(_mm256_add_pd(t10, l.dt_uy))));
-  return static_cast<uint32_t>(_mm256_movemask_pd(_mm256_and_pd(in_s, in_t)));
+  return static_cast<uint32_t>(
+      _mm256_movemask_pd(_mm256_and_pd(corners_within_half_avx2(s, l.ds_ux, l.ds_uy), corners_within_half_avx2(t, l.dt_ux, l.dt_uy))));
 }
 // Nibble k of the result 0xf where bit k of m (< 16) is set: four lanes' flags to their nodes' four pairs.
 inline constexpr std::array<uint16_t, 16> kFlagNibbles = [] {
@@ -1939,29 +1953,77 @@ inline constexpr std::array<uint16_t, 16> kFlagNibbles = [] {
   return t;
 }();
 inline uint64_t flag_nibbles(uint32_t m) { return kFlagNibbles[m]; }
+// Exact int64 -> double per lane for -2^51 <= v < 2^51 (session 29, glintpaired29): v + 2^51 as the mantissa of 2^52,
+// minus 2^52 + 2^51 (both steps exact). `range` collects v + 2^51: every lane was in range iff its bits from 52 up
+// are clear (tabled_node_origins_avx2 then redoes the pass with the scalar conversions).
+[[gnu::target("avx2"), gnu::always_inline]] inline __m256d small_int64_to_double_avx2(__m256i v, __m256i &range) {
+  const __m256i biased = _mm256_add_epi64(v, _mm256_set1_epi64x(int64_t{1} << 51));
+  range = _mm256_or_si256(range, biased);
+  return _mm256_sub_pd(_mm256_castsi256_pd(_mm256_or_si256(biased, _mm256_set1_epi64x(0x4330000000000000ll))),
+                       _mm256_set1_pd(6755399441055744.0));
+}
+// The frame's constants in lanes.
+[[gnu::target("avx2"), gnu::always_inline]] inline TabledOriginLanesAvx2 tabled_origin_lanes_avx2(const FootprintFrame &fr,
+                                                                                              double size) {
+  return {_mm256_set1_pd(fr.f.cx),    _mm256_set1_pd(fr.f.cy),    _mm256_set1_pd(size),
+          _mm256_set1_pd(fr.f.ax),    _mm256_set1_pd(fr.f.ay),    _mm256_set1_pd(fr.f.bx),
+          _mm256_set1_pd(fr.f.by),    _mm256_set1_pd(fr.inv_det), _mm256_set1_pd(fr.ds_ux),
+          _mm256_set1_pd(fr.ds_uy),   _mm256_set1_pd(fr.dt_ux),   _mm256_set1_pd(fr.dt_uy)};
+}
+// v[a], v[a + 1], v[a + 2], v[a + 3] as doubles (cvtsi2sd), past `last` v[last].
+[[gnu::target("avx2"), gnu::always_inline]] inline __m256d converted_lanes_avx2(const int64_t *v, size_t a, size_t last) {
+  return _mm256_setr_pd(static_cast<double>(v[a]), static_cast<double>(v[std::min(a + 1, last)]),
+                        static_cast<double>(v[std::min(a + 2, last)]), static_cast<double>(v[std::min(a + 3, last)]));
+}
+// The pass with i, j converted one by one (cvtsi2sd: exact or rounded as the SSE2 passes' conversions), where some
+// |i| or |j| >= 2^51 (out of line, cold). The last chunk repeats node count - 1 in its missing lanes.
+[[gnu::target("avx2"), gnu::noinline, gnu::cold]] inline void tabled_node_origins_far_avx2(
+    const FootprintFrame &frame, const NodeList &nodes, PairPassCounter &pc,
+    std::array<uint64_t, PairMasks::kWords> &interior) {
+  const TabledOriginLanesAvx2 l = tabled_origin_lanes_avx2(frame, nodes.size);
+  const uint32_t can_be_inside = frame.nodes_can_be_inside ? 0xfu : 0u;
+  interior = {};
+  const int n = nodes.count;
+  for (int c = 0; c < n; c += 4) {
+    const auto a = static_cast<size_t>(c), last = static_cast<size_t>(n - 1);
+    const uint32_t m = tabled_origins_chunk_avx2(l, converted_lanes_avx2(nodes.i.data(), a, last), converted_lanes_avx2(nodes.j.data(), a, last), pc, a) & can_be_inside &
+                       ((1u << std::min(n - c, 4)) - 1u);
+    interior[a / 16] |= flag_nibbles(m) << (4 * (a % 16));
+  }
+}
+// Session 29 (glintpaired29): i and j four per step by small_int64_to_double_avx2 (two adds, an OR and a subtract per
+// register, where eight scalar conversions and six shuffles were), the last one to three nodes by a masked load
+// (the lanes past the list read 0: node (0, 0), its bits cleared); where some |i| or |j| >= 2^51 (never in the
+// renders: the coordinates of a footprint 2^51 nodes from the origin), the pass again by
+// tabled_node_origins_far_avx2. The same origins and bits (GlintParticles.TabledOriginsFarFromTheOriginMatchSse2).
 [[gnu::target("avx2")]] inline void tabled_node_origins_avx2(const FootprintFrame &frame, const NodeList &nodes,
                                                             PairPassCounter &pc,
                                                             std::array<uint64_t, PairMasks::kWords> &interior) {
-  const FootprintFrame &fr = frame;
-  const TabledOriginLanesAvx2 l{_mm256_set1_pd(fr.f.cx),    _mm256_set1_pd(fr.f.cy),    _mm256_set1_pd(nodes.size),
-                                _mm256_set1_pd(fr.f.ax),    _mm256_set1_pd(fr.f.ay),    _mm256_set1_pd(fr.f.bx),
-                                _mm256_set1_pd(fr.f.by),    _mm256_set1_pd(fr.inv_det), _mm256_set1_pd(fr.ds_ux),
-                                _mm256_set1_pd(fr.ds_uy),   _mm256_set1_pd(fr.dt_ux),   _mm256_set1_pd(fr.dt_uy)};
-  const uint32_t can_be_inside = fr.nodes_can_be_inside ? 0xfu : 0u;
+  const TabledOriginLanesAvx2 l = tabled_origin_lanes_avx2(frame, nodes.size);
+  const uint32_t can_be_inside = frame.nodes_can_be_inside ? 0xfu : 0u;
+  const auto *ni = reinterpret_cast<const long long *>(nodes.i.data());
+  const auto *nj = reinterpret_cast<const long long *>(nodes.j.data());
+  __m256i range = _mm256_setzero_si256();
   interior = {};
   const int n = nodes.count;
   int c = 0;
   for (; c + 4 <= n; c += 4) {
     const auto a = static_cast<size_t>(c);
-    const uint32_t m = tabled_origins_chunk_avx2(l, nodes, pc, a, a + 1, a + 2, a + 3) & can_be_inside;
+    const __m256d x = small_int64_to_double_avx2(_mm256_loadu_si256(reinterpret_cast<const __m256i *>(ni + a)), range);
+    const __m256d y = small_int64_to_double_avx2(_mm256_loadu_si256(reinterpret_cast<const __m256i *>(nj + a)), range);
+    const uint32_t m = tabled_origins_chunk_avx2(l, x, y, pc, a) & can_be_inside;
     interior[a / 16] |= flag_nibbles(m) << (4 * (a % 16));
   }
   if (c < n) {
-    const auto last = static_cast<size_t>(n - 1), a = static_cast<size_t>(c);
-    const uint32_t m = tabled_origins_chunk_avx2(l, nodes, pc, a, std::min(a + 1, last), std::min(a + 2, last), last) &
-                       can_be_inside & ((1u << (n - c)) - 1u);
+    const auto a = static_cast<size_t>(c);
+    const __m256i in_list = _mm256_cmpgt_epi64(_mm256_set1_epi64x(n - c), _mm256_setr_epi64x(0, 1, 2, 3));
+    const __m256d x = small_int64_to_double_avx2(_mm256_maskload_epi64(ni + a, in_list), range);
+    const __m256d y = small_int64_to_double_avx2(_mm256_maskload_epi64(nj + a, in_list), range);
+    const uint32_t m = tabled_origins_chunk_avx2(l, x, y, pc, a) & can_be_inside & ((1u << (n - c)) - 1u);
     interior[a / 16] |= flag_nibbles(m) << (4 * (a % 16));
   }
+  if (!_mm256_testz_si256(range, _mm256_set1_epi64x(-(int64_t{1} << 52)))) [[unlikely]]
+    tabled_node_origins_far_avx2(frame, nodes, pc, interior);
 }
 #endif
 
@@ -2047,7 +2109,9 @@ enum class LitPairs { kIncomplete, kNoneLit, kAdded };
 
 #if GLIMMER_GLINT_WALK_AVX2
 // tabled_layers_pass' layers 1..3 in AVX2: eight hashes per compare, bytes in pass 2's layout (before the AND with
-// layer 0 and the thresholds' all_pass).
+// layer 0 and the thresholds' all_pass). The words holding the list's nodes are written: every byte the steps write,
+// and the last word zeroed first for its bytes past (node_count + 1) / 2 (session 29, glintpaired29: the caller zeroed
+// all twelve words, a `rep stos` per walk).
 [[gnu::target("avx2")]] inline void tabled_layer_bytes_avx2(
     const PairMasks &pm, int node_count, const GroupReject &r1, const GroupReject &r2, const GroupReject &r3,
     std::array<std::array<uint64_t, PairMasks::kWords>, 4> &layer) {
@@ -2058,6 +2122,8 @@ enum class LitPairs { kIncomplete, kNoneLit, kAdded };
   auto *l1 = reinterpret_cast<unsigned char *>(layer[1].data());
   auto *l2 = reinterpret_cast<unsigned char *>(layer[2].data());
   auto *l3 = reinterpret_cast<unsigned char *>(layer[3].data());
+  const auto last = static_cast<size_t>(PairMasks::words(node_count) - 1);
+  layer[1][last] = layer[2][last] = layer[3][last] = 0;
   for (int st = 0; st < (node_count + 1) / 2; ++st) {
     const __m256i h = _mm256_xor_si256(
         _mm256_load_si256(reinterpret_cast<const __m256i *>(pm.node_hash.data() + 2 * kDirectionGroups * st)), bias);
@@ -2082,7 +2148,7 @@ template <bool kAvx2>
                                                       int max_steps, PairPassCounter &pc, int64_t &steps) {
   constexpr int kW = PairMasks::kWords;
   const int W = PairMasks::words(node_count);  // the words holding the list's nodes (one up to 16 nodes)
-  std::array<std::array<uint64_t, kW>, 4> layer{};
+  std::array<std::array<uint64_t, kW>, 4> layer;  // words < W read (session 29: not zeroed here)
   layer[0] = pm.mask;
   const GroupReject r1(t.below[1]), r2(t.below[2]), r3(t.below[3]);
 #if GLIMMER_GLINT_WALK_AVX2
@@ -2091,6 +2157,7 @@ template <bool kAvx2>
   } else
 #endif
   {
+    layer[1] = layer[2] = layer[3] = std::array<uint64_t, kW>{};
     for (int w = 0; w < W; ++w)
       for (uint64_t m = layer[0][static_cast<size_t>(w)]; m != 0; m &= m - 1) {
         const int bit = std::countr_zero(m);

@@ -1659,6 +1659,57 @@ TEST(GlintParticles, GroupPassAvx2MatchesSse2) {
 #endif
 }
 
+// Session 29 (glintpaired29): a walkable table's pass (1) in AVX2 converts the nodes' i, j four per register
+// (exact while |i|, |j| < 2^51) and redoes the pass with the scalar conversions where some node lies farther
+// (tabled_node_origins_far_avx2). The footprints of PairPassesMatchTheNodeLoop, every other one moved 2^51 .. 2^53
+// nodes from the origin (its nodes listed there): the AVX2 passes give the SSE2 passes' count, steps and
+// completeness, near the origin and far from it. Control (a scratch build without the redo): the far tabled
+// queries differ (docs/glints.md, Session 29 (glintpaired29)).
+TEST(GlintParticles, TabledOriginsFarFromTheOriginMatchSse2) {
+#if !GLIMMER_GLINT_WALK_AVX2
+  GTEST_SKIP() << "no AVX2 form in this build";
+#else
+  if (!__builtin_cpu_supports("avx2")) GTEST_SKIP() << "CPU without AVX2";
+  Pcg32 rng(47);
+  int compared = 0, near_tabled = 0, far_tabled = 0, far_lit = 0;
+  for (int t = 0; t < 20000; ++t) {
+    PassQuery q = random_pass_query(rng, t);
+    if (t % 2 == 1) {
+      const double offset = std::ldexp(1.0 + 3.0 * rng.next_double(), 51) * q.nodes.size;  // 2^51 .. 2^53 nodes
+      q.f.cx += t % 4 == 1 ? offset : -offset;
+      q.f.cy -= 0.5 * offset;
+      q.nodes = pg::footprint_nodes(q.f, q.group_density);
+    }
+    const double lambda = std::min(q.group_density * q.nodes.size * q.nodes.size, 4.0e18) * std::min(q.P, 1.0);
+    const pg::GroupReject reject(static_cast<uint64_t>(std::min(lambda, 1.0) * 4294967296.0) + 1u);
+    const pg::GlintCount ka =
+        pg::count_four_groups_in_passes(q.f, q.nodes, q.seeds.data(), reject, lambda, q.max_steps, true);
+    const pg::GlintCount kb =
+        pg::count_four_groups_in_passes(q.f, q.nodes, q.seeds.data(), reject, lambda, q.max_steps, false);
+    ASSERT_EQ(ka.complete, kb.complete) << "query " << t;
+    ASSERT_EQ(ka.count, kb.count) << "query " << t;
+    ASSERT_EQ(ka.steps, kb.steps) << "query " << t;
+    ++compared;
+    const bool tabled = pg::FootprintFrame(q.f, q.nodes.size).nodes_can_be_inside && lambda >= pg::kLitTableFrom &&
+                        lambda <= pg::LitCountModel::kMaxNodeMean;
+    bool far = false;
+    for (int k = 0; k < q.nodes.count; ++k) {
+      const auto a = static_cast<size_t>(k);
+      far = far || std::max(std::abs(q.nodes.i[a]), std::abs(q.nodes.j[a])) >= (int64_t{1} << 51);
+    }
+    near_tabled += tabled && !far;
+    far_tabled += tabled && far;
+    far_lit += tabled && far && ka.complete && ka.count > 0;
+  }
+  std::printf("[tabled origins far] %d queries equal (tabled: %d near the origin, %d with a node 2^51 or more from "
+              "it, %d of them lit)\n",
+              compared, near_tabled, far_tabled, far_lit);
+  EXPECT_GT(near_tabled, 1000);
+  EXPECT_GT(far_tabled, 1000);
+  EXPECT_GT(far_lit, 500);
+#endif
+}
+
 // ---- Pseudo-normals of narrow lobes (tables/glint_pseudo_normals.h) --------
 namespace mf = microfacet;
 
