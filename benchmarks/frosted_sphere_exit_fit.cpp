@@ -13,6 +13,10 @@
 //   /tmp/fit <base> eval w:f,w:f[,w:f] ...      # band fractions and L1 of the given shapes
 //   /tmp/fit <base> fit2                        # grid over 2-lobe shapes (share t, factors f_core, f_tail)
 //   /tmp/fit <base> fit3                        # grid over 3-lobe shapes
+//   /tmp/fit <base> fit2fine                    # a finer 2-lobe grid (t 0.15-0.3, f_core 1.9-2.7, f_tail 0.28-0.46)
+// Session 29 (frostedexit29): <base> may list several cases separated by commas (fit2 / fit3 then rank the shapes by
+// the cases' mean L1, and print every case's bands for the best), and --drawn before the mode reads the records
+// made under the drawn entry axis (kEntryAxis 1: <base>_drawn_sg.bin) instead of the front SG's (<base>_sg.bin).
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -82,14 +86,14 @@ struct Data {
   double ref_total = 0.0;
 };
 
-bool load(const std::string &base, Data &d) {
+bool load(const std::string &base, const char *records, Data &d) {
   FILE *f = std::fopen((base + "_path.txt").c_str(), "r");
   if (!f) return false;
   for (int b = 0; b < kBands; ++b)
     if (std::fscanf(f, "%lf", &d.ref[size_t(b)]) != 1) return false;
   if (std::fscanf(f, "%lf", &d.ref_total) != 1) return false;
   std::fclose(f);
-  f = std::fopen((base + "_sg.bin").c_str(), "rb");
+  f = std::fopen((base + records).c_str(), "rb");
   if (!f) return false;
   float r[12];
   while (std::fread(r, sizeof(float), 12, f) == 12) {
@@ -164,27 +168,50 @@ std::string describe(const Shape &sh) {
 
 }  // namespace
 
+std::vector<std::string> split_bases(const char *arg) {
+  std::vector<std::string> out;
+  std::string cur;
+  for (const char *p = arg; *p; ++p) {
+    if (*p == ',') {
+      if (!cur.empty()) out.push_back(cur);
+      cur.clear();
+    } else {
+      cur += *p;
+    }
+  }
+  if (!cur.empty()) out.push_back(cur);
+  return out;
+}
+
 int main(int argc, char **argv) {
   if (argc < 3) {
-    std::fprintf(stderr, "usage: %s <base> eval|fit2|fit3 [shapes]\n", argv[0]);
+    std::fprintf(stderr, "usage: %s <base>[,<base>...] [--drawn] eval|fit2|fit3 [shapes]\n", argv[0]);
     return 2;
   }
-  Data d;
-  if (!load(argv[1], d)) {
-    std::fprintf(stderr, "cannot read %s_{sg.bin,path.txt}\n", argv[1]);
-    return 1;
+  const bool drawn = std::strcmp(argv[2], "--drawn") == 0;
+  const int mode_arg = drawn ? 3 : 2;
+  if (argc <= mode_arg) return 2;
+  std::vector<Data> data;
+  for (const std::string &base : split_bases(argv[1])) {
+    data.emplace_back();
+    if (!load(base, drawn ? "_drawn_sg.bin" : "_sg.bin", data.back())) {
+      std::fprintf(stderr, "cannot read %s_{%s,path.txt}\n", base.c_str(), drawn ? "drawn_sg.bin" : "sg.bin");
+      return 1;
+    }
+    const Data &d = data.back();
+    std::printf("%s: %zu sg records; path bands", base.c_str(), d.rec.size());
+    for (double x : d.ref) std::printf(" %.3e", x);
+    std::printf("\n");
   }
-  std::printf("%s: %zu sg records; path bands", argv[1], d.rec.size());
-  for (double x : d.ref) std::printf(" %.3e", x);
-  std::printf("\n%-28s", "band (deg), shape / path:");
+  std::printf("%-28s", "band (deg), shape / path:");
   for (int b = 0; b < kBands; ++b) std::printf(" %3g-%-3g", kEdge[b], kEdge[b + 1]);
   std::printf("\n");
-  const std::string mode = argv[2];
+  const std::string mode = argv[mode_arg];
   if (mode == "eval") {
-    for (int i = 3; i < argc; ++i) {
+    for (int i = mode_arg + 1; i < argc; ++i) {
       Shape sh;
       if (!parse(argv[i], sh)) continue;
-      print(describe(sh).c_str(), bands(d, sh), d);
+      for (const Data &d : data) print(describe(sh).c_str(), bands(d, sh), d);
     }
     return 0;
   }
@@ -193,11 +220,20 @@ int main(int argc, char **argv) {
     Shape sh;
   };
   std::vector<Best> best;
-  auto consider = [&](const Shape &sh) { best.push_back({l1(bands(d, sh, 1), d.ref), sh}); };
+  auto consider = [&](const Shape &sh) {
+    double sum = 0.0;
+    for (const Data &d : data) sum += l1(bands(d, sh, 1), d.ref);
+    best.push_back({sum / double(data.size()), sh});
+  };
   if (mode == "fit2") {
     for (double t : {0.03, 0.05, 0.08, 0.1, 0.13, 0.16, 0.2, 0.25, 0.3})
       for (double fc : {0.8, 1.0, 1.2, 1.5, 1.8, 2.2, 2.7, 3.3})
         for (double ft : {0.08, 0.12, 0.18, 0.25, 0.35, 0.5})
+          consider(Shape{2, {1 - t, t}, {fc, ft}});
+  } else if (mode == "fit2fine") {  // session 29: about the drawn entry's coarse best (0.75:2.2,0.25:0.35)
+    for (double t : {0.15, 0.18, 0.2, 0.22, 0.25, 0.28, 0.3})
+      for (double fc : {1.9, 2.05, 2.2, 2.35, 2.5, 2.7})
+        for (double ft : {0.28, 0.32, 0.35, 0.38, 0.42, 0.46})
           consider(Shape{2, {1 - t, t}, {fc, ft}});
   } else if (mode == "fit3") {
     for (double t1 : {0.05, 0.1, 0.15, 0.2, 0.3})
@@ -208,6 +244,9 @@ int main(int argc, char **argv) {
               consider(Shape{3, {1 - t1 - t2, t1, t2}, {fc, f1, f2}});
   }
   std::sort(best.begin(), best.end(), [](const Best &a, const Best &b) { return a.l1 < b.l1; });
-  for (size_t i = 0; i < std::min<size_t>(8, best.size()); ++i) print(describe(best[i].sh).c_str(), bands(d, best[i].sh), d);
+  for (size_t i = 0; i < std::min<size_t>(8, best.size()); ++i) {
+    std::printf("mean L1 %.4f:\n", best[i].l1);
+    for (const Data &d : data) print(describe(best[i].sh).c_str(), bands(d, best[i].sh), d);
+  }
   return 0;
 }

@@ -603,9 +603,18 @@ float bundle_waist(const ExitBundle &b, float kappa_out, float kappa_geometric) 
 constexpr PaneTail kPlanarSolidTail{0.06f, 4, 0.18f, 2.0f};
 constexpr PaneLadder kPlanarSolidLadder = make_pane_ladder(kPlanarSolidTail);  // validated once, at compile time
 static_assert(kPlanarSolidLadder.valid, "the planar-solid tail must be a valid ladder");
-// `seen_directly`: the waist (applied only there, sample_sg_transmission) is made only then.
+// kDrawnExitShape (frosted_glass_sg.h), or for measurements only GLIMMER_FROSTED_DRAWN_SHAPE = 0 (the front SG's
+// shape, curved_exit_shape's, on the drawn entry axis too: sessions 28's images), read once.
+bool drawn_exit_shape() {
+  static const bool on = measurement_knob("GLIMMER_FROSTED_DRAWN_SHAPE", int(kDrawnExitShape), 0, 1) != 0;
+  return on;
+}
+// `seen_directly`: the waist (applied only there, sample_sg_transmission) is made only then. `drawn`: the walk's
+// internal lobe is about the drawn entry axis (kEntryAxis, drawn_entry_axis): the curved exit's shape is then the
+// drawn entry's (curved_exit_shape, session 29).
 bool solid_exit_mixture(const SgInputs &in, const Segment &seg, const Vec3 &axis, float kappa_in,
-                        float kappa_geometric, float ior, float roughness_exit, bool seen_directly, ExitLobe &out) {
+                        float kappa_geometric, float ior, float roughness_exit, bool seen_directly, bool drawn,
+                        ExitLobe &out) {
   out.lobe_count = 0;
   const bool by_rule = in.mixture_tail < 0.0f;
   const bool wide = in.roughness > kMixtureRoughnessMax, narrow = in.roughness < kCurvedSingleSgBelow;
@@ -632,7 +641,7 @@ bool solid_exit_mixture(const SgInputs &in, const Segment &seg, const Vec3 &axis
       }
       // The shape about out.sg.axis: a test's (curved_shape, or curved_tail: the nineteenth session's split, 0 the
       // single SG), else the environment's (measurements: a shape, or the split's t), else curved_exit_shape
-      // (kCurvedExitShape up to 0.5).
+      // (kCurvedExitShape up to 0.5; kCurvedExitShapeDrawn about a drawn entry axis, session 29).
       const CurvedShape *shape = in.curved_shape;
       float t = in.curved_tail;
       if (shape == nullptr && t < 0.0f) {
@@ -644,7 +653,7 @@ bool solid_exit_mixture(const SgInputs &in, const Segment &seg, const Vec3 &axis
       else if (t >= 0.0f)
         split_single_sg(t, out);
       else
-        apply_curved_shape(curved_exit_shape(in.roughness), out);
+        apply_curved_shape(curved_exit_shape(in.roughness, drawn && drawn_exit_shape()), out);
     }
     return true;
   }
@@ -834,7 +843,7 @@ bool trace_exit_lobe(const ShadingPoint &sp, const SgInputs &in, uint32_t seed, 
 
   Vec3 axis = front.axis;
   float kappa_in = front.sharpness;
-  const bool drawn = drawn_entry_axis(sp, in, entry, seed, front, axis, kappa_in);
+  bool drawn = drawn_entry_axis(sp, in, entry, seed, front, axis, kappa_in);
   Vec3 origin = offset_origin(Vec3(ctx.P), Vec3(ctx.Ng), axis);
   float inside_length = 0.0f;
   for (int event = 0, allowed = reflections_allowed(ctx); event <= kMaxInternalReflections; ++event) {
@@ -842,6 +851,7 @@ bool trace_exit_lobe(const ShadingPoint &sp, const SgInputs &in, uint32_t seed, 
     // 2-3. Axis and bounding rays to the far side; mean normal, Toksvig width, exit roughness.
     Segment seg;
     if (!next_segment(ctx, in, front, event == 0 && drawn, axis, kappa_in, origin, seg)) return false;
+    drawn = drawn && (event > 0 || kappa_in != front.sharpness);  // a planar first exit: the front SG's walk again
     inside_length += seg.axis.hit.t;
     const Vec3 n = seg.mean_normal;  // outward
     const float alpha_d = sqr(hit_roughness(in, seg.axis.closure));
@@ -893,8 +903,8 @@ bool trace_exit_lobe(const ShadingPoint &sp, const SgInputs &in, uint32_t seed, 
     for (int ch = 0; ch < 3; ++ch) out.weight[ch] *= std::exp(-in.sigma_a[ch] * inside_length);
     out.roughness = std::clamp(std::sqrt(std::sqrt(2.0f / out.sg.sharpness)), 0.0f, 1.0f);
     out.lobe_count = 0;
-    if (in.variant == SgVariant::kMixture &&
-        !solid_exit_mixture(in, seg, axis, kappa_in, kappa_geometric, ior, roughness_exit, seen_directly(ctx), out))
+    if (in.variant == SgVariant::kMixture && !solid_exit_mixture(in, seg, axis, kappa_in, kappa_geometric, ior,
+                                                                 roughness_exit, seen_directly(ctx), drawn, out))
       return false;
     return is_finite(out.origin) && is_finite(out.sg.axis) && is_finite(out.weight);
   }

@@ -205,8 +205,22 @@ inline constexpr float kFloorView = 0.0f;
 // "Session 23 (frostedexit23)".
 inline constexpr CurvedShape kCurvedExitShapeWide{2, {0.7f, 0.3f}, {1.8f, 0.3f}};
 inline constexpr float kCurvedShapeRoughness[2] = {0.5f, 0.6f};
-// The default curved exit shape at (entry) roughness r: kCurvedExitShape itself at r <= 0.5 (the same bits).
-inline CurvedShape curved_exit_shape(float roughness) {
+// Session 29 (frostedexit29; docs/frosted_glass.md "Session 29 (frostedexit29)"): the curved exit's shape about a
+// drawn entry axis (kEntryAxis 1). The shapes above were fitted to the single SG made of the front SG's width carried
+// through the solid plus the exit's scatter; about the front sample's own refracted direction (internal lobe
+// kEntryKappa) the single SG is the exit's scatter alone, and kCurvedExitShape's core x 2.2 (0.65) / tail x 0.4 (0.35)
+// on it was too wide near the axis (harness band L1 r 0.5 IOR 1.33 0.108 against the front SG's 0.055).
+// kCurvedExitShapeDrawn: a core x 2.35 (weight 0.72) and a tail x 0.42 (0.28), one shape for roughness 0.5-0.65 (the
+// exit's scatter alone scales with the roughness itself), fitted by benchmarks/frosted_sphere_exit_fit.cpp (--drawn,
+// fit2fine, the 5 bounded cases of ExitOfTheSphereAroundTheCausticBench jointly: mean band L1 0.033, worst 0.053;
+// the front-SG shapes on the drawn axis 0.075). kDrawnExitShape false: curved_exit_shape's front-SG shapes on the
+// drawn axis too (session 28's images; GLIMMER_FROSTED_DRAWN_SHAPE=0).
+inline constexpr bool kDrawnExitShape = true;
+inline constexpr CurvedShape kCurvedExitShapeDrawn{2, {0.72f, 0.28f}, {2.35f, 0.42f}};
+// The default curved exit shape at (entry) roughness r: kCurvedExitShape itself at r <= 0.5 (the same bits);
+// `drawn` (the internal axis drawn at the entry): kCurvedExitShapeDrawn at every r.
+inline CurvedShape curved_exit_shape(float roughness, bool drawn = false) {
+  if (drawn) return kCurvedExitShapeDrawn;
   if (!(roughness > kCurvedShapeRoughness[0])) return kCurvedExitShape;
   if (roughness >= kCurvedShapeRoughness[1]) return kCurvedExitShapeWide;
   const float a = (roughness - kCurvedShapeRoughness[0]) / (kCurvedShapeRoughness[1] - kCurvedShapeRoughness[0]);
@@ -219,6 +233,7 @@ inline CurvedShape curved_exit_shape(float roughness) {
   return s;
 }
 static_assert(kCurvedExitShape.count == 2 && kCurvedExitShapeWide.count == 2);
+static_assert(kCurvedExitShapeDrawn.count == 2);
 
 
 // What the estimator needs from the closure at the entry point.
