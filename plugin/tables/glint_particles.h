@@ -1296,6 +1296,31 @@ struct LitCountTable {
   }
 };
 
+// Session 29 (glintbounds29): LitCountBounds' K = 1 as a range of the 32-bit hash h of a pair (u = (h + 1/2) 2^-32,
+// exact in a double): u >= v iff h >= below(v) (the number of hashes whose u < v), so the
+// bounds' one_from <= u < one_below is one_from <= h < one_from + one_span (empty where they decide no K = 1). Their
+// K = 0 test (u >= none_above > 0) comes first in LitCountBounds::lit, but for lambda >= 0 none_above >= one_below
+// (both add to the same lambda - l2: l3 / 6 + margin >= 0 and -margin <= 0, and rounding is monotonic), and for
+// lambda < 0 one_below < 0: no hash in the range has K = 0. So one(h) iff LitCountBounds::lit gives 1
+// (GlintParticles.LitBoundHashesMatchTheBounds), by one subtraction and compare, no double per pair.
+struct LitBoundHashes {
+  uint64_t one_from, one_span;
+  explicit LitBoundHashes(const LitCountBounds &b) : one_from(below(b.one_from)), one_span(0) {
+    const uint64_t one_end = below(b.one_below);
+    one_span = one_end > one_from ? one_end - one_from : 0;
+  }
+  // The number of h whose u < v: ceil(v 2^32 - 1/2) clamped to [0, 2^32] (exact: the scale is a power of two, and
+  // the difference is exact wherever it is > 0 and v <= 1; above 1 it rounds to >= 2^32 - 1/2, every hash; NaN: 0).
+  // LitCountTable::hashes_below's count with fewer tests (it runs once per bounds walk, twice).
+  static uint64_t below(double v) {
+    const double x = v * 4294967296.0 - 0.5;
+    const double c = std::ceil(x > 0.0 ? x : 0.0);
+    return static_cast<uint64_t>(c < 4294967296.0 ? c : 4294967296.0);
+  }
+  // h - one_from wraps above one_span for h < one_from.
+  bool one(uint32_t h) const { return uint64_t{h} - one_from < one_span; }
+};
+
 // The footprint's parallelogram coordinates (s, t), inside when |s|, |t| <=
 // 1/2, are affine in the position; over a node of side `size` at (x0, y0)
 // they are (s, t) = origin + u_x d_ux + u_y d_uy for the position
@@ -1853,35 +1878,56 @@ inline void paired_node_origins(const FootprintFrame &frame, const NodeList &nod
 }
 
 #if GLIMMER_GLINT_WALK_AVX2
-// paired_node_origins with node_inside's four corners in the lanes of two
-// 256-bit registers (session 24): (s, s + ds_ux, t, t + dt_ux) from the
-// origin's register, and those + (ds_uy, ds_uy, dt_uy, dt_uy), the same sums
-// as node_inside's two 128-bit rows; every corner |s|, |t| <= 1/2 (four lanes
-// of one AND, where node_inside had three ANDs over eight lanes). The same
-// origins and flags (GlintParticles.GroupPassAvx2MatchesSse2 compares the
-// whole passes of both forms).
+// paired_node_origins in AVX2, two nodes per 256-bit register (session 29, glintbounds29; session 24's form took one
+// node per step, 35 instructions per node with a pair in the GI render's bounds walks): the lanes (s_a, t_a, s_b,
+// t_b) of nodes a and b, the next two nodes with a pair of a word (a word's odd last node is its own b).
+// origin()'s products in the SSE2 form's lanes and order ((px by - py bx, py ax - px ay) inv_det: the same values),
+// node_inside's corners o, o + d_ux, o + d_uy and (o + d_ux) + d_uy as its sums (its lanes o.s + 0 are o.s up to
+// the sign of a zero, which |.| drops), |.| <= 1/2 in every corner's s and t lane, the s and t lanes ANDed by a
+// swap within each half. The flags' low 32 bits (-1 or 0) stored as inside_mask. The same origins and flags as
+// paired_node_origins (GlintParticles.GroupPassAvx2MatchesSse2 compares the whole passes of both forms).
+[[gnu::target("avx2"), gnu::always_inline]] inline void paired_nodes_chunk_avx2(const NodeList &nodes, size_t a,
+                                                                               size_t b, const __m256d (&l)[7],
+                                                                               __m256d can_be_inside,
+                                                                               PairPassCounter &pc) {
+  const __m256d size = l[0], centre = l[1], by_ax = l[2], bx_ay = l[3], inv_det = l[4];
+  const __m128d xa = _mm_setr_pd(static_cast<double>(nodes.i[a]), static_cast<double>(nodes.j[a]));
+  const __m128d xb = _mm_setr_pd(static_cast<double>(nodes.i[b]), static_cast<double>(nodes.j[b]));
+  const __m256d p = _mm256_sub_pd(_mm256_mul_pd(_mm256_set_m128d(xb, xa), size), centre);  // px py, per node
+  const __m256d st =
+      _mm256_mul_pd(_mm256_sub_pd(_mm256_mul_pd(p, by_ax), _mm256_mul_pd(_mm256_permute_pd(p, 0x5), bx_ay)), inv_det);
+  _mm_storeu_pd(&pc.origin[a].s, _mm256_castpd256_pd128(st));
+  _mm_storeu_pd(&pc.origin[b].s, _mm256_extractf128_pd(st, 1));
+  const __m256d d_ux = l[5], d_uy = l[6];  // (ds_ux dt_ux ds_ux dt_ux), (ds_uy dt_uy ds_uy dt_uy)
+  const __m256d c10 = _mm256_add_pd(st, d_ux), c01 = _mm256_add_pd(st, d_uy), c11 = _mm256_add_pd(c10, d_uy);
+  const __m256d sign = _mm256_set1_pd(-0.0), half = _mm256_set1_pd(0.5);
+  const __m256d in_st = _mm256_cmp_pd(_mm256_andnot_pd(sign, st), half, _CMP_LE_OS);
+  const __m256d in_10 = _mm256_cmp_pd(_mm256_andnot_pd(sign, c10), half, _CMP_LE_OS);
+  const __m256d in_01 = _mm256_cmp_pd(_mm256_andnot_pd(sign, c01), half, _CMP_LE_OS);
+  const __m256d in_11 = _mm256_cmp_pd(_mm256_andnot_pd(sign, c11), half, _CMP_LE_OS);
+  const __m256d all = _mm256_and_pd(_mm256_and_pd(in_st, in_10), _mm256_and_pd(in_01, in_11));
+  const __m256d flag = _mm256_and_pd(_mm256_and_pd(all, _mm256_permute_pd(all, 0x5)), can_be_inside);
+  _mm_store_ss(reinterpret_cast<float *>(&pc.inside_mask[a]), _mm_castpd_ps(_mm256_castpd256_pd128(flag)));
+  _mm_store_ss(reinterpret_cast<float *>(&pc.inside_mask[b]), _mm_castpd_ps(_mm256_extractf128_pd(flag, 1)));
+}
 [[gnu::target("avx2")]] inline void paired_node_origins_avx2(const FootprintFrame &frame, const NodeList &nodes,
                                                             const PairMasks &pm, PairPassCounter &pc) {
-  const int32_t can_be_inside = frame.nodes_can_be_inside ? -1 : 0;
-  const __m128d centre = _mm_set_pd(frame.f.cy, frame.f.cx), by_ax = _mm_set_pd(frame.f.ax, frame.f.by);
-  const __m128d bx_ay = _mm_set_pd(frame.f.ay, frame.f.bx), inv_det = _mm_set1_pd(frame.inv_det);
-  const __m256d row0 = _mm256_setr_pd(0.0, frame.ds_ux, 0.0, frame.dt_ux);
-  const __m256d row1 = _mm256_setr_pd(frame.ds_uy, frame.ds_uy, frame.dt_uy, frame.dt_uy);
-  const __m256d sign = _mm256_set1_pd(-0.0), half = _mm256_set1_pd(0.5);
-  for (int w = 0; w < PairMasks::words(nodes.count); ++w)
-    for (uint64_t with = PairMasks::nodes_with_pair(pm.mask[static_cast<size_t>(w)]); with != 0; with &= with - 1) {
-      const auto at = static_cast<size_t>(16 * w + std::countr_zero(with) / 4);
-      const __m128d p = _mm_sub_pd(_mm_set_pd(static_cast<double>(nodes.j[at]) * nodes.size,
-                                              static_cast<double>(nodes.i[at]) * nodes.size), centre);  // px py
-      const __m128d st = _mm_mul_pd(_mm_sub_pd(_mm_mul_pd(p, by_ax), _mm_mul_pd(_mm_shuffle_pd(p, p, 1), bx_ay)), inv_det);
-      _mm_storeu_pd(&pc.origin[at].s, st);
-      const __m256d c0 = _mm256_add_pd(_mm256_permute4x64_pd(_mm256_castpd128_pd256(st), _MM_SHUFFLE(1, 1, 0, 0)), row0);
-      const __m256d c1 = _mm256_add_pd(c0, row1);
-      const __m256d in = _mm256_and_pd(_mm256_cmp_pd(_mm256_andnot_pd(sign, c0), half, _CMP_LE_OS),
-                                       _mm256_cmp_pd(_mm256_andnot_pd(sign, c1), half, _CMP_LE_OS));
-      const auto m = static_cast<uint32_t>(_mm256_movemask_pd(in));  // 15: all four corners inside
-      pc.inside_mask[at] = can_be_inside & -static_cast<int32_t>((m + 1u) >> 4);
+  const Footprint &f = frame.f;
+  const __m256d l[7] = {_mm256_set1_pd(nodes.size), _mm256_setr_pd(f.cx, f.cy, f.cx, f.cy),
+                        _mm256_setr_pd(f.by, f.ax, f.by, f.ax), _mm256_setr_pd(f.bx, f.ay, f.bx, f.ay),
+                        _mm256_set1_pd(frame.inv_det), _mm256_setr_pd(frame.ds_ux, frame.dt_ux, frame.ds_ux, frame.dt_ux),
+                        _mm256_setr_pd(frame.ds_uy, frame.dt_uy, frame.ds_uy, frame.dt_uy)};
+  const __m256d can_be_inside = _mm256_castsi256_pd(_mm256_set1_epi64x(frame.nodes_can_be_inside ? -1 : 0));
+  for (int w = 0; w < PairMasks::words(nodes.count); ++w) {
+    const auto first = static_cast<size_t>(16 * w);
+    for (uint64_t with = PairMasks::nodes_with_pair(pm.mask[static_cast<size_t>(w)]); with != 0;) {
+      const size_t a = first + static_cast<uint32_t>(std::countr_zero(with)) / 4;
+      with &= with - 1;
+      const size_t b = with == 0 ? a : first + static_cast<uint32_t>(std::countr_zero(with)) / 4;
+      with &= with - 1;
+      paired_nodes_chunk_avx2(nodes, a, b, l, can_be_inside, pc);
     }
+  }
 }
 #endif
 
@@ -2064,6 +2110,46 @@ template <bool kAvx2>
 // walk's table gave every pair K = 0), or the lit pairs were added to the counter.
 enum class LitPairs { kIncomplete, kNoneLit, kAdded };
 
+// (3) by the bounds (lambda < kLitTableFrom; session 29, glintbounds29): the pairs in order as lit_pairs_pass' walk
+// took them, the usual K = 1 (LitBoundHashes, ~86 % of the GI render's pairs) added here with the counter's count
+// and list length in registers (add_lit's sums for K = 1: count += [inside], the particle listed on the border), the
+// other pairs (K = 0, the bounds' undecided, a list within two of full) by lit_count_at and add_lit as before (the
+// same K, the same flush when full). The same particles in the same order, the same count and steps
+// (GlintParticles.PairPassesMatchTheNodeLoop). GI render's bounds walks: ~38 -> ~26 instructions per K = 1 pair.
+[[gnu::always_inline]] inline bool bounds_pairs_pass(const PairMasks &pm, int node_count, double lambda,
+                                                     int max_steps, PairPassCounter &pc, int64_t &steps) {
+  const LitCountBounds bounds(lambda);
+  const LitBoundHashes hashes(bounds);
+  std::optional<LitCountModel> model;
+  int64_t count = pc.count, total = steps;
+  auto n = static_cast<size_t>(pc.n_parts);
+  for (int w = 0; w < PairMasks::words(node_count); ++w) {
+    const auto first = static_cast<size_t>(64 * w);
+    for (uint64_t m = pm.mask[static_cast<size_t>(w)]; m != 0; m &= m - 1) {
+      const size_t pair = first + static_cast<uint32_t>(std::countr_zero(m));  // (unsigned: no sign extension)
+      const uint32_t h0 = pm.node_hash[pair], node = static_cast<uint32_t>(pair / kDirectionGroups);
+      if (hashes.one(h0) && n < PairPassCounter::kMaxParticles - 2) [[likely]] {  // add_lit's room test for K = 1
+        const int64_t in = pc.inside_mask[node];  // -1 inside, 0 on the border
+        total += 1;
+        count -= in;
+        pc.part_hash[n] = h0, pc.part_step[n] = position_step(0), pc.part_node[n] = node;
+        n += static_cast<size_t>(1 + in);  // listed on the border only
+        continue;
+      }
+      const int64_t K = lit_count_at(h0, bounds, model, lambda);
+      if (K < 0) __builtin_unreachable();  // the bounds' walk is walkable (lambda < kLitTableFrom)
+      if (K == 0) continue;  // add_lit adds nothing (it may flush: the same count)
+      total += K;
+      pc.count = count, pc.n_parts = static_cast<int>(n);
+      if (!pc.add_lit(static_cast<int>(node), h0, K, [&] { return total > max_steps; })) return false;
+      count = pc.count, n = static_cast<size_t>(pc.n_parts);
+    }
+  }
+  pc.count = count, pc.n_parts = static_cast<int>(n);
+  steps = total;
+  return total <= max_steps;
+}
+
 // (3): the pairs 4 node + g in order, K by the table's compares (from kLitTableFrom) or by the bounds, added to pc;
 // `steps` their total.
 [[gnu::always_inline]] inline LitPairs lit_pairs_pass(const PairMasks &pm, int node_count,
@@ -2100,9 +2186,7 @@ enum class LitPairs { kIncomplete, kNoneLit, kAdded };
     }
     walked = lit_pass([&](uint32_t h0) { return table->lit_passed(h0); });  // h0 < below[0]: pass 2's reject
   } else {
-    const LitCountBounds bounds(lambda);
-    std::optional<LitCountModel> model;
-    walked = lit_pass([&](uint32_t h0) { return lit_count_at(h0, bounds, model, lambda); });
+    walked = bounds_pairs_pass(pm, node_count, lambda, max_steps, pc, steps);
   }
   return walked ? LitPairs::kAdded : LitPairs::kIncomplete;
 }

@@ -1450,6 +1450,7 @@ PassQuery random_pass_query(Pcg32 &rng, int t) {
 TEST(GlintParticles, PairPassesMatchTheNodeLoop) {
   Pcg32 rng(29);
   int compared = 0, lit = 0, capped = 0, big = 0, control_differs = 0, in_passes = 0, tabled = 0, refused = 0;
+  int bounds_lit = 0;  // session 29: the bounds walks (lambda < kLitTableFrom) with a lit pair
   for (int t = 0; t < 40000; ++t) {
     const auto &[f, P, max_steps, seeds, group_density, nodes] = random_pass_query(rng, t);
     const auto passes = pg::count_reflecting_particles(f, nodes, group_density, seeds, P, max_steps);
@@ -1467,6 +1468,7 @@ TEST(GlintParticles, PairPassesMatchTheNodeLoop) {
     const double lambda = std::min(group_density * nodes.size * nodes.size, 4.0e18) * std::min(P, 1.0);
     tabled += passes_taken && lambda >= pg::kLitTableFrom;
     refused += passes_taken && lambda > pg::LitCountModel::kMaxNodeMean;
+    bounds_lit += passes_taken && lambda < pg::kLitTableFrom && (!loop.complete || loop.steps > 0);
     lit += loop.complete && loop.count > 0;
     capped += !loop.complete;
     big += loop.complete && loop.steps > 256;
@@ -1474,11 +1476,13 @@ TEST(GlintParticles, PairPassesMatchTheNodeLoop) {
                                                         pg::NoParticleVisitor{}, true);
     control_differs += shifted.complete && passes.complete && shifted.count != passes.count;
   }
-  std::printf("[pair passes] %d queries equal (%d counted in passes, %d of them with lambda >= %g, %d over %g; %d lit, "
-              "%d capped, %d over 256 lit particles); control P (1 + 1e-3) differs on %d\n",
-              compared, in_passes, tabled, pg::kLitTableFrom, refused, pg::LitCountModel::kMaxNodeMean, lit, capped, big,
-              control_differs);
+  std::printf("[pair passes] %d queries equal (%d counted in passes, %d of them with lambda >= %g, %d over %g, %d below "
+              "it with a lit pair or capped; %d lit, %d capped, %d over 256 lit particles); control P (1 + 1e-3) differs "
+              "on %d\n",
+              compared, in_passes, tabled, pg::kLitTableFrom, refused, pg::LitCountModel::kMaxNodeMean, bounds_lit, lit,
+              capped, big, control_differs);
   EXPECT_GT(in_passes, 10000);
+  EXPECT_GT(bounds_lit, 2000);
   EXPECT_GT(tabled, 1000);
   EXPECT_GT(lit, 10000);
   EXPECT_GT(capped, 1000);
@@ -1594,6 +1598,54 @@ TEST(GlintParticles, LitCountTableMatchesTheTailWalk) {
   EXPECT_GT(continued, 10000);
   EXPECT_GT(refused, 1000);
   EXPECT_GT(control_disagreements, 1000);
+}
+
+// Session 29 (glintbounds29): LitBoundHashes::one(h), the bounds walk's K = 1 by one integer compare, holds iff
+// LitCountBounds::lit gives 1 at u = (h + 1/2) 2^-32: the hashes within 3 of the range's ends and of each bound's
+// h = u 2^32, 0, 2^32 - 1, and 200 random hashes under 2 lambda 2^32, over 20 000 lambdas log-uniform in
+// 1e-12..1/4 (the bounds walk's), 2000 in 1/4..1, and 0, negative, above 1, NaN. Negative control: the range one
+// hash longer (u <= one_below) disagrees at its end on every lambda with a K = 1 range.
+TEST(GlintParticles, LitBoundHashesMatchTheBounds) {
+  Pcg32 rng(53);
+  int64_t checked = 0, ones = 0, control_disagreements = 0;
+  const double specials[] = {0.0, -1e-3, -0.5, 1.0, 1.5, 700.0, std::numeric_limits<double>::quiet_NaN(), 0.25};
+  for (int q = 0; q < 22000 + 8; ++q) {
+    const double v = rng.next_double();
+    const double lambda = q >= 22000 ? specials[q - 22000]
+                          : q < 20000 ? std::exp(std::log(1e-12) + v * (std::log(0.25) - std::log(1e-12)))
+                                      : 0.25 + 0.75 * v;
+    const pg::LitCountBounds bounds(lambda);
+    const pg::LitBoundHashes hashes(bounds);
+    pg::LitBoundHashes control = hashes;
+    control.one_span += 1;
+    const auto check = [&](int64_t h) {
+      if (h < 0 || h > 0xffffffffll) return;
+      const double u = (static_cast<double>(h) + 0.5) * (1.0 / 4294967296.0);
+      const bool want = bounds.lit(u) == 1;
+      ASSERT_EQ(hashes.one(static_cast<uint32_t>(h)), want) << "lambda " << lambda << " h " << h;
+      ++checked;
+      ones += want;
+      control_disagreements += control.one(static_cast<uint32_t>(h)) != want;
+    };
+    const auto around = [&](int64_t h) {
+      for (int d = -3; d <= 3; ++d) check(h + d);
+    };
+    around(static_cast<int64_t>(hashes.one_from));
+    around(static_cast<int64_t>(hashes.one_from + hashes.one_span));
+    for (const double b : {bounds.none_above, bounds.one_from, bounds.one_below})
+      if (std::isfinite(b)) around(static_cast<int64_t>(std::floor(std::clamp(b, -1.0, 2.0) * 4294967296.0)));
+    check(0);
+    check(0xffffffffll);
+    const double top = std::isfinite(lambda) ? std::clamp(2.0 * lambda, 0.0, 1.0) * 4294967295.0 : 4294967295.0;
+    for (int r = 0; r < 200; ++r) check(static_cast<int64_t>(rng.next_double() * top));
+  }
+  std::printf("[bound hashes] %lld hashes equal to the bounds' K = 1 test (%lld with K = 1); control (the range one hash "
+              "longer) disagrees on %lld\n",
+              static_cast<long long>(checked), static_cast<long long>(ones),
+              static_cast<long long>(control_disagreements));
+  EXPECT_GT(checked, 4000000);
+  EXPECT_GT(ones, 1000000);
+  EXPECT_GT(control_disagreements, 15000);
 }
 
 // Session 20: pass 2's AVX2 form (group_pass_avx2: two nodes' four group
