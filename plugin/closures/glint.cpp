@@ -308,7 +308,7 @@ class GlintClosure {
         if (pseudo_normal_count(wi, wo, density, parts, k, visit)) return k;
       }
     locate(wi, wo, density, parts);
-    return glint::count_glints(parts.fp, parts.site, P, kMaxSteps, std::forward<Visitor>(visit));
+    return glint::count_glints(parts.fp, parts.area, parts.site, P, kMaxSteps, std::forward<Visitor>(visit));
   }
 
   // The dark test is tried on footprints of at most kDarkTestMaxParticles
@@ -352,7 +352,7 @@ class GlintClosure {
 #endif
     locate(wi, wo, density, parts);
     if (parts.site.node_list().count > kDarkTestMaxNodes) return false;
-    const glint::GlintCount k = glint::count_glints(parts.fp, parts.site, P_max, kMaxSteps);
+    const glint::GlintCount k = glint::count_glints(parts.fp, parts.area, parts.site, P_max, kMaxSteps);
     return k.complete && k.count == 0;
   }
   bool provably_dark_if_applies(const Vec3 &wi, const Vec3 &wo, const TableCoords &c, float sigma_deg, float density,

@@ -2555,10 +2555,13 @@ template <typename Visitor>
 #endif
 
 // node_loop: always the scalar node-by-node loop (for the tests that compare the passes and the AVX2 loop with it).
+// Session 29 (glintbounds29): `area` is f.area(), which the caller knows (glint.cpp's Particles::area: the same
+// double), so the test of the passes' footprint size (FootprintFrame::can_hold_a_node's) does not recompute it.
 template <typename Visitor = NoParticleVisitor>
-inline GlintCount count_reflecting_particles(const Footprint &f, const NodeList &nodes, double density,
-                                             std::span<const uint32_t> seeds, double P, int max_steps,
-                                             Visitor &&visit = Visitor{}, bool node_loop = false) {
+inline GlintCount count_reflecting_particles_of_area(const Footprint &f, double area, const NodeList &nodes,
+                                                     double density, std::span<const uint32_t> seeds, double P,
+                                                     int max_steps, Visitor &&visit = Visitor{},
+                                                     bool node_loop = false) {
   GlintCount result;
   if (!(P > 0.0)) return result;
   const double lambda = std::min(density * nodes.size * nodes.size, 4.0e18) * std::min(P, 1.0);
@@ -2567,7 +2570,7 @@ inline GlintCount count_reflecting_particles(const Footprint &f, const NodeList 
   // The passes pay where nodes can lie inside the footprint (larger than a node; on 1..4 nodes they measured 2..5 %
   // slower than the node loop). can_hold_a_node: the frame's nodes_can_be_inside without the frame.
   if constexpr (!std::decay_t<Visitor>::kVisitsParticles)
-    if (!node_loop && seeds.size() == kDirectionGroups && FootprintFrame::can_hold_a_node(f, nodes.size))
+    if (!node_loop && seeds.size() == kDirectionGroups && area >= nodes.size * nodes.size)
       return count_four_groups_in_passes(f, nodes, seeds.data(), GroupReject(maybe_lit_below), lambda, max_steps);
 #if GLIMMER_GLINT_WALK_AVX2
   if (!node_loop && kWalkAvx2 && seeds.size() == kDirectionGroups)
@@ -2628,6 +2631,13 @@ inline GlintCount count_reflecting_particles(const Footprint &f, const NodeList 
   return result;
 }
 
+template <typename Visitor = NoParticleVisitor>
+inline GlintCount count_reflecting_particles(const Footprint &f, const NodeList &nodes, double density,
+                                             std::span<const uint32_t> seeds, double P, int max_steps,
+                                             Visitor &&visit = Visitor{}, bool node_loop = false) {
+  return count_reflecting_particles_of_area(f, f.area(), nodes, density, seeds, P, max_steps,
+                                            std::forward<Visitor>(visit), node_loop);
+}
 inline GlintCount count_reflecting_particles(const Footprint &f, const NodeList &nodes, double density, uint32_t seed,
                                              double P, int max_steps) {
   return count_reflecting_particles(f, nodes, density, std::span<const uint32_t>(&seed, 1), P, max_steps);
@@ -2674,12 +2684,18 @@ inline void locate_glints(const Footprint &f, double density, const DirectionCel
 // (wi, wo); the caller falls back to the mean when `complete` is false.
 // The count never decreases as P grows (a node's lit set is nested in P and
 // its lit particles' positions do not depend on P), and neither do its steps.
+// The same with the footprint's area known (area = f.area(); session 29).
+template <typename Visitor = NoParticleVisitor>
+inline GlintCount count_glints(const Footprint &f, double area, const GlintSite &site, double P, int max_steps,
+                               Visitor &&visit = Visitor{}) {
+  if (!site.has_half_vector) return {};
+  return count_reflecting_particles_of_area(f, area, site.node_list(), site.group_density, site.cell_seeds, P,
+                                            max_steps, std::forward<Visitor>(visit));
+}
 template <typename Visitor = NoParticleVisitor>
 inline GlintCount count_glints(const Footprint &f, const GlintSite &site, double P, int max_steps,
                                Visitor &&visit = Visitor{}) {
-  if (!site.has_half_vector) return {};
-  return count_reflecting_particles(f, site.node_list(), site.group_density, site.cell_seeds, P, max_steps,
-                                    std::forward<Visitor>(visit));
+  return count_glints(f, f.area(), site, P, max_steps, std::forward<Visitor>(visit));
 }
 
 }  // namespace glimmer::plugin::glint
