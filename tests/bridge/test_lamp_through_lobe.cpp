@@ -459,6 +459,19 @@ TEST(LampThroughLobe, ValuedLobeMatchesTheBruteForceIntegralOfItsValue) {
 // horizon (elevation -30..+30 deg, distances 0.3..5, sizes 0.05..2, tilted), numbers (u, v, pick): the same result,
 // estimate, direction and distance bit for bit, with many lamps skipped. Negative control: a skip by the lamp's centre
 // alone (below the plane) must differ from the unskipped estimate somewhere (a lamp straddling the horizon).
+// 1..3 lobes leaving an exit of normal n (their redraw rule's side), sharpness 0.1..1e3, normalised weights.
+ExitLobeMixture random_exit_mixture(Pcg32 &rng, const Vec3 &n) {
+  ExitLobeMixture m;
+  m.count = 1 + int(rng.next_float() * 3.0f);
+  for (int k = 0; k < m.count; ++k) {
+    Vec3 axis = random_unit(rng);
+    if (dot(axis, n) < 0.0f) axis = -axis;
+    m.lobe[k] = ExitLobe::make(axis, std::pow(10.0, -1.0 + 4.0 * rng.next_float()), n);
+    m.weight[k] = 0.05 + rng.next_float();
+  }
+  m.normalize();
+  return m;
+}
 TEST(LampThroughLobe, LampWhollyBelowTheExitIsSkippedExactly) {
   Pcg32 rng(2028, 28);
   const auto unit = [&] { return random_unit(rng); };
@@ -469,15 +482,7 @@ TEST(LampThroughLobe, LampWhollyBelowTheExitIsSkippedExactly) {
   int trials = 0, skipped = 0, differ = 0, reached = 0, control_differs = 0;
   for (int trial = 0; trial < 4000; ++trial) {
     const Vec3 n = unit(), P(rng.next_float() - 0.5f, rng.next_float() - 0.5f, rng.next_float() - 0.5f);
-    ExitLobeMixture m;
-    m.count = 1 + int(rng.next_float() * 3.0f);
-    for (int k = 0; k < m.count; ++k) {
-      Vec3 axis = unit();
-      if (dot(axis, n) < 0.0f) axis = -axis;  // the lobes leave the exit (their redraw rule's side)
-      m.lobe[k] = ExitLobe::make(axis, std::pow(10.0, -1.0 + 4.0 * rng.next_float()), n);
-      m.weight[k] = 0.05 + rng.next_float();
-    }
-    m.normalize();
+    ExitLobeMixture m = random_exit_mixture(rng, n);
     m.prepare();
     const render::ValuedExitLobe unskipped{&m, &Own::value, &m};
     // The lamp's direction from P at elevation -30..+30 deg above the exit plane.
@@ -548,15 +553,7 @@ TEST(LampThroughLobe, ValuedLobeWithoutTheProposalWhereTheValueIsZero) {
   int trials = 0, reached = 0, differ = 0, control_differs = 0;
   for (int trial = 0; trial < 3000; ++trial) {
     const Vec3 n = unit(), P(rng.next_float() - 0.5f, rng.next_float() - 0.5f, rng.next_float() - 0.5f);
-    ExitLobeMixture m;
-    m.count = 1 + int(rng.next_float() * 3.0f);
-    for (int k = 0; k < m.count; ++k) {
-      Vec3 axis = unit();
-      if (dot(axis, n) < 0.0f) axis = -axis;
-      m.lobe[k] = ExitLobe::make(axis, std::pow(10.0, -1.0 + 4.0 * rng.next_float()), n);
-      m.weight[k] = 0.05 + rng.next_float();
-    }
-    m.normalize();
+    ExitLobeMixture m = random_exit_mixture(rng, n);
     m.prepare();
     const HalfSpaceValue half{&m, unit()};
     const render::ValuedExitLobe valued{&m, &HalfSpaceValue::value, &half};
