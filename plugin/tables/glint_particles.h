@@ -1472,6 +1472,19 @@ struct NoParticleVisitor {
   x = _mm256_mullo_epi32(x, _mm256_set1_epi32(static_cast<int>(0x846ca68bu)));
   return _mm256_xor_si256(x, _mm256_srli_epi32(x, 16));
 }
+// The same with the two multipliers given (in all eight lanes: kFlushConstants' rows 1 and 2).
+[[gnu::target("avx2"), gnu::always_inline]] inline __m256i mix_u32x8(__m256i x, __m256i m1, __m256i m2) {
+  x = _mm256_xor_si256(x, _mm256_srli_epi32(x, 16));
+  x = _mm256_mullo_epi32(x, m1);
+  x = _mm256_xor_si256(x, _mm256_srli_epi32(x, 15));
+  x = _mm256_mullo_epi32(x, m2);
+  return _mm256_xor_si256(x, _mm256_srli_epi32(x, 16));
+}
+// flush_avx2's constants: kPositionKey, mix_u32's two multipliers, eight lanes each (32-byte rows).
+alignas(32) inline constexpr uint32_t kFlushConstants[3][8] = {
+    {kPositionKey, kPositionKey, kPositionKey, kPositionKey, kPositionKey, kPositionKey, kPositionKey, kPositionKey},
+    {0x7feb352du, 0x7feb352du, 0x7feb352du, 0x7feb352du, 0x7feb352du, 0x7feb352du, 0x7feb352du, 0x7feb352du},
+    {0x846ca68bu, 0x846ca68bu, 0x846ca68bu, 0x846ca68bu, 0x846ca68bu, 0x846ca68bu, 0x846ca68bu, 0x846ca68bu}};
 // Session 25 (glintcount25): which of the lit particles k0 .. k0 + 3 of a node
 // (its hash h0 in the direction cell, its origin o in `frame`) lie inside the
 // footprint, as bits 0..3 (all four computed; the caller masks those >= K):
@@ -1602,7 +1615,10 @@ struct PairPassCounter {
     _mm_storeu_si128(reinterpret_cast<__m128i *>(part_step.data() + end), _mm_setzero_si128());
     constexpr double kOutside = std::numeric_limits<double>::infinity();
     origin[kPadNode] = {kOutside, kOutside};
-    const __m128i position_key = _mm_set1_epi32(static_cast<int>(kPositionKey));
+    // Session 29 (glintlast29): the position key and mix_u32's multipliers read from memory in the loop (VPXOR's
+    // and VPMULLD's memory operands), not built from immediates (3 instructions each, two spilled): the table's
+    // address passes through an empty asm each step, so GCC neither folds it to immediates nor hoists the loads.
+    const uint32_t *consts = kFlushConstants[0];
     const __m256i spread = _mm256_setr_epi32(0, 0, 1, 1, 2, 2, 3, 3);
     const __m256i second = _mm256_setr_epi32(0, static_cast<int>(kNodeKeyStep), 0, static_cast<int>(kNodeKeyStep), 0,
                                              static_cast<int>(kNodeKeyStep), 0, static_cast<int>(kNodeKeyStep));
@@ -1616,9 +1632,12 @@ struct PairPassCounter {
       // (h ^ C) + (2 k + 1) W per particle, mod 2^32 (the step listed).
       const __m128i step = _mm_loadu_si128(reinterpret_cast<const __m128i *>(part_step.data() + a));
       const __m128i h = _mm_loadu_si128(reinterpret_cast<const __m128i *>(part_hash.data() + a));
-      const __m128i keys = _mm_add_epi32(_mm_xor_si128(h, position_key), step);
+      asm("" : "+r"(consts));  // opaque: the three loads below stay memory operands
+      const auto *row = reinterpret_cast<const __m256i *>(consts);
+      const __m128i keys = _mm_add_epi32(_mm_xor_si128(h, _mm_load_si128(reinterpret_cast<const __m128i *>(row))), step);
       const __m256i keys8 = _mm256_add_epi32(_mm256_permutevar8x32_epi32(_mm256_castsi128_si256(keys), spread), second);
-      const __m256 u = _mm256_mul_ps(_mm256_cvtepi32_ps(_mm256_srli_epi32(mix_u32x8(keys8), 8)), scale);
+      const __m256i mixed = mix_u32x8(keys8, _mm256_load_si256(row + 1), _mm256_load_si256(row + 2));
+      const __m256 u = _mm256_mul_ps(_mm256_cvtepi32_ps(_mm256_srli_epi32(mixed, 8)), scale);
       const __m256 xy = _mm256_permutevar8x32_ps(u, split);
       const __m256d ux = _mm256_cvtps_pd(_mm256_castps256_ps128(xy)), uy = _mm256_cvtps_pd(_mm256_extractf128_ps(xy, 1));
       // Session 29 (glintpaired29): the four origins' s and t by two VGATHERDPD at the doubles 2 node and 2 node + 1
