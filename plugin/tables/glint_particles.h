@@ -154,11 +154,12 @@ inline double lane_max(__m128d v) { return _mm_cvtsd_f64(_mm_max_sd(v, _mm_unpac
 // lanes of one SSE2 register (group_hashes) with the same values as this
 // scalar form (issue 10, eighth speed session; the groups used hash_combine,
 // PCG's hash, whose per-lane variable shift has no SSE2 form).
+inline constexpr uint32_t kMixMultiplier1 = 0x7feb352du, kMixMultiplier2 = 0x846ca68bu;  // every lane form's too
 constexpr uint32_t mix_u32(uint32_t x) {
   x ^= x >> 16;
-  x *= 0x7feb352du;
+  x *= kMixMultiplier1;
   x ^= x >> 15;
-  x *= 0x846ca68bu;
+  x *= kMixMultiplier2;
   x ^= x >> 16;
   return x;
 }
@@ -185,9 +186,9 @@ inline __m128i mullo_u32x4_swap12(__m128i a, __m128i k) {
 // mullo_u32x4_swap12, 27 -> 22 instructions (standalone, with its ret).
 inline __m128i mix_u32x4(__m128i x) {
   x = _mm_xor_si128(x, _mm_srli_epi32(x, 16));
-  x = mullo_u32x4_swap12(x, _mm_set1_epi32(static_cast<int>(0x7feb352du)));  // lanes 0 2 1 3
+  x = mullo_u32x4_swap12(x, _mm_set1_epi32(static_cast<int>(kMixMultiplier1)));  // lanes 0 2 1 3
   x = _mm_xor_si128(x, _mm_srli_epi32(x, 15));
-  x = mullo_u32x4_swap12(x, _mm_set1_epi32(static_cast<int>(0x846ca68bu)));  // lanes 0 1 2 3 again
+  x = mullo_u32x4_swap12(x, _mm_set1_epi32(static_cast<int>(kMixMultiplier2)));  // lanes 0 1 2 3 again
   return _mm_xor_si128(x, _mm_srli_epi32(x, 16));
 }
 #endif
@@ -1058,9 +1059,9 @@ inline void cell_seeds(const uint32_t *keys, const std::array<int32_t, kDirectio
 // mix_u32 per 32-bit lane by VPMULLD (mix_u32x4's words).
 [[gnu::target("avx2"), gnu::always_inline]] inline __m128i mix_u32x4_avx2(__m128i v) {
   v = _mm_xor_si128(v, _mm_srli_epi32(v, 16));
-  v = _mm_mullo_epi32(v, _mm_set1_epi32(static_cast<int>(0x7feb352du)));
+  v = _mm_mullo_epi32(v, _mm_set1_epi32(static_cast<int>(kMixMultiplier1)));
   v = _mm_xor_si128(v, _mm_srli_epi32(v, 15));
-  v = _mm_mullo_epi32(v, _mm_set1_epi32(static_cast<int>(0x846ca68bu)));
+  v = _mm_mullo_epi32(v, _mm_set1_epi32(static_cast<int>(kMixMultiplier2)));
   return _mm_xor_si128(v, _mm_srli_epi32(v, 16));
 }
 // direction_cell_seeds where the walk uses AVX2 (session 22): the same chart
@@ -1465,14 +1466,7 @@ struct NoParticleVisitor {
 #if GLIMMER_GLINT_WALK_AVX2
 // mix_u32 per 32-bit lane of a 256-bit register (VPMULLD: one instruction per
 // multiply; SSE2 needs two PMULUDQ and a shuffle). The same values.
-[[gnu::target("avx2")]] inline __m256i mix_u32x8(__m256i x) {
-  x = _mm256_xor_si256(x, _mm256_srli_epi32(x, 16));
-  x = _mm256_mullo_epi32(x, _mm256_set1_epi32(static_cast<int>(0x7feb352du)));
-  x = _mm256_xor_si256(x, _mm256_srli_epi32(x, 15));
-  x = _mm256_mullo_epi32(x, _mm256_set1_epi32(static_cast<int>(0x846ca68bu)));
-  return _mm256_xor_si256(x, _mm256_srli_epi32(x, 16));
-}
-// The same with the two multipliers given (in all eight lanes: kFlushConstants' rows 1 and 2).
+// The multipliers given (in all eight lanes: kFlushConstants' rows 1 and 2 read them from memory).
 [[gnu::target("avx2"), gnu::always_inline]] inline __m256i mix_u32x8(__m256i x, __m256i m1, __m256i m2) {
   x = _mm256_xor_si256(x, _mm256_srli_epi32(x, 16));
   x = _mm256_mullo_epi32(x, m1);
@@ -1480,11 +1474,17 @@ struct NoParticleVisitor {
   x = _mm256_mullo_epi32(x, m2);
   return _mm256_xor_si256(x, _mm256_srli_epi32(x, 16));
 }
+[[gnu::target("avx2")]] inline __m256i mix_u32x8(__m256i x) {
+  return mix_u32x8(x, _mm256_set1_epi32(static_cast<int>(kMixMultiplier1)),
+                   _mm256_set1_epi32(static_cast<int>(kMixMultiplier2)));
+}
 // flush_avx2's constants: kPositionKey, mix_u32's two multipliers, eight lanes each (32-byte rows).
 alignas(32) inline constexpr uint32_t kFlushConstants[3][8] = {
     {kPositionKey, kPositionKey, kPositionKey, kPositionKey, kPositionKey, kPositionKey, kPositionKey, kPositionKey},
-    {0x7feb352du, 0x7feb352du, 0x7feb352du, 0x7feb352du, 0x7feb352du, 0x7feb352du, 0x7feb352du, 0x7feb352du},
-    {0x846ca68bu, 0x846ca68bu, 0x846ca68bu, 0x846ca68bu, 0x846ca68bu, 0x846ca68bu, 0x846ca68bu, 0x846ca68bu}};
+    {kMixMultiplier1, kMixMultiplier1, kMixMultiplier1, kMixMultiplier1, kMixMultiplier1, kMixMultiplier1,
+     kMixMultiplier1, kMixMultiplier1},
+    {kMixMultiplier2, kMixMultiplier2, kMixMultiplier2, kMixMultiplier2, kMixMultiplier2, kMixMultiplier2,
+     kMixMultiplier2, kMixMultiplier2}};
 // Session 25 (glintcount25): which of the lit particles k0 .. k0 + 3 of a node
 // (its hash h0 in the direction cell, its origin o in `frame`) lie inside the
 // footprint, as bits 0..3 (all four computed; the caller masks those >= K):
