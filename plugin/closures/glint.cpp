@@ -157,6 +157,7 @@ class GlintClosure {
     c->placement_ = static_cast<glint::Placement>(p.get_enum("placement"));
     c->flakes_ = std::make_unique<const glint::FlakePalette>(c->field_.color, p.get_float("flake_hue_variation"),
                                                              p.get_float("flake_value_variation"));
+    c->albedo_ = sanitize(c->flakes_->mean());
     c->set_base_roughness(p);
     return c;
   }
@@ -574,7 +575,9 @@ class GlintClosure {
     return out.pdf > 0.0f;
   }
 
-  Spectrum albedo(const ShadingPoint &) const { return flakes_->mean(); }
+  // The albedo the host is given: the mean flake F0, a constant sanitized once at create (session 30: the adapter
+  // built the shading frame and sanitized it per call, 62 instructions).
+  const Spectrum &sanitized_albedo() const { return albedo_; }
 
  private:
   glint::ParticleField field_;
@@ -593,6 +596,7 @@ class GlintClosure {
   uint32_t density_param_ = 0;
   glint::Placement placement_ = glint::Placement::UV;
   std::unique_ptr<const glint::FlakePalette> flakes_;  // per-flake F0 (car paint); mean() = color when off
+  Spectrum albedo_{1.0f};                              // sanitize(flakes_->mean()) (sanitized_albedo)
   // Base roughness per axis (tangent, bitangent); equal: the isotropic model.
   float alpha_x_ = 0.16f, alpha_y_ = 0.16f;
   bool anisotropic_ = false;

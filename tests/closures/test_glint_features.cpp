@@ -251,6 +251,59 @@ TEST(GlintFlakeColour, MeanOverFootprintsIsTheDistributionsMean) {
   }
 }
 
+// The albedo the host is given (session 30: a constant sanitized at create, the adapter builds no frame): at any
+// shading point (random N, T, wi, uv and footprints, wi below N, a zero or NaN normal, NaN wi) the same bits, the
+// brute-force mean of the flake distribution within the palette's allowance (1e-3), the base colour exactly
+// without variation, and the entry point registered (the host's default without one is 1). Negative control: the
+// base colour (an albedo that ignored the variation) is more than 10x the allowance away from the car paint's.
+TEST(GlintFlakeColour, AlbedoIsTheMeanFlakeColourAtAnyShadingPoint) {
+  struct Case {
+    Params params;
+    Rgb expected;
+    bool exact;  // no variation: the base colour (its float) exactly
+  };
+  const Params plain = {{"roughness", "0.5"}, {"gamma", "2"}, {"density", "1e6"}, {"color", "0.9 0.6 0.2"}};
+  const std::vector<Case> cases = {
+      {kCarPaint, flake_distribution_mean(kCarPaintBase, 40.0, 0.8), false},
+      {with(kCarPaint, "flake_value_variation", "0"), flake_distribution_mean(kCarPaintBase, 40.0, 0.0), false},
+      {plain, {0.9f, 0.6f, 0.2f}, true},
+      {with(plain, "color", "0 0 0"), {0.0, 0.0, 0.0}, true},
+      {white_flakes(plain), {1.0, 1.0, 1.0}, true}};
+  constexpr double kPaletteAllowance = 1e-3;
+  Pcg32 rng(29);
+  auto unit = [&rng] {
+    const Vec3 v(static_cast<float>(rng.next_double() - 0.5), static_cast<float>(rng.next_double() - 0.5),
+                 static_cast<float>(rng.next_double() - 0.5));
+    return v * (1.0f / std::sqrt(dot(v, v)));
+  };
+  int checked = 0;
+  for (const Case &c : cases) {
+    auto glint = make_closure("glint", c.params);
+    ASSERT_NE(glint->type().albedo, nullptr);
+    const Spectrum first = glint->albedo(footprint_context(Vec3(0.0f, 0.0f, 1.0f), 0.5, 0.5, 0.01, 0.0, 0.0, 0.01));
+    const Rgb a{first.x, first.y, first.z};
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_NEAR(a[k], c.expected[k], kPaletteAllowance) << "channel " << k;
+      if (c.exact) {
+        EXPECT_EQ(a[k], static_cast<double>(static_cast<float>(c.expected[k])));
+      }
+    }
+    for (int i = 0; i < 2000; ++i) {
+      GlimmerShadingContext ctx = footprint_context(unit(), 100.0 * rng.next_double(), 100.0 * rng.next_double(),
+                                                    1e-3 * rng.next_double(), 0.0, 0.0, 1e-3 * rng.next_double());
+      const Vec3 n = i % 7 == 0 ? Vec3(0.0f) : unit(), t = i % 5 == 0 ? n : unit(), wi = unit();
+      ctx.N = i % 11 == 0 ? GlimmerVec3{NAN, n.y, n.z} : GlimmerVec3{n.x, n.y, n.z};
+      ctx.T = {t.x, t.y, t.z};
+      ctx.wi = {i % 13 == 0 ? NAN : wi.x, wi.y, wi.z};
+      const Spectrum b = glint->albedo(ctx);
+      ASSERT_TRUE(b.x == first.x && b.y == first.y && b.z == first.z) << "context " << i;
+      ++checked;
+    }
+  }
+  EXPECT_EQ(checked, 10000);
+  EXPECT_GT(std::fabs(kCarPaintBase[0] - cases[0].expected[0]), 10.0 * kPaletteAllowance);  // control
+}
+
 // Filtered / unfiltered continuity with variation on: at a fixed (wi, wo)
 // the mean of the glint-mode eval over random footprints (~1 glint each)
 // equals the filtered eval within 4 standard errors, per channel, at
