@@ -109,6 +109,8 @@ class GlintClosure {
   static constexpr const char *kDoc =
       "Glints: separable filterable discrete stochastic microfacets (Wang et al. 2018) over a GGX or Beckmann base.";
   static constexpr uint32_t kFlags = 0;
+  // The adapter's clear() (no sample) out of line (core/closure.h no_sample; session 30).
+  static constexpr bool kAdapterClearOutOfLine = true;
 
   // Cost bound of one eval (particles visited); beyond it the mean (3) is
   // returned. Only reached when glint mode is forced far past the
