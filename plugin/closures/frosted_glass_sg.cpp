@@ -609,6 +609,20 @@ bool drawn_exit_shape() {
   static const bool on = measurement_knob("GLIMMER_FROSTED_DRAWN_SHAPE", int(kDrawnExitShape), 0, 1) != 0;
   return on;
 }
+// kFloorViewShift, or for measurements only GLIMMER_FROSTED_FLOOR_SHIFT = k, read once.
+float floor_view_shift() {
+  static const float k = measurement_knob("GLIMMER_FROSTED_FLOOR_SHIFT", kFloorViewShift, -4.0f, 4.0f);
+  return k;
+}
+// kFloorViewExit (frosted_glass_sg.h, false: main's floor view), or for measurements only GLIMMER_FROSTED_FLOOR_EXIT
+// = 1 (session 30's fit), read once: where the solid is seen from the floor (not seen directly, the front SG's axis),
+// the entry roughness at most kCurvedShapeRoughness[0], by the rule (no test's shape or tail, no measurement shape or
+// tail).
+bool floor_view_exit(const SgInputs &in, bool seen_directly, bool drawn) {
+  static const bool on = measurement_knob("GLIMMER_FROSTED_FLOOR_EXIT", int(kFloorViewExit), 0, 1) != 0;
+  return on && !seen_directly && !drawn && !(in.roughness > kCurvedShapeRoughness[0]) && in.curved_shape == nullptr &&
+         in.curved_tail < 0.0f && curved_shape_override() == nullptr && curved_tail() < 0.0f;
+}
 // `seen_directly`: the waist (applied only there, sample_sg_transmission) is made only then. `drawn`: the walk's
 // internal lobe is about the drawn entry axis (kEntryAxis, drawn_entry_axis): the curved exit's shape is then the
 // drawn entry's (curved_exit_shape, session 29).
@@ -624,7 +638,9 @@ bool solid_exit_mixture(const SgInputs &in, const Segment &seg, const Vec3 &axis
     if (wide && in.roughness <= kCurvedSplitMax) {
       // The axis moved by the smooth refractions' mean shift (kCurvedAxisShift; session 23's first-moment rules were
       // measured and not kept, docs/frosted_glass.md "Session 23 (frostedexit23)"; removed in session 24).
-      if (const float k = curved_shift(); k != 0.0f) {
+      // The floor's view (session 30, floor_view_exit; off by default): kFloorViewShift and kCurvedExitShapeFloor.
+      const bool floor_exit = floor_view_exit(in, seen_directly, drawn);
+      if (const float k = floor_exit ? floor_view_shift() : curved_shift(); k != 0.0f) {
         const Vec3 shifted = normalize(out.sg.axis + refracted_mean_shift(seg, axis, ior) * k);
         if (is_finite(shifted)) out.sg.axis = shifted;
       }
@@ -653,7 +669,9 @@ bool solid_exit_mixture(const SgInputs &in, const Segment &seg, const Vec3 &axis
       else if (t >= 0.0f)
         split_single_sg(t, out);
       else
-        apply_curved_shape(curved_exit_shape(in.roughness, drawn && drawn_exit_shape()), out);
+        apply_curved_shape(floor_exit ? kCurvedExitShapeFloor
+                                      : curved_exit_shape(in.roughness, drawn && drawn_exit_shape()),
+                           out);
     }
     return true;
   }
