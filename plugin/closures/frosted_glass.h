@@ -289,14 +289,24 @@ class FrostedGlassClosure {
   // `rand`, wi in the pane frame) and split - 1 more front samples from numbers hashed from `rand`, those that
   // transmit kept with their own walks (a walk that fails is kept with zero throughput: it counts in n).
   // count_rejected: the tests' negative control, the extra front samples that reflect counted in n as zero walks
-  // (biased low by the front's transmission probability).
+  // (biased low by the front's transmission probability). branch: frosted::pane_branch_level's level (-1: the
+  // knob's; session 30): where the pane is seen directly, each walk's first event at the far face keeps both branches
+  // (branch_walks) and the face is picked by frosted::pane_face_probability's level 2.
   bool pane_sample_sg_split(const ShadingPoint &sp, const DielectricLobe &lobe, const frosted::PaneSgInputs &in,
                             const Vec3 &rand, const Vec3 &wi, const LocalSample &front, bool flip, LocalSample &out,
-                            int split, bool count_rejected = false) const {
-    frosted::PaneWalkEnd walks[frosted::kPaneWalkSplit];
-    int n = 0;
+                            int split, bool count_rejected = false, int branch = -1) const {
+    frosted::PaneWalkEnd walks[2 * frosted::kPaneWalkSplit];
+    int n = 0, ends = 0;
+    if (branch < 0) branch = frosted::pane_branch_level();
+    if (split < 2 || sp.ctx->diffuse_bounce + sp.ctx->glossy_bounce != 0 || lobe.mode == kSharp)
+      branch = 0;  // camera-seen rough panes only
     const auto add_walk = [&](const Vec3 &numbers, const LocalSample &s) {
-      frosted::PaneWalkEnd &w = walks[n++];
+      ++n;
+      if (branch > 0) {
+        ends += branch_walks(sp, lobe, numbers, s, in.tint, walks + ends, branch == frosted::kPaneBranchControl);
+        return;
+      }
+      frosted::PaneWalkEnd &w = walks[ends++];
       Spectrum throughput = s.f_cos / s.pdf * in.tint;
       Vec3 d = s.wo, leaving;
       if (!walk_to_exit(sp, lobe, numbers, d, throughput, leaving)) return;
@@ -309,16 +319,17 @@ class FrostedGlassClosure {
       const Vec3 numbers(rng.next(), rng.next(), rng.next());
       LocalSample s;
       if (!lobe.sample(wi, numbers, s) || !(s.label & GLIMMER_LABEL_TRANSMIT) || !(s.pdf > 0.0f)) {
-        if (count_rejected) walks[n++] = frosted::PaneWalkEnd{};
+        if (count_rejected) walks[ends++] = frosted::PaneWalkEnd{}, ++n;
         continue;
       }
       add_walk(numbers, s);
     }
-    return frosted::sample_pane_sg_split(sp, in, rand, walks, n, flip, out);
+    const int face_pick = branch >= 2 ? 2 : 0;  // the control (9) keeps main's pick
+    return frosted::sample_pane_sg_split(sp, in, rand, walks, n, flip, out, ends, face_pick);
   }
   // For the tests: the rough pane's split sample (kPaneWalk) with its negative control (count_rejected above).
   bool pane_sample_sg_split(const ShadingPoint &sp, const Vec3 &rand, LocalSample &out, int split,
-                            bool count_rejected) const {
+                            bool count_rejected, int branch = -1) const {
     DielectricLobe scratch;
     const DielectricLobe &lobe = lobe_at(sp, scratch);
     Vec3 wi;
@@ -329,7 +340,7 @@ class FrostedGlassClosure {
     if (front != PaneFront::kEntered) return front == PaneFront::kReflected;
     const frosted::PaneSgInputs in = pane_sg_inputs(sp, frosted::SgVariant::kPaneWalk, frosted::kPaneLadder);
     return pane_sample_sg_split(sp, lobe, in, rand, wi, s, flip, out, std::clamp(split, 1, frosted::kPaneWalkSplit),
-                                count_rejected);
+                                count_rejected, branch);
   }
   // For the tests: the interface lobe at sp (per-point roughness and IOR).
   bool pane_sample_sg(const ShadingPoint &sp, const Vec3 &rand, LocalSample &out, frosted::SgVariant variant,
@@ -404,12 +415,13 @@ class FrostedGlassClosure {
     return lobe.eval(at_interface(-d, bottom), at_interface(wo, bottom));
   }
   LocalEval eval_exit_sg(const ShadingPoint &sp, const GlimmerExitState &state, const Vec3 &w) const {
-    const frosted::PaneSgExitState x = frosted::PaneSgExitState::read(state);
+    const Vec3 wo = entry_side(sp, w);
+    // the ends' side: the exit face's, i.e. wo's where q can be > 0 (exit_interface_eval is 0 on the other side)
+    const frosted::PaneSgExitState x = frosted::PaneSgExitState::read(state, wo.z < 0.0f);
     DielectricLobe scratch;
     const DielectricLobe &lobe = lobe_at(sp, scratch);
-    const Vec3 wo = entry_side(sp, w);
     float q = 0.0f;
-    for (int k = 0; k < frosted::PaneSgExitState::kWalks; ++k)
+    for (int k = 0; k < frosted::PaneSgExitState::capacity(); ++k)
       if (x.c[k] > 0.0f) q += x.c[k] * average(exit_interface_eval(lobe, x.d[k], wo).f_cos);
     LocalEval e;
     e.f_cos = Spectrum(q);
@@ -488,6 +500,40 @@ class FrostedGlassClosure {
       d = next;
     }
     return false;
+  }
+  // Session 30 (frostedpane30, frosted::pane_branch_level): the walk from the front sample `front` with both branches
+  // of its first event at the far face kept (expected value instead of the Fresnel coin there): the microfacet m from
+  // the walk's numbers, the transmitted branch (weight x (1 - F(m))) ends there, the reflected one (weight x F(m))
+  // walks on (its own numbers) to wherever it leaves. E[coin-chosen branch's weight] = (1 - F) w_T + F w_R, so the
+  // two ends' sum has the one walk's expectation. Writes up to 2 ends (the tint applied as add_walk does); returns
+  // how many (a failed branch: none; both failed: one empty end, as a failed walk).
+  // control: the tests' negative control (both branches at full weight, F not applied: biased high).
+  int branch_walks(const ShadingPoint &sp, const DielectricLobe &lobe, const Vec3 &numbers, const LocalSample &front,
+                   const Spectrum &tint, frosted::PaneWalkEnd *out, bool control = false) const {
+    int count = 0;
+    Vec3 d = front.wo;
+    if (d.z == 0.0f) return (out[0] = frosted::PaneWalkEnd{}), 1;
+    const bool bottom = d.z < 0.0f;
+    const Spectrum throughput = front.f_cos / front.pdf * tint * crossing(d.z);
+    const Vec3 wi_l = at_interface(-d, bottom);
+    const bool outside = wi_l.z > 0.0f;
+    const Vec3 wi = outside ? wi_l : mf::flip_z_local(wi_l);
+    mf::WalkRng rng(sp.seed_for(numbers));
+    const float x = rng.next(), y = rng.next();
+    const Vec3 m = mf::sample_visible_normal(lobe.dist, wi, lobe.ax, lobe.ay, x, y);
+    const float F = mf::fresnel_dielectric(dot(wi, m), outside ? lobe.ior : 1.0f / lobe.ior);
+    const float f_t = control ? 1.0f : 1.0f - F, f_r = control ? 1.0f : F;
+    LocalSample s;
+    if (F < 1.0f && lobe.sample(wi_l, Vec3(x, y, 1.0f), s) && (s.label & GLIMMER_LABEL_TRANSMIT))
+      out[count++] = frosted::PaneWalkEnd{d, throughput * (s.f_cos / s.pdf) * f_t * tint};
+    if (F > 0.0f && lobe.sample(wi_l, Vec3(x, y, 0.0f), s) && !(s.label & GLIMMER_LABEL_TRANSMIT)) {
+      Vec3 d2 = at_interface(s.wo, bottom), leaving;
+      Spectrum t2 = throughput * (s.f_cos / s.pdf) * f_r;
+      if (walk_to_exit(sp, lobe, Vec3(numbers.x, numbers.y, numbers.z + 2.0f), d2, t2, leaving))
+        out[count++] = frosted::PaneWalkEnd{d2, t2 * tint};
+    }
+    if (count == 0) out[count++] = frosted::PaneWalkEnd{};
+    return count;
   }
   // method=path's pane: the front reflection is an ordinary rough lobe (eval's pane_front_reflection: light-sampled
   // and MIS-combined); every path that enters leaves as one SINGULAR sample (weight: the walk's product of f cos /

@@ -1321,14 +1321,32 @@ bool sample_pane_sg_through(const ShadingPoint &sp, const PaneSgInputs &in, cons
   return emit_pane_sample(sp, exit, sp.seed_for(rand), weight, flip, out);
 }
 
+int pane_branch_level() {
+  static const int level = measurement_knob("GLIMMER_FROSTED_PANE_BRANCH", kPaneBranchDefault, 0, 2);
+  return level;
+}
+double pane_face_probability(double t_through, double t_back, int face_pick) {
+  if (!(t_through > 0.0)) return 0.0;
+  if (!(t_back > 0.0)) return 1.0;
+  if (face_pick == 1) return 0.5;
+  if (face_pick == 2) return std::sqrt(t_through) / (std::sqrt(t_through) + std::sqrt(t_back));
+  return t_through / (t_through + t_back);
+}
+
+#if GLIMMER_ABI_MINOR >= 8
+bool PaneSgExitState::packed() { return pane_branch_level() > 0; }
+#endif
+
 bool sample_pane_sg_split(const ShadingPoint &sp, const PaneSgInputs &in, const Vec3 &rand, const PaneWalkEnd *walks,
-                          int n, bool flip, LocalSample &out) {
+                          int n, bool flip, LocalSample &out, int ends, int face_pick) {
   if (n < 1 || n > kPaneWalkSplit) return false;
-  PaneExitLobe lobes[kPaneWalkSplit];
-  float t[kPaneWalkSplit];
+  if (ends < 0) ends = n;
+  if (ends < 1 || ends > 2 * kPaneWalkSplit) return false;
+  PaneExitLobe lobes[2 * kPaneWalkSplit];
+  float t[2 * kPaneWalkSplit];
   Spectrum sum_T(0.0f);
   double t_all = 0.0, t_through = 0.0;
-  for (int k = 0; k < n; ++k) {
+  for (int k = 0; k < ends; ++k) {
     t[k] = 0.0f;
     const Spectrum &T = walks[k].throughput;
     if (!(max_component(T) > 0.0f) || !is_finite(T) || !pane_exit_lobe_at(walks[k].d, in, lobes[k])) continue;
@@ -1339,16 +1357,19 @@ bool sample_pane_sg_split(const ShadingPoint &sp, const PaneSgInputs &in, const 
     if (lobes[k].through) t_through += t[k];
   }
   if (!(t_all > 0.0)) return false;
-  // The face: through with probability t_through / t_all (a number of its own, hashed from the closure's).
+  // The face: through with probability p_through (a number of its own, hashed from the closure's); main: t_through /
+  // t_all (pane_face_probability).
   const uint32_t seed = sp.seed_for(rand);
   const double u = double(hash_u32x2(seed, 0x66616365u) >> 8) * 0x1p-24;
-  const bool through = u * t_all < t_through;
+  const double p_through = pane_face_probability(t_through, t_all - t_through, face_pick);
+  const bool through = face_pick == 0 ? u * t_all < t_through : u < p_through;  // main's test at 0 (bit for bit)
   const double t_face = through ? t_through : t_all - t_through;
   if (!(t_face > 0.0)) return false;
+  const double p_face = through ? p_through : 1.0 - p_through;
   PaneExitLobe exit;
   exit.through = through;
   exit.lobe_count = 0;
-  for (int k = 0; k < n; ++k) {
+  for (int k = 0; k < ends; ++k) {
     if (!(t[k] > 0.0f) || lobes[k].through != through) continue;
     if (exit.lobe_count == 0) exit.sg = lobes[k].sg;
     ExitLobe::MixtureLobe &l = exit.lobe[exit.lobe_count++];
@@ -1358,7 +1379,12 @@ bool sample_pane_sg_split(const ShadingPoint &sp, const PaneSgInputs &in, const 
   }
   if (exit.lobe_count == 0) return false;
   if (exit.lobe_count == 1) exit.lobe_count = 0;  // one lobe: the single SG (exit.sg), as the unsplit sample
-  if (!emit_pane_sample(sp, exit, seed, sum_T / float(n), flip, out)) return false;
+  // The face's walks' throughput over n and over the face's probability (sum_T / n when p_face = t_face / t_all).
+  Spectrum sum_face(0.0f);
+  for (int k = 0; k < ends; ++k)
+    if (t[k] > 0.0f && lobes[k].through == through) sum_face += walks[k].throughput;
+  const Spectrum weight = face_pick == 0 ? sum_T / float(n) : sum_face * float(1.0 / (double(n) * p_face));
+  if (!emit_pane_sample(sp, exit, seed, weight, flip, out)) return false;
 #if GLIMMER_ABI_MINOR >= 8
   // The exact exit for the host's lamps (PaneSgExitState): the picked face's walks, only where the host combines
   // the lamps with this sample (as method=path's exit state) and where the pane is seen directly (no diffuse or
@@ -1369,10 +1395,11 @@ bool sample_pane_sg_split(const ShadingPoint &sp, const PaneSgInputs &in, const 
     PaneSgExitState x;
     int kept = 0;
     bool whole = true;  // a walk of the face without a finite c_k (E_k = 0): no state, the mixture as before
-    for (int k = 0; k < n && whole; ++k) {
+    for (int k = 0; k < ends && whole; ++k) {
       if (!(t[k] > 0.0f) || lobes[k].through != through) continue;
       const float c = float(t[k] / t_face) / lobes[k].energy;
-      whole = c > 0.0f && std::isfinite(c);
+      whole = c > 0.0f && std::isfinite(c) && kept < PaneSgExitState::capacity();
+      if (!whole) break;
       x.d[kept] = walks[k].d;
       x.c[kept++] = c;
     }

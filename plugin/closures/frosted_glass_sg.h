@@ -57,6 +57,8 @@
 // sample is returned as in method=path.
 #pragma once
 
+#include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <span>
 
@@ -561,11 +563,49 @@ struct PaneWalkEnd {
 // exit only added noise (their variance per sample +32 % / +56 %).
 #if GLIMMER_ABI_MINOR >= 8
 struct PaneSgExitState {
+  // Main's format: kWalks ends as (d, c) floats. Session 30's packed format (pane_branch_level() > 0, where a face can
+  // have up to 2 kWalks ends): d as 16-bit octahedral coordinates (angular error < 1e-4 rad) and c as a float.
   static constexpr int kWalks = kPaneWalkSplit;
-  Vec3 d[kWalks];
-  float c[kWalks] = {};  // 0: no walk
+  static constexpr int kEnds = 2 * kPaneWalkSplit;
+  Vec3 d[kEnds];
+  float c[kEnds] = {};  // 0: no walk
+  static bool packed();  // pane_branch_level() > 0 (read once: the same format in sample and eval_exit)
+  static int capacity() { return packed() ? kEnds : kWalks; }
+  static uint32_t octahedral(const Vec3 &v) {
+    const float l1 = std::fabs(v.x) + std::fabs(v.y) + std::fabs(v.z);
+    float x = v.x / l1, y = v.y / l1;
+    if (v.z < 0.0f) {
+      const float ox = (1.0f - std::fabs(y)) * (x < 0.0f ? -1.0f : 1.0f);
+      y = (1.0f - std::fabs(x)) * (y < 0.0f ? -1.0f : 1.0f);
+      x = ox;
+    }
+    const auto q = [](float u) { return uint32_t(std::lround((std::clamp(u, -1.0f, 1.0f) * 0.5f + 0.5f) * 65535.0f)); };
+    return q(x) | (q(y) << 16);
+  }
+  static Vec3 from_octahedral(uint32_t w, bool below) {
+    float x = float(w & 0xffffu) / 65535.0f * 2.0f - 1.0f, y = float(w >> 16) / 65535.0f * 2.0f - 1.0f;
+    const float z = 1.0f - std::fabs(x) - std::fabs(y);
+    if (z < 0.0f) {
+      const float ox = (1.0f - std::fabs(y)) * (x < 0.0f ? -1.0f : 1.0f);
+      y = (1.0f - std::fabs(x)) * (y < 0.0f ? -1.0f : 1.0f);
+      x = ox;
+    }
+    Vec3 v = normalize(Vec3(x, y, z));
+    if (below != (v.z < 0.0f)) v.z = 0.0f;  // rounding across the plane: no exit (eval's d.z == 0)
+    return v;
+  }
   void write(GlimmerExitState &st) const {
     static_assert(4 * kWalks * sizeof(float) <= sizeof(GlimmerExitState));
+    static_assert(2 * kEnds * sizeof(uint32_t) <= sizeof(GlimmerExitState));
+    if (packed()) {
+      uint32_t v[2 * kEnds];
+      for (int k = 0; k < kEnds; ++k) {
+        v[2 * k] = c[k] > 0.0f ? octahedral(d[k]) : 0u;
+        std::memcpy(&v[2 * k + 1], &c[k], sizeof(float));
+      }
+      std::memcpy(st.words, v, sizeof v);
+      return;
+    }
     float v[4 * kWalks];
     for (int k = 0; k < kWalks; ++k) {
       v[4 * k] = d[k].x;
@@ -575,10 +615,20 @@ struct PaneSgExitState {
     }
     std::memcpy(st.words, v, sizeof v);
   }
-  static PaneSgExitState read(const GlimmerExitState &st) {
+  // `below`: the ends' side (every end of a face has its last internal direction on the exit face's side).
+  static PaneSgExitState read(const GlimmerExitState &st, bool below = false) {
+    PaneSgExitState x;
+    if (packed()) {
+      uint32_t v[2 * kEnds];
+      std::memcpy(v, st.words, sizeof v);
+      for (int k = 0; k < kEnds; ++k) {
+        std::memcpy(&x.c[k], &v[2 * k + 1], sizeof(float));
+        if (x.c[k] > 0.0f) x.d[k] = from_octahedral(v[2 * k], below);
+      }
+      return x;
+    }
     float v[4 * kWalks];
     std::memcpy(v, st.words, sizeof v);
-    PaneSgExitState x;
     for (int k = 0; k < kWalks; ++k) {
       x.d[k] = Vec3(v[4 * k], v[4 * k + 1], v[4 * k + 2]);
       x.c[k] = v[4 * k + 3];
@@ -589,7 +639,25 @@ struct PaneSgExitState {
 #endif
 // The split sample from the n kept walks (n <= kPaneWalkSplit); `rand` the closure's numbers (its face pick is
 // hashed from them). False: every walk failed or carries nothing.
+// ends: how many entries `walks` has (-1: n; session 30's first-event branches give up to 2 per walk, the estimate
+// still (1 / n) sum over the ends); face_pick: pane_face_probability's rule (0 main's t_F / t).
 bool sample_pane_sg_split(const ShadingPoint &sp, const PaneSgInputs &in, const Vec3 &rand, const PaneWalkEnd *walks,
-                          int n, bool flip, LocalSample &out);
+                          int n, bool flip, LocalSample &out, int ends = -1, int face_pick = 0);
+
+// The camera-seen rough pane's split, session 30 (issue 12, frostedpane30; docs/frosted_glass.md "Session 30
+// (frostedpane30)"). On the caustic bench's pane crop the walks between the faces carried ~all of glass_R's variance
+// (re-drawn alone: 1.95 of 1.80 per sample), the face pick 1.08, the front microfacet 0.45 (total effects, they
+// overlap): the lamp above the pane is seen through it only by light that reflected at the far face (R_int), a
+// Fresnel coin of a few % per walk. Level 1: each walk keeps both branches of its first event at the far face
+// (FrostedGlassClosure::branch_walks: the transmitted end weighted by 1 - F(m), the reflected branch by F(m) walking
+// on), so every sample carries the reflected light's ends; level 2 (default) also picks the face with probability
+// ~ sqrt(t_F) instead of t_F (the weight divided by it: unbiased for any probability > 0 where t_F > 0; the
+// back face's few % of throughput carries the lamp). Only where the pane is seen directly (as the exact exit) and
+// the split has > 1 walk. Measurement knob GLIMMER_FROSTED_PANE_BRANCH (0: main's images), read once.
+inline constexpr int kPaneBranchDefault = 2;
+inline constexpr int kPaneBranchControl = 9;  // the tests' negative control: both branches at full weight (no F)
+int pane_branch_level();
+// sqrt(t_F)-proportional (face_pick 2), 1/2 (1, tried) or main's t_F / t (0): the probability of the far face.
+double pane_face_probability(double t_through, double t_back, int face_pick);
 
 }  // namespace glimmer::plugin::frosted
