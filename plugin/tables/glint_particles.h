@@ -1015,10 +1015,27 @@ inline void cell_seeds(const uint32_t *keys, const std::array<int32_t, kDirectio
 #endif
 }
 
+// sqrt(x) for x > 0 (the caller's test): SQRTSS (correctly rounded, std::sqrt's bits) without std::sqrt's errno
+// branch for x < 0 and the stack frame of its sqrtf call, which GCC 12 keeps after a test x > c (no float ranges;
+// _mm_sqrt_ss(_mm_set_ss(x)) costs a VINSERTPS instead). kVex: callers compiled for AVX (VSQRTSS); the others
+// (the SSE2 walk, inlined into glint.cpp) keep std::sqrt: glint.cpp's inlining budget. Session 30 (glintcells30).
+template <bool kVex>
+[[gnu::always_inline]] inline float positive_sqrt(float x) {
+#if defined(__SSE2__)
+  if constexpr (kVex) {
+    float r;
+    asm("vsqrtss %1, %1, %0" : "=x"(r) : "x"(x));
+    return r;
+  }
+#endif
+  return std::sqrt(x);
+}
 // The cell coordinates (before the groups' shifts and floors) of (wi, wo)
 // in units of cells: (x, y); false when there is no half vector above the
 // surface. direction_cell_seeds' chart, shared by its SSE2 and AVX2 forms
 // (the same float operations in the same order: the same x, y).
+// kVex: the caller is compiled for AVX (positive_sqrt's instruction form).
+template <bool kVex = false>
 [[gnu::always_inline]] inline bool direction_cell_coords(const DirectionCellKeys &keys, const Vec3 &wi, const Vec3 &wo,
                                                          float gamma_rad, float &x, float &y) {
   // In terms of s = wi + wo (h = s / |s|), with two divisions and one square
@@ -1029,7 +1046,7 @@ inline void cell_seeds(const uint32_t *keys, const std::array<int32_t, kDirectio
   const Vec3 s = wi + wo;
   const float len2 = dot(s, s);
   if (!(len2 > 1e-12f) || !(s.z > 0.0f)) return false;
-  const float len = std::sqrt(len2);
+  const float len = positive_sqrt<kVex>(len2);
   // Stereographic chart of h: p = 2 h.xy / (1 + h.z) = 2 s.xy / (|s| + s.z).
   const float d = 1.0f / (len + s.z);
   float px = 2.0f * d * s.x, py = 2.0f * d * s.y;
@@ -1064,6 +1081,20 @@ inline void cell_seeds(const uint32_t *keys, const std::array<int32_t, kDirectio
   v = _mm_mullo_epi32(v, _mm_set1_epi32(static_cast<int>(kMixMultiplier2)));
   return _mm_xor_si128(v, _mm_srli_epi32(v, 16));
 }
+// The same with the multipliers given (direction_cell_seeds_avx2_body: read from kCellConstants' memory).
+[[gnu::target("avx2"), gnu::always_inline]] inline __m128i mix_u32x4_avx2(__m128i v, __m128i m1, __m128i m2) {
+  v = _mm_xor_si128(v, _mm_srli_epi32(v, 16));
+  v = _mm_mullo_epi32(v, m1);
+  v = _mm_xor_si128(v, _mm_srli_epi32(v, 15));
+  v = _mm_mullo_epi32(v, m2);
+  return _mm_xor_si128(v, _mm_srli_epi32(v, 16));
+}
+// direction_cell_seeds_avx2_body's integer constants (session 30): kNodeKeyStep and mix_u32's two multipliers, four
+// lanes each.
+alignas(16) inline constexpr uint32_t kCellConstants[3][4] = {
+    {kNodeKeyStep, kNodeKeyStep, kNodeKeyStep, kNodeKeyStep},
+    {kMixMultiplier1, kMixMultiplier1, kMixMultiplier1, kMixMultiplier1},
+    {kMixMultiplier2, kMixMultiplier2, kMixMultiplier2, kMixMultiplier2}};
 // direction_cell_seeds where the walk uses AVX2 (session 22): the same chart
 // (direction_cell_coords, inlined: VEX forms of the same float operations;
 // avx2 enables no FMA), the floors by VROUNDPS (floor_cells' clamp first:
@@ -1075,15 +1106,22 @@ inline void cell_seeds(const uint32_t *keys, const std::array<int32_t, kDirectio
     const DirectionCellKeys &keys, const Vec3 &wi, const Vec3 &wo, float gamma_rad,
     std::array<uint32_t, kDirectionGroups> &seeds) {
   float x, y;
-  if (!direction_cell_coords(keys, wi, wo, gamma_rad, x, y)) return false;
+  if (!direction_cell_coords<true>(keys, wi, wo, gamma_rad, x, y)) return false;
   static_assert(kDirectionGroups == 4);
   const __m128i ix = floor_cells4_avx2(_mm_add_ps(_mm_set1_ps(x), _mm_setr_ps(kGroupShift[0][0], kGroupShift[1][0],
                                                                     kGroupShift[2][0], kGroupShift[3][0])));
   const __m128i iy = floor_cells4_avx2(_mm_add_ps(_mm_set1_ps(y), _mm_setr_ps(kGroupShift[0][1], kGroupShift[1][1],
                                                                     kGroupShift[2][1], kGroupShift[3][1])));
   const __m128i k = _mm_loadu_si128(reinterpret_cast<const __m128i *>(keys.group.data()));
-  const __m128i h = mix_u32x4_avx2(_mm_add_epi32(k, _mm_mullo_epi32(ix, _mm_set1_epi32(static_cast<int>(kNodeKeyStep)))));
-  _mm_storeu_si128(reinterpret_cast<__m128i *>(seeds.data()), mix_u32x4_avx2(_mm_xor_si128(h, iy)));
+  // Session 30 (glintcells30): the integer constants from memory (VPMULLD's operand, or one load each; were three
+  // instructions each from immediates), the table's address through an empty asm so GCC does not fold it back to
+  // immediates. (The groups' shifts as well changed GCC's inlining in glint.cpp: ClosureAdapter::sample, measured.)
+  const uint32_t *consts = kCellConstants[0];
+  asm("" : "+r"(consts));
+  const auto *row = reinterpret_cast<const __m128i *>(consts);
+  const __m128i m1 = _mm_load_si128(row + 1), m2 = _mm_load_si128(row + 2);
+  const __m128i h = mix_u32x4_avx2(_mm_add_epi32(k, _mm_mullo_epi32(ix, _mm_load_si128(row))), m1, m2);
+  _mm_storeu_si128(reinterpret_cast<__m128i *>(seeds.data()), mix_u32x4_avx2(_mm_xor_si128(h, iy), m1, m2));
   return true;
 }
 [[gnu::target("avx2"), gnu::noinline]] inline bool direction_cell_seeds_avx2(const DirectionCellKeys &keys,
