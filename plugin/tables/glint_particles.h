@@ -1284,14 +1284,15 @@ struct LitCountTable {
   double lambda, pmf = 0.0, tail = 0.0;  // the walk's terms at k = kSteps
   bool walkable;
 
-  // The number of h in [0, 2^32) with (h + 1/2) 2^-32 < tail: h < x =
-  // tail 2^32 - 1/2 (the scale by a power of two is exact, and so is the
-  // difference wherever x > 0: tail 2^32 in [1/4, 2^33)).
-  static uint64_t hashes_below(double tail) {
-    const double x = tail * 4294967296.0 - 0.5;
-    if (!(x > 0.0)) return 0;  // also NaN
-    if (x >= 4294967295.0) return uint64_t{1} << 32;
-    return static_cast<uint64_t>(std::ceil(x));
+  // The number of h in [0, 2^32) with (h + 1/2) 2^-32 < v: h < x = v 2^32 - 1/2, so ceil(x) clamped to [0, 2^32]
+  // (the scale by a power of two is exact, and so is the difference wherever x > 0 and v 2^32 < 2^53; beyond, the
+  // clamp decides; NaN: 0). Session 30 (glintcells30): the one form for LitCountTable and LitBoundHashes (which had
+  // its own copy); the clamp after the ceil: the form before returned 2^32 at x = 2^32 - 1 exactly (v = 1 - 2^-33),
+  // where the count is 2^32 - 1 (h = 2^32 - 1 has u = v). GlintParticles.HashesBelowMatchesTheHashCount.
+  static uint64_t hashes_below(double v) {
+    const double x = v * 4294967296.0 - 0.5;
+    const double c = std::ceil(x > 0.0 ? x : 0.0);
+    return static_cast<uint64_t>(c < 4294967296.0 ? c : 4294967296.0);
   }
   explicit LitCountTable(const LitCountModel &m) : lambda(m.lambda), walkable(m.walkable) {
     if (!walkable) {
@@ -1344,17 +1345,10 @@ struct LitCountTable {
 // (GlintParticles.LitBoundHashesMatchTheBounds), by one subtraction and compare, no double per pair.
 struct LitBoundHashes {
   uint64_t one_from, one_span;
-  explicit LitBoundHashes(const LitCountBounds &b) : one_from(below(b.one_from)), one_span(0) {
-    const uint64_t one_end = below(b.one_below);
+  // The ends by LitCountTable::hashes_below (the number of h whose u < v).
+  explicit LitBoundHashes(const LitCountBounds &b) : one_from(LitCountTable::hashes_below(b.one_from)), one_span(0) {
+    const uint64_t one_end = LitCountTable::hashes_below(b.one_below);
     one_span = one_end > one_from ? one_end - one_from : 0;
-  }
-  // The number of h whose u < v: ceil(v 2^32 - 1/2) clamped to [0, 2^32] (exact: the scale is a power of two, and
-  // the difference is exact wherever it is > 0 and v <= 1; above 1 it rounds to >= 2^32 - 1/2, every hash; NaN: 0).
-  // LitCountTable::hashes_below's count with fewer tests (it runs once per bounds walk, twice).
-  static uint64_t below(double v) {
-    const double x = v * 4294967296.0 - 0.5;
-    const double c = std::ceil(x > 0.0 ? x : 0.0);
-    return static_cast<uint64_t>(c < 4294967296.0 ? c : 4294967296.0);
   }
   // h - one_from wraps above one_span for h < one_from.
   bool one(uint32_t h) const { return uint64_t{h} - one_from < one_span; }
