@@ -1015,10 +1015,27 @@ inline void cell_seeds(const uint32_t *keys, const std::array<int32_t, kDirectio
 #endif
 }
 
+// sqrt(x) for x > 0 (the caller's test): SQRTSS (correctly rounded, std::sqrt's bits) without std::sqrt's errno
+// branch for x < 0 and the stack frame of its sqrtf call, which GCC 12 keeps after a test x > c (no float ranges;
+// _mm_sqrt_ss(_mm_set_ss(x)) costs a VINSERTPS instead). kVex: callers compiled for AVX (VSQRTSS); the others
+// (the SSE2 walk, inlined into glint.cpp) keep std::sqrt: glint.cpp's inlining budget. Session 30 (glintcells30).
+template <bool kVex>
+[[gnu::always_inline]] inline float positive_sqrt(float x) {
+#if defined(__SSE2__)
+  if constexpr (kVex) {
+    float r;
+    asm("vsqrtss %1, %1, %0" : "=x"(r) : "x"(x));
+    return r;
+  }
+#endif
+  return std::sqrt(x);
+}
 // The cell coordinates (before the groups' shifts and floors) of (wi, wo)
 // in units of cells: (x, y); false when there is no half vector above the
 // surface. direction_cell_seeds' chart, shared by its SSE2 and AVX2 forms
 // (the same float operations in the same order: the same x, y).
+// kVex: the caller is compiled for AVX (positive_sqrt's instruction form).
+template <bool kVex = false>
 [[gnu::always_inline]] inline bool direction_cell_coords(const DirectionCellKeys &keys, const Vec3 &wi, const Vec3 &wo,
                                                          float gamma_rad, float &x, float &y) {
   // In terms of s = wi + wo (h = s / |s|), with two divisions and one square
@@ -1029,7 +1046,7 @@ inline void cell_seeds(const uint32_t *keys, const std::array<int32_t, kDirectio
   const Vec3 s = wi + wo;
   const float len2 = dot(s, s);
   if (!(len2 > 1e-12f) || !(s.z > 0.0f)) return false;
-  const float len = std::sqrt(len2);
+  const float len = positive_sqrt<kVex>(len2);
   // Stereographic chart of h: p = 2 h.xy / (1 + h.z) = 2 s.xy / (|s| + s.z).
   const float d = 1.0f / (len + s.z);
   float px = 2.0f * d * s.x, py = 2.0f * d * s.y;
@@ -1064,6 +1081,20 @@ inline void cell_seeds(const uint32_t *keys, const std::array<int32_t, kDirectio
   v = _mm_mullo_epi32(v, _mm_set1_epi32(static_cast<int>(kMixMultiplier2)));
   return _mm_xor_si128(v, _mm_srli_epi32(v, 16));
 }
+// The same with the multipliers given (direction_cell_seeds_avx2_body: read from kCellConstants' memory).
+[[gnu::target("avx2"), gnu::always_inline]] inline __m128i mix_u32x4_avx2(__m128i v, __m128i m1, __m128i m2) {
+  v = _mm_xor_si128(v, _mm_srli_epi32(v, 16));
+  v = _mm_mullo_epi32(v, m1);
+  v = _mm_xor_si128(v, _mm_srli_epi32(v, 15));
+  v = _mm_mullo_epi32(v, m2);
+  return _mm_xor_si128(v, _mm_srli_epi32(v, 16));
+}
+// direction_cell_seeds_avx2_body's integer constants (session 30): kNodeKeyStep and mix_u32's two multipliers, four
+// lanes each.
+alignas(16) inline constexpr uint32_t kCellConstants[3][4] = {
+    {kNodeKeyStep, kNodeKeyStep, kNodeKeyStep, kNodeKeyStep},
+    {kMixMultiplier1, kMixMultiplier1, kMixMultiplier1, kMixMultiplier1},
+    {kMixMultiplier2, kMixMultiplier2, kMixMultiplier2, kMixMultiplier2}};
 // direction_cell_seeds where the walk uses AVX2 (session 22): the same chart
 // (direction_cell_coords, inlined: VEX forms of the same float operations;
 // avx2 enables no FMA), the floors by VROUNDPS (floor_cells' clamp first:
@@ -1075,15 +1106,22 @@ inline void cell_seeds(const uint32_t *keys, const std::array<int32_t, kDirectio
     const DirectionCellKeys &keys, const Vec3 &wi, const Vec3 &wo, float gamma_rad,
     std::array<uint32_t, kDirectionGroups> &seeds) {
   float x, y;
-  if (!direction_cell_coords(keys, wi, wo, gamma_rad, x, y)) return false;
+  if (!direction_cell_coords<true>(keys, wi, wo, gamma_rad, x, y)) return false;
   static_assert(kDirectionGroups == 4);
   const __m128i ix = floor_cells4_avx2(_mm_add_ps(_mm_set1_ps(x), _mm_setr_ps(kGroupShift[0][0], kGroupShift[1][0],
                                                                     kGroupShift[2][0], kGroupShift[3][0])));
   const __m128i iy = floor_cells4_avx2(_mm_add_ps(_mm_set1_ps(y), _mm_setr_ps(kGroupShift[0][1], kGroupShift[1][1],
                                                                     kGroupShift[2][1], kGroupShift[3][1])));
   const __m128i k = _mm_loadu_si128(reinterpret_cast<const __m128i *>(keys.group.data()));
-  const __m128i h = mix_u32x4_avx2(_mm_add_epi32(k, _mm_mullo_epi32(ix, _mm_set1_epi32(static_cast<int>(kNodeKeyStep)))));
-  _mm_storeu_si128(reinterpret_cast<__m128i *>(seeds.data()), mix_u32x4_avx2(_mm_xor_si128(h, iy)));
+  // Session 30 (glintcells30): the integer constants from memory (VPMULLD's operand, or one load each; were three
+  // instructions each from immediates), the table's address through an empty asm so GCC does not fold it back to
+  // immediates. (The groups' shifts as well changed GCC's inlining in glint.cpp: ClosureAdapter::sample, measured.)
+  const uint32_t *consts = kCellConstants[0];
+  asm("" : "+r"(consts));
+  const auto *row = reinterpret_cast<const __m128i *>(consts);
+  const __m128i m1 = _mm_load_si128(row + 1), m2 = _mm_load_si128(row + 2);
+  const __m128i h = mix_u32x4_avx2(_mm_add_epi32(k, _mm_mullo_epi32(ix, _mm_load_si128(row))), m1, m2);
+  _mm_storeu_si128(reinterpret_cast<__m128i *>(seeds.data()), mix_u32x4_avx2(_mm_xor_si128(h, iy), m1, m2));
   return true;
 }
 [[gnu::target("avx2"), gnu::noinline]] inline bool direction_cell_seeds_avx2(const DirectionCellKeys &keys,
@@ -1246,13 +1284,16 @@ struct LitCountTable {
   double lambda, pmf = 0.0, tail = 0.0;  // the walk's terms at k = kSteps
   bool walkable;
 
-  // The number of h in [0, 2^32) with (h + 1/2) 2^-32 < tail: h < x =
-  // tail 2^32 - 1/2 (the scale by a power of two is exact, and so is the
-  // difference wherever x > 0: tail 2^32 in [1/4, 2^33)).
-  static uint64_t hashes_below(double tail) {
-    const double x = tail * 4294967296.0 - 0.5;
-    if (!(x > 0.0)) return 0;  // also NaN
-    if (x >= 4294967295.0) return uint64_t{1} << 32;
+  // The number of h in [0, 2^32) with (h + 1/2) 2^-32 < v: h < x = v 2^32 - 1/2, so ceil(x) clamped to [0, 2^32]
+  // (the scale by a power of two is exact, and so is the difference wherever x > 0 and v 2^32 < 2^53; beyond, the
+  // clamp decides; NaN: 0). Session 30 (glintcells30): the one form for LitCountTable and LitBoundHashes (which had
+  // its own copy, clamping after the ceil: GI +0.047 M in count_tabled_avx2 as the one form); the form before
+  // returned 2^32 from x >= 2^32 - 1, but at x = 2^32 - 1 exactly (v = 1 - 2^-33) the count is 2^32 - 1 (h = 2^32 - 1
+  // has u = v). GlintParticles.HashesBelowMatchesTheHashCount.
+  static uint64_t hashes_below(double v) {
+    const double x = v * 4294967296.0 - 0.5;
+    if (!(x > 0.0)) return 0;                        // also NaN
+    if (x > 4294967295.0) return uint64_t{1} << 32;  // ceil(x) >= 2^32: clamped
     return static_cast<uint64_t>(std::ceil(x));
   }
   explicit LitCountTable(const LitCountModel &m) : lambda(m.lambda), walkable(m.walkable) {
@@ -1306,17 +1347,10 @@ struct LitCountTable {
 // (GlintParticles.LitBoundHashesMatchTheBounds), by one subtraction and compare, no double per pair.
 struct LitBoundHashes {
   uint64_t one_from, one_span;
-  explicit LitBoundHashes(const LitCountBounds &b) : one_from(below(b.one_from)), one_span(0) {
-    const uint64_t one_end = below(b.one_below);
+  // The ends by LitCountTable::hashes_below (the number of h whose u < v).
+  explicit LitBoundHashes(const LitCountBounds &b) : one_from(LitCountTable::hashes_below(b.one_from)), one_span(0) {
+    const uint64_t one_end = LitCountTable::hashes_below(b.one_below);
     one_span = one_end > one_from ? one_end - one_from : 0;
-  }
-  // The number of h whose u < v: ceil(v 2^32 - 1/2) clamped to [0, 2^32] (exact: the scale is a power of two, and
-  // the difference is exact wherever it is > 0 and v <= 1; above 1 it rounds to >= 2^32 - 1/2, every hash; NaN: 0).
-  // LitCountTable::hashes_below's count with fewer tests (it runs once per bounds walk, twice).
-  static uint64_t below(double v) {
-    const double x = v * 4294967296.0 - 0.5;
-    const double c = std::ceil(x > 0.0 ? x : 0.0);
-    return static_cast<uint64_t>(c < 4294967296.0 ? c : 4294967296.0);
   }
   // h - one_from wraps above one_span for h < one_from.
   bool one(uint32_t h) const { return uint64_t{h} - one_from < one_span; }
@@ -1478,13 +1512,15 @@ struct NoParticleVisitor {
   return mix_u32x8(x, _mm256_set1_epi32(static_cast<int>(kMixMultiplier1)),
                    _mm256_set1_epi32(static_cast<int>(kMixMultiplier2)));
 }
-// flush_avx2's constants: kPositionKey, mix_u32's two multipliers, eight lanes each (32-byte rows).
-alignas(32) inline constexpr uint32_t kFlushConstants[3][8] = {
+// flush_avx2's constants: kPositionKey, mix_u32's two multipliers, the padding node (PairPassCounter::kPadNode =
+// kMaxNodes), eight lanes each (32-byte rows).
+alignas(32) inline constexpr uint32_t kFlushConstants[4][8] = {
     {kPositionKey, kPositionKey, kPositionKey, kPositionKey, kPositionKey, kPositionKey, kPositionKey, kPositionKey},
     {kMixMultiplier1, kMixMultiplier1, kMixMultiplier1, kMixMultiplier1, kMixMultiplier1, kMixMultiplier1,
      kMixMultiplier1, kMixMultiplier1},
     {kMixMultiplier2, kMixMultiplier2, kMixMultiplier2, kMixMultiplier2, kMixMultiplier2, kMixMultiplier2,
-     kMixMultiplier2, kMixMultiplier2}};
+     kMixMultiplier2, kMixMultiplier2},
+    {kMaxNodes, kMaxNodes, kMaxNodes, kMaxNodes, kMaxNodes, kMaxNodes, kMaxNodes, kMaxNodes}};
 // Session 25 (glintcount25): which of the lit particles k0 .. k0 + 3 of a node
 // (its hash h0 in the direction cell, its origin o in `frame`) lie inside the
 // footprint, as bits 0..3 (all four computed; the caller masks those >= K):
@@ -1570,12 +1606,21 @@ struct PairMasks {
 };
 static_assert(kMaxNodes <= 64 && kDirectionGroups == 4, "PairMasks: 16 nodes per word, at most four words");
 
-// Entry b: the set bits of byte b in increasing order, then zeros (list_pairs_avx2's compaction lanes).
-inline constexpr std::array<std::array<uint8_t, 8>, 256> kCompactLanes = [] {
-  std::array<std::array<uint8_t, 8>, 256> t{};
-  for (uint32_t b = 0; b < 256; ++b)
-    for (uint32_t k = 0, n = 0; k < 8; ++k)
-      if (b >> k & 1u) t[b][n++] = static_cast<uint8_t>(k);
+// list_pairs_avx2's tables: lanes[b] the set bits of byte b in increasing order, then zeros (the compaction lanes);
+// count[b] their number, popcount(b) (session 30: the list grown by one ADD with a memory operand at a fixed offset
+// from the lanes' address, instead of a register copy, POPCNT and ADD per byte).
+struct CompactLanes {
+  std::array<std::array<uint8_t, 8>, 256> lanes;
+  std::array<uint64_t, 256> count;
+};
+inline constexpr CompactLanes kCompactLanes = [] {
+  CompactLanes t{};
+  for (uint32_t b = 0; b < 256; ++b) {
+    uint32_t n = 0;
+    for (uint32_t k = 0; k < 8; ++k)
+      if (b >> k & 1u) t.lanes[b][n++] = static_cast<uint8_t>(k);
+    t.count[b] = n;
+  }
   return t;
 }();
 
@@ -1585,6 +1630,7 @@ struct PairPassCounter {
   // kMaxNodes + 1: flush_avx2's padding node kPadNode.
   std::array<FootprintFrame::NodeOrigin, kMaxNodes + 1> origin;
   static constexpr uint32_t kPadNode = kMaxNodes;
+  static_assert(kFlushConstants[3][0] == kPadNode);
   std::array<int32_t, kMaxNodes> inside_mask;  // -1 inside, 0 not
   // Listed particle: its pair's hash h0, its position_step(k) and its node (32-bit nodes: no memset call per fill);
   // 8 more for flush_avx2's padding (its four entries from n_parts <= kMaxParticles on) and list_pairs_avx2's
@@ -1606,23 +1652,31 @@ struct PairPassCounter {
   // (+inf, +inf) puts them outside (s = inf + finite; NaN where the frame's steps are not finite: outside too), so
   // the last one to three particles take a step of four too (they took flush_from's SSE2 pair and scalar steps:
   // ~77 instructions per flush in the GI render).
+  // Session 30 (glintcells30): the padding's origin is (NaN, NaN) (all bits set: the gathers' mask register), which
+  // puts the padding outside as well (s and t NaN, and NaN <= 1/2 is false), and kPadNode's lanes are read from
+  // kFlushConstants (were three instructions from an immediate); the two origin stores one 128-bit store.
   [[gnu::target("avx2,popcnt"), gnu::noinline]] void flush_avx2() {
     int64_t c = 0;
     int q = 0;
     const auto end = static_cast<size_t>(n_parts);
-    _mm_storeu_si128(reinterpret_cast<__m128i *>(part_node.data() + end), _mm_set1_epi32(static_cast<int>(kPadNode)));
-    _mm_storeu_si128(reinterpret_cast<__m128i *>(part_hash.data() + end), _mm_setzero_si128());
-    _mm_storeu_si128(reinterpret_cast<__m128i *>(part_step.data() + end), _mm_setzero_si128());
-    constexpr double kOutside = std::numeric_limits<double>::infinity();
-    origin[kPadNode] = {kOutside, kOutside};
     // Session 29 (glintlast29): the position key and mix_u32's multipliers read from memory in the loop (VPXOR's
     // and VPMULLD's memory operands), not built from immediates (3 instructions each, two spilled): the table's
     // address passes through an empty asm each step, so GCC neither folds it to immediates nor hoists the loads.
     const uint32_t *consts = kFlushConstants[0];
-    const __m256i spread = _mm256_setr_epi32(0, 0, 1, 1, 2, 2, 3, 3);
-    const __m256i second = _mm256_setr_epi32(0, static_cast<int>(kNodeKeyStep), 0, static_cast<int>(kNodeKeyStep), 0,
-                                             static_cast<int>(kNodeKeyStep), 0, static_cast<int>(kNodeKeyStep));
-    const __m256i split = _mm256_setr_epi32(0, 2, 4, 6, 1, 3, 5, 7);  // the x's, then the y's
+    asm("" : "+r"(consts));  // opaque: kPadNode's lanes below a load
+    _mm_storeu_si128(reinterpret_cast<__m128i *>(part_node.data() + end),
+                     _mm_load_si128(reinterpret_cast<const __m128i *>(consts + 3 * 8)));
+    _mm_storeu_si128(reinterpret_cast<__m128i *>(part_hash.data() + end), _mm_setzero_si128());
+    _mm_storeu_si128(reinterpret_cast<__m128i *>(part_step.data() + end), _mm_setzero_si128());
+    // The gathers' mask: every lane gathered (the masked form: GCC 12 warns on the other).
+    const __m256d all = _mm256_castsi256_pd(_mm256_set1_epi64x(-1));
+    static_assert(sizeof(FootprintFrame::NodeOrigin) == 2 * sizeof(double));
+    _mm_storeu_pd(&origin[kPadNode].s, _mm256_castpd256_pd128(all));  // (s, t) = (NaN, NaN)
+    // Session 30: the eight keys as the four x keys, then the four y keys (were interleaved: x0 y0 x1 y1 ..., then
+    // split by a VPERMPS whose index was reloaded each step): the halves of u are ux's and uy's floats.
+    const __m256i second = _mm256_setr_epi32(0, 0, 0, 0, static_cast<int>(kNodeKeyStep),
+                                             static_cast<int>(kNodeKeyStep), static_cast<int>(kNodeKeyStep),
+                                             static_cast<int>(kNodeKeyStep));
     const __m256 scale = _mm256_set1_ps(1.0f / 16777216.0f);
     const __m256d ds_ux = _mm256_set1_pd(frame.ds_ux), ds_uy = _mm256_set1_pd(frame.ds_uy);
     const __m256d dt_ux = _mm256_set1_pd(frame.dt_ux), dt_uy = _mm256_set1_pd(frame.dt_uy);
@@ -1635,17 +1689,15 @@ struct PairPassCounter {
       asm("" : "+r"(consts));  // opaque: the three loads below stay memory operands
       const auto *row = reinterpret_cast<const __m256i *>(consts);
       const __m128i keys = _mm_add_epi32(_mm_xor_si128(h, _mm_load_si128(reinterpret_cast<const __m128i *>(row))), step);
-      const __m256i keys8 = _mm256_add_epi32(_mm256_permutevar8x32_epi32(_mm256_castsi128_si256(keys), spread), second);
+      const __m256i keys8 = _mm256_add_epi32(_mm256_set_m128i(keys, keys), second);
       const __m256i mixed = mix_u32x8(keys8, _mm256_load_si256(row + 1), _mm256_load_si256(row + 2));
-      const __m256 u = _mm256_mul_ps(_mm256_cvtepi32_ps(_mm256_srli_epi32(mixed, 8)), scale);
-      const __m256 xy = _mm256_permutevar8x32_ps(u, split);
-      const __m256d ux = _mm256_cvtps_pd(_mm256_castps256_ps128(xy)), uy = _mm256_cvtps_pd(_mm256_extractf128_ps(xy, 1));
+      const __m256 u = _mm256_mul_ps(_mm256_cvtepi32_ps(_mm256_srli_epi32(mixed, 8)), scale);  // the x's, the y's
+      const __m256d ux = _mm256_cvtps_pd(_mm256_castps256_ps128(u)), uy = _mm256_cvtps_pd(_mm256_extractf128_ps(u, 1));
       // Session 29 (glintpaired29): the four origins' s and t by two VGATHERDPD at the doubles 2 node and 2 node + 1
       // (were four index loads and shifts, four 128-bit loads, two inserts and two unpacks); the same lanes.
       const __m128i at = _mm_slli_epi32(_mm_loadu_si128(reinterpret_cast<const __m128i *>(part_node.data() + a)), 1);
-      const __m256d all = _mm256_castsi256_pd(_mm256_set1_epi64x(-1));  // every lane gathered (the masked form:
-      const __m256d os = _mm256_mask_i32gather_pd(_mm256_setzero_pd(), &origin[0].s, at, all, 8);  // GCC 12 warns
-      const __m256d ot = _mm256_mask_i32gather_pd(_mm256_setzero_pd(), &origin[0].t, at, all, 8);  // on the other)
+      const __m256d os = _mm256_mask_i32gather_pd(_mm256_setzero_pd(), &origin[0].s, at, all, 8);
+      const __m256d ot = _mm256_mask_i32gather_pd(_mm256_setzero_pd(), &origin[0].t, at, all, 8);
       const __m256d s = _mm256_add_pd(_mm256_add_pd(os, _mm256_mul_pd(ux, ds_ux)), _mm256_mul_pd(uy, ds_uy));
       const __m256d t = _mm256_add_pd(_mm256_add_pd(ot, _mm256_mul_pd(ux, dt_ux)), _mm256_mul_pd(uy, dt_uy));
       const __m256d in = _mm256_and_pd(_mm256_cmp_pd(_mm256_andnot_pd(sign, s), half, _CMP_LE_OS),
@@ -1747,22 +1799,26 @@ struct PairPassCounter {
   // first pair advanced by eight per byte: no tzcnt / shift / clear per byte (26 -> 16 instructions per byte; in
   // the GI render 111 353 bytes for 101 299 nonzero ones).
   // `border` != 0 (the caller's test).
+  // Session 30 (glintcells30): the list grown by kCompactLanes.count (above); the first pair's index as one unsigned
+  // 32-bit value for both the hashes' address and the pairs' lanes (GCC computed it twice, sign-extended).
   [[gnu::target("avx2,popcnt")]] void list_pairs_avx2(uint64_t border, int w, uint32_t step,
                                                        const uint32_t *node_hash) {
     auto n = static_cast<size_t>(n_parts);
     const __m256i steps = _mm256_set1_epi32(static_cast<int>(step));
-    const int at = std::countr_zero(border) & ~7;  // the first nonzero byte's first bit
+    const auto at = static_cast<uint32_t>(std::countr_zero(border)) & ~7u;  // the first nonzero byte's first bit
     border >>= at;
-    const uint32_t *h = node_hash + 64 * w + at;
-    __m256i pairs = _mm256_set1_epi32(64 * w + at);  // the byte's first pair
+    const uint32_t first = 64u * static_cast<uint32_t>(w) + at;  // the byte's first pair
+    const uint32_t *h = node_hash + first;
+    __m256i pairs = _mm256_set1_epi32(static_cast<int>(first));
     do {
       const auto byte = static_cast<uint32_t>(border & 0xffu);
-      const __m256i lanes = _mm256_cvtepu8_epi32(_mm_loadl_epi64(reinterpret_cast<const __m128i *>(kCompactLanes[byte].data())));
+      const __m256i lanes =
+          _mm256_cvtepu8_epi32(_mm_loadl_epi64(reinterpret_cast<const __m128i *>(kCompactLanes.lanes[byte].data())));
       _mm256_storeu_si256(reinterpret_cast<__m256i *>(part_hash.data() + n),
                           _mm256_permutevar8x32_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i *>(h)), lanes));
       _mm256_storeu_si256(reinterpret_cast<__m256i *>(part_node.data() + n), _mm256_srli_epi32(_mm256_add_epi32(pairs, lanes), 2));
       _mm256_storeu_si256(reinterpret_cast<__m256i *>(part_step.data() + n), steps);
-      n += static_cast<size_t>(std::popcount(byte));
+      n += kCompactLanes.count[byte];
       h += 8;
       pairs = _mm256_add_epi32(pairs, _mm256_set1_epi32(8));
       border >>= 8;

@@ -1648,6 +1648,68 @@ TEST(GlintParticles, LitBoundHashesMatchTheBounds) {
   EXPECT_GT(control_disagreements, 15000);
 }
 
+// Session 30 (glintcells30): LitCountTable::hashes_below(v), the number of 32-bit hashes h whose u = (h + 1/2) 2^-32
+// is below v (LitCountTable's thresholds and LitBoundHashes' range), against counting those hashes: by brute force
+// over the 4096 lowest and 4096 highest hashes plus the middle's [4096, 2^32 - 4096) where u < v holds at both of
+// its ends or at neither (u grows with h: the whole middle or none of it), for v at and next to u of h = 0..3 and
+// 2^32 - 4..2^32 - 1, 1/2 of a hash either side, 0, -0, negatives, 1, above 1, inf, NaN, and random v within 8
+// hashes of either end; and for random v over (0, 1) that the count c has u(c - 1) < v <= u(c). Negative control:
+// the form before (x = v 2^32 - 1/2 >= 2^32 - 1 gave 2^32) disagrees at v = 1 - 2^-33, where the count is 2^32 - 1.
+TEST(GlintParticles, HashesBelowMatchesTheHashCount) {
+  constexpr int64_t kAll = int64_t{1} << 32, kWindow = 4096;
+  const auto below_v = [](int64_t h, double v) { return (static_cast<double>(h) + 0.5) * (1.0 / 4294967296.0) < v; };
+  const auto brute_count = [&](double v) {
+    int64_t n = 0;
+    for (int64_t h = 0; h < kWindow; ++h) n += below_v(h, v);
+    for (int64_t h = kAll - kWindow; h < kAll; ++h) n += below_v(h, v);
+    const bool first = below_v(kWindow, v), last = below_v(kAll - kWindow - 1, v);
+    EXPECT_EQ(first, last) << "v " << v << ": the middle is not uniform";
+    return n + (first ? kAll - 2 * kWindow : 0);
+  };
+  const auto old_form = [](double tail) -> uint64_t {  // the form before session 30
+    const double x = tail * 4294967296.0 - 0.5;
+    if (!(x > 0.0)) return 0;
+    if (x >= 4294967295.0) return uint64_t{1} << 32;
+    return static_cast<uint64_t>(std::ceil(x));
+  };
+  std::vector<double> values = {0.0, -0.0, -1e-300, -0.5, 1.0, 1.0 + 1e-16, 2.0, 700.0,
+                                std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity(),
+                                std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::denorm_min()};
+  for (const int64_t k : {int64_t{0}, int64_t{1}, int64_t{2}, int64_t{3}, kAll - 4, kAll - 3, kAll - 2, kAll - 1})
+    for (const double d : {0.5, 0.0, 1.0}) {  // u of hash k, and half a hash either side
+      const double v = (static_cast<double>(k) + d) * (1.0 / 4294967296.0);
+      values.insert(values.end(), {v, std::nextafter(v, 0.0), std::nextafter(v, 2.0)});
+    }
+  Pcg32 rng(71);
+  for (int r = 0; r < 200; ++r) {
+    const double d = 8.0 * rng.next_double();
+    values.push_back(d * (1.0 / 4294967296.0));
+    values.push_back(1.0 - d * (1.0 / 4294967296.0));
+  }
+  int64_t old_disagreements = 0, top = 0;
+  for (const double v : values) {
+    const auto want = static_cast<uint64_t>(brute_count(v));
+    ASSERT_EQ(pg::LitCountTable::hashes_below(v), want) << "v " << v;
+    old_disagreements += old_form(v) != want;
+    top += want == uint64_t{0xffffffff};
+  }
+  int64_t characterised = 0;
+  for (int r = 0; r < 100000; ++r) {
+    const double v = rng.next_double();
+    const auto c = static_cast<int64_t>(pg::LitCountTable::hashes_below(v));
+    ASSERT_TRUE(c == 0 || below_v(c - 1, v)) << "v " << v;
+    ASSERT_TRUE(c == kAll || !below_v(c, v)) << "v " << v;
+    ++characterised;
+  }
+  std::printf("[hashes below] %zu values equal to the brute-force count (%lld with 2^32 - 1 hashes), %lld random ones "
+              "characterised; the form before disagrees on %lld\n",
+              values.size(), static_cast<long long>(top), static_cast<long long>(characterised),
+              static_cast<long long>(old_disagreements));
+  EXPECT_GT(values.size(), 400u);
+  EXPECT_GE(top, 1);
+  EXPECT_GE(old_disagreements, 1);
+}
+
 // Session 20: pass 2's AVX2 form (group_pass_avx2: two nodes' four group
 // hashes per 256-bit register, an odd last node as a step with a second key
 // of 0 since session 23) writes the same hashes and passing pairs (as the
