@@ -275,50 +275,80 @@ struct NodeList {
     return true;
   }
 #if GLIMMER_GLINT_WALK_AVX2
-  // add_row with the row key given (node_row_key(level, nj), computed by the
-  // caller) and each chunk's i and j in one 256-bit store each (session 21:
-  // nodes_at_level_start_avx2's box rows). The same entries as add_row.
-  [[gnu::target("avx2"), gnu::always_inline]] bool add_row_keyed_avx2(int64_t i0, int64_t i1, int64_t nj, uint32_t key) {
-    const int64_t n = i1 - i0 + 1;
-    if (n > kMaxNodes - count) return false;
-    static_assert(kRowChunk == 4);
+  // Entries at .. at + 3: keys `ids`, i `iv`, j `jv`.
+  [[gnu::target("avx2"), gnu::always_inline]] void put_chunk_avx2(size_t at, __m128i ids, __m256i iv, __m256i jv) {
+    _mm_storeu_si128(reinterpret_cast<__m128i *>(id_hash.data() + at), ids);
+    _mm256_storeu_si256(reinterpret_cast<__m256i *>(i.data() + at), iv);
+    _mm256_storeu_si256(reinterpret_cast<__m256i *>(j.data() + at), jv);
+  }
+  // The box of rows j0 .. j0 + rows - 1 and columns i0 .. i0 + n - 1 (1 <= rows, n <= 4: one chunk per row) into the
+  // empty list, row r's key in lane r of `keys` (node_row_keys_avx2), row after row: the same entries as add_row
+  // (session 30: nodes_at_level_start_avx2's box, which called add_row per row with its room test, the count's
+  // reload and a store per row). Rows 0, 1 and, when the box has more than two (never where max_rows, the box span,
+  // a constant where inlined, is 2), rows 2, 3 are written without a test per row (chunk r at r n; those at or past
+  // `rows` are slack past count).
+  [[gnu::target("avx2"), gnu::always_inline]] void put_box_avx2(int64_t i0, int64_t n, int64_t j0, int64_t rows,
+                                                                int64_t max_rows, __m128i keys) {
+    static_assert(kRowChunk == 4 && 3 * 4 + kRowChunk <= kMaxNodes);
     constexpr uint32_t W = kNodeKeyStep;
-    __m128i ids = _mm_add_epi32(_mm_set1_epi32(static_cast<int>(key + static_cast<uint32_t>(i0) * W)),
-                                _mm_setr_epi32(0, static_cast<int>(W), static_cast<int>(2u * W), static_cast<int>(3u * W)));
-    __m256i iv = _mm256_add_epi64(_mm256_set1_epi64x(i0), _mm256_setr_epi64x(0, 1, 2, 3));
-    const __m256i jv = _mm256_set1_epi64x(nj), four = _mm256_set1_epi64x(4);
-    const __m128i ids_step = _mm_set1_epi32(static_cast<int>(4u * W));
-    for (int64_t b = 0; b < n; b += kRowChunk) {
-      const auto at = static_cast<size_t>(count + b);
-      _mm_storeu_si128(reinterpret_cast<__m128i *>(id_hash.data() + at), ids);
-      _mm256_storeu_si256(reinterpret_cast<__m256i *>(i.data() + at), iv);
-      _mm256_storeu_si256(reinterpret_cast<__m256i *>(j.data() + at), jv);
-      ids = _mm_add_epi32(ids, ids_step), iv = _mm256_add_epi64(iv, four);
+    const __m128i base = _mm_add_epi32(keys, _mm_set1_epi32(static_cast<int>(static_cast<uint32_t>(i0) * W)));
+    const __m128i steps = _mm_setr_epi32(0, static_cast<int>(W), static_cast<int>(2u * W), static_cast<int>(3u * W));
+    const __m256i iv = _mm256_add_epi64(_mm256_set1_epi64x(i0), _mm256_setr_epi64x(0, 1, 2, 3));
+    const __m256i jv = _mm256_set1_epi64x(j0), one = _mm256_set1_epi64x(1);
+    const auto w = static_cast<size_t>(n);
+    put_chunk_avx2(0, _mm_add_epi32(_mm_shuffle_epi32(base, 0x00), steps), iv, jv);
+    put_chunk_avx2(w, _mm_add_epi32(_mm_shuffle_epi32(base, 0x55), steps), iv, _mm256_add_epi64(jv, one));
+    if (max_rows > 2 && rows > 2) {
+      put_chunk_avx2(2 * w, _mm_add_epi32(_mm_shuffle_epi32(base, 0xaa), steps), iv,
+                     _mm256_add_epi64(jv, _mm256_add_epi64(one, one)));
+      put_chunk_avx2(3 * w, _mm_add_epi32(_mm_shuffle_epi32(base, 0xff), steps), iv,
+                     _mm256_add_epi64(jv, _mm256_set1_epi64x(3)));
     }
-    count += static_cast<int>(n);
+    count = static_cast<int>(rows * n);
     row_valid_ = false;
-    return true;
   }
-  // Nodes i0 .. i0 + n - 1 of row nj with the row key given, n >= 1, and room
-  // checked by the caller (nodes_at_level_rows_avx2; same entries as add_row),
-  // from entry `at` on; the caller adds n to count (session 27: its rows' count
-  // in a register; stored through the entries' words it was reloaded per row).
-  [[gnu::target("avx2"), gnu::always_inline]] void put_row_at_avx2(size_t at, int64_t i0, int64_t n, int64_t nj,
-                                                                   uint32_t key) {
+  // Rows j0 .. j0 + rows - 1 from entry `at` on: row r's nodes i0s[r] .. i0s[r] + ns[r] - 1 (ns[r] >= 0), its first
+  // node's key bases[r] = node_key(level, i0s[r], j0 + r) (nodes_at_level_rows_avx2; same entries as add_row). Every
+  // row's first chunk is written without a test (session 30: ~12 instructions per row; ~31 with the row's key times
+  // i0 W, the chunk loop's set-up and the empty-row test); the further chunks of rows wider than a chunk (`chunky`:
+  // some row is) in a second loop. `full`: the rows fill the list (at + the widths' sum = kMaxNodes); then the empty
+  // rows at the end are left out (their chunk would start at kMaxNodes, past the slack; an empty row before a
+  // nonempty one starts below it). Sets count. GlintParticles.RowPutAvx2MatchesAddRow.
+  [[gnu::target("avx2"), gnu::always_inline]] void put_rows_avx2(size_t at, int64_t rows, int64_t j0, const int64_t *i0s,
+                                                                 const int64_t *ns, const uint32_t *bases, bool full,
+                                                                 bool chunky) {
+    if (full)
+      while (rows > 0 && ns[rows - 1] == 0) --rows;
     constexpr uint32_t W = kNodeKeyStep;
-    __m128i ids = _mm_add_epi32(_mm_set1_epi32(static_cast<int>(key + static_cast<uint32_t>(i0) * W)),
-                                _mm_setr_epi32(0, static_cast<int>(W), static_cast<int>(2u * W), static_cast<int>(3u * W)));
-    __m256i iv = _mm256_add_epi64(_mm256_set1_epi64x(i0), _mm256_setr_epi64x(0, 1, 2, 3));
-    const __m256i jv = _mm256_set1_epi64x(nj);
-    for (int64_t b = 0; b < n; b += kRowChunk, at += kRowChunk) {
-      _mm_storeu_si128(reinterpret_cast<__m128i *>(id_hash.data() + at), ids);
-      _mm256_storeu_si256(reinterpret_cast<__m256i *>(i.data() + at), iv);
-      _mm256_storeu_si256(reinterpret_cast<__m256i *>(j.data() + at), jv);
-      ids = _mm_add_epi32(ids, _mm_set1_epi32(static_cast<int>(4u * W)));
-      iv = _mm256_add_epi64(iv, _mm256_set1_epi64x(4));
+    const __m128i steps = _mm_setr_epi32(0, static_cast<int>(W), static_cast<int>(2u * W), static_cast<int>(3u * W));
+    const __m256i lane = _mm256_setr_epi64x(0, 1, 2, 3), one = _mm256_set1_epi64x(1);
+    const size_t start = at;
+    __m256i jv = _mm256_set1_epi64x(j0);
+    for (int64_t r = 0; r < rows; ++r) {
+      // VBROADCASTSS from memory (_mm_set1_epi32 of the word is a VMOVD and a VPSHUFD)
+      const __m128i base = _mm_castps_si128(_mm_broadcast_ss(reinterpret_cast<const float *>(bases + r)));
+      put_chunk_avx2(at, _mm_add_epi32(base, steps), _mm256_add_epi64(_mm256_set1_epi64x(i0s[r]), lane), jv);
+      at += static_cast<size_t>(ns[r]);
+      jv = _mm256_add_epi64(jv, one);
+    }
+    count = static_cast<int>(at);
+    row_valid_ = false;
+    if (!chunky) return;
+    // The next row's entries are written: a wide row's last chunk ends at its last node (it may overlap the one
+    // before it, with the same entries), so no chunk here passes the row's own nodes.
+    at = start;
+    for (int64_t r = 0; r < rows; ++r) {
+      const __m256i row_j = _mm256_set1_epi64x(j0 + r);
+      const int64_t n = ns[r];
+      for (int64_t b = kRowChunk; b < n; b += kRowChunk) {
+        const int64_t e = std::min(b, n - kRowChunk);
+        put_chunk_avx2(at + static_cast<size_t>(e),
+                       _mm_add_epi32(_mm_set1_epi32(static_cast<int>(bases[r] + static_cast<uint32_t>(e) * W)), steps),
+                       _mm256_add_epi64(_mm256_set1_epi64x(i0s[r] + e), lane), row_j);
+      }
+      at += static_cast<size_t>(n);
     }
   }
-  void forget_row_key() { row_valid_ = false; }
 #endif
   bool add(int64_t ni, int64_t nj) {
     if (count == kMaxNodes) return false;
@@ -565,19 +595,55 @@ struct RowRasteriser {
 #if GLIMMER_GLINT_WALK_AVX2
 // node_row_key of four rows (32-bit lanes; hash_u32's variable shift by
 // VPSRLVD): the same words as the scalar hash.
-[[gnu::target("avx2"), gnu::always_inline]] inline __m128i hash_u32x4_avx2(__m128i v) {
-  const __m128i state = _mm_add_epi32(_mm_mullo_epi32(v, _mm_set1_epi32(747796405)),
-                                      _mm_set1_epi32(static_cast<int>(2891336453u)));
-  const __m128i shift = _mm_add_epi32(_mm_srli_epi32(state, 28), _mm_set1_epi32(4));
-  const __m128i word = _mm_mullo_epi32(_mm_xor_si128(_mm_srlv_epi32(state, shift), state), _mm_set1_epi32(277803737));
+// Their constants (hash_u32's, node_row_key's xor), eight lanes each (32-byte rows; the four-lane forms read the
+// first half), read from memory: the table's address passes through an empty asm (row_key_constants), so GCC uses
+// them as VPMULLD's / VPADDD's / VPXOR's memory operands instead of building each from an immediate (MOV, VMOVD,
+// VPSHUFD; session 30).
+alignas(32) inline constexpr uint32_t kRowKeyConstants[5][8] = {
+    {0x5851f42du, 0x5851f42du, 0x5851f42du, 0x5851f42du, 0x5851f42du, 0x5851f42du, 0x5851f42du, 0x5851f42du},
+    {747796405u, 747796405u, 747796405u, 747796405u, 747796405u, 747796405u, 747796405u, 747796405u},
+    {2891336453u, 2891336453u, 2891336453u, 2891336453u, 2891336453u, 2891336453u, 2891336453u, 2891336453u},
+    {4u, 4u, 4u, 4u, 4u, 4u, 4u, 4u},
+    {277803737u, 277803737u, 277803737u, 277803737u, 277803737u, 277803737u, 277803737u, 277803737u}};
+[[gnu::always_inline]] inline const uint32_t *row_key_constants() {
+  const uint32_t *c = kRowKeyConstants[0];
+  asm("" : "+r"(c));
+  return c;
+}
+[[gnu::target("avx2"), gnu::always_inline]] inline __m128i row_key_constant4(const uint32_t *c, int k) {
+  return _mm_load_si128(reinterpret_cast<const __m128i *>(c + 8 * k));
+}
+[[gnu::target("avx2"), gnu::always_inline]] inline __m256i row_key_constant8(const uint32_t *c, int k) {
+  return _mm256_load_si256(reinterpret_cast<const __m256i *>(c + 8 * k));
+}
+[[gnu::target("avx2"), gnu::always_inline]] inline __m128i hash_u32x4_avx2(__m128i v, const uint32_t *c) {
+  const __m128i state = _mm_add_epi32(_mm_mullo_epi32(v, row_key_constant4(c, 1)), row_key_constant4(c, 2));
+  const __m128i shift = _mm_add_epi32(_mm_srli_epi32(state, 28), row_key_constant4(c, 3));
+  const __m128i word = _mm_mullo_epi32(_mm_xor_si128(_mm_srlv_epi32(state, shift), state), row_key_constant4(c, 4));
   return _mm_xor_si128(_mm_srli_epi32(word, 22), word);
 }
 [[gnu::target("avx2"), gnu::always_inline]] inline __m128i node_row_keys_avx2(int level, __m128i j) {
-  const __m128i seed = hash_u32x4_avx2(_mm_xor_si128(j, _mm_set1_epi32(0x5851f42d)));
+  const uint32_t *c = row_key_constants();
+  const __m128i seed = hash_u32x4_avx2(_mm_xor_si128(j, row_key_constant4(c, 0)), c);
   // hash_combine(seed, level): seed ^ (level + 0x9e3779b9 + (seed << 6) + (seed >> 2))
   const __m128i v = _mm_set1_epi32(static_cast<int>(static_cast<uint32_t>(level) + 0x9e3779b9u));
   const __m128i mixed = _mm_add_epi32(_mm_add_epi32(v, _mm_slli_epi32(seed, 6)), _mm_srli_epi32(seed, 2));
-  return hash_u32x4_avx2(_mm_xor_si128(seed, mixed));
+  return hash_u32x4_avx2(_mm_xor_si128(seed, mixed), c);
+}
+// The same for eight rows (256-bit lanes; session 30: the rasteriser's keys eight per step): the same words.
+[[gnu::target("avx2"), gnu::always_inline]] inline __m256i hash_u32x8_avx2(__m256i v, const uint32_t *c) {
+  const __m256i state = _mm256_add_epi32(_mm256_mullo_epi32(v, row_key_constant8(c, 1)), row_key_constant8(c, 2));
+  const __m256i shift = _mm256_add_epi32(_mm256_srli_epi32(state, 28), row_key_constant8(c, 3));
+  const __m256i word =
+      _mm256_mullo_epi32(_mm256_xor_si256(_mm256_srlv_epi32(state, shift), state), row_key_constant8(c, 4));
+  return _mm256_xor_si256(_mm256_srli_epi32(word, 22), word);
+}
+[[gnu::target("avx2"), gnu::always_inline]] inline __m256i node_row_keys8_avx2(int level, __m256i j) {
+  const uint32_t *c = row_key_constants();
+  const __m256i seed = hash_u32x8_avx2(_mm256_xor_si256(j, row_key_constant8(c, 0)), c);
+  const __m256i v = _mm256_set1_epi32(static_cast<int>(static_cast<uint32_t>(level) + 0x9e3779b9u));
+  const __m256i mixed = _mm256_add_epi32(_mm256_add_epi32(v, _mm256_slli_epi32(seed, 6)), _mm256_srli_epi32(seed, 2));
+  return hash_u32x8_avx2(_mm256_xor_si256(seed, mixed), c);
 }
 // The AVX2 forms' fallbacks (rare), out of line: glint.cpp now reaches GCC's
 // inline-unit-growth limit (since session 21 glint_f_cos is no longer inlined
@@ -602,42 +668,44 @@ struct RowRasteriser {
   lo = _mm256_min_pd(masked, lo), hi = _mm256_max_pd(masked, hi);
 }
 // The corners of f (FootprintCorners: x_k = (cx +- ax / 2) +- bx / 2, the
-// same doubles: a - b is a + (-b)) in two registers, and the extent of the
-// footprint on each row border y = (j0 + k) size, k = 0..rows, written to
-// y / lo / hi (four borders per step; the last group's unused lanes and the
-// four entries after it are zeros, not stack garbage).
+// same doubles: a - b is a + (-b)), corner k's x and y in all four lanes of
+// x[k], y[k] (session 30: edge k's end y[k + 1] and its dx, dy from these, not
+// from permutes of a rotated copy: the same doubles, eight fewer permutes).
 struct RasterCornersAvx2 {
-  __m256d X, Y;
+  __m256d x[4], y[4];
 };
-[[gnu::target("avx2")]] inline RasterCornersAvx2 raster_borders_avx2(const Footprint &f, int64_t j0, int64_t rows,
-                                                                      double size, double *y, double *lo, double *hi) {
+[[gnu::target("avx2"), gnu::always_inline]] inline RasterCornersAvx2 raster_corners_avx2(const Footprint &f) {
   const __m256d sa = _mm256_setr_pd(-1.0, 1.0, 1.0, -1.0), sb = _mm256_setr_pd(-1.0, -1.0, 1.0, 1.0);
   const __m256d X = _mm256_add_pd(_mm256_add_pd(_mm256_set1_pd(f.cx), _mm256_mul_pd(sa, _mm256_set1_pd(0.5 * f.ax))),
                                   _mm256_mul_pd(sb, _mm256_set1_pd(0.5 * f.bx)));
   const __m256d Y = _mm256_add_pd(_mm256_add_pd(_mm256_set1_pd(f.cy), _mm256_mul_pd(sa, _mm256_set1_pd(0.5 * f.ay))),
                                   _mm256_mul_pd(sb, _mm256_set1_pd(0.5 * f.by)));
-  const __m256d Xn = _mm256_permute4x64_pd(X, _MM_SHUFFLE(0, 3, 2, 1)), Yn = _mm256_permute4x64_pd(Y, _MM_SHUFFLE(0, 3, 2, 1));
-  const __m256d DX = _mm256_sub_pd(Xn, X), DY = _mm256_sub_pd(Yn, Y);
-  const __m256d sizev = _mm256_set1_pd(size), lane = _mm256_setr_pd(0.0, 1.0, 2.0, 3.0);
-  const __m256d j0v = _mm256_set1_pd(static_cast<double>(j0));
+  return {{_mm256_permute4x64_pd(X, 0x00), _mm256_permute4x64_pd(X, 0x55), _mm256_permute4x64_pd(X, 0xaa),
+           _mm256_permute4x64_pd(X, 0xff)},
+          {_mm256_permute4x64_pd(Y, 0x00), _mm256_permute4x64_pd(Y, 0x55), _mm256_permute4x64_pd(Y, 0xaa),
+           _mm256_permute4x64_pd(Y, 0xff)}};
+}
+// The extent of the footprint (corners c) on each row border y = (j0 + k)
+// size, k = 0..rows, written to y / lo / hi (four borders per step; the last
+// group's unused lanes and the four entries after it are zeros, not stack
+// garbage). Edge k runs from corner k to corner k + 1 (mod 4).
+[[gnu::target("avx2")]] inline void raster_borders_avx2(const RasterCornersAvx2 &c, int64_t j0, int64_t rows, double size,
+                                                         double *y, double *lo, double *hi) {
+  __m256d dx[4], dy[4];
+  for (int e = 0; e < 4; ++e)
+    dx[e] = _mm256_sub_pd(c.x[(e + 1) & 3], c.x[e]), dy[e] = _mm256_sub_pd(c.y[(e + 1) & 3], c.y[e]);
+  const __m256d sizev = _mm256_set1_pd(size), four = _mm256_set1_pd(4.0);
+  // j0 + k + lane, exact (|j0| < 2^52, k <= 64): the border's row index, four more per step (session 30).
+  __m256d jk = _mm256_add_pd(_mm256_set1_pd(static_cast<double>(j0)), _mm256_setr_pd(0.0, 1.0, 2.0, 3.0));
   const __m256d zero = _mm256_setzero_pd();
   int64_t k = 0;
-  for (; k <= rows; k += 4) {
-    const __m256d yv = _mm256_mul_pd(_mm256_add_pd(j0v, _mm256_add_pd(_mm256_set1_pd(static_cast<double>(k)), lane)),
-                                     sizev);
+  for (; k <= rows; k += 4, jk = _mm256_add_pd(jk, four)) {
+    const __m256d yv = _mm256_mul_pd(jk, sizev);
     __m256d lov = _mm256_set1_pd(1e300), hiv = _mm256_set1_pd(-1e300);
-#define GLIMMER_GLINT_EDGE(e)                                                                                      \
-  raster_edge_avx2(yv, _mm256_permute4x64_pd(X, e), _mm256_permute4x64_pd(Y, e), _mm256_permute4x64_pd(Yn, e),      \
-                   _mm256_permute4x64_pd(DX, e), _mm256_permute4x64_pd(DY, e), lov, hiv)
-    GLIMMER_GLINT_EDGE(0x00);
-    GLIMMER_GLINT_EDGE(0x55);
-    GLIMMER_GLINT_EDGE(0xaa);
-    GLIMMER_GLINT_EDGE(0xff);
-#undef GLIMMER_GLINT_EDGE
+    for (int e = 0; e < 4; ++e) raster_edge_avx2(yv, c.x[e], c.y[e], c.y[(e + 1) & 3], dx[e], dy[e], lov, hiv);
     _mm256_store_pd(y + k, yv), _mm256_store_pd(lo + k, lov), _mm256_store_pd(hi + k, hiv);
   }
   _mm256_store_pd(y + k, zero), _mm256_store_pd(lo + k, zero), _mm256_store_pd(hi + k, zero);
-  return {X, Y};
 }
 
 // One corner (cx, cy) into four bands y0 <= y <= y1's lo / hi where it lies in the band.
@@ -653,7 +721,7 @@ struct RasterCornersAvx2 {
 // (t = y - ay; x = ax + (dx t) / dy; no crossing iff !(t (y - by) < 0), as a
 // NaN lane), then each band's extent from its two borders and the corners
 // (a corner outside y_r <= y <= y_(r+1) a NaN lane), the floors by VROUNDPD
-// and the row keys four at a time. MINPD / MAXPD with the masked value first
+// and the row keys (eight at a time since session 30). MINPD / MAXPD with the masked value first
 // skip the NaN lanes as the SSE2 form does, so every band's extent is the
 // min / max of the same set of doubles (up to the sign of a zero, which the
 // floor ignores): the same nodes in the same order
@@ -670,37 +738,40 @@ struct RasterCornersAvx2 {
   const double size = list.size, inv = power_of_two(list.level);
   const __m256d lane = _mm256_setr_pd(0.0, 1.0, 2.0, 3.0);
   alignas(32) double y[kMaxNodes + 8], lo[kMaxNodes + 8], hi[kMaxNodes + 8];
-  const auto [X, Y] = raster_borders_avx2(f, j0, rows, size, y, lo, hi);
+  const RasterCornersAvx2 c = raster_corners_avx2(f);
+  raster_borders_avx2(c, j0, rows, size, y, lo, hi);
   // Each row's band: its extent, floors (i0, width n; n = 0 where the band
   // misses) and key. Whether the rows fit is decided for all of them at once:
   // the SSE2 form returns false at the first row wider than kMaxNodes or
   // beyond the list's room, which happens iff some row is wider than
   // kMaxNodes or the widths sum past the room (the list is not used after false).
-  const __m256d invv = _mm256_set1_pd(inv), limit = _mm256_set1_pd(kExact);
+  const __m256d invv = _mm256_set1_pd(inv), limit = _mm256_set1_pd(kExact), zero = _mm256_setzero_pd();
   const __m256d magic = _mm256_set1_pd(6755399441055744.0);  // 2^52 + 2^51: an integer below 2^51 in the low bits
   const __m256i magic_bits = _mm256_castpd_si256(magic), one = _mm256_set1_epi64x(1);
-  const __m256i max_width = _mm256_set1_epi64x(kMaxNodes);
-  const __m256d abs_mask = _mm256_castsi256_pd(_mm256_set1_epi64x(0x7fffffffffffffffll));
+  const __m256i max_width = _mm256_set1_epi64x(kMaxNodes), chunk = _mm256_set1_epi64x(NodeList::kRowChunk);
   alignas(32) int64_t i0s[kMaxNodes + 4], ns[kMaxNodes + 4];
-  alignas(16) uint32_t keys[kMaxNodes + 4];
-  __m256i total = _mm256_setzero_si256(), wide = _mm256_setzero_si256();
+  alignas(32) uint32_t keys[kMaxNodes + 8], bases[kMaxNodes + 4];
+  for (int64_t r = 0; r < rows; r += 8)  // the row keys eight per step (session 30; they were four per band step)
+    _mm256_store_si256(reinterpret_cast<__m256i *>(keys + r),
+                       node_row_keys8_avx2(list.level, _mm256_add_epi32(_mm256_set1_epi32(static_cast<int>(
+                                                                            static_cast<uint32_t>(j0 + r))),
+                                                                        _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7))));
+  const __m256i low_words = _mm256_setr_epi32(0, 2, 4, 6, 1, 3, 5, 7);
+  __m256i total = _mm256_setzero_si256(), wide = _mm256_setzero_si256(), chunky = _mm256_setzero_si256();
   __m256d inexact = _mm256_setzero_pd();
-  const __m256d rows_left = _mm256_set1_pd(static_cast<double>(rows));
-  for (int64_t r = 0; r < rows; r += 4) {
+  const __m256d rows_left = _mm256_set1_pd(static_cast<double>(rows)), four = _mm256_set1_pd(4.0);
+  __m256d row = lane;  // r + lane (session 30: a running count, not r converted per step)
+  for (int64_t r = 0; r < rows; r += 4, row = _mm256_add_pd(row, four)) {
     const __m256d y0 = _mm256_load_pd(y + r), y1 = _mm256_loadu_pd(y + r + 1);
     __m256d lov = _mm256_min_pd(_mm256_load_pd(lo + r), _mm256_loadu_pd(lo + r + 1));
     __m256d hiv = _mm256_max_pd(_mm256_load_pd(hi + r), _mm256_loadu_pd(hi + r + 1));
-    raster_corner_avx2(y0, y1, _mm256_permute4x64_pd(X, 0x00), _mm256_permute4x64_pd(Y, 0x00), lov, hiv);
-    raster_corner_avx2(y0, y1, _mm256_permute4x64_pd(X, 0x55), _mm256_permute4x64_pd(Y, 0x55), lov, hiv);
-    raster_corner_avx2(y0, y1, _mm256_permute4x64_pd(X, 0xaa), _mm256_permute4x64_pd(Y, 0xaa), lov, hiv);
-    raster_corner_avx2(y0, y1, _mm256_permute4x64_pd(X, 0xff), _mm256_permute4x64_pd(Y, 0xff), lov, hiv);
+    for (int k = 0; k < 4; ++k) raster_corner_avx2(y0, y1, c.x[k], c.y[k], lov, hiv);
     // Rows that exist (r + lane < rows) and whose band meets the footprint.
-    const __m256d hit = _mm256_and_pd(_mm256_cmp_pd(lov, hiv, _CMP_LE_OQ),
-                                      _mm256_cmp_pd(_mm256_add_pd(_mm256_set1_pd(static_cast<double>(r)), lane), rows_left,
-                                                    _CMP_LT_OQ));
+    const __m256d hit = _mm256_and_pd(_mm256_cmp_pd(lov, hiv, _CMP_LE_OQ), _mm256_cmp_pd(row, rows_left, _CMP_LT_OQ));
     const __m256d xs = _mm256_mul_pd(lov, invv), xe = _mm256_mul_pd(hiv, invv);
-    inexact = _mm256_or_pd(inexact, _mm256_andnot_pd(_mm256_and_pd(_mm256_cmp_pd(_mm256_and_pd(xs, abs_mask), limit, _CMP_LT_OQ),
-                                                                   _mm256_cmp_pd(_mm256_and_pd(xe, abs_mask), limit, _CMP_LT_OQ)),
+    // |xs|, |xe| < 2^51 where hit (lov <= hiv, so xs <= xe: -2^51 < xs and xe < 2^51; NaN fails as before).
+    inexact = _mm256_or_pd(inexact, _mm256_andnot_pd(_mm256_and_pd(_mm256_cmp_pd(xs, _mm256_sub_pd(zero, limit), _CMP_GT_OQ),
+                                                                   _mm256_cmp_pd(xe, limit, _CMP_LT_OQ)),
                                                      hit));
     const __m256i i0 = _mm256_sub_epi64(
         _mm256_castpd_si256(_mm256_add_pd(_mm256_round_pd(xs, _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC), magic)), magic_bits);
@@ -709,21 +780,22 @@ struct RasterCornersAvx2 {
     const __m256i n = _mm256_and_si256(_mm256_add_epi64(_mm256_sub_epi64(i1, i0), one), _mm256_castpd_si256(hit));
     total = _mm256_add_epi64(total, n);
     wide = _mm256_or_si256(wide, _mm256_cmpgt_epi64(n, max_width));
+    chunky = _mm256_or_si256(chunky, _mm256_cmpgt_epi64(n, chunk));
     _mm256_store_si256(reinterpret_cast<__m256i *>(i0s + r), i0);
     _mm256_store_si256(reinterpret_cast<__m256i *>(ns + r), n);
-    const __m128i jv = _mm_add_epi32(_mm_set1_epi32(static_cast<int>(static_cast<uint32_t>(j0 + r))),
-                                     _mm_setr_epi32(0, 1, 2, 3));
-    _mm_store_si128(reinterpret_cast<__m128i *>(keys + r), node_row_keys_avx2(list.level, jv));
+    // The rows' first keys node_key(level, i0, j) = key + i0 W mod 2^32 (i0's low words).
+    const __m128i i0_low = _mm256_castsi256_si128(_mm256_permutevar8x32_epi32(i0, low_words));
+    _mm_store_si128(reinterpret_cast<__m128i *>(bases + r),
+                    _mm_add_epi32(_mm_load_si128(reinterpret_cast<const __m128i *>(keys + r)),
+                                  _mm_mullo_epi32(i0_low, _mm_set1_epi32(static_cast<int>(kNodeKeyStep)))));
   }
   if (_mm256_movemask_pd(inexact) != 0) return nodes_at_level_rows_sse2_cold(f, j0, j1, list);  // a floor beyond +-2^51
   alignas(32) int64_t sum[4];
   _mm256_store_si256(reinterpret_cast<__m256i *>(sum), total);
-  if (!_mm256_testz_si256(wide, wide) || sum[0] + sum[1] + sum[2] + sum[3] > kMaxNodes - list.count) return false;
-  auto at = static_cast<size_t>(list.count);
-  for (int64_t r = 0; r < rows; ++r)
-    if (ns[r] != 0) list.put_row_at_avx2(at, i0s[r], ns[r], j0 + r, keys[r]), at += static_cast<size_t>(ns[r]);
-  list.count = static_cast<int>(at);
-  list.forget_row_key();
+  const int64_t room = kMaxNodes - list.count, nodes = sum[0] + sum[1] + sum[2] + sum[3];
+  if (!_mm256_testz_si256(wide, wide) || nodes > room) return false;
+  list.put_rows_avx2(static_cast<size_t>(list.count), rows, j0, i0s, ns, bases, nodes == room,
+                     !_mm256_testz_si256(chunky, chunky));
   return true;
 }
 #endif
@@ -801,11 +873,22 @@ struct FootprintNodeMemo {
 #endif
   }
   void clear() { key[7] = 0; }
+  // The particle level of `density` (particle_level): its division, square root and exponent once per density,
+  // not once per list made (session 30: ~20 instructions per list; a scene's densities repeat).
+  int level_of(double density) {
+    const auto bits = std::bit_cast<uint64_t>(density);
+    if (bits != level_density_) level_density_ = bits, level_ = particle_level(density);
+    return level_;
+  }
   void set_key(const Footprint &f, double density, int64_t span) {
     key = {std::bit_cast<uint64_t>(f.cx), std::bit_cast<uint64_t>(f.cy), std::bit_cast<uint64_t>(f.ax),
            std::bit_cast<uint64_t>(f.ay), std::bit_cast<uint64_t>(f.bx), std::bit_cast<uint64_t>(f.by),
            std::bit_cast<uint64_t>(density), static_cast<uint64_t>(span)};
   }
+
+ private:
+  uint64_t level_density_ = std::bit_cast<uint64_t>(kNodeParticles);  // level_of's last density's bits, and
+  int level_ = 0;                                                       // its level (particle_level(kNodeParticles))
 };
 
 #if GLIMMER_GLINT_WALK_AVX2
@@ -836,21 +919,9 @@ struct FootprintNodeMemo {
                                       _mm256_castpd_si256(magic)));
   const int64_t j0 = e[0], j1 = e[1];
   if (j1 - j0 >= kMaxNodes) return {NodeRows::kTooMany, 0, 0};
-  if (j1 - j0 <= 1 && e[3] - e[2] <= 1) {  // the box (see nodes_at_level_start)
-    alignas(16) uint32_t keys[4];
-    _mm_store_si128(reinterpret_cast<__m128i *>(keys),
-                    node_row_keys_avx2(level, _mm_add_epi32(_mm_set1_epi32(static_cast<int>(static_cast<uint32_t>(j0))),
-                                                            _mm_setr_epi32(0, 1, 0, 0))));
-    list.add_row_keyed_avx2(e[2], e[3], j0, keys[0]);
-    if (j1 > j0) list.add_row_keyed_avx2(e[2], e[3], j1, keys[1]);
-    return {NodeRows::kDone, j0, j1};
-  }
-  if (j1 - j0 < box_span && e[3] - e[2] < box_span) {  // a larger box (box_span <= 4: the four rows' keys at once)
-    alignas(16) uint32_t keys[4];
-    _mm_store_si128(reinterpret_cast<__m128i *>(keys),
-                    node_row_keys_avx2(level, _mm_add_epi32(_mm_set1_epi32(static_cast<int>(static_cast<uint32_t>(j0))),
-                                                            _mm_setr_epi32(0, 1, 2, 3))));
-    for (int64_t r = 0; r <= j1 - j0; ++r) list.add_row_keyed_avx2(e[2], e[3], j0 + r, keys[r]);
+  if (j1 - j0 < box_span && e[3] - e[2] < box_span) {  // the box (see nodes_at_level_start; box_span <= 4)
+    const __m128i j = _mm_add_epi32(_mm_set1_epi32(static_cast<int>(static_cast<uint32_t>(j0))), _mm_setr_epi32(0, 1, 2, 3));
+    list.put_box_avx2(e[2], e[3] - e[2] + 1, j0, j1 - j0 + 1, box_span, node_row_keys_avx2(level, j));
     return {NodeRows::kDone, j0, j1};
   }
   return {NodeRows::kRows, j0, j1};
@@ -872,7 +943,7 @@ struct FootprintNodeMemo {
 #define GLIMMER_GLINT_FOOTPRINT_NODES_BODY(start, rows_of)                                          \
   memo.clear();                                                                                     \
   NodeList &out = memo.nodes;                                                                       \
-  const NodeRows rows = start(f, particle_level(density), out, kSpan);                              \
+  const NodeRows rows = start(f, memo.level_of(density), out, kSpan);                              \
   if (rows.kind == NodeRows::kTooMany || (rows.kind == NodeRows::kRows && !rows_of(f, rows.j0, rows.j1, out))) \
     coarse_footprint_nodes(f, out);                                                                 \
   memo.set_key(f, density, kSpan);                                                                  \

@@ -451,6 +451,80 @@ TEST(GlintParticles, RowRasteriserAvx2MatchesSse2) {
 #endif
 }
 
+// NodeList::put_rows_avx2 (session 30: each row's first chunk written without
+// a test, the further chunks of rows wider than a chunk in a second loop, the
+// empty rows at the end of a full list left out) lists the same entries as
+// add_row row by row (empty rows skipped, as the SSE2 rasteriser skips a band
+// that misses), over random rows (widths mostly 0..4, some 5..12, a third of
+// the lists exactly kMaxNodes with 1..3 empty rows at the end) and random
+// row keys. The entries start as a sentinel, so a chunk left out or written at
+// the wrong place shows, and a chunk past the slack would overwrite the next
+// array's first entries. Control: the same rows without the second loop
+// (chunky false) differ on every list with a wide row.
+#if GLIMMER_GLINT_WALK_AVX2
+[[gnu::target("avx2")]] void put_rows_for_test(pg::NodeList &l, int64_t rows, int64_t j0, const int64_t *i0s,
+                                                const int64_t *ns, const uint32_t *bases, bool full, bool chunky) {
+  l.put_rows_avx2(0, rows, j0, i0s, ns, bases, full, chunky);
+}
+#endif
+TEST(GlintParticles, RowPutAvx2MatchesAddRow) {
+#if !GLIMMER_GLINT_WALK_AVX2
+  GTEST_SKIP() << "no AVX2 form in this build";
+#else
+  if (!__builtin_cpu_supports("avx2")) GTEST_SKIP() << "CPU without AVX2";
+  Pcg32 rng(3030);
+  int differ = 0, full_lists = 0, full_tail = 0, chunky_lists = 0, control_differs = 0;
+  const auto sentinel = [](pg::NodeList &l, int level) {
+    l.i.fill(-77), l.j.fill(-77), l.id_hash.fill(0xdeadbeefu);
+    l.level = level, l.size = std::ldexp(1.0, -level), l.count = 0;
+  };
+  for (int t = 0; t < 30000; ++t) {
+    const int level = static_cast<int>(rng.next_u32() % 40) - 10;
+    const int64_t j0 = static_cast<int64_t>(static_cast<int32_t>(rng.next_u32())) >> (rng.next_u32() % 24);
+    const auto rows = static_cast<int64_t>(1 + rng.next_u32() % pg::kMaxNodes);
+    const bool make_full = t % 3 == 0 && rows > 3;
+    const int64_t tail = make_full ? 1 + rng.next_u32() % 3 : 0;
+    alignas(32) int64_t i0s[pg::kMaxNodes + 4], ns[pg::kMaxNodes + 4];
+    alignas(32) uint32_t bases[pg::kMaxNodes + 4];
+    int64_t total = 0;
+    for (int64_t r = 0; r < rows; ++r) {
+      const auto u = static_cast<int64_t>(rng.next_u32());
+      int64_t n = u % 10 == 0 ? 5 + (u / 10) % 8 : (u / 10) % 5;
+      n = r >= rows - tail ? 0 : std::min(n, static_cast<int64_t>(pg::kMaxNodes) - total);
+      ns[r] = n, total += n;
+      i0s[r] = static_cast<int64_t>(static_cast<int32_t>(rng.next_u32())) >> (rng.next_u32() % 28);
+    }
+    if (make_full) ns[0] += pg::kMaxNodes - total, total = pg::kMaxNodes;  // the first row takes the rest
+    bool chunky = false;
+    for (int64_t r = 0; r < rows; ++r) {
+      bases[r] = pg::node_key(level, i0s[r], j0 + r);
+      chunky = chunky || ns[r] > pg::NodeList::kRowChunk;
+    }
+    const bool full = total == pg::kMaxNodes;
+    pg::NodeList got, ref, control;
+    sentinel(got, level), sentinel(ref, level), sentinel(control, level);
+    put_rows_for_test(got, rows, j0, i0s, ns, bases, full, chunky);
+    for (int64_t r = 0; r < rows; ++r)
+      if (ns[r] != 0) ref.add_row(i0s[r], i0s[r] + ns[r] - 1, j0 + r);
+    differ += same_nodes(got, ref) ? 0 : 1;
+    full_lists += full ? 1 : 0;
+    full_tail += full && ns[rows - 1] == 0 ? 1 : 0;
+    if (chunky) {
+      ++chunky_lists;
+      put_rows_for_test(control, rows, j0, i0s, ns, bases, full, false);
+      control_differs += same_nodes(control, ref) ? 0 : 1;
+    }
+  }
+  std::printf("[row put avx2] 30000 lists (%d exactly full, %d of them with empty rows at the end; %d with a row wider "
+              "than a chunk): %d differ from add_row; control without the second loop: %d of %d differ\n",
+              full_lists, full_tail, chunky_lists, differ, control_differs, chunky_lists);
+  EXPECT_EQ(differ, 0);
+  EXPECT_GT(full_tail, 5000);
+  EXPECT_GT(chunky_lists, 10000);
+  EXPECT_EQ(control_differs, chunky_lists) << "the control must miss the wide rows' further chunks";
+#endif
+}
+
 // The AVX2 start of a node list (nodes_at_level_start_avx2, session 21: the
 // four floors in one register, a small footprint's box rows keyed four at a
 // time) gives the scalar start's result (kind, rows) and, for a box, the same
