@@ -8,6 +8,8 @@
 #include <cstdlib>
 #include <cstring>
 
+#include "glimmer/rng.h"
+
 namespace glimmer::render::sampler_draw {
 
 namespace {
@@ -245,10 +247,10 @@ inline __m256i reverse_bits8(__m256i x) {
   return reverse_byte_bits8(_mm256_shuffle_epi8(x, byte_swap));
 }
 // hash_u32 (glimmer/rng.h) in each lane: vpmulld for the multiplies, vpsrlvd for the state-dependent shift.
-alignas(32) constexpr Lanes8 kHashMul[2] = {eight(747796405u), eight(277803737u)};
+alignas(32) constexpr Lanes8 kHashMul[2] = {eight(kPcgMultiplier), eight(kPcgOutputMultiplier)};
 inline __m256i hash_u32_8(__m256i v) {
   const Lanes8 *m = opaque(kHashMul);
-  const __m256i state = _mm256_add_epi32(_mm256_mullo_epi32(v, load(m[0])), set1(2891336453u));
+  const __m256i state = _mm256_add_epi32(_mm256_mullo_epi32(v, load(m[0])), set1(kPcgIncrement));
   const __m256i shift = _mm256_add_epi32(_mm256_srli_epi32(state, 28), set1(4u));
   const __m256i word = _mm256_mullo_epi32(_mm256_xor_si256(_mm256_srlv_epi32(state, shift), state), load(m[1]));
   return _mm256_xor_si256(_mm256_srli_epi32(word, 22), word);

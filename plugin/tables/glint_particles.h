@@ -200,8 +200,9 @@ inline __m128i mix_u32x4(__m128i x) {
 // xor a direction cell's seed (group_hashes), which decorrelates
 // neighbouring nodes (GlintParticles.NodeHashesAlongARowAreIndependent).
 inline constexpr uint32_t kNodeKeyStep = 0x9e3779b9u;
+inline constexpr uint32_t kRowKeySalt = 0x5851f42du;  // j's salt before the row's hash (every lane form's too)
 inline uint32_t node_row_key(int level, int64_t j) {
-  return hash_combine(hash_u32(static_cast<uint32_t>(j) ^ 0x5851f42du), static_cast<uint32_t>(level));
+  return hash_combine(hash_u32(static_cast<uint32_t>(j) ^ kRowKeySalt), static_cast<uint32_t>(level));
 }
 inline uint32_t node_key(int level, int64_t i, int64_t j) {
   return node_row_key(level, j) + static_cast<uint32_t>(i) * kNodeKeyStep;
@@ -600,11 +601,10 @@ struct RowRasteriser {
 // them as VPMULLD's / VPADDD's / VPXOR's memory operands instead of building each from an immediate (MOV, VMOVD,
 // VPSHUFD; session 30).
 alignas(32) inline constexpr uint32_t kRowKeyConstants[5][8] = {
-    {0x5851f42du, 0x5851f42du, 0x5851f42du, 0x5851f42du, 0x5851f42du, 0x5851f42du, 0x5851f42du, 0x5851f42du},
-    {747796405u, 747796405u, 747796405u, 747796405u, 747796405u, 747796405u, 747796405u, 747796405u},
-    {2891336453u, 2891336453u, 2891336453u, 2891336453u, 2891336453u, 2891336453u, 2891336453u, 2891336453u},
-    {4u, 4u, 4u, 4u, 4u, 4u, 4u, 4u},
-    {277803737u, 277803737u, 277803737u, 277803737u, 277803737u, 277803737u, 277803737u, 277803737u}};
+#define GLIMMER_EIGHT_LANES(c) {c, c, c, c, c, c, c, c}
+    GLIMMER_EIGHT_LANES(kRowKeySalt), GLIMMER_EIGHT_LANES(kPcgMultiplier), GLIMMER_EIGHT_LANES(kPcgIncrement),
+    GLIMMER_EIGHT_LANES(4u), GLIMMER_EIGHT_LANES(kPcgOutputMultiplier)};
+#undef GLIMMER_EIGHT_LANES
 [[gnu::always_inline]] inline const uint32_t *row_key_constants() {
   const uint32_t *c = kRowKeyConstants[0];
   asm("" : "+r"(c));

@@ -17,6 +17,7 @@
 
 #include "glimmer/microfacet.h"
 #include "glimmer/microfacet_energy_grid.h"
+#include "glimmer/rng.h"
 
 namespace glimmer::microfacet {
 
@@ -78,8 +79,8 @@ struct WalkRng {
   uint32_t state;
   explicit WalkRng(uint32_t seed) : state(seed) {}
   float next() {
-    state = state * 747796405u + 2891336453u;
-    uint32_t w = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
+    state = state * kPcgMultiplier + kPcgIncrement;
+    uint32_t w = ((state >> ((state >> 28u) + 4u)) ^ state) * kPcgOutputMultiplier;
     w = (w >> 22u) ^ w;
     return static_cast<float>(w >> 8) * (1.0f / 16777216.0f);
   }

@@ -6,10 +6,12 @@
 
 namespace glimmer {
 
-// PCG-style integer hash (Jarzynski & Olano 2020, "Hash Functions for GPU Rendering").
+// PCG-style integer hash (Jarzynski & Olano 2020, "Hash Functions for GPU Rendering"). Its three constants are named
+// once: the lane forms (glint's row keys) and WalkRng use them too.
+inline constexpr uint32_t kPcgMultiplier = 747796405u, kPcgIncrement = 2891336453u, kPcgOutputMultiplier = 277803737u;
 constexpr uint32_t hash_u32(uint32_t v) {
-  const uint32_t state = v * 747796405u + 2891336453u;
-  const uint32_t word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
+  const uint32_t state = v * kPcgMultiplier + kPcgIncrement;
+  const uint32_t word = ((state >> ((state >> 28u) + 4u)) ^ state) * kPcgOutputMultiplier;
   return (word >> 22u) ^ word;
 }
 constexpr uint32_t hash_combine(uint32_t seed, uint32_t v) { return hash_u32(seed ^ (v + 0x9e3779b9u + (seed << 6) + (seed >> 2))); }
