@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <cstring>
 
+#include "glimmer/lane_constants.h"
 #include "glimmer/rng.h"
 
 namespace glimmer::render::sampler_draw {
@@ -57,27 +58,16 @@ inline __m256i laine_karras8_with(__m256i x, __m256i seed, __m256i c0, __m256i c
 }
 inline __m256i broadcast(uint32_t c) { return _mm256_set1_epi32(static_cast<int>(c)); }
 // Eight copies of each production round constant, read from memory by the multiplies (vpmulld's memory
-// operand), which GCC does not do for _mm256_set1_epi32 of a constant (it builds each in three instructions).
-struct alignas(32) Lanes8 {
-  uint32_t lane[8];
-};
-constexpr Lanes8 eight(uint32_t c) { return {{c, c, c, c, c, c, c, c}}; }
-alignas(32) constexpr Lanes8 kRounds8[4] = {eight(kLaineKarrasRounds[0]), eight(kLaineKarrasRounds[1]),
-                                            eight(kLaineKarrasRounds[2]), eight(kLaineKarrasRounds[3])};
+// operand), which GCC does not do for _mm256_set1_epi32 of a constant (glimmer/lane_constants.h).
+alignas(32) constexpr Lanes8 kRounds8[4] = {lanes8(kLaineKarrasRounds[0]), lanes8(kLaineKarrasRounds[1]),
+                                            lanes8(kLaineKarrasRounds[2]), lanes8(kLaineKarrasRounds[3])};
 inline __m256i load(const Lanes8 &l) { return _mm256_load_si256(reinterpret_cast<const __m256i *>(l.lane)); }
-// The empty asm hides the table's contents from GCC, which would otherwise see the constants through the
-// load and build them again in registers.
-template <typename T>
-inline const T *opaque(const T *p) {
-  __asm__("" : "+r"(p));
-  return p;
-}
 inline __m256i laine_karras8(__m256i x, __m256i seed) {
   const Lanes8 *r = opaque(kRounds8);
   return laine_karras8_with(x, seed, load(r[0]), load(r[1]), load(r[2]), load(r[3]));
 }
 
-alignas(32) constexpr Lanes8 kNibbleMask = eight(0x0f0f0f0fu);
+alignas(32) constexpr Lanes8 kNibbleMask = lanes8(0x0f0f0f0fu);
 // rev4(n) << 4 (a low nibble reversed into the high one) and rev4(n) (a high nibble into the low one).
 #define GLIMMER_REV4_HIGH 0x00, 0x80, 0x40, 0xc0, 0x20, 0xa0, 0x60, 0xe0, 0x10, 0x90, 0x50, 0xd0, 0x30, 0xb0, 0x70, 0xf0
 #define GLIMMER_REV4_LOW 0x0, 0x8, 0x4, 0xc, 0x2, 0xa, 0x6, 0xe, 0x1, 0x9, 0x5, 0xd, 0x3, 0xb, 0x7, 0xf
@@ -247,7 +237,7 @@ inline __m256i reverse_bits8(__m256i x) {
   return reverse_byte_bits8(_mm256_shuffle_epi8(x, byte_swap));
 }
 // hash_u32 (glimmer/rng.h) in each lane: vpmulld for the multiplies, vpsrlvd for the state-dependent shift.
-alignas(32) constexpr Lanes8 kHashMul[2] = {eight(kPcgMultiplier), eight(kPcgOutputMultiplier)};
+alignas(32) constexpr Lanes8 kHashMul[2] = {lanes8(kPcgMultiplier), lanes8(kPcgOutputMultiplier)};
 inline __m256i hash_u32_8(__m256i v) {
   const Lanes8 *m = opaque(kHashMul);
   const __m256i state = _mm256_add_epi32(_mm256_mullo_epi32(v, load(m[0])), set1(kPcgIncrement));

@@ -85,6 +85,7 @@
 #define GLIMMER_GLINT_WALK_AVX2 0
 #endif
 
+#include "glimmer/lane_constants.h"
 #include "glimmer/math.h"
 #include "glimmer/rng.h"
 
@@ -600,30 +601,24 @@ struct RowRasteriser {
 // first half), read from memory: the table's address passes through an empty asm (row_key_constants), so GCC uses
 // them as VPMULLD's / VPADDD's / VPXOR's memory operands instead of building each from an immediate (MOV, VMOVD,
 // VPSHUFD; session 30).
-alignas(32) inline constexpr uint32_t kRowKeyConstants[5][8] = {
-#define GLIMMER_EIGHT_LANES(c) {c, c, c, c, c, c, c, c}
-    GLIMMER_EIGHT_LANES(kRowKeySalt), GLIMMER_EIGHT_LANES(kPcgMultiplier), GLIMMER_EIGHT_LANES(kPcgIncrement),
-    GLIMMER_EIGHT_LANES(4u), GLIMMER_EIGHT_LANES(kPcgOutputMultiplier)};
-#undef GLIMMER_EIGHT_LANES
-[[gnu::always_inline]] inline const uint32_t *row_key_constants() {
-  const uint32_t *c = kRowKeyConstants[0];
-  asm("" : "+r"(c));
-  return c;
+alignas(32) inline constexpr Lanes8 kRowKeyConstants[5] = {lanes8(kRowKeySalt), lanes8(kPcgMultiplier),
+                                                           lanes8(kPcgIncrement), lanes8(4u),
+                                                           lanes8(kPcgOutputMultiplier)};
+[[gnu::always_inline]] inline const Lanes8 *row_key_constants() { return opaque(kRowKeyConstants); }
+[[gnu::target("avx2"), gnu::always_inline]] inline __m128i row_key_constant4(const Lanes8 *c, int k) {
+  return _mm_load_si128(reinterpret_cast<const __m128i *>(c[k].lane));
 }
-[[gnu::target("avx2"), gnu::always_inline]] inline __m128i row_key_constant4(const uint32_t *c, int k) {
-  return _mm_load_si128(reinterpret_cast<const __m128i *>(c + 8 * k));
+[[gnu::target("avx2"), gnu::always_inline]] inline __m256i row_key_constant8(const Lanes8 *c, int k) {
+  return _mm256_load_si256(reinterpret_cast<const __m256i *>(c[k].lane));
 }
-[[gnu::target("avx2"), gnu::always_inline]] inline __m256i row_key_constant8(const uint32_t *c, int k) {
-  return _mm256_load_si256(reinterpret_cast<const __m256i *>(c + 8 * k));
-}
-[[gnu::target("avx2"), gnu::always_inline]] inline __m128i hash_u32x4_avx2(__m128i v, const uint32_t *c) {
+[[gnu::target("avx2"), gnu::always_inline]] inline __m128i hash_u32x4_avx2(__m128i v, const Lanes8 *c) {
   const __m128i state = _mm_add_epi32(_mm_mullo_epi32(v, row_key_constant4(c, 1)), row_key_constant4(c, 2));
   const __m128i shift = _mm_add_epi32(_mm_srli_epi32(state, 28), row_key_constant4(c, 3));
   const __m128i word = _mm_mullo_epi32(_mm_xor_si128(_mm_srlv_epi32(state, shift), state), row_key_constant4(c, 4));
   return _mm_xor_si128(_mm_srli_epi32(word, 22), word);
 }
 [[gnu::target("avx2"), gnu::always_inline]] inline __m128i node_row_keys_avx2(int level, __m128i j) {
-  const uint32_t *c = row_key_constants();
+  const Lanes8 *c = row_key_constants();
   const __m128i seed = hash_u32x4_avx2(_mm_xor_si128(j, row_key_constant4(c, 0)), c);
   // hash_combine(seed, level): seed ^ (level + 0x9e3779b9 + (seed << 6) + (seed >> 2))
   const __m128i v = _mm_set1_epi32(static_cast<int>(static_cast<uint32_t>(level) + 0x9e3779b9u));
@@ -631,7 +626,7 @@ alignas(32) inline constexpr uint32_t kRowKeyConstants[5][8] = {
   return hash_u32x4_avx2(_mm_xor_si128(seed, mixed), c);
 }
 // The same for eight rows (256-bit lanes; session 30: the rasteriser's keys eight per step): the same words.
-[[gnu::target("avx2"), gnu::always_inline]] inline __m256i hash_u32x8_avx2(__m256i v, const uint32_t *c) {
+[[gnu::target("avx2"), gnu::always_inline]] inline __m256i hash_u32x8_avx2(__m256i v, const Lanes8 *c) {
   const __m256i state = _mm256_add_epi32(_mm256_mullo_epi32(v, row_key_constant8(c, 1)), row_key_constant8(c, 2));
   const __m256i shift = _mm256_add_epi32(_mm256_srli_epi32(state, 28), row_key_constant8(c, 3));
   const __m256i word =
@@ -639,7 +634,7 @@ alignas(32) inline constexpr uint32_t kRowKeyConstants[5][8] = {
   return _mm256_xor_si256(_mm256_srli_epi32(word, 22), word);
 }
 [[gnu::target("avx2"), gnu::always_inline]] inline __m256i node_row_keys8_avx2(int level, __m256i j) {
-  const uint32_t *c = row_key_constants();
+  const Lanes8 *c = row_key_constants();
   const __m256i seed = hash_u32x8_avx2(_mm256_xor_si256(j, row_key_constant8(c, 0)), c);
   const __m256i v = _mm256_set1_epi32(static_cast<int>(static_cast<uint32_t>(level) + 0x9e3779b9u));
   const __m256i mixed = _mm256_add_epi32(_mm256_add_epi32(v, _mm256_slli_epi32(seed, 6)), _mm256_srli_epi32(seed, 2));
@@ -1162,10 +1157,8 @@ template <bool kVex = false>
 }
 // direction_cell_seeds_avx2_body's integer constants (session 30): kNodeKeyStep and mix_u32's two multipliers, four
 // lanes each.
-alignas(16) inline constexpr uint32_t kCellConstants[3][4] = {
-    {kNodeKeyStep, kNodeKeyStep, kNodeKeyStep, kNodeKeyStep},
-    {kMixMultiplier1, kMixMultiplier1, kMixMultiplier1, kMixMultiplier1},
-    {kMixMultiplier2, kMixMultiplier2, kMixMultiplier2, kMixMultiplier2}};
+alignas(16) inline constexpr Lanes4 kCellConstants[3] = {lanes4(kNodeKeyStep), lanes4(kMixMultiplier1),
+                                                        lanes4(kMixMultiplier2)};
 // direction_cell_seeds where the walk uses AVX2 (session 22): the same chart
 // (direction_cell_coords, inlined: VEX forms of the same float operations;
 // avx2 enables no FMA), the floors by VROUNDPS (floor_cells' clamp first:
@@ -1187,9 +1180,7 @@ alignas(16) inline constexpr uint32_t kCellConstants[3][4] = {
   // Session 30 (glintcells30): the integer constants from memory (VPMULLD's operand, or one load each; were three
   // instructions each from immediates), the table's address through an empty asm so GCC does not fold it back to
   // immediates. (The groups' shifts as well changed GCC's inlining in glint.cpp: ClosureAdapter::sample, measured.)
-  const uint32_t *consts = kCellConstants[0];
-  asm("" : "+r"(consts));
-  const auto *row = reinterpret_cast<const __m128i *>(consts);
+  const auto *row = reinterpret_cast<const __m128i *>(opaque(kCellConstants));
   const __m128i m1 = _mm_load_si128(row + 1), m2 = _mm_load_si128(row + 2);
   const __m128i h = mix_u32x4_avx2(_mm_add_epi32(k, _mm_mullo_epi32(ix, _mm_load_si128(row))), m1, m2);
   _mm_storeu_si128(reinterpret_cast<__m128i *>(seeds.data()), mix_u32x4_avx2(_mm_xor_si128(h, iy), m1, m2));
@@ -1585,13 +1576,8 @@ struct NoParticleVisitor {
 }
 // flush_avx2's constants: kPositionKey, mix_u32's two multipliers, the padding node (PairPassCounter::kPadNode =
 // kMaxNodes), eight lanes each (32-byte rows).
-alignas(32) inline constexpr uint32_t kFlushConstants[4][8] = {
-    {kPositionKey, kPositionKey, kPositionKey, kPositionKey, kPositionKey, kPositionKey, kPositionKey, kPositionKey},
-    {kMixMultiplier1, kMixMultiplier1, kMixMultiplier1, kMixMultiplier1, kMixMultiplier1, kMixMultiplier1,
-     kMixMultiplier1, kMixMultiplier1},
-    {kMixMultiplier2, kMixMultiplier2, kMixMultiplier2, kMixMultiplier2, kMixMultiplier2, kMixMultiplier2,
-     kMixMultiplier2, kMixMultiplier2},
-    {kMaxNodes, kMaxNodes, kMaxNodes, kMaxNodes, kMaxNodes, kMaxNodes, kMaxNodes, kMaxNodes}};
+alignas(32) inline constexpr Lanes8 kFlushConstants[4] = {lanes8(kPositionKey), lanes8(kMixMultiplier1),
+                                                         lanes8(kMixMultiplier2), lanes8(kMaxNodes)};
 // Session 25 (glintcount25): which of the lit particles k0 .. k0 + 3 of a node
 // (its hash h0 in the direction cell, its origin o in `frame`) lie inside the
 // footprint, as bits 0..3 (all four computed; the caller masks those >= K):
@@ -1701,7 +1687,7 @@ struct PairPassCounter {
   // kMaxNodes + 1: flush_avx2's padding node kPadNode.
   std::array<FootprintFrame::NodeOrigin, kMaxNodes + 1> origin;
   static constexpr uint32_t kPadNode = kMaxNodes;
-  static_assert(kFlushConstants[3][0] == kPadNode);
+  static_assert(kFlushConstants[3].lane[0] == kPadNode);
   std::array<int32_t, kMaxNodes> inside_mask;  // -1 inside, 0 not
   // Listed particle: its pair's hash h0, its position_step(k) and its node (32-bit nodes: no memset call per fill);
   // 8 more for flush_avx2's padding (its four entries from n_parts <= kMaxParticles on) and list_pairs_avx2's
@@ -1733,10 +1719,9 @@ struct PairPassCounter {
     // Session 29 (glintlast29): the position key and mix_u32's multipliers read from memory in the loop (VPXOR's
     // and VPMULLD's memory operands), not built from immediates (3 instructions each, two spilled): the table's
     // address passes through an empty asm each step, so GCC neither folds it to immediates nor hoists the loads.
-    const uint32_t *consts = kFlushConstants[0];
-    asm("" : "+r"(consts));  // opaque: kPadNode's lanes below a load
+    const Lanes8 *consts = opaque(kFlushConstants);  // kPadNode's lanes below a load
     _mm_storeu_si128(reinterpret_cast<__m128i *>(part_node.data() + end),
-                     _mm_load_si128(reinterpret_cast<const __m128i *>(consts + 3 * 8)));
+                     _mm_load_si128(reinterpret_cast<const __m128i *>(consts[3].lane)));
     _mm_storeu_si128(reinterpret_cast<__m128i *>(part_hash.data() + end), _mm_setzero_si128());
     _mm_storeu_si128(reinterpret_cast<__m128i *>(part_step.data() + end), _mm_setzero_si128());
     // The gathers' mask: every lane gathered (the masked form: GCC 12 warns on the other).
@@ -1757,7 +1742,7 @@ struct PairPassCounter {
       // (h ^ C) + (2 k + 1) W per particle, mod 2^32 (the step listed).
       const __m128i step = _mm_loadu_si128(reinterpret_cast<const __m128i *>(part_step.data() + a));
       const __m128i h = _mm_loadu_si128(reinterpret_cast<const __m128i *>(part_hash.data() + a));
-      asm("" : "+r"(consts));  // opaque: the three loads below stay memory operands
+      consts = opaque(consts);  // the three loads below stay memory operands
       const auto *row = reinterpret_cast<const __m256i *>(consts);
       const __m128i keys = _mm_add_epi32(_mm_xor_si128(h, _mm_load_si128(reinterpret_cast<const __m128i *>(row))), step);
       const __m256i keys8 = _mm256_add_epi32(_mm256_set_m128i(keys, keys), second);
