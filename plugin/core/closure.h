@@ -277,10 +277,7 @@ struct ClosureAdapter {
     try {
       return sample_unguarded(inst, ctx, rand3, out);
     } catch (...) {
-      if constexpr (kClearOutOfLine)
-        clear_out_of_line(out);
-      else
-        clear(out);
+      no_sample(out);
       return GLIMMER_LABEL_NONE;
     }
   }
@@ -291,6 +288,13 @@ struct ClosureAdapter {
   // `if constexpr`, so every other closure's code is the same as with clear() alone.
   static constexpr bool kClearOutOfLine = ClearsOutOfLine<T>;
   [[gnu::noinline]] static void clear_out_of_line(GlimmerSample *out) { clear(out); }
+  // The three "no sample" exits: clear(), out of line where T asks for it.
+  [[gnu::always_inline]] static void no_sample(GlimmerSample *out) {
+    if constexpr (kClearOutOfLine)
+      clear_out_of_line(out);
+    else
+      clear(out);
+  }
 
   // "No sample", keeping the host's struct_size.
   // Only the host's struct_size bytes are written (an older host's buffer is smaller), and the host's
@@ -332,10 +336,7 @@ struct ClosureAdapter {
     const Vec3 wo = sp.frame.to_world(s.wo);
     const float pdf = sanitize(s.pdf);
     if (!ok || s.label == GLIMMER_LABEL_NONE || !(pdf > 0.0f) || !is_finite(wo)) {
-      if constexpr (kClearOutOfLine)
-        clear_out_of_line(out);
-      else
-        clear(out);
+      no_sample(out);
       return GLIMMER_LABEL_NONE;
     }
     const Spectrum f = sanitize(s.f_cos);
@@ -351,10 +352,7 @@ struct ClosureAdapter {
     if (GLIMMER_HAS_FIELD(out->struct_size, GlimmerSample, flags)) out->flags = 0;
 #endif
     if (s.moved && !write_origin(s, out)) {  // a host that cannot move the path gets no sample
-      if constexpr (kClearOutOfLine)
-        clear_out_of_line(out);
-      else
-        clear(out);
+      no_sample(out);
       return GLIMMER_LABEL_NONE;
     }
 #if GLIMMER_ABI_MINOR >= 8
@@ -396,23 +394,20 @@ struct ClosureAdapter {
   }
 
   static void albedo(const GlimmerInstance *inst, const GlimmerShadingContext *ctx, float out_rgb[3]) noexcept {
-    if constexpr (HasSanitizedConstantAlbedo<T>) {  // no frame, no sanitize (reflection: scatters() is true)
-      const Spectrum &a = self(inst).sanitized_albedo();
-      out_rgb[0] = a.x;
-      out_rgb[1] = a.y;
-      out_rgb[2] = a.z;
-      return;
-    }
     Spectrum a(1.0f);
-    try {
-      const ShadingPoint sp = shading_point(ctx);
-      if (!scatters(sp)) {
-        a = Spectrum(0.0f);
-      } else if constexpr (HasAlbedo<T>) {
-        a = sanitize(self(inst).albedo(sp));
+    if constexpr (HasSanitizedConstantAlbedo<T>) {  // no frame, no sanitize (reflection: scatters() is true)
+      a = self(inst).sanitized_albedo();
+    } else {
+      try {
+        const ShadingPoint sp = shading_point(ctx);
+        if (!scatters(sp)) {
+          a = Spectrum(0.0f);
+        } else if constexpr (HasAlbedo<T>) {
+          a = sanitize(self(inst).albedo(sp));
+        }
+      } catch (...) {
+        a = Spectrum(1.0f);
       }
-    } catch (...) {
-      a = Spectrum(1.0f);
     }
     out_rgb[0] = a.x;
     out_rgb[1] = a.y;
