@@ -15,6 +15,12 @@ Input: a bench CSV (method,samples,seconds,rmse) or a regions CSV (…,region,pi
 not meaningful for heavy-tailed noise (path's MIS fireflies): read b next to the curves. The bench's rmse already
 has each region's own reference noise taken out (not the whole image's); "ref noise" prints it (from rmse_raw).
 
+A regions CSV of a multi-seed bench (--seed S --seeds N >= 2, session 31: columns seeds,variance,bias2 per rung)
+also gives the split directly ("direct:"): k = the mean over the rungs of variance x t (one image's noise x its
+time), b^2 = the rungs' bias2 weighted by t^2 (its estimate's noise falls as 1 / t), with the standard error of
+that weighted mean from the rungs' scatter (+-); G and S as above with path's own direct k. b is significant only
+when b^2 is well above its +-.
+
 --instruction-time path=1,sg=1.98,auto=1.47 --seconds-per-sample 0.0024628 (seventeenth session) replaces every rung's
 seconds by samples x the method's cost per sample relative to path's (e.g. callgrind instructions per camera path) x
 path's seconds per sample: time that the machine's load does not move.
@@ -36,6 +42,37 @@ def fit(points):
     return max(b2, 0.0), k
 
 
+def direct(points):
+    """(k, b^2, standard error of b^2) from rungs (t, variance, bias2): k = mean(variance x t), b^2 = the t^2-weighted
+    mean of bias2 and its standard error from the weighted scatter (None with fewer than 2 rungs)."""
+    k = sum(v * t for t, v, _ in points) / len(points)
+    w = [t * t for t, _, _ in points]
+    b2 = sum(wi * b for wi, (_, _, b) in zip(w, points)) / sum(w)
+    se = None
+    if len(points) >= 2:
+        var = sum(wi * (b - b2) ** 2 for wi, (_, _, b) in zip(w, points)) / sum(w) / (len(points) - 1)
+        se = math.sqrt(var * sum(wi * wi for wi in w) / sum(w) ** 2 * len(points))
+    return k, b2, se
+
+
+def direct_line(rows, reference, at_seconds):
+    """The region's "direct:" figures (multi-seed CSV), or "" when the CSV has no bias2 column."""
+    if not rows.get(reference) or any(len(p) < 4 for ps in rows.values() for p in ps):
+        return ""
+    path = direct([(t, v, b) for t, _, v, b in rows[reference] if t > 0])
+    e2 = path[0] / at_seconds
+    line = " direct: %s b^2 %.3g +- %.2g |" % (reference, path[1], path[2] or 0.0)
+    for method, points in rows.items():
+        if method == reference:
+            continue
+        k, b2, se = direct([(t, v, b) for t, _, v, b in points if t > 0])
+        g = path[0] / k if k > 0 else float("inf")
+        s = g * (1.0 - max(b2, 0.0) / e2) if b2 < e2 else 0.0
+        line += " %s: b %.5f (%.2f x), b^2 %.3g +- %.2g, G %.2f, S %.2f |" % (
+            method, math.sqrt(max(b2, 0.0)), math.sqrt(max(b2, 0.0) / e2), b2, se or 0.0, g, s)
+    return line
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("csv")
@@ -53,11 +90,14 @@ def main():
             seconds = float(r["seconds"])
             if cost:
                 seconds = int(r["samples"]) * cost[r["method"]] * a.seconds_per_sample
-            rows.setdefault(r["method"], []).append((seconds, float(r["rmse"])))
+            point = (seconds, float(r["rmse"]))
+            if r.get("bias2"):  # a multi-seed bench: one image's noise variance and the mean squared bias
+                point += (float(r["variance"]), float(r["bias2"]))
+            rows.setdefault(r["method"], []).append(point)
             if r["method"] == a.reference and r.get("rmse_raw"):  # the references' noise the bench took out
                 noise.setdefault(r.get("region", "all"), []).append(float(r["rmse_raw"]) ** 2 - float(r["rmse"]) ** 2)
     for region, rows in regions.items():
-        path = [p for p in rows.get(a.reference, []) if p[0] > 0 and p[1] > 0]
+        path = [p[:2] for p in rows.get(a.reference, []) if p[0] > 0 and p[1] > 0]
         if not path:
             continue
         last = path[-3:]
@@ -67,14 +107,14 @@ def main():
         if region in noise:  # each region's own (bench_error.h region_errors), not the whole image's
             line += " ref noise %.5f |" % math.sqrt(max(sum(noise[region]) / len(noise[region]), 0.0))
         for method, points in rows.items():
-            points = [p for p in points if p[0] > 0 and p[1] > 0]
+            points = [p[:2] for p in points if p[0] > 0 and p[1] > 0]
             if method == a.reference or len(points) < 3:
                 continue
             b2, k = fit(points)
             g = k_path / k if k > 0 else float("inf")
             s = g * (1.0 - b2 / (e * e)) if b2 < e * e else 0.0
             line += " %s: b %.5f (%.2f x), G %.2f, S %.2f |" % (method, math.sqrt(b2), math.sqrt(b2) / e, g, s)
-        print(line)
+        print(line + direct_line(rows, a.reference, a.at_seconds))
 
 
 if __name__ == "__main__":

@@ -7,7 +7,11 @@ by --names; anything else 'edges'), as `glimmer bench error-vs-time --regions <m
   variance: the same scene and spp on two or more seeds (A.exr B.exr ...): per region the mean over its pixel
             values (Combined RGB) of their sample variance x spp (one sample's variance), and, with --references,
             the mean offset and the rms bias (the renders' mean against the references' mean, both noises taken
-            out) as bench_error.h does
+            out) as bench_error.h does, with the standard error of bias^2 (session 31: the spread over the region's
+            pixels of each pixel's bias^2 estimate / sqrt(pixels)) and z = bias^2 / its standard error: a bias_rms
+            with z < 2 is not told apart from the noise (the references' noise, estimated from 2 images, dominates
+            the small glass regions); off_z: the mean offset / its standard error (the same spread of the per-pixel
+            offsets), the more sensitive test of a bias of one sign over the region
       python3 benchmarks/frosted_variance_per_region.py variance 1024 sg_11.exr sg_12.exr \\
           --mask benchmarks/scenes/frosted_fair_caustic_mask_64x40.png --references ref_7919.exr,ref_8932.exr
   pairs:    one seed rendered twice, the second time with one decision re-drawn (the diagnostic build of
@@ -92,9 +96,12 @@ def main():
     refs = [combined(p) for p in a.references.split(",")] if a.references else []
     n = len(imgs)
     acc = {r: [0.0, 0.0, 0.0, 0, 0.0] for r in order}  # variance, offset, bias^2, values, reference sum
+    per_pixel = {r: [] for r in order}  # each pixel's bias^2 estimate (mean over its channels): the standard error
+    per_pixel_off = {r: [] for r in order}  # each pixel's offset (mean over its channels)
     for k, r in reg.items():
         if any(k not in im for im in imgs + refs):  # crops (--region renders): only the pixels they hold
             continue
+        pixel_b2 = pixel_off = 0.0
         for c in range(3):
             vals = [im[k][c] for im in imgs]
             mean = sum(vals) / n
@@ -106,6 +113,8 @@ def main():
                 rvar = sum((v - rm) ** 2 for v in rv) / (len(rv) - 1) / len(rv) if len(rv) > 1 else 0.0
                 off = mean - rm
                 b2 = off * off - var / n - rvar
+                pixel_b2 += b2 / 3
+                pixel_off += off / 3
             for name in ("all", r) + ((side[k],) if k in side else ()):
                 s = acc[name]
                 s[0] += var
@@ -113,12 +122,25 @@ def main():
                 s[2] += b2
                 s[3] += 1
                 s[4] += rm
-    print("%-8s %7s %12s %10s %10s %10s" % ("region", "values", "var/sample", "offset", "bias_rms", "ref_mean"))
+        for name in ("all", r) + ((side[k],) if k in side else ()):
+            per_pixel[name].append(pixel_b2)
+            per_pixel_off[name].append(pixel_off)
+    print("%-8s %7s %12s %10s %10s %10s %10s %9s %6s %6s" % ("region", "values", "var/sample", "offset", "bias_rms",
+                                                             "ref_mean", "bias^2", "b^2_se", "z", "off_z"))
+
+    def mean_se(p):
+        m = sum(p) / len(p)
+        return m, (sum((x - m) ** 2 for x in p) / (len(p) - 1) / len(p)) ** 0.5 if len(p) > 1 else 0.0
     for r in order:
         s = acc[r]
         if s[3]:
-            print("%-8s %7d %12.5f %10.5f %10.5f %10.5f" % (r, s[3], s[0] / s[3] * a.spp, s[1] / s[3],
-                                                            max(s[2] / s[3], 0.0) ** 0.5, s[4] / s[3]))
+            _, se = mean_se(per_pixel[r])
+            off, off_se = mean_se(per_pixel_off[r])
+            z = "%6.2f" % (s[2] / s[3] / se) if refs and se > 0 else "%6s" % "-"
+            off_z = "%6.2f" % (off / off_se) if refs and off_se > 0 else "%6s" % "-"
+            print("%-8s %7d %12.5f %10.5f %10.5f %10.5f %10.3g %9.2g %s %s" % (
+                r, s[3], s[0] / s[3] * a.spp, s[1] / s[3], max(s[2] / s[3], 0.0) ** 0.5, s[4] / s[3], s[2] / s[3],
+                se, z, off_z))
 
 
 if __name__ == "__main__":

@@ -99,6 +99,45 @@ inline std::vector<RegionError> region_errors(const std::vector<float> &image, c
   return out;
 }
 
+// N >= 1 images of one method on independent seeds (one rung of the ladder) against a reference, per region (the
+// last entry: all pixels). The rung's MSE is the mean of the images' own MSEs (each as region_errors: the expected
+// MSE of ONE image, estimated from N of them). With N >= 2 it splits into the images' noise and their bias: with
+// M the images' mean and s^2 their unbiased spread per value (combine_references),
+//     variance = mean(s^2)                                  (one image's noise variance),
+//     bias2    = mean((M - R)^2) - mean(s^2) / N - var_ref_mean    (the mean squared bias; unbiased, may be < 0),
+// and since mean_k (m_k - R)^2 = (M - R)^2 + (N - 1) / N s^2 per value, mse() = bias2 + variance exactly.
+struct SeedErrors {
+  std::vector<RegionError> errors;    // mse_raw: the mean of the images' mse_raw; var_ref_mean: the reference's
+  std::vector<double> variance, bias2;  // per region as `errors`; empty with N = 1
+  int count = 0;
+};
+
+inline SeedErrors seed_errors(const std::vector<std::vector<float>> &images, const Reference &ref,
+                              const std::vector<int> &region, int region_count, int channels = 3) {
+  if (images.empty()) throw std::invalid_argument("no images");
+  SeedErrors out;
+  out.count = static_cast<int>(images.size());
+  for (const auto &image : images) {
+    const std::vector<RegionError> e = region_errors(image, ref, region, region_count, channels);
+    if (out.errors.empty()) out.errors.assign(e.size(), RegionError{});
+    for (size_t k = 0; k < e.size(); ++k) {
+      out.errors[k].mse_raw += e[k].mse_raw / static_cast<double>(images.size());
+      out.errors[k].var_ref_mean = e[k].var_ref_mean;
+      out.errors[k].pixels = e[k].pixels;
+    }
+  }
+  if (images.size() < 2) return out;
+  const Reference spread = combine_references(images);  // M and s^2 / N per value
+  const std::vector<RegionError> of_mean = region_errors(spread.mean, ref, region, region_count, channels);
+  const std::vector<RegionError> noise = region_errors(spread.mean, spread, region, region_count, channels);
+  const double n = static_cast<double>(images.size());
+  for (size_t k = 0; k < of_mean.size(); ++k) {
+    out.variance.push_back(noise[k].var_ref_mean * n);
+    out.bias2.push_back(of_mean[k].mse_raw - noise[k].var_ref_mean - of_mean[k].var_ref_mean);
+  }
+  return out;
+}
+
 // Regions of an id image (RGB per pixel, rendered with box-filtered samples): a pixel whose channels are each
 // within 1e-3 of 0 or 1 gets the index bits(R) + 2 bits(G) + 4 bits(B) (0 = black .. 7 = white); any other pixel
 // (a mix of ids at an edge, or a grey mask value) gets 8, "edges".

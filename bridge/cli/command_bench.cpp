@@ -24,7 +24,10 @@
 // adds the same figures per region of an id pass (one per shader) or of a
 // mask image. --path-strategy sets the direct-light estimator (mis | bsdf) of
 // the reference method's renders; path-mis / path-bsdf are frosted methods
-// that render path with that estimator whatever --path-strategy is.
+// that render path with that estimator whatever --path-strategy is. --seed S --seeds N renders every rung on the
+// seeds S .. S + N - 1 (default: one image on the scene's seed): the rung's MSE is the mean of the N images'
+// (independent images, so two runs on other seeds agree within the estimate's noise), and with N >= 2 the log and
+// the regions CSV also split it into noise (variance) and bias^2 (bench_error.h seed_errors).
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
@@ -71,7 +74,20 @@ struct BenchArgs {
   int reference_seeds = 1;             // references on different seeds; >= 2: their noise is subtracted
   std::string reference_images;        // comma list of EXRs used as the references instead of rendering them
   std::string regions = "none";        // none | auto (an id pass, one region per shader) | an id / mask image
+  int seed = -1;                       // the methods' sampling seed (-1: the scene's integrator seed, no --seed)
+  int seeds = 1;                       // images per rung, on seeds seed, seed + 1, ...: their MSEs are averaged
 };
+
+// The k-th converged reference's sampling seed (other seeds than the ladder's: see run()).
+int reference_seed(int k) { return 7919 + 1013 * k; }
+
+// The sampling seeds of every rung's images: {-1} (the scene's seed) by default, else seed .. seed + seeds - 1.
+std::vector<int> ladder_seeds(const BenchArgs &a) {
+  if (a.seed < 0) return {-1};
+  std::vector<int> out;
+  for (int k = 0; k < a.seeds; ++k) out.push_back(a.seed + k);
+  return out;
+}
 
 std::string self_path() {
   char buf[4096];
@@ -454,7 +470,7 @@ bench::Reference render_reference(const RunContext &c, const std::string &source
   } else {
     const std::string strategy = strategy_of(source, c.material, c.a);
     for (int k = 0; k < c.a.reference_seeds; ++k) {
-      const int seed = 7919 + 1013 * k;
+      const int seed = reference_seed(k);
       std::printf("reference: %s at %d spp%s (seed %d)...\n", source.c_str(), c.a.reference_samples,
                   strategy.empty() ? "" : (", strategy " + strategy).c_str(), seed);
       std::fflush(stdout);
@@ -481,42 +497,78 @@ struct Ladder {
   std::ostringstream region_csv;
 };
 
+// One rung: method `m` at `spp` on every ladder seed; the mean of the images' seconds (one image's time) and their
+// errors (bench_error.h seed_errors).
+bench::SeedErrors measure_rung(const RunContext &c, const std::string &m, int spp, const bench::Reference &ref,
+                               const Regions &regions, double &seconds) {
+  const std::vector<int> seeds = ladder_seeds(c.a);
+  std::vector<std::vector<float>> images;
+  seconds = 0.0;
+  for (int seed : seeds) {
+    const std::string image = (c.work / (m + "_" + std::to_string(spp) +
+                                         (seed < 0 ? std::string() : "_s" + std::to_string(seed)) + ".exr")).string();
+    seconds += render(c.exe, c.plugin, c.scenes[m], image, spp, c.a, seed, strategy_of(m, c.material, c.a)) /
+               static_cast<double>(seeds.size());
+    int w = 0, h = 0;
+    images.push_back(read_pixels(image, w, h));
+  }
+  return bench::seed_errors(images, ref, regions.index, static_cast<int>(regions.names.size()));
+}
+
+// The rung's log lines: the whole image's RMSE (the reference's noise subtracted; "raw" without), once per method
+// the reference's noise per region, then each region's; with several seeds, each line's noise / bias split.
+void print_rung(const std::string &m, int spp, double t, bool first_rung, const bench::SeedErrors &s,
+                const bench::Reference &ref, const Regions &regions) {
+  const auto split_of = [&](size_t k) {
+    if (s.bias2.empty()) return std::string();
+    char buf[96];
+    std::snprintf(buf, sizeof(buf), " noise %.5f bias %.5f (bias^2 %.3g)", std::sqrt(std::max(s.variance[k], 0.0)),
+                  std::sqrt(std::max(s.bias2[k], 0.0)), s.bias2[k]);
+    return std::string(buf);
+  };
+  const bench::RegionError &all = s.errors.back();
+  std::printf("%-15s %5d spp  %8.3f s  RMSE %.5f", m.c_str(), spp, t, all.rmse());
+  if (ref.count >= 2) std::printf(" (raw %.5f)", all.rmse_raw());
+  std::printf("%s%s\n", s.count > 1 ? (" over " + std::to_string(s.count) + " seeds").c_str() : "",
+              split_of(s.errors.size() - 1).c_str());
+  if (first_rung && ref.count >= 2 && !regions.names.empty()) {  // once per method: the same for every rung
+    std::printf("    reference noise per region (RMS of their mean, subtracted):");
+    for (size_t k = 0; k < regions.names.size(); ++k)
+      if (s.errors[k].pixels > 0) std::printf(" %s %.5f", regions.names[k].c_str(), std::sqrt(s.errors[k].var_ref_mean));
+    std::printf("\n");
+  }
+  for (size_t k = 0; k < regions.names.size(); ++k)
+    if (s.errors[k].pixels > 0)
+      std::printf("    %-14s %5zu px  RMSE %.5f (raw %.5f)%s\n", regions.names[k].c_str(), s.errors[k].pixels,
+                  s.errors[k].rmse(), s.errors[k].rmse_raw(), split_of(k).c_str());
+}
+
 void measure_ladder(const RunContext &c, const std::vector<std::string> &methods, const std::vector<int> &ladder,
                     const Regions &regions, const std::function<const bench::Reference &(const std::string &)> &reference_of,
                     Ladder &out) {
-  const int region_count = static_cast<int>(regions.names.size());
+  const bool split = ladder_seeds(c.a).size() >= 2;  // the CSV's noise / bias columns (only then: else as before)
   out.region_rows.resize(regions.names.size());
-  out.region_csv << "method,samples,seconds,region,pixels,rmse,rmse_raw\n";
+  out.region_csv << "method,samples,seconds,region,pixels,rmse,rmse_raw" << (split ? ",seeds,variance,bias2" : "")
+                 << "\n";
   for (const auto &m : methods)
     for (int spp : ladder) {
       const bench::Reference &ref = reference_of(m);
-      const std::string image = (c.work / (m + "_" + std::to_string(spp) + ".exr")).string();
-      const double t = render(c.exe, c.plugin, c.scenes[m], image, spp, c.a, -1, strategy_of(m, c.material, c.a));
-      int w2 = 0, h2 = 0;
-      const auto errors = bench::region_errors(read_pixels(image, w2, h2), ref, regions.index, region_count);
-      out.rows.push_back({m, spp, t, errors.back().rmse()});
-      std::printf("%-15s %5d spp  %8.3f s  RMSE %.5f", m.c_str(), spp, t, errors.back().rmse());
-      if (ref.count >= 2) std::printf(" (raw %.5f)", errors.back().rmse_raw());
-      std::printf("\n");
-      if (spp == ladder.front() && ref.count >= 2 && region_count > 0) {  // once per method: the same for every rung
-        std::printf("    reference noise per region (RMS of their mean, subtracted):");
-        for (size_t k = 0; k < regions.names.size(); ++k)
-          if (errors[k].pixels > 0) std::printf(" %s %.5f", regions.names[k].c_str(), std::sqrt(errors[k].var_ref_mean));
-        std::printf("\n");
+      double t = 0.0;
+      const bench::SeedErrors s = measure_rung(c, m, spp, ref, regions, t);
+      out.rows.push_back({m, spp, t, s.errors.back().rmse()});
+      print_rung(m, spp, t, spp == ladder.front(), s, ref, regions);
+      // Each region, then the whole image as region "all": the fit and plot scripts read every region, "all"
+      // included, from this one file.
+      for (size_t k = 0; k < s.errors.size(); ++k) {
+        const bench::RegionError &e = s.errors[k];
+        const bool whole = k + 1 == s.errors.size();
+        if (e.pixels == 0 || (whole && regions.index.empty())) continue;
+        if (!whole) out.region_rows[k].push_back({m, spp, t, e.rmse()});
+        out.region_csv << m << "," << spp << "," << t << "," << (whole ? std::string("all") : regions.names[k]) << ","
+                       << e.pixels << "," << e.rmse() << "," << e.rmse_raw();
+        if (split) out.region_csv << "," << s.count << "," << s.variance[k] << "," << s.bias2[k];
+        out.region_csv << "\n";
       }
-      for (size_t k = 0; k < regions.names.size(); ++k) {
-        const bench::RegionError &e = errors[k];
-        if (e.pixels == 0) continue;
-        out.region_rows[k].push_back({m, spp, t, e.rmse()});
-        out.region_csv << m << "," << spp << "," << t << "," << regions.names[k] << "," << e.pixels << "," << e.rmse()
-                       << "," << e.rmse_raw() << "\n";
-        std::printf("    %-14s %5zu px  RMSE %.5f (raw %.5f)\n", regions.names[k].c_str(), e.pixels, e.rmse(),
-                    e.rmse_raw());
-      }
-      // The whole image too, as region "all": the fit and plot scripts read every region, "all" included, from
-      // this one file (before, "all" was only in the plain CSV and had to be merged in by hand).
-      out.region_csv << m << "," << spp << "," << t << ",all," << errors.back().pixels << "," << errors.back().rmse()
-                     << "," << errors.back().rmse_raw() << "\n";
       std::fflush(stdout);
     }
 }
@@ -561,6 +613,20 @@ const Material &scene_material(const BenchArgs &a, const std::string &text) {
   return material;
 }
 
+// --seeds N >= 2 needs --seed; no ladder image may share a rendered reference's seed (7919 + 1013 k: the
+// reference would then hold the image's own samples and fake convergence).
+void check_seeds(const BenchArgs &a) {
+  if (a.seeds >= 2 && a.seed < 0)
+    throw CliError(kExitBadInput, "bench error-vs-time: --seeds " + std::to_string(a.seeds) +
+                                      " needs --seed (the first of the seeds)");
+  if (!a.reference_images.empty()) return;
+  for (int seed : ladder_seeds(a))
+    for (int k = 0; k < a.reference_seeds; ++k)
+      if (seed == reference_seed(k))
+        throw CliError(kExitBadInput, "bench error-vs-time: --seed: seed " + std::to_string(seed) +
+                                          " is a reference's seed (7919 + 1013 k); choose others");
+}
+
 void run(const BenchArgs &a, CliContext &ctx) {
   if (!a.from_csv.empty()) return plot_only(a);
   const std::string text = read_scene_text(a.scene);
@@ -569,6 +635,7 @@ void run(const BenchArgs &a, CliContext &ctx) {
   for (const auto &m : methods) rewrite_scene(text, material, m);  // validates every name before any file is written
   if (!a.reference_images.empty() && a.reference == "own")
     throw CliError(kExitBadInput, "bench error-vs-time: --reference-images needs --reference material");
+  check_seeds(a);
   std::vector<int> ladder;
   for (const auto &s : split(a.ladder, ',')) ladder.push_back(std::stoi(s));
   const std::filesystem::path scene_dir = std::filesystem::absolute(a.scene).parent_path();
@@ -783,6 +850,14 @@ void add_bench_command(CLI::App &app, CliContext &ctx) {
                   "gives one region per shader, 'world' and 'edges'; or an id / mask image of the bench's size whose "
                   "pixels are 0 or 1 per channel (regions id0..id7, other values 'edges'): RMSE and the speed-up "
                   "summary also per region, and <name>_regions.csv (with the whole image as region 'all')");
+  evt->add_option("--seed", args->seed,
+                  "sampling seed of the methods' ladder renders (default: the scene's integrator seed, as before)")
+      ->check(CLI::Range(0, 1 << 30));
+  evt->add_option("--seeds", args->seeds,
+                  "images per rung on the seeds --seed, --seed + 1, ... (default 1): each rung's MSE is the mean of "
+                  "theirs, and with 2 or more the log and the regions CSV (columns seeds,variance,bias2) split it into "
+                  "one image's noise variance and the mean squared bias (bench_error.h seed_errors)")
+      ->check(CLI::Range(1, 64));
   evt->callback([args, &ctx] { run(*args, ctx); });
 
   auto cargs = std::make_shared<ConvergenceArgs>();

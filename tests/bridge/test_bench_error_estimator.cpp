@@ -17,6 +17,7 @@ using glimmer::cli::bench::binary_id_regions;
 using glimmer::cli::bench::combine_references;
 using glimmer::cli::bench::Reference;
 using glimmer::cli::bench::region_errors;
+using glimmer::cli::bench::seed_errors;
 
 constexpr size_t kPixels = 100000;  // x 3 channels
 constexpr double kBias = 0.05, kSigmaMethod = 0.1, kSigmaRef = 0.3;
@@ -97,6 +98,49 @@ TEST(BenchErrorEstimator, RegionsSplitTheErrorAndAddUpToTheWholeImage) {
   EXPECT_NEAR(e[0].rmse(), 0.0, 1e-6);
   EXPECT_NEAR(e[1].rmse(), 0.2, 1e-6);
   EXPECT_NEAR(e[2].mse(), 0.5 * (e[0].mse() + e[1].mse()), 1e-9);
+}
+
+TEST(BenchErrorEstimator, SeveralSeedsSplitTheMseIntoTheMethodsBiasAndNoise) {
+  // One rung on N = 4 seeds (bench --seeds 4) against 2 references of noise 0.05 (a converged pair; kSigmaRef's
+  // would bury kBias^2 in the tolerance): bias2 estimates kBias^2 and variance
+  // kSigmaMethod^2 (one image's), and their sum is the rung's MSE (the mean of the 4 images' MSEs) exactly.
+  // Tolerances: 6 standard deviations; bias2 = mean(d^2) - mean(s^2) / N - var_ref with d = M - R ~ N(b, s_d^2),
+  // s_d^2 = sigma_m^2 / N + sigma_r^2 / 2: var(mean d^2) = (2 s_d^4 + 4 b^2 s_d^2) / n, plus the two subtracted
+  // estimates' (3 and 1 degrees of freedom per value).
+  constexpr int kSeeds = 4;
+  constexpr double kSigmaConverged = 0.05;
+  std::mt19937_64 rng(4242);
+  const Reference ref = combine_references({noisy(0.0, kSigmaConverged, rng), noisy(0.0, kSigmaConverged, rng)});
+  std::vector<std::vector<float>> images;
+  for (int k = 0; k < kSeeds; ++k) images.push_back(noisy(kBias, kSigmaMethod, rng));
+  const auto s = seed_errors(images, ref, {}, 0);
+  ASSERT_EQ(s.bias2.size(), 1u);
+  ASSERT_EQ(s.variance.size(), 1u);
+  const double n = 3.0 * kPixels, vm = kSigmaMethod * kSigmaMethod, vr = kSigmaConverged * kSigmaConverged / 2;
+  const double sd2 = vm / kSeeds + vr;
+  const double tol_b = 6.0 * std::sqrt((2 * sd2 * sd2 + 4 * kBias * kBias * sd2) / n +
+                                       2 * (vm / kSeeds) * (vm / kSeeds) / (kSeeds - 1) / n + 2 * vr * vr / n);
+  const double tol_v = 6.0 * vm * std::sqrt(2.0 / (kSeeds - 1) / n);
+  ASSERT_LT(tol_b, 0.25 * kBias * kBias) << "the check must tell the bias from the controls";
+  EXPECT_NEAR(s.bias2[0], kBias * kBias, tol_b);
+  EXPECT_NEAR(s.variance[0], vm, tol_v);
+  EXPECT_NEAR(s.errors.back().mse(), s.bias2[0] + s.variance[0], 1e-9);
+  double mean_mse = 0.0;
+  for (const auto &image : images) mean_mse += region_errors(image, ref, {}, 0).back().mse() / kSeeds;
+  EXPECT_NEAR(s.errors.back().mse(), mean_mse, 1e-12);
+  // Negative controls: the images' own noise not subtracted (mean((M - R)^2) - var_ref), and the spread of one
+  // image taken for the mean's (s^2 instead of s^2 / N), both miss kBias^2 by far more than the tolerance.
+  const Reference spread = combine_references(images);
+  const auto of_mean = region_errors(spread.mean, ref, {}, 0).back();
+  EXPECT_GT(std::fabs(of_mean.mse() - kBias * kBias), 10.0 * tol_b) << "images' noise kept";
+  EXPECT_GT(std::fabs(of_mean.mse() - s.variance[0] - kBias * kBias), 10.0 * tol_b) << "s^2 not divided by N";
+  std::printf("4 seeds: bias2 %.6f (expected %.6f, tolerance %.6f), variance %.6f (expected %.6f), controls %.6f "
+              "/ %.6f\n", s.bias2[0], kBias * kBias, tol_b, s.variance[0], vm, of_mean.mse(),
+              of_mean.mse() - s.variance[0]);
+  // One image: no split, the rung's MSE is that image's.
+  const auto one = seed_errors({images[0]}, ref, {}, 0);
+  EXPECT_TRUE(one.bias2.empty());
+  EXPECT_EQ(one.errors.back().mse_raw, region_errors(images[0], ref, {}, 0).back().mse_raw);
 }
 
 TEST(BenchErrorEstimator, IdImagesGiveOneRegionPerBinaryColourAndEdgesForMixtures) {

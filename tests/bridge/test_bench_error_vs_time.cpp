@@ -4,6 +4,7 @@
 // frosted glass: the methods path / sg / auto render and are compared with path.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -186,6 +187,64 @@ TEST(BenchErrorVsTime, FrostedTwoReferenceSeedsRegionsAndPathStrategy) {
   EXPECT_EQ(plain_rows, 6);
   EXPECT_NE(out.find("region floor: at path's 1000-s RMSE"), std::string::npos) << out;
   std::filesystem::remove_all(dir);
+}
+
+// The plain CSV's rmse of `method` at `samples` after a bench run in `dir` (-1 if absent).
+double csv_rmse(const std::filesystem::path &dir, const std::string &method, int samples) {
+  std::ifstream csv(dir / "frosted_error_vs_time.csv");
+  std::string line;
+  std::getline(csv, line);
+  while (std::getline(csv, line)) {
+    std::istringstream fields(line);
+    std::string m, spp, seconds, rmse;
+    std::getline(fields, m, ',');
+    std::getline(fields, spp, ',');
+    std::getline(fields, seconds, ',');
+    std::getline(fields, rmse, ',');
+    if (m == method && spp == std::to_string(samples)) return std::stod(rmse);
+  }
+  return -1.0;
+}
+
+TEST(BenchErrorVsTime, FrostedLadderSeedsGiveIndependentImagesAndAverageTheirErrors) {
+  // --seed: the same seed twice gives the same image (the same RMSE to the last digit), another seed another
+  // image; --seeds 2 renders seeds 5 and 6 and its MSE is the mean of theirs (the 6 digits of the CSV), split
+  // into noise and bias^2 in the log and the regions CSV.
+  const std::filesystem::path base = std::filesystem::path(GLIMMER_TEST_BINARY_DIR) / "bench_evt_seeds";
+  const auto bench = [&](const std::string &name, const std::string &seed_args, std::string &out) {
+    const std::filesystem::path dir = base / name;
+    std::filesystem::create_directories(dir);
+    const int code = run(std::string("bench error-vs-time ") + GLIMMER_TEST_SOURCE_DIR +
+                             "/examples/frosted_closeup.xml --methods sg --samples 2 --reference-samples 4 "
+                             "--regions auto --width 12 --height 8 --threads 1 --clock cpu --out-dir " +
+                             dir.string() + " " + seed_args,
+                         out);
+    EXPECT_EQ(code, 0) << out;
+    return csv_rmse(dir, "sg", 2);
+  };
+  std::string out;
+  const double a = bench("a", "--seed 5", out), again = bench("b", "--seed 5", out), c = bench("c", "--seed 6", out);
+  const double both = bench("d", "--seed 5 --seeds 2", out);
+  ASSERT_GT(a, 0.0);
+  ASSERT_GT(c, 0.0);
+  EXPECT_EQ(a, again) << "the same seed must give the same image";
+  EXPECT_GT(std::fabs(a - c), 1e-3 * a) << "two seeds must give different images";
+  EXPECT_NEAR(both * both, 0.5 * (a * a + c * c), 5e-5 * both * both) << a << " " << c << " " << both;
+  EXPECT_NE(out.find("over 2 seeds noise "), std::string::npos) << out;
+  std::ifstream regions(base / "d" / "frosted_error_vs_time_regions.csv");
+  std::string header;
+  std::getline(regions, header);
+  EXPECT_EQ(header, "method,samples,seconds,region,pixels,rmse,rmse_raw,seeds,variance,bias2");
+  std::printf("seed 5 RMSE %.6g (again %.6g), seed 6 %.6g, seeds 5+6 %.6g (sqrt of the mean MSE %.6g)\n", a, again,
+              c, both, std::sqrt(0.5 * (a * a + c * c)));
+  std::filesystem::remove_all(base);
+}
+
+TEST(BenchErrorVsTime, FrostedSeedsNeedASeedAndAvoidTheReferencesSeeds) {
+  const std::string scene = std::string(GLIMMER_TEST_SOURCE_DIR) + "/examples/frosted_closeup.xml";
+  expect_bad_input(scene + " --seeds 2 --samples 1 --reference-samples 1", "--seeds 2 needs --seed");
+  expect_bad_input(scene + " --seed 7918 --seeds 2 --samples 1 --reference-samples 1",
+                   "seed 7919 is a reference's seed");
 }
 
 TEST(BenchErrorVsTime, FrostedPathStrategyAndRegionImageAreChecked) {
