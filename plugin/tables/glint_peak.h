@@ -117,8 +117,8 @@ class DirectionalPeakTable {
           float m = 0.0f;
           for (int i = i0; i <= i1; ++i)
             for (int o = o0; o <= o1; ++o) {
-              const float *row = level.values.data() + (static_cast<size_t>(i) * level.n_theta_o + o) * level.n_phi;
-              for (int p = p0; p <= p1; ++p) m = std::max(m, row[p]);
+              const size_t row = (static_cast<size_t>(i) * level.n_theta_o + o) * level.n_phi;
+              for (int p = p0; p <= p1; ++p) m = std::max(m, level.node(row + p));  // what lookups read
             }
           float &peak = peak_[(static_cast<size_t>(bi) * n_[1] + bo) * n_[2] + bp];
           peak = std::max(peak, m);

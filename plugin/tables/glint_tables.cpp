@@ -261,8 +261,8 @@ double slice_energy(const LodLevel &level, int ti, const std::vector<double> &we
   for (int t = 0; t < kEnergyTheta; ++t)
     for (int p = 0; p < kEnergyPhi; ++p)
       sum += weight[static_cast<size_t>(t) * kEnergyPhi + p] *
-             level.lookup(static_cast<float>(ti), static_cast<float>((t + 0.5) * kEnergyStepDeg),
-                          static_cast<float>((p + 0.5) * kEnergyStepDeg));
+             level.lookup_exact(static_cast<float>(ti), static_cast<float>((t + 0.5) * kEnergyStepDeg),
+                                static_cast<float>((p + 0.5) * kEnergyStepDeg));
   return sum;
 }
 
@@ -346,8 +346,33 @@ bool plausible_energy(const DirectionalTable &table, const TableSpec &spec, int 
 
 size_t DirectionalTable::byte_size() const {
   size_t s = 0;
-  for (const auto &l : levels) s += l.values.size() * sizeof(float);
+  for (const auto &l : levels) s += l.values.size() * sizeof(float) + l.halves.size() * sizeof(uint16_t);
   return s;
+}
+
+namespace {
+// x >= 0 (finite, < 2^15) as LodLevel::halves stores it: exponent + 15 in bits 11..15, the 11 high mantissa bits
+// below, rounded up (a carry into the exponent is the next power of two); 0 below the smallest normal (2^-14).
+uint16_t half_rounded_up(float x) {
+  uint32_t bits;
+  std::memcpy(&bits, &x, sizeof bits);
+  const int e = static_cast<int>(bits >> 23) - 127;
+  if (e < -14) return 0;
+  const uint32_t h = (static_cast<uint32_t>(e + 15) << 11) | ((bits >> 12) & 0x7ffu);
+  return static_cast<uint16_t>(h + ((bits & 0xfffu) != 0));
+}
+}  // namespace
+
+void LodLevel::pack_halves() {
+  float peak = 0.0f;
+  for (const float v : values) peak = std::max(peak, v);
+  int e = 0;
+  if (peak > 0.0f) std::frexp(peak, &e);  // peak < 2^e
+  const int k = 15 - e;                   // peak 2^k < 2^15
+  halves.resize(values.size());
+  for (size_t i = 0; i < values.size(); ++i) halves[i] = half_rounded_up(std::ldexp(values[i], k));
+  const float scale = std::ldexp(1.0f, 112 - k);
+  for (float &s : half_scale) s = scale;
 }
 
 double directional_probability_by_rim(BaseDistribution dist, double alpha, double gamma_deg, double theta_i_deg,
@@ -493,6 +518,7 @@ std::unique_ptr<DirectionalTable> build_directional_table(const TableSpec &spec,
     for (int l = 1; l < kLodCount; ++l) blur_slice(slice, ti, table->levels[l], kernel, pass1);
     normalise_slice_energy(spec, ti, *table);
   });
+  table->pack_halves();
   table->build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return table;
 }
@@ -573,6 +599,7 @@ std::unique_ptr<DirectionalTable> load_table(const std::string &path, const Tabl
       }
   if (!plausible_energy(*table, spec, static_cast<int>(std::max(1u, std::thread::hardware_concurrency())), problem))
     return nullptr;
+  table->pack_halves();
   table->loaded_from_cache = true;
   return table;
 }

@@ -44,6 +44,11 @@
 //     move P toward grazing wo, where W is large: the albedo grew to 2..4.7
 //     at grazing incidence.
 // Lookups are trilinear within a level and linear in sigma between levels.
+// Storage (session 31, glinttable31): the values are built, cached on disk and validated in fp32 (`values`); lookups
+// read a 16-bit copy (`halves`: unsigned floats, 5 exponent and 11 mantissa bits, of the level's values times a power
+// of two, rounded up, so every node reads at most 2^-11 relative above its fp32 value). A lookup's loads are random
+// accesses into several MB (the GI scene's largest single stall, a cache miss per lookup): half the bytes, a smaller
+// working set.
 //
 // Tables are cached on disk (host->cache_dir) under a hash of their
 // parameters; a corrupt or mismatching file is rebuilt with a warning.
@@ -95,7 +100,14 @@ struct LodLevel {
   alignas(16) float lane_scale[4] = {1.0f, 1.0f, 1.0f, 0.0f};
   alignas(16) int32_t lane_last[4] = {kThetaICount - 2, 89, 179, 0};
   size_t i_stride = 91 * 181;  // theta_i_stride(), n_theta_o n_phi, set with the step (not multiplied per lookup)
-  std::vector<float> values;
+  std::vector<float> values;  // fp32: built, cached on disk, validated
+  // What lookups read (pack_halves; node() decodes one): values[i] x 2^k as a 16-bit float without sign (IEEE
+  // binary16's 5-bit exponent, bias 15, and the sign bit as an 11th mantissa bit), rounded up; below 2^-14 (the
+  // smallest normal) 0. k per level so the largest value scales to [2^14, 2^15): nodes below 2^-28 of the level's
+  // peak read 0. A half h decodes as the float of bits h << 12 (exponent rebiased by 2^-112, exact) times
+  // half_scale = 2^(112 - k), one product per lane. The dark test's bounds (glint_peak.h) are taken over node().
+  std::vector<uint16_t> halves;
+  alignas(16) float half_scale[4] = {1.0f, 1.0f, 1.0f, 1.0f};
 
   // The grid of a level at `step` degrees: step_deg, inv_step, the node counts and cell()'s lane constants (values
   // not sized).
@@ -114,11 +126,11 @@ struct LodLevel {
   // -ffinite-math-only those are library calls, 9 per lookup).
   static float clamp_deg(float x, float hi) { return x > 0.0f ? (x < hi ? x : hi) : 0.0f; }
 
-  // The grid cell of a lookup: its first corner and the fractions along
+  // The grid cell of a lookup: its first corner (an index into values and halves) and the fractions along
   // theta_i, theta_o and dphi; angles in degrees, theta in [0, 90], dphi in
   // [0, 180]. The other corners are +1 (dphi), +theta_o_stride(), +theta_i_stride().
   struct Cell {
-    const float *base;
+    size_t base;
     float ti, to, tp;
   };
   size_t theta_o_stride() const { return static_cast<size_t>(n_phi); }
@@ -144,7 +156,7 @@ struct LodLevel {
     alignas(16) float t[4];
     _mm_store_si128(reinterpret_cast<__m128i *>(c), corner);
     _mm_store_ps(t, _mm_sub_ps(f, _mm_cvtepi32_ps(corner)));
-    return {values.data() + (static_cast<size_t>(c[0]) * n_theta_o + c[1]) * n_phi + c[2], t[0], t[1], t[2]};
+    return {(static_cast<size_t>(c[0]) * n_theta_o + c[1]) * n_phi + c[2], t[0], t[1], t[2]};
   }
   // The scalar form of cell() (the reference of its test).
   Cell cell_scalar(float theta_i_deg, float theta_o_deg, float dphi_deg) const {
@@ -155,37 +167,75 @@ struct LodLevel {
     const int i0 = std::min(static_cast<int>(fi), kThetaICount - 2);
     const int o0 = std::min(static_cast<int>(fo), n_theta_o - 2);
     const int p0 = std::min(static_cast<int>(fp), n_phi - 2);
-    return {values.data() + (static_cast<size_t>(i0) * n_theta_o + o0) * n_phi + p0, fi - static_cast<float>(i0),
+    return {(static_cast<size_t>(i0) * n_theta_o + o0) * n_phi + p0, fi - static_cast<float>(i0),
             fo - static_cast<float>(o0), fp - static_cast<float>(p0)};
   }
 
-  // Trilinear lookup.
+  // Fills halves and half_scale from values (see halves); after values are final (built or loaded).
+  void pack_halves();
+  // Node i as lookups read it (the decoded half).
+  float node(size_t i) const { return decode_half(halves[i]); }
+  // A half of `halves` as a float (the scalar form of lookup()'s decode).
+  float decode_half(uint16_t h) const {
+    const uint32_t bits = static_cast<uint32_t>(h) << 12;
+    float x;
+    __builtin_memcpy(&x, &bits, sizeof x);
+    return x * half_scale[0];
+  }
+
+  // Trilinear lookup (of the halves).
   float lookup(float theta_i_deg, float theta_o_deg, float dphi_deg) const {
     return lookup(cell(theta_i_deg, theta_o_deg, dphi_deg));
   }
   // The same at a cell located by cell() (the eval locates it once for prefetch and lookup).
-  // The four dphi pairs in lanes (rows theta_i, theta_o + (0, 0), (1, 0), (0, 1), (1, 1) in the order 00, 10, 01,
-  // 11), then the two theta_o lerps in two lanes: the same operations in the same order as lookup_scalar
-  // (test GlintTables.LookupInLanesMatchesTheScalarForm).
+  // The four dphi pairs of halves (rows theta_i, theta_o + (0, 0), (1, 0), (0, 1), (1, 1)) interleaved into lanes
+  // 00, 10, 01, 11 at dphi and at dphi + 1, decoded (<< 12, times half_scale), then the two theta_o lerps in two
+  // lanes: the same operations in the same order as lookup_scalar (test GlintTables.LookupInLanesMatchesTheScalarForm).
   float lookup(const Cell &c) const {
     const size_t si = theta_i_stride(), so = theta_o_stride();
-    auto pair = [](const float *p) { return _mm_castsi128_ps(_mm_loadl_epi64(reinterpret_cast<const __m128i *>(p))); };
-    const __m128 r00 = pair(c.base), r01 = pair(c.base + so), r10 = pair(c.base + si), r11 = pair(c.base + si + so);
-    const __m128 lo = _mm_unpacklo_ps(r00, r10), hi = _mm_unpacklo_ps(r01, r11);  // (00 p0, 10 p0, 00 p1, 10 p1), ...
-    const __m128 p0 = _mm_movelh_ps(lo, hi), p1 = _mm_movehl_ps(hi, lo);        // lanes 00, 10, 01, 11
+    const uint16_t *base = halves.data() + c.base;
+    auto pair = [](const uint16_t *p) {
+      uint32_t v;
+      __builtin_memcpy(&v, p, sizeof v);
+      return _mm_cvtsi32_si128(static_cast<int>(v));
+    };
+    const __m128i r00 = pair(base), r01 = pair(base + so), r10 = pair(base + si), r11 = pair(base + si + so);
+    const __m128i a = _mm_unpacklo_epi16(r00, r10), b = _mm_unpacklo_epi16(r01, r11);  // 00 p0, 10 p0, 00 p1, 10 p1
+    const __m128i h = _mm_unpacklo_epi32(a, b);  // 16-bit lanes 00 p0, 10 p0, 01 p0, 11 p0, 00 p1, 10 p1, 01 p1, 11 p1
+    const __m128 scale = _mm_load_ps(half_scale);
+    auto decode = [&](__m128i high) { return _mm_mul_ps(_mm_castsi128_ps(_mm_srli_epi32(high, 4)), scale); };
+    const __m128 p0 = decode(_mm_unpacklo_epi16(_mm_setzero_si128(), h));  // lanes 00, 10, 01, 11 at dphi
+    const __m128 p1 = decode(_mm_unpackhi_epi16(_mm_setzero_si128(), h));  // the same at dphi + 1
     const __m128 l = _mm_add_ps(p0, _mm_mul_ps(_mm_sub_ps(p1, p0), _mm_set1_ps(c.tp)));
     const __m128 l1 = _mm_movehl_ps(l, l);                                        // lanes 01, 11
     const __m128 ab = _mm_add_ps(l, _mm_mul_ps(_mm_sub_ps(l1, l), _mm_set1_ps(c.to)));  // lanes a, b
-    const float a = _mm_cvtss_f32(ab), b = _mm_cvtss_f32(_mm_shuffle_ps(ab, ab, 1));
-    return a + (b - a) * c.ti;
+    const float va = _mm_cvtss_f32(ab), vb = _mm_cvtss_f32(_mm_shuffle_ps(ab, ab, 1));
+    return va + (vb - va) * c.ti;
   }
   // The scalar form of lookup(const Cell &) (the reference of its test).
   float lookup_scalar(const Cell &c) const {
     const size_t si = static_cast<size_t>(n_theta_o) * n_phi, so = n_phi;  // from the counts (i_stride is checked)
-    auto lerp_phi = [&](const float *p) { return p[0] + (p[1] - p[0]) * c.tp; };
-    const float a = lerp_phi(c.base) + (lerp_phi(c.base + so) - lerp_phi(c.base)) * c.to;
-    const float b = lerp_phi(c.base + si) + (lerp_phi(c.base + si + so) - lerp_phi(c.base + si)) * c.to;
+    const uint16_t *base = halves.data() + c.base;
+    auto lerp_phi = [&](const uint16_t *p) {
+      const float v0 = decode_half(p[0]), v1 = decode_half(p[1]);
+      return v0 + (v1 - v0) * c.tp;
+    };
+    const float a = lerp_phi(base) + (lerp_phi(base + so) - lerp_phi(base)) * c.to;
+    const float b = lerp_phi(base + si) + (lerp_phi(base + si + so) - lerp_phi(base + si)) * c.to;
     return a + (b - a) * c.ti;
+  }
+  // The trilinear lookup of the fp32 values (the build's energy normalisation and the cache's validation; the
+  // reference of the halves' accuracy test).
+  float lookup_exact(const Cell &c) const {
+    const size_t si = theta_i_stride(), so = theta_o_stride();
+    const float *base = values.data() + c.base;
+    auto lerp_phi = [&](const float *p) { return p[0] + (p[1] - p[0]) * c.tp; };
+    const float a = lerp_phi(base) + (lerp_phi(base + so) - lerp_phi(base)) * c.to;
+    const float b = lerp_phi(base + si) + (lerp_phi(base + si + so) - lerp_phi(base + si)) * c.to;
+    return a + (b - a) * c.ti;
+  }
+  float lookup_exact(float theta_i_deg, float theta_o_deg, float dphi_deg) const {
+    return lookup_exact(cell(theta_i_deg, theta_o_deg, dphi_deg));
   }
 
   // Starts loading the cache lines of a lookup (a hint; no value read).
@@ -194,7 +244,7 @@ struct LodLevel {
   }
   void prefetch(const Cell &c) const {
     const size_t si = theta_i_stride(), so = theta_o_stride();
-    for (const size_t offset : {size_t{0}, so, si, si + so}) __builtin_prefetch(c.base + offset);
+    for (const size_t offset : {size_t{0}, so, si, si + so}) __builtin_prefetch(halves.data() + c.base + offset);
   }
 };
 
@@ -260,13 +310,16 @@ class DirectionalTable {
     return a + (b - a) * at.lp.t;
   }
 
-  size_t byte_size() const;
+  size_t byte_size() const;  // values and halves
+  void pack_halves() {
+    for (LodLevel &l : levels) l.pack_halves();
+  }
 };
 
 // The isotropic NDF D(m) as a function of cos(theta_m) (used only while building).
 using NdfFunction = std::function<double(double cos_theta_m)>;
 
-// Builds the table (steps 1-3 above) with up to `threads` worker threads.
+// Builds the table (steps 1-4 above, then the halves) with up to `threads` worker threads.
 std::unique_ptr<DirectionalTable> build_directional_table(const TableSpec &spec, const NdfFunction &ndf,
                                                           int threads = 2);
 

@@ -1401,6 +1401,7 @@ pg::DirectionalTable random_table(uint64_t seed) {
     level.values.resize(static_cast<size_t>(pg::kThetaICount) * level.n_theta_o * level.n_phi);
     for (float &v : level.values) v = static_cast<float>(1 + l) * rng.next_float();  // coarser levels larger
   }
+  table.pack_halves();  // what lookups read (session 31)
   return table;
 }
 
