@@ -28,7 +28,8 @@ inline double vmf_density(const Vec3 &axis, double kappa, const Vec3 &w) {
 
 // A draw from the vMF in its two halves, cos theta (vmf_cos) and phi (vmf_phi), joined by vmf_direction; a
 // stratified set of draws that share their cos theta numbers and their phi numbers makes each half once (the
-// host's lamp integral, render/lamp_through_lobe.h: 4 x 4 draws, 4 of each). sample_vmf is the three in one.
+// host's lamp integral, render/lamp_through_lobe.h: n x n draws, n of each, n = kLampStrata). sample_vmf is the
+// three in one.
 struct VmfCos {
   double cos_t, sin_t;
 };
