@@ -614,14 +614,58 @@ float floor_view_shift() {
   static const float k = measurement_knob("GLIMMER_FROSTED_FLOOR_SHIFT", kFloorViewShift, -4.0f, 4.0f);
   return k;
 }
-// kFloorViewExit (frosted_glass_sg.h, false: main's floor view), or for measurements only GLIMMER_FROSTED_FLOOR_EXIT
-// = 1 (session 30's fit), read once: where the solid is seen from the floor (not seen directly, the front SG's axis),
-// the entry roughness at most kCurvedShapeRoughness[0], by the rule (no test's shape or tail, no measurement shape or
-// tail).
-bool floor_view_exit(const SgInputs &in, bool seen_directly, bool drawn) {
-  static const bool on = measurement_knob("GLIMMER_FROSTED_FLOOR_EXIT", int(kFloorViewExit), 0, 1) != 0;
-  return on && !seen_directly && !drawn && !(in.roughness > kCurvedShapeRoughness[0]) && in.curved_shape == nullptr &&
-         in.curved_tail < 0.0f && curved_shape_override() == nullptr && curved_tail() < 0.0f;
+// kFloorViewExit (frosted_glass_sg.h, 0: main's floor view; SgInputs::floor_exit a test's), or for measurements only
+// GLIMMER_FROSTED_FLOOR_EXIT = 1 (session 30's fit) / 2 (session 31's shift and origin rule), read once: where the
+// solid is seen from the floor
+// (not seen directly, the front SG's axis), the entry roughness at most kCurvedShapeRoughness[0], by the rule (no
+// test's shape or tail, no measurement shape or tail). 0: not there.
+int floor_view_exit(const SgInputs &in, bool seen_directly, bool drawn) {
+  static const int by_rule = measurement_knob("GLIMMER_FROSTED_FLOOR_EXIT", kFloorViewExit, 0, 2);
+  const int mode = in.floor_exit >= 0 ? std::min(in.floor_exit, 2) : by_rule;
+  const bool there = !seen_directly && !drawn && !(in.roughness > kCurvedShapeRoughness[0]) &&
+                     in.curved_shape == nullptr && in.curved_tail < 0.0f && curved_shape_override() == nullptr &&
+                     curved_tail() < 0.0f;
+  return there ? mode : 0;
+}
+// kFloorViewOrigin / kFloorViewOriginScale, or for measurements only GLIMMER_FROSTED_FLOOR_ORIGIN = m (0: none) and
+// GLIMMER_FROSTED_FLOOR_ORIGIN_SCALE = s, read once.
+int floor_view_origin() {
+  static const int m = measurement_knob("GLIMMER_FROSTED_FLOOR_ORIGIN", kFloorViewOrigin, 0, 3);
+  return m;
+}
+float floor_view_origin_scale() {
+  static const float s = measurement_knob("GLIMMER_FROSTED_FLOOR_ORIGIN_SCALE", kFloorViewOriginScale, 0.0f, 8.0f);
+  return s;
+}
+// kFloorViewOrigin 2 / 3's jitter axes: the principal axes of the bundle's exit points' lateral covariance (the axis'
+// point at 0 and the 4 A_i, refracted_mean_shift's weights), each x the square root of its variance x `scale` (3:
+// the major one only), slid along d0 to P0's tangent plane (normal n0) as exit_centroid_offset; zero unless the bundle
+// is valid and d0 leaves the plane by more than 0.1.
+void origin_jitter_axes(const ExitBundle &b, const Vec3 &n0, float scale, bool major_only, Vec3 (&out)[2]) {
+  out[0] = out[1] = Vec3(0.0f);
+  const float dn = b.valid ? dot(b.d0, n0) : 0.0f;
+  if (!(dn > 0.1f) || !(scale > 0.0f)) return;
+  const Frame f = Frame::from_normal(b.d0);
+  const float mx = dot(b.mean_A, f.s), my = dot(b.mean_A, f.t);
+  float cxx = -mx * mx, cxy = -mx * my, cyy = -my * my;
+  for (int i = 0; i < 4; ++i) {
+    const float x = dot(b.A[i], f.s), y = dot(b.A[i], f.t);
+    cxx += kBundleRayShare * x * x, cxy += kBundleRayShare * x * y, cyy += kBundleRayShare * y * y;
+  }
+  const float half = 0.5f * (cxx + cyy), root = std::sqrt(std::max(0.0f, 0.25f * sqr(cxx - cyy) + cxy * cxy));
+  const float l1 = std::max(0.0f, half + root), l2 = std::max(0.0f, half - root);
+  // The major axis' direction in (s, t): (cxy, l1 - cxx) or (l1 - cyy, cxy), whichever is longer (an isotropic
+  // covariance: s).
+  float ex = cxy, ey = l1 - cxx;
+  if (ex * ex + ey * ey < sqr(l1 - cyy) + cxy * cxy) ex = l1 - cyy, ey = cxy;
+  const float el = std::sqrt(ex * ex + ey * ey);
+  if (el > 1e-12f) ex /= el, ey /= el;
+  else ex = 1.0f, ey = 0.0f;
+  const Vec3 u = f.s * ex + f.t * ey, v = f.t * ex - f.s * ey;
+  const auto onto_plane = [&](const Vec3 &a) { return a - b.d0 * (dot(a, n0) / dn); };
+  out[0] = onto_plane(u * (std::sqrt(l1) * scale));
+  if (!major_only) out[1] = onto_plane(v * (std::sqrt(l2) * scale));
+  if (!is_finite(out[0]) || !is_finite(out[1])) out[0] = out[1] = Vec3(0.0f);
 }
 // `seen_directly`: the waist (applied only there, sample_sg_transmission) is made only then. `drawn`: the walk's
 // internal lobe is about the drawn entry axis (kEntryAxis, drawn_entry_axis): the curved exit's shape is then the
@@ -638,18 +682,26 @@ bool solid_exit_mixture(const SgInputs &in, const Segment &seg, const Vec3 &axis
     if (wide && in.roughness <= kCurvedSplitMax) {
       // The axis moved by the smooth refractions' mean shift (kCurvedAxisShift; session 23's first-moment rules were
       // measured and not kept, docs/frosted_glass.md "Session 23 (frostedexit23)"; removed in session 24).
-      // The floor's view (session 30, floor_view_exit; off by default): kFloorViewShift and kCurvedExitShapeFloor.
-      const bool floor_exit = floor_view_exit(in, seen_directly, drawn);
-      if (const float k = floor_exit ? floor_view_shift() : curved_shift(); k != 0.0f) {
+      // The floor's view (floor_view_exit; off by default): kFloorViewShift, and session 30's kCurvedExitShapeFloor
+      // (1) or session 31's origin rule (2: kFloorViewOrigin).
+      const int floor_exit = floor_view_exit(in, seen_directly, drawn);
+      if (const float k = floor_exit != 0 ? floor_view_shift() : curved_shift(); k != 0.0f) {
         const Vec3 shifted = normalize(out.sg.axis + refracted_mean_shift(seg, axis, ior) * k);
         if (is_finite(shifted)) out.sg.axis = shifted;
       }
-      // Session 27's origin rules from one bundle (exit_bundle); the waist only where it is applied (seen_directly).
-      const float w = seen_directly ? (in.exit_waist >= 0.0f ? in.exit_waist : exit_waist_scale()) : 0.0f;
+      // Session 27's origin rules from one bundle (exit_bundle); the waist only where it is applied (seen_directly),
+      // or session 31's floor-view origin (floor_exit 2).
+      const int floor_origin = floor_exit == 2 ? floor_view_origin() : 0;
+      const float w = seen_directly ? (in.exit_waist >= 0.0f ? in.exit_waist : exit_waist_scale())
+                      : floor_origin == 1 ? (in.floor_origin >= 0.0f ? in.floor_origin : floor_view_origin_scale())
+                                          : 0.0f;
       const float c = in.exit_centroid >= 0.0f ? in.exit_centroid : exit_centroid_scale();
-      if (w != 0.0f || c != 0.0f) {
+      if (w != 0.0f || c != 0.0f || floor_origin >= 2) {
         const ExitBundle bundle = exit_bundle(seg, axis, ior, out.origin_Ng);
         if (w != 0.0f) out.waist_t = bundle_waist(bundle, out.sg.sharpness, kappa_geometric) * w;
+        if (floor_origin >= 2)
+          origin_jitter_axes(bundle, out.origin_Ng, in.floor_origin >= 0.0f ? in.floor_origin : floor_view_origin_scale(),
+                             floor_origin == 3, out.jitter);
         if (c != 0.0f) {
           const Vec3 moved = out.origin + exit_centroid_offset(bundle, out.origin_Ng) * c;
           if (is_finite(moved)) out.origin = moved;
@@ -669,8 +721,8 @@ bool solid_exit_mixture(const SgInputs &in, const Segment &seg, const Vec3 &axis
       else if (t >= 0.0f)
         split_single_sg(t, out);
       else
-        apply_curved_shape(floor_exit ? kCurvedExitShapeFloor
-                                      : curved_exit_shape(in.roughness, drawn && drawn_exit_shape()),
+        apply_curved_shape(floor_exit == 1 ? kCurvedExitShapeFloor
+                                           : curved_exit_shape(in.roughness, drawn && drawn_exit_shape()),
                            out);
     }
     return true;
@@ -987,6 +1039,20 @@ auto exit_draw_numbers(mf::WalkRng &rng, float first_cos) {
 }
 }  // namespace
 
+namespace {
+// kFloorViewOrigin 2 / 3 (ExitLobe::jitter): the origin moved by jitter[0] a + jitter[1] b, (a, b) uniform in the disk of
+// radius 2 (unit variance per axis; bounded, unlike a Gaussian), from the sample's seed by a stream of its own (the
+// other draws keep their numbers). Nothing without a jitter.
+void jitter_exit_origin(ExitLobe &exit, uint32_t seed) {
+  if (!(dot(exit.jitter[0], exit.jitter[0]) > 0.0f)) return;
+  mf::WalkRng rng(hash_u32x2(seed, 0x5bd1e995u));
+  const float u1 = rng.next(), u2 = rng.next();
+  const float r = 2.0f * std::sqrt(u1), phi = kTwoPi * u2;
+  const Vec3 moved = exit.origin + exit.jitter[0] * (r * std::cos(phi)) + exit.jitter[1] * (r * std::sin(phi));
+  if (is_finite(moved)) exit.origin = moved;
+}
+}  // namespace
+
 bool sample_sg_transmission(const ShadingPoint &sp, const SgInputs &in, const Vec3 &rand, const LocalSample &front,
                             LocalSample &out, bool *lost) {
   if (!(front.label & GLIMMER_LABEL_TRANSMIT) || !(front.pdf > 0.0f)) return false;
@@ -1045,6 +1111,7 @@ bool sample_sg_transmission(const ShadingPoint &sp, const SgInputs &in, const Ve
       if (is_finite(x)) exit.origin = x;
     }
   }
+  jitter_exit_origin(exit, seed);  // kFloorViewOrigin 2 / 3 only
   const Spectrum weight = front.f_cos / front.pdf * exit.weight;
   if (!is_finite(weight) || !is_finite(wo)) return false;
   out.wo = sp.frame.to_local(wo);

@@ -245,11 +245,27 @@ inline CurvedShape curved_exit_shape(float roughness, bool drawn = false) {
 // shadow rms bias 0.00748 -> 0.00488 at the same variance (0.198 -> 0.199). NOT the default: it fits the bench's
 // lamp distance with the directions, and a far lamp's shadow goes wrong (SphereShadowOfAFarLampAgainstThePath r 0.5
 // 0.118 against its bound 0.07; NearLampThroughTheSphereFromTheExitPointsMean at 40.3 radii 0.0527 -> 0.1118, while
-// 5.04 radii 0.0336 -> 0.0147): the near lamp's error is where the light leaves, not its directions. false: main's
-// floor view; GLIMMER_FROSTED_FLOOR_EXIT=1 for measurements.
-inline constexpr bool kFloorViewExit = false;
+// 5.04 radii 0.0336 -> 0.0147): the near lamp's error is where the light leaves, not its directions.
+// GLIMMER_FROSTED_FLOOR_EXIT=1 for measurements; 0: the floor view of sessions 22-30.
+// Session 31 (frostedshadow31; docs/frosted_glass.md "Session 31 (frostedshadow31)"): kFloorViewExit 2 is the floor's
+// view with the shift kFloorViewShift and main's shape (kCurvedExitShape: the far lamps want it) plus an origin rule for
+// the exit points' spread (what kCurvedExitShapeFloor's width faked at the bench's lamp distance): kFloorViewOrigin
+// 1 the waist (kCurvedExitWaist's, x kFloorViewOriginScale, drawn with the direction), 2 a jitter of the origin drawn
+// per sample in the exit's tangent plane, uniform in the ellipse of the exit points' lateral covariance (exit_bundle's
+// 5 rays) x kFloorViewOriginScale, independent of the direction (the host's lamp integral and the continued path see
+// the same origin blur), 3 the same along the covariance's major axis only. 0 / 1: sessions 22-30's / session 30's
+// fit. The default (2, jitter x 1: the exit points' own spread, no fitted factor): the caustic grid harness (2M sg
+// paths against 500k reference paths, noise 0.0077) 0.0489 -> 0.0180 (the shift alone 0.0502; jitter x 0.7 / 1.3 /
+// 1.6 0.0318 / 0.0264 / 0.0552; the major axis only x 1 / 1.4 0.0396 / 0.0579; the waist x 1 / 2 0.0504 / 0.0415;
+// session 30's fit 0.0193), SphereShadowOfAFarLampAgainstThePath r 0.5 0.0589 -> 0.0534 (r 0.6 untouched),
+// NearLampThroughTheSphereFromTheExitPointsMean 5.04 / 40.3 radii 0.0336 / 0.0527 -> 0.0212 / 0.0452. Bias bench (4 x
+// 8192, seeds 11-14): shadow rms bias 0.00753 -> 0.00417 (var/sample 0.2296 -> 0.2318), shadow_L 0.01215 -> 0.00689,
+// all 0.00260 -> 0.00161. GLIMMER_FROSTED_FLOOR_EXIT=0: the former images.
+inline constexpr int kFloorViewExit = 2;
 inline constexpr float kFloorViewShift = 1.6f;
 inline constexpr CurvedShape kCurvedExitShapeFloor{2, {0.6f, 0.4f}, {2.0f, 0.45f}};
+inline constexpr int kFloorViewOrigin = 2;
+inline constexpr float kFloorViewOriginScale = 1.0f;
 static_assert(kCurvedExitShape.count == 2 && kCurvedExitShapeWide.count == 2);
 static_assert(kCurvedExitShapeDrawn.count == 2);
 
@@ -273,6 +289,8 @@ struct SgInputs {
   float exit_waist = -1.0f;     // >= 0: a test's scale of the waist (kCurvedExitWaist), else the rule
   float exit_centroid = -1.0f;  // >= 0: a test's scale of the exit-point centroid (kCurvedExitCentroid), else the rule
   int entry_axis = -1;  // >= 0: a test's kEntryAxis mode, else the rule
+  int floor_exit = -1;        // >= 0: a test's kFloorViewExit mode, else the rule
+  float floor_origin = -1.0f;  // >= 0: a test's kFloorViewOriginScale (0: no origin rule there), else the rule
   // Session 25 (frostedglassL25): the internal reflections' axes sampled (kSampledReflection below) from `lobe`, the
   // closure's interface lobe at roughness `lobe_roughness` (another roughness at a hit builds its own).
   bool sampled_reflection = false;
@@ -329,6 +347,9 @@ struct ExitLobe {
   int lobe_count = 0;
   MixtureLobe lobe[kMaxLobes];
   float waist_t = 0.0f;  // < 0: kCurvedExitWaist's waist, at origin + sg.axis x waist_t (behind the exit)
+  // kFloorViewOrigin 2 / 3: the origin's jitter, origin + jitter[0] x a + jitter[1] x b for (a, b) drawn uniform in
+  // the disk of radius 2 (unit variance per axis) per sample; zero: none.
+  Vec3 jitter[2] = {Vec3(0.0f), Vec3(0.0f)};
   bool lost = false;  // trace_exit_lobe failed because the host's path would have ended inside (reflections_allowed)
   // The first exit's stratified roulette number u rescaled to [0, 1) when the walk left there (u / E_x: uniform given
   // that it left), for the exit direction's draw (stratified_first_roulette); -1: none.
