@@ -628,16 +628,19 @@ std::shared_ptr<const DirectionalTable> acquire_table(const TableSpec &spec, con
   }
   if (!table) {
     table = build_directional_table(spec, ndf, static_cast<int>(std::max(1u, std::thread::hardware_concurrency())));
+    if (use_cache) {
+      std::string problem;
+      if (!save_table(path, *table, problem)) log(GLIMMER_LOG_WARNING, "glint: table cache not written: " + problem);
+    }
+    table->release_values();
     char msg[256];
     std::snprintf(msg, sizeof(msg),
                   "glint: precomputed directional table (%s, alpha %.4g, gamma %.3g deg, %.1f MB) in %.3f s",
                   spec.distribution == BaseDistribution::GGX ? "ggx" : "beckmann", spec.alpha, spec.gamma_deg,
                   table->byte_size() / 1048576.0, table->build_seconds);
     log(GLIMMER_LOG_INFO, msg);
-    if (use_cache) {
-      std::string problem;
-      if (!save_table(path, *table, problem)) log(GLIMMER_LOG_WARNING, "glint: table cache not written: " + problem);
-    }
+  } else {
+    table->release_values();
   }
   std::shared_ptr<const DirectionalTable> result(std::move(table));
   shared[key] = result;

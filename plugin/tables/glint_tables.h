@@ -100,7 +100,7 @@ struct LodLevel {
   alignas(16) float lane_scale[4] = {1.0f, 1.0f, 1.0f, 0.0f};
   alignas(16) int32_t lane_last[4] = {kThetaICount - 2, 89, 179, 0};
   size_t i_stride = 91 * 181;  // theta_i_stride(), n_theta_o n_phi, set with the step (not multiplied per lookup)
-  std::vector<float> values;  // fp32: built, cached on disk, validated
+  std::vector<float> values;  // fp32: built, cached on disk, validated; released once acquired (release_values)
   // What lookups read (pack_halves; node() decodes one): values[i] x 2^k as a 16-bit float without sign (IEEE
   // binary16's 5-bit exponent, bias 15, and the sign bit as an 11th mantissa bit), rounded up; below 2^-14 (the
   // smallest normal) 0. k per level so the largest value scales to [2^14, 2^15): nodes below 2^-28 of the level's
@@ -310,9 +310,15 @@ class DirectionalTable {
     return a + (b - a) * at.lp.t;
   }
 
-  size_t byte_size() const;  // values and halves
+  size_t byte_size() const;  // values (until released) and halves
   void pack_halves() {
     for (LodLevel &l : levels) l.pack_halves();
+  }
+  // Frees the fp32 values once packed and cached (acquire_table): lookups, the dark test's bounds and every closure
+  // read only the halves, so a shared table holds half the bytes (session 31: 14.5 -> 7.3 MB per table instead of
+  // 21.8 MB with both). lookup_exact() and save_table() need the values: call them before.
+  void release_values() {
+    for (LodLevel &l : levels) std::vector<float>().swap(l.values);
   }
 };
 
