@@ -23,14 +23,7 @@ mkdir -p "$out"
 period_us=${GI_PERIOD_US:-200}
 twin=$(dirname "$src")/.glint_gi_time_twin.$$.xml
 trap 'rm -f "$twin"' EXIT
-python3 - "$src" "$twin" <<'PY'
-import re, sys
-text = open(sys.argv[1]).read()
-text = re.sub(r'<glint_bsdf([^>]*?)distribution="[a-z]+"', r'<glint_bsdf\1distribution="ggx"', text)
-text = re.sub(r' (gamma|density|uv_scale|seed|filter_threshold)="[^"]*"', '', text)
-text = text.replace('<glint_bsdf', '<glossy_bsdf')
-open(sys.argv[2], 'w').write(text)
-PY
+python3 "$(dirname "$0")/glint_gi_twin.py" "$src" "$twin"
 run() {  # name scene
   local name=$1 scene=$2
   (cd "$build" && perf record -q -e cpu-clock -c $((period_us * 1000)) -o "$out/$name.perf" \

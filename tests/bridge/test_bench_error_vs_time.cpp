@@ -42,6 +42,28 @@ int replot(const std::string &folder, const std::string &csv_text, const std::st
   return run("bench error-vs-time --from-csv " + csv + " --out-dir " + dir.string() + " " + options, out);
 }
 
+// The rows of the plain CSV (frosted_error_vs_time.csv) a bench run wrote in `dir`: method, samples, seconds,
+// rmse as written.
+struct PlainCsvRow {
+  std::string method, samples, seconds, rmse;
+};
+std::vector<PlainCsvRow> plain_csv_rows(const std::filesystem::path &dir) {
+  std::ifstream csv(dir / "frosted_error_vs_time.csv");
+  std::string line;
+  std::getline(csv, line);  // the header
+  std::vector<PlainCsvRow> rows;
+  while (std::getline(csv, line)) {
+    std::istringstream fields(line);
+    PlainCsvRow r;
+    std::getline(fields, r.method, ',');
+    std::getline(fields, r.samples, ',');
+    std::getline(fields, r.seconds, ',');
+    std::getline(fields, r.rmse, ',');
+    rows.push_back(r);
+  }
+  return rows;
+}
+
 TEST(BenchErrorVsTime, SceneWithoutGlintsIsABadInput) {
   // A scene of its own: the examples may gain glints at any time.
   const std::filesystem::path dir = std::filesystem::path(GLIMMER_TEST_BINARY_DIR) / "bench_evt_no_glints";
@@ -170,39 +192,19 @@ TEST(BenchErrorVsTime, FrostedTwoReferenceSeedsRegionsAndPathStrategy) {
   EXPECT_NE(all.find(",floor,"), std::string::npos) << all;
   EXPECT_NE(all.find(",frost"), std::string::npos) << all;
   // The whole image is in the regions CSV too (region "all"), with the plain CSV's RMSE and every pixel.
-  std::ifstream plain(dir / "frosted_error_vs_time.csv");
-  std::getline(plain, line);
-  int plain_rows = 0;
-  while (std::getline(plain, line)) {
-    std::istringstream fields(line);
-    std::string method, samples, seconds, rmse;
-    std::getline(fields, method, ',');
-    std::getline(fields, samples, ',');
-    std::getline(fields, seconds, ',');
-    std::getline(fields, rmse, ',');
-    EXPECT_NE(all.find(method + "," + samples + "," + seconds + ",all,96," + rmse + ","), std::string::npos)
-        << line << "\n" << all;
-    ++plain_rows;
-  }
-  EXPECT_EQ(plain_rows, 6);
+  const std::vector<PlainCsvRow> plain = plain_csv_rows(dir);
+  for (const PlainCsvRow &r : plain)
+    EXPECT_NE(all.find(r.method + "," + r.samples + "," + r.seconds + ",all,96," + r.rmse + ","), std::string::npos)
+        << r.method << " " << r.samples << "\n" << all;
+  EXPECT_EQ(plain.size(), 6u);
   EXPECT_NE(out.find("region floor: at path's 1000-s RMSE"), std::string::npos) << out;
   std::filesystem::remove_all(dir);
 }
 
 // The plain CSV's rmse of `method` at `samples` after a bench run in `dir` (-1 if absent).
 double csv_rmse(const std::filesystem::path &dir, const std::string &method, int samples) {
-  std::ifstream csv(dir / "frosted_error_vs_time.csv");
-  std::string line;
-  std::getline(csv, line);
-  while (std::getline(csv, line)) {
-    std::istringstream fields(line);
-    std::string m, spp, seconds, rmse;
-    std::getline(fields, m, ',');
-    std::getline(fields, spp, ',');
-    std::getline(fields, seconds, ',');
-    std::getline(fields, rmse, ',');
-    if (m == method && spp == std::to_string(samples)) return std::stod(rmse);
-  }
+  for (const PlainCsvRow &r : plain_csv_rows(dir))
+    if (r.method == method && r.samples == std::to_string(samples)) return std::stod(r.rmse);
   return -1.0;
 }
 
