@@ -214,28 +214,29 @@ struct LodLevel {
   }
   // The scalar form of lookup(const Cell &) (the reference of its test).
   float lookup_scalar(const Cell &c) const {
-    const size_t si = static_cast<size_t>(n_theta_o) * n_phi, so = n_phi;  // from the counts (i_stride is checked)
-    const uint16_t *base = halves.data() + c.base;
-    auto lerp_phi = [&](const uint16_t *p) {
-      const float v0 = decode_half(p[0]), v1 = decode_half(p[1]);
-      return v0 + (v1 - v0) * c.tp;
-    };
-    const float a = lerp_phi(base) + (lerp_phi(base + so) - lerp_phi(base)) * c.to;
-    const float b = lerp_phi(base + si) + (lerp_phi(base + si + so) - lerp_phi(base + si)) * c.to;
-    return a + (b - a) * c.ti;
+    return trilinear(c, [this](size_t i) { return node(i); });
   }
   // The trilinear lookup of the fp32 values (the build's energy normalisation and the cache's validation; the
   // reference of the halves' accuracy test).
   float lookup_exact(const Cell &c) const {
-    const size_t si = theta_i_stride(), so = theta_o_stride();
-    const float *base = values.data() + c.base;
-    auto lerp_phi = [&](const float *p) { return p[0] + (p[1] - p[0]) * c.tp; };
-    const float a = lerp_phi(base) + (lerp_phi(base + so) - lerp_phi(base)) * c.to;
-    const float b = lerp_phi(base + si) + (lerp_phi(base + si + so) - lerp_phi(base + si)) * c.to;
-    return a + (b - a) * c.ti;
+    return trilinear(c, [this](size_t i) { return values[i]; });
   }
   float lookup_exact(float theta_i_deg, float theta_o_deg, float dphi_deg) const {
     return lookup_exact(cell(theta_i_deg, theta_o_deg, dphi_deg));
+  }
+  // Trilinear interpolation at `c` of the nodes read by `at(i)` (the halves for lookup_scalar, the fp32 values for
+  // lookup_exact): phi, then theta_o, then theta_i, the order lookup() follows in lanes. The strides from the counts
+  // (i_stride is checked).
+  template <class Node>
+  float trilinear(const Cell &c, const Node &at) const {
+    const size_t si = static_cast<size_t>(n_theta_o) * n_phi, so = n_phi;
+    auto lerp_phi = [&](size_t i) {
+      const float v0 = at(i), v1 = at(i + 1);
+      return v0 + (v1 - v0) * c.tp;
+    };
+    const float a = lerp_phi(c.base) + (lerp_phi(c.base + so) - lerp_phi(c.base)) * c.to;
+    const float b = lerp_phi(c.base + si) + (lerp_phi(c.base + si + so) - lerp_phi(c.base + si)) * c.to;
+    return a + (b - a) * c.ti;
   }
 
   // Starts loading the cache lines of a lookup (a hint; no value read).
