@@ -692,16 +692,15 @@ bool solid_exit_mixture(const SgInputs &in, const Segment &seg, const Vec3 &axis
       // Session 27's origin rules from one bundle (exit_bundle); the waist only where it is applied (seen_directly),
       // or session 31's floor-view origin (floor_exit 2).
       const int floor_origin = floor_exit == 2 ? floor_view_origin() : 0;
+      const float floor_scale =
+          floor_origin == 0 ? 0.0f : (in.floor_origin >= 0.0f ? in.floor_origin : floor_view_origin_scale());
       const float w = seen_directly ? (in.exit_waist >= 0.0f ? in.exit_waist : exit_waist_scale())
-                      : floor_origin == 1 ? (in.floor_origin >= 0.0f ? in.floor_origin : floor_view_origin_scale())
-                                          : 0.0f;
+                                    : (floor_origin == 1 ? floor_scale : 0.0f);
       const float c = in.exit_centroid >= 0.0f ? in.exit_centroid : exit_centroid_scale();
       if (w != 0.0f || c != 0.0f || floor_origin >= 2) {
         const ExitBundle bundle = exit_bundle(seg, axis, ior, out.origin_Ng);
         if (w != 0.0f) out.waist_t = bundle_waist(bundle, out.sg.sharpness, kappa_geometric) * w;
-        if (floor_origin >= 2)
-          origin_jitter_axes(bundle, out.origin_Ng, in.floor_origin >= 0.0f ? in.floor_origin : floor_view_origin_scale(),
-                             floor_origin == 3, out.jitter);
+        if (floor_origin >= 2) origin_jitter_axes(bundle, out.origin_Ng, floor_scale, floor_origin == 3, out.jitter);
         if (c != 0.0f) {
           const Vec3 moved = out.origin + exit_centroid_offset(bundle, out.origin_Ng) * c;
           if (is_finite(moved)) out.origin = moved;
@@ -1037,9 +1036,7 @@ auto exit_draw_numbers(mf::WalkRng &rng, float first_cos) {
     return call++ == 1 && first_cos >= 0.0f ? first_cos : u;
   };
 }
-}  // namespace
 
-namespace {
 // kFloorViewOrigin 2 / 3 (ExitLobe::jitter): the origin moved by jitter[0] a + jitter[1] b, (a, b) uniform in the disk of
 // radius 2 (unit variance per axis; bounded, unlike a Gaussian), from the sample's seed by a stream of its own (the
 // other draws keep their numbers). Nothing without a jitter.
