@@ -13,6 +13,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 
 #include "glimmer/math.h"
 
@@ -81,12 +83,43 @@ inline double bessel_i0_scaled(double x) {
   return s / std::sqrt(x);
 }
 
+// exp(y) inline: y = n ln 2 + r, |r| <= ln 2 / 2 (n rounded to nearest by the 1.5 x 2^52 shift; ln 2 split in two,
+// fdlibm's ln2_hi / ln2_lo, so n ln2_hi is exact), exp(r) by its Taylor series to r^13 in Horner form (the next term
+// is below 4.2e-18), times 2^n made in the exponent bits: within ~2 ulp of libm's. Outside [-708, 709] (where 2^n
+// would leave the normal range), and for NaN: libm. vmf_fraction_below's exponentials (libm's ~51 instructions a
+// call with its wrapper; session 32, frostedtime32).
+inline double exp_inline(double y) {
+  if (!(y >= -708.0 && y <= 709.0)) return std::exp(y);
+  constexpr double kShift = 6755399441055744.0;  // 1.5 x 2^52: adding it rounds to an integer
+  const double n = (y * 1.4426950408889634 + kShift) - kShift;
+  const double r = (y - n * 6.93147180369123816490e-01) - n * 1.90821492927058770002e-10;
+  double p = 1.0 / 6227020800.0;             // 1 / 13!
+  p = p * r + 1.0 / 479001600.0;              // 1 / 12!
+  p = p * r + 1.0 / 39916800.0;               // 1 / 11!
+  p = p * r + 1.0 / 3628800.0;                // 1 / 10!
+  p = p * r + 1.0 / 362880.0;                 // 1 / 9!
+  p = p * r + 1.0 / 40320.0;                  // 1 / 8!
+  p = p * r + 1.0 / 5040.0;                   // 1 / 7!
+  p = p * r + 1.0 / 720.0;                    // 1 / 6!
+  p = p * r + 1.0 / 120.0;                    // 1 / 5!
+  p = p * r + 1.0 / 24.0;                     // 1 / 4!
+  p = p * r + 1.0 / 6.0;                      // 1 / 3!
+  p = p * r + 0.5;                            // 1 / 2!
+  p = p * r + 1.0;
+  p = p * r + 1.0;
+  const uint64_t bits = uint64_t(int64_t(n) + 1023) << 52;  // 2^n, n in [-1022, 1023]
+  double scale;
+  std::memcpy(&scale, &bits, sizeof(scale));
+  return p * scale;
+}
+
 // exp(e) x bessel_i0_scaled(x) with one exponential: below x = 3.75 the scaled function is exp(-x) times a
-// polynomial, so the two exponentials are joined (exp(e - x)); above it the scaled series has none.
+// polynomial, so the two exponentials are joined (exp(e - x)); above it the scaled series has none. The exponential
+// by exp_inline (session 32).
 inline double exp_times_bessel_i0_scaled(double e, double x) {
   x = std::fabs(x);
-  if (x <= 3.75) return std::exp(e - x) * bessel_i0_below_3_75(x);
-  return std::exp(e) * bessel_i0_scaled(x);
+  if (x <= 3.75) return exp_inline(e - x) * bessel_i0_below_3_75(x);
+  return exp_inline(e) * bessel_i0_scaled(x);
 }
 
 // sin x and cos x for |x| <= pi / 2 by their Taylor series in Horner form (sin to x^21, cos to x^22: the next terms
