@@ -22,6 +22,12 @@ class AreaLight {
   // cross: every point that sample() or intersect() can give makes a direction from P with n . w < 0 (the host's
   // lamps through an exit lobe, render/lamp_through_lobe.h, skip such a lamp).
   bool wholly_below(const Vec3 &P, const Vec3 &n) const;
+  // A lower bound of sample()'s solid-angle density (pick 1) over the lamp seen from P: t^2 / (A cos_l) >= h^2 / A,
+  // h the distance from P to the lamp's plane (render/lamp_through_lobe.h's lobe-set skip; session 32).
+  float min_pdf(const Vec3 &P) const {
+    const float h = dot(P - co_, dir_);
+    return h * h / area_;
+  }
 
  private:
   // Radiance leaving at cosine cos_l to the normal, and the solid-angle density of a point at squared

@@ -138,6 +138,15 @@ class TransmissionSgTable {
   std::string save(const std::string &path) const;
   static std::unique_ptr<TransmissionSgTable> load(const std::string &path, std::string &problem);
   bool loaded_from_cache() const { return loaded_from_cache_; }
+  // The check nodes' stamp (session 32; frosted_sg_table.cpp): load() skips the 16 re-fits when <entry>.checked
+  // (stamp_path) says that this build (build_id(): the plugin's GNU build id, "" where there is none: never skipped)
+  // checked these bytes; else it re-fits them and, when they pass, writes the stamp. The load with a given build id
+  // is the tests' (another build's stamp). refitted_check_nodes(): whether this load re-fitted them.
+  static std::unique_ptr<TransmissionSgTable> load(const std::string &path, std::string &problem,
+                                                   const std::string &build_id);
+  static const std::string &build_id();
+  static std::string stamp_path(const std::string &entry_path);
+  bool refitted_check_nodes() const { return refitted_check_nodes_; }
   bool operator==(const TransmissionSgTable &o) const;
 
   // Catmull-Rom weights of the 4 nodes around a grid coordinate on one axis (frosted_sg_table.cpp catmull_rom_taps).
@@ -217,6 +226,11 @@ class TransmissionSgTable {
   std::vector<std::array<float, 4>> lookup_nodes_;
   void derive_interpolated();
   bool loaded_from_cache_ = false;
+  bool refitted_check_nodes_ = false;
+  static bool stamp_matches(const std::string &entry_path, const std::vector<unsigned char> &payload,
+                            const std::string &build_id);
+  static void write_stamp(const std::string &entry_path, const std::vector<unsigned char> &payload,
+                          const std::string &build_id);
   struct Empty {};
   explicit TransmissionSgTable(Empty);  // no nodes built (load fills them)
   // Where validation refits nodes: (first coordinate index over both sides, roughness, ior).

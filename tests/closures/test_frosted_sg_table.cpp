@@ -475,5 +475,75 @@ TEST(FrostedSgTable, DiskCacheRoundTripAndValidation) {
   std::filesystem::remove_all(dir);
 }
 
+// Session 32 (frostedtime32): the check nodes' stamp. The first load of an entry re-fits the 16 check nodes and writes
+// <entry>.checked; the next load by the same build skips the re-fits and gives the same table bit for bit. Negative
+// controls, each of which must re-fit again: a load as another build (another build id), the stamp with a flipped
+// bit (its MAC refuses it), no build id (the stamp is never trusted); and a crafted entry (valid MAC, a check node off
+// by 1 %) next to the good entry's stamp is still refused ("differs from its fit": the stamp binds the entry's bytes).
+TEST(FrostedSgTable, CheckedStampSkipsTheRefitsOfTheSameBuildAndBytes) {
+  const auto dir = std::filesystem::temp_directory_path() / ("glimmer_frosted_stamp_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  const std::string path = TransmissionSgTable::cache_path(dir.string());
+  const TransmissionSgTable &built = TransmissionSgTable::get(host::default_host_services());
+  ASSERT_EQ(built.save(path), "");
+  const std::string &id = TransmissionSgTable::build_id();
+  ASSERT_FALSE(id.empty()) << "no GNU build id in the plugin: the stamp is never used";
+  std::string problem;
+  auto first = TransmissionSgTable::load(path, problem);
+  ASSERT_TRUE(first) << problem;
+  EXPECT_TRUE(first->refitted_check_nodes());
+  EXPECT_TRUE(std::filesystem::exists(TransmissionSgTable::stamp_path(path)));
+  auto second = TransmissionSgTable::load(path, problem);
+  ASSERT_TRUE(second) << problem;
+  EXPECT_FALSE(second->refitted_check_nodes());
+  EXPECT_TRUE(*second == built);  // bit for bit
+  // Controls: another build, no build id.
+  auto other_build = TransmissionSgTable::load(path, problem, id + "00");
+  ASSERT_TRUE(other_build) << problem;
+  EXPECT_TRUE(other_build->refitted_check_nodes());
+  auto no_id = TransmissionSgTable::load(path, problem, "");
+  ASSERT_TRUE(no_id) << problem;
+  EXPECT_TRUE(no_id->refitted_check_nodes());
+  // (other_build re-fitted and re-stamped for its id: this build's next load re-fits and stamps again.)
+  auto again = TransmissionSgTable::load(path, problem);
+  ASSERT_TRUE(again) << problem;
+  EXPECT_TRUE(again->refitted_check_nodes());
+  auto stamped = TransmissionSgTable::load(path, problem);
+  ASSERT_TRUE(stamped) << problem;
+  EXPECT_FALSE(stamped->refitted_check_nodes());
+  // A flipped bit in the stamp.
+  const std::string stamp = TransmissionSgTable::stamp_path(path);
+  std::ifstream in_stamp(stamp, std::ios::binary);
+  std::vector<unsigned char> stamp_bytes((std::istreambuf_iterator<char>(in_stamp)), std::istreambuf_iterator<char>());
+  in_stamp.close();
+  ASSERT_GT(stamp_bytes.size(), 40u);
+  std::vector<unsigned char> flipped = stamp_bytes;
+  flipped[20] ^= 1u;
+  std::ofstream(stamp, std::ios::binary | std::ios::trunc)
+      .write(reinterpret_cast<const char *>(flipped.data()), std::streamsize(flipped.size()));
+  auto after_flip = TransmissionSgTable::load(path, problem);
+  ASSERT_TRUE(after_flip) << problem;
+  EXPECT_TRUE(after_flip->refitted_check_nodes());
+  // A crafted entry (valid MAC, check node 0's energy off by 1 %) beside the good entry's stamp: refused.
+  std::ifstream in(path, std::ios::binary);
+  const std::vector<unsigned char> good((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  in.close();
+  ASSERT_FALSE(TransmissionSgTable::load(path, problem)->refitted_check_nodes());  // the good entry is stamped
+  std::vector<unsigned char> payload(good.begin(), good.end() - 32);
+  const size_t header = 8 + 4 + 8 + 8;
+  const size_t check = (size_t(5) * TransmissionSgTable::kRoughnessNodes + 3) * TransmissionSgTable::kIorNodes + 1;
+  float e;
+  std::memcpy(&e, payload.data() + header + check * 12, 4);
+  e *= 0.99f;
+  std::memcpy(payload.data() + header + check * 12, &e, 4);
+  ASSERT_EQ(write_cache_blob(path, payload), "");
+  EXPECT_FALSE(TransmissionSgTable::load(path, problem));
+  EXPECT_NE(problem.find("differs from its fit"), std::string::npos) << problem;
+  std::printf("[sg table cache] stamp: build %s; the second load skips the re-fits; another build, no build id, a "
+              "flipped bit all re-fit; a crafted entry beside the stamp refused (%s)\n",
+              id.c_str(), problem.c_str());
+  std::filesystem::remove_all(dir);
+}
+
 }  // namespace
 

@@ -13,6 +13,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 
 #include "glimmer/math.h"
 
@@ -81,12 +83,79 @@ inline double bessel_i0_scaled(double x) {
   return s / std::sqrt(x);
 }
 
+// exp(y) inline: y = n ln 2 + r, |r| <= ln 2 / 2 (n rounded to nearest by the 1.5 x 2^52 shift; ln 2 split in two,
+// fdlibm's ln2_hi / ln2_lo, so n ln2_hi is exact), exp(r) by its Taylor series to r^13 in Horner form (the next term
+// is below 4.2e-18), times 2^n made in the exponent bits: within ~2 ulp of libm's. Outside [-708, 709] (where 2^n
+// would leave the normal range), and for NaN: libm. vmf_fraction_below's exponentials (libm's ~51 instructions a
+// call with its wrapper; session 32, frostedtime32).
+inline double exp_inline(double y) {
+  if (!(y >= -708.0 && y <= 709.0)) return std::exp(y);
+  constexpr double kShift = 6755399441055744.0;  // 1.5 x 2^52: adding it rounds to an integer
+  const double n = (y * 1.4426950408889634 + kShift) - kShift;
+  const double r = (y - n * 6.93147180369123816490e-01) - n * 1.90821492927058770002e-10;
+  double p = 1.0 / 6227020800.0;             // 1 / 13!
+  p = p * r + 1.0 / 479001600.0;              // 1 / 12!
+  p = p * r + 1.0 / 39916800.0;               // 1 / 11!
+  p = p * r + 1.0 / 3628800.0;                // 1 / 10!
+  p = p * r + 1.0 / 362880.0;                 // 1 / 9!
+  p = p * r + 1.0 / 40320.0;                  // 1 / 8!
+  p = p * r + 1.0 / 5040.0;                   // 1 / 7!
+  p = p * r + 1.0 / 720.0;                    // 1 / 6!
+  p = p * r + 1.0 / 120.0;                    // 1 / 5!
+  p = p * r + 1.0 / 24.0;                     // 1 / 4!
+  p = p * r + 1.0 / 6.0;                      // 1 / 3!
+  p = p * r + 0.5;                            // 1 / 2!
+  p = p * r + 1.0;
+  p = p * r + 1.0;
+  const uint64_t bits = uint64_t(int64_t(n) + 1023) << 52;  // 2^n, n in [-1022, 1023]
+  double scale;
+  std::memcpy(&scale, &bits, sizeof(scale));
+  return p * scale;
+}
+
 // exp(e) x bessel_i0_scaled(x) with one exponential: below x = 3.75 the scaled function is exp(-x) times a
-// polynomial, so the two exponentials are joined (exp(e - x)); above it the scaled series has none.
+// polynomial, so the two exponentials are joined (exp(e - x)); above it the scaled series has none. The exponential
+// by exp_inline (session 32).
 inline double exp_times_bessel_i0_scaled(double e, double x) {
   x = std::fabs(x);
-  if (x <= 3.75) return std::exp(e - x) * bessel_i0_below_3_75(x);
-  return std::exp(e) * bessel_i0_scaled(x);
+  if (x <= 3.75) return exp_inline(e - x) * bessel_i0_below_3_75(x);
+  return exp_inline(e) * bessel_i0_scaled(x);
+}
+
+// sin x and cos x for |x| <= pi / 2 by their Taylor series in Horner form (sin to x^21, cos to x^22: the next terms
+// are below 1.3e-18 there, so the result is within a few ulp of libm's). vmf_fraction_below's angles all lie in that
+// range; libm's sincos (~95 instructions, with its general range reduction) took ~140 instructions per camera path
+// of the caustic bench's host exit NEE (session 32, frostedtime32). Outside the range: libm.
+inline void sincos_half_pi(double x, double &s, double &c) {
+  if (!(std::fabs(x) <= 1.5707963267948968)) {
+    s = std::sin(x), c = std::cos(x);
+    return;
+  }
+  const double x2 = x * x;
+  // 1 / (2k + 1)! and 1 / (2k)!, k = 1 .. 11, as Horner coefficients (signs alternate).
+  double ps = -1.0 / 51090942171709440000.0;                   // -1 / 21!
+  ps = ps * x2 + 1.0 / 121645100408832000.0;                  // 1 / 19!
+  ps = ps * x2 - 1.0 / 355687428096000.0;                     // -1 / 17!
+  ps = ps * x2 + 1.0 / 1307674368000.0;                       // 1 / 15!
+  ps = ps * x2 - 1.0 / 6227020800.0;                          // -1 / 13!
+  ps = ps * x2 + 1.0 / 39916800.0;                            // 1 / 11!
+  ps = ps * x2 - 1.0 / 362880.0;                              // -1 / 9!
+  ps = ps * x2 + 1.0 / 5040.0;                                // 1 / 7!
+  ps = ps * x2 - 1.0 / 120.0;                                 // -1 / 5!
+  ps = ps * x2 + 1.0 / 6.0;                                   // 1 / 3!
+  s = x - x * x2 * ps;                                        // x - x^3 / 3! + x^5 / 5! - ...
+  double pc = 1.0 / 1124000727777607680000.0;                 // 1 / 22!
+  pc = pc * x2 - 1.0 / 2432902008176640000.0;                 // -1 / 20!
+  pc = pc * x2 + 1.0 / 6402373705728000.0;                    // 1 / 18!
+  pc = pc * x2 - 1.0 / 20922789888000.0;                      // -1 / 16!
+  pc = pc * x2 + 1.0 / 87178291200.0;                         // 1 / 14!
+  pc = pc * x2 - 1.0 / 479001600.0;                           // -1 / 12!
+  pc = pc * x2 + 1.0 / 3628800.0;                             // 1 / 10!
+  pc = pc * x2 - 1.0 / 40320.0;                               // -1 / 8!
+  pc = pc * x2 + 1.0 / 720.0;                                 // 1 / 6!
+  pc = pc * x2 - 1.0 / 24.0;                                  // -1 / 4!
+  pc = pc * x2 + 0.5;                                         // 1 / 2!
+  c = 1.0 - x2 * pc;                                          // 1 - x^2 / 2! + x^4 / 4! - ...
 }
 
 // The fraction q of the vMF (axis, kappa) below the plane with unit normal n. Around n, with beta the polar
@@ -125,18 +194,23 @@ inline double vmf_fraction_below(const Vec3 &axis, double kappa, const Vec3 &n) 
   double sin_d[8], cos_d[8], sin_h[8], cos_h[8], weight[8];
   for (int k = 0; k < 4; ++k) {
     const double half = 0.25 * kNode[k] * panel;  // d_k / 2, d_k = kNode[k] panel / 2
-    const double sh = std::sin(half), ch = std::cos(half);
+    double sh, ch;
+    sincos_half_pi(half, sh, ch);
     const double sd = 2.0 * sh * ch, cd = 1.0 - 2.0 * sh * sh;
     sin_d[k] = -sd, sin_d[k + 4] = sd, cos_d[k] = cos_d[k + 4] = cd;
     sin_h[k] = -sh, sin_h[k + 4] = sh, cos_h[k] = cos_h[k + 4] = ch;
     weight[k] = weight[k + 4] = kWeight[k];
   }
   double sin_step_h = 0.0, cos_step_h = 1.0;  // the step to the next panel's middle (none after a single panel)
-  if (panels > 1) sin_step_h = std::sin(0.5 * panel), cos_step_h = std::cos(0.5 * panel);
+  if (panels > 1) sincos_half_pi(0.5 * panel, sin_step_h, cos_step_h);
   const double sin_step = 2.0 * sin_step_h * cos_step_h, cos_step = 1.0 - 2.0 * sin_step_h * sin_step_h;
   const double mid0 = lo + 0.5 * panel;
-  double sin_m = std::sin(mid0), cos_m = std::cos(mid0);
-  double sin_mh = std::sin(0.5 * (mid0 - alpha)), cos_mh = std::cos(0.5 * (mid0 - alpha));
+  // mid0 in [pi / 2, pi]: sin(mid0) = cos(mid0 - pi / 2), cos(mid0) = -sin(mid0 - pi / 2); (mid0 - alpha) / 2 in
+  // [-pi / 4, pi / 2]. Every angle here within sincos_half_pi's range (session 32).
+  double sin_r, cos_r, sin_mh, cos_mh;
+  sincos_half_pi(mid0 - 0.5 * M_PI, sin_r, cos_r);
+  double sin_m = cos_r, cos_m = -sin_r;
+  sincos_half_pi(0.5 * (mid0 - alpha), sin_mh, cos_mh);
   const double minus_2k = -2.0 * kappa, k_sin_alpha = kappa * sin_alpha;
   double sum = 0.0;
   for (int p = 0; p < panels; ++p) {
