@@ -46,9 +46,14 @@ inline std::string read_cache_file(const std::string &path, std::vector<unsigned
     std::filesystem::remove_all(path, ec);
     return "not a regular file; removed";
   }
-  std::ifstream f(path, std::ios::binary);
+  std::ifstream f(path, std::ios::binary | std::ios::ate);
   if (!f) return "missing";
-  bytes.assign(std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
+  // One read of the whole file (a byte-wise istreambuf_iterator copy cost ~28 M instructions per SG table load).
+  const std::streamoff size = f.tellg();
+  if (size < 0) return "unreadable (no size)";
+  bytes.resize(size_t(size));
+  f.seekg(0);
+  if (size > 0 && !f.read(reinterpret_cast<char *>(bytes.data()), size)) return "unreadable (short read)";
   return "";
 }
 
