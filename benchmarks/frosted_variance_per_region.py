@@ -18,6 +18,12 @@ by --names; anything else 'edges'), as `glimmer bench error-vs-time --regions <m
             benchmarks/frosted_decomposition_salts.patch, GLIMMER_DECOMP_SALT=<bit>): mean((A - B)^2) / 2 x spp per
             region, that decision's total-effect variance E[Var(X | every other number)]
       python3 benchmarks/frosted_variance_per_region.py pairs 1024 base.exr walk=salt4.exr front=salt8.exr --mask M
+            --split-x also splits the pairs' regions (session 32); --share prints each region's part of the frame's
+            figure (its values' sum over all values' sum: the pixel-weighted budget). Bits of the patch (refreshed in
+            session 32 for main 9df9d18): 1 the exit direction (the solid's leftover number not used), 2 the solid's
+            walk inside (its first roulette number re-drawn too), 4 the pane's walks, 8 the closure's numbers, 16 the
+            host's light sample / lamp integral at the exit, 32 path's exit trials, 64 z alone, 128 x, y alone, 256
+            the split's face pick, 512 the split's extra front samples and walks, 1024 the floor view's origin jitter
 """
 import argparse
 import re
@@ -67,6 +73,9 @@ def main():
     ap.add_argument("--split-x", type=int, default=0,
                     help="also report each region's pixels left (<name>_L) and right (<name>_R) of this column "
                          "(frosted_fair_caustic at 64x40: 32 separates the sphere's side from the pane's)")
+    ap.add_argument("--share", action="store_true",
+                    help="pairs: also print each region's share of the frame's figure (pixel-weighted: its values' "
+                         "sum over all values' sum; session 32)")
     a = ap.parse_args()
     reg = regions(a.mask, a.names.split(","))
     order = ["all"] + sorted(set(reg.values()) - {"edges"}) + ["edges"]
@@ -87,10 +96,14 @@ def main():
                     continue
                 for c in range(3):
                     d = (base[k][c] - other[k][c]) ** 2 / 2
-                    for n in ("all", r):
+                    for n in ("all", r) + ((side[k],) if k in side else ()):
                         acc[n][0] += d
                         acc[n][1] += 1
-            print("%-12s" % label + "".join("%11.5f" % (acc[n][0] / acc[n][1] * a.spp) for n in order))
+            print("%-12s" % label + "".join("%11.5f" % (acc[n][0] / acc[n][1] * a.spp) if acc[n][1] else "%11s" % "-"
+                                            for n in order))
+            if a.share:  # each region's part of the frame's ("all") figure: its sum over all's values
+                print("%-12s" % (label + "%") + "".join(
+                    "%10.1f%%" % (100 * acc[n][0] / acc["all"][0]) if acc["all"][0] else "%11s" % "-" for n in order))
         return
     imgs = [combined(p) for p in a.images]
     refs = [combined(p) for p in a.references.split(",")] if a.references else []

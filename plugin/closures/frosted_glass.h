@@ -293,10 +293,11 @@ class FrostedGlassClosure {
   // count_rejected: the tests' negative control, the extra front samples that reflect counted in n as zero walks
   // (biased low by the front's transmission probability). branch: frosted::pane_branch_level's level (-1: the
   // knob's; session 30): where the pane is seen directly, each walk's first event at the far face keeps both branches
-  // (branch_walks) and the face is picked by frosted::pane_face_probability's level 2.
+  // (branch_walks) and the face is picked by frosted::pane_face_probability's level 2. exact_leaving: the tests'
+  // level of frosted::pane_exact_leaving_level (-1: the knob's; session 32).
   bool pane_sample_sg_split(const ShadingPoint &sp, const DielectricLobe &lobe, const frosted::PaneSgInputs &in,
                             const Vec3 &rand, const Vec3 &wi, const LocalSample &front, bool flip, LocalSample &out,
-                            int split, bool count_rejected = false, int branch = -1) const {
+                            int split, bool count_rejected = false, int branch = -1, int exact_leaving = -1) const {
     frosted::PaneWalkEnd walks[2 * frosted::kPaneWalkSplit];
     int n = 0, ends = 0;
     if (branch < 0) branch = frosted::pane_branch_level();
@@ -314,6 +315,7 @@ class FrostedGlassClosure {
       if (!walk_to_exit(sp, lobe, numbers, d, throughput, leaving)) return;
       w.d = d;
       w.throughput = throughput * in.tint;
+      w.leaving = leaving;
     };
     add_walk(rand, front);
     mf::WalkRng rng(hash_u32x2(sp.seed_for(rand), 0x73706c74u));
@@ -327,11 +329,11 @@ class FrostedGlassClosure {
       add_walk(numbers, s);
     }
     const int face_pick = branch >= 2 ? 2 : 0;  // the control (9) keeps main's pick
-    return frosted::sample_pane_sg_split(sp, in, rand, walks, n, flip, out, ends, face_pick);
+    return frosted::sample_pane_sg_split(sp, in, rand, walks, n, flip, out, ends, face_pick, exact_leaving);
   }
   // For the tests: the rough pane's split sample (kPaneWalk) with its negative control (count_rejected above).
   bool pane_sample_sg_split(const ShadingPoint &sp, const Vec3 &rand, LocalSample &out, int split,
-                            bool count_rejected, int branch = -1) const {
+                            bool count_rejected, int branch = -1, int exact_leaving = -1) const {
     DielectricLobe scratch;
     const DielectricLobe &lobe = lobe_at(sp, scratch);
     Vec3 wi;
@@ -342,7 +344,7 @@ class FrostedGlassClosure {
     if (front != PaneFront::kEntered) return front == PaneFront::kReflected;
     const frosted::PaneSgInputs in = pane_sg_inputs(sp, frosted::SgVariant::kPaneWalk, frosted::kPaneLadder);
     return pane_sample_sg_split(sp, lobe, in, rand, wi, s, flip, out, std::clamp(split, 1, frosted::kPaneWalkSplit),
-                                count_rejected, branch);
+                                count_rejected, branch, exact_leaving);
   }
   // For the tests: the interface lobe at sp (per-point roughness and IOR).
   bool pane_sample_sg(const ShadingPoint &sp, const Vec3 &rand, LocalSample &out, frosted::SgVariant variant,
@@ -527,12 +529,12 @@ class FrostedGlassClosure {
     const float f_t = control ? 1.0f : 1.0f - F, f_r = control ? 1.0f : F;
     LocalSample s;
     if (F < 1.0f && lobe.sample(wi_l, Vec3(x, y, 1.0f), s) && (s.label & GLIMMER_LABEL_TRANSMIT))
-      out[count++] = frosted::PaneWalkEnd{d, throughput * (s.f_cos / s.pdf) * f_t * tint};
+      out[count++] = frosted::PaneWalkEnd{d, throughput * (s.f_cos / s.pdf) * f_t * tint, at_interface(s.wo, bottom)};
     if (F > 0.0f && lobe.sample(wi_l, Vec3(x, y, 0.0f), s) && !(s.label & GLIMMER_LABEL_TRANSMIT)) {
       Vec3 d2 = at_interface(s.wo, bottom), leaving;
       Spectrum t2 = throughput * (s.f_cos / s.pdf) * f_r;
       if (walk_to_exit(sp, lobe, Vec3(numbers.x, numbers.y, numbers.z + 2.0f), d2, t2, leaving))
-        out[count++] = frosted::PaneWalkEnd{d2, t2 * tint};
+        out[count++] = frosted::PaneWalkEnd{d2, t2 * tint, leaving};
     }
     if (count == 0) out[count++] = frosted::PaneWalkEnd{};
     return count;

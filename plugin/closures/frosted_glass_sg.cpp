@@ -1292,8 +1292,10 @@ namespace {
 
 // One singular sample from the pane's exit lobe `exit` (pane frame), moved to the exit face of the same point and
 // carrying the lobe (ABI 2.4; the whole mixture, ABI 2.7). `weight`: the sample's f cos / pdf.
+// leaving (optional, pane frame, one per mixture lobe or 1 for the single SG): the picked lobe's direction instead of
+// a draw from it (pane_exact_leaving_level).
 bool emit_pane_sample(const ShadingPoint &sp, const PaneExitLobe &exit, uint32_t seed, const Spectrum &weight,
-                      bool flip, LocalSample &out) {
+                      bool flip, LocalSample &out, const Vec3 *leaving = nullptr) {
   const GlimmerShadingContext &ctx = *sp.ctx;
   const Vec3 axis = normalize(sp.frame.to_world(flip ? mf::flip_z_local(exit.sg.axis) : exit.sg.axis));
   // The exit face's outward normal: the geometric normal on the far side of wi (through) or on wi's side.
@@ -1307,10 +1309,11 @@ bool emit_pane_sample(const ShadingPoint &sp, const PaneExitLobe &exit, uint32_t
   mf::WalkRng rng(hash_u32x2(seed, 0x7f4a7c15u));
   const auto to_world = [&](const Vec3 &a) { return normalize(sp.frame.to_world(flip ? mf::flip_z_local(a) : a)); };
   glimmer::ExitLobe lobe{axis, exit.sg.sharpness, n, 0.0};
+  int k = 0;
   if (exit.lobe_count > 0) {  // kMixture: one lobe picked by its share; the whole mixture to the host (ABI 2.7)
     float weights[ExitLobe::kMaxLobes];
     for (int j = 0; j < exit.lobe_count; ++j) weights[j] = exit.lobe[j].weight;
-    const int k = glimmer::pick_mixture_lobe(weights, exit.lobe_count, double(rng.next()));
+    k = glimmer::pick_mixture_lobe(weights, exit.lobe_count, double(rng.next()));
     lobe.axis = to_world(Vec3(exit.lobe[k].axis));
     lobe.kappa = exit.lobe[k].sharpness;
 #if GLIMMER_ABI_MINOR >= 7
@@ -1326,7 +1329,7 @@ bool emit_pane_sample(const ShadingPoint &sp, const PaneExitLobe &exit, uint32_t
     }
 #endif
   }
-  const Vec3 wo = lobe.sample([&rng] { return rng.next(); });
+  const Vec3 wo = leaving != nullptr ? to_world(leaving[k]) : lobe.sample([&rng] { return rng.next(); });
   if (!(dot(wo, n) > 0.0f) || !is_finite(wo) || !is_finite(weight) || !is_finite(axis)) return false;
   out.wo = sp.frame.to_local(wo);
   out.f_cos = weight;
@@ -1400,9 +1403,35 @@ double pane_face_probability(double t_through, double t_back, int face_pick) {
 #if GLIMMER_ABI_MINOR >= 8
 bool PaneSgExitState::packed() { return pane_branch_level() > 0; }
 #endif
+int pane_exact_leaving_level() {
+  static const int level = measurement_knob("GLIMMER_FROSTED_PANE_EXACT_LEAVING", kPaneExactLeavingDefault, 0, 1);
+  return level;
+}
+
+namespace {
+// The exact exit for the host's lamps (PaneSgExitState) of the picked face's ends (t[k] > 0 on that face): only where
+// the host combines the lamps with this sample (as method=path's exit state) and where the pane is seen directly (no
+// diffuse or glossy bounce before: after one, e.g. the floor under the bench's pane, the SG's shape error is blurred
+// away, lit_R / shadow_R 0.0006 / 0.0005, while the exact exit's noise is not: +32 % / +56 % variance there). False:
+// no state (also where an end of the face has no finite c_k, E_k = 0: the mixture as before).
+bool pane_exit_state(const ShadingPoint &sp, const LocalSample &out, const PaneWalkEnd *walks, const PaneExitLobe *lobes,
+                     const float *t, int ends, bool through, double t_face, PaneSgExitState &x) {
+  const GlimmerShadingContext &ctx = *sp.ctx;
+  if (out.state_out == nullptr || sp.uncombined() || ctx.diffuse_bounce + ctx.glossy_bounce != 0) return false;
+  int kept = 0;
+  for (int k = 0; k < ends; ++k) {
+    if (!(t[k] > 0.0f) || lobes[k].through != through) continue;
+    const float c = float(t[k] / t_face) / lobes[k].energy;
+    if (!(c > 0.0f && std::isfinite(c) && kept < PaneSgExitState::capacity())) return false;
+    x.d[kept] = walks[k].d;
+    x.c[kept++] = c;
+  }
+  return kept > 0;
+}
+}  // namespace
 
 bool sample_pane_sg_split(const ShadingPoint &sp, const PaneSgInputs &in, const Vec3 &rand, const PaneWalkEnd *walks,
-                          int n, bool flip, LocalSample &out, int ends, int face_pick) {
+                          int n, bool flip, LocalSample &out, int ends, int face_pick, int exact_leaving) {
   if (n < 1 || n > kPaneWalkSplit) return false;
   if (ends < 0) ends = n;
   if (ends < 1 || ends > 2 * kPaneWalkSplit) return false;
@@ -1433,8 +1462,12 @@ bool sample_pane_sg_split(const ShadingPoint &sp, const PaneSgInputs &in, const 
   PaneExitLobe exit;
   exit.through = through;
   exit.lobe_count = 0;
+  Vec3 leaving[2 * kPaneWalkSplit];  // the face's ends' own directions out, in the mixture's order
+  bool all_leave = true;
   for (int k = 0; k < ends; ++k) {
     if (!(t[k] > 0.0f) || lobes[k].through != through) continue;
+    leaving[exit.lobe_count] = walks[k].leaving;
+    all_leave = all_leave && dot(walks[k].leaving, walks[k].leaving) > 0.0f;
     if (exit.lobe_count == 0) exit.sg = lobes[k].sg;
     ExitLobe::MixtureLobe &l = exit.lobe[exit.lobe_count++];
     l.axis = lobes[k].sg.axis;
@@ -1448,30 +1481,18 @@ bool sample_pane_sg_split(const ShadingPoint &sp, const PaneSgInputs &in, const 
   for (int k = 0; k < ends; ++k)
     if (t[k] > 0.0f && lobes[k].through == through) sum_face += walks[k].throughput;
   const Spectrum weight = face_pick == 0 ? sum_T / float(n) : sum_face * float(1.0 / (double(n) * p_face));
-  if (!emit_pane_sample(sp, exit, seed, weight, flip, out)) return false;
 #if GLIMMER_ABI_MINOR >= 8
-  // The exact exit for the host's lamps (PaneSgExitState): the picked face's walks, only where the host combines
-  // the lamps with this sample (as method=path's exit state) and where the pane is seen directly (no diffuse or
-  // glossy bounce before: after one, e.g. the floor under the bench's pane, the SG's shape error is blurred away,
-  // lit_R / shadow_R 0.0006 / 0.0005, while the exact exit's noise is not: +32 % / +56 % variance there).
-  const GlimmerShadingContext &ctx = *sp.ctx;
-  if (out.state_out != nullptr && !sp.uncombined() && ctx.diffuse_bounce + ctx.glossy_bounce == 0) {
-    PaneSgExitState x;
-    int kept = 0;
-    bool whole = true;  // a walk of the face without a finite c_k (E_k = 0): no state, the mixture as before
-    for (int k = 0; k < ends && whole; ++k) {
-      if (!(t[k] > 0.0f) || lobes[k].through != through) continue;
-      const float c = float(t[k] / t_face) / lobes[k].energy;
-      whole = c > 0.0f && std::isfinite(c) && kept < PaneSgExitState::capacity();
-      if (!whole) break;
-      x.d[kept] = walks[k].d;
-      x.c[kept++] = c;
-    }
-    if (whole && kept > 0) {
-      x.write(*out.state_out);
-      out.exit_state = true;
-    }
+  PaneSgExitState x;
+  const bool state = pane_exit_state(sp, out, walks, lobes, t, ends, through, t_face, x);
+  if (exact_leaving < 0) exact_leaving = pane_exact_leaving_level();
+  const bool exact = state && all_leave && exact_leaving > 0;  // the exit state's own directions
+  if (!emit_pane_sample(sp, exit, seed, weight, flip, out, exact ? leaving : nullptr)) return false;
+  if (state) {
+    x.write(*out.state_out);
+    out.exit_state = true;
   }
+#else
+  if (!emit_pane_sample(sp, exit, seed, weight, flip, out)) return false;
 #endif
   return true;
 }

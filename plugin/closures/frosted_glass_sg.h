@@ -566,6 +566,7 @@ inline bool pane_split_applies(const Spectrum &sigma_a) { return sigma_a.x == si
 struct PaneWalkEnd {
   Vec3 d{0.0f};
   Spectrum throughput{0.0f};
+  Vec3 leaving{0.0f};  // the walk's own direction out of the pane (pane frame; 0: none): pane_exact_leaving_level
 };
 // The rough pane's exact exit for the lamps (issue 12, session 24, frostedpane24; docs/frosted_glass.md "Session 24
 // (frostedpane24)"). The leaving table's SG at d_k is the exit's direction distribution fitted by its mean and
@@ -662,8 +663,9 @@ struct PaneSgExitState {
 // hashed from them). False: every walk failed or carries nothing.
 // ends: how many entries `walks` has (-1: n; session 30's first-event branches give up to 2 per walk, the estimate
 // still (1 / n) sum over the ends); face_pick: pane_face_probability's rule (0 main's t_F / t).
+// exact_leaving: pane_exact_leaving_level's level (-1: the knob's; session 32).
 bool sample_pane_sg_split(const ShadingPoint &sp, const PaneSgInputs &in, const Vec3 &rand, const PaneWalkEnd *walks,
-                          int n, bool flip, LocalSample &out, int ends = -1, int face_pick = 0);
+                          int n, bool flip, LocalSample &out, int ends = -1, int face_pick = 0, int exact_leaving = -1);
 
 // The camera-seen rough pane's split, session 30 (issue 12, frostedpane30; docs/frosted_glass.md "Session 30
 // (frostedpane30)"). On the caustic bench's pane crop the walks between the faces carried ~all of glass_R's variance
@@ -680,5 +682,17 @@ inline constexpr int kPaneBranchControl = 9;  // the tests' negative control: bo
 int pane_branch_level();
 // sqrt(t_F)-proportional (face_pick 2), 1/2 (1, tried) or main's t_F / t (0): the probability of the far face.
 double pane_face_probability(double t_through, double t_back, int face_pick);
+// Session 32 (frostedvar32; docs/frosted_glass.md "Session 32 (frostedvar32)"): where the split sample hands the host
+// its exact exit (PaneSgExitState: the lamps valued by the walks' own BTDF), the continued direction was still drawn
+// from the face's SG mixture, so the continued path (the floor seen through the pane) saw the SG's shape while the
+// lamps saw the exact one. On the caustic bench's pane crop (glass_R, 4 seeds x 8192 spp against 18 path references)
+// that was sg's +0.6 % offset: +0.00284 (off_z 3.88) with the SG draw, -0.00009 (-0.10) with the exact exit's
+// direction. Level 1 (GLIMMER_FROSTED_PANE_EXACT_LEAVING, read once): where the exit state is written, the end
+// picked by the mixture's weights (t_k / t_face) continues along its walk's own leaving direction (exact given d_k:
+// the picked face's estimate is then method=path's walk, sum_k t_k L(leaving_k) / (n p_face), and the lamps' exact
+// value and the continued path's lamp hits estimate the same integrand, so their MIS stays unbiased). 0: the SG
+// draw (main's images). Elsewhere (no exit state) the SG draw stays: the lamps are valued by the mixture there.
+inline constexpr int kPaneExactLeavingDefault = 1;
+int pane_exact_leaving_level();
 
 }  // namespace glimmer::plugin::frosted

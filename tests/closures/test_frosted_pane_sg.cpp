@@ -945,6 +945,88 @@ TEST(FrostedGlassSgPane, RoughPaneExactExitAgainstThePathsExitState) {
   }
 }
 
+// Session 32 (frostedvar32): where the split sample writes the exact exit (PaneSgExitState), its continued direction
+// is the picked end's own leaving direction (frosted::pane_exact_leaving_level 1, the default): the continued path's
+// directions then follow method=path's walk. Per configuration, 3 angles x 5 cones (half-angle 25 deg about
+// kPaneProbeDirections: 3 through the far face, 2 back through the entry face) of E[weight x 1{wo in the cone}] for
+// sg (the split, its front reflections included) against path's pane sample (the brute force, independent numbers):
+// every (angle, cone) within 4.5 se and the sum over them within 4 (pooled). Negative control: level 0 (the continued
+// direction drawn from the face's SG mixture, main's) must be > 6 se off path in at least one (configuration, angle,
+// cone).
+struct ConeSums {
+  static constexpr int kCones = 5;
+  double sum[kCones] = {}, sum2[kCones] = {};
+  long states = 0;
+};
+ConeSums continued_cones(const FrostedGlassClosure &pane, bool sg, int level, float theta_deg, uint64_t seed,
+                         long samples) {
+  static const auto schema = FrostedGlassClosure::params();
+  const float cos_cone = std::cos(25.0f * kPi / 180.0f);
+  ConeSums out;
+  Pcg32 rng(seed, 11);
+  for (long i = 0; i < samples; ++i) {
+    const PaneDraw draw(theta_deg, rng, schema);
+    GlimmerExitMixture buffer{};
+    GlimmerExitState state{};
+    LocalSample s;
+    s.mixture_out = &buffer;
+    s.state_out = &state;
+    const bool ok = sg ? pane.pane_sample_sg_split(draw.sp, draw.rand, s, frosted::kPaneWalkSplit, false, -1, level)
+                       : pane.sample(draw.sp, draw.rand, s);
+    if (!ok || !(s.pdf > 0.0f)) continue;
+    out.states += s.exit_state;
+    const double w = average(s.f_cos / s.pdf);
+    const Vec3 wo = normalize(s.wo);
+    for (int j = 0; j < ConeSums::kCones; ++j) {
+      const double v = dot(wo, kPaneProbeDirections[j]) > cos_cone ? w : 0.0;
+      out.sum[j] += v, out.sum2[j] += v * v;
+    }
+  }
+  return out;
+}
+
+TEST(FrostedGlassSgPane, RoughPaneContinuedDirectionFollowsThePathsWalk) {
+  const PaneConfig configs[] = {{0.5f, 1.5f}, {0.8f, 1.5f}, {0.6f, 1.7f, Vec3(0.7f), 0.05f}};
+  const float angles[] = {0.0f, 30.0f, 60.0f};
+  constexpr long kSamples = 262144;
+  double worst_control = 0.0;
+  for (const PaneConfig &c : configs) {
+    auto sg = create_pane(c, "sg"), path = create_pane(c, "path");
+    double pooled[2] = {}, var[2] = {}, pooled_path = 0.0, var_path = 0.0, worst[2] = {};
+    for (float theta : angles) {
+      const ConeSums b = continued_cones(*path, false, 0, theta, 505, kSamples);
+      for (int level = 0; level < 2; ++level) {
+        const ConeSums a = continued_cones(*sg, true, level, theta, 606, kSamples);
+        EXPECT_GT(a.states, kSamples / 2) << "roughness " << c.roughness << " theta " << theta;
+        for (int j = 0; j < ConeSums::kCones; ++j) {
+          const auto moments = [](double sum, double sum2, double &mean, double &v) {
+            mean = sum / double(kSamples);
+            v = std::max(0.0, sum2 / double(kSamples) - mean * mean) / double(kSamples);  // of the mean
+          };
+          double ms, vs, mp, vp;
+          moments(a.sum[j], a.sum2[j], ms, vs);
+          moments(b.sum[j], b.sum2[j], mp, vp);
+          const double z = (ms - mp) / std::sqrt(std::max(vs + vp, 1e-300));
+          worst[level] = std::max(worst[level], std::fabs(z));
+          if (level == 1)
+            EXPECT_LT(std::fabs(z), 4.5) << "roughness " << c.roughness << " theta " << theta << " cone " << j
+                                         << ": sg " << ms << ", path " << mp;
+          pooled[level] += ms, var[level] += vs;
+          if (level == 1) pooled_path += mp, var_path += vp;
+        }
+      }
+    }
+    const double z1 = (pooled[1] - pooled_path) / std::sqrt(var[1] + var_path);
+    const double z0 = (pooled[0] - pooled_path) / std::sqrt(var[0] + var_path);
+    std::printf("[frosted sg pane continued direction] roughness %.2f ior %.2f%s: exact leaving pooled z %.2f, worst "
+                "|z| %.2f over 15; SG draw (control) pooled z %.2f, worst |z| %.1f\n",
+                double(c.roughness), double(c.ior), c.absorb.x < 1.0f ? " grey Beer" : "", z1, worst[1], z0, worst[0]);
+    EXPECT_LT(std::fabs(z1), 4.0) << "roughness " << c.roughness;
+    worst_control = std::max(worst_control, worst[0]);
+  }
+  EXPECT_GT(worst_control, 6.0) << "negative control passed";  // the SG's shape error is smallest at roughness 0.8
+}
+
 // ---- Stress --------------------------------------------------------------------------
 TEST(FrostedGlassSgPane, StressRawOutputsFiniteNonNegative) {
   Pcg32 rng(23);
