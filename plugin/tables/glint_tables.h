@@ -258,7 +258,7 @@ struct LodLevel {
 // Level 0 as lookups read it (session 32, glintlevel0_32): the 1-degree P_gamma (3 MB per table in 16-bit nodes,
 // a cache miss per lookup) as a smooth ratio over a closed-form estimate, stored coarse, times the estimate
 // evaluated exactly per lookup:
-//   P_gamma(wi, wo) ~= Omega q'(wi, wo) R(theta_i, theta_o, dphi),  q' = (1) at the widened alpha' (below).
+//   P_gamma(wi, wo) ~= q'(wi, wo) R(theta_i, theta_o, dphi),  q' = (1) at the widened alpha' (below; R carries Omega).
 // q' is eq. (1) with D at alpha'^2 = alpha^2 + (gamma / 2)^2 (the cone's spread added to the lobe's, as the
 // sampling lobe widens it), so R = P / q' carries only what q' misses: the cone's averaging of the lobe's curvature,
 // the energy cap per theta_i (step 4) and the tails' shape; it is smooth on the lobe's scale and stored at
@@ -272,7 +272,7 @@ struct LodLevel {
 // dphi >= 120: the grazing forward corner, where q' varies on scales far below any coarse step) lookups read P
 // itself at 1 degree (`corner`, 31 x 31 x 61 nodes). Lobes narrower than kCoarseMinAlpha keep the 1-degree ratio
 // grid (steps 1, 1). GI scene (GGX 0.35 gamma 2, Beckmann 0.5 gamma 3): 91 x 31 x 46 + 31 x 31 x 61 nodes =
-// 377 KB per table instead of 3 MB. The fp32 1-degree level 0 is still built, cached, validated and energy-
+// 368 KiB per table instead of 2.9 MiB. The fp32 1-degree level 0 is still built, cached, validated and energy-
 // normalised; this is derived from it when packed (no cache format change).
 struct Level0Residual {
   static constexpr float kCoarseMinAlpha = 0.09f;  // alpha' from which the ratio grid is (1, 3, 4) degrees
