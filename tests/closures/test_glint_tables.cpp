@@ -5,6 +5,7 @@
 
 #include <cstdio>
 #include <cstring>
+#include <functional>
 #include <limits>
 #include <vector>
 
@@ -209,6 +210,141 @@ TEST(GlintTables, HalvesLookupMatchesTheFp32LookupOnEveryLevel) {
     EXPECT_LE(worst_small, 1.0 / (1 << 26)) << level;
     EXPECT_GT(worst_control, kBound) << level;
   }
+}
+
+// Level 0 as lookups read it (session 32, glintlevel0_32: glint::Level0Residual, a coarse ratio R = P / q' times the
+// closed-form estimate q' per lookup, and P itself at 1 degree on the grazing forward corner) against the fp32
+// 1-degree table it is derived from and against brute force, on tables across the range (GGX and Beckmann, roughness
+// 0.15..0.8, gamma 1..5; the coarse (1, 3, 4)-degree ratio grid where alpha' >= 0.09, else the 1-degree one).
+//  - Every 1-degree node (where the 1-degree table is exact): max |relative error| (P >= 1e-3 of its slice's peak).
+//  - 2e5 random queries (a quarter with theta_o in 85..90, an eighth with theta_i in 85..90) against the 1-degree
+//    table's trilinear lookup: rms and max relative error where P >= 1e-3 of the slice peak (the larger of the two
+//    theta_i slices the lookup reads), absolute error / slice peak below. Part of this is the 1-degree table's own
+//    interpolation error (its lerps across a lobe), which the estimate does not share.
+//  - 300 random queries in the lobe (P >= 5 % of the slice peak) against brute force (the rim rule, else dense
+//    quadrature of (1)): the level-0 lookup is at least as close as the 1-degree table (rms), up to the slices'
+//    energy cap, which both carry.
+// Negative control: P itself on the same coarse (1, 3, 4)-degree grid, trilinear (the representation without the
+// estimate, at the same size): fails the random-query bounds and the brute-force comparison on the narrower tables.
+struct Level0Figures {
+  double node_max = 0.0, rms = 0.0, max_rel = 0.0, max_abs = 0.0;
+  double brute_rms = 0.0, brute_rms_table = 0.0, brute_max = 0.0, brute_max_table = 0.0;
+  float worst_node[3] = {}, worst_abs[3] = {};
+};
+using Level0Lookup = std::function<float(float, float, float)>;
+Level0Figures level0_figures(const pg::DirectionalTable &table, const pg::NdfFunction &ndf, const Level0Lookup &at,
+                             bool nodes) {
+  const pg::LodLevel &l0 = table.levels[0];
+  std::vector<float> slice_peak(pg::kThetaICount, 0.0f);
+  for (size_t i = 0; i < l0.values.size(); ++i) {
+    float &pk = slice_peak[i / l0.theta_i_stride()];
+    pk = std::max(pk, l0.values[i]);
+  }
+  auto peak_at = [&](float ti) {
+    const int i = std::min(static_cast<int>(ti), pg::kThetaICount - 2);
+    return std::max(slice_peak[static_cast<size_t>(i)], slice_peak[static_cast<size_t>(i) + 1]);
+  };
+  Level0Figures f;
+  for (int ti = 0; nodes && ti < pg::kThetaICount; ++ti)
+    for (int to = 0; to <= 90; ++to)
+      for (int dp = 0; dp <= 180; ++dp) {
+        const double ref = l0.values[ti * l0.theta_i_stride() + static_cast<size_t>(to) * l0.n_phi + dp];
+        if (!(ref >= 1e-3 * slice_peak[static_cast<size_t>(ti)])) continue;
+        const double e = std::fabs(at(ti, to, dp) / ref - 1.0);
+        if (e > f.node_max) f.node_max = e, f.worst_node[0] = ti, f.worst_node[1] = to, f.worst_node[2] = dp;
+      }
+  Pcg32 rng(32);
+  double sum_sq = 0.0;
+  int64_t counted = 0;
+  for (int q = 0; q < 200000; ++q) {
+    const float ti = q % 8 == 1 ? 85.0f + 5.0f * rng.next_float() : 90.0f * rng.next_float();
+    const float to = q % 4 == 0 ? 85.0f + 5.0f * rng.next_float() : 90.0f * rng.next_float();
+    const float dp = 180.0f * rng.next_float();
+    const double ref = l0.lookup_exact(ti, to, dp), v = at(ti, to, dp), pk = peak_at(ti);
+    if (ref >= 1e-3 * pk) {
+      const double r = v / ref - 1.0;
+      sum_sq += r * r;
+      ++counted;
+      f.max_rel = std::max(f.max_rel, std::fabs(r));
+    } else {
+      const double e = std::fabs(v - ref) / pk;
+      if (e > f.max_abs) f.max_abs = e, f.worst_abs[0] = ti, f.worst_abs[1] = to, f.worst_abs[2] = dp;
+    }
+  }
+  f.rms = std::sqrt(sum_sq / static_cast<double>(std::max<int64_t>(counted, 1)));
+  double bs = 0.0, bt = 0.0;
+  int n = 0;
+  for (int q = 0; n < 300 && q < 200000; ++q) {
+    const float ti = 85.0f * rng.next_float(), to = 90.0f * rng.next_float(), dp = 180.0f * rng.next_float();
+    const double table_p = l0.lookup_exact(ti, to, dp);
+    if (!(table_p >= 0.05 * peak_at(ti))) continue;
+    double ref = pg::directional_probability_by_rim(table.spec.distribution, table.spec.alpha, table.spec.gamma_deg, ti,
+                                                    to, dp);
+    if (ref < 0.0) ref = pg::directional_probability_reference(ndf, table.spec.gamma_deg, ti, to, dp, 48);
+    const double rn = at(ti, to, dp) / ref - 1.0, rt = table_p / ref - 1.0;
+    bs += rn * rn, bt += rt * rt, ++n;
+    f.brute_max = std::max(f.brute_max, std::fabs(rn));
+    f.brute_max_table = std::max(f.brute_max_table, std::fabs(rt));
+  }
+  f.brute_rms = std::sqrt(bs / std::max(n, 1));
+  f.brute_rms_table = std::sqrt(bt / std::max(n, 1));
+  return f;
+}
+
+TEST(GlintTables, Level0ResidualMatchesTheOneDegreeTableAndBruteForce) {
+  struct Case {
+    mf::Distribution dist;
+    float roughness, gamma;
+  };
+  constexpr double kRms = 0.01, kMax = 0.10, kAbs = 2e-3, kNode = 0.03;
+  int control_failures = 0;
+  for (const Case &c : {Case{mf::Distribution::GGX, 0.35f, 2.0f}, Case{mf::Distribution::Beckmann, 0.5f, 3.0f},
+                        Case{mf::Distribution::GGX, 0.3f, 2.0f}, Case{mf::Distribution::Beckmann, 0.4f, 1.0f},
+                        Case{mf::Distribution::GGX, 0.8f, 5.0f}, Case{mf::Distribution::GGX, 0.15f, 5.0f},
+                        Case{mf::Distribution::Beckmann, 0.2f, 2.0f}}) {
+    pg::TableSpec spec;
+    spec.distribution = c.dist == mf::Distribution::GGX ? pg::BaseDistribution::GGX : pg::BaseDistribution::Beckmann;
+    spec.alpha = c.roughness * c.roughness;
+    spec.gamma_deg = c.gamma;
+    const pg::NdfFunction ndf = ndf_of(c.dist, spec.alpha);
+    const auto table = pg::build_directional_table(spec, ndf, 2);
+    const bool coarse = table->level0.ratio.n_theta_o < 91;
+    const Level0Figures f = level0_figures(
+        *table, ndf, [&](float ti, float to, float dp) { return table->lookup(0.0f, ti, to, dp); }, true);
+    pg::LodLevel plain;  // the control: P on the (1, 3, 4)-degree grid
+    plain.set_grid(3, 4, pg::kThetaICount, 31, 46);
+    plain.values.resize(pg::kThetaICount * plain.theta_i_stride());
+    for (int ti = 0; ti < pg::kThetaICount; ++ti)
+      for (int o = 0; o < 31; ++o)
+        for (int p = 0; p < 46; ++p)
+          plain.values[ti * plain.theta_i_stride() + static_cast<size_t>(o) * 46 + p] =
+              table->levels[0].values[(static_cast<size_t>(ti) * 91 + 3 * o) * 181 + 4 * p];
+    const Level0Figures k = level0_figures(
+        *table, ndf, [&](float ti, float to, float dp) { return plain.lookup_exact(ti, to, dp); }, false);
+    const char *name = c.dist == mf::Distribution::GGX ? "ggx" : "beckmann";
+    std::printf("[level0] %s r=%.2f gamma %.0f (%s ratio grid, %.0f KB): nodes max %.4f; random rms %.4f max %.4f, abs "
+                "%.2e; brute force rms %.4f (1-degree table %.4f) max %.4f (%.4f) | control (plain 1x3x4 grid): rms "
+                "%.4f max %.4f abs %.2e, brute force rms %.4f max %.4f\n",
+                name, c.roughness, c.gamma, coarse ? "1x3x4" : "1x1x1",
+                (table->level0.ratio.halves.size() + table->level0.corner.halves.size()) * 2.0 / 1024.0, f.node_max,
+                f.rms, f.max_rel, f.max_abs, f.brute_rms, f.brute_rms_table, f.brute_max, f.brute_max_table, k.rms,
+                k.max_rel, k.max_abs, k.brute_rms, k.brute_max);
+    std::printf("[level0]   worst node at (%.0f, %.0f, %.0f), worst absolute error at (%.2f, %.2f, %.2f)\n", f.worst_node[0],
+                f.worst_node[1], f.worst_node[2], f.worst_abs[0], f.worst_abs[1], f.worst_abs[2]);
+    EXPECT_LE(f.node_max, coarse ? kNode : 1.0 / 1024) << name << " " << c.roughness;
+    if (coarse) {
+      EXPECT_LE(f.rms, kRms) << name << " " << c.roughness;
+      EXPECT_LE(f.max_rel, kMax) << name << " " << c.roughness;
+    }
+    EXPECT_LE(f.max_abs, kAbs) << name << " " << c.roughness;
+    EXPECT_LE(f.brute_rms, f.brute_rms_table * 1.02 + 1e-4) << name << " " << c.roughness;
+    EXPECT_LE(f.brute_max, f.brute_max_table + 0.005) << name << " " << c.roughness;
+    control_failures += k.rms > kRms || k.max_rel > kMax || k.max_abs > kAbs || k.brute_rms > k.brute_rms_table * 1.02 + 1e-4;
+    if (c.roughness <= 0.35f) {
+      EXPECT_TRUE(k.rms > kRms || k.max_rel > kMax) << "control passes on " << name << " " << c.roughness;
+    }
+  }
+  EXPECT_GE(control_failures, 5);
 }
 
 }  // namespace
