@@ -244,12 +244,9 @@ class GlintClosure {
   // the largest single cost of eval: the caller reads P before the Lambdas and the pdf, whose math (independent of
   // P) runs while the loads are outstanding. Session 27: read at once instead of prefetched and read after the pdf,
   // so the located cell is not kept (spilled and reloaded) across the pdf's calls (Beckmann's Lambdas and exp).
-  // Session 32 (glintlevel0_32): level 0 is a coarse ratio times a closed-form estimate of wi and wo
-  // (glint::Level0Residual), which takes s = wi.z + wo.z and d = 1 + wi.wo.
-  float table_probability(const TableCoords &c, const Vec3 &wi, const Vec3 &wo, float sigma_deg) const {
+  float table_probability(const TableCoords &c, float sigma_deg) const {
     if (!table_) return 0.0f;
-    const float s = wi.z + wo.z, d = 1.0f + dot(wi, wo);
-    return std::min(table_->lookup(table_->locate(sigma_deg, c.lanes()), s, d), 1.0f);
+    return std::min(table_->lookup(table_->locate(sigma_deg, c.lanes())), 1.0f);
   }
 
   // The footprint of a shading point and, once located, the direction cells
@@ -538,7 +535,7 @@ class GlintClosure {
       pdf = glint::smooth_lobe_pdf(field_.distribution, w.ax, w.ay, sp.wi, wo, h);  // one Lambda, no W
       return Spectrum(0.0f);
     }
-    const float P = table_probability(c, sp.wi, wo, sigma_deg);  // first: the Lambdas' and the pdf's math overlaps its loads
+    const float P = table_probability(c, sigma_deg);  // first: the Lambdas' and the pdf's math overlaps its loads
     const glint::EvalLambdasPdf lp = glint::eval_lambdas_and_pdf(field_.distribution, field_.alpha, w.ax, sp.wi, wo, h);
     pdf = lp.pdf;
     return glint_f_cos(sp.wi, wo, P, h, lp.lambdas, sigma_deg, density, parts);

@@ -346,51 +346,8 @@ bool plausible_energy(const DirectionalTable &table, const TableSpec &spec, int 
 
 size_t DirectionalTable::byte_size() const {
   size_t s = 0;
-  for (const LodLevel *l : {&level0.ratio, &level0.corner}) s += l->values.size() * sizeof(float) + l->halves.size() * 2;
   for (const auto &l : levels) s += l.values.size() * sizeof(float) + l.halves.size() * sizeof(uint16_t);
   return s;
-}
-
-// Level0Residual's constants for the table's spec, then R = P / q' at the ratio grid's nodes (level 0's nodes: the
-// steps divide 90 and 180 into whole degrees) and P at the corner's, each packed as the levels are.
-void Level0Residual::build(const TableSpec &spec, const LodLevel &level0) {
-  dist = spec.distribution;
-  const double widen = 0.5 * spec.gamma_deg * kDeg;
-  const double a2d = static_cast<double>(spec.alpha) * spec.alpha + widen * widen;
-  a2 = static_cast<float>(a2d);
-  a2_minus_1 = static_cast<float>(a2d - 1.0);
-  a2_over_pi = static_cast<float>(a2d / kPiD);
-  inv_a2 = static_cast<float>(1.0 / a2d);
-  inv_pi_a2 = static_cast<float>(1.0 / (kPiD * a2d));
-  q_max = static_cast<float>(kCapOfNormalPeak / (4.0 * kPiD * a2d));
-  eps2 = static_cast<float>(sq(kRegOfGamma * spec.gamma_deg * kDeg));
-  float peak = 0.0f;
-  for (const float v : level0.values) peak = std::max(peak, v);
-  q_floor = kFloorOfPeak * peak;
-  p_min = std::ldexp(peak, -28);
-  int step_o, step_p;
-  steps_for(static_cast<float>(std::sqrt(a2d)), step_o, step_p);
-  ratio.sigma_deg = corner.sigma_deg = level0.sigma_deg;
-  ratio.set_grid(step_o, step_p, kThetaICount, 90 / step_o + 1, 180 / step_p + 1);
-  ratio.values.assign(static_cast<size_t>(kThetaICount) * ratio.i_stride, 0.0f);
-  auto node = [&](int ti, int to, int p) { return level0.values[(static_cast<size_t>(ti) * 91 + to) * 181 + p]; };
-  for (int ti = 0; ti < kThetaICount; ++ti)
-    for (int o = 0; o < ratio.n_theta_o; ++o)
-      for (int p = 0; p < ratio.n_phi; ++p) {
-        float s, d;
-        s_and_d(ti, o * step_o, p * step_p, s, d);
-        ratio.values[ti * ratio.i_stride + static_cast<size_t>(o) * ratio.n_phi + p] =
-            node(ti, o * step_o, p * step_p) / estimate(s, d);
-      }
-  const int ci = static_cast<int>(kCornerDeg[0]), co = static_cast<int>(kCornerDeg[1]), cp = static_cast<int>(kCornerDeg[2]);
-  corner.set_grid(1, 1, kThetaICount - ci, 91 - co, 181 - cp);
-  corner.values.assign(static_cast<size_t>(kThetaICount - ci) * corner.i_stride, 0.0f);
-  for (int ti = ci; ti < kThetaICount; ++ti)
-    for (int to = co; to < 91; ++to)
-      for (int p = cp; p < 181; ++p)
-        corner.values[(ti - ci) * corner.i_stride + static_cast<size_t>(to - co) * corner.n_phi + (p - cp)] = node(ti, to, p);
-  ratio.pack_halves();
-  corner.pack_halves();
 }
 
 namespace {

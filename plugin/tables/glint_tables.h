@@ -111,18 +111,12 @@ struct LodLevel {
 
   // The grid of a level at `step` degrees: step_deg, inv_step, the node counts and cell()'s lane constants (values
   // not sized).
-  void set_step(int step) { set_grid(step, step, kThetaICount, 90 / step + 1, 180 / step + 1); }
-  // A grid of n_theta_i x n_o x n_p nodes at 1 degree along theta_i, step_o along theta_o and step_p along dphi
-  // (session 32: level 0's ratio grid has step_o != step_p, its corner grid fewer theta_i nodes). step_deg is
-  // step_o.
-  void set_grid(int step_o, int step_p, int n_theta_i, int n_o, int n_p) {
-    step_deg = step_o;
-    inv_step = 1.0f / static_cast<float>(step_o);
-    n_theta_o = n_o;
-    n_phi = n_p;
-    lane_scale[1] = inv_step;
-    lane_scale[2] = 1.0f / static_cast<float>(step_p);
-    lane_last[0] = n_theta_i - 2;
+  void set_step(int step) {
+    step_deg = step;
+    inv_step = 1.0f / static_cast<float>(step);
+    n_theta_o = 90 / step + 1;
+    n_phi = 180 / step + 1;
+    lane_scale[1] = lane_scale[2] = inv_step;
     lane_last[1] = n_theta_o - 2;
     lane_last[2] = n_phi - 2;
     i_stride = static_cast<size_t>(n_theta_o) * n_phi;
@@ -255,121 +249,10 @@ struct LodLevel {
   }
 };
 
-// Level 0 as lookups read it (session 32, glintlevel0_32): the 1-degree P_gamma (3 MB per table in 16-bit nodes,
-// a cache miss per lookup) as a smooth ratio over a closed-form estimate, stored coarse, times the estimate
-// evaluated exactly per lookup:
-//   P_gamma(wi, wo) ~= q'(wi, wo) R(theta_i, theta_o, dphi),  q' = (1) at the widened alpha' (below; R carries Omega).
-// q' is eq. (1) with D at alpha'^2 = alpha^2 + (gamma / 2)^2 (the cone's spread added to the lobe's, as the
-// sampling lobe widens it), so R = P / q' carries only what q' misses: the cone's averaging of the lobe's curvature,
-// the energy cap per theta_i (step 4) and the tails' shape; it is smooth on the lobe's scale and stored at
-// (1, step_o, step_p) degrees. q' is written in s = cos theta_i + cos theta_o and d = 1 + wi.wo (h = wi + wo,
-// |h|^2 = 2 d, cos theta_h = s / |h|, wi.h = d / |h|):
-//   GGX       q' = (alpha'^2 / pi) s d / (2 d + (alpha'^2 - 1) s^2)^2                     (no transcendental)
-//   Beckmann  q' = exp(-(2 d - s^2) / (alpha'^2 s^2)) d / (pi alpha'^2 s^3)             (exp_neg: libm-free)
-// capped at 3 / (4 pi alpha'^2) (3 x its normal-incidence peak: near wo = -wi at grazing, where h is undefined, q'
-// is singular) and raised by a floor of 1e-4 of level 0's peak (where q' underflows, the Beckmann tails at grazing,
-// R would blow up; there R interpolates P itself, absolutely). Where h is ill-defined (theta_i and theta_o >= 60,
-// dphi >= 120: the grazing forward corner, where q' varies on scales far below any coarse step) lookups read P
-// itself at 1 degree (`corner`, 31 x 31 x 61 nodes). Lobes narrower than kCoarseMinAlpha keep the 1-degree ratio
-// grid (steps 1, 1). GI scene (GGX 0.35 gamma 2, Beckmann 0.5 gamma 3): 91 x 31 x 46 + 31 x 31 x 61 nodes =
-// 368 KiB per table instead of 2.9 MiB. The fp32 1-degree level 0 is still built, cached, validated and energy-
-// normalised; this is derived from it when packed (no cache format change).
-struct Level0Residual {
-  static constexpr float kCoarseMinAlpha = 0.09f;  // alpha' from which the ratio grid is (1, 3, 4) degrees
-  static constexpr int kCoarseStepO = 3, kCoarseStepP = 4;
-  static constexpr float kCornerDeg[3] = {60.0f, 60.0f, 120.0f};  // the corner: theta_i, theta_o, dphi >= these
-  static constexpr float kFloorOfPeak = 1e-4f, kCapOfNormalPeak = 3.0f;
-
-  BaseDistribution dist = BaseDistribution::GGX;
-  float a2 = 0.0625f;                 // alpha'^2
-  float a2_minus_1 = -0.9375f, a2_over_pi = 0.0198944f, inv_a2 = 16.0f, inv_pi_a2 = 5.0929582f;
-  float q_max = 0.0f, q_floor = 0.0f;  // the cap and the floor of q'
-  // s^2 + eps2 and d + eps2 / 2 in place of s^2 and d (2 d - s^2 = |h|^2 sin^2 theta_h unchanged): q' bounded and
-  // smooth where s -> 0 (both directions at the horizon, where the cone's average keeps P > 0 but (1) -> 0) and where
-  // d -> 0 (wo = -wi); eps = kRegOfGamma gamma (the cone moves cos theta_o by up to sin gamma).
-  float eps2 = 0.0f;
-  float p_min = 0.0f;  // lookups below read 0 (lookup)
-  static constexpr float kRegOfGamma = 1.0f;
-  alignas(16) float corner_origin[4] = {60.0f, 60.0f, 120.0f, 0.0f};
-  LodLevel ratio;   // R = P / q' (values until released, halves)
-  LodLevel corner;  // P at 1 degree on the corner, node (i, o, p) at (60 + i, 60 + o, 120 + p)
-
-  // e^x for x <= 0 without libm: 2^n 2^f, n = round(x log2 e), |f| <= 1/2, 2^f by its degree-5 Taylor polynomial
-  // of e^(f ln 2) (relative error < 3e-6, continuous to that at the half-integers); x below -87 reads -87.
-  static float exp_neg(float x) {
-    const float y = (x > -87.0f ? (x < 0.0f ? x : 0.0f) : -87.0f) * 1.44269504f;
-    const float n = (y + 12582912.0f) - 12582912.0f;  // round to nearest (|y| < 2^22)
-    const float f = (y - n) * 0.69314718f;
-    const float p = 1.0f + f * (1.0f + f * (0.5f + f * (1.0f / 6.0f + f * (1.0f / 24.0f + f * (1.0f / 120.0f)))));
-    const uint32_t bits = static_cast<uint32_t>(static_cast<int32_t>(n) + 127) << 23;
-    float two_n;
-    __builtin_memcpy(&two_n, &bits, sizeof two_n);
-    return p * two_n;
-  }
-  // q' (capped, plus the floor) at s = cos theta_i + cos theta_o, d = 1 + wi.wo; the floor alone where s or d is
-  // not positive (h below the horizon, or wo = -wi) or NaN.
-  float estimate(float s, float d) const {
-    float q = 0.0f;
-    if (s > 0.0f && d > 0.0f) {
-      const float s2 = s * s + eps2;  // s and d regularised (below)
-      d += 0.5f * eps2;
-      s = std::sqrt(s2);
-      if (dist == BaseDistribution::GGX) {
-        const float den = 2.0f * d + a2_minus_1 * s2;
-        q = a2_over_pi * s * d / (den * den);
-      } else {
-        const float inv_s3 = 1.0f / (s2 * s);
-        q = exp_neg(-(2.0f * d - s2) * inv_a2 * (inv_s3 * s)) * d * inv_pi_a2 * inv_s3;
-      }
-      q = q < q_max ? q : q_max;
-    }
-    return q + q_floor;
-  }
-  // s and d of the directions at angles (degrees; the build's nodes and the angle-only lookups).
-  static void s_and_d(double theta_i_deg, double theta_o_deg, double dphi_deg, float &s, float &d) {
-    const double ti = theta_i_deg * kDegToRad, to = theta_o_deg * kDegToRad, dp = dphi_deg * kDegToRad;
-    s = static_cast<float>(std::cos(ti) + std::cos(to));
-    d = static_cast<float>(1.0 + std::cos(ti) * std::cos(to) + std::sin(ti) * std::sin(to) * std::cos(dp));
-  }
-
-  // The cell of a lookup (angles in lanes 0..2, clamped as LodLevel::cell clamps them) and whether it is the
-  // corner's.
-  struct Cell {
-    LodLevel::Cell cell;
-    bool in_corner;
-  };
-  Cell cell(__m128 x) const {
-    const __m128 clamped = _mm_and_ps(_mm_cmpgt_ps(x, _mm_setzero_ps()),
-                                      _mm_min_ps(x, _mm_setr_ps(90.0f, 90.0f, 180.0f, 0.0f)));
-    const __m128 origin = _mm_load_ps(corner_origin);
-    if ((_mm_movemask_ps(_mm_cmpge_ps(clamped, origin)) & 7) == 7)
-      return {corner.cell(_mm_sub_ps(clamped, origin)), true};
-    return {ratio.cell(clamped), false};
-  }
-  // Below p_min (2^-28 of level 0's peak) a lookup reads 0, as a 16-bit level reads its nodes below 2^-28 of its peak
-  // (LodLevel::halves; main's level 0 did): the coarse cells would otherwise carry the far tails' ~1e-20 into more
-  // queries, each then counted (GI scene: +16 % counted evals) for a mean below 2^-28 of the peak's.
-  float lookup(const Cell &c, float s, float d) const {
-    const float v = c.in_corner ? corner.lookup(c.cell) : ratio.lookup(c.cell) * estimate(s, d);
-    return v >= p_min ? v : 0.0f;
-  }
-  void prefetch(const Cell &c) const { (c.in_corner ? corner : ratio).prefetch(c.cell); }
-
-  // Derives the ratio and corner grids (values and halves) from level 0's fp32 values.
-  void build(const TableSpec &spec, const LodLevel &level0);
-  // The grid steps for a widened alpha'.
-  static void steps_for(float alpha_widened, int &step_o, int &step_p) {
-    const bool coarse = alpha_widened >= kCoarseMinAlpha;
-    step_o = coarse ? kCoarseStepO : 1;
-    step_p = coarse ? kCoarseStepP : 1;
-  }
-};
-
 class DirectionalTable {
  public:
   TableSpec spec;
-  std::array<LodLevel, kLodCount> levels;  // level 0's halves: tests only (released with the values)
-  Level0Residual level0;                   // what lookups read of level 0 (session 32)
+  std::array<LodLevel, kLodCount> levels;
   double build_seconds = 0.0;  // precompute time (0 when loaded from the cache)
   bool loaded_from_cache = false;
 
@@ -390,13 +273,9 @@ class DirectionalTable {
     return {l, (sigma_deg - kLodSigmaDeg[l]) / (kLodSigmaDeg[l + 1] - kLodSigmaDeg[l])};
   }
 
-  // P at LOD blur sigma: linear between the two levels bracketing sigma. Level 0's estimate from the angles (in
-  // double: the closures pass s and d of their vectors instead).
+  // P at LOD blur sigma: linear between the two levels bracketing sigma.
   float lookup(float sigma_deg, float theta_i_deg, float theta_o_deg, float dphi_deg) const {
-    float s, d;  // at the angles clamped as the cells clamp them (the closures' directions are above the surface)
-    Level0Residual::s_and_d(LodLevel::clamp_deg(theta_i_deg, 90.0f), LodLevel::clamp_deg(theta_o_deg, 90.0f),
-                            LodLevel::clamp_deg(dphi_deg, 180.0f), s, d);
-    return lookup(locate(sigma_deg, theta_i_deg, theta_o_deg, dphi_deg), s, d);
+    return lookup(locate(sigma_deg, theta_i_deg, theta_o_deg, dphi_deg));
   }
 
   // Starts loading what lookup() will read (see LodLevel::prefetch).
@@ -409,7 +288,6 @@ class DirectionalTable {
   struct Located {
     LevelPair lp;
     LodLevel::Cell first{}, second{};  // second: only when lp.t > 0
-    bool first_in_corner = false;       // level 0: first is a cell of level0.corner (else of level0.ratio)
   };
   Located locate(float sigma_deg, float theta_i_deg, float theta_o_deg, float dphi_deg) const {
     return locate(sigma_deg, _mm_setr_ps(theta_i_deg, theta_o_deg, dphi_deg, 0.0f));
@@ -418,46 +296,30 @@ class DirectionalTable {
   Located locate(float sigma_deg, __m128 deg) const {
     Located at;
     at.lp = levels_at(sigma_deg);
-    if (at.lp.first == 0) {
-      const Level0Residual::Cell c = level0.cell(deg);
-      at.first = c.cell;
-      at.first_in_corner = c.in_corner;
-    } else {
-      at.first = levels[at.lp.first].cell(deg);
-    }
+    at.first = levels[at.lp.first].cell(deg);
     if (at.lp.t > 0.0f) at.second = levels[at.lp.first + 1].cell(deg);
     return at;
   }
   void prefetch(const Located &at) const {
-    if (at.lp.first == 0)
-      level0.prefetch({at.first, at.first_in_corner});
-    else
-      levels[at.lp.first].prefetch(at.first);
+    levels[at.lp.first].prefetch(at.first);
     if (at.lp.t > 0.0f) levels[at.lp.first + 1].prefetch(at.second);
   }
-  // s = cos theta_i + cos theta_o and d = 1 + wi.wo of the query (level 0's estimate, Level0Residual).
-  float lookup(const Located &at, float s, float d) const {
-    const float a = at.lp.first == 0 ? level0.lookup({at.first, at.first_in_corner}, s, d)
-                                     : levels[at.lp.first].lookup(at.first);
+  float lookup(const Located &at) const {
+    const float a = levels[at.lp.first].lookup(at.first);
     if (!(at.lp.t > 0.0f)) return a;
     const float b = levels[at.lp.first + 1].lookup(at.second);
     return a + (b - a) * at.lp.t;
   }
 
   size_t byte_size() const;  // values (until released) and halves
-  // The halves of every level and level 0's ratio and corner grids (after the values are final).
   void pack_halves() {
     for (LodLevel &l : levels) l.pack_halves();
-    level0.build(spec, levels[0]);
   }
   // Frees the fp32 values once packed and cached (acquire_table): lookups, the dark test's bounds and every closure
   // read only the halves, so a shared table holds half the bytes (session 31: 14.5 -> 7.3 MB per table instead of
   // 21.8 MB with both). lookup_exact() and save_table() need the values: call them before.
   void release_values() {
     for (LodLevel &l : levels) std::vector<float>().swap(l.values);
-    std::vector<uint16_t>().swap(levels[0].halves);  // lookups read level0 (session 32)
-    std::vector<float>().swap(level0.ratio.values);
-    std::vector<float>().swap(level0.corner.values);
   }
 };
 
