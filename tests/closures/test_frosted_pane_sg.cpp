@@ -1008,9 +1008,10 @@ TEST(FrostedGlassSgPane, RoughPaneContinuedDirectionFollowsThePathsWalk) {
           moments(b.sum[j], b.sum2[j], mp, vp);
           const double z = (ms - mp) / std::sqrt(std::max(vs + vp, 1e-300));
           worst[level] = std::max(worst[level], std::fabs(z));
-          if (level == 1)
+          if (level == 1) {
             EXPECT_LT(std::fabs(z), 4.5) << "roughness " << c.roughness << " theta " << theta << " cone " << j
                                          << ": sg " << ms << ", path " << mp;
+          }
           pooled[level] += ms, var[level] += vs;
           if (level == 1) pooled_path += mp, var_path += vp;
         }
