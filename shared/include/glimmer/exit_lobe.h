@@ -13,8 +13,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
 #include <cstring>
+#include <iterator>
 
 #include "glimmer/math.h"
 
@@ -131,31 +133,24 @@ inline void sincos_half_pi(double x, double &s, double &c) {
     s = std::sin(x), c = std::cos(x);
     return;
   }
+  // Horner coefficients, highest power first: 1 / (2k + 1)!, k = 10 .. 1; 1 / (2k)!, k = 11 .. 1 (alternating signs).
+  static constexpr double kSin[] = {-1.0 / 51090942171709440000.0, 1.0 / 121645100408832000.0,
+                                    -1.0 / 355687428096000.0,      1.0 / 1307674368000.0,
+                                    -1.0 / 6227020800.0,           1.0 / 39916800.0,
+                                    -1.0 / 362880.0,               1.0 / 5040.0,
+                                    -1.0 / 120.0,                  1.0 / 6.0};
+  static constexpr double kCos[] = {1.0 / 1124000727777607680000.0, -1.0 / 2432902008176640000.0,
+                                    1.0 / 6402373705728000.0,       -1.0 / 20922789888000.0,
+                                    1.0 / 87178291200.0,            -1.0 / 479001600.0,
+                                    1.0 / 3628800.0,                -1.0 / 40320.0,
+                                    1.0 / 720.0,                    -1.0 / 24.0,
+                                    0.5};
   const double x2 = x * x;
-  // 1 / (2k + 1)! and 1 / (2k)!, k = 1 .. 11, as Horner coefficients (signs alternate).
-  double ps = -1.0 / 51090942171709440000.0;                   // -1 / 21!
-  ps = ps * x2 + 1.0 / 121645100408832000.0;                  // 1 / 19!
-  ps = ps * x2 - 1.0 / 355687428096000.0;                     // -1 / 17!
-  ps = ps * x2 + 1.0 / 1307674368000.0;                       // 1 / 15!
-  ps = ps * x2 - 1.0 / 6227020800.0;                          // -1 / 13!
-  ps = ps * x2 + 1.0 / 39916800.0;                            // 1 / 11!
-  ps = ps * x2 - 1.0 / 362880.0;                              // -1 / 9!
-  ps = ps * x2 + 1.0 / 5040.0;                                // 1 / 7!
-  ps = ps * x2 - 1.0 / 120.0;                                 // -1 / 5!
-  ps = ps * x2 + 1.0 / 6.0;                                   // 1 / 3!
-  s = x - x * x2 * ps;                                        // x - x^3 / 3! + x^5 / 5! - ...
-  double pc = 1.0 / 1124000727777607680000.0;                 // 1 / 22!
-  pc = pc * x2 - 1.0 / 2432902008176640000.0;                 // -1 / 20!
-  pc = pc * x2 + 1.0 / 6402373705728000.0;                    // 1 / 18!
-  pc = pc * x2 - 1.0 / 20922789888000.0;                      // -1 / 16!
-  pc = pc * x2 + 1.0 / 87178291200.0;                         // 1 / 14!
-  pc = pc * x2 - 1.0 / 479001600.0;                           // -1 / 12!
-  pc = pc * x2 + 1.0 / 3628800.0;                             // 1 / 10!
-  pc = pc * x2 - 1.0 / 40320.0;                               // -1 / 8!
-  pc = pc * x2 + 1.0 / 720.0;                                 // 1 / 6!
-  pc = pc * x2 - 1.0 / 24.0;                                  // -1 / 4!
-  pc = pc * x2 + 0.5;                                         // 1 / 2!
-  c = 1.0 - x2 * pc;                                          // 1 - x^2 / 2! + x^4 / 4! - ...
+  double ps = kSin[0], pc = kCos[0];
+  for (size_t k = 1; k < std::size(kSin); ++k) ps = ps * x2 + kSin[k];
+  for (size_t k = 1; k < std::size(kCos); ++k) pc = pc * x2 + kCos[k];
+  s = x - x * x2 * ps;  // x - x^3 / 3! + x^5 / 5! - ...
+  c = 1.0 - x2 * pc;    // 1 - x^2 / 2! + x^4 / 4! - ...
 }
 
 // The fraction q of the vMF (axis, kappa) below the plane with unit normal n. Around n, with beta the polar
