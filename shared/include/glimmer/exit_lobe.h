@@ -12,12 +12,12 @@
 #pragma once
 
 #include <algorithm>
+#include <array>
 #include <cmath>
-#include <cstddef>
 #include <cstdint>
 #include <cstring>
-#include <iterator>
 
+#include "glimmer/horner.h"
 #include "glimmer/math.h"
 
 namespace glimmer {
@@ -95,20 +95,12 @@ inline double exp_inline(double y) {
   constexpr double kShift = 6755399441055744.0;  // 1.5 x 2^52: adding it rounds to an integer
   const double n = (y * 1.4426950408889634 + kShift) - kShift;
   const double r = (y - n * 6.93147180369123816490e-01) - n * 1.90821492927058770002e-10;
-  double p = 1.0 / 6227020800.0;             // 1 / 13!
-  p = p * r + 1.0 / 479001600.0;              // 1 / 12!
-  p = p * r + 1.0 / 39916800.0;               // 1 / 11!
-  p = p * r + 1.0 / 3628800.0;                // 1 / 10!
-  p = p * r + 1.0 / 362880.0;                 // 1 / 9!
-  p = p * r + 1.0 / 40320.0;                  // 1 / 8!
-  p = p * r + 1.0 / 5040.0;                   // 1 / 7!
-  p = p * r + 1.0 / 720.0;                    // 1 / 6!
-  p = p * r + 1.0 / 120.0;                    // 1 / 5!
-  p = p * r + 1.0 / 24.0;                     // 1 / 4!
-  p = p * r + 1.0 / 6.0;                      // 1 / 3!
-  p = p * r + 0.5;                            // 1 / 2!
-  p = p * r + 1.0;
-  p = p * r + 1.0;
+  // 1 / k!, k = 0 .. 13 (glimmer::horner: the chain from 1 / 13! down).
+  static constexpr std::array<double, 14> kExp = {1.0,           1.0,           0.5,          1.0 / 6.0,
+                                                  1.0 / 24.0,    1.0 / 120.0,   1.0 / 720.0,  1.0 / 5040.0,
+                                                  1.0 / 40320.0, 1.0 / 362880.0, 1.0 / 3628800.0, 1.0 / 39916800.0,
+                                                  1.0 / 479001600.0, 1.0 / 6227020800.0};
+  const double p = horner(r, kExp);
   const uint64_t bits = uint64_t(int64_t(n) + 1023) << 52;  // 2^n, n in [-1022, 1023]
   double scale;
   std::memcpy(&scale, &bits, sizeof(scale));
@@ -133,22 +125,16 @@ inline void sincos_half_pi(double x, double &s, double &c) {
     s = std::sin(x), c = std::cos(x);
     return;
   }
-  // Horner coefficients, highest power first: 1 / (2k + 1)!, k = 10 .. 1; 1 / (2k)!, k = 11 .. 1 (alternating signs).
-  static constexpr double kSin[] = {-1.0 / 51090942171709440000.0, 1.0 / 121645100408832000.0,
-                                    -1.0 / 355687428096000.0,      1.0 / 1307674368000.0,
-                                    -1.0 / 6227020800.0,           1.0 / 39916800.0,
-                                    -1.0 / 362880.0,               1.0 / 5040.0,
-                                    -1.0 / 120.0,                  1.0 / 6.0};
-  static constexpr double kCos[] = {1.0 / 1124000727777607680000.0, -1.0 / 2432902008176640000.0,
-                                    1.0 / 6402373705728000.0,       -1.0 / 20922789888000.0,
-                                    1.0 / 87178291200.0,            -1.0 / 479001600.0,
-                                    1.0 / 3628800.0,                -1.0 / 40320.0,
-                                    1.0 / 720.0,                    -1.0 / 24.0,
-                                    0.5};
-  const double x2 = x * x;
-  double ps = kSin[0], pc = kCos[0];
-  for (size_t k = 1; k < std::size(kSin); ++k) ps = ps * x2 + kSin[k];
-  for (size_t k = 1; k < std::size(kCos); ++k) pc = pc * x2 + kCos[k];
+  // (-1)^k / (2k + 3)!, k = 0 .. 9, and (-1)^k / (2k + 2)!, k = 0 .. 10, in powers of x^2 (glimmer::horner).
+  static constexpr std::array<double, 10> kSin = {
+      1.0 / 6.0,           -1.0 / 120.0,          1.0 / 5040.0,           -1.0 / 362880.0,
+      1.0 / 39916800.0,    -1.0 / 6227020800.0,   1.0 / 1307674368000.0,  -1.0 / 355687428096000.0,
+      1.0 / 121645100408832000.0, -1.0 / 51090942171709440000.0};
+  static constexpr std::array<double, 11> kCos = {
+      0.5,                 -1.0 / 24.0,           1.0 / 720.0,            -1.0 / 40320.0,
+      1.0 / 3628800.0,     -1.0 / 479001600.0,    1.0 / 87178291200.0,    -1.0 / 20922789888000.0,
+      1.0 / 6402373705728000.0, -1.0 / 2432902008176640000.0, 1.0 / 1124000727777607680000.0};
+  const double x2 = x * x, ps = horner(x2, kSin), pc = horner(x2, kCos);
   s = x - x * x2 * ps;  // x - x^3 / 3! + x^5 / 5! - ...
   c = 1.0 - x2 * pc;    // 1 - x^2 / 2! + x^4 / 4! - ...
 }
