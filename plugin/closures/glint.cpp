@@ -111,6 +111,8 @@ class GlintClosure {
   static constexpr uint32_t kFlags = 0;
   // The adapter's clear() (no sample) out of line (core/closure.h no_sample; session 30).
   static constexpr bool kAdapterClearOutOfLine = true;
+  // The adapter's LocalSample{} by stores, not a `rep stos` (core/closure.h write_local_sample_defaults; session 33).
+  static constexpr bool kAdapterSampleDefaultsByStores = true;
 
   // Cost bound of one eval (particles visited); beyond it the mean (3) is
   // returned. Only reached when glint mode is forced far past the

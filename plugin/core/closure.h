@@ -27,7 +27,9 @@
 #include <cstring>
 #include <exception>
 #include <memory>
+#include <new>
 #include <span>
+#include <type_traits>
 
 #include "core/params.h"
 #include "glimmer/closure_abi.h"
@@ -167,6 +169,53 @@ struct LocalSample {
 #endif
 };
 
+// The number of fields of aggregate T (T{f1, .., fn} well-formed for n of them, each from a value of any type).
+namespace detail {
+struct AnyField {
+  template <typename U>
+  operator U() const;  // NOLINT: implicit by design (declared only, for the requires-expression)
+};
+template <typename T, typename... Fields>
+consteval std::size_t aggregate_field_count() {
+  if constexpr (requires { T{Fields{}..., AnyField{}}; })
+    return aggregate_field_count<T, Fields..., AnyField>();
+  else
+    return sizeof...(Fields);
+}
+}  // namespace detail
+
+// LocalSample{}'s values, written field by field into a LocalSample that was not initialised (the adapter's sample
+// wrapper where the closure asks for it, WritesSampleDefaults; session 33): GCC clears a LocalSample{} (120 bytes, nearly all zeros) by a `rep stos`, whose start-up costs
+// tens of cycles on every sample; these are a dozen stores. Every field is written, so a closure that leaves one
+// unwritten hands the wrapper LocalSample{}'s value, as before. A new field must be added here (the static_assert).
+[[gnu::always_inline]] inline void write_local_sample_defaults(LocalSample &s) {
+  static_assert(std::is_aggregate_v<LocalSample> && std::is_trivially_destructible_v<LocalSample>,
+                "the wrapper's storage holds a LocalSample without a constructor call (an implicit-lifetime type)");
+  static_assert(detail::aggregate_field_count<LocalSample>() ==
+                    12 + (GLIMMER_ABI_MINOR >= 7 ? 2 : 0) + (GLIMMER_ABI_MINOR >= 8 ? 2 : 0),
+                "a new LocalSample field needs its default here");
+  s.wo = Vec3(0.0f);
+  s.f_cos = Spectrum(0.0f);
+  s.pdf = 0.0f;
+  s.roughness = 0.0f;
+  s.eta = 1.0f;
+  s.label = GLIMMER_LABEL_NONE;
+  s.moved = false;
+  s.origin = Vec3(0.0f);
+  s.origin_Ng = Vec3(0.0f);
+  s.exit_lobe = false;
+  s.lobe_axis = Vec3(0.0f);
+  s.lobe_sharpness = 0.0f;
+#if GLIMMER_ABI_MINOR >= 7
+  s.mixture_out = nullptr;
+  s.exit_mixture = false;
+#endif
+#if GLIMMER_ABI_MINOR >= 8
+  s.state_out = nullptr;
+  s.exit_state = false;
+#endif
+}
+
 // Keeps only finite, non-negative values: a closure must never hand NaN/Inf or
 // negative numbers to the host.
 inline Spectrum sanitize(const Spectrum &s) {
@@ -202,6 +251,12 @@ concept HasEvalExit = requires(const T &t, const ShadingPoint &sp, const Glimmer
 // A closure whose adapter calls clear() out of line (ClosureAdapter::kClearOutOfLine).
 template <typename T>
 concept ClearsOutOfLine = T::kAdapterClearOutOfLine;
+// A closure whose adapter writes LocalSample{}'s values by stores (write_local_sample_defaults) instead of
+// value-initialising the wrapper's LocalSample: one whose sample() keeps it in memory (glint hands out.pdf to an
+// out-of-line eval). Where sample() inlines whole, GCC keeps the fields in registers instead, which the storage of
+// write_local_sample_defaults would prevent (DiffuseClosure: a 128-byte larger frame, loads and stores).
+template <typename T>
+concept WritesSampleDefaults = T::kAdapterSampleDefaultsByStores;
 
 // The shading point closure class T sees: its schema and local frame
 // (LocalFrame::Interface for GLIMMER_CLOSURE_TRANSMISSIVE closures).
@@ -287,6 +342,8 @@ struct ClosureAdapter {
   // budget; session 30: inlined, the wrappers' prologues cost +0.23 M in the GI scene). The call sites test it with
   // `if constexpr`, so every other closure's code is the same as with clear() alone.
   static constexpr bool kClearOutOfLine = ClearsOutOfLine<T>;
+  // sample_unguarded's LocalSample{} by stores (write_local_sample_defaults) where T asks for it.
+  static constexpr bool kSampleDefaultsByStores = WritesSampleDefaults<T>;
   [[gnu::noinline]] static void clear_out_of_line(GlimmerSample *out) { clear(out); }
   // The three "no sample" exits: clear(), out of line where T asks for it.
   [[gnu::always_inline]] static void no_sample(GlimmerSample *out) {
@@ -324,7 +381,21 @@ struct ClosureAdapter {
   static uint32_t sample_unguarded(const GlimmerInstance *inst, const GlimmerShadingContext *ctx,
                                    const float rand3[3], GlimmerSample *out) {
     const ShadingPoint sp = shading_point(ctx);
-    LocalSample s;
+    if constexpr (kSampleDefaultsByStores) {
+      // LocalSample{}'s values without its `rep stos` (write_local_sample_defaults): the storage of an unsigned char
+      // array implicitly holds the LocalSample (C++20: an implicit-lifetime type), then every field is written.
+      alignas(LocalSample) unsigned char storage[sizeof(LocalSample)];
+      LocalSample &s = *std::launder(reinterpret_cast<LocalSample *>(storage));
+      write_local_sample_defaults(s);
+      return sample_into(inst, sp, rand3, out, s);
+    } else {
+      LocalSample s;
+      return sample_into(inst, sp, rand3, out, s);
+    }
+  }
+  // sample_unguarded's body, given LocalSample{}'s values in s.
+  [[gnu::always_inline]] static uint32_t sample_into(const GlimmerInstance *inst, const ShadingPoint &sp,
+                                                     const float rand3[3], GlimmerSample *out, LocalSample &s) {
 #if GLIMMER_ABI_MINOR >= 7
     if (GLIMMER_HAS_FIELD(out->struct_size, GlimmerSample, exit_mixture)) s.mixture_out = out->exit_mixture;
 #endif
