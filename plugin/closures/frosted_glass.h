@@ -294,10 +294,12 @@ class FrostedGlassClosure {
   // (biased low by the front's transmission probability). branch: frosted::pane_branch_level's level (-1: the
   // knob's; session 30): where the pane is seen directly, each walk's first event at the far face keeps both branches
   // (branch_walks) and the face is picked by frosted::pane_face_probability's level 2. exact_leaving: the tests'
-  // level of frosted::pane_exact_leaving_level (-1: the knob's; session 32).
+  // level of frosted::pane_exact_leaving_level (-1: the knob's; session 32). both_faces: the tests' level of
+  // frosted::pane_both_faces_level (-1: the knob's; session 33).
   bool pane_sample_sg_split(const ShadingPoint &sp, const DielectricLobe &lobe, const frosted::PaneSgInputs &in,
                             const Vec3 &rand, const Vec3 &wi, const LocalSample &front, bool flip, LocalSample &out,
-                            int split, bool count_rejected = false, int branch = -1, int exact_leaving = -1) const {
+                            int split, bool count_rejected = false, int branch = -1, int exact_leaving = -1,
+                            int both_faces = -1) const {
     frosted::PaneWalkEnd walks[2 * frosted::kPaneWalkSplit];
     int n = 0, ends = 0;
     if (branch < 0) branch = frosted::pane_branch_level();
@@ -329,11 +331,12 @@ class FrostedGlassClosure {
       add_walk(numbers, s);
     }
     const int face_pick = branch >= 2 ? 2 : 0;  // the control (9) keeps main's pick
-    return frosted::sample_pane_sg_split(sp, in, rand, walks, n, flip, out, ends, face_pick, exact_leaving);
+    return frosted::sample_pane_sg_split(sp, in, rand, walks, n, flip, out, ends, face_pick, exact_leaving,
+                                         both_faces);
   }
   // For the tests: the rough pane's split sample (kPaneWalk) with its negative control (count_rejected above).
   bool pane_sample_sg_split(const ShadingPoint &sp, const Vec3 &rand, LocalSample &out, int split,
-                            bool count_rejected, int branch = -1, int exact_leaving = -1) const {
+                            bool count_rejected, int branch = -1, int exact_leaving = -1, int both_faces = -1) const {
     DielectricLobe scratch;
     const DielectricLobe &lobe = lobe_at(sp, scratch);
     Vec3 wi;
@@ -344,7 +347,7 @@ class FrostedGlassClosure {
     if (front != PaneFront::kEntered) return front == PaneFront::kReflected;
     const frosted::PaneSgInputs in = pane_sg_inputs(sp, frosted::SgVariant::kPaneWalk, frosted::kPaneLadder);
     return pane_sample_sg_split(sp, lobe, in, rand, wi, s, flip, out, std::clamp(split, 1, frosted::kPaneWalkSplit),
-                                count_rejected, branch, exact_leaving);
+                                count_rejected, branch, exact_leaving, both_faces);
   }
   // For the tests: the interface lobe at sp (per-point roughness and IOR).
   bool pane_sample_sg(const ShadingPoint &sp, const Vec3 &rand, LocalSample &out, frosted::SgVariant variant,

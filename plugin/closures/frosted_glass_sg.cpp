@@ -1407,6 +1407,10 @@ int pane_exact_leaving_level() {
   static const int level = measurement_knob("GLIMMER_FROSTED_PANE_EXACT_LEAVING", kPaneExactLeavingDefault, 0, 1);
   return level;
 }
+int pane_both_faces_level() {
+  static const int level = measurement_knob("GLIMMER_FROSTED_PANE_BOTH_FACES", kPaneBothFacesDefault, 0, 2);
+  return level;
+}
 
 namespace {
 // The exact exit for the host's lamps (PaneSgExitState) of the picked face's ends (t[k] > 0 on that face): only where
@@ -1414,25 +1418,46 @@ namespace {
 // diffuse or glossy bounce before: after one, e.g. the floor under the bench's pane, the SG's shape error is blurred
 // away, lit_R / shadow_R 0.0006 / 0.0005, while the exact exit's noise is not: +32 % / +56 % variance there). False:
 // no state (also where an end of the face has no finite c_k, E_k = 0: the mixture as before).
+// both_scale > 0 (session 33, pane_both_faces_level): the ends of both faces, c_k scaled by it (p_F; the control 1).
 bool pane_exit_state(const ShadingPoint &sp, const LocalSample &out, const PaneWalkEnd *walks, const PaneExitLobe *lobes,
-                     const float *t, int ends, bool through, double t_face, PaneSgExitState &x) {
+                     const float *t, int ends, bool through, double t_face, double both_scale, PaneSgExitState &x) {
   const GlimmerShadingContext &ctx = *sp.ctx;
   if (out.state_out == nullptr || sp.uncombined() || ctx.diffuse_bounce + ctx.glossy_bounce != 0) return false;
   int kept = 0;
   for (int k = 0; k < ends; ++k) {
-    if (!(t[k] > 0.0f) || lobes[k].through != through) continue;
-    const float c = float(t[k] / t_face) / lobes[k].energy;
+    if (!(t[k] > 0.0f) || (lobes[k].through != through && !(both_scale > 0.0))) continue;
+    const float c = both_scale > 0.0 ? float(t[k] / t_face * both_scale) / lobes[k].energy
+                                     : float(t[k] / t_face) / lobes[k].energy;
     if (!(c > 0.0f && std::isfinite(c) && kept < PaneSgExitState::capacity())) return false;
     x.d[kept] = walks[k].d;
     x.c[kept++] = c;
   }
   return kept > 0;
 }
+// Whether a and b have one colour (b = s a for some s >= 0, to float rounding): the other face's ends can then take
+// the picked face's weight's colour (the sample's weight is a Spectrum, the host's value q grey).
+bool same_colour(const Spectrum &a, const Spectrum &b) {
+  const float sa = a.x + a.y + a.z, sb = b.x + b.y + b.z, tol = 1e-5f * sa * sb;
+  return std::fabs(a.x * sb - b.x * sa) <= tol && std::fabs(a.y * sb - b.y * sa) <= tol &&
+         std::fabs(a.z * sb - b.z * sa) <= tol;
+}
+// pane_both_faces_level's scale of c_k for both faces' ends (0: the picked face's only): p_F at levels 1 and 2, 1 for
+// the control; 0 without the packed state or where an end's colour differs from the face's weight's.
+double pane_both_faces_scale(int level, double p_face, const PaneWalkEnd *walks, const float *t, int ends,
+                             const Spectrum &weight) {
+  if (level <= 0 || !PaneSgExitState::packed()) return 0.0;
+  for (int k = 0; k < ends; ++k)
+    if (t[k] > 0.0f && !same_colour(weight, walks[k].throughput)) return 0.0;
+  return level == kPaneBothFacesControl ? 1.0 : p_face;
+}
 }  // namespace
 
 bool sample_pane_sg_split(const ShadingPoint &sp, const PaneSgInputs &in, const Vec3 &rand, const PaneWalkEnd *walks,
-                          int n, bool flip, LocalSample &out, int ends, int face_pick, int exact_leaving) {
+                          int n, bool flip, LocalSample &out, int ends, int face_pick, int exact_leaving,
+                          int both_faces) {
   if (n < 1 || n > kPaneWalkSplit) return false;
+  if (both_faces < 0) both_faces = pane_both_faces_level();
+  if (both_faces == 2 && face_pick != 0) face_pick = 3;  // t_F / t, the weight over p_F (session 33)
   if (ends < 0) ends = n;
   if (ends < 1 || ends > 2 * kPaneWalkSplit) return false;
   PaneExitLobe lobes[2 * kPaneWalkSplit];
@@ -1483,7 +1508,8 @@ bool sample_pane_sg_split(const ShadingPoint &sp, const PaneSgInputs &in, const 
   const Spectrum weight = face_pick == 0 ? sum_T / float(n) : sum_face * float(1.0 / (double(n) * p_face));
 #if GLIMMER_ABI_MINOR >= 8
   PaneSgExitState x;
-  const bool state = pane_exit_state(sp, out, walks, lobes, t, ends, through, t_face, x);
+  const double both = pane_both_faces_scale(both_faces, p_face, walks, t, ends, weight);
+  const bool state = pane_exit_state(sp, out, walks, lobes, t, ends, through, t_face, both, x);
   if (exact_leaving < 0) exact_leaving = pane_exact_leaving_level();
   const bool exact = state && all_leave && exact_leaving > 0;  // the exit state's own directions
   if (!emit_pane_sample(sp, exit, seed, weight, flip, out, exact ? leaving : nullptr)) return false;

@@ -1028,6 +1028,88 @@ TEST(FrostedGlassSgPane, RoughPaneContinuedDirectionFollowsThePathsWalk) {
   EXPECT_GT(worst_control, 6.0) << "negative control passed";  // the SG's shape error is smallest at roughness 0.8
 }
 
+// Session 33 (frostedface33): the exit state with both faces' ends (frosted::pane_both_faces_level): the host's lamps
+// see W q(w) toward every direction on either side of the pane in every sample, q summing the ends on w's side with
+// c_k = (t_k / t_F) p_F / E_k. Per configuration (3 panes), 2 angles x kPaneProbeDirections (3 through the far face,
+// 2 back through the entry face) of E[W q(w_j)] for levels 1 (sqrt pick) and 2 (pick t_F / t) against method=path's
+// exit state (the brute force, exact_exit_estimate, independent numbers): every (angle, direction) within 4.5 se, the
+// sum over them within 4 (pooled); measured pooled z +0.51 / -0.10 / -0.52. Negative control (kPaneBothFacesControl:
+// c_k without p_F, the picked face's 1 / p_F kept for the other face's ends) must be > 6 se off (measured 72.7 / 76.3
+// / 73.7). Printed: each level's variance per sample over main's (level 0) toward the back and the through directions
+// (level 1: back 0.508 / 0.525 / 0.384, through 0.542 / 0.652 / 0.659).
+struct BothFacesSums {
+  static constexpr int kDirs = 5;
+  double sum[kDirs] = {}, sum2[kDirs] = {};
+};
+BothFacesSums both_faces_estimate(const FrostedGlassClosure &pane, int level, float theta_deg, uint64_t seed,
+                                  long samples) {
+  static const auto schema = FrostedGlassClosure::params();
+  BothFacesSums out;
+  Pcg32 rng(seed, 13);
+  for (long i = 0; i < samples; ++i) {
+    const PaneDraw draw(theta_deg, rng, schema);
+    GlimmerExitMixture buffer{};
+    GlimmerExitState state{};
+    LocalSample s;
+    s.mixture_out = &buffer;
+    s.state_out = &state;
+    if (!pane.pane_sample_sg_split(draw.sp, draw.rand, s, frosted::kPaneWalkSplit, false, -1, -1, level) ||
+        !(s.label & GLIMMER_LABEL_SINGULAR) || !s.exit_state)
+      continue;  // 0 toward every direction
+    const double w = average(s.f_cos / s.pdf);
+    for (int j = 0; j < BothFacesSums::kDirs; ++j) {
+      const double v = w * average(pane.eval_exit(draw.sp, state, kPaneProbeDirections[j]).f_cos);
+      out.sum[j] += v, out.sum2[j] += v * v;
+    }
+  }
+  return out;
+}
+
+TEST(FrostedGlassSgPane, RoughPaneBothFacesLampsSameExpectationAsThePath) {
+  const PaneConfig configs[] = {{0.5f, 1.5f}, {0.8f, 1.5f}, {0.6f, 1.7f, Vec3(0.7f), 0.05f}};
+  const float angles[] = {0.0f, 60.0f};
+  constexpr long kSamples = 32768;
+  const int levels[] = {0, 1, 2, frosted::kPaneBothFacesControl};
+  double worst_control = 0.0;
+  for (const PaneConfig &c : configs) {
+    auto sg = create_pane(c, "sg"), path = create_pane(c, "path");
+    double pooled[4] = {}, var[4] = {}, pooled_path = 0.0, var_path = 0.0, worst[4] = {};
+    double back_var[4] = {}, through_var[4] = {};  // per sample, summed over the angles' directions
+    for (float theta : angles) {
+      const ExitSums b = exact_exit_estimate(*path, false, theta, 404, kSamples);
+      for (int l = 0; l < 4; ++l) {
+        const BothFacesSums a = both_faces_estimate(*sg, levels[l], theta, 707, kSamples);
+        for (int j = 0; j < BothFacesSums::kDirs; ++j) {
+          const double ms = a.sum[j] / kSamples, mp = b.sum[j] / kSamples;
+          const double ss = std::max(0.0, a.sum2[j] / kSamples - ms * ms);
+          const double sp = std::max(0.0, b.sum2[j] / kSamples - mp * mp);
+          const double z = (ms - mp) / std::sqrt(std::max((ss + sp) / kSamples, 1e-300));
+          worst[l] = std::max(worst[l], std::fabs(z));
+          if (l == 1 || l == 2) {
+            EXPECT_LT(std::fabs(z), 4.5) << "level " << levels[l] << " roughness " << c.roughness << " theta "
+                                         << theta << " direction " << j << ": sg " << ms << ", path " << mp;
+          }
+          pooled[l] += ms, var[l] += ss / kSamples;
+          (kPaneProbeDirections[j].z > 0.0f ? back_var : through_var)[l] += ss;
+          if (l == 0) pooled_path += mp, var_path += sp / kSamples;
+        }
+      }
+    }
+    for (int l = 0; l < 4; ++l) {
+      const double z = (pooled[l] - pooled_path) / std::sqrt(var[l] + var_path);
+      std::printf("[frosted sg pane both faces] roughness %.2f ior %.2f%s level %d: pooled z %+.2f, worst |z| %.2f "
+                  "over 10; variance per sample / level 0's: back %.3f, through %.3f\n",
+                  double(c.roughness), double(c.ior), c.absorb.x < 1.0f ? " grey Beer" : "", levels[l], z, worst[l],
+                  back_var[l] / back_var[0], through_var[l] / through_var[0]);
+      if (l == 1 || l == 2) {
+        EXPECT_LT(std::fabs(z), 4.0) << "level " << levels[l] << " roughness " << c.roughness;
+      }
+      if (l == 3) worst_control = std::max(worst_control, std::fabs(z));
+    }
+  }
+  EXPECT_GT(worst_control, 6.0) << "negative control passed";
+}
+
 // ---- Stress --------------------------------------------------------------------------
 TEST(FrostedGlassSgPane, StressRawOutputsFiniteNonNegative) {
   Pcg32 rng(23);
