@@ -558,13 +558,13 @@ struct Renderer::Impl {
   // power-heuristic MIS against BSDF sampling, and the shadow ray's transmittance.
   // Returns the path's contribution (throughput included).
   Spectrum sample_direct_light(const ClosureSet &cs, const ShadingData &sd, const Spectrum &throughput, float total_sw,
-                               float lu, float lv) const {
+                               const LightSample &ls) const {
     const auto mixture = [&](const Vec3 &wi) {
       MixtureEval me = eval_mixture(cs, sd, wi);
       me.pdf /= total_sw;
       return me;
     };
-    return direct_light_at(sd.ctx.P, sd.Ng, mixture, throughput, lu, lv);
+    return light_contribution(sd.ctx.P, sd.Ng, ls, mixture, throughput);
   }
   // One light sample seen from P (surface normal Ng) through `bsdf(wi) -> MixtureEval` (f and the density
   // with which the path samples wi), MIS-weighted against that density, times the shadow ray's transmittance.
@@ -573,9 +573,19 @@ struct Renderer::Impl {
   Spectrum direct_light_at(const Vec3 &P, const Vec3 &Ng, const Bsdf &bsdf, const Spectrum &throughput, float lu,
                            float lv, bool without_world = false, bool without_lamps = false) const {
     LightSample ls;
-    if (!lights->sample(lu, lv, P, ls) || !(ls.pdf > 0.0f) || (without_world && ls.world) ||
-        (without_lamps && ls.lamp))
-      return Spectrum(0.0f);
+    if (!draw_light(P, lu, lv, ls, without_world, without_lamps)) return Spectrum(0.0f);
+    return light_contribution(P, Ng, ls, bsdf, throughput);
+  }
+  // direct_light_at's two halves. The light sample from P (false: none, or one that counts 0).
+  bool draw_light(const Vec3 &P, float lu, float lv, LightSample &ls, bool without_world = false,
+                  bool without_lamps = false) const {
+    return lights->sample(lu, lv, P, ls) && ls.pdf > 0.0f && !(without_world && ls.world) &&
+           !(without_lamps && ls.lamp);
+  }
+  // Its contribution: f and pdf toward it, the MIS weight and the shadow ray.
+  template <class Bsdf>
+  Spectrum light_contribution(const Vec3 &P, const Vec3 &Ng, const LightSample &ls, const Bsdf &bsdf,
+                              const Spectrum &throughput) const {
     const MixtureEval me = bsdf(ls.wi);
     if (is_zero(me.f)) return Spectrum(0.0f);
     const bool use_bsdf_emission = options.strategy != LightStrategy::LightOnly;
@@ -829,13 +839,42 @@ struct Renderer::Impl {
                  use_nee() ? lights->triangle_pdf(hit.mesh, hit.prim, ray.org, sd.ctx.P, sd.Ng, ray.D) : 0.0f);
   }
 
-  // Next-event estimation at the surface (Cycles' integrate_surface_direct_light); skipped when only
-  // singular closures are present.
+  // Next-event estimation at the surface (Cycles' integrate_surface_direct_light) in two stages around the BSDF
+  // sample (session 33): draw_surface_light takes the light sample and asks every closure that can (ABI 2.10
+  // prefetch) to start loading what its eval toward the light will read, so those loads (glint's direction table,
+  // a cache miss) overlap the BSDF sample's work; integrate_surface_direct_light then evaluates the mixture, casts
+  // the shadow ray and adds the contribution with the throughput and bounce of before the sample. Nothing the
+  // sample does reads or writes what NEE reads or adds to (pr.L; the light sample's numbers are the vertex's own),
+  // so the image is the one of NEE before the sample, bit for bit. Skipped when only singular closures are present.
+  struct SurfaceLight {
+    bool drawn = false;
+    LightSample ls;
+    Spectrum throughput{0.0f};  // the path's before the BSDF sample
+    int bounce = 0;
+  };
+  void draw_surface_light(const ClosureSet &cs, const ShadingData &sd, const float light_rand[2], const PathState &ps,
+                          const PathRadiance &pr, SurfaceLight &sl) const {
+    sl.drawn = use_nee() && has_smooth_closure(cs) && lights->count() > 0 &&
+               draw_light(sd.ctx.P, light_rand[0], light_rand[1], sl.ls);
+    if (!sl.drawn) return;
+    sl.throughput = pr.throughput;
+    sl.bounce = ps.bounce;
+    if (options.closure_prefetch) prefetch_mixture(cs, sd, sl.ls.wi);
+  }
   void integrate_surface_direct_light(const ClosureSet &cs, const ShadingData &sd, float total_sw,
-                                      const float light_rand[2], const PathState &ps, PathRadiance &pr) const {
-    if (!use_nee() || !has_smooth_closure(cs) || lights->count() == 0) return;
-    const Spectrum direct = sample_direct_light(cs, sd, pr.throughput, total_sw, light_rand[0], light_rand[1]);
-    if (!is_zero(direct)) add_contribution(pr, direct, ps.bounce);
+                                      const SurfaceLight &sl, PathRadiance &pr) const {
+    if (!sl.drawn) return;
+    const Spectrum direct = sample_direct_light(cs, sd, sl.throughput, total_sw, sl.ls);
+    if (!is_zero(direct)) add_contribution(pr, direct, sl.bounce);
+  }
+  // ABI 2.10: the closures eval_mixture will evaluate toward wo start their loads (a hint; no value changes).
+  void prefetch_mixture(const ClosureSet &cs, const ShadingData &sd, const Vec3 &wo) const {
+    for (int i = 0; i < cs.count; ++i) {
+      const ActiveClosure &c = cs.closures[i];
+      if (c.sample_weight <= 0.0f || c.leaf->singular || !c.instance || !c.instance->has_prefetch()) continue;
+      GlimmerShadingContext scratch;
+      c.instance->prefetch(context_for(sd, c, scratch), wo);
+    }
   }
 
   // The scatter integrate_surface_bsdf_bounce took, for integrate_exit_state.
@@ -1122,16 +1161,18 @@ struct Renderer::Impl {
       const float transparent_weight = std::fabs(average(cs.transparent));
       const float total_sw = cs.sum_sample_weight + transparent_weight;
       if (total_sw <= 0.0f) break;
-      integrate_surface_direct_light(cs, sd, total_sw, light_rand, ps, pr);
+      SurfaceLight light;  // NEE's light sample, drawn first: the closures prefetch toward it during the bounce
+      draw_surface_light(cs, sd, light_rand, ps, pr, light);
       GlimmerSample s = glimmer_blank_sample();
       GlimmerExitMixture exit_mixture;  // ABI 2.7: written by a closure that hands over a whole exit mixture
       s.exit_mixture = &exit_mixture;
       GlimmerExitState exit_state;  // ABI 2.8: written by a closure that hands over its last scatter
       s.exit_state = options.exit_state_nee && nee ? &exit_state : nullptr;
       ExitStateScatter xs;
-      if (!integrate_surface_bsdf_bounce(cs, sd, bsdf_rand, transparent_weight, total_sw, limits, ps, pr, ray, s,
-                                         xs))
-        break;
+      const bool goes_on =
+          integrate_surface_bsdf_bounce(cs, sd, bsdf_rand, transparent_weight, total_sw, limits, ps, pr, ray, s, xs);
+      integrate_surface_direct_light(cs, sd, total_sw, light, pr);  // NEE, added before the exits' light, as before
+      if (!goes_on) break;
       integrate_exit_lobe(cs, sd, xs, s, ray.D, sampler, ps, pr, exit_world);
       integrate_exit_state(cs, sd, xs, s, ray.D, sampler, ps, pr);
     }
