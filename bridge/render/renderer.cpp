@@ -62,6 +62,7 @@ struct Renderer::Impl {
   const host::PluginLibrary &plugin;
   RenderOptions options;
   FeatureSet &features;
+  bool prefetching = false;  // options.closure_prefetch and some closure instance has a prefetch (ABI 2.10)
   std::vector<std::string> &warnings;
 
   std::unique_ptr<Accel> accel;
@@ -223,6 +224,7 @@ struct Renderer::Impl {
     for (const auto &l : scene.lights)
       if (l.shader >= 0) used[l.shader] = true;
     for (bool u : used) (u ? features.used_shaders : features.unused_shaders)++;
+    for (const auto &instance : shaders->instances()) prefetching |= options.closure_prefetch && instance->has_prefetch();
     // Constant shaders' hit-closure descriptions (trace_ray_closure): their inputs read no point, so any
     // shading point gives the same closures.
     mesh_hit_closure.resize(mesh_shader.size());
@@ -681,27 +683,45 @@ struct Renderer::Impl {
     ctx.max_transmission_bounce = limit(limits.transmission);
   }
 
-  // Samples closure `chosen` and updates the throughput with the one-sample MIS
-  // estimate over the mixture (singular: the delta weight over its pick
-  // probability), the MIS state and last_singular. False ends the path.
-  bool scatter(const ClosureSet &cs, const ShadingData &sd, int chosen, const float r3[3], float total_sw,
-               Spectrum &throughput, PathState &ps, GlimmerSample &s, uint64_t &nan_count) const {
+  // A vertex's BSDF sample in two stages around next-event estimation's eval and shadow ray (session 33): the
+  // sample is drawn first and the mixture's other closures prefetch toward its direction (ABI 2.10), so that the
+  // one-sample MIS eval of scatter_weight, after NEE, finds their loads (glint's direction table) started.
+  struct BsdfDraw {
+    enum Kind { kEnd, kTransparent, kSample } kind = kEnd;
+    int chosen = -1;
+    uint32_t label = GLIMMER_LABEL_NONE;
+    Vec3 wo{0.0f};
+    Spectrum s_eval{0.0f};  // the sample's f cos with the bump shadowing
+  };
+  // Samples closure `chosen` into s and d (d.kind kEnd where the sample ends the path).
+  void scatter_draw(const ClosureSet &cs, const ShadingData &sd, int chosen, const float r3[3], GlimmerSample &s,
+                    BsdfDraw &d, uint64_t &nan_count) const {
     const ActiveClosure &c = cs.closures[chosen];
     GlimmerShadingContext scratch;
-    const uint32_t label = c.instance->sample(context_for(sd, c, scratch), r3, s);
-    if (label == GLIMMER_LABEL_NONE || !(s.pdf > 0.0f) || !std::isfinite(s.pdf)) return false;
-    const Vec3 wo = normalize(Vec3(s.wo));
-    const Spectrum s_eval = Spectrum(s.eval[0], s.eval[1], s.eval[2]) * bump_shadowing(sd, c, wo);
-    if (!is_finite(s_eval)) {
+    d.kind = BsdfDraw::kEnd;
+    d.chosen = chosen;
+    d.label = c.instance->sample(context_for(sd, c, scratch), r3, s);
+    if (d.label == GLIMMER_LABEL_NONE || !(s.pdf > 0.0f) || !std::isfinite(s.pdf)) return;
+    d.wo = normalize(Vec3(s.wo));
+    d.s_eval = Spectrum(s.eval[0], s.eval[1], s.eval[2]) * bump_shadowing(sd, c, d.wo);
+    if (!is_finite(d.s_eval)) {
       ++nan_count;
-      return false;
+      return;
     }
-    const bool singular = (label & GLIMMER_LABEL_SINGULAR) != 0;
+    d.kind = BsdfDraw::kSample;
+    if (prefetching && !(d.label & GLIMMER_LABEL_SINGULAR)) prefetch_mixture(cs, sd, d.wo, chosen);
+  }
+  // Updates the throughput with the one-sample MIS estimate over the mixture (singular: the delta weight over its
+  // pick probability), the MIS state and last_singular. False ends the path.
+  bool scatter_weight(const ClosureSet &cs, const ShadingData &sd, const BsdfDraw &d, float total_sw,
+                      Spectrum &throughput, PathState &ps, GlimmerSample &s, uint64_t &nan_count) const {
+    const ActiveClosure &c = cs.closures[d.chosen];
+    const bool singular = (d.label & GLIMMER_LABEL_SINGULAR) != 0;
     if (singular) {
-      throughput *= s_eval * c.weight * (total_sw / c.sample_weight);
+      throughput *= d.s_eval * c.weight * (total_sw / c.sample_weight);
     } else {
-      MixtureEval me = eval_mixture(cs, sd, wo, chosen);
-      me.f += s_eval * c.weight;
+      MixtureEval me = eval_mixture(cs, sd, d.wo, d.chosen);
+      me.f += d.s_eval * c.weight;
       me.pdf = (me.pdf + s.pdf * c.sample_weight) / total_sw;
       if (!(me.pdf > 0.0f)) return false;
       throughput *= me.f / me.pdf;
@@ -714,7 +734,7 @@ struct Renderer::Impl {
     }
     if (is_zero(throughput)) return false;
     ps.last_singular = singular;
-    s.label = label;
+    s.label = d.label;
     return true;
   }
 
@@ -859,7 +879,7 @@ struct Renderer::Impl {
     if (!sl.drawn) return;
     sl.throughput = pr.throughput;
     sl.bounce = ps.bounce;
-    if (options.closure_prefetch) prefetch_mixture(cs, sd, sl.ls.wi);
+    if (prefetching) prefetch_mixture(cs, sd, sl.ls.wi);
   }
   void integrate_surface_direct_light(const ClosureSet &cs, const ShadingData &sd, float total_sw,
                                       const SurfaceLight &sl, PathRadiance &pr) const {
@@ -867,11 +887,12 @@ struct Renderer::Impl {
     const Spectrum direct = sample_direct_light(cs, sd, sl.throughput, total_sw, sl.ls);
     if (!is_zero(direct)) add_contribution(pr, direct, sl.bounce);
   }
-  // ABI 2.10: the closures eval_mixture will evaluate toward wo start their loads (a hint; no value changes).
-  void prefetch_mixture(const ClosureSet &cs, const ShadingData &sd, const Vec3 &wo) const {
+  // ABI 2.10: the closures eval_mixture(cs, sd, wo, skip) will evaluate start their loads (a hint; no value changes).
+  void prefetch_mixture(const ClosureSet &cs, const ShadingData &sd, const Vec3 &wo, int skip = -1) const {
     for (int i = 0; i < cs.count; ++i) {
       const ActiveClosure &c = cs.closures[i];
-      if (c.sample_weight <= 0.0f || c.leaf->singular || !c.instance || !c.instance->has_prefetch()) continue;
+      if (i == skip || c.sample_weight <= 0.0f || c.leaf->singular || !c.instance || !c.instance->has_prefetch())
+        continue;
       GlimmerShadingContext scratch;
       c.instance->prefetch(context_for(sd, c, scratch), wo);
     }
@@ -1083,31 +1104,37 @@ struct Renderer::Impl {
   }
 
   // Picks a closure (or the transparent pass-through) with x of the bounce's BSDF set, rescaled and reused for
-  // the direction, and scatters: the next ray, throughput and path state (Cycles'
-  // integrate_surface_bsdf_bssrdf_bounce). False ends the path.
-  // xs: the closure picked, the path's throughput times its weight over its pick probability, and the bounce
-  // (for an exit state, integrate_exit_state).
-  bool integrate_surface_bsdf_bounce(const ClosureSet &cs, const ShadingData &sd, const float bsdf_rand[4],
-                                     float transparent_weight, float total_sw, const BounceLimits &limits,
-                                     PathState &ps, PathRadiance &pr, PathRay &ray, GlimmerSample &s,
-                                     ExitStateScatter &xs) const {
+  // the direction, and samples it (scatter_draw). xs: the closure picked, the path's throughput times its weight
+  // over its pick probability, and the bounce (for an exit state, integrate_exit_state).
+  void draw_bsdf_sample(const ClosureSet &cs, const ShadingData &sd, const float bsdf_rand[4],
+                        float transparent_weight, float total_sw, const PathState &ps, const PathRadiance &pr,
+                        GlimmerSample &s, ExitStateScatter &xs, BsdfDraw &d) const {
     float pick = bsdf_rand[0] * total_sw;
     const int chosen = pick_closure(cs, pick, transparent_weight);
     xs.chosen = -1;
-    if (chosen == kTransparent) {
+    d.kind = chosen == kTransparent ? BsdfDraw::kTransparent : BsdfDraw::kEnd;
+    if (chosen < 0) return;
+    const float r3[3] = {std::clamp(pick / cs.closures[chosen].sample_weight, 0.0f, 0x1.fffffep-1f), bsdf_rand[1],
+                         bsdf_rand[2]};
+    xs.chosen = chosen;
+    xs.scale = pr.throughput * cs.closures[chosen].weight * (total_sw / cs.closures[chosen].sample_weight);
+    xs.bounce = ps.bounce;
+    scatter_draw(cs, sd, chosen, r3, s, d, *pr.nan_count);
+  }
+  // The scatter of that sample: the next ray, throughput and path state (Cycles'
+  // integrate_surface_bsdf_bssrdf_bounce). False ends the path.
+  bool integrate_surface_bsdf_bounce(const ClosureSet &cs, const ShadingData &sd, const BsdfDraw &d,
+                                     float transparent_weight, float total_sw, const BounceLimits &limits,
+                                     PathState &ps, PathRadiance &pr, PathRay &ray, GlimmerSample &s) const {
+    if (d.kind == BsdfDraw::kTransparent) {
       // Transparent: continue straight on; does not count as a bounce.
       pr.throughput *= cs.transparent / (transparent_weight / total_sw);
       ps.advance_transparent(limits);
       continue_ray(ray, sd, ray.D);
       return true;
     }
-    if (chosen < 0) return false;
-    const float r3[3] = {std::clamp(pick / cs.closures[chosen].sample_weight, 0.0f, 0x1.fffffep-1f), bsdf_rand[1],
-                         bsdf_rand[2]};
-    xs.chosen = chosen;
-    xs.scale = pr.throughput * cs.closures[chosen].weight * (total_sw / cs.closures[chosen].sample_weight);
-    xs.bounce = ps.bounce;
-    if (!scatter(cs, sd, chosen, r3, total_sw, pr.throughput, ps, s, *pr.nan_count)) return false;
+    if (d.kind == BsdfDraw::kEnd || !scatter_weight(cs, sd, d, total_sw, pr.throughput, ps, s, *pr.nan_count))
+      return false;
     const Vec3 wo = normalize(Vec3(s.wo));
     ps.advance(s.label, limits);
     next_differentials(ray.rd, ray.D, wo, sd, s, ps.last_singular && !moved(s), ray.pixel_spread, ps);
@@ -1169,10 +1196,10 @@ struct Renderer::Impl {
       GlimmerExitState exit_state;  // ABI 2.8: written by a closure that hands over its last scatter
       s.exit_state = options.exit_state_nee && nee ? &exit_state : nullptr;
       ExitStateScatter xs;
-      const bool goes_on =
-          integrate_surface_bsdf_bounce(cs, sd, bsdf_rand, transparent_weight, total_sw, limits, ps, pr, ray, s, xs);
+      BsdfDraw bsdf;  // the BSDF sample, drawn before NEE's eval: the other closures prefetch toward it meanwhile
+      draw_bsdf_sample(cs, sd, bsdf_rand, transparent_weight, total_sw, ps, pr, s, xs, bsdf);
       integrate_surface_direct_light(cs, sd, total_sw, light, pr);  // NEE, added before the exits' light, as before
-      if (!goes_on) break;
+      if (!integrate_surface_bsdf_bounce(cs, sd, bsdf, transparent_weight, total_sw, limits, ps, pr, ray, s)) break;
       integrate_exit_lobe(cs, sd, xs, s, ray.D, sampler, ps, pr, exit_world);
       integrate_exit_state(cs, sd, xs, s, ray.D, sampler, ps, pr);
     }
