@@ -10,7 +10,8 @@
 #
 # usage: benchmarks/glint_gi_time_profile.sh [build dir] [plugin .so]
 # Env: GLIMMER_CACHE_DIR (tables), GI_OUT (output dir, default a temp dir, kept), GI_ONLY=glint|twin,
-#   GI_SAMPLES / GI_WIDTH / GI_HEIGHT (16 / 320 / 200), GI_TOP (rows, 30), GI_PERIOD_US (sampling period, 200).
+#   GI_SAMPLES / GI_WIDTH / GI_HEIGHT (16 / 320 / 200), GI_TOP (rows, 30), GI_PERIOD_US (sampling period, 200),
+#   GI_ARGS (more `glimmer render` options for both scenes, e.g. --no-aovs; A/B of one option in one build).
 # Needs perf (Debian: linux-perf). Per-instruction detail afterwards:
 #   perf annotate -i <out>/glint.perf --stdio -s '<symbol>'
 set -euo pipefail
@@ -28,7 +29,7 @@ run() {  # name scene
   local name=$1 scene=$2
   (cd "$build" && perf record -q -e cpu-clock -c $((period_us * 1000)) -o "$out/$name.perf" \
      ./glimmer --plugin "$plugin" render "$scene" -o "$out/$name.exr" --samples "${GI_SAMPLES:-16}" --threads 1 \
-     --width "${GI_WIDTH:-320}" --height "${GI_HEIGHT:-200}" --quiet --stats > "$out/$name.log" 2>&1)
+     --width "${GI_WIDTH:-320}" --height "${GI_HEIGHT:-200}" --quiet --stats ${GI_ARGS:-} > "$out/$name.log" 2>&1)
   perf script -i "$out/$name.perf" -F time,ip,sym,dso 2> /dev/null > "$out/$name.samples"
   echo "$name: $(grep -o 'render=[0-9.]*s' "$out/$name.log")"
 }
