@@ -54,7 +54,8 @@ struct ValuedExitLobe {
   const void *context = nullptr;
   // The value first: where it is not > 0 the point does not count (lamp_through_lobe reads `draw` only after a p > 0),
   // so the proposal's density (an exp per lobe) is made only where it does (session 29, frostedcost29: the pane's
-  // exits leave by one face, and its lamp points on the other side, most of the bench's, all have value 0).
+  // exits then left by one face, and its lamp points on the other side, most of the bench's, had value 0; since
+  // session 33's frostedface33 the split's state holds both faces' ends by default, so both sides have value).
   double pdf_and_draw_density(const Vec3 &w, double &draw) const {
     const double v = value(context, w);
     draw = 0.0;

@@ -1417,10 +1417,11 @@ namespace {
 // the host combines the lamps with this sample (as method=path's exit state) and where the pane is seen directly (no
 // diffuse or glossy bounce before: after one, e.g. the floor under the bench's pane, the SG's shape error is blurred
 // away, lit_R / shadow_R 0.0006 / 0.0005, while the exact exit's noise is not: +32 % / +56 % variance there). False:
-// no state (also where an end of the face has no finite c_k, E_k = 0: the mixture as before).
+// no state (also where an end of either face in the state has no finite c_k, E_k = 0: the mixture as before).
 // both_scale > 0 (session 33, pane_both_faces_level): the ends of both faces, c_k scaled by it (p_F; the control 1).
-bool pane_exit_state(const ShadingPoint &sp, const LocalSample &out, const PaneWalkEnd *walks, const PaneExitLobe *lobes,
-                     const float *t, int ends, bool through, double t_face, double both_scale, PaneSgExitState &x) {
+bool pane_exit_state(const ShadingPoint &sp, const LocalSample &out, const PaneWalkEnd *walks,
+                     const PaneExitLobe *lobes, const float *t, int ends, bool through, double t_face,
+                     double both_scale, PaneSgExitState &x) {
   const GlimmerShadingContext &ctx = *sp.ctx;
   if (out.state_out == nullptr || sp.uncombined() || ctx.diffuse_bounce + ctx.glossy_bounce != 0) return false;
   int kept = 0;
@@ -1509,7 +1510,10 @@ bool sample_pane_sg_split(const ShadingPoint &sp, const PaneSgInputs &in, const 
 #if GLIMMER_ABI_MINOR >= 8
   PaneSgExitState x;
   const double both = pane_both_faces_scale(both_faces, p_face, walks, t, ends, weight);
-  const bool state = pane_exit_state(sp, out, walks, lobes, t, ends, through, t_face, both, x);
+  // An end of the other face without a finite c_k (E_k = 0) leaves the picked face's own exact state (bd98090's),
+  // not the SG mixture: that end's validity does not depend on the pick, so each estimator stays unbiased alone.
+  const bool state = pane_exit_state(sp, out, walks, lobes, t, ends, through, t_face, both, x) ||
+                     (both > 0.0 && pane_exit_state(sp, out, walks, lobes, t, ends, through, t_face, 0.0, x));
   if (exact_leaving < 0) exact_leaving = pane_exact_leaving_level();
   const bool exact = state && all_leave && exact_leaving > 0;  // the exit state's own directions
   if (!emit_pane_sample(sp, exit, seed, weight, flip, out, exact ? leaving : nullptr)) return false;

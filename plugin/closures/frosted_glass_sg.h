@@ -572,7 +572,9 @@ struct PaneWalkEnd {
 // (frostedpane24)"). The leaving table's SG at d_k is the exit's direction distribution fitted by its mean and
 // variance; on the caustic bench the lamp seen through the pane's exit (glass_R) was 7-10 % too dark in the far rows
 // and 5 % too bright in the near rows by it. So the split sample also hands the host (ABI 2.8's exit state, on a
-// moved exit-lobe sample) the walks of the face F it picked: the host's lamps through the exit lobe then take the
+// moved exit-lobe sample) the walks of the face F it picked (since session 33 by default the ends of both faces,
+// each c_k scaled by the picked face's probability p_F: pane_both_faces_level): the host's lamps through the exit
+// lobe then take the
 // value q(w) = sum_{k in F} c_k f_k(w) instead of the mixture's density, f_k the exit interface's f cos from d_k (the
 // exact BTDF the walk sampled its exit from) and c_k = (t_k / t_F) / E_k, E_k the leaving table's energy at d_k
 // (the interface's directional transmittance there, Int f_k): the mixture's lobe k (weight t_k / t_F, an SG

@@ -167,9 +167,12 @@ inline float visible_D(Distribution dist, const Vec3 &wi, const Vec3 &wh, float 
 
 // std::fma(a, b, c) for floats, the same bits without libm's fmaf call where the CPU has FMA3 (session 33). The
 // build has no -mfma: std::fma is a PLT call, and its caller keeps every live float on the stack across it (the GGX
-// sampler below: 0.6 calls per glint sample in the GI scene). Here one VFMADD213SS behind a flag read once when the
-// library loads (__builtin_cpu_supports also checks that the OS saves the AVX state); fmaf where the CPU lacks
-// FMA3. Both round a b + c once (IEEE 754 fusedMultiplyAdd); MicrofacetFma.* compare the two bit for bit.
+// sampler below: 0.6 calls per glint sample in the GI scene). Here one VFMADD213SS behind a flag set once when the
+// library loads (__builtin_cpu_supports also checks that the OS saves the AVX state) and tested at every call; fmaf
+// where the CPU lacks FMA3. Both round a b + c once (IEEE 754 fusedMultiplyAdd); MicrofacetFma.* compare the two bit
+// for bit. The asm is volatile so that no optimisation may move it ahead of the flag's test (a CPU without FMA3 would
+// fault). The flag is an inline variable: a library that includes this header needs hidden visibility (the plugin's)
+// or GCC makes it a unique global, which keeps dlclose from unloading the library.
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__)) && !defined(__FMA__)
 #define GLIMMER_FMA_DISPATCH 1
 namespace detail {
@@ -185,7 +188,7 @@ inline const bool kCpuHasFma = cpu_has_fma();
 inline float fused_multiply_add(float a, float b, float c) {
 #if GLIMMER_FMA_DISPATCH
   if (detail::kCpuHasFma) {
-    asm("vfmadd213ss %2, %1, %0" : "+x"(a) : "x"(b), "x"(c));  // a = b a + c, rounded once
+    asm volatile("vfmadd213ss {%2, %1, %0|%0, %1, %2}" : "+x"(a) : "x"(b), "x"(c));  // a = b a + c, rounded once
     return a;
   }
 #endif
