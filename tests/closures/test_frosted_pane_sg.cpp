@@ -657,6 +657,19 @@ struct PaneDraw {
   }
 };
 
+// A LocalSample wired to its own exit-mixture and exit-state buffers (ABI 2.7 / 2.8), as the host hands them.
+struct WiredSample {
+  GlimmerExitMixture buffer{};
+  GlimmerExitState state{};
+  LocalSample s;
+  WiredSample() {
+    s.mixture_out = &buffer;
+    s.state_out = &state;
+  }
+  WiredSample(const WiredSample &) = delete;
+  WiredSample &operator=(const WiredSample &) = delete;
+};
+
 // The exit lobe a pane sample hands the host (its ABI 2.7 mixture, else its single SG), normalised.
 ExitLobeMixture sampled_exit_mixture(const LocalSample &s, const GlimmerExitMixture &buffer) {
   const Vec3 n = normalize(s.origin_Ng);
@@ -877,22 +890,19 @@ ExitSums exact_exit_estimate(const FrostedGlassClosure &pane, bool sg, float the
     const PaneDraw draw(theta_deg, rng, schema);
     const ShadingPoint &sp = draw.sp;
     const Vec3 &rand = draw.rand;
-    GlimmerExitMixture buffer{};
-    GlimmerExitState state{};
-    LocalSample s;
-    s.mixture_out = &buffer;
-    s.state_out = &state;
+    WiredSample wired;
+    LocalSample &s = wired.s;
     ++out.samples;
     if (!pane.sample(sp, rand, s) || !(s.label & GLIMMER_LABEL_SINGULAR)) continue;  // 0 toward every direction
     ++out.exits;
     out.states += s.exit_state;
     ExitLobeMixture m;
-    if (sg && s.exit_lobe) m = sampled_exit_mixture(s, buffer);
+    if (sg && s.exit_lobe) m = sampled_exit_mixture(s, wired.buffer);
     const double w = average(s.f_cos / s.pdf);
     for (int j = 0; j < ExitSums::kDirs; ++j) {
       double v = 0.0, c = 0.0;
       if (s.exit_state) {
-        const double e = average(pane.eval_exit(sp, state, dirs[j]).f_cos);
+        const double e = average(pane.eval_exit(sp, wired.state, dirs[j]).f_cos);
         v = sg ? w * e : e;  // sg: the value over the weight; path: the walk's f cos estimate itself
       }
       if (sg && m.count > 0) c = w * m.pdf(dirs[j]);
@@ -966,11 +976,8 @@ ConeSums continued_cones(const FrostedGlassClosure &pane, bool sg, int level, fl
   Pcg32 rng(seed, 11);
   for (long i = 0; i < samples; ++i) {
     const PaneDraw draw(theta_deg, rng, schema);
-    GlimmerExitMixture buffer{};
-    GlimmerExitState state{};
-    LocalSample s;
-    s.mixture_out = &buffer;
-    s.state_out = &state;
+    WiredSample wired;
+    LocalSample &s = wired.s;
     const bool ok = sg ? pane.pane_sample_sg_split(draw.sp, draw.rand, s, frosted::kPaneWalkSplit, false, -1, level)
                        : pane.sample(draw.sp, draw.rand, s);
     if (!ok || !(s.pdf > 0.0f)) continue;
@@ -1048,17 +1055,14 @@ BothFacesSums both_faces_estimate(const FrostedGlassClosure &pane, int level, fl
   Pcg32 rng(seed, 13);
   for (long i = 0; i < samples; ++i) {
     const PaneDraw draw(theta_deg, rng, schema);
-    GlimmerExitMixture buffer{};
-    GlimmerExitState state{};
-    LocalSample s;
-    s.mixture_out = &buffer;
-    s.state_out = &state;
+    WiredSample wired;
+    LocalSample &s = wired.s;
     if (!pane.pane_sample_sg_split(draw.sp, draw.rand, s, frosted::kPaneWalkSplit, false, -1, -1, level) ||
         !(s.label & GLIMMER_LABEL_SINGULAR) || !s.exit_state)
       continue;  // 0 toward every direction
     const double w = average(s.f_cos / s.pdf);
     for (int j = 0; j < BothFacesSums::kDirs; ++j) {
-      const double v = w * average(pane.eval_exit(draw.sp, state, kPaneProbeDirections[j]).f_cos);
+      const double v = w * average(pane.eval_exit(draw.sp, wired.state, kPaneProbeDirections[j]).f_cos);
       out.sum[j] += v, out.sum2[j] += v * v;
     }
   }
