@@ -1418,17 +1418,20 @@ namespace {
 // diffuse or glossy bounce before: after one, e.g. the floor under the bench's pane, the SG's shape error is blurred
 // away, lit_R / shadow_R 0.0006 / 0.0005, while the exact exit's noise is not: +32 % / +56 % variance there). False:
 // no state (also where an end of either face in the state has no finite c_k, E_k = 0: the mixture as before).
-// both_scale > 0 (session 33, pane_both_faces_level): the ends of both faces, c_k scaled by it (p_F; the control 1).
-bool pane_exit_state(const ShadingPoint &sp, const LocalSample &out, const PaneWalkEnd *walks,
-                     const PaneExitLobe *lobes, const float *t, int ends, bool through, double t_face,
-                     double both_scale, PaneSgExitState &x) {
+// Called only where pane_exit_state_wanted. both_scale > 0 (session 33, pane_both_faces_level): the ends of both
+// faces, c_k scaled by it (p_F; the control 1).
+bool pane_exit_state_wanted(const ShadingPoint &sp, const LocalSample &out) {
   const GlimmerShadingContext &ctx = *sp.ctx;
-  if (out.state_out == nullptr || sp.uncombined() || ctx.diffuse_bounce + ctx.glossy_bounce != 0) return false;
+  return out.state_out != nullptr && !sp.uncombined() && ctx.diffuse_bounce + ctx.glossy_bounce == 0;
+}
+bool pane_exit_state(const PaneWalkEnd *walks, const PaneExitLobe *lobes, const float *t, int ends, bool through,
+                     double t_face, double both_scale, PaneSgExitState &x) {
+  const bool both = both_scale > 0.0;
+  const double scale = both ? both_scale : 1.0;  // x 1.0: the one-face c_k bit for bit
   int kept = 0;
   for (int k = 0; k < ends; ++k) {
-    if (!(t[k] > 0.0f) || (lobes[k].through != through && !(both_scale > 0.0))) continue;
-    const float c = both_scale > 0.0 ? float(t[k] / t_face * both_scale) / lobes[k].energy
-                                     : float(t[k] / t_face) / lobes[k].energy;
+    if (!(t[k] > 0.0f) || (lobes[k].through != through && !both)) continue;
+    const float c = float(t[k] / t_face * scale) / lobes[k].energy;
     if (!(c > 0.0f && std::isfinite(c) && kept < PaneSgExitState::capacity())) return false;
     x.d[kept] = walks[k].d;
     x.c[kept++] = c;
@@ -1509,11 +1512,13 @@ bool sample_pane_sg_split(const ShadingPoint &sp, const PaneSgInputs &in, const 
   const Spectrum weight = face_pick == 0 ? sum_T / float(n) : sum_face * float(1.0 / (double(n) * p_face));
 #if GLIMMER_ABI_MINOR >= 8
   PaneSgExitState x;
-  const double both = pane_both_faces_scale(both_faces, p_face, walks, t, ends, weight);
+  // The ends' colour test (pane_both_faces_scale) only where a state may be written.
+  const bool wanted = pane_exit_state_wanted(sp, out);
+  const double both = wanted ? pane_both_faces_scale(both_faces, p_face, walks, t, ends, weight) : 0.0;
   // An end of the other face without a finite c_k (E_k = 0) leaves the picked face's own exact state (bd98090's),
   // not the SG mixture: that end's validity does not depend on the pick, so each estimator stays unbiased alone.
-  const bool state = pane_exit_state(sp, out, walks, lobes, t, ends, through, t_face, both, x) ||
-                     (both > 0.0 && pane_exit_state(sp, out, walks, lobes, t, ends, through, t_face, 0.0, x));
+  const bool state = wanted && (pane_exit_state(walks, lobes, t, ends, through, t_face, both, x) ||
+                                (both > 0.0 && pane_exit_state(walks, lobes, t, ends, through, t_face, 0.0, x)));
   if (exact_leaving < 0) exact_leaving = pane_exact_leaving_level();
   const bool exact = state && all_leave && exact_leaving > 0;  // the exit state's own directions
   if (!emit_pane_sample(sp, exit, seed, weight, flip, out, exact ? leaving : nullptr)) return false;

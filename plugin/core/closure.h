@@ -186,8 +186,9 @@ consteval std::size_t aggregate_field_count() {
 
 // LocalSample{}'s values, written field by field into a LocalSample that was not initialised (the adapter's sample
 // wrapper where the closure asks for it, WritesSampleDefaults; session 33): GCC clears a LocalSample{} (120 bytes,
-// nearly all zeros) by a `rep stos`, whose start-up costs tens of cycles on every sample; these are a dozen stores. Every field is written, so a closure that leaves one
-// unwritten hands the wrapper LocalSample{}'s value, as before. A new field must be added here (the static_assert).
+// nearly all zeros) by a `rep stos`, whose start-up costs tens of cycles on every sample; these are a dozen stores.
+// Every field is written, so a closure that leaves one unwritten hands the wrapper LocalSample{}'s value, as before.
+// A new field must be added here (the static_assert).
 [[gnu::always_inline]] inline void write_local_sample_defaults(LocalSample &s) {
   static_assert(std::is_aggregate_v<LocalSample> && std::is_trivially_destructible_v<LocalSample>,
                 "the wrapper's storage holds a LocalSample without a constructor call (an implicit-lifetime type)");
