@@ -20,7 +20,7 @@ by --names; anything else 'edges'), as `glimmer bench error-vs-time --regions <m
       python3 benchmarks/frosted_variance_per_region.py pairs 1024 base.exr walk=salt4.exr front=salt8.exr --mask M
             --split-x also splits the pairs' regions (session 32); --share prints each region's part of the frame's
             figure (its values' sum over all values' sum: the pixel-weighted budget). Bits of the patch (refreshed in
-            session 32 for main 9df9d18): 1 the exit direction (the solid's leftover number not used), 2 the solid's
+            session 34 for main f95e614): 1 the exit direction (the solid's leftover number not used), 2 the solid's
             walk inside (its first roulette number re-drawn too), 4 the pane's walks, 8 the closure's numbers, 16 the
             host's light sample / lamp integral at the exit, 32 path's exit trials, 64 z alone, 128 x, y alone, 256
             the split's face pick, 512 the split's extra front samples and walks, 1024 the floor view's origin jitter
