@@ -1408,7 +1408,12 @@ int pane_exact_leaving_level() {
   return level;
 }
 int pane_both_faces_level() {
-  static const int level = measurement_knob("GLIMMER_FROSTED_PANE_BOTH_FACES", kPaneBothFacesDefault, 0, 2);
+  // 0..2, or kPaneBothFacesControl (the render test's negative control, tests/bridge/test_frosted_pane_sg_render.cpp;
+  // session 34); anything else the default.
+  static const int level = [] {
+    const int l = measurement_knob("GLIMMER_FROSTED_PANE_BOTH_FACES", kPaneBothFacesDefault, 0, kPaneBothFacesControl);
+    return l <= 2 || l == kPaneBothFacesControl ? l : kPaneBothFacesDefault;
+  }();
   return level;
 }
 

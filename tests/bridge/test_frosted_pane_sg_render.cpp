@@ -446,5 +446,107 @@ TEST(FrostedSgPaneRender, RoughPaneExactExitMatchesPathBehindASmallLight) {
   }
 }
 
+
+// Session 34 (frostedbudget34): a small lamp on the camera's side of a rough pane (roughness 0.5, IOR 1.5: the split
+// with both faces' ends in the exit state, frosted::pane_both_faces_level). Its light reaches the camera by the front
+// face's reflection and, through the pane, only by the far face's internal reflection (out through the front face):
+// the ends the state carries for the face the pick did not take. 16 x 16 pixels (the pane fills them), dark world; sg
+// (MIS, default level 1) against method=path (MIS, more samples, independent numbers): per image quarter and channel
+// the mean per-pixel difference within 4 standard errors (difference_z: both noises) and the 12 pooled within 4.
+// Negative control: the same sg render with GLIMMER_FROSTED_PANE_BOTH_FACES=9 (kPaneBothFacesControl: c_k without the
+// face's probability, the lamps through both faces counted over p_F) in a copy of the DSO loaded with that knob (the
+// knob is read once per DSO), which must be off by a pooled |z| > 8.
+std::string camera_side_lamp_scene(const std::string &name, const char *method) {
+  const std::string xml =
+      "<cycles>\n<camera width=\"16\" height=\"16\" fov=\"0.35\" />\n"
+      "<transform translate=\"0 -6 1\" rotate=\"90 1 0 0\" scale=\"1 1 -1\"><camera /></transform>\n"
+      "<integrator max_bounce=\"64\" max_glossy_bounce=\"64\" max_transmission_bounce=\"64\" "
+      "sample_clamp_direct=\"0\" sample_clamp_indirect=\"0\" />\n"
+      "<background><background name=\"bg\" color=\"0.02 0.02 0.02\" strength=\"1\" /><connect from=\"bg "
+      "background\" to=\"output surface\" /></background>\n"
+      "<shader name=\"glass\">" + pane(0.5f, method) + "<connect from=\"g bsdf\" to=\"output surface\" /></shader>\n"
+      "<shader name=\"lamp\"><emission name=\"e\" color=\"1 0.8 0.6\" strength=\"4\" />"
+      "<connect from=\"e emission\" to=\"output surface\" /></shader>\n"
+      "<state shader=\"glass\"><mesh P=\"-1.2 0 -0.2  1.2 0 -0.2  1.2 0 2.2  -1.2 0 2.2\" nverts=\"4\" "
+      "verts=\"0 1 2 3\" /></state>\n"
+      // above the view, 1.6 in front of the pane, facing it and down
+      "<state shader=\"lamp\"><light light_type=\"area\" co=\"0.2 -1.6 2.7\" dir=\"0 0.6 -0.8\" axisu=\"1 0 0\" "
+      "axisv=\"0 0.8 0.6\" sizeu=\"0.4\" sizev=\"0.4\" strength=\"40 40 40\" /></state>\n"
+      "</cycles>\n";
+  return write_file(name + ".xml", xml);
+}
+
+// Per quarter and channel z of the mean per-pixel difference a - ref (the worst |z| of 12), and the 4 quarters'
+// differences of the channels' average pooled (the quarters' pixels are independent; the channels are not).
+struct QuarterZ {
+  double worst = 0.0, pooled = 0.0;
+};
+QuarterZ quarter_z(const render::RenderResult &a, const render::RenderResult &ref) {
+  QuarterZ out;
+  const int hw = ref.width / 2, hh = ref.height / 2;
+  double sum = 0.0, var = 0.0;
+  for (int q = 0; q < 4; ++q) {
+    const int x0 = (q % 2) * hw, y0 = (q / 2) * hh;
+    for (int c = 0; c < 3; ++c)
+      out.worst = std::max(out.worst, std::fabs(difference_z(a, ref, c, x0, y0, x0 + hw, y0 + hh)));
+    std::vector<double> d;
+    for (int y = y0; y < y0 + hh; ++y)
+      for (int x = x0; x < x0 + hw; ++x) {
+        const size_t i = 4 * (static_cast<size_t>(y) * a.width + x);
+        d.push_back((double(a.combined[i]) + a.combined[i + 1] + a.combined[i + 2] - ref.combined[i] -
+                     ref.combined[i + 1] - ref.combined[i + 2]) / 3.0);
+      }
+    const MeanAndError e = mean_and_standard_error(d);
+    sum += e.mean;
+    var += e.standard_error * e.standard_error;
+  }
+  out.pooled = var > 0.0 ? sum / std::sqrt(var) : 0.0;
+  return out;
+}
+
+// A render of `scene` with the DSO under test loaded afresh from a copy while GLIMMER_FROSTED_PANE_BOTH_FACES is
+// `level` (the DSO reads the knob once, at its first pane sample).
+render::RenderResult render_with_both_faces_level(const std::string &scene_path, const render::RenderOptions &opt,
+                                                  const char *level) {
+  const auto copy = temp_dir() / (std::string("glimmer_closures_both_faces_") + level + ".so");
+  std::filesystem::copy_file(GLIMMER_TEST_PLUGIN_PATH, copy, std::filesystem::copy_options::overwrite_existing);
+  const char *before = std::getenv("GLIMMER_FROSTED_PANE_BOTH_FACES");
+  const std::string saved = before ? before : "";
+  ::setenv("GLIMMER_FROSTED_PANE_BOTH_FACES", level, 1);
+  const auto library = host::PluginLibrary::load(copy.string());
+  const scene::Scene scene = scene::load_scene(scene_path);
+  render::Renderer renderer(scene, *library, opt);
+  render::RenderResult r = renderer.render();
+  if (before) {
+    ::setenv("GLIMMER_FROSTED_PANE_BOTH_FACES", saved.c_str(), 1);
+  } else {
+    ::unsetenv("GLIMMER_FROSTED_PANE_BOTH_FACES");
+  }
+  return r;
+}
+
+TEST(FrostedSgPaneRender, RoughPaneLampOnTheCameraSideMatchesPath) {
+  const std::string sg_scene = camera_side_lamp_scene("frosted_pane_camera_lamp_sg", "sg");
+  render::RenderOptions opt;
+  opt.samples = 4096;
+  opt.seed = 1;
+  const auto ref = render_scene(camera_side_lamp_scene("frosted_pane_camera_lamp_path", "path"), opt);
+  opt.samples = 1024;
+  opt.seed = 2;
+  const auto sg = render_scene(sg_scene, opt);
+  const auto control = render_with_both_faces_level(sg_scene, opt, "9");
+  EXPECT_EQ(sg.nan_samples + control.nan_samples, 0u);
+  EXPECT_NE(sg.combined, control.combined);  // the control's knob was read
+  const QuarterZ z = quarter_z(sg, ref), z_control = quarter_z(control, ref);
+  std::printf("[frosted sg pane camera-side lamp] roughness 0.5, 16x16: path 4096 spp mean %.5f; sg 1024 spp mean "
+              "%.5f, worst |z| %.2f over 12 (quarters x channels), pooled z %+.2f; control (c_k without p_F) mean "
+              "%.5f, worst |z| %.2f, pooled z %+.2f\n",
+              mean_channel(ref, 1), mean_channel(sg, 1), z.worst, z.pooled, mean_channel(control, 1),
+              z_control.worst, z_control.pooled);
+  EXPECT_LT(z.worst, 4.0);
+  EXPECT_LT(std::fabs(z.pooled), 4.0);
+  EXPECT_GT(std::fabs(z_control.pooled), 8.0) << "negative control passed";
+}
+
 }  // namespace
 }  // namespace glimmer::test
