@@ -1408,11 +1408,16 @@ int pane_exact_leaving_level() {
   return level;
 }
 int pane_both_faces_level() {
-  // 0..2, or kPaneBothFacesControl (the render test's negative control, tests/bridge/test_frosted_pane_sg_render.cpp;
-  // session 34); anything else the default.
+  // Exactly 0, 1, 2 or kPaneBothFacesControl (the render test's negative control, tests/bridge/
+  // test_frosted_pane_sg_render.cpp; session 34); anything else (another number, text, trailing characters) the
+  // default: not clamped, so a typo cannot select the biased control (second read of session 34).
   static const int level = [] {
-    const int l = measurement_knob("GLIMMER_FROSTED_PANE_BOTH_FACES", kPaneBothFacesDefault, 0, kPaneBothFacesControl);
-    return l <= 2 || l == kPaneBothFacesControl ? l : kPaneBothFacesDefault;
+    const char *e = std::getenv("GLIMMER_FROSTED_PANE_BOTH_FACES");
+    if (e == nullptr || *e == '\0') return kPaneBothFacesDefault;
+    char *end = nullptr;
+    const long l = std::strtol(e, &end, 10);
+    const bool valid = *end == '\0' && ((l >= 0 && l <= 2) || l == kPaneBothFacesControl);
+    return valid ? int(l) : kPaneBothFacesDefault;
   }();
   return level;
 }

@@ -710,9 +710,9 @@ int pane_exact_leaving_level();
 // kPaneBothFacesControl (the tests' negative control): both faces' ends with c_k = (t_k / t_F) / E_k (the 1 / p_F
 // kept: biased). Only with the packed state (pane_branch_level() > 0: room for every end) and where every end's
 // throughput has sum_F T's colour (else one face's as main). Measurement knob GLIMMER_FROSTED_PANE_BOTH_FACES, read
-// once (0, 1, 2, or 9 = kPaneBothFacesControl: session 34's render test control). Default 1: caustic bench 4 seeds x
-// 8192 spp var/sample all 0.0891 -> 0.0739, glass_R 1.322 -> 0.707, cost sg +2.4 % per camera path (lit / shadow
-// unchanged: the pane seen after a bounce keeps one face).
+// once (exactly 0, 1, 2, or 9 = kPaneBothFacesControl: session 34's render test control; other values the
+// default). Default 1: caustic bench 4 seeds x 8192 spp var/sample all 0.0891 -> 0.0739, glass_R 1.322 -> 0.707, cost
+// sg +2.4 % per camera path (lit / shadow unchanged: the pane seen after a bounce keeps one face).
 inline constexpr int kPaneBothFacesDefault = 1;
 inline constexpr int kPaneBothFacesControl = 9;
 int pane_both_faces_level();
