@@ -325,10 +325,10 @@ class GlintClosure {
   // nodes, 7 % slower with the test).
   static constexpr double kDarkTestMaxParticles = 100.0;
   static constexpr double kDarkTestMaxExpected = 1.0;
-  // Session 34 (glintwalk34): 8 nodes (was 4; also the small route's max_nodes): at area 1e-6, aspect 64, 4820 of
-  // 8192 evals had more than 4 nodes and skipped the test (then read the table and counted at P); now 1255 evals
-  // count at P, per eval 2241.2 -> 2195.9 instructions, the other rows unchanged, every f and pdf bit the same (the
-  // test is exact). 16 nodes: 2204.1.
+  // Session 34 (glintwalk34): 8 nodes (was 4; also the small route's max_nodes): at area 1e-6, aspect 64, 5196 of
+  // 8192 evals (4820 the general route's lists over 4 nodes, which skipped the test, + 376 not dark by the small
+  // route) read the table and counted at P; now 1255, per eval 2241.2 -> 2195.9 instructions, 1e-8 / 1e-6 / 1e-4
+  // unchanged, every f and pdf bit the same (the test is exact). 16 nodes: 2204.1.
   static constexpr int kDarkTestMaxNodes = 8;
 
   // True when glint_f_cos is provably 0 without reading the table: glint
