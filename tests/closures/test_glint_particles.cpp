@@ -2158,12 +2158,14 @@ TEST(GlintParticles, PseudoNormalTestOrdersCountTheSameParticles) {
 
 
 // Session 24: the dark test's small-footprint route (small_footprint_dark_avx2, tables/glint_small_dark.h) gives the
-// general route's answer: locate_glints, then "not dark" when the node list has more than 4 nodes, else dark iff
-// count_glints at P is complete and 0. Random footprints of 0.001..200 particles (density 1e5..1e8, aspect 1..64),
-// directions over the whole sphere (below the surface: no half vector), P 1e-5..1 (0 and 2 on a few), step caps of
-// 1..3 on every 8th query, the particle level from the material's density or computed per query. Where it decides (kNotDark), its cells and the node list then made
-// (locate_glint_nodes) are the general route's. Control: the footprint moved by 3 % of a node's side changes the
-// answer on some of the decided queries.
+// general route's answer: locate_glints, then "not dark" when the node list has more than the cap (4 or 8) nodes,
+// else dark iff count_glints at P is complete and 0. Random footprints of 0.001..200 particles (density 1e5..1e8,
+// aspect 1..64), directions over the whole sphere (below the surface: no half vector), P 1e-5..1 (0 and 2 on a few),
+// step caps of 1..3 on every 8th query, the particle level from the material's density or computed per query; the
+// cap alternates every 64 queries, so each of those cases meets both caps (counted per cap). Where it decides
+// (kNotDark), its cells and the node list then made (locate_glint_nodes) are the general route's. Controls: the
+// footprint moved by 3 % of a node's side changes the answer on some of the decided queries; the reference taken
+// with the other cap (4 for 8, 8 for 4) differs on some (the dark answers over 5..8 nodes, which cap 8 adds).
 TEST(GlintParticles, SmallFootprintDarkMatchesTheCount) {
 #if !GLIMMER_GLINT_WALK_AVX2
   GTEST_SKIP() << "no AVX2 form in this build";
@@ -2171,7 +2173,10 @@ TEST(GlintParticles, SmallFootprintDarkMatchesTheCount) {
   if (!__builtin_cpu_supports("avx2")) GTEST_SKIP() << "CPU without AVX2";
   Pcg32 rng(43);
   int64_t decided = 0, dark = 0, not_dark = 0, generic = 0, capped = 0, multi_node = 0, no_half = 0,
-          control_differs = 0, counted_lit = 0, over_four = 0;
+          control_differs = 0, counted_lit = 0, over_four = 0, over_four_dark = 0, cap_control_differs = 0;
+  // Per cap (index 0: cap 4, 1: cap 8), over the decided queries.
+  int64_t cap_decided[2] = {}, cap_no_half[2] = {}, cap_capped[2] = {}, cap_p0[2] = {}, cap_p2[2] = {},
+          cap_step_cap[2] = {};
   for (int t = 0; t < 200000; ++t) {
     const double density = std::exp(std::log(1e5) + rng.next_double() * std::log(1e3));
     const double particles = std::exp(std::log(1e-3) + rng.next_double() * std::log(2e5));
@@ -2186,14 +2191,19 @@ TEST(GlintParticles, SmallFootprintDarkMatchesTheCount) {
     // The general route (glint.cpp's provably_dark before session 24).
     pg::GlintSite ref;
     pg::locate_glints(f, density, keys, wi, wo, gamma, ref);
-    bool ref_dark = false, ref_capped = false;
-    // Session 34: glint.cpp's node cap is 8 (kDarkTestMaxNodes; was 4): both caps, on alternate pairs of queries.
-    const int cap = t % 4 < 2 ? 4 : 8;
-    if (ref.node_list().count <= cap) {
+    // Session 34: glint.cpp's node cap is 8 (kDarkTestMaxNodes; was 4): both caps, alternating every 64 queries
+    // (bit 6 of t), which the other cases' moduli (t % 2, % 8, % 16, % 64) leave free, so each meets both caps.
+    const bool cap8 = (t >> 6) & 1;
+    const int cap = cap8 ? 8 : 4, other_cap = cap8 ? 4 : 8;
+    const int ref_nodes = ref.node_list().count;
+    bool counted_dark = false, ref_capped = false;
+    if (ref_nodes <= 8) {
       const pg::GlintCount k = pg::count_glints(f, ref, P, max_steps);
-      ref_dark = k.complete && k.count == 0;
-      ref_capped = !k.complete;
+      counted_dark = k.complete && k.count == 0;
+      ref_capped = ref_nodes <= cap && !k.complete;
     }
+    const bool ref_dark = ref_nodes <= cap && counted_dark;
+    const bool other_cap_dark = ref_nodes <= other_cap && counted_dark;  // the cap control's reference
     pg::GlintSite site;
     // The material's density (its level computed once) on odd queries, another (a textured density) on even ones.
     const pg::SmallDarkField field(keys, gamma, cap, max_steps, t % 2 ? density : 2.0 * density);
@@ -2203,13 +2213,22 @@ TEST(GlintParticles, SmallFootprintDarkMatchesTheCount) {
       continue;
     }
     ++decided;
-    ASSERT_EQ(d == pg::SmallDark::kDark, ref_dark) << "query " << t << " P " << P << " area " << f.area();
+    ASSERT_EQ(d == pg::SmallDark::kDark, ref_dark)
+        << "query " << t << " cap " << cap << " P " << P << " area " << f.area();
+    cap_control_differs += (d == pg::SmallDark::kDark) != other_cap_dark;
     dark += ref_dark;
     not_dark += !ref_dark;
     capped += ref_capped;
-    multi_node += ref.node_list().count > 1;
-    over_four += ref.node_list().count > 4;
+    multi_node += ref_nodes > 1;
+    over_four += ref_nodes > 4;
+    over_four_dark += ref_nodes > 4 && ref_dark;
     no_half += !ref.has_half_vector;
+    ++cap_decided[cap8];
+    cap_no_half[cap8] += !ref.has_half_vector;
+    cap_capped[cap8] += ref_capped;
+    cap_p0[cap8] += t % 64 == 0;
+    cap_p2[cap8] += t % 64 == 1;
+    cap_step_cap[cap8] += t % 8 == 3;
     if (d == pg::SmallDark::kNotDark) {
       ASSERT_TRUE(site.has_half_vector && ref.has_half_vector) << "query " << t;
       ASSERT_EQ(site.cell_seeds, ref.cell_seeds) << "query " << t;
@@ -2250,8 +2269,24 @@ TEST(GlintParticles, SmallFootprintDarkMatchesTheCount) {
   EXPECT_GT(generic, 1000);
   EXPECT_GT(control_differs, 1000);
   EXPECT_GT(counted_lit, 5000);
-  std::printf("[small dark] %lld decided over 5..8 nodes\n", static_cast<long long>(over_four));
+  std::printf("[small dark] %lld decided over 5..8 nodes (%lld of them dark); control (the reference at the other "
+              "cap) differs on %lld\n", static_cast<long long>(over_four), static_cast<long long>(over_four_dark),
+              static_cast<long long>(cap_control_differs));
   EXPECT_GT(over_four, 1000);
+  EXPECT_GT(over_four_dark, 0);
+  EXPECT_GT(cap_control_differs, 0);
+  for (int c = 0; c < 2; ++c) {
+    std::printf("[small dark] cap %d: %lld decided, %lld without a half vector, %lld capped, %lld at P 0, %lld at P 2, "
+                "%lld with a step cap of 1..3\n", c ? 8 : 4, static_cast<long long>(cap_decided[c]),
+                static_cast<long long>(cap_no_half[c]), static_cast<long long>(cap_capped[c]),
+                static_cast<long long>(cap_p0[c]), static_cast<long long>(cap_p2[c]),
+                static_cast<long long>(cap_step_cap[c]));
+    EXPECT_GT(cap_no_half[c], 0) << "cap " << (c ? 8 : 4);
+    EXPECT_GT(cap_capped[c], 0) << "cap " << (c ? 8 : 4);
+    EXPECT_GT(cap_p0[c], 0) << "cap " << (c ? 8 : 4);
+    EXPECT_GT(cap_p2[c], 0) << "cap " << (c ? 8 : 4);
+    EXPECT_GT(cap_step_cap[c], 0) << "cap " << (c ? 8 : 4);
+  }
 #endif
 }
 
