@@ -11,7 +11,7 @@ driver="$build/glint_eval_instructions"
 export GLIMMER_CACHE_DIR=${GLIMMER_CACHE_DIR:-/tmp/glint_eval_instructions_cache}
 mkdir -p "$GLIMMER_CACHE_DIR"
 printf '%-10s %-16s %-16s\n' row avx2 sse2
-for row in r04_a-8 r04_a-6 r04_a-4 r04_asp64 r02_a-8 r02_a-6 r02_a-4 r02_asp64; do
+for row in r04_a-8 r04_a-6 r04_a-4 r04_asp4 r04_asp16 r04_asp64 r02_a-8 r02_a-6 r02_a-4 r02_asp4 r02_asp16 r02_asp64; do
   # shellcheck disable=SC2086
   a=$("$driver" "$row" $plugin | awk '{print $6}')
   # shellcheck disable=SC2086

@@ -7,8 +7,9 @@
 // Pcg32(11), square footprints of the given uv area, or rectangles of the
 // given aspect at area 1e-6; gamma 2, density 1e7), evaluated twice each
 // (2 x 4096 evals):
-//   r04_a-8 r04_a-6 r04_a-4 r04_asp64   glint roughness 0.4
-//   r02_a-8 r02_a-6 r02_a-4 r02_asp64   glint roughness 0.2
+//   r04_a-8 r04_a-6 r04_a-4 r04_asp4 r04_asp16 r04_asp64   glint roughness 0.4
+//   r02_a-8 r02_a-6 r02_a-4 r02_asp4 r02_asp16 r02_asp64   glint roughness 0.2
+// (r0x_asp<N>: any aspect N >= 1, as glint/eval_vs_ggx_aspect/<N>; 4, 16 and 64 are the scripts' rows.)
 //   ggx04 ggx02                         microfacet_conductor GGX at area 1e-4
 // It prints the row, the number of evals and a 64-bit FNV-1a hash of the bits
 // of every f and pdf (computed outside the counted loop), so two builds can be
@@ -16,6 +17,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <memory>
 #include <string>
@@ -73,9 +75,14 @@ int main(int argc, char **argv) {
   } else if (row.size() > 4 && (row.rfind("r04_", 0) == 0 || row.rfind("r02_", 0) == 0)) {
     roughness = row[2] == '4' ? "0.4" : "0.2";
     const std::string tail = row.substr(4);
-    if (tail == "asp64") {
+    char *end = nullptr;
+    if (tail.rfind("asp", 0) == 0) {
       area = 1e-6;
-      aspect = 64.0;
+      aspect = std::strtod(tail.c_str() + 3, &end);
+      if (end == tail.c_str() + 3 || *end != '\0' || !(aspect >= 1.0)) {
+        std::fprintf(stderr, "unknown row %s\n", row.c_str());
+        return 2;
+      }
     } else if (tail.rfind("a", 0) == 0) {
       area = std::pow(10.0, std::stod(tail.substr(1)));
     } else {

@@ -12,7 +12,8 @@ plugin=${2:-}
 shift $(( $# > 2 ? 2 : $# )) || true
 rows=("$@")
 if [ ${#rows[@]} -eq 0 ]; then
-  rows=(ggx04 r04_a-8 r04_a-6 r04_a-4 r04_asp64 ggx02 r02_a-8 r02_a-6 r02_a-4 r02_asp64)
+  rows=(ggx04 r04_a-8 r04_a-6 r04_a-4 r04_asp4 r04_asp16 r04_asp64 ggx02 r02_a-8 r02_a-6 r02_a-4 r02_asp4 r02_asp16
+        r02_asp64)
 fi
 driver="$build/glint_eval_instructions"
 [ -x "$driver" ] || { echo "no $driver (cmake --build $build --target glint_eval_instructions)" >&2; exit 1; }
