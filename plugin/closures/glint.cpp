@@ -328,7 +328,8 @@ class GlintClosure {
   // Session 34 (glintwalk34): 8 nodes (was 4; also the small route's max_nodes): at area 1e-6, aspect 64, 5196 of
   // 8192 evals (4820 the general route's lists over 4 nodes, which skipped the test, + 376 not dark by the small
   // route) read the table and counted at P; now 1255, per eval 2241.2 -> 2195.9 instructions, 1e-8 / 1e-6 / 1e-4
-  // and aspect 4 unchanged, aspect 16 1722.4 -> 1721.9, every f and pdf bit the same (the test is exact). 16 nodes: 2204.1.
+  // and aspect 4 unchanged, aspect 16 1722.4 -> 1721.9, every f and pdf bit the same (the test is exact). 16 nodes:
+  // 2204.1.
   static constexpr int kDarkTestMaxNodes = 8;
 
   // True when glint_f_cos is provably 0 without reading the table: glint
