@@ -455,7 +455,11 @@ TEST(FrostedSgPaneRender, RoughPaneExactExitMatchesPathBehindASmallLight) {
 // the mean per-pixel difference within 4 standard errors (difference_z: both noises) and the 12 pooled within 4.
 // Negative control: the same sg render with GLIMMER_FROSTED_PANE_BOTH_FACES=9 (kPaneBothFacesControl: c_k without the
 // face's probability, the lamps through both faces counted over p_F) in a copy of the DSO loaded with that knob (the
-// knob is read once per DSO), which must be off by a pooled |z| > 8.
+// knob is read once per DSO), which must be off by a pooled |z| > 8. The route ran: a level-0 copy (one face, main's
+// state before session 33) must give a different image from the default's (review 34, finding 6). Detectable bias:
+// the pooled bound 4 passes a bias below 4 pooled standard errors, printed as a fraction of the image mean (measured
+// 5.8 %; the control's +40 % gives z +19.0), so this test catches a gross route error, not a few-percent bias. The
+// level-0 render's own pooled z is printed (measured -1.16).
 std::string camera_side_lamp_scene(const std::string &name, const char *method) {
   const std::string xml =
       "<cycles>\n<camera width=\"16\" height=\"16\" fov=\"0.35\" />\n"
@@ -480,6 +484,7 @@ std::string camera_side_lamp_scene(const std::string &name, const char *method) 
 // differences of the channels' average pooled (the quarters' pixels are independent; the channels are not).
 struct QuarterZ {
   double worst = 0.0, pooled = 0.0;
+  double detectable = 0.0;  // 4 pooled standard errors over the reference's mean (channels' average)
 };
 QuarterZ quarter_z(const render::RenderResult &a, const render::RenderResult &ref) {
   QuarterZ out;
@@ -501,8 +506,36 @@ QuarterZ quarter_z(const render::RenderResult &a, const render::RenderResult &re
     var += e.standard_error * e.standard_error;
   }
   out.pooled = var > 0.0 ? sum / std::sqrt(var) : 0.0;
+  const double mean = (mean_channel(ref, 0) + mean_channel(ref, 1) + mean_channel(ref, 2)) / 3.0;
+  out.detectable = mean > 0.0 ? 4.0 * std::sqrt(var) / (4.0 * mean) : 0.0;  // the sum is over 4 equal quarters
   return out;
 }
+
+// Sets an environment variable for its lifetime and restores the previous value (or unsets it) on destruction, also
+// when a render throws.
+class ScopedEnv {
+ public:
+  ScopedEnv(const char *name, const char *value) : name_(name) {
+    const char *before = std::getenv(name);
+    had_ = before != nullptr;
+    if (had_) saved_ = before;
+    ::setenv(name, value, 1);
+  }
+  ~ScopedEnv() {
+    if (had_) {
+      ::setenv(name_, saved_.c_str(), 1);
+    } else {
+      ::unsetenv(name_);
+    }
+  }
+  ScopedEnv(const ScopedEnv &) = delete;
+  ScopedEnv &operator=(const ScopedEnv &) = delete;
+
+ private:
+  const char *name_;
+  std::string saved_;
+  bool had_ = false;
+};
 
 // A render of `scene` with the DSO under test loaded afresh from a copy while GLIMMER_FROSTED_PANE_BOTH_FACES is
 // `level` (the DSO reads the knob once, at its first pane sample).
@@ -510,19 +543,11 @@ render::RenderResult render_with_both_faces_level(const std::string &scene_path,
                                                   const char *level) {
   const auto copy = temp_dir() / (std::string("glimmer_closures_both_faces_") + level + ".so");
   std::filesystem::copy_file(GLIMMER_TEST_PLUGIN_PATH, copy, std::filesystem::copy_options::overwrite_existing);
-  const char *before = std::getenv("GLIMMER_FROSTED_PANE_BOTH_FACES");
-  const std::string saved = before ? before : "";
-  ::setenv("GLIMMER_FROSTED_PANE_BOTH_FACES", level, 1);
+  const ScopedEnv knob("GLIMMER_FROSTED_PANE_BOTH_FACES", level);
   const auto library = host::PluginLibrary::load(copy.string());
   const scene::Scene scene = scene::load_scene(scene_path);
   render::Renderer renderer(scene, *library, opt);
-  render::RenderResult r = renderer.render();
-  if (before) {
-    ::setenv("GLIMMER_FROSTED_PANE_BOTH_FACES", saved.c_str(), 1);
-  } else {
-    ::unsetenv("GLIMMER_FROSTED_PANE_BOTH_FACES");
-  }
-  return r;
+  return renderer.render();
 }
 
 TEST(FrostedSgPaneRender, RoughPaneLampOnTheCameraSideMatchesPath) {
@@ -535,14 +560,17 @@ TEST(FrostedSgPaneRender, RoughPaneLampOnTheCameraSideMatchesPath) {
   opt.seed = 2;
   const auto sg = render_scene(sg_scene, opt);
   const auto control = render_with_both_faces_level(sg_scene, opt, "9");
-  EXPECT_EQ(sg.nan_samples + control.nan_samples, 0u);
-  EXPECT_NE(sg.combined, control.combined);  // the control's knob was read
-  const QuarterZ z = quarter_z(sg, ref), z_control = quarter_z(control, ref);
+  const auto one_face = render_with_both_faces_level(sg_scene, opt, "0");
+  EXPECT_EQ(sg.nan_samples + control.nan_samples + one_face.nan_samples, 0u);
+  EXPECT_NE(sg.combined, control.combined);   // the control's knob was read
+  EXPECT_NE(sg.combined, one_face.combined);  // the default is not level 0: the both-faces route ran
+  const QuarterZ z = quarter_z(sg, ref), z_control = quarter_z(control, ref), z_one = quarter_z(one_face, ref);
   std::printf("[frosted sg pane camera-side lamp] roughness 0.5, 16x16: path 4096 spp mean %.5f; sg 1024 spp mean "
-              "%.5f, worst |z| %.2f over 12 (quarters x channels), pooled z %+.2f; control (c_k without p_F) mean "
-              "%.5f, worst |z| %.2f, pooled z %+.2f\n",
-              mean_channel(ref, 1), mean_channel(sg, 1), z.worst, z.pooled, mean_channel(control, 1),
-              z_control.worst, z_control.pooled);
+              "%.5f, worst |z| %.2f over 12 (quarters x channels), pooled z %+.2f (detectable bias %.1f %% of the "
+              "mean); level 0 (one face) mean %.5f, pooled z %+.2f; control (c_k without p_F) mean %.5f, worst |z| "
+              "%.2f, pooled z %+.2f\n",
+              mean_channel(ref, 1), mean_channel(sg, 1), z.worst, z.pooled, 100.0 * z.detectable,
+              mean_channel(one_face, 1), z_one.pooled, mean_channel(control, 1), z_control.worst, z_control.pooled);
   EXPECT_LT(z.worst, 4.0);
   EXPECT_LT(std::fabs(z.pooled), 4.0);
   EXPECT_GT(std::fabs(z_control.pooled), 8.0) << "negative control passed";
