@@ -1460,7 +1460,7 @@ bool same_colour(const Spectrum &a, const Spectrum &b) {
 double pane_both_faces_scale(int level, double p_face, const PaneWalkEnd *walks, const float *t, int ends,
                              const Spectrum &weight) {
   if (level <= 0 || !PaneSgExitState::packed()) return 0.0;
-  for (int k = 0; k < ends; ++k)
+  for (int k = 0; k < ends && level != kPaneBothFacesNoColourGuard; ++k)
     if (t[k] > 0.0f && !same_colour(weight, walks[k].throughput)) return 0.0;
   return level == kPaneBothFacesControl ? 1.0 : p_face;
 }

@@ -715,6 +715,10 @@ int pane_exact_leaving_level();
 // sg +2.4 % per camera path (lit / shadow unchanged: the pane seen after a bounce keeps one face).
 inline constexpr int kPaneBothFacesDefault = 1;
 inline constexpr int kPaneBothFacesControl = 9;
+// The tests' level only (passed as sample_pane_sg_split's both_faces; the knob never gives it): level 1 without the
+// ends' colour test (same_colour), the other face's ends taking the picked face's weight's colour (biased per channel
+// where the ends' colours differ, e.g. coloured Beer; unbiased in the channels' average). Session 34 (frostedtestfix34).
+inline constexpr int kPaneBothFacesNoColourGuard = 8;
 int pane_both_faces_level();
 
 }  // namespace glimmer::plugin::frosted
