@@ -5,6 +5,7 @@
 #include <bit>
 #include <cmath>
 #include <cstdlib>
+#include <initializer_list>
 #include <limits>
 #include <string_view>
 
@@ -423,6 +424,16 @@ int measurement_knob(const char *name, int fallback, int lo, int hi) {
   const char *e = std::getenv(name);
   if (e == nullptr || *e == '\0') return fallback;
   return std::clamp(std::atoi(e), lo, hi);
+}
+// Its form for a level set with gaps (a test-only control beside the levels): `name` exactly one of `levels` (a whole
+// decimal number, nothing after it), else `fallback`: not clamped, so a typo cannot select a neighbouring level.
+int measurement_level(const char *name, int fallback, std::initializer_list<int> levels) {
+  const char *e = std::getenv(name);
+  if (e == nullptr || *e == '\0') return fallback;
+  char *end = nullptr;
+  const long l = std::strtol(e, &end, 10);
+  if (*end != '\0') return fallback;
+  return std::find(levels.begin(), levels.end(), l) != levels.end() ? int(l) : fallback;
 }
 
 // A tail for solids (issue 12, twelfth session; docs/frosted_glass.md "A tail for solids"). The exit mixture of
@@ -1409,16 +1420,9 @@ int pane_exact_leaving_level() {
 }
 int pane_both_faces_level() {
   // Exactly 0, 1, 2 or kPaneBothFacesControl (the render test's negative control, tests/bridge/
-  // test_frosted_pane_sg_render.cpp; session 34); anything else (another number, text, trailing characters) the
-  // default: not clamped, so a typo cannot select the biased control (second read of session 34).
-  static const int level = [] {
-    const char *e = std::getenv("GLIMMER_FROSTED_PANE_BOTH_FACES");
-    if (e == nullptr || *e == '\0') return kPaneBothFacesDefault;
-    char *end = nullptr;
-    const long l = std::strtol(e, &end, 10);
-    const bool valid = *end == '\0' && ((l >= 0 && l <= 2) || l == kPaneBothFacesControl);
-    return valid ? int(l) : kPaneBothFacesDefault;
-  }();
+  // test_frosted_pane_sg_render.cpp; session 34); anything else the default (a typo cannot select the biased control).
+  static const int level = measurement_level("GLIMMER_FROSTED_PANE_BOTH_FACES", kPaneBothFacesDefault,
+                                             {0, 1, 2, kPaneBothFacesControl});
   return level;
 }
 
@@ -1460,8 +1464,9 @@ bool same_colour(const Spectrum &a, const Spectrum &b) {
 double pane_both_faces_scale(int level, double p_face, const PaneWalkEnd *walks, const float *t, int ends,
                              const Spectrum &weight) {
   if (level <= 0 || !PaneSgExitState::packed()) return 0.0;
-  for (int k = 0; k < ends && level != kPaneBothFacesNoColourGuard; ++k)
-    if (t[k] > 0.0f && !same_colour(weight, walks[k].throughput)) return 0.0;
+  if (level != kPaneBothFacesNoColourGuard)
+    for (int k = 0; k < ends; ++k)
+      if (t[k] > 0.0f && !same_colour(weight, walks[k].throughput)) return 0.0;
   return level == kPaneBothFacesControl ? 1.0 : p_face;
 }
 }  // namespace
