@@ -1469,6 +1469,45 @@ double pane_both_faces_scale(int level, double p_face, const PaneWalkEnd *walks,
       if (t[k] > 0.0f && !same_colour(weight, walks[k].throughput)) return 0.0;
   return level == kPaneBothFacesControl ? 1.0 : p_face;
 }
+// The picked face's exit mixture (its ends' lobes, weights t_k / t_face; one end: the single SG), the ends' own
+// leaving directions in the mixture's order, whether every end has one, and the face's throughput sum. False: no end.
+bool pane_face_mixture(const PaneWalkEnd *walks, const PaneExitLobe *lobes, const float *t, int ends, bool through,
+                       double t_face, PaneExitLobe &exit, Vec3 *leaving, bool &all_leave, Spectrum &sum_face) {
+  exit.through = through;
+  exit.lobe_count = 0;
+  for (int k = 0; k < ends; ++k) {
+    if (!(t[k] > 0.0f) || lobes[k].through != through) continue;
+    leaving[exit.lobe_count] = walks[k].leaving;
+    all_leave = all_leave && dot(walks[k].leaving, walks[k].leaving) > 0.0f;
+    sum_face += walks[k].throughput;
+    if (exit.lobe_count == 0) exit.sg = lobes[k].sg;
+    ExitLobe::MixtureLobe &l = exit.lobe[exit.lobe_count++];
+    l.axis = lobes[k].sg.axis;
+    l.sharpness = lobes[k].sg.sharpness;
+    l.weight = float(t[k] / t_face);
+  }
+  if (exit.lobe_count == 0) return false;
+  if (exit.lobe_count == 1) exit.lobe_count = 0;  // one lobe: the single SG (exit.sg), as the unsplit sample
+  return true;
+}
+// Session 35 (frostedbeer35): coloured Beer, one end. Within the picked face (probability p_face, t_face its ends'
+// sum of t) one end j with probability t_j / t_face from a number of its own hashed from the sample's seed; every other
+// end's t is zeroed, so the mixture, the weight's sum and the exit state below see end j alone. Returns t_j (0: none).
+double pick_pane_end(uint32_t seed, bool through, const PaneExitLobe *lobes, int ends, double t_face, float *t) {
+  const double u = double(hash_u32x2(seed, 0x656e6473u) >> 8) * 0x1p-24 * t_face;
+  double acc = 0.0;
+  int j = -1;
+  for (int k = 0; k < ends; ++k) {
+    if (!(t[k] > 0.0f) || lobes[k].through != through) continue;
+    j = k;  // the face's last end also takes u's rounding remainder
+    acc += t[k];
+    if (u < acc) break;
+  }
+  if (j < 0) return 0.0;
+  for (int k = 0; k < ends; ++k)
+    if (k != j) t[k] = 0.0f;
+  return t[j];
+}
 }  // namespace
 
 bool sample_pane_sg_split(const ShadingPoint &sp, const PaneSgInputs &in, const Vec3 &rand, const PaneWalkEnd *walks,
@@ -1476,6 +1515,10 @@ bool sample_pane_sg_split(const ShadingPoint &sp, const PaneSgInputs &in, const 
                           int both_faces) {
   if (n < 1 || n > kPaneWalkSplit) return false;
   if (both_faces < 0) both_faces = pane_both_faces_level();
+  // Coloured Beer (session 35): one end per sample (pick_pane_end) unless a test asks for the old one-colour state.
+  const bool one_colour = both_faces == kPaneOneColourState || both_faces == kPaneBothFacesNoColourGuard;
+  const bool one_end = !pane_split_applies(in.sigma_a) && !one_colour;
+  if (both_faces == kPaneOneColourState || one_end) both_faces = 0;
   if (both_faces == 2 && face_pick != 0) face_pick = 3;  // t_F / t, the weight over p_F (session 33)
   if (ends < 0) ends = n;
   if (ends < 1 || ends > 2 * kPaneWalkSplit) return false;
@@ -1500,31 +1543,23 @@ bool sample_pane_sg_split(const ShadingPoint &sp, const PaneSgInputs &in, const 
   const double u = double(hash_u32x2(seed, 0x66616365u) >> 8) * 0x1p-24;
   const double p_through = pane_face_probability(t_through, t_all - t_through, face_pick);
   const bool through = face_pick == 0 ? u * t_all < t_through : u < p_through;  // main's test at 0 (bit for bit)
-  const double t_face = through ? t_through : t_all - t_through;
+  double t_face = through ? t_through : t_all - t_through;
   if (!(t_face > 0.0)) return false;
-  const double p_face = through ? p_through : 1.0 - p_through;
+  double p_face = through ? p_through : 1.0 - p_through;
+  if (one_end) {  // the pick's probability p_F t_j / t_F; the end is then a face of its own (t_face = t_j)
+    const double t_end = pick_pane_end(seed, through, lobes, ends, t_face, t);
+    if (!(t_end > 0.0)) return false;
+    p_face = (face_pick == 0 ? t_face / t_all : p_face) * (t_end / t_face);
+    t_face = t_end;
+  }
   PaneExitLobe exit;
-  exit.through = through;
-  exit.lobe_count = 0;
   Vec3 leaving[2 * kPaneWalkSplit];  // the face's ends' own directions out, in the mixture's order
   bool all_leave = true;
-  for (int k = 0; k < ends; ++k) {
-    if (!(t[k] > 0.0f) || lobes[k].through != through) continue;
-    leaving[exit.lobe_count] = walks[k].leaving;
-    all_leave = all_leave && dot(walks[k].leaving, walks[k].leaving) > 0.0f;
-    if (exit.lobe_count == 0) exit.sg = lobes[k].sg;
-    ExitLobe::MixtureLobe &l = exit.lobe[exit.lobe_count++];
-    l.axis = lobes[k].sg.axis;
-    l.sharpness = lobes[k].sg.sharpness;
-    l.weight = float(t[k] / t_face);
-  }
-  if (exit.lobe_count == 0) return false;
-  if (exit.lobe_count == 1) exit.lobe_count = 0;  // one lobe: the single SG (exit.sg), as the unsplit sample
-  // The face's walks' throughput over n and over the face's probability (sum_T / n when p_face = t_face / t_all).
   Spectrum sum_face(0.0f);
-  for (int k = 0; k < ends; ++k)
-    if (t[k] > 0.0f && lobes[k].through == through) sum_face += walks[k].throughput;
-  const Spectrum weight = face_pick == 0 ? sum_T / float(n) : sum_face * float(1.0 / (double(n) * p_face));
+  if (!pane_face_mixture(walks, lobes, t, ends, through, t_face, exit, leaving, all_leave, sum_face)) return false;
+  // The face's walks' throughput over n and over the face's probability (sum_T / n when p_face = t_face / t_all).
+  const Spectrum weight =
+      face_pick == 0 && !one_end ? sum_T / float(n) : sum_face * float(1.0 / (double(n) * p_face));
 #if GLIMMER_ABI_MINOR >= 8
   PaneSgExitState x;
   // The ends' colour test (pane_both_faces_scale) only where a state may be written.

@@ -719,6 +719,23 @@ inline constexpr int kPaneBothFacesControl = 9;
 // ends' colour test (same_colour), the other face's ends taking the picked face's weight's colour (biased per channel
 // where the ends' colours differ, e.g. coloured Beer; unbiased in the channels' average). Session 34 (frostedtestfix34).
 inline constexpr int kPaneBothFacesNoColourGuard = 8;
+// Session 35 (frostedbeer35; docs/frosted_glass.md "Session 35 (frostedbeer35)"): where the ends' colours differ
+// (coloured Beer: sigma_a not grey, !pane_split_applies; walks of different lengths), the one-face state above gave
+// every end of the picked face F the face's weight's colour, W = sum_{k in F} T_k / (n p_F), while the host values the
+// lamps grey (its ExactExit::value is average(eval_exit's f cos)): per channel ch the lamps' expectation was
+//   sum_F sum_{k in F} (T_F,ch / n) (t_k / t_F) f_k(w) / E_k   (T_F = sum_{k in F} T_k, t = average(T))
+// instead of method=path's sum_k (T_k,ch / n) f_k(w) / E_k: equal only where T_k,ch / t_k is one number per face.
+// The continued path has the same defect (W with an end picked by t_k / t_F). The fix: one end per sample. The face
+// F as before (p_F), then one end j of F with probability t_j / t_F (pick_pane_end); that end alone is the sample:
+// weight T_j / (n pi_j), pi_j = p_F t_j / t_F, its SG (or its own leaving direction) the continued path, and the exit
+// state holds end j alone with c_j = 1 / E_j. Per channel: E[W_ch c_j f_j(w)] = sum_j pi_j T_j,ch / (n pi_j) f_j(w) /
+// E_j = method=path's, and the continued path's E = sum_j (T_j,ch / n) L(leaving_j), whatever the ends' colours. The
+// both-faces state (levels 1 / 2) cannot stay on here: an end k != j in the state would need W_ch c_k = T_k,ch / (n
+// E_k) in every channel, a per-channel c_k, and the host's value is grey (average of eval_exit's f): off for coloured
+// Beer (one_end sets the level to 0). Renders at 65a01b6 never reach this (FrostedGlassClosure::pane_sample_sg splits
+// only where pane_split_applies); the tests' split hook does. kPaneOneColourState: the tests' level only (the knob never
+// gives it): the old one-face state for coloured Beer (the negative control), else level 0.
+inline constexpr int kPaneOneColourState = 7;
 int pane_both_faces_level();
 
 }  // namespace glimmer::plugin::frosted
