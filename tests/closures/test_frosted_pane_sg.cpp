@@ -975,10 +975,13 @@ TEST(FrostedGlassSgPane, RoughPaneExactExitAgainstThePathsExitState) {
 struct ConeSums {
   static constexpr int kCones = 5;
   double sum[kCones] = {}, sum2[kCones] = {};
+  double rgb[kCones][3] = {}, rgb2[kCones][3] = {};  // per channel: the weight's channel x 1{wo in the cone}
   long states = 0;
 };
+// both_faces: frosted::pane_both_faces_level's level for the sg split (-1: the knob's; session 35's coloured-Beer
+// check passes kPaneOneColourState as its negative control).
 ConeSums continued_cones(const FrostedGlassClosure &pane, bool sg, int level, float theta_deg, uint64_t seed,
-                         long samples) {
+                         long samples, int both_faces = -1) {
   static const auto schema = FrostedGlassClosure::params();
   const float cos_cone = std::cos(25.0f * kPi / 180.0f);
   ConeSums out;
@@ -987,15 +990,22 @@ ConeSums continued_cones(const FrostedGlassClosure &pane, bool sg, int level, fl
     const PaneDraw draw(theta_deg, rng, schema);
     WiredSample wired;
     LocalSample &s = wired.s;
-    const bool ok = sg ? pane.pane_sample_sg_split(draw.sp, draw.rand, s, frosted::kPaneWalkSplit, false, -1, level)
+    const bool ok = sg ? pane.pane_sample_sg_split(draw.sp, draw.rand, s, frosted::kPaneWalkSplit, false, -1, level,
+                                                   both_faces)
                        : pane.sample(draw.sp, draw.rand, s);
     if (!ok || !(s.pdf > 0.0f)) continue;
     out.states += s.exit_state;
-    const double w = average(s.f_cos / s.pdf);
+    const Spectrum W = s.f_cos / s.pdf;
+    const double w = average(W);
     const Vec3 wo = normalize(s.wo);
     for (int j = 0; j < ConeSums::kCones; ++j) {
-      const double v = dot(wo, kPaneProbeDirections[j]) > cos_cone ? w : 0.0;
+      const bool in = dot(wo, kPaneProbeDirections[j]) > cos_cone;
+      const double v = in ? w : 0.0;
       out.sum[j] += v, out.sum2[j] += v * v;
+      for (int ch = 0; ch < 3; ++ch) {
+        const double vc = in ? double(W[ch]) : 0.0;
+        out.rgb[j][ch] += vc, out.rgb2[j][ch] += vc * vc;
+      }
     }
   }
   return out;
@@ -1224,6 +1234,49 @@ TEST(FrostedGlassSgPane, RoughPaneColouredBeerBothFacesPerChannel) {
     EXPECT_GT(check_both_faces(c, &one_colour_worst), 6.0) << "negative control passed: roughness " << c.roughness;
     EXPECT_GT(one_colour_worst, 4.5) << "the old one-colour state passed: roughness " << c.roughness;
   }
+}
+
+// Session 35 (frostedbeer35): the continued path of the coloured-Beer split (one end per sample: the weight T_j / (n
+// pi_j) carries end j's own colour, its leaving direction the continued one) per channel against method=path's pane
+// sample (continued_cones: E[W_ch 1{wo in cone}], 3 angles x 5 cones x 3 channels, independent numbers): every cell
+// within 4.5 se, each channel pooled over the 15 within 4. Negative control: kPaneOneColourState (the face's weight
+// sum_{k in F} T_k / (n p_F) with an end picked by t_k / t_F: every end of the face in the face's colour) must be
+// > 6 se off in some cell. Roughness 0.8, Beer (0.95, 0.5, 0.1): the more saturated of the two panes above.
+TEST(FrostedGlassSgPane, RoughPaneColouredBeerContinuedPathPerChannel) {
+  const PaneConfig c{0.8f, 1.5f, Vec3(0.95f, 0.5f, 0.1f), 0.05f};
+  const float angles[] = {0.0f, 30.0f, 60.0f};
+  constexpr long kSamples = 131072;
+  auto sg = create_pane(c, "sg"), path = create_pane(c, "path");
+  double worst[2] = {}, pooled[2][3] = {}, var[2][3] = {}, pooled_path[3] = {}, var_path[3] = {};
+  const int levels[] = {-1, frosted::kPaneOneColourState};
+  for (float theta : angles) {
+    const ConeSums b = continued_cones(*path, false, 0, theta, 505, kSamples);
+    for (int l = 0; l < 2; ++l) {
+      const ConeSums a = continued_cones(*sg, true, -1, theta, 606, kSamples, levels[l]);
+      EXPECT_GT(a.states, kSamples / 2) << "theta " << theta;
+      for (int j = 0; j < ConeSums::kCones; ++j)
+        for (int ch = 0; ch < 3; ++ch) {
+          double vs = 0.0, vp = 0.0;
+          const double z = mean_difference_z(a.rgb[j][ch], a.rgb2[j][ch], b.rgb[j][ch], b.rgb2[j][ch], kSamples, &vs);
+          mean_difference_z(b.rgb[j][ch], b.rgb2[j][ch], a.rgb[j][ch], a.rgb2[j][ch], kSamples, &vp);
+          worst[l] = std::max(worst[l], std::fabs(z));
+          if (l == 0) {
+            EXPECT_LT(std::fabs(z), 4.5) << "theta " << theta << " cone " << j << " channel " << ch;
+            pooled_path[ch] += b.rgb[j][ch] / kSamples, var_path[ch] += vp / kSamples;
+          }
+          pooled[l][ch] += a.rgb[j][ch] / kSamples, var[l][ch] += vs / kSamples;
+        }
+    }
+  }
+  for (int l = 0; l < 2; ++l) {
+    double z[3];
+    for (int ch = 0; ch < 3; ++ch) z[ch] = (pooled[l][ch] - pooled_path[ch]) / std::sqrt(var[l][ch] + var_path[ch]);
+    std::printf("[frosted sg pane coloured Beer continued path] roughness 0.80 %s: per channel pooled z %+.2f / %+.2f / "
+                "%+.2f, worst |z| %.2f over 45\n",
+                l == 0 ? "one end (default)" : "old one-colour state (control)", z[0], z[1], z[2], worst[l]);
+    for (int ch = 0; ch < 3 && l == 0; ++ch) EXPECT_LT(std::fabs(z[ch]), 4.0) << "channel " << ch;
+  }
+  EXPECT_GT(worst[1], 6.0) << "negative control passed";
 }
 
 // ---- Stress --------------------------------------------------------------------------
