@@ -264,7 +264,7 @@ class FrostedGlassClosure {
     if (front != PaneFront::kEntered) return front == PaneFront::kReflected;
     const frosted::PaneSgInputs in = pane_sg_inputs(sp, variant, ladder);
     if (variant == frosted::SgVariant::kPaneWalk) {
-      if (split > 1 && frosted::pane_split_applies(in.sigma_a))
+      if (split > 1 && (frosted::pane_split_applies(in.sigma_a) || frosted::pane_beer_split_level() > 0))
         return pane_sample_sg_split(sp, lobe, in, rand, wi, s, flip, out, std::min(split, frosted::kPaneWalkSplit));
       return pane_sample_sg_walk(sp, lobe, in, rand, s, flip, out);
     }

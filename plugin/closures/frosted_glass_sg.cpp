@@ -1419,10 +1419,17 @@ int pane_exact_leaving_level() {
   return level;
 }
 int pane_both_faces_level() {
-  // Exactly 0, 1, 2 or kPaneBothFacesControl (the render test's negative control, tests/bridge/
-  // test_frosted_pane_sg_render.cpp; session 34); anything else the default (a typo cannot select the biased control).
+  // Exactly 0, 1, 2, kPaneBothFacesControl (the render test's negative control, tests/bridge/
+  // test_frosted_pane_sg_render.cpp; session 34), kPaneOneColourState or kPaneBothFacesNoColourGuard (session 35's
+  // coloured-Beer render test: printed / its negative control); anything else the default (a typo cannot select a
+  // biased control).
   static const int level = measurement_level("GLIMMER_FROSTED_PANE_BOTH_FACES", kPaneBothFacesDefault,
-                                             {0, 1, 2, kPaneBothFacesControl});
+                                             {0, 1, 2, kPaneOneColourState, kPaneBothFacesNoColourGuard,
+                                              kPaneBothFacesControl});
+  return level;
+}
+int pane_beer_split_level() {
+  static const int level = measurement_knob("GLIMMER_FROSTED_PANE_BEER_SPLIT", kPaneBeerSplitDefault, 0, 1);
   return level;
 }
 

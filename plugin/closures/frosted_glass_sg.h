@@ -715,7 +715,8 @@ int pane_exact_leaving_level();
 // sg +2.4 % per camera path (lit / shadow unchanged: the pane seen after a bounce keeps one face).
 inline constexpr int kPaneBothFacesDefault = 1;
 inline constexpr int kPaneBothFacesControl = 9;
-// The tests' level only (passed as sample_pane_sg_split's both_faces; the knob never gives it): level 1 without the
+// The tests' level only (passed as sample_pane_sg_split's both_faces; the knob gives it only for session 35's
+// coloured-Beer render test's negative control, GLIMMER_FROSTED_PANE_BOTH_FACES=8): level 1 without the
 // ends' colour test (same_colour), the other face's ends taking the picked face's weight's colour (biased per channel
 // where the ends' colours differ, e.g. coloured Beer; unbiased in the channels' average). Session 34 (frostedtestfix34).
 inline constexpr int kPaneBothFacesNoColourGuard = 8;
@@ -734,8 +735,14 @@ inline constexpr int kPaneBothFacesNoColourGuard = 8;
 // E_k) in every channel, a per-channel c_k, and the host's value is grey (average of eval_exit's f): off for coloured
 // Beer (one_end sets the level to 0). Renders at 65a01b6 never reach this (FrostedGlassClosure::pane_sample_sg splits
 // only where pane_split_applies); the tests' split hook does. kPaneOneColourState: the tests' level only (the knob never
-// gives it): the old one-face state for coloured Beer (the negative control), else level 0.
+// gives it, except GLIMMER_FROSTED_PANE_BOTH_FACES=7 for the render test's control): the old one-face state for coloured
+// Beer (the negative control), else level 0.
 inline constexpr int kPaneOneColourState = 7;
+// Session 35: whether a coloured-Beer pane seen with method=sg takes the split (with the one-end rule above) in
+// renders. Measurement knob GLIMMER_FROSTED_PANE_BEER_SPLIT (read once, only where sigma_a is not grey): 0 (default)
+// the single walk with the SG at its last direction (pane_sample_sg_walk, 65a01b6's images), 1 the split.
+inline constexpr int kPaneBeerSplitDefault = 0;
+int pane_beer_split_level();
 int pane_both_faces_level();
 
 }  // namespace glimmer::plugin::frosted
