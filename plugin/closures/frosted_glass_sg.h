@@ -557,7 +557,8 @@ bool sample_pane_sg_through(const ShadingPoint &sp, const PaneSgInputs &in, cons
 // (1 / n) sum_k T_k L_k when every T_k has the same colour, is the mean of n of today's estimates, each of
 // which is unbiased for today's expectation: the same expectation, less variance. The colours agree when Beer is
 // grey (the tint is the point's, the interfaces are colourless); with coloured Beer (walks of different lengths)
-// the split is off (kPaneWalkSplit walks only where pane_split_applies).
+// the split is off (kPaneWalkSplit walks only where pane_split_applies; session 35: GLIMMER_FROSTED_PANE_BEER_SPLIT=1
+// turns it on there with one end per sample, kPaneOneColourState's comment, exact per channel).
 inline constexpr int kPaneWalkSplit = 4;
 static_assert(kPaneWalkSplit >= 1 && kPaneWalkSplit <= ExitLobe::kMaxLobes);
 inline bool pane_split_applies(const Spectrum &sigma_a) { return sigma_a.x == sigma_a.y && sigma_a.y == sigma_a.z; }

@@ -1217,15 +1217,14 @@ TEST(FrostedGlassSgPane, RoughPaneBothFacesLampsSameExpectationAsThePath) {
   }
 }
 
-// Session 34 (frostedtestfix34, review 34 finding 4): coloured Beer (0.9, 0.6, 0.3), r 0.5, so the ends' colours
-// differ and pane_both_faces_scale's colour test falls back to the picked face's ends (level 1 = level 0 to the
-// printed digits); control kPaneBothFacesNoColourGuard (the test bypassed, p_F kept), judged per channel: measured
-// grey pooled z +0.53 (the channels' average is unbiased) but per channel +8.44 / -4.69 / -13.32, so only the
-// per-channel check sees it. DISABLED: the fallback route itself (level 0, main's one-face state) fails the
-// per-direction per-channel bound, all in blue: worst |z| 5.46 (levels 0 / 1), 5.85 (level 2) over 45; 3 (angle,
-// direction) cells > 4.5 at each of levels 1 and 2 (60 deg directions 0 and 2, 120 deg direction 3); per channel
-// pooled +1.99 / +0.37 / -0.50. The one-face state gives every end of the face the face's weight's colour, so ends of
-// different path lengths (colours) are mixed. Run with --gtest_also_run_disabled_tests (3.3 s).
+// Session 34 (frostedtestfix34, review 34 finding 4) / session 35 (frostedbeer35): coloured Beer, so the ends'
+// colours differ. Session 34 found the one-face state biased per channel (every end of the face in the face's weight's
+// colour); session 35's one end per sample (frosted::kPaneOneColourState's comment) is exact per channel and turns the
+// both-faces state off there (levels 0, 1, 2, 9 give the same sums bit for bit, checked). Two panes: r 0.5 Beer
+// (0.9, 0.6, 0.3) and r 0.8 Beer (0.95, 0.5, 0.1). Measured (one end): per channel pooled z +0.81 / +0.96 / +1.01, worst
+// |z| 1.24 over 45; +0.11 / +0.37 / +0.46, worst 1.64. Negative controls, both required on each pane: the old one-colour
+// state (kPaneOneColourState, 65a01b6's code) worst per-cell |z| > 4.5 (measured 5.46 / 14.76: session 34's 5.46 to
+// every digit) and kPaneBothFacesNoColourGuard's worst channel pooled |z| > 6 (13.32 / 23.04). ~15 s.
 TEST(FrostedGlassSgPane, RoughPaneColouredBeerBothFacesPerChannel) {
   const PaneConfig configs[] = {{0.5f, 1.5f, Vec3(0.9f, 0.6f, 0.3f), 0.05f},
                                 {0.8f, 1.5f, Vec3(0.95f, 0.5f, 0.1f), 0.05f}};
