@@ -1848,6 +1848,79 @@ TEST(GlintParticles, GroupPassAvx2MatchesSse2) {
 #endif
 }
 
+// Session 35 (glintwalk35): flush_avx2 decides eight particles per step in float with a margin and tests the
+// undecided ones again in doubles. Lists of 1..256 particles over 1..64 nodes whose float origins are written as
+// the AVX2 origin passes write them (the doubles rounded to nearest); a node's origin put so that one of its
+// particles lies within ~2^-40..2^-18 of an edge (s or t = +-1/2), or anywhere within 2 of the footprint, or far
+// (1e30, 1e40: float overflow), or NaN; frames with node size 1e-3..1e4 times the footprint's side (D up to ~1e4:
+// the doubles' fallback past kFloatTestMaxStep). Brute force: flush() (flush_from's pairs and scalar
+// particle_inside) on a copy of the same list gives the same count. Control: the float test trusted at 1/2 for the
+// undecided lanes (flush_avx2<false>) differs on some lists.
+TEST(GlintParticles, FlushFloatTestMatchesTheDoubles) {
+#if !GLIMMER_GLINT_WALK_AVX2
+  GTEST_SKIP() << "no AVX2 form in this build";
+#else
+  if (!__builtin_cpu_supports("avx2")) GTEST_SKIP() << "CPU without AVX2";
+  Pcg32 rng(35);
+  int lists = 0, fallback = 0, control_differs = 0;
+  int64_t particles = 0, inside = 0, near_edge = 0;
+  for (int t = 0; t < 20000; ++t) {
+    const double area = std::exp(std::log(1e-8) + rng.next_double() * std::log(1e6));
+    const pg::Footprint f = random_footprint(rng, area, std::exp(rng.next_double() * std::log(64.0)));
+    const double size = std::sqrt(area) * std::exp(std::log(1e-3) + rng.next_double() * std::log(1e7));
+    const pg::FootprintFrame frame(f, size);
+    pg::PairPassCounter pc(frame);
+    const int nodes = 1 + static_cast<int>(rng.next_u32() % 64u);
+    const int n = 1 + static_cast<int>(rng.next_u32() % pg::PairPassCounter::kMaxParticles);
+    for (int q = 0; q < n; ++q) {
+      const auto a = static_cast<size_t>(q);
+      pc.part_hash[a] = rng.next_u32();
+      pc.part_step[a] = pg::position_step(rng.next_u32() % 6u);
+      pc.part_node[a] = q < nodes ? static_cast<uint32_t>(q) : rng.next_u32() % static_cast<uint32_t>(nodes);
+    }
+    pc.n_parts = n;
+    for (int node = 0; node < nodes; ++node) {  // particle `node` (the node's first) placed near an edge
+      const auto a = static_cast<size_t>(node);
+      const auto [ux, uy] = pg::particle_position_stepped(pc.part_hash[a], pc.part_step[a]);
+      const double ps = ux * frame.ds_ux + uy * frame.ds_uy, pt = ux * frame.dt_ux + uy * frame.dt_uy;
+      const double edge = rng.next_u32() % 2u ? 0.5 : -0.5;
+      const double off = (rng.next_double() - 0.5) * std::exp2(-18.0 - 22.0 * rng.next_double());
+      const double across = (rng.next_double() - 0.5) * 1.2;
+      double s = 4.0 * rng.next_double() - 2.0, t2 = 4.0 * rng.next_double() - 2.0;
+      switch (rng.next_u32() % 8u) {
+        case 0: case 1: case 2: s = edge - ps + off, t2 = across - pt; break;
+        case 3: case 4: case 5: s = across - ps, t2 = edge - pt + off; break;
+        case 6: break;
+        default: s = rng.next_u32() % 3u == 0 ? std::nan("") : (rng.next_u32() % 2u ? 1e30 : -1e40); break;
+      }
+      pc.origin[a] = {s, t2};
+      pc.origin_f[a] = {static_cast<float>(s), static_cast<float>(t2)};
+    }
+    pg::PairPassCounter brute = pc, control = pc;
+    brute.flush();
+    pc.flush_avx2();
+    control.flush_avx2<false>();
+    ASSERT_EQ(pc.count, brute.count) << "list " << t;
+    ASSERT_EQ(pc.n_parts, 0);
+    ++lists;
+    particles += n;
+    inside += brute.count;
+    const double d = std::max(std::fabs(frame.ds_ux) + std::fabs(frame.ds_uy), std::fabs(frame.dt_ux) + std::fabs(frame.dt_uy));
+    fallback += !(d <= pg::PairPassCounter::kFloatTestMaxStep);
+    near_edge += std::min(n, nodes);
+    control_differs += control.count != brute.count;
+  }
+  std::printf("[flush float test] %d lists equal (%lld particles, %lld inside, ~%lld placed near an edge; %d frames "
+              "past the float test's step bound); control (undecided lanes by float at 1/2) differs on %d\n",
+              lists, static_cast<long long>(particles), static_cast<long long>(inside),
+              static_cast<long long>(near_edge * 6 / 8), fallback, control_differs);
+  EXPECT_GT(inside, particles / 20);
+  EXPECT_GT(fallback, 100);
+  EXPECT_GT(lists - fallback, 10000);
+  EXPECT_GT(control_differs, 10);
+#endif
+}
+
 // Session 29 (glintpaired29): a walkable table's pass (1) in AVX2 converts the nodes' i, j four per register
 // (exact while |i|, |j| < 2^51) and redoes the pass with the scalar conversions where some node lies farther
 // (tabled_node_origins_far_avx2). The footprints of PairPassesMatchTheNodeLoop, every other one moved 2^51 .. 2^53
