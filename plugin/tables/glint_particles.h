@@ -1576,10 +1576,8 @@ struct NoParticleVisitor {
 }
 // flush_avx2's constants: kPositionKey, mix_u32's two multipliers, the padding node (PairPassCounter::kPadNode =
 // kMaxNodes), eight lanes each (32-byte rows).
-// Session 35 (glintwalk35): a fifth row, kNodeKeyStep (the y keys of flush_avx2's eight particles: the x keys + W).
-alignas(32) inline constexpr Lanes8 kFlushConstants[5] = {lanes8(kPositionKey), lanes8(kMixMultiplier1),
-                                                         lanes8(kMixMultiplier2), lanes8(kMaxNodes),
-                                                         lanes8(kNodeKeyStep)};
+alignas(32) inline constexpr Lanes8 kFlushConstants[4] = {lanes8(kPositionKey), lanes8(kMixMultiplier1),
+                                                         lanes8(kMixMultiplier2), lanes8(kMaxNodes)};
 // Session 25 (glintcount25): which of the lit particles k0 .. k0 + 3 of a node
 // (its hash h0 in the direction cell, its origin o in `frame`) lie inside the
 // footprint, as bits 0..3 (all four computed; the caller masks those >= K):
@@ -1688,12 +1686,6 @@ struct PairPassCounter {
   const FootprintFrame &frame;
   // kMaxNodes + 1: flush_avx2's padding node kPadNode.
   std::array<FootprintFrame::NodeOrigin, kMaxNodes + 1> origin;
-  // Session 35 (glintwalk35): the origins rounded to float (written beside `origin` by the AVX2 origin passes; read
-  // only by flush_avx2's float test, which decides a particle only with a margin over both roundings).
-  struct OriginF {
-    float s, t;
-  };
-  std::array<OriginF, kMaxNodes + 1> origin_f;
   static constexpr uint32_t kPadNode = kMaxNodes;
   static_assert(kFlushConstants[3].lane[0] == kPadNode);
   std::array<int32_t, kMaxNodes> inside_mask;  // -1 inside, 0 not
@@ -1720,9 +1712,7 @@ struct PairPassCounter {
   // Session 30 (glintcells30): the padding's origin is (NaN, NaN) (all bits set: the gathers' mask register), which
   // puts the padding outside as well (s and t NaN, and NaN <= 1/2 is false), and kPadNode's lanes are read from
   // kFlushConstants (were three instructions from an immediate); the two origin stores one 128-bit store.
-  // Session 35 (glintwalk35): this is flush_avx2's exact fallback (flush_doubles_avx2), for frames whose steps are
-  // not finite or larger than kFloatTestMaxStep; flush_avx2 (below) tests eight particles per step in float first.
-  [[gnu::target("avx2,popcnt"), gnu::noinline, gnu::cold]] void flush_doubles_avx2() {
+  [[gnu::target("avx2,popcnt"), gnu::noinline]] void flush_avx2() {
     int64_t c = 0;
     int q = 0;
     const auto end = static_cast<size_t>(n_parts);
@@ -1771,77 +1761,6 @@ struct PairPassCounter {
       const auto m = static_cast<uint32_t>(_mm256_movemask_pd(in));
       c += std::popcount(m);
     }
-    count += c;
-    n_parts = 0;
-  }
-  // Session 35 (glintwalk35): the flush with eight particles per step, decided in float where a margin over both
-  // roundings allows it, else by the doubles (the same count, bit for bit, as flush_doubles_avx2 and flush).
-  // The eight x keys (h ^ C) + step and the eight y keys (those + W) in two mix_u32x8; ux, uy the same floats
-  // as the double test's (exact: v >> 8 < 2^24 times 2^-24). The float test computes s_f = (o_f.s + ux ds_ux_f) +
-  // uy ds_uy_f (o_f: origin_f, the origins rounded to float by the origin passes; ds_f: the steps rounded) and
-  // the same for t. With D = max(|ds_ux| + |ds_uy|, |dt_ux| + |dt_uy|) and u = 2^-24, |s_f - s| <= 7 u (|o.s| + D)
-  // (two roundings of the inputs, two products, two sums; float underflow adds <= 2^-149 per step; the double s
-  // is within 3 2^-53 (|o.s| + D) of the exact sum). Where |o.s| <= 1 + 2 D that is below m = 2^-18 (1 + 3 D):
-  // |s_f| <= 1/2 - m (rounded to float: within 2^-26 of it, m >= 2^-18) means the double |s| <= 1/2, and |s_f| >
-  // 1/2 + m means the double |s| > 1/2. Where |o.s| > 1 + 2 D, the exact |s| >= |o.s| - D > 1 + D and both s_f
-  // and s are within 21 u |s| of it (for D <= kFloatTestMaxStep): both say "outside" (|o.s| beyond float's range:
-  // o_f.s = +-inf, |s_f| = inf, outside too). A particle inside in both s and t (float) is counted, one outside
-  // in s or t is not; if any particle is neither (NaN included: no compare is true; ~1 in 4000 steps at r0.4
-  // 1e-4), the whole list is counted again by flush_doubles_avx2. The padding's node kPadNode has the float
-  // origin (+inf, +inf): outside. kExactRedo false (tests only: the control) counts the undecided particles by the
-  // float test at 1/2 instead.
-  static constexpr double kFloatTestMaxStep = 1024.0;
-  template <bool kExactRedo = true>
-  [[gnu::target("avx2,popcnt"), gnu::noinline]] void flush_avx2() {
-    const __m256d steps = _mm256_setr_pd(frame.ds_ux, frame.ds_uy, frame.dt_ux, frame.dt_uy);
-    const __m256d sums = _mm256_hadd_pd(_mm256_andnot_pd(_mm256_set1_pd(-0.0), steps), steps);  // lanes 0, 2
-    const double d = std::max(_mm256_cvtsd_f64(sums), _mm_cvtsd_f64(_mm256_extractf128_pd(sums, 1)));
-    if (!(d <= kFloatTestMaxStep)) [[unlikely]] return flush_doubles_avx2();  // NaN too
-    const double m = 0x1p-18 * (1.0 + 3.0 * d);
-    const __m256 in_lim = _mm256_set1_ps(static_cast<float>(0.5 - m)), out_lim = _mm256_set1_ps(static_cast<float>(0.5 + m));
-    const auto end = static_cast<size_t>(n_parts);
-    const Lanes8 *consts = opaque(kFlushConstants);  // kPadNode's lanes below a load
-    _mm256_storeu_si256(reinterpret_cast<__m256i *>(part_node.data() + end), _mm256_load_si256(reinterpret_cast<const __m256i *>(consts[3].lane)));
-    _mm256_storeu_si256(reinterpret_cast<__m256i *>(part_hash.data() + end), _mm256_setzero_si256());
-    _mm256_storeu_si256(reinterpret_cast<__m256i *>(part_step.data() + end), _mm256_setzero_si256());
-    origin_f[kPadNode] = {std::numeric_limits<float>::infinity(), std::numeric_limits<float>::infinity()};
-    const __m256 all = _mm256_castsi256_ps(_mm256_set1_epi32(-1));  // the gathers' mask: every lane
-    const __m256 scale = _mm256_set1_ps(1.0f / 16777216.0f), sign = _mm256_set1_ps(-0.0f);
-    const __m128 steps_f = _mm256_cvtpd_ps(steps);
-    const __m256 ds_ux = _mm256_set1_ps(steps_f[0]), ds_uy = _mm256_set1_ps(steps_f[1]);
-    const __m256 dt_ux = _mm256_set1_ps(steps_f[2]), dt_uy = _mm256_set1_ps(steps_f[3]);
-    static_assert(sizeof(OriginF) == 2 * sizeof(float));
-    int64_t c = 0;
-    uint32_t open = 0;  // the undecided lanes of every step, or-ed
-    for (int q = 0; q < n_parts; q += 8) {
-      const auto a = static_cast<size_t>(q);
-      consts = opaque(consts);  // the loads below stay memory operands
-      const auto *row = reinterpret_cast<const __m256i *>(consts);
-      const __m256i h = _mm256_loadu_si256(reinterpret_cast<const __m256i *>(part_hash.data() + a));
-      const __m256i kx = _mm256_add_epi32(_mm256_xor_si256(h, _mm256_load_si256(row)),
-                                          _mm256_loadu_si256(reinterpret_cast<const __m256i *>(part_step.data() + a)));
-      const __m256i ky = _mm256_add_epi32(kx, _mm256_load_si256(row + 4));
-      const __m256i m1 = _mm256_load_si256(row + 1), m2 = _mm256_load_si256(row + 2);
-      const __m256 ux = _mm256_mul_ps(_mm256_cvtepi32_ps(_mm256_srli_epi32(mix_u32x8(kx, m1, m2), 8)), scale);
-      const __m256 uy = _mm256_mul_ps(_mm256_cvtepi32_ps(_mm256_srli_epi32(mix_u32x8(ky, m1, m2), 8)), scale);
-      const __m256i at = _mm256_slli_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i *>(part_node.data() + a)), 1);
-      const __m256 os = _mm256_mask_i32gather_ps(_mm256_setzero_ps(), &origin_f[0].s, at, all, 4);
-      const __m256 ot = _mm256_mask_i32gather_ps(_mm256_setzero_ps(), &origin_f[0].t, at, all, 4);
-      const __m256 s = _mm256_andnot_ps(sign, _mm256_add_ps(_mm256_add_ps(os, _mm256_mul_ps(ux, ds_ux)), _mm256_mul_ps(uy, ds_uy)));
-      const __m256 t = _mm256_andnot_ps(sign, _mm256_add_ps(_mm256_add_ps(ot, _mm256_mul_ps(ux, dt_ux)), _mm256_mul_ps(uy, dt_uy)));
-      const auto in = static_cast<uint32_t>(_mm256_movemask_ps(
-          _mm256_and_ps(_mm256_cmp_ps(s, in_lim, _CMP_LE_OQ), _mm256_cmp_ps(t, in_lim, _CMP_LE_OQ))));
-      const auto out = static_cast<uint32_t>(_mm256_movemask_ps(
-          _mm256_or_ps(_mm256_cmp_ps(s, out_lim, _CMP_GT_OQ), _mm256_cmp_ps(t, out_lim, _CMP_GT_OQ))));
-      c += std::popcount(in);
-      open |= ~(in | out);
-      if constexpr (!kExactRedo) {
-        const __m256 half = _mm256_set1_ps(0.5f);
-        c += std::popcount(~(in | out) & 0xffu & static_cast<uint32_t>(_mm256_movemask_ps(
-                                         _mm256_and_ps(_mm256_cmp_ps(s, half, _CMP_LE_OQ), _mm256_cmp_ps(t, half, _CMP_LE_OQ)))));
-      }
-    }
-    if (kExactRedo && (open & 0xffu) != 0) [[unlikely]] return flush_doubles_avx2();  // counts the list again
     count += c;
     n_parts = 0;
   }
@@ -2110,9 +2029,6 @@ inline void paired_node_origins(const FootprintFrame &frame, const NodeList &nod
       _mm256_mul_pd(_mm256_sub_pd(_mm256_mul_pd(p, by_ax), _mm256_mul_pd(_mm256_permute_pd(p, 0x5), bx_ay)), inv_det);
   _mm_storeu_pd(&pc.origin[a].s, _mm256_castpd256_pd128(st));
   _mm_storeu_pd(&pc.origin[b].s, _mm256_extractf128_pd(st, 1));
-  const __m128 st_f = _mm256_cvtpd_ps(st);  // session 35: flush_avx2's float origins
-  _mm_storel_pi(reinterpret_cast<__m64 *>(&pc.origin_f[a]), st_f);
-  _mm_storeh_pi(reinterpret_cast<__m64 *>(&pc.origin_f[b]), st_f);
   const __m256d d_ux = l[5], d_uy = l[6];  // (ds_ux dt_ux ds_ux dt_ux), (ds_uy dt_uy ds_uy dt_uy)
   const __m256d c10 = _mm256_add_pd(st, d_ux), c01 = _mm256_add_pd(st, d_uy), c11 = _mm256_add_pd(c10, d_uy);
   const __m256d sign = _mm256_set1_pd(-0.0), half = _mm256_set1_pd(0.5);
@@ -2201,11 +2117,8 @@ struct TabledOriginLanesAvx2 {
   const __m256d s = _mm256_mul_pd(_mm256_sub_pd(_mm256_mul_pd(px, l.by), _mm256_mul_pd(py, l.bx)), l.inv_det);
   const __m256d t = _mm256_mul_pd(_mm256_sub_pd(_mm256_mul_pd(py, l.ax), _mm256_mul_pd(px, l.ay)), l.inv_det);
   const __m256d lo = _mm256_unpacklo_pd(s, t), hi = _mm256_unpackhi_pd(s, t);  // (s0 t0 s2 t2), (s1 t1 s3 t3)
-  const __m256d first = _mm256_permute2f128_pd(lo, hi, 0x20), second = _mm256_permute2f128_pd(lo, hi, 0x31);
-  _mm256_storeu_pd(&pc.origin[a0].s, first);
-  _mm256_storeu_pd(&pc.origin[a0 + 2].s, second);
-  _mm_storeu_ps(&pc.origin_f[a0].s, _mm256_cvtpd_ps(first));  // session 35: flush_avx2's float origins
-  _mm_storeu_ps(&pc.origin_f[a0 + 2].s, _mm256_cvtpd_ps(second));
+  _mm256_storeu_pd(&pc.origin[a0].s, _mm256_permute2f128_pd(lo, hi, 0x20));
+  _mm256_storeu_pd(&pc.origin[a0 + 2].s, _mm256_permute2f128_pd(lo, hi, 0x31));
   return static_cast<uint32_t>(
       _mm256_movemask_pd(_mm256_and_pd(corners_within_half_avx2(s, l.ds_ux, l.ds_uy), corners_within_half_avx2(t, l.dt_ux, l.dt_uy))));
 }
