@@ -243,9 +243,17 @@ struct LodLevel {
   void prefetch(float theta_i_deg, float theta_o_deg, float dphi_deg) const {
     prefetch(cell(theta_i_deg, theta_o_deg, dphi_deg));
   }
+  // Session 35 (glintwalk35): the four hints as volatile asm. With __builtin_prefetch (in a loop over
+  // {0, so, si, si + so}, or written out) GCC 12 emitted no prefetch at all where this was inlined into
+  // DirectionalTable::prefetch(const Located &) (-O2 and -O3: docs/glints.md, Session 35 (glintwalk35)); nothing on main calls it.
+  static void prefetch_line(const uint16_t *p) { asm volatile("prefetcht0 %0" : : "m"(*p)); }
   void prefetch(const Cell &c) const {
+    const uint16_t *p = halves.data() + c.base;
     const size_t si = theta_i_stride(), so = theta_o_stride();
-    for (const size_t offset : {size_t{0}, so, si, si + so}) __builtin_prefetch(halves.data() + c.base + offset);
+    prefetch_line(p);
+    prefetch_line(p + so);
+    prefetch_line(p + si);
+    prefetch_line(p + si + so);
   }
 };
 
