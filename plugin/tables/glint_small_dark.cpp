@@ -20,27 +20,31 @@ std::unique_ptr<const SmallDarkField> make_small_dark_field(const DirectionCellK
 #if GLIMMER_GLINT_WALK_AVX2
 namespace {
 // small_footprint_dark_avx2's pass 1: every node's four group hashes (node_seed_hash in lanes) and quick rejects, as
-// bit 4 n + g of the result (n the node in row-major order of the rows x cols box from (i0, j0)).
-[[gnu::target("avx2"), gnu::always_inline]] inline uint64_t passing_pairs(
-    int level, int64_t i0, int64_t j0, int64_t rows, int64_t cols, __m128i seeds, __m128i below, __m128i bias,
-    uint32_t all_pass, uint32_t (*hashes)[kDirectionGroups], int64_t *node_i, int64_t *node_j) {
-  uint64_t pairs = 0;
+// bit 4 n + g of the result (n the node in row-major order of the rows x cols box from (i0, j0)). Session 35: the
+// box's (at most kBoxSpan = 4) row keys in the lanes of one node_row_keys_avx2 (node_row_key's words, j as uint32 as
+// there) instead of two scalar PCG hashes per row; a node's key row_key + i W as a running sum along the row (the same
+// words mod 2^32; GCC had hoisted (i0 + c) W for c = 0..3 out of the row loop); the hashes two nodes per mix_u32x8 by
+// the node loop's node_loop_pass1_avx2 (the same words, bits and stores) instead of one mix_u32x4 per node.
+[[gnu::target("avx2"), gnu::always_inline]] inline uint64_t passing_pairs(int level, int64_t i0, int64_t j0,
+                                                                         int64_t rows, int64_t cols, __m128i seeds,
+                                                                         __m128i below, uint32_t all_pass,
+                                                                         uint32_t (*hashes)[kDirectionGroups],
+                                                                         int64_t *node_i, int64_t *node_j) {
+  static_assert(kBoxSpan <= 4 && kBoxSpan * kBoxSpan <= kNodeLoopChunk);
+  alignas(16) uint32_t row_keys[4];
+  _mm_store_si128(reinterpret_cast<__m128i *>(row_keys),
+                  node_row_keys_avx2(level, _mm_add_epi32(_mm_set1_epi32(static_cast<int>(static_cast<uint32_t>(j0))),
+                                                          _mm_setr_epi32(0, 1, 2, 3))));
+  alignas(16) uint32_t keys[kBoxSpan * kBoxSpan];
   int n = 0;
   for (int64_t r = 0; r < rows; ++r) {
-    const int64_t j = j0 + r;
-    const uint32_t row_key = node_row_key(level, j);
-    for (int64_t c = 0; c < cols; ++c, ++n) {
-      const int64_t i = i0 + c;
-      const uint32_t key = row_key + static_cast<uint32_t>(i) * kNodeKeyStep;
-      const __m128i h = mix_u32x4_avx2(_mm_xor_si128(_mm_set1_epi32(static_cast<int>(key)), seeds));
-      _mm_store_si128(reinterpret_cast<__m128i *>(hashes[n]), h);
-      node_i[n] = i, node_j[n] = j;
-      pairs |= static_cast<uint64_t>(
-                   all_pass | static_cast<uint32_t>(_mm_movemask_ps(_mm_castsi128_ps(_mm_cmpgt_epi32(below, _mm_xor_si128(h, bias))))))
-               << (kDirectionGroups * n);
+    uint32_t key = row_keys[r] + static_cast<uint32_t>(i0) * kNodeKeyStep;
+    for (int64_t c = 0; c < cols; ++c, ++n, key += kNodeKeyStep) {
+      keys[n] = key;
+      node_i[n] = i0 + c, node_j[n] = j0 + r;
     }
   }
-  return pairs;
+  return node_loop_pass1_avx2(keys, n, seeds, below, all_pass, hashes);
 }
 }  // namespace
 #endif
@@ -90,7 +94,7 @@ namespace {
   // Pass 1: every node's four group hashes (node_seed_hash in lanes) and quick rejects, as bit 4 n + g of `pairs`.
   alignas(16) uint32_t hashes[kBoxSpan * kBoxSpan][kDirectionGroups];
   int64_t node_i[kBoxSpan * kBoxSpan], node_j[kBoxSpan * kBoxSpan];
-  uint64_t pairs = passing_pairs(level, i0, j0, rows, cols, seeds, below, bias, all_pass, hashes, node_i, node_j);
+  uint64_t pairs = passing_pairs(level, i0, j0, rows, cols, seeds, below, all_pass, hashes, node_i, node_j);
   if (pairs == 0) return SmallDark::kDark;  // K = 0 in every pair
   // Pass 2: the pairs in count_reflecting_particles' order (node by node, groups in order).
   const LitCountBounds bounds(lambda);
