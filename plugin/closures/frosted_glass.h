@@ -295,16 +295,19 @@ class FrostedGlassClosure {
   // knob's; session 30): where the pane is seen directly, each walk's first event at the far face keeps both branches
   // (branch_walks) and the face is picked by frosted::pane_face_probability's level 2. exact_leaving: the tests'
   // level of frosted::pane_exact_leaving_level (-1: the knob's; session 32). both_faces: the tests' level of
-  // frosted::pane_both_faces_level (-1: the knob's; session 33).
+  // frosted::pane_both_faces_level (-1: the knob's; session 33). front_grid: the tests' level of
+  // frosted::pane_front_grid_level (-1: the knob's; session 35).
   bool pane_sample_sg_split(const ShadingPoint &sp, const DielectricLobe &lobe, const frosted::PaneSgInputs &in,
                             const Vec3 &rand, const Vec3 &wi, const LocalSample &front, bool flip, LocalSample &out,
                             int split, bool count_rejected = false, int branch = -1, int exact_leaving = -1,
-                            int both_faces = -1) const {
+                            int both_faces = -1, int front_grid = -1) const {
     frosted::PaneWalkEnd walks[2 * frosted::kPaneWalkSplit];
     int n = 0, ends = 0;
+    const bool after_bounce = sp.ctx->diffuse_bounce + sp.ctx->glossy_bounce != 0;
     if (branch < 0) branch = frosted::pane_branch_level();
-    if (split < 2 || sp.ctx->diffuse_bounce + sp.ctx->glossy_bounce != 0 || lobe.mode == kSharp)
-      branch = 0;  // camera-seen rough panes only
+    if (split < 2 || after_bounce || lobe.mode == kSharp) branch = 0;  // camera-seen rough panes only
+    if (front_grid < 0) front_grid = frosted::pane_front_grid_level();
+    if (split != frosted::kPaneWalkSplit) front_grid = 0;
     const auto add_walk = [&](const Vec3 &numbers, const LocalSample &s) {
       ++n;
       if (branch > 0) {
@@ -322,7 +325,8 @@ class FrostedGlassClosure {
     add_walk(rand, front);
     mf::WalkRng rng(hash_u32x2(sp.seed_for(rand), 0x73706c74u));
     for (int k = 1; k < split; ++k) {
-      const Vec3 numbers(rng.next(), rng.next(), rng.next());
+      const Vec3 hashed(rng.next(), rng.next(), rng.next());
+      const Vec3 numbers = frosted::pane_front_grid_numbers(rand, hashed, k, front_grid, after_bounce);
       LocalSample s;
       if (!lobe.sample(wi, numbers, s) || !(s.label & GLIMMER_LABEL_TRANSMIT) || !(s.pdf > 0.0f)) {
         if (count_rejected) walks[ends++] = frosted::PaneWalkEnd{}, ++n;
@@ -336,7 +340,8 @@ class FrostedGlassClosure {
   }
   // For the tests: the rough pane's split sample (kPaneWalk) with its negative control (count_rejected above).
   bool pane_sample_sg_split(const ShadingPoint &sp, const Vec3 &rand, LocalSample &out, int split,
-                            bool count_rejected, int branch = -1, int exact_leaving = -1, int both_faces = -1) const {
+                            bool count_rejected, int branch = -1, int exact_leaving = -1, int both_faces = -1,
+                            int front_grid = -1) const {
     DielectricLobe scratch;
     const DielectricLobe &lobe = lobe_at(sp, scratch);
     Vec3 wi;
@@ -347,7 +352,7 @@ class FrostedGlassClosure {
     if (front != PaneFront::kEntered) return front == PaneFront::kReflected;
     const frosted::PaneSgInputs in = pane_sg_inputs(sp, frosted::SgVariant::kPaneWalk, frosted::kPaneLadder);
     return pane_sample_sg_split(sp, lobe, in, rand, wi, s, flip, out, std::clamp(split, 1, frosted::kPaneWalkSplit),
-                                count_rejected, branch, exact_leaving, both_faces);
+                                count_rejected, branch, exact_leaving, both_faces, front_grid);
   }
   // For the tests: the interface lobe at sp (per-point roughness and IOR).
   bool pane_sample_sg(const ShadingPoint &sp, const Vec3 &rand, LocalSample &out, frosted::SgVariant variant,

@@ -720,5 +720,23 @@ inline constexpr int kPaneBothFacesControl = 9;
 // where the ends' colours differ, e.g. coloured Beer; unbiased in the channels' average). Session 34 (frostedtestfix34).
 inline constexpr int kPaneBothFacesNoColourGuard = 8;
 int pane_both_faces_level();
+// Session 35 (frostedgrid35; docs/frosted_glass.md "Session 35 (frostedgrid35)"): the split's kPaneWalkSplit - 1
+// extra front samples on a 2 x 2 grid with the primary's: extra k takes the primary's microfacet numbers (x, y)
+// shifted by ((k & 1) / 2, (k >> 1) / 2) mod 1 (each extra uniform alone), its reflect / refract number z and its
+// walk's numbers still hashed (session 34's scratch GLIMMER_SCRATCH_FRONT_GRID). Level 1: only where the pane is
+// seen after a bounce (diffuse or glossy: the floor under the bench's pane); 2: everywhere (session 34: glass_R +42 %,
+// not kept); 0: 65a01b6's images bit for bit (no grid); kPaneFrontGridControl (the tests' negative control): level
+// 1's rule with the shifted numbers u / 2 + 1/2 (the upper half only: not uniform). Only with split ==
+// kPaneWalkSplit == 4.
+// The extras' transmit numbers z are independent but their Fresnel depends on (x, y), so the kept extras' law is
+// tilted by the primary's transmission (a bias of order the front's Fresnel variation; checked by
+// FrostedGlassSgPane.RoughPaneFrontGridAfterABounceSameExpectationAsOneWalk). Measurement knob
+// GLIMMER_FROSTED_PANE_FRONT_GRID, read once (exactly 0, 1, 2, or 9; other values the default).
+inline constexpr int kPaneFrontGridDefault = 0;
+inline constexpr int kPaneFrontGridControl = 9;
+int pane_front_grid_level();
+// Level `level`'s numbers for extra front sample k (1..3) from the primary's `primary` and its hashed `hashed`
+// (returned unchanged at level 0 or where the grid does not apply: `after_bounce` false at levels 1 and 9).
+Vec3 pane_front_grid_numbers(const Vec3 &primary, const Vec3 &hashed, int k, int level, bool after_bounce);
 
 }  // namespace glimmer::plugin::frosted
