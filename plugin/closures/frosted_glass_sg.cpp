@@ -1426,8 +1426,9 @@ int pane_both_faces_level() {
   return level;
 }
 int pane_front_grid_level() {
-  static const int level =
-      measurement_level("GLIMMER_FROSTED_PANE_FRONT_GRID", kPaneFrontGridDefault, {0, 1, 2, kPaneFrontGridControl});
+  static const int level = measurement_level("GLIMMER_FROSTED_PANE_FRONT_GRID", kPaneFrontGridDefault,
+                                             {0, 1, 2, kPaneFrontGridExact, kPaneFrontGridExactControl,
+                                              kPaneFrontGridControl});
   return level;
 }
 Vec3 pane_front_grid_numbers(const Vec3 &primary, const Vec3 &hashed, int k, int level, bool after_bounce) {

@@ -857,67 +857,90 @@ TEST(FrostedGlassSgPane, RoughPaneSplitBranchesSameExpectationAsOneWalk) {
 // walk), pooled, within 4 of its own se: the caveat's tilt, resolved ~3-10x finer than (1). Negative control:
 // kPaneFrontGridControl (the shifted numbers in the upper half only: not uniform) must be > 6 paired se off main's
 // split in every configuration. The variance per sample of the grid over main's split printed.
+// Session 35 (frostedgridexact35): the same test for frosted::kPaneFrontGridExact (the extras refract without a coin,
+// each walk weighted 4 p_k / (p_0 + ... + p_3), p_k = 1 - F(m_k): exactly unbiased, FrostedGlassClosure::
+// pane_front_grid_exact_walks derives it), with the same three checks: within 4.5 se of one walk per (angle,
+// direction), within 4 se pooled, and the paired difference from main's split within 4 of its own se, at
+// 131072 draws for r0.8 / IOR 1.5 (where level 1's paired tilt read z 3.51 at 32768). Its negative control
+// kPaneFrontGridExactControl (the normaliser without the primary's p_0) must be > 6 paired se off main's split
+// (controls of the Fresnel weight alone are not detectable at these sizes: pane_front_grid_exact_walks).
 struct FrontGridSums {
-  SplitSums one, est[3];    // one walk; main's split, the grid, the control on shared draws
-  double d[2] = {}, d2[2] = {};  // per draw, pooled over the directions: grid - main, control - main
+  // main's split (0), the grid (1), its control (9), the exact grid (3), its control (7), on shared draws
+  static constexpr int kLevels = 5;
+  static constexpr int kLevel[kLevels] = {0, 1, frosted::kPaneFrontGridControl, frosted::kPaneFrontGridExact,
+                                          frosted::kPaneFrontGridExactControl};
+  SplitSums one, est[kLevels];                           // one walk; each level on the shared draws
+  double d[kLevels - 1] = {}, d2[kLevels - 1] = {};      // per draw, pooled over the directions: level l + 1 - main
 };
 void front_grid_sums(const FrostedGlassClosure &pane, float theta, long samples, FrontGridSums &out) {
   static const auto schema = FrostedGlassClosure::params();
-  const int levels[3] = {0, 1, frosted::kPaneFrontGridControl};
+  constexpr int kL = FrontGridSums::kLevels;
   out.one = split_estimate(pane, theta, 1, false, 505, samples, nullptr, -1, 1, 0);
   Pcg32 rng(606, 7);
   for (long i = 0; i < samples; ++i) {
     const PaneDraw draw(theta, rng, schema, 1);
-    double v[3][SplitSums::kDirs], p[3] = {};
-    for (int l = 0; l < 3; ++l) {
-      split_values(pane, draw, frosted::kPaneWalkSplit, false, -1, levels[l], v[l]);
+    double v[kL][SplitSums::kDirs], p[kL] = {};
+    for (int l = 0; l < kL; ++l) {
+      split_values(pane, draw, frosted::kPaneWalkSplit, false, -1, FrontGridSums::kLevel[l], v[l]);
       out.est[l].add(v[l]);
       for (double x : v[l]) p[l] += x;
     }
-    for (int l = 0; l < 2; ++l) out.d[l] += p[l + 1] - p[0], out.d2[l] += (p[l + 1] - p[0]) * (p[l + 1] - p[0]);
+    for (int l = 0; l + 1 < kL; ++l)
+      out.d[l] += p[l + 1] - p[0], out.d2[l] += (p[l + 1] - p[0]) * (p[l + 1] - p[0]);
   }
 }
 TEST(FrostedGlassSgPane, RoughPaneFrontGridAfterABounceSameExpectationAsOneWalk) {
   const PaneConfig configs[] = {{0.5f, 1.5f}, {0.8f, 1.5f}, {0.6f, 1.7f, Vec3(0.7f), 0.05f}, {0.8f, 2.4f}};
   const float angles[] = {0.0f, 35.0f, 60.0f, 75.0f};
-  constexpr long kSamples = 32768;
+  constexpr int kL = FrontGridSums::kLevels;
   const auto mean_var = [](double sum, double sum2, double n, double &mean, double &var) {  // var: of the mean
     mean += sum / n;
     var += std::max(0.0, sum2 / n - (sum / n) * (sum / n)) / n;
   };
   for (const PaneConfig &c : configs) {
+    const long samples = c.roughness == 0.8f && c.ior == 1.5f ? 131072 : 32768;
     auto pane = create_pane(c, "sg");
-    double one = 0.0, var_one = 0.0, pooled[3] = {}, var[3] = {}, d[2] = {}, var_d[2] = {}, sample_var[2] = {};
-    double worst = 0.0;
+    double one = 0.0, var_one = 0.0, pooled[kL] = {}, var[kL] = {}, d[kL - 1] = {}, var_d[kL - 1] = {};
+    double sample_var[kL] = {}, worst[kL] = {};
     for (float theta : angles) {
       FrontGridSums g;
-      front_grid_sums(*pane, theta, kSamples, g);
-      mean_var(g.one.pooled, g.one.pooled2, kSamples, one, var_one);
-      for (int l = 0; l < 3; ++l) mean_var(g.est[l].pooled, g.est[l].pooled2, kSamples, pooled[l], var[l]);
-      for (int l = 0; l < 2; ++l) mean_var(g.d[l], g.d2[l], kSamples, d[l], var_d[l]);
+      front_grid_sums(*pane, theta, samples, g);
+      mean_var(g.one.pooled, g.one.pooled2, samples, one, var_one);
+      for (int l = 0; l < kL; ++l) mean_var(g.est[l].pooled, g.est[l].pooled2, samples, pooled[l], var[l]);
+      for (int l = 0; l + 1 < kL; ++l) mean_var(g.d[l], g.d2[l], samples, d[l], var_d[l]);
       for (int j = 0; j < SplitSums::kDirs; ++j) {
-        double m1 = 0.0, v1 = 0.0, m = 0.0, v = 0.0, m0 = 0.0, v0 = 0.0;
-        mean_var(g.one.sum[j], g.one.sum2[j], kSamples, m1, v1);
-        mean_var(g.est[1].sum[j], g.est[1].sum2[j], kSamples, m, v);
-        mean_var(g.est[0].sum[j], g.est[0].sum2[j], kSamples, m0, v0);
-        const double z = (m - m1) / std::sqrt(v1 + v);
-        worst = std::max(worst, std::fabs(z));
-        sample_var[0] += v0, sample_var[1] += v;
-        EXPECT_LT(std::fabs(z), 4.5) << "grid, roughness " << c.roughness << " ior " << c.ior << " theta " << theta
-                                     << " direction " << j << ": " << m << " one walk " << m1;
+        double m1 = 0.0, v1 = 0.0;
+        mean_var(g.one.sum[j], g.one.sum2[j], samples, m1, v1);
+        for (int l : {0, 1, 3}) {  // main's split (the sample variance), the grid, the exact grid
+          double m = 0.0, v = 0.0;
+          mean_var(g.est[l].sum[j], g.est[l].sum2[j], samples, m, v);
+          sample_var[l] += v;
+          if (l == 0) continue;
+          const double z = (m - m1) / std::sqrt(v1 + v);
+          worst[l] = std::max(worst[l], std::fabs(z));
+          EXPECT_LT(std::fabs(z), 4.5) << "level " << FrontGridSums::kLevel[l] << ", roughness " << c.roughness
+                                       << " ior " << c.ior << " theta " << theta << " direction " << j << ": " << m
+                                       << " one walk " << m1;
+        }
       }
     }
-    const double z0 = (pooled[0] - one) / std::sqrt(var_one + var[0]);
-    const double z1 = (pooled[1] - one) / std::sqrt(var_one + var[1]);
-    const double zd = d[0] / std::sqrt(var_d[0]), zc = d[1] / std::sqrt(var_d[1]);
-    std::printf("[frosted sg pane front grid] roughness %.2f ior %.2f%s, after a bounce: vs one walk pooled z main "
-                "split %.2f, grid %.2f (worst |z| %.2f over 20); paired grid - main split %+.5f (relative %+.4f, se "
-                "%.4f) z %.2f; control z %.1f; variance per sample grid / main split %.3f\n",
-                double(c.roughness), double(c.ior), c.absorb.x < 1.0f ? " grey Beer" : "", z0, z1, worst, d[0],
-                d[0] / pooled[0], std::sqrt(var_d[0]) / pooled[0], zd, zc, sample_var[1] / sample_var[0]);
-    EXPECT_LT(std::fabs(z1), 4.0) << "grid, roughness " << c.roughness << " ior " << c.ior;
-    EXPECT_LT(std::fabs(zd), 4.0) << "grid - main split, roughness " << c.roughness << " ior " << c.ior;
-    EXPECT_GT(std::fabs(zc), 6.0) << "negative control passed: roughness " << c.roughness << " ior " << c.ior;
+    const auto z_one = [&](int l) { return (pooled[l] - one) / std::sqrt(var_one + var[l]); };
+    const auto z_d = [&](int l) { return d[l - 1] / std::sqrt(var_d[l - 1]); };
+    for (int l : {1, 3}) {
+      std::printf("[frosted sg pane front grid] level %d, roughness %.2f ior %.2f%s, after a bounce, %ld draws: vs one "
+                  "walk pooled z main split %.2f, level %.2f (worst |z| %.2f over 20); paired level - main split "
+                  "%+.5f (relative %+.4f, se %.4f) z %.2f; control z %.1f; variance per sample level / main split "
+                  "%.3f\n",
+                  FrontGridSums::kLevel[l], double(c.roughness), double(c.ior), c.absorb.x < 1.0f ? " grey Beer" : "",
+                  samples, z_one(0), z_one(l), worst[l], d[l - 1], d[l - 1] / pooled[0],
+                  std::sqrt(var_d[l - 1]) / pooled[0], z_d(l), z_d(l + 1), sample_var[l] / sample_var[0]);
+      EXPECT_LT(std::fabs(z_one(l)), 4.0) << "level " << FrontGridSums::kLevel[l] << ", roughness " << c.roughness
+                                          << " ior " << c.ior;
+      EXPECT_LT(std::fabs(z_d(l)), 4.0) << "level " << FrontGridSums::kLevel[l] << " - main split, roughness "
+                                        << c.roughness << " ior " << c.ior;
+      EXPECT_GT(std::fabs(z_d(l + 1)), 6.0) << "negative control of level " << FrontGridSums::kLevel[l]
+                                            << " passed: roughness " << c.roughness << " ior " << c.ior;
+    }
   }
 }
 
