@@ -295,16 +295,24 @@ class FrostedGlassClosure {
   // knob's; session 30): where the pane is seen directly, each walk's first event at the far face keeps both branches
   // (branch_walks) and the face is picked by frosted::pane_face_probability's level 2. exact_leaving: the tests'
   // level of frosted::pane_exact_leaving_level (-1: the knob's; session 32). both_faces: the tests' level of
-  // frosted::pane_both_faces_level (-1: the knob's; session 33).
+  // frosted::pane_both_faces_level (-1: the knob's; session 33). front_grid: the tests' level of
+  // frosted::pane_front_grid_level (-1: the knob's; session 35).
   bool pane_sample_sg_split(const ShadingPoint &sp, const DielectricLobe &lobe, const frosted::PaneSgInputs &in,
                             const Vec3 &rand, const Vec3 &wi, const LocalSample &front, bool flip, LocalSample &out,
                             int split, bool count_rejected = false, int branch = -1, int exact_leaving = -1,
-                            int both_faces = -1) const {
+                            int both_faces = -1, int front_grid = -1) const {
     frosted::PaneWalkEnd walks[2 * frosted::kPaneWalkSplit];
     int n = 0, ends = 0;
+    const bool after_bounce = sp.ctx->diffuse_bounce + sp.ctx->glossy_bounce != 0;
     if (branch < 0) branch = frosted::pane_branch_level();
-    if (split < 2 || sp.ctx->diffuse_bounce + sp.ctx->glossy_bounce != 0 || lobe.mode == kSharp)
-      branch = 0;  // camera-seen rough panes only
+    if (split < 2 || after_bounce || lobe.mode == kSharp) branch = 0;  // camera-seen rough panes only
+    if (front_grid < 0) front_grid = frosted::pane_front_grid_level();
+    if (split != frosted::kPaneWalkSplit) front_grid = 0;
+    if (frosted::pane_front_grid_exact(front_grid) && after_bounce && lobe.mode != kSharp) {  // branch is 0 here
+      pane_front_grid_exact_walks(sp, lobe, in, rand, wi, front, front_grid, walks);
+      return frosted::sample_pane_sg_split(sp, in, rand, walks, frosted::kPaneWalkSplit, flip, out,
+                                           frosted::kPaneWalkSplit, 0, exact_leaving, both_faces);
+    }
     const auto add_walk = [&](const Vec3 &numbers, const LocalSample &s) {
       ++n;
       if (branch > 0) {
@@ -322,7 +330,8 @@ class FrostedGlassClosure {
     add_walk(rand, front);
     mf::WalkRng rng(hash_u32x2(sp.seed_for(rand), 0x73706c74u));
     for (int k = 1; k < split; ++k) {
-      const Vec3 numbers(rng.next(), rng.next(), rng.next());
+      const Vec3 hashed(rng.next(), rng.next(), rng.next());
+      const Vec3 numbers = frosted::pane_front_grid_numbers(rand, hashed, k, front_grid, after_bounce);
       LocalSample s;
       if (!lobe.sample(wi, numbers, s) || !(s.label & GLIMMER_LABEL_TRANSMIT) || !(s.pdf > 0.0f)) {
         if (count_rejected) walks[ends++] = frosted::PaneWalkEnd{}, ++n;
@@ -334,9 +343,58 @@ class FrostedGlassClosure {
     return frosted::sample_pane_sg_split(sp, in, rand, walks, n, flip, out, ends, face_pick, exact_leaving,
                                          both_faces);
   }
+  // frosted::kPaneFrontGridExact (session 35, frostedgridexact35): the split's 4 walks after a bounce, the extras on
+  // level 1's 2 x 2 grid without their coin, written to walks[0..3] (one end each, n = 4). The derivation: extra k's
+  // microfacet numbers (x_k, y_k) are the primary's (x, y) shifted by ((k & 1) / 2, (k >> 1) / 2) mod 1, so the 4
+  // numbers are one orbit O of the shift group and, (x, y) uniform, each member of O is the primary's with
+  // probability 1/4. p_k = (1 - F(m_k)) x v_k (v_k: m_k's refraction is a sample, not TIR nor on the wrong side) is
+  // the probability that one walk's front, drawn at m_k, enters: the primary entered (we are here) with probability
+  // p_0. Walk k (its throughput h_k = f_cos / pdf of the refraction at m_k x its walk, with E[h_k | m_k] = H(m_k))
+  // is weighted c_k = 4 p_k / P, P = p_0 + ... + p_3 (a function of O only, > 0 since p_0 > 0), and
+  // sample_pane_sg_split averages over n = 4: the sample's weight is sum_k p_k h_k / P. Its expectation, the
+  // primary's coin included: E_O[(1/4) sum_{i in O} p_i x sum_k p_k H(m_k) / P] = E_O[(1/4) sum_k p_k H(m_k)] =
+  // E_m[p(m) H(m)], one walk's transmitted expectation exactly (the orbits where P = 0 never reach the split, and
+  // there every p is 0). The proposal c_k = 4 p_k / (4 p_0) ((1 - F_k) / (1 - F_0)) misses the orbits whose
+  // primary does not enter (v_0 = 0 while some v_k = 1: biased low) and is unbounded as F_0 -> 1; c_k in [0, 4] here.
+  // kPaneFrontGridExactControl: P without the primary's p_0 (the normaliser off by one: the weights sum > 4; the
+  // tests' negative control). Controls of the Fresnel weight alone were not detectable by the test (paired z at its
+  // four panes: c_k = v_k 1.7 / 1.7 / 4.6 / -2.5; p_k = F(m_k) v_k 3.3 / -9.7 / 13.6 / -2.1): F varies little
+  // over one orbit's facets at these panes.
+  void pane_front_grid_exact_walks(const ShadingPoint &sp, const DielectricLobe &lobe, const frosted::PaneSgInputs &in,
+                                   const Vec3 &rand, const Vec3 &wi, const LocalSample &front, int level,
+                                   frosted::PaneWalkEnd *walks) const {
+    constexpr int kN = frosted::kPaneWalkSplit;
+    Vec3 numbers[kN] = {rand};
+    LocalSample s[kN] = {front};
+    double p[kN] = {}, total = 0.0;
+    mf::WalkRng rng(hash_u32x2(sp.seed_for(rand), 0x73706c74u));  // the hashed numbers as pane_sample_sg_split's
+    for (int k = 0; k < kN; ++k) {
+      if (k > 0) {
+        const Vec3 hashed(rng.next(), rng.next(), rng.next());
+        numbers[k] = frosted::pane_front_grid_numbers(rand, hashed, k, level, true);
+        // z = 1 >= F: the refraction, always (false where it is no sample: TIR or the wrong side).
+        if (!lobe.sample(wi, Vec3(numbers[k].x, numbers[k].y, 1.0f), s[k]) || !(s[k].label & GLIMMER_LABEL_TRANSMIT) ||
+            !(s[k].pdf > 0.0f))
+          continue;
+      }
+      const Vec3 m = mf::sample_visible_normal(lobe.dist, wi, lobe.ax, lobe.ay, numbers[k].x, numbers[k].y);
+      p[k] = 1.0 - mf::fresnel_dielectric(dot(wi, m), lobe.ior);
+      if (k > 0 || level != frosted::kPaneFrontGridExactControl) total += p[k];
+    }
+    for (int k = 0; k < kN; ++k) {
+      walks[k] = frosted::PaneWalkEnd{};
+      if (!(p[k] > 0.0) || !(total > 0.0)) continue;
+      const float c = float(double(kN) * p[k] / total);
+      Spectrum throughput = s[k].f_cos / s[k].pdf * in.tint;
+      Vec3 d = s[k].wo, leaving;
+      if (!walk_to_exit(sp, lobe, numbers[k], d, throughput, leaving)) continue;
+      walks[k] = frosted::PaneWalkEnd{d, throughput * in.tint * c, leaving};
+    }
+  }
   // For the tests: the rough pane's split sample (kPaneWalk) with its negative control (count_rejected above).
   bool pane_sample_sg_split(const ShadingPoint &sp, const Vec3 &rand, LocalSample &out, int split,
-                            bool count_rejected, int branch = -1, int exact_leaving = -1, int both_faces = -1) const {
+                            bool count_rejected, int branch = -1, int exact_leaving = -1, int both_faces = -1,
+                            int front_grid = -1) const {
     DielectricLobe scratch;
     const DielectricLobe &lobe = lobe_at(sp, scratch);
     Vec3 wi;
@@ -347,7 +405,7 @@ class FrostedGlassClosure {
     if (front != PaneFront::kEntered) return front == PaneFront::kReflected;
     const frosted::PaneSgInputs in = pane_sg_inputs(sp, frosted::SgVariant::kPaneWalk, frosted::kPaneLadder);
     return pane_sample_sg_split(sp, lobe, in, rand, wi, s, flip, out, std::clamp(split, 1, frosted::kPaneWalkSplit),
-                                count_rejected, branch, exact_leaving, both_faces);
+                                count_rejected, branch, exact_leaving, both_faces, front_grid);
   }
   // For the tests: the interface lobe at sp (per-point roughness and IOR).
   bool pane_sample_sg(const ShadingPoint &sp, const Vec3 &rand, LocalSample &out, frosted::SgVariant variant,

@@ -1432,6 +1432,23 @@ int pane_beer_split_level() {
   static const int level = measurement_knob("GLIMMER_FROSTED_PANE_BEER_SPLIT", kPaneBeerSplitDefault, 0, 1);
   return level;
 }
+int pane_front_grid_level() {
+  static const int level = measurement_level("GLIMMER_FROSTED_PANE_FRONT_GRID", kPaneFrontGridDefault,
+                                             {0, 1, 2, kPaneFrontGridExact, kPaneFrontGridExactControl,
+                                              kPaneFrontGridControl});
+  return level;
+}
+Vec3 pane_front_grid_numbers(const Vec3 &primary, const Vec3 &hashed, int k, int level, bool after_bounce) {
+  static_assert(kPaneWalkSplit == 4, "the 2 x 2 grid holds the primary and 3 extras");
+  if (level == 0 || (level != 2 && !after_bounce) || k < 1 || k >= kPaneWalkSplit) return hashed;
+  const bool wrap = level != kPaneFrontGridControl;
+  const auto shift = [wrap](float u, bool on) {
+    if (!on) return u;
+    if (!wrap) return 0.5f + 0.5f * u;  // the control: not uniform (the upper half only)
+    return u < 0.5f ? u + 0.5f : u - 0.5f;
+  };
+  return Vec3(shift(primary.x, (k & 1) != 0), shift(primary.y, (k >> 1) != 0), hashed.z);
+}
 
 namespace {
 // The exact exit for the host's lamps (PaneSgExitState) of the picked face's ends (t[k] > 0 on that face): only where

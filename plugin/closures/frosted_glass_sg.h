@@ -745,5 +745,35 @@ inline constexpr int kPaneOneColourState = 7;
 inline constexpr int kPaneBeerSplitDefault = 0;
 int pane_beer_split_level();
 int pane_both_faces_level();
+// Session 35 (frostedgrid35; docs/frosted_glass.md "Session 35 (frostedgrid35)"): the split's kPaneWalkSplit - 1
+// extra front samples on a 2 x 2 grid with the primary's: extra k takes the primary's microfacet numbers (x, y)
+// shifted by ((k & 1) / 2, (k >> 1) / 2) mod 1 (each extra uniform alone), its reflect / refract number z and its
+// walk's numbers still hashed (session 34's scratch GLIMMER_SCRATCH_FRONT_GRID). Level 1: only where the pane is
+// seen after a bounce (diffuse or glossy: the floor under the bench's pane); 2: everywhere (session 34: glass_R +42 %,
+// not kept); 0: 65a01b6's images bit for bit (no grid); kPaneFrontGridControl (the tests' negative control): level
+// 1's rule with the shifted numbers u / 2 + 1/2 (the upper half only: not uniform). Only with split ==
+// kPaneWalkSplit == 4.
+// The extras' transmit numbers z are independent but their Fresnel depends on (x, y), so the kept extras' law is
+// tilted by the primary's transmission (a bias of order the front's Fresnel variation; checked by
+// FrostedGlassSgPane.RoughPaneFrontGridAfterABounceSameExpectationAsOneWalk). Measurement knob
+// GLIMMER_FROSTED_PANE_FRONT_GRID, read once (exactly 0, 1, 2, 3, 7 or 9; other values the default).
+// Level kPaneFrontGridExact (3; session 35, frostedgridexact35): level 1's grid (after a bounce only) without the
+// extras' coin: every extra refracts through its own microfacet m_k and the 4 walks (primary k = 0) are weighted
+// c_k = 4 p_k / (p_0 + p_1 + p_2 + p_3), p_k = (1 - F(m_k)) x [m_k's refraction is a sample] (TIR or a refraction
+// that leaves on the wrong side: 0), n = 4 fixed. Exactly unbiased (FrostedGlassClosure::pane_front_grid_exact_walks
+// derives it: the grid's 4 numbers are one orbit of the shifts, each member the primary with probability 1/4).
+// kPaneFrontGridExactControl (7, the tests' negative control): the same walks with P = p_1 + p_2 + p_3 (the
+// normaliser off by one, without the primary's p_0: biased high).
+inline constexpr int kPaneFrontGridDefault = 0;
+inline constexpr int kPaneFrontGridExact = 3;
+inline constexpr int kPaneFrontGridExactControl = 7;
+inline constexpr int kPaneFrontGridControl = 9;
+inline constexpr bool pane_front_grid_exact(int level) {
+  return level == kPaneFrontGridExact || level == kPaneFrontGridExactControl;
+}
+int pane_front_grid_level();
+// Level `level`'s numbers for extra front sample k (1..3) from the primary's `primary` and its hashed `hashed`
+// (returned unchanged at level 0 or where the grid does not apply: `after_bounce` false at levels 1, 3, 7 and 9).
+Vec3 pane_front_grid_numbers(const Vec3 &primary, const Vec3 &hashed, int k, int level, bool after_bounce);
 
 }  // namespace glimmer::plugin::frosted

@@ -649,13 +649,16 @@ struct PaneDraw {
   GlimmerShadingContext ctx;
   ShadingPoint sp;
   Vec3 rand;
+  // diffuse_bounce: the context's diffuse bounces before the pane (1: the pane seen after a bounce, e.g. from the
+  // bench's floor; session 35).
   template <typename Schema>
-  PaneDraw(float theta_deg, Pcg32 &rng, const Schema &schema)
-      : ctx(seeded(pane_context(theta_deg), rng.next_u32())), sp(&ctx, schema) {
+  PaneDraw(float theta_deg, Pcg32 &rng, const Schema &schema, int diffuse_bounce = 0)
+      : ctx(seeded(pane_context(theta_deg), rng.next_u32(), diffuse_bounce)), sp(&ctx, schema) {
     rand = Vec3(rng.next_float(), rng.next_float(), rng.next_float());
   }
-  static GlimmerShadingContext seeded(GlimmerShadingContext ctx, uint32_t seed) {
+  static GlimmerShadingContext seeded(GlimmerShadingContext ctx, uint32_t seed, int diffuse_bounce = 0) {
     ctx.path_seed = seed;
+    ctx.diffuse_bounce = diffuse_bounce;
     return ctx;
   }
 };
@@ -694,33 +697,42 @@ ExitLobeMixture sampled_exit_mixture(const LocalSample &s, const GlimmerExitMixt
 struct SplitSums {
   static constexpr int kDirs = 5;
   double sum[kDirs] = {}, sum2[kDirs] = {};
+  double pooled = 0.0, pooled2 = 0.0;  // each sample's sum over the directions (its variance counts their covariance)
   long samples = 0;
+  void add(const double (&v)[kDirs]) {
+    double p = 0.0;
+    for (int j = 0; j < kDirs; ++j) sum[j] += v[j], sum2[j] += v[j] * v[j], p += v[j];
+    pooled += p, pooled2 += p * p;
+    ++samples;
+  }
 };
+// One split sample at `draw` toward the probe directions: v[j] = its weight x its exit mixture's density (0 toward
+// every direction where the front reflects or there is no sample). True when it handed the host a mixture.
+bool split_values(const FrostedGlassClosure &pane, const PaneDraw &draw, int split, bool count_rejected, int branch,
+                  int front_grid, double (&v)[SplitSums::kDirs]) {
+  GlimmerExitMixture buffer{};
+  LocalSample s;
+  s.mixture_out = &buffer;
+  std::fill(v, v + SplitSums::kDirs, 0.0);
+  if (!pane.pane_sample_sg_split(draw.sp, draw.rand, s, split, count_rejected, branch, -1, -1, front_grid) ||
+      !(s.label & GLIMMER_LABEL_SINGULAR) || !s.exit_lobe)
+    return false;
+  const ExitLobeMixture m = sampled_exit_mixture(s, buffer);
+  const double w = average(s.f_cos / s.pdf);
+  for (int j = 0; j < SplitSums::kDirs; ++j) v[j] = w * m.pdf(kPaneProbeDirections[j]);
+  return s.exit_mixture;
+}
 SplitSums split_estimate(const FrostedGlassClosure &pane, float theta_deg, int split, bool count_rejected,
-                         uint64_t seed, long samples, long *mixtures = nullptr, int branch = -1) {
+                         uint64_t seed, long samples, long *mixtures = nullptr, int branch = -1,
+                         int diffuse_bounce = 0, int front_grid = -1) {
   static const auto schema = FrostedGlassClosure::params();
-  const auto &dirs = kPaneProbeDirections;
   SplitSums out;
   Pcg32 rng(seed, 7);
   for (long i = 0; i < samples; ++i) {
-    const PaneDraw draw(theta_deg, rng, schema);
-    const ShadingPoint &sp = draw.sp;
-    const Vec3 &rand = draw.rand;
-    GlimmerExitMixture buffer{};
-    LocalSample s;
-    s.mixture_out = &buffer;
-    ++out.samples;
-    if (!pane.pane_sample_sg_split(sp, rand, s, split, count_rejected, branch) || !(s.label & GLIMMER_LABEL_SINGULAR) ||
-        !s.exit_lobe)
-      continue;  // a front reflection (or no sample): 0 toward every direction
-    if (s.exit_mixture && mixtures) ++*mixtures;
-    const ExitLobeMixture m = sampled_exit_mixture(s, buffer);
-    const double w = average(s.f_cos / s.pdf);
-    for (int j = 0; j < SplitSums::kDirs; ++j) {
-      const double v = w * m.pdf(dirs[j]);
-      out.sum[j] += v;
-      out.sum2[j] += v * v;
-    }
+    const PaneDraw draw(theta_deg, rng, schema, diffuse_bounce);
+    double v[SplitSums::kDirs];
+    if (split_values(pane, draw, split, count_rejected, branch, front_grid, v) && mixtures) ++*mixtures;
+    out.add(v);
   }
   return out;
 }
@@ -830,6 +842,105 @@ TEST(FrostedGlassSgPane, RoughPaneSplitBranchesSameExpectationAsOneWalk) {
     EXPECT_GT(std::fabs(z[3]), 6.0) << "negative control passed: roughness " << c.roughness;
     EXPECT_LT(back_var[1], back_var[0]) << "roughness " << c.roughness;
     EXPECT_LT(back_var[2], back_var[0]) << "roughness " << c.roughness;
+  }
+}
+
+// Session 35 (frostedgrid35): the pane seen after a bounce (the context's diffuse_bounce 1: the bench's floor under
+// the pane), where frosted::pane_front_grid_level 1 puts the split's 3 extra front samples on a 2 x 2 grid with the
+// primary's microfacet numbers (x, y). E[weight x the exit mixture's density] toward the 5 probe directions at 4
+// angles up to 75 deg and IOR up to 2.4 (where the front's Fresnel varies most with (x, y): the caveat that the
+// extras' transmit coin, z hashed but its Fresnel a function of the shifted (x, y), tilts the kept extras' law with
+// the primary's). (1) Against one walk (split 1, unbiased on its own numbers; independent numbers): the grid within
+// 4.5 se per (angle, direction), main's split and the grid within 4 se pooled (each sample's sum over the directions,
+// their covariance counted). (2) Paired, the same draws (the primary and its walk shared, only the extras' (x, y) and
+// so their walks differ): the grid minus main's split (level 0, which the camera-seen tests above check against one
+// walk), pooled, within 4 of its own se: the caveat's tilt, resolved ~3-10x finer than (1). Negative control:
+// kPaneFrontGridControl (the shifted numbers in the upper half only: not uniform) must be > 6 paired se off main's
+// split in every configuration. The variance per sample of the grid over main's split printed.
+// Session 35 (frostedgridexact35): the same test for frosted::kPaneFrontGridExact (the extras refract without a coin,
+// each walk weighted 4 p_k / (p_0 + ... + p_3), p_k = 1 - F(m_k): exactly unbiased, FrostedGlassClosure::
+// pane_front_grid_exact_walks derives it), with the same three checks: within 4.5 se of one walk per (angle,
+// direction), within 4 se pooled, and the paired difference from main's split within 4 of its own se, at
+// 131072 draws for r0.8 / IOR 1.5 (where level 1's paired tilt read z 3.51 at 32768). Its negative control
+// kPaneFrontGridExactControl (the normaliser without the primary's p_0) must be > 6 paired se off main's split
+// (controls of the Fresnel weight alone are not detectable at these sizes: pane_front_grid_exact_walks).
+struct FrontGridSums {
+  // main's split (0), the grid (1), its control (9), the exact grid (3), its control (7), on shared draws
+  static constexpr int kLevels = 5;
+  static constexpr int kLevel[kLevels] = {0, 1, frosted::kPaneFrontGridControl, frosted::kPaneFrontGridExact,
+                                          frosted::kPaneFrontGridExactControl};
+  SplitSums one, est[kLevels];                           // one walk; each level on the shared draws
+  double d[kLevels - 1] = {}, d2[kLevels - 1] = {};      // per draw, pooled over the directions: level l + 1 - main
+};
+void front_grid_sums(const FrostedGlassClosure &pane, float theta, long samples, FrontGridSums &out) {
+  static const auto schema = FrostedGlassClosure::params();
+  constexpr int kL = FrontGridSums::kLevels;
+  out.one = split_estimate(pane, theta, 1, false, 505, samples, nullptr, -1, 1, 0);
+  Pcg32 rng(606, 7);
+  for (long i = 0; i < samples; ++i) {
+    const PaneDraw draw(theta, rng, schema, 1);
+    double v[kL][SplitSums::kDirs], p[kL] = {};
+    for (int l = 0; l < kL; ++l) {
+      split_values(pane, draw, frosted::kPaneWalkSplit, false, -1, FrontGridSums::kLevel[l], v[l]);
+      out.est[l].add(v[l]);
+      for (double x : v[l]) p[l] += x;
+    }
+    for (int l = 0; l + 1 < kL; ++l)
+      out.d[l] += p[l + 1] - p[0], out.d2[l] += (p[l + 1] - p[0]) * (p[l + 1] - p[0]);
+  }
+}
+TEST(FrostedGlassSgPane, RoughPaneFrontGridAfterABounceSameExpectationAsOneWalk) {
+  const PaneConfig configs[] = {{0.5f, 1.5f}, {0.8f, 1.5f}, {0.6f, 1.7f, Vec3(0.7f), 0.05f}, {0.8f, 2.4f}};
+  const float angles[] = {0.0f, 35.0f, 60.0f, 75.0f};
+  constexpr int kL = FrontGridSums::kLevels;
+  const auto mean_var = [](double sum, double sum2, double n, double &mean, double &var) {  // var: of the mean
+    mean += sum / n;
+    var += std::max(0.0, sum2 / n - (sum / n) * (sum / n)) / n;
+  };
+  for (const PaneConfig &c : configs) {
+    const long samples = c.roughness == 0.8f && c.ior == 1.5f ? 131072 : 32768;
+    auto pane = create_pane(c, "sg");
+    double one = 0.0, var_one = 0.0, pooled[kL] = {}, var[kL] = {}, d[kL - 1] = {}, var_d[kL - 1] = {};
+    double sample_var[kL] = {}, worst[kL] = {};
+    for (float theta : angles) {
+      FrontGridSums g;
+      front_grid_sums(*pane, theta, samples, g);
+      mean_var(g.one.pooled, g.one.pooled2, samples, one, var_one);
+      for (int l = 0; l < kL; ++l) mean_var(g.est[l].pooled, g.est[l].pooled2, samples, pooled[l], var[l]);
+      for (int l = 0; l + 1 < kL; ++l) mean_var(g.d[l], g.d2[l], samples, d[l], var_d[l]);
+      for (int j = 0; j < SplitSums::kDirs; ++j) {
+        double m1 = 0.0, v1 = 0.0;
+        mean_var(g.one.sum[j], g.one.sum2[j], samples, m1, v1);
+        for (int l : {0, 1, 3}) {  // main's split (the sample variance), the grid, the exact grid
+          double m = 0.0, v = 0.0;
+          mean_var(g.est[l].sum[j], g.est[l].sum2[j], samples, m, v);
+          sample_var[l] += v;
+          if (l == 0) continue;
+          const double z = (m - m1) / std::sqrt(v1 + v);
+          worst[l] = std::max(worst[l], std::fabs(z));
+          EXPECT_LT(std::fabs(z), 4.5) << "level " << FrontGridSums::kLevel[l] << ", roughness " << c.roughness
+                                       << " ior " << c.ior << " theta " << theta << " direction " << j << ": " << m
+                                       << " one walk " << m1;
+        }
+      }
+    }
+    const auto z_one = [&](int l) { return (pooled[l] - one) / std::sqrt(var_one + var[l]); };
+    const auto z_d = [&](int l) { return d[l - 1] / std::sqrt(var_d[l - 1]); };
+    for (int l : {1, 3}) {
+      std::printf("[frosted sg pane front grid] level %d, roughness %.2f ior %.2f%s, after a bounce, %ld draws: vs one "
+                  "walk pooled z main split %.2f, level %.2f (worst |z| %.2f over 20); paired level - main split "
+                  "%+.5f (relative %+.4f, se %.4f) z %.2f; control z %.1f; variance per sample level / main split "
+                  "%.3f\n",
+                  FrontGridSums::kLevel[l], double(c.roughness), double(c.ior), c.absorb.x < 1.0f ? " grey Beer" : "",
+                  samples, z_one(0), z_one(l), worst[l], d[l - 1], d[l - 1] / pooled[0],
+                  std::sqrt(var_d[l - 1]) / pooled[0], z_d(l), z_d(l + 1), sample_var[l] / sample_var[0]);
+      EXPECT_LT(std::fabs(z_one(l)), 4.0) << "level " << FrontGridSums::kLevel[l] << ", roughness " << c.roughness
+                                          << " ior " << c.ior;
+      EXPECT_LT(std::fabs(z_d(l)), 4.0) << "level " << FrontGridSums::kLevel[l] << " - main split, roughness "
+                                        << c.roughness << " ior " << c.ior;
+      EXPECT_GT(std::fabs(z_d(l + 1)), 6.0) << "negative control of level " << FrontGridSums::kLevel[l]
+                                            << " passed: roughness " << c.roughness << " ior " << c.ior;
+    }
   }
 }
 
