@@ -392,9 +392,8 @@ class FrostedGlassClosure {
     }
   }
   // For the tests: the rough pane's split sample (kPaneWalk) with its negative control (count_rejected above).
-  bool pane_sample_sg_split(const ShadingPoint &sp, const Vec3 &rand, LocalSample &out, int split,
-                            bool count_rejected, int branch = -1, int exact_leaving = -1, int both_faces = -1,
-                            int front_grid = -1) const {
+  bool pane_sample_sg_split(const ShadingPoint &sp, const Vec3 &rand, LocalSample &out, int split, bool count_rejected,
+                            int branch = -1, int exact_leaving = -1, int both_faces = -1, int front_grid = -1) const {
     DielectricLobe scratch;
     const DielectricLobe &lobe = lobe_at(sp, scratch);
     Vec3 wi;

@@ -1419,13 +1419,11 @@ int pane_exact_leaving_level() {
   return level;
 }
 int pane_both_faces_level() {
-  // Exactly 0, 1, 2, kPaneBothFacesControl (the render test's negative control, tests/bridge/
-  // test_frosted_pane_sg_render.cpp; session 34), kPaneOneColourState or kPaneBothFacesNoColourGuard (session 35's
-  // coloured-Beer render test: printed / its negative control); anything else the default (a typo cannot select a
-  // biased control).
+  // Exactly 0, 1, 2, kPaneBothFacesControl (the camera-side lamp render test's negative control, tests/bridge/
+  // test_frosted_pane_sg_render.cpp; session 34) or kPaneBothFacesNoColourGuard (session 35's coloured-Beer render
+  // test's negative control); anything else the default (a typo cannot select a biased control).
   static const int level = measurement_level("GLIMMER_FROSTED_PANE_BOTH_FACES", kPaneBothFacesDefault,
-                                             {0, 1, 2, kPaneOneColourState, kPaneBothFacesNoColourGuard,
-                                              kPaneBothFacesControl});
+                                             {0, 1, 2, kPaneBothFacesNoColourGuard, kPaneBothFacesControl});
   return level;
 }
 int pane_beer_split_level() {
@@ -1433,9 +1431,9 @@ int pane_beer_split_level() {
   return level;
 }
 int pane_front_grid_level() {
-  static const int level = measurement_level("GLIMMER_FROSTED_PANE_FRONT_GRID", kPaneFrontGridDefault,
-                                             {0, 1, 2, kPaneFrontGridExact, kPaneFrontGridExactControl,
-                                              kPaneFrontGridControl});
+  // Exactly 0, 1, 2 or kPaneFrontGridExact; the negative controls (7, 9) only as the tests' explicit argument.
+  static const int level =
+      measurement_level("GLIMMER_FROSTED_PANE_FRONT_GRID", kPaneFrontGridDefault, {0, 1, 2, kPaneFrontGridExact});
   return level;
 }
 Vec3 pane_front_grid_numbers(const Vec3 &primary, const Vec3 &hashed, int k, int level, bool after_bounce) {
@@ -1445,7 +1443,8 @@ Vec3 pane_front_grid_numbers(const Vec3 &primary, const Vec3 &hashed, int k, int
   const auto shift = [wrap](float u, bool on) {
     if (!on) return u;
     if (!wrap) return 0.5f + 0.5f * u;  // the control: not uniform (the upper half only)
-    return u < 0.5f ? u + 0.5f : u - 0.5f;
+    // u + 1/2 mod 1; exact for the host's 24-bit numbers, and kept below 1 for finer ones (u + 0.5f could round up)
+    return u < 0.5f ? std::min(u + 0.5f, 0x1.fffffep-1f) : u - 0.5f;
   };
   return Vec3(shift(primary.x, (k & 1) != 0), shift(primary.y, (k >> 1) != 0), hashed.z);
 }
@@ -1582,8 +1581,7 @@ bool sample_pane_sg_split(const ShadingPoint &sp, const PaneSgInputs &in, const 
   Spectrum sum_face(0.0f);
   if (!pane_face_mixture(walks, lobes, t, ends, through, t_face, exit, leaving, all_leave, sum_face)) return false;
   // The face's walks' throughput over n and over the face's probability (sum_T / n when p_face = t_face / t_all).
-  const Spectrum weight =
-      face_pick == 0 && !one_end ? sum_T / float(n) : sum_face * float(1.0 / (double(n) * p_face));
+  const Spectrum weight = face_pick == 0 && !one_end ? sum_T / float(n) : sum_face * float(1.0 / (double(n) * p_face));
 #if GLIMMER_ABI_MINOR >= 8
   PaneSgExitState x;
   // The ends' colour test (pane_both_faces_scale) only where a state may be written.

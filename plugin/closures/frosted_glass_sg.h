@@ -719,7 +719,8 @@ inline constexpr int kPaneBothFacesControl = 9;
 // The tests' level only (passed as sample_pane_sg_split's both_faces; the knob gives it only for session 35's
 // coloured-Beer render test's negative control, GLIMMER_FROSTED_PANE_BOTH_FACES=8): level 1 without the
 // ends' colour test (same_colour), the other face's ends taking the picked face's weight's colour (biased per channel
-// where the ends' colours differ, e.g. coloured Beer; unbiased in the channels' average). Session 34 (frostedtestfix34).
+// where the ends' colours differ, e.g. coloured Beer; unbiased in the channels' average). Session 34
+// (frostedtestfix34).
 inline constexpr int kPaneBothFacesNoColourGuard = 8;
 // Session 35 (frostedbeer35; docs/frosted_glass.md "Session 35 (frostedbeer35)"): where the ends' colours differ
 // (coloured Beer: sigma_a not grey, !pane_split_applies; walks of different lengths), the one-face state above gave
@@ -735,9 +736,8 @@ inline constexpr int kPaneBothFacesNoColourGuard = 8;
 // both-faces state (levels 1 / 2) cannot stay on here: an end k != j in the state would need W_ch c_k = T_k,ch / (n
 // E_k) in every channel, a per-channel c_k, and the host's value is grey (average of eval_exit's f): off for coloured
 // Beer (one_end sets the level to 0). Renders at 65a01b6 never reach this (FrostedGlassClosure::pane_sample_sg splits
-// only where pane_split_applies); the tests' split hook does. kPaneOneColourState: the tests' level only (the knob never
-// gives it, except GLIMMER_FROSTED_PANE_BOTH_FACES=7 for the render test's control): the old one-face state for coloured
-// Beer (the negative control), else level 0.
+// only where pane_split_applies); the tests' split hook does. kPaneOneColourState: the tests' level only (the knob
+// never gives it): the old one-face state for coloured Beer (the negative control), else level 0.
 inline constexpr int kPaneOneColourState = 7;
 // Session 35: whether a coloured-Beer pane seen with method=sg takes the split (with the one-end rule above) in
 // renders. Measurement knob GLIMMER_FROSTED_PANE_BEER_SPLIT (read once, only where sigma_a is not grey): 0 (default)
@@ -756,7 +756,7 @@ int pane_both_faces_level();
 // The extras' transmit numbers z are independent but their Fresnel depends on (x, y), so the kept extras' law is
 // tilted by the primary's transmission (a bias of order the front's Fresnel variation; checked by
 // FrostedGlassSgPane.RoughPaneFrontGridAfterABounceSameExpectationAsOneWalk). Measurement knob
-// GLIMMER_FROSTED_PANE_FRONT_GRID, read once (exactly 0, 1, 2, 3, 7 or 9; other values the default).
+// GLIMMER_FROSTED_PANE_FRONT_GRID, read once (exactly 0, 1, 2 or 3; other values the default).
 // Level kPaneFrontGridExact (3; session 35, frostedgridexact35): level 1's grid (after a bounce only) without the
 // extras' coin: every extra refracts through its own microfacet m_k and the 4 walks (primary k = 0) are weighted
 // c_k = 4 p_k / (p_0 + p_1 + p_2 + p_3), p_k = (1 - F(m_k)) x [m_k's refraction is a sample] (TIR or a refraction

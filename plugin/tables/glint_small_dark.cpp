@@ -26,10 +26,10 @@ namespace {
 // words mod 2^32; GCC had hoisted (i0 + c) W for c = 0..3 out of the row loop); the hashes two nodes per mix_u32x8 by
 // the node loop's node_loop_pass1_avx2 (the same words, bits and stores) instead of one mix_u32x4 per node.
 [[gnu::target("avx2"), gnu::always_inline]] inline uint64_t passing_pairs(int level, int64_t i0, int64_t j0,
-                                                                         int64_t rows, int64_t cols, __m128i seeds,
-                                                                         __m128i below, uint32_t all_pass,
-                                                                         uint32_t (*hashes)[kDirectionGroups],
-                                                                         int64_t *node_i, int64_t *node_j) {
+                                                                          int64_t rows, int64_t cols, __m128i seeds,
+                                                                          __m128i below, uint32_t all_pass,
+                                                                          uint32_t (*hashes)[kDirectionGroups],
+                                                                          int64_t *node_i, int64_t *node_j) {
   static_assert(kBoxSpan <= 4 && kBoxSpan * kBoxSpan <= kNodeLoopChunk);
   alignas(16) uint32_t row_keys[4];
   _mm_store_si128(reinterpret_cast<__m128i *>(row_keys),

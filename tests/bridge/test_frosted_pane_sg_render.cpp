@@ -446,7 +446,6 @@ TEST(FrostedSgPaneRender, RoughPaneExactExitMatchesPathBehindASmallLight) {
   }
 }
 
-
 // Session 34 (frostedbudget34): a small lamp on the camera's side of a rough pane (roughness 0.5, IOR 1.5: the split
 // with both faces' ends in the exit state, frosted::pane_both_faces_level). Its light reaches the camera by the front
 // face's reflection and, through the pane, only by the far face's internal reflection (out through the front face):
@@ -471,7 +470,9 @@ std::string camera_side_lamp_scene(const std::string &name, const char *method, 
       "sample_clamp_direct=\"0\" sample_clamp_indirect=\"0\" />\n"
       "<background><background name=\"bg\" color=\"0.02 0.02 0.02\" strength=\"1\" /><connect from=\"bg "
       "background\" to=\"output surface\" /></background>\n"
-      "<shader name=\"glass\">" + glass + "<connect from=\"g bsdf\" to=\"output surface\" /></shader>\n"
+      "<shader name=\"glass\">" +
+      glass +
+      "<connect from=\"g bsdf\" to=\"output surface\" /></shader>\n"
       "<shader name=\"lamp\"><emission name=\"e\" color=\"1 0.8 0.6\" strength=\"4\" />"
       "<connect from=\"e emission\" to=\"output surface\" /></shader>\n"
       "<state shader=\"glass\"><mesh P=\"-1.2 0 -0.2  1.2 0 -0.2  1.2 0 2.2  -1.2 0 2.2\" nverts=\"4\" "
@@ -644,10 +645,11 @@ TEST(FrostedSgPaneRender, ColouredBeerPaneSplitMatchesPathPerChannel) {
   for (int r = 0; r < 3; ++r) {
     double z[3], worst;
     channel_z(*renders[r], ref, z, worst);
-    std::printf("[frosted sg pane coloured Beer render] %s: means %.5f / %.5f / %.5f (path %.5f / %.5f / %.5f), per "
-                "channel pooled z %+.2f / %+.2f / %+.2f, worst |z| %.2f over 12\n",
-                names[r], mean_channel(*renders[r], 0), mean_channel(*renders[r], 1), mean_channel(*renders[r], 2),
-                mean_channel(ref, 0), mean_channel(ref, 1), mean_channel(ref, 2), z[0], z[1], z[2], worst);
+    std::printf(
+        "[frosted sg pane coloured Beer render] %s: means %.5f / %.5f / %.5f (path %.5f / %.5f / %.5f), per "
+        "channel pooled z %+.2f / %+.2f / %+.2f, worst |z| %.2f over 12\n",
+        names[r], mean_channel(*renders[r], 0), mean_channel(*renders[r], 1), mean_channel(*renders[r], 2),
+        mean_channel(ref, 0), mean_channel(ref, 1), mean_channel(ref, 2), z[0], z[1], z[2], worst);
     if (r == 0) {
       EXPECT_LT(worst, 4.0);
       for (int c = 0; c < 3; ++c) EXPECT_LT(std::fabs(z[c]), 4.0) << "channel " << c;

@@ -723,8 +723,8 @@ bool split_values(const FrostedGlassClosure &pane, const PaneDraw &draw, int spl
   return s.exit_mixture;
 }
 SplitSums split_estimate(const FrostedGlassClosure &pane, float theta_deg, int split, bool count_rejected,
-                         uint64_t seed, long samples, long *mixtures = nullptr, int branch = -1,
-                         int diffuse_bounce = 0, int front_grid = -1) {
+                         uint64_t seed, long samples, long *mixtures = nullptr, int branch = -1, int diffuse_bounce = 0,
+                         int front_grid = -1) {
   static const auto schema = FrostedGlassClosure::params();
   SplitSums out;
   Pcg32 rng(seed, 7);
@@ -869,8 +869,8 @@ struct FrontGridSums {
   static constexpr int kLevels = 5;
   static constexpr int kLevel[kLevels] = {0, 1, frosted::kPaneFrontGridControl, frosted::kPaneFrontGridExact,
                                           frosted::kPaneFrontGridExactControl};
-  SplitSums one, est[kLevels];                           // one walk; each level on the shared draws
-  double d[kLevels - 1] = {}, d2[kLevels - 1] = {};      // per draw, pooled over the directions: level l + 1 - main
+  SplitSums one, est[kLevels];                       // one walk; each level on the shared draws
+  double d[kLevels - 1] = {}, d2[kLevels - 1] = {};  // per draw, pooled over the directions: level l + 1 - main
 };
 void front_grid_sums(const FrostedGlassClosure &pane, float theta, long samples, FrontGridSums &out) {
   static const auto schema = FrostedGlassClosure::params();
@@ -885,8 +885,7 @@ void front_grid_sums(const FrostedGlassClosure &pane, float theta, long samples,
       out.est[l].add(v[l]);
       for (double x : v[l]) p[l] += x;
     }
-    for (int l = 0; l + 1 < kL; ++l)
-      out.d[l] += p[l + 1] - p[0], out.d2[l] += (p[l + 1] - p[0]) * (p[l + 1] - p[0]);
+    for (int l = 0; l + 1 < kL; ++l) out.d[l] += p[l + 1] - p[0], out.d2[l] += (p[l + 1] - p[0]) * (p[l + 1] - p[0]);
   }
 }
 TEST(FrostedGlassSgPane, RoughPaneFrontGridAfterABounceSameExpectationAsOneWalk) {
@@ -927,15 +926,16 @@ TEST(FrostedGlassSgPane, RoughPaneFrontGridAfterABounceSameExpectationAsOneWalk)
     const auto z_one = [&](int l) { return (pooled[l] - one) / std::sqrt(var_one + var[l]); };
     const auto z_d = [&](int l) { return d[l - 1] / std::sqrt(var_d[l - 1]); };
     for (int l : {1, 3}) {
-      std::printf("[frosted sg pane front grid] level %d, roughness %.2f ior %.2f%s, after a bounce, %ld draws: vs one "
-                  "walk pooled z main split %.2f, level %.2f (worst |z| %.2f over 20); paired level - main split "
-                  "%+.5f (relative %+.4f, se %.4f) z %.2f; control z %.1f; variance per sample level / main split "
-                  "%.3f\n",
-                  FrontGridSums::kLevel[l], double(c.roughness), double(c.ior), c.absorb.x < 1.0f ? " grey Beer" : "",
-                  samples, z_one(0), z_one(l), worst[l], d[l - 1], d[l - 1] / pooled[0],
-                  std::sqrt(var_d[l - 1]) / pooled[0], z_d(l), z_d(l + 1), sample_var[l] / sample_var[0]);
-      EXPECT_LT(std::fabs(z_one(l)), 4.0) << "level " << FrontGridSums::kLevel[l] << ", roughness " << c.roughness
-                                          << " ior " << c.ior;
+      std::printf(
+          "[frosted sg pane front grid] level %d, roughness %.2f ior %.2f%s, after a bounce, %ld draws: vs one "
+          "walk pooled z main split %.2f, level %.2f (worst |z| %.2f over 20); paired level - main split "
+          "%+.5f (relative %+.4f, se %.4f) z %.2f; control z %.1f; variance per sample level / main split "
+          "%.3f\n",
+          FrontGridSums::kLevel[l], double(c.roughness), double(c.ior), c.absorb.x < 1.0f ? " grey Beer" : "", samples,
+          z_one(0), z_one(l), worst[l], d[l - 1], d[l - 1] / pooled[0], std::sqrt(var_d[l - 1]) / pooled[0], z_d(l),
+          z_d(l + 1), sample_var[l] / sample_var[0]);
+      EXPECT_LT(std::fabs(z_one(l)), 4.0)
+          << "level " << FrontGridSums::kLevel[l] << ", roughness " << c.roughness << " ior " << c.ior;
       EXPECT_LT(std::fabs(z_d(l)), 4.0) << "level " << FrontGridSums::kLevel[l] << " - main split, roughness "
                                         << c.roughness << " ior " << c.ior;
       EXPECT_GT(std::fabs(z_d(l + 1)), 6.0) << "negative control of level " << FrontGridSums::kLevel[l]
@@ -1101,9 +1101,9 @@ ConeSums continued_cones(const FrostedGlassClosure &pane, bool sg, int level, fl
     const PaneDraw draw(theta_deg, rng, schema);
     WiredSample wired;
     LocalSample &s = wired.s;
-    const bool ok = sg ? pane.pane_sample_sg_split(draw.sp, draw.rand, s, frosted::kPaneWalkSplit, false, -1, level,
-                                                   both_faces)
-                       : pane.sample(draw.sp, draw.rand, s);
+    const bool ok =
+        sg ? pane.pane_sample_sg_split(draw.sp, draw.rand, s, frosted::kPaneWalkSplit, false, -1, level, both_faces)
+           : pane.sample(draw.sp, draw.rand, s);
     if (!ok || !(s.pdf > 0.0f)) continue;
     out.states += s.exit_state;
     const Spectrum W = s.f_cos / s.pdf;
@@ -1232,8 +1232,8 @@ double check_both_faces(const PaneConfig &c, double *one_colour_worst = nullptr)
   constexpr int kDirs = BothFacesSums::kDirs;
   const auto grey = [](const Vec3 &v) { return v.x == v.y && v.y == v.z; };
   const bool beer = !grey(c.absorb), coloured = beer || !grey(c.tint);
-  const int levels[] = {0, 1, 2, frosted::kPaneBothFacesControl, frosted::kPaneBothFacesNoColourGuard,
-                        frosted::kPaneOneColourState};
+  const int levels[] = {
+      0, 1, 2, frosted::kPaneBothFacesControl, frosted::kPaneBothFacesNoColourGuard, frosted::kPaneOneColourState};
   const int n_levels = beer ? 6 : 4;  // the guard's bypass and the old one-colour state only where colours differ
   auto sg = create_pane(c, "sg"), path = create_pane(c, "path");
   double pooled[6] = {}, var[6] = {}, pooled_path = 0.0, var_path = 0.0, worst[6] = {}, worst_rgb[6] = {};
@@ -1301,7 +1301,8 @@ double check_both_faces(const PaneConfig &c, double *one_colour_worst = nullptr)
     if (l == 5 && one_colour_worst != nullptr) *one_colour_worst = worst_rgb[5];
   }
   // Without coloured Beer level 1 carries both faces (its sums differ from level 0's). With it (session 35) levels 0
-  // and 1 are the one-end route alike (the both-faces state cannot carry the ends' colours): level 0's sums bit for bit.
+  // and 1 are the one-end route alike (the both-faces state cannot carry the ends' colours): level 0's sums bit for
+  // bit.
   if (!beer) {
     EXPECT_FALSE(as_level0[1]) << "roughness " << c.roughness;
   } else {
@@ -1332,10 +1333,10 @@ TEST(FrostedGlassSgPane, RoughPaneBothFacesLampsSameExpectationAsThePath) {
 // colours differ. Session 34 found the one-face state biased per channel (every end of the face in the face's weight's
 // colour); session 35's one end per sample (frosted::kPaneOneColourState's comment) is exact per channel and turns the
 // both-faces state off there (levels 0, 1, 2, 9 give the same sums bit for bit, checked). Two panes: r 0.5 Beer
-// (0.9, 0.6, 0.3) and r 0.8 Beer (0.95, 0.5, 0.1). Measured (one end): per channel pooled z +0.81 / +0.96 / +1.01, worst
-// |z| 1.24 over 45; +0.11 / +0.37 / +0.46, worst 1.64. Negative controls, both required on each pane: the old one-colour
-// state (kPaneOneColourState, 65a01b6's code) worst per-cell |z| > 4.5 (measured 5.46 / 14.76: session 34's 5.46 to
-// every digit) and kPaneBothFacesNoColourGuard's worst channel pooled |z| > 6 (13.32 / 23.04). ~15 s.
+// (0.9, 0.6, 0.3) and r 0.8 Beer (0.95, 0.5, 0.1). Measured (one end): per channel pooled z +0.81 / +0.96 / +1.01,
+// worst |z| 1.24 over 45; +0.11 / +0.37 / +0.46, worst 1.64. Negative controls, both required on each pane: the old
+// one-colour state (kPaneOneColourState, 65a01b6's code) worst per-cell |z| > 4.5 (measured 5.46 / 14.76: session
+// 34's 5.46 to every digit) and kPaneBothFacesNoColourGuard's worst channel pooled |z| > 6 (13.32 / 23.04). ~15 s.
 TEST(FrostedGlassSgPane, RoughPaneColouredBeerBothFacesPerChannel) {
   const PaneConfig configs[] = {{0.5f, 1.5f, Vec3(0.9f, 0.6f, 0.3f), 0.05f},
                                 {0.8f, 1.5f, Vec3(0.95f, 0.5f, 0.1f), 0.05f}};
@@ -1381,9 +1382,10 @@ TEST(FrostedGlassSgPane, RoughPaneColouredBeerContinuedPathPerChannel) {
   for (int l = 0; l < 2; ++l) {
     double z[3];
     for (int ch = 0; ch < 3; ++ch) z[ch] = (pooled[l][ch] - pooled_path[ch]) / std::sqrt(var[l][ch] + var_path[ch]);
-    std::printf("[frosted sg pane coloured Beer continued path] roughness 0.80 %s: per channel pooled z %+.2f / %+.2f / "
-                "%+.2f, worst |z| %.2f over 45\n",
-                l == 0 ? "one end (default)" : "old one-colour state (control)", z[0], z[1], z[2], worst[l]);
+    std::printf(
+        "[frosted sg pane coloured Beer continued path] roughness 0.80 %s: per channel pooled z %+.2f / %+.2f / "
+        "%+.2f, worst |z| %.2f over 45\n",
+        l == 0 ? "one end (default)" : "old one-colour state (control)", z[0], z[1], z[2], worst[l]);
     for (int ch = 0; ch < 3 && l == 0; ++ch) EXPECT_LT(std::fabs(z[ch]), 4.0) << "channel " << ch;
   }
   EXPECT_GT(worst[1], 6.0) << "negative control passed";
