@@ -554,14 +554,25 @@ render::RenderResult render_with_both_faces_level(const std::string &scene_path,
   return renderer.render();
 }
 
-TEST(FrostedSgPaneRender, RoughPaneLampOnTheCameraSideMatchesPath) {
-  const std::string sg_scene = camera_side_lamp_scene("frosted_pane_camera_lamp_sg", "sg");
+// The pane render tests' two budgets: method=path's reference (4096 spp, seed 1) and the sg renders' options (1024
+// spp, seed 2: numbers independent of the reference's).
+render::RenderResult render_path_reference(const std::string &path_scene) {
   render::RenderOptions opt;
   opt.samples = 4096;
   opt.seed = 1;
-  const auto ref = render_scene(camera_side_lamp_scene("frosted_pane_camera_lamp_path", "path"), opt);
+  return render_scene(path_scene, opt);
+}
+render::RenderOptions sg_render_options() {
+  render::RenderOptions opt;
   opt.samples = 1024;
   opt.seed = 2;
+  return opt;
+}
+
+TEST(FrostedSgPaneRender, RoughPaneLampOnTheCameraSideMatchesPath) {
+  const std::string sg_scene = camera_side_lamp_scene("frosted_pane_camera_lamp_sg", "sg");
+  const auto ref = render_path_reference(camera_side_lamp_scene("frosted_pane_camera_lamp_path", "path"));
+  const render::RenderOptions opt = sg_render_options();
   const auto sg = render_scene(sg_scene, opt);
   const auto control = render_with_both_faces_level(sg_scene, opt, "9");
   const auto one_face = render_with_both_faces_level(sg_scene, opt, "0");
@@ -628,12 +639,8 @@ void channel_z(const render::RenderResult &a, const render::RenderResult &ref, d
 
 TEST(FrostedSgPaneRender, ColouredBeerPaneSplitMatchesPathPerChannel) {
   const std::string sg_scene = coloured_beer_scene("frosted_pane_beer_sg", "sg");
-  render::RenderOptions opt;
-  opt.samples = 4096;
-  opt.seed = 1;
-  const auto ref = render_scene(coloured_beer_scene("frosted_pane_beer_path", "path"), opt);
-  opt.samples = 1024;
-  opt.seed = 2;
+  const auto ref = render_path_reference(coloured_beer_scene("frosted_pane_beer_path", "path"));
+  const render::RenderOptions opt = sg_render_options();
   const auto split = render_with_knobs(sg_scene, opt, "1", "1");
   const auto walk = render_with_knobs(sg_scene, opt, "0", "1");
   const auto control = render_with_knobs(sg_scene, opt, "1", "8");
