@@ -319,21 +319,15 @@ class FrostedGlassClosure {
         ends += branch_walks(sp, lobe, numbers, s, in.tint, walks + ends, branch == frosted::kPaneBranchControl);
         return;
       }
-      frosted::PaneWalkEnd &w = walks[ends++];
-      Spectrum throughput = s.f_cos / s.pdf * in.tint;
-      Vec3 d = s.wo, leaving;
-      if (!walk_to_exit(sp, lobe, numbers, d, throughput, leaving)) return;
-      w.d = d;
-      w.throughput = throughput * in.tint;
-      w.leaving = leaving;
+      walk_pane_end(sp, lobe, in, numbers, s, walks[ends++]);
     };
     add_walk(rand, front);
-    mf::WalkRng rng(hash_u32x2(sp.seed_for(rand), 0x73706c74u));
+    mf::WalkRng rng = split_numbers(sp, rand);
     for (int k = 1; k < split; ++k) {
       const Vec3 hashed(rng.next(), rng.next(), rng.next());
       const Vec3 numbers = frosted::pane_front_grid_numbers(rand, hashed, k, front_grid, after_bounce);
       LocalSample s;
-      if (!lobe.sample(wi, numbers, s) || !(s.label & GLIMMER_LABEL_TRANSMIT) || !(s.pdf > 0.0f)) {
+      if (!refracts(lobe, wi, numbers, s)) {
         if (count_rejected) walks[ends++] = frosted::PaneWalkEnd{}, ++n;
         continue;
       }
@@ -342,6 +336,23 @@ class FrostedGlassClosure {
     const int face_pick = branch >= 2 ? 2 : 0;  // the control (9) keeps main's pick
     return frosted::sample_pane_sg_split(sp, in, rand, walks, n, flip, out, ends, face_pick, exact_leaving,
                                          both_faces);
+  }
+  // The split's extra front samples' numbers: one stream per sample, hashed from its seed.
+  static mf::WalkRng split_numbers(const ShadingPoint &sp, const Vec3 &rand) {
+    return mf::WalkRng(hash_u32x2(sp.seed_for(rand), 0x73706c74u));
+  }
+  // Whether the front sample drawn with `numbers` is a refraction into the pane (false: reflection, TIR, no sample).
+  static bool refracts(const DielectricLobe &lobe, const Vec3 &wi, const Vec3 &numbers, LocalSample &s) {
+    return lobe.sample(wi, numbers, s) && (s.label & GLIMMER_LABEL_TRANSMIT) && s.pdf > 0.0f;
+  }
+  // One walk of the split: the front refraction s (drawn with `numbers`) walked between the faces to its exit; `w`
+  // is left as it was where the walk fails. The tint once per crossing (entry and exit).
+  void walk_pane_end(const ShadingPoint &sp, const DielectricLobe &lobe, const frosted::PaneSgInputs &in,
+                     const Vec3 &numbers, const LocalSample &s, frosted::PaneWalkEnd &w) const {
+    Spectrum throughput = s.f_cos / s.pdf * in.tint;
+    Vec3 d = s.wo, leaving;
+    if (!walk_to_exit(sp, lobe, numbers, d, throughput, leaving)) return;
+    w = frosted::PaneWalkEnd{d, throughput * in.tint, leaving};
   }
   // frosted::kPaneFrontGridExact (session 35, frostedgridexact35): the split's 4 walks after a bounce, the extras on
   // level 1's 2 x 2 grid without their coin, written to walks[0..3] (one end each, n = 4). The derivation: extra k's
@@ -367,15 +378,13 @@ class FrostedGlassClosure {
     Vec3 numbers[kN] = {rand};
     LocalSample s[kN] = {front};
     double p[kN] = {}, total = 0.0;
-    mf::WalkRng rng(hash_u32x2(sp.seed_for(rand), 0x73706c74u));  // the hashed numbers as pane_sample_sg_split's
+    mf::WalkRng rng = split_numbers(sp, rand);  // the hashed numbers as pane_sample_sg_split's
     for (int k = 0; k < kN; ++k) {
       if (k > 0) {
         const Vec3 hashed(rng.next(), rng.next(), rng.next());
         numbers[k] = frosted::pane_front_grid_numbers(rand, hashed, k, level, true);
         // z = 1 >= F: the refraction, always (false where it is no sample: TIR or the wrong side).
-        if (!lobe.sample(wi, Vec3(numbers[k].x, numbers[k].y, 1.0f), s[k]) || !(s[k].label & GLIMMER_LABEL_TRANSMIT) ||
-            !(s[k].pdf > 0.0f))
-          continue;
+        if (!refracts(lobe, wi, Vec3(numbers[k].x, numbers[k].y, 1.0f), s[k])) continue;
       }
       const Vec3 m = mf::sample_visible_normal(lobe.dist, wi, lobe.ax, lobe.ay, numbers[k].x, numbers[k].y);
       p[k] = 1.0 - mf::fresnel_dielectric(dot(wi, m), lobe.ior);
@@ -384,11 +393,8 @@ class FrostedGlassClosure {
     for (int k = 0; k < kN; ++k) {
       walks[k] = frosted::PaneWalkEnd{};
       if (!(p[k] > 0.0) || !(total > 0.0)) continue;
-      const float c = float(double(kN) * p[k] / total);
-      Spectrum throughput = s[k].f_cos / s[k].pdf * in.tint;
-      Vec3 d = s[k].wo, leaving;
-      if (!walk_to_exit(sp, lobe, numbers[k], d, throughput, leaving)) continue;
-      walks[k] = frosted::PaneWalkEnd{d, throughput * in.tint * c, leaving};
+      walk_pane_end(sp, lobe, in, numbers[k], s[k], walks[k]);
+      walks[k].throughput *= float(double(kN) * p[k] / total);
     }
   }
   // For the tests: the rough pane's split sample (kPaneWalk) with its negative control (count_rejected above).
