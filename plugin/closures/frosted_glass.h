@@ -368,9 +368,8 @@ class FrostedGlassClosure {
   // there every p is 0). The proposal c_k = 4 p_k / (4 p_0) ((1 - F_k) / (1 - F_0)) misses the orbits whose
   // primary does not enter (v_0 = 0 while some v_k = 1: biased low) and is unbounded as F_0 -> 1; c_k in [0, 4] here.
   // kPaneFrontGridExactControl: P without the primary's p_0 (the normaliser off by one: the weights sum > 4; the
-  // tests' negative control). Controls of the Fresnel weight alone were not detectable by the test (paired z at its
-  // four panes: c_k = v_k 1.7 / 1.7 / 4.6 / -2.5; p_k = F(m_k) v_k 3.3 / -9.7 / 13.6 / -2.1): F varies little
-  // over one orbit's facets at these panes.
+  // tests' negative control). kPaneFrontGridNoFresnelControl / kPaneFrontGridReflectControl (session 36): p_k = v_k
+  // / F(m_k) v_k, the Fresnel weight alone wrong (the tests' controls where F varies over one orbit's facets).
   void pane_front_grid_exact_walks(const ShadingPoint &sp, const DielectricLobe &lobe, const frosted::PaneSgInputs &in,
                                    const Vec3 &rand, const Vec3 &wi, const LocalSample &front, int level,
                                    frosted::PaneWalkEnd *walks) const {
@@ -387,7 +386,10 @@ class FrostedGlassClosure {
         if (!refracts(lobe, wi, Vec3(numbers[k].x, numbers[k].y, 1.0f), s[k])) continue;
       }
       const Vec3 m = mf::sample_visible_normal(lobe.dist, wi, lobe.ax, lobe.ay, numbers[k].x, numbers[k].y);
-      p[k] = 1.0 - mf::fresnel_dielectric(dot(wi, m), lobe.ior);
+      const double F = mf::fresnel_dielectric(dot(wi, m), lobe.ior);
+      p[k] = level == frosted::kPaneFrontGridNoFresnelControl ? 1.0
+             : level == frosted::kPaneFrontGridReflectControl ? F
+                                                              : 1.0 - F;
       if (k > 0 || level != frosted::kPaneFrontGridExactControl) total += p[k];
     }
     for (int k = 0; k < kN; ++k) {

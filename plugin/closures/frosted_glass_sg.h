@@ -753,9 +753,12 @@ int pane_both_faces_level();
 // not kept); 0: 65a01b6's images bit for bit (no grid); kPaneFrontGridControl (the tests' negative control): level
 // 1's rule with the shifted numbers u / 2 + 1/2 (the upper half only: not uniform). Only with split ==
 // kPaneWalkSplit == 4.
-// The extras' transmit numbers z are independent but their Fresnel depends on (x, y), so the kept extras' law is
-// tilted by the primary's transmission (a bias of order the front's Fresnel variation; checked by
-// FrostedGlassSgPane.RoughPaneFrontGridAfterABounceSameExpectationAsOneWalk). Measurement knob
+// Exactly unbiased (session 36, frostedgrid36; session 35 feared a tilt of the kept extras' law): the 4 numbers are
+// one orbit O of the shifts, each member the primary with probability 1/4, and member k enters with probability p_k
+// (its own coin; the primary's the sampler's) independently of the others, so the set S of walks kept has
+// P(S) = prod_{k in S} p_k prod_{k not in S} (1 - p_k) whichever member of S is the primary, and the sample's
+// expectation is E_O[sum_S P(S) (|S| / 4) (1 / |S|) sum_{k in S} H_k] = E_O[(1/4) sum_k p_k H_k], one walk's (H_k:
+// walk k's expected value; checked by FrostedGlassSgPane.RoughPaneFrontGridAfterABounce*). Measurement knob
 // GLIMMER_FROSTED_PANE_FRONT_GRID, read once (exactly 0, 1, 2 or 3; other values the default).
 // Level kPaneFrontGridExact (3; session 35, frostedgridexact35): level 1's grid (after a bounce only) without the
 // extras' coin: every extra refracts through its own microfacet m_k and the 4 walks (primary k = 0) are weighted
@@ -764,12 +767,18 @@ int pane_both_faces_level();
 // derives it: the grid's 4 numbers are one orbit of the shifts, each member the primary with probability 1/4).
 // kPaneFrontGridExactControl (7, the tests' negative control): the same walks with P = p_1 + p_2 + p_3 (the
 // normaliser off by one, without the primary's p_0: biased high).
+// Session 36 (frostedgrid36): the tests' controls of the Fresnel weight alone, the same walks with p_k = v_k (the
+// Fresnel factor left out: kPaneFrontGridNoFresnelControl, 5) and p_k = F(m_k) v_k (the reflection's probability for
+// the transmission's: kPaneFrontGridReflectControl, 6).
 inline constexpr int kPaneFrontGridDefault = 0;
 inline constexpr int kPaneFrontGridExact = 3;
+inline constexpr int kPaneFrontGridNoFresnelControl = 5;
+inline constexpr int kPaneFrontGridReflectControl = 6;
 inline constexpr int kPaneFrontGridExactControl = 7;
 inline constexpr int kPaneFrontGridControl = 9;
 inline constexpr bool pane_front_grid_exact(int level) {
-  return level == kPaneFrontGridExact || level == kPaneFrontGridExactControl;
+  return level == kPaneFrontGridExact || level == kPaneFrontGridExactControl ||
+         level == kPaneFrontGridNoFresnelControl || level == kPaneFrontGridReflectControl;
 }
 int pane_front_grid_level();
 // Level `level`'s numbers for extra front sample k (1..3) from the primary's `primary` and its hashed `hashed`

@@ -27,6 +27,7 @@
 #include <cstdlib>
 #include <functional>
 #include <limits>
+#include <vector>
 
 #include "closures/angle_bands.h"
 #include "closures/frosted_glass.h"
@@ -845,68 +846,95 @@ TEST(FrostedGlassSgPane, RoughPaneSplitBranchesSameExpectationAsOneWalk) {
   }
 }
 
-// Session 35 (frostedgrid35): the pane seen after a bounce (the context's diffuse_bounce 1: the bench's floor under
-// the pane), where frosted::pane_front_grid_level 1 puts the split's 3 extra front samples on a 2 x 2 grid with the
-// primary's microfacet numbers (x, y). E[weight x the exit mixture's density] toward the 5 probe directions at 4
-// angles up to 75 deg and IOR up to 2.4 (where the front's Fresnel varies most with (x, y): the caveat that the
-// extras' transmit coin, z hashed but its Fresnel a function of the shifted (x, y), tilts the kept extras' law with
-// the primary's). (1) Against one walk (split 1, unbiased on its own numbers; independent numbers): the grid within
-// 4.5 se per (angle, direction), main's split and the grid within 4 se pooled (each sample's sum over the directions,
-// their covariance counted). (2) Paired, the same draws (the primary and its walk shared, only the extras' (x, y) and
-// so their walks differ): the grid minus main's split (level 0, which the camera-seen tests above check against one
-// walk), pooled, within 4 of its own se: the caveat's tilt, resolved ~3-10x finer than (1). Negative control:
-// kPaneFrontGridControl (the shifted numbers in the upper half only: not uniform) must be > 6 paired se off main's
-// split in every configuration. The variance per sample of the grid over main's split printed.
-// Session 35 (frostedgridexact35): the same test for frosted::kPaneFrontGridExact (the extras refract without a coin,
-// each walk weighted 4 p_k / (p_0 + ... + p_3), p_k = 1 - F(m_k): exactly unbiased, FrostedGlassClosure::
-// pane_front_grid_exact_walks derives it), with the same three checks: within 4.5 se of one walk per (angle,
-// direction), within 4 se pooled, and the paired difference from main's split within 4 of its own se, at
-// 131072 draws for r0.8 / IOR 1.5 (where level 1's paired tilt read z 3.51 at 32768). Its negative control
-// kPaneFrontGridExactControl (the normaliser without the primary's p_0) must be > 6 paired se off main's split
-// (controls of the Fresnel weight alone are not detectable at these sizes: pane_front_grid_exact_walks).
+// Session 35 (frostedgrid35, frostedgridexact35; rewritten in session 36, frostedgrid36): the pane seen after a
+// bounce (the context's diffuse_bounce 1: the bench's floor under the pane), where frosted::pane_front_grid_level
+// puts the split's 3 extra front samples on a 2 x 2 grid with the primary's microfacet numbers (x, y): level 1 (each
+// extra keeps its own transmit coin) and kPaneFrontGridExact (3: no coin, walk k weighted 4 p_k / (p_0 + ... + p_3)).
+// Both are exactly unbiased (level 1: frosted_glass_sg.h; level 3: FrostedGlassClosure::pane_front_grid_exact_walks).
+// E[weight x the exit mixture's density] toward the 5 probe directions at 4 angles up to 75 deg. Every (pane, angle)
+// draws its own numbers: session 35's version drew the same numbers at every angle and every pane, so its pooled z
+// added correlated terms as if independent and its panes' shared +0.3..0.5 % (grid - main split) was one draw's
+// fluctuation seen three times (docs/frosted_glass.md "Session 36 (frostedgrid36)"). (1) Against one walk (split 1,
+// independent numbers): levels 1 and 3 within 4.5 se per (angle, direction), main's split and both levels within 4 se
+// pooled (each draw's sum over the directions; the angles independent); its negative control kPaneFrontGridExactControl
+// > 6 se pooled. (2) Paired, the same draws (the primary and
+// its walk shared): each level minus main's split (level 0) within 4.5 of its own se per angle and 4 pooled.
+// Negative controls, paired against main's split: kPaneFrontGridControl (level 1's shifted numbers not uniform) and
+// kPaneFrontGridExactControl (the normaliser without p_0) > 6 se pooled at every pane; the Fresnel weight alone
+// (kPaneFrontGridNoFresnelControl, kPaneFrontGridReflectControl) > 6 se at one angle at least, at the pane flagged
+// `fresnel_controls` (r 0.6, IOR 1.7, strong Beer: F over one orbit's facets varies most at 60-75 deg and the walk's
+// value with it; their bias changes sign between 0 and 60 deg, so the pooled sum hides it).
+// IOR 2.4 (the walk's tail index ~1.7: infinite variance, sample se too small) is checked by a median of means:
+// RoughPaneFrontGridAfterABounceHighIorMedianOfMeans below.
+struct FrontGridPane {
+  PaneConfig config;
+  long samples;           // draws per angle
+  bool fresnel_controls;  // also the Fresnel-weight controls (5, 6)
+};
 struct FrontGridSums {
-  // main's split (0), the grid (1), its control (9), the exact grid (3), its control (7), on shared draws
-  static constexpr int kLevels = 5;
-  static constexpr int kLevel[kLevels] = {0, 1, frosted::kPaneFrontGridControl, frosted::kPaneFrontGridExact,
-                                          frosted::kPaneFrontGridExactControl};
+  // main's split (0), the grid (1), its control (9), the exact grid (3), its controls (7; 5 and 6: the Fresnel weight)
+  static constexpr int kLevels = 7;
+  static constexpr int kLevel[kLevels] = {0,
+                                          1,
+                                          frosted::kPaneFrontGridControl,
+                                          frosted::kPaneFrontGridExact,
+                                          frosted::kPaneFrontGridExactControl,
+                                          frosted::kPaneFrontGridNoFresnelControl,
+                                          frosted::kPaneFrontGridReflectControl};
   SplitSums one, est[kLevels];                       // one walk; each level on the shared draws
   double d[kLevels - 1] = {}, d2[kLevels - 1] = {};  // per draw, pooled over the directions: level l + 1 - main
 };
-void front_grid_sums(const FrostedGlassClosure &pane, float theta, long samples, FrontGridSums &out) {
+// One (pane, angle): one walk on Pcg32(seed, 7), the first `levels` of kLevel on the shared draws Pcg32(seed + 1, 7).
+void front_grid_sums(const FrostedGlassClosure &pane, float theta, long samples, uint64_t seed, int levels,
+                     FrontGridSums &out) {
   static const auto schema = FrostedGlassClosure::params();
-  constexpr int kL = FrontGridSums::kLevels;
-  out.one = split_estimate(pane, theta, 1, false, 505, samples, nullptr, -1, 1, 0);
-  Pcg32 rng(606, 7);
+  out.one = split_estimate(pane, theta, 1, false, seed, samples, nullptr, -1, 1, 0);
+  Pcg32 rng(seed + 1, 7);
   for (long i = 0; i < samples; ++i) {
     const PaneDraw draw(theta, rng, schema, 1);
-    double v[kL][SplitSums::kDirs], p[kL] = {};
-    for (int l = 0; l < kL; ++l) {
+    double v[FrontGridSums::kLevels][SplitSums::kDirs], p[FrontGridSums::kLevels] = {};
+    for (int l = 0; l < levels; ++l) {
       split_values(pane, draw, frosted::kPaneWalkSplit, false, -1, FrontGridSums::kLevel[l], v[l]);
       out.est[l].add(v[l]);
       for (double x : v[l]) p[l] += x;
     }
-    for (int l = 0; l + 1 < kL; ++l) out.d[l] += p[l + 1] - p[0], out.d2[l] += (p[l + 1] - p[0]) * (p[l + 1] - p[0]);
+    for (int l = 0; l + 1 < levels; ++l)
+      out.d[l] += p[l + 1] - p[0], out.d2[l] += (p[l + 1] - p[0]) * (p[l + 1] - p[0]);
   }
 }
 TEST(FrostedGlassSgPane, RoughPaneFrontGridAfterABounceSameExpectationAsOneWalk) {
-  const PaneConfig configs[] = {{0.5f, 1.5f}, {0.8f, 1.5f}, {0.6f, 1.7f, Vec3(0.7f), 0.05f}, {0.8f, 2.4f}};
+  const FrontGridPane panes[] = {{{0.5f, 1.5f}, 32768, false},
+                                 {{0.8f, 1.5f}, 65536, false},
+                                 {{0.6f, 1.7f, Vec3(0.7f), 0.05f}, 32768, false},
+                                 {{0.6f, 1.7f, Vec3(0.3f), 0.05f}, 32768, true}};
   const float angles[] = {0.0f, 35.0f, 60.0f, 75.0f};
   constexpr int kL = FrontGridSums::kLevels;
   const auto mean_var = [](double sum, double sum2, double n, double &mean, double &var) {  // var: of the mean
     mean += sum / n;
     var += std::max(0.0, sum2 / n - (sum / n) * (sum / n)) / n;
   };
-  for (const PaneConfig &c : configs) {
-    const long samples = c.roughness == 0.8f && c.ior == 1.5f ? 131072 : 32768;
+  for (int pi = 0; pi < int(std::size(panes)); ++pi) {
+    const PaneConfig &c = panes[pi].config;
+    const long samples = panes[pi].samples;
+    const int levels = panes[pi].fresnel_controls ? kL : 5;
     auto pane = create_pane(c, "sg");
     double one = 0.0, var_one = 0.0, pooled[kL] = {}, var[kL] = {}, d[kL - 1] = {}, var_d[kL - 1] = {};
-    double sample_var[kL] = {}, worst[kL] = {};
-    for (float theta : angles) {
+    double sample_var[kL] = {}, worst[kL] = {}, worst_paired[kL] = {};
+    for (int a = 0; a < int(std::size(angles)); ++a) {
       FrontGridSums g;
-      front_grid_sums(*pane, theta, samples, g);
+      front_grid_sums(*pane, angles[a], samples, 5050 + 16 * pi + 2 * a, levels, g);  // own seeds per (pane, angle)
       mean_var(g.one.pooled, g.one.pooled2, samples, one, var_one);
-      for (int l = 0; l < kL; ++l) mean_var(g.est[l].pooled, g.est[l].pooled2, samples, pooled[l], var[l]);
-      for (int l = 0; l + 1 < kL; ++l) mean_var(g.d[l], g.d2[l], samples, d[l], var_d[l]);
+      for (int l = 0; l < levels; ++l) mean_var(g.est[l].pooled, g.est[l].pooled2, samples, pooled[l], var[l]);
+      for (int l = 1; l < levels; ++l) {  // paired, this angle: level l - main split
+        double m = 0.0, v = 0.0;
+        mean_var(g.d[l - 1], g.d2[l - 1], samples, m, v);
+        worst_paired[l] = std::max(worst_paired[l], std::fabs(m) / std::sqrt(v));
+        if (l == 1 || l == 3) {
+          EXPECT_LT(std::fabs(m) / std::sqrt(v), 4.5) << "level " << FrontGridSums::kLevel[l] << " - main split, "
+                                                      << "roughness " << c.roughness << " theta " << angles[a];
+        }
+        d[l - 1] += m, var_d[l - 1] += v;
+      }
       for (int j = 0; j < SplitSums::kDirs; ++j) {
         double m1 = 0.0, v1 = 0.0;
         mean_var(g.one.sum[j], g.one.sum2[j], samples, m1, v1);
@@ -918,22 +946,26 @@ TEST(FrostedGlassSgPane, RoughPaneFrontGridAfterABounceSameExpectationAsOneWalk)
           const double z = (m - m1) / std::sqrt(v1 + v);
           worst[l] = std::max(worst[l], std::fabs(z));
           EXPECT_LT(std::fabs(z), 4.5) << "level " << FrontGridSums::kLevel[l] << ", roughness " << c.roughness
-                                       << " ior " << c.ior << " theta " << theta << " direction " << j << ": " << m
-                                       << " one walk " << m1;
+                                       << " ior " << c.ior << " theta " << angles[a] << " direction " << j << ": "
+                                       << m << " one walk " << m1;
         }
       }
     }
     const auto z_one = [&](int l) { return (pooled[l] - one) / std::sqrt(var_one + var[l]); };
     const auto z_d = [&](int l) { return d[l - 1] / std::sqrt(var_d[l - 1]); };
+    EXPECT_LT(std::fabs(z_one(0)), 4.0) << "main split, roughness " << c.roughness << " ior " << c.ior;
+    std::printf("[frosted sg pane front grid] roughness %.2f ior %.2f: control 7 against one walk pooled z %.1f\n",
+                double(c.roughness), double(c.ior), z_one(4));
+    EXPECT_GT(std::fabs(z_one(4)), 6.0) << "negative control of the one-walk check passed: roughness " << c.roughness;
     for (int l : {1, 3}) {
       std::printf(
           "[frosted sg pane front grid] level %d, roughness %.2f ior %.2f%s, after a bounce, %ld draws: vs one "
           "walk pooled z main split %.2f, level %.2f (worst |z| %.2f over 20); paired level - main split "
-          "%+.5f (relative %+.4f, se %.4f) z %.2f; control z %.1f; variance per sample level / main split "
-          "%.3f\n",
+          "%+.5f (relative %+.4f, se %.4f) z %.2f (worst |z| %.2f over 4 angles); control z %.1f; variance per "
+          "sample level / main split %.3f\n",
           FrontGridSums::kLevel[l], double(c.roughness), double(c.ior), c.absorb.x < 1.0f ? " grey Beer" : "", samples,
           z_one(0), z_one(l), worst[l], d[l - 1], d[l - 1] / pooled[0], std::sqrt(var_d[l - 1]) / pooled[0], z_d(l),
-          z_d(l + 1), sample_var[l] / sample_var[0]);
+          worst_paired[l], z_d(l + 1), sample_var[l] / sample_var[0]);
       EXPECT_LT(std::fabs(z_one(l)), 4.0)
           << "level " << FrontGridSums::kLevel[l] << ", roughness " << c.roughness << " ior " << c.ior;
       EXPECT_LT(std::fabs(z_d(l)), 4.0) << "level " << FrontGridSums::kLevel[l] << " - main split, roughness "
@@ -941,7 +973,85 @@ TEST(FrostedGlassSgPane, RoughPaneFrontGridAfterABounceSameExpectationAsOneWalk)
       EXPECT_GT(std::fabs(z_d(l + 1)), 6.0) << "negative control of level " << FrontGridSums::kLevel[l]
                                             << " passed: roughness " << c.roughness << " ior " << c.ior;
     }
+    for (int l = 5; l < levels; ++l) {  // caught per angle (their pooled sum cancels: low at 0 deg, high at 60-75)
+      std::printf("[frosted sg pane front grid] Fresnel-weight control %d, roughness %.2f ior %.2f: paired - main "
+                  "split pooled relative %+.4f, z %.1f; worst |z| over the 4 angles %.1f\n",
+                  FrontGridSums::kLevel[l], double(c.roughness), double(c.ior), d[l - 1] / pooled[0], z_d(l),
+                  worst_paired[l]);
+      EXPECT_GT(worst_paired[l], 6.0) << "Fresnel-weight control " << FrontGridSums::kLevel[l] << " passed";
+    }
   }
+}
+
+// IOR 2.4 (r 0.8, after a bounce): the walk's throughput has a tail of index ~1.7 (frostedsplit35): infinite
+// variance, so a sample se is too small and a z bound on it is not calibrated. Here each level minus main's split on
+// shared draws is checked by a median of means: 16 independent blocks (own seeds), each block's paired difference
+// pooled over 4 angles x 5 directions; z = the blocks' median over its robust se (1.2533 x 1.4826 x their median
+// absolute deviation / sqrt(16), a normal law's): levels 1 and 3 within 4, the control 7 beyond 6. Calibrated on 40
+// replications with other seeds (frostedgrid36; docs "Session 36 (frostedgrid36)"): levels 1 / 3 sd 1.13 / 1.20,
+// worst |z| 2.17 / 2.71; control 7 12.3..59.3. The control 9 (-7 %) is printed, not asserted: |z| 3.2..12.8 over
+// the replications, below 4 in 3 of 40 (it is asserted above, at 50+ se, on the other panes).
+struct HighIorGrid {
+  static constexpr int kLevels = 5;  // FrontGridSums::kLevel's first five: 0, 1, 9, 3, 7
+  double median_z[kLevels] = {}, plain_z[kLevels] = {}, relative[kLevels] = {};
+};
+HighIorGrid high_ior_grid(const FrostedGlassClosure &pane, uint64_t seed, int blocks, long draws) {
+  static const auto schema = FrostedGlassClosure::params();
+  constexpr int kL = HighIorGrid::kLevels;
+  const float angles[] = {0.0f, 35.0f, 60.0f, 75.0f};
+  std::vector<double> block[kL];
+  double sum[kL] = {}, var[kL] = {};
+  for (int b = 0; b < blocks; ++b) {
+    double m[kL] = {};
+    for (int a = 0; a < 4; ++a) {
+      Pcg32 rng(seed + 8 * uint64_t(b) + uint64_t(a), 7);
+      double s[kL] = {}, s2[kL] = {};
+      for (long i = 0; i < draws; ++i) {
+        const PaneDraw draw(angles[a], rng, schema, 1);
+        double v[SplitSums::kDirs], p[kL] = {};
+        for (int l = 0; l < kL; ++l) {
+          split_values(pane, draw, frosted::kPaneWalkSplit, false, -1, FrontGridSums::kLevel[l], v);
+          for (double x : v) p[l] += x;
+          const double x = l == 0 ? p[0] : p[l] - p[0];  // main's value; the other levels' paired difference
+          s[l] += x, s2[l] += x * x;
+        }
+      }
+      for (int l = 0; l < kL; ++l) {
+        m[l] += s[l] / double(draws);
+        var[l] += std::max(0.0, s2[l] / double(draws) - (s[l] / draws) * (s[l] / draws)) / double(draws);
+      }
+    }
+    for (int l = 0; l < kL; ++l) block[l].push_back(m[l]), sum[l] += m[l];
+  }
+  const double main_mean = sum[0] / blocks;
+  HighIorGrid out;
+  for (int l = 1; l < kL; ++l) {
+    std::vector<double> &x = block[l];
+    const auto median = [](std::vector<double> v) {
+      std::sort(v.begin(), v.end());
+      const size_t h = v.size() / 2;
+      return v.size() % 2 ? v[h] : 0.5 * (v[h - 1] + v[h]);
+    };
+    const double med = median(x);
+    std::vector<double> dev;
+    for (double y : x) dev.push_back(std::fabs(y - med));
+    const double se = 1.2533 * 1.4826 * median(dev) / std::sqrt(double(blocks));
+    out.median_z[l] = med / se;
+    out.plain_z[l] = (sum[l] / blocks) / std::sqrt(var[l] / (double(blocks) * blocks));
+    out.relative[l] = med / main_mean;
+  }
+  return out;
+}
+TEST(FrostedGlassSgPane, RoughPaneFrontGridAfterABounceHighIorMedianOfMeans) {
+  auto pane = create_pane({0.8f, 2.4f}, "sg");
+  const HighIorGrid g = high_ior_grid(*pane, 7070, 16, 2048);
+  for (int l = 1; l < HighIorGrid::kLevels; ++l)
+    std::printf("[frosted sg pane front grid, IOR 2.4] level %d - main split: median of 16 blocks relative %+.4f, "
+                "z %.2f (the plain sample-se z %.2f)\n",
+                FrontGridSums::kLevel[l], g.relative[l], g.median_z[l], g.plain_z[l]);
+  EXPECT_LT(std::fabs(g.median_z[1]), 4.0) << "level 1";
+  EXPECT_LT(std::fabs(g.median_z[3]), 4.0) << "level 3";
+  EXPECT_GT(std::fabs(g.median_z[4]), 6.0) << "negative control 7 passed";
 }
 
 // split = 1 is the unsplit sample bit for bit; coloured Beer keeps one walk (the split would be biased there).
