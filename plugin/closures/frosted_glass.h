@@ -412,6 +412,32 @@ class FrostedGlassClosure {
     return pane_sample_sg_split(sp, lobe, in, rand, wi, s, flip, out, std::clamp(split, 1, frosted::kPaneWalkSplit),
                                 count_rejected, branch, exact_leaving, both_faces, front_grid);
   }
+  // Session 36 (frostedtail36; docs/frosted_glass.md "Session 36 (frostedtail36)"): one event of the pane walk at the
+  // interface-local incidence wi (either side), its numbers from rng. Level 0 (kPaneWalkLobe, main's walk bit for
+  // bit): the lobe's own sample (a microfacet m, the Fresnel coin, weight g / E with g = G2 / G1(wi), 0 where the
+  // direction is no sample). At IOR 2.4 and roughness >= 0.8 that weight's second moment grows along the reflections
+  // between the faces (the transfer operator's spectral radius of E[w^2 1{reflect}] is 1.11 at roughness 0.8, 1.28 at
+  // 1.0): the walk's throughput has infinite variance. Level 1 (kPaneWalkResampled): kPaneWalkCandidates microfacets
+  // m_j (jittered 2 x 2 in the visible-normal numbers), each with both branches' weights a = F g_R and (1 - F) g_T
+  // (0 where the branch is no sample); one branch is picked with probability a_i / sum a, the weight is
+  // c = sum a / (K E). E[c h(picked)] = (1 / (K E)) E[sum_i a_i h_i] = E_m[F g_R h_R + (1 - F) g_T h_T] / E, level
+  // 0's E[(g / E) h] exactly, for any h: the same expectation event by event, so the same walk's. The spectral radius
+  // of E[c^2 1{reflect}] is <= 0.96 at roughness 0.1..1, IOR 1.5 / 2.4 (finite variance). kPaneWalkControl (the
+  // tests' negative control): both branches at full weight (F not applied in a: biased).
+  static constexpr int kPaneWalkLobe = 0, kPaneWalkResampled = 1, kPaneWalkControl = 9;
+  static constexpr int kPaneWalkCandidates = 4;
+  static bool walk_event(const DielectricLobe &lobe, const Vec3 &wi, mf::WalkRng &rng, int level, LocalSample &s) {
+    if (level == kPaneWalkLobe) return lobe.sample(wi, Vec3(rng.next(), rng.next(), rng.next()), s);
+    return resampled_event(lobe, wi, rng, level == kPaneWalkControl, s);
+  }
+  // The walk's level: measurement knob GLIMMER_FROSTED_PANE_WALK, read once (exactly 0 or 1; else the default 0).
+  static int pane_walk_level();
+  // For the tests: the walk between the faces from the internal direction d at level `walk` (walk_to_exit).
+  bool pane_walk(const ShadingPoint &sp, const Vec3 &rand, Vec3 &d, Spectrum &throughput, Vec3 &leaving,
+                 int walk) const {
+    DielectricLobe scratch;
+    return walk_to_exit(sp, lobe_at(sp, scratch), rand, d, throughput, leaving, nullptr, nullptr, walk);
+  }
   // For the tests: the interface lobe at sp (per-point roughness and IOR).
   bool pane_sample_sg(const ShadingPoint &sp, const Vec3 &rand, LocalSample &out, frosted::SgVariant variant,
                       const frosted::PaneLadder &ladder = frosted::kPaneLadder,
@@ -543,21 +569,23 @@ class FrostedGlassClosure {
   Spectrum crossing(float cos_inside) const { return beer_.transmittance(thickness_ / std::fabs(cos_inside)); }
 
   // The walk between the faces after entering (method=path's pane and sg's rough pane): from the internal direction
-  // `d` (pane frame, entry side +z), at each crossing Beer over the crossing and a sample of the interface lobe,
-  // until one transmits. True: `d` is the last internal direction, `leaving` the direction outside, `throughput`
-  // times every crossing's attenuation and f cos / pdf (the tint is the caller's). Its numbers: a WalkRng seeded by
-  // (path seed, rand). False: a failed sample, d.z = 0, or no exit within kMaxPaneEvents.
-  // before_exit (optional): the throughput before the leaving event's f cos / pdf (its crossing's Beer included).
+  // `d` (pane frame, entry side +z), at each crossing Beer over the crossing and one event of the interface lobe
+  // (walk_event at level `walk`, -1: pane_walk_level()), until one transmits. True: `d` is the last internal direction,
+  // `leaving` the direction outside, `throughput` times every crossing's attenuation and event weight (the tint is the
+  // caller's). Its numbers: a WalkRng seeded by (path seed, rand). False: a failed sample, d.z = 0, or no exit within
+  // kMaxPaneEvents. before_exit (optional): the throughput before the leaving event's weight (its crossing's Beer
+  // included).
   bool walk_to_exit(const ShadingPoint &sp, const DielectricLobe &lobe, const Vec3 &rand, Vec3 &d,
                     Spectrum &throughput, Vec3 &leaving, int *reflections = nullptr,
-                    Spectrum *before_exit = nullptr) const {
+                    Spectrum *before_exit = nullptr, int walk = -1) const {
+    if (walk < 0) walk = pane_walk_level();
     mf::WalkRng rng(sp.seed_for(rand));
     LocalSample s;
     for (int event = 0; event < kMaxPaneEvents; ++event) {
       if (d.z == 0.0f) return false;
       const bool bottom = d.z < 0.0f;
       throughput *= crossing(d.z);
-      if (!lobe.sample(at_interface(-d, bottom), Vec3(rng.next(), rng.next(), rng.next()), s)) return false;
+      if (!walk_event(lobe, at_interface(-d, bottom), rng, walk, s)) return false;
       const Spectrum before = throughput;
       throughput *= s.f_cos / s.pdf;
       const Vec3 next = at_interface(s.wo, bottom);
@@ -604,6 +632,43 @@ class FrostedGlassClosure {
     }
     if (count == 0) out[count++] = frosted::PaneWalkEnd{};
     return count;
+  }
+  // walk_event's level 1: kPaneWalkCandidates microfacets, both branches each, one picked by its weight a (above).
+  static bool resampled_event(const DielectricLobe &lobe, const Vec3 &wi_in, mf::WalkRng &rng, bool control,
+                              LocalSample &s) {
+    constexpr int kK = kPaneWalkCandidates;
+    const bool outside = wi_in.z > 0.0f;
+    const float eta = outside ? lobe.ior : 1.0f / lobe.ior;
+    const Vec3 wi = outside ? wi_in : mf::flip_z_local(wi_in);
+    const float g1 = mf::G1(lobe.dist, wi, lobe.ax, lobe.ay);
+    if (!(g1 > 0.0f)) return false;
+    Vec3 dirs[2 * kK];
+    float a[2 * kK];
+    float total = 0.0f;
+    for (int j = 0; j < kK; ++j) {
+      const float u1 = (float(j & 1) + rng.next()) * 0.5f, u2 = (float(j >> 1) + rng.next()) * 0.5f;
+      const Vec3 m = mf::sample_visible_normal(lobe.dist, wi, lobe.ax, lobe.ay, u1, u2);
+      const float F = mf::fresnel_dielectric(dot(wi, m), eta);
+      a[2 * j] = a[2 * j + 1] = 0.0f;
+      dirs[2 * j] = normalize(mf::reflect_about(wi, m));
+      if (F > 0.0f && dirs[2 * j].z > 0.0f) a[2 * j] = (control ? 1.0f : F) * lobe.g2(wi, dirs[2 * j]) / g1;
+      if (F < 1.0f && mf::refract(wi, m, eta, dirs[2 * j + 1]) && dirs[2 * j + 1].z < 0.0f)
+        a[2 * j + 1] = (control ? 1.0f : 1.0f - F) * lobe.g2(wi, dirs[2 * j + 1]) / g1;
+      total += a[2 * j] + a[2 * j + 1];
+    }
+    if (!(total > 0.0f) || !std::isfinite(total)) return false;
+    float pick = rng.next() * total;
+    int i = 0;
+    while (i < 2 * kK - 1 && !(pick < a[i])) pick -= a[i++];
+    while (a[i] == 0.0f) --i;  // rounding past the last branch: the last with a weight (total > 0: one exists)
+    const bool reflect = (i & 1) == 0;
+    s.wo = outside ? dirs[i] : mf::flip_z_local(dirs[i]);
+    s.f_cos = Spectrum(total / (float(kK) * lobe.compensation(wi.z, eta)));
+    s.pdf = 1.0f;
+    s.roughness = std::sqrt(lobe.ax * lobe.ay);
+    s.eta = reflect ? 1.0f : eta;
+    s.label = (reflect ? GLIMMER_LABEL_REFLECT : GLIMMER_LABEL_TRANSMIT) | GLIMMER_LABEL_GLOSSY;
+    return true;
   }
   // method=path's pane: the front reflection is an ordinary rough lobe (eval's pane_front_reflection: light-sampled
   // and MIS-combined); every path that enters leaves as one SINGULAR sample (weight: the walk's product of f cos /
@@ -662,10 +727,10 @@ class FrostedGlassClosure {
     mf::WalkRng rng(hash_u32x2(sp.seed_for(rand), 0x65786974u));
     const bool bottom = d.z < 0.0f;
     const Vec3 inside = at_interface(-d, bottom);
+    const int walk = pane_walk_level();  // the walk's own event sampler: its leaving probability at d
     LocalSample s;
     for (int n = 1; n <= kMaxPaneEvents; ++n)
-      if (lobe.sample(inside, Vec3(rng.next(), rng.next(), rng.next()), s) && (s.label & GLIMMER_LABEL_TRANSMIT))
-        return n;
+      if (walk_event(lobe, inside, rng, walk, s) && (s.label & GLIMMER_LABEL_TRANSMIT)) return n;
     return 0;
   }
 
