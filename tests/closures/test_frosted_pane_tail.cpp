@@ -192,8 +192,15 @@ void transfer(float roughness, float ior, int level, int per_bin) {
 }
 }  // namespace
 
+// GLIMMER_TAIL_IOR (tenths) > 0: that IOR alone at roughness 0.5 / 0.8 / 1.0, main's walk only (the IOR sweep).
 TEST(FrostedPaneTail, DISABLED_TransferOperator) {
   const int per_bin = int(env_long("GLIMMER_TAIL_PER_BIN", 25000));
+  const long sweep = env_long("GLIMMER_TAIL_IOR", 0);
+  if (sweep > 0) {
+    for (float roughness : {0.5f, 0.8f, 1.0f})
+      transfer(roughness, float(sweep) / 10.0f, FrostedGlassClosure::kPaneWalkLobe, per_bin);
+    return;
+  }
   for (int level : {FrostedGlassClosure::kPaneWalkLobe, FrostedGlassClosure::kPaneWalkResampled})
     for (float ior : {1.5f, 2.4f})
       for (float roughness : {0.1f, 0.3f, 0.5f, 0.8f, 1.0f}) transfer(roughness, ior, level, per_bin);
