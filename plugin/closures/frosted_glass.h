@@ -181,7 +181,8 @@ class FrostedGlassClosure {
                  float mixture_tail = frosted::kDefaultMixtureTail, float curved_tail = -1.0f,
                  const frosted::CurvedShape *curved_shape = nullptr, int sampled_reflection = -1,
                  int stratified_roulette = -1, float exit_centroid = -1.0f, float exit_waist = -1.0f,
-                 int entry_axis = -1, int floor_exit = -1, float floor_origin = -1.0f) const {
+                 int entry_axis = -1, int floor_exit = -1, float floor_origin = -1.0f,
+                 int chained_roulette = -1) const {
     frosted::SgInputs in;
     in.table = table_;
     in.self = reinterpret_cast<const GlimmerInstance *>(this);
@@ -204,6 +205,7 @@ class FrostedGlassClosure {
     in.entry_axis = entry_axis;
     in.floor_exit = floor_exit;
     in.floor_origin = floor_origin;
+    in.chained_roulette = chained_roulette;
     DielectricLobe scratch;  // the reflections' lobe (frosted::kSampledReflection), built only where it applies
     in.sampled_reflection = frosted::sampled_reflection_at(sp, sampled_reflection);
     if (in.sampled_reflection) in.lobe = &lobe_at(sp, scratch), in.lobe_roughness = in.roughness;

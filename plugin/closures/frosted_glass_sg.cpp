@@ -344,16 +344,17 @@ bool reflect_internal(const SgInputs &in, const Segment &seg, const ExitEnergies
 float roulette(uint32_t seed, int event) {
   return float(hash_u32x3(seed, uint32_t(event), 0x5bd1e995u) >> 8) * 0x1p-24f;
 }
-// Step 5's roulette number at `event`: stratified_first_roulette's `first_u` at event 0 when given (>= 0), else the
-// hashed one; the walk leaves when u < E_x. `rest`: what is left of a stratified number given the outcome (level 2),
-// u / E_x given the exit, (u - E_x) / (1 - E_x) given a reflection (uniform on [0, 1) either way); -1: none.
+// Step 5's roulette number at `event`: stratified_first_roulette's `first_u` at event 0 when given (>= 0), or at a
+// later event the chained one (chained_roulette_level; trace_exit_lobe passes -1 there otherwise), else the hashed
+// one; the walk leaves when u < E_x. `rest`: what is left of a stratified number given the outcome (level 2), u / E_x
+// given the exit, (u - E_x) / (1 - E_x) given a reflection (uniform on [0, 1) either way); -1: none.
 struct RouletteNumber {
   float u = 0.0f, rest = -1.0f;
   bool leaves = false;
 };
 RouletteNumber roulette_number(const SgInputs &in, uint32_t seed, int event, float first_u, float transmitted) {
   RouletteNumber r;
-  const bool stratified = event == 0 && first_u >= 0.0f;
+  const bool stratified = first_u >= 0.0f;  // event 0's, or a chained one (chained_roulette_level)
   r.u = stratified ? first_u : roulette(seed, event);
   r.leaves = !(r.u >= transmitted);
   const int level = stratified_roulette_level(in);
@@ -801,13 +802,38 @@ ExitRoulette exit_roulette(const SgInputs &in, const Segment &seg, float axis_en
   ExitRoulette r;
   // The stratified number at curved exits only (a planar one, a slab's back face, keeps the hashed route: there it was
   // not measured on the bench, and the exit harness' slab moved by its noise; docs/frosted_glass.md "Session 27").
-  if (event == 0 && first_u >= 0.0f && seg.curvature_facing < kPlanarExitCurvature) first_u = -1.0f;
+  if (first_u >= 0.0f && seg.curvature_facing < kPlanarExitCurvature) first_u = -1.0f;
   if (!last) r.energies = exit_energies(*in.table, seg, axis_energy, exit_axes);
   static_cast<RouletteNumber &>(r) =
       roulette_number(in, seed, event, first_u, last ? axis_energy : r.energies.mean());
   return r;
 }
+
+// Session 36 (chained_roulette_level): after a reflection, the sampled reflection's first number (main's: the rest)
+// and the next exit's roulette number (-1: hashed; the chain's rest, or for the control u itself).
+float reflection_first_u(const SgInputs &in, const RouletteNumber &r) {
+  return chained_roulette_level(in) > 0 ? -1.0f : r.rest;
+}
+float next_roulette_u(const SgInputs &in, const RouletteNumber &r) {
+  const int level = chained_roulette_level(in);
+  if (level <= 0 || !(r.rest >= 0.0f)) return -1.0f;
+  return level == kChainedRouletteControl ? r.u : r.rest;
+}
+
+// The last event's incident direction (seen from inside: -axis) at the mean exit normal n (outward), cos_in its
+// incidence: beyond the critical angle clamped to it (Wyman 2005).
+Vec3 last_incident(const Vec3 &axis, const Vec3 &n, float cos_in, float ior) {
+  const float sin_crit = 1.0f / ior;
+  if (!(std::sqrt(std::max(0.0f, 1.0f - cos_in * cos_in)) > sin_crit)) return -axis;
+  const Vec3 tangential = normalize(-axis - (-n) * dot(-axis, -n));
+  return normalize(tangential * sin_crit + (-n) * std::sqrt(1.0f - sin_crit * sin_crit));
+}
 }  // namespace
+
+int chained_roulette_level(const SgInputs &in) {
+  static const int level = measurement_knob("GLIMMER_FROSTED_CHAINED_ROULETTE", kChainedRoulette, 0, 2);
+  return in.chained_roulette >= 0 ? in.chained_roulette : level;
+}
 
 namespace {
 // kEntryAxis, or for measurements only GLIMMER_FROSTED_ENTRY_AXIS = m (0: the front SG's axis and width), read once;
@@ -943,13 +969,7 @@ bool trace_exit_lobe(const ShadingPoint &sp, const SgInputs &in, uint32_t seed, 
     const Frame exit_frame = Frame::from_normal(-n);
     const float cos_in = std::clamp(dot(axis, n), 1e-4f, 1.0f);
     const bool last = event == kMaxInternalReflections;
-    const float sin_crit = 1.0f / ior;
-    Vec3 incident = -axis;
-    if (last && std::sqrt(std::max(0.0f, 1.0f - cos_in * cos_in)) > sin_crit) {
-      // Wyman 2005: beyond the critical angle the incident axis is clamped to it.
-      const Vec3 tangential = normalize(-axis - (-n) * dot(-axis, -n));
-      incident = normalize(tangential * sin_crit + (-n) * std::sqrt(1.0f - sin_crit * sin_crit));
-    }
+    const Vec3 incident = last ? last_incident(axis, n, cos_in, ior) : -axis;
     SphericalGaussian exit;
     float exit_energy = 0.0f;
     const TransmissionSgTable::Axes exit_axes = table_axes(1.0f / ior, roughness_exit);  // the exit's lookups
@@ -957,8 +977,10 @@ bool trace_exit_lobe(const ShadingPoint &sp, const SgInputs &in, uint32_t seed, 
     // 5. Russian roulette between the exit (E_x) and the internal reflection (1 - E_x): exit_roulette.
     const ExitRoulette r = exit_roulette(in, seg, exit_energy, exit_axes, seed, event, last, first_u);
     if (!last && !r.leaves) {
-      if (!reflect_internal(in, seg, r.energies, n, alpha2, hash_u32x2(seed, uint32_t(event)), axis, kappa_in, r.rest))
+      if (!reflect_internal(in, seg, r.energies, n, alpha2, hash_u32x2(seed, uint32_t(event)), axis, kappa_in,
+                            reflection_first_u(in, r)))
         return false;
+      first_u = next_roulette_u(in, r);  // the next exit's number: -1 (hashed) unless chained
       origin = offset_origin(Vec3(seg.axis.hit.P), Vec3(seg.axis.hit.Ng), axis);
       if (!is_finite(axis) || !is_finite(origin)) return false;
       continue;
@@ -1023,7 +1045,8 @@ float transmitted_rest(const Vec3 &wi, const Vec3 &wo, float ior, float rand_z, 
 float stratified_first_roulette(const ShadingPoint &sp, const SgInputs &in, const Vec3 &rand,
                                 const LocalSample &front) {
   const int level = stratified_roulette_level(in);
-  if (level <= 0 || !in.sampled_reflection) return -1.0f;
+  // Where the sampled reflection applies (seen directly), or anywhere at kChainedRoulette level 2 (the floor's view).
+  if (level <= 0 || !(in.sampled_reflection || chained_roulette_level(in) == 2)) return -1.0f;
   return transmitted_rest(sp.wi, front.wo, in.ior, rand.z, level == kStratifiedRouletteControl);
 }
 

@@ -300,6 +300,9 @@ struct SgInputs {
   // -1 by the rule (stratified_first_roulette_level), 0..2 a test's level, kStratifiedRouletteControl the tests'
   // negative control (rand.z itself as the number, not rescaled to the transmission: not uniform given it, biased).
   int stratified_roulette = -1;
+  // Session 36 (frostedsolid36): the later roulettes' numbers chained from the first one (chained_roulette_level):
+  // -1 by the rule, 0..2 a test's level, kChainedRouletteControl the tests' negative control.
+  int chained_roulette = -1;
 };
 
 inline constexpr int kMaxInternalReflections = 16;
@@ -397,6 +400,20 @@ inline int stratified_roulette_level(const SgInputs &in) {
   return in.stratified_roulette >= 0 ? in.stratified_roulette : stratified_first_roulette_level();
 }
 float stratified_first_roulette(const ShadingPoint &sp, const SgInputs &in, const Vec3 &rand, const LocalSample &front);
+
+// Session 36 (frostedsolid36, measured; docs/frosted_glass.md): the walk's later roulettes chained from the first
+// one's stratified number. Given a reflection at an exit, (u - E_x) / (1 - E_x) is uniform on [0, 1) and independent
+// of the walk so far (roulette_number's rest); level 1 makes it the next exit's roulette number (instead of the
+// sampled reflection's first number, which then draws hashed numbers), and so on along the walk, so the pixel's
+// samples split between leaving after 0, 1, 2 ... reflections as its stratified rand.z does; the exit's leftover
+// (u / E_x) stays the exit draw's. The same expectation (each roulette's number uniform given the walk). Level 2 also
+// where the solid is not seen directly (the floor's view: the first roulette from rand.z there too, then chained).
+// Needs kStratifiedFirstRoulette level 2 (the rest). kChainedRoulette 0 (off: main's images), for measurements
+// GLIMMER_FROSTED_CHAINED_ROULETTE (0 / 1 / 2), read once. kChainedRouletteControl: the tests' negative control (the
+// next roulette takes u itself, not rescaled: not uniform given the reflection).
+inline constexpr int kChainedRoulette = 0;
+inline constexpr int kChainedRouletteControl = 9;
+int chained_roulette_level(const SgInputs &in);
 
 // A ray origin off a surface along its geometric normal, on the side of `dir` (as the renderer offsets its rays).
 Vec3 offset_origin(const Vec3 &P, const Vec3 &Ng, const Vec3 &dir);

@@ -158,13 +158,16 @@ PathValues path_walk(const FrostedGlassClosure &path, const SphereHost &host, Ve
 
 // sg's value toward each direction: the sample's weight x its exit lobe's density there (0 where the sample does not
 // leave through the sphere). `sampled_reflection` the sample's mode (1: kSampledReflection, 0: the SG walk of before).
+// `chained`: the sample's kChainedRoulette level (-1: the rule); `floor`: the context after a diffuse bounce (the
+// floor's view: no sampled reflection there).
 std::array<double, kDirections> sg_walk(const FrostedGlassClosure &sg, const FrostedGlassClosure &path,
                                         const SphereHost &host, const Vec3 &P, Pcg32 &rng, int sampled_reflection,
-                                        float roughness) {
+                                        float roughness, int chained = -1, bool floor = false) {
   std::array<double, kDirections> v{};
   const auto w = directions();
   const auto schema = FrostedGlassClosure::params();
   GlimmerShadingContext ctx = context_at(host, P, Vec3(0.0f, 0.0f, -1.0f), rng);
+  if (floor) ctx.diffuse_bounce = 1;
   const ShadingPoint sp(&ctx, schema);
   const Vec3 rand(rng.next_float(), rng.next_float(), rng.next_float());
   LocalSample s;
@@ -172,7 +175,8 @@ std::array<double, kDirections> sg_walk(const FrostedGlassClosure &sg, const Fro
   s.mixture_out = &buffer;
   if (!path.sample(sp, rand, s) || !(s.label & GLIMMER_LABEL_TRANSMIT)) return v;
   sg.sample_sg(sp, rand, s, frosted::solid_sg_variant(roughness), frosted::kDefaultMixtureVariance,
-               frosted::kDefaultMixtureTail, -1.0f, nullptr, sampled_reflection);
+               frosted::kDefaultMixtureTail, -1.0f, nullptr, sampled_reflection, -1, -1.0f, -1.0f, -1, -1, -1.0f,
+               chained);
   if (!(s.label & GLIMMER_LABEL_TRANSMIT) || !s.moved || !s.exit_lobe || !(s.pdf > 0.0f)) return v;
   const double weight = average(s.f_cos) / double(s.pdf);
   const glimmer::ExitLobeMixture m = glimmer::test::exit_mixture_of(s, buffer);
@@ -358,6 +362,82 @@ TEST(FrostedSgStratifiedRoulette, FirstExitAsTheHashedRoute) {
               z_sum[0] / pooled, z_sum[1] / pooled, z_sum[2] / pooled, chi2_max[3]);
   EXPECT_GT(std::fabs(z_sum[2] / pooled), 5.0) << "the roulette's negative control must be off";
   EXPECT_GT(chi2_max[3], 200.0) << "the exit draw's negative control must be off";
+}
+
+// Session 36 (frostedsolid36; frosted_glass_sg.h kChainedRoulette): the walk's later roulettes chained from the first
+// one's stratified number must send the same light as the hashed roulettes. The harness above (the rough sphere r 0.5
+// IOR 1.5, 16 camera hits, the light toward 6 directions through the exit lobe's density): level 1 (where the solid
+// is seen directly) against level 0 on independent streams, and level 2 against level 0 in the floor's view (the
+// context after a diffuse bounce); per direction |z| < 4, pooled over the directions |z| < 4. Negative control
+// (kChainedRouletteControl: the next roulette takes the reflected sample's u itself, u >= E_x, so the walk leaves too
+// late): worst |z| > 8 against level 0. Printed: each level's variance per sample over level 0's (i.i.d. numbers
+// here: no stratification to gain from, so ~1).
+TEST(FrostedSgChainedRoulette, SameLightAsTheHashedRoulettes) {
+  const float roughness = 0.5f, ior = 1.5f;
+  SphereHost host;
+  auto sg = create_closure(roughness, ior, "sg");
+  auto path = create_closure(roughness, ior, "path");
+  host.material = reinterpret_cast<const GlimmerInstance *>(sg.get());
+  const std::vector<Vec3> hits = camera_hits();
+  constexpr int kPaths = 16384;
+  struct Run {
+    int level;
+    bool floor;
+  };
+  const Run runs[] = {{0, false}, {1, false}, {frosted::kChainedRouletteControl, false}, {0, true}, {2, true}};
+  constexpr int kRuns = 5;
+  std::vector<std::array<Sums, kRuns>> per(hits.size());
+  tbb::parallel_for(size_t(0), hits.size(), [&](size_t k) {
+    for (int r = 0; r < kRuns; ++r) {
+      Pcg32 rng(36, 11 + 97 * k + 13 * r);  // independent streams per run
+      for (int i = 0; i < kPaths; ++i)
+        per[k][r].add(sg_walk(*sg, *path, host, hits[k], rng, -1, roughness, runs[r].level, runs[r].floor));
+    }
+  });
+  std::array<Sums, kRuns> total;
+  for (const auto &p : per)
+    for (int r = 0; r < kRuns; ++r) total[r].merge(p[r]);
+  const double n = double(kPaths) * double(hits.size());
+  const auto check = [&](int r, int base, double &worst, double &pooled) {
+    worst = 0.0, pooled = 0.0;
+    for (int j = 0; j < kDirections; ++j) {
+      const Compare c = compare(total[r], total[base], j, n);
+      const double se = total[r].se(j, n), se_base = total[base].se(j, n);
+      const double var = se * se / std::max(se_base * se_base, 1e-300);
+      std::printf(
+          "[frosted chained roulette] level %d%s direction %d: %.5f vs level 0 %.5f (%+.2f %%, z %+.2f), "
+          "variance x %.3f\n",
+          runs[r].level, runs[r].floor ? " (floor view)" : "", j, total[r].mean(j, n), total[base].mean(j, n),
+          100.0 * c.rel, c.z, var);
+      worst = std::max(worst, std::fabs(c.z));
+      pooled += c.z / std::sqrt(double(kDirections));
+    }
+  };
+  double worst = 0.0, pooled = 0.0;
+  check(1, 0, worst, pooled);
+  EXPECT_LT(worst, 4.0) << "level 1, seen directly";
+  EXPECT_LT(std::fabs(pooled), 4.0) << "level 1, seen directly";
+  std::printf("[frosted chained roulette] level 1: worst |z| %.2f, pooled z %+.2f\n", worst, pooled);
+  check(4, 3, worst, pooled);
+  EXPECT_LT(worst, 4.0) << "level 2, the floor's view";
+  EXPECT_LT(std::fabs(pooled), 4.0) << "level 2, the floor's view";
+  std::printf("[frosted chained roulette] level 2 (floor view): worst |z| %.2f, pooled z %+.2f\n", worst, pooled);
+  // The routes run: on the same numbers (one stream per hit), the share of samples whose light differs from level 0's.
+  for (const int r : {1, 4}) {
+    int differ = 0, count = 0;
+    for (size_t k = 0; k < hits.size(); ++k) {
+      Pcg32 a(36, 5000 + k), b(36, 5000 + k);
+      for (int i = 0; i < 256; ++i, ++count)
+        differ += sg_walk(*sg, *path, host, hits[k], a, -1, roughness, 0, runs[r].floor) !=
+                  sg_walk(*sg, *path, host, hits[k], b, -1, roughness, runs[r].level, runs[r].floor);
+    }
+    std::printf("[frosted chained roulette] level %d: %.1f %% of the samples differ from level 0's\n", runs[r].level,
+                100.0 * differ / count);
+    EXPECT_GT(differ, count / 50) << "level " << runs[r].level << " must change some walks";
+  }
+  check(2, 0, worst, pooled);
+  std::printf("[frosted chained roulette] negative control: worst |z| %.2f, pooled z %+.2f\n", worst, pooled);
+  EXPECT_GT(worst, 8.0) << "the negative control must be off";
 }
 
 }  // namespace
