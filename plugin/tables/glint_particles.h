@@ -1356,7 +1356,9 @@ struct LitCountTable {
     const double x = v * 4294967296.0 - 0.5;
     if (!(x > 0.0)) return 0;                        // also NaN
     if (x > 4294967295.0) return uint64_t{1} << 32;  // ceil(x) >= 2^32: clamped
-    return static_cast<uint64_t>(std::ceil(x));
+    // Session 36 (glintorigin36): 0 < ceil(x) <= 2^32 - 1 converted as a signed 64-bit integer (one CVTTSD2SI; the
+    // unsigned conversion added a compare, a branch and a subtraction for values from 2^63): the same value.
+    return static_cast<uint64_t>(static_cast<int64_t>(std::ceil(x)));
   }
   explicit LitCountTable(const LitCountModel &m) : lambda(m.lambda), walkable(m.walkable) {
     if (!walkable) {
@@ -2009,6 +2011,24 @@ inline void paired_node_origins(const FootprintFrame &frame, const NodeList &nod
 }
 
 #if GLIMMER_GLINT_WALK_AVX2
+// |v| <= 1/2 per lane (FootprintFrame::inside's test).
+[[gnu::target("avx2"), gnu::always_inline]] inline __m256d within_half_avx2(__m256d v) {
+  return _mm256_cmp_pd(_mm256_andnot_pd(_mm256_set1_pd(-0.0), v), _mm256_set1_pd(0.5), _CMP_LE_OS);
+}
+// The four corners c, c + d_ux, c + d_uy, (c + d_ux) + d_uy (node_inside's sums) all within 1/2 per lane, as the
+// largest |corner| <= 1/2 (session 29, glintpaired29: three VMAXPD and one compare where four compares and three
+// ANDs were). The same flags, NaN included: VMAXPD returns its second operand when either is NaN, and a NaN
+// corner makes (c + d_ux) + d_uy NaN (c NaN makes every corner NaN; c + d_ux NaN makes the last one NaN; c + d_uy
+// NaN with c not NaN is d_uy NaN or c = -d_uy = +-inf, and then (c + d_ux) + d_uy is NaN for every d_ux), which is
+// the second operand of both maxima it goes through: the maximum is NaN and the compare false.
+[[gnu::target("avx2"), gnu::always_inline]] inline __m256d corners_within_half_avx2(__m256d c, __m256d d_ux,
+                                                                                 __m256d d_uy) {
+  const __m256d sign = _mm256_set1_pd(-0.0), c10 = _mm256_add_pd(c, d_ux);
+  const __m256d near = _mm256_max_pd(_mm256_andnot_pd(sign, c), _mm256_andnot_pd(sign, c10));
+  const __m256d far = _mm256_max_pd(_mm256_andnot_pd(sign, _mm256_add_pd(c, d_uy)),
+                                    _mm256_andnot_pd(sign, _mm256_add_pd(c10, d_uy)));
+  return _mm256_cmp_pd(_mm256_max_pd(near, far), _mm256_set1_pd(0.5), _CMP_LE_OS);
+}
 // paired_node_origins in AVX2, two nodes per 256-bit register (session 29, glintbounds29; session 24's form took one
 // node per step, 35 instructions per node with a pair in the GI render's bounds walks): the lanes (s_a, t_a, s_b,
 // t_b) of nodes a and b, the next two nodes with a pair of a word (a word's odd last node is its own b).
@@ -2029,14 +2049,9 @@ inline void paired_node_origins(const FootprintFrame &frame, const NodeList &nod
       _mm256_mul_pd(_mm256_sub_pd(_mm256_mul_pd(p, by_ax), _mm256_mul_pd(_mm256_permute_pd(p, 0x5), bx_ay)), inv_det);
   _mm_storeu_pd(&pc.origin[a].s, _mm256_castpd256_pd128(st));
   _mm_storeu_pd(&pc.origin[b].s, _mm256_extractf128_pd(st, 1));
-  const __m256d d_ux = l[5], d_uy = l[6];  // (ds_ux dt_ux ds_ux dt_ux), (ds_uy dt_uy ds_uy dt_uy)
-  const __m256d c10 = _mm256_add_pd(st, d_ux), c01 = _mm256_add_pd(st, d_uy), c11 = _mm256_add_pd(c10, d_uy);
-  const __m256d sign = _mm256_set1_pd(-0.0), half = _mm256_set1_pd(0.5);
-  const __m256d in_st = _mm256_cmp_pd(_mm256_andnot_pd(sign, st), half, _CMP_LE_OS);
-  const __m256d in_10 = _mm256_cmp_pd(_mm256_andnot_pd(sign, c10), half, _CMP_LE_OS);
-  const __m256d in_01 = _mm256_cmp_pd(_mm256_andnot_pd(sign, c01), half, _CMP_LE_OS);
-  const __m256d in_11 = _mm256_cmp_pd(_mm256_andnot_pd(sign, c11), half, _CMP_LE_OS);
-  const __m256d all = _mm256_and_pd(_mm256_and_pd(in_st, in_10), _mm256_and_pd(in_01, in_11));
+  // Session 36 (glintorigin36): the corners by corners_within_half_avx2 (three VMAXPD and one compare per lane; were
+  // four compares and three ANDs): the same flags, NaN included (its comment), per lane of (s, t) as of s or t.
+  const __m256d all = corners_within_half_avx2(st, l[5], l[6]);  // (ds_ux dt_ux ds_ux dt_ux), (ds_uy dt_uy ...)
   const __m256d flag = _mm256_and_pd(_mm256_and_pd(all, _mm256_permute_pd(all, 0x5)), can_be_inside);
   _mm_store_ss(reinterpret_cast<float *>(&pc.inside_mask[a]), _mm_castpd_ps(_mm256_castpd256_pd128(flag)));
   _mm_store_ss(reinterpret_cast<float *>(&pc.inside_mask[b]), _mm_castpd_ps(_mm256_extractf128_pd(flag, 1)));
@@ -2090,24 +2105,6 @@ inline std::array<uint64_t, PairMasks::kWords> interior_words(const PairMasks &p
 struct TabledOriginLanesAvx2 {
   __m256d cx, cy, size, ax, ay, bx, by, inv_det, ds_ux, ds_uy, dt_ux, dt_uy;
 };
-// |v| <= 1/2 per lane (FootprintFrame::inside's test).
-[[gnu::target("avx2"), gnu::always_inline]] inline __m256d within_half_avx2(__m256d v) {
-  return _mm256_cmp_pd(_mm256_andnot_pd(_mm256_set1_pd(-0.0), v), _mm256_set1_pd(0.5), _CMP_LE_OS);
-}
-// The four corners c, c + d_ux, c + d_uy, (c + d_ux) + d_uy (node_inside's sums) all within 1/2 per lane, as the
-// largest |corner| <= 1/2 (session 29, glintpaired29: three VMAXPD and one compare where four compares and three
-// ANDs were). The same flags, NaN included: VMAXPD returns its second operand when either is NaN, and a NaN
-// corner makes (c + d_ux) + d_uy NaN (c NaN makes every corner NaN; c + d_ux NaN makes the last one NaN; c + d_uy
-// NaN with c not NaN is d_uy NaN or c = -d_uy = +-inf, and then (c + d_ux) + d_uy is NaN for every d_ux), which is
-// the second operand of both maxima it goes through: the maximum is NaN and the compare false.
-[[gnu::target("avx2"), gnu::always_inline]] inline __m256d corners_within_half_avx2(__m256d c, __m256d d_ux,
-                                                                                 __m256d d_uy) {
-  const __m256d sign = _mm256_set1_pd(-0.0), c10 = _mm256_add_pd(c, d_ux);
-  const __m256d near = _mm256_max_pd(_mm256_andnot_pd(sign, c), _mm256_andnot_pd(sign, c10));
-  const __m256d far = _mm256_max_pd(_mm256_andnot_pd(sign, _mm256_add_pd(c, d_uy)),
-                                    _mm256_andnot_pd(sign, _mm256_add_pd(c10, d_uy)));
-  return _mm256_cmp_pd(_mm256_max_pd(near, far), _mm256_set1_pd(0.5), _CMP_LE_OS);
-}
 // Nodes a0 .. a0 + 3 at (x, y) (their i, j as doubles): their origins stored at a0 .. a0 + 3, and bit k set where
 // node a0 + k lies inside.
 [[gnu::target("avx2"), gnu::always_inline]] inline uint32_t tabled_origins_chunk_avx2(const TabledOriginLanesAvx2 &l,
