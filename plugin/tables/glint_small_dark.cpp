@@ -46,6 +46,83 @@ namespace {
   }
   return node_loop_pass1_avx2(keys, n, seeds, below, all_pass, hashes);
 }
+
+// Session 36 (glintdark36): pass 2's positions four per step (two scalar mix_u32 per particle before). Every return
+// of pass 2 but the last is kNotDark, so the answer does not depend on the order in which positions are tested:
+// kDark iff every lit position is outside, as in the scalar loop. A pair of at most kMaxListed lit particles (most of
+// them) appends its positions to a list over the box's pairs, tested at the end (or when full) four per step, each
+// lane its own key and node origin; a pair of more is tested by itself by the count at P's particles_inside4_avx2.
+struct PositionList {
+  static constexpr int kMaxListed = 4;  // one step of four lanes (the lanes past K are written, not counted)
+  static constexpr int kCapacity = 32;  // a multiple of 4; tested and emptied when a pair's four lanes do not fit
+  alignas(32) uint32_t keys[kCapacity];  // particle k's x key (h0 ^ C) + (2 k + 1) W; its y key is that + W
+  alignas(32) double s[kCapacity], t[kCapacity];  // the particle's node origin in the footprint's frame
+  int n = 0;
+  // The frame's steps (FootprintFrame's; copied, so that the frame itself is not passed out of line: GCC then kept
+  // all its fields, +15 per eval at 1e-8).
+  double ds_ux = 0.0, ds_uy = 0.0, dt_ux = 0.0, dt_uy = 0.0;
+
+  void set_frame(const FootprintFrame &frame) {
+    ds_ux = frame.ds_ux, ds_uy = frame.ds_uy, dt_ux = frame.dt_ux, dt_uy = frame.dt_uy;
+  }
+  [[gnu::target("avx2"), gnu::always_inline]] FrameLanesAvx2 lanes() const {
+    return {_mm256_set1_pd(ds_ux), _mm256_set1_pd(ds_uy), _mm256_set1_pd(dt_ux), _mm256_set1_pd(dt_uy)};
+  }
+
+  // Whether any of the n listed positions lies inside the footprint (particle_inside's expressions by lanes).
+  [[gnu::target("avx2"), gnu::always_inline]] bool any_inside() const {
+    const FrameLanesAvx2 lanes = this->lanes();
+    const __m256d sign = _mm256_set1_pd(-0.0), half = _mm256_set1_pd(0.5);
+    for (int i = 0; i < n; i += 4) {
+      const __m128i x = _mm_load_si128(reinterpret_cast<const __m128i *>(keys + i));
+      const __m128i y = _mm_add_epi32(x, _mm_set1_epi32(static_cast<int>(kNodeKeyStep)));
+      const __m256 u = _mm256_mul_ps(_mm256_cvtepi32_ps(_mm256_srli_epi32(mix_u32x8(_mm256_set_m128i(y, x)), 8)),
+                                     _mm256_set1_ps(1.0f / 16777216.0f));  // uint_to_unit_float: the x's, the y's
+      const __m256d ux = _mm256_cvtps_pd(_mm256_castps256_ps128(u)), uy = _mm256_cvtps_pd(_mm256_extractf128_ps(u, 1));
+      const __m256d ps = _mm256_add_pd(_mm256_add_pd(_mm256_load_pd(s + i), _mm256_mul_pd(ux, lanes.ds_ux)),
+                                       _mm256_mul_pd(uy, lanes.ds_uy));
+      const __m256d pt = _mm256_add_pd(_mm256_add_pd(_mm256_load_pd(t + i), _mm256_mul_pd(ux, lanes.dt_ux)),
+                                       _mm256_mul_pd(uy, lanes.dt_uy));
+      const __m256d in = _mm256_and_pd(_mm256_cmp_pd(_mm256_andnot_pd(sign, ps), half, _CMP_LE_OS),
+                                       _mm256_cmp_pd(_mm256_andnot_pd(sign, pt), half, _CMP_LE_OS));
+      uint32_t mask = static_cast<uint32_t>(_mm256_movemask_pd(in));
+      if (n - i < 4) mask &= (1u << (n - i)) - 1u;
+      if (mask != 0) return true;
+    }
+    return false;
+  }
+  // The full list tested and emptied (out of line: its set-up stays out of pass 2's loop).
+  [[gnu::target("avx2"), gnu::noinline, gnu::cold]] bool flush_inside() {
+    const bool inside = any_inside();
+    n = 0;
+    return inside;
+  }
+  // A pair of more than kMaxListed lit particles, by itself (out of line, as flush_inside).
+  [[gnu::target("avx2"), gnu::noinline]] bool pair_inside(uint32_t h0, int64_t K,
+                                                          const FootprintFrame::NodeOrigin &o) const {
+    const FrameLanesAvx2 lanes = this->lanes();
+    for (int64_t k = 0; k < K; k += 4) {
+      uint32_t in = particles_inside4_avx2(lanes, o, h0, static_cast<uint32_t>(k));
+      if (K - k < 4) in &= (1u << (K - k)) - 1u;
+      if (in != 0) return true;
+    }
+    return false;
+  }
+  // The K >= 1 lit particles of the pair whose hash is h0 at the node origin o; false: one of them, or of a full
+  // list, lies inside (kNotDark).
+  [[gnu::target("avx2"), gnu::always_inline]] bool add(uint32_t h0, int64_t K, const FootprintFrame::NodeOrigin &o) {
+    if (K > kMaxListed) return !pair_inside(h0, K, o);
+    if (n > kCapacity - kMaxListed && flush_inside()) return false;
+    _mm_storeu_si128(reinterpret_cast<__m128i *>(keys + n),
+                    _mm_add_epi32(_mm_set1_epi32(static_cast<int>((h0 ^ kPositionKey) + kNodeKeyStep)),
+                                  _mm_load_si128(reinterpret_cast<const __m128i *>(kKeySteps))));  // k = 0..3
+    _mm256_storeu_pd(s + n, _mm256_set1_pd(o.s));
+    _mm256_storeu_pd(t + n, _mm256_set1_pd(o.t));
+    n += static_cast<int>(K);
+    return true;
+  }
+  alignas(16) static constexpr uint32_t kKeySteps[4] = {0u, 2u * kNodeKeyStep, 4u * kNodeKeyStep, 6u * kNodeKeyStep};
+};
 }  // namespace
 #endif
 
@@ -103,6 +180,7 @@ namespace {
   FootprintFrame::NodeOrigin origin{};
   int origin_of = -1;  // the node whose origin is `origin`
   int steps = 0;
+  PositionList list;
   for (; pairs != 0; pairs &= pairs - 1) {
     const int pair = std::countr_zero(pairs), node = pair / kDirectionGroups;
     const uint32_t h0 = hashes[node][pair % kDirectionGroups];
@@ -112,17 +190,17 @@ namespace {
     steps += static_cast<int>(K);
     // The footprint is smaller than a node (above), so no node lies inside it: every lit particle's position is
     // tested (count_reflecting_particles' border branch).
-    if (!frame) frame.emplace(f, size);
+    if (!frame) {
+      frame.emplace(f, size);
+      list.set_frame(*frame);
+    }
     if (origin_of != node) {
       origin = frame->origin(static_cast<double>(node_i[node]) * size, static_cast<double>(node_j[node]) * size);
       origin_of = node;
     }
-    for (int64_t k = 0; k < K; ++k) {
-      const auto [ux, uy] = particle_position(h0, static_cast<uint32_t>(k));
-      if (frame->particle_inside(origin, ux, uy)) return SmallDark::kNotDark;
-    }
+    if (!list.add(h0, K, origin)) return SmallDark::kNotDark;
   }
-  return SmallDark::kDark;
+  return list.n != 0 && list.any_inside() ? SmallDark::kNotDark : SmallDark::kDark;
 }
 #endif
 

@@ -25,7 +25,9 @@
 // lit pair) and the node's origin, the positions by particle_position and
 // membership by FootprintFrame::particle_inside. The answer is a boolean, so
 // it returns at the first counted particle (the count is then > 0 whatever
-// follows). Everything else (footprints at least as large as a node, whose
+// follows). Session 36: the positions four per step in lanes (the same
+// values), listed over the pairs and tested at the end, a pair of more than
+// four by itself (glint_small_dark.cpp's PositionList). Everything else (footprints at least as large as a node, whose
 // count takes the pair passes; boxes beyond kBoxSpan or beyond 2^51 node
 // units; more than max_nodes nodes) is left to the general route (kGeneric),
 // as is the SSE2 walk (GLIMMER_GLINT_WALK=sse2 runs the general route

@@ -14,6 +14,7 @@
 #include <cstdlib>
 #include <future>
 #include <limits>
+#include <optional>
 #include <vector>
 
 #include "closures/closure_checks.h"
@@ -2157,6 +2158,38 @@ TEST(GlintParticles, PseudoNormalTestOrdersCountTheSameParticles) {
 }
 
 
+// Session 36: how small_footprint_dark_avx2's pass 2 meets a query's lit pairs at P (its PositionList, in
+// glint_small_dark.cpp): a pair of more than 4 lit particles is tested by itself (big), the others' positions are
+// listed (listed) and the list is tested and emptied when it holds more than 28 before a pair (flushes); the walk
+// stops at the step cap. Taken from the general route's node list and cells (the same pairs, in the same order).
+struct DarkPassShape {
+  int big = 0, flushes = 0, listed = 0;
+};
+DarkPassShape dark_pass_shape(const pg::GlintSite &site, double P, int max_steps) {
+  DarkPassShape r;
+  const pg::NodeList &nodes = site.node_list();
+  const double lambda = std::min(site.group_density * nodes.size * nodes.size, 4.0e18) * std::min(P, 1.0);
+  const pg::LitCountBounds bounds(lambda);
+  std::optional<pg::LitCountModel> model;
+  int64_t steps = 0, n = 0;
+  for (int node = 0; node < nodes.count; ++node)
+    for (int g = 0; g < pg::kDirectionGroups; ++g) {
+      const uint32_t h0 = pg::node_seed_hash(nodes.id_hash[static_cast<size_t>(node)], site.cell_seeds[static_cast<size_t>(g)]);
+      const int64_t K = pg::lit_count_at(h0, bounds, model, lambda);
+      if (K == 0) continue;
+      if (K < 0 || steps + K > max_steps) return r;
+      steps += K;
+      if (K > 4) {
+        ++r.big;
+        continue;
+      }
+      if (n > 28) ++r.flushes, n = 0;
+      n += K;
+      r.listed += static_cast<int>(K);
+    }
+  return r;
+}
+
 // Session 24: the dark test's small-footprint route (small_footprint_dark_avx2, tables/glint_small_dark.h) gives the
 // general route's answer: locate_glints, then "not dark" when the node list has more than the cap (4 or 8) nodes,
 // else dark iff count_glints at P is complete and 0. Random footprints of 0.001..200 particles (density 1e5..1e8,
@@ -2177,6 +2210,8 @@ TEST(GlintParticles, SmallFootprintDarkMatchesTheCount) {
   // Per cap (index 0: cap 4, 1: cap 8), over the decided queries.
   int64_t cap_decided[2] = {}, cap_no_half[2] = {}, cap_capped[2] = {}, cap_p0[2] = {}, cap_p2[2] = {},
           cap_step_cap[2] = {};
+  // Session 36: decided queries whose pass 2 tests a pair by itself / empties a full list, and of those the dark ones.
+  int64_t with_big = 0, with_big_dark = 0, with_flush = 0, with_flush_dark = 0, listed_over_4 = 0;
   for (int t = 0; t < 200000; ++t) {
     const double density = std::exp(std::log(1e5) + rng.next_double() * std::log(1e3));
     const double particles = std::exp(std::log(1e-3) + rng.next_double() * std::log(2e5));
@@ -2229,6 +2264,12 @@ TEST(GlintParticles, SmallFootprintDarkMatchesTheCount) {
     cap_p0[cap8] += P == 0.0;
     cap_p2[cap8] += P == 2.0;
     cap_step_cap[cap8] += max_steps < 8192;
+    if (ref.has_half_vector && P > 0.0) {
+      const DarkPassShape shape = dark_pass_shape(ref, P, max_steps);
+      with_big += shape.big > 0, with_big_dark += shape.big > 0 && ref_dark;
+      with_flush += shape.flushes > 0, with_flush_dark += shape.flushes > 0 && ref_dark;
+      listed_over_4 += shape.listed > 4;
+    }
     if (d == pg::SmallDark::kNotDark) {
       ASSERT_TRUE(site.has_half_vector && ref.has_half_vector) << "query " << t;
       ASSERT_EQ(site.cell_seeds, ref.cell_seeds) << "query " << t;
@@ -2272,6 +2313,17 @@ TEST(GlintParticles, SmallFootprintDarkMatchesTheCount) {
   std::printf("[small dark] %lld decided over 5..8 nodes (%lld of them dark); control (the reference at the other "
               "cap) differs on %lld\n", static_cast<long long>(over_four), static_cast<long long>(over_four_dark),
               static_cast<long long>(cap_control_differs));
+  std::printf("[small dark] pass 2 (session 36): %lld decided with a pair of more than 4 lit particles (%lld dark), "
+              "%lld with the position list emptied when full (%lld dark), %lld with more than 4 listed\n",
+              static_cast<long long>(with_big), static_cast<long long>(with_big_dark),
+              static_cast<long long>(with_flush), static_cast<long long>(with_flush_dark),
+              static_cast<long long>(listed_over_4));
+  // measured (seed 43): 46 723 (31 709 dark), 911 (259 dark), 25 187
+  EXPECT_GT(with_big_dark, 20000);
+  EXPECT_GT(with_big - with_big_dark, 10000);
+  EXPECT_GT(with_flush_dark, 150);
+  EXPECT_GT(with_flush - with_flush_dark, 400);
+  EXPECT_GT(listed_over_4, 15000);
   EXPECT_GT(over_four, 1000);
   EXPECT_GT(over_four_dark, 0);
   EXPECT_GT(cap_control_differs, 0);
