@@ -58,7 +58,12 @@ def main():
     out, lib, pat = sys.argv[1], sys.argv[2], sys.argv[3]
     div = float(sys.argv[4]) if len(sys.argv) > 4 else 1.0
     cost = parse(out)
-    mine = {a: c for (ob, fn, a), c in cost.items() if ob and ob.endswith(lib.split('/')[-1]) and pat in fn}
+    # Summed per address: a function with a [clone .cold] part is listed under several fn entries (callgrind's
+    # cold'2 contexts), each with its own cost lines for the same addresses (session 36: kept only one before).
+    mine = {}
+    for (ob, fn, a), c in cost.items():
+        if ob and ob.endswith(lib.split('/')[-1]) and pat in fn:
+            mine[a] = mine.get(a, 0) + c
     if not mine:
         sys.exit('no costs for ' + pat)
     fns = sorted({fn for (ob, fn, a) in cost if ob and ob.endswith(lib.split('/')[-1]) and pat in fn})
