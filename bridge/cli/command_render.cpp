@@ -55,6 +55,7 @@ struct RenderArgs {
   std::string scene, output, region, frames, strategy = "mis";
   bool no_exit_state_nee = false;
   bool no_bounce_limits_in_closures = false;
+  bool no_closure_prefetch = false;
   std::string sample_range, sample_split, tile, progress_format = "sample";
   double checkpoint_every = -1.0;  // seconds between checkpoints; < 0 = none
   std::string display;             // the image so far, for a viewer (render::write_display_image)
@@ -200,6 +201,7 @@ int render_one(CliContext &ctx, const RenderArgs &a, const std::string &scene_pa
   else if (a.strategy != "mis") throw CliError(kExitBadInput, "--strategy must be mis, light or bsdf");
   opt.exit_state_nee = !a.no_exit_state_nee;
   opt.bounce_limits_in_context = !a.no_bounce_limits_in_closures;
+  opt.closure_prefetch = !a.no_closure_prefetch;
 
   try {
     renderer = std::make_unique<render::Renderer>(scene, plugin, opt);
@@ -345,6 +347,9 @@ void add_render_options(CLI::App *cmd, RenderArgs &a) {
   cmd->add_flag("--no-bounce-limits-in-closures", a.no_bounce_limits_in_closures,
                 "closures are not told the bounce limits (ABI 2.9: frosted glass sg's walk then keeps the light the "
                 "path would have ended; the estimator before, for comparisons)");
+  cmd->add_flag("--no-closure-prefetch", a.no_closure_prefetch,
+                "do not hand the light direction to the closures' prefetch before the BSDF sample (ABI 2.10; the same "
+                "image, for timing comparisons)");
   cmd->add_flag("--no-aovs", a.no_aovs,
                 "write the Combined pass only (no Albedo, Normal, Depth; their first-hit work is skipped)");
   cmd->add_flag("--quiet", a.quiet, "no progress output");

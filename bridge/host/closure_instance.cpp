@@ -268,6 +268,10 @@ ClosureInstance::ClosureInstance(const GlimmerClosureType &type, const ParamList
     instance_ = nullptr;
     throw ClosureError(std::string(type.name) + ": prepare failed: " + error);
   }
+#if GLIMMER_ABI_MINOR >= 10
+  // ABI 2.10: only a type whose struct_size holds the field has one (an older plugin's type ends before it).
+  if (GLIMMER_HAS_FIELD(type.struct_size, GlimmerClosureType, prefetch)) prefetch_ = type.prefetch;
+#endif
 }
 
 ClosureInstance::~ClosureInstance() {

@@ -107,6 +107,14 @@ class ClosureInstance {
     f_cos = Spectrum(rgb[0], rgb[1], rgb[2]);
   }
 #endif
+#if GLIMMER_ABI_MINOR >= 10
+  // ABI 2.10: whether the type has prefetch (read once at construction: NULL or a type too old to hold the field
+  // reads as none), and the hint itself (no result).
+  bool has_prefetch() const { return prefetch_ != nullptr; }
+  void prefetch(const GlimmerShadingContext &ctx, const Vec3 &wo) const {
+    if (prefetch_ != nullptr) prefetch_(instance_, &ctx, wo);
+  }
+#endif
   Spectrum albedo(const GlimmerShadingContext &ctx) const;
   Spectrum emit(const GlimmerShadingContext &ctx) const;
 
@@ -125,6 +133,9 @@ class ClosureInstance {
   const GlimmerClosureType &type_;
   GlimmerInstance *instance_ = nullptr;
   bool wants_front_normal_ = false;
+#if GLIMMER_ABI_MINOR >= 10
+  decltype(GlimmerClosureType::prefetch) prefetch_ = nullptr;
+#endif
 };
 
 // True for a TRANSMISSIVE closure built for ABI <= 2.2, which takes the side

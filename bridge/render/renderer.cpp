@@ -62,6 +62,7 @@ struct Renderer::Impl {
   const host::PluginLibrary &plugin;
   RenderOptions options;
   FeatureSet &features;
+  bool prefetching = false;  // options.closure_prefetch and some closure instance has a prefetch (ABI 2.10)
   std::vector<std::string> &warnings;
 
   std::unique_ptr<Accel> accel;
@@ -223,6 +224,7 @@ struct Renderer::Impl {
     for (const auto &l : scene.lights)
       if (l.shader >= 0) used[l.shader] = true;
     for (bool u : used) (u ? features.used_shaders : features.unused_shaders)++;
+    for (const auto &instance : shaders->instances()) prefetching |= options.closure_prefetch && instance->has_prefetch();
     // Constant shaders' hit-closure descriptions (trace_ray_closure): their inputs read no point, so any
     // shading point gives the same closures.
     mesh_hit_closure.resize(mesh_shader.size());
@@ -558,13 +560,13 @@ struct Renderer::Impl {
   // power-heuristic MIS against BSDF sampling, and the shadow ray's transmittance.
   // Returns the path's contribution (throughput included).
   Spectrum sample_direct_light(const ClosureSet &cs, const ShadingData &sd, const Spectrum &throughput, float total_sw,
-                               float lu, float lv) const {
+                               const LightSample &ls) const {
     const auto mixture = [&](const Vec3 &wi) {
       MixtureEval me = eval_mixture(cs, sd, wi);
       me.pdf /= total_sw;
       return me;
     };
-    return direct_light_at(sd.ctx.P, sd.Ng, mixture, throughput, lu, lv);
+    return light_contribution(sd.ctx.P, sd.Ng, ls, mixture, throughput);
   }
   // One light sample seen from P (surface normal Ng) through `bsdf(wi) -> MixtureEval` (f and the density
   // with which the path samples wi), MIS-weighted against that density, times the shadow ray's transmittance.
@@ -573,9 +575,19 @@ struct Renderer::Impl {
   Spectrum direct_light_at(const Vec3 &P, const Vec3 &Ng, const Bsdf &bsdf, const Spectrum &throughput, float lu,
                            float lv, bool without_world = false, bool without_lamps = false) const {
     LightSample ls;
-    if (!lights->sample(lu, lv, P, ls) || !(ls.pdf > 0.0f) || (without_world && ls.world) ||
-        (without_lamps && ls.lamp))
-      return Spectrum(0.0f);
+    if (!draw_light(P, lu, lv, ls, without_world, without_lamps)) return Spectrum(0.0f);
+    return light_contribution(P, Ng, ls, bsdf, throughput);
+  }
+  // direct_light_at's two halves. The light sample from P (false: none, or one that counts 0).
+  bool draw_light(const Vec3 &P, float lu, float lv, LightSample &ls, bool without_world = false,
+                  bool without_lamps = false) const {
+    return lights->sample(lu, lv, P, ls) && ls.pdf > 0.0f && !(without_world && ls.world) &&
+           !(without_lamps && ls.lamp);
+  }
+  // Its contribution: f and pdf toward it, the MIS weight and the shadow ray.
+  template <class Bsdf>
+  Spectrum light_contribution(const Vec3 &P, const Vec3 &Ng, const LightSample &ls, const Bsdf &bsdf,
+                              const Spectrum &throughput) const {
     const MixtureEval me = bsdf(ls.wi);
     if (is_zero(me.f)) return Spectrum(0.0f);
     const bool use_bsdf_emission = options.strategy != LightStrategy::LightOnly;
@@ -671,27 +683,45 @@ struct Renderer::Impl {
     ctx.max_transmission_bounce = limit(limits.transmission);
   }
 
-  // Samples closure `chosen` and updates the throughput with the one-sample MIS
-  // estimate over the mixture (singular: the delta weight over its pick
-  // probability), the MIS state and last_singular. False ends the path.
-  bool scatter(const ClosureSet &cs, const ShadingData &sd, int chosen, const float r3[3], float total_sw,
-               Spectrum &throughput, PathState &ps, GlimmerSample &s, uint64_t &nan_count) const {
+  // A vertex's BSDF sample in two stages around next-event estimation's eval and shadow ray (session 33): the
+  // sample is drawn first and the mixture's other closures prefetch toward its direction (ABI 2.10), so that the
+  // one-sample MIS eval of scatter_weight, after NEE, finds their loads (glint's direction table) started.
+  struct BsdfDraw {
+    enum Kind { kEnd, kTransparent, kSample } kind = kEnd;
+    int chosen = -1;
+    uint32_t label = GLIMMER_LABEL_NONE;
+    Vec3 wo{0.0f};
+    Spectrum s_eval{0.0f};  // the sample's f cos with the bump shadowing
+  };
+  // Samples closure `chosen` into s and d (d.kind kEnd where the sample ends the path).
+  void scatter_draw(const ClosureSet &cs, const ShadingData &sd, int chosen, const float r3[3], GlimmerSample &s,
+                    BsdfDraw &d, uint64_t &nan_count) const {
     const ActiveClosure &c = cs.closures[chosen];
     GlimmerShadingContext scratch;
-    const uint32_t label = c.instance->sample(context_for(sd, c, scratch), r3, s);
-    if (label == GLIMMER_LABEL_NONE || !(s.pdf > 0.0f) || !std::isfinite(s.pdf)) return false;
-    const Vec3 wo = normalize(Vec3(s.wo));
-    const Spectrum s_eval = Spectrum(s.eval[0], s.eval[1], s.eval[2]) * bump_shadowing(sd, c, wo);
-    if (!is_finite(s_eval)) {
+    d.kind = BsdfDraw::kEnd;
+    d.chosen = chosen;
+    d.label = c.instance->sample(context_for(sd, c, scratch), r3, s);
+    if (d.label == GLIMMER_LABEL_NONE || !(s.pdf > 0.0f) || !std::isfinite(s.pdf)) return;
+    d.wo = normalize(Vec3(s.wo));
+    d.s_eval = Spectrum(s.eval[0], s.eval[1], s.eval[2]) * bump_shadowing(sd, c, d.wo);
+    if (!is_finite(d.s_eval)) {
       ++nan_count;
-      return false;
+      return;
     }
-    const bool singular = (label & GLIMMER_LABEL_SINGULAR) != 0;
+    d.kind = BsdfDraw::kSample;
+    if (prefetching && !(d.label & GLIMMER_LABEL_SINGULAR)) prefetch_mixture(cs, sd, d.wo, chosen);
+  }
+  // Updates the throughput with the one-sample MIS estimate over the mixture (singular: the delta weight over its
+  // pick probability), the MIS state and last_singular. False ends the path.
+  bool scatter_weight(const ClosureSet &cs, const ShadingData &sd, const BsdfDraw &d, float total_sw,
+                      Spectrum &throughput, PathState &ps, GlimmerSample &s, uint64_t &nan_count) const {
+    const ActiveClosure &c = cs.closures[d.chosen];
+    const bool singular = (d.label & GLIMMER_LABEL_SINGULAR) != 0;
     if (singular) {
-      throughput *= s_eval * c.weight * (total_sw / c.sample_weight);
+      throughput *= d.s_eval * c.weight * (total_sw / c.sample_weight);
     } else {
-      MixtureEval me = eval_mixture(cs, sd, wo, chosen);
-      me.f += s_eval * c.weight;
+      MixtureEval me = eval_mixture(cs, sd, d.wo, d.chosen);
+      me.f += d.s_eval * c.weight;
       me.pdf = (me.pdf + s.pdf * c.sample_weight) / total_sw;
       if (!(me.pdf > 0.0f)) return false;
       throughput *= me.f / me.pdf;
@@ -704,7 +734,7 @@ struct Renderer::Impl {
     }
     if (is_zero(throughput)) return false;
     ps.last_singular = singular;
-    s.label = label;
+    s.label = d.label;
     return true;
   }
 
@@ -829,13 +859,43 @@ struct Renderer::Impl {
                  use_nee() ? lights->triangle_pdf(hit.mesh, hit.prim, ray.org, sd.ctx.P, sd.Ng, ray.D) : 0.0f);
   }
 
-  // Next-event estimation at the surface (Cycles' integrate_surface_direct_light); skipped when only
-  // singular closures are present.
+  // Next-event estimation at the surface (Cycles' integrate_surface_direct_light) in two stages around the BSDF
+  // sample (session 33): draw_surface_light takes the light sample and asks every closure that can (ABI 2.10
+  // prefetch) to start loading what its eval toward the light will read, so those loads (glint's direction table,
+  // a cache miss) overlap the BSDF sample's work; integrate_surface_direct_light then evaluates the mixture, casts
+  // the shadow ray and adds the contribution with the throughput and bounce of before the sample. Nothing the
+  // sample does reads or writes what NEE reads or adds to (pr.L; the light sample's numbers are the vertex's own),
+  // so the image is the one of NEE before the sample, bit for bit. Skipped when only singular closures are present.
+  struct SurfaceLight {
+    bool drawn = false;
+    LightSample ls;
+    Spectrum throughput{0.0f};  // the path's before the BSDF sample
+    int bounce = 0;
+  };
+  void draw_surface_light(const ClosureSet &cs, const ShadingData &sd, const float light_rand[2], const PathState &ps,
+                          const PathRadiance &pr, SurfaceLight &sl) const {
+    sl.drawn = use_nee() && has_smooth_closure(cs) && lights->count() > 0 &&
+               draw_light(sd.ctx.P, light_rand[0], light_rand[1], sl.ls);
+    if (!sl.drawn) return;
+    sl.throughput = pr.throughput;
+    sl.bounce = ps.bounce;
+    if (prefetching) prefetch_mixture(cs, sd, sl.ls.wi);
+  }
   void integrate_surface_direct_light(const ClosureSet &cs, const ShadingData &sd, float total_sw,
-                                      const float light_rand[2], const PathState &ps, PathRadiance &pr) const {
-    if (!use_nee() || !has_smooth_closure(cs) || lights->count() == 0) return;
-    const Spectrum direct = sample_direct_light(cs, sd, pr.throughput, total_sw, light_rand[0], light_rand[1]);
-    if (!is_zero(direct)) add_contribution(pr, direct, ps.bounce);
+                                      const SurfaceLight &sl, PathRadiance &pr) const {
+    if (!sl.drawn) return;
+    const Spectrum direct = sample_direct_light(cs, sd, sl.throughput, total_sw, sl.ls);
+    if (!is_zero(direct)) add_contribution(pr, direct, sl.bounce);
+  }
+  // ABI 2.10: the closures eval_mixture(cs, sd, wo, skip) will evaluate start their loads (a hint; no value changes).
+  void prefetch_mixture(const ClosureSet &cs, const ShadingData &sd, const Vec3 &wo, int skip = -1) const {
+    for (int i = 0; i < cs.count; ++i) {
+      const ActiveClosure &c = cs.closures[i];
+      if (i == skip || c.sample_weight <= 0.0f || c.leaf->singular || !c.instance || !c.instance->has_prefetch())
+        continue;
+      GlimmerShadingContext scratch;
+      c.instance->prefetch(context_for(sd, c, scratch), wo);
+    }
   }
 
   // The scatter integrate_surface_bsdf_bounce took, for integrate_exit_state.
@@ -1044,31 +1104,37 @@ struct Renderer::Impl {
   }
 
   // Picks a closure (or the transparent pass-through) with x of the bounce's BSDF set, rescaled and reused for
-  // the direction, and scatters: the next ray, throughput and path state (Cycles'
-  // integrate_surface_bsdf_bssrdf_bounce). False ends the path.
-  // xs: the closure picked, the path's throughput times its weight over its pick probability, and the bounce
-  // (for an exit state, integrate_exit_state).
-  bool integrate_surface_bsdf_bounce(const ClosureSet &cs, const ShadingData &sd, const float bsdf_rand[4],
-                                     float transparent_weight, float total_sw, const BounceLimits &limits,
-                                     PathState &ps, PathRadiance &pr, PathRay &ray, GlimmerSample &s,
-                                     ExitStateScatter &xs) const {
+  // the direction, and samples it (scatter_draw). xs: the closure picked, the path's throughput times its weight
+  // over its pick probability, and the bounce (for an exit state, integrate_exit_state).
+  void draw_bsdf_sample(const ClosureSet &cs, const ShadingData &sd, const float bsdf_rand[4],
+                        float transparent_weight, float total_sw, const PathState &ps, const PathRadiance &pr,
+                        GlimmerSample &s, ExitStateScatter &xs, BsdfDraw &d) const {
     float pick = bsdf_rand[0] * total_sw;
     const int chosen = pick_closure(cs, pick, transparent_weight);
     xs.chosen = -1;
-    if (chosen == kTransparent) {
+    d.kind = chosen == kTransparent ? BsdfDraw::kTransparent : BsdfDraw::kEnd;
+    if (chosen < 0) return;
+    const float r3[3] = {std::clamp(pick / cs.closures[chosen].sample_weight, 0.0f, 0x1.fffffep-1f), bsdf_rand[1],
+                         bsdf_rand[2]};
+    xs.chosen = chosen;
+    xs.scale = pr.throughput * cs.closures[chosen].weight * (total_sw / cs.closures[chosen].sample_weight);
+    xs.bounce = ps.bounce;
+    scatter_draw(cs, sd, chosen, r3, s, d, *pr.nan_count);
+  }
+  // The scatter of that sample: the next ray, throughput and path state (Cycles'
+  // integrate_surface_bsdf_bssrdf_bounce). False ends the path.
+  bool integrate_surface_bsdf_bounce(const ClosureSet &cs, const ShadingData &sd, const BsdfDraw &d,
+                                     float transparent_weight, float total_sw, const BounceLimits &limits,
+                                     PathState &ps, PathRadiance &pr, PathRay &ray, GlimmerSample &s) const {
+    if (d.kind == BsdfDraw::kTransparent) {
       // Transparent: continue straight on; does not count as a bounce.
       pr.throughput *= cs.transparent / (transparent_weight / total_sw);
       ps.advance_transparent(limits);
       continue_ray(ray, sd, ray.D);
       return true;
     }
-    if (chosen < 0) return false;
-    const float r3[3] = {std::clamp(pick / cs.closures[chosen].sample_weight, 0.0f, 0x1.fffffep-1f), bsdf_rand[1],
-                         bsdf_rand[2]};
-    xs.chosen = chosen;
-    xs.scale = pr.throughput * cs.closures[chosen].weight * (total_sw / cs.closures[chosen].sample_weight);
-    xs.bounce = ps.bounce;
-    if (!scatter(cs, sd, chosen, r3, total_sw, pr.throughput, ps, s, *pr.nan_count)) return false;
+    if (d.kind == BsdfDraw::kEnd || !scatter_weight(cs, sd, d, total_sw, pr.throughput, ps, s, *pr.nan_count))
+      return false;
     const Vec3 wo = normalize(Vec3(s.wo));
     ps.advance(s.label, limits);
     next_differentials(ray.rd, ray.D, wo, sd, s, ps.last_singular && !moved(s), ray.pixel_spread, ps);
@@ -1122,16 +1188,18 @@ struct Renderer::Impl {
       const float transparent_weight = std::fabs(average(cs.transparent));
       const float total_sw = cs.sum_sample_weight + transparent_weight;
       if (total_sw <= 0.0f) break;
-      integrate_surface_direct_light(cs, sd, total_sw, light_rand, ps, pr);
+      SurfaceLight light;  // NEE's light sample, drawn first: the closures prefetch toward it during the bounce
+      draw_surface_light(cs, sd, light_rand, ps, pr, light);
       GlimmerSample s = glimmer_blank_sample();
       GlimmerExitMixture exit_mixture;  // ABI 2.7: written by a closure that hands over a whole exit mixture
       s.exit_mixture = &exit_mixture;
       GlimmerExitState exit_state;  // ABI 2.8: written by a closure that hands over its last scatter
       s.exit_state = options.exit_state_nee && nee ? &exit_state : nullptr;
       ExitStateScatter xs;
-      if (!integrate_surface_bsdf_bounce(cs, sd, bsdf_rand, transparent_weight, total_sw, limits, ps, pr, ray, s,
-                                         xs))
-        break;
+      BsdfDraw bsdf;  // the BSDF sample, drawn before NEE's eval: the other closures prefetch toward it meanwhile
+      draw_bsdf_sample(cs, sd, bsdf_rand, transparent_weight, total_sw, ps, pr, s, xs, bsdf);
+      integrate_surface_direct_light(cs, sd, total_sw, light, pr);  // NEE, added before the exits' light, as before
+      if (!integrate_surface_bsdf_bounce(cs, sd, bsdf, transparent_weight, total_sw, limits, ps, pr, ray, s)) break;
       integrate_exit_lobe(cs, sd, xs, s, ray.D, sampler, ps, pr, exit_world);
       integrate_exit_state(cs, sd, xs, s, ray.D, sampler, ps, pr);
     }

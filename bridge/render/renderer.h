@@ -49,6 +49,9 @@ struct RenderOptions {
   // closure whose one sample stands for several scatters (frosted_glass sg's walk through a solid) drops the light
   // the path would have ended; off: 0 there, no limits (the estimator before; tests and benchmarks compare the two).
   bool bounce_limits_in_context = true;
+  // Next-event estimation's light direction handed to the closures' prefetch (ABI 2.10) before the BSDF sample, so
+  // their eval's loads overlap it; off: not called (the same image; for comparisons and tests).
+  bool closure_prefetch = true;
   // Samples per pixel per parallel pass at most (after_pass runs after each pass): 1 = after every sample (a live
   // display); larger batches spare small images a barrier per sample (Renderer::render).
   int max_samples_per_pass = 16;

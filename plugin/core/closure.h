@@ -13,6 +13,8 @@
 //   Spectrum emit(const ShadingPoint &sp) const;                 // with GLIMMER_CLOSURE_EMISSIVE
 //   LocalEval eval_exit(const ShadingPoint &sp, const GlimmerExitState &state, const Vec3 &w_local) const;
 //                                          // ABI 2.8: the last scatter of a sample that set LocalSample::exit_state
+//   void prefetch(const ShadingPoint &sp, const Vec3 &wo_local) const;
+//                                          // ABI 2.10: start the loads eval(sp, wo_local) will make (a hint only)
 // Directions handed to eval/sample are in the local shading frame (z = N,
 // x = tangent; for GLIMMER_CLOSURE_TRANSMISSIVE closures z = the outward
 // normal, see LocalFrame); the adapter converts to and from world space.
@@ -247,6 +249,10 @@ template <typename T>
 concept HasEvalExit = requires(const T &t, const ShadingPoint &sp, const GlimmerExitState &st, const Vec3 &w) {
   t.eval_exit(sp, st, w);
 };
+#endif
+#if GLIMMER_ABI_MINOR >= 10
+template <typename T>
+concept HasPrefetch = requires(const T &t, const ShadingPoint &sp, const Vec3 &w) { t.prefetch(sp, w); };
 #endif
 
 // A closure whose adapter calls clear() out of line (ClosureAdapter::kClearOutOfLine).
@@ -518,6 +524,19 @@ struct ClosureAdapter {
   }
 #endif
 
+#if GLIMMER_ABI_MINOR >= 10
+  // ABI 2.10: a hint, no result; nothing a closure's prefetch throws passes the boundary.
+  static void prefetch(const GlimmerInstance *inst, const GlimmerShadingContext *ctx, GlimmerVec3 wo) noexcept {
+    if constexpr (HasPrefetch<T>) {
+      try {
+        const ShadingPoint sp = shading_point(ctx);
+        if (scatters(sp)) self(inst).prefetch(sp, sp.frame.to_local(Vec3(wo)));
+      } catch (...) {
+      }
+    }
+  }
+#endif
+
   static GlimmerClosureType make_type() {
     const auto schema = T::params();
     GlimmerClosureType type{};
@@ -540,6 +559,9 @@ struct ClosureAdapter {
 #endif
 #if GLIMMER_ABI_MINOR >= 8
     if constexpr (HasEvalExit<T>) type.eval_exit = &eval_exit;
+#endif
+#if GLIMMER_ABI_MINOR >= 10
+    if constexpr (HasPrefetch<T>) type.prefetch = &prefetch;
 #endif
     return type;
   }

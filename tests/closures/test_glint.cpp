@@ -585,6 +585,50 @@ TEST(Glint, NonFiniteFootprintIsSanitised) {
   EXPECT_GT(control_differs, 50);
 }
 
+// ABI 2.10 prefetch (the direction table's lines toward wo, for the host's NEE): a hint that changes no value and
+// takes any input. For isotropic (table) and anisotropic (no table) glint, random contexts (camera and blurred
+// spreads, footprints from a point to filtered) and directions, including wo below the surface, NaN and infinite
+// components, a NaN spread: eval's f and pdf after prefetch(wo) are the bits of an eval without it (the instance's
+// thread-local memo and caches untouched as far as values go). Control: the comparison sees a change, the blurred
+// spread's eval differs from the camera's on most lit directions.
+TEST(Glint, PrefetchChangesNoValueForAnyInput) {
+  const auto iso = make_closure("glint", {{"roughness", "0.4"}, {"density", "1e6"}});
+  const auto aniso = make_closure("glint", {{"roughness_u", "0.3"}, {"roughness_v", "0.6"}, {"density", "1e6"}});
+  ASSERT_NE(iso->type().prefetch, nullptr);
+  const float nan = std::numeric_limits<float>::quiet_NaN(), inf = std::numeric_limits<float>::infinity();
+  Pcg32 rng(33);
+  int compared = 0, lit = 0, control_differs = 0;
+  for (const host::ClosureInstance *c : {iso.get(), aniso.get()}) {
+    for (int i = 0; i < 4000; ++i) {
+      const Vec3 wi = spherical_dir(85.0 * rng.next_double(), 0.0);
+      Vec3 wo = spherical_dir(100.0 * rng.next_double(), 180.0 + 40.0 * (rng.next_double() - 0.5));
+      if (i % 10 == 1) wo.x = nan;
+      if (i % 10 == 2) wo.z = inf;
+      const double side = i % 3 == 0 ? 0.0 : (i % 3 == 1 ? 3e-3 : 0.1);  // a point, glint mode, filtered
+      GlimmerShadingContext ctx = context(wi, rng.next_double(), rng.next_double(), side,
+                                          i % 4 == 0 ? 0.0f : static_cast<float>(0.3 * rng.next_double()));
+      if (i % 10 == 3) ctx.spread_angle = nan;
+      float pdf_before, pdf_after;
+      const float f_before = eval_f(*c, ctx, wo, &pdf_before);
+      c->prefetch(ctx, wo);
+      const float f_after = eval_f(*c, ctx, wo, &pdf_after);
+      ASSERT_EQ(std::memcmp(&f_before, &f_after, sizeof f_before), 0) << i;
+      ASSERT_EQ(std::memcmp(&pdf_before, &pdf_after, sizeof pdf_before), 0) << i;
+      ++compared;
+      if (f_before > 0.0f) {
+        ++lit;
+        GlimmerShadingContext blurred = ctx;
+        blurred.spread_angle = 0.6f;
+        control_differs += eval_f(*c, blurred, wo) != f_before;
+      }
+    }
+  }
+  std::printf("[prefetch] %d evals equal with and without prefetch (%d lit); control (blur) differs on %d\n", compared,
+              lit, control_differs);
+  EXPECT_GT(lit, 1000);
+  EXPECT_GT(control_differs, lit / 2);
+}
+
 // The seed is an integer taken exactly (ABI 2.2 payload): 2^24 and 2^24 + 1,
 // one float apart from nothing, are different particle fields (a seed read as
 // a float would make them one field), and each field is its own seed's.

@@ -16,7 +16,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-const std::string kHostVersion = host::abi_version_name(GLIMMER_ABI_VERSION);  // "2.9"
+const std::string kHostVersion = host::abi_version_name(GLIMMER_ABI_VERSION);  // "2.10"
 
 TEST(PluginLoading, LoadsTheClosureDso) {
   const auto library = host::PluginLibrary::load(GLIMMER_TEST_PLUGIN_PATH);
@@ -42,7 +42,7 @@ TEST(PluginLoading, RefusesOtherAbiVersionNamingBoth) {
 TEST(PluginLoading, RefusesAbi1Abi3AndANewerMinorNamingBothVersions) {
   EXPECT_EQ(kHostVersion, std::to_string(GLIMMER_ABI_MAJOR) + "." + std::to_string(GLIMMER_ABI_MINOR));
   const std::pair<const char *, const char *> fixtures[] = {
-      {GLIMMER_TEST_FIXTURE_ABI1, "1"}, {GLIMMER_TEST_FIXTURE_ABI3_0, "3.0"}, {GLIMMER_TEST_FIXTURE_ABI2_10, "2.10"}};
+      {GLIMMER_TEST_FIXTURE_ABI1, "1"}, {GLIMMER_TEST_FIXTURE_ABI3_0, "3.0"}, {GLIMMER_TEST_FIXTURE_ABI2_11, "2.11"}};
   for (const auto &[path, version] : fixtures) {
     try {
       host::PluginLibrary::load(path);

@@ -81,6 +81,13 @@
  *        sample (frosted_glass sg's walk through a solid) drops the light the
  *        host's path would have ended. Read only when struct_size holds them;
  *        0 (older hosts, the closure laboratory): no limit.
+ *   2.10: GlimmerClosureType.prefetch (may be NULL): start the memory loads
+ *        an eval() toward wo will make (a hint with no result), so a host
+ *        that knows a direction early (next-event estimation's light
+ *        direction, drawn before the BSDF sample) can overlap their cache
+ *        misses with other work. A host calls it only when the type's
+ *        struct_size holds it and it is not NULL; older plugins' types read
+ *        as "no prefetch".
  *
  * Threading: create/prepare/destroy are called from one thread; eval/sample/
  * emit/albedo are called concurrently on an immutable, prepared instance and
@@ -100,7 +107,7 @@ extern "C" {
 #define GLIMMER_ABI_MAJOR 2u
 #endif
 #ifndef GLIMMER_ABI_MINOR
-#define GLIMMER_ABI_MINOR 9u
+#define GLIMMER_ABI_MINOR 10u
 #endif
 #ifndef GLIMMER_ABI_VERSION
 #define GLIMMER_ABI_VERSION ((GLIMMER_ABI_MAJOR << 16) | GLIMMER_ABI_MINOR)
@@ -519,6 +526,14 @@ typedef struct GlimmerClosureType {
    * send light (e.g. the other side of the exit face). */
   void (*eval_exit)(const GlimmerInstance *instance, const GlimmerShadingContext *ctx,
                     const GlimmerExitState *state, GlimmerVec3 w, float out_eval[3], float *out_pdf);
+#endif
+#if GLIMMER_ABI_MINOR >= 10
+  /* ABI 2.10 (may be NULL): starts loading what eval(instance, ctx, wo)
+   * would read (e.g. a table's cache lines), and nothing else: no result, no
+   * effect on any later value. Safe for any input (NaN or below-horizon wo,
+   * an instance without tables): it then does nothing. Called concurrently,
+   * like eval. A host calls it only when struct_size holds it. */
+  void (*prefetch)(const GlimmerInstance *instance, const GlimmerShadingContext *ctx, GlimmerVec3 wo);
 #endif
 } GlimmerClosureType;
 
