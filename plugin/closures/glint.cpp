@@ -577,12 +577,12 @@ class GlintClosure {
   // BSDF sample) overlaps the lookup's miss (~60 % of f_cos_and_pdf's time, session 31) with other work. Nothing
   // where the eval reads no table: no table (anisotropic base), wi or wo not above the surface (NaN included).
   // Where the eval's dark test ends it without the lookup (not decidable cheaply here) the lines load for nothing.
-  // Inlined here (session 33), the only code GCC then compiles differently in this file is footprint_nodes_sse2<2>,
-  // the SSE2 fallback of the pseudo-normals' node list (nodes_at_level_start no longer inlined), which no AVX2
-  // machine runs; out of line in glint_tables.cpp its <4> form moved instead.
-  void prefetch(const ShadingPoint &sp, const Vec3 &wo) const {
-    if (!table_ || !(sp.wi.z > 0.0f) || !(wo.z > 0.0f)) return;
-    table_->prefetch(table_->locate(lod_sigma_deg(sp.ctx), table_coords(sp.wi, wo).lanes()));
+  // Session 36: in world space, without the shading frame the adapter builds for eval (glint::world_table_coords),
+  // and the cells' corners only (DirectionalTable::prefetch(sigma, deg): no fractions, no level weight).
+  void prefetch(const GlimmerShadingContext &ctx, const Vec3 &wo) const {
+    __m128 deg;
+    if (table_ && glint::world_table_coords(Vec3(ctx.N), Vec3(ctx.wi), wo, deg))
+      table_->prefetch(lod_sigma_deg(&ctx), deg);
   }
 
   bool sample(const ShadingPoint &sp, const Vec3 &rand, LocalSample &out) const {

@@ -13,8 +13,9 @@
 //   Spectrum emit(const ShadingPoint &sp) const;                 // with GLIMMER_CLOSURE_EMISSIVE
 //   LocalEval eval_exit(const ShadingPoint &sp, const GlimmerExitState &state, const Vec3 &w_local) const;
 //                                          // ABI 2.8: the last scatter of a sample that set LocalSample::exit_state
-//   void prefetch(const ShadingPoint &sp, const Vec3 &wo_local) const;
-//                                          // ABI 2.10: start the loads eval(sp, wo_local) will make (a hint only)
+//   void prefetch(const GlimmerShadingContext &ctx, const Vec3 &wo_world) const;
+//                                          // ABI 2.10: start the loads eval toward wo_world will make (a hint only;
+//                                          // world space: the adapter builds no ShadingPoint for it)
 // Directions handed to eval/sample are in the local shading frame (z = N,
 // x = tangent; for GLIMMER_CLOSURE_TRANSMISSIVE closures z = the outward
 // normal, see LocalFrame); the adapter converts to and from world space.
@@ -252,7 +253,7 @@ concept HasEvalExit = requires(const T &t, const ShadingPoint &sp, const Glimmer
 #endif
 #if GLIMMER_ABI_MINOR >= 10
 template <typename T>
-concept HasPrefetch = requires(const T &t, const ShadingPoint &sp, const Vec3 &w) { t.prefetch(sp, w); };
+concept HasPrefetch = requires(const T &t, const GlimmerShadingContext &ctx, const Vec3 &w) { t.prefetch(ctx, w); };
 #endif
 
 // A closure whose adapter calls clear() out of line (ClosureAdapter::kClearOutOfLine).
@@ -525,12 +526,13 @@ struct ClosureAdapter {
 #endif
 
 #if GLIMMER_ABI_MINOR >= 10
-  // ABI 2.10: a hint, no result; nothing a closure's prefetch throws passes the boundary.
+  // ABI 2.10: a hint, no result; nothing a closure's prefetch throws passes the boundary. In world space, without
+  // the ShadingPoint (its frame) eval builds (session 36: the frame and the local directions were most of the hook's
+  // cost); a transmissive closure's prefetch tests for itself whether wi is above N (scatters()).
   static void prefetch(const GlimmerInstance *inst, const GlimmerShadingContext *ctx, GlimmerVec3 wo) noexcept {
     if constexpr (HasPrefetch<T>) {
       try {
-        const ShadingPoint sp = shading_point(ctx);
-        if (scatters(sp)) self(inst).prefetch(sp, sp.frame.to_local(Vec3(wo)));
+        self(inst).prefetch(*ctx, Vec3(wo));
       } catch (...) {
       }
     }

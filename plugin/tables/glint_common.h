@@ -59,12 +59,9 @@ inline TableCoords table_coords_scalar(const Vec3 &wi, const Vec3 &wo) {
   return {fast_acos_deg(wi.z), fast_acos_deg(wo.z), fast_acos_deg(cos_azimuth_difference(wi, wo))};
 }
 
-// The same three fast_acos_deg in the lanes of one SSE register: the same
-// float operations in the same order (no fused multiply-add in this build),
-// so the same bits as table_coords_scalar (tests/closures/test_glint.cpp,
-// GlintCoords.*), with one square root instead of three.
-inline TableCoords table_coords(const Vec3 &wi, const Vec3 &wo) {
-  const __m128 x = _mm_setr_ps(wi.z, wo.z, cos_azimuth_difference(wi, wo), 0.0f);
+// fast_acos_deg of each lane of x, in degrees (table_coords below; the glint closure's prefetch, which takes the
+// cosines in world space).
+inline __m128 fast_acos_deg_lanes(__m128 x) {
   const __m128 one = _mm_set1_ps(1.0f);
   const __m128 ax = _mm_andnot_ps(_mm_set1_ps(-0.0f), x);
   const __m128 a = _mm_min_ps(ax, one);  // ax < 1 ? ax : 1, as the scalar select (NaN -> 1)
@@ -75,9 +72,31 @@ inline TableCoords table_coords(const Vec3 &wi, const Vec3 &wo) {
   const __m128 upper = _mm_cmpge_ps(x, _mm_setzero_ps());  // x >= 0 (false for NaN)
   const __m128 folded = _mm_sub_ps(_mm_set1_ps(kPi), r);
   const __m128 angle = _mm_or_ps(_mm_and_ps(upper, r), _mm_andnot_ps(upper, folded));
+  return _mm_mul_ps(angle, _mm_set1_ps(kRadToDeg));
+}
+
+// The same three fast_acos_deg in the lanes of one SSE register: the same
+// float operations in the same order (no fused multiply-add in this build),
+// so the same bits as table_coords_scalar (tests/closures/test_glint.cpp,
+// GlintCoords.*), with one square root instead of three.
+inline TableCoords table_coords(const Vec3 &wi, const Vec3 &wo) {
   TableCoords c;
-  _mm_store_ps(&c.theta_i, _mm_mul_ps(angle, _mm_set1_ps(kRadToDeg)));  // lane 3: acos(0) in degrees
-  return c;
+  _mm_store_ps(&c.theta_i, fast_acos_deg_lanes(_mm_setr_ps(wi.z, wo.z, cos_azimuth_difference(wi, wo), 0.0f)));
+  return c;  // lane 3: acos(0) in degrees
+}
+
+// The table's angles (degrees, lanes 0..2 of deg) of world-space wi and wo about the unit normal n, without a
+// tangent frame (the table is isotropic): the polar cosines are dot products with n (table_coords's bits where a
+// frame's z is n: Frame::to_local's dot), the azimuth difference's cosine is (wi.wo - cos_i cos_o) / (sin_i sin_o)
+// (unit wi, wo), which rounds differently from cos_azimuth_difference's local x, y: a cell on a node's edge may
+// differ. For a hint only (glint's ABI 2.10 prefetch, session 36). False where wi or wo is not above n (NaN).
+inline bool world_table_coords(const Vec3 &n, const Vec3 &wi, const Vec3 &wo, __m128 &deg) {
+  const float ci = dot(wi, n), co = dot(wo, n);
+  if (!(ci > 0.0f) || !(co > 0.0f)) return false;
+  const float s2 = (1.0f - ci * ci) * (1.0f - co * co);
+  const float cos_dphi = s2 > 1e-24f ? (dot(wi, wo) - ci * co) / std::sqrt(s2) : 1.0f;
+  deg = fast_acos_deg_lanes(_mm_setr_ps(ci, co, cos_dphi, 0.0f));
+  return true;
 }
 
 // ---- The particle field ------------------------------------------------------

@@ -145,18 +145,30 @@ struct LodLevel {
   }
   // The same with the angles in lanes 0..2 of `x` (lane 3 unused, any value).
   Cell cell(__m128 x) const {
-    const __m128 clamped = _mm_and_ps(_mm_cmpgt_ps(x, _mm_setzero_ps()),
-                                      _mm_min_ps(x, _mm_setr_ps(90.0f, 90.0f, 180.0f, 0.0f)));
-    const __m128 f = _mm_mul_ps(clamped, _mm_load_ps(lane_scale));
-    const __m128i k = _mm_cvttps_epi32(f);
-    const __m128i last = _mm_load_si128(reinterpret_cast<const __m128i *>(lane_last));
-    const __m128i over = _mm_cmpgt_epi32(k, last);
-    const __m128i corner = _mm_or_si128(_mm_and_si128(over, last), _mm_andnot_si128(over, k));  // min(k, last)
+    __m128 f;
+    const __m128i corner = corner_lanes(x, f);
     alignas(16) int32_t c[4];
     alignas(16) float t[4];
     _mm_store_si128(reinterpret_cast<__m128i *>(c), corner);
     _mm_store_ps(t, _mm_sub_ps(f, _mm_cvtepi32_ps(corner)));
     return {(static_cast<size_t>(c[0]) * n_theta_o + c[1]) * n_phi + c[2], t[0], t[1], t[2]};
+  }
+  // cell()'s first corner alone (no fractions): what a prefetch needs (glint's prefetch hook, session 36).
+  size_t cell_base(__m128 x) const {
+    __m128 f;
+    alignas(16) int32_t c[4];
+    _mm_store_si128(reinterpret_cast<__m128i *>(c), corner_lanes(x, f));
+    return (static_cast<size_t>(c[0]) * n_theta_o + c[1]) * n_phi + c[2];
+  }
+  // cell()'s lanes: the clamped angles times the scale (f) and their truncation capped at the last corner.
+  __m128i corner_lanes(__m128 x, __m128 &f) const {
+    const __m128 clamped = _mm_and_ps(_mm_cmpgt_ps(x, _mm_setzero_ps()),
+                                      _mm_min_ps(x, _mm_setr_ps(90.0f, 90.0f, 180.0f, 0.0f)));
+    f = _mm_mul_ps(clamped, _mm_load_ps(lane_scale));
+    const __m128i k = _mm_cvttps_epi32(f);
+    const __m128i last = _mm_load_si128(reinterpret_cast<const __m128i *>(lane_last));
+    const __m128i over = _mm_cmpgt_epi32(k, last);
+    return _mm_or_si128(_mm_and_si128(over, last), _mm_andnot_si128(over, k));  // min(k, last)
   }
   // The scalar form of cell() (the reference of its test).
   Cell cell_scalar(float theta_i_deg, float theta_o_deg, float dphi_deg) const {
@@ -254,8 +266,10 @@ struct LodLevel {
     __builtin_prefetch(p);  // elsewhere the builtin (whether the compiler keeps it is not checked off x86-64)
 #endif
   }
-  void prefetch(const Cell &c) const {
-    const uint16_t *p = halves.data() + c.base;
+  void prefetch(const Cell &c) const { prefetch_base(c.base); }
+  // The same from the first corner's index (cell_base).
+  void prefetch_base(size_t base) const {
+    const uint16_t *p = halves.data() + base;
     const size_t si = theta_i_stride(), so = theta_o_stride();
     prefetch_line(p);
     prefetch_line(p + so);
@@ -318,6 +332,13 @@ class DirectionalTable {
   void prefetch(const Located &at) const {
     levels[at.lp.first].prefetch(at.first);
     if (at.lp.t > 0.0f) levels[at.lp.first + 1].prefetch(at.second);
+  }
+  // The same lines located without the fractions (cell_base): angles in degrees in lanes 0..2 of `deg`, as
+  // locate(sigma_deg, deg) (session 36: glint's prefetch hook).
+  void prefetch(float sigma_deg, __m128 deg) const {
+    const LevelPair lp = levels_at(sigma_deg);
+    levels[lp.first].prefetch_base(levels[lp.first].cell_base(deg));
+    if (lp.t > 0.0f) levels[lp.first + 1].prefetch_base(levels[lp.first + 1].cell_base(deg));
   }
   float lookup(const Located &at) const {
     const float a = levels[at.lp.first].lookup(at.first);

@@ -10,6 +10,9 @@
 
 #include "closures/closure_checks.h"
 #include "closures/glint_test_util.h"
+#include "glimmer/rng.h"
+#include "glimmer/sampling.h"
+#include "tables/glint_common.h"
 #include "tables/glint_tables.h"
 
 namespace glimmer::test {
@@ -135,6 +138,7 @@ TEST(GlintTables, CellAndLookupInLanesMatchTheScalarForm) {
           << v.ti << " " << v.to << " " << v.tp << " vs " << s.base << " " << s.ti << " " << s.to
           << " " << s.tp;
       ASSERT_TRUE(same(l.lookup(v), l.lookup_scalar(s))) << "level " << level << " at " << ti << " " << to << " " << dp;
+      ASSERT_EQ(l.cell_base(_mm_setr_ps(ti, to, dp, 0.0f)), s.base) << "level " << level;  // the prefetch's corner
       ++cells;
       // Controls.
       const float fo = pg::LodLevel::clamp_deg(to, 90.0f) / static_cast<float>(l.step_deg);
@@ -156,6 +160,51 @@ TEST(GlintTables, CellAndLookupInLanesMatchTheScalarForm) {
               static_cast<long long>(control_values));
   EXPECT_GT(control_cells, cells / 100);
   EXPECT_GT(control_values, cells / 10);
+}
+
+// Glint's prefetch hook (session 36) locates the table's cells from world-space directions without the shading
+// frame (glint::world_table_coords: polar cosines as dot products with N, the azimuth's cosine from wi.wo) and
+// their corners only (LodLevel::cell_base). Against the eval's own locate (the frame of N and a random tangent,
+// table_coords of the local directions, cell()) on random unit N, T, wi and wo, every LOD level: the same answer to
+// "both above the surface", theta_i and theta_o bit for bit, and the same corner (the cache lines prefetched) for
+// all but a few queries whose azimuth sits on a node's edge (< 0.5 %). Negative controls: the azimuth's cosine
+// without the polar part (wi.wo / (sin_i sin_o)) and theta_i and theta_o swapped each miss most corners.
+TEST(GlintTables, PrefetchLocatesTheEvalsCellsFromWorldDirections) {
+  Pcg32 rng(36);
+  auto unit = [&] { return sample_uniform_sphere(rng.next_float(), rng.next_float()); };
+  int64_t queries = 0, above = 0, same_corner = 0, control_polar = 0, control_swap = 0;
+  for (int level = 0; level < pg::kLodCount; ++level) {
+    pg::LodLevel l;
+    l.set_step(pg::kLodStepDeg[static_cast<size_t>(level)]);
+    for (int q = 0; q < 100000; ++q, ++queries) {
+      const Vec3 n = unit(), wi = unit(), wo = unit();
+      const Frame frame = Frame::from_normal_tangent(n, unit());
+      const Vec3 li = frame.to_local(wi), lo = frame.to_local(wo);
+      __m128 deg = _mm_setzero_ps();
+      const bool world = pg::world_table_coords(n, wi, wo, deg);
+      ASSERT_EQ(world, li.z > 0.0f && lo.z > 0.0f) << q;
+      if (!world) continue;
+      ++above;
+      const pg::TableCoords c = pg::table_coords(li, lo);
+      alignas(16) float d[4];
+      _mm_store_ps(d, deg);
+      ASSERT_EQ(std::memcmp(d, &c.theta_i, 2 * sizeof(float)), 0) << q << ": " << d[0] << " " << d[1];
+      const size_t eval_corner = l.cell(c.lanes()).base;
+      same_corner += l.cell_base(deg) == eval_corner;
+      const float ci = dot(wi, n), co = dot(wo, n);
+      const float no_polar = dot(wi, wo) / std::sqrt((1.0f - ci * ci) * (1.0f - co * co));
+      control_polar += l.cell_base(pg::fast_acos_deg_lanes(_mm_setr_ps(ci, co, no_polar, 0.0f))) == eval_corner;
+      control_swap += l.cell_base(_mm_shuffle_ps(deg, deg, _MM_SHUFFLE(3, 2, 0, 1))) == eval_corner;
+    }
+  }
+  std::printf("[prefetch cells] %lld queries, %lld above the surface: the eval's corner on %lld; controls (no polar "
+              "part, theta swapped) on %lld, %lld\n",
+              static_cast<long long>(queries), static_cast<long long>(above), static_cast<long long>(same_corner),
+              static_cast<long long>(control_polar), static_cast<long long>(control_swap));
+  EXPECT_GT(above, queries / 5);
+  EXPECT_GT(same_corner, above - above / 200);
+  EXPECT_LT(control_polar, above / 2);
+  EXPECT_LT(control_swap, above / 2);
 }
 
 // The 16-bit nodes lookups read (session 31, glinttable31: LodLevel::halves, values x 2^k as unsigned 5-bit-exponent
