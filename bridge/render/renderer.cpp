@@ -5,6 +5,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -888,11 +889,13 @@ struct Renderer::Impl {
     if (!is_zero(direct)) add_contribution(pr, direct, sl.bounce);
   }
   // ABI 2.10: the closures eval_mixture(cs, sd, wo, skip) will evaluate start their loads (a hint; no value changes).
+  // Session 36: only the closures of cs.prefetch_mask (a type with a prefetch, sampled, not singular), without a
+  // pass over the others.
   void prefetch_mixture(const ClosureSet &cs, const ShadingData &sd, const Vec3 &wo, int skip = -1) const {
-    for (int i = 0; i < cs.count; ++i) {
-      const ActiveClosure &c = cs.closures[i];
-      if (i == skip || c.sample_weight <= 0.0f || c.leaf->singular || !c.instance || !c.instance->has_prefetch())
-        continue;
+    uint32_t mask = cs.prefetch_mask;
+    if (skip >= 0) mask &= ~(1u << skip);
+    for (; mask != 0; mask &= mask - 1) {
+      const ActiveClosure &c = cs.closures[std::countr_zero(mask)];
       GlimmerShadingContext scratch;
       c.instance->prefetch(context_for(sd, c, scratch), wo);
     }

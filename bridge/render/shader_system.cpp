@@ -767,6 +767,7 @@ void ShaderSystem::evaluate(int compiled, const TexCoords &tc, ClosureSet &out) 
   out.count = 0;
   out.sum_sample_weight = 0.0f;
   out.transparent = Spectrum(0.0f);
+  out.prefetch_mask = 0;
   const CompiledShader &cs = compiled_[compiled];
   if (cs.root < 0) return;
   // Explicit stack: (tree node, accumulated weight), trivially constructed (with a Spectrum member all 64
@@ -861,6 +862,7 @@ void ShaderSystem::apply_filter_glossy(ClosureSet &cs, int k) {
     ActiveClosure &c = cs.closures[i];
     if (c.leaf->blurred.empty()) continue;
     c.instance = c.leaf->blurred[k];
+    if (!c.instance->has_prefetch()) cs.prefetch_mask &= ~(1u << i);  // a variant of the same type: never in practice
     if (c.leaf->varying_roughness >= 0) {
       float &r = c.varying[c.leaf->varying_roughness].value[0];
       r = std::max(r, blur_roughness);

@@ -142,8 +142,14 @@ struct ClosureSet {
   int count = 0;
   Spectrum transparent{0.0f};  // weight of the transparent closure (pass-through)
   float sum_sample_weight = 0.0f;
+  // Bit i: closure i is one the renderer's prefetch_mixture hands a direction (ABI 2.10: a type with a prefetch,
+  // sampled, not singular); session 36: the renderer's two prefetch loops per vertex visit only these.
+  uint32_t prefetch_mask = 0;
+  static_assert(kMax <= 32, "prefetch_mask holds a bit per closure");
   void add(const ActiveClosure &c) {
     if (count < kMax) {
+      if (c.instance != nullptr && c.instance->has_prefetch() && c.sample_weight > 0.0f && !c.leaf->singular)
+        prefetch_mask |= 1u << count;
       new (&closures.bytes[count++ * sizeof(ActiveClosure)]) ActiveClosure(c);
       sum_sample_weight += c.sample_weight;
     }
