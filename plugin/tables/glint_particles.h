@@ -2022,11 +2022,11 @@ inline void paired_node_origins(const FootprintFrame &frame, const NodeList &nod
 // NaN with c not NaN is d_uy NaN or c = -d_uy = +-inf, and then (c + d_ux) + d_uy is NaN for every d_ux), which is
 // the second operand of both maxima it goes through: the maximum is NaN and the compare false.
 [[gnu::target("avx2"), gnu::always_inline]] inline __m256d corners_within_half_avx2(__m256d c, __m256d d_ux,
-                                                                                 __m256d d_uy) {
+                                                                                    __m256d d_uy) {
   const __m256d sign = _mm256_set1_pd(-0.0), c10 = _mm256_add_pd(c, d_ux);
   const __m256d near = _mm256_max_pd(_mm256_andnot_pd(sign, c), _mm256_andnot_pd(sign, c10));
-  const __m256d far = _mm256_max_pd(_mm256_andnot_pd(sign, _mm256_add_pd(c, d_uy)),
-                                    _mm256_andnot_pd(sign, _mm256_add_pd(c10, d_uy)));
+  const __m256d far =
+      _mm256_max_pd(_mm256_andnot_pd(sign, _mm256_add_pd(c, d_uy)), _mm256_andnot_pd(sign, _mm256_add_pd(c10, d_uy)));
   return _mm256_cmp_pd(_mm256_max_pd(near, far), _mm256_set1_pd(0.5), _CMP_LE_OS);
 }
 // paired_node_origins in AVX2, two nodes per 256-bit register (session 29, glintbounds29; session 24's form took one

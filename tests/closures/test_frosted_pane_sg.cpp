@@ -946,8 +946,8 @@ TEST(FrostedGlassSgPane, RoughPaneFrontGridAfterABounceSameExpectationAsOneWalk)
           const double z = (m - m1) / std::sqrt(v1 + v);
           worst[l] = std::max(worst[l], std::fabs(z));
           EXPECT_LT(std::fabs(z), 4.5) << "level " << FrontGridSums::kLevel[l] << ", roughness " << c.roughness
-                                       << " ior " << c.ior << " theta " << angles[a] << " direction " << j << ": "
-                                       << m << " one walk " << m1;
+                                       << " ior " << c.ior << " theta " << angles[a] << " direction " << j << ": " << m
+                                       << " one walk " << m1;
         }
       }
     }
@@ -974,10 +974,10 @@ TEST(FrostedGlassSgPane, RoughPaneFrontGridAfterABounceSameExpectationAsOneWalk)
                                             << " passed: roughness " << c.roughness << " ior " << c.ior;
     }
     for (int l = 5; l < levels; ++l) {  // caught per angle (their pooled sum cancels: low at 0 deg, high at 60-75)
-      std::printf("[frosted sg pane front grid] Fresnel-weight control %d, roughness %.2f ior %.2f: paired - main "
-                  "split pooled relative %+.4f, z %.1f; worst |z| over the 4 angles %.1f\n",
-                  FrontGridSums::kLevel[l], double(c.roughness), double(c.ior), d[l - 1] / pooled[0], z_d(l),
-                  worst_paired[l]);
+      std::printf(
+          "[frosted sg pane front grid] Fresnel-weight control %d, roughness %.2f ior %.2f: paired - main "
+          "split pooled relative %+.4f, z %.1f; worst |z| over the 4 angles %.1f\n",
+          FrontGridSums::kLevel[l], double(c.roughness), double(c.ior), d[l - 1] / pooled[0], z_d(l), worst_paired[l]);
       EXPECT_GT(worst_paired[l], 6.0) << "Fresnel-weight control " << FrontGridSums::kLevel[l] << " passed";
     }
   }
@@ -1046,9 +1046,10 @@ TEST(FrostedGlassSgPane, RoughPaneFrontGridAfterABounceHighIorMedianOfMeans) {
   auto pane = create_pane({0.8f, 2.4f}, "sg");
   const HighIorGrid g = high_ior_grid(*pane, 7070, 16, 2048);
   for (int l = 1; l < HighIorGrid::kLevels; ++l)
-    std::printf("[frosted sg pane front grid, IOR 2.4] level %d - main split: median of 16 blocks relative %+.4f, "
-                "z %.2f (the plain sample-se z %.2f)\n",
-                FrontGridSums::kLevel[l], g.relative[l], g.median_z[l], g.plain_z[l]);
+    std::printf(
+        "[frosted sg pane front grid, IOR 2.4] level %d - main split: median of 16 blocks relative %+.4f, "
+        "z %.2f (the plain sample-se z %.2f)\n",
+        FrontGridSums::kLevel[l], g.relative[l], g.median_z[l], g.plain_z[l]);
   EXPECT_LT(std::fabs(g.median_z[1]), 4.0) << "level 1";
   EXPECT_LT(std::fabs(g.median_z[3]), 4.0) << "level 3";
   EXPECT_GT(std::fabs(g.median_z[4]), 6.0) << "negative control 7 passed";
