@@ -369,7 +369,8 @@ class FrostedGlassClosure {
   // primary does not enter (v_0 = 0 while some v_k = 1: biased low) and is unbounded as F_0 -> 1; c_k in [0, 4] here.
   // kPaneFrontGridExactControl: P without the primary's p_0 (the normaliser off by one: the weights sum > 4; the
   // tests' negative control). kPaneFrontGridNoFresnelControl / kPaneFrontGridReflectControl (session 36): p_k = v_k
-  // / F(m_k) v_k, the Fresnel weight alone wrong (the tests' controls where F varies over one orbit's facets).
+  // (NoFresnel), resp. F(m_k) v_k (Reflect): the Fresnel weight alone wrong (the tests' controls where F varies over
+  // one orbit's facets).
   void pane_front_grid_exact_walks(const ShadingPoint &sp, const DielectricLobe &lobe, const frosted::PaneSgInputs &in,
                                    const Vec3 &rand, const Vec3 &wi, const LocalSample &front, int level,
                                    frosted::PaneWalkEnd *walks) const {

@@ -1431,7 +1431,7 @@ int pane_beer_split_level() {
   return level;
 }
 int pane_front_grid_level() {
-  // Exactly 0, 1, 2 or kPaneFrontGridExact; the negative controls (7, 9) only as the tests' explicit argument.
+  // Exactly 0, 1, 2 or kPaneFrontGridExact; the controls (5, 6, 7, 9) only as the tests' explicit argument.
   static const int level =
       measurement_level("GLIMMER_FROSTED_PANE_FRONT_GRID", kPaneFrontGridDefault, {0, 1, 2, kPaneFrontGridExact});
   return level;

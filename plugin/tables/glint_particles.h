@@ -2011,10 +2011,6 @@ inline void paired_node_origins(const FootprintFrame &frame, const NodeList &nod
 }
 
 #if GLIMMER_GLINT_WALK_AVX2
-// |v| <= 1/2 per lane (FootprintFrame::inside's test).
-[[gnu::target("avx2"), gnu::always_inline]] inline __m256d within_half_avx2(__m256d v) {
-  return _mm256_cmp_pd(_mm256_andnot_pd(_mm256_set1_pd(-0.0), v), _mm256_set1_pd(0.5), _CMP_LE_OS);
-}
 // The four corners c, c + d_ux, c + d_uy, (c + d_ux) + d_uy (node_inside's sums) all within 1/2 per lane, as the
 // largest |corner| <= 1/2 (session 29, glintpaired29: three VMAXPD and one compare where four compares and three
 // ANDs were). The same flags, NaN included: VMAXPD returns its second operand when either is NaN, and a NaN
@@ -2050,7 +2046,8 @@ inline void paired_node_origins(const FootprintFrame &frame, const NodeList &nod
   _mm_storeu_pd(&pc.origin[a].s, _mm256_castpd256_pd128(st));
   _mm_storeu_pd(&pc.origin[b].s, _mm256_extractf128_pd(st, 1));
   // Session 36 (glintorigin36): the corners by corners_within_half_avx2 (three VMAXPD and one compare per lane; were
-  // four compares and three ANDs): the same flags, NaN included (its comment), per lane of (s, t) as of s or t.
+  // four compares and three ANDs): the same flags, NaN included (its comment). Each lane (s or t of node a or b)
+  // tests its own four corners; the s and t flags are ANDed below.
   const __m256d all = corners_within_half_avx2(st, l[5], l[6]);  // (ds_ux dt_ux ds_ux dt_ux), (ds_uy dt_uy ...)
   const __m256d flag = _mm256_and_pd(_mm256_and_pd(all, _mm256_permute_pd(all, 0x5)), can_be_inside);
   _mm_store_ss(reinterpret_cast<float *>(&pc.inside_mask[a]), _mm_castpd_ps(_mm256_castpd256_pd128(flag)));
