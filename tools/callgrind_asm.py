@@ -60,13 +60,14 @@ def main():
     cost = parse(out)
     # Summed per address: a function with a [clone .cold] part is listed under several fn entries (callgrind's
     # cold'2 contexts), each with its own cost lines for the same addresses (session 36: kept only one before).
-    mine = {}
+    mine, fns = {}, set()
     for (ob, fn, a), c in cost.items():
         if ob and ob.endswith(lib.split('/')[-1]) and pat in fn:
             mine[a] = mine.get(a, 0) + c
+            fns.add(fn)
     if not mine:
         sys.exit('no costs for ' + pat)
-    fns = sorted({fn for (ob, fn, a) in cost if ob and ob.endswith(lib.split('/')[-1]) and pat in fn})
+    fns = sorted(fns)
     # symbol offset of the function in the .so
     syms = subprocess.run(['nm', '-C', '--defined-only', lib], capture_output=True, text=True).stdout
     lo = min(mine)
