@@ -884,6 +884,11 @@ struct FrontGridSums {
   SplitSums one, est[kLevels];                       // one walk; each level on the shared draws
   double d[kLevels - 1] = {}, d2[kLevels - 1] = {};  // per draw, pooled over the directions: level l + 1 - main
 };
+// Adds n draws' mean (sum / n) to `mean` and the variance of that mean to `var` (sums over independent sets).
+void mean_var(double sum, double sum2, double n, double &mean, double &var) {
+  mean += sum / n;
+  var += std::max(0.0, sum2 / n - (sum / n) * (sum / n)) / n;
+}
 // One (pane, angle): one walk on Pcg32(seed, 7), the first `levels` of kLevel on the shared draws Pcg32(seed + 1, 7).
 void front_grid_sums(const FrostedGlassClosure &pane, float theta, long samples, uint64_t seed, int levels,
                      FrontGridSums &out) {
@@ -909,10 +914,6 @@ TEST(FrostedGlassSgPane, RoughPaneFrontGridAfterABounceSameExpectationAsOneWalk)
                                  {{0.6f, 1.7f, Vec3(0.3f), 0.05f}, 32768, true}};
   const float angles[] = {0.0f, 35.0f, 60.0f, 75.0f};
   constexpr int kL = FrontGridSums::kLevels;
-  const auto mean_var = [](double sum, double sum2, double n, double &mean, double &var) {  // var: of the mean
-    mean += sum / n;
-    var += std::max(0.0, sum2 / n - (sum / n) * (sum / n)) / n;
-  };
   for (int pi = 0; pi < int(std::size(panes)); ++pi) {
     const PaneConfig &c = panes[pi].config;
     const long samples = panes[pi].samples;
@@ -1016,22 +1017,19 @@ HighIorGrid high_ior_grid(const FrostedGlassClosure &pane, uint64_t seed, int bl
           s[l] += x, s2[l] += x * x;
         }
       }
-      for (int l = 0; l < kL; ++l) {
-        m[l] += s[l] / double(draws);
-        var[l] += std::max(0.0, s2[l] / double(draws) - (s[l] / draws) * (s[l] / draws)) / double(draws);
-      }
+      for (int l = 0; l < kL; ++l) mean_var(s[l], s2[l], double(draws), m[l], var[l]);
     }
     for (int l = 0; l < kL; ++l) block[l].push_back(m[l]), sum[l] += m[l];
   }
   const double main_mean = sum[0] / blocks;
+  const auto median = [](std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    const size_t h = v.size() / 2;
+    return v.size() % 2 ? v[h] : 0.5 * (v[h - 1] + v[h]);
+  };
   HighIorGrid out;
   for (int l = 1; l < kL; ++l) {
     std::vector<double> &x = block[l];
-    const auto median = [](std::vector<double> v) {
-      std::sort(v.begin(), v.end());
-      const size_t h = v.size() / 2;
-      return v.size() % 2 ? v[h] : 0.5 * (v[h - 1] + v[h]);
-    };
     const double med = median(x);
     std::vector<double> dev;
     for (double y : x) dev.push_back(std::fabs(y - med));
