@@ -386,8 +386,9 @@ class FrostedGlassClosure {
         // z = 1 >= F: the refraction, always (false where it is no sample: TIR or the wrong side).
         if (!refracts(lobe, wi, Vec3(numbers[k].x, numbers[k].y, 1.0f), s[k])) continue;
       }
-      const Vec3 m = mf::sample_visible_normal(lobe.dist, wi, lobe.ax, lobe.ay, numbers[k].x, numbers[k].y);
-      const double F = mf::fresnel_dielectric(dot(wi, m), lobe.ior);
+      // the facet lobe.sample drew for this walk (wi.z > 0: the outside's IOR), DielectricLobe's one formula
+      Vec3 m;
+      const double F = lobe.visible_facet(wi, lobe.ior, numbers[k].x, numbers[k].y, m);
       p[k] = level == frosted::kPaneFrontGridNoFresnelControl ? 1.0
              : level == frosted::kPaneFrontGridReflectControl ? F
                                                               : 1.0 - F;

@@ -105,6 +105,15 @@ struct DielectricLobe {
     return outside ? eval_local(wi, wo, eta) : eval_local(mf::flip_z_local(wi), mf::flip_z_local(wo), eta);
   }
 
+  // The visible microfacet normal m drawn with (u, v) for wi (the side-local frame, wi.z > 0); returns its Fresnel
+  // reflectance F at the side's relative IOR eta. sample's rough draw, and frosted_glass's exact front grid
+  // (FrostedGlassClosure::pane_front_grid_exact_walks: each walk's facet, whose F weights it): one formula.
+  // always_inline (and m an out-parameter): sample's machine code is what it was before this function existed.
+  [[gnu::always_inline]] float visible_facet(const Vec3 &wi, float eta, float u, float v, Vec3 &m) const {
+    m = mf::sample_visible_normal(dist, wi, ax, ay, u, v);
+    return mf::fresnel_dielectric(dot(wi, m), eta);
+  }
+
   bool sample(const Vec3 &wi_in, const Vec3 &rand, LocalSample &out) const {
     if (wi_in.z == 0.0f) return false;
     const bool outside = wi_in.z > 0.0f;
@@ -123,8 +132,8 @@ struct DielectricLobe {
       out.eta = reflect ? 1.0f : eta;
       out.label = (reflect ? GLIMMER_LABEL_REFLECT : GLIMMER_LABEL_TRANSMIT) | GLIMMER_LABEL_SINGULAR;
     } else {
-      const Vec3 m = mf::sample_visible_normal(dist, wi, ax, ay, rand.x, rand.y);
-      const float F = mf::fresnel_dielectric(dot(wi, m), eta);
+      Vec3 m;
+      const float F = visible_facet(wi, eta, rand.x, rand.y, m);
       Vec3 wo;
       bool reflect;
       if (refraction_only) {
