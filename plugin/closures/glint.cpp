@@ -349,7 +349,9 @@ class GlintClosure {
     // Session 24: a footprint of at most kDarkTestMaxNodes nodes in a box of at most kBoxSpan x kBoxSpan, smaller
     // than a node, without the node list (tables/glint_small_dark.h); the same answer as the count below.
     if (glint::kWalkAvx2) {
-      new (&parts.site) glint::GlintSite;
+      // Unset (session 37): small_footprint_dark_avx2 writes the cells, locate_glint_nodes the list (kNotDark);
+      // kGeneric's locate constructs the site afresh; a dark answer reads nothing.
+      new (&parts.site) glint::GlintSite(glint::GlintSite::Unset{});
       const glint::SmallDark d =
           glint::small_footprint_dark_avx2(*small_dark_, parts.fp, parts.area, density, wi, wo, P_max, parts.site);
       if (d == glint::SmallDark::kDark) return true;
@@ -538,8 +540,8 @@ class GlintClosure {
       parts.area = 0.0;
     const bool dark = kPseudoNormals ? pseudo_normals_dark(sp.wi, wo, c, density, parts)
                                      : provably_dark_if_applies(sp.wi, wo, c, sigma_deg, density, parts);
-    if (dark) {
-      pdf = glint::smooth_lobe_pdf(field_.distribution, w.ax, w.ay, sp.wi, wo, h);  // one Lambda, no W
+    if (dark) {  // wi.z, wo.z > 0 tested above (session 37: not again after the dark test's call)
+      pdf = glint::smooth_lobe_pdf_above(field_.distribution, w.ax, w.ay, sp.wi, wo, h);  // one Lambda, no W
       return Spectrum(0.0f);
     }
     const float P = table_probability(c, sigma_deg);  // first: the Lambdas' and the pdf's math overlaps its loads
