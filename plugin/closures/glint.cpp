@@ -343,23 +343,36 @@ class GlintClosure {
   bool dark_test_applies(float sigma_deg, double particles) const {
     return !peak_.empty() && !(sigma_deg > field_.gamma_deg) && particles <= kDarkTestMaxParticles;
   }
-  [[gnu::noinline]] bool provably_dark(const Vec3 &wi, const Vec3 &wo, float density, float P_max,
-                                       Particles &parts) const {
+  // The dark test's count. Session 37 (glint1e8_37): small_footprint_dark_avx2 called from f_cos_and_pdf (this
+  // function inlined there) and the rest out of line (provably_dark_located, provably_dark_generic): the call through
+  // provably_dark's own frame (five registers, the kWalkAvx2 load, the arguments moved twice) cost ~20 instructions
+  // per eval at area 1e-8.
+  [[gnu::always_inline]] bool provably_dark(const Vec3 &wi, const Vec3 &wo, float density, float P_max,
+                                            Particles &parts) const {
 #if GLIMMER_GLINT_WALK_AVX2
     // Session 24: a footprint of at most kDarkTestMaxNodes nodes in a box of at most kBoxSpan x kBoxSpan, smaller
     // than a node, without the node list (tables/glint_small_dark.h); the same answer as the count below.
     if (glint::kWalkAvx2) {
-      new (&parts.site) glint::GlintSite;
+      // Unset (session 37): small_footprint_dark_avx2 writes the cells, locate_glint_nodes the list (kNotDark);
+      // kGeneric's locate constructs the site afresh; a dark answer reads nothing.
+      new (&parts.site) glint::GlintSite(glint::GlintSite::Unset{});
       const glint::SmallDark d =
           glint::small_footprint_dark_avx2(*small_dark_, parts.fp, parts.area, density, wi, wo, P_max, parts.site);
       if (d == glint::SmallDark::kDark) return true;
-      if (d == glint::SmallDark::kNotDark) {  // the cells are located: the node list for the count at P
-        glint::locate_glint_nodes(parts.fp, parts.site, node_memo);
-        parts.located = true;
-        return false;
-      }
+      if (d == glint::SmallDark::kNotDark) return provably_dark_located(parts);
     }
 #endif
+    return provably_dark_generic(wi, wo, density, P_max, parts);
+  }
+  // small_footprint_dark_avx2 said kNotDark: the cells are located; the node list for the count at P. False.
+  [[gnu::noinline]] static bool provably_dark_located(Particles &parts) {
+    glint::locate_glint_nodes(parts.fp, parts.site, node_memo);
+    parts.located = true;
+    return false;
+  }
+  // The general route: the count at P_max over the node list (at most kDarkTestMaxNodes nodes).
+  [[gnu::noinline]] bool provably_dark_generic(const Vec3 &wi, const Vec3 &wo, float density, float P_max,
+                                               Particles &parts) const {
     locate(wi, wo, density, parts);
     if (parts.site.node_list().count > kDarkTestMaxNodes) return false;
     const glint::GlintCount k = glint::count_glints(parts.fp, parts.area, parts.site, P_max, kMaxSteps);
@@ -538,8 +551,8 @@ class GlintClosure {
       parts.area = 0.0;
     const bool dark = kPseudoNormals ? pseudo_normals_dark(sp.wi, wo, c, density, parts)
                                      : provably_dark_if_applies(sp.wi, wo, c, sigma_deg, density, parts);
-    if (dark) {
-      pdf = glint::smooth_lobe_pdf(field_.distribution, w.ax, w.ay, sp.wi, wo, h);  // one Lambda, no W
+    if (dark) {  // wi.z, wo.z > 0 tested above (session 37: not again after the dark test's call)
+      pdf = glint::smooth_lobe_pdf_above(field_.distribution, w.ax, w.ay, sp.wi, wo, h);  // one Lambda, no W
       return Spectrum(0.0f);
     }
     const float P = table_probability(c, sigma_deg);  // first: the Lambdas' and the pdf's math overlaps its loads

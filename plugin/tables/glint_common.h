@@ -404,6 +404,16 @@ inline bool glint_weight(mf::Distribution dist, float alpha, const Spectrum &f0,
 // with cosine sampling (weight c), reflection only.
 inline constexpr float kCosineMixture = 0.1f;
 
+// smooth_lobe_pdf_with (below) for wi and wo known to be above the surface (wi.z > 0 and wo.z > 0 tested by the
+// caller); the same operations after its test (a copy: written as its tail, GCC rescheduled five other closures'
+// functions).
+template <typename LobeDensity>
+inline float smooth_lobe_pdf_above_with(const Vec3 &wi, const Vec3 &wo, const HalfVector &half,
+                                        LobeDensity &&lobe_density_at) {
+  float pdf = kCosineMixture * wo.z * kInvPi;
+  if (half.valid && dot(wi, half.h) > 0.0f) pdf += (1.0f - kCosineMixture) * lobe_density_at(half.h);
+  return pdf;
+}
 // The mixture's density with the lobe's part from `lobe_density_at(h)`, called only where h is a valid half vector
 // facing wi.
 template <typename LobeDensity>
@@ -419,6 +429,13 @@ inline float smooth_lobe_pdf(mf::Distribution dist, float alpha_wx, float alpha_
                              const HalfVector &half) {
   return smooth_lobe_pdf_with(wi, wo, half,
                               [&](const Vec3 &h) { return lobe_density(dist, alpha_wx, alpha_wy, wi, h); });
+}
+// smooth_lobe_pdf for wi and wo known to be above the surface (session 37: the dark test's route in glint.cpp, which
+// tested them before its out-of-line call and reloaded them after it to test again).
+inline float smooth_lobe_pdf_above(mf::Distribution dist, float alpha_wx, float alpha_wy, const Vec3 &wi,
+                                   const Vec3 &wo, const HalfVector &half) {
+  return smooth_lobe_pdf_above_with(wi, wo, half,
+                                    [&](const Vec3 &h) { return lobe_density(dist, alpha_wx, alpha_wy, wi, h); });
 }
 // The same with Lambda(wi) at the lobe's alpha given (eval_lambdas; isotropic lobe).
 inline float smooth_lobe_pdf_of(mf::Distribution dist, float alpha_w, const Vec3 &wi, const Vec3 &wo,

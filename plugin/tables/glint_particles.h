@@ -223,14 +223,21 @@ inline constexpr int kMaxNodes = 64;
 inline constexpr int64_t kSmallBoxSpan = 2, kBoxSpan = 4;
 struct NodeList {
   static constexpr int kRowChunk = 4;  // add_row writes whole chunks of this many entries
-  NodeList() = default;  // the entries left uninitialised (1 KB per eval)
+  // The entries left uninitialised (1 KB per eval); the scalars below as their initialisers were (session 37: written
+  // here, not as default member initialisers, so NodeList(Unset) can leave them unwritten).
+  NodeList() : level(0), size(1.0), count(0), row_valid_(false), row_level_(0), row_j_(0), row_key_(0) {}  // NOLINT
   // Every entry zeroed, as a constant expression (session 26: FootprintNodeMemo's thread_local is constant-initialised,
   // so reading it needs no guard and one __tls_get_addr, not two).
   struct Zeroed {};
-  explicit constexpr NodeList(Zeroed) : i{}, j{}, id_hash{} {}
-  int level = 0;  // set before add()
-  double size = 1.0;  // node side s = 2^-level
-  int count = 0;
+  explicit constexpr NodeList(Zeroed)
+      : level(0), size(1.0), count(0), i{}, j{}, id_hash{}, row_valid_(false), row_level_(0), row_j_(0), row_key_(0) {}
+  // Nothing written (session 37, glint1e8_37): a list that is never read (GlintSite(Unset)); add() must not be called
+  // on it.
+  struct Unset {};
+  explicit NodeList(Unset) {}  // NOLINT(cppcoreguidelines-pro-type-member-init)
+  int level;  // set before add()
+  double size;  // node side s = 2^-level
+  int count;
   // First `count` entries valid (not zeroed: 1 KB per eval); kRowChunk - 1
   // entries of slack for add_row's last chunk.
   std::array<int64_t, kMaxNodes + kRowChunk - 1> i, j;
@@ -368,10 +375,10 @@ struct NodeList {
   }
 
  private:
-  bool row_valid_ = false;
-  int row_level_ = 0;
-  int64_t row_j_ = 0;
-  uint32_t row_key_ = 0;
+  bool row_valid_;
+  int row_level_;
+  int64_t row_j_;
+  uint32_t row_key_;
 };
 
 // Nodes of the particle level hold kNodeParticles / 4 .. kNodeParticles
@@ -2772,11 +2779,17 @@ inline GlintCount count_reflecting_particles(const Footprint &f, const NodeList 
 // what a count needs besides P, so a caller can count at a bound of P first
 // (glint.cpp's dark test) and count again at P without recomputing them.
 struct GlintSite {
-  bool has_half_vector = false;  // false: no half vector above the surface, no glint
-  std::array<uint32_t, kDirectionGroups> cell_seeds{};
-  double group_density = 0.0;  // N / G
+  GlintSite() : has_half_vector(false), cell_seeds{}, group_density(0.0), memo_nodes(nullptr) {}  // NOLINT
+  // Nothing written (session 37, glint1e8_37: ~13 stores per eval on the dark test's small route, whose dark answer
+  // reads nothing of the site): the writer sets has_half_vector, cell_seeds and group_density (glint_small_dark.h) and,
+  // before the site is counted, memo_nodes (locate_glint_nodes); `nodes` is never read.
+  struct Unset {};
+  explicit GlintSite(Unset) : nodes(NodeList::Unset{}) {}  // NOLINT(cppcoreguidelines-pro-type-member-init)
+  bool has_half_vector;  // false: no half vector above the surface, no glint
+  std::array<uint32_t, kDirectionGroups> cell_seeds;
+  double group_density;  // N / G
   NodeList nodes;                       // the footprint's nodes, unless memo_nodes is set
-  const NodeList *memo_nodes = nullptr;  // a FootprintNodeMemo's list (locate_glints with a memo)
+  const NodeList *memo_nodes;  // a FootprintNodeMemo's list (locate_glints with a memo)
   const NodeList &node_list() const { return memo_nodes != nullptr ? *memo_nodes : nodes; }
 };
 
