@@ -107,13 +107,13 @@ class DirectionalPeakTable {
   void add_level(const LodLevel &level) {
     for (int bi = 0; bi < n_[0]; ++bi) {
       int i0, i1;
-      node_range(bi, 90.0f, level.step_i, level.n_theta_i, i0, i1);
+      node_range(bi, 90.0f, 1, kThetaICount, i0, i1);
       for (int bo = 0; bo < n_[1]; ++bo) {
         int o0, o1;
-        node_range(bo, 90.0f, level.step_o, level.n_theta_o, o0, o1);
+        node_range(bo, 90.0f, level.step_deg, level.n_theta_o, o0, o1);
         for (int bp = 0; bp < n_[2]; ++bp) {
           int p0, p1;
-          node_range(bp, 180.0f, level.step_p, level.n_phi, p0, p1);
+          node_range(bp, 180.0f, level.step_deg, level.n_phi, p0, p1);
           float m = 0.0f;
           for (int i = i0; i <= i1; ++i)
             for (int o = o0; o <= o1; ++o) {

@@ -4,7 +4,6 @@
 #include <atomic>
 #include <chrono>
 #include <cstdio>
-#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -605,51 +604,6 @@ std::unique_ptr<DirectionalTable> load_table(const std::string &path, const Tabl
   return table;
 }
 
-// SCRATCH (glinttable37, not for merge): GLIMMER_SCRATCH_L0="si,so,sp" re-grids level 0 at those steps (degrees, each
-// dividing 90 and 180) by subsampling its 1-degree nodes: the same lookup code on a table of 1 / (si so sp) the bytes.
-static void scratch_coarsen_level0(DirectionalTable &t) {
-  const char *env = std::getenv("GLIMMER_SCRATCH_L0");
-  int si = 1, so = 1, sp = 1;
-  if (env == nullptr || std::sscanf(env, "%d,%d,%d", &si, &so, &sp) != 3 || (si == 1 && so == 1 && sp == 1)) return;
-  LodLevel &l = t.levels[0];
-  const int ni = 90 / si + 1, no = 90 / so + 1, np = 180 / sp + 1;
-  std::vector<float> v(static_cast<size_t>(ni) * no * np);
-  for (int i = 0; i < ni; ++i)
-    for (int o = 0; o < no; ++o)
-      for (int p = 0; p < np; ++p)
-        v[(static_cast<size_t>(i) * no + o) * np + p] = l.values[(static_cast<size_t>(i * si) * 91 + o * so) * 181 + p * sp];
-  l.values.swap(v);
-  l.step_i = si, l.n_theta_i = ni, l.step_o = so, l.step_p = sp;
-  l.n_theta_o = no, l.n_phi = np;
-  l.lane_scale[0] = 1.0f / static_cast<float>(si);
-  l.lane_scale[1] = 1.0f / static_cast<float>(so);
-  l.lane_scale[2] = 1.0f / static_cast<float>(sp);
-  l.lane_last[0] = ni - 2, l.lane_last[1] = no - 2, l.lane_last[2] = np - 2;
-  l.i_stride = static_cast<size_t>(no) * np;
-  l.pack_halves();
-  l.halves.shrink_to_fit();
-  if (std::getenv("GLIMMER_SCRATCH_L0_ERR") == nullptr) return;
-  // The coarse grid's trilinear (fp32) against the 1-degree fp32 table at uniform random angles: relative error where
-  // P > 1e-3 of the level's peak, printed to stderr.
-  LodLevel fine = make_level(0);
-  fine.values.swap(v);  // v holds the 1-degree values (swapped out above)
-  float peak = 0.0f;
-  for (float x : fine.values) peak = std::max(peak, x);
-  uint64_t st = 12345;
-  auto u = [&st] { st = st * 6364136223846793005ull + 1442695040888963407ull; return (st >> 40) * (1.0 / 16777216.0); };
-  double sum = 0.0, mx = 0.0, sum2 = 0.0;
-  long n = 0;
-  for (int k = 0; k < 4000000; ++k) {
-    const float ti = static_cast<float>(90 * u()), to = static_cast<float>(90 * u()), dp = static_cast<float>(180 * u());
-    const float ref = fine.lookup_exact(ti, to, dp);
-    if (!(ref > 1e-3f * peak)) continue;
-    const double e = std::fabs(l.lookup_exact(ti, to, dp) / ref - 1.0);
-    sum += e, sum2 += e * e, mx = std::max(mx, e), ++n;
-  }
-  std::fprintf(stderr, "scratch L0 %d,%d,%d alpha %g: %ld points, rel err mean %.4g rms %.4g max %.4g\n", si, so, sp,
-               t.spec.alpha, n, sum / n, std::sqrt(sum2 / n), mx);
-}
-
 std::shared_ptr<const DirectionalTable> acquire_table(const TableSpec &spec, const NdfFunction &ndf,
                                                       const GlimmerHostServices *host) {
   static std::mutex mutex;
@@ -678,7 +632,6 @@ std::shared_ptr<const DirectionalTable> acquire_table(const TableSpec &spec, con
       std::string problem;
       if (!save_table(path, *table, problem)) log(GLIMMER_LOG_WARNING, "glint: table cache not written: " + problem);
     }
-    scratch_coarsen_level0(*table);
     table->release_values();
     char msg[256];
     std::snprintf(msg, sizeof(msg),
@@ -687,7 +640,6 @@ std::shared_ptr<const DirectionalTable> acquire_table(const TableSpec &spec, con
                   table->byte_size() / 1048576.0, table->build_seconds);
     log(GLIMMER_LOG_INFO, msg);
   } else {
-    scratch_coarsen_level0(*table);
     table->release_values();
   }
   std::shared_ptr<const DirectionalTable> result(std::move(table));

@@ -100,8 +100,6 @@ struct LodLevel {
   alignas(16) float lane_scale[4] = {1.0f, 1.0f, 1.0f, 0.0f};
   alignas(16) int32_t lane_last[4] = {kThetaICount - 2, 89, 179, 0};
   size_t i_stride = 91 * 181;  // theta_i_stride(), n_theta_o n_phi, set with the step (not multiplied per lookup)
-  // SCRATCH (glinttable37): per-axis steps of a coarsened level 0 (the peak table's node ranges); set_step sets o, p.
-  int step_i = 1, n_theta_i = kThetaICount, step_o = 1, step_p = 1;
   std::vector<float> values;  // fp32: built, cached on disk, validated; released once acquired (release_values)
   // What lookups read (pack_halves; node() decodes one): values[i] x 2^k as a 16-bit float without sign (IEEE
   // binary16's 5-bit exponent, bias 15, and the sign bit as an 11th mantissa bit), rounded up; below 2^-14 (the
@@ -115,7 +113,6 @@ struct LodLevel {
   // not sized).
   void set_step(int step) {
     step_deg = step;
-    step_o = step_p = step;
     inv_step = 1.0f / static_cast<float>(step);
     n_theta_o = 90 / step + 1;
     n_phi = 180 / step + 1;
