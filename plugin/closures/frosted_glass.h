@@ -605,8 +605,9 @@ class FrostedGlassClosure {
   }
   // The walk at level kLevel (walk_event's): level 0 inline (main's code), level 1 out of line (the rare high IOR).
   template <int kLevel>
-  [[gnu::always_inline]] bool walk_to_exit_at(const ShadingPoint &sp, const DielectricLobe &lobe, const Vec3 &rand, Vec3 &d,
-                       Spectrum &throughput, Vec3 &leaving, int *reflections, Spectrum *before_exit) const {
+  [[gnu::always_inline]] bool walk_to_exit_at(const ShadingPoint &sp, const DielectricLobe &lobe, const Vec3 &rand,
+                                              Vec3 &d, Spectrum &throughput, Vec3 &leaving, int *reflections,
+                                              Spectrum *before_exit) const {
     mf::WalkRng rng(sp.seed_for(rand));
     LocalSample s;
     for (int event = 0; event < kMaxPaneEvents; ++event) {

@@ -886,7 +886,8 @@ ExitTally tally_pane_exit(float rough, float ior, float deg, long n) {
                                              "absorption_distance=0.3", "thickness=0.2"});
   const Vec3 wi = mftest::direction_from(std::cos(deg * float(M_PI) / 180.0f), 0.3f);
   std::vector<ExitTally> blocks(kBlocks);
-  const bool lobe_sampler = ior < plugin::FrostedGlassClosure::kPaneWalkResampledIor;  // resampled_walk's rule (1 < ior)
+  // resampled_walk's rule (for 1 < ior)
+  const bool lobe_sampler = ior < plugin::FrostedGlassClosure::kPaneWalkResampledIor;
   tbb::parallel_for(long(0), kBlocks, [&](long b) {
     Pcg32 rng(7100 + uint64_t(rough * 100) + uint64_t(deg) + (lobe_sampler ? 0 : 5000), uint64_t(b) + 1);
     GlimmerShadingContext ctx = host::make_local_context(wi);
