@@ -20,6 +20,7 @@
 #include <gtest/gtest.h>
 #include <tbb/parallel_for.h>
 
+#include <array>
 #include <cstdio>
 #include <numeric>
 
@@ -556,6 +557,110 @@ TEST(FrostedGlassThin, SampleDistributionMatchesPathTracedSlab) {
               "roughness 0.36 vs 0.3 p %.3g (main's statistic %.3g), IOR 2.4 unweighted max p %.3g, IOR 2.4 default "
               "pane under main's statistic max p %.3g\n", configs.size(), n, min_p_main, min_p, threshold,
               control_rough_p, control_rough_p_main, control_unweighted_max_p, control_main_max_p);
+}
+
+// One pane sample (no Beer, colourless) with the walk's events at kLevel (FrostedGlassClosure::walk_event: 0 main's
+// walk, 1 the resampled events, 9 their control), from the test's own numbers: the exit direction, its weight and the
+// internal reflections before leaving (-1: the front reflection).
+template <int kLevel>
+bool pane_walk_draw(const plugin::DielectricLobe &lobe, const Vec3 &wi, Pcg32 &rng, Exit &out, int &reflections) {
+  plugin::LocalSample s;
+  if (!lobe.sample(wi, Vec3(rng.next_float(), rng.next_float(), rng.next_float()), s)) return false;
+  double w = double(s.f_cos.x) / s.pdf;
+  if (!(s.label & GLIMMER_LABEL_TRANSMIT)) return out = {s.wo, w}, reflections = -1, true;
+  Vec3 d = s.wo;
+  microfacet::WalkRng walk(rng.next_u32());
+  for (int event = 0; event < plugin::FrostedGlassClosure::kMaxPaneEvents; ++event) {
+    if (d.z == 0.0f) return false;
+    const bool bottom = d.z < 0.0f;
+    if (!plugin::FrostedGlassClosure::walk_event<kLevel>(lobe, bottom ? microfacet::flip_z_local(-d) : -d, walk, s))
+      return false;
+    w *= double(s.f_cos.x) / s.pdf;
+    const Vec3 next = bottom ? microfacet::flip_z_local(s.wo) : s.wo;
+    if (s.label & GLIMMER_LABEL_TRANSMIT) return out = {next, w}, reflections = event, true;
+    d = next;
+  }
+  return false;
+}
+
+// n draws of pane_walk_draw<kLevel>, their exits split by the reflections before leaving into the classes of
+// kReflectionClasses (the last: more).
+// lower bounds: front, 0, 1, 2, 3-4, 5-8 (asserted), 9-12, 13-20, >= 21
+constexpr int kReflectionClasses[] = {-1, 0, 1, 2, 3, 5, 9, 13, 21};
+constexpr int kClasses = int(std::size(kReflectionClasses));
+template <int kLevel>
+std::array<std::vector<Exit>, kClasses> walk_exits_by_class(float rough, float ior, const Vec3 &wi, long n,
+                                                            uint64_t seed) {
+  plugin::DielectricLobe lobe;
+  lobe.build(plugin::MicrofacetLobeParams::make(plugin::kMultiGgx, rough, 0.0f), ior, false, true);
+  std::vector<std::array<std::vector<Exit>, kClasses>> blocks(kBlocks);
+  tbb::parallel_for(long(0), kBlocks, [&](long b) {
+    Pcg32 rng(seed, uint64_t(b) + 1);
+    for (long i = 0; i < n / kBlocks; ++i) {
+      Exit e;
+      int k = 0;
+      if (!pane_walk_draw<kLevel>(lobe, wi, rng, e, k)) continue;
+      int c = kClasses - 1;
+      while (k < kReflectionClasses[c]) --c;
+      blocks[b][c].push_back(e);
+    }
+  });
+  std::array<std::vector<Exit>, kClasses> all;
+  for (const auto &block : blocks)
+    for (int c = 0; c < kClasses; ++c) all[c].insert(all[c].end(), block[c].begin(), block[c].end());
+  return all;
+}
+
+// Session 37 follow-up (frostedwalk37b): where the slab test above cannot assert the resampled walk (roughness 0.7
+// IOR 2.4: main's walk's weight has infinite variance), the resampled walk against main's walk on the pane itself,
+// split by the internal reflections before leaving. The resampled event has level 0's expectation for any function
+// of the event (walk_event's comment), so the two walks have the same flux into each (cell, reflection class); and a
+// walk of <= 8 reflections has a bounded weight (each event's g / E <= 1 / E_min): finite variance on both sides, the
+// weighted statistic calibrated. Main's walk gets 8x the draws (8 Mi). Asserted: the classes front .. 5-8
+// reflections, the weighted two-sample chi2 per class (16 x 16 cells), Sidak over classes x configurations. Printed:
+// 9-12, 13-20, >= 21 reflections (main's weights there span many decades: the statistic is not calibrated), each
+// class's flux, and main's walk at n (another seed) against its 8n run: the calibration. Session 37b measured:
+// with main at 8n, 9-12 / 13-20 reflections p 0.88 / 0.33 (z 0.9), 0.89 / 0.73 (z 0.3); with main at n (a first
+// version of this test), 13-20 reflections p 8.4e-5 / 2.2e-17, every off cell the resampled walk above main's; and
+// main at n against main at 8n, 9-12 reflections, p 0.0025 / 0.0018, its 6 / 4 off cells all below: the smaller run
+// of main's heavy-tailed walk is typically low, the signature of the slab test's p at roughness 0.7 IOR 2.4 (there
+// every off cell had the pane above the slab). Negative control: kPaneWalkControl's walks (F not applied) are
+// rejected at 1 reflection.
+TEST(FrostedGlassThin, ResampledWalkMatchesMainWalkByReflections) {
+  using Closure = plugin::FrostedGlassClosure;
+  const long n = 1 << 20, n_used = n / kBlocks * kBlocks, n_main = 8 * n_used;  // main's walk: 8x the draws
+  const int asserted = 6;  // the classes of <= 8 reflections
+  const double threshold = mftest::sidak_threshold(2 * asserted);
+  double min_p = 1.0, control_p = 1.0;
+  for (float z : {0.9f, 0.3f}) {
+    const Vec3 wi = mftest::direction_from(z, 0.3f);
+    const uint64_t seed = 900 + uint64_t(z * 10);
+    const auto main_walk = walk_exits_by_class<Closure::kPaneWalkLobe>(0.7f, 2.4f, wi, n_main, seed);
+    const auto again = walk_exits_by_class<Closure::kPaneWalkLobe>(0.7f, 2.4f, wi, n, seed + 1);
+    const auto resampled = walk_exits_by_class<Closure::kPaneWalkResampled>(0.7f, 2.4f, wi, n, seed + 2);
+    const auto control = walk_exits_by_class<Closure::kPaneWalkControl>(0.7f, 2.4f, wi, n, seed + 3);
+    for (int c = 0; c < kClasses; ++c) {
+      int high = 0, low = 0, high_self = 0, low_self = 0;
+      const double p = weighted_two_sample_p(resampled[c], n_used, main_walk[c], n_main, false, &high, &low);
+      const double p_self = weighted_two_sample_p(again[c], n_used, main_walk[c], n_main, false, &high_self,
+                                                  &low_self);
+      double flux[2] = {0, 0};
+      for (const Exit &e : main_walk[c]) flux[0] += e.weight / double(n_main);
+      for (const Exit &e : resampled[c]) flux[1] += e.weight / double(n_used);
+      std::printf("[frosted thin walk classes] r 0.7 ior 2.4 z %.1f reflections >= %2d: resampled vs main p %.4g%s "
+                  "(cells > 3 se above / below %d / %d); main n vs 8n p %.4g (%d / %d); flux main %.5f resampled %.5f "
+                  "(exits %zu / %zu)\n", z, kReflectionClasses[c], p, c < asserted ? "" : " (not asserted)", high, low,
+                  p_self, high_self, low_self, flux[0], flux[1], main_walk[c].size(), resampled[c].size());
+      if (c < asserted) {
+        EXPECT_GE(p, threshold) << "z=" << z << " class " << kReflectionClasses[c];
+        min_p = std::min(min_p, p);
+      }
+      if (c == 2) control_p = std::min(control_p, weighted_two_sample_p(control[c], n_used, main_walk[c], n_main));
+    }
+  }
+  EXPECT_LT(control_p, 1e-6);
+  std::printf("[frosted thin walk classes] resampled vs main's walk, <= 8 reflections: min p %.4g (Sidak threshold "
+              "%.3g); control (F not applied, 1 reflection) p %.3g\n", min_p, threshold, control_p);
 }
 
 // The pane's eval() is the front interface's reflection alone; every path that enters the pane leaves as a
