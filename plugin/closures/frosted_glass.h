@@ -416,6 +416,42 @@ class FrostedGlassClosure {
     return pane_sample_sg_split(sp, lobe, in, rand, wi, s, flip, out, std::clamp(split, 1, frosted::kPaneWalkSplit),
                                 count_rejected, branch, exact_leaving, both_faces, front_grid);
   }
+  // Session 36/37 (frostedtail36, frostedwalk37; docs/frosted_glass.md "Session 37 (frostedwalk37)"): one event of
+  // the pane walk at the interface-local incidence wi (either side), its numbers from rng. Level 0 (kPaneWalkLobe,
+  // main's walk bit for bit): the lobe's own sample (a microfacet m, the Fresnel coin, weight g / E with
+  // g = G2 / G1(wi), 0 where the direction is no sample). At IOR 2.4 and roughness >= 0.8 that weight's second
+  // moment grows along the reflections between the faces (the transfer operator's spectral radius of
+  // E[w^2 1{reflect}] is 1.11 at roughness 0.8, 1.28 at 1.0): the walk's throughput has infinite variance.
+  // Level 1 (kPaneWalkResampled): kPaneWalkCandidates microfacets m_j (jittered 2 x 2 in the visible-normal
+  // numbers), each with both branches' weights a = F g_R and (1 - F) g_T (0 where the branch is no sample); one
+  // branch is picked with probability a_i / sum a, the weight is c = sum a / (K E). E[c h(picked)] =
+  // (1 / (K E)) E[sum_i a_i h_i] = E_m[F g_R h_R + (1 - F) g_T h_T] / E, level 0's E[(g / E) h] exactly, for any h:
+  // the same expectation event by event, so the same walk's. Spectral radius of E[c^2 1{reflect}]: 0.83 at
+  // roughness 0.8, 0.75 at 1.0, < 0.998 at roughness 0.1..1, IOR 1.5 / 2.4 (finite variance). kPaneWalkControl
+  // (the tests' negative control): both branches at full weight (F not applied in a: biased).
+  static constexpr int kPaneWalkLobe = 0, kPaneWalkResampled = 1, kPaneWalkControl = 9;
+  static constexpr int kPaneWalkCandidates = 4;
+  template <int kLevel>
+  static bool walk_event(const DielectricLobe &lobe, const Vec3 &wi, mf::WalkRng &rng, LocalSample &s) {
+    if constexpr (kLevel == kPaneWalkLobe) return lobe.sample(wi, Vec3(rng.next(), rng.next(), rng.next()), s);
+    return resampled_event(lobe, wi, rng, kLevel == kPaneWalkControl, s);
+  }
+  // The walk's sampler (the default rule, session 37): the resampled events where the interface's relative IOR
+  // (ior or 1 / ior) >= kPaneWalkResampledIor and the lobe is energy-compensated (the tail is the compensation's
+  // 1 / E: without it each event's weight is g <= 1). Main's walk's second moment is infinite from IOR ~2.05
+  // (roughness 1.0) .. ~2.15 (0.8) (rho(M_2) 0.872 / 0.891 at IOR 1.9, 0.993 / 1.054 at 2.1); 1.9 keeps a margin
+  // below the crossing and every IOR-1.5..1.8 image bit-identical (there the resampled events cost more than they
+  // save: IOR 1.5 pane crop variance x0.917 at +25 % cost).
+  static constexpr float kPaneWalkResampledIor = 1.9f;
+  static bool resampled_walk(const DielectricLobe &lobe) {
+    return lobe.compensate && (lobe.ior >= kPaneWalkResampledIor || lobe.ior * kPaneWalkResampledIor <= 1.0f);
+  }
+  // For the tests: the walk between the faces from the internal direction d at level kLevel (walk_to_exit_at).
+  template <int kLevel>
+  bool pane_walk(const ShadingPoint &sp, const Vec3 &rand, Vec3 &d, Spectrum &throughput, Vec3 &leaving) const {
+    DielectricLobe scratch;
+    return walk_to_exit_at<kLevel>(sp, lobe_at(sp, scratch), rand, d, throughput, leaving, nullptr, nullptr);
+  }
   // For the tests: the interface lobe at sp (per-point roughness and IOR).
   bool pane_sample_sg(const ShadingPoint &sp, const Vec3 &rand, LocalSample &out, frosted::SgVariant variant,
                       const frosted::PaneLadder &ladder = frosted::kPaneLadder,
@@ -547,21 +583,39 @@ class FrostedGlassClosure {
   Spectrum crossing(float cos_inside) const { return beer_.transmittance(thickness_ / std::fabs(cos_inside)); }
 
   // The walk between the faces after entering (method=path's pane and sg's rough pane): from the internal direction
-  // `d` (pane frame, entry side +z), at each crossing Beer over the crossing and a sample of the interface lobe,
-  // until one transmits. True: `d` is the last internal direction, `leaving` the direction outside, `throughput`
-  // times every crossing's attenuation and f cos / pdf (the tint is the caller's). Its numbers: a WalkRng seeded by
-  // (path seed, rand). False: a failed sample, d.z = 0, or no exit within kMaxPaneEvents.
-  // before_exit (optional): the throughput before the leaving event's f cos / pdf (its crossing's Beer included).
-  bool walk_to_exit(const ShadingPoint &sp, const DielectricLobe &lobe, const Vec3 &rand, Vec3 &d,
-                    Spectrum &throughput, Vec3 &leaving, int *reflections = nullptr,
-                    Spectrum *before_exit = nullptr) const {
+  // `d` (pane frame, entry side +z), at each crossing Beer over the crossing and one event of the interface lobe
+  // (walk_event; its sampler by resampled_walk(lobe)), until one transmits. True: `d` is the last internal direction,
+  // `leaving` the direction outside, `throughput` times every crossing's attenuation and event weight (the tint is
+  // the caller's). Its numbers: a WalkRng seeded by (path seed, rand). False: a failed sample, d.z = 0, or no exit
+  // within kMaxPaneEvents. before_exit (optional): the throughput before the leaving event's weight (its crossing's
+  // Beer included).
+  [[gnu::always_inline]] bool walk_to_exit(const ShadingPoint &sp, const DielectricLobe &lobe, const Vec3 &rand,
+                                           Vec3 &d, Spectrum &throughput, Vec3 &leaving, int *reflections = nullptr,
+                                           Spectrum *before_exit = nullptr) const {
+    if (resampled_walk(lobe)) [[unlikely]] {
+      // by value in and out: the caller's d and throughput stay in registers on main's walk
+      const ResampledWalk r = walk_to_exit_resampled(sp, lobe, rand, d, throughput);
+      d = r.d, throughput = r.throughput;
+      if (!r.ok) return false;
+      leaving = r.leaving;
+      if (reflections != nullptr) *reflections = r.reflections;
+      if (before_exit != nullptr) *before_exit = r.before_exit;
+      return true;
+    }
+    return walk_to_exit_at<kPaneWalkLobe>(sp, lobe, rand, d, throughput, leaving, reflections, before_exit);
+  }
+  // The walk at level kLevel (walk_event's): level 0 inline (main's code), level 1 out of line (the rare high IOR).
+  template <int kLevel>
+  [[gnu::always_inline]] bool walk_to_exit_at(const ShadingPoint &sp, const DielectricLobe &lobe, const Vec3 &rand,
+                                              Vec3 &d, Spectrum &throughput, Vec3 &leaving, int *reflections,
+                                              Spectrum *before_exit) const {
     mf::WalkRng rng(sp.seed_for(rand));
     LocalSample s;
     for (int event = 0; event < kMaxPaneEvents; ++event) {
       if (d.z == 0.0f) return false;
       const bool bottom = d.z < 0.0f;
       throughput *= crossing(d.z);
-      if (!lobe.sample(at_interface(-d, bottom), Vec3(rng.next(), rng.next(), rng.next()), s)) return false;
+      if (!walk_event<kLevel>(lobe, at_interface(-d, bottom), rng, s)) return false;
       const Spectrum before = throughput;
       throughput *= s.f_cos / s.pdf;
       const Vec3 next = at_interface(s.wo, bottom);
@@ -575,6 +629,16 @@ class FrostedGlassClosure {
     }
     return false;
   }
+  // walk_to_exit_at<kPaneWalkResampled> and exit_trials_at<kPaneWalkResampled>, compiled in frosted_glass_walk.cpp:
+  // frosted_glass.cpp's code (main's walk and every default-path inlining decision) does not see them.
+  struct ResampledWalk {
+    Vec3 d, leaving;
+    Spectrum throughput, before_exit;
+    int reflections = 0;
+    bool ok = false;
+  };
+  ResampledWalk walk_to_exit_resampled(const ShadingPoint &sp, const DielectricLobe &lobe, Vec3 rand, Vec3 d,
+                                       Spectrum throughput) const;
   // Session 30 (frostedpane30, frosted::pane_branch_level): the walk from the front sample `front` with both branches
   // of its first event at the far face kept (expected value instead of the Fresnel coin there): the microfacet m from
   // the walk's numbers, the transmitted branch (weight x (1 - F(m))) ends there, the reflected one (weight x F(m))
@@ -609,6 +673,10 @@ class FrostedGlassClosure {
     if (count == 0) out[count++] = frosted::PaneWalkEnd{};
     return count;
   }
+  // walk_event's level 1 (frosted_glass_walk.cpp): kPaneWalkCandidates microfacets, both branches each, one picked
+  // by its weight a (walk_event's comment). control: kPaneWalkControl (F not applied).
+  static bool resampled_event(const DielectricLobe &lobe, const Vec3 &wi_in, mf::WalkRng &rng, bool control,
+                              LocalSample &s);
   // method=path's pane: the front reflection is an ordinary rough lobe (eval's pane_front_reflection: light-sampled
   // and MIS-combined); every path that enters leaves as one SINGULAR sample (weight: the walk's product of f cos /
   // pdf, pdf 1), so the host gives its emission hits MIS weight 1 and takes no light sample through the pane. A
@@ -663,13 +731,21 @@ class FrostedGlassClosure {
   // rand and a tag): geometric with mean 1 / P_T(d), independent of the walk given d. 0 when none leaves within
   // kMaxPaneEvents draws (then no exit state: P_T(d) < ~1e-3 there, and the walk did leave at d).
   int exit_trials(const ShadingPoint &sp, const DielectricLobe &lobe, const Vec3 &rand, const Vec3 &d) const {
+    if (resampled_walk(lobe)) [[unlikely]]
+      return exit_trials_resampled(sp, lobe, rand, d);  // by value (as walk_to_exit)
+    return exit_trials_at<kPaneWalkLobe>(sp, lobe, rand, d);
+  }
+  int exit_trials_resampled(const ShadingPoint &sp, const DielectricLobe &lobe, Vec3 rand,
+                            Vec3 d) const;  // frosted_glass_walk.cpp
+  // exit_trials with the walk's own event sampler (level kLevel): its leaving probability at d.
+  template <int kLevel>
+  int exit_trials_at(const ShadingPoint &sp, const DielectricLobe &lobe, const Vec3 &rand, const Vec3 &d) const {
     mf::WalkRng rng(hash_u32x2(sp.seed_for(rand), 0x65786974u));
     const bool bottom = d.z < 0.0f;
     const Vec3 inside = at_interface(-d, bottom);
     LocalSample s;
     for (int n = 1; n <= kMaxPaneEvents; ++n)
-      if (lobe.sample(inside, Vec3(rng.next(), rng.next(), rng.next()), s) && (s.label & GLIMMER_LABEL_TRANSMIT))
-        return n;
+      if (walk_event<kLevel>(lobe, inside, rng, s) && (s.label & GLIMMER_LABEL_TRANSMIT)) return n;
     return 0;
   }
 

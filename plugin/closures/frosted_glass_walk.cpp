@@ -1,0 +1,60 @@
+// The pane walk's resampled events (session 37, frostedwalk37; docs/frosted_glass.md "Session 37 (frostedwalk37)"):
+// FrostedGlassClosure::walk_event's level 1 and the walk / exit trials at that level, in a translation unit of their
+// own so that frosted_glass.cpp's code (main's walk, level 0, and every inlining decision on the default path) is
+// compiled as without them. FrostedGlassClosure::resampled_walk picks them (relative IOR >= 1.9).
+#include "closures/frosted_glass.h"
+
+namespace glimmer::plugin {
+
+bool FrostedGlassClosure::resampled_event(const DielectricLobe &lobe, const Vec3 &wi_in, mf::WalkRng &rng,
+                                          bool control, LocalSample &s) {
+  constexpr int kK = kPaneWalkCandidates;
+  const bool outside = wi_in.z > 0.0f;
+  const float eta = outside ? lobe.ior : 1.0f / lobe.ior;
+  const Vec3 wi = outside ? wi_in : mf::flip_z_local(wi_in);
+  const float g1 = mf::G1(lobe.dist, wi, lobe.ax, lobe.ay);
+  if (!(g1 > 0.0f)) return false;
+  Vec3 dirs[2 * kK];
+  float a[2 * kK];
+  float total = 0.0f;
+  for (int j = 0; j < kK; ++j) {
+    const float u1 = (float(j & 1) + rng.next()) * 0.5f, u2 = (float(j >> 1) + rng.next()) * 0.5f;
+    const Vec3 m = mf::sample_visible_normal(lobe.dist, wi, lobe.ax, lobe.ay, u1, u2);
+    const float F = mf::fresnel_dielectric(dot(wi, m), eta);
+    a[2 * j] = a[2 * j + 1] = 0.0f;
+    dirs[2 * j] = normalize(mf::reflect_about(wi, m));
+    if (F > 0.0f && dirs[2 * j].z > 0.0f) a[2 * j] = (control ? 1.0f : F) * lobe.g2(wi, dirs[2 * j]) / g1;
+    if (F < 1.0f && mf::refract(wi, m, eta, dirs[2 * j + 1]) && dirs[2 * j + 1].z < 0.0f)
+      a[2 * j + 1] = (control ? 1.0f : 1.0f - F) * lobe.g2(wi, dirs[2 * j + 1]) / g1;
+    total += a[2 * j] + a[2 * j + 1];
+  }
+  if (!(total > 0.0f) || !std::isfinite(total)) return false;
+  float pick = rng.next() * total;
+  int i = 0;
+  while (i < 2 * kK - 1 && !(pick < a[i])) pick -= a[i++];
+  while (a[i] == 0.0f) --i;  // rounding past the last branch: the last with a weight (total > 0: one exists)
+  const bool reflect = (i & 1) == 0;
+  s.wo = outside ? dirs[i] : mf::flip_z_local(dirs[i]);
+  s.f_cos = Spectrum(total / (float(kK) * lobe.compensation(wi.z, eta)));
+  s.pdf = 1.0f;
+  s.roughness = std::sqrt(lobe.ax * lobe.ay);
+  s.eta = reflect ? 1.0f : eta;
+  s.label = (reflect ? GLIMMER_LABEL_REFLECT : GLIMMER_LABEL_TRANSMIT) | GLIMMER_LABEL_GLOSSY;
+  return true;
+}
+
+FrostedGlassClosure::ResampledWalk FrostedGlassClosure::walk_to_exit_resampled(const ShadingPoint &sp,
+                                                                                const DielectricLobe &lobe, Vec3 rand,
+                                                                                Vec3 d, Spectrum throughput) const {
+  ResampledWalk r;
+  r.ok = walk_to_exit_at<kPaneWalkResampled>(sp, lobe, rand, d, throughput, r.leaving, &r.reflections, &r.before_exit);
+  r.d = d, r.throughput = throughput;
+  return r;
+}
+
+int FrostedGlassClosure::exit_trials_resampled(const ShadingPoint &sp, const DielectricLobe &lobe, Vec3 rand,
+                                               Vec3 d) const {
+  return exit_trials_at<kPaneWalkResampled>(sp, lobe, rand, d);
+}
+
+}  // namespace glimmer::plugin
