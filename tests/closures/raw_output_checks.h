@@ -2,12 +2,25 @@
 // in eval, and a successful sample has a positive finite pdf, a unit finite direction, a valid eta and roughness.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 
 #include "core/closure.h"
 #include "glimmer/exit_lobe.h"
+#include "glimmer/rng.h"
 
 namespace glimmer::test {
+
+// A stress test's direction: z exactly at the extremes (0, 1e-7 .. 1e-3, 1) one time in three (always when
+// `grazing`), uniform otherwise; on the lower side when r's next word is a multiple of `lower_one_in` (2: either side
+// of a pane; 4: mostly outside); phi uniform.
+inline Vec3 stress_direction(Pcg32 &r, bool grazing, uint32_t lower_one_in) {
+  const float zs[] = {0.0f, 1e-7f, 1e-6f, 1e-4f, 1e-3f, 0.01f, 0.5f, 1.0f - 1e-7f, 1.0f};
+  float z = (grazing || r.next_u32() % 3 == 0) ? zs[r.next_u32() % 9] : r.next_float();
+  if (r.next_u32() % lower_one_in == 0) z = -z;
+  const float phi = 2.0f * float(M_PI) * r.next_float(), st = std::sqrt(std::max(0.0f, 1 - z * z));
+  return Vec3(st * std::cos(phi), st * std::sin(phi), z);
+}
 
 inline bool bad(float v) { return !std::isfinite(v) || v < 0.0f; }
 inline bool bad(const Spectrum &s) { return bad(s.x) || bad(s.y) || bad(s.z); }

@@ -164,9 +164,10 @@ SlabResult trace_slab(const host::ClosureInstance &solid, const SlabHost &slab, 
   return gather(tallies, exits, n);
 }
 
-// The thin closure's own sample weights, split by side.
-SlabResult sample_pane(const host::ClosureInstance &pane, const Vec3 &wi, long n, uint64_t seed,
-                       bool keep_exits = false) {
+// n draws over kBlocks blocks, each block its own stream (seed, block + 1): the context's path seed and three numbers
+// u, then draw(block, ctx, u, exit, weight, side) (false: no sample); the weights tallied by side (1: transmitted).
+template <class Draw>
+SlabResult draw_pane_samples(const Vec3 &wi, long n, uint64_t seed, bool keep_exits, Draw &&draw) {
   std::vector<Tally> tallies(kBlocks);
   std::vector<std::vector<Exit>> exits(kBlocks);
   tbb::parallel_for(long(0), kBlocks, [&](long b) {
@@ -175,15 +176,30 @@ SlabResult sample_pane(const host::ClosureInstance &pane, const Vec3 &wi, long n
     for (long i = 0; i < n / kBlocks; ++i) {
       ctx.path_seed = rng.next_u32();
       const float u[3] = {rng.next_float(), rng.next_float(), rng.next_float()};
-      GlimmerSample s = glimmer_blank_sample();
-      const uint32_t label = pane.sample(ctx, u, s);
-      if (label == GLIMMER_LABEL_NONE) continue;
-      const Spectrum w = Spectrum(s.eval[0], s.eval[1], s.eval[2]) / s.pdf;
-      tallies[b].add((label & GLIMMER_LABEL_TRANSMIT) ? 1 : 0, w);
-      if (keep_exits) exits[b].push_back({Vec3(s.wo), double(w.x)});
+      Exit e;
+      Spectrum w;
+      int side = 0;
+      if (!draw(b, ctx, u, e, w, side)) continue;
+      tallies[b].add(side, w);
+      if (keep_exits) exits[b].push_back(e);
     }
   });
   return gather(tallies, exits, n);
+}
+
+// The thin closure's own sample weights, split by side.
+SlabResult sample_pane(const host::ClosureInstance &pane, const Vec3 &wi, long n, uint64_t seed,
+                       bool keep_exits = false) {
+  return draw_pane_samples(wi, n, seed, keep_exits,
+                           [&](long, GlimmerShadingContext &ctx, const float *u, Exit &e, Spectrum &w, int &side) {
+                             GlimmerSample s = glimmer_blank_sample();
+                             const uint32_t label = pane.sample(ctx, u, s);
+                             if (label == GLIMMER_LABEL_NONE) return false;
+                             w = Spectrum(s.eval[0], s.eval[1], s.eval[2]) / s.pdf;
+                             side = (label & GLIMMER_LABEL_TRANSMIT) ? 1 : 0;
+                             e = {Vec3(s.wo), double(w.x)};
+                             return true;
+                           });
 }
 
 // Main's (2397f6c's) pane sample at any IOR, test code only: FrostedGlassClosure::pane_sample's steps (the front
@@ -225,31 +241,23 @@ struct MainWalkPane {
 // the same numbers: 0 where the closure's rule picks main's walk (IOR 1.5), most where it does not (IOR 2.4).
 SlabResult sample_pane_main_walk(const MainWalkPane &pane, const Vec3 &wi, long n, uint64_t seed,
                                  const host::ClosureInstance *abi = nullptr, long *mismatch = nullptr) {
-  std::vector<Tally> tallies(kBlocks);
-  std::vector<std::vector<Exit>> exits(kBlocks);
   std::vector<long> differ(kBlocks, 0);
-  tbb::parallel_for(long(0), kBlocks, [&](long b) {
-    Pcg32 rng(seed, uint64_t(b) + 1);
-    GlimmerShadingContext ctx = host::make_local_context(wi);
-    for (long i = 0; i < n / kBlocks; ++i) {
-      ctx.path_seed = rng.next_u32();
-      const float u[3] = {rng.next_float(), rng.next_float(), rng.next_float()};
-      Exit e;
-      const bool ok = pane.sample(ctx, Vec3(u[0], u[1], u[2]), e);
-      if (abi != nullptr) {
-        GlimmerSample s = glimmer_blank_sample();
-        const bool abi_ok = abi->sample(ctx, u, s) != GLIMMER_LABEL_NONE;
-        const bool same = abi_ok == ok && (!ok || (Vec3(s.wo).x == e.w.x && Vec3(s.wo).y == e.w.y &&
-                                                   Vec3(s.wo).z == e.w.z && double(s.eval[0] / s.pdf) == e.weight));
-        differ[b] += same ? 0 : 1;
-      }
-      if (!ok) continue;
-      tallies[b].add(e.w.z < 0.0f ? 1 : 0, Spectrum(float(e.weight)));
-      exits[b].push_back(e);
-    }
-  });
+  const SlabResult r = draw_pane_samples(
+      wi, n, seed, true, [&](long b, GlimmerShadingContext &ctx, const float *u, Exit &e, Spectrum &w, int &side) {
+        const bool ok = pane.sample(ctx, Vec3(u[0], u[1], u[2]), e);
+        if (abi != nullptr) {
+          GlimmerSample s = glimmer_blank_sample();
+          const bool abi_ok = abi->sample(ctx, u, s) != GLIMMER_LABEL_NONE;
+          const bool same = abi_ok == ok && (!ok || (Vec3(s.wo).x == e.w.x && Vec3(s.wo).y == e.w.y &&
+                                                     Vec3(s.wo).z == e.w.z && double(s.eval[0] / s.pdf) == e.weight));
+          differ[b] += same ? 0 : 1;
+        }
+        w = Spectrum(float(e.weight));
+        side = e.w.z < 0.0f ? 1 : 0;
+        return ok;
+      });
   if (mismatch != nullptr) *mismatch = std::accumulate(differ.begin(), differ.end(), 0L);
-  return gather(tallies, exits, n);
+  return r;
 }
 
 std::vector<std::string> material(float rough, float ior, const Vec3 &absorb, float distance, bool thin, float L) {

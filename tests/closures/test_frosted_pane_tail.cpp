@@ -421,13 +421,7 @@ TEST(FrostedPaneTail, StressResampledWalkFiniteNonNegative) {
   std::atomic<long> bad_count{0}, samples{0}, states{0};
   tbb::parallel_for(long(0), blocks, [&](long b) {
     Pcg32 r(3700 + b);
-    const float zs[] = {0.0f, 1e-7f, 1e-6f, 1e-4f, 1e-3f, 0.01f, 0.5f, 1.0f - 1e-7f, 1.0f};
-    auto direction = [&](bool grazing) {
-      float z = (grazing || r.next_u32() % 3 == 0) ? zs[r.next_u32() % 9] : r.next_float();
-      if (r.next_u32() % 2 == 0) z = -z;  // both sides of the pane
-      const float phi = 2.0f * float(M_PI) * r.next_float(), st = std::sqrt(std::max(0.0f, 1 - z * z));
-      return Vec3(st * std::cos(phi), st * std::sin(phi), z);
-    };
+    auto direction = [&](bool grazing) { return test::stress_direction(r, grazing, 2); };  // both sides of the pane
     for (long i = 0; i < calls / blocks; ++i) {
       const FrostedGlassClosure &c = *pool[r.next_u32() % pool.size()];
       const bool grazing = (i % 4) == 0;

@@ -1694,14 +1694,6 @@ struct OddHost {
   }
 };
 
-Vec3 stress_direction(Pcg32 &r, bool grazing) {
-  const float zs[] = {0.0f, 1e-7f, 1e-6f, 1e-4f, 1e-3f, 0.01f, 0.5f, 1.0f - 1e-7f, 1.0f};
-  float z = (grazing || r.next_u32() % 3 == 0) ? zs[r.next_u32() % 9] : r.next_float();
-  if (r.next_u32() % 4 == 0) z = -z;  // mostly outside: the sg path
-  const float phi = 2.0f * float(M_PI) * r.next_float();
-  const float s = std::sqrt(std::max(0.0f, 1 - z * z));
-  return Vec3(s * std::cos(phi), s * std::sin(phi), z);
-}
 
 // Negative control of the stress's host-side check (bad_host_sample): real whole-mixture samples from the C entry
 // point pass it, and each broken copy (a NaN or non-unit axis, sharpness 0 / inf, a negative weight, weights
@@ -1803,13 +1795,13 @@ TEST(FrostedGlassSg, StressRawOutputsFiniteNonNegative) {
       const Vec3 n = which == 0 ? normalize(Vec3(r.next_float() - 0.5f, r.next_float() - 0.5f, r.next_float() - 0.5f))
                                 : Vec3(0, 0, 1);
       const Frame f = Frame::from_normal(is_finite(n) ? n : Vec3(0, 0, 1));
-      GlimmerShadingContext ctx = host::make_local_context(f.to_world(stress_direction(r, grazing)), host);
+      GlimmerShadingContext ctx = host::make_local_context(f.to_world(test::stress_direction(r, grazing, 4)), host);
       ctx.P = which == 0 ? f.n : Vec3(0.0f);
       ctx.N = ctx.Ng = f.n;
       ctx.T = f.s;
       ctx.path_seed = r.next_u32();
       const ShadingPoint sp(&ctx, schema);
-      const Vec3 wo = stress_direction(r, grazing);
+      const Vec3 wo = test::stress_direction(r, grazing, 4);  // mostly outside: the sg path
       const Vec3 rand(r.next_float(), r.next_float(), r.next_float());
       long n_bad = glimmer::test::stress_eval_and_sample(c, sp, wo, rand, samples, moved);
       // The same query as the renderer makes it (C entry point, a 2.7 host's sample with its whole-mixture buffer):
