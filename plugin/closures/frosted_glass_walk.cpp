@@ -6,8 +6,8 @@
 
 namespace glimmer::plugin {
 
-bool FrostedGlassClosure::resampled_event(const DielectricLobe &lobe, const Vec3 &wi_in, mf::WalkRng &rng,
-                                          bool control, LocalSample &s) {
+bool FrostedGlassClosure::resampled_event(const DielectricLobe &lobe, const Vec3 &wi_in, mf::WalkRng &rng, bool control,
+                                          LocalSample &s) {
   constexpr int kK = kPaneWalkCandidates;
   const bool outside = wi_in.z > 0.0f;
   const float eta = outside ? lobe.ior : 1.0f / lobe.ior;
@@ -44,8 +44,8 @@ bool FrostedGlassClosure::resampled_event(const DielectricLobe &lobe, const Vec3
 }
 
 FrostedGlassClosure::ResampledWalk FrostedGlassClosure::walk_to_exit_resampled(const ShadingPoint &sp,
-                                                                                const DielectricLobe &lobe, Vec3 rand,
-                                                                                Vec3 d, Spectrum throughput) const {
+                                                                               const DielectricLobe &lobe, Vec3 rand,
+                                                                               Vec3 d, Spectrum throughput) const {
   ResampledWalk r;
   r.ok = walk_to_exit_at<kPaneWalkResampled>(sp, lobe, rand, d, throughput, r.leaving, &r.reflections, &r.before_exit);
   r.d = d, r.throughput = throughput;

@@ -235,8 +235,8 @@ struct NodeList {
   // on it.
   struct Unset {};
   explicit NodeList(Unset) {}  // NOLINT(cppcoreguidelines-pro-type-member-init)
-  int level;  // set before add()
-  double size;  // node side s = 2^-level
+  int level;                   // set before add()
+  double size;                 // node side s = 2^-level
   int count;
   // First `count` entries valid (not zeroed: 1 KB per eval); kRowChunk - 1
   // entries of slack for add_row's last chunk.
@@ -2785,11 +2785,11 @@ struct GlintSite {
   // before the site is counted, memo_nodes (locate_glint_nodes); `nodes` is never read.
   struct Unset {};
   explicit GlintSite(Unset) : nodes(NodeList::Unset{}) {}  // NOLINT(cppcoreguidelines-pro-type-member-init)
-  bool has_half_vector;  // false: no half vector above the surface, no glint
+  bool has_half_vector;                                    // false: no half vector above the surface, no glint
   std::array<uint32_t, kDirectionGroups> cell_seeds;
-  double group_density;  // N / G
+  double group_density;                 // N / G
   NodeList nodes;                       // the footprint's nodes, unless memo_nodes is set
-  const NodeList *memo_nodes;  // a FootprintNodeMemo's list (locate_glints with a memo)
+  const NodeList *memo_nodes;           // a FootprintNodeMemo's list (locate_glints with a memo)
   const NodeList &node_list() const { return memo_nodes != nullptr ? *memo_nodes : nodes; }
 };
 

@@ -24,8 +24,8 @@
 #include <cstdio>
 #include <numeric>
 
-#include "closures/microfacet_test_util.h"
 #include "closures/frosted_glass.h"
+#include "closures/microfacet_test_util.h"
 #include "core/dielectric_lobe.h"
 
 namespace {
@@ -211,9 +211,8 @@ struct MainWalkPane {
   std::unique_ptr<plugin::FrostedGlassClosure> closure;
   plugin::DielectricLobe lobe;
   MainWalkPane(float rough, float ior) {
-    const GlimmerParamValue values[] = {{"roughness", {rough, 0, 0}, nullptr},
-                                        {"ior", {ior, 0, 0}, nullptr},
-                                        {"thin", {1.0f, 0, 0}, nullptr}};
+    const GlimmerParamValue values[] = {
+        {"roughness", {rough, 0, 0}, nullptr}, {"ior", {ior, 0, 0}, nullptr}, {"thin", {1.0f, 0, 0}, nullptr}};
     plugin::ParamReader reader(plugin::FrostedGlassClosure::kName, plugin::FrostedGlassClosure::params(), values);
     closure = plugin::FrostedGlassClosure::create(reader);
     lobe.build(plugin::MicrofacetLobeParams::make(plugin::kMultiGgx, rough, 0.0f), ior, false, true);
@@ -504,8 +503,8 @@ TEST(FrostedGlassThin, SampleDistributionMatchesPathTracedSlab) {
     const Vec3 wi = mftest::direction_from(c.z, 0.3f);
     const SlabResult ref = trace_slab(*solid, slab, wi, n, 31 + i, true);
     long mismatch = 0;
-    const SlabResult main_walk = sample_pane_main_walk(MainWalkPane(c.rough, c.ior), wi, n, 41 + i, pane.get(),
-                                                       &mismatch);
+    const SlabResult main_walk =
+        sample_pane_main_walk(MainWalkPane(c.rough, c.ior), wi, n, 41 + i, pane.get(), &mismatch);
     const double p_main = two_sample_p(main_walk.exits, ref.exits);
     EXPECT_GE(p_main, threshold) << "main's walk: rough=" << c.rough << " ior=" << c.ior << " z=" << c.z;
     min_p_main = std::min(min_p_main, p_main);
@@ -514,8 +513,10 @@ TEST(FrostedGlassThin, SampleDistributionMatchesPathTracedSlab) {
     } else {
       EXPECT_GT(mismatch, n / 4) << "MainWalkPane is the closure's default sample() at IOR 2.4";
     }
-    std::printf("[frosted thin chi2] rough %.1f ior %.1f z %.1f: main's walk (level 0) p %.4g (draws differing from "
-                "sample() %ld of %ld)", c.rough, c.ior, c.z, p_main, mismatch, n_used);
+    std::printf(
+        "[frosted thin chi2] rough %.1f ior %.1f z %.1f: main's walk (level 0) p %.4g (draws differing from "
+        "sample() %ld of %ld)",
+        c.rough, c.ior, c.z, p_main, mismatch, n_used);
     const SlabResult got = sample_pane(*pane, wi, n, 41 + i, true);
     const double p = weighted_two_sample_p(got.exits, n_used, ref.exits, n_used);
     const bool calibrated = !(c.ior > 1.9f && c.rough > 0.5f);  // the reference's variance is finite
@@ -527,11 +528,12 @@ TEST(FrostedGlassThin, SampleDistributionMatchesPathTracedSlab) {
       const SlabResult again = trace_slab(*solid, slab, wi, n, 61 + i, true);
       int high = 0, low = 0;
       weighted_two_sample_p(got.exits, n_used, ref.exits, n_used, false, &high, &low);
-      std::printf(" (not asserted; cells pane > slab by > 3 se %d, < %d; the slab against itself p %.4g; R+T: pane "
-                  "%.5f +- %.5f, slab %.5f +- %.5f, again %.5f +- %.5f)", high, low,
-                  weighted_two_sample_p(again.exits, n_used, ref.exits, n_used),
-                  double(got.R.x + got.T.x), std::hypot(got.se_R, got.se_T), double(ref.R.x + ref.T.x),
-                  std::hypot(ref.se_R, ref.se_T), double(again.R.x + again.T.x), std::hypot(again.se_R, again.se_T));
+      std::printf(
+          " (not asserted; cells pane > slab by > 3 se %d, < %d; the slab against itself p %.4g; R+T: pane "
+          "%.5f +- %.5f, slab %.5f +- %.5f, again %.5f +- %.5f)",
+          high, low, weighted_two_sample_p(again.exits, n_used, ref.exits, n_used), double(got.R.x + got.T.x),
+          std::hypot(got.se_R, got.se_T), double(ref.R.x + ref.T.x), std::hypot(ref.se_R, ref.se_T),
+          double(again.R.x + again.T.x), std::hypot(again.se_R, again.se_T));
     }
     if (c.ior > 1.9f) {  // the resampled walk: its directions alone are not the slab's
       const double pc = weighted_two_sample_p(got.exits, n_used, ref.exits, n_used, true);
@@ -560,11 +562,13 @@ TEST(FrostedGlassThin, SampleDistributionMatchesPathTracedSlab) {
     EXPECT_LT(control_rough_p, 1e-6);
     EXPECT_LT(control_rough_p_main, 1e-6);
   }
-  std::printf("[frosted thin chi2] %zu configurations x %ld samples vs the path-traced slab: main's walk, main's "
-              "statistic: min p = %.4g; default sampler, weighted: min p = %.4g (Sidak threshold %.3g); controls: "
-              "roughness 0.36 vs 0.3 p %.3g (main's statistic %.3g), IOR 2.4 unweighted max p %.3g, IOR 2.4 default "
-              "pane under main's statistic max p %.3g\n", configs.size(), n, min_p_main, min_p, threshold,
-              control_rough_p, control_rough_p_main, control_unweighted_max_p, control_main_max_p);
+  std::printf(
+      "[frosted thin chi2] %zu configurations x %ld samples vs the path-traced slab: main's walk, main's "
+      "statistic: min p = %.4g; default sampler, weighted: min p = %.4g (Sidak threshold %.3g); controls: "
+      "roughness 0.36 vs 0.3 p %.3g (main's statistic %.3g), IOR 2.4 unweighted max p %.3g, IOR 2.4 default "
+      "pane under main's statistic max p %.3g\n",
+      configs.size(), n, min_p_main, min_p, threshold, control_rough_p, control_rough_p_main, control_unweighted_max_p,
+      control_main_max_p);
 }
 
 // One pane sample (no Beer, colourless) with the walk's events at kLevel (FrostedGlassClosure::walk_event: 0 main's
@@ -637,7 +641,7 @@ std::array<std::vector<Exit>, kClasses> walk_exits_by_class(float rough, float i
 TEST(FrostedGlassThin, ResampledWalkMatchesMainWalkByReflections) {
   using Closure = plugin::FrostedGlassClosure;
   const long n = 1 << 20, n_used = n / kBlocks * kBlocks, n_main = 8 * n_used;  // main's walk: 8x the draws
-  const int asserted = 6;  // the classes of <= 8 reflections
+  const int asserted = 6;                                                       // the classes of <= 8 reflections
   const double threshold = mftest::sidak_threshold(2 * asserted);
   double min_p = 1.0, control_p = 1.0;
   for (float z : {0.9f, 0.3f}) {
@@ -650,15 +654,16 @@ TEST(FrostedGlassThin, ResampledWalkMatchesMainWalkByReflections) {
     for (int c = 0; c < kClasses; ++c) {
       int high = 0, low = 0, high_self = 0, low_self = 0;
       const double p = weighted_two_sample_p(resampled[c], n_used, main_walk[c], n_main, false, &high, &low);
-      const double p_self = weighted_two_sample_p(again[c], n_used, main_walk[c], n_main, false, &high_self,
-                                                  &low_self);
+      const double p_self = weighted_two_sample_p(again[c], n_used, main_walk[c], n_main, false, &high_self, &low_self);
       double flux[2] = {0, 0};
       for (const Exit &e : main_walk[c]) flux[0] += e.weight / double(n_main);
       for (const Exit &e : resampled[c]) flux[1] += e.weight / double(n_used);
-      std::printf("[frosted thin walk classes] r 0.7 ior 2.4 z %.1f reflections >= %2d: resampled vs main p %.4g%s "
-                  "(cells > 3 se above / below %d / %d); main n vs 8n p %.4g (%d / %d); flux main %.5f resampled %.5f "
-                  "(exits %zu / %zu)\n", z, kReflectionClasses[c], p, c < asserted ? "" : " (not asserted)", high, low,
-                  p_self, high_self, low_self, flux[0], flux[1], main_walk[c].size(), resampled[c].size());
+      std::printf(
+          "[frosted thin walk classes] r 0.7 ior 2.4 z %.1f reflections >= %2d: resampled vs main p %.4g%s "
+          "(cells > 3 se above / below %d / %d); main n vs 8n p %.4g (%d / %d); flux main %.5f resampled %.5f "
+          "(exits %zu / %zu)\n",
+          z, kReflectionClasses[c], p, c < asserted ? "" : " (not asserted)", high, low, p_self, high_self, low_self,
+          flux[0], flux[1], main_walk[c].size(), resampled[c].size());
       if (c < asserted) {
         EXPECT_GE(p, threshold) << "z=" << z << " class " << kReflectionClasses[c];
         min_p = std::min(min_p, p);
@@ -667,8 +672,10 @@ TEST(FrostedGlassThin, ResampledWalkMatchesMainWalkByReflections) {
     }
   }
   EXPECT_LT(control_p, 1e-6);
-  std::printf("[frosted thin walk classes] resampled vs main's walk, <= 8 reflections: min p %.4g (Sidak threshold "
-              "%.3g); control (F not applied, 1 reflection) p %.3g\n", min_p, threshold, control_p);
+  std::printf(
+      "[frosted thin walk classes] resampled vs main's walk, <= 8 reflections: min p %.4g (Sidak threshold "
+      "%.3g); control (F not applied, 1 reflection) p %.3g\n",
+      min_p, threshold, control_p);
 }
 
 // The pane's eval() is the front interface's reflection alone; every path that enters the pane leaves as a
@@ -1122,9 +1129,9 @@ struct ExitTally {
 };
 
 ExitTally tally_pane_exit(float rough, float ior, float deg, long n) {
-  auto pane = make_closure("frosted_glass", {"roughness=" + num(rough), "ior=" + num(ior), "thin=1",
-                                             "color=0.9,0.8,0.7", "absorption_color=0.7,0.7,0.7",
-                                             "absorption_distance=0.3", "thickness=0.2"});
+  auto pane =
+      make_closure("frosted_glass", {"roughness=" + num(rough), "ior=" + num(ior), "thin=1", "color=0.9,0.8,0.7",
+                                     "absorption_color=0.7,0.7,0.7", "absorption_distance=0.3", "thickness=0.2"});
   const Vec3 wi = mftest::direction_from(std::cos(deg * float(M_PI) / 180.0f), 0.3f);
   std::vector<ExitTally> blocks(kBlocks);
   // resampled_walk's rule (for 1 < ior)
@@ -1160,12 +1167,13 @@ TEST(FrostedGlassThin, EvalExitIsTheWalksLastInterfaceWithItsLeavingProbability)
     EXPECT_EQ(t.bad_ratio, 0) << "eval_exit's f / pdf at wo: not grey over the weight, or (main's walk) not the "
                                  "weight x T, or T not a whole number >= 1";
     const long m = t.resolved();
-    std::printf("[frosted pane exit] IOR %.1f roughness %.1f, %2.0f deg: %ld walks (%.2f %% with T > 1, largest T "
-                "%ld); z (g0, g1, g2) %+.2f %+.2f %+.2f, T Int pdf %+.2f; control (no T) %+.2f %+.2f %+.2f, Int pdf "
-                "%+.2f; exit cells chi2 z %+.2f, control %+.2f\n",
-                p.ior, p.rough, p.deg, m, 100.0 * t.multi / std::max<long>(m, 1), t.largest, t.z(0, 3, 0),
-                t.z(1, 4, 0), t.z(2, 5, 0), t.z(12, 13, 1), t.z(6, 9, 0), t.z(7, 10, 0), t.z(8, 11, 0),
-                t.z(14, 15, 1), t.chi2_z(false), t.chi2_z(true));
+    std::printf(
+        "[frosted pane exit] IOR %.1f roughness %.1f, %2.0f deg: %ld walks (%.2f %% with T > 1, largest T "
+        "%ld); z (g0, g1, g2) %+.2f %+.2f %+.2f, T Int pdf %+.2f; control (no T) %+.2f %+.2f %+.2f, Int pdf "
+        "%+.2f; exit cells chi2 z %+.2f, control %+.2f\n",
+        p.ior, p.rough, p.deg, m, 100.0 * t.multi / std::max<long>(m, 1), t.largest, t.z(0, 3, 0), t.z(1, 4, 0),
+        t.z(2, 5, 0), t.z(12, 13, 1), t.z(6, 9, 0), t.z(7, 10, 0), t.z(8, 11, 0), t.z(14, 15, 1), t.chi2_z(false),
+        t.chi2_z(true));
     for (int j = 0; j < 3; ++j) {
       worst_z = std::max(worst_z, std::fabs(t.z(j, 3 + j, 0)));
       EXPECT_LT(std::fabs(t.z(j, 3 + j, 0)), 4.0) << "g" << j << " IOR " << p.ior;
@@ -1186,9 +1194,10 @@ TEST(FrostedGlassThin, EvalExitIsTheWalksLastInterfaceWithItsLeavingProbability)
       EXPECT_GT(t.chi2_z(true), 4.0) << "control: the exit cells without T, IOR " << p.ior;
     }
   }
-  std::printf("[frosted pane exit] worst |z| %.2f (integrals), %.2f (T Int pdf, IOR 1.5); control min |z| %.2f; exit "
-              "cells chi2 worst z %+.2f, control (no T) min z %+.2f\n", worst_z, worst_pdf_z, control_min_z,
-              worst_chi2_z, control_min_chi2_z);
+  std::printf(
+      "[frosted pane exit] worst |z| %.2f (integrals), %.2f (T Int pdf, IOR 1.5); control min |z| %.2f; exit "
+      "cells chi2 worst z %+.2f, control (no T) min z %+.2f\n",
+      worst_z, worst_pdf_z, control_min_z, worst_chi2_z, control_min_chi2_z);
 }
 
 }  // namespace

@@ -18,8 +18,8 @@
 #include "closures/frosted_glass.h"
 #include "closures/raw_output_checks.h"
 #include "core/dielectric_lobe.h"
-#include "host/closure_instance.h"
 #include "glimmer/rng.h"
+#include "host/closure_instance.h"
 #include "test_support.h"
 
 namespace {
@@ -48,8 +48,8 @@ bool event_at(int level, const DielectricLobe &lobe, const Vec3 &wi, mf::WalkRng
 }
 
 // pane_walk (walk_to_exit_at) at a run-time level.
-bool walk_at(int level, const FrostedGlassClosure &pane, const ShadingPoint &sp, const Vec3 &rand, Vec3 &d,
-             Spectrum &t, Vec3 &leaving) {
+bool walk_at(int level, const FrostedGlassClosure &pane, const ShadingPoint &sp, const Vec3 &rand, Vec3 &d, Spectrum &t,
+             Vec3 &leaving) {
   if (level == FrostedGlassClosure::kPaneWalkLobe)
     return pane.pane_walk<FrostedGlassClosure::kPaneWalkLobe>(sp, rand, d, t, leaving);
   if (level == FrostedGlassClosure::kPaneWalkResampled)
@@ -125,7 +125,8 @@ void anatomy(float roughness, float ior, float theta, long n, int level) {
   }
   std::vector<double> w;
   double s1 = 0, s2 = 0, events = 0;
-  for (const WalkRecord &r : walks) w.push_back(r.weight), s1 += r.weight, s2 += r.weight * r.weight, events += r.events;
+  for (const WalkRecord &r : walks)
+    w.push_back(r.weight), s1 += r.weight, s2 += r.weight * r.weight, events += r.events;
   const long k = std::max(10L, long(w.size()) / 1000);
   std::vector<double> sorted = w;
   const auto [alpha, share] = hill(sorted, k);
@@ -136,23 +137,25 @@ void anatomy(float roughness, float ior, float theta, long n, int level) {
     if (r.weight > threshold) top_ev += r.events, top_e += r.log_inv_e, top_g += r.log_g, top_cos += r.min_cos;
   }
   const double m = s1 / n, var = s2 / n - m * m;
-  std::printf("[tail] level %d r%.1f ior %.1f theta %2.0f: T %.5f (walks %ld of %ld) var/walk %.4f events %.2f max %.1f | "
-              "Hill %.2f top0.1%% share %.3f: events %.1f sum log(1/E) %.2f sum log g %.2f min|cos| %.3f | all: "
-              "log(1/E) %.2f log g %.2f\n",
-              level, double(roughness), double(ior), double(theta), m, entered, n, var, events / walks.size(), sorted[0],
-              alpha, share, top_ev / k, top_e / k, top_g / k, top_cos / k, all_e / walks.size(),
-              all_g / walks.size());
+  std::printf(
+      "[tail] level %d r%.1f ior %.1f theta %2.0f: T %.5f (walks %ld of %ld) var/walk %.4f events %.2f max %.1f | "
+      "Hill %.2f top0.1%% share %.3f: events %.1f sum log(1/E) %.2f sum log g %.2f min|cos| %.3f | all: "
+      "log(1/E) %.2f log g %.2f\n",
+      level, double(roughness), double(ior), double(theta), m, entered, n, var, events / walks.size(), sorted[0], alpha,
+      share, top_ev / k, top_e / k, top_g / k, top_cos / k, all_e / walks.size(), all_g / walks.size());
   for (int b = 0; b < 10; ++b) {
     const EventBin &e = bins[b];
     if (e.n == 0) continue;
-    std::printf("[tail]    |cos| %.1f-%.1f: events %.0f P(refl) %.3f E[w] %.3f E[w^2] %.3f E[w 1R] %.3f E[w^2 1R] "
-                "%.3f mean g %.3f mean E %.3f\n",
-                b / 10.0, (b + 1) / 10.0, e.n, e.reflect / e.n, e.w / e.n, e.w2 / e.n, e.w_refl / e.n,
-                e.w2_refl / e.n, e.g / e.n, e.e / e.n);
+    std::printf(
+        "[tail]    |cos| %.1f-%.1f: events %.0f P(refl) %.3f E[w] %.3f E[w^2] %.3f E[w 1R] %.3f E[w^2 1R] "
+        "%.3f mean g %.3f mean E %.3f\n",
+        b / 10.0, (b + 1) / 10.0, e.n, e.reflect / e.n, e.w / e.n, e.w2 / e.n, e.w_refl / e.n, e.w2_refl / e.n,
+        e.g / e.n, e.e / e.n);
   }
 }
 
-// GLIMMER_TAIL_N walks per configuration (default 1e6), GLIMMER_TAIL_LEVEL the walk's level (0 main's, 1 resampled); IOR 1.5 / 2.4 x roughness 0.1-0.8 x incidence 0-85 deg.
+// GLIMMER_TAIL_N walks per configuration (default 1e6), GLIMMER_TAIL_LEVEL the walk's level (0 main's, 1 resampled);
+// IOR 1.5 / 2.4 x roughness 0.1-0.8 x incidence 0-85 deg.
 TEST(FrostedPaneTail, DISABLED_Anatomy) {
   const long n = env_long("GLIMMER_TAIL_N", 1000000);
   const int level = int(env_long("GLIMMER_TAIL_LEVEL", 0));
@@ -293,10 +296,10 @@ TEST(FrostedPaneTail, ResampledEventSameExpectationAsLobeSample) {
     const double z = max_abs_z(resampled, old_walk), zc = max_abs_z(control, old_walk);
     double sum_old = 0.0, sum_new = 0.0;
     for (int cell = 0; cell < CellSums::kCells; ++cell) sum_old += old_walk.mean(cell), sum_new += resampled.mean(cell);
-    std::printf("[frosted pane tail] event r%.1f ior %.1f mu %.2f %s: E[weight] lobe %.4f resampled %.4f; worst |z| "
-                "over 16 cells %.2f, control %.2f\n",
-                double(c.roughness), double(c.ior), double(c.mu), c.inside ? "inside" : "outside", sum_old, sum_new, z,
-                zc);
+    std::printf(
+        "[frosted pane tail] event r%.1f ior %.1f mu %.2f %s: E[weight] lobe %.4f resampled %.4f; worst |z| "
+        "over 16 cells %.2f, control %.2f\n",
+        double(c.roughness), double(c.ior), double(c.mu), c.inside ? "inside" : "outside", sum_old, sum_new, z, zc);
     worst = std::max(worst, z), worst_control = std::min(worst_control, zc);
     ++k;
   }
@@ -378,13 +381,14 @@ TEST(FrostedPaneTail, ResampledWalkSameExpectationAsWalk) {
       const CellSums old_walk = walk_cells(*pane, lobe, theta, FrostedGlassClosure::kPaneWalkLobe, n, seed, v_old);
       const CellSums resampled =
           walk_cells(*pane, lobe, theta, FrostedGlassClosure::kPaneWalkResampled, n, seed + 1000, v_new);
-      const CellSums control = walk_cells(*pane, lobe, theta, FrostedGlassClosure::kPaneWalkControl, n, seed + 2000,
-                                          v_ctl);
+      const CellSums control =
+          walk_cells(*pane, lobe, theta, FrostedGlassClosure::kPaneWalkControl, n, seed + 2000, v_ctl);
       const double z = max_abs_z(resampled, old_walk), zc = max_abs_z(control, old_walk);
-      std::printf("[frosted pane tail] walk r%.1f ior %.1f Beer %.1f theta %2.0f: worst |z| over 16 cells %.2f%s, "
-                  "control %.2f; variance per walk main %.4f resampled %.4f (ratio %.3f)\n",
-                  double(c.roughness), double(c.ior), double(c.absorb), double(theta), z,
-                  c.asserted ? "" : " (not asserted)", zc, v_old, v_new, v_new / v_old);
+      std::printf(
+          "[frosted pane tail] walk r%.1f ior %.1f Beer %.1f theta %2.0f: worst |z| over 16 cells %.2f%s, "
+          "control %.2f; variance per walk main %.4f resampled %.4f (ratio %.3f)\n",
+          double(c.roughness), double(c.ior), double(c.absorb), double(theta), z, c.asserted ? "" : " (not asserted)",
+          zc, v_old, v_new, v_new / v_old);
       if (c.asserted) worst = std::max(worst, z), worst_control = std::min(worst_control, zc);
     }
   }
@@ -444,11 +448,12 @@ TEST(FrostedPaneTail, StressResampledWalkFiniteNonNegative) {
     }
   });
   EXPECT_EQ(bad_count.load(), 0);
-  EXPECT_GT(resampled, 40);             // the rule picks the resampled walk (measured: 60 of 60)
+  EXPECT_GT(resampled, 40);              // the rule picks the resampled walk (measured: 60 of 60)
   EXPECT_GT(states.load(), calls / 50);  // path's walks with an exit state really ran
-  std::printf("[frosted pane tail stress] %ld eval + %ld successful sample calls (raw), %ld exit states x 2 eval_exit; "
-              "%ld of %zu panes on the resampled walk (IOR 1.9 / 2.4 / 3 and reciprocals, path and sg): %ld bad\n",
-              calls, samples.load(), states.load(), resampled, pool.size(), bad_count.load());
+  std::printf(
+      "[frosted pane tail stress] %ld eval + %ld successful sample calls (raw), %ld exit states x 2 eval_exit; "
+      "%ld of %zu panes on the resampled walk (IOR 1.9 / 2.4 / 3 and reciprocals, path and sg): %ld bad\n",
+      calls, samples.load(), states.load(), resampled, pool.size(), bad_count.load());
 }
 
 }  // namespace
@@ -460,7 +465,8 @@ namespace {
 TEST(FrostedPaneTail, DISABLED_WalkCost) {
   const long n = env_long("GLIMMER_TAIL_N", 65536);
   const int level = int(env_long("GLIMMER_TAIL_LEVEL", 0));
-  const float roughness = float(env_long("GLIMMER_TAIL_R", 80)) / 100.0f, ior = float(env_long("GLIMMER_TAIL_IOR", 24)) / 10.0f;
+  const float roughness = float(env_long("GLIMMER_TAIL_R", 80)) / 100.0f,
+              ior = float(env_long("GLIMMER_TAIL_IOR", 24)) / 10.0f;
   const auto pane = tail_pane(roughness, ior, 1.0f);
   const DielectricLobe lobe = pane_lobe(roughness, ior);
   double var = 0.0;

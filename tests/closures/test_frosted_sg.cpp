@@ -1694,7 +1694,6 @@ struct OddHost {
   }
 };
 
-
 // Negative control of the stress's host-side check (bad_host_sample): real whole-mixture samples from the C entry
 // point pass it, and each broken copy (a NaN or non-unit axis, sharpness 0 / inf, a negative weight, weights
 // summing to 0.9, count 0 or 11, the picked lobe missing, the flag without the buffer) fails it.
