@@ -5,7 +5,7 @@
 # images (docs/frosted_glass.md "Session 37 (frostedwalk37)"; frosted_pane_crop.sh does the same for a knob's levels).
 #   benchmarks/frosted_pane_crop_plugins.sh <glimmer> <out> <spp> "<seeds>" <pane ior> <plugin A.so> <plugin B.so>
 #   e.g. ... build/glimmer /tmp/crop24 4096 "11 12 13 14" 2.4 /work/notes/s37/2397f6c_plugin.so \
-#        build/plugin/libglimmer_closures.so
+#        build/libglimmer_closures.so
 # 64x40, --strategy mis, one thread; set GLIMMER_CACHE_DIR to a warm table cache first. The scene copy is written
 # once to <out>/caustic_sg.xml (md5s depend on the copy's absolute paths: compare within one <out>).
 set -euo pipefail

@@ -19,7 +19,8 @@ one() {  # variant round
   [ "$v" = base ] && plugin=$BASE_PLUGIN
   [ "$v" = twin ] && only=twin
   local d=$out/$v.$r
-  GLIMMER_SCRATCH_L0=$steps GI_ONLY=$only GI_OUT=$d GI_TOP=400 bash "$wt/benchmarks/glint_gi_time_profile.sh" "$BUILD" "$plugin" > "$d.txt" 2>&1
+  GLIMMER_SCRATCH_L0=$steps GI_ONLY=$only GI_OUT=$d GI_TOP=400 \
+    bash "$wt/benchmarks/glint_gi_time_profile.sh" "$BUILD" "$plugin" > "$d.txt" 2>&1
   local cpu fcp tp md5
   cpu=$(grep -o "$only: render window [0-9.]* s, [0-9.]* s on CPU" "$d.txt" | awk '{print $6}')
   fcp=$(awk '/f_cos_and_pdf/ {s += $1} END {printf "%.3f", s}' "$d.txt")

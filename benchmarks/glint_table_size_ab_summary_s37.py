@@ -34,7 +34,8 @@ for v in vs:
     if 'base' in vs and v != 'base':
         rb = sorted(rows[r][v]['cpu'] / rows[r]['base']['cpu'] for r in full)
         fb = sorted(rows[r][v]['fcp'] - rows[r]['base']['fcp'] for r in full)
-        line += (f"; / base: median {st.median(rb):.3f} ({rb[0]:.3f}..{rb[-1]:.3f}, {sum(x < 1 for x in rb)}/{len(rb)} below 1)"
+        below = sum(x < 1 for x in rb)
+        line += (f"; / base: median {st.median(rb):.3f} ({rb[0]:.3f}..{rb[-1]:.3f}, {below}/{len(rb)} below 1)"
                  f"; f_cos_and_pdf - base: median {st.median(fb):+.3f} s")
     print(line)
 loads = [x['load'] for r in rows.values() for x in r.values()]

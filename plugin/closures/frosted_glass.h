@@ -439,12 +439,17 @@ class FrostedGlassClosure {
   // The walk's sampler (the default rule, session 37): the resampled events where the interface's relative IOR
   // (ior or 1 / ior) >= kPaneWalkResampledIor and the lobe is energy-compensated (the tail is the compensation's
   // 1 / E: without it each event's weight is g <= 1). Main's walk's second moment is infinite from IOR ~2.05
-  // (roughness 1.0) .. ~2.15 (0.8) (rho(M_2) 0.872 / 0.891 at IOR 1.9, 0.993 / 1.054 at 2.1); 1.9 keeps a margin
-  // below the crossing and every IOR-1.5..1.8 image bit-identical (there the resampled events cost more than they
-  // save: IOR 1.5 pane crop variance x0.917 at +25 % cost).
+  // (roughness 1.0) .. ~2.15 (0.8) (roughness 1.0 / 0.8: rho(M_2) 0.872 / 0.891 at IOR 1.9, 1.054 / 0.993 at
+  // 2.1); 1.9 keeps a margin below the crossing and every IOR-1.5..1.8 image bit-identical (there the resampled
+  // events cost more than they save: IOR 1.5 pane crop variance x0.917 at +25 % cost).
   static constexpr float kPaneWalkResampledIor = 1.9f;
   static bool resampled_walk(const DielectricLobe &lobe) {
     return lobe.compensate && (lobe.ior >= kPaneWalkResampledIor || lobe.ior * kPaneWalkResampledIor <= 1.0f);
+  }
+  // For the tests: whether the closure's own lobe at sp takes the resampled walk (the rule above).
+  bool uses_resampled_walk(const ShadingPoint &sp) const {
+    DielectricLobe scratch;
+    return resampled_walk(lobe_at(sp, scratch));
   }
   // For the tests: the walk between the faces from the internal direction d at level kLevel (walk_to_exit_at).
   template <int kLevel>

@@ -9,6 +9,7 @@ namespace glimmer::plugin {
 bool FrostedGlassClosure::resampled_event(const DielectricLobe &lobe, const Vec3 &wi_in, mf::WalkRng &rng, bool control,
                                           LocalSample &s) {
   constexpr int kK = kPaneWalkCandidates;
+  static_assert(kK == 4, "the candidates' visible normals are jittered on a 2 x 2 grid");
   const bool outside = wi_in.z > 0.0f;
   const float eta = outside ? lobe.ior : 1.0f / lobe.ior;
   const Vec3 wi = outside ? wi_in : mf::flip_z_local(wi_in);

@@ -80,7 +80,8 @@ namespace {
   const int64_t j0 = _mm_cvtsi128_si64(ej), i0 = _mm_cvtsi128_si64(ei);
   const int64_t rows = _mm_extract_epi64(ej, 1) - j0 + 1, cols = _mm_extract_epi64(ei, 1) - i0 + 1;
   if (rows > kBoxSpan || cols > kBoxSpan || rows * cols > m.max_nodes) return SmallDark::kGeneric;
-  // The direction cells (locate_glints; none: count_glints returns an empty, complete count).
+  // The direction cells (locate_glints; none: count_glints returns an empty, complete count). The caller's site is
+  // unwritten (GlintSite(Unset)): no kNotDark answer may come before these writes.
   site.group_density = group_density;
   site.has_half_vector = direction_cell_seeds_avx2_body(m.keys, wi, wo, m.gamma_rad, site.cell_seeds);
   if (!site.has_half_vector || !(P > 0.0)) return SmallDark::kDark;

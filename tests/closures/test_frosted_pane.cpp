@@ -425,50 +425,75 @@ double two_sample_p(const std::vector<Exit> &a, const std::vector<Exit> &b, int 
 // to a constant). Holds for any unbiased sampler, whatever its direction density (the walk's resampled events at
 // IOR >= 1.9 draw other directions with other weights than the slab's lobe samples).
 // unweighted_a: the negative control, the pane's weights replaced by 1 (the sampler's weight not applied).
-double weighted_two_sample_p(const std::vector<Exit> &a, long n_a, const std::vector<Exit> &b, long n_b,
-                             bool unweighted_a = false, int *high = nullptr, int *low = nullptr, int n_t = 16,
-                             int n_phi = 16) {
+// One side's exits added per cell (count, sum of weights, sum of squares): what weighted_two_sample_p reads.
+struct ExitCells {
   struct Cell {
-    double count[2] = {0, 0}, sum[2] = {0, 0}, sum2[2] = {0, 0};
+    double count = 0, sum = 0, sum2 = 0;
   };
-  std::vector<Cell> cells(size_t(n_t) * n_phi);
-  auto cell = [&](const Vec3 &w) {
-    const int it = std::clamp(int((w.z + 1.0f) * 0.5f * n_t), 0, n_t - 1);
-    double phi = std::atan2(double(w.y), double(w.x));
+  int n_t = 16, n_phi = 16;
+  std::vector<Cell> cells = std::vector<Cell>(size_t(n_t) * n_phi);
+  void add(const Exit &e, bool unweighted = false) {
+    const int it = std::clamp(int((e.w.z + 1.0f) * 0.5f * n_t), 0, n_t - 1);
+    double phi = std::atan2(double(e.w.y), double(e.w.x));
     if (phi < 0.0) phi += 2.0 * M_PI;
-    return size_t(it) * n_phi + std::min(int(phi / (2.0 * M_PI) * n_phi), n_phi - 1);
-  };
-  for (int side = 0; side < 2; ++side)
-    for (const Exit &e : side == 0 ? a : b) {
-      Cell &c = cells[cell(e.w)];
-      const double w = side == 0 && unweighted_a ? 1.0 : e.weight;
-      c.count[side] += 1.0, c.sum[side] += w, c.sum2[side] += w * w;
-    }
+    Cell &c = cells[size_t(it) * n_phi + std::min(int(phi / (2.0 * M_PI) * n_phi), n_phi - 1)];
+    const double w = unweighted ? 1.0 : e.weight;
+    c.count += 1.0, c.sum += w, c.sum2 += w * w;
+  }
+  void add(const ExitCells &o) {
+    for (size_t k = 0; k < cells.size(); ++k)
+      cells[k].count += o.cells[k].count, cells[k].sum += o.cells[k].sum, cells[k].sum2 += o.cells[k].sum2;
+  }
+  double flux(double n) const {
+    double f = 0.0;
+    for (const Cell &c : cells) f += c.sum / n;
+    return f;
+  }
+  size_t exits() const {
+    double k = 0.0;
+    for (const Cell &c : cells) k += c.count;
+    return size_t(k);
+  }
+};
+
+double weighted_two_sample_p(const ExitCells &a, long n_a, const ExitCells &b, long n_b, int *high = nullptr,
+                             int *low = nullptr) {
   const double n[2] = {double(n_a), double(n_b)};
-  Cell pooled;
+  const ExitCells *side_cells[2] = {&a, &b};
+  ExitCells::Cell pooled[2];
   double chi2 = 0.0;
   int bins = 0;
-  auto add = [&](const Cell &c) {
+  auto add = [&](const ExitCells::Cell *c) {
     double diff = 0.0, var = 0.0;
     for (int side = 0; side < 2; ++side) {
-      const double mean = c.sum[side] / n[side];
+      const double mean = c[side].sum / n[side];
       diff += side == 0 ? mean : -mean;
-      var += std::max(0.0, c.sum2[side] / n[side] - mean * mean) / n[side];
+      var += std::max(0.0, c[side].sum2 / n[side] - mean * mean) / n[side];
     }
     if (var > 0.0) chi2 += diff * diff / var, ++bins;
     if (high != nullptr && var > 0.0 && diff > 3.0 * std::sqrt(var)) ++*high;  // cells where a > b by > 3 se
     if (low != nullptr && var > 0.0 && diff < -3.0 * std::sqrt(var)) ++*low;
   };
-  for (const Cell &c : cells) {
-    if (c.count[0] < 20.0 || c.count[1] < 20.0) {
+  for (size_t k = 0; k < a.cells.size(); ++k) {
+    const ExitCells::Cell c[2] = {side_cells[0]->cells[k], side_cells[1]->cells[k]};
+    if (c[0].count < 20.0 || c[1].count < 20.0) {
       for (int side = 0; side < 2; ++side)
-        pooled.count[side] += c.count[side], pooled.sum[side] += c.sum[side], pooled.sum2[side] += c.sum2[side];
+        pooled[side].count += c[side].count, pooled[side].sum += c[side].sum, pooled[side].sum2 += c[side].sum2;
     } else {
       add(c);
     }
   }
-  if (pooled.count[0] + pooled.count[1] > 0.0) add(pooled);
+  if (pooled[0].count + pooled[1].count > 0.0) add(pooled);
   return lab::chi2_survival(chi2, std::max(bins, 1));
+}
+
+// The same from the exits themselves.
+double weighted_two_sample_p(const std::vector<Exit> &a, long n_a, const std::vector<Exit> &b, long n_b,
+                             bool unweighted_a = false, int *high = nullptr, int *low = nullptr) {
+  ExitCells ca, cb;
+  for (const Exit &e : a) ca.add(e, unweighted_a);
+  for (const Exit &e : b) cb.add(e);
+  return weighted_two_sample_p(ca, n_a, cb, n_b, high, low);
 }
 
 // The pane's sample() against the brute-force slab (the solid closure at both interfaces, main's walk inside it), two
@@ -481,15 +506,16 @@ double weighted_two_sample_p(const std::vector<Exit> &a, long n_a, const std::ve
 //    most differ (the closure's default there is the resampled walk).
 //  - the default sampler, weighted (weighted_two_sample_p): holds for main's walk (IOR 1.5) and the resampled walk
 //    events (IOR 2.4, FrostedGlassClosure::resampled_walk). At IOR 2.4 roughness 0.7 its standard errors are not
-//    calibrated (the slab's weights have infinite variance there: rho(M_2) > 1, docs "Session 36 (frostedtail36)"),
-//    so that pair is printed (with the slab against itself), not asserted: session 37 measured p 5.8e-7 / 1.9e-4
+//    calibrated (the slab's weights have a heavy tail there: at IOR 2.4 rho(M_2) is 0.972 at r 0.5 and 1.107 at r 0.8,
+//    docs "Session 36 (frostedtail36)"; r 0.7 lies between, not measured itself), so that pair is printed (with the
+//    slab against itself), not asserted: session 37 measured p 5.8e-7 / 1.9e-4
 //    there, the slab against itself 0.20 / 0.41. The resampled events' equivalence to level 0 there is proven in
 //    tests/closures/test_frosted_pane_tail.cpp: per event (ResampledEventSameExpectationAsLobeSample, finite variance
 //    on both sides) and per whole walk where main's walk has finite variance (ResampledWalkSameExpectationAsWalk).
-// Negative controls: the pane at another roughness is told apart by both statistics; at IOR 2.4 main's statistic
-// tells the default pane (the resampled events: other directions, other weights) apart; at IOR 2.4 the default pane's
+// Negative controls: the pane at another roughness is told apart by both statistics; at IOR 2.4 the default pane's
 // directions without their weights (the resampled events' weight c not applied) are told apart where c varies (r 0.3
-// at z 0.3, r 0.7; at r 0.3 z 0.9 c stays near 1 and the control's p is 0.83: printed).
+// at z 0.3, r 0.7; at r 0.3 z 0.9 c stays near 1 and the control's p is 0.83: printed). Printed too: main's
+// statistic on the default pane at IOR 2.4 (other directions, other weights: its power, not an error).
 TEST(FrostedGlassThin, SampleDistributionMatchesPathTracedSlab) {
   const auto configs = pane_configs();
   const double threshold = mftest::sidak_threshold(int(configs.size()));
@@ -503,12 +529,13 @@ TEST(FrostedGlassThin, SampleDistributionMatchesPathTracedSlab) {
     const Vec3 wi = mftest::direction_from(c.z, 0.3f);
     const SlabResult ref = trace_slab(*solid, slab, wi, n, 31 + i, true);
     long mismatch = 0;
-    const SlabResult main_walk =
-        sample_pane_main_walk(MainWalkPane(c.rough, c.ior), wi, n, 41 + i, pane.get(), &mismatch);
+    const MainWalkPane main_pane(c.rough, c.ior);
+    const bool resampled = plugin::FrostedGlassClosure::resampled_walk(main_pane.lobe);  // the default rule
+    const SlabResult main_walk = sample_pane_main_walk(main_pane, wi, n, 41 + i, pane.get(), &mismatch);
     const double p_main = two_sample_p(main_walk.exits, ref.exits);
     EXPECT_GE(p_main, threshold) << "main's walk: rough=" << c.rough << " ior=" << c.ior << " z=" << c.z;
     min_p_main = std::min(min_p_main, p_main);
-    if (c.ior < 1.9f) {
+    if (!resampled) {
       EXPECT_EQ(mismatch, 0) << "MainWalkPane is not the closure's level-0 sample()";
     } else {
       EXPECT_GT(mismatch, n / 4) << "MainWalkPane is the closure's default sample() at IOR 2.4";
@@ -519,7 +546,7 @@ TEST(FrostedGlassThin, SampleDistributionMatchesPathTracedSlab) {
         c.rough, c.ior, c.z, p_main, mismatch, n_used);
     const SlabResult got = sample_pane(*pane, wi, n, 41 + i, true);
     const double p = weighted_two_sample_p(got.exits, n_used, ref.exits, n_used);
-    const bool calibrated = !(c.ior > 1.9f && c.rough > 0.5f);  // the reference's variance is finite
+    const bool calibrated = !(resampled && c.rough > 0.5f);  // the reference's variance is finite
     std::printf("; default sampler weighted p %.4g", p);
     if (calibrated) {
       EXPECT_GE(p, threshold) << "rough=" << c.rough << " ior=" << c.ior << " z=" << c.z;
@@ -535,15 +562,15 @@ TEST(FrostedGlassThin, SampleDistributionMatchesPathTracedSlab) {
           std::hypot(got.se_R, got.se_T), double(ref.R.x + ref.T.x), std::hypot(ref.se_R, ref.se_T),
           double(again.R.x + again.T.x), std::hypot(again.se_R, again.se_T));
     }
-    if (c.ior > 1.9f) {  // the resampled walk: its directions alone are not the slab's
+    if (resampled) {  // the resampled walk: its directions alone are not the slab's
       const double pc = weighted_two_sample_p(got.exits, n_used, ref.exits, n_used, true);
       if (c.rough > 0.5f || c.z < 0.5f) {
         EXPECT_LT(pc, 1e-6) << "control (weights not applied) rough=" << c.rough << " z=" << c.z;
         control_unweighted_max_p = std::max(control_unweighted_max_p, pc);
       }
-      // main's statistic's control at IOR 2.4: the resampled events' directions (another density) are told apart
+      // main's statistic on the default pane at IOR 2.4 (printed: its power; the resampled events' directions have
+      // another density, which is not an error, so it is not asserted)
       const double pc_main = two_sample_p(got.exits, ref.exits);
-      EXPECT_LT(pc_main, 1e-6) << "control (main's statistic, default pane) rough=" << c.rough << " z=" << c.z;
       control_main_max_p = std::max(control_main_max_p, pc_main);
       std::printf(", control (pane unweighted) p %.3g, main's statistic on the default pane p %.3g", pc, pc_main);
     }
@@ -601,11 +628,10 @@ bool pane_walk_draw(const plugin::DielectricLobe &lobe, const Vec3 &wi, Pcg32 &r
 constexpr int kReflectionClasses[] = {-1, 0, 1, 2, 3, 5, 9, 13, 21};
 constexpr int kClasses = int(std::size(kReflectionClasses));
 template <int kLevel>
-std::array<std::vector<Exit>, kClasses> walk_exits_by_class(float rough, float ior, const Vec3 &wi, long n,
-                                                            uint64_t seed) {
+std::array<ExitCells, kClasses> walk_exits_by_class(float rough, float ior, const Vec3 &wi, long n, uint64_t seed) {
   plugin::DielectricLobe lobe;
   lobe.build(plugin::MicrofacetLobeParams::make(plugin::kMultiGgx, rough, 0.0f), ior, false, true);
-  std::vector<std::array<std::vector<Exit>, kClasses>> blocks(kBlocks);
+  std::vector<std::array<ExitCells, kClasses>> blocks(kBlocks);
   tbb::parallel_for(long(0), kBlocks, [&](long b) {
     Pcg32 rng(seed, uint64_t(b) + 1);
     for (long i = 0; i < n / kBlocks; ++i) {
@@ -614,12 +640,12 @@ std::array<std::vector<Exit>, kClasses> walk_exits_by_class(float rough, float i
       if (!pane_walk_draw<kLevel>(lobe, wi, rng, e, k)) continue;
       int c = kClasses - 1;
       while (k < kReflectionClasses[c]) --c;
-      blocks[b][c].push_back(e);
+      blocks[b][c].add(e);
     }
   });
-  std::array<std::vector<Exit>, kClasses> all;
+  std::array<ExitCells, kClasses> all;
   for (const auto &block : blocks)
-    for (int c = 0; c < kClasses; ++c) all[c].insert(all[c].end(), block[c].begin(), block[c].end());
+    for (int c = 0; c < kClasses; ++c) all[c].add(block[c]);
   return all;
 }
 
@@ -653,17 +679,15 @@ TEST(FrostedGlassThin, ResampledWalkMatchesMainWalkByReflections) {
     const auto control = walk_exits_by_class<Closure::kPaneWalkControl>(0.7f, 2.4f, wi, n, seed + 3);
     for (int c = 0; c < kClasses; ++c) {
       int high = 0, low = 0, high_self = 0, low_self = 0;
-      const double p = weighted_two_sample_p(resampled[c], n_used, main_walk[c], n_main, false, &high, &low);
-      const double p_self = weighted_two_sample_p(again[c], n_used, main_walk[c], n_main, false, &high_self, &low_self);
-      double flux[2] = {0, 0};
-      for (const Exit &e : main_walk[c]) flux[0] += e.weight / double(n_main);
-      for (const Exit &e : resampled[c]) flux[1] += e.weight / double(n_used);
+      const double p = weighted_two_sample_p(resampled[c], n_used, main_walk[c], n_main, &high, &low);
+      const double p_self = weighted_two_sample_p(again[c], n_used, main_walk[c], n_main, &high_self, &low_self);
+      const double flux[2] = {main_walk[c].flux(double(n_main)), resampled[c].flux(double(n_used))};
       std::printf(
           "[frosted thin walk classes] r 0.7 ior 2.4 z %.1f reflections >= %2d: resampled vs main p %.4g%s "
           "(cells > 3 se above / below %d / %d); main n vs 8n p %.4g (%d / %d); flux main %.5f resampled %.5f "
           "(exits %zu / %zu)\n",
           z, kReflectionClasses[c], p, c < asserted ? "" : " (not asserted)", high, low, p_self, high_self, low_self,
-          flux[0], flux[1], main_walk[c].size(), resampled[c].size());
+          flux[0], flux[1], main_walk[c].exits(), resampled[c].exits());
       if (c < asserted) {
         EXPECT_GE(p, threshold) << "z=" << z << " class " << kReflectionClasses[c];
         min_p = std::min(min_p, p);
@@ -1134,8 +1158,7 @@ ExitTally tally_pane_exit(float rough, float ior, float deg, long n) {
                                      "absorption_color=0.7,0.7,0.7", "absorption_distance=0.3", "thickness=0.2"});
   const Vec3 wi = mftest::direction_from(std::cos(deg * float(M_PI) / 180.0f), 0.3f);
   std::vector<ExitTally> blocks(kBlocks);
-  // resampled_walk's rule (for 1 < ior)
-  const bool lobe_sampler = ior < plugin::FrostedGlassClosure::kPaneWalkResampledIor;
+  const bool lobe_sampler = !plugin::FrostedGlassClosure::resampled_walk(MainWalkPane(rough, ior).lobe);
   tbb::parallel_for(long(0), kBlocks, [&](long b) {
     Pcg32 rng(7100 + uint64_t(rough * 100) + uint64_t(deg) + (lobe_sampler ? 0 : 5000), uint64_t(b) + 1);
     GlimmerShadingContext ctx = host::make_local_context(wi);
