@@ -663,8 +663,8 @@ class FrostedGlassClosure {
     const Vec3 wi = outside ? wi_l : mf::flip_z_local(wi_l);
     mf::WalkRng rng(sp.seed_for(numbers));
     const float x = rng.next(), y = rng.next();
-    const Vec3 m = mf::sample_visible_normal(lobe.dist, wi, lobe.ax, lobe.ay, x, y);
-    const float F = mf::fresnel_dielectric(dot(wi, m), outside ? lobe.ior : 1.0f / lobe.ior);
+    Vec3 m;
+    const float F = lobe.visible_facet(wi, outside ? lobe.ior : 1.0f / lobe.ior, x, y, m);
     const float f_t = control ? 1.0f : 1.0f - F, f_r = control ? 1.0f : F;
     LocalSample s;
     if (F < 1.0f && lobe.sample(wi_l, Vec3(x, y, 1.0f), s) && (s.label & GLIMMER_LABEL_TRANSMIT))

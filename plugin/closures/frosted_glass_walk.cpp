@@ -20,8 +20,8 @@ bool FrostedGlassClosure::resampled_event(const DielectricLobe &lobe, const Vec3
   float total = 0.0f;
   for (int j = 0; j < kK; ++j) {
     const float u1 = (float(j & 1) + rng.next()) * 0.5f, u2 = (float(j >> 1) + rng.next()) * 0.5f;
-    const Vec3 m = mf::sample_visible_normal(lobe.dist, wi, lobe.ax, lobe.ay, u1, u2);
-    const float F = mf::fresnel_dielectric(dot(wi, m), eta);
+    Vec3 m;
+    const float F = lobe.visible_facet(wi, eta, u1, u2, m);
     a[2 * j] = a[2 * j + 1] = 0.0f;
     dirs[2 * j] = normalize(mf::reflect_about(wi, m));
     if (F > 0.0f && dirs[2 * j].z > 0.0f) a[2 * j] = (control ? 1.0f : F) * lobe.g2(wi, dirs[2 * j]) / g1;

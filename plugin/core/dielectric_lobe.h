@@ -106,8 +106,8 @@ struct DielectricLobe {
   }
 
   // The visible microfacet normal m drawn with (u, v) for wi (the side-local frame, wi.z > 0); returns its Fresnel
-  // reflectance F at the side's relative IOR eta. sample's rough draw, and frosted_glass's exact front grid
-  // (FrostedGlassClosure::pane_front_grid_exact_walks: each walk's facet, whose F weights it): one formula.
+  // reflectance F at the side's relative IOR eta. sample's rough draw, and frosted_glass's pane walk (the exact front
+  // grid, the first far-face event's two branches, the resampled events' candidates): one formula.
   // always_inline (and m an out-parameter): sample's machine code is what it was before this function existed.
   [[gnu::always_inline]] float visible_facet(const Vec3 &wi, float eta, float u, float v, Vec3 &m) const {
     m = mf::sample_visible_normal(dist, wi, ax, ay, u, v);
