@@ -446,6 +446,12 @@ class FrostedGlassClosure {
   static bool resampled_walk(const DielectricLobe &lobe) {
     return lobe.compensate && (lobe.ior >= kPaneWalkResampledIor || lobe.ior * kPaneWalkResampledIor <= 1.0f);
   }
+  // For the tests: the interface lobe a closure of this roughness and IOR builds (create and lobe_at's build).
+  static DielectricLobe interface_lobe(float roughness, float ior) {
+    DielectricLobe lobe;
+    lobe.build(interface_params(roughness), ior, false, true);
+    return lobe;
+  }
   // For the tests: whether the closure's own lobe at sp takes the resampled walk (the rule above).
   bool uses_resampled_walk(const ShadingPoint &sp) const {
     DielectricLobe scratch;

@@ -215,7 +215,7 @@ struct MainWalkPane {
         {"roughness", {rough, 0, 0}, nullptr}, {"ior", {ior, 0, 0}, nullptr}, {"thin", {1.0f, 0, 0}, nullptr}};
     plugin::ParamReader reader(plugin::FrostedGlassClosure::kName, plugin::FrostedGlassClosure::params(), values);
     closure = plugin::FrostedGlassClosure::create(reader);
-    lobe.build(plugin::MicrofacetLobeParams::make(plugin::kMultiGgx, rough, 0.0f), ior, false, true);
+    lobe = plugin::FrostedGlassClosure::interface_lobe(rough, ior);
   }
   bool sample(const GlimmerShadingContext &ctx, const Vec3 &rand, Exit &out) const {
     const plugin::ShadingPoint sp(&ctx, plugin::FrostedGlassClosure::params(), plugin::LocalFrame::Interface);
@@ -629,8 +629,7 @@ constexpr int kReflectionClasses[] = {-1, 0, 1, 2, 3, 5, 9, 13, 21};
 constexpr int kClasses = int(std::size(kReflectionClasses));
 template <int kLevel>
 std::array<ExitCells, kClasses> walk_exits_by_class(float rough, float ior, const Vec3 &wi, long n, uint64_t seed) {
-  plugin::DielectricLobe lobe;
-  lobe.build(plugin::MicrofacetLobeParams::make(plugin::kMultiGgx, rough, 0.0f), ior, false, true);
+  const plugin::DielectricLobe lobe = plugin::FrostedGlassClosure::interface_lobe(rough, ior);
   std::vector<std::array<ExitCells, kClasses>> blocks(kBlocks);
   tbb::parallel_for(long(0), kBlocks, [&](long b) {
     Pcg32 rng(seed, uint64_t(b) + 1);

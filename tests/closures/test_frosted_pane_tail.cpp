@@ -30,11 +30,7 @@ namespace {
 using namespace glimmer;
 using namespace glimmer::plugin;
 
-DielectricLobe pane_lobe(float roughness, float ior) {
-  DielectricLobe lobe;
-  lobe.build(MicrofacetLobeParams::make(kMultiGgx, roughness, 0.0f), ior, false, true);
-  return lobe;
-}
+DielectricLobe pane_lobe(float roughness, float ior) { return FrostedGlassClosure::interface_lobe(roughness, ior); }
 
 Vec3 incidence(float theta_deg) {
   const float t = theta_deg * 3.14159265f / 180.0f;
