@@ -164,30 +164,25 @@ struct Segment {
   float mean_length = 1.0f;
   int bounding_count = 0;  // bounding rays that left through the same material
   Vec3 bounding_dir[4], bounding_normal[4], bounding_P[4];
-  // exit_curvature over all bounding rays and over the facing ones (trace_segment; a pane's flat face: unset).
-  float curvature = std::numeric_limits<float>::infinity(), curvature_facing = std::numeric_limits<float>::infinity();
+  // exit_curvature below kPlanarExitCurvature over all bounding rays and over the facing ones (trace_segment; a
+  // pane's flat face: unset).
+  bool planar = false, planar_facing = false;
 };
+constexpr float kPlanarExitCurvature = 0.1f;  // exit_curvature below it: a planar exit (a slab's back face)
 // How much the exit surface turns under the traced rays: the mean over the bounding rays of the angle between
 // their exit normal and the axis ray's, over the angle between their direction and the axis (0: a planar exit;
 // the unit sphere's 1-2). Not measured (no bounding ray left through the material): infinite, treated as curved.
 // `curvature_facing`: only the bounding rays whose exit normal faces the axis ray's (a wide lobe's ray that turns back
 // to a slab's entry face is left out; reflected_axis' planarity test); none of them: infinite. Both in one pass, once
 // per segment (session 28: the roulette, the reflection and the exit mixture each made one before; the same sums).
+// Only their comparisons with kPlanarExitCurvature are used: exit_planarity (session 38: the acos only where bounds on
+// it do not decide; the same decisions).
 void exit_curvature(Segment &seg, const Vec3 &axis) {
-  float sum = 0.0f, sum_facing = 0.0f;
-  int count = 0, count_facing = 0;
-  for (int i = 0; i < seg.bounding_count; ++i) {
-    const float c = dot(seg.bounding_normal[i], seg.axis.normal);
-    const float dn = std::acos(std::clamp(c, -1.0f, 1.0f));
-    const float dd = std::acos(std::clamp(dot(seg.bounding_dir[i], axis), -1.0f, 1.0f));
-    const float turn = dn / std::max(dd, 1e-6f);
-    sum += turn;
-    ++count;
-    if (c > 0.0f) sum_facing += turn, ++count_facing;
-  }
-  constexpr float kInf = std::numeric_limits<float>::infinity();
-  seg.curvature = count > 0 ? sum / float(count) : kInf;
-  seg.curvature_facing = count_facing > 0 ? sum_facing / float(count_facing) : kInf;
+  float c[4], d[4];
+  for (int i = 0; i < seg.bounding_count; ++i)
+    c[i] = dot(seg.bounding_normal[i], seg.axis.normal), d[i] = dot(seg.bounding_dir[i], axis);
+  const ExitPlanarity p = exit_planarity(c, d, seg.bounding_count, kPlanarExitCurvature);
+  seg.planar = p.planar, seg.planar_facing = p.planar_facing;
 }
 // The bounding cone's cos and sin for sharpness kappa (bounding_angle): this thread's last kappa and its pair kept
 // (session 38: a pow, an acos and a sincos per segment; the camera-seen walk's kappa is kEntryKappa at nearly every
@@ -368,8 +363,6 @@ bool sample_reflection(const SgInputs &in, const InteriorHit &h, float roughness
   return false;
 }
 
-constexpr float kPlanarExitCurvature = 0.1f;  // exit_curvature below it: a planar exit (a slab's back face)
-
 // Step 5's internal reflection of the lobe (axis, sharpness kappa_in) at the exit segment `seg` (mean normal n, the
 // exit's alpha^2): kSampledReflection at a curved exit draws the axis (`seed` its numbers) and keeps the width (at a
 // planar exit, a slab's, it made the accuracy set's slab worse: 0.0187 -> 0.0217); otherwise the axis is
@@ -377,7 +370,7 @@ constexpr float kPlanarExitCurvature = 0.1f;  // exit_curvature below it: a plan
 // widened by the rough reflection. False: no reflection drawn.
 bool reflect_internal(const SgInputs &in, const Segment &seg, const ExitEnergies &energies, const Vec3 &n,
                       float alpha2, uint32_t seed, Vec3 &axis, float &kappa_in, float first_u) {
-  const bool planar = seg.curvature_facing < kPlanarExitCurvature;
+  const bool planar = seg.planar_facing;
   if (in.sampled_reflection && !planar)
     return sample_reflection(in, seg.axis, hit_roughness(in, seg.axis.closure), seed, axis, first_u);
   const float kappa_reflect = 2.0f / std::max(alpha2, 1e-7f);  // NDF sharpness; reflected lobe: kappa / 4
@@ -733,7 +726,7 @@ bool solid_exit_mixture(const SgInputs &in, const Segment &seg, const Vec3 &axis
   out.lobe_count = 0;
   const bool by_rule = in.mixture_tail < 0.0f;
   const bool wide = in.roughness > kMixtureRoughnessMax, narrow = in.roughness < kCurvedSingleSgBelow;
-  const bool planar = seg.curvature < kPlanarExitCurvature;
+  const bool planar = seg.planar;
   const bool ladder = by_rule && wide && planar;
   if (by_rule && !planar && (wide || narrow)) {  // the single SG, split into a core and a tail when wide
     if (wide && in.roughness <= kCurvedSplitMax) {
@@ -793,6 +786,50 @@ bool solid_exit_mixture(const SgInputs &in, const Segment &seg, const Vec3 &axis
 
 }  // namespace
 
+ExitPlanarity exit_planarity_exact(const float *c, const float *d, int n, float threshold) {
+  float sum = 0.0f, sum_facing = 0.0f;
+  int count = 0, count_facing = 0;
+  for (int i = 0; i < n; ++i) {
+    const float dn = std::acos(std::clamp(c[i], -1.0f, 1.0f));
+    const float dd = std::acos(std::clamp(d[i], -1.0f, 1.0f));
+    const float turn = dn / std::max(dd, 1e-6f);
+    sum += turn;
+    ++count;
+    if (c[i] > 0.0f) sum_facing += turn, ++count_facing;
+  }
+  constexpr float kInf = std::numeric_limits<float>::infinity();
+  ExitPlanarity p;
+  p.planar = (count > 0 ? sum / float(count) : kInf) < threshold;
+  p.planar_facing = (count_facing > 0 ? sum_facing / float(count_facing) : kInf) < threshold;
+  return p;
+}
+
+ExitPlanarity exit_planarity(const float *c, const float *d, int n, float threshold, float hi_scale) {
+  // Bounds on each turn from t = sqrt((1 - x) / 2): acos in [2 t, pi t], each widened by 1e-4 (acosf's and t's
+  // roundings are ~1e-7 relative); the sums' roundings and the division's are covered by the decision's 1e-3.
+  float lo = 0.0f, hi = 0.0f, lo_facing = 0.0f, hi_facing = 0.0f;
+  int count = 0, count_facing = 0;
+  for (int i = 0; i < n; ++i) {
+    const float tn = std::sqrt(0.5f * (1.0f - std::clamp(c[i], -1.0f, 1.0f)));
+    const float td = std::sqrt(0.5f * (1.0f - std::clamp(d[i], -1.0f, 1.0f)));
+    const float turn_lo = 2.0f * tn * (1.0f - 1e-4f) / std::max(hi_scale * td * (1.0f + 1e-4f), 1e-6f);
+    const float turn_hi = hi_scale * tn * (1.0f + 1e-4f) / std::max(2.0f * td * (1.0f - 1e-4f), 1e-6f);
+    lo += turn_lo, hi += turn_hi, ++count;
+    if (c[i] > 0.0f) lo_facing += turn_lo, hi_facing += turn_hi, ++count_facing;
+  }
+  // true and `planar` set where the bounds decide (mean < threshold); NaN decides nothing.
+  const auto decide = [threshold](float sum_lo, float sum_hi, int k, bool &planar) {
+    if (k == 0) return planar = false, true;  // infinite: not below
+    const float limit = threshold * float(k);
+    if (sum_hi * 1.001f < limit) return planar = true, true;
+    if (sum_lo > limit * 1.001f) return planar = false, true;
+    return false;
+  };
+  ExitPlanarity p;
+  if (decide(lo, hi, count, p.planar) && decide(lo_facing, hi_facing, count_facing, p.planar_facing)) return p;
+  return exit_planarity_exact(c, d, n, threshold);
+}
+
 Vec3 offset_origin(const Vec3 &P, const Vec3 &Ng, const Vec3 &dir) {
   const float scale = 1.0f + std::max(std::fabs(P.x), std::max(std::fabs(P.y), std::fabs(P.z)));
   const float eps = 3e-5f * scale;
@@ -847,7 +884,7 @@ ExitRoulette exit_roulette(const SgInputs &in, const Segment &seg, float axis_en
   ExitRoulette r;
   // The stratified number at curved exits only (a planar one, a slab's back face, keeps the hashed route: there it was
   // not measured on the bench, and the exit harness' slab moved by its noise; docs/frosted_glass.md "Session 27").
-  if (event == 0 && first_u >= 0.0f && seg.curvature_facing < kPlanarExitCurvature) first_u = -1.0f;
+  if (event == 0 && first_u >= 0.0f && seg.planar_facing) first_u = -1.0f;
   if (!last) r.energies = exit_energies(*in.table, seg, axis_energy, exit_axes);
   static_cast<RouletteNumber &>(r) =
       roulette_number(in, seed, event, first_u, last ? axis_energy : r.energies.mean());
@@ -947,7 +984,7 @@ int bounding_rays(float kappa_in) {
 bool next_segment(const GlimmerShadingContext &ctx, const SgInputs &in, const SphericalGaussian &front, bool drawn,
                   Vec3 &axis, float &kappa_in, Vec3 &origin, Segment &seg) {
   if (!trace_segment(ctx.host, in, origin, axis, kappa_in, seg, bounding_rays(kappa_in))) return false;
-  if (!drawn || !(seg.curvature < kPlanarExitCurvature)) return true;
+  if (!drawn || !seg.planar) return true;
   axis = front.axis, kappa_in = front.sharpness;
   origin = offset_origin(Vec3(ctx.P), Vec3(ctx.Ng), axis);
   seg = Segment{};  // trace_segment appends the bounding rays
