@@ -87,20 +87,36 @@ Spectrum hit_color(const SgInputs &in, const GlimmerHitClosure &c) {
 // The table's SG for incidence `wi_dir` (unit, on the +z side of the frame) turned into world space: the
 // table's frame has wi = (sin theta, 0, cos theta); x here is wi's tangential direction.
 // `axes`: the table's axes of (eta, roughness) (table_axes), made once for the lookups that share them.
-bool table_lobe(const TransmissionSgTable &table, const TransmissionSgTable::Axes &axes, const Frame &frame,
-                const Vec3 &wi_dir, SphericalGaussian &sg, float &energy) {
-  const Vec3 w = frame.to_local(wi_dir);
-  const float cos_i = std::clamp(w.z, 1e-4f, 1.0f);
-  const float tx = w.x, ty = w.y, tl = std::sqrt(tx * tx + ty * ty);
-  const Vec3 x_dir = tl > 1e-7f ? frame.to_world(Vec3(tx / tl, ty / tl, 0.0f)) : frame.s;
+// table_lobe in two steps (session 38): the lookup (TableLookup: the energy, and the lobe kept), then the SG in world
+// space (table_lobe_sg) only where it is used; the solid walk's exit events that reflect need the energy alone.
+struct TableLookup {
   TransmissionLobe lobe;
-  if (!table.lookup(cos_i, axes, lobe)) return false;
+  Vec3 w{0.0f};  // wi_dir in the frame
+  float cos_i = 1.0f;
+};
+bool table_lookup(const TransmissionSgTable &table, const TransmissionSgTable::Axes &axes, const Frame &frame,
+                  const Vec3 &wi_dir, TableLookup &out) {
+  out.w = frame.to_local(wi_dir);
+  out.cos_i = std::clamp(out.w.z, 1e-4f, 1.0f);
+  return table.lookup(out.cos_i, axes, out.lobe);
+}
+bool table_lobe_sg(const TableLookup &l, const TransmissionSgTable::Axes &axes, const Frame &frame,
+                   SphericalGaussian &sg, float &energy) {
+  const TransmissionLobe &lobe = l.lobe;
+  const float cos_i = l.cos_i;
+  const float tx = l.w.x, ty = l.w.y, tl = std::sqrt(tx * tx + ty * ty);
+  const Vec3 x_dir = tl > 1e-7f ? frame.to_world(Vec3(tx / tl, ty / tl, 0.0f)) : frame.s;
   const SphericalGaussian local = lobe.sg(cos_i, axes.eta);
   sg.axis = normalize(x_dir * local.axis.x + frame.n * local.axis.z);
   sg.sharpness = std::clamp(local.sharpness, 1e-3f, 1e7f);
   sg.amplitude = local.amplitude;
   energy = std::clamp(lobe.energy, 0.0f, 1.0f);
   return is_finite(sg.axis);
+}
+bool table_lobe(const TransmissionSgTable &table, const TransmissionSgTable::Axes &axes, const Frame &frame,
+                const Vec3 &wi_dir, SphericalGaussian &sg, float &energy) {
+  TableLookup l;
+  return table_lookup(table, axes, frame, wi_dir, l) && table_lobe_sg(l, axes, frame, sg, energy);
 }
 // The table's axes for relative IOR eta and `roughness` as the lookups read it (clamped to the table's range): the
 // roughness and IOR taps, the same for every incidence (issue 12, session 22: made once per shading point, or once
@@ -148,39 +164,63 @@ struct Segment {
   float mean_length = 1.0f;
   int bounding_count = 0;  // bounding rays that left through the same material
   Vec3 bounding_dir[4], bounding_normal[4], bounding_P[4];
-  // exit_curvature over all bounding rays and over the facing ones (trace_segment; a pane's flat face: unset).
-  float curvature = std::numeric_limits<float>::infinity(), curvature_facing = std::numeric_limits<float>::infinity();
+  // exit_curvature below kPlanarExitCurvature over all bounding rays and over the facing ones (trace_segment; a
+  // pane's flat face: unset).
+  bool planar = false, planar_facing = false;
 };
+constexpr float kPlanarExitCurvature = 0.1f;  // exit_curvature below it: a planar exit (a slab's back face)
 // How much the exit surface turns under the traced rays: the mean over the bounding rays of the angle between
 // their exit normal and the axis ray's, over the angle between their direction and the axis (0: a planar exit;
 // the unit sphere's 1-2). Not measured (no bounding ray left through the material): infinite, treated as curved.
 // `curvature_facing`: only the bounding rays whose exit normal faces the axis ray's (a wide lobe's ray that turns back
 // to a slab's entry face is left out; reflected_axis' planarity test); none of them: infinite. Both in one pass, once
 // per segment (session 28: the roulette, the reflection and the exit mixture each made one before; the same sums).
+// Only their comparisons with kPlanarExitCurvature are used: exit_planarity (session 38: the acos only where bounds on
+// it do not decide; the same decisions).
 void exit_curvature(Segment &seg, const Vec3 &axis) {
-  float sum = 0.0f, sum_facing = 0.0f;
-  int count = 0, count_facing = 0;
-  for (int i = 0; i < seg.bounding_count; ++i) {
-    const float c = dot(seg.bounding_normal[i], seg.axis.normal);
-    const float dn = std::acos(std::clamp(c, -1.0f, 1.0f));
-    const float dd = std::acos(std::clamp(dot(seg.bounding_dir[i], axis), -1.0f, 1.0f));
-    const float turn = dn / std::max(dd, 1e-6f);
-    sum += turn;
-    ++count;
-    if (c > 0.0f) sum_facing += turn, ++count_facing;
-  }
-  constexpr float kInf = std::numeric_limits<float>::infinity();
-  seg.curvature = count > 0 ? sum / float(count) : kInf;
-  seg.curvature_facing = count_facing > 0 ? sum_facing / float(count_facing) : kInf;
+  float c[4], d[4];
+  for (int i = 0; i < seg.bounding_count; ++i)
+    c[i] = dot(seg.bounding_normal[i], seg.axis.normal), d[i] = dot(seg.bounding_dir[i], axis);
+  const ExitPlanarity p = exit_planarity(c, d, seg.bounding_count, kPlanarExitCurvature);
+  seg.planar = p.planar, seg.planar_facing = p.planar_facing;
 }
+// The bounding cone's cos and sin for sharpness kappa (bounding_angle): this thread's last kappa and its pair kept
+// (session 38: a pow, an acos and a sincos per segment; the camera-seen walk's kappa is kEntryKappa at nearly every
+// segment). Returned when kappa compares equal (the same input, so the same bits; NaN never equal).
+struct BoundingCone {
+  float kappa = std::numeric_limits<float>::quiet_NaN(), cos_theta = 1.0f, sin_theta = 0.0f;
+};
+BoundingCone bounding_cone(float kappa) {
+  thread_local BoundingCone kept;
+  if (kept.kappa == kappa) return kept;
+  const float theta_b = bounding_angle(kappa);
+  kept.cos_theta = std::cos(theta_b), kept.sin_theta = std::sin(theta_b);
+  kept.kappa = kappa;
+  return kept;
+}
+// The solid walk's exit lookup (session 38): table_lobe's energy and its success, with the SG left for table_lobe_sg
+// (`deferred`) where it can be: a leaving lookup (eta < 1), whose local axis is (-s, 0, -sqrt(1 - s^2)) with s =
+// clamp(sin theta_i / eta + axis_offset, -1, 1) (TransmissionLobe::sg): finite unless axis_offset is NaN (an infinite
+// offset clamps to +-1), then turned by the finite unit frame into a unit vector, so table_lobe's is_finite(sg.axis)
+// is !isnan(axis_offset) there and table_lobe's result is decided here. Otherwise (eta >= 1) the SG is made at once.
+bool exit_lookup_energy(const TransmissionSgTable &table, const TransmissionSgTable::Axes &axes, const Frame &frame,
+                        const Vec3 &wi_dir, TableLookup &l, SphericalGaussian &sg, float &energy, bool &deferred) {
+  if (!table_lookup(table, axes, frame, wi_dir, l)) return false;
+  deferred = axes.eta < 1.0f;
+  if (!deferred) return table_lobe_sg(l, axes, frame, sg, energy);
+  if (std::isnan(l.lobe.axis_offset)) return false;
+  energy = std::clamp(l.lobe.energy, 0.0f, 1.0f);
+  return true;
+}
+
 // `rays`: the bounding rays traced, the first `rays` of (+s, -s, +t, -t) (4: the paper's; bounding_rays' rule).
 bool trace_segment(const GlimmerHostServices *host, const SgInputs &in, const Vec3 &origin, const Vec3 &axis,
                    float kappa_in, Segment &seg, int rays = 4) {
   if (!trace_interior(host, in, origin, axis, seg.axis) || !seg.axis.same_material) return false;
   Vec3 sum = seg.axis.normal;
   int count = 1;
-  const float theta_b = bounding_angle(kappa_in);
-  const float c = std::cos(theta_b), s = std::sin(theta_b);
+  const BoundingCone cone = bounding_cone(kappa_in);
+  const float c = cone.cos_theta, s = cone.sin_theta;
   const Frame f = Frame::from_normal(axis);
   const Vec3 offsets[4] = {f.s, -f.s, f.t, -f.t};
   for (int i = 0; i < rays; ++i) {
@@ -307,22 +347,21 @@ bool sample_reflection(const SgInputs &in, const InteriorHit &h, float roughness
   const Frame f = Frame::from_normal(h.normal);  // +z outward: d arrives from below
   const Vec3 wi = f.to_local(-d);
   mf::WalkRng rng(hash_u32x2(seed, 0x7265666cu));
-  LocalSample s;
+  Vec3 wo;
   for (int k = 0; k < 64; ++k) {
     // The numbers in the order GCC evaluated the former Vec3(rng.next(), rng.next(), rng.next()) (right to left:
-    // the same draws as before bit for bit); the first draw's x is first_u when given.
+    // the same draws as before bit for bit); the first draw's x is first_u when given. sample_reflection: sample()'s
+    // reflections bit for bit, without the transmitted draws' refraction and every draw's weight (session 38).
     const float u2 = rng.next(), u1 = rng.next(), u0 = rng.next();
     const Vec3 numbers(k == 0 && first_u >= 0.0f ? first_u : u0, u1, u2);
-    if (!lobe.sample(wi, numbers, s) || !(s.label & GLIMMER_LABEL_REFLECT)) continue;
-    const Vec3 r = normalize(f.to_world(s.wo));
+    if (!lobe.sample_reflection(wi, numbers, wo)) continue;
+    const Vec3 r = normalize(f.to_world(wo));
     if (!(dot(r, h.normal) < 0.0f) || !is_finite(r)) return false;
     d = r;
     return true;
   }
   return false;
 }
-
-constexpr float kPlanarExitCurvature = 0.1f;  // exit_curvature below it: a planar exit (a slab's back face)
 
 // Step 5's internal reflection of the lobe (axis, sharpness kappa_in) at the exit segment `seg` (mean normal n, the
 // exit's alpha^2): kSampledReflection at a curved exit draws the axis (`seed` its numbers) and keeps the width (at a
@@ -331,7 +370,7 @@ constexpr float kPlanarExitCurvature = 0.1f;  // exit_curvature below it: a plan
 // widened by the rough reflection. False: no reflection drawn.
 bool reflect_internal(const SgInputs &in, const Segment &seg, const ExitEnergies &energies, const Vec3 &n,
                       float alpha2, uint32_t seed, Vec3 &axis, float &kappa_in, float first_u) {
-  const bool planar = seg.curvature_facing < kPlanarExitCurvature;
+  const bool planar = seg.planar_facing;
   if (in.sampled_reflection && !planar)
     return sample_reflection(in, seg.axis, hit_roughness(in, seg.axis.closure), seed, axis, first_u);
   const float kappa_reflect = 2.0f / std::max(alpha2, 1e-7f);  // NDF sharpness; reflected lobe: kappa / 4
@@ -687,7 +726,7 @@ bool solid_exit_mixture(const SgInputs &in, const Segment &seg, const Vec3 &axis
   out.lobe_count = 0;
   const bool by_rule = in.mixture_tail < 0.0f;
   const bool wide = in.roughness > kMixtureRoughnessMax, narrow = in.roughness < kCurvedSingleSgBelow;
-  const bool planar = seg.curvature < kPlanarExitCurvature;
+  const bool planar = seg.planar;
   const bool ladder = by_rule && wide && planar;
   if (by_rule && !planar && (wide || narrow)) {  // the single SG, split into a core and a tail when wide
     if (wide && in.roughness <= kCurvedSplitMax) {
@@ -747,6 +786,50 @@ bool solid_exit_mixture(const SgInputs &in, const Segment &seg, const Vec3 &axis
 
 }  // namespace
 
+ExitPlanarity exit_planarity_exact(const float *c, const float *d, int n, float threshold) {
+  float sum = 0.0f, sum_facing = 0.0f;
+  int count = 0, count_facing = 0;
+  for (int i = 0; i < n; ++i) {
+    const float dn = std::acos(std::clamp(c[i], -1.0f, 1.0f));
+    const float dd = std::acos(std::clamp(d[i], -1.0f, 1.0f));
+    const float turn = dn / std::max(dd, 1e-6f);
+    sum += turn;
+    ++count;
+    if (c[i] > 0.0f) sum_facing += turn, ++count_facing;
+  }
+  constexpr float kInf = std::numeric_limits<float>::infinity();
+  ExitPlanarity p;
+  p.planar = (count > 0 ? sum / float(count) : kInf) < threshold;
+  p.planar_facing = (count_facing > 0 ? sum_facing / float(count_facing) : kInf) < threshold;
+  return p;
+}
+
+ExitPlanarity exit_planarity(const float *c, const float *d, int n, float threshold, float hi_scale) {
+  // Bounds on each turn from t = sqrt((1 - x) / 2): acos in [2 t, pi t], each widened by 1e-4 (acosf's and t's
+  // roundings are ~1e-7 relative); the sums' roundings and the division's are covered by the decision's 1e-3.
+  float lo = 0.0f, hi = 0.0f, lo_facing = 0.0f, hi_facing = 0.0f;
+  int count = 0, count_facing = 0;
+  for (int i = 0; i < n; ++i) {
+    const float tn = std::sqrt(0.5f * (1.0f - std::clamp(c[i], -1.0f, 1.0f)));
+    const float td = std::sqrt(0.5f * (1.0f - std::clamp(d[i], -1.0f, 1.0f)));
+    const float turn_lo = 2.0f * tn * (1.0f - 1e-4f) / std::max(hi_scale * td * (1.0f + 1e-4f), 1e-6f);
+    const float turn_hi = hi_scale * tn * (1.0f + 1e-4f) / std::max(2.0f * td * (1.0f - 1e-4f), 1e-6f);
+    lo += turn_lo, hi += turn_hi, ++count;
+    if (c[i] > 0.0f) lo_facing += turn_lo, hi_facing += turn_hi, ++count_facing;
+  }
+  // true and `planar` set where the bounds decide (mean < threshold); NaN decides nothing.
+  const auto decide = [threshold](float sum_lo, float sum_hi, int k, bool &planar) {
+    if (k == 0) return planar = false, true;  // infinite: not below
+    const float limit = threshold * float(k);
+    if (sum_hi * 1.001f < limit) return planar = true, true;
+    if (sum_lo > limit * 1.001f) return planar = false, true;
+    return false;
+  };
+  ExitPlanarity p;
+  if (decide(lo, hi, count, p.planar) && decide(lo_facing, hi_facing, count_facing, p.planar_facing)) return p;
+  return exit_planarity_exact(c, d, n, threshold);
+}
+
 Vec3 offset_origin(const Vec3 &P, const Vec3 &Ng, const Vec3 &dir) {
   const float scale = 1.0f + std::max(std::fabs(P.x), std::max(std::fabs(P.y), std::fabs(P.z)));
   const float eps = 3e-5f * scale;
@@ -801,7 +884,7 @@ ExitRoulette exit_roulette(const SgInputs &in, const Segment &seg, float axis_en
   ExitRoulette r;
   // The stratified number at curved exits only (a planar one, a slab's back face, keeps the hashed route: there it was
   // not measured on the bench, and the exit harness' slab moved by its noise; docs/frosted_glass.md "Session 27").
-  if (event == 0 && first_u >= 0.0f && seg.curvature_facing < kPlanarExitCurvature) first_u = -1.0f;
+  if (event == 0 && first_u >= 0.0f && seg.planar_facing) first_u = -1.0f;
   if (!last) r.energies = exit_energies(*in.table, seg, axis_energy, exit_axes);
   static_cast<RouletteNumber &>(r) =
       roulette_number(in, seed, event, first_u, last ? axis_energy : r.energies.mean());
@@ -901,11 +984,19 @@ int bounding_rays(float kappa_in) {
 bool next_segment(const GlimmerShadingContext &ctx, const SgInputs &in, const SphericalGaussian &front, bool drawn,
                   Vec3 &axis, float &kappa_in, Vec3 &origin, Segment &seg) {
   if (!trace_segment(ctx.host, in, origin, axis, kappa_in, seg, bounding_rays(kappa_in))) return false;
-  if (!drawn || !(seg.curvature < kPlanarExitCurvature)) return true;
+  if (!drawn || !seg.planar) return true;
   axis = front.axis, kappa_in = front.sharpness;
   origin = offset_origin(Vec3(ctx.P), Vec3(ctx.Ng), axis);
   seg = Segment{};  // trace_segment appends the bounding rays
   return trace_segment(ctx.host, in, origin, axis, kappa_in, seg, bounding_rays(kappa_in));
+}
+
+// Step 4's incident axis at the exit: -axis, or at the last event, beyond the critical angle (sin_crit = 1 / ior),
+// clamped to it (Wyman 2005: it leaves at grazing).
+Vec3 exit_incident(const Vec3 &axis, const Vec3 &n, float cos_in, float sin_crit, bool last) {
+  if (!last || !(std::sqrt(std::max(0.0f, 1.0f - cos_in * cos_in)) > sin_crit)) return -axis;
+  const Vec3 tangential = normalize(-axis - (-n) * dot(-axis, -n));
+  return normalize(tangential * sin_crit + (-n) * std::sqrt(1.0f - sin_crit * sin_crit));
 }
 
 }  // namespace
@@ -943,19 +1034,18 @@ bool trace_exit_lobe(const ShadingPoint &sp, const SgInputs &in, uint32_t seed, 
     const Frame exit_frame = Frame::from_normal(-n);
     const float cos_in = std::clamp(dot(axis, n), 1e-4f, 1.0f);
     const bool last = event == kMaxInternalReflections;
-    const float sin_crit = 1.0f / ior;
-    Vec3 incident = -axis;
-    if (last && std::sqrt(std::max(0.0f, 1.0f - cos_in * cos_in)) > sin_crit) {
-      // Wyman 2005: beyond the critical angle the incident axis is clamped to it.
-      const Vec3 tangential = normalize(-axis - (-n) * dot(-axis, -n));
-      incident = normalize(tangential * sin_crit + (-n) * std::sqrt(1.0f - sin_crit * sin_crit));
-    }
+    const Vec3 incident = exit_incident(axis, n, cos_in, 1.0f / ior, last);
     SphericalGaussian exit;
     float exit_energy = 0.0f;
     const TransmissionSgTable::Axes exit_axes = table_axes(1.0f / ior, roughness_exit);  // the exit's lookups
-    if (!table_lobe(*in.table, exit_axes, exit_frame, incident, exit, exit_energy)) return false;
+    TableLookup exit_lookup;  // the SG made only if the walk leaves here (exit_lookup_energy)
+    bool deferred = false;
+    if (!exit_lookup_energy(*in.table, exit_axes, exit_frame, incident, exit_lookup, exit, exit_energy, deferred))
+      return false;
     // 5. Russian roulette between the exit (E_x) and the internal reflection (1 - E_x): exit_roulette.
     const ExitRoulette r = exit_roulette(in, seg, exit_energy, exit_axes, seed, event, last, first_u);
+    if (deferred && (last || r.leaves) && !table_lobe_sg(exit_lookup, exit_axes, exit_frame, exit, exit_energy))
+      return false;
     if (!last && !r.leaves) {
       if (!reflect_internal(in, seg, r.energies, n, alpha2, hash_u32x2(seed, uint32_t(event)), axis, kappa_in, r.rest))
         return false;

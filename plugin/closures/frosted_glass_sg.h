@@ -403,6 +403,19 @@ Vec3 offset_origin(const Vec3 &P, const Vec3 &Ng, const Vec3 &dir);
 // An unbounded ray (t in [0, inf)) for the host's trace_ray / trace_ray_closure.
 GlimmerRay unbounded_ray(const Vec3 &origin, const Vec3 &dir);
 
+// The walk's planar-exit tests (frosted_glass_sg.cpp exit_curvature; session 38). For each of n bounding rays, c_i the
+// cosine between its exit normal and the axis ray's and d_i the cosine between its direction and the axis: its turn
+// acos(c_i) / max(acos(d_i), 1e-6). `planar`: the mean turn over the n rays is below `threshold` (none: false);
+// `planar_facing`: the same over the rays with c_i > 0. The exact form makes every acos; exit_planarity decides from
+// bounds, 2 t <= acos(x) <= hi_scale t with t = sqrt((1 - x) / 2) (acos x = 2 asin t, t <= asin t <= pi t / 2; a
+// margin covers the roundings) where they settle the comparison, and falls back to the exact form where they do not:
+// the same decisions bit for bit. hi_scale: pi (tests pass a wrong bound as their control).
+struct ExitPlanarity {
+  bool planar = false, planar_facing = false;
+};
+ExitPlanarity exit_planarity_exact(const float *c, const float *d, int n, float threshold);
+ExitPlanarity exit_planarity(const float *c, const float *d, int n, float threshold, float hi_scale = kPi);
+
 // A direction from the SG G(w) ~ exp(kappa (axis . w - 1)) (von Mises-Fisher sampling).
 Vec3 sample_sg_direction(const SphericalGaussian &sg, float u1, float u2);
 

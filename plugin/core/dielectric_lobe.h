@@ -160,6 +160,36 @@ struct DielectricLobe {
     return true;
   }
 
+  // sample()'s reflections alone (frosted_glass's sampled internal reflections draw until one reflects): true exactly
+  // where sample(wi_in, rand, out) succeeds with a reflection, and then wo == out.wo bit for bit. A draw that
+  // transmits (or fails) returns false at once: no refraction, weight or compensation is made for it, and a reflection
+  // makes only its pdf (sample's acceptance, pdf > 0: eval_local's reflection pdf, the same operations).
+  bool sample_reflection(const Vec3 &wi_in, const Vec3 &rand, Vec3 &wo_out) const {
+    if (mode == kSharp || refraction_only) {  // not the walk's lobes: sample() itself
+      LocalSample s;
+      if (!sample(wi_in, rand, s) || !(s.label & GLIMMER_LABEL_REFLECT)) return false;
+      wo_out = s.wo;
+      return true;
+    }
+    if (wi_in.z == 0.0f) return false;
+    const bool outside = wi_in.z > 0.0f;
+    const float eta = outside ? ior : 1.0f / ior;
+    const Vec3 wi = outside ? wi_in : mf::flip_z_local(wi_in);
+    Vec3 m;
+    const float F = visible_facet(wi, eta, rand.x, rand.y, m);
+    if (!(rand.z < F)) return false;  // sample() refracts (or fails): not a reflection
+    const Vec3 wo = normalize(mf::reflect_about(wi, m));
+    if (!(wo.z > 0.0f)) return false;
+    Vec3 wh;
+    if (!mf::half_vector_reflect(wi, wo, wh)) return false;  // eval_local's reflection pdf from here
+    const float cos_ih = 0.5f * (dot(wi, wh) + dot(wo, wh));
+    if (!(cos_ih > 0.0f)) return false;
+    const float pdf = mf::fresnel_dielectric(cos_ih, eta) * mf::visible_D(dist, wi, wh, ax, ay) / (4.0f * cos_ih);
+    if (!(pdf > 0.0f)) return false;
+    wo_out = outside ? wo : mf::flip_z_local(wo);
+    return true;
+  }
+
   Spectrum albedo(const Vec3 &wi) const {
     if (mode == kSharp || compensate) return Spectrum(1.0f);
     const float mu = std::fabs(wi.z);
