@@ -406,8 +406,11 @@ TEST(FrostedPanePathRender, ExitLightSamplingAgreesWithBsdfSamplingBehindAPane) 
 // mixture, the estimator before) must be further off (measured 0.044 / 0.040). The per-quarter z-scores are
 // printed: path's per-pixel noise keeps the mixture's at ~3, so the unbiasedness check per direction is the
 // closure's (FrostedGlassSgPane.RoughPaneExactExitAgainstThePathsExitState).
-TEST(FrostedSgPaneRender, RoughPaneExactExitMatchesPathBehindASmallLight) {
-  for (float degrees : {0.0f, 60.0f}) {
+// `make test` renders 0 degrees, the twin (`make stress`) both tilts. At ae64861: 0 degrees sg 0.0124, control 0.0421;
+// 60 degrees sg 0.0180, control 0.0516: 0 degrees is where the control is nearest the bound (margin 0.012, as sg's
+// at 60 degrees).
+void expect_exact_exit_matches_path(const std::vector<float> &tilts) {
+  for (float degrees : tilts) {
     const std::string name = "frosted_pane_exact_exit_" + std::to_string(int(degrees));
     const std::string path_scene = tilted_small_light_scene(name + "_path", 0.5f, degrees);
     const std::string sg_scene = tilted_small_light_scene(name + "_sg", 0.5f, degrees, "sg");
@@ -444,6 +447,13 @@ TEST(FrostedSgPaneRender, RoughPaneExactExitMatchesPathBehindASmallLight) {
     EXPECT_LT(d_exact, 0.03) << degrees;
     EXPECT_GT(d_mixture, 0.03) << degrees;
   }
+}
+
+TEST(FrostedSgPaneRender, RoughPaneExactExitMatchesPathBehindASmallLight) { expect_exact_exit_matches_path({0.0f}); }
+
+TEST(FrostedSgPaneRender, RoughPaneExactExitMatchesPathBehindASmallLightStress) {
+  if (stress_scale() == 1) GTEST_SKIP() << "make stress only";
+  expect_exact_exit_matches_path({0.0f, 60.0f});
 }
 
 // Session 34 (frostedbudget34): a small lamp on the camera's side of a rough pane (roughness 0.5, IOR 1.5: the split

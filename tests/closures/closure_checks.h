@@ -174,19 +174,25 @@ struct Chi2Config {
   // Context override (backfacing, rotated frames, footprints); default:
   // host::make_local_context(wi).
   std::optional<GlimmerShadingContext> ctx = std::nullopt;
+  bool stress_only = false;  // skipped unless `full` (expect_chi2_family): run by the test's *Stress twin
 };
 
 // Runs the chi2 test on every configuration with the Sidak correction for the
-// whole family (test_count = configs.size()) and returns the results.
+// whole family (test_count = configs.size()) and returns the results. Not `full`
+// (`make test`): the configurations marked stress_only are skipped; the others keep
+// the seed (first seed + index in the family) and the threshold of the full run, so
+// every assertion of the short run is one of the full run's.
 inline std::vector<lab::Chi2Result> expect_chi2_family(const std::vector<Chi2Config> &configs,
-                                                       lab::Chi2Options options = {}) {
+                                                       lab::Chi2Options options = {}, bool full = true) {
   options.test_count = static_cast<int>(configs.size());
   std::vector<lab::Chi2Result> results;
   const uint64_t first_seed = options.seed;
-  for (const auto &c : configs) {
+  for (size_t i = 0; i < configs.size(); ++i) {
+    const Chi2Config &c = configs[i];
+    if (!full && c.stress_only) continue;
     const GlimmerShadingContext ctx = c.ctx ? *c.ctx : host::make_local_context(c.wi);
     // Independent samples per configuration (a family of independent tests).
-    options.seed = first_seed + results.size();
+    options.seed = first_seed + i;
     const lab::Chi2Result r = lab::chi2_test(*c.instance, ctx, options);
     EXPECT_TRUE(r.passed) << c.instance->type().name << " [" << c.label << "] wi " << format_vec(c.wi) << ": "
                           << r.message;
@@ -246,12 +252,13 @@ inline ::testing::AssertionResult stress_clean(const std::vector<const host::Clo
 }
 #define EXPECT_CLOSURE_STRESS_CLEAN(...) EXPECT_TRUE(::glimmer::test::stress_clean(__VA_ARGS__))
 
-// The stress check over owned instances, then wi and wo both at grazing cos 1e-6 (opposite azimuths): each eval
-// finite and non-negative (value and pdf).
-inline void expect_stress_and_grazing_clean(const std::vector<std::shared_ptr<host::ClosureInstance>> &closures) {
+// The stress check over owned instances (`total_calls` as in stress_clean), then wi and wo both at grazing cos 1e-6
+// (opposite azimuths): each eval finite and non-negative (value and pdf).
+inline void expect_stress_and_grazing_clean(const std::vector<std::shared_ptr<host::ClosureInstance>> &closures,
+                                            uint64_t total_calls = 1000000) {
   std::vector<const host::ClosureInstance *> raw;
   for (const auto &c : closures) raw.push_back(c.get());
-  EXPECT_CLOSURE_STRESS_CLEAN(raw);
+  EXPECT_CLOSURE_STRESS_CLEAN(raw, total_calls);
   const Vec3 grazing = direction_at_cos(1e-6);
   for (const auto &c : closures) {
     Spectrum f;

@@ -1946,7 +1946,9 @@ RuleAndControls rule_and_controls(const AnalyticScene &scene, const Sampler &pat
 // The floor seen through the camera-seen sphere: the accuracy set's 16 orthographic camera rays (down -z), a
 // textured floor plane z = -1 - gap (1 + 0.8 sin(4 x + 3 y): a gradient at every point, so a lateral displacement of
 // the leaving bundle shows), the rays that reach it. Relative L1 over the pixels, sg (the rule) against path.
-TEST(FrostedGlassSg, FloorThroughTheSphereFromTheExitPointsMean) {
+// `make test`: the nearest and the farthest floor (gap 0.05 and 3 radii); the *Stress twin (`make stress`, 4x the
+// paths) the three gaps.
+void expect_floor_through_the_sphere(bool full) {
   using namespace centroid_test;
   const int ref_paths = stress_scale() > 1 ? 400000 : 100000, sg_paths = ref_paths / 2;
   const float roughness = 0.5f, ior = 1.5f;
@@ -1969,6 +1971,7 @@ TEST(FrostedGlassSg, FloorThroughTheSphereFromTheExitPointsMean) {
     double bound;
   } cases[] = {{0.05f, 0.092}, {0.3f, 0.047}, {3.0f, 0.017}};
   for (const auto &[gap, bound] : cases) {
+    if (!full && gap == 0.3f) continue;
     const auto floor_value = [gap](const Vec3 &from, const Vec3 &d) {
       const float z = -1.0f - gap;
       if (!(d.z < -1e-4f) || !(from.z > z)) return 0.0;
@@ -1985,11 +1988,20 @@ TEST(FrostedGlassSg, FloorThroughTheSphereFromTheExitPointsMean) {
   }
 }
 
+TEST(FrostedGlassSg, FloorThroughTheSphereFromTheExitPointsMean) { expect_floor_through_the_sphere(false); }
+
+TEST(FrostedGlassSg, FloorThroughTheSphereFromTheExitPointsMeanStress) {
+  if (stress_scale() == 1) GTEST_SKIP() << "make stress only";
+  expect_floor_through_the_sphere(true);
+}
+
 // A lamp a few radii away seen from the floor through the sphere (the caustic bench's shadow): the sphere on the
 // floor z = -1, floor points along the shadow's axis (SphereShadowOfAFarLampAgainstThePath's), cosine-weighted
 // directions (diffuse_bounce 1, the floor's view), the share of the transmitted weight whose leaving ray, from its
 // own origin, hits a ball lamp (the far test's 4-deg cone at the bench's 5.04 radii from the centre; and 8x as far).
-TEST(FrostedGlassSg, NearLampThroughTheSphereFromTheExitPointsMean) {
+// `make test`: the bench's 5.04 radii (the bound and both controls); the *Stress twin (`make stress`, 4x the paths)
+// both distances.
+void expect_near_lamp_through_the_sphere(bool full) {
   using namespace centroid_test;
   const int ref_paths = stress_scale() > 1 ? 4000000 : 1000000, sg_paths = ref_paths / 2;
   const float roughness = 0.5f, ior = 1.5f;
@@ -2022,6 +2034,7 @@ TEST(FrostedGlassSg, NearLampThroughTheSphereFromTheExitPointsMean) {
   // (kFloorViewExit 0; with the shift it read 0.0316 / 0.0444), and "centroid only" (no waist, no origin jitter: the
   // shift alone) is a second control at 5.04 radii, which must miss the bound too.
   for (const float distance : {5.04f, 40.3f}) {
+    if (!full && distance > 10.0f) continue;
     const Vec3 centre = lamp * distance;
     const float radius = distance * float(std::sin(4.0 * M_PI / 180.0));
     const auto hits_lamp = [centre, radius](const Vec3 &from, const Vec3 &d) {
@@ -2044,6 +2057,13 @@ TEST(FrostedGlassSg, NearLampThroughTheSphereFromTheExitPointsMean) {
       std::printf("    point %zu: path %.4e, sg / path %.3f, control %.3f\n", k, r.ref[k].mean,
                   r.now[k].mean / r.ref[k].mean, r.axis_exit_values[k].mean / r.ref[k].mean);
   }
+}
+
+TEST(FrostedGlassSg, NearLampThroughTheSphereFromTheExitPointsMean) { expect_near_lamp_through_the_sphere(false); }
+
+TEST(FrostedGlassSg, NearLampThroughTheSphereFromTheExitPointsMeanStress) {
+  if (stress_scale() == 1) GTEST_SKIP() << "make stress only";
+  expect_near_lamp_through_the_sphere(true);
 }
 
 

@@ -210,11 +210,17 @@ RuleError rule_error(mf::Distribution dist, double ax, double ay, double gamma_d
   return e;
 }
 
-TEST(GlintAniso, ProbabilityMatchesBruteForceConeMeanOverAllAzimuths) {
+// 30 cases (both distributions, 5 roughness pairs, gamma 1 / 2 / 4 degrees). `make test` runs 12: the three most
+// anisotropic pairs (0.16 x 0.0225 and the 44:1 pairs along either axis) at the narrowest and widest cone, both
+// distributions; the *Stress twin (`make stress`) all 30, with the same bounds.
+void expect_probability_matches_brute_force(bool full) {
+  int run = 0;
   for (const auto dist : {mf::Distribution::GGX, mf::Distribution::Beckmann})
     for (const auto &[ax, ay] : std::vector<std::pair<double, double>>{
              {0.25, 0.0625}, {0.36, 0.09}, {0.16, 0.0225}, {0.0225, 1.0}, {1.0, 0.0225}})
       for (const double gamma : {1.0, 2.0, 4.0}) {
+        if (!full && (ax == 0.25 || ax == 0.36 || gamma == 2.0)) continue;
+        ++run;
         const RuleError e = rule_error(dist, ax, ay, gamma);
         std::printf("[aniso P] %s alpha %.4f x %.4f gamma %.0f: %d..%d points, max error %.5f; where the product "
                     "rule runs out of points (%d queries) %.4f; isotropic sqrt(ax ay) max error %.3f; %d queries "
@@ -226,6 +232,14 @@ TEST(GlintAniso, ProbabilityMatchesBruteForceConeMeanOverAllAzimuths) {
         EXPECT_EQ(e.capped, 0) << ax << " x " << ay << " gamma " << gamma;
         EXPECT_GT(e.control, 0.05) << "control: the isotropic stand-in must fail";
       }
+  EXPECT_EQ(run, full ? 30 : 12);
+}
+
+TEST(GlintAniso, ProbabilityMatchesBruteForceConeMeanOverAllAzimuths) { expect_probability_matches_brute_force(false); }
+
+TEST(GlintAniso, ProbabilityMatchesBruteForceConeMeanOverAllAzimuthsStress) {
+  if (stress_scale() == 1) GTEST_SKIP() << "make stress only";
+  expect_probability_matches_brute_force(true);
 }
 
 // ---- Isotropic path unchanged -------------------------------------------------
@@ -358,16 +372,24 @@ TEST(GlintAniso, WhiteFurnaceMatchesSmoothAnisotropicAlbedoAtEveryIncidenceAndBl
 }
 
 // ---- Sampling: chi2, eval/pdf consistency ------------------------------------------
-TEST(GlintAniso, Chi2SamplerMatchesPdf) {
+// 18 configurations (Sidak-corrected over the 18). `make test` runs 8 with the seeds and the threshold of the full
+// family: the more anisotropic 0.3 x 0.05 at normal incidence and at 70 degrees along both axes (phi 0 and 90), the
+// 0.5 x 0.1 at 70 degrees diagonally (phi 45), and the widened spread and Beckmann of both;
+// Chi2SamplerMatchesPdfStress (`make stress`) all 18.
+void expect_aniso_sampler_matches_pdf(bool full) {
   std::vector<Chi2Config> configs;
   for (const auto &[ax, ay] : std::vector<std::pair<double, double>>{{0.3, 0.05}, {0.5, 0.1}}) {
     auto c = aniso_glint("ggx", ax, ay);
+    const bool narrow = ax == 0.3;
     for (const double theta_i : {0.0, 40.0, 70.0})
       for (const double phi_i : {0.0, 45.0, 90.0}) {
         if (theta_i == 0.0 && phi_i > 0.0) continue;
         const Vec3 wi = spherical_dir(theta_i, phi_i);
         configs.push_back({"ggx " + fmt(ax) + "x" + fmt(ay) + " theta_i " + fmt(theta_i) + " phi_i " + fmt(phi_i), c,
                            wi, square_context(wi, 0.3, 0.3, 1e-3)});
+        const bool kept = narrow ? theta_i == 0.0 || (theta_i == 70.0 && phi_i != 45.0)
+                                 : theta_i == 70.0 && phi_i == 45.0;
+        configs.back().stress_only = !kept;
       }
     const Vec3 wi = spherical_dir(30.0, 60.0);
     configs.push_back({"ggx " + fmt(ax) + "x" + fmt(ay) + " spread 10deg", c, wi,
@@ -376,7 +398,18 @@ TEST(GlintAniso, Chi2SamplerMatchesPdf) {
     const Vec3 wb = spherical_dir(50.0, 135.0);
     configs.push_back({"beckmann " + fmt(ax) + "x" + fmt(ay), b, wb, square_context(wb, 0.3, 0.3, 1e-3)});
   }
-  expect_chi2_family(configs);
+  ASSERT_EQ(configs.size(), 18u);
+  size_t run = 0;
+  for (const auto &c : configs) run += full || !c.stress_only;
+  ASSERT_EQ(run, full ? 18u : 8u);
+  expect_chi2_family(configs, {}, full);
+}
+
+TEST(GlintAniso, Chi2SamplerMatchesPdf) { expect_aniso_sampler_matches_pdf(false); }
+
+TEST(GlintAniso, Chi2SamplerMatchesPdfStress) {
+  if (stress_scale() == 1) GTEST_SKIP() << "make stress only";
+  expect_aniso_sampler_matches_pdf(true);
 }
 
 TEST(GlintAniso, EvalPdfConsistentWithSample) {
@@ -398,7 +431,10 @@ TEST(GlintAniso, StressNoNanInfNegative) {
       keep.push_back(make_closure("glint", {{"distribution", dist}, {"roughness_u", ru}, {"roughness_v", rv},
                                             {"gamma", gamma}, {"density", density}, {"uv_scale", "1000"}}));
     }
-  expect_stress_and_grazing_clean(keep);
+  // 10000 calls per instance in `make test` (each of the stress inputs' extreme classes, bridge/lab/stress.cpp, is
+  // drawn with probability >= 1/48 per call: >= ~200 calls each per instance), 1e7 under `make stress` (1e5 x 100).
+  const uint64_t per_instance = stress_scale() == 1 ? 10000 : 100000;
+  expect_stress_and_grazing_clean(keep, per_instance * keep.size());
   // Zero and huge footprints at grazing incidence.
   for (const auto &c : keep)
     for (const double side : {0.0, 1e30})
@@ -411,6 +447,25 @@ TEST(GlintAniso, StressNoNanInfNegative) {
               << c->type().name << " side " << side << " cos_i " << cos_i;
         }
       }
+}
+
+// Negative control of the NaN hunt's call count in `make test` (10000 per instance, above): a glint whose eval returns
+// NaN only at one of the rarest extreme inputs the hunt draws (bridge/lab/stress.cpp: duv_dx[0] = -3e38, probability
+// 1/48 per call) fails it at that count.
+void nan_at_negative_huge_differential(const GlimmerInstance *instance, const GlimmerShadingContext *ctx,
+                                       GlimmerVec3 wo, float out_eval[3], float *out_pdf) {
+  TamperedType::original().eval(instance, ctx, wo, out_eval, out_pdf);
+  if (ctx->duv_dx[0] < -1e38f) out_eval[0] = std::numeric_limits<float>::quiet_NaN();
+}
+
+TEST(GlintAniso, NanHuntCallCountOfMakeTestReachesTheRarestExtremeInput) {
+  TamperedType tampered(closure_type("glint"));
+  tampered.type().eval = &nan_at_negative_huge_differential;
+  const auto broken = make_closure(tampered.type(), {{"roughness_u", "0.3"}, {"roughness_v", "0.9"}, {"gamma", "2"},
+                                                     {"density", "1e6"}, {"uv_scale", "1000"}});
+  const ::testing::AssertionResult r = stress_clean({broken.get()}, 10000);
+  std::printf("negative control: %s\n", r.message());
+  EXPECT_FALSE(r);
 }
 
 TEST(GlintAniso, RejectsBadRoughnessWithItsName) {
