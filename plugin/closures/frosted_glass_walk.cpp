@@ -1,7 +1,8 @@
 // The pane walk's resampled events (session 37, frostedwalk37; docs/frosted_glass.md "Session 37 (frostedwalk37)"):
 // FrostedGlassClosure::walk_event's level 1 and the walk / exit trials at that level, in a translation unit of their
 // own so that frosted_glass.cpp's code (main's walk, level 0, and every inlining decision on the default path) is
-// compiled as without them. FrostedGlassClosure::resampled_walk picks them (relative IOR >= 1.9).
+// compiled as without them. FrostedGlassClosure::resampled_walk picks them (relative IOR >= 1.6 since session 38;
+// 1.9 before).
 #include "closures/frosted_glass.h"
 
 namespace glimmer::plugin {
@@ -15,18 +16,21 @@ bool FrostedGlassClosure::resampled_event(const DielectricLobe &lobe, const Vec3
   const Vec3 wi = outside ? wi_in : mf::flip_z_local(wi_in);
   const float g1 = mf::G1(lobe.dist, wi, lobe.ax, lobe.ay);
   if (!(g1 > 0.0f)) return false;
+  // wi's parts of the candidates' visible normals and shadowing, once per event (the same values bit for bit)
+  const Vec3 wi_std = mf::ggx_stretched_incidence(wi, lobe.ax, lobe.ay);
+  const float incidence = lobe.g2_incidence(wi);
   Vec3 dirs[2 * kK];
   float a[2 * kK];
   float total = 0.0f;
   for (int j = 0; j < kK; ++j) {
     const float u1 = (float(j & 1) + rng.next()) * 0.5f, u2 = (float(j >> 1) + rng.next()) * 0.5f;
     Vec3 m;
-    const float F = lobe.visible_facet(wi, eta, u1, u2, m);
+    const float F = lobe.visible_facet_at(wi, wi_std, eta, u1, u2, m);
     a[2 * j] = a[2 * j + 1] = 0.0f;
     dirs[2 * j] = normalize(mf::reflect_about(wi, m));
-    if (F > 0.0f && dirs[2 * j].z > 0.0f) a[2 * j] = (control ? 1.0f : F) * lobe.g2(wi, dirs[2 * j]) / g1;
+    if (F > 0.0f && dirs[2 * j].z > 0.0f) a[2 * j] = (control ? 1.0f : F) * lobe.g2_at(incidence, dirs[2 * j]) / g1;
     if (F < 1.0f && mf::refract(wi, m, eta, dirs[2 * j + 1]) && dirs[2 * j + 1].z < 0.0f)
-      a[2 * j + 1] = (control ? 1.0f : 1.0f - F) * lobe.g2(wi, dirs[2 * j + 1]) / g1;
+      a[2 * j + 1] = (control ? 1.0f : 1.0f - F) * lobe.g2_at(incidence, dirs[2 * j + 1]) / g1;
     total += a[2 * j] + a[2 * j + 1];
   }
   if (!(total > 0.0f) || !std::isfinite(total)) return false;

@@ -56,6 +56,15 @@ struct DielectricLobe {
   }
 
   float g2(const Vec3 &wi, const Vec3 &wo) const { return mf::G2(dist, wi, wo, ax, ay, shadowing); }
+  // g2 for many wo at one wi (the pane walk's resampled events): wi's part once, g2_at(incidence(wi), wo) ==
+  // g2(wi, wo) bit for bit.
+  float g2_incidence(const Vec3 &wi) const {
+    return shadowing == mf::Shadowing::Separable ? mf::G1(dist, wi, ax, ay) : mf::G2_incidence(dist, wi, ax, ay);
+  }
+  float g2_at(float incidence, const Vec3 &wo) const {
+    return shadowing == mf::Shadowing::Separable ? incidence * mf::G1(dist, wo, ax, ay)
+                                                 : mf::G2_from_incidence(dist, incidence, wo, ax, ay);
+  }
 
   // f * |cos(wo)| and pdf in the side-local frame (wi.z > 0, eta = n_wo_side / n_wi_side).
   LocalEval eval_local(const Vec3 &wi, const Vec3 &wo, float eta) const {
@@ -111,6 +120,14 @@ struct DielectricLobe {
   // always_inline (and m an out-parameter): sample's machine code is what it was before this function existed.
   [[gnu::always_inline]] float visible_facet(const Vec3 &wi, float eta, float u, float v, Vec3 &m) const {
     m = mf::sample_visible_normal(dist, wi, ax, ay, u, v);
+    return mf::fresnel_dielectric(dot(wi, m), eta);
+  }
+  // visible_facet for several draws at one wi: wi_std = mf::ggx_stretched_incidence(wi, ax, ay) computed once (read
+  // for GGX only); the same m and F bit for bit.
+  [[gnu::always_inline]] float visible_facet_at(const Vec3 &wi, const Vec3 &wi_std, float eta, float u, float v,
+                                                Vec3 &m) const {
+    m = dist == mf::Distribution::GGX ? mf::sample_ggx_visible_normal_std(wi_std, ax, ay, u, v)
+                                      : mf::sample_visible_normal(dist, wi, ax, ay, u, v);
     return mf::fresnel_dielectric(dot(wi, m), eta);
   }
 

@@ -147,6 +147,19 @@ inline float G2(Distribution dist, const Vec3 &wi, const Vec3 &wo, float ax, flo
   return std::isfinite(s) ? 1.0f / s : 0.0f;
 }
 
+// G2 for many wo at one wi (the pane walk's resampled events, session 38): wi's part once as one_plus_li =
+// G2_incidence(...) = 1 + Lambda(wi), then G2_from_incidence(..., one_plus_li, wo, ...) == G2(dist, wi, wo, ...) bit
+// for bit (the same operations in the same order; tests/closures/test_frosted_pane_tail.cpp checks the equality).
+// G2 itself is left as it is so that its callers' machine code does not move.
+inline float G2_incidence(Distribution dist, const Vec3 &wi, float ax, float ay) {
+  return 1.0f + lambda(dist, Vec3(wi.x, wi.y, std::fabs(wi.z)), ax, ay);
+}
+inline float G2_from_incidence(Distribution dist, float one_plus_li, const Vec3 &wo, float ax, float ay) {
+  const float lo = lambda(dist, Vec3(wo.x, wo.y, std::fabs(wo.z)), ax, ay);
+  const float s = one_plus_li + lo;
+  return std::isfinite(s) ? 1.0f / s : 0.0f;
+}
+
 // Smith masking-shadowing model: height-correlated (above; Cycles 4.x) or separable G1(wi) G1(wo) (Heitz 2014
 // eq. 98; Cycles 3.4), which counts a microfacet hidden from both directions twice. Both are <= G1(wi).
 enum class Shadowing { HeightCorrelated, Separable };
@@ -211,6 +224,25 @@ inline Vec3 sample_ggx_visible_normal(const Vec3 &wi, float ax, float ay, float 
   const Vec3 c(sin_theta * std::cos(phi), sin_theta * std::sin(phi), z);
   const Vec3 h_std = c + wi_std;
   // Unstretch (the normal transforms with the inverse transpose).
+  Vec3 wh = Vec3(ax * h_std.x, ay * h_std.y, std::max(h_std.z, 0.0f));
+  const float len2 = dot(wh, wh);
+  if (!(len2 > 1e-30f) || !std::isfinite(len2)) return Vec3(0.0f, 0.0f, 1.0f);
+  wh = wh / std::sqrt(len2);
+  return wh;
+}
+
+// sample_ggx_visible_normal for several draws at one wi (session 38): its first step once,
+// wi_std = ggx_stretched_incidence(wi, ax, ay), then sample_ggx_visible_normal_std(wi_std, ...) ==
+// sample_ggx_visible_normal(wi, ...) bit for bit (the same operations; checked in test_frosted_pane_tail.cpp).
+inline Vec3 ggx_stretched_incidence(const Vec3 &wi, float ax, float ay) {
+  return normalize(Vec3(ax * wi.x, ay * wi.y, wi.z));
+}
+inline Vec3 sample_ggx_visible_normal_std(const Vec3 &wi_std, float ax, float ay, float u1, float u2) {
+  const float phi = kTwoPi * u1;
+  const float z = fused_multiply_add(1.0f - u2, 1.0f + wi_std.z, -wi_std.z);
+  const float sin_theta = safe_sqrt(1.0f - z * z);
+  const Vec3 c(sin_theta * std::cos(phi), sin_theta * std::sin(phi), z);
+  const Vec3 h_std = c + wi_std;
   Vec3 wh = Vec3(ax * h_std.x, ay * h_std.y, std::max(h_std.z, 0.0f));
   const float len2 = dot(wh, wh);
   if (!(len2 > 1e-30f) || !std::isfinite(len2)) return Vec3(0.0f, 0.0f, 1.0f);
