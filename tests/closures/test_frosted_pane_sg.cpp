@@ -1272,7 +1272,7 @@ struct ConeSums {
   double sum[kCones] = {}, sum2[kCones] = {};
   double rgb[kCones][3] = {}, rgb2[kCones][3] = {};  // per channel: the weight's channel x 1{wo in the cone}
   double pooled_rgb[3] = {}, pooled_rgb2[3] = {};    // per channel: each draw's sum over the cones (they overlap)
-  double pooled = 0.0, pooled2 = 0.0;                 // grey: each draw's sum over the cones
+  double pooled = 0.0, pooled2 = 0.0;                // grey: each draw's sum over the cones
   long states = 0;
 };
 // both_faces: frosted::pane_both_faces_level's level for the sg split (-1: the knob's; session 35's coloured-Beer
@@ -1350,11 +1350,12 @@ TEST(FrostedGlassSgPane, RoughPaneContinuedDirectionFollowsThePathsWalk) {
     }
     const double z1 = (pooled[1] - pooled_path) / std::sqrt(var[1] + var_path);
     const double z0 = (pooled[0] - pooled_path) / std::sqrt(var[0] + var_path);
-    std::printf("[frosted sg pane continued direction] roughness %.2f ior %.2f%s: exact leaving pooled z %.2f, worst "
-                "|z| %.2f over 15, %.2f over 3 angles; injected +-%.0f %% per angle: worst %.1f; SG draw (control) "
-                "pooled z %.2f, worst |z| %.1f\n",
-                double(c.roughness), double(c.ior), c.absorb.x < 1.0f ? " grey Beer" : "", z1, worst[1], check.worst,
-                100.0 * kInjectedBias, check.worst_injected, z0, worst[0]);
+    std::printf(
+        "[frosted sg pane continued direction] roughness %.2f ior %.2f%s: exact leaving pooled z %.2f, worst "
+        "|z| %.2f over 15, %.2f over 3 angles; injected +-%.0f %% per angle: worst %.1f; SG draw (control) "
+        "pooled z %.2f, worst |z| %.1f\n",
+        double(c.roughness), double(c.ior), c.absorb.x < 1.0f ? " grey Beer" : "", z1, worst[1], check.worst,
+        100.0 * kInjectedBias, check.worst_injected, z0, worst[0]);
     EXPECT_LT(std::fabs(z1), 4.0) << "roughness " << c.roughness;
     EXPECT_GT(check.worst_injected, 6.0) << "injected per-angle bias passed: roughness " << c.roughness;
     worst_control = std::max(worst_control, worst[0]);
@@ -1388,7 +1389,7 @@ struct BothFacesSums {
   static constexpr int kDirs = 5;
   double sum[kDirs] = {}, sum2[kDirs] = {};
   double rgb[kDirs][3] = {}, rgb2[kDirs][3] = {};  // per channel: W's channel x q(w_j)
-  DrawSums pooled;                                   // each draw's sum over the directions
+  DrawSums pooled;                                 // each draw's sum over the directions
 };
 BothFacesSums both_faces_estimate(const FrostedGlassClosure &pane, int level, float theta_deg, uint64_t seed,
                                   long samples) {
@@ -1440,7 +1441,7 @@ double check_both_faces(const PaneConfig &c, uint64_t seed_base, double *one_col
   double rgb_pooled[6][3] = {}, rgb_var[6][3] = {}, rgb_path[3] = {}, rgb_path_var[3] = {}, first = 0.0;
   bool as_level0[6] = {true, true, true, true, true, true};  // every sum bit for bit level 0's
   AngleCheck check;                                          // level 1 (grey) per angle, and its injected control
-  constexpr double kInjected = 0.05;  // 3 % reached 6.1 se only at r 0.8 (32768 draws per angle)
+  constexpr double kInjected = 0.05;                         // 3 % reached 6.1 se only at r 0.8 (32768 draws per angle)
   for (int ai = 0; ai < 3; ++ai) {
     const float theta = angles[ai];
     const uint64_t seed = seed_base + 2 * uint64_t(ai);  // own numbers per (pane, angle); sg's levels paired
@@ -1506,9 +1507,10 @@ double check_both_faces(const PaneConfig &c, uint64_t seed_base, double *one_col
     if (l == 4) control = std::max({std::fabs(zc[0]), std::fabs(zc[1]), std::fabs(zc[2])});
     if (l == 5 && one_colour_worst != nullptr) *one_colour_worst = worst_rgb[5];
   }
-  std::printf("[frosted sg pane both faces] roughness %.2f ior %.2f: level 1 worst |z| over 3 angles %.2f; injected "
-              "+-%.0f %% per angle: worst %.1f\n",
-              double(c.roughness), double(c.ior), check.worst, 100.0 * kInjected, check.worst_injected);
+  std::printf(
+      "[frosted sg pane both faces] roughness %.2f ior %.2f: level 1 worst |z| over 3 angles %.2f; injected "
+      "+-%.0f %% per angle: worst %.1f\n",
+      double(c.roughness), double(c.ior), check.worst, 100.0 * kInjected, check.worst_injected);
   EXPECT_GT(check.worst_injected, 6.0) << "injected per-angle bias passed: roughness " << c.roughness;
   // Without coloured Beer level 1 carries both faces (its sums differ from level 0's). With it (session 35) levels 0
   // and 1 are the one-end route alike (the both-faces state cannot carry the ends' colours): level 0's sums bit for

@@ -2066,7 +2066,6 @@ TEST(FrostedGlassSg, NearLampThroughTheSphereFromTheExitPointsMeanStress) {
   expect_near_lamp_through_the_sphere(true);
 }
 
-
 // ---- The bench lamp's caustic through the sphere on a floor grid (issue 12, session 30, frostedshadow30) ----------
 // The caustic bench's shadow bias is the caustic's 2 x 2 core (docs/frosted_glass.md "Session 29 (frostedshadow29)"):
 // a 2-D shape error of the floor's view of the sphere's exit lobe. Floor points on a grid across the caustic (the

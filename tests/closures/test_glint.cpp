@@ -520,9 +520,10 @@ void expect_glint_sampler_matches_pdf(bool full) {
     for (const char *rough : {"0.2", "0.5", "0.9"}) {
       const bool ggx = std::string(dist) == "ggx", r02 = std::string(rough) == "0.2", r09 = std::string(rough) == "0.9";
       // An instance builds its tables (seconds): none for a roughness whose configurations all wait for the twin.
-      auto c = full || r02 || r09 ? make_closure("glint", {{"distribution", dist}, {"roughness", rough}, {"gamma", "2"},
-                                                           {"density", "1e6"}})
-                                  : nullptr;
+      auto c = full || r02 || r09
+                   ? make_closure("glint",
+                                  {{"distribution", dist}, {"roughness", rough}, {"gamma", "2"}, {"density", "1e6"}})
+                   : nullptr;
       const double corner_theta = ggx == r02 ? 0.0 : 70.0;  // GGX r=0.2 and Beckmann r=0.9 at normal incidence
       for (double theta_i : {0.0, 40.0, 70.0}) {
         const Vec3 wi = spherical_dir(theta_i, 0.0);

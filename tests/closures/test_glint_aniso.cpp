@@ -387,8 +387,8 @@ void expect_aniso_sampler_matches_pdf(bool full) {
         const Vec3 wi = spherical_dir(theta_i, phi_i);
         configs.push_back({"ggx " + fmt(ax) + "x" + fmt(ay) + " theta_i " + fmt(theta_i) + " phi_i " + fmt(phi_i), c,
                            wi, square_context(wi, 0.3, 0.3, 1e-3)});
-        const bool kept = narrow ? theta_i == 0.0 || (theta_i == 70.0 && phi_i != 45.0)
-                                 : theta_i == 70.0 && phi_i == 45.0;
+        const bool kept =
+            narrow ? theta_i == 0.0 || (theta_i == 70.0 && phi_i != 45.0) : theta_i == 70.0 && phi_i == 45.0;
         configs.back().stress_only = !kept;
       }
     const Vec3 wi = spherical_dir(30.0, 60.0);
@@ -461,8 +461,9 @@ void nan_at_negative_huge_differential(const GlimmerInstance *instance, const Gl
 TEST(GlintAniso, NanHuntCallCountOfMakeTestReachesTheRarestExtremeInput) {
   TamperedType tampered(closure_type("glint"));
   tampered.type().eval = &nan_at_negative_huge_differential;
-  const auto broken = make_closure(tampered.type(), {{"roughness_u", "0.3"}, {"roughness_v", "0.9"}, {"gamma", "2"},
-                                                     {"density", "1e6"}, {"uv_scale", "1000"}});
+  const auto broken = make_closure(
+      tampered.type(),
+      {{"roughness_u", "0.3"}, {"roughness_v", "0.9"}, {"gamma", "2"}, {"density", "1e6"}, {"uv_scale", "1000"}});
   const ::testing::AssertionResult r = stress_clean({broken.get()}, 10000);
   std::printf("negative control: %s\n", r.message());
   EXPECT_FALSE(r);
