@@ -423,7 +423,7 @@ double two_sample_p(const std::vector<Exit> &a, const std::vector<Exit> &b, int 
 // z = the difference over its standard error (each side's from its own second moment), chi2 = sum z^2 over the
 // cells with >= 20 exits on each side (the rest pooled into one), dof = the cells (fluxes are not constrained to sum
 // to a constant). Holds for any unbiased sampler, whatever its direction density (the walk's resampled events at
-// IOR >= 1.9 draw other directions with other weights than the slab's lobe samples).
+// IOR >= 1.6 (1.9 before session 38) draw other directions with other weights than the slab's lobe samples).
 // unweighted_a: the negative control, the pane's weights replaced by 1 (the sampler's weight not applied).
 // One side's exits added per cell (count, sum of weights, sum of squares): what weighted_two_sample_p reads.
 struct ExitCells {
