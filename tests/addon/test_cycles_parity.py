@@ -1408,10 +1408,10 @@ KNOWN_MISMATCHES = {}
 #  - environment: environment_rotated renders the same image, strengths, per-pixel orientation and mirror controls
 #    through a Mapping node (the unrotated orientation is its rotation 0);
 #  - texture_closest, texture_clip_smart: texture (linear) and texture_extend_cubic keep the sRGB decoding, UV
-#    orientation with its mirror controls, an extension mode and cubic filtering;
-#  - anisotropic: anisotropic_cylinder exports and renders anisotropic GGX too (with its tangent; its control, the
-#    tangent rotated, fails when the anisotropy is lost).
-STRESS_ONLY = {"area_square", "environment", "texture_closest", "texture_clip_smart", "anisotropic"}
+#    orientation with its mirror controls, an extension mode and cubic filtering.
+# (`anisotropic` stays in `make test`: it is the only scene with a negative anisotropy, the axis swap, and the default
+# tangent without a Tangent node; anisotropic_cylinder has +0.8 and a Tangent node.)
+STRESS_ONLY = {"area_square", "environment", "texture_closest", "texture_clip_smart"}
 assert STRESS_ONLY <= set(SCENES), sorted(STRESS_ONLY - set(SCENES))
 
 only = os.environ.get("GLIMMER_PARITY_ONLY", "")
