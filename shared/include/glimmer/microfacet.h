@@ -234,6 +234,8 @@ inline Vec3 sample_ggx_visible_normal(const Vec3 &wi, float ax, float ay, float 
 // sample_ggx_visible_normal for several draws at one wi (session 38): its first step once,
 // wi_std = ggx_stretched_incidence(wi, ax, ay), then sample_ggx_visible_normal_std(wi_std, ...) ==
 // sample_ggx_visible_normal(wi, ...) bit for bit (the same operations; checked in test_frosted_pane_tail.cpp).
+// A deliberate copy: making sample_ggx_visible_normal call these two moved 25 other functions' machine code (glints,
+// conductors; session 38, frostedpane38), so the one-copy form waits for its own instruction measurements.
 inline Vec3 ggx_stretched_incidence(const Vec3 &wi, float ax, float ay) {
   return normalize(Vec3(ax * wi.x, ay * wi.y, wi.z));
 }
