@@ -16,15 +16,11 @@
 
 #include <xmmintrin.h>
 
-#if defined(__linux__)
-#include <dlfcn.h>
-#include <link.h>
-#endif
-
 #include "core/dielectric_lobe.h"
 #include "core/microfacet_lobe_params.h"
 #include "glimmer/cache_blob.h"
 #include "glimmer/microfacet.h"
+#include "tables/checked_stamp.h"
 
 namespace glimmer::plugin::frosted {
 
@@ -482,94 +478,34 @@ std::string TransmissionSgTable::save(const std::string &path) const {
   return write_cache_blob(path, std::move(out.bytes));
 }
 
-// ---- The check nodes' stamp (session 32, frostedtime32) ----
+// ---- The check nodes' stamp (session 32, frostedtime32; tables/checked_stamp.h since session 39) ----
 // load() re-fits 16 check nodes (~380 M instructions, ~0.1 s CPU: a fixed cost of every render with frosted glass,
-// which the error-vs-time ladder's process CPU clock counts at every rung). Once they pass, a stamp next to the entry
-// (<entry>.checked, an authenticated cache blob: cache_blob.h) records which plugin build checked which entry: this
-// plugin's GNU build id and the FNV-1a hash of the entry's payload. A later load by the same build of the same bytes
-// skips the re-fits; another build (the fit code may have changed without the key), other bytes, or a stamp that is
-// missing, corrupt or crafted without the folder's secret re-fit as before. Without a build id (not Linux, or none
-// linked in): no stamp, always re-fit.
+// which the error-vs-time ladder's process CPU clock counts at every rung). Once they pass, the entry's checked stamp
+// (checked_stamp.h: this plugin build's id and the FNV-1a hash of the entry's payload) lets a later load by the same
+// build of the same bytes skip the re-fits.
 namespace {
 constexpr char kStampMagic[8] = {'G', 'L', 'M', 'F', 'S', 'G', 'C', 'K'};
 constexpr uint32_t kStampFormat = 1;
-
-#if defined(__linux__)
-// The GNU build id's bytes in the PT_NOTE segments of the loaded module that holds `address`, as hex ("" if none).
-struct BuildIdSearch {
-  uintptr_t address;
-  std::string id;
-};
-int find_build_id(dl_phdr_info *info, size_t, void *data) {
-  auto &search = *static_cast<BuildIdSearch *>(data);
-  bool holds = false;
-  for (int i = 0; i < info->dlpi_phnum; ++i) {
-    const ElfW(Phdr) &ph = info->dlpi_phdr[i];
-    const uintptr_t start = info->dlpi_addr + ph.p_vaddr;
-    holds |= ph.p_type == PT_LOAD && search.address >= start && search.address < start + ph.p_memsz;
-  }
-  if (!holds) return 0;
-  for (int i = 0; i < info->dlpi_phnum; ++i) {
-    const ElfW(Phdr) &ph = info->dlpi_phdr[i];
-    if (ph.p_type != PT_NOTE) continue;
-    const auto *at = reinterpret_cast<const unsigned char *>(info->dlpi_addr + ph.p_vaddr), *end = at + ph.p_memsz;
-    while (at + sizeof(ElfW(Nhdr)) <= end) {
-      ElfW(Nhdr) note;
-      std::memcpy(&note, at, sizeof(note));
-      const unsigned char *name = at + sizeof(note), *desc = name + ((note.n_namesz + 3u) & ~3u);
-      if (desc + note.n_descsz > end) break;
-      if (note.n_type == NT_GNU_BUILD_ID && note.n_namesz == 4 && std::memcmp(name, "GNU", 4) == 0) {
-        static const char kHex[] = "0123456789abcdef";
-        for (uint32_t k = 0; k < note.n_descsz; ++k) search.id += {kHex[desc[k] >> 4], kHex[desc[k] & 15]};
-        return 1;
-      }
-      at = desc + ((note.n_descsz + 3u) & ~3u);
-    }
-  }
-  return 1;  // the module, without a build id
-}
-#endif
-
-// This plugin's build id (made once), "" where there is none.
-const std::string &own_build_id() {
-  static const std::string id = [] {
-    std::string found;
-#if defined(__linux__)
-    BuildIdSearch search{reinterpret_cast<uintptr_t>(&find_build_id), ""};
-    dl_iterate_phdr(&find_build_id, &search);
-    found = search.id;
-#endif
-    return found;
-  }();
-  return id;
-}
-
-// The stamp's payload for an entry's payload: header, the build id's length and bytes, the entry payload's FNV-1a.
-std::vector<unsigned char> stamp_payload(const std::vector<unsigned char> &entry_payload, const std::string &build_id) {
-  ByteWriter out;
-  out.put_header(kStampMagic, kStampFormat, cache_key());
-  out.put(uint64_t(build_id.size()));
-  out.bytes.insert(out.bytes.end(), build_id.begin(), build_id.end());
-  out.put(Fnv1a().add(entry_payload.data(), entry_payload.size()).h);
-  return std::move(out.bytes);
+CheckedStampKind stamp_kind() {
+  CheckedStampKind kind{{}, kStampFormat, cache_key()};
+  std::memcpy(kind.magic, kStampMagic, sizeof kind.magic);
+  return kind;
 }
 }  // namespace
 
-std::string TransmissionSgTable::stamp_path(const std::string &entry_path) { return entry_path + ".checked"; }
+std::string TransmissionSgTable::stamp_path(const std::string &entry_path) { return checked_stamp_path(entry_path); }
 
 bool TransmissionSgTable::stamp_matches(const std::string &entry_path, const std::vector<unsigned char> &payload,
                                         const std::string &build_id) {
-  if (build_id.empty()) return false;
-  std::vector<unsigned char> stamp;
-  return read_cache_blob(stamp_path(entry_path), stamp).empty() && stamp == stamp_payload(payload, build_id);
+  return checked_stamp_matches(entry_path, stamp_kind(), payload, build_id);
 }
 
 void TransmissionSgTable::write_stamp(const std::string &entry_path, const std::vector<unsigned char> &payload,
                                       const std::string &build_id) {
-  if (!build_id.empty()) write_cache_blob(stamp_path(entry_path), stamp_payload(payload, build_id));  // best effort
+  write_checked_stamp(entry_path, stamp_kind(), payload, build_id);
 }
 
-const std::string &TransmissionSgTable::build_id() { return own_build_id(); }
+const std::string &TransmissionSgTable::build_id() { return plugin_build_id(); }
 
 std::array<std::array<int, 3>, 16> TransmissionSgTable::check_nodes() {
   std::array<std::array<int, 3>, 16> nodes{};

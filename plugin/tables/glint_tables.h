@@ -270,6 +270,7 @@ class DirectionalTable {
   std::array<LodLevel, kLodCount> levels;
   double build_seconds = 0.0;  // precompute time (0 when loaded from the cache)
   bool loaded_from_cache = false;
+  bool energy_checked = false;  // loaded, and this load ran the energy validation (no stamp of this build: load_table)
 
   // Solid angle of the query cone, 2 pi (1 - cos gamma).
   float cone_solid_angle() const { return 6.283185307179586f * (1.0f - std::cos(spec.gamma_deg * kDegToRad)); }
@@ -362,6 +363,12 @@ uint64_t table_key(const TableSpec &spec);
 // regular file (removed), truncated, fails its HMAC-SHA256 (corrupt or
 // crafted), is for another spec, or fails the energy validation.
 std::unique_ptr<DirectionalTable> load_table(const std::string &path, const TableSpec &spec, std::string &problem);
+// The energy validation runs once per plugin build and entry bytes: when it passes, load writes the entry's checked
+// stamp (tables/checked_stamp.h) and a later load by the same build of the same bytes skips it
+// (DirectionalTable::energy_checked says whether this load ran it). The build id is plugin_build_id() (tests pass
+// another build's).
+std::unique_ptr<DirectionalTable> load_table(const std::string &path, const TableSpec &spec, std::string &problem,
+                                             const std::string &build_id);
 bool save_table(const std::string &path, const DirectionalTable &table, std::string &problem);
 std::string table_cache_path(const std::string &cache_dir, const TableSpec &spec);
 

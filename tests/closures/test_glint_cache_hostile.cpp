@@ -5,7 +5,9 @@
 // entry path is replaced; the cache folder and key are private.
 #include <gtest/gtest.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -15,6 +17,7 @@
 #include "closures/closure_checks.h"
 #include "glimmer/cache_blob.h"
 #include "glimmer/sha256.h"
+#include "tables/checked_stamp.h"
 #include "tables/glint_aniso.h"
 #include "tables/glint_tables.h"
 
@@ -214,6 +217,77 @@ TEST(GlintCacheHostile, OddConeGridBuildsWithFiniteValues) {
     EXPECT_TRUE(std::isfinite(f.x) && std::isfinite(pdf));
   }
   std::filesystem::remove_all(dir);
+}
+
+// Session 39: the energy check's stamp. Loading a glint table re-sums every LOD level's W-weighted energy (~1 s of CPU,
+// most of a small render's start); the first load of an entry runs it and writes <entry>.checked, the next load by the
+// same build skips it and gives the same table bit for bit. Negative controls, each of which must run the check again:
+// a load as another build, with no build id, after a flipped bit in the stamp; and a crafted entry (level 0 doubled,
+// MAC recomputed with the folder's key) beside the good entry's stamp is still refused (the stamp binds the bytes).
+TEST(GlintCacheHostile, EnergyCheckedStampSkipsTheCheckOfTheSameBuildAndBytes) {
+  // The roughness-0.2 table (GGX, alpha 0.04, gamma 2) of the suite's cache, copied with its key to a private folder.
+  const GlimmerHostServices *shared = host::default_host_services();
+  ASSERT_TRUE(shared->cache_dir != nullptr && shared->cache_dir[0] != '\0');
+  { host::ClosureInstance warm(closure_type("glint"), glint_params("0.2", "2"), shared); }
+  plugin::glint::TableSpec spec;
+  spec.distribution = plugin::glint::BaseDistribution::GGX;
+  spec.alpha = 0.2f * 0.2f;
+  spec.gamma_deg = 2.0f;
+  const fs::path source = plugin::glint::table_cache_path(shared->cache_dir, spec);
+  ASSERT_TRUE(fs::exists(source)) << source;
+  const fs::path dir = fs::path(GLIMMER_TEST_BINARY_DIR) / ("test_cache_glint_stamp_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  fs::permissions(dir, fs::perms::owner_all, fs::perm_options::replace);
+  const fs::path entry = dir / source.filename(), key_file = dir / "secret.key";
+  fs::copy_file(source, entry);
+  fs::copy_file(fs::path(shared->cache_dir) / "secret.key", key_file);
+  fs::permissions(key_file, fs::perms::owner_read | fs::perms::owner_write, fs::perm_options::replace);
+  const std::string stamp = plugin::checked_stamp_path(entry.string()), &id = plugin::plugin_build_id();
+  ASSERT_FALSE(id.empty()) << "no GNU build id: the stamp is never used";
+  auto load = [&](const std::string &build_id, bool expect_check) {
+    std::string problem;
+    auto table = plugin::glint::load_table(entry.string(), spec, problem, build_id);
+    EXPECT_TRUE(table) << problem;
+    if (table) {
+      EXPECT_EQ(table->energy_checked, expect_check) << "build id '" << build_id << "'";
+    }
+    return table;
+  };
+  const auto first = load(id, true);
+  EXPECT_TRUE(fs::exists(stamp));
+  const auto second = load(id, false);
+  ASSERT_TRUE(first && second);
+  for (int l = 0; l < plugin::glint::kLodCount; ++l) {  // bit for bit
+    EXPECT_EQ(first->levels[l].values, second->levels[l].values) << "level " << l;
+    EXPECT_EQ(first->levels[l].halves, second->levels[l].halves) << "level " << l;
+  }
+  // Controls: another build (which re-stamps for its id, so this build checks once more), no build id.
+  load(id + "00", true);
+  load("", true);
+  load(id, true);
+  load(id, false);
+  // A flipped bit in the stamp: its MAC refuses it.
+  std::vector<char> stamp_bytes = read_bytes(stamp);
+  ASSERT_GT(stamp_bytes.size(), 40u);
+  stamp_bytes[20] ^= 1;
+  write_bytes(stamp, stamp_bytes);
+  load(id, true);
+  load(id, false);
+  // A crafted entry beside the good entry's stamp: refused by the check the stamp no longer covers.
+  const std::vector<char> key = read_bytes(key_file);
+  std::vector<char> crafted = read_bytes(entry);
+  scale_levels(crafted, 0, 1, 2.0f);
+  rewrite_mac(crafted, key);
+  write_bytes(entry, crafted);
+  std::string problem;
+  EXPECT_FALSE(plugin::glint::load_table(entry.string(), spec, problem, id));
+  EXPECT_NE(problem.find("does not keep the energy"), std::string::npos) << problem;
+  std::printf(
+      "[glint table cache] stamp: build %s; the second load skips the energy check; another build, no build "
+      "id, a flipped bit all check again; a crafted entry beside the stamp refused (%s)\n",
+      id.c_str(), problem.c_str());
+  fs::remove_all(dir);
 }
 
 }  // namespace
