@@ -25,12 +25,16 @@ bool FrostedGlassClosure::resampled_event(const DielectricLobe &lobe, const Vec3
   for (int j = 0; j < kK; ++j) {
     const float u1 = (float(j & 1) + rng.next()) * 0.5f, u2 = (float(j >> 1) + rng.next()) * 0.5f;
     Vec3 m;
-    const float F = lobe.visible_facet_at(wi, wi_std, eta, u1, u2, m);
+    float cos_t;
+    const float F = lobe.visible_facet_at(wi, wi_std, eta, u1, u2, m, &cos_t);
     a[2 * j] = a[2 * j + 1] = 0.0f;
     dirs[2 * j] = normalize(mf::reflect_about(wi, m));
     if (F > 0.0f && dirs[2 * j].z > 0.0f) a[2 * j] = (control ? 1.0f : F) * lobe.g2_at(incidence, dirs[2 * j]) / g1;
-    if (F < 1.0f && mf::refract(wi, m, eta, dirs[2 * j + 1]) && dirs[2 * j + 1].z < 0.0f)
-      a[2 * j + 1] = (control ? 1.0f : 1.0f - F) * lobe.g2_at(incidence, dirs[2 * j + 1]) / g1;
+    if (F < 1.0f) {  // mf::refract(wi, m, eta, ...) succeeds there; Fresnel's cos_t is its ct (session 39)
+      dirs[2 * j + 1] = DielectricLobe::refracted_with(wi, m, eta, cos_t);
+      if (dirs[2 * j + 1].z < 0.0f)
+        a[2 * j + 1] = (control ? 1.0f : 1.0f - F) * lobe.g2_at(incidence, dirs[2 * j + 1]) / g1;
+    }
     total += a[2 * j] + a[2 * j + 1];
   }
   if (!(total > 0.0f) || !std::isfinite(total)) return false;

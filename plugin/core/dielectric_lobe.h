@@ -66,21 +66,43 @@ struct DielectricLobe {
                                                  : mf::G2_from_incidence(dist, incidence, wo, ax, ay);
   }
 
+  // The reflection's half vector wh, its symmetric cosine cos_ih = wi.wh and Fresnel F(cos_ih) for wo.z > 0, wi.z > 0
+  // in the side-local frame; false where eval_local gives nothing (a degenerate half vector, cos_ih <= 0). With
+  // reflection_pdf and reflected: one formula for eval_local's reflection, sample()'s reflection branch and
+  // sample_reflection (session 39, frostedpane39). The same values bit for bit; the callers' machine code moved
+  // (eval_local, sample, sample_reflection, the microfacet_dielectric adapter's eval), measured a little cheaper:
+  // docs/frosted_glass.md "Session 39 (frostedpane39)".
+  [[gnu::always_inline]] static bool reflection_half(const Vec3 &wi, const Vec3 &wo, float eta, Vec3 &wh, float &cos_ih,
+                                                     float &F) {
+    if (!mf::half_vector_reflect(wi, wo, wh)) return false;
+    // Symmetric cosine (wi.wh = wo.wh exactly; averaging keeps f reciprocal to rounding).
+    cos_ih = 0.5f * (dot(wi, wh) + dot(wo, wh));
+    if (!(cos_ih > 0.0f)) return false;
+    F = mf::fresnel_dielectric(cos_ih, eta);
+    return true;
+  }
+  // sample()'s reflection pdf: F visible_D(wi, wh) / (4 cos_ih) (the visible normal's density, the reflect branch's
+  // probability F, the reflection's Jacobian 1 / (4 cos_ih)).
+  [[gnu::always_inline]] float reflection_pdf(const Vec3 &wi, const Vec3 &wh, float cos_ih, float F) const {
+    return F * mf::visible_D(dist, wi, wh, ax, ay) / (4.0f * cos_ih);
+  }
+  // sample()'s reflection of wi about the visible normal m (sample_reflection's too: the same wo bit for bit).
+  [[gnu::always_inline]] static Vec3 reflected(const Vec3 &wi, const Vec3 &m) {
+    return normalize(mf::reflect_about(wi, m));
+  }
+
   // f * |cos(wo)| and pdf in the side-local frame (wi.z > 0, eta = n_wo_side / n_wi_side).
   LocalEval eval_local(const Vec3 &wi, const Vec3 &wo, float eta) const {
     LocalEval e;
     if (wo.z > 0.0f) {
       if (refraction_only) return {};
       Vec3 wh;
-      if (!mf::half_vector_reflect(wi, wo, wh)) return {};
-      // Symmetric cosine (wi.wh = wo.wh exactly; averaging keeps f reciprocal to rounding).
-      const float cos_ih = 0.5f * (dot(wi, wh) + dot(wo, wh));
-      if (!(cos_ih > 0.0f)) return {};
-      const float F = mf::fresnel_dielectric(cos_ih, eta);
+      float cos_ih, F;
+      if (!reflection_half(wi, wo, eta, wh, cos_ih, F)) return {};
       const float d = mf::D(dist, wh, ax, ay);
       const float g = g2(wi, wo);
       e.f_cos = Spectrum(F * d * g / (4.0f * wi.z));
-      e.pdf = F * mf::visible_D(dist, wi, wh, ax, ay) / (4.0f * cos_ih);
+      e.pdf = reflection_pdf(wi, wh, cos_ih, F);
     } else if (wo.z < 0.0f) {
       Vec3 wh;
       float len2;
@@ -123,12 +145,28 @@ struct DielectricLobe {
     return mf::fresnel_dielectric(dot(wi, m), eta);
   }
   // visible_facet for several draws at one wi: wi_std = mf::ggx_stretched_incidence(wi, ax, ay) computed once (read
-  // for GGX only); the same m and F bit for bit.
+  // for GGX only); the same m and F bit for bit. cos_t (if given): Fresnel's |cos| of the refracted angle (0 for
+  // TIR), which mf::refract(wi, m, eta, ...) computes again by the same operations (the resampled events reuse it:
+  // refracted_with below; session 39, frostedpane39).
   [[gnu::always_inline]] float visible_facet_at(const Vec3 &wi, const Vec3 &wi_std, float eta, float u, float v,
-                                                Vec3 &m) const {
+                                                Vec3 &m, float *cos_t = nullptr) const {
     m = dist == mf::Distribution::GGX ? mf::sample_ggx_visible_normal_std(wi_std, ax, ay, u, v)
                                       : mf::sample_visible_normal(dist, wi, ax, ay, u, v);
-    return mf::fresnel_dielectric(dot(wi, m), eta);
+    return mf::fresnel_dielectric(dot(wi, m), eta, cos_t);
+  }
+  // mf::refract(wi, m, eta, wt) where Fresnel (visible_facet_at's F < 1) gave cos_t: the same wt bit for bit. Both
+  // flip (eta, c, m) alike for c = wi.m < 0, and Fresnel's sin2_t = (1 - min(c, 1)^2) / eta^2 equals refract's
+  // max(0, 1 - c^2) / eta^2 exactly (both 0 for c >= 1; for c <= 1, 1 - c c >= 0 in floats), so its cos_t is
+  // refract's ct; F < 1 implies sin2_t < 1, where refract succeeds. Only the square root and its inputs are saved.
+  [[gnu::always_inline]] static Vec3 refracted_with(const Vec3 &wi, const Vec3 &m, float eta, float cos_t) {
+    float c = dot(wi, m);
+    Vec3 n = m;
+    if (c < 0.0f) {
+      eta = 1.0f / eta;
+      c = -c;
+      n = -m;
+    }
+    return normalize(-wi / eta + (c / eta - cos_t) * n);
   }
 
   bool sample(const Vec3 &wi_in, const Vec3 &rand, LocalSample &out) const {
@@ -157,7 +195,7 @@ struct DielectricLobe {
         if (!mf::refract(wi, m, eta, wo)) return false;
         reflect = false;
       } else if (rand.z < F) {
-        wo = normalize(mf::reflect_about(wi, m));
+        wo = reflected(wi, m);
         reflect = true;
       } else {
         if (!mf::refract(wi, m, eta, wo)) return false;
@@ -195,14 +233,11 @@ struct DielectricLobe {
     Vec3 m;
     const float F = visible_facet(wi, eta, rand.x, rand.y, m);
     if (!(rand.z < F)) return false;  // sample() refracts (or fails): not a reflection
-    const Vec3 wo = normalize(mf::reflect_about(wi, m));
+    const Vec3 wo = reflected(wi, m);
     if (!(wo.z > 0.0f)) return false;
-    Vec3 wh;
-    if (!mf::half_vector_reflect(wi, wo, wh)) return false;  // eval_local's reflection pdf from here
-    const float cos_ih = 0.5f * (dot(wi, wh) + dot(wo, wh));
-    if (!(cos_ih > 0.0f)) return false;
-    const float pdf = mf::fresnel_dielectric(cos_ih, eta) * mf::visible_D(dist, wi, wh, ax, ay) / (4.0f * cos_ih);
-    if (!(pdf > 0.0f)) return false;
+    Vec3 wh;  // eval_local's reflection pdf from here (sample's acceptance: pdf > 0)
+    float cos_ih, F_h;
+    if (!reflection_half(wi, wo, eta, wh, cos_ih, F_h) || !(reflection_pdf(wi, wh, cos_ih, F_h) > 0.0f)) return false;
     wo_out = outside ? wo : mf::flip_z_local(wo);
     return true;
   }

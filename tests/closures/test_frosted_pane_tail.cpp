@@ -450,6 +450,71 @@ TEST(FrostedPaneTail, HoistedIncidenceIsBitForBitThePerCallForm) {
   EXPECT_GT(control_m, 100);
 }
 
+// Session 39 (frostedpane39): resampled_event refracts its candidates with Fresnel's own cos_t
+// (DielectricLobe::visible_facet_at's cos_t, DielectricLobe::refracted_with) instead of mf::refract's second square
+// root: where F < 1, mf::refract must succeed and give the same wt bit for bit. Over 2^18 (wi, m, eta) per set: m
+// the lobe's visible normal (GGX and Beckmann, iso / aniso, grazing wi) or any unit vector (wi.m < 0 and the flip
+// included), relative IOR 1.6 / 2.4 / 1.5 and their reciprocals (TIR inside). Negative control, one rounding away:
+// cos_t from sin2_t = (1 - c c) (1 / eta^2) (a reciprocal times) must differ somewhere.
+TEST(FrostedPaneTail, RefractionFromFresnelsCosineIsBitForBitRefract) {
+  const auto bits = [](float x) {
+    uint32_t u;
+    std::memcpy(&u, &x, sizeof u);
+    return u;
+  };
+  const auto same = [&](const Vec3 &a, const Vec3 &b) {
+    return bits(a.x) == bits(b.x) && bits(a.y) == bits(b.y) && bits(a.z) == bits(b.z);
+  };
+  const float etas[] = {1.6f, 2.4f, 1.5f, 1.0f / 1.6f, 1.0f / 2.4f, 1.0f / 1.5f};
+  long compared = 0, differ = 0, refract_failed = 0, tir = 0, control = 0, flipped = 0;
+  for (int variant = 0; variant < 8; ++variant) {
+    DielectricLobe lobe = pane_lobe(variant & 4 ? 0.8f : 0.3f, 1.5f);
+    lobe.dist = (variant & 1) ? mf::Distribution::Beckmann : mf::Distribution::GGX;
+    if (variant & 2) lobe.ay = 0.35f;  // anisotropic
+    Pcg32 rng(3900 + variant);
+    for (long i = 0; i < 32768; ++i) {
+      const float eta = etas[i % 6];
+      const Vec3 wi = test::stress_direction(rng, (i % 4) == 0, 0xffffffffu);  // the side-local frame: wi.z >= 0
+      const float u = rng.next_float(), v = rng.next_float();
+      const Vec3 wi_std = mf::ggx_stretched_incidence(wi, lobe.ax, lobe.ay);
+      Vec3 m;
+      float cos_t = -1.0f;
+      float F = lobe.visible_facet_at(wi, wi_std, eta, u, v, m, &cos_t);
+      if (i % 8 == 7) {  // any unit m: wi.m of either sign
+        m = test::stress_direction(rng, false, 0xffffffffu);
+        F = mf::fresnel_dielectric(dot(wi, m), eta, &cos_t);
+      }
+      if (!(F < 1.0f)) {
+        ++tir;
+        continue;
+      }
+      ++compared;
+      flipped += dot(wi, m) < 0.0f;
+      Vec3 wt;
+      if (!mf::refract(wi, m, eta, wt)) {
+        ++refract_failed;
+        continue;
+      }
+      differ += !same(wt, DielectricLobe::refracted_with(wi, m, eta, cos_t));
+      float c = dot(wi, m), e = eta;
+      Vec3 n = m;
+      if (c < 0.0f) e = 1.0f / e, c = -c, n = -m;
+      const float ct = std::sqrt(1.0f - std::max(0.0f, 1.0f - c * c) * (1.0f / (e * e)));
+      control += !same(wt, normalize(-wi / e + (c / e - ct) * n));
+    }
+  }
+  std::printf(
+      "[frosted pane tail] refraction from Fresnel's cos_t: %ld of %ld (F < 1) differ, refract failed %ld, "
+      "F = 1 %ld, wi.m < 0 %ld; control (sin2_t times 1 / eta^2) %ld differ\n",
+      differ, compared, refract_failed, tir, flipped, control);
+  EXPECT_EQ(differ, 0);
+  EXPECT_EQ(refract_failed, 0);
+  EXPECT_GT(compared, 100000);
+  EXPECT_GT(tir, 1000);      // TIR (inside, eta < 1) was reached
+  EXPECT_GT(flipped, 1000);  // and the flipped side
+  EXPECT_GT(control, 100);
+}
+
 // Session 37 (frostedwalk37): the default rule's resampled walk (FrostedGlassClosure::resampled_walk: relative IOR
 // >= 1.6 since session 38, or <= 1 / 1.6) under stress: thin panes at IOR 1.6 (1.9 before session 38) / 2.4 / 3 and
 // their reciprocals, roughness 0..1 (0 and 1e-4 included: sharp and near-sharp lobes), thickness 1e-6..1e6, half
