@@ -397,13 +397,31 @@ TEST(FrostedPaneTail, ResampledWalkSameExpectationAsWalk) {
   EXPECT_GT(worst_control, 4.5);  // every case's control fails the same bound
 }
 
+// 43c93ee's sample_ggx_visible_normal, the one-piece body (session 39, glintfixed39, made it ggx_stretched_incidence
+// then sample_ggx_visible_normal_std): the reference the two-step form is compared with below, bit for bit.
+static Vec3 one_piece_ggx_visible_normal(const Vec3 &wi, float ax, float ay, float u1, float u2) {
+  const Vec3 wi_std = normalize(Vec3(ax * wi.x, ay * wi.y, wi.z));
+  const float phi = kTwoPi * u1;
+  const float z = mf::fused_multiply_add(1.0f - u2, 1.0f + wi_std.z, -wi_std.z);
+  const float sin_theta = safe_sqrt(1.0f - z * z);
+  const Vec3 c(sin_theta * std::cos(phi), sin_theta * std::sin(phi), z);
+  const Vec3 h_std = c + wi_std;
+  Vec3 wh = Vec3(ax * h_std.x, ay * h_std.y, std::max(h_std.z, 0.0f));
+  const float len2 = dot(wh, wh);
+  if (!(len2 > 1e-30f) || !std::isfinite(len2)) return Vec3(0.0f, 0.0f, 1.0f);
+  wh = wh / std::sqrt(len2);
+  return wh;
+}
+
 // Session 38 (frostedpane38): resampled_event computes wi's parts of its candidates once per event
 // (mf::ggx_stretched_incidence for the visible normals, DielectricLobe::g2_incidence for the shadowing): the same
 // values bit for bit as visible_facet / g2 per call, so the walk's samples are session 37's (images identical). Here
 // over 2^18 random (wi, wo, numbers) per lobe: GGX and Beckmann, height-correlated and separable shadowing, isotropic
 // and anisotropic, both sides, grazing included: m, F and G2 compared as bits. Negative controls, each a rounding
 // away from the same value (so the comparison does see single-rounding differences): G2 summed as 1 + (li + lo), and
-// the stretched incidence normalised by a reciprocal square root times each component.
+// the stretched incidence normalised by a reciprocal square root times each component. Session 39: since
+// mf::sample_ggx_visible_normal is the two steps, its m is also compared with 43c93ee's one-piece body
+// (one_piece_ggx_visible_normal above; the same rsqrt control applies to it).
 TEST(FrostedPaneTail, HoistedIncidenceIsBitForBitThePerCallForm) {
   const auto bits = [](float x) {
     uint32_t u;
@@ -413,7 +431,7 @@ TEST(FrostedPaneTail, HoistedIncidenceIsBitForBitThePerCallForm) {
   const auto same = [&](const Vec3 &a, const Vec3 &b) {
     return bits(a.x) == bits(b.x) && bits(a.y) == bits(b.y) && bits(a.z) == bits(b.z);
   };
-  long differ = 0, compared = 0, control_g2 = 0, control_m = 0;
+  long differ = 0, compared = 0, control_g2 = 0, control_m = 0, differ_one_piece = 0;
   for (int variant = 0; variant < 8; ++variant) {
     DielectricLobe lobe = pane_lobe(variant & 4 ? 0.8f : 0.3f, 1.5f);
     lobe.dist = (variant & 1) ? mf::Distribution::Beckmann : mf::Distribution::GGX;
@@ -429,6 +447,8 @@ TEST(FrostedPaneTail, HoistedIncidenceIsBitForBitThePerCallForm) {
       const float F0 = lobe.visible_facet(wi, 1.5f, u, v, m0), F1 = lobe.visible_facet_at(wi, wi_std, 1.5f, u, v, m1);
       const float g0 = lobe.g2(wi, wo), g1 = lobe.g2_at(lobe.g2_incidence(wi), wo);
       differ += !same(m0, m1) || bits(F0) != bits(F1) || bits(g0) != bits(g1);
+      differ_one_piece += !same(mf::sample_ggx_visible_normal(wi, lobe.ax, lobe.ay, u, v),
+                                one_piece_ggx_visible_normal(wi, lobe.ax, lobe.ay, u, v));
       ++compared;
       if (variant == 0) {  // the controls (GGX, height-correlated)
         const float li = mf::lambda(lobe.dist, Vec3(wi.x, wi.y, std::fabs(wi.z)), lobe.ax, lobe.ay);
@@ -443,9 +463,11 @@ TEST(FrostedPaneTail, HoistedIncidenceIsBitForBitThePerCallForm) {
   }
   std::printf(
       "[frosted pane tail] hoisted incidence: %ld of %ld (m, F, G2) differ; controls: 1 + (li + lo) %ld, "
-      "rsqrt-normalised incidence %ld of 32768 differ\n",
-      differ, compared, control_g2, control_m);
+      "rsqrt-normalised incidence %ld of 32768 differ; two-step GGX visible normal against the one-piece body: %ld "
+      "differ\n",
+      differ, compared, control_g2, control_m, differ_one_piece);
   EXPECT_EQ(differ, 0);
+  EXPECT_EQ(differ_one_piece, 0);
   EXPECT_GT(control_g2, 100);
   EXPECT_GT(control_m, 100);
 }

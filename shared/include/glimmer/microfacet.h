@@ -214,9 +214,15 @@ inline float fused_multiply_add(float a, float b, float c) {
 // spherical cap z >= -wi.z (Dupuy & Benyoub 2023, "Sampling Visible GGX Normals
 // with Spherical Caps"; equivalent in distribution to Heitz 2018, "Sampling the
 // GGX Distribution of Visible Normals", JCGT 7(4), which covers wi.z > 0).
-inline Vec3 sample_ggx_visible_normal(const Vec3 &wi, float ax, float ay, float u1, float u2) {
-  // Section 2: stretch to the alpha = 1 configuration.
-  const Vec3 wi_std = normalize(Vec3(ax * wi.x, ay * wi.y, wi.z));
+// In two steps, so that several draws at one wi (session 38: the frosted pane's tail) stretch it once:
+// wi_std = ggx_stretched_incidence(wi, ax, ay), then sample_ggx_visible_normal_std(wi_std, ...);
+// sample_ggx_visible_normal(wi, ...) is the two in turn (one copy since session 39, glintfixed39: the same
+// operations, the same bits; checked in test_frosted_pane_tail.cpp).
+// Section 2: stretch to the alpha = 1 configuration.
+inline Vec3 ggx_stretched_incidence(const Vec3 &wi, float ax, float ay) {
+  return normalize(Vec3(ax * wi.x, ay * wi.y, wi.z));
+}
+inline Vec3 sample_ggx_visible_normal_std(const Vec3 &wi_std, float ax, float ay, float u1, float u2) {
   // Sample the spherical cap z in [-wi_std.z, 1].
   const float phi = kTwoPi * u1;
   const float z = fused_multiply_add(1.0f - u2, 1.0f + wi_std.z, -wi_std.z);
@@ -230,26 +236,8 @@ inline Vec3 sample_ggx_visible_normal(const Vec3 &wi, float ax, float ay, float 
   wh = wh / std::sqrt(len2);
   return wh;
 }
-
-// sample_ggx_visible_normal for several draws at one wi (session 38): its first step once,
-// wi_std = ggx_stretched_incidence(wi, ax, ay), then sample_ggx_visible_normal_std(wi_std, ...) ==
-// sample_ggx_visible_normal(wi, ...) bit for bit (the same operations; checked in test_frosted_pane_tail.cpp).
-// A deliberate copy: making sample_ggx_visible_normal call these two moved 25 other functions' machine code (glints,
-// conductors; session 38, frostedpane38), so the one-copy form waits for its own instruction measurements.
-inline Vec3 ggx_stretched_incidence(const Vec3 &wi, float ax, float ay) {
-  return normalize(Vec3(ax * wi.x, ay * wi.y, wi.z));
-}
-inline Vec3 sample_ggx_visible_normal_std(const Vec3 &wi_std, float ax, float ay, float u1, float u2) {
-  const float phi = kTwoPi * u1;
-  const float z = fused_multiply_add(1.0f - u2, 1.0f + wi_std.z, -wi_std.z);
-  const float sin_theta = safe_sqrt(1.0f - z * z);
-  const Vec3 c(sin_theta * std::cos(phi), sin_theta * std::sin(phi), z);
-  const Vec3 h_std = c + wi_std;
-  Vec3 wh = Vec3(ax * h_std.x, ay * h_std.y, std::max(h_std.z, 0.0f));
-  const float len2 = dot(wh, wh);
-  if (!(len2 > 1e-30f) || !std::isfinite(len2)) return Vec3(0.0f, 0.0f, 1.0f);
-  wh = wh / std::sqrt(len2);
-  return wh;
+inline Vec3 sample_ggx_visible_normal(const Vec3 &wi, float ax, float ay, float u1, float u2) {
+  return sample_ggx_visible_normal_std(ggx_stretched_incidence(wi, ax, ay), ax, ay, u1, u2);
 }
 
 namespace detail {
