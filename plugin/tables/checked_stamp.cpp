@@ -1,7 +1,7 @@
-// The checked stamp (checked_stamp.h). The stamp's payload: the kind's header, the build id's length and bytes, the
-// entry bytes' FNV-1a hash.
+// The checked stamp (checked_stamp.h).
 #include "tables/checked_stamp.h"
 
+#include <algorithm>
 #include <cstring>
 
 #if defined(__linux__)
@@ -48,14 +48,51 @@ int find_build_id(dl_phdr_info *info, size_t, void *data) {
 }
 #endif
 
-std::vector<unsigned char> stamp_payload(const CheckedStampKind &kind, const std::vector<unsigned char> &entry_bytes,
-                                         const std::string &build_id) {
+// The stamp: the kind's header, the FNV-1a hash of the entry's bytes, then the builds that checked them, newest first
+// (a count and each id's length and bytes). Up to kRememberedBuilds: in `make test` the test binaries (the plugin's
+// objects linked in) and the plugin DSO (the CLI, the bridge tests) load the same entries with different build ids,
+// and a single slot made each overwrite the other's stamp.
+constexpr size_t kRememberedBuilds = 4;
+constexpr uint64_t kLongestBuildId = 128;  // hex digits (a GNU build id is 40)
+struct Stamp {
+  uint64_t entry_hash = 0;
+  std::vector<std::string> builds;
+};
+
+uint64_t entry_hash(const std::vector<unsigned char> &entry_bytes) {
+  return Fnv1a().add(entry_bytes.data(), entry_bytes.size()).h;
+}
+
+std::vector<unsigned char> stamp_bytes(const CheckedStampKind &kind, const Stamp &stamp) {
   ByteWriter out;
   out.put_header(kind.magic, kind.format, kind.key);
-  out.put(uint64_t(build_id.size()));
-  out.bytes.insert(out.bytes.end(), build_id.begin(), build_id.end());
-  out.put(Fnv1a().add(entry_bytes.data(), entry_bytes.size()).h);
+  out.put(stamp.entry_hash);
+  out.put(uint64_t(stamp.builds.size()));
+  for (const std::string &id : stamp.builds) {
+    out.put(uint64_t(id.size()));
+    out.bytes.insert(out.bytes.end(), id.begin(), id.end());
+  }
   return std::move(out.bytes);
+}
+
+// The stamp beside `entry_path` for this kind, if its MAC holds and it parses.
+bool read_stamp(const std::string &entry_path, const CheckedStampKind &kind, Stamp &stamp) {
+  std::vector<unsigned char> bytes;
+  if (!read_cache_blob(checked_stamp_path(entry_path), bytes).empty()) return false;
+  ByteReader in{bytes};
+  uint64_t count = 0;
+  if (!in.get_header(kind.magic, kind.format, kind.key) || !in.get(&stamp.entry_hash, 8) || !in.get(&count, 8) ||
+      count > kRememberedBuilds)
+    return false;
+  for (uint64_t k = 0; k < count; ++k) {
+    uint64_t size = 0;
+    std::string id;
+    if (!in.get(&size, 8) || size == 0 || size > kLongestBuildId) return false;
+    id.resize(size);
+    if (!in.get(id.data(), size)) return false;
+    stamp.builds.push_back(std::move(id));
+  }
+  return in.at_end();
 }
 }  // namespace
 
@@ -76,15 +113,23 @@ std::string checked_stamp_path(const std::string &entry_path) { return entry_pat
 
 bool checked_stamp_matches(const std::string &entry_path, const CheckedStampKind &kind,
                            const std::vector<unsigned char> &entry_bytes, const std::string &build_id) {
-  if (build_id.empty()) return false;
-  std::vector<unsigned char> stamp;
-  return read_cache_blob(checked_stamp_path(entry_path), stamp).empty() &&
-         stamp == stamp_payload(kind, entry_bytes, build_id);
+  Stamp stamp;
+  return !build_id.empty() && read_stamp(entry_path, kind, stamp) && stamp.entry_hash == entry_hash(entry_bytes) &&
+         std::find(stamp.builds.begin(), stamp.builds.end(), build_id) != stamp.builds.end();
 }
 
+// This build first, then the builds the stamp already holds for the same bytes (a race between two writers loses one
+// of them: that build checks once more).
 void write_checked_stamp(const std::string &entry_path, const CheckedStampKind &kind,
                          const std::vector<unsigned char> &entry_bytes, const std::string &build_id) {
-  if (!build_id.empty()) write_cache_blob(checked_stamp_path(entry_path), stamp_payload(kind, entry_bytes, build_id));
+  if (build_id.empty()) return;
+  Stamp old, stamp;
+  stamp.entry_hash = entry_hash(entry_bytes);
+  stamp.builds.push_back(build_id);
+  if (read_stamp(entry_path, kind, old) && old.entry_hash == stamp.entry_hash)
+    for (const std::string &id : old.builds)
+      if (id != build_id && stamp.builds.size() < kRememberedBuilds) stamp.builds.push_back(id);
+  write_cache_blob(checked_stamp_path(entry_path), stamp_bytes(kind, stamp));  // best effort
 }
 
 }  // namespace glimmer::plugin

@@ -4,12 +4,13 @@
 // A table's load-time validation (the frosted table re-fits 16 nodes; the glint table sums every LOD level's
 // W-weighted energy) is a fixed cost of every render that uses the table, paid again at every start. Once it passes,
 // <entry>.checked, an authenticated cache blob (cache_blob.h: HMAC-SHA256 with the cache folder's secret), records
-// which plugin build checked which bytes: the build's GNU build id and the FNV-1a hash of bytes that bind the entry
-// (the frosted table's payload; the glint table's verified HMAC, which binds its 14.5 MB), after a header naming the
-// table kind (magic, format, key). A later load by the same build of the same bytes may skip the validation. Another
-// build (the validation code may have changed without the key), other bytes, or a stamp that is missing, corrupt or
-// crafted without the folder's secret mean: validate again. Without a build id (not Linux, or none linked in)
-// nothing is ever stamped.
+// which plugin builds checked which bytes: the FNV-1a hash of bytes that bind the entry (the frosted table's payload;
+// the glint table's verified HMAC, which binds its 14.5 MB) and the GNU build ids of the last four builds that
+// checked them, newest first (the test binaries and the plugin DSO load the same entries in `make test`), after a
+// header naming the table kind (magic, format, key). A later load by a listed build of the same bytes may skip the
+// validation. Another build (the validation code may have changed without the key), other bytes, or a stamp that is
+// missing, corrupt or crafted without the folder's secret mean: validate again. Without a build id (not Linux, or
+// none linked in; the plugin links with --build-id) nothing is ever stamped.
 #pragma once
 
 #include <cstdint>
@@ -21,7 +22,7 @@ namespace glimmer::plugin {
 // The table kind a stamp is for (its header): one magic per table family, the stamp's format, the entry's key.
 struct CheckedStampKind {
   char magic[8];
-  uint32_t format;
+  uint32_t format;  // the stamp's layout: 2 since session 39 (a list of builds; 1 held one build)
   uint64_t key;
 };
 
@@ -31,11 +32,13 @@ const std::string &plugin_build_id();
 // <entry_path>.checked
 std::string checked_stamp_path(const std::string &entry_path);
 
-// Whether the stamp beside `entry_path` says that `build_id` checked `entry_bytes` (false for an empty build id).
+// Whether the stamp beside `entry_path` lists `build_id` as a build that checked `entry_bytes` (false for an empty
+// build id).
 bool checked_stamp_matches(const std::string &entry_path, const CheckedStampKind &kind,
                            const std::vector<unsigned char> &entry_bytes, const std::string &build_id);
 
-// Writes that stamp (best effort: a stamp that cannot be written only means the next load validates again).
+// Adds `build_id` to that stamp (first; the oldest of five is dropped; a stamp of other bytes is replaced). Best
+// effort: a stamp that cannot be written only means the next load validates again.
 void write_checked_stamp(const std::string &entry_path, const CheckedStampKind &kind,
                          const std::vector<unsigned char> &entry_bytes, const std::string &build_id);
 

@@ -485,7 +485,7 @@ std::string TransmissionSgTable::save(const std::string &path) const {
 // build of the same bytes skip the re-fits.
 namespace {
 constexpr char kStampMagic[8] = {'G', 'L', 'M', 'F', 'S', 'G', 'C', 'K'};
-constexpr uint32_t kStampFormat = 1;
+constexpr uint32_t kStampFormat = 2;  // checked_stamp.h's layout
 CheckedStampKind stamp_kind() {
   CheckedStampKind kind{{}, kStampFormat, cache_key()};
   std::memcpy(kind.magic, kStampMagic, sizeof kind.magic);

@@ -567,7 +567,7 @@ bool save_table(const std::string &path, const DirectionalTable &table, std::str
 namespace {
 // The energy check's stamp (checked_stamp.h): this build checked these bytes of this spec's entry.
 CheckedStampKind energy_stamp_kind(const TableSpec &spec) {
-  CheckedStampKind kind{{'G', 'L', 'M', 'G', 'L', 'N', 'T', 'K'}, 1u, table_key(spec)};
+  CheckedStampKind kind{{'G', 'L', 'M', 'G', 'L', 'N', 'T', 'K'}, 2u, table_key(spec)};  // format: checked_stamp.h
   return kind;
 }
 }  // namespace

@@ -397,6 +397,16 @@ TEST(FrostedPaneTail, ResampledWalkSameExpectationAsWalk) {
   EXPECT_GT(worst_control, 4.5);  // every case's control fails the same bound
 }
 
+// A float's bits, and two vectors equal bit for bit (the bit-equality tests below).
+static uint32_t bits(float x) {
+  uint32_t u;
+  std::memcpy(&u, &x, sizeof u);
+  return u;
+}
+static bool same(const Vec3 &a, const Vec3 &b) {
+  return bits(a.x) == bits(b.x) && bits(a.y) == bits(b.y) && bits(a.z) == bits(b.z);
+}
+
 // 43c93ee's sample_ggx_visible_normal, the one-piece body (session 39, glintfixed39, made it ggx_stretched_incidence
 // then sample_ggx_visible_normal_std): the reference the two-step form is compared with below, bit for bit.
 static Vec3 one_piece_ggx_visible_normal(const Vec3 &wi, float ax, float ay, float u1, float u2) {
@@ -423,14 +433,6 @@ static Vec3 one_piece_ggx_visible_normal(const Vec3 &wi, float ax, float ay, flo
 // mf::sample_ggx_visible_normal is the two steps, its m is also compared with 43c93ee's one-piece body
 // (one_piece_ggx_visible_normal above; the same rsqrt control applies to it).
 TEST(FrostedPaneTail, HoistedIncidenceIsBitForBitThePerCallForm) {
-  const auto bits = [](float x) {
-    uint32_t u;
-    std::memcpy(&u, &x, sizeof u);
-    return u;
-  };
-  const auto same = [&](const Vec3 &a, const Vec3 &b) {
-    return bits(a.x) == bits(b.x) && bits(a.y) == bits(b.y) && bits(a.z) == bits(b.z);
-  };
   long differ = 0, compared = 0, control_g2 = 0, control_m = 0, differ_one_piece = 0;
   for (int variant = 0; variant < 8; ++variant) {
     DielectricLobe lobe = pane_lobe(variant & 4 ? 0.8f : 0.3f, 1.5f);
@@ -479,14 +481,6 @@ TEST(FrostedPaneTail, HoistedIncidenceIsBitForBitThePerCallForm) {
 // included), relative IOR 1.6 / 2.4 / 1.5 and their reciprocals (TIR inside). Negative control, one rounding away:
 // cos_t from sin2_t = (1 - c c) (1 / eta^2) (a reciprocal times) must differ somewhere.
 TEST(FrostedPaneTail, RefractionFromFresnelsCosineIsBitForBitRefract) {
-  const auto bits = [](float x) {
-    uint32_t u;
-    std::memcpy(&u, &x, sizeof u);
-    return u;
-  };
-  const auto same = [&](const Vec3 &a, const Vec3 &b) {
-    return bits(a.x) == bits(b.x) && bits(a.y) == bits(b.y) && bits(a.z) == bits(b.z);
-  };
   const float etas[] = {1.6f, 2.4f, 1.5f, 1.0f / 1.6f, 1.0f / 2.4f, 1.0f / 1.5f};
   long compared = 0, differ = 0, refract_failed = 0, tir = 0, control = 0, flipped = 0;
   for (int variant = 0; variant < 8; ++variant) {
