@@ -31,7 +31,7 @@ bool FrostedGlassClosure::resampled_event(const DielectricLobe &lobe, const Vec3
     dirs[2 * j] = normalize(mf::reflect_about(wi, m));
     if (F > 0.0f && dirs[2 * j].z > 0.0f) a[2 * j] = (control ? 1.0f : F) * lobe.g2_at(incidence, dirs[2 * j]) / g1;
     if (F < 1.0f) {  // mf::refract(wi, m, eta, ...) succeeds there; Fresnel's cos_t is its ct (session 39)
-      dirs[2 * j + 1] = DielectricLobe::refracted_with(wi, m, eta, cos_t);
+      dirs[2 * j + 1] = mf::refract_with_cos_t(wi, m, eta, cos_t);
       if (dirs[2 * j + 1].z < 0.0f)
         a[2 * j + 1] = (control ? 1.0f : 1.0f - F) * lobe.g2_at(incidence, dirs[2 * j + 1]) / g1;
     }

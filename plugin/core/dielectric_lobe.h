@@ -147,26 +147,12 @@ struct DielectricLobe {
   // visible_facet for several draws at one wi: wi_std = mf::ggx_stretched_incidence(wi, ax, ay) computed once (read
   // for GGX only); the same m and F bit for bit. cos_t (if given): Fresnel's |cos| of the refracted angle (0 for
   // TIR), which mf::refract(wi, m, eta, ...) computes again by the same operations (the resampled events reuse it:
-  // refracted_with below; session 39, frostedpane39).
+  // mf::refract_with_cos_t; session 39, frostedpane39).
   [[gnu::always_inline]] float visible_facet_at(const Vec3 &wi, const Vec3 &wi_std, float eta, float u, float v,
                                                 Vec3 &m, float *cos_t = nullptr) const {
     m = dist == mf::Distribution::GGX ? mf::sample_ggx_visible_normal_std(wi_std, ax, ay, u, v)
                                       : mf::sample_visible_normal(dist, wi, ax, ay, u, v);
     return mf::fresnel_dielectric(dot(wi, m), eta, cos_t);
-  }
-  // mf::refract(wi, m, eta, wt) where Fresnel (visible_facet_at's F < 1) gave cos_t: the same wt bit for bit. Both
-  // flip (eta, c, m) alike for c = wi.m < 0, and Fresnel's sin2_t = (1 - min(c, 1)^2) / eta^2 equals refract's
-  // max(0, 1 - c^2) / eta^2 exactly (both 0 for c >= 1; for c <= 1, 1 - c c >= 0 in floats), so its cos_t is
-  // refract's ct; F < 1 implies sin2_t < 1, where refract succeeds. Only the square root and its inputs are saved.
-  [[gnu::always_inline]] static Vec3 refracted_with(const Vec3 &wi, const Vec3 &m, float eta, float cos_t) {
-    float c = dot(wi, m);
-    Vec3 n = m;
-    if (c < 0.0f) {
-      eta = 1.0f / eta;
-      c = -c;
-      n = -m;
-    }
-    return normalize(-wi / eta + (c / eta - cos_t) * n);
   }
 
   bool sample(const Vec3 &wi_in, const Vec3 &rand, LocalSample &out) const {

@@ -475,7 +475,7 @@ TEST(FrostedPaneTail, HoistedIncidenceIsBitForBitThePerCallForm) {
 }
 
 // Session 39 (frostedpane39): resampled_event refracts its candidates with Fresnel's own cos_t
-// (DielectricLobe::visible_facet_at's cos_t, DielectricLobe::refracted_with) instead of mf::refract's second square
+// (DielectricLobe::visible_facet_at's cos_t, mf::refract_with_cos_t) instead of mf::refract's second square
 // root: where F < 1, mf::refract must succeed and give the same wt bit for bit. Over 2^18 (wi, m, eta) per set: m
 // the lobe's visible normal (GGX and Beckmann, iso / aniso, grazing wi) or any unit vector (wi.m < 0 and the flip
 // included), relative IOR 1.6 / 2.4 / 1.5 and their reciprocals (TIR inside). Negative control, one rounding away:
@@ -511,7 +511,7 @@ TEST(FrostedPaneTail, RefractionFromFresnelsCosineIsBitForBitRefract) {
         ++refract_failed;
         continue;
       }
-      differ += !same(wt, DielectricLobe::refracted_with(wi, m, eta, cos_t));
+      differ += !same(wt, mf::refract_with_cos_t(wi, m, eta, cos_t));
       float c = dot(wi, m), e = eta;
       Vec3 n = m;
       if (c < 0.0f) e = 1.0f / e, c = -c, n = -m;

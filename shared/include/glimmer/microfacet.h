@@ -519,22 +519,40 @@ inline float dielectric_f0(float eta) { return sqr((eta - 1.0f) / (eta + 1.0f));
 // Mirror wi about m (both away from the surface).
 inline Vec3 reflect_about(const Vec3 &wi, const Vec3 &m) { return 2.0f * dot(wi, m) * m - wi; }
 
-// Refract wi through the microfacet m (Walter 2007 eq. 40). eta = n_t / n_i
-// for wi on the side m points to (dot(wi, m) > 0); a negative dot flips both.
-// Returns false on total internal reflection.
-inline bool refract(const Vec3 &wi, const Vec3 &m, float eta, Vec3 &wt) {
+// refract's orientation: c = |wi.m|, with eta and the normal n flipped alike when wi is on m's back side.
+inline float refraction_orient(const Vec3 &wi, const Vec3 &m, float &eta, Vec3 &n) {
   float c = dot(wi, m);
-  Vec3 n = m;
+  n = m;
   if (c < 0.0f) {
     eta = 1.0f / eta;
     c = -c;
     n = -m;
   }
+  return c;
+}
+
+// Refract wi through the microfacet m (Walter 2007 eq. 40). eta = n_t / n_i
+// for wi on the side m points to (dot(wi, m) > 0); a negative dot flips both.
+// Returns false on total internal reflection.
+inline bool refract(const Vec3 &wi, const Vec3 &m, float eta, Vec3 &wt) {
+  Vec3 n;
+  const float c = refraction_orient(wi, m, eta, n);
   const float sin2_t = std::max(0.0f, 1.0f - c * c) / (eta * eta);
   if (!(sin2_t < 1.0f)) return false;
   const float ct = std::sqrt(1.0f - sin2_t);
   wt = normalize(-wi / eta + (c / eta - ct) * n);
   return true;
+}
+
+// refract(wi, m, eta, wt) where fresnel_dielectric(dot(wi, m), eta, &cos_t) < 1 already gave cos_t: the same wt bit
+// for bit without the second square root. Both flip (eta, c, m) alike for c = wi.m < 0, and Fresnel's
+// sin2_t = (1 - min(c, 1)^2) / eta^2 equals refract's max(0, 1 - c^2) / eta^2 exactly (both 0 for c >= 1; for c <= 1,
+// 1 - c c >= 0 in floats), so its cos_t is refract's ct; F < 1 implies sin2_t < 1, where refract succeeds (session
+// 39: the frosted pane walk's resampled events; checked in test_frosted_pane_tail.cpp).
+inline Vec3 refract_with_cos_t(const Vec3 &wi, const Vec3 &m, float eta, float cos_t) {
+  Vec3 n;
+  const float c = refraction_orient(wi, m, eta, n);
+  return normalize(-wi / eta + (c / eta - cos_t) * n);
 }
 
 // Mirror z: maps the inner side of an interface to the outer side.
