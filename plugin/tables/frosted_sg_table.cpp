@@ -484,26 +484,13 @@ std::string TransmissionSgTable::save(const std::string &path) const {
 // (checked_stamp.h: this plugin build's id and the FNV-1a hash of the entry's payload) lets a later load by the same
 // build of the same bytes skip the re-fits.
 namespace {
-constexpr char kStampMagic[8] = {'G', 'L', 'M', 'F', 'S', 'G', 'C', 'K'};
-constexpr uint32_t kStampFormat = 2;  // checked_stamp.h's layout
 CheckedStampKind stamp_kind() {
-  CheckedStampKind kind{{}, kStampFormat, cache_key()};
-  std::memcpy(kind.magic, kStampMagic, sizeof kind.magic);
+  CheckedStampKind kind{{'G', 'L', 'M', 'F', 'S', 'G', 'C', 'K'}, 2u, cache_key()};  // format: checked_stamp.h
   return kind;
 }
 }  // namespace
 
 std::string TransmissionSgTable::stamp_path(const std::string &entry_path) { return checked_stamp_path(entry_path); }
-
-bool TransmissionSgTable::stamp_matches(const std::string &entry_path, const std::vector<unsigned char> &payload,
-                                        const std::string &build_id) {
-  return checked_stamp_matches(entry_path, stamp_kind(), payload, build_id);
-}
-
-void TransmissionSgTable::write_stamp(const std::string &entry_path, const std::vector<unsigned char> &payload,
-                                      const std::string &build_id) {
-  write_checked_stamp(entry_path, stamp_kind(), payload, build_id);
-}
 
 const std::string &TransmissionSgTable::build_id() { return plugin_build_id(); }
 
@@ -547,7 +534,7 @@ std::unique_ptr<TransmissionSgTable> TransmissionSgTable::load(const std::string
       problem = "non-finite or out-of-range values";
       return nullptr;
     }
-  const bool stamped = stamp_matches(path, bytes, build_id);
+  const bool stamped = checked_stamp_matches(path, stamp_kind(), bytes, build_id);
   for (const auto &c : check_nodes()) {
     if (stamped) break;  // this build checked these bytes before
     const size_t idx = (size_t(c[0]) * kRoughnessNodes + c[1]) * kIorNodes + c[2];
@@ -558,7 +545,7 @@ std::unique_ptr<TransmissionSgTable> TransmissionSgTable::load(const std::string
       return nullptr;
     }
   }
-  if (!stamped) write_stamp(path, bytes, build_id);
+  if (!stamped) write_checked_stamp(path, stamp_kind(), bytes, build_id);
   table->derive_interpolated();
   table->loaded_from_cache_ = true;
   table->refitted_check_nodes_ = !stamped;

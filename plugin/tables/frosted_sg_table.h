@@ -139,9 +139,10 @@ class TransmissionSgTable {
   static std::unique_ptr<TransmissionSgTable> load(const std::string &path, std::string &problem);
   bool loaded_from_cache() const { return loaded_from_cache_; }
   // The check nodes' stamp (session 32; frosted_sg_table.cpp): load() skips the 16 re-fits when <entry>.checked
-  // (stamp_path) says that this build (build_id(): the plugin's GNU build id, "" where there is none: never skipped)
-  // checked these bytes; else it re-fits them and, when they pass, writes the stamp. The load with a given build id
-  // is the tests' (another build's stamp). refitted_check_nodes(): whether this load re-fitted them.
+  // (stamp_path, tables/checked_stamp.h) lists this build (build_id(): the plugin's GNU build id, "" where there is
+  // none: never skipped) as one that checked these bytes; else it re-fits them and, when they pass, writes the stamp.
+  // The load with a given build id is the tests' (another build's stamp). refitted_check_nodes(): whether this load
+  // re-fitted them.
   static std::unique_ptr<TransmissionSgTable> load(const std::string &path, std::string &problem,
                                                    const std::string &build_id);
   static const std::string &build_id();
@@ -227,10 +228,6 @@ class TransmissionSgTable {
   void derive_interpolated();
   bool loaded_from_cache_ = false;
   bool refitted_check_nodes_ = false;
-  static bool stamp_matches(const std::string &entry_path, const std::vector<unsigned char> &payload,
-                            const std::string &build_id);
-  static void write_stamp(const std::string &entry_path, const std::vector<unsigned char> &payload,
-                          const std::string &build_id);
   struct Empty {};
   explicit TransmissionSgTable(Empty);  // no nodes built (load fills them)
   // Where validation refits nodes: (first coordinate index over both sides, roughness, ior).

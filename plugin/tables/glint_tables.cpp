@@ -618,11 +618,12 @@ std::unique_ptr<DirectionalTable> load_table(const std::string &path, const Tabl
   // The energy check (~1 s of CPU per table, most of a small render's start) once per build and entry bytes. The
   // stamp binds the entry's verified MAC, which binds its bytes (hashing the 14.5 MB again cost ~20 ms per load).
   const std::vector<unsigned char> mac(bytes.end() - static_cast<std::ptrdiff_t>(Digest256{}.size()), bytes.end());
-  table->energy_checked = !checked_stamp_matches(path, energy_stamp_kind(spec), mac, build_id);
+  const CheckedStampKind stamp_kind = energy_stamp_kind(spec);
+  table->energy_checked = !checked_stamp_matches(path, stamp_kind, mac, build_id);
   if (table->energy_checked) {
     if (!plausible_energy(*table, spec, static_cast<int>(std::max(1u, std::thread::hardware_concurrency())), problem))
       return nullptr;
-    write_checked_stamp(path, energy_stamp_kind(spec), mac, build_id);
+    write_checked_stamp(path, stamp_kind, mac, build_id);
   }
   table->pack_halves();
   table->loaded_from_cache = true;
