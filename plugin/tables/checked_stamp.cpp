@@ -120,16 +120,16 @@ bool checked_stamp_matches(const std::string &entry_path, const CheckedStampKind
 
 // This build first, then the builds the stamp already holds for the same bytes (a race between two writers loses one
 // of them: that build checks once more).
-void write_checked_stamp(const std::string &entry_path, const CheckedStampKind &kind,
-                         const std::vector<unsigned char> &entry_bytes, const std::string &build_id) {
-  if (build_id.empty()) return;
+std::string write_checked_stamp(const std::string &entry_path, const CheckedStampKind &kind,
+                                const std::vector<unsigned char> &entry_bytes, const std::string &build_id) {
+  if (build_id.empty()) return "";
   Stamp old, stamp;
   stamp.entry_hash = entry_hash(entry_bytes);
   stamp.builds.push_back(build_id);
   if (read_stamp(entry_path, kind, old) && old.entry_hash == stamp.entry_hash)
     for (const std::string &id : old.builds)
       if (id != build_id && stamp.builds.size() < kRememberedBuilds) stamp.builds.push_back(id);
-  write_cache_blob(checked_stamp_path(entry_path), stamp_bytes(kind, stamp));  // best effort
+  return write_cache_blob(checked_stamp_path(entry_path), stamp_bytes(kind, stamp));
 }
 
 }  // namespace glimmer::plugin

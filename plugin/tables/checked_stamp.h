@@ -38,8 +38,9 @@ bool checked_stamp_matches(const std::string &entry_path, const CheckedStampKind
                            const std::vector<unsigned char> &entry_bytes, const std::string &build_id);
 
 // Adds `build_id` to that stamp (first; the oldest of five is dropped; a stamp of other bytes is replaced). Best
-// effort: a stamp that cannot be written only means the next load validates again.
-void write_checked_stamp(const std::string &entry_path, const CheckedStampKind &kind,
-                         const std::vector<unsigned char> &entry_bytes, const std::string &build_id);
+// effort: a stamp that cannot be written only means the next load validates again. Returns "" when written (or when
+// there is no build id, so nothing to write), else why not (e.g. a read-only cache folder), for the caller's log.
+std::string write_checked_stamp(const std::string &entry_path, const CheckedStampKind &kind,
+                                const std::vector<unsigned char> &entry_bytes, const std::string &build_id);
 
 }  // namespace glimmer::plugin

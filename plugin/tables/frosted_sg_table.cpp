@@ -545,7 +545,7 @@ std::unique_ptr<TransmissionSgTable> TransmissionSgTable::load(const std::string
       return nullptr;
     }
   }
-  if (!stamped) write_checked_stamp(path, stamp_kind(), bytes, build_id);
+  if (!stamped) table->stamp_not_written_ = write_checked_stamp(path, stamp_kind(), bytes, build_id);
   table->derive_interpolated();
   table->loaded_from_cache_ = true;
   table->refitted_check_nodes_ = !stamped;
@@ -582,6 +582,9 @@ const TransmissionSgTable &TransmissionSgTable::get(const GlimmerHostServices *h
     table = load(path, problem);
     if (!table && problem != "missing")
       log(GLIMMER_LOG_WARNING, "frosted_glass: cached SG table " + path + " is unusable (" + problem + "); rebuilding");
+    if (table && !table->stamp_not_written().empty())
+      log(GLIMMER_LOG_WARNING, "frosted_glass: cannot record the SG table's check beside " + path + " (" +
+                                   table->stamp_not_written() + "); every start will repeat its 16 re-fits");
     if (!table && problem == "missing")
       if (const std::string old = other_cache_entry(host->cache_dir, path); !old.empty())
         log(GLIMMER_LOG_WARNING, "frosted_glass: cached SG table " + old +

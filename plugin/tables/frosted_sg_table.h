@@ -148,6 +148,8 @@ class TransmissionSgTable {
   static const std::string &build_id();
   static std::string stamp_path(const std::string &entry_path);
   bool refitted_check_nodes() const { return refitted_check_nodes_; }
+  // Why this load's stamp could not be written ("" when it was, or was not needed); get() logs it.
+  const std::string &stamp_not_written() const { return stamp_not_written_; }
   bool operator==(const TransmissionSgTable &o) const;
 
   // Catmull-Rom weights of the 4 nodes around a grid coordinate on one axis (frosted_sg_table.cpp catmull_rom_taps).
@@ -228,6 +230,7 @@ class TransmissionSgTable {
   void derive_interpolated();
   bool loaded_from_cache_ = false;
   bool refitted_check_nodes_ = false;
+  std::string stamp_not_written_;
   struct Empty {};
   explicit TransmissionSgTable(Empty);  // no nodes built (load fills them)
   // Where validation refits nodes: (first coordinate index over both sides, roughness, ior).

@@ -623,7 +623,7 @@ std::unique_ptr<DirectionalTable> load_table(const std::string &path, const Tabl
   if (table->energy_checked) {
     if (!plausible_energy(*table, spec, static_cast<int>(std::max(1u, std::thread::hardware_concurrency())), problem))
       return nullptr;
-    write_checked_stamp(path, stamp_kind, mac, build_id);
+    table->stamp_not_written = write_checked_stamp(path, stamp_kind, mac, build_id);
   }
   table->pack_halves();
   table->loaded_from_cache = true;
@@ -651,6 +651,9 @@ std::shared_ptr<const DirectionalTable> acquire_table(const TableSpec &spec, con
     table = load_table(path, spec, problem);
     if (!table && problem != "missing")
       log(GLIMMER_LOG_WARNING, "glint: cached table " + path + " is unusable (" + problem + "); recomputing");
+    if (table && !table->stamp_not_written.empty())
+      log(GLIMMER_LOG_WARNING, "glint: cannot record the table's energy check beside " + path + " (" +
+                                   table->stamp_not_written + "); every start will repeat the check (~1 s of CPU)");
   }
   if (!table) {
     table = build_directional_table(spec, ndf, static_cast<int>(std::max(1u, std::thread::hardware_concurrency())));

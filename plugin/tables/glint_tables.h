@@ -271,6 +271,7 @@ class DirectionalTable {
   double build_seconds = 0.0;  // precompute time (0 when loaded from the cache)
   bool loaded_from_cache = false;
   bool energy_checked = false;  // loaded, and this load ran the energy validation (no stamp of this build: load_table)
+  std::string stamp_not_written;  // why that validation's stamp could not be written ("" when it was or not needed)
 
   // Solid angle of the query cone, 2 pi (1 - cos gamma).
   float cone_solid_angle() const { return 6.283185307179586f * (1.0f - std::cos(spec.gamma_deg * kDegToRad)); }

@@ -5,6 +5,9 @@
 // FNV-1a checksum).
 #pragma once
 
+#include <sys/resource.h>
+
+#include <csignal>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
@@ -36,6 +39,31 @@ inline GlimmerHostServices host_caching_in(const std::string &dir) {
   host.log = &capture_cache_log;
   return host;
 }
+
+// While alive, files this process writes cannot grow past `bytes` (RLIMIT_FSIZE; SIGXFSZ ignored, so write() fails
+// with EFBIG): a cache folder the process cannot write to, also for root, whom a read-only mode does not stop.
+class FileSizeLimit {
+ public:
+  explicit FileSizeLimit(rlim_t bytes) {
+    ::getrlimit(RLIMIT_FSIZE, &old_);
+    old_handler_ = std::signal(SIGXFSZ, SIG_IGN);
+    rlimit limit = old_;
+    limit.rlim_cur = bytes;
+    ok_ = ::setrlimit(RLIMIT_FSIZE, &limit) == 0;
+  }
+  ~FileSizeLimit() {
+    ::setrlimit(RLIMIT_FSIZE, &old_);
+    std::signal(SIGXFSZ, old_handler_);
+  }
+  bool ok() const { return ok_; }
+  FileSizeLimit(const FileSizeLimit &) = delete;
+  FileSizeLimit &operator=(const FileSizeLimit &) = delete;
+
+ private:
+  rlimit old_{};
+  void (*old_handler_)(int) = SIG_DFL;
+  bool ok_ = false;
+};
 
 inline std::vector<char> read_bytes(const std::filesystem::path &p) {
   std::ifstream in(p, std::ios::binary);

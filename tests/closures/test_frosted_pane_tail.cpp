@@ -15,6 +15,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <utility>
 #include <vector>
@@ -478,18 +479,21 @@ TEST(FrostedPaneTail, HoistedIncidenceIsBitForBitThePerCallForm) {
 // (DielectricLobe::visible_facet_at's cos_t, mf::refract_with_cos_t) instead of mf::refract's second square
 // root: where F < 1, mf::refract must succeed and give the same wt bit for bit. Over 2^18 (wi, m, eta) per set: m
 // the lobe's visible normal (GGX and Beckmann, iso / aniso, grazing wi) or any unit vector (wi.m < 0 and the flip
-// included), relative IOR 1.6 / 2.4 / 1.5 and their reciprocals (TIR inside). Negative control, one rounding away:
-// cos_t from sin2_t = (1 - c c) (1 / eta^2) (a reciprocal times) must differ somewhere.
+// included), relative IOR 1.6 / 2.4 / 1.5 and their reciprocals (TIR inside), and 1 (index-matched: F ~ 0 and wt ~ -wi,
+// to the rounding of 1 - c^2, which grows at grazing c). Negative control, one rounding away: cos_t from sin2_t = (1 -
+// c c) (1 / eta^2) (a reciprocal times) must differ somewhere. A NaN in wi, m or eta is no refraction for both: F = 1
+// with cos_t = 0, and refract fails.
 TEST(FrostedPaneTail, RefractionFromFresnelsCosineIsBitForBitRefract) {
-  const float etas[] = {1.6f, 2.4f, 1.5f, 1.0f / 1.6f, 1.0f / 2.4f, 1.0f / 1.5f};
-  long compared = 0, differ = 0, refract_failed = 0, tir = 0, control = 0, flipped = 0;
+  const float etas[] = {1.6f, 2.4f, 1.5f, 1.0f / 1.6f, 1.0f / 2.4f, 1.0f / 1.5f, 1.0f};
+  long compared = 0, differ = 0, refract_failed = 0, tir = 0, control = 0, flipped = 0, matched = 0, index_matched = 0;
+  float max_f_index_matched = 0.0f;
   for (int variant = 0; variant < 8; ++variant) {
     DielectricLobe lobe = pane_lobe(variant & 4 ? 0.8f : 0.3f, 1.5f);
     lobe.dist = (variant & 1) ? mf::Distribution::Beckmann : mf::Distribution::GGX;
     if (variant & 2) lobe.ay = 0.35f;  // anisotropic
     Pcg32 rng(3900 + variant);
     for (long i = 0; i < 32768; ++i) {
-      const float eta = etas[i % 6];
+      const float eta = etas[i % 7];
       const Vec3 wi = test::stress_direction(rng, (i % 4) == 0, 0xffffffffu);  // the side-local frame: wi.z >= 0
       const float u = rng.next_float(), v = rng.next_float();
       const Vec3 wi_std = mf::ggx_stretched_incidence(wi, lobe.ax, lobe.ay);
@@ -512,6 +516,10 @@ TEST(FrostedPaneTail, RefractionFromFresnelsCosineIsBitForBitRefract) {
         continue;
       }
       differ += !same(wt, mf::refract_with_cos_t(wi, m, eta, cos_t));
+      if (eta == 1.0f) {  // F and the bend are rounding only: 1 - c^2's rounding grows as c -> 0 (see above)
+        max_f_index_matched = std::max(max_f_index_matched, F);
+        if (std::fabs(dot(wi, m)) >= 0.01f) ++index_matched, matched += F < 1e-7f && length(wt + wi) < 1e-5f;
+      }
       float c = dot(wi, m), e = eta;
       Vec3 n = m;
       if (c < 0.0f) e = 1.0f / e, c = -c, n = -m;
@@ -521,14 +529,35 @@ TEST(FrostedPaneTail, RefractionFromFresnelsCosineIsBitForBitRefract) {
   }
   std::printf(
       "[frosted pane tail] refraction from Fresnel's cos_t: %ld of %ld (F < 1) differ, refract failed %ld, "
-      "F = 1 %ld, wi.m < 0 %ld; control (sin2_t times 1 / eta^2) %ld differ\n",
-      differ, compared, refract_failed, tir, flipped, control);
+      "F = 1 %ld, wi.m < 0 %ld, eta 1 (|wi.m| >= 0.01) with F < 1e-7 and |wt + wi| < 1e-5 %ld of %ld (max F %.3g); "
+      "control (sin2_t times 1 / eta^2) %ld differ\n",
+      differ, compared, refract_failed, tir, flipped, matched, index_matched, double(max_f_index_matched), control);
   EXPECT_EQ(differ, 0);
   EXPECT_EQ(refract_failed, 0);
   EXPECT_GT(compared, 100000);
   EXPECT_GT(tir, 1000);      // TIR (inside, eta < 1) was reached
   EXPECT_GT(flipped, 1000);  // and the flipped side
   EXPECT_GT(control, 100);
+  EXPECT_EQ(matched, index_matched);  // every eta-1 pair: no reflection, straight through
+  EXPECT_GT(index_matched, 30000);
+  // NaN anywhere: neither Fresnel nor refract lets light through.
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const Vec3 ok_wi = normalize(Vec3{0.3f, -0.2f, 0.9f}), ok_m = Vec3{0.0f, 0.0f, 1.0f};
+  const struct {
+    Vec3 wi, m;
+    float eta;
+  } nan_cases[] = {{{nan, 0.0f, 1.0f}, ok_m, 1.5f},
+                   {ok_wi, {0.0f, nan, 1.0f}, 1.5f},
+                   {ok_wi, ok_m, nan},
+                   {{nan, nan, nan}, ok_m, 1.0f},
+                   {ok_wi, {nan, nan, nan}, 1.0f / 1.5f}};
+  for (const auto &q : nan_cases) {
+    float cos_t = -1.0f;
+    EXPECT_EQ(mf::fresnel_dielectric(dot(q.wi, q.m), q.eta, &cos_t), 1.0f);
+    EXPECT_EQ(cos_t, 0.0f);
+    Vec3 wt;
+    EXPECT_FALSE(mf::refract(q.wi, q.m, q.eta, wt));
+  }
 }
 
 // Session 37 (frostedwalk37): the default rule's resampled walk (FrostedGlassClosure::resampled_walk: relative IOR

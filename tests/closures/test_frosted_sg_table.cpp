@@ -26,11 +26,12 @@
 #include <unistd.h>
 #include <vector>
 
-#include "glimmer/cache_blob.h"
-#include "host/closure_instance.h"
-#include "glimmer/rng.h"
+#include "closures/cache_test_util.h"
 #include "core/dielectric_lobe.h"
 #include "core/microfacet_lobe_params.h"
+#include "glimmer/cache_blob.h"
+#include "glimmer/rng.h"
+#include "host/closure_instance.h"
 #include "tables/frosted_sg_table.h"
 
 namespace {
@@ -543,6 +544,38 @@ TEST(FrostedSgTable, CheckedStampSkipsTheRefitsOfTheSameBuildAndBytes) {
   std::printf("[sg table cache] stamp: build %s; the second load skips the re-fits; another build, no build id, a "
               "flipped bit all re-fit; a crafted entry beside the stamp refused (%s)\n",
               id.c_str(), problem.c_str());
+  std::filesystem::remove_all(dir);
+}
+
+// A cache folder the process cannot write to (RLIMIT_FSIZE: a read-only folder or a full quota, also for root): the
+// load still succeeds, re-fits its check nodes, writes no stamp and says why (get() logs that reason, saying every
+// start will repeat the re-fits); once writable, the next load stamps and the one after skips the re-fits.
+TEST(FrostedSgTable, UnwritableStampIsReportedAndTheRefitsRunAgain) {
+  const auto dir = std::filesystem::temp_directory_path() / ("glimmer_frosted_nostamp_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  const std::string path = TransmissionSgTable::cache_path(dir.string());
+  ASSERT_EQ(TransmissionSgTable::get(host::default_host_services()).save(path), "");
+  const std::string stamp = TransmissionSgTable::stamp_path(path);
+  std::string problem;
+  for (int attempt = 0; attempt < 2; ++attempt) {
+    const test::FileSizeLimit limit(16);
+    ASSERT_TRUE(limit.ok());
+    const auto table = TransmissionSgTable::load(path, problem);
+    ASSERT_TRUE(table) << problem;
+    EXPECT_TRUE(table->refitted_check_nodes()) << "attempt " << attempt;
+    EXPECT_NE(table->stamp_not_written().find("File too large"), std::string::npos) << table->stamp_not_written();
+    EXPECT_FALSE(std::filesystem::exists(stamp));
+  }
+  const auto writable = TransmissionSgTable::load(path, problem);
+  ASSERT_TRUE(writable) << problem;
+  EXPECT_TRUE(writable->refitted_check_nodes());
+  EXPECT_EQ(writable->stamp_not_written(), "");
+  const auto stamped = TransmissionSgTable::load(path, problem);
+  ASSERT_TRUE(stamped) << problem;
+  EXPECT_FALSE(stamped->refitted_check_nodes());
+  EXPECT_EQ(std::distance(std::filesystem::directory_iterator(dir), std::filesystem::directory_iterator()), 3)
+      << "entry, key, stamp: a temporary file was left behind";
+  std::printf("[sg table cache] unwritable folder: the stamp not written (refits every load), stamped once writable\n");
   std::filesystem::remove_all(dir);
 }
 

@@ -225,18 +225,23 @@ TEST(GlintCacheHostile, OddConeGridBuildsWithFiniteValues) {
 // table bit for bit; another build checks once and is added (this build still skips); no build id always checks. A
 // crafted entry (level 0 doubled, MAC recomputed with the folder's key) beside the good stamp is refused at every load,
 // and the failed loads leave the stamp as it was.
-TEST(GlintCacheHostile, EnergyCheckedStampSkipsTheCheckOfTheSameBuildAndBytes) {
-  // The roughness-0.2 table (GGX, alpha 0.04, gamma 2) of the suite's cache, copied with its key to a private folder.
-  const GlimmerHostServices *shared = host::default_host_services();
-  ASSERT_TRUE(shared->cache_dir != nullptr && shared->cache_dir[0] != '\0');
-  { host::ClosureInstance warm(closure_type("glint"), glint_params("0.2", "2"), shared); }
+// The roughness-0.2 glint table (GGX, alpha 0.04, gamma 2).
+plugin::glint::TableSpec roughness_02_spec() {
   plugin::glint::TableSpec spec;
   spec.distribution = plugin::glint::BaseDistribution::GGX;
   spec.alpha = 0.2f * 0.2f;
   spec.gamma_deg = 2.0f;
-  const fs::path source = plugin::glint::table_cache_path(shared->cache_dir, spec);
-  ASSERT_TRUE(fs::exists(source)) << source;
-  const fs::path dir = fs::path(GLIMMER_TEST_BINARY_DIR) / ("test_cache_glint_stamp_" + std::to_string(::getpid()));
+  return spec;
+}
+
+// That table's entry in the suite's cache (built if missing), copied with the cache's key into the private folder
+// `dir` (made anew); returns the copy's path, or "" when the suite's cache has no entry.
+fs::path private_copy_of_roughness_02_table(const fs::path &dir) {
+  const GlimmerHostServices *shared = host::default_host_services();
+  if (shared->cache_dir == nullptr || shared->cache_dir[0] == '\0') return {};
+  { host::ClosureInstance warm(closure_type("glint"), glint_params("0.2", "2"), shared); }
+  const fs::path source = plugin::glint::table_cache_path(shared->cache_dir, roughness_02_spec());
+  if (!fs::exists(source)) return {};
   fs::remove_all(dir);
   fs::create_directories(dir);
   fs::permissions(dir, fs::perms::owner_all, fs::perm_options::replace);
@@ -244,6 +249,14 @@ TEST(GlintCacheHostile, EnergyCheckedStampSkipsTheCheckOfTheSameBuildAndBytes) {
   fs::copy_file(source, entry);
   fs::copy_file(fs::path(shared->cache_dir) / "secret.key", key_file);
   fs::permissions(key_file, fs::perms::owner_read | fs::perms::owner_write, fs::perm_options::replace);
+  return entry;
+}
+
+TEST(GlintCacheHostile, EnergyCheckedStampSkipsTheCheckOfTheSameBuildAndBytes) {
+  const plugin::glint::TableSpec spec = roughness_02_spec();
+  const fs::path dir = fs::path(GLIMMER_TEST_BINARY_DIR) / ("test_cache_glint_stamp_" + std::to_string(::getpid()));
+  const fs::path entry = private_copy_of_roughness_02_table(dir), key_file = dir / "secret.key";
+  ASSERT_FALSE(entry.empty()) << "the suite's cache has no roughness-0.2 table";
   const std::string stamp = plugin::checked_stamp_path(entry.string()), &id = plugin::plugin_build_id();
   ASSERT_FALSE(id.empty()) << "no GNU build id: the stamp is never used";
   auto load = [&](const std::string &build_id, bool expect_check) {
@@ -287,6 +300,57 @@ TEST(GlintCacheHostile, EnergyCheckedStampSkipsTheCheckOfTheSameBuildAndBytes) {
       "[glint table cache] stamp: build %s; the second load skips the energy check; another build checks once and "
       "joins; no build id checks; a crafted entry beside the stamp refused twice, the stamp unchanged (%s)\n",
       id.c_str(), problem.c_str());
+  fs::remove_all(dir);
+}
+
+// A cache folder the process cannot write to (RLIMIT_FSIZE stands for a read-only folder or a full quota; root
+// ignores a read-only mode): the energy check's stamp cannot be written, so every start repeats the check. The closure
+// still loads the cached table, the host's log says why the stamp is missing and what it costs, and no stamp (nor a
+// temporary file) is left; once the folder is writable the next load checks, stamps, and says nothing.
+TEST(GlintCacheHostile, UnwritableStampIsLoggedAndTheCheckRunsAgain) {
+  const plugin::glint::TableSpec spec = roughness_02_spec();
+  const fs::path dir = fs::path(GLIMMER_TEST_BINARY_DIR) / ("test_cache_glint_nostamp_" + std::to_string(::getpid()));
+  const fs::path entry = private_copy_of_roughness_02_table(dir);
+  ASSERT_FALSE(entry.empty()) << "the suite's cache has no roughness-0.2 table";
+  const std::string stamp = plugin::checked_stamp_path(entry.string()), &id = plugin::plugin_build_id();
+  ASSERT_FALSE(id.empty()) << "no GNU build id: the stamp is never used";
+  const auto files_in_dir = [&] { return std::distance(fs::directory_iterator(dir), fs::directory_iterator()); };
+  const auto files_before = files_in_dir();
+  const std::string warning = "cannot record the table's energy check beside " + entry.string();
+  const std::string dir_name = dir.string();  // host_caching_in keeps its c_str()
+  g_cache_log.clear();
+  {
+    const FileSizeLimit limit(16);
+    ASSERT_TRUE(limit.ok());
+    const GlimmerHostServices host = host_caching_in(dir_name);
+    host::ClosureInstance instance(closure_type("glint"), glint_params("0.2", "2"), &host);
+    std::string problem;
+    const auto table = plugin::glint::load_table(entry.string(), spec, problem, id);
+    ASSERT_TRUE(table) << problem;
+    EXPECT_TRUE(table->energy_checked);
+    EXPECT_NE(table->stamp_not_written.find("File too large"), std::string::npos) << table->stamp_not_written;
+  }
+  EXPECT_TRUE(logged(warning)) << "the closure's load did not log the missing stamp";
+  EXPECT_TRUE(logged("every start will repeat the check"));
+  EXPECT_FALSE(logged("recomputing")) << "the cached table itself must still load";
+  EXPECT_FALSE(fs::exists(stamp));
+  EXPECT_EQ(files_in_dir(), files_before) << "a temporary file was left behind";
+  g_cache_log.clear();
+  {
+    const GlimmerHostServices host = host_caching_in(dir_name);
+    host::ClosureInstance instance(closure_type("glint"), glint_params("0.2", "2"), &host);
+  }
+  EXPECT_TRUE(fs::exists(stamp));
+  EXPECT_FALSE(logged("cannot record")) << g_cache_log.size() << " messages";
+  // (The closure ran in the plugin DSO, another build than this test binary: this build checks once, then skips.)
+  std::string problem;
+  for (const bool expect_check : {true, false}) {
+    const auto table = plugin::glint::load_table(entry.string(), spec, problem, id);
+    ASSERT_TRUE(table) << problem;
+    EXPECT_EQ(table->energy_checked, expect_check);
+    EXPECT_EQ(table->stamp_not_written, "");
+  }
+  std::printf("[glint table cache] unwritable folder: logged '%s'; stamped once writable\n", warning.c_str());
   fs::remove_all(dir);
 }
 

@@ -533,11 +533,12 @@ inline float refraction_orient(const Vec3 &wi, const Vec3 &m, float &eta, Vec3 &
 
 // Refract wi through the microfacet m (Walter 2007 eq. 40). eta = n_t / n_i
 // for wi on the side m points to (dot(wi, m) > 0); a negative dot flips both.
-// Returns false on total internal reflection.
+// Returns false on total internal reflection, and for a NaN in wi, m or eta (fresnel_dielectric's F = 1).
 inline bool refract(const Vec3 &wi, const Vec3 &m, float eta, Vec3 &wt) {
   Vec3 n;
   const float c = refraction_orient(wi, m, eta, n);
-  const float sin2_t = std::max(0.0f, 1.0f - c * c) / (eta * eta);
+  const float s = 1.0f - c * c;
+  const float sin2_t = (s < 0.0f ? 0.0f : s) / (eta * eta);  // max(0, s), but a NaN stays NaN (std::max gave 0)
   if (!(sin2_t < 1.0f)) return false;
   const float ct = std::sqrt(1.0f - sin2_t);
   wt = normalize(-wi / eta + (c / eta - ct) * n);
