@@ -1,5 +1,6 @@
 #!/bin/bash
-# The caustic bench's ladders (docs/frosted_glass.md "Seventeenth session" and "Eighteenth / nineteenth session"):
+# The caustic bench's ladders (docs/history/frosted_glass_sessions.md "Seventeenth session" and "Eighteenth /
+# nineteenth session"):
 # path, sg, auto at 512..8192 spp on benchmarks/scenes/frosted_fair_caustic.xml (64x40, one thread, --strategy mis,
 # CPU clock) against two 65536-spp path references, per region of the shadow-zone mask, then the fit at 60 s.
 #   benchmarks/frosted_caustic_bench.sh <glimmer> <out dir> <name> <ref_7919.exr> <ref_8932.exr> [spp list]

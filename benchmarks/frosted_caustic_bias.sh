@@ -1,10 +1,10 @@
 #!/bin/bash
-# The caustic bench's bias per region for method=sg (issue 12, session 22, frostedexit22; docs/frosted_glass.md
-# "Eighteenth / nineteenth session" for the commands it wraps): frosted_fair_caustic.xml with every frosted shader
-# method="sg", two seeds (11, 12) x <spp> (default 1024), 64x40, --strategy mis, one thread, then
-# frosted_variance_per_region.py against the two 65536-spp path references (--split-x 32: the sphere's side x < 32,
-# the pane's x >= 32). The environment passes through (GLIMMER_FROSTED_CURVED_TAIL / _SHAPE for a before / after
-# with one build).
+# The caustic bench's bias per region for method=sg (issue 12, session 22, frostedexit22;
+# docs/history/frosted_glass_sessions.md "Eighteenth / nineteenth session" for the commands it wraps):
+# frosted_fair_caustic.xml with every frosted shader method="sg", two seeds (11, 12) x <spp> (default 1024), 64x40,
+# --strategy mis, one thread, then frosted_variance_per_region.py against the two 65536-spp path references (--split-x
+# 32: the sphere's side x < 32, the pane's x >= 32). The environment passes through (GLIMMER_FROSTED_CURVED_TAIL /
+# _SHAPE for a before / after with one build).
 #   benchmarks/frosted_caustic_bias.sh build/glimmer /tmp/out label ref_7919.exr ref_8932.exr [spp] [method]
 # (method: sg by default; auto renders every frosted shader with method="auto")
 # SEEDS="11 12 13 14" renders more seeds (default "11 12"). Session 23: at 1024 spp two seeds do not resolve the

@@ -1,6 +1,7 @@
 #!/usr/bin/python3
-"""Splits frosted_glass sg's error in a scene into bias and noise per region (docs/frosted_glass.md, "Where sg's
-error comes from"): renders a `path` reference at many samples, `sg` variants at fewer samples on two seeds each,
+"""Splits frosted_glass sg's error in a scene into bias and noise per region
+(docs/history/frosted_glass_sessions.md, "Where sg's error comes from"): renders a `path` reference at many
+samples, `sg` variants at fewer samples on two seeds each,
 and an id render that marks which pixels show which frosted object; then, per region and variant,
 
     noise^2 = mean((a - b)^2) / 2                      (one render's per-pixel variance)

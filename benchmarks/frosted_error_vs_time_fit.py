@@ -1,6 +1,7 @@
 #!/usr/bin/python3
 """The speed-up S of `glimmer bench error-vs-time --material frosted` when a method's ladder ends before the RMSE
-the reference method (path) reaches in --at-seconds (docs/frosted_glass.md, "Thirteenth session: the fair bench").
+the reference method (path) reaches in --at-seconds (docs/history/frosted_glass_sessions.md, "Thirteenth session:
+the fair bench").
 
 Per method and region, MSE(t) = b^2 + k / t (b: its bias, k / t: its noise) fitted to its ladder by least squares
 on the relative error (each rung weighted by 1 / MSE); path's RMSE at --at-seconds e as the bench extrapolates it

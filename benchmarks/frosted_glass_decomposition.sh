@@ -1,8 +1,8 @@
 #!/bin/bash
 # The caustic bench's sphere glass (glass_L: the camera-seen sphere, pixels x 19..30, y 9..20 of the 64x40 image)
-# decomposed by light source and by the floor bounce (issue 12, session 23, frostedglass23; docs/frosted_glass.md
-# "Session 23 (frostedglass23)"). Light transport is linear in the emitters and in the floor's albedo's
-# contribution, so four scene variants split each method's image exactly:
+# decomposed by light source and by the floor bounce (issue 12, session 23, frostedglass23;
+# docs/history/frosted_glass_sessions.md "Session 23 (frostedglass23)"). Light transport is linear in the emitters and
+# in the floor's albedo's contribution, so four scene variants split each method's image exactly:
 #   full       the scene
 #   black      the floor's colour 0: only what the camera sees on / through the sphere directly (front reflection,
 #              the lamp and the world through the exit lobe, light after internal reflections)

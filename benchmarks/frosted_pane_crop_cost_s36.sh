@@ -1,6 +1,7 @@
 #!/bin/bash
-# Instructions per camera path on the caustic bench's pane crop (session 36, frostedtail36; docs/frosted_glass.md
-# "Session 36 (frostedtail36)"): callgrind Ir of a render of the crop (--region 34,9,46,16: 12 x 7 = 84 pixels) at
+# Instructions per camera path on the caustic bench's pane crop (session 36, frostedtail36;
+# docs/history/frosted_glass_sessions.md "Session 36 (frostedtail36)"):
+# callgrind Ir of a render of the crop (--region 34,9,46,16: 12 x 7 = 84 pixels) at
 # 64 and at 192 spp, (Ir(192) - Ir(64)) / (84 x 128), so that the fixed costs (scene load, tables) cancel.
 # usage: frosted_pane_crop_cost_s36.sh <glimmer> <caustic_sg.xml> <out dir>   (environment knobs pass through)
 set -eu

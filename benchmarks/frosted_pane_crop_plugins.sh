@@ -2,7 +2,8 @@
 # The caustic bench's pane crop (--region 34,9,46,16: glass_R, the camera-seen rough pane, method=sg) with the pane at
 # a chosen IOR, rendered with two plugin builds interleaved per seed (one glimmer host, GLIMMER_PLUGIN_PATH), then each
 # plugin's variance per sample per region (frosted_variance_per_region.py variance) and its mean against plugin A's
-# images (docs/frosted_glass.md "Session 37 (frostedwalk37)"; frosted_pane_crop.sh does the same for a knob's levels).
+# images (docs/history/frosted_glass_sessions.md "Session 37 (frostedwalk37)"; frosted_pane_crop.sh does the same for a
+# knob's levels).
 #   benchmarks/frosted_pane_crop_plugins.sh <glimmer> <out> <spp> "<seeds>" <pane ior> <plugin A.so> <plugin B.so>
 #   e.g. ... build/glimmer /tmp/crop24 4096 "11 12 13 14" 2.4 /work/notes/s37/2397f6c_plugin.so \
 #        build/libglimmer_closures.so

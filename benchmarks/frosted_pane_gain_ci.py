@@ -1,6 +1,7 @@
 #!/usr/bin/python3
 """The pane crop's variance ratio between two plugins with a bootstrap interval over seeds (session 38,
-frostedpane38; docs/frosted_glass.md "Session 38 (frostedpane38)"). Reads <dir>/A.<seed>.exr and <dir>/B.<seed>.exr
+frostedpane38; docs/history/frosted_glass_sessions.md "Session 38 (frostedpane38)"). Reads <dir>/A.<seed>.exr and
+<dir>/B.<seed>.exr
 (benchmarks/frosted_pane_crop_plugins.sh's renders, any number of seeds), takes one region of the mask (default
 glass_R: glass at x >= 32, the camera-seen rough pane), and prints each plugin's variance per sample there (the mean
 over the region's pixel values of their sample variance over the seeds x spp, as frosted_variance_per_region.py),

@@ -1,6 +1,7 @@
 #!/bin/bash
-# The cost of method=sg / auto / path per camera path on the caustic bench's scene (docs/frosted_glass.md "Twentieth
-# session"): benchmarks/scenes/frosted_fair_caustic.xml with every frosted_glass_bsdf's method set, its mesh path made
+# The cost of method=sg / auto / path per camera path on the caustic bench's scene
+# (docs/history/frosted_glass_sessions.md "Twentieth session"):
+# benchmarks/scenes/frosted_fair_caustic.xml with every frosted_glass_bsdf's method set, its mesh path made
 # absolute, rendered under callgrind (64x40, 64 spp, seed 11, mis, one thread: 163840 camera paths), then
 # Renderer::Impl::trace_path inclusive / 163840 and the sg functions' table (tools/callgrind_fn_costs.py).
 #   benchmarks/frosted_sg_cost.sh <glimmer> <out dir> [methods, default sg]   e.g. ... build/glimmer /tmp/cost sg,auto,path

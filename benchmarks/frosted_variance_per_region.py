@@ -1,6 +1,7 @@
 #!/usr/bin/python3
 """Per-region variance per sample of glimmer renders, and the total-effect variance of one random decision
-(docs/frosted_glass.md, "Seventeenth session: sg's noise gain"). Pure Python; reads the EXRs and the region mask
+(docs/history/frosted_glass_sessions.md, "Seventeenth session: sg's noise gain"). Pure Python; reads the EXRs and the
+region mask
 with `oiiotool --dumpdata`. Regions: a mask image whose pixels are 0 or 1 per channel (id = R + 2 G + 4 B, named
 by --names; anything else 'edges'), as `glimmer bench error-vs-time --regions <mask>`.
 

@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""Estimate for docs/glints.md "Session 21 (glintdark21)": the walk's node list as the footprint's bounding box of
+"""Estimate for docs/history/glints_sessions.md "Session 21 (glintdark21)": the walk's node list as the footprint's
+bounding box of
 particle nodes (no rasteriser) when the box holds <= T nodes. A node outside the footprint adds no particle (the
 membership test is exact), so the counts are the same. Cost model of benchmarks/glint_dark_sim.cpp: 0.624 (walks
 not in the node-list memo) x (150 per rasterised list + 190 per row) saved; per extra node a 4-lane hash (27 or 15),

@@ -1,6 +1,6 @@
-// Offline simulation for docs/glints.md "Session 21 (glintdark21)": would a lit-count hierarchy (a block of B
-// particle nodes draws K_B ~ Poisson(B lambda) by the same tail inversion; K_B = 0 rejects its B nodes with one
-// hash per group; K_B > 0 is split to the nodes by binomial splits) cut the walk's work?
+// Offline simulation for docs/history/glints_sessions.md "Session 21 (glintdark21)": would a lit-count hierarchy (a
+// block of B particle nodes draws K_B ~ Poisson(B lambda) by the same tail inversion; K_B = 0 rejects its B nodes with
+// one hash per group; K_B > 0 is split to the nodes by binomial splits) cut the walk's work?
 //
 // Input: the walk log of benchmarks/glint_dark_walks.patch (one line per direction-cell walk: level, P, density,
 // footprint, node list). For every logged walk and R replicas, one realisation of the particle process is drawn
@@ -20,12 +20,12 @@
 //            would depend on the footprint; a lower bound of the block count).
 // The walk is dark when no lit particle falls in the footprint (the same outcome for every algorithm: one
 // realisation). Reported per walk, dark and lit walks apart, and an instruction estimate with the per-operation
-// costs given on the command line (defaults: session 20's profile; see docs/glints.md).
+// costs given on the command line (defaults: session 20's profile; see docs/history/glints_sessions.md).
 //
 // build: g++ -O2 -std=c++20 -o /tmp/glint_dark_sim benchmarks/glint_dark_sim.cpp
 // usage: glint_dark_sim <walk log> [replicas=8] [filter: all|ggx|beckmann|eval|sample|beckmann-eval] [fitted]
 //   fitted: 15 per 4-lane hash and 40 per position instead of 27 and 20 (the costs that reproduce the measured
-//   kNodeParticles 512 / 2048 builds; docs/glints.md "Session 21 (glintdark21)")
+//   kNodeParticles 512 / 2048 builds; docs/history/glints_sessions.md "Session 21 (glintdark21)")
 #include <algorithm>
 #include <array>
 #include <cmath>

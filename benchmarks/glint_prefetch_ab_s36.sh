@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Interleaved time A/B (session 36, glinthook36; docs/glints.md "Session 36 (glinthook36)"): per round, GI glint
+# Interleaved time A/B (session 36, glinthook36; docs/history/glints_sessions.md "Session 36 (glinthook36)"):
+# per round, GI glint
 # time profiles (benchmarks/glint_gi_time_profile.sh: 320x200 16 spp, 1 thread, perf cpu-clock) in a rotating order:
 #   new  = the patched host + plugin (benchmarks/glint_prefetch_cheap_s36.patch; a copy in $NEW), the prefetch on;
 #   off  = the same host + plugin with --no-closure-prefetch;

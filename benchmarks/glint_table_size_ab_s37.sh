@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
-# Interleaved time A/B of level 0's size (session 37, glinttable37; docs/glints.md "Session 37 (glinttable37)"): per
-# round, GI time profiles (benchmarks/glint_gi_time_profile.sh: 320x200 16 spp, 1 thread, perf cpu-clock) in a
-# rotating order of variants:
+# Interleaved time A/B of level 0's size (session 37, glinttable37; docs/history/glints_sessions.md "Session 37
+# (glinttable37)"): per round, GI time profiles (benchmarks/glint_gi_time_profile.sh: 320x200 16 spp, 1 thread, perf
+# cpu-clock) in a rotating order of variants:
 #   twin = the GGX twin (GI_ONLY=twin) with the new plugin;  base = $BASE_PLUGIN (2397f6c's plugin) in the same host;
 #   a1   = the scratch plugin with level 0 as on main (A/A control: same bits as base);
 #   h2 / q4 / e8 / any "name=si,so,sp" = the scratch plugin with GLIMMER_SCRATCH_L0=si,so,sp (level 0 subsampled at

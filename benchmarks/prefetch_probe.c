@@ -1,4 +1,5 @@
-// Does a software prefetch fill cache lines on this machine? (issue 10, docs/glints.md "Session 33 (glintprefetch33)")
+// Does a software prefetch fill cache lines on this machine? (issue 10, docs/history/glints_sessions.md
+// "Session 33 (glintprefetch33)")
 // Random 64-byte-aligned reads of an array of MB megabytes (malloc: 4 KB pages, so most reads also miss the TLB), each
 // followed by W dependent multiplies; mode 0 plain, 1 __builtin_prefetch D reads ahead, 2 a real load D reads ahead.
 // Not part of the build: gcc -O2 benchmarks/prefetch_probe.c -o /tmp/prefetch_probe && /tmp/prefetch_probe 64 8 50 1

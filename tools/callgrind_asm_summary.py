@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
 """Sums a tools/callgrind_asm.py listing (per-instruction self costs of one function, objdump -d -l of a -g build)
-by the innermost inlined function and by source line, for the fixed-part breakdowns of docs/glints.md (session 22).
+by the innermost inlined function and by source line, for the fixed-part breakdowns of docs/history/glints_sessions.md
+(session 22).
 usage:
   tools/callgrind_asm.py cg.out lib.so provably_dark 8192 > asm.txt
   tools/callgrind_asm_summary.py asm.txt [top N]"""

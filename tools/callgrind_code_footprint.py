@@ -2,7 +2,8 @@
 """The hot code footprint of a callgrind profile (--dump-instr=yes; best with --cache-sim=yes for the I1 misses), per
 object and per function: how many 64-byte instruction-cache lines the executed code touches, how much of those lines
 is executed code (density; the rest is cold code or padding sharing the line) and how much is padding (nop). For the
-instruction-cache question of issue 10 (docs/glints.md, "Session 31 (glintlayout31)"): a hot set far larger than the
+instruction-cache question of issue 10 (docs/history/glints_sessions.md, "Session 31 (glintlayout31)"): a hot set far
+larger than the
 32 KB L1i that is already dense can only shrink by running less code, not by moving it.
 
   tools/callgrind_code_footprint.py cg.out [--min-ir N] [--top N] [--match REGEX]

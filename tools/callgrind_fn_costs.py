@@ -3,7 +3,7 @@
 
 callgrind_annotate splits a function's cost by the source file of its inlined code; this script sums it per symbol:
 self Ir, inclusive Ir (self + its calls to other functions; recursive calls not counted twice), and how often it
-was called. Used for docs/frosted_glass.md "Twentieth session" (the cost of method=sg per camera path).
+was called. Used for docs/history/frosted_glass_sessions.md "Twentieth session" (the cost of method=sg per camera path).
 
   tools/callgrind_fn_costs.py cg.out [--match REGEX ...] [--top N] [--per N_PATHS]
       [--callees FN_REGEX]   # the calls made by the first matching function: count and inclusive Ir per callee

@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Per-row means of one region of the caustic bench: a method's renders (mean of its seeds) against references
-(mean of theirs), for the pane's gradient by row (issue 12, session 24, frostedpane24; docs/frosted_glass.md
-"Session 24 (frostedpane24)").
+(mean of theirs), for the pane's gradient by row (issue 12, session 24, frostedpane24;
+docs/history/frosted_glass_sessions.md "Session 24 (frostedpane24)").
   python3 tools/frosted_rows.py --mask benchmarks/scenes/frosted_fair_caustic_mask_64x40.png --region glass \\
       --min-x 32 --images a_11.exr,a_12.exr --references ref_7919.exr,ref_8932.exr
 """

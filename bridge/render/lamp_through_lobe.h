@@ -23,10 +23,10 @@
 
 namespace glimmer::render {
 
-// Session 31 (frostedcost31): 3 (9 + 9 points; 4 before, 16 + 16). On the caustic bench (64x40, 4 seeds x 1024
-// spp) the pixels' variance per sample moved within its noise (all 0.10230 -> 0.10265, glass 0.9101 -> 0.9096, lit
-// 0.00882 -> 0.00885, shadow 0.2931 -> 0.2966: the lamp integral's own noise is a small part of a pixel's) while sg
-// lost 4.5 % of its instructions per camera path (10582.8 -> 10105.6): docs/frosted_glass.md "Session 31".
+// Session 31 (frostedcost31): 3 (9 + 9 points; 4 before, 16 + 16). On the caustic bench (64x40, 4 seeds x 1024 spp)
+// the pixels' variance per sample moved within its noise (all 0.10230 -> 0.10265, glass 0.9101 -> 0.9096, lit 0.00882
+// -> 0.00885, shadow 0.2931 -> 0.2966: the lamp integral's own noise is a small part of a pixel's) while sg lost 4.5
+// % of its instructions per camera path (10582.8 -> 10105.6): docs/history/frosted_glass_sessions.md "Session 31".
 inline constexpr int kLampStrata = 3;
 
 struct LampEstimate {

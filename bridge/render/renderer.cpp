@@ -773,7 +773,7 @@ struct Renderer::Impl {
     bool lamps = false;  // the lamps were integrated against the lobe at the exit: the segment's lamp hits count 0
     // A mixture's lobe gets spiral points in proportion to its weight (at least kMixtureConePointsMin): 64 per lobe
     // made the 10-lobe mixture's world 640 lookups per escaped exit ray, ~70 % of an sg render's time under a
-    // textured world (docs/frosted_glass.md "Error vs time on a fair scene"). One lobe keeps all 64.
+    // textured world (docs/history/frosted_glass_sessions.md "Error vs time on a fair scene"). One lobe keeps all 64.
     static constexpr int kMixtureConePointsMin = 16;
     Spectrum lookup(const EnvironmentCone &env, const ShaderSystem &shaders) const {
       Spectrum sum(0.0f);

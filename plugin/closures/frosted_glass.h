@@ -416,10 +416,10 @@ class FrostedGlassClosure {
     return pane_sample_sg_split(sp, lobe, in, rand, wi, s, flip, out, std::clamp(split, 1, frosted::kPaneWalkSplit),
                                 count_rejected, branch, exact_leaving, both_faces, front_grid);
   }
-  // Session 36/37 (frostedtail36, frostedwalk37; docs/frosted_glass.md "Session 37 (frostedwalk37)"): one event of
-  // the pane walk at the interface-local incidence wi (either side), its numbers from rng. Level 0 (kPaneWalkLobe,
-  // main's walk bit for bit): the lobe's own sample (a microfacet m, the Fresnel coin, weight g / E with
-  // g = G2 / G1(wi), 0 where the direction is no sample). At IOR 2.4 and roughness >= 0.8 that weight's second
+  // Session 36/37 (frostedtail36, frostedwalk37; docs/history/frosted_glass_sessions.md "Session 37 (frostedwalk37)"):
+  // one event of the pane walk at the interface-local incidence wi (either side), its numbers from rng. Level 0
+  // (kPaneWalkLobe, main's walk bit for bit): the lobe's own sample (a microfacet m, the Fresnel coin, weight g / E
+  // with g = G2 / G1(wi), 0 where the direction is no sample). At IOR 2.4 and roughness >= 0.8 that weight's second
   // moment grows along the reflections between the faces (the transfer operator's spectral radius of
   // E[w^2 1{reflect}] is 1.11 at roughness 0.8, 1.28 at 1.0): the walk's throughput has infinite variance.
   // Level 1 (kPaneWalkResampled): kPaneWalkCandidates microfacets m_j (jittered 2 x 2 in the visible-normal

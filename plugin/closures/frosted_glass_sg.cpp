@@ -486,10 +486,10 @@ int measurement_level(const char *name, int fallback, std::initializer_list<int>
 //  - otherwise (0.2..0.4 curved, <= 0.4 planar) the per-ray kappa / 4 tails as before.
 // An explicit mixture_tail (>= 0, the tests' variants) is the per-ray mixture with that tail. lobe_count 0: the
 // single SG (out.sg). False: no lobe has energy.
-// kCurvedTail, or for measurements only (docs/frosted_glass.md "Eighteenth / nineteenth session": the bench's
-// before / after with one build) the environment's GLIMMER_FROSTED_CURVED_TAIL (0: the unsplit single SG), read once.
-// Session 22: the default is kCurvedExitShape (below); the split with t is the nineteenth session's, still reachable
-// for before / after runs; unset: -1.
+// kCurvedTail, or for measurements only (docs/history/frosted_glass_sessions.md "Eighteenth / nineteenth session": the
+// bench's before / after with one build) the environment's GLIMMER_FROSTED_CURVED_TAIL (0: the unsplit single SG), read
+// once. Session 22: the default is kCurvedExitShape (below); the split with t is the nineteenth session's, still
+// reachable for before / after runs; unset: -1.
 float curved_tail() {
   static const float t = measurement_knob("GLIMMER_FROSTED_CURVED_TAIL", -1.0f, 0.0f, 0.2f);
   return t;
@@ -731,9 +731,9 @@ bool solid_exit_mixture(const SgInputs &in, const Segment &seg, const Vec3 &axis
   if (by_rule && !planar && (wide || narrow)) {  // the single SG, split into a core and a tail when wide
     if (wide && in.roughness <= kCurvedSplitMax) {
       // The axis moved by the smooth refractions' mean shift (kCurvedAxisShift; session 23's first-moment rules were
-      // measured and not kept, docs/frosted_glass.md "Session 23 (frostedexit23)"; removed in session 24).
-      // The floor's view (floor_view_exit; off by default): kFloorViewShift, and session 30's kCurvedExitShapeFloor
-      // (1) or session 31's origin rule (2: kFloorViewOrigin).
+      // measured and not kept, docs/history/frosted_glass_sessions.md "Session 23 (frostedexit23)"; removed in session
+      // 24). The floor's view (floor_view_exit; off by default): kFloorViewShift, and session 30's
+      // kCurvedExitShapeFloor (1) or session 31's origin rule (2: kFloorViewOrigin).
       const int floor_exit = floor_view_exit(in, seen_directly, drawn);
       if (const float k = floor_exit != 0 ? floor_view_shift() : curved_shift(); k != 0.0f) {
         const Vec3 shifted = normalize(out.sg.axis + refracted_mean_shift(seg, axis, ior) * k);
@@ -882,8 +882,8 @@ ExitRoulette exit_roulette(const SgInputs &in, const Segment &seg, float axis_en
                            const TransmissionSgTable::Axes &exit_axes, uint32_t seed, int event, bool last,
                            float first_u) {
   ExitRoulette r;
-  // The stratified number at curved exits only (a planar one, a slab's back face, keeps the hashed route: there it was
-  // not measured on the bench, and the exit harness' slab moved by its noise; docs/frosted_glass.md "Session 27").
+  // The stratified number at curved exits only (a planar one, a slab's back face, keeps the hashed route: unmeasured on
+  // the bench there; the exit harness' slab moved by its noise; docs/history/frosted_glass_sessions.md "Session 27").
   if (event == 0 && first_u >= 0.0f && seg.planar_facing) first_u = -1.0f;
   if (!last) r.energies = exit_energies(*in.table, seg, axis_energy, exit_axes);
   static_cast<RouletteNumber &>(r) =

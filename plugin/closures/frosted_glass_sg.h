@@ -132,8 +132,8 @@ inline SgVariant solid_sg_variant(float entry_roughness) {
 // kappa / 4 with weight 0.1), handed to the host as the ABI 2.7 exit mixture. The single SG's vMF has no GGX tail;
 // on the caustic scene the sphere's shadow (a small lamp seen through the sphere's exit lobe off its axis) was
 // sg's largest bias. Chosen by the exit harness against the path (tests/closures/test_frosted_sg.cpp,
-// ExitLobeShapeOfSolidsAgainstThePath, sphere r 0.5 / 0.6) and the caustic scene's shadow zone;
-// docs/frosted_glass.md "Eighteenth / nineteenth session". Above kCurvedSplitMax the single SG (not measured there).
+// ExitLobeShapeOfSolidsAgainstThePath, sphere r 0.5 / 0.6) and the caustic scene's shadow zone; above kCurvedSplitMax
+// the single SG (not measured there). docs/history/frosted_glass_sessions.md "Eighteenth / nineteenth session".
 inline constexpr float kCurvedTail = 0.1f;
 inline constexpr float kCurvedSplitMax = 0.65f;
 // A curved exit's lobe shape about the single SG's axis (session 22, frostedexit22): up to kCurvedShapeLobes vMFs
@@ -149,19 +149,19 @@ struct CurvedShape {
 // moved by kCurvedAxisShift x (the mean of the smooth refractions of the internal axis and its 4 bounding rays, each
 // through its own exit normal, minus the axis' own): the exact walk's shape at roughness 0.5 (a sharper core, x 2.2,
 // weight 0.65, and a wider, heavier tail, x 0.4, weight 0.35: 1.17x the single SG's variance), fitted by
-// benchmarks/frosted_sphere_exit_fit.cpp to FrostedGlassSg.ExitOfTheSphereAroundTheCausticBench's path bands; the
-// shift is what the caustic bench's sphere shadow needed (the image of the lobe's mean through the curved exit, not
-// the refraction of its axis alone). docs/frosted_glass.md "Session 22 (frostedexit22)". The nineteenth session's
-// split (kCurvedTail) stays for before / after runs (GLIMMER_FROSTED_CURVED_TAIL; 0: the single SG).
+// benchmarks/frosted_sphere_exit_fit.cpp to FrostedGlassSg.ExitOfTheSphereAroundTheCausticBench's path bands; the shift
+// is what the caustic bench's sphere shadow needed (the image of the lobe's mean through the curved exit, not the
+// refraction of its axis alone). docs/history/frosted_glass_sessions.md "Session 22 (frostedexit22)". The nineteenth
+// session's split (kCurvedTail) stays for before / after runs (GLIMMER_FROSTED_CURVED_TAIL; 0: the single SG).
 inline constexpr CurvedShape kCurvedExitShape{2, {0.65f, 0.35f}, {2.2f, 0.4f}};
 // Session 23 (frostedexit23): the shift from the exit lobe's exact first moment (its measurement switch
 // GLIMMER_FROSTED_CURVED_AXIS and moment_mean_shift were removed in session 24) puts the harness' axis right (-0.90 ->
 // +0.16 deg at the bench's case) but doubles the caustic bench's shadow bias (0.0092 -> 0.0175, 2 x 8192 spp) and
 // misses the analytic shadow (SphereShadowOfAFarLampAgainstThePath 0.056 -> 0.084): not kept, the smooth shift stays.
 inline constexpr float kCurvedAxisShift = 1.0f;
-// Session 27 (frostedexit27; docs/frosted_glass.md "Session 27 (frostedexit27)"): the curved exit's origin at the
-// exit points' mean. The light of one entry leaves a sphere from points spread about the axis' exit point P0, each
-// point's direction going with it; the mixture leaves from one point, so what is near the exit (the floor seen
+// Session 27 (frostedexit27; docs/history/frosted_glass_sessions.md "Session 27 (frostedexit27)"): the curved exit's
+// origin at the exit points' mean. The light of one entry leaves a sphere from points spread about the axis' exit point
+// P0, each point's direction going with it; the mixture leaves from one point, so what is near the exit (the floor seen
 // through the sphere, a lamp a few radii away) sees the bundle displaced by the points' mean lateral offset, while the
 // far environment sees only the directions (where kCurvedAxisShift 1 is right). The origin moves by
 // kCurvedExitCentroid x that offset (the 5 traced rays' exit points, refracted_mean_shift's weights, carried along
@@ -178,10 +178,10 @@ inline constexpr float kCurvedExitCentroid = 1.0f;
 // lamps read the whole lobe from the drawn point). Caustic bench (2 x 8192, seeds 11 / 12, on the centroid): glass_L
 // 0.00992 -> 0.00821, edges 0.01382 -> 0.01251, all 0.00376 -> 0.00352; the shadow unchanged.
 inline constexpr float kCurvedExitWaist = 1.0f;
-// Session 28 (frostedbias28; docs/frosted_glass.md "Session 28 (frostedbias28)"): the internal axis drawn at the
-// entry where the solid is seen directly (no diffuse or glossy bounce before, as kSampledReflection). The caustic
-// bench's camera-seen sphere was too bright where its light leaves directly (event split: its glass +3..5 %, its
-// bottom rim +40..+87 %, grazing entries): the front SG (the table's symmetric fit of the transmitted lobe) and its
+// Session 28 (frostedbias28; docs/history/frosted_glass_sessions.md "Session 28 (frostedbias28)"): the internal axis
+// drawn at the entry where the solid is seen directly (no diffuse or glossy bounce before, as kSampledReflection). The
+// caustic bench's camera-seen sphere was too bright where its light leaves directly (event split: its glass +3..5 %,
+// its bottom rim +40..+87 %, grazing entries): the front SG (the table's symmetric fit of the transmitted lobe) and its
 // width carried through the sphere by 5 rays. kEntryAxis 1: the internal axis is the front sample's own refracted
 // direction (the exact transmitted distribution, whose weight the sample already carries), the internal lobe about
 // it of sharpness kEntryKappa (narrow: the spread is in the draws), where the first exit is curved (a planar one, a
@@ -192,7 +192,7 @@ inline constexpr float kCurvedExitWaist = 1.0f;
 // per sample 0.185 -> 0.490 (path's 0.439).
 inline constexpr int kEntryAxis = 1;
 inline constexpr float kEntryKappa = 1e4f;
-// Session 29 (frostedshadow29; docs/frosted_glass.md "Session 29 (frostedshadow29)"): a partial draw of the internal
+// Session 29 (docs/history/frosted_glass_sessions.md "Session 29 (frostedshadow29)"): a partial draw of the internal
 // axis in the floor's view (the solid not seen directly; floor_view_axis): turned from the front SG's axis towards
 // the front sample's refracted direction by the share kFloorView of their angle, the internal lobe's sharpness
 // kappa_front / (1 - kFloorView^2). Measured and not kept (0: the front SG, as before): on the caustic bench's
@@ -203,15 +203,15 @@ inline constexpr float kFloorView = 0.0f;
 // from kCurvedShapeRoughness[1] (0.6) up to kCurvedSplitMax, the shares and factors interpolated linearly between.
 // Chosen where the exit harness (ExitOfTheSphereAroundTheCausticBench) and the far lamp's shadow
 // (SphereShadowOfAFarLampAgainstThePath) both improve at roughness 0.6: band L1 0.093 -> 0.057, shadow 0.048 ->
-// 0.045 (the harness' own best, 0.75:1.5,0.25:0.25, makes the shadow worse: 0.084). docs/frosted_glass.md
-// "Session 23 (frostedexit23)".
+// 0.045 (the harness' own best, 0.75:1.5,0.25:0.25, makes the shadow worse: 0.084).
+// docs/history/frosted_glass_sessions.md "Session 23 (frostedexit23)".
 inline constexpr CurvedShape kCurvedExitShapeWide{2, {0.7f, 0.3f}, {1.8f, 0.3f}};
 inline constexpr float kCurvedShapeRoughness[2] = {0.5f, 0.6f};
-// Session 29 (frostedexit29; docs/frosted_glass.md "Session 29 (frostedexit29)"): the curved exit's shape about a
-// drawn entry axis (kEntryAxis 1). The shapes above were fitted to the single SG made of the front SG's width carried
-// through the solid plus the exit's scatter; about the front sample's own refracted direction (internal lobe
-// kEntryKappa) the single SG is the exit's scatter alone, and kCurvedExitShape's core x 2.2 (0.65) / tail x 0.4 (0.35)
-// on it was too wide near the axis (harness band L1 r 0.5 IOR 1.33 0.108 against the front SG's 0.055).
+// Session 29 (frostedexit29; docs/history/frosted_glass_sessions.md "Session 29 (frostedexit29)"): the curved exit's
+// shape about a drawn entry axis (kEntryAxis 1). The shapes above were fitted to the single SG made of the front SG's
+// width carried through the solid plus the exit's scatter; about the front sample's own refracted direction (internal
+// lobe kEntryKappa) the single SG is the exit's scatter alone, and kCurvedExitShape's core x 2.2 (0.65) / tail x 0.4
+// (0.35) on it was too wide near the axis (harness band L1 r 0.5 IOR 1.33 0.108 against the front SG's 0.055).
 // kCurvedExitShapeDrawn: a core x 2.35 (weight 0.72) and a tail x 0.42 (0.28), one shape for roughness 0.5-0.65 (the
 // exit's scatter alone scales with the roughness itself), fitted by benchmarks/frosted_sphere_exit_fit.cpp (--drawn,
 // fit2fine, the 5 bounded cases of ExitOfTheSphereAroundTheCausticBench jointly: mean band L1 0.033, worst 0.053;
@@ -234,33 +234,33 @@ inline CurvedShape curved_exit_shape(float roughness, bool drawn = false) {
   }
   return s;
 }
-// Session 30 (frostedshadow30; docs/frosted_glass.md "Session 30 (frostedshadow30)"), measured, not kept: the floor's
-// view of a curved exit (the solid not seen directly: the front SG's axis and width carried through, the caustic bench's shadow) at
-// entry roughness <= kCurvedShapeRoughness[0]: the axis shift kFloorViewShift x refracted_mean_shift (1.0 before)
-// and the shape kCurvedExitShapeFloor (a core x 2.0, weight 0.6, a tail x 0.45, weight 0.4) instead of
-// kCurvedExitShape. Fitted on FrostedGlassSg.BenchLampCausticThroughTheSphereOnAFloorGrid (the bench lamp's caustic
-// through the sphere on a 5 x 5 floor grid, path's exact walk as the reference): rms 0.053 -> 0.022 (noise 0.010).
-// The bundle's anisotropy (each shape lobe as a pair along the exit slopes' major direction) was measured there
-// first and changed nothing (0.058 -> 0.059 / 0.061 at x 1 / x 3, 500k paths). Bench (2 x 8192, seeds 11 / 12):
-// shadow rms bias 0.00748 -> 0.00488 at the same variance (0.198 -> 0.199). NOT the default: it fits the bench's
+// Session 30 (frostedshadow30; docs/history/frosted_glass_sessions.md "Session 30 (frostedshadow30)"), measured, not
+// kept: the floor's view of a curved exit (the solid not seen directly: the front SG's axis and width carried through,
+// the caustic bench's shadow) at entry roughness <= kCurvedShapeRoughness[0]: the axis shift kFloorViewShift x
+// refracted_mean_shift (1.0 before) and the shape kCurvedExitShapeFloor (a core x 2.0, weight 0.6, a tail x 0.45,
+// weight 0.4) instead of kCurvedExitShape. Fitted on FrostedGlassSg.BenchLampCausticThroughTheSphereOnAFloorGrid (the
+// bench lamp's caustic through the sphere on a 5 x 5 floor grid, path's exact walk as the reference): rms 0.053 ->
+// 0.022 (noise 0.010). The bundle's anisotropy (each shape lobe as a pair along the exit slopes' major direction) was
+// measured there first and changed nothing (0.058 -> 0.059 / 0.061 at x 1 / x 3, 500k paths). Bench (2 x 8192, seeds 11
+// / 12): shadow rms bias 0.00748 -> 0.00488 at the same variance (0.198 -> 0.199). NOT the default: it fits the bench's
 // lamp distance with the directions, and a far lamp's shadow goes wrong (SphereShadowOfAFarLampAgainstThePath r 0.5
 // 0.118 against its bound 0.07; NearLampThroughTheSphereFromTheExitPointsMean at 40.3 radii 0.0527 -> 0.1118, while
 // 5.04 radii 0.0336 -> 0.0147): the near lamp's error is where the light leaves, not its directions.
 // GLIMMER_FROSTED_FLOOR_EXIT=1 for measurements; 0: the floor view of sessions 22-30.
-// Session 31 (frostedshadow31; docs/frosted_glass.md "Session 31 (frostedshadow31)"): kFloorViewExit 2 is the floor's
-// view with the shift kFloorViewShift and main's shape (kCurvedExitShape: the far lamps want it) plus an origin rule for
-// the exit points' spread (what kCurvedExitShapeFloor's width faked at the bench's lamp distance): kFloorViewOrigin
-// 1 the waist (kCurvedExitWaist's, x kFloorViewOriginScale, drawn with the direction), 2 a jitter of the origin drawn
-// per sample in the exit's tangent plane, uniform in the ellipse of the exit points' lateral covariance (exit_bundle's
-// 5 rays) x kFloorViewOriginScale, independent of the direction (the host's lamp integral and the continued path see
-// the same origin blur), 3 the same along the covariance's major axis only. 0 / 1: sessions 22-30's / session 30's
-// fit. The default (2, jitter x 1: the exit points' own spread, no fitted factor): the caustic grid harness (2M sg
-// paths against 500k reference paths, noise 0.0077) 0.0489 -> 0.0180 (the shift alone 0.0502; jitter x 0.7 / 1.3 /
-// 1.6 0.0318 / 0.0264 / 0.0552; the major axis only x 1 / 1.4 0.0396 / 0.0579; the waist x 1 / 2 0.0504 / 0.0415;
-// session 30's fit 0.0193), SphereShadowOfAFarLampAgainstThePath r 0.5 0.0589 -> 0.0534 (r 0.6 untouched),
-// NearLampThroughTheSphereFromTheExitPointsMean 5.04 / 40.3 radii 0.0336 / 0.0527 -> 0.0212 / 0.0452. Bias bench (4 x
-// 8192, seeds 11-14): shadow rms bias 0.00753 -> 0.00417 (var/sample 0.2296 -> 0.2318), shadow_L 0.01215 -> 0.00689,
-// all 0.00260 -> 0.00161. GLIMMER_FROSTED_FLOOR_EXIT=0: the former images.
+// Session 31 (frostedshadow31; docs/history/frosted_glass_sessions.md "Session 31 (frostedshadow31)"): kFloorViewExit 2
+// is the floor's view with the shift kFloorViewShift and main's shape (kCurvedExitShape: the far lamps want it) plus an
+// origin rule for the exit points' spread (what kCurvedExitShapeFloor's width faked at the bench's lamp distance):
+// kFloorViewOrigin 1 the waist (kCurvedExitWaist's, x kFloorViewOriginScale, drawn with the direction), 2 a jitter of
+// the origin drawn per sample in the exit's tangent plane, uniform in the ellipse of the exit points' lateral
+// covariance (exit_bundle's 5 rays) x kFloorViewOriginScale, independent of the direction (the host's lamp integral and
+// the continued path see the same origin blur), 3 the same along the covariance's major axis only. 0 / 1: sessions
+// 22-30's / session 30's fit. The default (2, jitter x 1: the exit points' own spread, no fitted factor): the caustic
+// grid harness (2M sg paths against 500k reference paths, noise 0.0077) 0.0489 -> 0.0180 (the shift alone 0.0502;
+// jitter x 0.7 / 1.3 / 1.6 0.0318 / 0.0264 / 0.0552; the major axis only x 1 / 1.4 0.0396 / 0.0579; the waist x 1 / 2
+// 0.0504 / 0.0415; session 30's fit 0.0193), SphereShadowOfAFarLampAgainstThePath r 0.5 0.0589 -> 0.0534 (r 0.6
+// untouched), NearLampThroughTheSphereFromTheExitPointsMean 5.04 / 40.3 radii 0.0336 / 0.0527 -> 0.0212 / 0.0452. Bias
+// bench (4 x 8192, seeds 11-14): shadow rms bias 0.00753 -> 0.00417 (var/sample 0.2296 -> 0.2318), shadow_L 0.01215 ->
+// 0.00689, all 0.00260 -> 0.00161. GLIMMER_FROSTED_FLOOR_EXIT=0: the former images.
 inline constexpr int kFloorViewExit = 2;
 inline constexpr float kFloorViewShift = 1.6f;
 inline constexpr CurvedShape kCurvedExitShapeFloor{2, {0.6f, 0.4f}, {2.0f, 0.45f}};
@@ -304,11 +304,11 @@ struct SgInputs {
 
 inline constexpr int kMaxInternalReflections = 16;
 
-// The sampled internal reflection (issue 12, session 25, frostedglassL25; docs/frosted_glass.md "Session 25
-// (frostedglassL25)"). On the caustic bench all of the sphere's own glass bias (glass_L) was the lamp seen through
-// the sphere after >= 1 internal reflection (sg -29 %; session 23): the SG walk reflected its lobe's axis about the
-// mean exit normal and widened the lobe by the rough reflection (kappa_reflect / 4), one wide vMF from one point, and
-// no exit shape or axis rule fixed what that wide lobe does at a curved exit (parts beyond the critical angle, exit
+// The sampled internal reflection (issue 12, session 25, frostedglassL25; docs/history/frosted_glass_sessions.md
+// "Session 25 (frostedglassL25)"). On the caustic bench all of the sphere's own glass bias (glass_L) was the lamp seen
+// through the sphere after >= 1 internal reflection (sg -29 %; session 23): the SG walk reflected its lobe's axis about
+// the mean exit normal and widened the lobe by the rough reflection (kappa_reflect / 4), one wide vMF from one point,
+// and no exit shape or axis rule fixed what that wide lobe does at a curved exit (parts beyond the critical angle, exit
 // points and normals spread over the surface). Where a solid is seen directly (no diffuse or glossy bounce before)
 // and the exit is curved (exit_curvature; a planar exit keeps its reflected_axis rule: the slab got worse with the
 // draw, accuracy set 0.0187 -> 0.0217), the reflection's direction is instead drawn from the exit interface's own lobe (Walter 2007 with the energy
@@ -356,16 +356,16 @@ struct ExitLobe {
   float leftover = -1.0f;
 };
 
-// The host's bounce limits in the walk (issue 12, session 26, frostedfloor26; closure ABI 2.9; docs/frosted_glass.md
-// "Session 26 (frostedfloor26)"). method=path's walk through a solid is one host scatter per event: the entry (a
-// transmission), each internal reflection (glossy) and the exit, and the host ends the path at the next surface once
-// a count reaches its limit (max_glossy_bounce 7 and max_bounce 12 in the caustic bench: the light after >= 8 internal
-// reflections never leaves; 12 % of the sphere's reflected light, 2.6 % of all it sends to the camera under a uniform
-// world). sg's walk is one scatter for the host, so it applies the same limits itself: the number of internal
-// reflections the path could take at ctx (its counts before the entry) before a limit ends it; -1: the entry already
-// ends it; kMaxInternalReflections without limits (older hosts, the closure laboratory, the tests' contexts). The
-// exit's own count (the path's next surface then adds only its emission) and the counts after the exit (the host
-// counts the whole walk as one transmission) are not applied.
+// The host's bounce limits in the walk (issue 12, session 26, frostedfloor26; closure ABI 2.9;
+// docs/history/frosted_glass_sessions.md "Session 26 (frostedfloor26)"). method=path's walk through a solid is one host
+// scatter per event: the entry (a transmission), each internal reflection (glossy) and the exit, and the host ends the
+// path at the next surface once a count reaches its limit (max_glossy_bounce 7 and max_bounce 12 in the caustic bench:
+// the light after >= 8 internal reflections never leaves; 12 % of the sphere's reflected light, 2.6 % of all it sends
+// to the camera under a uniform world). sg's walk is one scatter for the host, so it applies the same limits itself:
+// the number of internal reflections the path could take at ctx (its counts before the entry) before a limit ends it;
+// -1: the entry already ends it; kMaxInternalReflections without limits (older hosts, the closure laboratory, the
+// tests' contexts). The exit's own count (the path's next surface then adds only its emission) and the counts after the
+// exit (the host counts the whole walk as one transmission) are not applied.
 int reflections_allowed(const GlimmerShadingContext &ctx);
 
 // Steps 1-5 for the path entering at sp (wi outside, sp.wi.z > 0); `seed` drives the Russian roulette at
@@ -376,13 +376,13 @@ bool trace_exit_lobe(const ShadingPoint &sp, const SgInputs &in, uint32_t seed, 
                      const Vec3 *entry = nullptr);
 
 // The first exit's roulette from the host's stratified numbers (issue 12, session 27, frostedcost27;
-// docs/frosted_glass.md "Session 27 (frostedcost27)"). The front interface transmitted `front` because rand.z >= F
-// (DielectricLobe::sample, F the Fresnel reflectance at its microfacet), so (rand.z - F) / (1 - F) is uniform on
-// [0, 1) given the transmission and independent of the microfacet (rand.x, rand.y); it decides the first leave /
-// reflect choice (the roulette on E_x) in place of a hashed number, so that the pixel's samples split between leaving
-// and reflecting as its stratified rand.z does. The same expectation. Where sampled_reflection applies (the solid
-// seen directly, SgInputs::sampled_reflection: method=auto's sg part stays as it was) and the first exit is curved
-// (exit_curvature, as the sampled reflection's rule: a slab's planar exit keeps the hashed route). Level 2 also
+// docs/history/frosted_glass_sessions.md "Session 27 (frostedcost27)"). The front interface transmitted `front` because
+// rand.z >= F (DielectricLobe::sample, F the Fresnel reflectance at its microfacet), so (rand.z - F) / (1 - F) is
+// uniform on [0, 1) given the transmission and independent of the microfacet (rand.x, rand.y); it decides the first
+// leave / reflect choice (the roulette on E_x) in place of a hashed number, so that the pixel's samples split between
+// leaving and reflecting as its stratified rand.z does. The same expectation. Where sampled_reflection applies (the
+// solid seen directly, SgInputs::sampled_reflection: method=auto's sg part stays as it was) and the first exit is
+// curved (exit_curvature, as the sampled reflection's rule: a slab's planar exit keeps the hashed route). Level 2 also
 // reuses what is left of the number: given a reflection, (u - E_x) / (1 - E_x) is the first draw's first number of
 // the sampled reflection (sample_reflection); given the exit, u / E_x picks the exit mixture's lobe and, rescaled
 // again to the picked lobe's share, is the first draw's cos theta number (ExitLobe::leftover).
@@ -556,10 +556,10 @@ bool pane_exit_lobe_through(const Vec3 &wi, const PaneSgInputs &in, PaneExitLobe
 bool sample_pane_sg_through(const ShadingPoint &sp, const PaneSgInputs &in, const Vec3 &rand, const Vec3 &wi,
                             const Spectrum &weight, bool flip, LocalSample &out);
 
-// Rough panes, split (kPaneWalk, issue 12, seventeenth session; docs/frosted_glass.md "Seventeenth session: sg's
-// noise gain"). On the caustic scene the pane's front sample (its microfacet: the internal direction d) and the
-// walk between the faces carried most of sg's variance, not the exit lobe's direction nor the light sample there.
-// So one sg sample through a rough pane carries kPaneWalkSplit walks: the primary (the front sample the closure
+// Rough panes, split (kPaneWalk, issue 12, seventeenth session; docs/history/frosted_glass_sessions.md "Seventeenth
+// session: sg's noise gain"). On the caustic scene the pane's front sample (its microfacet: the internal direction d)
+// and the walk between the faces carried most of sg's variance, not the exit lobe's direction nor the light sample
+// there. So one sg sample through a rough pane carries kPaneWalkSplit walks: the primary (the front sample the closure
 // drew from its stratified numbers, and its walk, as before) and kPaneWalkSplit - 1 more front samples from hashed
 // numbers, those that transmit kept (each is then distributed as the primary given that it transmits) with their own
 // walks. Walk k ends at the internal direction d_k with throughput T_k (the tints and Beer included; zero when its
@@ -582,13 +582,13 @@ struct PaneWalkEnd {
   Spectrum throughput{0.0f};
   Vec3 leaving{0.0f};  // the walk's own direction out of the pane (pane frame; 0: none): pane_exact_leaving_level
 };
-// The rough pane's exact exit for the lamps (issue 12, session 24, frostedpane24; docs/frosted_glass.md "Session 24
-// (frostedpane24)"). The leaving table's SG at d_k is the exit's direction distribution fitted by its mean and
-// variance; on the caustic bench the lamp seen through the pane's exit (glass_R) was 7-10 % too dark in the far rows
-// and 5 % too bright in the near rows by it. So the split sample also hands the host (ABI 2.8's exit state, on a
-// moved exit-lobe sample) the walks of the face F it picked (since session 33 by default the ends of both faces,
-// each c_k scaled by the picked face's probability p_F: pane_both_faces_level): the host's lamps through the exit
-// lobe then take the
+// The rough pane's exact exit for the lamps (issue 12, session 24, frostedpane24;
+// docs/history/frosted_glass_sessions.md "Session 24 (frostedpane24)"). The leaving table's SG at d_k is the exit's
+// direction distribution fitted by its mean and variance; on the caustic bench the lamp seen through the pane's exit
+// (glass_R) was 7-10 % too dark in the far rows and 5 % too bright in the near rows by it. So the split sample also
+// hands the host (ABI 2.8's exit state, on a moved exit-lobe sample) the walks of the face F it picked (since session
+// 33 by default the ends of both faces, each c_k scaled by the picked face's probability p_F: pane_both_faces_level):
+// the host's lamps through the exit lobe then take the
 // value q(w) = sum_{k in F} c_k f_k(w) instead of the mixture's density, f_k the exit interface's f cos from d_k (the
 // exact BTDF the walk sampled its exit from) and c_k = (t_k / t_F) / E_k, E_k the leaving table's energy at d_k
 // (the interface's directional transmittance there, Int f_k): the mixture's lobe k (weight t_k / t_F, an SG
@@ -685,10 +685,10 @@ bool sample_pane_sg_split(const ShadingPoint &sp, const PaneSgInputs &in, const 
                           int n, bool flip, LocalSample &out, int ends = -1, int face_pick = 0, int exact_leaving = -1,
                           int both_faces = -1);
 
-// The camera-seen rough pane's split, session 30 (issue 12, frostedpane30; docs/frosted_glass.md "Session 30
-// (frostedpane30)"). On the caustic bench's pane crop the walks between the faces carried ~all of glass_R's variance
-// (re-drawn alone: 1.95 of 1.80 per sample), the face pick 1.08, the front microfacet 0.45 (total effects, they
-// overlap): the lamp above the pane is seen through it only by light that reflected at the far face (R_int), a
+// The camera-seen rough pane's split, session 30 (issue 12, frostedpane30; docs/history/frosted_glass_sessions.md
+// "Session 30 (frostedpane30)"). On the caustic bench's pane crop the walks between the faces carried ~all of glass_R's
+// variance (re-drawn alone: 1.95 of 1.80 per sample), the face pick 1.08, the front microfacet 0.45 (total effects,
+// they overlap): the lamp above the pane is seen through it only by light that reflected at the far face (R_int), a
 // Fresnel coin of a few % per walk. Level 1: each walk keeps both branches of its first event at the far face
 // (FrostedGlassClosure::branch_walks: the transmitted end weighted by 1 - F(m), the reflected branch by F(m) walking
 // on), so every sample carries the reflected light's ends; level 2 (default) also picks the face with probability
@@ -701,28 +701,28 @@ int pane_branch_level();
 // sqrt(t_F)-proportional (face_pick 2), 1/2 (1, tried) or main's t_F / t (0, and 3: the same probability with the
 // weight over it, session 33's both faces level 2): the probability of the far face.
 double pane_face_probability(double t_through, double t_back, int face_pick);
-// Session 32 (frostedvar32; docs/frosted_glass.md "Session 32 (frostedvar32)"): where the split sample hands the host
-// its exact exit (PaneSgExitState: the lamps valued by the walks' own BTDF), the continued direction was still drawn
-// from the face's SG mixture, so the continued path (the floor seen through the pane) saw the SG's shape while the
-// lamps saw the exact one. On the caustic bench's pane crop (glass_R, 4 seeds x 8192 spp against 18 path references)
-// that was sg's +0.6 % offset: +0.00284 (off_z 3.88) with the SG draw, -0.00009 (-0.10) with the exact exit's
-// direction. Level 1 (GLIMMER_FROSTED_PANE_EXACT_LEAVING, read once): where the exit state is written, the end
+// Session 32 (frostedvar32; docs/history/frosted_glass_sessions.md "Session 32 (frostedvar32)"): where the split sample
+// hands the host its exact exit (PaneSgExitState: the lamps valued by the walks' own BTDF), the continued direction was
+// still drawn from the face's SG mixture, so the continued path (the floor seen through the pane) saw the SG's shape
+// while the lamps saw the exact one. On the caustic bench's pane crop (glass_R, 4 seeds x 8192 spp against 18 path
+// references) that was sg's +0.6 % offset: +0.00284 (off_z 3.88) with the SG draw, -0.00009 (-0.10) with the exact
+// exit's direction. Level 1 (GLIMMER_FROSTED_PANE_EXACT_LEAVING, read once): where the exit state is written, the end
 // picked by the mixture's weights (t_k / t_face) continues along its walk's own leaving direction (exact given d_k:
 // the picked face's estimate is then method=path's walk, sum_k t_k L(leaving_k) / (n p_face), and the lamps' exact
 // value and the continued path's lamp hits estimate the same integrand, so their MIS stays unbiased). 0: the SG
 // draw (main's images). Elsewhere (no exit state) the SG draw stays: the lamps are valued by the mixture there.
 inline constexpr int kPaneExactLeavingDefault = 1;
 int pane_exact_leaving_level();
-// Session 33 (frostedface33; docs/frosted_glass.md "Session 33 (frostedface33)"): the face pick made 22 % of the
-// caustic bench's variance (glass_R 13 %): the lamp above the camera-seen pane is seen only through the back face, so
-// its light came in 1 / p_back-weighted bursts. The host values the exit state's ends on whichever side of the pane a
-// lamp point lies (eval_exit_sg: q(w) sums the ends on w's side, the others are 0), and the continued path's lamp hits
-// count 0 after an exit lobe with lamps, so the state can carry the ends of both faces: c_k = (t_k / t_F) p_F / E_k
-// for every end (W c_k = t_k / (n E_k), W = sum_F T / (n p_F) the picked face's weight), the lamps through both faces
-// in every sample, no longer divided by p_F; the continued path still takes the picked face. Level 1: that with
-// session 30's sqrt(t_F) pick; 2: with the pick t_F / t (the continued path's own rule); 0: main's images bit for bit;
-// kPaneBothFacesControl (the tests' negative control): both faces' ends with c_k = (t_k / t_F) / E_k (the 1 / p_F
-// kept: biased). Only with the packed state (pane_branch_level() > 0: room for every end) and where every end's
+// Session 33 (frostedface33; docs/history/frosted_glass_sessions.md "Session 33 (frostedface33)"): the face pick made
+// 22 % of the caustic bench's variance (glass_R 13 %): the lamp above the camera-seen pane is seen only through the
+// back face, so its light came in 1 / p_back-weighted bursts. The host values the exit state's ends on whichever side
+// of the pane a lamp point lies (eval_exit_sg: q(w) sums the ends on w's side, the others are 0), and the continued
+// path's lamp hits count 0 after an exit lobe with lamps, so the state can carry the ends of both faces: c_k = (t_k /
+// t_F) p_F / E_k for every end (W c_k = t_k / (n E_k), W = sum_F T / (n p_F) the picked face's weight), the lamps
+// through both faces in every sample, no longer divided by p_F; the continued path still takes the picked face. Level
+// 1: that with session 30's sqrt(t_F) pick; 2: with the pick t_F / t (the continued path's own rule); 0: main's images
+// bit for bit; kPaneBothFacesControl (the tests' negative control): both faces' ends with c_k = (t_k / t_F) / E_k (the
+// 1 / p_F kept: biased). Only with the packed state (pane_branch_level() > 0: room for every end) and where every end's
 // throughput has sum_F T's colour (else one face's as main). Measurement knob GLIMMER_FROSTED_PANE_BOTH_FACES, read
 // once (exactly 0, 1, 2, or 9 = kPaneBothFacesControl: session 34's render test control; other values the
 // default). Default 1: caustic bench 4 seeds x 8192 spp var/sample all 0.0891 -> 0.0739, glass_R 1.322 -> 0.707, cost
@@ -735,10 +735,10 @@ inline constexpr int kPaneBothFacesControl = 9;
 // where the ends' colours differ, e.g. coloured Beer; unbiased in the channels' average). Session 34
 // (frostedtestfix34).
 inline constexpr int kPaneBothFacesNoColourGuard = 8;
-// Session 35 (frostedbeer35; docs/frosted_glass.md "Session 35 (frostedbeer35)"): where the ends' colours differ
-// (coloured Beer: sigma_a not grey, !pane_split_applies; walks of different lengths), the one-face state above gave
-// every end of the picked face F the face's weight's colour, W = sum_{k in F} T_k / (n p_F), while the host values the
-// lamps grey (its ExactExit::value is average(eval_exit's f cos)): per channel ch the lamps' expectation was
+// Session 35 (frostedbeer35; docs/history/frosted_glass_sessions.md "Session 35 (frostedbeer35)"): where the ends'
+// colours differ (coloured Beer: sigma_a not grey, !pane_split_applies; walks of different lengths), the one-face state
+// above gave every end of the picked face F the face's weight's colour, W = sum_{k in F} T_k / (n p_F), while the host
+// values the lamps grey (its ExactExit::value is average(eval_exit's f cos)): per channel ch the lamps' expectation was
 //   sum_F sum_{k in F} (T_F,ch / n) (t_k / t_F) f_k(w) / E_k   (T_F = sum_{k in F} T_k, t = average(T))
 // instead of method=path's sum_k (T_k,ch / n) f_k(w) / E_k: equal only where T_k,ch / t_k is one number per face.
 // The continued path has the same defect (W with an end picked by t_k / t_F). The fix: one end per sample. The face
@@ -758,12 +758,12 @@ inline constexpr int kPaneOneColourState = 7;
 inline constexpr int kPaneBeerSplitDefault = 0;
 int pane_beer_split_level();
 int pane_both_faces_level();
-// Session 35 (frostedgrid35; docs/frosted_glass.md "Session 35 (frostedgrid35)"): the split's kPaneWalkSplit - 1
-// extra front samples on a 2 x 2 grid with the primary's: extra k takes the primary's microfacet numbers (x, y)
-// shifted by ((k & 1) / 2, (k >> 1) / 2) mod 1 (each extra uniform alone), its reflect / refract number z and its
-// walk's numbers still hashed (session 34's scratch GLIMMER_SCRATCH_FRONT_GRID). Level 1: only where the pane is
-// seen after a bounce (diffuse or glossy: the floor under the bench's pane); 2: everywhere (session 34: glass_R +42 %,
-// not kept); 0: 65a01b6's images bit for bit (no grid); kPaneFrontGridControl (the tests' negative control): level
+// Session 35 (frostedgrid35; docs/history/frosted_glass_sessions.md "Session 35 (frostedgrid35)"): the split's
+// kPaneWalkSplit - 1 extra front samples on a 2 x 2 grid with the primary's: extra k takes the primary's microfacet
+// numbers (x, y) shifted by ((k & 1) / 2, (k >> 1) / 2) mod 1 (each extra uniform alone), its reflect / refract number
+// z and its walk's numbers still hashed (session 34's scratch GLIMMER_SCRATCH_FRONT_GRID). Level 1: only where the pane
+// is seen after a bounce (diffuse or glossy: the floor under the bench's pane); 2: everywhere (session 34: glass_R +42
+// %, not kept); 0: 65a01b6's images bit for bit (no grid); kPaneFrontGridControl (the tests' negative control): level
 // 1's rule with the shifted numbers u / 2 + 1/2 (the upper half only: not uniform). Only with split ==
 // kPaneWalkSplit == 4.
 // Exactly unbiased (session 36, frostedgrid36; session 35 feared a tilt of the kept extras' law): the 4 numbers are

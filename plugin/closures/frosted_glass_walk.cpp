@@ -1,8 +1,8 @@
-// The pane walk's resampled events (session 37, frostedwalk37; docs/frosted_glass.md "Session 37 (frostedwalk37)"):
-// FrostedGlassClosure::walk_event's level 1 and the walk / exit trials at that level, in a translation unit of their
-// own so that frosted_glass.cpp's code (main's walk, level 0, and every inlining decision on the default path) is
-// compiled as without them. FrostedGlassClosure::resampled_walk picks them (relative IOR >= 1.6 since session 38;
-// 1.9 before).
+// The pane walk's resampled events (session 37, frostedwalk37; docs/history/frosted_glass_sessions.md "Session 37
+// (frostedwalk37)"): FrostedGlassClosure::walk_event's level 1 and the walk / exit trials at that level, in a
+// translation unit of their own so that frosted_glass.cpp's code (main's walk, level 0, and every inlining decision on
+// the default path) is compiled as without them. FrostedGlassClosure::resampled_walk picks them (relative IOR >= 1.6
+// since session 38; 1.9 before).
 #include "closures/frosted_glass.h"
 
 namespace glimmer::plugin {

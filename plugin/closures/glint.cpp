@@ -609,7 +609,7 @@ class GlintClosure {
   float gamma_rad_ = 0.035f;
   glint::DirectionCellKeys cell_keys_{0};  // per-material part of the direction-cell seeds
   // The dark test's constants for small footprints (glint_small_dark.h), made out of line and held by pointer (this
-  // file is at GCC's inlining budget; docs/glints.md, "Session 24 (glintdark24)").
+  // file is at GCC's inlining budget; docs/history/glints_sessions.md, "Session 24 (glintdark24)").
   std::unique_ptr<const glint::SmallDarkField> small_dark_;
   std::shared_ptr<const glint::DirectionalTable> table_;
   glint::DirectionalPeakTable peak_;  // bounds of table_'s lookups in glint mode (the dark test)

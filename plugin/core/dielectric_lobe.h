@@ -71,7 +71,7 @@ struct DielectricLobe {
   // reflection_pdf and reflected: one formula for eval_local's reflection, sample()'s reflection branch and
   // sample_reflection (session 39, frostedpane39). The same values bit for bit; the callers' machine code moved
   // (eval_local, sample, sample_reflection, the microfacet_dielectric adapter's eval), measured a little cheaper:
-  // docs/frosted_glass.md "Session 39 (frostedpane39)".
+  // docs/history/frosted_glass_sessions.md "Session 39 (frostedpane39)".
   [[gnu::always_inline]] static bool reflection_half(const Vec3 &wi, const Vec3 &wo, float eta, Vec3 &wh, float &cos_ih,
                                                      float &F) {
     if (!mf::half_vector_reflect(wi, wo, wh)) return false;

@@ -1,6 +1,6 @@
 // Lit counts of a block of particle nodes split to its nodes (issue 10, session 21, glintdark21): the building block
-// of a quick-reject hierarchy over the particle nodes. Not used by the plugin (docs/glints.md "Session 21
-// (glintdark21)": measured first, by benchmarks/glint_dark_sim.cpp).
+// of a quick-reject hierarchy over the particle nodes. Not used by the plugin (docs/history/glints_sessions.md "Session
+// 21 (glintdark21)": measured first, by benchmarks/glint_dark_sim.cpp).
 //
 // A block of 2 x 2 particle nodes (side 2 s) holds K_B ~ Poisson(4 lambda) lit particles of a direction group,
 // lambda = n s^2 P the node's mean, drawn from the block's uniform by the walk's tail inversion (LitCountModel).

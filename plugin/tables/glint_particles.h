@@ -848,7 +848,7 @@ inline NodeList footprint_nodes(const Footprint &f, double density) {
 // nodes_at_level was 92 M of the glint render's 365 M instructions above
 // its GGX twin (1311 per call); 37 % of the calls find their list here
 // (92 M -> 61 M), and a lookup that misses costs ~130 instructions
-// (docs/glints.md, "Session 17"). Session 26: the memo holds the box lists
+// (docs/history/glints_sessions.md, "Session 17"). Session 26: the memo holds the box lists
 // too and is asked first (the key is the density's bits, not the level, so
 // a hit skips the level, the start and the box fill).
 struct FootprintNodeMemo {
@@ -1114,7 +1114,7 @@ template <bool kVex = false>
   // In terms of s = wi + wo (h = s / |s|), with two divisions and one square
   // root (issue 10, sixth speed session; was nine and two: h per component,
   // 2 / (1 + h.z) and n.z / (1 + h.z) apart, e normalised, 1 / cell per
-  // call). Same cells up to the rounding of the chart (docs/glints.md,
+  // call). Same cells up to the rounding of the chart (docs/history/glints_sessions.md,
   // "Session 6").
   const Vec3 s = wi + wo;
   const float len2 = dot(s, s);
@@ -1507,7 +1507,7 @@ struct GroupReject {
 // register, the same values (GlintParticles.GroupHashLanesMatchTheScalarHash),
 // but 1..7 % slower per eval in the walk on this project's machine (SSE2 has
 // no 32-bit lane multiply: two pmuludq and shuffles per multiply, a longer
-// dependency chain before the mask's branch; docs/glints.md "Session 8").
+// dependency chain before the mask's branch; docs/history/glints_sessions.md "Session 8").
 // The node loop keeps the scalar form; count_four_groups_in_passes calls
 // this one (its compaction does not branch on the mask).
 inline uint32_t group_hashes(uint32_t key, const uint32_t *seeds, const GroupReject &reject, uint32_t *out) {
@@ -1539,7 +1539,7 @@ inline uint32_t group_hashes_sse2(uint32_t key, const uint32_t *seeds, const Gro
 // + W (issue 10, eighth speed session; before, a position-seed hash
 // hash_u32(h0 ^ C) per node and two PCG hashes per particle). Two particles
 // per 4-lane SSE2 hash gave the same values but was slower in the walk
-// (an extra loop and its mispredicted branches; docs/glints.md "Session 8").
+// (an extra loop and its mispredicted branches; docs/history/glints_sessions.md "Session 8").
 inline constexpr uint32_t kPositionKey = 0x27d4eb2fu;
 // Session 27 (glintpass27): the pair passes' particle list holds particle k's step (2 k + 1) W (position_step),
 // not k, so the flush adds it to h0 ^ C without a multiply; particle_position_stepped gives the same values.

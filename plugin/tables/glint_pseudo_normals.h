@@ -8,8 +8,8 @@
 // cell the lit sets of all directions are nested, which where the lobe is
 // narrower than the cone keeps the lit sets of cones 2 gamma apart
 // correlated (they are disjoint in the exact model) and cones gamma apart too
-// little correlated (docs/glints.md, "Session 14"). Here the exact model is
-// reproduced locally:
+// little correlated (docs/glints.md, "The albedo CV estimator, and the lit
+// correlation at gamma for narrow lobes"). Here the exact model is reproduced locally:
 //
 // - the normals' chart is the stereographic chart of m (p = 2 m.xy / (1 +
 //   m.z), independent of wi and wo), cut into square tiles of side T;

@@ -61,7 +61,7 @@ struct SmallDarkField {
   SmallDarkField(const DirectionCellKeys &k, float gamma, int nodes, int steps, double material_density);
 };
 // A new SmallDarkField. Out of line (glint_small_dark.cpp), as is the constructor, and held by pointer in
-// GlintClosure: glint.cpp is at GCC's inlining budget (docs/glints.md, "Session 24 (glintdark24)").
+// GlintClosure: glint.cpp is at GCC's inlining budget (docs/history/glints_sessions.md, "Session 24 (glintdark24)").
 std::unique_ptr<const SmallDarkField> make_small_dark_field(const DirectionCellKeys &k, float gamma, int nodes,
                                                             int steps, double material_density);
 

@@ -245,8 +245,8 @@ struct LodLevel {
   }
   // Session 35 (glintwalk35): the four hints as volatile asm. With __builtin_prefetch (in a loop over
   // {0, so, si, si + so}, or written out) GCC 12 emitted no prefetch at all where this was inlined into
-  // DirectionalTable::prefetch(const Located &) (-O2 and -O3: docs/glints.md, Session 35 (glintwalk35)); nothing on
-  // main calls it.
+  // DirectionalTable::prefetch(const Located &) (-O2 and -O3: docs/history/glints_sessions.md, Session 35
+  // (glintwalk35)); nothing on main calls it.
   static void prefetch_line(const uint16_t *p) {
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
     asm volatile("prefetcht0 %0" : : "m"(*p));

@@ -1,6 +1,6 @@
 // frosted_glass method=sg under the host's bounce limits (issue 12, session 26, frostedfloor26; closure ABI 2.9
 // GlimmerShadingContext.max_bounce / max_glossy_bounce / max_transmission_bounce, frosted::reflections_allowed;
-// docs/frosted_glass.md "Session 26 (frostedfloor26)").
+// docs/history/frosted_glass_sessions.md "Session 26 (frostedfloor26)").
 //
 // method=path's walk through a solid is one host scatter per event (the entry, every internal reflection, the exit),
 // and the host ends a path at the next surface once a count reaches its limit, so the light that needs more internal

@@ -642,10 +642,10 @@ TEST(FrostedGlassSgPane, SampleAgreesWithEval) {
 // Session 37 (frostedpool37): every (config, angle) draws its own numbers (one walk Pcg32(8080 + 16 config + 2
 // angle, 7), the split and its control + 1, paired). The old version restarted seeds 101 / 202 at every angle and
 // config: its angles' offsets correlated up to 0.76 and the configs' 0.58-0.78, and its pooled se (cells added as if
-// independent) was 1.25 / 1.52 / 1.49x too small (docs/frosted_glass.md "Session 37 (frostedpool37)"). The pooled
-// variance is now each draw's sum over the directions (their covariance counted), the angles independent. Per
-// angle, that sum within 4.5 se (angle_z); its control, +3 % injected at 0 deg and the opposite at 60 deg (the pooled
-// sum unmoved), must be > 6 se at one angle at least.
+// independent) was 1.25 / 1.52 / 1.49x too small (docs/history/frosted_glass_sessions.md "Session 37 (frostedpool37)").
+// The pooled variance is now each draw's sum over the directions (their covariance counted), the angles independent.
+// Per angle, that sum within 4.5 se (angle_z); its control, +3 % injected at 0 deg and the opposite at 60 deg (the
+// pooled sum unmoved), must be > 6 se at one angle at least.
 // The five probe directions of the split and exact-exit tests: 3 through the far face, 2 back through the entry face.
 const Vec3 kPaneProbeDirections[5] = {Vec3(0.0f, 0.0f, -1.0f), normalize(Vec3(0.5f, 0.0f, -1.0f)),
                                       normalize(Vec3(-0.4f, 0.3f, -1.0f)), Vec3(0.0f, 0.0f, 1.0f),
@@ -914,10 +914,10 @@ TEST(FrostedGlassSgPane, RoughPaneSplitBranchesSameExpectationAsOneWalk) {
 // E[weight x the exit mixture's density] toward the 5 probe directions at 4 angles up to 75 deg. Every (pane, angle)
 // draws its own numbers: session 35's version drew the same numbers at every angle and every pane, so its pooled z
 // added correlated terms as if independent and its panes' shared +0.3..0.5 % (grid - main split) was one draw's
-// fluctuation seen three times (docs/frosted_glass.md "Session 36 (frostedgrid36)"). (1) Against one walk (split 1,
-// independent numbers): levels 1 and 3 within 4.5 se per (angle, direction), main's split and both levels within 4 se
-// pooled (each draw's sum over the directions; the angles independent); its negative control kPaneFrontGridExactControl
-// > 6 se pooled. (2) Paired, the same draws (the primary and
+// fluctuation seen three times (docs/history/frosted_glass_sessions.md "Session 36 (frostedgrid36)"). (1) Against one
+// walk (split 1, independent numbers): levels 1 and 3 within 4.5 se per (angle, direction), main's split and both
+// levels within 4 se pooled (each draw's sum over the directions; the angles independent); its negative control
+// kPaneFrontGridExactControl > 6 se pooled. (2) Paired, the same draws (the primary and
 // its walk shared): each level minus main's split (level 0) within 4.5 of its own se per angle and 4 pooled.
 // Negative controls, paired against main's split: kPaneFrontGridControl (level 1's shifted numbers not uniform) and
 // kPaneFrontGridExactControl (the normaliser without p_0) > 6 se pooled at every pane; the Fresnel weight alone

@@ -1,5 +1,5 @@
-// The thin pane's walk between its faces at high IOR (issue 12, session 36, frostedtail36; docs/frosted_glass.md
-// "Session 36 (frostedtail36)"):
+// The thin pane's walk between its faces at high IOR (issue 12, session 36, frostedtail36;
+// docs/history/frosted_glass_sessions.md "Session 36 (frostedtail36)"):
 //  - the resampled walk events (FrostedGlassClosure::walk_event level 1) have the lobe sample's expectation, event by
 //    event and over whole walks, on independent numbers (negative control: kPaneWalkControl, F not applied);
 //  - diagnostics run by hand (DISABLED_): where main's walk's heavy tail comes from (Anatomy: 1e6 walks per

@@ -1,7 +1,7 @@
 // frosted_glass method=sg's sampled internal reflection (issue 12, session 25, frostedglassL25; frosted_glass_sg.h
-// kSampledReflection, docs/frosted_glass.md "Session 25 (frostedglassL25)"): where a solid is seen directly, the SG
-// walk's internal reflections draw their axis from the interface lobe instead of mirroring it about the mean normal
-// with a widened lobe.
+// kSampledReflection, docs/history/frosted_glass_sessions.md "Session 25 (frostedglassL25)"): where a solid is seen
+// directly, the SG walk's internal reflections draw their axis from the interface lobe instead of mirroring it about
+// the mean normal with a widened lobe.
 //
 // The check: a rough unit sphere (roughness 0.5, IOR 1.5: the caustic bench's) seen by 16 orthographic camera rays
 // (along -z), the light it sends toward 6 fixed directions up and behind (a distant light's direction each; visibility

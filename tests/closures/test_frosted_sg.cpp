@@ -908,9 +908,9 @@ double solid_radial_offset(const SolidBands &m, const SolidBands &ref, const std
 // Thirteenth session: the ladder's cores x 3 -> x 2: slab r 0.5 0.169 -> 0.086, bound 0.21 -> 0.11.
 constexpr double kPlanarLadderBandL1 = 0.11;
 // Eighteenth / nineteenth session: the sphere at roughness 0.5 / 0.6, the single SG split into a core and a tail
-// (kCurvedTail); bound set from this session's measurement (docs/frosted_glass.md "Eighteenth / nineteenth session").
-// Session 22: kCurvedExitShape about the shifted axis, 0.135 / 0.130 -> 0.053 / 0.094 (the control, the single SG
-// about the same axis, 0.222 / 0.166); bound 0.165 -> 0.12.
+// (kCurvedTail); bound set from this session's measurement (docs/history/frosted_glass_sessions.md "Eighteenth /
+// nineteenth session"). Session 22: kCurvedExitShape about the shifted axis, 0.135 / 0.130 -> 0.053 / 0.094 (the
+// control, the single SG about the same axis, 0.222 / 0.166); bound 0.165 -> 0.12.
 constexpr double kCurvedSplitBandL1 = 0.12;
 TEST(FrostedGlassSg, ExitLobeShapeOfSolidsAgainstThePath) {
   const int ref_paths = stress_scale() > 1 ? 400000 : 100000, sg_paths = ref_paths / 4;
@@ -2067,7 +2067,8 @@ TEST(FrostedGlassSg, NearLampThroughTheSphereFromTheExitPointsMeanStress) {
 }
 
 // ---- The bench lamp's caustic through the sphere on a floor grid (issue 12, session 30, frostedshadow30) ----------
-// The caustic bench's shadow bias is the caustic's 2 x 2 core (docs/frosted_glass.md "Session 29 (frostedshadow29)"):
+// The caustic bench's shadow bias is the caustic's 2 x 2 core
+// (docs/history/frosted_glass_sessions.md "Session 29 (frostedshadow29)"):
 // a 2-D shape error of the floor's view of the sphere's exit lobe. Floor points on a grid across the caustic (the
 // sphere on the floor z = -1; the grid's axes along the shadow's axis and sideways), cosine-weighted directions
 // (diffuse_bounce 1, the floor's view), the transmitted weight reaching the bench's lamp (a ball of the 0.25 x 0.25
@@ -2327,11 +2328,11 @@ TEST(FrostedGlassSg, BenchLampCausticThroughTheSphereOnAFloorGrid) {
 
 // ---- The camera-seen sphere's rim (issue 12, session 28, frostedbias28) -------------------------------------------
 // The caustic bench's sphere seen by the camera is too bright where it leaves directly (its glass +3..5 %, its bottom
-// rim +40..+87 %: event split, docs/frosted_glass.md "Session 28 (frostedbias28)"); with the internal axis drawn at the
-// entry the split's excess left. Brute force: path's exact walk; sg with kEntryAxis (SgInputs::entry_axis) against
-// the front SG's axis and width (0, main before: the control). Orthographic camera rays down -z at impact radii 0.5 ..
-// 0.97 (the rim: grazing entries) over 6 azimuths, a textured floor just below the sphere (gap 0.02 radii, the
-// bench's floor touches it) and a far world with a gradient; relative L1 over the starts.
+// rim +40..+87 %: event split, docs/history/frosted_glass_sessions.md "Session 28 (frostedbias28)"); with the internal
+// axis drawn at the entry the split's excess left. Brute force: path's exact walk; sg with kEntryAxis
+// (SgInputs::entry_axis) against the front SG's axis and width (0, main before: the control). Orthographic camera rays
+// down -z at impact radii 0.5 .. 0.97 (the rim: grazing entries) over 6 azimuths, a textured floor just below the
+// sphere (gap 0.02 radii, the bench's floor touches it) and a far world with a gradient; relative L1 over the starts.
 TEST(FrostedGlassSg, RimOfTheCameraSeenSphereWithTheEntryAxisDrawn) {
   using namespace centroid_test;
   const int ref_paths = stress_scale() > 1 ? 200000 : 50000, sg_paths = ref_paths / 2;

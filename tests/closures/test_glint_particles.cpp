@@ -1888,7 +1888,7 @@ TEST(GlintParticles, GroupPassAvx2MatchesSse2) {
 // (tabled_node_origins_far_avx2). The footprints of PairPassesMatchTheNodeLoop, every other one moved 2^51 .. 2^53
 // nodes from the origin (its nodes listed there): the AVX2 passes give the SSE2 passes' count, steps and
 // completeness, near the origin and far from it. Control (a scratch build without the redo): the far tabled
-// queries differ (docs/glints.md, Session 29 (glintpaired29)).
+// queries differ (docs/history/glints_sessions.md, Session 29 (glintpaired29)).
 TEST(GlintParticles, TabledOriginsFarFromTheOriginMatchSse2) {
 #if !GLIMMER_GLINT_WALK_AVX2
   GTEST_SKIP() << "no AVX2 form in this build";
