@@ -22,7 +22,11 @@
 //      glossy_bsdf of the same roughness (subprocess, wall time of the render
 //      phase); counter overhead (goal <= 0.10); with
 //      $GLIMMER_BENCH_BASELINE_PLUGIN also base_s, base_overhead (the glint
-//      scene rendered with that plugin, same iterations).
+//      scene rendered with that plugin, same iterations). Also the
+//      same-distribution twin (each glint_bsdf a glossy_bsdf of its own
+//      distribution: the scene's floor glint is Beckmann): same_s,
+//      overhead_vs_same (what the glint costs beyond its base distribution)
+//      and same_vs_ggx (what that distribution costs over GGX).
 #include <benchmark/benchmark.h>
 
 #include <chrono>
@@ -248,31 +252,40 @@ void BM_GiSceneOverhead(benchmark::State &state) {
   std::ifstream in(src);
   std::stringstream ss;
   ss << in.rdbuf();
-  // Plain-GGX twin: every glint_bsdf becomes a glossy_bsdf with the same roughness.
-  std::string text = ss.str();
-  text = std::regex_replace(text, std::regex("<glint_bsdf([^>]*?)distribution=\"[a-z]+\""),
-                            "<glint_bsdf$1distribution=\"ggx\"");
-  text = std::regex_replace(text, std::regex(" (gamma|density|uv_scale|seed|filter_threshold)=\"[^\"]*\""), "");
-  text = std::regex_replace(text, std::regex("<glint_bsdf"), "<glossy_bsdf");
+  // Plain-GGX twin: every glint_bsdf becomes a glossy_bsdf GGX with the same roughness; the same-distribution twin
+  // keeps each glint's distribution (benchmarks/glint_gi_twin.py makes both the same way).
+  const auto twin = [](std::string text, bool keep_distribution) {
+    if (!keep_distribution)
+      text = std::regex_replace(text, std::regex("<glint_bsdf([^>]*?)distribution=\"[a-z]+\""),
+                                "<glint_bsdf$1distribution=\"ggx\"");
+    text = std::regex_replace(text, std::regex(" (gamma|density|uv_scale|seed|filter_threshold)=\"[^\"]*\""), "");
+    return std::regex_replace(text, std::regex("<glint_bsdf"), "<glossy_bsdf");
+  };
   const std::string dir = std::string(GLIMMER_BENCH_SOURCE_DIR) + "/examples/";
-  const std::string plain = dir + ".bench_glint_plain.xml";
-  std::ofstream(plain) << text;
+  const std::string plain = dir + ".bench_glint_plain.xml", same = dir + ".bench_glint_same.xml";
+  std::ofstream(plain) << twin(ss.str(), false);
+  std::ofstream(same) << twin(ss.str(), true);
   const char *baseline = std::getenv("GLIMMER_BENCH_BASELINE_PLUGIN");
   if (baseline != nullptr && *baseline == '\0') baseline = nullptr;
-  double t_glint = 0.0, t_plain = 0.0, t_base = 0.0;
+  double t_glint = 0.0, t_plain = 0.0, t_same = 0.0, t_base = 0.0;
   for (auto _ : state) {
     t_plain += render_seconds(plain, "/tmp/glimmer_bench_plain.png");
+    t_same += render_seconds(same, "/tmp/glimmer_bench_same.png");
     t_glint += render_seconds(src, "/tmp/glimmer_bench_glint.png");
     if (baseline != nullptr) t_base += render_seconds(src, "/tmp/glimmer_bench_base.png", baseline);
   }
   std::remove(plain.c_str());
-  if (t_glint <= 0.0 || t_plain <= 0.0) {
+  std::remove(same.c_str());
+  if (t_glint <= 0.0 || t_plain <= 0.0 || t_same <= 0.0) {
     state.SkipWithError("glimmer render failed");
     return;
   }
   state.counters["glint_s"] = t_glint / static_cast<double>(state.iterations());
   state.counters["ggx_s"] = t_plain / static_cast<double>(state.iterations());
   state.counters["overhead"] = t_glint / t_plain - 1.0;
+  state.counters["same_s"] = t_same / static_cast<double>(state.iterations());
+  state.counters["overhead_vs_same"] = t_glint / t_same - 1.0;
+  state.counters["same_vs_ggx"] = t_same / t_plain - 1.0;
   if (baseline != nullptr && t_base > 0.0) {
     state.counters["base_s"] = t_base / static_cast<double>(state.iterations());
     state.counters["base_overhead"] = t_base / t_plain - 1.0;

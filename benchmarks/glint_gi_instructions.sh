@@ -8,7 +8,8 @@
 # usage: benchmarks/glint_gi_instructions.sh [build dir] [width height spp] [plugin .so]
 #   defaults: ./build 160 100 4 (issue 10's figure is 320 200 8: ~15-30 min per render)
 # The glimmer binary loads its image modules (libglimmer_exr_io.so) from beside it.
-# Env: GLIMMER_CACHE_DIR (tables), GI_OUT (output dir, default a temp dir, kept), GI_ONLY=glint|twin,
+# Env: GI_TWIN_ARGS=--same-distribution (the twin keeps each glint's distribution),
+#   GLIMMER_CACHE_DIR (tables), GI_OUT (output dir, default a temp dir, kept), GI_ONLY=glint|twin,
 #   GI_CALLGRIND_OPTS (more callgrind options, e.g. --dump-instr=yes for callgrind_annotate of a -g build),
 #   GI_PLUGIN_TWIN (the twin's plugin, default the same as the glint's).
 set -euo pipefail
@@ -25,7 +26,8 @@ mkdir -p "$GLIMMER_CACHE_DIR"
 # The twin beside the original (relative paths in the scene resolve the same).
 twin=$(dirname "$src")/.glint_gi_twin.$$.xml
 trap 'rm -f "$twin"' EXIT
-python3 "$(dirname "$0")/glint_gi_twin.py" "$src" "$twin"
+# shellcheck disable=SC2086
+python3 "$(dirname "$0")/glint_gi_twin.py" ${GI_TWIN_ARGS:-} "$src" "$twin"
 run() {  # name scene plugin
   local name=$1 scene=$2 lib=$3
   # shellcheck disable=SC2086

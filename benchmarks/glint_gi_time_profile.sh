@@ -9,7 +9,8 @@
 # VMs. The render phase is taken as the span between the first and the last sample in Renderer::Impl::trace_path.
 #
 # usage: benchmarks/glint_gi_time_profile.sh [build dir] [plugin .so]
-# Env: GLIMMER_CACHE_DIR (tables), GI_OUT (output dir, default a temp dir, kept), GI_ONLY=glint|twin,
+# Env: GI_TWIN_ARGS=--same-distribution (the twin keeps each glint's distribution),
+#   GLIMMER_CACHE_DIR (tables), GI_OUT (output dir, default a temp dir, kept), GI_ONLY=glint|twin,
 #   GI_SAMPLES / GI_WIDTH / GI_HEIGHT (16 / 320 / 200), GI_TOP (rows, 30), GI_PERIOD_US (sampling period, 200),
 #   GI_ARGS (more `glimmer render` options for both scenes, e.g. --no-aovs; A/B of one option in one build).
 # Needs perf (Debian: linux-perf). Per-instruction detail afterwards:
@@ -24,7 +25,8 @@ mkdir -p "$out"
 period_us=${GI_PERIOD_US:-200}
 twin=$(dirname "$src")/.glint_gi_time_twin.$$.xml
 trap 'rm -f "$twin"' EXIT
-python3 "$(dirname "$0")/glint_gi_twin.py" "$src" "$twin"
+# shellcheck disable=SC2086
+python3 "$(dirname "$0")/glint_gi_twin.py" ${GI_TWIN_ARGS:-} "$src" "$twin"
 run() {  # name scene
   local name=$1 scene=$2
   (cd "$build" && perf record -q -e cpu-clock -c $((period_us * 1000)) -o "$out/$name.perf" \
