@@ -43,11 +43,16 @@ bool known_writable_extension(const std::string &path) {
          kKnownWritableExtensions.end();
 }
 
-void check_output_path(const std::string &path) {
-  const fs::path target(path);
-  if (!target.has_extension()) throw std::runtime_error("output '" + path + "' has no file extension (.exr or .png)");
+void check_output_format(const std::string &path) {
+  if (!fs::path(path).has_extension())
+    throw std::runtime_error("output '" + path + "' has no file extension (.exr or .png)");
   // Other extensions: ask the image module (this waits for it to load).
   if (!known_writable_extension(path)) image_io().check_output_format(path);
+}
+
+void check_output_path(const std::string &path) {
+  const fs::path target(path);
+  check_output_format(path);
   const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
   std::error_code ec;
   if (!fs::is_directory(dir, ec)) throw std::runtime_error("output folder '" + dir.string() + "' does not exist");
