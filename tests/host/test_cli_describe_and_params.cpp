@@ -231,5 +231,25 @@ TEST(LabCli, BadInputExitsOne) {
   EXPECT_EQ(plot.exit_code, 1);
 }
 
+// A mistyped sub-command or option is named (CLI11 alone said "A subcommand is required" / "scene is required").
+TEST(Cli, UnknownSubcommandsAndArgumentsAreNamed) {
+  const CliRun typo = run_cli({"rendr", "scene.xml", "-o", "out.exr"});
+  EXPECT_EQ(typo.exit_code, 1);
+  EXPECT_TRUE(contains(typo.err, "unknown sub-command 'rendr' (one of: describe lab render")) << typo.err;
+  const CliRun lab = run_cli({"lab", "furnance", "--closure", "diffuse"});
+  EXPECT_EQ(lab.exit_code, 1);
+  EXPECT_TRUE(contains(lab.err, "unknown sub-command 'furnance' (one of: furnace chi2")) << lab.err;
+  const CliRun option = run_cli({"render", "--sampels"});
+  EXPECT_EQ(option.exit_code, 1);
+  EXPECT_TRUE(contains(option.err, "scene is required; not understood: '--sampels'")) << option.err;
+  const CliRun version = run_cli({"--version"});
+  EXPECT_EQ(version.exit_code, 1);
+  EXPECT_TRUE(contains(version.err, "not understood: '--version'")) << version.err;
+  // Nothing mistyped: CLI11's own message, unchanged.
+  const CliRun none = run_cli({});
+  EXPECT_EQ(none.exit_code, 1);
+  EXPECT_TRUE(contains(none.err, "A subcommand is required\n")) << none.err;
+}
+
 }  // namespace
 }  // namespace glimmer::test
