@@ -43,6 +43,9 @@ TEST(Describe, PrintsFloatsInShortestForm) {
   EXPECT_FALSE(contains(run.out, "0.800000011920929")) << run.out;
   const CliRun text = run_cli({"describe"});
   EXPECT_FALSE(contains(text.out, "0.800000011920929")) << text.out;
+  // An int parameter's range in integers; a float's as before.
+  EXPECT_TRUE(contains(text.out, "seed (int, default 0, range [0, 2147483648])")) << text.out;
+  EXPECT_TRUE(contains(text.out, "gamma (float, default 2.0, range [0.1, 10.0])")) << text.out;
 }
 
 TEST(Describe, ListsEveryParameterTypeOfTheFixturePlugin) {
