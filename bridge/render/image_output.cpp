@@ -1,12 +1,16 @@
 #include "render/image_output.h"
 
+#include <fcntl.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <stdexcept>
 
+#include "glimmer/atomic_file.h"
 #include "render/image_io.h"
 
 namespace glimmer::render {
@@ -59,6 +63,18 @@ void check_output_path(const std::string &path) {
   if (fs::is_directory(target, ec)) throw std::runtime_error("output '" + path + "' is a folder");
   if (::access(dir.c_str(), W_OK | X_OK) != 0)
     throw std::runtime_error("output folder '" + dir.string() + "' is not writable");
+}
+
+void check_output_folder_takes_files(const std::string &path) {
+  const fs::path target(path);
+  const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
+  // access(W_OK) passes where no file can be created (/proc for root, some FUSE and network mounts): try one.
+  const std::string probe = (dir / ("." + target.filename().string() + "." + random_hex16() + ".probe")).string();
+  const int fd = ::open(probe.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0600);
+  if (fd < 0)
+    throw std::runtime_error("cannot create a file in output folder '" + dir.string() + "': " + std::strerror(errno));
+  ::close(fd);
+  ::unlink(probe.c_str());
 }
 
 void write_image(const std::string &path, const RenderResult &result) {
