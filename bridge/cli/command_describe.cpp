@@ -113,7 +113,13 @@ void add_describe_command(CLI::App &app, CliContext &ctx) {
         const auto j = describe_param(*t, spec);
         std::cout << "  " << spec.name << " (" << j["type"].get<std::string>() << ", default "
                   << j["default"].dump();
-        if (j.contains("min")) std::cout << ", range [" << j["min"].dump() << ", " << j["max"].dump() << "]";
+        if (j.contains("min")) {
+          // An int's range as integers ("[0, 2147483648]", not "[0.0, 2147483648.0]"); JSON keeps the doubles.
+          auto bound = [&j](const char *key) {
+            return j["type"] == "int" ? std::to_string(static_cast<long long>(j[key].get<double>())) : j[key].dump();
+          };
+          std::cout << ", range [" << bound("min") << ", " << bound("max") << "]";
+        }
         if (j.contains("choices")) std::cout << ", one of " << j["choices"].dump();
         std::cout << "): " << (spec.doc ? spec.doc : "") << (j["varying"].get<bool>() ? " [varying]" : "") << "\n";
       }

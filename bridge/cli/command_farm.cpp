@@ -58,6 +58,12 @@ FarmJob make_job(const FarmArgs &a, const std::string &glimmer, const std::strin
     throw CliError(kExitBadInput, "--frames needs one scene per frame: name it like scene_####.xml (#### = frame)");
   if (frames.size() > 1 && a.output.find('#') == std::string::npos)
     throw CliError(kExitBadInput, "several frames need #### in the output name (out_####.exr)");
+  // The merge job writes the output only after the whole array has rendered: refuse now what it would refuse then.
+  try {
+    render::check_output_format(a.output);
+  } catch (const std::exception &e) {
+    throw CliError(kExitBadInput, std::string("farm slurm: ") + e.what());
+  }
   for (int f : frames)
     if (!fs::exists(render::frame_path(scene.string(), f)))
       throw CliError(kExitBadInput,

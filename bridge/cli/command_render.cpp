@@ -137,6 +137,7 @@ int render_one(CliContext &ctx, const RenderArgs &a, const std::string &scene_pa
   auto since = [](Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); };
   try {
     render::check_output_path(output);  // before any work: a bad output must not cost a render
+    render::check_output_folder_takes_files(output);
   } catch (const std::exception &e) {
     throw CliError(kExitBadInput, e.what());
   }

@@ -1,8 +1,11 @@
 // glimmer: the command-line host. Sub-commands are in cli/command_*.cpp.
 #include <csignal>
+#include <cstdio>
 #include <exception>
 #include <new>
+#include <string>
 #include <string_view>
+#include <vector>
 
 #include "cli/commands.h"
 #include "host/closure_instance.h"
@@ -33,6 +36,25 @@ int main(int argc, char **argv) {
 
   try {
     app.parse(argc, argv);
+  } catch (const CLI::RequiredError &e) {
+    // A typo leaves arguments nothing understood (`glimmer rendr ...`, `glimmer render --sampels 4`), and CLI11
+    // reports only the requirement that is then unmet ("A subcommand is required"): name what was not understood.
+    const std::vector<std::string> rest = app.remaining(true);
+    if (rest.empty()) return app.exit(e) == 0 ? cli::kExitOk : cli::kExitBadInput;
+    CLI::App *deepest = &app;  // the last sub-command given
+    while (!deepest->get_subcommands().empty()) deepest = deepest->get_subcommands().front();
+    const auto choices = deepest->get_subcommands([](CLI::App *) { return true; });
+    std::string message;
+    if (!choices.empty() && deepest->get_subcommands().empty() && rest.front().rfind('-', 0) != 0) {
+      message = "unknown sub-command '" + rest.front() + "' (one of:";
+      for (const CLI::App *c : choices) message += " " + c->get_name();
+      message += ")";
+    } else {
+      message = std::string(e.what()) + "; not understood:";
+      for (const auto &r : rest) message += " '" + r + "'";
+    }
+    std::fprintf(stderr, "%s\nRun with --help for more information.\n", message.c_str());
+    return cli::kExitBadInput;
   } catch (const CLI::ParseError &e) {
     // --help exits 0; every malformed command line is bad input (exit 1).
     return app.exit(e) == 0 ? cli::kExitOk : cli::kExitBadInput;

@@ -1,12 +1,16 @@
 #include "render/image_output.h"
 
+#include <fcntl.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <stdexcept>
 
+#include "glimmer/atomic_file.h"
 #include "render/image_io.h"
 
 namespace glimmer::render {
@@ -43,17 +47,34 @@ bool known_writable_extension(const std::string &path) {
          kKnownWritableExtensions.end();
 }
 
-void check_output_path(const std::string &path) {
-  const fs::path target(path);
-  if (!target.has_extension()) throw std::runtime_error("output '" + path + "' has no file extension (.exr or .png)");
+void check_output_format(const std::string &path) {
+  if (!fs::path(path).has_extension())
+    throw std::runtime_error("output '" + path + "' has no file extension (.exr or .png)");
   // Other extensions: ask the image module (this waits for it to load).
   if (!known_writable_extension(path)) image_io().check_output_format(path);
+}
+
+void check_output_path(const std::string &path) {
+  const fs::path target(path);
+  check_output_format(path);
   const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
   std::error_code ec;
   if (!fs::is_directory(dir, ec)) throw std::runtime_error("output folder '" + dir.string() + "' does not exist");
   if (fs::is_directory(target, ec)) throw std::runtime_error("output '" + path + "' is a folder");
   if (::access(dir.c_str(), W_OK | X_OK) != 0)
     throw std::runtime_error("output folder '" + dir.string() + "' is not writable");
+}
+
+void check_output_folder_takes_files(const std::string &path) {
+  const fs::path target(path);
+  const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
+  // access(W_OK) passes where no file can be created (/proc for root, some FUSE and network mounts): try one.
+  const std::string probe = (dir / ("." + target.filename().string() + "." + random_hex16() + ".probe")).string();
+  const int fd = ::open(probe.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0600);
+  if (fd < 0)
+    throw std::runtime_error("cannot create a file in output folder '" + dir.string() + "': " + std::strerror(errno));
+  ::close(fd);
+  ::unlink(probe.c_str());
 }
 
 void write_image(const std::string &path, const RenderResult &result) {

@@ -38,6 +38,13 @@ RenderResult read_image(const std::string &path);
 // kKnownWritableExtensions are checked without the image module (so that a render
 // need not wait for it to load); any other asks the module.
 void check_output_path(const std::string &path);
+// The format part of check_output_path alone (an extension the writer can encode), for an output written
+// later or elsewhere (`glimmer farm slurm`'s merge job): throws std::runtime_error saying what is wrong.
+void check_output_format(const std::string &path);
+// Before a render: creates and removes a file in `path`'s folder, since access(W_OK) can pass where no file can be
+// created (/proc for root, some FUSE and network mounts) and the render would be lost at the write. Throws
+// std::runtime_error naming the folder and the reason.
+void check_output_folder_takes_files(const std::string &path);
 // Lower case; the test ImageModule.KnownWritableExtensionsAreWritable checks each against the module.
 inline constexpr std::array<std::string_view, 2> kKnownWritableExtensions = {".exr", ".png"};
 bool known_writable_extension(const std::string &path);

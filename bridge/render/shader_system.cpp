@@ -148,8 +148,10 @@ Spectrum ShaderSystem::read_constant(const ShaderNode &n, const std::string &soc
   if (!text) return fallback;
   const auto v = scene::parse_floats(*text, n.where, "<" + n.type + "> " + socket);
   if (v.size() == 1) return Spectrum(v[0]);
-  if (v.size() >= 3) return Spectrum(v[0], v[1], v[2]);
-  throw SceneError(n.where, "<" + n.type + "> " + socket + ": expected 1 or 3 numbers");
+  if (v.size() == 3) return Spectrum(v[0], v[1], v[2]);
+  // Strict as the closures' parameters and <light>/<transform> vectors: a 4th number (RGBA, a typo) is refused.
+  throw SceneError(n.where,
+                   "<" + n.type + "> " + socket + ": expected 1 or 3 numbers, got " + std::to_string(v.size()));
 }
 
 Input ShaderSystem::read_input(const ShaderGraph &g, const ShaderNode &n, const std::string &socket, Spectrum fallback,

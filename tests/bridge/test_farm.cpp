@@ -192,6 +192,19 @@ TEST(Farm, SlurmDryRunPrintsAnArrayAndADependentMerge) {
   EXPECT_NE(out.find("scene_####.xml"), std::string::npos) << out;
   EXPECT_EQ(1, run_cli("farm slurm '" + demo_scene() + "' -o '" + output + "' --dry-run", out));
   EXPECT_NE(out.find("--tiles N or --sample-splits N"), std::string::npos) << out;
+  // An output the merge job could not write is refused at submission, not after the whole array has rendered.
+  const std::string bad_format = (temp_dir() / "farm_out.xyz").string();
+  EXPECT_EQ(1, run_cli("farm slurm '" + demo_scene() + "' --tiles 2 -o '" + bad_format + "' --dry-run", out));
+  EXPECT_NE(out.find("farm slurm: output '" + bad_format + "': no image format for extension '.xyz'"),
+            std::string::npos)
+      << out;
+  const std::string no_extension = (temp_dir() / "farm_out").string();
+  EXPECT_EQ(1, run_cli("farm slurm '" + demo_scene() + "' --tiles 2 -o '" + no_extension + "' --dry-run", out));
+  EXPECT_NE(out.find("has no file extension"), std::string::npos) << out;
+  ASSERT_EQ(0, run_cli("farm slurm '" + demo_scene() + "' --tiles 2 -o '" + (temp_dir() / "farm_out.png").string() +
+                           "' --dry-run",
+                       out))
+      << out;
 }
 
 // Submission through a stand-in sbatch that records its arguments: the merge job

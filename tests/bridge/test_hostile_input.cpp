@@ -506,6 +506,20 @@ TEST(HostileOutput, BadOutputIsReportedBeforeRendering) {
                        out));
   EXPECT_NE(out.find("no image format for extension '.unknownext'"), std::string::npos) << out;
   EXPECT_EQ(1, run_cli("render " + quoted(scene) + " -o " + quoted(temp_dir().string()) + "/ --quiet", out));
+  // A folder access(W_OK) calls writable in which no file can be created (/proc, also for root): refused before the
+  // render (the probe's message), not at the write after it (the atomic writer's "cannot create a temporary file").
+  if (fs::is_directory("/proc/self")) {
+    EXPECT_EQ(1, run_cli("render " + quoted(scene) + " -o /proc/x.png --samples 100000 --quiet", out));
+    EXPECT_NE(out.find("cannot create a file in output folder '/proc'"), std::string::npos) << out;
+  }
+  // The probe leaves nothing behind in a folder that takes files.
+  const fs::path clean = temp_dir() / "probe_clean";
+  fs::create_directories(clean);
+  const std::string ok = (clean / "ok.png").string();
+  EXPECT_EQ(0, run_cli("render " + quoted(scene) + " -o " + quoted(ok) + " --samples 1 --quiet", out)) << out;
+  std::vector<std::string> names;
+  for (const auto &e : fs::directory_iterator(clean)) names.push_back(e.path().filename().string());
+  EXPECT_EQ(names, std::vector<std::string>{"ok.png"});
 }
 
 TEST(HostileOutput, PlantedSymlinksAreNeitherFollowedNorOverwritten) {

@@ -93,6 +93,16 @@ TEST(Loader, MissingInclude) {
 TEST(Loader, BadNumber) {
   expect_bad_input("bad_number.xml", "<cycles>\n<camera width=\"10\" height=\"10\" />\n<transform translate=\"1 two 3\" />\n</cycles>\n",
                    "3: <transform> translate: 'two' is not a number");
+  // A shader node's colour takes 1 or 3 numbers, as a closure parameter or a <light> vector: a 4th (RGBA, a
+  // typo such as "0.8 0.8 0 .8") is refused, not silently dropped; 2 numbers too.
+  for (const auto &[color, count] : {std::pair<std::string, std::string>{"0.8 0.8 0 .8", "4"}, {"1 1", "2"}})
+    expect_bad_input("bad_color_" + count + ".xml",
+                     "<cycles>\n<camera width=\"8\" height=\"8\" />\n<shader name=\"s\">\n"
+                     "<diffuse_bsdf name=\"d\" color=\"" + color + "\" />\n"
+                     "<connect from=\"d bsdf\" to=\"output surface\" /></shader>\n"
+                     "<state shader=\"s\"><mesh P=\"0 0 1 1 0 1 0 1 1\" nverts=\"3\" verts=\"0 1 2\" /></state>\n"
+                     "</cycles>\n",
+                     "4: <diffuse_bsdf> color: expected 1 or 3 numbers, got " + count);
 }
 
 TEST(Loader, UnknownShaderAndBadParameter) {

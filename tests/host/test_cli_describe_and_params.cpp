@@ -43,6 +43,9 @@ TEST(Describe, PrintsFloatsInShortestForm) {
   EXPECT_FALSE(contains(run.out, "0.800000011920929")) << run.out;
   const CliRun text = run_cli({"describe"});
   EXPECT_FALSE(contains(text.out, "0.800000011920929")) << text.out;
+  // An int parameter's range in integers; a float's as before.
+  EXPECT_TRUE(contains(text.out, "seed (int, default 0, range [0, 2147483648])")) << text.out;
+  EXPECT_TRUE(contains(text.out, "gamma (float, default 2.0, range [0.1, 10.0])")) << text.out;
 }
 
 TEST(Describe, ListsEveryParameterTypeOfTheFixturePlugin) {
@@ -229,6 +232,26 @@ TEST(LabCli, BadInputExitsOne) {
   EXPECT_TRUE(contains(samples.err, "--samples")) << samples.err;
   const CliRun plot = run_cli({"lab", "plot", "--closure", "diffuse"});  // no -o
   EXPECT_EQ(plot.exit_code, 1);
+}
+
+// A mistyped sub-command or option is named (CLI11 alone said "A subcommand is required" / "scene is required").
+TEST(Cli, UnknownSubcommandsAndArgumentsAreNamed) {
+  const CliRun typo = run_cli({"rendr", "scene.xml", "-o", "out.exr"});
+  EXPECT_EQ(typo.exit_code, 1);
+  EXPECT_TRUE(contains(typo.err, "unknown sub-command 'rendr' (one of: describe lab render")) << typo.err;
+  const CliRun lab = run_cli({"lab", "furnance", "--closure", "diffuse"});
+  EXPECT_EQ(lab.exit_code, 1);
+  EXPECT_TRUE(contains(lab.err, "unknown sub-command 'furnance' (one of: furnace chi2")) << lab.err;
+  const CliRun option = run_cli({"render", "--sampels"});
+  EXPECT_EQ(option.exit_code, 1);
+  EXPECT_TRUE(contains(option.err, "scene is required; not understood: '--sampels'")) << option.err;
+  const CliRun version = run_cli({"--version"});
+  EXPECT_EQ(version.exit_code, 1);
+  EXPECT_TRUE(contains(version.err, "not understood: '--version'")) << version.err;
+  // Nothing mistyped: CLI11's own message, unchanged.
+  const CliRun none = run_cli({});
+  EXPECT_EQ(none.exit_code, 1);
+  EXPECT_TRUE(contains(none.err, "A subcommand is required\n")) << none.err;
 }
 
 }  // namespace
