@@ -69,6 +69,20 @@ nlohmann::json flags_json(uint32_t flags) {
 
 }  // namespace
 
+std::string version_text(CliContext &ctx) {
+  std::string text = std::string("glimmer ") + GLIMMER_VERSION_STRING + " (closure ABI " +
+                     host::abi_version_name(GLIMMER_ABI_VERSION) + ")\n";
+  try {
+    auto &plugin = ctx.plugin();
+    const auto &info = plugin.info();
+    text += std::string("plugin ") + info.plugin_name + " " + info.plugin_version + " (ABI " +
+            host::abi_version_name(info.abi_version) + ") from " + plugin.path();
+  } catch (const std::exception &e) {
+    text += std::string("plugin: none loaded (") + e.what() + ")";
+  }
+  return text;
+}
+
 void add_describe_command(CLI::App &app, CliContext &ctx) {
   auto *cmd = app.add_subcommand("describe", "list the plugin's closures and their parameters");
   auto json = std::make_shared<bool>(false);

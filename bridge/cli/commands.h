@@ -44,6 +44,9 @@ struct CliContext {
 void install_render_interrupt_handlers();
 
 void add_describe_command(CLI::App &app, CliContext &ctx);
+// `glimmer --version`: the host's version and closure ABI, then the plugin it loads (name, version, ABI, path) or why
+// none loads (a farm task's log records what rendered it).
+std::string version_text(CliContext &ctx);
 void add_lab_command(CLI::App &app, CliContext &ctx);
 void add_render_command(CLI::App &app, CliContext &ctx);
 void add_precompute_command(CLI::App &app, CliContext &ctx);

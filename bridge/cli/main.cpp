@@ -25,6 +25,9 @@ int main(int argc, char **argv) {
   app.fallthrough();
   cli::CliContext ctx;
   app.add_option("--plugin", ctx.plugin_path, "path of libglimmer_closures.so (or its folder)");
+  app.set_version_flag(
+      "--version", [&ctx] { return cli::version_text(ctx); },
+      "print glimmer's version and closure ABI, and the plugin it loads");
 
   cli::add_describe_command(app, ctx);
   cli::add_lab_command(app, ctx);

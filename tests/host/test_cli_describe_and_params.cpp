@@ -5,6 +5,7 @@
 #include <cmath>
 #include <filesystem>
 #include <nlohmann/json.hpp>
+#include <regex>
 #include <string>
 
 #include "host/cli_runner.h"
@@ -245,13 +246,30 @@ TEST(Cli, UnknownSubcommandsAndArgumentsAreNamed) {
   const CliRun option = run_cli({"render", "--sampels"});
   EXPECT_EQ(option.exit_code, 1);
   EXPECT_TRUE(contains(option.err, "scene is required; not understood: '--sampels'")) << option.err;
-  const CliRun version = run_cli({"--version"});
+  const CliRun version = run_cli({"--verison"});
   EXPECT_EQ(version.exit_code, 1);
-  EXPECT_TRUE(contains(version.err, "not understood: '--version'")) << version.err;
+  EXPECT_TRUE(contains(version.err, "not understood: '--verison'")) << version.err;
   // Nothing mistyped: CLI11's own message, unchanged.
   const CliRun none = run_cli({});
   EXPECT_EQ(none.exit_code, 1);
   EXPECT_TRUE(contains(none.err, "A subcommand is required\n")) << none.err;
+}
+
+// `glimmer --version` (a farm task's log records what rendered it): the host's version and closure ABI, then the
+// plugin it loads; a plugin that does not load is named, and --version still succeeds (it is not a render).
+TEST(Cli, VersionNamesTheHostAbiAndThePlugin) {
+  const std::regex host_line("^glimmer [0-9]+\\.[0-9]+\\.[0-9]+ \\(closure ABI " +
+                             host::abi_version_name(GLIMMER_ABI_VERSION) + "\\)\n");
+  const CliRun version = run_cli({"--version"});
+  EXPECT_EQ(version.exit_code, 0) << version.err;
+  EXPECT_TRUE(std::regex_search(version.out, host_line)) << version.out;
+  EXPECT_TRUE(contains(version.out, "\nplugin glimmer_closures ")) << version.out;
+  EXPECT_TRUE(contains(version.out, "libglimmer_closures.so")) << version.out;
+  const CliRun missing = run_cli({"--plugin", "/nonexistent/libglimmer_closures.so", "--version"});
+  EXPECT_EQ(missing.exit_code, 0) << missing.err;
+  EXPECT_TRUE(std::regex_search(missing.out, host_line)) << missing.out;
+  EXPECT_TRUE(contains(missing.out, "plugin: none loaded (")) << missing.out;
+  EXPECT_TRUE(contains(missing.out, "/nonexistent")) << missing.out;
 }
 
 }  // namespace
