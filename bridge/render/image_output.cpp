@@ -69,7 +69,9 @@ void check_output_folder_takes_files(const std::string &path) {
   const fs::path target(path);
   const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
   // access(W_OK) passes where no file can be created (/proc for root, some FUSE and network mounts): try one.
-  const std::string probe = (dir / ("." + target.filename().string() + "." + random_hex16() + ".probe")).string();
+  std::string name = target.filename().string();  // appended, not "." + ...: GCC 12's -Wrestrict misfires on insert
+  name.append(".").append(random_hex16()).append(".probe");
+  const std::string probe = (dir / ("." + name)).string();
   const int fd = ::open(probe.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0600);
   if (fd < 0)
     throw std::runtime_error("cannot create a file in output folder '" + dir.string() + "': " + std::strerror(errno));
