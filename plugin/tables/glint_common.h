@@ -187,43 +187,8 @@ struct ParticleField {
   }
 };
 
-// Beckmann Lambda without erfc and exp (the glint closures' per-eval path;
-// issue 10, session 9). a Lambda(a) = exp(-a^2) / (2 sqrt(pi)) - a erfc(a) / 2
-// is smooth on [0, 4]: a degree-19 polynomial in x = a / 2 - 1 (Chebyshev
-// interpolation at 20 nodes, fitted in 40-digit arithmetic; max error
-// 1.9e-10 of a Lambda, so of Lambda 1.9e-10 / a) evaluated in double. Beyond
-// a = 4, Lambda < 2.5e-10 and 0 is returned (1 + Lambda rounds to 1 in float
-// from a ~ 3.5). Same contract as mf::beckmann_lambda (w.z < 0: -1 - Lambda(-w));
-// test GlintCoords.BeckmannLambdaFastMatchesTheErfcForm compares the two.
-// The polynomial's coefficients (beckmann_lambda_fast, eval_lambdas_beckmann_avx2).
-inline constexpr double kBeckmannLambdaPoly[20] = {
-        0.0004890113652203955,  -0.004677734800970086, 0.02066698372428487,   -0.05511199698701841,
-        0.09644599897942761,    -0.1102227279168954,   0.0698072884330441,    0.004183614241949296,
-        -0.05405087929182188,   0.045357117865371305,  -0.0026295178972669643, -0.02484822617710974,
-        0.017932224600181706,   0.0025396699187721994, -0.010012549308498082, 0.003021427364006197,
-        0.0027247767695632854,  -0.0015518315693354918, -0.0003259410760252298, 0.0002632927807307566};
-inline float beckmann_lambda_fast(const Vec3 &w, float ax, float ay) {
-  return mf::beckmann_lambda_with(w, ax, ay, [](double a) {
-    if (a >= 4.0) return 0.0;
-    const double *c = kBeckmannLambdaPoly;
-    const double x = 0.5 * a - 1.0, x2 = x * x;
-    // Two Horner chains (even and odd powers) for latency.
-    double pe = c[18], po = c[19];
-    for (int k = 16; k >= 0; k -= 2) {
-      pe = pe * x2 + c[k];
-      po = po * x2 + c[k + 1];
-    }
-    return (pe + x * po) / a;
-  });
-}
-
-inline float lambda_fast(mf::Distribution dist, const Vec3 &w, float ax, float ay) {
-  return dist == mf::Distribution::GGX ? mf::ggx_lambda(w, ax, ay) : beckmann_lambda_fast(w, ax, ay);
-}
-
-// Smith G1 and height-correlated G2 as mf::G1 / mf::G2, with Beckmann's
-// Lambda from beckmann_lambda_fast (no erfc / exp; within 2e-10 of the
-// double erfc form).
+// Smith G1 and height-correlated G2 as mf::G1 / mf::G2 (Beckmann's Lambda
+// the polynomial mf::beckmann_lambda: no erfc / exp).
 // G1 and G2 from their Lambdas.
 inline float smith_g1_of(float l) { return std::isfinite(l) ? 1.0f / (1.0f + l) : 0.0f; }
 inline float smith_g2_of(float li, float lo) {
@@ -231,11 +196,11 @@ inline float smith_g2_of(float li, float lo) {
   return std::isfinite(s) ? 1.0f / s : 0.0f;
 }
 inline float smith_g1(mf::Distribution dist, const Vec3 &w, float ax, float ay) {
-  return smith_g1_of(lambda_fast(dist, Vec3(w.x, w.y, std::fabs(w.z)), ax, ay));
+  return smith_g1_of(mf::lambda(dist, Vec3(w.x, w.y, std::fabs(w.z)), ax, ay));
 }
 inline float smith_g2(mf::Distribution dist, const Vec3 &wi, const Vec3 &wo, float ax, float ay) {
-  return smith_g2_of(lambda_fast(dist, Vec3(wi.x, wi.y, std::fabs(wi.z)), ax, ay),
-                     lambda_fast(dist, Vec3(wo.x, wo.y, std::fabs(wo.z)), ax, ay));
+  return smith_g2_of(mf::lambda(dist, Vec3(wi.x, wi.y, std::fabs(wi.z)), ax, ay),
+                     mf::lambda(dist, Vec3(wo.x, wo.y, std::fabs(wo.z)), ax, ay));
 }
 
 // The three Smith Lambdas one isotropic eval needs (issue 10, session 14):
@@ -245,8 +210,8 @@ inline float smith_g2(mf::Distribution dist, const Vec3 &wi, const Vec3 &wo, flo
 // float operations in the same order as mf::ggx_lambda, so the same bits
 // (test GlintCoords.PackedLambdasMatchTheScalarForm), one division pair and
 // one square root for three; a lane outside the regular case (|z| not > 0,
-// alpha^2 tan^2 not finite) sends all three to the scalar lambda_fast.
-// Beckmann: the scalar lambda_fast.
+// alpha^2 tan^2 not finite) sends all three to the scalar mf::lambda.
+// Beckmann: the scalar mf::lambda.
 struct EvalLambdas {
   float wi, wo;  // at the base alpha
   float wi_lobe; // wi at the sampling lobe's alpha
@@ -256,8 +221,8 @@ struct EvalLambdas {
 [[gnu::noinline]] inline EvalLambdas eval_lambdas_scalar(mf::Distribution dist, float alpha, float alpha_lobe,
                                                          const Vec3 &wi, const Vec3 &wo) {
   const Vec3 ai(wi.x, wi.y, std::fabs(wi.z)), ao(wo.x, wo.y, std::fabs(wo.z));
-  return {lambda_fast(dist, ai, alpha, alpha), lambda_fast(dist, ao, alpha, alpha),
-          lambda_fast(dist, ai, alpha_lobe, alpha_lobe)};
+  return {mf::lambda(dist, ai, alpha, alpha), mf::lambda(dist, ao, alpha, alpha),
+          mf::lambda(dist, ai, alpha_lobe, alpha_lobe)};
 }
 // alpha2_tan2 = (sqr(ax x) + sqr(ay y)) / sqr(z) of the eval's three Lambdas in SSE lanes: wi at alpha, wo at alpha,
 // wi at alpha_lobe (and the third again, discarded); `z` gets |z| per lane for the caller's regular-case test.
@@ -292,7 +257,7 @@ struct EvalLambdas {
   const __m256d one = _mm256_set1_pd(1.0);
   const __m256d a = _mm256_div_pd(one, _mm256_sqrt_pd(_mm256_cvtps_pd(a2)));
   const __m256d t = _mm256_sub_pd(_mm256_mul_pd(_mm256_set1_pd(0.5), a), one), t2 = _mm256_mul_pd(t, t);
-  const double *c = kBeckmannLambdaPoly;
+  const double *c = mf::kBeckmannLambdaPoly;
   __m256d pe = _mm256_set1_pd(c[18]), po = _mm256_set1_pd(c[19]);
   for (int k = 16; k >= 0; k -= 2) {
     pe = _mm256_add_pd(_mm256_mul_pd(pe, t2), _mm256_set1_pd(c[k]));
@@ -345,7 +310,7 @@ inline float lobe_density_of(mf::Distribution dist, float ax, float ay, const Ve
   return std::isfinite(v) ? v : 0.0f;
 }
 inline float lobe_density(mf::Distribution dist, float ax, float ay, const Vec3 &wi, const Vec3 &h) {
-  return lobe_density_of(dist, ax, ay, wi, h, lambda_fast(dist, Vec3(wi.x, wi.y, std::fabs(wi.z)), ax, ay));
+  return lobe_density_of(dist, ax, ay, wi, h, mf::lambda(dist, Vec3(wi.x, wi.y, std::fabs(wi.z)), ax, ay));
 }
 
 // W(wi, wo) = F(wi.h) G2(wi, wo) (wi.h) / (cos_i cos_h): the glint BRDF times

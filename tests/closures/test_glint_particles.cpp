@@ -902,15 +902,15 @@ TEST(GlintCoords, WhiteF0WeightSkipsFresnelWithTheSameBits) {
   EXPECT_GT(control_differs, valid / 2);
 }
 
-// Beckmann Lambda from the polynomial (glint_common.h, issue 10 session 9)
-// against the double erfc + exp form (mf::beckmann_lambda) over random
+// Beckmann Lambda from the polynomial (mf::beckmann_lambda: the glint closures' since issue 10 session 9, every
+// closure's since session 40) against the double erfc + exp form (mf::beckmann_lambda_erfc) over random
 // directions (cos theta log-uniform down to 1e-7, both sides), alpha 1e-4..1
 // per axis, and edges (z = +-0, +-1, denormals, NaN, huge slopes). Error
 // measured on 1 + Lambda (what every G1 / G2 uses): |fast - exact| /
 // max(1, |exact|) <= 2 float ulps of 1. Negative controls: the same
 // polynomial cut off at a = 2.5 instead of 4, and Walter 2007's rational
 // approximation (eq. 27), each exceed the bound.
-TEST(GlintCoords, BeckmannLambdaFastMatchesTheErfcForm) {
+TEST(GlintCoords, BeckmannLambdaPolynomialMatchesTheErfcForm) {
   namespace mf = microfacet;
   Pcg32 rng(31);
   const float nan = std::numeric_limits<float>::quiet_NaN(), den = std::numeric_limits<float>::denorm_min();
@@ -930,7 +930,7 @@ TEST(GlintCoords, BeckmannLambdaFastMatchesTheErfcForm) {
   };
   auto cut = [](const Vec3 &w, float ax, float ay) {  // the polynomial cut off at a = 2.5 (the control)
     const float a2 = mf::alpha2_tan2(w, ax, ay);
-    return a2 > 0.0f && a2 < 0.16f ? (w.z > 0.0f ? 0.0f : -1.0f) : pg::beckmann_lambda_fast(w, ax, ay);
+    return a2 > 0.0f && a2 < 0.16f ? (w.z > 0.0f ? 0.0f : -1.0f) : mf::beckmann_lambda(w, ax, ay);
   };
   auto err = [](float f, float e) {
     if (std::isnan(e) || std::isinf(e)) return f == e || (std::isnan(f) && std::isnan(e)) ? 0.0 : 1.0;
@@ -940,7 +940,7 @@ TEST(GlintCoords, BeckmannLambdaFastMatchesTheErfcForm) {
   int64_t identical = 0;
   for (const auto &r : q) {
     const Vec3 w(r[0], r[1], r[2]);
-    const float f = pg::beckmann_lambda_fast(w, r[3], r[4]), e = mf::beckmann_lambda(w, r[3], r[4]);
+    const float f = mf::beckmann_lambda(w, r[3], r[4]), e = mf::beckmann_lambda_erfc(w, r[3], r[4]);
     const double d = err(f, e);
     ASSERT_LE(d, 2.4e-7) << "w " << w.x << " " << w.y << " " << w.z << " alpha " << r[3] << " " << r[4] << ": " << f
                          << " vs " << e;
@@ -1058,8 +1058,8 @@ TEST(GlintCoords, BeckmannLambdaLanesMatchTheScalarForm) {
     return mf::beckmann_lambda_with(w, al, al, [](double a) {
       if (a >= 4.0) return 0.0;
       const double x = 0.5 * a - 1.0;
-      double p = pg::kBeckmannLambdaPoly[19];
-      for (int k = 18; k >= 0; --k) p = p * x + pg::kBeckmannLambdaPoly[k];
+      double p = mf::kBeckmannLambdaPoly[19];
+      for (int k = 18; k >= 0; --k) p = p * x + mf::kBeckmannLambdaPoly[k];
       return p / a;
     });
   };
@@ -1157,7 +1157,7 @@ TEST(GlintCoords, SmoothLobePdfAboveMatchesSmoothLobePdf) {
 // The three Smith Lambdas of one isotropic eval in SSE lanes
 // (pg::eval_lambdas, issue 10 session 14: W's Lambda(wi), Lambda(wo) at the
 // base alpha, the pdf's Lambda(wi) at the sampling lobe's alpha) against the
-// scalar lambda_fast, bit for bit, GGX and Beckmann, over random and extreme
+// scalar mf::lambda, bit for bit, GGX and Beckmann, over random and extreme
 // directions (near the pole and the horizon, both sides, z = +-0, +-1,
 // denormals, NaN, slopes of 1e30) and alphas 1e-4..1 (and 0, inf, NaN).
 // Negative control: the same lanes with GGX's Lambda in the algebraically
@@ -1189,9 +1189,10 @@ TEST(GlintCoords, PackedLambdasMatchTheScalarForm) {
       control_differs += !same(control, pg::eval_lambdas(mf::Distribution::GGX, alpha, alpha_lobe, wi, wo).wi);
     }
   }
-  std::printf("[lambdas] %lld packed Lambda triples equal to the scalar lambda_fast (%lld with a lane outside the "
-              "regular case); the control (sqrt(1 + a2) - 1) / 2 differs on %lld\n",
-              static_cast<long long>(compared), static_cast<long long>(fallback), static_cast<long long>(control_differs));
+  std::printf(
+      "[lambdas] %lld packed Lambda triples equal to the scalar mf::lambda (%lld with a lane outside the "
+      "regular case); the control (sqrt(1 + a2) - 1) / 2 differs on %lld\n",
+      static_cast<long long>(compared), static_cast<long long>(fallback), static_cast<long long>(control_differs));
   EXPECT_GT(fallback, 100);
   EXPECT_GT(control_differs, static_cast<int64_t>(queries.size()) / 10);
 }

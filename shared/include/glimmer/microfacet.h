@@ -97,8 +97,8 @@ inline float ggx_lambda(const Vec3 &w, float ax, float ay) {
 
 // Beckmann Lambda's contract around Lambda as a function of a = 1 / sqrt(alpha2_tan2(w)) (`of_a`, a > 0):
 // w.z == 0: infinite; a normal direction (a2 = 0): 0; a2 infinite: infinite; negative values of of_a clamp to 0;
-// w.z < 0: -1 - Lambda(-w). Shared by beckmann_lambda (below) and the glint closures' polynomial form
-// (glint::beckmann_lambda_fast), so both keep the same edges.
+// w.z < 0: -1 - Lambda(-w). Shared by beckmann_lambda (the polynomial, below) and beckmann_lambda_erfc (the closed
+// form it is checked against), so both keep the same edges.
 template <class LambdaOfA>
 inline float beckmann_lambda_with(const Vec3 &w, float ax, float ay, LambdaOfA of_a) {
   if (w.z == 0.0f) return INFINITY;
@@ -117,11 +117,41 @@ inline float beckmann_lambda_with(const Vec3 &w, float ax, float ay, LambdaOfA o
 
 // Beckmann Lambda (Heitz 2014 eq. 84) with a = 1 / sqrt(a2):
 // (erf(a) - 1) / 2 + exp(-a^2) / (2 a sqrt(pi)) = (exp(-a^2)/(a sqrt(pi)) - erfc(a)) / 2,
-// evaluated in double (the two terms cancel for large a).
-inline float beckmann_lambda(const Vec3 &w, float ax, float ay) {
+// evaluated in double (the two terms cancel for large a). The closed form that beckmann_lambda (below) is checked
+// against (GlintCoords.BeckmannLambdaPolynomialMatchesTheErfcForm).
+inline float beckmann_lambda_erfc(const Vec3 &w, float ax, float ay) {
   return beckmann_lambda_with(w, ax, ay, [](double a) {
     if (a > 6.0) return 0.0;  // below 1e-17
     return 0.5 * (std::exp(-a * a) / (a * 1.7724538509055160273) - std::erfc(a));
+  });
+}
+
+// Beckmann Lambda without erfc and exp, what every closure evaluates (the glint closures since issue 10's session
+// 9; the conductor, dielectric and the rest since session 40: libm's double erfc had cost the Beckmann conductor
+// ~140 instructions per Lambda). a Lambda(a) = exp(-a^2) / (2 sqrt(pi)) - a erfc(a) / 2 is smooth on [0, 4]: a
+// degree-19 polynomial in x = a / 2 - 1 (Chebyshev interpolation at 20 nodes, fitted in 40-digit arithmetic; max
+// error 1.9e-10 of a Lambda, so of Lambda 1.9e-10 / a) evaluated in double. Beyond a = 4, Lambda < 2.5e-10 and 0 is
+// returned (1 + Lambda rounds to 1 in float from a ~ 3.5). Same contract as beckmann_lambda_erfc (the edges of
+// beckmann_lambda_with); GlintCoords.BeckmannLambdaPolynomialMatchesTheErfcForm compares the two (|d(1 + Lambda)|
+// <= 2.4e-7). The coefficients are also the glint closures' four-lane form's (glint::eval_lambdas_beckmann_avx2).
+inline constexpr double kBeckmannLambdaPoly[20] = {
+    0.0004890113652203955, -0.004677734800970086,  0.02066698372428487,    -0.05511199698701841,
+    0.09644599897942761,   -0.1102227279168954,    0.0698072884330441,     0.004183614241949296,
+    -0.05405087929182188,  0.045357117865371305,   -0.0026295178972669643, -0.02484822617710974,
+    0.017932224600181706,  0.0025396699187721994,  -0.010012549308498082,  0.003021427364006197,
+    0.0027247767695632854, -0.0015518315693354918, -0.0003259410760252298, 0.0002632927807307566};
+inline float beckmann_lambda(const Vec3 &w, float ax, float ay) {
+  return beckmann_lambda_with(w, ax, ay, [](double a) {
+    if (a >= 4.0) return 0.0;
+    const double *c = kBeckmannLambdaPoly;
+    const double x = 0.5 * a - 1.0, x2 = x * x;
+    // Two Horner chains (even and odd powers) for latency.
+    double pe = c[18], po = c[19];
+    for (int k = 16; k >= 0; k -= 2) {
+      pe = pe * x2 + c[k];
+      po = po * x2 + c[k + 1];
+    }
+    return (pe + x * po) / a;
   });
 }
 
