@@ -468,12 +468,39 @@ class ShaderGraph:
         for param in closure["params"]:
             if schema_mod.is_socket_param(param):
                 sock = node.inputs.get(schema_mod.socket_name(param["name"]))
-                if sock is not None:
-                    self.set_input(el, param["name"], sock)
+                if sock is None:
+                    continue
+                source = self.source_of(sock)
+                if source is not None:
+                    self.connect(source, el.get("name"), param["name"])
+                else:
+                    el.set(param["name"], fmt(self.schema_value(node, sock, param)))
             else:
                 el.set(param["name"], fmt(values[param["name"]]) if param["type"] == "bool"
                        else str(values[param["name"]]))
         return (el.get("name"), "bsdf")
+
+    def schema_value(self, node, sock, param):
+        """An unlinked socket's value clamped to the closure's range: Blender's group sockets limit only dragging
+        (typing 0 into Density works), and the renderer refuses the whole scene for a value outside the range."""
+        value = _value(sock)
+        lo, hi = param.get("min"), param.get("max")
+        if lo is None and hi is None:
+            return value
+
+        def clamp(v):
+            v = max(v, lo) if lo is not None else v
+            v = min(v, hi) if hi is not None else v
+            return int(v) if param["type"] == "int" else v
+
+        clamped = tuple(clamp(v) for v in value) if isinstance(value, tuple) else clamp(value)
+        moved = np.abs(np.subtract(clamped, value, dtype=np.float64))
+        # A limit stored in the socket's float32 (thickness 1e-6 -> 9.99999997e-07) is clamped without a warning.
+        if np.any(moved > 1e-6 * np.abs(np.asarray(clamped, dtype=np.float64))):
+            self.warn((node.name, "range", param["name"]),
+                      "node '%s': %s %s is outside the closure's range [%s, %s]: %s is used"
+                      % (node.name, sock.name, fmt(value), fmt(lo), fmt(hi), fmt(clamped)))
+        return clamped
 
     def value_node(self, node, out):
         """A texture/utility node the renderer evaluates per shading point (bridge/render/nodes/node_table.cpp):

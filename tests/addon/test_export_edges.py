@@ -3,10 +3,15 @@ renders, or be reported.
 
 - UV maps: a mesh with two UV maps exports the render UV map (camera icon, `active_render`), not the map
   selected for editing (`active`), as Cycles does for textures without a Vector link.
+- Glint / Frosted Glass sockets typed outside the closure's range (Blender's group sockets limit dragging only):
+  the value is clamped into the range with one warning naming node and socket; before, the renderer refused the
+  whole scene ("parameter 'density' = 0 is outside [1, 1e+12]").
 """
 import os
 import shutil
+import subprocess
 import sys
+import xml.etree.ElementTree as ET
 
 import bpy
 import numpy as np
@@ -66,5 +71,61 @@ u = ply_uv("uv_render_map_second", "Plane")[:, 0]
 print("render map Second: exported u in [%g, %g]" % (u.min(), u.max()))
 check(u.min() >= 5.0 and u.max() <= 6.0, "with Second as the render UV map the exported u must be in [5, 6], got "
       "[%g, %g]" % (u.min(), u.max()))
+
+# -- Glimmer node sockets outside the closure's range ---------------------------------------------------------------
+scene = new_scene()
+util.add_light(scene, "POINT", 200.0, (0.0, -2.0, 3.0))
+materials = {}
+for index, (label, idname) in enumerate((("Glint", "GlimmerNodeGlintBsdf"), ("Frost", "GlimmerNodeFrostedGlassBsdf"))):
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.8, location=(-1.0 + 2.0 * index, 0.0, 0.0))
+    mat = bpy.data.materials.new(label)
+    mat.use_nodes = True
+    nt = mat.node_tree
+    node = nt.nodes.new(idname)
+    node.name = label + " Node"
+    nt.links.new(node.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    bpy.context.object.data.materials.append(mat)
+    materials[label] = node
+glint, frost = materials["Glint"], materials["Frost"]
+glint.inputs["Density"].default_value = 0.0      # [1, 1e12]: "no flakes" typed by hand
+glint.inputs["Gamma"].default_value = 25.0       # [0.1, 10]
+glint.inputs["Roughness"].default_value = 0.25   # in range: written as it is, no warning
+frost.thin = True
+frost.inputs["Thickness"].default_value = 0.0    # [1e-6, 1e6]
+frost.inputs["Color"].default_value = (1.5, 0.5, -0.25, 1.0)  # [0, 1] per channel
+frost.inputs["IOR"].default_value = 0.7           # in range (IOR < 1 is allowed)
+check(abs(glint.inputs["Density"].default_value) < 1e-12, "setup: Blender kept the typed density 0")
+xml, _, reports = export("node_ranges")
+elements = {el.get("name"): el for el in ET.parse(xml).getroot().iter() if el.get("name") in ("Glint_Node", "Frost_Node")}
+g, f = elements["Glint_Node"], elements["Frost_Node"]
+print("exported: density %s gamma %s roughness %s thickness %s color %s ior %s"
+      % (g.get("density"), g.get("gamma"), g.get("roughness"), f.get("thickness"), f.get("color"), f.get("ior")))
+check(float(g.get("density")) == 1.0 and float(g.get("gamma")) == 10.0, "glint density/gamma must be clamped to 1 / 10")
+check(abs(float(g.get("roughness")) - 0.25) < 1e-6, "an in-range roughness must be written unchanged")
+check(abs(float(f.get("thickness")) - 1e-6) < 1e-12, "thickness 0 must become the minimum 1e-6")
+check([float(c) for c in f.get("color").split()] == [1.0, 0.5, 0.0], "the colour must be clamped per channel")
+check(abs(float(f.get("ior")) - 0.7) < 1e-6, "IOR 0.7 is in range and must be written unchanged")
+range_reports = [r for r in reports if "outside the closure's range" in r]
+for r in range_reports:
+    print("  report:", r)
+expected = (("Glint Node", "Density"), ("Glint Node", "Gamma"), ("Frost Node", "Thickness"), ("Frost Node", "Color"))
+for node_name, socket in expected:
+    check(sum(1 for r in range_reports if "'%s': %s " % (node_name, socket) in r) == 1,
+          "one warning naming node '%s' and socket %s expected: %s" % (node_name, socket, range_reports))
+check(len(range_reports) == len(expected), "only the out-of-range sockets are reported: %s" % range_reports)
+# A linked socket is still a link (the range applies to typed values only).
+noise = glint.id_data.nodes.new("ShaderNodeTexNoise")
+glint.id_data.links.new(noise.outputs["Fac"], glint.inputs["Density"])
+xml_linked, _, reports = export("node_ranges_linked")
+root = ET.parse(xml_linked).getroot()
+g = next(el for el in root.iter("glint_bsdf"))
+check(g.get("density") is None and any(c.get("to") == "Glint_Node density" for c in root.iter("connect")),
+      "a linked Density must be exported as a link")
+glimmer = os.environ.get("GLIMMER_EXECUTABLE", "")
+if mod.runner.supports_render(glimmer):
+    run = subprocess.run([glimmer, "render", xml, "-o", os.path.join(out_root, "node_ranges", "r.exr"),
+                          "--samples", "1", "--threads", "2"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    print("glimmer render of the clamped export: exit %d" % run.returncode)
+    check(run.returncode == 0, "the renderer must accept the clamped values:\n" + run.stdout.decode(errors="replace"))
 
 util.done("test_export_edges")
