@@ -908,9 +908,23 @@ class Exporter:
             self.warn("object '%s': shadow catcher is not supported: rendered as an ordinary object" % obj.name)
         if getattr(obj, "is_holdout", False):
             self.warn("object '%s': holdout is not supported: rendered as an ordinary object" % obj.name)
+        elif self.view_layer_flag(original, "holdout_get"):
+            self.warn("object '%s': holdout (its collection's Holdout in view layer '%s') is not supported: rendered "
+                      "as an ordinary object" % (obj.name, self.depsgraph.view_layer.name))
+        if self.view_layer_flag(original, "indirect_only_get"):
+            self.warn("object '%s': Indirect Only (its collection's, in view layer '%s') is not supported: the object "
+                      "is also seen by camera rays" % (obj.name, self.depsgraph.view_layer.name))
         for psys in getattr(original, "particle_systems", ()):
             if psys.settings.type == "HAIR" and psys.settings.render_type == "PATH":
                 self.warn("object '%s': hair particle system '%s' is not supported: skipped" % (obj.name, psys.name))
+
+    def view_layer_flag(self, original, getter):
+        """Object.holdout_get / indirect_only_get in the depsgraph's view layer (collection settings included);
+        False when Blender cannot answer (an object without a base in the view layer)."""
+        try:
+            return bool(getattr(original, getter)(view_layer=self.depsgraph.view_layer))
+        except (AttributeError, RuntimeError, TypeError):
+            return False
 
     def write_mesh_object(self, root, inst, obj):
         try:

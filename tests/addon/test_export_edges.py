@@ -6,6 +6,8 @@ renders, or be reported.
 - Glint / Frosted Glass sockets typed outside the closure's range (Blender's group sockets limit dragging only):
   the value is clamped into the range with one warning naming node and socket; before, the renderer refused the
   whole scene ("parameter 'density' = 0 is outside [1, 1e+12]").
+- View layer collection settings Glimmer cannot render, Holdout and Indirect Only, are reported with the object's
+  name (the object's own Holdout already was; the collections' were dropped silently).
 """
 import os
 import shutil
@@ -122,10 +124,35 @@ g = next(el for el in root.iter("glint_bsdf"))
 check(g.get("density") is None and any(c.get("to") == "Glint_Node density" for c in root.iter("connect")),
       "a linked Density must be exported as a link")
 glimmer = os.environ.get("GLIMMER_EXECUTABLE", "")
-if mod.runner.supports_render(glimmer):
+render_xml = mod.runner.supports_render(glimmer)
+if render_xml:
     run = subprocess.run([glimmer, "render", xml, "-o", os.path.join(out_root, "node_ranges", "r.exr"),
                           "--samples", "1", "--threads", "2"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
     print("glimmer render of the clamped export: exit %d" % run.returncode)
     check(run.returncode == 0, "the renderer must accept the clamped values:\n" + run.stdout.decode(errors="replace"))
+
+# -- view layer collection settings: Holdout, Indirect Only --------------------------------------------------------
+scene = new_scene()
+view_layer = bpy.context.view_layer
+for name, flag in (("HoldoutSet", "holdout"), ("IndirectSet", "indirect_only"), ("PlainSet", None)):
+    coll = bpy.data.collections.new(name)
+    scene.collection.children.link(coll)
+    bpy.ops.mesh.primitive_cube_add(size=0.5)
+    cube = bpy.context.object
+    cube.name = name + "Cube"
+    for c in cube.users_collection:
+        c.objects.unlink(cube)
+    coll.objects.link(cube)
+    if flag:
+        setattr(view_layer.layer_collection.children[name], flag, True)
+_, exp, reports = export("collection_flags")
+for r in reports:
+    print("  report:", r)
+check(exp.stats["objects"] == 3, "the three cubes are exported (%d)" % exp.stats["objects"])
+holdout = [r for r in reports if "'HoldoutSetCube'" in r and "holdout" in r.lower()]
+indirect = [r for r in reports if "'IndirectSetCube'" in r and "Indirect Only" in r]
+check(len(holdout) == 1, "one report for the Holdout collection's cube expected: %s" % reports)
+check(len(indirect) == 1, "one report for the Indirect Only collection's cube expected: %s" % reports)
+check(not any("PlainSetCube" in r for r in reports), "the plain collection's cube must not be reported: %s" % reports)
 
 util.done("test_export_edges")
