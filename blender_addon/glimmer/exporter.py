@@ -918,6 +918,16 @@ class Exporter:
             if psys.settings.type == "HAIR" and psys.settings.render_type == "PATH":
                 self.warn("object '%s': hair particle system '%s' is not supported: skipped" % (obj.name, psys.name))
 
+    def material_override(self):
+        """The view layer's Material Override (evaluated), or None."""
+        material = getattr(self.depsgraph.view_layer, "material_override", None)
+        if material is None:
+            return None
+        try:
+            return material.evaluated_get(self.depsgraph)
+        except (AttributeError, RuntimeError):
+            return material
+
     def view_layer_flag(self, original, getter):
         """Object.holdout_get / indirect_only_get in the depsgraph's view layer (collection settings included);
         False when Blender cannot answer (an object without a base in the view layer)."""
@@ -938,6 +948,9 @@ class Exporter:
             if len(arrays["triangles"]) == 0:
                 return
             slots = [slot.material for slot in obj.material_slots] if obj.material_slots else []
+            override = self.material_override()
+            if override is not None:  # View Layer > Material Override: every surface (Cycles' find_used_shaders)
+                slots = [override]
             own_geometry = not inst.is_instance or (inst.parent is not None and inst.parent.name == obj.name)
             base = self.mesh_names(obj.name if own_geometry else obj.name + "_instance")
             used = np.unique(arrays["material"]) if len(slots) > 1 else np.array([0])

@@ -8,6 +8,7 @@ renders, or be reported.
   whole scene ("parameter 'density' = 0 is outside [1, 1e+12]").
 - View layer collection settings Glimmer cannot render, Holdout and Indirect Only, are reported with the object's
   name (the object's own Holdout already was; the collections' were dropped silently).
+- View Layer > Material Override replaces every object's materials, as in Cycles (it was ignored).
 """
 import os
 import shutil
@@ -154,5 +155,45 @@ indirect = [r for r in reports if "'IndirectSetCube'" in r and "Indirect Only" i
 check(len(holdout) == 1, "one report for the Holdout collection's cube expected: %s" % reports)
 check(len(indirect) == 1, "one report for the Indirect Only collection's cube expected: %s" % reports)
 check(not any("PlainSetCube" in r for r in reports), "the plain collection's cube must not be reported: %s" % reports)
+
+# -- View Layer > Material Override ---------------------------------------------------------------------------------
+scene = new_scene()
+
+
+def emission_material(name, color):
+    mat = bpy.data.materials.new(name)
+    mat.use_nodes = True
+    nt = mat.node_tree
+    nt.nodes.remove(nt.nodes["Principled BSDF"])
+    emit = nt.nodes.new("ShaderNodeEmission")
+    emit.inputs["Color"].default_value = (*color, 1.0)
+    nt.links.new(emit.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    return mat
+
+
+red, blue = emission_material("Red", (1.0, 0.0, 0.0)), emission_material("Blue", (0.0, 0.0, 1.0))
+bpy.ops.mesh.primitive_plane_add(size=1.0, location=(-0.6, 0.0, 0.0))
+two_slots = bpy.context.object
+two_slots.data.materials.append(red)
+two_slots.data.materials.append(blue)
+two_slots.data.polygons[0].material_index = 1
+bpy.ops.mesh.primitive_plane_add(size=1.0, location=(0.6, 0.0, 0.0))  # no material at all
+override = emission_material("Override", (0.0, 1.0, 0.0))
+
+
+def mesh_shaders(xml):
+    root = ET.parse(xml).getroot()
+    return sorted(state.get("shader") for state in root.iter("state") if state.find("mesh") is not None)
+
+
+xml, _, _ = export("override_off")
+print("without override: mesh shaders", mesh_shaders(xml))
+check(mesh_shaders(xml) == ["Blue", "glimmer_default"], "setup: the planes use Blue and the default shader")
+bpy.context.view_layer.material_override = override
+xml, exp, reports = export("override_on")
+print("with override: mesh shaders", mesh_shaders(xml), "reports", reports)
+check(mesh_shaders(xml) == ["Override", "Override"], "Material Override must replace every object's materials, got %s"
+      % mesh_shaders(xml))
+check(not reports, "the override is exported, not reported: %s" % reports)
 
 util.done("test_export_edges")
