@@ -129,6 +129,7 @@ class ShaderGraph:
         self.warned = set()
         self.read_inputs = set()  # (node name, input identifier) the translators looked at
         self.uses_generated = False  # a texture reads generated coordinates: meshes go in object space
+        self.uv_maps = set()  # UV maps named by UV Map / Normal Map / Tangent nodes (a mesh has one UV map)
 
     # -- helpers -------------------------------------------------------------
     def warn(self, key, message):
@@ -339,6 +340,8 @@ class ShaderGraph:
             return None
         src, socket = vector.links[0].from_node, vector.links[0].from_socket.name
         if src.bl_idname == "ShaderNodeUVMap" or (src.bl_idname == "ShaderNodeTexCoord" and socket == "UV"):
+            if getattr(src, "uv_map", ""):
+                self.uv_maps.add(src.uv_map)
             return None
         if src.bl_idname == "ShaderNodeTexCoord" and socket == "Generated":
             self.uses_generated = True
@@ -507,6 +510,9 @@ class ShaderGraph:
         its settings (VALUE_NODES), every enabled input as the Cycles socket of the same name (linked or its
         value) and the output of the same name. A texture's unlinked Vector reads generated coordinates."""
         xml_type, settings = VALUE_NODES[node.bl_idname]
+        if getattr(node, "uv_map", "") and (node.bl_idname != "ShaderNodeNormalMap" or node.space == "TANGENT") and \
+                (node.bl_idname != "ShaderNodeTangent" or node.direction_type == "UV_MAP"):
+            self.uv_maps.add(node.uv_map)
         if node.bl_idname == "ShaderNodeMapRange" and node.data_type != "FLOAT":
             return self.unsupported(node, out)
         attributes = {}
@@ -668,6 +674,7 @@ class Exporter:
         self.images = {}
         self.objects_checked = set()
         self.object_space_shaders = set()  # shaders reading generated coordinates
+        self.shader_uv_maps = {}  # shader name -> (material name, UV maps its nodes name)
         self.stats = {"objects": 0, "triangles": 0, "vertices": 0, "lights": 0, "materials": 0}
 
     def warn(self, message):
@@ -830,6 +837,8 @@ class Exporter:
                 el.set("displacement_method", {"DISPLACEMENT": "true", "BOTH": "both"}.get(method, "bump"))
             if graph.uses_generated:
                 self.object_space_shaders.add(name)
+            if graph.uv_maps:
+                self.shader_uv_maps[name] = (material.name, graph.uv_maps)
         # Shaders must come before the objects that use them.
         index = list(self.objects_parent).index(self.objects_anchor)
         self.objects_parent.insert(index, el)
@@ -918,6 +927,21 @@ class Exporter:
             if psys.settings.type == "HAIR" and psys.settings.render_type == "PATH":
                 self.warn("object '%s': hair particle system '%s' is not supported: skipped" % (obj.name, psys.name))
 
+    def warn_uv_maps(self, obj, mesh, materials):
+        """A node naming a UV map other than the exported one (the render UV map): reported with the names."""
+        layer = mesh_export.render_uv_layer(mesh)
+        exported = layer.name if layer is not None else None
+        for material in materials:
+            if material is None:
+                continue
+            shader = self.shader_for(material)
+            material_name, maps = self.shader_uv_maps.get(shader, (None, ()))
+            for uv_map in sorted(maps):
+                if uv_map != exported:
+                    self.warn("object '%s': material '%s' reads UV map '%s' (UV Map, Normal Map or Tangent node); "
+                              "Glimmer exports one UV map per mesh, the render one (%s), which is used instead"
+                              % (obj.name, material_name, uv_map, "'%s'" % exported if exported else "none"))
+
     def material_override(self):
         """The view layer's Material Override (evaluated), or None."""
         material = getattr(self.depsgraph.view_layer, "material_override", None)
@@ -954,6 +978,7 @@ class Exporter:
             own_geometry = not inst.is_instance or (inst.parent is not None and inst.parent.name == obj.name)
             base = self.mesh_names(obj.name if own_geometry else obj.name + "_instance")
             used = np.unique(arrays["material"]) if len(slots) > 1 else np.array([0])
+            self.warn_uv_maps(obj, mesh, [slots[min(int(i), len(slots) - 1)] if slots else None for i in used])
             shaders = [self.shader_for(slots[min(int(index), len(slots) - 1)] if slots else None) for index in used]
             parent = root
             if self.object_space_shaders.intersection(shaders):

@@ -9,6 +9,8 @@ renders, or be reported.
 - View layer collection settings Glimmer cannot render, Holdout and Indirect Only, are reported with the object's
   name (the object's own Holdout already was; the collections' were dropped silently).
 - View Layer > Material Override replaces every object's materials, as in Cycles (it was ignored).
+- A UV Map node (or a tangent-space Normal Map) naming a UV map other than the exported render map is reported
+  (the mesh's one exported UV map was used without a word).
 """
 import os
 import shutil
@@ -195,5 +197,42 @@ print("with override: mesh shaders", mesh_shaders(xml), "reports", reports)
 check(mesh_shaders(xml) == ["Override", "Override"], "Material Override must replace every object's materials, got %s"
       % mesh_shaders(xml))
 check(not reports, "the override is exported, not reported: %s" % reports)
+
+# -- a node naming a UV map that is not the exported one --------------------------------------------------------------
+scene = new_scene()
+bpy.ops.mesh.primitive_plane_add(size=1.0)
+plane = bpy.context.object
+plane.name = "TwoMaps"
+plane.data.uv_layers.new(name="Decal")
+mat = bpy.data.materials.new("DecalMat")
+mat.use_nodes = True
+nt = mat.node_tree
+tex = nt.nodes.new("ShaderNodeTexImage")
+tex.image = bpy.data.images.new("decal", 4, 4)
+uv_node = nt.nodes.new("ShaderNodeUVMap")
+nt.links.new(uv_node.outputs["UV"], tex.inputs["Vector"])
+diffuse = nt.nodes.new("ShaderNodeBsdfDiffuse")  # its Normal is exported (the Principled BSDF's is not)
+nt.links.new(diffuse.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+nt.links.new(tex.outputs["Color"], diffuse.inputs["Color"])
+normal_map = nt.nodes.new("ShaderNodeNormalMap")
+nt.links.new(normal_map.outputs["Normal"], diffuse.inputs["Normal"])
+plane.data.materials.append(mat)
+
+
+def uv_reports(reports):
+    return [r for r in reports if "reads UV map" in r]
+
+
+for uv_map, normal_uv_map, expected in (("", "", []), ("UVMap", "UVMap", []), ("Decal", "", ["Decal"]),
+                                        ("", "Decal", ["Decal"])):
+    uv_node.uv_map, normal_map.uv_map = uv_map, normal_uv_map
+    mat.node_tree.update_tag()
+    _, _, reports = export("uv_map_node_%s_%s" % (uv_map or "none", normal_uv_map or "none"))
+    found = uv_reports(reports)
+    print("UV Map node '%s', Normal Map '%s': %s" % (uv_map, normal_uv_map, found))
+    check(len(found) == len(expected), "expected %d UV map report(s), got %s" % (len(expected), found))
+    for r, name in zip(found, expected):
+        check("'TwoMaps'" in r and "'DecalMat'" in r and "'%s'" % name in r and "'UVMap'" in r,
+              "the report must name object, material, the node's map and the exported one: %s" % r)
 
 util.done("test_export_edges")
