@@ -130,6 +130,7 @@ class ShaderGraph:
         self.read_inputs = set()  # (node name, input identifier) the translators looked at
         self.uses_generated = False  # a texture reads generated coordinates: meshes go in object space
         self.uv_maps = set()  # UV maps named by UV Map / Normal Map / Tangent nodes (a mesh has one UV map)
+        self.uv_glints = set()  # Glint nodes whose flakes live in uv space (placement uv)
 
     # -- helpers -------------------------------------------------------------
     def warn(self, key, message):
@@ -468,6 +469,8 @@ class ShaderGraph:
             return (el.get("name"), "bsdf")
         el = self.add(schema_mod.NODE_CLOSURES[node.closure_name]["xml"], node.name)
         values = node.param_values()
+        if node.closure_name == "glint" and values.get("placement", "uv") == "uv":
+            self.uv_glints.add(node.name)
         for param in closure["params"]:
             if schema_mod.is_socket_param(param):
                 sock = node.inputs.get(schema_mod.socket_name(param["name"]))
@@ -674,7 +677,7 @@ class Exporter:
         self.images = {}
         self.objects_checked = set()
         self.object_space_shaders = set()  # shaders reading generated coordinates
-        self.shader_uv_maps = {}  # shader name -> (material name, UV maps its nodes name)
+        self.shader_uv_maps = {}  # shader name -> (material name, UV maps its nodes name, uv-placed Glint nodes)
         self.stats = {"objects": 0, "triangles": 0, "vertices": 0, "lights": 0, "materials": 0}
 
     def warn(self, message):
@@ -837,8 +840,8 @@ class Exporter:
                 el.set("displacement_method", {"DISPLACEMENT": "true", "BOTH": "both"}.get(method, "bump"))
             if graph.uses_generated:
                 self.object_space_shaders.add(name)
-            if graph.uv_maps:
-                self.shader_uv_maps[name] = (material.name, graph.uv_maps)
+            if graph.uv_maps or graph.uv_glints:
+                self.shader_uv_maps[name] = (material.name, graph.uv_maps, graph.uv_glints)
         # Shaders must come before the objects that use them.
         index = list(self.objects_parent).index(self.objects_anchor)
         self.objects_parent.insert(index, el)
@@ -935,7 +938,11 @@ class Exporter:
             if material is None:
                 continue
             shader = self.shader_for(material)
-            material_name, maps = self.shader_uv_maps.get(shader, (None, ()))
+            material_name, maps, glints = self.shader_uv_maps.get(shader, (None, (), ()))
+            for glint in sorted(glints) if exported is None else ():
+                self.warn("object '%s' has no UV map: Glint node '%s' of material '%s' (Placement uv) gets each "
+                          "triangle's barycentric coordinates as uv (the same flakes on every triangle, whatever its "
+                          "size); add a UV map or set Placement to object" % (obj.name, glint, material_name))
             for uv_map in sorted(maps):
                 if uv_map != exported:
                     self.warn("object '%s': material '%s' reads UV map '%s' (UV Map, Normal Map or Tangent node); "

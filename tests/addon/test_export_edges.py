@@ -11,6 +11,8 @@ renders, or be reported.
 - View Layer > Material Override replaces every object's materials, as in Cycles (it was ignored).
 - A UV Map node (or a tangent-space Normal Map) naming a UV map other than the exported render map is reported
   (the mesh's one exported UV map was used without a word).
+- A Glint node with Placement uv on a mesh without a UV map is reported (the renderer's uv is then each
+  triangle's barycentrics: the same flakes on every triangle, without a warning).
 """
 import os
 import shutil
@@ -234,5 +236,29 @@ for uv_map, normal_uv_map, expected in (("", "", []), ("UVMap", "UVMap", []), ("
     for r, name in zip(found, expected):
         check("'TwoMaps'" in r and "'DecalMat'" in r and "'%s'" % name in r and "'UVMap'" in r,
               "the report must name object, material, the node's map and the exported one: %s" % r)
+
+# -- a Glint node (Placement uv) on a mesh without a UV map ---------------------------------------------------------
+scene = new_scene()
+mat = bpy.data.materials.new("Sparkle")
+mat.use_nodes = True
+nt = mat.node_tree
+glint = nt.nodes.new("GlimmerNodeGlintBsdf")
+glint.name = "Flakes"
+nt.links.new(glint.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+for name, keep_uv in (("NoUV", False), ("WithUV", True)):
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.4, location=(0.5 if keep_uv else -0.5, 0.0, 0.0))
+    sphere = bpy.context.object
+    sphere.name = name
+    if not keep_uv:
+        sphere.data.uv_layers.remove(sphere.data.uv_layers[0])
+    sphere.data.materials.append(mat)
+for placement, expected in (("uv", 1), ("object", 0)):
+    glint.placement = placement
+    _, _, reports = export("glint_no_uv_" + placement)
+    found = [r for r in reports if "has no UV map" in r]
+    print("placement %s: %s" % (placement, found))
+    check(len(found) == expected, "placement %s: %d report(s) about the mesh without UVs expected, got %s"
+          % (placement, expected, found))
+    check(all("'NoUV'" in r and "'Flakes'" in r and "'Sparkle'" in r for r in found), "names expected: %s" % found)
 
 util.done("test_export_edges")
