@@ -751,6 +751,12 @@ class Exporter:
                     target = np.array(cam.dof.focus_object.matrix_world.translation)
                     focus = abs(float(np.dot(view_dir, loc - target)))
                 attributes["aperturesize"] = fmt(cam.lens * 1e-3 / (2.0 * cam.dof.aperture_fstop))
+                if cam.dof.aperture_blades >= 3:
+                    self.warn("camera '%s': a %d-blade aperture is not supported: the bokeh is round"
+                              % (cam_obj.name, cam.dof.aperture_blades))
+                if abs(cam.dof.aperture_ratio - 1.0) > 1e-6:
+                    self.warn("camera '%s': aperture ratio %s (anamorphic bokeh) is not supported: 1 is used"
+                              % (cam_obj.name, fmt(cam.dof.aperture_ratio)))
                 attributes["focaldistance"] = fmt(focus)
         ET.SubElement(tr, "camera", attrib=attributes)
 

@@ -13,6 +13,8 @@ renders, or be reported.
   (the mesh's one exported UV map was used without a word).
 - A Glint node with Placement uv on a mesh without a UV map is reported (the renderer's uv is then each
   triangle's barycentrics: the same flakes on every triangle, without a warning).
+- Depth of field: aperture blades (polygonal bokeh) and ratio (anamorphic) are reported (the host has a round
+  thin lens; they were dropped silently).
 """
 import os
 import shutil
@@ -260,5 +262,20 @@ for placement, expected in (("uv", 1), ("object", 0)):
     check(len(found) == expected, "placement %s: %d report(s) about the mesh without UVs expected, got %s"
           % (placement, expected, found))
     check(all("'NoUV'" in r and "'Flakes'" in r and "'Sparkle'" in r for r in found), "names expected: %s" % found)
+
+# -- depth of field: blades and ratio ---------------------------------------------------------------------------------
+scene = new_scene()
+dof = scene.camera.data.dof
+dof.use_dof = True
+for blades, ratio, expected in ((0, 1.0, []), (6, 1.0, ["6-blade"]), (0, 2.0, ["aperture ratio 2"]),
+                                (5, 0.5, ["5-blade", "aperture ratio 0.5"])):
+    dof.aperture_blades, dof.aperture_ratio = blades, ratio
+    xml, _, reports = export("dof_%d_%g" % (blades, ratio))
+    found = [r for r in reports if "blade" in r or "aperture ratio" in r]
+    print("blades %d ratio %g: %s" % (blades, ratio, found))
+    check(len(found) == len(expected) and all(any(e in r for r in found) for e in expected),
+          "expected reports %s, got %s" % (expected, found))
+    check(next(ET.parse(xml).getroot().iter("camera")).get("width") is not None
+          and any(c.get("aperturesize") for c in ET.parse(xml).getroot().iter("camera")), "the DOF is still exported")
 
 util.done("test_export_edges")
