@@ -476,7 +476,10 @@ class ShaderGraph:
                 sock = node.inputs.get(schema_mod.socket_name(param["name"]))
                 if sock is None:
                     continue
-                source = self.source_of(sock)
+                if not param.get("varying", True) and param["name"] != "color" and self.constant_only(node, sock):
+                    source = None  # the host ignores the link and the value; the socket's own value is used
+                else:
+                    source = self.source_of(sock)
                 if source is not None:
                     self.connect(source, el.get("name"), param["name"])
                 else:
@@ -485,6 +488,19 @@ class ShaderGraph:
                 el.set(param["name"], fmt(values[param["name"]]) if param["type"] == "bool"
                        else str(values[param["name"]]))
         return (el.get("name"), "bsdf")
+
+    def constant_only(self, node, sock):
+        """A link into a parameter the closure takes as one constant (not varying in the schema; the colour's link
+        is the weight instead): warned with the texture's name. True when there was a live link."""
+        self.read_inputs.add((node.name, sock.identifier))
+        link = sock.links[0] if sock.is_linked else None
+        if link is None or not link.is_valid or getattr(link, "is_muted", False):
+            return False
+        self.warn((node.name, "constant", sock.identifier),
+                  "node '%s': %s cannot be textured (the closure takes one value per material): the link from '%s' "
+                  "is ignored and the socket's own value %s is used" % (node.name, sock.name, link.from_node.name,
+                                                                        fmt(_value(sock))))
+        return True
 
     def schema_value(self, node, sock, param):
         """An unlinked socket's value clamped to the closure's range: Blender's group sockets limit only dragging

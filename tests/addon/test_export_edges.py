@@ -15,6 +15,10 @@ renders, or be reported.
   triangle's barycentrics: the same flakes on every triangle, without a warning).
 - Depth of field: aperture blades (polygonal bokeh) and ratio (anamorphic) are reported (the host has a round
   thin lens; they were dropped silently).
+- A texture linked into a Glint/Frosted Glass parameter the closure takes as one constant (not `varying` in the
+  schema: glint roughness, frosted absorption colour, ...) is reported at export and the socket's own value is
+  written; before, the XML had the link, the renderer warned and used the schema default instead of the value the
+  artist had set. Varying parameters (density, frosted roughness) and the colour (a link is the weight) stay links.
 """
 import os
 import shutil
@@ -277,5 +281,54 @@ for blades, ratio, expected in ((0, 1.0, []), (6, 1.0, ["6-blade"]), (0, 2.0, ["
           "expected reports %s, got %s" % (expected, found))
     check(next(ET.parse(xml).getroot().iter("camera")).get("width") is not None
           and any(c.get("aperturesize") for c in ET.parse(xml).getroot().iter("camera")), "the DOF is still exported")
+
+# -- textures into parameters the closure takes as constants ----------------------------------------------------------
+scene = new_scene()
+bpy.ops.mesh.primitive_uv_sphere_add(radius=0.5)
+sphere = bpy.context.object
+nodes_by_kind = {}
+for idname in ("GlimmerNodeGlintBsdf", "GlimmerNodeFrostedGlassBsdf"):
+    mat = bpy.data.materials.new(idname)
+    mat.use_nodes = True
+    nt = mat.node_tree
+    node = nt.nodes.new(idname)
+    nt.links.new(node.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    noise = nt.nodes.new("ShaderNodeTexNoise")
+    noise.name = "Grain"
+    nodes_by_kind[idname] = (mat, node, noise)
+    sphere.data.materials.append(mat)
+sphere.data.polygons[0].material_index = 1  # both materials in use
+mat, glint, noise = nodes_by_kind["GlimmerNodeGlintBsdf"]
+glint.name = "Flakes"
+glint.inputs["Roughness"].default_value = 0.2
+for socket, output in (("Roughness", "Fac"), ("Density", "Fac"), ("Color", "Color")):
+    mat.node_tree.links.new(noise.outputs[output], glint.inputs[socket])
+mat, frost, noise = nodes_by_kind["GlimmerNodeFrostedGlassBsdf"]
+frost.name = "Pane"
+frost.inputs["Absorption Color"].default_value = (0.5, 0.25, 0.125, 1.0)
+for socket, output in (("Absorption Color", "Color"), ("Roughness", "Fac")):
+    mat.node_tree.links.new(noise.outputs[output], frost.inputs[socket])
+xml, _, reports = export("constant_params")
+root = ET.parse(xml).getroot()
+links = {c.get("to") for c in root.iter("connect")}
+g, f = next(root.iter("glint_bsdf")), next(root.iter("frosted_glass_bsdf"))
+constant_reports = [r for r in reports if "cannot be textured" in r]
+print("glint roughness %s, absorption_color %s; links %s" % (g.get("roughness"), f.get("absorption_color"),
+                                                            sorted(x for x in links if x.split()[0] in ("Flakes", "Pane"))))
+for r in constant_reports:
+    print("  report:", r)
+check(g.get("roughness") is not None and abs(float(g.get("roughness")) - 0.2) < 1e-6 and "Flakes roughness" not in links,
+      "a linked glint roughness (not varying) must be written as the socket's value 0.2, without the link")
+check([float(c) for c in f.get("absorption_color").split()] == [0.5, 0.25, 0.125] and "Pane absorption_color" not in links,
+      "a linked absorption colour (not varying) must be written as the socket's value")
+check({"Flakes density", "Flakes color", "Pane roughness"} <= links, "varying parameters and the colour stay links")
+check(len(constant_reports) == 2 and any("'Flakes': Roughness" in r and "'Grain'" in r for r in constant_reports)
+      and any("'Pane': Absorption Color" in r for r in constant_reports),
+      "one report each for the glint roughness and the absorption colour expected: %s" % constant_reports)
+if render_xml:
+    run = subprocess.run([glimmer, "render", xml, "-o", os.path.join(out_root, "constant_params", "r.exr"),
+                          "--samples", "1", "--threads", "2"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    text = run.stdout.decode(errors="replace")
+    check(run.returncode == 0 and "is not supported" not in text, "the renderer renders it without warnings:\n" + text)
 
 util.done("test_export_edges")
