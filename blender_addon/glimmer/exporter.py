@@ -35,6 +35,8 @@ MESH_TYPES = {"MESH", "CURVE", "SURFACE", "META", "FONT"}
 CURVE_LIKE_TYPES = {"CURVE", "SURFACE", "META", "FONT"}
 # Renderable object types Glimmer cannot render, as named in the warning.
 SKIPPED_TYPES = {"CURVES": "hair curves", "POINTCLOUD": "point cloud", "VOLUME": "volume", "GPENCIL": "grease pencil"}
+# View layer switches that are passes Glimmer writes (Combined, Depth, Normal) or not passes at all.
+HOST_PASSES = {"use_pass_combined", "use_pass_z", "use_pass_normal", "use_pass_cryptomatte_accurate"}
 # Cycles renders a missing image texture in this colour.
 MISSING_TEXTURE_COLOR = (255, 0, 255)
 
@@ -718,11 +720,33 @@ class Exporter:
         self.default_shader = default.get("name")
         self.objects_parent = root
         self.write_objects(root)
+        if self.view is None:
+            self.warn_view_layer_passes()
         path = os.path.join(self.out_dir, filename)
         if hasattr(ET, "indent"):
             ET.indent(root, space="  ")
         ET.ElementTree(root).write(path, encoding="utf-8", xml_declaration=False)
         return path
+
+    def warn_view_layer_passes(self):
+        """Render passes switched on in the view layer that Glimmer does not write (it writes Combined, Albedo,
+        Normal and Depth, engine.AOV_PASSES): one warning listing them, as they are missing from the result."""
+        view_layer = self.depsgraph.view_layer
+        missing = []
+        for owner in (view_layer, getattr(view_layer, "cycles", None)):
+            if owner is None:
+                continue
+            for prop in owner.bl_rna.properties:
+                name = prop.identifier
+                if (name.startswith("use_pass_") or name in ("denoising_store_passes", "pass_debug_sample_count")) \
+                        and name not in HOST_PASSES and getattr(owner, name, False) is True:
+                    missing.append(prop.name)
+        missing += ["AOV '%s'" % aov.name for aov in getattr(view_layer, "aovs", ())]
+        missing += ["light group '%s'" % group.name for group in getattr(view_layer, "lightgroups", ())]
+        if missing:
+            self.warn("view layer '%s': Glimmer renders the Combined, Albedo, Normal and Depth passes only; %s %s "
+                      "missing from the result" % (view_layer.name, ", ".join(missing),
+                                                   "is" if len(missing) == 1 else "are"))
 
     # -- camera / film / integrator -------------------------------------------
     def write_camera(self, root):

@@ -19,6 +19,8 @@ renders, or be reported.
   schema: glint roughness, frosted absorption colour, ...) is reported at export and the socket's own value is
   written; before, the XML had the link, the renderer warned and used the schema default instead of the value the
   artist had set. Varying parameters (density, frosted roughness) and the colour (a link is the weight) stay links.
+- Render passes switched on in the view layer that Glimmer does not write (Emit, Mist, an AOV, ...) are reported
+  in one warning (they were missing from the Render Layers node without a word); Normal and Depth are not.
 """
 import os
 import shutil
@@ -330,5 +332,20 @@ if render_xml:
                           "--samples", "1", "--threads", "2"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
     text = run.stdout.decode(errors="replace")
     check(run.returncode == 0 and "is not supported" not in text, "the renderer renders it without warnings:\n" + text)
+
+# -- view layer passes Glimmer does not write --------------------------------------------------------------------------
+scene = new_scene()
+view_layer = bpy.context.view_layer
+view_layer.use_pass_z = view_layer.use_pass_normal = True  # written by Glimmer: no report
+_, _, reports = export("passes_supported")
+check(not [r for r in reports if "passes only" in r], "Combined, Depth and Normal must not be reported: %s" % reports)
+view_layer.use_pass_emit = view_layer.use_pass_mist = True
+view_layer.aovs.add().name = "dirt"
+_, _, reports = export("passes_missing")
+found = [r for r in reports if "passes only" in r]
+print("passes:", found)
+check(len(found) == 1 and all(name in found[0] for name in ("Emit", "Mist", "AOV 'dirt'"))
+      and "Normal," not in found[0].split("only;")[1] and "Z" not in found[0].split("only;")[1],
+      "one report listing Emit, Mist and the AOV (not Normal/Depth) expected: %s" % found)
 
 util.done("test_export_edges")
