@@ -111,7 +111,8 @@ frost.inputs["Color"].default_value = (1.5, 0.5, -0.25, 1.0)  # [0, 1] per chann
 frost.inputs["IOR"].default_value = 0.7           # in range (IOR < 1 is allowed)
 check(abs(glint.inputs["Density"].default_value) < 1e-12, "setup: Blender kept the typed density 0")
 xml, _, reports = export("node_ranges")
-elements = {el.get("name"): el for el in ET.parse(xml).getroot().iter() if el.get("name") in ("Glint_Node", "Frost_Node")}
+elements = {el.get("name"): el for el in ET.parse(xml).getroot().iter()
+            if el.get("name") in ("Glint_Node", "Frost_Node")}
 g, f = elements["Glint_Node"], elements["Frost_Node"]
 print("exported: density %s gamma %s roughness %s thickness %s color %s ior %s"
       % (g.get("density"), g.get("gamma"), g.get("roughness"), f.get("thickness"), f.get("color"), f.get("ior")))
@@ -315,13 +316,15 @@ root = ET.parse(xml).getroot()
 links = {c.get("to") for c in root.iter("connect")}
 g, f = next(root.iter("glint_bsdf")), next(root.iter("frosted_glass_bsdf"))
 constant_reports = [r for r in reports if "cannot be textured" in r]
-print("glint roughness %s, absorption_color %s; links %s" % (g.get("roughness"), f.get("absorption_color"),
-                                                            sorted(x for x in links if x.split()[0] in ("Flakes", "Pane"))))
+node_links = sorted(x for x in links if x.split()[0] in ("Flakes", "Pane"))
+print("glint roughness %s, absorption_color %s; links %s" % (g.get("roughness"), f.get("absorption_color"), node_links))
 for r in constant_reports:
     print("  report:", r)
-check(g.get("roughness") is not None and abs(float(g.get("roughness")) - 0.2) < 1e-6 and "Flakes roughness" not in links,
+check(g.get("roughness") is not None and abs(float(g.get("roughness")) - 0.2) < 1e-6
+      and "Flakes roughness" not in links,
       "a linked glint roughness (not varying) must be written as the socket's value 0.2, without the link")
-check([float(c) for c in f.get("absorption_color").split()] == [0.5, 0.25, 0.125] and "Pane absorption_color" not in links,
+check([float(c) for c in f.get("absorption_color").split()] == [0.5, 0.25, 0.125]
+      and "Pane absorption_color" not in links,
       "a linked absorption colour (not varying) must be written as the socket's value")
 check({"Flakes density", "Flakes color", "Pane roughness"} <= links, "varying parameters and the colour stay links")
 check(len(constant_reports) == 2 and any("'Flakes': Roughness" in r and "'Grain'" in r for r in constant_reports)
