@@ -35,6 +35,8 @@ MESH_TYPES = {"MESH", "CURVE", "SURFACE", "META", "FONT"}
 CURVE_LIKE_TYPES = {"CURVE", "SURFACE", "META", "FONT"}
 # Renderable object types Glimmer cannot render, as named in the warning.
 SKIPPED_TYPES = {"CURVES": "hair curves", "POINTCLOUD": "point cloud", "VOLUME": "volume", "GPENCIL": "grease pencil"}
+# View layer switches that are passes Glimmer writes (Combined, Depth, Normal) or not passes at all.
+HOST_PASSES = {"use_pass_combined", "use_pass_z", "use_pass_normal", "use_pass_cryptomatte_accurate"}
 # Cycles renders a missing image texture in this colour.
 MISSING_TEXTURE_COLOR = (255, 0, 255)
 
@@ -129,6 +131,8 @@ class ShaderGraph:
         self.warned = set()
         self.read_inputs = set()  # (node name, input identifier) the translators looked at
         self.uses_generated = False  # a texture reads generated coordinates: meshes go in object space
+        self.uv_maps = set()  # UV maps named by UV Map / Normal Map / Tangent nodes (a mesh has one UV map)
+        self.uv_glints = set()  # Glint nodes whose flakes live in uv space (placement uv)
 
     # -- helpers -------------------------------------------------------------
     def warn(self, key, message):
@@ -339,6 +343,8 @@ class ShaderGraph:
             return None
         src, socket = vector.links[0].from_node, vector.links[0].from_socket.name
         if src.bl_idname == "ShaderNodeUVMap" or (src.bl_idname == "ShaderNodeTexCoord" and socket == "UV"):
+            if getattr(src, "uv_map", ""):
+                self.uv_maps.add(src.uv_map)
             return None
         if src.bl_idname == "ShaderNodeTexCoord" and socket == "Generated":
             self.uses_generated = True
@@ -465,21 +471,69 @@ class ShaderGraph:
             return (el.get("name"), "bsdf")
         el = self.add(schema_mod.NODE_CLOSURES[node.closure_name]["xml"], node.name)
         values = node.param_values()
+        if node.closure_name == "glint" and values.get("placement", "uv") == "uv":
+            self.uv_glints.add(node.name)
         for param in closure["params"]:
             if schema_mod.is_socket_param(param):
                 sock = node.inputs.get(schema_mod.socket_name(param["name"]))
-                if sock is not None:
-                    self.set_input(el, param["name"], sock)
+                if sock is None:
+                    continue
+                if not param.get("varying", True) and param["name"] != "color" and self.constant_only(node, sock):
+                    source = None  # the host ignores the link and the value; the socket's own value is used
+                else:
+                    source = self.source_of(sock)
+                if source is not None:
+                    self.connect(source, el.get("name"), param["name"])
+                else:
+                    el.set(param["name"], fmt(self.schema_value(node, sock, param)))
             else:
                 el.set(param["name"], fmt(values[param["name"]]) if param["type"] == "bool"
                        else str(values[param["name"]]))
         return (el.get("name"), "bsdf")
+
+    def constant_only(self, node, sock):
+        """A link into a parameter the closure takes as one constant (not varying in the schema; the colour's link
+        is the weight instead): warned with the texture's name. True when there was a live link."""
+        self.read_inputs.add((node.name, sock.identifier))
+        link = sock.links[0] if sock.is_linked else None
+        if link is None or not link.is_valid or getattr(link, "is_muted", False):
+            return False
+        self.warn((node.name, "constant", sock.identifier),
+                  "node '%s': %s cannot be textured (the closure takes one value per material): the link from '%s' "
+                  "is ignored and the socket's own value %s is used" % (node.name, sock.name, link.from_node.name,
+                                                                        fmt(_value(sock))))
+        return True
+
+    def schema_value(self, node, sock, param):
+        """An unlinked socket's value clamped to the closure's range: Blender's group sockets limit only dragging
+        (typing 0 into Density works), and the renderer refuses the whole scene for a value outside the range."""
+        value = _value(sock)
+        lo, hi = param.get("min"), param.get("max")
+        if lo is None and hi is None:
+            return value
+
+        def clamp(v):
+            v = max(v, lo) if lo is not None else v
+            v = min(v, hi) if hi is not None else v
+            return int(v) if param["type"] == "int" else v
+
+        clamped = tuple(clamp(v) for v in value) if isinstance(value, tuple) else clamp(value)
+        moved = np.abs(np.subtract(clamped, value, dtype=np.float64))
+        # A limit stored in the socket's float32 (thickness 1e-6 -> 9.99999997e-07) is clamped without a warning.
+        if np.any(moved > 1e-6 * np.abs(np.asarray(clamped, dtype=np.float64))):
+            self.warn((node.name, "range", param["name"]),
+                      "node '%s': %s %s is outside the closure's range [%s, %s]: %s is used"
+                      % (node.name, sock.name, fmt(value), fmt(lo), fmt(hi), fmt(clamped)))
+        return clamped
 
     def value_node(self, node, out):
         """A texture/utility node the renderer evaluates per shading point (bridge/render/nodes/node_table.cpp):
         its settings (VALUE_NODES), every enabled input as the Cycles socket of the same name (linked or its
         value) and the output of the same name. A texture's unlinked Vector reads generated coordinates."""
         xml_type, settings = VALUE_NODES[node.bl_idname]
+        if getattr(node, "uv_map", "") and (node.bl_idname != "ShaderNodeNormalMap" or node.space == "TANGENT") and \
+                (node.bl_idname != "ShaderNodeTangent" or node.direction_type == "UV_MAP"):
+            self.uv_maps.add(node.uv_map)
         if node.bl_idname == "ShaderNodeMapRange" and node.data_type != "FLOAT":
             return self.unsupported(node, out)
         attributes = {}
@@ -641,6 +695,7 @@ class Exporter:
         self.images = {}
         self.objects_checked = set()
         self.object_space_shaders = set()  # shaders reading generated coordinates
+        self.shader_uv_maps = {}  # shader name -> (material name, UV maps its nodes name, uv-placed Glint nodes)
         self.stats = {"objects": 0, "triangles": 0, "vertices": 0, "lights": 0, "materials": 0}
 
     def warn(self, message):
@@ -665,11 +720,33 @@ class Exporter:
         self.default_shader = default.get("name")
         self.objects_parent = root
         self.write_objects(root)
+        if self.view is None:
+            self.warn_view_layer_passes()
         path = os.path.join(self.out_dir, filename)
         if hasattr(ET, "indent"):
             ET.indent(root, space="  ")
         ET.ElementTree(root).write(path, encoding="utf-8", xml_declaration=False)
         return path
+
+    def warn_view_layer_passes(self):
+        """Render passes switched on in the view layer that Glimmer does not write (it writes Combined, Albedo,
+        Normal and Depth, engine.AOV_PASSES): one warning listing them, as they are missing from the result."""
+        view_layer = self.depsgraph.view_layer
+        missing = []
+        for owner in (view_layer, getattr(view_layer, "cycles", None)):
+            if owner is None:
+                continue
+            for prop in owner.bl_rna.properties:
+                name = prop.identifier
+                if (name.startswith("use_pass_") or name in ("denoising_store_passes", "pass_debug_sample_count")) \
+                        and name not in HOST_PASSES and getattr(owner, name, False) is True:
+                    missing.append(prop.name)
+        missing += ["AOV '%s'" % aov.name for aov in getattr(view_layer, "aovs", ())]
+        missing += ["light group '%s'" % group.name for group in getattr(view_layer, "lightgroups", ())]
+        if missing:
+            self.warn("view layer '%s': Glimmer renders the Combined, Albedo, Normal and Depth passes only; %s %s "
+                      "missing from the result" % (view_layer.name, ", ".join(missing),
+                                                   "is" if len(missing) == 1 else "are"))
 
     # -- camera / film / integrator -------------------------------------------
     def write_camera(self, root):
@@ -714,6 +791,12 @@ class Exporter:
                     target = np.array(cam.dof.focus_object.matrix_world.translation)
                     focus = abs(float(np.dot(view_dir, loc - target)))
                 attributes["aperturesize"] = fmt(cam.lens * 1e-3 / (2.0 * cam.dof.aperture_fstop))
+                if cam.dof.aperture_blades >= 3:
+                    self.warn("camera '%s': a %d-blade aperture is not supported: the bokeh is round"
+                              % (cam_obj.name, cam.dof.aperture_blades))
+                if abs(cam.dof.aperture_ratio - 1.0) > 1e-6:
+                    self.warn("camera '%s': aperture ratio %s (anamorphic bokeh) is not supported: 1 is used"
+                              % (cam_obj.name, fmt(cam.dof.aperture_ratio)))
                 attributes["focaldistance"] = fmt(focus)
         ET.SubElement(tr, "camera", attrib=attributes)
 
@@ -803,6 +886,8 @@ class Exporter:
                 el.set("displacement_method", {"DISPLACEMENT": "true", "BOTH": "both"}.get(method, "bump"))
             if graph.uses_generated:
                 self.object_space_shaders.add(name)
+            if graph.uv_maps or graph.uv_glints:
+                self.shader_uv_maps[name] = (material.name, graph.uv_maps, graph.uv_glints)
         # Shaders must come before the objects that use them.
         index = list(self.objects_parent).index(self.objects_anchor)
         self.objects_parent.insert(index, el)
@@ -881,9 +966,52 @@ class Exporter:
             self.warn("object '%s': shadow catcher is not supported: rendered as an ordinary object" % obj.name)
         if getattr(obj, "is_holdout", False):
             self.warn("object '%s': holdout is not supported: rendered as an ordinary object" % obj.name)
+        elif self.view_layer_flag(original, "holdout_get"):
+            self.warn("object '%s': holdout (its collection's Holdout in view layer '%s') is not supported: rendered "
+                      "as an ordinary object" % (obj.name, self.depsgraph.view_layer.name))
+        if self.view_layer_flag(original, "indirect_only_get"):
+            self.warn("object '%s': Indirect Only (its collection's, in view layer '%s') is not supported: the object "
+                      "is also seen by camera rays" % (obj.name, self.depsgraph.view_layer.name))
         for psys in getattr(original, "particle_systems", ()):
             if psys.settings.type == "HAIR" and psys.settings.render_type == "PATH":
                 self.warn("object '%s': hair particle system '%s' is not supported: skipped" % (obj.name, psys.name))
+
+    def warn_uv_maps(self, obj, mesh, materials):
+        """A node naming a UV map other than the exported one (the render UV map): reported with the names."""
+        layer = mesh_export.render_uv_layer(mesh)
+        exported = layer.name if layer is not None else None
+        for material in materials:
+            if material is None:
+                continue
+            shader = self.shader_for(material)
+            material_name, maps, glints = self.shader_uv_maps.get(shader, (None, (), ()))
+            for glint in sorted(glints) if exported is None else ():
+                self.warn("object '%s' has no UV map: Glint node '%s' of material '%s' (Placement uv) gets each "
+                          "triangle's barycentric coordinates as uv (the same flakes on every triangle, whatever its "
+                          "size); add a UV map or set Placement to object" % (obj.name, glint, material_name))
+            for uv_map in sorted(maps):
+                if uv_map != exported:
+                    self.warn("object '%s': material '%s' reads UV map '%s' (UV Map, Normal Map or Tangent node); "
+                              "Glimmer exports one UV map per mesh, the render one (%s), which is used instead"
+                              % (obj.name, material_name, uv_map, "'%s'" % exported if exported else "none"))
+
+    def material_override(self):
+        """The view layer's Material Override (evaluated), or None."""
+        material = getattr(self.depsgraph.view_layer, "material_override", None)
+        if material is None:
+            return None
+        try:
+            return material.evaluated_get(self.depsgraph)
+        except (AttributeError, RuntimeError):
+            return material
+
+    def view_layer_flag(self, original, getter):
+        """Object.holdout_get / indirect_only_get in the depsgraph's view layer (collection settings included);
+        False when Blender cannot answer (an object without a base in the view layer)."""
+        try:
+            return bool(getattr(original, getter)(view_layer=self.depsgraph.view_layer))
+        except (AttributeError, RuntimeError, TypeError):
+            return False
 
     def write_mesh_object(self, root, inst, obj):
         try:
@@ -897,9 +1025,13 @@ class Exporter:
             if len(arrays["triangles"]) == 0:
                 return
             slots = [slot.material for slot in obj.material_slots] if obj.material_slots else []
+            override = self.material_override()
+            if override is not None:  # View Layer > Material Override: every surface (Cycles' find_used_shaders)
+                slots = [override]
             own_geometry = not inst.is_instance or (inst.parent is not None and inst.parent.name == obj.name)
             base = self.mesh_names(obj.name if own_geometry else obj.name + "_instance")
             used = np.unique(arrays["material"]) if len(slots) > 1 else np.array([0])
+            self.warn_uv_maps(obj, mesh, [slots[min(int(i), len(slots) - 1)] if slots else None for i in used])
             shaders = [self.shader_for(slots[min(int(index), len(slots) - 1)] if slots else None) for index in used]
             parent = root
             if self.object_space_shaders.intersection(shaders):

@@ -27,8 +27,15 @@ def _loop_normals(mesh):
     return _get(mesh.loops, "normal", nloops, np.float32, 3)
 
 
+def render_uv_layer(mesh):
+    """The UV map Cycles renders with (textures without a Vector link, Texture Coordinate > UV): the one whose
+    camera icon is on (active_render), not the one selected for editing (active)."""
+    layer = next((layer for layer in mesh.uv_layers if layer.active_render), None)
+    return layer if layer is not None else mesh.uv_layers.active
+
+
 def _uv_layer_data(mesh):
-    layer = mesh.uv_layers.active
+    layer = render_uv_layer(mesh)
     if layer is None:
         return None
     nloops = len(mesh.loops)
