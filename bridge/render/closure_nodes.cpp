@@ -77,7 +77,9 @@ const std::vector<ClosureNodeRow> &closure_node_rows() {
       {.node = "diffuse_bsdf",
        .closure = "diffuse",
        .sockets = {{.socket = "color", .role = R::Weight, .default_value = 0.8f},
-                   {.socket = "roughness", .role = R::Unsupported, .default_value = 0.0f,
+                   {.socket = "roughness",
+                    .role = R::Unsupported,
+                    .default_value = 0.0f,
                     .note = "Oren-Nayar roughness is not supported; Lambertian is used"},
                    {.socket = "normal", .role = R::Normal},
                    {.socket = "surface_mix_weight", .role = R::Ignored}},
@@ -107,20 +109,22 @@ const std::vector<ClosureNodeRow> &closure_node_rows() {
       {.node = "frosted_glass_bsdf",
        .closure = "frosted_glass",
        .schema = true,
-       .doc = "sockets are the closure's parameters (glimmer describe); a textured colour is the weight"},
+       .doc = "sockets are the closure's parameters (glimmer describe); a textured colour is the tint per interface "
+              "crossing at each shading point, as a typed one"},
       {.node = "clearcoat_bsdf",
        .closure = "clearcoat",
-       .sockets = {{.socket = "color", .role = R::Weight, .default_value = 1.0f},
-                   {.socket = "roughness", .role = R::Param, .param = "roughness", .default_value = 0.03f, .min = 0,
-                    .max = 1},
-                   {.socket = "normal", .role = R::Normal},
-                   {.socket = "surface_mix_weight", .role = R::Ignored}},
+       .sockets =
+           {{.socket = "color", .role = R::Weight, .default_value = 1.0f},
+            {.socket = "roughness", .role = R::Param, .param = "roughness", .default_value = 0.03f, .min = 0, .max = 1},
+            {.socket = "normal", .role = R::Normal},
+            {.socket = "surface_mix_weight", .role = R::Ignored}},
        .doc = "Cycles 3.4's Principled clearcoat lobe (GTR1, Fresnel 1.5 at the microfacet); the colour is the "
               "weight (principled_bsdf: 0.25 * clearcoat)"},
       {.node = "principled_diffuse_bsdf",
        .closure = "principled_diffuse",
        .schema = true,
-       .doc = "Cycles 3.4's Principled diffuse (Burley, retro-reflection); a textured colour is the weight"},
+       .doc = "Cycles 3.4's Principled diffuse (Burley, retro-reflection); a textured colour is the base colour at "
+              "each shading point"},
       {.node = "principled_specular_bsdf",
        .closure = "principled_specular",
        .schema = true,
@@ -138,7 +142,10 @@ const std::vector<ClosureNodeRow> &closure_node_rows() {
 }
 
 // The row of a DSO closure used under its own name (`glint` or `glint_bsdf`): its
-// schema parameters are the sockets; a linked colour becomes the weight.
+// schema parameters are the sockets. A linked `color` is the closure's own parameter, per shading point, where the
+// closure declares it varying (frosted_glass: a tint per interface crossing, the same meaning as a typed colour;
+// session 40: it had become the closure's weight, so a typed 0.5 and the same 0.5 from an RGB node rendered 0.311 vs
+// 0.266 through a frosted sphere); else (glint's F0 colour, fixed per closure) the link becomes the weight.
 ClosureNodeRow schema_row(const GlimmerClosureType &type, const char *node) {
   ClosureNodeRow row;
   row.node = node;
@@ -146,7 +153,8 @@ ClosureNodeRow schema_row(const GlimmerClosureType &type, const char *node) {
   row.schema = true;
   for (uint32_t i = 0; i < type.param_count; ++i) {
     const GlimmerParamSpec &spec = host::param_at(type, i);
-    const bool weight = std::string(spec.name) == "color" && spec.type == GLIMMER_PARAM_COLOR;
+    const bool weight = std::string(spec.name) == "color" && spec.type == GLIMMER_PARAM_COLOR &&
+                        !(host::param_flags(type, spec) & GLIMMER_PARAM_VARYING);
     row.sockets.push_back({.socket = spec.name,
                            .role = weight ? SocketRole::ParamOrWeight : SocketRole::SchemaParam,
                            .param = spec.name,

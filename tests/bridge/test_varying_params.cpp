@@ -28,19 +28,22 @@ constexpr int kSize = 32;
 // A 2.2 x 2.2 quad facing the camera at z = 3 under a point light 40 degrees
 // off the mirror direction (so roughness and IOR change what the pixel sees),
 // black background. `nodes` must define the closure "g" and may use the
-// checker "c" (uv coordinates, 2x2 cells); `output` is g's output socket.
+// checker "c" (uv coordinates, 2x2 cells); `output` is g's output socket. `behind`: more scene elements (e.g. an
+// emitter behind the quad, for closures that transmit).
 std::string quad_scene(const std::string &name, const std::string &nodes, const std::string &checker_colors,
-                       const std::string &output = "bsdf") {
+                       const std::string &output = "bsdf", const std::string &behind = "") {
   return write_file(
       name,
       "<cycles>\n<camera width=\"32\" height=\"32\" fov=\"0.7\" />\n<camera />\n"
       "<integrator sample_clamp_direct=\"0\" sample_clamp_indirect=\"0\" />\n"
       "<state><light light_type=\"point\" co=\"2 0 0.5\" strength=\"300 300 300\" /></state>\n"
       "<shader name=\"s\">\n<texture_coordinate name=\"tc\" />\n<checker_texture name=\"c\" scale=\"2\" " +
-          checker_colors + " />\n<connect from=\"tc uv\" to=\"c vector\" />\n" + nodes +
-          "\n<connect from=\"g " + output + "\" to=\"output surface\" />\n</shader>\n"
+          checker_colors + " />\n<connect from=\"tc uv\" to=\"c vector\" />\n" + nodes + "\n<connect from=\"g " +
+          output +
+          "\" to=\"output surface\" />\n</shader>\n"
           "<state shader=\"s\"><mesh P=\"-1.1 -1.1 3  1.1 -1.1 3  1.1 1.1 3  -1.1 1.1 3\" nverts=\"4\" "
-          "verts=\"0 1 2 3\" UV=\"0 0 1 0 1 1 0 1\" /></state>\n</cycles>\n");
+          "verts=\"0 1 2 3\" UV=\"0 0 1 0 1 1 0 1\" /></state>\n" +
+          behind + "</cycles>\n");
 }
 
 render::RenderResult render(const std::string &path, std::vector<std::string> *warnings = nullptr) {
@@ -86,7 +89,7 @@ RegionComparison compare_region(const render::RenderResult &a, const render::Ren
 // `closure` is the closure node with `{}` where the parameter's attribute goes,
 // `socket` the linked input, `a` and `b` the two values (as XML numbers).
 void expect_textured_equals_constants(const std::string &label, const std::string &closure, const std::string &socket,
-                                      const std::string &a, const std::string &b) {
+                                      const std::string &a, const std::string &b, const std::string &behind = "") {
   auto with = [&](const std::string &attribute) {
     std::string node = closure;
     node.replace(node.find("{}"), 2, attribute);
@@ -94,12 +97,13 @@ void expect_textured_equals_constants(const std::string &label, const std::strin
   };
   const std::string colors = "color1=\"" + a + " " + a + " " + a + "\" color2=\"" + b + " " + b + " " + b + "\"";
   std::vector<std::string> warnings;
-  const auto textured = render(quad_scene(label + "_textured.xml",
-                                          with("") + "\n<connect from=\"c color\" to=\"g " + socket + "\" />", colors),
-                               &warnings);
+  const auto textured =
+      render(quad_scene(label + "_textured.xml", with("") + "\n<connect from=\"c color\" to=\"g " + socket + "\" />",
+                        colors, "bsdf", behind),
+             &warnings);
   for (const auto &w : warnings) ADD_FAILURE() << label << ": unexpected warning: " << w;
-  const auto const_a = render(quad_scene(label + "_a.xml", with(socket + "=\"" + a + "\""), colors));
-  const auto const_b = render(quad_scene(label + "_b.xml", with(socket + "=\"" + b + "\""), colors));
+  const auto const_a = render(quad_scene(label + "_a.xml", with(socket + "=\"" + a + "\""), colors, "bsdf", behind));
+  const auto const_b = render(quad_scene(label + "_b.xml", with(socket + "=\"" + b + "\""), colors, "bsdf", behind));
   const std::vector<float> mask = region_mask();
 
   const RegionComparison in_a = compare_region(textured, const_a, mask, 1.0f);
@@ -132,6 +136,19 @@ TEST(VaryingParams, CheckerAnisotropyOnAnisotropicMatchesConstantRenders) {
 
 TEST(VaryingParams, CheckerColourOnDiffuseMatchesConstantRenders) {
   expect_textured_equals_constants("colour", "<diffuse_bsdf name=\"g\" {} />", "color", "0.9", "0.2");
+}
+
+// Session 40: frosted_glass's colour is a tint per interface crossing and varying; a linked colour had become the
+// closure's weight (a multiplier of reflection and transmission, once), so the textured render matched neither
+// constant. A thin pane in front of an emitter (the tint is on transmission only).
+TEST(VaryingParams, CheckerColourOnFrostedGlassMatchesConstantRenders) {
+  const std::string emitter =
+      "<shader name=\"lamp\"><emission name=\"e\" strength=\"2\" color=\"1 1 1\" />\n"
+      "<connect from=\"e emission\" to=\"output surface\" /></shader>\n"
+      "<state shader=\"lamp\"><mesh P=\"-9 -9 6  9 -9 6  9 9 6  -9 9 6\" nverts=\"4\" verts=\"0 1 2 3\" /></state>\n";
+  expect_textured_equals_constants("frosted_colour",
+                                   "<frosted_glass_bsdf name=\"g\" roughness=\"0.4\" thin=\"1\" {} />", "color", "0.9",
+                                   "0.3", emitter);
 }
 
 TEST(VaryingParams, CheckerIorOnGlassMatchesConstantRenders) {
