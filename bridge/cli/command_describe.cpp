@@ -75,7 +75,8 @@ std::string version_text(CliContext &ctx) {
   try {
     auto &plugin = ctx.plugin();
     const auto &info = plugin.info();
-    text += std::string("plugin ") + info.plugin_name + " " + info.plugin_version + " (ABI " +
+    const auto text_or = [](const char *s) { return std::string(s != nullptr ? s : "?"); };  // a foreign plugin's
+    text += "plugin " + text_or(info.plugin_name) + " " + text_or(info.plugin_version) + " (ABI " +
             host::abi_version_name(info.abi_version) + ") from " + plugin.path();
   } catch (const std::exception &e) {
     text += std::string("plugin: none loaded (") + e.what() + ")";

@@ -48,7 +48,7 @@ int main(int argc, char **argv) {
     while (!deepest->get_subcommands().empty()) deepest = deepest->get_subcommands().front();
     const auto choices = deepest->get_subcommands([](CLI::App *) { return true; });
     std::string message;
-    if (!choices.empty() && deepest->get_subcommands().empty() && rest.front().rfind('-', 0) != 0) {
+    if (!choices.empty() && rest.front().rfind('-', 0) != 0) {
       message = "unknown sub-command '" + rest.front() + "' (one of:";
       for (const CLI::App *c : choices) message += " " + c->get_name();
       message += ")";

@@ -110,7 +110,7 @@ const std::vector<ClosureNodeRow> &closure_node_rows() {
        .closure = "frosted_glass",
        .schema = true,
        .doc = "sockets are the closure's parameters (glimmer describe); a textured colour is the tint per interface "
-              "crossing at each shading point, as a typed one"},
+              "crossing at each shading point, clamped to [0, 1] as a typed one"},
       {.node = "clearcoat_bsdf",
        .closure = "clearcoat",
        .sockets =
@@ -124,7 +124,7 @@ const std::vector<ClosureNodeRow> &closure_node_rows() {
        .closure = "principled_diffuse",
        .schema = true,
        .doc = "Cycles 3.4's Principled diffuse (Burley, retro-reflection); a textured colour is the base colour at "
-              "each shading point"},
+              "each shading point, clamped to [0, 1] as a typed one"},
       {.node = "principled_specular_bsdf",
        .closure = "principled_specular",
        .schema = true,

@@ -25,8 +25,7 @@ enum class SocketRole {
   Param,          // a DSO parameter: the constant clamped to [min, max]; a link is evaluated per shading
                   // point when the closure declares the parameter varying (else it warns)
   SchemaParam,    // a DSO parameter given as text and validated by its schema (absent: the closure's default)
-  ParamOrWeight,  // a DSO colour parameter, not varying, whose link becomes the weight instead (the parameter is then
-                  // 1)
+  ParamOrWeight,  // a DSO colour parameter, not varying: a link becomes the weight (the parameter is then 1)
   Normal,         // the closure's shading normal: a link (Bump, Normal Map, any vector) is evaluated per
                   // shading point; unlinked, the interpolated normal
   Tangent,        // the closure's tangent: a link (Tangent node, any vector) per shading point; unlinked, the

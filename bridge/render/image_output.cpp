@@ -68,15 +68,22 @@ void check_output_path(const std::string &path) {
 void check_output_folder_takes_files(const std::string &path) {
   const fs::path target(path);
   const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
-  // access(W_OK) passes where no file can be created (/proc for root, some FUSE and network mounts): try one.
-  std::string name = target.filename().string();  // appended, not "." + ...: GCC 12's -Wrestrict misfires on insert
-  name.append(".").append(random_hex16()).append(".probe");
-  const std::string probe = (dir / ("." + name)).string();
+  // access(W_OK) passes where no file can be created (/proc for root, some FUSE and network mounts): try one. A short
+  // fixed-length name (not the output's name + a suffix: the output's name may be near NAME_MAX).
+  std::string name = ".glimmer-probe-";  // appended, not "." + ...: GCC 12's -Wrestrict misfires on insert
+  name.append(random_hex16());
+  const std::string probe = (dir / name).string();
   const int fd = ::open(probe.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0600);
-  if (fd < 0)
-    throw std::runtime_error("cannot create a file in output folder '" + dir.string() + "': " + std::strerror(errno));
+  if (fd < 0) {
+    const int error = errno;
+    throw std::runtime_error("cannot create a file in output folder '" + dir.string() + "': " + std::strerror(error));
+  }
   ::close(fd);
-  ::unlink(probe.c_str());
+  if (::unlink(probe.c_str()) != 0) {
+    const int error = errno;
+    throw std::runtime_error("cannot remove the probe file '" + probe + "' in output folder '" + dir.string() +
+                             "': " + std::strerror(error));
+  }
 }
 
 void write_image(const std::string &path, const RenderResult &result) {

@@ -1,5 +1,5 @@
 // Per-particle pseudo-normals for lobes narrower than the glint cone (issue
-// 10, fifteenth session; docs/glints.md "Pseudo-normals for narrow lobes").
+// 10, fifteenth session; docs/glints.md "Pseudo-normals for lobes narrower than the cone").
 //
 // The exact discrete model (Jakob 2014) gives every particle its own normal
 // m ~ D(m) cos(theta_m) and lights it for (wi, wo) iff its mirror direction

@@ -41,19 +41,24 @@ inline GlimmerHostServices host_caching_in(const std::string &dir) {
 }
 
 // While alive, files this process writes cannot grow past `bytes` (RLIMIT_FSIZE; SIGXFSZ ignored, so write() fails
-// with EFBIG): a cache folder the process cannot write to, also for root, whom a read-only mode does not stop.
+// with EFBIG): a cache write that fails after its file was created (a full disk or quota), also for root, whom a
+// read-only mode does not stop. (A read-only folder fails earlier, at open(): the same "not written" path with
+// another reason.) The limit is per process: keep the scope to the writes under test (gtest's own output goes to a
+// pipe under ctest; redirected to a file inside the scope it would be cut too).
 class FileSizeLimit {
  public:
   explicit FileSizeLimit(rlim_t bytes) {
-    ::getrlimit(RLIMIT_FSIZE, &old_);
+    if (::getrlimit(RLIMIT_FSIZE, &old_) != 0) return;  // ok() false; nothing to restore
     old_handler_ = std::signal(SIGXFSZ, SIG_IGN);
     rlimit limit = old_;
     limit.rlim_cur = bytes;
-    ok_ = ::setrlimit(RLIMIT_FSIZE, &limit) == 0;
+    set_ = true;
+    ok_ = old_handler_ != SIG_ERR && ::setrlimit(RLIMIT_FSIZE, &limit) == 0;
   }
   ~FileSizeLimit() {
+    if (!set_) return;
     ::setrlimit(RLIMIT_FSIZE, &old_);
-    std::signal(SIGXFSZ, old_handler_);
+    if (old_handler_ != SIG_ERR) std::signal(SIGXFSZ, old_handler_);
   }
   bool ok() const { return ok_; }
   FileSizeLimit(const FileSizeLimit &) = delete;
@@ -62,7 +67,7 @@ class FileSizeLimit {
  private:
   rlimit old_{};
   void (*old_handler_)(int) = SIG_DFL;
-  bool ok_ = false;
+  bool set_ = false, ok_ = false;
 };
 
 inline std::vector<char> read_bytes(const std::filesystem::path &p) {

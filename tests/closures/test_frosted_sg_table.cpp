@@ -547,9 +547,11 @@ TEST(FrostedSgTable, CheckedStampSkipsTheRefitsOfTheSameBuildAndBytes) {
   std::filesystem::remove_all(dir);
 }
 
-// A cache folder the process cannot write to (RLIMIT_FSIZE: a read-only folder or a full quota, also for root): the
-// load still succeeds, re-fits its check nodes, writes no stamp and says why (get() logs that reason, saying every
-// start will repeat the re-fits); once writable, the next load stamps and the one after skips the re-fits.
+// A cache folder that takes no more bytes (RLIMIT_FSIZE: a full disk or quota, also for root): the load still
+// succeeds, re-fits its check nodes, writes no stamp and reports why in stamp_not_written() (which get(), the
+// process-wide table, logs as a warning; get() runs once per process, so the log line itself is checked only for the
+// glint table: GlintCacheHostile.UnwritableStampIsLoggedAndTheCheckRunsAgain); once writable, the next load stamps
+// and the one after skips the re-fits.
 TEST(FrostedSgTable, UnwritableStampIsReportedAndTheRefitsRunAgain) {
   const auto dir = std::filesystem::temp_directory_path() / ("glimmer_frosted_nostamp_" + std::to_string(::getpid()));
   std::filesystem::remove_all(dir);

@@ -303,10 +303,10 @@ TEST(GlintCacheHostile, EnergyCheckedStampSkipsTheCheckOfTheSameBuildAndBytes) {
   fs::remove_all(dir);
 }
 
-// A cache folder the process cannot write to (RLIMIT_FSIZE stands for a read-only folder or a full quota; root
-// ignores a read-only mode): the energy check's stamp cannot be written, so every start repeats the check. The closure
-// still loads the cached table, the host's log says why the stamp is missing and what it costs, and no stamp (nor a
-// temporary file) is left; once the folder is writable the next load checks, stamps, and says nothing.
+// A cache folder that takes no more bytes (RLIMIT_FSIZE: a full disk or quota; root ignores a read-only mode, which
+// fails the same way, at open()): the energy check's stamp cannot be written, so every start repeats the check. The
+// closure still loads the cached table, the host's log says why the stamp is missing and what it costs, and no stamp
+// (nor a temporary file) is left; once the folder is writable the next load checks, stamps, and says nothing.
 TEST(GlintCacheHostile, UnwritableStampIsLoggedAndTheCheckRunsAgain) {
   const plugin::glint::TableSpec spec = roughness_02_spec();
   const fs::path dir = fs::path(GLIMMER_TEST_BINARY_DIR) / ("test_cache_glint_nostamp_" + std::to_string(::getpid()));
