@@ -657,18 +657,32 @@ int ShaderSystem::compile(int shader_index) {
   } else {
     const ShaderGraph &g = scene_.shaders[shader_index];
     cs.name = g.name;
+    const bool has_surface = g.link_to("output", "surface") != nullptr;
+    const scene::ShaderLink *volume_only = nullptr;  // a volume's boundary: Cycles gives it no surface at all
     for (const auto &l : g.links) {
       if (l.to_node != "output") continue;
       if (l.to_socket == "volume") {
         features_.volumes = true;
-        warn(l.where, "shader '" + g.name + "': volume output is not supported; ignored");
+        if (!has_surface) volume_only = &l;
+        warn(l.where, "shader '" + g.name + "': volume output is not supported; ignored" +
+                          (has_surface ? "" : " (the shader has no surface: its objects let light pass, unscattered)"));
       } else if (l.to_socket != "surface" && l.to_socket != "displacement") {
         warn(l.where, "shader '" + g.name + "': unknown output socket '" + l.to_socket + "'; ignored");
       }
     }
     auto bumped = std::make_unique<ShaderGraph>();
     const auto warn_at = [this](const scene::SourceLocation &where, const std::string &m) { warn(where, m); };
-    if (expand_displacement_as_bump(g, *bumped, warn_at)) {
+    if (volume_only != nullptr) {
+      // Cycles (SD_HAS_ONLY_VOLUME) skips such a surface: rays cross it. Without volumes that is a clear boundary, not
+      // the black no-closure surface an empty surface output means.
+      ShaderNode boundary;
+      boundary.type = "transparent_bsdf";
+      boundary.name = g.name + "__volume_boundary";
+      boundary.where = volume_only->where;
+      boundary.attributes["color"] = "1 1 1";
+      ShaderGraph empty;
+      cs.root = make_leaf(empty, boundary, cs);
+    } else if (expand_displacement_as_bump(g, *bumped, warn_at)) {
       expanded_graphs_.push_back(std::move(bumped));
       cs.root = compile_closure(*expanded_graphs_.back(), "output", "surface", cs, 0);
     } else {

@@ -4,6 +4,7 @@
 #include <OpenImageIO/imageio.h>
 #include <tbb/global_control.h>
 
+#include <algorithm>
 #include <cstring>
 
 #include "render_test_util.h"
@@ -313,6 +314,46 @@ TEST(Integrator, TransparentPassThrough) {
   EXPECT_NEAR(p[0], 1.0f, 1e-4f);
   EXPECT_NEAR(p[1], 0.5f, 1e-4f);
   EXPECT_NEAR(p[2], 2.0f, 1e-4f);
+}
+
+// A shader with only a volume output (Cycles' SD_HAS_ONLY_VOLUME: no surface at all) on a veil in front of an
+// emitter: without volume rendering its objects let light through unscattered, with a warning that says so, instead
+// of the black no-closure surface an empty surface output means (session 40; the corpus' scene_cube_volume.xml had
+// rendered a black cube). Control: the same volume with a surface output as well (a black emission) keeps its
+// surface: black.
+TEST(Integrator, VolumeOnlyShaderLetsLightThrough) {
+  const std::string glow =
+      "<shader name=\"glow\"><emission name=\"e\" color=\"1 1 1\" strength=\"2\" />"
+      "<connect from=\"e emission\" to=\"output surface\" /></shader>\n";
+  const std::string geometry =
+      "<state shader=\"veil\"><mesh P=\"-1 -1 2  1 -1 2  1 1 2  -1 1 2\" nverts=\"4\" verts=\"0 1 2 3\" /></state>\n"
+      "<state shader=\"glow\"><mesh P=\"-3 -3 4  3 -3 4  3 3 4  -3 3 4\" nverts=\"4\" verts=\"0 1 2 3\" /></state>\n"
+      "</cycles>\n";
+  const std::string head = "<cycles>\n<camera width=\"16\" height=\"16\" fov=\"0.5\" />\n<camera />\n" + glow;
+  const std::string volume =
+      "<absorption_volume name=\"v\" color=\"0.5 0.5 0.5\" density=\"3\" />"
+      "<connect from=\"v volume\" to=\"output volume\" />";
+  std::vector<std::string> warnings;
+  const auto only = render_with_warnings(
+      write_file("volume_only.xml", head + "<shader name=\"veil\">" + volume + "</shader>\n" + geometry), 4, &warnings);
+  const float *p = &only.combined[4 * (8 * 16 + 8)];
+  EXPECT_NEAR(p[0], 2.0f, 1e-4f);
+  EXPECT_NEAR(p[1], 2.0f, 1e-4f);
+  EXPECT_NEAR(p[2], 2.0f, 1e-4f);
+  const bool said = std::any_of(warnings.begin(), warnings.end(), [](const std::string &w) {
+    return w.find("volume output is not supported") != std::string::npos &&
+           w.find("let light pass") != std::string::npos;
+  });
+  EXPECT_TRUE(said) << warnings.size() << " warnings";
+  // With a surface output as well, the surface is kept (black emission: black).
+  const auto with_surface = render_with_warnings(
+      write_file("volume_and_surface.xml", head + "<shader name=\"veil\">" + volume +
+                                               "<emission name=\"black\" color=\"0 0 0\" strength=\"0\" />"
+                                               "<connect from=\"black emission\" to=\"output surface\" /></shader>\n" +
+                                               geometry),
+      4);
+  const float *q = &with_surface.combined[4 * (8 * 16 + 8)];
+  EXPECT_NEAR(q[0] + q[1] + q[2], 0.0f, 1e-6f);
 }
 
 }  // namespace
