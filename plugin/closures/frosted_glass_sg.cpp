@@ -478,8 +478,9 @@ int measurement_level(const char *name, int fallback, std::initializer_list<int>
 // A tail for solids (issue 12, twelfth session; docs/frosted_glass.md "A tail for solids"). The exit mixture of
 // method=sg's rule (SgInputs::mixture_tail < 0) by what the traced rays measured:
 //  - a planar exit (exit_curvature < kPlanarExitCurvature: a slab's back face) above kMixtureRoughnessMax: the
-//    per-ray lobes as cores (sharpness x 2; x 3 until the thirteenth session) plus the pane's heavy-tail ladder about the axis lobe (add_tail_ladder,
-//    kPlanarSolidTail), where the rule had the single SG (slab 0.5 / 0.8: 0.087 / 0.095 -> 0.039 / 0.031);
+//    per-ray lobes as cores (sharpness x 2; x 3 until the thirteenth session) plus the pane's heavy-tail ladder about
+//    the axis lobe (add_tail_ladder, kPlanarSolidTail), where the rule had the single SG (slab 0.5 / 0.8: 0.087 / 0.095
+//    -> 0.039 / 0.031);
 //  - a curved exit (a sphere focuses) below kCurvedSingleSgBelow: no tail, the single SG (exit harness, sphere
 //    r 0.1: 9.4 -> 7.7 %); above kMixtureRoughnessMax the single SG as before (the pane's ladder made the sphere
 //    worse: accuracy set 0.0424 -> 0.0534);

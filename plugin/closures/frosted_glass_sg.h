@@ -311,12 +311,12 @@ inline constexpr int kMaxInternalReflections = 16;
 // and no exit shape or axis rule fixed what that wide lobe does at a curved exit (parts beyond the critical angle, exit
 // points and normals spread over the surface). Where a solid is seen directly (no diffuse or glossy bounce before)
 // and the exit is curved (exit_curvature; a planar exit keeps its reflected_axis rule: the slab got worse with the
-// draw, accuracy set 0.0187 -> 0.0217), the reflection's direction is instead drawn from the exit interface's own lobe (Walter 2007 with the energy
-// compensation, the roughness read at the axis hit) at the axis' incidence, given that it reflects (draws until one
-// reflects: the reflected directions' distribution), and the walk goes on from the axis hit with the lobe's width
-// before the reflection (the SG keeps the internal lobe's spread, the draw the reflection's). The roulette between
-// leaving and reflecting stays the SG's (E_x), so the weight is unchanged. A Monte Carlo estimate over the
-// reflection instead of its SG: the direction spread becomes noise (measured: glass_L's variance per sample x ~3).
+// draw, accuracy set 0.0187 -> 0.0217), the reflection's direction is instead drawn from the exit interface's own lobe
+// (Walter 2007 with the energy compensation, the roughness read at the axis hit) at the axis' incidence, given that it
+// reflects (draws until one reflects: the reflected directions' distribution), and the walk goes on from the axis hit
+// with the lobe's width before the reflection (the SG keeps the internal lobe's spread, the draw the reflection's). The
+// roulette between leaving and reflecting stays the SG's (E_x), so the weight is unchanged. A Monte Carlo estimate over
+// the reflection instead of its SG: the direction spread becomes noise (measured: glass_L's variance per sample x ~3).
 inline constexpr bool kSampledReflectionByDefault = true;
 // Whether sg samples the internal reflections at sp: `mode` a test's choice (0 off, 1 on), or -1 by the rule:
 // kSampledReflectionByDefault, for measurements GLIMMER_FROSTED_SAMPLED_REFLECTION (0 / 1), read once; off where the

@@ -2325,7 +2325,6 @@ TEST(FrostedGlassSg, BenchLampCausticThroughTheSphereOnAFloorGrid) {
   EXPECT_GT(ctl_sharp.rms, kCausticGridBound) << "control passed: the sharp core";
 }
 
-
 // ---- The camera-seen sphere's rim (issue 12, session 28, frostedbias28) -------------------------------------------
 // The caustic bench's sphere seen by the camera is too bright where it leaves directly (its glass +3..5 %, its bottom
 // rim +40..+87 %: event split, docs/history/frosted_glass_sessions.md "Session 28 (frostedbias28)"); with the internal
