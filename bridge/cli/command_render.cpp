@@ -374,9 +374,10 @@ int run_render(CliContext &ctx, const RenderArgs &a, KeptRender *keep = nullptr)
 // `glimmer serve`: a persistent renderer (the Blender viewport's). Each line on stdin holds the arguments of one
 // `glimmer render`; a new line interrupts the render in progress and the newest waiting line runs next, so process
 // start-up and plugin loading are paid once, and tables shared by the closures of consecutive renders (KeptRender)
-// are built or loaded once. After each command: 'Finished <exit code> <output>'. At the end of
-// stdin the newest command finishes and the server exits 0; SIGTERM/SIGINT interrupt the render and end the server
-// (exit 3).
+// are built or loaded once. After each command: 'Finished <exit code> <output>', also for a line replaced before it
+// started ('Finished 3 <output>', 3 = interrupted: a driver waiting for one answer per line never hangs). At the end
+// of stdin the newest command finishes and the server exits 0; SIGTERM/SIGINT interrupt the render and end the
+// server (exit 3).
 int serve(CliContext &ctx) {
   install_render_interrupt_handlers();
   std::mutex mutex;
@@ -399,6 +400,7 @@ int serve(CliContext &ctx) {
   KeptRender kept;
   for (;;) {
     std::string line;
+    std::vector<std::string> skipped;
     {
       std::unique_lock<std::mutex> lock(mutex);
       wake.wait_for(lock, std::chrono::milliseconds(100), [&] { return !waiting.empty() || end_of_input; });
@@ -408,9 +410,21 @@ int serve(CliContext &ctx) {
         continue;
       }
       line = waiting.back();  // the newest command; older ones are stale
+      skipped.assign(waiting.begin(), waiting.end() - 1);
       waiting.clear();
       g_interrupted.store(false);
     }
+    for (const std::string &stale : skipped) {  // replaced before they started: answered as interrupted
+      RenderArgs stale_args;
+      CLI::App stale_app{"render"};
+      add_render_options(&stale_app, stale_args);
+      try {
+        stale_app.parse(stale);
+      } catch (const CLI::ParseError &) {  // unparsable: its output is unknown ("")
+      }
+      std::printf("Finished %d %s\n", kExitInterrupted, stale_args.output.c_str());
+    }
+    std::fflush(stdout);
     RenderArgs args;
     CLI::App app{"render"};
     add_render_options(&app, args);
