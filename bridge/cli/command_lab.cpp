@@ -32,6 +32,7 @@ struct LabOptions {
   std::string closure;
   std::vector<std::string> params;
   std::string wi = "0,0,1";
+  double footprint = 0.0;  // uv area of the pixel footprint (0: a point)
   double samples = 1e6;
   uint64_t seed = 1;
   int test_count = 1;
@@ -98,7 +99,15 @@ LabSetup make_setup(CliContext &cli, const LabOptions &o) {
   setup.wi = parse_direction(o.wi, "--wi");
   setup.instance = std::make_unique<host::ClosureInstance>(*type, params);
   setup.ctx = host::make_local_context(setup.wi);
+  if (!(o.footprint >= 0.0 && o.footprint <= 1e12))
+    throw CliError(kExitBadInput, "--footprint must be a uv area between 0 and 1e12 (0: a point)");
+  if (o.footprint > 0.0) {  // a square footprint: what a pixel covers in uv (the glint closures count particles in it)
+    const float side = static_cast<float>(std::sqrt(o.footprint));
+    setup.ctx.duv_dx[0] = side, setup.ctx.duv_dx[1] = 0.0f;
+    setup.ctx.duv_dy[0] = 0.0f, setup.ctx.duv_dy[1] = side;
+  }
   setup.header = {{"closure", o.closure}, {"params", param_json}, {"wi", json_vec3(setup.wi)}};
+  if (o.footprint > 0.0) setup.header["footprint"] = o.footprint;
   return setup;
 }
 
@@ -107,6 +116,9 @@ void add_common_options(CLI::App *cmd, LabOptions &o) {
   cmd->add_option("--param", o.params, "closure parameter name=value (repeatable)");
   cmd->add_option("--wi", o.wi, "direction toward the viewer x,y,z in the local frame (outward normal +z; a wi below it arrives from the back, as in the renderer: N turned toward wi, backfacing), default 0,0,1");
   cmd->add_option("--seed", o.seed, "random seed (results are deterministic for a seed)");
+  cmd->add_option("--footprint", o.footprint,
+                  "uv area a pixel covers (a square; default 0: a point). Footprint-dependent closures need it: a "
+                  "glint at a point holds about one particle, so its furnace albedo is mostly 0");
 }
 
 // Adds `glimmer lab NAME`: the common options, the test's own options

@@ -272,5 +272,28 @@ TEST(Cli, VersionNamesTheHostAbiAndThePlugin) {
   EXPECT_TRUE(contains(missing.out, "/nonexistent")) << missing.out;
 }
 
+// `glimmer lab --footprint` (session 40): a glint at a point (the default) holds about one particle, so its furnace
+// albedo is 0 at most wi; over a footprint of 1 uv (10^6 particles: the filtered switch) it is the smooth GGX lobe,
+// within 1 % of microfacet_conductor's albedo at the same wi. A negative footprint is refused naming the option.
+TEST(Cli, LabFootprintReachesTheGlint) {
+  auto albedo = [](const std::vector<std::string> &args) {
+    std::vector<std::string> all = {"lab", "furnace", "--wi", "0.3,0,0.95", "--samples", "100000"};
+    all.insert(all.end(), args.begin(), args.end());
+    const CliRun run = run_cli(all);
+    EXPECT_EQ(run.exit_code, 0) << run.err;
+    return run.exit_code == 0 ? nlohmann::json::parse(run.out)["albedo"][0].get<double>() : -1.0;
+  };
+  const double point = albedo({"--closure", "glint"});
+  const double wide = albedo({"--closure", "glint", "--footprint", "1"});
+  const double smooth = albedo({"--closure", "microfacet_conductor", "--param", "roughness=0.4"});
+  std::printf("[lab footprint] glint furnace albedo: point %.4f, footprint 1 uv %.4f; GGX conductor %.4f\n", point,
+              wide, smooth);
+  EXPECT_LT(point, 0.05);
+  EXPECT_NEAR(wide, smooth, 0.01 * smooth);
+  const CliRun bad = run_cli({"lab", "furnace", "--closure", "glint", "--footprint", "-1"});
+  EXPECT_EQ(bad.exit_code, 1);
+  EXPECT_TRUE(contains(bad.err, "--footprint")) << bad.err;
+}
+
 }  // namespace
 }  // namespace glimmer::test
