@@ -69,15 +69,22 @@ nlohmann::json flags_json(uint32_t flags) {
 
 }  // namespace
 
+namespace {
+// "<name> <version> (ABI x.y) from <path>": `describe`'s first line and `--version`'s plugin line ("?" for a foreign
+// plugin's missing name fields).
+std::string plugin_summary(const host::PluginLibrary &plugin) {
+  const auto &info = plugin.info();
+  const auto text_or = [](const char *s) { return std::string(s != nullptr ? s : "?"); };
+  return text_or(info.plugin_name) + " " + text_or(info.plugin_version) + " (ABI " +
+         host::abi_version_name(info.abi_version) + ") from " + plugin.path();
+}
+}  // namespace
+
 std::string version_text(CliContext &ctx) {
   std::string text = std::string("glimmer ") + GLIMMER_VERSION_STRING + " (closure ABI " +
                      host::abi_version_name(GLIMMER_ABI_VERSION) + ")\n";
   try {
-    auto &plugin = ctx.plugin();
-    const auto &info = plugin.info();
-    const auto text_or = [](const char *s) { return std::string(s != nullptr ? s : "?"); };  // a foreign plugin's
-    text += "plugin " + text_or(info.plugin_name) + " " + text_or(info.plugin_version) + " (ABI " +
-            host::abi_version_name(info.abi_version) + ") from " + plugin.path();
+    text += "plugin " + plugin_summary(ctx.plugin());
   } catch (const std::exception &e) {
     text += std::string("plugin: none loaded (") + e.what() + ")";
   }
@@ -119,8 +126,7 @@ void add_describe_command(CLI::App &app, CliContext &ctx) {
       std::cout << out.dump(2) << "\n";
       return;
     }
-    std::cout << info.plugin_name << " " << info.plugin_version << " (ABI " << host::abi_version_name(info.abi_version) << ") from "
-              << plugin.path() << "\n";
+    std::cout << plugin_summary(plugin) << "\n";
     for (const auto *t : plugin.closures()) {
       std::cout << "\n" << t->name << ": " << (t->doc ? t->doc : "") << "\n";
       for (uint32_t i = 0; i < t->param_count; ++i) {

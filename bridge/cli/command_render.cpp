@@ -379,6 +379,12 @@ int run_render(CliContext &ctx, const RenderArgs &a, KeptRender *keep = nullptr)
 // of stdin the newest command finishes and the server exits 0; SIGTERM/SIGINT interrupt the render and end the
 // server (exit 3).
 int serve(CliContext &ctx) {
+  // One stdin line as `glimmer render`'s arguments into `args` (throws CLI::ParseError).
+  const auto parse_render_line = [](const std::string &line, RenderArgs &args) {
+    CLI::App app{"render"};
+    add_render_options(&app, args);
+    app.parse(line);
+  };
   install_render_interrupt_handlers();
   std::mutex mutex;
   std::condition_variable wake;
@@ -416,21 +422,17 @@ int serve(CliContext &ctx) {
     }
     for (const std::string &stale : skipped) {  // replaced before they started: answered as interrupted
       RenderArgs stale_args;
-      CLI::App stale_app{"render"};
-      add_render_options(&stale_app, stale_args);
       try {
-        stale_app.parse(stale);
+        parse_render_line(stale, stale_args);
       } catch (const CLI::ParseError &) {  // unparsable: its output is unknown ("")
       }
       std::printf("Finished %d %s\n", kExitInterrupted, stale_args.output.c_str());
     }
     std::fflush(stdout);
     RenderArgs args;
-    CLI::App app{"render"};
-    add_render_options(&app, args);
     int code = kExitOk;
     try {
-      app.parse(line);
+      parse_render_line(line, args);
       code = run_render(ctx, args, &kept);
     } catch (const CLI::ParseError &e) {
       std::fprintf(stderr, "glimmer: error: %s\n", e.what());

@@ -37,6 +37,12 @@ std::string lower_extension(const std::string &path) {
   return ext;
 }
 
+// The folder an output path is written into ("." for a bare file name).
+fs::path output_folder(const std::string &path) {
+  const fs::path target(path);
+  return target.has_parent_path() ? target.parent_path() : fs::path(".");
+}
+
 }  // namespace
 
 bool is_exr_path(const std::string &path) { return lower_extension(path) == ".exr"; }
@@ -55,19 +61,17 @@ void check_output_format(const std::string &path) {
 }
 
 void check_output_path(const std::string &path) {
-  const fs::path target(path);
   check_output_format(path);
-  const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
+  const fs::path dir = output_folder(path);
   std::error_code ec;
   if (!fs::is_directory(dir, ec)) throw std::runtime_error("output folder '" + dir.string() + "' does not exist");
-  if (fs::is_directory(target, ec)) throw std::runtime_error("output '" + path + "' is a folder");
+  if (fs::is_directory(fs::path(path), ec)) throw std::runtime_error("output '" + path + "' is a folder");
   if (::access(dir.c_str(), W_OK | X_OK) != 0)
     throw std::runtime_error("output folder '" + dir.string() + "' is not writable");
 }
 
 void check_output_folder_takes_files(const std::string &path) {
-  const fs::path target(path);
-  const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
+  const fs::path dir = output_folder(path);
   // access(W_OK) passes where no file can be created (/proc for root, some FUSE and network mounts): try one. A short
   // fixed-length name (not the output's name + a suffix: the output's name may be near NAME_MAX).
   std::string name = ".glimmer-probe-";  // appended, not "." + ...: GCC 12's -Wrestrict misfires on insert
