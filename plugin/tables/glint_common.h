@@ -187,26 +187,18 @@ struct ParticleField {
   }
 };
 
-// Smith G1 and height-correlated G2 as mf::G1 / mf::G2 (Beckmann's Lambda
-// the polynomial mf::beckmann_lambda: no erfc / exp).
-// G1 and G2 from their Lambdas.
+// Smith G1 and height-correlated G2 from their Lambdas (mf::G1 / mf::G2's formulas; since session 40 every closure's
+// Beckmann Lambda is the polynomial, so G1 / G2 of a direction are mf::G1 / mf::G2 themselves).
 inline float smith_g1_of(float l) { return std::isfinite(l) ? 1.0f / (1.0f + l) : 0.0f; }
 inline float smith_g2_of(float li, float lo) {
   const float s = 1.0f + li + lo;
   return std::isfinite(s) ? 1.0f / s : 0.0f;
 }
-inline float smith_g1(mf::Distribution dist, const Vec3 &w, float ax, float ay) {
-  return smith_g1_of(mf::lambda(dist, Vec3(w.x, w.y, std::fabs(w.z)), ax, ay));
-}
-inline float smith_g2(mf::Distribution dist, const Vec3 &wi, const Vec3 &wo, float ax, float ay) {
-  return smith_g2_of(mf::lambda(dist, Vec3(wi.x, wi.y, std::fabs(wi.z)), ax, ay),
-                     mf::lambda(dist, Vec3(wo.x, wo.y, std::fabs(wo.z)), ax, ay));
-}
 
 // The three Smith Lambdas one isotropic eval needs (issue 10, session 14):
 // Lambda(wi) and Lambda(wo) at the base alpha (W's G2) and Lambda(wi) at the
-// sampling lobe's alpha (the pdf's G1), each of (x, y, |z|) as smith_g1 /
-// smith_g2 take them. GGX: in the lanes of one SSE register with the same
+// sampling lobe's alpha (the pdf's G1), each of (x, y, |z|) as mf::G1 /
+// mf::G2 take them. GGX: in the lanes of one SSE register with the same
 // float operations in the same order as mf::ggx_lambda, so the same bits
 // (test GlintCoords.PackedLambdasMatchTheScalarForm), one division pair and
 // one square root for three; a lane outside the regular case (|z| not > 0,
@@ -354,7 +346,8 @@ inline bool glint_weight_of(const Spectrum &f0, bool f0_white, const Vec3 &wi, c
 }
 inline bool glint_weight(mf::Distribution dist, float alpha_x, float alpha_y, const Spectrum &f0, const Vec3 &wi,
                          const Vec3 &wo, const HalfVector &half, Spectrum &weight) {
-  return glint_weight_with(f0, wi, wo, half, [&] { return smith_g2(dist, wi, wo, alpha_x, alpha_y); }, weight);
+  return glint_weight_with(
+      f0, wi, wo, half, [&] { return mf::G2(dist, wi, wo, alpha_x, alpha_y); }, weight);
 }
 inline bool glint_weight(mf::Distribution dist, float alpha_x, float alpha_y, const Spectrum &f0, const Vec3 &wi,
                          const Vec3 &wo, Spectrum &weight) {
