@@ -34,7 +34,8 @@
 // to the path's spread angle, capped by the lobe width 2 alpha (blurring past
 // the lobe would only widen it), linear between the 9 stored levels.
 //
-// Sampling: a mixture of visible-normal sampling of the smooth lobe widened to
+// Sampling: a mixture of visible-normal sampling of a GGX lobe (for either base distribution: the
+// closed-form proposal, glint_common.h's kSamplingDistribution) widened to
 // alpha_w = sqrt(alpha^2 + ((gamma + sigma_L) / 2)^2) (weight 0.9) and cosine
 // sampling (0.1). pdf() is exactly that mixture's density; eval() returns the
 // glint BRDF (2)/(3), so estimators stay unbiased wherever the glint BRDF is
@@ -512,7 +513,7 @@ class GlintClosure {
         const float density = sp.param_float(density_param_, field_.density);
         Particles parts;  // default-initialised: value-initialising would zero the 1 KB node list
         place_footprint(sp, parts);
-        pdf = glint::smooth_lobe_pdf(field_.distribution, w.ax, w.ay, sp.wi, wo, h);
+        pdf = glint::smooth_lobe_pdf(w.ax, w.ay, sp.wi, wo, h);
         return aniso_f_cos(sp.wi, wo, sigma_deg, density, parts);
       }
       if (pseudo_normal_query(sigma_deg)) return pseudo_normal_f_cos_and_pdf(sp, wo, w, h, pdf);
@@ -552,7 +553,7 @@ class GlintClosure {
     const bool dark = kPseudoNormals ? pseudo_normals_dark(sp.wi, wo, c, density, parts)
                                      : provably_dark_if_applies(sp.wi, wo, c, sigma_deg, density, parts);
     if (dark) {  // wi.z, wo.z > 0 tested above (session 37: not again after the dark test's call)
-      pdf = glint::smooth_lobe_pdf_above(field_.distribution, w.ax, w.ay, sp.wi, wo, h);  // one Lambda, no W
+      pdf = glint::smooth_lobe_pdf_above(w.ax, w.ay, sp.wi, wo, h);  // one Lambda, no W
       return Spectrum(0.0f);
     }
     const float P = table_probability(c, sigma_deg);  // first: the Lambdas' and the pdf's math overlaps its loads
@@ -589,7 +590,7 @@ class GlintClosure {
     const Vec3 &wi = sp.wi;
     const float sigma = lod_sigma_deg(sp.ctx);
     const SamplingLobe w = sampling_lobe(sigma);
-    if (!glint::sample_smooth_lobe(field_.distribution, w.ax, w.ay, wi, rand, out.wo)) return false;
+    if (!glint::sample_smooth_lobe(w.ax, w.ay, wi, rand, out.wo)) return false;
     out.f_cos = f_cos_and_pdf(sp, out.wo, sigma, w, out.pdf);
     // alpha units, as the conductor reports (sqrt(ax ay) when anisotropic)
     out.roughness = anisotropic_ ? std::sqrt(w.ax * w.ay) : w.ax;

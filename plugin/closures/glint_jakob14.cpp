@@ -65,14 +65,14 @@ class GlintJakob14Closure {
   LocalEval eval(const ShadingPoint &sp, const Vec3 &wo) const {
     LocalEval e;
     e.f_cos = glint_f_cos(sp.ctx, sp.wi, wo);
-    e.pdf = glint::smooth_lobe_pdf(field_.distribution, sampling_alpha(), sp.wi, wo);
+    e.pdf = glint::smooth_lobe_pdf(sampling_alpha(), sp.wi, wo);
     return e;
   }
 
   bool sample(const ShadingPoint &sp, const Vec3 &rand, LocalSample &out) const {
     const float alpha_w = sampling_alpha();
-    if (!glint::sample_smooth_lobe(field_.distribution, alpha_w, sp.wi, rand, out.wo)) return false;
-    out.pdf = glint::smooth_lobe_pdf(field_.distribution, alpha_w, sp.wi, out.wo);
+    if (!glint::sample_smooth_lobe(alpha_w, sp.wi, rand, out.wo)) return false;
+    out.pdf = glint::smooth_lobe_pdf(alpha_w, sp.wi, out.wo);
     out.f_cos = glint_f_cos(sp.ctx, sp.wi, out.wo);
     out.roughness = alpha_w;  // alpha units, as the conductor reports
     out.label = GLIMMER_LABEL_REFLECT | GLIMMER_LABEL_GLOSSY;

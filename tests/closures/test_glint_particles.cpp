@@ -957,9 +957,8 @@ TEST(GlintCoords, BeckmannLambdaPolynomialMatchesTheErfcForm) {
 }
 
 // The sampling lobe's density with wi.h / wo.h cancelled (lobe_density =
-// G1 D / (4 wi.z), Beckmann G1 from the polynomial) against the former
-// mf::visible_D / (4 wo.h) over random and extreme (wi, wo, alpha), GGX and
-// Beckmann: relative difference <= 1e-5 + 2 |wi.h / wo.h - 1| (the second
+// G1 D / (4 wi.z) of GGX, the sampling lobe for every base since session 41) against the former
+// mf::visible_D / (4 wo.h) over random and extreme (wi, wo, alpha): relative difference <= 1e-5 + 2 |wi.h / wo.h - 1| (the second
 // term: the former form's factor, not 1 for float directions near the
 // horizon of h), and finite, non-negative everywhere. Negative control: a density that forgets G1
 // (D / (4 wi.z)) exceeds the bound.
@@ -969,7 +968,7 @@ TEST(GlintCoords, LobeDensityMatchesTheUncancelledForm) {
   double worst = 0.0, worst_scaled = 0.0, worst_away = 0.0, worst_control = 0.0;
   int64_t compared = 0;
   for (int n = 0; n < 400000; ++n) {
-    const mf::Distribution dist = n % 2 ? mf::Distribution::GGX : mf::Distribution::Beckmann;
+    const mf::Distribution dist = pg::kSamplingDistribution;
     auto dir = [&]() {
       const float c = rng.next_float() < 0.3f ? std::exp(-14.0f * rng.next_float()) : rng.next_float();
       const float s = std::sqrt(std::max(0.0f, 1.0f - c * c)), phi = 6.2831853f * rng.next_float();
@@ -979,7 +978,7 @@ TEST(GlintCoords, LobeDensityMatchesTheUncancelledForm) {
     const float ax = std::exp(std::log(1e-3f) * rng.next_float()), ay = n % 3 ? ax : std::exp(std::log(1e-3f) * rng.next_float());
     const pg::HalfVector h = pg::reflection_half_vector(wi, wo);
     if (!h.valid || !(wi.z > 0.0f) || !(dot(wi, h.h) > 0.0f)) continue;
-    const float fresh = pg::lobe_density(dist, ax, ay, wi, h.h);
+    const float fresh = pg::lobe_density(ax, ay, wi, h.h);
     ASSERT_TRUE(std::isfinite(fresh) && fresh >= 0.0f);
     const float old = mf::visible_D(dist, wi, h.h, ax, ay) / (4.0f * dot(wo, h.h));
     if (!(old > 1e-30f)) continue;
@@ -1086,12 +1085,13 @@ TEST(GlintCoords, BeckmannLambdaLanesMatchTheScalarForm) {
 #endif
 }
 
-// The Lambdas and the sampling lobe's pdf of one eval in one call (pg::eval_lambdas_and_pdf, session 28: Beckmann's
-// in one AVX2 function that also calls D's expf) equal the two calls they replace, eval_lambdas then
-// smooth_lobe_pdf_of at Lambda(wi) at the lobe's alpha, bit for bit, GGX and Beckmann, over the Lambda queries with
-// wi and wo above the surface (the caller's contract) and their reflection half vector. Negative control: the pdf's
-// D at the base alpha instead of the lobe's (a plausible mix-up of the two alphas) differs on most lobe pdfs.
-TEST(GlintCoords, LambdasAndPdfMatchTheTwoCalls) {
+// The Lambdas and the sampling lobe's pdf of one eval (pg::eval_lambdas_and_pdf) against their definitions, bit for
+// bit, GGX and Beckmann bases, over the Lambda queries with wi and wo above the surface (the caller's contract) and
+// their reflection half vector: W's two Lambdas are the base distribution's mf::lambda at the base alpha, the pdf's
+// Lambda is GGX's at the lobe's alpha (the sampling lobe is GGX for either base since session 41) and the pdf is
+// smooth_lobe_pdf, which computes its own Lambda. Negative control: the Beckmann base's pdf with Beckmann's own
+// visible normals (the sampler before session 41) differs on most pdfs with a lobe part.
+TEST(GlintCoords, LambdasAndPdfMatchTheirDefinitions) {
   namespace mf = microfacet;
   Pcg32 rng(47);
   const std::vector<LambdaQuery> queries = lambda_queries(rng);
@@ -1100,21 +1100,30 @@ TEST(GlintCoords, LambdasAndPdfMatchTheTwoCalls) {
     const Vec3 &wi = q.wi, &wo = q.wo;
     if (!(wi.z > 0.0f) || !(wo.z > 0.0f)) continue;
     const pg::HalfVector half = pg::reflection_half_vector(wi, wo);
+    const Vec3 ai(wi.x, wi.y, wi.z), ao(wo.x, wo.y, wo.z);
     for (const mf::Distribution dist : {mf::Distribution::GGX, mf::Distribution::Beckmann}) {
       const pg::EvalLambdasPdf v = pg::eval_lambdas_and_pdf(dist, q.alpha, q.alpha_lobe, wi, wo, half);
-      const pg::EvalLambdas s = pg::eval_lambdas(dist, q.alpha, q.alpha_lobe, wi, wo);
-      const float pdf = pg::smooth_lobe_pdf_of(dist, q.alpha_lobe, wi, wo, half, s.wi_lobe);
-      ASSERT_TRUE(same_lambdas(q, v.lambdas, s));
-      ASSERT_TRUE(same_float_bits(v.pdf, pdf)) << "pdf " << v.pdf << " vs " << pdf << " dist " << static_cast<int>(dist)
-                                               << " alpha " << q.alpha << " " << q.alpha_lobe;
+      const pg::EvalLambdas s{mf::lambda(dist, ai, q.alpha, q.alpha), mf::lambda(dist, ao, q.alpha, q.alpha),
+                              mf::ggx_lambda(ai, q.alpha_lobe, q.alpha_lobe)};
+      const auto same_or_nan = [](float a, float b) { return same_float_bits(a, b) || (std::isnan(a) && std::isnan(b)); };
+      ASSERT_TRUE(same_or_nan(v.lambdas.wi, s.wi) && same_or_nan(v.lambdas.wo, s.wo) &&
+                  same_or_nan(v.lambdas.wi_lobe, s.wi_lobe))
+          << same_lambdas(q, v.lambdas, s).message() << " dist " << static_cast<int>(dist);
+      const float pdf = pg::smooth_lobe_pdf(q.alpha_lobe, q.alpha_lobe, wi, wo, half);
+      ASSERT_TRUE(same_or_nan(v.pdf, pdf)) << "pdf " << v.pdf << " vs " << pdf << " dist " << static_cast<int>(dist)
+                                           << " alpha " << q.alpha << " " << q.alpha_lobe;
       ++compared;
       if (dist != mf::Distribution::Beckmann || !(pdf > pg::kCosineMixture * wo.z * kInvPi)) continue;
       ++lobe_pdfs;  // the lobe's part is not 0
-      control_differs += !same_float_bits(v.pdf, pg::smooth_lobe_pdf_of(dist, q.alpha, wi, wo, half, s.wi_lobe));
+      const float beckmann_lobe = pg::kCosineMixture * wo.z * kInvPi +
+                                  (1.0f - pg::kCosineMixture) * mf::visible_D(dist, wi, half.h, q.alpha_lobe,
+                                                                              q.alpha_lobe) /
+                                      (4.0f * dot(wo, half.h));
+      control_differs += std::fabs(beckmann_lobe - v.pdf) > 1e-3f * v.pdf;
     }
   }
-  std::printf("[lambdas and pdf] %lld (Lambdas, pdf) equal to the two calls; %lld Beckmann pdfs with a lobe part, "
-              "the control (D at the base alpha) differs on %lld\n",
+  std::printf("[lambdas and pdf] %lld (Lambdas, pdf) equal to their definitions; %lld Beckmann-base pdfs with a lobe "
+              "part, the control (Beckmann's visible normals) differs on %lld\n",
               static_cast<long long>(compared), static_cast<long long>(lobe_pdfs),
               static_cast<long long>(control_differs));
   EXPECT_GT(lobe_pdfs, static_cast<int64_t>(compared) / 20);
@@ -1122,8 +1131,7 @@ TEST(GlintCoords, LambdasAndPdfMatchTheTwoCalls) {
 }
 
 // pg::smooth_lobe_pdf_above (session 37: the dark route's pdf, wi.z / wo.z tested by its caller) equals
-// smooth_lobe_pdf bit for bit wherever both directions are above the surface, GGX and Beckmann, isotropic and
-// anisotropic lobes, over the Lambda queries and their reflection half vectors. Negative control: the lobe density at
+// smooth_lobe_pdf bit for bit wherever both directions are above the surface, isotropic and anisotropic lobes, over the Lambda queries and their reflection half vectors. Negative control: the lobe density at
 // swapped alphas (alpha_wy, alpha_wx) differs on most anisotropic queries with a lobe part.
 TEST(GlintCoords, SmoothLobePdfAboveMatchesSmoothLobePdf) {
   namespace mf = microfacet;
@@ -1134,17 +1142,15 @@ TEST(GlintCoords, SmoothLobePdfAboveMatchesSmoothLobePdf) {
     if (!(wi.z > 0.0f) || !(wo.z > 0.0f)) continue;
     const pg::HalfVector half = pg::reflection_half_vector(wi, wo);
     const float ay = q.alpha_lobe * (0.25f + 1.5f * rng.next_float());
-    for (const mf::Distribution dist : {mf::Distribution::GGX, mf::Distribution::Beckmann})
-      for (const float alpha_y : {q.alpha_lobe, ay}) {
-        const float pdf = pg::smooth_lobe_pdf(dist, q.alpha_lobe, alpha_y, wi, wo, half);
-        ASSERT_TRUE(same_float_bits(pg::smooth_lobe_pdf_above(dist, q.alpha_lobe, alpha_y, wi, wo, half), pdf))
-            << "dist " << static_cast<int>(dist) << " alpha " << q.alpha_lobe << " " << alpha_y;
-        ++compared;
-        if (alpha_y == q.alpha_lobe || !(pdf > pg::kCosineMixture * wo.z * kInvPi)) continue;
-        ++aniso_lobe;
-        control_differs +=
-            !same_float_bits(pg::smooth_lobe_pdf_above(dist, alpha_y, q.alpha_lobe, wi, wo, half), pdf);
-      }
+    for (const float alpha_y : {q.alpha_lobe, ay}) {
+      const float pdf = pg::smooth_lobe_pdf(q.alpha_lobe, alpha_y, wi, wo, half);
+      ASSERT_TRUE(same_float_bits(pg::smooth_lobe_pdf_above(q.alpha_lobe, alpha_y, wi, wo, half), pdf))
+          << "alpha " << q.alpha_lobe << " " << alpha_y;
+      ++compared;
+      if (alpha_y == q.alpha_lobe || !(pdf > pg::kCosineMixture * wo.z * kInvPi)) continue;
+      ++aniso_lobe;
+      control_differs += !same_float_bits(pg::smooth_lobe_pdf_above(alpha_y, q.alpha_lobe, wi, wo, half), pdf);
+    }
   }
   std::printf("[smooth lobe pdf above] %lld pdfs equal; %lld anisotropic with a lobe part, the control (alphas "
               "swapped) differs on %lld\n",
@@ -1180,8 +1186,12 @@ TEST(GlintCoords, PackedLambdasMatchTheScalarForm) {
     }
     // The scalar definition: each Lambda of (x, y, |z|) at its alpha.
     const Vec3 ai(wi.x, wi.y, std::fabs(wi.z));
-    const float ref = mf::ggx_lambda(ai, alpha_lobe, alpha_lobe), got = pg::eval_lambdas(mf::Distribution::GGX, alpha, alpha_lobe, wi, wo).wi_lobe;
-    ASSERT_TRUE(same(ref, got) || (std::isnan(ref) && std::isnan(got)));
+    // The lobe's Lambda is GGX's for either base (the sampling lobe, session 41).
+    const float ref = mf::ggx_lambda(ai, alpha_lobe, alpha_lobe);
+    for (const mf::Distribution dist : {mf::Distribution::GGX, mf::Distribution::Beckmann}) {
+      const float got = pg::eval_lambdas(dist, alpha, alpha_lobe, wi, wo).wi_lobe;
+      ASSERT_TRUE(same(ref, got) || (std::isnan(ref) && std::isnan(got))) << static_cast<int>(dist);
+    }
     const float a2 = mf::alpha2_tan2(ai, alpha, alpha);
     fallback += !(std::fabs(wi.z) > 0.0f) || !(a2 <= 3.4028234664e38f);
     if (std::fabs(wi.z) > 0.0f && std::isfinite(a2)) {

@@ -353,8 +353,8 @@ struct BeckmannSlopeCdf {
 // kCurvatureDone; a step that leaves the bracket, or whose curvature term
 // would dominate (next to x_max, where c -> 0), bisects instead.
 // The iteration for any evaluation of exp(-x^2) (exp_neg(-x * x)) and of C(x)
-// given that exponential (cdf_at(x, e)): the shared sampler's below uses libm,
-// glint's (plugin/tables/glint_beckmann_vndf.h) its own library-free forms.
+// given that exponential (cdf_at(x, e)): the sampler below uses libm's (glint had its own library-free forms
+// until session 41, when its sampling lobe became GGX's).
 template <typename Cdf, typename ExpNeg, typename CdfAt>
 inline double solve_beckmann_slope_by(const Cdf &c, ExpNeg &&exp_neg, CdfAt &&cdf_at, double target, double x, double lo,
                                       double hi) {
