@@ -213,8 +213,8 @@ inline constexpr mf::Distribution kSamplingDistribution = mf::Distribution::GGX;
 // alpha^2 tan^2 not finite) sends all three to the scalar mf::lambda.
 // Beckmann: the first two in AVX lanes (below) or by the scalar mf::lambda.
 struct EvalLambdas {
-  float wi, wo;  // the base distribution at the base alpha
-  float wi_lobe; // GGX (the sampling lobe) at the sampling lobe's alpha
+  float wi, wo;   // the base distribution at the base alpha
+  float wi_lobe;  // GGX (the sampling lobe) at the sampling lobe's alpha
 };
 // Out of line (session 24, glintdark24: the fallback of the lane forms below; with GlintClosure one member larger,
 // GCC inlined a copy into glint.cpp's f_cos_and_pdf, 2225 -> 2464 instructions of code, r0.4 area 1e-4 +12 per eval).
@@ -290,7 +290,8 @@ inline EvalLambdas eval_lambdas(mf::Distribution dist, float alpha, float alpha_
   const __m128 a2 = eval_alpha2_tan2_lanes(alpha, alpha_lobe, wi, wo, z);
   const __m128 regular_z = _mm_cmpgt_ps(z, _mm_setzero_ps());
   const __m128 finite = _mm_cmple_ps(a2, _mm_set1_ps(3.4028234664e38f));  // false for inf and NaN
-  if (_mm_movemask_ps(_mm_and_ps(regular_z, finite)) != 0xf) return eval_lambdas_scalar(dist, alpha, alpha_lobe, wi, wo);
+  if (_mm_movemask_ps(_mm_and_ps(regular_z, finite)) != 0xf)
+    return eval_lambdas_scalar(dist, alpha, alpha_lobe, wi, wo);
   alignas(16) float out[4];
   _mm_store_ps(out, ggx_lambda_lanes(a2));
   return {out[0], out[1], out[2]};
@@ -401,8 +402,8 @@ inline float smooth_lobe_pdf_above(float alpha_wx, float alpha_wy, const Vec3 &w
 // The same with Lambda(wi) at the lobe's alpha given (eval_lambdas; isotropic lobe).
 inline float smooth_lobe_pdf_of(float alpha_w, const Vec3 &wi, const Vec3 &wo, const HalfVector &half,
                                 float lambda_wi) {
-  return smooth_lobe_pdf_with(
-      wi, wo, half, [&](const Vec3 &h) { return lobe_density_of(alpha_w, alpha_w, wi, h, lambda_wi); });
+  return smooth_lobe_pdf_with(wi, wo, half,
+                              [&](const Vec3 &h) { return lobe_density_of(alpha_w, alpha_w, wi, h, lambda_wi); });
 }
 inline float smooth_lobe_pdf(float alpha_wx, float alpha_wy, const Vec3 &wi, const Vec3 &wo) {
   return smooth_lobe_pdf(alpha_wx, alpha_wy, wi, wo, reflection_half_vector(wi, wo));

@@ -958,10 +958,9 @@ TEST(GlintCoords, BeckmannLambdaPolynomialMatchesTheErfcForm) {
 
 // The sampling lobe's density with wi.h / wo.h cancelled (lobe_density =
 // G1 D / (4 wi.z) of GGX, the sampling lobe for every base since session 41) against the former
-// mf::visible_D / (4 wo.h) over random and extreme (wi, wo, alpha): relative difference <= 1e-5 + 2 |wi.h / wo.h - 1| (the second
-// term: the former form's factor, not 1 for float directions near the
-// horizon of h), and finite, non-negative everywhere. Negative control: a density that forgets G1
-// (D / (4 wi.z)) exceeds the bound.
+// mf::visible_D / (4 wo.h) over random and extreme (wi, wo, alpha): relative difference <= 1e-5 + 2 |wi.h / wo.h - 1|
+// (the second term: the former form's factor, not 1 for float directions near the horizon of h), and finite,
+// non-negative everywhere. Negative control: a density that forgets G1 (D / (4 wi.z)) exceeds the bound.
 TEST(GlintCoords, LobeDensityMatchesTheUncancelledForm) {
   namespace mf = microfacet;
   Pcg32 rng(37);
@@ -1105,7 +1104,9 @@ TEST(GlintCoords, LambdasAndPdfMatchTheirDefinitions) {
       const pg::EvalLambdasPdf v = pg::eval_lambdas_and_pdf(dist, q.alpha, q.alpha_lobe, wi, wo, half);
       const pg::EvalLambdas s{mf::lambda(dist, ai, q.alpha, q.alpha), mf::lambda(dist, ao, q.alpha, q.alpha),
                               mf::ggx_lambda(ai, q.alpha_lobe, q.alpha_lobe)};
-      const auto same_or_nan = [](float a, float b) { return same_float_bits(a, b) || (std::isnan(a) && std::isnan(b)); };
+      const auto same_or_nan = [](float a, float b) {
+        return same_float_bits(a, b) || (std::isnan(a) && std::isnan(b));
+      };
       ASSERT_TRUE(same_or_nan(v.lambdas.wi, s.wi) && same_or_nan(v.lambdas.wo, s.wo) &&
                   same_or_nan(v.lambdas.wi_lobe, s.wi_lobe))
           << same_lambdas(q, v.lambdas, s).message() << " dist " << static_cast<int>(dist);
@@ -1115,24 +1116,25 @@ TEST(GlintCoords, LambdasAndPdfMatchTheirDefinitions) {
       ++compared;
       if (dist != mf::Distribution::Beckmann || !(pdf > pg::kCosineMixture * wo.z * kInvPi)) continue;
       ++lobe_pdfs;  // the lobe's part is not 0
-      const float beckmann_lobe = pg::kCosineMixture * wo.z * kInvPi +
-                                  (1.0f - pg::kCosineMixture) * mf::visible_D(dist, wi, half.h, q.alpha_lobe,
-                                                                              q.alpha_lobe) /
-                                      (4.0f * dot(wo, half.h));
+      const float beckmann_lobe =
+          pg::kCosineMixture * wo.z * kInvPi + (1.0f - pg::kCosineMixture) *
+                                                   mf::visible_D(dist, wi, half.h, q.alpha_lobe, q.alpha_lobe) /
+                                                   (4.0f * dot(wo, half.h));
       control_differs += std::fabs(beckmann_lobe - v.pdf) > 1e-3f * v.pdf;
     }
   }
-  std::printf("[lambdas and pdf] %lld (Lambdas, pdf) equal to their definitions; %lld Beckmann-base pdfs with a lobe "
-              "part, the control (Beckmann's visible normals) differs on %lld\n",
-              static_cast<long long>(compared), static_cast<long long>(lobe_pdfs),
-              static_cast<long long>(control_differs));
+  std::printf(
+      "[lambdas and pdf] %lld (Lambdas, pdf) equal to their definitions; %lld Beckmann-base pdfs with a lobe "
+      "part, the control (Beckmann's visible normals) differs on %lld\n",
+      static_cast<long long>(compared), static_cast<long long>(lobe_pdfs), static_cast<long long>(control_differs));
   EXPECT_GT(lobe_pdfs, static_cast<int64_t>(compared) / 20);
   EXPECT_GT(control_differs, lobe_pdfs / 2);
 }
 
 // pg::smooth_lobe_pdf_above (session 37: the dark route's pdf, wi.z / wo.z tested by its caller) equals
-// smooth_lobe_pdf bit for bit wherever both directions are above the surface, isotropic and anisotropic lobes, over the Lambda queries and their reflection half vectors. Negative control: the lobe density at
-// swapped alphas (alpha_wy, alpha_wx) differs on most anisotropic queries with a lobe part.
+// smooth_lobe_pdf bit for bit wherever both directions are above the surface, isotropic and anisotropic lobes, over the
+// Lambda queries and their reflection half vectors. Negative control: the lobe density at swapped alphas (alpha_wy,
+// alpha_wx) differs on most anisotropic queries with a lobe part.
 TEST(GlintCoords, SmoothLobePdfAboveMatchesSmoothLobePdf) {
   namespace mf = microfacet;
   Pcg32 rng(53);
