@@ -133,6 +133,9 @@ class ShaderGraph:
         self.uses_generated = False  # a texture reads generated coordinates: meshes go in object space
         self.uv_maps = set()  # UV maps named by UV Map / Normal Map / Tangent nodes (a mesh has one UV map)
         self.uv_glints = set()  # Glint nodes whose flakes live in uv space (placement uv)
+        # The artist's node groups being read, outermost first: a group is flattened, its nodes translated as if
+        # they stood in the material's tree (group_path keys them apart from nodes of the same name outside).
+        self.groups = []
 
     # -- helpers -------------------------------------------------------------
     def warn(self, key, message):
@@ -170,29 +173,87 @@ class ShaderGraph:
         el.set(attribute, fmt(value))
 
     def source_of(self, sock):
-        """(xml node, xml socket) feeding a Blender input socket, or None when unlinked/unsupported."""
+        """(xml node, xml socket) feeding a Blender input socket, or None when unlinked/unsupported (the socket's
+        own value applies). Through the artist's node groups: a group input left unlinked outside the group, or a
+        group output left unlinked inside, becomes a constant node of that socket's value."""
         self.read_inputs.add((sock.node.name, sock.identifier))
-        if not sock.is_linked:
-            return None
-        link = sock.links[0]
-        if not link.is_valid or getattr(link, "is_muted", False):
-            return None
-        node, out = link.from_node, link.from_socket
-        while node.bl_idname == "NodeReroute":
-            inp = node.inputs[0]
-            if not inp.is_linked:
-                return None
-            link = inp.links[0]
-            node, out = link.from_node, link.from_socket
-        if node.mute:
-            # A muted node passes its first matching input through (Blender's internal links).
-            for internal in node.internal_links:
-                if internal.to_socket == out:
-                    return self.source_of(internal.from_socket)
-            return None
-        key = (node.name, out.identifier)
+        node, out, groups = self.upstream(sock)
+        if node is None:
+            return None if out is None or out.type == "SHADER" else self.constant(out, groups)
+        key = (tuple(g.name for g in groups), node.name, out.identifier)
         if key not in self.exported:
-            self.exported[key] = self.translate(node, out)
+            outer, self.groups = self.groups, groups
+            try:
+                self.exported[key] = self.translate(node, out)
+            finally:
+                self.groups = outer
+        return self.exported[key]
+
+    def upstream(self, sock):
+        """What feeds input `sock` (in the current group context): (node, its output socket, the group stack at
+        that node) for the node that computes it; (None, a group socket, stack) when the value is that group
+        socket's own (an unlinked input of the group node, an unlinked output inside the group); (None, None,
+        stack) when the socket's own value applies. Follows reroutes, muted nodes (their internal links) and group
+        boundaries; muted and invalid links count as no link (a chain ending unlinked after a group socket takes
+        that socket's value, as in Blender)."""
+        groups = list(self.groups)
+        value_sock = None  # a group socket crossed last: its value applies where the chain ends unlinked
+        while True:
+            link = sock.links[0] if sock.is_linked else None
+            if link is None or not link.is_valid or getattr(link, "is_muted", False):
+                return None, value_sock, groups
+            node, out = link.from_node, link.from_socket
+            if node.bl_idname == "NodeReroute":
+                sock = node.inputs[0]
+                continue
+            if node.mute:  # a muted node passes its first matching input through (Blender's internal links)
+                internal = next((i for i in node.internal_links if i.to_socket == out), None)
+                if internal is None:
+                    return None, None, groups
+                sock, value_sock = internal.from_socket, None
+                continue
+            if node.bl_idname == "NodeGroupInput":  # inside a group: the group node's input of that identifier
+                outer = next((s for s in groups[-1].inputs if s.identifier == out.identifier), None) if groups \
+                    else None
+                if outer is None:
+                    return None, None, groups
+                groups.pop()
+                sock = value_sock = outer
+                continue
+            if node.bl_idname == "ShaderNodeGroup" and node.node_tree is not None:  # into the group
+                inner = self.group_output_socket(node, out)
+                if inner is None:
+                    return None, None, groups
+                groups.append(node)
+                sock = value_sock = inner
+                continue
+            return node, out, groups
+
+    def group_output_socket(self, group, out):
+        """The input of the group's active Group Output node that feeds the group node's output `out`."""
+        outputs = [n for n in group.node_tree.nodes if n.bl_idname == "NodeGroupOutput"]
+        node = next((n for n in outputs if n.is_active_output), outputs[0] if outputs else None)
+        if node is None:
+            self.warn((group.name, "no output"), "node group '%s' has no Group Output node: its outputs are "
+                      "unlinked" % group.name)
+            return None
+        return next((s for s in node.inputs if s.identifier == out.identifier), None)
+
+    def constant(self, sock, groups):
+        """A constant node holding a group socket's value (float, colour or vector), or None for other types."""
+        key = ("constant", tuple(g.name for g in groups), sock.node.name, sock.is_output, sock.identifier)
+        if key not in self.exported:
+            name = "%s_%s" % (sock.node.name, sock.name)
+            value = _value(sock)
+            if sock.type in ("VALUE", "INT", "BOOLEAN"):
+                self.exported[key] = (self.add("value", name, value=float(value)).get("name"), "value")
+            elif sock.type == "RGBA":
+                self.exported[key] = (self.add("color", name, value=value).get("name"), "color")
+            elif sock.type == "VECTOR":
+                el = self.add("combine_xyz", name, x=value[0], y=value[1], z=value[2])
+                self.exported[key] = (el.get("name"), "vector")
+            else:
+                self.exported[key] = None
         return self.exported[key]
 
     # -- node translation ------------------------------------------------------
@@ -478,31 +539,35 @@ class ShaderGraph:
                 sock = node.inputs.get(schema_mod.socket_name(param["name"]))
                 if sock is None:
                     continue
-                if not param.get("varying", True) and param["name"] != "color" and self.constant_only(node, sock):
-                    source = None  # the host ignores the link and the value; the socket's own value is used
+                value_sock = sock
+                if not param.get("varying", True) and param["name"] != "color":
+                    # The host takes one value: a group socket's value passes, a texture is warned and the
+                    # socket's own value is used.
+                    source, value_sock = None, self.constant_socket(node, sock)
                 else:
                     source = self.source_of(sock)
                 if source is not None:
                     self.connect(source, el.get("name"), param["name"])
                 else:
-                    el.set(param["name"], fmt(self.schema_value(node, sock, param)))
+                    el.set(param["name"], fmt(self.schema_value(node, value_sock, param)))
             else:
                 el.set(param["name"], fmt(values[param["name"]]) if param["type"] == "bool"
                        else str(values[param["name"]]))
         return (el.get("name"), "bsdf")
 
-    def constant_only(self, node, sock):
-        """A link into a parameter the closure takes as one constant (not varying in the schema; the colour's link
-        is the weight instead): warned with the texture's name. True when there was a live link."""
+    def constant_socket(self, node, sock):
+        """The socket whose value a parameter the closure takes as one constant gets (not varying in the schema;
+        the colour's link is the weight instead): `sock` itself, or the group socket a link through the artist's
+        node groups ends at. A link from a node (a texture) is warned with that node's name; `sock`'s value."""
         self.read_inputs.add((node.name, sock.identifier))
-        link = sock.links[0] if sock.is_linked else None
-        if link is None or not link.is_valid or getattr(link, "is_muted", False):
-            return False
+        source, value_sock, _ = self.upstream(sock)
+        if source is None:
+            return value_sock or sock
         self.warn((node.name, "constant", sock.identifier),
                   "node '%s': %s cannot be textured (the closure takes one value per material): the link from '%s' "
-                  "is ignored and the socket's own value %s is used" % (node.name, sock.name, link.from_node.name,
+                  "is ignored and the socket's own value %s is used" % (node.name, sock.name, source.name,
                                                                         fmt(_value(sock))))
-        return True
+        return sock
 
     def schema_value(self, node, sock, param):
         """An unlinked socket's value clamped to the closure's range: Blender's group sockets limit only dragging
@@ -572,7 +637,8 @@ class ShaderGraph:
         return (el.get("name"), "background")
 
     def group_node(self, node, out):
-        self.warn(node.name, "node group '%s' is not supported (only Glimmer's own groups are): %s"
+        """A group node without a node tree (its data-block missing): upstream() flattens every other group."""
+        self.warn(node.name, "node group '%s' has no node tree: %s"
                   % (node.name, "rendered as a diffuse BSDF" if out.type == "SHADER" else
                      "the input it feeds keeps its own value"))
         return self.unsupported_quiet(node, out)
