@@ -265,6 +265,7 @@ int render_one(CliContext &ctx, const RenderArgs &a, const std::string &scene_pa
   if (complete) std::filesystem::remove(checkpoint, ignored);  // the finished image supersedes it
   if (result.nan_samples > 0)
     host::log_warning(std::to_string(result.nan_samples) + " non-finite sample contributions were dropped");
+  for (const auto &w : result.warnings) std::fprintf(stderr, "%s\n", w.c_str());
   if (a.stats) {
     const auto &f = renderer->features();
     auto join = [](const std::set<std::string> &s) {

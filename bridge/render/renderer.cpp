@@ -1258,6 +1258,7 @@ RenderResult Renderer::render(const std::function<void(int, int)> &progress, con
   const int x0 = part.window[0], y0 = part.window[1], x1 = part.window[2], y1 = part.window[3];
   const int tile = std::max(1, im.options.tile_size);
   std::atomic<uint64_t> nan_total{0};
+  im.shaders->reset_clamped_parameter_counts();  // this render's own (a Renderer may render again)
   // Passes of `batch` samples per pixel (the first pass one sample, for the first display): one parallel loop
   // per batch instead of per sample, so small images do not wait at a barrier 256 times. Each pixel still adds
   // its samples in sample order, so the image is the same for any batch.
@@ -1292,6 +1293,7 @@ RenderResult Renderer::render(const std::function<void(int, int)> &progress, con
   }
   res.samples_done = film.passes();
   res.nan_samples = nan_total.load();
+  res.warnings = im.shaders->clamped_parameter_warnings();
   res.paths = paths.load();
   film.resolve(im.scene.film.exposure, res);
   res.render_seconds = seconds_since(t0);

@@ -74,6 +74,9 @@ struct RenderResult {
   std::vector<float> depth;      // Z (camera-space depth of the first hit, 1e10 for background)
   double render_seconds = 0.0;
   uint64_t paths = 0;            // pixels x samples traced
+  // "file:line: warning: ..." found while rendering: textured parameters whose values fell outside their range
+  // (the closures clamped them; ShaderSystem::clamped_parameter_warnings).
+  std::vector<std::string> warnings;
 };
 
 struct PhaseTimes {

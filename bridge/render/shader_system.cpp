@@ -1,6 +1,7 @@
 #include "render/shader_system.h"
 
 #include <algorithm>
+#include <cstdio>
 #include <filesystem>
 #include <functional>
 
@@ -223,6 +224,17 @@ bool ShaderSystem::bind_varying(ClosureLeaf &leaf, const ShaderGraph &g, const S
   if (!v.input.varies()) return false;  // read_input warned: an unsupported source node
   v.param = host::param_index(*leaf.type, *spec);
   v.color = spec->type == GLIMMER_PARAM_COLOR || spec->type == GLIMMER_PARAM_VECTOR;
+  if (spec->type != GLIMMER_PARAM_VECTOR) {  // a vector (a direction) has no range to clamp to
+    v.min_value = spec->min_value;
+    v.max_value = spec->max_value;
+    auto count = std::make_unique<ClampedParameterCount>();
+    count->where = link->where;
+    count->what = "<" + n.type + "> '" + n.name + "' parameter '" + param + "'";
+    count->min_value = spec->min_value;
+    count->max_value = spec->max_value;
+    v.clamped = count.get();
+    clamped_.push_back(std::move(count));
+  }
   if (param == "roughness") leaf.varying_roughness = static_cast<int>(leaf.varying.size());
   leaf.varying.push_back(v);
   return true;
@@ -823,6 +835,9 @@ void ShaderSystem::evaluate(int compiled, const TexCoords &tc, ClosureSet &out) 
         value.value[0] = v.color || (x.x == x.y && x.y == x.z) ? x.x : luminance(x);
         value.value[1] = v.color ? x.y : 0.0f;
         value.value[2] = v.color ? x.z : 0.0f;
+        if (v.clamped)
+          for (int c = 0; c < (v.color ? 3 : 1); ++c)
+            if (value.value[c] < v.min_value || value.value[c] > v.max_value) v.clamped->record(value.value[c]);
       }
       if (leaf.frame.active) shading_frame(leaf, tc, active);
       out.add(active);
@@ -882,6 +897,51 @@ void ShaderSystem::apply_filter_glossy(ClosureSet &cs, int k) {
       r = std::max(r, blur_roughness);
     }
   }
+}
+
+void ClampedParameterCount::record(float v) {
+  if (v < min_value) {
+    below.fetch_add(1, std::memory_order_relaxed);
+    float cur = lowest.load(std::memory_order_relaxed);
+    while (v < cur && !lowest.compare_exchange_weak(cur, v, std::memory_order_relaxed)) {
+    }
+  } else {
+    above.fetch_add(1, std::memory_order_relaxed);
+    float cur = highest.load(std::memory_order_relaxed);
+    while (v > cur && !highest.compare_exchange_weak(cur, v, std::memory_order_relaxed)) {
+    }
+  }
+}
+
+void ClampedParameterCount::reset() {
+  below = 0;
+  above = 0;
+  lowest = std::numeric_limits<float>::infinity();
+  highest = -std::numeric_limits<float>::infinity();
+}
+
+std::vector<std::string> ShaderSystem::clamped_parameter_warnings() const {
+  auto g = [](double x) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%g", x);
+    return std::string(buf);
+  };
+  std::vector<std::string> out;
+  for (const auto &c : clamped_) {
+    const std::string head = c->where.str() + ": warning: " + c->what + ": ";
+    const std::string range = " (its range is [" + g(c->min_value) + ", " + g(c->max_value) + "])";
+    if (const uint64_t n = c->below.load())
+      out.push_back(head + std::to_string(n) + " textured values below the minimum, down to " + g(c->lowest.load()) +
+                    ", were clamped to " + g(c->min_value) + range);
+    if (const uint64_t n = c->above.load())
+      out.push_back(head + std::to_string(n) + " textured values above the maximum, up to " + g(c->highest.load()) +
+                    ", were clamped to " + g(c->max_value) + range);
+  }
+  return out;
+}
+
+void ShaderSystem::reset_clamped_parameter_counts() {
+  for (auto &c : clamped_) c->reset();
 }
 
 }  // namespace glimmer::render

@@ -4,6 +4,8 @@
 // unused closures are never created and unused images never loaded.
 #pragma once
 
+#include <atomic>
+#include <limits>
 #include <map>
 #include <memory>
 #include <new>
@@ -53,6 +55,22 @@ struct TextureNode {
 // Builtin host-side closures (not in the DSO).
 enum class BuiltinClosure { None, Transparent };
 
+// The values of one textured (varying) parameter that fell outside the parameter's range while rendering. The
+// closure clamps each to the range (plugin/core/closure.h, param_float), which the image does not show: a noise
+// texture in [0, 1] linked into a glint density (range [1, 1e12]) renders as density 1 everywhere. The render
+// reports them (ShaderSystem::clamped_parameter_warnings) at the link's file:line.
+struct ClampedParameterCount {
+  scene::SourceLocation where;  // the <connect> into the parameter
+  std::string what;             // "<glint_bsdf> 'g' parameter 'density'"
+  float min_value = 0.0f, max_value = 0.0f;
+  std::atomic<uint64_t> below{0}, above{0};
+  std::atomic<float> lowest{std::numeric_limits<float>::infinity()};
+  std::atomic<float> highest{-std::numeric_limits<float>::infinity()};
+  // v outside [min_value, max_value] (the caller tested it; NaN is never counted: the closure keeps its constant).
+  void record(float v);
+  void reset();
+};
+
 struct ClosureLeaf {
   const GlimmerClosureType *type = nullptr;  // DSO closure (nullptr for builtins)
   const host::ClosureInstance *instance = nullptr;
@@ -72,6 +90,8 @@ struct ClosureLeaf {
     uint32_t param = 0;  // index in the closure's schema
     Input input;
     bool color = false;  // COLOR/VECTOR parameter (else one float: the input's luminance)
+    float min_value = -std::numeric_limits<float>::infinity(), max_value = std::numeric_limits<float>::infinity();
+    ClampedParameterCount *clamped = nullptr;  // counts the values outside [min_value, max_value]
   };
   static constexpr int kMaxVarying = 4;
   std::vector<VaryingInput> varying;
@@ -192,6 +212,11 @@ class ShaderSystem {
   void shading_frame(const ClosureLeaf &leaf, const TexCoords &tc, ActiveClosure &out) const;
   Spectrum eval_input(const Input &in, const TexCoords &tc) const;
 
+  // "file:line: warning: ..." for each textured parameter whose values fell outside its range in the renders
+  // since reset_clamped_parameter_counts() (the closures clamp them), with how many and the extreme value.
+  std::vector<std::string> clamped_parameter_warnings() const;
+  void reset_clamped_parameter_counts();
+
   // filter_glossy: blur level k (1..ClosureLeaf::kBlurLevels) raises every glossy
   // closure to alpha >= k * kBlurStep (a precomputed variant, or the varying roughness).
   static void apply_filter_glossy(ClosureSet &cs, int k);
@@ -212,6 +237,7 @@ class ShaderSystem {
   std::vector<nodes::NodeProgram> programs_;
   std::vector<Input> program_externals_;  // textures outside the node table that programs read
   std::vector<std::unique_ptr<scene::ShaderGraph>> expanded_graphs_;  // composites (principled_bsdf) expanded
+  std::vector<std::unique_ptr<ClampedParameterCount>> clamped_;       // one per bound varying parameter
 
   struct BackgroundShader {
     bool active = false;

@@ -162,6 +162,54 @@ TEST(VaryingParams, CheckerDensityOnGlintMatchesConstantRenders) {
       "density", "30000", "3000000");
 }
 
+// A textured value outside the parameter's range is clamped by the closure at each shading point (core/closure.h);
+// the render reports how many, the extreme value and the range at the <connect>'s file:line (session 41: a noise in
+// [0, 1] into a glint density, range [1, 1e12], rendered as density 1 without a word). Below the minimum (glint
+// density 0.2 / 0.7) and above the maximum (glossy roughness 1.5 / 0.5: only the 1.5 cells). Negative controls: the
+// same checkers with values in the range report nothing, and a second render of the same Renderer reports its own
+// count, not the sum of both.
+TEST(VaryingParams, TexturedValuesOutsideTheRangeAreReported) {
+  struct Case {
+    const char *closure, *socket, *colors, *expected;  // expected: a regex of the report, "" for none
+  };
+  const Case cases[] = {
+      {"<glint_bsdf name=\"g\" roughness=\"0.5\" />", "density", "color1=\"0.2 0.2 0.2\" color2=\"0.7 0.7 0.7\"",
+       ".*:11: warning: <glint_bsdf> 'g' parameter 'density': [0-9]+ textured values below the minimum, down to 0.2, "
+       "were clamped to 1 \\(its range is \\[1, 1e\\+12\\]\\)"},
+      {"<glint_bsdf name=\"g\" roughness=\"0.5\" />", "density",
+       "color1=\"30000 30000 30000\" color2=\"3000000 3000000 3000000\"", ""},
+      {"<glossy_bsdf name=\"g\" distribution=\"ggx\" />", "roughness", "color1=\"1.5 1.5 1.5\" color2=\"0.5 0.5 0.5\"",
+       ".*:11: warning: <glossy_bsdf> 'g' parameter 'roughness': [0-9]+ textured values above the maximum, up to 1.5, "
+       "were clamped to 1 \\(its range is \\[0, 1\\]\\)"},
+      {"<glossy_bsdf name=\"g\" distribution=\"ggx\" />", "roughness", "color1=\"0.9 0.9 0.9\" color2=\"0.1 0.1 0.1\"",
+       ""},
+  };
+  int index = 0;
+  for (const Case &c : cases) {
+    const std::string name = "clamped_" + std::to_string(index++) + ".xml";
+    const std::string path =
+        quad_scene(name, std::string(c.closure) + "\n<connect from=\"c color\" to=\"g " + c.socket + "\" />", c.colors);
+    const scene::Scene scene = scene::load_scene(path);
+    render::RenderOptions opt;
+    opt.samples = 4;
+    render::Renderer renderer(scene, plugin(), opt);
+    const render::RenderResult first = renderer.render(), second = renderer.render();
+    for (const auto &w : first.warnings) std::printf("[clamped] %s\n", w.c_str());
+    if (*c.expected == '\0') {
+      EXPECT_TRUE(first.warnings.empty()) << name << ": " << first.warnings.front();
+      continue;
+    }
+    ASSERT_EQ(first.warnings.size(), 1u) << name;
+    EXPECT_TRUE(std::regex_match(first.warnings[0], std::regex(c.expected))) << first.warnings[0];
+    // The count is the render's own: the same samples again give the same line.
+    ASSERT_EQ(second.warnings.size(), 1u);
+    EXPECT_EQ(second.warnings[0], first.warnings[0]);
+    const long count = std::stol(std::regex_replace(first.warnings[0], std::regex(".*': ([0-9]+) textured.*"), "$1"));
+    EXPECT_GT(count, 0);
+    EXPECT_LE(count, 4L * kSize * kSize * 8) << "at most a few shading points per sample";
+  }
+}
+
 // Every linked socket the host cannot honour renders with its constant and
 // warns at the <connect> line.
 TEST(VaryingParams, UnsupportedLinksWarnWithFileAndLine) {
