@@ -8,6 +8,8 @@ nodes was exported as a grey diffuse BSDF with a warning, so a Glint node inside
   each exported once per use, with its own values.
 - A texture inside the group linked into a constant-only parameter is still reported, naming the texture.
 - The exported scene renders with glimmer (the constant nodes are valid scene XML).
+- A texture reaching a constant-only parameter through a Reroute is reported by the texture's name (the session-40
+  audit found the Reroute named instead).
 - Negative control: the session-40 behaviour (groups not flattened) would export no glint_bsdf at all and warn
   "not supported" (checked by the absence of any diffuse fallback and of that warning).
 """
@@ -172,5 +174,16 @@ constant = [r for r in reports if "cannot be textured" in r]
 print("constant-only reports:", constant)
 check(any("Wave Inside" in r for r in constant), "the wave texture linked into Roughness inside the group must be "
       "reported by name: %s" % reports)
+
+# -- through a Reroute, the report names the texture, not the Reroute (the session-40 audit's finding) -------------
+flakes.links.remove(next(l for l in flakes.links if l.to_node.name == "Glint" and l.to_socket.name == "Roughness"))
+reroute = flakes.nodes.new("NodeReroute")
+flakes.links.new(wave.outputs["Fac"], reroute.inputs[0])
+flakes.links.new(reroute.outputs[0], flakes.nodes["Glint"].inputs["Roughness"])
+root, reports = export("constant_through_reroute")
+constant = [r for r in reports if "cannot be textured" in r]
+print("constant-only reports through a reroute:", constant)
+check(constant and all("Wave Inside" in r and "Reroute" not in r for r in constant),
+      "the report must name the wave texture behind the Reroute: %s" % constant)
 
 print("node groups: OK")
