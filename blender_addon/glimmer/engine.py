@@ -1,5 +1,6 @@
 """The Glimmer RenderEngine: export, run `glimmer render`, load the EXR."""
 import os
+import re
 import shutil
 import struct
 import subprocess
@@ -305,9 +306,11 @@ class GlimmerRenderEngine(bpy.types.RenderEngine):
         return self.test_break()
 
     def report_once(self, kind, message):
-        """self.report, once per render job (an animation's frames repeat the same warnings)."""
-        if message not in _reported:
-            _reported.add(message)
+        """self.report, once per render job (an animation's frames repeat the same warnings; a parameter clamped
+        to its range is one warning whatever each frame's count and extreme value)."""
+        key = re.sub(r"(parameter '[^']*'): [0-9]+ shading points had .*", r"\1: clamped", message)
+        if key not in _reported:
+            _reported.add(key)
             self.send_report(kind, message)
 
     def send_report(self, kind, message):

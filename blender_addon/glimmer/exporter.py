@@ -119,6 +119,17 @@ def _value(sock, default=0.0):
     return value
 
 
+def _scalar(sock, default=0.0):
+    """A socket's value as a float socket reads it (Blender's implicit conversions, as the renderer's: a colour's
+    luminance, Rec. 709 weights; a vector's mean)."""
+    value = _value(sock, default)
+    if not isinstance(value, tuple):
+        return value
+    if sock.type == "RGBA":
+        return 0.2126 * value[0] + 0.7152 * value[1] + 0.0722 * value[2]
+    return sum(value) / len(value)
+
+
 class ShaderGraph:
     """Translates one Blender node tree into the children of an XML <shader>/<background>."""
 
@@ -127,17 +138,23 @@ class ShaderGraph:
         self.element = element
         self.owner = owner
         self.names = UniqueNames()
-        self.exported = {}  # (node name, output identifier) -> (xml node, xml socket) or None
+        self.exported = {}  # (group path, node name, output identifier) -> (xml node, xml socket) or None
         self.warned = set()
-        self.read_inputs = set()  # (node name, input identifier) the translators looked at
+        self.read_inputs = set()  # (group path, node name, input identifier) the translators looked at (mark_read)
         self.uses_generated = False  # a texture reads generated coordinates: meshes go in object space
         self.uv_maps = set()  # UV maps named by UV Map / Normal Map / Tangent nodes (a mesh has one UV map)
         self.uv_glints = set()  # Glint nodes whose flakes live in uv space (placement uv)
         # The artist's node groups being read, outermost first: a group is flattened, its nodes translated as if
-        # they stood in the material's tree (group_path keys them apart from nodes of the same name outside).
+        # they stood in the material's tree (group_path() keys them apart from nodes of the same name outside).
         self.groups = []
 
     # -- helpers -------------------------------------------------------------
+    def group_path(self):
+        return tuple(g.name for g in self.groups)
+
+    def mark_read(self, node, sock):
+        self.read_inputs.add((self.group_path(), node.name, sock.identifier))
+
     def warn(self, key, message):
         if key not in self.warned:
             self.warned.add(key)
@@ -176,7 +193,7 @@ class ShaderGraph:
         """(xml node, xml socket) feeding a Blender input socket, or None when unlinked/unsupported (the socket's
         own value applies). Through the artist's node groups: a group input left unlinked outside the group, or a
         group output left unlinked inside, becomes a constant node of that socket's value."""
-        self.read_inputs.add((sock.node.name, sock.identifier))
+        self.mark_read(sock.node, sock)
         node, out, groups = self.upstream(sock)
         if node is None:
             return None if out is None or out.type == "SHADER" else self.constant(out, groups)
@@ -198,10 +215,13 @@ class ShaderGraph:
         that socket's value, as in Blender)."""
         groups = list(self.groups)
         value_sock = None  # a group socket crossed last: its value applies where the chain ends unlinked
+        hidden = False  # the socket fed by the last Group Input crossed hides its value (a texture's Vector, Normal)
         while True:
             link = sock.links[0] if sock.is_linked else None
             if link is None or not link.is_valid or getattr(link, "is_muted", False):
-                return None, value_sock, groups
+                # Blender unlinks a hidden-value socket from a Group Input whose group socket is unlinked
+                # (ntree_shader_unlink_hidden_value_sockets): it then reads the shading point, not the value.
+                return None, None if hidden else value_sock, groups
             node, out = link.from_node, link.from_socket
             if node.bl_idname == "NodeReroute":
                 sock = node.inputs[0]
@@ -218,6 +238,7 @@ class ShaderGraph:
                 if outer is None:
                     return None, None, groups
                 groups.pop()
+                hidden = bool(getattr(sock, "hide_value", False))
                 sock = value_sock = outer
                 continue
             if node.bl_idname == "ShaderNodeGroup" and node.node_tree is not None:  # into the group
@@ -226,6 +247,7 @@ class ShaderGraph:
                     return None, None, groups
                 groups.append(node)
                 sock = value_sock = inner
+                hidden = False
                 continue
             return node, out, groups
 
@@ -270,9 +292,13 @@ class ShaderGraph:
     def warn_unread_links(self, node):
         """Linked inputs of a translated node that no translator read (Normal <- Bump/Normal Map, Tangent, ...)."""
         for sock in node.inputs:
-            if not sock.is_linked or not sock.enabled or (node.name, sock.identifier) in self.read_inputs:
+            if not sock.is_linked or not sock.enabled or (self.group_path(), node.name, sock.identifier) in \
+                    self.read_inputs:
                 continue
-            source = sock.links[0].from_node
+            source, value_sock, _ = self.upstream(sock)
+            if source is None and value_sock is None:  # a muted link, an unlinked reroute or hidden group socket
+                continue
+            source = source or value_sock.node
             self.warn((node.name, "unread", sock.identifier),
                       "input '%s' of node '%s' is linked to '%s' (%s), which is not exported: the node renders "
                       "with that input unlinked" % (sock.name, node.name, source.name, source.bl_idname))
@@ -283,8 +309,9 @@ class ShaderGraph:
             sock = _input(node, *names)
             if sock is None:
                 continue
-            self.read_inputs.add((node.name, sock.identifier))
-            if sock.is_linked or abs(float(_value(sock, idle)) - idle) > 1e-6:
+            self.mark_read(node, sock)
+            source, value_sock, _ = self.upstream(sock)
+            if source is not None or abs(float(_scalar(value_sock or sock, idle)) - idle) > 1e-6:
                 self.warn((node.name, label), "node '%s': %s is not supported and is ignored" % (node.name, label))
 
     def unsupported(self, node, out):
@@ -325,7 +352,8 @@ class ShaderGraph:
         anisotropy = node.inputs.get("Anisotropy")
         if anisotropy is not None:
             self.set_input(el, "anisotropy", anisotropy)
-            if anisotropy.is_linked or abs(anisotropy.default_value) > 1e-6:
+            source, value_sock, _ = self.upstream(anisotropy)
+            if source is not None or abs(float(_scalar(value_sock or anisotropy))) > 1e-6:
                 self.uses_generated = True  # the radial default tangent reads generated coordinates
         if node.inputs.get("Rotation") is not None:
             self.set_input(el, "rotation", node.inputs["Rotation"])
@@ -398,18 +426,19 @@ class ShaderGraph:
         vector = node.inputs.get("Vector")
         if vector is None:
             return None
-        self.read_inputs.add((node.name, vector.identifier))
-        if not vector.is_linked:
+        self.mark_read(node, vector)
+        src, out, groups = self.upstream(vector)
+        if src is None:  # unlinked (a hidden Vector takes no group socket's value: upstream)
             self.uses_generated |= generated_by_default
             return None
-        src, socket = vector.links[0].from_node, vector.links[0].from_socket.name
+        socket = out.name
         if src.bl_idname == "ShaderNodeUVMap" or (src.bl_idname == "ShaderNodeTexCoord" and socket == "UV"):
             if getattr(src, "uv_map", ""):
                 self.uv_maps.add(src.uv_map)
             return None
         if src.bl_idname == "ShaderNodeTexCoord" and socket == "Generated":
             self.uses_generated = True
-            key = (src.name, "generated")
+            key = (tuple(g.name for g in groups), src.name, "generated")
             if key not in self.exported:
                 el = self.add("texture_coordinate", src.name)
                 self.exported[key] = (el.get("name"), "generated")
@@ -559,7 +588,7 @@ class ShaderGraph:
         """The socket whose value a parameter the closure takes as one constant gets (not varying in the schema;
         the colour's link is the weight instead): `sock` itself, or the group socket a link through the artist's
         node groups ends at. A link from a node (a texture) is warned with that node's name; `sock`'s value."""
-        self.read_inputs.add((node.name, sock.identifier))
+        self.mark_read(node, sock)
         source, value_sock, _ = self.upstream(sock)
         if source is None:
             return value_sock or sock
@@ -572,7 +601,9 @@ class ShaderGraph:
     def schema_value(self, node, sock, param):
         """An unlinked socket's value clamped to the closure's range: Blender's group sockets limit only dragging
         (typing 0 into Density works), and the renderer refuses the whole scene for a value outside the range."""
-        value = _value(sock)
+        value = _scalar(sock) if param["type"] in ("float", "int") else _value(sock)
+        if param["type"] == "color" and not isinstance(value, tuple):  # a float socket read as a grey
+            value = (value, value, value)
         lo, hi = param.get("min"), param.get("max")
         if lo is None and hi is None:
             return value
@@ -619,9 +650,9 @@ class ShaderGraph:
             if not sock.enabled:
                 continue
             name = sockets.get(sock.identifier, sock.name.lower().replace(" ", "_"))
-            if not sock.is_linked and getattr(sock, "hide_value", False):
+            if getattr(sock, "hide_value", False) and self.upstream(sock)[0] is None:
                 # An unlinked coordinate/normal input reads the shading point (not its hidden value).
-                self.read_inputs.add((node.name, sock.identifier))
+                self.mark_read(node, sock)
                 if name == "vector" and node.bl_idname.startswith("ShaderNodeTex"):
                     self.uses_generated = True
                 continue
@@ -644,7 +675,8 @@ class ShaderGraph:
         return self.unsupported_quiet(node, out)
 
     def unsupported_quiet(self, node, out):
-        self.read_inputs.update((node.name, sock.identifier) for sock in node.inputs)  # already warned
+        for sock in node.inputs:  # already warned
+            self.mark_read(node, sock)
         if out.type == "SHADER":
             el = self.add("diffuse_bsdf", node.name + "_fallback", color=(0.8, 0.8, 0.8))
             return (el.get("name"), "bsdf")

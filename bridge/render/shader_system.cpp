@@ -1,9 +1,11 @@
 #include "render/shader_system.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <functional>
+#include <thread>
 
 #include "render/nodes/shading_normal.h"
 #include "render/displacement_bump.h"
@@ -224,20 +226,30 @@ bool ShaderSystem::bind_varying(ClosureLeaf &leaf, const ShaderGraph &g, const S
   if (!v.input.varies()) return false;  // read_input warned: an unsupported source node
   v.param = host::param_index(*leaf.type, *spec);
   v.color = spec->type == GLIMMER_PARAM_COLOR || spec->type == GLIMMER_PARAM_VECTOR;
-  if (spec->type != GLIMMER_PARAM_VECTOR) {  // a vector (a direction) has no range to clamp to
-    v.min_value = spec->min_value;
-    v.max_value = spec->max_value;
-    auto count = std::make_unique<ClampedParameterCount>();
-    count->where = link->where;
-    count->what = "<" + n.type + "> '" + n.name + "' parameter '" + param + "'";
-    count->min_value = spec->min_value;
-    count->max_value = spec->max_value;
-    v.clamped = count.get();
-    clamped_.push_back(std::move(count));
-  }
+  if (spec->type != GLIMMER_PARAM_VECTOR) v.clamped = clamped_count(g, n, *link, param, *spec);
   if (param == "roughness") leaf.varying_roughness = static_cast<int>(leaf.varying.size());
   leaf.varying.push_back(v);
   return true;
+}
+
+ClampedParameterCount *ShaderSystem::clamped_count(const ShaderGraph &g, const ShaderNode &n,
+                                                  const scene::ShaderLink &link, const std::string &param,
+                                                  const GlimmerParamSpec &spec) {
+  // A composite's part (principled_bsdf's "pb__diffuse", "pb__specular": one link into several closures) is
+  // reported as the artist's node, once: the first part bound counts, the others read the same texture value.
+  const ShaderNode *owner = &n;
+  if (const size_t cut = n.name.rfind("__"); cut != std::string::npos)
+    if (const ShaderNode *o = g.find(n.name.substr(0, cut))) owner = o;
+  const std::string what = "<" + owner->type + "> '" + owner->name + "' parameter '" + param + "'";
+  for (const auto &c : clamped_)
+    if (c->where.str() == link.where.str() && c->what == what) return nullptr;
+  auto count = std::make_unique<ClampedParameterCount>();
+  count->where = link.where;
+  count->what = what;
+  count->min_value = spec.min_value;
+  count->max_value = spec.max_value;
+  clamped_.push_back(std::move(count));
+  return clamped_.back().get();
 }
 
 void ShaderSystem::warn_unsupported_links(const ShaderGraph &g, const ShaderNode &n,
@@ -835,9 +847,7 @@ void ShaderSystem::evaluate(int compiled, const TexCoords &tc, ClosureSet &out) 
         value.value[0] = v.color || (x.x == x.y && x.y == x.z) ? x.x : luminance(x);
         value.value[1] = v.color ? x.y : 0.0f;
         value.value[2] = v.color ? x.z : 0.0f;
-        if (v.clamped)
-          for (int c = 0; c < (v.color ? 3 : 1); ++c)
-            if (value.value[c] < v.min_value || value.value[c] > v.max_value) v.clamped->record(value.value[c]);
+        if (v.clamped) v.clamped->record(value.value, v.color ? 3 : 1);
       }
       if (leaf.frame.active) shading_frame(leaf, tc, active);
       out.add(active);
@@ -899,25 +909,46 @@ void ShaderSystem::apply_filter_glossy(ClosureSet &cs, int k) {
   }
 }
 
-void ClampedParameterCount::record(float v) {
-  if (v < min_value) {
-    below.fetch_add(1, std::memory_order_relaxed);
-    float cur = lowest.load(std::memory_order_relaxed);
-    while (v < cur && !lowest.compare_exchange_weak(cur, v, std::memory_order_relaxed)) {
+void ClampedParameterCount::record(const float *value, int channels) {
+  float lo = std::numeric_limits<float>::infinity(), hi = -lo;
+  for (int c = 0; c < channels; ++c)
+    if (std::isfinite(value[c])) lo = std::min(lo, value[c]), hi = std::max(hi, value[c]);
+  const bool below = lo < min_value, above = hi > max_value;
+  if (!below && !above) return;  // in range (or no finite channel): the common case, no shared write
+  static thread_local const size_t slot = std::hash<std::thread::id>{}(std::this_thread::get_id()) % kSlots;
+  Slot &s = slots_[slot];
+  auto lower = [](std::atomic<float> &a, float v) {
+    float cur = a.load(std::memory_order_relaxed);
+    while (v < cur && !a.compare_exchange_weak(cur, v, std::memory_order_relaxed)) {
     }
-  } else {
-    above.fetch_add(1, std::memory_order_relaxed);
-    float cur = highest.load(std::memory_order_relaxed);
-    while (v > cur && !highest.compare_exchange_weak(cur, v, std::memory_order_relaxed)) {
+  };
+  auto raise = [](std::atomic<float> &a, float v) {
+    float cur = a.load(std::memory_order_relaxed);
+    while (v > cur && !a.compare_exchange_weak(cur, v, std::memory_order_relaxed)) {
     }
+  };
+  if (below) s.below.fetch_add(1, std::memory_order_relaxed), lower(s.lowest, lo);
+  if (above) s.above.fetch_add(1, std::memory_order_relaxed), raise(s.highest, hi);
+}
+
+ClampedParameterCount::Totals ClampedParameterCount::totals() const {
+  Totals t;
+  for (const Slot &s : slots_) {
+    t.below += s.below.load();
+    t.above += s.above.load();
+    t.lowest = std::min(t.lowest, s.lowest.load());
+    t.highest = std::max(t.highest, s.highest.load());
   }
+  return t;
 }
 
 void ClampedParameterCount::reset() {
-  below = 0;
-  above = 0;
-  lowest = std::numeric_limits<float>::infinity();
-  highest = -std::numeric_limits<float>::infinity();
+  for (Slot &s : slots_) {
+    s.below = 0;
+    s.above = 0;
+    s.lowest = std::numeric_limits<float>::infinity();
+    s.highest = -std::numeric_limits<float>::infinity();
+  }
 }
 
 std::vector<std::string> ShaderSystem::clamped_parameter_warnings() const {
@@ -928,14 +959,15 @@ std::vector<std::string> ShaderSystem::clamped_parameter_warnings() const {
   };
   std::vector<std::string> out;
   for (const auto &c : clamped_) {
+    const ClampedParameterCount::Totals t = c->totals();
     const std::string head = c->where.str() + ": warning: " + c->what + ": ";
     const std::string range = " (its range is [" + g(c->min_value) + ", " + g(c->max_value) + "])";
-    if (const uint64_t n = c->below.load())
-      out.push_back(head + std::to_string(n) + " textured values below the minimum, down to " + g(c->lowest.load()) +
-                    ", were clamped to " + g(c->min_value) + range);
-    if (const uint64_t n = c->above.load())
-      out.push_back(head + std::to_string(n) + " textured values above the maximum, up to " + g(c->highest.load()) +
-                    ", were clamped to " + g(c->max_value) + range);
+    if (t.below > 0)
+      out.push_back(head + std::to_string(t.below) + " shading points had a textured value below the minimum, down to " +
+                    g(t.lowest) + ", clamped to " + g(c->min_value) + range);
+    if (t.above > 0)
+      out.push_back(head + std::to_string(t.above) + " shading points had a textured value above the maximum, up to " +
+                    g(t.highest) + ", clamped to " + g(c->max_value) + range);
   }
   return out;
 }

@@ -55,20 +55,33 @@ struct TextureNode {
 // Builtin host-side closures (not in the DSO).
 enum class BuiltinClosure { None, Transparent };
 
-// The values of one textured (varying) parameter that fell outside the parameter's range while rendering. The
-// closure clamps each to the range (plugin/core/closure.h, param_float), which the image does not show: a noise
-// texture in [0, 1] linked into a glint density (range [1, 1e12]) renders as density 1 everywhere. The render
-// reports them (ShaderSystem::clamped_parameter_warnings) at the link's file:line.
+// The shading points where one textured (varying) parameter fell outside the parameter's range while rendering.
+// The closure clamps the value to the range (plugin/core/closure.h, param_float), which the image does not show: a
+// noise texture in [0, 1] linked into a glint density (range [1, 1e12]) renders as density 1 everywhere. The render
+// reports them (ShaderSystem::clamped_parameter_warnings) at the link's file:line. Counted in per-thread slots (a
+// texture out of range everywhere records at every shading point), merged when reported.
 struct ClampedParameterCount {
   scene::SourceLocation where;  // the <connect> into the parameter
   std::string what;             // "<glint_bsdf> 'g' parameter 'density'"
   float min_value = 0.0f, max_value = 0.0f;
-  std::atomic<uint64_t> below{0}, above{0};
-  std::atomic<float> lowest{std::numeric_limits<float>::infinity()};
-  std::atomic<float> highest{-std::numeric_limits<float>::infinity()};
-  // v outside [min_value, max_value] (the caller tested it; NaN is never counted: the closure keeps its constant).
-  void record(float v);
+  // A shading point's value (per channel for a colour): counted once per point below and/or above the range, with
+  // its extreme channel. Non-finite values are not counted (the closure keeps its constant for them).
+  void record(const float *value, int channels);
+  struct Totals {
+    uint64_t below = 0, above = 0;
+    float lowest = std::numeric_limits<float>::infinity(), highest = -std::numeric_limits<float>::infinity();
+  };
+  Totals totals() const;
   void reset();
+
+ private:
+  static constexpr int kSlots = 16;
+  struct alignas(64) Slot {
+    std::atomic<uint64_t> below{0}, above{0};
+    std::atomic<float> lowest{std::numeric_limits<float>::infinity()};
+    std::atomic<float> highest{-std::numeric_limits<float>::infinity()};
+  };
+  Slot slots_[kSlots];
 };
 
 struct ClosureLeaf {
@@ -90,8 +103,7 @@ struct ClosureLeaf {
     uint32_t param = 0;  // index in the closure's schema
     Input input;
     bool color = false;  // COLOR/VECTOR parameter (else one float: the input's luminance)
-    float min_value = -std::numeric_limits<float>::infinity(), max_value = std::numeric_limits<float>::infinity();
-    ClampedParameterCount *clamped = nullptr;  // counts the values outside [min_value, max_value]
+    ClampedParameterCount *clamped = nullptr;  // counts the shading points outside the parameter's range
   };
   static constexpr int kMaxVarying = 4;
   std::vector<VaryingInput> varying;
@@ -246,6 +258,11 @@ class ShaderSystem {
   } background_;
 
   void warn(const scene::SourceLocation &where, const std::string &message);
+  // The count of a bound varying parameter's out-of-range values (nullptr: already counted through another part
+  // of the same composite node and link).
+  ClampedParameterCount *clamped_count(const scene::ShaderGraph &g, const scene::ShaderNode &n,
+                                       const scene::ShaderLink &link, const std::string &param,
+                                       const GlimmerParamSpec &spec);
   bool any_varying_input(const CompiledShader &cs) const;  // CompiledShader::reads_footprint
   int compile_closure(const scene::ShaderGraph &g, const std::string &node, const std::string &socket,
                       CompiledShader &out, int depth);

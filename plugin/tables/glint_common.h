@@ -227,7 +227,6 @@ struct EvalLambdas {
 // alpha2_tan2 = (sqr(ax x) + sqr(ay y)) / sqr(z) of the eval's three Lambdas in SSE lanes: wi at alpha, wo at alpha,
 // wi at alpha_lobe (and the third again, discarded); `z` gets |z| per lane for the caller's regular-case test.
 // Shared by eval_lambdas (GGX) and eval_lambdas_beckmann_avx2 (inlined into both: the same operations).
-// GGX's Lambda of alpha2_tan2 per lane, a2 / (2 (1 + sqrt(1 + a2))): mf::ggx_lambda's float operations.
 [[gnu::always_inline]] inline __m128 eval_alpha2_tan2_lanes(float alpha, float alpha_lobe, const Vec3 &wi,
                                                             const Vec3 &wo, __m128 &z) {
   const __m128 x = _mm_setr_ps(wi.x, wo.x, wi.x, wi.x), y = _mm_setr_ps(wi.y, wo.y, wi.y, wi.y);
@@ -236,6 +235,7 @@ struct EvalLambdas {
   const __m128 ax = _mm_mul_ps(a, x), ay = _mm_mul_ps(a, y);
   return _mm_div_ps(_mm_add_ps(_mm_mul_ps(ax, ax), _mm_mul_ps(ay, ay)), _mm_mul_ps(z, z));
 }
+// GGX's Lambda of alpha2_tan2 per lane, a2 / (2 (1 + sqrt(1 + a2))): mf::ggx_lambda's float operations.
 [[gnu::always_inline]] inline __m128 ggx_lambda_lanes(__m128 a2) {
   const __m128 one = _mm_set1_ps(1.0f);
   return _mm_div_ps(a2, _mm_mul_ps(_mm_set1_ps(2.0f), _mm_add_ps(one, _mm_sqrt_ps(_mm_add_ps(one, a2)))));

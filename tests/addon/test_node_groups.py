@@ -10,8 +10,11 @@ nodes was exported as a grey diffuse BSDF with a warning, so a Glint node inside
 - The exported scene renders with glimmer (the constant nodes are valid scene XML).
 - A texture reaching a constant-only parameter through a Reroute is reported by the texture's name (the session-40
   audit found the Reroute named instead).
-- Negative control: the session-40 behaviour (groups not flattened) would export no glint_bsdf at all and warn
-  "not supported" (checked by the absence of any diffuse fallback and of that warning).
+- Hidden-value sockets (a texture's Vector, a BSDF's Normal) fed by an unlinked group socket read the shading point,
+  as Blender unlinks them; linked outside, the link is followed (Texture Coordinate > Generated into a noise inside).
+  An idle group value (Subsurface 0) gives no "not supported" warning.
+- Negative control, run by hand (session 41): this script against 3be2087's exporter fails at its first check ("one
+  glint_bsdf expected, got 0"; the report "node group 'Flakes Use' is not supported").
 """
 import os
 import shutil
@@ -185,5 +188,52 @@ constant = [r for r in reports if "cannot be textured" in r]
 print("constant-only reports through a reroute:", constant)
 check(constant and all("Wave Inside" in r and "Reroute" not in r for r in constant),
       "the report must name the wave texture behind the Reroute: %s" % constant)
+
+# -- hidden-value sockets and coordinates through a group ----------------------------------------------------------
+# Blender unlinks a texture's Vector / a BSDF's Normal from a Group Input whose group socket is unlinked: they read
+# the shading point (not the group socket's hidden value 0 0 0). Linked outside, the link is followed: a Texture
+# Coordinate > Generated outside the group reaches the texture inside.
+coords = bpy.data.node_groups.new("Coords", "ShaderNodeTree")
+coords.inputs.new("NodeSocketVector", "Vector")
+coords.inputs.new("NodeSocketVector", "Normal")
+coords.inputs.new("NodeSocketFloat", "Subsurface").default_value = 0.0  # idle: no "not supported" warning
+coords.outputs.new("NodeSocketShader", "Shader")
+c_in, c_out = coords.nodes.new("NodeGroupInput"), coords.nodes.new("NodeGroupOutput")
+noise_in = coords.nodes.new("ShaderNodeTexNoise")
+noise_in.name = "Noise Inside"
+principled = coords.nodes.new("ShaderNodeBsdfPrincipled")
+principled.name = "Principled Inside"
+coords.links.new(c_in.outputs["Vector"], noise_in.inputs["Vector"])
+coords.links.new(c_in.outputs["Normal"], principled.inputs["Normal"])
+coords.links.new(c_in.outputs["Subsurface"], principled.inputs["Subsurface"])
+coords.links.new(noise_in.outputs["Color"], principled.inputs["Base Color"])
+coords.links.new(principled.outputs[0], c_out.inputs["Shader"])
+for link in list(nt.links):
+    nt.links.remove(link)
+coords_use = nt.nodes.new("ShaderNodeGroup")
+coords_use.node_tree = coords
+nt.links.new(coords_use.outputs["Shader"], nt.nodes["Material Output"].inputs["Surface"])
+root, reports = export("hidden_unlinked")
+for r in reports:
+    print("  report:", r)
+noise_el = next(el for el in root.iter("noise_texture"))
+into = {c.get("to"): c.get("from") for c in root.iter("connect")}
+check(noise_el.get("name") + " vector" not in into and noise_el.get("vector") is None,
+      "an unlinked group Vector must leave the texture's Vector unlinked (it reads the shading point): %s" % into)
+check(not list(root.iter("combine_xyz")), "no constant vector expected for hidden sockets")
+principled_el = next(root.iter("principled_bsdf"))
+check(principled_el.get("name") + " normal" not in into, "an unlinked group Normal must not feed the BSDF's Normal")
+check(not any("Subsurface" in r or "subsurface" in r or "Group Input" in r for r in reports),
+      "no warning about an idle group Subsurface or a Group Input link expected: %s" % reports)
+texcoord = nt.nodes.new("ShaderNodeTexCoord")
+nt.links.new(texcoord.outputs["Generated"], coords_use.inputs["Vector"])
+root, reports = export("hidden_linked")
+into = {c.get("to"): c.get("from") for c in root.iter("connect")}
+noise_el = next(el for el in root.iter("noise_texture"))
+tc = [el.get("name") for el in root.iter("texture_coordinate")]
+check(len(tc) == 1 and into.get(noise_el.get("name") + " vector") == tc[0] + " generated",
+      "the Generated coordinates outside the group must reach the noise inside: %s %s" % (tc, into))
+check(not any("is not exported" in r for r in reports), "no 'Vector ... is not exported' warning expected: %s"
+      % reports)
 
 print("node groups: OK")

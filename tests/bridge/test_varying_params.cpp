@@ -163,26 +163,42 @@ TEST(VaryingParams, CheckerDensityOnGlintMatchesConstantRenders) {
 }
 
 // A textured value outside the parameter's range is clamped by the closure at each shading point (core/closure.h);
-// the render reports how many, the extreme value and the range at the <connect>'s file:line (session 41: a noise in
-// [0, 1] into a glint density, range [1, 1e12], rendered as density 1 without a word). Below the minimum (glint
-// density 0.2 / 0.7) and above the maximum (glossy roughness 1.5 / 0.5: only the 1.5 cells). Negative controls: the
-// same checkers with values in the range report nothing, and a second render of the same Renderer reports its own
-// count, not the sum of both.
+// the render reports how many shading points, the extreme value and the range at the <connect>'s file:line
+// (session 41: a noise in [0, 1] into a glint density, range [1, 1e12], rendered as density 1 without a word).
+// Below the minimum (glint density 0.2 / 0.7), above the maximum (glossy roughness 1.5 / 0.5: only the 1.5 cells), a
+// colour (frosted glass colour 1.5 / 0.5 per channel: counted once per shading point, not per channel), and a
+// Principled BSDF's roughness (one link into its diffuse and specular parts: one line naming the artist's node).
+// The line is the same for 1 and 2 threads and for a second render of the same Renderer (counts reset per render).
+// Negative controls: the same checkers with values in the range report nothing.
 TEST(VaryingParams, TexturedValuesOutsideTheRangeAreReported) {
   struct Case {
     const char *closure, *socket, *colors, *expected;  // expected: a regex of the report, "" for none
   };
+  const char *const below = " shading points had a textured value below the minimum, down to ";
+  const char *const above = " shading points had a textured value above the maximum, up to ";
+  const std::string cases_expected[] = {
+      std::string(".*:11: warning: <glint_bsdf> 'g' parameter 'density': [0-9]+") + below +
+          "0.2, clamped to 1 \\(its range is \\[1, 1e\\+12\\]\\)",
+      std::string(".*:11: warning: <glossy_bsdf> 'g' parameter 'roughness': [0-9]+") + above +
+          "1.5, clamped to 1 \\(its range is \\[0, 1\\]\\)",
+      std::string(".*:11: warning: <frosted_glass_bsdf> 'g' parameter 'color': [0-9]+") + above +
+          "1.5, clamped to 1 \\(its range is \\[0, 1\\]\\)",
+      std::string(".*:11: warning: <principled_bsdf> 'g' parameter 'roughness': [0-9]+") + above +
+          "1.5, clamped to 1 \\(its range is \\[0, 1\\]\\)",
+  };
   const Case cases[] = {
       {"<glint_bsdf name=\"g\" roughness=\"0.5\" />", "density", "color1=\"0.2 0.2 0.2\" color2=\"0.7 0.7 0.7\"",
-       ".*:11: warning: <glint_bsdf> 'g' parameter 'density': [0-9]+ textured values below the minimum, down to 0.2, "
-       "were clamped to 1 \\(its range is \\[1, 1e\\+12\\]\\)"},
+       cases_expected[0].c_str()},
       {"<glint_bsdf name=\"g\" roughness=\"0.5\" />", "density",
        "color1=\"30000 30000 30000\" color2=\"3000000 3000000 3000000\"", ""},
       {"<glossy_bsdf name=\"g\" distribution=\"ggx\" />", "roughness", "color1=\"1.5 1.5 1.5\" color2=\"0.5 0.5 0.5\"",
-       ".*:11: warning: <glossy_bsdf> 'g' parameter 'roughness': [0-9]+ textured values above the maximum, up to 1.5, "
-       "were clamped to 1 \\(its range is \\[0, 1\\]\\)"},
+       cases_expected[1].c_str()},
       {"<glossy_bsdf name=\"g\" distribution=\"ggx\" />", "roughness", "color1=\"0.9 0.9 0.9\" color2=\"0.1 0.1 0.1\"",
        ""},
+      {"<frosted_glass_bsdf name=\"g\" roughness=\"0.4\" thin=\"1\" />", "color",
+       "color1=\"1.5 1.5 1.5\" color2=\"0.5 0.5 0.5\"", cases_expected[2].c_str()},
+      {"<principled_bsdf name=\"g\" />", "roughness", "color1=\"1.5 1.5 1.5\" color2=\"0.5 0.5 0.5\"",
+       cases_expected[3].c_str()},
   };
   int index = 0;
   for (const Case &c : cases) {
@@ -193,18 +209,22 @@ TEST(VaryingParams, TexturedValuesOutsideTheRangeAreReported) {
     render::RenderOptions opt;
     opt.samples = 4;
     render::Renderer renderer(scene, plugin(), opt);
-    const render::RenderResult first = renderer.render(), second = renderer.render();
-    for (const auto &w : first.warnings) std::printf("[clamped] %s\n", w.c_str());
+    std::vector<std::string> lines[3];
+    for (int run = 0; run < 3; ++run) {  // 1 thread, 2 threads, 1 thread again
+      tbb::global_control limit(tbb::global_control::max_allowed_parallelism, run == 1 ? 2 : 1);
+      lines[run] = renderer.render().warnings;
+    }
+    for (const auto &w : lines[0]) std::printf("[clamped] %s\n", w.c_str());
     if (*c.expected == '\0') {
-      EXPECT_TRUE(first.warnings.empty()) << name << ": " << first.warnings.front();
+      EXPECT_TRUE(lines[0].empty()) << name << ": " << lines[0].front();
       continue;
     }
-    ASSERT_EQ(first.warnings.size(), 1u) << name;
-    EXPECT_TRUE(std::regex_match(first.warnings[0], std::regex(c.expected))) << first.warnings[0];
-    // The count is the render's own: the same samples again give the same line.
-    ASSERT_EQ(second.warnings.size(), 1u);
-    EXPECT_EQ(second.warnings[0], first.warnings[0]);
-    const long count = std::stol(std::regex_replace(first.warnings[0], std::regex(".*': ([0-9]+) textured.*"), "$1"));
+    ASSERT_EQ(lines[0].size(), 1u) << name;
+    EXPECT_TRUE(std::regex_match(lines[0][0], std::regex(c.expected))) << lines[0][0];
+    EXPECT_EQ(lines[1], lines[0]) << "2 threads";
+    EXPECT_EQ(lines[2], lines[0]) << "a second render";
+    const long count =
+        std::stol(std::regex_replace(lines[0][0], std::regex(".*': ([0-9]+) shading points.*"), "$1"));
     EXPECT_GT(count, 0);
     EXPECT_LE(count, 4L * kSize * kSize * 8) << "at most a few shading points per sample";
   }

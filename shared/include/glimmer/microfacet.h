@@ -354,7 +354,7 @@ struct BeckmannSlopeCdf {
 // would dominate (next to x_max, where c -> 0), bisects instead.
 // The iteration for any evaluation of exp(-x^2) (exp_neg(-x * x)) and of C(x)
 // given that exponential (cdf_at(x, e)): the sampler below uses libm's (glint had its own library-free forms
-// until session 41, when its sampling lobe became GGX's).
+// through session 40; since session 41 its sampling lobe is GGX's).
 template <typename Cdf, typename ExpNeg, typename CdfAt>
 inline double solve_beckmann_slope_by(const Cdf &c, ExpNeg &&exp_neg, CdfAt &&cdf_at, double target, double x, double lo,
                                       double hi) {
