@@ -233,8 +233,8 @@ bool ShaderSystem::bind_varying(ClosureLeaf &leaf, const ShaderGraph &g, const S
 }
 
 ClampedParameterCount *ShaderSystem::clamped_count(const ShaderGraph &g, const ShaderNode &n,
-                                                  const scene::ShaderLink &link, const std::string &param,
-                                                  const GlimmerParamSpec &spec) {
+                                                   const scene::ShaderLink &link, const std::string &param,
+                                                   const GlimmerParamSpec &spec) {
   // A composite's part (principled_bsdf's "pb__diffuse", "pb__specular": one link into several closures) is
   // reported as the artist's node, once: the first part bound counts, the others read the same texture value.
   const ShaderNode *owner = &n;
@@ -913,7 +913,7 @@ void ClampedParameterCount::record(const float *value, int channels) {
   float lo = std::numeric_limits<float>::infinity(), hi = -lo;
   for (int c = 0; c < channels; ++c)
     if (std::isfinite(value[c])) lo = std::min(lo, value[c]), hi = std::max(hi, value[c]);
-  const bool below = lo < min_value, above = hi > max_value;
+  const bool below = lo<min_value, above = hi> max_value;
   if (!below && !above) return;  // in range (or no finite channel): the common case, no shared write
   static thread_local const size_t slot = std::hash<std::thread::id>{}(std::this_thread::get_id()) % kSlots;
   Slot &s = slots_[slot];
@@ -963,8 +963,9 @@ std::vector<std::string> ShaderSystem::clamped_parameter_warnings() const {
     const std::string head = c->where.str() + ": warning: " + c->what + ": ";
     const std::string range = " (its range is [" + g(c->min_value) + ", " + g(c->max_value) + "])";
     if (t.below > 0)
-      out.push_back(head + std::to_string(t.below) + " shading points had a textured value below the minimum, down to " +
-                    g(t.lowest) + ", clamped to " + g(c->min_value) + range);
+      out.push_back(head + std::to_string(t.below) +
+                    " shading points had a textured value below the minimum, down to " + g(t.lowest) + ", clamped to " +
+                    g(c->min_value) + range);
     if (t.above > 0)
       out.push_back(head + std::to_string(t.above) + " shading points had a textured value above the maximum, up to " +
                     g(t.highest) + ", clamped to " + g(c->max_value) + range);

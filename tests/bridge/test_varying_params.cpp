@@ -223,8 +223,7 @@ TEST(VaryingParams, TexturedValuesOutsideTheRangeAreReported) {
     EXPECT_TRUE(std::regex_match(lines[0][0], std::regex(c.expected))) << lines[0][0];
     EXPECT_EQ(lines[1], lines[0]) << "2 threads";
     EXPECT_EQ(lines[2], lines[0]) << "a second render";
-    const long count =
-        std::stol(std::regex_replace(lines[0][0], std::regex(".*': ([0-9]+) shading points.*"), "$1"));
+    const long count = std::stol(std::regex_replace(lines[0][0], std::regex(".*': ([0-9]+) shading points.*"), "$1"));
     EXPECT_GT(count, 0);
     EXPECT_LE(count, 4L * kSize * kSize * 8) << "at most a few shading points per sample";
   }
