@@ -65,6 +65,26 @@ def empty_exr_scene(width, height):
     return scene
 
 
+def new_glimmer_scene():
+    """An empty scene rendered by Glimmer at 32 x 24 with a camera at z = 5 looking down -z."""
+    import bpy
+    bpy.ops.wm.read_homefile(use_empty=True)
+    scene = bpy.context.scene
+    scene.render.engine = "GLIMMER"
+    scene.render.resolution_x, scene.render.resolution_y, scene.render.resolution_percentage = 32, 24, 100
+    add_camera(scene, (0.0, 0.0, 5.0), (0.0, 0.0, 0.0))
+    return scene
+
+
+def export_with_reports(mod, out_dir):
+    """Exports the current depsgraph into out_dir: (scene.xml path, the Exporter, the report messages)."""
+    import bpy
+    reports = []
+    xml, exp = mod.exporter.export_scene(bpy.context.evaluated_depsgraph_get(), out_dir,
+                                         report=lambda kind, msg: reports.append(msg))
+    return xml, exp, reports
+
+
 def add_camera(scene, location, rotation_euler):
     """A camera object at location with rotation_euler (radians), made the scene camera."""
     import bpy

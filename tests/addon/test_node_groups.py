@@ -34,19 +34,11 @@ out_root = os.path.join(opts.out, "node_groups")
 shutil.rmtree(out_root, ignore_errors=True)
 
 
-def new_scene():
-    bpy.ops.wm.read_homefile(use_empty=True)
-    scene = bpy.context.scene
-    scene.render.engine = "GLIMMER"
-    scene.render.resolution_x, scene.render.resolution_y, scene.render.resolution_percentage = 32, 24, 100
-    util.add_camera(scene, (0.0, 0.0, 5.0), (0.0, 0.0, 0.0))
-    return scene
+new_scene = util.new_glimmer_scene
 
 
 def export(name):
-    reports = []
-    xml, _ = mod.exporter.export_scene(bpy.context.evaluated_depsgraph_get(), os.path.join(out_root, name),
-                                       report=lambda kind, msg: reports.append(msg))
+    xml, _, reports = util.export_with_reports(mod, os.path.join(out_root, name))
     shader = next(el for el in ET.parse(xml).getroot().iter("shader") if el.get("name") == "Grouped")
     return shader, reports  # the material's shader (the scene also has glimmer_default, a diffuse)
 
