@@ -149,8 +149,10 @@ class ShaderGraph:
         self.groups = []
 
     # -- helpers -------------------------------------------------------------
-    def group_path(self):
-        return tuple(g.name for g in self.groups)
+    def group_path(self, groups=None):
+        """The names of the group nodes (self.groups, or `groups`) from the material's tree inward: a node key's
+        first part."""
+        return tuple(g.name for g in (self.groups if groups is None else groups))
 
     def mark_read(self, node, sock):
         self.read_inputs.add((self.group_path(), node.name, sock.identifier))
@@ -197,7 +199,7 @@ class ShaderGraph:
         node, out, groups = self.upstream(sock)
         if node is None:
             return None if out is None or out.type == "SHADER" else self.constant(out, groups)
-        key = (tuple(g.name for g in groups), node.name, out.identifier)
+        key = (self.group_path(groups), node.name, out.identifier)
         if key not in self.exported:
             outer, self.groups = self.groups, groups
             try:
@@ -263,7 +265,7 @@ class ShaderGraph:
 
     def constant(self, sock, groups):
         """A constant node holding a group socket's value (float, colour or vector), or None for other types."""
-        key = ("constant", tuple(g.name for g in groups), sock.node.name, sock.is_output, sock.identifier)
+        key = ("constant", self.group_path(groups), sock.node.name, sock.is_output, sock.identifier)
         if key not in self.exported:
             name = "%s_%s" % (sock.node.name, sock.name)
             value = _value(sock)
@@ -438,7 +440,7 @@ class ShaderGraph:
             return None
         if src.bl_idname == "ShaderNodeTexCoord" and socket == "Generated":
             self.uses_generated = True
-            key = (tuple(g.name for g in groups), src.name, "generated")
+            key = (self.group_path(groups), src.name, "generated")
             if key not in self.exported:
                 el = self.add("texture_coordinate", src.name)
                 self.exported[key] = (el.get("name"), "generated")

@@ -917,18 +917,14 @@ void ClampedParameterCount::record(const float *value, int channels) {
   if (!below && !above) return;  // in range (or no finite channel): the common case, no shared write
   static thread_local const size_t slot = std::hash<std::thread::id>{}(std::this_thread::get_id()) % kSlots;
   Slot &s = slots_[slot];
-  auto lower = [](std::atomic<float> &a, float v) {
+  // a = min(a, v) (down) or max(a, v), lock-free.
+  auto extend = [](std::atomic<float> &a, float v, bool down) {
     float cur = a.load(std::memory_order_relaxed);
-    while (v < cur && !a.compare_exchange_weak(cur, v, std::memory_order_relaxed)) {
+    while ((down ? v < cur : v > cur) && !a.compare_exchange_weak(cur, v, std::memory_order_relaxed)) {
     }
   };
-  auto raise = [](std::atomic<float> &a, float v) {
-    float cur = a.load(std::memory_order_relaxed);
-    while (v > cur && !a.compare_exchange_weak(cur, v, std::memory_order_relaxed)) {
-    }
-  };
-  if (below) s.below.fetch_add(1, std::memory_order_relaxed), lower(s.lowest, lo);
-  if (above) s.above.fetch_add(1, std::memory_order_relaxed), raise(s.highest, hi);
+  if (below) s.below.fetch_add(1, std::memory_order_relaxed), extend(s.lowest, lo, true);
+  if (above) s.above.fetch_add(1, std::memory_order_relaxed), extend(s.highest, hi, false);
 }
 
 ClampedParameterCount::Totals ClampedParameterCount::totals() const {

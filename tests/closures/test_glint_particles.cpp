@@ -1099,11 +1099,11 @@ TEST(GlintCoords, LambdasAndPdfMatchTheirDefinitions) {
     const Vec3 &wi = q.wi, &wo = q.wo;
     if (!(wi.z > 0.0f) || !(wo.z > 0.0f)) continue;
     const pg::HalfVector half = pg::reflection_half_vector(wi, wo);
-    const Vec3 ai(wi.x, wi.y, wi.z), ao(wo.x, wo.y, wo.z);
     for (const mf::Distribution dist : {mf::Distribution::GGX, mf::Distribution::Beckmann}) {
       const pg::EvalLambdasPdf v = pg::eval_lambdas_and_pdf(dist, q.alpha, q.alpha_lobe, wi, wo, half);
-      const pg::EvalLambdas s{mf::lambda(dist, ai, q.alpha, q.alpha), mf::lambda(dist, ao, q.alpha, q.alpha),
-                              mf::ggx_lambda(ai, q.alpha_lobe, q.alpha_lobe)};
+      // wi.z, wo.z > 0: the Lambdas of (x, y, |z|) are those of wi and wo themselves.
+      const pg::EvalLambdas s{mf::lambda(dist, wi, q.alpha, q.alpha), mf::lambda(dist, wo, q.alpha, q.alpha),
+                              mf::ggx_lambda(wi, q.alpha_lobe, q.alpha_lobe)};
       const auto same_or_nan = [](float a, float b) {
         return same_float_bits(a, b) || (std::isnan(a) && std::isnan(b));
       };

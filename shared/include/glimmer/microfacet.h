@@ -325,8 +325,10 @@ struct BeckmannSlopeCdf {
     x_max = sin_t * 8.0 < cos_t ? 8.0 : cos_t / sin_t;
     e_max = std::exp(-x_max * x_max);
     // Beyond x = 6 the erfc and exp terms are below 1e-16 of cos t.
-    total = x_max > 6.0 ? cos_t : 0.5 * (cos_t * std::erfc(-x_max) + sin_t * e_max * kInvSqrtPi);
+    total = x_max > 6.0 ? cos_t : at(x_max, e_max);
   }
+  // C(x) given e = exp(-x^2).
+  double at(double x, double e) const { return 0.5 * (cos_t * std::erfc(-x) + sin_t * e * kInvSqrtPi); }
   // Lower bound of the root near x_max: there c(y) >= sin t (x_max - y) exp(-x_max^2) / sqrt(pi)
   // (for |y| <= x_max), so total - C(x) >= sin t exp(-x_max^2) (x_max - x)^2 / (2 sqrt(pi)).
   double upper_tail_guess(double target) const {
@@ -352,17 +354,14 @@ struct BeckmannSlopeCdf {
 // step below kStepDone whose curvature term f f'' / f'^2 is below
 // kCurvatureDone; a step that leaves the bracket, or whose curvature term
 // would dominate (next to x_max, where c -> 0), bisects instead.
-// The iteration for any evaluation of exp(-x^2) (exp_neg(-x * x)) and of C(x)
-// given that exponential (cdf_at(x, e)): the sampler below uses libm's (glint had its own library-free forms
-// through session 40; since session 41 its sampling lobe is GGX's).
-template <typename Cdf, typename ExpNeg, typename CdfAt>
-inline double solve_beckmann_slope_by(const Cdf &c, ExpNeg &&exp_neg, CdfAt &&cdf_at, double target, double x, double lo,
-                                      double hi) {
-  constexpr double isp = Cdf::kInvSqrtPi, kStepDone = 1e-3, kCurvatureDone = 1e-2;
+// (Until session 41 the iteration took its exp and C(x) as callables for glint's library-free sampler too; since
+// glint samples a GGX lobe, libm's are the only ones.)
+inline double solve_beckmann_slope(const BeckmannSlopeCdf &c, double target, double x, double lo, double hi) {
+  constexpr double isp = BeckmannSlopeCdf::kInvSqrtPi, kStepDone = 1e-3, kCurvatureDone = 1e-2;
   const double tolerance = 1e-12 * std::min(c.total, 1e3 * target);  // relative 1e-9 in the lower tail
   for (int it = 0; it < 64; ++it) {
-    const double e = exp_neg(-x * x);
-    const double value = cdf_at(x, e) - target;
+    const double e = std::exp(-x * x);
+    const double value = c.at(x, e) - target;
     if (std::fabs(value) < tolerance) break;
     if (value > 0.0) hi = x; else lo = x;
     const double g = c.cos_t - x * c.sin_t;                            // f' = g exp(-x^2) / sqrt(pi)
@@ -378,12 +377,6 @@ inline double solve_beckmann_slope_by(const Cdf &c, ExpNeg &&exp_neg, CdfAt &&cd
     if ((smooth && step < kStepDone && std::fabs(na2) < kCurvatureDone) || hi - lo < 1e-13) break;
   }
   return x;
-}
-inline double solve_beckmann_slope(const BeckmannSlopeCdf &c, double target, double x, double lo, double hi) {
-  return solve_beckmann_slope_by(
-      c, [](double z) { return std::exp(z); },
-      [&c](double xs, double e) { return 0.5 * (c.cos_t * std::erfc(-xs) + c.sin_t * e * BeckmannSlopeCdf::kInvSqrtPi); },
-      target, x, lo, hi);
 }
 
 // Start of the iteration: the quantile x(w, v) tabulated on rows
