@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <filesystem>
 #include <functional>
 #include <thread>
@@ -947,26 +946,18 @@ void ClampedParameterCount::reset() {
   }
 }
 
-std::vector<std::string> ShaderSystem::clamped_parameter_warnings() const {
-  auto g = [](double x) {
-    char buf[32];
-    std::snprintf(buf, sizeof buf, "%g", x);
-    return std::string(buf);
-  };
-  std::vector<std::string> out;
+ClampedParameterRecords ShaderSystem::clamped_parameter_records() const {
+  ClampedParameterRecords out;
   for (const auto &c : clamped_) {
     const ClampedParameterCount::Totals t = c->totals();
-    const std::string head = c->where.str() + ": warning: " + c->what + ": ";
-    const std::string range = " (its range is [" + g(c->min_value) + ", " + g(c->max_value) + "])";
-    if (t.below > 0)
-      out.push_back(head + std::to_string(t.below) +
-                    " shading points had a textured value below the minimum, down to " + g(t.lowest) + ", clamped to " +
-                    g(c->min_value) + range);
-    if (t.above > 0)
-      out.push_back(head + std::to_string(t.above) + " shading points had a textured value above the maximum, up to " +
-                    g(t.highest) + ", clamped to " + g(c->max_value) + range);
+    if (t.below == 0 && t.above == 0) continue;
+    out.push_back({c->where.str(), c->what, c->min_value, c->max_value, t.below, t.above, t.lowest, t.highest});
   }
   return out;
+}
+
+std::vector<std::string> ShaderSystem::clamped_parameter_warnings() const {
+  return render::clamped_parameter_warnings(clamped_parameter_records());
 }
 
 void ShaderSystem::reset_clamped_parameter_counts() {

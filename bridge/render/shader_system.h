@@ -18,6 +18,7 @@
 #include "glimmer/math.h"
 #include "host/closure_instance.h"
 #include "host/plugin_library.h"
+#include "render/clamped_parameters.h"
 #include "render/closure_nodes.h"
 #include "render/nodes/node_program.h"
 #include "render/textures.h"
@@ -58,8 +59,9 @@ enum class BuiltinClosure { None, Transparent };
 // The shading points where one textured (varying) parameter fell outside the parameter's range while rendering.
 // The closure clamps the value to the range (plugin/core/closure.h, param_float), which the image does not show: a
 // noise texture in [0, 1] linked into a glint density (range [1, 1e12]) renders as density 1 everywhere. The render
-// reports them (ShaderSystem::clamped_parameter_warnings) at the link's file:line. Counted in per-thread slots (a
-// texture out of range everywhere records at every shading point), merged when reported.
+// reports them (ShaderSystem::clamped_parameter_warnings) at the link's file:line, and keeps them with the image
+// (render/clamped_parameters.h). Counted in per-thread slots (a texture out of range everywhere records at every
+// shading point), merged when reported.
 struct ClampedParameterCount {
   scene::SourceLocation where;  // the <connect> into the parameter
   std::string what;             // "<glint_bsdf> 'g' parameter 'density'"
@@ -224,8 +226,10 @@ class ShaderSystem {
   void shading_frame(const ClosureLeaf &leaf, const TexCoords &tc, ActiveClosure &out) const;
   Spectrum eval_input(const Input &in, const TexCoords &tc) const;
 
-  // "file:line: warning: ..." for each textured parameter whose values fell outside its range in the renders
-  // since reset_clamped_parameter_counts() (the closures clamp them), with how many and the extreme value.
+  // The textured parameters whose values fell outside their range in the renders since
+  // reset_clamped_parameter_counts() (the closures clamp them): how many shading points and the extreme values.
+  ClampedParameterRecords clamped_parameter_records() const;
+  // Their "file:line: warning: ..." lines (render::clamped_parameter_warnings).
   std::vector<std::string> clamped_parameter_warnings() const;
   void reset_clamped_parameter_counts();
 

@@ -16,6 +16,9 @@
 // Unsupported links (a socket the closure does not declare varying, or a socket
 // the host does not map) render with their constant and warn with file:line.
 #include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
 #include <regex>
 
 #include "render_test_util.h"
@@ -227,6 +230,70 @@ TEST(VaryingParams, TexturedValuesOutsideTheRangeAreReported) {
     EXPECT_GT(count, 0);
     EXPECT_LE(count, 4L * kSize * kSize * 8) << "at most a few shading points per sample";
   }
+}
+
+// The records behind those lines travel in EXR metadata (render/clamped_parameters.h): the encoding reads back
+// exactly (floats bit for bit, counts past 2^53, texts with tabs, newlines and backslashes, no extreme: +-inf), a
+// malformed text or another version is refused, and records of the same parameter add up (counts add, lowest min,
+// highest max) while another parameter (or another range) stays apart.
+TEST(VaryingParams, ClampedRecordsRoundTripAndAddUp) {
+  using render::ClampedParameterRecord;
+  const float inf = std::numeric_limits<float>::infinity();
+  const render::ClampedParameterRecords records = {
+      {"scene.xml:20", "<glint_bsdf> 'Glint' parameter 'density'", 1.0f, 1e12f, 323, 0, 0.215369f, -inf},
+      {"odd\tname\\with\nbreaks.xml:3", "<glossy_bsdf> 'a\tb' parameter 'roughness'", 0.0f, 1.0f,
+       (uint64_t(1) << 60) + 1, 7, std::nextafter(0.0f, -1.0f), 1.0f + std::numeric_limits<float>::epsilon()},
+  };
+  const std::string text = render::encode_clamped_records(records);
+  EXPECT_EQ(text.rfind("glimmer-clamped-parameters 1\n", 0), 0u) << text;
+  EXPECT_EQ(std::count(text.begin(), text.end(), '\n'), 2) << "one line per record: " << text;
+  const render::ClampedParameterRecords back = render::decode_clamped_records(text);
+  ASSERT_EQ(back.size(), records.size());
+  for (size_t k = 0; k < records.size(); ++k) {
+    const ClampedParameterRecord &a = records[k], &b = back[k];
+    EXPECT_EQ(b.where, a.where);
+    EXPECT_EQ(b.what, a.what);
+    EXPECT_EQ(b.below, a.below);
+    EXPECT_EQ(b.above, a.above);
+    for (auto field : {&ClampedParameterRecord::min_value, &ClampedParameterRecord::max_value,
+                       &ClampedParameterRecord::lowest, &ClampedParameterRecord::highest})
+      EXPECT_EQ(std::memcmp(&(a.*field), &(b.*field), sizeof(float)), 0) << k << ": " << text;
+  }
+  EXPECT_TRUE(render::encode_clamped_records({}).empty());
+  EXPECT_TRUE(render::decode_clamped_records("").empty());
+  // Refused: another version, a missing field, a number that is not one.
+  const std::string line = text.substr(text.find('\n') + 1, text.find('\n', text.find('\n') + 1) - text.find('\n') - 1);
+  EXPECT_THROW(render::decode_clamped_records("glimmer-clamped-parameters 2\n" + line), std::runtime_error);
+  EXPECT_THROW(render::decode_clamped_records("glimmer-clamped-parameters 1\na\tb\t0\t1\t2\t3\t0.5"), std::runtime_error);
+  EXPECT_THROW(render::decode_clamped_records("glimmer-clamped-parameters 1\na\tb\t0\t1\t2x\t3\t0.5\t-inf"),
+               std::runtime_error);
+  EXPECT_NO_THROW(render::decode_clamped_records("glimmer-clamped-parameters 1\na\tb\t0\t1\t2\t3\t0.5\t-inf"));
+  // Adding up: the first record twice, the second once, and the first with another range.
+  render::ClampedParameterRecords sum = records;
+  ClampedParameterRecord more = records[0];
+  more.below = 10;
+  more.lowest = 0.5f;  // not lower: the minimum stays
+  more.above = 2;
+  more.highest = 3e12f;
+  ClampedParameterRecord other_range = records[0];
+  other_range.max_value = 1e9f;
+  render::add_clamped_records(sum, {more, other_range});
+  ASSERT_EQ(sum.size(), 3u);
+  EXPECT_EQ(sum[0].below, 333u);
+  EXPECT_EQ(sum[0].above, 2u);
+  EXPECT_EQ(sum[0].lowest, 0.215369f);
+  EXPECT_EQ(sum[0].highest, 3e12f);
+  EXPECT_EQ(sum[1].below, records[1].below);
+  EXPECT_EQ(sum[2].below, 323u);
+  // The warning lines are the render's (TexturedValuesOutsideTheRangeAreReported): one per direction with a count.
+  const std::vector<std::string> lines = render::clamped_parameter_warnings(sum);
+  ASSERT_EQ(lines.size(), 5u);  // both directions of the first two records, below of the third
+  EXPECT_EQ(lines[0],
+            "scene.xml:20: warning: <glint_bsdf> 'Glint' parameter 'density': 333 shading points had a textured value "
+            "below the minimum, down to 0.215369, clamped to 1 (its range is [1, 1e+12])");
+  EXPECT_EQ(lines[1],
+            "scene.xml:20: warning: <glint_bsdf> 'Glint' parameter 'density': 2 shading points had a textured value "
+            "above the maximum, up to 3e+12, clamped to 1e+12 (its range is [1, 1e+12])");
 }
 
 // Every linked socket the host cannot honour renders with its constant and
