@@ -1,6 +1,7 @@
 // `glimmer merge parts... -o out.exr`: joins the parts of one render (tiles from
 // --region/--tile, sample ranges from --sample-range/--sample-split) into the
-// whole image; render/merge.h says what is checked and how pixels combine.
+// whole image; render/merge.h says what is checked and how pixels combine. Prints the summary, then the parts'
+// summed warnings (textured values clamped to a parameter's range) as a one-machine render does.
 #include <cstdio>
 
 #include "cli/commands.h"
@@ -40,6 +41,9 @@ void add_merge_command(CLI::App &app, CliContext &) {
     if (!args->quiet)
       std::printf("merged %zu parts into %s: %dx%d, %d samples per pixel\n", parts.size(), args->output.c_str(),
                   merged.width, merged.height, merged.samples_done);
+    std::fflush(stdout);
+    // The parts' clamped textured values, summed: the lines a one-machine render prints after its last sample.
+    for (const auto &w : merged.warnings) std::fprintf(stderr, "%s\n", w.c_str());
   });
 }
 

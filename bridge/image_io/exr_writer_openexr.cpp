@@ -18,6 +18,7 @@
 
 #include "glimmer/atomic_file.h"
 #include "image_io/render_layout.h"
+#include "render/clamped_parameters.h"
 #include "render/image_io.h"
 
 namespace glimmer::render::exr_module {
@@ -59,6 +60,9 @@ void write_part_metadata(const RenderResult &r, Imf::Header &header) {
   set_string("glimmer:nan_samples", std::to_string(r.nan_samples));
   set_string("glimmer:paths", std::to_string(r.paths));
   if (r.film_sums) set_int("glimmer:checkpoint", 1);
+  // The out-of-range textured values counted over the image's samples (merge and --resume add them up).
+  if (!r.clamped_parameters.empty())
+    set_string(kClampedParametersAttribute, encode_clamped_records(r.clamped_parameters));
 }
 
 // A float EXR header for `names` over the render's data window (the display window is the whole image).

@@ -17,6 +17,7 @@
 
 #include "glimmer/atomic_file.h"
 #include "image_io/render_layout.h"
+#include "render/clamped_parameters.h"
 #include "render/image_io.h"
 #include "render/textures.h"
 
@@ -185,6 +186,12 @@ RenderResult read_image(const std::string &path) {
   r.film_sums = spec.get_int_attribute("glimmer:checkpoint", 0) != 0;
   r.nan_samples = std::stoull(spec.get_string_attribute("glimmer:nan_samples", "0"));
   r.paths = std::stoull(spec.get_string_attribute("glimmer:paths", "0"));
+  try {  // absent in images of builds before it: no records
+    r.clamped_parameters = decode_clamped_records(spec.get_string_attribute(kClampedParametersAttribute));
+  } catch (const std::exception &e) {
+    throw std::runtime_error("'" + path + "': " + e.what());
+  }
+  r.warnings = clamped_parameter_warnings(r.clamped_parameters);
   if (part.samples_total <= 0)
     throw std::runtime_error("'" + path + "' has no glimmer:samples_total metadata (not written by glimmer render)");
   return r;

@@ -107,6 +107,7 @@ void Film::store(RenderResult &r) const {
     r.combined[4 * i + 3] = static_cast<float>(count_[i]);  // exact below 2^24 samples
   }
   r.alpha_sum = alpha_;
+  r.clamped_parameters = clamped_;
   r.albedo.clear();
   r.normal.clear();
   r.depth.clear();
@@ -130,6 +131,7 @@ Film Film::restore(const RenderResult &r) {
     throw std::runtime_error("checkpoint has the wrong number of alpha sums");
   Film f(r.width, r.height, aovs);
   f.passes_ = r.samples_done;
+  f.clamped_ = r.clamped_parameters;
   for (size_t i = 0; i < npix; ++i) {
     f.sum_[i] = Spectrum(r.combined[4 * i], r.combined[4 * i + 1], r.combined[4 * i + 2]);
     f.count_[i] = static_cast<uint32_t>(r.combined[4 * i + 3]);

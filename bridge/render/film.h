@@ -8,9 +8,11 @@
 
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "glimmer/math.h"
+#include "render/clamped_parameters.h"
 
 namespace glimmer::render {
 
@@ -69,6 +71,11 @@ class Film {
   }
   void end_pass() { ++passes_; }
 
+  // The out-of-range textured parameters counted over the samples in the film (the renderer sets them after each
+  // pass, a resumed film's included); store() and restore() keep them, so a checkpoint carries them.
+  const ClampedParameterRecords &clamped_parameters() const { return clamped_; }
+  void set_clamped_parameters(ClampedParameterRecords records) { clamped_ = std::move(records); }
+
   // Per-pixel means into result.combined/albedo/normal/depth (RGB scaled by exposure; alpha = the
   // alpha sum / sample count, so exactly 0 or 1 where every sample agreed). RGB is premultiplied
   // (the transparent background adds nothing). A mean that exposure pushes past the float range
@@ -88,6 +95,7 @@ class Film {
   std::vector<Spectrum> sum_, albedo_, normal_;
   std::vector<float> alpha_, depth_;
   std::vector<uint32_t> count_;  // an interrupt stops a pass mid-way, so pixels can differ by one
+  ClampedParameterRecords clamped_;
 };
 
 }  // namespace glimmer::render

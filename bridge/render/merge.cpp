@@ -146,6 +146,8 @@ RenderResult merge_parts(const std::vector<RenderResult> &parts, const std::vect
     for (const RenderResult *p : window_parts) {
       out.nan_samples += p->nan_samples;
       out.paths += p->paths;
+      // Different pixels, or different samples of the same pixels: different shading points, so the counts add.
+      add_clamped_records(out.clamped_parameters, p->clamped_parameters);
     }
   }
   const long long total = static_cast<long long>(out.width) * out.height;
@@ -160,6 +162,7 @@ RenderResult merge_parts(const std::vector<RenderResult> &parts, const std::vect
   out.part.window[2] = out.width;
   out.part.window[3] = out.height;
   out.samples_requested = out.samples_done = N;
+  out.warnings = clamped_parameter_warnings(out.clamped_parameters);
   return out;
 }
 

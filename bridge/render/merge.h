@@ -6,6 +6,8 @@
 //  - a window split by samples is the sample-count-weighted mean of its parts
 //    (sum_k n_k * mean_k / N in double): equal to the one-machine render within float
 //    rounding (the sums were added in another order).
+// The parts' out-of-range textured parameters (RenderResult::clamped_parameters) add up per parameter: the merged
+// result holds them, and their warning lines, as a one-machine render would.
 #pragma once
 
 #include <string>

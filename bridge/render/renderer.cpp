@@ -1259,6 +1259,13 @@ RenderResult Renderer::render(const std::function<void(int, int)> &progress, con
   const int tile = std::max(1, im.options.tile_size);
   std::atomic<uint64_t> nan_total{0};
   im.shaders->reset_clamped_parameter_counts();  // this render's own (a Renderer may render again)
+  // The out-of-range textured values of the samples in the film: a resumed checkpoint's and this render's.
+  const ClampedParameterRecords resumed_clamped = film.clamped_parameters();
+  auto clamped_so_far = [&] {
+    ClampedParameterRecords all = resumed_clamped;
+    add_clamped_records(all, im.shaders->clamped_parameter_records());
+    return all;
+  };
   // Passes of `batch` samples per pixel (the first pass one sample, for the first display): one parallel loop
   // per batch instead of per sample, so small images do not wait at a barrier 256 times. Each pixel still adds
   // its samples in sample order, so the image is the same for any batch.
@@ -1285,7 +1292,10 @@ RenderResult Renderer::render(const std::function<void(int, int)> &progress, con
       if (progress) progress(film.passes(), res.samples_requested);
     }
     s += count;
-    if (im.options.after_pass) im.options.after_pass(film);
+    if (im.options.after_pass) {
+      film.set_clamped_parameters(clamped_so_far());  // a checkpoint's counts match its samples
+      im.options.after_pass(film);
+    }
     if (im.options.time_limit > 0.0 && seconds_since(t0) >= im.options.time_limit && s < part.sample_end) {
       res.time_limited = true;
       break;
@@ -1293,7 +1303,8 @@ RenderResult Renderer::render(const std::function<void(int, int)> &progress, con
   }
   res.samples_done = film.passes();
   res.nan_samples = nan_total.load();
-  res.warnings = im.shaders->clamped_parameter_warnings();
+  res.clamped_parameters = clamped_so_far();
+  res.warnings = clamped_parameter_warnings(res.clamped_parameters);
   res.paths = paths.load();
   film.resolve(im.scene.film.exposure, res);
   res.render_seconds = seconds_since(t0);

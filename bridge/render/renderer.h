@@ -74,8 +74,11 @@ struct RenderResult {
   std::vector<float> depth;      // Z (camera-space depth of the first hit, 1e10 for background)
   double render_seconds = 0.0;
   uint64_t paths = 0;            // pixels x samples traced
-  // "file:line: warning: ..." found while rendering: textured parameters whose values fell outside their range
-  // (the closures clamped them; ShaderSystem::clamped_parameter_warnings).
+  // The textured parameters whose values fell outside their range (the closures clamped them): the shading points
+  // of the whole render, a resumed checkpoint's included, or of all the parts `glimmer merge` joined; kept in the
+  // EXR (render/clamped_parameters.h).
+  ClampedParameterRecords clamped_parameters;
+  // "file:line: warning: ..." found while rendering: the records above (render::clamped_parameter_warnings).
   std::vector<std::string> warnings;
 };
 

@@ -14,6 +14,7 @@
 #include <thread>
 
 #include "exr_compare.h"
+#include "render/image_output.h"
 #include "render_test_util.h"
 
 namespace glimmer::test {
@@ -232,6 +233,185 @@ TEST(Farm, SlurmSubmitsTheMergeAfterTheArray) {
   EXPECT_EQ(second, "--parsable --dependency=afterok:4001 " + (temp_dir() / "sub_work" / "merge.sbatch").string());
   EXPECT_TRUE(fs::exists(temp_dir() / "sub_work" / "parts"));
   EXPECT_TRUE(fs::is_directory(temp_dir() / "new_folder")) << "the merge job's output folder is created";
+}
+
+// Textured values clamped to a parameter's range (render/clamped_parameters.h) travel with the parts: a quad whose
+// glossy roughness is a checker of 1.5 and -0.5 (outside [0, 1] both ways) under a point light, 32x32, in front of
+// a diffuse wall that the camera sees around it: the paths bouncing off the wall onto the quad's back count too, so
+// the counts depend on the paths (Russian roulette, sampled directions), not only on the pixels and samples.
+std::string clamped_scene() {
+  return write_file(
+      "clamped_farm.xml",
+      "<cycles>\n<camera width=\"32\" height=\"32\" fov=\"1.2\" />\n"
+      "<integrator sample_clamp_direct=\"0\" sample_clamp_indirect=\"0\" />\n"
+      "<state><light light_type=\"point\" co=\"2 0 0.5\" strength=\"300 300 300\" /></state>\n"
+      "<shader name=\"s\">\n<texture_coordinate name=\"tc\" />\n"
+      "<checker_texture name=\"c\" scale=\"2\" color1=\"1.5 1.5 1.5\" color2=\"-0.5 -0.5 -0.5\" />\n"
+      "<connect from=\"tc uv\" to=\"c vector\" />\n<glossy_bsdf name=\"g\" distribution=\"ggx\" />\n"
+      "<connect from=\"c color\" to=\"g roughness\" />\n<connect from=\"g bsdf\" to=\"output surface\" />\n"
+      "</shader>\n<state shader=\"s\"><mesh P=\"-1.1 -1.1 3  1.1 -1.1 3  1.1 1.1 3  -1.1 1.1 3\" nverts=\"4\" "
+      "verts=\"0 1 2 3\" UV=\"0 0 1 0 1 1 0 1\" /></state>\n"
+      "<shader name=\"wall\"><diffuse_bsdf name=\"d\" color=\"0.8 0.8 0.8\" />\n"
+      "<connect from=\"d bsdf\" to=\"output surface\" /></shader>\n"
+      "<state shader=\"wall\"><mesh P=\"-9 -9 5  9 -9 5  9 9 5  -9 9 5\" nverts=\"4\" verts=\"0 1 2 3\" /></state>\n"
+      "</cycles>\n");
+}
+
+// Renders the clamped scene with `extra` options to temp_dir()/name; `out` gets the CLI's output.
+std::string render_clamped(const std::string &name, const std::string &extra, std::string &out, bool quiet = true) {
+  const std::string path = (temp_dir() / name).string();
+  fs::remove(path);
+  EXPECT_EQ(0, run_cli("render '" + clamped_scene() + "' -o '" + path + "' --threads 2 " + (quiet ? "--quiet " : "") +
+                           extra,
+                       out))
+      << out;
+  return path;
+}
+
+// The roughness counts of the warning lines in a CLI's output (-1: no such line) and the extreme values printed.
+struct ClampedLines {
+  long long below = -1, above = -1;
+  std::string lowest, highest;
+};
+ClampedLines clamped_lines(const std::string &out) {
+  ClampedLines c;
+  const std::regex line(
+      R"(clamped_farm\.xml:10: warning: <glossy_bsdf> 'g' parameter 'roughness': ([0-9]+) shading points had a )"
+      R"(textured value (below the minimum, down to|above the maximum, up to) (\S+), clamped to [01] )"
+      R"(\(its range is \[0, 1\]\))");
+  for (std::sregex_iterator it(out.begin(), out.end(), line), end; it != end; ++it) {
+    const bool below = (*it)[2].str()[0] == 'b';
+    EXPECT_EQ(below ? c.below : c.above, -1) << "one line per direction: " << out;
+    (below ? c.below : c.above) = std::stoll((*it)[1].str());
+    (below ? c.lowest : c.highest) = (*it)[3].str();
+  }
+  return c;
+}
+
+// The record an EXR carries for the roughness (none: zero counts).
+render::ClampedParameterRecord exr_record(const std::string &path) {
+  const render::RenderResult r = render::read_image(path);
+  EXPECT_LE(r.clamped_parameters.size(), 1u) << path;
+  return r.clamped_parameters.empty() ? render::ClampedParameterRecord{} : r.clamped_parameters.front();
+}
+
+// Checks that merging `parts` reports the sum of the parts' counts, as `single` (a one-machine render's output)
+// does; the merged EXR carries the summed record. Returns the merged counts.
+ClampedLines expect_merge_sums(const std::vector<std::string> &parts, const std::vector<ClampedLines> &part_lines,
+                               const ClampedLines &single, const std::string &name) {
+  int code = -1;
+  const std::string out = merge(parts, name, code);
+  EXPECT_EQ(code, 0) << out;
+  EXPECT_NE(out.find("merged " + std::to_string(parts.size()) + " parts into"), std::string::npos) << out;
+  const ClampedLines merged = clamped_lines(out);
+  std::printf("%s: merged below %lld above %lld; one-machine below %lld above %lld\n", name.c_str(), merged.below,
+              merged.above, single.below, single.above);
+  long long below = 0, above = 0;
+  for (const ClampedLines &p : part_lines) {
+    // Negative control: every part saw some of them, so a merge that dropped or kept one part's would fail here.
+    EXPECT_GT(p.below, 0);
+    EXPECT_GT(p.above, 0);
+    EXPECT_GT(merged.below, p.below) << out;
+    EXPECT_GT(merged.above, p.above) << out;
+    below += p.below;
+    above += p.above;
+  }
+  EXPECT_EQ(merged.below, below) << out;
+  EXPECT_EQ(merged.above, above) << out;
+  // The paths of a pixel's sample do not depend on the part that traces it: the counts are the single render's.
+  EXPECT_EQ(merged.below, single.below) << out;
+  EXPECT_EQ(merged.above, single.above) << out;
+  EXPECT_EQ(merged.lowest, single.lowest);
+  EXPECT_EQ(merged.highest, single.highest);
+  const render::ClampedParameterRecord r = exr_record((temp_dir() / name).string());
+  EXPECT_EQ(static_cast<long long>(r.below), below);
+  EXPECT_EQ(static_cast<long long>(r.above), above);
+  return merged;
+}
+
+TEST(Farm, MergeReportsTheSummedClampedCountsOfSampleSplits) {
+  std::string out;
+  const std::string single = render_clamped("clamped_full.exr", "--samples 8", out);
+  const ClampedLines full = clamped_lines(out);
+  ASSERT_GT(full.below, 0) << out;
+  ASSERT_GT(full.above, 0) << out;
+  EXPECT_EQ(full.lowest, "-0.5");
+  EXPECT_EQ(full.highest, "1.5");
+  // The single render's EXR carries the record of its warning lines.
+  EXPECT_TRUE(read_exr(single).spec.find_attribute("glimmer:clamped_parameters"));
+  EXPECT_EQ(static_cast<long long>(exr_record(single).below), full.below);
+  std::vector<std::string> parts;
+  std::vector<ClampedLines> lines;
+  for (int k = 0; k < 2; ++k) {
+    parts.push_back(render_clamped("clamped_split" + std::to_string(k) + ".exr",
+                                   "--samples 8 --sample-split " + std::to_string(k) + "/2", out));
+    lines.push_back(clamped_lines(out));
+    EXPECT_EQ(static_cast<long long>(exr_record(parts.back()).above), lines.back().above);
+  }
+  expect_merge_sums(parts, lines, full, "clamped_merged_splits.exr");
+  // A part written without the record (a build before it: no attribute) merges, adding nothing.
+  render::RenderResult old = render::read_image(parts[1]);
+  ASSERT_FALSE(old.clamped_parameters.empty());
+  old.clamped_parameters.clear();
+  const std::string old_part = (temp_dir() / "clamped_split1_old.exr").string();
+  render::write_image(old_part, old);
+  EXPECT_FALSE(read_exr(old_part).spec.find_attribute("glimmer:clamped_parameters"));
+  int code = -1;
+  const std::string mixed = merge({parts[0], old_part}, "clamped_merged_old.exr", code);
+  ASSERT_EQ(code, 0) << mixed;
+  EXPECT_EQ(clamped_lines(mixed).below, lines[0].below) << mixed;
+  EXPECT_EQ(clamped_lines(mixed).above, lines[0].above) << mixed;
+  // Neither part with the record: nothing to report, and the merged image has no record either.
+  old = render::read_image(parts[0]);
+  old.clamped_parameters.clear();
+  const std::string old_part0 = (temp_dir() / "clamped_split0_old.exr").string();
+  render::write_image(old_part0, old);
+  const std::string none = merge({old_part0, old_part}, "clamped_merged_none.exr", code);
+  ASSERT_EQ(code, 0) << none;
+  EXPECT_EQ(none.find("warning"), std::string::npos) << none;
+  EXPECT_FALSE(read_exr(temp_dir() / "clamped_merged_none.exr").spec.find_attribute("glimmer:clamped_parameters"));
+}
+
+TEST(Farm, MergeReportsTheSummedClampedCountsOfTiles) {
+  std::string out;
+  render_clamped("clamped_full_t.exr", "--samples 8", out);
+  const ClampedLines full = clamped_lines(out);
+  std::vector<std::string> parts;
+  std::vector<ClampedLines> lines;
+  for (int k = 0; k < 2; ++k) {
+    parts.push_back(
+        render_clamped("clamped_tile" + std::to_string(k) + ".exr", "--samples 8 --tile " + std::to_string(k) + "/2", out));
+    lines.push_back(clamped_lines(out));
+  }
+  expect_merge_sums(parts, lines, full, "clamped_merged_tiles.exr");
+}
+
+TEST(Farm, ResumedRenderReportsTheClampedCountsOfTheWholeRender) {
+  std::string out;
+  const std::string samples = " --samples 24";
+  render_clamped("clamped_uninterrupted.exr", samples, out);
+  const ClampedLines whole = clamped_lines(out);
+  ASSERT_GT(whole.below, 0) << out;
+  // Time-limited after its first pass: the checkpoint keeps one sample and its counts.
+  const std::string checkpoint = (temp_dir() / "clamped_resumed.checkpoint.exr").string();
+  fs::remove(checkpoint);
+  render_clamped("clamped_resumed.exr", samples + " --checkpoint-every 0 --time-limit 0.000001", out);
+  ASSERT_TRUE(fs::exists(checkpoint)) << out;
+  const render::ClampedParameterRecord saved = exr_record(checkpoint);
+  EXPECT_GT(saved.below, 0u);
+  EXPECT_GT(saved.above, 0u);
+  // Negative control: the samples after the checkpoint alone count fewer, so a resume that dropped the checkpoint's
+  // counts would fail the equality below.
+  EXPECT_LT(static_cast<long long>(saved.below), whole.below);
+  const std::string output = render_clamped("clamped_resumed.exr", samples + " --resume", out, false);
+  ASSERT_NE(out.find("Resuming " + checkpoint + " from sample 1/24"), std::string::npos) << out;
+  const ClampedLines resumed = clamped_lines(out);
+  std::printf("checkpoint below %llu; resumed below %lld; uninterrupted below %lld\n",
+              static_cast<unsigned long long>(saved.below), resumed.below, whole.below);
+  EXPECT_EQ(resumed.below, whole.below) << out;
+  EXPECT_EQ(resumed.above, whole.above) << out;
+  EXPECT_EQ(static_cast<long long>(exr_record(output).below), whole.below);
+  EXPECT_EQ(static_cast<long long>(exr_record(output).above), whole.above);
 }
 
 // Runs the CLI in the background; returns its pid.
