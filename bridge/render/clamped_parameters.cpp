@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <charconv>
 #include <cstdio>
+#include <cstring>
 #include <stdexcept>
 #include <system_error>
 
@@ -17,14 +18,23 @@ bool same_parameter(const ClampedParameterRecord &a, const ClampedParameterRecor
   return a.where == b.where && a.what == b.what && a.min_value == b.min_value && a.max_value == b.max_value;
 }
 
+// The texts' characters that would break the line format, as two-character escapes ('\0': none).
+char escape_of(char c) {
+  switch (c) {
+    case '\\': return '\\';
+    case '\t': return 't';
+    case '\n': return 'n';
+    case '\r': return 'r';
+    default: return '\0';
+  }
+}
+
 std::string escape(const std::string &text) {
   std::string out;
   for (const char c : text) {
-    if (c == '\\') out += "\\\\";
-    else if (c == '\t') out += "\\t";
-    else if (c == '\n') out += "\\n";
-    else if (c == '\r') out += "\\r";
-    else out += c;
+    const char e = escape_of(c);
+    if (e != '\0') out += '\\';
+    out += e != '\0' ? e : c;
   }
   return out;
 }
@@ -36,12 +46,11 @@ std::string unescape(const std::string &text) {
       out += text[i];
       continue;
     }
-    const char next = i + 1 < text.size() ? text[++i] : '\0';
-    if (next == '\\') out += '\\';
-    else if (next == 't') out += '\t';
-    else if (next == 'n') out += '\n';
-    else if (next == 'r') out += '\r';
-    else throw std::runtime_error("unknown escape in '" + text + "'");
+    const char e = i + 1 < text.size() ? text[++i] : '\0';
+    const char *const escaped = "\\\t\n\r", *const codes = "\\tnr";
+    const char *at = e != '\0' ? std::strchr(codes, e) : nullptr;
+    if (at == nullptr) throw std::runtime_error("unknown escape in '" + text + "'");
+    out += escaped[at - codes];
   }
   return out;
 }
@@ -116,8 +125,9 @@ std::vector<std::string> clamped_parameter_warnings(const ClampedParameterRecord
     const std::string head = c.where + ": warning: " + c.what + ": ";
     const std::string range = " (its range is [" + g_text(c.min_value) + ", " + g_text(c.max_value) + "])";
     if (c.below > 0)
-      out.push_back(head + std::to_string(c.below) + " shading points had a textured value below the minimum, down to " +
-                    g_text(c.lowest) + ", clamped to " + g_text(c.min_value) + range);
+      out.push_back(head + std::to_string(c.below) +
+                    " shading points had a textured value below the minimum, down to " + g_text(c.lowest) +
+                    ", clamped to " + g_text(c.min_value) + range);
     if (c.above > 0)
       out.push_back(head + std::to_string(c.above) + " shading points had a textured value above the maximum, up to " +
                     g_text(c.highest) + ", clamped to " + g_text(c.max_value) + range);
@@ -129,8 +139,8 @@ std::string encode_clamped_records(const ClampedParameterRecords &records) {
   if (records.empty()) return "";
   std::string out = kVersionLine;
   for (const ClampedParameterRecord &r : records) {
-    const std::string fields[kFields] = {escape(r.where),          escape(r.what),          number_text(r.min_value),
-                                         number_text(r.max_value), number_text(r.below),    number_text(r.above),
+    const std::string fields[kFields] = {escape(r.where),          escape(r.what),        number_text(r.min_value),
+                                         number_text(r.max_value), number_text(r.below),  number_text(r.above),
                                          number_text(r.lowest),    number_text(r.highest)};
     for (size_t k = 0; k < kFields; ++k) {
       out += k == 0 ? '\n' : '\t';
