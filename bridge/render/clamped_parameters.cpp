@@ -21,11 +21,16 @@ bool same_parameter(const ClampedParameterRecord &a, const ClampedParameterRecor
 // The texts' characters that would break the line format, as two-character escapes ('\0': none).
 char escape_of(char c) {
   switch (c) {
-    case '\\': return '\\';
-    case '\t': return 't';
-    case '\n': return 'n';
-    case '\r': return 'r';
-    default: return '\0';
+    case '\\':
+      return '\\';
+    case '\t':
+      return 't';
+    case '\n':
+      return 'n';
+    case '\r':
+      return 'r';
+    default:
+      return '\0';
   }
 }
 

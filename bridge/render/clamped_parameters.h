@@ -14,10 +14,10 @@ namespace glimmer::render {
 
 // One textured parameter's out-of-range shading points (only parameters with some are recorded).
 struct ClampedParameterRecord {
-  std::string where;                         // "scene.xml:20": the <connect> into the parameter
-  std::string what;                          // "<glint_bsdf> 'g' parameter 'density'"
-  float min_value = 0.0f, max_value = 0.0f;  // the parameter's range
-  uint64_t below = 0, above = 0;             // shading points below the minimum, above the maximum
+  std::string where;                                        // "scene.xml:20": the <connect> into the parameter
+  std::string what;                                         // "<glint_bsdf> 'g' parameter 'density'"
+  float min_value = 0.0f, max_value = 0.0f;                 // the parameter's range
+  uint64_t below = 0, above = 0;                            // shading points below the minimum, above the maximum
   float lowest = std::numeric_limits<float>::infinity();    // the lowest value below the minimum (+inf: none)
   float highest = -std::numeric_limits<float>::infinity();  // the highest value above the maximum (-inf: none)
 };

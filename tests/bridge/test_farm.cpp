@@ -261,9 +261,9 @@ std::string clamped_scene() {
 std::string render_clamped(const std::string &name, const std::string &extra, std::string &out, bool quiet = true) {
   const std::string path = (temp_dir() / name).string();
   fs::remove(path);
-  EXPECT_EQ(0, run_cli("render '" + clamped_scene() + "' -o '" + path + "' --threads 2 " + (quiet ? "--quiet " : "") +
-                           extra,
-                       out))
+  EXPECT_EQ(
+      0, run_cli("render '" + clamped_scene() + "' -o '" + path + "' --threads 2 " + (quiet ? "--quiet " : "") + extra,
+                 out))
       << out;
   return path;
 }
@@ -379,8 +379,8 @@ TEST(Farm, MergeReportsTheSummedClampedCountsOfTiles) {
   std::vector<std::string> parts;
   std::vector<ClampedLines> lines;
   for (int k = 0; k < 2; ++k) {
-    parts.push_back(
-        render_clamped("clamped_tile" + std::to_string(k) + ".exr", "--samples 8 --tile " + std::to_string(k) + "/2", out));
+    parts.push_back(render_clamped("clamped_tile" + std::to_string(k) + ".exr",
+                                   "--samples 8 --tile " + std::to_string(k) + "/2", out));
     lines.push_back(clamped_lines(out));
   }
   expect_merge_sums(parts, lines, full, "clamped_merged_tiles.exr");

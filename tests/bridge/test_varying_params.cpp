@@ -264,7 +264,8 @@ TEST(VaryingParams, ClampedRecordsRoundTripAndAddUp) {
   // Refused: another version, a missing field, a number that is not one.
   const std::string line = text.substr(text.find('\n') + 1, text.find('\n', text.find('\n') + 1) - text.find('\n') - 1);
   EXPECT_THROW(render::decode_clamped_records("glimmer-clamped-parameters 2\n" + line), std::runtime_error);
-  EXPECT_THROW(render::decode_clamped_records("glimmer-clamped-parameters 1\na\tb\t0\t1\t2\t3\t0.5"), std::runtime_error);
+  EXPECT_THROW(render::decode_clamped_records("glimmer-clamped-parameters 1\na\tb\t0\t1\t2\t3\t0.5"),
+               std::runtime_error);
   EXPECT_THROW(render::decode_clamped_records("glimmer-clamped-parameters 1\na\tb\t0\t1\t2x\t3\t0.5\t-inf"),
                std::runtime_error);
   EXPECT_NO_THROW(render::decode_clamped_records("glimmer-clamped-parameters 1\na\tb\t0\t1\t2\t3\t0.5\t-inf"));
