@@ -161,13 +161,14 @@ TEST(GlintCacheHostile, CacheKeysAndHeaderArePinned) {
     std::memcpy(&f, &bits, 4);
     return f;
   };
-  // glint_P_030cca93e58152cb.bin: GGX, alpha 0x3d23d70b (0.04), gamma 2.
+  // glint_P_78d6cb9ac5221e74.bin: GGX, alpha 0x3d23d70b (0.04), gamma 2, format 6 (session 42: the factored level 0's
+  // slice scales; format 5's key was 0x030cca93e58152cb). Both recomputed by hand (Python) from the chain.
   plugin::glint::TableSpec p;
   p.distribution = plugin::glint::BaseDistribution::GGX;
   p.alpha = from_bits(0x3d23d70bu);
   p.gamma_deg = 2.0f;
-  EXPECT_EQ(plugin::glint::table_key(p), 0x030cca93e58152cbull);
-  EXPECT_EQ(fs::path(plugin::glint::table_cache_path("/c", p)).filename().string(), "glint_P_030cca93e58152cb.bin");
+  EXPECT_EQ(plugin::glint::table_key(p), 0x78d6cb9ac5221e74ull);
+  EXPECT_EQ(fs::path(plugin::glint::table_cache_path("/c", p)).filename().string(), "glint_P_78d6cb9ac5221e74.bin");
   // glint_A_c547ed6736770f18.bin: GGX, alpha 0.25 x 0.0625, gamma 2.
   plugin::glint::AnisoSpec a;
   a.distribution = microfacet::Distribution::GGX;
