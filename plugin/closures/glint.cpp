@@ -568,7 +568,8 @@ class GlintClosure {
       pdf = glint::smooth_lobe_pdf_above(w.ax, w.ay, sp.wi, wo, h);  // one Lambda, no W
       return Spectrum(0.0f);
     }
-    const float P = table_probability(c, sigma_deg, sp.wi, h, p_max);  // first: the Lambdas' and the pdf's math overlaps its loads
+    const float P =
+        table_probability(c, sigma_deg, sp.wi, h, p_max);  // first: the Lambdas' and the pdf's math overlaps its loads
     const glint::EvalLambdasPdf lp = glint::eval_lambdas_and_pdf(field_.distribution, field_.alpha, w.ax, sp.wi, wo, h);
     pdf = lp.pdf;
     return glint_f_cos(sp.wi, wo, P, h, lp.lambdas, sigma_deg, density, parts);

@@ -42,8 +42,8 @@ namespace glimmer::plugin::glint {
 struct Level0Lobe {
   bool ggx = true;
   float alpha2 = 0.0f;
-  float widen2 = 0.0f;       // (gamma_rad / 2)^2
-  float scale = 0.0f;        // sigma / (4 pi): D's 1 / pi and (1)'s 1 / 4 with the cone's solid angle
+  float widen2 = 0.0f;  // (gamma_rad / 2)^2
+  float scale = 0.0f;   // sigma / (4 pi): D's 1 / pi and (1)'s 1 / 4 with the cone's solid angle
   double alpha2_d = 0.0, widen2_d = 0.0, scale_d = 0.0;  // the same in double (the residual's nodes)
 
   Level0Lobe() = default;

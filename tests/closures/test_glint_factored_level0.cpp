@@ -102,9 +102,10 @@ TEST(GlintFactoredLevel0, AtLeastAsAccurateAsTheOneDegreeTableOverAllAzimuths) {
       e_control.push_back(std::fabs(control.lookup(fi, fo, fp) / truth - 1.0));
     }
     const ErrorStats t = stats_of(e_today), f = stats_of(e_factored), c = stats_of(e_control);
-    std::printf("[factored] %-18s %4zu queries: rel err mean / p99 / max: 1-degree %.4f / %.4f / %.4f, factored "
-                "%.4f / %.4f / %.4f, control (2-degree P) %.4f / %.4f / %.4f\n",
-                s.name, e_today.size(), t.mean, t.p99, t.max, f.mean, f.p99, f.max, c.mean, c.p99, c.max);
+    std::printf(
+        "[factored] %-18s %4zu queries: rel err mean / p99 / max: 1-degree %.4f / %.4f / %.4f, factored "
+        "%.4f / %.4f / %.4f, control (2-degree P) %.4f / %.4f / %.4f\n",
+        s.name, e_today.size(), t.mean, t.p99, t.max, f.mean, f.p99, f.max, c.mean, c.p99, c.max);
     ASSERT_GT(e_today.size(), 500u) << s.name;
     // At most the 1-degree table's error, up to the slices' energy scale (<= ~2e-4 of P; for wide lobes both read the
     // integral within ~2e-4 and their means differ only by it).
@@ -150,9 +151,10 @@ TEST(GlintFactoredLevel0, SliceEnergyEqualsTheOneDegreeLevels) {
       const double e0 = slice_energy(*table, table->factored0, s, ti, false);
       const double ef = slice_energy(*table, table->factored0, s, ti, true);
       const double er = slice_energy(*table, raw, s, ti, true);
-      std::printf("[factored] %-18s theta_i %2d: energy 1-degree %.5f factored %.5f (%+.4f %%) unnormalised %.5f "
-                  "(%+.4f %%)\n",
-                  s.name, ti, e0, ef, 100.0 * (ef / e0 - 1.0), er, 100.0 * (er / e0 - 1.0));
+      std::printf(
+          "[factored] %-18s theta_i %2d: energy 1-degree %.5f factored %.5f (%+.4f %%) unnormalised %.5f "
+          "(%+.4f %%)\n",
+          s.name, ti, e0, ef, 100.0 * (ef / e0 - 1.0), er, 100.0 * (er / e0 - 1.0));
       worst = std::max(worst, std::fabs(ef / e0 - 1.0));
       worst_raw = std::max(worst_raw, std::fabs(er / e0 - 1.0));
     }
