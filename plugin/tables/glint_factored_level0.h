@@ -58,8 +58,8 @@ struct Level0Lobe {
 
   // A at wi.h and cos(theta_h). pi D = 1 / (a2 k^2) with k = (1 - c^2) / a2 + c^2 (GGX), exp(-(1 - c^2) / (c^2 a2)) /
   // (a2 c^4) (Beckmann, 0 beyond an exponent of 80 as mf::beckmann_D). 0 where wi.h or cos(theta_h) is below
-  // kMinCosine (h at the horizon of wi or of the surface; lookups read A only where theta_i <= 80 and theta_o <= 85,
-  // where both are above 0.13): no overflow of the 1 / (wi.h)^2 widening or of A's 1 / wi.h.
+  // kMinCosine (h at the horizon of wi or of the surface; lookups read A only where theta_i <= 80, where
+  // both are above 0.08): no overflow of the 1 / (wi.h)^2 widening or of A's 1 / wi.h.
   static constexpr float kMinCosine = 1e-3f;
   float operator()(float wi_h, float cos_h) const {
     if (!(wi_h >= kMinCosine) || !(cos_h >= kMinCosine)) return 0.0f;

@@ -273,9 +273,9 @@ class FactoredLevel0 {
   static constexpr int kStepDeg = 2;               // of theta_i, theta_o and dphi
   static constexpr float kResidualCap = 4.0f;      // R at a node (see glint_factored_level0.h)
   static constexpr float kNarrowLobeRatio = 1.5f;  // glint_pseudo_normals.h's kPseudoNormalLobeRatio (asserted equal)
-  // Where (2) is read: theta_i <= 80 and theta_o <= 85 degrees. Beyond, at forward grazing, the residual varies
-  // faster than its 2-degree dphi nodes (glint_factored_level0.h): lookups read the 1-degree level 0 there.
-  static constexpr float kMaxThetaIDeg = 80.0f, kMaxThetaODeg = 85.0f;
+  // Where (2) is read: theta_i <= 80 degrees. Beyond, at forward grazing, the residual varies faster than its
+  // 2-degree dphi nodes (glint_factored_level0.h): lookups read the 1-degree level 0 there (330 KB of its slices).
+  static constexpr float kMaxThetaIDeg = 80.0f, kMaxThetaODeg = 90.0f;
   static constexpr int kNodesThetaI = static_cast<int>(kMaxThetaIDeg) / kStepDeg + 1;
   // Lobes wider than the cone's 1.5 gamma (narrower ones keep the 1-degree level 0: glint_factored_level0.h).
   static bool applies(const TableSpec &spec) { return spec.alpha > kNarrowLobeRatio * spec.gamma_deg * kDegToRad; }
