@@ -20,11 +20,14 @@ namespace {
 
 constexpr double kPiD = 3.14159265358979323846;
 constexpr double kDeg = kPiD / 180.0;
-constexpr uint32_t kFormatVersion = 6;  // 2: LOD levels normalised by their W-weighted energy; 3: HMAC-SHA256;
+constexpr uint32_t kFormatVersion = 7;  // 2: LOD levels normalised by their W-weighted energy; 3: HMAC-SHA256;
                                         // 4: P_gamma by a direct cone rule, 0.5-degree energy grid,
                                         //    level 0 <= the smooth albedo (+0.1 %);
                                         // 5: the rim rule where the interior rule would exceed its points;
-                                        // 6: the factored level 0's slice scales (FactoredLevel0)
+                                        // 6: the factored level 0's slice scales (FactoredLevel0);
+                                        // 7: the same over every theta_o (kMaxThetaODeg 85 -> 90). The scales
+                                        //    depend on FactoredLevel0's constants and lobe: a change of them
+                                        //    needs a new version (and the energy check recomputes them)
 constexpr char kMagic[8] = {'G', 'L', 'M', 'G', 'L', 'N', 'T', 'P'};
 
 struct D3 {
@@ -373,6 +376,12 @@ FactoredLevel0::FactoredLevel0(const LodLevel &level0, const TableSpec &spec, fl
       parallel_for(kNodesThetaI, static_cast<int>(std::max(1u, std::thread::hardware_concurrency())),
                    [&](int i) { scales_[static_cast<size_t>(i)] = slice_scale(level0, spec, i); });
     }
+    for (double x : scales_)
+      if (!(x > kMinScale && x < kMaxScale)) {  // not a small correction: the factored form is not used (inactive)
+        scales_.clear();
+        std::vector<float>().swap(residual_.values);  // no halves: active() is false
+        return;
+      }
     for (int i = 0; i < kNodesThetaI; ++i)
       for (size_t k = 0; k < slice; ++k) residual_.values[i * slice + k] *= static_cast<float>(scales_[i]);
   }
@@ -681,19 +690,19 @@ std::unique_ptr<DirectionalTable> load_table(const std::string &path, const Tabl
       return nullptr;
     }
   }
-  int n_scales = -1;
+  int n_scales = -1;  // 0: not factored (a narrow lobe, or scales out of range at the build)
   if (!get(&n_scales, 4) || (n_scales != 0 && n_scales != FactoredLevel0::kNodesThetaI) ||
-      (n_scales != 0) != FactoredLevel0::applies(spec)) {
+      (n_scales != 0 && !FactoredLevel0::applies(spec))) {
     problem = "malformed factored level 0";
     return nullptr;
   }
   std::vector<double> scales(static_cast<size_t>(n_scales));
-  if (!get(scales.data(), scales.size() * sizeof(double))) {
+  if (n_scales > 0 && !get(scales.data(), scales.size() * sizeof(double))) {
     problem = "truncated factored level 0";
     return nullptr;
   }
   for (double x : scales)
-    if (!(x > 0.5 && x < 2.0)) {
+    if (!(x > FactoredLevel0::kMinScale && x < FactoredLevel0::kMaxScale)) {
       problem = "factored level 0's slice scale out of range";
       return nullptr;
     }
@@ -710,13 +719,19 @@ std::unique_ptr<DirectionalTable> load_table(const std::string &path, const Tabl
   const std::vector<unsigned char> mac(bytes.end() - static_cast<std::ptrdiff_t>(Digest256{}.size()), bytes.end());
   const CheckedStampKind stamp_kind = energy_stamp_kind(spec);
   table->energy_checked = !checked_stamp_matches(path, stamp_kind, mac, build_id);
+  table->pack_halves();
+  // The energy check also recomputes the factored level 0's scales (~0.1 s): a file whose scales differ from this
+  // build's (edited, or written by code with other FactoredLevel0 constants) is rebuilt.
+  table->factor_level0(table->energy_checked ? nullptr : &scales);
   if (table->energy_checked) {
     if (!plausible_energy(*table, spec, static_cast<int>(std::max(1u, std::thread::hardware_concurrency())), problem))
       return nullptr;
+    if (table->factored0.slice_scales() != scales) {
+      problem = "the factored level 0's slice scales differ from this build's";
+      return nullptr;
+    }
     table->stamp_not_written = write_checked_stamp(path, stamp_kind, mac, build_id);
   }
-  table->pack_halves();
-  table->factor_level0(&scales);
   table->loaded_from_cache = true;
   return table;
 }

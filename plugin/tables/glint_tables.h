@@ -277,8 +277,12 @@ class FactoredLevel0 {
   // 2-degree dphi nodes (glint_factored_level0.h): lookups read the 1-degree level 0 there (330 KB of its slices).
   static constexpr float kMaxThetaIDeg = 80.0f, kMaxThetaODeg = 90.0f;
   static constexpr int kNodesThetaI = static_cast<int>(kMaxThetaIDeg) / kStepDeg + 1;
+  static_assert(static_cast<int>(kMaxThetaIDeg) % kStepDeg == 0 && kMaxThetaIDeg == static_cast<int>(kMaxThetaIDeg));
   // Lobes wider than the cone's 1.5 gamma (narrower ones keep the 1-degree level 0: glint_factored_level0.h).
-  static bool applies(const TableSpec &spec) { return spec.alpha > kNarrowLobeRatio * spec.gamma_deg * kDegToRad; }
+  // The same float expression as glint_pseudo_normals.h's uses_pseudo_normals(alpha, gamma_deg * kDegToRad), negated.
+  static bool applies(const TableSpec &spec) { return !(spec.alpha <= kNarrowLobeRatio * (spec.gamma_deg * kDegToRad)); }
+  // The slices' energy scales are small corrections; outside (kMinScale, kMaxScale) the form is not used.
+  static constexpr double kMinScale = 0.9, kMaxScale = 1.1;
 
   FactoredLevel0() = default;
   // From level 0 with its fp32 values; sigma the cone's solid angle. `normalise`: each theta_i slice of R scaled so
@@ -295,7 +299,10 @@ class FactoredLevel0 {
   }
   const Level0Lobe &lobe() const { return lobe_; }
   const LodLevel &residual() const { return residual_; }
-  LodLevel::Cell cell(__m128 deg) const { return residual_.cell(deg); }
+  // theta_i clamped to kMaxThetaIDeg (the residual's last node: no extrapolation where a caller did not test covers).
+  LodLevel::Cell cell(__m128 deg) const {
+    return residual_.cell(_mm_min_ps(deg, _mm_setr_ps(kMaxThetaIDeg, 90.0f, 180.0f, 0.0f)));
+  }
   // (2) of glint_factored_level0.h: `lobe` = lobe()(wi.h, cos theta_h) of the query located at `c`.
   float lookup(const LodLevel::Cell &c, float lobe) const { return lobe * residual_.lookup(c); }
   // The same from angles (degrees), A computed from them (tests and tools).

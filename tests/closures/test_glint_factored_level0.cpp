@@ -12,6 +12,7 @@
 
 #include "closures/glint_test_util.h"
 #include "glimmer/rng.h"
+#include "tables/glint_peak.h"
 #include "tables/glint_tables.h"
 
 namespace glimmer::test {
@@ -79,6 +80,10 @@ TEST(GlintFactoredLevel0, AtLeastAsAccurateAsTheOneDegreeTableOverAllAzimuths) {
               l0.values[(static_cast<size_t>(ti) * l0.n_theta_o + 2 * o) * l0.n_phi + 2 * p];
     control.pack_halves();
     const pg::NdfFunction ndf = ndf_of(s.dist, s.alpha);
+    // As the closure reads it at zero blur: clamped to the dark test's bound (glint.cpp, table_probability).
+    const pg::DirectionalPeakTable bounds(*table, s.gamma_deg);
+    int clamped = 0;
+    double worst_over_bound = 0.0;
     Pcg32 rng(42);
     std::vector<double> e_today, e_factored, e_control;
     for (int q = 0; q < 1500; ++q) {
@@ -98,34 +103,38 @@ TEST(GlintFactoredLevel0, AtLeastAsAccurateAsTheOneDegreeTableOverAllAzimuths) {
       const float fi = static_cast<float>(ti), fo = static_cast<float>(to), fp = static_cast<float>(dp);
       ASSERT_TRUE(pg::FactoredLevel0::covers(fi, fo));
       e_today.push_back(std::fabs(l0.lookup(fi, fo, fp) / truth - 1.0));
-      e_factored.push_back(std::fabs(table->factored0.lookup_angles(fi, fo, fp) / truth - 1.0));
+      const float factored = table->factored0.lookup_angles(fi, fo, fp), bound = bounds.bound(fi, fo, fp);
+      clamped += factored > bound;
+      worst_over_bound = std::max(worst_over_bound, static_cast<double>(factored) / bound - 1.0);
+      e_factored.push_back(std::fabs(std::min(factored, bound) / truth - 1.0));
       e_control.push_back(std::fabs(control.lookup(fi, fo, fp) / truth - 1.0));
     }
     const ErrorStats t = stats_of(e_today), f = stats_of(e_factored), c = stats_of(e_control);
     std::printf(
         "[factored] %-18s %4zu queries: rel err mean / p99 / max: 1-degree %.4f / %.4f / %.4f, factored "
-        "%.4f / %.4f / %.4f, control (2-degree P) %.4f / %.4f / %.4f\n",
-        s.name, e_today.size(), t.mean, t.p99, t.max, f.mean, f.p99, f.max, c.mean, c.p99, c.max);
+        "%.4f / %.4f / %.4f, control (2-degree P) %.4f / %.4f / %.4f; clamped to the dark test's bound at %d "
+        "(by up to %.4f)\n",
+        s.name, e_today.size(), t.mean, t.p99, t.max, f.mean, f.p99, f.max, c.mean, c.p99, c.max, clamped,
+        worst_over_bound);
     ASSERT_GT(e_today.size(), 500u) << s.name;
     // At most the 1-degree table's error, up to the slices' energy scale (<= ~2e-4 of P; for wide lobes both read the
-    // integral within ~2e-4 and their means differ only by it).
-    EXPECT_LE(f.mean, t.mean + 1e-4) << s.name;
-    EXPECT_LE(f.p99, t.p99 + 1e-4) << s.name;
-    EXPECT_LE(f.max, 0.05) << s.name;
+    // integral within ~2e-4 and their means differ only by it), and no error over 5 %.
+    auto passes = [&](const ErrorStats &x) { return x.mean <= t.mean + 1e-4 && x.p99 <= t.p99 + 1e-4 && x.max <= 0.05; };
+    EXPECT_TRUE(passes(f)) << s.name;
     // The control fails what the factored level passes: the 2-degree nodes alone are not accurate enough.
-    EXPECT_TRUE(c.mean > t.mean || c.p99 > t.p99 || c.max > 0.05) << s.name;
+    EXPECT_FALSE(passes(c)) << s.name;
   }
 }
 
-// W-weighted energy E = Int W P dwo of a theta_i slice (midpoint rule, 0.5-degree grid: finer than the 1-degree grid
-// the table's own normalisation uses), through the closure's reads: factored where covered, 1-degree elsewhere.
+// W-weighted energy E = Int W P dwo of a theta_i slice (midpoint rule on a 0.25-degree grid: not the 0.5-degree grid
+// the table's own scales are computed on), through the closure's reads: factored where covered, 1-degree elsewhere.
 double slice_energy(const pg::DirectionalTable &table, const pg::FactoredLevel0 &factored, const Spec &s, int ti,
                     bool through_factored) {
   const Vec3 wi(std::sin(ti * 0.017453292f), 0.0f, std::cos(ti * 0.017453292f));
   double e = 0.0;
-  for (int t = 0; t < 180; ++t)
-    for (int p = 0; p < 360; ++p) {
-      const float to = (t + 0.5f) * 0.5f, dp = (p + 0.5f) * 0.5f;
+  for (int t = 0; t < 360; ++t)
+    for (int p = 0; p < 720; ++p) {
+      const float to = (t + 0.5f) * 0.25f, dp = (p + 0.5f) * 0.25f;
       const Vec3 wo(std::sin(to * 0.017453292f) * std::cos(dp * 0.017453292f),
                     std::sin(to * 0.017453292f) * std::sin(dp * 0.017453292f), std::cos(to * 0.017453292f));
       Vec3 h;
@@ -140,14 +149,14 @@ double slice_energy(const pg::DirectionalTable &table, const pg::FactoredLevel0 
   return e;
 }
 
-// Each normalised slice reads level 0's energy (the blurred levels are normalised to level 0's, and the white
+// Each slice reads level 0's energy (nodes scaled, the slices between them interpolated) (the blurred levels are normalised to level 0's, and the white
 // furnace caps level 0's at the smooth albedo); the nodes' R without the normalisation do not (control).
 TEST(GlintFactoredLevel0, SliceEnergyEqualsTheOneDegreeLevels) {
   for (const Spec &s : {kSpecs[0], kSpecs[1]}) {
     const auto table = table_of(s);
     const pg::FactoredLevel0 raw(table->levels[0], table->spec, table->cone_solid_angle(), false);
     double worst = 0.0, worst_raw = 0.0;
-    for (int ti = 0; ti <= 80; ti += 10) {
+    for (int ti : {0, 1, 41, 60, 79, 80}) {  // nodes of R (even) and slices between them (odd)
       const double e0 = slice_energy(*table, table->factored0, s, ti, false);
       const double ef = slice_energy(*table, table->factored0, s, ti, true);
       const double er = slice_energy(*table, raw, s, ti, true);
