@@ -391,10 +391,10 @@ FactoredLevel0::FactoredLevel0(const LodLevel &level0, const TableSpec &spec, fl
 
 // The factor that gives theta_i slice i of R (node theta_i = 2 i) level 0's W-weighted energy through the lookups
 // that read it: E = Int W P dwo on step 4's 0.5-degree grid (weight_grid, slice_energy), P factored where covered
-// (every theta_o while kMaxThetaODeg is 90) and level 0's 1-degree lookup elsewhere; returns (E_level0 - E_uncovered) / E_factored. Without it
-// the factored slices read up to 0.17 % less energy than level 0 (GGX 0.35 at theta_i 80), which the blurred
-// levels, normalised to level 0, then exceeded (Glint.LodBlurConservesEnergyAtEveryIncidence). (A 1-degree grid
-// here left +0.055 % at theta_i 0 on the 0.5-degree one: GlintFactoredLevel0.SliceEnergyEqualsTheOneDegreeLevels.)
+// (every theta_o while kMaxThetaODeg is 90) and level 0's 1-degree lookup elsewhere; returns (E_level0 - E_uncovered) /
+// E_factored. Without it the factored slices read up to 0.17 % less energy than level 0 (GGX 0.35 at theta_i 80), which
+// the blurred levels, normalised to level 0, then exceeded (Glint.LodBlurConservesEnergyAtEveryIncidence). (A 1-degree
+// grid here left +0.055 % at theta_i 0 on the 0.5-degree one: GlintFactoredLevel0.SliceEnergyEqualsTheOneDegreeLevels.)
 double FactoredLevel0::slice_scale(const LodLevel &level0, const TableSpec &spec, int i) const {
   const int ti = i * kStepDeg;
   const std::vector<double> weight = weight_grid(spec, ti);

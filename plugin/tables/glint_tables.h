@@ -280,7 +280,9 @@ class FactoredLevel0 {
   static_assert(static_cast<int>(kMaxThetaIDeg) % kStepDeg == 0 && kMaxThetaIDeg == static_cast<int>(kMaxThetaIDeg));
   // Lobes wider than the cone's 1.5 gamma (narrower ones keep the 1-degree level 0: glint_factored_level0.h).
   // The same float expression as glint_pseudo_normals.h's uses_pseudo_normals(alpha, gamma_deg * kDegToRad), negated.
-  static bool applies(const TableSpec &spec) { return !(spec.alpha <= kNarrowLobeRatio * (spec.gamma_deg * kDegToRad)); }
+  static bool applies(const TableSpec &spec) {
+    return !(spec.alpha <= kNarrowLobeRatio * (spec.gamma_deg * kDegToRad));
+  }
   // The slices' energy scales are small corrections; outside (kMinScale, kMaxScale) the form is not used.
   static constexpr double kMinScale = 0.9, kMaxScale = 1.1;
 

@@ -142,12 +142,12 @@ TEST(GlintCacheHostile, CraftedTablesAreRejectedAndJunkIsReplaced) {
     bool knows_key;  // else the attacker recomputes the old unkeyed FNV-1a checksum
     const char *expected;
   };
-  for (const Attack &a : {Attack{"x1000 brighter, FNV recomputed", 0, 9, 1000.0f, false, "MAC mismatch"},
-                          Attack{"x1.01, FNV recomputed", 0, 9, 1.01f, false, "MAC mismatch"},
-                          Attack{"level 0 doubled, MAC recomputed", 0, 1, 2.0f, true, "does not keep the energy"},
-                          Attack{"coarse levels x1.01, MAC recomputed", 1, 9, 1.01f, true, "does not keep the energy"},
-                          Attack{"factored level 0's scales x1.05, MAC recomputed", -1, -1, 1.05f, true,
-                                 "slice scales differ"}}) {
+  for (const Attack &a :
+       {Attack{"x1000 brighter, FNV recomputed", 0, 9, 1000.0f, false, "MAC mismatch"},
+        Attack{"x1.01, FNV recomputed", 0, 9, 1.01f, false, "MAC mismatch"},
+        Attack{"level 0 doubled, MAC recomputed", 0, 1, 2.0f, true, "does not keep the energy"},
+        Attack{"coarse levels x1.01, MAC recomputed", 1, 9, 1.01f, true, "does not keep the energy"},
+        Attack{"factored level 0's scales x1.05, MAC recomputed", -1, -1, 1.05f, true, "slice scales differ"}}) {
     SCOPED_TRACE(a.what);
     std::vector<char> crafted = original;
     if (a.first < 0)

@@ -119,7 +119,9 @@ TEST(GlintFactoredLevel0, AtLeastAsAccurateAsTheOneDegreeTableOverAllAzimuths) {
     ASSERT_GT(e_today.size(), 500u) << s.name;
     // At most the 1-degree table's error, up to the slices' energy scale (<= ~2e-4 of P; for wide lobes both read the
     // integral within ~2e-4 and their means differ only by it), and no error over 5 %.
-    auto passes = [&](const ErrorStats &x) { return x.mean <= t.mean + 1e-4 && x.p99 <= t.p99 + 1e-4 && x.max <= 0.05; };
+    auto passes = [&](const ErrorStats &x) {
+      return x.mean <= t.mean + 1e-4 && x.p99 <= t.p99 + 1e-4 && x.max <= 0.05;
+    };
     EXPECT_TRUE(passes(f)) << s.name;
     // The control fails what the factored level passes: the 2-degree nodes alone are not accurate enough.
     EXPECT_FALSE(passes(c)) << s.name;
@@ -149,8 +151,9 @@ double slice_energy(const pg::DirectionalTable &table, const pg::FactoredLevel0 
   return e;
 }
 
-// Each slice reads level 0's energy (nodes scaled, the slices between them interpolated) (the blurred levels are normalised to level 0's, and the white
-// furnace caps level 0's at the smooth albedo); the nodes' R without the normalisation do not (control).
+// Each slice reads level 0's energy (nodes scaled, the slices between them interpolated) (the blurred levels are
+// normalised to level 0's, and the white furnace caps level 0's at the smooth albedo); the nodes' R without the
+// normalisation do not (control).
 TEST(GlintFactoredLevel0, SliceEnergyEqualsTheOneDegreeLevels) {
   for (const Spec &s : {kSpecs[0], kSpecs[1]}) {
     const auto table = table_of(s);
