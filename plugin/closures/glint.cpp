@@ -94,6 +94,8 @@
 namespace glimmer::plugin {
 
 namespace mf = glimmer::microfacet;
+// The factored level 0 is used exactly where the pseudo-normals are not (tables/glint_factored_level0.h).
+static_assert(glint::FactoredLevel0::kNarrowLobeRatio == glint::kPseudoNormalLobeRatio);
 
 // The schema with density marked varying: it may be textured (glint_f_cos reads it per shading point).
 // constexpr, so GlintClosure::params() is a constant-initialised static.
@@ -243,13 +245,23 @@ class GlintClosure {
   static TableCoords table_coords(const Vec3 &wi, const Vec3 &wo) { return glint::table_coords(wi, wo); }
   static float fast_acos_deg(float x) { return glint::fast_acos_deg(x); }
 
-  // P at `c` (min(lookup, 1); 0 without a table). The lookup is a random access into several MB, and its miss was
+  // P at `c` (at most 1; 0 without a table). The lookup is a random access into several MB, and its miss was
   // the largest single cost of eval: the caller reads P before the Lambdas and the pdf, whose math (independent of
   // P) runs while the loads are outstanding. Session 27: read at once instead of prefetched and read after the pdf,
   // so the located cell is not kept (spilled and reloaded) across the pdf's calls (Beckmann's Lambdas and exp).
-  float table_probability(const TableCoords &c, float sigma_deg) const {
+  // Session 42: level 0 is read as the analytic lobe of (wi, h) times a residual on 2-degree nodes where the table
+  // has one and it covers (wi, wo) (tables/glint_factored_level0.h: 343 KB instead of 3 MB). Where the dark test can
+  // apply (blur <= gamma), the factored P is clamped to the test's bound, so the test stays exact (the bound is taken
+  // over the 1-degree nodes, which bound the 1-degree lookup by construction), whatever the footprint.
+  [[gnu::always_inline]] float table_probability(const TableCoords &c, float sigma_deg, const Vec3 &wi,
+                                                 const glint::HalfVector &h) const {
     if (!table_) return 0.0f;
-    return std::min(table_->lookup(table_->locate(sigma_deg, c.lanes())), 1.0f);
+    if (!table_->factored0.active() || !glint::FactoredLevel0::covers(c.theta_i, c.theta_o))
+      return std::min(table_->lookup(table_->locate(sigma_deg, c.lanes())), 1.0f);
+    const float lobe = h.valid ? table_->factored0.lobe()(dot(wi, h.h), h.h.z) : 0.0f;
+    float P = table_->lookup_eval(table_->locate_eval(sigma_deg, c.lanes()), lobe);
+    if (!(sigma_deg > field_.gamma_deg) && !peak_.empty()) P = std::min(P, peak_.bound(c.lanes()));
+    return std::min(P, 1.0f);
   }
 
   // The footprint of a shading point and, once located, the direction cells
@@ -556,7 +568,7 @@ class GlintClosure {
       pdf = glint::smooth_lobe_pdf_above(w.ax, w.ay, sp.wi, wo, h);  // one Lambda, no W
       return Spectrum(0.0f);
     }
-    const float P = table_probability(c, sigma_deg);  // first: the Lambdas' and the pdf's math overlaps its loads
+    const float P = table_probability(c, sigma_deg, sp.wi, h);  // first: the Lambdas' and pdf's math overlaps its loads
     const glint::EvalLambdasPdf lp = glint::eval_lambdas_and_pdf(field_.distribution, field_.alpha, w.ax, sp.wi, wo, h);
     pdf = lp.pdf;
     return glint_f_cos(sp.wi, wo, P, h, lp.lambdas, sigma_deg, density, parts);

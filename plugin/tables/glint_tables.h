@@ -66,6 +66,7 @@
 #include <emmintrin.h>
 
 #include "glimmer/closure_abi.h"
+#include "tables/glint_factored_level0.h"
 
 namespace glimmer::plugin::glint {
 
@@ -264,6 +265,59 @@ struct LodLevel {
   }
 };
 
+// Level 0 read as the analytic lobe A times its residual R on 2-degree nodes (tables/glint_factored_level0.h): built
+// from level 0's fp32 nodes by DirectionalTable::factor_level0 where applies(); inactive otherwise (lookups read the
+// 1-degree level 0).
+class FactoredLevel0 {
+ public:
+  static constexpr int kStepDeg = 2;               // of theta_i, theta_o and dphi
+  static constexpr float kResidualCap = 4.0f;      // R at a node (see glint_factored_level0.h)
+  static constexpr float kNarrowLobeRatio = 1.5f;  // glint_pseudo_normals.h's kPseudoNormalLobeRatio (asserted equal)
+  // Where (2) is read: theta_i <= 80 degrees. Beyond, at forward grazing, the residual varies faster than its
+  // 2-degree dphi nodes (glint_factored_level0.h): lookups read the 1-degree level 0 there (330 KB of its slices).
+  static constexpr float kMaxThetaIDeg = 80.0f, kMaxThetaODeg = 90.0f;
+  static constexpr int kNodesThetaI = static_cast<int>(kMaxThetaIDeg) / kStepDeg + 1;
+  static_assert(static_cast<int>(kMaxThetaIDeg) % kStepDeg == 0 && kMaxThetaIDeg == static_cast<int>(kMaxThetaIDeg));
+  // Lobes wider than the cone's 1.5 gamma (narrower ones keep the 1-degree level 0: glint_factored_level0.h).
+  // The same float expression as glint_pseudo_normals.h's uses_pseudo_normals(alpha, gamma_deg * kDegToRad), negated.
+  static bool applies(const TableSpec &spec) {
+    return !(spec.alpha <= kNarrowLobeRatio * (spec.gamma_deg * kDegToRad));
+  }
+  // The slices' energy scales are small corrections; outside (kMinScale, kMaxScale) the form is not used.
+  static constexpr double kMinScale = 0.9, kMaxScale = 1.1;
+
+  FactoredLevel0() = default;
+  // From level 0 with its fp32 values; sigma the cone's solid angle. `normalise`: each theta_i slice of R scaled so
+  // that the W-weighted energy of the lookups (factored where covered, 1-degree elsewhere) equals level 0's (false:
+  // the nodes' R as they are; tests only).
+  // `scales`: the slices' scales saved with the table (slice_scales(); computed when null or empty).
+  FactoredLevel0(const LodLevel &level0, const TableSpec &spec, float sigma, bool normalise = true,
+                 const std::vector<double> *scales = nullptr);
+  const std::vector<double> &slice_scales() const { return scales_; }  // empty when inactive or not normalised
+
+  bool active() const { return !residual_.halves.empty(); }
+  static bool covers(float theta_i_deg, float theta_o_deg) {
+    return theta_i_deg <= kMaxThetaIDeg && theta_o_deg <= kMaxThetaODeg;
+  }
+  const Level0Lobe &lobe() const { return lobe_; }
+  const LodLevel &residual() const { return residual_; }
+  // theta_i clamped to kMaxThetaIDeg (the residual's last node: no extrapolation where a caller did not test covers).
+  LodLevel::Cell cell(__m128 deg) const {
+    return residual_.cell(_mm_min_ps(deg, _mm_setr_ps(kMaxThetaIDeg, 90.0f, 180.0f, 0.0f)));
+  }
+  // (2) of glint_factored_level0.h: `lobe` = lobe()(wi.h, cos theta_h) of the query located at `c`.
+  float lookup(const LodLevel::Cell &c, float lobe) const { return lobe * residual_.lookup(c); }
+  // The same from angles (degrees), A computed from them (tests and tools).
+  float lookup_angles(float theta_i_deg, float theta_o_deg, float dphi_deg) const;
+  size_t byte_size() const { return residual_.halves.size() * sizeof(uint16_t); }
+
+ private:
+  Level0Lobe lobe_;
+  LodLevel residual_;  // R: 41 x 46 x 91 nodes (theta_i 0..80), theta_i's lane at step 2 as well
+  std::vector<double> scales_;
+  double slice_scale(const LodLevel &level0, const TableSpec &spec, int i) const;
+};
+
 class DirectionalTable {
  public:
   TableSpec spec;
@@ -317,6 +371,21 @@ class DirectionalTable {
     if (at.lp.t > 0.0f) at.second = levels[at.lp.first + 1].cell(deg);
     return at;
   }
+  // The closure's lookup where factored0 is active and covers the query: level 0 read as factored0's (2) with `lobe`
+  // the query's A (FactoredLevel0::lobe()), the blurred levels as lookup(const Located &).
+  Located locate_eval(float sigma_deg, __m128 deg) const {
+    Located at;
+    at.lp = levels_at(sigma_deg);
+    at.first = at.lp.first == 0 ? factored0.cell(deg) : levels[at.lp.first].cell(deg);
+    if (at.lp.t > 0.0f) at.second = levels[at.lp.first + 1].cell(deg);
+    return at;
+  }
+  float lookup_eval(const Located &at, float lobe) const {
+    const float a = at.lp.first == 0 ? factored0.lookup(at.first, lobe) : levels[at.lp.first].lookup(at.first);
+    if (!(at.lp.t > 0.0f)) return a;
+    const float b = levels[at.lp.first + 1].lookup(at.second);
+    return a + (b - a) * at.lp.t;
+  }
   void prefetch(const Located &at) const {
     levels[at.lp.first].prefetch(at.first);
     if (at.lp.t > 0.0f) levels[at.lp.first + 1].prefetch(at.second);
@@ -328,7 +397,13 @@ class DirectionalTable {
     return a + (b - a) * at.lp.t;
   }
 
-  size_t byte_size() const;  // values (until released) and halves
+  size_t byte_size() const;  // values (until released), halves and the factored level 0
+  // Level 0 as lookup_eval reads it (factored0), built from level 0's fp32 values where FactoredLevel0::applies.
+  FactoredLevel0 factored0;
+  // `scales`: the slices' scales read from the cache (computed when null or empty).
+  void factor_level0(const std::vector<double> *scales = nullptr) {
+    if (FactoredLevel0::applies(spec)) factored0 = FactoredLevel0(levels[0], spec, cone_solid_angle(), true, scales);
+  }
   void pack_halves() {
     for (LodLevel &l : levels) l.pack_halves();
   }

@@ -28,10 +28,10 @@ namespace fs = std::filesystem;
 
 // Scales the float values of LOD levels [first, last) by `factor`.
 // Layout: magic 8, version 4, key 8, distribution 4, alpha 4, gamma 4, then
-// per level: n_theta_o, n_phi (int32) and 91 * n_theta_o * n_phi floats.
+// per level: n_theta_o, n_phi (int32) and 91 * n_theta_o * n_phi floats; then the factored level 0's scales.
 void scale_levels(std::vector<char> &bytes, int first, int last, float factor) {
   size_t pos = 32;
-  for (int l = 0; pos + 8 <= bytes.size() - 32; ++l) {
+  for (int l = 0; l < 9 && pos + 8 <= bytes.size() - 32; ++l) {  // the 9 levels (the factored level's scales follow)
     int32_t n_to = 0, n_phi = 0;
     std::memcpy(&n_to, bytes.data() + pos, 4);
     std::memcpy(&n_phi, bytes.data() + pos + 4, 4);
@@ -45,6 +45,27 @@ void scale_levels(std::vector<char> &bytes, int first, int last, float factor) {
         std::memcpy(bytes.data() + pos + 4 * i, &v, 4);
       }
     pos += 4 * count;
+  }
+}
+
+// Scales the factored level 0's slice scales (the doubles after the 9 levels: a count, then the scales) by `factor`.
+void scale_factored_scales(std::vector<char> &bytes, double factor) {
+  size_t pos = 32;
+  for (int l = 0; l < 9; ++l) {
+    int32_t n_to = 0, n_phi = 0;
+    std::memcpy(&n_to, bytes.data() + pos, 4);
+    std::memcpy(&n_phi, bytes.data() + pos + 4, 4);
+    pos += 8 + 4 * static_cast<size_t>(91) * n_to * n_phi;
+  }
+  int32_t n = 0;
+  std::memcpy(&n, bytes.data() + pos, 4);
+  ASSERT_GT(n, 0) << "the table must be factored";
+  pos += 4;
+  for (int32_t i = 0; i < n; ++i) {
+    double v;
+    std::memcpy(&v, bytes.data() + pos + 8 * i, 8);
+    v *= factor;
+    std::memcpy(bytes.data() + pos + 8 * i, &v, 8);
   }
 }
 
@@ -121,13 +142,18 @@ TEST(GlintCacheHostile, CraftedTablesAreRejectedAndJunkIsReplaced) {
     bool knows_key;  // else the attacker recomputes the old unkeyed FNV-1a checksum
     const char *expected;
   };
-  for (const Attack &a : {Attack{"x1000 brighter, FNV recomputed", 0, 9, 1000.0f, false, "MAC mismatch"},
-                          Attack{"x1.01, FNV recomputed", 0, 9, 1.01f, false, "MAC mismatch"},
-                          Attack{"level 0 doubled, MAC recomputed", 0, 1, 2.0f, true, "does not keep the energy"},
-                          Attack{"coarse levels x1.01, MAC recomputed", 1, 9, 1.01f, true, "does not keep the energy"}}) {
+  for (const Attack &a :
+       {Attack{"x1000 brighter, FNV recomputed", 0, 9, 1000.0f, false, "MAC mismatch"},
+        Attack{"x1.01, FNV recomputed", 0, 9, 1.01f, false, "MAC mismatch"},
+        Attack{"level 0 doubled, MAC recomputed", 0, 1, 2.0f, true, "does not keep the energy"},
+        Attack{"coarse levels x1.01, MAC recomputed", 1, 9, 1.01f, true, "does not keep the energy"},
+        Attack{"factored level 0's scales x1.05, MAC recomputed", -1, -1, 1.05f, true, "slice scales differ"}}) {
     SCOPED_TRACE(a.what);
     std::vector<char> crafted = original;
-    scale_levels(crafted, a.first, a.last, a.factor);
+    if (a.first < 0)
+      scale_factored_scales(crafted, a.factor);
+    else
+      scale_levels(crafted, a.first, a.last, a.factor);
     if (a.knows_key) rewrite_mac(crafted, key);
     else rewrite_fnv(crafted);
     write_bytes(entry, crafted);
@@ -161,13 +187,14 @@ TEST(GlintCacheHostile, CacheKeysAndHeaderArePinned) {
     std::memcpy(&f, &bits, 4);
     return f;
   };
-  // glint_P_030cca93e58152cb.bin: GGX, alpha 0x3d23d70b (0.04), gamma 2.
+  // glint_P_2c9b764e6df95301.bin: GGX, alpha 0x3d23d70b (0.04), gamma 2, format 7 (session 42: the factored level 0's
+  // slice scales; format 5's key was 0x030cca93e58152cb). Both recomputed by hand (Python) from the chain.
   plugin::glint::TableSpec p;
   p.distribution = plugin::glint::BaseDistribution::GGX;
   p.alpha = from_bits(0x3d23d70bu);
   p.gamma_deg = 2.0f;
-  EXPECT_EQ(plugin::glint::table_key(p), 0x030cca93e58152cbull);
-  EXPECT_EQ(fs::path(plugin::glint::table_cache_path("/c", p)).filename().string(), "glint_P_030cca93e58152cb.bin");
+  EXPECT_EQ(plugin::glint::table_key(p), 0x2c9b764e6df95301ull);
+  EXPECT_EQ(fs::path(plugin::glint::table_cache_path("/c", p)).filename().string(), "glint_P_2c9b764e6df95301.bin");
   // glint_A_c547ed6736770f18.bin: GGX, alpha 0.25 x 0.0625, gamma 2.
   plugin::glint::AnisoSpec a;
   a.distribution = microfacet::Distribution::GGX;
