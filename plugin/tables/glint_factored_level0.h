@@ -64,35 +64,24 @@ struct Level0Lobe {
   // kMinCosine (h at the horizon of wi or of the surface; lookups read A only where theta_i <= 80, where
   // both are above 0.08): no overflow of the 1 / (wi.h)^2 widening or of A's 1 / wi.h.
   static constexpr float kMinCosine = 1e-3f;
-  float operator()(float wi_h, float cos_h) const {
-    if (!(wi_h >= kMinCosine) || !(cos_h >= kMinCosine)) return 0.0f;
-    const float a2 = alpha2 + widen2 / (wi_h * wi_h);
-    const float c2 = cos_h * cos_h;
-    float pi_d;
-    if (ggx) {
-      const float k = (1.0f - c2) / a2 + c2;
-      pi_d = 1.0f / (a2 * k * k);
+  float operator()(float wi_h, float cos_h) const { return lobe(wi_h, cos_h, alpha2, widen2, scale, ggx); }
+  double at(double wi_h, double cos_h) const { return lobe(wi_h, cos_h, alpha2_d, widen2_d, scale_d, ggx); }
+  // (1) in float (the eval) or double (the residual's nodes): the same operations.
+  template <class T>
+  static T lobe(T wi_h, T cos_h, T alpha2_, T widen2_, T scale_, bool is_ggx) {
+    if (!(wi_h >= T(kMinCosine)) || !(cos_h >= T(kMinCosine))) return T(0);
+    const T a2 = alpha2_ + widen2_ / (wi_h * wi_h);
+    const T c2 = cos_h * cos_h;
+    T pi_d;
+    if (is_ggx) {
+      const T k = (T(1) - c2) / a2 + c2;
+      pi_d = T(1) / (a2 * k * k);
     } else {
-      const float e = (1.0f - c2) / (c2 * a2);
-      if (!(e < 80.0f)) return 0.0f;
+      const T e = (T(1) - c2) / (c2 * a2);
+      if (!(e < T(80))) return T(0);
       pi_d = std::exp(-e) / (a2 * c2 * c2);
     }
-    return scale * pi_d * cos_h / wi_h;
-  }
-  double at(double wi_h, double cos_h) const {
-    if (!(wi_h >= kMinCosine) || !(cos_h >= kMinCosine)) return 0.0;
-    const double a2 = alpha2_d + widen2_d / (wi_h * wi_h);
-    const double c2 = cos_h * cos_h;
-    double pi_d;
-    if (ggx) {
-      const double k = (1.0 - c2) / a2 + c2;
-      pi_d = 1.0 / (a2 * k * k);
-    } else {
-      const double e = (1.0 - c2) / (c2 * a2);
-      if (!(e < 80.0)) return 0.0;
-      pi_d = std::exp(-e) / (a2 * c2 * c2);
-    }
-    return scale_d * pi_d * cos_h / wi_h;
+    return scale_ * pi_d * cos_h / wi_h;
   }
   // A at the angles of a table node (degrees; wi in the xz plane, wo at azimuth dphi), in double.
   double at_angles(double theta_i_deg, double theta_o_deg, double dphi_deg) const {

@@ -12,10 +12,21 @@
 #include "closures/closure_checks.h"
 #include "host/closure_instance.h"
 #include "tables/glint_hierarchy.h"
+#include "tables/glint_tables.h"
 
 namespace glimmer::test {
 
 namespace mf = glimmer::microfacet;
+
+// The isotropic NDF a glint table is built from, D(m) by cos(theta_m) at alpha, as the closure gives it
+// (glint.cpp, prepare).
+inline plugin::glint::NdfFunction ndf_of(mf::Distribution dist, float alpha) {
+  return [dist, alpha](double cos_m) {
+    const double c = std::min(std::max(cos_m, 0.0), 1.0);
+    const Vec3 m(static_cast<float>(std::sqrt(1.0 - c * c)), 0.0f, static_cast<float>(c));
+    return static_cast<double>(mf::D(dist, m, alpha, alpha));
+  };
+}
 
 // Density of the reflected direction r of a particle whose normal follows
 // D(m) cos(theta_m): q(wi, r) = D(h) cos(theta_h) / (4 wi.h), h = normalize(wi + r)

@@ -20,14 +20,6 @@ namespace {
 
 namespace pg = plugin::glint;
 
-pg::NdfFunction ndf_of(mf::Distribution dist, float alpha) {
-  return [dist, alpha](double cos_m) {
-    const double c = std::min(std::max(cos_m, 0.0), 1.0);
-    const Vec3 m(static_cast<float>(std::sqrt(1.0 - c * c)), 0.0f, static_cast<float>(c));
-    return static_cast<double>(mf::D(dist, m, alpha, alpha));
-  };
-}
-
 struct Spec {
   const char *name;
   mf::Distribution dist;

@@ -28,15 +28,6 @@ namespace pg = plugin::glint;
 
 const bool kCacheDirSet = cache_tables_in_build_folder();
 
-pg::NdfFunction ndf_of(mf::Distribution dist, double alpha) {
-  const float a = static_cast<float>(alpha);
-  return [dist, a](double cos_m) {
-    const double c = std::min(std::max(cos_m, 0.0), 1.0);
-    const Vec3 m(static_cast<float>(std::sqrt(1.0 - c * c)), 0.0f, static_cast<float>(c));
-    return static_cast<double>(mf::D(dist, m, a, a));
-  };
-}
-
 // Closed form at wi = wo = N: the particle reflects within gamma of the
 // normal when theta_m <= gamma / 2, whose probability under D cos is the
 // slope CDF at t = tan(gamma / 2): GGX t^2 / (alpha^2 + t^2), Beckmann
@@ -79,7 +70,7 @@ TEST(GlintLowRoughness, LobeMassBruteForceMatchesClosedFormAndConeQuadrature) {
       for (double d_to : {0.0, 3.0}) {
         const Vec3 wi = spherical_dir(ti, 0.0), wo = spherical_dir(ti + d_to, dphi);
         const double quadrature =
-            pg::directional_probability_reference(ndf_of(mf::Distribution::GGX, alpha), 2.0, ti, ti + d_to, dphi, 96);
+            pg::directional_probability_reference(ndf_of(mf::Distribution::GGX, static_cast<float>(alpha)), 2.0, ti, ti + d_to, dphi, 96);
         EXPECT_NEAR(lobe(wi, wo, 2.0 * M_PI / 180.0), quadrature, kTolerance) << ti << " " << dphi << " " << d_to;
       }
 }

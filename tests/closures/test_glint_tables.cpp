@@ -17,14 +17,6 @@ namespace {
 
 namespace pg = plugin::glint;
 
-pg::NdfFunction ndf_of(mf::Distribution dist, float alpha) {
-  return [dist, alpha](double cos_m) {
-    const double c = std::min(std::max(cos_m, 0.0), 1.0);
-    const Vec3 m(static_cast<float>(std::sqrt(1.0 - c * c)), 0.0f, static_cast<float>(c));
-    return static_cast<double>(mf::D(dist, m, alpha, alpha));
-  };
-}
-
 // Level 0 against the brute-force cone integral over the lobe core
 // (reference >= 5 % of the peak): theta_i 0..80 degrees, wo within a few
 // degrees of the mirror direction in and across the plane of incidence, at
