@@ -259,7 +259,7 @@ class GlintClosure {
     if (!table_->factored0.active() || !glint::FactoredLevel0::covers(c.theta_i, c.theta_o))
       return std::min(table_->lookup(table_->locate(sigma_deg, c.lanes())), 1.0f);
     const float lobe = h.valid ? table_->factored0.lobe()(dot(wi, h.h), h.h.z) : 0.0f;
-    float P = table_->lookup_eval(table_->locate_eval(sigma_deg, c.lanes()), lobe);
+    float P = table_->lookup_factored(table_->locate(sigma_deg, c.lanes(), /*factored_level0=*/true), lobe);
     if (!(sigma_deg > field_.gamma_deg) && !peak_.empty()) P = std::min(P, peak_.bound(c.lanes()));
     return std::min(P, 1.0f);
   }

@@ -83,16 +83,6 @@ struct Level0Lobe {
     }
     return scale_ * pi_d * cos_h / wi_h;
   }
-  // A at the angles of a table node (degrees; wi in the xz plane, wo at azimuth dphi), in double.
-  double at_angles(double theta_i_deg, double theta_o_deg, double dphi_deg) const {
-    constexpr double kDeg = 3.141592653589793 / 180.0;
-    const double ti = theta_i_deg * kDeg, to = theta_o_deg * kDeg, dp = dphi_deg * kDeg;
-    const double ix = std::sin(ti), iz = std::cos(ti);
-    const double ox = std::sin(to) * std::cos(dp), oy = std::sin(to) * std::sin(dp), oz = std::cos(to);
-    const double hx = ix + ox, hy = oy, hz = iz + oz, len = std::sqrt(hx * hx + hy * hy + hz * hz);
-    if (!(len > 1e-12)) return 0.0;
-    return at((ix * hx + iz * hz) / len, hz / len);
-  }
 };
 
 }  // namespace glimmer::plugin::glint

@@ -349,6 +349,17 @@ bool plausible_energy(const DirectionalTable &table, const TableSpec &spec, int 
 
 }  // namespace
 
+namespace {
+// A of (1) (glint_factored_level0.h) at the angles of a table node (degrees; wi in the xz plane, wo at azimuth dphi).
+double lobe_at_angles(const Level0Lobe &lobe, double theta_i_deg, double theta_o_deg, double dphi_deg) {
+  const D3 wi = spherical(theta_i_deg * kDeg, 0.0), wo = spherical(theta_o_deg * kDeg, dphi_deg * kDeg);
+  const D3 s = wi + wo;
+  const double len = std::sqrt(dot3(s, s));
+  if (!(len > 1e-12)) return 0.0;
+  return lobe.at(dot3(wi, s) / len, s.z / len);
+}
+}  // namespace
+
 FactoredLevel0::FactoredLevel0(const LodLevel &level0, const TableSpec &spec, float sigma, bool normalise,
                                const std::vector<double> *scales)
     : lobe_(spec.distribution == BaseDistribution::GGX, spec.alpha, spec.gamma_deg * kDeg, sigma) {
@@ -362,7 +373,7 @@ FactoredLevel0::FactoredLevel0(const LodLevel &level0, const TableSpec &spec, fl
       for (int p = 0; p < residual_.n_phi; ++p) {
         const int ti = i * kStepDeg, to = o * kStepDeg, dp = p * kStepDeg;
         const double P = level0.values[(static_cast<size_t>(ti) * level0.n_theta_o + to) * level0.n_phi + dp];
-        const double A = lobe_.at_angles(ti, to, dp);
+        const double A = lobe_at_angles(lobe_, ti, to, dp);
         double r = 0.0;
         if (P > 0.0) r = A > 0.0 ? std::min(P / A, static_cast<double>(kResidualCap)) : kResidualCap;
         residual_.values[(static_cast<size_t>(i) * residual_.n_theta_o + o) * residual_.n_phi + p] =
@@ -408,7 +419,7 @@ double FactoredLevel0::slice_scale(const LodLevel &level0, const TableSpec &spec
       const double dp = (p + 0.5) * kEnergyStepDeg;
       const float fi = static_cast<float>(ti), fo = static_cast<float>(to), fp = static_cast<float>(dp);
       if (covered)
-        e_factored += w * lobe_.at_angles(ti, to, dp) * residual_.lookup_exact(fi, fo, fp);
+        e_factored += w * lobe_at_angles(lobe_, ti, to, dp) * residual_.lookup_exact(fi, fo, fp);
       else
         e_uncovered += w * level0.lookup_exact(fi, fo, fp);
     }
@@ -419,7 +430,7 @@ double FactoredLevel0::slice_scale(const LodLevel &level0, const TableSpec &spec
 }
 
 float FactoredLevel0::lookup_angles(float theta_i_deg, float theta_o_deg, float dphi_deg) const {
-  const float A = static_cast<float>(lobe_.at_angles(theta_i_deg, theta_o_deg, dphi_deg));
+  const float A = static_cast<float>(lobe_at_angles(lobe_, theta_i_deg, theta_o_deg, dphi_deg));
   return lookup(cell(_mm_setr_ps(theta_i_deg, theta_o_deg, dphi_deg, 0.0f)), A);
 }
 

@@ -363,42 +363,34 @@ class DirectionalTable {
   Located locate(float sigma_deg, float theta_i_deg, float theta_o_deg, float dphi_deg) const {
     return locate(sigma_deg, _mm_setr_ps(theta_i_deg, theta_o_deg, dphi_deg, 0.0f));
   }
-  // The same with the angles in lanes 0..2 of `deg` (lane 3 unused).
-  Located locate(float sigma_deg, __m128 deg) const {
+  // The same with the angles in lanes 0..2 of `deg` (lane 3 unused). `factored_level0`: level 0 located in factored0's
+  // residual, for lookup_factored (the closure, where factored0 is active and covers the query).
+  Located locate(float sigma_deg, __m128 deg, bool factored_level0 = false) const {
     Located at;
     at.lp = levels_at(sigma_deg);
-    at.first = levels[at.lp.first].cell(deg);
+    at.first = factored_level0 && at.lp.first == 0 ? factored0.cell(deg) : levels[at.lp.first].cell(deg);
     if (at.lp.t > 0.0f) at.second = levels[at.lp.first + 1].cell(deg);
     return at;
   }
-  // The closure's lookup where factored0 is active and covers the query: level 0 read as factored0's (2) with `lobe`
-  // the query's A (FactoredLevel0::lobe()), the blurred levels as lookup(const Located &).
-  Located locate_eval(float sigma_deg, __m128 deg) const {
-    Located at;
-    at.lp = levels_at(sigma_deg);
-    at.first = at.lp.first == 0 ? factored0.cell(deg) : levels[at.lp.first].cell(deg);
-    if (at.lp.t > 0.0f) at.second = levels[at.lp.first + 1].cell(deg);
-    return at;
-  }
-  float lookup_eval(const Located &at, float lobe) const {
-    const float a = at.lp.first == 0 ? factored0.lookup(at.first, lobe) : levels[at.lp.first].lookup(at.first);
-    if (!(at.lp.t > 0.0f)) return a;
-    const float b = levels[at.lp.first + 1].lookup(at.second);
-    return a + (b - a) * at.lp.t;
+  // lookup() of a locate(..., true): level 0 read as factored0's (2) with `lobe` the query's A (FactoredLevel0::lobe()).
+  float lookup_factored(const Located &at, float lobe) const {
+    return toward_second(at,
+                         at.lp.first == 0 ? factored0.lookup(at.first, lobe) : levels[at.lp.first].lookup(at.first));
   }
   void prefetch(const Located &at) const {
     levels[at.lp.first].prefetch(at.first);
     if (at.lp.t > 0.0f) levels[at.lp.first + 1].prefetch(at.second);
   }
-  float lookup(const Located &at) const {
-    const float a = levels[at.lp.first].lookup(at.first);
+  float lookup(const Located &at) const { return toward_second(at, levels[at.lp.first].lookup(at.first)); }
+  // `a` read at the first level; linear toward the second level where the blur lies between them.
+  float toward_second(const Located &at, float a) const {
     if (!(at.lp.t > 0.0f)) return a;
     const float b = levels[at.lp.first + 1].lookup(at.second);
     return a + (b - a) * at.lp.t;
   }
 
   size_t byte_size() const;  // values (until released), halves and the factored level 0
-  // Level 0 as lookup_eval reads it (factored0), built from level 0's fp32 values where FactoredLevel0::applies.
+  // Level 0 as lookup_factored reads it (factored0), built from level 0's fp32 values where FactoredLevel0::applies.
   FactoredLevel0 factored0;
   // `scales`: the slices' scales read from the cache (computed when null or empty).
   void factor_level0(const std::vector<double> *scales = nullptr) {

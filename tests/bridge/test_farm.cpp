@@ -295,6 +295,35 @@ render::ClampedParameterRecord exr_record(const std::string &path) {
   return r.clamped_parameters.empty() ? render::ClampedParameterRecord{} : r.clamped_parameters.front();
 }
 
+// The clamped scene rendered in two parts ("--sample-split" or "--tile" k/2, 8 samples) as `prefix`k.exr: the files
+// and each part's warning lines (checked against the record its EXR carries).
+struct ClampedParts {
+  std::vector<std::string> files;
+  std::vector<ClampedLines> lines;
+};
+ClampedParts render_clamped_parts(const std::string &prefix, const std::string &split_option) {
+  ClampedParts p;
+  std::string out;
+  for (int k = 0; k < 2; ++k) {
+    p.files.push_back(render_clamped(prefix + std::to_string(k) + ".exr",
+                                     "--samples 8 " + split_option + " " + std::to_string(k) + "/2", out));
+    p.lines.push_back(clamped_lines(out));
+    EXPECT_EQ(static_cast<long long>(exr_record(p.files.back()).above), p.lines.back().above);
+  }
+  return p;
+}
+
+// A copy of `part` as a build before the record wrote it (no attribute), as temp_dir()/name.
+std::string without_record(const std::string &part, const std::string &name) {
+  render::RenderResult old = render::read_image(part);
+  EXPECT_FALSE(old.clamped_parameters.empty()) << part;
+  old.clamped_parameters.clear();
+  const std::string path = (temp_dir() / name).string();
+  render::write_image(path, old);
+  EXPECT_FALSE(read_exr(path).spec.find_attribute("glimmer:clamped_parameters")) << path;
+  return path;
+}
+
 // Checks that merging `parts` reports the sum of the parts' counts, as `single` (a one-machine render's output)
 // does; the merged EXR carries the summed record. Returns the merged counts.
 ClampedLines expect_merge_sums(const std::vector<std::string> &parts, const std::vector<ClampedLines> &part_lines,
@@ -340,32 +369,17 @@ TEST(Farm, MergeReportsTheSummedClampedCountsOfSampleSplits) {
   // The single render's EXR carries the record of its warning lines.
   EXPECT_TRUE(read_exr(single).spec.find_attribute("glimmer:clamped_parameters"));
   EXPECT_EQ(static_cast<long long>(exr_record(single).below), full.below);
-  std::vector<std::string> parts;
-  std::vector<ClampedLines> lines;
-  for (int k = 0; k < 2; ++k) {
-    parts.push_back(render_clamped("clamped_split" + std::to_string(k) + ".exr",
-                                   "--samples 8 --sample-split " + std::to_string(k) + "/2", out));
-    lines.push_back(clamped_lines(out));
-    EXPECT_EQ(static_cast<long long>(exr_record(parts.back()).above), lines.back().above);
-  }
-  expect_merge_sums(parts, lines, full, "clamped_merged_splits.exr");
+  const ClampedParts parts = render_clamped_parts("clamped_split", "--sample-split");
+  expect_merge_sums(parts.files, parts.lines, full, "clamped_merged_splits.exr");
   // A part written without the record (a build before it: no attribute) merges, adding nothing.
-  render::RenderResult old = render::read_image(parts[1]);
-  ASSERT_FALSE(old.clamped_parameters.empty());
-  old.clamped_parameters.clear();
-  const std::string old_part = (temp_dir() / "clamped_split1_old.exr").string();
-  render::write_image(old_part, old);
-  EXPECT_FALSE(read_exr(old_part).spec.find_attribute("glimmer:clamped_parameters"));
+  const std::string old_part = without_record(parts.files[1], "clamped_split1_old.exr");
   int code = -1;
-  const std::string mixed = merge({parts[0], old_part}, "clamped_merged_old.exr", code);
+  const std::string mixed = merge({parts.files[0], old_part}, "clamped_merged_old.exr", code);
   ASSERT_EQ(code, 0) << mixed;
-  EXPECT_EQ(clamped_lines(mixed).below, lines[0].below) << mixed;
-  EXPECT_EQ(clamped_lines(mixed).above, lines[0].above) << mixed;
+  EXPECT_EQ(clamped_lines(mixed).below, parts.lines[0].below) << mixed;
+  EXPECT_EQ(clamped_lines(mixed).above, parts.lines[0].above) << mixed;
   // Neither part with the record: nothing to report, and the merged image has no record either.
-  old = render::read_image(parts[0]);
-  old.clamped_parameters.clear();
-  const std::string old_part0 = (temp_dir() / "clamped_split0_old.exr").string();
-  render::write_image(old_part0, old);
+  const std::string old_part0 = without_record(parts.files[0], "clamped_split0_old.exr");
   const std::string none = merge({old_part0, old_part}, "clamped_merged_none.exr", code);
   ASSERT_EQ(code, 0) << none;
   EXPECT_EQ(none.find("warning"), std::string::npos) << none;
@@ -376,14 +390,8 @@ TEST(Farm, MergeReportsTheSummedClampedCountsOfTiles) {
   std::string out;
   render_clamped("clamped_full_t.exr", "--samples 8", out);
   const ClampedLines full = clamped_lines(out);
-  std::vector<std::string> parts;
-  std::vector<ClampedLines> lines;
-  for (int k = 0; k < 2; ++k) {
-    parts.push_back(render_clamped("clamped_tile" + std::to_string(k) + ".exr",
-                                   "--samples 8 --tile " + std::to_string(k) + "/2", out));
-    lines.push_back(clamped_lines(out));
-  }
-  expect_merge_sums(parts, lines, full, "clamped_merged_tiles.exr");
+  const ClampedParts parts = render_clamped_parts("clamped_tile", "--tile");
+  expect_merge_sums(parts.files, parts.lines, full, "clamped_merged_tiles.exr");
 }
 
 TEST(Farm, ResumedRenderReportsTheClampedCountsOfTheWholeRender) {
