@@ -372,7 +372,8 @@ class DirectionalTable {
     if (at.lp.t > 0.0f) at.second = levels[at.lp.first + 1].cell(deg);
     return at;
   }
-  // lookup() of a locate(..., true): level 0 read as factored0's (2) with `lobe` the query's A (FactoredLevel0::lobe()).
+  // lookup() of a locate(..., true): level 0 read as factored0's (2) with `lobe` the query's A
+  // (FactoredLevel0::lobe()).
   float lookup_factored(const Located &at, float lobe) const {
     return toward_second(at,
                          at.lp.first == 0 ? factored0.lookup(at.first, lobe) : levels[at.lp.first].lookup(at.first));
