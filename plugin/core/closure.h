@@ -26,10 +26,15 @@
 #include <cstdio>
 #include <cstring>
 #include <exception>
+#include <limits>
 #include <memory>
 #include <new>
 #include <span>
 #include <type_traits>
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 #include "core/params.h"
 #include "glimmer/closure_abi.h"
@@ -218,12 +223,28 @@ consteval std::size_t aggregate_field_count() {
 }
 
 // Keeps only finite, non-negative values: a closure must never hand NaN/Inf or
-// negative numbers to the host.
+// negative numbers to the host. Finite and > 0 is 0 < v < inf (NaN fails both), taken as SSE compare masks where
+// the target has SSE2 (session 43, issue 10: a glint's f is 0 or not by the particles it counts, which no branch
+// predictor follows; the branches of the scalar form mispredicted there); the same values.
+#if defined(__SSE2__)
+inline __m128 sanitize_lanes(__m128 v) {
+  const __m128 ok = _mm_and_ps(_mm_cmpgt_ps(v, _mm_setzero_ps()),
+                               _mm_cmplt_ps(v, _mm_set1_ps(std::numeric_limits<float>::infinity())));
+  return _mm_and_ps(ok, v);
+}
+inline Spectrum sanitize(const Spectrum &s) {
+  alignas(16) float r[4];
+  _mm_store_ps(r, sanitize_lanes(_mm_setr_ps(s.x, s.y, s.z, 0.0f)));
+  return {r[0], r[1], r[2]};
+}
+inline float sanitize(float v) { return _mm_cvtss_f32(sanitize_lanes(_mm_set_ss(v))); }
+#else
 inline Spectrum sanitize(const Spectrum &s) {
   auto fix = [](float v) { return (std::isfinite(v) && v > 0.0f) ? v : 0.0f; };
   return {fix(s.x), fix(s.y), fix(s.z)};
 }
 inline float sanitize(float v) { return (std::isfinite(v) && v > 0.0f) ? v : 0.0f; }
+#endif
 
 inline void write_error(char *error, size_t size, const char *message) {
   if (error != nullptr && size > 0) std::snprintf(error, size, "%s", message);

@@ -1359,13 +1359,15 @@ struct LitCountTable {
   // its own copy, clamping after the ceil: GI +0.047 M in count_tabled_avx2 as the one form); the form before
   // returned 2^32 from x >= 2^32 - 1, but at x = 2^32 - 1 exactly (v = 1 - 2^-33) the count is 2^32 - 1 (h = 2^32 - 1
   // has u = v). GlintParticles.HashesBelowMatchesTheHashCount.
+  // Session 43: x clamped to [0, 2^32] by SSE2's max and min (maxsd gives its second operand, 0, for NaN) before the
+  // ceil, instead of two branches that follow lambda: the same values (x <= 0 or NaN: 0; x > 2^32 - 1: 2^32).
   static uint64_t hashes_below(double v) {
     const double x = v * 4294967296.0 - 0.5;
-    if (!(x > 0.0)) return 0;                        // also NaN
-    if (x > 4294967295.0) return uint64_t{1} << 32;  // ceil(x) >= 2^32: clamped
-    // Session 36 (glintorigin36): 0 < ceil(x) <= 2^32 - 1 converted as a signed 64-bit integer (one CVTTSD2SI; the
+    const double c =
+        _mm_cvtsd_f64(_mm_min_sd(_mm_max_sd(_mm_set_sd(x), _mm_setzero_pd()), _mm_set_sd(4294967296.0)));
+    // Session 36 (glintorigin36): 0 <= ceil(c) <= 2^32 converted as a signed 64-bit integer (one CVTTSD2SI; the
     // unsigned conversion added a compare, a branch and a subtraction for values from 2^63): the same value.
-    return static_cast<uint64_t>(static_cast<int64_t>(std::ceil(x)));
+    return static_cast<uint64_t>(static_cast<int64_t>(std::ceil(c)));
   }
   explicit LitCountTable(const LitCountModel &m) : lambda(m.lambda), walkable(m.walkable) {
     if (!walkable) {
@@ -1380,9 +1382,12 @@ struct LitCountTable {
     }
     pmf = p, tail = t;
   }
+  // h < below[k] as the sign of h - below[k] (both below 2^33): an add per step, no branch (session 43: GCC 12 made
+  // the compares branches, which follow the data).
+  static int64_t under(uint32_t h, uint64_t b) { return static_cast<int64_t>((uint64_t{h} - b) >> 63); }
   int64_t lit(uint32_t h) const {
     int64_t K = 0;
-    for (size_t k = 0; k < below.size(); ++k) K += h < below[k] ? 1 : 0;
+    for (size_t k = 0; k < below.size(); ++k) K += under(h, below[k]);
     if (K == kSteps) [[unlikely]] return walk_on(h);
     return K;
   }
@@ -1390,7 +1395,7 @@ struct LitCountTable {
   // the first compare known, one register fewer in pass 3.
   int64_t lit_passed(uint32_t h) const {
     int64_t K = 1;
-    for (size_t k = 1; k < below.size(); ++k) K += h < below[k] ? 1 : 0;
+    for (size_t k = 1; k < below.size(); ++k) K += under(h, below[k]);
     if (K == kSteps) [[unlikely]] return walk_on(h);
     return K;
   }
@@ -2595,8 +2600,9 @@ template <bool kAvx2>
 // group hashes in one register (mix_u32x4_avx2: node_seed_hash's words) and
 // their quick rejects as one compare, the passing pairs as bits 4 c + g; then
 // the loop's steps over those pairs in its order (node by node, groups in
-// order): the lit count K by the bounds or the model, the step cap, the node's
-// origin and node_inside at its first lit pair, the positions and
+// order): the lit count K by the bounds or the model (from kLitTableFrom on
+// by LitCountTable, session 43), the step cap, the node's origin and
+// node_inside (per lit pair since session 43), the positions and
 // particle_inside four particles per step (particles_inside4_avx2), the
 // visits in k order. The same count, steps, completeness and visits
 // (GlintParticles.NodeLoopAvx2MatchesTheNodeLoop). The frame's steps are
@@ -2632,9 +2638,17 @@ inline constexpr int kNodeLoopChunk = 16;
 template <typename Visitor>
 [[gnu::target("avx2"), gnu::noinline]] inline GlintCount count_node_loop_avx2(const Footprint &f, const NodeList &nodes,
                                                                              const uint32_t *seed_words, double lambda,
-                                                                             const GroupReject &reject, int max_steps,
-                                                                             Visitor &visit) {
+                                                                             const GroupReject &lambda_reject,
+                                                                             int max_steps, Visitor &visit) {
   GlintCount result;
+  // Session 43: from kLitTableFrom on (as the pair passes), K by LitCountTable's compares instead of the model's tail
+  // walk (a division per step and an exit branch that follows K), and its below[0] as the exact reject.
+  std::optional<LitCountTable> table;
+  GroupReject reject = lambda_reject;
+  if (lambda >= kLitTableFrom) {
+    table.emplace(LitCountModel(lambda));
+    if (table->walkable) reject = GroupReject(table->below[0]);
+  }
   const __m128i seeds = _mm_loadu_si128(reinterpret_cast<const __m128i *>(seed_words));
   const __m128i below = _mm_xor_si128(_mm_set1_epi32(static_cast<int>(reject.below)),
                                       _mm_set1_epi32(static_cast<int>(0x80000000u)));
@@ -2647,27 +2661,25 @@ template <typename Visitor>
     alignas(16) uint32_t hashes[kNodeLoopChunk][kDirectionGroups];
     uint64_t pairs = node_loop_pass1_avx2(nodes.id_hash.data() + first, std::min(nodes.count - first, kNodeLoopChunk),
                                           seeds, below, all_pass, hashes);
-    int origin_of = -1;  // the node whose origin (and node_inside) is below
-    FootprintFrame::NodeOrigin origin{};
-    bool inside = false;
     for (; pairs != 0; pairs &= pairs - 1) {
       const int pair = std::countr_zero(pairs), c = pair / kDirectionGroups;
       const uint32_t h0 = hashes[c][pair % kDirectionGroups];
-      const int64_t K = lit_count_at(h0, bounds, model, lambda);
+      const int64_t K = !table                ? lit_count_at(h0, bounds, model, lambda)
+                        : table->walkable ? table->lit_passed(h0)
+                                          : table->lit(h0);
       if (K == 0) continue;
       if (K < 0 || result.steps + K > max_steps) {
         result.complete = false;
         return result;
       }
       result.steps += static_cast<int>(K);
-      if (origin_of != c) {
-        const auto at = static_cast<size_t>(first + c);
-        origin = frame.origin(static_cast<double>(nodes.i[at]) * nodes.size,
-                              static_cast<double>(nodes.j[at]) * nodes.size);
-        inside = frame.node_inside(origin);
-        origin_of = c;
-      }
-      if (inside) {
+      // The node's origin per lit pair (session 43: not kept across the node's pairs, whose "same node?" branch
+      // followed the data; node_inside ends at its first test where the footprint is smaller than a node, the
+      // walk's calls).
+      const auto at = static_cast<size_t>(first + c);
+      const FootprintFrame::NodeOrigin origin = frame.origin(static_cast<double>(nodes.i[at]) * nodes.size,
+                                                             static_cast<double>(nodes.j[at]) * nodes.size);
+      if (frame.node_inside(origin)) {
         result.count += static_cast<int>(K);
         if constexpr (std::decay_t<Visitor>::kVisitsParticles)
           for (int64_t k = 0; k < K; ++k) visit(h0, static_cast<uint32_t>(k));
@@ -2675,7 +2687,7 @@ template <typename Visitor>
       }
       for (int64_t k = 0; k < K; k += 4) {  // four positions per step (particles_inside4_avx2)
         uint32_t in = particles_inside4_avx2(lanes, origin, h0, static_cast<uint32_t>(k));
-        if (K - k < 4) in &= (1u << (K - k)) - 1u;
+        in &= 0xfu >> (4 - std::min<int64_t>(K - k, 4));  // the first K - k lanes (a select, not a branch)
         result.count += static_cast<int>((0x4332322132212110ull >> (4 * in)) & 0xfu);  // set bits of in
         if constexpr (std::decay_t<Visitor>::kVisitsParticles)
           for (; in != 0; in &= in - 1) visit(h0, static_cast<uint32_t>(k + std::countr_zero(in)));
