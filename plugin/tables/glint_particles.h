@@ -1363,8 +1363,7 @@ struct LitCountTable {
   // ceil, instead of two branches that follow lambda: the same values (x <= 0 or NaN: 0; x > 2^32 - 1: 2^32).
   static uint64_t hashes_below(double v) {
     const double x = v * 4294967296.0 - 0.5;
-    const double c =
-        _mm_cvtsd_f64(_mm_min_sd(_mm_max_sd(_mm_set_sd(x), _mm_setzero_pd()), _mm_set_sd(4294967296.0)));
+    const double c = _mm_cvtsd_f64(_mm_min_sd(_mm_max_sd(_mm_set_sd(x), _mm_setzero_pd()), _mm_set_sd(4294967296.0)));
     // Session 36 (glintorigin36): 0 <= ceil(c) <= 2^32 converted as a signed 64-bit integer (one CVTTSD2SI; the
     // unsigned conversion added a compare, a branch and a subtraction for values from 2^63): the same value.
     return static_cast<uint64_t>(static_cast<int64_t>(std::ceil(c)));
@@ -2637,9 +2636,9 @@ inline constexpr int kNodeLoopChunk = 16;
 }
 template <typename Visitor>
 [[gnu::target("avx2"), gnu::noinline]] inline GlintCount count_node_loop_avx2(const Footprint &f, const NodeList &nodes,
-                                                                             const uint32_t *seed_words, double lambda,
-                                                                             const GroupReject &lambda_reject,
-                                                                             int max_steps, Visitor &visit) {
+                                                                              const uint32_t *seed_words, double lambda,
+                                                                              const GroupReject &lambda_reject,
+                                                                              int max_steps, Visitor &visit) {
   GlintCount result;
   // Session 43: from kLitTableFrom on (as the pair passes), K by LitCountTable's compares instead of the model's tail
   // walk (a division per step and an exit branch that follows K), and its below[0] as the exact reject.
@@ -2664,7 +2663,7 @@ template <typename Visitor>
     for (; pairs != 0; pairs &= pairs - 1) {
       const int pair = std::countr_zero(pairs), c = pair / kDirectionGroups;
       const uint32_t h0 = hashes[c][pair % kDirectionGroups];
-      const int64_t K = !table                ? lit_count_at(h0, bounds, model, lambda)
+      const int64_t K = !table            ? lit_count_at(h0, bounds, model, lambda)
                         : table->walkable ? table->lit_passed(h0)
                                           : table->lit(h0);
       if (K == 0) continue;
@@ -2677,8 +2676,8 @@ template <typename Visitor>
       // followed the data; node_inside ends at its first test where the footprint is smaller than a node, the
       // walk's calls).
       const auto at = static_cast<size_t>(first + c);
-      const FootprintFrame::NodeOrigin origin = frame.origin(static_cast<double>(nodes.i[at]) * nodes.size,
-                                                             static_cast<double>(nodes.j[at]) * nodes.size);
+      const FootprintFrame::NodeOrigin origin =
+          frame.origin(static_cast<double>(nodes.i[at]) * nodes.size, static_cast<double>(nodes.j[at]) * nodes.size);
       if (frame.node_inside(origin)) {
         result.count += static_cast<int>(K);
         if constexpr (std::decay_t<Visitor>::kVisitsParticles)

@@ -23,9 +23,24 @@ bool same_bits(float a, float b) { return std::bit_cast<uint32_t>(a) == std::bit
 
 std::vector<float> special_and_random_floats() {
   using L = std::numeric_limits<float>;
-  std::vector<float> v = {0.0f,          -0.0f,         1.0f,          -1.0f,         L::infinity(), -L::infinity(),
-                          L::quiet_NaN(), -L::quiet_NaN(), L::signaling_NaN(), L::denorm_min(), -L::denorm_min(),
-                          L::min(),      -L::min(),     L::max(),      -L::max(),     L::epsilon(),  1e-30f, 1e30f};
+  std::vector<float> v = {0.0f,
+                          -0.0f,
+                          1.0f,
+                          -1.0f,
+                          L::infinity(),
+                          -L::infinity(),
+                          L::quiet_NaN(),
+                          -L::quiet_NaN(),
+                          L::signaling_NaN(),
+                          L::denorm_min(),
+                          -L::denorm_min(),
+                          L::min(),
+                          -L::min(),
+                          L::max(),
+                          -L::max(),
+                          L::epsilon(),
+                          1e-30f,
+                          1e30f};
   glimmer::Pcg32 rng(43);
   for (int i = 0; i < 100000; ++i) v.push_back(std::bit_cast<float>(rng.next_u32()));
   return v;
