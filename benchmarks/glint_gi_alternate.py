@@ -47,18 +47,27 @@ def main():
     ap.add_argument('--rounds', type=int, default=30)
     ap.add_argument('variants', nargs='+')
     a = ap.parse_args()
+    if a.rounds < 1:
+        ap.error('--rounds must be at least 1')
+    vs = []
+    for v in a.variants:
+        name, eq, rest = v.partition('=')
+        if not eq or not name or not rest:
+            ap.error(f'{v!r}: expected NAME=PLUGIN or NAME=PLUGIN:twin')
+        plugin, kind = (rest[:-len(':twin')], 'twin') if rest.endswith(':twin') else (rest, '')
+        if not os.path.isfile(plugin):
+            ap.error(f'{v!r}: no plugin file {plugin!r}')
+        if name in (n for n, _, _ in vs):
+            ap.error(f'{v!r}: the name {name!r} is used twice')
+        vs.append((name, os.path.abspath(plugin), kind == 'twin'))
     host = os.path.join(a.build, 'glimmer')
     scene = os.path.join(ROOT, 'examples', 'glint.xml')
     with tempfile.TemporaryDirectory() as tmp:
-        # The twin beside the scene (its relative paths resolve the same), removed at the end.
+        # The twin beside the scene (its relative paths resolve the same), removed at the end (.gitignore'd).
         twin = os.path.join(ROOT, 'examples', f'.glint_gi_alternate_twin.{os.getpid()}.xml')
-        subprocess.run([sys.executable, os.path.join(ROOT, 'benchmarks', 'glint_gi_twin.py'), scene, twin], check=True)
         try:
-            vs = []
-            for v in a.variants:
-                name, _, rest = v.partition('=')
-                plugin, _, kind = rest.partition(':')
-                vs.append((name, os.path.abspath(plugin), kind == 'twin'))
+            subprocess.run([sys.executable, os.path.join(ROOT, 'benchmarks', 'glint_gi_twin.py'), scene, twin],
+                           check=True)
             t = {n: [] for n, _, _ in vs}
             for r in range(a.rounds):
                 k = r % len(vs)
@@ -66,7 +75,8 @@ def main():
                     t[name].append(render(host, plugin, twin if is_twin else scene, os.path.join(tmp, 'x.exr')))
                 print(r, ' '.join(f'{n}={t[n][-1]:.3f}' for n, _, _ in vs), flush=True)
         finally:
-            os.remove(twin)
+            if os.path.exists(twin):
+                os.remove(twin)
 
     def q25(x):
         return sorted(x)[int(0.25 * (len(x) - 1))]

@@ -225,7 +225,8 @@ consteval std::size_t aggregate_field_count() {
 // Keeps only finite, non-negative values: a closure must never hand NaN/Inf or
 // negative numbers to the host. Finite and > 0 is 0 < v < inf (NaN fails both), taken as SSE compare masks where
 // the target has SSE2 (session 43, issue 10: a glint's f is 0 or not by the particles it counts, which no branch
-// predictor follows; the branches of the scalar form mispredicted there); the same values.
+// predictor follows; the branches of the scalar form mispredicted there); the same values. (The ordered compares
+// raise the invalid flag on a quiet NaN, which isfinite did not: only a host that traps FP exceptions would see it.)
 #if defined(__SSE2__)
 inline __m128 sanitize_lanes(__m128 v) {
   const __m128 ok = _mm_and_ps(_mm_cmpgt_ps(v, _mm_setzero_ps()),

@@ -1311,8 +1311,9 @@ struct LitCountBounds {
 // The lit count K of a (node, group) pair from its 32-bit hash h0 (u = (h0 +
 // 1/2) 2^-32): the bounds where they decide, else LitCountModel's tail walk
 // (the model made at the first undecided pair; K = 0 for u >= Pr(K >= 1)).
-// The walks' shared step (the scalar and AVX2 node loops, the pair passes
-// below the table, glint_small_dark.cpp, glint_pseudo_normals.h; session 26,
+// The walks' shared step (the scalar node loop, the AVX2 node loop and the pair
+// passes below the table (kLitTableFrom), glint_small_dark.cpp,
+// glint_pseudo_normals.h; session 26,
 // glintK26). Always inline: a shared step out of line cost ~10 instructions
 // per eval (session 24). glint_pseudo_normals.h takes u first and its lazily
 // made bounds after (lit_count_at_uniform): with lit_count_at after the
@@ -1335,9 +1336,10 @@ struct LitCountBounds {
 }
 
 // LitCountModel's K for a pair's 32-bit hash h (u = (h + 1/2) 2^-32) by
-// integer compares (issue 10, session 23), for the queries whose lambda > 1
-// (LitCountBounds decides nothing there, and every pair of the footprint
-// passes the quick reject): the model's tail walk visits the same terms
+// integer compares (issue 10, session 23), for the queries whose lambda is
+// at least kLitTableFrom (the pair passes since session 24, the AVX2 node loop
+// since session 43; from lambda > 1 LitCountBounds decides nothing, and every
+// pair of the footprint passes the quick reject): the model's tail walk visits the same terms
 // Pr(K > k) for every u, and it goes past term k iff u < Pr(K > k) and its
 // pmf is not 0 there (the tails never increase, and a pmf of 0 stays 0), so
 // K >= k + 1 iff h < below[k], the number of hashes whose u is under the
@@ -1359,11 +1361,18 @@ struct LitCountTable {
   // its own copy, clamping after the ceil: GI +0.047 M in count_tabled_avx2 as the one form); the form before
   // returned 2^32 from x >= 2^32 - 1, but at x = 2^32 - 1 exactly (v = 1 - 2^-33) the count is 2^32 - 1 (h = 2^32 - 1
   // has u = v). GlintParticles.HashesBelowMatchesTheHashCount.
-  // Session 43: x clamped to [0, 2^32] by SSE2's max and min (maxsd gives its second operand, 0, for NaN) before the
-  // ceil, instead of two branches that follow lambda: the same values (x <= 0 or NaN: 0; x > 2^32 - 1: 2^32).
+  // Session 43: where the target has SSE2, x clamped to [0, 2^32] by its max and min (maxsd gives its second operand,
+  // 0, for NaN) before the ceil, instead of two branches that follow lambda: the same values (x <= 0 or NaN: 0;
+  // x > 2^32 - 1: 2^32).
   static uint64_t hashes_below(double v) {
     const double x = v * 4294967296.0 - 0.5;
+#if defined(__SSE2__)
     const double c = _mm_cvtsd_f64(_mm_min_sd(_mm_max_sd(_mm_set_sd(x), _mm_setzero_pd()), _mm_set_sd(4294967296.0)));
+#else
+    if (!(x > 0.0)) return 0;                        // also NaN
+    if (x > 4294967295.0) return uint64_t{1} << 32;  // ceil(x) >= 2^32: clamped
+    const double c = x;
+#endif
     // Session 36 (glintorigin36): 0 <= ceil(c) <= 2^32 converted as a signed 64-bit integer (one CVTTSD2SI; the
     // unsigned conversion added a compare, a branch and a subtraction for values from 2^63): the same value.
     return static_cast<uint64_t>(static_cast<int64_t>(std::ceil(c)));
@@ -1390,8 +1399,8 @@ struct LitCountTable {
     if (K == kSteps) [[unlikely]] return walk_on(h);
     return K;
   }
-  // lit(h) for a walkable table's h < below[0] (K >= 1: the pair passes' exact reject let it through; session 26):
-  // the first compare known, one register fewer in pass 3.
+  // lit(h) for a walkable table's h < below[0] (K >= 1: the exact reject of the pair passes and of the AVX2 node loop
+  // let it through; session 26): the first compare known, one register fewer in pass 3.
   int64_t lit_passed(uint32_t h) const {
     int64_t K = 1;
     for (size_t k = 1; k < below.size(); ++k) K += under(h, below[k]);
@@ -1435,7 +1444,8 @@ struct LitBoundHashes {
 // 1/2, are affine in the position; over a node of side `size` at (x0, y0)
 // they are (s, t) = origin + u_x d_ux + u_y d_uy for the position
 // (x0 + size u_x, y0 + size u_y). The per-footprint steps are computed once,
-// the node origin once per lit node, and a particle costs four multiply-adds.
+// the node origin once per lit node (per lit pair in count_node_loop_avx2, session 43), and a particle costs four
+// multiply-adds.
 struct FootprintFrame {
   const Footprint &f;
   double inv_det, size;

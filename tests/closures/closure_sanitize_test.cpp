@@ -1,7 +1,8 @@
 // The adapter's sanitize (plugin/core/closure.h; session 43: compare masks instead of branches where the target has
 // SSE2) against its definition, (isfinite(v) && v > 0) ? v : 0, bit for bit: every special float (NaN of both signs,
 // both infinities and zeros, the denormal and normal extremes, negatives) and random bit patterns, as a float and in
-// each lane of a Spectrum. Negative control: masks that test v > 0 alone let +inf through.
+// each lane of a Spectrum. Negative controls: masks that test v > 0 alone let +inf through; an unordered compare
+// lets NaN through.
 #include <gtest/gtest.h>
 
 #include <bit>
@@ -9,6 +10,10 @@
 #include <cstdint>
 #include <limits>
 #include <vector>
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 #include "core/closure.h"
 #include "glimmer/rng.h"
@@ -73,6 +78,21 @@ TEST(ClosureSanitize, NegativeControlWithoutTheInfinityTestFails) {
   EXPECT_GT(differ, 0);
   const float inf = std::numeric_limits<float>::infinity();
   EXPECT_FALSE(same_bits(without_upper(inf), reference(inf)));
+}
+
+// The lanes form with an unordered "not <= 0" compare instead of "> 0" passes NaN: the NaN inputs matter too.
+TEST(ClosureSanitize, NegativeControlThatPassesNaNFails) {
+  const auto passes_nan = [](float v) {
+    const __m128 x = _mm_set_ss(v);
+    const __m128 ok = _mm_and_ps(_mm_cmpnle_ps(x, _mm_setzero_ps()),
+                                 _mm_cmpneq_ps(x, _mm_set1_ps(std::numeric_limits<float>::infinity())));
+    return _mm_cvtss_f32(_mm_and_ps(ok, x));
+  };
+  int differ = 0;
+  for (const float x : special_and_random_floats()) differ += !same_bits(passes_nan(x), reference(x));
+  EXPECT_GT(differ, 0);
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_FALSE(same_bits(passes_nan(nan), reference(nan)));
 }
 #endif
 

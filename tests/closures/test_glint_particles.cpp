@@ -2354,9 +2354,12 @@ TEST(GlintParticles, NodeLoopAvx2MatchesTheNodeLoop) {
 #else
   if (!pg::kWalkAvx2) GTEST_SKIP() << "the walk does not use AVX2 here";
   Pcg32 rng(53);
-  int compared = 0, sub_node = 0, lit = 0, capped = 0, larger_lit = 0, chunks = 0, control_differs = 0;
+  int compared = 0, sub_node = 0, lit = 0, capped = 0, larger_lit = 0, chunks = 0, control_differs = 0, tabled = 0;
   for (int t = 0; t < 40000; ++t) {
     const auto &[f, P, max_steps, seeds, group_density, nodes] = random_pass_query(rng, t);
+    // Session 43: from kLitTableFrom on the AVX2 loop takes K from LitCountTable (and its exact reject).
+    tabled += P > 0.0 && std::min(group_density * nodes.size * nodes.size, 4.0e18) * std::min(P, 1.0) >=
+                             pg::kLitTableFrom;
     RecordingVisitor avx2_seen, loop_seen;
     const auto a = pg::count_reflecting_particles(f, nodes, group_density, seeds, P, max_steps, avx2_seen);
     const auto b = pg::count_reflecting_particles(f, nodes, group_density, seeds, P, max_steps, loop_seen, true);
@@ -2381,9 +2384,29 @@ TEST(GlintParticles, NodeLoopAvx2MatchesTheNodeLoop) {
     pg::count_node_loop_avx2(f, nodes, swapped.data(), lambda, reject, max_steps, control_seen);
     control_differs += control_seen.seen != loop_seen.seen;
   }
+  // Nodes whose lambda exceeds LitCountModel::kMaxNodeMean (not walkable: the table's K is 0 or -1, as the model's):
+  // the same refusals, counts and visits.
+  int refused = 0, refused_compared = 0;
+  for (int t = 0; t < 4000; ++t) {
+    const auto &[f, P, max_steps, seeds, group_density, nodes] = random_pass_query(rng, t);
+    if (!(P > 0.0)) continue;
+    const double lambda = (1.0 + 3.0 * rng.next_double()) * pg::LitCountModel::kMaxNodeMean;
+    const double density = lambda / (nodes.size * nodes.size * std::min(P, 1.0));
+    RecordingVisitor avx2_seen, loop_seen;
+    const auto a = pg::count_reflecting_particles(f, nodes, density, seeds, P, max_steps, avx2_seen);
+    const auto b = pg::count_reflecting_particles(f, nodes, density, seeds, P, max_steps, loop_seen, true);
+    ASSERT_TRUE(a.count == b.count && a.steps == b.steps && a.complete == b.complete) << "refused query " << t;
+    ASSERT_EQ(avx2_seen.seen, loop_seen.seen) << "refused query " << t;
+    ++refused_compared;
+    refused += !b.complete;
+  }
   std::printf("[node loop avx2] %d queries equal (%d smaller than a node, %d lit, %d capped, %d lit at least as "
-              "large as a node, %d over %d nodes); control (groups 0 and 1 swapped) differs on %d\n", compared,
-              sub_node, lit, capped, larger_lit, chunks, pg::kNodeLoopChunk, control_differs);
+              "large as a node, %d over %d nodes, %d with lambda >= kLitTableFrom); control (groups 0 and 1 swapped) "
+              "differs on %d; lambda > kMaxNodeMean: %d queries equal, %d refused\n",
+              compared, sub_node, lit, capped, larger_lit, chunks, pg::kNodeLoopChunk, tabled, control_differs,
+              refused_compared, refused);
+  EXPECT_GT(tabled, 5000);
+  EXPECT_GT(refused, 1000);
   EXPECT_GT(sub_node, 5000);
   EXPECT_GT(lit, 10000);
   EXPECT_GT(capped, 1000);
