@@ -2358,8 +2358,8 @@ TEST(GlintParticles, NodeLoopAvx2MatchesTheNodeLoop) {
   for (int t = 0; t < 40000; ++t) {
     const auto &[f, P, max_steps, seeds, group_density, nodes] = random_pass_query(rng, t);
     // Session 43: from kLitTableFrom on the AVX2 loop takes K from LitCountTable (and its exact reject).
-    tabled += P > 0.0 && std::min(group_density * nodes.size * nodes.size, 4.0e18) * std::min(P, 1.0) >=
-                             pg::kLitTableFrom;
+    tabled +=
+        P > 0.0 && std::min(group_density * nodes.size * nodes.size, 4.0e18) * std::min(P, 1.0) >= pg::kLitTableFrom;
     RecordingVisitor avx2_seen, loop_seen;
     const auto a = pg::count_reflecting_particles(f, nodes, group_density, seeds, P, max_steps, avx2_seen);
     const auto b = pg::count_reflecting_particles(f, nodes, group_density, seeds, P, max_steps, loop_seen, true);
@@ -2400,11 +2400,12 @@ TEST(GlintParticles, NodeLoopAvx2MatchesTheNodeLoop) {
     ++refused_compared;
     refused += !b.complete;
   }
-  std::printf("[node loop avx2] %d queries equal (%d smaller than a node, %d lit, %d capped, %d lit at least as "
-              "large as a node, %d over %d nodes, %d with lambda >= kLitTableFrom); control (groups 0 and 1 swapped) "
-              "differs on %d; lambda > kMaxNodeMean: %d queries equal, %d refused\n",
-              compared, sub_node, lit, capped, larger_lit, chunks, pg::kNodeLoopChunk, tabled, control_differs,
-              refused_compared, refused);
+  std::printf(
+      "[node loop avx2] %d queries equal (%d smaller than a node, %d lit, %d capped, %d lit at least as "
+      "large as a node, %d over %d nodes, %d with lambda >= kLitTableFrom); control (groups 0 and 1 swapped) "
+      "differs on %d; lambda > kMaxNodeMean: %d queries equal, %d refused\n",
+      compared, sub_node, lit, capped, larger_lit, chunks, pg::kNodeLoopChunk, tabled, control_differs,
+      refused_compared, refused);
   EXPECT_GT(tabled, 5000);
   EXPECT_GT(refused, 1000);
   EXPECT_GT(sub_node, 5000);
