@@ -1515,6 +1515,21 @@ struct GroupReject {
         limit(maybe_lit_below) {}
 };
 
+// A node's expected lit count for a query: density x node area (capped where the product would pass the walks'
+// integer counts) times P (at most 1). count_reflecting_particles' and the small dark test's lambda.
+inline double node_lit_mean(double density, double node_size, double P) {
+  return std::min(density * node_size * node_size, 4.0e18) * std::min(P, 1.0);
+}
+// The quick reject of lambda: hash >= floor(lambda 2^32) + 1 means u > lambda >= Pr(K >= 1), so K = 0.
+inline GroupReject quick_reject(double lambda) {
+  return GroupReject(static_cast<uint64_t>(std::min(lambda, 1.0) * 4294967296.0) + 1u);
+}
+// A walkable table's exact reject (below[0]: the hashes with K >= 1; a subset of quick_reject's), else `quick`: the
+// reject of the pair passes and of the AVX2 node loop from kLitTableFrom on.
+inline GroupReject exact_reject(const LitCountTable &table, const GroupReject &quick) {
+  return table.walkable ? GroupReject(table.below[0]) : quick;
+}
+
 // The four groups' node_seed_hash and their quick rejects as one 4-bit mask
 // (bit g: hash g < below). group_hashes (the walk's): four independent scalar
 // hashes; group_hashes_sse2: the four groups in the lanes of one SSE2
@@ -2537,7 +2552,7 @@ template <bool kAvx2>
                                                            const uint32_t *seeds, const GroupReject &lambda_reject,
                                                            double lambda, int max_steps) {
   const LitCountTable table{LitCountModel(lambda)};
-  const GroupReject reject = table.walkable ? GroupReject(table.below[0]) : lambda_reject;
+  const GroupReject reject = exact_reject(table, lambda_reject);
   PairMasks pm;
   if (!group_pass_finds_a_pair<kAvx2>(nodes, seeds, reject, pm)) return {};
   return count_paired<kAvx2>(f, nodes, pm, &table, lambda, max_steps);
@@ -2653,11 +2668,8 @@ template <typename Visitor>
   // Session 43: from kLitTableFrom on (as the pair passes), K by LitCountTable's compares instead of the model's tail
   // walk (a division per step and an exit branch that follows K), and its below[0] as the exact reject.
   std::optional<LitCountTable> table;
-  GroupReject reject = lambda_reject;
-  if (lambda >= kLitTableFrom) {
-    table.emplace(LitCountModel(lambda));
-    if (table->walkable) reject = GroupReject(table->below[0]);
-  }
+  if (lambda >= kLitTableFrom) table.emplace(LitCountModel(lambda));
+  const GroupReject reject = table ? exact_reject(*table, lambda_reject) : lambda_reject;
   const __m128i seeds = _mm_loadu_si128(reinterpret_cast<const __m128i *>(seed_words));
   const __m128i below = _mm_xor_si128(_mm_set1_epi32(static_cast<int>(reject.below)),
                                       _mm_set1_epi32(static_cast<int>(0x80000000u)));
@@ -2717,23 +2729,21 @@ inline GlintCount count_reflecting_particles_of_area(const Footprint &f, double 
                                                      bool node_loop = false) {
   GlintCount result;
   if (!(P > 0.0)) return result;
-  const double lambda = std::min(density * nodes.size * nodes.size, 4.0e18) * std::min(P, 1.0);
-  // Quick reject on the node's 32-bit hash: hash >= floor(lambda 2^32) + 1 means u > lambda >= Pr(K >= 1): K = 0.
-  const uint64_t maybe_lit_below = static_cast<uint64_t>(std::min(lambda, 1.0) * 4294967296.0) + 1u;
+  const double lambda = node_lit_mean(density, nodes.size, P);
+  const GroupReject reject = quick_reject(lambda);  // on the node's 32-bit hash
   // The passes pay where nodes can lie inside the footprint (larger than a node; on 1..4 nodes they measured 2..5 %
   // slower than the node loop). can_hold_a_node: the frame's nodes_can_be_inside without the frame.
   if constexpr (!std::decay_t<Visitor>::kVisitsParticles)
     if (!node_loop && seeds.size() == kDirectionGroups && area >= nodes.size * nodes.size)
-      return count_four_groups_in_passes(f, nodes, seeds.data(), GroupReject(maybe_lit_below), lambda, max_steps);
+      return count_four_groups_in_passes(f, nodes, seeds.data(), reject, lambda, max_steps);
 #if GLIMMER_GLINT_WALK_AVX2
   if (!node_loop && kWalkAvx2 && seeds.size() == kDirectionGroups)
-    return count_node_loop_avx2(f, nodes, seeds.data(), lambda, GroupReject(maybe_lit_below), max_steps, visit);
+    return count_node_loop_avx2(f, nodes, seeds.data(), lambda, reject, max_steps, visit);
 #endif
   const FootprintFrame frame(f, nodes.size);
   constexpr size_t kMaxSeeds = 32;
   if (seeds.size() > kMaxSeeds) return {0, 0, false};  // callers pass 1 or kDirectionGroups seeds
   const size_t n_seeds = seeds.size();
-  const GroupReject reject(maybe_lit_below);
   const LitCountBounds bounds(lambda);  // decides most nodes without the model's exp
   std::optional<LitCountModel> model;  // built at the first node the bounds leave undecided
   for (int node = 0; node < nodes.count; ++node) {
@@ -2747,7 +2757,7 @@ inline GlintCount count_reflecting_particles_of_area(const Footprint &f, double 
       maybe_lit = 0;
       for (size_t g = 0; g < n_seeds; ++g) {
         hashes[g] = node_seed_hash(node_hash, seeds[g]);
-        maybe_lit |= static_cast<uint32_t>(hashes[g] < maybe_lit_below) << g;
+        maybe_lit |= static_cast<uint32_t>(hashes[g] < reject.limit) << g;
       }
     }
     if (maybe_lit == 0) continue;  // K = 0 for every seed

@@ -86,8 +86,8 @@ namespace {
   site.has_half_vector = direction_cell_seeds_avx2_body(m.keys, wi, wo, m.gamma_rad, site.cell_seeds);
   if (!site.has_half_vector || !(P > 0.0)) return SmallDark::kDark;
   // count_reflecting_particles' constants.
-  const double lambda = std::min(group_density * size * size, 4.0e18) * std::min(P, 1.0);
-  const GroupReject reject(static_cast<uint64_t>(std::min(lambda, 1.0) * 4294967296.0) + 1u);
+  const double lambda = node_lit_mean(group_density, size, P);
+  const GroupReject reject = quick_reject(lambda);
   const __m128i seeds = _mm_loadu_si128(reinterpret_cast<const __m128i *>(site.cell_seeds.data()));
   const __m128i bias = _mm_set1_epi32(static_cast<int>(0x80000000u));  // unsigned compare as signed
   const __m128i below = _mm_xor_si128(_mm_set1_epi32(static_cast<int>(reject.below)), bias);

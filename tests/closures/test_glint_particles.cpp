@@ -1588,7 +1588,7 @@ TEST(GlintParticles, PairPassesMatchTheNodeLoop) {
     const bool passes_taken = pg::FootprintFrame(f, nodes.size).nodes_can_be_inside;  // the walk takes the passes
     in_passes += passes_taken;
     // Session 24: the passes' exact reject (LitCountTable's below[0]) from kLitTableFrom on, and the refused walk.
-    const double lambda = std::min(group_density * nodes.size * nodes.size, 4.0e18) * std::min(P, 1.0);
+    const double lambda = pg::node_lit_mean(group_density, nodes.size, P);
     tabled += passes_taken && lambda >= pg::kLitTableFrom;
     refused += passes_taken && lambda > pg::LitCountModel::kMaxNodeMean;
     bounds_lit += passes_taken && lambda < pg::kLitTableFrom && (!loop.complete || loop.steps > 0);
@@ -1857,8 +1857,8 @@ TEST(GlintParticles, GroupPassAvx2MatchesSse2) {
   int compared = 0, odd = 0, with_pairs = 0, all_pass = 0, control_differs = 0, control_queries = 0, lit = 0;
   for (int t = 0; t < 20000; ++t) {
     const auto &[f, P, max_steps, seeds, group_density, nodes] = random_pass_query(rng, t);
-    const double lambda = std::min(group_density * nodes.size * nodes.size, 4.0e18) * std::min(P, 1.0);
-    const pg::GroupReject reject(static_cast<uint64_t>(std::min(lambda, 1.0) * 4294967296.0) + 1u);
+    const double lambda = pg::node_lit_mean(group_density, nodes.size, P);
+    const pg::GroupReject reject = pg::quick_reject(lambda);
     pg::PairMasks a, b, c;
     pg::group_pass(true, nodes, seeds.data(), reject, a);
     pg::group_pass(false, nodes, seeds.data(), reject, b);
@@ -1917,8 +1917,8 @@ TEST(GlintParticles, TabledOriginsFarFromTheOriginMatchSse2) {
       q.f.cy -= 0.5 * offset;
       q.nodes = pg::footprint_nodes(q.f, q.group_density);
     }
-    const double lambda = std::min(q.group_density * q.nodes.size * q.nodes.size, 4.0e18) * std::min(q.P, 1.0);
-    const pg::GroupReject reject(static_cast<uint64_t>(std::min(lambda, 1.0) * 4294967296.0) + 1u);
+    const double lambda = pg::node_lit_mean(q.group_density, q.nodes.size, q.P);
+    const pg::GroupReject reject = pg::quick_reject(lambda);
     const pg::GlintCount ka =
         pg::count_four_groups_in_passes(q.f, q.nodes, q.seeds.data(), reject, lambda, q.max_steps, true);
     const pg::GlintCount kb =
@@ -2359,7 +2359,7 @@ TEST(GlintParticles, NodeLoopAvx2MatchesTheNodeLoop) {
     const auto &[f, P, max_steps, seeds, group_density, nodes] = random_pass_query(rng, t);
     // Session 43: from kLitTableFrom on the AVX2 loop takes K from LitCountTable (and its exact reject).
     tabled +=
-        P > 0.0 && std::min(group_density * nodes.size * nodes.size, 4.0e18) * std::min(P, 1.0) >= pg::kLitTableFrom;
+        P > 0.0 && pg::node_lit_mean(group_density, nodes.size, P) >= pg::kLitTableFrom;
     RecordingVisitor avx2_seen, loop_seen;
     const auto a = pg::count_reflecting_particles(f, nodes, group_density, seeds, P, max_steps, avx2_seen);
     const auto b = pg::count_reflecting_particles(f, nodes, group_density, seeds, P, max_steps, loop_seen, true);
@@ -2377,8 +2377,8 @@ TEST(GlintParticles, NodeLoopAvx2MatchesTheNodeLoop) {
     larger_lit += b.complete && !small && b.count > 0;  // nodes inside the footprint are possible
     chunks += nodes.count > pg::kNodeLoopChunk;
     if (!(P > 0.0)) continue;
-    const double lambda = std::min(group_density * nodes.size * nodes.size, 4.0e18) * std::min(P, 1.0);
-    const pg::GroupReject reject(static_cast<uint64_t>(std::min(lambda, 1.0) * 4294967296.0) + 1u);
+    const double lambda = pg::node_lit_mean(group_density, nodes.size, P);
+    const pg::GroupReject reject = pg::quick_reject(lambda);
     const std::array<uint32_t, pg::kDirectionGroups> swapped = {seeds[1], seeds[0], seeds[2], seeds[3]};
     RecordingVisitor control_seen;
     pg::count_node_loop_avx2(f, nodes, swapped.data(), lambda, reject, max_steps, control_seen);
