@@ -2358,8 +2358,7 @@ TEST(GlintParticles, NodeLoopAvx2MatchesTheNodeLoop) {
   for (int t = 0; t < 40000; ++t) {
     const auto &[f, P, max_steps, seeds, group_density, nodes] = random_pass_query(rng, t);
     // Session 43: from kLitTableFrom on the AVX2 loop takes K from LitCountTable (and its exact reject).
-    tabled +=
-        P > 0.0 && pg::node_lit_mean(group_density, nodes.size, P) >= pg::kLitTableFrom;
+    tabled += P > 0.0 && pg::node_lit_mean(group_density, nodes.size, P) >= pg::kLitTableFrom;
     RecordingVisitor avx2_seen, loop_seen;
     const auto a = pg::count_reflecting_particles(f, nodes, group_density, seeds, P, max_steps, avx2_seen);
     const auto b = pg::count_reflecting_particles(f, nodes, group_density, seeds, P, max_steps, loop_seen, true);
