@@ -20,15 +20,18 @@
 //  glint/gi_scene_overhead          `glimmer render` of examples/glint.xml
 //      against the same scene with every glint_bsdf replaced by a GGX
 //      glossy_bsdf of the same roughness (subprocess, wall time of the render
-//      phase); counter overhead (goal <= 0.10); with
-//      $GLIMMER_BENCH_BASELINE_PLUGIN also base_s, base_overhead (the glint
-//      scene rendered with that plugin, same iterations). Also the
+//      phase); one round of renders per iteration in rotating order, the
+//      counters medians over the rounds of each round's ratio: overhead (goal
+//      <= 0.10), overhead_of_sums (the ratio of the summed times); with
+//      $GLIMMER_BENCH_BASELINE_PLUGIN also base_s, base_overhead, glint_vs_base
+//      (the glint scene rendered with that plugin in the same rounds). Also the
 //      same-distribution twin (each glint_bsdf a glossy_bsdf of its own
 //      distribution: the scene's floor glint is Beckmann): same_s,
 //      overhead_vs_same (what the glint costs beyond its base distribution)
 //      and same_vs_ggx (what that distribution costs over GGX).
 #include <benchmark/benchmark.h>
 
+#include <algorithm>
 #include <chrono>
 #include <ctime>
 #include <cmath>
@@ -37,6 +40,7 @@
 #include <cstring>
 #include <fstream>
 #include <memory>
+#include <numeric>
 #include <regex>
 #include <sstream>
 #include <string>
@@ -267,30 +271,62 @@ void BM_GiSceneOverhead(benchmark::State &state) {
   std::ofstream(same) << twin(ss.str(), true);
   const char *baseline = std::getenv("GLIMMER_BENCH_BASELINE_PLUGIN");
   if (baseline != nullptr && *baseline == '\0') baseline = nullptr;
-  double t_glint = 0.0, t_plain = 0.0, t_same = 0.0, t_base = 0.0;
+  // One round per iteration: every variant rendered once, in an order that rotates from round to round (session 44;
+  // before, the twins always rendered first and 2 rounds gave one ratio of sums: its repetitions ranged over
+  // +8..+52 % on this project's VM, whose speed moves by 10 % and more within a minute). The counters are medians
+  // over the rounds of each round's own ratio (both renders seconds apart); `overhead_of_sums` keeps the old estimator.
+  struct Variant {
+    const std::string *scene;
+    const char *out;
+    const char *plugin;
+    std::vector<double> seconds;
+  };
+  std::vector<Variant> v = {{&plain, "/tmp/glimmer_bench_plain.png", nullptr, {}},
+                            {&same, "/tmp/glimmer_bench_same.png", nullptr, {}},
+                            {&src, "/tmp/glimmer_bench_glint.png", nullptr, {}}};
+  if (baseline != nullptr) v.push_back({&src, "/tmp/glimmer_bench_base.png", baseline, {}});
+  bool failed = false;
+  size_t round = 0;
   for (auto _ : state) {
-    t_plain += render_seconds(plain, "/tmp/glimmer_bench_plain.png");
-    t_same += render_seconds(same, "/tmp/glimmer_bench_same.png");
-    t_glint += render_seconds(src, "/tmp/glimmer_bench_glint.png");
-    if (baseline != nullptr) t_base += render_seconds(src, "/tmp/glimmer_bench_base.png", baseline);
+    for (size_t k = 0; k < v.size(); ++k) {
+      Variant &x = v[(round + k) % v.size()];
+      const double t = render_seconds(*x.scene, x.out, x.plugin);
+      failed = failed || !(t > 0.0);
+      x.seconds.push_back(t);
+    }
+    ++round;
   }
   std::remove(plain.c_str());
   std::remove(same.c_str());
-  if (t_glint <= 0.0 || t_plain <= 0.0 || t_same <= 0.0) {
+  if (failed) {
     state.SkipWithError("glimmer render failed");
     return;
   }
-  state.counters["glint_s"] = t_glint / static_cast<double>(state.iterations());
-  state.counters["ggx_s"] = t_plain / static_cast<double>(state.iterations());
-  state.counters["overhead"] = t_glint / t_plain - 1.0;
-  state.counters["same_s"] = t_same / static_cast<double>(state.iterations());
-  state.counters["overhead_vs_same"] = t_glint / t_same - 1.0;
-  state.counters["same_vs_ggx"] = t_same / t_plain - 1.0;
-  if (baseline != nullptr && t_base > 0.0) {
-    state.counters["base_s"] = t_base / static_cast<double>(state.iterations());
-    state.counters["base_overhead"] = t_base / t_plain - 1.0;
+  auto median = [](std::vector<double> x) {
+    std::sort(x.begin(), x.end());
+    const size_t n = x.size();
+    return n % 2 == 1 ? x[n / 2] : 0.5 * (x[n / 2 - 1] + x[n / 2]);
+  };
+  auto ratio = [&](const Variant &a, const Variant &b) {  // median over the rounds of a / b, minus 1
+    std::vector<double> r;
+    for (size_t i = 0; i < a.seconds.size(); ++i) r.push_back(a.seconds[i] / b.seconds[i]);
+    return median(r) - 1.0;
+  };
+  auto sum = [](const Variant &a) { return std::accumulate(a.seconds.begin(), a.seconds.end(), 0.0); };
+  const Variant &t_plain = v[0], &t_same = v[1], &t_glint = v[2];
+  state.counters["glint_s"] = median(t_glint.seconds);
+  state.counters["ggx_s"] = median(t_plain.seconds);
+  state.counters["overhead"] = ratio(t_glint, t_plain);
+  state.counters["overhead_of_sums"] = sum(t_glint) / sum(t_plain) - 1.0;
+  state.counters["same_s"] = median(t_same.seconds);
+  state.counters["overhead_vs_same"] = ratio(t_glint, t_same);
+  state.counters["same_vs_ggx"] = ratio(t_same, t_plain);
+  if (baseline != nullptr) {
+    state.counters["base_s"] = median(v[3].seconds);
+    state.counters["base_overhead"] = ratio(v[3], t_plain);
+    state.counters["glint_vs_base"] = ratio(t_glint, v[3]);
   }
 }
-BENCHMARK(BM_GiSceneOverhead)->Name("glint/gi_scene_overhead")->Iterations(2)->Unit(benchmark::kSecond);
+BENCHMARK(BM_GiSceneOverhead)->Name("glint/gi_scene_overhead")->Iterations(6)->Unit(benchmark::kSecond);
 
 }  // namespace

@@ -7,9 +7,11 @@ round after round (320 x 200, 16 spp, 1 thread: glint/gi_scene_overhead's settin
 (both renders a few seconds apart) and summarised by the median of the per-round ratios with a bootstrap 95 %
 interval; min / q25 / median per variant are printed too.
 
-usage: benchmarks/glint_gi_alternate.py [--build DIR] [--rounds N] NAME=PLUGIN[:twin] ...
+usage: benchmarks/glint_gi_alternate.py [--build DIR] [--rounds N] NAME=PLUGIN[:twin][@VAR=VALUE] ...
   NAME=PLUGIN        the glint scene with that plugin .so
   NAME=PLUGIN:twin   the GGX twin with that plugin
+  ...@VAR=VALUE      that variant's renders with VAR=VALUE in their environment (a scratch build's switch, so the
+                     same .so is compared with itself: session 44's A/B of a scratch plugin)
   Every pair of variants is compared; a glint variant's overhead is given over each twin variant.
 Env: GLIMMER_CACHE_DIR (tables). Alternating plugin builds re-run the tables' energy check at each load (its stamp
 is per build), which costs start-up time, not render time.
@@ -32,9 +34,10 @@ def median_ci(x, n=2000, seed=1):
     return m[int(0.025 * n)], m[int(0.975 * n)]
 
 
-def render(host, plugin, scene, out):
+def render(host, plugin, scene, out, env=None):
     r = subprocess.run([host, '--plugin', plugin, 'render', scene, '-o', out, '--samples', '16', '--threads', '1',
-                        '--width', '320', '--height', '200', '--quiet', '--stats'], capture_output=True, text=True)
+                        '--width', '320', '--height', '200', '--quiet', '--stats'], capture_output=True, text=True,
+                       env=env)
     m = re.search(r'render=([0-9.]+)s', r.stdout + r.stderr)
     if r.returncode != 0 or not m:
         sys.exit(f"glint_gi_alternate: render failed ({plugin}, {scene}):\n{r.stderr}")
@@ -49,17 +52,25 @@ def main():
     a = ap.parse_args()
     if a.rounds < 1:
         ap.error('--rounds must be at least 1')
-    vs = []
+    vs, envs = [], {}
     for v in a.variants:
         name, eq, rest = v.partition('=')
         if not eq or not name or not rest:
             ap.error(f'{v!r}: expected NAME=PLUGIN or NAME=PLUGIN:twin')
+        rest, at, setting = rest.partition('@')
+        env = None
+        if at:
+            var, eq2, value = setting.partition('=')
+            if not eq2 or not var:
+                ap.error(f'{v!r}: expected @VAR=VALUE after the plugin')
+            env = dict(os.environ, **{var: value})
         plugin, kind = (rest[:-len(':twin')], 'twin') if rest.endswith(':twin') else (rest, '')
         if not os.path.isfile(plugin):
             ap.error(f'{v!r}: no plugin file {plugin!r}')
         if name in (n for n, _, _ in vs):
             ap.error(f'{v!r}: the name {name!r} is used twice')
         vs.append((name, os.path.abspath(plugin), kind == 'twin'))
+        envs[name] = env
     host = os.path.join(a.build, 'glimmer')
     scene = os.path.join(ROOT, 'examples', 'glint.xml')
     with tempfile.TemporaryDirectory() as tmp:
@@ -72,7 +83,8 @@ def main():
             for r in range(a.rounds):
                 k = r % len(vs)
                 for name, plugin, is_twin in vs[k:] + vs[:k]:
-                    t[name].append(render(host, plugin, twin if is_twin else scene, os.path.join(tmp, 'x.exr')))
+                    t[name].append(render(host, plugin, twin if is_twin else scene, os.path.join(tmp, 'x.exr'),
+                                          envs[name]))
                 print(r, ' '.join(f'{n}={t[n][-1]:.3f}' for n, _, _ in vs), flush=True)
         finally:
             if os.path.exists(twin):
