@@ -20,10 +20,11 @@
 //  glint/gi_scene_overhead          `glimmer render` of examples/glint.xml
 //      against the same scene with every glint_bsdf replaced by a GGX
 //      glossy_bsdf of the same roughness (subprocess, wall time of the render
-//      phase); rounds of renders in rotating order (as many per iteration
-//      as variants), the counters medians over the rounds of each round's
-//      ratio: overhead (goal
-//      <= 0.10), overhead_of_sums (the ratio of the summed times); with
+//      phase), in rounds of one render each, in rotating order (as many
+//      rounds per iteration as variants; the second iteration's orders
+//      reversed). Ratios are medians over the rounds of each round's own
+//      ratio: overhead (goal <= 0.10); overhead_of_sums is the ratio of the
+//      summed times; glint_s, ggx_s, .. are median render times. With
 //      $GLIMMER_BENCH_BASELINE_PLUGIN also base_s, base_overhead, glint_vs_base
 //      (the glint scene rendered with that plugin in the same rounds). Also the
 //      same-distribution twin (each glint_bsdf a glossy_bsdf of its own
@@ -287,19 +288,26 @@ void BM_GiSceneOverhead(benchmark::State &state) {
                             {&same, "/tmp/glimmer_bench_same.png", nullptr, {}},
                             {&src, "/tmp/glimmer_bench_glint.png", nullptr, {}}};
   if (baseline != nullptr) v.push_back({&src, "/tmp/glimmer_bench_base.png", baseline, {}});
-  bool failed = false;
-  for (auto _ : state)
-    for (size_t first = 0; first < v.size(); ++first)  // every variant first once per iteration: balanced positions
-      for (size_t k = 0; k < v.size(); ++k) {
-        Variant &x = v[(first + k) % v.size()];
+  // Every variant first once per iteration (balanced positions); odd iterations run each round's order backwards, so
+  // with 3 variants each one follows each other one equally often (a Williams design: carry-over balanced too).
+  std::string failed;
+  int64_t iteration = 0;
+  for (auto _ : state) {
+    for (size_t first = 0; first < v.size() && failed.empty(); ++first)
+      for (size_t k = 0; k < v.size() && failed.empty(); ++k) {
+        const size_t step = iteration % 2 == 0 ? k : v.size() - 1 - k;
+        Variant &x = v[(first + step) % v.size()];
         const double t = render_seconds(*x.scene, x.out, x.plugin);
-        failed = failed || !(t > 0.0);
+        if (!(t > 0.0)) failed = std::string("glimmer render failed: ") + *x.scene + (x.plugin ? " with " : "") +
+                                 (x.plugin ? x.plugin : "");
         x.seconds.push_back(t);
       }
+    ++iteration;
+  }
   std::remove(plain.c_str());
   std::remove(same.c_str());
-  if (failed) {
-    state.SkipWithError("glimmer render failed");
+  if (!failed.empty()) {
+    state.SkipWithError(failed.c_str());
     return;
   }
   auto median = [](std::vector<double> x) {

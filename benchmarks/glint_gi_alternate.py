@@ -56,14 +56,15 @@ def main():
     for v in a.variants:
         name, eq, rest = v.partition('=')
         if not eq or not name or not rest:
-            ap.error(f'{v!r}: expected NAME=PLUGIN or NAME=PLUGIN:twin')
-        rest, at, setting = rest.partition('@')
+            ap.error(f'{v!r}: expected NAME=PLUGIN[:twin][@VAR=VALUE]')
         env = None
-        if at:
+        head, at, setting = rest.rpartition('@')  # a path may hold '@': the setting is after the last one
+        if at and not os.path.isfile(rest) and not (rest.endswith(':twin') and os.path.isfile(rest[:-len(':twin')])):
             var, eq2, value = setting.partition('=')
-            if not eq2 or not var:
-                ap.error(f'{v!r}: expected @VAR=VALUE after the plugin')
+            if not eq2 or not re.fullmatch(r'[A-Za-z_][A-Za-z0-9_]*', var) or value.endswith(':twin'):
+                ap.error(f'{v!r}: expected NAME=PLUGIN[:twin]@VAR=VALUE (one setting, after :twin)')
             env = dict(os.environ, **{var: value})
+            rest = head
         plugin, kind = (rest[:-len(':twin')], 'twin') if rest.endswith(':twin') else (rest, '')
         if not os.path.isfile(plugin):
             ap.error(f'{v!r}: no plugin file {plugin!r}')
