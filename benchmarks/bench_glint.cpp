@@ -298,8 +298,9 @@ void BM_GiSceneOverhead(benchmark::State &state) {
         const size_t step = iteration % 2 == 0 ? k : v.size() - 1 - k;
         Variant &x = v[(first + step) % v.size()];
         const double t = render_seconds(*x.scene, x.out, x.plugin);
-        if (!(t > 0.0)) failed = std::string("glimmer render failed: ") + *x.scene + (x.plugin ? " with " : "") +
-                                 (x.plugin ? x.plugin : "");
+        if (!(t > 0.0))
+          failed = std::string("glimmer render failed: ") + *x.scene + (x.plugin ? " with " : "") +
+                   (x.plugin ? x.plugin : "");
         x.seconds.push_back(t);
       }
     ++iteration;
