@@ -121,10 +121,12 @@ int differing_evals(const host::ClosureInstance &a, const host::ClosureInstance 
   return differing;
 }
 
-// The median of the per-block times (the middle element; the blocks are alternated between closures).
-double median_ns(std::vector<double> v) {
+// The median of per-block or per-round values (the middle element, or the mean of the two middle ones for an even
+// count: the eval benchmarks' 25 blocks, the GI benchmark's rounds).
+double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
-  return v[v.size() / 2];
+  const size_t n = v.size();
+  return n % 2 == 1 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
 // glint and GGX eval on the same queries, interleaved blocks; median ns.
@@ -147,13 +149,13 @@ void glint_vs_ggx(benchmark::State &state, const std::vector<Query> &q,
     m_ns.push_back(time_block(*ggx, q));
     if (base) b_ns.push_back(time_block(*base, q));
   }
-  const double g = median_ns(g_ns), m = median_ns(m_ns);
+  const double g = median(g_ns), m = median(m_ns);
   state.counters["glint_ns"] = g;
   state.counters["ggx_ns"] = m;
   state.counters["ratio"] = g / m;
   if (base) {
-    state.counters["base_ns"] = median_ns(b_ns);
-    state.counters["base_ratio"] = median_ns(b_ns) / m;
+    state.counters["base_ns"] = median(b_ns);
+    state.counters["base_ratio"] = median(b_ns) / m;
   }
 }
 
@@ -206,15 +208,15 @@ void BM_GlintAnisoEval(benchmark::State &state) {
     m_ns.push_back(time_block(*ggx, q));
     if (base) b_ns.push_back(time_block(*base, q));
   }
-  const double a = median_ns(a_ns), i = median_ns(i_ns), m = median_ns(m_ns);
+  const double a = median(a_ns), i = median(i_ns), m = median(m_ns);
   state.counters["aniso_ns"] = a;
   state.counters["iso_ns"] = i;
   state.counters["ggx_ns"] = m;
   state.counters["aniso_vs_iso"] = a / i;
   state.counters["aniso_vs_ggx"] = a / m;
   if (base) {
-    state.counters["base_aniso_ns"] = median_ns(b_ns);
-    state.counters["aniso_vs_base"] = a / median_ns(b_ns);
+    state.counters["base_aniso_ns"] = median(b_ns);
+    state.counters["aniso_vs_base"] = a / median(b_ns);
   }
 }
 BENCHMARK(BM_GlintAnisoEval)->Name("glint/aniso_eval")->DenseRange(-8, 0, 2)->Iterations(25)->Unit(benchmark::kMillisecond);
@@ -299,8 +301,7 @@ void BM_GiSceneOverhead(benchmark::State &state) {
         Variant &x = v[(first + step) % v.size()];
         const double t = render_seconds(*x.scene, x.out, x.plugin);
         if (!(t > 0.0))
-          failed = std::string("glimmer render failed: ") + *x.scene + (x.plugin ? " with " : "") +
-                   (x.plugin ? x.plugin : "");
+          failed = "glimmer render failed: " + *x.scene + (x.plugin ? std::string(" with ") + x.plugin : "");
         x.seconds.push_back(t);
       }
     ++iteration;
@@ -311,11 +312,6 @@ void BM_GiSceneOverhead(benchmark::State &state) {
     state.SkipWithError(failed.c_str());
     return;
   }
-  auto median = [](std::vector<double> x) {
-    std::sort(x.begin(), x.end());
-    const size_t n = x.size();
-    return n % 2 == 1 ? x[n / 2] : 0.5 * (x[n / 2 - 1] + x[n / 2]);
-  };
   auto ratio = [&](const Variant &a, const Variant &b) {  // median over the rounds of a / b, minus 1
     std::vector<double> r;
     for (size_t i = 0; i < a.seconds.size(); ++i) r.push_back(a.seconds[i] / b.seconds[i]);
