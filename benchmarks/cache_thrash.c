@@ -6,6 +6,7 @@ int main(int argc, char **argv) {
   size_t mb = argc > 1 ? (size_t)atol(argv[1]) : 64;
   size_t n = mb << 20;
   volatile uint8_t *b = malloc(n);
+  if (b == NULL || n < 64) return 1;
   uint64_t x = 88172645463325252ull;
   for (;;) {
     for (size_t i = 0; i < n; i += 64) {
