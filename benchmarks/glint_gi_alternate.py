@@ -34,10 +34,12 @@ def median_ci(x, n=2000, seed=1):
     return m[int(0.025 * n)], m[int(0.975 * n)]
 
 
-def render(host, plugin, scene, out, env=None):
-    r = subprocess.run([host, '--plugin', plugin, 'render', scene, '-o', out, '--samples', '16', '--threads', '1',
-                        '--width', '320', '--height', '200', '--quiet', '--stats'], capture_output=True, text=True,
-                       env=env)
+def render(host, plugin, scene, out, env=None, cpu=None):
+    """The render phase's seconds of one render at the benchmark's settings (on CPU `cpu` when given: taskset)."""
+    pin = ['taskset', '-c', str(cpu)] if cpu is not None else []
+    r = subprocess.run(pin + [host, '--plugin', plugin, 'render', scene, '-o', out, '--samples', '16', '--threads',
+                              '1', '--width', '320', '--height', '200', '--quiet', '--stats'],
+                       capture_output=True, text=True, env=env)
     m = re.search(r'render=([0-9.]+)s', r.stdout + r.stderr)
     if r.returncode != 0 or not m:
         sys.exit(f"glint_gi_alternate: render failed ({plugin}, {scene}):\n{r.stderr}")
