@@ -39,9 +39,14 @@ Variant set_active(Variant variant) {
 const char *name(Variant variant) { return variant == Variant::kAvx2 ? "avx2" : "scalar"; }
 
 // Everything from here on is compiled for AVX2 and only called when supported(Variant::kAvx2). The inline
-// functions of sampler.h (included above) keep the baseline target and are inlined into these.
+// functions of sampler.h (included above) keep the baseline target and are inlined into these. Clang ignores GCC's
+// target pragma (`make fuzz` builds with clang), so there every function below takes the target attribute instead.
+#if defined(__clang__)
+#pragma clang attribute push(__attribute__((target("avx2"))), apply_to = function)
+#else
 #pragma GCC push_options
 #pragma GCC target("avx2")
+#endif
 
 namespace {
 
@@ -325,7 +330,11 @@ void scramble_to_floats_avx2(const uint32_t (&words)[8], const uint32_t (&seeds)
   _mm256_storeu_ps(out, reversed_to_unit_float8(x));
 }
 
+#if defined(__clang__)
+#pragma clang attribute pop
+#else
 #pragma GCC pop_options
+#endif
 
 }  // namespace glimmer::render::sampler_draw
 
