@@ -3,13 +3,15 @@
 
 GCC's `#pragma GCC target(...)` is ignored by clang, so code that relied on it compiled with g++ (every other build)
 and broke `make fuzz` (bridge/render/sampler_draw.cpp from 2026-12-02 to session 46). This check compiles, with
-clang++ and the project's include folders, each .cpp under bridge/, plugin/ and shared/ that names a target
-(`target("avx2")` in a pragma or an attribute) or includes a header there that does, and fails on any error.
+clang++ and the project's include folders, each .cpp under bridge/, plugin/, shared/ and fuzz/ that names a target
+(`target("...")` in a pragma or an attribute: avx2, fma, arch=...) or includes, directly or through other headers, a
+header that does, and fails on any error. Includes are resolved as the compiler does: beside the including file
+first, then in the include folders.
 
-Its negative control compiles a snippet that selects AVX2 only by GCC's pragma: clang must refuse it, or the check
-could not see the defect it exists for.
+Its negative control compiles a snippet that selects AVX2 only by GCC's pragma: clang must refuse it with "requires
+target feature", or the check could not see the defect it exists for.
 
-usage: tools/check_clang_target_code.py [--root DIR] [--clang clang++] [--jobs N]
+usage: tools/check_clang_target_code.py [--root DIR] [--clang clang++] [--jobs N] [--eigen-include DIR]
 Exit 0: every file compiled and the control failed; 1: a file failed or the control compiled; 77: no clang++.
 """
 import argparse
@@ -19,11 +21,10 @@ import re
 import shutil
 import subprocess
 import sys
-import tempfile
 
-TARGET = re.compile(r'target\("avx2')
+TARGET = re.compile(r'target\s*\(\s*"')
 INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"', re.M)
-FOLDERS = ("bridge", "plugin", "shared")
+FOLDERS = ("bridge", "plugin", "shared", "fuzz")
 INCLUDE_DIRS = ("bridge", "plugin", "shared/include")
 CONTROL = """#include <immintrin.h>
 #pragma GCC push_options
@@ -45,29 +46,32 @@ def sources(root):
     return files
 
 
-def headers_naming_a_target(root, files):
-    """Headers (by the name a quoted #include uses) that name a target, directly or through another header."""
-    by_name = {}
-    for path in files:
-        if path.endswith(".h"):
-            for d in INCLUDE_DIRS:
-                prefix = os.path.join(root, d) + os.sep
-                if path.startswith(prefix):
-                    by_name.setdefault(path[len(prefix):], path)
-    marked = {name for name, path in by_name.items() if TARGET.search(files[path])}
+def resolve(root, path, name, files):
+    """The file a quoted #include "name" in `path` names: beside `path` first, then in the include folders."""
+    for folder in [os.path.dirname(path)] + [os.path.join(root, d) for d in INCLUDE_DIRS]:
+        candidate = os.path.normpath(os.path.join(folder, name))
+        if candidate in files:
+            return candidate
+    return None
+
+
+def naming_a_target(root, files):
+    """The files (sources and headers) that name a target, directly or through the headers they include."""
+    includes = {p: [r for r in (resolve(root, p, n, files) for n in INCLUDE.findall(t)) if r] for p, t in files.items()}
+    marked = {p for p, t in files.items() if TARGET.search(t)}
     changed = True
     while changed:
         changed = False
-        for name, path in by_name.items():
-            if name not in marked and any(inc in marked for inc in INCLUDE.findall(files[path])):
-                marked.add(name)
+        for path, deps in includes.items():
+            if path not in marked and any(d in marked for d in deps):
+                marked.add(path)
                 changed = True
     return marked
 
 
-def compile_one(clang, root, path, text=None):
+def compile_one(clang, root, eigen, path, text=None):
     args = [clang, "-std=c++20", "-O1", "-c", "-o", os.devnull, "-Wno-unknown-pragmas"]
-    args += ["-I" + os.path.join(root, d) for d in INCLUDE_DIRS] + ["-isystem", "/usr/include/eigen3"]
+    args += ["-I" + os.path.join(root, d) for d in INCLUDE_DIRS] + ["-isystem", eigen]
     if text is None:
         args.append(path)
         return subprocess.run(args, capture_output=True, text=True)
@@ -79,27 +83,27 @@ def main():
     ap.add_argument("--root", default=os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
     ap.add_argument("--clang", default="clang++")
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
+    ap.add_argument("--eigen-include", default="/usr/include/eigen3")
     a = ap.parse_args()
     root = os.path.abspath(a.root)
     clang = shutil.which(a.clang)
     if not clang:
         print(f"no {a.clang}: skipped (make deps installs clang)")
         return 77
-    control = compile_one(clang, root, None, CONTROL)
-    if control.returncode == 0:
-        print("negative control compiled: clang accepted AVX2 selected by GCC's pragma alone; the check is blind")
+    control = compile_one(clang, root, a.eigen_include, None, CONTROL)
+    if control.returncode == 0 or "requires target feature" not in control.stderr:
+        print("negative control not refused for its target: clang accepted AVX2 selected by GCC's pragma alone,"
+              " or failed for another reason; the check is blind\n" + control.stderr[:500])
         return 1
     print("negative control: refused by clang, as it must be")
     files = sources(root)
-    marked = headers_naming_a_target(root, files)
-    units = sorted(p for p, t in files.items() if p.endswith(".cpp") and
-                   (TARGET.search(t) or any(inc in marked for inc in INCLUDE.findall(t))))
+    units = sorted(p for p in naming_a_target(root, files) if p.endswith(".cpp"))
     if not units:
         print("no source names a target: nothing to check")
         return 1
     failed = 0
     with concurrent.futures.ThreadPoolExecutor(max_workers=max(1, a.jobs)) as pool:
-        for path, r in zip(units, pool.map(lambda p: compile_one(clang, root, p), units)):
+        for path, r in zip(units, pool.map(lambda p: compile_one(clang, root, a.eigen_include, p), units)):
             rel = os.path.relpath(path, root)
             if r.returncode == 0:
                 print(f"ok     {rel}")
